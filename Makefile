@@ -1,0 +1,66 @@
+# Pushbroom — developer entry points. `make setup` is idempotent.
+SHELL := /bin/bash
+PY := .venv/bin/python
+APT_PACKAGES := qgis python3-qgis qgis-providers python3-gdal gdal-bin python3-scipy \
+                python3-matplotlib python3-numpy python3-venv python3-pip xvfb zip
+PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest-qgis==2.1.0 \
+            hypothesis==6.112.2 laspy==2.5.4
+VERSION := $(shell sed -n 's/^version=//p' metadata.txt)
+PROFILE := $(CURDIR)/build/qgis-profile
+SITE := $(CURDIR)/.venv/lib/python3.11/site-packages
+# qgis_process embeds the system Python: give it the venv's packages (numba) and a profile with the plugin
+QGIS_PROCESS := env QGIS_CUSTOM_CONFIG_PATH=$(PROFILE) PYTHONPATH=$(SITE) /usr/bin/qgis_process.bin
+export QT_QPA_PLATFORM ?= offscreen
+export PIP_DISABLE_PIP_VERSION_CHECK := 1
+
+.PHONY: setup test test-fast demo bench package clean
+
+setup: .venv/.setup-done $(PROFILE)/.enabled
+
+$(PROFILE)/.enabled: .venv/.setup-done metadata.txt
+	@mkdir -p $(PROFILE)/profiles/default/python/plugins
+	@ln -sfn $(CURDIR) $(PROFILE)/profiles/default/python/plugins/pushbroom
+	@$(QGIS_PROCESS) plugins enable pushbroom >/dev/null 2>&1 || true  # exits 1 when already enabled
+	@$(QGIS_PROCESS) list 2>/dev/null | grep -q 'pushbroom:createblock' || { echo "qgis_process does not list the Pushbroom provider"; exit 1; }
+	@touch $@
+
+.venv/.setup-done: pyproject.toml Makefile
+	@missing=$$(for p in $(APT_PACKAGES); do dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q 'ok installed' || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	  echo "apt: installing $$missing"; \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
+	@[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages .venv
+	@$(PY) -m pip install -q $(PIP_PINS) "numpy==$$(/usr/bin/python3 -c 'import numpy; print(numpy.__version__)')"
+	@$(PY) -m pip install -q --no-deps --no-build-isolation -e .
+	@$(PY) -c "import numpy, numba, qgis.core, osgeo.gdal; assert numpy.__version__.startswith('1.'), numpy.__version__"
+	@touch $@
+
+# The whole suite, slow end-to-end tests included (CI runs this).
+test: setup
+	$(PY) -m pytest -q tests
+
+# Without the slow end-to-end tests, for quick iterations.
+test-fast: setup
+	$(PY) -m pytest -q -m "not slow" tests
+
+# The main job on the built-in sample: simulate the SPOT-5 triplet over the Jacksboro DEM and make a block,
+# through qgis_process like a user's script would.
+demo: setup
+	@QGIS_PROCESS="$(QGIS_PROCESS)" bash scripts/demo.sh demo-output
+
+# Benchmarks: writes bench-output/benchmarks.md and prints it.
+bench: setup
+	$(PY) tests/benchmarks/run_all.py bench-output/benchmarks.md
+
+# The plugin zip for "Install from ZIP" in QGIS (tests and development files left out).
+package:
+	@rm -rf build/package && mkdir -p build/package/pushbroom dist
+	@cp -r metadata.txt __init__.py LICENSE README.md algorithms plugin ui resources build/package/pushbroom/
+	@find build/package -name __pycache__ -prune -exec rm -rf {} + ; find build/package -name '*.nb[ic]' -delete
+	@rm -f dist/pushbroom-$(VERSION).zip && cd build/package && zip -qr ../../dist/pushbroom-$(VERSION).zip pushbroom
+	@echo "dist/pushbroom-$(VERSION).zip"
+
+clean:
+	rm -rf build dist demo-output bench-output .venv

@@ -1,0 +1,157 @@
+"""The block store: one GeoPackage per block (DESIGN.md, "Data").
+
+Tables: `block_info` (key/value: format version, creation time, default CRS), `images` (one row per
+image: name, raster path, orientation source, model kind, sensor, size),
+`footprints` (polygon layer, EPSG:4326, the image border projected on a DEM or a mean height) and
+`run_log` (one row per processing step). A block is written under a temporary name and renamed,
+so a failed or cancelled creation leaves any existing block untouched."""
+import datetime
+import json
+import os
+
+from osgeo import ogr, osr
+
+from . import progress
+from .atomic import atomic_path
+from .errors import InputError, PushbroomError
+from .geodesy import utm_epsg
+
+FORMAT_VERSION = "1"
+IMAGE_FIELDS = [("name", ogr.OFTString), ("image_path", ogr.OFTString),
+                ("orientation_path", ogr.OFTString), ("model_kind", ogr.OFTString),
+                ("sensor", ogr.OFTString), ("cols", ogr.OFTInteger), ("rows", ogr.OFTInteger)]
+
+
+def describe_model(model):
+    """(model kind, sensor description) of a sensor model, for the images table."""
+    orientation = getattr(model, "orientation", None)
+    if orientation is not None:
+        sensor = f"SPOT {orientation.mission} {orientation.instrument}{orientation.instrument_index}"
+        return "spot_dimap", sensor.strip()
+    return "rpc", "RPC"
+
+
+def _create_layer(ds, name, geom_type, srs, fields):
+    layer = ds.CreateLayer(name, srs, geom_type, options=["FID=fid"])
+    for field_name, field_type in fields:
+        layer.CreateField(ogr.FieldDefn(field_name, field_type))
+    return layer
+
+
+def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=None):
+    """Create `path` (a .gpkg) from `images`, a list of (name, image_path, orientation_path, model).
+
+    Footprints are the image borders on `dem` (algorithms.dem.Dem) or at ellipsoidal `height`.
+    Refuses to replace an existing block unless `overwrite` is true."""
+    path = os.fspath(path)
+    if not path.lower().endswith(".gpkg"):
+        raise InputError(f"a block is a GeoPackage: give a path ending in .gpkg, not {path}")
+    if os.path.exists(path) and not overwrite:
+        raise InputError(f"block {path} exists already; set the overwrite parameter to replace it")
+    if not images:
+        raise InputError("a block needs at least one image")
+    names = [name for name, *_ in images]
+    if len(set(names)) != len(names):
+        raise InputError(f"image names must be unique in a block, got {names}")
+    wgs84 = osr.SpatialReference()
+    wgs84.ImportFromEPSG(4326)
+    wgs84.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    rings = []
+    for k, (name, _image, _orientation, model) in enumerate(images):
+        progress.step(feedback, 90.0 * k / len(images), f"footprint of {name}")
+        try:
+            rings.append(model.footprint(h=height, dem=dem))
+        except PushbroomError as exc:
+            raise InputError(f"cannot project the footprint of image {name}: {exc}") from exc
+    centre = sum(r[:-1].mean(axis=0) for r in rings) / len(rings)
+    ogr.UseExceptions()
+    with atomic_path(path) as tmp:
+        ds = ogr.GetDriverByName("GPKG").CreateDataSource(tmp)
+        info = _create_layer(ds, "block_info", ogr.wkbNone, None, [("key", ogr.OFTString), ("value", ogr.OFTString)])
+        for key, value in [("format_version", FORMAT_VERSION),
+                           ("created", datetime.datetime.now(datetime.timezone.utc).isoformat()),
+                           ("default_crs", f"EPSG:{utm_epsg(*centre)}"),
+                           ("footprint_height", "dem" if dem is not None else repr(float(height)))]:
+            feat = ogr.Feature(info.GetLayerDefn())
+            feat["key"], feat["value"] = key, value
+            info.CreateFeature(feat)
+        table = _create_layer(ds, "images", ogr.wkbNone, None, IMAGE_FIELDS)
+        footprints = _create_layer(ds, "footprints", ogr.wkbPolygon, wgs84,
+                                   [("image_id", ogr.OFTInteger), ("name", ogr.OFTString)])
+        for k, ((name, image, orientation, model), ring) in enumerate(zip(images, rings), start=1):
+            kind, sensor = describe_model(model)
+            feat = ogr.Feature(table.GetLayerDefn())
+            feat.SetFID(k)
+            cols, rows = model.size
+            for key, value in [("name", name), ("image_path", os.path.abspath(image) if image else ""),
+                               ("orientation_path", os.path.abspath(orientation)), ("model_kind", kind),
+                               ("sensor", sensor), ("cols", int(cols)), ("rows", int(rows))]:
+                feat[key] = value
+            table.CreateFeature(feat)
+            poly = ogr.Geometry(ogr.wkbPolygon)
+            lr = ogr.Geometry(ogr.wkbLinearRing)
+            for lon, lat in ring:
+                lr.AddPoint_2D(float(lon), float(lat))
+            poly.AddGeometry(lr)
+            feat = ogr.Feature(footprints.GetLayerDefn())
+            feat.SetFID(k)
+            feat["image_id"], feat["name"] = k, name
+            feat.SetGeometry(poly)
+            footprints.CreateFeature(feat)
+        log = _create_layer(ds, "run_log", ogr.wkbNone, None,
+                            [("time", ogr.OFTString), ("step", ogr.OFTString), ("parameters", ogr.OFTString),
+                             ("message", ogr.OFTString)])
+        feat = ogr.Feature(log.GetLayerDefn())
+        feat["time"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
+        feat["step"] = "createblock"
+        feat["parameters"] = json.dumps({"images": names, "height": height, "dem": dem is not None})
+        feat["message"] = f"block created with {len(images)} image(s)"
+        log.CreateFeature(feat)
+        ds = None
+        progress.step(feedback, 100.0)
+    return path
+
+
+def read_images(path):
+    """The images table of a block as a list of dicts (id, name, image_path, ...)."""
+    if not os.path.exists(path):
+        raise InputError(f"no block at {path}")
+    ds = ogr.Open(os.fspath(path))
+    layer = ds.GetLayerByName("images") if ds is not None else None
+    if layer is None:
+        raise InputError(f"{path} is not a Pushbroom block (no images table)")
+    rows = []
+    for feat in layer:
+        row = {"id": feat.GetFID()}
+        row.update({name: feat[name] for name, _ in IMAGE_FIELDS})
+        rows.append(row)
+    return rows
+
+
+def image_name(image_path):
+    """A readable image name: the product folder for DIMAP (…/HRS1/IMAGERY.TIF -> HRS1), else the stem."""
+    stem = os.path.splitext(os.path.basename(image_path))[0]
+    if stem.upper() == "IMAGERY" or os.path.basename(image_path).upper() == "METADATA.DIM":
+        return os.path.basename(os.path.dirname(os.path.abspath(image_path))) or stem
+    return stem
+
+
+def open_images(image_paths, orientation_paths=None):
+    """(name, image path, orientation path, model) per image; orientation found beside the image
+    unless given (same order)."""
+    from . import sensors
+    orientation_paths = list(orientation_paths or [])
+    if orientation_paths and len(orientation_paths) != len(image_paths):
+        raise InputError(f"{len(orientation_paths)} orientation files for {len(image_paths)} images: "
+                         "give one per image, in the same order, or none")
+    result, seen = [], set()
+    for k, image in enumerate(image_paths):
+        orientation = orientation_paths[k] if orientation_paths else sensors.orientation_source(image)
+        model = sensors.load(orientation, image=image)
+        name = image_name(image)
+        unique, n = name, 2
+        while unique in seen:
+            unique, n = f"{name}_{n}", n + 1
+        seen.add(unique)
+        result.append((unique, image, orientation, model))
+    return result

@@ -1,0 +1,24 @@
+"""The engine's exception types. Every user-facing failure raises one of these with a message
+that says what is wrong and what to do; the Processing layer turns them into
+QgsProcessingException."""
+
+
+class PushbroomError(Exception):
+    """Base class of all errors the engine raises on purpose."""
+
+
+class MetadataError(PushbroomError):
+    """Orientation metadata (DIMAP, RPC, model file) is unreadable, incomplete or inconsistent."""
+
+
+class InputError(PushbroomError):
+    """A parameter or a data set handed to the engine cannot be used as given."""
+
+
+class GeometryError(PushbroomError):
+    """A geometric computation has no answer (point outside the scene, ray misses the DEM,
+    iteration did not converge)."""
+
+
+class CancelledError(PushbroomError):
+    """The user cancelled a long step; nothing half-done was written under a final name."""

@@ -1,0 +1,78 @@
+"""Sensor models behind one interface (see base.SensorModel) and `load`, which opens any
+supported orientation source:
+
+- a SPOT 1-5 DIMAP METADATA.DIM (or its product folder, or its IMAGERY.TIF),
+- a raster with RPC metadata (GeoTIFF RPC tags, _RPC.TXT or .RPB beside it),
+- an RPC file (_RPC.TXT, .RPB) or an OSSIM/OTB .geom keyword list,
+- the project's own model file (*.pbmodel.json), as written by `save`.
+"""
+import os
+
+from ..errors import MetadataError
+from .base import SensorModel
+
+MODEL_FILE_SUFFIX = ".pbmodel.json"
+
+
+def _is_dimap(path):
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096)
+    except OSError:
+        return False
+    return b"<Dimap_Document" in head
+
+
+def orientation_source(path):
+    """The file holding the orientation of image (or folder) `path`: a DIMAP METADATA.DIM in the
+    product folder, an OSSIM .geom of the same stem, else the raster itself (GDAL reads RPCs from
+    its tags or from an _RPC.TXT / .RPB beside it)."""
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        dim = os.path.join(path, "METADATA.DIM")
+        if not os.path.exists(dim):
+            raise MetadataError(f"folder {path} holds no METADATA.DIM (not a SPOT DIMAP product)")
+        return dim
+    sibling = os.path.join(os.path.dirname(path), "METADATA.DIM")
+    if os.path.exists(sibling) and not _is_dimap(path):
+        return sibling
+    geom = os.path.splitext(path)[0] + ".geom"
+    if os.path.exists(geom) and geom != path:
+        return geom
+    return path
+
+
+def load(path, image=None):
+    """Open the orientation at `path` and return its SensorModel (see module docstring).
+
+    `image` is the raster the model describes when `path` is a separate orientation file: its size
+    is checked against the metadata, and a crop offset (Pleiades .geom crops) is honoured."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise MetadataError(f"no such file or folder: {path}")
+    if image is None and not path.lower().endswith(MODEL_FILE_SUFFIX):
+        source = orientation_source(path)
+        if source != path:
+            image, path = (path if not os.path.isdir(path) else None), source
+    lower = path.lower()
+    if lower.endswith(MODEL_FILE_SUFFIX):
+        from .model_file import load_model_file
+        return load_model_file(path)
+    if lower.endswith(".dim") or _is_dimap(path):
+        from .spot import SpotModel
+        return SpotModel.from_dimap(path, image=image)
+    from .rpc import RpcModel
+    if lower.endswith(".geom"):
+        return RpcModel.from_geom(path, image=image)
+    if lower.endswith((".rpb", "_rpc.txt")):
+        return RpcModel.from_rpc_file(path)
+    return RpcModel.from_raster(path)
+
+
+def save(model, path):
+    """Write `model` (with its corrections) to the project's own model file format."""
+    from .model_file import save_model_file
+    save_model_file(model, path)
+
+
+__all__ = ["SensorModel", "load", "save", "orientation_source", "MODEL_FILE_SUFFIX"]

@@ -1,0 +1,87 @@
+"""The sensor-model interface every model implements (DESIGN.md, "Sensor model interface").
+
+Image coordinates are (col, row) in GDAL's convention: (0, 0) is the top-left corner of the first
+pixel. Ground coordinates are WGS 84 longitude/latitude in degrees and ellipsoidal height in
+metres."""
+import numpy as np
+
+from ..errors import GeometryError
+
+
+class SensorModel:
+    """Abstract base: subclasses implement `size`, `image_to_ground` and `ground_to_image`."""
+
+    #: (cols, rows) of the image the model describes
+    size = (0, 0)
+
+    def image_to_ground(self, col, row, h):
+        """Ground (lon, lat) of image point (col, row) at ellipsoidal height h."""
+        raise NotImplementedError
+
+    def ground_to_image(self, lon, lat, h):
+        """Image (col, row) of ground point (lon, lat, h)."""
+        raise NotImplementedError
+
+    def image_to_dem(self, col, row, dem, samples=64, tol=1e-3):
+        """Ground (lon, lat, h) where the ray of (col, row) first meets the DEM surface.
+
+        Bracket and refine along the line of sight: heights from the DEM's maximum down to its
+        minimum are sampled (`samples` steps, so steep terrain and occlusions are bracketed by the
+        first sign change of h - dem(lon, lat)), then the bracket is refined by regula falsi with
+        bisection safeguards to `tol` metres. Raises GeometryError where a ray never meets the DEM
+        (outside its extent)."""
+        col, row = np.broadcast_arrays(np.asarray(col, dtype=np.float64), np.asarray(row, dtype=np.float64))
+        shape = col.shape
+        c, r = col.ravel(), row.ravel()
+        hmin, hmax = dem.height_range
+        hmin, hmax = hmin - 1.0, hmax + 1.0
+        hs = np.linspace(hmax, hmin, samples + 1)
+        n = c.size
+        hi = np.full(n, np.nan)
+        lo = np.full(n, np.nan)
+        fhi = np.full(n, np.nan)
+        flo = np.full(n, np.nan)
+        prev_h = None
+        prev_f = None
+        found = np.zeros(n, bool)
+        for h in hs:
+            lon, lat = self.image_to_ground(c, r, np.full(n, h))
+            f = h - dem.height(lon, lat)
+            if prev_f is not None:
+                new = ~found & (prev_f >= 0) & (f <= 0)
+                hi[new], fhi[new], lo[new], flo[new] = prev_h, prev_f[new], h, f[new]
+                found |= new
+            prev_h, prev_f = h, f
+        if not found.all():
+            bad = np.flatnonzero(~found)[0]
+            raise GeometryError(
+                f"the line of sight of image point ({c[bad]:.1f}, {r[bad]:.1f}) does not meet the DEM; "
+                "is the DEM covering the whole image footprint?")
+        for _ in range(60):
+            denom = fhi - flo
+            h = np.where(denom != 0, hi - fhi * (hi - lo) / np.where(denom != 0, denom, 1.0), 0.5 * (hi + lo))
+            h = np.where((h <= lo) | (h >= hi), 0.5 * (hi + lo), h)
+            lon, lat = self.image_to_ground(c, r, h)
+            f = h - dem.height(lon, lat)
+            f = np.where(np.isnan(f), -1.0, f)
+            upper = f > 0
+            hi = np.where(upper, h, hi)
+            fhi = np.where(upper, f, fhi)
+            lo = np.where(upper, lo, h)
+            flo = np.where(upper, flo, f)
+            if np.all(np.abs(f) < tol) or np.all(hi - lo < tol):
+                break
+        return lon.reshape(shape), lat.reshape(shape), h.reshape(shape)
+
+    def footprint(self, h=0.0, dem=None, per_side=16):
+        """Closed ring (N, 2) of (lon, lat) along the image border, at height h or on the DEM."""
+        cols, rows = self.size
+        t = np.linspace(0.0, 1.0, per_side + 1)[:-1]
+        c = np.concatenate([t * cols, np.full(per_side, cols), (1 - t) * cols, np.zeros(per_side)])
+        r = np.concatenate([np.zeros(per_side), t * rows, np.full(per_side, rows), (1 - t) * rows])
+        if dem is None:
+            lon, lat = self.image_to_ground(c, r, np.full(c.size, float(h)))
+        else:
+            lon, lat, _ = self.image_to_dem(c, r, dem)
+        ring = np.column_stack([lon, lat])
+        return np.vstack([ring, ring[:1]])

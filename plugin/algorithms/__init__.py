@@ -1,0 +1,7 @@
+"""One thin QgsProcessingAlgorithm per photogrammetric step."""
+
+
+def algorithm_classes():
+    """The algorithm classes the provider registers, in toolbox order."""
+    from .create_block import CreateBlock
+    return [CreateBlock]

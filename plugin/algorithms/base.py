@@ -1,0 +1,47 @@
+"""Common base of the Processing algorithms: naming, help, icon, and the translation of the
+engine's errors into QgsProcessingException (a clear message, never a traceback)."""
+from qgis.core import QgsProcessingAlgorithm, QgsProcessingException
+from qgis.PyQt.QtGui import QIcon
+
+from ...algorithms.errors import PushbroomError
+from ..plugin import resource_path
+
+
+class PushbroomAlgorithm(QgsProcessingAlgorithm):
+    """Subclasses set NAME, DISPLAY_NAME, GROUP, GROUP_ID, HELP and implement `run`."""
+
+    NAME = ""
+    DISPLAY_NAME = ""
+    GROUP = ""
+    GROUP_ID = ""
+    HELP = ""
+
+    def createInstance(self):  # noqa: N802 (QGIS API)
+        return type(self)()
+
+    def name(self):
+        return self.NAME
+
+    def displayName(self):  # noqa: N802 (QGIS API)
+        return self.DISPLAY_NAME
+
+    def group(self):
+        return self.GROUP
+
+    def groupId(self):  # noqa: N802 (QGIS API)
+        return self.GROUP_ID
+
+    def shortHelpString(self):  # noqa: N802 (QGIS API)
+        return self.HELP
+
+    def icon(self):
+        return QIcon(resource_path("icons", "pushbroom.svg"))
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 (QGIS API)
+        try:
+            return self.run(parameters, context, feedback)
+        except PushbroomError as exc:
+            raise QgsProcessingException(str(exc)) from exc
+
+    def run(self, parameters, context, feedback):
+        raise NotImplementedError

@@ -1,0 +1,49 @@
+"""pushbroom:createblock — images and their orientation into a block GeoPackage."""
+from qgis.core import (QgsProcessing, QgsProcessingParameterBoolean, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterMultipleLayers, QgsProcessingParameterNumber,
+                       QgsProcessingParameterRasterLayer, QgsProcessingOutputVectorLayer, QgsProcessingUtils)
+
+from ...algorithms import block
+from ...algorithms.dem import Dem
+from .base import PushbroomAlgorithm
+
+
+class CreateBlock(PushbroomAlgorithm):
+    NAME = "createblock"
+    DISPLAY_NAME = "Create block"
+    GROUP = "Block"
+    GROUP_ID = "block"
+    HELP = ("Creates a block GeoPackage from images and their supplied orientation: SPOT 1-5 DIMAP "
+            "(METADATA.DIM beside IMAGERY.TIF), rasters with RPC tags or _RPC.TXT/.RPB, or OSSIM .geom "
+            "files of the same name. The footprint of each image is projected on the DEM (ellipsoidal "
+            "heights) or at the mean height and loaded as a polygon layer. An existing block is only "
+            "replaced when 'Overwrite' is checked.")
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+        self.addParameter(QgsProcessingParameterMultipleLayers("IMAGES", "Images", QgsProcessing.TypeRaster))
+        self.addParameter(QgsProcessingParameterMultipleLayers(
+            "ORIENTATION", "Orientation files (one per image, same order; found beside the images if empty)",
+            QgsProcessing.TypeFile, optional=True))
+        self.addParameter(QgsProcessingParameterRasterLayer(
+            "DEM", "DEM for the footprints (ellipsoidal heights)", optional=True))
+        self.addParameter(QgsProcessingParameterNumber(
+            "HEIGHT", "Mean ellipsoidal height when no DEM is given (m)", QgsProcessingParameterNumber.Double, 0.0))
+        self.addParameter(QgsProcessingParameterBoolean("OVERWRITE", "Overwrite an existing block", False))
+        self.addParameter(QgsProcessingParameterFileDestination("OUTPUT", "Block", "GeoPackage (*.gpkg)"))
+        self.addOutput(QgsProcessingOutputVectorLayer("FOOTPRINTS", "Footprints", QgsProcessing.TypeVectorPolygon))
+
+    def run(self, parameters, context, feedback):
+        images = [layer.source() for layer in self.parameterAsLayerList(parameters, "IMAGES", context)]
+        orientation = self.parameterAsFileList(parameters, "ORIENTATION", context)
+        dem_layer = self.parameterAsRasterLayer(parameters, "DEM", context)
+        dem = Dem.from_file(dem_layer.source()) if dem_layer is not None else None
+        output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
+        opened = block.open_images(images, orientation)
+        block.create_block(output, opened, height=self.parameterAsDouble(parameters, "HEIGHT", context), dem=dem,
+                           overwrite=self.parameterAsBool(parameters, "OVERWRITE", context), feedback=feedback)
+        footprints = f"{output}|layername=footprints"
+        context.addLayerToLoadOnCompletion(
+            footprints, QgsProcessingUtils.LayerDetails("Footprints", context.project(), "FOOTPRINTS"))
+        feedback.pushInfo(f"block {output}: " + ", ".join(f"{name} ({model.size[0]} x {model.size[1]})"
+                                                          for name, _, _, model in opened))
+        return {"OUTPUT": output, "FOOTPRINTS": footprints}

@@ -1,0 +1,78 @@
+"""The plugin object QGIS creates through classFactory."""
+import os
+
+from qgis.core import QgsApplication
+
+PIP_HINT = "python3 -m pip install numba"
+APT_HINT = "sudo apt-get install python3-numba python3-scipy python3-gdal"
+
+
+def missing_dependencies():
+    """Names of required Python packages that cannot be imported."""
+    missing = []
+    for name in ("numpy", "numba", "scipy", "osgeo"):
+        try:
+            __import__(name)
+        except ImportError:
+            missing.append(name)
+    return missing
+
+
+def create_plugin(iface):
+    """The real plugin, or a stand-in that explains which packages are missing."""
+    missing = missing_dependencies()
+    if missing:
+        return MissingDependencyPlugin(iface, missing)
+    return PushbroomPlugin(iface)
+
+
+class PushbroomPlugin:
+    """Registers the Processing provider (kept alive by `self.provider`) and removes it on unload."""
+
+    def __init__(self, iface):
+        self.iface = iface
+        self.provider = None
+
+    def initProcessing(self):  # noqa: N802 (QGIS API)
+        from .provider import PushbroomProvider
+        self.provider = PushbroomProvider()
+        QgsApplication.processingRegistry().addProvider(self.provider)
+
+    def initGui(self):  # noqa: N802 (QGIS API)
+        self.initProcessing()
+
+    def unload(self):
+        if self.provider is not None:
+            QgsApplication.processingRegistry().removeProvider(self.provider)
+            self.provider = None
+
+
+class MissingDependencyPlugin:
+    """Loaded instead of the plugin when a dependency is missing: one clear message, no traceback."""
+
+    def __init__(self, iface, missing):
+        self.iface = iface
+        self.missing = missing
+
+    def message(self):
+        packages = ", ".join(self.missing)
+        return (f"Pushbroom needs the Python package(s) {packages}, which QGIS's Python cannot import. "
+                f"Install them for the Python that runs QGIS: on Debian/Ubuntu `{APT_HINT}`, "
+                f"elsewhere (Windows OSGeo4W shell, macOS) `{PIP_HINT}`; then restart QGIS.")
+
+    def initGui(self):  # noqa: N802 (QGIS API)
+        from qgis.core import Qgis, QgsMessageLog
+        QgsMessageLog.logMessage(self.message(), "Pushbroom", Qgis.Critical)
+        if self.iface is not None and hasattr(self.iface, "messageBar"):
+            self.iface.messageBar().pushMessage("Pushbroom", self.message(), level=Qgis.Critical, duration=0)
+
+    def initProcessing(self):  # noqa: N802 (QGIS API)
+        pass
+
+    def unload(self):
+        pass
+
+
+def resource_path(*parts):
+    """Absolute path of a file under resources/."""
+    return os.path.join(os.path.dirname(os.path.dirname(__file__)), "resources", *parts)

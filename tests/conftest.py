@@ -1,0 +1,36 @@
+"""Shared fixtures: the real data in ../shared/data (skipped with a reason where absent)."""
+import os
+import pathlib
+
+import pytest
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+SHARED_DATA = pathlib.Path(os.environ.get("PUSHBROOM_SHARED_DATA", REPO.parent / "shared" / "data"))
+
+
+def shared_file(*parts):
+    """Path of a file in ../shared/data, or skip the test with the reason it is missing."""
+    path = SHARED_DATA.joinpath(*parts)
+    if not path.exists():
+        pytest.skip(f"real test data not available: {path} (needs ../shared/data beside the repository)")
+    return path
+
+
+@pytest.fixture
+def spot5_dim():
+    return shared_file("spot5_hrg1_2005", "METADATA.DIM")
+
+
+@pytest.fixture
+def spot2_dim():
+    return shared_file("spot2_hrv1_1999", "METADATA.DIM")
+
+
+@pytest.fixture(params=["img_01.tif", "img_02.tif", "img_03.tif"])
+def triplet_image(request):
+    return shared_file("pleiades_triplet", request.param)
+
+
+@pytest.fixture(params=["left_image", "right_image"])
+def ventoux_image(request):
+    return shared_file("pleiades_pair_ventoux", request.param + ".tif")
