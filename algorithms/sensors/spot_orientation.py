@@ -11,15 +11,24 @@ from typing import Optional
 
 import numpy as np
 
+from ..errors import MetadataError
+
+#: largest NCOLS or NROWS accepted (SPOT 5 THR scenes have 24000)
+MAX_SIZE = 100000
+#: instruments each SPOT mission carries (MISSION_INDEX -> INSTRUMENT)
+INSTRUMENTS = {1: ("HRV",), 2: ("HRV",), 3: ("HRV",), 4: ("HIR", "HRVIR"), 5: ("HRG", "HRS")}
+
 
 @dataclass
 class Corrections:
     """Correction polynomials of methods.md section 4 (paper 000 eq. 2-4); zeros = none.
 
-    position[k, j]: coefficient j (degree j) of the correction of ECEF axis k over the normalised
-    time tau = (t - t_centre) / time_scale. attitude[k, j]: the same for yaw, pitch, roll (rad).
-    look[k, j]: coefficient j of the correction of psi_x (k=0) and psi_y (k=1) over the normalised
-    detector coordinate (p - p_c) / 1000 (p: column, p_c: centre column)."""
+    position[k, j]: coefficient j (degree j) of the correction of ECEF axis k (m) over the
+    normalised time tau = (t - t_centre) / time_scale, t_centre = SpotOrientation.centre_time; the
+    orbital frame follows the corrected trajectory. attitude[k, j]: the same for yaw, pitch, roll
+    (rad, added to the interpolated angles). look[k, j]: coefficient j of the correction of psi_x
+    (k=0) and psi_y (k=1) (rad) over the normalised detector coordinate (p - p_c) / 1000 (p: GDAL
+    column coordinate, p_c = ncols / 2). Applied inside the SpotModel kernels at every call."""
 
     position: np.ndarray = field(default_factory=lambda: np.zeros((3, 4)))
     attitude: np.ndarray = field(default_factory=lambda: np.zeros((3, 4)))
@@ -54,6 +63,70 @@ class SpotOrientation:
     corrections: Corrections = field(default_factory=Corrections)
     name: str = ""                    # dataset name, for messages
 
+    def validate(self):
+        """Raise MetadataError unless the orientation is complete and physically plausible."""
+        where = f"{self.name or 'SPOT scene'}: "
+
+        def fail(what, todo="check the METADATA.DIM against the delivered product"):
+            raise MetadataError(f"{where}{what}; {todo}")
+
+        if self.mission not in INSTRUMENTS:
+            fail(f"unknown SPOT mission {self.mission!r}", "only SPOT 1 to 5 level-1A scenes are supported")
+        if self.instrument not in INSTRUMENTS[self.mission]:
+            fail(f"instrument {self.instrument!r} does not fly on SPOT {self.mission} "
+                 f"(expected {' or '.join(INSTRUMENTS[self.mission])})")
+        if not (2 <= self.ncols <= MAX_SIZE and 1 <= self.nrows <= MAX_SIZE):
+            fail(f"raster size {self.ncols} x {self.nrows} is not the size of a SPOT scene")
+        _check_series(fail, "ephemeris", self.eph_t, {"position": self.eph_pos, "velocity": self.eph_vel}, 4)
+        radius = np.linalg.norm(self.eph_pos, axis=1)
+        speed = np.linalg.norm(self.eph_vel, axis=1)
+        if np.any(radius < 6.5e6) or np.any(radius > 5e7) or np.any(speed < 1e3) or np.any(speed > 1.2e4):
+            fail("ephemeris are not ECEF metres and metres/second of an Earth orbit "
+                 f"(|P| {radius.min():.4g}..{radius.max():.4g} m, |V| {speed.min():.4g}..{speed.max():.4g} m/s)")
+        _check_series(fail, "attitude", self.att_t, {"yaw/pitch/roll": self.att_ypr}, 1)
+        if np.any(np.abs(self.att_ypr) > 0.1):
+            fail("platform attitude angles exceed 0.1 rad (SPOT points with its mirror, the platform "
+                 "stays within a few mrad): are they degrees instead of radians?")
+        if self.speed_t is not None:
+            _check_series(fail, "angular speed", self.speed_t, {"yaw/pitch/roll rates": self.speed_ypr}, 1)
+            if np.any(np.abs(self.speed_ypr) > 0.01):
+                fail("angular speeds exceed 0.01 rad/s: are they degrees/s instead of rad/s?")
+        for label, psi in (("PSI_X", self.psi_x), ("PSI_Y", self.psi_y)):
+            psi = np.asarray(psi)
+            if psi.shape != (self.ncols,):
+                fail(f"{len(psi)} {label} look angles for {self.ncols} detectors",
+                     "every detector (column) needs its look angles")
+            if not np.all(np.isfinite(psi)) or np.any(np.abs(psi) > 0.8):
+                fail(f"{label} look angles must be finite radians within +-0.8")
+        step = np.diff(self.psi_y)
+        if not (np.all(step > 0) or np.all(step < 0)):
+            fail("PSI_Y is not strictly monotone along the detector array",
+                 "the look-angle table is corrupt or its DETECTOR_IDs are out of order")
+        if not (np.isfinite(self.line_period) and 0 < self.line_period < 1):
+            fail(f"LINE_PERIOD {self.line_period!r} s is not a line period")
+        if not (np.isfinite(self.centre_time) and np.isfinite(self.centre_row)):
+            fail("the scene-centre time or line is not a number")
+        first, last = self.row_time(0.0), self.row_time(float(self.nrows))
+        lo, hi = min(first, last), max(first, last)
+        if lo < self.eph_t[0] or hi > self.eph_t[-1]:
+            fail(f"the ephemeris ({self.eph_t[0]:.3f}..{self.eph_t[-1]:.3f} s) do not cover the acquisition "
+                 f"({lo:.3f}..{hi:.3f} s)", "the orbit must not be extrapolated; use the complete product")
+
     def row_time(self, row):
         """Acquisition time (s since epoch) of GDAL row coordinate `row`: t = t_c + (row - row_c) T."""
         return self.centre_time + (np.asarray(row, dtype=np.float64) - self.centre_row) * self.line_period
+
+
+def _check_series(fail, label, t, values, minimum):
+    """Times strictly increasing and finite, value arrays (n, 3) finite, at least `minimum` samples."""
+    t = np.asarray(t, dtype=np.float64)
+    if t.ndim != 1 or t.size < minimum:
+        fail(f"{t.size if t.ndim == 1 else 0} {label} samples (at least {minimum} needed)")
+    if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        fail(f"{label} times are not finite and strictly increasing")
+    for name, v in values.items():
+        v = np.asarray(v)
+        if v.shape != (t.size, 3):
+            fail(f"{label} {name} has shape {v.shape}, expected ({t.size}, 3)")
+        if not np.all(np.isfinite(v)):
+            fail(f"{label} {name} holds values that are not numbers")

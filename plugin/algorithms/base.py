@@ -8,7 +8,7 @@ from ..plugin import resource_path
 
 
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
-    """Subclasses set NAME, DISPLAY_NAME, GROUP, GROUP_ID, HELP and implement `run`."""
+    """Subclasses set NAME, DISPLAY_NAME, GROUP, GROUP_ID, HELP and implement `execute`."""
 
     NAME = ""
     DISPLAY_NAME = ""
@@ -39,9 +39,9 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 (QGIS API)
         try:
-            return self.run(parameters, context, feedback)
+            return self.execute(parameters, context, feedback)
         except PushbroomError as exc:
             raise QgsProcessingException(str(exc)) from exc
 
-    def run(self, parameters, context, feedback):
+    def execute(self, parameters, context, feedback):
         raise NotImplementedError

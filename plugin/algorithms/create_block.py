@@ -1,10 +1,11 @@
 """pushbroom:createblock — images and their orientation into a block GeoPackage."""
 from qgis.core import (QgsProcessing, QgsProcessingParameterBoolean, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterMultipleLayers, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterLayer, QgsProcessingOutputVectorLayer, QgsProcessingUtils)
+                       QgsProcessingParameterRasterLayer, QgsProcessingOutputVectorLayer)
 
 from ...algorithms import block
 from ...algorithms.dem import Dem
+from ..styles import load_styled
 from .base import PushbroomAlgorithm
 
 
@@ -32,9 +33,9 @@ class CreateBlock(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterFileDestination("OUTPUT", "Block", "GeoPackage (*.gpkg)"))
         self.addOutput(QgsProcessingOutputVectorLayer("FOOTPRINTS", "Footprints", QgsProcessing.TypeVectorPolygon))
 
-    def run(self, parameters, context, feedback):
+    def execute(self, parameters, context, feedback):
         images = [layer.source() for layer in self.parameterAsLayerList(parameters, "IMAGES", context)]
-        orientation = self.parameterAsFileList(parameters, "ORIENTATION", context)
+        orientation = [p for p in self.parameterAsFileList(parameters, "ORIENTATION", context) if p]
         dem_layer = self.parameterAsRasterLayer(parameters, "DEM", context)
         dem = Dem.from_file(dem_layer.source()) if dem_layer is not None else None
         output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
@@ -42,8 +43,7 @@ class CreateBlock(PushbroomAlgorithm):
         block.create_block(output, opened, height=self.parameterAsDouble(parameters, "HEIGHT", context), dem=dem,
                            overwrite=self.parameterAsBool(parameters, "OVERWRITE", context), feedback=feedback)
         footprints = f"{output}|layername=footprints"
-        context.addLayerToLoadOnCompletion(
-            footprints, QgsProcessingUtils.LayerDetails("Footprints", context.project(), "FOOTPRINTS"))
+        load_styled(context, footprints, "Footprints", "FOOTPRINTS", "footprints.qml")
         feedback.pushInfo(f"block {output}: " + ", ".join(f"{name} ({model.size[0]} x {model.size[1]})"
                                                           for name, _, _, model in opened))
         return {"OUTPUT": output, "FOOTPRINTS": footprints}

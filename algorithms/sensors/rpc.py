@@ -1,0 +1,369 @@
+"""The RPC00B rational polynomial sensor model (RPC, RFM) of Pleiades, IKONOS, WorldView, ...
+
+With ground coordinates normalised as
+
+    L = (lon - LONG_OFF) / LONG_SCALE,  P = (lat - LAT_OFF) / LAT_SCALE,  H = (h - HEIGHT_OFF) / HEIGHT_SCALE
+
+the normalised image coordinates are ratios of 20-term cubic polynomials
+
+    s = SAMP_NUM(L, P, H) / SAMP_DEN(L, P, H),   l = LINE_NUM(L, P, H) / LINE_DEN(L, P, H)
+
+with the terms in the RPC00B order (NITF STDI-0002, GDAL's RPCComputeTerms):
+
+    1 L P H LP LH PH L^2 P^2 H^2 PLH L^3 LP^2 LH^2 L^2P P^3 PH^2 L^2H P^2H H^3
+
+and the image point is (SAMP_OFF + s SAMP_SCALE, LINE_OFF + l LINE_SCALE) with RPC00B's pixel
+convention: the centre of the first pixel is (0, 0). This model works in GDAL's convention
+(DESIGN.md: the first pixel's top-left corner is (0, 0)) on the raster actually opened, a crop whose
+top-left corner lies at (col0, row0) of the image the RPC describes:
+
+    col = SAMP_OFF + s SAMP_SCALE + 0.5 - col0,   row = LINE_OFF + l LINE_SCALE + 0.5 - row0
+
+(the + 0.5 is what GDAL's RPC transformer adds too). The conversion happens once, when the
+model is built; the readers and writers are in rpc_io.py.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..errors import GeometryError, MetadataError
+from . import rpc_io
+from .base import SensorModel
+from .rpc_io import COEFF_KEYS, OFFSET_KEYS, SCALE_KEYS
+
+NUM_TERMS = 20
+
+#: image_to_ground stops when the image residual is below PX_TOL pixels and the last Newton step
+#: below DEG_TOL degrees
+PX_TOL = 1e-8
+DEG_TOL = 1e-10
+MAX_ITER = 50
+
+
+# ---------------------------------------------------------------------------------------------
+# numba kernels
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True, nogil=True)
+def _poly(c, x, y, z):
+    """RPC00B cubic with x = L (longitude), y = P (latitude), z = H (height), all normalised."""
+    return (c[0] + c[1] * x + c[2] * y + c[3] * z + c[4] * x * y + c[5] * x * z + c[6] * y * z
+            + c[7] * x * x + c[8] * y * y + c[9] * z * z + c[10] * x * y * z + c[11] * x * x * x
+            + c[12] * x * y * y + c[13] * x * z * z + c[14] * x * x * y + c[15] * y * y * y
+            + c[16] * y * z * z + c[17] * x * x * z + c[18] * y * y * z + c[19] * z * z * z)
+
+
+@njit(cache=True, nogil=True)
+def _poly_grad(c, x, y, z):
+    """(d/dx, d/dy, d/dz) of `_poly`."""
+    dx = (c[1] + c[4] * y + c[5] * z + 2.0 * c[7] * x + c[10] * y * z + 3.0 * c[11] * x * x
+          + c[12] * y * y + c[13] * z * z + 2.0 * c[14] * x * y + 2.0 * c[17] * x * z)
+    dy = (c[2] + c[4] * x + c[6] * z + 2.0 * c[8] * y + c[10] * x * z + 2.0 * c[12] * x * y
+          + c[14] * x * x + 3.0 * c[15] * y * y + c[16] * z * z + 2.0 * c[18] * y * z)
+    dz = (c[3] + c[5] * x + c[6] * y + 2.0 * c[9] * z + c[10] * x * y + 2.0 * c[13] * x * z
+          + 2.0 * c[16] * y * z + c[17] * x * x + c[18] * y * y + 3.0 * c[19] * z * z)
+    return dx, dy, dz
+
+
+@njit(cache=True, nogil=True)
+def _rational_grad(num, den, x, y, z):
+    """q = num / den and its gradient by the quotient rule: dq = (dnum - q dden) / den."""
+    d = _poly(den, x, y, z)
+    q = _poly(num, x, y, z) / d
+    nx, ny, nz = _poly_grad(num, x, y, z)
+    dx, dy, dz = _poly_grad(den, x, y, z)
+    return q, (nx - q * dx) / d, (ny - q * dy) / d, (nz - q * dz) / d
+
+
+@njit(cache=True, nogil=True)
+def _ground_to_image_kernel(lon, lat, h, coef, nrm, col, row):
+    """col, row of (lon, lat, h); coef rows: LINE_NUM, LINE_DEN, SAMP_NUM, SAMP_DEN; nrm: see
+    RpcModel._nrm."""
+    for i in range(lon.size):
+        x = (lon[i] - nrm[0]) / nrm[1]
+        y = (lat[i] - nrm[2]) / nrm[3]
+        z = (h[i] - nrm[4]) / nrm[5]
+        col[i] = _poly(coef[2], x, y, z) / _poly(coef[3], x, y, z) * nrm[7] + nrm[6]
+        row[i] = _poly(coef[0], x, y, z) / _poly(coef[1], x, y, z) * nrm[9] + nrm[8]
+
+
+@njit(cache=True, nogil=True)
+def _partials_kernel(lon, lat, h, coef, nrm, out):
+    """out[i] = d(col, row) / d(lon, lat, h) as a 2 x 3 matrix (px/deg, px/deg, px/m)."""
+    for i in range(lon.size):
+        x = (lon[i] - nrm[0]) / nrm[1]
+        y = (lat[i] - nrm[2]) / nrm[3]
+        z = (h[i] - nrm[4]) / nrm[5]
+        _, sx, sy, sz = _rational_grad(coef[2], coef[3], x, y, z)
+        _, lx, ly, lz = _rational_grad(coef[0], coef[1], x, y, z)
+        out[i, 0, 0] = sx * nrm[7] / nrm[1]
+        out[i, 0, 1] = sy * nrm[7] / nrm[3]
+        out[i, 0, 2] = sz * nrm[7] / nrm[5]
+        out[i, 1, 0] = lx * nrm[9] / nrm[1]
+        out[i, 1, 1] = ly * nrm[9] / nrm[3]
+        out[i, 1, 2] = lz * nrm[9] / nrm[5]
+
+
+@njit(cache=True, nogil=True)
+def _residual(coef, nrm, x, y, z, s_goal, l_goal):
+    """Image residual (pixels) of normalised ground (x, y, z) and its Jacobian in normalised units."""
+    s, sx, sy, _ = _rational_grad(coef[2], coef[3], x, y, z)
+    ln, lx, ly, _ = _rational_grad(coef[0], coef[1], x, y, z)
+    return (s - s_goal) * nrm[7], (ln - l_goal) * nrm[9], sx * nrm[7], sy * nrm[7], lx * nrm[9], ly * nrm[9]
+
+
+@njit(cache=True, nogil=True)
+def _image_to_ground_one(coef, nrm, col, row, h, px_tol, deg_tol, max_iter):
+    """Newton's method with step halving on (L, P) for fixed H, started at the ground offsets.
+
+    Returns (lon, lat, status): status 0 converged, 1 not converged, 2 singular or non-finite."""
+    s_goal = (col - nrm[6]) / nrm[7]
+    l_goal = (row - nrm[8]) / nrm[9]
+    z = (h - nrm[4]) / nrm[5]
+    x = 0.0
+    y = 0.0
+    fs, fl, a, b, c, d = _residual(coef, nrm, x, y, z, s_goal, l_goal)
+    r2 = fs * fs + fl * fl
+    step = math.inf
+    for _ in range(max_iter):
+        if not math.isfinite(r2):
+            return math.nan, math.nan, 2
+        if abs(fs) < px_tol and abs(fl) < px_tol and step < deg_tol:
+            return x * nrm[1] + nrm[0], y * nrm[3] + nrm[2], 0
+        det = a * d - b * c
+        if det == 0.0 or not math.isfinite(det):
+            return math.nan, math.nan, 2
+        dx = (b * fl - d * fs) / det
+        dy = (c * fs - a * fl) / det
+        t = 1.0
+        while True:
+            fs, fl, a, b, c, d = _residual(coef, nrm, x + t * dx, y + t * dy, z, s_goal, l_goal)
+            r2_new = fs * fs + fl * fl
+            if r2_new <= r2 or t < 1e-6:
+                break
+            t *= 0.5
+        x += t * dx
+        y += t * dy
+        r2 = r2_new
+        step = t * max(abs(dx) * abs(nrm[1]), abs(dy) * abs(nrm[3]))
+    return math.nan, math.nan, 1
+
+
+@njit(cache=True, nogil=True)
+def _image_to_ground_kernel(col, row, h, coef, nrm, px_tol, deg_tol, max_iter, lon, lat, status):
+    """(lon, lat) of image points (col, row) at heights h; NaN in, NaN out (status 0)."""
+    for i in range(col.size):
+        if math.isnan(col[i]) or math.isnan(row[i]) or math.isnan(h[i]):
+            lon[i] = math.nan
+            lat[i] = math.nan
+            status[i] = 0
+        else:
+            lon[i], lat[i], status[i] = _image_to_ground_one(coef, nrm, col[i], row[i], h[i],
+                                                             px_tol, deg_tol, max_iter)
+
+
+# ---------------------------------------------------------------------------------------------
+# coefficients and model
+# ---------------------------------------------------------------------------------------------
+
+def _metadata_error(source, what):
+    return MetadataError(f"{source}: {what}. The RPC cannot be used; check the file or export the "
+                         "RPC again from the product's original metadata.")
+
+
+def _number(text, key, source):
+    """A finite float from a number or a text whose first token is one ('+018339.50 pixels')."""
+    token = text.split()[0] if isinstance(text, str) and text.split() else text
+    try:
+        value = float(token)
+    except (TypeError, ValueError):
+        raise _metadata_error(source, f"{key} is not a number: {str(text)[:40]!r}") from None
+    if not math.isfinite(value):
+        raise _metadata_error(source, f"{key} is not finite ({value})")
+    return value
+
+
+def _coefficient_list(value, key, source):
+    """20 finite floats from a text of numbers separated by blanks or commas, or a sequence."""
+    items = value.replace(",", " ").split() if isinstance(value, str) else list(np.atleast_1d(value))
+    if len(items) != NUM_TERMS:
+        raise _metadata_error(source, f"{key} has {len(items)} values; RPC00B needs {NUM_TERMS}")
+    return np.array([_number(v, f"{key}[{i + 1}]", source) for i, v in enumerate(items)])
+
+
+@dataclass(frozen=True, eq=False)
+class RpcCoefficients:
+    """The 90 RPC00B values as in the file: polynomial coefficients in RPC00B term order, offsets
+    and scales; LINE_OFF/SAMP_OFF in RPC00B's convention (first pixel centre at (0, 0)) of the
+    image the RPC describes."""
+
+    line_num: np.ndarray
+    line_den: np.ndarray
+    samp_num: np.ndarray
+    samp_den: np.ndarray
+    line_off: float
+    samp_off: float
+    lat_off: float
+    long_off: float
+    height_off: float
+    line_scale: float
+    samp_scale: float
+    lat_scale: float
+    long_scale: float
+    height_scale: float
+
+    @classmethod
+    def from_fields(cls, fields, source="RPC"):
+        """Parse and check a mapping with the RPC00B (GDAL metadata) names: LINE_OFF ... as numbers
+        or texts, LINE_NUM_COEFF ... as 20 numbers (text or sequence). `source` names the origin
+        in error messages. Raises MetadataError on missing, non-numeric, non-finite, zero-scale,
+        wrong-count values, or a denominator that vanishes at the normalisation centre."""
+        missing = [k for k in OFFSET_KEYS + SCALE_KEYS + COEFF_KEYS if k not in fields]
+        if missing:
+            raise _metadata_error(source, f"missing {', '.join(missing)}")
+        values = {k.lower(): _number(fields[k], k, source) for k in OFFSET_KEYS + SCALE_KEYS}
+        for key in SCALE_KEYS:
+            if values[key.lower()] == 0.0:
+                raise _metadata_error(source, f"{key} is zero")
+        arrays = {k.lower()[:8]: _coefficient_list(fields[k], k, source) for k in COEFF_KEYS}
+        for key in ("line_den", "samp_den"):
+            if arrays[key][0] == 0.0:
+                raise _metadata_error(source, f"{key.upper()}_COEFF vanishes at the normalisation "
+                                              "centre (its first coefficient is 0)")
+        for a in arrays.values():
+            a.setflags(write=False)
+        return cls(**arrays, **values)
+
+    def to_fields(self, col0=0.0, row0=0.0):
+        """GDAL 'RPC' metadata (name -> text, exact float repr), LINE_OFF/SAMP_OFF shifted to a
+        crop whose top-left corner is at (col0, row0) of the image the RPC describes."""
+        fields = {
+            "LINE_OFF": self.line_off - row0, "SAMP_OFF": self.samp_off - col0,
+            "LAT_OFF": self.lat_off, "LONG_OFF": self.long_off, "HEIGHT_OFF": self.height_off,
+            "LINE_SCALE": self.line_scale, "SAMP_SCALE": self.samp_scale,
+            "LAT_SCALE": self.lat_scale, "LONG_SCALE": self.long_scale,
+            "HEIGHT_SCALE": self.height_scale}
+        fields = {k: repr(float(v)) for k, v in fields.items()}
+        for key, array in zip(COEFF_KEYS, (self.line_num, self.line_den, self.samp_num, self.samp_den)):
+            fields[key] = " ".join(repr(float(v)) for v in array)
+        return fields
+
+
+def _flat(*arrays):
+    """The broadcast shape and each array as a contiguous, writable 1-D float64 array of it."""
+    arrays = [np.asarray(a, dtype=np.float64) for a in arrays]
+    shape = np.broadcast_shapes(*(a.shape for a in arrays))
+    return shape, [a.ravel() if a.shape == shape and a.flags.c_contiguous and a.flags.writeable
+                   else np.broadcast_to(a, shape).flatten() for a in arrays]
+
+
+def _shaped(a, shape):
+    """`a` reshaped to `shape`; a numpy scalar for shape ()."""
+    return a.reshape(shape)[()]
+
+
+class RpcModel(SensorModel):
+    """RPC00B model in GDAL's pixel convention on a raster whose top-left corner lies at
+    `offset` = (col0, row0) of the image the RPC describes (module docstring).
+
+    `size` is the raster's (cols, rows); where no raster is known it is estimated as the upper end
+    of the RPC's image normalisation, ceil(SAMP_OFF + 0.5 + |SAMP_SCALE| - col0) and likewise for
+    rows (the RPC's validity domain)."""
+
+    def __init__(self, coefficients, size=None, offset=(0.0, 0.0), source="RPC"):
+        self.coefficients = coefficients
+        self.offset = (float(offset[0]), float(offset[1]))
+        self.source = str(source)
+        c = coefficients
+        col0, row0 = self.offset
+        self._coef = np.array([c.line_num, c.line_den, c.samp_num, c.samp_den])
+        self._nrm = np.array([c.long_off, c.long_scale, c.lat_off, c.lat_scale, c.height_off,
+                              c.height_scale, c.samp_off + 0.5 - col0, c.samp_scale,
+                              c.line_off + 0.5 - row0, c.line_scale])
+        if size is None:
+            size = (math.ceil(c.samp_off + 0.5 + abs(c.samp_scale) - col0),
+                    math.ceil(c.line_off + 0.5 + abs(c.line_scale) - row0))
+        self.size = (int(size[0]), int(size[1]))
+
+    def __repr__(self):
+        return f"RpcModel({self.source!r}, size={self.size}, offset={self.offset})"
+
+    # -- readers (formats in rpc_io) ------------------------------------------------------------
+
+    @classmethod
+    def _from_record(cls, record):
+        return cls(RpcCoefficients.from_fields(record.fields, record.source), record.size,
+                   record.offset, record.source)
+
+    @classmethod
+    def from_raster(cls, path):
+        """RPC of a raster as GDAL reads it (metadata domain 'RPC': GeoTIFF RPC tags, or _RPC.TXT /
+        .RPB beside it); where GDAL finds none, a same-stem OSSIM .geom beside it (with the crop
+        offset of the raster's geotransform, see from_geom)."""
+        return cls._from_record(rpc_io.read_raster(path))
+
+    @classmethod
+    def from_rpc_file(cls, path):
+        """RPC of a _RPC.TXT or .RPB file, parsed directly; the size is that of a same-stem raster
+        beside it, if there is one."""
+        return cls._from_record(rpc_io.read_rpc_file(path))
+
+    @classmethod
+    def from_geom(cls, path, image=None):
+        """RPC of an OSSIM/OTB .geom keyword list (OSSIM's image coordinates are RPC00B's: first
+        pixel centre at (0, 0); polynomial_format A is reordered to RPC00B). `image` (default: a
+        same-stem raster beside it, if any) is the raster the model refers to; its geotransform
+        origin, a pure pixel translation as OTB writes for an extract, is the crop offset (col0,
+        row0). Without a raster the model describes the full image (number_samples, number_lines)."""
+        return cls._from_record(rpc_io.read_geom(path, image))
+
+    def to_fields(self):
+        """GDAL 'RPC' metadata of this model on its own raster (offsets shifted by the crop)."""
+        return self.coefficients.to_fields(*self.offset)
+
+    # -- geometry -----------------------------------------------------------------------------------
+
+    @property
+    def height_range(self):
+        """(min, max) ellipsoidal height of the RPC's validity domain: HEIGHT_OFF -+ HEIGHT_SCALE."""
+        c = self.coefficients
+        return c.height_off - abs(c.height_scale), c.height_off + abs(c.height_scale)
+
+    def ground_to_image(self, lon, lat, h):
+        """(col, row) of ground points (lon, lat, h): direct evaluation of the rational functions."""
+        shape, (lon, lat, h) = _flat(lon, lat, h)
+        col = np.empty(lon.size)
+        row = np.empty(lon.size)
+        _ground_to_image_kernel(lon, lat, h, self._coef, self._nrm, col, row)
+        return _shaped(col, shape), _shaped(row, shape)
+
+    def image_to_ground(self, col, row, h):
+        """(lon, lat) of image points at ellipsoidal heights h, by Newton's method on the rational
+        functions (analytic Jacobian, step halving), started at (LONG_OFF, LAT_OFF) and iterated to
+        below 1e-8 px and 1e-10 deg. Raises GeometryError where it does not converge."""
+        shape, (col, row, h) = _flat(col, row, h)
+        lon = np.empty(col.size)
+        lat = np.empty(col.size)
+        status = np.empty(col.size, dtype=np.int8)
+        _image_to_ground_kernel(col, row, h, self._coef, self._nrm, PX_TOL, DEG_TOL, MAX_ITER,
+                                lon, lat, status)
+        bad = np.flatnonzero(status)
+        if bad.size:
+            i = bad[0]
+            raise GeometryError(
+                f"{self.source}: no ground point found for {bad.size} of {col.size} image points, "
+                f"e.g. ({col[i]:.2f}, {row[i]:.2f}) at height {h[i]:.1f} m: the iteration "
+                f"{'did not converge' if status[i] == 1 else 'met a singular Jacobian'}. Is the point "
+                f"inside the image ({self.size[0]} x {self.size[1]} px) and the height within the "
+                f"RPC's range {self.height_range[0]:.0f} .. {self.height_range[1]:.0f} m?")
+        return _shaped(lon, shape), _shaped(lat, shape)
+
+    def partials(self, lon, lat, h):
+        """d(col, row) / d(lon, lat, h), shape (..., 2, 3): rows col, row; columns lon, lat
+        (px/deg) and h (px/m); by the quotient rule on the rational functions."""
+        shape, (lon, lat, h) = _flat(lon, lat, h)
+        out = np.empty((lon.size, 2, 3))
+        _partials_kernel(lon, lat, h, self._coef, self._nrm, out)
+        return out.reshape(shape + (2, 3))

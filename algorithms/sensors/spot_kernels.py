@@ -1,0 +1,397 @@
+"""numba kernels of the rigorous SPOT model (spot.SpotModel builds their packed inputs).
+
+Packed inputs:
+    eph    (n, 8)     Lagrange window, rows [t, w, X, Y, Z, VX, VY, VZ]; w_j = 1 / prod_k!=j (t_j - t_k)
+    att_t  (m,)       attitude sample times; att_v (m, 3) yaw, pitch, roll (rad), linear in time,
+                      held constant outside the samples
+    look   (ncols, 2) psi_x, psi_y of detector k, whose centre is column k + 0.5 (GDAL convention)
+    prm    (5,)       t_c, r_c, line period T, correction time scale, correction centre column p_c
+    corr   (8, 4)     correction polynomials, rows X, Y, Z (m), yaw, pitch, roll, psi_x, psi_y (rad),
+                      column j = coefficient of degree j (Corrections in spot_orientation.py)
+
+Line time t = t_c + (row - r_c) T; corrections are evaluated at tau = (t - t_c) / time_scale and
+q = (col - p_c) / 1000. Ground point X = P + mu R32 R21 u1 (spot_frames).
+"""
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..dem import bilinear_scalar
+from ..geodesy import A, B, E2, EP2, ecef_to_geodetic_scalar, geodetic_to_ecef_scalar
+from .spot_frames import (attitude_rotation, look_angles, look_vector, mat_mul, mat_t_vec, mat_vec,
+                          orbital_rotation)
+
+NAN = math.nan
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def lagrange(eph, t):
+    """Position and velocity at t: Lagrange polynomial through the window's samples (barycentric form
+    sum_j w_j/(t - t_j) y_j / sum_j w_j/(t - t_j))."""
+    den = px = py = pz = vx = vy = vz = 0.0
+    for j in range(eph.shape[0]):
+        d = t - eph[j, 0]
+        if d == 0.0:
+            return eph[j, 2], eph[j, 3], eph[j, 4], eph[j, 5], eph[j, 6], eph[j, 7]
+        c = eph[j, 1] / d
+        den += c
+        px += c * eph[j, 2]
+        py += c * eph[j, 3]
+        pz += c * eph[j, 4]
+        vx += c * eph[j, 5]
+        vy += c * eph[j, 6]
+        vz += c * eph[j, 7]
+    return px / den, py / den, pz / den, vx / den, vy / den, vz / den
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def poly3(corr, i, x):
+    """sum_j corr[i, j] x^j."""
+    return ((corr[i, 3] * x + corr[i, 2]) * x + corr[i, 1]) * x + corr[i, 0]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def poly3_slope(corr, i, x):
+    """d/dx of poly3(corr, i, x)."""
+    return (3.0 * corr[i, 3] * x + 2.0 * corr[i, 2]) * x + corr[i, 1]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def attitude(att_t, att_v, t):
+    """Yaw, pitch, roll at t: linear between samples, constant outside."""
+    m = att_t.size
+    if m == 1 or t <= att_t[0]:
+        return att_v[0, 0], att_v[0, 1], att_v[0, 2]
+    if t >= att_t[m - 1]:
+        return att_v[m - 1, 0], att_v[m - 1, 1], att_v[m - 1, 2]
+    k = np.searchsorted(att_t, t) - 1
+    f = (t - att_t[k]) / (att_t[k + 1] - att_t[k])
+    return (att_v[k, 0] + f * (att_v[k + 1, 0] - att_v[k, 0]),
+            att_v[k, 1] + f * (att_v[k + 1, 1] - att_v[k, 1]),
+            att_v[k, 2] + f * (att_v[k + 1, 2] - att_v[k, 2]))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def line_state(eph, att_t, att_v, prm, corr, t):
+    """Corrected position P and rotation M = R32 R21 (navigation -> ECEF) at time t.
+
+    The orbital frame is built from the corrected trajectory (P + dP, V + d(dP)/dt)."""
+    px, py, pz, vx, vy, vz = lagrange(eph, t)
+    tau = (t - prm[0]) / prm[3]
+    px += poly3(corr, 0, tau)
+    py += poly3(corr, 1, tau)
+    pz += poly3(corr, 2, tau)
+    vx += poly3_slope(corr, 0, tau) / prm[3]
+    vy += poly3_slope(corr, 1, tau) / prm[3]
+    vz += poly3_slope(corr, 2, tau) / prm[3]
+    yaw, pitch, roll = attitude(att_t, att_v, t)
+    m = mat_mul(orbital_rotation(px, py, pz, vx, vy, vz),
+                attitude_rotation(yaw + poly3(corr, 3, tau), pitch + poly3(corr, 4, tau),
+                                  roll + poly3(corr, 5, tau)))
+    return px, py, pz, m
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _segment(look, col):
+    """Table segment k (0..n-2) and fraction f of column coordinate col (extrapolates at the ends)."""
+    x = col - 0.5
+    k = min(max(int(math.floor(x)), 0), look.shape[0] - 2)
+    return k, x - k
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def detector_angles(look, prm, corr, col):
+    """(psi_x, psi_y) at column coordinate col: the table, linear between detector centres, plus the
+    look-angle corrections in q = (col - p_c) / 1000."""
+    k, f = _segment(look, col)
+    q = (col - prm[4]) * 1e-3
+    return (look[k, 0] + f * (look[k + 1, 0] - look[k, 0]) + poly3(corr, 6, q),
+            look[k, 1] + f * (look[k + 1, 1] - look[k, 1]) + poly3(corr, 7, q))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def column_of(look, prm, corr, psi_y):
+    """Column coordinate whose (corrected) psi_y equals `psi_y`: bisection in the monotone table,
+    then Newton steps for the correction polynomial."""
+    n = look.shape[0]
+    s = 1.0 if look[n - 1, 1] > look[0, 1] else -1.0
+    lo, hi = 0, n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if s * look[mid, 1] <= s * psi_y:
+            lo = mid
+        else:
+            hi = mid
+    col = lo + 0.5 + (psi_y - look[lo, 1]) / (look[lo + 1, 1] - look[lo, 1])
+    for _ in range(30):
+        k, f = _segment(look, col)
+        g = detector_angles(look, prm, corr, col)[1] - psi_y
+        slope = look[k + 1, 1] - look[k, 1] + poly3_slope(corr, 7, (col - prm[4]) * 1e-3) * 1e-3
+        step = g / slope
+        col -= step
+        if not abs(step) > 1e-10:
+            break
+    return col
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def bowring(p, z):
+    """Geodetic (cos lat, sin lat, h) of a point at distance p from the polar axis and height z above
+    the equator plane: Bowring's formula, one step without trigonometry (error < 1e-6 m in
+    latitude and 1e-8 m in height for |h| < 10 km, 1e-4 m at 100 km)."""
+    r = math.hypot(z * A, p * B)
+    st, ct = z * A / r, p * B / r
+    num = z + EP2 * B * st * st * st
+    den = p - E2 * A * ct * ct * ct
+    n = math.hypot(num, den)
+    cl, sl = den / n, num / n
+    return cl, sl, p * cl + z * sl - A * math.sqrt(1.0 - E2 * sl * sl)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def ray_height(px, py, pz, ux, uy, uz, h):
+    """First point of the ray P + mu u (mu > 0) at ellipsoidal height h: (X, Y, Z, lon, lat), NaNs
+    if none.
+
+    Exact root of the quadratic on the ellipsoid with semi-axes (a + h, b + h) (exact for h = 0),
+    then Newton steps on the geodetic height along the ray (dh/dmu = n.u, n the ellipsoid normal)
+    until it is within 1e-7 m of h. Heights by `bowring` (geodesy's full conversion above 100 km)."""
+    a2 = (A + h) * (A + h)
+    b2 = (B + h) * (B + h)
+    qa = (ux * ux + uy * uy) / a2 + uz * uz / b2
+    qb = 2.0 * ((px * ux + py * uy) / a2 + pz * uz / b2)
+    qc = (px * px + py * py) / a2 + pz * pz / b2 - 1.0
+    disc = qb * qb - 4.0 * qa * qc
+    mu = (-qb - math.sqrt(disc)) / (2.0 * qa) if disc >= 0.0 else NAN
+    if not mu > 0.0:
+        return NAN, NAN, NAN, NAN, NAN
+    for _ in range(8):
+        x, y, z = px + mu * ux, py + mu * uy, pz + mu * uz
+        p = math.hypot(x, y)
+        cl, sl, hh = bowring(p, z)
+        dh = hh - h
+        if not abs(dh) > 1e-7:
+            break
+        mu -= dh / (cl * (x * ux + y * uy) / p + sl * uz)
+    if abs(h) > 1e5:
+        lon, lat, _ = ecef_to_geodetic_scalar(x, y, z)
+        return x, y, z, lon, lat
+    return x, y, z, math.degrees(math.atan2(y, x)), math.degrees(math.atan2(sl, cl))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def line_of_sight(eph, att_t, att_v, look, prm, corr, col, row):
+    """Satellite position P and unit ECEF look direction u of image point (col, row)."""
+    px, py, pz, m = line_state(eph, att_t, att_v, prm, corr, prm[0] + (row - prm[1]) * prm[2])
+    psi_x, psi_y = detector_angles(look, prm, corr, col)
+    ux, uy, uz = look_vector(psi_x, psi_y)
+    ux, uy, uz = mat_vec(m, ux, uy, uz)
+    n = math.sqrt(ux * ux + uy * uy + uz * uz)
+    return px, py, pz, ux / n, uy / n, uz / n
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def image_to_ecef(eph, att_t, att_v, look, prm, corr, col, row, h):
+    """(X, Y, Z, lon, lat) of image point (col, row) at ellipsoidal height h (NaNs if the ray misses)."""
+    px, py, pz, ux, uy, uz = line_of_sight(eph, att_t, att_v, look, prm, corr, col, row)
+    return ray_height(px, py, pz, ux, uy, uz, h)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def residual(eph, att_t, att_v, look, prm, corr, x, y, z, col, row):
+    """Look angles of ground point X seen at line `row` minus those of detector `col`:
+    (psi_x(X) - psi_x(col), psi_y(X) - psi_y(col)); zero where (col, row) images X."""
+    px, py, pz, m = line_state(eph, att_t, att_v, prm, corr, prm[0] + (row - prm[1]) * prm[2])
+    nx, ny, nz = mat_t_vec(m, x - px, y - py, z - pz)
+    if not nz < 0.0:
+        return NAN, NAN
+    gx, gy = look_angles(nx, ny, nz)
+    dx, dy = detector_angles(look, prm, corr, col)
+    return gx - dx, gy - dy
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _along_track(eph, att_t, att_v, look, prm, corr, x, y, z, t):
+    """Along-track misfit psi_x(X) - psi_x(detector) at time t, and the detector column whose psi_y
+    matches X (the view-plane condition is misfit = 0); NaNs if X is below the satellite's horizon."""
+    px, py, pz, m = line_state(eph, att_t, att_v, prm, corr, t)
+    if not x * (px - x) + y * (py - y) + z * (pz - z) > 0.0:
+        return NAN, NAN
+    nx, ny, nz = mat_t_vec(m, x - px, y - py, z - pz)
+    if not nz < 0.0:
+        return NAN, NAN
+    gx, gy = look_angles(nx, ny, nz)
+    col = column_of(look, prm, corr, gy)
+    return gx - detector_angles(look, prm, corr, col)[0], col
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def guess_row(guess, x, y, z):
+    """Starting row from the quadratic fit `guess` (14,): centre (3), scale, then the coefficients of
+    1, u, v, w, u^2, v^2, w^2, uv, uw, vw for (u, v, w) = (X - centre) / scale."""
+    u, v, w = (x - guess[0]) / guess[3], (y - guess[1]) / guess[3], (z - guess[2]) / guess[3]
+    return (guess[4] + guess[5] * u + guess[6] * v + guess[7] * w + guess[8] * u * u + guess[9] * v * v
+            + guess[10] * w * w + guess[11] * u * v + guess[12] * u * w + guess[13] * v * w)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def ecef_to_image(eph, att_t, att_v, look, prm, corr, guess, x, y, z, tol, max_iter):
+    """(col, row) imaging ECEF point (x, y, z): secant iteration on the line time for the view-plane
+    condition from the row given by `guess` (or the scene centre), the detector by inverting the
+    psi_y table; stops when the row moves < tol. NaNs when it does not converge, when the point is
+    beyond the horizon, or when its time lies outside the ephemeris window (no orbit extrapolation)."""
+    row = guess_row(guess, x, y, z)
+    t0 = prm[0] + (row - prm[1]) * prm[2] if abs(row - prm[1]) < 1e7 else prm[0]
+    f0, col = _along_track(eph, att_t, att_v, look, prm, corr, x, y, z, t0)
+    t1 = t0 + prm[2]
+    for _ in range(max_iter):
+        f1, col = _along_track(eph, att_t, att_v, look, prm, corr, x, y, z, t1)
+        step = f1 * (t1 - t0) / (f1 - f0)
+        if not math.isfinite(step):
+            return NAN, NAN
+        t0, f0 = t1, f1
+        t1 = t1 - step
+        if abs(step) < tol * prm[2]:
+            if not eph[0, 0] <= t1 <= eph[eph.shape[0] - 1, 0]:
+                return NAN, NAN
+            return col, prm[1] + (t1 - prm[0]) / prm[2]
+    return NAN, NAN
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def image_to_ground_kernel(eph, att_t, att_v, look, prm, corr, col, row, h, lon, lat):
+    """image_to_ecef over arrays (lon, lat: outputs, degrees)."""
+    for i in prange(col.size):
+        lon[i], lat[i] = image_to_ecef(eph, att_t, att_v, look, prm, corr, col[i], row[i], h[i])[3:]
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def ground_to_image_kernel(eph, att_t, att_v, look, prm, corr, guess, lon, lat, h, tol, max_iter, col, row):
+    """ecef_to_image over arrays of geodetic points (col, row: outputs)."""
+    for i in prange(lon.size):
+        x, y, z = geodetic_to_ecef_scalar(lon[i], lat[i], h[i])
+        col[i], row[i] = ecef_to_image(eph, att_t, att_v, look, prm, corr, guess, x, y, z, tol, max_iter)
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def line_of_sight_kernel(eph, att_t, att_v, look, prm, corr, col, row, pos, direction):
+    """line_of_sight over arrays (pos, direction: (n, 3) outputs)."""
+    for i in prange(col.size):
+        (pos[i, 0], pos[i, 1], pos[i, 2], direction[i, 0], direction[i, 1],
+         direction[i, 2]) = line_of_sight(eph, att_t, att_v, look, prm, corr, col[i], row[i])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _solve_into(j00, j01, j10, j11, f0, f1, out, i, k):
+    """out[i, :, k] = -J^-1 (f0, f1) for the 2 x 2 Jacobian J."""
+    det = j00 * j11 - j01 * j10
+    out[i, 0, k] = -(j11 * f0 - j01 * f1) / det
+    out[i, 1, k] = -(-j10 * f0 + j00 * f1) / det
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def partials_kernel(eph, att_t, att_v, look, prm, corr, xyz, col, row, steps, d_corr, d_xyz):
+    """d(col, row)/d(correction coefficients) (n, 2, 32) and d(col, row)/d(ECEF) (n, 2, 3) at the
+    image points (col, row) of ground points xyz, by the implicit function theorem on the residual
+    F(col, row; X, c) = 0: d(col, row)/dp = -[dF/d(col, row)]^-1 dF/dp, the partials of F by
+    central differences (steps[k] for coefficient k = 4 * row_of_corr + degree; 1 m for ECEF)."""
+    for i in prange(col.size):
+        x, y, z, c, r = xyz[i, 0], xyz[i, 1], xyz[i, 2], col[i], row[i]
+        a0, a1 = residual(eph, att_t, att_v, look, prm, corr, x, y, z, c + 0.5, r)
+        b0, b1 = residual(eph, att_t, att_v, look, prm, corr, x, y, z, c - 0.5, r)
+        e0, e1 = residual(eph, att_t, att_v, look, prm, corr, x, y, z, c, r + 0.5)
+        g0, g1 = residual(eph, att_t, att_v, look, prm, corr, x, y, z, c, r - 0.5)
+        j00, j10, j01, j11 = a0 - b0, a1 - b1, e0 - g0, e1 - g1  # dF/d(col,row), step 1
+        work = corr.copy()
+        for k in range(32):
+            p, q = k // 4, k % 4
+            s = steps[k]
+            work[p, q] = corr[p, q] + s
+            a0, a1 = residual(eph, att_t, att_v, look, prm, work, x, y, z, c, r)
+            work[p, q] = corr[p, q] - s
+            b0, b1 = residual(eph, att_t, att_v, look, prm, work, x, y, z, c, r)
+            work[p, q] = corr[p, q]
+            _solve_into(j00, j01, j10, j11, (a0 - b0) / (2 * s), (a1 - b1) / (2 * s), d_corr, i, k)
+        for k in range(3):
+            dx, dy, dz = (1.0 if k == 0 else 0.0), (1.0 if k == 1 else 0.0), (1.0 if k == 2 else 0.0)
+            a0, a1 = residual(eph, att_t, att_v, look, prm, corr, x + dx, y + dy, z + dz, c, r)
+            b0, b1 = residual(eph, att_t, att_v, look, prm, corr, x - dx, y - dy, z - dz, c, r)
+            _solve_into(j00, j01, j10, j11, (a0 - b0) / 2.0, (a1 - b1) / 2.0, d_xyz, i, k)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _geodetic_along(px, py, pz, ux, uy, uz, mu):
+    """(lon, lat, h) of the ray point P + mu u (near the Earth's surface, see `bowring`)."""
+    x, y, z = px + mu * ux, py + mu * uy, pz + mu * uz
+    cl, sl, h = bowring(math.hypot(x, y), z)
+    return math.degrees(math.atan2(y, x)), math.degrees(math.atan2(sl, cl)), h
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _quadratic(f0, f1, f2, s):
+    """Value at s in [0, 1] of the parabola through (0, f0), (0.5, f1), (1, f2)."""
+    return f0 + s * (-3.0 * f0 + 4.0 * f1 - f2) + 2.0 * s * s * (f0 - 2.0 * f1 + f2)
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def image_to_dem_kernel(eph, att_t, att_v, look, prm, corr, col, row, grid, gt, hmin, hmax, samples, tol, out):
+    """First intersection of each line of sight with the DEM (out: (n, 3) lon, lat, h; NaNs where none).
+
+    The ray segment between heights hmax and hmin is scanned from the top in `samples` equal steps
+    of mu; geodetic coordinates along it come from a parabola through three exact conversions (error
+    of the order of mm over 10 km of ray), so the scan costs a DEM lookup per sample. The first
+    sample pair where h - dem goes from >= 0 to <= 0 is refined by regula falsi (Illinois) with exact
+    conversions to `tol` metres."""
+    lon0, dlon, lat0, dlat = gt[0], gt[1], gt[3], gt[5]
+    for i in prange(col.size):
+        out[i, 0] = out[i, 1] = out[i, 2] = NAN
+        px, py, pz, ux, uy, uz = line_of_sight(eph, att_t, att_v, look, prm, corr, col[i], row[i])
+        xt, yt, zt = ray_height(px, py, pz, ux, uy, uz, hmax)[:3]
+        xb, yb, zb = ray_height(px, py, pz, ux, uy, uz, hmin)[:3]
+        mu_t = (xt - px) * ux + (yt - py) * uy + (zt - pz) * uz
+        mu_b = (xb - px) * ux + (yb - py) * uy + (zb - pz) * uz
+        if not (mu_b > mu_t):
+            continue
+        lo0, la0, h0 = _geodetic_along(px, py, pz, ux, uy, uz, mu_t)
+        lo1, la1, h1 = _geodetic_along(px, py, pz, ux, uy, uz, 0.5 * (mu_t + mu_b))
+        lo2, la2, h2 = _geodetic_along(px, py, pz, ux, uy, uz, mu_b)
+        lo1 = lo0 + (lo1 - lo0 + 540.0) % 360.0 - 180.0
+        lo2 = lo0 + (lo2 - lo0 + 540.0) % 360.0 - 180.0
+        f_prev = NAN
+        s_prev = 0.0
+        a = b = fa = fb = NAN
+        for k in range(samples + 1):
+            s = k / samples
+            lon = _quadratic(lo0, lo1, lo2, s)
+            lat = _quadratic(la0, la1, la2, s)
+            f = _quadratic(h0, h1, h2, s) - bilinear_scalar(grid, lon0, dlon, lat0, dlat, lon, lat)
+            if f_prev >= 0.0 and f <= 0.0:
+                a, fa, b, fb = s_prev, f_prev, s, f
+                break
+            f_prev, s_prev = f, s
+        if not math.isfinite(a):
+            continue
+        length = mu_b - mu_t
+        side = 0
+        for _ in range(100):
+            s = a - fa * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+            if not (a < s < b):
+                s = 0.5 * (a + b)
+            lon, lat, h = _geodetic_along(px, py, pz, ux, uy, uz, mu_t + s * length)
+            f = h - bilinear_scalar(grid, lon0, dlon, lat0, dlat, lon, lat)
+            if not math.isfinite(f):
+                f = -1.0
+            out[i, 0], out[i, 1], out[i, 2] = lon, lat, h
+            if abs(f) < tol or (b - a) * length < tol:
+                break
+            if f > 0.0:
+                a, fa = s, f
+                if side == 1:
+                    fb *= 0.5
+                side = 1
+            else:
+                b, fb = s, f
+                if side == -1:
+                    fa *= 0.5
+                side = -1

@@ -1,0 +1,28 @@
+"""Styling of the layers Processing loads on completion (QML files in resources/styles)."""
+from qgis.core import QgsProcessingContext, QgsProcessingLayerPostProcessorInterface
+
+from .plugin import resource_path
+
+# Post-processors must outlive the algorithm run that created them (Processing keeps only a pointer).
+_KEEP_ALIVE = []
+
+
+class ApplyStyle(QgsProcessingLayerPostProcessorInterface):
+    """Loads a QML style onto the output layer once QGIS has loaded it."""
+
+    def __init__(self, qml_name):
+        super().__init__()
+        self.qml = resource_path("styles", qml_name)
+
+    def postProcessLayer(self, layer, context, feedback):  # noqa: N802 (QGIS API)
+        layer.loadNamedStyle(self.qml)
+        layer.triggerRepaint()
+
+
+def load_styled(context, source, name, output_name, qml_name):
+    """Ask Processing to load `source` as layer `name` on completion, styled with `qml_name`."""
+    details = QgsProcessingContext.LayerDetails(name, context.project(), output_name)
+    post = ApplyStyle(qml_name)
+    _KEEP_ALIVE.append(post)
+    details.setPostProcessor(post)
+    context.addLayerToLoadOnCompletion(source, details)

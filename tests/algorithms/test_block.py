@@ -1,0 +1,105 @@
+"""The block GeoPackage: contents, footprints, overwrite protection and cancel safety."""
+import math
+import shutil
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+from osgeo import ogr
+
+from pushbroom.algorithms import block, sensors
+from pushbroom.algorithms.errors import CancelledError, InputError
+
+
+class CancelAfter:
+    """Feedback that asks to cancel after `n` progress checks."""
+
+    def __init__(self, n):
+        self.n = n
+
+    def isCanceled(self):
+        self.n -= 1
+        return self.n < 0
+
+    def setProgress(self, percent):
+        pass
+
+    def pushInfo(self, text):
+        pass
+
+
+@pytest.fixture
+def spot5_product(spot5_dim, tmp_path):
+    """A DIMAP product folder (metadata only) named like a scene."""
+    folder = tmp_path / "HRG1"
+    folder.mkdir()
+    shutil.copy(spot5_dim, folder / "METADATA.DIM")
+    return folder / "METADATA.DIM"
+
+
+def producer_corners(dim):
+    root = ET.parse(dim).getroot()
+    return [(float(v.findtext("FRAME_LON")), float(v.findtext("FRAME_LAT")))
+            for v in root.find("Dataset_Frame").findall("Vertex")]
+
+
+def test_block_holds_images_and_footprints(spot5_product, tmp_path):
+    images = block.open_images([str(spot5_product)])
+    assert [name for name, *_ in images] == ["HRG1"]
+    path = block.create_block(tmp_path / "b.gpkg", images, height=0.0)
+    rows = block.read_images(path)
+    assert rows[0]["name"] == "HRG1" and rows[0]["model_kind"] == "spot_dimap"
+    assert (rows[0]["cols"], rows[0]["rows"]) == (12000, 12000)
+    assert rows[0]["sensor"] == "SPOT 5 HRG1"
+    ds = ogr.Open(str(path))
+    layer = ds.GetLayerByName("footprints")
+    assert layer.GetSpatialRef().GetAuthorityCode(None) == "4326"
+    feature = layer.GetNextFeature()
+    ring = np.array(feature.GetGeometryRef().GetGeometryRef(0).GetPoints())
+    # every producer corner (a pixel centre) lies within one pixel (~10 m) of a footprint vertex
+    for lon, lat in producer_corners(spot5_product):
+        d = np.hypot((ring[:, 0] - lon) * math.cos(math.radians(lat)), ring[:, 1] - lat) * 111_320
+        assert d.min() < 10.0
+    info = {f["key"]: f["value"] for f in ds.GetLayerByName("block_info")}
+    assert info["default_crs"] == "EPSG:32645"  # UTM 45N for 87.9 E, 50.0 N
+
+
+def test_existing_block_needs_overwrite(spot5_product, tmp_path):
+    images = block.open_images([str(spot5_product)])
+    path = block.create_block(tmp_path / "b.gpkg", images)
+    before = open(path, "rb").read()
+    with pytest.raises(InputError, match="overwrite"):
+        block.create_block(path, images)
+    assert open(path, "rb").read() == before
+    block.create_block(path, images, height=500.0, overwrite=True)
+    assert open(path, "rb").read() != before
+
+
+def test_cancel_leaves_existing_block_and_no_partial_file(spot5_product, tmp_path):
+    images = block.open_images([str(spot5_product)] * 2)
+    assert [n for n, *_ in images] == ["HRG1", "HRG1_2"]
+    path = block.create_block(tmp_path / "b.gpkg", images[:1])
+    before = open(path, "rb").read()
+    with pytest.raises(CancelledError):
+        block.create_block(path, images, overwrite=True, feedback=CancelAfter(1))
+    assert open(path, "rb").read() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["HRG1", "b.gpkg"]
+
+
+@pytest.mark.parametrize("bad, message", [("block.txt", "GeoPackage"), (None, "at least one image")])
+def test_bad_block_requests(spot5_product, tmp_path, bad, message):
+    images = [] if bad is None else block.open_images([str(spot5_product)])
+    with pytest.raises(InputError, match=message):
+        block.create_block(tmp_path / (bad or "b.gpkg"), images)
+
+
+def test_orientation_count_must_match(spot5_product):
+    with pytest.raises(InputError, match="one per image"):
+        block.open_images([str(spot5_product)] * 2, [str(spot5_product)])
+
+
+def test_model_loaded_from_product_folder_equals_metadata(spot5_product):
+    a = sensors.load(spot5_product.parent)
+    b = sensors.load(spot5_product)
+    assert a.size == b.size
+    assert np.allclose(a.image_to_ground(100.0, 200.0, 300.0), b.image_to_ground(100.0, 200.0, 300.0), atol=0)
