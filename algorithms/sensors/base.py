@@ -8,6 +8,22 @@ import numpy as np
 from ..errors import GeometryError
 
 
+def flat_points(*values):
+    """Broadcast point coordinates to writable, contiguous float64 1-D arrays for the kernels.
+
+    Returns (arrays, shape, scalar): the broadcast shape, and whether all inputs were scalars."""
+    arrays = [np.asarray(v, dtype=np.float64) for v in values]
+    shape = np.broadcast_shapes(*(a.shape for a in arrays))
+    flat = [a.ravel() if a.shape == shape and a.flags.c_contiguous and a.flags.writeable
+            else np.broadcast_to(a, shape).flatten() for a in arrays]
+    return flat, shape, len(shape) == 0
+
+
+def shaped_points(values, shape, scalar):
+    """Kernel outputs back to the callers' shape: floats for scalar input, arrays otherwise."""
+    return tuple(float(v[0]) if scalar else v.reshape(shape) for v in values)
+
+
 class SensorModel:
     """Abstract base: subclasses implement `size`, `image_to_ground` and `ground_to_image`."""
 

@@ -30,7 +30,7 @@ from numba import njit
 
 from ..errors import GeometryError, MetadataError
 from . import rpc_io
-from .base import SensorModel
+from .base import SensorModel, flat_points, shaped_points
 from .rpc_io import COEFF_KEYS, OFFSET_KEYS, SCALE_KEYS
 
 NUM_TERMS = 20
@@ -251,19 +251,6 @@ class RpcCoefficients:
         return fields
 
 
-def _flat(*arrays):
-    """The broadcast shape and each array as a contiguous, writable 1-D float64 array of it."""
-    arrays = [np.asarray(a, dtype=np.float64) for a in arrays]
-    shape = np.broadcast_shapes(*(a.shape for a in arrays))
-    return shape, [a.ravel() if a.shape == shape and a.flags.c_contiguous and a.flags.writeable
-                   else np.broadcast_to(a, shape).flatten() for a in arrays]
-
-
-def _shaped(a, shape):
-    """`a` reshaped to `shape`; a numpy scalar for shape ()."""
-    return a.reshape(shape)[()]
-
-
 class RpcModel(SensorModel):
     """RPC00B model in GDAL's pixel convention on a raster whose top-left corner lies at
     `offset` = (col0, row0) of the image the RPC describes (module docstring).
@@ -333,17 +320,17 @@ class RpcModel(SensorModel):
 
     def ground_to_image(self, lon, lat, h):
         """(col, row) of ground points (lon, lat, h): direct evaluation of the rational functions."""
-        shape, (lon, lat, h) = _flat(lon, lat, h)
+        (lon, lat, h), shape, scalar = flat_points(lon, lat, h)
         col = np.empty(lon.size)
         row = np.empty(lon.size)
         _ground_to_image_kernel(lon, lat, h, self._coef, self._nrm, col, row)
-        return _shaped(col, shape), _shaped(row, shape)
+        return shaped_points((col, row), shape, scalar)
 
     def image_to_ground(self, col, row, h):
         """(lon, lat) of image points at ellipsoidal heights h, by Newton's method on the rational
         functions (analytic Jacobian, step halving), started at (LONG_OFF, LAT_OFF) and iterated to
         below 1e-8 px and 1e-10 deg. Raises GeometryError where it does not converge."""
-        shape, (col, row, h) = _flat(col, row, h)
+        (col, row, h), shape, scalar = flat_points(col, row, h)
         lon = np.empty(col.size)
         lat = np.empty(col.size)
         status = np.empty(col.size, dtype=np.int8)
@@ -358,12 +345,12 @@ class RpcModel(SensorModel):
                 f"{'did not converge' if status[i] == 1 else 'met a singular Jacobian'}. Is the point "
                 f"inside the image ({self.size[0]} x {self.size[1]} px) and the height within the "
                 f"RPC's range {self.height_range[0]:.0f} .. {self.height_range[1]:.0f} m?")
-        return _shaped(lon, shape), _shaped(lat, shape)
+        return shaped_points((lon, lat), shape, scalar)
 
     def partials(self, lon, lat, h):
         """d(col, row) / d(lon, lat, h), shape (..., 2, 3): rows col, row; columns lon, lat
         (px/deg) and h (px/m); by the quotient rule on the rational functions."""
-        shape, (lon, lat, h) = _flat(lon, lat, h)
+        (lon, lat, h), shape, _ = flat_points(lon, lat, h)
         out = np.empty((lon.size, 2, 3))
         _partials_kernel(lon, lat, h, self._coef, self._nrm, out)
         return out.reshape(shape + (2, 3))

@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import GeometryError, InputError
 from ..geodesy import geodetic_to_ecef
 from . import spot_kernels as k
-from .base import SensorModel
+from .base import SensorModel, flat_points, shaped_points
 from .dimap import read_dimap
 
 LAGRANGE_POINTS = 8
@@ -69,17 +69,6 @@ def _geodetic_jacobian(lon, lat, h):
         plus[i], minus[i] = plus[i] + step, minus[i] - step
         columns.append((geodetic_to_ecef(*plus) - geodetic_to_ecef(*minus)) / (2 * step))
     return np.stack(columns, axis=-1)
-
-
-def _arrays(*values):
-    """Broadcast inputs to contiguous float64 1-D arrays; also return the shape and scalar flag."""
-    arrays = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in values))
-    shape = arrays[0].shape
-    return [np.ascontiguousarray(a).ravel() for a in arrays], shape, arrays[0].ndim == 0
-
-
-def _shaped(values, shape, scalar):
-    return tuple(float(v[0]) if scalar else v.reshape(shape) for v in values)
 
 
 class SpotModel(SensorModel):
@@ -150,22 +139,22 @@ class SpotModel(SensorModel):
 
     def image_to_ground(self, col, row, h):
         """(lon, lat) in degrees of image point (col, row) at ellipsoidal height h (NaN if the ray misses)."""
-        (c, r, hh), shape, scalar = _arrays(col, row, h)
+        (c, r, hh), shape, scalar = flat_points(col, row, h)
         lon, lat = np.empty(c.size), np.empty(c.size)
         k.image_to_ground_kernel(*self._packed(), c, r, hh, lon, lat)
-        return _shaped((lon, lat), shape, scalar)
+        return shaped_points((lon, lat), shape, scalar)
 
     def ground_to_image(self, lon, lat, h):
         """(col, row) of ground point (lon, lat, h); converged to 1e-7 row, NaN where no solution."""
-        (lo, la, hh), shape, scalar = _arrays(lon, lat, h)
+        (lo, la, hh), shape, scalar = flat_points(lon, lat, h)
         col, row = np.empty(lo.size), np.empty(lo.size)
         k.ground_to_image_kernel(*self._packed(), self._guess, lo, la, hh, self.TOLERANCE, self.MAX_ITERATIONS,
                                  col, row)
-        return _shaped((col, row), shape, scalar)
+        return shaped_points((col, row), shape, scalar)
 
     def line_of_sight(self, col, row):
         """Satellite ECEF position (..., 3) and unit ECEF look direction (..., 3) of image points."""
-        (c, r), shape, _ = _arrays(col, row)
+        (c, r), shape, _ = flat_points(col, row)
         pos, direction = np.empty((c.size, 3)), np.empty((c.size, 3))
         k.line_of_sight_kernel(*self._packed(), c, r, pos, direction)
         return pos.reshape(shape + (3,)), direction.reshape(shape + (3,))
@@ -177,7 +166,7 @@ class SpotModel(SensorModel):
         coefficients ordered as PARAMETER_NAMES (corrections.position, .attitude, .look, rows then
         degree); d_ecef (n, 2, 3) = d(col, row)/d(X, Y, Z) in px/m; d_ground (n, 2, 3) =
         d(col, row)/d(lon, lat, h) in px/degree, px/degree, px/m."""
-        (lo, la, hh), _, _ = _arrays(lon, lat, h)
+        (lo, la, hh), _, _ = flat_points(lon, lat, h)
         col, row = self.ground_to_image(lo, la, hh)
         xyz = np.ascontiguousarray(geodetic_to_ecef(lo, la, hh))
         d_corr, d_xyz = np.empty((lo.size, 2, 32)), np.empty((lo.size, 2, 3))
@@ -191,7 +180,7 @@ class SpotModel(SensorModel):
         Same semantics as SensorModel.image_to_dem (scan from the DEM's maximum down to its minimum
         in `samples` steps, first crossing, refined to `tol` m), in one numba kernel per call.
         Raises GeometryError where a ray never meets the DEM."""
-        (c, r), shape, scalar = _arrays(col, row)
+        (c, r), shape, scalar = flat_points(col, row)
         hmin, hmax = dem.height_range
         out = np.empty((c.size, 3))
         k.image_to_dem_kernel(*self._packed(), c, r, dem.heights, np.asarray(dem.geotransform, dtype=np.float64),
@@ -201,7 +190,7 @@ class SpotModel(SensorModel):
             raise GeometryError(
                 f"the line of sight of image point ({c[bad[0]]:.1f}, {r[bad[0]]:.1f}) does not meet the DEM "
                 f"({bad.size} of {c.size} points); is the DEM covering the whole image footprint?")
-        return _shaped((out[:, 0], out[:, 1], out[:, 2]), shape, scalar)
+        return shaped_points((out[:, 0], out[:, 1], out[:, 2]), shape, scalar)
 
     def __repr__(self):
         o = self._orientation
