@@ -1,7 +1,8 @@
 """The block store: one GeoPackage per block (DESIGN.md, "Data").
 
 Tables: `block_info` (key/value: format version, creation time, default CRS), `images` (one row per
-image: name, raster path, orientation source, model kind, sensor, size),
+image: name, raster path, orientation source, model kind, sensor, size, and the sensor model as
+a model-file document, see sensors/model_file.py),
 `footprints` (polygon layer, EPSG:4326, the image border projected on a DEM or a mean height) and
 `run_log` (one row per processing step). A block is written under a temporary name and renamed,
 so a failed or cancelled creation leaves any existing block untouched."""
@@ -15,11 +16,13 @@ from . import progress
 from .atomic import atomic_path
 from .errors import InputError, PushbroomError
 from .geodesy import utm_epsg
+from .sensors.model_file import model_from_dict, model_to_dict
 
 FORMAT_VERSION = "1"
 IMAGE_FIELDS = [("name", ogr.OFTString), ("image_path", ogr.OFTString),
                 ("orientation_path", ogr.OFTString), ("model_kind", ogr.OFTString),
-                ("sensor", ogr.OFTString), ("cols", ogr.OFTInteger), ("rows", ogr.OFTInteger)]
+                ("sensor", ogr.OFTString), ("cols", ogr.OFTInteger), ("rows", ogr.OFTInteger),
+                ("model", ogr.OFTString)]
 
 
 def describe_model(model):
@@ -85,7 +88,8 @@ def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=N
             cols, rows = model.size
             for key, value in [("name", name), ("image_path", os.path.abspath(image) if image else ""),
                                ("orientation_path", os.path.abspath(orientation)), ("model_kind", kind),
-                               ("sensor", sensor), ("cols", int(cols)), ("rows", int(rows))]:
+                               ("sensor", sensor), ("cols", int(cols)), ("rows", int(rows)),
+                               ("model", json.dumps(model_to_dict(model)))]:
                 feat[key] = value
             table.CreateFeature(feat)
             poly = ogr.Geometry(ogr.wkbPolygon)
@@ -123,9 +127,19 @@ def read_images(path):
     rows = []
     for feat in layer:
         row = {"id": feat.GetFID()}
-        row.update({name: feat[name] for name, _ in IMAGE_FIELDS})
+        row.update({name: feat[name] for name, _ in IMAGE_FIELDS if name != "model"})
         rows.append(row)
     return rows
+
+
+def load_model(path, image_id):
+    """The sensor model stored in the block for image `image_id`."""
+    ds = ogr.Open(os.fspath(path))
+    layer = ds.GetLayerByName("images") if ds is not None else None
+    feat = layer.GetFeature(int(image_id)) if layer is not None else None
+    if feat is None:
+        raise InputError(f"block {path} has no image with id {image_id}")
+    return model_from_dict(json.loads(feat["model"]), f"model of image {image_id} in {path}")
 
 
 def image_name(image_path):

@@ -60,6 +60,9 @@ def test_block_holds_images_and_footprints(spot5_product, tmp_path):
     for lon, lat in producer_corners(spot5_product):
         d = np.hypot((ring[:, 0] - lon) * math.cos(math.radians(lat)), ring[:, 1] - lat) * 111_320
         assert d.min() < 10.0
+    stored = block.load_model(path, rows[0]["id"])
+    lon, lat = images[0][3].image_to_ground(np.array([0.5, 6000.0]), np.array([0.5, 11999.5]), 0.0)
+    assert np.array_equal(stored.image_to_ground(np.array([0.5, 6000.0]), np.array([0.5, 11999.5]), 0.0), (lon, lat))
     info = {f["key"]: f["value"] for f in ds.GetLayerByName("block_info")}
     assert info["default_crs"] == "EPSG:32645"  # UTM 45N for 87.9 E, 50.0 N
 
