@@ -42,7 +42,12 @@ class Dem:
         heights = np.ascontiguousarray(heights, dtype=np.float64)
         if heights.ndim != 2 or min(heights.shape) < 2:
             raise InputError(f"a DEM needs a 2-D grid of at least 2 x 2 cells, got {heights.shape}")
-        gt = tuple(float(v) for v in geotransform)
+        try:
+            gt = tuple(float(v) for v in geotransform)
+        except (TypeError, ValueError):
+            gt = ()
+        if len(gt) != 6 or not all(math.isfinite(v) for v in gt):
+            raise InputError(f"a DEM geotransform is 6 finite numbers (GDAL's), got {geotransform!r}")
         if gt[2] != 0.0 or gt[4] != 0.0 or gt[1] <= 0.0 or gt[5] >= 0.0:
             raise InputError("a DEM grid must be north-up (no rotation terms, dlon > 0, dlat < 0)")
         if np.all(np.isnan(heights)):

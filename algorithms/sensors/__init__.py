@@ -23,22 +23,28 @@ def _is_dimap(path):
     return b"<Dimap_Document" in head
 
 
+#: names of orientation files, which are their own source (never redirected to a neighbour)
+ORIENTATION_SUFFIXES = (".dim", ".geom", ".rpb", "_rpc.txt", MODEL_FILE_SUFFIX)
+
+
 def orientation_source(path):
-    """The file holding the orientation of image (or folder) `path`: a DIMAP METADATA.DIM in the
-    product folder, an OSSIM .geom of the same stem, else the raster itself (GDAL reads RPCs from
-    its tags or from an _RPC.TXT / .RPB beside it)."""
+    """The file holding the orientation of image (or folder) `path`: an orientation file itself;
+    for a raster, an OSSIM .geom of the same stem, else a DIMAP METADATA.DIM in its folder, else the
+    raster itself (GDAL reads RPCs from its tags or from an _RPC.TXT / .RPB beside it)."""
     path = os.fspath(path)
     if os.path.isdir(path):
         dim = os.path.join(path, "METADATA.DIM")
         if not os.path.exists(dim):
             raise MetadataError(f"folder {path} holds no METADATA.DIM (not a SPOT DIMAP product)")
         return dim
-    sibling = os.path.join(os.path.dirname(path), "METADATA.DIM")
-    if os.path.exists(sibling) and not _is_dimap(path):
-        return sibling
+    if path.lower().endswith(ORIENTATION_SUFFIXES) or _is_dimap(path):
+        return path
     geom = os.path.splitext(path)[0] + ".geom"
-    if os.path.exists(geom) and geom != path:
+    if os.path.exists(geom):
         return geom
+    sibling = os.path.join(os.path.dirname(path), "METADATA.DIM")
+    if os.path.exists(sibling):
+        return sibling
     return path
 
 

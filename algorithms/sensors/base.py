@@ -2,18 +2,26 @@
 
 Image coordinates are (col, row) in GDAL's convention: (0, 0) is the top-left corner of the first
 pixel. Ground coordinates are WGS 84 longitude/latitude in degrees and ellipsoidal height in
-metres."""
+metres.
+
+Failures: a point outside a model's domain (a line beyond the ephemeris, a ground point behind the
+horizon) comes back as NaN, so a batch keeps its other points; an iteration that fails inside the
+domain raises GeometryError. Callers that need every point (footprints, DEM rays) raise on NaN."""
 import numpy as np
 
-from ..errors import GeometryError
+from ..errors import GeometryError, InputError
 
 
 def flat_points(*values):
     """Broadcast point coordinates to writable, contiguous float64 1-D arrays for the kernels.
 
-    Returns (arrays, shape, scalar): the broadcast shape, and whether all inputs were scalars."""
-    arrays = [np.asarray(v, dtype=np.float64) for v in values]
-    shape = np.broadcast_shapes(*(a.shape for a in arrays))
+    Returns (arrays, shape, scalar): the broadcast shape, and whether all inputs were scalars.
+    Raises InputError for values that are not real numbers or shapes that do not broadcast."""
+    try:
+        arrays = [np.asarray(v, dtype=np.float64) for v in values]
+        shape = np.broadcast_shapes(*(a.shape for a in arrays))
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"point coordinates must be real numbers or arrays of one shape ({exc})") from None
     flat = [a.ravel() if a.shape == shape and a.flags.c_contiguous and a.flags.writeable
             else np.broadcast_to(a, shape).flatten() for a in arrays]
     return flat, shape, len(shape) == 0
@@ -42,17 +50,21 @@ class SensorModel:
         """Ground (lon, lat, h) where the ray of (col, row) first meets the DEM surface.
 
         Bracket and refine along the line of sight: heights from the DEM's maximum down to its
-        minimum are sampled (`samples` steps, so steep terrain and occlusions are bracketed by the
-        first sign change of h - dem(lon, lat)), then the bracket is refined by regula falsi with
-        bisection safeguards to `tol` metres. Raises GeometryError where a ray never meets the DEM
-        (outside its extent)."""
-        col, row = np.broadcast_arrays(np.asarray(col, dtype=np.float64), np.asarray(row, dtype=np.float64))
-        shape = col.shape
-        c, r = col.ravel(), row.ravel()
+        minimum are sampled (at least `samples` steps, and at most a quarter of a DEM cell apart
+        horizontally, so steep terrain, needles and occlusions are bracketed by the first sign
+        change of h - dem(lon, lat)), then the bracket is refined by regula falsi with bisection
+        safeguards to `tol` metres. Raises GeometryError where a ray never meets the DEM (outside
+        its extent)."""
+        (c, r), shape, _ = flat_points(col, row)
         hmin, hmax = dem.height_range
         hmin, hmax = hmin - 1.0, hmax + 1.0
-        hs = np.linspace(hmax, hmin, samples + 1)
         n = c.size
+        top, bottom = self.image_to_ground(c, r, np.full(n, hmax)), self.image_to_ground(c, r, np.full(n, hmin))
+        shift = np.subtract(top, bottom)
+        shift[0] = (shift[0] + 180.0) % 360.0 - 180.0  # across the antimeridian
+        cells = np.abs(shift) / np.abs([[dem.geotransform[1]], [dem.geotransform[5]]])
+        cells = np.nanmax(cells) if n and np.isfinite(cells).any() else 0.0
+        hs = np.linspace(hmax, hmin, max(int(samples), int(np.ceil(4.0 * cells))) + 1)
         hi = np.full(n, np.nan)
         lo = np.full(n, np.nan)
         fhi = np.full(n, np.nan)
@@ -100,4 +112,7 @@ class SensorModel:
         else:
             lon, lat, _ = self.image_to_dem(c, r, dem)
         ring = np.column_stack([lon, lat])
+        if not np.all(np.isfinite(ring)):
+            raise GeometryError(f"the image border has no ground position at {np.isnan(ring[:, 0]).sum()} of "
+                                f"{len(ring)} points: is the orientation complete for the whole image?")
         return np.vstack([ring, ring[:1]])

@@ -140,6 +140,9 @@ def read_dimap(path, image=None):
     (given as the metadata or its folder: the product's DATA_FILE_PATH is checked when present)."""
     path = _dim_path(path)
     doc = _Doc(path)
+    if doc.root.find("Metadata_Identification") is not None:  # DIMAP v2: Pleiades, SPOT 6/7
+        raise MetadataError(f"{path}: a DIMAP v2 document (Pleiades, SPOT 6/7), not a SPOT 1-5 METADATA.DIM; "
+                            "its geometry is an RPC: open the image (GDAL reads its RPC) or its RPC file")
     src = doc.node("Dataset_Sources/Source_Information/Scene_Source")
     if doc.text("MISSION", src).upper() != "SPOT":
         doc.fail(f"MISSION is {doc.text('MISSION', src)!r}, not SPOT")

@@ -70,11 +70,14 @@ def model_from_dict(doc, source="model file"):
         if doc.get("kind") == "spot":
             return SpotModel(_orientation(doc["orientation"]), drift=bool(doc["drift"]))
         if doc.get("kind") == "rpc":
-            return RpcModel(RpcCoefficients.from_fields(doc["fields"], source), size=tuple(doc["size"]),
-                            source=doc.get("source", source))
+            coefficients = RpcCoefficients.from_fields(doc["fields"], source)
+            size = tuple(int(v) for v in doc["size"])
+            if len(size) != 2 or min(size) < 1:
+                raise ValueError(f"size {doc['size']!r} is not (cols, rows) of a raster")
+            return RpcModel(coefficients, size=size, source=doc.get("source", source))
     except MetadataError:
         raise
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise MetadataError(f"{source} is damaged ({type(exc).__name__}: {exc}); re-create it from the "
                             "original metadata or the block") from exc
     raise MetadataError(f"{source}: unknown model kind {doc.get('kind')!r} (expected 'spot' or 'rpc')")

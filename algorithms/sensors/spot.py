@@ -138,7 +138,8 @@ class SpotModel(SensorModel):
         return self._eph, self._att_t, self._att_v, self._look, prm, corr
 
     def image_to_ground(self, col, row, h):
-        """(lon, lat) in degrees of image point (col, row) at ellipsoidal height h (NaN if the ray misses)."""
+        """(lon, lat) in degrees of image point (col, row) at ellipsoidal height h; NaN if the ray
+        misses that height or the line's time lies outside the ephemeris window (no extrapolation)."""
         (c, r, hh), shape, scalar = flat_points(col, row, h)
         lon, lat = np.empty(c.size), np.empty(c.size)
         k.image_to_ground_kernel(*self._packed(), c, r, hh, lon, lat)
@@ -178,7 +179,8 @@ class SpotModel(SensorModel):
         """Ground (lon, lat, h) where the ray of (col, row) first meets the DEM surface.
 
         Same semantics as SensorModel.image_to_dem (scan from the DEM's maximum down to its minimum
-        in `samples` steps, first crossing, refined to `tol` m), in one numba kernel per call.
+        in at least `samples` steps of at most a quarter DEM cell, first crossing, refined to `tol` m),
+        in one numba kernel per call.
         Raises GeometryError where a ray never meets the DEM."""
         (c, r), shape, scalar = flat_points(col, row)
         hmin, hmax = dem.height_range

@@ -28,7 +28,10 @@ NAN = math.nan
 @njit(cache=True, nogil=True, error_model="numpy")
 def lagrange(eph, t):
     """Position and velocity at t: Lagrange polynomial through the window's samples (barycentric form
-    sum_j w_j/(t - t_j) y_j / sum_j w_j/(t - t_j))."""
+    sum_j w_j/(t - t_j) y_j / sum_j w_j/(t - t_j)); NaNs outside the window (the orbit is never
+    extrapolated, so image points far beyond the scene give NaN, not a made-up position)."""
+    if not eph[0, 0] <= t <= eph[eph.shape[0] - 1, 0]:
+        return NAN, NAN, NAN, NAN, NAN, NAN
     den = px = py = pz = vx = vy = vz = 0.0
     for j in range(eph.shape[0]):
         d = t - eph[j, 0]
@@ -157,6 +160,8 @@ def ray_height(px, py, pz, ux, uy, uz, h):
     Exact root of the quadratic on the ellipsoid with semi-axes (a + h, b + h) (exact for h = 0),
     then Newton steps on the geodetic height along the ray (dh/dmu = n.u, n the ellipsoid normal)
     until it is within 1e-7 m of h. Heights by `bowring` (geodesy's full conversion above 100 km)."""
+    if not h > -0.5 * B:  # NaN, or a "height" inside the Earth's core
+        return NAN, NAN, NAN, NAN, NAN
     a2 = (A + h) * (A + h)
     b2 = (B + h) * (B + h)
     qa = (ux * ux + uy * uy) / a2 + uz * uz / b2
@@ -338,11 +343,12 @@ def _quadratic(f0, f1, f2, s):
 def image_to_dem_kernel(eph, att_t, att_v, look, prm, corr, col, row, grid, gt, hmin, hmax, samples, tol, out):
     """First intersection of each line of sight with the DEM (out: (n, 3) lon, lat, h; NaNs where none).
 
-    The ray segment between heights hmax and hmin is scanned from the top in `samples` equal steps
-    of mu; geodetic coordinates along it come from a parabola through three exact conversions (error
-    of the order of mm over 10 km of ray), so the scan costs a DEM lookup per sample. The first
-    sample pair where h - dem goes from >= 0 to <= 0 is refined by regula falsi (Illinois) with exact
-    conversions to `tol` metres."""
+    The ray segment between heights hmax and hmin is scanned from the top in equal steps of mu, at
+    least `samples` of them and at most a quarter of a DEM cell apart horizontally (so a cliff, a
+    needle or a wall one cell wide is not stepped over on oblique rays); geodetic coordinates along it
+    come from a parabola through three exact conversions (error of the order of mm over 10 km of
+    ray), so the scan costs a DEM lookup per sample. The first sample pair where h - dem goes from
+    >= 0 to <= 0 is refined by regula falsi (Illinois) with exact conversions to `tol` metres."""
     lon0, dlon, lat0, dlat = gt[0], gt[1], gt[3], gt[5]
     for i in prange(col.size):
         out[i, 0] = out[i, 1] = out[i, 2] = NAN
@@ -358,11 +364,15 @@ def image_to_dem_kernel(eph, att_t, att_v, look, prm, corr, col, row, grid, gt, 
         lo2, la2, h2 = _geodetic_along(px, py, pz, ux, uy, uz, mu_b)
         lo1 = lo0 + (lo1 - lo0 + 540.0) % 360.0 - 180.0
         lo2 = lo0 + (lo2 - lo0 + 540.0) % 360.0 - 180.0
+        cells = max(abs(lo2 - lo0) / abs(dlon), abs(la2 - la0) / abs(dlat))
+        if not math.isfinite(cells):
+            continue
+        steps = max(samples, int(math.ceil(4.0 * cells)))
         f_prev = NAN
         s_prev = 0.0
         a = b = fa = fb = NAN
-        for k in range(samples + 1):
-            s = k / samples
+        for k in range(steps + 1):
+            s = k / steps
             lon = _quadratic(lo0, lo1, lo2, s)
             lat = _quadratic(la0, la1, la2, s)
             f = _quadratic(h0, h1, h2, s) - bilinear_scalar(grid, lon0, dlon, lat0, dlat, lon, lat)

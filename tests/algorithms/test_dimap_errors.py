@@ -59,34 +59,22 @@ def test_missing_file(tmp_path):
         read_dimap(tmp_path / "nothing" / "METADATA.DIM")
 
 
-def test_missing_ephemeris(tmp_path):
-    text = re.sub(r"<Points>.*</Points>", "", TEXTS[5], flags=re.S)
-    with pytest.raises(MetadataError, match="Ephemeris/Points/Point"):
-        read_text(text, tmp_path)
-
-
-def test_too_few_ephemeris_points(tmp_path):
-    text = re.sub(r"(<Point>.*?</Point>\s*){8}", "", TEXTS[5], count=1, flags=re.S)
-    with pytest.raises(MetadataError, match="3 ephemeris samples"):
-        read_text(text, tmp_path)
-
-
-def test_ephemeris_not_covering_the_acquisition(tmp_path):
-    text = replace_first(TEXTS[5], "SCENE_CENTER_TIME", "2005-03-13T05:31:00.250000")
-    with pytest.raises(MetadataError, match="do not cover the acquisition"):
-        read_text(text, tmp_path)
-
-
-def test_fewer_look_angles_than_detectors(tmp_path):
-    text = re.sub(r"<Look_Angles>\s*<DETECTOR_ID>40</DETECTOR_ID>.*?</Look_Angles>", "", TEXTS[5], flags=re.S)
-    with pytest.raises(MetadataError, match="39 detectors .* NCOLS = 40; SPOT 5 needs one per detector"):
-        read_text(text, tmp_path)
-
-
-def test_spot2_needs_first_and_last_detector(tmp_path):
-    text = replace_first(TEXTS[2], "DETECTOR_ID", "2")
-    with pytest.raises(MetadataError, match="at least the first and last"):
-        read_text(text, tmp_path)
+@pytest.mark.parametrize("mission, edit, message", [
+    (5, lambda t: re.sub(r"<Points>.*</Points>", "", t, flags=re.S), "Ephemeris/Points/Point"),
+    (5, lambda t: re.sub(r"(<Point>.*?</Point>\s*){8}", "", t, count=1, flags=re.S), "3 ephemeris samples"),
+    (5, lambda t: replace_first(t, "SCENE_CENTER_TIME", "2005-03-13T05:31:00.250000"),
+     "do not cover the acquisition"),
+    (5, lambda t: re.sub(r"<Look_Angles>\s*<DETECTOR_ID>40</DETECTOR_ID>.*?</Look_Angles>", "", t, flags=re.S),
+     "39 detectors .* NCOLS = 40; SPOT 5 needs one per detector"),
+    (2, lambda t: replace_first(t, "DETECTOR_ID", "2"), "at least the first and last"),
+    (5, lambda t: t.replace("<Metadata_Id>", "<Metadata_Identification><METADATA_FORMAT version='2.0'>DIMAP"
+                            "</METADATA_FORMAT></Metadata_Identification><Metadata_Id>"),
+     "DIMAP v2 document .* open the image .* or its RPC file"),
+], ids=["no ephemeris", "3 ephemeris points", "ephemeris too short", "39 look angles", "spot2 look table",
+        "dimap v2"])
+def test_document_edits(mission, edit, message, tmp_path):
+    with pytest.raises(MetadataError, match=message):
+        read_text(edit(TEXTS[mission]), tmp_path)
 
 
 @pytest.mark.parametrize("tag, value, message", [
@@ -166,5 +154,6 @@ def test_mutated_documents_give_metadata_error_or_a_model(text):
     cols, rows = model.size
     col, row, h = np.array([0.0, cols / 2]), np.array([0.0, rows / 2]), np.array([0.0, 100.0])
     col2, row2 = model.ground_to_image(*model.image_to_ground(col, row, h), h)
+    assert np.isfinite(col2[1]), "a model that loads must at least locate its scene centre"
     ok = np.isfinite(col2)
     np.testing.assert_allclose(np.column_stack([col2, row2])[ok], np.column_stack([col, row])[ok], atol=1e-4)

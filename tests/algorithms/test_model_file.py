@@ -50,9 +50,8 @@ def test_spot2_with_drift_off_round_trips(spot2_dim, tmp_path):
     assert_same_model(model, again, 0.0)
 
 
-def test_rpc_model_with_crop_round_trips_exactly(tmp_path):
-    from conftest import shared_file
-    model = sensors.load(shared_file("pleiades_pair_ventoux", "right_image.tif"))
+def test_rpc_model_with_crop_round_trips_exactly(ventoux_image, tmp_path):
+    model = sensors.load(ventoux_image)
     assert model.offset != (0.0, 0.0)
     sensors.save(model, tmp_path / "r.pbmodel.json")
     again = sensors.load(tmp_path / "r.pbmodel.json")
@@ -80,4 +79,17 @@ def test_truncated_model_file_raises_metadata_error(spot5_dim, tmp_path):
     del doc["orientation"]["eph_pos"]
     path.write_text(json.dumps(doc))
     with pytest.raises(MetadataError):
+        sensors.load(path)
+
+
+@pytest.mark.parametrize("size", [[1], [-5, 3], [0, 10], "ab", None, [1e400, 3]])
+def test_rpc_model_file_with_a_bad_size_raises_metadata_error(tmp_path, size):
+    from rpc_synthetic import synthetic_coefficients
+    from pushbroom.algorithms.sensors.rpc import RpcModel
+    path = tmp_path / "r.pbmodel.json"
+    sensors.save(RpcModel(synthetic_coefficients()), path)
+    doc = json.loads(path.read_text())
+    doc["size"] = size
+    path.write_text(json.dumps(doc).replace("Infinity", "1e400"))
+    with pytest.raises(MetadataError, match="damaged"):
         sensors.load(path)

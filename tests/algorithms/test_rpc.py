@@ -200,6 +200,22 @@ def test_geom_beside_a_crop_takes_its_offset_and_size(tmp_path, fields, model):
         assert_same_mapping(loaded, model, 1e-9)
 
 
+def test_orientation_files_are_not_redirected_to_a_metadata_dim_beside_them(tmp_path, fields, model):
+    """A folder holding a SPOT METADATA.DIM and a Pleiades crop with its .geom: the .geom (given,
+    or found beside its raster) is the crop's orientation; the folder itself is the SPOT product."""
+    from spot_synthetic import synthetic_orientation
+
+    from pushbroom.algorithms.sensors.dimap import write_dimap
+    write_dimap(tmp_path / "METADATA.DIM", synthetic_orientation(ncols=40))
+    (tmp_path / "left.geom").write_text(geom_text(fields))
+    raster = write_raster(tmp_path / "left.tif", SIZE, geotransform=(CROP[0], 1, 0, CROP[1], 0, 1))
+    for path in (tmp_path / "left.geom", raster):
+        loaded = sensors.load(path)
+        assert isinstance(loaded, RpcModel) and loaded.offset == CROP
+        assert sensors.orientation_source(path) == str(tmp_path / "left.geom")
+    assert sensors.load(tmp_path).size == (40, 200)
+
+
 def test_geom_alone_describes_the_full_image(tmp_path, fields):
     (tmp_path / "full.geom").write_text(geom_text(fields, size=(39182, 41801)))
     loaded = sensors.load(tmp_path / "full.geom")

@@ -6,7 +6,7 @@ from scipy.optimize import brentq
 from spot_synthetic import synthetic_orientation
 
 from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.errors import GeometryError
+from pushbroom.algorithms.errors import GeometryError, InputError
 from pushbroom.algorithms.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from pushbroom.algorithms.sensors import spot_frames as frames
 from pushbroom.algorithms.sensors import spot_kernels as k
@@ -218,6 +218,16 @@ def test_ground_to_image_gives_nan_for_impossible_points():
     assert np.isnan(col[0]) and np.isfinite(col[1])
 
 
+def test_image_to_ground_never_extrapolates_the_orbit():
+    """Rows whose time lies outside the Lagrange window (-90..120 s here) give NaN, as do heights
+    inside the Earth; rows far outside the image but inside the window are still located."""
+    model = SpotModel(synthetic_orientation())  # 0.025 s per line, row 100 at t = 0.25 s
+    lon, lat = model.image_to_ground([150.0] * 4, [-3000.0, -3700.0, 4700.0, 100.0], [0.0, 0.0, 0.0, -4e6])
+    assert np.isfinite(lon[[0, 2]]).all() and np.isnan(lon[[1, 3]]).all() and np.isnan(lat[[1, 3]]).all()
+    pos, direction = model.line_of_sight(150.0, 1e6)
+    assert np.isnan(pos).all() and np.isnan(direction).all()
+
+
 def test_scalars_in_floats_out_and_shapes_kept():
     model = SpotModel(synthetic_orientation())
     lon, lat = model.image_to_ground(10, 20, 0)
@@ -226,6 +236,10 @@ def test_scalars_in_floats_out_and_shapes_kept():
     assert type(col) is float and col == pytest.approx(10, abs=1e-6)
     lon, lat = model.image_to_ground(np.zeros((2, 3)), 5.0, 0.0)
     assert lon.shape == (2, 3)
+    with pytest.raises(InputError, match="one shape"):
+        model.image_to_ground(np.zeros(3), np.zeros(4), 0.0)
+    with pytest.raises(InputError, match="real numbers"):
+        model.ground_to_image("13.0", "forty", 0.0)
 
 
 def test_drift_switch_for_spot_1_to_4():
@@ -299,3 +313,60 @@ def test_image_to_dem_outside_the_dem_raises():
     model = SpotModel(synthetic_orientation())
     with pytest.raises(GeometryError, match="does not meet the DEM"):
         model.image_to_dem([0.0, 5000.0], [0.0, 0.0], rugged_dem())
+
+
+def oblique_model():
+    """The synthetic scene pointed 26 degrees across track: rays advance 0.5 m per metre of height."""
+    o = synthetic_orientation()
+    o.psi_y = o.psi_y + 0.45
+    return SpotModel(o)
+
+
+def first_crossing(model, col, row, dem, step=0.25):
+    """Brute force: the highest height of a 0.25 m scan down the ray that lies on or below the DEM."""
+    hs = np.arange(dem.height_range[1] + 1.0, dem.height_range[0] - 1.0, -step)
+    lon, lat = model.image_to_ground(np.full(hs.size, col), np.full(hs.size, row), hs)
+    below = np.flatnonzero(hs - dem.height(lon, lat) <= 0)
+    return hs[below[0]]
+
+
+@pytest.mark.parametrize("height", [300.0, 700.0, 1100.0, 1500.0, 1900.0, 2300.0])
+def test_image_to_dem_returns_the_first_intersection_with_a_needle(height):
+    """A one-cell (13 m) needle of 10 km on flat ground, in the cell where the ray passes `height`:
+    the scan must not step over it (64 fixed height steps advance 80 m per step on this oblique ray,
+    the needle's bilinear cone is 26 m wide at its foot)."""
+    model = oblique_model()
+    col, row = 150.0, 100.0
+    lon0, lat0 = model.image_to_ground(col, row, 0.0)
+    cell = 0.00015
+    lons = np.arange(lon0 - 0.03, lon0 + 0.03, cell)
+    lats = np.arange(lat0 + 0.03, lat0 - 0.03, -cell)
+    z = np.zeros((lats.size, lons.size))
+    lon_n, lat_n = model.image_to_ground(col, row, height)
+    z[int((lats[0] + cell / 2 - lat_n) / cell), int((lon_n - lons[0] + cell / 2) / cell)] = 10000.0
+    dem = Dem(z, (lons[0] - cell / 2, cell, 0.0, lats[0] + cell / 2, 0.0, -cell))
+    want = first_crossing(model, col, row, dem)
+    assert want >= height  # the ray meets the needle, at or above `height`
+    for method in (model.image_to_dem, lambda c, r, d: SensorModel.image_to_dem(model, c, r, d)):
+        lon, lat, h = method(col, row, dem)
+        assert h == pytest.approx(want, abs=0.5)
+        assert h == pytest.approx(dem.height(lon, lat), abs=1e-3)
+
+
+def test_image_to_dem_meets_a_cliff_face_not_the_plateau_behind_it():
+    """Rays looking at a 3000 m cliff face from the low side hit the face, at the brute-force height."""
+    model = oblique_model()
+    lon0, lat0 = model.image_to_ground(150.0, 100.0, 0.0)
+    lon_top, _ = model.image_to_ground(150.0, 100.0, 3000.0)
+    cell = 0.0003
+    lons = np.arange(lon0 - 0.05, lon0 + 0.05, cell)
+    lats = np.arange(lat0 + 0.05, lat0 - 0.05, -cell)
+    x, _ = np.meshgrid(lons, lats)
+    edge = 0.5 * (lon0 + lon_top)  # the ray passes the cliff edge at about 1500 m
+    z = np.where((x - edge) * np.sign(lon_top - lon0) < 0, 3000.0, 0.0)  # plateau beyond the edge, its face turned to the satellite
+    dem = Dem(z, (lons[0] - cell / 2, cell, 0.0, lats[0] + cell / 2, 0.0, -cell))
+    cols = np.array([149.9, 150.0, 150.1])  # 20 m apart on the ground
+    lon, lat, h = model.image_to_dem(cols, np.full(3, 100.0), dem)
+    for c, got in zip(cols, h):
+        assert got == pytest.approx(first_crossing(model, c, 100.0, dem), abs=0.5)
+    assert np.all((h > 100.0) & (h < 2900.0))  # on the face, neither on top nor at its foot

@@ -4,29 +4,15 @@ On the Pleiades triplet image img_01.tif of ../shared/data; points spread over t
 RPC's height range; best of 3 runs after a warm-up (numba compiled or loaded from its cache).
 GDAL's image -> ground runs with RPC_PIXEL_ERROR_THRESHOLD=1e-9 px, comparable to RpcModel's
 1e-8 px (GDAL's default, 0.1 px, is faster and coarser)."""
-import os
-import pathlib
-import time
-
 import numpy as np
+from benchutil import SHARED_DATA, best_time
 from osgeo import gdal
 
 from pushbroom.algorithms import sensors
 
-SHARED_DATA = os.environ.get("PUSHBROOM_SHARED_DATA", pathlib.Path(__file__).resolve().parents[3] / "shared" / "data")
-IMAGE = pathlib.Path(SHARED_DATA) / "pleiades_triplet" / "img_01.tif"
+IMAGE = SHARED_DATA / "pleiades_triplet" / "img_01.tif"
 N_OURS = 1_000_000
 N_GDAL = 100_000
-
-
-def best_time(function, repeat=3):
-    """Shortest wall time of `repeat` calls of function()."""
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def sample_points(model, n, seed=0):

@@ -5,16 +5,15 @@ scene; times are the best of three after JIT warm-up."""
 import os
 import pathlib
 import sys
-import time
 
 import numpy as np
+from benchutil import SHARED_DATA, best_time
 
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.sensors.spot import SpotModel
 
 HERE = pathlib.Path(__file__).resolve().parent
-SPOT5 = pathlib.Path(os.environ.get("PUSHBROOM_SHARED_DATA", HERE.parents[2] / "shared" / "data"),
-                     "spot5_hrg1_2005", "METADATA.DIM")
+SPOT5 = SHARED_DATA / "spot5_hrg1_2005" / "METADATA.DIM"
 
 
 def scene_model():
@@ -37,16 +36,6 @@ def terrain(model):
     heights = 1000 + 1000 * np.sin(np.radians(x) * 3000) * np.cos(np.radians(y) * 2000)
     step_lon, step_lat = lon[1] - lon[0], lat[1] - lat[0]
     return Dem(heights, (west - step_lon / 2, step_lon, 0.0, north - step_lat / 2, 0.0, step_lat))
-
-
-def best_of(function, repeat=3):
-    function()  # warm-up: JIT compilation or cache load
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def run():
@@ -73,7 +62,7 @@ def run():
     ]
     rows_out = []
     for operation, data, n, function in cases:
-        seconds = best_of(function)
+        seconds = best_time(function)
         rows_out.append({"operation": operation, "data": data, "points": n, "seconds": seconds,
                          "points/s": n / seconds, "scene": label, "cores": os.cpu_count()})
     return rows_out
