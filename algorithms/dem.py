@@ -35,6 +35,13 @@ def _bilinear_arrays(grid, lon0, dlon, lat0, dlat, lon, lat, out):
         out[k] = bilinear_scalar(grid, lon0, dlon, lat0, dlat, lon[k], lat[k])
 
 
+def grid_bounds(geotransform, shape):
+    """(lon_min, lat_min, lon_max, lat_max) of the outer cell edges of a north-up grid."""
+    lon0, dlon, _, lat0, _, dlat = geotransform
+    rows, cols = shape
+    return lon0, lat0 + rows * dlat, lon0 + cols * dlon, lat0
+
+
 class Dem:
     """Ellipsoidal heights (metres, WGS 84) on a geographic grid."""
 
@@ -62,9 +69,7 @@ class Dem:
     @property
     def bounds(self):
         """(lon_min, lat_min, lon_max, lat_max) of the grid's outer cell edges."""
-        lon0, dlon, _, lat0, _, dlat = self.geotransform
-        rows, cols = self.heights.shape
-        return lon0, lat0 + rows * dlat, lon0 + cols * dlon, lat0
+        return grid_bounds(self.geotransform, self.heights.shape)
 
     @property
     def height_range(self):

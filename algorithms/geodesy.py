@@ -68,10 +68,12 @@ def _ecef_to_geodetic_arrays(xyz, out):
 
 def geodetic_to_ecef(lon, lat, h):
     """Arrays (any broadcastable shape) -> ECEF array of shape (..., 3)."""
-    lon, lat, h = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (lon, lat, h)))
+    arrays = [np.asarray(v, dtype=np.float64) for v in (lon, lat, h)]
+    shape = np.broadcast_shapes(*(a.shape for a in arrays))
+    lon, lat, h = (np.broadcast_to(a, shape).flatten() for a in arrays)
     out = np.empty((lon.size, 3))
-    _geodetic_to_ecef_arrays(lon.ravel(), lat.ravel(), h.ravel(), out)
-    return out.reshape(lon.shape + (3,))
+    _geodetic_to_ecef_arrays(lon, lat, h, out)
+    return out.reshape(shape + (3,))
 
 
 def ecef_to_geodetic(xyz):

@@ -4,4 +4,5 @@
 def algorithm_classes():
     """The algorithm classes the provider registers, in toolbox order."""
     from .create_block import CreateBlock
-    return [CreateBlock]
+    from .simulate_scene import SimulateScene
+    return [SimulateScene, CreateBlock]

@@ -1,0 +1,82 @@
+"""Writers of the simulator's products (all called inside one atomic folder, see scene.py):
+geographic GeoTIFFs (EPSG:4326, heights ellipsoidal WGS 84), raw level-1A imagery, the point
+candidates CSV and the truth JSON. Byte-for-byte reproducible (no timestamps)."""
+import csv
+import json
+
+import numpy as np
+
+GEOTIFF_OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "ZLEVEL=1"]
+
+
+def write_raster(path, array, grid, nodata=None, description="", metadata=None):
+    """North-up GeoTIFF of `array` on `grid` (EPSG:4326), tiled, DEFLATE, with overviews."""
+    from osgeo import gdal, osr
+    gdal.UseExceptions()
+    types = {np.dtype(np.uint8): gdal.GDT_Byte, np.dtype(np.float32): gdal.GDT_Float32}
+    array = np.asarray(array)
+    predictor = "PREDICTOR=3" if array.dtype == np.float32 else "PREDICTOR=2"
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), grid.cols, grid.rows, 1, types[array.dtype],
+                                              GEOTIFF_OPTIONS + [predictor])
+    ds.SetGeoTransform(grid.geotransform)
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(4326)
+    ds.SetProjection(srs.ExportToWkt())
+    band = ds.GetRasterBand(1)
+    if nodata is not None:
+        band.SetNoDataValue(nodata)
+    band.SetDescription(description)
+    band.WriteArray(array)
+    if metadata:
+        ds.SetMetadata({k: str(v) for k, v in metadata.items()})
+    ds.BuildOverviews("NEAREST" if array.dtype == np.uint8 and nodata == 0 else "AVERAGE", [2, 4, 8, 16])
+    ds = None
+
+
+def write_imagery(path, dn):
+    """Level-1A IMAGERY.TIF: raw DN, no georeferencing (the geometry is in METADATA.DIM)."""
+    from osgeo import gdal
+    gdal.UseExceptions()
+    dtype = gdal.GDT_Byte if dn.dtype == np.uint8 else gdal.GDT_UInt16
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), dn.shape[1], dn.shape[0], 1, dtype)
+    ds.GetRasterBand(1).WriteArray(dn)
+    ds = None
+
+
+def write_points(path, candidates):
+    """CSV: id, lon, lat, h, then per image <name>_col, _row (true, GDAL pixel convention),
+    <name>_col_meas, _row_meas (simulated measurement), <name>_blunder (1 if a gross error was
+    injected)."""
+    names = list(candidates.true)
+    header = ["id", "lon", "lat", "h"]
+    for name in names:
+        header += [f"{name}_col", f"{name}_row", f"{name}_col_meas", f"{name}_row_meas", f"{name}_blunder"]
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(header)
+        for k in range(len(candidates)):
+            row = [f"P{k + 1:03d}", f"{candidates.lon[k]:.10f}", f"{candidates.lat[k]:.10f}", f"{candidates.h[k]:.4f}"]
+            for name in names:
+                tc, tr = candidates.true[name][k]
+                mc, mr = candidates.measured[name][k]
+                row += [f"{tc:.5f}", f"{tr:.5f}", f"{mc:.5f}", f"{mr:.5f}", int(candidates.blunder[name][k])]
+            writer.writerow(row)
+
+
+def _plain(value):
+    """JSON-ready copy: numpy arrays and scalars to lists and Python numbers."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def write_json(path, data):
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(_plain(data), f, indent=1, sort_keys=True)
+        f.write("\n")

@@ -1,0 +1,136 @@
+"""Control/check point candidates: open, flat ground points seen by every image, with their true
+image coordinates (from the continuous truth) and simulated measurements (Gaussian noise of
+`sigma` px, optional blunders of 5-20 px in a random direction, flagged)."""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geodesy import geodetic_to_ecef
+from .terrain import BARE, CROPS
+
+EDGE_PX = 10.0          # candidates keep this distance from every image border
+VISIBLE_M = 0.5         # a candidate is visible if the ray of its true pixel lands this close
+SLOPE_MAX = 0.15        # rise per metre (8.5 deg) allowed across a candidate's neighbourhood
+
+
+@dataclass
+class Candidates:
+    """Point candidates and their coordinates in every image (dicts keyed by image name)."""
+
+    lon: np.ndarray
+    lat: np.ndarray
+    h: np.ndarray
+    true: dict        # name -> (n, 2) col, row
+    measured: dict    # name -> (n, 2)
+    blunder: dict     # name -> (n,) bool
+
+    def __len__(self):
+        return len(self.lon)
+
+
+def select_sites(terrain, images, count, clearance_m, rng, tries=20):
+    """Up to `count` sites (lon, lat) on eligible cells (`eligible_cells`) inside every image
+    (EDGE_PX), spread out: first one site in each stratum of a ceil(sqrt(count))^2 division of
+    the grid (strata in random order), then anywhere, always at least half a stratum from the
+    sites already chosen; `tries` random cells per attempt."""
+    grid = terrain.grid
+    eligible = eligible_cells(terrain, clearance_m)
+    k = max(1, int(math.ceil(math.sqrt(count))))
+    spacing = 0.5 * min(grid.rows, grid.cols) / k
+    sites = []
+
+    def take(candidates):
+        for flat in rng.choice(candidates, size=min(tries, candidates.size), replace=False):
+            i, j = divmod(int(flat), grid.cols)
+            if any(math.hypot(i - a, j - b) < spacing for a, b in sites):
+                continue
+            xyz = geodetic_to_ecef(*grid.lonlat(j, i), terrain.dtm[i, j])
+            if all(_inside(image, xyz) for image in images):
+                sites.append((i, j))
+                return
+
+    for stratum in rng.permutation(k * k):
+        si, sj = divmod(int(stratum), k)
+        i0, i1 = si * grid.rows // k, (si + 1) * grid.rows // k
+        j0, j1 = sj * grid.cols // k, (sj + 1) * grid.cols // k
+        ii, jj = np.nonzero(eligible[i0:i1, j0:j1])
+        if len(sites) < count and ii.size:
+            take((ii + i0) * grid.cols + jj + j0)
+    everywhere = np.flatnonzero(eligible)
+    for _ in range(count - len(sites)):
+        if everywhere.size:
+            take(everywhere)
+    if not sites:
+        return np.zeros((0, 2))
+    i, j = np.array(sites).T
+    return np.column_stack(grid.lonlat(j, i))
+
+
+def eligible_cells(terrain, clearance_m):
+    """Cells whose whole +-clearance_m neighbourhood is BARE or CROPS and whose DTM there stays
+    within +-SLOPE_MAX x clearance of its middle (open, flat ground: no occlusion, symmetric
+    markers)."""
+    from scipy import ndimage
+    de, dn = terrain.grid.cell_metres
+    size = (2 * int(math.ceil(clearance_m / dn)) + 1, 2 * int(math.ceil(clearance_m / de)) + 1)
+    open_ground = np.isin(terrain.classes, (BARE, CROPS)).astype(np.uint8)
+    relief = ndimage.maximum_filter(terrain.dtm, size) - ndimage.minimum_filter(terrain.dtm, size)
+    return (ndimage.minimum_filter(open_ground, size) > 0) & (relief <= 2.0 * SLOPE_MAX * clearance_m)
+
+
+def _inside(image, xyz):
+    col, row = image.ground_to_image(xyz)
+    return EDGE_PX <= col[0] <= image.ncols - EDGE_PX and EDGE_PX <= row[0] <= image.nrows - EDGE_PX
+
+
+def level_pads(terrain, lon, lat, radius_m):
+    """Level the ground under each site: within `radius_m` the DTM and DSM become the plane
+    fitted to the DTM there, blended back to the terrain linearly out to 1.5 radius (markers are
+    laid on levelled pads, so the marker's image is symmetric)."""
+    grid = terrain.grid
+    de, dn = grid.cell_metres
+    outer = 1.5 * radius_m
+    ri, rj = int(math.ceil(outer / dn)) + 1, int(math.ceil(outer / de)) + 1
+    x, y = grid.vertex(lon, lat)
+    for xc, yc in zip(np.atleast_1d(x), np.atleast_1d(y)):
+        i0, j0 = int(round(yc)) - ri, int(round(xc)) - rj
+        ii, jj = np.mgrid[i0:i0 + 2 * ri + 1, j0:j0 + 2 * rj + 1]
+        e, n = (jj - xc) * de, (yc - ii) * dn
+        d = np.hypot(e, n)
+        inner = d <= radius_m
+        design = np.column_stack([np.ones(inner.sum()), e[inner], n[inner]])
+        coef = np.linalg.lstsq(design, terrain.dtm[ii[inner], jj[inner]], rcond=None)[0]
+        plane = coef[0] + coef[1] * e + coef[2] * n
+        weight = np.clip((outer - d) / (outer - radius_m), 0.0, 1.0)
+        for z in (terrain.dtm, terrain.dsm):
+            z[ii, jj] = weight * plane + (1.0 - weight) * z[ii, jj]
+
+
+def image_coordinates(sites_lonlat, heights, images, surface, sigma, blunders, rng):
+    """Candidates at (lon, lat, h): true image coordinates in every image (continuous truth),
+    dropping points occluded in any image; measurements = truth + N(0, sigma) and `blunders`
+    gross errors spread over random (point, image) pairs."""
+    lon, lat = sites_lonlat[:, 0], sites_lonlat[:, 1]
+    xyz = geodetic_to_ecef(lon, lat, heights)
+    true, keep = {}, np.ones(len(lon), bool)
+    for image in images:
+        col, row = image.ground_to_image(xyz)
+        pos, mat = image.line_geometry(row)
+        ground = surface.trace(pos, mat, image.look_vectors(col))
+        seen = geodetic_to_ecef(ground[:, 0], ground[:, 1], ground[:, 2])
+        keep &= np.linalg.norm(seen - xyz, axis=1) < VISIBLE_M
+        true[image.name] = np.column_stack([col, row])
+    true = {name: v[keep] for name, v in true.items()}
+    n = int(keep.sum())
+    measured = {name: v + rng.normal(0.0, sigma, v.shape) for name, v in true.items()}
+    blunder = {name: np.zeros(n, bool) for name in true}
+    names = list(true)
+    pairs = rng.permutation(n * len(names))[:min(blunders, n * len(names))]
+    for flat in pairs:
+        name, k = names[flat % len(names)], flat // len(names)
+        angle = rng.uniform(0, 2 * math.pi)
+        measured[name][k] += rng.uniform(5.0, 20.0) * np.array([math.cos(angle), math.sin(angle)])
+        blunder[name][k] = True
+    return Candidates(lon[keep], lat[keep], heights[keep], true, measured, blunder)
+

@@ -1,0 +1,162 @@
+"""Ground radiance and image formation.
+
+Ground: Lambertian reflectance rho per land-cover class with procedural texture (water and
+uniform grass parcels are nearly textureless, so matching there should fail), lit by the sun:
+
+    L = rho (E_dir cos(i) lit + E_sky (1 + n_z) / 2),   E_dir = 0.85, E_sky = 0.15,
+
+with i the incidence angle on the DSM normal n, `lit` 0 in cast shadows (ray towards the sun
+blocked by the DSM, see render.first_hit) and (1 + n_z)/2 the visible sky fraction. A user
+orthoimage replaces rho.
+
+Sensor: the image samples L at each pixel's ground point; then optics and detector blur (MTF,
+a Gaussian of sigma 0.5 px, MTF(Nyquist) = exp(-pi^2 sigma^2 / 2) = 0.29, typical of SPOT),
+DN = gain L + offset (path radiance; gain and offset differ between sensors), additive Gaussian
+noise, rounding to `bits` (DN 0 is kept for nodata, as in DIMAP). The true orthoimage product is
+the ground radiance L with the nominal gain and offset."""
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..errors import InputError
+from .noise import fbm, uniform
+from .render import BLOCK, first_hit
+from .terrain import BARE, CITY, CROPS, FOREST, WATER
+
+E_DIRECT = 0.85
+E_SKY = 0.15
+NOMINAL_GAIN = 450.0     # DN (8 bit) per unit radiance
+NOMINAL_OFFSET = 12.0    # DN (8 bit) of path radiance
+MTF_SIGMA = 0.5          # px
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def reflectance(classes, feature, objects, e0, de, n0, dn, seed):
+    """Reflectance rho per cell from its class, feature id and object height (module docstring)."""
+    rows, cols = classes.shape
+    out = np.empty((rows, cols), np.float32)
+    for i in prange(rows):
+        n = n0 - i * dn
+        for j in range(cols):
+            e = e0 + j * de
+            c = classes[i, j]
+            f = feature[i, j]
+            if c == WATER:
+                r = 0.035 + 0.004 * fbm(e / 40.0, n / 40.0, seed + 1, 2, 0.5)
+            elif c == BARE:
+                theta = math.pi * uniform(f, 0, seed + 2)
+                period = 6.0 + 9.0 * uniform(f, 1, seed + 2)
+                furrow = math.sin(2 * math.pi * (e * math.cos(theta) + n * math.sin(theta)) / period)
+                r = (0.20 + 0.15 * uniform(f, 2, seed + 2) + 0.035 * fbm(e / 12.0, n / 12.0, seed + 3, 3, 0.5)
+                     + 0.015 * furrow)
+            elif c == CROPS:
+                theta = math.pi * uniform(f, 0, seed + 4)
+                period = 8.0 + 12.0 * uniform(f, 1, seed + 4)
+                rows_amp = 0.025 * max(0.0, 2.0 * uniform(f, 3, seed + 4) - 1.0)
+                stripe = math.sin(2 * math.pi * (e * math.cos(theta) + n * math.sin(theta)) / period)
+                r = (0.07 + 0.10 * uniform(f, 2, seed + 4) + rows_amp * stripe
+                     + 0.008 * fbm(e / 15.0, n / 15.0, seed + 5, 2, 0.5))
+            elif c == FOREST:
+                r = (0.035 + 0.0015 * objects[i, j] + 0.015 * uniform(f, 0, seed + 6)
+                     + 0.012 * fbm(e / 10.0, n / 10.0, seed + 7, 2, 0.5))
+            elif c == CITY:
+                if f == 0:
+                    r = 0.10 + 0.01 * fbm(e / 8.0, n / 8.0, seed + 8, 2, 0.5)
+                elif f == 1:
+                    r = 0.13 + 0.04 * fbm(e / 15.0, n / 15.0, seed + 9, 2, 0.5)
+                else:
+                    r = 0.15 + 0.30 * uniform(f, 0, seed + 10) + 0.01 * fbm(e / 6.0, n / 6.0, seed + 11, 1, 0.5)
+            else:
+                r = 0.0
+            out[i, j] = max(r, 0.005)
+    return out
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def illumination(z, bmax, de, dn, sun_az, sun_el, hmax):
+    """E_dir cos(i) lit + E_sky (1 + n_z)/2 per vertex of the DSM z (cells de x dn metres, rows
+    southwards); `lit` from a ray towards the sun, started 5 cm above the surface."""
+    rows, cols = z.shape
+    se, sn, su = math.sin(sun_az) * math.cos(sun_el), math.cos(sun_az) * math.cos(sun_el), math.sin(sun_el)
+    gx, gy = math.sin(sun_az) / de, -math.cos(sun_az) / dn     # grid cells per metre towards the sun
+    slope = math.tan(sun_el)
+    out = np.empty((rows, cols), np.float32)
+    for i in prange(rows):
+        i0 = max(i - 1, 0)
+        i1 = min(i + 1, rows - 1)
+        for j in range(cols):
+            j0 = max(j - 1, 0)
+            j1 = min(j + 1, cols - 1)
+            dzde = (z[i, j1] - z[i, j0]) / ((j1 - j0) * de)
+            dzdn = (z[i0, j] - z[i1, j]) / ((i1 - i0) * dn)
+            norm = math.sqrt(dzde * dzde + dzdn * dzdn + 1.0)
+            cos_i = (-dzde * se - dzdn * sn + su) / norm
+            sky = 0.5 * (1.0 + 1.0 / norm)
+            lit = 0.0
+            if cos_i > 0.0:
+                z0 = z[i, j] + 0.05
+                length = (hmax - z0) / slope + 1.0
+                s = first_hit(float(j), float(i), z0, j + gx * length, i + gy * length, z0 + slope * length,
+                              z, bmax, BLOCK)
+                lit = 1.0 if s < 0.0 else 0.0
+            out[i, j] = E_DIRECT * max(cos_i, 0.0) * lit + E_SKY * sky
+    return out
+
+
+def paint_markers(rho, grid, lon, lat, sigma_m, pad=0.03, peak=0.85):
+    """Bright targets: rho = pad + peak exp(-d^2 / 2 sigma^2) within 5 sigma of each (lon, lat)
+    (d in metres), a Gaussian spot on a round dark pad."""
+    de, dn = grid.cell_metres
+    radius = 5.0 * sigma_m
+    x, y = grid.vertex(np.atleast_1d(lon), np.atleast_1d(lat))
+    ri, rj = int(math.ceil(radius / dn)), int(math.ceil(radius / de))
+    for xc, yc in zip(x, y):
+        i, j = int(math.floor(yc)), int(math.floor(xc))
+        ii, jj = np.mgrid[max(i - ri, 0):min(i + ri + 2, grid.rows), max(j - rj, 0):min(j + rj + 2, grid.cols)]
+        d2 = ((jj - xc) * de) ** 2 + ((ii - yc) * dn) ** 2
+        inside = d2 <= radius * radius
+        rho[ii[inside], jj[inside]] = pad + peak * np.exp(-0.5 * d2[inside] / sigma_m ** 2)
+
+
+def sensor_image(radiance, gain, offset, noise, bits, rng, sigma=MTF_SIGMA):
+    """DN image (uint8 / uint16) from the sampled radiance (module docstring). `noise` is the
+    noise standard deviation in 8-bit DN; gain and offset are in 8-bit DN and scaled to `bits`."""
+    from scipy import ndimage
+    missing = ~np.isfinite(radiance)
+    filled = np.where(missing, 0.0, radiance).astype(np.float64)
+    blurred = ndimage.gaussian_filter(filled, sigma, mode="nearest")
+    scale = 2.0 ** (bits - 8)
+    dn = scale * (gain * blurred + offset)
+    if noise > 0:
+        dn += rng.normal(0.0, noise * scale, dn.shape)
+    out = np.clip(np.rint(dn), 1, 2 ** bits - 1).astype(np.uint8 if bits == 8 else np.uint16)
+    out[missing] = 0
+    return out
+
+
+def orthoimage(radiance):
+    """8-bit true orthoimage of the ground radiance with the nominal gain and offset."""
+    return np.clip(np.rint(NOMINAL_GAIN * radiance + NOMINAL_OFFSET), 1, 255).astype(np.uint8)
+
+
+def load_orthoimage(path, grid):
+    """Reflectance from a user orthoimage (any CRS GDAL reads): band 1 warped bilinearly onto the
+    grid, its 1st..99th percentiles mapped linearly to reflectance 0.03..0.45."""
+    from osgeo import gdal
+    gdal.UseExceptions()
+    try:
+        src = gdal.Open(str(path))
+        warped = gdal.Warp("", src, format="MEM", dstSRS="EPSG:4326", outputBounds=grid.bounds,
+                           width=grid.cols, height=grid.rows, resampleAlg="bilinear",
+                           outputType=gdal.GDT_Float32, dstNodata=float("nan"))
+    except RuntimeError as exc:
+        raise InputError(f"cannot read the orthoimage {path}: {exc}") from exc
+    values = warped.GetRasterBand(1).ReadAsArray().astype(np.float32)
+    if not np.all(np.isfinite(values)):
+        raise InputError(f"the orthoimage {path} does not cover the scene's ground "
+                         f"(lon/lat {', '.join(f'{b:.4f}' for b in grid.bounds)}); give one that does")
+    lo, hi = np.percentile(values, [1, 99])
+    if not hi > lo:
+        raise InputError(f"the orthoimage {path} is constant over the scene; it has no texture to image")
+    return (0.03 + 0.42 * np.clip((values - lo) / (hi - lo), 0.0, 1.0)).astype(np.float32)

@@ -1,0 +1,44 @@
+"""pushbroom:simulatescene through Processing, chained into pushbroom:createblock."""
+import os
+
+import numpy as np
+import pytest
+from qgis import processing
+from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
+
+from pushbroom.algorithms import block, sensors
+
+
+@pytest.mark.slow
+def test_simulated_triplet_becomes_a_block(pushbroom_provider, tmp_path):
+    scene = processing.run("pushbroom:simulatescene", {
+        "CONFIGURATION": 0, "SIZE_KM": 3.0, "SEED": 7, "POINTS": 5, "OUTPUT": str(tmp_path / "scene")})
+    assert len(scene["IMAGES"]) == 3
+    for key in ("DSM", "DTM", "CLASSES", "ORTHOIMAGE", "POINTS", "TRUTH"):
+        assert os.path.isfile(scene[key]), key
+    context = QgsProcessingContext()
+    result = processing.run("pushbroom:createblock", {
+        "IMAGES": scene["IMAGES"], "DEM": scene["DSM"], "OUTPUT": str(tmp_path / "block.gpkg")},
+        context=context, feedback=QgsProcessingFeedback())
+    rows = block.read_images(result["OUTPUT"])
+    assert sorted(r["name"] for r in rows) == ["HRG", "HRS1", "HRS2"]
+    # the stored model is the supplied one of each product
+    for row in rows:
+        stored = block.load_model(result["OUTPUT"], row["id"])
+        supplied = sensors.load(row["image_path"])
+        c, r = np.array([10.0, row["cols"] - 10.0]), np.array([10.0, row["rows"] - 10.0])
+        assert np.array_equal(stored.image_to_ground(c, r, 300.0), supplied.image_to_ground(c, r, 300.0))
+    # the footprints layer is queued for loading with its style
+    details = context.layersToLoadOnCompletion()
+    assert len(details) == 1
+    source, detail = next(iter(details.items()))
+    layer = QgsVectorLayer(source, "fp", "ogr")
+    assert layer.isValid() and layer.featureCount() == 3
+    detail.postProcessor().postProcessLayer(layer, context, QgsProcessingFeedback())
+    assert layer.labelsEnabled()
+
+
+def test_bad_scene_parameters_give_a_clear_error(pushbroom_provider, tmp_path):
+    with pytest.raises(QgsProcessingException):
+        processing.run("pushbroom:simulatescene", {"SIZE_KM": 500.0, "OUTPUT": str(tmp_path / "s")})
+    assert not (tmp_path / "s").exists()
