@@ -65,6 +65,20 @@ def test_marker_centroids_match_the_truth_model(scene):
             assert abs(c - col) < 0.1 and abs(r - row) < 0.1, (name, p["id"], c - col, r - row)
 
 
+def test_round_trip_on_simulated_products(scene):
+    """ground_to_image(image_to_ground(p, h), h) within 1e-4 px over the whole image, h -500..9000 m,
+    for the supplied and the true orientation of every simulated image."""
+    _, paths, _, _ = scene
+    for name, product in paths["images"].items():
+        for source in (product["metadata"], paths["truth_metadata"][name]):
+            model = sensors.load(source)
+            cols, rows = model.size
+            c, r, h = np.meshgrid(np.linspace(0, cols, 25), np.linspace(0, rows, 25), [-500.0, 0.0, 3000.0, 9000.0])
+            c2, r2 = model.ground_to_image(*model.image_to_ground(c, r, h), h)
+            assert np.all(np.isfinite(c2)), source
+            assert max(np.abs(c2 - c).max(), np.abs(r2 - r).max()) < 1e-4, source
+
+
 def test_measurements_noise_and_blunders(scene):
     config, paths, truth, points = scene
     names = list(truth["images"])

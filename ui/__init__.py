@@ -1,0 +1,1 @@
+"""Qt dialogs of the plugin (control/check point measurement, residual views)."""
