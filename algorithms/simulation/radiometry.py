@@ -22,7 +22,7 @@ from numba import njit, prange
 from ..errors import InputError
 from .noise import fbm, uniform
 from .render import BLOCK, first_hit
-from .terrain import BARE, CITY, CROPS, FOREST, WATER
+from .terrain import BARE, CITY, CROPS, FOREST, WATER, gradient_en
 
 E_DIRECT = 0.85
 E_SKY = 0.15
@@ -83,13 +83,8 @@ def illumination(z, bmax, de, dn, sun_az, sun_el, hmax):
     slope = math.tan(sun_el)
     out = np.empty((rows, cols), np.float32)
     for i in prange(rows):
-        i0 = max(i - 1, 0)
-        i1 = min(i + 1, rows - 1)
         for j in range(cols):
-            j0 = max(j - 1, 0)
-            j1 = min(j + 1, cols - 1)
-            dzde = (z[i, j1] - z[i, j0]) / ((j1 - j0) * de)
-            dzdn = (z[i0, j] - z[i1, j]) / ((i1 - i0) * dn)
+            dzde, dzdn = gradient_en(z, i, j, de, dn)
             norm = math.sqrt(dzde * dzde + dzdn * dzdn + 1.0)
             cos_i = (-dzde * se - dzdn * sn + su) / norm
             sky = 0.5 * (1.0 + 1.0 / norm)

@@ -137,19 +137,24 @@ def _add_fractal(dtm, e0, de, n0, dn, wavelength, octaves, amplitude, persistenc
             dtm[i, j] += acc
 
 
+@njit(cache=True, nogil=True)
+def gradient_en(z, i, j, de, dn):
+    """(dz/dE, dz/dN) at cell (i, j) of a north-up grid (rows run south) with cells de x dn metres:
+    central differences, one-sided at the edges."""
+    rows, cols = z.shape
+    i0, i1 = max(i - 1, 0), min(i + 1, rows - 1)
+    j0, j1 = max(j - 1, 0), min(j + 1, cols - 1)
+    return (z[i, j1] - z[i, j0]) / ((j1 - j0) * de), (z[i0, j] - z[i1, j]) / ((i1 - i0) * dn)
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def slope_degrees(z, de, dn):
-    """Terrain slope atan(|grad z|), central differences (one-sided at the edges), degrees."""
+    """Terrain slope atan(|grad z|), degrees."""
     rows, cols = z.shape
     out = np.empty((rows, cols), np.float32)
     for i in prange(rows):
-        i0 = max(i - 1, 0)
-        i1 = min(i + 1, rows - 1)
         for j in range(cols):
-            j0 = max(j - 1, 0)
-            j1 = min(j + 1, cols - 1)
-            gx = (z[i, j1] - z[i, j0]) / ((j1 - j0) * de)
-            gy = (z[i1, j] - z[i0, j]) / ((i1 - i0) * dn)
+            gx, gy = gradient_en(z, i, j, de, dn)
             out[i, j] = math.degrees(math.atan(math.sqrt(gx * gx + gy * gy)))
     return out
 
