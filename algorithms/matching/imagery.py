@@ -1,0 +1,77 @@
+"""Windowed access to one band of a raster, so the matchers' memory is bounded by the tile size,
+not the scene size.
+
+Coordinates are GDAL's: a window read at (x0, y0) returns array pixel (i, j) with its centre at
+image position (x0 + j + 0.5, y0 + i + 0.5). Nodata pixels come back as NaN, which the matchers
+treat as "cannot match here" (a NaN correlation fails every acceptance test)."""
+import os
+import threading
+
+import numpy as np
+
+from ..errors import InputError
+
+
+class Image:
+    """One band of a GDAL raster (a path) or of an in-memory 2-D array (tests, derived images).
+
+    `size` is (cols, rows); `read(x0, y0, cols, rows)` returns (array float32, x0, y0) of the part
+    of the window that lies inside the image (possibly empty), with nodata set to NaN."""
+
+    def __init__(self, source, band=1, nodata=None):
+        self._array = None
+        self._dataset = None
+        self.band = int(band)
+        self._lock = threading.Lock()   # a GDAL dataset is not thread-safe
+        if isinstance(source, np.ndarray):
+            if source.ndim != 2 or source.size == 0:
+                raise InputError(f"an image array must be 2-D and non-empty, got shape {source.shape}")
+            self._array = np.asarray(source, dtype=np.float32)
+            self.path = None
+            self.nodata = nodata
+            self.size = (int(source.shape[1]), int(source.shape[0]))
+            return
+        from osgeo import gdal
+        self.path = os.fspath(source)
+        try:
+            gdal.UseExceptions()
+            dataset = gdal.Open(self.path, gdal.GA_ReadOnly)
+        except RuntimeError as exc:
+            raise InputError(f"cannot open the image {self.path}: {exc}") from None
+        if dataset is None:
+            raise InputError(f"cannot open the image {self.path}")
+        if not 1 <= self.band <= dataset.RasterCount:
+            raise InputError(f"the image {self.path} has {dataset.RasterCount} band(s), band {self.band} asked for")
+        self._dataset = dataset
+        rb = dataset.GetRasterBand(self.band)
+        self.nodata = rb.GetNoDataValue() if nodata is None else nodata
+        self.size = (int(dataset.RasterXSize), int(dataset.RasterYSize))
+
+    def __repr__(self):
+        return f"Image({self.path or 'array'}, {self.size[0]} x {self.size[1]})"
+
+    def read(self, x0, y0, cols, rows):
+        """Window of `cols` x `rows` pixels whose top-left corner is pixel (x0, y0), clipped to
+        the image: returns (float32 array, x0, y0) of the clipped window (shape (0, 0) when the
+        window misses the image)."""
+        c, r = self.size
+        xa, ya = max(int(x0), 0), max(int(y0), 0)
+        xb, yb = min(int(x0) + int(cols), c), min(int(y0) + int(rows), r)
+        if xb <= xa or yb <= ya:
+            return np.zeros((0, 0), np.float32), xa, ya
+        if self._array is not None:
+            data = self._array[ya:yb, xa:xb].copy()
+        else:
+            with self._lock:
+                data = self._dataset.GetRasterBand(self.band).ReadAsArray(xa, ya, xb - xa, yb - ya)
+            if data is None:
+                raise InputError(f"cannot read the window ({xa}, {ya}, {xb - xa}, {yb - ya}) of {self.path}")
+            data = data.astype(np.float32)
+        if self.nodata is not None:
+            data[data == np.float32(self.nodata)] = np.nan
+        return np.ascontiguousarray(data), xa, ya
+
+
+def as_image(source):
+    """An Image for a path, an array or an Image."""
+    return source if isinstance(source, Image) else Image(source)

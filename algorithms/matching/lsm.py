@@ -1,0 +1,401 @@
+"""Least-squares matching (methods.md section 3; H section 2, K section 3.3).
+
+Model: a template of image 1 centred at (x1, y1) (offsets k, l in px of image 1) is matched to
+image 2 under an affine geometric transformation
+
+    x = x2 + a1 k + a2 l,    y = y2 + a4 k + a5 l
+
+and a linear radiometric one, f(k, l) = r0 + r1 g(x, y). The 8 parameters (x2, a1, a2, y2, a4, a5,
+r0, r1) are estimated by Gauss-Newton. Image 2 is resampled bicubically (Keys, a = -0.5: half the
+interpolation bias of bilinear and smooth convergence); the Jacobian uses the template gradients
+(central differences) mapped through the current affine, (r1 gx, r1 gy) = A^-T (fk, fl), which
+equals the image-2 gradient at the solution but keeps image-2 noise out of the Jacobian (with
+image-2 gradients the noise biases positions towards half-pixel phases and the reported precision
+came out 2x optimistic). The template is sampled bilinearly (exact pixel values at pixel centres).
+Coordinates are GDAL's: array pixel (i, j) has its centre at (j + 0.5, i + 0.5).
+
+Precision: sigma0^2 = v'v / (n - 8) a posteriori, covariance of (x2, y2) = sigma0^2 times the
+(x2, y2) block of N^-1; `semi_major` / `semi_minor` are the square roots of its eigenvalues (1-sigma
+error ellipse, px of image 2).
+"""
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..errors import InputError
+from .params import LsmParams
+from .records import PAIR_DTYPE
+
+#: field order of the `out` vector that lsm_point fills
+LSM_FIELDS = ("x2", "y2", "rho", "semi_major", "semi_minor", "shift", "iterations",
+              "a1", "a2", "a4", "a5", "r0", "r1")
+LSM_OUT = len(LSM_FIELDS)
+
+#: lsm_point status codes
+OK, OUTSIDE, SINGULAR, NOT_CONVERGED = 0, 1, 2, 3
+STATUS_TEXT = {OK: "ok", OUTSIDE: "window leaves the image", SINGULAR: "singular normal equations (flat texture)",
+               NOT_CONVERGED: "not converged"}
+
+_NPAR = 8
+
+
+@njit(cache=True, nogil=True)
+def bilinear(img, x, y):
+    """Bilinear grey value of img at GDAL position (x, y); NaN outside the pixel-centre hull."""
+    nrows, ncols = img.shape
+    c = x - 0.5
+    r = y - 0.5
+    if not (c >= 0.0 and r >= 0.0 and c <= ncols - 1 and r <= nrows - 1):
+        return np.nan
+    j0 = int(math.floor(c))
+    i0 = int(math.floor(r))
+    if j0 > ncols - 2:
+        j0 = ncols - 2
+    if i0 > nrows - 2:
+        i0 = nrows - 2
+    if j0 < 0:      # single-column / single-row images
+        j0 = 0
+    if i0 < 0:
+        i0 = 0
+    fx = c - j0
+    fy = r - i0
+    j1 = min(j0 + 1, ncols - 1)
+    i1 = min(i0 + 1, nrows - 1)
+    top = img[i0, j0] * (1.0 - fx) + img[i0, j1] * fx
+    bottom = img[i1, j0] * (1.0 - fx) + img[i1, j1] * fx
+    return top * (1.0 - fy) + bottom * fy
+
+
+@njit(cache=True, nogil=True)
+def _inside_grad(nrows, ncols, x, y):
+    """True where bilinear value and gradient sampling at (x, y) stay inside the image
+    (needs one more pixel on each side for the central differences)."""
+    c = x - 0.5
+    r = y - 0.5
+    return c >= 1.0 and r >= 1.0 and c < ncols - 2.0 and r < nrows - 2.0
+
+
+@njit(cache=True, nogil=True)
+def _keys(t):
+    """Keys cubic convolution (a = -0.5) weights for fraction t in [0, 1) at the nodes -1, 0, 1, 2."""
+    t2 = t * t
+    t3 = t2 * t
+    w0 = -0.5 * t3 + t2 - 0.5 * t
+    w1 = 1.5 * t3 - 2.5 * t2 + 1.0
+    w2 = -1.5 * t3 + 2.0 * t2 + 0.5 * t
+    w3 = 0.5 * t3 - 0.5 * t2
+    return w0, w1, w2, w3
+
+
+@njit(cache=True, nogil=True)
+def cubic(img, x, y):
+    """(g, kappa): bicubic (Keys, a = -0.5) grey value at (x, y), which interpolates the pixel
+    values, and kappa = the sum of the squared weights (the factor by which resampling scales the
+    variance of white noise). The caller guarantees _inside_grad (4 x 4 neighbourhood inside)."""
+    c = x - 0.5
+    r = y - 0.5
+    j0 = int(math.floor(c))
+    i0 = int(math.floor(r))
+    wx0, wx1, wx2, wx3 = _keys(c - j0)
+    wy0, wy1, wy2, wy3 = _keys(r - i0)
+    g = (wy0 * (wx0 * img[i0 - 1, j0 - 1] + wx1 * img[i0 - 1, j0] + wx2 * img[i0 - 1, j0 + 1] + wx3 * img[i0 - 1, j0 + 2])
+         + wy1 * (wx0 * img[i0, j0 - 1] + wx1 * img[i0, j0] + wx2 * img[i0, j0 + 1] + wx3 * img[i0, j0 + 2])
+         + wy2 * (wx0 * img[i0 + 1, j0 - 1] + wx1 * img[i0 + 1, j0] + wx2 * img[i0 + 1, j0 + 1] + wx3 * img[i0 + 1, j0 + 2])
+         + wy3 * (wx0 * img[i0 + 2, j0 - 1] + wx1 * img[i0 + 2, j0] + wx2 * img[i0 + 2, j0 + 1] + wx3 * img[i0 + 2, j0 + 2]))
+    kappa = (wx0 * wx0 + wx1 * wx1 + wx2 * wx2 + wx3 * wx3) * (wy0 * wy0 + wy1 * wy1 + wy2 * wy2 + wy3 * wy3)
+    return g, kappa
+
+
+@njit(cache=True, nogil=True)
+def _cholesky(n, npar):
+    """In-place Cholesky (lower) of the upper-filled npar x npar matrix n; False if singular."""
+    for j in range(npar):
+        s = n[j, j]
+        for k in range(j):
+            s -= n[j, k] * n[j, k]
+        # relative pivot test: flat texture gives exactly or nearly zero pivots
+        if not (s > 1e-10 * abs(n[j, j]) and s > 1e-300):
+            return False
+        d = math.sqrt(s)
+        n[j, j] = d
+        for i in range(j + 1, npar):
+            s = n[j, i]
+            for k in range(j):
+                s -= n[i, k] * n[j, k]
+            n[i, j] = s / d
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _chol_solve(lower, b, x, npar):
+    """Solve L L' x = b with the lower factor from _cholesky."""
+    for i in range(npar):
+        s = b[i]
+        for k in range(i):
+            s -= lower[i, k] * x[k]
+        x[i] = s / lower[i, i]
+    for i in range(npar - 1, -1, -1):
+        s = x[i]
+        for k in range(i + 1, npar):
+            s -= lower[k, i] * x[k]
+        x[i] = s / lower[i, i]
+
+
+@njit(cache=True, nogil=True)
+def _window_inside(nrows, ncols, x2, y2, a1, a2, a4, a5, half):
+    for sk in (-1.0, 1.0):
+        for sl in (-1.0, 1.0):
+            k = sk * half
+            l = sl * half
+            if not _inside_grad(nrows, ncols, x2 + a1 * k + a2 * l, y2 + a4 * k + a5 * l):
+                return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, out):
+    """Match one point; see the module docstring. Fills out (float64, LSM_OUT, order LSM_FIELDS)
+    and returns the status: 0 ok, 1 window leaves image 1 or 2, 2 singular normal equations
+    (flat texture), 3 not converged within max_iter (out holds the last state)."""
+    for i in range(out.shape[0]):
+        out[i] = np.nan
+    out[6] = 0.0
+    nr1, nc1 = img1.shape
+    nr2, nc2 = img2.shape
+    x2_0 = x2
+    y2_0 = y2
+    nside = 2 * half + 1
+    nsamp = nside * nside
+    # template (bilinear, exact at pixel centres)
+    if not (x1 - half >= 0.5 and y1 - half >= 0.5 and x1 + half <= nc1 - 0.5 and y1 + half <= nr1 - 0.5):
+        return OUTSIDE
+    f = np.empty(nsamp)
+    fk = np.empty(nsamp)
+    fl = np.empty(nsamp)
+    big = nside + 2
+    tb = np.empty((big, big))
+    edge = 0
+    if x1 - half - 1 >= 0.5 and y1 - half - 1 >= 0.5 and x1 + half + 1 <= nc1 - 0.5 and y1 + half + 1 <= nr1 - 0.5:
+        edge = 1
+    for l in range(-half - 1, half + 2):
+        for k in range(-half - 1, half + 2):
+            # one-sided differences at the image border (the extra ring falls outside)
+            kk = min(max(k, -half - edge), half + edge)
+            ll = min(max(l, -half - edge), half + edge)
+            tb[l + half + 1, k + half + 1] = bilinear(img1, x1 + kk, y1 + ll)
+    idx = 0
+    for l in range(1, nside + 1):
+        for k in range(1, nside + 1):
+            f[idx] = tb[l, k]
+            fk[idx] = 0.5 * (tb[l, k + 1] - tb[l, k - 1])
+            fl[idx] = 0.5 * (tb[l + 1, k] - tb[l - 1, k])
+            idx += 1
+    r0 = 0.0
+    r1 = 1.0
+    nmat = np.empty((_NPAR, _NPAR))
+    b = np.empty(_NPAR)
+    dx = np.empty(_NPAR)
+    row = np.empty(_NPAR)
+    converged = False
+    it = 0
+    sf = sff = sg = sgg = sfg = 0.0
+    sll = 0.0
+    skap = 0.0
+    while it < max_iter:
+        if not (math.isfinite(x2) and math.isfinite(y2)) or \
+                not _window_inside(nr2, nc2, x2, y2, a1, a2, a4, a5, half):
+            out[6] = it
+            return OUTSIDE
+        det = a1 * a5 - a2 * a4
+        if not abs(det) > 1e-6:
+            out[6] = it
+            return SINGULAR
+        ia11 = a5 / det
+        ia12 = -a2 / det
+        ia21 = -a4 / det
+        ia22 = a1 / det
+        nmat[:, :] = 0.0
+        b[:] = 0.0
+        sf = sff = sg = sgg = sfg = 0.0
+        sll = 0.0
+        skap = 0.0
+        idx = 0
+        for l in range(-half, half + 1):
+            for k in range(-half, half + 1):
+                g, kap = cubic(img2, x2 + a1 * k + a2 * l, y2 + a4 * k + a5 * l)
+                fv = f[idx]
+                obs = fv - (r0 + r1 * g)
+                # r1 * grad g at the sample, from the template gradients (f = r0 + r1 g o T):
+                # (r1 gx, r1 gy) = A^-T (fk, fl). Template gradients keep the noise of image 2 out of
+                # the Jacobian, which otherwise biases the position towards half-pixel phases.
+                rgx = ia11 * fk[idx] + ia21 * fl[idx]
+                rgy = ia12 * fk[idx] + ia22 * fl[idx]
+                row[0] = rgx
+                row[1] = rgx * k
+                row[2] = rgx * l
+                row[3] = rgy
+                row[4] = rgy * k
+                row[5] = rgy * l
+                row[6] = 1.0
+                row[7] = g
+                for p in range(_NPAR):
+                    rp = row[p]
+                    b[p] += rp * obs
+                    for q in range(p, _NPAR):
+                        nmat[p, q] += rp * row[q]
+                sll += obs * obs
+                sf += fv
+                sff += fv * fv
+                sg += g
+                sgg += g * g
+                sfg += fv * g
+                skap += kap
+                idx += 1
+        # mirror the upper triangle (the Cholesky reads n[j, i] for i > j)
+        if not _cholesky(nmat, _NPAR):
+            out[6] = it
+            return SINGULAR
+        _chol_solve(nmat, b, dx, _NPAR)
+        if not math.isfinite(dx[0] + dx[1] + dx[2] + dx[3] + dx[4] + dx[5] + dx[6] + dx[7]):
+            out[6] = it
+            return SINGULAR
+        x2 += dx[0]
+        a1 += dx[1]
+        a2 += dx[2]
+        y2 += dx[3]
+        a4 += dx[4]
+        a5 += dx[5]
+        r0 += dx[6]
+        r1 += dx[7]
+        it += 1
+        if math.sqrt(dx[0] * dx[0] + dx[3] * dx[3]) < conv:
+            converged = True
+            break
+    # precision from the last normal equations: v'v = l'l - dx'b (linearised post-fit residuals)
+    vtv = sll
+    for p in range(_NPAR):
+        vtv -= dx[p] * b[p]
+    if vtv < 0.0:
+        vtv = 0.0
+    s02 = vtv / (nsamp - _NPAR)
+    # The residuals see image-2 noise after resampling (variance scaled by kappa < 1) while the
+    # position error feels it at full strength, repeated on every template sample that falls in
+    # the same image-2 pixel when image 2 is coarser (|det A| < 1). Assuming equal white noise in
+    # both images (in grey values of each), scale sigma0^2 accordingly.
+    r1sq = r1 * r1
+    det = abs(a1 * a5 - a2 * a4)
+    rep = 1.0 / det if 0.0 < det < 1.0 else 1.0
+    s02 *= (1.0 + r1sq * rep) / (1.0 + r1sq * skap / nsamp)
+    e = np.zeros(_NPAR)
+    z = np.empty(_NPAR)
+    e[0] = 1.0
+    _chol_solve(nmat, e, z, _NPAR)
+    qxx = z[0]
+    qxy = z[3]
+    e[0] = 0.0
+    e[3] = 1.0
+    _chol_solve(nmat, e, z, _NPAR)
+    qyy = z[3]
+    mean = 0.5 * (qxx + qyy)
+    dif = math.sqrt(0.25 * (qxx - qyy) ** 2 + qxy * qxy)
+    lam1 = mean + dif
+    lam2 = max(mean - dif, 0.0)
+    n = float(nsamp)
+    vf = sff - sf * sf / n
+    vg = sgg - sg * sg / n
+    cfg = sfg - sf * sg / n
+    rho = cfg / math.sqrt(vf * vg) if vf > 0.0 and vg > 0.0 else 0.0
+    out[0] = x2
+    out[1] = y2
+    out[2] = rho
+    out[3] = math.sqrt(s02 * lam1)
+    out[4] = math.sqrt(s02 * lam2)
+    out[5] = math.sqrt((x2 - x2_0) ** 2 + (y2 - y2_0) ** 2)
+    out[6] = it
+    out[7] = a1
+    out[8] = a2
+    out[9] = a4
+    out[10] = a5
+    out[11] = r0
+    out[12] = r1
+    return OK if converged else NOT_CONVERGED
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _match_kernel(img1, img2, x1, y1, x2, y2, aff, half, max_iter, conv, out, status):
+    for p in prange(x1.shape[0]):
+        status[p] = lsm_point(img1, img2, x1[p], y1[p], x2[p], y2[p], aff[p, 0], aff[p, 1], aff[p, 2],
+                              aff[p, 3], half, max_iter, conv, out[p])
+
+
+def _as_image(img, name):
+    img = np.asarray(img)
+    if img.ndim != 2 or img.shape[0] < 4 or img.shape[1] < 4:
+        raise InputError(f"{name} must be a 2-D image of at least 4 x 4 pixels, got shape {img.shape}")
+    if img.dtype != np.float32:
+        img = img.astype(np.float32)
+    return np.ascontiguousarray(img)
+
+
+def _affine_array(affine, n):
+    if affine is None:
+        aff = np.empty((n, 4))
+        aff[:] = (1.0, 0.0, 0.0, 1.0)
+        return aff
+    aff = np.asarray(affine, dtype=np.float64)
+    if aff.shape == (4,):
+        return np.ascontiguousarray(np.broadcast_to(aff, (n, 4)))
+    if aff.shape != (n, 4):
+        raise InputError(f"affine must be (a1, a2, a4, a5) or an array of shape ({n}, 4), got {aff.shape}")
+    return np.ascontiguousarray(aff)
+
+
+def match_points(img1, img2, x1, y1, x2, y2, affine=None, params=None, seed=None, feedback=None,
+                 chunk=200_000):
+    """Least-squares match of many points (parallel over points).
+
+    x1, y1: template centres in image 1; x2, y2: initial positions in image 2 (GDAL coordinates of
+    each array); affine: initial (a1, a2, a4, a5), one 4-tuple for all or an (n, 4) array
+    (default identity); params: LsmParams (template size, iterations, convergence).
+    Returns (records, status): a PAIR_DTYPE array (x1, y1 as given, the matched x2, y2 and quality;
+    NaN where no result) and the int8 status per point (0 ok, 1 outside, 2 singular,
+    3 not converged). Use `accepted` for the acceptance criteria."""
+    params = (params or LsmParams()).check()
+    img1 = _as_image(img1, "image 1")
+    img2 = _as_image(img2, "image 2")
+    x1, y1, x2, y2 = (np.ascontiguousarray(np.atleast_1d(np.asarray(v, dtype=np.float64))) for v in (x1, y1, x2, y2))
+    n = x1.size
+    if not (y1.size == x2.size == y2.size == n):
+        raise InputError("x1, y1, x2, y2 must have the same length")
+    aff = _affine_array(affine, n)
+    half = params.template // 2
+    out = np.empty((n, LSM_OUT))
+    status = np.empty(n, dtype=np.int8)
+    for start in range(0, n, chunk):
+        stop = min(start + chunk, n)
+        if feedback is not None:
+            if feedback.isCanceled():
+                from ..errors import CancelledError
+                raise CancelledError("least-squares matching cancelled")
+            feedback.setProgress(100.0 * start / max(n, 1))
+        _match_kernel(img1, img2, x1[start:stop], y1[start:stop], x2[start:stop], y2[start:stop], aff[start:stop],
+                      half, params.max_iterations, params.convergence, out[start:stop], status[start:stop])
+    rec = np.zeros(n, dtype=PAIR_DTYPE)
+    rec["x1"] = x1
+    rec["y1"] = y1
+    for i, name in enumerate(LSM_FIELDS):
+        rec[name] = out[:, i]
+    rec["seed"] = -1 if seed is None else seed
+    return rec, status
+
+
+def accepted(records, status, params=None):
+    """Boolean mask of the points meeting the acceptance criteria (methods.md section 3):
+    status 0, rho > rho_min, semi-major axis < max_ellipse, shift < max_shift,
+    iterations < max_iterations."""
+    params = params or LsmParams()
+    with np.errstate(invalid="ignore"):
+        return ((np.asarray(status) == OK) & (records["rho"] > params.rho_min)
+                & (records["semi_major"] < params.max_ellipse) & (records["shift"] < params.max_shift)
+                & (records["iterations"] < params.max_iterations))

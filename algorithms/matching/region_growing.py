@@ -1,0 +1,467 @@
+"""Region-growing least-squares matching after Otto & Chau as refined in H (methods.md section 3).
+
+Seeds are matched by LSM; accepted points enter a priority list ordered by decreasing correlation
+coefficient rho. The best point is popped and its four neighbours at distance STEP in image 1
+(left, right, up, down) are matched with the popped point's result as initial values (position
+and affine transported by STEP); a neighbour enters the list only if it passes the acceptance
+criteria (rho > rho_min, error-ellipse semi-major axis < max_ellipse, shift from the initial values
+< max_shift, iterations < max_iterations). Every lattice node is matched at most once; the run
+stops when the list is empty.
+
+The lattice is global: node (m, n) of image 1 lies at (L0 + n STEP, L0 + m STEP) with L0 = half +
+0.5 (the first pixel centre with a complete template), so lattices of different seeds and tiles
+coincide. The reference image is cut into tiles of `params.tile` px; a node belongs to the tile
+containing it, each tile grows from its own seeds inside windows of both images (image 1: the
+tile plus the template; image 2: the models' prediction of the tile over the height range plus a
+margin), so memory is bounded by the tile size and tiles run independently (threads over the
+nogil kernel here, processes or a cluster later). Results are merged by lattice index, so they do
+not depend on the number of workers.
+"""
+import heapq
+import math
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+from numba import njit
+
+from ..errors import CancelledError, InputError
+from ..progress import ensure, step as progress_step
+from .imagery import as_image
+from .lsm import LSM_FIELDS, LSM_OUT, lsm_point, match_points, accepted
+from .params import GrowParams
+from .records import PAIR_DTYPE
+from .seeds import (automatic_seeds, local_affine, predict, resolve_height_range, search_margin,
+                    seeds_from_points, window_pair)
+
+_DC = np.array([-1, 1, 0, 0], np.int64)
+_DR = np.array([0, 0, -1, 1], np.int64)
+
+
+# --------------------------------------------------------------------------------------------
+# numba core
+
+@njit(cache=True, nogil=True)
+def _quantise(rho):
+    """Heap key: rho rounded to 1e-6, so rounding noise between builds cannot reorder the list
+    (ties go to the smaller node index)."""
+    return math.floor(rho * 1e6 + 0.5) * 1e-6
+
+
+@njit(cache=True, nogil=True)
+def _before(k1, n1, k2, n2):
+    """Heap order: larger rho first, ties by smaller node index (deterministic)."""
+    return k1 > k2 or (k1 == k2 and n1 < n2)
+
+
+@njit(cache=True, nogil=True)
+def _push(key, node, size, k, n):
+    i = size
+    key[i] = k
+    node[i] = n
+    while i > 0:
+        p = (i - 1) // 2
+        if _before(key[i], node[i], key[p], node[p]):
+            key[i], key[p] = key[p], key[i]
+            node[i], node[p] = node[p], node[i]
+            i = p
+        else:
+            break
+    return size + 1
+
+
+@njit(cache=True, nogil=True)
+def _pop(key, node, size):
+    """Remove the top of the heap; returns the new size (the caller read node[0] before)."""
+    size -= 1
+    key[0] = key[size]
+    node[0] = node[size]
+    i = 0
+    while True:
+        left = 2 * i + 1
+        right = left + 1
+        best = i
+        if left < size and _before(key[left], node[left], key[best], node[best]):
+            best = left
+        if right < size and _before(key[right], node[right], key[best], node[best]):
+            best = right
+        if best == i:
+            break
+        key[i], key[best] = key[best], key[i]
+        node[i], node[best] = node[best], node[i]
+        i = best
+    return size
+
+
+@njit(cache=True, nogil=True)
+def _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, x2, y2, a1, a2, a4, a5,
+             half, max_iter, conv, rho_min, max_ellipse, max_shift, out, results, state):
+    """LSM at lattice node `node` from initial values in image coordinates; stores the result
+    (image coordinates) and the state (1 accepted, 2 rejected); returns whether accepted."""
+    x1 = gx0 + (node % nx) * step - ox1
+    y1 = gy0 + (node // nx) * step - oy1
+    status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out)
+    for f in range(out.shape[0]):
+        results[node, f] = out[f]
+    results[node, 0] += ox2
+    results[node, 1] += oy2
+    ok = (status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift
+          and out[6] < max_iter)
+    state[node] = 1 if ok else 2
+    return ok
+
+
+@njit(cache=True, nogil=True)
+def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, max_iter, conv,
+                rho_min, max_ellipse, max_shift, results, state, origin, prior):
+    """Region growing on the nx x ny lattice of a tile (node = row * nx + col at image-1 position
+    (gx0 + col step, gy0 + row step)). img1/img2 are windows whose top-left corners lie at image
+    positions (ox1, oy1), (ox2, oy2). seeds: (ns, 8) rows (node, x2, y2, a1, a2, a4, a5, seed id)
+    of initial values in image coordinates, tried in order. Fills results (nodes, LSM_OUT; image
+    coordinates), state (0 untried, 1 accepted, 2 rejected) and origin (seed id per node).
+    prior: the models' (a1, a2, a4, a5) for the tile, the initial affine of every neighbour (the
+    popped point's own affine when prior is empty: pure H); returns the number of LSM attempts."""
+    n = nx * ny
+    key = np.empty(n)
+    hnode = np.empty(n, np.int64)
+    size = 0
+    out = np.empty(results.shape[1])
+    tries = 0
+    for s in range(seeds.shape[0]):
+        node = int(seeds[s, 0])
+        if node < 0 or node >= n or state[node] != 0:
+            continue
+        tries += 1
+        if _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, seeds[s, 1], seeds[s, 2],
+                    seeds[s, 3], seeds[s, 4], seeds[s, 5], seeds[s, 6], half, max_iter, conv, rho_min,
+                    max_ellipse, max_shift, out, results, state):
+            origin[node] = int(seeds[s, 7])
+            size = _push(key, hnode, size, _quantise(results[node, 2]), node)
+    while size > 0:
+        node = hnode[0]
+        size = _pop(key, hnode, size)
+        r = node // nx
+        c = node % nx
+        for d in range(4):
+            cc = c + _DC[d]
+            rr = r + _DR[d]
+            if cc < 0 or cc >= nx or rr < 0 or rr >= ny:
+                continue
+            nb = rr * nx + cc
+            if state[nb] != 0:
+                continue
+            dk = _DC[d] * step
+            dl = _DR[d] * step
+            a1 = results[node, 7]
+            a2 = results[node, 8]
+            a4 = results[node, 9]
+            a5 = results[node, 10]
+            if prior.shape[0] == 4:   # the models' affine: no drift along long growth paths
+                a1 = prior[0]
+                a2 = prior[1]
+                a4 = prior[2]
+                a5 = prior[3]
+            tries += 1
+            if _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, nb,
+                        results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl,
+                        a1, a2, a4, a5, half, max_iter, conv, rho_min, max_ellipse, max_shift, out,
+                        results, state):
+                origin[nb] = origin[node]
+                size = _push(key, hnode, size, _quantise(results[nb, 2]), nb)
+    return tries
+
+
+def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, max_iter, conv,
+                   rho_min, max_ellipse, max_shift, results, state, origin, prior):
+    """Plain-Python reference of grow_kernel (heapq; same arguments and outputs), for tests."""
+    heap = []
+    out = np.empty(results.shape[1])
+    tries = 0
+
+    def attempt(node, x2, y2, a1, a2, a4, a5):
+        x1 = gx0 + (node % nx) * step - ox1
+        y1 = gy0 + (node // nx) * step - oy1
+        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out)
+        results[node] = out
+        results[node, 0] += ox2
+        results[node, 1] += oy2
+        ok = bool(status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift
+                  and out[6] < max_iter)
+        state[node] = 1 if ok else 2
+        return ok
+
+    for s in seeds:
+        node = int(s[0])
+        if not 0 <= node < nx * ny or state[node]:
+            continue
+        tries += 1
+        if attempt(node, *s[1:7]):
+            origin[node] = int(s[7])
+            heapq.heappush(heap, (-_quantise(results[node, 2]), node))
+    while heap:
+        _, node = heapq.heappop(heap)
+        r, c = divmod(node, nx)
+        for dc, dr in zip(_DC, _DR):
+            if not (0 <= c + dc < nx and 0 <= r + dr < ny):
+                continue
+            nb = (r + dr) * nx + c + dc
+            if state[nb]:
+                continue
+            a1, a2, a4, a5 = results[node, 7:11] if len(prior) != 4 else prior
+            dk, dl = dc * step, dr * step
+            tries += 1
+            if attempt(nb, results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl,
+                       a1, a2, a4, a5):
+                origin[nb] = origin[node]
+                heapq.heappush(heap, (-_quantise(results[nb, 2]), nb))
+    return tries
+
+
+# --------------------------------------------------------------------------------------------
+# lattice and tiles
+
+class Lattice:
+    """The global lattice of image 1: node (m, n) at (l0 + n step, l0 + m step)."""
+
+    def __init__(self, size, params):
+        self.step = int(params.step)
+        self.half = params.template // 2
+        self.l0 = self.half + 0.5
+        cols, rows = size
+        last_x = cols - 0.5 - self.half
+        last_y = rows - 0.5 - self.half
+        self.ncols = int(math.floor((last_x - self.l0) / self.step)) + 1
+        self.nrows = int(math.floor((last_y - self.l0) / self.step)) + 1
+
+    def position(self, m, n):
+        return self.l0 + np.asarray(n) * self.step, self.l0 + np.asarray(m) * self.step
+
+    def index_range(self, start, stop, count):
+        """Node indices whose position lies in [start, stop) px, clipped to [0, count)."""
+        a = max(0, int(math.ceil((start - self.l0) / self.step)))
+        b = min(count, int(math.ceil((stop - self.l0) / self.step)))
+        return a, b
+
+    def tiles(self, tile):
+        """(n_a, n_b, m_a, m_b) node ranges of the non-empty tiles, row by row."""
+        out = []
+        cols_px = self.l0 + self.ncols * self.step
+        rows_px = self.l0 + self.nrows * self.step
+        for ty in range(0, int(math.ceil(rows_px)), tile):
+            for tx in range(0, int(math.ceil(cols_px)), tile):
+                n_a, n_b = self.index_range(tx, tx + tile, self.ncols)
+                m_a, m_b = self.index_range(ty, ty + tile, self.nrows)
+                if n_b > n_a and m_b > m_a:
+                    out.append((n_a, n_b, m_a, m_b))
+        return out
+
+
+def _check_inputs(image1, image2, model1, model2, params, hr):
+    t = params.template
+    for name, image in (("image 1", image1), ("image 2", image2)):
+        if image.size[0] < t + 2 or image.size[1] < t + 2:
+            raise InputError(f"{name} ({image.size[0]} x {image.size[1]} px) is smaller than the matching "
+                             f"template ({t} x {t} px) plus a border; use a larger image or a smaller template")
+    cols, rows = image1.size
+    gx, gy = np.meshgrid(np.linspace(0, cols, 9), np.linspace(0, rows, 9))
+    c2, r2 = image2.size
+    for h in np.linspace(hr[0], hr[1], 3):
+        with np.errstate(invalid="ignore"):
+            x2, y2 = predict(model1, model2, gx.ravel(), gy.ravel(), np.full(gx.size, h))
+            inside = (x2 > 0) & (x2 < c2) & (y2 > 0) & (y2 < r2)
+        if inside.any():
+            return
+    raise InputError("the two images do not overlap according to their sensor models (no image-1 point projects "
+                     f"into image 2 at heights {hr[0]:.0f}..{hr[1]:.0f} m); check the image pair and the models")
+
+
+def _as_seed_records(seeds):
+    seeds = np.asarray(seeds)
+    if seeds.dtype.names is None or not {"x1", "y1", "x2", "y2", "a1", "a2", "a4", "a5"} <= set(seeds.dtype.names):
+        raise InputError("seeds must be PAIR_DTYPE records (from seeds_from_points or automatic_seeds)")
+    seeds = seeds.ravel()
+    good = np.isfinite(seeds["x2"]) & np.isfinite(seeds["y2"]) & np.isfinite(seeds["a1"]) & np.isfinite(seeds["a5"])
+    return seeds[good]
+
+
+def _seed_rows(seeds, lattice, n_a, n_b, m_a, m_b, ids):
+    """Seed records -> kernel rows at their nearest lattice node of the tile (initial values
+    transported by the seed's affine), ordered by decreasing rho then id."""
+    nx = n_b - n_a
+    n = np.clip(np.rint((seeds["x1"] - lattice.l0) / lattice.step), n_a, n_b - 1).astype(np.int64)
+    m = np.clip(np.rint((seeds["y1"] - lattice.l0) / lattice.step), m_a, m_b - 1).astype(np.int64)
+    xn, yn = lattice.position(m, n)
+    dk = xn - seeds["x1"]
+    dl = yn - seeds["y1"]
+    a1, a2, a4, a5 = (seeds[k].astype(float) for k in ("a1", "a2", "a4", "a5"))
+    rows = np.column_stack([(m - m_a) * nx + (n - n_a), seeds["x2"] + a1 * dk + a2 * dl,
+                            seeds["y2"] + a4 * dk + a5 * dl, a1, a2, a4, a5, ids])
+    order = np.lexsort((ids, -seeds["rho"].astype(float)))
+    return np.ascontiguousarray(rows[order])
+
+
+def _grow_tile(ctx, index, box):
+    image1, image2, model1, model2, params, hr, lattice, seeds = ctx
+    n_a, n_b, m_a, m_b = box
+    half, step = lattice.half, lattice.step
+    gx0, gy0 = lattice.position(m_a, n_a)
+    nx, ny = n_b - n_a, m_b - m_a
+    x_last, y_last = lattice.position(m_b - 1, n_b - 1)
+    box1 = (int(math.floor(gx0 - half - 2)), int(math.floor(gy0 - half - 2)),
+            int(math.ceil(x_last + half + 3)), int(math.ceil(y_last + half + 3)))
+    margin = search_margin(model1, model2, params, hr, 0.5 * (gx0 + x_last), 0.5 * (gy0 + y_last)) + step
+    windows = window_pair(image1, image2, model1, model2, box1, hr, margin)
+    win1, ox1, oy1, win2, ox2, oy2 = windows
+    empty = np.zeros(0, PAIR_DTYPE)
+    if win2.shape[0] < 4 or win2.shape[1] < 4:
+        return empty, 0, 0
+    if seeds is None:
+        own = (gx0 - 0.5 * step, gy0 - 0.5 * step, x_last + 0.5 * step, y_last + 0.5 * step)
+        tile_seeds = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows)
+        ids = index * 10000 + np.arange(len(tile_seeds))
+    else:
+        n = np.rint((seeds["x1"] - lattice.l0) / step)
+        m = np.rint((seeds["y1"] - lattice.l0) / step)
+        mine = ((n >= n_a) | (n_a == 0)) & ((n < n_b) | (n_b == lattice.ncols)) & \
+               ((m >= m_a) | (m_a == 0)) & ((m < m_b) | (m_b == lattice.nrows))
+        tile_seeds = seeds[mine]
+        ids = np.flatnonzero(mine)
+    nseeds = len(tile_seeds)
+    if nseeds == 0:
+        return empty, 0, 0
+    rows = _seed_rows(tile_seeds, lattice, n_a, n_b, m_a, m_b, ids)
+    _, _, *aff = local_affine(model1, model2, 0.5 * (gx0 + x_last), 0.5 * (gy0 + y_last), 0.5 * (hr[0] + hr[1]))
+    prior = np.array([float(v[0]) for v in aff]) if params.model_affine else np.zeros(0)
+    if not np.all(np.isfinite(prior)):
+        prior = np.zeros(0)
+    results = np.full((nx * ny, LSM_OUT), np.nan)
+    state = np.zeros(nx * ny, np.int8)
+    origin = np.full(nx * ny, -1, np.int64)
+    tries = grow_kernel(win1, win2, float(ox1), float(oy1), float(ox2), float(oy2), float(gx0), float(gy0),
+                        float(step), nx, ny, rows, half, params.max_iterations, params.convergence,
+                        params.rho_min, params.max_ellipse, params.max_shift, results, state, origin, prior)
+    good = np.flatnonzero(state == 1)
+    rec = np.zeros(len(good), PAIR_DTYPE)
+    rec["x1"], rec["y1"] = lattice.position(m_a + good // nx, n_a + good % nx)
+    for i, name in enumerate(LSM_FIELDS):
+        rec[name] = results[good, i]
+    rec["seed"] = origin[good]
+    return rec, tries, nseeds
+
+
+def match_pair(image1, image2, model1, model2, params=None, height_range=None, seeds=None, feedback=None,
+               workers=1):
+    """Region-growing LSM of image 1 (reference) into image 2.
+
+    image1, image2: Image or raster path; model1, model2: their sensor models; params: GrowParams;
+    height_range: (h_min, h_max) ellipsoidal, or a mean height (+-500 m), or None for the model's
+    own range (RPC); seeds: PAIR_DTYPE records of already matched points (e.g. seeds_from_points)
+    or None for automatic seeds in every tile; workers: threads over tiles (results identical).
+    Returns the accepted lattice points as a PAIR_DTYPE array sorted by (y1, x1); `seed` holds the
+    id of the seed each point grew from (index into `seeds`, or tile * 10000 + k when automatic).
+    Raises InputError for images smaller than the template or without overlap, CancelledError
+    when cancelled; no accepted seed gives an empty array and a message via feedback."""
+    params = (params or GrowParams()).check()
+    image1, image2 = as_image(image1), as_image(image2)
+    hr = resolve_height_range(model1, height_range)
+    _check_inputs(image1, image2, model1, model2, params, hr)
+    lattice = Lattice(image1.size, params)
+    if seeds is not None:
+        seeds = _as_seed_records(seeds)
+    tiles = lattice.tiles(int(params.tile))
+    ctx = (image1, image2, model1, model2, params, hr, lattice, seeds)
+    fb = ensure(feedback)
+    parts = [None] * len(tiles)
+    progress_step(feedback, 0.0)
+    done = 0
+    if workers <= 1 or len(tiles) == 1:
+        for i, box in enumerate(tiles):
+            parts[i] = _grow_tile(ctx, i, box)
+            done += 1
+            progress_step(feedback, 100.0 * done / len(tiles))
+    else:
+        with ThreadPoolExecutor(max_workers=int(workers)) as pool:
+            futures = {pool.submit(_grow_tile, ctx, i, box): i for i, box in enumerate(tiles)}
+            try:
+                from concurrent.futures import as_completed
+                for fut in as_completed(futures):
+                    parts[futures[fut]] = fut.result()
+                    done += 1
+                    progress_step(feedback, 100.0 * done / len(tiles))
+            except CancelledError:
+                for fut in futures:
+                    fut.cancel()
+                raise
+    records = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, PAIR_DTYPE)
+    records = records[np.lexsort((records["x1"], records["y1"]))]
+    tries = sum(p[1] for p in parts)
+    nseeds = sum(p[2] for p in parts)
+    if len(records) == 0:
+        fb.pushInfo("Warning: region growing found no matched point: no seed passed the acceptance criteria "
+                    f"({nseeds} seed(s) in {len(tiles)} tile(s)); check the image pair, the height range and "
+                    "the texture, or give seeds")
+    else:
+        fb.pushInfo(f"region growing: {len(records)} points accepted of {tries} LSM attempts from {nseeds} seed(s) "
+                    f"in {len(tiles)} tile(s)")
+    return records
+
+
+def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_range=None, guide=None):
+    """LSM of GIVEN image-1 points into image 2 (only image-2 coordinates are matched; transfer
+    points of the three-image combinations). Initial values: from `guide` (PAIR_DTYPE points of
+    this pair already matched: the nearest one's position and affine transported to the point),
+    else from the sensor models (NCC along the predicted path over the height range, then LSM,
+    as seeds_from_points). Returns (PAIR_DTYPE records in the order of x1, ok mask of the
+    accepted ones)."""
+    params = (params or GrowParams()).check()
+    image1, image2 = as_image(image1), as_image(image2)
+    x1 = np.atleast_1d(np.asarray(x1, float)).ravel()
+    y1 = np.atleast_1d(np.asarray(y1, float)).ravel()
+    if x1.shape != y1.shape:
+        raise InputError("x1 and y1 must have the same length")
+    if guide is None or len(guide) == 0:
+        return seeds_from_points(image1, image2, model1, model2, x1, y1, params, height_range)
+    guide = _as_seed_records(guide)
+    if len(guide) == 0:
+        raise InputError("the guide points have no matched image-2 positions")
+    from scipy.spatial import cKDTree
+    _, nearest = cKDTree(np.column_stack([guide["x1"], guide["y1"]])).query(np.column_stack([x1, y1]))
+    g = guide[nearest]
+    a = np.column_stack([g[k].astype(float) for k in ("a1", "a2", "a4", "a5")])
+    dk, dl = x1 - g["x1"], y1 - g["y1"]
+    x2 = g["x2"] + a[:, 0] * dk + a[:, 1] * dl
+    y2 = g["y2"] + a[:, 2] * dk + a[:, 3] * dl
+    records = np.zeros(len(x1), PAIR_DTYPE)
+    records["x1"], records["y1"] = x1, y1
+    for name in PAIR_DTYPE.names[2:-1]:
+        records[name] = np.nan if PAIR_DTYPE[name].kind == "f" else 0
+    records["seed"] = nearest
+    ok = np.zeros(len(x1), bool)
+    half = params.template // 2
+    tile = int(params.tile)
+    key = (np.floor(y1 / tile) * (image1.size[0] // tile + 1) + np.floor(x1 / tile))
+    for k in np.unique(key[np.isfinite(key)]):
+        idx = np.flatnonzero(key == k)
+        pad = half + 3
+        xa, ya = int(np.floor(x1[idx].min())) - pad, int(np.floor(y1[idx].min())) - pad
+        win1, ox1, oy1 = image1.read(xa, ya, int(np.ceil(x1[idx].max())) + pad + 1 - xa,
+                                     int(np.ceil(y1[idx].max())) + pad + 1 - ya)
+        scale = np.nanmax(np.abs(a[idx])) if np.isfinite(a[idx]).any() else 1.0
+        m = (half + 3) * scale + params.max_shift + 3
+        fin = np.isfinite(x2[idx]) & np.isfinite(y2[idx])
+        if not fin.any() or win1.shape[0] < 4 or win1.shape[1] < 4:
+            continue
+        xb, yb = int(np.floor(x2[idx][fin].min() - m)), int(np.floor(y2[idx][fin].min() - m))
+        win2, ox2, oy2 = image2.read(xb, yb, int(np.ceil(x2[idx][fin].max() + m)) + 1 - xb,
+                                     int(np.ceil(y2[idx][fin].max() + m)) + 1 - yb)
+        if win2.shape[0] < 4 or win2.shape[1] < 4:
+            continue
+        rec, status = match_points(win1, win2, x1[idx] - ox1, y1[idx] - oy1, x2[idx] - ox2, y2[idx] - oy2,
+                                   affine=a[idx], params=params)
+        rec["x1"] += ox1
+        rec["y1"] += oy1
+        rec["x2"] += ox2
+        rec["y2"] += oy2
+        rec["seed"] = nearest[idx]
+        records[idx] = rec
+        ok[idx] = accepted(rec, status, params)
+    return records, ok

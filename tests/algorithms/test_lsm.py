@@ -1,0 +1,183 @@
+"""Least-squares matching: kernels against plain numpy, precision calibration on simulated
+band-limited texture, bad input."""
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from pushbroom.algorithms.matching import lsm
+from pushbroom.algorithms.matching.params import LsmParams
+from pushbroom.algorithms.matching.records import PAIR_DTYPE
+
+
+def texture(rng, ncomp=150, sigma_freq=0.06):
+    """A continuous band-limited random texture (unit variance, Gaussian spectrum with standard
+    deviation sigma_freq cycles/px per axis), exactly evaluable anywhere."""
+    u, v = rng.normal(0, sigma_freq, ncomp), rng.normal(0, sigma_freq, ncomp)
+    phase = rng.uniform(0, 2 * np.pi, ncomp)
+    amp = np.sqrt(2.0 / ncomp)
+
+    def f(x, y):
+        return amp * np.cos(2 * np.pi * (np.multiply.outer(x, u) + np.multiply.outer(y, v)) + phase).sum(-1)
+    return f
+
+
+def keys_ref(t):
+    t = abs(t)
+    return np.where(t < 1, 1.5 * t**3 - 2.5 * t**2 + 1, np.where(t < 2, -0.5 * t**3 + 2.5 * t**2 - 4 * t + 2, 0.0))
+
+
+def test_bilinear_against_scipy():
+    rng = np.random.default_rng(0)
+    img = rng.normal(size=(9, 11)).astype(np.float32)
+    for x, y in rng.uniform(0.5, [10.5, 8.5], (50, 2)):
+        ref = ndimage.map_coordinates(img.astype(float), [[y - 0.5], [x - 0.5]], order=1)[0]
+        assert lsm.bilinear(img, x, y) == pytest.approx(ref, abs=1e-5)
+    assert lsm.bilinear(img, 3.5, 4.5) == img[4, 3]          # pixel centre: exact value
+    assert np.isnan(lsm.bilinear(img, 0.2, 4.0))             # outside the pixel-centre hull
+
+
+def test_cubic_against_numpy():
+    rng = np.random.default_rng(1)
+    img = rng.normal(size=(10, 12))
+    for x, y in rng.uniform(1.5, [9.9, 7.9], (50, 2)):
+        c, r = x - 0.5, y - 0.5
+        j, i = np.arange(12), np.arange(10)
+        ref = keys_ref(r - i) @ img @ keys_ref(c - j)
+        g, kappa = lsm.cubic(img, x, y)
+        assert g == pytest.approx(ref, abs=1e-10)
+        assert kappa == pytest.approx((keys_ref(c - j) ** 2).sum() * (keys_ref(r - i) ** 2).sum())
+    assert lsm.cubic(img, 4.5, 3.5)[0] == pytest.approx(img[3, 4])
+
+
+def gn_step_reference(img1, img2, x1, y1, p, half):
+    """One Gauss-Newton step in plain numpy (same model and Jacobian as lsm_point)."""
+    x2, a1, a2, y2, a4, a5, r0, r1 = p
+    k, l = np.meshgrid(np.arange(-half - 1, half + 2), np.arange(-half - 1, half + 2))
+    t = ndimage.map_coordinates(img1.astype(float), [y1 + l - 0.5, x1 + k - 0.5], order=1)
+    f = t[1:-1, 1:-1].ravel()
+    fk = (0.5 * (t[1:-1, 2:] - t[1:-1, :-2])).ravel()
+    fl = (0.5 * (t[2:, 1:-1] - t[:-2, 1:-1])).ravel()
+    k, l = k[1:-1, 1:-1].ravel(), l[1:-1, 1:-1].ravel()
+    xs, ys = x2 + a1 * k + a2 * l, y2 + a4 * k + a5 * l
+    g = np.array([lsm.cubic(img2, x, y)[0] for x, y in zip(xs, ys)])
+    ia = np.linalg.inv(np.array([[a1, a2], [a4, a5]])).T
+    rgx, rgy = ia @ np.vstack([fk, fl])
+    a = np.column_stack([rgx, rgx * k, rgx * l, rgy, rgy * k, rgy * l, np.ones_like(g), g])
+    dx = np.linalg.lstsq(a, f - (r0 + r1 * g), rcond=None)[0]
+    return np.asarray(p) + dx, np.corrcoef(f, g)[0, 1]
+
+
+def test_one_gauss_newton_step_against_numpy():
+    rng = np.random.default_rng(2)
+    tex = texture(rng)
+    jj, ii = np.meshgrid(np.arange(40) + 0.5, np.arange(40) + 0.5)
+    img1 = (100 + 30 * tex(jj, ii)).astype(np.float32)
+    img2 = (5 + 1.1 * (100 + 30 * tex(0.98 * jj + 0.1 * ii - 0.4, ii * 1.02 + 0.7))).astype(np.float32)
+    p = (20.2, 1.01, -0.05, 19.6, 0.02, 0.97, 0.0, 1.0)
+    out = np.empty(lsm.LSM_OUT)
+    status = lsm.lsm_point(img1, img2, 20.5, 20.5, p[0], p[3], p[1], p[2], p[4], p[5], 7, 1, 1e-9, out)
+    assert status == lsm.NOT_CONVERGED
+    ref, rho = gn_step_reference(img1, img2, 20.5, 20.5, p, 7)
+    got = dict(zip(lsm.LSM_FIELDS, out))
+    for name, value in zip(("x2", "a1", "a2", "y2", "a4", "a5", "r0", "r1"), ref):
+        assert got[name] == pytest.approx(value, rel=1e-6, abs=1e-7), name
+    assert got["rho"] == pytest.approx(rho, abs=1e-9)
+    assert got["iterations"] == 1
+    assert got["shift"] == pytest.approx(np.hypot(ref[0] - p[0], ref[3] - p[3]))
+
+
+def simulate(n, m, gain, offset, noise, seed, size=33, init_scale=True):
+    """n patch pairs: image 1 shows F at its pixel centres, image 2 pixel (x, y) shows
+    gain * F(M (x, y) + t) + offset; both get white noise of sigma `noise`. Returns the LSM
+    records, status and true image-2 positions of the image-1 centre (16.5, 16.5)."""
+    rng = np.random.default_rng(seed)
+    jj, ii = np.meshgrid(np.arange(size) + 0.5, np.arange(size) + 0.5)
+    x1 = y1 = size / 2.0
+    truth = np.empty((n, 2))
+    recs, stats = [], []
+    a0 = (1 / m[0, 0], 0.0, 0.0, 1 / m[1, 1]) if init_scale else (1.0, 0.0, 0.0, 1.0)
+    for p in range(n):
+        tex = texture(rng)
+        img1 = (100 + 30 * tex(jj, ii) + rng.normal(0, noise, jj.shape)).astype(np.float32)
+        truth[p] = size / 2.0 + rng.uniform(-0.5, 0.5, 2)
+        t = np.array([x1, y1]) - m @ truth[p]
+        xm = m[0, 0] * jj + m[0, 1] * ii + t[0]
+        ym = m[1, 0] * jj + m[1, 1] * ii + t[1]
+        img2 = (gain * (100 + 30 * tex(xm, ym)) + offset + rng.normal(0, noise, jj.shape)).astype(np.float32)
+        init = truth[p] + rng.uniform(-1, 1, 2)
+        rec, st = lsm.match_points(img1, img2, [x1], [y1], [init[0]], [init[1]], affine=a0)
+        recs.append(rec[0])
+        stats.append(st[0])
+    return np.array(recs, dtype=PAIR_DTYPE), np.array(stats), truth
+
+
+ROT = np.radians(10.0)
+CASES = {
+    "shift": (np.eye(2), 1.0, 0.0),
+    "rotation 10 deg, gain 1.2, offset 10": (np.array([[np.cos(ROT), -np.sin(ROT)], [np.sin(ROT), np.cos(ROT)]]), 1.2, 10.0),
+    "scale 2:1 along rows, gain 0.8, offset -5": (np.diag([1.0, 2.0]), 0.8, -5.0),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_precision_is_calibrated(case):
+    m, gain, offset = CASES[case]
+    rec, status, truth = simulate(300, m, gain, offset, noise=4.0, seed=list(CASES).index(case) + 11)
+    ok = status == 0
+    assert ok.mean() > 0.95
+    err = np.column_stack([rec["x2"] - truth[:, 0], rec["y2"] - truth[:, 1]])[ok]
+    rms = np.sqrt((err ** 2).sum(1).mean())
+    predicted = np.sqrt((rec["semi_major"][ok].astype(float) ** 2 + rec["semi_minor"][ok] ** 2).mean())
+    ratio = rms / predicted
+    print(f"{case}: RMS {rms:.4f} px, predicted {predicted:.4f} px, ratio {ratio:.3f}")
+    assert 0.8 < ratio < 1.25
+    assert rms < 0.1
+    assert lsm.accepted(rec, status, LsmParams()).mean() > 0.9
+    if case.startswith("scale"):
+        assert np.median(rec["a5"][ok]) == pytest.approx(0.5, abs=0.01)
+    if case.startswith("rotation"):
+        assert np.median(rec["r1"][ok]) == pytest.approx(1 / 1.2, abs=0.02)
+
+
+def test_rotation_from_identity_start():
+    m = CASES["rotation 10 deg, gain 1.2, offset 10"][0]
+    rec, status, truth = simulate(50, m, 1.2, 10.0, noise=2.0, seed=7, init_scale=False)
+    ok = status == 0
+    assert ok.mean() > 0.95
+    assert np.abs(rec["a2"][ok] - np.linalg.inv(m)[0, 1]).max() < 0.02
+
+
+def test_bad_input_statuses():
+    rng = np.random.default_rng(3)
+    img = (100 + 30 * ndimage.gaussian_filter(rng.normal(size=(40, 40)), 1.5)).astype(np.float32)
+    out = np.empty(lsm.LSM_OUT)
+    # window outside image 2 / image 1
+    assert lsm.lsm_point(img, img, 20.5, 20.5, 5.0, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.OUTSIDE
+    assert lsm.lsm_point(img, img, 5.5, 20.5, 20.5, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.OUTSIDE
+    assert lsm.lsm_point(img, img, 20.5, 20.5, np.nan, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.OUTSIDE
+    # blank search image, blank template, NaN-filled image: singular, never an exception or a hang
+    blank = np.full((40, 40), 7.0, np.float32)
+    assert lsm.lsm_point(img, blank, 20.5, 20.5, 20.5, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.SINGULAR
+    assert lsm.lsm_point(blank, img, 20.5, 20.5, 20.5, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.SINGULAR
+    nan = np.full((40, 40), np.nan, np.float32)
+    assert lsm.lsm_point(nan, nan, 20.5, 20.5, 20.5, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.SINGULAR
+    # degenerate affine
+    assert lsm.lsm_point(img, img, 20.5, 20.5, 20.5, 20.5, 0.0, 0.0, 0.0, 0.0, 9, 10, 0.01, out) == lsm.SINGULAR
+    # the vectorised front end, with acceptance
+    rec, status = lsm.match_points(img, blank, [20.5, 20.5], [20.5, 20.5], [20.5, 2.0], [20.5, 20.5])
+    assert list(status) == [lsm.SINGULAR, lsm.OUTSIDE]
+    assert not lsm.accepted(rec, status).any()
+    rec, status = lsm.match_points(img, img, [20.5], [20.5], [20.9], [20.2])
+    assert status[0] == 0 and lsm.accepted(rec, status)[0]
+    assert rec["x2"][0] == pytest.approx(20.5, abs=1e-3) and rec["rho"][0] > 0.999
+
+
+def test_match_points_input_errors():
+    from pushbroom.algorithms.errors import InputError
+    img = np.zeros((30, 30), np.float32)
+    with pytest.raises(InputError):
+        lsm.match_points(img, img, [1.0, 2.0], [1.0], [1.0], [1.0])
+    with pytest.raises(InputError):
+        lsm.match_points(img, img, [1.0], [1.0], [1.0], [1.0], params=LsmParams(template=4))
+    with pytest.raises(InputError):
+        lsm.match_points(np.zeros(30), img, [1.0], [1.0], [1.0], [1.0])

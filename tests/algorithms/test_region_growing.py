@@ -1,0 +1,216 @@
+"""Region-growing LSM (algorithms/matching/region_growing.py): numba core against a plain-Python
+reference, accuracy/coverage on a simulated SPOT 5 scene against the truth, determinism over
+workers and tiles, and bad input."""
+import time
+
+import numpy as np
+import pytest
+
+from matching_scene import LOW_TEXTURE, Scene
+from pushbroom.algorithms.errors import CancelledError, InputError
+from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.lsm import LSM_OUT
+from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing import (Lattice, grow_kernel, grow_reference, match_pair,
+                                                          transfer_points)
+
+
+class Feedback:
+    def __init__(self, cancel=False):
+        self.messages = []
+        self.cancel = cancel
+
+    def setProgress(self, p):
+        pass
+
+    def isCanceled(self):
+        return self.cancel
+
+    def pushInfo(self, text):
+        self.messages.append(text)
+
+
+def texture(shape, seed):
+    """Smooth random texture (sum of blurred noise), float32."""
+    from scipy.ndimage import gaussian_filter
+    rng = np.random.default_rng(seed)
+    return (100 + 400 * gaussian_filter(rng.standard_normal(shape), 1.5)).astype(np.float32)
+
+
+@pytest.mark.parametrize("prior", [np.zeros(0), np.array([1.0, 0.0, 0.0, 1.0])], ids=["own-affine", "model-affine"])
+def test_kernel_matches_python_reference(prior):
+    """Tiny synthetic case: image 2 = image 1 shifted by (2.3, -1.6) px with a flat patch where
+    growth must stop; the numba core and the heapq reference give the same accepted set and results."""
+    from scipy.ndimage import shift as nd_shift
+    img1 = texture((90, 90), 3)
+    img2 = nd_shift(img1.astype(float), (-1.6, 2.3), order=3, mode="nearest").astype(np.float32)
+    img2[50:, 55:] = 100.0
+    half, step, nx, ny = 4, 5, 14, 14
+    seeds = np.array([[0 * nx + 0, 7.5 + 2.3 + 0.4, 7.5 - 1.6 - 0.3, 1, 0, 0, 1, 7],
+                      [3 * nx + 9, 52.5 + 2.3, 22.5 - 1.6, 1, 0, 0, 1, 8]], float)
+    outs = []
+    for fn in (grow_kernel, grow_reference):
+        results = np.full((nx * ny, LSM_OUT), np.nan)
+        state = np.zeros(nx * ny, np.int8)
+        origin = np.full(nx * ny, -1, np.int64)
+        tries = fn(img1, img2, 0.0, 0.0, 0.0, 0.0, 7.5, 7.5, float(step), nx, ny, seeds, half, 10, 0.01,
+                   0.6, 0.1, 2.5, results, state, origin, prior)
+        outs.append((results, state, origin, tries))
+    (r1, s1, o1, t1), (r2, s2, o2, t2) = outs
+    assert t1 == t2
+    np.testing.assert_array_equal(s1, s2)
+    np.testing.assert_array_equal(o1, o2)
+    np.testing.assert_allclose(r1, r2, rtol=1e-9, atol=1e-9, equal_nan=True)
+    ok = s1 == 1
+    assert 100 < ok.sum() < nx * ny          # grew over the texture, stopped at the flat patch
+    np.testing.assert_allclose(r1[ok, 0] - (7.5 + step * (np.flatnonzero(ok) % nx)), 2.3, atol=0.05)
+    np.testing.assert_allclose(r1[ok, 1] - (7.5 + step * (np.flatnonzero(ok) // nx)), -1.6, atol=0.05)
+    assert set(o1[ok]) <= {7, 8}
+
+
+def test_lattice_is_global_and_tiles_partition_it():
+    params = GrowParams(template=19, step=10, tile=64)
+    lattice = Lattice((600, 599), params)
+    owned = np.zeros((lattice.nrows, lattice.ncols), int)
+    for n_a, n_b, m_a, m_b in lattice.tiles(64):
+        owned[m_a:m_b, n_a:n_b] += 1
+    assert (owned == 1).all()
+    x, y = lattice.position(0, lattice.ncols - 1)
+    assert x == 9.5 + 10 * (lattice.ncols - 1) and x + 9 <= 599.5 and y == 9.5
+
+
+# ------------------------------------------------------------------------------------------
+# simulated scene
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    return Scene(tmp_path_factory.mktemp("rg") / "scene")
+
+
+@pytest.fixture(scope="module")
+def grown(scene):
+    match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(tile=256),
+               scene.height_range)   # compile outside the timing
+    feedback = Feedback()
+    start = time.perf_counter()
+    records = match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(),
+                         scene.height_range, feedback=feedback)
+    seconds = time.perf_counter() - start
+    x2, y2, cls = scene.truth(records["x1"], records["y1"])
+    error = np.hypot(records["x2"] - x2, records["y2"] - y2)
+    return records, error, cls, seconds, feedback
+
+
+@pytest.mark.slow
+def test_region_growing_accuracy_against_truth(grown):
+    records, error, cls, seconds, feedback = grown
+    textured = ~np.isin(cls, LOW_TEXTURE)
+    rms = float(np.sqrt(np.mean(error[textured] ** 2)))
+    median = float(np.median(error[textured]))
+    blunders = float(np.mean(error > 1.0))
+    print(f"\n{len(records)} points in {seconds:.2f} s ({len(records) / seconds:.0f} points/s); textured: "
+          f"RMS {rms:.3f} px, median {median:.3f} px; errors > 1 px: {100 * blunders:.2f} %")
+    assert len(records) > 500
+    assert median < 0.3
+    assert rms < 0.6
+    assert blunders < 0.08
+    assert np.all(records["rho"] > 0.6) and np.all(records["semi_major"] < 0.1)
+    assert any("points accepted" in m for m in feedback.messages)
+
+
+@pytest.mark.slow
+def test_region_growing_coverage(scene, grown):
+    records = grown[0]
+    params = GrowParams()
+    lattice = Lattice(scene.model1.size, params)
+    n, m = np.meshgrid(np.arange(lattice.ncols), np.arange(lattice.nrows))
+    x1, y1 = lattice.position(m.ravel(), n.ravel())
+    x2, y2, cls = scene.truth(x1, y1)
+    c2, r2 = scene.model2.size
+    inside = (x2 > 12) & (x2 < c2 - 12) & (y2 > 12) & (y2 < r2 - 12)
+    hit = np.isin(np.rint(x1 * 2) + 1e5 * np.rint(y1 * 2), np.rint(records["x1"] * 2) + 1e5 * np.rint(records["y1"] * 2))
+    textured = inside & ~np.isin(cls, LOW_TEXTURE)
+    low = inside & np.isin(cls, LOW_TEXTURE)
+    print(f"\ncoverage of lattice nodes: textured {100 * hit[textured].mean():.1f} %, "
+          f"low texture {100 * hit[low].mean():.1f} %")
+    assert hit[textured].mean() > 0.35   # see the report: the LSM ellipse test rejects many
+
+
+@pytest.mark.slow
+def test_determinism_workers_and_tiles(scene):
+    params = GrowParams(tile=256)
+    args = (scene.image1, scene.image2, scene.model1, scene.model2)
+    a = match_pair(*args, params, scene.height_range, workers=1)
+    b = match_pair(*args, params, scene.height_range, workers=2)
+    np.testing.assert_array_equal(a, b)
+    c = match_pair(*args, GrowParams(tile=320), scene.height_range, workers=2)
+    key_a = {(x, y): i for i, (x, y) in enumerate(zip(a["x1"], a["y1"]))}
+    pairs = np.array([(key_a[(x, y)], j) for j, (x, y) in enumerate(zip(c["x1"], c["y1"])) if (x, y) in key_a])
+    assert len(pairs) > 0.85 * max(len(a), len(c))
+    d = np.hypot(a["x2"][pairs[:, 0]] - c["x2"][pairs[:, 1]], a["y2"][pairs[:, 0]] - c["y2"][pairs[:, 1]])
+    assert np.percentile(d, 99) < 0.1
+
+
+@pytest.mark.slow
+def test_transfer_points_with_guide(scene, grown):
+    records = grown[0]
+    guide = records[::2]
+    x1 = records["x1"][1::2] + 3.0
+    y1 = records["y1"][1::2] - 2.0
+    out, ok = transfer_points(scene.image1, scene.image2, scene.model1, scene.model2, x1, y1, GrowParams(),
+                              scene.height_range, guide=guide)
+    assert len(out) == len(x1) and ok.mean() > 0.6
+    x2, y2, cls = scene.truth(x1[ok], y1[ok])
+    error = np.hypot(out["x2"][ok] - x2, out["y2"][ok] - y2)
+    assert np.median(error) < 0.3
+    np.testing.assert_array_equal(out["x1"], x1)
+
+
+@pytest.mark.slow
+def test_given_seeds(scene, grown):
+    from pushbroom.algorithms.matching.seeds import automatic_seeds, seeds_from_points
+    auto = automatic_seeds(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range)
+    seeds, ok = seeds_from_points(scene.image1, scene.image2, scene.model1, scene.model2, auto["x1"][:3],
+                                  auto["y1"][:3], GrowParams(), scene.height_range)
+    assert ok.any()
+    records = match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(),
+                         scene.height_range, seeds=seeds[ok])
+    assert len(records) > 200 and set(np.unique(records["seed"])) <= set(np.flatnonzero(ok))
+
+
+def test_no_overlap_is_an_input_error(scene):
+    class Far:
+        size = scene.model2.size
+
+        def ground_to_image(self, lon, lat, h):
+            x, y = scene.model2.ground_to_image(lon, lat, h)
+            return np.asarray(x) + 50000.0, y
+
+    with pytest.raises(InputError, match="do not overlap"):
+        match_pair(scene.image1, scene.image2, scene.model1, Far(), GrowParams(), scene.height_range)
+
+
+def test_blank_image_gives_empty_result_and_warning(scene):
+    blank = Image(np.full((599, 300), 80.0, np.float32))
+    feedback = Feedback()
+    records = match_pair(scene.image1, blank, scene.model1, scene.model2, GrowParams(), scene.height_range,
+                         feedback=feedback)
+    assert len(records) == 0
+    assert any("Warning" in m and "no matched point" in m for m in feedback.messages)
+
+
+def test_image_smaller_than_template(scene):
+    with pytest.raises(InputError, match="smaller than the matching template"):
+        match_pair(Image(texture((12, 12), 1)), scene.image2, scene.model1, scene.model2, GrowParams(),
+                   scene.height_range)
+
+
+def test_height_range_required_for_spot(scene):
+    with pytest.raises(InputError, match="height range"):
+        match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams())
+
+
+def test_cancel(scene):
+    with pytest.raises(CancelledError):
+        match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range,
+                   feedback=Feedback(cancel=True))

@@ -1,0 +1,95 @@
+"""Seeds (algorithms/matching/seeds.py) and windowed imagery (imagery.py)."""
+import numpy as np
+import pytest
+
+from matching_scene import Scene
+from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.seeds import (automatic_seeds, interest_points, ncc_candidates, ncc_reference,
+                                                 resolve_height_range, seeds_from_points)
+
+
+def test_image_window_clipping_and_nodata(tmp_path):
+    from osgeo import gdal
+    data = np.arange(20 * 30, dtype=np.uint16).reshape(20, 30)
+    data[5, 7] = 9999
+    path = str(tmp_path / "img.tif")
+    ds = gdal.GetDriverByName("GTiff").Create(path, 30, 20, 1, gdal.GDT_UInt16)
+    ds.GetRasterBand(1).WriteArray(data)
+    ds.GetRasterBand(1).SetNoDataValue(9999)
+    ds = None
+    image = Image(path)
+    assert image.size == (30, 20)
+    win, x0, y0 = image.read(-3, 2, 12, 40)
+    assert (x0, y0) == (0, 2) and win.shape == (18, 9) and win.dtype == np.float32
+    assert np.isnan(win[3, 7]) and win[0, 0] == data[2, 0]
+    empty, _, _ = image.read(100, 100, 5, 5)
+    assert empty.size == 0
+    with pytest.raises(InputError):
+        Image(str(tmp_path / "missing.tif"))
+
+
+def test_ncc_kernel_against_numpy_reference():
+    rng = np.random.default_rng(2)
+    img1 = rng.random((40, 40)).astype(np.float32)
+    img2 = rng.random((50, 60)).astype(np.float32)
+    cx = np.array([20.3, 25.0, 30.7])
+    cy = np.array([22.1, 24.6, 20.0])
+    scores = np.empty(3)
+    best = ncc_candidates(img1, img2, 20.5, 19.5, 0.5, 0.05, -0.02, 1.1, cx, cy, 5, scores)
+    np.testing.assert_allclose(scores, ncc_reference(img1, img2, 20.5, 19.5, 0.5, 0.05, -0.02, 1.1, cx, cy, 5),
+                               atol=1e-6)
+    assert best == int(np.argmax(scores))
+    # exact copy scores 1
+    s = np.empty(1)
+    ncc_candidates(img1, img1, 20.5, 19.5, 1, 0, 0, 1, np.array([20.5]), np.array([19.5]), 5, s)
+    assert s[0] == pytest.approx(1.0)
+
+
+def test_interest_points_on_texture_not_on_flat():
+    rng = np.random.default_rng(0)
+    from scipy.ndimage import gaussian_filter
+    img = gaussian_filter(rng.standard_normal((100, 100)), 1.5).astype(np.float32)
+    img[:, 50:] = 0.0
+    pts = interest_points(img, 4, cell=25)
+    assert len(pts) > 3 and np.all(pts[:, 0] < 52)   # texture and its edge only
+
+
+def test_height_range():
+    assert resolve_height_range(None, 300.0) == (-200.0, 800.0)
+    assert resolve_height_range(None, (1, 2)) == (1.0, 2.0)
+    with pytest.raises(InputError):
+        resolve_height_range(object(), None)
+    with pytest.raises(InputError):
+        resolve_height_range(None, (5, 1))
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    return Scene(tmp_path_factory.mktemp("seeds") / "scene")
+
+
+@pytest.mark.slow
+def test_automatic_seeds_are_correct(scene):
+    seeds = automatic_seeds(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range)
+    x2, y2, _ = scene.truth(seeds["x1"], seeds["y1"])
+    error = np.hypot(seeds["x2"] - x2, seeds["y2"] - y2)
+    print(f"\n{len(seeds)} automatic seeds, median error {np.median(error):.3f} px, max {error.max():.2f} px")
+    assert len(seeds) > 20
+    assert np.mean(error > 1.0) < 0.1 and np.median(error) < 0.4
+
+
+@pytest.mark.slow
+def test_seeds_from_points_with_and_without_approximations(scene):
+    x1 = np.array([150.5, 300.5, 450.5, 200.5])
+    y1 = np.array([150.5, 300.5, 450.5, 420.5])
+    recs, ok = seeds_from_points(scene.image1, scene.image2, scene.model1, scene.model2, x1, y1, GrowParams(),
+                                 scene.height_range)
+    x2, y2, _ = scene.truth(x1, y1)
+    assert ok.sum() >= 1
+    assert np.all(np.hypot(recs["x2"][ok] - x2[ok], recs["y2"][ok] - y2[ok]) < 1.0)
+    recs2, ok2 = seeds_from_points(scene.image1, scene.image2, scene.model1, scene.model2, x1, y1, GrowParams(),
+                                   scene.height_range, x2=x2 + 1.5, y2=y2 - 1.0)
+    assert ok2.sum() >= 1
+    assert np.all(np.hypot(recs2["x2"][ok2] - x2[ok2], recs2["y2"][ok2] - y2[ok2]) < 1.0)
