@@ -1,6 +1,7 @@
 """The block store: one GeoPackage per block (DESIGN.md, "Data").
 
-Tables: `block_info` (key/value: format version, creation time, default CRS), `images` (one row per
+Tables: `block_info` (key/value: format version, creation time, default CRS, terrain height range,
+references to the point files beside the block), `images` (one row per
 image: name, raster path, orientation source, model kind, sensor, size, and the sensor model as
 a model-file document, see sensors/model_file.py),
 `footprints` (polygon layer, EPSG:4326, the image border projected on a DEM or a mean height) and
@@ -41,6 +42,24 @@ def _create_layer(ds, name, geom_type, srs, fields):
     return layer
 
 
+#: half width (m) of the terrain height range recorded for a block made at a mean height
+HEIGHT_MARGIN = 500.0
+
+
+def terrain_height_range(rings, height, dem):
+    """(min, max) ellipsoidal terrain height of the block: the DEM's valid heights inside the
+    footprints' bounding box, or the mean height +- HEIGHT_MARGIN."""
+    if dem is None:
+        return float(height) - HEIGHT_MARGIN, float(height) + HEIGHT_MARGIN
+    import numpy as np
+    allpts = np.vstack(rings)
+    lon0, dlon, _, lat0, _, dlat = dem.geotransform
+    cols = np.clip(((allpts[:, 0] - lon0) / dlon).astype(int), 0, dem.shape[1] - 1)
+    rows = np.clip(((allpts[:, 1] - lat0) / dlat).astype(int), 0, dem.shape[0] - 1)
+    window = dem.heights[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
+    return float(np.nanmin(window)), float(np.nanmax(window))
+
+
 def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=None):
     """Create `path` (a .gpkg) from `images`, a list of (name, image_path, orientation_path, model).
 
@@ -67,6 +86,7 @@ def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=N
         except PushbroomError as exc:
             raise InputError(f"cannot project the footprint of image {name}: {exc}") from exc
     centre = sum(r[:-1].mean(axis=0) for r in rings) / len(rings)
+    h_min, h_max = terrain_height_range(rings, height, dem)
     ogr.UseExceptions()
     with atomic_path(path) as tmp:
         ds = ogr.GetDriverByName("GPKG").CreateDataSource(tmp)
@@ -74,7 +94,8 @@ def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=N
         for key, value in [("format_version", FORMAT_VERSION),
                            ("created", datetime.datetime.now(datetime.timezone.utc).isoformat()),
                            ("default_crs", f"EPSG:{utm_epsg(*centre)}"),
-                           ("footprint_height", "dem" if dem is not None else repr(float(height)))]:
+                           ("footprint_height", "dem" if dem is not None else repr(float(height))),
+                           ("height_min", repr(h_min)), ("height_max", repr(h_max))]:
             feat = ogr.Feature(info.GetLayerDefn())
             feat["key"], feat["value"] = key, value
             info.CreateFeature(feat)
@@ -169,3 +190,54 @@ def open_images(image_paths, orientation_paths=None):
         seen.add(unique)
         result.append((unique, image, orientation, model))
     return result
+
+
+def open_block(path, update=False):
+    """The block's OGR data source; InputError if `path` is no Pushbroom block."""
+    if not os.path.exists(os.fspath(path)):
+        raise InputError(f"no block at {path}")
+    ogr.UseExceptions()
+    ds = ogr.Open(os.fspath(path), 1 if update else 0)
+    if ds is None or ds.GetLayerByName("block_info") is None:
+        raise InputError(f"{path} is not a Pushbroom block (no block_info table)")
+    return ds
+
+
+def read_info(path):
+    """The block_info table as a dict."""
+    ds = open_block(path)  # keep the data source alive while its layer is read
+    return {feat["key"]: feat["value"] for feat in ds.GetLayerByName("block_info")}
+
+
+def height_range(path):
+    """The terrain height range (min, max) recorded at the block's creation, or None."""
+    info = read_info(path)
+    try:
+        return float(info["height_min"]), float(info["height_max"])
+    except (KeyError, ValueError):
+        return None
+
+
+def update_info(path, values, step=None, message=""):
+    """Set block_info keys (a dict) and, with `step`, append a run_log row, in one transaction."""
+    ds = open_block(path, update=True)
+    ds.StartTransaction()
+    layer = ds.GetLayerByName("block_info")
+    for key, value in values.items():
+        layer.SetAttributeFilter(f"key = '{key}'")
+        feat = layer.GetNextFeature()
+        layer.SetAttributeFilter(None)
+        if feat is None:
+            feat = ogr.Feature(layer.GetLayerDefn())
+            feat["key"], feat["value"] = key, str(value)
+            layer.CreateFeature(feat)
+        else:
+            feat["value"] = str(value)
+            layer.SetFeature(feat)
+    if step is not None:
+        log = ds.GetLayerByName("run_log")
+        feat = ogr.Feature(log.GetLayerDefn())
+        feat["time"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
+        feat["step"], feat["parameters"], feat["message"] = step, json.dumps(values), message
+        log.CreateFeature(feat)
+    ds.CommitTransaction()

@@ -4,5 +4,7 @@
 def algorithm_classes():
     """The algorithm classes the provider registers, in toolbox order."""
     from .create_block import CreateBlock
+    from .match_points import MatchPoints
+    from .select_tie_points import SelectTiePoints
     from .simulate_scene import SimulateScene
-    return [SimulateScene, CreateBlock]
+    return [SimulateScene, CreateBlock, MatchPoints, SelectTiePoints]

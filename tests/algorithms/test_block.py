@@ -106,3 +106,21 @@ def test_model_loaded_from_product_folder_equals_metadata(spot5_product):
     b = sensors.load(spot5_product)
     assert a.size == b.size
     assert np.allclose(a.image_to_ground(100.0, 200.0, 300.0), b.image_to_ground(100.0, 200.0, 300.0), atol=0)
+
+
+def test_block_records_terrain_height_range_and_logs_steps(spot5_product, tmp_path):
+    from pushbroom.algorithms.dem import Dem
+    images = block.open_images([str(spot5_product)])
+    path = block.create_block(tmp_path / "b.gpkg", images, height=250.0)
+    assert block.height_range(path) == (-250.0, 750.0)
+    heights = np.full((50, 50), 300.0)
+    heights[10:20, 10:20] = 1200.0  # a mountain inside the footprint's box
+    heights[0, 0] = 5000.0          # a peak outside it
+    dem = Dem(heights, (87.0, 0.04, 0.0, 51.0, 0.0, -0.04))
+    path2 = block.create_block(tmp_path / "d.gpkg", images, dem=dem)
+    assert block.height_range(path2) == (300.0, 1200.0)
+    block.update_info(path, {"mass_points_count": 12}, step="matchpoints", message="12 points")
+    assert block.read_info(path)["mass_points_count"] == "12"
+    ds = ogr.Open(str(path))
+    steps = [f["step"] for f in ds.GetLayerByName("run_log")]
+    assert steps == ["createblock", "matchpoints"]

@@ -1,0 +1,146 @@
+"""pushbroom:matchpoints — dense image points by region-growing least-squares matching in the
+three combinations of paper K 3.3 (algorithms/matching/combinations.py)."""
+from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputVectorLayer,
+                       QgsProcessingParameterBoolean, QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
+                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterNumber, QgsProcessingParameterString)
+
+from ...algorithms import block
+from ...algorithms.errors import InputError
+from ...algorithms.matching import combinations, points
+from ...algorithms.matching.params import GrowParams
+from ..styles import load_styled
+from .base import PushbroomAlgorithm
+
+Number = QgsProcessingParameterNumber
+SEED_SOURCES = ["Automatic (interest points matched along the epipolar path)"]
+
+
+def combination_order(rows, text):
+    """The block's image rows in combination order: `text` is a comma-separated list of names
+    (reference, forward[, backward]); empty or 'all' orders the block's 2 or 3 images itself
+    (HRG, HRS1, HRS2 when so named, else block order)."""
+    by_name = {r["name"]: r for r in rows}
+    names = [n.strip() for n in (text or "").split(",") if n.strip()]
+    if names and names != ["all"]:
+        missing = [n for n in names if n not in by_name]
+        if missing:
+            raise InputError(f"image(s) {', '.join(missing)} not in the block; it has {', '.join(by_name)}")
+        if len(names) not in (2, 3) or len(set(names)) != len(names):
+            raise InputError(f"give 2 or 3 different images (reference, forward[, backward]), got {names}")
+        return [by_name[n] for n in names]
+    if len(rows) not in (2, 3):
+        raise InputError(f"the block has {len(rows)} images: name the 2 or 3 to match in the Images parameter "
+                         "(reference, forward[, backward])")
+    upper = {r["name"].upper(): r for r in rows}
+    if len(rows) == 3 and all(any(k.startswith(p) for k in upper) for p in ("HRG", "HRS1", "HRS2")):
+        return [next(r for k, r in upper.items() if k.startswith(p)) for p in ("HRG", "HRS1", "HRS2")]
+    return list(rows)
+
+
+def height_range_of(block_path, h_min, h_max):
+    """(h_min, h_max) from the parameters (one given: that height +- 500 m), else the terrain height
+    range recorded in the block at its creation (DEM heights under the footprints, or the mean
+    height +- 500 m)."""
+    if h_min is not None and h_max is not None:
+        return (h_min, h_max)
+    if h_min is not None or h_max is not None:
+        return float(h_min if h_min is not None else h_max)
+    return block.height_range(block_path)
+
+
+def display_height(height_range):
+    if height_range is None:
+        return 0.0
+    if isinstance(height_range, tuple):
+        return 0.5 * (height_range[0] + height_range[1])
+    return float(height_range)
+
+
+class MatchPoints(PushbroomAlgorithm):
+    NAME = "matchpoints"
+    DISPLAY_NAME = "Match points (region growing)"
+    GROUP = "Matching"
+    GROUP_ID = "matching"
+    HELP = ("Dense image points by region-growing least-squares matching (Otto & Chau) in the combinations "
+            "of Kornus et al. 2006, section 3.3: (a) reference-forward, (b) reference-backward with the "
+            "reference points of (a) as transfer points, (c) backward-forward with the backward points of "
+            "(b) as transfer points. Points are grouped: 1 two-ray, 2 three-ray from two combinations, 3 "
+            "three-ray from all three (the doubly matched forward coordinates averaged and kept where their "
+            "deviation is below 3 robust sigma). A two-image block gives group 1 only. The points are "
+            "stored beside the block (<block>.mass_points.npz), shown as a point layer on the reference "
+            "image at the mean height, and counted per group like Table 1 of the paper (log and CSV).")
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+        d = GrowParams()
+        self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
+        self.addParameter(QgsProcessingParameterString(
+            "IMAGES", "Images in combination order: reference (nadir), forward[, backward]; empty = all",
+            "", optional=True))
+        self.addParameter(QgsProcessingParameterEnum("SEEDS", "Seed points", SEED_SOURCES, defaultValue=0))
+        self.addParameter(Number("MIN_HEIGHT", "Lowest ellipsoidal terrain height (m; empty: the block's terrain "
+                                 "height range)", Number.Double, None, optional=True))
+        self.addParameter(Number("MAX_HEIGHT", "Highest ellipsoidal terrain height (m; empty: the block's terrain "
+                                 "height range)", Number.Double, None, optional=True))
+        self.addParameter(Number("TEMPLATE", "Template size (px, odd)", Number.Integer, d.template, minValue=5))
+        self.addParameter(Number("STEP", "STEP: distance of the neighbours (px)", Number.Integer, d.step, minValue=1))
+        advanced = [
+            Number("RHO_MIN", "Minimum correlation coefficient", Number.Double, d.rho_min, minValue=0.0,
+                   maxValue=1.0),
+            Number("MAX_ELLIPSE", "Maximum semi-major axis of the error ellipse (px)", Number.Double,
+                   d.max_ellipse, minValue=0.0),
+            Number("MAX_SHIFT", "Maximum shift from the initial values (px)", Number.Double, d.max_shift,
+                   minValue=0.0),
+            Number("MAX_ITERATIONS", "Maximum LSM iterations", Number.Integer, d.max_iterations, minValue=1),
+            Number("TILE", "Tile size of the reference image (px)", Number.Integer, d.tile, minValue=16),
+            Number("SIGMA_FACTOR", "Group 3 consistency test: deviations below k robust sigma", Number.Double,
+                   3.0, minValue=0.1),
+            QgsProcessingParameterBoolean("GROW_SECOND", "Also grow combination (b) where (a) found no points",
+                                          True),
+            Number("WORKERS", "Worker threads", Number.Integer, 1, minValue=1),
+        ]
+        for parameter in advanced:
+            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+            self.addParameter(parameter)
+        self.addParameter(QgsProcessingParameterFileDestination(
+            "SUMMARY", "Summary per point group (CSV)", "CSV files (*.csv)", optional=True))
+        self.addOutput(QgsProcessingOutputVectorLayer("POINTS", "Mass points", QgsProcessing.TypeVectorPoint))
+        self.addOutput(QgsProcessingOutputFile("POINTS_FILE", "Mass point file (.npz)"))
+
+    def execute(self, parameters, context, feedback):
+        path = self.parameterAsFile(parameters, "BLOCK", context)
+        rows = combination_order(block.read_images(path), self.parameterAsString(parameters, "IMAGES", context))
+        models = [block.load_model(path, r["id"]) for r in rows]
+
+        def optional(key):
+            value = parameters.get(key)
+            return None if value is None or value == "" else self.parameterAsDouble(parameters, key, context)
+
+        height_range = height_range_of(path, optional("MIN_HEIGHT"), optional("MAX_HEIGHT"))
+        params = GrowParams(
+            template=self.parameterAsInt(parameters, "TEMPLATE", context),
+            step=self.parameterAsInt(parameters, "STEP", context),
+            rho_min=self.parameterAsDouble(parameters, "RHO_MIN", context),
+            max_ellipse=self.parameterAsDouble(parameters, "MAX_ELLIPSE", context),
+            max_shift=self.parameterAsDouble(parameters, "MAX_SHIFT", context),
+            max_iterations=self.parameterAsInt(parameters, "MAX_ITERATIONS", context),
+            tile=self.parameterAsInt(parameters, "TILE", context)).check()
+        feedback.pushInfo("combination order: " + ", ".join(r["name"] for r in rows)
+                          + f"; height range {height_range}")
+        result = combinations.match_block(
+            [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
+            image_ids=[r["id"] for r in rows], params=params, height_range=height_range,
+            feedback=feedback, workers=self.parameterAsInt(parameters, "WORKERS", context),
+            grow_second=self.parameterAsBool(parameters, "GROW_SECOND", context),
+            sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context))
+        npz = points.save_points(path, result, "mass_points")
+        layer = points.write_point_layer(path, "mass_points", result, models[0], rows[0]["id"],
+                                         display_height(height_range))
+        summary = combinations.summary_rows(result)
+        feedback.pushInfo("points per group (Kornus et al. 2006, Table 1):\n" + combinations.format_summary(summary))
+        out = {"BLOCK": path, "POINTS": layer, "POINTS_FILE": npz}
+        csv = self.parameterAsFileOutput(parameters, "SUMMARY", context)
+        if csv:
+            out["SUMMARY"] = combinations.write_summary_csv(csv, summary)
+        load_styled(context, layer, "Mass points", "POINTS", "points_by_group.qml")
+        return out

@@ -1,0 +1,162 @@
+"""Three-image combinations and point groups (K 3.3) on synthetic PAIR_DTYPE records."""
+import numpy as np
+import pytest
+
+from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.matching.combinations import (combine, format_summary, new_cells, robust_sigma,
+                                                        summary_rows)
+from pushbroom.algorithms.matching.points import COMB_A, COMB_B, COMB_C
+from pushbroom.algorithms.matching.records import PAIR_DTYPE
+
+SHIFT1 = np.array([10.25, 5.5])    # image 0 -> forward image 1
+SHIFT2 = np.array([-7.125, 3.0])   # image 0 -> backward image 2
+
+
+def records(x1, y1, x2, y2, rho=0.9):
+    r = np.zeros(len(x1), PAIR_DTYPE)
+    r["x1"], r["y1"], r["x2"], r["y2"] = x1, y1, x2, y2
+    r["rho"], r["semi_major"], r["semi_minor"] = rho, 0.04, 0.02
+    return r
+
+
+def scene(n=400, seed=0, noise=0.02):
+    """a: n points; b: transfers of a[:300] of which 280 matched, plus 50 own points; c: transfers
+    of the first 250 matched b transfers plus the first 20 own b points."""
+    rng = np.random.default_rng(seed)
+    x0 = rng.uniform(0, 1000, n).round(1) + 0.5
+    y0 = rng.uniform(0, 1000, n).round(1) + 0.5
+    a = records(x0, y0, x0 + SHIFT1[0] + rng.normal(0, noise, n), y0 + SHIFT1[1] + rng.normal(0, noise, n),
+                rho=rng.uniform(0.6, 1.0, n))
+    src = np.arange(300)
+    matched = src[np.arange(300) % 15 != 0]             # 280 matched of 300
+    bt = records(a["x1"][matched] + 1e-9, a["y1"][matched], a["x1"][matched] + SHIFT2[0],
+                 a["y1"][matched] + SHIFT2[1], rho=0.8)  # matcher's x1 slightly off: combine must keep a's
+    xo, yo = rng.uniform(2000, 3000, 50), rng.uniform(0, 1000, 50)
+    bo = records(xo, yo, xo + SHIFT2[0], yo + SHIFT2[1], rho=0.75)
+    b = np.concatenate([bt, bo])
+    b_src = np.concatenate([matched, np.full(50, -1)])
+    c_src = np.concatenate([np.arange(250), 280 + np.arange(20)])
+    x2, y2 = b["x2"][c_src], b["y2"][c_src]
+    c = records(x2, y2, x2 - SHIFT2[0] + SHIFT1[0] + rng.normal(0, noise, len(c_src)),
+                y2 - SHIFT2[1] + SHIFT1[1] + rng.normal(0, noise, len(c_src)), rho=0.85)
+    return a, b, b_src, c, c_src
+
+
+def test_counts_per_group():
+    a, b, b_src, c, c_src = scene()
+    mp = combine(a, b, b_src, c, c_src, image_ids=(11, 12, 13))
+    # group 3: 250 (a, b, c); group 2: 30 (a, b) + 20 (b own, c); group 1: 120 (a only) + 30 (b own only)
+    assert mp.stats["matched_3"] == 250
+    counts = mp.group_counts()
+    assert counts[1] == 150 and counts[2] == 50
+    assert counts[3] == 250 - mp.stats["rejected_3sigma"]
+    assert mp.stats["rejected_3sigma"] < 10          # Gaussian noise: a few beyond 3 sigma at most
+    p = mp.points
+    assert np.array_equal(p["id"], np.arange(1, len(p) + 1))
+    assert set(p["flags"][p["group"] == 3]) == {COMB_A | COMB_B | COMB_C}
+    assert set(p["flags"][p["group"] == 2]) == {COMB_A | COMB_B, COMB_B | COMB_C}
+    assert set(p["flags"][p["group"] == 1]) == {COMB_A, COMB_B}
+    # observations: 3 per three-ray point, 2 per two-ray point, sorted by point then image
+    per_point = np.bincount(mp.observations["point_id"], minlength=len(p) + 1)[1:]
+    assert np.array_equal(per_point, np.where(p["group"] == 1, 2, 3))
+    key = mp.observations["point_id"] * 100 + mp.observations["image_id"]
+    assert np.all(np.diff(key) > 0)
+    # rho kept per combination
+    g3 = p[p["group"] == 3]
+    assert np.all(g3["rho_b"] == np.float32(0.8)) and np.all(g3["rho_c"] == np.float32(0.85))
+    assert np.all(g3["rho_min"] == np.fmin(g3["rho_a"], 0.8))
+    rows = dict(summary_rows(mp))
+    assert rows["Two-ray points (group 1)"] == 150
+    assert rows["Points matched in 3 combinations"] == 250
+    assert "group 3" in format_summary(summary_rows(mp))
+
+
+def test_transfer_points_keep_first_image_coordinates_exactly():
+    a, b, b_src, c, c_src = scene()
+    mp = combine(a, b, b_src, c, c_src, image_ids=(1, 2, 3), sigma_factor=1e9)
+    p = mp.points
+    col0, row0 = mp.coordinates(1)
+    col2, row2 = mp.coordinates(3)
+    from_a = (p["flags"] & COMB_A) > 0
+    # the a points come first, in order: image 0 coordinates are a's, bit for bit
+    assert np.array_equal(col0[from_a], a["x1"]) and np.array_equal(row0[from_a], a["y1"])
+    # image 2 of every point in (b) is b's matched position, also where (c) used it as template
+    in_b = (p["flags"] & COMB_B) > 0
+    order = np.concatenate([np.argsort(b_src[b_src >= 0]), np.flatnonzero(b_src < 0)])
+    assert np.array_equal(col2[in_b], b["x2"][order]) and np.array_equal(row2[in_b], b["y2"][order])
+    # forward image: group 3 is the average of (a) and (c)
+    col1, _ = mp.coordinates(2)
+    g3 = np.flatnonzero(p["group"] == 3)
+    assert np.allclose(col1[g3], (a["x2"][g3] + c["x2"][:250]) / 2)
+    assert np.allclose(p["dx"][g3], (a["x2"][g3] - c["x2"][:250]) / 2)
+
+
+def test_three_sigma_test_removes_inconsistent_points():
+    a, b, b_src, c, c_src = scene(noise=0.05)
+    bad = np.array([3, 40, 77, 150, 201])                  # c records of group 3 points
+    c["x2"][bad[:3]] += 2.0
+    c["y2"][bad[3:]] -= 1.5
+    mp = combine(a, b, b_src, c, c_src)
+    sigma = mp.stats["sigma_dx"]
+    assert 0.03 < sigma < 0.08                              # robust: blunders do not inflate it
+    assert mp.stats["rejected_3sigma"] >= 5
+    assert mp.stats["rejected_3sigma"] <= 5 + 5             # few good ones beyond 3 sigma
+    # the blundered points are gone: every kept group 3 point is consistent
+    g3 = mp.points[mp.points["group"] == 3]
+    assert np.all(np.abs(g3["dx"]) < 3 * mp.stats["sigma_dx"])
+    assert np.all(np.abs(g3["dy"]) < 3 * mp.stats["sigma_dy"])
+    assert len(mp) == 400 + 50 - mp.stats["rejected_3sigma"]
+    kept_a_x1 = mp.coordinates(1)[0][(mp.points["flags"] & COMB_A) > 0]
+    for k in bad:                                           # c[k] came from b[k], from a[matched[k]]
+        assert a["x1"][b_src[c_src[k]]] not in kept_a_x1
+
+
+def test_perfect_data_keep_all_group_3_points():
+    a, b, b_src, c, c_src = scene(noise=0.0)
+    c["x2"], c["y2"] = a["x2"][b_src[c_src[:250]]].tolist() + c["x2"][250:].tolist(), \
+        a["y2"][b_src[c_src[:250]]].tolist() + c["y2"][250:].tolist()
+    mp = combine(a, b, b_src, c, c_src)
+    assert mp.stats["rejected_3sigma"] == 0 and mp.group_counts()[3] == 250
+
+
+def test_two_images_give_group_1_only():
+    a, *_ = scene()
+    mp = combine(a, image_ids=(5, 7))
+    assert mp.group_counts() == {1: 400, 2: 0, 3: 0}
+    assert set(mp.points["flags"]) == {COMB_A}
+    assert set(mp.observations["image_id"]) == {5, 7}
+    assert len(mp.observations) == 800
+    assert np.array_equal(mp.coordinates(5)[0], a["x1"]) and np.array_equal(mp.coordinates(7)[1], a["y2"])
+    assert mp.stats["images"] == [5, 7]
+    assert np.all(np.isnan(mp.observations["rho"][mp.observations["image_id"] == 5]))
+
+
+def test_empty_and_bad_links():
+    mp = combine(np.zeros(0, PAIR_DTYPE), np.zeros(0, PAIR_DTYPE), [], np.zeros(0, PAIR_DTYPE), [])
+    assert len(mp) == 0 and len(mp.observations) == 0
+    a = scene()[0][:10]
+    with pytest.raises(InputError):
+        combine(a, a[:2], [0, 99])
+    with pytest.raises(InputError):
+        combine(a, a[:2], [0])
+
+
+def test_helpers():
+    assert robust_sigma([], 0.5) == 0.5
+    assert robust_sigma([1.0, -1.0, 1.0], 0.0) == pytest.approx(1.4826)
+    mask = new_cells([5, 15, 25], [5, 5, 5], [1, 22], [1, 9], 10)
+    assert mask.tolist() == [False, True, False]
+
+
+def test_guide_for_combination_c_composes_the_affines():
+    from pushbroom.algorithms.matching.combinations import compose_guide
+    a, b, b_src, _, _ = scene()
+    a["a1"], a["a2"], a["a4"], a["a5"] = 1.2, 0.1, 0.0, 1.0       # image 0 -> 1
+    b["a1"], b["a2"], b["a4"], b["a5"] = 0.8, 0.0, 0.05, 1.0      # image 0 -> 2
+    b["a1"][0] = b["a2"][0] = 0.0                                 # singular: left out
+    g = compose_guide(a, b, b_src)
+    assert len(g) == 279
+    src = b_src[1:280]
+    assert np.array_equal(g["x1"], b["x2"][1:280]) and np.array_equal(g["x2"], a["x2"][src])
+    C = np.array([[1.2, 0.1], [0.0, 1.0]]) @ np.linalg.inv(np.array([[0.8, 0.0], [0.05, 1.0]]))
+    assert np.allclose([g["a1"][0], g["a2"][0], g["a4"][0], g["a5"][0]], C.ravel(), atol=1e-6)

@@ -1,0 +1,151 @@
+"""MultiPoints storage beside a block, the point layer, and tie point selection."""
+import numpy as np
+import pytest
+from osgeo import ogr
+
+from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.block import read_info
+from pushbroom.algorithms.matching.points import (OBS_DTYPE, POINT_DTYPE, MultiPoints, load_arrays,
+                                                  load_points, save_arrays, save_points, write_point_layer)
+from pushbroom.algorithms.matching.tiepoints import select_tie_points
+
+
+def synthetic(n, seed=0, images=(1, 2, 3)):
+    """n points on images `images`; groups cycle 1, 2, 3; group 1 points miss the last image."""
+    rng = np.random.default_rng(seed)
+    p = np.zeros(n, POINT_DTYPE)
+    p["id"] = np.arange(1, n + 1)
+    p["group"] = np.arange(n) % 3 + 1
+    p["flags"] = np.array([1, 3, 7])[p["group"] - 1]
+    p["rho_min"] = rng.uniform(0.6, 1.0, n)
+    p["rho_a"], p["rho_b"], p["rho_c"], p["dx"], p["dy"] = p["rho_min"], np.nan, np.nan, np.nan, np.nan
+    obs = np.zeros(3 * n, OBS_DTYPE)
+    obs["point_id"] = np.repeat(p["id"], 3)
+    obs["image_id"] = np.tile(images, n)
+    obs["col"], obs["row"] = rng.uniform(0, 1000, 3 * n), rng.uniform(0, 1000, 3 * n)
+    obs["rho"] = rng.uniform(0.6, 1.0, 3 * n)
+    keep = ~((np.repeat(p["group"], 3) == 1) & (obs["image_id"] == images[-1]))
+    return MultiPoints(p, obs[keep], {"images": list(images), "matched_3": int(n // 3)})
+
+
+class FlatModel:
+    """lon/lat linear in col/row (a stand-in for a sensor model)."""
+    size = (1000, 1000)
+
+    def image_to_ground(self, col, row, h):
+        return -84.2 + np.asarray(col) * 1e-5, 36.6 - np.asarray(row) * 1e-5
+
+
+@pytest.fixture
+def block(tmp_path):
+    path = tmp_path / "b.gpkg"
+    ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
+    info = ds.CreateLayer("block_info", None, ogr.wkbNone)
+    for name in ("key", "value"):
+        info.CreateField(ogr.FieldDefn(name, ogr.OFTString))
+    feat = ogr.Feature(info.GetLayerDefn())
+    feat["key"], feat["value"] = "format_version", "1"
+    info.CreateFeature(feat)
+    log = ds.CreateLayer("run_log", None, ogr.wkbNone)
+    for name in ("time", "step", "parameters", "message"):
+        log.CreateField(ogr.FieldDefn(name, ogr.OFTString))
+    ds = None
+    return path
+
+
+def assert_same(a, b):
+    assert a.points.dtype == b.points.dtype and a.points.tobytes() == b.points.tobytes()
+    assert a.observations.dtype == b.observations.dtype and a.observations.tobytes() == b.observations.tobytes()
+    assert a.stats == b.stats
+
+
+def test_save_and_load_beside_the_block(block, tmp_path):
+    mp = synthetic(3000)
+    path = save_points(block, mp)
+    assert path.endswith("b.mass_points.npz")
+    info = read_info(block)
+    assert info["mass_points"] == "b.mass_points.npz" and info["mass_points_count"] == "3000"
+    assert_same(load_points(block), mp)
+    # saving again replaces (no duplicate keys), other kinds are separate
+    save_points(block, mp.subset([1, 2, 3]))
+    save_points(block, mp.subset([5]), kind="tie_points")
+    assert len(load_points(block)) == 3 and len(load_points(block, "tie_points")) == 1
+    assert read_info(block)["mass_points_count"] == "3"
+    assert [f for f in tmp_path.iterdir() if ".part" in f.name] == []
+
+
+def test_two_million_points_round_trip(tmp_path):
+    mp = synthetic(2_000_000)
+    path = save_arrays(tmp_path / "big.npz", mp)
+    assert_same(load_arrays(path), mp)
+
+
+def test_missing_points_give_clear_errors(block, tmp_path):
+    with pytest.raises(InputError, match="matchpoints"):
+        load_points(block)
+    with pytest.raises(InputError, match="missing"):
+        load_arrays(tmp_path / "nothing.npz")
+    with pytest.raises(InputError, match="no block"):
+        save_points(tmp_path / "none.gpkg", synthetic(3))
+    (tmp_path / "x.npz").write_bytes(b"not a zip")
+    with pytest.raises(Exception):
+        load_arrays(tmp_path / "x.npz")
+
+
+def test_point_layer(block):
+    mp = synthetic(300)
+    source = write_point_layer(block, "mass_points", mp, FlatModel(), 1, 500.0)
+    assert source.endswith("|layername=mass_points")
+    write_point_layer(block, "mass_points", mp, FlatModel(), 3, 500.0)  # replaced, image 3 lacks group 1
+    ds = ogr.Open(str(block))
+    layer = ds.GetLayerByName("mass_points")
+    assert layer.GetFeatureCount() == 200
+    assert layer.GetSpatialRef().GetAuthorityCode(None) == "4326"
+    feat = layer.GetNextFeature()
+    pid = feat["id"]
+    col, row = mp.coordinates(3)
+    geom = feat.GetGeometryRef()
+    assert geom.GetX() == pytest.approx(-84.2 + col[pid - 1] * 1e-5)
+    assert geom.GetY() == pytest.approx(36.6 - row[pid - 1] * 1e-5)
+    assert feat["group"] == mp.points["group"][pid - 1]
+    assert feat["rho"] == pytest.approx(float(mp.points["rho_min"][pid - 1]))
+
+
+def test_tie_points_one_per_cell_best_group_then_rho():
+    p = np.zeros(6, POINT_DTYPE)
+    p["id"] = np.arange(1, 7)
+    p["group"] = [1, 3, 3, 2, 1, 1]
+    p["rho_min"] = [0.99, 0.7, 0.8, 0.95, 0.9, 0.7]
+    obs = np.zeros(6, OBS_DTYPE)
+    obs["point_id"], obs["image_id"] = p["id"], 4
+    # cell (0, 0): points 1-3 -> best group 3, highest rho: point 3; cell (1, 0): 4, 5 -> 4 (group 2)
+    # cell (0, 1): 6 alone
+    obs["col"] = [10, 50, 99.9, 150, 199, 10]
+    obs["row"] = [10, 20, 30, 10, 90, 100]
+    mp = MultiPoints(p, obs, {"images": [4]})
+    tie = select_tie_points(mp, cell=100)
+    assert tie.points["id"].tolist() == [3, 4, 6]
+    assert tie.stats["tie_cell"] == 100
+    assert select_tie_points(mp, cell=1000).points["id"].tolist() == [3]
+    assert select_tie_points(mp, cell=100, min_group=2).points["id"].tolist() == [3, 4]
+    with pytest.raises(InputError):
+        select_tie_points(mp, cell=0)
+    assert len(select_tie_points(MultiPoints())) == 0
+
+
+def test_tie_points_keep_observations_and_ids():
+    mp = synthetic(5000)
+    tie = select_tie_points(mp, cell=100)
+    assert 90 <= len(tie) <= 100                            # 10 x 10 cells, all occupied
+    assert np.all(tie.points["group"] == 3)                 # group 3 exists in every cell
+    col, row = tie.coordinates(1)
+    cells = np.floor(row / 100) * 10 + np.floor(col / 100)
+    assert len(np.unique(cells)) == len(tie)
+    # each selected point is the best group-3 point of its cell
+    all_col, all_row = mp.coordinates(1)
+    all_cells = np.floor(all_row / 100) * 10 + np.floor(all_col / 100)
+    for pid, cell in zip(tie.points["id"], cells):
+        rivals = (all_cells == cell) & (mp.points["group"] == 3)
+        assert mp.points["rho_min"][pid - 1] == mp.points["rho_min"][rivals].max()
+    assert np.array_equal(np.unique(tie.observations["point_id"]), tie.points["id"])
+    assert len(tie.observations) == 3 * len(tie)

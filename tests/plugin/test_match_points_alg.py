@@ -1,0 +1,90 @@
+"""pushbroom:matchpoints and pushbroom:selecttiepoints on a small simulated SPOT-5 triplet."""
+import csv
+
+import numpy as np
+import pytest
+from osgeo import gdal
+from qgis import processing
+from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
+
+from pushbroom.algorithms import block
+from pushbroom.algorithms.block import read_info
+from pushbroom.algorithms.matching.points import load_points
+from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+
+
+@pytest.fixture(scope="module")
+def triplet(tmp_path_factory):
+    """A 3 x 3 km HRG/HRS1/HRS2 block (supplied orientation = truth) and its DSM height range."""
+    folder = tmp_path_factory.mktemp("triplet")
+    paths = simulate_scene(SceneConfig.small(error_scale=0.0), folder / "scene")
+    dsm = gdal.Open(paths["dsm"]).ReadAsArray()
+    lo, hi = float(np.nanmin(dsm)), float(np.nanmax(dsm))
+    images = block.open_images([paths["images"][n]["imagery"] for n in ("HRS2", "HRG", "HRS1")])
+    return {"images": images, "range": (lo - 30.0, hi + 30.0), "folder": folder}
+
+
+def make_block(triplet, name, names):
+    path = triplet["folder"] / name
+    block.create_block(path, [i for i in triplet["images"] if i[0] in names], height=sum(triplet["range"]) / 2,
+                       overwrite=True)
+    return str(path)
+
+
+def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, tmp_path):
+    path = make_block(triplet, "three.gpkg", ("HRG", "HRS1", "HRS2"))
+    lo, hi = triplet["range"]
+    context, feedback = QgsProcessingContext(), QgsProcessingFeedback()
+    result = processing.run("pushbroom:matchpoints", {
+        "BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6, "SUMMARY": str(tmp_path / "summary.csv")},
+        context=context, feedback=feedback)
+    mass = load_points(path)
+    counts = mass.group_counts()
+    assert counts[3] > 100, counts                         # most points are three-ray (K Table 1)
+    assert counts[3] > counts[1] and counts[3] > counts[2]
+    ids = {r["name"]: r["id"] for r in block.read_images(path)}
+    assert mass.stats["images"] == [ids["HRG"], ids["HRS1"], ids["HRS2"]]   # ordered by name, not block
+    assert read_info(path)["mass_points_count"] == str(len(mass))
+    layer = QgsVectorLayer(result["POINTS"], "mass", "ogr")
+    assert layer.isValid() and layer.featureCount() == len(mass)
+    assert layer.crs().authid() == "EPSG:4326"
+    assert {f.name() for f in layer.fields()} >= {"id", "group", "rho"}
+    rows = list(csv.reader(open(result["SUMMARY"])))
+    assert rows[0] == ["item", "value"] and int(rows[1][1]) == counts[1]
+    assert result["POINTS"] in context.layersToLoadOnCompletion()
+
+    tie = processing.run("pushbroom:selecttiepoints", {"BLOCK": path, "CELL": 100}, context=context)
+    tie_points = load_points(path, "tie_points")
+    assert 0 < len(tie_points) < len(mass)
+    col, row = tie_points.coordinates(ids["HRG"])
+    cells = np.floor(row / 100) * 1000 + np.floor(col / 100)
+    assert len(np.unique(cells)) == len(tie_points)
+    layer = QgsVectorLayer(tie["TIE_POINTS"], "tie", "ogr")
+    assert layer.isValid() and layer.featureCount() == len(tie_points)
+
+
+def test_two_images_give_group_1(pushbroom_provider, triplet):
+    path = make_block(triplet, "two.gpkg", ("HRG", "HRS1"))
+    lo, hi = triplet["range"]
+    processing.run("pushbroom:matchpoints", {"BLOCK": path, "IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo,
+                                             "MAX_HEIGHT": hi, "STEP": 8})
+    mass = load_points(path)
+    assert len(mass) > 100 and mass.group_counts()[2] == mass.group_counts()[3] == 0
+
+
+def test_bad_input_gives_clear_errors(pushbroom_provider, triplet):
+    path = make_block(triplet, "bad.gpkg", ("HRG", "HRS1", "HRS2"))
+    with pytest.raises(QgsProcessingException, match="not in the block"):
+        processing.run("pushbroom:matchpoints", {"BLOCK": path, "IMAGES": "HRG,XS"})
+    with pytest.raises(QgsProcessingException, match="matchpoints"):
+        processing.run("pushbroom:selecttiepoints", {"BLOCK": path})
+
+
+def test_cancel_writes_nothing(pushbroom_provider, triplet):
+    path = make_block(triplet, "cancel.gpkg", ("HRG", "HRS1", "HRS2"))
+    feedback = QgsProcessingFeedback()
+    feedback.cancel()
+    with pytest.raises(QgsProcessingException, match="cancel"):
+        processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": 0, "MAX_HEIGHT": 900},
+                       feedback=feedback)
+    assert "mass_points" not in read_info(path)
