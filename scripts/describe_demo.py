@@ -1,5 +1,5 @@
 """Print what `make demo` made: the simulated images with the measured error of their supplied
-orientation against the truth, the stereo geometry, and the block."""
+orientation against the truth, the stereo geometry, the block and the mass points per group."""
 import csv
 import json
 import math
@@ -39,7 +39,15 @@ def main(out):
     print(f"{len(points)} control/check point candidates in points.csv")
     for name in ("dsm.tif", "dtm.tif", "classes.tif", "orthoimage.tif", "points.csv", "truth/truth.json"):
         print(f"  {os.path.join(scene, name)}")
-    print(f"  {blk} (images, sensor models, footprints)")
+    print(f"  {blk} (images, sensor models, footprints, mass and tie point layers)")
+    table = os.path.join(out, "point_groups.csv")
+    if os.path.exists(table):
+        with open(table) as f:
+            rows = list(csv.reader(f))[1:]
+        width = max(len(label) for label, _ in rows)
+        print("\nMass points per group (as Table 1 of Kornus et al. 2006):")
+        for label, value in rows:
+            print(f"  {label:<{width}}  {value:>10}")
 
 
 if __name__ == "__main__":
