@@ -32,6 +32,12 @@ def triplet_image(request):
     return shared_file("pleiades_triplet", request.param)
 
 
+@pytest.fixture(scope="session")
+def pleiades_triplet():
+    """The three Pleiades triplet crops img_01, img_02, img_03 (paths, in file order)."""
+    return [shared_file("pleiades_triplet", f"img_0{k}.tif") for k in (1, 2, 3)]
+
+
 @pytest.fixture(params=["left_image", "right_image"])
 def ventoux_image(request):
     return shared_file("pleiades_pair_ventoux", request.param + ".tif")
