@@ -191,15 +191,19 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
             fk[idx] = 0.5 * (tb[l, k + 1] - tb[l, k - 1])
             fl[idx] = 0.5 * (tb[l + 1, k] - tb[l - 1, k])
             idx += 1
+    sf = 0.0
+    sff = 0.0
+    for idx in range(nsamp):
+        sf += f[idx]
+        sff += f[idx] * f[idx]
     r0 = 0.0
     r1 = 1.0
     nmat = np.empty((_NPAR, _NPAR))
     b = np.empty(_NPAR)
     dx = np.empty(_NPAR)
-    row = np.empty(_NPAR)
     converged = False
     it = 0
-    sf = sff = sg = sgg = sfg = 0.0
+    sg = sgg = sfg = 0.0
     sll = 0.0
     skap = 0.0
     while it < max_iter:
@@ -217,41 +221,113 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
         ia22 = a1 / det
         nmat[:, :] = 0.0
         b[:] = 0.0
-        sf = sff = sg = sgg = sfg = 0.0
+        sg = sgg = sfg = 0.0
         sll = 0.0
         skap = 0.0
         idx = 0
         for l in range(-half, half + 1):
+            # Jacobian row (gx, gx k, gx l, gy, gy k, gy l, 1, g) with (gx, gy) = r1 grad g at the
+            # sample, from the template gradients (f = r0 + r1 g o T): (r1 gx, r1 gy) = A^-T (fk, fl).
+            # Template gradients keep the noise of image 2 out of the Jacobian, which otherwise biases
+            # the position towards half-pixel phases. The products with l are constant along a
+            # template row: sums over k in moments of k first, then folded in with l below.
+            xx0 = xx1 = xx2 = xy0 = xy1 = xy2 = yy0 = yy1 = yy2 = 0.0
+            x0 = x1s = y0 = y1s = xg0 = xg1 = yg0 = yg1 = 0.0
+            rg = rgg = 0.0
+            bx0 = bx1 = by0 = by1 = bo = bgo = 0.0
+            ya = y2 + a5 * l
+            xa = x2 + a2 * l
             for k in range(-half, half + 1):
-                g, kap = cubic(img2, x2 + a1 * k + a2 * l, y2 + a4 * k + a5 * l)
+                g, kap = cubic(img2, xa + a1 * k, ya + a4 * k)
                 fv = f[idx]
                 obs = fv - (r0 + r1 * g)
-                # r1 * grad g at the sample, from the template gradients (f = r0 + r1 g o T):
-                # (r1 gx, r1 gy) = A^-T (fk, fl). Template gradients keep the noise of image 2 out of
-                # the Jacobian, which otherwise biases the position towards half-pixel phases.
-                rgx = ia11 * fk[idx] + ia21 * fl[idx]
-                rgy = ia12 * fk[idx] + ia22 * fl[idx]
-                row[0] = rgx
-                row[1] = rgx * k
-                row[2] = rgx * l
-                row[3] = rgy
-                row[4] = rgy * k
-                row[5] = rgy * l
-                row[6] = 1.0
-                row[7] = g
-                for p in range(_NPAR):
-                    rp = row[p]
-                    b[p] += rp * obs
-                    for q in range(p, _NPAR):
-                        nmat[p, q] += rp * row[q]
+                gx = ia11 * fk[idx] + ia21 * fl[idx]
+                gy = ia12 * fk[idx] + ia22 * fl[idx]
+                fk_ = float(k)
+                t = gx * gx
+                xx0 += t
+                xx1 += t * fk_
+                xx2 += t * fk_ * fk_
+                t = gx * gy
+                xy0 += t
+                xy1 += t * fk_
+                xy2 += t * fk_ * fk_
+                t = gy * gy
+                yy0 += t
+                yy1 += t * fk_
+                yy2 += t * fk_ * fk_
+                x0 += gx
+                x1s += gx * fk_
+                y0 += gy
+                y1s += gy * fk_
+                t = gx * g
+                xg0 += t
+                xg1 += t * fk_
+                t = gy * g
+                yg0 += t
+                yg1 += t * fk_
+                rg += g
+                rgg += g * g
+                t = gx * obs
+                bx0 += t
+                bx1 += t * fk_
+                t = gy * obs
+                by0 += t
+                by1 += t * fk_
+                bo += obs
+                bgo += g * obs
                 sll += obs * obs
-                sf += fv
-                sff += fv * fv
-                sg += g
-                sgg += g * g
                 sfg += fv * g
                 skap += kap
                 idx += 1
+            fl_ = float(l)
+            ll = fl_ * fl_
+            nmat[0, 0] += xx0
+            nmat[0, 1] += xx1
+            nmat[0, 2] += fl_ * xx0
+            nmat[1, 1] += xx2
+            nmat[1, 2] += fl_ * xx1
+            nmat[2, 2] += ll * xx0
+            nmat[0, 3] += xy0
+            nmat[0, 4] += xy1
+            nmat[0, 5] += fl_ * xy0
+            nmat[1, 3] += xy1
+            nmat[1, 4] += xy2
+            nmat[1, 5] += fl_ * xy1
+            nmat[2, 3] += fl_ * xy0
+            nmat[2, 4] += fl_ * xy1
+            nmat[2, 5] += ll * xy0
+            nmat[3, 3] += yy0
+            nmat[3, 4] += yy1
+            nmat[3, 5] += fl_ * yy0
+            nmat[4, 4] += yy2
+            nmat[4, 5] += fl_ * yy1
+            nmat[5, 5] += ll * yy0
+            nmat[0, 6] += x0
+            nmat[1, 6] += x1s
+            nmat[2, 6] += fl_ * x0
+            nmat[3, 6] += y0
+            nmat[4, 6] += y1s
+            nmat[5, 6] += fl_ * y0
+            nmat[0, 7] += xg0
+            nmat[1, 7] += xg1
+            nmat[2, 7] += fl_ * xg0
+            nmat[3, 7] += yg0
+            nmat[4, 7] += yg1
+            nmat[5, 7] += fl_ * yg0
+            nmat[6, 7] += rg
+            nmat[7, 7] += rgg
+            b[0] += bx0
+            b[1] += bx1
+            b[2] += fl_ * bx0
+            b[3] += by0
+            b[4] += by1
+            b[5] += fl_ * by0
+            b[6] += bo
+            b[7] += bgo
+            sg += rg
+            sgg += rgg
+        nmat[6, 6] = float(nsamp)
         # mirror the upper triangle (the Cholesky reads n[j, i] for i > j)
         if not _cholesky(nmat, _NPAR):
             out[6] = it

@@ -14,10 +14,11 @@ Geometry helpers shared with region_growing: `resolve_height_range`, `predict`, 
 import math
 
 import numpy as np
-from numba import njit
 
 from ..errors import InputError
 from .imagery import as_image
+from .interest import interest_points
+from .ncc import ncc_path
 from .params import GrowParams
 from .records import PAIR_DTYPE
 
@@ -69,142 +70,6 @@ def local_affine(model1, model2, x1, y1, h, d=5.0):
     c, px, mx, py, my = (slice(k * n, (k + 1) * n) for k in range(5))
     return (x2[c], y2[c], (x2[px] - x2[mx]) / (2 * d), (x2[py] - x2[my]) / (2 * d),
             (y2[px] - y2[mx]) / (2 * d), (y2[py] - y2[my]) / (2 * d))
-
-
-# --------------------------------------------------------------------------------------------
-# kernels
-
-@njit(cache=True, nogil=True)
-def _bilinear(img, x, y):
-    """Bilinear value of `img` at image position (x, y) of the array (pixel centres at +0.5);
-    NaN outside."""
-    u = x - 0.5
-    v = y - 0.5
-    j = int(math.floor(u))
-    i = int(math.floor(v))
-    if i < 0 or j < 0 or i + 1 >= img.shape[0] or j + 1 >= img.shape[1]:
-        return np.nan
-    fu = u - j
-    fv = v - i
-    return ((1 - fv) * ((1 - fu) * img[i, j] + fu * img[i, j + 1])
-            + fv * ((1 - fu) * img[i + 1, j] + fu * img[i + 1, j + 1]))
-
-
-@njit(cache=True, nogil=True)
-def ncc_candidates(img1, img2, x1, y1, a1, a2, a4, a5, cx, cy, half, scores):
-    """NCC of the (2 half + 1)^2 template of img1 at (x1 + k, y1 + l) against img2 sampled at
-    (cx[c] + a1 k + a2 l, cy[c] + a4 k + a5 l) for every candidate c (array coordinates of
-    each image); writes scores (NaN where a window leaves an image or is flat) and returns the
-    index of the best candidate (-1 if none)."""
-    m = 2 * half + 1
-    t = np.empty(m * m)
-    n = 0
-    for l in range(-half, half + 1):
-        for k in range(-half, half + 1):
-            t[n] = _bilinear(img1, x1 + k, y1 + l)
-            n += 1
-    tm = t.mean()
-    t -= tm
-    tt = (t * t).sum()
-    best = -1
-    best_score = -2.0
-    for c in range(cx.size):
-        scores[c] = np.nan
-        if not tt > 0:
-            continue
-        s = 0.0
-        s2 = 0.0
-        st = 0.0
-        n = 0
-        bad = False
-        for l in range(-half, half + 1):
-            for k in range(-half, half + 1):
-                g = _bilinear(img2, cx[c] + a1 * k + a2 * l, cy[c] + a4 * k + a5 * l)
-                if not math.isfinite(g):
-                    bad = True
-                    break
-                s += g
-                s2 += g * g
-                st += g * t[n]
-                n += 1
-            if bad:
-                break
-        if bad:
-            continue
-        var = s2 - s * s / n
-        if var <= 1e-9 * n:
-            continue
-        r = st / math.sqrt(var * tt)
-        scores[c] = r
-        if r > best_score:
-            best_score = r
-            best = c
-    return best
-
-
-def ncc_reference(img1, img2, x1, y1, a1, a2, a4, a5, cx, cy, half):
-    """Plain numpy reference of ncc_candidates (tests)."""
-    from scipy.ndimage import map_coordinates
-    k, l = np.meshgrid(np.arange(-half, half + 1), np.arange(-half, half + 1))
-    t = map_coordinates(img1.astype(float), [y1 + l - 0.5, x1 + k - 0.5], order=1).ravel()
-    t = t - t.mean()
-    out = np.full(len(cx), np.nan)
-    for c in range(len(cx)):
-        g = map_coordinates(img2.astype(float), [cy[c] + a4 * k + a5 * l - 0.5, cx[c] + a1 * k + a2 * l - 0.5],
-                            order=1).ravel()
-        g = g - g.mean()
-        out[c] = (g * t).sum() / math.sqrt((g * g).sum() * (t * t).sum())
-    return out
-
-
-# --------------------------------------------------------------------------------------------
-# interest points
-
-def interest_points(window, half, cell=CELL, q_min=0.5):
-    """Foerstner points of a float32 window: (col, row) array positions (pixel centres) of the
-    strongest point (weight w = det N / trace N of the gradient structure tensor over a
-    (2 half + 1)^2 window, roundness q = 4 det / trace^2 > q_min) in each cell x cell cell,
-    ordered by decreasing w, keeping `half` + 1 px away from the window border."""
-    try:  # the project's Foerstner operator, when present
-        from . import interest
-        fn = getattr(interest, "foerstner_cells", None)
-        if fn is not None:
-            return fn(window, half=half, cell=cell, q_min=q_min)
-    except ImportError:
-        pass
-    from scipy.ndimage import uniform_filter
-    img = np.nan_to_num(window.astype(np.float64), nan=0.0)
-    gy, gx = np.gradient(img)
-    size = 2 * max(2, half // 3) + 1
-    nxx = uniform_filter(gx * gx, size)
-    nyy = uniform_filter(gy * gy, size)
-    nxy = uniform_filter(gx * gy, size)
-    det = nxx * nyy - nxy * nxy
-    tr = nxx + nyy
-    with np.errstate(invalid="ignore", divide="ignore"):
-        w = np.where(tr > 0, det / tr, 0.0)
-        q = np.where(tr > 0, 4 * det / (tr * tr), 0.0)
-    w[(q < q_min) | ~np.isfinite(window) | (w < 1e-6 * max(float(w.max()), 1e-30))] = 0.0
-    border = half + 2
-    w[:border, :] = 0
-    w[-border:, :] = 0
-    w[:, :border] = 0
-    w[:, -border:] = 0
-    rows, cols = w.shape
-    points = []
-    for i0 in range(0, rows, cell):
-        for j0 in range(0, cols, cell):
-            block = w[i0:i0 + cell, j0:j0 + cell]
-            if block.size == 0:
-                continue
-            k = int(np.argmax(block))
-            i, j = divmod(k, block.shape[1])
-            if block[i, j] > 0:
-                points.append((block[i, j], j0 + j + 0.5, i0 + i + 0.5))
-    points.sort(key=lambda p: (-p[0], p[2], p[1]))
-    if not points:
-        return np.zeros((0, 2))
-    return np.array([(p[1], p[2]) for p in points])
 
 
 # --------------------------------------------------------------------------------------------
@@ -282,9 +147,12 @@ def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr,
             cx = (x2[i] + off[None, :] + 0 * off[:, None]).ravel()
             cy = (y2[i] + off[:, None] + 0 * off[None, :]).ravel()
         scores = np.empty(cx.size)
-        best = ncc_candidates(win1, win2, x1[i] - ox1, y1[i] - oy1, a1[i], a2[i], a4[i], a5[i],
-                              cx - ox2, cy - oy2, half, scores)
-        if best < 0 or not scores[best] >= NCC_MIN:
+        ncc_path(win1, win2, x1[i] - ox1, y1[i] - oy1, half, cx - ox2, cy - oy2, a1[i], a2[i], a4[i], a5[i],
+                 scores)
+        if not np.isfinite(scores).any():
+            continue
+        best = int(np.nanargmax(scores))
+        if not scores[best] >= NCC_MIN:
             continue
         far = np.hypot(cx - cx[best], cy - cy[best]) > 2.0
         rival = np.nanmax(scores[far]) if np.any(far & np.isfinite(scores)) else -1.0
@@ -350,11 +218,11 @@ def automatic_seeds(image1, image2, model1, model2, params=None, height_range=No
     win1, ox1, oy1, win2, ox2, oy2 = windows
     if win1.size == 0 or win2.size == 0:
         return np.zeros(0, PAIR_DTYPE)
-    pts = interest_points(win1, half)
-    if len(pts) == 0:
+    px, py, _ = interest_points(win1, patch=CELL, window=2 * max(2, half // 3) + 1, border=half + 2)
+    if len(px) == 0:
         return np.zeros(0, PAIR_DTYPE)
-    x1 = pts[:, 0] + ox1
-    y1 = pts[:, 1] + oy1
+    x1 = px + ox1
+    y1 = py + oy1
     inside = (x1 >= box[0]) & (x1 < box[2]) & (y1 >= box[1]) & (y1 < box[3])
     x1, y1 = x1[inside], y1[inside]
     rec, ok = match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr, params)

@@ -24,6 +24,8 @@ def test_ncc_path_against_numpy():
         g = ndimage.map_coordinates(img2.astype(float), [ys.ravel() - 0.5, xs.ravel() - 0.5], order=1)
         assert rho[c] == pytest.approx(np.corrcoef(f, g)[0, 1], abs=1e-6)
     assert np.isnan(rho[3])                    # window leaves image 2
+    ncc.ncc_path(img1, img1, 35.5, 36.5, 4, np.array([35.5]), np.array([36.5]), 1.0, 0.0, 0.0, 1.0, rho[:1])
+    assert rho[0] == pytest.approx(1.0)        # the template itself
 
 
 def test_ncc_search_finds_subpixel_shift_and_second_peak():

@@ -5,9 +5,9 @@ import pytest
 from matching_scene import Scene
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.interest import interest_points
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.seeds import (automatic_seeds, interest_points, ncc_candidates, ncc_reference,
-                                                 resolve_height_range, seeds_from_points)
+from pushbroom.algorithms.matching.seeds import automatic_seeds, resolve_height_range, seeds_from_points
 
 
 def test_image_window_clipping_and_nodata(tmp_path):
@@ -30,30 +30,16 @@ def test_image_window_clipping_and_nodata(tmp_path):
         Image(str(tmp_path / "missing.tif"))
 
 
-def test_ncc_kernel_against_numpy_reference():
-    rng = np.random.default_rng(2)
-    img1 = rng.random((40, 40)).astype(np.float32)
-    img2 = rng.random((50, 60)).astype(np.float32)
-    cx = np.array([20.3, 25.0, 30.7])
-    cy = np.array([22.1, 24.6, 20.0])
-    scores = np.empty(3)
-    best = ncc_candidates(img1, img2, 20.5, 19.5, 0.5, 0.05, -0.02, 1.1, cx, cy, 5, scores)
-    np.testing.assert_allclose(scores, ncc_reference(img1, img2, 20.5, 19.5, 0.5, 0.05, -0.02, 1.1, cx, cy, 5),
-                               atol=1e-6)
-    assert best == int(np.argmax(scores))
-    # exact copy scores 1
-    s = np.empty(1)
-    ncc_candidates(img1, img1, 20.5, 19.5, 1, 0, 0, 1, np.array([20.5]), np.array([19.5]), 5, s)
-    assert s[0] == pytest.approx(1.0)
-
-
 def test_interest_points_on_texture_not_on_flat():
     rng = np.random.default_rng(0)
     from scipy.ndimage import gaussian_filter
     img = gaussian_filter(rng.standard_normal((100, 100)), 1.5).astype(np.float32)
     img[:, 50:] = 0.0
-    pts = interest_points(img, 4, cell=25)
-    assert len(pts) > 3 and np.all(pts[:, 0] < 52)   # texture and its edge only
+    img[40:45, 10:15] = np.nan                      # nodata: no point within reach of it
+    x, y, w = interest_points(img, patch=25, window=5, border=6)
+    assert len(x) > 3 and np.all(x < 52)            # texture and its edge only
+    assert np.all((x > 6) & (y > 6) & (x < 94) & (y < 94)) and np.all(np.diff(w) <= 0)
+    assert not np.any((x > 7) & (x < 18) & (y > 37) & (y < 48))
 
 
 def test_height_range():
