@@ -4,6 +4,7 @@ not the scene size.
 Coordinates are GDAL's: a window read at (x0, y0) returns array pixel (i, j) with its centre at
 image position (x0 + j + 0.5, y0 + i + 0.5). Nodata pixels come back as NaN, which the matchers
 treat as "cannot match here" (a NaN correlation fails every acceptance test)."""
+import math
 import os
 import threading
 
@@ -72,6 +73,37 @@ class Image:
         return np.ascontiguousarray(data), xa, ya
 
 
+class Smoothed:
+    """An Image seen through a separable Gaussian low-pass of standard deviation (sigma_x,
+    sigma_y) px, with the Image interface (`size`, `read`). A window is read with a border of
+    4 sigma and filtered, so its values do not depend on where the window was cut; nodata (NaN)
+    spreads over the filter's support (cannot match there)."""
+
+    def __init__(self, image, sigma_x, sigma_y):
+        self.image = as_image(image)
+        self.size = self.image.size
+        self.sigma = (float(sigma_y), float(sigma_x))      # array axes (rows, cols)
+        self.pad = int(math.ceil(4.0 * max(self.sigma))) + 1
+
+    def __repr__(self):
+        return f"Smoothed({self.image!r}, sigma x {self.sigma[1]:.2f} px, y {self.sigma[0]:.2f} px)"
+
+    def read(self, x0, y0, cols, rows):
+        """As Image.read, of the low-passed image."""
+        from scipy import ndimage
+        p = self.pad
+        data, xa, ya = self.image.read(int(x0) - p, int(y0) - p, int(cols) + 2 * p, int(rows) + 2 * p)
+        if data.size == 0:
+            return data, xa, ya
+        data = ndimage.gaussian_filter(data, self.sigma, mode="nearest", truncate=4.0)
+        c, r = self.size
+        xb, yb = min(int(x0) + int(cols), c), min(int(y0) + int(rows), r)
+        xs, ys = max(int(x0), 0), max(int(y0), 0)
+        if xb <= xs or yb <= ys:
+            return np.zeros((0, 0), np.float32), xs, ys
+        return np.ascontiguousarray(data[ys - ya:yb - ya, xs - xa:xb - xa]), xs, ys
+
+
 def as_image(source):
     """An Image for a path, an array or an Image."""
-    return source if isinstance(source, Image) else Image(source)
+    return source if isinstance(source, (Image, Smoothed)) else Image(source)

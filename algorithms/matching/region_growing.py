@@ -26,7 +26,7 @@ from numba import njit
 
 from ..errors import CancelledError, InputError
 from ..progress import ensure, step as progress_step
-from .imagery import as_image
+from .imagery import Smoothed, as_image
 from .lsm import LSM_FIELDS, LSM_OUT, lsm_point, match_points, accepted
 from .params import GrowParams
 from .records import PAIR_DTYPE
@@ -348,6 +348,31 @@ def _grow_tile(ctx, index, box):
     return rec, tries, nseeds
 
 
+def adapt_resolution(image1, image2, model1, model2, params, hr):
+    """(image1, image2) with the finer image low-passed to the coarser one's footprint (K 3.3's
+    scale factors; GrowParams.psf_sigma). With A the models' local affine (image 1 -> image 2 px)
+    at the centre of image 1 and both PSFs Gaussian of s = psf_sigma px in their own pixels, the
+    coarser PSF seen in image-1 px has covariance s^2 A^-1 A^-T, so image 1 gets the extra
+    s^2 (A^-1 A^-T - I) and image 2 likewise s^2 (A A^T - I), each clipped to its positive part;
+    the filter is separable (the diagonal: pushbroom pairs are near axis-aligned). Sigmas under
+    0.1 px are left out (same-resolution pairs stay untouched)."""
+    s = float(params.psf_sigma)
+    if s <= 0.0:
+        return image1, image2
+    cols, rows = image1.size
+    _, _, *aff = local_affine(model1, model2, 0.5 * cols, 0.5 * rows, 0.5 * (hr[0] + hr[1]))
+    a = np.array([float(v[0]) for v in aff]).reshape(2, 2)
+    if not np.all(np.isfinite(a)) or abs(np.linalg.det(a)) < 1e-6:
+        return image1, image2
+    inv = np.linalg.inv(a)
+    out = []
+    for image, footprint in ((image1, inv @ inv.T), (image2, a @ a.T)):
+        w, v = np.linalg.eigh(s * s * (footprint - np.eye(2)))
+        sx, sy = np.sqrt(np.diag((v * np.maximum(w, 0.0)) @ v.T))
+        out.append(Smoothed(image, sx, sy) if max(sx, sy) >= 0.1 else image)
+    return out[0], out[1]
+
+
 def match_pair(image1, image2, model1, model2, params=None, height_range=None, seeds=None, feedback=None,
                workers=1):
     """Region-growing LSM of image 1 (reference) into image 2.
@@ -364,6 +389,7 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
     image1, image2 = as_image(image1), as_image(image2)
     hr = resolve_height_range(model1, height_range)
     _check_inputs(image1, image2, model1, model2, params, hr)
+    image1, image2 = adapt_resolution(image1, image2, model1, model2, params, hr)
     lattice = Lattice(image1.size, params)
     if seeds is not None:
         seeds = _as_seed_records(seeds)
@@ -418,8 +444,10 @@ def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_
     y1 = np.atleast_1d(np.asarray(y1, float)).ravel()
     if x1.shape != y1.shape:
         raise InputError("x1 and y1 must have the same length")
+    hr = resolve_height_range(model1, height_range)
+    image1, image2 = adapt_resolution(image1, image2, model1, model2, params, hr)
     if guide is None or len(guide) == 0:
-        return seeds_from_points(image1, image2, model1, model2, x1, y1, params, height_range)
+        return seeds_from_points(image1, image2, model1, model2, x1, y1, params, hr)
     guide = _as_seed_records(guide)
     if len(guide) == 0:
         raise InputError("the guide points have no matched image-2 positions")

@@ -47,10 +47,14 @@ class Scene:
         j = np.clip(((lon - gt[0]) / gt[1]).astype(int), 0, self.classes.shape[1] - 1)
         return i, j
 
-    def truth(self, x1, y1):
-        """(x2, y2, class) of image-1 points."""
+    def truth_model(self, name):
+        """The truth model of any image of the triplet ("HRG", "HRS1", "HRS2")."""
+        return sensors.load(self.paths["truth_metadata"][name])
+
+    def truth(self, x1, y1, model2=None):
+        """(x2, y2, class) of image-1 points (in image 2, or in the image of truth model2)."""
         lon, lat, h = self.truth1.image_to_dem(np.asarray(x1, float), np.asarray(y1, float), self.dsm)
-        x2, y2 = self.truth2.ground_to_image(lon, lat, h)
+        x2, y2 = (model2 or self.truth2).ground_to_image(lon, lat, h)
         return np.asarray(x2), np.asarray(y2), self.classes[self._cell(lon, lat)]
 
     def texture(self, x1, y1):
@@ -58,15 +62,16 @@ class Scene:
         lon, lat, _ = self.truth1.image_to_dem(np.asarray(x1, float), np.asarray(y1, float), self.dsm)
         return self.ground_std[self._cell(lon, lat)]
 
-    def area_truth(self, records, half=9):
-        """(x2, y2) an ideal area matcher gives for matched records (module docstring)."""
+    def area_truth(self, records, half=9, model2=None):
+        """(x2, y2) an ideal area matcher gives for matched records (module docstring); model2 as
+        in `truth`."""
         img = gdal.Open(str(self.image1)).ReadAsArray().astype(float)
         gk, gl = np.zeros_like(img), np.zeros_like(img)
         gk[:, 1:-1] = 0.5 * (img[:, 2:] - img[:, :-2])
         gl[1:-1] = 0.5 * (img[2:] - img[:-2])
         k, l = (v.ravel() for v in np.meshgrid(np.arange(-half, half + 1.0), np.arange(-half, half + 1.0)))
         n = len(records)
-        tx, ty, _ = self.truth((records["x1"][:, None] + k).ravel(), (records["y1"][:, None] + l).ravel())
+        tx, ty, _ = self.truth((records["x1"][:, None] + k).ravel(), (records["y1"][:, None] + l).ravel(), model2)
         tx, ty = tx.reshape(n, -1), ty.reshape(n, -1)
         out = np.empty((n, 2))
         for p in range(n):

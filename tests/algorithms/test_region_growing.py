@@ -8,11 +8,11 @@ import pytest
 
 from matching_scene import DISCONTINUOUS, LOW_CONTRAST_DN, SINGLE_SURFACE, Scene
 from pushbroom.algorithms.errors import CancelledError, InputError
-from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.imagery import Image, Smoothed
 from pushbroom.algorithms.matching.lsm import LSM_OUT
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.region_growing import (Lattice, grow_kernel, grow_reference, match_pair,
-                                                          transfer_points)
+from pushbroom.algorithms.matching.region_growing import (Lattice, adapt_resolution, grow_kernel, grow_reference,
+                                                          match_pair, transfer_points)
 
 
 class Feedback:
@@ -119,12 +119,40 @@ def rms(e):
     return float(np.sqrt(np.mean(e ** 2))) if e.size else float("nan")
 
 
+def test_smoothed_window_equals_whole_image_filter():
+    """A Smoothed window is the crop of the whole filtered image (borders included)."""
+    from scipy.ndimage import gaussian_filter
+    img = texture((70, 90), 5)
+    full = gaussian_filter(img, (0.3, 0.8), mode="nearest", truncate=4.0)
+    view = Smoothed(Image(img), 0.8, 0.3)
+    for x0, y0, cols, rows in ((10, 12, 30, 20), (-5, -3, 25, 30), (70, 50, 40, 40)):
+        win, xa, ya = view.read(x0, y0, cols, rows)
+        ref, xr, yr = Image(full).read(x0, y0, cols, rows)
+        assert (xa, ya) == (xr, yr)
+        np.testing.assert_allclose(win, ref, rtol=1e-5, atol=1e-3)
+
+
+def test_adapt_resolution_low_passes_the_finer_image(scene):
+    """HRG (5 m) -> HRS1 (10 x 5 m): a1 ~ 0.53, so HRG is low-passed across track by
+    0.5 sqrt(1 / a1^2 - 1) ~ 0.81 px and HRS1 is untouched; swapped, HRS1 stays and HRG (now
+    image 2) is low-passed; psf_sigma 0 turns it off."""
+    args = (Image(str(scene.image1)), Image(str(scene.image2)))
+    i1, i2 = adapt_resolution(*args, scene.model1, scene.model2, GrowParams(), scene.height_range)
+    assert isinstance(i1, Smoothed) and isinstance(i2, Image)
+    assert i1.sigma[1] == pytest.approx(0.81, abs=0.03) and i1.sigma[0] < 0.1
+    j2, j1 = adapt_resolution(args[1], args[0], scene.model2, scene.model1, GrowParams(), scene.height_range)
+    assert isinstance(j2, Image) and isinstance(j1, Smoothed) and j1.sigma[1] == pytest.approx(0.81, abs=0.03)
+    assert adapt_resolution(*args, scene.model1, scene.model2, GrowParams(psf_sigma=0.0), scene.height_range) == args
+
+
 @pytest.mark.slow
 def test_region_growing_accuracy_against_truth(grown):
-    """Issue targets: RMS < 0.15 px and < 0.5 % errors > 1 px on textured classes. Measured (see
-    the report): fields (single surface) 0.21-0.24 px against the pointwise truth, of which ~0.12 px
-    is sub-template relief; forest and city are dominated by height steps inside the template and
-    are held to the template-area truth instead, where they meet the target."""
+    """Issue targets: RMS < 0.15 px and < 0.5 % errors > 1 px on textured classes. Measured with
+    the resolution adaptation (GrowParams.psf_sigma 0.5; without it in brackets): bare 0.188
+    (0.211) px, crops 0.224 (0.244) px against the pointwise truth, 0.133 (0.164) / 0.172 (0.192)
+    against the template-area truth, i.e. ~0.12 px is sub-template relief; forest and city are
+    dominated by height steps inside the template and are held to the template-area truth
+    instead, where they meet the target (0.13 / 0.10 px)."""
     records, error, area_error, cls, seconds, feedback = grown
     single = np.isin(cls, SINGLE_SURFACE)
     steps = np.isin(cls, DISCONTINUOUS)
@@ -135,7 +163,7 @@ def test_region_growing_accuracy_against_truth(grown):
         print(f"{name:7} n {k.sum():5d}  RMS {rms(error[k]):.3f} px (template-area truth {rms(area_error[k]):.3f}), "
               f"> 1 px {100 * np.mean(error[k] > 1):.2f} %")
     assert len(records) > 1000
-    assert rms(error[single]) < 0.26                 # target 0.15: open, see the report
+    assert rms(error[single]) < 0.22                 # target 0.15: open (0.207 measured), see the report
     assert np.mean(error[single] > 1.0) < 0.005      # target met
     assert rms(area_error[steps]) < 0.15 and np.mean(area_error[steps] > 1.0) < 0.005
     assert np.all(records["rho"] > 0.6) and np.all(records["semi_major"] < 0.1)
@@ -156,7 +184,9 @@ def test_region_growing_coverage(grown, nodes):
         k = (cls == c) & textured
         print(f"{name:7} textured nodes {k.sum():5d} covered {100 * hit[k].mean():.1f} %")
     print(f"textured {100 * hit[textured].mean():.1f} %, uniform grass parcels {100 * hit[low].mean():.1f} %")
-    assert hit[textured].mean() > 0.5       # target 0.9: open, see the report
+    # 60.2 % (53.5 % without the resolution adaptation); the 0.1 px ellipse is the binding
+    # criterion: 0.15 px gives 79 % but 29 % of the uniform grass and 0.24 px field RMS
+    assert hit[textured].mean() > 0.58      # target 0.9: open, see the report
     assert hit[low].mean() < 0.15           # low texture stays mostly empty
 
 
