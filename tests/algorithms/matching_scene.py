@@ -7,7 +7,11 @@ use; `area_truth` is what an area matcher can deliver where the surface is not o
 the template: the gradient-weighted least-squares affine fit (LSM's own normal equations) of the
 pointwise truth of every template pixel, at the centre. On the simulated triplet the two differ
 by 0.4-0.6 px RMS on forest crowns and buildings (height discontinuities inside the template) and
-by ~0.12 px on fields (sub-template fractal relief)."""
+by 0.136 px RMS on fields (sub-template relief; 0.099 px with fractal = 0: the cubic-interpolated
+DEM's own curvature over 95 m is the larger part, plane-fit residual 0.71 m vs 0.46 m fractal).
+The matcher's own error vs the area truth (0.154 px, deterministic: same with noise 0) is larger
+than the relief gap; centre-weighted LSM does not reduce the point-truth RMS (prototype: Gaussian
+sigma 9.5 / 6 / 4.75 / 3.5 px -> 0.206 / 0.207 / 0.212 / 0.237 px vs 0.208 unweighted)."""
 import numpy as np
 from osgeo import gdal
 from scipy import ndimage
