@@ -38,6 +38,8 @@ class Instrument:
     pass_index: int           # which pass (orbit/date) of the configuration
     reference: bool           # the pass's orbit is solved for this image's centre detector
     ephemeris_step: float     # s between ephemeris samples
+    detector_lines: float = 1.0   # along-track size of a detector's footprint, in lines (HRS: 10 m
+                                  # detectors sampled every 5 m along track, i.e. 2 lines)
 
     @property
     def ifov(self):
@@ -55,8 +57,8 @@ def instruments(configuration):
     if configuration == "spot5_triplet":
         twenty = math.radians(20.0)
         return [Instrument("HRG", 5, "HRG", 1, "A", 0.0, 5.0, 7.52e-4, 0, True, 30.0),
-                Instrument("HRS1", 5, "HRS", 1, "P", twenty, 10.0, 7.52e-4, 0, False, 30.0),
-                Instrument("HRS2", 5, "HRS", 2, "P", -twenty, 10.0, 7.52e-4, 0, False, 30.0)]
+                Instrument("HRS1", 5, "HRS", 1, "P", twenty, 10.0, 7.52e-4, 0, False, 30.0, 2.0),
+                Instrument("HRS2", 5, "HRS", 2, "P", -twenty, 10.0, 7.52e-4, 0, False, 30.0, 2.0)]
     if configuration == "spot14_pair":
         return [Instrument("HRV1_A", 2, "HRV", 1, "P", 0.0, 10.0, 1.504e-3, 0, True, 60.0),
                 Instrument("HRV2_B", 2, "HRV", 2, "P", 0.0, 10.0, 1.504e-3, 1, True, 60.0)]
