@@ -75,9 +75,6 @@ def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=N
     names = [name for name, *_ in images]
     if len(set(names)) != len(names):
         raise InputError(f"image names must be unique in a block, got {names}")
-    wgs84 = osr.SpatialReference()
-    wgs84.ImportFromEPSG(4326)
-    wgs84.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
     rings = []
     for k, (name, _image, _orientation, model) in enumerate(images):
         progress.step(feedback, 90.0 * k / len(images), f"footprint of {name}")
@@ -87,21 +84,9 @@ def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=N
             raise InputError(f"cannot project the footprint of image {name}: {exc}") from exc
     centre = sum(r[:-1].mean(axis=0) for r in rings) / len(rings)
     h_min, h_max = terrain_height_range(rings, height, dem)
-    ogr.UseExceptions()
     with atomic_path(path) as tmp:
-        ds = ogr.GetDriverByName("GPKG").CreateDataSource(tmp)
-        info = _create_layer(ds, "block_info", ogr.wkbNone, None, [("key", ogr.OFTString), ("value", ogr.OFTString)])
-        for key, value in [("format_version", FORMAT_VERSION),
-                           ("created", datetime.datetime.now(datetime.timezone.utc).isoformat()),
-                           ("default_crs", f"EPSG:{utm_epsg(*centre)}"),
-                           ("footprint_height", "dem" if dem is not None else repr(float(height))),
-                           ("height_min", repr(h_min)), ("height_max", repr(h_max))]:
-            feat = ogr.Feature(info.GetLayerDefn())
-            feat["key"], feat["value"] = key, value
-            info.CreateFeature(feat)
-        table = _create_layer(ds, "images", ogr.wkbNone, None, IMAGE_FIELDS)
-        footprints = _create_layer(ds, "footprints", ogr.wkbPolygon, wgs84,
-                                   [("image_id", ogr.OFTInteger), ("name", ogr.OFTString)])
+        ds = create_schema(tmp)
+        table, footprints = ds.GetLayerByName("images"), ds.GetLayerByName("footprints")
         for k, ((name, image, orientation, model), ring) in enumerate(zip(images, rings), start=1):
             kind, sensor = describe_model(model)
             feat = ogr.Feature(table.GetLayerDefn())
@@ -123,18 +108,32 @@ def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=N
             feat["image_id"], feat["name"] = k, name
             feat.SetGeometry(poly)
             footprints.CreateFeature(feat)
-        log = _create_layer(ds, "run_log", ogr.wkbNone, None,
-                            [("time", ogr.OFTString), ("step", ogr.OFTString), ("parameters", ogr.OFTString),
-                             ("message", ogr.OFTString)])
-        feat = ogr.Feature(log.GetLayerDefn())
-        feat["time"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
-        feat["step"] = "createblock"
-        feat["parameters"] = json.dumps({"images": names, "height": height, "dem": dem is not None})
-        feat["message"] = f"block created with {len(images)} image(s)"
-        log.CreateFeature(feat)
         ds = None
+        update_info(tmp, {"created": datetime.datetime.now(datetime.timezone.utc).isoformat(),
+                          "default_crs": f"EPSG:{utm_epsg(*centre)}",
+                          "footprint_height": "dem" if dem is not None else repr(float(height)),
+                          "height_min": repr(h_min), "height_max": repr(h_max)},
+                    step="createblock", message=f"block created with {len(images)} image(s): {', '.join(names)}")
         progress.step(feedback, 100.0)
     return path
+
+
+def create_schema(path):
+    """A new, empty block GeoPackage at `path` (its tables, format version); returns the data source."""
+    ogr.UseExceptions()
+    ds = ogr.GetDriverByName("GPKG").CreateDataSource(os.fspath(path))
+    info = _create_layer(ds, "block_info", ogr.wkbNone, None, [("key", ogr.OFTString), ("value", ogr.OFTString)])
+    feat = ogr.Feature(info.GetLayerDefn())
+    feat["key"], feat["value"] = "format_version", FORMAT_VERSION
+    info.CreateFeature(feat)
+    _create_layer(ds, "images", ogr.wkbNone, None, IMAGE_FIELDS)
+    wgs84 = osr.SpatialReference()
+    wgs84.ImportFromEPSG(4326)
+    wgs84.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    _create_layer(ds, "footprints", ogr.wkbPolygon, wgs84, [("image_id", ogr.OFTInteger), ("name", ogr.OFTString)])
+    _create_layer(ds, "run_log", ogr.wkbNone, None, [("time", ogr.OFTString), ("step", ogr.OFTString),
+                                                      ("parameters", ogr.OFTString), ("message", ogr.OFTString)])
+    return ds
 
 
 def read_images(path):

@@ -4,7 +4,7 @@ import pytest
 from osgeo import ogr
 
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.block import read_info
+from pushbroom.algorithms.block import create_schema, read_info
 from pushbroom.algorithms.matching.points import (OBS_DTYPE, POINT_DTYPE, MultiPoints, load_arrays,
                                                   load_points, save_arrays, save_points, write_point_layer)
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
@@ -39,17 +39,7 @@ class FlatModel:
 @pytest.fixture
 def block(tmp_path):
     path = tmp_path / "b.gpkg"
-    ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
-    info = ds.CreateLayer("block_info", None, ogr.wkbNone)
-    for name in ("key", "value"):
-        info.CreateField(ogr.FieldDefn(name, ogr.OFTString))
-    feat = ogr.Feature(info.GetLayerDefn())
-    feat["key"], feat["value"] = "format_version", "1"
-    info.CreateFeature(feat)
-    log = ds.CreateLayer("run_log", None, ogr.wkbNone)
-    for name in ("time", "step", "parameters", "message"):
-        log.CreateField(ogr.FieldDefn(name, ogr.OFTString))
-    ds = None
+    create_schema(path)
     return path
 
 

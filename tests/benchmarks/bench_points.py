@@ -8,7 +8,8 @@ import time
 
 import numpy as np
 from benchutil import best_time
-from osgeo import ogr
+
+from pushbroom.algorithms.block import create_schema
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "algorithms"))
 from test_points_store import FlatModel, synthetic  # noqa: E402
@@ -23,11 +24,7 @@ N = 2_000_000
 
 def _block(folder):
     path = pathlib.Path(folder) / "bench.gpkg"
-    ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
-    info = ds.CreateLayer("block_info", None, ogr.wkbNone)
-    for name in ("key", "value"):
-        info.CreateField(ogr.FieldDefn(name, ogr.OFTString))
-    ds = None
+    create_schema(path)
     return path
 
 
