@@ -11,10 +11,15 @@ SCENES = pathlib.Path(__file__).resolve().parents[2] / "bench-output" / "scenes"
 # the Jacksboro DEM spans 236-1076 m above the geoid (about -30 m to the ellipsoid), plus surface objects
 HEIGHT_RANGE = (150.0, 1150.0)
 CHILD = f"""
-import json, resource, sys, time, numba
+import json, sys, time, numba
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import match_pair
+def peak_mib():
+    # VmHWM: this process's own peak resident memory (ru_maxrss would carry the parent's across exec)
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024.0
 folder, workers = sys.argv[1], int(sys.argv[2])
 numba.set_num_threads(workers)
 m1, m2 = sensors.load(folder + "/HRG/METADATA.DIM"), sensors.load(folder + "/HRS1/METADATA.DIM")
@@ -22,7 +27,7 @@ start = time.perf_counter()
 records = match_pair(folder + "/HRG/IMAGERY.TIF", folder + "/HRS1/IMAGERY.TIF", m1, m2, GrowParams(),
                      height_range={HEIGHT_RANGE!r}, workers=workers)
 print(json.dumps({{"points": int(len(records)), "seconds": time.perf_counter() - start,
-                  "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}}))
+                  "peak_mib": peak_mib()}}))
 """
 
 
