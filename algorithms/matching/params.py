@@ -43,11 +43,17 @@ class GrowParams(LsmParams):
     # triplet (a5 up to 1.48 where ~1 is right; 0.49 px RMS vs 0.24 px on crops)
     model_affine: bool = True
     # resolution adaptation (K 3.3: "different image scales (HRS 10 x 5 m, HRG) are adapted by
-    # scale factors"): the PSF of each sensor as a Gaussian of psf_sigma px of its own pixels; the
-    # finer image is low-passed to the coarser one's footprint through the models' local affine A
-    # (region_growing.adapt_resolution); 0 turns it off. 0.5 px is SPOT's MTF(Nyquist) ~ 0.3.
-    # Measured on the 3 km triplet, HRG -> HRS1 (0 / 0.5 / 0.7 / 1.0): field RMS vs the
-    # template-area truth 0.178 / 0.153 / 0.168 / 0.265 px, textured coverage 53.5 / 60.2 / 47.8 / 26.4 %
+    # scale factors"): the finer image is low-passed to the coarser one's footprint through the
+    # models' local affine A (region_growing.adapt_resolution). psf selects the PSF model:
+    #   "sensor": each instrument's own PSF (region_growing.SENSOR_PSF: detector box, detector_lines
+    #             along track, 1 line of motion smear, Gaussian optics) as Gaussian-equivalent
+    #             variances; the finer image gets the difference of variances per axis. Images
+    #             whose PSF is unknown (RPC, unlisted instruments) fall back to "pixel";
+    #   "pixel":  both PSFs Gaussian of psf_sigma px of each image's own pixels (square
+    #             detectors); 0.5 px is SPOT's MTF(Nyquist) ~ 0.3;
+    #   "off":    no adaptation (as psf_sigma 0 in "pixel").
+    # Measured on the 3 km triplet, HRG -> HRS1: see tests/algorithms/test_region_growing.py
+    psf: str = "sensor"
     psf_sigma: float = 0.5
 
     def check(self):
@@ -56,4 +62,6 @@ class GrowParams(LsmParams):
             raise InputError(f"STEP must be >= 1 and the tile at least 4 STEP, got step {self.step}, tile {self.tile}")
         if not 0.0 <= self.psf_sigma <= 5.0:
             raise InputError(f"psf_sigma must lie between 0 (off) and 5 px, got {self.psf_sigma}")
+        if self.psf not in ("sensor", "pixel", "off"):
+            raise InputError(f"psf must be 'sensor', 'pixel' or 'off', got {self.psf!r}")
         return self

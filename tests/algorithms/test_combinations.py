@@ -202,9 +202,10 @@ def test_group3_accuracy_on_the_simulated_triplet(triplet):
     """Issue target: group-3 points on textured classes, RMS < 0.15 px and < 0.5 % beyond 1 px.
     Bare fields and crops (one surface inside the template) are held to the pointwise truth;
     forest and city (height steps inside the template) to the template-area truth. Measured
-    (HRS1 / HRS2): fields 0.20 / 0.19 px (template-area truth 0.14 / 0.13: ~0.12 px is relief
-    inside the template), forest and city 0.13 / 0.10 px vs the area truth, none beyond 1 px;
-    without the resolution adaptation fields 0.22 / 0.23 px and 966 instead of 1062 points."""
+    (HRS1 / HRS2) with GrowParams.psf "sensor": 1287 points, fields 0.192 / 0.175 px (template-area
+    truth 0.127 / 0.118: ~0.12 px is relief inside the template), forest and city 0.106 / 0.070 px
+    vs the area truth, none beyond 1 px; psf "pixel" 1328 points, fields 0.197 / 0.185 px; without
+    the resolution adaptation fields 0.22 / 0.23 px."""
     cls = triplet["class"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
     rms = lambda e: float(np.sqrt(np.mean(e ** 2)))   # noqa: E731
@@ -220,7 +221,7 @@ def test_group3_accuracy_on_the_simulated_triplet(triplet):
     assert triplet["n"] > 800
     for name in ("HRS1", "HRS2"):
         point, area = triplet[name]
-        assert rms(point[single]) < 0.22                       # target 0.15: open (0.19-0.20)
+        assert rms(point[single]) < 0.21                       # target 0.15: open (0.192 / 0.175)
         assert np.mean(point[single] > 1.0) < 0.005             # target met
         assert rms(area[steps]) < 0.15                         # target met (area truth)
         assert np.mean(area[steps] > 1.0) < 0.005               # target met
