@@ -7,9 +7,10 @@ PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest
             hypothesis==6.112.2 laspy==2.5.4
 VERSION := $(shell sed -n 's/^version=//p' metadata.txt)
 PROFILE := $(CURDIR)/build/qgis-profile
-SITE := $(CURDIR)/.venv/lib/python3.11/site-packages
 # qgis_process embeds the system Python: give it the venv's packages (numba) and a profile with the plugin
-QGIS_PROCESS := env QGIS_CUSTOM_CONFIG_PATH=$(PROFILE) PYTHONPATH=$(SITE) /usr/bin/qgis_process.bin
+# (recursive variables: the venv exists only once setup has run)
+SITE = $(wildcard $(CURDIR)/.venv/lib/python3*/site-packages)
+QGIS_PROCESS = env QGIS_CUSTOM_CONFIG_PATH=$(PROFILE) PYTHONPATH=$(SITE) /usr/bin/qgis_process.bin
 export QT_QPA_PLATFORM ?= offscreen
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 

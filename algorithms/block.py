@@ -11,6 +11,7 @@ import datetime
 import json
 import os
 
+import numpy as np
 from osgeo import ogr, osr
 
 from . import progress
@@ -51,7 +52,6 @@ def terrain_height_range(rings, height, dem):
     footprints' bounding box, or the mean height +- HEIGHT_MARGIN."""
     if dem is None:
         return float(height) - HEIGHT_MARGIN, float(height) + HEIGHT_MARGIN
-    import numpy as np
     allpts = np.vstack(rings)
     lon0, dlon, _, lat0, _, dlat = dem.geotransform
     cols = np.clip(((allpts[:, 0] - lon0) / dlon).astype(int), 0, dem.shape[1] - 1)

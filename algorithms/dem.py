@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from .errors import InputError
+from .geodesy import flat_points
 
 
 @njit(cache=True, nogil=True)
@@ -78,12 +79,11 @@ class Dem:
 
     def height(self, lon, lat):
         """Bilinear height at (lon, lat) (arrays or scalars); NaN where undefined."""
-        lon, lat = np.broadcast_arrays(np.asarray(lon, dtype=np.float64), np.asarray(lat, dtype=np.float64))
+        (lon, lat), shape, scalar = flat_points(lon, lat)
         out = np.empty(lon.size)
         lon0, dlon, _, lat0, _, dlat = self.geotransform
-        _bilinear_arrays(self.heights, lon0, dlon, lat0, dlat,
-                         np.ascontiguousarray(lon).ravel(), np.ascontiguousarray(lat).ravel(), out)
-        return out.reshape(lon.shape) if lon.ndim else float(out[0])
+        _bilinear_arrays(self.heights, lon0, dlon, lat0, dlat, lon, lat, out)
+        return float(out[0]) if scalar else out.reshape(shape)
 
     @classmethod
     def constant(cls, h, bounds):

@@ -9,6 +9,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .errors import InputError
+
 A = 6378137.0
 F = 1.0 / 298.257223563
 B = A * (1.0 - F)
@@ -28,18 +30,30 @@ def geodetic_to_ecef_scalar(lon_deg, lat_deg, h):
     return (n + h) * c * math.cos(lon), (n + h) * c * math.sin(lon), (n * (1.0 - E2) + h) * s
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def bowring(p, z):
+    """Geodetic (cos lat, sin lat, h) of a point at distance p from the polar axis and height z above
+    the equator plane: Bowring's formula, one step without trigonometry (error < 1e-6 m in
+    latitude and 1e-8 m in height for |h| < 10 km, 1e-4 m at 100 km)."""
+    r = math.hypot(z * A, p * B)
+    st, ct = z * A / r, p * B / r
+    num = z + EP2 * B * st * st * st
+    den = p - E2 * A * ct * ct * ct
+    n = math.hypot(num, den)
+    cl, sl = den / n, num / n
+    return cl, sl, p * cl + z * sl - A * math.sqrt(1.0 - E2 * sl * sl)
+
+
 @njit(cache=True, nogil=True)
 def ecef_to_geodetic_scalar(x, y, z):
-    """(X, Y, Z) -> (lon, lat, h) with Bowring's start and two Newton steps on latitude."""
+    """(X, Y, Z) -> (lon, lat, h) with Bowring's start and three Newton steps on latitude."""
     lon = math.atan2(y, x)
     p = math.hypot(x, y)
     if p < 1e-9:
         lat = math.copysign(math.pi / 2.0, z)
         return math.degrees(lon), math.degrees(lat), abs(z) - B
-    theta = math.atan2(z * A, p * B)
-    st = math.sin(theta)
-    ct = math.cos(theta)
-    lat = math.atan2(z + EP2 * B * st * st * st, p - E2 * A * ct * ct * ct)
+    cl, sl, _ = bowring(p, z)
+    lat = math.atan2(sl, cl)
     for _ in range(3):
         s = math.sin(lat)
         n = A / math.sqrt(1.0 - E2 * s * s)
@@ -66,11 +80,24 @@ def _ecef_to_geodetic_arrays(xyz, out):
         out[i, 0], out[i, 1], out[i, 2] = ecef_to_geodetic_scalar(xyz[i, 0], xyz[i, 1], xyz[i, 2])
 
 
+def flat_points(*values):
+    """Broadcast point coordinates to writable, contiguous float64 1-D arrays for the kernels.
+
+    Returns (arrays, shape, scalar): the broadcast shape, and whether all inputs were scalars.
+    Raises InputError for values that are not real numbers or shapes that do not broadcast."""
+    try:
+        arrays = [np.asarray(v, dtype=np.float64) for v in values]
+        shape = np.broadcast_shapes(*(a.shape for a in arrays))
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"point coordinates must be real numbers or arrays of one shape ({exc})") from None
+    flat = [a.ravel() if a.shape == shape and a.flags.c_contiguous and a.flags.writeable
+            else np.broadcast_to(a, shape).flatten() for a in arrays]
+    return flat, shape, len(shape) == 0
+
+
 def geodetic_to_ecef(lon, lat, h):
     """Arrays (any broadcastable shape) -> ECEF array of shape (..., 3)."""
-    arrays = [np.asarray(v, dtype=np.float64) for v in (lon, lat, h)]
-    shape = np.broadcast_shapes(*(a.shape for a in arrays))
-    lon, lat, h = (np.broadcast_to(a, shape).flatten() for a in arrays)
+    (lon, lat, h), shape, _ = flat_points(lon, lat, h)
     out = np.empty((lon.size, 3))
     _geodetic_to_ecef_arrays(lon, lat, h, out)
     return out.reshape(shape + (3,))
@@ -84,6 +111,20 @@ def ecef_to_geodetic(xyz):
     _ecef_to_geodetic_arrays(flat, out)
     shape = xyz.shape[:-1]
     return out[:, 0].reshape(shape), out[:, 1].reshape(shape), out[:, 2].reshape(shape)
+
+
+def radii(lat):
+    """Prime-vertical and meridian radii of curvature (N, M) at latitude `lat` (degrees):
+    N = a / w, M = a (1 - e^2) / w^3, w = sqrt(1 - e^2 sin^2(lat))."""
+    s = math.sin(math.radians(lat))
+    w = math.sqrt(1.0 - E2 * s * s)
+    return A / w, A * (1.0 - E2) / w ** 3
+
+
+def metres_per_degree(lat):
+    """(east, north) metres per degree of longitude and latitude at `lat`: (N cos(lat), M) pi / 180."""
+    n, m = radii(lat)
+    return n * math.cos(math.radians(lat)) * math.pi / 180.0, m * math.pi / 180.0
 
 
 def utm_epsg(lon, lat):

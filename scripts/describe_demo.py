@@ -1,14 +1,22 @@
 """Print what `make demo` made: the simulated images with the measured error of their supplied
-orientation against the truth, the stereo geometry, the block and the mass points per group."""
+orientation against the truth, the stereo geometry, the block, the mass points per group, and the
+accuracy of the group-3 points against the truth per land-cover class."""
 import csv
 import json
-import math
 import os
 import sys
 
 import numpy as np
 
+from osgeo import gdal
+
 from pushbroom.algorithms import block, sensors
+from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.geodesy import metres_per_degree
+from pushbroom.algorithms.matching.points import load_points
+
+#: land-cover classes of the simulator (classes.tif) grouped as in the report
+CLASS_GROUPS = {"fields (bare, crops)": (2, 3), "forest": (4,), "city": (5,), "water": (1,)}
 
 
 def supplied_error_m(supplied, truth, h):
@@ -17,8 +25,68 @@ def supplied_error_m(supplied, truth, h):
     c, r = (v.ravel() for v in np.meshgrid(np.linspace(0, cols, 9), np.linspace(0, rows, 9)))
     lon1, lat1 = supplied.image_to_ground(c, r, h)
     lon2, lat2 = truth.image_to_ground(c, r, h)
-    d = np.hypot((lon1 - lon2) * 111_320 * math.cos(math.radians(lat1.mean())), (lat1 - lat2) * 110_574)
+    me, mn = metres_per_degree(float(np.mean(lat1)))
+    d = np.hypot((lon1 - lon2) * me, (lat1 - lat2) * mn)
     return float(np.sqrt(np.mean(d * d))), float(d.max())
+
+
+def group3_accuracy(out, step=10.0, margin=20.0):
+    """Rows (class, N, RMS and share > 1 px in each forward/backward image, coverage) of the group-3
+    points: the truth position of a point in HRS1/HRS2 is the truth HRG ray of its HRG observation
+    intersected with the true DSM and projected with the truth HRS1/HRS2 model; coverage is the
+    share of STEP-spaced HRG lattice nodes (inside `margin` px) holding a group-3 point."""
+    scene = os.path.join(out, "scene")
+    blk = os.path.join(out, "block.gpkg")
+    ids = {r["name"]: r["id"] for r in block.read_images(blk)}
+    truth = {name: sensors.load(os.path.join(scene, "truth", name, "METADATA.DIM")) for name in ids}
+    dsm = Dem.from_file(os.path.join(scene, "dsm.tif"))
+    ds = gdal.Open(os.path.join(scene, "classes.tif"))
+    classes, gt = ds.ReadAsArray(), ds.GetGeoTransform()
+
+    def class_at(lon, lat):
+        i = np.clip(((lat - gt[3]) / gt[5]).astype(int), 0, classes.shape[0] - 1)
+        j = np.clip(((lon - gt[0]) / gt[1]).astype(int), 0, classes.shape[1] - 1)
+        return classes[i, j]
+
+    mass = load_points(blk, "mass_points")
+    g3 = mass.points["id"][mass.points["group"] == 3]
+
+    def observed(name):
+        o = mass.observations[mass.observations["image_id"] == ids[name]]
+        o = o[np.argsort(o["point_id"], kind="stable")]
+        k = np.clip(np.searchsorted(o["point_id"], g3), 0, len(o) - 1)
+        return o["col"][k], o["row"][k], o["point_id"][k] == g3
+
+    c0, r0, ok0 = observed("HRG")
+    lon, lat, h = truth["HRG"].image_to_dem(c0, r0, dsm)
+    cls = class_at(lon, lat)
+    errors = {}
+    for name in ("HRS1", "HRS2"):
+        c, r, ok = observed(name)
+        x, y = truth[name].ground_to_image(lon, lat, h)
+        e = np.hypot(x - c, y - r)
+        errors[name] = (e, ok & ok0 & np.isfinite(e))
+    cols, rows = truth["HRG"].size
+    nx, ny = np.arange(margin, cols - margin + 1e-9, step), np.arange(margin, rows - margin + 1e-9, step)
+    gx, gy = (v.ravel() for v in np.meshgrid(nx, ny))
+    node_cls = class_at(*truth["HRG"].image_to_dem(gx, gy, dsm)[:2])
+    occupied = np.zeros((ny.size, nx.size), bool)
+    j, i = np.round((c0[ok0] - margin) / step).astype(int), np.round((r0[ok0] - margin) / step).astype(int)
+    inside = (j >= 0) & (j < nx.size) & (i >= 0) & (i < ny.size)
+    occupied[i[inside], j[inside]] = True
+    occupied = occupied.ravel()
+    table = []
+    for label, codes in CLASS_GROUPS.items():
+        row = [label]
+        for name in ("HRS1", "HRS2"):
+            e, valid = errors[name]
+            sel = valid & np.isin(cls, codes)
+            row += [int(sel.sum()), float(np.sqrt(np.mean(e[sel] ** 2))) if sel.any() else float("nan"),
+                    100.0 * float(np.mean(e[sel] > 1.0)) if sel.any() else float("nan")]
+        nodes = np.isin(node_cls, codes)
+        row.append(100.0 * float(occupied[nodes].mean()) if nodes.any() else float("nan"))
+        table.append(row)
+    return table
 
 
 def main(out):
@@ -48,6 +116,12 @@ def main(out):
         print("\nMass points per group (as Table 1 of Kornus et al. 2006):")
         for label, value in rows:
             print(f"  {label:<{width}}  {value:>10}")
+        print("\nGroup-3 points against the truth (truth HRG ray on the true DSM, projected with the truth "
+              "models):")
+        print(f"  {'class':22} {'N':>7} {'HRS1 RMS px':>12} {'> 1 px':>7} {'HRS2 RMS px':>12} {'> 1 px':>7} "
+              f"{'coverage':>9}")
+        for label, n1, rms1, big1, _, rms2, big2, cover in group3_accuracy(out):
+            print(f"  {label:22} {n1:>7} {rms1:>12.3f} {big1:>6.2f}% {rms2:>12.3f} {big2:>6.2f}% {cover:>8.1f}%")
 
 
 if __name__ == "__main__":

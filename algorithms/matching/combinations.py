@@ -24,6 +24,7 @@ import numpy as np
 
 from .. import progress
 from ..errors import InputError
+from .consistency import invert_affine
 from .params import GrowParams
 from .points import COMB_A, COMB_B, COMB_C, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .records import PAIR_DTYPE
@@ -169,19 +170,13 @@ def compose_guide(a, b, b_src):
     guide = np.zeros(len(j), PAIR_DTYPE)
     guide["x1"], guide["y1"], guide["x2"], guide["y2"] = rb["x2"], rb["y2"], ra["x2"], ra["y2"]
     guide["rho"] = np.fmin(ra["rho"], rb["rho"])
-    A = np.stack([np.stack([ra["a1"], ra["a2"]], -1), np.stack([ra["a4"], ra["a5"]], -1)], -2).astype(float)
-    B = np.stack([np.stack([rb["a1"], rb["a2"]], -1), np.stack([rb["a4"], rb["a5"]], -1)], -2).astype(float)
-    det = B[:, 0, 0] * B[:, 1, 1] - B[:, 0, 1] * B[:, 1, 0]
-    good = np.isfinite(det) & (np.abs(det) > 1e-6) & np.isfinite(A).all(axis=(1, 2))
-    binv = np.zeros_like(B)
-    d = np.where(good, det, 1.0)
-    binv[:, 0, 0], binv[:, 0, 1] = B[:, 1, 1] / d, -B[:, 0, 1] / d
-    binv[:, 1, 0], binv[:, 1, 1] = -B[:, 1, 0] / d, B[:, 0, 0] / d
-    C = A @ binv
-    guide["a1"], guide["a2"], guide["a4"], guide["a5"] = C[:, 0, 0], C[:, 0, 1], C[:, 1, 0], C[:, 1, 1]
+    a1, a2, a4, a5 = (ra[k].astype(float) for k in ("a1", "a2", "a4", "a5"))
+    b1, b2, b4, b5 = invert_affine(rb["a1"], rb["a2"], rb["a4"], rb["a5"])
+    c = np.column_stack([a1 * b1 + a2 * b4, a1 * b2 + a2 * b5, a4 * b1 + a5 * b4, a4 * b2 + a5 * b5])
+    guide["a1"], guide["a2"], guide["a4"], guide["a5"] = c.T
     guide["r0"], guide["r1"] = 0.0, 1.0
     guide["seed"] = j
-    return guide[good]
+    return guide[np.isfinite(c).all(axis=1)]
 
 
 class _Scaled:

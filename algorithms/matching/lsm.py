@@ -34,8 +34,6 @@ LSM_OUT = len(LSM_FIELDS)
 
 #: lsm_point status codes
 OK, OUTSIDE, SINGULAR, NOT_CONVERGED = 0, 1, 2, 3
-STATUS_TEXT = {OK: "ok", OUTSIDE: "window leaves the image", SINGULAR: "singular normal equations (flat texture)",
-               NOT_CONVERGED: "not converged"}
 
 _NPAR = 8
 
@@ -328,7 +326,7 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
             sg += rg
             sgg += rgg
         nmat[6, 6] = float(nsamp)
-        # mirror the upper triangle (the Cholesky reads n[j, i] for i > j)
+        # only the upper triangle is filled: _cholesky reads n[j, i] for i > j
         if not _cholesky(nmat, _NPAR):
             out[6] = it
             return SINGULAR
@@ -427,8 +425,7 @@ def _affine_array(affine, n):
     return np.ascontiguousarray(aff)
 
 
-def match_points(img1, img2, x1, y1, x2, y2, affine=None, params=None, seed=None, feedback=None,
-                 chunk=200_000):
+def match_points(img1, img2, x1, y1, x2, y2, affine=None, params=None):
     """Least-squares match of many points (parallel over points).
 
     x1, y1: template centres in image 1; x2, y2: initial positions in image 2 (GDAL coordinates of
@@ -448,22 +445,19 @@ def match_points(img1, img2, x1, y1, x2, y2, affine=None, params=None, seed=None
     half = params.template // 2
     out = np.empty((n, LSM_OUT))
     status = np.empty(n, dtype=np.int8)
-    for start in range(0, n, chunk):
-        stop = min(start + chunk, n)
-        if feedback is not None:
-            if feedback.isCanceled():
-                from ..errors import CancelledError
-                raise CancelledError("least-squares matching cancelled")
-            feedback.setProgress(100.0 * start / max(n, 1))
-        _match_kernel(img1, img2, x1[start:stop], y1[start:stop], x2[start:stop], y2[start:stop], aff[start:stop],
-                      half, params.max_iterations, params.convergence, out[start:stop], status[start:stop])
-    rec = np.zeros(n, dtype=PAIR_DTYPE)
+    _match_kernel(img1, img2, x1, y1, x2, y2, aff, half, params.max_iterations, params.convergence, out, status)
+    return to_records(x1, y1, out), status
+
+
+def to_records(x1, y1, out):
+    """PAIR_DTYPE records (seed -1) from template centres and lsm_point output rows."""
+    rec = np.zeros(len(out), dtype=PAIR_DTYPE)
     rec["x1"] = x1
     rec["y1"] = y1
     for i, name in enumerate(LSM_FIELDS):
         rec[name] = out[:, i]
-    rec["seed"] = -1 if seed is None else seed
-    return rec, status
+    rec["seed"] = -1
+    return rec
 
 
 def accepted(records, status, params=None):

@@ -41,7 +41,6 @@ from ..atomic import atomic_path
 from ..errors import InputError
 
 COMB_A, COMB_B, COMB_C = 1, 2, 4
-COMBINATION_NAMES = {COMB_A: "a", COMB_B: "b", COMB_C: "c"}
 
 POINT_DTYPE = np.dtype([
     ("id", "i8"), ("group", "i1"), ("flags", "u1"), ("rho_min", "f4"),

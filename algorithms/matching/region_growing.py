@@ -17,9 +17,8 @@ margin), so memory is bounded by the tile size and tiles run independently (thre
 nogil kernel here, processes or a cluster later). Results are merged by lattice index, so they do
 not depend on the number of workers.
 """
-import heapq
 import math
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, as_completed
 
 import numpy as np
 from numba import njit
@@ -27,7 +26,7 @@ from numba import njit
 from ..errors import CancelledError, InputError
 from ..progress import ensure, step as progress_step
 from .imagery import Smoothed, as_image
-from .lsm import LSM_FIELDS, LSM_OUT, lsm_point, match_points, accepted
+from .lsm import LSM_OUT, accepted, lsm_point, match_points, to_records
 from .params import GrowParams
 from .records import PAIR_DTYPE
 from .seeds import (automatic_seeds, local_affine, predict, resolve_height_range, search_margin,
@@ -170,55 +169,6 @@ def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, h
     return tries
 
 
-def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, max_iter, conv,
-                   rho_min, max_ellipse, max_shift, results, state, origin, prior):
-    """Plain-Python reference of grow_kernel (heapq; same arguments and outputs), for tests."""
-    heap = []
-    out = np.empty(results.shape[1])
-    tries = 0
-
-    def attempt(node, x2, y2, a1, a2, a4, a5):
-        x1 = gx0 + (node % nx) * step - ox1
-        y1 = gy0 + (node // nx) * step - oy1
-        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out)
-        results[node] = out
-        results[node, 0] += ox2
-        results[node, 1] += oy2
-        ok = bool(status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift
-                  and out[6] < max_iter)
-        state[node] = 1 if ok else 2
-        return ok
-
-    for s in seeds:
-        node = int(s[0])
-        if not 0 <= node < nx * ny or state[node]:
-            continue
-        tries += 1
-        if attempt(node, *s[1:7]):
-            origin[node] = int(s[7])
-            heapq.heappush(heap, (-_quantise(results[node, 2]), node))
-    while heap:
-        _, node = heapq.heappop(heap)
-        r, c = divmod(node, nx)
-        for dc, dr in zip(_DC, _DR):
-            if not (0 <= c + dc < nx and 0 <= r + dr < ny):
-                continue
-            nb = (r + dr) * nx + c + dc
-            if state[nb]:
-                continue
-            a1, a2, a4, a5 = results[node, 7:11] if len(prior) != 4 else prior
-            dk, dl = dc * step, dr * step
-            tries += 1
-            if attempt(nb, results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl,
-                       a1, a2, a4, a5):
-                origin[nb] = origin[node]
-                heapq.heappush(heap, (-_quantise(results[nb, 2]), nb))
-    return tries
-
-
-# --------------------------------------------------------------------------------------------
-# lattice and tiles
-
 class Lattice:
     """The global lattice of image 1: node (m, n) at (l0 + n step, l0 + m step)."""
 
@@ -340,10 +290,7 @@ def _grow_tile(ctx, index, box):
                         float(step), nx, ny, rows, half, params.max_iterations, params.convergence,
                         params.rho_min, params.max_ellipse, params.max_shift, results, state, origin, prior)
     good = np.flatnonzero(state == 1)
-    rec = np.zeros(len(good), PAIR_DTYPE)
-    rec["x1"], rec["y1"] = lattice.position(m_a + good // nx, n_a + good % nx)
-    for i, name in enumerate(LSM_FIELDS):
-        rec[name] = results[good, i]
+    rec = to_records(*lattice.position(m_a + good // nx, n_a + good % nx), results[good])
     rec["seed"] = origin[good]
     return rec, tries, nseeds
 
@@ -413,7 +360,7 @@ def adapt_resolution(image1, image2, model1, model2, params, hr):
     and image 2 likewise A P1 A^T - P2 (difference of variances), each clipped to its positive
     part; the filter is separable (the diagonal: pushbroom pairs are near axis-aligned). Sigmas
     under 0.1 px are left out (same-resolution pairs stay untouched)."""
-    mode = getattr(params, "psf", "pixel")
+    mode = params.psf
     s = float(params.psf_sigma)
     if mode == "off":
         return image1, image2
@@ -476,7 +423,6 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
         with ThreadPoolExecutor(max_workers=int(workers)) as pool:
             futures = {pool.submit(_grow_tile, ctx, i, box): i for i, box in enumerate(tiles)}
             try:
-                from concurrent.futures import as_completed
                 for fut in as_completed(futures):
                     parts[futures[fut]] = fut.result()
                     done += 1

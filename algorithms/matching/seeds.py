@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import InputError
 from .imagery import as_image
 from .interest import interest_points
+from .lsm import accepted, match_points
 from .ncc import ncc_path
 from .params import GrowParams
 from .records import PAIR_DTYPE
@@ -75,43 +76,6 @@ def local_affine(model1, model2, x1, y1, h, d=5.0):
 # --------------------------------------------------------------------------------------------
 # matching seeds
 
-def _lsm_many(img1, img2, x1, y1, x2, y2, a, params):
-    """LSM of every point (array coordinates of the windows); returns (LSM output rows, status)."""
-    from .lsm import LSM_FIELDS, lsm_point
-    n = len(x1)
-    out = np.full((n, len(LSM_FIELDS)), np.nan)
-    status = np.full(n, -1, np.int64)
-    half = params.template // 2
-    for i in range(n):
-        if not (np.isfinite(x2[i]) and np.isfinite(y2[i])):
-            continue
-        status[i] = lsm_point(img1, img2, float(x1[i]), float(y1[i]), float(x2[i]), float(y2[i]),
-                              float(a[0][i]), float(a[1][i]), float(a[2][i]), float(a[3][i]),
-                              half, params.max_iterations, params.convergence, out[i])
-    return out, status
-
-
-def passes(out, status, params):
-    """Acceptance criteria of lsm.accepted on LSM output rows (status 0 where matched)."""
-    from .lsm import accepted
-    return accepted(to_records(np.zeros(len(out)), np.zeros(len(out)), out), np.where(status < 0, 1, status),
-                    params)
-
-
-def to_records(x1, y1, out, ox2=0.0, oy2=0.0, seed=None):
-    """PAIR_DTYPE records from image-1 positions and LSM output rows (image-2 window offset)."""
-    from .lsm import LSM_FIELDS
-    rec = np.zeros(len(x1), PAIR_DTYPE)
-    rec["x1"], rec["y1"] = x1, y1
-    for i, name in enumerate(LSM_FIELDS):
-        if name in PAIR_DTYPE.names:
-            rec[name] = out[:, i] if PAIR_DTYPE[name].kind == "f" else np.nan_to_num(out[:, i], nan=0.0)
-    rec["x2"] += ox2
-    rec["y2"] += oy2
-    rec["seed"] = -1 if seed is None else seed
-    return rec
-
-
 def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr, params,
                      x2=None, y2=None, radius=3.0):
     """NCC along the predicted path (or around given approximations x2, y2 within `radius` px),
@@ -120,7 +84,7 @@ def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr,
     n = len(x1)
     half = params.template // 2
     hmid = 0.5 * (hr[0] + hr[1])
-    px, py, a1, a2, a4, a5 = local_affine(model1, model2, x1, y1, hmid)
+    _, _, a1, a2, a4, a5 = local_affine(model1, model2, x1, y1, hmid)
     if x2 is None:
         xa, ya = predict(model1, model2, x1, y1, np.full(n, hr[0]))
         xb, yb = predict(model1, model2, x1, y1, np.full(n, hr[1]))
@@ -159,10 +123,15 @@ def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr,
         if scores[best] - rival < NCC_MARGIN:
             continue
         bx[i], by[i] = cx[best], cy[best]
-    out, status = _lsm_many(win1, win2, x1 - ox1, y1 - oy1, bx - ox2, by - oy2, (a1, a2, a4, a5), params)
-    ok = passes(out, status, params)
-    rec = to_records(x1, y1, out, ox2, oy2)
-    return rec, ok
+    if min(win1.shape) < 4 or min(win2.shape) < 4:   # an image sliver: nothing can match (match_points needs 4 x 4)
+        bx[:] = np.nan
+        win1 = win2 = np.zeros((4, 4), np.float32)
+    rec, status = match_points(win1, win2, x1 - ox1, y1 - oy1, bx - ox2, by - oy2,
+                               affine=np.column_stack([a1, a2, a4, a5]), params=params)
+    rec["x1"], rec["y1"] = x1, y1
+    rec["x2"] += ox2
+    rec["y2"] += oy2
+    return rec, accepted(rec, status, params)
 
 
 def window_pair(image1, image2, model1, model2, box1, hr, margin2):
@@ -199,8 +168,7 @@ def search_margin(model1, model2, params, hr, x1, y1):
     return (params.template // 2 + 2) * scale + ACROSS + params.max_shift + 4
 
 
-def automatic_seeds(image1, image2, model1, model2, params=None, height_range=None, box=None,
-                    feedback=None, windows=None):
+def automatic_seeds(image1, image2, model1, model2, params=None, height_range=None, box=None, windows=None):
     """Automatic seeds in image 1's `box` (x0, y0, x1, y1; default the whole image): Foerstner
     points, NCC along the predicted path, LSM; returns the accepted PAIR_DTYPE records (seed = -1).
     `windows`: the (win1, ox1, oy1, win2, ox2, oy2) already read for the box (region growing)."""

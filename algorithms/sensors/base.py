@@ -9,22 +9,8 @@ horizon) comes back as NaN, so a batch keeps its other points; an iteration that
 domain raises GeometryError. Callers that need every point (footprints, DEM rays) raise on NaN."""
 import numpy as np
 
-from ..errors import GeometryError, InputError
-
-
-def flat_points(*values):
-    """Broadcast point coordinates to writable, contiguous float64 1-D arrays for the kernels.
-
-    Returns (arrays, shape, scalar): the broadcast shape, and whether all inputs were scalars.
-    Raises InputError for values that are not real numbers or shapes that do not broadcast."""
-    try:
-        arrays = [np.asarray(v, dtype=np.float64) for v in values]
-        shape = np.broadcast_shapes(*(a.shape for a in arrays))
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"point coordinates must be real numbers or arrays of one shape ({exc})") from None
-    flat = [a.ravel() if a.shape == shape and a.flags.c_contiguous and a.flags.writeable
-            else np.broadcast_to(a, shape).flatten() for a in arrays]
-    return flat, shape, len(shape) == 0
+from ..errors import GeometryError
+from ..geodesy import flat_points
 
 
 def shaped_points(values, shape, scalar):

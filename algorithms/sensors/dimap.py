@@ -24,7 +24,6 @@ from ..errors import InputError, MetadataError
 from .spot_orientation import MAX_SIZE, Corrections, SpotOrientation
 
 
-
 class _Doc:
     """A parsed METADATA.DIM whose accessors raise MetadataError naming the file and element."""
 
@@ -389,13 +388,13 @@ def write_dimap(path, orientation, sun=None, nbits=8, nbands=1, data_file="IMAGE
     if any(np.any(np.asarray(a) != 0) for a in (c.position, c.attitude, c.look)):
         raise InputError("DIMAP cannot hold correction polynomials; save the adjusted model with "
                          "sensors.save (the project's model file) instead")
-    o.validate()
+    model = SpotModel(o)  # validates the orientation
     root = ET.Element("Dimap_Document", {"name": "METADATA.DIM"})
     meta = _sub(root, "Metadata_Id")
     _sub(meta, "METADATA_FORMAT", "DIMAP", version="1.1")
     _sub(meta, "METADATA_PROFILE", "SPOTSCENE_1A")
     _sub(_sub(root, "Dataset_Id"), "DATASET_NAME", o.name or "SCENE")
-    _frame(root, SpotModel(o), o)
+    _frame(root, model, o)
     _sub(_sub(_sub(root, "Production"), "Production_Facility"), "SOFTWARE_NAME", "PUSHBROOM")
     _source(root, o, sun)
     _raster(root, o, nbits, nbands, data_file)

@@ -29,8 +29,9 @@ import numpy as np
 from numba import njit
 
 from ..errors import GeometryError, MetadataError
+from ..geodesy import flat_points
 from . import rpc_io
-from .base import SensorModel, flat_points, shaped_points
+from .base import SensorModel, shaped_points
 from .rpc_io import COEFF_KEYS, OFFSET_KEYS, SCALE_KEYS
 
 NUM_TERMS = 20
@@ -287,8 +288,8 @@ class RpcModel(SensorModel):
     @classmethod
     def from_raster(cls, path):
         """RPC of a raster as GDAL reads it (metadata domain 'RPC': GeoTIFF RPC tags, or _RPC.TXT /
-        .RPB beside it); where GDAL finds none, a same-stem OSSIM .geom beside it (with the crop
-        offset of the raster's geotransform, see from_geom)."""
+        .RPB beside it). A same-stem OSSIM .geom beside a raster is found by sensors.load through
+        sensors.orientation_source and read by from_geom."""
         return cls._from_record(rpc_io.read_raster(path))
 
     @classmethod

@@ -87,15 +87,13 @@ def _crop_offset(ds, path):
 
 
 def read_raster(path):
-    """RPC of a raster as GDAL reads it, or from a same-stem .geom beside it (read_geom)."""
+    """RPC of a raster as GDAL reads it (a same-stem .geom beside it is chosen earlier, by
+    sensors.orientation_source)."""
     path = os.fspath(path)
     ds = _open_raster(path)
     fields = ds.GetMetadata("RPC") or {}
     if fields:
         return RpcRecord(fields, _raster_size(ds), (0.0, 0.0), path)
-    geom = os.path.splitext(path)[0] + ".geom"
-    if os.path.isfile(geom):
-        return read_geom(geom, path)
     raise _error(path, "the raster carries no RPC (GDAL finds none in its metadata, GeoTIFF RPC "
                        "tags, or in a _RPC.TXT / .RPB beside it) and no .geom of the same name "
                        "lies beside it; put the image's RPC file beside it or load the RPC file")
@@ -138,11 +136,11 @@ def _parse_rpc_txt(text, path):
 
 def _parse_rpb(text, path):
     """The 'name = value;' statements of an .RPB (CPLKeywordParser's syntax, groups ignored);
-    lists '( a, b, ... )' become texts of numbers."""
+    lists '( a, b, ... )' become texts of comma-separated numbers (RpcCoefficients reads them)."""
     fields = {}
     for name, value in re.findall(r"(\w+)\s*=\s*([^;=]*);", text):
         if name in _RPB_NAMES:
-            fields[_RPB_NAMES[name]] = value.replace("(", " ").replace(")", " ").replace(",", " ")
+            fields[_RPB_NAMES[name]] = value.replace("(", " ").replace(")", " ")
     missing = [k for k, v in _RPB_NAMES.items() if v not in fields]
     if missing:
         raise _error(path, f"missing {', '.join(missing)} (not a complete RPC00B .RPB file)")

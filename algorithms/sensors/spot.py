@@ -28,9 +28,9 @@ u1 = (-tan psi_y, tan psi_x, -1) (frames in spot_frames.py, kernels in spot_kern
 import numpy as np
 
 from ..errors import GeometryError, InputError
-from ..geodesy import geodetic_to_ecef
+from ..geodesy import flat_points, geodetic_to_ecef
 from . import spot_kernels as k
-from .base import SensorModel, flat_points, shaped_points
+from .base import SensorModel, shaped_points
 from .dimap import read_dimap
 
 LAGRANGE_POINTS = 8

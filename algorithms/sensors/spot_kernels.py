@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..dem import bilinear_scalar
-from ..geodesy import A, B, E2, EP2, ecef_to_geodetic_scalar, geodetic_to_ecef_scalar
+from ..geodesy import A, B, bowring, ecef_to_geodetic_scalar, geodetic_to_ecef_scalar
 from .spot_frames import (attitude_rotation, look_angles, look_vector, mat_mul, mat_t_vec, mat_vec,
                           orbital_rotation)
 
@@ -136,20 +136,6 @@ def column_of(look, prm, corr, psi_y):
         if not abs(step) > 1e-10:
             break
     return col
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def bowring(p, z):
-    """Geodetic (cos lat, sin lat, h) of a point at distance p from the polar axis and height z above
-    the equator plane: Bowring's formula, one step without trigonometry (error < 1e-6 m in
-    latitude and 1e-8 m in height for |h| < 10 km, 1e-4 m at 100 km)."""
-    r = math.hypot(z * A, p * B)
-    st, ct = z * A / r, p * B / r
-    num = z + EP2 * B * st * st * st
-    den = p - E2 * A * ct * ct * ct
-    n = math.hypot(num, den)
-    cl, sl = den / n, num / n
-    return cl, sl, p * cl + z * sl - A * math.sqrt(1.0 - E2 * sl * sl)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -8,17 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geodesy import A, E2
-
-
-def metres_per_degree(lat):
-    """(east, north) metres per degree at latitude `lat`: (N cos(lat), M) * pi / 180, with the
-    prime-vertical and meridian radii N = a / w, M = a (1 - e^2) / w^3, w = sqrt(1 - e^2 sin^2)."""
-    s = math.sin(math.radians(lat))
-    w = math.sqrt(1.0 - E2 * s * s)
-    n = A / w
-    m = A * (1.0 - E2) / w ** 3
-    return n * math.cos(math.radians(lat)) * math.pi / 180.0, m * math.pi / 180.0
+from ..dem import grid_bounds
+from ..geodesy import metres_per_degree
 
 
 @dataclass(frozen=True)
@@ -55,7 +46,7 @@ class Grid:
     @property
     def bounds(self):
         """(lon_min, lat_min, lon_max, lat_max) of the outer cell edges."""
-        return self.lon0, self.lat0 + self.rows * self.dlat, self.lon0 + self.cols * self.dlon, self.lat0
+        return grid_bounds(self.geotransform, self.shape)
 
     @property
     def centre(self):

@@ -15,12 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import GeometryError
-from ..geodesy import OMEGA_EARTH
+from ..geodesy import A, OMEGA_EARTH
 from ..sensors import spot_frames
 
 GM = 3.986004418e14               # m^3/s^2, WGS 84
 J2 = 1.08262668e-3
-R_EQUATOR = 6378137.0
 SUN_RATE = 2.0 * math.pi / (365.2422 * 86400.0)  # rad/s, mean motion of the sun
 SPOT_SEMI_MAJOR_AXIS = 7200.5e3   # m (Orbital_Bulletin ELLIPSE_AXIS of SPOT 2 and 5)
 
@@ -28,7 +27,7 @@ SPOT_SEMI_MAJOR_AXIS = 7200.5e3   # m (Orbital_Bulletin ELLIPSE_AXIS of SPOT 2 a
 def sun_synchronous_inclination(a):
     """Inclination (rad) at which the J2 node precession equals the sun's mean motion."""
     n = math.sqrt(GM / a ** 3)
-    return math.acos(-SUN_RATE / (1.5 * n * J2 * (R_EQUATOR / a) ** 2))
+    return math.acos(-SUN_RATE / (1.5 * n * J2 * (A / a) ** 2))
 
 
 @dataclass(frozen=True)
@@ -136,11 +135,11 @@ def orbit_through(target, t0, attitude, psi_x, psi_y):
     return CircularOrbit(float(node), float(u), float(t0), a)
 
 
-def time_and_roll(orbit, attitude, target, psi_x, t_guess, psi_y_guess=0.0):
-    """(t, psi_y) at which a detector of along-track angle psi_x sees `target`."""
+def time_and_roll(orbit, attitude, target, psi_x, t_guess):
+    """(t, psi_y) at which a detector of along-track angle psi_x sees `target` (psi_y from 0)."""
     def residual(p):
         return look_residual(orbit, attitude, p[0], target, psi_x, p[1])
 
-    t, psi_y = newton(residual, np.array([t_guess, psi_y_guess]), np.array([1e-3, 1e-7]),
+    t, psi_y = newton(residual, np.array([t_guess, 0.0]), np.array([1e-3, 1e-7]),
                       np.array([1e-9, 1e-13]), "acquisition time of the scene centre")
     return float(t), float(psi_y)

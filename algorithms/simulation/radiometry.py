@@ -46,14 +46,14 @@ OPTICS_SIGMA = 0.4       # detectors: Gaussian optics PSF (with the detector box
 SUPERSAMPLE = 3          # quadrature rays per pixel and axis for the PSF integral (odd)
 
 
-def psf_kernel(width, smear, sigma, k=SUPERSAMPLE):
+def psf_kernel(width, smear, sigma, k):
     """Quadrature weights at offsets m / k, m = -M..M (pixels), of box(width) x box(smear) x
     Gaussian(sigma): the continuous PSF averaged over each 1/k sub-interval, summing to 1."""
     fine = 32
     d = 1.0 / (k * fine)
     half = 0.5 * (width + smear) + 4.0 * sigma + 1.0 / k
     u = np.arange(-np.ceil(half / d), np.ceil(half / d) + 1) * d
-    psf = np.exp(-0.5 * (u / sigma) ** 2) if sigma > 0 else (np.abs(u) < 0.5 * d).astype(float)
+    psf = np.exp(-0.5 * (u / sigma) ** 2)
     for w in (width, smear):
         if w > 0:
             n = 2 * int(round(0.5 * w / d)) + 1     # odd: centred
@@ -150,16 +150,13 @@ def paint_markers(rho, grid, lon, lat, sigma_m, pad=0.03, peak=0.85):
         rho[ii[inside], jj[inside]] = pad + peak * np.exp(-0.5 * d2[inside] / sigma_m ** 2)
 
 
-def sensor_image(radiance, gain, offset, noise, bits, rng, sigma=0.0):
+def sensor_image(radiance, gain, offset, noise, bits, rng):
     """DN image (uint8 / uint16) from the PSF-integrated radiance (module docstring). `noise` is
-    the noise standard deviation in 8-bit DN; gain and offset are in 8-bit DN and scaled to `bits`;
-    `sigma` an extra Gaussian blur in px (0: none, the PSF is applied before sampling)."""
-    from scipy import ndimage
+    the noise standard deviation in 8-bit DN; gain and offset are in 8-bit DN and scaled to `bits`."""
     missing = ~np.isfinite(radiance)
     filled = np.where(missing, 0.0, radiance).astype(np.float64)
-    blurred = ndimage.gaussian_filter(filled, sigma, mode="nearest") if sigma > 0 else filled
     scale = 2.0 ** (bits - 8)
-    dn = scale * (gain * blurred + offset)
+    dn = scale * (gain * filled + offset)
     if noise > 0:
         dn += rng.normal(0.0, noise * scale, dn.shape)
     out = np.clip(np.rint(dn), 1, 2 ** bits - 1).astype(np.uint8 if bits == 8 else np.uint16)

@@ -22,6 +22,7 @@ from numba import njit, prange
 
 from ..geodesy import A, B, E2, EP2, geodetic_to_ecef_scalar
 from ..sensors import spot_frames
+from ..geodesy import radii
 
 BLOCK = 8
 REFINE_M = 2.0
@@ -266,13 +267,12 @@ def trace(pos, mat, look, z, bmax, bs, gt, sphere, hmin, hmax):
 def osculating_sphere(lon, lat):
     """(cx, cy, cz, R): the sphere of Gaussian radius R = sqrt(M N) tangent to the ellipsoid at
     (lon, lat)."""
-    s = math.sin(math.radians(lat))
-    w = math.sqrt(1.0 - E2 * s * s)
-    radius = math.sqrt(A / w * A * (1.0 - E2) / w ** 3)
+    n, m = radii(lat)
+    radius = math.sqrt(n * m)
     x, y, z = geodetic_to_ecef_scalar(lon, lat, 0.0)
     cl, sl = math.cos(math.radians(lon)), math.sin(math.radians(lon))
-    cb = math.cos(math.radians(lat))
-    normal = np.array([cb * cl, cb * sl, s])
+    cb, sb = math.cos(math.radians(lat)), math.sin(math.radians(lat))
+    normal = np.array([cb * cl, cb * sl, sb])
     return np.array([x, y, z]) - radius * normal, radius
 
 

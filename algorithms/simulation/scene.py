@@ -29,7 +29,8 @@ from ..progress import step
 from ..sensors.dimap import read_dimap, write_dimap
 from . import outputs, radiometry
 from .acquisition import footprint_bounds, plan, ray_at_height
-from .grid import Grid, metres_per_degree
+from ..geodesy import metres_per_degree
+from .grid import Grid
 from .instruments import CONFIGURATIONS, DEFAULT_DATES, DEFAULT_ROLL_DEG, instruments
 from .perturbation import inject
 from .points import image_coordinates, level_pads, select_sites

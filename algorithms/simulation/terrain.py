@@ -23,6 +23,7 @@ from ..dem import grid_bounds
 from ..errors import InputError
 from .grid import Grid
 from .noise import fbm, gradient_noise, hash3, uniform, worley
+from .render import bilinear
 
 WATER, BARE, CROPS, FOREST, CITY = 1, 2, 3, 4, 5
 CLASSES = {0: "nodata", WATER: "water", BARE: "bare fields", CROPS: "grass/crops",
@@ -161,15 +162,9 @@ def slope_degrees(z, de, dn):
 
 @njit(cache=True, nogil=True)
 def _bilinear_clamped(z, x, y):
+    """render.bilinear at (x, y) clamped into the grid."""
     rows, cols = z.shape
-    x = min(max(x, 0.0), cols - 1.000001)
-    y = min(max(y, 0.0), rows - 1.000001)
-    j = int(x)
-    i = int(y)
-    fx = x - j
-    fy = y - i
-    return ((z[i, j] * (1 - fx) + z[i, j + 1] * fx) * (1 - fy)
-            + (z[i + 1, j] * (1 - fx) + z[i + 1, j + 1] * fx) * fy)
+    return bilinear(z, min(max(x, 0.0), cols - 1.0), min(max(y, 0.0), rows - 1.0))
 
 
 @njit(cache=True, nogil=True)

@@ -1,6 +1,6 @@
 """Common base of the Processing algorithms: naming, help, icon, and the translation of the
 engine's errors into QgsProcessingException (a clear message, never a traceback)."""
-from qgis.core import QgsProcessingAlgorithm, QgsProcessingException
+from qgis.core import QgsProcessingAlgorithm, QgsProcessingException, QgsProcessingParameterDefinition
 from qgis.PyQt.QtGui import QIcon
 
 from ...algorithms.errors import PushbroomError
@@ -33,6 +33,12 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
     def shortHelpString(self):  # noqa: N802 (QGIS API)
         return self.HELP
+
+    def addAdvancedParameters(self, parameters):  # noqa: N802 (QGIS naming)
+        """Add `parameters` flagged as advanced (folded away in the dialog)."""
+        for parameter in parameters:
+            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+            self.addParameter(parameter)
 
     def icon(self):
         return QIcon(resource_path("icons", "pushbroom.svg"))

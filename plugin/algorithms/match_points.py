@@ -1,7 +1,7 @@
 """pushbroom:matchpoints — dense image points by region-growing least-squares matching in the
 three combinations of paper K 3.3 (algorithms/matching/combinations.py)."""
 from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputVectorLayer,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
+                       QgsProcessingParameterBoolean,
                        QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterNumber, QgsProcessingParameterString)
 
@@ -13,7 +13,6 @@ from ..styles import load_styled
 from .base import PushbroomAlgorithm
 
 Number = QgsProcessingParameterNumber
-SEED_SOURCES = ["Automatic (interest points matched along the epipolar path)"]
 
 
 def combination_order(rows, text):
@@ -69,7 +68,9 @@ class MatchPoints(PushbroomAlgorithm):
             "three-ray from all three (the doubly matched forward coordinates averaged and kept where their "
             "deviation is below 3 robust sigma). A two-image block gives group 1 only. The points are "
             "stored beside the block (<block>.mass_points.npz), shown as a point layer on the reference "
-            "image at the mean height, and counted per group like Table 1 of the paper (log and CSV).")
+            "image at the mean height, and counted per group like Table 1 of the paper (log and CSV). Seeds "
+            "are automatic: interest points matched along the path the sensor models predict over the "
+            "terrain height range.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         d = GrowParams()
@@ -77,7 +78,6 @@ class MatchPoints(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterString(
             "IMAGES", "Images in combination order: reference (nadir), forward[, backward]; empty = all",
             "", optional=True))
-        self.addParameter(QgsProcessingParameterEnum("SEEDS", "Seed points", SEED_SOURCES, defaultValue=0))
         self.addParameter(Number("MIN_HEIGHT", "Lowest ellipsoidal terrain height (m; empty: the block's terrain "
                                  "height range)", Number.Double, None, optional=True))
         self.addParameter(Number("MAX_HEIGHT", "Highest ellipsoidal terrain height (m; empty: the block's terrain "
@@ -99,9 +99,7 @@ class MatchPoints(PushbroomAlgorithm):
                                           True),
             Number("WORKERS", "Worker threads", Number.Integer, 1, minValue=1),
         ]
-        for parameter in advanced:
-            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
-            self.addParameter(parameter)
+        self.addAdvancedParameters(advanced)
         self.addParameter(QgsProcessingParameterFileDestination(
             "SUMMARY", "Summary per point group (CSV)", "CSV files (*.csv)", optional=True))
         self.addOutput(QgsProcessingOutputVectorLayer("POINTS", "Mass points", QgsProcessing.TypeVectorPoint))

@@ -1,7 +1,7 @@
 """pushbroom:simulatescene — a simulated SPOT block with exact truth (algorithms/simulation)."""
 from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputMultipleLayers,
                        QgsProcessingOutputRasterLayer, QgsProcessingParameterBoolean,
-                       QgsProcessingParameterDefinition, QgsProcessingParameterEnum, QgsProcessingParameterFile,
+                       QgsProcessingParameterEnum, QgsProcessingParameterFile,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber,
                        QgsProcessingParameterRasterLayer)
 
@@ -53,9 +53,7 @@ class SimulateScene(PushbroomAlgorithm):
                                        extension="DIM", optional=True),
             QgsProcessingParameterRasterLayer("ORTHOIMAGE", "Ground reflectance from this orthoimage", optional=True),
         ]
-        for parameter in advanced:
-            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
-            self.addParameter(parameter)
+        self.addAdvancedParameters(advanced)
         self.addParameter(QgsProcessingParameterFolderDestination("OUTPUT", "Output folder"))
         self.addOutput(QgsProcessingOutputMultipleLayers("IMAGES", "Images (IMAGERY.TIF)"))
         for key, label in [("DSM", "True DSM"), ("DTM", "True DTM"), ("CLASSES", "Land-cover classes"),

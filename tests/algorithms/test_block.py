@@ -1,5 +1,4 @@
 """The block GeoPackage: contents, footprints, overwrite protection and cancel safety."""
-import math
 import shutil
 import xml.etree.ElementTree as ET
 
@@ -9,6 +8,7 @@ from osgeo import ogr
 
 from pushbroom.algorithms import block, sensors
 from pushbroom.algorithms.errors import CancelledError, InputError
+from pushbroom.algorithms.geodesy import metres_per_degree
 
 
 class CancelAfter:
@@ -58,7 +58,8 @@ def test_block_holds_images_and_footprints(spot5_product, tmp_path):
     ring = np.array(feature.GetGeometryRef().GetGeometryRef(0).GetPoints())
     # every producer corner (a pixel centre) lies within one pixel (~10 m) of a footprint vertex
     for lon, lat in producer_corners(spot5_product):
-        d = np.hypot((ring[:, 0] - lon) * math.cos(math.radians(lat)), ring[:, 1] - lat) * 111_320
+        me, mn = metres_per_degree(lat)
+        d = np.hypot((ring[:, 0] - lon) * me, (ring[:, 1] - lat) * mn)
         assert d.min() < 10.0
     stored = block.load_model(path, rows[0]["id"])
     lon, lat = images[0][3].image_to_ground(np.array([0.5, 6000.0]), np.array([0.5, 11999.5]), 0.0)

@@ -1,6 +1,7 @@
 """Region-growing LSM (algorithms/matching/region_growing.py): numba core against a plain-Python
 reference, accuracy/coverage on a simulated SPOT 5 scene against the truth, determinism over
 workers and tiles, and bad input."""
+import heapq
 import time
 
 import numpy as np
@@ -9,10 +10,10 @@ import pytest
 from matching_scene import DISCONTINUOUS, LOW_CONTRAST_DN, SINGLE_SURFACE, Scene
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.matching.imagery import Image, Smoothed
-from pushbroom.algorithms.matching.lsm import LSM_OUT
+from pushbroom.algorithms.matching.lsm import LSM_OUT, lsm_point
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.region_growing import (Lattice, adapt_resolution, grow_kernel, grow_reference,
-                                                          match_pair, transfer_points)
+from pushbroom.algorithms.matching.region_growing import (_DC, _DR, Lattice, _quantise, adapt_resolution,
+                                                          grow_kernel, match_pair, transfer_points)
 
 
 class Feedback:
@@ -29,6 +30,56 @@ class Feedback:
     def pushInfo(self, text):
         self.messages.append(text)
 
+
+
+def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, max_iter, conv,
+                   rho_min, max_ellipse, max_shift, results, state, origin, prior):
+    """Plain-Python reference of region_growing.grow_kernel (heapq; same arguments and outputs)."""
+    heap = []
+    out = np.empty(results.shape[1])
+    tries = 0
+
+    def attempt(node, x2, y2, a1, a2, a4, a5):
+        x1 = gx0 + (node % nx) * step - ox1
+        y1 = gy0 + (node // nx) * step - oy1
+        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out)
+        results[node] = out
+        results[node, 0] += ox2
+        results[node, 1] += oy2
+        ok = bool(status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift
+                  and out[6] < max_iter)
+        state[node] = 1 if ok else 2
+        return ok
+
+    for s in seeds:
+        node = int(s[0])
+        if not 0 <= node < nx * ny or state[node]:
+            continue
+        tries += 1
+        if attempt(node, *s[1:7]):
+            origin[node] = int(s[7])
+            heapq.heappush(heap, (-_quantise(results[node, 2]), node))
+    while heap:
+        _, node = heapq.heappop(heap)
+        r, c = divmod(node, nx)
+        for dc, dr in zip(_DC, _DR):
+            if not (0 <= c + dc < nx and 0 <= r + dr < ny):
+                continue
+            nb = (r + dr) * nx + c + dc
+            if state[nb]:
+                continue
+            a1, a2, a4, a5 = results[node, 7:11] if len(prior) != 4 else prior
+            dk, dl = dc * step, dr * step
+            tries += 1
+            if attempt(nb, results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl,
+                       a1, a2, a4, a5):
+                origin[nb] = origin[node]
+                heapq.heappush(heap, (-_quantise(results[nb, 2]), nb))
+    return tries
+
+
+# --------------------------------------------------------------------------------------------
+# lattice and tiles
 
 def texture(shape, seed):
     """Smooth random texture (sum of blurred noise), float32."""

@@ -38,7 +38,12 @@ def test_simulated_triplet_becomes_a_block(pushbroom_provider, tmp_path):
     assert layer.labelsEnabled()
 
 
-def test_bad_scene_parameters_give_a_clear_error(pushbroom_provider, tmp_path):
-    with pytest.raises(QgsProcessingException):
-        processing.run("pushbroom:simulatescene", {"SIZE_KM": 500.0, "OUTPUT": str(tmp_path / "s")})
+def test_bad_scene_input_gives_the_engines_message(pushbroom_provider, tmp_path):
+    """An orthoimage without georeferencing is refused with the engine's message; nothing is written."""
+    from osgeo import gdal
+    plain = tmp_path / "plain.tif"
+    gdal.GetDriverByName("GTiff").Create(str(plain), 10, 10, 1)
+    with pytest.raises(QgsProcessingException, match="cannot read the orthoimage"):
+        processing.run("pushbroom:simulatescene", {"SIZE_KM": 3.0, "ORTHOIMAGE": str(plain),
+                                                   "OUTPUT": str(tmp_path / "s")})
     assert not (tmp_path / "s").exists()
