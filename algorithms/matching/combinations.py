@@ -199,12 +199,30 @@ def _sub(feedback, start, stop):
     return None if feedback is None else _Scaled(feedback, start, stop)
 
 
-def match_block(images, models, names=None, image_ids=None, params=None, height_range=None, seeds=None,
-                feedback=None, workers=1, grow_second=True, sigma_factor=3.0):
+def pair_seeds(image1, image2, model1, model2, seed_points, id1, id2, params=None, height_range=None):
+    """PAIR_DTYPE seeds from the points of `seed_points` (MultiPoints) observed in both images
+    `id1` and `id2`: each is re-matched by LSM from its stored image-2 position (NCC within a few
+    px first, seeds.seeds_from_points) and kept if it passes the acceptance criteria."""
+    from .seeds import seeds_from_points
+    x1, y1 = seed_points.coordinates(id1)
+    x2, y2 = seed_points.coordinates(id2)
+    both = np.isfinite(x1) & np.isfinite(y1) & np.isfinite(x2) & np.isfinite(y2)
+    if not both.any():
+        return np.zeros(0, PAIR_DTYPE)
+    recs, ok = seeds_from_points(image1, image2, model1, model2, x1[both], y1[both], params, height_range,
+                                 x2=x2[both], y2=y2[both])
+    return recs[ok]
+
+
+def match_block(images, models, names=None, image_ids=None, params=None, height_range=None, seed_points=None,
+                automatic=True, feedback=None, workers=1, grow_second=True, sigma_factor=3.0):
     """Match 2 or 3 images in combination order (reference/nadir, forward, backward) and return
     the MultiPoints of `combine`. `images` are whatever region_growing.match_pair takes (arrays),
-    `image_ids` the block ids (default 1, 2, 3), `names` only label the log. With
-    `grow_second`, combination (b) is also region-grown for points where (a) found none."""
+    `image_ids` the block ids (default 1, 2, 3), `names` only label the log. Seeds: the points
+    of `seed_points` (MultiPoints with block image ids: tie or control points) seen in the
+    reference and the other image of a region-grown pair, re-matched there (pair_seeds), and/or
+    `automatic` ones in every tile. With `grow_second`, combination (b) is also region-grown for
+    points where (a) found none."""
     from .region_growing import match_pair, transfer_points
     n = len(images)
     if n not in (2, 3) or len(models) != n:
@@ -213,10 +231,22 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
     names = list(names or [f"image {k + 1}" for k in range(n)])
     image_ids = list(image_ids or range(1, n + 1))
     log = progress.ensure(feedback)
+    if seed_points is None and not automatic:
+        raise InputError("matching needs seeds: give tie/control points or allow automatic seeds")
     share = [0, 100] if n == 2 else [0, 40, 55, 85, 100]
     progress.step(feedback, 0, f"combination (a): {names[0]} - {names[1]}")
+
+    def seeds(k):
+        if seed_points is None:
+            return None
+        found = pair_seeds(images[0], images[k], models[0], models[k], seed_points, image_ids[0], image_ids[k],
+                           params, height_range)
+        log.pushInfo(f"{names[0]} - {names[k]}: {len(found)} seeds from the given points")
+        return found
+
     a = match_pair(images[0], images[1], models[0], models[1], params=params, height_range=height_range,
-                   seeds=seeds, feedback=_sub(feedback, share[0], share[1]), workers=workers)
+                   seeds=seeds(1), automatic=automatic, feedback=_sub(feedback, share[0], share[1]),
+                   workers=workers)
     log.pushInfo(f"(a) {names[0]} - {names[1]}: {len(a)} points")
     if n == 2:
         return combine(a, image_ids=image_ids)
@@ -224,7 +254,7 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
     if grow_second:
         progress.step(feedback, share[1], f"combination (b): {names[0]} - {names[2]}, region growing")
         grown = np.asarray(match_pair(images[0], images[2], models[0], models[2], params=params,
-                                      height_range=height_range, seeds=seeds,
+                                      height_range=height_range, seeds=seeds(2), automatic=automatic,
                                       feedback=_sub(feedback, share[1], share[2]), workers=workers), PAIR_DTYPE)
     progress.step(feedback, share[2], f"combination (b): {names[0]} - {names[2]}, {len(a)} transfer points")
     bt, ok = transfer_points(images[0], images[2], models[0], models[2], a["x1"], a["y1"], params, height_range,

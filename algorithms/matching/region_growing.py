@@ -250,7 +250,7 @@ def _seed_rows(seeds, lattice, n_a, n_b, m_a, m_b, ids):
 
 
 def _grow_tile(ctx, index, box):
-    image1, image2, model1, model2, params, hr, lattice, seeds = ctx
+    image1, image2, model1, model2, params, hr, lattice, seeds, automatic = ctx
     n_a, n_b, m_a, m_b = box
     half, step = lattice.half, lattice.step
     gx0, gy0 = lattice.position(m_a, n_a)
@@ -264,17 +264,21 @@ def _grow_tile(ctx, index, box):
     empty = np.zeros(0, PAIR_DTYPE)
     if win2.shape[0] < 4 or win2.shape[1] < 4:
         return empty, 0, 0
-    if seeds is None:
-        own = (gx0 - 0.5 * step, gy0 - 0.5 * step, x_last + 0.5 * step, y_last + 0.5 * step)
-        tile_seeds = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows)
-        ids = index * 10000 + np.arange(len(tile_seeds))
-    else:
+    parts, ids = [], []
+    if seeds is not None:
         n = np.rint((seeds["x1"] - lattice.l0) / step)
         m = np.rint((seeds["y1"] - lattice.l0) / step)
         mine = ((n >= n_a) | (n_a == 0)) & ((n < n_b) | (n_b == lattice.ncols)) & \
                ((m >= m_a) | (m_a == 0)) & ((m < m_b) | (m_b == lattice.nrows))
-        tile_seeds = seeds[mine]
-        ids = np.flatnonzero(mine)
+        parts.append(seeds[mine])
+        ids.append(np.flatnonzero(mine))
+    if automatic:
+        own = (gx0 - 0.5 * step, gy0 - 0.5 * step, x_last + 0.5 * step, y_last + 0.5 * step)
+        found = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows)
+        parts.append(found)
+        ids.append((0 if seeds is None else len(seeds)) + index * 10000 + np.arange(len(found)))
+    tile_seeds = np.concatenate(parts) if parts else np.zeros(0, PAIR_DTYPE)
+    ids = np.concatenate(ids) if ids else np.zeros(0, np.int64)
     nseeds = len(tile_seeds)
     if nseeds == 0:
         return empty, 0, 0
@@ -389,15 +393,17 @@ def adapt_resolution(image1, image2, model1, model2, params, hr):
 
 
 def match_pair(image1, image2, model1, model2, params=None, height_range=None, seeds=None, feedback=None,
-               workers=1):
+               workers=1, automatic=None):
     """Region-growing LSM of image 1 (reference) into image 2.
 
     image1, image2: Image or raster path; model1, model2: their sensor models; params: GrowParams;
     height_range: (h_min, h_max) ellipsoidal, or a mean height (+-500 m), or None for the model's
-    own range (RPC); seeds: PAIR_DTYPE records of already matched points (e.g. seeds_from_points)
-    or None for automatic seeds in every tile; workers: threads over tiles (results identical).
-    Returns the accepted lattice points as a PAIR_DTYPE array sorted by (y1, x1); `seed` holds the
-    id of the seed each point grew from (index into `seeds`, or tile * 10000 + k when automatic).
+    own range (RPC); seeds: PAIR_DTYPE records of already matched points (e.g. seeds_from_points);
+    automatic: also seek automatic seeds in every tile (default: only when no seeds are given),
+    so that tiles without a given seed still grow; a tile tries all its seeds in decreasing rho;
+    workers: threads over tiles (results identical). Returns the accepted lattice points as a
+    PAIR_DTYPE array sorted by (y1, x1); `seed` holds the id of the seed each point grew from
+    (index into `seeds`, or len(seeds) + tile * 10000 + k for automatic ones).
     Raises InputError for images smaller than the template or without overlap, CancelledError
     when cancelled; no accepted seed gives an empty array and a message via feedback."""
     params = (params or GrowParams()).check()
@@ -408,8 +414,11 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
     lattice = Lattice(image1.size, params)
     if seeds is not None:
         seeds = _as_seed_records(seeds)
+    automatic = seeds is None if automatic is None else bool(automatic)
+    if seeds is None and not automatic:
+        raise InputError("region growing needs seeds: give seed points or allow automatic seeds")
     tiles = lattice.tiles(int(params.tile))
-    ctx = (image1, image2, model1, model2, params, hr, lattice, seeds)
+    ctx = (image1, image2, model1, model2, params, hr, lattice, seeds, automatic)
     fb = ensure(feedback)
     parts = [None] * len(tiles)
     progress_step(feedback, 0.0)

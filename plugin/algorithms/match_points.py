@@ -1,7 +1,7 @@
 """pushbroom:matchpoints — dense image points by region-growing least-squares matching in the
 three combinations of paper K 3.3 (algorithms/matching/combinations.py)."""
 from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputVectorLayer,
-                       QgsProcessingParameterBoolean,
+                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum,
                        QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterNumber, QgsProcessingParameterString)
 
@@ -13,6 +13,9 @@ from ..styles import load_styled
 from .base import PushbroomAlgorithm
 
 Number = QgsProcessingParameterNumber
+SEED_SOURCES = ("Automatic: interest points matched along the path predicted by the sensor models",
+                "The block's tie points (pushbroom:selecttiepoints)",
+                "Both: the block's tie points and automatic seeds")
 
 
 def combination_order(rows, text):
@@ -69,8 +72,9 @@ class MatchPoints(PushbroomAlgorithm):
             "deviation is below 3 robust sigma). A two-image block gives group 1 only. The points are "
             "stored beside the block (<block>.mass_points.npz), shown as a point layer on the reference "
             "image at the mean height, and counted per group like Table 1 of the paper (log and CSV). Seeds "
-            "are automatic: interest points matched along the path the sensor models predict over the "
-            "terrain height range.")
+            "are automatic (interest points matched along the path the sensor models predict over the "
+            "terrain height range), the block's tie points (re-matched from their stored positions), or "
+            "both; with tie points only, tiles without one stay empty.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         d = GrowParams()
@@ -82,6 +86,7 @@ class MatchPoints(PushbroomAlgorithm):
                                  "height range)", Number.Double, None, optional=True))
         self.addParameter(Number("MAX_HEIGHT", "Highest ellipsoidal terrain height (m; empty: the block's terrain "
                                  "height range)", Number.Double, None, optional=True))
+        self.addParameter(QgsProcessingParameterEnum("SEEDS", "Seeds", list(SEED_SOURCES), defaultValue=0))
         self.addParameter(Number("TEMPLATE", "Template size (px, odd)", Number.Integer, d.template, minValue=5))
         self.addParameter(Number("STEP", "STEP: distance of the neighbours (px)", Number.Integer, d.step, minValue=1))
         advanced = [
@@ -123,12 +128,14 @@ class MatchPoints(PushbroomAlgorithm):
             max_shift=self.parameterAsDouble(parameters, "MAX_SHIFT", context),
             max_iterations=self.parameterAsInt(parameters, "MAX_ITERATIONS", context),
             tile=self.parameterAsInt(parameters, "TILE", context)).check()
+        source = self.parameterAsEnum(parameters, "SEEDS", context)
+        seed_points = points.load_points(path, "tie_points") if source in (1, 2) else None
         feedback.pushInfo("combination order: " + ", ".join(r["name"] for r in rows)
                           + f"; height range {height_range}")
         result = combinations.match_block(
             [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
             image_ids=[r["id"] for r in rows], params=params, height_range=height_range,
-            feedback=feedback, workers=self.parameterAsInt(parameters, "WORKERS", context),
+            seed_points=seed_points, automatic=source in (0, 2), feedback=feedback, workers=self.parameterAsInt(parameters, "WORKERS", context),
             grow_second=self.parameterAsBool(parameters, "GROW_SECOND", context),
             sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context))
         npz = points.save_points(path, result, "mass_points")

@@ -286,6 +286,29 @@ def test_determinism_workers_and_tiles(scene):
 
 
 @pytest.mark.slow
+def test_given_seeds_alone_and_with_automatic_ones(scene, grown):
+    """Seeds from already matched points (e.g. the block's tie points): alone, every point grows
+    from one of them (seed id = index into the seeds) and agrees with the automatic result where
+    both have a node; with automatic seeds too, tiles without a given seed fill as well and the
+    automatic seed ids start after the given ones."""
+    records = grown[0]
+    far = records[np.argsort(records["rho"])[::-1][:3]]          # three strong points as seeds
+    args = (scene.image1, scene.image2, scene.model1, scene.model2)
+    alone = match_pair(*args, GrowParams(), scene.height_range, seeds=far, automatic=False)
+    assert len(alone) > 100 and set(alone["seed"]) <= {0, 1, 2}
+    key = {(x, y): i for i, (x, y) in enumerate(zip(records["x1"], records["y1"]))}
+    pairs = np.array([(key[(x, y)], j) for j, (x, y) in enumerate(zip(alone["x1"], alone["y1"])) if (x, y) in key])
+    assert len(pairs) > 0.95 * len(alone)
+    d = np.hypot(records["x2"][pairs[:, 0]] - alone["x2"][pairs[:, 1]],
+                 records["y2"][pairs[:, 0]] - alone["y2"][pairs[:, 1]])
+    assert np.percentile(d, 99) < 0.05
+    both = match_pair(*args, GrowParams(), scene.height_range, seeds=far, automatic=True)
+    assert len(both) >= 0.99 * len(records) and (both["seed"] >= 3).any()
+    with pytest.raises(InputError, match="needs seeds"):
+        match_pair(*args, GrowParams(), scene.height_range, automatic=False)
+
+
+@pytest.mark.slow
 def test_transfer_points_with_guide(scene, grown):
     records = grown[0]
     guide = records[::2]

@@ -24,6 +24,16 @@ def triplet(tmp_path_factory):
     return {"images": images, "range": (lo - 30.0, hi + 30.0), "folder": folder}
 
 
+class Log(QgsProcessingFeedback):
+    def __init__(self):
+        super().__init__()
+        self.messages = []
+
+    def pushInfo(self, text):  # noqa: N802 (QGIS API)
+        self.messages.append(text)
+        super().pushInfo(text)
+
+
 def make_block(triplet, name, names):
     path = triplet["folder"] / name
     block.create_block(path, [i for i in triplet["images"] if i[0] in names], height=sum(triplet["range"]) / 2,
@@ -62,6 +72,14 @@ def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, 
     layer = QgsVectorLayer(tie["TIE_POINTS"], "tie", "ogr")
     assert layer.isValid() and layer.featureCount() == len(tie_points)
 
+    # the tie points as the only seeds: tiles with a tie point grow as from automatic seeds
+    feedback = Log()
+    processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6,
+                                             "SEEDS": 1}, context=context, feedback=feedback)
+    again = load_points(path)
+    assert again.group_counts()[3] > 0.9 * counts[3], (again.group_counts(), counts)
+    assert any("seeds from the given points" in m for m in feedback.messages)
+
 
 def test_two_images_give_group_1(pushbroom_provider, triplet):
     path = make_block(triplet, "two.gpkg", ("HRG", "HRS1"))
@@ -78,6 +96,8 @@ def test_bad_input_gives_clear_errors(pushbroom_provider, triplet):
         processing.run("pushbroom:matchpoints", {"BLOCK": path, "IMAGES": "HRG,XS"})
     with pytest.raises(QgsProcessingException, match="matchpoints"):
         processing.run("pushbroom:selecttiepoints", {"BLOCK": path})
+    with pytest.raises(QgsProcessingException, match="no tie points.*selecttiepoints"):
+        processing.run("pushbroom:matchpoints", {"BLOCK": path, "SEEDS": 1})
 
 
 def test_cancel_writes_nothing(pushbroom_provider, triplet):
