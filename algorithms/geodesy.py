@@ -114,17 +114,17 @@ def ecef_to_geodetic(xyz):
 
 
 def radii(lat):
-    """Prime-vertical and meridian radii of curvature (N, M) at latitude `lat` (degrees):
+    """Prime-vertical and meridian radii of curvature (N, M) at latitude `lat` (degrees, scalar or array):
     N = a / w, M = a (1 - e^2) / w^3, w = sqrt(1 - e^2 sin^2(lat))."""
-    s = math.sin(math.radians(lat))
-    w = math.sqrt(1.0 - E2 * s * s)
+    s = np.sin(np.radians(lat))
+    w = np.sqrt(1.0 - E2 * s * s)
     return A / w, A * (1.0 - E2) / w ** 3
 
 
 def metres_per_degree(lat):
     """(east, north) metres per degree of longitude and latitude at `lat`: (N cos(lat), M) pi / 180."""
     n, m = radii(lat)
-    return n * math.cos(math.radians(lat)) * math.pi / 180.0, m * math.pi / 180.0
+    return n * np.cos(np.radians(lat)) * math.pi / 180.0, m * math.pi / 180.0
 
 
 def utm_epsg(lon, lat):

@@ -6,7 +6,7 @@ round-trips exactly). Adjusted models are stored this way.
 - spot: "drift" and "orientation" (every SpotOrientation field; arrays as nested lists, the epoch
   as an ISO string, "corrections" as a dict of the Corrections fields);
 - rpc: "fields" (GDAL RPC metadata names, offsets already on the model's own raster), "size",
-  "source"."""
+  "source", and "bias" (the adjustment's six image-space bias terms, rpc.py) where nonzero."""
 import dataclasses
 import json
 
@@ -40,8 +40,11 @@ def model_to_dict(model):
         return {"format": FORMAT, "version": VERSION, "kind": "spot", "drift": model.drift,
                 "orientation": _plain(model.orientation)}
     if isinstance(model, RpcModel):
-        return {"format": FORMAT, "version": VERSION, "kind": "rpc", "fields": model.to_fields(),
-                "size": list(model.size), "source": model.source}
+        doc = {"format": FORMAT, "version": VERSION, "kind": "rpc", "fields": model.to_fields(),
+               "size": list(model.size), "source": model.source}
+        if model.bias.any():
+            doc["bias"] = [float(v) for v in model.bias]
+        return doc
     raise MetadataError(f"cannot save a model of type {type(model).__name__}")
 
 
@@ -74,7 +77,10 @@ def model_from_dict(doc, source="model file"):
             size = tuple(int(v) for v in doc["size"])
             if len(size) != 2 or min(size) < 1:
                 raise ValueError(f"size {doc['size']!r} is not (cols, rows) of a raster")
-            return RpcModel(coefficients, size=size, source=doc.get("source", source))
+            bias = np.asarray(doc.get("bias", np.zeros(6)), float)
+            if bias.shape != (6,) or not np.all(np.isfinite(bias)):
+                raise ValueError(f"bias {doc.get('bias')!r} is not 6 finite numbers")
+            return RpcModel(coefficients, size=size, source=doc.get("source", source), bias=bias)
     except MetadataError:
         raise
     except (KeyError, TypeError, ValueError, OverflowError) as exc:

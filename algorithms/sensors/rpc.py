@@ -21,6 +21,14 @@ top-left corner lies at (col0, row0) of the image the RPC describes:
 
 (the + 0.5 is what GDAL's RPC transformer adds too). The conversion happens once, when the
 model is built; the readers and writers are in rpc_io.py.
+
+An adjusted model carries an image-space affine bias correction (the block adjustment's RPC bias
+compensation, methods.md section 4): with u = (col - c_c) / 1000, v = (row - r_c) / 1000 about the
+raster centre (c_c, r_c) = size / 2,
+
+    col' = col + A0 + A1 u + A2 v,   row' = row + B0 + B1 u + B2 v,   bias = (A0, A1, A2, B0, B1, B2).
+
+RPC files cannot hold it: an adjusted model is exported by fitting new RPCs to it (rpc_fit.py).
 """
 import math
 from dataclasses import dataclass
@@ -260,8 +268,9 @@ class RpcModel(SensorModel):
     of the RPC's image normalisation, ceil(SAMP_OFF + 0.5 + |SAMP_SCALE| - col0) and likewise for
     rows (the RPC's validity domain)."""
 
-    def __init__(self, coefficients, size=None, offset=(0.0, 0.0), source="RPC"):
+    def __init__(self, coefficients, size=None, offset=(0.0, 0.0), source="RPC", bias=None):
         self.coefficients = coefficients
+        self.bias = np.zeros(6) if bias is None else np.asarray(bias, float).reshape(6)
         self.offset = (float(offset[0]), float(offset[1]))
         self.source = str(source)
         c = coefficients
@@ -325,13 +334,40 @@ class RpcModel(SensorModel):
         col = np.empty(lon.size)
         row = np.empty(lon.size)
         _ground_to_image_kernel(lon, lat, h, self._coef, self._nrm, col, row)
+        if self.bias.any():
+            col, row = self._biased(col, row)
         return shaped_points((col, row), shape, scalar)
+
+    def _bias_matrix(self):
+        """(J, t): biased = J @ (col, row) + t, the bias as an affine map of the image coordinates."""
+        a0, a1, a2, b0, b1, b2 = self.bias
+        cc, rc = 0.5 * self.size[0], 0.5 * self.size[1]
+        jac = np.array([[1.0 + a1 / 1000.0, a2 / 1000.0], [b1 / 1000.0, 1.0 + b2 / 1000.0]])
+        t = np.array([a0, b0]) - (jac - np.eye(2)) @ np.array([cc, rc])
+        return jac, t
+
+    def _biased(self, col, row):
+        jac, t = self._bias_matrix()
+        return jac[0, 0] * col + jac[0, 1] * row + t[0], jac[1, 0] * col + jac[1, 1] * row + t[1]
+
+    def bias_partials(self, col, row):
+        """d(col', row') / d(bias), shape (n, 2, 6), at RPC image coordinates (col, row)."""
+        u = (np.asarray(col, float) - 0.5 * self.size[0]) / 1000.0
+        v = (np.asarray(row, float) - 0.5 * self.size[1]) / 1000.0
+        out = np.zeros(u.shape + (2, 6))
+        out[..., 0, 0], out[..., 0, 1], out[..., 0, 2] = 1.0, u, v
+        out[..., 1, 3], out[..., 1, 4], out[..., 1, 5] = 1.0, u, v
+        return out
 
     def image_to_ground(self, col, row, h):
         """(lon, lat) of image points at ellipsoidal heights h, by Newton's method on the rational
         functions (analytic Jacobian, step halving), started at (LONG_OFF, LAT_OFF) and iterated to
         below 1e-8 px and 1e-10 deg. Raises GeometryError where it does not converge."""
         (col, row, h), shape, scalar = flat_points(col, row, h)
+        if self.bias.any():
+            jac, t = self._bias_matrix()
+            col, row = np.linalg.solve(jac, np.vstack([col - t[0], row - t[1]]))
+            col, row = np.ascontiguousarray(col), np.ascontiguousarray(row)
         lon = np.empty(col.size)
         lat = np.empty(col.size)
         status = np.empty(col.size, dtype=np.int8)
@@ -354,4 +390,6 @@ class RpcModel(SensorModel):
         (lon, lat, h), shape, _ = flat_points(lon, lat, h)
         out = np.empty((lon.size, 2, 3))
         _partials_kernel(lon, lat, h, self._coef, self._nrm, out)
+        if self.bias.any():
+            out = np.einsum("ij,njk->nik", self._bias_matrix()[0], out)
         return out.reshape(shape + (2, 3))

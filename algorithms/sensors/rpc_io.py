@@ -7,7 +7,7 @@ import re
 from typing import NamedTuple, Optional, Tuple
 
 from ..atomic import write_text
-from ..errors import MetadataError
+from ..errors import InputError, MetadataError
 
 IMAGE_EXTENSIONS = (".tif", ".tiff", ".jp2", ".ntf", ".img", ".vrt")
 
@@ -195,9 +195,16 @@ def _geom_size(kwl, path):
     return size
 
 
+def _refuse_bias(model, path):
+    if any(getattr(model, "bias", ())):
+        raise InputError(f"cannot write {path}: the model carries an adjusted bias correction that an RPC file "
+                         "cannot hold; fit new RPCs to the adjusted model (pushbroom:fitrpc) and write those")
+
+
 def write_rpc_txt(model, path):
     """Write `model`'s RPC as a _RPC.TXT (GDAL reads it beside '<stem>.tif' when named
     '<stem>_RPC.TXT'); offsets refer to the model's own raster, crop offset applied. Atomic."""
+    _refuse_bias(model, path)
     fields = model.to_fields()
     lines = [f"{k}: {fields[k]}" for k in _SCALARS]
     for key in COEFF_KEYS:
@@ -207,6 +214,7 @@ def write_rpc_txt(model, path):
 
 def write_rpb(model, path):
     """Write `model`'s RPC as a .RPB (GDAL's layout; '<stem>.RPB' beside '<stem>.tif'). Atomic."""
+    _refuse_bias(model, path)
     fields = model.to_fields()
     names = {v: k for k, v in _RPB_NAMES.items()}
     lines = ['satId = "UNKNOWN";', 'bandId = "P";', 'SpecId = "RPC00B";', "BEGIN_GROUP = IMAGE",

@@ -1,0 +1,420 @@
+"""Bundle adjustment of a block (methods.md section 4; paper K 3.4).
+
+Unknowns: the free orientation parameters (parameters.py) and every control/tie point (lon, lat,
+h, updated in local metres east/north/up). Observations: image coordinates (sigma px) and the
+ground coordinates of control points (sigma E/N/H m). Check points take no part; they are
+intersected afterwards with the adjusted models (`check_points`). Gauss-Newton on the normal
+equations reduced by the object points (normals.py), so the cost is linear in the points.
+
+Statistics (after convergence): sigma_0^2 = v'Pv / r with r = observations - unknowns; the
+cofactors Q_oo = N^-1 of the orientation unknowns and the points'; redundancy numbers r_i of
+every image observation; normalised residuals w_i = v_i / (sigma_i sqrt(r_i)) (Baarda's data
+snooping with the a priori sigma; |w| > `critical`, default 3.29 = alpha 0.1 %, flags a blunder).
+With `remove_blunders`, the worst flagged measurement is removed and the block re-adjusted until
+none is flagged (each removal reported).
+
+Datum defects and parameters the points cannot determine are found on the normal matrix before
+solving (correlation-scaled eigen-decomposition) and reported by name."""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import progress
+from ..errors import CancelledError, InputError
+from ..geodesy import metres_per_degree
+from ..sensors.rpc import RpcModel
+from ..sensors.spot import SpotModel
+from . import normals
+from .observations import Observations
+
+CRITICAL_W = 3.29
+#: an eigenvalue of the correlation-scaled reduced normal matrix below this is a defect: that
+#: combination of unknowns would be over 1000 times less precise than the unknowns alone
+DEFECT_EIGENVALUE = 1e-6
+
+
+@dataclass
+class Adjustment:
+    """Result of `adjust` (all arrays over the adjusted points / measurements)."""
+
+    parameters: object                  # OrientationParameters (models now carry the solution)
+    values: np.ndarray                  # all orientation unknowns (fixed ones 0)
+    sigmas: np.ndarray                  # their standard deviations (NaN: fixed)
+    covariance: np.ndarray              # (nfree, nfree) of the free unknowns, sigma_0^2 Q_oo
+    sigma0: float
+    redundancy: int                     # observations - unknowns
+    observations: Observations          # the points and measurements that were adjusted
+    lon: np.ndarray
+    lat: np.ndarray
+    h: np.ndarray
+    point_sigmas: np.ndarray            # (P, 3) sigma E, N, H (m)
+    residuals: np.ndarray               # (M, 2) image residuals v = computed - measured (px)
+    redundancy_numbers: np.ndarray      # (M, 2)
+    normalised: np.ndarray              # (M, 2) w = v / (sigma sqrt(r))
+    ground_residuals: np.ndarray        # (P, 3) E, N, H of computed - observed (control points; NaN else)
+    iterations: int
+    removed: list = field(default_factory=list)   # (point name, image id, w) of removed blunders
+    log: list = field(default_factory=list)
+
+    def flagged(self, critical=CRITICAL_W):
+        """Indices of measurements with |w| > critical in col or row."""
+        return np.flatnonzero(np.nanmax(np.abs(self.normalised), axis=1) > critical)
+
+
+class _Geometry:
+    """Linearisation of all image measurements at the current points and models."""
+
+    def __init__(self, params, obs, order):
+        self.params = params
+        self.images = sorted(params.models)
+        self.slot = {i: k for k, i in enumerate(self.images)}
+        m = obs.measurements[order]
+        self.meas = m
+        self.img = np.array([self.slot[i] for i in m["image_id"]], np.int64)
+        self.w = np.repeat((1.0 / m["sigma"] ** 2)[:, None], 2, axis=1)
+
+    def columns(self, free_index):
+        """(n_images, 32) free-unknown index of each image's local columns (-1 fixed / unused) and the
+        compact maps (n_images, 32, 32): local coefficient -> the image's compact columns."""
+        n_img = len(self.images)
+        col = np.full((n_img, 32), -1, np.int64)
+        maps = []
+        for s, i in enumerate(self.images):
+            tmap = self.params.jacobian_map(i)
+            used = np.flatnonzero(np.any(tmap != 0.0, axis=0) & (free_index >= 0))
+            col[s, :used.size] = free_index[used]
+            compact = np.zeros((tmap.shape[0], 32))
+            compact[:, :used.size] = tmap[:, used]
+            maps.append(compact)
+        return col, maps
+
+    def linearise(self, lon, lat, h, maps):
+        """(a, b, l): a (M, 2, 3) px/m, b (M, 2, 32) compact orientation partials, l = measured -
+        computed (M, 2) px."""
+        m = self.meas
+        n = len(m)
+        a = np.zeros((n, 2, 3))
+        b = np.zeros((n, 2, 32))
+        l = np.zeros((n, 2))
+        pl = self.point_of
+        e_deg, n_deg = metres_per_degree(lat[pl])
+        for s, i in enumerate(self.images):
+            k = np.flatnonzero(self.img == s)
+            if not k.size:
+                continue
+            model = self.params.models[i]
+            p = pl[k]
+            if isinstance(model, SpotModel):
+                d = model.partials(lon[p], lat[p], h[p])
+                col, row, dg = d["col"], d["row"], d["d_ground"]
+                b[k] = d["d_corrections"] @ maps[s]
+            else:
+                dg = model.partials(lon[p], lat[p], h[p])
+                col, row = model.ground_to_image(lon[p], lat[p], h[p])
+                jac, t = model._bias_matrix()
+                raw = np.linalg.solve(jac, np.vstack([col - t[0], row - t[1]]))
+                b[k] = model.bias_partials(raw[0], raw[1]) @ maps[s]
+            a[k, :, 0] = dg[:, :, 0] / e_deg[k, None]
+            a[k, :, 1] = dg[:, :, 1] / n_deg[k, None]
+            a[k, :, 2] = dg[:, :, 2]
+            l[k, 0] = m["col"][k] - col
+            l[k, 1] = m["row"][k] - row
+        return a, b, l
+
+
+def _ground_weights(points, lon, lat, h):
+    """(wg, lg): weights (P, 3) and misclosures observed - current (P, 3, m E/N/U) of control points."""
+    control = points["role"] == "control"
+    wg = np.zeros((len(points), 3))
+    lg = np.zeros((len(points), 3))
+    sig = np.column_stack([points["sigma_e"], points["sigma_n"], points["sigma_h"]])
+    wg[control] = 1.0 / sig[control] ** 2
+    e_deg, n_deg = metres_per_degree(lat)
+    lg[control, 0] = (points["lon"][control] - lon[control]) * e_deg[control]
+    lg[control, 1] = (points["lat"][control] - lat[control]) * n_deg[control]
+    lg[control, 2] = points["h"][control] - h[control]
+    return wg, lg
+
+
+def initial_points(models, obs, height):
+    """Starting lon, lat, h: control points their observed coordinates; the others the ray of
+    their first measurement at `height` (a mean terrain height)."""
+    p = obs.points
+    lon, lat, h = p["lon"].copy(), p["lat"].copy(), p["h"].copy()
+    todo = ~(np.isfinite(lon) & np.isfinite(lat) & np.isfinite(h))
+    m = obs.measurements
+    first = np.full(len(p), -1)
+    first[m["point"][::-1]] = np.arange(len(m))[::-1]
+    todo = np.flatnonzero(todo & (first >= 0))
+    image = m["image_id"][first[todo]]
+    for i in np.unique(image):
+        sel = todo[image == i]
+        j = first[sel]
+        lon[sel], lat[sel] = models[i].image_to_ground(m["col"][j], m["row"][j], np.full(sel.size, float(height)))
+        h[sel] = height
+    return lon, lat, h
+
+
+def find_defects(normal, labels):
+    """Message naming the unknowns the reduced normal matrix cannot determine ("" if regular):
+    those no measurement depends on, and the groups spanning the eigenvectors of the
+    correlation-scaled matrix with eigenvalues below DEFECT_EIGENVALUE."""
+    diag = np.diag(normal).copy()
+    parts = [f"{labels[q]} (no measurement depends on it)" for q in np.flatnonzero(diag <= 0)]
+    good = np.flatnonzero(diag > 0)
+    if good.size:
+        d = 1.0 / np.sqrt(diag[good])
+        vals, vecs = np.linalg.eigh(normal[np.ix_(good, good)] * d[:, None] * d[None, :])
+        for v, vec in zip(vals, vecs.T):
+            if v > DEFECT_EIGENVALUE * max(vals[-1], 1.0):
+                break
+            names = [labels[good[q]] for q in np.argsort(-np.abs(vec)) if abs(vec[q]) > 0.25][:4]
+            parts.append(" with ".join(names) if len(names) > 1 else names[0])
+    if not parts:
+        return ""
+    return ("these orientation parameters cannot be determined from these points: " + "; ".join(parts)
+            + ". Add control points (or spread them wider), or fix these parameters")
+
+
+def adjust(models, observations, free, names=None, height=0.0, max_iterations=15, tolerance=1e-4,
+           remove_blunders=False, critical=CRITICAL_W, max_removals=50, feedback=None, parameters=None):
+    """Bundle adjustment (module docstring). models {image_id: model} (edited in place: they carry
+    the solution); observations: Observations (check points are ignored here); free: bool mask or
+    a list of names/patterns for parameters.OrientationParameters.select; height: mean terrain
+    height for the tie points' starting values. Returns an Adjustment; raises InputError on too
+    few observations or undeterminable parameters (named), CancelledError when cancelled."""
+    from .parameters import OrientationParameters
+    obs = observations.check()
+    params = parameters or OrientationParameters(models, names)
+    mask = np.asarray(free, bool) if np.asarray(free).dtype == bool else params.select(free)
+    if mask.shape != (len(params),):
+        raise InputError(f"the free-parameter mask has {mask.size} entries for {len(params)} parameters")
+    params.free = mask
+    unknown = set(np.unique(obs.measurements["image_id"])) - set(models)
+    if unknown:
+        raise InputError(f"measurements in image id(s) {sorted(unknown)} that the block has no model for")
+    used = obs.subset(obs.points["role"] != "check")
+    removed = []
+    while True:
+        result = _solve(params, used, height, max_iterations, tolerance, feedback, len(removed))
+        result.removed = removed
+        bad = result.flagged(critical)
+        if not remove_blunders or not bad.size or len(removed) >= max_removals:
+            return result
+        worst = bad[np.argmax(np.nanmax(np.abs(result.normalised[bad]), axis=1))]
+        mw = result.observations.measurements[worst]
+        name = result.observations.points["name"][mw["point"]]
+        wmax = float(np.nanmax(np.abs(result.normalised[worst])))
+        removed.append((str(name), int(mw["image_id"]), wmax))
+        progress.ensure(feedback).pushInfo(f"data snooping: removed the measurement of {name} in "
+                                           f"{params.names[int(mw['image_id'])]} (|w| = {wmax:.1f}); re-adjusting")
+        keep = np.ones(len(used.measurements), bool)
+        keep[_measurement_index(used, result.observations, worst)] = False
+        used = Observations(used.points, used.measurements[keep])
+        params.apply(np.zeros(len(params)))
+
+
+def _measurement_index(used, adjusted, k):
+    """Index in `used` of measurement k of `adjusted` (same point name and image)."""
+    mk = adjusted.measurements[k]
+    name = adjusted.points["name"][mk["point"]]
+    point = np.flatnonzero(used.points["name"] == name)[0]
+    return np.flatnonzero((used.measurements["point"] == point) & (used.measurements["image_id"] == mk["image_id"]))
+
+
+def _solve(params, obs, height, max_iterations, tolerance, feedback, round_):
+    log = []
+    fb = progress.ensure(feedback)
+    pts = obs.points
+    # points need two rays, or ground coordinates and one ray
+    rays = np.bincount(obs.measurements["point"], minlength=len(pts))
+    weak = (rays < 2) & ~((pts["role"] == "control") & (rays >= 1))
+    if weak.any():
+        log.append(f"{weak.sum()} point(s) with fewer than two rays left out, e.g. {pts['name'][weak][0]}")
+        obs = obs.subset(~weak)
+        pts = obs.points
+    if not len(pts):
+        raise InputError("no point has two or more image measurements: nothing to adjust")
+    order = np.argsort(obs.measurements["point"], kind="stable")
+    geo = _Geometry(params, obs, order)
+    geo.point_of = geo.meas["point"]
+    start = np.searchsorted(geo.meas["point"], np.arange(len(pts) + 1))
+    free_index = np.full(len(params), -1, np.int64)
+    free_index[params.free] = np.arange(params.free.sum())
+    nfree = int(params.free.sum())
+    col, maps = geo.columns(free_index)
+    labels = [params.label(q) for q in np.flatnonzero(params.free)]
+    x = np.zeros(len(params))
+    lon, lat, h = initial_points(params.models, obs, height)
+    n_pts = len(pts)
+    ninv, bp, ok = np.zeros((n_pts, 3, 3)), np.zeros((n_pts, 3)), np.zeros(n_pts, bool)
+    dx = np.zeros((n_pts, 3))
+    params.apply(x)
+    # the points alone first (orientation fixed): good starting values for the tie points
+    for it in range(3):
+        a, b, l = geo.linearise(lon, lat, h, maps)
+        wg, lg = _ground_weights(pts, lon, lat, h)
+        normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
+        normals.reduce_normals(start, a, b, l, geo.w, geo.img, np.full_like(col, -1), wg, lg, nfree, normal, rhs,
+                               ninv, bp, ok)
+        normals.back_substitute(start, a, b, geo.w, geo.img, np.full_like(col, -1), ninv, bp, ok, np.zeros(nfree), dx)
+        lon, lat, h = _move(lon, lat, h, dx)
+    iteration = 0
+    for iteration in range(1, max_iterations + 1):
+        if fb.isCanceled():
+            raise CancelledError("bundle adjustment cancelled")
+        a, b, l = geo.linearise(lon, lat, h, maps)
+        wg, lg = _ground_weights(pts, lon, lat, h)
+        normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
+        cost = normals.reduce_normals(start, a, b, l, geo.w, geo.img, col, wg, lg, nfree, normal, rhs,
+                                      ninv, bp, ok)
+        if iteration == 1:
+            defects = find_defects(normal, labels)
+            if defects:
+                raise InputError(defects)
+        do = _solve_scaled(normal, rhs)
+        normals.back_substitute(start, a, b, geo.w, geo.img, col, ninv, bp, ok, do, dx)
+        x[params.free] += do
+        params.apply(x)
+        lon, lat, h = _move(lon, lat, h, dx)
+        step = float(np.nanmax(np.abs(dx))) if n_pts else 0.0
+        log.append(f"iteration {iteration}: weighted misclosure {cost:.6g}, largest point update {step:.3g} m")
+        fb.setProgress(min(99.0, 100.0 * iteration / max_iterations))
+        if step < tolerance:
+            break
+    else:
+        log.append(f"not converged in {max_iterations} iterations: the last point update was {step:.3g} m")
+    # statistics at the solution
+    a, b, l = geo.linearise(lon, lat, h, maps)
+    wg, lg = _ground_weights(pts, lon, lat, h)
+    normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
+    normals.reduce_normals(start, a, b, l, geo.w, geo.img, col, wg, lg, nfree, normal, rhs, ninv, bp, ok)
+    qoo = _inverse_scaled(normal)
+    qpp = np.zeros((n_pts, 3, 3))
+    red = np.zeros((len(geo.meas), 2))
+    normals.point_statistics(start, a, b, geo.w, geo.img, col, ninv, ok, qoo, qpp, red)
+    v = -l
+    vg = -lg
+    control = pts["role"] == "control"
+    n_obs = 2 * len(geo.meas) + 3 * int(control.sum())
+    redundancy = n_obs - 3 * int(ok.sum()) - nfree
+    vpv = float(np.sum(v * v * geo.w) + np.sum(vg * vg * wg))
+    sigma0 = float(np.sqrt(vpv / redundancy)) if redundancy > 0 else float("nan")
+    s0 = sigma0 if np.isfinite(sigma0) else 1.0
+    sigmas = np.full(len(params), np.nan)
+    sigmas[params.free] = s0 * np.sqrt(np.diag(qoo))
+    sig_l = 1.0 / np.sqrt(geo.w)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normalised = v / (sig_l * np.sqrt(np.clip(red, 1e-12, None)))
+    ground_res = np.full((n_pts, 3), np.nan)
+    ground_res[control] = vg[control]
+    back = np.empty_like(order)
+    back[order] = np.arange(len(order))
+    log.append(f"sigma_0 {sigma0:.4f} (a priori 1), redundancy {redundancy}, {nfree} orientation unknowns, "
+               f"{n_pts} points, {len(geo.meas)} image measurements")
+    for line in log:
+        fb.pushInfo(line)
+    return Adjustment(parameters=params, values=x.copy(), sigmas=sigmas, covariance=s0 ** 2 * qoo, sigma0=sigma0,
+                      redundancy=redundancy, observations=obs, lon=lon, lat=lat, h=h,
+                      point_sigmas=s0 * np.sqrt(np.abs(np.diagonal(qpp, axis1=1, axis2=2))),
+                      residuals=v[back], redundancy_numbers=red[back], normalised=normalised[back],
+                      ground_residuals=ground_res, iterations=iteration, log=log)
+
+
+def _move(lon, lat, h, dx):
+    """Points moved by dx (P, 3: metres east, north, up); NaN rows stay."""
+    e_deg, n_deg = metres_per_degree(lat)
+    step = np.nan_to_num(dx)
+    return lon + step[:, 0] / e_deg, lat + step[:, 1] / n_deg, h + step[:, 2]
+
+
+def _scaled(normal):
+    d = np.sqrt(np.diag(normal))
+    d[d == 0] = 1.0
+    return 1.0 / d
+
+
+def _solve_scaled(normal, rhs):
+    """Solve N x = b with Jacobi scaling (unknowns of m and rad mixed)."""
+    if not normal.size:
+        return np.zeros(0)
+    s = _scaled(normal)
+    return s * np.linalg.solve(normal * s[:, None] * s[None, :], rhs * s)
+
+
+def _inverse_scaled(normal):
+    if not normal.size:
+        return np.zeros((0, 0))
+    s = _scaled(normal)
+    return np.linalg.inv(normal * s[:, None] * s[None, :]) * s[:, None] * s[None, :]
+
+
+def check_points(adjustment, observations, height=0.0):
+    """Intersect the check points of `observations` with the adjusted models and compare with
+    their ground coordinates. Returns a dict: names, dE, dN, dH (m, computed - reference) and
+    the theoretical sigma E/N/H of each: the intersection's own (image sigmas scaled by sigma_0)
+    plus the orientation covariance propagated, C = Ni + G C_oo G' (G = -Ni sum C_j, normals.py),
+    plus the check point's own ground sigma."""
+    params = adjustment.parameters
+    chk = observations.subset(observations.points["role"] == "check")
+    rays = np.bincount(chk.measurements["point"], minlength=len(chk.points))
+    chk = chk.subset(rays >= 2)
+    pts = chk.points
+    out = {"names": pts["name"], "dE": np.zeros(0), "dN": np.zeros(0), "dH": np.zeros(0),
+           "sigma": np.zeros((0, 3))}
+    if not len(pts):
+        return out
+    order = np.argsort(chk.measurements["point"], kind="stable")
+    geo = _Geometry(params, chk, order)
+    geo.point_of = geo.meas["point"]
+    start = np.searchsorted(geo.meas["point"], np.arange(len(pts) + 1))
+    free_index = np.full(len(params), -1, np.int64)
+    free_index[params.free] = np.arange(params.free.sum())
+    nfree = int(params.free.sum())
+    col, maps = geo.columns(free_index)
+    none = np.full_like(col, -1)
+    tie = pts.copy()
+    tie["role"] = "tie"
+    lon, lat, h = initial_points(params.models, Observations(tie, chk.measurements), height)
+    n = len(pts)
+    ninv, bp, ok, dx = np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros(n, bool), np.zeros((n, 3))
+    zeros = np.zeros((n, 3))
+    for _ in range(10):
+        a, b, l = geo.linearise(lon, lat, h, maps)
+        normals.reduce_normals(start, a, b, l, geo.w, geo.img, none, zeros, zeros, 0, np.zeros((0, 0)),
+                               np.zeros(0), ninv, bp, ok)
+        normals.back_substitute(start, a, b, geo.w, geo.img, none, ninv, bp, ok, np.zeros(0), dx)
+        lon, lat, h = _move(lon, lat, h, dx)
+        if np.nanmax(np.abs(dx)) < 1e-5:
+            break
+    a, b, l = geo.linearise(lon, lat, h, maps)
+    s0 = adjustment.sigma0 if np.isfinite(adjustment.sigma0) else 1.0
+    cov = np.zeros((n, 3, 3))
+    for p in range(n):
+        js = range(start[p], start[p + 1])
+        c = np.zeros((3, nfree))
+        for j in js:
+            bj = np.zeros((2, nfree))
+            cj = col[geo.img[j]]
+            for k in np.flatnonzero(cj >= 0):
+                bj[:, cj[k]] += b[j, :, k]
+            c += a[j].T @ (geo.w[j][:, None] * bj)
+        g = -ninv[p] @ c
+        cov[p] = s0 ** 2 * ninv[p] + g @ adjustment.covariance @ g.T
+    e_deg, n_deg = metres_per_degree(pts["lat"])
+    ground = np.column_stack([pts["sigma_e"], pts["sigma_n"], pts["sigma_h"]])
+    out.update(dE=(lon - pts["lon"]) * e_deg, dN=(lat - pts["lat"]) * n_deg, dH=h - pts["h"],
+               sigma=np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + np.nan_to_num(ground) ** 2))
+    return out
+
+
+def statistics_table(values):
+    """{name: (n, min, mean, max, RMS, sigma)} of each array in `values` (K Table 3's columns)."""
+    table = {}
+    for key, v in values.items():
+        v = np.asarray(v, float)
+        v = v[np.isfinite(v)]
+        table[key] = (v.size, *(
+            (float(v.min()), float(v.mean()), float(v.max()), float(np.sqrt(np.mean(v * v))),
+             float(v.std(ddof=1)) if v.size > 1 else float("nan")) if v.size else (float("nan"),) * 5))
+    return table

@@ -1,0 +1,471 @@
+"""Control and check points of a block: CSV import/export and storage in the block GeoPackage.
+
+CSV format: one header row, then one row per point; column names are matched case-insensitively,
+the delimiter is a comma, semicolon or tab, the encoding UTF-8 (a BOM is allowed).
+
+- `id` (or `name`): the point name, unique, at most 32 characters;
+- `role`: control or check (optional column; an empty cell or no column: the default role;
+  ids named in `check_ids` are check points whatever the column says);
+- `lon`, `lat`: WGS 84 longitude/latitude in degrees, or `x`, `y`: easting/northing (or
+  longitude/latitude) in the CRS given (EPSG code or WKT; x is always the easting or longitude),
+  converted to WGS 84 through PROJ;
+- `h` (or `height`, `z`): height in metres, ellipsoidal (WGS 84), or orthometric (EGM96) with
+  heights="orthometric": h = H + N, the geoid undulation N from PROJ's EGM96 grid
+  (us_nga_egm96_15.tif or egm96_15.gtx) through the transformation EPSG:4326+5773 -> EPSG:4979;
+- `sigma_e`, `sigma_n`, `sigma_h`: a priori standard deviations (m; optional, empty: defaults,
+  methods.md 4: 2.5, 2.5, 2.2 m);
+- `<image>_col<suffix>`, `<image>_row<suffix>` and optionally `<image>_sigma<suffix>` (px) per
+  block image: the measurement in that image (GDAL pixel convention, centre of the first pixel
+  (0.5, 0.5)); empty cells: not measured there. `suffix` is "" by default; the simulator's
+  points.csv has its measurements in `<image>_col_meas`, `<image>_row_meas` (suffix "_meas").
+
+Other columns are ignored with a warning. Errors name the line and column.
+
+Storage in the block: the point layer `control_points` (EPSG:4326 point Z: lon, lat, ellipsoidal
+h; fields name, role, lon, lat, h, sigma_e, sigma_n, sigma_h) and the table `image_measurements`
+(point_name, image_id, col, row, sigma), both replaced in one SQLite transaction, so an import
+either lands whole or leaves the block as it was."""
+import csv
+import io
+import math
+import os
+
+import numpy as np
+from osgeo import ogr, osr
+
+from .. import block, progress
+from ..atomic import write_text
+from ..errors import InputError
+from .observations import MEAS_DTYPE, POINT_DTYPE, Observations
+
+DEFAULT_SIGMAS = (2.5, 2.5, 2.2)    # ground east, north, height (m), methods.md section 4 (K)
+DEFAULT_IMAGE_SIGMA = 0.5           # px, methods.md section 4
+HEIGHT_TYPES = ("ellipsoidal", "orthometric")
+GEOID_CRS = "EPSG:4326+5773"        # WGS 84 + EGM96 height
+ROLES = ("control", "check")
+MODES = ("replace", "merge")
+LAYER, TABLE = "control_points", "image_measurements"
+POINT_FIELDS = [("name", ogr.OFTString), ("role", ogr.OFTString)] + [
+    (key, ogr.OFTReal) for key in ("lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h")]
+MEAS_FIELDS = [("point_name", ogr.OFTString), ("image_id", ogr.OFTInteger), ("col", ogr.OFTReal),
+               ("row", ogr.OFTReal), ("sigma", ogr.OFTReal)]
+ALIASES = {"name": "id", "height": "h", "z": "h"}
+BASE_COLUMNS = ("id", "role", "lon", "lat", "x", "y", "h", "sigma_e", "sigma_n", "sigma_h")
+NAME_LENGTH = int(POINT_DTYPE["name"].itemsize // 4)
+
+
+def _srs(definition):
+    """An osr.SpatialReference (GIS axis order) from an EPSG code, 'EPSG:n', WKT or PROJ string."""
+    srs = osr.SpatialReference()
+    try:
+        err = srs.ImportFromEPSG(definition) if isinstance(definition, int) else srs.SetFromUserInput(str(definition))
+    except RuntimeError as exc:
+        err = str(exc)
+    if err:
+        raise InputError(f"cannot read the CRS {str(definition)[:200]!r} ({err}): give an EPSG code or WKT")
+    srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    return srs
+
+
+def _transform(source, target, xyz, what):
+    """Points (n, 2 or 3) from `source` to `target` through PROJ, no ballpark operations (a
+    missing grid is an error, not a silent metre-level shift)."""
+    options = osr.CoordinateTransformationOptions()
+    options.SetBallparkAllowed(False)
+    try:
+        ct = osr.CreateCoordinateTransformation(source, target, options)
+    except RuntimeError:
+        ct = None
+    if ct is None:
+        raise InputError(f"PROJ has no transformation for {what}: {source.GetName()} -> {target.GetName()}")
+    return np.array(ct.TransformPoints(np.asarray(xyz, float).tolist()), float).reshape(len(xyz), -1)
+
+
+def orthometric_to_ellipsoidal(lon, lat, height):
+    """Ellipsoidal heights h = H + N of EGM96 orthometric heights H at WGS 84 lon/lat (degrees):
+    PROJ's transformation EPSG:4326+5773 -> EPSG:4979 with its EGM96 grid."""
+    lon, lat, height = (np.atleast_1d(np.asarray(v, float)) for v in (lon, lat, height))
+    try:
+        out = _transform(_srs(GEOID_CRS), _srs(4979), np.column_stack([lon, lat, height]), "EGM96 heights")
+    except InputError as exc:
+        raise InputError(f"orthometric (EGM96) heights need PROJ's EGM96 geoid grid (us_nga_egm96_15.tif or "
+                         f"egm96_15.gtx), which is not available ({exc}): install it in a PROJ data folder "
+                         f"({', '.join(osr.GetPROJSearchPaths() or [])}) or give ellipsoidal heights") from exc
+    if not np.isfinite(out[:, 2]).all():
+        raise InputError("the EGM96 geoid undulation could not be computed for every point: check the "
+                         "coordinates and that PROJ's EGM96 grid (us_nga_egm96_15.tif) is installed")
+    return out[:, 2]
+
+
+def to_wgs84(x, y, crs):
+    """WGS 84 lon, lat (degrees) of x, y (easting/longitude first) in `crs` (EPSG code or WKT)."""
+    source = _srs(crs)
+    if source.IsCompound() or source.IsVertical():
+        raise InputError("give the horizontal CRS of x/y only and choose the height type with the heights option")
+    wgs84 = _srs(4326)
+    if source.IsSame(wgs84):
+        return np.asarray(x, float), np.asarray(y, float)
+    out = _transform(source, wgs84, np.column_stack([x, y]), "the x/y coordinates")
+    return out[:, 0], out[:, 1]
+
+
+class _Table:
+    """The cells of a CSV file with its line numbers and the column roles of its header."""
+
+    def __init__(self, path, image_names, suffix):
+        self.path = os.fspath(path)
+        try:
+            with open(self.path, newline="", encoding="utf-8-sig") as f:
+                text = f.read()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"cannot read the point file {self.path}: {exc}") from exc
+        first = text.splitlines()[0] if text.strip() else ""
+        delimiter = max(",;\t", key=first.count)
+        reader = csv.reader(io.StringIO(text), delimiter=delimiter)
+        header = next(reader, None)
+        if not header or not any(h.strip() for h in header):
+            raise InputError(f"{self.path} is empty: the first line must name the columns")
+        self.header = [h.strip() for h in header]
+        self.rows = []
+        for cells in reader:
+            if any(c.strip() for c in cells):
+                if len(cells) > len(self.header):
+                    raise InputError(f"{self.path} line {reader.line_num}: {len(cells)} fields, the header has "
+                                     f"{len(self.header)}")
+                self.rows.append((reader.line_num, [c.strip() for c in cells] + [""] * (len(self.header) - len(cells))))
+        self._columns(image_names, suffix)
+
+    def _columns(self, image_names, suffix):
+        """self.base {key: index}, self.images {name: {col, row[, sigma]: index}}, self.ignored."""
+        self.base, self.images, self.ignored, unknown = {}, {}, [], []
+        by_lower = {}
+        for name in image_names:
+            by_lower.setdefault(name.lower(), []).append(name)
+        for index, title in enumerate(self.header):
+            low = title.lower()
+            key = ALIASES.get(low, low)
+            if key in BASE_COLUMNS:
+                if key in self.base:
+                    raise InputError(f"{self.path}: columns {self.header[self.base[key]]!r} and {title!r} both "
+                                     f"give {key}")
+                self.base[key] = index
+                continue
+            ending = next((k for k in ("col", "row", "sigma") if low.endswith(f"_{k}{suffix}".lower())
+                           and len(low) > len(f"_{k}{suffix}")), None)
+            if ending is None:
+                self.ignored.append(title)
+                continue
+            prefix = title[:len(title) - len(f"_{ending}{suffix}")]
+            matches = [prefix] if prefix in image_names else by_lower.get(prefix.lower(), [])
+            image = matches[0] if len(matches) == 1 else None
+            if image is None:
+                unknown.append(title)
+                continue
+            columns = self.images.setdefault(image, {})
+            if ending in columns:
+                raise InputError(f"{self.path}: two {ending} columns for image {image}")
+            columns[ending] = index
+        if unknown:
+            raise InputError(f"{self.path}: column(s) {', '.join(unknown)} name images that are not in the block; "
+                             f"the block's images are {', '.join(image_names)}")
+        for image, columns in self.images.items():
+            for need in ("col", "row"):
+                if need not in columns:
+                    raise InputError(f"{self.path}: image {image} has no column {image}_{need}{suffix}")
+        if "id" not in self.base:
+            raise InputError(f"{self.path}: no column 'id' (the point names)")
+        has_geo, has_xy = {"lon", "lat"} & set(self.base), {"x", "y"} & set(self.base)
+        if has_geo and has_xy:
+            raise InputError(f"{self.path}: give either lon/lat or x/y columns, not both")
+        pair = ("lon", "lat") if has_geo or not has_xy else ("x", "y")
+        for need in pair + ("h",):
+            if need not in self.base:
+                raise InputError(f"{self.path}: no column '{need}'"
+                                 + (" (or x/y with a CRS)" if need in ("lon", "lat") else ""))
+        self.horizontal = pair
+
+    def cell(self, cells, key):
+        """The text of column `key` of a row ('' without the column)."""
+        return cells[self.base[key]] if key in self.base else ""
+
+    def number(self, line, cells, index, positive=False):
+        text = cells[index]
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value) or (positive and value <= 0):
+            raise InputError(f"{self.path} line {line}, column {self.header[index]}: {text!r} is not a "
+                             f"{'positive' if positive else 'finite'} number")
+        return value
+
+
+def read_csv(path, image_names, crs=None, heights="ellipsoidal", default_role="control", check_ids=(),
+             sigmas=DEFAULT_SIGMAS, image_sigma=DEFAULT_IMAGE_SIGMA, suffix="", feedback=None):
+    """Observations (control/check points and their image measurements) from the CSV `path`
+    (format in the module docstring). `image_names` maps the block's image names to their ids
+    ({name: id}); `crs` is the CRS of x/y columns (default WGS 84); `check_ids` names points that
+    are check points whatever their role column says. Measurements are ordered by point, then
+    image id."""
+    if heights not in HEIGHT_TYPES:
+        raise InputError(f"heights must be one of {', '.join(HEIGHT_TYPES)}, not {heights!r}")
+    if default_role not in ROLES:
+        raise InputError(f"the default role must be one of {', '.join(ROLES)}, not {default_role!r}")
+    if not all(s > 0 for s in list(sigmas) + [image_sigma]):
+        raise InputError(f"default sigmas must be positive, got {list(sigmas)} m and {image_sigma} px")
+    feedback = progress.ensure(feedback)
+    table = _Table(path, image_names, suffix)
+    if table.ignored:
+        feedback.pushInfo(f"warning: ignored column(s) of {table.path}: {', '.join(table.ignored)}")
+    if table.horizontal == ("lon", "lat") and crs is not None and not _srs(crs).IsSame(_srs(4326)):
+        feedback.pushInfo("warning: lon/lat columns are WGS 84 degrees; the CRS applies to x/y columns only")
+    points = np.zeros(len(table.rows), POINT_DTYPE)
+    meas, seen = [], {}
+    image_ids = [(image_names[name], table.images[name]) for name in image_names if name in table.images]
+    for k, (line, cells) in enumerate(table.rows):
+        name = table.cell(cells, "id")
+        if not name or len(name) > NAME_LENGTH:
+            raise InputError(f"{table.path} line {line}: the point id must have 1 to {NAME_LENGTH} characters, "
+                             f"got {name!r}")
+        if name in seen:
+            raise InputError(f"{table.path} line {line}: point id {name!r} is used again (first on line {seen[name]})")
+        seen[name] = line
+        role = table.cell(cells, "role").lower() or default_role
+        if role not in ROLES:
+            raise InputError(f"{table.path} line {line}, column {table.header[table.base['role']]}: role "
+                             f"{role!r} is not one of {', '.join(ROLES)}")
+        points[k]["name"], points[k]["role"] = name, role
+        horizontal = [table.number(line, cells, table.base[key]) for key in table.horizontal]
+        points[k]["lon"], points[k]["lat"] = horizontal
+        points[k]["h"] = table.number(line, cells, table.base["h"])
+        for key, default in zip(("sigma_e", "sigma_n", "sigma_h"), sigmas):
+            points[k][key] = (table.number(line, cells, table.base[key], positive=True)
+                              if table.cell(cells, key) else default)
+        for image_id, columns in image_ids:
+            given = [bool(cells[columns[key]]) for key in ("col", "row")]
+            if not any(given):
+                continue
+            if not all(given):
+                missing = columns["row" if given[0] else "col"]
+                raise InputError(f"{table.path} line {line}, column {table.header[missing]}: empty, but the "
+                                 "other image coordinate is given (give both or neither)")
+            sigma = (table.number(line, cells, columns["sigma"], positive=True)
+                     if "sigma" in columns and cells[columns["sigma"]] else image_sigma)
+            meas.append((k, image_id, table.number(line, cells, columns["col"]),
+                         table.number(line, cells, columns["row"]), sigma))
+    if not len(points):
+        raise InputError(f"{table.path} has no points (only a header)")
+    check_ids = [c for c in (check_ids or []) if c]
+    unknown = sorted(set(check_ids) - set(seen))
+    if unknown:
+        raise InputError(f"check point id(s) {', '.join(unknown)} are not in {table.path}")
+    points["role"][np.isin(points["name"], check_ids)] = "check"
+    _ground_to_wgs84(points, table, crs, heights, seen)
+    meas = np.array(meas, MEAS_DTYPE)
+    meas = meas[np.lexsort((meas["image_id"], meas["point"]))]
+    return Observations(points, meas).check()
+
+
+def _ground_to_wgs84(points, table, crs, heights, lines):
+    """Convert the points' x/y (table.horizontal) and heights in place to WGS 84 lon/lat and
+    ellipsoidal h; coordinates out of range name their line."""
+    if table.horizontal == ("x", "y"):
+        points["lon"], points["lat"] = to_wgs84(points["lon"], points["lat"], 4326 if crs is None else crs)
+    bad = ~(np.isfinite(points["lon"]) & np.isfinite(points["lat"]) & (np.abs(points["lat"]) <= 90.0)
+            & (np.abs(points["lon"]) <= 360.0))
+    if bad.any():
+        p = points[bad][0]
+        raise InputError(f"{table.path} line {lines[p['name']]}: point {p['name']} gives lon {p['lon']}, lat "
+                         f"{p['lat']}, not WGS 84 degrees: are lon/lat swapped, or are these projected "
+                         "coordinates (name the columns x, y and give their CRS)?")
+    if heights == "orthometric":
+        points["h"] = orthometric_to_ellipsoidal(points["lon"], points["lat"], points["h"])
+
+
+def write_csv(path, observations, image_names):
+    """Write `observations` as a CSV that `read_csv` reads back exactly (numbers as Python's
+    shortest round-trip repr; columns id, role, lon, lat, h, sigma_e, sigma_n, sigma_h, then
+    <image>_col, <image>_row, <image>_sigma per image of `image_names` ({name: id}))."""
+    points, meas = observations.points, observations.measurements
+    names_of = {image_id: name for name, image_id in image_names.items()}
+    unknown = sorted(set(meas["image_id"].tolist()) - set(names_of))
+    if unknown:
+        raise InputError(f"measurements in image id(s) {unknown}, which are not among {sorted(names_of)}")
+    columns = {image_id: k for k, image_id in enumerate(image_names.values())}
+    cells = np.full((len(points), 3 * len(columns)), "", dtype=object)
+    for m in meas:
+        c = 3 * columns[int(m["image_id"])]
+        cells[m["point"], c:c + 3] = [repr(float(m[key])) for key in ("col", "row", "sigma")]
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(["id", "role", "lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h"]
+                    + [f"{name}_{key}" for name in image_names for key in ("col", "row", "sigma")])
+    for p, extra in zip(points, cells):
+        writer.writerow([p["name"], p["role"]] + ["" if math.isnan(p[key]) else repr(float(p[key]))
+                                                  for key in ("lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h")]
+                        + list(extra))
+    write_text(path, text.getvalue())
+    return path
+
+
+def merge(old, new):
+    """`old` updated by `new`: a point of `new` replaces the point of the same name (role,
+    coordinates, sigmas; in old's order) or is appended; its measurements replace old's in the
+    same images, old's measurements in other images are kept."""
+    names = list(old.points["name"]) + [n for n in new.points["name"] if n not in set(old.points["name"])]
+    index = {n: i for i, n in enumerate(names)}
+    points = np.zeros(len(names), POINT_DTYPE)
+    points[:len(old.points)] = old.points
+    points[[index[n] for n in new.points["name"]]] = new.points
+    by_key = {}
+    for obs in (old, new):
+        for m in obs.measurements:
+            key = (index[obs.points["name"][m["point"]]], int(m["image_id"]))
+            by_key[key] = (key[0], key[1], m["col"], m["row"], m["sigma"])
+    meas = np.array([by_key[k] for k in sorted(by_key)], MEAS_DTYPE)
+    return Observations(points, meas).check()
+
+
+def image_ids(block_path):
+    """{image name: image id} of the block's images, in block order."""
+    return {r["name"]: r["id"] for r in block.read_images(block_path)}
+
+
+def _layers(ds):
+    """The control_points layer and image_measurements table of an open block (created if missing)."""
+    points = ds.GetLayerByName(LAYER)
+    if points is None:
+        wgs84 = _srs(4326)
+        points = ds.CreateLayer(LAYER, wgs84, ogr.wkbPoint25D, options=["FID=fid", "GEOMETRY_NAME=geom"])
+        for name, kind in POINT_FIELDS:
+            points.CreateField(ogr.FieldDefn(name, kind))
+    table = ds.GetLayerByName(TABLE)
+    if table is None:
+        table = ds.CreateLayer(TABLE, None, ogr.wkbNone, options=["FID=fid"])
+        for name, kind in MEAS_FIELDS:
+            table.CreateField(ogr.FieldDefn(name, kind))
+    return points, table
+
+
+def _read(ds, block_path):
+    points_layer, table = ds.GetLayerByName(LAYER), ds.GetLayerByName(TABLE)
+    if points_layer is None:
+        return Observations()
+    rows = [tuple(feat[name] for name, _ in POINT_FIELDS) for feat in points_layer]
+    points = np.array(rows, POINT_DTYPE) if rows else np.zeros(0, POINT_DTYPE)
+    index = {n: i for i, n in enumerate(points["name"])}
+    meas = []
+    for feat in table if table is not None else []:
+        if feat["point_name"] not in index:
+            raise InputError(f"block {block_path}: image measurement of unknown point {feat['point_name']!r}; "
+                             "import the points again")
+        meas.append((index[feat["point_name"]], feat["image_id"], feat["col"], feat["row"], feat["sigma"]))
+    meas = np.array(meas, MEAS_DTYPE)
+    return Observations(points, meas[np.lexsort((meas["image_id"], meas["point"]))])
+
+
+def load_control_points(block_path):
+    """The control/check points stored in the block and their measurements (image ids = block
+    image ids); empty Observations when none were imported."""
+    ds = block.open_block(block_path)
+    return _read(ds, block_path)
+
+
+def save_control_points(block_path, observations, mode="replace", feedback=None):
+    """Store `observations` (control/check points only) in the block, replacing its points
+    (mode "replace") or updating them (mode "merge", see `merge`), in one SQLite transaction:
+    on any error or a cancel the block keeps its earlier points. Returns what is stored."""
+    if mode not in MODES:
+        raise InputError(f"the import mode must be one of {', '.join(MODES)}, not {mode!r}")
+    observations = Observations(observations.points, observations.measurements).check()
+    roles = set(observations.points["role"].tolist()) - set(ROLES)
+    if roles:
+        raise InputError(f"only control and check points are stored with the block, not {', '.join(roles)} points")
+    known = set(image_ids(block_path).values())
+    unknown = sorted(set(observations.measurements["image_id"].tolist()) - known)
+    if unknown:
+        raise InputError(f"measurements in image id(s) {unknown}, which the block {block_path} does not have")
+    ds = block.open_block(block_path, update=True)
+    ds.StartTransaction()
+    try:
+        if mode == "merge":
+            observations = merge(_read(ds, block_path), observations)
+        points_layer, table = _layers(ds)
+        ds.ExecuteSQL(f"DELETE FROM {TABLE}")
+        ds.ExecuteSQL(f"DELETE FROM {LAYER}")
+        for k, p in enumerate(observations.points):
+            progress.step(feedback, 80.0 * k / max(len(observations.points), 1))
+            feat = ogr.Feature(points_layer.GetLayerDefn())
+            for name, _ in POINT_FIELDS:
+                feat[name] = p[name].item()
+            geom = ogr.Geometry(ogr.wkbPoint25D)
+            geom.AddPoint(float(p["lon"]), float(p["lat"]), float(p["h"]))
+            feat.SetGeometry(geom)
+            points_layer.CreateFeature(feat)
+        for m in observations.measurements:
+            feat = ogr.Feature(table.GetLayerDefn())
+            feat["point_name"] = observations.points["name"][m["point"]].item()
+            for name, _ in MEAS_FIELDS[1:]:
+                feat[name] = m[name].item()
+            table.CreateFeature(feat)
+        progress.step(feedback, 90.0)
+        ds.ExecuteSQL(f"RECOMPUTE EXTENT ON {LAYER}")
+    except BaseException:
+        ds.RollbackTransaction()
+        raise
+    ds.CommitTransaction()
+    ds = None
+    roles = observations.points["role"]
+    block.update_info(block_path, {"control_points": int((roles == "control").sum()),
+                                   "check_points": int((roles == "check").sum()),
+                                   "image_measurements": len(observations.measurements)},
+                      step="importpoints", message=f"{mode}: " + summary(observations, image_ids(block_path)))
+    progress.step(feedback, 100.0)
+    return observations
+
+
+def summary(observations, image_names):
+    """Counts per role and per image, one line ("control 5, check 2; HRG: 5 control, 2 check; ...")."""
+    points, meas = observations.points, observations.measurements
+    text = ", ".join(f"{role} {int((points['role'] == role).sum())}" for role in ROLES)
+    roles = points["role"][meas["point"]]
+    for name, image_id in image_names.items():
+        here = meas["image_id"] == image_id
+        text += f"; {name}: " + ", ".join(f"{int((here & (roles == role)).sum())} {role}" for role in ROLES)
+    return text
+
+
+def check_extent(observations, images):
+    """InputError if a measurement lies outside its image (`images`: block.read_images rows)."""
+    sizes = {r["id"]: (r["cols"], r["rows"]) for r in images}
+    names = {r["id"]: r["name"] for r in images}
+    for m in observations.measurements:
+        cols, rows = sizes[int(m["image_id"])]
+        if not (0.0 <= m["col"] <= cols and 0.0 <= m["row"] <= rows):
+            raise InputError(f"point {observations.points['name'][m['point']]}: measurement ({m['col']}, {m['row']}) "
+                             f"lies outside image {names[int(m['image_id'])]} ({cols} x {rows} px): are col and "
+                             "row swapped or the image columns mixed up?")
+
+
+def import_csv(block_path, csv_path, mode="replace", feedback=None, **options):
+    """Read `csv_path` (`read_csv` with `options`) against the block's images, check the
+    measurements lie inside their images and store the points (`save_control_points`).
+    Returns the points now in the block."""
+    images = block.read_images(block_path)
+    observations = read_csv(csv_path, {r["name"]: r["id"] for r in images}, feedback=feedback, **options)
+    check_extent(observations, images)
+    try:
+        return save_control_points(block_path, observations, mode=mode, feedback=feedback)
+    except RuntimeError as exc:   # an OGR/SQLite failure: the transaction was rolled back
+        raise InputError(f"cannot store the points in {block_path}: {exc}") from exc
+
+
+def export_csv(block_path, csv_path):
+    """Write the block's control/check points to `csv_path` (`write_csv`); returns them."""
+    observations = load_control_points(block_path)
+    if not len(observations.points):
+        raise InputError(f"block {block_path} has no control or check points: import some first "
+                         "(pushbroom:importpoints)")
+    write_csv(csv_path, observations, image_ids(block_path))
+    return observations
+

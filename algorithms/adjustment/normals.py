@@ -1,0 +1,186 @@
+"""numba kernels of the bundle adjustment: normal equations with the object points eliminated per
+point (Schur complement), back-substitution and the per-observation statistics.
+
+Per measurement j of point p (2 image equations): v_j = A_j dX_p + B_j do - l_j, weight W_j =
+diag(w_j); A_j (2, 3) px per metre east/north/up, B_j (2, K) px per unit of the K orientation
+unknowns the image depends on, `col[img_j, k]` their index among the free unknowns (-1: fixed).
+Ground observations of control points: v = dX_p - l_g with weights Wg_p (3, diagonal).
+
+    N_pp = sum_j A_j' W A_j + Wg_p,   b_p = sum_j A_j' W l_j + Wg_p l_g,   C_j = A_j' W B_j
+    N    = sum_j B_j' W B_j - sum_p (sum_j C_j)' N_pp^-1 (sum_k C_k)
+    b    = sum_j B_j' W l_j - sum_p (sum_j C_j)' N_pp^-1 b_p
+    dX_p = N_pp^-1 (b_p - sum_j C_j do)
+
+so the cost grows linearly with the number of points."""
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def _inv3(m, out):
+    """out = m^-1 for a symmetric 3 x 3; returns the determinant (0: singular, out untouched)."""
+    c00 = m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1]
+    c01 = m[1, 2] * m[2, 0] - m[1, 0] * m[2, 2]
+    c02 = m[1, 0] * m[2, 1] - m[1, 1] * m[2, 0]
+    det = m[0, 0] * c00 + m[0, 1] * c01 + m[0, 2] * c02
+    scale = abs(m[0, 0] * m[1, 1] * m[2, 2])
+    if scale == 0.0 or abs(det) < 1e-12 * scale:
+        return 0.0
+    out[0, 0] = c00 / det
+    out[0, 1] = (m[0, 2] * m[2, 1] - m[0, 1] * m[2, 2]) / det
+    out[0, 2] = (m[0, 1] * m[1, 2] - m[0, 2] * m[1, 1]) / det
+    out[1, 0] = c01 / det
+    out[1, 1] = (m[0, 0] * m[2, 2] - m[0, 2] * m[2, 0]) / det
+    out[1, 2] = (m[0, 2] * m[1, 0] - m[0, 0] * m[1, 2]) / det
+    out[2, 0] = c02 / det
+    out[2, 1] = (m[0, 1] * m[2, 0] - m[0, 0] * m[2, 1]) / det
+    out[2, 2] = (m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]) / det
+    return det
+
+
+@njit(cache=True, nogil=True)
+def reduce_normals(start, a, b, l, w, img, col, wg, lg, nfree, normal, rhs, ninv, bp, ok):
+    """Accumulate the reduced normal equations (module docstring) into normal (nfree, nfree) and
+    rhs (nfree,); store N_pp^-1 in ninv (P, 3, 3) and b_p in bp (P, 3); ok[p] = False where N_pp
+    is singular (the point is left out). Returns sum of l' W l (the weighted squared misclosures)."""
+    npts = start.size - 1
+    kk = b.shape[2]
+    npp = np.empty((3, 3))
+    c = np.zeros((3, nfree))
+    used = np.zeros(nfree, np.bool_)
+    cost = 0.0
+    for p in range(npts):
+        npp[:, :] = 0.0
+        for r in range(3):
+            npp[r, r] = wg[p, r]
+            bp[p, r] = wg[p, r] * lg[p, r]
+            cost += wg[p, r] * lg[p, r] * lg[p, r]
+        for j in range(start[p], start[p + 1]):
+            for e in range(2):
+                we = w[j, e]
+                cost += we * l[j, e] * l[j, e]
+                for r in range(3):
+                    bp[p, r] += a[j, e, r] * we * l[j, e]
+                    for s in range(3):
+                        npp[r, s] += a[j, e, r] * we * a[j, e, s]
+        ok[p] = _inv3(npp, ninv[p]) != 0.0
+        if not ok[p]:
+            continue
+        # C = sum_j A_j' W B_j scattered to free columns; orientation blocks
+        for j in range(start[p], start[p + 1]):
+            cj = col[img[j]]
+            for k in range(kk):
+                q = cj[k]
+                if q < 0:
+                    continue
+                used[q] = True
+                for e in range(2):
+                    wb = w[j, e] * b[j, e, k]
+                    rhs[q] += wb * l[j, e]
+                    for r in range(3):
+                        c[r, q] += a[j, e, r] * wb
+                    for k2 in range(kk):
+                        q2 = cj[k2]
+                        if q2 >= 0:
+                            normal[q, q2] += wb * b[j, e, k2]
+        # Schur complement over the columns this point touches
+        for q in range(nfree):
+            if not used[q]:
+                continue
+            t0 = ninv[p, 0, 0] * c[0, q] + ninv[p, 0, 1] * c[1, q] + ninv[p, 0, 2] * c[2, q]
+            t1 = ninv[p, 1, 0] * c[0, q] + ninv[p, 1, 1] * c[1, q] + ninv[p, 1, 2] * c[2, q]
+            t2 = ninv[p, 2, 0] * c[0, q] + ninv[p, 2, 1] * c[1, q] + ninv[p, 2, 2] * c[2, q]
+            rhs[q] -= t0 * bp[p, 0] + t1 * bp[p, 1] + t2 * bp[p, 2]
+            for q2 in range(nfree):
+                if used[q2]:
+                    normal[q, q2] -= t0 * c[0, q2] + t1 * c[1, q2] + t2 * c[2, q2]
+        for q in range(nfree):
+            if used[q]:
+                used[q] = False
+                c[0, q] = c[1, q] = c[2, q] = 0.0
+    return cost
+
+
+@njit(cache=True, nogil=True)
+def back_substitute(start, a, b, w, img, col, ninv, bp, ok, do, dx):
+    """dx[p] = N_pp^-1 (b_p - sum_j C_j do) (module docstring); NaN where not ok."""
+    kk = b.shape[2]
+    g = np.empty(3)
+    for p in range(start.size - 1):
+        if not ok[p]:
+            dx[p, :] = np.nan
+            continue
+        g[:] = bp[p]
+        for j in range(start[p], start[p + 1]):
+            cj = col[img[j]]
+            for e in range(2):
+                bd = 0.0
+                for k in range(kk):
+                    if cj[k] >= 0:
+                        bd += b[j, e, k] * do[cj[k]]
+                for r in range(3):
+                    g[r] -= a[j, e, r] * w[j, e] * bd
+        for r in range(3):
+            dx[p, r] = ninv[p, r, 0] * g[0] + ninv[p, r, 1] * g[1] + ninv[p, r, 2] * g[2]
+
+
+@njit(cache=True, nogil=True)
+def point_statistics(start, a, b, w, img, col, ninv, ok, qoo, qpp, redundancy):
+    """Cofactors of the points and redundancy numbers of the image observations.
+
+    G_p = -N_pp^-1 sum_j C_j;  Q_pp = N_pp^-1 + G_p Q_oo G_p';  Q_po = G_p Q_oo;
+    for an observation row (a, b) of point p: q = a Q_pp a' + 2 a Q_po b' + b Q_oo b', and its
+    redundancy number is r = 1 - q w."""
+    kk = b.shape[2]
+    nfree = qoo.shape[0]
+    c = np.zeros((3, nfree))
+    g = np.zeros((3, nfree))
+    qpo = np.zeros((3, nfree))
+    for p in range(start.size - 1):
+        if not ok[p]:
+            qpp[p, :, :] = np.nan
+            for j in range(start[p], start[p + 1]):
+                redundancy[j, 0] = redundancy[j, 1] = np.nan
+            continue
+        c[:, :] = 0.0
+        for j in range(start[p], start[p + 1]):
+            cj = col[img[j]]
+            for k in range(kk):
+                q = cj[k]
+                if q >= 0:
+                    for e in range(2):
+                        for r in range(3):
+                            c[r, q] += a[j, e, r] * w[j, e] * b[j, e, k]
+        for r in range(3):
+            for q in range(nfree):
+                g[r, q] = -(ninv[p, r, 0] * c[0, q] + ninv[p, r, 1] * c[1, q] + ninv[p, r, 2] * c[2, q])
+        for r in range(3):
+            for q in range(nfree):
+                acc = 0.0
+                for q2 in range(nfree):
+                    acc += g[r, q2] * qoo[q2, q]
+                qpo[r, q] = acc
+        for r in range(3):
+            for s in range(3):
+                acc = ninv[p, r, s]
+                for q in range(nfree):
+                    acc += qpo[r, q] * g[s, q]
+                qpp[p, r, s] = acc
+        for j in range(start[p], start[p + 1]):
+            cj = col[img[j]]
+            for e in range(2):
+                qa = 0.0
+                for r in range(3):
+                    for s in range(3):
+                        qa += a[j, e, r] * qpp[p, r, s] * a[j, e, s]
+                for k in range(kk):
+                    q = cj[k]
+                    if q < 0:
+                        continue
+                    for r in range(3):
+                        qa += 2.0 * a[j, e, r] * qpo[r, q] * b[j, e, k]
+                    for k2 in range(kk):
+                        q2 = cj[k2]
+                        if q2 >= 0:
+                            qa += b[j, e, k] * qoo[q, q2] * b[j, e, k2]
+                redundancy[j, e] = 1.0 - qa * w[j, e]

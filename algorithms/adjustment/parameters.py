@@ -1,0 +1,188 @@
+"""Orientation unknowns of the block adjustment (methods.md section 4; paper K 3.4, eq. 2-4).
+
+Rigorous SPOT images: correction polynomials of degree 0-3. The exterior ones (ECEF position
+X, Y, Z in m; yaw, pitch, roll in rad) are common to a trajectory, i.e. to all images taken by one
+satellite within one pass, and run over the normalised time tau = (t - t_ref) / s (t absolute,
+t_ref the trajectory's mean image centre time, s = Corrections.time_scale). Each image holds its
+own corrections over its own tau_i = (t - t_c,i) / s, so a trajectory coefficient vector g maps
+to the image's by re-expanding about t_c,i: with d = (t_c,i - t_ref) / s,
+    sum_j g_j (tau_i + d)^j = sum_k (sum_{j>=k} C(j, k) d^(j-k) g_j) tau_i^k.
+The look-angle corrections (psi_x, psi_y over (p - p_c) / 1000) belong to each image (sensor).
+
+RPC images: an image-space affine bias per image (the RpcModel's `bias`, see sensors/rpc.py):
+col += A0 + A1 u + A2 v, row += B0 + B1 u + B2 v, u, v = image coordinates / 1000 about the centre;
+"shift" frees A0, B0, "drift" also A2, B2 (along-track drift), "affine" all six.
+
+The unknowns are increments to the supplied corrections, so a block adjusted twice continues from
+the first adjustment's result."""
+from dataclasses import dataclass
+from math import comb
+
+import numpy as np
+
+from ..errors import InputError
+from ..sensors.rpc import RpcModel
+from ..sensors.spot import SpotModel
+
+EXTERIOR = ("X", "Y", "Z", "yaw", "pitch", "roll")
+LOOK = ("psi_x", "psi_y")
+BIAS = ("A0", "A1", "A2", "B0", "B1", "B2")
+BIAS_SETS = {"shift": ("A0", "B0"), "drift": ("A0", "A2", "B0", "B2"), "affine": BIAS}
+#: a trajectory: one mission, image centre times within this many seconds
+PASS_SECONDS = 600.0
+#: display units of the parameters (value multiplied by the factor)
+UNITS = {"X": ("m", 1.0), "Y": ("m", 1.0), "Z": ("m", 1.0), "yaw": ("urad", 1e6), "pitch": ("urad", 1e6),
+         "roll": ("urad", 1e6), "psi_x": ("urad", 1e6), "psi_y": ("urad", 1e6)}
+
+
+def shift_matrix(d):
+    """(4, 4) M with image coefficients = M @ trajectory coefficients, M[k, j] = C(j, k) d^(j-k)."""
+    m = np.zeros((4, 4))
+    for j in range(4):
+        for k in range(j + 1):
+            m[k, j] = comb(j, k) * d ** (j - k)
+    return m
+
+
+@dataclass
+class Parameter:
+    name: str          # e.g. "pass 1 pitch_1" or "HRS2 psi_y_0"
+    owner: str         # trajectory or image label
+    kind: str          # X .. roll, psi_x, psi_y, A0 .. B2
+    degree: int        # polynomial degree (0 for bias terms)
+
+
+def _absolute_time(model):
+    o = model.orientation
+    return (o.epoch - np.datetime64("2000-01-01T00:00:00", "ns")) / np.timedelta64(1, "s") + o.centre_time
+
+
+class OrientationParameters:
+    """All orientation unknowns of a block and their map to each image's model corrections.
+
+    models: {image_id: model}; names: {image_id: label}. `jacobian_map(image_id)` is the (32, n)
+    (SPOT) or (6, n) (RPC) matrix T with image coefficients increment = T @ x, x the vector of all
+    unknowns (free or fixed). `free` is a boolean mask (default: nothing free)."""
+
+    def __init__(self, models, names=None):
+        self.models = dict(models)
+        self.names = {i: (names or {}).get(i, f"image {i}") for i in self.models}
+        self.parameters = []
+        self._maps = {}
+        spot = {i: m for i, m in self.models.items() if isinstance(m, SpotModel)}
+        other = [i for i, m in self.models.items() if not isinstance(m, (SpotModel, RpcModel))]
+        if other:
+            raise InputError(f"{self.names[other[0]]}: its model {self.models[other[0]]!r} has no adjustable "
+                             "orientation (SPOT rigorous and RPC models are supported)")
+        self.trajectories = self._trajectories(spot)
+        cols = {}
+        for t, members in enumerate(self.trajectories):
+            label = "pass " + "+".join(self.names[i] for i in members) if len(self.trajectories) > 1 or \
+                len(members) > 1 else f"pass {self.names[members[0]]}"
+            cols[("traj", t)] = self._add(label, [(k, j) for k in EXTERIOR for j in range(4)])
+        for i in spot:
+            cols[("look", i)] = self._add(self.names[i], [(k, j) for k in LOOK for j in range(4)])
+        for i, m in self.models.items():
+            if isinstance(m, RpcModel):
+                cols[("bias", i)] = self._add(self.names[i], [(k, 0) for k in BIAS])
+        n = len(self.parameters)
+        for t, members in enumerate(self.trajectories):
+            t_ref = np.mean([_absolute_time(spot[i]) for i in members])
+            for i in members:
+                c = spot[i].orientation.corrections
+                tmap = np.zeros((32, n))
+                m = shift_matrix((_absolute_time(spot[i]) - t_ref) / c.time_scale)
+                base = cols[("traj", t)]
+                for k in range(6):
+                    tmap[4 * k:4 * k + 4, base + 4 * k:base + 4 * k + 4] = m
+                tmap[24:32, cols[("look", i)]:cols[("look", i)] + 8] = np.eye(8)
+                self._maps[i] = tmap
+        for i, m in self.models.items():
+            if isinstance(m, RpcModel):
+                tmap = np.zeros((6, n))
+                tmap[:, cols[("bias", i)]:cols[("bias", i)] + 6] = np.eye(6)
+                self._maps[i] = tmap
+        self.initial = {i: self._coefficients(m).copy() for i, m in self.models.items()}
+        self.free = np.zeros(n, bool)
+
+    def _add(self, owner, terms):
+        start = len(self.parameters)
+        for kind, degree in terms:
+            name = f"{owner} {kind}" if kind in BIAS else f"{owner} {kind}_{degree}"
+            self.parameters.append(Parameter(name, owner, kind, degree))
+        return start
+
+    def _trajectories(self, spot):
+        """Image ids grouped by (mission, pass): centre times within PASS_SECONDS."""
+        groups = []
+        for i in sorted(spot, key=lambda i: (spot[i].orientation.mission, _absolute_time(spot[i]))):
+            o, t = spot[i].orientation, _absolute_time(spot[i])
+            last = groups[-1] if groups else None
+            if last and spot[last[-1]].orientation.mission == o.mission and \
+                    abs(t - _absolute_time(spot[last[-1]])) < PASS_SECONDS:
+                last.append(i)
+            else:
+                groups.append([i])
+        return groups
+
+    def __len__(self):
+        return len(self.parameters)
+
+    def jacobian_map(self, image_id):
+        return self._maps[image_id]
+
+    @staticmethod
+    def _coefficients(model):
+        if isinstance(model, SpotModel):
+            c = model.orientation.corrections
+            return np.concatenate([np.ravel(c.position), np.ravel(c.attitude), np.ravel(c.look)])
+        return np.asarray(model.bias, float).copy()
+
+    def apply(self, x):
+        """Set every model's corrections to its initial ones + T @ x."""
+        x = np.asarray(x, float)
+        for i, m in self.models.items():
+            v = self.initial[i] + self._maps[i] @ x
+            if isinstance(m, SpotModel):
+                c = m.orientation.corrections
+                c.position, c.attitude, c.look = v[:12].reshape(3, 4), v[12:24].reshape(3, 4), v[24:].reshape(2, 4)
+            else:
+                m.bias = v
+
+    def select(self, spec):
+        """Free mask from a specification: an iterable of names or patterns. A pattern is
+        '<kind>_<degrees>' applied to every owner (e.g. 'psi_x_0', 'pitch_01', 'X_0'), 'look:<deg>'
+        ('look:1' frees psi_x/psi_y of degree <= 1 of every image), 'exterior:<deg>', 'bias:<set>'
+        (shift, drift, affine), or a full parameter name. Raises InputError for unknown ones."""
+        mask = np.zeros(len(self), bool)
+        for item in spec:
+            item = item.strip()
+            if not item:
+                continue
+            hit = self._match(item)
+            if not hit.any():
+                raise InputError(f"no orientation parameter matches {item!r}; parameters are named like "
+                                 f"{self.parameters[0].name!r}; patterns: look:<degree>, exterior:<degree>, "
+                                 "bias:shift|drift|affine, <kind>_<degrees>")
+            mask |= hit
+        return mask
+
+    def _match(self, item):
+        p = self.parameters
+        if ":" in item:
+            what, arg = item.split(":", 1)
+            if what == "bias":
+                if arg not in BIAS_SETS:
+                    raise InputError(f"bias set must be one of {', '.join(BIAS_SETS)}, not {arg!r}")
+                return np.array([q.kind in BIAS_SETS[arg] for q in p])
+            kinds = {"look": LOOK, "exterior": EXTERIOR}.get(what)
+            if kinds is None or not arg.isdigit():
+                raise InputError(f"cannot read the parameter pattern {item!r}")
+            return np.array([q.kind in kinds and q.degree <= int(arg) for q in p])
+        if "_" in item and item.rsplit("_", 1)[0] in EXTERIOR + LOOK and item.rsplit("_", 1)[1].isdigit():
+            kind, degrees = item.rsplit("_", 1)
+            return np.array([q.kind == kind and str(q.degree) in degrees for q in p])
+        return np.array([q.name == item for q in p])
+
+    def label(self, index):
+        return self.parameters[index].name

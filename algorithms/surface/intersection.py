@@ -1,0 +1,279 @@
+"""Forward intersection of object points from their image measurements in two or more images
+(methods.md section 5; paper K 3.5.1, eq. 5).
+
+Per point a rigorous least-squares adjustment: unknowns the ground point, in local metres
+(E, N, U) around the current estimate; observations the image coordinates (col, row) of its k rays
+with weight 1 / sigma^2 (sigma in px); Gauss-Newton with the sensor models' partials
+d(col, row)/d(lon, lat, h), converted to px/m by geodesy.metres_per_degree:
+
+    A dx = l + v,  A = d(col, row)/d(E, N, U),  l = observed - computed,  dx = (A' P A)^-1 A' P l
+
+K writes the same adjustment in object space, eq. 5: X = X0 + mu R32 R21 u1, three equations per
+ray with unknowns X, Y, Z and one scale mu per ray (3k equations, 3 + k unknowns). Eliminating
+mu leaves the two independent conditions of each ray, which are its image coordinates: the
+unknowns (X, Y, Z), the redundancy 2k - 3 (1 for two rays, 3 for three) and, with the residuals
+weighted as image measurements, the estimate are the same; this is the image-space form of it.
+
+Start: the point closest to the first two lines of sight (each through its ground points at heights
+h0 -+ 500 m from `image_to_ground`). Per point the result carries the a priori covariance
+(A' P A)^-1 in m^2 (E, N, U, from the given image sigma), the a posteriori sigma0 =
+sqrt(v' P v / (2k - 3)) (unitless: about 1 when the image sigma is right; a posteriori sigmas =
+sigma0 x a priori sigmas), the RMS of the 2k image residuals (px), the iterations and a status."""
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import progress
+from ..errors import GeometryError, InputError
+from ..geodesy import ecef_to_geodetic, geodetic_to_ecef, metres_per_degree
+
+STATUS_NAMES = ("converged", "not converged", "diverged", "outside a model's domain", "fewer than 2 rays",
+                "singular geometry")
+CONVERGED, NOT_CONVERGED, DIVERGED, OUTSIDE, TOO_FEW_RAYS, SINGULAR = range(len(STATUS_NAMES))
+
+#: convergence: largest coordinate change (m) of the last step
+TOLERANCE = 1e-4
+#: a step longer than this (m) means the iteration runs away
+MAX_STEP = 1e5
+#: half the height difference (m) of the two ground points that define a line of sight for the start
+START_HALF_HEIGHT = 500.0
+#: smallest / largest eigenvalue of the normal matrix below which the rays are taken as parallel
+SINGULAR_RATIO = 1e-12
+#: points per chunk (memory and progress)
+CHUNK = 200_000
+
+
+@dataclass
+class Intersection:
+    """Per point (sorted by `point`): the ground point and its precision (module docstring).
+    Only points with status CONVERGED have coordinates and statistics; the others are NaN."""
+
+    point: np.ndarray        # the point indices given, sorted, unique
+    lon: np.ndarray
+    lat: np.ndarray
+    h: np.ndarray            # ellipsoidal height, m
+    rays: np.ndarray         # number of image measurements
+    status: np.ndarray       # index into STATUS_NAMES
+    iterations: np.ndarray
+    sigma0: np.ndarray       # a posteriori standard deviation of unit weight
+    rms: np.ndarray          # RMS of the image residuals, px
+    covariance: np.ndarray   # (n, 3, 3) a priori covariance of (E, N, U), m^2
+
+    def __len__(self):
+        return len(self.point)
+
+    @property
+    def ok(self):
+        return self.status == CONVERGED
+
+    @property
+    def sigma(self):
+        """(n, 3) a priori standard deviations of E, N, U (m)."""
+        return np.sqrt(np.diagonal(self.covariance, axis1=1, axis2=2))
+
+    @property
+    def sigma_posterior(self):
+        """(n, 3) a posteriori standard deviations of E, N, U (m): sigma0 x a priori."""
+        return self.sigma * self.sigma0[:, None]
+
+    def status_counts(self):
+        """{status name: count} of the statuses that occur."""
+        counts = np.bincount(self.status, minlength=len(STATUS_NAMES))
+        return {name: int(c) for name, c in zip(STATUS_NAMES, counts) if c}
+
+
+def _local_scale(lat):
+    """(n, 3) metres per (degree lon, degree lat, metre h) at `lat`: metres_per_degree on a 0.01 degree
+    grid, interpolated linearly (relative error < 1e-8)."""
+    if not lat.size:
+        return np.ones((0, 3))
+    nodes = np.arange(np.floor(lat.min() * 100.0) / 100.0, lat.max() + 0.02, 0.01)
+    east, north = np.array([metres_per_degree(v) for v in nodes]).T
+    return np.column_stack([np.interp(lat, nodes, east), np.interp(lat, nodes, north), np.ones(lat.size)])
+
+
+def _image_to_ground(model, col, row, h):
+    """model.image_to_ground at height h, NaN where it fails (a batch that raises is split in halves)."""
+    try:
+        lon, lat = model.image_to_ground(col, row, np.full(col.size, h))
+        return np.asarray(lon, float), np.asarray(lat, float)
+    except GeometryError:
+        if col.size == 1:
+            return np.full(1, np.nan), np.full(1, np.nan)
+        half = col.size // 2
+        a, b = _image_to_ground(model, col[:half], row[:half], h), _image_to_ground(model, col[half:], row[half:], h)
+        return np.concatenate([a[0], b[0]]), np.concatenate([a[1], b[1]])
+
+
+def _project(model, lon, lat, h):
+    """(col, row, d(col, row)/d(lon, lat, h) (n, 2, 3)) of ground points; partials as a dict (SpotModel)
+    or as the array alone (RpcModel)."""
+    p = model.partials(lon, lat, h)
+    if isinstance(p, dict):
+        return p["col"], p["row"], p["d_ground"]
+    col, row = model.ground_to_image(lon, lat, h)
+    return col, row, p
+
+
+def _start(models, image, col, row, first, second, h0):
+    """ECEF point closest to the lines of sight of observations `first` and `second` (the midpoint of
+    their common perpendicular; the point of the first line at h0 where they are parallel)."""
+    lines = []
+    for obs in (first, second):
+        ends = np.full((2, obs.size, 3), np.nan)
+        for key in np.unique(image[obs]):
+            sel = image[obs] == key
+            for j, height in enumerate((h0 - START_HALF_HEIGHT, h0 + START_HALF_HEIGHT)):
+                lon, lat = _image_to_ground(models[key], col[obs][sel], row[obs][sel], height)
+                ends[j, sel] = geodetic_to_ecef(lon, lat, height)
+        lines.append((0.5 * (ends[0] + ends[1]), ends[1] - ends[0]))
+    (p1, d1), (p2, d2) = lines
+    w = p1 - p2
+    a, b, c = (d1 * d1).sum(1), (d1 * d2).sum(1), (d2 * d2).sum(1)
+    d, e = (d1 * w).sum(1), (d2 * w).sum(1)
+    den = a * c - b * b
+    ok = den > 1e-12 * a * c
+    den = np.where(ok, den, 1.0)
+    s = np.where(ok, (b * e - c * d) / den, 0.0)
+    t = np.where(ok, (a * e - b * d) / den, 0.0)
+    return np.where(ok[:, None], 0.5 * (p1 + s[:, None] * d1 + p2 + t[:, None] * d2), p1)
+
+
+def _check_inputs(models, image, point, col, row, sigma):
+    try:
+        arrays = np.broadcast_arrays(np.asarray(image).ravel(), np.asarray(point).ravel(),
+                                     np.asarray(col, float).ravel(), np.asarray(row, float).ravel(),
+                                     np.asarray(sigma, float).ravel())
+    except ValueError as exc:
+        raise InputError(f"image ids, point indices, col, row and sigma must have one length ({exc})") from None
+    image, point, col, row, sigma = (np.ascontiguousarray(a) for a in arrays)
+    missing = sorted({str(k) for k in np.unique(image)} - {str(k) for k in models})
+    if missing:
+        raise InputError(f"no sensor model for image(s) {', '.join(missing)}; models are given for "
+                         f"{', '.join(str(k) for k in models) or 'none'}")
+    if not (np.isfinite(col).all() and np.isfinite(row).all()):
+        raise InputError("image coordinates must be finite numbers")
+    if not (np.isfinite(sigma).all() and (sigma > 0).all()):
+        raise InputError("the image sigma must be a positive number (px)")
+    return image, point, col, row, sigma
+
+
+def _default_height(models):
+    """Mean of the height ranges of the models that have one (RPC), else 0 m."""
+    ranges = [m.height_range for m in models.values() if hasattr(m, "height_range")]
+    return float(np.mean(ranges)) if ranges else 0.0
+
+
+def intersect(models, image_ids, point_index, col, row, sigma=0.5, h0=None, max_iter=10, tol=TOLERANCE,
+              feedback=None):
+    """Intersect the object points of image measurements (module docstring).
+
+    `models`: dict image id -> sensor model with `partials`, `ground_to_image`, `image_to_ground`
+    (SpotModel, RpcModel); one row per measurement: `image_ids`, `point_index` (any integers: the
+    point each measurement belongs to), `col`, `row` (GDAL convention) and `sigma` (px, a number or
+    one per measurement). `h0`: height (m) of the start (default: the models' mean height range, or
+    0 m). Returns an Intersection. Raises InputError on unusable input; points that cannot be
+    intersected get a status (fewer than 2 rays, a measurement outside its image or a ray outside a
+    model's domain, parallel rays, no convergence in `max_iter` steps of < `tol` m)."""
+    image, point, col, row, sigma = _check_inputs(models, image_ids, point_index, col, row, sigma)
+    h0 = _default_height(models) if h0 is None else float(h0)
+    ids, inverse = np.unique(point, return_inverse=True)
+    order = np.lexsort((image, inverse))
+    inverse, image, col, row, sigma = inverse[order], image[order], col[order], row[order], sigma[order]
+    n = ids.size
+    rays = np.bincount(inverse, minlength=n)
+    fields = [np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan), np.full(n, NOT_CONVERGED, np.int8),
+              np.zeros(n, np.int32), np.full(n, np.nan), np.full(n, np.nan), np.full((n, 3, 3), np.nan)]
+    chunks = np.arange(0, n + CHUNK, CHUNK).clip(max=n)
+    bounds = np.searchsorted(inverse, chunks)
+    for k in range(len(chunks) - 1):
+        a, b, lo, hi = chunks[k], chunks[k + 1], bounds[k], bounds[k + 1]
+        values = _intersect_chunk(models, image[lo:hi], inverse[lo:hi] - a, col[lo:hi], row[lo:hi], sigma[lo:hi],
+                                  rays[a:b], h0, max_iter, tol, feedback, 100.0 * k / (len(chunks) - 1),
+                                  100.0 / (len(chunks) - 1))
+        for array, value in zip(fields, values):
+            array[a:b] = value
+    lon, lat, h, status, iterations, sigma0, rms, covariance = fields
+    bad = status != CONVERGED
+    for values in (lon, lat, h, sigma0, rms, covariance):
+        values[bad] = np.nan
+    return Intersection(ids, lon, lat, h, rays, status, iterations, sigma0, rms, covariance)
+
+
+def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, tol, feedback, pct0, pct_span):
+    """Intersect the points 0 .. len(rays) - 1 of one chunk from their measurements (sorted by
+    `point`). Returns lon, lat, h, status, iterations, sigma0, rms, covariance."""
+    n = rays.size
+    status = np.where(rays < 2, TOO_FEW_RAYS, NOT_CONVERGED).astype(np.int8)
+    for key in np.unique(image):
+        sel = np.flatnonzero(image == key)
+        cols, rows = models[key].size
+        outside = sel[(col[sel] < 0) | (col[sel] > cols) | (row[sel] < 0) | (row[sel] > rows)]
+        status[point[outside][rays[point[outside]] >= 2]] = OUTSIDE
+    lon, lat, h = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    iterations, sigma0, rms = np.zeros(n, np.int32), np.full(n, np.nan), np.full(n, np.nan)
+    covariance = np.full((n, 3, 3), np.nan)
+    go = np.flatnonzero(status == NOT_CONVERGED)
+    first = np.searchsorted(point, go)
+    lon[go], lat[go], h[go] = ecef_to_geodetic(_start(models, image, col, row, first, first + 1, h0))
+    status[go[~np.isfinite(h[go])]] = OUTSIDE
+    scale = np.ones((n, 3))
+    live = np.flatnonzero(status == NOT_CONVERGED)
+    scale[live] = _local_scale(lat[live])
+    observed = np.column_stack([col, row])
+    weight = 1.0 / sigma ** 2
+    for iteration in range(1, max_iter + 1):
+        progress.step(feedback, pct0 + pct_span * (iteration - 1) / max_iter)
+        sel = np.flatnonzero(status[point] == NOT_CONVERGED)
+        if not sel.size:
+            break
+        p = point[sel]
+        computed = np.empty((sel.size, 2))
+        jac = np.empty((sel.size, 2, 3))
+        for key in np.unique(image[sel]):
+            s = image[sel] == key
+            c, r, d = _project(models[key], lon[p[s]], lat[p[s]], h[p[s]])
+            computed[s, 0], computed[s, 1], jac[s] = c, r, d
+        jac /= scale[p][:, None, :]
+        misclosure = observed[sel] - computed
+        weighted = jac * weight[sel][:, None, None]
+        starts = np.flatnonzero(np.r_[True, p[1:] != p[:-1]])
+        q = p[starts]
+        normal = np.add.reduceat(np.einsum("kji,kjl->kil", weighted, jac), starts)
+        rhs = np.add.reduceat(np.einsum("kji,kj->ki", weighted, misclosure), starts)
+        finite = np.isfinite(normal).all(axis=(1, 2)) & np.isfinite(rhs).all(axis=1)
+        status[q[~finite]] = OUTSIDE
+        normal[~finite], rhs[~finite] = np.eye(3), 0.0
+        eig = np.linalg.eigvalsh(normal)
+        singular = finite & ~(eig[:, 0] > SINGULAR_RATIO * eig[:, 2])
+        status[q[singular]] = SINGULAR
+        normal[singular] = np.eye(3)
+        dx = np.linalg.solve(normal, rhs[..., None])[..., 0]
+        lon[q] += dx[:, 0] / scale[q, 0]
+        lat[q] += dx[:, 1] / scale[q, 1]
+        h[q] += dx[:, 2]
+        # statistics of this linearisation: post-fit residuals v = A dx - l
+        v = np.einsum("kij,kj->ki", jac, dx[np.searchsorted(q, p)]) - misclosure
+        sigma0[q] = np.sqrt(np.add.reduceat(weight[sel] * (v * v).sum(1), starts) / (2 * rays[q] - 3))
+        rms[q] = np.sqrt(np.add.reduceat((v * v).sum(1), starts) / (2 * rays[q]))
+        covariance[q] = np.linalg.inv(normal)
+        iterations[q] = iteration
+        step = np.abs(dx).max(axis=1)
+        live = status[q] == NOT_CONVERGED
+        status[q[live & ~(step <= MAX_STEP)]] = DIVERGED
+        status[q[live & (step < tol)]] = CONVERGED
+    _check_height_domain(models, image, point, h, status)
+    return lon, lat, h, status, iterations, sigma0, rms, covariance
+
+
+def _check_height_domain(models, image, point, h, status):
+    """RPC models hold within their height range: a point beyond it by more than half its width is
+    outside the model's domain."""
+    for key in np.unique(image):
+        limits = getattr(models[key], "height_range", None)
+        if limits is None:
+            continue
+        lo, hi = limits
+        p = point[image == key]
+        beyond = (status[p] == CONVERGED) & ((h[p] < lo - 0.5 * (hi - lo)) | (h[p] > hi + 0.5 * (hi - lo)))
+        status[p[beyond]] = OUTSIDE
