@@ -162,6 +162,21 @@ def load_model(path, image_id):
     return model_from_dict(json.loads(feat["model"]), f"model of image {image_id} in {path}")
 
 
+def save_models(path, models, step="adjust", message=""):
+    """Replace the stored sensor models of the images {image_id: model} in one SQLite
+    transaction (all or nothing) and log the step."""
+    import sqlite3
+    docs = {int(i): json.dumps(model_to_dict(m)) for i, m in models.items()}
+    with sqlite3.connect(os.fspath(path)) as con:       # commits on success, rolls back on error
+        known = {r[0] for r in con.execute("SELECT fid FROM images")}
+        missing = sorted(set(docs) - known)
+        if missing:
+            raise InputError(f"block {path} has no image with id {missing[0]}")
+        con.executemany("UPDATE images SET model = ? WHERE fid = ?", [(d, i) for i, d in docs.items()])
+    con.close()
+    update_info(path, {}, step=step, message=message or f"{len(docs)} sensor model(s) updated")
+
+
 def image_name(image_path):
     """A readable image name: the product folder for DIMAP (…/HRS1/IMAGERY.TIF -> HRS1), else the stem."""
     stem = os.path.splitext(os.path.basename(image_path))[0]
