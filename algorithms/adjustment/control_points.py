@@ -127,12 +127,16 @@ class _Table:
             raise InputError(f"{self.path} is empty: the first line must name the columns")
         self.header = [h.strip() for h in header]
         self.rows = []
-        for cells in reader:
-            if any(c.strip() for c in cells):
-                if len(cells) > len(self.header):
-                    raise InputError(f"{self.path} line {reader.line_num}: {len(cells)} fields, the header has "
-                                     f"{len(self.header)}")
-                self.rows.append((reader.line_num, [c.strip() for c in cells] + [""] * (len(self.header) - len(cells))))
+        try:
+            for cells in reader:
+                if any(c.strip() for c in cells):
+                    if len(cells) > len(self.header):
+                        raise InputError(f"{self.path} line {reader.line_num}: {len(cells)} fields, the header "
+                                         f"has {len(self.header)}")
+                    cells = [c.strip() for c in cells]
+                    self.rows.append((reader.line_num, cells + [""] * (len(self.header) - len(cells))))
+        except csv.Error as exc:
+            raise InputError(f"{self.path} line {reader.line_num}: {exc}") from exc
         self._columns(image_names, suffix)
 
     def _columns(self, image_names, suffix):
@@ -189,6 +193,7 @@ class _Table:
         return cells[self.base[key]] if key in self.base else ""
 
     def number(self, line, cells, index, positive=False):
+        """The finite (or positive) number in column `index` of a row; InputError naming line and column."""
         text = cells[index]
         try:
             value = float(text)

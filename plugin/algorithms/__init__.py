@@ -5,7 +5,9 @@ def algorithm_classes():
     """The algorithm classes the provider registers, in toolbox order."""
     from .bundle_adjust import BundleAdjust
     from .create_block import CreateBlock
+    from .import_points import ExportPoints, ImportPoints
     from .match_points import MatchPoints
     from .select_tie_points import SelectTiePoints
     from .simulate_scene import SimulateScene
-    return [SimulateScene, CreateBlock, MatchPoints, SelectTiePoints, BundleAdjust]
+    return [SimulateScene, CreateBlock, MatchPoints, SelectTiePoints, ImportPoints, ExportPoints,
+            BundleAdjust]

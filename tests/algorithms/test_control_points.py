@@ -320,3 +320,7 @@ def test_delimiters_aliases_and_case(blk, tmp_path):
                                                                           ("B", -84.19, 36.61, 310.0, 2.2)]
     assert obs.measurements.tolist() == [(0, ids["HRG"], 10.5, 20.5, 0.25), (1, ids["HRG"], 11.0, 21.0, 0.5),
                                          (1, ids["HRS2"], 30.5, 40.5, 0.5)]
+    extra = tmp_path / "extra.csv"
+    extra.write_text("id,lon,lat,h\nA,-84.2,36.6,300\nB,-84.2,36.6,300,7\n")
+    with pytest.raises(InputError, match="line 3: 5 fields, the header has 4"):
+        cp.read_csv(extra, ids)

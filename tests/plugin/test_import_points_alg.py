@@ -1,0 +1,125 @@
+"""pushbroom:importpoints and pushbroom:exportpoints on a small simulated SPOT-5 triplet."""
+import csv
+import shutil
+
+import numpy as np
+import pytest
+from osgeo import osr
+from qgis import processing
+from qgis.core import (QgsCategorizedSymbolRenderer, QgsProcessingContext, QgsProcessingException,
+                       QgsProcessingFeedback, QgsProject, QgsVectorLayer)
+
+from pushbroom.algorithms import block
+from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.geodesy import utm_epsg
+from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.plugin.algorithms.import_points import ExportPoints, ImportPoints
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("import_points")
+    paths = simulate_scene(SceneConfig.small(), folder / "scene")
+    with open(paths["points"], newline="") as f:
+        rows = list(csv.DictReader(f))
+    template = folder / "template.gpkg"
+    images = block.open_images([paths["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
+    block.create_block(template, images, height=np.mean([float(r["h"]) for r in rows]))
+    return {"points": paths["points"], "rows": rows, "template": template}
+
+
+@pytest.fixture
+def algorithms(pushbroom_provider):
+    """The provider lists both algorithms."""
+    for cls in (ImportPoints, ExportPoints):
+        assert pushbroom_provider.algorithm(cls.NAME) is not None
+    return pushbroom_provider
+
+
+@pytest.fixture
+def blk(scene, tmp_path):
+    path = tmp_path / "block.gpkg"
+    shutil.copy(scene["template"], path)
+    return str(path)
+
+
+class Log(QgsProcessingFeedback):
+    def __init__(self):
+        super().__init__()
+        self.messages = []
+
+    def pushInfo(self, text):  # noqa: N802 (QGIS API)
+        self.messages.append(text)
+        super().pushInfo(text)
+
+
+def test_import_simulator_points_and_export(algorithms, scene, blk, tmp_path):
+    rows = scene["rows"]
+    context, log = QgsProcessingContext(), Log()
+    context.setProject(QgsProject.instance())
+    result = processing.run("pushbroom:importpoints", {
+        "BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas", "CHECK_IDS": "P002, P005"},
+        context=context, feedback=log)
+    n = len(rows)
+    assert (result["CONTROL"], result["CHECK"], result["MEASUREMENTS"]) == (n - 2, 2, 3 * n)
+    assert any(m.startswith(f"points in the block: control {n - 2}, check 2; HRG: {n - 2} control, 2 check")
+               for m in log.messages), log.messages
+    assert any("ignored column" in m for m in log.messages)
+    assert not any("CRS applies" in m for m in log.messages)           # the CRS defaults to WGS 84
+    layer = QgsVectorLayer(result["POINTS"], "points", "ogr")
+    assert layer.isValid() and layer.featureCount() == n and layer.crs().authid() == "EPSG:4326"
+    by_name = {f["name"]: f for f in layer.getFeatures()}
+    for r in rows:
+        feat = by_name[r["id"]]
+        point = feat.geometry().constGet()
+        assert (point.x(), point.y(), point.z()) == (float(r["lon"]), float(r["lat"]), float(r["h"]))
+        assert feat["role"] == ("check" if r["id"] in ("P002", "P005") else "control")
+    # loaded on completion with the role style
+    details = context.layersToLoadOnCompletion()[result["POINTS"]]
+    details.postProcessor().postProcessLayer(layer, context, log)
+    assert isinstance(layer.renderer(), QgsCategorizedSymbolRenderer) and layer.renderer().classAttribute() == "role"
+    out = tmp_path / "export.csv"
+    exported = processing.run("pushbroom:exportpoints", {"BLOCK": blk, "OUTPUT": str(out)})
+    assert exported["OUTPUT"] == str(out)
+    back = cp.read_csv(out, cp.image_ids(blk))
+    stored = cp.load_control_points(blk)
+    assert back.points.tobytes() == stored.points.tobytes()
+    assert back.measurements.tobytes() == stored.measurements.tobytes()
+
+
+def test_import_projected_coordinates_and_merge(algorithms, scene, blk, tmp_path):
+    rows = scene["rows"]
+    lon, lat = np.array([float(r["lon"]) for r in rows]), np.array([float(r["lat"]) for r in rows])
+    epsg = utm_epsg(lon.mean(), lat.mean())
+    wgs84, utm = osr.SpatialReference(), osr.SpatialReference()
+    wgs84.ImportFromEPSG(4326)
+    utm.ImportFromEPSG(epsg)
+    for srs in (wgs84, utm):
+        srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    xy = osr.CoordinateTransformation(wgs84, utm).TransformPoints(np.column_stack([lon, lat]).tolist())
+    path = tmp_path / "utm.csv"
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["id", "role", "x", "y", "h", "HRS1_col", "HRS1_row"])
+        for r, (x, y, _) in zip(rows, xy):
+            writer.writerow([r["id"], "check", repr(x), repr(y), r["h"], r["HRS1_col_meas"], r["HRS1_row_meas"]])
+    processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas"})
+    result = processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(path), "CRS": f"EPSG:{epsg}",
+                                                       "MODE": 1})
+    assert (result["CONTROL"], result["CHECK"], result["MEASUREMENTS"]) == (0, len(rows), 3 * len(rows))
+    stored = cp.load_control_points(blk)
+    assert np.abs(stored.points["lon"] - lon).max() < 1e-8 and np.abs(stored.points["lat"] - lat).max() < 1e-8
+
+
+def test_bad_file_is_a_processing_error(algorithms, scene, blk, tmp_path):
+    processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas"})
+    before = cp.load_control_points(blk)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("id,lon,lat,h,SPOT4_col,SPOT4_row\nA,-84.2,36.6,300,1,2\n")
+    with pytest.raises(QgsProcessingException, match="SPOT4_col, SPOT4_row name images that are not in the block"):
+        processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(bad)})
+    assert cp.load_control_points(blk).points.tobytes() == before.points.tobytes()
+    empty = tmp_path / "empty.gpkg"
+    shutil.copy(scene["template"], empty)
+    with pytest.raises(QgsProcessingException, match="no control or check points"):
+        processing.run("pushbroom:exportpoints", {"BLOCK": str(empty), "OUTPUT": str(tmp_path / "out.csv")})
