@@ -1,25 +1,30 @@
 """RPC00B fitted to any sensor model over a terrain-independent cube (paper K 3.5.2, methods.md 5).
 
-Cube: an image grid (default 11 x 11 over the whole image, pixel edges 0 .. cols, 0 .. rows) times
-height levels (default 11 over the height range); the ground points come from the model's
-image_to_ground. Offsets and scales are the middles and half ranges of the cube's coordinates
-(image coordinates in RPC00B's convention, first pixel centre at 0: samp = col - 0.5).
+Points: the cube, an image grid (default 11 x 11 over the whole image, pixel edges 0 .. cols,
+0 .. rows) times height levels (default 11 over the height range), ground positions from the
+model's image_to_ground; the selection points, the centres of the cube's cells; the validation
+points, a grid twice as dense as the cube shifted by half its step (a quarter of a cube cell), over
+the same image and heights. Offsets and scales are the middles and half ranges of the cube's
+coordinates (image coordinates in RPC00B's convention, first pixel centre at 0: samp = col - 0.5).
 
-Each normalised image coordinate v = num(L, P, H) / den(L, P, H) (rpc.py) is fitted by the
-linearised equations
+Each normalised image coordinate v = num(L, P, H) / den(L, P, H) (rpc.py) is fitted to the cube by
+the linearised equations
 
     num . t - v (den . t) = 0,   den_0 = 1,   t = the 20 RPC00B terms of (L, P, H),
 
 in least squares with weights 1 / den^2 from the previous iteration (so the weighted residual is
-the image residual; den = 1 at the start), iterated until den settles. Tikhonov regularisation
-lambda = regularisation * trace(N) / 39 (N = the weighted normal matrix) keeps the solution
-defined where terms are nearly collinear (a small scene is almost affine); the system is solved
-in its augmented form [A; sqrt(lambda) I] x = [b; 0] by SVD, so conditioning is not squared.
-Where a denominator comes near zero over the cube or the validation points (min |den| below
-MIN_DEN_RATIO max |den|, or a change of sign), that coordinate falls back to a plain cubic
-polynomial (den = 1), as the paper did for the nadir image. Validation: a grid twice as dense,
-shifted by half its step, over the same image and height range."""
-import html
+the image residual; den = 1 at the start), iterated until den settles. On a nearly affine mapping
+the denominator terms are nearly collinear with the numerator's, so the denominator is damped by
+Tikhonov regularisation, lambda * |den_1..19|^2 with lambda = r * trace(N) / 39 (N the weighted
+normal matrix); the system is solved in its augmented form [A; sqrt(lambda) D] x = [b; 0] by SVD,
+so its conditioning is not squared. r runs over a ladder (REGULARISATIONS, or the one value given);
+a candidate whose denominator comes near zero over the points (a change of sign, or min |den| below
+MIN_DEN_RATIO max |den|) is rejected, and a plain cubic polynomial (den = 1, the paper's fallback
+for the nadir image) is always a candidate. Of the candidates, the one with the smallest RMS on the
+selection points is kept, per image coordinate; the validation points stay independent.
+
+height_differences compares object points intersected with the RPCs and with the rigorous models
+(K Table 5)."""
 import math
 import os
 from dataclasses import dataclass, fields
@@ -28,22 +33,24 @@ import numpy as np
 
 from .. import progress
 from ..errors import GeometryError, InputError, PushbroomError
+from ..geodesy import metres_per_degree
+from ..surface.intersection import intersect
 from . import rpc_io
 from .rpc import NUM_TERMS, RpcCoefficients, RpcModel
 
 #: default cube: image grid columns x rows x height levels
 DEFAULT_GRID = (11, 11, 11)
-#: Tikhonov factor relative to the mean diagonal of the normal matrix
-DEFAULT_REGULARISATION = 1e-8
-#: a denominator whose smallest |value| over the domain is below this share of its largest is near a pole
+#: denominator damping factors tried (relative to the mean diagonal of the normal matrix)
+REGULARISATIONS = (1e-14, 1e-12, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2)
+#: a denominator whose smallest |value| over the points is below this share of its largest is near a pole
 MIN_DEN_RATIO = 0.1
 MAX_ITERATIONS = 20
+#: the reweighting stops when the denominator (1 at the normalisation centre) changes less than this
+DEN_TOL = 1e-6
 #: the default height range is the terrain's widened by this share of its span on either side,
 #: and by at least MIN_HEIGHT_MARGIN metres
 HEIGHT_MARGIN = 0.1
 MIN_HEIGHT_MARGIN = 100.0
-#: the reweighting stops when the denominator (1 at the normalisation centre) changes less than this
-DEN_TOL = 1e-6
 
 
 def rpc_terms(x, y, z):
@@ -66,18 +73,42 @@ class AxisErrors:
 
 
 @dataclass(frozen=True)
+class AxisFit:
+    """How one image coordinate was fitted, and its errors (px) on the cube and validation points."""
+    cube: AxisErrors
+    validation: AxisErrors
+    #: None for the cubic polynomial, else the damping factor r of the rational fit kept
+    regularisation: object
+    #: rational candidates tried, and rejected for a denominator near zero
+    rational_fits: int
+    near_pole: int
+    #: reweighting iterations of the fit kept (0 for the polynomial)
+    iterations: int
+
+    @property
+    def polynomial(self):
+        return self.regularisation is None
+
+    def describe(self):
+        if not self.polynomial:
+            return f"rational 3/3 (r = {self.regularisation:.0e})"
+        return (f"cubic polynomial ({self.near_pole} of {self.rational_fits} rational fits had a denominator "
+                "near zero)" if self.near_pole else "cubic polynomial (fits best)")
+
+
+@dataclass(frozen=True)
 class RpcFitReport:
     """Fit (cube) and validation errors of a fitted RPC against the model it was fitted to."""
     cube_points: int
     validation_points: int
     height_range: tuple
-    cube_col: AxisErrors
-    cube_row: AxisErrors
-    validation_col: AxisErrors
-    validation_row: AxisErrors
-    #: image coordinates ("col", "row") fitted as plain cubic polynomials (denominator near zero)
-    polynomial: tuple
-    iterations: int
+    col: AxisFit
+    row: AxisFit
+
+    @property
+    def polynomial(self):
+        """The image coordinates ("col", "row") fitted as plain cubic polynomials."""
+        return tuple(name for name in ("col", "row") if getattr(self, name).polynomial)
 
     @property
     def fallback(self):
@@ -87,33 +118,31 @@ class RpcFitReport:
     @property
     def max_error(self):
         """Largest |error| (px) of either coordinate on the cube and the validation points."""
-        return max(e.max for e in (self.cube_col, self.cube_row, self.validation_col, self.validation_row))
+        return max(e.max for a in (self.col, self.row) for e in (a.cube, a.validation))
 
     def summary(self):
-        """One line: points, RMS / max errors, fallback."""
-        kind = (f"cubic polynomial for {' and '.join(self.polynomial)} (denominator near zero)"
-                if self.polynomial else "rational 3/3")
-        return (f"{kind}; cube {self.cube_points} points: col RMS {self.cube_col.rms:.2e} max "
-                f"{self.cube_col.max:.2e} px, row RMS {self.cube_row.rms:.2e} max {self.cube_row.max:.2e} px; "
-                f"validation {self.validation_points} points: col RMS {self.validation_col.rms:.2e} max "
-                f"{self.validation_col.max:.2e} px, row RMS {self.validation_row.rms:.2e} max "
-                f"{self.validation_row.max:.2e} px")
+        """One line: per coordinate the kind of fit and its RMS / max errors on both point sets."""
+        parts = [f"{name}: {a.describe()}, cube RMS {a.cube.rms:.2e} max {a.cube.max:.2e} px, validation RMS "
+                 f"{a.validation.rms:.2e} max {a.validation.max:.2e} px"
+                 for name, a in (("col", self.col), ("row", self.row))]
+        return (f"{self.cube_points} cube / {self.validation_points} validation points, heights "
+                f"{self.height_range[0]:.0f} .. {self.height_range[1]:.0f} m; " + "; ".join(parts))
 
 
-def _grid(lo, hi, n, validation):
-    """n values from lo to hi, or for validation 2 (n - 1) values in the middles of a grid twice as
-    dense."""
-    if not validation:
+def _grid(lo, hi, n, kind):
+    """n values from lo to hi ('cube'), the n - 1 cell centres ('selection'), or 2 (n - 1) values
+    in the middles of a grid twice as dense ('validation')."""
+    if kind == "cube":
         return np.linspace(lo, hi, n)
-    k = 2 * (n - 1)
+    k = (n - 1) * (2 if kind == "validation" else 1)
     return lo + (np.arange(k) + 0.5) * (hi - lo) / k
 
 
-def _points(model, height_range, grid, validation):
-    """Image points (col, row), heights and ground (lon, lat) of the cube or the validation grid."""
+def _points(model, height_range, grid, kind):
+    """Image points (col, row), heights and ground (lon, lat) of a point set (see _grid)."""
     cols, rows = model.size
-    axes = [_grid(0.0, cols, grid[0], validation), _grid(0.0, rows, grid[1], validation),
-            _grid(height_range[0], height_range[1], grid[2], validation)]
+    axes = [_grid(0.0, cols, grid[0], kind), _grid(0.0, rows, grid[1], kind),
+            _grid(height_range[0], height_range[1], grid[2], kind)]
     col, row, h = (a.ravel() for a in np.meshgrid(*axes, indexing="ij"))
     try:
         lon, lat = model.image_to_ground(col, row, h)
@@ -136,46 +165,58 @@ def _mid_half(values):
     return 0.5 * (lo + hi), 0.5 * (hi - lo)
 
 
-def _solve(a, b, regularisation):
-    """Tikhonov least squares: argmin |a x - b|^2 + lambda |x|^2, lambda = regularisation * trace(a'a) / m,
-    by SVD of the augmented system."""
-    m = a.shape[1]
-    lam = regularisation * float(np.sum(a * a)) / m
-    aug = np.vstack([a, math.sqrt(lam) * np.eye(m)])
-    return np.linalg.lstsq(aug, np.concatenate([b, np.zeros(m)]), rcond=None)[0]
-
-
 def _near_pole(den):
-    """Whether a denominator (values over the domain) changes sign or comes near zero."""
-    return bool(np.min(den) <= 0.0 or np.min(den) < MIN_DEN_RATIO * np.max(den)) or not np.all(np.isfinite(den))
+    """Whether a denominator (its values over the points) changes sign or comes near zero."""
+    return not np.all(np.isfinite(den)) or np.min(den) <= 0.0 or np.min(den) < MIN_DEN_RATIO * np.max(den)
 
 
-def _fit_axis(t, v, t_check, regularisation):
-    """(num, den, iterations) of v = num.t / den.t; den = (1, 0, ...) where the rational fit has a
-    denominator near zero on t or t_check (then iterations = 0)."""
+def _fit_rational(t, v, r, checks):
+    """(num, den, iterations) of v = num.t / den.t by reweighted, denominator-damped least squares
+    (module docstring); None where the denominator comes near zero on t or any of `checks`."""
     a = np.hstack([t, -v[:, None] * t[:, 1:]])
+    damping = np.hstack([np.zeros((NUM_TERMS - 1, NUM_TERMS)), np.eye(NUM_TERMS - 1)])
     den = np.ones(v.size)
     for iteration in range(1, MAX_ITERATIONS + 1):
-        x = _solve(a / den[:, None], v / den, regularisation)
-        den_coef = np.concatenate([[1.0], x[NUM_TERMS:]])
-        new = t @ den_coef
-        if _near_pole(new) or _near_pole(t_check @ den_coef):
+        aw = a / den[:, None]
+        lam = r * float(np.sum(aw * aw)) / aw.shape[1]
+        x = np.linalg.lstsq(np.vstack([aw, math.sqrt(lam) * damping]),
+                            np.concatenate([v / den, np.zeros(NUM_TERMS - 1)]), rcond=None)[0]
+        coef = np.concatenate([[1.0], x[NUM_TERMS:]])
+        if any(_near_pole(c @ coef) for c in (t,) + checks):
+            return None
+        previous, den = den, t @ coef
+        if np.max(np.abs(den - previous)) < DEN_TOL:
             break
-        settled = np.max(np.abs(new - den)) < DEN_TOL
-        den = new
-        if settled:
-            return x[:NUM_TERMS], den_coef, iteration
-    else:
-        return x[:NUM_TERMS], den_coef, MAX_ITERATIONS
-    polynomial = np.zeros(NUM_TERMS)
-    polynomial[0] = 1.0
-    return _solve(t, v, regularisation), polynomial, 0
+    return x[:NUM_TERMS], coef, iteration
 
 
-def fit_rpc(model, height_range, grid=DEFAULT_GRID, regularisation=DEFAULT_REGULARISATION, feedback=None):
+def _fit_axis(t, v, t_select, v_select, t_validation, regularisations):
+    """(num, den, regularisation or None, rational fits tried, near-pole count, iterations) of one
+    normalised image coordinate: the candidate with the smallest RMS at the selection points."""
+    unit = np.zeros(NUM_TERMS)
+    unit[0] = 1.0
+    candidates = [(np.linalg.lstsq(t, v, rcond=None)[0], unit, None, 0)]
+    near_pole = 0
+    for r in regularisations:
+        fit = _fit_rational(t, v, r, (t_select, t_validation))
+        if fit is None:
+            near_pole += 1
+        else:
+            candidates.append((fit[0], fit[1], r, fit[2]))
+
+    def mean_square(candidate):
+        num, den = candidate[:2]
+        return float(np.mean((t_select @ num / (t_select @ den) - v_select) ** 2))
+
+    num, den, r, iterations = min(candidates, key=mean_square)
+    return num, den, r, len(regularisations), near_pole, iterations
+
+
+def fit_rpc(model, height_range, grid=DEFAULT_GRID, regularisation=None, feedback=None):
     """(RpcModel, RpcFitReport): an RPC00B (degree 3/3) fitted to `model` over its whole image and
     `height_range` (min, max ellipsoidal heights, m) on a cube of grid = (columns, rows, heights)
-    points (module docstring). RpcModel(coefficients, size=model.size) reproduces
+    points (module docstring); `regularisation` fixes the denominator damping factor r (default:
+    chosen per coordinate from REGULARISATIONS). RpcModel(coefficients, size=model.size) reproduces
     model.ground_to_image in GDAL's pixel convention."""
     lo, hi = (float(v) for v in height_range)
     if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
@@ -187,39 +228,39 @@ def fit_rpc(model, height_range, grid=DEFAULT_GRID, regularisation=DEFAULT_REGUL
                          "a cubic needs 4 values per axis")
     if min(model.size) <= 0:
         raise InputError(f"cannot fit an RPC to an image of size {model.size}")
+    regularisations = REGULARISATIONS if regularisation is None else (float(regularisation),)
     progress.step(feedback, 0.0, f"RPC cube of {grid[0]} x {grid[1]} x {grid[2]} points, heights {lo:.0f} .. "
                                  f"{hi:.0f} m")
-    col, row, h, lon, lat = _points(model, (lo, hi), grid, validation=False)
-    vcol, vrow, vh, vlon, vlat = _points(model, (lo, hi), grid, validation=True)
-    samp, line = col - 0.5, row - 0.5
+    sets = {kind: _points(model, (lo, hi), grid, kind) for kind in ("cube", "selection", "validation")}
+    col, row, h, lon, lat = sets["cube"]
     (long_off, long_scale), (lat_off, lat_scale), (h_off, h_scale), (samp_off, samp_scale), (line_off, line_scale) = (
-        _mid_half(v) for v in (lon, lat, h, samp, line))
+        _mid_half(v) for v in (lon, lat, h, col - 0.5, row - 0.5))
     if min(long_scale, lat_scale) <= 0.0:
         raise InputError("cannot fit an RPC: the sensor model maps the whole image to one ground point")
-
-    def terms(x, y, z):
-        return rpc_terms((x - long_off) / long_scale, (y - lat_off) / lat_scale, (z - h_off) / h_scale)
-
-    t, t_check = terms(lon, lat, h), terms(vlon, vlat, vh)
-    progress.step(feedback, 30.0)
-    samp_num, samp_den, it_s = _fit_axis(t, (samp - samp_off) / samp_scale, t_check, regularisation)
-    progress.step(feedback, 60.0)
-    line_num, line_den, it_l = _fit_axis(t, (line - line_off) / line_scale, t_check, regularisation)
+    t = {k: rpc_terms((p[3] - long_off) / long_scale, (p[4] - lat_off) / lat_scale, (p[2] - h_off) / h_scale)
+         for k, p in sets.items()}
+    fitted = {}
+    for k, (name, offset, scale) in enumerate((("samp", samp_off, samp_scale), ("line", line_off, line_scale))):
+        progress.step(feedback, 20.0 + 35.0 * k)
+        v = {kind: (p[k] - 0.5 - offset) / scale for kind, p in sets.items()}
+        fitted[name] = _fit_axis(t["cube"], v["cube"], t["selection"], v["selection"], t["validation"],
+                                 regularisations)
     coefficients = RpcCoefficients.from_fields({
-        "LINE_NUM_COEFF": line_num, "LINE_DEN_COEFF": line_den, "SAMP_NUM_COEFF": samp_num,
-        "SAMP_DEN_COEFF": samp_den, "LINE_OFF": line_off, "SAMP_OFF": samp_off, "LAT_OFF": lat_off,
-        "LONG_OFF": long_off, "HEIGHT_OFF": h_off, "LINE_SCALE": line_scale, "SAMP_SCALE": samp_scale,
-        "LAT_SCALE": lat_scale, "LONG_SCALE": long_scale, "HEIGHT_SCALE": h_scale}, "fitted RPC")
+        "LINE_NUM_COEFF": fitted["line"][0], "LINE_DEN_COEFF": fitted["line"][1],
+        "SAMP_NUM_COEFF": fitted["samp"][0], "SAMP_DEN_COEFF": fitted["samp"][1], "LINE_OFF": line_off,
+        "SAMP_OFF": samp_off, "LAT_OFF": lat_off, "LONG_OFF": long_off, "HEIGHT_OFF": h_off,
+        "LINE_SCALE": line_scale, "SAMP_SCALE": samp_scale, "LAT_SCALE": lat_scale, "LONG_SCALE": long_scale,
+        "HEIGHT_SCALE": h_scale}, "fitted RPC")
     rpc = RpcModel(coefficients, size=model.size, source="fitted RPC")
     progress.step(feedback, 90.0)
-    fc, fr = rpc.ground_to_image(lon, lat, h)
-    gc, gr = rpc.ground_to_image(vlon, vlat, vh)
-    report = RpcFitReport(
-        cube_points=col.size, validation_points=vcol.size, height_range=(lo, hi),
-        cube_col=AxisErrors.of(fc - col), cube_row=AxisErrors.of(fr - row),
-        validation_col=AxisErrors.of(gc - vcol), validation_row=AxisErrors.of(gr - vrow),
-        polynomial=tuple(name for name, it in (("col", it_s), ("row", it_l)) if it == 0),
-        iterations=max(it_s, it_l))
+    errors = {}
+    for kind in ("cube", "validation"):
+        c, r, hh, x, y = sets[kind]
+        fc, fr = rpc.ground_to_image(x, y, hh)
+        errors[kind] = (AxisErrors.of(fc - c), AxisErrors.of(fr - r))
+    axes = [AxisFit(errors["cube"][k], errors["validation"][k], *fitted[name][2:])
+            for k, name in enumerate(("samp", "line"))]
+    report = RpcFitReport(col.size, sets["validation"][0].size, (lo, hi), *axes)
     progress.step(feedback, 100.0, report.summary())
     return rpc, report
 
@@ -234,21 +275,29 @@ def default_height_range(terrain_range):
 
 def rpc_txt_path(image_path, folder=None, name=None):
     """Where an image's fitted RPC goes: beside the raster as <stem>_RPC.TXT, GDAL's own naming, so
-    GDAL reads it with the raster; or in `folder` as <name (default: the stem)>_RPC.TXT."""
-    stem = os.path.splitext(os.path.basename(os.fspath(image_path)))[0]
+    GDAL reads it with the raster; or in `folder` as <name (default: the raster's stem)>_RPC.TXT."""
     if folder is None:
-        return os.path.join(os.path.dirname(os.path.abspath(image_path)), f"{stem}_RPC.TXT")
-    return os.path.join(os.fspath(folder), f"{name or stem}_RPC.TXT")
+        stem = os.path.splitext(os.path.abspath(os.fspath(image_path)))[0]
+        return f"{stem}_RPC.TXT"
+    return os.path.join(os.fspath(folder), f"{name or os.path.splitext(os.path.basename(image_path))[0]}_RPC.TXT")
 
 
-def write_fitted_rpc(rpc, path, overwrite=False):
-    """Write `rpc` as a _RPC.TXT (rpc_io.write_rpc_txt, atomic); an existing file, such as the RPC an
-    image came with, is only replaced when `overwrite` is true."""
-    path = os.fspath(path)
+def check_destination(path, overwrite=False):
+    """Refuse an existing file, such as the RPC an image came with, unless `overwrite` is true."""
     if os.path.exists(path) and not overwrite:
         raise InputError(f"{path} exists already (the RPC the image came with, or an earlier fit); set the "
                          "overwrite option to replace it, or write the fitted RPCs to an output folder")
-    rpc_io.write_rpc_txt(rpc, path)
+
+
+def write_fitted_rpc(rpc, path, overwrite=False):
+    """Write `rpc` as a _RPC.TXT (rpc_io.write_rpc_txt, atomic) after check_destination; returns the path."""
+    path = os.fspath(path)
+    check_destination(path, overwrite)
+    try:
+        rpc_io.write_rpc_txt(rpc, path)
+    except OSError as exc:
+        raise InputError(f"cannot write {path} ({exc.strerror}); write the fitted RPCs to an output folder "
+                         "you may write to") from exc
     return path
 
 
@@ -264,22 +313,50 @@ def raster_reads(raster, rpc):
                for f in fields(mine))
 
 
-def report_html(entries):
-    """An HTML page with one table row per fitted image: `entries` are (name, path written, report)."""
-    head = ("image", "RPC file", "kind", "heights (m)", "cube points", "cube RMS col / row (px)",
-            "cube max col / row (px)", "validation points", "validation RMS col / row (px)",
-            "validation max col / row (px)")
-    rows = []
+def report_text(entries):
+    """A text table of fit and validation errors (px), one row per image coordinate: `entries` are
+    (image name, RPC file written, RpcFitReport)."""
+    lines = [f"{'image':12} {'coord':5} {'cube RMS':>9} {'cube max':>9} {'valid RMS':>9} {'valid max':>9}  fit"]
     for name, path, r in entries:
-        kind = f"cubic polynomial for {', '.join(r.polynomial)}" if r.polynomial else "rational 3/3"
-        cells = (name, path, kind, f"{r.height_range[0]:.0f} .. {r.height_range[1]:.0f}", r.cube_points,
-                 f"{r.cube_col.rms:.2e} / {r.cube_row.rms:.2e}", f"{r.cube_col.max:.2e} / {r.cube_row.max:.2e}",
-                 r.validation_points, f"{r.validation_col.rms:.2e} / {r.validation_row.rms:.2e}",
-                 f"{r.validation_col.max:.2e} / {r.validation_row.max:.2e}")
-        rows.append("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in cells) + "</tr>")
-    return ("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>RPC fit</title></head><body>\n"
-            "<h1>RPC fit</h1>\n<p>Errors of the fitted RPC00B against the block's sensor model, in image "
-            "pixels: on the cube it was fitted to, and on validation points (a grid twice as dense, shifted "
-            "by half its step, over the same image and height range).</p>\n<table border=\"1\">\n<tr>"
-            + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>\n" + "\n".join(rows)
-            + "\n</table>\n</body></html>\n")
+        for axis, a in (("col", r.col), ("row", r.row)):
+            lines.append(f"{name:12} {axis:5} {a.cube.rms:9.2e} {a.cube.max:9.2e} {a.validation.rms:9.2e} "
+                         f"{a.validation.max:9.2e}  {a.describe()}")
+    lines.append("")
+    lines += [f"{name}: {r.cube_points} cube points, {r.validation_points} validation points, heights "
+              f"{r.height_range[0]:.0f} .. {r.height_range[1]:.0f} m -> {path}" for name, path, r in entries]
+    return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class HeightDifferences:
+    """RPC minus rigorous object points (m, local east / north / up) of the points both intersect."""
+    point: np.ndarray
+    de: np.ndarray
+    dn: np.ndarray
+    dh: np.ndarray
+    #: points that one of the two model sets could not intersect
+    missing: int
+
+    def summary(self):
+        """One line: count, dh mean / RMS / max |dh|, RMS of dE and dN (m)."""
+        if not self.point.size:
+            return f"no point intersected by both the rigorous models and the RPCs ({self.missing} tried)"
+        rms = {k: float(np.sqrt(np.mean(getattr(self, k) ** 2))) for k in ("de", "dn", "dh")}
+        return (f"{self.point.size} points ({self.missing} not intersected by both): dh mean {np.mean(self.dh):.4f} m, "
+                f"RMS {rms['dh']:.4f} m, max |dh| {np.max(np.abs(self.dh)):.4f} m; RMS dE {rms['de']:.4f} m, "
+                f"dN {rms['dn']:.4f} m")
+
+
+def height_differences(models_rigorous, models_rpc, image_ids, point_index, col, row, h0=None):
+    """K 3.5.2, Table 5: the object points of image measurements (one row per measurement: image id,
+    point index, col, row) intersected by surface.intersection.intersect once with the rigorous models
+    and once with their RPCs (dicts image id -> model with the same ids), and the differences."""
+    if set(models_rigorous) != set(models_rpc):
+        raise InputError(f"the rigorous models (images {sorted(models_rigorous)}) and the RPCs (images "
+                         f"{sorted(models_rpc)}) must describe the same images")
+    a = intersect(models_rigorous, image_ids, point_index, col, row, h0=h0)
+    b = intersect(models_rpc, image_ids, point_index, col, row, h0=h0)
+    ok = a.ok & b.ok
+    east, north = metres_per_degree(a.lat[ok])
+    return HeightDifferences(a.point[ok], (b.lon - a.lon)[ok] * east, (b.lat - a.lat)[ok] * north,
+                             (b.h - a.h)[ok], int(np.count_nonzero(~ok)))

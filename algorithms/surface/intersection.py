@@ -37,7 +37,8 @@ TOLERANCE = 1e-4
 MAX_STEP = 1e5
 #: half the height difference (m) of the two ground points that define a line of sight for the start
 START_HALF_HEIGHT = 500.0
-#: smallest / largest eigenvalue of the normal matrix below which the rays are taken as parallel
+#: det(N) / prod(diag(N)) (1 for independent unknowns, 0 for parallel rays) below which the rays are
+#: taken as parallel
 SINGULAR_RATIO = 1e-12
 #: points per chunk (memory and progress)
 CHUNK = 200_000
@@ -90,6 +91,17 @@ def _local_scale(lat):
     nodes = np.arange(np.floor(lat.min() * 100.0) / 100.0, lat.max() + 0.02, 0.01)
     east, north = np.array([metres_per_degree(v) for v in nodes]).T
     return np.column_stack([np.interp(lat, nodes, east), np.interp(lat, nodes, north), np.ones(lat.size)])
+
+
+def _inverse_symmetric(m):
+    """Inverse and determinant of symmetric 3 x 3 matrices (n, 3, 3) by cofactors."""
+    a00, a01, a02, a11, a12, a22 = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 1, 1], m[:, 1, 2], m[:, 2, 2]
+    c00, c01, c02 = a11 * a22 - a12 * a12, a02 * a12 - a01 * a22, a01 * a12 - a02 * a11
+    c11, c12, c22 = a00 * a22 - a02 * a02, a01 * a02 - a00 * a12, a00 * a11 - a01 * a01
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    inverse = np.stack([c00, c01, c02, c01, c11, c12, c02, c12, c22], axis=1).reshape(-1, 3, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return inverse / det[:, None, None], det
 
 
 def _image_to_ground(model, col, row, h):
@@ -244,11 +256,10 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
         finite = np.isfinite(normal).all(axis=(1, 2)) & np.isfinite(rhs).all(axis=1)
         status[q[~finite]] = OUTSIDE
         normal[~finite], rhs[~finite] = np.eye(3), 0.0
-        eig = np.linalg.eigvalsh(normal)
-        singular = finite & ~(eig[:, 0] > SINGULAR_RATIO * eig[:, 2])
+        inverse, det = _inverse_symmetric(normal)
+        singular = finite & ~(det > SINGULAR_RATIO * np.prod(np.diagonal(normal, axis1=1, axis2=2), axis=1))
         status[q[singular]] = SINGULAR
-        normal[singular] = np.eye(3)
-        dx = np.linalg.solve(normal, rhs[..., None])[..., 0]
+        dx = np.einsum("kij,kj->ki", inverse, rhs)
         lon[q] += dx[:, 0] / scale[q, 0]
         lat[q] += dx[:, 1] / scale[q, 1]
         h[q] += dx[:, 2]
@@ -256,7 +267,7 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
         v = np.einsum("kij,kj->ki", jac, dx[np.searchsorted(q, p)]) - misclosure
         sigma0[q] = np.sqrt(np.add.reduceat(weight[sel] * (v * v).sum(1), starts) / (2 * rays[q] - 3))
         rms[q] = np.sqrt(np.add.reduceat((v * v).sum(1), starts) / (2 * rays[q]))
-        covariance[q] = np.linalg.inv(normal)
+        covariance[q] = inverse
         iterations[q] = iteration
         step = np.abs(dx).max(axis=1)
         live = status[q] == NOT_CONVERGED
@@ -277,3 +288,26 @@ def _check_height_domain(models, image, point, h, status):
         p = point[image == key]
         beyond = (status[p] == CONVERGED) & ((h[p] < lo - 0.5 * (hi - lo)) | (h[p] > hi + 0.5 * (hi - lo)))
         status[p[beyond]] = OUTSIDE
+
+
+def summary_rows(result, group=None):
+    """Per point group (one value per point of `result`; all points as group 0 when None): points,
+    converged, median a priori sigma_E, sigma_N, sigma_H (m) and median sigma0 of the converged ones."""
+    group = np.zeros(len(result), int) if group is None else np.asarray(group)
+    rows = []
+    for g in np.unique(group):
+        sel = group == g
+        ok = sel & result.ok
+        sig = np.median(result.sigma[ok], axis=0) if ok.any() else np.full(3, np.nan)
+        rows.append({"group": int(g), "points": int(sel.sum()), "converged": int(ok.sum()),
+                     "sigma_e": float(sig[0]), "sigma_n": float(sig[1]), "sigma_h": float(sig[2]),
+                     "sigma0": float(np.median(result.sigma0[ok])) if ok.any() else float("nan")})
+    return rows
+
+
+def format_summary(rows):
+    """The summary rows as a text table."""
+    lines = [f"{'group':>5} {'points':>9} {'converged':>9} {'sigma_E':>8} {'sigma_N':>8} {'sigma_H':>8} {'sigma0':>7}"]
+    lines += [f"{r['group']:>5} {r['points']:>9} {r['converged']:>9} {r['sigma_e']:>8.3f} {r['sigma_n']:>8.3f} "
+              f"{r['sigma_h']:>8.3f} {r['sigma0']:>7.3f}" for r in rows]
+    return "\n".join(lines)

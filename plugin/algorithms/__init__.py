@@ -5,9 +5,10 @@ def algorithm_classes():
     """The algorithm classes the provider registers, in toolbox order."""
     from .bundle_adjust import BundleAdjust
     from .create_block import CreateBlock
+    from .fit_rpc import FitRpc
     from .import_points import ExportPoints, ImportPoints
     from .match_points import MatchPoints
     from .select_tie_points import SelectTiePoints
     from .simulate_scene import SimulateScene
     return [SimulateScene, CreateBlock, MatchPoints, SelectTiePoints, ImportPoints, ExportPoints,
-            BundleAdjust]
+            BundleAdjust, FitRpc]

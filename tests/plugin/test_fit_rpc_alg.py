@@ -1,0 +1,151 @@
+"""pushbroom:fitrpc on a block made from a small simulated SPOT 5 triplet: _RPC.TXT files beside the
+image rasters (read by GDAL, matching the block's models) or in a folder, the overwrite rule, and
+clear errors."""
+import shutil
+
+import numpy as np
+import pytest
+from osgeo import gdal, ogr
+from qgis import processing
+from qgis.core import QgsProcessingException, QgsProcessingFeedback
+
+from pushbroom.algorithms import block, sensors
+from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.sensors.rpc import RpcModel
+from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
+from pushbroom.algorithms.sensors.rpc_io import write_rpb
+from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+
+gdal.UseExceptions()
+NAMES = ("HRG", "HRS1", "HRS2")
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fitrpc") / "scene"
+    paths = simulate_scene(SceneConfig.small(), folder)
+    return folder, paths, float(np.nanmean(Dem.from_file(paths["dsm"]).heights))
+
+
+@pytest.fixture
+def triplet_block(scene, tmp_path):
+    """A block of the triplet whose image rasters lie in tmp_path (a copy of the scene)."""
+    folder, _, height = scene
+    copy = shutil.copytree(folder, tmp_path / "scene")
+    path = tmp_path / "block.gpkg"
+    block.create_block(path, block.open_images([copy / n / "IMAGERY.TIF" for n in NAMES]), height=height)
+    return str(path), copy
+
+
+def run_log_steps(path):
+    ds = ogr.Open(path)
+    return [f["step"] for f in ds.GetLayerByName("run_log")]
+
+
+def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(pushbroom_provider, triplet_block, tmp_path):
+    path, scene_copy = triplet_block
+    result = processing.run("pushbroom:fitrpc", {"BLOCK": path, "REPORT": str(tmp_path / "fit.html")})
+    expected = [str(scene_copy / n / "IMAGERY_RPC.TXT") for n in NAMES]
+    assert sorted(result["FILES"]) == sorted(expected)
+    rows = {r["name"]: r for r in block.read_images(path)}
+    terrain = block.height_range(path)
+    rng = np.random.default_rng(5)
+    for name in NAMES:
+        raster = scene_copy / name / "IMAGERY.TIF"
+        ds = gdal.Open(str(raster))
+        fields = ds.GetMetadata("RPC")
+        assert fields, f"GDAL reads no RPC for {raster}"
+        h_off, h_scale = float(fields["HEIGHT_OFF"]), float(fields["HEIGHT_SCALE"])
+        assert h_off - h_scale < terrain[0] and h_off + h_scale > terrain[1]   # the terrain range and a margin
+        model = block.load_model(path, rows[name]["id"])
+        col, row = rng.uniform(0, model.size[0], 200), rng.uniform(0, model.size[1], 200)
+        h = rng.uniform(*terrain, 200)
+        lon, lat = model.image_to_ground(col, row, h)
+        out, ok = gdal.Transformer(ds, None, ["METHOD=RPC"]).TransformPoints(1, np.column_stack([lon, lat, h]))
+        out = np.array(out)
+        err = max(np.abs(out[:, 0] - col).max(), np.abs(out[:, 1] - row).max())
+        print(f"{name}: GDAL on the written _RPC.TXT vs the block's model: max {err:.2e} px")
+        assert all(ok) and err < 0.02
+    page = (tmp_path / "fit.html").read_text()
+    assert all(n in page for n in NAMES) and "validation" in page
+    assert run_log_steps(path)[-1] == "fitrpc"
+    # the block's own models are still the DIMAP ones (the RPC beside the raster does not replace them)
+    assert sensors.orientation_source(scene_copy / "HRG" / "IMAGERY.TIF").endswith("METADATA.DIM")
+
+    before = (scene_copy / "HRG" / "IMAGERY_RPC.TXT").read_text()
+    with pytest.raises(QgsProcessingException, match="exists already.*overwrite"):
+        processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 0.0, "MAX_HEIGHT": 3000.0})
+    assert (scene_copy / "HRG" / "IMAGERY_RPC.TXT").read_text() == before
+    processing.run("pushbroom:fitrpc", {"BLOCK": path, "IMAGE": "HRG", "MIN_HEIGHT": 0.0, "MAX_HEIGHT": 3000.0,
+                                        "OVERWRITE": True})
+    fields = gdal.Open(str(scene_copy / "HRG" / "IMAGERY.TIF")).GetMetadata("RPC")
+    assert (float(fields["HEIGHT_OFF"]), float(fields["HEIGHT_SCALE"])) == (1500.0, 1500.0)
+
+
+def test_fitrpc_one_image_into_a_folder(pushbroom_provider, triplet_block, tmp_path):
+    path, scene_copy = triplet_block
+    out = tmp_path / "rpc"
+    result = processing.run("pushbroom:fitrpc", {"BLOCK": path, "IMAGE": "HRS1", "OUTPUT_FOLDER": str(out),
+                                                 "GRID": 6, "HEIGHT_LEVELS": 5, "MIN_HEIGHT": 100.0,
+                                                 "MAX_HEIGHT": 900.0})
+    assert result["FILES"] == [str(out / "HRS1_RPC.TXT")] and [p.name for p in out.iterdir()] == ["HRS1_RPC.TXT"]
+    assert not (scene_copy / "HRS1" / "IMAGERY_RPC.TXT").exists()
+    rpc = sensors.load(out / "HRS1_RPC.TXT")
+    model = block.load_model(path, next(r["id"] for r in block.read_images(path) if r["name"] == "HRS1"))
+    assert isinstance(rpc, RpcModel) and rpc.size == model.size   # the normalisation spans the whole image
+    assert rpc.height_range == pytest.approx((100.0, 900.0))
+    col, row = np.meshgrid(np.linspace(0, model.size[0], 7), np.linspace(0, model.size[1], 7))
+    lon, lat = model.image_to_ground(col.ravel(), row.ravel(), 500.0)
+    c, r = rpc.ground_to_image(lon, lat, 500.0)
+    assert max(np.abs(c - col.ravel()).max(), np.abs(r - row.ravel()).max()) < 0.01
+
+
+class Log(QgsProcessingFeedback):
+    def __init__(self):
+        super().__init__()
+        self.warnings = []
+
+    def pushWarning(self, text):  # noqa: N802 (QGIS API)
+        self.warnings.append(text)
+        super().pushWarning(text)
+
+
+def test_an_rpc_image_delivered_with_an_rpb_is_refitted_with_a_warning(pushbroom_provider, scene, tmp_path):
+    """An RPC image whose RPC came as .RPB (GDAL prefers it to a _RPC.TXT): the fit of the block's RPC
+    is written, and the user is told that GDAL still reads the .RPB."""
+    _, paths, height = scene
+    raster = tmp_path / "img.tif"
+    shutil.copy(paths["images"]["HRS2"]["imagery"], raster)
+    supplied, _ = fit_rpc(sensors.load(paths["images"]["HRS2"]["metadata"]), (height - 600.0, height + 600.0))
+    write_rpb(supplied, tmp_path / "img.RPB")
+    path = str(tmp_path / "rpc_block.gpkg")
+    block.create_block(path, block.open_images([raster]), height=height)
+    assert block.read_images(path)[0]["model_kind"] == "rpc"
+    feedback = Log()
+    result = processing.run("pushbroom:fitrpc", {"BLOCK": path}, feedback=feedback)
+    assert result["FILES"] == [str(tmp_path / "img_RPC.TXT")]
+    assert len(feedback.warnings) == 1 and "GDAL does not read" in feedback.warnings[0]
+    refit = sensors.load(tmp_path / "img_RPC.TXT")
+    lon, lat = supplied.image_to_ground(np.array([1.0, 150.0, 299.0]), np.array([2.0, 300.0, 598.0]), height)
+    assert np.allclose(refit.ground_to_image(lon, lat, height), supplied.ground_to_image(lon, lat, height),
+                       rtol=0, atol=0.01)
+
+
+def test_fitrpc_errors(pushbroom_provider, triplet_block):
+    path, _ = triplet_block
+    with pytest.raises(QgsProcessingException, match="image XS is not in the block; it has HRG, HRS1, HRS2"):
+        processing.run("pushbroom:fitrpc", {"BLOCK": path, "IMAGE": "XS"})
+    with pytest.raises(QgsProcessingException, match="both the lowest and the highest"):
+        processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 100.0})
+    with pytest.raises(QgsProcessingException, match="height range 500.0 .. 500.0"):
+        processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 500.0, "MAX_HEIGHT": 500.0})
+    assert "fitrpc" not in run_log_steps(path)
+
+
+def test_cancel_writes_nothing(pushbroom_provider, triplet_block):
+    path, scene_copy = triplet_block
+    feedback = QgsProcessingFeedback()
+    feedback.cancel()
+    with pytest.raises(QgsProcessingException, match="cancel"):
+        processing.run("pushbroom:fitrpc", {"BLOCK": path}, feedback=feedback)
+    assert not list(scene_copy.glob("*/*_RPC.TXT")) and "fitrpc" not in run_log_steps(path)
