@@ -12,7 +12,7 @@ K writes the same adjustment in object space, eq. 5: X = X0 + mu R32 R21 u1, thr
 ray with unknowns X, Y, Z and one scale mu per ray (3k equations, 3 + k unknowns). Eliminating
 mu leaves the two independent conditions of each ray, which are its image coordinates: the
 unknowns (X, Y, Z), the redundancy 2k - 3 (1 for two rays, 3 for three) and, with the residuals
-weighted as image measurements, the estimate are the same; this is the image-space form of it.
+weighted as image measurements, the estimate are the same: this is the image-space form of eq. 5.
 
 Start: the point closest to the first two lines of sight (each through its ground points at heights
 h0 -+ 500 m from `image_to_ground`). Per point the result carries the a priori covariance
@@ -83,16 +83,6 @@ class Intersection:
         return {name: int(c) for name, c in zip(STATUS_NAMES, counts) if c}
 
 
-def _local_scale(lat):
-    """(n, 3) metres per (degree lon, degree lat, metre h) at `lat`: metres_per_degree on a 0.01 degree
-    grid, interpolated linearly (relative error < 1e-8)."""
-    if not lat.size:
-        return np.ones((0, 3))
-    nodes = np.arange(np.floor(lat.min() * 100.0) / 100.0, lat.max() + 0.02, 0.01)
-    east, north = np.array([metres_per_degree(v) for v in nodes]).T
-    return np.column_stack([np.interp(lat, nodes, east), np.interp(lat, nodes, north), np.ones(lat.size)])
-
-
 def _inverse_symmetric(m):
     """Inverse and determinant of symmetric 3 x 3 matrices (n, 3, 3) by cofactors."""
     a00, a01, a02, a11, a12, a22 = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 1, 1], m[:, 1, 2], m[:, 2, 2]
@@ -129,7 +119,8 @@ def _project(model, lon, lat, h):
 
 def _start(models, image, col, row, first, second, h0):
     """ECEF point closest to the lines of sight of observations `first` and `second` (the midpoint of
-    their common perpendicular; the point of the first line at h0 where they are parallel)."""
+    their common perpendicular); where they are parallel or one has no ground point, the point at h0
+    of the other (NaN if neither has one)."""
     lines = []
     for obs in (first, second):
         ends = np.full((2, obs.size, 3), np.nan)
@@ -148,7 +139,8 @@ def _start(models, image, col, row, first, second, h0):
     den = np.where(ok, den, 1.0)
     s = np.where(ok, (b * e - c * d) / den, 0.0)
     t = np.where(ok, (a * e - b * d) / den, 0.0)
-    return np.where(ok[:, None], 0.5 * (p1 + s[:, None] * d1 + p2 + t[:, None] * d2), p1)
+    alone = np.where(np.isfinite(p1).all(axis=1)[:, None], p1, p2)
+    return np.where(ok[:, None], 0.5 * (p1 + s[:, None] * d1 + p2 + t[:, None] * d2), alone)
 
 
 def _check_inputs(models, image, point, col, row, sigma):
@@ -229,9 +221,6 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
     first = np.searchsorted(point, go)
     lon[go], lat[go], h[go] = ecef_to_geodetic(_start(models, image, col, row, first, first + 1, h0))
     status[go[~np.isfinite(h[go])]] = OUTSIDE
-    scale = np.ones((n, 3))
-    live = np.flatnonzero(status == NOT_CONVERGED)
-    scale[live] = _local_scale(lat[live])
     observed = np.column_stack([col, row])
     weight = 1.0 / sigma ** 2
     for iteration in range(1, max_iter + 1):
@@ -240,17 +229,18 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
         if not sel.size:
             break
         p = point[sel]
+        starts = np.flatnonzero(np.r_[True, p[1:] != p[:-1]])
+        q, owner = p[starts], np.cumsum(np.r_[False, p[1:] != p[:-1]])
         computed = np.empty((sel.size, 2))
         jac = np.empty((sel.size, 2, 3))
         for key in np.unique(image[sel]):
             s = image[sel] == key
             c, r, d = _project(models[key], lon[p[s]], lat[p[s]], h[p[s]])
             computed[s, 0], computed[s, 1], jac[s] = c, r, d
-        jac /= scale[p][:, None, :]
+        scale = np.column_stack([*metres_per_degree(lat[q]), np.ones(q.size)])   # m per (deg, deg, m)
+        jac /= scale[owner][:, None, :]
         misclosure = observed[sel] - computed
         weighted = jac * weight[sel][:, None, None]
-        starts = np.flatnonzero(np.r_[True, p[1:] != p[:-1]])
-        q = p[starts]
         normal = np.add.reduceat(np.einsum("kji,kjl->kil", weighted, jac), starts)
         rhs = np.add.reduceat(np.einsum("kji,kj->ki", weighted, misclosure), starts)
         finite = np.isfinite(normal).all(axis=(1, 2)) & np.isfinite(rhs).all(axis=1)
@@ -259,12 +249,13 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
         inverse, det = _inverse_symmetric(normal)
         singular = finite & ~(det > SINGULAR_RATIO * np.prod(np.diagonal(normal, axis1=1, axis2=2), axis=1))
         status[q[singular]] = SINGULAR
+        inverse[singular] = 0.0
         dx = np.einsum("kij,kj->ki", inverse, rhs)
-        lon[q] += dx[:, 0] / scale[q, 0]
-        lat[q] += dx[:, 1] / scale[q, 1]
+        lon[q] += dx[:, 0] / scale[:, 0]
+        lat[q] += dx[:, 1] / scale[:, 1]
         h[q] += dx[:, 2]
         # statistics of this linearisation: post-fit residuals v = A dx - l
-        v = np.einsum("kij,kj->ki", jac, dx[np.searchsorted(q, p)]) - misclosure
+        v = np.einsum("kij,kj->ki", jac, dx[owner]) - misclosure
         sigma0[q] = np.sqrt(np.add.reduceat(weight[sel] * (v * v).sum(1), starts) / (2 * rays[q] - 3))
         rms[q] = np.sqrt(np.add.reduceat((v * v).sum(1), starts) / (2 * rays[q]))
         covariance[q] = inverse

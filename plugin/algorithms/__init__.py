@@ -7,8 +7,9 @@ def algorithm_classes():
     from .create_block import CreateBlock
     from .fit_rpc import FitRpc
     from .import_points import ExportPoints, ImportPoints
+    from .intersect_points import IntersectPoints
     from .match_points import MatchPoints
     from .select_tie_points import SelectTiePoints
     from .simulate_scene import SimulateScene
     return [SimulateScene, CreateBlock, MatchPoints, SelectTiePoints, ImportPoints, ExportPoints,
-            BundleAdjust, FitRpc]
+            BundleAdjust, IntersectPoints, FitRpc]

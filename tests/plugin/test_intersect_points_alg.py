@@ -1,0 +1,144 @@
+"""pushbroom:intersectpoints on a block of the simulated SPOT 5 triplet whose mass and tie points are
+made from ground points on the true DSM (projected with the block's models: the intersection must
+give them back)."""
+import numpy as np
+import pytest
+from osgeo import gdal, ogr, osr
+from qgis import processing
+from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
+
+from pushbroom.algorithms import block
+from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
+from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.algorithms.surface.pointcloud import _laspy
+from pushbroom.plugin.algorithms.intersect_points import IntersectPoints
+
+
+@pytest.fixture(scope="module")
+def triplet(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("intersect")
+    paths = simulate_scene(SceneConfig.small(), folder / "scene")
+    images = block.open_images([paths["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
+    dsm = gdal.Open(paths["dsm"]).ReadAsArray()
+    return {"images": images, "dsm": Dem.from_file(paths["dsm"]), "folder": folder,
+            "height": float(np.nanmean(dsm))}
+
+
+def make_block(triplet, name, kinds=("mass_points",)):
+    """A block with points of `kinds`: ground points on the DSM seen in all three images; ids 0..199
+    three-ray (group 3), 200..299 only in HRG and HRS1 (group 1). Returns (path, lon, lat, h)."""
+    path = str(triplet["folder"] / name)
+    block.create_block(path, triplet["images"], height=triplet["height"], overwrite=True)
+    ids = {r["name"]: r["id"] for r in block.read_images(path)}
+    models = {n: block.load_model(path, i) for n, i in ids.items()}
+    rng = np.random.default_rng(1)
+    cols, rows = models["HRG"].size
+    lon, lat, h = models["HRG"].image_to_dem(rng.uniform(150, cols - 150, 300), rng.uniform(100, rows - 100, 300),
+                                             triplet["dsm"])
+    obs = []
+    for name in ("HRG", "HRS1", "HRS2"):
+        col, row = models[name].ground_to_image(lon, lat, h)
+        keep = np.arange(300) < (300 if name != "HRS2" else 200)
+        o = np.zeros(keep.sum(), OBS_DTYPE)
+        o["point_id"], o["image_id"], o["col"], o["row"] = np.flatnonzero(keep), ids[name], col[keep], row[keep]
+        obs.append(o)
+    obs = np.concatenate(obs)
+    obs = obs[np.lexsort((obs["image_id"], obs["point_id"]))]
+    pts = np.zeros(300, POINT_DTYPE)
+    pts["id"] = np.arange(300)
+    pts["group"] = np.where(pts["id"] < 200, 3, 1)
+    pts["rho_min"] = rng.uniform(0.7, 1.0, 300)
+    for kind in kinds:
+        save_points(path, MultiPoints(pts, obs), kind)
+    return path, lon, lat, h
+
+
+class Log(QgsProcessingFeedback):
+    def __init__(self):
+        super().__init__()
+        self.messages = []
+
+    def pushInfo(self, text):  # noqa: N802 (QGIS API)
+        self.messages.append(text)
+        super().pushInfo(text)
+
+
+class CancelOnProgress(QgsProcessingFeedback):
+    """Cancels when the run first reports progress (as a user pressing Cancel while it runs)."""
+
+    def __init__(self):
+        super().__init__()
+        self.progressChanged.connect(lambda _: self.cancel())
+
+
+def run(parameters, context=None, feedback=None):
+    alg = IntersectPoints()
+    alg.initAlgorithm()
+    return processing.run(alg, parameters, context=context or QgsProcessingContext(),
+                          feedback=feedback or QgsProcessingFeedback())
+
+
+def utm(lon, lat, epsg):
+    wgs84, target = osr.SpatialReference(), osr.SpatialReference()
+    wgs84.ImportFromEPSG(4326)
+    target.ImportFromEPSG(epsg)
+    for srs in (wgs84, target):
+        srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    ct = osr.CoordinateTransformation(wgs84, target)
+    return np.array([ct.TransformPoint(float(a), float(b))[:2] for a, b in zip(lon, lat)]).T
+
+
+def test_las_in_the_blocks_utm_zone(qgis_processing, triplet, tmp_path):
+    path, lon, lat, h = make_block(triplet, "las.gpkg")
+    feedback = Log()
+    result = run({"BLOCK": path, "OUTPUT": str(tmp_path / "cloud.las")}, feedback=feedback)
+    assert result["COUNT"] == 300
+    laspy = _laspy()
+    las = laspy.read(result["OUTPUT"])
+    wkt = [v.string for v in las.header.vlrs if isinstance(v, laspy.vlrs.known.WktCoordinateSystemVlr)]
+    assert block.read_info(path)["default_crs"] == "EPSG:32616" and "UTM zone 16N" in wkt[0]
+    order = np.argsort(np.asarray(las["point_id"]))
+    x, y = utm(lon, lat, 32616)
+    np.testing.assert_allclose(np.asarray(las.x)[order], x, atol=0.0011)   # 1 mm resolution + intersection
+    np.testing.assert_allclose(np.asarray(las.y)[order], y, atol=0.0011)
+    np.testing.assert_allclose(np.asarray(las.z)[order], h, atol=0.0011)
+    group, rays, sigma_h = (np.asarray(las[k])[order] for k in ("group", "rays", "sigma_h"))
+    np.testing.assert_array_equal(group, np.where(np.arange(300) < 200, 3, 1))
+    np.testing.assert_array_equal(rays, np.where(np.arange(300) < 200, 3, 2))
+    assert np.median(sigma_h[:200]) < np.median(sigma_h[200:])          # three rays give better heights
+    log = "\n".join(feedback.messages)
+    assert "converged 300" in log and "sigma_H" in log
+    summary = [line.split() for line in log.splitlines() if line.split()[:1] in (["1"], ["3"])]
+    assert [(s[0], s[1]) for s in summary] == [("1", "100"), ("3", "200")]
+    assert float(summary[1][5]) == pytest.approx(np.median(sigma_h[:200]), rel=1e-3)
+    ds = block.open_block(path)   # keep the data source alive while its layer is read
+    assert "intersectpoints" in [f["step"] for f in ds.GetLayerByName("run_log")]
+
+
+def test_geopackage_of_tie_points_in_a_given_crs(qgis_processing, triplet, tmp_path):
+    path, lon, lat, h = make_block(triplet, "gpkg.gpkg", kinds=("tie_points",))
+    context = QgsProcessingContext()
+    result = run({"BLOCK": path, "POINTS": 1, "CRS": "EPSG:32617", "OUTPUT": str(tmp_path / "cloud.gpkg")}, context)
+    layer = QgsVectorLayer(result["LAYER"], "points", "ogr")
+    assert layer.isValid() and layer.featureCount() == 300 and layer.crs().authid() == "EPSG:32617"
+    assert result["LAYER"] in context.layersToLoadOnCompletion()
+    ds = ogr.Open(result["OUTPUT"])
+    got = sorted((f["point_id"], f.GetGeometryRef().GetX(), f.GetGeometryRef().GetZ()) for f in ds.GetLayer(0))
+    x, _ = utm(lon, lat, 32617)
+    np.testing.assert_allclose([g[1] for g in got], x, atol=0.001)
+    np.testing.assert_allclose([g[2] for g in got], h, atol=0.001)
+
+
+def test_clear_errors_and_cancel(qgis_processing, triplet, tmp_path):
+    path, *_ = make_block(triplet, "errors.gpkg", kinds=("tie_points",))
+    with pytest.raises(QgsProcessingException, match="no mass points.*matchpoints"):
+        run({"BLOCK": path, "OUTPUT": str(tmp_path / "a.las")})
+    with pytest.raises(QgsProcessingException, match=r"\.las, \.laz or \.gpkg"):
+        run({"BLOCK": path, "POINTS": 1, "OUTPUT": str(tmp_path / "a.xyz")})
+    cancelled = QgsProcessingFeedback()
+    cancelled.cancel()
+    for feedback in (CancelOnProgress(), cancelled):
+        with pytest.raises(QgsProcessingException, match="cancel"):
+            run({"BLOCK": path, "POINTS": 1, "OUTPUT": str(tmp_path / "b.las")}, feedback=feedback)
+    assert not list(tmp_path.iterdir())
