@@ -12,10 +12,11 @@ import json
 import os
 
 import numpy as np
-from osgeo import ogr, osr
+from osgeo import ogr
 
 from . import progress
 from .atomic import atomic_path
+from .crs import wgs84
 from .errors import InputError, PushbroomError
 from .geodesy import utm_epsg
 from .sensors.model_file import model_from_dict, model_to_dict
@@ -36,7 +37,8 @@ def describe_model(model):
     return "rpc", "RPC"
 
 
-def _create_layer(ds, name, geom_type, srs, fields):
+def create_layer(ds, name, geom_type, srs, fields):
+    """A new layer (or table, geom_type wkbNone) with an integer fid and the given (name, OFT type) fields."""
     layer = ds.CreateLayer(name, srs, geom_type, options=["FID=fid"])
     for field_name, field_type in fields:
         layer.CreateField(ogr.FieldDefn(field_name, field_type))
@@ -122,16 +124,13 @@ def create_schema(path):
     """A new, empty block GeoPackage at `path` (its tables, format version); returns the data source."""
     ogr.UseExceptions()
     ds = ogr.GetDriverByName("GPKG").CreateDataSource(os.fspath(path))
-    info = _create_layer(ds, "block_info", ogr.wkbNone, None, [("key", ogr.OFTString), ("value", ogr.OFTString)])
+    info = create_layer(ds, "block_info", ogr.wkbNone, None, [("key", ogr.OFTString), ("value", ogr.OFTString)])
     feat = ogr.Feature(info.GetLayerDefn())
     feat["key"], feat["value"] = "format_version", FORMAT_VERSION
     info.CreateFeature(feat)
-    _create_layer(ds, "images", ogr.wkbNone, None, IMAGE_FIELDS)
-    wgs84 = osr.SpatialReference()
-    wgs84.ImportFromEPSG(4326)
-    wgs84.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    _create_layer(ds, "footprints", ogr.wkbPolygon, wgs84, [("image_id", ogr.OFTInteger), ("name", ogr.OFTString)])
-    _create_layer(ds, "run_log", ogr.wkbNone, None, [("time", ogr.OFTString), ("step", ogr.OFTString),
+    create_layer(ds, "images", ogr.wkbNone, None, IMAGE_FIELDS)
+    create_layer(ds, "footprints", ogr.wkbPolygon, wgs84(), [("image_id", ogr.OFTInteger), ("name", ogr.OFTString)])
+    create_layer(ds, "run_log", ogr.wkbNone, None, [("time", ogr.OFTString), ("step", ogr.OFTString),
                                                       ("parameters", ogr.OFTString), ("message", ogr.OFTString)])
     return ds
 
@@ -163,18 +162,24 @@ def load_model(path, image_id):
 
 
 def save_models(path, models, step="adjust", message=""):
-    """Replace the stored sensor models of the images {image_id: model} in one SQLite
-    transaction (all or nothing) and log the step."""
-    import sqlite3
+    """Replace the stored sensor models of the images {image_id: model} and log the step, in one
+    transaction (all or nothing)."""
     docs = {int(i): json.dumps(model_to_dict(m)) for i, m in models.items()}
-    with sqlite3.connect(os.fspath(path)) as con:       # commits on success, rolls back on error
-        known = {r[0] for r in con.execute("SELECT fid FROM images")}
-        missing = sorted(set(docs) - known)
-        if missing:
-            raise InputError(f"block {path} has no image with id {missing[0]}")
-        con.executemany("UPDATE images SET model = ? WHERE fid = ?", [(d, i) for i, d in docs.items()])
-    con.close()
-    update_info(path, {}, step=step, message=message or f"{len(docs)} sensor model(s) updated")
+    ds = open_block(path, update=True)
+    layer = ds.GetLayerByName("images")
+    ds.StartTransaction()
+    try:
+        for image_id, doc in docs.items():
+            feat = layer.GetFeature(image_id)
+            if feat is None:
+                raise InputError(f"block {path} has no image with id {image_id}")
+            feat["model"] = doc
+            layer.SetFeature(feat)
+        write_info(ds, {}, step=step, message=message or f"{len(docs)} sensor model(s) updated")
+    except BaseException:
+        ds.RollbackTransaction()
+        raise
+    ds.CommitTransaction()
 
 
 def image_name(image_path):
@@ -232,10 +237,8 @@ def height_range(path):
         return None
 
 
-def update_info(path, values, step=None, message=""):
-    """Set block_info keys (a dict) and, with `step`, append a run_log row, in one transaction."""
-    ds = open_block(path, update=True)
-    ds.StartTransaction()
+def write_info(ds, values, step=None, message=""):
+    """update_info on an open block data source, inside the caller's transaction."""
     layer = ds.GetLayerByName("block_info")
     for key, value in values.items():
         layer.SetAttributeFilter(f"key = '{key}'")
@@ -254,4 +257,11 @@ def update_info(path, values, step=None, message=""):
         feat["time"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
         feat["step"], feat["parameters"], feat["message"] = step, json.dumps(values), message
         log.CreateFeature(feat)
+
+
+def update_info(path, values, step=None, message=""):
+    """Set block_info keys (a dict) and, with `step`, append a run_log row, in one transaction."""
+    ds = open_block(path, update=True)
+    ds.StartTransaction()
+    write_info(ds, values, step, message)
     ds.CommitTransaction()

@@ -97,16 +97,16 @@ class Dem:
         """Read a DEM raster with ellipsoidal heights; other CRSs are warped to EPSG:4326.
 
         Nodata becomes NaN. Geoid-referenced heights (SRTM) must be converted by the caller."""
-        from osgeo import gdal, osr
+        from osgeo import gdal
+
+        from .crs import wgs84
         gdal.UseExceptions()
         try:
             ds = gdal.Open(str(path))
         except RuntimeError as exc:
             raise InputError(f"cannot open DEM {path}: {exc}") from exc
         srs = ds.GetSpatialRef()
-        wgs84 = osr.SpatialReference()
-        wgs84.ImportFromEPSG(4326)
-        if srs is not None and not srs.IsSame(wgs84, ["IGNORE_DATA_AXIS_TO_SRS_AXIS_MAPPING=YES"]):
+        if srs is not None and not srs.IsSame(wgs84(), ["IGNORE_DATA_AXIS_TO_SRS_AXIS_MAPPING=YES"]):
             ds = gdal.Warp("", ds, format="MEM", dstSRS="EPSG:4326", resampleAlg="bilinear",
                            outputType=gdal.GDT_Float64, dstNodata=float("nan"))
         band = ds.GetRasterBand(1)

@@ -22,8 +22,7 @@ import numpy as np
 from .. import progress
 from ..errors import CancelledError, InputError
 from ..geodesy import metres_per_degree
-from ..sensors.rpc import RpcModel
-from ..sensors.spot import SpotModel
+from ..surface.intersection import intersect
 from . import normals
 from .observations import Observations
 
@@ -53,6 +52,7 @@ class Adjustment:
     normalised: np.ndarray              # (M, 2) w = v / (sigma sqrt(r))
     ground_residuals: np.ndarray        # (P, 3) E, N, H of computed - observed (control points; NaN else)
     iterations: int
+    effects: np.ndarray                 # largest image effect (px) of each free unknown (NaN: fixed)
     removed: list = field(default_factory=list)   # (point name, image id, w) of removed blunders
     log: list = field(default_factory=list)
 
@@ -62,33 +62,45 @@ class Adjustment:
 
 
 class _Geometry:
-    """Linearisation of all image measurements at the current points and models."""
+    """The image measurements of `obs` sorted by point (`start[p]:start[p + 1]` are point p's),
+    their weights, and each image's free unknowns: `col` (n_images, 32) their index among the free
+    unknowns (-1: none) and `maps[s]` the image's coefficients -> those compact columns."""
 
-    def __init__(self, params, obs, order):
+    def __init__(self, params, obs):
         self.params = params
         self.images = sorted(params.models)
-        self.slot = {i: k for k, i in enumerate(self.images)}
-        m = obs.measurements[order]
-        self.meas = m
-        self.img = np.array([self.slot[i] for i in m["image_id"]], np.int64)
-        self.w = np.repeat((1.0 / m["sigma"] ** 2)[:, None], 2, axis=1)
-
-    def columns(self, free_index):
-        """(n_images, 32) free-unknown index of each image's local columns (-1 fixed / unused) and the
-        compact maps (n_images, 32, 32): local coefficient -> the image's compact columns."""
-        n_img = len(self.images)
-        col = np.full((n_img, 32), -1, np.int64)
-        maps = []
+        slot = {i: k for k, i in enumerate(self.images)}
+        self.order = np.argsort(obs.measurements["point"], kind="stable")
+        self.meas = obs.measurements[self.order]
+        self.point_of = self.meas["point"]
+        self.start = np.searchsorted(self.point_of, np.arange(len(obs.points) + 1))
+        self.img = np.array([slot[i] for i in self.meas["image_id"]], np.int64)
+        self.w = np.repeat((1.0 / self.meas["sigma"] ** 2)[:, None], 2, axis=1)
+        free_index = np.full(len(params), -1, np.int64)
+        free_index[params.free] = np.arange(params.free.sum())
+        self.nfree = int(params.free.sum())
+        self.col = np.full((len(self.images), 32), -1, np.int64)
+        self.maps = []
         for s, i in enumerate(self.images):
-            tmap = self.params.jacobian_map(i)
+            tmap = params.jacobian_map(i)
             used = np.flatnonzero(np.any(tmap != 0.0, axis=0) & (free_index >= 0))
-            col[s, :used.size] = free_index[used]
+            self.col[s, :used.size] = free_index[used]
             compact = np.zeros((tmap.shape[0], 32))
             compact[:, :used.size] = tmap[:, used]
-            maps.append(compact)
-        return col, maps
+            self.maps.append(compact)
 
-    def linearise(self, lon, lat, h, maps):
+    def point_orientation_blocks(self, a, b):
+        """sum_j A_j' W B_j per point, (P, 3, nfree): the coupling of each point with the free
+        orientation unknowns (normals.py's C)."""
+        dense = np.zeros((len(self.meas), 2, self.nfree))
+        for s in range(len(self.images)):
+            k = np.flatnonzero(self.img == s)
+            used = np.flatnonzero(self.col[s] >= 0)
+            dense[np.ix_(k, [0, 1], self.col[s, used])] = b[np.ix_(k, [0, 1], used)]
+        per_meas = np.einsum("jer,je,jeq->jrq", a, self.w, dense)
+        return np.add.reduceat(per_meas, self.start[:-1], axis=0) if len(per_meas) else per_meas
+
+    def linearise(self, lon, lat, h):
         """(a, b, l): a (M, 2, 3) px/m, b (M, 2, 32) compact orientation partials, l = measured -
         computed (M, 2) px."""
         m = self.meas
@@ -104,16 +116,9 @@ class _Geometry:
                 continue
             model = self.params.models[i]
             p = pl[k]
-            if isinstance(model, SpotModel):
-                d = model.partials(lon[p], lat[p], h[p])
-                col, row, dg = d["col"], d["row"], d["d_ground"]
-                b[k] = d["d_corrections"] @ maps[s]
-            else:
-                dg = model.partials(lon[p], lat[p], h[p])
-                col, row = model.ground_to_image(lon[p], lat[p], h[p])
-                jac, t = model._bias_matrix()
-                raw = np.linalg.solve(jac, np.vstack([col - t[0], row - t[1]]))
-                b[k] = model.bias_partials(raw[0], raw[1]) @ maps[s]
+            d = model.partials(lon[p], lat[p], h[p])
+            col, row, dg = d["col"], d["row"], d["d_ground"]
+            b[k] = d["d_corrections"] @ self.maps[s]
             a[k, :, 0] = dg[:, :, 0] / e_deg[k, None]
             a[k, :, 1] = dg[:, :, 1] / n_deg[k, None]
             a[k, :, 2] = dg[:, :, 2]
@@ -136,23 +141,20 @@ def _ground_weights(points, lon, lat, h):
     return wg, lg
 
 
-def initial_points(models, obs, height):
-    """Starting lon, lat, h: control points their observed coordinates; the others the ray of
-    their first measurement at `height` (a mean terrain height)."""
-    p = obs.points
+def start_points(models, obs, height):
+    """Starting lon, lat, h and a usable mask: control points at their observed coordinates, the
+    others intersected from their measurements (surface.intersection; starting at `height`, a
+    mean terrain height). Points that cannot be intersected are not usable."""
+    p, m = obs.points, obs.measurements
     lon, lat, h = p["lon"].copy(), p["lat"].copy(), p["h"].copy()
-    todo = ~(np.isfinite(lon) & np.isfinite(lat) & np.isfinite(h))
-    m = obs.measurements
-    first = np.full(len(p), -1)
-    first[m["point"][::-1]] = np.arange(len(m))[::-1]
-    todo = np.flatnonzero(todo & (first >= 0))
-    image = m["image_id"][first[todo]]
-    for i in np.unique(image):
-        sel = todo[image == i]
-        j = first[sel]
-        lon[sel], lat[sel] = models[i].image_to_ground(m["col"][j], m["row"][j], np.full(sel.size, float(height)))
-        h[sel] = height
-    return lon, lat, h
+    usable = p["role"] == "control"
+    rest = np.isin(m["point"], np.flatnonzero(~usable))
+    if rest.any():
+        cut = intersect(models, m["image_id"][rest], m["point"][rest], m["col"][rest], m["row"][rest],
+                        m["sigma"][rest], h0=height)
+        lon[cut.point], lat[cut.point], h[cut.point] = cut.lon, cut.lat, cut.h
+        usable[cut.point] = cut.ok
+    return lon, lat, h, usable
 
 
 def find_defects(normal, labels):
@@ -177,7 +179,7 @@ def find_defects(normal, labels):
 
 
 def adjust(models, observations, free, names=None, height=0.0, max_iterations=15, tolerance=1e-4,
-           remove_blunders=False, critical=CRITICAL_W, max_removals=50, feedback=None, parameters=None):
+           remove_blunders=False, critical=CRITICAL_W, max_removals=50, feedback=None):
     """Bundle adjustment (module docstring). models {image_id: model} (edited in place: they carry
     the solution); observations: Observations (check points are ignored here); free: bool mask or
     a list of names/patterns for parameters.OrientationParameters.select; height: mean terrain
@@ -185,7 +187,7 @@ def adjust(models, observations, free, names=None, height=0.0, max_iterations=15
     few observations or undeterminable parameters (named), CancelledError when cancelled."""
     from .parameters import OrientationParameters
     obs = observations.check()
-    params = parameters or OrientationParameters(models, names)
+    params = OrientationParameters(models, names)
     mask = np.asarray(free, bool) if np.asarray(free).dtype == bool else params.select(free)
     if mask.shape != (len(params),):
         raise InputError(f"the free-parameter mask has {mask.size} entries for {len(params)} parameters")
@@ -196,7 +198,7 @@ def adjust(models, observations, free, names=None, height=0.0, max_iterations=15
     used = obs.subset(obs.points["role"] != "check")
     removed = []
     while True:
-        result = _solve(params, used, height, max_iterations, tolerance, feedback, len(removed))
+        result = _solve(params, used, height, max_iterations, tolerance, feedback)
         result.removed = removed
         bad = result.flagged(critical)
         if not remove_blunders or not bad.size or len(removed) >= max_removals:
@@ -211,7 +213,6 @@ def adjust(models, observations, free, names=None, height=0.0, max_iterations=15
         keep = np.ones(len(used.measurements), bool)
         keep[_measurement_index(used, result.observations, worst)] = False
         used = Observations(used.points, used.measurements[keep])
-        params.apply(np.zeros(len(params)))
 
 
 def _measurement_index(used, adjusted, k):
@@ -222,48 +223,31 @@ def _measurement_index(used, adjusted, k):
     return np.flatnonzero((used.measurements["point"] == point) & (used.measurements["image_id"] == mk["image_id"]))
 
 
-def _solve(params, obs, height, max_iterations, tolerance, feedback, round_):
+def _solve(params, obs, height, max_iterations, tolerance, feedback):
     log = []
     fb = progress.ensure(feedback)
+    lon, lat, h, usable = start_points(params.models, obs, height)
+    if not usable.all():
+        log.append(f"{(~usable).sum()} point(s) left out: they cannot be intersected (fewer than two rays, "
+                   f"outside an image or no convergence), e.g. {obs.points['name'][~usable][0]}")
+        obs = obs.subset(usable)
+        lon, lat, h = lon[usable], lat[usable], h[usable]
     pts = obs.points
-    # points need two rays, or ground coordinates and one ray
-    rays = np.bincount(obs.measurements["point"], minlength=len(pts))
-    weak = (rays < 2) & ~((pts["role"] == "control") & (rays >= 1))
-    if weak.any():
-        log.append(f"{weak.sum()} point(s) with fewer than two rays left out, e.g. {pts['name'][weak][0]}")
-        obs = obs.subset(~weak)
-        pts = obs.points
     if not len(pts):
-        raise InputError("no point has two or more image measurements: nothing to adjust")
-    order = np.argsort(obs.measurements["point"], kind="stable")
-    geo = _Geometry(params, obs, order)
-    geo.point_of = geo.meas["point"]
-    start = np.searchsorted(geo.meas["point"], np.arange(len(pts) + 1))
-    free_index = np.full(len(params), -1, np.int64)
-    free_index[params.free] = np.arange(params.free.sum())
-    nfree = int(params.free.sum())
-    col, maps = geo.columns(free_index)
+        raise InputError("no point can be intersected from its image measurements: nothing to adjust")
+    geo = _Geometry(params, obs)
+    start, col, nfree = geo.start, geo.col, geo.nfree
     labels = [params.label(q) for q in np.flatnonzero(params.free)]
     x = np.zeros(len(params))
-    lon, lat, h = initial_points(params.models, obs, height)
     n_pts = len(pts)
     ninv, bp, ok = np.zeros((n_pts, 3, 3)), np.zeros((n_pts, 3)), np.zeros(n_pts, bool)
     dx = np.zeros((n_pts, 3))
     params.apply(x)
-    # the points alone first (orientation fixed): good starting values for the tie points
-    for it in range(3):
-        a, b, l = geo.linearise(lon, lat, h, maps)
-        wg, lg = _ground_weights(pts, lon, lat, h)
-        normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
-        normals.reduce_normals(start, a, b, l, geo.w, geo.img, np.full_like(col, -1), wg, lg, nfree, normal, rhs,
-                               ninv, bp, ok)
-        normals.back_substitute(start, a, b, geo.w, geo.img, np.full_like(col, -1), ninv, bp, ok, np.zeros(nfree), dx)
-        lon, lat, h = _move(lon, lat, h, dx)
     iteration = 0
     for iteration in range(1, max_iterations + 1):
         if fb.isCanceled():
             raise CancelledError("bundle adjustment cancelled")
-        a, b, l = geo.linearise(lon, lat, h, maps)
+        a, b, l = geo.linearise(lon, lat, h)
         wg, lg = _ground_weights(pts, lon, lat, h)
         normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
         cost = normals.reduce_normals(start, a, b, l, geo.w, geo.img, col, wg, lg, nfree, normal, rhs,
@@ -285,7 +269,7 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback, round_):
     else:
         log.append(f"not converged in {max_iterations} iterations: the last point update was {step:.3g} m")
     # statistics at the solution
-    a, b, l = geo.linearise(lon, lat, h, maps)
+    a, b, l = geo.linearise(lon, lat, h)
     wg, lg = _ground_weights(pts, lon, lat, h)
     normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
     normals.reduce_normals(start, a, b, l, geo.w, geo.img, col, wg, lg, nfree, normal, rhs, ninv, bp, ok)
@@ -296,9 +280,10 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback, round_):
     v = -l
     vg = -lg
     control = pts["role"] == "control"
-    n_obs = 2 * len(geo.meas) + 3 * int(control.sum())
+    used = ok[geo.point_of]
+    n_obs = 2 * int(used.sum()) + 3 * int((control & ok).sum())
     redundancy = n_obs - 3 * int(ok.sum()) - nfree
-    vpv = float(np.sum(v * v * geo.w) + np.sum(vg * vg * wg))
+    vpv = float(np.sum((v * v * geo.w)[used]) + np.sum((vg * vg * wg)[ok]))
     sigma0 = float(np.sqrt(vpv / redundancy)) if redundancy > 0 else float("nan")
     s0 = sigma0 if np.isfinite(sigma0) else 1.0
     sigmas = np.full(len(params), np.nan)
@@ -308,8 +293,8 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback, round_):
         normalised = v / (sig_l * np.sqrt(np.clip(red, 1e-12, None)))
     ground_res = np.full((n_pts, 3), np.nan)
     ground_res[control] = vg[control]
-    back = np.empty_like(order)
-    back[order] = np.arange(len(order))
+    back = np.empty_like(geo.order)
+    back[geo.order] = np.arange(len(geo.order))
     log.append(f"sigma_0 {sigma0:.4f} (a priori 1), redundancy {redundancy}, {nfree} orientation unknowns, "
                f"{n_pts} points, {len(geo.meas)} image measurements")
     for line in log:
@@ -318,7 +303,8 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback, round_):
                       redundancy=redundancy, observations=obs, lon=lon, lat=lat, h=h,
                       point_sigmas=s0 * np.sqrt(np.abs(np.diagonal(qpp, axis1=1, axis2=2))),
                       residuals=v[back], redundancy_numbers=red[back], normalised=normalised[back],
-                      ground_residuals=ground_res, iterations=iteration, log=log)
+                      ground_residuals=ground_res, iterations=iteration, effects=params.max_effects(x, height),
+                      log=log)
 
 
 def _move(lon, lat, h, dx):
@@ -357,55 +343,23 @@ def check_points(adjustment, observations, height=0.0):
     plus the check point's own ground sigma."""
     params = adjustment.parameters
     chk = observations.subset(observations.points["role"] == "check")
-    rays = np.bincount(chk.measurements["point"], minlength=len(chk.points))
-    chk = chk.subset(rays >= 2)
+    m = chk.measurements
+    if not len(m):
+        return {"names": chk.points["name"][:0], "dE": np.zeros(0), "dN": np.zeros(0), "dH": np.zeros(0),
+                "sigma": np.zeros((0, 3))}
+    cut = intersect(params.models, m["image_id"], m["point"], m["col"], m["row"], m["sigma"], h0=height)
+    chk = chk.subset(np.isin(np.arange(len(chk.points)), cut.point[cut.ok]))
     pts = chk.points
-    out = {"names": pts["name"], "dE": np.zeros(0), "dN": np.zeros(0), "dH": np.zeros(0),
-           "sigma": np.zeros((0, 3))}
-    if not len(pts):
-        return out
-    order = np.argsort(chk.measurements["point"], kind="stable")
-    geo = _Geometry(params, chk, order)
-    geo.point_of = geo.meas["point"]
-    start = np.searchsorted(geo.meas["point"], np.arange(len(pts) + 1))
-    free_index = np.full(len(params), -1, np.int64)
-    free_index[params.free] = np.arange(params.free.sum())
-    nfree = int(params.free.sum())
-    col, maps = geo.columns(free_index)
-    none = np.full_like(col, -1)
-    tie = pts.copy()
-    tie["role"] = "tie"
-    lon, lat, h = initial_points(params.models, Observations(tie, chk.measurements), height)
-    n = len(pts)
-    ninv, bp, ok, dx = np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros(n, bool), np.zeros((n, 3))
-    zeros = np.zeros((n, 3))
-    for _ in range(10):
-        a, b, l = geo.linearise(lon, lat, h, maps)
-        normals.reduce_normals(start, a, b, l, geo.w, geo.img, none, zeros, zeros, 0, np.zeros((0, 0)),
-                               np.zeros(0), ninv, bp, ok)
-        normals.back_substitute(start, a, b, geo.w, geo.img, none, ninv, bp, ok, np.zeros(0), dx)
-        lon, lat, h = _move(lon, lat, h, dx)
-        if np.nanmax(np.abs(dx)) < 1e-5:
-            break
-    a, b, l = geo.linearise(lon, lat, h, maps)
+    lon, lat, h, ninv = cut.lon[cut.ok], cut.lat[cut.ok], cut.h[cut.ok], cut.covariance[cut.ok]
+    geo = _Geometry(params, chk)
+    a, b, _ = geo.linearise(lon, lat, h)
+    g = -ninv @ geo.point_orientation_blocks(a, b)
     s0 = adjustment.sigma0 if np.isfinite(adjustment.sigma0) else 1.0
-    cov = np.zeros((n, 3, 3))
-    for p in range(n):
-        js = range(start[p], start[p + 1])
-        c = np.zeros((3, nfree))
-        for j in js:
-            bj = np.zeros((2, nfree))
-            cj = col[geo.img[j]]
-            for k in np.flatnonzero(cj >= 0):
-                bj[:, cj[k]] += b[j, :, k]
-            c += a[j].T @ (geo.w[j][:, None] * bj)
-        g = -ninv[p] @ c
-        cov[p] = s0 ** 2 * ninv[p] + g @ adjustment.covariance @ g.T
+    cov = s0 ** 2 * ninv + g @ adjustment.covariance @ np.swapaxes(g, 1, 2)
     e_deg, n_deg = metres_per_degree(pts["lat"])
     ground = np.column_stack([pts["sigma_e"], pts["sigma_n"], pts["sigma_h"]])
-    out.update(dE=(lon - pts["lon"]) * e_deg, dN=(lat - pts["lat"]) * n_deg, dH=h - pts["h"],
-               sigma=np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + np.nan_to_num(ground) ** 2))
-    return out
+    return {"names": pts["name"], "dE": (lon - pts["lon"]) * e_deg, "dN": (lat - pts["lat"]) * n_deg,
+            "dH": h - pts["h"], "sigma": np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + np.nan_to_num(ground) ** 2)}
 
 
 def statistics_table(values):

@@ -31,17 +31,16 @@ import math
 import os
 
 import numpy as np
-from osgeo import ogr, osr
+from osgeo import ogr
 
 from .. import block, progress
+from ..crs import egm96_undulation, srs as parse_crs, transform, wgs84
 from ..atomic import write_text
 from ..errors import InputError
-from .observations import MEAS_DTYPE, POINT_DTYPE, Observations
+from .observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
 
 DEFAULT_SIGMAS = (2.5, 2.5, 2.2)    # ground east, north, height (m), methods.md section 4 (K)
-DEFAULT_IMAGE_SIGMA = 0.5           # px, methods.md section 4
 HEIGHT_TYPES = ("ellipsoidal", "orthometric")
-GEOID_CRS = "EPSG:4326+5773"        # WGS 84 + EGM96 height
 ROLES = ("control", "check")
 MODES = ("replace", "merge")
 LAYER, TABLE = "control_points", "image_measurements"
@@ -54,58 +53,21 @@ BASE_COLUMNS = ("id", "role", "lon", "lat", "x", "y", "h", "sigma_e", "sigma_n",
 NAME_LENGTH = int(POINT_DTYPE["name"].itemsize // 4)
 
 
-def _srs(definition):
-    """An osr.SpatialReference (GIS axis order) from an EPSG code, 'EPSG:n', WKT or PROJ string."""
-    srs = osr.SpatialReference()
-    try:
-        err = srs.ImportFromEPSG(definition) if isinstance(definition, int) else srs.SetFromUserInput(str(definition))
-    except RuntimeError as exc:
-        err = str(exc)
-    if err:
-        raise InputError(f"cannot read the CRS {str(definition)[:200]!r} ({err}): give an EPSG code or WKT")
-    srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    return srs
-
-
-def _transform(source, target, xyz, what):
-    """Points (n, 2 or 3) from `source` to `target` through PROJ, no ballpark operations (a
-    missing grid is an error, not a silent metre-level shift)."""
-    options = osr.CoordinateTransformationOptions()
-    options.SetBallparkAllowed(False)
-    try:
-        ct = osr.CreateCoordinateTransformation(source, target, options)
-    except RuntimeError:
-        ct = None
-    if ct is None:
-        raise InputError(f"PROJ has no transformation for {what}: {source.GetName()} -> {target.GetName()}")
-    return np.array(ct.TransformPoints(np.asarray(xyz, float).tolist()), float).reshape(len(xyz), -1)
-
-
 def orthometric_to_ellipsoidal(lon, lat, height):
-    """Ellipsoidal heights h = H + N of EGM96 orthometric heights H at WGS 84 lon/lat (degrees):
-    PROJ's transformation EPSG:4326+5773 -> EPSG:4979 with its EGM96 grid."""
+    """Ellipsoidal heights h = H + N of EGM96 orthometric heights H at WGS 84 lon/lat (degrees)."""
     lon, lat, height = (np.atleast_1d(np.asarray(v, float)) for v in (lon, lat, height))
-    try:
-        out = _transform(_srs(GEOID_CRS), _srs(4979), np.column_stack([lon, lat, height]), "EGM96 heights")
-    except InputError as exc:
-        raise InputError(f"orthometric (EGM96) heights need PROJ's EGM96 geoid grid (us_nga_egm96_15.tif or "
-                         f"egm96_15.gtx), which is not available ({exc}): install it in a PROJ data folder "
-                         f"({', '.join(osr.GetPROJSearchPaths() or [])}) or give ellipsoidal heights") from exc
-    if not np.isfinite(out[:, 2]).all():
-        raise InputError("the EGM96 geoid undulation could not be computed for every point: check the "
-                         "coordinates and that PROJ's EGM96 grid (us_nga_egm96_15.tif) is installed")
-    return out[:, 2]
+    return height + egm96_undulation(lon, lat)
 
 
-def to_wgs84(x, y, crs):
-    """WGS 84 lon, lat (degrees) of x, y (easting/longitude first) in `crs` (EPSG code or WKT)."""
-    source = _srs(crs)
+def to_wgs84(x, y, definition):
+    """WGS 84 lon, lat (degrees) of x, y (easting/longitude first) in CRS `definition` (EPSG code or WKT)."""
+    source = parse_crs(definition)
     if source.IsCompound() or source.IsVertical():
         raise InputError("give the horizontal CRS of x/y only and choose the height type with the heights option")
-    wgs84 = _srs(4326)
-    if source.IsSame(wgs84):
+    target = wgs84()
+    if source.IsSame(target):
         return np.asarray(x, float), np.asarray(y, float)
-    out = _transform(source, wgs84, np.column_stack([x, y]), "the x/y coordinates")
+    out = transform(source, target, np.column_stack([x, y]), "the x/y coordinates")
     return out[:, 0], out[:, 1]
 
 
@@ -206,7 +168,7 @@ class _Table:
 
 
 def read_csv(path, image_names, crs=None, heights="ellipsoidal", default_role="control", check_ids=(),
-             sigmas=DEFAULT_SIGMAS, image_sigma=DEFAULT_IMAGE_SIGMA, suffix="", feedback=None):
+             sigmas=DEFAULT_SIGMAS, image_sigma=IMAGE_SIGMA, suffix="", feedback=None):
     """Observations (control/check points and their image measurements) from the CSV `path`
     (format in the module docstring). `image_names` maps the block's image names to their ids
     ({name: id}); `crs` is the CRS of x/y columns (default WGS 84); `check_ids` names points that
@@ -222,7 +184,7 @@ def read_csv(path, image_names, crs=None, heights="ellipsoidal", default_role="c
     table = _Table(path, image_names, suffix)
     if table.ignored:
         feedback.pushInfo(f"warning: ignored column(s) of {table.path}: {', '.join(table.ignored)}")
-    if table.horizontal == ("lon", "lat") and crs is not None and not _srs(crs).IsSame(_srs(4326)):
+    if table.horizontal == ("lon", "lat") and crs is not None and not parse_crs(crs).IsSame(wgs84()):
         feedback.pushInfo("warning: lon/lat columns are WGS 84 degrees; the CRS applies to x/y columns only")
     points = np.zeros(len(table.rows), POINT_DTYPE)
     meas, seen = [], {}
@@ -260,7 +222,7 @@ def read_csv(path, image_names, crs=None, heights="ellipsoidal", default_role="c
                          table.number(line, cells, columns["row"]), sigma))
     if not len(points):
         raise InputError(f"{table.path} has no points (only a header)")
-    check_ids = [c for c in (check_ids or []) if c]
+    check_ids = [c.strip() for c in (check_ids or []) if c.strip()]
     unknown = sorted(set(check_ids) - set(seen))
     if unknown:
         raise InputError(f"check point id(s) {', '.join(unknown)} are not in {table.path}")
@@ -338,17 +300,8 @@ def image_ids(block_path):
 
 def _layers(ds):
     """The control_points layer and image_measurements table of an open block (created if missing)."""
-    points = ds.GetLayerByName(LAYER)
-    if points is None:
-        wgs84 = _srs(4326)
-        points = ds.CreateLayer(LAYER, wgs84, ogr.wkbPoint25D, options=["FID=fid", "GEOMETRY_NAME=geom"])
-        for name, kind in POINT_FIELDS:
-            points.CreateField(ogr.FieldDefn(name, kind))
-    table = ds.GetLayerByName(TABLE)
-    if table is None:
-        table = ds.CreateLayer(TABLE, None, ogr.wkbNone, options=["FID=fid"])
-        for name, kind in MEAS_FIELDS:
-            table.CreateField(ogr.FieldDefn(name, kind))
+    points = ds.GetLayerByName(LAYER) or block.create_layer(ds, LAYER, ogr.wkbPoint25D, wgs84(), POINT_FIELDS)
+    table = ds.GetLayerByName(TABLE) or block.create_layer(ds, TABLE, ogr.wkbNone, None, MEAS_FIELDS)
     return points, table
 
 
@@ -376,17 +329,19 @@ def load_control_points(block_path):
     return _read(ds, block_path)
 
 
-def save_control_points(block_path, observations, mode="replace", feedback=None):
+def save_control_points(block_path, observations, mode="replace", feedback=None, names=None):
     """Store `observations` (control/check points only) in the block, replacing its points
     (mode "replace") or updating them (mode "merge", see `merge`), in one SQLite transaction:
-    on any error or a cancel the block keeps its earlier points. Returns what is stored."""
+    on any error or a cancel the block keeps its earlier points. `names`: {image name: id} of the
+    block (read from it if not given). Returns what is stored."""
     if mode not in MODES:
         raise InputError(f"the import mode must be one of {', '.join(MODES)}, not {mode!r}")
-    observations = Observations(observations.points, observations.measurements).check()
+    observations.check()
     roles = set(observations.points["role"].tolist()) - set(ROLES)
     if roles:
         raise InputError(f"only control and check points are stored with the block, not {', '.join(roles)} points")
-    known = set(image_ids(block_path).values())
+    names = names or image_ids(block_path)
+    known = set(names.values())
     unknown = sorted(set(observations.measurements["image_id"].tolist()) - known)
     if unknown:
         raise InputError(f"measurements in image id(s) {unknown}, which the block {block_path} does not have")
@@ -415,17 +370,16 @@ def save_control_points(block_path, observations, mode="replace", feedback=None)
             table.CreateFeature(feat)
         progress.step(feedback, 90.0)
         ds.ExecuteSQL(f"RECOMPUTE EXTENT ON {LAYER}")
+        roles = observations.points["role"]
+        block.write_info(ds, {"control_points": int((roles == "control").sum()),
+                              "check_points": int((roles == "check").sum()),
+                              "image_measurements": len(observations.measurements)},
+                         step="importpoints", message=f"{mode}: " + summary(observations, names))
     except BaseException:
         ds.RollbackTransaction()
         raise
     ds.CommitTransaction()
-    ds = None
-    roles = observations.points["role"]
-    block.update_info(block_path, {"control_points": int((roles == "control").sum()),
-                                   "check_points": int((roles == "check").sum()),
-                                   "image_measurements": len(observations.measurements)},
-                      step="importpoints", message=f"{mode}: " + summary(observations, image_ids(block_path)))
-    progress.step(feedback, 100.0)
+    progress.ensure(feedback).setProgress(100.0)
     return observations
 
 
@@ -457,10 +411,11 @@ def import_csv(block_path, csv_path, mode="replace", feedback=None, **options):
     measurements lie inside their images and store the points (`save_control_points`).
     Returns the points now in the block."""
     images = block.read_images(block_path)
-    observations = read_csv(csv_path, {r["name"]: r["id"] for r in images}, feedback=feedback, **options)
+    names = {r["name"]: r["id"] for r in images}
+    observations = read_csv(csv_path, names, feedback=feedback, **options)
     check_extent(observations, images)
     try:
-        return save_control_points(block_path, observations, mode=mode, feedback=feedback)
+        return save_control_points(block_path, observations, mode=mode, feedback=feedback, names=names)
     except RuntimeError as exc:   # an OGR/SQLite failure: the transaction was rolled back
         raise InputError(f"cannot store the points in {block_path}: {exc}") from exc
 

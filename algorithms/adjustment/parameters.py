@@ -77,8 +77,7 @@ class OrientationParameters:
         self.trajectories = self._trajectories(spot)
         cols = {}
         for t, members in enumerate(self.trajectories):
-            label = "pass " + "+".join(self.names[i] for i in members) if len(self.trajectories) > 1 or \
-                len(members) > 1 else f"pass {self.names[members[0]]}"
+            label = "pass " + "+".join(self.names[i] for i in members)
             cols[("traj", t)] = self._add(label, [(k, j) for k in EXTERIOR for j in range(4)])
         for i in spot:
             cols[("look", i)] = self._add(self.names[i], [(k, j) for k in LOOK for j in range(4)])
@@ -186,3 +185,26 @@ class OrientationParameters:
 
     def label(self, index):
         return self.parameters[index].name
+
+    def max_effects(self, x, height):
+        """Largest image displacement (px) each free unknown causes on its own (K Table 2's
+        "maximum effect"): the 3 x 3 grid of image corners, edge midpoints and centre of every
+        image it acts on is projected to the ground at `height` with the solution x, then back
+        with that unknown alone set to 0."""
+        x = np.asarray(x, float)
+        self.apply(x)
+        grid = {}
+        for i, m in self.models.items():
+            cols, rows = m.size
+            c, r = (v.ravel() for v in np.meshgrid(np.linspace(0, cols, 3), np.linspace(0, rows, 3)))
+            grid[i] = (c, r, *m.image_to_ground(c, r, np.full(c.size, float(height))))
+        effects = np.full(len(self), np.nan)
+        for q in np.flatnonzero(self.free):
+            y = x.copy()
+            y[q] = 0.0
+            self.apply(y)
+            effects[q] = max(float(np.max(np.hypot(*(np.subtract(self.models[i].ground_to_image(lon, lat, height),
+                                                                     (c, r))))))
+                             for i, (c, r, lon, lat) in grid.items() if self._maps[i][:, q].any())
+        self.apply(x)
+        return effects

@@ -1,7 +1,7 @@
 """Text/HTML report of a bundle adjustment: the coefficient table of K Table 2 (value, sigma,
-x/sigma, maximum effect in pixels at the array edges), check point statistics of K Table 3
-(dE, dN, dH: n, min, mean, max, RMS, sigma, with the theoretical RMS), removed blunders and the
-largest normalised residuals."""
+x/sigma, maximum effect in pixels over the image: parameters.max_effects), check point statistics
+of K Table 3 (dE, dN, dH: n, min, mean, max, RMS, sigma, with the theoretical RMS), the removed
+blunders and the count of measurements still flagged."""
 import html
 
 import numpy as np
@@ -11,13 +11,14 @@ from .parameters import UNITS
 
 
 def coefficient_rows(result):
-    """(name, value, sigma, x/sigma, unit) of the free unknowns, in display units."""
+    """(name, value, sigma, x/sigma, unit, maximum effect px) of the free unknowns, in display units."""
     rows = []
     for q in np.flatnonzero(result.parameters.free):
         p = result.parameters.parameters[q]
         unit, factor = UNITS.get(p.kind, ("px", 1.0))
         value, sigma = result.values[q] * factor, result.sigmas[q] * factor
-        rows.append((p.name, value, sigma, abs(value) / sigma if sigma > 0 else float("inf"), unit))
+        rows.append((p.name, value, sigma, abs(value) / sigma if sigma > 0 else float("inf"), unit,
+                     result.effects[q]))
     return rows
 
 
@@ -25,8 +26,8 @@ def text_report(result, check=None, table=None, critical=3.29):
     """The report as plain text (also logged)."""
     lines = [f"sigma_0 = {result.sigma0:.4f} (a priori 1), redundancy {result.redundancy}, "
              f"{result.iterations} iteration(s)", "", "free orientation parameters:",
-             f"{'parameter':32} {'value':>12} {'sigma':>10} {'x/sigma':>8}  unit"]
-    lines += [f"{n:32} {v:12.4f} {s:10.4f} {t:8.1f}  {u}" for n, v, s, t, u in coefficient_rows(result)]
+             f"{'parameter':32} {'value':>12} {'sigma':>10} {'x/sigma':>8} {'unit':>5} {'max. effect px':>15}"]
+    lines += [f"{n:32} {v:12.4f} {s:10.4f} {t:8.1f} {u:>5} {e:15.3f}" for n, v, s, t, u, e in coefficient_rows(result)]
     if result.removed:
         lines += ["", "measurements removed by data snooping (point, image id, |w|):"]
         lines += [f"  {n} in image {i}: {w:.1f}" for n, i, w in result.removed]

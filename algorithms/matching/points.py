@@ -34,10 +34,11 @@ import os
 import sqlite3
 
 import numpy as np
-from osgeo import ogr, osr
+from osgeo import ogr
 
 from .. import block, progress
 from ..atomic import atomic_path
+from ..crs import wgs84
 from ..errors import InputError
 
 COMB_A, COMB_B, COMB_C = 1, 2, 4
@@ -175,13 +176,10 @@ def write_point_layer(block_path, layer_name, points, model, image_id, height, f
     if not layer_name.isidentifier():
         raise InputError(f"a point layer name must be an identifier, not {layer_name!r}")
     ds = block.open_block(block_path, update=True)
-    wgs84 = osr.SpatialReference()
-    wgs84.ImportFromEPSG(4326)
-    wgs84.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
     ds.StartTransaction()
     if ds.GetLayerByName(layer_name) is not None:
         ds.DeleteLayer(layer_name)
-    layer = ds.CreateLayer(layer_name, wgs84, ogr.wkbPoint,
+    layer = ds.CreateLayer(layer_name, wgs84(), ogr.wkbPoint,
                            options=["FID=fid", "GEOMETRY_NAME=geom", "SPATIAL_INDEX=NO"])
     for name, kind in [("id", ogr.OFTInteger64), ("group", ogr.OFTInteger), ("rho", ogr.OFTReal)]:
         layer.CreateField(ogr.FieldDefn(name, kind))

@@ -350,15 +350,6 @@ class RpcModel(SensorModel):
         jac, t = self._bias_matrix()
         return jac[0, 0] * col + jac[0, 1] * row + t[0], jac[1, 0] * col + jac[1, 1] * row + t[1]
 
-    def bias_partials(self, col, row):
-        """d(col', row') / d(bias), shape (n, 2, 6), at RPC image coordinates (col, row)."""
-        u = (np.asarray(col, float) - 0.5 * self.size[0]) / 1000.0
-        v = (np.asarray(row, float) - 0.5 * self.size[1]) / 1000.0
-        out = np.zeros(u.shape + (2, 6))
-        out[..., 0, 0], out[..., 0, 1], out[..., 0, 2] = 1.0, u, v
-        out[..., 1, 3], out[..., 1, 4], out[..., 1, 5] = 1.0, u, v
-        return out
-
     def image_to_ground(self, col, row, h):
         """(lon, lat) of image points at ellipsoidal heights h, by Newton's method on the rational
         functions (analytic Jacobian, step halving), started at (LONG_OFF, LAT_OFF) and iterated to
@@ -385,11 +376,21 @@ class RpcModel(SensorModel):
         return shaped_points((lon, lat), shape, scalar)
 
     def partials(self, lon, lat, h):
-        """d(col, row) / d(lon, lat, h), shape (..., 2, 3): rows col, row; columns lon, lat
-        (px/deg) and h (px/m); by the quotient rule on the rational functions."""
+        """Image coordinates of ground points and their partial derivatives, as SpotModel.partials:
+        a dict of col, row (...); d_ground (..., 2, 3) = d(col, row)/d(lon, lat, h) in px/deg,
+        px/deg, px/m (quotient rule on the rational functions, through the bias); d_corrections
+        (..., 2, 6) = d(col, row)/d(bias) (A0, A1, A2, B0, B1, B2; module docstring)."""
         (lon, lat, h), shape, _ = flat_points(lon, lat, h)
-        out = np.empty((lon.size, 2, 3))
-        _partials_kernel(lon, lat, h, self._coef, self._nrm, out)
+        col, row = np.empty(lon.size), np.empty(lon.size)
+        _ground_to_image_kernel(lon, lat, h, self._coef, self._nrm, col, row)
+        d_ground = np.empty((lon.size, 2, 3))
+        _partials_kernel(lon, lat, h, self._coef, self._nrm, d_ground)
+        u, v = (col - 0.5 * self.size[0]) / 1000.0, (row - 0.5 * self.size[1]) / 1000.0
+        d_bias = np.zeros((lon.size, 2, 6))
+        d_bias[:, 0, 0], d_bias[:, 0, 1], d_bias[:, 0, 2] = 1.0, u, v
+        d_bias[:, 1, 3], d_bias[:, 1, 4], d_bias[:, 1, 5] = 1.0, u, v
         if self.bias.any():
-            out = np.einsum("ij,njk->nik", self._bias_matrix()[0], out)
-        return out.reshape(shape + (2, 3))
+            col, row = self._biased(col, row)
+            d_ground = np.einsum("ij,njk->nik", self._bias_matrix()[0], d_ground)
+        return {"col": col.reshape(shape), "row": row.reshape(shape), "d_ground": d_ground.reshape(shape + (2, 3)),
+                "d_corrections": d_bias.reshape(shape + (2, 6))}

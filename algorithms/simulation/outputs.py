@@ -11,7 +11,9 @@ GEOTIFF_OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "ZLEVEL=1"]
 
 def write_raster(path, array, grid, nodata=None, description="", metadata=None):
     """North-up GeoTIFF of `array` on `grid` (EPSG:4326), tiled, DEFLATE, with overviews."""
-    from osgeo import gdal, osr
+    from osgeo import gdal
+
+    from ..crs import wgs84
     gdal.UseExceptions()
     types = {np.dtype(np.uint8): gdal.GDT_Byte, np.dtype(np.float32): gdal.GDT_Float32}
     array = np.asarray(array)
@@ -19,9 +21,7 @@ def write_raster(path, array, grid, nodata=None, description="", metadata=None):
     ds = gdal.GetDriverByName("GTiff").Create(str(path), grid.cols, grid.rows, 1, types[array.dtype],
                                               GEOTIFF_OPTIONS + [predictor])
     ds.SetGeoTransform(grid.geotransform)
-    srs = osr.SpatialReference()
-    srs.ImportFromEPSG(4326)
-    ds.SetProjection(srs.ExportToWkt())
+    ds.SetProjection(wgs84().ExportToWkt())
     band = ds.GetRasterBand(1)
     if nodata is not None:
         band.SetNoDataValue(nodata)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
+from ..crs import egm96_undulation
 from ..dem import grid_bounds
 from ..errors import InputError
 from .grid import Grid
@@ -70,21 +71,11 @@ def jacksboro_dem():
 
 
 def _geoid_undulation(shape, geotransform):
-    """EGM96 undulation N at the cell centres (PROJ: EPSG:4326+5773 -> EPSG:4979)."""
-    from osgeo import osr
+    """EGM96 undulation N at the cell centres (crs.egm96_undulation)."""
     rows, cols = shape
     lon0, dlon, _, lat0, _, dlat = geotransform
     lon, lat = np.meshgrid(lon0 + (np.arange(cols) + 0.5) * dlon, lat0 + (np.arange(rows) + 0.5) * dlat)
-    src = osr.SpatialReference()
-    src.SetFromUserInput("EPSG:4326+5773")
-    dst = osr.SpatialReference()
-    dst.ImportFromEPSG(4979)
-    for srs in (src, dst):
-        srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    transform = osr.CoordinateTransformation(src, dst)
-    points = np.column_stack([lon.ravel(), lat.ravel(), np.zeros(lon.size)])
-    out = np.array(transform.TransformPoints(points))
-    return out[:, 2].reshape(shape)
+    return egm96_undulation(lon, lat)
 
 
 @njit(cache=True, nogil=True)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import progress
+from ..adjustment.observations import IMAGE_SIGMA
 from ..errors import GeometryError, InputError
 from ..geodesy import ecef_to_geodetic, geodetic_to_ecef, metres_per_degree
 
@@ -108,13 +109,9 @@ def _image_to_ground(model, col, row, h):
 
 
 def _project(model, lon, lat, h):
-    """(col, row, d(col, row)/d(lon, lat, h) (n, 2, 3)) of ground points; partials as a dict (SpotModel)
-    or as the array alone (RpcModel)."""
+    """(col, row, d(col, row)/d(lon, lat, h) (n, 2, 3)) of ground points."""
     p = model.partials(lon, lat, h)
-    if isinstance(p, dict):
-        return p["col"], p["row"], p["d_ground"]
-    col, row = model.ground_to_image(lon, lat, h)
-    return col, row, p
+    return p["col"], p["row"], p["d_ground"]
 
 
 def _start(models, image, col, row, first, second, h0):
@@ -168,7 +165,7 @@ def _default_height(models):
     return float(np.mean(ranges)) if ranges else 0.0
 
 
-def intersect(models, image_ids, point_index, col, row, sigma=0.5, h0=None, max_iter=10, tol=TOLERANCE,
+def intersect(models, image_ids, point_index, col, row, sigma=IMAGE_SIGMA, h0=None, max_iter=10, tol=TOLERANCE,
               feedback=None):
     """Intersect the object points of image measurements (module docstring).
 

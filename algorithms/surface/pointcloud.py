@@ -13,10 +13,11 @@ import os
 import warnings
 
 import numpy as np
-from osgeo import ogr, osr
+from osgeo import ogr
 
 from .. import progress
 from ..atomic import atomic_path
+from ..crs import srs as parse_crs, transform, wgs84
 from ..errors import InputError
 from ..geodesy import utm_epsg
 
@@ -47,28 +48,12 @@ def output_srs(crs=None, lon=None, lat=None):
         if not finite.any():
             raise InputError("no point to choose the UTM zone from: give the output CRS")
         crs = utm_epsg(float(np.mean(lon[finite])), float(np.mean(lat[finite])))
-    if isinstance(crs, osr.SpatialReference):
-        srs = crs.Clone()
-    else:
-        srs = osr.SpatialReference()
-        text = f"EPSG:{crs}" if isinstance(crs, (int, np.integer)) else str(crs)
-        try:
-            if srs.SetFromUserInput(text) != 0:
-                raise RuntimeError(text)
-        except RuntimeError:
-            raise InputError(f"unknown coordinate reference system {text!r}") from None
-    srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    return srs
+    return parse_crs(crs)
 
 
 def project(lon, lat, srs):
     """(x, y) of WGS 84 (lon, lat) degrees in `srs` (through OSR/PROJ)."""
-    wgs84 = osr.SpatialReference()
-    wgs84.ImportFromEPSG(4326)
-    wgs84.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    if not len(lon):
-        return np.zeros(0), np.zeros(0)
-    xy = np.array(osr.CoordinateTransformation(wgs84, srs).TransformPoints(np.column_stack([lon, lat])))
+    xy = transform(wgs84(), srs, np.column_stack([lon, lat]), "the points")
     return xy[:, 0], xy[:, 1]
 
 

@@ -8,7 +8,7 @@ from ...algorithms import block
 from ...algorithms.adjustment import report
 from ...algorithms.adjustment.bundle import CRITICAL_W, adjust, check_points, statistics_table
 from ...algorithms.adjustment.control_points import load_control_points
-from ...algorithms.adjustment.observations import tie_observations
+from ...algorithms.adjustment.observations import IMAGE_SIGMA, tie_observations
 from ...algorithms.errors import InputError
 from ...algorithms.matching import points
 from .base import PushbroomAlgorithm
@@ -41,7 +41,7 @@ class BundleAdjust(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterBoolean("REMOVE_BLUNDERS", "Remove flagged measurements "
                                                         "iteratively", False))
         self.addAdvancedParameters([
-            Number("SIGMA_TIE", "Sigma of tie point image measurements (px)", Number.Double, 0.5, minValue=1e-4),
+            Number("SIGMA_TIE", "Sigma of tie point image measurements (px)", Number.Double, IMAGE_SIGMA, minValue=1e-4),
             Number("CRITICAL", "Critical normalised residual (data snooping)", Number.Double, CRITICAL_W,
                    minValue=1.0),
             Number("MAX_ITERATIONS", "Maximum iterations", Number.Integer, 15, minValue=1),

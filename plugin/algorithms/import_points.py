@@ -6,6 +6,7 @@ from qgis.core import (QgsProcessing, QgsProcessingOutputNumber, QgsProcessingOu
                        QgsProcessingParameterString)
 
 from ...algorithms.adjustment import control_points as cp
+from ...algorithms.adjustment.observations import IMAGE_SIGMA
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
 
@@ -51,7 +52,7 @@ class ImportPoints(PushbroomAlgorithm):
             Number("SIGMA_N", "Default sigma north (m)", Number.Double, north, minValue=1e-6),
             Number("SIGMA_H", "Default sigma height (m)", Number.Double, up, minValue=1e-6),
             Number("SIGMA_IMAGE", "Default sigma of the image measurements (px)", Number.Double,
-                   cp.DEFAULT_IMAGE_SIGMA, minValue=1e-6),
+                   IMAGE_SIGMA, minValue=1e-6),
             QgsProcessingParameterString("MEAS_SUFFIX", "Measurement column suffix ('_meas' for the simulator's "
                                          "points.csv)", "", optional=True),
         ])
@@ -64,14 +65,13 @@ class ImportPoints(PushbroomAlgorithm):
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
         crs = self.parameterAsCrs(parameters, "CRS", context)
-        check_ids = [c.strip() for c in self.parameterAsString(parameters, "CHECK_IDS", context).split(",")]
         stored = cp.import_csv(
             path, self.parameterAsFile(parameters, "INPUT", context),
             mode=cp.MODES[self.parameterAsEnum(parameters, "MODE", context)], feedback=feedback,
             crs=(crs.authid() or crs.toWkt(crs.WKT_PREFERRED)) if crs.isValid() else None,
             heights=cp.HEIGHT_TYPES[self.parameterAsEnum(parameters, "HEIGHTS", context)],
             default_role=cp.ROLES[self.parameterAsEnum(parameters, "ROLE", context)],
-            check_ids=[c for c in check_ids if c],
+            check_ids=[c.strip() for c in self.parameterAsString(parameters, "CHECK_IDS", context).split(",")],
             sigmas=tuple(self.parameterAsDouble(parameters, key, context) for key in ("SIGMA_E", "SIGMA_N", "SIGMA_H")),
             image_sigma=self.parameterAsDouble(parameters, "SIGMA_IMAGE", context),
             suffix=self.parameterAsString(parameters, "MEAS_SUFFIX", context))

@@ -8,6 +8,7 @@ from qgis.core import (QgsProcessing, QgsProcessingMultiStepFeedback, QgsProcess
                        QgsProcessingParameterNumber)
 
 from ...algorithms import block
+from ...algorithms.adjustment.observations import IMAGE_SIGMA
 from ...algorithms.errors import InputError
 from ...algorithms.matching import points
 from ...algorithms.surface import intersection, pointcloud
@@ -41,7 +42,7 @@ class IntersectPoints(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterCrs("CRS", "Output CRS (empty: the block's UTM zone)", None,
                                                     optional=True))
         self.addAdvancedParameters([
-            Number("SIGMA", "Sigma of the image coordinates (px)", Number.Double, 0.5, minValue=1e-6),
+            Number("SIGMA", "Sigma of the image coordinates (px)", Number.Double, IMAGE_SIGMA, minValue=1e-6),
             Number("MAX_ITERATIONS", "Maximum iterations per point", Number.Integer, 10, minValue=1),
         ])
         self.addParameter(QgsProcessingParameterFileDestination(

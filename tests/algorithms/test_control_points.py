@@ -11,7 +11,7 @@ from osgeo import gdal, ogr, osr
 
 from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp
-from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
+from pushbroom.algorithms.adjustment.observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
@@ -97,7 +97,7 @@ def test_simulator_points_import(scene, blk, tmp_path):
     assert obs.points[["sigma_e", "sigma_n", "sigma_h"]].tolist() == [cp.DEFAULT_SIGMAS] * len(rows)
     m = obs.measurements
     assert sorted(zip(m["point"].tolist(), m["image_id"].tolist(), m["col"].tolist(), m["row"].tolist())) == cells
-    assert (m["sigma"] == cp.DEFAULT_IMAGE_SIGMA).all()
+    assert (m["sigma"] == IMAGE_SIGMA).all()
     assert same(cp.load_control_points(blk), obs)
     # the stored layer and table, read with OGR
     ds = ogr.Open(blk)
@@ -148,7 +148,7 @@ def test_projected_input(scene, blk, tmp_path):
     print(f"UTM {epsg} -> WGS 84: largest difference {err:.1e} deg")
     with pytest.raises(InputError, match="swapped|projected"):
         cp.read_csv(path, cp.image_ids(blk))                          # metres read as degrees
-    with pytest.raises(InputError, match="CRS"):
+    with pytest.raises(InputError, match="unknown coordinate reference system"):
         cp.read_csv(path, cp.image_ids(blk), crs="EPSG:999999")
 
 

@@ -54,7 +54,7 @@ def test_ground_to_image_matches_numpy_reference(model, fields):
 
 def test_partials_match_central_differences(model):
     lon, lat, h = ground_points(50)
-    jac = model.partials(lon, lat, h)
+    jac = model.partials(lon, lat, h)["d_ground"]
     steps = (1e-6, 1e-6, 0.1)  # deg, deg, m
     for k, step in enumerate(steps):
         plus = [lon, lat, h]
@@ -85,7 +85,7 @@ def test_scalars_give_scalars_and_arrays_broadcast(model):
     cols = np.arange(6.0).reshape(2, 3)
     lon, lat = model.image_to_ground(cols, 5.0, 500.0)
     assert lon.shape == lat.shape == (2, 3)
-    assert model.partials(lon, lat, 500.0).shape == (2, 3, 2, 3)
+    assert model.partials(lon, lat, 500.0)["d_ground"].shape == (2, 3, 2, 3)
 
 
 def test_nan_in_gives_nan_out(model):
@@ -237,3 +237,41 @@ def test_written_crop_rpc_gives_gdal_the_crop_mapping(tmp_path, model):
     fields = gdal.Open(str(raster)).GetMetadata("RPC")
     assert float(fields["SAMP_OFF"]) == SCALARS["SAMP_OFF"] - CROP[0]
     assert float(fields["LINE_OFF"]) == SCALARS["LINE_OFF"] - CROP[1]
+
+
+BIAS = np.array([1.5, 0.8, -0.4, -2.0, 0.3, 1.1])   # px, px per 1000 px
+
+
+def test_bias_is_an_affine_image_correction_with_exact_partials(model, tmp_path):
+    """col' = col + A0 + A1 u + A2 v (row' likewise), u, v = (col, row) about the raster centre /
+    1000; image_to_ground inverts it; partials through it (ground) and of it (d_corrections)
+    agree with central differences; the model file keeps it and RPC writers refuse it."""
+    from pushbroom.algorithms.errors import InputError
+    from pushbroom.algorithms.sensors.model_file import save_model_file
+    biased = RpcModel(model.coefficients, model.size, model.offset, "biased", bias=BIAS)
+    lon, lat, h = ground_points(60)
+    col, row = model.ground_to_image(lon, lat, h)
+    u, v = (col - model.size[0] / 2) / 1000, (row - model.size[1] / 2) / 1000
+    c2, r2 = biased.ground_to_image(lon, lat, h)
+    np.testing.assert_allclose(c2, col + BIAS[0] + BIAS[1] * u + BIAS[2] * v, atol=1e-9)
+    np.testing.assert_allclose(r2, row + BIAS[3] + BIAS[4] * u + BIAS[5] * v, atol=1e-9)
+    back = biased.image_to_ground(c2, r2, h)
+    np.testing.assert_allclose(back, (lon, lat), atol=1e-10)
+    p = biased.partials(lon, lat, h)
+    np.testing.assert_allclose((p["col"], p["row"]), (c2, r2), atol=1e-9)
+    for k, step in enumerate((1e-6, 1e-6, 0.1)):
+        plus, minus = [lon, lat, h], [lon, lat, h]
+        plus[k], minus[k] = plus[k] + step, minus[k] - step
+        fd = (np.array(biased.ground_to_image(*plus)) - np.array(biased.ground_to_image(*minus))) / (2 * step)
+        assert np.abs(p["d_ground"][:, :, k] - fd.T).max() < 1e-6 * np.abs(fd).max()
+    for k in range(6):
+        e = np.zeros(6)
+        e[k] = 1e-3
+        plus = np.array(RpcModel(model.coefficients, model.size, model.offset, bias=BIAS + e).ground_to_image(lon, lat, h))
+        minus = np.array(RpcModel(model.coefficients, model.size, model.offset, bias=BIAS - e).ground_to_image(lon, lat, h))
+        np.testing.assert_allclose(p["d_corrections"][:, :, k], ((plus - minus) / 2e-3).T, atol=1e-9)
+    path = tmp_path / "m.pbmodel.json"
+    save_model_file(biased, path)
+    np.testing.assert_array_equal(sensors.load(str(path)).bias, BIAS)
+    with pytest.raises(InputError, match="fit new RPCs"):
+        write_rpc_txt(biased, tmp_path / "x_RPC.TXT")

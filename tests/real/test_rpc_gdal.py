@@ -52,7 +52,7 @@ def max_errors_vs_gdal(model, ds):
     ground = np.array(ground)
     lon, lat = model.image_to_ground(col, row, h)
     # ground differences in pixels, through d(col, row)/d(lon, lat)
-    jac = model.partials(lon, lat, h)[:, :, :2]
+    jac = model.partials(lon, lat, h)["d_ground"][:, :, :2]
     to_ground_px = np.abs(np.einsum("nij,nj->ni", jac, ground[:, :2] - np.column_stack([lon, lat]))).max()
     image, ok = transformer.TransformPoints(1, ground)
     assert all(ok)
