@@ -30,3 +30,24 @@ def step(feedback, percent, message=None):
     feedback.setProgress(float(percent))
     if message:
         feedback.pushInfo(message)
+
+
+class _Scaled:
+    """Feedback proxy mapping 0-100 % of a sub-step onto [start, stop] of the whole."""
+
+    def __init__(self, feedback, start, stop):
+        self.feedback, self.start, self.stop = feedback, start, stop
+
+    def setProgress(self, percent):  # noqa: N802 (QGIS API)
+        self.feedback.setProgress(self.start + (self.stop - self.start) * float(percent) / 100.0)
+
+    def isCanceled(self):  # noqa: N802 (QGIS API)
+        return self.feedback.isCanceled()
+
+    def pushInfo(self, text):  # noqa: N802 (QGIS API)
+        self.feedback.pushInfo(text)
+
+
+def scaled(feedback, start, stop):
+    """Feedback for a sub-step: its 0-100 % reported as start-stop % of `feedback` (None stays None)."""
+    return None if feedback is None else _Scaled(feedback, start, stop)

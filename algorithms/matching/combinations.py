@@ -179,38 +179,18 @@ def compose_guide(a, b, b_src):
     return guide[np.isfinite(c).all(axis=1)]
 
 
-class _Scaled:
-    """Feedback proxy mapping 0-100 % of a sub-step onto [start, stop] of the whole."""
-
-    def __init__(self, feedback, start, stop):
-        self.feedback, self.start, self.stop = feedback, start, stop
-
-    def setProgress(self, percent):  # noqa: N802 (QGIS API)
-        self.feedback.setProgress(self.start + (self.stop - self.start) * float(percent) / 100.0)
-
-    def isCanceled(self):  # noqa: N802 (QGIS API)
-        return self.feedback.isCanceled()
-
-    def pushInfo(self, text):  # noqa: N802 (QGIS API)
-        self.feedback.pushInfo(text)
-
-
-def _sub(feedback, start, stop):
-    return None if feedback is None else _Scaled(feedback, start, stop)
-
-
 def pair_seeds(image1, image2, model1, model2, seed_points, id1, id2, params=None, height_range=None):
     """PAIR_DTYPE seeds from the points of `seed_points` (MultiPoints) observed in both images
-    `id1` and `id2`: each is re-matched by LSM from its stored image-2 position (NCC within a few
-    px first, seeds.seeds_from_points) and kept if it passes the acceptance criteria."""
-    from .seeds import seeds_from_points
+    `id1` and `id2`: each is re-matched from its stored image-2 position on the images the growth
+    uses (region_growing.transfer_points) and kept if it passes the acceptance criteria."""
+    from .region_growing import transfer_points
     x1, y1 = seed_points.coordinates(id1)
     x2, y2 = seed_points.coordinates(id2)
     both = np.isfinite(x1) & np.isfinite(y1) & np.isfinite(x2) & np.isfinite(y2)
     if not both.any():
         return np.zeros(0, PAIR_DTYPE)
-    recs, ok = seeds_from_points(image1, image2, model1, model2, x1[both], y1[both], params, height_range,
-                                 x2=x2[both], y2=y2[both])
+    recs, ok = transfer_points(image1, image2, model1, model2, x1[both], y1[both], params, height_range,
+                               x2=x2[both], y2=y2[both])
     return recs[ok]
 
 
@@ -232,7 +212,7 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
     image_ids = list(image_ids or range(1, n + 1))
     log = progress.ensure(feedback)
     if seed_points is None and not automatic:
-        raise InputError("matching needs seeds: give tie/control points or allow automatic seeds")
+        raise InputError("region growing needs seeds: give seed points or allow automatic seeds")
     share = [0, 100] if n == 2 else [0, 40, 55, 85, 100]
     progress.step(feedback, 0, f"combination (a): {names[0]} - {names[1]}")
 
@@ -245,7 +225,7 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
         return found
 
     a = match_pair(images[0], images[1], models[0], models[1], params=params, height_range=height_range,
-                   seeds=seeds(1), automatic=automatic, feedback=_sub(feedback, share[0], share[1]),
+                   seeds=seeds(1), automatic=automatic, feedback=progress.scaled(feedback, share[0], share[1]),
                    workers=workers)
     log.pushInfo(f"(a) {names[0]} - {names[1]}: {len(a)} points")
     if n == 2:
@@ -255,7 +235,7 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
         progress.step(feedback, share[1], f"combination (b): {names[0]} - {names[2]}, region growing")
         grown = np.asarray(match_pair(images[0], images[2], models[0], models[2], params=params,
                                       height_range=height_range, seeds=seeds(2), automatic=automatic,
-                                      feedback=_sub(feedback, share[1], share[2]), workers=workers), PAIR_DTYPE)
+                                      feedback=progress.scaled(feedback, share[1], share[2]), workers=workers), PAIR_DTYPE)
     progress.step(feedback, share[2], f"combination (b): {names[0]} - {names[2]}, {len(a)} transfer points")
     bt, ok = transfer_points(images[0], images[2], models[0], models[2], a["x1"], a["y1"], params, height_range,
                              guide=grown if grown is not None and len(grown) else None)

@@ -277,8 +277,7 @@ def _grow_tile(ctx, index, box):
         found = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows)
         parts.append(found)
         ids.append((0 if seeds is None else len(seeds)) + index * 10000 + np.arange(len(found)))
-    tile_seeds = np.concatenate(parts) if parts else np.zeros(0, PAIR_DTYPE)
-    ids = np.concatenate(ids) if ids else np.zeros(0, np.int64)
+    tile_seeds, ids = np.concatenate(parts), np.concatenate(ids)     # match_pair ensures one source
     nseeds = len(tile_seeds)
     if nseeds == 0:
         return empty, 0, 0
@@ -454,12 +453,14 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
     return records
 
 
-def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_range=None, guide=None):
+def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_range=None, guide=None,
+                    x2=None, y2=None):
     """LSM of GIVEN image-1 points into image 2 (only image-2 coordinates are matched; transfer
-    points of the three-image combinations). Initial values: from `guide` (PAIR_DTYPE points of
-    this pair already matched: the nearest one's position and affine transported to the point),
-    else from the sensor models (NCC along the predicted path over the height range, then LSM,
-    as seeds_from_points). Returns (PAIR_DTYPE records in the order of x1, ok mask of the
+    points of the three-image combinations), on the resolution-adapted images. Initial values: from
+    `guide` (PAIR_DTYPE points of this pair already matched: the nearest one's position and affine
+    transported to the point), else from approximate image-2 positions x2, y2 or the sensor models
+    (NCC near them or along the predicted path over the height range, then LSM, as
+    seeds_from_points). Returns (PAIR_DTYPE records in the order of x1, ok mask of the
     accepted ones)."""
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)
@@ -470,7 +471,7 @@ def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_
     hr = resolve_height_range(model1, height_range)
     image1, image2 = adapt_resolution(image1, image2, model1, model2, params, hr)
     if guide is None or len(guide) == 0:
-        return seeds_from_points(image1, image2, model1, model2, x1, y1, params, hr)
+        return seeds_from_points(image1, image2, model1, model2, x1, y1, params, hr, x2=x2, y2=y2)
     guide = _as_seed_records(guide)
     if len(guide) == 0:
         raise InputError("the guide points have no matched image-2 positions")

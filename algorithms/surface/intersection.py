@@ -190,8 +190,9 @@ def intersect(models, image_ids, point_index, col, row, sigma=IMAGE_SIGMA, h0=No
     for k in range(len(chunks) - 1):
         a, b, lo, hi = chunks[k], chunks[k + 1], bounds[k], bounds[k + 1]
         values = _intersect_chunk(models, image[lo:hi], inverse[lo:hi] - a, col[lo:hi], row[lo:hi], sigma[lo:hi],
-                                  rays[a:b], h0, max_iter, tol, feedback, 100.0 * k / (len(chunks) - 1),
-                                  100.0 / (len(chunks) - 1))
+                                  rays[a:b], h0, max_iter, tol,
+                                  progress.scaled(feedback, 100.0 * k / (len(chunks) - 1),
+                                                  100.0 * (k + 1) / (len(chunks) - 1)))
         for array, value in zip(fields, values):
             array[a:b] = value
     lon, lat, h, status, iterations, sigma0, rms, covariance = fields
@@ -201,7 +202,7 @@ def intersect(models, image_ids, point_index, col, row, sigma=IMAGE_SIGMA, h0=No
     return Intersection(ids, lon, lat, h, rays, status, iterations, sigma0, rms, covariance)
 
 
-def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, tol, feedback, pct0, pct_span):
+def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, tol, feedback):
     """Intersect the points 0 .. len(rays) - 1 of one chunk from their measurements (sorted by
     `point`). Returns lon, lat, h, status, iterations, sigma0, rms, covariance."""
     n = rays.size
@@ -221,7 +222,7 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
     observed = np.column_stack([col, row])
     weight = 1.0 / sigma ** 2
     for iteration in range(1, max_iter + 1):
-        progress.step(feedback, pct0 + pct_span * (iteration - 1) / max_iter)
+        progress.step(feedback, 100.0 * (iteration - 1) / max_iter)
         sel = np.flatnonzero(status[point] == NOT_CONVERGED)
         if not sel.size:
             break

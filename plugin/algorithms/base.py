@@ -40,6 +40,11 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
             parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
             self.addParameter(parameter)
 
+    def parameterAsOptionalDouble(self, parameters, key, context):  # noqa: N802 (QGIS naming)
+        """The number of an optional parameter, or None where it is not set."""
+        value = parameters.get(key)
+        return None if value is None or value == "" else self.parameterAsDouble(parameters, key, context)
+
     def icon(self):
         return QIcon(resource_path("icons", "pushbroom.svg"))
 

@@ -81,11 +81,8 @@ class FitRpc(PushbroomAlgorithm):
         path = self.parameterAsFile(parameters, "BLOCK", context)
         rows = selected_images(block.read_images(path), self.parameterAsString(parameters, "IMAGE", context))
 
-        def optional(key):
-            value = parameters.get(key)
-            return None if value is None or value == "" else self.parameterAsDouble(parameters, key, context)
-
-        heights = cube_heights(path, optional("MIN_HEIGHT"), optional("MAX_HEIGHT"))
+        heights = cube_heights(path, self.parameterAsOptionalDouble(parameters, "MIN_HEIGHT", context),
+                               self.parameterAsOptionalDouble(parameters, "MAX_HEIGHT", context))
         n = self.parameterAsInt(parameters, "GRID", context)
         grid = (n, n, self.parameterAsInt(parameters, "HEIGHT_LEVELS", context))
         folder = self.parameterAsString(parameters, "OUTPUT_FOLDER", context) or None
@@ -100,7 +97,9 @@ class FitRpc(PushbroomAlgorithm):
         fitted = []
         for k, row in enumerate(rows):
             progress.step(feedback, 95.0 * k / len(rows), f"fitting the RPC of {row['name']}")
-            fitted.append(rpc_fit.fit_rpc(block.load_model(path, row["id"]), heights, grid))
+            fitted.append(rpc_fit.fit_rpc(block.load_model(path, row["id"]), heights, grid,
+                                          feedback=progress.scaled(feedback, 95.0 * k / len(rows),
+                                                                   95.0 * (k + 1) / len(rows))))
         progress.step(feedback, 95.0)
         entries = []
         for row, (rpc, fit), destination in zip(rows, fitted, destinations):

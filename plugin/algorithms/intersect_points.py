@@ -2,18 +2,19 @@
 intersection (K 3.5.1; algorithms/surface/intersection.py), written as a point cloud (LAS/LAZ or a
 GeoPackage point layer; algorithms/surface/pointcloud.py)."""
 import numpy as np
-from qgis.core import (QgsProcessing, QgsProcessingMultiStepFeedback, QgsProcessingOutputNumber,
+from qgis.core import (QgsProcessing, QgsProcessingOutputNumber,
                        QgsProcessingOutputVectorLayer, QgsProcessingParameterCrs, QgsProcessingParameterEnum,
                        QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterNumber)
 
-from ...algorithms import block
+from ...algorithms import block, progress
 from ...algorithms.adjustment.observations import IMAGE_SIGMA
 from ...algorithms.errors import InputError
 from ...algorithms.matching import points
 from ...algorithms.surface import intersection, pointcloud
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
+from .match_points import display_height
 
 Number = QgsProcessingParameterNumber
 KINDS = (("mass_points", "Mass points (pushbroom:matchpoints)"),
@@ -64,15 +65,13 @@ class IntersectPoints(PushbroomAlgorithm):
                              "block does not have: run the matching step again")
         models = {i: block.load_model(path, i) for i in ids}
         heights = block.height_range(path)
-        steps = QgsProcessingMultiStepFeedback(2, feedback)
-        if feedback.isCanceled():   # the proxy follows later cancels only (through the canceled signal)
-            steps.cancel()
         obs = multi.observations
         result = intersection.intersect(
             models, obs["image_id"], obs["point_id"], obs["col"], obs["row"],
             sigma=self.parameterAsDouble(parameters, "SIGMA", context),
-            h0=None if heights is None else 0.5 * (heights[0] + heights[1]),
-            max_iter=self.parameterAsInt(parameters, "MAX_ITERATIONS", context), feedback=steps)
+            h0=None if heights is None else display_height(heights),
+            max_iter=self.parameterAsInt(parameters, "MAX_ITERATIONS", context),
+            feedback=progress.scaled(feedback, 0, 80))
         pos = np.searchsorted(multi.points["id"], result.point).clip(max=max(len(multi) - 1, 0))
         if len(multi) == 0 or np.any(multi.points["id"][pos] != result.point):
             raise InputError(f"the stored {kind.replace('_', ' ')} have observations of unknown points: run the "
@@ -91,11 +90,10 @@ class IntersectPoints(PushbroomAlgorithm):
             crs = crs.authid() or crs.toWkt(crs.WKT_PREFERRED)
         else:
             crs = block.read_info(path).get("default_crs")
-        steps.setCurrentStep(1)
         out = self.parameterAsFileOutput(parameters, "OUTPUT", context)
         fields = pointcloud.cloud_fields(result, group=group, rho=multi.points["rho_min"][pos])
         out, srs = pointcloud.write_point_cloud(out, result.lon[ok], result.lat[ok], result.h[ok], fields, crs=crs,
-                                                feedback=steps)
+                                                feedback=progress.scaled(feedback, 80, 100))
         message = f"{int(ok.sum())} points written to {out} ({srs.GetName()}; z ellipsoidal height)"
         feedback.pushInfo(message)
         block.update_info(path, {}, step="intersectpoints", message=message)

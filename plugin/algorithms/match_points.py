@@ -13,9 +13,10 @@ from ..styles import load_styled
 from .base import PushbroomAlgorithm
 
 Number = QgsProcessingParameterNumber
-SEED_SOURCES = ("Automatic: interest points matched along the path predicted by the sensor models",
-                "The block's tie points (pushbroom:selecttiepoints)",
-                "Both: the block's tie points and automatic seeds")
+#: seed choices: (label, use the block's tie points, automatic seeds)
+SEED_SOURCES = (("Automatic: interest points matched along the path predicted by the sensor models", False, True),
+                ("The block's tie points (pushbroom:selecttiepoints)", True, False),
+                ("Both: the block's tie points and automatic seeds", True, True))
 
 
 def combination_order(rows, text):
@@ -86,7 +87,8 @@ class MatchPoints(PushbroomAlgorithm):
                                  "height range)", Number.Double, None, optional=True))
         self.addParameter(Number("MAX_HEIGHT", "Highest ellipsoidal terrain height (m; empty: the block's terrain "
                                  "height range)", Number.Double, None, optional=True))
-        self.addParameter(QgsProcessingParameterEnum("SEEDS", "Seeds", list(SEED_SOURCES), defaultValue=0))
+        self.addParameter(QgsProcessingParameterEnum("SEEDS", "Seeds", [label for label, _, _ in SEED_SOURCES],
+                                                     defaultValue=0))
         self.addParameter(Number("TEMPLATE", "Template size (px, odd)", Number.Integer, d.template, minValue=5))
         self.addParameter(Number("STEP", "STEP: distance of the neighbours (px)", Number.Integer, d.step, minValue=1))
         advanced = [
@@ -115,11 +117,8 @@ class MatchPoints(PushbroomAlgorithm):
         rows = combination_order(block.read_images(path), self.parameterAsString(parameters, "IMAGES", context))
         models = [block.load_model(path, r["id"]) for r in rows]
 
-        def optional(key):
-            value = parameters.get(key)
-            return None if value is None or value == "" else self.parameterAsDouble(parameters, key, context)
-
-        height_range = height_range_of(path, optional("MIN_HEIGHT"), optional("MAX_HEIGHT"))
+        height_range = height_range_of(path, self.parameterAsOptionalDouble(parameters, "MIN_HEIGHT", context),
+                                       self.parameterAsOptionalDouble(parameters, "MAX_HEIGHT", context))
         params = GrowParams(
             template=self.parameterAsInt(parameters, "TEMPLATE", context),
             step=self.parameterAsInt(parameters, "STEP", context),
@@ -128,14 +127,15 @@ class MatchPoints(PushbroomAlgorithm):
             max_shift=self.parameterAsDouble(parameters, "MAX_SHIFT", context),
             max_iterations=self.parameterAsInt(parameters, "MAX_ITERATIONS", context),
             tile=self.parameterAsInt(parameters, "TILE", context)).check()
-        source = self.parameterAsEnum(parameters, "SEEDS", context)
-        seed_points = points.load_points(path, "tie_points") if source in (1, 2) else None
+        _, use_tie_points, automatic = SEED_SOURCES[self.parameterAsEnum(parameters, "SEEDS", context)]
+        seed_points = points.load_points(path, "tie_points") if use_tie_points else None
         feedback.pushInfo("combination order: " + ", ".join(r["name"] for r in rows)
                           + f"; height range {height_range}")
         result = combinations.match_block(
             [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
             image_ids=[r["id"] for r in rows], params=params, height_range=height_range,
-            seed_points=seed_points, automatic=source in (0, 2), feedback=feedback, workers=self.parameterAsInt(parameters, "WORKERS", context),
+            seed_points=seed_points, automatic=automatic, feedback=feedback,
+            workers=self.parameterAsInt(parameters, "WORKERS", context),
             grow_second=self.parameterAsBool(parameters, "GROW_SECOND", context),
             sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context))
         npz = points.save_points(path, result, "mass_points")

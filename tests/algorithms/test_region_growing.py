@@ -309,6 +309,34 @@ def test_given_seeds_alone_and_with_automatic_ones(scene, grown):
 
 
 @pytest.mark.slow
+def test_pair_seeds_rematch_stored_points(scene, grown):
+    """Tie points (MultiPoints with block image ids) become pair seeds re-matched on the images the
+    growth uses: their image-2 positions agree with the region-grown ones they were taken from,
+    also when the stored positions are 1.5 px off. (Measured: 32 of 76 pass the acceptance
+    criteria from a start 1.5 px off, 52 from the exact position, against 23 / 35 when matched on
+    the images without the resolution adaptation.)"""
+    from pushbroom.algorithms.matching.combinations import pair_seeds
+    from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
+    records = grown[0][::25]
+    n = len(records)
+    pts = np.zeros(n, POINT_DTYPE)
+    pts["id"] = np.arange(n)
+    obs = np.zeros(2 * n, OBS_DTYPE)
+    obs["point_id"] = np.repeat(np.arange(n), 2)
+    obs["image_id"] = np.tile([7, 9], n)
+    obs["col"][0::2], obs["row"][0::2] = records["x1"], records["y1"]
+    obs["col"][1::2], obs["row"][1::2] = records["x2"] + 1.5, records["y2"] - 1.5
+    seeds = pair_seeds(scene.image1, scene.image2, scene.model1, scene.model2, MultiPoints(pts, obs), 7, 9,
+                       GrowParams(), scene.height_range)
+    assert len(seeds) > 0.35 * n
+    np.testing.assert_array_equal(np.isin(seeds["x1"], records["x1"]), True)
+    k = np.searchsorted(records["x1"] + 1e5 * records["y1"], seeds["x1"] + 1e5 * seeds["y1"],
+                        sorter=np.argsort(records["x1"] + 1e5 * records["y1"]))
+    ref = records[np.argsort(records["x1"] + 1e5 * records["y1"])[k]]
+    assert np.percentile(np.hypot(seeds["x2"] - ref["x2"], seeds["y2"] - ref["y2"]), 95) < 0.05
+
+
+@pytest.mark.slow
 def test_transfer_points_with_guide(scene, grown):
     records = grown[0]
     guide = records[::2]

@@ -79,6 +79,9 @@ def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, 
     again = load_points(path)
     assert again.group_counts()[3] > 0.9 * counts[3], (again.group_counts(), counts)
     assert any("seeds from the given points" in m for m in feedback.messages)
+    processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6,
+                                             "SEEDS": 2}, context=context)
+    assert load_points(path).group_counts()[3] >= 0.99 * counts[3]          # both: at least the automatic run
 
 
 def test_two_images_give_group_1(pushbroom_provider, triplet):
