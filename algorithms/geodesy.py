@@ -121,10 +121,19 @@ def radii(lat):
     return A / w, A * (1.0 - E2) / w ** 3
 
 
-def metres_per_degree(lat):
-    """(east, north) metres per degree of longitude and latitude at `lat`: (N cos(lat), M) pi / 180."""
+def metres_per_degree(lat, h=0.0):
+    """(east, north) metres per degree of longitude and latitude at `lat` and ellipsoidal height h:
+    ((N + h) cos(lat), M + h) pi / 180."""
     n, m = radii(lat)
-    return n * np.cos(np.radians(lat)) * math.pi / 180.0, m * math.pi / 180.0
+    return (n + h) * np.cos(np.radians(lat)) * math.pi / 180.0, (m + h) * math.pi / 180.0
+
+
+def offset_enu(lon, lat, h, d):
+    """Points moved by d (n, 3: metres east, north, up), to first order: lon + dE / (m per degree
+    of longitude), lat + dN / (m per degree of latitude), h + dU; NaN rows of d leave points as they are."""
+    e_deg, n_deg = metres_per_degree(lat, h)
+    d = np.nan_to_num(d)
+    return lon + d[:, 0] / e_deg, lat + d[:, 1] / n_deg, h + d[:, 2]
 
 
 def utm_epsg(lon, lat):

@@ -21,7 +21,7 @@ import numpy as np
 
 from .. import progress
 from ..errors import CancelledError, InputError
-from ..geodesy import metres_per_degree
+from ..geodesy import metres_per_degree, offset_enu
 from ..surface.intersection import intersect
 from . import normals
 from .observations import Observations
@@ -109,7 +109,7 @@ class _Geometry:
         b = np.zeros((n, 2, 32))
         l = np.zeros((n, 2))
         pl = self.point_of
-        e_deg, n_deg = metres_per_degree(lat[pl])
+        e_deg, n_deg = metres_per_degree(lat[pl], h[pl])
         for s, i in enumerate(self.images):
             k = np.flatnonzero(self.img == s)
             if not k.size:
@@ -134,7 +134,7 @@ def _ground_weights(points, lon, lat, h):
     lg = np.zeros((len(points), 3))
     sig = np.column_stack([points["sigma_e"], points["sigma_n"], points["sigma_h"]])
     wg[control] = 1.0 / sig[control] ** 2
-    e_deg, n_deg = metres_per_degree(lat)
+    e_deg, n_deg = metres_per_degree(lat, h)
     lg[control, 0] = (points["lon"][control] - lon[control]) * e_deg[control]
     lg[control, 1] = (points["lat"][control] - lat[control]) * n_deg[control]
     lg[control, 2] = points["h"][control] - h[control]
@@ -260,7 +260,7 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback):
         normals.back_substitute(start, a, b, geo.w, geo.img, col, ninv, bp, ok, do, dx)
         x[params.free] += do
         params.apply(x)
-        lon, lat, h = _move(lon, lat, h, dx)
+        lon, lat, h = offset_enu(lon, lat, h, dx)
         step = float(np.nanmax(np.abs(dx))) if n_pts else 0.0
         log.append(f"iteration {iteration}: weighted misclosure {cost:.6g}, largest point update {step:.3g} m")
         fb.setProgress(min(99.0, 100.0 * iteration / max_iterations))
@@ -307,13 +307,6 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback):
                       log=log)
 
 
-def _move(lon, lat, h, dx):
-    """Points moved by dx (P, 3: metres east, north, up); NaN rows stay."""
-    e_deg, n_deg = metres_per_degree(lat)
-    step = np.nan_to_num(dx)
-    return lon + step[:, 0] / e_deg, lat + step[:, 1] / n_deg, h + step[:, 2]
-
-
 def _scaled(normal):
     d = np.sqrt(np.diag(normal))
     d[d == 0] = 1.0
@@ -356,7 +349,7 @@ def check_points(adjustment, observations, height=0.0):
     g = -ninv @ geo.point_orientation_blocks(a, b)
     s0 = adjustment.sigma0 if np.isfinite(adjustment.sigma0) else 1.0
     cov = s0 ** 2 * ninv + g @ adjustment.covariance @ np.swapaxes(g, 1, 2)
-    e_deg, n_deg = metres_per_degree(pts["lat"])
+    e_deg, n_deg = metres_per_degree(pts["lat"], pts["h"])
     ground = np.column_stack([pts["sigma_e"], pts["sigma_n"], pts["sigma_h"]])
     return {"names": pts["name"], "dE": (lon - pts["lon"]) * e_deg, "dN": (lat - pts["lat"]) * n_deg,
             "dH": h - pts["h"], "sigma": np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + np.nan_to_num(ground) ** 2)}

@@ -32,6 +32,12 @@ class SensorModel:
         """Image (col, row) of ground point (lon, lat, h)."""
         raise NotImplementedError
 
+    def image_to_ground_or_nan(self, col, row, h):
+        """image_to_ground with NaN, not an error, where a point has no ground point (for batch
+        work such as intersection starting values). Models whose image_to_ground already returns
+        NaN there use this default."""
+        return self.image_to_ground(col, row, h)
+
     def image_to_dem(self, col, row, dem, samples=64, tol=1e-3):
         """Ground (lon, lat, h) where the ray of (col, row) first meets the DEM surface.
 

@@ -51,6 +51,14 @@ DEG_TOL = 1e-10
 MAX_ITER = 50
 
 
+def rpc_terms(x, y, z):
+    """(n, 20) RPC00B terms of normalised x = L, y = P, z = H (arrays), in `_poly`'s order: the design
+    matrix of the cubic, so that rpc_terms(x, y, z) @ c == _poly(c, x, y, z)."""
+    return np.column_stack([np.ones_like(x), x, y, z, x * y, x * z, y * z, x * x, y * y, z * z,
+                            x * y * z, x ** 3, x * y * y, x * z * z, x * x * y, y ** 3, y * z * z,
+                            x * x * z, y * y * z, z ** 3])
+
+
 # ---------------------------------------------------------------------------------------------
 # numba kernels
 # ---------------------------------------------------------------------------------------------
@@ -350,10 +358,9 @@ class RpcModel(SensorModel):
         jac, t = self._bias_matrix()
         return jac[0, 0] * col + jac[0, 1] * row + t[0], jac[1, 0] * col + jac[1, 1] * row + t[1]
 
-    def image_to_ground(self, col, row, h):
-        """(lon, lat) of image points at ellipsoidal heights h, by Newton's method on the rational
-        functions (analytic Jacobian, step halving), started at (LONG_OFF, LAT_OFF) and iterated to
-        below 1e-8 px and 1e-10 deg. Raises GeometryError where it does not converge."""
+    def _image_to_ground(self, col, row, h):
+        """(col, row of the unbiased RPC, h, lon, lat, status) of image points; status 0 = converged,
+        1 = not converged, 2 = singular Jacobian (lon/lat then undefined)."""
         (col, row, h), shape, scalar = flat_points(col, row, h)
         if self.bias.any():
             jac, t = self._bias_matrix()
@@ -364,6 +371,13 @@ class RpcModel(SensorModel):
         status = np.empty(col.size, dtype=np.int8)
         _image_to_ground_kernel(col, row, h, self._coef, self._nrm, PX_TOL, DEG_TOL, MAX_ITER,
                                 lon, lat, status)
+        return col, row, h, lon, lat, status, shape, scalar
+
+    def image_to_ground(self, col, row, h):
+        """(lon, lat) of image points at ellipsoidal heights h, by Newton's method on the rational
+        functions (analytic Jacobian, step halving), started at (LONG_OFF, LAT_OFF) and iterated to
+        below 1e-8 px and 1e-10 deg. Raises GeometryError where it does not converge."""
+        col, row, h, lon, lat, status, shape, scalar = self._image_to_ground(col, row, h)
         bad = np.flatnonzero(status)
         if bad.size:
             i = bad[0]
@@ -373,6 +387,13 @@ class RpcModel(SensorModel):
                 f"{'did not converge' if status[i] == 1 else 'met a singular Jacobian'}. Is the point "
                 f"inside the image ({self.size[0]} x {self.size[1]} px) and the height within the "
                 f"RPC's range {self.height_range[0]:.0f} .. {self.height_range[1]:.0f} m?")
+        return shaped_points((lon, lat), shape, scalar)
+
+    def image_to_ground_or_nan(self, col, row, h):
+        """image_to_ground with NaN where the iteration fails."""
+        _, _, _, lon, lat, status, shape, scalar = self._image_to_ground(col, row, h)
+        lon[status != 0] = np.nan
+        lat[status != 0] = np.nan
         return shaped_points((lon, lat), shape, scalar)
 
     def partials(self, lon, lat, h):

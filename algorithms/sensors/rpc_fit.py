@@ -23,8 +23,8 @@ MIN_DEN_RATIO max |den|) is rejected, and a plain cubic polynomial (den = 1, the
 for the nadir image) is always a candidate. Of the candidates, the one with the smallest RMS on the
 selection points is kept, per image coordinate; the validation points stay independent.
 
-height_differences compares object points intersected with the RPCs and with the rigorous models
-(K Table 5)."""
+surface.intersection.height_differences compares object points intersected with the RPCs and with
+the rigorous models (K Table 5)."""
 import math
 import os
 from dataclasses import dataclass, fields
@@ -33,10 +33,8 @@ import numpy as np
 
 from .. import progress
 from ..errors import GeometryError, InputError, PushbroomError
-from ..geodesy import metres_per_degree
-from ..surface.intersection import intersect
 from . import rpc_io
-from .rpc import NUM_TERMS, RpcCoefficients, RpcModel
+from .rpc import NUM_TERMS, RpcCoefficients, RpcModel, rpc_terms
 
 #: default cube: image grid columns x rows x height levels
 DEFAULT_GRID = (11, 11, 11)
@@ -51,14 +49,6 @@ DEN_TOL = 1e-6
 #: and by at least MIN_HEIGHT_MARGIN metres
 HEIGHT_MARGIN = 0.1
 MIN_HEIGHT_MARGIN = 100.0
-
-
-def rpc_terms(x, y, z):
-    """(n, 20) RPC00B terms 1 L P H LP LH PH L^2 P^2 H^2 PLH L^3 LP^2 LH^2 L^2P P^3 PH^2 L^2H P^2H H^3
-    of normalised x = L, y = P, z = H (the order of rpc._poly)."""
-    return np.column_stack([np.ones_like(x), x, y, z, x * y, x * z, y * z, x * x, y * y, z * z,
-                            x * y * z, x ** 3, x * y * y, x * z * z, x * x * y, y ** 3, y * z * z,
-                            x * x * z, y * y * z, z ** 3])
 
 
 @dataclass(frozen=True)
@@ -325,38 +315,3 @@ def report_text(entries):
     lines += [f"{name}: {r.cube_points} cube points, {r.validation_points} validation points, heights "
               f"{r.height_range[0]:.0f} .. {r.height_range[1]:.0f} m -> {path}" for name, path, r in entries]
     return "\n".join(lines)
-
-
-@dataclass(frozen=True)
-class HeightDifferences:
-    """RPC minus rigorous object points (m, local east / north / up) of the points both intersect."""
-    point: np.ndarray
-    de: np.ndarray
-    dn: np.ndarray
-    dh: np.ndarray
-    #: points that one of the two model sets could not intersect
-    missing: int
-
-    def summary(self):
-        """One line: count, dh mean / RMS / max |dh|, RMS of dE and dN (m)."""
-        if not self.point.size:
-            return f"no point intersected by both the rigorous models and the RPCs ({self.missing} tried)"
-        rms = {k: float(np.sqrt(np.mean(getattr(self, k) ** 2))) for k in ("de", "dn", "dh")}
-        return (f"{self.point.size} points ({self.missing} not intersected by both): dh mean {np.mean(self.dh):.4f} m, "
-                f"RMS {rms['dh']:.4f} m, max |dh| {np.max(np.abs(self.dh)):.4f} m; RMS dE {rms['de']:.4f} m, "
-                f"dN {rms['dn']:.4f} m")
-
-
-def height_differences(models_rigorous, models_rpc, image_ids, point_index, col, row, h0=None):
-    """K 3.5.2, Table 5: the object points of image measurements (one row per measurement: image id,
-    point index, col, row) intersected by surface.intersection.intersect once with the rigorous models
-    and once with their RPCs (dicts image id -> model with the same ids), and the differences."""
-    if set(models_rigorous) != set(models_rpc):
-        raise InputError(f"the rigorous models (images {sorted(models_rigorous)}) and the RPCs (images "
-                         f"{sorted(models_rpc)}) must describe the same images")
-    a = intersect(models_rigorous, image_ids, point_index, col, row, h0=h0)
-    b = intersect(models_rpc, image_ids, point_index, col, row, h0=h0)
-    ok = a.ok & b.ok
-    east, north = metres_per_degree(a.lat[ok])
-    return HeightDifferences(a.point[ok], (b.lon - a.lon)[ok] * east, (b.lat - a.lat)[ok] * north,
-                             (b.h - a.h)[ok], int(np.count_nonzero(~ok)))

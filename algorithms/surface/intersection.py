@@ -25,8 +25,8 @@ import numpy as np
 
 from .. import progress
 from ..adjustment.observations import IMAGE_SIGMA
-from ..errors import GeometryError, InputError
-from ..geodesy import ecef_to_geodetic, geodetic_to_ecef, metres_per_degree
+from ..errors import InputError
+from ..geodesy import ecef_to_geodetic, geodetic_to_ecef, metres_per_degree, offset_enu
 
 STATUS_NAMES = ("converged", "not converged", "diverged", "outside a model's domain", "fewer than 2 rays",
                 "singular geometry")
@@ -95,25 +95,6 @@ def _inverse_symmetric(m):
         return inverse / det[:, None, None], det
 
 
-def _image_to_ground(model, col, row, h):
-    """model.image_to_ground at height h, NaN where it fails (a batch that raises is split in halves)."""
-    try:
-        lon, lat = model.image_to_ground(col, row, np.full(col.size, h))
-        return np.asarray(lon, float), np.asarray(lat, float)
-    except GeometryError:
-        if col.size == 1:
-            return np.full(1, np.nan), np.full(1, np.nan)
-        half = col.size // 2
-        a, b = _image_to_ground(model, col[:half], row[:half], h), _image_to_ground(model, col[half:], row[half:], h)
-        return np.concatenate([a[0], b[0]]), np.concatenate([a[1], b[1]])
-
-
-def _project(model, lon, lat, h):
-    """(col, row, d(col, row)/d(lon, lat, h) (n, 2, 3)) of ground points."""
-    p = model.partials(lon, lat, h)
-    return p["col"], p["row"], p["d_ground"]
-
-
 def _start(models, image, col, row, first, second, h0):
     """ECEF point closest to the lines of sight of observations `first` and `second` (the midpoint of
     their common perpendicular); where they are parallel or one has no ground point, the point at h0
@@ -124,7 +105,8 @@ def _start(models, image, col, row, first, second, h0):
         for key in np.unique(image[obs]):
             sel = image[obs] == key
             for j, height in enumerate((h0 - START_HALF_HEIGHT, h0 + START_HALF_HEIGHT)):
-                lon, lat = _image_to_ground(models[key], col[obs][sel], row[obs][sel], height)
+                lon, lat = models[key].image_to_ground_or_nan(col[obs][sel], row[obs][sel],
+                                                              np.full(int(sel.sum()), height))
                 ends[j, sel] = geodetic_to_ecef(lon, lat, height)
         lines.append((0.5 * (ends[0] + ends[1]), ends[1] - ends[0]))
     (p1, d1), (p2, d2) = lines
@@ -233,9 +215,10 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
         jac = np.empty((sel.size, 2, 3))
         for key in np.unique(image[sel]):
             s = image[sel] == key
-            c, r, d = _project(models[key], lon[p[s]], lat[p[s]], h[p[s]])
+            d = models[key].partials(lon[p[s]], lat[p[s]], h[p[s]])
+            c, r, d = d["col"], d["row"], d["d_ground"]
             computed[s, 0], computed[s, 1], jac[s] = c, r, d
-        scale = np.column_stack([*metres_per_degree(lat[q]), np.ones(q.size)])   # m per (deg, deg, m)
+        scale = np.column_stack([*metres_per_degree(lat[q], h[q]), np.ones(q.size)])   # m per (deg, deg, m)
         jac /= scale[owner][:, None, :]
         misclosure = observed[sel] - computed
         weighted = jac * weight[sel][:, None, None]
@@ -249,9 +232,7 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
         status[q[singular]] = SINGULAR
         inverse[singular] = 0.0
         dx = np.einsum("kij,kj->ki", inverse, rhs)
-        lon[q] += dx[:, 0] / scale[:, 0]
-        lat[q] += dx[:, 1] / scale[:, 1]
-        h[q] += dx[:, 2]
+        lon[q], lat[q], h[q] = offset_enu(lon[q], lat[q], h[q], dx)
         # statistics of this linearisation: post-fit residuals v = A dx - l
         v = np.einsum("kij,kj->ki", jac, dx[owner]) - misclosure
         sigma0[q] = np.sqrt(np.add.reduceat(weight[sel] * (v * v).sum(1), starts) / (2 * rays[q] - 3))
@@ -300,3 +281,38 @@ def format_summary(rows):
     lines += [f"{r['group']:>5} {r['points']:>9} {r['converged']:>9} {r['sigma_e']:>8.3f} {r['sigma_n']:>8.3f} "
               f"{r['sigma_h']:>8.3f} {r['sigma0']:>7.3f}" for r in rows]
     return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class HeightDifferences:
+    """RPC minus rigorous object points (m, local east / north / up) of the points both intersect."""
+    point: np.ndarray
+    de: np.ndarray
+    dn: np.ndarray
+    dh: np.ndarray
+    #: points that one of the two model sets could not intersect
+    missing: int
+
+    def summary(self):
+        """One line: count, dh mean / RMS / max |dh|, RMS of dE and dN (m)."""
+        if not self.point.size:
+            return f"no point intersected by both the rigorous models and the RPCs ({self.missing} tried)"
+        rms = {k: float(np.sqrt(np.mean(getattr(self, k) ** 2))) for k in ("de", "dn", "dh")}
+        return (f"{self.point.size} points ({self.missing} not intersected by both): dh mean {np.mean(self.dh):.4f} m, "
+                f"RMS {rms['dh']:.4f} m, max |dh| {np.max(np.abs(self.dh)):.4f} m; RMS dE {rms['de']:.4f} m, "
+                f"dN {rms['dn']:.4f} m")
+
+
+def height_differences(models_rigorous, models_rpc, image_ids, point_index, col, row, h0=None):
+    """K 3.5.2, Table 5: the object points of image measurements (one row per measurement: image id,
+    point index, col, row) intersected once with the rigorous models
+    and once with their RPCs (dicts image id -> model with the same ids), and the differences."""
+    if set(models_rigorous) != set(models_rpc):
+        raise InputError(f"the rigorous models (images {sorted(models_rigorous)}) and the RPCs (images "
+                         f"{sorted(models_rpc)}) must describe the same images")
+    a = intersect(models_rigorous, image_ids, point_index, col, row, h0=h0)
+    b = intersect(models_rpc, image_ids, point_index, col, row, h0=h0)
+    ok = a.ok & b.ok
+    east, north = metres_per_degree(a.lat[ok])
+    return HeightDifferences(a.point[ok], (b.lon - a.lon)[ok] * east, (b.lat - a.lat)[ok] * north,
+                             (b.h - a.h)[ok], int(np.count_nonzero(~ok)))

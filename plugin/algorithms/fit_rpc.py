@@ -1,5 +1,6 @@
 """pushbroom:fitrpc — RPC00B fitted to the block's sensor models over a terrain-independent cube
 (Kornus et al. 2006, 3.5.2; algorithms/sensors/rpc_fit.py), written as _RPC.TXT files GDAL reads."""
+import numpy as np
 from qgis.core import (QgsProcessingOutputMultipleLayers, QgsProcessingParameterBoolean, QgsProcessingParameterFile,
                        QgsProcessingParameterFileDestination, QgsProcessingParameterFolderDestination,
                        QgsProcessingParameterNumber, QgsProcessingParameterString)
@@ -7,8 +8,11 @@ from qgis.core import (QgsProcessingOutputMultipleLayers, QgsProcessingParameter
 from ...algorithms import block, progress
 from ...algorithms.adjustment import report
 from ...algorithms.errors import InputError
+from ...algorithms.matching import points
 from ...algorithms.sensors import rpc_fit
+from ...algorithms.surface.intersection import height_differences
 from .base import PushbroomAlgorithm
+from .match_points import display_height
 
 Number = QgsProcessingParameterNumber
 
@@ -37,6 +41,20 @@ def cube_heights(block_path, h_min, h_max):
         raise InputError(f"block {block_path} records no terrain height range: give the lowest and highest "
                          "heights of the RPC cube")
     return rpc_fit.default_height_range(terrain)
+
+
+def rpc_height_check(block_path, rpcs):
+    """The summary of surface.intersection.height_differences on the block's tie points, when the
+    block has tie points and RPCs were fitted for all their images ("" otherwise)."""
+    if "tie_points" not in block.read_info(block_path):
+        return ""
+    obs = points.load_points(block_path, "tie_points").observations
+    images = set(np.unique(obs["image_id"]).tolist())
+    if not images or not images <= set(rpcs):
+        return ""
+    rigorous = {i: block.load_model(block_path, i) for i in images}
+    return height_differences(rigorous, {i: rpcs[i] for i in images}, obs["image_id"], obs["point_id"],
+                              obs["col"], obs["row"], h0=display_height(block.height_range(block_path))).summary()
 
 
 class FitRpc(PushbroomAlgorithm):
@@ -109,6 +127,10 @@ class FitRpc(PushbroomAlgorithm):
                 feedback.pushWarning(f"GDAL does not read {written} with {row['image_path']} (the raster carries "
                                      "other RPC metadata it prefers, or cannot be opened): load the _RPC.TXT itself")
         text = rpc_fit.report_text(entries)
+        comparison = rpc_height_check(path, {row["id"]: rpc for row, (rpc, _) in zip(rows, fitted)})
+        if comparison:
+            text += "\n\nRPC minus rigorous object points of the block's tie points (Kornus et al. 2006, Table 5): " \
+                    + comparison
         feedback.pushInfo(text)
         block.update_info(path, {}, step="fitrpc",
                           message="; ".join(f"{name}: {written}" for name, written, _ in entries))

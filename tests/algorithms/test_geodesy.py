@@ -64,3 +64,19 @@ def test_round_trip_is_exact_to_a_micrometre():
 @pytest.mark.parametrize("lon, lat, epsg", [(3.0, 45.0, 32631), (-0.1, -10.0, 32730), (179.9, 1.0, 32660)])
 def test_utm_zone(lon, lat, epsg):
     assert utm_epsg(lon, lat) == epsg
+
+
+def test_offset_enu_moves_points_by_the_given_local_metres():
+    """The ECEF displacement of 10 m offsets, rotated into the local east/north/up frame, is the
+    offset asked for, to 0.1 mm (first order in d / R)."""
+    from pushbroom.algorithms.geodesy import geodetic_to_ecef, offset_enu
+    lon, lat, h = np.array([-84.2, 5.3]), np.array([36.6, -45.0]), np.array([300.0, 10.0])
+    d = np.array([[10.0, -7.0, 2.0], [-6.0, 9.0, -1.0]])
+    moved = offset_enu(lon, lat, h, d)
+    delta = geodetic_to_ecef(*moved) - geodetic_to_ecef(lon, lat, h)
+    for k in range(2):
+        lo, la = np.radians(lon[k]), np.radians(lat[k])
+        east = np.array([-np.sin(lo), np.cos(lo), 0.0])
+        north = np.array([-np.sin(la) * np.cos(lo), -np.sin(la) * np.sin(lo), np.cos(la)])
+        up = np.array([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)])
+        np.testing.assert_allclose([delta[k] @ east, delta[k] @ north, delta[k] @ up], d[k], atol=1e-4)

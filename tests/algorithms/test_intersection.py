@@ -244,17 +244,18 @@ def test_bad_points_get_a_status(scene):
 
 
 class Patchy:
-    """A sensor model without ground for rows beyond `row_max`: image_to_ground raises GeometryError
-    for a batch holding such rows (as RpcModel does) or `partials` gives NaN there (as SpotModel
+    """A sensor model without ground for rows beyond `row_max`: image_to_ground_or_nan gives NaN
+    there (as RpcModel where its iteration fails) or `partials` gives NaN there (as SpotModel
     beyond its orbit data)."""
 
     def __init__(self, model, row_max, where):
         self.model, self.row_max, self.where, self.size = model, row_max, where, model.size
 
-    def image_to_ground(self, col, row, h):
-        if self.where == "image_to_ground" and np.any(np.asarray(row) > self.row_max):
-            raise GeometryError("no ground point")
-        return self.model.image_to_ground(col, row, h)
+    def image_to_ground_or_nan(self, col, row, h):
+        lon, lat = self.model.image_to_ground(col, row, h)
+        if self.where == "image_to_ground":
+            lon, lat = (np.where(np.asarray(row) > self.row_max, np.nan, v) for v in (lon, lat))
+        return lon, lat
 
     def ground_to_image(self, lon, lat, h):
         return self.model.ground_to_image(lon, lat, h)

@@ -9,7 +9,7 @@ from osgeo import gdal
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import GeometryError
-from pushbroom.algorithms.sensors.rpc import RpcCoefficients, RpcModel
+from pushbroom.algorithms.sensors.rpc import RpcCoefficients, RpcModel, _poly, rpc_terms
 from pushbroom.algorithms.sensors.rpc_io import write_rpb, write_rpc_txt
 from rpc_synthetic import (SCALARS, geom_text, numpy_ground_to_image, synthetic_coefficients,
                            synthetic_fields, write_raster)
@@ -275,3 +275,23 @@ def test_bias_is_an_affine_image_correction_with_exact_partials(model, tmp_path)
     np.testing.assert_array_equal(sensors.load(str(path)).bias, BIAS)
     with pytest.raises(InputError, match="fit new RPCs"):
         write_rpc_txt(biased, tmp_path / "x_RPC.TXT")
+
+
+def test_rpc_terms_is_the_design_matrix_of_the_kernel_polynomial():
+    rng = np.random.default_rng(3)
+    c = rng.normal(size=20)
+    x, y, z = rng.uniform(-1.2, 1.2, (3, 50))
+    np.testing.assert_allclose(rpc_terms(x, y, z) @ c, [_poly(c, *p) for p in zip(x, y, z)], rtol=1e-13, atol=1e-13)
+
+
+def test_image_to_ground_or_nan_marks_only_the_failing_points(model):
+    """Where the Newton iteration fails for some points, image_to_ground raises for the batch and
+    image_to_ground_or_nan gives NaN for those points only, the others as image_to_ground."""
+    col, row, h = (v.ravel() for v in image_grid(model, 5))
+    good = model.image_to_ground(col, row, h)
+    bad_col, bad_row = np.append(col, 1e9), np.append(row, 1e9)
+    with pytest.raises(GeometryError):
+        model.image_to_ground(bad_col, bad_row, np.append(h, h[0]))
+    lon, lat = model.image_to_ground_or_nan(bad_col, bad_row, np.append(h, h[0]))
+    assert np.isnan(lon[-1]) and np.isnan(lat[-1])
+    np.testing.assert_array_equal(lon[:-1], good[0])

@@ -149,3 +149,32 @@ def test_cancel_writes_nothing(pushbroom_provider, triplet_block):
     with pytest.raises(QgsProcessingException, match="cancel"):
         processing.run("pushbroom:fitrpc", {"BLOCK": path}, feedback=feedback)
     assert not list(scene_copy.glob("*/*_RPC.TXT")) and "fitrpc" not in run_log_steps(path)
+
+
+def test_report_compares_rpc_and_rigorous_object_points_of_the_tie_points(pushbroom_provider, triplet_block,
+                                                                           tmp_path):
+    """With tie points in the block (here: 200 ground points projected into the three images), the
+    report gives K Table 5's RPC minus rigorous differences; the fit is good to well below 1 cm."""
+    import re
+    from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
+    path, _ = triplet_block
+    rows = block.read_images(path)
+    models = {r["id"]: block.load_model(path, r["id"]) for r in rows}
+    first = models[rows[0]["id"]]
+    rng = np.random.default_rng(2)
+    lon, lat = first.image_to_ground(rng.uniform(50, first.size[0] - 50, 200),
+                                     rng.uniform(50, first.size[1] - 50, 200), np.full(200, 300.0))
+    pts = np.zeros(200, POINT_DTYPE)
+    pts["id"], pts["group"] = np.arange(200), 3
+    obs = np.zeros(600, OBS_DTYPE)
+    obs["point_id"] = np.repeat(np.arange(200), 3)
+    for k, (i, model) in enumerate(models.items()):
+        obs["image_id"][k::3] = i
+        obs["col"][k::3], obs["row"][k::3] = model.ground_to_image(lon, lat, 300.0)
+    save_points(path, MultiPoints(pts, obs), "tie_points")
+    processing.run("pushbroom:fitrpc", {"BLOCK": path, "REPORT": str(tmp_path / "fit.html")})
+    page = (tmp_path / "fit.html").read_text()
+    found = re.search(r"Table 5\): 200 points .* max \|dh\| ([0-9.]+) m", page)
+    assert found, page
+    print(f"RPC - rigorous object points of 200 tie points: max |dh| {found.group(1)} m")
+    assert float(found.group(1)) < 0.01
