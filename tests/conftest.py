@@ -1,4 +1,5 @@
-"""Shared fixtures: the real data in ../shared/data (skipped with a reason where absent)."""
+"""Shared fixtures: the real data in ../shared/data (skipped with a reason where absent) and the
+small simulated SPOT 5 triplet most engine and plugin tests use."""
 import os
 import pathlib
 import sys
@@ -41,6 +42,31 @@ def pleiades_triplet():
 @pytest.fixture(params=["left_image", "right_image"])
 def ventoux_image(request):
     return shared_file("pleiades_pair_ventoux", request.param + ".tif")
+
+
+@pytest.fixture(scope="session")
+def small_scene(tmp_path_factory):
+    """simulate_scene paths of the default 3 km SPOT 5 triplet (SceneConfig.small()), simulated once
+    per run and shared read-only: tests write their blocks and outputs into their own folders."""
+    from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+    return simulate_scene(SceneConfig.small(), tmp_path_factory.mktemp("small_scene") / "scene")
+
+
+@pytest.fixture(scope="session")
+def small_scene_block(small_scene, tmp_path_factory):
+    """A template block (copy it before changing it) of the small scene's HRG, HRS1, HRS2 at the mean
+    height of its point candidates, with the candidates' points.csv rows: (block path, rows)."""
+    import csv
+
+    import numpy as np
+
+    from pushbroom.algorithms import block
+    with open(small_scene["points"], newline="") as f:
+        rows = list(csv.DictReader(f))
+    path = tmp_path_factory.mktemp("small_scene_block") / "template.gpkg"
+    images = block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
+    block.create_block(path, images, height=float(np.mean([float(r["h"]) for r in rows])))
+    return path, rows
 
 
 _EXIT = {"status": 0}

@@ -21,7 +21,8 @@ so its conditioning is not squared. r runs over a ladder (REGULARISATIONS, or th
 a candidate whose denominator comes near zero over the points (a change of sign, or min |den| below
 MIN_DEN_RATIO max |den|) is rejected, and a plain cubic polynomial (den = 1, the paper's fallback
 for the nadir image) is always a candidate. Of the candidates, the one with the smallest RMS on the
-selection points is kept, per image coordinate; the validation points stay independent.
+selection points is kept, per image coordinate; the validation points take no part in that choice
+(only a candidate whose denominator nears zero there too is rejected), so their errors are independent.
 
 surface.intersection.height_differences compares object points intersected with the RPCs and with
 the rigorous models (K Table 5)."""
@@ -81,7 +82,7 @@ class AxisFit:
 
     def describe(self):
         if not self.polynomial:
-            return f"rational 3/3 (r = {self.regularisation:.0e})"
+            return f"rational 3/3 (r = {self.regularisation:.0e}, {self.iterations} reweightings)"
         return (f"cubic polynomial ({self.near_pole} of {self.rational_fits} rational fits had a denominator "
                 "near zero)" if self.near_pole else "cubic polynomial (fits best)")
 
@@ -99,11 +100,6 @@ class RpcFitReport:
     def polynomial(self):
         """The image coordinates ("col", "row") fitted as plain cubic polynomials."""
         return tuple(name for name in ("col", "row") if getattr(self, name).polynomial)
-
-    @property
-    def fallback(self):
-        """True where a coordinate fell back to a cubic polynomial."""
-        return bool(self.polynomial)
 
     @property
     def max_error(self):

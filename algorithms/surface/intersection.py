@@ -73,11 +73,6 @@ class Intersection:
         """(n, 3) a priori standard deviations of E, N, U (m)."""
         return np.sqrt(np.diagonal(self.covariance, axis1=1, axis2=2))
 
-    @property
-    def sigma_posterior(self):
-        """(n, 3) a posteriori standard deviations of E, N, U (m): sigma0 x a priori."""
-        return self.sigma * self.sigma0[:, None]
-
     def status_counts(self):
         """{status name: count} of the statuses that occur."""
         counts = np.bincount(self.status, minlength=len(STATUS_NAMES))

@@ -25,6 +25,10 @@ GPKG_MAX_POINTS = 100_000
 FORMATS = ("las", "laz", "gpkg")
 
 
+#: the point layer of a GeoPackage point cloud
+GPKG_LAYER = "points"
+
+
 def output_format(path, count, fmt=None):
     """'las', 'laz' or 'gpkg' for writing `count` points to `path` (module docstring)."""
     if fmt is not None:
@@ -75,7 +79,7 @@ def cloud_fields(result, group=None, rho=None):
 def write_point_cloud(path, lon, lat, h, fields=None, crs=None, fmt=None, feedback=None):
     """Write points (lon, lat in degrees, h ellipsoidal m) with per-point `fields` (dict name ->
     array) to `path` in `crs` (default: UTM of the points); format by `fmt` or the extension
-    (output_format). Returns (path, srs)."""
+    (output_format). Returns (path, srs, format)."""
     lon, lat, h = (np.asarray(v, float).ravel() for v in (lon, lat, h))
     fields = {name: np.asarray(values).ravel() for name, values in (fields or {}).items()}
     if any(v.size != lon.size for v in [lat, h, *fields.values()]):
@@ -92,7 +96,7 @@ def write_point_cloud(path, lon, lat, h, fields=None, crs=None, fmt=None, feedba
     else:
         write_las(path, x, y, h, fields, srs, compress=fmt == "laz")
     progress.step(feedback, 100)
-    return os.fspath(path), srs
+    return os.fspath(path), srs, fmt
 
 
 def _laspy():
@@ -129,12 +133,12 @@ def write_las(path, x, y, z, fields, srs, compress=False):
 OGR_TYPES = {"i": ogr.OFTInteger64, "u": ogr.OFTInteger64, "f": ogr.OFTReal, "b": ogr.OFTInteger}
 
 
-def write_gpkg(path, x, y, z, fields, srs, layer_name="points", feedback=None):
-    """A GeoPackage with one 3-D point layer `layer_name` in `srs` and `fields` as attributes."""
+def write_gpkg(path, x, y, z, fields, srs, feedback=None):
+    """A GeoPackage with one 3-D point layer GPKG_LAYER in `srs` and `fields` as attributes."""
     ogr.UseExceptions()
     with atomic_path(path) as tmp:
         ds = ogr.GetDriverByName("GPKG").CreateDataSource(tmp)
-        layer = ds.CreateLayer(layer_name, srs, ogr.wkbPoint25D, options=["FID=fid", "GEOMETRY_NAME=geom"])
+        layer = ds.CreateLayer(GPKG_LAYER, srs, ogr.wkbPoint25D, options=["FID=fid", "GEOMETRY_NAME=geom"])
         for name, values in fields.items():
             layer.CreateField(ogr.FieldDefn(name, OGR_TYPES.get(values.dtype.kind, ogr.OFTString)))
         columns = [(name, values.tolist()) for name, values in fields.items()]

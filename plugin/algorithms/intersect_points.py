@@ -92,13 +92,13 @@ class IntersectPoints(PushbroomAlgorithm):
             crs = block.read_info(path).get("default_crs")
         out = self.parameterAsFileOutput(parameters, "OUTPUT", context)
         fields = pointcloud.cloud_fields(result, group=group, rho=multi.points["rho_min"][pos])
-        out, srs = pointcloud.write_point_cloud(out, result.lon[ok], result.lat[ok], result.h[ok], fields, crs=crs,
+        out, srs, fmt = pointcloud.write_point_cloud(out, result.lon[ok], result.lat[ok], result.h[ok], fields, crs=crs,
                                                 feedback=progress.scaled(feedback, 80, 100))
         message = f"{int(ok.sum())} points written to {out} ({srs.GetName()}; z ellipsoidal height)"
         feedback.pushInfo(message)
         block.update_info(path, {}, step="intersectpoints", message=message)
         results = {"OUTPUT": out, "COUNT": int(ok.sum())}
-        if pointcloud.output_format(out, int(ok.sum())) == "gpkg":
-            results["LAYER"] = f"{out}|layername=points"
+        if fmt == "gpkg":
+            results["LAYER"] = f"{out}|layername={pointcloud.GPKG_LAYER}"
             load_styled(context, results["LAYER"], "Object points", "LAYER", "points_by_group.qml")
         return results

@@ -18,7 +18,6 @@ from scipy import ndimage
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
 
 SINGLE_SURFACE = (BARE, CROPS)      # DSM = DTM: one (rough) surface inside a template
@@ -27,8 +26,9 @@ LOW_CONTRAST_DN = 5.0               # ground DN std over the template footprint 
 
 
 class Scene:
-    def __init__(self, folder, first="HRG", second="HRS1"):
-        self.paths = paths = simulate_scene(SceneConfig.small(configuration="spot5_triplet"), folder)
+    def __init__(self, paths, first="HRG", second="HRS1"):
+        """`paths`: simulate_scene's paths of SceneConfig.small() (the `small_scene` fixture)."""
+        self.paths = paths
         self.image1 = paths["images"][first]["imagery"]
         self.image2 = paths["images"][second]["imagery"]
         self.model1 = sensors.load(paths["images"][first]["metadata"])

@@ -171,11 +171,11 @@ def test_guide_for_combination_c_composes_the_affines():
 # the issue's target on the simulated triplet: GROUP-3 points of match_block (HRG, HRS1, HRS2)
 
 @pytest.fixture(scope="module")
-def triplet(tmp_path_factory):
+def triplet(small_scene):
     """match_block on the 3 km triplet (supplied, perturbed models); per group-3 point: class and
     the errors of its HRS1 and HRS2 positions against the point truth and the template-area truth
     (matching_scene) of its HRG position."""
-    scene = Scene(tmp_path_factory.mktemp("triplet") / "scene")
+    scene = Scene(small_scene)
     names = ("HRG", "HRS1", "HRS2")
     images = [scene.paths["images"][k]["imagery"] for k in names]
     models = [sensors.load(scene.paths["images"][k]["metadata"]) for k in names]

@@ -14,7 +14,6 @@ from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.adjustment.observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import utm_epsg
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 
 NAMES = ("HRG", "HRS1", "HRS2")
 
@@ -38,17 +37,10 @@ class Log:
         self.messages.append(text)
 
 
-@pytest.fixture(scope="module")
-def scene(tmp_path_factory):
+@pytest.fixture
+def scene(small_scene, small_scene_block):
     """The simulated triplet, its points.csv rows and an empty block of its three images."""
-    folder = tmp_path_factory.mktemp("control_points")
-    paths = simulate_scene(SceneConfig.small(), folder / "scene")
-    with open(paths["points"], newline="") as f:
-        rows = list(csv.DictReader(f))
-    path = folder / "template.gpkg"
-    images = block.open_images([paths["images"][n]["imagery"] for n in NAMES])
-    block.create_block(path, images, height=np.mean([float(r["h"]) for r in rows]))
-    return {"paths": paths, "rows": rows, "block": path}
+    return {"paths": small_scene, "rows": small_scene_block[1], "block": small_scene_block[0]}
 
 
 @pytest.fixture

@@ -9,6 +9,7 @@ from osgeo import ogr, osr
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.surface import pointcloud as pc
 from pushbroom.algorithms.surface.intersection import CONVERGED, OUTSIDE, Intersection
+from osr_oracle import utm
 
 N = 500
 
@@ -24,17 +25,6 @@ def points():
     return lon, lat, h, fields
 
 
-def utm(lon, lat, epsg):
-    """(x, y) by OSR point by point (independent of the writer's array transform)."""
-    wgs84, target = osr.SpatialReference(), osr.SpatialReference()
-    wgs84.ImportFromEPSG(4326)
-    target.ImportFromEPSG(epsg)
-    for srs in (wgs84, target):
-        srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    ct = osr.CoordinateTransformation(wgs84, target)
-    return np.array([ct.TransformPoint(float(a), float(b))[:2] for a, b in zip(lon, lat)]).T
-
-
 def read_las(path):
     laspy = pc._laspy()
     las = laspy.read(path)
@@ -44,7 +34,8 @@ def read_las(path):
 
 def test_las_has_the_utm_crs_coordinates_and_fields(points, tmp_path):
     lon, lat, h, fields = points
-    path, srs = pc.write_point_cloud(tmp_path / "cloud.las", lon, lat, h, fields)
+    path, srs, fmt = pc.write_point_cloud(tmp_path / "cloud.las", lon, lat, h, fields)
+    assert fmt == "las"
     las, wkt = read_las(path)
     assert len(wkt) == 1 and las.header.global_encoding.wkt
     assert las.header.version.minor == 4 and las.header.point_format.id == 6
@@ -63,12 +54,12 @@ def test_las_has_the_utm_crs_coordinates_and_fields(points, tmp_path):
 
 def test_las_in_a_given_crs(points, tmp_path):
     lon, lat, h, fields = points
-    path, _ = pc.write_point_cloud(tmp_path / "cloud.las", lon, lat, h, {}, crs="EPSG:32617")
+    path, _, _ = pc.write_point_cloud(tmp_path / "cloud.las", lon, lat, h, {}, crs="EPSG:32617")
     las, wkt = read_las(path)
     assert "UTM zone 17N" in wkt[0].string
     x, y = utm(lon, lat, 32617)
     np.testing.assert_allclose(las.x, x, atol=0.0006)
-    path, _ = pc.write_point_cloud(tmp_path / "geo.las", lon, lat, h, {}, crs=4326)
+    path, _, _ = pc.write_point_cloud(tmp_path / "geo.las", lon, lat, h, {}, crs=4326)
     las, _ = read_las(path)
     np.testing.assert_allclose(las.x, lon, atol=1e-8)
     np.testing.assert_allclose(las.y, lat, atol=1e-8)
@@ -82,7 +73,7 @@ def test_laz(points, tmp_path):
             pc.write_point_cloud(tmp_path / "cloud.laz", lon, lat, h, fields)
         assert not os.listdir(tmp_path)
         pytest.skip("no LAZ backend (lazrs or laszip) installed: checked the clear error instead")
-    path, _ = pc.write_point_cloud(tmp_path / "cloud.laz", lon, lat, h, fields)
+    path, _, _ = pc.write_point_cloud(tmp_path / "cloud.laz", lon, lat, h, fields)
     las, wkt = read_las(path)
     assert "UTM zone 16N" in wkt[0].string and las.header.point_format.id == 6
     np.testing.assert_allclose(las.z, h, atol=0.0006)
@@ -91,9 +82,10 @@ def test_laz(points, tmp_path):
 
 def test_geopackage(points, tmp_path):
     lon, lat, h, fields = points
-    path, _ = pc.write_point_cloud(tmp_path / "cloud.gpkg", lon, lat, h, fields)
+    path, _, fmt = pc.write_point_cloud(tmp_path / "cloud.gpkg", lon, lat, h, fields)
     ds = ogr.Open(path)
-    layer = ds.GetLayerByName("points")
+    layer = ds.GetLayerByName(pc.GPKG_LAYER)
+    assert fmt == "gpkg"
     assert layer.GetFeatureCount() == N and layer.GetGeomType() == ogr.wkbPoint25D
     assert layer.GetSpatialRef().GetAuthorityCode(None) == "32616"
     x, y = utm(lon, lat, 32616)
@@ -127,7 +119,7 @@ def test_format_choice_and_bad_input(points, tmp_path, monkeypatch):
 
 def test_an_existing_file_survives_a_failed_write(points, tmp_path, monkeypatch):
     lon, lat, h, fields = points
-    path, _ = pc.write_point_cloud(tmp_path / "cloud.las", lon, lat, h, fields)
+    path, _, _ = pc.write_point_cloud(tmp_path / "cloud.las", lon, lat, h, fields)
     before = open(path, "rb").read()
 
     def broken(*args, **kwargs):

@@ -134,8 +134,8 @@ def test_lattice_is_global_and_tiles_partition_it():
 # simulated scene
 
 @pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    return Scene(tmp_path_factory.mktemp("rg") / "scene")
+def scene(small_scene):
+    return Scene(small_scene)
 
 
 @pytest.fixture(scope="module")

@@ -52,8 +52,8 @@ def test_height_range():
 
 
 @pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    return Scene(tmp_path_factory.mktemp("seeds") / "scene")
+def scene(small_scene):
+    return Scene(small_scene)
 
 
 @pytest.mark.slow

@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 import pytest
-from qgis.core import QgsApplication
+from qgis.core import QgsApplication, QgsProcessingFeedback
 
 import pushbroom
 
@@ -22,6 +22,28 @@ def pushbroom_provider(qgis_processing, qgis_iface):
     plugin.initProcessing()
     yield QgsApplication.processingRegistry().providerById("pushbroom")
     plugin.unload()
+
+
+class RecordingFeedback(QgsProcessingFeedback):
+    """QgsProcessingFeedback that also keeps the info and warning messages it is given."""
+
+    def __init__(self):
+        super().__init__()
+        self.messages, self.warnings = [], []
+
+    def pushInfo(self, text):  # noqa: N802 (QGIS API)
+        self.messages.append(text)
+        super().pushInfo(text)
+
+    def pushWarning(self, text):  # noqa: N802 (QGIS API)
+        self.warnings.append(text)
+        super().pushWarning(text)
+
+
+@pytest.fixture
+def log():
+    """A fresh RecordingFeedback (.messages, .warnings)."""
+    return RecordingFeedback()
 
 
 @pytest.fixture(scope="session")

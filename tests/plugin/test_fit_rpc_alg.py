@@ -14,17 +14,16 @@ from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.sensors.rpc import RpcModel
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
 from pushbroom.algorithms.sensors.rpc_io import write_rpb
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 
 gdal.UseExceptions()
 NAMES = ("HRG", "HRS1", "HRS2")
 
 
 @pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("fitrpc") / "scene"
-    paths = simulate_scene(SceneConfig.small(), folder)
-    return folder, paths, float(np.nanmean(Dem.from_file(paths["dsm"]).heights))
+def scene(small_scene):
+    """(folder, paths, mean DSM height) of the small scene (tests copy the folder before writing)."""
+    import pathlib
+    return pathlib.Path(small_scene["folder"]), small_scene, float(np.nanmean(Dem.from_file(small_scene["dsm"]).heights))
 
 
 @pytest.fixture
@@ -100,17 +99,7 @@ def test_fitrpc_one_image_into_a_folder(pushbroom_provider, triplet_block, tmp_p
     assert max(np.abs(c - col.ravel()).max(), np.abs(r - row.ravel()).max()) < 0.01
 
 
-class Log(QgsProcessingFeedback):
-    def __init__(self):
-        super().__init__()
-        self.warnings = []
-
-    def pushWarning(self, text):  # noqa: N802 (QGIS API)
-        self.warnings.append(text)
-        super().pushWarning(text)
-
-
-def test_an_rpc_image_delivered_with_an_rpb_is_refitted_with_a_warning(pushbroom_provider, scene, tmp_path):
+def test_an_rpc_image_delivered_with_an_rpb_is_refitted_with_a_warning(pushbroom_provider, scene, tmp_path, log):
     """An RPC image whose RPC came as .RPB (GDAL prefers it to a _RPC.TXT): the fit of the block's RPC
     is written, and the user is told that GDAL still reads the .RPB."""
     _, paths, height = scene
@@ -121,7 +110,7 @@ def test_an_rpc_image_delivered_with_an_rpb_is_refitted_with_a_warning(pushbroom
     path = str(tmp_path / "rpc_block.gpkg")
     block.create_block(path, block.open_images([raster]), height=height)
     assert block.read_images(path)[0]["model_kind"] == "rpc"
-    feedback = Log()
+    feedback = log
     result = processing.run("pushbroom:fitrpc", {"BLOCK": path}, feedback=feedback)
     assert result["FILES"] == [str(tmp_path / "img_RPC.TXT")]
     assert len(feedback.warnings) == 1 and "GDAL does not read" in feedback.warnings[0]

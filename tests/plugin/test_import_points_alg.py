@@ -9,23 +9,14 @@ from qgis import processing
 from qgis.core import (QgsCategorizedSymbolRenderer, QgsProcessingContext, QgsProcessingException,
                        QgsProcessingFeedback, QgsProject, QgsVectorLayer)
 
-from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.geodesy import utm_epsg
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.plugin.algorithms.import_points import ExportPoints, ImportPoints
 
 
-@pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("import_points")
-    paths = simulate_scene(SceneConfig.small(), folder / "scene")
-    with open(paths["points"], newline="") as f:
-        rows = list(csv.DictReader(f))
-    template = folder / "template.gpkg"
-    images = block.open_images([paths["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
-    block.create_block(template, images, height=np.mean([float(r["h"]) for r in rows]))
-    return {"points": paths["points"], "rows": rows, "template": template}
+@pytest.fixture
+def scene(small_scene, small_scene_block):
+    return {"points": small_scene["points"], "rows": small_scene_block[1], "template": small_scene_block[0]}
 
 
 @pytest.fixture
@@ -43,19 +34,9 @@ def blk(scene, tmp_path):
     return str(path)
 
 
-class Log(QgsProcessingFeedback):
-    def __init__(self):
-        super().__init__()
-        self.messages = []
-
-    def pushInfo(self, text):  # noqa: N802 (QGIS API)
-        self.messages.append(text)
-        super().pushInfo(text)
-
-
-def test_import_simulator_points_and_export(algorithms, scene, blk, tmp_path):
+def test_import_simulator_points_and_export(algorithms, scene, blk, tmp_path, log):
     rows = scene["rows"]
-    context, log = QgsProcessingContext(), Log()
+    context, log = QgsProcessingContext(), log
     context.setProject(QgsProject.instance())
     result = processing.run("pushbroom:importpoints", {
         "BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas", "CHECK_IDS": "P002, P005"},

@@ -3,26 +3,23 @@ made from ground points on the true DSM (projected with the block's models: the 
 give them back)."""
 import numpy as np
 import pytest
-from osgeo import gdal, ogr, osr
+from osgeo import ogr, osr
 from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
 from pushbroom.algorithms import block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.surface.pointcloud import _laspy
-from pushbroom.plugin.algorithms.intersect_points import IntersectPoints
+from osr_oracle import utm
 
 
 @pytest.fixture(scope="module")
-def triplet(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("intersect")
-    paths = simulate_scene(SceneConfig.small(), folder / "scene")
-    images = block.open_images([paths["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
-    dsm = gdal.Open(paths["dsm"]).ReadAsArray()
-    return {"images": images, "dsm": Dem.from_file(paths["dsm"]), "folder": folder,
-            "height": float(np.nanmean(dsm))}
+def triplet(small_scene, tmp_path_factory):
+    images = block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
+    dsm = Dem.from_file(small_scene["dsm"])
+    return {"images": images, "dsm": dsm, "folder": tmp_path_factory.mktemp("intersect"),
+            "height": float(np.nanmean(dsm.heights))}
 
 
 def make_block(triplet, name, kinds=("mass_points",)):
@@ -54,16 +51,6 @@ def make_block(triplet, name, kinds=("mass_points",)):
     return path, lon, lat, h
 
 
-class Log(QgsProcessingFeedback):
-    def __init__(self):
-        super().__init__()
-        self.messages = []
-
-    def pushInfo(self, text):  # noqa: N802 (QGIS API)
-        self.messages.append(text)
-        super().pushInfo(text)
-
-
 class CancelOnProgress(QgsProcessingFeedback):
     """Cancels when the run first reports progress (as a user pressing Cancel while it runs)."""
 
@@ -73,25 +60,13 @@ class CancelOnProgress(QgsProcessingFeedback):
 
 
 def run(parameters, context=None, feedback=None):
-    alg = IntersectPoints()
-    alg.initAlgorithm()
-    return processing.run(alg, parameters, context=context or QgsProcessingContext(),
+    return processing.run("pushbroom:intersectpoints", parameters, context=context or QgsProcessingContext(),
                           feedback=feedback or QgsProcessingFeedback())
 
 
-def utm(lon, lat, epsg):
-    wgs84, target = osr.SpatialReference(), osr.SpatialReference()
-    wgs84.ImportFromEPSG(4326)
-    target.ImportFromEPSG(epsg)
-    for srs in (wgs84, target):
-        srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    ct = osr.CoordinateTransformation(wgs84, target)
-    return np.array([ct.TransformPoint(float(a), float(b))[:2] for a, b in zip(lon, lat)]).T
-
-
-def test_las_in_the_blocks_utm_zone(qgis_processing, triplet, tmp_path):
+def test_las_in_the_blocks_utm_zone(pushbroom_provider, triplet, tmp_path, log):
     path, lon, lat, h = make_block(triplet, "las.gpkg")
-    feedback = Log()
+    feedback = log
     result = run({"BLOCK": path, "OUTPUT": str(tmp_path / "cloud.las")}, feedback=feedback)
     assert result["COUNT"] == 300
     laspy = _laspy()
@@ -116,7 +91,7 @@ def test_las_in_the_blocks_utm_zone(qgis_processing, triplet, tmp_path):
     assert "intersectpoints" in [f["step"] for f in ds.GetLayerByName("run_log")]
 
 
-def test_geopackage_of_tie_points_in_a_given_crs(qgis_processing, triplet, tmp_path):
+def test_geopackage_of_tie_points_in_a_given_crs(pushbroom_provider, triplet, tmp_path):
     path, lon, lat, h = make_block(triplet, "gpkg.gpkg", kinds=("tie_points",))
     context = QgsProcessingContext()
     result = run({"BLOCK": path, "POINTS": 1, "CRS": "EPSG:32617", "OUTPUT": str(tmp_path / "cloud.gpkg")}, context)
@@ -130,7 +105,7 @@ def test_geopackage_of_tie_points_in_a_given_crs(qgis_processing, triplet, tmp_p
     np.testing.assert_allclose([g[2] for g in got], h, atol=0.001)
 
 
-def test_clear_errors_and_cancel(qgis_processing, triplet, tmp_path):
+def test_clear_errors_and_cancel(pushbroom_provider, triplet, tmp_path):
     path, *_ = make_block(triplet, "errors.gpkg", kinds=("tie_points",))
     with pytest.raises(QgsProcessingException, match="no mass points.*matchpoints"):
         run({"BLOCK": path, "OUTPUT": str(tmp_path / "a.las")})

@@ -24,16 +24,6 @@ def triplet(tmp_path_factory):
     return {"images": images, "range": (lo - 30.0, hi + 30.0), "folder": folder}
 
 
-class Log(QgsProcessingFeedback):
-    def __init__(self):
-        super().__init__()
-        self.messages = []
-
-    def pushInfo(self, text):  # noqa: N802 (QGIS API)
-        self.messages.append(text)
-        super().pushInfo(text)
-
-
 def make_block(triplet, name, names):
     path = triplet["folder"] / name
     block.create_block(path, [i for i in triplet["images"] if i[0] in names], height=sum(triplet["range"]) / 2,
@@ -41,7 +31,7 @@ def make_block(triplet, name, names):
     return str(path)
 
 
-def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, tmp_path):
+def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, tmp_path, log):
     path = make_block(triplet, "three.gpkg", ("HRG", "HRS1", "HRS2"))
     lo, hi = triplet["range"]
     context, feedback = QgsProcessingContext(), QgsProcessingFeedback()
@@ -73,7 +63,7 @@ def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, 
     assert layer.isValid() and layer.featureCount() == len(tie_points)
 
     # the tie points as the only seeds: tiles with a tie point grow as from automatic seeds
-    feedback = Log()
+    feedback = log
     processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6,
                                              "SEEDS": 1}, context=context, feedback=feedback)
     again = load_points(path)
