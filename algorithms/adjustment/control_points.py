@@ -229,8 +229,7 @@ def read_csv(path, image_names, crs=None, heights="ellipsoidal", default_role="c
     points["role"][np.isin(points["name"], check_ids)] = "check"
     _ground_to_wgs84(points, table, crs, heights, seen)
     meas = np.array(meas, MEAS_DTYPE)
-    meas = meas[np.lexsort((meas["image_id"], meas["point"]))]
-    return Observations(points, meas).check()
+    return Observations(points, meas).sorted().check()
 
 
 def _ground_to_wgs84(points, table, crs, heights, lines):
@@ -279,7 +278,8 @@ def merge(old, new):
     """`old` updated by `new`: a point of `new` replaces the point of the same name (role,
     coordinates, sigmas; in old's order) or is appended; its measurements replace old's in the
     same images, old's measurements in other images are kept."""
-    names = list(old.points["name"]) + [n for n in new.points["name"] if n not in set(old.points["name"])]
+    known = set(old.points["name"])
+    names = list(old.points["name"]) + [n for n in new.points["name"] if n not in known]
     index = {n: i for i, n in enumerate(names)}
     points = np.zeros(len(names), POINT_DTYPE)
     points[:len(old.points)] = old.points
@@ -289,8 +289,7 @@ def merge(old, new):
         for m in obs.measurements:
             key = (index[obs.points["name"][m["point"]]], int(m["image_id"]))
             by_key[key] = (key[0], key[1], m["col"], m["row"], m["sigma"])
-    meas = np.array([by_key[k] for k in sorted(by_key)], MEAS_DTYPE)
-    return Observations(points, meas).check()
+    return Observations(points, np.array(list(by_key.values()), MEAS_DTYPE)).sorted().check()
 
 
 def image_ids(block_path):
@@ -319,7 +318,7 @@ def _read(ds, block_path):
                              "import the points again")
         meas.append((index[feat["point_name"]], feat["image_id"], feat["col"], feat["row"], feat["sigma"]))
     meas = np.array(meas, MEAS_DTYPE)
-    return Observations(points, meas[np.lexsort((meas["image_id"], meas["point"]))])
+    return Observations(points, meas).sorted()
 
 
 def load_control_points(block_path):

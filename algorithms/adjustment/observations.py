@@ -58,6 +58,11 @@ class Observations:
             raise InputError(f"point name {names[counts > 1][0]!r} is used twice")
         return self
 
+    def sorted(self):
+        """The same observations with the measurements ordered by point, then image id."""
+        m = self.measurements
+        return Observations(self.points, m[np.lexsort((m["image_id"], m["point"]))])
+
     def subset(self, keep):
         """The observations of the points where `keep` (bool per point) is true."""
         keep = np.asarray(keep, bool)
