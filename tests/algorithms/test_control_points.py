@@ -14,6 +14,7 @@ from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.adjustment.observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import utm_epsg
+from osr_oracle import utm
 
 NAMES = ("HRG", "HRS1", "HRS2")
 
@@ -123,17 +124,14 @@ def test_projected_input(scene, blk, tmp_path):
     rows = scene["rows"]
     lon, lat = np.array([float(r["lon"]) for r in rows]), np.array([float(r["lat"]) for r in rows])
     epsg = utm_epsg(lon.mean(), lat.mean())
-    wgs84, utm = osr.SpatialReference(), osr.SpatialReference()
-    wgs84.ImportFromEPSG(4326)
-    utm.ImportFromEPSG(epsg)
-    for srs in (wgs84, utm):
-        srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    xy = np.array(osr.CoordinateTransformation(wgs84, utm).TransformPoints(np.column_stack([lon, lat]).tolist()))
+    xy = utm(lon, lat, epsg).T
     assert 1e5 < xy[:, 0].min() and xy[:, 1].min() > 4e6            # really projected metres
     projected = [{"ID": r["id"], "X": repr(x), "Y": repr(y), "H": r["h"], "HRG_col": r["HRG_col_meas"],
-                  "HRG_row": r["HRG_row_meas"]} for r, (x, y, _) in zip(rows, xy)]
+                  "HRG_row": r["HRG_row_meas"]} for r, (x, y) in zip(rows, xy)]
     path = write_rows(tmp_path / "utm.csv", projected)
-    for crs in (f"EPSG:{epsg}", utm.ExportToWkt(), epsg):
+    wkt = osr.SpatialReference()
+    wkt.ImportFromEPSG(epsg)
+    for crs in (f"EPSG:{epsg}", wkt.ExportToWkt(), epsg):
         obs = cp.read_csv(path, cp.image_ids(blk), crs=crs)
         err = max(np.abs(obs.points["lon"] - lon).max(), np.abs(obs.points["lat"] - lat).max())
         assert err < 1e-8, err

@@ -4,14 +4,14 @@ import shutil
 
 import numpy as np
 import pytest
-from osgeo import osr
 from qgis import processing
 from qgis.core import (QgsCategorizedSymbolRenderer, QgsProcessingContext, QgsProcessingException,
-                       QgsProcessingFeedback, QgsProject, QgsVectorLayer)
+                       QgsProject, QgsVectorLayer)
 
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.plugin.algorithms.import_points import ExportPoints, ImportPoints
+from osr_oracle import utm
 
 
 @pytest.fixture
@@ -72,17 +72,12 @@ def test_import_projected_coordinates_and_merge(algorithms, scene, blk, tmp_path
     rows = scene["rows"]
     lon, lat = np.array([float(r["lon"]) for r in rows]), np.array([float(r["lat"]) for r in rows])
     epsg = utm_epsg(lon.mean(), lat.mean())
-    wgs84, utm = osr.SpatialReference(), osr.SpatialReference()
-    wgs84.ImportFromEPSG(4326)
-    utm.ImportFromEPSG(epsg)
-    for srs in (wgs84, utm):
-        srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    xy = osr.CoordinateTransformation(wgs84, utm).TransformPoints(np.column_stack([lon, lat]).tolist())
+    xy = utm(lon, lat, epsg).T
     path = tmp_path / "utm.csv"
     with open(path, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["id", "role", "x", "y", "h", "HRS1_col", "HRS1_row"])
-        for r, (x, y, _) in zip(rows, xy):
+        for r, (x, y) in zip(rows, xy):
             writer.writerow([r["id"], "check", repr(x), repr(y), r["h"], r["HRS1_col_meas"], r["HRS1_row_meas"]])
     processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas"})
     result = processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(path), "CRS": f"EPSG:{epsg}",
