@@ -51,3 +51,18 @@ class _Scaled:
 def scaled(feedback, start, stop):
     """Feedback for a sub-step: its 0-100 % reported as start-stop % of `feedback` (None stays None)."""
     return None if feedback is None else _Scaled(feedback, start, stop)
+
+
+class _Quiet(NullFeedback):
+    """Feedback proxy that only forwards cancelling."""
+
+    def __init__(self, feedback):
+        self.feedback = feedback
+
+    def isCanceled(self):  # noqa: N802 (QGIS API)
+        return self.feedback.isCanceled()
+
+
+def quiet(feedback):
+    """Feedback for a repeated sub-step whose own messages and progress would be noise: cancelling only."""
+    return None if feedback is None else _Quiet(feedback)

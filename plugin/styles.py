@@ -19,10 +19,20 @@ class ApplyStyle(QgsProcessingLayerPostProcessorInterface):
         layer.triggerRepaint()
 
 
+def _post_processor(qml_name):
+    post = ApplyStyle(qml_name)
+    _KEEP_ALIVE.append(post)
+    return post
+
+
 def load_styled(context, source, name, output_name, qml_name):
     """Ask Processing to load `source` as layer `name` on completion, styled with `qml_name`."""
     details = QgsProcessingContext.LayerDetails(name, context.project(), output_name)
-    post = ApplyStyle(qml_name)
-    _KEEP_ALIVE.append(post)
-    details.setPostProcessor(post)
+    details.setPostProcessor(_post_processor(qml_name))
     context.addLayerToLoadOnCompletion(source, details)
+
+
+def style_on_completion(context, dest_id, qml_name):
+    """Style a sink output (`dest_id`) with `qml_name` where Processing loads it on completion."""
+    if context.willLoadLayerOnCompletion(dest_id):
+        context.layerToLoadOnCompletionDetails(dest_id).setPostProcessor(_post_processor(qml_name))

@@ -1,6 +1,8 @@
 """Print what `make demo` made: the simulated images with the measured error of their supplied
-orientation against the truth, the stereo geometry, the block, the mass points per group, and the
-accuracy of the group-3 points against the truth per land-cover class."""
+and of their adjusted orientation (the block's models) against the truth, the stereo geometry,
+the block, the mass points per group, the accuracy of the group-3 points against the truth per
+land-cover class, and the bundle adjustment's tables (K Tables 2-4, from the pushbroom:bundleadjust
+log)."""
 import csv
 import json
 import os
@@ -19,8 +21,8 @@ from pushbroom.algorithms.matching.points import load_points
 CLASS_GROUPS = {"fields (bare, crops)": (2, 3), "forest": (4,), "city": (5,), "water": (1,)}
 
 
-def supplied_error_m(supplied, truth, h):
-    """RMS and max ground distance (m) between the supplied and the true model on a 9 x 9 grid."""
+def orientation_error_m(supplied, truth, h):
+    """RMS and max ground distance (m) between a model and the true model on a 9 x 9 grid."""
     cols, rows = supplied.size
     c, r = (v.ravel() for v in np.meshgrid(np.linspace(0, cols, 9), np.linspace(0, rows, 9)))
     lon1, lat1 = supplied.image_to_ground(c, r, h)
@@ -89,6 +91,22 @@ def group3_accuracy(out, step=10.0, margin=20.0):
     return table
 
 
+def report_tables(log, keys=("Adjustment", "K Table")):
+    """The sections of the bundleadjust log (adjustment/report.render_text: a title line ending in ':',
+    indented lines, a blank line) whose title holds one of `keys`."""
+    sections, current = [], None
+    for line in open(log).read().splitlines():
+        if line and not line.startswith(" ") and line.endswith(":"):
+            current = [line] if any(k in line for k in keys) else None
+            if current:
+                sections.append(current)
+        elif current is not None and line.startswith("  "):
+            current.append(line)
+        else:
+            current = None
+    return sections
+
+
 def main(out):
     scene = os.path.join(out, "scene")
     truth = json.load(open(os.path.join(scene, "truth", "truth.json")))
@@ -97,17 +115,24 @@ def main(out):
     h = float(np.mean([float(p["h"]) for p in points])) if points else 0.0
     blk = os.path.join(out, "block.gpkg")
     print(f"\nDemo output in {out}")
-    print(f"{'image':6} {'cols x rows':>13}  supplied orientation vs truth on the ground (h = {h:.0f} m)")
+    print(f"{'image':6} {'cols x rows':>13}  orientation vs truth on the ground (h = {h:.0f} m): supplied, "
+          "block (after the adjustment)")
     for row in block.read_images(blk):
-        supplied = block.load_model(blk, row["id"])
         exact = sensors.load(os.path.join(scene, "truth", row["name"], "METADATA.DIM"))
-        rms, worst = supplied_error_m(supplied, exact, h)
-        print(f"{row['name']:6} {row['cols']:>6} x {row['rows']:<6} RMS {rms:5.1f} m, max {worst:5.1f} m")
+        errors = [orientation_error_m(model, exact, h) for model in
+                  (sensors.load(os.path.join(scene, row["name"], "METADATA.DIM")), block.load_model(blk, row["id"]))]
+        print(f"{row['name']:6} {row['cols']:>6} x {row['rows']:<6} "
+              + "; ".join(f"RMS {rms:5.1f} m, max {worst:5.1f} m" for rms, worst in errors))
     print("base-to-height ratios: " + ", ".join(f"{k} {v:.2f}" for k, v in truth["base_to_height"].items()))
     print(f"{len(points)} control/check point candidates in points.csv")
     for name in ("dsm.tif", "dtm.tif", "classes.tif", "orthoimage.tif", "points.csv", "truth/truth.json"):
         print(f"  {os.path.join(scene, name)}")
-    print(f"  {blk} (images, sensor models, footprints, mass and tie point layers)")
+    print(f"  {blk} (images, sensor models, footprints, mass and tie point layers, control/check points)")
+    for name, what in (("adjustment.html", "bundle adjustment report"),
+                       ("residuals.gpkg", "residual vectors of the control and check points"),
+                       ("points.las", "mass points intersected with the adjusted models")):
+        if os.path.exists(os.path.join(out, name)):
+            print(f"  {os.path.join(out, name)} ({what})")
     table = os.path.join(out, "point_groups.csv")
     if os.path.exists(table):
         with open(table) as f:
@@ -122,6 +147,12 @@ def main(out):
               f"{'coverage':>9}")
         for label, n1, rms1, big1, _, rms2, big2, cover in group3_accuracy(out):
             print(f"  {label:22} {n1:>7} {rms1:>12.3f} {big1:>6.2f}% {rms2:>12.3f} {big2:>6.2f}% {cover:>8.1f}%")
+    log = os.path.join(out, "bundleadjust.log")
+    if os.path.exists(log):
+        print("\nBundle adjustment (free look:0; check points: simulated reference coordinates; tie point "
+              "heights: the true DTM):")
+        for section in report_tables(log):
+            print("\n" + "\n".join(section))
 
 
 if __name__ == "__main__":

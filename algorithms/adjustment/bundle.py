@@ -13,8 +13,12 @@ snooping with the a priori sigma; |w| > `critical`, default 3.29 = alpha 0.1 %, 
 With `remove_blunders`, the worst flagged measurement is removed and the block re-adjusted until
 none is flagged (each removal reported).
 
-Datum defects and parameters the points cannot determine are found on the normal matrix before
-solving (correlation-scaled eigen-decomposition) and reported by name."""
+Prior information on orientation unknowns (e.g. an RPC bias known to be a few pixels, the offset
+of a trajectory known to 1000 m) enters as direct observations x_q = 0 with sigma_q: weight
+1/sigma_q^2 on the diagonal of the reduced normal matrix; they count in the redundancy and in v'Pv.
+
+Datum defects and parameters the points cannot determine are found on the normal matrix (with the
+priors) before solving (correlation-scaled eigen-decomposition) and reported by name."""
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,8 +67,9 @@ class Adjustment:
 
 class _Geometry:
     """The image measurements of `obs` sorted by point (`start[p]:start[p + 1]` are point p's),
-    their weights, and each image's free unknowns: `col` (n_images, 32) their index among the free
-    unknowns (-1: none) and `maps[s]` the image's coefficients -> those compact columns."""
+    their weights, and each image's free unknowns: `col` (n_images, K) their index among the free
+    unknowns (-1: none; K the most free unknowns one image depends on), `maps[s]` (n_coefficients,
+    K) the image's coefficients -> those compact columns and `rows[s]` its measurements."""
 
     def __init__(self, params, obs):
         self.params = params
@@ -75,55 +80,50 @@ class _Geometry:
         self.point_of = self.meas["point"]
         self.start = np.searchsorted(self.point_of, np.arange(len(obs.points) + 1))
         self.img = np.array([slot[i] for i in self.meas["image_id"]], np.int64)
+        self.rows = [np.flatnonzero(self.img == s) for s in range(len(self.images))]
         self.w = np.repeat((1.0 / self.meas["sigma"] ** 2)[:, None], 2, axis=1)
         free_index = np.full(len(params), -1, np.int64)
         free_index[params.free] = np.arange(params.free.sum())
         self.nfree = int(params.free.sum())
-        self.col = np.full((len(self.images), 32), -1, np.int64)
+        used = [np.flatnonzero(np.any(params.jacobian_map(i) != 0.0, axis=0) & (free_index >= 0))
+                for i in self.images]
+        width = max([u.size for u in used], default=0)
+        self.col = np.full((len(self.images), width), -1, np.int64)
         self.maps = []
         for s, i in enumerate(self.images):
             tmap = params.jacobian_map(i)
-            used = np.flatnonzero(np.any(tmap != 0.0, axis=0) & (free_index >= 0))
-            self.col[s, :used.size] = free_index[used]
-            compact = np.zeros((tmap.shape[0], 32))
-            compact[:, :used.size] = tmap[:, used]
+            self.col[s, :used[s].size] = free_index[used[s]]
+            compact = np.zeros((tmap.shape[0], width))
+            compact[:, :used[s].size] = tmap[:, used[s]]
             self.maps.append(compact)
 
     def point_orientation_blocks(self, a, b):
         """sum_j A_j' W B_j per point, (P, 3, nfree): the coupling of each point with the free
         orientation unknowns (normals.py's C)."""
         dense = np.zeros((len(self.meas), 2, self.nfree))
-        for s in range(len(self.images)):
-            k = np.flatnonzero(self.img == s)
+        for s, k in enumerate(self.rows):
             used = np.flatnonzero(self.col[s] >= 0)
             dense[np.ix_(k, [0, 1], self.col[s, used])] = b[np.ix_(k, [0, 1], used)]
         per_meas = np.einsum("jer,je,jeq->jrq", a, self.w, dense)
         return np.add.reduceat(per_meas, self.start[:-1], axis=0) if len(per_meas) else per_meas
 
     def linearise(self, lon, lat, h):
-        """(a, b, l): a (M, 2, 3) px/m, b (M, 2, 32) compact orientation partials, l = measured -
+        """(a, b, l): a (M, 2, 3) px/m, b (M, 2, K) compact orientation partials, l = measured -
         computed (M, 2) px."""
-        m = self.meas
-        n = len(m)
-        a = np.zeros((n, 2, 3))
-        b = np.zeros((n, 2, 32))
-        l = np.zeros((n, 2))
-        pl = self.point_of
-        e_deg, n_deg = metres_per_degree(lat[pl], h[pl])
-        for s, i in enumerate(self.images):
-            k = np.flatnonzero(self.img == s)
+        n = len(self.meas)
+        a, b, l = np.empty((n, 2, 3)), np.empty((n, 2, self.col.shape[1])), np.empty((n, 2))
+        e_deg, n_deg = metres_per_degree(lat, h)
+        per_metre = np.column_stack([1.0 / e_deg, 1.0 / n_deg, np.ones_like(e_deg)])[:, None, :]
+        measured = np.column_stack([self.meas["col"], self.meas["row"]])
+        for s, k in enumerate(self.rows):
             if not k.size:
                 continue
-            model = self.params.models[i]
-            p = pl[k]
-            d = model.partials(lon[p], lat[p], h[p])
-            col, row, dg = d["col"], d["row"], d["d_ground"]
-            b[k] = d["d_corrections"] @ self.maps[s]
-            a[k, :, 0] = dg[:, :, 0] / e_deg[k, None]
-            a[k, :, 1] = dg[:, :, 1] / n_deg[k, None]
-            a[k, :, 2] = dg[:, :, 2]
-            l[k, 0] = m["col"][k] - col
-            l[k, 1] = m["row"][k] - row
+            p = self.point_of[k]
+            d = self.params.models[self.images[s]].partials(lon[p], lat[p], h[p])
+            b[k] = (d["d_corrections"].reshape(-1, self.maps[s].shape[0]) @ self.maps[s]).reshape(k.size, 2, -1)
+            a[k] = d["d_ground"] * per_metre[p]
+            l[k, 0] = measured[k, 0] - d["col"]
+            l[k, 1] = measured[k, 1] - d["row"]
         return a, b, l
 
 
@@ -157,48 +157,91 @@ def start_points(models, obs, height):
     return lon, lat, h, usable
 
 
-def find_defects(normal, labels):
-    """Message naming the unknowns the reduced normal matrix cannot determine ("" if regular):
-    those no measurement depends on, and the groups spanning the eigenvectors of the
-    correlation-scaled matrix with eigenvalues below DEFECT_EIGENVALUE."""
+class DefectError(InputError):
+    """Orientation unknowns the observations cannot determine; `groups` lists, per defect, the
+    names of the unknowns involved (most involved first)."""
+
+    def __init__(self, message, groups):
+        super().__init__(message)
+        self.groups = groups
+
+
+def defect_groups(normal, labels, threshold=DEFECT_EIGENVALUE, prior=None):
+    """The unknowns the reduced normal matrix cannot determine, as groups of labels ([] if regular):
+    each unknown nothing depends on alone, and per eigenvector of the correlation-scaled matrix with
+    an eigenvalue below `threshold` the unknowns it involves (|component| > 0.05, most involved
+    first). `prior`: the prior weights included in `normal` (diagonal); a combination they hold
+    (half its eigenvalue or more) is determined by the user's priors, however weak, and not reported."""
     diag = np.diag(normal).copy()
-    parts = [f"{labels[q]} (no measurement depends on it)" for q in np.flatnonzero(diag <= 0)]
+    groups = [[labels[q]] for q in np.flatnonzero(diag <= 0)]
     good = np.flatnonzero(diag > 0)
     if good.size:
         d = 1.0 / np.sqrt(diag[good])
         vals, vecs = np.linalg.eigh(normal[np.ix_(good, good)] * d[:, None] * d[None, :])
+        held = (np.zeros(normal.shape[0]) if prior is None else np.asarray(prior, float))[good] * d * d
         for v, vec in zip(vals, vecs.T):
-            if v > DEFECT_EIGENVALUE * max(vals[-1], 1.0):
+            if v > threshold * max(vals[-1], 1.0):
                 break
-            names = [labels[good[q]] for q in np.argsort(-np.abs(vec)) if abs(vec[q]) > 0.25][:4]
-            parts.append(" with ".join(names) if len(names) > 1 else names[0])
-    if not parts:
-        return ""
-    return ("these orientation parameters cannot be determined from these points: " + "; ".join(parts)
-            + ". Add control points (or spread them wider), or fix these parameters")
+            if np.sum(held * vec * vec) >= 0.5 * v:
+                continue
+            order = np.argsort(-np.abs(vec))
+            groups.append([labels[good[q]] for q in order[np.abs(vec[order]) > 0.05]])
+    return groups
+
+
+def find_defects(normal, labels, threshold=DEFECT_EIGENVALUE, prior=None):
+    """DefectError naming the unknowns of `defect_groups` (the four most involved of each; None
+    if the matrix is regular)."""
+    groups = defect_groups(normal, labels, threshold, prior)
+    if not groups:
+        return None
+    unused = np.diag(normal) <= 0
+    parts = [f"{g[0]} (no measurement depends on it)" if len(g) == 1 and unused[labels.index(g[0])]
+             else " with ".join(g[:4]) for g in groups]
+    return DefectError("these orientation parameters cannot be determined from these points: " + "; ".join(parts)
+                       + ". Add control points (or spread them wider), fix these parameters or give them "
+                       "prior sigmas", groups)
+
+
+def prior_sigmas(params, priors):
+    """Array over all unknowns of their prior sigmas (inf: no prior) from {name or pattern: sigma}
+    (patterns as parameters.OrientationParameters.select; sigmas in internal units m, rad, px)."""
+    sigma = np.full(len(params), np.inf)
+    for spec, value in (priors or {}).items():
+        if not value > 0:
+            raise InputError(f"the prior sigma of {spec!r} must be positive, not {value}")
+        sigma[params.select([spec])] = value
+    return sigma
 
 
 def adjust(models, observations, free, names=None, height=0.0, max_iterations=15, tolerance=1e-4,
-           remove_blunders=False, critical=CRITICAL_W, max_removals=50, feedback=None):
+           remove_blunders=False, critical=CRITICAL_W, max_removals=50, priors=None, model="polynomial",
+           orientation_images=4, defect_eigenvalue=DEFECT_EIGENVALUE, feedback=None):
     """Bundle adjustment (module docstring). models {image_id: model} (edited in place: they carry
     the solution); observations: Observations (check points are ignored here); free: bool mask or
     a list of names/patterns for parameters.OrientationParameters.select; height: mean terrain
-    height for the tie points' starting values. Returns an Adjustment; raises InputError on too
-    few observations or undeterminable parameters (named), CancelledError when cancelled."""
+    height for the tie points' starting values; priors: {name or pattern: sigma} prior
+    observations x = 0 of orientation unknowns (see `prior_sigmas`), merged over the model's own
+    (OrientationParameters.default_priors; a user sigma of inf drops one); model, orientation_images:
+    the exterior orientation model (parameters.py: "polynomial" or "lagrange"); defect_eigenvalue:
+    see find_defects (selection.py tests weaker parameters on their significance). Returns an
+    Adjustment; raises InputError on too few observations or undeterminable parameters (named),
+    CancelledError when cancelled."""
     from .parameters import OrientationParameters
     obs = observations.check()
-    params = OrientationParameters(models, names)
+    params = OrientationParameters(models, names, model, orientation_images)
     mask = np.asarray(free, bool) if np.asarray(free).dtype == bool else params.select(free)
     if mask.shape != (len(params),):
         raise InputError(f"the free-parameter mask has {mask.size} entries for {len(params)} parameters")
     params.free = mask
+    params.prior_weights = 1.0 / prior_sigmas(params, {**params.default_priors, **(priors or {})}) ** 2
     unknown = set(np.unique(obs.measurements["image_id"])) - set(models)
     if unknown:
         raise InputError(f"measurements in image id(s) {sorted(unknown)} that the block has no model for")
     used = obs.subset(obs.points["role"] != "check")
     removed = []
     while True:
-        result = _solve(params, used, height, max_iterations, tolerance, feedback)
+        result = _solve(params, used, height, max_iterations, tolerance, defect_eigenvalue, feedback)
         result.removed = removed
         bad = result.flagged(critical)
         if not remove_blunders or not bad.size or len(removed) >= max_removals:
@@ -223,7 +266,7 @@ def _measurement_index(used, adjusted, k):
     return np.flatnonzero((used.measurements["point"] == point) & (used.measurements["image_id"] == mk["image_id"]))
 
 
-def _solve(params, obs, height, max_iterations, tolerance, feedback):
+def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, feedback):
     log = []
     fb = progress.ensure(feedback)
     lon, lat, h, usable = start_points(params.models, obs, height)
@@ -238,6 +281,7 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback):
     geo = _Geometry(params, obs)
     start, col, nfree = geo.start, geo.col, geo.nfree
     labels = [params.label(q) for q in np.flatnonzero(params.free)]
+    prior = params.prior_weights[params.free]
     x = np.zeros(len(params))
     n_pts = len(pts)
     ninv, bp, ok = np.zeros((n_pts, 3, 3)), np.zeros((n_pts, 3)), np.zeros(n_pts, bool)
@@ -252,10 +296,11 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback):
         normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
         cost = normals.reduce_normals(start, a, b, l, geo.w, geo.img, col, wg, lg, nfree, normal, rhs,
                                       ninv, bp, ok)
+        cost += _add_priors(normal, rhs, prior, x[params.free])
         if iteration == 1:
-            defects = find_defects(normal, labels)
+            defects = find_defects(normal, labels, defect_eigenvalue, prior)
             if defects:
-                raise InputError(defects)
+                raise defects
         do = _solve_scaled(normal, rhs)
         normals.back_substitute(start, a, b, geo.w, geo.img, col, ninv, bp, ok, do, dx)
         x[params.free] += do
@@ -273,6 +318,7 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback):
     wg, lg = _ground_weights(pts, lon, lat, h)
     normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
     normals.reduce_normals(start, a, b, l, geo.w, geo.img, col, wg, lg, nfree, normal, rhs, ninv, bp, ok)
+    vpv_prior = _add_priors(normal, rhs, prior, x[params.free])
     qoo = _inverse_scaled(normal)
     qpp = np.zeros((n_pts, 3, 3))
     red = np.zeros((len(geo.meas), 2))
@@ -282,8 +328,8 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback):
     control = pts["role"] == "control"
     used = ok[geo.point_of]
     n_obs = 2 * int(used.sum()) + 3 * int((control & ok).sum())
-    redundancy = n_obs - 3 * int(ok.sum()) - nfree
-    vpv = float(np.sum((v * v * geo.w)[used]) + np.sum((vg * vg * wg)[ok]))
+    redundancy = n_obs + int(np.count_nonzero(prior)) - 3 * int(ok.sum()) - nfree
+    vpv = float(np.sum((v * v * geo.w)[used]) + np.sum((vg * vg * wg)[ok])) + vpv_prior
     sigma0 = float(np.sqrt(vpv / redundancy)) if redundancy > 0 else float("nan")
     s0 = sigma0 if np.isfinite(sigma0) else 1.0
     sigmas = np.full(len(params), np.nan)
@@ -305,6 +351,13 @@ def _solve(params, obs, height, max_iterations, tolerance, feedback):
                       residuals=v[back], redundancy_numbers=red[back], normalised=normalised[back],
                       ground_residuals=ground_res, iterations=iteration, effects=params.max_effects(x, height),
                       log=log)
+
+
+def _add_priors(normal, rhs, weights, x):
+    """Prior observations 0 = x + dx (weights 1/sigma^2) into N and b (in place); returns their x'Px."""
+    normal[np.diag_indices_from(normal)] += weights
+    rhs -= weights * x
+    return float(np.sum(weights * x * x))
 
 
 def _scaled(normal):

@@ -61,24 +61,14 @@ def integrated_attitude(angle_t, angles, speed_t, speeds):
     return knots, integral + np.mean(angles - at_angles, axis=0)
 
 
-def _geodetic_jacobian(lon, lat, h):
-    """d(X, Y, Z)/d(lon, lat, h) (n, 3, 3) by central differences (1e-6 degree, 1 m)."""
-    columns = []
-    for i, step in enumerate((1e-6, 1e-6, 1.0)):
-        plus, minus = [lon, lat, h], [lon, lat, h]
-        plus[i], minus[i] = plus[i] + step, minus[i] - step
-        columns.append((geodetic_to_ecef(*plus) - geodetic_to_ecef(*minus)) / (2 * step))
-    return np.stack(columns, axis=-1)
-
-
 class SpotModel(SensorModel):
     """Rigorous model of one SPOT 1-5 level-1A scene (see the module docstring)."""
 
     #: convergence of ground_to_image, rows
     TOLERANCE = 1e-7
     MAX_ITERATIONS = 30
-    #: central-difference steps of the correction coefficients (m for X, Y, Z; rad for angles)
-    STEPS = np.repeat([1.0, 1.0, 1.0, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6], 4)
+    #: central-difference step of `partials` in the position (m; velocity: m per time scale)
+    POSITION_STEP = 1.0
 
     def __init__(self, orientation, drift=True):
         orientation.validate()
@@ -169,11 +159,9 @@ class SpotModel(SensorModel):
         d(col, row)/d(lon, lat, h) in px/degree, px/degree, px/m."""
         (lo, la, hh), _, _ = flat_points(lon, lat, h)
         col, row = self.ground_to_image(lo, la, hh)
-        xyz = np.ascontiguousarray(geodetic_to_ecef(lo, la, hh))
-        d_corr, d_xyz = np.empty((lo.size, 2, 32)), np.empty((lo.size, 2, 3))
-        k.partials_kernel(*self._packed(), xyz, col, row, np.ascontiguousarray(self.STEPS), d_corr, d_xyz)
-        return {"col": col, "row": row, "d_corrections": d_corr, "d_ecef": d_xyz,
-                "d_ground": np.einsum("nij,njk->nik", d_xyz, _geodetic_jacobian(lo, la, hh))}
+        d_corr, d_xyz, d_ground = np.empty((lo.size, 2, 32)), np.empty((lo.size, 2, 3)), np.empty((lo.size, 2, 3))
+        k.partials_kernel(*self._packed(), lo, la, hh, col, row, self.POSITION_STEP, d_corr, d_xyz, d_ground)
+        return {"col": col, "row": row, "d_corrections": d_corr, "d_ecef": d_xyz, "d_ground": d_ground}
 
     def image_to_dem(self, col, row, dem, samples=64, tol=1e-3):
         """Ground (lon, lat, h) where the ray of (col, row) first meets the DEM surface.

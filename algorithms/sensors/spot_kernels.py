@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..dem import bilinear_scalar
-from ..geodesy import A, B, bowring, ecef_to_geodetic_scalar, geodetic_to_ecef_scalar
+from ..geodesy import A, B, E2, bowring, ecef_to_geodetic_scalar, geodetic_to_ecef_scalar
 from .spot_frames import (attitude_rotation, look_angles, look_vector, mat_mul, mat_t_vec, mat_vec,
                           orbital_rotation)
 
@@ -76,10 +76,9 @@ def attitude(att_t, att_v, t):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def line_state(eph, att_t, att_v, prm, corr, t):
-    """Corrected position P and rotation M = R32 R21 (navigation -> ECEF) at time t.
-
-    The orbital frame is built from the corrected trajectory (P + dP, V + d(dP)/dt)."""
+def corrected_state(eph, att_t, att_v, prm, corr, t):
+    """Corrected position P + dP, velocity V + d(dP)/dt and attitude angles (yaw, pitch, roll) at
+    time t, and the correction time tau: a 10-tuple."""
     px, py, pz, vx, vy, vz = lagrange(eph, t)
     tau = (t - prm[0]) / prm[3]
     px += poly3(corr, 0, tau)
@@ -89,10 +88,17 @@ def line_state(eph, att_t, att_v, prm, corr, t):
     vy += poly3_slope(corr, 1, tau) / prm[3]
     vz += poly3_slope(corr, 2, tau) / prm[3]
     yaw, pitch, roll = attitude(att_t, att_v, t)
-    m = mat_mul(orbital_rotation(px, py, pz, vx, vy, vz),
-                attitude_rotation(yaw + poly3(corr, 3, tau), pitch + poly3(corr, 4, tau),
-                                  roll + poly3(corr, 5, tau)))
-    return px, py, pz, m
+    return (px, py, pz, vx, vy, vz, yaw + poly3(corr, 3, tau), pitch + poly3(corr, 4, tau),
+            roll + poly3(corr, 5, tau), tau)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def line_state(eph, att_t, att_v, prm, corr, t):
+    """Corrected position P and rotation M = R32 R21 (navigation -> ECEF) at time t.
+
+    The orbital frame is built from the corrected trajectory (P + dP, V + d(dP)/dt)."""
+    px, py, pz, vx, vy, vz, yaw, pitch, roll, _ = corrected_state(eph, att_t, att_v, prm, corr, t)
+    return px, py, pz, mat_mul(orbital_rotation(px, py, pz, vx, vy, vz), attitude_rotation(yaw, pitch, roll))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -190,16 +196,13 @@ def image_to_ecef(eph, att_t, att_v, look, prm, corr, col, row, h):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def residual(eph, att_t, att_v, look, prm, corr, x, y, z, col, row):
-    """Look angles of ground point X seen at line `row` minus those of detector `col`:
-    (psi_x(X) - psi_x(col), psi_y(X) - psi_y(col)); zero where (col, row) images X."""
-    px, py, pz, m = line_state(eph, att_t, att_v, prm, corr, prm[0] + (row - prm[1]) * prm[2])
+def view_angles(px, py, pz, m, x, y, z):
+    """Look angles (psi_x, psi_y) of ground point X seen from P in the navigation frame M' (X - P)
+    (M = R32 R21); NaNs if X is not below the satellite (n_z >= 0)."""
     nx, ny, nz = mat_t_vec(m, x - px, y - py, z - pz)
     if not nz < 0.0:
         return NAN, NAN
-    gx, gy = look_angles(nx, ny, nz)
-    dx, dy = detector_angles(look, prm, corr, col)
-    return gx - dx, gy - dy
+    return look_angles(nx, ny, nz)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -274,41 +277,122 @@ def line_of_sight_kernel(eph, att_t, att_v, look, prm, corr, col, row, pos, dire
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _solve_into(j00, j01, j10, j11, f0, f1, out, i, k):
-    """out[i, :, k] = -J^-1 (f0, f1) for the 2 x 2 Jacobian J."""
-    det = j00 * j11 - j01 * j10
-    out[i, 0, k] = -(j11 * f0 - j01 * f1) / det
-    out[i, 1, k] = -(-j10 * f0 + j00 * f1) / det
+def _moved_frame(px, py, pz, vx, vy, vz, r21, x, y, z):
+    """n = R21' R32' (X - P): ground point X in the navigation frame of position P and velocity V
+    (orbital frame R32 rebuilt) with attitude R21."""
+    wx, wy, wz = mat_t_vec(orbital_rotation(px, py, pz, vx, vy, vz), x - px, y - py, z - pz)
+    return mat_t_vec(r21, wx, wy, wz)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _line_view(eph, att_t, att_v, prm, corr, t, x, y, z):
+    """view_angles of X from the corrected state at time t."""
+    px, py, pz, m = line_state(eph, att_t, att_v, prm, corr, t)
+    return view_angles(px, py, pz, m, x, y, z)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _angle_slopes(nx, ny, nz, dx, dy, dz):
+    """Change of look_angles(n) along dn: psi_x = atan(-ny / nz), psi_y = atan(nx / nz) give
+    dpsi_x = (ny dnz - nz dny) / (ny^2 + nz^2), dpsi_y = (nz dnx - nx dnz) / (nx^2 + nz^2)."""
+    return (ny * dz - nz * dy) / (ny * ny + nz * nz), (nz * dx - nx * dz) / (nx * nx + nz * nz)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _geodetic_columns(lon, lat, h):
+    """d(X, Y, Z)/d(lon, lat, h) (row-major 9-tuple; m/degree, m/degree, m/m); with N, M the radii of
+    curvature: d/dlon = (N + h) cos(lat) (-sin lon, cos lon, 0), d/dlat = (M + h) (-sin lat cos lon,
+    -sin lat sin lon, cos lat), d/dh = (cos lat cos lon, cos lat sin lon, sin lat)."""
+    sl, cl = math.sin(math.radians(lon)), math.cos(math.radians(lon))
+    sp, cp = math.sin(math.radians(lat)), math.cos(math.radians(lat))
+    w2 = 1.0 - E2 * sp * sp
+    east = (A / math.sqrt(w2) + h) * cp * math.pi / 180.0
+    north = (A * (1.0 - E2) / (w2 * math.sqrt(w2)) + h) * math.pi / 180.0
+    return (-east * sl, -north * sp * cl, cp * cl,
+            east * cl, -north * sp * sl, cp * sl,
+            0.0, north * cp, sp)
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def partials_kernel(eph, att_t, att_v, look, prm, corr, xyz, col, row, steps, d_corr, d_xyz):
-    """d(col, row)/d(correction coefficients) (n, 2, 32) and d(col, row)/d(ECEF) (n, 2, 3) at the
-    image points (col, row) of ground points xyz, by the implicit function theorem on the residual
-    F(col, row; X, c) = 0: d(col, row)/dp = -[dF/d(col, row)]^-1 dF/dp, the partials of F by
-    central differences (steps[k] for coefficient k = 4 * row_of_corr + degree; 1 m for ECEF)."""
+def partials_kernel(eph, att_t, att_v, look, prm, corr, lon, lat, h, col, row, step_m, d_corr, d_xyz, d_ground):
+    """d(col, row)/d(correction coefficients) (n, 2, 32), d(col, row)/d(ECEF) (n, 2, 3) and
+    d(col, row)/d(lon, lat, h) (n, 2, 3; px/degree, px/degree, px/m) at the image points (col, row)
+    of ground points (lon, lat, h), by the implicit function theorem on the residual
+    F(col, row; X, c) = g(n) - d(col; c), n = M' (X - P) (g: look_angles, d: detector_angles,
+    M = R32 R21 at t(row)): d(col, row)/dp = -[dF/d(col, row)]^-1 dF/dp.
+
+    dF/dcol: d at col -+ 0.5; dF/drow: g at row -+ 0.5. Exact: dn/dX = M' (rows of M); with
+    n = R21' w, w = R32' (X - P), and R21 = Rx(-pitch) Ry(-roll) Rz(yaw) (spot_frames):
+    dn/dyaw = n x e_z, dn/dpitch = r1 x n (r1 the first row of R21), dn/droll = (sin yaw, cos yaw,
+    0) x n. The corrections enter through the state at t only, so by the chain rule (q = (col -
+    p_c) / 1000): position coefficient j of axis k: dF/dP_k tau^j + dF/dV_k j tau^(j-1) /
+    time_scale; attitude coefficient j of angle k: dF/dangle_k tau^j; look coefficient j: dF/dpsi =
+    -(q^j, 0) or -(0, q^j). dF/dP_k, dF/dV_k = dg/dn dn/dP_k, dn/dV_k, the latter by central
+    differences (step_m m, step_m / time_scale m/s) with the orbital frame rebuilt from the moved
+    position or velocity. dg/dn: `_angle_slopes`. d_ground = d_xyz d(X, Y, Z)/d(lon, lat, h)
+    (`_geodetic_columns`)."""
+    sv = step_m / prm[3]
     for i in prange(col.size):
-        x, y, z, c, r = xyz[i, 0], xyz[i, 1], xyz[i, 2], col[i], row[i]
-        a0, a1 = residual(eph, att_t, att_v, look, prm, corr, x, y, z, c + 0.5, r)
-        b0, b1 = residual(eph, att_t, att_v, look, prm, corr, x, y, z, c - 0.5, r)
-        e0, e1 = residual(eph, att_t, att_v, look, prm, corr, x, y, z, c, r + 0.5)
-        g0, g1 = residual(eph, att_t, att_v, look, prm, corr, x, y, z, c, r - 0.5)
-        j00, j10, j01, j11 = a0 - b0, a1 - b1, e0 - g0, e1 - g1  # dF/d(col,row), step 1
-        work = corr.copy()
-        for k in range(32):
-            p, q = k // 4, k % 4
-            s = steps[k]
-            work[p, q] = corr[p, q] + s
-            a0, a1 = residual(eph, att_t, att_v, look, prm, work, x, y, z, c, r)
-            work[p, q] = corr[p, q] - s
-            b0, b1 = residual(eph, att_t, att_v, look, prm, work, x, y, z, c, r)
-            work[p, q] = corr[p, q]
-            _solve_into(j00, j01, j10, j11, (a0 - b0) / (2 * s), (a1 - b1) / (2 * s), d_corr, i, k)
+        x, y, z = geodetic_to_ecef_scalar(lon[i], lat[i], h[i])
+        c, r = col[i], row[i]
+        t = prm[0] + (r - prm[1]) * prm[2]
+        px, py, pz, vx, vy, vz, yaw, pitch, roll, tau = corrected_state(eph, att_t, att_v, prm, corr, t)
+        a0, a1 = detector_angles(look, prm, corr, c + 0.5)
+        b0, b1 = detector_angles(look, prm, corr, c - 0.5)
+        e0, e1 = _line_view(eph, att_t, att_v, prm, corr, t + 0.5 * prm[2], x, y, z)
+        g0, g1 = _line_view(eph, att_t, att_v, prm, corr, t - 0.5 * prm[2], x, y, z)
+        j00, j10, j01, j11 = b0 - a0, b1 - a1, e0 - g0, e1 - g1  # dF/d(col,row), step 1
+        det = j00 * j11 - j01 * j10
+        # d(col, row)/dp = -J^-1 dF/dp, -J^-1 = (-j11, j01; j10, -j00) / det
+        r21 = attitude_rotation(yaw, pitch, roll)
+        m = mat_mul(orbital_rotation(px, py, pz, vx, vy, vz), r21)
+        nx, ny, nz = mat_t_vec(m, x - px, y - py, z - pz)
+        if not nz < 0.0:
+            nx = ny = nz = NAN
         for k in range(3):
-            dx, dy, dz = (1.0 if k == 0 else 0.0), (1.0 if k == 1 else 0.0), (1.0 if k == 2 else 0.0)
-            a0, a1 = residual(eph, att_t, att_v, look, prm, corr, x + dx, y + dy, z + dz, c, r)
-            b0, b1 = residual(eph, att_t, att_v, look, prm, corr, x - dx, y - dy, z - dz, c, r)
-            _solve_into(j00, j01, j10, j11, (a0 - b0) / 2.0, (a1 - b1) / 2.0, d_xyz, i, k)
+            f0, f1 = _angle_slopes(nx, ny, nz, m[3 * k], m[3 * k + 1], m[3 * k + 2])
+            d_xyz[i, 0, k] = (j01 * f1 - j11 * f0) / det
+            d_xyz[i, 1, k] = (j10 * f0 - j00 * f1) / det
+        g = _geodetic_columns(lon[i], lat[i], h[i])
+        for e in range(2):
+            for k in range(3):
+                d_ground[i, e, k] = d_xyz[i, e, 0] * g[k] + d_xyz[i, e, 1] * g[3 + k] + d_xyz[i, e, 2] * g[6 + k]
+        sy, cy = math.sin(yaw), math.cos(yaw)
+        attitude_slopes = (_angle_slopes(nx, ny, nz, ny, -nx, 0.0),
+                           _angle_slopes(nx, ny, nz, r21[1] * nz - r21[2] * ny, r21[2] * nx - r21[0] * nz,
+                                         r21[0] * ny - r21[1] * nx),
+                           _angle_slopes(nx, ny, nz, cy * nz, -sy * nz, sy * ny - cy * nx))
+        for k in range(3):
+            # position and velocity of axis k, then attitude angle k
+            e0, e1, e2 = (1.0 if k == 0 else 0.0), (1.0 if k == 1 else 0.0), (1.0 if k == 2 else 0.0)
+            dx, dy, dz = e0 * step_m, e1 * step_m, e2 * step_m
+            a0, a1, a2 = _moved_frame(px + dx, py + dy, pz + dz, vx, vy, vz, r21, x, y, z)
+            b0, b1, b2 = _moved_frame(px - dx, py - dy, pz - dz, vx, vy, vz, r21, x, y, z)
+            fp0, fp1 = _angle_slopes(nx, ny, nz, (a0 - b0) / (2 * step_m), (a1 - b1) / (2 * step_m),
+                                     (a2 - b2) / (2 * step_m))
+            dx, dy, dz = e0 * sv, e1 * sv, e2 * sv
+            a0, a1, a2 = _moved_frame(px, py, pz, vx + dx, vy + dy, vz + dz, r21, x, y, z)
+            b0, b1, b2 = _moved_frame(px, py, pz, vx - dx, vy - dy, vz - dz, r21, x, y, z)
+            dv = 2.0 * sv * prm[3]      # dF/dV / time_scale
+            fv0, fv1 = _angle_slopes(nx, ny, nz, (a0 - b0) / dv, (a1 - b1) / dv, (a2 - b2) / dv)
+            fa0, fa1 = attitude_slopes[k]
+            power, below = 1.0, 0.0      # tau^j, j tau^(j-1)
+            for j in range(4):
+                f0, f1 = fp0 * power + fv0 * below, fp1 * power + fv1 * below
+                d_corr[i, 0, 4 * k + j] = (j01 * f1 - j11 * f0) / det
+                d_corr[i, 1, 4 * k + j] = (j10 * f0 - j00 * f1) / det
+                d_corr[i, 0, 12 + 4 * k + j] = (j01 * fa1 - j11 * fa0) * power / det
+                d_corr[i, 1, 12 + 4 * k + j] = (j10 * fa0 - j00 * fa1) * power / det
+                below = (j + 1) * power
+                power *= tau
+        q = (c - prm[4]) * 1e-3
+        power = 1.0
+        for j in range(4):
+            d_corr[i, 0, 24 + j] = j11 * power / det
+            d_corr[i, 1, 24 + j] = -j10 * power / det
+            d_corr[i, 0, 28 + j] = -j01 * power / det
+            d_corr[i, 1, 28 + j] = j00 * power / det
+            power *= q
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -14,8 +14,8 @@ mu leaves the two independent conditions of each ray, which are its image coordi
 unknowns (X, Y, Z), the redundancy 2k - 3 (1 for two rays, 3 for three) and, with the residuals
 weighted as image measurements, the estimate are the same: this is the image-space form of eq. 5.
 
-Start: the point closest to the first two lines of sight (each through its ground points at heights
-h0 -+ 500 m from `image_to_ground`). Per point the result carries the a priori covariance
+Start: the point closest in least squares to all its lines of sight (each through its ground points
+at heights h0 -+ 500 m from `image_to_ground`). Per point the result carries the a priori covariance
 (A' P A)^-1 in m^2 (E, N, U, from the given image sigma), the a posteriori sigma0 =
 sqrt(v' P v / (2k - 3)) (unitless: about 1 when the image sigma is right; a posteriori sigmas =
 sigma0 x a priori sigmas), the RMS of the 2k image residuals (px), the iterations and a status."""
@@ -90,31 +90,37 @@ def _inverse_symmetric(m):
         return inverse / det[:, None, None], det
 
 
-def _start(models, image, col, row, first, second, h0):
-    """ECEF point closest to the lines of sight of observations `first` and `second` (the midpoint of
-    their common perpendicular); where they are parallel or one has no ground point, the point at h0
-    of the other (NaN if neither has one)."""
-    lines = []
-    for obs in (first, second):
-        ends = np.full((2, obs.size, 3), np.nan)
-        for key in np.unique(image[obs]):
-            sel = image[obs] == key
-            for j, height in enumerate((h0 - START_HALF_HEIGHT, h0 + START_HALF_HEIGHT)):
-                lon, lat = models[key].image_to_ground_or_nan(col[obs][sel], row[obs][sel],
-                                                              np.full(int(sel.sum()), height))
-                ends[j, sel] = geodetic_to_ecef(lon, lat, height)
-        lines.append((0.5 * (ends[0] + ends[1]), ends[1] - ends[0]))
-    (p1, d1), (p2, d2) = lines
-    w = p1 - p2
-    a, b, c = (d1 * d1).sum(1), (d1 * d2).sum(1), (d2 * d2).sum(1)
-    d, e = (d1 * w).sum(1), (d2 * w).sum(1)
-    den = a * c - b * b
-    ok = den > 1e-12 * a * c
-    den = np.where(ok, den, 1.0)
-    s = np.where(ok, (b * e - c * d) / den, 0.0)
-    t = np.where(ok, (a * e - b * d) / den, 0.0)
-    alone = np.where(np.isfinite(p1).all(axis=1)[:, None], p1, p2)
-    return np.where(ok[:, None], 0.5 * (p1 + s[:, None] * d1 + p2 + t[:, None] * d2), alone)
+def _start(models, image, col, row, point, go, h0):
+    """ECEF starting points of the points `go` (sorted, each with a measurement; `point` sorted): the
+    point closest in least squares to the lines of sight of all their measurements (each through its
+    ground points at heights h0 -+ START_HALF_HEIGHT from `image_to_ground`),
+    X = (sum_i A_i)^-1 sum_i A_i p_i, A_i = I - u_i u_i' (u_i unit direction, p_i a point of line i;
+    for two lines the midpoint of their common perpendicular). With fewer than two lines or parallel
+    ones, the point at h0 of the first line (NaN if no ray meets the ground)."""
+    if not go.size:
+        return np.zeros((0, 3))
+    sel = np.flatnonzero(np.isin(point, go))
+    ends = np.full((2, sel.size, 3), np.nan)
+    for key in np.unique(image[sel]):
+        s = image[sel] == key
+        for j, height in enumerate((h0 - START_HALF_HEIGHT, h0 + START_HALF_HEIGHT)):
+            lon, lat = models[key].image_to_ground_or_nan(col[sel][s], row[sel][s], np.full(int(s.sum()), height))
+            ends[j, s] = geodetic_to_ecef(lon, lat, height)
+    mid, u = 0.5 * (ends[0] + ends[1]), ends[1] - ends[0]
+    good = np.isfinite(mid).all(axis=1) & np.isfinite(u).all(axis=1)
+    mid[~good], u[~good] = 0.0, 1.0
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    a = np.eye(3) - u[:, :, None] * u[:, None, :]
+    a[~good] = 0.0
+    starts = np.flatnonzero(np.r_[True, point[sel][1:] != point[sel][:-1]])
+    normal = np.add.reduceat(a, starts)
+    inverse, det = _inverse_symmetric(normal)
+    ok = (np.add.reduceat(good, starts) >= 2) & (det > SINGULAR_RATIO * np.prod(np.diagonal(normal, axis1=1, axis2=2),
+                                                                             axis=1))
+    rhs = np.add.reduceat(np.einsum("kij,kj->ki", a, mid), starts)
+    first = np.minimum.reduceat(np.where(good, np.arange(sel.size), sel.size), starts)
+    alone = np.where((first < sel.size)[:, None], mid[np.minimum(first, sel.size - 1)], np.nan)
+    return np.where(ok[:, None], np.einsum("kij,kj->ki", np.where(ok[:, None, None], inverse, 0.0), rhs), alone)
 
 
 def _check_inputs(models, image, point, col, row, sigma):
@@ -193,8 +199,7 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
     iterations, sigma0, rms = np.zeros(n, np.int32), np.full(n, np.nan), np.full(n, np.nan)
     covariance = np.full((n, 3, 3), np.nan)
     go = np.flatnonzero(status == NOT_CONVERGED)
-    first = np.searchsorted(point, go)
-    lon[go], lat[go], h[go] = ecef_to_geodetic(_start(models, image, col, row, first, first + 1, h0))
+    lon[go], lat[go], h[go] = ecef_to_geodetic(_start(models, image, col, row, point, go, h0))
     status[go[~np.isfinite(h[go])]] = OUTSIDE
     observed = np.column_stack([col, row])
     weight = 1.0 / sigma ** 2

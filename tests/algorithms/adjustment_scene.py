@@ -1,10 +1,11 @@
 """Shared fixture data for the adjustment tests: a simulated SPOT scene with its control/check
-point candidates as Observations, the supplied and the truth models, and matched tie points."""
+point candidates as Observations, the supplied and the truth models, and synthetic check points."""
 import csv
 
 import numpy as np
 
 from pushbroom.algorithms import sensors
+from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 
 
@@ -27,3 +28,23 @@ def models_of(paths, names, truth=False):
     key = "truth_metadata" if truth else None
     return {k + 1: sensors.load(paths[key][n] if truth else paths["images"][n]["metadata"])
             for k, n in enumerate(names)}
+
+
+def synthetic_points(scene, image_ids, n, sigma_px, seed):
+    """Check points: n ground points on the true DSM, spread over the first image of `image_ids`
+    ({name: image id}), measured in each (truth models) with image noise sigma_px."""
+    rng = np.random.default_rng(seed)
+    truth = {i: sensors.load(scene["truth_metadata"][name]) for name, i in image_ids.items()}
+    first = truth[next(iter(image_ids.values()))]
+    cols, rows = first.size
+    x, y = rng.uniform(30, cols - 30, n), rng.uniform(30, rows - 30, n)
+    lon, lat, h = first.image_to_dem(x, y, Dem.from_file(scene["dsm"]))
+    meas = []
+    for i, model in truth.items():
+        c, r = model.ground_to_image(lon, lat, h)
+        c, r = c + rng.normal(0, sigma_px, n), r + rng.normal(0, sigma_px, n)
+        meas += [(k, i, c[k], r[k], sigma_px) for k in range(n)]
+    points = np.zeros(n, POINT_DTYPE)
+    points["name"] = [f"S{k}" for k in range(n)]
+    points["role"], points["lon"], points["lat"], points["h"] = "check", lon, lat, h
+    return Observations(points, np.array(meas, MEAS_DTYPE))

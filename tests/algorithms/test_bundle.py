@@ -4,11 +4,10 @@ precision, data snooping, and named datum defects; on a small simulated SPOT 5 t
 import numpy as np
 import pytest
 
-from adjustment_scene import models_of, point_observations
+from adjustment_scene import models_of, point_observations, synthetic_points
 from pushbroom.algorithms.adjustment import normals
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points, statistics_table
-from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 
@@ -30,24 +29,6 @@ def perturbed(scene):
     for i, (dx, dy) in INJECTED.items():
         models[i].orientation.corrections.look[:, 0] = (dx, dy)
     return models
-
-
-def synthetic_points(scene, n, sigma_px, seed):
-    """n ground points on the true DSM seen in the three images (truth models), image noise sigma_px."""
-    rng = np.random.default_rng(seed)
-    truth = models_of(scene, NAMES, truth=True)
-    cols, rows = truth[1].size
-    x, y = rng.uniform(30, cols - 30, n), rng.uniform(30, rows - 30, n)
-    lon, lat, h = truth[1].image_to_dem(x, y, Dem.from_file(scene["dsm"]))
-    meas = []
-    for i, model in truth.items():
-        c, r = model.ground_to_image(lon, lat, h)
-        c, r = c + rng.normal(0, sigma_px, n), r + rng.normal(0, sigma_px, n)
-        meas += [(k, i, c[k], r[k], sigma_px) for k in range(n)]
-    points = np.zeros(n, POINT_DTYPE)
-    points["name"] = [f"S{k}" for k in range(n)]
-    points["role"], points["lon"], points["lat"], points["h"] = "check", lon, lat, h
-    return Observations(points, np.array(meas, MEAS_DTYPE))
 
 
 def dense_reference(start, a, b, l, w, img, col, wg, lg, nfree):
@@ -118,12 +99,12 @@ def test_recovers_injected_look_angles_and_check_points_match_their_precision(sc
     result = adjust(models, obs, ["look:0"], names=LABELS, height=300.0)
     for i, (dx, dy) in INJECTED.items():
         for kind, value in (("psi_x_0", dx), ("psi_y_0", dy)):
-            q = [k for k in np.flatnonzero(result.parameters.free) if result.parameters.label(k) == f"{LABELS[i]} {kind}"][0]
+            q = result.parameters.select([f"{LABELS[i]} {kind}"]).argmax()
             assert abs(result.values[q] + value) < 2.0 * result.sigmas[q], (kind, result.values[q], result.sigmas[q])
             assert result.sigmas[q] < 2e-6
     assert 0.7 < result.sigma0 < 1.3          # 0.3 px noise against a priori 0.3 px
     assert result.redundancy == 2 * len(result.observations.measurements) + 3 * 19 - 3 * 19 - 6
-    check = check_points(result, synthetic_points(scene, 300, 0.3, 7), height=300.0)
+    check = check_points(result, synthetic_points(scene, IDS, 300, 0.3, 7), height=300.0)
     table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")})
     theoretical = np.sqrt(np.mean(check["sigma"] ** 2, axis=0))
     for k, key in enumerate(("dE", "dN", "dH")):
@@ -164,6 +145,29 @@ def test_datum_defects_are_named(scene):
         adjust(perturbed(scene), obs, ["psi_z_0"], names=LABELS)
 
 
+def test_priors_pin_loosen_and_cure_defects(scene):
+    """Prior observations x = 0: a tight one pins its unknown (and adds to the redundancy), a loose
+    one changes nothing, and priors on the coefficients 2 control points cannot determine make
+    the adjustment solvable with those coefficients no more uncertain than their priors."""
+    obs = point_observations(scene["points"], IDS, 19)
+    free = adjust(perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0)
+    q = free.parameters.select(["HRG psi_x_0"])
+    pinned = adjust(perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0, priors={"HRG psi_x_0": 1e-10})
+    assert abs(pinned.values[q][0]) < 1e-9 and pinned.redundancy == free.redundancy + 1
+    assert abs(free.values[q][0]) > 10 * free.sigmas[q][0]
+    loose = adjust(perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0, priors={"look:0": 1.0})
+    m = free.parameters.free
+    assert np.all(np.abs(loose.values[m] - free.values[m]) < 1e-3 * free.sigmas[m])
+    two = point_observations(scene["points"], IDS, 2)
+    two.points["role"][two.points["role"] == "check"] = "tie"
+    higher = ["psi_x_12", "psi_y_12"]
+    cured = adjust(perturbed(scene), two, ["look:2"], names=LABELS, height=300.0, priors={p: 1e-5 for p in higher})
+    held = cured.parameters.select(higher)
+    assert np.isfinite(cured.sigma0) and np.all(cured.sigmas[held] <= 1e-5 * max(1.0, cured.sigma0))
+    with pytest.raises(InputError, match="must be positive"):
+        adjust(perturbed(scene), obs, ["look:0"], names=LABELS, priors={"look:0": 0.0})
+
+
 def test_rpc_bias_correction_recovers_an_injected_affine_bias(scene):
     """RPCs fitted to the truth models, each given an affine image bias (shift 2-3 px, drift and
     scale 1 px per 1000 px); bias:affine with 19 control points recovers all 18 terms within 3
@@ -196,3 +200,44 @@ def test_report_gives_each_coefficient_its_maximum_effect(scene):
     assert np.all(np.isfinite(result.effects[result.parameters.free]))
     assert np.all(np.isnan(result.effects[~result.parameters.free]))
     assert "max. effect px" in text_report(result)
+
+
+def test_variance_components_recover_the_groups_noise(scene):
+    """Tie points measured with 0.1 px noise but given 0.5 px a priori, control points 0.3 px as
+    given: the estimated sigmas come back to the simulated noise, and the groups' redundancies add
+    up to the block's."""
+    from pushbroom.algorithms.adjustment import variance
+    obs = point_observations(scene["points"], IDS, 19)
+    tie = synthetic_points(scene, IDS, 400, 0.1, 11)
+    tie.points["role"] = "tie"
+    tie.measurements["sigma"] = 0.5
+    both = obs.concatenate(tie)
+    result, rescaled, components = variance.estimate(
+        lambda o: adjust(perturbed(scene), o, ["look:0"], names=LABELS, height=300.0), both)
+    by_group = {c.group: c for c in components}
+    print({g: (round(c.sigma, 4), round(c.redundancy, 1)) for g, c in by_group.items()})
+    assert by_group["tie image"].sigma == pytest.approx(0.1, rel=0.1)
+    assert by_group["control image"].sigma == pytest.approx(0.3, rel=0.3)
+    assert sum(c.redundancy for c in components) == pytest.approx(result.redundancy, abs=1e-6)
+    assert result.sigma0 == pytest.approx(1.0, abs=0.05)
+    role = rescaled.points["role"][rescaled.measurements["point"]]
+    assert np.allclose(rescaled.measurements["sigma"][role == "tie"], by_group["tie image"].sigma)
+
+
+@pytest.mark.slow
+def test_automatic_selection_on_a_small_block(scene):
+    """K 3.4.3 on the 3 km block with 300 synthetic tie points: the injected look-angle constants
+    are chosen (at most 2 others), every decision is logged, and the models carry the solution."""
+    from pushbroom.algorithms.adjustment.selection import select_parameters
+    tie = synthetic_points(scene, IDS, 300, 0.2, 5)
+    tie.points["role"] = "tie"
+    obs = point_observations(scene["points"], IDS, 19).concatenate(tie)
+    models = perturbed(scene)
+    selection = select_parameters(models, obs, names=LABELS, height=300.0)
+    injected = {f"{LABELS[i]} {k}_0" for i in INJECTED for k in ("psi_x", "psi_y")}
+    print(selection.free)
+    assert injected <= set(selection.free) and len(set(selection.free) - injected) <= 2
+    assert any(line.startswith("step 1: fixed") for line in selection.log)
+    assert selection.log[-1].startswith(f"selected {len(selection.free)} free coefficient(s)")
+    for i, (dx, dy) in INJECTED.items():
+        assert np.allclose(models[i].orientation.corrections.look[:, 0], 0.0, atol=2e-6)

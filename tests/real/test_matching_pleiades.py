@@ -23,37 +23,21 @@ import time
 import numpy as np
 import pytest
 
+from pleiades_scene import NAMES, Log, match_triplet
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.matching.combinations import format_summary, match_block, summary_rows
+from pushbroom.algorithms.matching.combinations import format_summary, summary_rows
 from pushbroom.algorithms.matching.consistency import fb_summary, format_fb, forward_backward, observation_pairs
-from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.seeds import predict
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
-ORDER = (2, 1, 3)              # img_02 reference (nadir), img_01 forward, img_03 backward
-NAMES = [f"img_0{k}" for k in ORDER]
 PARAMS = GrowParams(step=3)
 # combinations as (template image, search image) indices in combination order, and the block
 # image ids (1, 2, 3 = reference, forward, backward) of their observations
 COMBINATIONS = {"a": (0, 1), "b": (0, 2), "c": (2, 1)}
 MIN_GROUP3 = 50_000
 MAX_FB_RMS = 0.2
-
-
-class Log:
-    def __init__(self):
-        self.lines = []
-
-    def setProgress(self, percent):  # noqa: N802 (QGIS API)
-        pass
-
-    def isCanceled(self):  # noqa: N802
-        return False
-
-    def pushInfo(self, text):  # noqa: N802
-        self.lines.append(text)
 
 
 def off_nadir(model):
@@ -83,12 +67,9 @@ def test_reference_is_the_most_nadir(pleiades_triplet):
 
 @pytest.fixture(scope="module")
 def matched(pleiades_triplet):
-    paths = [pleiades_triplet[k - 1] for k in ORDER]
-    images = [Image(p) for p in paths]
-    models = [sensors.load(p) for p in paths]
     log = Log()
     t0 = time.perf_counter()
-    points = match_block(images, models, names=NAMES, params=PARAMS, feedback=log, workers=2)
+    images, models, points = match_triplet(pleiades_triplet, PARAMS, feedback=log)
     t_match = time.perf_counter() - t0
     group3 = points.points["group"] == 3
     fb = {}

@@ -1,0 +1,248 @@
+"""Automatic selection of the free orientation parameters (paper K 3.4.3; methods.md section 4).
+
+Step 1: the look-angle correction coefficients (degree 0-`look_degree` of psi_x, psi_y of every
+SPOT image; the affine bias of every RPC image) are estimated with the exterior ones fixed. Those
+whose significance |x| / sigma_x is below `significance` are fixed (to the supplied value, i.e. an
+increment of 0) one at a time, the least significant first, each followed by a new adjustment;
+a coefficient stays free, whatever its significance, when fixing it makes the control point
+residuals larger (image RMS per image, or ground RMS per E/N/H, up by more than `max_increase`)
+or systematic (a mean residual of the control points in an image that a t-test finds non-zero
+at `systematic`, when it was not before). "Up" means by more than `max_increase` of the RMS and
+more than MIN_INCREASE of the observations' a priori sigma: control residuals far below their
+sigma can grow by 20 % without anything becoming visible.
+Step 2: the exterior coefficients (degree 0-`exterior_degree` of every trajectory) are tested with
+the chosen look-angle set, first the attitude (yaw, pitch, roll), then the position (X, Y, Z):
+the orbit is better known than the attitude, and a position drift can mimic an attitude drift.
+They join the chosen set as free unknowns; those the points cannot determine together with the
+rest are fixed first (find_defects; of each defect the highest-degree exterior coefficient), then
+the insignificant ones are fixed as in step 1. Only exterior coefficients are fixed here: look
+angles and exterior angles (and positions) can stand in for each other, and K's preference is
+the look angles. All coefficients are estimated jointly and the final adjustment carries the full
+covariance. (K held the look-angle set fixed at its step-1 values instead; then a trajectory
+drift, whose image-wise constant parts the look-angle constants have already absorbed, could
+never be found.)
+Step 3 (only when step 2 added exterior coefficients): the look-angle coefficients of step 1 are
+tested once more in the same way, now with the exterior ones free: a look-angle constant that
+stood in for an attitude drift in step 1 is no longer significant.
+
+Unknowns the points cannot determine at all in step 1 are fixed in the same way (highest degree
+first). Every step is logged; the user overrides the result by giving the free set explicitly."""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import progress
+from ..errors import InputError
+from .bundle import DefectError, adjust
+from .parameters import EXTERIOR, LOOK, OrientationParameters
+from .variance import estimate
+
+#: eigenvalue threshold of the defect test while selecting (bundle.find_defects): only numerically
+#: singular combinations are fixed before solving; weakly determined ones are left to the significance test
+SELECTION_DEFECT_EIGENVALUE = 1e-10
+#: a control residual RMS counts as grown only when it grew by more than this share of the a priori sigma
+MIN_INCREASE = 0.2
+#: preference when one coefficient of a defect must be fixed: first by degree (highest first),
+#: then by kind in this order (positions before attitudes before look angles)
+FIX_ORDER = ("X", "Y", "Z", "yaw", "pitch", "roll", "psi_x", "psi_y")
+
+
+@dataclass
+class Selection:
+    """Result of `select_parameters`: the final adjustment (its `parameters.free` is the chosen
+    set; the models carry its solution) and the log of every decision."""
+
+    result: object
+    free: list                         # names of the chosen free unknowns
+    observations: object               # the observations adjusted (sigmas from variance components)
+    components: list                   # variance.Component of each group ([] without variance components)
+    log: list = field(default_factory=list)
+
+
+@dataclass
+class _ControlState:
+    """Control point residuals of an adjustment: image RMS and |t| of the mean per image and
+    component (col, row), ground RMS per E/N/H."""
+
+    image_rms: dict
+    image_t: dict
+    ground_rms: np.ndarray
+    image_sigma: dict             # a priori sigma (RMS) of the control image measurements per image
+    ground_sigma: np.ndarray      # and of the control ground coordinates, E/N/H
+
+    @classmethod
+    def of(cls, result):
+        obs = result.observations
+        control = obs.points["role"] == "control"
+        meas = control[obs.measurements["point"]]
+        rms, t, sig = {}, {}, {}
+        for i in np.unique(obs.measurements["image_id"][meas]):
+            sel = meas & (obs.measurements["image_id"] == i)
+            v = result.residuals[sel]
+            rms[int(i)] = float(np.sqrt(np.mean(v * v)))
+            sig[int(i)] = float(np.sqrt(np.mean(obs.measurements["sigma"][sel] ** 2)))
+            n = len(v)
+            sd = v.std(axis=0, ddof=1) if n > 1 else np.full(2, np.inf)
+            t[int(i)] = np.abs(v.mean(axis=0)) / np.where(sd > 0, sd / np.sqrt(n), np.inf)
+        g = result.ground_residuals[control]
+        gs = np.column_stack([obs.points[k][control] for k in ("sigma_e", "sigma_n", "sigma_h")])
+        if not len(g):
+            return cls(rms, t, np.zeros(3), sig, np.zeros(3))
+        return cls(rms, t, np.sqrt(np.mean(g * g, axis=0)), sig, np.sqrt(np.mean(gs * gs, axis=0)))
+
+    def worse(self, new, max_increase, systematic, names):
+        """Reason why `new` (after fixing) is worse than self, or "" when it is not."""
+        def grown(old, now, sigma):
+            return now > old * (1.0 + max_increase) and now - old > MIN_INCREASE * sigma
+
+        for i, rms in self.image_rms.items():
+            if grown(rms, new.image_rms.get(i, rms), self.image_sigma[i]):
+                return (f"the control residuals in {names.get(i, i)} grow from {rms:.3f} to "
+                        f"{new.image_rms[i]:.3f} px RMS")
+            for k, axis in enumerate(("col", "row")):
+                tn = new.image_t.get(i, self.image_t[i])[k]
+                if tn > systematic and tn > self.image_t[i][k]:
+                    return (f"the control residuals in {names.get(i, i)} become systematic in {axis} "
+                            f"(mean / its sigma {tn:.1f})")
+        for k, axis in enumerate("ENH"):
+            if grown(self.ground_rms[k], new.ground_rms[k], self.ground_sigma[k]):
+                return f"the control ground residuals in {axis} grow from {self.ground_rms[k]:.3f} to " \
+                       f"{new.ground_rms[k]:.3f} m RMS"
+        return ""
+
+
+def _parameter(params, name):
+    return params.parameters[params.select([name]).argmax()]
+
+
+def _kind(params, name):
+    return _parameter(params, name).kind
+
+
+def _fix_key(params, name):
+    p = _parameter(params, name)
+    return (-p.degree, FIX_ORDER.index(p.kind) if p.kind in FIX_ORDER else len(FIX_ORDER))
+
+
+class _Run:
+    """Adjusts the block from the supplied orientation with a given free set."""
+
+    def __init__(self, models, observations, names, height, feedback, kwargs):
+        self.base = OrientationParameters(models, names)
+        self.models, self.obs, self.names, self.height = models, observations, names, height
+        self.feedback, self.kwargs = feedback, kwargs
+        self.count = 0
+
+    def __call__(self, free, obs=None):
+        self.base.apply(np.zeros(len(self.base)))
+        self.count += 1
+        return adjust(self.models, self.obs if obs is None else obs, list(free), names=self.names, height=self.height,
+                      defect_eigenvalue=SELECTION_DEFECT_EIGENVALUE, feedback=progress.quiet(self.feedback),
+                      **self.kwargs)
+
+
+def _solvable(run, free, fixable, log, what):
+    """Adjust with `free`, fixing members of `fixable` that defects name until the block solves."""
+    free = list(free)
+    while True:
+        try:
+            return run(free), free
+        except DefectError as error:
+            drop = []
+            for group in error.groups:
+                candidates = [n for n in group if n in fixable and n in free and n not in drop]
+                if not candidates:
+                    raise
+                drop.append(min(candidates, key=lambda n: _fix_key(run.base, n)))
+            for name in drop:
+                free.remove(name)
+                log(f"{what}: fixed {name}: the points cannot determine it together with the other free unknowns")
+
+
+def _eliminate(run, result, free, fixable, significance, max_increase, systematic, log, what):
+    """Backward elimination of insignificant members of `fixable` (module docstring)."""
+    kept = set()
+    state = _ControlState.of(result)
+    while True:
+        params = result.parameters
+        t = {params.label(q): abs(result.values[q]) / result.sigmas[q] for q in np.flatnonzero(params.free)}
+        trial = sorted((t[n], n) for n in free if n in fixable and n not in kept and t[n] < significance)
+        if not trial:
+            return result, free
+        ratio, name = trial[0]
+        reduced = [n for n in free if n != name]
+        try:
+            candidate = run(reduced)
+        except DefectError:
+            kept.add(name)
+            log(f"{what}: kept {name} (x/sigma {ratio:.1f}): the block cannot be solved without it")
+            continue
+        new_state = _ControlState.of(candidate)
+        reason = state.worse(new_state, max_increase, systematic, run.names or {})
+        if reason:
+            kept.add(name)
+            log(f"{what}: kept {name} (x/sigma {ratio:.1f}): fixing it, {reason}")
+            continue
+        log(f"{what}: fixed {name} (x/sigma {ratio:.1f}); sigma_0 {result.sigma0:.4f} -> {candidate.sigma0:.4f}")
+        result, free, state = candidate, reduced, new_state
+
+
+def select_parameters(models, observations, names=None, height=0.0, look_degree=3, exterior_degree=3,
+                      significance=3.0, max_increase=0.10, systematic=3.0, test_exterior=True,
+                      variance_components=True, feedback=None, **adjust_kwargs):
+    """Automatic parameter selection (module docstring). models {image_id: model} (edited in
+    place: they carry the final solution); observations, names, height and `adjust_kwargs`
+    (priors, max_iterations, ...) as bundle.adjust. With `variance_components`, the sigmas of the
+    tie point, control image and control ground observations are first estimated
+    (variance.estimate) with all step-1 candidates free and used throughout. Returns a Selection;
+    raises what adjust raises (a DefectError when even the look-angle constants cannot be
+    determined)."""
+    if adjust_kwargs.get("model", "polynomial") != "polynomial":
+        raise InputError("automatic parameter selection (K 3.4.3) is for the correction polynomial model; with "
+                         "the Lagrange model give the free set (e.g. lagrange:attitude, lagrange:offset)")
+    fb = progress.ensure(feedback)
+    lines = []
+
+    def log(text):
+        lines.append(text)
+        fb.pushInfo(text)
+
+    run = _Run(models, observations, names, height, feedback, adjust_kwargs)
+    params = run.base
+    look = [p.name for p in params.parameters
+            if (p.kind in LOOK and p.degree <= look_degree) or p.kind not in LOOK + EXTERIOR]
+    log(f"parameter selection, step 1: {len(look)} look-angle/bias coefficients free, exterior ones fixed; "
+        f"significance threshold x/sigma {significance:g}")
+    result, free = _solvable(run, look, set(look), log, "step 1")
+    components = []
+    if variance_components:
+        result, run.obs, components = estimate(lambda o: run(free, o), run.obs, log=log)
+        log("a posteriori sigmas used from here on: " + ", ".join(f"{c.group} {c.sigma:.3g}" for c in components
+                                                                  if np.isfinite(c.sigma)))
+    progress.step(feedback, 10)
+    result, free = _eliminate(run, result, free, set(look), significance, max_increase, systematic, log, "step 1")
+    log(f"step 1: {len(free)} coefficient(s) free: {', '.join(free) or 'none'}")
+    exterior = [p.name for p in params.parameters if p.kind in EXTERIOR and p.degree <= exterior_degree]
+    if test_exterior and exterior:
+        chosen = list(free)
+        for part, kinds, pct in (("attitude", EXTERIOR[3:], 40), ("position", EXTERIOR[:3], 70)):
+            candidates = [n for n in exterior if _kind(params, n) in kinds]
+            progress.step(feedback, pct)
+            log(f"step 2 ({part}): testing {len(candidates)} coefficients with the {len(free)} chosen so far free")
+            try:
+                result, free = _solvable(run, free + candidates, set(candidates), log, f"step 2 ({part})")
+            except DefectError as error:
+                log(f"step 2 ({part}): not tested, the block cannot be solved with them: {error}")
+                continue
+            result, free = _eliminate(run, result, free, set(candidates), significance, max_increase, systematic,
+                                      log, f"step 2 ({part})")
+        added = [n for n in free if n not in chosen]
+        log(f"step 2: {len(added)} exterior coefficient(s) significant: {', '.join(added) or 'none'}")
+        if added:
+            progress.step(feedback, 90)
+            result, free = _eliminate(run, result, free, set(chosen), significance, max_increase, systematic, log,
+                                      "step 3")
+    result = run(free)          # the models carry the last trial's solution: adjust the chosen set again
+    progress.step(feedback, 100)
+    log(f"selected {len(free)} free coefficient(s) in {run.count} adjustments: {', '.join(free) or 'none'}")
+    return Selection(result, free, run.obs, components, lines)

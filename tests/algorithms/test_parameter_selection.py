@@ -1,0 +1,97 @@
+"""Automatic parameter selection (algorithms/adjustment/selection.py, K 3.4.3) on a simulated
+SPOT 5 triplet whose supplied orientation is the truth plus known errors, adjusted from 19 control
+points and region-growing tie points.
+
+The errors (about 30 m on the ground) are look-angle offsets and a scale term as in K Table 2
+and an attitude (roll) drift common to the pass. They are chosen to be identifiable: a constant
+attitude or position error of the pass moves each image like its own look-angle constants do, so
+no adjustment can tell those apart (the simulator's default perturbation contains such errors;
+test_bundle.py covers it), whereas a drift also shows inside each image."""
+import numpy as np
+import pytest
+
+from adjustment_scene import models_of, point_observations, synthetic_points
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.adjustment.bundle import check_points, statistics_table
+from pushbroom.algorithms.adjustment.observations import tie_observations
+from pushbroom.algorithms.adjustment.parameters import OrientationParameters
+from pushbroom.algorithms.adjustment.selection import select_parameters
+from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.matching.combinations import match_block
+from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.tiepoints import select_tie_points
+from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+
+pytestmark = pytest.mark.slow
+
+NAMES = ("HRG", "HRS1", "HRS2")
+IDS = {n: k + 1 for k, n in enumerate(NAMES)}
+LABELS = {k + 1: n for k, n in enumerate(NAMES)}
+PASS = "pass HRS1+HRG+HRS2"          # the trajectory, its images in time order
+#: injected corrections (rad; roll drift in rad per time_scale = 10 s): supplied = truth - these
+INJECTED = {"HRG psi_x_0": 2.8e-5, "HRG psi_y_0": -1.2e-5, "HRG psi_y_1": 8e-6, "HRS1 psi_x_0": 1.5e-5,
+            "HRS2 psi_y_0": 1.0e-5, f"{PASS} roll_1": 1.0e-5}
+
+
+@pytest.fixture(scope="module")
+def block(tmp_path_factory):
+    """A 20 km scene (supplied = truth), 30 point candidates; tie points: region growing at STEP 18
+    from automatic seeds, one per 100 x 100 HRG pixels."""
+    paths = simulate_scene(SceneConfig(size_km=20.0, points=30, error_scale=0.0), tmp_path_factory.mktemp("sel") / "s")
+    models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
+    lo, hi = Dem.from_file(paths["dsm"]).height_range
+    matched = match_block([paths["images"][n]["imagery"] for n in NAMES], models, params=GrowParams(step=18),
+                          height_range=(lo - 100.0, hi + 100.0), workers=2)
+    tie = tie_observations(select_tie_points(matched, cell=100.0))
+    return paths, point_observations(paths["points"], IDS, 19).concatenate(tie)
+
+
+def perturbed(paths, names):
+    models = models_of(paths, NAMES)
+    params = OrientationParameters(models, LABELS)
+    x = np.zeros(len(params))
+    for name, value in INJECTED.items():
+        x[params.select([name])] = -value
+    params.apply(x)
+    return {IDS[n]: models[IDS[n]] for n in names}
+
+
+def test_selection_frees_the_injected_coefficients_and_recovers_them(block):
+    paths, obs = block
+    selection = select_parameters(perturbed(paths, NAMES), obs, names=LABELS, height=300.0)
+    result = selection.result
+    free = set(selection.free)
+    print(f"selected {len(free)}: {sorted(free)}; {sum('adjust' in l for l in selection.log)} log lines")
+    for line in selection.log:
+        print("  " + line)
+    assert set(INJECTED) <= free and len(free - set(INJECTED)) <= 2
+    params = result.parameters
+    for name, value in INJECTED.items():
+        q = params.select([name]).argmax()
+        print(f"{name:24} estimated {result.values[q]:.4g} +- {result.sigmas[q]:.2g}, injected {value:.4g}")
+        assert abs(result.values[q] - value) < 2.0 * result.sigmas[q]
+    check = check_points(result, synthetic_points(paths, IDS, 300, 0.3, 7), height=300.0)
+    table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")})
+    theoretical = np.sqrt(np.mean(check["sigma"] ** 2, axis=0))
+    for k, key in enumerate(("dE", "dN", "dH")):
+        print(f"{key}: RMS {table[key][4]:.3f} m, theoretical {theoretical[k]:.3f} m")
+        assert 0.8 < table[key][4] / theoretical[k] < 1.2
+
+
+def test_hrs_only_solves_with_a_larger_planimetric_error(block):
+    """K 3.4.3.2 / Table 3: without the nadir HRG the block still solves; the planimetric check
+    point error grows (same 300 check points, measured in HRS1 and HRS2 only)."""
+    paths, obs = block
+    hrs = {n: IDS[n] for n in NAMES[1:]}
+    results = {}
+    for label, names in (("HRG+HRS", NAMES), ("HRS only", NAMES[1:])):
+        ids = {n: IDS[n] for n in names}
+        sub = obs.__class__(obs.points, obs.measurements[np.isin(obs.measurements["image_id"], list(ids.values()))])
+        selection = select_parameters(perturbed(paths, names), sub, names=LABELS, height=300.0)
+        check = check_points(selection.result, synthetic_points(paths, hrs if label == "HRS only" else IDS,
+                                                                300, 0.3, 7), height=300.0)
+        table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")})
+        results[label] = [table[k][4] for k in ("dE", "dN", "dH")]
+        print(f"{label:9} free {len(selection.free):2d}: RMS dE {results[label][0]:.3f} dN {results[label][1]:.3f} "
+              f"dH {results[label][2]:.3f} m; {selection.free}")
+    assert np.hypot(*results["HRS only"][:2]) > np.hypot(*results["HRG+HRS"][:2])

@@ -1,0 +1,48 @@
+"""The Pleiades triplet of ../shared/data/pleiades_triplet as the real-data tests match it: in
+combination order (reference, forward, backward) = (img_02, img_01, img_03), block image ids 1, 2,
+3 (test_matching_pleiades.test_reference_is_the_most_nadir gives the reasons), matched by
+match_block from automatic seeds in every tile over the RPCs' own height range."""
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.matching.combinations import match_block
+from pushbroom.algorithms.matching.imagery import Image
+
+ORDER = (2, 1, 3)              # img_02 reference (nadir), img_01 forward, img_03 backward
+NAMES = [f"img_0{k}" for k in ORDER]
+#: block image id -> name (match_block's default ids 1, 2, 3 in combination order)
+LABELS = {k + 1: name for k, name in enumerate(NAMES)}
+
+
+class Log:
+    """A feedback that keeps the pushed lines."""
+
+    def __init__(self):
+        self.lines = []
+
+    def setProgress(self, percent):  # noqa: N802 (QGIS API)
+        pass
+
+    def isCanceled(self):  # noqa: N802
+        return False
+
+    def pushInfo(self, text):  # noqa: N802
+        self.lines.append(text)
+
+
+def in_order(triplet):
+    """The paths of the `pleiades_triplet` fixture (file order) in combination order."""
+    return [triplet[k - 1] for k in ORDER]
+
+
+def models_of(triplet):
+    """{block image id: RpcModel}, freshly loaded (the adjustment edits its models)."""
+    return {k + 1: sensors.load(p) for k, p in enumerate(in_order(triplet))}
+
+
+def match_triplet(triplet, params, feedback=None, workers=2):
+    """(images, models, MultiPoints) of the triplet matched with GrowParams `params`, lists in
+    combination order."""
+    paths = in_order(triplet)
+    images = [Image(p) for p in paths]
+    models = [sensors.load(p) for p in paths]
+    points = match_block(images, models, names=NAMES, params=params, feedback=feedback, workers=workers)
+    return images, models, points
