@@ -149,7 +149,7 @@ def main(out):
             print(f"  {label:22} {n1:>7} {rms1:>12.3f} {big1:>6.2f}% {rms2:>12.3f} {big2:>6.2f}% {cover:>8.1f}%")
     log = os.path.join(out, "bundleadjust.log")
     if os.path.exists(log):
-        print("\nBundle adjustment (free look:0; check points: simulated reference coordinates; tie point "
+        print("\nBundle adjustment (automatic parameter selection; check points: simulated reference coordinates; tie point "
               "heights: the true DTM):")
         for section in report_tables(log):
             print("\n" + "\n".join(section))
