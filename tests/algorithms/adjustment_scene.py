@@ -48,3 +48,16 @@ def synthetic_points(scene, image_ids, n, sigma_px, seed):
     points["name"] = [f"S{k}" for k in range(n)]
     points["role"], points["lon"], points["lat"], points["h"] = "check", lon, lat, h
     return Observations(points, np.array(meas, MEAS_DTYPE))
+
+
+def check_rms(result, observations, height):
+    """(RMS of dE, dN, dH, RMS of their theoretical sigmas) of the check points of `observations`
+    intersected with the adjusted models (bundle.check_points), printed."""
+    from pushbroom.algorithms.adjustment.bundle import check_points, statistics_table
+    check = check_points(result, observations, height=height)
+    table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")})
+    rms = np.array([table[k][4] for k in ("dE", "dN", "dH")])
+    theoretical = np.sqrt(np.mean(check["sigma"] ** 2, axis=0))
+    for k, key in enumerate(("dE", "dN", "dH")):
+        print(f"{key}: RMS {rms[k]:.3f} m, theoretical {theoretical[k]:.3f} m")
+    return rms, theoretical

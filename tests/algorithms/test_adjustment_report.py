@@ -7,10 +7,10 @@ import csv
 
 import numpy as np
 import pytest
-from osgeo import gdal
 
 from adjustment_scene import models_of, point_observations
 from osr_oracle import utm
+from raster_oracle import bilinear
 from pushbroom.algorithms.adjustment import report
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points, statistics_table
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
@@ -149,17 +149,6 @@ def test_vector_geometry_against_osr(adjusted):
     assert np.all(np.abs(convergence) > 1.0)
 
 
-def _bilinear(path, lon, lat):
-    """Plain numpy bilinear interpolation between the cell centres of a north-up raster."""
-    ds = gdal.Open(path)
-    z, (x0, dx, _, y0, _, dy) = ds.ReadAsArray().astype(float), ds.GetGeoTransform()
-    x, y = (lon - x0) / dx - 0.5, (lat - y0) / dy - 0.5
-    j, i = np.floor(x).astype(int), np.floor(y).astype(int)
-    fx, fy = x - j, y - i
-    return (z[i, j] * (1 - fx) * (1 - fy) + z[i, j + 1] * fx * (1 - fy) + z[i + 1, j] * (1 - fx) * fy
-            + z[i + 1, j + 1] * fx * fy)
-
-
 def test_tie_heights_against_numpy_and_the_true_surface(adjusted):
     """dh = adjusted - reference; on the DSM (where the tie points lie) as large as the adjusted
     points' height sigmas say, on the DTM larger and positive (trees and buildings, K 3.4.3.1)."""
@@ -169,7 +158,7 @@ def test_tie_heights_against_numpy_and_the_true_surface(adjusted):
     for key in ("dsm", "dtm"):
         got = tie_height_differences(result, Dem.from_file(scene[key]))
         assert got.outside == 0 and list(got.names) == list(result.observations.points["name"][tie])
-        expected = result.h[tie] - _bilinear(scene[key], result.lon[tie], result.lat[tie])
+        expected = result.h[tie] - bilinear(scene[key], result.lon[tie], result.lat[tie])
         np.testing.assert_allclose(got.dh, expected, atol=1e-6)
         tables[key] = statistics_table({"dh": got.dh})["dh"]
         print(f"tie heights - {key}: n {tables[key][0]}, mean {tables[key][2]:.2f} m, RMS {tables[key][4]:.2f} m")
