@@ -9,7 +9,8 @@ def algorithm_classes():
     from .import_points import ExportPoints, ImportPoints
     from .intersect_points import IntersectPoints
     from .match_points import MatchPoints
+    from .orthorectify import Orthorectify
     from .select_tie_points import SelectTiePoints
     from .simulate_scene import SimulateScene
     return [SimulateScene, CreateBlock, MatchPoints, SelectTiePoints, ImportPoints, ExportPoints,
-            BundleAdjust, IntersectPoints, FitRpc]
+            BundleAdjust, IntersectPoints, Orthorectify, FitRpc]

@@ -1,0 +1,204 @@
+"""Orthoimage by the indirect method (H 4.1): for every output cell its ground point (x, y; h from the
+DEM) is mapped into the image with any sensor model (mapping.py: coarse grid with a stated error bound)
+and the image is resampled there (resampling.py), optionally with occluded cells as nodata
+(occlusion.py).
+
+The output is processed in square tiles; per tile only the image window it needs is read (GDAL), so a
+12000 x 12000 image is never held whole. Tiles run on `threads` worker threads (numba kernels release
+the GIL) and are written in order to a tiled, DEFLATE-compressed GeoTIFF of the image's data type with
+nodata set and overviews, under a temporary name renamed at the end (a cancel leaves no file)."""
+import math
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+from osgeo import gdal, gdal_array
+from scipy.interpolate import RegularGridInterpolator
+
+from .. import progress
+from ..atomic import atomic_path
+from ..crs import egm96_undulation
+from ..dem import Dem
+from ..errors import CancelledError, InputError
+from . import occlusion, resampling
+from .grid import default_grid
+from .mapping import START_STEP, TileMapper
+
+TILE = 512
+CREATION_OPTIONS = ("TILED=YES", "BLOCKXSIZE=256", "BLOCKYSIZE=256", "COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER")
+#: DEM vertical references load_dem converts from
+VERTICAL = ("ellipsoidal", "egm96")
+
+
+def load_dem(dem, vertical="ellipsoidal"):
+    """A Dem of ellipsoidal heights from a Dem or a raster path (any CRS: Dem.from_file warps it to WGS 84
+    lon/lat); vertical 'egm96' adds the EGM96 undulation N (h = H + N, PROJ), computed on a lattice of at
+    most 257 x 257 cells and interpolated bilinearly (N varies over tens of kilometres)."""
+    if vertical not in VERTICAL:
+        raise InputError(f"the DEM heights are {' or '.join(VERTICAL)}, not {vertical!r}")
+    dem = dem if isinstance(dem, Dem) else Dem.from_file(dem)
+    if vertical == "ellipsoidal":
+        return dem
+    rows, cols = dem.shape
+    lon0, dlon, _, lat0, _, dlat = dem.geotransform
+    r = np.unique(np.linspace(0, rows - 1, min(rows, 257)).round())
+    c = np.unique(np.linspace(0, cols - 1, min(cols, 257)).round())
+    lon_c, lat_r = lon0 + (c + 0.5) * dlon, lat0 + (r + 0.5) * dlat
+    n = egm96_undulation(*np.meshgrid(lon_c, lat_r))
+    rr, cc = np.mgrid[0:rows, 0:cols]
+    und = RegularGridInterpolator((r, c), n)(np.column_stack([rr.ravel(), cc.ravel()])).reshape(rows, cols)
+    return Dem(dem.heights + und, dem.geotransform)
+
+
+@dataclass
+class OrthoResult:
+    """What orthorectify wrote: `path`, `grid`, `bound` (largest achieved coarse-grid error bound, px),
+    `steps` ({coarse step: tiles}), `cells` (valid cells written), `occluded` (cells set to nodata as
+    occluded), `seconds`."""
+
+    path: str
+    grid: object
+    bound: float
+    steps: dict
+    cells: int
+    occluded: int
+    seconds: float
+
+    def summary(self):
+        steps = ", ".join(f"{n} x step {s}" for s, n in sorted(self.steps.items(), reverse=True))
+        return (f"{self.grid.cols} x {self.grid.rows} cells, {self.cells} with image values, {self.occluded} "
+                f"occluded; coarse-grid tiles: {steps}; achieved interpolation bound {self.bound:.2g} px; "
+                f"{self.seconds:.1f} s")
+
+
+def _nodata(band, dtype):
+    """The image's nodata value, else 0 for integer images (DIMAP's DN 0) and NaN for floats."""
+    value = band.GetNoDataValue()
+    if value is not None:
+        return value
+    return 0 if np.issubdtype(dtype, np.integer) else math.nan
+
+
+def _to_dtype(values, dtype, nodata):
+    """Resampled values rounded and clipped to `dtype`, never equal to an integer nodata at its range's end."""
+    if not np.issubdtype(dtype, np.integer):
+        return values.astype(dtype)
+    info = np.iinfo(dtype)
+    lo = info.min + 1 if nodata == info.min else info.min
+    hi = info.max - 1 if nodata == info.max else info.max
+    return np.clip(np.rint(values), lo, hi).astype(dtype)
+
+
+class _TileWorker:
+    """Computes one output tile: mapping, occlusion, resampling (one GDAL handle per call: thread-safe)."""
+
+    def __init__(self, image, model, dem, mapper, method, occlusion_on, dtype, nodata):
+        self.image, self.model, self.dem, self.mapper = image, model, dem, mapper
+        self.method, self.occlusion_on, self.dtype, self.nodata = method, occlusion_on, dtype, nodata
+
+    def __call__(self, window):
+        row0, col0, rows, cols = window
+        tile = self.mapper.tile(row0, col0, rows, cols)
+        col, row = tile.col.ravel(), tile.row.ravel()
+        n_occluded = 0
+        if self.occlusion_on:
+            direction = self._direction(tile)
+            if direction is not None:
+                hidden = occlusion.occluded(self.dem, tile.lon.ravel(), tile.lat.ravel(), tile.h.ravel(), direction)
+                hidden &= np.isfinite(col)
+                n_occluded = int(hidden.sum())
+                col = np.where(hidden, np.nan, col)
+        ds = gdal.Open(self.image)
+        values, valid = resampling.resample(ds, col, row, self.method)
+        out = _to_dtype(values, self.dtype, self.nodata)
+        out[:, ~valid] = self.nodata
+        return out.reshape((-1, rows, cols)), int(valid.sum()), n_occluded, tile.step, tile.bound
+
+    def _direction(self, tile):
+        finite = np.flatnonzero(np.isfinite(tile.col.ravel()))
+        if not finite.size:
+            return None
+        k = finite[finite.size // 2]
+        low, high = self.dem.height_range
+        return occlusion.ray_direction(self.model, tile.col.ravel()[k], tile.row.ravel()[k], low, high + 1.0)
+
+
+def _windows(grid, tile):
+    return [(r, c, min(tile, grid.rows - r), min(tile, grid.cols - c))
+            for r in range(0, grid.rows, tile) for c in range(0, grid.cols, tile)]
+
+
+def _create(path, grid, bands, gdal_type, nodata):
+    ds = gdal.GetDriverByName("GTiff").Create(path, grid.cols, grid.rows, bands, gdal_type, list(CREATION_OPTIONS))
+    ds.SetGeoTransform(grid.geotransform)
+    ds.SetSpatialRef(grid.srs)
+    for b in range(bands):
+        ds.GetRasterBand(b + 1).SetNoDataValue(float(nodata))
+    return ds
+
+
+def _overview_factors(grid):
+    factors, f = [], 2
+    while max(grid.cols, grid.rows) / f >= 128:
+        factors.append(f)
+        f *= 2
+    return factors
+
+
+def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None, resampling_method="bilinear",
+                 occlusion_mask=False, max_error=0.01, start_step=START_STEP, tile=TILE, threads=1, overviews=True,
+                 feedback=None):
+    """Orthoimage of raster `image` (path) with sensor `model` on `dem` (Dem of ellipsoidal heights; see
+    load_dem), written to GeoTIFF `output`. The grid is `grid` (OutputGrid) or default_grid(model, dem, crs,
+    cell_size); resampling 'bilinear' or 'bicubic'; occlusion_mask sets occluded cells to nodata;
+    max_error (px) bounds the coarse-grid interpolation (mapping.py). Returns an OrthoResult; raises
+    CancelledError (nothing written) when feedback cancels."""
+    start = time.perf_counter()
+    if resampling_method not in resampling.METHODS:
+        raise InputError(f"resampling is one of {', '.join(resampling.METHODS)}, not {resampling_method!r}")
+    gdal.UseExceptions()
+    try:
+        ds = gdal.Open(str(image))
+    except RuntimeError as exc:
+        raise InputError(f"cannot open the image {image}: {exc}") from exc
+    if (ds.RasterXSize, ds.RasterYSize) != tuple(model.size):
+        raise InputError(f"the image {image} has {ds.RasterXSize} x {ds.RasterYSize} pixels but its sensor model "
+                         f"describes {model.size[0]} x {model.size[1]}: give the model of this image")
+    band = ds.GetRasterBand(1)
+    np_type = np.dtype(gdal_array.GDALTypeCodeToNumericTypeCode(band.DataType))
+    nodata = _nodata(band, np_type)
+    grid = grid or default_grid(model, dem, crs, cell_size)
+    progress.step(feedback, 0, f"orthoimage grid {grid.cols} x {grid.rows} cells of {grid.geotransform[1]:g} "
+                               f"({grid.srs.GetName()}), {resampling_method} resampling")
+    mapper = TileMapper(model, dem, grid, max_error, start_step)
+    worker = _TileWorker(str(image), model, dem, mapper, resampling_method, occlusion_mask, np_type, nodata)
+    windows = _windows(grid, int(tile))
+    steps, bound, cells, hidden = {}, 0.0, 0, 0
+    with atomic_path(output) as tmp:
+        out = _create(tmp, grid, ds.RasterCount, band.DataType, nodata)
+        with ThreadPoolExecutor(max(int(threads), 1)) as pool:
+            pending = []
+            try:
+                for k, window in enumerate(windows):
+                    pending.append((window, pool.submit(worker, window)))
+                    while pending and (len(pending) > 2 * threads or k == len(windows) - 1):
+                        (row0, col0, _, _), future = pending.pop(0)
+                        values, n, n_hidden, step, tile_bound = future.result()
+                        out.WriteArray(values, col0, row0, band_list=list(range(1, values.shape[0] + 1)))
+                        steps[step] = steps.get(step, 0) + 1
+                        bound, cells, hidden = max(bound, tile_bound), cells + n, hidden + n_hidden
+                        progress.step(feedback, 90.0 * sum(steps.values()) / len(windows))
+            except CancelledError:
+                for _, future in pending:
+                    future.cancel()
+                out = None
+                raise
+        if overviews and _overview_factors(grid):
+            progress.step(feedback, 90, "building overviews")
+            out.BuildOverviews("AVERAGE", _overview_factors(grid))
+        out = None
+    result = OrthoResult(str(output), grid, bound, steps, cells, hidden, time.perf_counter() - start)
+    progress.step(feedback, 100, result.summary())
+    return result
+

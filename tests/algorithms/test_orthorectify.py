@@ -1,0 +1,227 @@
+"""Orthorectification (algorithms/ortho) on the small simulated SPOT 5 scene: the HRG image with its
+truth model on the true DSM against the simulator's true orthoimage (geometry by least-squares matching),
+the coarse-grid bound against the exact per-cell chain, the RPC path, DEMs in another CRS and in EGM96,
+nodata, occlusions against the model's own ray casting, the resampling kernels against plain numpy."""
+import numpy as np
+import pytest
+from osgeo import gdal
+from scipy import ndimage
+
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.crs import egm96_undulation, srs
+from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.errors import CancelledError, InputError
+from pushbroom.algorithms.geodesy import metres_per_degree
+from pushbroom.algorithms.matching import lsm
+from pushbroom.algorithms.ortho import OutputGrid, default_grid, load_dem, orthorectify
+from pushbroom.algorithms.ortho.mapping import TileMapper
+from pushbroom.algorithms.ortho.occlusion import occluded, ray_direction
+from pushbroom.algorithms.ortho.resampling import BICUBIC, BILINEAR, resample_kernel
+from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
+from pushbroom.algorithms.simulation.terrain import BARE, CROPS
+
+
+@pytest.fixture(scope="module")
+def scene(small_scene):
+    truth = gdal.Open(small_scene["orthoimage"])
+    return {"paths": small_scene, "dsm": Dem.from_file(small_scene["dsm"]),
+            "hrg": sensors.load(small_scene["truth_metadata"]["HRG"]),
+            "image": small_scene["images"]["HRG"]["imagery"],
+            # the true orthoimage's own grid (EPSG:4326, 5 m cells)
+            "grid": OutputGrid(srs(4326), truth.GetGeoTransform(), truth.RasterXSize, truth.RasterYSize)}
+
+
+def geometric_error(paths, ortho_path, classes=(BARE, CROPS)):
+    """(shifts (n, 2) in output cells, n) of LSM of the orthoimage against the true orthoimage on a 15-cell
+    lattice of accepted patches of `classes`."""
+    truth = gdal.Open(paths["orthoimage"]).ReadAsArray().astype(np.float32)
+    ours = gdal.Open(ortho_path).ReadAsArray().astype(np.float32)
+    land = gdal.Open(paths["classes"]).ReadAsArray()
+    i, j = (a.ravel() for a in np.mgrid[20:truth.shape[0] - 20:15, 20:truth.shape[1] - 20:15])
+    keep = (ours[i, j] > 0) & np.isin(land[i, j], classes)
+    x, y = j[keep] + 0.5, i[keep] + 0.5
+    records, status = lsm.match_points(truth, ours, x, y, x, y)
+    ok = lsm.accepted(records, status)
+    return np.column_stack([records["x2"][ok] - x[ok], records["y2"][ok] - y[ok]])
+
+
+@pytest.mark.parametrize("method", ["bilinear", "bicubic"])
+def test_hrg_on_the_true_dsm_matches_the_true_orthoimage(scene, tmp_path, method):
+    out = tmp_path / "hrg.tif"
+    result = orthorectify(scene["image"], scene["hrg"], scene["dsm"], out, grid=scene["grid"],
+                          resampling_method=method)
+    shifts = geometric_error(scene["paths"], str(out))
+    rms = float(np.sqrt(np.mean(np.sum(shifts ** 2, axis=1))))
+    mean = shifts.mean(axis=0)
+    print(f"HRG {method} vs true orthoimage, open classes: {len(shifts)} patches, RMS {rms:.3f} px, "
+          f"mean ({mean[0]:.3f}, {mean[1]:.3f}) px; {result.summary()}")
+    assert len(shifts) >= 150
+    assert rms < 0.25 and np.all(np.abs(mean) < 0.05)
+    assert result.bound <= 0.01
+
+
+def test_the_coarse_grid_bound_holds_against_the_exact_chain(scene):
+    grid = default_grid(scene["hrg"], scene["dsm"])
+    assert grid.srs.GetAuthorityCode(None) == "32616"
+    for max_error, start in ((0.01, 16), (1e-4, 64), (2e-5, 128)):
+        mapper = TileMapper(scene["hrg"], scene["dsm"], grid, max_error=max_error, start_step=start)
+        tile = mapper.tile(100, 200, 300, 256)
+        exact = mapper.exact(100, 200, 300, 256)
+        error = np.hypot(tile.col - exact.col, tile.row - exact.row)
+        print(f"bound {max_error:g} px from step {start}: step {tile.step}, achieved bound {tile.bound:.2e}, "
+              f"largest true error {np.nanmax(error):.2e} px")
+        assert np.array_equal(np.isnan(tile.col), np.isnan(exact.col))
+        assert tile.bound <= max_error and np.nanmax(error) <= tile.bound
+    assert tile.step < 128    # the tight bound forced a refinement
+
+
+def test_rpc_and_rigorous_orthoimages_agree(scene, tmp_path):
+    rpc, report = fit_rpc(scene["hrg"], (scene["dsm"].height_range[0] - 100, scene["dsm"].height_range[1] + 100))
+    grid = scene["grid"]
+    rigorous = TileMapper(scene["hrg"], scene["dsm"], grid).tile(0, 0, grid.rows, grid.cols)
+    rational = TileMapper(rpc, scene["dsm"], grid).tile(0, 0, grid.rows, grid.cols)
+    cols, rows = scene["hrg"].size
+    inside = (rigorous.col >= 0) & (rigorous.col <= cols) & (rigorous.row >= 0) & (rigorous.row <= rows)
+    diff = np.hypot(rigorous.col - rational.col, rigorous.row - rational.row)[inside]
+    print(f"RPC vs rigorous image points per cell in the image: max {np.nanmax(diff):.4f} px (fit: {report.summary()})")
+    assert np.nanmax(diff) < report.max_error + 0.02
+    orthorectify(scene["image"], rpc, scene["dsm"], tmp_path / "rpc.tif", grid=grid)
+    shifts = geometric_error(scene["paths"], str(tmp_path / "rpc.tif"))
+    assert np.sqrt(np.mean(np.sum(shifts ** 2, axis=1))) < 0.25
+
+
+def test_a_dem_in_another_crs_and_in_egm96_heights(scene, tmp_path):
+    utm_dem = tmp_path / "dsm_utm.tif"
+    gdal.Warp(str(utm_dem), scene["paths"]["dsm"], dstSRS="EPSG:32616", xRes=5.0, yRes=5.0, resampleAlg="bilinear")
+    warped = load_dem(utm_dem)
+    assert warped.geotransform != scene["dsm"].geotransform
+    grid = default_grid(scene["hrg"], scene["dsm"])
+    a = TileMapper(scene["hrg"], scene["dsm"], grid).tile(150, 150, 256, 256)
+    b = TileMapper(scene["hrg"], warped, grid).tile(150, 150, 256, 256)
+    dh = np.abs(a.h - b.h)
+    print(f"DEM warped to UTM and back: median |dh| {np.nanmedian(dh):.3f} m, "
+          f"median image-point change {np.nanmedian(np.hypot(a.col - b.col, a.row - b.row)):.4f} px")
+    assert np.nanmedian(dh) < 0.5    # two bilinear resamplings of a 5 m DSM with 1-4 m texture
+    # the same DSM as EGM96 orthometric heights H = h - N, converted back by load_dem
+    ds = gdal.Open(scene["paths"]["dsm"])
+    heights = ds.ReadAsArray().astype(np.float64)
+    lon0, dlon, _, lat0, _, dlat = ds.GetGeoTransform()
+    lon, lat = np.meshgrid(lon0 + (np.arange(ds.RasterXSize) + 0.5) * dlon,
+                           lat0 + (np.arange(ds.RasterYSize) + 0.5) * dlat)
+    orthometric = heights - egm96_undulation(lon, lat)
+    geoid_dem = tmp_path / "dsm_egm96.tif"
+    out = gdal.GetDriverByName("GTiff").Create(str(geoid_dem), ds.RasterXSize, ds.RasterYSize, 1, gdal.GDT_Float64)
+    out.SetGeoTransform(ds.GetGeoTransform())
+    out.SetProjection(ds.GetProjection())
+    out.WriteArray(orthometric)
+    out = None
+    back = load_dem(geoid_dem, "egm96")
+    assert np.abs(back.heights - heights).max() < 0.005
+    with pytest.raises(InputError, match="egm96"):
+        load_dem(geoid_dem, "navd88")
+
+
+def test_nodata_outside_the_image_and_the_data_type(scene, tmp_path):
+    grid = default_grid(scene["hrg"], scene["dsm"])
+    out = tmp_path / "hrg_utm.tif"
+    orthorectify(scene["image"], scene["hrg"], scene["dsm"], out, grid=grid)
+    ds = gdal.Open(str(out))
+    band = ds.GetRasterBand(1)
+    assert band.DataType == gdal.GDT_Byte and band.GetNoDataValue() == 0
+    assert band.GetOverviewCount() >= 1
+    assert ds.GetMetadata("IMAGE_STRUCTURE").get("COMPRESSION") == "DEFLATE"
+    assert band.GetBlockSize() == [256, 256]
+    values = band.ReadAsArray()
+    exact = TileMapper(scene["hrg"], scene["dsm"], grid).exact(0, 0, grid.rows, grid.cols)
+    cols, rows = scene["hrg"].size
+    outside = ~((exact.col >= 0) & (exact.col <= cols) & (exact.row >= 0) & (exact.row <= rows))
+    inside = (exact.col > 1) & (exact.col < cols - 1) & (exact.row > 1) & (exact.row < rows - 1)
+    print(f"{outside.sum()} cells outside the image, {inside.sum()} well inside")
+    assert outside.sum() > 1000 and inside.sum() > 100000
+    assert np.all(values[outside] == 0) and np.all(values[inside] > 0)
+
+
+def test_occlusions_agree_with_the_models_ray_casting(scene):
+    """HRS1 looks 20 degrees forward: cells behind trees and buildings are occluded. Reference: the first
+    DSM crossing of the cell's image ray (SpotModel.image_to_dem) lies elsewhere than the cell."""
+    model = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
+    dsm = scene["dsm"]
+    grid = default_grid(model, dsm)
+    tile = TileMapper(model, dsm, grid).tile(100, 100, 400, 400)
+    centre = np.ravel_multi_index((200, 200), tile.col.shape)
+    mask = occluded(dsm, tile.lon, tile.lat, tile.h, ray_direction(model, tile.col.flat[centre],
+                                                                   tile.row.flat[centre], *dsm.height_range))
+    rng = np.random.default_rng(5)
+    pick = rng.choice(np.flatnonzero(np.isfinite(tile.col.ravel())), 12000, replace=False)
+    lon, lat, _ = model.image_to_dem(tile.col.ravel()[pick], tile.row.ravel()[pick], dsm)
+    me, mn = metres_per_degree(lat)
+    distance = np.hypot((lon - tile.lon.ravel()[pick]) * me, (lat - tile.lat.ravel()[pick]) * mn)
+    reference = distance > 2.0
+    ours = mask.ravel()[pick]
+    agree, found, right = np.mean(ours == reference), np.mean(ours[reference]), np.mean(reference[ours])
+    print(f"HRS1 occlusion: {mask.mean():.2%} of cells occluded, {reference.mean():.2%} of the sample by ray "
+          f"casting; agreement {agree:.2%}, {found:.0%} of the occluded found, {right:.0%} of those flagged right")
+    assert reference.sum() > 50 and agree > 0.99 and found > 0.85 and right > 0.85
+
+
+def keys(t):
+    """Keys (a = -0.5) weights at the 4 nodes -1, 0, 1, 2 for fraction t (plain numpy)."""
+    d = np.abs(np.array([-1.0, 0.0, 1.0, 2.0]) - t)
+    return np.where(d <= 1, 1.5 * d ** 3 - 2.5 * d ** 2 + 1,
+                    np.where(d < 2, -0.5 * d ** 3 + 2.5 * d ** 2 - 4 * d + 2, 0))
+
+
+def test_resampling_kernels_against_numpy():
+    rng = np.random.default_rng(2)
+    window = rng.uniform(0, 255, (2, 30, 40)).astype(np.float32)
+    col0, row0, cols, rows = -2.0, -2.0, 36.0, 26.0
+    col = rng.uniform(-1.0, cols + 1.0, 500)
+    row = rng.uniform(-1.0, rows + 1.0, 500)
+    inside = (col >= 0) & (col <= cols) & (row >= 0) & (row <= rows)
+    for method in (BILINEAR, BICUBIC):
+        out = np.zeros((2, col.size), np.float32)
+        valid = np.zeros(col.size, bool)
+        resample_kernel(window, col0, row0, cols, rows, col, row, method, out, valid)
+        assert np.array_equal(valid, inside)
+        x, y = col[inside] - col0 - 0.5, row[inside] - row0 - 0.5
+        for b in range(2):
+            if method == BILINEAR:
+                expected = ndimage.map_coordinates(window[b].astype(np.float64), [y, x], order=1)
+            else:
+                expected = [keys(yy % 1) @ window[b, int(yy) - 1:int(yy) + 3, int(xx) - 1:int(xx) + 3] @ keys(xx % 1)
+                            for xx, yy in zip(x, y)]
+            np.testing.assert_allclose(out[b, inside], expected, rtol=1e-5, atol=1e-3)
+
+
+class CancelAfter:
+    def __init__(self, calls):
+        self.calls = calls
+
+    def isCanceled(self):  # noqa: N802 (QGIS API)
+        self.calls -= 1
+        return self.calls < 0
+
+    def setProgress(self, percent):  # noqa: N802 (QGIS API)
+        pass
+
+    def pushInfo(self, text):  # noqa: N802 (QGIS API)
+        pass
+
+
+def test_cancel_leaves_nothing(scene, tmp_path):
+    with pytest.raises(CancelledError):
+        orthorectify(scene["image"], scene["hrg"], scene["dsm"], tmp_path / "cancelled.tif", grid=scene["grid"],
+                     tile=256, feedback=CancelAfter(3))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_input(scene, tmp_path):
+    with pytest.raises(InputError, match="does not overlap"):
+        far = Dem.constant(300.0, (10.0, 10.0, 10.1, 10.1))
+        default_grid(scene["hrg"], far)
+    hrs = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
+    with pytest.raises(InputError, match="pixels but its sensor model"):
+        orthorectify(scene["image"], hrs, scene["dsm"], tmp_path / "x.tif", grid=scene["grid"])
+    with pytest.raises(InputError, match="resampling"):
+        orthorectify(scene["image"], scene["hrg"], scene["dsm"], tmp_path / "x.tif", resampling_method="nearest")
+    assert not (tmp_path / "x.tif").exists()
