@@ -125,7 +125,8 @@ def text_report(result, check=None, table=None, critical=CRITICAL_W, heights=Non
     return render_text(sections(result, check, table, critical, heights, vectors))
 
 
-def _html_sections(parts):
+def html_sections(parts):
+    """Sections as HTML (headings, tables, note paragraphs)."""
     body = []
     for s in parts:
         body.append(f"<h2>{html.escape(s.title)}</h2>")
@@ -143,6 +144,6 @@ def write_html(path, title, text="", parts=()):
              "padding:2px 8px;text-align:right}th:first-child,td:first-child{text-align:left}")
     pre = f"<pre>{html.escape(text)}</pre>" if text else ""
     write_text(path, f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-                     f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>\n{_html_sections(parts)}\n"
+                     f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>\n{html_sections(parts)}\n"
                      f"{pre}</body></html>\n")
     return path

@@ -3,6 +3,7 @@
 
 def algorithm_classes():
     """The algorithm classes the provider registers, in toolbox order."""
+    from .assess_accuracy import AssessAccuracy
     from .bundle_adjust import BundleAdjust
     from .create_block import CreateBlock
     from .fit_rpc import FitRpc
@@ -13,4 +14,4 @@ def algorithm_classes():
     from .select_tie_points import SelectTiePoints
     from .simulate_scene import SimulateScene
     return [SimulateScene, CreateBlock, MatchPoints, SelectTiePoints, ImportPoints, ExportPoints,
-            BundleAdjust, IntersectPoints, Orthorectify, FitRpc]
+            BundleAdjust, IntersectPoints, Orthorectify, AssessAccuracy, FitRpc]

@@ -1,0 +1,137 @@
+"""Classes of the assessed points and cells (Z 4.2: open / city / trees / alpine; K 3.7: flat vs
+mountainous): from a class raster (e.g. the simulator's classes.tif, names in its CLASS_<n>
+metadata or the band's category names), from polygons with a class field, or from the slope of the
+reference. Class 0 (and the raster's nodata) means "no class"."""
+import numpy as np
+from matplotlib.path import Path
+from osgeo import ogr
+
+from ..crs import srs as parse_crs
+from ..errors import InputError
+from .rasters import cell_metres, open_raster, raster_srs, reproject, warp_to
+
+NO_CLASS = 0
+FLAT, MOUNTAINOUS = 1, 2
+
+
+def slope_classes(slope, threshold):
+    """FLAT where slope < threshold (degrees), MOUNTAINOUS where >=, NO_CLASS where NaN; and the names."""
+    slope = np.asarray(slope, float)
+    labels = np.where(slope < threshold, FLAT, np.where(slope >= threshold, MOUNTAINOUS, NO_CLASS))
+    return labels, {FLAT: f"flat/moderate (slope < {threshold:g} deg)",
+                    MOUNTAINOUS: f"mountainous (>= {threshold:g} deg)"}
+
+
+class ClassRaster:
+    """Integer classes of a raster; `names` {value: name}."""
+
+    def __init__(self, path):
+        self.path = str(path)
+        self.ds = open_raster(path, "class raster")
+        band = self.ds.GetRasterBand(1)
+        self.nodata = band.GetNoDataValue()
+        meta = self.ds.GetMetadata() or {}
+        values = np.unique(band.ReadAsArray())
+        categories = band.GetCategoryNames() or []
+        self.names = {}
+        for v in values.tolist():
+            if v == NO_CLASS or v == self.nodata:
+                continue
+            v = int(v)
+            name = meta.get(f"CLASS_{v}") or (categories[v] if v < len(categories) and categories[v] else None)
+            self.names[v] = name or f"class {v}"
+
+    def at_points(self, x, y, srs):
+        """Class of the cell holding each point (x, y in `srs`); NO_CLASS outside or on nodata."""
+        xr, yr = reproject(x, y, srs, raster_srs(self.ds))
+        x0, dx, _, y0, _, dy = self.ds.GetGeoTransform()
+        c, r = np.floor((xr - x0) / dx), np.floor((yr - y0) / dy)
+        inside = (c >= 0) & (r >= 0) & (c < self.ds.RasterXSize) & (r < self.ds.RasterYSize)
+        out = np.full(len(xr), NO_CLASS, np.int64)
+        values = self.ds.GetRasterBand(1).ReadAsArray()
+        out[inside] = values[r[inside].astype(int), c[inside].astype(int)]
+        return self._clean(out)
+
+    def on_grid(self, grid):
+        """Classes on `grid`'s cells: the most frequent class of the cells inside (gdalwarp mode) where the
+        class raster is finer, else the class at the cell (nearest)."""
+        own = cell_metres(self.ds.GetGeoTransform(), raster_srs(self.ds), self.ds.RasterYSize)
+        finer = np.prod(own) < np.prod(grid.cell_metres())
+        values = warp_to(self.ds, grid, "mode" if finer else "near")
+        return self._clean(np.nan_to_num(values, nan=NO_CLASS).astype(np.int64))
+
+    def _clean(self, labels):
+        labels[~np.isin(labels, list(self.names))] = NO_CLASS
+        return labels
+
+
+class PolygonClasses:
+    """Classes of polygons: `geometries` (OGR geometries or WKB), one class value per polygon (text or
+    number) in `values`, CRS `crs`. Classes are numbered 1.. in the sorted order of the values; a point
+    takes the class of the last polygon that holds it (holes excluded)."""
+
+    def __init__(self, geometries, values, crs):
+        self.srs = parse_crs(crs)
+        self.geometries = [g if isinstance(g, ogr.Geometry) else ogr.CreateGeometryFromWkb(bytes(g))
+                           for g in geometries]
+        values = [str(v) for v in values]
+        if len(values) != len(self.geometries):
+            raise InputError("the class polygons need one class value each")
+        if not values:
+            raise InputError("the class layer has no polygon")
+        self.names = {k + 1: v for k, v in enumerate(sorted(set(values)))}
+        code = {v: k for k, v in self.names.items()}
+        self.codes = [code[v] for v in values]
+
+    @classmethod
+    def from_file(cls, path, field, layer=None):
+        """The polygons of an OGR layer (first layer unless named) and their `field` values."""
+        ogr.UseExceptions()
+        try:
+            ds = ogr.Open(str(path))
+        except RuntimeError as exc:
+            raise InputError(f"cannot open the class layer {path}: {exc}") from exc
+        lyr = ds.GetLayerByName(layer) if layer else ds.GetLayer(0)
+        if lyr.GetLayerDefn().GetFieldIndex(field) < 0:
+            raise InputError(f"the class layer {path} has no field {field!r}")
+        geometries, values = [], []
+        for feature in lyr:
+            if feature.GetGeometryRef() is not None:
+                geometries.append(feature.GetGeometryRef().Clone())
+                values.append(feature[field])
+        return cls(geometries, values, lyr.GetSpatialRef() or "EPSG:4326")
+
+    def at_points(self, x, y, srs):
+        """Class of each point (x, y in `srs`), NO_CLASS outside every polygon."""
+        xr, yr = reproject(x, y, srs, self.srs)
+        xy = np.column_stack([xr, yr])
+        out = np.full(len(xr), NO_CLASS, np.int64)
+        for geom, code in zip(self.geometries, self.codes):
+            for polygon in _polygons(geom):
+                x0, x1, y0, y1 = polygon.GetEnvelope()
+                near = np.flatnonzero((xr >= x0) & (xr <= x1) & (yr >= y0) & (yr <= y1))
+                if not near.size:
+                    continue
+                inside = _ring_path(polygon.GetGeometryRef(0)).contains_points(xy[near])
+                for k in range(1, polygon.GetGeometryCount()):
+                    inside &= ~_ring_path(polygon.GetGeometryRef(k)).contains_points(xy[near])
+                out[near[inside]] = code
+        return out
+
+    def on_grid(self, grid):
+        """Class of each cell centre of `grid`."""
+        x, y = grid.centres()
+        return self.at_points(x.ravel(), y.ravel(), grid.srs).reshape(grid.shape)
+
+
+def _polygons(geom):
+    flat = ogr.GT_Flatten(geom.GetGeometryType())
+    if flat == ogr.wkbPolygon:
+        return [geom]
+    if flat == ogr.wkbMultiPolygon:
+        return [geom.GetGeometryRef(k) for k in range(geom.GetGeometryCount())]
+    raise InputError(f"class layers hold polygons, not {geom.GetGeometryName()}")
+
+
+def _ring_path(ring):
+    return Path(np.asarray(ring.GetPoints(), float)[:, :2])

@@ -1,0 +1,132 @@
+"""Single-band rasters for the accuracy assessment, read with GDAL: a height raster as float64 with
+NaN for nodata, read by the window that covers the points (never a whole SRTM tile for a 3 km
+scene), or resampled onto another raster's grid with gdalwarp (the reference onto the tested DEM:
+bilinear, or the average of the reference cells inside a DEM cell when the reference is finer).
+Grids are north-up (GDAL geotransform, pixel-is-area)."""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from osgeo import gdal, osr
+
+from ..crs import srs as parse_crs, transform, wgs84
+from ..errors import InputError
+from ..geodesy import metres_per_degree
+
+
+@dataclass
+class Grid:
+    """A north-up grid: values (rows, cols; NaN = nodata), GDAL geotransform, CRS."""
+
+    values: np.ndarray
+    geotransform: tuple
+    srs: osr.SpatialReference
+
+    @property
+    def shape(self):
+        return self.values.shape
+
+    def centres(self):
+        """(x, y) of every cell centre, arrays of the grid's shape, in the grid's CRS."""
+        x0, dx, _, y0, _, dy = self.geotransform
+        rows, cols = self.shape
+        return np.meshgrid(x0 + (np.arange(cols) + 0.5) * dx, y0 + (np.arange(rows) + 0.5) * dy)
+
+    def cell_metres(self):
+        """(east, north) cell size in metres."""
+        return cell_metres(self.geotransform, self.srs, self.shape[0])
+
+
+def cell_metres(geotransform, srs, rows):
+    """(east, north) cell size in metres of a grid of `rows` rows (at its centre for a geographic CRS)."""
+    dx, dy = geotransform[1], abs(geotransform[5])
+    if srs.IsGeographic():
+        east, north = metres_per_degree(geotransform[3] + 0.5 * rows * geotransform[5])
+        return dx * east, dy * north
+    factor = srs.GetLinearUnits()
+    return dx * factor, dy * factor
+
+
+def open_raster(path, what):
+    """gdal.Dataset of a north-up, georeferenced raster (InputError naming `what` otherwise)."""
+    gdal.UseExceptions()
+    try:
+        ds = gdal.Open(str(path))
+    except RuntimeError as exc:
+        raise InputError(f"cannot open the {what} {path}: {exc}") from exc
+    gt = ds.GetGeoTransform()
+    if ds.GetSpatialRef() is None:
+        raise InputError(f"the {what} {path} has no coordinate reference system: assign one (e.g. with gdal_edit.py "
+                         "-a_srs) and run again")
+    if gt[2] != 0.0 or gt[4] != 0.0 or gt[5] >= 0.0:
+        raise InputError(f"the {what} {path} is not a north-up grid: warp it (gdalwarp) first")
+    return ds
+
+
+def raster_srs(ds):
+    return parse_crs(ds.GetSpatialRef())
+
+
+def _as_float(array, nodata):
+    values = array.astype(np.float64)
+    if nodata is not None and not math.isnan(nodata):
+        values[values == nodata] = np.nan
+    return values
+
+
+def read_grid(ds):
+    """The whole first band as a Grid."""
+    band = ds.GetRasterBand(1)
+    return Grid(_as_float(band.ReadAsArray(), band.GetNoDataValue()), ds.GetGeoTransform(), raster_srs(ds))
+
+
+def read_window(ds, x, y, what, margin=2):
+    """Grid of the cells of `ds` around points (x, y) given in its CRS, `margin` cells beyond them;
+    InputError when no point falls on the raster."""
+    x0, dx, _, y0, _, dy = ds.GetGeoTransform()
+    finite = np.isfinite(x) & np.isfinite(y)
+    if finite.any():
+        c, r = (x[finite] - x0) / dx, (y[finite] - y0) / dy
+        c0, c1 = max(int(np.floor(c.min())) - margin, 0), min(int(np.ceil(c.max())) + margin, ds.RasterXSize)
+        r0, r1 = max(int(np.floor(r.min())) - margin, 0), min(int(np.ceil(r.max())) + margin, ds.RasterYSize)
+    if not finite.any() or c1 - c0 < 2 or r1 - r0 < 2:
+        raise InputError(f"the {what} does not overlap the data to assess: choose a {what} that covers it")
+    band = ds.GetRasterBand(1)
+    values = _as_float(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue())
+    return Grid(values, (x0 + c0 * dx, dx, 0.0, y0 + r0 * dy, 0.0, dy), raster_srs(ds))
+
+
+def warp_to(ds, grid, resampling):
+    """Band 1 of `ds` resampled (gdalwarp `resampling`) onto `grid`'s cells and CRS, float64 with NaN; from
+    the full-resolution band (never from an overview, which gdalwarp would pick when downsampling and
+    whose cells need not align with the band's) and with the exact transformation (error threshold 0)."""
+    rows, cols = grid.shape
+    x0, dx, _, y0, _, dy = grid.geotransform
+    band = ds.GetRasterBand(1)
+    nodata = band.GetNoDataValue()
+    out = gdal.Warp("", ds, format="MEM", dstSRS=grid.srs.ExportToWkt(), width=cols, height=rows,
+                    outputBounds=(x0, y0 + rows * dy, x0 + cols * dx, y0), resampleAlg=resampling,
+                    outputType=gdal.GDT_Float64, srcNodata=nodata, dstNodata=float("nan"), errorThreshold=0,
+                    overviewLevel="NONE")
+    return out.GetRasterBand(1).ReadAsArray()
+
+
+def to_wgs84(x, y, source):
+    """WGS 84 (lon, lat) of points (x, y) in `source`."""
+    ll = transform(source, wgs84(), np.column_stack([x, y]), "the points")
+    return ll[:, 0], ll[:, 1]
+
+
+def reproject(x, y, source, target):
+    """(x, y) in `target` of points (x, y) in `source` (the same arrays where the CRSs are the same)."""
+    if source.IsSame(target):
+        return np.asarray(x, float), np.asarray(y, float)
+    xy = transform(source, target, np.column_stack([x, y]), "the points")
+    return xy[:, 0], xy[:, 1]
+
+
+def slope_degrees(grid):
+    """Slope (degrees) of a height Grid by central differences (np.gradient) with metric cell sizes."""
+    east, north = grid.cell_metres()
+    gy, gx = np.gradient(grid.values, north, east)
+    return np.degrees(np.arctan(np.hypot(gx, gy)))

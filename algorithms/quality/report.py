@@ -1,0 +1,110 @@
+"""Tables, log text, CSV and the self-contained HTML report of an accuracy assessment.
+
+Tables mirror the papers: K Tables 4, 6, 7 (N, Min, Mean, Max, RMS, sigma of dh; per point group
+as Table 6, groups 3, 2, 1), with the robust extras NMAD and Q95(|dh|) (statistics.py) as last
+columns, and Z Tables 2-3 (area, number of compared points, mean, RMSE, % of |dh| < 2 m, 2-5 m,
+> 5 m) over nested class sets (statistics.cumulative). The HTML page embeds its figures as base64
+PNG (figures.py): it references no other file."""
+import base64
+import csv
+import html
+import io
+
+from ..adjustment.report import Section, html_sections, render_text
+from ..atomic import write_text
+from . import figures
+from .statistics import by_label, cumulative, summarize
+
+GROUP_NAMES = {3: "Point group 3: three-ray points from 3 matching runs",
+               2: "Point group 2: three-ray points from 2 matching runs",
+               1: "Point group 1: two-ray points"}
+K_HEADER = ("", "N", "Min", "Mean", "Max", "RMS", "sigma", "NMAD", "Q95 |dh|")
+Z_HEADER = ("Area", "No. of compared points", "Mean (m)", "RMSE (m)", "< 2.0 m", "2.0-5.0 m", "> 5.0 m")
+CSV_HEADER = ("data", "table", "label", "n", "min", "mean", "max", "rms", "sigma", "median", "nmad", "q95_abs",
+              "pct_below_2m", "pct_2_to_5m", "pct_above_5m")
+
+
+def _k_row(label, s):
+    return (label, str(s.n), *(f"{v:.2f}" for v in (s.min, s.mean, s.max, s.rms, s.sigma, s.nmad, s.q95)))
+
+
+def _z_row(label, s):
+    return (label, str(s.n), f"{s.mean:.2f}", f"{s.rms:.2f}", *(f"{p:.1f}%" for p in s.shares))
+
+
+def tables(assessed):
+    """[(table name, [(label, Stats)], form "K" or "Z")] of one Assessed."""
+    d = assessed.differences
+    out = [("all (K Table 4)", [("dh", summarize(d.dh))], "K")]
+    if d.group is not None:
+        out.append(("per point group (K Tables 6, 7)", by_label(d.dh, d.group, GROUP_NAMES), "K"))
+    if assessed.classes is not None:
+        out.append(("per class", by_label(d.dh, assessed.classes, assessed.class_names), "K"))
+        out.append(("nested classes (Z Tables 2-3)", cumulative(d.dh, assessed.classes, assessed.class_names), "Z"))
+    out.append(("flat/moderate vs mountainous (K 3.7)", by_label(d.dh, assessed.terrain, assessed.terrain_names),
+                "K"))
+    return out
+
+
+def sections(assessed_list, parameters=()):
+    """Report Sections: the inputs and parameters [(name, value)], then every table of every input."""
+    parts = [Section("Inputs and parameters", ("parameter", "value"), [(str(k), str(v)) for k, v in parameters])]
+    for a in assessed_list:
+        d = a.differences
+        for name, rows, form in tables(a):
+            header, cell = (K_HEADER, _k_row) if form == "K" else (Z_HEADER, _z_row)
+            parts.append(Section(f"dh [m] of the {d.what} - reference: {name}", header,
+                                 [cell(label, s) for label, s in rows]))
+        parts[-1].notes.append(f"{d.what} of {d.source}: {d.dh.size} compared; left out: "
+                               + ", ".join(f"{reason} {n}" for reason, n in d.excluded.items()))
+    return parts
+
+
+def text(assessed_list, parameters=()):
+    """The report's tables as plain text (the log)."""
+    return render_text(sections(assessed_list, parameters))
+
+
+def write_csv(path, assessed_list):
+    """Every table row with every statistic (CSV_HEADER), written atomically."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(CSV_HEADER)
+    for a in assessed_list:
+        for name, rows, _ in tables(a):
+            for label, s in rows:
+                writer.writerow([a.differences.what, name, label, s.n, *(f"{v:.4f}" for v in (
+                    s.min, s.mean, s.max, s.rms, s.sigma, s.median, s.nmad, s.q95, *s.shares))])
+    write_text(path, buffer.getvalue())
+    return str(path)
+
+
+def figure_list(assessed_list):
+    """[(caption, PNG bytes)]: per input the dh map and histograms per point group, class and terrain."""
+    out = []
+    for a in assessed_list:
+        d = a.differences
+        out.append((f"dh of the {d.what} (colour limits +-Q95 |dh| = {figures.map_limit(d.dh):.2f} m)",
+                    figures.dh_map(d, f"dh of the {d.what}")))
+        splits = [("point group", d.group, GROUP_NAMES), ("class", a.classes, a.class_names),
+                  ("terrain", a.terrain, a.terrain_names)]
+        for kind, labels, names in splits:
+            if labels is not None:
+                series = [(name, d.dh[labels == value]) for value, name in names.items() if (labels == value).any()]
+                out.append((f"Histogram of dh of the {d.what} per {kind}",
+                            figures.histogram(series, f"dh of the {d.what} per {kind}")))
+    return out
+
+
+def write_report(path, title, assessed_list, parameters=()):
+    """One self-contained HTML page: the Sections' tables and the figures as embedded PNGs."""
+    style = ("body{font-family:sans-serif}table{border-collapse:collapse}th,td{border:1px solid #bbb;"
+             "padding:2px 8px;text-align:right}th:first-child,td:first-child{text-align:left}")
+    images = "\n".join(f"<figure><img alt='{html.escape(caption)}' src='data:image/png;base64,"
+                       f"{base64.b64encode(png).decode('ascii')}'><figcaption>{html.escape(caption)}</figcaption>"
+                       "</figure>" for caption, png in figure_list(assessed_list))
+    write_text(path, f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+                     f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>\n"
+                     f"{html_sections(sections(assessed_list, parameters))}\n<h2>Figures</h2>\n{images}\n"
+                     "</body></html>\n")
+    return str(path)
