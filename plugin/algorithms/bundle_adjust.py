@@ -3,10 +3,11 @@ points (algorithms/adjustment/bundle.py); the adjusted models are stored in the 
 report (K Tables 2-4; adjustment/report.py) and a residual-vector layer of the control and check
 points (adjustment/residual_vectors.py)."""
 from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry,
-                       QgsPointXY, QgsProcessing, QgsProcessingOutputNumber, QgsProcessingParameterBoolean,
-                       QgsProcessingParameterEnum, QgsProcessingParameterFeatureSink, QgsProcessingParameterFile,
-                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterLayer, QgsProcessingParameterString, QgsWkbTypes)
+                       QgsPointXY, QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
+                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum, QgsProcessingParameterFeatureSink,
+                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
+                       QgsWkbTypes)
 from qgis.PyQt.QtCore import QVariant
 
 from ...algorithms import block
@@ -116,6 +117,7 @@ class BundleAdjust(PushbroomAlgorithm):
             "RESIDUALS", "Residual vectors of control and check points", QgsProcessing.TypeVectorLine,
             optional=True, createByDefault=False))
         self.addOutput(QgsProcessingOutputNumber("SIGMA0", "sigma_0"))
+        self.addOutput(QgsProcessingOutputFile("BLOCK", "Block (updated; chains the next step in a model)"))
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)

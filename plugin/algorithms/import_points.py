@@ -1,9 +1,9 @@
 """pushbroom:importpoints and pushbroom:exportpoints — control/check points and their image
 measurements between a CSV file and the block (algorithms/adjustment/control_points.py)."""
-from qgis.core import (QgsProcessing, QgsProcessingOutputNumber, QgsProcessingOutputVectorLayer,
-                       QgsProcessingParameterCrs, QgsProcessingParameterEnum, QgsProcessingParameterFile,
-                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
-                       QgsProcessingParameterString)
+from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
+                       QgsProcessingOutputVectorLayer, QgsProcessingParameterCrs, QgsProcessingParameterEnum,
+                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterNumber, QgsProcessingParameterString)
 
 from ...algorithms.adjustment import control_points as cp
 from ...algorithms.adjustment.observations import IMAGE_SIGMA
@@ -61,6 +61,7 @@ class ImportPoints(PushbroomAlgorithm):
         for name, text in [("CONTROL", "Control points"), ("CHECK", "Check points"),
                            ("MEASUREMENTS", "Image measurements")]:
             self.addOutput(QgsProcessingOutputNumber(name, text))
+        self.addOutput(QgsProcessingOutputFile("BLOCK", "Block (updated; chains the next step in a model)"))
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)

@@ -1,9 +1,9 @@
 """pushbroom:matchpoints — dense image points by region-growing least-squares matching in the
 three combinations of paper K 3.3 (algorithms/matching/combinations.py)."""
 from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputVectorLayer,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum,
-                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterNumber, QgsProcessingParameterString)
+                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum, QgsProcessingParameterFile,
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
+                       QgsProcessingParameterString)
 
 from ...algorithms import block
 from ...algorithms.errors import InputError
@@ -110,6 +110,7 @@ class MatchPoints(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterFileDestination(
             "SUMMARY", "Summary per point group (CSV)", "CSV files (*.csv)", optional=True))
         self.addOutput(QgsProcessingOutputVectorLayer("POINTS", "Mass points", QgsProcessing.TypeVectorPoint))
+        self.addOutput(QgsProcessingOutputFile("BLOCK", "Block (updated; chains the next step in a model)"))
         self.addOutput(QgsProcessingOutputFile("POINTS_FILE", "Mass point file (.npz)"))
 
     def execute(self, parameters, context, feedback):

@@ -31,6 +31,7 @@ class SelectTiePoints(PushbroomAlgorithm):
         self.addParameter(Number("MIN_GROUP", "Lowest point group accepted (1, 2 or 3)", Number.Integer, 1,
                                  minValue=1, maxValue=3))
         self.addOutput(QgsProcessingOutputVectorLayer("TIE_POINTS", "Tie points", QgsProcessing.TypeVectorPoint))
+        self.addOutput(QgsProcessingOutputFile("BLOCK", "Block (updated; chains the next step in a model)"))
         self.addOutput(QgsProcessingOutputFile("TIE_POINTS_FILE", "Tie point file (.npz)"))
 
     def execute(self, parameters, context, feedback):
