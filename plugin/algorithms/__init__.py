@@ -8,10 +8,11 @@ def algorithm_classes():
     from .create_block import CreateBlock
     from .fit_rpc import FitRpc
     from .import_points import ExportPoints, ImportPoints
+    from .interpolate_dem import InterpolateDem
     from .intersect_points import IntersectPoints
     from .match_points import MatchPoints
     from .orthorectify import Orthorectify
     from .select_tie_points import SelectTiePoints
     from .simulate_scene import SimulateScene
     return [SimulateScene, CreateBlock, MatchPoints, SelectTiePoints, ImportPoints, ExportPoints,
-            BundleAdjust, IntersectPoints, Orthorectify, AssessAccuracy, FitRpc]
+            BundleAdjust, IntersectPoints, InterpolateDem, Orthorectify, AssessAccuracy, FitRpc]

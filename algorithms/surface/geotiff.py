@@ -1,0 +1,41 @@
+"""Writing rasters in a projected or geographic CRS: tiled, DEFLATE-compressed GeoTIFF with internal
+overviews and nodata, written atomically (a cancel or a crash leaves nothing under the final name)."""
+import numpy as np
+
+from .. import progress
+from ..atomic import atomic_path
+
+#: nodata of the Float32 height and precision rasters
+NODATA = -32767.0
+OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "PREDICTOR=3", "BIGTIFF=IF_SAFER"]
+
+
+def overview_levels(shape, smallest=256):
+    """Factors 2, 4, 8, ... until the overview's larger side is at most `smallest` cells."""
+    levels, factor = [], 2
+    while max(shape) / (factor // 2) > smallest:
+        levels.append(factor)
+        factor *= 2
+    return levels
+
+
+def write_float_raster(path, array, geotransform, srs, description="", metadata=None, feedback=None):
+    """One Float32 band (NaN -> NODATA) with `geotransform` (GDAL's) and `srs` (osr.SpatialReference)."""
+    from osgeo import gdal
+    gdal.UseExceptions()
+    array = np.where(np.isfinite(array), array, NODATA).astype(np.float32)
+    with atomic_path(path) as tmp:
+        ds = gdal.GetDriverByName("GTiff").Create(tmp, array.shape[1], array.shape[0], 1, gdal.GDT_Float32, OPTIONS)
+        ds.SetGeoTransform(tuple(geotransform))
+        ds.SetProjection(srs.ExportToWkt())
+        if metadata:
+            ds.SetMetadata({k: str(v) for k, v in metadata.items()})
+        band = ds.GetRasterBand(1)
+        band.SetNoDataValue(NODATA)
+        band.SetDescription(description)
+        band.WriteArray(array)
+        progress.step(feedback, 50)
+        ds.BuildOverviews("AVERAGE", overview_levels(array.shape))
+        ds = None
+        progress.step(feedback, 100)
+    return path

@@ -1,0 +1,170 @@
+"""Delaunay TIN of a point cloud (scipy.spatial, i.e. qhull, the triangulation gdal_grid uses too),
+breaklines as conforming constraints, the blunder filter against the TIN neighbours and the
+longest edge of each triangle (for the gap rule).
+
+Blunder residuals are taken against the least-squares plane through a point's TIN neighbours rather
+than their median height: on slopes the median of an uneven neighbourhood departs from the point by
+slope x offset, which flagged 1 % of clean points of a hilly test surface (0.3 m noise) at k = 4,
+the plane 0.06 %.
+
+Breaklines: scipy's Delaunay has no constraints, so the lines are densified into vertices and every
+sub-segment is split until its diametral circle holds no other point (conforming Delaunay: a segment
+with an empty diametral circle is a Gabriel edge, hence an edge of every Delaunay triangulation of
+the points, so no triangle crosses the line). Mass points closer than `min_length` / 2 to a
+breakline, which would force endless splits, give way to the line and are dropped (counted)."""
+import numpy as np
+from numba import njit
+from scipy.spatial import Delaunay, QhullError, cKDTree
+
+from ..errors import InputError
+
+#: normal distribution's sigma / median absolute deviation
+NMAD_SCALE = 1.4826
+#: smallest robust sigma of the blunder filter (m), below the height precision of any satellite point
+#: cloud: a noise-free smooth surface loses no points to its curvature
+MIN_SIGMA = 0.05
+
+
+def delaunay(x, y):
+    """scipy Delaunay of (x, y) (shifted to their mean for qhull's precision); InputError for fewer
+    than 3 points or points on one line."""
+    if len(x) < 3:
+        raise InputError(f"a TIN needs at least 3 points, the point cloud has {len(x)}: check the input "
+                         "(an empty or almost empty point cloud, or every point filtered out)")
+    xy = np.column_stack([x - np.mean(x), y - np.mean(y)])
+    try:
+        return Delaunay(xy)
+    except (QhullError, ValueError) as exc:
+        raise InputError(f"the {len(x)} points cannot be triangulated (all on one line, or not finite): "
+                         f"{str(exc).splitlines()[0]}") from None
+
+
+def longest_edge(x, y, triangles):
+    """Length of the longest edge of each triangle (m, 3 vertex indices)."""
+    px, py = x[triangles], y[triangles]
+    d = [np.hypot(px[:, a] - px[:, b], py[:, a] - py[:, b]) for a, b in ((0, 1), (1, 2), (2, 0))]
+    return np.maximum(np.maximum(d[0], d[1]), d[2])
+
+
+def densify(line, spacing):
+    """Vertices of a 3-D polyline (n, 3) with extra vertices (linear in x, y, z) so that no segment is
+    longer than `spacing`."""
+    out = [line[:1]]
+    for a, b in zip(line[:-1], line[1:]):
+        k = max(int(np.ceil(np.hypot(*(b[:2] - a[:2])) / spacing)), 1)
+        out.append(a + (b - a) * (np.arange(1, k + 1)[:, None] / k))
+    return np.concatenate(out)
+
+
+def conform_breaklines(lines, x, y, spacing, min_length, max_rounds=30):
+    """Breakline vertices and segments for a conforming Delaunay TIN with the mass points (x, y).
+
+    Returns (vertices (b, 3), segments (s, 2) indices into vertices, keep mask of the mass points).
+    Segments are split at their midpoints while another point lies inside their diametral circle;
+    at `min_length` the encroaching mass points are dropped instead."""
+    keep = np.ones(len(x), bool)
+    vertices, segments = [], []
+    for line in lines:
+        line = densify(np.asarray(line, float), spacing)
+        start = sum(len(v) for v in vertices)
+        vertices.append(line)
+        segments.append(start + np.column_stack([np.arange(len(line) - 1), np.arange(1, len(line))]))
+    if not vertices:
+        return np.zeros((0, 3)), np.zeros((0, 2), np.int64), keep
+    vertices, segments = np.concatenate(vertices), np.concatenate(segments)
+    for _ in range(max_rounds):
+        mass = np.flatnonzero(keep)
+        tree = cKDTree(np.concatenate([np.column_stack([x[mass], y[mass]]), vertices[:, :2]]))
+        a, b = vertices[segments[:, 0]], vertices[segments[:, 1]]
+        mid, radius = (a[:, :2] + b[:, :2]) / 2, np.hypot(*(b[:, :2] - a[:, :2]).T) / 2
+        inside = tree.query_ball_point(mid, radius * (1 - 1e-9), return_length=True)
+        split = (inside > 0) & (radius >= min_length)
+        for hits in tree.query_ball_point(mid[(inside > 0) & ~split], radius[(inside > 0) & ~split] * (1 - 1e-9)):
+            hits = np.asarray(hits, int)
+            keep[mass[hits[hits < len(mass)]]] = False
+        if not split.any():
+            break
+        new = len(vertices) + np.arange(split.sum())
+        vertices = np.concatenate([vertices, (a[split] + b[split]) / 2])
+        segments = np.concatenate([segments[~split], np.column_stack([segments[split, 0], new]),
+                                   np.column_stack([new, segments[split, 1]])])
+    return vertices, segments, keep
+
+
+@njit(cache=True, nogil=True)
+def neighbour_residuals(indptr, indices, x, y, z, active, out):
+    """out[i] = z[i] - the least-squares plane z = a + b dx + c dy through the active TIN neighbours of
+    i (dx, dy relative to i, so the plane's value at i is a), for active i with at least 3 neighbours
+    not on one line; NaN otherwise. Neighbours of i are indices[indptr[i]:indptr[i + 1]]."""
+    for i in range(z.size):
+        out[i] = np.nan
+        if not active[i]:
+            continue
+        n = sx = sy = sz = sxx = sxy = syy = sxz = syz = 0.0
+        for k in range(indptr[i], indptr[i + 1]):
+            j = indices[k]
+            if active[j]:
+                dx, dy, zj = x[j] - x[i], y[j] - y[i], z[j]
+                n += 1.0
+                sx += dx
+                sy += dy
+                sz += zj
+                sxx += dx * dx
+                sxy += dx * dy
+                syy += dy * dy
+                sxz += dx * zj
+                syz += dy * zj
+        if n < 3.0:
+            continue
+        # normal equations [[n, sx, sy], [sx, sxx, sxy], [sy, sxy, syy]] (a, b, c) = (sz, sxz, syz), Cramer's rule
+        c00 = sxx * syy - sxy * sxy
+        c01 = sy * sxy - sx * syy
+        c02 = sx * sxy - sy * sxx
+        det = n * c00 + sx * c01 + sy * c02
+        if not abs(det) > 1e-12 * abs(n * sxx * syy):
+            continue
+        out[i] = z[i] - (sz * c00 + sxz * c01 + syz * c02) / det
+
+
+@njit(cache=True, nogil=True)
+def local_maxima(indptr, indices, score, candidate, out):
+    """out[i] = candidate[i] and score[i] >= the score of every candidate TIN neighbour of i (of a
+    spike and the neighbours its plane fits pull along, only the spike is taken)."""
+    for i in range(score.size):
+        out[i] = candidate[i]
+        if not candidate[i]:
+            continue
+        for k in range(indptr[i], indptr[i + 1]):
+            j = indices[k]
+            if candidate[j] and score[j] > score[i]:
+                out[i] = False
+                break
+
+
+def filter_blunders(tin, x, y, z, k=4.0, iterations=3, fixed=None):
+    """Points of `tin` (scipy Delaunay of (x, y)) whose height departs from the plane fitted to their TIN
+    neighbours by more than k robust sigmas: |r - median(r)| > k * max(1.4826 * median(|r - median(r)|),
+    MIN_SIGMA) over the tested points, r = neighbour_residuals. Of neighbouring candidates only the
+    largest |r| goes per iteration; each iteration recomputes r and the sigma without the points
+    already removed (on the same TIN). Points where `fixed` is True (breakline vertices) are
+    neighbours but never removed. Returns (keep mask, removed per iteration)."""
+    indptr, indices = tin.vertex_neighbor_vertices
+    x, y, z = (np.ascontiguousarray(v, float) for v in (x, y, z))
+    keep = np.ones(len(z), bool)
+    tested = np.ones(len(z), bool) if fixed is None else ~np.asarray(fixed, bool)
+    removed = []
+    r, bad = np.empty(len(z)), np.empty(len(z), bool)
+    for _ in range(iterations):
+        neighbour_residuals(indptr, indices, x, y, z, keep, r)
+        ok = np.isfinite(r) & tested
+        if ok.sum() < 3:
+            break
+        centre = np.median(r[ok])
+        score = np.abs(r - centre)
+        sigma = max(NMAD_SCALE * np.median(score[ok]), MIN_SIGMA)
+        local_maxima(indptr, indices, np.nan_to_num(score), ok & (score > k * sigma), bad)
+        removed.append(int(bad.sum()))
+        keep &= ~bad
+        if not bad.any():
+            break
+    return keep, removed

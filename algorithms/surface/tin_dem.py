@@ -1,0 +1,140 @@
+"""DEM from a point cloud (K 3.6; methods.md 6): Delaunay TIN of the object points (breaklines as
+conforming constraints), blunder filter against the TIN neighbours, linear interpolation on a regular
+grid in the output CRS, gaps where triangles are longer than a threshold (no surface invented over
+unmatched water or forest), heights ellipsoidal or EGM96 (PROJ), an optional precision raster.
+
+The precision raster is the points' a priori sigma_h interpolated on the same TIN where the cloud has
+it (pushbroom:intersectpoints writes it; a breakline vertex takes that of the nearest point),
+otherwise the distance (CRS units) from each cell centre to the nearest point of the TIN."""
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .. import progress
+from ..crs import egm96_undulation, transform, wgs84
+from ..errors import InputError
+from .geotiff import write_float_raster
+from .pointcloud import output_srs
+from .tin import conform_breaklines, delaunay, filter_blunders, longest_edge
+from .tin_grid import Grid, rasterize
+
+DATUMS = ("ellipsoidal", "egm96")
+
+
+@dataclass
+class DemResult:
+    """heights and precision (rows, cols; NaN = gap) on `grid` in `srs`, and what was done."""
+
+    heights: np.ndarray
+    grid: Grid
+    srs: object
+    datum: str
+    precision: np.ndarray = None
+    precision_kind: str = ""
+    points: int = 0
+    removed: list = field(default_factory=list)
+    dropped_near_breaklines: int = 0
+    breakline_vertices: int = 0
+
+    def summary(self):
+        defined = np.isfinite(self.heights)
+        return (f"{self.points} points ({sum(self.removed)} blunders removed: {self.removed} per iteration; "
+                f"{self.dropped_near_breaklines} next to breaklines dropped; {self.breakline_vertices} "
+                f"breakline vertices), {self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g}, "
+                f"{defined.mean():.1%} defined, {self.datum} heights")
+
+
+def _cell_lonlat(grid, srs, mask):
+    x, y = grid.centres()
+    ll = transform(srs, wgs84(), np.column_stack([x[mask], y[mask]]), "the DEM cells")
+    return ll[:, 0], ll[:, 1]
+
+
+def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=None, k=4.0, iterations=3,
+                    breaklines=(), breakline_srs=None, precision=False, feedback=None):
+    """DemResult of a PointSet (point_input.py; z ellipsoidal). `crs`: output CRS (default: the UTM
+    zone of the points); `max_edge`: triangles with a longer edge are gaps (default 3 x cell);
+    `k`: blunder threshold in robust sigmas (0: no filter), `iterations` of the filter; `breaklines`:
+    (n, 3) arrays (x, y in `breakline_srs`, default the output CRS; z as the points');
+    `datum`: 'ellipsoidal' or 'egm96' (H = h - N)."""
+    if datum not in DATUMS:
+        raise InputError(f"the height datum must be one of {', '.join(DATUMS)}, not {datum!r}")
+    finite = np.isfinite(points.x) & np.isfinite(points.y) & np.isfinite(points.z)
+    if len(points) < 3 or finite.sum() < 3:
+        raise InputError(f"a DEM needs at least 3 points with finite coordinates, the point cloud has "
+                         f"{int(finite.sum())}: check the input point cloud")
+    progress.step(feedback, 0, f"{len(points)} points ({len(points) - int(finite.sum())} not finite, left out)")
+    if crs is None or crs == "":
+        ll = transform(points.srs, wgs84(), np.column_stack([np.mean(points.x[finite]), np.mean(points.y[finite])]),
+                       "the point cloud's centre")
+        target = output_srs(None, ll[:, 0], ll[:, 1])
+    else:
+        target = output_srs(crs)
+    pts = points.to(target)
+    x, y, z = pts.x[finite], pts.y[finite], pts.z[finite]
+    sigma = pts.sigma_h[finite] if pts.sigma_h is not None else None
+    max_edge = 3.0 * cell if max_edge is None else float(max_edge)
+    grid = Grid.covering(x, y, cell)
+    if breakline_srs is not None:
+        breaklines = [np.column_stack([transform(breakline_srs, target, b[:, :2], "the breaklines")[:, :2],
+                                       b[:, 2]]) for b in breaklines]
+    vertices, _, near = conform_breaklines(list(breaklines), x, y, spacing=min(cell, max_edge) / 2,
+                                           min_length=cell / 20)
+    x, y, z = (np.concatenate([v[near], vertices[:, i]]) for i, v in enumerate((x, y, z)))
+    fixed = np.arange(len(x)) >= int(near.sum())
+    if sigma is not None:   # a breakline vertex takes the sigma_h of the nearest point
+        sigma = sigma[near]
+        nearest = cKDTree(np.column_stack([x[:len(sigma)], y[:len(sigma)]])).query(vertices[:, :2])[1]
+        sigma = np.concatenate([sigma, sigma[nearest]])
+    progress.step(feedback, 10, "Delaunay triangulation")
+    tin = delaunay(x, y)
+    removed = []
+    if k > 0:
+        keep, removed = filter_blunders(tin, x, y, z, k=k, iterations=iterations, fixed=fixed)
+        progress.step(feedback, 40, f"blunder filter (k = {k:g} robust sigmas): {sum(removed)} points removed "
+                                    f"({removed} per iteration)")
+        if not keep.all():
+            x, y, z, fixed = x[keep], y[keep], z[keep], fixed[keep]
+            sigma = sigma[keep] if sigma is not None else None
+            tin = delaunay(x, y)
+    progress.step(feedback, 60, "interpolating on the grid")
+    triangles = tin.simplices
+    use = longest_edge(x, y, triangles) <= max_edge
+    values = z if sigma is None or not precision else np.column_stack([z, sigma])
+    bands = rasterize(x, y, values, triangles, grid, use)
+    heights = bands if values.ndim == 1 else bands[0]
+    defined = np.isfinite(heights)
+    if not defined.any():
+        raise InputError(f"no grid cell lies in a triangle with edges up to {max_edge:g}: raise the maximum edge "
+                         f"length or the cell size ({cell:g})")
+    result = DemResult(heights, grid, target, datum, points=len(x), removed=removed,
+                       dropped_near_breaklines=int((~near).sum()), breakline_vertices=int(fixed.sum()))
+    if precision:
+        progress.step(feedback, 75, "precision raster")
+        if values.ndim == 2:
+            result.precision, result.precision_kind = bands[1], "interpolated point sigma_h (m)"
+        else:
+            cx, cy = grid.centres()
+            result.precision = np.full(grid.shape, np.nan)
+            result.precision[defined] = cKDTree(np.column_stack([x, y])).query(
+                np.column_stack([cx[defined], cy[defined]]), workers=-1)[0]
+            result.precision_kind = "distance to the nearest point (CRS units)"
+    if datum == "egm96":
+        progress.step(feedback, 85, "EGM96 heights")
+        heights[defined] -= egm96_undulation(*_cell_lonlat(grid, target, defined))
+    progress.step(feedback, 100, result.summary())
+    return result
+
+
+def write_dem(result, path, precision_path=None, feedback=None):
+    """Write the heights (and the precision raster where given a path) as tiled GeoTIFFs."""
+    datum = "WGS 84 ellipsoidal height" if result.datum == "ellipsoidal" else "EGM96 height (h - N)"
+    metadata = {"HEIGHT_DATUM": datum, "POINTS": result.points, "BLUNDERS_REMOVED": sum(result.removed)}
+    write_float_raster(path, result.heights, result.grid.geotransform, result.srs, f"height ({datum}, m)",
+                       metadata, feedback=progress.scaled(feedback, 0, 80 if precision_path else 100))
+    if precision_path:
+        if result.precision is None:
+            raise InputError("this DEM was interpolated without a precision raster (precision=True)")
+        write_float_raster(precision_path, result.precision, result.grid.geotransform, result.srs,
+                           result.precision_kind, feedback=progress.scaled(feedback, 80, 100))

@@ -1,0 +1,84 @@
+"""pushbroom:interpolatedem through Processing: a LAS cloud with sigma_h, breaklines from a 3-D line
+layer, EGM96 heights, the styled output, errors and cancelling."""
+import numpy as np
+import pytest
+from osgeo import gdal, ogr
+from qgis import processing
+from qgis.core import (QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback,
+                       QgsProcessingOutputLayerDefinition, QgsProject)
+
+from pushbroom.algorithms.crs import srs, transform
+from pushbroom.algorithms.surface import pointcloud
+
+UTM31 = 32631
+
+
+def roof_cloud(folder, n=4000):
+    """A LAS cloud of a ridge z = h0 - 0.5 |x - xr| (ellipsoidal) in UTM 31N with sigma_h, and a GeoPackage
+    with the ridge as a 3-D breakline. Returns (las, breaklines, roof(x))."""
+    rng = np.random.default_rng(0)
+    x, y = 650_000 + rng.uniform(0, 1000, n), 4_890_000 + rng.uniform(0, 1000, n)
+    roof = lambda px: 400 - 0.5 * np.abs(px - 650_500)   # noqa: E731
+    lon, lat = transform(srs(UTM31), srs(4326), np.column_stack([x, y]), "the test points")[:, :2].T
+    las, _, _ = pointcloud.write_point_cloud(folder / "cloud.las", lon, lat, roof(x),
+                                             {"sigma_h": np.full(n, 0.4, np.float32)}, crs=UTM31)
+    ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(folder / "lines.gpkg"))
+    layer = ds.CreateLayer("ridge", srs(UTM31), ogr.wkbLineString25D)
+    feature = ogr.Feature(layer.GetLayerDefn())
+    feature.SetGeometry(ogr.CreateGeometryFromWkt("LINESTRING Z (650500 4889990 400, 650500 4891010 400)"))
+    layer.CreateFeature(feature)
+    ds = None
+    return las, str(folder / "lines.gpkg"), roof
+
+
+def run(parameters, context=None, feedback=None):
+    return processing.run("pushbroom:interpolatedem", parameters, context=context or QgsProcessingContext(),
+                          feedback=feedback or QgsProcessingFeedback())
+
+
+def test_dem_with_breakline_precision_and_style(pushbroom_provider, tmp_path, log):
+    las, lines, roof = roof_cloud(tmp_path)
+    context = QgsProcessingContext()
+    context.setProject(QgsProject.instance())
+    out = QgsProcessingOutputLayerDefinition(str(tmp_path / "dem.tif"), QgsProject.instance())
+    result = run({"INPUT": las, "BREAKLINES": lines, "CELL": 5.0, "MAX_EDGE": 100.0, "BLUNDER_K": 0, "OUTPUT": out,
+                  "PRECISION": str(tmp_path / "sigma.tif")}, context, log)
+    ds = gdal.Open(result["OUTPUT"])
+    assert ds.GetSpatialRef().GetAuthorityCode(None) == str(UTM31)      # the UTM zone of the points
+    x0, cell, _, y0, _, _ = ds.GetGeoTransform()
+    dem = ds.GetRasterBand(1).ReadAsArray().astype(float)
+    ok = dem != ds.GetRasterBand(1).GetNoDataValue()
+    cx = x0 + (np.arange(dem.shape[1]) + 0.5) * cell
+    assert ok.mean() > 0.95
+    np.testing.assert_allclose(dem[ok], np.broadcast_to(roof(cx), dem.shape)[ok], atol=1e-3)   # LAS mm
+    precision = gdal.Open(result["PRECISION"])   # keep the dataset alive while its band is read
+    sigma = precision.GetRasterBand(1).ReadAsArray()
+    np.testing.assert_allclose(sigma[ok], 0.4, atol=1e-6)
+    assert result["REMOVED"] == 0 and result["POINTS"] > 4000                # breakline vertices added
+    assert any("0 blunders removed" in m and "breakline vertices" in m for m in log.messages)
+    assert context.willLoadLayerOnCompletion(result["OUTPUT"])
+    assert context.layerToLoadOnCompletionDetails(result["OUTPUT"]).postProcessor() is not None
+
+
+def test_egm96_heights_in_a_given_crs(pushbroom_provider, tmp_path):
+    las, _, _ = roof_cloud(tmp_path)
+    ellipsoidal = run({"INPUT": las, "CRS": "EPSG:2154", "CELL": 20.0, "OUTPUT": str(tmp_path / "h.tif")})
+    geoid = run({"INPUT": las, "CRS": "EPSG:2154", "CELL": 20.0, "DATUM": 1, "OUTPUT": str(tmp_path / "H.tif")})
+    h, big_h = (gdal.Open(r["OUTPUT"]) for r in (ellipsoidal, geoid))
+    assert big_h.GetSpatialRef().GetAuthorityCode(None) == "2154"
+    diff = h.ReadAsArray().astype(float) - big_h.ReadAsArray()
+    ok = h.ReadAsArray() != -32767
+    assert 48 < diff[ok].mean() < 52 and np.ptp(diff[ok]) < 0.05      # EGM96 N near Mont Ventoux ~ 50 m
+    assert "EGM96" in big_h.GetMetadata()["HEIGHT_DATUM"]
+
+
+def test_errors_and_cancel(pushbroom_provider, tmp_path):
+    las, _, _ = roof_cloud(tmp_path)
+    few = pointcloud.write_point_cloud(tmp_path / "two.gpkg", [5.0, 5.1], [44.0, 44.1], [1.0, 2.0])[0]
+    with pytest.raises(QgsProcessingException, match="at least 3 points"):
+        run({"INPUT": few, "OUTPUT": str(tmp_path / "a.tif")})
+    cancelled = QgsProcessingFeedback()
+    cancelled.cancel()
+    with pytest.raises(QgsProcessingException, match="cancel"):
+        run({"INPUT": las, "OUTPUT": str(tmp_path / "b.tif")}, feedback=cancelled)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cloud.las", "lines.gpkg", "two.gpkg"]
