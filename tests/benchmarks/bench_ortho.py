@@ -17,7 +17,7 @@ from osgeo import gdal
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.ortho import OutputGrid, default_grid, orthorectify
+from pushbroom.algorithms.ortho import default_grid, orthorectify
 from pushbroom.algorithms.ortho.mapping import TileMapper
 from pushbroom.algorithms.ortho.orthorectify import CREATION_OPTIONS
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc, rpc_txt_path, write_fitted_rpc

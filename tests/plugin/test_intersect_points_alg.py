@@ -3,7 +3,7 @@ made from ground points on the true DSM (projected with the block's models: the 
 give them back)."""
 import numpy as np
 import pytest
-from osgeo import ogr, osr
+from osgeo import ogr
 from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
