@@ -15,15 +15,13 @@ from osgeo import gdal
 
 from .. import progress
 from ..adjustment.control_points import HEIGHT_TYPES, orthometric_to_ellipsoidal
-from ..atomic import atomic_path
 from ..dem import Dem
 from ..errors import InputError
-from .point_clouds import read_point_cloud
+from ..surface.geotiff import write_float_raster
+from ..surface.point_input import read_points
 from .rasters import Grid, cell_metres, open_raster, raster_srs, read_grid, read_window, reproject, slope_degrees, \
     to_wgs84, warp_to
 
-DH_NODATA = -9999.0
-GEOTIFF_OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "PREDICTOR=3", "BIGTIFF=IF_SAFER"]
 
 
 @dataclass
@@ -77,10 +75,11 @@ def reference_at_points(reference, x, y, srs, datum="ellipsoidal"):
 
 
 def point_differences(path, reference, reference_datum="ellipsoidal", points_datum="ellipsoidal", feedback=None):
-    """Differences of the object points of a point cloud (point_clouds.read_point_cloud) against the
-    reference raster; its `group` field, where present, is kept."""
+    """Differences of the object points of a point cloud (surface.point_input.read_points) against
+    the reference raster; its `group` field, where present, is kept."""
     _check_datum(points_datum, "points")
-    x, y, z, srs, fields = read_point_cloud(path)
+    cloud = read_points(path)
+    x, y, z, srs, fields = cloud.x, cloud.y, cloud.z, cloud.srs, cloud.fields
     if not len(x):
         raise InputError(f"the point cloud {path} holds no point")
     progress.step(feedback, 10, f"{len(x)} points read from {path}")
@@ -125,20 +124,6 @@ def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="e
 
 
 def write_dh_raster(path, grid):
-    """The dh Grid as a tiled, DEFLATE-compressed float32 GeoTIFF with overviews and nodata
-    DH_NODATA, written atomically."""
-    gdal.UseExceptions()
-    rows, cols = grid.shape
-    with atomic_path(path) as tmp:
-        ds = gdal.GetDriverByName("GTiff").Create(tmp, cols, rows, 1, gdal.GDT_Float32, GEOTIFF_OPTIONS)
-        ds.SetGeoTransform(grid.geotransform)
-        ds.SetProjection(grid.srs.ExportToWkt())
-        band = ds.GetRasterBand(1)
-        band.SetNoDataValue(DH_NODATA)
-        band.SetDescription("dh = DEM - reference (m, ellipsoidal)")
-        band.WriteArray(np.where(np.isfinite(grid.values), grid.values, DH_NODATA).astype(np.float32))
-        levels = [f for f in (2, 4, 8, 16, 32, 64) if max(rows, cols) / f >= 64]
-        if levels:
-            ds.BuildOverviews("AVERAGE", levels)
-        ds = None
-    return str(path)
+    """The dh Grid as a float raster (surface.geotiff.write_float_raster: tiled, overviews, nodata, atomic)."""
+    return str(write_float_raster(path, grid.values, grid.geotransform, grid.srs,
+                                  "dh = DEM - reference (m, ellipsoidal)"))

@@ -2,7 +2,7 @@
 and any OGR vector layer of 3-D points (the GeoPackage point layer of pointcloud.py, a shapefile,
 GeoJSON ...) or 3-D lines. z is taken as the WGS 84 ellipsoidal height (pointcloud.py's convention)."""
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from osgeo import ogr
@@ -17,23 +17,29 @@ EPSG_GEOKEYS = (3072, 2048)
 
 @dataclass
 class PointSet:
-    """Points (x, y in `srs`, z ellipsoidal m) and their a priori height sigma (m) where the file has one."""
+    """Points (x, y in `srs`, z ellipsoidal m) and their numeric per-point fields (pointcloud.py's
+    group, rho, sigma_h ...: {name: array})."""
 
     x: np.ndarray
     y: np.ndarray
     z: np.ndarray
     srs: object
-    sigma_h: np.ndarray = None
+    fields: dict = field(default_factory=dict)
 
     def __len__(self):
         return len(self.x)
+
+    @property
+    def sigma_h(self):
+        """The a priori height sigma (m) where the file has one, else None."""
+        return self.fields.get("sigma_h")
 
     def to(self, target):
         """The points with x, y transformed to `target` (osr.SpatialReference)."""
         if self.srs.IsSame(target):
             return self
         xy = transform(self.srs, target, np.column_stack([self.x, self.y]), "the point cloud")
-        return PointSet(xy[:, 0], xy[:, 1], self.z, target, self.sigma_h)
+        return PointSet(xy[:, 0], xy[:, 1], self.z, target, self.fields)
 
 
 def _las_srs(las, path):
@@ -49,15 +55,15 @@ def _las_srs(las, path):
 
 
 def read_las(path, crs=None):
-    """PointSet of a LAS/LAZ file (sigma_h from its extra dimension where present)."""
+    """PointSet of a LAS/LAZ file (fields: its extra dimensions)."""
     laspy = _laspy()
     try:
         las = laspy.read(os.fspath(path))
     except Exception as exc:  # laspy raises its own and OS errors
         raise InputError(f"cannot read the point cloud {path}: {exc}") from exc
     srs = parse_crs(crs) if crs else _las_srs(las, path)
-    sigma = np.asarray(las["sigma_h"], float) if "sigma_h" in las.point_format.dimension_names else None
-    return PointSet(np.asarray(las.x, float), np.asarray(las.y, float), np.asarray(las.z, float), srs, sigma)
+    fields = {name: np.asarray(las[name]) for name in las.point_format.extra_dimension_names}
+    return PointSet(np.asarray(las.x, float), np.asarray(las.y, float), np.asarray(las.z, float), srs, fields)
 
 
 def _open_layer(path, layer_name, what):
@@ -83,23 +89,25 @@ def _layer_srs(layer, crs, path):
 
 
 def read_ogr_points(path, layer_name=None, crs=None):
-    """PointSet of an OGR layer of 3-D points (field sigma_h where present)."""
+    """PointSet of an OGR layer of 3-D points (fields: its numeric attribute fields)."""
     ds, layer = _open_layer(path, layer_name, "points")
     if ogr.GT_Flatten(layer.GetGeomType()) not in (ogr.wkbPoint, ogr.wkbUnknown) or not ogr.GT_HasZ(
             layer.GetGeomType()):
         raise InputError(f"{path} is not a layer of 3-D points: a point cloud needs points with z")
-    has_sigma = layer.GetLayerDefn().GetFieldIndex("sigma_h") >= 0
-    xyz, sigma = [], []
+    defn = layer.GetLayerDefn()
+    numeric = [defn.GetFieldDefn(k).GetName() for k in range(defn.GetFieldCount())
+               if defn.GetFieldDefn(k).GetType() in (ogr.OFTInteger, ogr.OFTInteger64, ogr.OFTReal)]
+    xyz, values = [], {name: [] for name in numeric}
     for feature in layer:
         geometry = feature.GetGeometryRef()
-        if geometry is not None:
+        if geometry is not None and not geometry.IsEmpty():
             xyz.append(geometry.GetPoint())
-            if has_sigma:
-                sigma.append(feature["sigma_h"])
+            for name in numeric:
+                values[name].append(np.nan if feature[name] is None else feature[name])
     xyz = np.asarray(xyz, float).reshape(-1, 3)
     srs = _layer_srs(layer, crs, path)
     ds = None
-    return PointSet(xyz[:, 0], xyz[:, 1], xyz[:, 2], srs, np.asarray(sigma, float) if has_sigma else None)
+    return PointSet(xyz[:, 0], xyz[:, 1], xyz[:, 2], srs, {k: np.asarray(v, float) for k, v in values.items()})
 
 
 def read_points(path, crs=None):

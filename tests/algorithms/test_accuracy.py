@@ -16,11 +16,12 @@ from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.quality import report
 from pushbroom.algorithms.quality.assessment import assess
 from pushbroom.algorithms.quality.classes import FLAT, MOUNTAINOUS, NO_CLASS, ClassRaster, PolygonClasses
-from pushbroom.algorithms.quality.height_differences import (DH_NODATA, dem_differences, point_differences,
+from pushbroom.algorithms.quality.height_differences import (dem_differences, point_differences,
                                                              reference_at_points, write_dh_raster)
-from pushbroom.algorithms.quality.point_clouds import read_point_cloud
 from pushbroom.algorithms.quality.statistics import cumulative, summarize
 from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS, FOREST
+from pushbroom.algorithms.surface.geotiff import NODATA
+from pushbroom.algorithms.surface.point_input import read_points
 from pushbroom.algorithms.surface.pointcloud import write_point_cloud
 from osr_oracle import utm
 
@@ -155,11 +156,12 @@ def test_point_clouds_read_back(tmp_path):
     group = rng.integers(1, 4, 50).astype(np.uint8)
     for name in ("p.las", "p.gpkg"):
         write_point_cloud(tmp_path / name, lon, lat, h, {"group": group}, crs=UTM16)
-        x, y, z, srs, fields = read_point_cloud(tmp_path / name)
+        cloud = read_points(tmp_path / name)
         ex, ey = utm(lon, lat, UTM16)
-        np.testing.assert_allclose(np.column_stack([x, y, z]), np.column_stack([ex, ey, h]), atol=1e-3)
-        assert srs.GetAuthorityCode(None) == str(UTM16)
-        np.testing.assert_array_equal(fields["group"], group)
+        np.testing.assert_allclose(np.column_stack([cloud.x, cloud.y, cloud.z]), np.column_stack([ex, ey, h]),
+                                   atol=1e-3)
+        assert cloud.srs.GetAuthorityCode(None) == str(UTM16)
+        np.testing.assert_array_equal(cloud.fields["group"], group)
 
 
 # --- the reference on a DEM grid ----------------------------------------------------------------------
@@ -317,11 +319,11 @@ def test_dh_raster(small_scene, utm_dem, tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["dh.tif"]
     ds = gdal.Open(path)
     band = ds.GetRasterBand(1)
-    assert band.GetNoDataValue() == DH_NODATA and band.GetOverviewCount() > 0
+    assert band.GetNoDataValue() == NODATA and band.GetOverviewCount() > 0
     assert ds.GetMetadata("IMAGE_STRUCTURE").get("COMPRESSION") == "DEFLATE" and band.GetBlockSize()[1] > 1
     assert ds.GetSpatialRef().GetAuthorityCode(None) == str(UTM16)
     out = band.ReadAsArray().astype(float)
-    np.testing.assert_array_equal(out == DH_NODATA, ~d.valid)
+    np.testing.assert_array_equal(out == NODATA, ~d.valid)
     np.testing.assert_allclose(out[d.valid], d.grid.values[d.valid], atol=1e-4)
 
 

@@ -13,7 +13,7 @@ from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProject, 
 
 import pushbroom
 from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.quality.height_differences import DH_NODATA
+from pushbroom.algorithms.surface.geotiff import NODATA
 from pushbroom.algorithms.quality.statistics import summarize
 from pushbroom.algorithms.simulation.terrain import CLASSES, FOREST
 from pushbroom.algorithms.surface.pointcloud import write_point_cloud
@@ -55,8 +55,8 @@ def test_report_table_and_dh_raster(pushbroom_provider, small_scene, inputs, log
     ds = gdal.Open(result["DH"])
     band = ds.GetRasterBand(1)
     dh = band.ReadAsArray().astype(float)
-    assert band.GetNoDataValue() == DH_NODATA and band.GetOverviewCount() > 0
-    dh = dh[dh != DH_NODATA]
+    assert band.GetNoDataValue() == NODATA and band.GetOverviewCount() > 0
+    dh = dh[dh != NODATA]
     dem_all = next(r for r in rows if r["data"] == "DEM cells" and r["label"] == "dh")
     s = summarize(dh)
     print(f"DEM (DSM averaged to 10 m) vs DTM: N {s.n}, mean {s.mean:.2f}, RMS {s.rms:.2f}, NMAD {s.nmad:.2f} m")
