@@ -9,7 +9,7 @@ from osgeo import ogr
 
 from ..crs import srs as parse_crs, transform
 from ..errors import InputError
-from .pointcloud import _laspy
+from .pointcloud import laspy_module
 
 #: LAS GeoTIFF keys holding an EPSG code: ProjectedCSTypeGeoKey, GeographicTypeGeoKey
 EPSG_GEOKEYS = (3072, 2048)
@@ -43,7 +43,7 @@ class PointSet:
 
 
 def _las_srs(las, path):
-    laspy = _laspy()
+    laspy = laspy_module()
     for vlr in list(las.header.vlrs) + list(las.header.evlrs or []):
         if isinstance(vlr, laspy.vlrs.known.WktCoordinateSystemVlr):
             return parse_crs(vlr.string)
@@ -56,7 +56,7 @@ def _las_srs(las, path):
 
 def read_las(path, crs=None):
     """PointSet of a LAS/LAZ file (fields: its extra dimensions)."""
-    laspy = _laspy()
+    laspy = laspy_module()
     try:
         las = laspy.read(os.fspath(path))
     except Exception as exc:  # laspy raises its own and OS errors

@@ -99,7 +99,8 @@ def write_point_cloud(path, lon, lat, h, fields=None, crs=None, fmt=None, feedba
     return os.fspath(path), srs, fmt
 
 
-def _laspy():
+def laspy_module():
+    """laspy, imported quietly."""
     with warnings.catch_warnings():
         # laspy imports pyproj where installed, which warns about its data; the CRS goes through OSR here
         warnings.simplefilter("ignore", UserWarning)
@@ -109,7 +110,7 @@ def _laspy():
 
 def write_las(path, x, y, z, fields, srs, compress=False):
     """LAS 1.4 / point format 6 (LAZ when `compress`) with the WKT of `srs` and `fields` as extra bytes."""
-    laspy = _laspy()
+    laspy = laspy_module()
     if compress and not laspy.LazBackend.detect_available():
         raise InputError("writing LAZ needs the lazrs or laszip Python package (pip install lazrs); "
                          "write a .las file instead")

@@ -26,7 +26,7 @@ def points():
 
 
 def read_las(path):
-    laspy = pc._laspy()
+    laspy = pc.laspy_module()
     las = laspy.read(path)
     wkt = [v for v in las.header.vlrs if isinstance(v, laspy.vlrs.known.WktCoordinateSystemVlr)]
     return las, wkt
@@ -66,7 +66,7 @@ def test_las_in_a_given_crs(points, tmp_path):
 
 
 def test_laz(points, tmp_path):
-    laspy = pc._laspy()
+    laspy = pc.laspy_module()
     lon, lat, h, fields = points
     if not laspy.LazBackend.detect_available():
         with pytest.raises(InputError, match="lazrs"):
@@ -125,7 +125,7 @@ def test_an_existing_file_survives_a_failed_write(points, tmp_path, monkeypatch)
     def broken(*args, **kwargs):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(pc._laspy().LasData, "write", broken)
+    monkeypatch.setattr(pc.laspy_module().LasData, "write", broken)
     with pytest.raises(RuntimeError):
         pc.write_point_cloud(path, lon[:10], lat[:10], h[:10])
     assert open(path, "rb").read() == before

@@ -10,7 +10,7 @@ from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessin
 from pushbroom.algorithms import block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
-from pushbroom.algorithms.surface.pointcloud import _laspy
+from pushbroom.algorithms.surface.pointcloud import laspy_module
 from osr_oracle import utm
 
 
@@ -69,7 +69,7 @@ def test_las_in_the_blocks_utm_zone(pushbroom_provider, triplet, tmp_path, log):
     feedback = log
     result = run({"BLOCK": path, "OUTPUT": str(tmp_path / "cloud.las")}, feedback=feedback)
     assert result["COUNT"] == 300
-    laspy = _laspy()
+    laspy = laspy_module()
     las = laspy.read(result["OUTPUT"])
     wkt = [v.string for v in las.header.vlrs if isinstance(v, laspy.vlrs.known.WktCoordinateSystemVlr)]
     assert block.read_info(path)["default_crs"] == "EPSG:32616" and "UTM zone 16N" in wkt[0]
