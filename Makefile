@@ -46,8 +46,9 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow" tests
 
-# The main job on the built-in sample: simulate the SPOT-5 triplet over the Jacksboro DEM and make a block,
-# through qgis_process like a user's script would.
+# The main job on the built-in sample: simulate the SPOT-5 triplet over the Jacksboro DEM, then run the
+# whole chain (resources/models/pushbroom_pipeline.model3: block, matching, adjustment, point cloud, DEM,
+# orthoimage, accuracy report) through qgis_process like a user's script would; a styled QGIS project.
 demo: setup
 	@QGIS_PROCESS="$(QGIS_PROCESS)" bash scripts/demo.sh demo-output
 

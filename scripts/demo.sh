@@ -1,42 +1,41 @@
 #!/usr/bin/env bash
 # make demo: the main job on the built-in sample, through qgis_process as a user's script would run it.
-# 1. simulate the default SPOT-5 HRS/HRG triplet over the Jacksboro DEM; 2. create the block with
-# footprints on the true DSM; 3. match mass points in the three combinations (region growing);
-# 4. select tie points; 5. import the simulated control/check points (the first 19 control, the rest
-# check); 6. bundle adjustment (report, residual vectors, tie point heights against the true DTM as in
-# K Table 4); 7. intersect the mass points with the adjusted models (point cloud); 8. print what was made
-# and the adjustment's tables. $QGIS_PROCESS is set by the Makefile.
+# 1. simulate the default SPOT-5 HRS/HRG triplet (20 x 20 km) over the Jacksboro DEM; 2. ONE run of the
+# graphical-modeler model resources/models/pushbroom_pipeline.model3 (scripts/build_pipeline_model.py):
+# block (footprints on the true DSM), region-growing matching, tie points, the simulated control/check points
+# (the first 19 control, the rest check), bundle adjustment (automatic parameter selection), intersection of
+# the mass points (point cloud), 10 m DEM, orthoimage of HRG on the adjusted model and the DEM, accuracy of
+# the points and the DEM against the true DSM per land-cover class (report.html, dh raster);
+# 3. a QGIS project with every layer styled; 4. print what was made and the tables.
+# $QGIS_PROCESS is set by the Makefile.
 set -euo pipefail
 out=$(realpath -m "${1:-demo-output}")
+repo=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$out"
 qp() { $QGIS_PROCESS run "$@" 2>&1 | grep -v -e XDG_RUNTIME_DIR -e 'setapi() is deprecated' -e '^proj_create'; }
+start=$SECONDS
 
-echo "== 1/7 pushbroom:simulatescene (SPOT-5 triplet, 20 x 20 km) -> $out/scene"
+echo "== 1/3 pushbroom:simulatescene (SPOT-5 triplet, 20 x 20 km) -> $out/scene"
 qp pushbroom:simulatescene -- CONFIGURATION=0 SIZE_KM=20 SEED=1 POINTS=30 OUTPUT="$out/scene" | tail -n 4
 images=()
 for f in "$out"/scene/*/IMAGERY.TIF; do images+=("IMAGES=$f"); done
-
-echo "== 2/7 pushbroom:createblock -> $out/block.gpkg"
-qp pushbroom:createblock -- "${images[@]}" DEM="$out/scene/dsm.tif" OVERWRITE=true OUTPUT="$out/block.gpkg" | tail -n 3
-
-echo "== 3/7 pushbroom:matchpoints (HRG, HRS1, HRS2; automatic seeds)"
-qp pushbroom:matchpoints -- BLOCK="$out/block.gpkg" WORKERS=2 SUMMARY="$out/point_groups.csv" | tail -n 3
-
-echo "== 4/7 pushbroom:selecttiepoints (one per 100 x 100 px cell)"
-qp pushbroom:selecttiepoints -- BLOCK="$out/block.gpkg" | tail -n 2
-
-echo "== 5/7 pushbroom:importpoints (simulated points.csv: 19 control, the rest check)"
 check=$(tail -n +21 "$out/scene/points.csv" | cut -d, -f1 | paste -sd, -)
-qp pushbroom:importpoints -- BLOCK="$out/block.gpkg" INPUT="$out/scene/points.csv" MEAS_SUFFIX=_meas \
-  CHECK_IDS="$check" | grep -e '^points in the block'
 
-echo "== 6/7 pushbroom:bundleadjust (automatic parameter selection; reference: the true DTM) -> $out/adjustment.html"
-qp pushbroom:bundleadjust -- BLOCK="$out/block.gpkg" FREE=auto REFERENCE_DEM="$out/scene/dtm.tif" \
-  REPORT="$out/adjustment.html" RESIDUALS="$out/residuals.gpkg" > "$out/bundleadjust.log" \
-  || { cat "$out/bundleadjust.log"; exit 1; }
-grep -e '^selected' -e '^ *sigma_0 = ' "$out/bundleadjust.log" | tail -n 2
+echo "== 2/3 model Pushbroom pipeline ($repo/resources/models/pushbroom_pipeline.model3) -> $out (log: pipeline.log)"
+qp "$repo/resources/models/pushbroom_pipeline.model3" -- "${images[@]}" APPROX_DEM="$out/scene/dsm.tif" \
+  OVERWRITE=true POINTS="$out/scene/points.csv" CHECK_IDS="$check" MEAS_SUFFIX=_meas \
+  REFERENCE="$out/scene/dsm.tif" CLASS_RASTER="$out/scene/classes.tif" STEP=10 CELL=10 MAX_EDGE=150 \
+  IMAGE_NAME=HRG THREADS=2 \
+  createblock:block="$out/block.gpkg" matchpoints:groups="$out/point_groups.csv" \
+  bundleadjust:report="$out/adjustment.html" bundleadjust:residuals="$out/residuals.gpkg" \
+  intersectpoints:pointcloud="$out/points.las" interpolatedem:dem="$out/dem.tif" \
+  orthorectify:orthoimage="$out/orthoimage_HRG.tif" assessaccuracy:report="$out/report.html" \
+  assessaccuracy:table="$out/accuracy.csv" assessaccuracy:dh="$out/dh.tif" > "$out/pipeline.log" \
+  || { tail -n 60 "$out/pipeline.log"; exit 1; }
+grep -e '^Model processed' "$out/pipeline.log"
 
-echo "== 7/7 pushbroom:intersectpoints (mass points, adjusted models) -> $out/points.las"
-qp pushbroom:intersectpoints -- BLOCK="$out/block.gpkg" POINTS=0 OUTPUT="$out/points.las" | grep -e 'written to'
+echo "== 3/3 QGIS project -> $out/pushbroom_demo.qgz"
+.venv/bin/python scripts/make_demo_project.py "$out" 2>&1 | grep -v -e XDG_RUNTIME_DIR
 
 .venv/bin/python scripts/describe_demo.py "$out"
+echo -e "\nmake demo: $((SECONDS - start)) s"

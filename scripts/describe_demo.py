@@ -1,8 +1,9 @@
 """Print what `make demo` made: the simulated images with the measured error of their supplied
 and of their adjusted orientation (the block's models) against the truth, the stereo geometry,
-the block, the mass points per group, the accuracy of the group-3 points against the truth per
-land-cover class, and the bundle adjustment's tables (K Tables 2-4, from the pushbroom:bundleadjust
-log)."""
+the files, the mass points per group, the accuracy of the group-3 image points against the truth
+per land-cover class, and from the log of the pipeline model (pipeline.log): the bundle
+adjustment's tables (K Tables 2-4, check points) and the accuracy of the object points per point
+group and of the DEM against the true DSM (pushbroom:assessaccuracy)."""
 import csv
 import json
 import os
@@ -91,8 +92,14 @@ def group3_accuracy(out, step=10.0, margin=20.0):
     return table
 
 
-def report_tables(log, keys=("Adjustment", "K Table")):
-    """The sections of the bundleadjust log (adjustment/report.render_text: a title line ending in ':',
+#: titles of the log sections printed: the adjustment's, then the assessment's (algorithms/quality/report.py)
+ADJUSTMENT_SECTIONS = ("Adjustment", "Free orientation parameters", "Check points (K Table 3)",
+                       "Tie point heights against the reference")
+ACCURACY_SECTIONS = ("of the object points - reference: per point group", "of the DEM cells")
+
+
+def report_tables(log, keys):
+    """The sections of a Processing log (adjustment/report.render_text: a title line ending in ':',
     indented lines, a blank line) whose title holds one of `keys`."""
     sections, current = [], None
     for line in open(log).read().splitlines():
@@ -128,9 +135,16 @@ def main(out):
     for name in ("dsm.tif", "dtm.tif", "classes.tif", "orthoimage.tif", "points.csv", "truth/truth.json"):
         print(f"  {os.path.join(scene, name)}")
     print(f"  {blk} (images, sensor models, footprints, mass and tie point layers, control/check points)")
-    for name, what in (("adjustment.html", "bundle adjustment report"),
+    for name, what in (("pipeline.log", "log of the pipeline model run (qgis_process)"),
+                       ("adjustment.html", "bundle adjustment report"),
                        ("residuals.gpkg", "residual vectors of the control and check points"),
-                       ("points.las", "mass points intersected with the adjusted models")):
+                       ("points.las", "mass points intersected with the adjusted models"),
+                       ("dem.tif", "DEM interpolated from the point cloud"),
+                       ("orthoimage_HRG.tif", "orthoimage of HRG on the adjusted model and the DEM"),
+                       ("report.html", "accuracy of the point cloud and the DEM against the true DSM"),
+                       ("accuracy.csv", "the accuracy statistics as a table"),
+                       ("dh.tif", "dh of the DEM against the true DSM"),
+                       ("pushbroom_demo.qgz", "QGIS project with all layers styled")):
         if os.path.exists(os.path.join(out, name)):
             print(f"  {os.path.join(out, name)} ({what})")
     table = os.path.join(out, "point_groups.csv")
@@ -147,11 +161,14 @@ def main(out):
               f"{'coverage':>9}")
         for label, n1, rms1, big1, _, rms2, big2, cover in group3_accuracy(out):
             print(f"  {label:22} {n1:>7} {rms1:>12.3f} {big1:>6.2f}% {rms2:>12.3f} {big2:>6.2f}% {cover:>8.1f}%")
-    log = os.path.join(out, "bundleadjust.log")
+    log = os.path.join(out, "pipeline.log")
     if os.path.exists(log):
-        print("\nBundle adjustment (automatic parameter selection; check points: simulated reference coordinates; tie point "
-              "heights: the true DTM):")
-        for section in report_tables(log):
+        print("\nBundle adjustment (automatic parameter selection; check points: simulated reference coordinates; "
+              "tie point heights: the true DSM):")
+        for section in report_tables(log, ADJUSTMENT_SECTIONS):
+            print("\n" + "\n".join(section))
+        print("\nAccuracy of the point cloud and the DEM against the true DSM (pushbroom:assessaccuracy; report.html):")
+        for section in report_tables(log, ACCURACY_SECTIONS):
             print("\n" + "\n".join(section))
 
 

@@ -1,0 +1,179 @@
+"""Build resources/models/pushbroom_pipeline.model3, the whole chain as one graphical-modeler model.
+
+The .model3 file is the product (QGIS loads it in the graphical modeler, `qgis_process run <path>`
+runs it); this script is how it is made: edit here, then run
+
+    QT_QPA_PLATFORM=offscreen .venv/bin/python scripts/build_pipeline_model.py
+
+Model "Pushbroom pipeline" in group "Pushbroom": id `model:Pushbroom pipeline` once it is in a models
+folder (e.g. <profile>/processing/models; checked with `qgis_process list`); by path, without that:
+`qgis_process run resources/models/pushbroom_pipeline.model3 -- IMAGES=... createblock:block=...`
+(scripts/demo.sh).
+Steps, each a pushbroom algorithm, chained through their BLOCK outputs (which also orders them):
+createblock -> matchpoints -> selecttiepoints -> importpoints -> bundleadjust -> intersectpoints
+(mass points) -> interpolatedem -> orthorectify (IMAGE_NAME, adjusted model, produced DEM) and
+assessaccuracy (point cloud and DEM against REFERENCE, per class of CLASS_RASTER).
+
+Inputs: IMAGES, APPROX_DEM (optional; footprints and the matching height range, else HEIGHT),
+HEIGHT, OVERWRITE, POINTS (control/check point CSV), CHECK_IDS, MEAS_SUFFIX, REFERENCE (DEM for the
+tie point heights of the adjustment and the accuracy assessment), CLASS_RASTER (optional), STEP,
+CELL, MAX_EDGE (matching STEP 10 px gives points about 10 pixels apart: MAX_EDGE about 3 times that),
+IMAGE_NAME, THREADS. Outputs (QGIS 3.22 names a model output `<child id>:<output name>`):
+createblock:block, matchpoints:groups (CSV), bundleadjust:report, bundleadjust:residuals,
+intersectpoints:pointcloud, interpolatedem:dem, orthorectify:orthoimage, assessaccuracy:report,
+assessaccuracy:table (CSV), assessaccuracy:dh; outputs not given go to temporary files (optional
+ones are skipped).
+"""
+import pathlib
+import sys
+
+from qgis.core import (QgsApplication, QgsExpression, QgsProcessing, QgsProcessingModelAlgorithm,
+                       QgsProcessingModelChildAlgorithm, QgsProcessingModelChildParameterSource,
+                       QgsProcessingModelOutput, QgsProcessingModelParameter, QgsProcessingParameterBoolean,
+                       QgsProcessingParameterFile, QgsProcessingParameterMultipleLayers,
+                       QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer,
+                       QgsProcessingParameterString)
+from qgis.PyQt.QtCore import QPointF
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+MODEL = REPO / "resources" / "models" / "pushbroom_pipeline.model3"
+Number = QgsProcessingParameterNumber
+
+#: model inputs: (parameter, position in the modeler)
+INPUTS = [
+    QgsProcessingParameterMultipleLayers("IMAGES", "Images (with their orientation beside them)",
+                                         QgsProcessing.TypeRaster),
+    QgsProcessingParameterRasterLayer("APPROX_DEM", "Approximate DEM (footprints, matching height range; "
+                                      "ellipsoidal heights)", optional=True),
+    Number("HEIGHT", "Mean ellipsoidal terrain height when no approximate DEM is given (m)", Number.Double, 0.0),
+    QgsProcessingParameterBoolean("OVERWRITE", "Overwrite an existing block", False),
+    QgsProcessingParameterFile("POINTS", "Control and check points (CSV)",
+                               fileFilter="CSV files (*.csv *.txt);;All files (*.*)"),
+    QgsProcessingParameterString("CHECK_IDS", "Check point ids (comma-separated)", "", optional=True),
+    QgsProcessingParameterString("MEAS_SUFFIX", "Measurement column suffix ('_meas' for the simulator's "
+                                 "points.csv)", "", optional=True),
+    QgsProcessingParameterRasterLayer("REFERENCE", "Reference DEM (tie point heights, accuracy assessment; "
+                                      "ellipsoidal heights)"),
+    QgsProcessingParameterRasterLayer("CLASS_RASTER", "Class raster for the assessment", optional=True),
+    Number("STEP", "Matching: distance of the region-growing neighbours (px)", Number.Integer, 10, minValue=1),
+    Number("CELL", "DEM cell size (m)", Number.Double, 10.0, minValue=1e-6),
+    Number("MAX_EDGE", "DEM: maximum triangle edge (m; empty: 3 cells); longer triangles are gaps", Number.Double,
+           None, optional=True, minValue=0.0),
+    QgsProcessingParameterString("IMAGE_NAME", "Image to orthorectify (name in the block)", "HRG"),
+    Number("THREADS", "Threads (matching, orthorectification)", Number.Integer, 1, minValue=1),
+]
+
+#: child steps: (child id, algorithm id, {parameter: source}, {model output name: (description, child output)}),
+#: a source is ("model", name), ("child", child id, output) or ("static", value)
+STEPS = [
+    ("createblock", "pushbroom:createblock",
+     {"IMAGES": ("model", "IMAGES"), "DEM": ("model", "APPROX_DEM"), "HEIGHT": ("model", "HEIGHT"),
+      "OVERWRITE": ("model", "OVERWRITE")},
+     {"block": ("Block", "OUTPUT")}),
+    ("matchpoints", "pushbroom:matchpoints",
+     {"BLOCK": ("child", "createblock", "OUTPUT"), "WORKERS": ("model", "THREADS"),
+      "STEP": ("model", "STEP")},
+     {"groups": ("Mass points per group (CSV)", "SUMMARY")}),
+    ("selecttiepoints", "pushbroom:selecttiepoints", {"BLOCK": ("child", "matchpoints", "BLOCK")}, {}),
+    ("importpoints", "pushbroom:importpoints",
+     {"BLOCK": ("child", "selecttiepoints", "BLOCK"), "INPUT": ("model", "POINTS"),
+      "CHECK_IDS": ("model", "CHECK_IDS"), "MEAS_SUFFIX": ("model", "MEAS_SUFFIX")}, {}),
+    ("bundleadjust", "pushbroom:bundleadjust",
+     {"BLOCK": ("child", "importpoints", "BLOCK"), "FREE": ("static", "auto"),
+      "REFERENCE_DEM": ("model", "REFERENCE")},
+     {"report": ("Adjustment report", "REPORT"),
+      "residuals": ("Residual vectors of the control and check points", "RESIDUALS")}),
+    ("intersectpoints", "pushbroom:intersectpoints",
+     {"BLOCK": ("child", "bundleadjust", "BLOCK"), "POINTS": ("static", 0)},
+     {"pointcloud": ("Point cloud", "OUTPUT")}),
+    ("interpolatedem", "pushbroom:interpolatedem",
+     {"INPUT": ("child", "intersectpoints", "OUTPUT"), "CELL": ("model", "CELL"),
+      "MAX_EDGE": ("model", "MAX_EDGE")},
+     {"dem": ("DEM", "OUTPUT")}),
+    ("orthorectify", "pushbroom:orthorectify",
+     {"BLOCK": ("child", "bundleadjust", "BLOCK"), "IMAGE_NAME": ("model", "IMAGE_NAME"),
+      "DEM": ("child", "interpolatedem", "OUTPUT"), "THREADS": ("model", "THREADS")},
+     {"orthoimage": ("Orthoimage", "OUTPUT")}),
+    ("assessaccuracy", "pushbroom:assessaccuracy",
+     {"REFERENCE": ("model", "REFERENCE"), "POINTS": ("child", "intersectpoints", "OUTPUT"),
+      "DEM": ("child", "interpolatedem", "OUTPUT"), "CLASS_RASTER": ("model", "CLASS_RASTER")},
+     {"report": ("Accuracy report", "REPORT"), "table": ("Accuracy statistics (CSV)", "TABLE"),
+      "dh": ("dh raster of the DEM", "DH")}),
+]
+
+
+def source(spec, child_default=None):
+    """The child parameter source of `spec`. QGIS 3.22 hands an unset model input to the child as
+    unset (the child's own default applies, not the model input's): where the two defaults differ,
+    the source is the expression coalesce(@input, model default)."""
+    kind, *args = spec
+    if kind == "model":
+        default = next(p.defaultValue() for p in INPUTS if p.name() == args[0])
+        if default is not None and default != child_default:
+            return QgsProcessingModelChildParameterSource.fromExpression(
+                f"coalesce(@{args[0]}, {QgsExpression.quotedValue(default)})")
+        return QgsProcessingModelChildParameterSource.fromModelParameter(args[0])
+    if kind == "child":
+        return QgsProcessingModelChildParameterSource.fromChildOutput(*args)
+    return QgsProcessingModelChildParameterSource.fromStaticValue(args[0])
+
+
+def build():
+    """The model (needs a QgsApplication with the pushbroom provider registered, so that the
+    children's algorithms and their outputs resolve)."""
+    model = QgsProcessingModelAlgorithm("Pushbroom pipeline", "Pushbroom")
+    model.setHelpContent({"ALG_DESC": (
+        "The whole Pushbroom chain: block from the images and their orientation, region-growing matching, tie "
+        "point selection, control/check point import, bundle adjustment (automatic parameter selection), "
+        "intersection of the mass points, DEM (TIN, gaps at long triangles), orthoimage of one image on the adjusted model and the "
+        "produced DEM, and accuracy assessment of the point cloud and the DEM against a reference."),
+        "ALG_CREATOR": "Pushbroom (scripts/build_pipeline_model.py)"})
+    for k, parameter in enumerate(INPUTS):
+        component = QgsProcessingModelParameter(parameter.name())
+        component.setPosition(QPointF(120, 60 + 70 * k))
+        model.addModelParameter(parameter, component)
+    for k, (child_id, algorithm_id, sources, outputs) in enumerate(STEPS):
+        child = QgsProcessingModelChildAlgorithm(algorithm_id)
+        child.setChildId(child_id)
+        child.setDescription(QgsApplication.processingRegistry().algorithmById(algorithm_id).displayName())
+        child.setPosition(QPointF(520, 60 + 100 * k))
+        algorithm = QgsApplication.processingRegistry().algorithmById(algorithm_id)
+        for parameter in algorithm.parameterDefinitions():  # the rest at their defaults, as the modeler does
+            name = parameter.name()
+            if name in sources:
+                child.addParameterSources(name, [source(sources[name], parameter.defaultValue())])
+            elif not parameter.isDestination() and parameter.defaultValue() is not None:
+                child.addParameterSources(name, [source(("static", parameter.defaultValue()))])
+        model_outputs = {}
+        for name, (description, child_output) in outputs.items():
+            output = QgsProcessingModelOutput(name, description)
+            output.setChildId(child_id)
+            output.setChildOutputName(child_output)
+            output.setPosition(QPointF(900, 60 + 100 * k + 30 * len(model_outputs)))
+            model_outputs[name] = output
+        child.setModelOutputs(model_outputs)
+        model.addChildAlgorithm(child)
+    return model
+
+
+def main():
+    import pushbroom
+    from pushbroom.algorithms.atomic import atomic_path
+    app = QgsApplication([], False)
+    app.initQgis()
+    plugin = pushbroom.classFactory(None)
+    plugin.initProcessing()
+    model = build()
+    ok, problems = model.validate()
+    if not ok:
+        sys.exit("model invalid:\n" + "\n".join(problems))
+    MODEL.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(MODEL) as tmp:
+        if not model.toFile(str(tmp)):
+            sys.exit(f"cannot write {MODEL}")
+    print(f"{MODEL}: {len(STEPS)} steps; inputs " + ", ".join(p.name() for p in INPUTS) + "; outputs "
+          + ", ".join(d.name() for d in model.destinationParameterDefinitions()))
+
+
+if __name__ == "__main__":
+    main()

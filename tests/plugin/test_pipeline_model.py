@@ -1,0 +1,140 @@
+"""The graphical-modeler model resources/models/pushbroom_pipeline.model3: it is what
+scripts/build_pipeline_model.py builds, and it runs end to end through qgis_process on the small
+simulated triplet (5 control, 2 check points) with its results checked against the simulator's
+truth through GDAL."""
+import csv
+import importlib.util
+import pathlib
+
+import numpy as np
+import pytest
+from osgeo import gdal
+from qgis.core import QgsProcessingModelAlgorithm
+
+import pushbroom
+
+REPO = pathlib.Path(pushbroom.__file__).resolve().parent
+MODEL = REPO / "resources" / "models" / "pushbroom_pipeline.model3"
+STEPS = {"createblock", "matchpoints", "selecttiepoints", "importpoints", "bundleadjust", "intersectpoints",
+         "interpolatedem", "orthorectify", "assessaccuracy"}
+OUTPUTS = {"createblock:block": "block.gpkg", "bundleadjust:report": "adjustment.html",
+           "intersectpoints:pointcloud": "points.las", "interpolatedem:dem": "dem.tif",
+           "orthorectify:orthoimage": "ortho.tif", "assessaccuracy:report": "report.html",
+           "assessaccuracy:table": "accuracy.csv", "assessaccuracy:dh": "dh.tif"}
+
+
+def builder():
+    spec = importlib.util.spec_from_file_location("build_pipeline_model", REPO / "scripts" / "build_pipeline_model.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def load(path):
+    model = QgsProcessingModelAlgorithm()
+    assert model.fromFile(str(path)), path
+    return model
+
+
+def test_model_file_is_what_the_script_builds(pushbroom_provider, tmp_path):
+    model = load(MODEL)
+    assert (model.name(), model.group()) == ("Pushbroom pipeline", "Pushbroom")
+    assert set(model.childAlgorithms()) == STEPS
+    assert all(c.algorithmId() == f"pushbroom:{k}" for k, c in model.childAlgorithms().items())
+    ok, problems = model.validate()
+    assert ok, problems
+    assert {d.name() for d in model.destinationParameterDefinitions()} >= set(OUTPUTS)
+    assert builder().build().toFile(str(tmp_path / "built.model3"))
+    assert model.toVariant() == load(tmp_path / "built.model3").toVariant(), "run scripts/build_pipeline_model.py"
+
+
+def warped(path, like, resampling="bilinear"):
+    """`path` resampled by GDAL onto the grid of the raster `like` (nodata NaN)."""
+    ds = gdal.Open(str(like))
+    gt, cols, rows = ds.GetGeoTransform(), ds.RasterXSize, ds.RasterYSize
+    out = gdal.Warp("", str(path), format="MEM", dstSRS=ds.GetProjection(), outputType=gdal.GDT_Float32,
+                    outputBounds=(gt[0], gt[3] + rows * gt[5], gt[0] + cols * gt[1], gt[3]), width=cols, height=rows,
+                    resampleAlg=resampling, dstNodata=np.nan)
+    return out.ReadAsArray()
+
+
+def band(path):
+    """The first band as float, nodata NaN."""
+    ds = gdal.Open(str(path))
+    values = ds.GetRasterBand(1).ReadAsArray().astype(float)
+    values[values == ds.GetRasterBand(1).GetNoDataValue()] = np.nan
+    return values
+
+
+@pytest.fixture(scope="module")
+def pipeline(small_scene, qgis_process, tmp_path_factory):
+    """The model run once through qgis_process (by its path, as make demo runs it): (results, folder)."""
+    out = tmp_path_factory.mktemp("pipeline")
+    with open(small_scene["points"], newline="") as f:
+        ids = [r["id"] for r in csv.DictReader(f)]
+    images = [f"IMAGES={small_scene['images'][n]['imagery']}" for n in ("HRG", "HRS1", "HRS2")]
+    result = qgis_process("run", str(MODEL), "--", *images, "HEIGHT=300", f"POINTS={small_scene['points']}",
+                          f"CHECK_IDS={','.join(ids[5:])}", "MEAS_SUFFIX=_meas", f"REFERENCE={small_scene['dsm']}",
+                          f"CLASS_RASTER={small_scene['classes']}", "MAX_EDGE=150",
+                          *(f"{k}={out / v}" for k, v in OUTPUTS.items()))
+    return result["results"], out
+
+
+@pytest.mark.slow
+def test_pipeline_writes_every_output(pipeline):
+    results, out = pipeline
+    for key, name in OUTPUTS.items():
+        assert results[key] == str(out / name) and (out / name).stat().st_size > 0, key
+    for name in ("dem.tif", "ortho.tif", "dh.tif"):
+        ds = gdal.Open(str(out / name))
+        assert ds.GetRasterBand(1).GetBlockSize()[1] > 1 and ds.GetRasterBand(1).GetOverviewCount() > 0  # tiled
+        assert ds.GetRasterBand(1).GetNoDataValue() is not None
+        assert "UTM zone 16N" in ds.GetProjection()
+
+
+@pytest.mark.slow
+def test_pipeline_dem_against_the_true_dsm(pipeline, small_scene):
+    """The DEM against the true DSM resampled by GDAL; the dh raster of pushbroom:assessaccuracy
+    (reference averaged over the DEM cells) agrees with it."""
+    _, out = pipeline
+    dem = band(out / "dem.tif")
+    dh = dem - warped(small_scene["dsm"], out / "dem.tif")
+    defined = np.isfinite(dh)
+    print(f"DEM: {defined.mean():.1%} of the cells defined; median |dh| {np.median(np.abs(dh[defined])):.2f} m, "
+          f"median dh {np.median(dh[defined]):.2f} m")
+    assert defined.mean() > 0.25
+    assert np.median(np.abs(dh[defined])) < 4.0 and abs(np.median(dh[defined])) < 2.0
+    reported = band(out / "dh.tif")
+    both = defined & np.isfinite(reported)
+    assert both.sum() > 0.95 * defined.sum()
+    assert abs(np.median(reported[both]) - np.median(dh[both])) < 0.3
+
+
+@pytest.mark.slow
+def test_pipeline_orthoimage_matches_the_true_orthoimage(pipeline, small_scene):
+    """The HRG orthoimage against the simulator's true orthoimage resampled by GDAL onto its grid."""
+    _, out = pipeline
+    ortho = band(out / "ortho.tif")
+    truth = warped(small_scene["orthoimage"], out / "ortho.tif")
+    both = np.isfinite(ortho) & np.isfinite(truth)
+    r = np.corrcoef(ortho[both], truth[both])[0, 1]
+    print(f"orthoimage: {both.sum()} cells compared, correlation with the true orthoimage {r:.3f}")
+    assert both.sum() > 0.5 * np.isfinite(ortho).sum() and r > 0.8
+
+
+@pytest.mark.slow
+def test_pipeline_reports_hold_the_tables(pipeline):
+    _, out = pipeline
+    adjustment = (out / "adjustment.html").read_text()
+    assert "Check points (K Table 3)" in adjustment and "P006" in adjustment and "P007" in adjustment
+    report = (out / "report.html").read_text()
+    for title in ("dh [m] of the object points - reference: per point group", "dh [m] of the DEM cells - reference: "
+                  "per class", "nested classes (Z Tables 2-3)"):
+        assert title in report, title
+    with open(out / "accuracy.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    dem_all = [r for r in rows if r["data"] == "DEM cells" and r["table"].startswith("all")]
+    dem = band(out / "dem.tif")
+    assert len(dem_all) == 1 and 0 < int(dem_all[0]["n"]) <= np.isfinite(dem).sum()
+    classes = {r["label"] for r in rows if r["table"] == "per class"}
+    assert {"bare fields", "forest"} <= classes
