@@ -1,4 +1,4 @@
-"""Delaunay TIN of a point cloud (scipy.spatial, i.e. qhull, the triangulation gdal_grid uses too),
+"""Delaunay TIN of a point cloud (delaunay.py's sweep-hull, qhull through scipy.spatial as the fallback),
 breaklines as conforming constraints, the blunder filter against the TIN neighbours and the
 longest edge of each triangle (for the gap rule).
 
@@ -17,6 +17,7 @@ from numba import njit
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from ..errors import InputError
+from .delaunay import triangulate
 
 #: normal distribution's sigma / median absolute deviation
 NMAD_SCALE = 1.4826
@@ -26,14 +27,18 @@ MIN_SIGMA = 0.05
 
 
 def delaunay(x, y):
-    """scipy Delaunay of (x, y) (shifted to their mean for qhull's precision); InputError for fewer
-    than 3 points or points on one line."""
+    """Delaunay triangulation of (x, y) (shifted to their mean for precision): the numba sweep-hull of
+    delaunay.py, or scipy's (qhull) where that fails its validity check; InputError for fewer than 3 points or
+    points on one line. Both results have `simplices` and `vertex_neighbor_vertices`."""
     if len(x) < 3:
         raise InputError(f"a TIN needs at least 3 points, the point cloud has {len(x)}: check the input "
                          "(an empty or almost empty point cloud, or every point filtered out)")
-    xy = np.column_stack([x - np.mean(x), y - np.mean(y)])
+    x, y = x - np.mean(x), y - np.mean(y)
+    tin = triangulate(x, y)
+    if tin is not None:
+        return tin
     try:
-        return Delaunay(xy)
+        return Delaunay(np.column_stack([x, y]))
     except (QhullError, ValueError) as exc:
         raise InputError(f"the {len(x)} points cannot be triangulated (all on one line, or not finite): "
                          f"{str(exc).splitlines()[0]}") from None
@@ -142,7 +147,7 @@ def local_maxima(indptr, indices, score, candidate, out):
 
 
 def filter_blunders(tin, x, y, z, k=4.0, iterations=3, fixed=None):
-    """Points of `tin` (scipy Delaunay of (x, y)) whose height departs from the plane fitted to their TIN
+    """Points of `tin` (`delaunay(x, y)`) whose height departs from the plane fitted to their TIN
     neighbours by more than k robust sigmas: |r - median(r)| > k * max(1.4826 * median(|r - median(r)|),
     MIN_SIGMA) over the tested points, r = neighbour_residuals. Of neighbouring candidates only the
     largest |r| goes per iteration; each iteration recomputes r and the sigma without the points
