@@ -17,7 +17,7 @@ assessaccuracy (point cloud and DEM against REFERENCE, per class of CLASS_RASTER
 Inputs: IMAGES, APPROX_DEM (optional; footprints and the matching height range, else HEIGHT),
 HEIGHT, OVERWRITE, POINTS (control/check point CSV), CHECK_IDS, MEAS_SUFFIX, REFERENCE (DEM for the
 tie point heights of the adjustment and the accuracy assessment), CLASS_RASTER (optional), STEP,
-CELL, MAX_EDGE (matching STEP 10 px gives points about 10 pixels apart: MAX_EDGE about 3 times that),
+CELL, MAX_EDGE (optional; default: 3 cells or 2.5 point spacings, whichever is larger),
 IMAGE_NAME, THREADS. Outputs (QGIS 3.22 names a model output `<child id>:<output name>`):
 createblock:block, matchpoints:groups (CSV), bundleadjust:report, bundleadjust:residuals,
 intersectpoints:pointcloud, interpolatedem:dem, orthorectify:orthoimage, assessaccuracy:report,
@@ -57,8 +57,8 @@ INPUTS = [
     QgsProcessingParameterRasterLayer("CLASS_RASTER", "Class raster for the assessment", optional=True),
     Number("STEP", "Matching: distance of the region-growing neighbours (px)", Number.Integer, 10, minValue=1),
     Number("CELL", "DEM cell size (m)", Number.Double, 10.0, minValue=1e-6),
-    Number("MAX_EDGE", "DEM: maximum triangle edge (m; empty: 3 cells); longer triangles are gaps", Number.Double,
-           None, optional=True, minValue=0.0),
+    Number("MAX_EDGE", "DEM: maximum triangle edge (m; empty: 3 cells or 2.5 point spacings); longer triangles "
+           "are gaps", Number.Double, None, optional=True, minValue=0.0),
     QgsProcessingParameterString("IMAGE_NAME", "Image to orthorectify (name in the block)", "HRG"),
     Number("THREADS", "Threads (matching, orthorectification)", Number.Integer, 1, minValue=1),
 ]
@@ -125,8 +125,9 @@ def build():
     model.setHelpContent({"ALG_DESC": (
         "The whole Pushbroom chain: block from the images and their orientation, region-growing matching, tie "
         "point selection, control/check point import, bundle adjustment (automatic parameter selection), "
-        "intersection of the mass points, DEM (TIN, gaps at long triangles), orthoimage of one image on the adjusted model and the "
-        "produced DEM, and accuracy assessment of the point cloud and the DEM against a reference."),
+        "intersection of the mass points, DEM (TIN, gaps at long triangles), orthoimage of one image on the "
+        "adjusted model and the produced DEM, and accuracy assessment of the point cloud and the DEM against a "
+        "reference."),
         "ALG_CREATOR": "Pushbroom (scripts/build_pipeline_model.py)"})
     for k, parameter in enumerate(INPUTS):
         component = QgsProcessingModelParameter(parameter.name())

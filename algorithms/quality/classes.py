@@ -23,14 +23,15 @@ def slope_classes(slope, threshold):
 
 
 class ClassRaster:
-    """Integer classes of a raster; `names` {value: name}."""
+    """Integer classes of a raster; `names` {value: name}. The file is opened per use: no GDAL
+    dataset outlives a call (one freed after QGIS has exited crashes the interpreter)."""
 
     def __init__(self, path):
         self.path = str(path)
-        self.ds = open_raster(path, "class raster")
-        band = self.ds.GetRasterBand(1)
+        ds = self._open()
+        band = ds.GetRasterBand(1)
         self.nodata = band.GetNoDataValue()
-        meta = self.ds.GetMetadata() or {}
+        meta = ds.GetMetadata() or {}
         values = np.unique(band.ReadAsArray())
         categories = band.GetCategoryNames() or []
         self.names = {}
@@ -41,23 +42,28 @@ class ClassRaster:
             name = meta.get(f"CLASS_{v}") or (categories[v] if v < len(categories) and categories[v] else None)
             self.names[v] = name or f"class {v}"
 
+    def _open(self):
+        return open_raster(self.path, "class raster")
+
     def at_points(self, x, y, srs):
         """Class of the cell holding each point (x, y in `srs`); NO_CLASS outside or on nodata."""
-        xr, yr = reproject(x, y, srs, raster_srs(self.ds))
-        x0, dx, _, y0, _, dy = self.ds.GetGeoTransform()
+        ds = self._open()
+        xr, yr = reproject(x, y, srs, raster_srs(ds))
+        x0, dx, _, y0, _, dy = ds.GetGeoTransform()
         c, r = np.floor((xr - x0) / dx), np.floor((yr - y0) / dy)
-        inside = (c >= 0) & (r >= 0) & (c < self.ds.RasterXSize) & (r < self.ds.RasterYSize)
+        inside = (c >= 0) & (r >= 0) & (c < ds.RasterXSize) & (r < ds.RasterYSize)
         out = np.full(len(xr), NO_CLASS, np.int64)
-        values = self.ds.GetRasterBand(1).ReadAsArray()
+        values = ds.GetRasterBand(1).ReadAsArray()
         out[inside] = values[r[inside].astype(int), c[inside].astype(int)]
         return self._clean(out)
 
     def on_grid(self, grid):
         """Classes on `grid`'s cells: the most frequent class of the cells inside (gdalwarp mode) where the
         class raster is finer, else the class at the cell (nearest)."""
-        own = cell_metres(self.ds.GetGeoTransform(), raster_srs(self.ds), self.ds.RasterYSize)
+        ds = self._open()
+        own = cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize)
         finer = np.prod(own) < np.prod(grid.cell_metres())
-        values = warp_to(self.ds, grid, "mode" if finer else "near")
+        values = warp_to(ds, grid, "mode" if finer else "near")
         return self._clean(np.nan_to_num(values, nan=NO_CLASS).astype(np.int64))
 
     def _clean(self, labels):

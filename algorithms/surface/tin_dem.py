@@ -51,10 +51,26 @@ def _cell_lonlat(grid, srs, mask):
     return ll[:, 0], ll[:, 1]
 
 
+#: default maximum triangle edge in point spacings: bridges one missing point of a matching lattice
+#: (edges 2 to 2.24 spacings), not two
+EDGE_SPACINGS = 2.5
+#: points sampled for the point spacing
+SPACING_SAMPLE = 10_000
+
+
+def default_max_edge(x, y, cell):
+    """max(3 cells, EDGE_SPACINGS x the median nearest-neighbour distance of the points): gaps where
+    a triangle spans more than one missing point, never finer than the grid can show."""
+    tree = cKDTree(np.column_stack([x, y]))
+    sample = np.linspace(0, len(x) - 1, min(len(x), SPACING_SAMPLE)).astype(int)
+    spacing = float(np.median(tree.query(np.column_stack([x[sample], y[sample]]), k=2)[0][:, 1]))
+    return max(3.0 * cell, EDGE_SPACINGS * spacing)
+
+
 def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=None, k=4.0, iterations=3,
                     breaklines=(), breakline_srs=None, precision=False, feedback=None):
     """DemResult of a PointSet (point_input.py; z ellipsoidal). `crs`: output CRS (default: the UTM
-    zone of the points); `max_edge`: triangles with a longer edge are gaps (default 3 x cell);
+    zone of the points); `max_edge`: triangles with a longer edge are gaps (default `default_max_edge`);
     `k`: blunder threshold in robust sigmas (0: no filter), `iterations` of the filter; `breaklines`:
     (n, 3) arrays (x, y in `breakline_srs`, default the output CRS; z as the points');
     `datum`: 'ellipsoidal' or 'egm96' (H = h - N)."""
@@ -74,7 +90,7 @@ def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=N
     pts = points.to(target)
     x, y, z = pts.x[finite], pts.y[finite], pts.z[finite]
     sigma = pts.sigma_h[finite] if pts.sigma_h is not None else None
-    max_edge = 3.0 * cell if max_edge is None else float(max_edge)
+    max_edge = default_max_edge(x, y, cell) if max_edge is None else float(max_edge)
     grid = Grid.covering(x, y, cell)
     if breakline_srs is not None:
         breaklines = [np.column_stack([transform(breakline_srs, target, b[:, :2], "the breaklines")[:, :2],

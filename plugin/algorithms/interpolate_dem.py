@@ -41,8 +41,8 @@ class InterpolateDem(PushbroomAlgorithm):
         self.addParameter(Number("CELL", "Cell size (output CRS units)", Number.Double, 10.0, minValue=1e-6))
         self.addParameter(QgsProcessingParameterEnum("DATUM", "Height datum", [t for _, t in DATUMS], defaultValue=0))
         self.addAdvancedParameters([
-            Number("MAX_EDGE", "Maximum triangle edge (empty: 3 cells); longer triangles are gaps", Number.Double,
-                   None, optional=True, minValue=0.0),
+            Number("MAX_EDGE", "Maximum triangle edge (empty: 3 cells or 2.5 point spacings); longer triangles "
+                   "are gaps", Number.Double, None, optional=True, minValue=0.0),
             Number("BLUNDER_K", "Blunder threshold k (robust sigmas; 0: no filter)", Number.Double, 4.0, minValue=0.0),
             Number("ITERATIONS", "Blunder filter iterations", Number.Integer, 3, minValue=1),
         ])

@@ -7,18 +7,17 @@ import pytest
 from osgeo import gdal
 from scipy import ndimage
 
+from ortho_oracle import geometric_error
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import egm96_undulation, srs
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import metres_per_degree
-from pushbroom.algorithms.matching import lsm
 from pushbroom.algorithms.ortho import OutputGrid, default_grid, load_dem, orthorectify
 from pushbroom.algorithms.ortho.mapping import TileMapper
 from pushbroom.algorithms.ortho.occlusion import occluded, ray_direction
 from pushbroom.algorithms.ortho.resampling import BICUBIC, BILINEAR, resample_kernel
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
-from pushbroom.algorithms.simulation.terrain import BARE, CROPS
 
 
 @pytest.fixture(scope="module")
@@ -29,20 +28,6 @@ def scene(small_scene):
             "image": small_scene["images"]["HRG"]["imagery"],
             # the true orthoimage's own grid (EPSG:4326, 5 m cells)
             "grid": OutputGrid(srs(4326), truth.GetGeoTransform(), truth.RasterXSize, truth.RasterYSize)}
-
-
-def geometric_error(paths, ortho_path, classes=(BARE, CROPS)):
-    """(shifts (n, 2) in output cells, n) of LSM of the orthoimage against the true orthoimage on a 15-cell
-    lattice of accepted patches of `classes`."""
-    truth = gdal.Open(paths["orthoimage"]).ReadAsArray().astype(np.float32)
-    ours = gdal.Open(ortho_path).ReadAsArray().astype(np.float32)
-    land = gdal.Open(paths["classes"]).ReadAsArray()
-    i, j = (a.ravel() for a in np.mgrid[20:truth.shape[0] - 20:15, 20:truth.shape[1] - 20:15])
-    keep = (ours[i, j] > 0) & np.isin(land[i, j], classes)
-    x, y = j[keep] + 0.5, i[keep] + 0.5
-    records, status = lsm.match_points(truth, ours, x, y, x, y)
-    ok = lsm.accepted(records, status)
-    return np.column_stack([records["x2"][ok] - x[ok], records["y2"][ok] - y[ok]])
 
 
 @pytest.mark.parametrize("method", ["bilinear", "bicubic"])

@@ -219,3 +219,13 @@ def test_bad_input_and_cancel(tmp_path):
     with pytest.raises(CancelledError):
         tin_dem.write_dem(result, tmp_path / "dem.tif", feedback=CancelAtWrite())
     assert not list(tmp_path.iterdir())
+
+
+def test_default_maximum_edge_follows_the_point_spacing():
+    """A 50 m matching lattice with one point missing: the default bridges that hole (edges up to
+    2.24 spacings) but not a hole of two; at 10 m cells the spacing rules, at 100 m the 3 cells."""
+    from pushbroom.algorithms.surface.tin_dem import default_max_edge
+    gx, gy = (v.ravel().astype(float) for v in np.meshgrid(np.arange(20) * 50.0, np.arange(20) * 50.0))
+    assert default_max_edge(gx, gy, 10.0) == pytest.approx(125.0)
+    assert default_max_edge(gx, gy, 100.0) == pytest.approx(300.0)
+    assert 2.24 * 50.0 < default_max_edge(gx, gy, 10.0) < 3.0 * 50.0

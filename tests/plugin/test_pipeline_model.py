@@ -75,7 +75,7 @@ def pipeline(small_scene, qgis_process, tmp_path_factory):
     images = [f"IMAGES={small_scene['images'][n]['imagery']}" for n in ("HRG", "HRS1", "HRS2")]
     result = qgis_process("run", str(MODEL), "--", *images, "HEIGHT=300", f"POINTS={small_scene['points']}",
                           f"CHECK_IDS={','.join(ids[5:])}", "MEAS_SUFFIX=_meas", f"REFERENCE={small_scene['dsm']}",
-                          f"CLASS_RASTER={small_scene['classes']}", "MAX_EDGE=150",
+                          f"CLASS_RASTER={small_scene['classes']}",
                           *(f"{k}={out / v}" for k, v in OUTPUTS.items()))
     return result["results"], out
 
