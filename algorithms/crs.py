@@ -49,6 +49,15 @@ def transform(source, target, xyz, what):
     return np.array(ct.TransformPoints(xyz.tolist()), float).reshape(len(xyz), -1)
 
 
+def reproject(x, y, source, target, what="the points"):
+    """(x, y) in `target` of points (x, y: 1-D arrays) in `source` (`transform`; the arrays as float where
+    the CRSs are the same)."""
+    if source.IsSame(target):
+        return np.asarray(x, float), np.asarray(y, float)
+    xy = transform(source, target, np.column_stack([x, y]), what)
+    return xy[:, 0], xy[:, 1]
+
+
 def egm96_undulation(lon, lat):
     """EGM96 geoid undulation N (m; h = H + N) at WGS 84 lon/lat (degrees, arrays of one shape):
     PROJ's EPSG:4326+5773 -> EPSG:4979 with its EGM96 grid. Raises InputError without the grid."""

@@ -136,9 +136,9 @@ def build():
     for k, (child_id, algorithm_id, sources, outputs) in enumerate(STEPS):
         child = QgsProcessingModelChildAlgorithm(algorithm_id)
         child.setChildId(child_id)
-        child.setDescription(QgsApplication.processingRegistry().algorithmById(algorithm_id).displayName())
-        child.setPosition(QPointF(520, 60 + 100 * k))
         algorithm = QgsApplication.processingRegistry().algorithmById(algorithm_id)
+        child.setDescription(algorithm.displayName())
+        child.setPosition(QPointF(520, 60 + 100 * k))
         for parameter in algorithm.parameterDefinitions():  # the rest at their defaults, as the modeler does
             name = parameter.name()
             if name in sources:

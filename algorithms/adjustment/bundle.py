@@ -29,6 +29,7 @@ from ..geodesy import metres_per_degree, offset_enu
 from ..surface.intersection import intersect
 from . import normals
 from .observations import Observations
+from .parameters import OrientationParameters
 
 CRITICAL_W = 3.29
 #: an eigenvalue of the correlation-scaled reduced normal matrix below this is a defect: that
@@ -227,7 +228,6 @@ def adjust(models, observations, free, names=None, height=0.0, max_iterations=15
     see find_defects (selection.py tests weaker parameters on their significance). Returns an
     Adjustment; raises InputError on too few observations or undeterminable parameters (named),
     CancelledError when cancelled."""
-    from .parameters import OrientationParameters
     obs = observations.check()
     params = OrientationParameters(models, names, model, orientation_images)
     mask = np.asarray(free, bool) if np.asarray(free).dtype == bool else params.select(free)
@@ -408,13 +408,19 @@ def check_points(adjustment, observations, height=0.0):
             "dH": h - pts["h"], "sigma": np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + np.nan_to_num(ground) ** 2)}
 
 
-def statistics_table(values):
-    """{name: (n, min, mean, max, RMS, sigma)} of each array in `values` (K Table 3's columns)."""
-    table = {}
-    for key, v in values.items():
-        v = np.asarray(v, float)
-        v = v[np.isfinite(v)]
-        table[key] = (v.size, *(
-            (float(v.min()), float(v.mean()), float(v.max()), float(np.sqrt(np.mean(v * v))),
-             float(v.std(ddof=1)) if v.size > 1 else float("nan")) if v.size else (float("nan"),) * 5))
-    return table
+class Restart:
+    """Repeated adjustments of one block, each from the orientation the models had when this was
+    made (the supplied one), so fixed parameters and priors keep their meaning: the variance
+    components and the parameter selection. `observations` is the default set; `count` the runs."""
+
+    def __init__(self, models, observations, names=None, feedback=None, **adjust_kwargs):
+        self.base = OrientationParameters(models, names)
+        self.models, self.observations, self.names = models, observations, names
+        self.feedback, self.kwargs = feedback, adjust_kwargs
+        self.count = 0
+
+    def __call__(self, free, observations=None):
+        self.base.apply(np.zeros(len(self.base)))
+        self.count += 1
+        return adjust(self.models, self.observations if observations is None else observations, list(free),
+                      names=self.names, feedback=progress.quiet(self.feedback), **self.kwargs)

@@ -34,7 +34,7 @@ import numpy as np
 from osgeo import ogr
 
 from .. import block, progress
-from ..crs import egm96_undulation, srs as parse_crs, transform, wgs84
+from ..crs import egm96_undulation, reproject, srs as parse_crs, wgs84
 from ..atomic import write_text
 from ..errors import InputError
 from .observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
@@ -64,11 +64,7 @@ def to_wgs84(x, y, definition):
     source = parse_crs(definition)
     if source.IsCompound() or source.IsVertical():
         raise InputError("give the horizontal CRS of x/y only and choose the height type with the heights option")
-    target = wgs84()
-    if source.IsSame(target):
-        return np.asarray(x, float), np.asarray(y, float)
-    out = transform(source, target, np.column_stack([x, y]), "the x/y coordinates")
-    return out[:, 0], out[:, 1]
+    return reproject(x, y, source, wgs84(), "the x/y coordinates")
 
 
 class _Table:

@@ -17,7 +17,8 @@ import numpy as np
 from .. import progress
 from ..errors import InputError
 from ..geodesy import metres_per_degree
-from .bundle import adjust, check_points, statistics_table
+from ..stats import statistics_table
+from .bundle import adjust, check_points
 
 
 @dataclass
@@ -81,13 +82,3 @@ def control_point_series(models, observations, counts, free, names=None, height=
                               sigma0=result.sigma0, redundancy=result.redundancy))
     progress.step(feedback, 100.0)
     return rows
-
-
-def series_table(rows):
-    """The rows as text in the form of H Table 1: control points, check points, RMS E/N/H of the
-    check points, the theoretical RMS and sigma_0."""
-    lines = ["control  check   RMS dE   RMS dN   RMS dH   theor. E/N/H (m)     sigma_0",
-             *(f"{len(r.control):7d} {r.check:6d} {r.rms[0]:8.2f} {r.rms[1]:8.2f} {r.rms[2]:8.2f}   "
-               f"{r.theoretical[0]:5.2f} {r.theoretical[1]:5.2f} {r.theoretical[2]:5.2f}   {r.sigma0:9.3f}"
-               for r in rows)]
-    return "\n".join(lines)

@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..atomic import write_text
-from .bundle import CRITICAL_W, statistics_table
+from ..stats import statistics_table
+from .bundle import CRITICAL_W
 from .parameters import UNITS
 
 STATISTICS = ("n", "min", "mean", "max", "RMS", "sigma")

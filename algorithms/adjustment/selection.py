@@ -33,8 +33,8 @@ import numpy as np
 
 from .. import progress
 from ..errors import InputError
-from .bundle import DefectError, adjust
-from .parameters import EXTERIOR, LOOK, OrientationParameters
+from .bundle import DefectError, Restart
+from .parameters import EXTERIOR, LOOK
 from .variance import estimate
 
 #: eigenvalue threshold of the defect test while selecting (bundle.find_defects): only numerically
@@ -124,23 +124,6 @@ def _fix_key(params, name):
     return (-p.degree, FIX_ORDER.index(p.kind) if p.kind in FIX_ORDER else len(FIX_ORDER))
 
 
-class _Run:
-    """Adjusts the block from the supplied orientation with a given free set."""
-
-    def __init__(self, models, observations, names, height, feedback, kwargs):
-        self.base = OrientationParameters(models, names)
-        self.models, self.obs, self.names, self.height = models, observations, names, height
-        self.feedback, self.kwargs = feedback, kwargs
-        self.count = 0
-
-    def __call__(self, free, obs=None):
-        self.base.apply(np.zeros(len(self.base)))
-        self.count += 1
-        return adjust(self.models, self.obs if obs is None else obs, list(free), names=self.names, height=self.height,
-                      defect_eigenvalue=SELECTION_DEFECT_EIGENVALUE, feedback=progress.quiet(self.feedback),
-                      **self.kwargs)
-
-
 def _solvable(run, free, fixable, log, what):
     """Adjust with `free`, fixing members of `fixable` that defects name until the block solves."""
     free = list(free)
@@ -207,7 +190,8 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
         lines.append(text)
         fb.pushInfo(text)
 
-    run = _Run(models, observations, names, height, feedback, adjust_kwargs)
+    run = Restart(models, observations, names, feedback, height=height,
+                  defect_eigenvalue=SELECTION_DEFECT_EIGENVALUE, **adjust_kwargs)
     params = run.base
     look = [p.name for p in params.parameters
             if (p.kind in LOOK and p.degree <= look_degree) or p.kind not in LOOK + EXTERIOR]
@@ -216,7 +200,7 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
     result, free = _solvable(run, look, set(look), log, "step 1")
     components = []
     if variance_components:
-        result, run.obs, components = estimate(lambda o: run(free, o), run.obs, log=log)
+        result, run.observations, components = estimate(lambda o: run(free, o), run.observations, log=log)
         log("a posteriori sigmas used from here on: " + ", ".join(f"{c.group} {c.sigma:.3g}" for c in components
                                                                   if np.isfinite(c.sigma)))
     progress.step(feedback, 10)
@@ -245,4 +229,4 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
     result = run(free)          # the models carry the last trial's solution: adjust the chosen set again
     progress.step(feedback, 100)
     log(f"selected {len(free)} free coefficient(s) in {run.count} adjustments: {', '.join(free) or 'none'}")
-    return Selection(result, free, run.obs, components, lines)
+    return Selection(result, free, run.observations, components, lines)

@@ -14,9 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import progress
-from .bundle import adjust
+from .bundle import Restart
 from .observations import Observations
-from .parameters import OrientationParameters
 
 GROUPS = ("tie image", "control image", "control ground")
 #: a group needs at least this redundancy for its factor to be estimated (else it keeps its sigmas)
@@ -100,13 +99,8 @@ def adjust_with_components(models, observations, free, names=None, feedback=None
     """bundle.adjust with variance component estimation: each round starts again from the models'
     current orientation (so priors and fixed parameters keep their meaning). Returns (Adjustment,
     the rescaled observations, [Component]); the models carry the last solution."""
-    base = OrientationParameters(models, names)
-    log = progress.ensure(feedback).pushInfo
-
-    def run(obs):
-        base.apply(np.zeros(len(base)))
-        return adjust(models, obs, free, names=names, feedback=progress.quiet(feedback), **kwargs)
-    return estimate(run, observations, log=log)
+    run = Restart(models, observations, names, feedback, **kwargs)
+    return estimate(lambda obs: run(free, obs), observations, log=progress.ensure(feedback).pushInfo)
 
 
 def _group_sigma(obs, group):

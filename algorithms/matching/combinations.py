@@ -24,12 +24,12 @@ import numpy as np
 
 from .. import progress
 from ..errors import InputError
+from ..stats import NMAD_SCALE
 from .consistency import invert_affine
 from .params import GrowParams
 from .points import COMB_A, COMB_B, COMB_C, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .records import PAIR_DTYPE
 
-MAD_TO_SIGMA = 1.4826
 
 
 def robust_sigma(d, min_sigma=0.0):
@@ -37,7 +37,7 @@ def robust_sigma(d, min_sigma=0.0):
     d = np.asarray(d, float)
     if d.size == 0:
         return float(min_sigma)
-    return max(MAD_TO_SIGMA * float(np.median(np.abs(d))), float(min_sigma))
+    return max(NMAD_SCALE * float(np.median(np.abs(d))), float(min_sigma))
 
 
 def _link(src, n_target):
@@ -233,13 +233,12 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
     grown = None
     if grow_second:
         progress.step(feedback, share[1], f"combination (b): {names[0]} - {names[2]}, region growing")
-        grown = np.asarray(match_pair(images[0], images[2], models[0], models[2], params=params,
-                                      height_range=height_range, seeds=seeds(2), automatic=automatic,
-                                      feedback=progress.scaled(feedback, share[1], share[2]), workers=workers), PAIR_DTYPE)
+        grown = match_pair(images[0], images[2], models[0], models[2], params=params, height_range=height_range,
+                           seeds=seeds(2), automatic=automatic, feedback=progress.scaled(feedback, share[1], share[2]),
+                           workers=workers)
     progress.step(feedback, share[2], f"combination (b): {names[0]} - {names[2]}, {len(a)} transfer points")
     bt, ok = transfer_points(images[0], images[2], models[0], models[2], a["x1"], a["y1"], params, height_range,
                              guide=grown if grown is not None and len(grown) else None)
-    bt, ok = np.asarray(bt, PAIR_DTYPE), np.asarray(ok, bool)
     b, b_src = bt[ok], np.flatnonzero(ok)
     b["x1"], b["y1"] = a["x1"][b_src], a["y1"][b_src]        # transfer points keep image 0 exactly
     log.pushInfo(f"(b) {names[0]} - {names[2]}: {len(b)} of {len(a)} transfer points matched")
@@ -252,7 +251,6 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
     guide = compose_guide(a, b, b_src)
     ct, ok = transfer_points(images[2], images[1], models[2], models[1], b["x2"], b["y2"], params, height_range,
                              guide=guide if len(guide) else None)
-    ct, ok = np.asarray(ct, PAIR_DTYPE), np.asarray(ok, bool)
     c, c_src = ct[ok], np.flatnonzero(ok)
     c["x1"], c["y1"] = b["x2"][c_src], b["y2"][c_src]
     log.pushInfo(f"(c) {names[2]} - {names[1]}: {len(c)} of {len(b)} transfer points matched")

@@ -21,6 +21,7 @@ from ..atomic import atomic_path
 from ..crs import egm96_undulation
 from ..dem import Dem
 from ..errors import CancelledError, InputError
+from ..surface.geotiff import overview_levels
 from . import occlusion, resampling
 from .grid import default_grid
 from .mapping import START_STEP, TileMapper
@@ -138,14 +139,6 @@ def _create(path, grid, bands, gdal_type, nodata):
     return ds
 
 
-def _overview_factors(grid):
-    factors, f = [], 2
-    while max(grid.cols, grid.rows) / f >= 128:
-        factors.append(f)
-        f *= 2
-    return factors
-
-
 def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None, resampling_method="bilinear",
                  occlusion_mask=False, max_error=0.01, start_step=START_STEP, tile=TILE, threads=1, overviews=True,
                  feedback=None):
@@ -194,9 +187,10 @@ def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None,
                     future.cancel()
                 out = None
                 raise
-        if overviews and _overview_factors(grid):
+        levels = overview_levels((grid.rows, grid.cols)) if overviews else []
+        if levels:
             progress.step(feedback, 90, "building overviews")
-            out.BuildOverviews("AVERAGE", _overview_factors(grid))
+            out.BuildOverviews("AVERAGE", levels)
         out = None
     result = OrthoResult(str(output), grid, bound, steps, cells, hidden, time.perf_counter() - start)
     progress.step(feedback, 100, result.summary())

@@ -6,9 +6,9 @@ import numpy as np
 from matplotlib.path import Path
 from osgeo import ogr
 
-from ..crs import srs as parse_crs
+from ..crs import reproject, srs as parse_crs
 from ..errors import InputError
-from .rasters import cell_metres, open_raster, raster_srs, reproject, warp_to
+from .rasters import cell_metres, open_raster, raster_srs, warp_to
 
 NO_CLASS = 0
 FLAT, MOUNTAINOUS = 1, 2

@@ -11,17 +11,15 @@ vs mountainous) is the reference's (rasters.slope_degrees): at the points, or on
 from dataclasses import dataclass, field
 
 import numpy as np
-from osgeo import gdal
 
 from .. import progress
 from ..adjustment.control_points import HEIGHT_TYPES, orthometric_to_ellipsoidal
+from ..crs import reproject, wgs84
 from ..dem import Dem
 from ..errors import InputError
 from ..surface.geotiff import write_float_raster
 from ..surface.point_input import read_points
-from .rasters import Grid, cell_metres, open_raster, raster_srs, read_grid, read_window, reproject, slope_degrees, \
-    to_wgs84, warp_to
-
+from .rasters import Grid, cell_metres, open_raster, raster_srs, read_grid, read_window, slope_degrees, warp_to
 
 
 @dataclass
@@ -51,7 +49,7 @@ def _ellipsoidal(h, x, y, srs, datum):
     h = np.array(h, float)
     ok = np.isfinite(h)
     if datum == "orthometric" and ok.any():
-        lon, lat = to_wgs84(x[ok], y[ok], srs)
+        lon, lat = reproject(x[ok], y[ok], srs, wgs84())
         h[ok] = orthometric_to_ellipsoidal(lon, lat, h[ok])
     return h
 

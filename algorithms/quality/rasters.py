@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from osgeo import gdal, osr
 
-from ..crs import srs as parse_crs, transform, wgs84
+from ..crs import srs as parse_crs
 from ..errors import InputError
 from ..geodesy import metres_per_degree
 
@@ -109,20 +109,6 @@ def warp_to(ds, grid, resampling):
                     outputType=gdal.GDT_Float64, srcNodata=nodata, dstNodata=float("nan"), errorThreshold=0,
                     overviewLevel="NONE")
     return out.GetRasterBand(1).ReadAsArray()
-
-
-def to_wgs84(x, y, source):
-    """WGS 84 (lon, lat) of points (x, y) in `source`."""
-    ll = transform(source, wgs84(), np.column_stack([x, y]), "the points")
-    return ll[:, 0], ll[:, 1]
-
-
-def reproject(x, y, source, target):
-    """(x, y) in `target` of points (x, y) in `source` (the same arrays where the CRSs are the same)."""
-    if source.IsSame(target):
-        return np.asarray(x, float), np.asarray(y, float)
-    xy = transform(source, target, np.column_stack([x, y]), "the points")
-    return xy[:, 0], xy[:, 1]
 
 
 def slope_degrees(grid):

@@ -6,9 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..adjustment.bundle import statistics_table
+from ..stats import NMAD_SCALE, statistics_table
 
-NMAD_FACTOR = 1.4826
 SHARE_LIMITS = (2.0, 5.0)
 QUANTILE = 0.95
 
@@ -38,7 +37,7 @@ def summarize(dh):
     a = np.abs(dh)
     small, large = SHARE_LIMITS
     shares = tuple(100.0 * float(np.count_nonzero(m)) / n for m in (a < small, (a >= small) & (a <= large), a > large))
-    return Stats(n, lo, mean, hi, rms, sigma, median, NMAD_FACTOR * float(np.median(np.abs(dh - median))),
+    return Stats(n, lo, mean, hi, rms, sigma, median, NMAD_SCALE * float(np.median(np.abs(dh - median))),
                  float(np.quantile(a, QUANTILE)), shares)
 
 

@@ -359,8 +359,9 @@ class RpcModel(SensorModel):
         return jac[0, 0] * col + jac[0, 1] * row + t[0], jac[1, 0] * col + jac[1, 1] * row + t[1]
 
     def _image_to_ground(self, col, row, h):
-        """(col, row of the unbiased RPC, h, lon, lat, status) of image points; status 0 = converged,
-        1 = not converged, 2 = singular Jacobian (lon/lat then undefined)."""
+        """(col, row of the unbiased RPC, h, lon, lat, status, shape, scalar) of image points (flat
+        arrays; shape and scalar as flat_points); status 0 = converged, 1 = not converged,
+        2 = singular Jacobian (lon/lat then undefined)."""
         (col, row, h), shape, scalar = flat_points(col, row, h)
         if self.bias.any():
             jac, t = self._bias_matrix()

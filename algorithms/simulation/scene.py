@@ -24,12 +24,11 @@ import numpy as np
 from ..atomic import atomic_dir
 from ..dem import Dem
 from ..errors import GeometryError, InputError, MetadataError
-from ..geodesy import geodetic_to_ecef
+from ..geodesy import geodetic_to_ecef, metres_per_degree
 from ..progress import step
 from ..sensors.dimap import read_dimap, write_dimap
 from . import outputs, radiometry
 from .acquisition import footprint_bounds, plan, ray_at_height
-from ..geodesy import metres_per_degree
 from .grid import Grid
 from .instruments import CONFIGURATIONS, DEFAULT_DATES, DEFAULT_ROLL_DEG, instruments
 from .perturbation import inject

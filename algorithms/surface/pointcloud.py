@@ -17,7 +17,7 @@ from osgeo import ogr
 
 from .. import progress
 from ..atomic import atomic_path
-from ..crs import srs as parse_crs, transform, wgs84
+from ..crs import reproject, srs as parse_crs, wgs84
 from ..errors import InputError
 from ..geodesy import utm_epsg
 
@@ -55,12 +55,6 @@ def output_srs(crs=None, lon=None, lat=None):
     return parse_crs(crs)
 
 
-def project(lon, lat, srs):
-    """(x, y) of WGS 84 (lon, lat) degrees in `srs` (through OSR/PROJ)."""
-    xy = transform(wgs84(), srs, np.column_stack([lon, lat]), "the points")
-    return xy[:, 0], xy[:, 1]
-
-
 def cloud_fields(result, group=None, rho=None):
     """Per converged point of an Intersection: point_id, group and rho (when given, one per point of
     `result`), rays, sigma_h (a priori, m) and sigma0, as compact dtypes for LAS extra bytes."""
@@ -89,7 +83,7 @@ def write_point_cloud(path, lon, lat, h, fields=None, crs=None, fmt=None, feedba
     fmt = output_format(path, lon.size, fmt)
     srs = output_srs(crs, lon, lat)
     progress.step(feedback, 0)
-    x, y = project(lon, lat, srs)
+    x, y = reproject(lon, lat, wgs84(), srs)
     progress.step(feedback, 20)
     if fmt == "gpkg":
         write_gpkg(path, x, y, h, fields, srs, feedback=feedback)

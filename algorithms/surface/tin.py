@@ -17,10 +17,9 @@ from numba import njit
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from ..errors import InputError
+from ..stats import NMAD_SCALE
 from .delaunay import triangulate
 
-#: normal distribution's sigma / median absolute deviation
-NMAD_SCALE = 1.4826
 #: smallest robust sigma of the blunder filter (m), below the height precision of any satellite point
 #: cloud: a noise-free smooth surface loses no points to its curvature
 MIN_SIGMA = 0.05

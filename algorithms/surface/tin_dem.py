@@ -12,7 +12,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .. import progress
-from ..crs import egm96_undulation, transform, wgs84
+from ..crs import egm96_undulation, reproject, transform, wgs84
 from ..errors import InputError
 from .geotiff import write_float_raster
 from .pointcloud import output_srs
@@ -43,12 +43,6 @@ class DemResult:
                 f"{self.dropped_near_breaklines} next to breaklines dropped; {self.breakline_vertices} "
                 f"breakline vertices), {self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g}, "
                 f"{defined.mean():.1%} defined, {self.datum} heights")
-
-
-def _cell_lonlat(grid, srs, mask):
-    x, y = grid.centres()
-    ll = transform(srs, wgs84(), np.column_stack([x[mask], y[mask]]), "the DEM cells")
-    return ll[:, 0], ll[:, 1]
 
 
 #: default maximum triangle edge in point spacings: bridges one missing point of a matching lattice
@@ -138,7 +132,8 @@ def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=N
             result.precision_kind = "distance to the nearest point (CRS units)"
     if datum == "egm96":
         progress.step(feedback, 85, "EGM96 heights")
-        heights[defined] -= egm96_undulation(*_cell_lonlat(grid, target, defined))
+        cx, cy = grid.centres()
+        heights[defined] -= egm96_undulation(*reproject(cx[defined], cy[defined], target, wgs84(), "the DEM cells"))
     progress.step(feedback, 100, result.summary())
     return result
 

@@ -9,7 +9,6 @@ from qgis.core import (QgsProcessing, QgsProcessingParameterEnum, QgsProcessingP
 from ...algorithms import progress
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES
 from ...algorithms.errors import InputError
-from ...algorithms.quality import report
 from ...algorithms.quality.assessment import SLOPE_THRESHOLD, assess
 from ...algorithms.quality.classes import ClassRaster, PolygonClasses
 from ...algorithms.quality.height_differences import write_dh_raster
@@ -98,6 +97,7 @@ class AssessAccuracy(PushbroomAlgorithm):
         if dem:
             used.append(("DEM", f"{dem} ({datums['DEM_HEIGHTS']} heights; reference resampled onto its grid)"))
         used += [("classes", class_source), ("slope threshold", f"{threshold:g} deg")]
+        from ...algorithms.quality import report   # matplotlib: loaded on use, not with the plugin
         feedback.pushInfo(report.text(assessed, used))
         progress.step(feedback, 75, "drawing the figures")
         out = {"REPORT": report.write_report(self.parameterAsFileOutput(parameters, "REPORT", context),

@@ -45,6 +45,11 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         value = parameters.get(key)
         return None if value is None or value == "" else self.parameterAsDouble(parameters, key, context)
 
+    def parameterAsCrsDefinition(self, parameters, key, context):  # noqa: N802 (QGIS naming)
+        """The CRS of a CRS parameter as the engine takes it (authority id, else WKT), or None where unset."""
+        crs = self.parameterAsCrs(parameters, key, context)
+        return (crs.authid() or crs.toWkt(crs.WKT_PREFERRED)) if crs.isValid() else None
+
     def icon(self):
         return QIcon(resource_path("icons", "pushbroom.svg"))
 

@@ -12,7 +12,7 @@ from qgis.PyQt.QtCore import QVariant
 
 from ...algorithms import block
 from ...algorithms.adjustment import report
-from ...algorithms.adjustment.bundle import CRITICAL_W, adjust, check_points, statistics_table
+from ...algorithms.adjustment.bundle import CRITICAL_W, adjust, check_points
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES, load_control_points
 from ...algorithms.adjustment.control_series import control_point_series
 from ...algorithms.adjustment.observations import IMAGE_SIGMA, tie_observations
@@ -22,11 +22,12 @@ from ...algorithms.adjustment.tie_heights import tie_height_differences
 from ...algorithms.adjustment.variance import adjust_with_components
 from ...algorithms.dem import Dem
 from ...algorithms.errors import InputError
+from ...algorithms.stats import statistics_table
 from ...algorithms.matching import points
 from ..styles import style_on_completion
 from .base import PushbroomAlgorithm
 from .import_points import HEIGHTS
-from .match_points import display_height, height_range_of
+from .match_points import display_height
 
 Number = QgsProcessingParameterNumber
 #: the MODEL choices: parameters.OrientationParameters model -> label
@@ -132,7 +133,7 @@ class BundleAdjust(PushbroomAlgorithm):
                                    self.parameterAsDouble(parameters, "SIGMA_TIE", context))
             obs = obs.concatenate(tie)
         free = [f for f in self.parameterAsString(parameters, "FREE", context).split(",") if f.strip()]
-        height = display_height(height_range_of(path, None, None))
+        height = display_height(block.height_range(path))
         critical = self.parameterAsDouble(parameters, "CRITICAL", context)
         dem_layer = self.parameterAsRasterLayer(parameters, "REFERENCE_DEM", context)
         dem = Dem.from_file(dem_layer.source()) if dem_layer is not None else None

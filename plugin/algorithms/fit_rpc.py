@@ -1,9 +1,10 @@
 """pushbroom:fitrpc — RPC00B fitted to the block's sensor models over a terrain-independent cube
 (Kornus et al. 2006, 3.5.2; algorithms/sensors/rpc_fit.py), written as _RPC.TXT files GDAL reads."""
 import numpy as np
-from qgis.core import (QgsProcessingOutputMultipleLayers, QgsProcessingParameterBoolean, QgsProcessingParameterFile,
-                       QgsProcessingParameterFileDestination, QgsProcessingParameterFolderDestination,
-                       QgsProcessingParameterNumber, QgsProcessingParameterString)
+from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputMultipleLayers, QgsProcessingParameterBoolean,
+                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber,
+                       QgsProcessingParameterString)
 
 from ...algorithms import block, progress
 from ...algorithms.adjustment import report
@@ -94,6 +95,7 @@ class FitRpc(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterFileDestination("REPORT", "Report", "HTML files (*.html)",
                                                                 optional=True))
         self.addOutput(QgsProcessingOutputMultipleLayers("FILES", "RPC files (_RPC.TXT)"))
+        self.addOutput(QgsProcessingOutputFile("BLOCK", "Block (updated; chains the next step in a model)"))
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)

@@ -65,11 +65,10 @@ class ImportPoints(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
-        crs = self.parameterAsCrs(parameters, "CRS", context)
         stored = cp.import_csv(
             path, self.parameterAsFile(parameters, "INPUT", context),
             mode=cp.MODES[self.parameterAsEnum(parameters, "MODE", context)], feedback=feedback,
-            crs=(crs.authid() or crs.toWkt(crs.WKT_PREFERRED)) if crs.isValid() else None,
+            crs=self.parameterAsCrsDefinition(parameters, "CRS", context),
             heights=cp.HEIGHT_TYPES[self.parameterAsEnum(parameters, "HEIGHTS", context)],
             default_role=cp.ROLES[self.parameterAsEnum(parameters, "ROLE", context)],
             check_ids=[c.strip() for c in self.parameterAsString(parameters, "CHECK_IDS", context).split(",")],

@@ -21,12 +21,13 @@ class InterpolateDem(PushbroomAlgorithm):
     HELP = ("A DEM from a point cloud (Kornus et al. 2006, 3.6): the Delaunay TIN of the points (LAS/LAZ or a "
             "3-D point layer such as the GeoPackage of pushbroom:intersectpoints; z = WGS 84 ellipsoidal height) "
             "is interpolated linearly on a regular grid in the output CRS (default: the UTM zone of the points). "
-            "Triangles with an edge longer than the maximum edge length (default 3 cells) are left as gaps: no "
-            "surface is invented over unmatched water or forest. Blunders are removed first: points whose height "
-            "departs from the least-squares plane through their TIN neighbours by more than k robust sigmas "
-            "(1.4826 x NMAD of all residuals; the largest of neighbouring candidates per iteration); the log gives "
-            "the count. Breaklines (3-D lines) are densified and split until no point encroaches on them, so no "
-            "triangle crosses them (conforming Delaunay); points very close to a breakline give way to it. Heights "
+            "Triangles with an edge longer than the maximum edge length (default: the larger of 3 cells and 2.5 "
+            "point spacings) are left as gaps: no surface is invented over unmatched water or forest. Blunders are "
+            "removed first: points whose height departs from the least-squares plane through their TIN neighbours "
+            "by more than k robust sigmas (NMAD = 1.4826 x the median absolute deviation of all residuals; the "
+            "largest of neighbouring candidates per iteration); the log gives the count. Breaklines (3-D lines) "
+            "are densified and split until no point encroaches on them, so no triangle crosses them (conforming "
+            "Delaunay); points very close to a breakline give way to it. Heights "
             "are ellipsoidal or EGM96 (H = h - N, PROJ's EGM96 grid). The optional precision raster holds the "
             "points' sigma_h interpolated on the TIN where the cloud has it, otherwise the distance to the "
             "nearest point. Output: tiled Float32 GeoTIFF with overviews, nodata -32767.")
@@ -54,8 +55,7 @@ class InterpolateDem(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         points = point_input.read_points(self.parameterAsFile(parameters, "INPUT", context))
-        crs = self.parameterAsCrs(parameters, "CRS", context)
-        crs = (crs.authid() or crs.toWkt(crs.WKT_PREFERRED)) if crs.isValid() else None
+        crs = self.parameterAsCrsDefinition(parameters, "CRS", context)
         cell = self.parameterAsDouble(parameters, "CELL", context)
         lines, lines_srs = [], None
         if parameters.get("BREAKLINES"):

@@ -85,15 +85,11 @@ class IntersectPoints(PushbroomAlgorithm):
         if not ok.any():
             raise InputError(f"none of the {len(result)} points could be intersected "
                              f"({result.status_counts()}): check the block's sensor models and the points")
-        crs = self.parameterAsCrs(parameters, "CRS", context)
-        if crs.isValid():
-            crs = crs.authid() or crs.toWkt(crs.WKT_PREFERRED)
-        else:
-            crs = block.read_info(path).get("default_crs")
+        crs = self.parameterAsCrsDefinition(parameters, "CRS", context) or block.read_info(path).get("default_crs")
         out = self.parameterAsFileOutput(parameters, "OUTPUT", context)
         fields = pointcloud.cloud_fields(result, group=group, rho=multi.points["rho_min"][pos])
         out, srs, fmt = pointcloud.write_point_cloud(out, result.lon[ok], result.lat[ok], result.h[ok], fields, crs=crs,
-                                                feedback=progress.scaled(feedback, 80, 100))
+                                                     feedback=progress.scaled(feedback, 80, 100))
         message = f"{int(ok.sum())} points written to {out} ({srs.GetName()}; z ellipsoidal height)"
         feedback.pushInfo(message)
         block.update_info(path, {}, step="intersectpoints", message=message)

@@ -79,8 +79,7 @@ class Orthorectify(PushbroomAlgorithm):
         image, model = self.image_and_model(parameters, context)
         dem = load_dem(self.parameterAsRasterLayer(parameters, "DEM", context).source(),
                        VERTICAL[self.parameterAsEnum(parameters, "DEM_HEIGHTS", context)])
-        crs = self.parameterAsCrs(parameters, "CRS", context)
-        crs = (crs.authid() or crs.toWkt(crs.WKT_PREFERRED)) if crs.isValid() else None
+        crs = self.parameterAsCrsDefinition(parameters, "CRS", context)
         output = self.parameterAsOutputLayer(parameters, "OUTPUT", context)
         result = orthorectify(
             image, model, dem, output, crs=crs,

@@ -5,8 +5,10 @@ import csv
 import numpy as np
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.adjustment.bundle import check_points
+from pushbroom.algorithms.stats import statistics_table
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
+from pushbroom.algorithms.dem import Dem
 
 
 def point_observations(csv_path, image_ids, n_control, sigma_px=0.3, sigma_ground=(0.5, 0.5, 0.5)):
@@ -53,7 +55,6 @@ def synthetic_points(scene, image_ids, n, sigma_px, seed):
 def check_rms(result, observations, height):
     """(RMS of dE, dN, dH, RMS of their theoretical sigmas) of the check points of `observations`
     intersected with the adjusted models (bundle.check_points), printed."""
-    from pushbroom.algorithms.adjustment.bundle import check_points, statistics_table
     check = check_points(result, observations, height=height)
     table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")})
     rms = np.array([table[k][4] for k in ("dE", "dN", "dH")])

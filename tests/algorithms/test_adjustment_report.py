@@ -12,7 +12,7 @@ from adjustment_scene import models_of, point_observations
 from osr_oracle import utm
 from raster_oracle import bilinear
 from pushbroom.algorithms.adjustment import report
-from pushbroom.algorithms.adjustment.bundle import adjust, check_points, statistics_table
+from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.adjustment.residual_vectors import intersection_residuals, residual_vectors
 from pushbroom.algorithms.adjustment.tie_heights import tie_height_differences
@@ -21,6 +21,7 @@ from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree, utm_epsg
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.algorithms.stats import statistics_table
 
 NAMES = ("HRG", "HRS1", "HRS2")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}

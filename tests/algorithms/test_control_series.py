@@ -6,7 +6,8 @@ import pytest
 
 from adjustment_scene import models_of, point_observations
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points
-from pushbroom.algorithms.adjustment.control_series import control_point_series, farthest_points, series_table
+from pushbroom.algorithms.adjustment.control_series import control_point_series, farthest_points
+from pushbroom.algorithms.adjustment.report import render_text, series_section
 from pushbroom.algorithms.errors import CancelledError, InputError
 
 NAMES = ("HRG", "HRS1", "HRS2")
@@ -66,8 +67,8 @@ def test_series_rows_equal_direct_adjustments(small_scene):
         rms = [np.sqrt(np.mean(check[k] ** 2)) for k in ("dE", "dN", "dH")]
         assert row.check == len(check["dE"]) == np.count_nonzero(obs.points["role"] == "check") > 1
         assert np.allclose(row.rms, rms, rtol=1e-9) and row.sigma0 == pytest.approx(result.sigma0, rel=1e-9)
-    table = series_table(rows).splitlines()
-    assert len(table) == 3 and table[1].split()[:2] == ["3", str(rows[0].check)]
+    table = render_text([series_section(rows)]).splitlines()
+    assert len(table) == 5 and table[2].split()[:2] == ["3", str(rows[0].check)]
     with pytest.raises(CancelledError):
         control_point_series(models, obs, [3, 5], ["look:0"], names=LABELS, height=300.0,
                              feedback=Feedback(cancel_after=3))

@@ -13,9 +13,10 @@ from scipy.stats import chi2
 from adjustment_scene import models_of, point_observations
 from spot_synthetic import synthetic_orientation
 from pushbroom.algorithms.adjustment.bundle import adjust
-from pushbroom.algorithms.adjustment.control_series import control_point_series, series_table
+from pushbroom.algorithms.adjustment.control_series import control_point_series
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.adjustment.parameters import EXTERIOR, OrientationParameters, line_time
+from pushbroom.algorithms.adjustment.report import render_text, series_section
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.sensors.spot import SpotModel
@@ -234,7 +235,7 @@ def test_control_point_series_on_a_spot14_pair(pair):
                                   sigma0=float(np.sqrt(np.mean([r.sigma0 ** 2 for r in rows]))))
               for rows in zip(*runs)]
     print("\nH Table 1 on the simulated SPOT 2 pair, 2 orientation images, check points pooled over 12 noise "
-          "draws:\n" + series_table(pooled))
+          "draws:\n" + render_text([series_section(pooled)]))
     rms = np.array([r.rms for r in pooled])
     theory = np.array([r.theoretical for r in pooled])
     print(f"5 and 6 relative to 15: {np.round(rms[:2] / rms[-1], 2).tolist()}, theoretical "
@@ -248,6 +249,6 @@ def test_control_point_series_on_a_spot14_pair(pair):
     # (bundle.find_defects names them); let the adjustment run anyway to show what that costs
     cubic = control_point_series(models, obs, counts, FREE, names=LABELS, height=500.0, model="lagrange",
                                  defect_eigenvalue=1e-10)
-    print("4 orientation images (one draw, the simulator's measurements):\n" + series_table(cubic))
+    print("4 orientation images (one draw, the simulator's measurements):\n" + render_text([series_section(cubic)]))
     assert cubic[0].theoretical[1] > 3.0 * cubic[-1].theoretical[1]
     assert cubic[-1].rms[1] < 1.5 * rms[-1][1]

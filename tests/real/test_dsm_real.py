@@ -41,7 +41,7 @@ from pleiades_scene import LABELS, NAMES, Log, match_triplet, models_of
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import adjust
 from pushbroom.algorithms.adjustment.observations import tie_observations
-from pushbroom.algorithms.crs import transform, wgs84
+from pushbroom.algorithms.crs import reproject, transform, wgs84
 from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
@@ -50,7 +50,7 @@ from pushbroom.algorithms.quality.height_differences import dem_differences
 from pushbroom.algorithms.quality.statistics import summarize
 from pushbroom.algorithms.surface.intersection import intersect
 from pushbroom.algorithms.surface.point_input import PointSet
-from pushbroom.algorithms.surface.pointcloud import output_srs, project
+from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
@@ -76,7 +76,7 @@ def cut(models, observations, which=None):
 def dsm(result, srs, cell, max_edge=None):
     """DemResult of the converged points of an Intersection, in `srs`, ellipsoidal heights."""
     ok = result.ok
-    x, y = project(result.lon[ok], result.lat[ok], srs)
+    x, y = reproject(result.lon[ok], result.lat[ok], wgs84(), srs)
     return interpolate_dem(PointSet(x, y, result.h[ok], srs), cell=cell, crs=srs, max_edge=max_edge)
 
 
