@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from osgeo import gdal, ogr, osr
 
+from feedback import Feedback
 from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.quality import report
@@ -351,18 +352,8 @@ def test_html_report_is_self_contained(small_scene, utm_dem, tmp_path):
 
 
 def test_cancel_and_bad_input(small_scene, utm_dem, tmp_path):
-    class Cancel:
-        def setProgress(self, p):
-            pass
-
-        def isCanceled(self):
-            return True
-
-        def pushInfo(self, t):
-            pass
-
     with pytest.raises(CancelledError):
-        assess(small_scene["dtm"], dem=utm_dem, feedback=Cancel())
+        assess(small_scene["dtm"], dem=utm_dem, feedback=Feedback(cancel_after=0))
     with pytest.raises(InputError, match="point cloud, a DEM or both"):
         assess(small_scene["dtm"])
     with pytest.raises(InputError, match="orthometric"):

@@ -6,26 +6,10 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
+from feedback import Feedback
 from pushbroom.algorithms import block, sensors
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import metres_per_degree
-
-
-class CancelAfter:
-    """Feedback that asks to cancel after `n` progress checks."""
-
-    def __init__(self, n):
-        self.n = n
-
-    def isCanceled(self):
-        self.n -= 1
-        return self.n < 0
-
-    def setProgress(self, percent):
-        pass
-
-    def pushInfo(self, text):
-        pass
 
 
 @pytest.fixture
@@ -85,7 +69,7 @@ def test_cancel_leaves_existing_block_and_no_partial_file(spot5_product, tmp_pat
     path = block.create_block(tmp_path / "b.gpkg", images[:1])
     before = open(path, "rb").read()
     with pytest.raises(CancelledError):
-        block.create_block(path, images, overwrite=True, feedback=CancelAfter(1))
+        block.create_block(path, images, overwrite=True, feedback=Feedback(cancel_after=1))
     assert open(path, "rb").read() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["HRG1", "b.gpkg"]
 

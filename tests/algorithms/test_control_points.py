@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from osgeo import gdal, ogr, osr
 
+from feedback import Feedback
 from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.adjustment.observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
@@ -17,25 +18,6 @@ from pushbroom.algorithms.geodesy import utm_epsg
 from osr_oracle import utm
 
 NAMES = ("HRG", "HRS1", "HRS2")
-
-
-class Log:
-    """Feedback that keeps its messages and asks to cancel after `cancel_after` checks."""
-
-    def __init__(self, cancel_after=None):
-        self.messages, self.left = [], cancel_after
-
-    def isCanceled(self):
-        if self.left is None:
-            return False
-        self.left -= 1
-        return self.left < 0
-
-    def setProgress(self, percent):
-        pass
-
-    def pushInfo(self, text):
-        self.messages.append(text)
 
 
 @pytest.fixture
@@ -76,7 +58,7 @@ def test_simulator_points_import(scene, blk, tmp_path):
     rows = blanked(scene["rows"])
     path = write_rows(tmp_path / "points.csv", rows)
     ids = cp.image_ids(blk)
-    log = Log()
+    log = Feedback()
     obs = cp.import_csv(blk, path, suffix="_meas", feedback=log)
     assert any("ignored column" in m and "HRG_blunder" in m and "HRS1_col," in m for m in log.messages)
     cells = [(k, ids[n], float(r[f"{n}_col_meas"]), float(r[f"{n}_row_meas"]))
@@ -282,7 +264,7 @@ def test_cancelled_save_rolls_back(scene, blk, tmp_path):
     ids = cp.image_ids(blk)
     obs = cp.read_csv(path, ids, suffix="_meas")
     with pytest.raises(CancelledError):                             # the first import: nothing lands
-        cp.save_control_points(blk, obs, feedback=Log(cancel_after=3))
+        cp.save_control_points(blk, obs, feedback=Feedback(cancel_after=3))
     assert len(cp.load_control_points(blk).points) == 0
     ds = ogr.Open(blk)
     log_rows = ds.GetLayerByName("run_log").GetFeatureCount()
@@ -291,7 +273,7 @@ def test_cancelled_save_rolls_back(scene, blk, tmp_path):
     before = cp.load_control_points(blk)
     for mode in cp.MODES:
         with pytest.raises(CancelledError):
-            cp.save_control_points(blk, obs, mode=mode, feedback=Log(cancel_after=len(obs.points) - 1))
+            cp.save_control_points(blk, obs, mode=mode, feedback=Feedback(cancel_after=len(obs.points) - 1))
         assert same(cp.load_control_points(blk), before)
     ds = ogr.Open(blk)
     assert ds.GetLayerByName("run_log").GetFeatureCount() == log_rows + 1

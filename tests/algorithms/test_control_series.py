@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from adjustment_scene import models_of, point_observations
+from feedback import Feedback
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.control_series import control_point_series, farthest_points
 from pushbroom.algorithms.adjustment.report import render_text, series_section
@@ -13,20 +14,6 @@ from pushbroom.algorithms.errors import CancelledError, InputError
 NAMES = ("HRG", "HRS1", "HRS2")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}
 LABELS = {k + 1: n for k, n in enumerate(NAMES)}
-
-
-class Feedback:
-    def __init__(self, cancel_after=None):
-        self.progress, self.cancel_after = [], cancel_after
-
-    def setProgress(self, percent):  # noqa: N802 (QGIS API)
-        self.progress.append(percent)
-
-    def isCanceled(self):  # noqa: N802 (QGIS API)
-        return self.cancel_after is not None and len(self.progress) >= self.cancel_after
-
-    def pushInfo(self, text):  # noqa: N802 (QGIS API)
-        pass
 
 
 def test_farthest_points_take_the_corners_then_the_centre():

@@ -6,6 +6,7 @@ import time
 import numpy as np
 import pytest
 
+from feedback import Feedback
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import CancelledError, InputError
@@ -311,21 +312,10 @@ def test_bad_input_raises_clear_errors(scene):
     assert len(empty) == 0 and empty.status_counts() == {}
 
 
-class Cancel:
-    def setProgress(self, pct):  # noqa: N802 (QGIS API)
-        pass
-
-    def isCanceled(self):  # noqa: N802 (QGIS API)
-        return True
-
-    def pushInfo(self, text):  # noqa: N802 (QGIS API)
-        pass
-
-
 def test_cancel(scene):
     models = scene["models"]
     with pytest.raises(CancelledError):
-        ix.intersect(models, *measure(models, NAMES, scene["lon"], scene["lat"], scene["h"]), feedback=Cancel())
+        ix.intersect(models, *measure(models, NAMES, scene["lon"], scene["lat"], scene["h"]), feedback=Feedback(cancel_after=0))
 
 
 def test_summary_rows(scene):

@@ -8,6 +8,7 @@ from osgeo import gdal
 from scipy import ndimage
 
 from ortho_oracle import geometric_error
+from feedback import Feedback
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import egm96_undulation, srs
 from pushbroom.algorithms.dem import Dem
@@ -178,25 +179,10 @@ def test_resampling_kernels_against_numpy():
             np.testing.assert_allclose(out[b, inside], expected, rtol=1e-5, atol=1e-3)
 
 
-class CancelAfter:
-    def __init__(self, calls):
-        self.calls = calls
-
-    def isCanceled(self):  # noqa: N802 (QGIS API)
-        self.calls -= 1
-        return self.calls < 0
-
-    def setProgress(self, percent):  # noqa: N802 (QGIS API)
-        pass
-
-    def pushInfo(self, text):  # noqa: N802 (QGIS API)
-        pass
-
-
 def test_cancel_leaves_nothing(scene, tmp_path):
     with pytest.raises(CancelledError):
         orthorectify(scene["image"], scene["hrg"], scene["dsm"], tmp_path / "cancelled.tif", grid=scene["grid"],
-                     tile=256, feedback=CancelAfter(3))
+                     tile=256, feedback=Feedback(cancel_after=3))
     assert list(tmp_path.iterdir()) == []
 
 

@@ -8,28 +8,13 @@ import numpy as np
 import pytest
 
 from matching_scene import DISCONTINUOUS, LOW_CONTRAST_DN, SINGLE_SURFACE, Scene
+from feedback import Feedback
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.matching.imagery import Image, Smoothed
 from pushbroom.algorithms.matching.lsm import LSM_OUT, lsm_point
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import (_DC, _DR, Lattice, _quantise, adapt_resolution,
                                                           grow_kernel, match_pair, transfer_points)
-
-
-class Feedback:
-    def __init__(self, cancel=False):
-        self.messages = []
-        self.cancel = cancel
-
-    def setProgress(self, p):
-        pass
-
-    def isCanceled(self):
-        return self.cancel
-
-    def pushInfo(self, text):
-        self.messages.append(text)
-
 
 
 def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, max_iter, conv,
@@ -398,4 +383,4 @@ def test_height_range_required_for_spot(scene):
 def test_cancel(scene):
     with pytest.raises(CancelledError):
         match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range,
-                   feedback=Feedback(cancel=True))
+                   feedback=Feedback(cancel_after=0))

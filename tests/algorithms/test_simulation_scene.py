@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from osgeo import gdal
 
+from feedback import Feedback
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import CancelledError, InputError
@@ -181,22 +182,8 @@ def test_same_seed_same_bytes(tmp_path):
 
 
 def test_cancel_leaves_nothing(tmp_path):
-    class Cancel:
-        def __init__(self):
-            self.calls = 0
-
-        def setProgress(self, percent):
-            pass
-
-        def pushInfo(self, text):
-            pass
-
-        def isCanceled(self):
-            self.calls += 1
-            return self.calls > 3
-
     with pytest.raises(CancelledError):
-        simulate_scene(SceneConfig.small(size_km=1.5, points=2), tmp_path / "out", Cancel())
+        simulate_scene(SceneConfig.small(size_km=1.5, points=2), tmp_path / "out", Feedback(cancel_after=3))
     assert os.listdir(tmp_path) == []
 
 

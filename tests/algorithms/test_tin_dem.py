@@ -7,6 +7,7 @@ from scipy.interpolate import LinearNDInterpolator
 from scipy.spatial import Delaunay
 
 from osr_oracle import utm
+from feedback import Feedback
 from pushbroom.algorithms.crs import egm96_undulation, srs
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.surface import geotiff, point_input, pointcloud, tin, tin_dem
@@ -206,18 +207,9 @@ def test_bad_input_and_cancel(tmp_path):
     with pytest.raises(InputError, match="cannot open"):
         point_input.read_points(tmp_path / "missing.gpkg")
 
-    class CancelAtWrite:
-        def setProgress(self, percent):
-            self.cancel = percent >= 40
-
-        def isCanceled(self):
-            return getattr(self, "cancel", False)
-
-        def pushInfo(self, text):
-            pass
     result = tin_dem.interpolate_dem(point_input.PointSet(x, y, z, utm31), cell=50.0, k=0)
     with pytest.raises(CancelledError):
-        tin_dem.write_dem(result, tmp_path / "dem.tif", feedback=CancelAtWrite())
+        tin_dem.write_dem(result, tmp_path / "dem.tif", feedback=Feedback(cancel_at=40))
     assert not list(tmp_path.iterdir())
 
 

@@ -12,22 +12,6 @@ NAMES = [f"img_0{k}" for k in ORDER]
 LABELS = {k + 1: name for k, name in enumerate(NAMES)}
 
 
-class Log:
-    """A feedback that keeps the pushed lines."""
-
-    def __init__(self):
-        self.lines = []
-
-    def setProgress(self, percent):  # noqa: N802 (QGIS API)
-        pass
-
-    def isCanceled(self):  # noqa: N802
-        return False
-
-    def pushInfo(self, text):  # noqa: N802
-        self.lines.append(text)
-
-
 def in_order(triplet):
     """The paths of the `pleiades_triplet` fixture (file order) in combination order."""
     return [triplet[k - 1] for k in ORDER]

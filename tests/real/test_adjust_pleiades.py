@@ -28,7 +28,8 @@ import time
 import numpy as np
 import pytest
 
-from pleiades_scene import LABELS, Log, match_triplet, models_of
+from feedback import Feedback
+from pleiades_scene import LABELS, match_triplet, models_of
 from pushbroom.algorithms.adjustment.bundle import CRITICAL_W, adjust
 from pushbroom.algorithms.adjustment.observations import tie_observations
 from pushbroom.algorithms.adjustment.reprojection import ALL, reprojection_rms
@@ -59,12 +60,12 @@ def by_image(rows):
 @pytest.fixture(scope="module")
 def block(pleiades_triplet):
     """The triplet's tie point observations, their height for the adjustment, and the log."""
-    log = Log()
+    log = Feedback()
     t0 = time.perf_counter()
     _, models, points = match_triplet(pleiades_triplet, PARAMS, feedback=log)
     tie = select_tie_points(points)
     obs = tie_observations(tie)
-    log.lines.append(f"matching STEP {PARAMS.step}: {len(points)} points {points.group_counts()}, "
+    log.messages.append(f"matching STEP {PARAMS.step}: {len(points)} points {points.group_counts()}, "
                      f"{time.perf_counter() - t0:.1f} s; {len(tie)} tie points {tie.group_counts()}")
     return obs, float(np.mean(models[0].height_range)), log
 
@@ -78,7 +79,7 @@ def adjusted(pleiades_triplet, block):
                    priors=PRIORS, remove_blunders=True)
     free = np.flatnonzero(after.parameters.free)
     w = np.nanmax(np.abs(after.normalised), axis=1)
-    report = log.lines + rms_lines("tie point reprojection before adjustment (px):", reprojection_rms(before))
+    report = log.messages + rms_lines("tie point reprojection before adjustment (px):", reprojection_rms(before))
     report += rms_lines("after (shifts of img_01, img_03; img_02 fixed; priors 10 px):", reprojection_rms(after))
     report += [f"sigma_0 {after.sigma0:.4f} (a priori 0.5 px: {0.5 * after.sigma0:.3f} px), redundancy "
                f"{after.redundancy}, {after.iterations} iterations, adjustments {time.perf_counter() - t0:.2f} s"]

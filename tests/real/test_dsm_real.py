@@ -37,7 +37,8 @@ import numpy as np
 import pytest
 from osgeo import gdal
 
-from pleiades_scene import LABELS, NAMES, Log, match_triplet, models_of
+from feedback import Feedback
+from pleiades_scene import LABELS, NAMES, match_triplet, models_of
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import adjust
 from pushbroom.algorithms.adjustment.observations import tie_observations
@@ -140,7 +141,7 @@ def test_ventoux_dsm_against_srtm(ventoux_image, tmp_path):
 def triplet_dsms(pleiades_triplet, tmp_path_factory):
     """The pairs' DSMs (one matching each) with the supplied RPCs ("before") and the bias-adjusted ones
     ("after"), and the 0.5 m DSM of the triplet's three-ray points (adjusted RPCs), written."""
-    log = Log()
+    log = Feedback()
     t0 = time.perf_counter()
     params = GrowParams(step=TRIPLET_STEP)
     images, models, points = match_triplet(pleiades_triplet, params, feedback=log, workers=2)
@@ -161,11 +162,11 @@ def triplet_dsms(pleiades_triplet, tmp_path_factory):
     out["triplet"] = dsm(cut(adjusted.parameters.models, points.observations, three), srs, CELL, MAX_EDGE)
     out["path"] = tmp_path_factory.mktemp("triplet_dsm") / "dsm_0.5m.tif"
     write_dem(out["triplet"], out["path"])
-    log.lines += [f"triplet STEP {TRIPLET_STEP}: {len(points)} points {points.group_counts()}; pairs: "
+    log.messages += [f"triplet STEP {TRIPLET_STEP}: {len(points)} points {points.group_counts()}; pairs: "
                   + ", ".join(f"{NAMES[a]}-{NAMES[b]} {len(p)}" for (a, b), p in pairs.items())
                   + f"; matching {t_match:.1f} s, all {time.perf_counter() - t0:.1f} s; adjustment sigma_0 "
                   f"{adjusted.sigma0:.3f}"]
-    print("\n" + "\n".join(log.lines))
+    print("\n" + "\n".join(log.messages))
     return out
 
 

@@ -23,7 +23,8 @@ import time
 import numpy as np
 import pytest
 
-from pleiades_scene import NAMES, Log, match_triplet
+from feedback import Feedback
+from pleiades_scene import NAMES, match_triplet
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.combinations import format_summary, summary_rows
 from pushbroom.algorithms.matching.consistency import fb_summary, format_fb, forward_backward, observation_pairs
@@ -67,7 +68,7 @@ def test_reference_is_the_most_nadir(pleiades_triplet):
 
 @pytest.fixture(scope="module")
 def matched(pleiades_triplet):
-    log = Log()
+    log = Feedback()
     t0 = time.perf_counter()
     images, models, points = match_triplet(pleiades_triplet, PARAMS, feedback=log)
     t_match = time.perf_counter() - t0
@@ -78,7 +79,7 @@ def matched(pleiades_triplet):
         diff = forward_backward(images[i], images[j], models[i], models[j], records, PARAMS)
         fb[label] = fb_summary(diff)
     t_total = time.perf_counter() - t0
-    report = log.lines + [format_summary(summary_rows(points))]
+    report = log.messages + [format_summary(summary_rows(points))]
     report += [format_fb(f"forward-backward ({label}) {NAMES[i]} -> {NAMES[j]}, group 3", fb[label])
                for label, (i, j) in COMBINATIONS.items()]
     report.append(f"time: matching {t_match:.1f} s, with forward-backward {t_total:.1f} s")
