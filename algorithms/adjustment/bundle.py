@@ -4,7 +4,9 @@ Unknowns: the free orientation parameters (parameters.py) and every control/tie 
 h, updated in local metres east/north/up). Observations: image coordinates (sigma px) and the
 ground coordinates of control points (sigma E/N/H m). Check points take no part; they are
 intersected afterwards with the adjusted models (`check_points`). Gauss-Newton on the normal
-equations reduced by the object points (normals.py), so the cost is linear in the points.
+equations reduced by the object points (normals.py), so the cost is linear in the points. Points
+start on their lines of sight (`start_points`); the statistics use the last iteration's
+linearisation with the misclosures carried to the solution (its update is below the tolerance).
 
 Statistics (after convergence): sigma_0^2 = v'Pv / r with r = observations - unknowns; the
 cofactors Q_oo = N^-1 of the orientation unknowns and the points'; redundancy numbers r_i of
@@ -26,7 +28,7 @@ import numpy as np
 from .. import progress
 from ..errors import CancelledError, InputError
 from ..geodesy import metres_per_degree, offset_enu
-from ..surface.intersection import intersect
+from ..surface.intersection import closest_points, intersect
 from . import normals
 from .observations import Observations
 from .parameters import OrientationParameters
@@ -112,19 +114,18 @@ class _Geometry:
         """(a, b, l): a (M, 2, 3) px/m, b (M, 2, K) compact orientation partials, l = measured -
         computed (M, 2) px."""
         n = len(self.meas)
-        a, b, l = np.empty((n, 2, 3)), np.empty((n, 2, self.col.shape[1])), np.empty((n, 2))
+        a, b = np.empty((n, 2, 3)), np.empty((n, 2, self.col.shape[1]))
+        l = np.column_stack([self.meas["col"], self.meas["row"]])
         e_deg, n_deg = metres_per_degree(lat, h)
-        per_metre = np.column_stack([1.0 / e_deg, 1.0 / n_deg, np.ones_like(e_deg)])[:, None, :]
-        measured = np.column_stack([self.meas["col"], self.meas["row"]])
+        per_metre = np.column_stack([1.0 / e_deg, 1.0 / n_deg, np.ones_like(e_deg)])
         for s, k in enumerate(self.rows):
             if not k.size:
                 continue
             p = self.point_of[k]
             d = self.params.models[self.images[s]].partials(lon[p], lat[p], h[p])
-            b[k] = (d["d_corrections"].reshape(-1, self.maps[s].shape[0]) @ self.maps[s]).reshape(k.size, 2, -1)
-            a[k] = d["d_ground"] * per_metre[p]
-            l[k, 0] = measured[k, 0] - d["col"]
-            l[k, 1] = measured[k, 1] - d["row"]
+            normals.scatter_partials(k, d["d_corrections"], d["d_ground"], per_metre[p], self.maps[s], b, a)
+            l[k, 0] -= d["col"]
+            l[k, 1] -= d["row"]
         return a, b, l
 
 
@@ -144,17 +145,19 @@ def _ground_weights(points, lon, lat, h):
 
 def start_points(models, obs, height):
     """Starting lon, lat, h and a usable mask: control points at their observed coordinates, the
-    others intersected from their measurements (surface.intersection; starting at `height`, a
-    mean terrain height). Points that cannot be intersected are not usable."""
+    others at the point closest to their lines of sight (surface.intersection.closest_points, the
+    lines through the ground points at `height`, a mean terrain height, -+ 500 m): the adjustment
+    refines them with everything else, so no per-point adjustment first. Points with fewer than
+    two usable, non-parallel lines are not usable."""
     p, m = obs.points, obs.measurements
     lon, lat, h = p["lon"].copy(), p["lat"].copy(), p["h"].copy()
     usable = p["role"] == "control"
     rest = np.isin(m["point"], np.flatnonzero(~usable))
     if rest.any():
-        cut = intersect(models, m["image_id"][rest], m["point"][rest], m["col"][rest], m["row"][rest],
-                        m["sigma"][rest], h0=height)
-        lon[cut.point], lat[cut.point], h[cut.point] = cut.lon, cut.lat, cut.h
-        usable[cut.point] = cut.ok
+        ids, lon_r, lat_r, h_r, ok = closest_points(models, m["image_id"][rest], m["point"][rest], m["col"][rest],
+                                                    m["row"][rest], h0=height)
+        lon[ids], lat[ids], h[ids] = lon_r, lat_r, h_r
+        usable[ids] = ok
     return lon, lat, h, usable
 
 
@@ -287,16 +290,11 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, fe
     ninv, bp, ok = np.zeros((n_pts, 3, 3)), np.zeros((n_pts, 3)), np.zeros(n_pts, bool)
     dx = np.zeros((n_pts, 3))
     params.apply(x)
-    iteration = 0
+    iteration, converged = 0, False
     for iteration in range(1, max_iterations + 1):
         if fb.isCanceled():
             raise CancelledError("bundle adjustment cancelled")
-        a, b, l = geo.linearise(lon, lat, h)
-        wg, lg = _ground_weights(pts, lon, lat, h)
-        normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
-        cost = normals.reduce_normals(start, a, b, l, geo.w, geo.img, col, wg, lg, nfree, normal, rhs,
-                                      ninv, bp, ok)
-        cost += _add_priors(normal, rhs, prior, x[params.free])
+        a, b, l, wg, normal, rhs, cost = _linearise(geo, pts, lon, lat, h, prior, x[params.free], ninv, bp, ok)
         if iteration == 1:
             defects = find_defects(normal, labels, defect_eigenvalue, prior)
             if defects:
@@ -310,15 +308,20 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, fe
         log.append(f"iteration {iteration}: weighted misclosure {cost:.6g}, largest point update {step:.3g} m")
         fb.setProgress(min(99.0, 100.0 * iteration / max_iterations))
         if step < tolerance:
+            converged = True
             break
     else:
         log.append(f"not converged in {max_iterations} iterations: the last point update was {step:.3g} m")
     # statistics at the solution
-    a, b, l = geo.linearise(lon, lat, h)
-    wg, lg = _ground_weights(pts, lon, lat, h)
-    normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
-    normals.reduce_normals(start, a, b, l, geo.w, geo.img, col, wg, lg, nfree, normal, rhs, ninv, bp, ok)
-    vpv_prior = _add_priors(normal, rhs, prior, x[params.free])
+    if converged:
+        # the last update was below the tolerance: its linearisation holds at the solution, where the
+        # misclosures are l - A dx - B do (the neglected second-order terms are below 1e-9 px)
+        dof = np.where(col >= 0, np.r_[do, 0.0][col], 0.0)
+        l = l - np.einsum("jer,jr->je", a, dx[geo.point_of]) - np.einsum("jek,jk->je", b, dof[geo.img])
+    else:
+        a, b, l, wg, normal, _, _ = _linearise(geo, pts, lon, lat, h, prior, x[params.free], ninv, bp, ok)
+    lg = _ground_weights(pts, lon, lat, h)[1]
+    vpv_prior = float(np.sum(prior * x[params.free] ** 2))
     qoo = _inverse_scaled(normal)
     qpp = np.zeros((n_pts, 3, 3))
     red = np.zeros((len(geo.meas), 2))
@@ -351,6 +354,20 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, fe
                       residuals=v[back], redundancy_numbers=red[back], normalised=normalised[back],
                       ground_residuals=ground_res, iterations=iteration, effects=params.max_effects(x, height),
                       log=log)
+
+
+def _linearise(geo, pts, lon, lat, h, prior, xfree, ninv, bp, ok):
+    """Linearise at (lon, lat, h) and the models' orientation, and reduce the normal equations by the
+    points (normals.reduce_normals fills ninv, bp, ok), with the priors of the free unknowns
+    `xfree`. Returns a, b, l (_Geometry.linearise), the ground weights, N, b and the weighted
+    misclosure."""
+    a, b, l = geo.linearise(lon, lat, h)
+    wg, lg = _ground_weights(pts, lon, lat, h)
+    normal, rhs = np.zeros((geo.nfree, geo.nfree)), np.zeros(geo.nfree)
+    cost = normals.reduce_normals(geo.start, a, b, l, geo.w, geo.img, geo.col, wg, lg, geo.nfree, normal, rhs,
+                                  ninv, bp, ok)
+    cost += _add_priors(normal, rhs, prior, xfree)
+    return a, b, l, wg, normal, rhs, cost
 
 
 def _add_priors(normal, rhs, weights, x):

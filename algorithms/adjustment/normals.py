@@ -17,6 +17,24 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
+def scatter_partials(rows, d_corr, d_ground, per_metre, cmap, b, a):
+    """Measurements `rows` of one image: b[rows[i]] = d_corr[i] @ cmap (its (n_coefficients, K)
+    coefficient -> compact-column map) and a[rows[i]] = d_ground[i] * per_metre[i] (px per degree ->
+    px per metre east/north, px per metre up)."""
+    nc, kk = cmap.shape
+    for i in range(rows.size):
+        j = rows[i]
+        for e in range(2):
+            for k in range(kk):
+                acc = 0.0
+                for c in range(nc):
+                    acc += d_corr[i, e, c] * cmap[c, k]
+                b[j, e, k] = acc
+            for r in range(3):
+                a[j, e, r] = d_ground[i, e, r] * per_metre[i, r]
+
+
+@njit(cache=True, nogil=True)
 def _inv3(m, out):
     """out = m^-1 for a symmetric 3 x 3; returns the determinant (0: singular, out untouched)."""
     c00 = m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1]

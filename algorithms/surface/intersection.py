@@ -96,9 +96,9 @@ def _start(models, image, col, row, point, go, h0):
     ground points at heights h0 -+ START_HALF_HEIGHT from `image_to_ground`),
     X = (sum_i A_i)^-1 sum_i A_i p_i, A_i = I - u_i u_i' (u_i unit direction, p_i a point of line i;
     for two lines the midpoint of their common perpendicular). With fewer than two lines or parallel
-    ones, the point at h0 of the first line (NaN if no ray meets the ground)."""
+    ones, the point at h0 of the first line (NaN if no ray meets the ground) and ok False."""
     if not go.size:
-        return np.zeros((0, 3))
+        return np.zeros((0, 3)), np.zeros(0, bool)
     sel = np.flatnonzero(np.isin(point, go))
     ends = np.full((2, sel.size, 3), np.nan)
     for key in np.unique(image[sel]):
@@ -120,7 +120,7 @@ def _start(models, image, col, row, point, go, h0):
     rhs = np.add.reduceat(np.einsum("kij,kj->ki", a, mid), starts)
     first = np.minimum.reduceat(np.where(good, np.arange(sel.size), sel.size), starts)
     alone = np.where((first < sel.size)[:, None], mid[np.minimum(first, sel.size - 1)], np.nan)
-    return np.where(ok[:, None], np.einsum("kij,kj->ki", np.where(ok[:, None, None], inverse, 0.0), rhs), alone)
+    return np.where(ok[:, None], np.einsum("kij,kj->ki", np.where(ok[:, None, None], inverse, 0.0), rhs), alone), ok
 
 
 def _check_inputs(models, image, point, col, row, sigma):
@@ -185,21 +185,46 @@ def intersect(models, image_ids, point_index, col, row, sigma=IMAGE_SIGMA, h0=No
     return Intersection(ids, lon, lat, h, rays, status, iterations, sigma0, rms, covariance)
 
 
-def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, tol, feedback):
-    """Intersect the points 0 .. len(rays) - 1 of one chunk from their measurements (sorted by
-    `point`). Returns lon, lat, h, status, iterations, sigma0, rms, covariance."""
-    n = rays.size
+def _initial_status(models, image, point, col, row, rays):
+    """Per point: TOO_FEW_RAYS, OUTSIDE (a measurement outside its image) or NOT_CONVERGED (to go)."""
     status = np.where(rays < 2, TOO_FEW_RAYS, NOT_CONVERGED).astype(np.int8)
     for key in np.unique(image):
         sel = np.flatnonzero(image == key)
         cols, rows = models[key].size
         outside = sel[(col[sel] < 0) | (col[sel] > cols) | (row[sel] < 0) | (row[sel] > rows)]
         status[point[outside][rays[point[outside]] >= 2]] = OUTSIDE
+    return status
+
+
+def closest_points(models, image_ids, point_index, col, row, h0=None):
+    """The start of `intersect` alone, without its adjustment: per point the point closest in least
+    squares to the lines of sight of its measurements (`_start`). Returns (the point indices given,
+    sorted and unique; lon, lat, h; ok: at least two non-parallel lines inside the images)."""
+    image, point, col, row, _ = _check_inputs(models, image_ids, point_index, col, row, 1.0)
+    h0 = _default_height(models) if h0 is None else float(h0)
+    ids, inverse = np.unique(point, return_inverse=True)
+    order = np.lexsort((image, inverse))
+    inverse, image, col, row = inverse[order], image[order], col[order], row[order]
+    status = _initial_status(models, image, inverse, col, row, np.bincount(inverse, minlength=ids.size))
+    go = np.flatnonzero(status == NOT_CONVERGED)
+    lon, lat, h = np.full(ids.size, np.nan), np.full(ids.size, np.nan), np.full(ids.size, np.nan)
+    xyz, ok = _start(models, image, col, row, inverse, go, h0)
+    lon[go], lat[go], h[go] = ecef_to_geodetic(xyz)
+    good = np.zeros(ids.size, bool)
+    good[go] = ok & np.isfinite(h[go])
+    return ids, lon, lat, h, good
+
+
+def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, tol, feedback):
+    """Intersect the points 0 .. len(rays) - 1 of one chunk from their measurements (sorted by
+    `point`). Returns lon, lat, h, status, iterations, sigma0, rms, covariance."""
+    n = rays.size
+    status = _initial_status(models, image, point, col, row, rays)
     lon, lat, h = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
     iterations, sigma0, rms = np.zeros(n, np.int32), np.full(n, np.nan), np.full(n, np.nan)
     covariance = np.full((n, 3, 3), np.nan)
     go = np.flatnonzero(status == NOT_CONVERGED)
-    lon[go], lat[go], h[go] = ecef_to_geodetic(_start(models, image, col, row, point, go, h0))
+    lon[go], lat[go], h[go] = ecef_to_geodetic(_start(models, image, col, row, point, go, h0)[0])
     status[go[~np.isfinite(h[go])]] = OUTSIDE
     observed = np.column_stack([col, row])
     weight = 1.0 / sigma ** 2

@@ -91,6 +91,21 @@ def test_reduced_normals_and_redundancy_against_dense_reference():
     assert dense_r.sum() == pytest.approx(len(weights) - 3 * npts - nfree)    # sum of r_i = redundancy
 
 
+def test_scatter_partials_against_numpy():
+    """The kernel that maps one image's partials to the compact columns, against the plain numpy."""
+    rng = np.random.default_rng(8)
+    n, nc, kk, total = 9, 32, 5, 20
+    rows = np.sort(rng.choice(total, n, replace=False))
+    d_corr, d_ground = rng.normal(size=(n, 2, nc)), rng.normal(size=(n, 2, 3))
+    per_metre, cmap = rng.uniform(1e-5, 1.0, (n, 3)), rng.normal(size=(nc, kk))
+    a, b = np.full((total, 2, 3), np.nan), np.full((total, 2, kk), np.nan)
+    normals.scatter_partials(rows, d_corr, d_ground, per_metre, cmap, b, a)
+    np.testing.assert_allclose(b[rows], d_corr @ cmap, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(a[rows], d_ground * per_metre[:, None, :], rtol=1e-15)
+    untouched = np.setdiff1d(np.arange(total), rows)
+    assert np.isnan(a[untouched]).all() and np.isnan(b[untouched]).all()
+
+
 def test_recovers_injected_look_angles_and_check_points_match_their_precision(scene):
     """19 control points (0.3 px, ground sigma 0.5 m) and 8 check points from the simulator, plus
     300 synthetic check points; free psi_x_0, psi_y_0 of every image."""

@@ -58,6 +58,31 @@ def errors_enu(result, lon, lat, h):
     return np.column_stack([(result.lon - lon) * me, (result.lat - lat) * mn, result.h - h])
 
 
+def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_rays(scene):
+    """The start alone (the adjustment's starting points): exact measurements' lines of sight meet in
+    the true point; with 0.3 px noise the start is metres close; a point with fewer than two images'
+    lines is not usable."""
+    models, truth = scene["models"], (scene["lon"], scene["lat"], scene["h"])
+    image, point, col, row = measure(models, NAMES, *truth)
+    me, mn = metres_per_degree(float(np.mean(scene["lat"])))
+
+    def error(lon, lat, h):
+        return np.column_stack([(lon - truth[0]) * me, (lat - truth[1]) * mn, h - truth[2]])
+
+    ids, lon, lat, h, ok = ix.closest_points(models, image, 5 * point, col, row)
+    assert np.array_equal(ids, 5 * np.arange(N_POINTS)) and ok.all()
+    exact = np.abs(error(lon, lat, h)).max()
+    noise = np.random.default_rng(2).normal(0.0, 0.3, (2, col.size))
+    noisy = np.sqrt(np.mean(error(*ix.closest_points(models, image, point, col + noise[0], row + noise[1])[1:4]) ** 2,
+                            axis=0))
+    print(f"closest points: largest error {exact:.2e} m exact; RMS E/N/H {np.round(noisy, 2)} m with 0.3 px")
+    assert exact < 1e-3
+    assert noisy.max() < 5.0
+    first = np.flatnonzero(point == 0)[0]
+    single = ix.closest_points(models, image[[first, first]], [0, 1], col[[first, first]], row[[first, first]])
+    assert not single[4].any()
+
+
 @pytest.mark.parametrize("names", [NAMES, ("HRG", "HRS1"), ("HRS1", "HRS2")])
 def test_exact_measurements_give_the_truth(scene, names):
     models = scene["models"]

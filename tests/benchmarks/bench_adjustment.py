@@ -36,9 +36,10 @@ INJECTED = {1: (2.0e-5, -1.0e-5), 2: (-1.5e-5, 0.8e-5), 3: (1.0e-5, 1.2e-5)}
 FREE = ["look:1"]
 SIGMA_PX = 0.3
 CONTROL = 19
-#: scipy's ftol, xtol, gtol and lsmr's atol, btol: the loosest of 1e-8, 1e-10, 1e-12 whose solution
-#: agrees with adjust's to 1e-6 sigma on 5 000 and 20 000 points (1e-8: 2e-4, 1e-10: 1.5e-6 sigma)
-SCIPY_TOLERANCE = 1e-12
+#: scipy's ftol, xtol, gtol and lsmr's atol, btol: the loosest of 1e-8 ... 1e-13 whose solution agrees
+#: with adjust's to 1e-6 sigma from the lines-of-sight start (1e-8: 2e-4; 1e-12: up to 1.8e-6 sigma,
+#: scipy stopping on xtol short of the minimum; 1e-13: 1e-8 to 3e-8 sigma)
+SCIPY_TOLERANCE = 1e-13
 
 
 def supplied_models(paths):
