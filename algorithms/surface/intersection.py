@@ -19,9 +19,11 @@ at heights h0 -+ 500 m from `image_to_ground`). Per point the result carries the
 (A' P A)^-1 in m^2 (E, N, U, from the given image sigma), the a posteriori sigma0 =
 sqrt(v' P v / (2k - 3)) (unitless: about 1 when the image sigma is right; a posteriori sigmas =
 sigma0 x a priori sigmas), the RMS of the 2k image residuals (px), the iterations and a status."""
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from .. import progress
 from ..adjustment.observations import IMAGE_SIGMA
@@ -91,12 +93,11 @@ def _inverse_symmetric(m):
 
 
 def _start(models, image, col, row, point, go, h0):
-    """ECEF starting points of the points `go` (sorted, each with a measurement; `point` sorted): the
-    point closest in least squares to the lines of sight of all their measurements (each through its
-    ground points at heights h0 -+ START_HALF_HEIGHT from `image_to_ground`),
-    X = (sum_i A_i)^-1 sum_i A_i p_i, A_i = I - u_i u_i' (u_i unit direction, p_i a point of line i;
-    for two lines the midpoint of their common perpendicular). With fewer than two lines or parallel
-    ones, the point at h0 of the first line (NaN if no ray meets the ground) and ok False."""
+    """ECEF starting points of the points `go` (sorted, each with a measurement; `point` sorted) and
+    whether each is a true intersection: the point closest in least squares to the lines of sight of
+    all their measurements (each through its ground points at heights h0 -+ START_HALF_HEIGHT from
+    `image_to_ground`; `closest_to_lines`). With fewer than two lines or parallel ones, the point at
+    h0 of the first line (NaN if no ray meets the ground) and ok False."""
     if not go.size:
         return np.zeros((0, 3)), np.zeros(0, bool)
     sel = np.flatnonzero(np.isin(point, go))
@@ -106,21 +107,44 @@ def _start(models, image, col, row, point, go, h0):
         for j, height in enumerate((h0 - START_HALF_HEIGHT, h0 + START_HALF_HEIGHT)):
             lon, lat = models[key].image_to_ground_or_nan(col[sel][s], row[sel][s], np.full(int(s.sum()), height))
             ends[j, s] = geodetic_to_ecef(lon, lat, height)
-    mid, u = 0.5 * (ends[0] + ends[1]), ends[1] - ends[0]
-    good = np.isfinite(mid).all(axis=1) & np.isfinite(u).all(axis=1)
-    mid[~good], u[~good] = 0.0, 1.0
-    u /= np.linalg.norm(u, axis=1)[:, None]
-    a = np.eye(3) - u[:, :, None] * u[:, None, :]
-    a[~good] = 0.0
     starts = np.flatnonzero(np.r_[True, point[sel][1:] != point[sel][:-1]])
-    normal = np.add.reduceat(a, starts)
-    inverse, det = _inverse_symmetric(normal)
-    ok = (np.add.reduceat(good, starts) >= 2) & (det > SINGULAR_RATIO * np.prod(np.diagonal(normal, axis1=1, axis2=2),
-                                                                             axis=1))
-    rhs = np.add.reduceat(np.einsum("kij,kj->ki", a, mid), starts)
-    first = np.minimum.reduceat(np.where(good, np.arange(sel.size), sel.size), starts)
-    alone = np.where((first < sel.size)[:, None], mid[np.minimum(first, sel.size - 1)], np.nan)
-    return np.where(ok[:, None], np.einsum("kij,kj->ki", np.where(ok[:, None, None], inverse, 0.0), rhs), alone), ok
+    xyz, ok = np.empty((starts.size, 3)), np.zeros(starts.size, np.bool_)
+    closest_to_lines(ends[0], ends[1], np.r_[starts, sel.size], SINGULAR_RATIO, xyz, ok)
+    return xyz, ok
+
+
+@njit(cache=True, nogil=True)
+def closest_to_lines(p0, p1, bounds, singular_ratio, xyz, ok):
+    """Per group g (lines bounds[g]:bounds[g + 1], each through p0 and p1; lines with a NaN end are
+    unusable): X = (sum_i A_i)^-1 sum_i A_i m_i, A_i = I - u_i u_i' (u_i unit direction, m_i the
+    midpoint), the point closest in least squares to the lines (for two lines the midpoint of their
+    common perpendicular); ok when at least two usable lines give det(sum A) > singular_ratio x the
+    product of its diagonal, else the midpoint of the first usable line (NaN if none)."""
+    normal, rhs = np.empty((3, 3)), np.empty(3)
+    for g in range(bounds.size - 1):
+        normal[:, :], rhs[:] = 0.0, 0.0
+        usable, first = 0, -1
+        for i in range(bounds[g], bounds[g + 1]):
+            u = p1[i] - p0[i]
+            m = 0.5 * (p0[i] + p1[i])
+            if not (np.isfinite(u).all() and np.isfinite(m).all()):
+                continue
+            usable += 1
+            first = i if first < 0 else first
+            u /= math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+            for r in range(3):
+                for c in range(3):
+                    a = (1.0 if r == c else 0.0) - u[r] * u[c]
+                    normal[r, c] += a
+                    rhs[r] += a * m[c]
+        det = np.linalg.det(normal) if usable >= 2 else 0.0
+        ok[g] = usable >= 2 and det > singular_ratio * normal[0, 0] * normal[1, 1] * normal[2, 2]
+        if ok[g]:
+            xyz[g] = np.linalg.solve(normal, rhs)
+        elif first >= 0:
+            xyz[g] = 0.5 * (p0[first] + p1[first])
+        else:
+            xyz[g] = np.nan
 
 
 def _check_inputs(models, image, point, col, row, sigma):

@@ -58,6 +58,34 @@ def errors_enu(result, lon, lat, h):
     return np.column_stack([(result.lon - lon) * me, (result.lat - lat) * mn, result.h - h])
 
 
+def test_closest_to_lines_kernel_against_numpy():
+    """Groups of 1-4 random lines (some parallel, some with a NaN end) against the normal equations
+    solved in numpy."""
+    rng = np.random.default_rng(11)
+    counts = rng.integers(1, 5, 300)
+    bounds = np.r_[0, np.cumsum(counts)]
+    p0, p1 = rng.normal(0, 1e3, (bounds[-1], 3)), rng.normal(0, 1e3, (bounds[-1], 3))
+    p0[5] = np.nan
+    p1[bounds[7]:bounds[8]] = p0[bounds[7]:bounds[8]] + [1.0, 2.0, 3.0]          # parallel lines
+    xyz, ok = np.empty((counts.size, 3)), np.zeros(counts.size, bool)
+    ix.closest_to_lines(p0, p1, bounds, ix.SINGULAR_RATIO, xyz, ok)
+    for g in range(counts.size):
+        lines = [(a, b) for a, b in zip(p0[bounds[g]:bounds[g + 1]], p1[bounds[g]:bounds[g + 1]])
+                 if np.isfinite(a).all() and np.isfinite(b).all()]
+        u = [(b - a) / np.linalg.norm(b - a) for a, b in lines]
+        normal = sum((np.eye(3) - np.outer(v, v) for v in u), np.zeros((3, 3)))
+        want_ok = len(lines) >= 2 and np.linalg.det(normal) > ix.SINGULAR_RATIO * np.prod(np.diag(normal))
+        assert ok[g] == want_ok, g
+        if want_ok:
+            rhs = sum((np.eye(3) - np.outer(v, v)) @ (0.5 * (a + b)) for v, (a, b) in zip(u, lines))
+            np.testing.assert_allclose(xyz[g], np.linalg.solve(normal, rhs), rtol=1e-9, atol=1e-6)
+        elif lines:
+            np.testing.assert_allclose(xyz[g], 0.5 * (lines[0][0] + lines[0][1]))
+        else:
+            assert np.isnan(xyz[g]).all()
+    assert not ok[7] and ok.sum() > 200
+
+
 def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_rays(scene):
     """The start alone (the adjustment's starting points): exact measurements' lines of sight meet in
     the true point; with 0.3 px noise the start is metres close; a point with fewer than two images'
