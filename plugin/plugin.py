@@ -27,11 +27,13 @@ def create_plugin(iface):
 
 
 class PushbroomPlugin:
-    """Registers the Processing provider (kept alive by `self.provider`) and removes it on unload."""
+    """Registers the Processing provider (kept alive by `self.provider`) and, in the QGIS desktop, the
+    "Measure control points..." action (plugin/measure_action.py); removes both on unload."""
 
     def __init__(self, iface):
         self.iface = iface
         self.provider = None
+        self.measure = None
 
     def initProcessing(self):  # noqa: N802 (QGIS API)
         from .provider import PushbroomProvider
@@ -40,8 +42,14 @@ class PushbroomPlugin:
 
     def initGui(self):  # noqa: N802 (QGIS API)
         self.initProcessing()
+        if self.iface is not None:
+            from .measure_action import MeasureAction
+            self.measure = MeasureAction(self.iface)
 
     def unload(self):
+        if self.measure is not None:
+            self.measure.unload()
+            self.measure = None
         if self.provider is not None:
             QgsApplication.processingRegistry().removeProvider(self.provider)
             self.provider = None

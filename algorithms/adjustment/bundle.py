@@ -299,6 +299,11 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, fe
             defects = find_defects(normal, labels, defect_eigenvalue, prior)
             if defects:
                 raise defects
+            n_obs, redundancy = _redundancy(geo, pts, ok, prior)
+            if redundancy <= 0:
+                raise InputError(f"too few observations: {n_obs} for {n_obs - redundancy} unknowns ({nfree} "
+                                 f"orientation, 3 per point): measure more points, in more images, or fix "
+                                 "parameters")
         do = _solve_scaled(normal, rhs)
         normals.back_substitute(start, a, b, geo.w, geo.img, col, ninv, bp, ok, do, dx)
         x[params.free] += do
@@ -330,11 +335,9 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, fe
     vg = -lg
     control = pts["role"] == "control"
     used = ok[geo.point_of]
-    n_obs = 2 * int(used.sum()) + 3 * int((control & ok).sum())
-    redundancy = n_obs + int(np.count_nonzero(prior)) - 3 * int(ok.sum()) - nfree
+    redundancy = _redundancy(geo, pts, ok, prior)[1]
     vpv = float(np.sum((v * v * geo.w)[used]) + np.sum((vg * vg * wg)[ok])) + vpv_prior
-    sigma0 = float(np.sqrt(vpv / redundancy)) if redundancy > 0 else float("nan")
-    s0 = sigma0 if np.isfinite(sigma0) else 1.0
+    sigma0 = s0 = float(np.sqrt(vpv / redundancy))          # redundancy > 0: checked in the first iteration
     sigmas = np.full(len(params), np.nan)
     sigmas[params.free] = s0 * np.sqrt(np.diag(qoo))
     sig_l = 1.0 / np.sqrt(geo.w)
@@ -354,6 +357,14 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, fe
                       residuals=v[back], redundancy_numbers=red[back], normalised=normalised[back],
                       ground_residuals=ground_res, iterations=iteration, effects=params.max_effects(x, height),
                       log=log)
+
+
+def _redundancy(geo, pts, ok, prior):
+    """(observations, redundancy = observations - unknowns) of the usable points `ok`: 2 per image
+    measurement, 3 per control point and 1 per prior, against 3 per point and the free unknowns."""
+    n_obs = 2 * int(ok[geo.point_of].sum()) + 3 * int(((pts["role"] == "control") & ok).sum()) + \
+        int(np.count_nonzero(prior))
+    return n_obs, n_obs - 3 * int(ok.sum()) - geo.nfree
 
 
 def _linearise(geo, pts, lon, lat, h, prior, xfree, ninv, bp, ok):
@@ -417,8 +428,7 @@ def check_points(adjustment, observations, height=0.0):
     geo = _Geometry(params, chk)
     a, b, _ = geo.linearise(lon, lat, h)
     g = -ninv @ geo.point_orientation_blocks(a, b)
-    s0 = adjustment.sigma0 if np.isfinite(adjustment.sigma0) else 1.0
-    cov = s0 ** 2 * ninv + g @ adjustment.covariance @ np.swapaxes(g, 1, 2)
+    cov = adjustment.sigma0 ** 2 * ninv + g @ adjustment.covariance @ np.swapaxes(g, 1, 2)
     e_deg, n_deg = metres_per_degree(pts["lat"], pts["h"])
     ground = np.column_stack([pts["sigma_e"], pts["sigma_n"], pts["sigma_h"]])
     return {"names": pts["name"], "dE": (lon - pts["lon"]) * e_deg, "dN": (lat - pts["lat"]) * n_deg,

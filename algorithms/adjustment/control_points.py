@@ -22,9 +22,10 @@ the delimiter is a comma, semicolon or tab, the encoding UTF-8 (a BOM is allowed
 Other columns are ignored with a warning. Errors name the line and column.
 
 Storage in the block: the point layer `control_points` (EPSG:4326 point Z: lon, lat, ellipsoidal
-h; fields name, role, lon, lat, h, sigma_e, sigma_n, sigma_h) and the table `image_measurements`
-(point_name, image_id, col, row, sigma), both replaced in one SQLite transaction, so an import
-either lands whole or leaves the block as it was."""
+h; fields name, role, lon, lat, h, sigma_e, sigma_n, sigma_h, and residual_px once a bundle adjustment
+has run, see measurement/residual_store.py) and the table `image_measurements` (point_name, image_id,
+col, row, sigma), both replaced in one SQLite transaction, so an import either lands whole or leaves
+the block as it was; measurement/store.py edits single points and measurements."""
 import csv
 import io
 import math
@@ -293,14 +294,37 @@ def image_ids(block_path):
     return {r["name"]: r["id"] for r in block.read_images(block_path)}
 
 
-def _layers(ds):
+def layers(ds):
     """The control_points layer and image_measurements table of an open block (created if missing)."""
     points = ds.GetLayerByName(LAYER) or block.create_layer(ds, LAYER, ogr.wkbPoint25D, wgs84(), POINT_FIELDS)
     table = ds.GetLayerByName(TABLE) or block.create_layer(ds, TABLE, ogr.wkbNone, None, MEAS_FIELDS)
     return points, table
 
 
-def _read(ds, block_path):
+def write_point(layer, p, feat=None):
+    """Store point record `p` (POINT_DTYPE) in the control_points layer: as a new feature, or into
+    `feat` (an existing feature of the layer; its other fields, such as residual_px, kept)."""
+    new = feat is None
+    feat = ogr.Feature(layer.GetLayerDefn()) if new else feat
+    for name, _ in POINT_FIELDS:
+        feat[name] = p[name].item()
+    geom = ogr.Geometry(ogr.wkbPoint25D)
+    geom.AddPoint(float(p["lon"]), float(p["lat"]), float(p["h"]))
+    feat.SetGeometry(geom)
+    (layer.CreateFeature if new else layer.SetFeature)(feat)
+
+
+def write_measurement(table, name, m):
+    """A new row of the image_measurements table: measurement `m` (MEAS_DTYPE) of point `name`."""
+    feat = ogr.Feature(table.GetLayerDefn())
+    feat["point_name"] = name
+    for key, _ in MEAS_FIELDS[1:]:
+        feat[key] = m[key].item()
+    table.CreateFeature(feat)
+
+
+def read_stored(ds, block_path):
+    """The Observations stored in the open block `ds` (see load_control_points)."""
     points_layer, table = ds.GetLayerByName(LAYER), ds.GetLayerByName(TABLE)
     if points_layer is None:
         return Observations()
@@ -321,7 +345,7 @@ def load_control_points(block_path):
     """The control/check points stored in the block and their measurements (image ids = block
     image ids); empty Observations when none were imported."""
     ds = block.open_block(block_path)
-    return _read(ds, block_path)
+    return read_stored(ds, block_path)
 
 
 def save_control_points(block_path, observations, mode="replace", feedback=None, names=None):
@@ -344,25 +368,15 @@ def save_control_points(block_path, observations, mode="replace", feedback=None,
     ds.StartTransaction()
     try:
         if mode == "merge":
-            observations = merge(_read(ds, block_path), observations)
-        points_layer, table = _layers(ds)
+            observations = merge(read_stored(ds, block_path), observations)
+        points_layer, table = layers(ds)
         ds.ExecuteSQL(f"DELETE FROM {TABLE}")
         ds.ExecuteSQL(f"DELETE FROM {LAYER}")
         for k, p in enumerate(observations.points):
             progress.step(feedback, 80.0 * k / max(len(observations.points), 1))
-            feat = ogr.Feature(points_layer.GetLayerDefn())
-            for name, _ in POINT_FIELDS:
-                feat[name] = p[name].item()
-            geom = ogr.Geometry(ogr.wkbPoint25D)
-            geom.AddPoint(float(p["lon"]), float(p["lat"]), float(p["h"]))
-            feat.SetGeometry(geom)
-            points_layer.CreateFeature(feat)
+            write_point(points_layer, p)
         for m in observations.measurements:
-            feat = ogr.Feature(table.GetLayerDefn())
-            feat["point_name"] = observations.points["name"][m["point"]].item()
-            for name, _ in MEAS_FIELDS[1:]:
-                feat[name] = m[name].item()
-            table.CreateFeature(feat)
+            write_measurement(table, observations.points["name"][m["point"]].item(), m)
         progress.step(feedback, 90.0)
         ds.ExecuteSQL(f"RECOMPUTE EXTENT ON {LAYER}")
         roles = observations.points["role"]

@@ -42,8 +42,7 @@ def group_factors(result):
         out[group] = _factor(2 * int(sel.sum()), float(np.sum(r)), float(np.sum(w[sel, None] * v * v)))
     control = obs.points["role"] == "control"
     sig = np.column_stack([obs.points["sigma_e"], obs.points["sigma_n"], obs.points["sigma_h"]])[control]
-    s0 = result.sigma0 if np.isfinite(result.sigma0) else 1.0
-    qpp = (result.point_sigmas[control] / s0) ** 2
+    qpp = (result.point_sigmas[control] / result.sigma0) ** 2
     red = 1.0 - qpp / sig ** 2
     v = result.ground_residuals[control]
     out["control ground"] = _factor(v.size, float(np.sum(red)), float(np.sum(v * v / sig ** 2)))

@@ -1,5 +1,6 @@
 """pushbroom:bundleadjust — bundle adjustment of the block from its control/check points and tie
-points (algorithms/adjustment/bundle.py); the adjusted models are stored in the block, with a
+points (algorithms/adjustment/bundle.py); the adjusted models and the control and check points'
+residuals (algorithms/measurement/residual_store.py) are stored in the block, with a
 report (K Tables 2-4; adjustment/report.py) and a residual-vector layer of the control and check
 points (adjustment/residual_vectors.py)."""
 from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry,
@@ -24,6 +25,7 @@ from ...algorithms.dem import Dem
 from ...algorithms.errors import InputError
 from ...algorithms.stats import statistics_table
 from ...algorithms.matching import points
+from ...algorithms.measurement.residual_store import save_residuals
 from ..styles import style_on_completion
 from .base import PushbroomAlgorithm
 from .import_points import HEIGHTS
@@ -48,6 +50,20 @@ def residual_fields():
     return fields
 
 
+def parse_priors(text):
+    """{pattern: sigma} of the PRIORS parameter "pattern=sigma, ..." (empty text: none)."""
+    priors = {}
+    for item in (text or "").replace(";", ",").split(","):
+        if not item.strip():
+            continue
+        pattern, _, value = item.partition("=")
+        try:
+            priors[pattern.strip()] = float(value)
+        except ValueError:
+            raise InputError(f"a prior is pattern=sigma (e.g. bias:shift=10), not {item.strip()!r}") from None
+    return priors
+
+
 class BundleAdjust(PushbroomAlgorithm):
     NAME = "bundleadjust"
     DISPLAY_NAME = "Bundle adjustment"
@@ -68,7 +84,10 @@ class BundleAdjust(PushbroomAlgorithm):
             "'Lagrange' (SPOT 1-4, Hofmann 003 section 3) takes the exterior orientation at 2-4 orientation "
             "images per trajectory as unknowns (any line's by the Lagrange polynomial through them), the header "
             "positions as observations (1 m relative, offset unknowns of 1000 m); 'auto' then frees the "
-            "attitude and the offsets (patterns lagrange:attitude|position|offset|all, <kind>@<nodes>). Check points "
+            "attitude and the offsets (patterns lagrange:attitude|position|offset|all, <kind>@<nodes>). PRIORS adds "
+            "prior observations x = 0 +- sigma of orientation unknowns (pattern=sigma); with priors and named free "
+            "parameters a block of tie points alone can be adjusted (e.g. RPC images: FREE bias:shift, PRIORS "
+            "bias:shift=10: the images are shifted relative to each other within a few pixels). Check points "
             "take no part: they are intersected with the adjusted models and compared with their ground "
             "coordinates. Parameters the points cannot determine are named before solving. Data snooping "
             "flags measurements with normalised residuals above the critical value and, if asked, removes "
@@ -111,6 +130,8 @@ class BundleAdjust(PushbroomAlgorithm):
                    minValue=2, maxValue=4),
             Number("VECTOR_SCALE", "Scale of the residual vectors on the map", Number.Double, DEFAULT_SCALE,
                    minValue=1e-3),
+            QgsProcessingParameterString("PRIORS", "Prior sigmas of orientation unknowns: pattern=sigma, ... "
+                                         "(m, rad, px; e.g. bias:shift=10)", "", optional=True),
         ])
         self.addParameter(QgsProcessingParameterFileDestination("REPORT", "Report", "HTML files (*.html)",
                                                                 optional=True))
@@ -126,24 +147,27 @@ class BundleAdjust(PushbroomAlgorithm):
         models = {r["id"]: block.load_model(path, r["id"]) for r in rows}
         names = {r["id"]: r["name"] for r in rows}
         obs = load_control_points(path)
-        if not len(obs.points):
-            raise InputError("the block has no control points: import them first (pushbroom:importpoints)")
         if self.parameterAsBool(parameters, "USE_TIE_POINTS", context):
             tie = tie_observations(points.load_points(path, "tie_points"),
                                    self.parameterAsDouble(parameters, "SIGMA_TIE", context))
             obs = obs.concatenate(tie)
         free = [f for f in self.parameterAsString(parameters, "FREE", context).split(",") if f.strip()]
+        auto = [f.strip().lower() for f in free] == ["auto"]
+        priors = parse_priors(self.parameterAsString(parameters, "PRIORS", context))
+        if not (obs.points["role"] == "control").any() and (auto or not priors):
+            raise InputError("the block has no control points: import them (pushbroom:importpoints), or adjust "
+                             "with tie points alone by naming the free parameters and priors that fix the "
+                             "datum (e.g. FREE bias:shift, PRIORS bias:shift=10 for RPC images)")
         height = display_height(block.height_range(path))
         critical = self.parameterAsDouble(parameters, "CRITICAL", context)
         dem_layer = self.parameterAsRasterLayer(parameters, "REFERENCE_DEM", context)
         dem = Dem.from_file(dem_layer.source()) if dem_layer is not None else None
-        options = {"height": height, "critical": critical,
+        options = {"height": height, "critical": critical, "priors": priors,
                    "max_iterations": self.parameterAsInt(parameters, "MAX_ITERATIONS", context),
                    "remove_blunders": self.parameterAsBool(parameters, "REMOVE_BLUNDERS", context)}
         variance = self.parameterAsBool(parameters, "VARIANCE_COMPONENTS", context)
         model = list(MODELS)[self.parameterAsEnum(parameters, "MODEL", context)]
         extra = []
-        auto = [f.strip().lower() for f in free] == ["auto"]
         if model == "lagrange":
             options.update(model=model,
                            orientation_images=self.parameterAsInt(parameters, "ORIENTATION_IMAGES", context))
@@ -194,6 +218,7 @@ class BundleAdjust(PushbroomAlgorithm):
         feedback.pushInfo(report.render_text(parts))
         block.save_models(path, models, step="bundleadjust",
                           message=f"sigma_0 {result.sigma0:.4f}, free: {', '.join(free)}")
+        save_residuals(path, result, check, obs)
         out = {"BLOCK": path, "SIGMA0": result.sigma0}
         destination = self.parameterAsFileOutput(parameters, "REPORT", context)
         if destination:

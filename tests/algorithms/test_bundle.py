@@ -156,6 +156,17 @@ def test_datum_defects_are_named(scene):
         adjust(perturbed(scene), obs, ["psi_z_0"], names=LABELS)
 
 
+def test_no_redundancy_is_an_error(scene):
+    """One control point in one image with that image's two look constants free: 5 observations for 5
+    unknowns, solvable but with nothing to estimate sigma_0 from: a clear error, not NaN statistics."""
+    obs = point_observations(scene["points"], IDS, 1)
+    one = obs.subset(obs.points["role"] == "control")
+    one = Observations(one.points, one.measurements[one.measurements["image_id"] == IDS["HRG"]])
+    with pytest.raises(InputError, match="too few observations: 5 for 5 unknowns"):
+        adjust(perturbed(scene), one, ["HRG psi_x_0", "HRG psi_y_0"], names=LABELS, height=300.0)
+    assert adjust(perturbed(scene), one, ["HRG psi_x_0"], names=LABELS, height=300.0).redundancy == 1
+
+
 def test_priors_pin_loosen_and_cure_defects(scene):
     """Prior observations x = 0: a tight one pins its unknown (and adds to the redundancy), a loose
     one changes nothing, and priors on the coefficients 2 control points cannot determine make

@@ -16,7 +16,8 @@ from qgis.core import (QgsCategorizedSymbolRenderer, QgsProcessingContext, QgsPr
 from osr_oracle import utm
 from raster_oracle import bilinear
 from pushbroom.algorithms import block, sensors
-from pushbroom.algorithms.adjustment.control_points import import_csv
+from pushbroom.algorithms.adjustment.control_points import import_csv, save_control_points
+from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.adjustment.residual_vectors import ATTRIBUTES
 from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.dem import Dem
@@ -221,3 +222,26 @@ def test_lagrange_model(pushbroom_provider, adjusted_block, tmp_path, log):
                                                       "REPORT": str(tmp_path / "l.html")}, feedback=log)
     assert "roll@1" in open(result["REPORT"]).read()
     assert max(truth_rms(path, paths, ids).values()) < 0.5
+
+
+def test_tie_points_alone_with_priors(pushbroom_provider, scene, tmp_path, log):
+    """No control points: refused with 'auto' or without priors; with named free look-angle constants and
+    weak priors holding the datum, the tie points alone remove the injected across-track differences
+    between the images (+-20 urad): the adjusted psi_y constants agree (truth: all equal). The along-track
+    ones (psi_x, injected equal) move the heights of all points together: the priors hold them."""
+    path = str(tmp_path / "ties_only.gpkg")
+    ids, _ = make_tie_block(scene, path)
+    save_control_points(path, Observations())
+    for params in ({}, {"FREE": "look:0"}):
+        with pytest.raises(QgsProcessingException, match="no control points.*PRIORS"):
+            processing.run("pushbroom:bundleadjust", {"BLOCK": path, "VARIANCE_COMPONENTS": False, **params})
+    with pytest.raises(QgsProcessingException, match="pattern=sigma"):
+        processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "PRIORS": "look:0"})
+    before = {i: block.load_model(path, i).orientation.corrections.look[1, 0] for i in ids.values()}
+    result = processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "PRIORS": "look:0=1e-4",
+                                                      "VARIANCE_COMPONENTS": False}, feedback=log)
+    assert 0.25 < result["SIGMA0"] < 0.6                     # 0.2 px noise against the a priori 0.5 px
+    after = {i: block.load_model(path, i).orientation.corrections.look[1, 0] for i in ids.values()}
+    print(f"psi_y constants before {before}, after {after} (rad)")
+    assert np.ptp(list(before.values())) == pytest.approx(4e-5)
+    assert np.ptp(list(after.values())) < 1e-6

@@ -1,0 +1,273 @@
+"""Single edits of a block's control/check points and their image measurements (the measurement
+window, issue 6), in the block's layer `control_points` and table `image_measurements`
+(adjustment/control_points.py).
+
+Every edit is ONE SQLite transaction, committed before the method returns: a killed process loses
+nothing already returned, and an edit that fails (a refused value, a locked or broken file) leaves
+the block as it was. Each edit opens the block anew (no connection kept between edits, so edits from
+a background adjustment or QGIS's own layer never meet stale state), takes the write lock first
+(waiting up to BUSY_TIMEOUT_MS for another writer) and updates block_info's counts control_points,
+check_points and image_measurements in the same transaction, without a run_log row per edit.
+
+Records handed back for undo: points as POINT_DTYPE records; measurements as MEAS_DTYPE records
+whose `point` is 0 (they belong to the one point the call is about)."""
+import contextlib
+import math
+import os
+
+import numpy as np
+
+from .. import block
+from ..adjustment import control_points as cp
+from ..adjustment.observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE
+from ..errors import InputError
+
+#: ms an edit waits for another connection's write lock (QGIS editing the layer, an adjustment storing
+#: its results) before it gives up with an error
+BUSY_TIMEOUT_MS = 5000
+
+
+@contextlib.contextmanager
+def transaction(block_path, what="the edit"):
+    """The block's data source (update mode) inside one SQLite transaction that already holds the
+    write lock (taken first, so a concurrent writer is waited for up to BUSY_TIMEOUT_MS rather than
+    failing the edit half-way), committed when the block ends, rolled back on any error; OGR/SQLite
+    errors become InputError("cannot store <what> ...")."""
+    ds = block.open_block(block_path, update=True)
+    result = ds.ExecuteSQL(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+    if result is not None:
+        ds.ReleaseResultSet(result)
+    ds.StartTransaction()
+    try:
+        ds.ExecuteSQL("UPDATE block_info SET value = value WHERE key = 'format_version'")
+        yield ds
+        ds.CommitTransaction()
+    except BaseException as exc:
+        ds.RollbackTransaction()
+        if isinstance(exc, RuntimeError):   # OGR/SQLite: locked, read-only, disk full
+            raise InputError(f"cannot store {what} in {block_path}: {exc}") from exc
+        raise
+
+
+def _quoted(text):
+    """`text` as an SQL string literal."""
+    return "'" + str(text).replace("'", "''") + "'"
+
+
+def check_name(name):
+    """The point name `name`, or InputError: 1 to 32 characters, no leading or trailing spaces."""
+    name = str(name)
+    if not name.strip() or len(name) > cp.NAME_LENGTH:
+        raise InputError(f"a point name must have 1 to {cp.NAME_LENGTH} characters, got {name!r}")
+    if name != name.strip():
+        raise InputError(f"a point name must not begin or end with spaces, got {name!r}")
+    return name
+
+
+def point_record(name, role, lon, lat, h, sigma_e, sigma_n, sigma_h):
+    """A checked POINT_DTYPE record (InputError naming the bad value)."""
+    name = check_name(name)
+    if role not in cp.ROLES:
+        raise InputError(f"point {name}: the role must be one of {', '.join(cp.ROLES)}, not {role!r}")
+    try:
+        values = [float(v) for v in (lon, lat, h, sigma_e, sigma_n, sigma_h)]
+    except (TypeError, ValueError):
+        raise InputError(f"point {name}: coordinates and sigmas must be numbers, got "
+                         f"{[lon, lat, h, sigma_e, sigma_n, sigma_h]}") from None
+    lon, lat, h = values[:3]
+    if not all(math.isfinite(v) for v in values[:3]):
+        raise InputError(f"point {name}: lon {lon}, lat {lat}, h {h} must all be finite numbers")
+    if abs(lat) > 90.0 or abs(lon) > 360.0:
+        raise InputError(f"point {name}: lon {lon}, lat {lat} are not WGS 84 degrees (are they swapped, or "
+                         "projected coordinates?)")
+    if not all(math.isfinite(s) and s > 0 for s in values[3:]):
+        raise InputError(f"point {name}: the sigmas east, north, height must be positive, got {values[3:]} m")
+    record = np.zeros((), POINT_DTYPE)
+    record["name"], record["role"] = name, role
+    for key, value in zip(("lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h"), values):
+        record[key] = value
+    return record[()]
+
+
+def _point_of(feat):
+    """The POINT_DTYPE record of a control_points feature."""
+    return np.array(tuple(feat[key] for key, _ in cp.POINT_FIELDS), POINT_DTYPE)[()]
+
+
+def _measurement_of(feat):
+    """The MEAS_DTYPE record (point 0) of an image_measurements row."""
+    return np.array((0, feat["image_id"], feat["col"], feat["row"], feat["sigma"]), MEAS_DTYPE)[()]
+
+
+def _find(layer, where):
+    """The first feature of `layer` matching the SQL condition `where`, or None."""
+    layer.SetAttributeFilter(where)
+    try:
+        return layer.GetNextFeature()
+    finally:
+        layer.SetAttributeFilter(None)
+
+
+def _all(layer, where):
+    layer.SetAttributeFilter(where)
+    try:
+        return list(layer)
+    finally:
+        layer.SetAttributeFilter(None)
+
+
+class MeasurementStore:
+    """Edits of the points and measurements of the block `block_path` (module docstring)."""
+
+    def __init__(self, block_path):
+        self.path = os.fspath(block_path)
+        self.images = {int(r["id"]): r for r in block.read_images(self.path)}
+
+    # -- reading --------------------------------------------------------------------------------
+
+    def load(self):
+        """The block's control/check points and their measurements (Observations; image ids are
+        the block's, measurements ordered by point, then image id)."""
+        return cp.load_control_points(self.path)
+
+    def snapshot(self, name):
+        """(point record, its measurements) as stored, or None: what restore() needs to put it back."""
+        ds = block.open_block(self.path)
+        points, table = ds.GetLayerByName(cp.LAYER), ds.GetLayerByName(cp.TABLE)
+        feat = _find(points, f"name = {_quoted(name)}") if points is not None else None
+        if feat is None:
+            return None
+        rows = _all(table, f"point_name = {_quoted(name)}") if table is not None else []
+        return _point_of(feat), self._measurements(rows)
+
+    # -- edits ----------------------------------------------------------------------------------
+
+    @contextlib.contextmanager
+    def _edit(self):
+        """(data source, points layer, measurement table) inside one `transaction`, with
+        block_info's counts written before the commit."""
+        with transaction(self.path) as ds:
+            points, table = cp.layers(ds)
+            yield ds, points, table
+            self._write_counts(ds)
+
+    @staticmethod
+    def _write_counts(ds):
+        counts = {"control_points": 0, "check_points": 0}
+        result = ds.ExecuteSQL(f"SELECT role, COUNT(*) AS n FROM {cp.LAYER} GROUP BY role")
+        for feat in result:
+            if feat["role"] in cp.ROLES:
+                counts[f"{feat['role']}_points"] = feat["n"]
+        ds.ReleaseResultSet(result)
+        result = ds.ExecuteSQL(f"SELECT COUNT(*) AS n FROM {cp.TABLE}")
+        counts["image_measurements"] = result.GetNextFeature()["n"]
+        ds.ReleaseResultSet(result)
+        block.write_info(ds, counts)
+
+    def _point_feature(self, points, name, required=True):
+        feat = _find(points, f"name = {_quoted(name)}")
+        if feat is None and required:
+            raise InputError(f"the block has no point {name!r}")
+        return feat
+
+    def put_point(self, name, role, lon, lat, h, sigma_e, sigma_n, sigma_h):
+        """Create the point `name` or update its role, WGS 84 lon/lat (degrees), ellipsoidal h (m)
+        and a priori sigmas (m); its measurements stay. Returns the record it replaced, or None."""
+        record = point_record(name, role, lon, lat, h, sigma_e, sigma_n, sigma_h)
+        with self._edit() as (_, points, _table):
+            feat = self._point_feature(points, record["name"], required=False)
+            old = None if feat is None else _point_of(feat)
+            cp.write_point(points, record, feat)
+        return old
+
+    def rename_point(self, old, new):
+        """Rename point `old` to `new` (a name not in use); its measurements follow."""
+        new = check_name(new)
+        if new == old:
+            return
+        with self._edit() as (ds, points, _table):
+            feat = self._point_feature(points, old)
+            if self._point_feature(points, new, required=False) is not None:
+                raise InputError(f"point {new} exists already: choose another name, or delete that point first")
+            feat["name"] = new
+            points.SetFeature(feat)
+            ds.ExecuteSQL(f"UPDATE {cp.TABLE} SET point_name = {_quoted(new)} WHERE point_name = {_quoted(old)}")
+
+    def delete_point(self, name):
+        """Delete point `name` and its measurements; returns (point record, measurements) for restore()."""
+        with self._edit() as (_, points, table):
+            feat = self._point_feature(points, name)
+            rows = _all(table, f"point_name = {_quoted(name)}")
+            record, meas = _point_of(feat), self._measurements(rows)
+            for row in rows:
+                table.DeleteFeature(row.GetFID())
+            points.DeleteFeature(feat.GetFID())
+        return record, meas
+
+    def restore(self, record, measurements):
+        """Store point `record` (POINT_DTYPE) with exactly these `measurements` (MEAS_DTYPE; their
+        `point` field is ignored): the undo of delete_point, or of any edit given a snapshot()."""
+        record = np.asarray(record, POINT_DTYPE).reshape(-1)
+        if record.size != 1:
+            raise InputError(f"restore takes one point record, got {record.size}")
+        p = point_record(*(record[0][key].item() for key, _ in cp.POINT_FIELDS))
+        meas = np.asarray(measurements, MEAS_DTYPE).reshape(-1)
+        for m in meas:
+            self._check_measurement(p["name"], m["image_id"], m["col"], m["row"], m["sigma"])
+        with self._edit() as (_, points, table):
+            cp.write_point(points, p, self._point_feature(points, p["name"], required=False))
+            for row in _all(table, f"point_name = {_quoted(p['name'])}"):
+                table.DeleteFeature(row.GetFID())
+            for m in meas:
+                cp.write_measurement(table, p["name"].item(), m)
+
+    def _check_measurement(self, name, image_id, col, row, sigma):
+        """(image id, col, row, sigma) checked against the block's images (InputError naming the problem)."""
+        try:
+            image_id, col, row, sigma = int(image_id), float(col), float(row), float(sigma)
+        except (TypeError, ValueError):
+            raise InputError(f"point {name}: image id, col, row and sigma must be numbers, got "
+                             f"{[image_id, col, row, sigma]}") from None
+        if image_id not in self.images:
+            raise InputError(f"point {name}: the block has no image with id {image_id} (its images: "
+                             + ", ".join(f"{i} {r['name']}" for i, r in self.images.items()) + ")")
+        image = self.images[image_id]
+        if not (math.isfinite(col) and math.isfinite(row) and 0.0 <= col <= image["cols"]
+                and 0.0 <= row <= image["rows"]):
+            raise InputError(f"point {name}: ({col}, {row}) lies outside image {image['name']} "
+                             f"({image['cols']} x {image['rows']} px)")
+        if not (math.isfinite(sigma) and sigma > 0):
+            raise InputError(f"point {name}: the measurement sigma must be positive, got {sigma} px")
+        return image_id, col, row, sigma
+
+    def put_measurement(self, name, image_id, col, row, sigma=IMAGE_SIGMA):
+        """Measure point `name` at (col, row) in block image `image_id` (a priori sigma px), replacing
+        an earlier measurement there. Returns the measurement it replaced, or None."""
+        image_id, col, row, sigma = self._check_measurement(name, image_id, col, row, sigma)
+        m = np.array((0, image_id, col, row, sigma), MEAS_DTYPE)[()]
+        with self._edit() as (_, points, table):
+            self._point_feature(points, name)
+            feat = _find(table, f"point_name = {_quoted(name)} AND image_id = {image_id}")
+            if feat is None:
+                cp.write_measurement(table, str(name), m)
+                return None
+            old = _measurement_of(feat)
+            for key in ("col", "row", "sigma"):
+                feat[key] = m[key].item()
+            table.SetFeature(feat)
+        return old
+
+    def delete_measurement(self, name, image_id):
+        """Remove the measurement of point `name` in image `image_id`; returns it, or None when there
+        was none."""
+        with self._edit() as (_, _points, table):
+            feat = _find(table, f"point_name = {_quoted(name)} AND image_id = {int(image_id)}")
+            if feat is None:
+                return None
+            table.DeleteFeature(feat.GetFID())
+        return _measurement_of(feat)
+
+    @staticmethod
+    def _measurements(rows):
+        meas = np.array([tuple(_measurement_of(f).tolist()) for f in rows], MEAS_DTYPE)
+        return meas[np.argsort(meas["image_id"], kind="stable")]

@@ -1,0 +1,128 @@
+"""Residuals of the last adjustment in the block (measurement/residual_store.py): the control points'
+against Adjustment.residuals / .normalised / .ground_residuals, the check points' against an
+independent forward intersection (surface.intersection) reprojected with the adjusted models, the
+residual_px field on the control_points layer (with load/save of the points still working), and
+points removed or renamed since being absent on load."""
+import shutil
+
+import numpy as np
+import pytest
+from osgeo import ogr
+
+from pushbroom.algorithms import block
+from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.adjustment.bundle import adjust, check_points
+from pushbroom.algorithms.measurement.residual_store import load_residuals, save_residuals
+from pushbroom.algorithms.measurement.store import MeasurementStore
+from pushbroom.algorithms.surface.intersection import intersect
+
+CHECK = ["P002", "P005"]
+
+
+@pytest.fixture
+def adjusted(small_scene, small_scene_block, tmp_path):
+    """A copy of the small scene's block, 5 control and 2 check points, adjusted (look angles, degree
+    0): (block path, Adjustment, check dict, observations)."""
+    path = str(tmp_path / "block.gpkg")
+    shutil.copy(small_scene_block[0], path)
+    obs = cp.import_csv(path, small_scene["points"], suffix="_meas", check_ids=CHECK)
+    models = {r["id"]: block.load_model(path, r["id"]) for r in block.read_images(path)}
+    result = adjust(models, obs, ["look:0"], height=300.0)
+    check = check_points(result, obs, 300.0)
+    return path, result, check, obs
+
+
+def layer_values(path):
+    """{name: residual_px or None} of the control_points layer (None also without the field)."""
+    ds = ogr.Open(path)
+    layer = ds.GetLayerByName("control_points")
+    has = layer.GetLayerDefn().GetFieldIndex("residual_px") >= 0
+    return {f["name"]: (f["residual_px"] if has else None) for f in layer}
+
+
+def test_before_any_adjustment(small_scene_block):
+    assert load_residuals(small_scene_block[0]) == ({}, {})
+
+
+def test_residuals_are_stored_and_loaded(adjusted):
+    path, result, check, obs = adjusted
+    assert set(layer_values(path).values()) == {None}
+    save_residuals(path, result, check, obs)
+    image, ground = load_residuals(path)
+    ao = result.observations
+    names = ao.points["name"]
+    # control points: exactly the adjustment's residuals
+    control = [n for n in names if n not in CHECK]
+    assert len(control) == 5 and sorted(ground) == sorted(control + CHECK)
+    for k, m in enumerate(ao.measurements):
+        got = image[(names[m["point"]], m["image_id"])]
+        assert got == pytest.approx((*result.residuals[k], *result.normalised[k]), abs=1e-12)
+    for p, name in enumerate(names):
+        v = result.residuals[ao.measurements["point"] == p]
+        rms = np.sqrt(np.mean(v * v))
+        assert ground[name] == pytest.approx((*result.ground_residuals[p], rms), abs=1e-12)
+    # check points: reprojection of an independent intersection with the adjusted models
+    chk = obs.subset(np.isin(obs.points["name"], CHECK))
+    m = chk.measurements
+    models = result.parameters.models
+    cut = intersect(models, m["image_id"], m["point"], m["col"], m["row"], m["sigma"], h0=300.0)
+    assert cut.ok.all()
+    worst = 0.0
+    for k, mk in enumerate(m):
+        p = mk["point"]
+        col, row = models[int(mk["image_id"])].ground_to_image(cut.lon[p], cut.lat[p], cut.h[p])
+        v = np.array([col - mk["col"], row - mk["row"]])
+        got = image[(chk.points["name"][p], mk["image_id"])]
+        worst = max(worst, np.abs(np.array(got[:2]) - v).max())
+        assert np.isfinite(got[2:]).all() and np.all(np.sign(got[2:]) == np.sign(v))
+    assert worst < 1e-3, worst
+    for k, name in enumerate(check["names"]):
+        p = chk.points["name"].tolist().index(name)
+        v = np.array([image[(name, i)][:2] for i in m["image_id"][m["point"] == p]])
+        assert ground[name] == pytest.approx((check["dE"][k], check["dN"][k], check["dH"][k],
+                                              np.sqrt(np.mean(v * v))), abs=1e-9)
+    assert len(image) == len(ao.measurements) + len(m)
+    # the layer field: each point's image RMS
+    values = layer_values(path)
+    assert values == pytest.approx({n: ground[n][3] for n in names.tolist() + CHECK}, abs=1e-12)
+    print(f"check point image residuals: reprojection of the independent intersection within {worst:.1e} px; "
+          f"residual_px {values}")
+
+
+def test_points_load_and_save_with_the_field_and_edits_since(adjusted):
+    path, result, check, obs = adjusted
+    save_residuals(path, result, check, obs)
+    before = cp.load_control_points(path)
+    assert before.points.tobytes() == obs.points.tobytes()
+    store = MeasurementStore(path)
+    store.put_point("NEW", "control", -84.19, 36.615, 300.0, 2.5, 2.5, 2.2)
+    store.rename_point("P003", "R3")
+    store.delete_point("P004")
+    image, ground = load_residuals(path)
+    assert "NEW" not in ground and "R3" not in ground and "P003" not in ground and "P004" not in ground
+    assert not any(name in ("P003", "P004", "R3") for name, _ in image)
+    assert "P001" in ground and ("P001", 1) in image
+    values = layer_values(path)
+    assert values["NEW"] is None and values["P001"] == pytest.approx(ground["P001"][3])
+    # a merge import and a replace import work on the layer with the field (new features: NULL)
+    cp.save_control_points(path, obs, mode="merge")
+    assert layer_values(path)["P004"] is None and len(cp.load_control_points(path).points) == 9
+    cp.save_control_points(path, obs)
+    assert cp.load_control_points(path).points.tobytes() == obs.points.tobytes()
+    assert set(layer_values(path).values()) == {None}
+
+
+def test_a_new_adjustment_replaces_the_residuals(adjusted):
+    path, result, check, obs = adjusted
+    save_residuals(path, result, check, obs)
+    first = load_residuals(path)
+    less = obs.subset(obs.points["name"] != "P001")
+    models = {r["id"]: block.load_model(path, r["id"]) for r in block.read_images(path)}
+    again = adjust(models, less, ["look:0"], height=300.0)
+    save_residuals(path, again, check_points(again, less, 300.0), less)
+    image, ground = load_residuals(path)
+    assert "P001" not in ground and len(ground) == len(first[1]) - 1
+    assert len(image) == len(first[0]) - 3
+    assert layer_values(path)["P001"] is None
+    ds = ogr.Open(path)
+    assert ds.GetLayerByName("measurement_residuals").GetFeatureCount() == len(image)

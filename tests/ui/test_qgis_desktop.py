@@ -1,0 +1,106 @@
+"""The plugin in the real QGIS desktop under Xvfb: a throw-away profile with the plugin installed (a link to the
+repository) and enabled, and a startup script (tests/ui/qgis_desktop_session.py) that opens the measurement
+window from the toolbar action and measures 3 points of the simulated block; the block must hold them after
+QGIS has quit."""
+import json
+import os
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import pushbroom
+from pushbroom.algorithms import block
+from pushbroom.algorithms.measurement.store import MeasurementStore
+
+REPO = pathlib.Path(pushbroom.__file__).resolve().parent
+QGIS = "/usr/bin/qgis.bin"
+SESSION = pathlib.Path(__file__).with_name("qgis_desktop_session.py")
+TIMEOUT_S = 180
+POINTS = 3
+
+
+def make_profile(root):
+    """Profiles folder with a profile "test": the plugin linked in and enabled (as `make setup` does for
+    qgis_process)."""
+    profile = root / "profiles" / "test"
+    (profile / "python" / "plugins").mkdir(parents=True)
+    (profile / "python" / "plugins" / "pushbroom").symlink_to(REPO)
+    (profile / "QGIS").mkdir()
+    (profile / "QGIS" / "QGIS3.ini").write_text("[PythonPlugins]\npushbroom=true\n")
+    return root
+
+
+def run_qgis(profiles, job_path, log_path):
+    """Run QGIS under Xvfb with the session script; returns its exit status (fails the test on a timeout)."""
+    site = [p for p in sys.path if p.endswith("site-packages") and ".venv" in p]
+    env = dict(os.environ, QT_QPA_PLATFORM="xcb", PUSHBROOM_SESSION=str(job_path),
+               PYTHONPATH=os.pathsep.join(site + [os.environ.get("PYTHONPATH", "")]))
+    command = ["xvfb-run", "-a", QGIS, "--profiles-path", str(profiles), "--profile", "test", "--nologo",
+               "--noversioncheck", "--code", str(SESSION)]
+    with open(log_path, "w") as log:
+        proc = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            return proc.wait(timeout=TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    pytest.fail(f"QGIS did not finish within {TIMEOUT_S} s; its log:\n{log_path.read_text()[-5000:]}")
+
+
+def job_points(rows, images):
+    """The first POINTS points without blunders, with their true positions per block image id."""
+    points = []
+    for row in rows:
+        if any(int(row[f"{name}_blunder"]) for name in images):
+            continue
+        points.append({"name": row["id"], "lon": float(row["lon"]), "lat": float(row["lat"]), "h": float(row["h"]),
+                       "image": {str(i): [float(row[f"{name}_col"]), float(row[f"{name}_row"])]
+                                 for name, i in images.items()}})
+    return points[:POINTS]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (shutil.which("xvfb-run") and os.path.exists(QGIS)), reason="needs xvfb-run and qgis.bin")
+def test_measure_three_points_in_qgis_desktop(small_scene_block, tmp_path):
+    template, rows = small_scene_block
+    block_path = tmp_path / "block.gpkg"
+    shutil.copy(template, block_path)
+    images = {r["name"]: r["id"] for r in block.read_images(block_path)}
+    points = job_points(rows, images)
+    job = tmp_path / "job.json"
+    result_path, log_path = tmp_path / "result.json", tmp_path / "qgis.log"
+    job.write_text(json.dumps({"block": str(block_path), "result": str(result_path), "points": points}))
+
+    status = run_qgis(make_profile(tmp_path / "qgis"), job, log_path)
+    log = log_path.read_text()
+    assert result_path.exists(), f"the session script wrote no result (QGIS exit {status}); log:\n{log[-5000:]}"
+    result = json.loads(result_path.read_text())
+    assert not result["errors"], "\n".join(result["errors"]) + "\nQGIS log:\n" + log[-3000:]
+    assert status == 0, log[-5000:]
+    assert result["action"] and result["toolbars"] == ["Pushbroom"]
+    assert result["windows"] == 1 and result["windows_after_second_trigger"] == 1
+    name, count, renderer = result["layers_on_open"][0]
+    assert len(result["layers_on_open"]) == 1 and renderer == "categorizedSymbol"
+    assert result["layers_at_end"] == [[name, POINTS, renderer]]
+
+    obs = MeasurementStore(block_path).load()
+    assert sorted(obs.points["name"]) == [p["name"] for p in points]
+    first = min(images.values())
+    for point in points:
+        k = list(obs.points["name"]).index(point["name"])
+        stored = obs.points[k]
+        assert stored["role"] == "control"
+        assert np.allclose([stored["lon"], stored["lat"], stored["h"]], [point["lon"], point["lat"], point["h"]],
+                           rtol=0, atol=1e-9)
+        meas = {int(m["image_id"]): (m["col"], m["row"]) for m in obs.measurements if m["point"] == k}
+        assert sorted(meas) == sorted(images.values())
+        for image_id, truth in point["image"].items():
+            image_id = int(image_id)
+            tolerance = 0.5 if image_id in result["transferred"][point["name"]] else 1e-6
+            assert np.hypot(*np.subtract(meas[image_id], truth)) < tolerance, (point["name"], image_id)
+        assert first not in result["transferred"][point["name"]]
