@@ -118,33 +118,46 @@ def closest_to_lines(p0, p1, bounds, singular_ratio, xyz, ok):
     """Per group g (lines bounds[g]:bounds[g + 1], each through p0 and p1; lines with a NaN end are
     unusable): X = (sum_i A_i)^-1 sum_i A_i m_i, A_i = I - u_i u_i' (u_i unit direction, m_i the
     midpoint), the point closest in least squares to the lines (for two lines the midpoint of their
-    common perpendicular); ok when at least two usable lines give det(sum A) > singular_ratio x the
-    product of its diagonal, else the midpoint of the first usable line (NaN if none)."""
-    normal, rhs = np.empty((3, 3)), np.empty(3)
+    common perpendicular), solved by cofactors; ok when at least two usable lines give det(sum A) >
+    singular_ratio x the product of its diagonal, else the midpoint of the first usable line (NaN if
+    none)."""
+    n, b = np.empty((3, 3)), np.empty(3)
+    u, m = np.empty(3), np.empty(3)
     for g in range(bounds.size - 1):
-        normal[:, :], rhs[:] = 0.0, 0.0
+        n[:, :], b[:] = 0.0, 0.0
         usable, first = 0, -1
         for i in range(bounds[g], bounds[g + 1]):
-            u = p1[i] - p0[i]
-            m = 0.5 * (p0[i] + p1[i])
-            if not (np.isfinite(u).all() and np.isfinite(m).all()):
+            finite = True
+            for r in range(3):
+                u[r] = p1[i, r] - p0[i, r]
+                m[r] = 0.5 * (p0[i, r] + p1[i, r])
+                finite = finite and math.isfinite(u[r]) and math.isfinite(m[r])
+            if not finite:
                 continue
             usable += 1
             first = i if first < 0 else first
-            u /= math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+            norm = math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+            for r in range(3):
+                u[r] /= norm
             for r in range(3):
                 for c in range(3):
                     a = (1.0 if r == c else 0.0) - u[r] * u[c]
-                    normal[r, c] += a
-                    rhs[r] += a * m[c]
-        det = np.linalg.det(normal) if usable >= 2 else 0.0
-        ok[g] = usable >= 2 and det > singular_ratio * normal[0, 0] * normal[1, 1] * normal[2, 2]
-        if ok[g]:
-            xyz[g] = np.linalg.solve(normal, rhs)
-        elif first >= 0:
-            xyz[g] = 0.5 * (p0[first] + p1[first])
+                    n[r, c] += a
+                    b[r] += a * m[c]
+        c00 = n[1, 1] * n[2, 2] - n[1, 2] * n[2, 1]
+        c01 = n[1, 2] * n[2, 0] - n[1, 0] * n[2, 2]
+        c02 = n[1, 0] * n[2, 1] - n[1, 1] * n[2, 0]
+        det = n[0, 0] * c00 + n[0, 1] * c01 + n[0, 2] * c02
+        ok[g] = usable >= 2 and det > singular_ratio * n[0, 0] * n[1, 1] * n[2, 2]
+        if ok[g]:         # N is symmetric: X = adj(N) b / det
+            xyz[g, 0] = (c00 * b[0] + c01 * b[1] + c02 * b[2]) / det
+            xyz[g, 1] = (c01 * b[0] + (n[0, 0] * n[2, 2] - n[0, 2] * n[2, 0]) * b[1]
+                         + (n[0, 1] * n[2, 0] - n[0, 0] * n[2, 1]) * b[2]) / det
+            xyz[g, 2] = (c02 * b[0] + (n[0, 1] * n[2, 0] - n[0, 0] * n[2, 1]) * b[1]
+                         + (n[0, 0] * n[1, 1] - n[0, 1] * n[1, 0]) * b[2]) / det
         else:
-            xyz[g] = np.nan
+            for r in range(3):
+                xyz[g, r] = 0.5 * (p0[first, r] + p1[first, r]) if first >= 0 else np.nan
 
 
 def _check_inputs(models, image, point, col, row, sigma):
