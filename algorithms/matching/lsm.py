@@ -152,36 +152,24 @@ def _window_inside(nrows, ncols, x2, y2, a1, a2, a4, a5, half):
 
 
 @njit(cache=True, nogil=True)
-def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, out):
-    """Match one point; see the module docstring. Fills out (float64, LSM_OUT, order LSM_FIELDS)
-    and returns the status: 0 ok, 1 window leaves image 1 or 2, 2 singular normal equations
-    (flat texture), 3 not converged within max_iter (out holds the last state)."""
-    for i in range(out.shape[0]):
-        out[i] = np.nan
-    out[6] = 0.0
-    nr1, nc1 = img1.shape
-    nr2, nc2 = img2.shape
-    x2_0 = x2
-    y2_0 = y2
+def template(img, x, y, half, f, fk, fl):
+    """Template of (2 half + 1)^2 samples at integer offsets (k, l) from (x, y), row-major, sampled
+    bilinearly (exact pixel values at pixel centres), and its central-difference gradients (one-
+    sided at the image border, where the extra ring falls outside). False where the template leaves
+    the image."""
+    nr, nc = img.shape
+    if not (x - half >= 0.5 and y - half >= 0.5 and x + half <= nc - 0.5 and y + half <= nr - 0.5):
+        return False
     nside = 2 * half + 1
-    nsamp = nside * nside
-    # template (bilinear, exact at pixel centres)
-    if not (x1 - half >= 0.5 and y1 - half >= 0.5 and x1 + half <= nc1 - 0.5 and y1 + half <= nr1 - 0.5):
-        return OUTSIDE
-    f = np.empty(nsamp)
-    fk = np.empty(nsamp)
-    fl = np.empty(nsamp)
-    big = nside + 2
-    tb = np.empty((big, big))
     edge = 0
-    if x1 - half - 1 >= 0.5 and y1 - half - 1 >= 0.5 and x1 + half + 1 <= nc1 - 0.5 and y1 + half + 1 <= nr1 - 0.5:
+    if x - half - 1 >= 0.5 and y - half - 1 >= 0.5 and x + half + 1 <= nc - 0.5 and y + half + 1 <= nr - 0.5:
         edge = 1
+    tb = np.empty((nside + 2, nside + 2))
     for l in range(-half - 1, half + 2):
         for k in range(-half - 1, half + 2):
-            # one-sided differences at the image border (the extra ring falls outside)
             kk = min(max(k, -half - edge), half + edge)
             ll = min(max(l, -half - edge), half + edge)
-            tb[l + half + 1, k + half + 1] = bilinear(img1, x1 + kk, y1 + ll)
+            tb[l + half + 1, k + half + 1] = bilinear(img, x + kk, y + ll)
     idx = 0
     for l in range(1, nside + 1):
         for k in range(1, nside + 1):
@@ -189,6 +177,27 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
             fk[idx] = 0.5 * (tb[l, k + 1] - tb[l, k - 1])
             fl[idx] = 0.5 * (tb[l + 1, k] - tb[l - 1, k])
             idx += 1
+    return True
+
+
+@njit(cache=True, nogil=True)
+def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, out):
+    """Match one point; see the module docstring. Fills out (float64, LSM_OUT, order LSM_FIELDS)
+    and returns the status: 0 ok, 1 window leaves image 1 or 2, 2 singular normal equations
+    (flat texture), 3 not converged within max_iter (out holds the last state)."""
+    for i in range(out.shape[0]):
+        out[i] = np.nan
+    out[6] = 0.0
+    nr2, nc2 = img2.shape
+    x2_0 = x2
+    y2_0 = y2
+    nside = 2 * half + 1
+    nsamp = nside * nside
+    f = np.empty(nsamp)
+    fk = np.empty(nsamp)
+    fl = np.empty(nsamp)
+    if not template(img1, x1, y1, half, f, fk, fl):
+        return OUTSIDE
     sf = 0.0
     sff = 0.0
     for idx in range(nsamp):

@@ -6,7 +6,7 @@ import os
 
 import numba
 import numpy as np
-from benchutil import best_time
+from benchutil import best_time, thread_counts
 from scipy import ndimage
 
 from pushbroom.algorithms.matching import lsm
@@ -40,27 +40,20 @@ def run(npoints=20000):
     affine = (1.0, 0.0, 0.0, 1.0)
     params = LsmParams()
     rows = []
-    saved = numba.get_num_threads()
-    try:
-        for threads in (1, 2):
-            if threads > numba.config.NUMBA_NUM_THREADS:
-                continue
-            numba.set_num_threads(threads)
+    for threads in thread_counts():
 
-            def call():
-                return lsm.match_points(img1, img2, xy1[:, 0], xy1[:, 1], init[:, 0], init[:, 1], affine, params)
-            seconds = best_time(call)
-            rec, status = call()
-            ok = lsm.accepted(rec, status, params)
-            err = np.hypot(rec["x2"][ok] - xy2[ok, 0], rec["y2"][ok] - xy2[ok, 1])
-            rows.append({"operation": "lsm match_points", "template": params.template, "threads": threads,
-                         "points": npoints, "seconds": seconds, "points/s": npoints / seconds,
-                         "points/s/core": npoints / seconds / threads, "accepted": float(ok.mean()),
-                         "mean iterations": float(rec["iterations"][ok].mean()),
-                         "rms px": float(np.sqrt((err ** 2).mean())), "a2 true": float(inv[1, 0]),
-                         "threading layer": numba.threading_layer(), "cores": os.cpu_count()})
-    finally:
-        numba.set_num_threads(saved)
+        def call():
+            return lsm.match_points(img1, img2, xy1[:, 0], xy1[:, 1], init[:, 0], init[:, 1], affine, params)
+        seconds = best_time(call)
+        rec, status = call()
+        ok = lsm.accepted(rec, status, params)
+        err = np.hypot(rec["x2"][ok] - xy2[ok, 0], rec["y2"][ok] - xy2[ok, 1])
+        rows.append({"operation": "lsm match_points", "template": params.template, "threads": threads,
+                     "points": npoints, "seconds": seconds, "points/s": npoints / seconds,
+                     "points/s/core": npoints / seconds / threads, "accepted": float(ok.mean()),
+                     "mean iterations": float(rec["iterations"][ok].mean()),
+                     "rms px": float(np.sqrt((err ** 2).mean())), "a2 true": float(inv[1, 0]),
+                     "threading layer": numba.threading_layer(), "cores": os.cpu_count()})
     return rows
 
 
