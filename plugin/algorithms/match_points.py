@@ -7,7 +7,7 @@ from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutp
 
 from ...algorithms import block
 from ...algorithms.errors import InputError
-from ...algorithms.matching import combinations, points
+from ...algorithms.matching import combinations, hierarchical, points
 from ...algorithms.matching.params import GrowParams
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
@@ -17,6 +17,11 @@ Number = QgsProcessingParameterNumber
 SEED_SOURCES = (("Automatic: interest points matched along the path predicted by the sensor models", False, True),
                 ("The block's tie points (pushbroom:selecttiepoints)", True, False),
                 ("Both: the block's tie points and automatic seeds", True, True))
+
+
+#: matching strategies: (label, engine key)
+STRATEGIES = (("Region growing (K, H)", "region_growing"),
+              ("Coarse-to-fine multi-primitive with MPGC (Z)", "hierarchical"))
 
 
 def combination_order(rows, text):
@@ -75,11 +80,18 @@ class MatchPoints(PushbroomAlgorithm):
             "image at the mean height, and counted per group like Table 1 of the paper (log and CSV). Seeds "
             "are automatic (interest points matched along the path the sensor models predict over the "
             "terrain height range), the block's tie points (re-matched from their stored positions), or "
-            "both; with tie points only, tiles without one stay empty.")
+            "both; with tie points only, tiles without one stay empty. Strategy 'coarse-to-fine' (Zhang & "
+            "Gruen): Foerstner and grid points matched by NCC along the sensor models' epipolar paths level by "
+            "level of a factor-3 pyramid, each level's TIN guiding the next, refined by multi-photo "
+            "geometrically constrained matching (MPGC); its points (group 3 three-ray, 1 two-ray) carry MPGC's "
+            "reliability as rho, points MPGC rejected keep their NCC positions with a low one; the region "
+            "growing parameters (seeds, template, STEP, thresholds) do not apply to it.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         d = GrowParams()
         self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
+        self.addParameter(QgsProcessingParameterEnum("STRATEGY", "Matching strategy",
+                                                     [label for label, _ in STRATEGIES], defaultValue=0))
         self.addParameter(QgsProcessingParameterString(
             "IMAGES", "Images in combination order: reference (nadir), forward[, backward]; empty = all",
             "", optional=True))
@@ -132,13 +144,18 @@ class MatchPoints(PushbroomAlgorithm):
         seed_points = points.load_points(path, "tie_points") if use_tie_points else None
         feedback.pushInfo("combination order: " + ", ".join(r["name"] for r in rows)
                           + f"; height range {height_range}")
-        result = combinations.match_block(
-            [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
-            image_ids=[r["id"] for r in rows], params=params, height_range=height_range,
-            seed_points=seed_points, automatic=automatic, feedback=feedback,
-            workers=self.parameterAsInt(parameters, "WORKERS", context),
-            grow_second=self.parameterAsBool(parameters, "GROW_SECOND", context),
-            sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context))
+        if STRATEGIES[self.parameterAsEnum(parameters, "STRATEGY", context)][1] == "hierarchical":
+            result = hierarchical.match_hierarchical(
+                [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
+                image_ids=[r["id"] for r in rows], height_range=height_range, feedback=feedback)
+        else:
+            result = combinations.match_block(
+                [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
+                image_ids=[r["id"] for r in rows], params=params, height_range=height_range,
+                seed_points=seed_points, automatic=automatic, feedback=feedback,
+                workers=self.parameterAsInt(parameters, "WORKERS", context),
+                grow_second=self.parameterAsBool(parameters, "GROW_SECOND", context),
+                sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context))
         npz = points.save_points(path, result, "mass_points")
         layer = points.write_point_layer(path, "mass_points", result, models[0], rows[0]["id"],
                                          display_height(height_range))

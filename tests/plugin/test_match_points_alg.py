@@ -101,3 +101,24 @@ def test_cancel_writes_nothing(pushbroom_provider, triplet):
         processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": 0, "MAX_HEIGHT": 900},
                        feedback=feedback)
     assert "mass_points" not in read_info(path)
+
+
+def test_coarse_to_fine_strategy(pushbroom_provider, triplet):
+    """STRATEGY 1: the coarse-to-fine matcher (algorithms/matching/hierarchical.py) stores the same
+    point format: group 3 (three images) and group 1 (two), provenance in the stats; two images give
+    group 1 only."""
+    lo, hi = triplet["range"]
+    path = make_block(triplet, "c2f.gpkg", ("HRG", "HRS1", "HRS2"))
+    result = processing.run("pushbroom:matchpoints", {"BLOCK": path, "STRATEGY": 1, "MIN_HEIGHT": lo,
+                                                      "MAX_HEIGHT": hi})
+    mass = load_points(path)
+    counts = mass.group_counts()
+    assert counts[3] > 500 and counts[2] == 0 and counts[3] > counts[1], counts
+    assert mass.stats["provenance"] == "hierarchical"
+    ids = {r["name"]: r["id"] for r in block.read_images(path)}
+    assert mass.stats["images"] == [ids["HRG"], ids["HRS1"], ids["HRS2"]]
+    assert QgsVectorLayer(result["POINTS"], "mass", "ogr").featureCount() == len(mass)
+    path = make_block(triplet, "c2f_two.gpkg", ("HRG", "HRS1"))
+    processing.run("pushbroom:matchpoints", {"BLOCK": path, "STRATEGY": 1, "IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo,
+                                             "MAX_HEIGHT": hi})
+    assert set(load_points(path).group_counts().values()) - {0} and load_points(path).group_counts()[3] == 0

@@ -1,0 +1,386 @@
+"""Coarse-to-fine multi-primitive matching with MPGC, the second dense-matching strategy (paper Z,
+Zhang & Gruen; methods.md section 6; issue 7). First version.
+
+1. Preprocessing (preprocess.py): the reference (nadir) is low-passed to the search images'
+   footprint (region_growing.adapt_resolution), every image Wallis-filtered and reduced to a
+   factor-3 pyramid; the number of levels brings the parallax range of the block's height range
+   to about `search_px_at_top` px at the top level (preprocess.levels_for), as far as the top
+   level keeps 3 of the largest windows across the smallest image.
+2. Per level, primitives of the reference: Foerstner points (one per `patch` x `patch` cell) and
+   grid points (`grid` px apart at level 0, `coarse_grid` above); each is searched in every
+   search image by NCC along its quasi-epipolar path (hierarchical_level.candidates) over a height
+   interval: the block's range at the top, below it the previous level's TIN height +- (`tol_px`
+   px of parallax + the TIN roughness there). Window per point from its texture
+   (hierarchical_level.window_halves), rho threshold per level (`rho_min` at level 0,
+   `rho_min_coarse` above); up to `max_candidates` candidates per image, resolved by the third
+   image (height agreement), the peak ratio and relaxation (relaxation.py), then back-matching in
+   every search image (a failing image drops out of the point). The orientation bias of each
+   search image (constant image shift) is estimated per level from the unique candidates
+   (estimate_shift) and compensated from then on (hierarchical_level.ShiftedModel), MPGC included.
+3. A TIN of the accepted points (reference image position at full resolution, height) with the
+   blunder filter of surface/tin.py guides the next level.
+4. Level 0's points go through MPGC (mpgc.match_points) in all their images at once; points that
+   fail MPGC keep their NCC positions with the low reliability NCC_RELIABILITY x rho and the flag
+   NCC_ONLY.
+5. Output: MultiPoints (points.py) with group 3 (reference + 2 search images) or 1 (reference + 1),
+   rho_min = the reliability (MPGC's, mpgc.py, or the NCC one), flags COMB_A / COMB_B for the
+   search images 1 / 2 observed (+ NCC_ONLY), stats with provenance "hierarchical" and the
+   timings per level.
+
+Not yet (issue 7): edge matching with figural continuity, edges as TIN breaklines, tiling (the
+pyramids are whole-image arrays)."""
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+from .. import progress
+from ..errors import InputError
+from ..surface.tin import delaunay, filter_blunders, neighbour_residuals
+from ..surface.tin_grid import Grid, rasterize
+from . import preprocess
+from .mpgc import MpgcParams, accepted, match_points
+from .hierarchical_level import LevelModel, ShiftedModel, back_match, candidates, noise_sigma, window_halves
+from .imagery import as_image
+from .interest import interest_points
+from .params import GrowParams
+from .points import COMB_A, COMB_B, OBS_DTYPE, POINT_DTYPE, MultiPoints
+from .relaxation import hypotheses, relax, unique_choice
+from .seeds import predict, resolve_height_range
+
+#: flag of points whose MPGC failed (they keep their NCC positions)
+NCC_ONLY = 8
+#: reliability of a point that failed MPGC: this factor x its smallest NCC rho
+NCC_RELIABILITY = 0.25
+FACTOR = 3
+
+
+#: the largest image (pixels) the matcher takes: every image is held whole with its pyramids (~10 bytes a pixel)
+MAX_PIXELS = 40_000_000
+
+
+@dataclass
+class HierParams:
+    """Parameters of the coarse-to-fine matcher (module docstring)."""
+
+    search_px_at_top: float = 4.0      # parallax range (px) at the top level
+    grid: int = 10                     # px between grid points at level 0
+    coarse_grid: int = 6               # px between grid points above level 0
+    patch: int = 16                    # px: one Foerstner point per patch x patch cell (every level)
+    windows: tuple = (9, 15, 21)       # candidate window sizes (px, every level)
+    precision: float = 0.05            # px: window choice target (hierarchical_level.window_halves)
+    rho_min: float = 0.7               # NCC threshold at level 0
+    rho_min_coarse: float = 0.6        # NCC threshold above level 0
+    max_candidates: int = 5
+    peak_ratio: float = 0.9            # second / first peak below this: unique
+    margin: float = 0.05               # score margin of the best hypothesis: unique
+    agree_px: float = 1.0              # px of parallax: two images' heights agree
+    tol_px: float = 3.0                # px of parallax around the TIN height below the top level
+    across: float = 3.0                # px (full resolution) searched across the path
+    top_margin_px: float = 2.0         # px of parallax added to the height range at the top level
+    back_px: float = 1.0               # px (level): back-matching tolerance
+    relax_radius: float = 3.0          # in grid spacings
+    blunder_k: float = 4.0             # TIN blunder filter, robust sigmas
+    wallis: bool = True
+    final: MpgcParams = field(default_factory=lambda: MpgcParams(sigma_geometry=0.5))   # MPGC
+
+    def check(self):
+        if self.grid < 2 or self.coarse_grid < 2 or self.patch < 3:
+            raise InputError("grid spacings must be >= 2 px and the Foerstner patch >= 3 px")
+        if not self.windows or any(int(w) < 5 or int(w) % 2 == 0 for w in self.windows):
+            raise InputError(f"window sizes must be odd and >= 5 px, got {self.windows}")
+        if not (0 < self.rho_min < 1 and 0 < self.rho_min_coarse < 1):
+            raise InputError("rho thresholds must lie between 0 and 1")
+        if self.max_candidates < 1 or self.search_px_at_top <= 0 or self.tol_px <= 0 or self.agree_px <= 0:
+            raise InputError("max_candidates, search_px_at_top, tol_px and agree_px must be positive")
+        self.final.check()
+        return self
+
+
+def parallax_per_metre(model0, model, x, y, h):
+    """Search-image px per metre of height along the reference rays at (x, y) (any level)."""
+    return np.hypot(*parallax_vector(model0, model, x, y, h))
+
+
+class TinGuide:
+    """Heights of the accepted points of a level as a TIN (full-resolution reference px) after the
+    blunder filter, interpolated (with the roughness |plane residual| of the vertices) on a grid
+    of `cell` px for the next level; outside the TIN the nearest grid value."""
+
+    def __init__(self, x, y, h, shape, cell, k):
+        tin = delaunay(x, y)
+        keep, self.removed = filter_blunders(tin, x, y, h, k=k)
+        x, y, h = x[keep], y[keep], h[keep]
+        self.count = int(keep.sum())
+        tin = delaunay(x, y)
+        rough = np.empty(len(h))
+        indptr, indices = tin.vertex_neighbor_vertices
+        neighbour_residuals(indptr, indices, *(np.ascontiguousarray(v, float) for v in (x, y, h)),
+                            np.ones(len(h), bool), rough)
+        rough = np.nan_to_num(np.abs(rough))
+        self.cell = float(cell)
+        grid = Grid(0.0, 0.0, self.cell, int(math.ceil(shape[1] / cell)) + 1, int(math.ceil(shape[0] / cell)) + 1)
+        values = rasterize(x, -y, np.column_stack([h, rough]), tin.simplices, grid)
+        missing = ~np.isfinite(values[0])
+        if missing.any():
+            idx = ndimage.distance_transform_edt(missing, return_distances=False, return_indices=True)
+            values = values[:, idx[0], idx[1]]
+        self.values = values
+
+    def at(self, x, y):
+        """(h, roughness) at full-resolution reference positions."""
+        rows, cols = self.values.shape[1:]
+        i = np.clip(np.floor(np.asarray(y) / self.cell).astype(np.int64), 0, rows - 1)
+        j = np.clip(np.floor(np.asarray(x) / self.cell).astype(np.int64), 0, cols - 1)
+        return self.values[0, i, j], self.values[1, i, j]
+
+
+def estimate_shift(lm, x, y, cands, rho_min, peak_ratio):
+    """Orientation bias of each search image (level px), from the points whose best candidate is
+    unique (peak ratio) in every search image: median of (matched position - the model's
+    prediction at the height of search image 1's match). Image 1's match defines the height, so
+    its shift is across its path; image 2's is complete. Also returns the candidates' heights
+    corrected for the shifts (h - (d . u) / (px per m), u the path direction). Zero shifts with
+    fewer than 10 such points."""
+    m = len(cands)
+    best = np.ones(len(x), bool)
+    for c in cands:
+        with np.errstate(invalid="ignore"):
+            best &= (c["rho"][:, 0] > rho_min) & ~(c["second"] / c["rho"][:, 0] >= peak_ratio)
+    shifts = np.zeros((m, 2))
+    heights = [c["h"] for c in cands]
+    if best.sum() < 10:
+        return shifts, heights
+    h1 = cands[0]["h"][best, 0]
+    for k, c in enumerate(cands):
+        px, py = predict(lm[0], lm[k + 1], x[best], y[best], h1)
+        shifts[k] = np.nanmedian(c["x"][best, 0] - px), np.nanmedian(c["y"][best, 0] - py)
+        sens = parallax_vector(lm[0], lm[k + 1], x, y, h1.mean())
+        along = (shifts[k, 0] * sens[0] + shifts[k, 1] * sens[1]) / (sens[0] ** 2 + sens[1] ** 2)
+        heights[k] = c["h"] - along[:, None]
+    return shifts, heights
+
+
+def parallax_vector(model0, model, x, y, h):
+    """d(x, y)/dh of the search image along the reference rays at (x, y): px per metre."""
+    xa, ya = predict(model0, model, x, y, np.full(len(x), h - 50.0))
+    xb, yb = predict(model0, model, x, y, np.full(len(x), h + 50.0))
+    return (xb - xa) / 100.0, (yb - ya) / 100.0
+
+
+def primitives(img, level, params, border):
+    """Foerstner points and grid points of a reference level image: (x, y) level px."""
+    rows, cols = img.shape
+    px, py, _ = interest_points(img, patch=params.patch, window=5, border=border)
+    if level == 0:    # region growing's lattice (half template 9): comparable nodes
+        gx = np.arange(9.5, cols - border, params.grid)
+        gy = np.arange(9.5, rows - border, params.grid)
+    else:
+        gx = np.arange(border + 0.5, cols - border, params.coarse_grid)
+        gy = np.arange(border + 0.5, rows - border, params.coarse_grid)
+    gx, gy = (v.ravel() for v in np.meshgrid(gx, gy))
+    inside = (gx >= border) & (gy >= border)
+    return np.concatenate([px, gx[inside]]), np.concatenate([py, gy[inside]])
+
+
+def match_level(ref, ref_raw, searches, models, level, params, hr, guide, edge_mask=None):
+    """One level (module docstring, step 2): dict with x, y (level px), h, per search image x/y/rho
+    arrays (n, m) (NaN where not matched)."""
+    s = float(FACTOR) ** level
+    lm = [LevelModel(m, s) for m in models]
+    rho_min = params.rho_min if level == 0 else params.rho_min_coarse
+    border = max(params.windows) // 2 + 2
+    x, y = primitives(ref, level, params, border)
+    n, m = len(x), len(searches)
+    hmid = 0.5 * (hr[0] + hr[1])
+    sens = np.max([parallax_per_metre(lm[0], lm[k + 1], x, y, hmid) for k in range(m)], axis=0)
+    sens = np.where(np.isfinite(sens) & (sens > 0), sens, np.nanmedian(sens))
+    if guide is None:
+        pad = params.top_margin_px / sens
+        h_lo, h_hi = np.full(n, hr[0]) - pad, np.full(n, hr[1]) + pad
+    else:
+        h0, rough = guide.at(x * s, y * s)
+        tol = params.tol_px / sens + rough
+        h_lo, h_hi = h0 - tol, h0 + tol
+    halves = window_halves(ref_raw, x, y, params.windows, noise_sigma(ref_raw), params.precision)
+    across = max(1, int(math.ceil(params.across / s)))
+    cands = [candidates(ref, searches[k], lm[0], lm[k + 1], x, y, h_lo, h_hi, halves, across, rho_min,
+                        params.max_candidates) for k in range(m)]
+    agree = params.agree_px / sens
+    shifts, heights = estimate_shift(lm, x, y, cands, rho_min, params.peak_ratio)
+    for c, hk in zip(cands, heights):
+        c["h"] = hk
+    h, score, i1, i2 = hypotheses(cands, agree)
+    choice = unique_choice(h, score, i1, i2, cands, params.peak_ratio, params.margin)
+    spacing = params.grid if level == 0 else params.coarse_grid
+    choice = relax(x, y, h, score, choice, np.maximum(agree, 1e-3), params.relax_radius * spacing,
+                   edge_mask=edge_mask)
+    rows = np.arange(n)
+    c = np.maximum(choice, 0)
+    out = {"x": x, "y": y, "h": np.where(choice >= 0, h[rows, c], np.nan),
+           "sx": np.full((n, m), np.nan), "sy": np.full((n, m), np.nan), "rho": np.full((n, m), np.nan),
+           "candidates": int(np.isfinite(h).any(axis=1).sum()), "shifts": shifts * s}
+    for k, idx in enumerate((i1, i2)[:m]):
+        j = np.where(choice >= 0, idx[rows, c], -1)
+        has = j >= 0
+        sel = np.flatnonzero(has)
+        cx = cands[k]["x"][sel, j[sel]]
+        cy = cands[k]["y"][sel, j[sel]]
+        d = back_match(ref, searches[k], lm[0], lm[k + 1], x[sel], y[sel], cx, cy, h_lo[sel], h_hi[sel],
+                       halves[sel], across)
+        ok = d <= params.back_px
+        sel = sel[ok]
+        out["sx"][sel, k], out["sy"][sel, k] = cx[ok], cy[ok]
+        out["rho"][sel, k] = cands[k]["rho"][sel, j[sel]]
+    matched = np.isfinite(out["sx"]).any(axis=1)
+    for key in ("x", "y", "h", "sx", "sy", "rho"):
+        out[key] = out[key][matched]
+    return out
+
+
+def _pyramids(images, models, hr, params):
+    """Resolution-adapted images (Image-like) and per image (NCC pyramid, raw pyramid); levels."""
+    grow = GrowParams()
+    ref, s1 = _adapt(images[0], images[1], models[0], models[1], grow, hr)
+    adapted = [ref, s1]
+    if len(images) == 3:
+        adapted.append(_adapt(images[0], images[2], models[0], models[2], grow, hr)[1])
+    cols, rows = models[0].size
+    cx, cy = np.array([0.5 * cols]), np.array([0.5 * rows])
+    parallax = max(float(np.hypot(*(np.subtract(predict(models[0], mk, cx, cy, np.array([hr[1]])),
+                                                predict(models[0], mk, cx, cy, np.array([hr[0]]))))))
+                   for mk in models[1:])
+    levels = preprocess.levels_for(parallax if math.isfinite(parallax) else 0.0, params.search_px_at_top, FACTOR)
+    # the top level keeps at least 3 of the largest windows across the smallest image
+    smallest = min(min(m.size) for m in models)
+    levels = max(1, min(levels, int(math.floor(math.log(max(smallest / (3 * max(params.windows)), 1.0), FACTOR))) + 1))
+    largest = max(int(np.prod(image.size)) for image in adapted)
+    if largest > MAX_PIXELS:
+        raise InputError(f"the coarse-to-fine strategy holds whole images in memory (no tiling yet) and takes images "
+                         f"of up to {MAX_PIXELS / 1e6:.0f} Mpx, not {largest / 1e6:.0f} Mpx: match a subset (e.g. "
+                         "gdal_translate -srcwin) or use region growing")
+    pyr = []
+    for image in adapted:
+        raw = image.read(0, 0, *image.size)[0]
+        ncc = preprocess.wallis(raw) if params.wallis else raw
+        pyr.append((preprocess.pyramid(ncc, levels, FACTOR), preprocess.pyramid(raw, levels, FACTOR)))
+    return adapted, pyr, levels, parallax
+
+
+def _adapt(image0, image, model0, model, grow, hr):
+    from .region_growing import adapt_resolution
+    return adapt_resolution(as_image(image0), as_image(image), model0, model, grow, hr)
+
+
+def match_hierarchical(images, models, names=None, image_ids=None, params=None, height_range=None, feedback=None):
+    """Coarse-to-fine multi-primitive matching with MPGC of 2 or 3 images (reference/nadir first,
+    then the search images; paths, arrays or Images) with their sensor models. Returns MultiPoints
+    (module docstring, step 5). Raises InputError on unusable input, CancelledError when
+    cancelled."""
+    params = (params or HierParams()).check()
+    n = len(images)
+    if n not in (2, 3) or len(models) != n:
+        raise InputError(f"the coarse-to-fine matcher takes 2 or 3 images (reference, search[, search]), got {n}")
+    names = list(names or [f"image {k + 1}" for k in range(n)])
+    image_ids = list(image_ids or range(1, n + 1))
+    log = progress.ensure(feedback)
+    hr = resolve_height_range(models[0], height_range)
+    progress.step(feedback, 0, "coarse-to-fine matching: preprocessing (resolution adaptation, Wallis, pyramids)")
+    t0 = time.perf_counter()
+    adapted, pyr, levels, parallax = _pyramids(images, models, hr, params)
+    timings = {"preprocessing": time.perf_counter() - t0}
+    log.pushInfo(f"{levels} pyramid levels (factor {FACTOR}) for a parallax range of {parallax:.1f} px")
+    guide, result = None, None
+    counts = {}
+    shifts = np.zeros((n - 1, 2))
+    for level in range(levels - 1, -1, -1):
+        t = time.perf_counter()
+        progress.step(feedback, 80.0 * (levels - 1 - level) / levels)
+        current = [models[0]] + [ShiftedModel(mk, *d) for mk, d in zip(models[1:], shifts)]
+        result = match_level(pyr[0][0][level], pyr[0][1][level], [p[0][level] for p in pyr[1:]], current,
+                             level, params, hr, guide)
+        shifts = shifts + result["shifts"]
+        s = float(FACTOR) ** level
+        if len(result["x"]) < 3:
+            raise InputError(f"level {level}: only {len(result['x'])} points matched; check the images, the models "
+                             "and the height range")
+        guide = TinGuide(result["x"] * s, result["y"] * s, result["h"], pyr[0][0][0].shape,
+                         max(s / FACTOR, 1.0), params.blunder_k)
+        timings[f"level {level}"] = time.perf_counter() - t
+        counts[f"level {level}"] = int(len(result["x"]))
+        log.pushInfo(f"level {level}: {len(result['x'])} points ({guide.count} after the TIN blunder filter) "
+                     f"in {timings[f'level {level}']:.2f} s")
+    progress.step(feedback, 80.0, f"MPGC of {len(result['x'])} points")
+    t = time.perf_counter()
+    log.pushInfo("orientation bias of the search images (px): " + ", ".join(f"({d[0]:.2f}, {d[1]:.2f})"
+                                                                          for d in shifts))
+    out = _final(adapted, [models[0]] + [ShiftedModel(mk, *d) for mk, d in zip(models[1:], shifts)], result, params)
+    timings["mpgc"] = time.perf_counter() - t
+    points = to_multipoints(out, image_ids, {"provenance": "hierarchical", "levels": levels,
+                                             "points_per_level": counts,
+                                             "seconds": {k: round(v, 3) for k, v in timings.items()},
+                                             "mpgc_failed": int(np.count_nonzero(~out["mpgc_ok"])),
+                                             "search_image_shifts_px": shifts.round(3).tolist()})
+    progress.step(feedback, 100.0, f"coarse-to-fine matching: {len(points)} points, "
+                  f"{int(np.count_nonzero(~out['mpgc_ok']))} of them kept from NCC (MPGC failed)")
+    return points
+
+
+def _final(adapted, models, result, params):
+    """MPGC of level 0's points in the images each was matched in (module docstring, step 4)."""
+    x0, y0, h = result["x"], result["y"], result["h"]
+    m = result["sx"].shape[1]
+    lon, lat = models[0].image_to_ground(x0, y0, h)
+    lon, lat = np.asarray(lon, float), np.asarray(lat, float)
+    sx, sy, rho = result["sx"].copy(), result["sy"].copy(), result["rho"].copy()
+    ok = np.zeros(len(x0), bool)
+    rel = np.full(len(x0), np.nan)
+    ellipse = np.zeros((len(x0), m, 2))
+    present = np.isfinite(sx)
+    for combo in {tuple(np.flatnonzero(p)) for p in present}:
+        idx = np.flatnonzero((present == np.isin(np.arange(m), combo)).all(axis=1))
+        rec = match_points(adapted[0], [adapted[k + 1] for k in combo], [models[0]] + [models[k + 1] for k in combo],
+                                x0[idx], y0[idx], lon[idx], lat[idx], h[idx], params.final)
+        good = accepted(rec, params.final)
+        g = idx[good]
+        for c, k in enumerate(combo):
+            sx[g, k], sy[g, k], rho[g, k] = rec["x"][good, c], rec["y"][good, c], rec["rho"][good, c]
+            ellipse[g, k] = np.column_stack([rec["semi_major"][good, c], rec["semi_minor"][good, c]])
+        ok[g] = True
+        rel[g] = rec["reliability"][good]
+    rel[~ok] = NCC_RELIABILITY * np.nanmin(np.where(present, rho, np.nan), axis=1)[~ok]
+    return {"x0": x0, "y0": y0, "sx": sx, "sy": sy, "rho": rho, "ellipse": ellipse, "reliability": rel,
+            "mpgc_ok": ok}
+
+
+def to_multipoints(out, image_ids, stats):
+    """MultiPoints of the final points (module docstring, step 5)."""
+    n, m = out["sx"].shape
+    present = np.isfinite(out["sx"])
+    points = np.zeros(n, POINT_DTYPE)
+    points["id"] = np.arange(1, n + 1)
+    points["group"] = np.where(present.sum(axis=1) == 2, 3, 1)
+    points["flags"] = (present[:, 0] * COMB_A + (present[:, 1] * COMB_B if m > 1 else 0)
+                       + (~out["mpgc_ok"]) * NCC_ONLY).astype(np.uint8)
+    points["rho_min"] = out["reliability"]
+    points["rho_a"] = out["rho"][:, 0]
+    points["rho_b"] = out["rho"][:, 1] if m > 1 else np.nan
+    points["rho_c"] = points["dx"] = points["dy"] = np.nan
+    blocks = []
+    obs = np.zeros(n, OBS_DTYPE)
+    obs["point_id"], obs["image_id"] = points["id"], image_ids[0]
+    obs["col"], obs["row"], obs["rho"] = out["x0"], out["y0"], np.nan
+    blocks.append(obs)
+    for k in range(m):
+        obs = np.zeros(n, OBS_DTYPE)
+        obs["point_id"], obs["image_id"] = points["id"], image_ids[k + 1]
+        obs["col"], obs["row"], obs["rho"] = out["sx"][:, k], out["sy"][:, k], out["rho"][:, k]
+        obs["semi_major"], obs["semi_minor"] = out["ellipse"][:, k, 0], out["ellipse"][:, k, 1]
+        blocks.append(obs[present[:, k]])
+    observations = np.concatenate(blocks)
+    observations = observations[np.lexsort((observations["image_id"], observations["point_id"]))]
+    stats = {**stats, "images": [int(i) for i in image_ids], "group3": int(np.count_nonzero(points["group"] == 3)),
+             "group1": int(np.count_nonzero(points["group"] == 1))}
+    return MultiPoints(points, observations, stats)

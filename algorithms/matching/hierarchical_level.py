@@ -1,0 +1,198 @@
+"""One pyramid level of the coarse-to-fine matcher (paper Z, methods.md section 6): level
+geometry, the window choice per point and the candidates of geometrically constrained
+cross-correlation along the quasi-epipolar path.
+
+Level geometry: level L of a factor-f pyramid has pixels of s = f^L full-resolution pixels
+whose edges align (GDAL coordinates: level position (x, y) is full position (s x, s y));
+`LevelModel` wraps a sensor model accordingly.
+
+Window choice (Kanade & Okutomi style, by the expected precision instead of the full adaptive
+search): the NCC/LSM shift precision of a w x w window is about sigma_n sqrt(2 / sum g^2)
+(sigma_n the image noise, g the grey-level gradients in the window); each point takes the
+smallest of the given window sizes whose precision reaches `target` px, else the largest (weak
+texture gets large windows, textured areas and discontinuities small ones).
+
+Candidates: the reference ray of a point is cut by the height interval [h_lo, h_hi]; its
+projection into the search image (quasi-epipolar path) is sampled every <= 0.5 px, widened by
+`across` px on each side for orientation errors, and the template (shaped by the models' local
+affine) is correlated at every sample (ncc.ncc_path). Local maxima along the path of the
+across-maximum profile above rho_min are candidates (at most `max_candidates`, best first),
+refined by a parabola in height and across the path; each carries its height, rho and image
+position. `second` is the best local maximum besides the first (for the peak ratio)."""
+import math
+
+import numpy as np
+
+from .ncc import ncc_path
+from .seeds import local_affine, predict
+
+
+class ShiftedModel:
+    """A sensor model whose image positions are moved by (dx, dy) full px: the bias compensation
+    of an orientation error (hierarchical.estimate_shift)."""
+
+    def __init__(self, model, dx=0.0, dy=0.0):
+        self.model, self.dx, self.dy = model, float(dx), float(dy)
+        self.size = model.size
+
+    def image_to_ground(self, col, row, h):
+        return self.model.image_to_ground(np.asarray(col, float) - self.dx, np.asarray(row, float) - self.dy, h)
+
+    def ground_to_image(self, lon, lat, h):
+        x, y = self.model.ground_to_image(lon, lat, h)
+        return np.asarray(x, float) + self.dx, np.asarray(y, float) + self.dy
+
+    def partials(self, lon, lat, h):
+        part = dict(self.model.partials(lon, lat, h))
+        part["col"] = np.asarray(part["col"], float) + self.dx
+        part["row"] = np.asarray(part["row"], float) + self.dy
+        return part
+
+
+class LevelModel:
+    """A sensor model at pyramid scale s (level px = full px / s); `model` is the full one."""
+
+    def __init__(self, model, scale):
+        self.model = model
+        self.scale = float(scale)
+        cols, rows = model.size
+        self.size = (int(math.ceil(cols / self.scale)), int(math.ceil(rows / self.scale)))
+
+    def image_to_ground(self, col, row, h):
+        s = self.scale
+        return self.model.image_to_ground(np.asarray(col, float) * s, np.asarray(row, float) * s, h)
+
+    def ground_to_image(self, lon, lat, h):
+        x, y = self.model.ground_to_image(lon, lat, h)
+        return np.asarray(x, float) / self.scale, np.asarray(y, float) / self.scale
+
+
+def noise_sigma(img):
+    """Robust image noise (DN): 1.4826 median |Laplacian| / sqrt(20) (the 4-neighbour Laplacian
+    multiplies white noise by sqrt(20)), at least 0.3 DN (quantisation)."""
+    a = np.asarray(img, float)
+    lap = 4 * a[1:-1, 1:-1] - a[:-2, 1:-1] - a[2:, 1:-1] - a[1:-1, :-2] - a[1:-1, 2:]
+    lap = lap[np.isfinite(lap)]
+    return max(1.4826 * float(np.median(np.abs(lap))) / math.sqrt(20.0), 0.3) if lap.size else 1.0
+
+
+def window_halves(img, x, y, sizes, noise, target):
+    """Half window per point (module docstring): the smallest of `sizes` (odd, px) whose
+    precision noise sqrt(2 / sum g^2) <= target px, else the largest."""
+    a = np.nan_to_num(np.asarray(img, float))
+    g = np.zeros_like(a)
+    g[:, 1:-1] += (0.5 * (a[:, 2:] - a[:, :-2])) ** 2
+    g[1:-1] += (0.5 * (a[2:] - a[:-2])) ** 2
+    c = np.pad(np.cumsum(np.cumsum(g, 0), 1), ((1, 0), (1, 0)))
+    rows, cols = a.shape
+    i = np.clip(np.floor(y).astype(np.int64), 0, rows - 1)
+    j = np.clip(np.floor(x).astype(np.int64), 0, cols - 1)
+    sizes = sorted(int(s) for s in sizes)
+    half = np.full(len(x), sizes[-1] // 2, np.int64)
+    done = np.zeros(len(x), bool)
+    for w in sizes:
+        h = w // 2
+        i0, i1 = np.clip(i - h, 0, rows), np.clip(i + h + 1, 0, rows)
+        j0, j1 = np.clip(j - h, 0, cols), np.clip(j + h + 1, 0, cols)
+        energy = c[i1, j1] - c[i0, j1] - c[i1, j0] + c[i0, j0]
+        with np.errstate(divide="ignore"):
+            precise = noise * np.sqrt(2.0 / energy) <= target
+        take = precise & ~done
+        half[take] = h
+        done |= take
+    return half
+
+
+def path_samples(model1, model2, x, y, h_lo, h_hi, across, step=0.5):
+    """Heights (n, k) along each point's ray and their search-image positions (n, k, a) with
+    `across` px on each side of the path; k makes the longest path sampled every <= `step` px.
+    Returns (heights, cx, cy, offsets)."""
+    n = len(x)
+    xa, ya = predict(model1, model2, x, y, h_lo)
+    xb, yb = predict(model1, model2, x, y, h_hi)
+    length = np.hypot(xb - xa, yb - ya)
+    longest = float(np.nanmax(length)) if n and np.isfinite(length).any() else 0.0
+    k = max(3, int(math.ceil(longest / step)) + 1)
+    t = np.linspace(0.0, 1.0, k)
+    heights = h_lo[:, None] + t[None, :] * (h_hi - h_lo)[:, None]
+    px, py = predict(model1, model2, np.repeat(x, k), np.repeat(y, k), heights.ravel())
+    px, py = px.reshape(n, k), py.reshape(n, k)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ux = np.where(length > 1e-9, (xb - xa) / length, 1.0)
+        uy = np.where(length > 1e-9, (yb - ya) / length, 0.0)
+    off = np.arange(-across, across + 1, dtype=float)
+    cx = px[:, :, None] - uy[:, None, None] * off
+    cy = py[:, :, None] + ux[:, None, None] * off
+    return heights, cx, cy, off
+
+
+def _parabola(m, c, p):
+    """Sub-sample offset of a parabola's vertex through (-1, m), (0, c), (1, p), in [-0.5, 0.5]."""
+    d = m - 2 * c + p
+    return float(np.clip(0.5 * (m - p) / d, -0.5, 0.5)) if d < 0 else 0.0
+
+
+def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_min, max_candidates):
+    """Candidates of points (x, y) of img1 in img2 (module docstring); level models and px.
+    Returns dict of (n, C) arrays h, rho, x, y (NaN padded, best first) and (n,) `second`."""
+    n, cmax = len(x), int(max_candidates)
+    out = {key: np.full((n, cmax), np.nan) for key in ("h", "rho", "x", "y")}
+    out["second"] = np.full(n, np.nan)
+    if n == 0:
+        return out
+    heights, cx, cy, off = path_samples(model1, model2, x, y, h_lo, h_hi, across)
+    _, _, a1, a2, a4, a5 = local_affine(model1, model2, x, y, 0.5 * (h_lo + h_hi))
+    k, na = heights.shape[1], len(off)
+    scores = np.empty(k * na)
+    for i in range(n):
+        if not (np.isfinite([a1[i], a2[i], a4[i], a5[i]]).all() and np.isfinite(cx[i]).all()):
+            continue
+        ncc_path(img1, img2, float(x[i]), float(y[i]), int(half[i]), cx[i].ravel(), cy[i].ravel(),
+                 float(a1[i]), float(a2[i]), float(a4[i]), float(a5[i]), scores)
+        rho = scores.reshape(k, na)
+        if not np.isfinite(rho).any():
+            continue
+        r = np.where(np.isfinite(rho), rho, -2.0)
+        best_a = r.argmax(axis=1)
+        prof = r[np.arange(k), best_a]
+        left = np.r_[-3.0, prof[:-1]]
+        right = np.r_[prof[1:], -3.0]
+        peaks = np.flatnonzero((prof >= left) & (prof > right) & (prof > -1.0))
+        if peaks.size == 0:
+            continue
+        peaks = peaks[np.argsort(-prof[peaks], kind="stable")]
+        if peaks.size > 1:
+            out["second"][i] = prof[peaks[1]]
+        c = 0
+        for p in peaks:
+            if prof[p] <= rho_min or c >= cmax:
+                break
+            dk = _parabola(prof[p - 1], prof[p], prof[p + 1]) if 0 < p < k - 1 else 0.0
+            q = best_a[p]
+            da = _parabola(r[p, q - 1], r[p, q], r[p, q + 1]) if 0 < q < na - 1 else 0.0
+            pk = min(max(p + dk, 0.0), k - 1.0)
+            lo = int(min(math.floor(pk), k - 2))
+            w = pk - lo
+            qa = min(max(q + da, 0.0), na - 1.0)
+            qlo = int(min(math.floor(qa), na - 2)) if na > 1 else 0
+            wa = qa - qlo if na > 1 else 0.0
+            qhi = min(qlo + 1, na - 1)
+
+            def at(arr):
+                row = (1 - w) * arr[i, lo] + w * arr[i, lo + 1]
+                return (1 - wa) * row[qlo] + wa * row[qhi]
+            out["h"][i, c] = (1 - w) * heights[i, lo] + w * heights[i, lo + 1]
+            out["rho"][i, c] = prof[p]
+            out["x"][i, c], out["y"][i, c] = at(cx), at(cy)
+            c += 1
+    return out
+
+
+def back_match(img1, img2, model1, model2, x, y, x2, y2, h_lo, h_hi, half, across):
+    """Back-matching: the template of img2 at (x2, y2) searched in img1 along its own path over
+    the same heights; returns the distance (level px) of the best img1 position from (x, y)
+    (inf where nothing correlates)."""
+    back = candidates(img2, img1, model2, model1, x2, y2, h_lo, h_hi, half, across, -1.0, 1)
+    with np.errstate(invalid="ignore"):
+        d = np.hypot(back["x"][:, 0] - x, back["y"][:, 0] - y)
+    return np.where(np.isfinite(d), d, np.inf)
