@@ -71,18 +71,18 @@ class Adjustment:
 class _Geometry:
     """The image measurements of `obs` sorted by point (`start[p]:start[p + 1]` are point p's),
     their weights, and each image's free unknowns: `col` (n_images, K) their index among the free
-    unknowns (-1: none; K the most free unknowns one image depends on), `maps[s]` (n_coefficients,
-    K) the image's coefficients -> those compact columns and `rows[s]` its measurements."""
+    unknowns (-1: none; K the most free unknowns one image depends on), `map_entries[s]` the non-zero
+    entries (coefficient, compact column, value) of the image's map from its coefficients to those
+    compact columns, and `rows[s]` its measurements."""
 
     def __init__(self, params, obs):
         self.params = params
         self.images = sorted(params.models)
-        slot = {i: k for k, i in enumerate(self.images)}
         self.order = np.argsort(obs.measurements["point"], kind="stable")
         self.meas = obs.measurements[self.order]
         self.point_of = self.meas["point"]
         self.start = np.searchsorted(self.point_of, np.arange(len(obs.points) + 1))
-        self.img = np.array([slot[i] for i in self.meas["image_id"]], np.int64)
+        self.img = np.searchsorted(self.images, self.meas["image_id"]).astype(np.int64)
         self.rows = [np.flatnonzero(self.img == s) for s in range(len(self.images))]
         self.w = np.repeat((1.0 / self.meas["sigma"] ** 2)[:, None], 2, axis=1)
         free_index = np.full(len(params), -1, np.int64)
@@ -92,13 +92,14 @@ class _Geometry:
                 for i in self.images]
         width = max([u.size for u in used], default=0)
         self.col = np.full((len(self.images), width), -1, np.int64)
-        self.maps = []
+        self.map_entries = []
         for s, i in enumerate(self.images):
             tmap = params.jacobian_map(i)
             self.col[s, :used[s].size] = free_index[used[s]]
             compact = np.zeros((tmap.shape[0], width))
             compact[:, :used[s].size] = tmap[:, used[s]]
-            self.maps.append(compact)
+            coef, cols = np.nonzero(compact)
+            self.map_entries.append((coef, cols, compact[coef, cols]))
 
     def point_orientation_blocks(self, a, b):
         """sum_j A_j' W B_j per point, (P, 3, nfree): the coupling of each point with the free
@@ -123,7 +124,7 @@ class _Geometry:
                 continue
             p = self.point_of[k]
             d = self.params.models[self.images[s]].partials(lon[p], lat[p], h[p])
-            normals.scatter_partials(k, d["d_corrections"], d["d_ground"], per_metre[p], self.maps[s], b, a)
+            normals.scatter_partials(k, d["d_corrections"], d["d_ground"], per_metre[p], *self.map_entries[s], b, a)
             l[k, 0] -= d["col"]
             l[k, 1] -= d["row"]
         return a, b, l

@@ -17,19 +17,19 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def scatter_partials(rows, d_corr, d_ground, per_metre, cmap, b, a):
-    """Measurements `rows` of one image: b[rows[i]] = d_corr[i] @ cmap (its (n_coefficients, K)
-    coefficient -> compact-column map) and a[rows[i]] = d_ground[i] * per_metre[i] (px per degree ->
-    px per metre east/north, px per metre up)."""
-    nc, kk = cmap.shape
+def scatter_partials(rows, d_corr, d_ground, per_metre, coef, cols, values, b, a):
+    """Measurements `rows` of one image: b[rows[i]] = d_corr[i] @ M, M its (n_coefficients, K)
+    coefficient -> compact-column map given by its non-zero entries M[coef[t], cols[t]] = values[t],
+    and a[rows[i]] = d_ground[i] * per_metre[i] (px per degree -> px per metre east/north, px per metre
+    up)."""
+    kk = b.shape[2]
     for i in range(rows.size):
         j = rows[i]
         for e in range(2):
             for k in range(kk):
-                acc = 0.0
-                for c in range(nc):
-                    acc += d_corr[i, e, c] * cmap[c, k]
-                b[j, e, k] = acc
+                b[j, e, k] = 0.0
+            for t in range(coef.size):
+                b[j, e, cols[t]] += d_corr[i, e, coef[t]] * values[t]
             for r in range(3):
                 a[j, e, r] = d_ground[i, e, r] * per_metre[i, r]
 

@@ -97,9 +97,10 @@ def test_scatter_partials_against_numpy():
     n, nc, kk, total = 9, 32, 5, 20
     rows = np.sort(rng.choice(total, n, replace=False))
     d_corr, d_ground = rng.normal(size=(n, 2, nc)), rng.normal(size=(n, 2, 3))
-    per_metre, cmap = rng.uniform(1e-5, 1.0, (n, 3)), rng.normal(size=(nc, kk))
+    per_metre, cmap = rng.uniform(1e-5, 1.0, (n, 3)), rng.normal(size=(nc, kk)) * (rng.uniform(size=(nc, kk)) < 0.2)
     a, b = np.full((total, 2, 3), np.nan), np.full((total, 2, kk), np.nan)
-    normals.scatter_partials(rows, d_corr, d_ground, per_metre, cmap, b, a)
+    coef, cols = np.nonzero(cmap)
+    normals.scatter_partials(rows, d_corr, d_ground, per_metre, coef, cols, cmap[coef, cols], b, a)
     np.testing.assert_allclose(b[rows], d_corr @ cmap, rtol=1e-13, atol=1e-13)
     np.testing.assert_allclose(a[rows], d_ground * per_metre[:, None, :], rtol=1e-15)
     untouched = np.setdiff1d(np.arange(total), rows)
