@@ -21,7 +21,12 @@ Zhang & Gruen; methods.md section 6; issue 7). First version.
    blunder filter of surface/tin.py guides the next level.
 4. Level 0's points go through MPGC (mpgc.match_points) in all their images at once; points that
    fail MPGC keep their NCC positions with the low reliability NCC_RELIABILITY x rho and the flag
-   NCC_ONLY.
+   NCC_ONLY; with `fill_px` > 0 only where no MPGC-accepted point lies within fill_px px (they
+   fill gaps). Default 0 (all kept): on the simulated triplet's 10 m DSM (test_hierarchical.py)
+   fill_px 10 / 15 px lowers the open-class RMS (bare 2.27 -> 1.93 / 1.89 m, region growing
+   1.80; on the cells both cover, fill_px 10: bare 1.90 vs 1.89, crops 2.40 vs 2.38) but also the
+   coverage (bare 88 -> 74 / 71 %, region growing 81; low texture 56 -> 35 / 16 %, region
+   growing 5).
 5. Output: MultiPoints (points.py) with group 3 (reference + 2 search images) or 1 (reference + 1),
    rho_min = the reliability (MPGC's, mpgc.py, or the NCC one), flags COMB_A / COMB_B for the
    search images 1 / 2 observed (+ NCC_ONLY), stats with provenance "hierarchical" and the
@@ -35,6 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from .. import progress
 from ..errors import InputError
@@ -84,6 +90,7 @@ class HierParams:
     relax_radius: float = 3.0          # in grid spacings
     blunder_k: float = 4.0             # TIN blunder filter, robust sigmas
     wallis: bool = True
+    fill_px: float = 0.0               # px: points failing MPGC are dropped within this of an accepted one (step 4)
     final: MpgcParams = field(default_factory=lambda: MpgcParams(sigma_geometry=0.5))   # MPGC
 
     def check(self):
@@ -351,8 +358,19 @@ def _final(adapted, models, result, params):
         ok[g] = True
         rel[g] = rec["reliability"][good]
     rel[~ok] = NCC_RELIABILITY * np.nanmin(np.where(present, rho, np.nan), axis=1)[~ok]
-    return {"x0": x0, "y0": y0, "sx": sx, "sy": sy, "rho": rho, "ellipse": ellipse, "reliability": rel,
-            "mpgc_ok": ok}
+    keep = ok | ~near_accepted(x0, y0, ok, params.fill_px)
+    out = {"x0": x0, "y0": y0, "sx": sx, "sy": sy, "rho": rho, "ellipse": ellipse, "reliability": rel,
+           "mpgc_ok": ok}
+    return {key: v[keep] for key, v in out.items()}
+
+
+def near_accepted(x, y, ok, radius):
+    """Points with an MPGC-accepted point (`ok`) other than themselves within `radius` px."""
+    if radius <= 0 or not ok.any():
+        return np.zeros(len(x), bool)
+    tree = cKDTree(np.column_stack([x[ok], y[ok]]))
+    counts = tree.query_ball_point(np.column_stack([x, y]), radius, return_length=True)
+    return counts > ok.astype(int)
 
 
 def to_multipoints(out, image_ids, stats):

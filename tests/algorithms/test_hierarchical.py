@@ -5,6 +5,7 @@ import time
 
 import numpy as np
 import pytest
+from dsm_comparison import Truth, compare, format_tables
 from matching_scene import LOW_CONTRAST_DN, SINGLE_SURFACE, Scene
 
 from pushbroom.algorithms import sensors
@@ -67,6 +68,15 @@ def test_hypotheses_agreement_and_relaxation():
     out = relax(x, y, hh, ss, np.array([0, 0, -1, 0]), np.full(4, 5.0), radius=12.0, edge_mask=mask)
     assert out[2] == 1                                       # still the left neighbour (x = 0)
     assert crosses_edge(mask, x, y, np.array([[2, 1], [0, 2]])).tolist() == [True, False]
+
+
+def test_near_accepted():
+    """A point is near an accepted one when another accepted point lies within the radius."""
+    x, y = np.array([0.0, 5.0, 30.0, 34.0]), np.zeros(4)
+    ok = np.array([True, False, True, False])
+    assert hier.near_accepted(x, y, ok, 6.0).tolist() == [False, True, False, True]
+    assert hier.near_accepted(x, y, ok, 3.0).tolist() == [False, False, False, False]
+    assert not hier.near_accepted(x, y, ok, 0.0).any()
 
 
 def test_level_and_shifted_models(small_scene):
@@ -168,3 +178,24 @@ def test_triplet_side_by_side_with_region_growing(both):
     assert np.mean(err[open_ok] > 1.0) < 0.02                   # MPGC-accepted on open ground: few blunders
     assert np.all((flags & (COMB_A | COMB_B)) == COMB_A | COMB_B)
     assert set(hi.stats["seconds"]) >= {"preprocessing", "level 0", "mpgc"}
+
+
+@pytest.mark.slow
+def test_triplet_dsm_by_class_against_region_growing(both):
+    """Issue 7 acceptance on the DSM (dsm_comparison.py: points intersected with the truth models,
+    10 m TIN DEM, the same maximum triangle edge for both) against the true DSM by class, side by
+    side with region growing. Measured (defaults): DEM coverage bare 88 vs 81 %, crops 80 vs 34 %,
+    low-texture fields 56 vs 5 %; building-edge zone (within 10 m of an outline) MAE 4.32 vs 4.40 m,
+    both 100 % covered. Not met, so not asserted: the open-class RMS, on each one's own cells bare
+    2.27 vs 1.80 m, crops 3.00 vs 2.40 m, on the cells both cover bare 2.02 vs 1.85 m, crops 2.71
+    vs 2.42 m (the NCC_ONLY points; HierParams.fill_px)."""
+    scene, rg, hi, _, _ = both
+    truth = Truth(scene.paths)
+    tables = compare(truth, {"region growing": rg, "hierarchical": hi})
+    print(f"\n{truth.buildings} buildings; {len(truth.h)} cells of 10 m\n" + format_tables(tables))
+    r, h = tables["region growing"], tables["hierarchical"]
+    for name in ("bare", "crops"):                           # (cells, coverage, RMS, NMAD, MAE, RMS common)
+        assert h[name][1] >= r[name][1]
+    assert h["low-tex"][1] > r["low-tex"][1] + 0.2
+    assert h["bldg edge"][1] >= r["bldg edge"][1] - 0.01
+    assert h["bldg edge"][4] < r["bldg edge"][4]
