@@ -100,6 +100,9 @@ class _Geometry:
             compact[:, :used[s].size] = tmap[:, used[s]]
             coef, cols = np.nonzero(compact)
             self.map_entries.append((coef, cols, compact[coef, cols]))
+        # the exterior orientation's partials are needed where one of its coefficients is free
+        self.exterior = [bool((e[0] < params.models[i].EXTERIOR_COEFFICIENTS).any())
+                         for e, i in zip(self.map_entries, self.images)]
 
     def point_orientation_blocks(self, a, b):
         """sum_j A_j' W B_j per point, (P, 3, nfree): the coupling of each point with the free
@@ -123,7 +126,7 @@ class _Geometry:
             if not k.size:
                 continue
             p = self.point_of[k]
-            d = self.params.models[self.images[s]].partials(lon[p], lat[p], h[p])
+            d = self.params.models[self.images[s]].partials(lon[p], lat[p], h[p], exterior=self.exterior[s])
             normals.scatter_partials(k, d["d_corrections"], d["d_ground"], per_metre[p], *self.map_entries[s], b, a)
             l[k, 0] -= d["col"]
             l[k, 1] -= d["row"]

@@ -276,6 +276,9 @@ class RpcModel(SensorModel):
     of the RPC's image normalisation, ceil(SAMP_OFF + 0.5 + |SAMP_SCALE| - col0) and likewise for
     rows (the RPC's validity domain)."""
 
+    #: d_corrections columns of an exterior orientation: none (the bias acts in image space)
+    EXTERIOR_COEFFICIENTS = 0
+
     def __init__(self, coefficients, size=None, offset=(0.0, 0.0), source="RPC", bias=None):
         self.coefficients = coefficients
         self.bias = np.zeros(6) if bias is None else np.asarray(bias, float).reshape(6)
@@ -397,8 +400,9 @@ class RpcModel(SensorModel):
         lat[status != 0] = np.nan
         return shaped_points((lon, lat), shape, scalar)
 
-    def partials(self, lon, lat, h):
-        """Image coordinates of ground points and their partial derivatives, as SpotModel.partials:
+    def partials(self, lon, lat, h, exterior=True):
+        """Image coordinates of ground points and their partial derivatives, as SpotModel.partials
+        (`exterior` is accepted for the common interface: an RPC model has no exterior orientation):
         a dict of col, row (...); d_ground (..., 2, 3) = d(col, row)/d(lon, lat, h) in px/deg,
         px/deg, px/m (quotient rule on the rational functions, through the bias); d_corrections
         (..., 2, 6) = d(col, row)/d(bias) (A0, A1, A2, B0, B1, B2; module docstring)."""

@@ -65,6 +65,8 @@ class SpotModel(SensorModel):
     """Rigorous model of one SPOT 1-5 level-1A scene (see the module docstring)."""
 
     #: convergence of ground_to_image, rows
+    #: d_corrections columns of the exterior orientation (position, attitude), before the look angles
+    EXTERIOR_COEFFICIENTS = 24
     TOLERANCE = 1e-7
     MAX_ITERATIONS = 30
     #: central-difference step of `partials` in the position (m; velocity: m per time scale)
@@ -150,17 +152,19 @@ class SpotModel(SensorModel):
         k.line_of_sight_kernel(*self._packed(), c, r, pos, direction)
         return pos.reshape(shape + (3,)), direction.reshape(shape + (3,))
 
-    def partials(self, lon, lat, h):
+    def partials(self, lon, lat, h, exterior=True):
         """Image coordinates of ground points and their partial derivatives.
 
         Returns a dict: col, row (n,); d_corrections (n, 2, 32) = d(col, row)/d(coefficient), the
         coefficients ordered as PARAMETER_NAMES (corrections.position, .attitude, .look, rows then
         degree); d_ecef (n, 2, 3) = d(col, row)/d(X, Y, Z) in px/m; d_ground (n, 2, 3) =
-        d(col, row)/d(lon, lat, h) in px/degree, px/degree, px/m."""
+        d(col, row)/d(lon, lat, h) in px/degree, px/degree, px/m. `exterior` False: the position
+        and attitude coefficients' columns (the first EXTERIOR_COEFFICIENTS) are 0, not computed."""
         (lo, la, hh), _, _ = flat_points(lon, lat, h)
         col, row = self.ground_to_image(lo, la, hh)
         d_corr, d_xyz, d_ground = np.empty((lo.size, 2, 32)), np.empty((lo.size, 2, 3)), np.empty((lo.size, 2, 3))
-        k.partials_kernel(*self._packed(), lo, la, hh, col, row, self.POSITION_STEP, d_corr, d_xyz, d_ground)
+        k.partials_kernel(*self._packed(), lo, la, hh, col, row, self.POSITION_STEP, exterior, d_corr, d_xyz,
+                          d_ground)
         return {"col": col, "row": row, "d_corrections": d_corr, "d_ecef": d_xyz, "d_ground": d_ground}
 
     def image_to_dem(self, col, row, dem, samples=64, tol=1e-3):

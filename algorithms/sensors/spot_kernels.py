@@ -314,7 +314,8 @@ def _geodetic_columns(lon, lat, h):
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def partials_kernel(eph, att_t, att_v, look, prm, corr, lon, lat, h, col, row, step_m, d_corr, d_xyz, d_ground):
+def partials_kernel(eph, att_t, att_v, look, prm, corr, lon, lat, h, col, row, step_m, exterior, d_corr, d_xyz,
+                    d_ground):
     """d(col, row)/d(correction coefficients) (n, 2, 32), d(col, row)/d(ECEF) (n, 2, 3) and
     d(col, row)/d(lon, lat, h) (n, 2, 3; px/degree, px/degree, px/m) at the image points (col, row)
     of ground points (lon, lat, h), by the implicit function theorem on the residual
@@ -330,7 +331,8 @@ def partials_kernel(eph, att_t, att_v, look, prm, corr, lon, lat, h, col, row, s
     -(q^j, 0) or -(0, q^j). dF/dP_k, dF/dV_k = dg/dn dn/dP_k, dn/dV_k, the latter by central
     differences (step_m m, step_m / time_scale m/s) with the orbital frame rebuilt from the moved
     position or velocity. dg/dn: `_angle_slopes`. d_ground = d_xyz d(X, Y, Z)/d(lon, lat, h)
-    (`_geodetic_columns`)."""
+    (`_geodetic_columns`). Without `exterior` the position and attitude columns (0-23) are 0, not
+    computed (most of the cost)."""
     sv = step_m / prm[3]
     for i in prange(col.size):
         x, y, z = geodetic_to_ecef_scalar(lon[i], lat[i], h[i])
@@ -357,12 +359,14 @@ def partials_kernel(eph, att_t, att_v, look, prm, corr, lon, lat, h, col, row, s
         for e in range(2):
             for k in range(3):
                 d_ground[i, e, k] = d_xyz[i, e, 0] * g[k] + d_xyz[i, e, 1] * g[3 + k] + d_xyz[i, e, 2] * g[6 + k]
+        if not exterior:
+            d_corr[i, :, :24] = 0.0
         sy, cy = math.sin(yaw), math.cos(yaw)
         attitude_slopes = (_angle_slopes(nx, ny, nz, ny, -nx, 0.0),
                            _angle_slopes(nx, ny, nz, r21[1] * nz - r21[2] * ny, r21[2] * nx - r21[0] * nz,
                                          r21[0] * ny - r21[1] * nx),
                            _angle_slopes(nx, ny, nz, cy * nz, -sy * nz, sy * ny - cy * nx))
-        for k in range(3):
+        for k in range(3 if exterior else 0):
             # position and velocity of axis k, then attitude angle k
             e0, e1, e2 = (1.0 if k == 0 else 0.0), (1.0 if k == 1 else 0.0), (1.0 if k == 2 else 0.0)
             dx, dy, dz = e0 * step_m, e1 * step_m, e2 * step_m

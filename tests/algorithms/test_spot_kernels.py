@@ -283,6 +283,13 @@ def test_partials_match_plain_finite_differences():
         args[i] = args[i] - 2 * step
         minus = np.array(model.ground_to_image(*args))
         np.testing.assert_allclose(got["d_ground"][:, :, i], ((plus - minus) / (2 * step)).T, rtol=1e-4, atol=1e-5)
+    # without the exterior orientation: the same look-angle and ground partials, zeros for position/attitude
+    look_only = model.partials(lon, lat, h, exterior=False)
+    assert model.EXTERIOR_COEFFICIENTS == 24
+    assert np.all(look_only["d_corrections"][:, :, :24] == 0.0)
+    for key in ("col", "row", "d_ground", "d_ecef"):
+        np.testing.assert_array_equal(look_only[key], got[key])
+    np.testing.assert_array_equal(look_only["d_corrections"][:, :, 24:], got["d_corrections"][:, :, 24:])
 
 
 # -- DEM intersection ---------------------------------------------------------------------------

@@ -39,6 +39,8 @@ class ScipyBundle:
                                                 p["h"] - self.h0])[self.control]
         self.by_image = {i: np.flatnonzero(m["image_id"] == i) for i in np.unique(m["image_id"])}
         self.free_maps = {i: self.params.jacobian_map(i)[:, self.params.free] for i in self.by_image}
+        # as adjust: the exterior orientation's partials only where one of its coefficients is free
+        self.exterior = {i: bool(np.any(f[:models[i].EXTERIOR_COEFFICIENTS] != 0.0)) for i, f in self.free_maps.items()}
 
     @property
     def size(self):
@@ -76,7 +78,7 @@ class ScipyBundle:
         rows, cols, values = [], [], []
         for i, k in self.by_image.items():
             p = m["point"][k]
-            d = self.params.models[i].partials(lon[p], lat[p], h[p])
+            d = self.params.models[i].partials(lon[p], lat[p], h[p], exterior=self.exterior[i])
             weight = 1.0 / m["sigma"][k]
             row = 2 * k[:, None] + np.arange(2)                                         # (n, 2)
             orientation = d["d_corrections"] @ self.free_maps[i] * weight[:, None, None]  # (n, 2, nfree)
