@@ -1,0 +1,71 @@
+"""Coarse-to-fine matching (match_hierarchical) of the simulated SPOT 5 triplet HRG, HRS1, HRS2: seconds
+per step (preprocessing, each pyramid level, MPGC; MultiPoints.stats) and in all, against region growing
+(match_block, the demo's STEP 10, 2 workers) on the same images in the same run. Scene: the 10 km triplet
+(bench_region_growing's scene(), the demo's SceneConfig at a quarter of its area), since the whole-image
+matcher takes ~4.5 min on it (2 cores) and would take ~17 min on the 20 km one (SIZE_KM to change it).
+Supplied models, bench_region_growing's height range; after a warm-up of both matchers on the 3 km scene (JIT)."""
+import tempfile
+import time
+
+from bench_region_growing import HEIGHT_RANGE, scene
+
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.matching.combinations import match_block
+from pushbroom.algorithms.matching.hierarchical import match_hierarchical
+from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+
+NAMES = ("HRG", "HRS1", "HRS2")
+SIZE_KM = 10.0
+WORKERS = 2
+
+
+def both(images, models, height_range):
+    """{matcher: (MultiPoints, seconds)} of the two matchers on the same images."""
+    out = {}
+    for label, match in (("coarse-to-fine", lambda: match_hierarchical(images, models, names=NAMES,
+                                                                       height_range=height_range)),
+                         ("region growing", lambda: match_block(images, models, names=NAMES, params=GrowParams(),
+                                                                height_range=height_range, workers=WORKERS))):
+        start = time.perf_counter()
+        points = match()
+        out[label] = points, time.perf_counter() - start
+    return out
+
+
+def inputs(folder):
+    """Images and supplied models of a simulated triplet's folder."""
+    return [Image(f"{folder}/{n}/IMAGERY.TIF") for n in NAMES], [sensors.load(f"{folder}/{n}/METADATA.DIM")
+                                                                  for n in NAMES]
+
+
+def row(matcher, step, points, seconds, three=""):
+    return {"matcher": matcher, "step": step, "points": points, "three-ray points": three, "seconds": seconds,
+            "points/s": points / seconds if points else ""}
+
+
+def run():
+    with tempfile.TemporaryDirectory() as tmp:
+        simulate_scene(SceneConfig.small(), tmp + "/scene")
+        both(*inputs(tmp + "/scene"), HEIGHT_RANGE)
+    folder = scene(SIZE_KM)
+    images, models = inputs(folder)
+    results = both(images, models, HEIGHT_RANGE)
+    points, total = results["coarse-to-fine"]
+    stats = points.stats
+    label = f"coarse-to-fine ({stats['levels']} levels)"
+    rows = []
+    for step, seconds in stats["seconds"].items():
+        n = stats["points_per_level"].get(step, len(points) if step == "mpgc" else 0)
+        rows.append(row(label, step, n, seconds))
+    rows.append(row(label, "total", len(points), total, stats["group3"]))
+    rg, seconds = results["region growing"]
+    rows.append(row(f"region growing ({WORKERS} workers)", "total", len(rg), seconds,
+                    int((rg.points["group"] >= 2).sum())))
+    return rows
+
+
+if __name__ == "__main__":
+    from run_all import markdown_table
+    print(markdown_table(run()))
