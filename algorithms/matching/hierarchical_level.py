@@ -15,7 +15,8 @@ texture gets large windows, textured areas and discontinuities small ones).
 Candidates: the reference ray of a point is cut by the height interval [h_lo, h_hi]; its
 projection into the search image (quasi-epipolar path) is sampled every <= 0.5 px, widened by
 `across` px on each side for orientation errors, and the template (shaped by the models' local
-affine) is correlated at every sample (ncc.ncc_path). Local maxima along the path of the
+affine) is correlated at every sample (ncc.ncc_path), all points in one numba kernel
+(hierarchical_kernels.path_candidates). Local maxima along the path of the
 across-maximum profile above rho_min are candidates (at most `max_candidates`, best first),
 refined by a parabola in height and across the path; each carries its height, rho and image
 position. `second` is the best local maximum besides the first (for the peak ratio)."""
@@ -23,7 +24,7 @@ import math
 
 import numpy as np
 
-from .ncc import ncc_path
+from .hierarchical_kernels import path_candidates
 from .seeds import local_affine, predict
 
 
@@ -126,12 +127,6 @@ def path_samples(model1, model2, x, y, h_lo, h_hi, across, step=0.5):
     return heights, cx, cy, off
 
 
-def _parabola(m, c, p):
-    """Sub-sample offset of a parabola's vertex through (-1, m), (0, c), (1, p), in [-0.5, 0.5]."""
-    d = m - 2 * c + p
-    return float(np.clip(0.5 * (m - p) / d, -0.5, 0.5)) if d < 0 else 0.0
-
-
 def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_min, max_candidates):
     """Candidates of points (x, y) of img1 in img2 (module docstring); level models and px.
     Returns dict of (n, C) arrays h, rho, x, y (NaN padded, best first) and (n,) `second`."""
@@ -140,51 +135,12 @@ def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_m
     out["second"] = np.full(n, np.nan)
     if n == 0:
         return out
-    heights, cx, cy, off = path_samples(model1, model2, x, y, h_lo, h_hi, across)
+    heights, cx, cy, _ = path_samples(model1, model2, x, y, h_lo, h_hi, across)
     _, _, a1, a2, a4, a5 = local_affine(model1, model2, x, y, 0.5 * (h_lo + h_hi))
-    k, na = heights.shape[1], len(off)
-    scores = np.empty(k * na)
-    for i in range(n):
-        if not (np.isfinite([a1[i], a2[i], a4[i], a5[i]]).all() and np.isfinite(cx[i]).all()):
-            continue
-        ncc_path(img1, img2, float(x[i]), float(y[i]), int(half[i]), cx[i].ravel(), cy[i].ravel(),
-                 float(a1[i]), float(a2[i]), float(a4[i]), float(a5[i]), scores)
-        rho = scores.reshape(k, na)
-        if not np.isfinite(rho).any():
-            continue
-        r = np.where(np.isfinite(rho), rho, -2.0)
-        best_a = r.argmax(axis=1)
-        prof = r[np.arange(k), best_a]
-        left = np.r_[-3.0, prof[:-1]]
-        right = np.r_[prof[1:], -3.0]
-        peaks = np.flatnonzero((prof >= left) & (prof > right) & (prof > -1.0))
-        if peaks.size == 0:
-            continue
-        peaks = peaks[np.argsort(-prof[peaks], kind="stable")]
-        if peaks.size > 1:
-            out["second"][i] = prof[peaks[1]]
-        c = 0
-        for p in peaks:
-            if prof[p] <= rho_min or c >= cmax:
-                break
-            dk = _parabola(prof[p - 1], prof[p], prof[p + 1]) if 0 < p < k - 1 else 0.0
-            q = best_a[p]
-            da = _parabola(r[p, q - 1], r[p, q], r[p, q + 1]) if 0 < q < na - 1 else 0.0
-            pk = min(max(p + dk, 0.0), k - 1.0)
-            lo = int(min(math.floor(pk), k - 2))
-            w = pk - lo
-            qa = min(max(q + da, 0.0), na - 1.0)
-            qlo = int(min(math.floor(qa), na - 2)) if na > 1 else 0
-            wa = qa - qlo if na > 1 else 0.0
-            qhi = min(qlo + 1, na - 1)
-
-            def at(arr):
-                row = (1 - w) * arr[i, lo] + w * arr[i, lo + 1]
-                return (1 - wa) * row[qlo] + wa * row[qhi]
-            out["h"][i, c] = (1 - w) * heights[i, lo] + w * heights[i, lo + 1]
-            out["rho"][i, c] = prof[p]
-            out["x"][i, c], out["y"][i, c] = at(cx), at(cy)
-            c += 1
+    vec = [np.ascontiguousarray(v, float) for v in (x, y, a1, a2, a4, a5)]
+    path_candidates(img1, img2, vec[0], vec[1], np.ascontiguousarray(half, np.int64), np.ascontiguousarray(cx),
+                    np.ascontiguousarray(cy), *vec[2:], np.ascontiguousarray(heights), float(rho_min), out["h"],
+                    out["rho"], out["x"], out["y"], out["second"])
     return out
 
 
