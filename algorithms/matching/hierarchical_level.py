@@ -13,7 +13,8 @@ smallest of the given window sizes whose precision reaches `target` px, else the
 texture gets large windows, textured areas and discontinuities small ones).
 
 Candidates: the reference ray of a point is cut by the height interval [h_lo, h_hi]; its
-projection into the search image (quasi-epipolar path) is sampled every <= 0.5 px, widened by
+projection into the search image (quasi-epipolar path) is sampled every <= PATH_STEP px (each
+point at its own spacing, the counts rounded up to multiples of COUNT_BUCKET), widened by
 `across` px on each side for orientation errors, and the template (shaped by the models' local
 affine) is correlated at every sample (ncc.ncc_path), all points in one numba kernel
 (hierarchical_kernels.path_candidates). Local maxima along the path of the
@@ -24,8 +25,14 @@ import math
 
 import numpy as np
 
+from ..stats import NMAD_SCALE
 from .hierarchical_kernels import path_candidates
 from .seeds import local_affine, predict
+
+#: largest spacing (px) of the samples along a path
+PATH_STEP = 0.5
+#: sample counts are rounded up to a multiple of this, so the points run in a few equal-count batches
+COUNT_BUCKET = 8
 
 
 class ShiftedModel:
@@ -69,12 +76,12 @@ class LevelModel:
 
 
 def noise_sigma(img):
-    """Robust image noise (DN): 1.4826 median |Laplacian| / sqrt(20) (the 4-neighbour Laplacian
+    """Robust image noise (DN): NMAD_SCALE (1.4826) median |Laplacian| / sqrt(20) (the 4-neighbour Laplacian
     multiplies white noise by sqrt(20)), at least 0.3 DN (quantisation)."""
     a = np.asarray(img, float)
     lap = 4 * a[1:-1, 1:-1] - a[:-2, 1:-1] - a[2:, 1:-1] - a[1:-1, :-2] - a[1:-1, 2:]
     lap = lap[np.isfinite(lap)]
-    return max(1.4826 * float(np.median(np.abs(lap))) / math.sqrt(20.0), 0.3) if lap.size else 1.0
+    return max(NMAD_SCALE * float(np.median(np.abs(lap))) / math.sqrt(20.0), 0.3) if lap.size else 1.0
 
 
 def window_halves(img, x, y, sizes, noise, target):
@@ -104,20 +111,18 @@ def window_halves(img, x, y, sizes, noise, target):
     return half
 
 
-def path_samples(model1, model2, x, y, h_lo, h_hi, across, step=0.5):
-    """Heights (n, k) along each point's ray and their search-image positions (n, k, a) with
-    `across` px on each side of the path; k makes the longest path sampled every <= `step` px.
-    Returns (heights, cx, cy, offsets)."""
+def path_samples(model1, model2, x, y, h_lo, h_hi, across, count):
+    """Heights (n, count) along each point's ray, evenly from h_lo to h_hi, and their search-image
+    positions (n, count, a) with `across` px on each side of the path. Returns (heights, cx, cy,
+    offsets)."""
     n = len(x)
     xa, ya = predict(model1, model2, x, y, h_lo)
     xb, yb = predict(model1, model2, x, y, h_hi)
     length = np.hypot(xb - xa, yb - ya)
-    longest = float(np.nanmax(length)) if n and np.isfinite(length).any() else 0.0
-    k = max(3, int(math.ceil(longest / step)) + 1)
-    t = np.linspace(0.0, 1.0, k)
+    t = np.linspace(0.0, 1.0, count)
     heights = h_lo[:, None] + t[None, :] * (h_hi - h_lo)[:, None]
-    px, py = predict(model1, model2, np.repeat(x, k), np.repeat(y, k), heights.ravel())
-    px, py = px.reshape(n, k), py.reshape(n, k)
+    px, py = predict(model1, model2, np.repeat(x, count), np.repeat(y, count), heights.ravel())
+    px, py = px.reshape(n, count), py.reshape(n, count)
     with np.errstate(invalid="ignore", divide="ignore"):
         ux = np.where(length > 1e-9, (xb - xa) / length, 1.0)
         uy = np.where(length > 1e-9, (yb - ya) / length, 0.0)
@@ -127,20 +132,40 @@ def path_samples(model1, model2, x, y, h_lo, h_hi, across, step=0.5):
     return heights, cx, cy, off
 
 
+def sample_counts(model1, model2, x, y, h_lo, h_hi, step=PATH_STEP, bucket=COUNT_BUCKET):
+    """Samples per point so that its own path is sampled every <= `step` px (at least 3), rounded up
+    to a multiple of `bucket` so that points are searched in a few batches of equal count."""
+    xa, ya = predict(model1, model2, x, y, h_lo)
+    xb, yb = predict(model1, model2, x, y, h_hi)
+    length = np.nan_to_num(np.hypot(xb - xa, yb - ya))
+    counts = np.maximum(3, np.ceil(length / step) + 1)
+    return (np.ceil(counts / bucket) * bucket).astype(np.int64)
+
+
 def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_min, max_candidates):
-    """Candidates of points (x, y) of img1 in img2 (module docstring); level models and px.
+    """Candidates of points (x, y) of img1 in img2 (module docstring); level models and px. Each
+    point's path is sampled at its own spacing (sample_counts), in batches of equal count.
     Returns dict of (n, C) arrays h, rho, x, y (NaN padded, best first) and (n,) `second`."""
     n, cmax = len(x), int(max_candidates)
     out = {key: np.full((n, cmax), np.nan) for key in ("h", "rho", "x", "y")}
     out["second"] = np.full(n, np.nan)
     if n == 0:
         return out
-    heights, cx, cy, _ = path_samples(model1, model2, x, y, h_lo, h_hi, across)
+    x, y, h_lo, h_hi = (np.asarray(v, float) for v in (x, y, h_lo, h_hi))
+    half = np.broadcast_to(np.asarray(half, np.int64), (n,))
     _, _, a1, a2, a4, a5 = local_affine(model1, model2, x, y, 0.5 * (h_lo + h_hi))
-    vec = [np.ascontiguousarray(v, float) for v in (x, y, a1, a2, a4, a5)]
-    path_candidates(img1, img2, vec[0], vec[1], np.ascontiguousarray(half, np.int64), np.ascontiguousarray(cx),
-                    np.ascontiguousarray(cy), *vec[2:], np.ascontiguousarray(heights), float(rho_min), out["h"],
-                    out["rho"], out["x"], out["y"], out["second"])
+    counts = sample_counts(model1, model2, x, y, h_lo, h_hi)
+    for count in np.unique(counts):
+        sel = np.flatnonzero(counts == count)
+        heights, cx, cy, _ = path_samples(model1, model2, x[sel], y[sel], h_lo[sel], h_hi[sel], across, int(count))
+        part = {key: np.full((sel.size, cmax), np.nan) for key in ("h", "rho", "x", "y")}
+        part["second"] = np.full(sel.size, np.nan)
+        vec = [np.ascontiguousarray(v[sel], float) for v in (x, y, a1, a2, a4, a5)]
+        path_candidates(img1, img2, vec[0], vec[1], np.ascontiguousarray(half[sel]), np.ascontiguousarray(cx),
+                        np.ascontiguousarray(cy), *vec[2:], np.ascontiguousarray(heights), float(rho_min),
+                        part["h"], part["rho"], part["x"], part["y"], part["second"])
+        for key, value in part.items():
+            out[key][sel] = value
     return out
 
 
