@@ -18,6 +18,8 @@ from scipy import ndimage
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing import Lattice
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
 
 SINGLE_SURFACE = (BARE, CROPS)      # DSM = DTM: one (rough) surface inside a template
@@ -60,6 +62,17 @@ class Scene:
         lon, lat, h = self.truth1.image_to_dem(np.asarray(x1, float), np.asarray(y1, float), self.dsm)
         x2, y2 = (model2 or self.truth2).ground_to_image(lon, lat, h)
         return np.asarray(x2), np.asarray(y2), self.classes[self._cell(lon, lat)]
+
+    def lattice_nodes(self, margin=12):
+        """Region growing's lattice nodes (default GrowParams) of image 1 whose template lies inside
+        image 2 (`margin` px from its border): x1, y1, class."""
+        lattice = Lattice(self.model1.size, GrowParams())
+        n, m = np.meshgrid(np.arange(lattice.ncols), np.arange(lattice.nrows))
+        x1, y1 = lattice.position(m.ravel(), n.ravel())
+        x2, y2, cls = self.truth(x1, y1)
+        c2, r2 = self.model2.size
+        inside = (x2 > margin) & (x2 < c2 - margin) & (y2 > margin) & (y2 < r2 - margin)
+        return x1[inside], y1[inside], cls[inside]
 
     def texture(self, x1, y1):
         """Ground radiance std (DN) over the template footprint of image-1 points."""

@@ -15,7 +15,6 @@ from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.hierarchical_level import LevelModel, ShiftedModel, window_halves
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.points import COMB_A, COMB_B
-from pushbroom.algorithms.matching.region_growing import Lattice
 from pushbroom.algorithms.matching.relaxation import crosses_edge, hypotheses, relax, unique_choice
 
 NAMES = ("HRG", "HRS1", "HRS2")
@@ -153,13 +152,7 @@ def errors(scene, mp):
 def coverage(scene, mp):
     """Region growing's lattice nodes (inside HRS1): class, ground texture, covered (a group-3
     point within 5 px, Chebyshev)."""
-    lattice = Lattice(scene.model1.size, GrowParams())
-    n, m = np.meshgrid(np.arange(lattice.ncols), np.arange(lattice.nrows))
-    x1, y1 = lattice.position(m.ravel(), n.ravel())
-    x2, y2, cls = scene.truth(x1, y1)
-    c2, r2 = scene.model2.size
-    inside = (x2 > 12) & (x2 < c2 - 12) & (y2 > 12) & (y2 < r2 - 12)
-    x1, y1, cls = x1[inside], y1[inside], cls[inside]
+    x1, y1, cls = scene.lattice_nodes()
     px, py = (v[mp.points["group"] == 3] for v in mp.coordinates(1))
     cell = np.floor((px - 4.5) / 10.0).astype(np.int64) * 100000 + np.floor((py - 4.5) / 10.0).astype(np.int64)
     node_cell = np.floor((x1 - 4.5) / 10.0).astype(np.int64) * 100000 + np.floor((y1 - 4.5) / 10.0).astype(np.int64)

@@ -142,13 +142,8 @@ def grown(scene):
 @pytest.fixture(scope="module")
 def nodes(scene):
     """Lattice nodes whose template lies inside image 2: class, ground texture."""
-    lattice = Lattice(scene.model1.size, GrowParams())
-    n, m = np.meshgrid(np.arange(lattice.ncols), np.arange(lattice.nrows))
-    x1, y1 = lattice.position(m.ravel(), n.ravel())
-    x2, y2, cls = scene.truth(x1, y1)
-    c2, r2 = scene.model2.size
-    inside = (x2 > 12) & (x2 < c2 - 12) & (y2 > 12) & (y2 < r2 - 12)
-    return x1[inside], y1[inside], cls[inside], scene.texture(x1[inside], y1[inside])
+    x1, y1, cls = scene.lattice_nodes()
+    return x1, y1, cls, scene.texture(x1, y1)
 
 
 def rms(e):
