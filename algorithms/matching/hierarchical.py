@@ -42,10 +42,13 @@ Zhang & Gruen; methods.md section 6; issue 7). First version.
    timings per level.
 
 Edges, measured on the simulated triplet's 10 m DSM (test_hierarchical.py, against the version
-without them): the edge mask alone lowers the bare RMS 2.27 -> 2.18 m; edge points at level 1
-with breaklines (the defaults) give bare coverage 88 -> 89 %, RMS 2.27 -> 2.17 m, crops 80 -> 81 %,
-low texture 56 -> 58 %, building-edge MAE 4.32 -> 4.33 m (region growing 4.40; the 10 m TIN DEM
-smooths the steps whatever the points). Edge points at level 0 too (edge_min_level 0) are the most
+without them): the edge mask (on by default) changes little. Edge points at level 1 with
+breaklines gave bare coverage 88 -> 89 %, RMS 2.27 -> 2.17 m, crops 80 -> 81 %, low texture
+56 -> 58 %, building-edge MAE 4.32 -> 4.33 m (region growing 4.40; the 10 m TIN DEM smooths the
+steps whatever the points), and nothing measurable once every path is sampled at its own spacing;
+on the Ventoux pair (forest slope, tests/real/test_hierarchical_real.py) they add gross blunders
+(2 m DSM - SRTM NMAD 10.7 -> 13.4 m, minimum -15 -> -352 m), so `edge_points` (and with it the
+breaklines, which come from the matched edges) is off by default. Edge points at level 0 too (edge_min_level 0) are the most
 accurate points (0.19 px RMS, none > 1 px on open ground) and lower the open-class RMS further
 (bare 2.10, crops 2.74 m) but cost DEM coverage (bare 84, crops 70, low texture 43 %): the DEM's
 blunder filter takes its robust sigma over all points, and the dense, precise edge points shrink
@@ -113,7 +116,8 @@ class HierParams:
     wallis: bool = True
     fill_px: float = 0.0               # px: points failing MPGC are dropped within this of an accepted one (step 4)
     edges: bool = True                 # relaxation does not cross the reference level's Canny edges (step 2)
-    edge_points: bool = True           # edge chains matched with figural continuity become points (step 2)
+    edge_points: bool = False          # edge chains matched with figural continuity become points (step 2; off:
+    #                                    module docstring, Ventoux)
     breaklines: bool = True            # matched edge chains are breaklines of the level TIN (step 3)
     edge_window: int = 7               # px: NCC window of edge matching (every level)
     edge_step: int = 2                 # every edge_step-th edgel of a chain is matched
