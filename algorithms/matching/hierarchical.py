@@ -48,8 +48,8 @@ breaklines gave bare coverage 88 -> 89 %, RMS 2.27 -> 2.17 m, crops 80 -> 81 %, 
 steps whatever the points), and nothing measurable once every path is sampled at its own spacing;
 on the Ventoux pair (forest slope, tests/real/test_hierarchical_real.py) they add gross blunders
 (2 m DSM - SRTM NMAD 10.7 -> 13.4 m, minimum -15 -> -352 m), so `edge_points` (and with it the
-breaklines, which come from the matched edges) is off by default. Edge points at level 0 too (edge_min_level 0) are the most
-accurate points (0.19 px RMS, none > 1 px on open ground) and lower the open-class RMS further
+breaklines, which come from the matched edges) is off by default. Edge points at level 0 too
+(edge_min_level 0) are the most accurate points (0.19 px RMS, none > 1 px on open ground) and lower the open-class RMS further
 (bare 2.10, crops 2.74 m) but cost DEM coverage (bare 84, crops 70, low texture 43 %): the DEM's
 blunder filter takes its robust sigma over all points, and the dense, precise edge points shrink
 it, so more of the other points go.
