@@ -13,7 +13,7 @@ Ground observations of control points: v = dX_p - l_g with weights Wg_p (3, diag
 
 so the cost grows linearly with the number of points."""
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True, nogil=True)
@@ -56,66 +56,88 @@ def _inv3(m, out):
     return det
 
 
-@njit(cache=True, nogil=True)
+#: points are reduced in this many chunks, in parallel, each with its own partial sums
+CHUNKS = 16
+
+
+@njit(cache=True, nogil=True, parallel=True)
 def reduce_normals(start, a, b, l, w, img, col, wg, lg, nfree, normal, rhs, ninv, bp, ok):
     """Accumulate the reduced normal equations (module docstring) into normal (nfree, nfree) and
     rhs (nfree,); store N_pp^-1 in ninv (P, 3, 3) and b_p in bp (P, 3); ok[p] = False where N_pp
-    is singular (the point is left out). Returns sum of l' W l (the weighted squared misclosures)."""
+    is singular (the point is left out). Returns sum of l' W l (the weighted squared misclosures).
+    The points run in CHUNKS chunks in parallel, each summing into its own copy of N and b."""
     npts = start.size - 1
+    chunks = max(1, min(CHUNKS, npts))
+    normals = np.zeros((chunks, nfree, nfree))
+    rhss = np.zeros((chunks, nfree))
+    costs = np.zeros(chunks)
+    for k in prange(chunks):
+        npp = np.empty((3, 3))
+        c = np.zeros((3, nfree))
+        used = np.zeros(nfree, np.bool_)
+        for p in range(k * npts // chunks, (k + 1) * npts // chunks):
+            costs[k] += _reduce_point(p, start, a, b, l, w, img, col, wg, lg, nfree, normals[k], rhss[k], ninv, bp,
+                                      ok, npp, c, used)
+    for k in range(chunks):
+        normal += normals[k]
+        rhs += rhss[k]
+    return costs.sum()
+
+
+@njit(cache=True, nogil=True)
+def _reduce_point(p, start, a, b, l, w, img, col, wg, lg, nfree, normal, rhs, ninv, bp, ok, npp, c, used):
+    """Point p's part of reduce_normals (npp, c, used: work arrays, c and used left cleared);
+    returns its weighted squared misclosures."""
     kk = b.shape[2]
-    npp = np.empty((3, 3))
-    c = np.zeros((3, nfree))
-    used = np.zeros(nfree, np.bool_)
     cost = 0.0
-    for p in range(npts):
-        npp[:, :] = 0.0
-        for r in range(3):
-            npp[r, r] = wg[p, r]
-            bp[p, r] = wg[p, r] * lg[p, r]
-            cost += wg[p, r] * lg[p, r] * lg[p, r]
-        for j in range(start[p], start[p + 1]):
-            for e in range(2):
-                we = w[j, e]
-                cost += we * l[j, e] * l[j, e]
-                for r in range(3):
-                    bp[p, r] += a[j, e, r] * we * l[j, e]
-                    for s in range(3):
-                        npp[r, s] += a[j, e, r] * we * a[j, e, s]
-        ok[p] = _inv3(npp, ninv[p]) != 0.0
-        if not ok[p]:
-            continue
-        # C = sum_j A_j' W B_j scattered to free columns; orientation blocks
-        for j in range(start[p], start[p + 1]):
-            cj = col[img[j]]
-            for k in range(kk):
-                q = cj[k]
-                if q < 0:
-                    continue
-                used[q] = True
-                for e in range(2):
-                    wb = w[j, e] * b[j, e, k]
-                    rhs[q] += wb * l[j, e]
-                    for r in range(3):
-                        c[r, q] += a[j, e, r] * wb
-                    for k2 in range(kk):
-                        q2 = cj[k2]
-                        if q2 >= 0:
-                            normal[q, q2] += wb * b[j, e, k2]
-        # Schur complement over the columns this point touches
-        for q in range(nfree):
-            if not used[q]:
+    npp[:, :] = 0.0
+    for r in range(3):
+        npp[r, r] = wg[p, r]
+        bp[p, r] = wg[p, r] * lg[p, r]
+        cost += wg[p, r] * lg[p, r] * lg[p, r]
+    for j in range(start[p], start[p + 1]):
+        for e in range(2):
+            we = w[j, e]
+            cost += we * l[j, e] * l[j, e]
+            for r in range(3):
+                bp[p, r] += a[j, e, r] * we * l[j, e]
+                for s in range(3):
+                    npp[r, s] += a[j, e, r] * we * a[j, e, s]
+    ok[p] = _inv3(npp, ninv[p]) != 0.0
+    if not ok[p]:
+        return cost
+    # C = sum_j A_j' W B_j scattered to free columns; orientation blocks
+    for j in range(start[p], start[p + 1]):
+        cj = col[img[j]]
+        for k in range(kk):
+            q = cj[k]
+            if q < 0:
                 continue
-            t0 = ninv[p, 0, 0] * c[0, q] + ninv[p, 0, 1] * c[1, q] + ninv[p, 0, 2] * c[2, q]
-            t1 = ninv[p, 1, 0] * c[0, q] + ninv[p, 1, 1] * c[1, q] + ninv[p, 1, 2] * c[2, q]
-            t2 = ninv[p, 2, 0] * c[0, q] + ninv[p, 2, 1] * c[1, q] + ninv[p, 2, 2] * c[2, q]
-            rhs[q] -= t0 * bp[p, 0] + t1 * bp[p, 1] + t2 * bp[p, 2]
-            for q2 in range(nfree):
-                if used[q2]:
-                    normal[q, q2] -= t0 * c[0, q2] + t1 * c[1, q2] + t2 * c[2, q2]
-        for q in range(nfree):
-            if used[q]:
-                used[q] = False
-                c[0, q] = c[1, q] = c[2, q] = 0.0
+            used[q] = True
+            for e in range(2):
+                wb = w[j, e] * b[j, e, k]
+                rhs[q] += wb * l[j, e]
+                for r in range(3):
+                    c[r, q] += a[j, e, r] * wb
+                for k2 in range(kk):
+                    q2 = cj[k2]
+                    if q2 >= 0:
+                        normal[q, q2] += wb * b[j, e, k2]
+    # Schur complement over the columns this point touches
+    for q in range(nfree):
+        if not used[q]:
+            continue
+        t0 = ninv[p, 0, 0] * c[0, q] + ninv[p, 0, 1] * c[1, q] + ninv[p, 0, 2] * c[2, q]
+        t1 = ninv[p, 1, 0] * c[0, q] + ninv[p, 1, 1] * c[1, q] + ninv[p, 1, 2] * c[2, q]
+        t2 = ninv[p, 2, 0] * c[0, q] + ninv[p, 2, 1] * c[1, q] + ninv[p, 2, 2] * c[2, q]
+        rhs[q] -= t0 * bp[p, 0] + t1 * bp[p, 1] + t2 * bp[p, 2]
+        for q2 in range(nfree):
+            if used[q2]:
+                normal[q, q2] -= t0 * c[0, q2] + t1 * c[1, q2] + t2 * c[2, q2]
+    for q in range(nfree):
+        if used[q]:
+            used[q] = False
+            c[0, q] = c[1, q] = c[2, q] = 0.0
     return cost
 
 
