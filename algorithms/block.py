@@ -7,6 +7,7 @@ a model-file document, see sensors/model_file.py),
 `footprints` (polygon layer, EPSG:4326, the image border projected on a DEM or a mean height) and
 `run_log` (one row per processing step). A block is written under a temporary name and renamed,
 so a failed or cancelled creation leaves any existing block untouched."""
+import contextlib
 import datetime
 import json
 import os
@@ -220,6 +221,33 @@ def open_block(path, update=False):
     if ds is None or ds.GetLayerByName("block_info") is None:
         raise InputError(f"{path} is not a Pushbroom block (no block_info table)")
     return ds
+
+
+#: ms a transaction waits for another connection's write lock (QGIS editing the layer, an adjustment storing
+#: its results) before it gives up with an error
+BUSY_TIMEOUT_MS = 5000
+
+
+@contextlib.contextmanager
+def transaction(block_path, what="the edit"):
+    """The block's data source (update mode) inside one SQLite transaction that already holds the
+    write lock (taken first, so a concurrent writer is waited for up to BUSY_TIMEOUT_MS rather than
+    failing the edit half-way), committed when the block ends, rolled back on any error; OGR/SQLite
+    errors become InputError("cannot store <what> ...")."""
+    ds = open_block(block_path, update=True)
+    result = ds.ExecuteSQL(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+    if result is not None:
+        ds.ReleaseResultSet(result)
+    ds.StartTransaction()
+    try:
+        ds.ExecuteSQL("UPDATE block_info SET value = value WHERE key = 'format_version'")
+        yield ds
+        ds.CommitTransaction()
+    except BaseException as exc:
+        ds.RollbackTransaction()
+        if isinstance(exc, RuntimeError):   # OGR/SQLite: locked, read-only, disk full
+            raise InputError(f"cannot store {what} in {block_path}: {exc}") from exc
+        raise
 
 
 def read_info(path):

@@ -6,8 +6,8 @@ import os
 
 from qgis.core import QgsProject, QgsProviderRegistry, QgsVectorLayer
 
+from ..algorithms import block
 from ..algorithms.adjustment.control_points import LAYER, layers
-from ..algorithms.measurement.store import transaction
 from .plugin import resource_path
 
 LAYER_NAME = "Control and check points"
@@ -33,7 +33,7 @@ def find_control_layer(block_path, project=None):
 def create_control_points(block_path):
     """Create the block's (empty) `control_points` layer and `image_measurements` table where missing, in one
     transaction, so that the map shows the points from the first one measured."""
-    with transaction(block_path, "the control points layer") as ds:
+    with block.transaction(block_path, "the control points layer") as ds:
         layers(ds)
 
 

@@ -352,7 +352,8 @@ def save_control_points(block_path, observations, mode="replace", feedback=None,
     """Store `observations` (control/check points only) in the block, replacing its points
     (mode "replace") or updating them (mode "merge", see `merge`), in one SQLite transaction:
     on any error or a cancel the block keeps its earlier points. `names`: {image name: id} of the
-    block (read from it if not given). Returns what is stored."""
+    block (read from it if not given). Returns what is stored. A block locked by another writer is
+    waited for (block.transaction); an OGR/SQLite failure is an InputError."""
     if mode not in MODES:
         raise InputError(f"the import mode must be one of {', '.join(MODES)}, not {mode!r}")
     observations.check()
@@ -364,9 +365,7 @@ def save_control_points(block_path, observations, mode="replace", feedback=None,
     unknown = sorted(set(observations.measurements["image_id"].tolist()) - known)
     if unknown:
         raise InputError(f"measurements in image id(s) {unknown}, which the block {block_path} does not have")
-    ds = block.open_block(block_path, update=True)
-    ds.StartTransaction()
-    try:
+    with block.transaction(block_path, "the points") as ds:
         if mode == "merge":
             observations = merge(read_stored(ds, block_path), observations)
         points_layer, table = layers(ds)
@@ -384,10 +383,6 @@ def save_control_points(block_path, observations, mode="replace", feedback=None,
                               "check_points": int((roles == "check").sum()),
                               "image_measurements": len(observations.measurements)},
                          step="importpoints", message=f"{mode}: " + summary(observations, names))
-    except BaseException:
-        ds.RollbackTransaction()
-        raise
-    ds.CommitTransaction()
     progress.ensure(feedback).setProgress(100.0)
     return observations
 
@@ -423,10 +418,7 @@ def import_csv(block_path, csv_path, mode="replace", feedback=None, **options):
     names = {r["name"]: r["id"] for r in images}
     observations = read_csv(csv_path, names, feedback=feedback, **options)
     check_extent(observations, images)
-    try:
-        return save_control_points(block_path, observations, mode=mode, feedback=feedback, names=names)
-    except RuntimeError as exc:   # an OGR/SQLite failure: the transaction was rolled back
-        raise InputError(f"cannot store the points in {block_path}: {exc}") from exc
+    return save_control_points(block_path, observations, mode=mode, feedback=feedback, names=names)
 
 
 def export_csv(block_path, csv_path):

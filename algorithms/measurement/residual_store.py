@@ -26,7 +26,6 @@ from .. import block
 from ..adjustment import control_points as cp
 from ..adjustment.residual_vectors import intersection_residuals, per_point
 from ..geodesy import offset_enu
-from .store import transaction
 
 MEASUREMENT_TABLE, POINT_TABLE, FIELD = "measurement_residuals", "point_residuals", "residual_px"
 MEASUREMENT_FIELDS = [("point_name", ogr.OFTString), ("image_id", ogr.OFTInteger), ("role", ogr.OFTString)] + [
@@ -105,7 +104,7 @@ def save_residuals(block_path, adjustment, check, observations=None):
         observations = cp.load_control_points(block_path)
     meas_rows, point_rows = residual_rows(adjustment, check, observations)
     rms = {name: row[-1] for name, *row in point_rows}
-    with transaction(block_path, "the residuals") as ds:
+    with block.transaction(block_path, "the residuals") as ds:
         _write(_table(ds, MEASUREMENT_TABLE, MEASUREMENT_FIELDS), MEASUREMENT_FIELDS, meas_rows)
         _write(_table(ds, POINT_TABLE, POINT_FIELDS), POINT_FIELDS, point_rows)
         points, _ = cp.layers(ds)

@@ -6,7 +6,7 @@ Every edit is ONE SQLite transaction, committed before the method returns: a kil
 nothing already returned, and an edit that fails (a refused value, a locked or broken file) leaves
 the block as it was. Each edit opens the block anew (no connection kept between edits, so edits from
 a background adjustment or QGIS's own layer never meet stale state), takes the write lock first
-(waiting up to BUSY_TIMEOUT_MS for another writer) and updates block_info's counts control_points,
+(block.transaction: waiting up to BUSY_TIMEOUT_MS for another writer) and updates block_info's counts control_points,
 check_points and image_measurements in the same transaction, without a run_log row per edit.
 
 Records handed back for undo: points as POINT_DTYPE records; measurements as MEAS_DTYPE records
@@ -21,33 +21,6 @@ from .. import block
 from ..adjustment import control_points as cp
 from ..adjustment.observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE
 from ..errors import InputError
-
-#: ms an edit waits for another connection's write lock (QGIS editing the layer, an adjustment storing
-#: its results) before it gives up with an error
-BUSY_TIMEOUT_MS = 5000
-
-
-@contextlib.contextmanager
-def transaction(block_path, what="the edit"):
-    """The block's data source (update mode) inside one SQLite transaction that already holds the
-    write lock (taken first, so a concurrent writer is waited for up to BUSY_TIMEOUT_MS rather than
-    failing the edit half-way), committed when the block ends, rolled back on any error; OGR/SQLite
-    errors become InputError("cannot store <what> ...")."""
-    ds = block.open_block(block_path, update=True)
-    result = ds.ExecuteSQL(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
-    if result is not None:
-        ds.ReleaseResultSet(result)
-    ds.StartTransaction()
-    try:
-        ds.ExecuteSQL("UPDATE block_info SET value = value WHERE key = 'format_version'")
-        yield ds
-        ds.CommitTransaction()
-    except BaseException as exc:
-        ds.RollbackTransaction()
-        if isinstance(exc, RuntimeError):   # OGR/SQLite: locked, read-only, disk full
-            raise InputError(f"cannot store {what} in {block_path}: {exc}") from exc
-        raise
-
 
 def _quoted(text):
     """`text` as an SQL string literal."""
@@ -146,7 +119,7 @@ class MeasurementStore:
     def _edit(self):
         """(data source, points layer, measurement table) inside one `transaction`, with
         block_info's counts written before the commit."""
-        with transaction(self.path) as ds:
+        with block.transaction(self.path) as ds:
             points, table = cp.layers(ds)
             yield ds, points, table
             self._write_counts(ds)
