@@ -478,3 +478,24 @@ def accepted(records, status, params=None):
         return ((np.asarray(status) == OK) & (records["rho"] > params.rho_min)
                 & (records["semi_major"] < params.max_ellipse) & (records["shift"] < params.max_shift)
                 & (records["iterations"] < params.max_iterations))
+
+
+def match_accepted(img1, img2, x1, y1, x2, y2, affine=None, params=None):
+    """match_points and `accepted`, with the points that fail inside the images matched again with
+    the wider window `params.widest` (GrowParams.wide_template) from the same initial values.
+    Returns (records, accepted mask)."""
+    params = params or LsmParams()
+    rec, status = match_points(img1, img2, x1, y1, x2, y2, affine, params)
+    ok = accepted(rec, status, params)
+    again = np.flatnonzero(~ok & (status != OUTSIDE))
+    if params.widest > params.template and again.size:
+        wide = LsmParams(template=params.widest, max_iterations=params.max_iterations,
+                         convergence=params.convergence, rho_min=params.rho_min, max_ellipse=params.max_ellipse,
+                         max_shift=params.max_shift)
+        x2, y2 = (np.broadcast_to(np.asarray(v, float), rec.shape)[again] for v in (x2, y2))
+        rec_w, status_w = match_points(img1, img2, rec["x1"][again], rec["y1"][again], x2, y2,
+                                       _affine_array(affine, len(rec))[again], wide)
+        good = accepted(rec_w, status_w, wide)
+        rec[again[good]] = rec_w[good]
+        ok[again[good]] = True
+    return rec, ok

@@ -26,7 +26,7 @@ from numba import njit
 from ..errors import CancelledError, InputError
 from ..progress import ensure, step as progress_step
 from .imagery import Smoothed, as_image
-from .lsm import LSM_OUT, accepted, lsm_point, match_points, to_records
+from .lsm import LSM_OUT, OUTSIDE, lsm_point, match_accepted, to_records
 from .params import GrowParams
 from .records import PAIR_DTYPE
 from .seeds import (automatic_seeds, local_affine, predict, resolve_height_range, search_margin,
@@ -92,25 +92,35 @@ def _pop(key, node, size):
 
 
 @njit(cache=True, nogil=True)
+def _passes(status, out, rho_min, max_ellipse, max_shift, max_iter):
+    """The acceptance criteria."""
+    return (status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift
+            and out[6] < max_iter)
+
+
+@njit(cache=True, nogil=True)
 def _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, x2, y2, a1, a2, a4, a5,
-             half, max_iter, conv, rho_min, max_ellipse, max_shift, out, results, state):
-    """LSM at lattice node `node` from initial values in image coordinates; stores the result
+             half, whalf, max_iter, conv, rho_min, max_ellipse, max_shift, out, results, state):
+    """LSM at lattice node `node` from initial values in image coordinates, again with the wide
+    window (half-size whalf > half) where the match failed inside the image; stores the result
     (image coordinates) and the state (1 accepted, 2 rejected); returns whether accepted."""
     x1 = gx0 + (node % nx) * step - ox1
     y1 = gy0 + (node // nx) * step - oy1
     status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out)
+    ok = _passes(status, out, rho_min, max_ellipse, max_shift, max_iter)
+    if not ok and status != OUTSIDE and whalf > half:
+        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out)
+        ok = _passes(status, out, rho_min, max_ellipse, max_shift, max_iter)
     for f in range(out.shape[0]):
         results[node, f] = out[f]
     results[node, 0] += ox2
     results[node, 1] += oy2
-    ok = (status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift
-          and out[6] < max_iter)
     state[node] = 1 if ok else 2
     return ok
 
 
 @njit(cache=True, nogil=True)
-def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, max_iter, conv,
+def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, whalf, max_iter, conv,
                 rho_min, max_ellipse, max_shift, results, state, origin, prior):
     """Region growing on the nx x ny lattice of a tile (node = row * nx + col at image-1 position
     (gx0 + col step, gy0 + row step)). img1/img2 are windows whose top-left corners lie at image
@@ -131,7 +141,7 @@ def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, h
             continue
         tries += 1
         if _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, seeds[s, 1], seeds[s, 2],
-                    seeds[s, 3], seeds[s, 4], seeds[s, 5], seeds[s, 6], half, max_iter, conv, rho_min,
+                    seeds[s, 3], seeds[s, 4], seeds[s, 5], seeds[s, 6], half, whalf, max_iter, conv, rho_min,
                     max_ellipse, max_shift, out, results, state):
             origin[node] = int(seeds[s, 7])
             size = _push(key, hnode, size, _quantise(results[node, 2]), node)
@@ -162,7 +172,7 @@ def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, h
             tries += 1
             if _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, nb,
                         results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl,
-                        a1, a2, a4, a5, half, max_iter, conv, rho_min, max_ellipse, max_shift, out,
+                        a1, a2, a4, a5, half, whalf, max_iter, conv, rho_min, max_ellipse, max_shift, out,
                         results, state):
                 origin[nb] = origin[node]
                 size = _push(key, hnode, size, _quantise(results[nb, 2]), nb)
@@ -253,11 +263,12 @@ def _grow_tile(ctx, index, box):
     image1, image2, model1, model2, params, hr, lattice, seeds, automatic = ctx
     n_a, n_b, m_a, m_b = box
     half, step = lattice.half, lattice.step
+    pad = params.widest // 2 + 2
     gx0, gy0 = lattice.position(m_a, n_a)
     nx, ny = n_b - n_a, m_b - m_a
     x_last, y_last = lattice.position(m_b - 1, n_b - 1)
-    box1 = (int(math.floor(gx0 - half - 2)), int(math.floor(gy0 - half - 2)),
-            int(math.ceil(x_last + half + 3)), int(math.ceil(y_last + half + 3)))
+    box1 = (int(math.floor(gx0 - pad)), int(math.floor(gy0 - pad)),
+            int(math.ceil(x_last + pad + 1)), int(math.ceil(y_last + pad + 1)))
     margin = search_margin(model1, model2, params, hr, 0.5 * (gx0 + x_last), 0.5 * (gy0 + y_last)) + step
     windows = window_pair(image1, image2, model1, model2, box1, hr, margin)
     win1, ox1, oy1, win2, ox2, oy2 = windows
@@ -290,7 +301,7 @@ def _grow_tile(ctx, index, box):
     state = np.zeros(nx * ny, np.int8)
     origin = np.full(nx * ny, -1, np.int64)
     tries = grow_kernel(win1, win2, float(ox1), float(oy1), float(ox2), float(oy2), float(gx0), float(gy0),
-                        float(step), nx, ny, rows, half, params.max_iterations, params.convergence,
+                        float(step), nx, ny, rows, half, params.widest // 2, params.max_iterations, params.convergence,
                         params.rho_min, params.max_ellipse, params.max_shift, results, state, origin, prior)
     good = np.flatnonzero(state == 1)
     rec = to_records(*lattice.position(m_a + good // nx, n_a + good % nx), results[good])
@@ -488,7 +499,7 @@ def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_
         records[name] = np.nan if PAIR_DTYPE[name].kind == "f" else 0
     records["seed"] = nearest
     ok = np.zeros(len(x1), bool)
-    half = params.template // 2
+    half = params.widest // 2
     tile = int(params.tile)
     key = (np.floor(y1 / tile) * (image1.size[0] // tile + 1) + np.floor(x1 / tile))
     for k in np.unique(key[np.isfinite(key)]):
@@ -507,7 +518,7 @@ def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_
                                      int(np.ceil(y2[idx][fin].max() + m)) + 1 - yb)
         if win2.shape[0] < 4 or win2.shape[1] < 4:
             continue
-        rec, status = match_points(win1, win2, x1[idx] - ox1, y1[idx] - oy1, x2[idx] - ox2, y2[idx] - oy2,
+        rec, good = match_accepted(win1, win2, x1[idx] - ox1, y1[idx] - oy1, x2[idx] - ox2, y2[idx] - oy2,
                                    affine=a[idx], params=params)
         rec["x1"] += ox1
         rec["y1"] += oy1
@@ -515,5 +526,5 @@ def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_
         rec["y2"] += oy2
         rec["seed"] = nearest[idx]
         records[idx] = rec
-        ok[idx] = accepted(rec, status, params)
+        ok[idx] = good
     return records, ok

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import InputError
 from .imagery import as_image
 from .interest import interest_points
-from .lsm import accepted, match_points
+from .lsm import match_accepted
 from .ncc import ncc_path
 from .params import GrowParams
 from .records import PAIR_DTYPE
@@ -126,12 +126,12 @@ def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr,
     if min(win1.shape) < 4 or min(win2.shape) < 4:   # an image sliver: nothing can match (match_points needs 4 x 4)
         bx[:] = np.nan
         win1 = win2 = np.zeros((4, 4), np.float32)
-    rec, status = match_points(win1, win2, x1 - ox1, y1 - oy1, bx - ox2, by - oy2,
-                               affine=np.column_stack([a1, a2, a4, a5]), params=params)
+    rec, ok = match_accepted(win1, win2, x1 - ox1, y1 - oy1, bx - ox2, by - oy2,
+                             affine=np.column_stack([a1, a2, a4, a5]), params=params)
     rec["x1"], rec["y1"] = x1, y1
     rec["x2"] += ox2
     rec["y2"] += oy2
-    return rec, accepted(rec, status, params)
+    return rec, ok
 
 
 def window_pair(image1, image2, model1, model2, box1, hr, margin2):
@@ -165,7 +165,7 @@ def search_margin(model1, model2, params, hr, x1, y1):
     _, _, a1, a2, a4, a5 = local_affine(model1, model2, np.atleast_1d(float(x1)), np.atleast_1d(float(y1)),
                                         0.5 * (hr[0] + hr[1]))
     scale = np.nanmax(np.abs([a1, a2, a4, a5])) * 2 if np.all(np.isfinite([a1, a2, a4, a5])) else 2.0
-    return (params.template // 2 + 2) * scale + ACROSS + params.max_shift + 4
+    return (params.widest // 2 + 2) * scale + ACROSS + params.max_shift + 4
 
 
 def automatic_seeds(image1, image2, model1, model2, params=None, height_range=None, box=None, windows=None):
@@ -214,9 +214,8 @@ def seeds_from_points(image1, image2, model1, model2, x1, y1, params=None, heigh
     recs["x2"] = recs["y2"] = np.nan
     recs["seed"] = -1
     ok = np.zeros(len(x1), bool)
-    half = params.template // 2
+    pad = params.widest // 2 + 3
     for i in range(len(x1)):   # one small window pair per point: memory stays bounded
-        pad = half + 3
         box = (int(x1[i]) - pad, int(y1[i]) - pad, int(x1[i]) + pad + 1, int(y1[i]) + pad + 1)
         margin = search_margin(model1, model2, params, hr, x1[i], y1[i]) + (radius if x2 is not None else 0)
         if x2 is not None:

@@ -80,8 +80,10 @@ class MatchPoints(PushbroomAlgorithm):
             "image at the mean height, and counted per group like Table 1 of the paper (log and CSV). Seeds "
             "are automatic (interest points matched along the path the sensor models predict over the "
             "terrain height range), the block's tie points (re-matched from their stored positions), or "
-            "both; with tie points only, tiles without one stay empty. Strategy 'coarse-to-fine' (Zhang & "
-            "Gruen): Foerstner and grid points matched by NCC along the sensor models' epipolar paths level by "
+            "both; with tie points only, tiles without one stay empty. With a second, wider template "
+            "(advanced, off by default), a point whose match fails in the template is matched again in it: "
+            "weak or striped texture then gets points that pass every acceptance criterion but are less "
+            "accurate than their error ellipses say. Strategy 'coarse-to-fine' (Zhang & Gruen): Foerstner and grid points matched by NCC along the sensor models' epipolar paths level by "
             "level of a factor-3 pyramid, each level's TIN guiding the next, refined by multi-photo "
             "geometrically constrained matching (MPGC); its points (group 3 three-ray, 1 two-ray) carry MPGC's "
             "reliability as rho, points MPGC rejected keep their NCC positions with a low one; the region "
@@ -104,6 +106,8 @@ class MatchPoints(PushbroomAlgorithm):
         self.addParameter(Number("TEMPLATE", "Template size (px, odd)", Number.Integer, d.template, minValue=5))
         self.addParameter(Number("STEP", "STEP: distance of the neighbours (px)", Number.Integer, d.step, minValue=1))
         advanced = [
+            Number("WIDE_TEMPLATE", "Second, wider template where the first one fails (px, odd; 0 = off)",
+                   Number.Integer, d.wide_template, minValue=0),
             Number("RHO_MIN", "Minimum correlation coefficient", Number.Double, d.rho_min, minValue=0.0,
                    maxValue=1.0),
             Number("MAX_ELLIPSE", "Maximum semi-major axis of the error ellipse (px)", Number.Double,
@@ -134,6 +138,7 @@ class MatchPoints(PushbroomAlgorithm):
                                        self.parameterAsOptionalDouble(parameters, "MAX_HEIGHT", context))
         params = GrowParams(
             template=self.parameterAsInt(parameters, "TEMPLATE", context),
+            wide_template=self.parameterAsInt(parameters, "WIDE_TEMPLATE", context),
             step=self.parameterAsInt(parameters, "STEP", context),
             rho_min=self.parameterAsDouble(parameters, "RHO_MIN", context),
             max_ellipse=self.parameterAsDouble(parameters, "MAX_ELLIPSE", context),

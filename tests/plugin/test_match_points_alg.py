@@ -81,6 +81,10 @@ def test_two_images_give_group_1(pushbroom_provider, triplet):
                                              "MAX_HEIGHT": hi, "STEP": 8})
     mass = load_points(path)
     assert len(mass) > 100 and mass.group_counts()[2] == mass.group_counts()[3] == 0
+    wide = make_block(triplet, "wide.gpkg", ("HRG", "HRS1"))
+    processing.run("pushbroom:matchpoints", {"BLOCK": wide, "IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo,
+                                             "MAX_HEIGHT": hi, "STEP": 8, "WIDE_TEMPLATE": 27})
+    assert len(load_points(wide)) > 1.2 * len(mass)      # the second window reaches weak texture
 
 
 def test_bad_input_gives_clear_errors(pushbroom_provider, triplet):
@@ -91,6 +95,8 @@ def test_bad_input_gives_clear_errors(pushbroom_provider, triplet):
         processing.run("pushbroom:selecttiepoints", {"BLOCK": path})
     with pytest.raises(QgsProcessingException, match="no tie points.*selecttiepoints"):
         processing.run("pushbroom:matchpoints", {"BLOCK": path, "SEEDS": 1})
+    with pytest.raises(QgsProcessingException, match="wide template must be 0 .off. or an odd size larger"):
+        processing.run("pushbroom:matchpoints", {"BLOCK": path, "WIDE_TEMPLATE": 20})
 
 
 def test_cancel_writes_nothing(pushbroom_provider, triplet):
