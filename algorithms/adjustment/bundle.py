@@ -185,7 +185,10 @@ def defect_groups(normal, labels, threshold=DEFECT_EIGENVALUE, prior=None):
     good = np.flatnonzero(diag > 0)
     if good.size:
         d = 1.0 / np.sqrt(diag[good])
-        vals, vecs = np.linalg.eigh(normal[np.ix_(good, good)] * d[:, None] * d[None, :])
+        scaled = np.ascontiguousarray(normal[np.ix_(good, good)] * d[:, None] * d[None, :])
+        if _clearly_regular(scaled, threshold):
+            return groups
+        vals, vecs = np.linalg.eigh(scaled)
         held = (np.zeros(normal.shape[0]) if prior is None else np.asarray(prior, float))[good] * d * d
         for v, vec in zip(vals, vecs.T):
             if v > threshold * max(vals[-1], 1.0):
@@ -195,6 +198,16 @@ def defect_groups(normal, labels, threshold=DEFECT_EIGENVALUE, prior=None):
             order = np.argsort(-np.abs(vec))
             groups.append([labels[good[q]] for q in order[np.abs(vec[order]) > 0.05]])
     return groups
+
+
+def _clearly_regular(m, threshold):
+    """True where every eigenvalue of the symmetric m is provably above threshold * max(largest, 1):
+    lambda_min >= 1 / ||m^-1||_inf and lambda_max <= ||m||_inf (a Cholesky inverse; saves the
+    eigendecomposition in the usual, regular case)."""
+    inv = np.empty(m.shape)
+    if not normals.cholesky_solve(m, np.eye(len(m)), inv):
+        return False
+    return 1.0 / np.abs(inv).sum(axis=1).max() > threshold * max(np.abs(m).sum(axis=1).max(), 1.0)
 
 
 def find_defects(normal, labels, threshold=DEFECT_EIGENVALUE, prior=None):
@@ -398,19 +411,29 @@ def _scaled(normal):
     return 1.0 / d
 
 
+def _solve_jacobi(normal, rhs):
+    """N^-1 rhs (rhs (n, k)) with Jacobi scaling (unknowns of m and rad mixed): Cholesky
+    (normals.cholesky_solve), LAPACK where N is not positive definite."""
+    s = _scaled(normal)
+    scaled = np.ascontiguousarray(normal * s[:, None] * s[None, :])
+    out = np.empty(rhs.shape)
+    if not normals.cholesky_solve(scaled, np.ascontiguousarray(rhs * s[:, None]), out):
+        out = np.linalg.solve(scaled, rhs * s[:, None])
+    return out * s[:, None]
+
+
 def _solve_scaled(normal, rhs):
-    """Solve N x = b with Jacobi scaling (unknowns of m and rad mixed)."""
+    """Solve N x = b."""
     if not normal.size:
         return np.zeros(0)
-    s = _scaled(normal)
-    return s * np.linalg.solve(normal * s[:, None] * s[None, :], rhs * s)
+    return _solve_jacobi(normal, rhs[:, None])[:, 0]
 
 
 def _inverse_scaled(normal):
+    """N^-1."""
     if not normal.size:
         return np.zeros((0, 0))
-    s = _scaled(normal)
-    return np.linalg.inv(normal * s[:, None] * s[None, :]) * s[:, None] * s[None, :]
+    return _solve_jacobi(normal, np.eye(len(normal)))
 
 
 def check_points(adjustment, observations, height=0.0):

@@ -92,21 +92,36 @@ def _inverse_symmetric(m):
         return inverse / det[:, None, None], det
 
 
+def _ray_ends(model, col, row, h0):
+    """Two ECEF points on the line of sight of each image point (NaN where it has no ground point):
+    its ground points at h0 -+ START_HALF_HEIGHT from `image_to_ground`, or, for models with
+    straight rays and a `line_of_sight` (SpotModel), the ground point at h0 -+ START_HALF_HEIGHT m
+    along the ray: one ground intersection instead of two."""
+    if hasattr(model, "line_of_sight"):
+        lon, lat = model.image_to_ground_or_nan(col, row, np.full(col.size, h0))
+        mid = geodetic_to_ecef(lon, lat, h0)
+        direction = model.line_of_sight(col, row)[1]
+        return mid - START_HALF_HEIGHT * direction, mid + START_HALF_HEIGHT * direction
+    ends = []
+    for height in (h0 - START_HALF_HEIGHT, h0 + START_HALF_HEIGHT):
+        lon, lat = model.image_to_ground_or_nan(col, row, np.full(col.size, height))
+        ends.append(geodetic_to_ecef(lon, lat, height))
+    return ends
+
+
 def _start(models, image, col, row, point, go, h0):
     """ECEF starting points of the points `go` (sorted, each with a measurement; `point` sorted) and
     whether each is a true intersection: the point closest in least squares to the lines of sight of
-    all their measurements (each through its ground points at heights h0 -+ START_HALF_HEIGHT from
-    `image_to_ground`; `closest_to_lines`). With fewer than two lines or parallel ones, the point at
-    h0 of the first line (NaN if no ray meets the ground) and ok False."""
+    all their measurements (each through the two points of `_ray_ends`; `closest_to_lines`). With
+    fewer than two lines or parallel ones, the point at h0 of the first line (NaN if no ray meets
+    the ground) and ok False."""
     if not go.size:
         return np.zeros((0, 3)), np.zeros(0, bool)
     sel = np.flatnonzero(np.isin(point, go))
     ends = np.full((2, sel.size, 3), np.nan)
     for key in np.unique(image[sel]):
         s = image[sel] == key
-        for j, height in enumerate((h0 - START_HALF_HEIGHT, h0 + START_HALF_HEIGHT)):
-            lon, lat = models[key].image_to_ground_or_nan(col[sel][s], row[sel][s], np.full(int(s.sum()), height))
-            ends[j, s] = geodetic_to_ecef(lon, lat, height)
+        ends[0, s], ends[1, s] = _ray_ends(models[key], col[sel][s], row[sel][s], h0)
     starts = np.flatnonzero(np.r_[True, point[sel][1:] != point[sel][:-1]])
     xyz, ok = np.empty((starts.size, 3)), np.zeros(starts.size, np.bool_)
     closest_to_lines(ends[0], ends[1], np.r_[starts, sel.size], SINGULAR_RATIO, xyz, ok)

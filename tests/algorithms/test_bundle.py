@@ -107,6 +107,34 @@ def test_scatter_partials_against_numpy():
     assert np.isnan(a[untouched]).all() and np.isnan(b[untouched]).all()
 
 
+def test_cholesky_solve_and_the_regularity_bound_against_numpy():
+    """normals.cholesky_solve against numpy.linalg.solve on a badly scaled SPD system (Jacobi-scaled
+    as in the adjustment), False on an indefinite one; bundle._clearly_regular only says regular
+    where numpy's smallest eigenvalue is above the defect threshold, and does not say it for a
+    nearly singular matrix."""
+    from pushbroom.algorithms.adjustment.bundle import DEFECT_EIGENVALUE, _clearly_regular, _inverse_scaled
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(40, 12))
+    scale = np.logspace(-6, 6, 12)
+    m = a.T @ a * scale[:, None] * scale[None, :]
+    rhs = rng.normal(size=(12, 3))
+    d = 1.0 / np.sqrt(np.diag(m))
+    scaled = m * d[:, None] * d[None, :]
+    out = np.empty((12, 3))
+    assert normals.cholesky_solve(scaled, rhs, out)
+    np.testing.assert_allclose(out, np.linalg.solve(scaled, rhs), rtol=1e-10, atol=1e-12)
+    ref = np.linalg.inv(scaled) * d[:, None] * d[None, :]
+    np.testing.assert_allclose(_inverse_scaled(m), ref, rtol=1e-9, atol=0.0)
+    assert not normals.cholesky_solve(np.diag([1.0, -1.0, 2.0]), np.eye(3), np.empty((3, 3)))
+    assert _clearly_regular(scaled, DEFECT_EIGENVALUE)
+    assert np.linalg.eigvalsh(scaled)[0] > DEFECT_EIGENVALUE * np.linalg.eigvalsh(scaled)[-1]
+    near = scaled.copy()
+    near[:, 0] = near[:, 1] * (1 + 1e-5)
+    near[0, :] = near[1, :] * (1 + 1e-5)
+    near[0, 0] = near[1, 1] * (1 + 1e-5) ** 2 + 1e-9
+    assert not _clearly_regular(near, DEFECT_EIGENVALUE)
+
+
 def test_recovers_injected_look_angles_and_check_points_match_their_precision(scene):
     """19 control points (0.3 px, ground sigma 0.5 m) and 8 check points from the simulator, plus
     300 synthetic check points; free psi_x_0, psi_y_0 of every image."""

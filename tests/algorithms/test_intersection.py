@@ -88,8 +88,8 @@ def test_closest_to_lines_kernel_against_numpy():
 
 def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_rays(scene):
     """The start alone (the adjustment's starting points): exact measurements' lines of sight meet in
-    the true point; with 0.3 px noise the start is metres close; a point with fewer than two images'
-    lines is not usable."""
+    the true point, the same from SpotModel.line_of_sight as from two ground points per ray; with
+    0.3 px noise the start is metres close; a point with fewer than two images' lines is not usable."""
     models, truth = scene["models"], (scene["lon"], scene["lat"], scene["h"])
     image, point, col, row = measure(models, NAMES, *truth)
     me, mn = metres_per_degree(float(np.mean(scene["lat"])))
@@ -106,6 +106,14 @@ def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_
     print(f"closest points: largest error {exact:.2e} m exact; RMS E/N/H {np.round(noisy, 2)} m with 0.3 px")
     assert exact < 1e-3
     assert noisy.max() < 5.0
+
+    class TwoHeights:       # the same model without line_of_sight: rays through two ground points
+        def __init__(self, model):
+            self.image_to_ground_or_nan, self.size = model.image_to_ground_or_nan, model.size
+
+    plain = ix.closest_points({k: TwoHeights(m) for k, m in models.items()}, image, 5 * point, col, row)
+    assert np.array_equal(plain[4], ok)
+    assert np.abs(error(*plain[1:4]) - error(lon, lat, h)).max() < 1e-6
     first = np.flatnonzero(point == 0)[0]
     single = ix.closest_points(models, image[[first, first]], [0, 1], col[[first, first]], row[[first, first]])
     assert not single[4].any()
