@@ -28,14 +28,14 @@ Zhang & Gruen; methods.md section 6; issue 7). First version.
    blunder filter of surface/tin.py guides the next level; with `breaklines` the matched edge
    chains (runs of consecutive ok edgels) are conforming breaklines of it (tin.conform_breaklines)
    instead of mass points, so triangles do not bridge building steps.
-4. Level 0's points go through MPGC (mpgc.match_points) in all their images at once; points that
-   fail MPGC keep their NCC positions with the low reliability NCC_RELIABILITY x rho and the flag
-   NCC_ONLY; with `fill_px` > 0 only where no MPGC-accepted point lies within fill_px px (they
-   fill gaps). Default 0 (all kept): on the simulated triplet's 10 m DSM (test_hierarchical.py)
-   fill_px 10 / 15 px lowers the open-class RMS (bare 2.27 -> 1.93 / 1.89 m, region growing
-   1.80; on the cells both cover, fill_px 10: bare 1.90 vs 1.89, crops 2.40 vs 2.38) but also the
-   coverage (bare 88 -> 74 / 71 %, region growing 81; low texture 56 -> 35 / 16 %, region
-   growing 5).
+4. Level 0's points go through MPGC (mpgc.match_points) in all their images at once. Points MPGC
+   does not accept but that converged within the shift limit keep MPGC's positions with its
+   lowered reliability (mpgc.py: rho x ellipse and geometric-test ratios; mostly an ellipse just
+   over the limit); the others keep their NCC positions with the low reliability NCC_RELIABILITY
+   x rho; both are flagged NCC_ONLY (not accepted). On the simulated triplet's 10 m DSM
+   (test_hierarchical.py) MPGC's positions took the open-class RMS from bare 2.08 / crops 2.89 m
+   (NCC's) to 1.82 / 2.33 m (region growing 1.80 / 2.40) at the same coverage; dropping the points
+   near accepted ones instead (tried: within 10 px) lowers the coverage and not the RMS.
 5. Output: MultiPoints (points.py) with group 3 (reference + 2 search images) or 1 (reference + 1),
    rho_min = the reliability (MPGC's, mpgc.py, or the NCC one), flags COMB_A / COMB_B for the
    search images 1 / 2 observed (+ NCC_ONLY), stats with provenance "hierarchical" and the
@@ -61,7 +61,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
-from scipy.spatial import cKDTree
 
 from .. import progress
 from ..errors import InputError
@@ -78,7 +77,7 @@ from .points import COMB_A, COMB_B, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .relaxation import hypotheses, relax, unique_choice
 from .seeds import predict, resolve_height_range
 
-#: flag of points whose MPGC failed (they keep their NCC positions)
+#: flag of points MPGC did not accept (MPGC's position where it converged, else the NCC one; step 4)
 NCC_ONLY = 8
 #: flag of the points matched as edgels (primitive "edge", step 2)
 EDGE = 16
@@ -114,7 +113,6 @@ class HierParams:
     relax_radius: float = 3.0          # in grid spacings
     blunder_k: float = 4.0             # TIN blunder filter, robust sigmas
     wallis: bool = True
-    fill_px: float = 0.0               # px: points failing MPGC are dropped within this of an accepted one (step 4)
     edges: bool = True                 # relaxation does not cross the reference level's Canny edges (step 2)
     edge_points: bool = False          # edge chains matched with figural continuity become points (step 2; off:
     #                                    module docstring, Ventoux)
@@ -437,7 +435,7 @@ def match_hierarchical(images, models, names=None, image_ids=None, params=None, 
                                              "edge_points_mpgc": int(np.count_nonzero(out["edge"] & out["mpgc_ok"])),
                                              "search_image_shifts_px": shifts.round(3).tolist()})
     progress.step(feedback, 100.0, f"coarse-to-fine matching: {len(points)} points, "
-                  f"{int(np.count_nonzero(~out['mpgc_ok']))} of them kept from NCC (MPGC failed)")
+                  f"{int(np.count_nonzero(~out['mpgc_ok']))} of them not accepted by MPGC (low reliability)")
     return points
 
 
@@ -457,26 +455,17 @@ def _final(adapted, models, result, params):
         rec = match_points(adapted[0], [adapted[k + 1] for k in combo], [models[0]] + [models[k + 1] for k in combo],
                                 x0[idx], y0[idx], lon[idx], lat[idx], h[idx], params.final)
         good = accepted(rec, params.final)
-        g = idx[good]
+        placed = rec["reliability"] > 0      # converged within the shift: MPGC's position, even if not accepted
+        g = idx[placed]
         for c, k in enumerate(combo):
-            sx[g, k], sy[g, k], rho[g, k] = rec["x"][good, c], rec["y"][good, c], rec["rho"][good, c]
-            ellipse[g, k] = np.column_stack([rec["semi_major"][good, c], rec["semi_minor"][good, c]])
-        ok[g] = True
-        rel[g] = rec["reliability"][good]
-    rel[~ok] = NCC_RELIABILITY * np.nanmin(np.where(present, rho, np.nan), axis=1)[~ok]
-    keep = ok | ~near_accepted(x0, y0, ok, params.fill_px)
-    out = {"x0": x0, "y0": y0, "sx": sx, "sy": sy, "rho": rho, "ellipse": ellipse, "reliability": rel,
-           "mpgc_ok": ok, "edge": result.get("edge", np.zeros(len(x0), bool))}
-    return {key: v[keep] for key, v in out.items()}
-
-
-def near_accepted(x, y, ok, radius):
-    """Points with an MPGC-accepted point (`ok`) other than themselves within `radius` px."""
-    if radius <= 0 or not ok.any():
-        return np.zeros(len(x), bool)
-    tree = cKDTree(np.column_stack([x[ok], y[ok]]))
-    counts = tree.query_ball_point(np.column_stack([x, y]), radius, return_length=True)
-    return counts > ok.astype(int)
+            sx[g, k], sy[g, k], rho[g, k] = rec["x"][placed, c], rec["y"][placed, c], rec["rho"][placed, c]
+            ellipse[g, k] = np.column_stack([rec["semi_major"][placed, c], rec["semi_minor"][placed, c]])
+        ok[idx[good]] = True
+        rel[g] = rec["reliability"][placed]
+    ncc = np.isnan(rel)
+    rel[ncc] = NCC_RELIABILITY * np.nanmin(np.where(present, rho, np.nan), axis=1)[ncc]
+    return {"x0": x0, "y0": y0, "sx": sx, "sy": sy, "rho": rho, "ellipse": ellipse, "reliability": rel,
+            "mpgc_ok": ok, "edge": result.get("edge", np.zeros(len(x0), bool))}
 
 
 def to_multipoints(out, image_ids, stats):

@@ -86,7 +86,8 @@ class MatchPoints(PushbroomAlgorithm):
             "accurate than their error ellipses say. Strategy 'coarse-to-fine' (Zhang & Gruen): Foerstner and grid points matched by NCC along the sensor models' epipolar paths level by "
             "level of a factor-3 pyramid, each level's TIN guiding the next, refined by multi-photo "
             "geometrically constrained matching (MPGC); its points (group 3 three-ray, 1 two-ray) carry MPGC's "
-            "reliability as rho, points MPGC rejected keep their NCC positions with a low one; the region "
+            "reliability as rho, points MPGC does not accept keep a low one (and MPGC's position where it "
+            "converged, else the NCC one); the region "
             "growing parameters (seeds, template, STEP, thresholds) do not apply to it.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
