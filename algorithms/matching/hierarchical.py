@@ -1,6 +1,10 @@
 """Coarse-to-fine multi-primitive matching with MPGC, the second dense-matching strategy (paper Z,
-Zhang & Gruen; methods.md section 6; issue 7). First version.
+Zhang & Gruen; methods.md section 6; issue 7).
 
+0. Tiles: a reference image larger than `tile` px is cut into tiles (`_tiles`), each matched with
+   TILE_MARGIN px of context in windows of the adapted images (the search windows from the
+   models' prediction over the height range), each keeping the points of its core; the
+   orientation bias of step 2 is estimated per tile. Memory is bounded by the tile size.
 1. Preprocessing (preprocess.py): the reference (nadir) is low-passed to the search images'
    footprint (region_growing.adapt_resolution), every image Wallis-filtered and reduced to a
    factor-3 pyramid; the number of levels brings the parallax range of the block's height range
@@ -70,7 +74,7 @@ from . import preprocess
 from .edges import canny, link, match_edges
 from .mpgc import MpgcParams, accepted, match_points
 from .hierarchical_level import LevelModel, ShiftedModel, back_match, candidates, noise_sigma, window_halves
-from .imagery import as_image
+from .imagery import Window, as_image
 from .interest import interest_points
 from .params import GrowParams
 from .points import COMB_A, COMB_B, OBS_DTYPE, POINT_DTYPE, MultiPoints
@@ -86,8 +90,12 @@ NCC_RELIABILITY = 0.25
 FACTOR = 3
 
 
-#: the largest image (pixels) the matcher takes: every image is held whole with its pyramids (~10 bytes a pixel)
+#: the largest window (pixels) matched in one piece, the search windows of a tile included: each is held
+#: whole with its pyramids (~10 bytes a pixel)
 MAX_PIXELS = 40_000_000
+#: px of the reference image around a tile's core matched with it (context for the windows, the
+#: relaxation and the TINs; its points are dropped) and added around the search windows
+TILE_MARGIN = 256
 
 
 @dataclass
@@ -113,6 +121,7 @@ class HierParams:
     relax_radius: float = 3.0          # in grid spacings
     blunder_k: float = 4.0             # TIN blunder filter, robust sigmas
     wallis: bool = True
+    tile: int = 4096                   # px: square tiles of the reference image (cores; the whole image if it fits)
     edges: bool = True                 # relaxation does not cross the reference level's Canny edges (step 2)
     edge_points: bool = False          # edge chains matched with figural continuity become points (step 2; off:
     #                                    module docstring, Ventoux)
@@ -229,7 +238,9 @@ def primitives(img, level, params, border):
         gy = np.arange(border + 0.5, rows - border, params.coarse_grid)
     gx, gy = (v.ravel() for v in np.meshgrid(gx, gy))
     inside = (gx >= border) & (gy >= border)
-    return np.concatenate([px, gx[inside]]), np.concatenate([py, gy[inside]])
+    x, y = np.concatenate([px, gx[inside]]), np.concatenate([py, gy[inside]])
+    first = np.sort(np.unique(np.column_stack([x, y]), axis=0, return_index=True)[1])   # a Foerstner point on a node
+    return x[first], y[first]
 
 
 def match_level(ref, ref_raw, searches, models, level, params, hr, guide, edge_mask=None):
@@ -328,13 +339,19 @@ def edge_breaklines(edge, scale, step):
     return [part for part in np.split(line, cut) if len(part) >= 2]
 
 
-def _pyramids(images, models, hr, params):
-    """Resolution-adapted images (Image-like) and per image (NCC pyramid, raw pyramid); levels."""
+def _adapted(images, models, hr):
+    """The images, the finer of each reference-search pair low-passed to the coarser one's
+    resolution (region_growing.adapt_resolution; Image-like, read by windows)."""
     grow = GrowParams()
     ref, s1 = _adapt(images[0], images[1], models[0], models[1], grow, hr)
     adapted = [ref, s1]
     if len(images) == 3:
         adapted.append(_adapt(images[0], images[2], models[0], models[2], grow, hr)[1])
+    return adapted
+
+
+def _pyramids(adapted, models, hr, params):
+    """Per image (NCC pyramid, raw pyramid) of the adapted images; levels; parallax range (px)."""
     cols, rows = models[0].size
     cx, cy = np.array([0.5 * cols]), np.array([0.5 * rows])
     parallax = max(float(np.hypot(*(np.subtract(predict(models[0], mk, cx, cy, np.array([hr[1]])),
@@ -346,15 +363,15 @@ def _pyramids(images, models, hr, params):
     levels = max(1, min(levels, int(math.floor(math.log(max(smallest / (3 * max(params.windows)), 1.0), FACTOR))) + 1))
     largest = max(int(np.prod(image.size)) for image in adapted)
     if largest > MAX_PIXELS:
-        raise InputError(f"the coarse-to-fine strategy holds whole images in memory (no tiling yet) and takes images "
-                         f"of up to {MAX_PIXELS / 1e6:.0f} Mpx, not {largest / 1e6:.0f} Mpx: match a subset (e.g. "
-                         "gdal_translate -srcwin) or use region growing")
+        raise InputError(f"a search window of the coarse-to-fine strategy would be {largest / 1e6:.0f} Mpx (at most "
+                         f"{MAX_PIXELS / 1e6:.0f} Mpx are held at once): narrow the terrain height range or make the "
+                         "tiles smaller")
     pyr = []
     for image in adapted:
         raw = image.read(0, 0, *image.size)[0]
         ncc = preprocess.wallis(raw) if params.wallis else raw
         pyr.append((preprocess.pyramid(ncc, levels, FACTOR), preprocess.pyramid(raw, levels, FACTOR)))
-    return adapted, pyr, levels, parallax
+    return pyr, levels, parallax
 
 
 def _adapt(image0, image, model0, model, grow, hr):
@@ -364,20 +381,117 @@ def _adapt(image0, image, model0, model, grow, hr):
 
 def match_hierarchical(images, models, names=None, image_ids=None, params=None, height_range=None, feedback=None):
     """Coarse-to-fine multi-primitive matching with MPGC of 2 or 3 images (reference/nadir first,
-    then the search images; paths, arrays or Images) with their sensor models. Returns MultiPoints
-    (module docstring, step 5). Raises InputError on unusable input, CancelledError when
-    cancelled."""
+    then the search images; paths, arrays or Images) with their sensor models. A reference image
+    larger than `params.tile` px is matched tile by tile (`_tiles`). Returns MultiPoints (module
+    docstring, step 5). Raises InputError on unusable input, CancelledError when cancelled."""
     params = (params or HierParams()).check()
     n = len(images)
     if n not in (2, 3) or len(models) != n:
         raise InputError(f"the coarse-to-fine matcher takes 2 or 3 images (reference, search[, search]), got {n}")
     names = list(names or [f"image {k + 1}" for k in range(n)])
     image_ids = list(image_ids or range(1, n + 1))
-    log = progress.ensure(feedback)
     hr = resolve_height_range(models[0], height_range)
     progress.step(feedback, 0, "coarse-to-fine matching: preprocessing (resolution adaptation, Wallis, pyramids)")
+    adapted = _adapted(images, models, hr)
+    boxes = _tiles(models[0].size, params.tile)
+    if len(boxes) == 1:
+        out, stats = _match(adapted, models, params, hr, feedback)
+    else:
+        out, stats = _match_tiles(adapted, models, params, hr, boxes, feedback)
+    points = to_multipoints(out, image_ids, stats)
+    progress.step(feedback, 100.0, f"coarse-to-fine matching of {', '.join(names)}: {len(points)} points, "
+                  f"{int(np.count_nonzero(~out['mpgc_ok']))} of them not accepted by MPGC (low reliability)")
+    return points
+
+
+def _tiles(size, tile):
+    """Cores (x0, y0, x1, y1) of the square tiles of an image of `size` (one: the whole image)."""
+    cols, rows = size
+    nx, ny = max(1, math.ceil(cols / tile)), max(1, math.ceil(rows / tile))
+    xs, ys = np.linspace(0, cols, nx + 1).round().astype(int), np.linspace(0, rows, ny + 1).round().astype(int)
+    return [(xs[i], ys[j], xs[i + 1], ys[j + 1]) for j in range(ny) for i in range(nx)]
+
+
+def _tile_windows(adapted, models, core, hr, grid):
+    """Windows (imagery.Window) and window models (ShiftedModel) of one tile: the reference core
+    plus TILE_MARGIN (its corner on a multiple of `grid`, so level 0's grid points are the whole
+    image's), and per search image the box its models predict for it over the height range plus
+    TILE_MARGIN, clipped to the images; None where a search window is empty."""
+    def clip(box, size):
+        x0, y0 = max(int(math.floor(box[0])), 0), max(int(math.floor(box[1])), 0)
+        x1, y1 = min(int(math.ceil(box[2])), size[0]), min(int(math.ceil(box[3])), size[1])
+        return (x0, y0, x1, y1) if x1 - x0 > 2 * TILE_MARGIN // 4 and y1 - y0 > 2 * TILE_MARGIN // 4 else None
+
+    ref = clip((max(core[0] - TILE_MARGIN, 0) // grid * grid, max(core[1] - TILE_MARGIN, 0) // grid * grid,
+                core[2] + TILE_MARGIN, core[3] + TILE_MARGIN), models[0].size)
+    gx, gy = (v.ravel() for v in np.meshgrid(np.linspace(ref[0], ref[2], 5), np.linspace(ref[1], ref[3], 5)))
+    boxes = [ref]
+    for mk in models[1:]:
+        with np.errstate(invalid="ignore"):
+            xy = [predict(models[0], mk, gx, gy, np.full(gx.size, h)) for h in hr]
+        x = np.concatenate([v[0] for v in xy])
+        y = np.concatenate([v[1] for v in xy])
+        if not np.isfinite(x).any():
+            return None
+        box = clip((np.nanmin(x) - TILE_MARGIN, np.nanmin(y) - TILE_MARGIN, np.nanmax(x) + TILE_MARGIN,
+                    np.nanmax(y) + TILE_MARGIN), mk.size)
+        if box is None:
+            return None
+        boxes.append(box)
+    windows = [Window(image, b[0], b[1], b[2] - b[0], b[3] - b[1]) for image, b in zip(adapted, boxes)]
+    wmodels = [ShiftedModel(mk, -b[0], -b[1], (b[2] - b[0], b[3] - b[1])) for mk, b in zip(models, boxes)]
+    return windows, wmodels, boxes
+
+
+def _match_tiles(adapted, models, params, hr, cores, feedback):
+    """`_match` per tile (`_tile_windows`); each tile keeps the points of its core, in image
+    coordinates. A tile where too few points match is left empty with a message."""
+    log = progress.ensure(feedback)
+    parts, tiles, failures = [], [], []
+    for k, core in enumerate(cores):
+        sub = progress.scaled(feedback, 100.0 * k / len(cores), 100.0 * (k + 1) / len(cores))
+        progress.step(sub, 0.0, f"coarse-to-fine matching: tile {k + 1} of {len(cores)} {core}")
+        tile = _tile_windows(adapted, models, core, hr, int(params.grid))
+        if tile is None:
+            log.pushInfo(f"tile {k + 1} {core}: outside the search images, skipped")
+            continue
+        windows, wmodels, boxes = tile
+        try:
+            out, stats = _match(windows, wmodels, params, hr, sub)
+        except InputError as exc:
+            log.pushInfo(f"tile {k + 1} {core}: no points ({exc})")
+            failures.append(str(exc))
+            continue
+        out["x0"] += boxes[0][0]
+        out["y0"] += boxes[0][1]
+        for j, b in enumerate(boxes[1:]):
+            out["sx"][:, j] += b[0]
+            out["sy"][:, j] += b[1]
+        mine = (out["x0"] >= core[0]) & (out["x0"] < core[2]) & (out["y0"] >= core[1]) & (out["y0"] < core[3])
+        parts.append({key: v[mine] for key, v in out.items()})
+        tiles.append({"core": [int(v) for v in core], "points": int(mine.sum()), **stats})
+    if not parts:
+        raise InputError("no tile of the reference image gave points" + (f" ({failures[0]})" if failures else
+                                                                         " (none lies inside the search images)"))
+    out = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+    seconds = {}
+    for t in tiles:
+        for key, v in t["seconds"].items():
+            seconds[key] = round(seconds.get(key, 0.0) + v, 3)
+    stats = {"provenance": "hierarchical", "tiles": len(cores), "tiles_matched": len(tiles), "seconds": seconds,
+             "mpgc_failed": int(np.count_nonzero(~out["mpgc_ok"])), "edge_points": int(np.count_nonzero(out["edge"])),
+             "per_tile": [{key: t[key] for key in ("core", "points", "levels", "search_image_shifts_px")}
+                          for t in tiles]}
+    return out, stats
+
+
+def _match(adapted, models, params, hr, feedback):
+    """The coarse-to-fine matching of one piece (the images or the windows of a tile): (the final
+    points `_final`, statistics)."""
+    log = progress.ensure(feedback)
+    n = len(adapted)
     t0 = time.perf_counter()
-    adapted, pyr, levels, parallax = _pyramids(images, models, hr, params)
+    pyr, levels, parallax = _pyramids(adapted, models, hr, params)
     timings = {"preprocessing": time.perf_counter() - t0}
     log.pushInfo(f"{levels} pyramid levels (factor {FACTOR}) for a parallax range of {parallax:.1f} px")
     guide, result = None, None
@@ -426,17 +540,13 @@ def match_hierarchical(images, models, names=None, image_ids=None, params=None, 
                                                                           for d in shifts))
     out = _final(adapted, [models[0]] + [ShiftedModel(mk, *d) for mk, d in zip(models[1:], shifts)], result, params)
     timings["mpgc"] = time.perf_counter() - t
-    points = to_multipoints(out, image_ids, {"provenance": "hierarchical", "levels": levels,
-                                             "points_per_level": counts,
-                                             "seconds": {k: round(v, 3) for k, v in timings.items()},
-                                             "mpgc_failed": int(np.count_nonzero(~out["mpgc_ok"])),
-                                             "edges_per_level": edge_counts,
-                                             "edge_points": int(np.count_nonzero(out["edge"])),
-                                             "edge_points_mpgc": int(np.count_nonzero(out["edge"] & out["mpgc_ok"])),
-                                             "search_image_shifts_px": shifts.round(3).tolist()})
-    progress.step(feedback, 100.0, f"coarse-to-fine matching: {len(points)} points, "
-                  f"{int(np.count_nonzero(~out['mpgc_ok']))} of them not accepted by MPGC (low reliability)")
-    return points
+    stats = {"provenance": "hierarchical", "levels": levels, "points_per_level": counts,
+             "seconds": {k: round(v, 3) for k, v in timings.items()},
+             "mpgc_failed": int(np.count_nonzero(~out["mpgc_ok"])), "edges_per_level": edge_counts,
+             "edge_points": int(np.count_nonzero(out["edge"])),
+             "edge_points_mpgc": int(np.count_nonzero(out["edge"] & out["mpgc_ok"])),
+             "search_image_shifts_px": shifts.round(3).tolist()}
+    return out, stats
 
 
 def _final(adapted, models, result, params):

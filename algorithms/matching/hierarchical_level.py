@@ -37,11 +37,12 @@ COUNT_BUCKET = 8
 
 class ShiftedModel:
     """A sensor model whose image positions are moved by (dx, dy) full px: the bias compensation
-    of an orientation error (hierarchical.estimate_shift)."""
+    of an orientation error (hierarchical.estimate_shift), or the model of a window of the image
+    (dx, dy = minus its top-left corner, `size` its size: the tiles of hierarchical.py)."""
 
-    def __init__(self, model, dx=0.0, dy=0.0):
+    def __init__(self, model, dx=0.0, dy=0.0, size=None):
         self.model, self.dx, self.dy = model, float(dx), float(dy)
-        self.size = model.size
+        self.size = model.size if size is None else tuple(size)
 
     def image_to_ground(self, col, row, h):
         return self.model.image_to_ground(np.asarray(col, float) - self.dx, np.asarray(row, float) - self.dy, h)

@@ -73,6 +73,29 @@ class Image:
         return np.ascontiguousarray(data), xa, ya
 
 
+class Window:
+    """The part (x0, y0, cols, rows) of an Image-like `image` (inside it) as an Image of its own:
+    positions relative to the window's top-left corner, reads clipped to the window."""
+
+    def __init__(self, image, x0, y0, cols, rows):
+        self.image = image
+        self.x0, self.y0 = int(x0), int(y0)
+        self.size = (int(cols), int(rows))
+
+    def __repr__(self):
+        return f"Window({self.image!r}, {self.x0}, {self.y0}, {self.size[0]} x {self.size[1]})"
+
+    def read(self, x0, y0, cols, rows):
+        """As Image.read, in window coordinates."""
+        c, r = self.size
+        xa, ya = max(int(x0), 0), max(int(y0), 0)
+        xb, yb = min(int(x0) + int(cols), c), min(int(y0) + int(rows), r)
+        if xb <= xa or yb <= ya:
+            return np.zeros((0, 0), np.float32), xa, ya
+        data, xr, yr = self.image.read(self.x0 + xa, self.y0 + ya, xb - xa, yb - ya)
+        return data, xr - self.x0, yr - self.y0
+
+
 class Smoothed:
     """An Image seen through a separable Gaussian low-pass of standard deviation (sigma_x,
     sigma_y) px, with the Image interface (`size`, `read`). A window is read with a border of
@@ -106,4 +129,4 @@ class Smoothed:
 
 def as_image(source):
     """An Image for a path, an array or an Image."""
-    return source if isinstance(source, (Image, Smoothed)) else Image(source)
+    return source if isinstance(source, (Image, Smoothed, Window)) else Image(source)
