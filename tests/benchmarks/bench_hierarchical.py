@@ -1,9 +1,13 @@
 """Coarse-to-fine matching (match_hierarchical) of the simulated SPOT 5 triplet HRG, HRS1, HRS2: seconds
 per step (preprocessing, each pyramid level, MPGC; MultiPoints.stats) and in all, against region growing
 (match_block, the demo's STEP 10, 2 workers) on the same images in the same run. Scene: the 10 km triplet
-(bench_region_growing's scene(), the demo's SceneConfig at a quarter of its area), since the whole-image
-matcher takes ~4.5 min on it (2 cores) and would take ~17 min on the 20 km one (SIZE_KM to change it).
-Supplied models, bench_region_growing's height range; after a warm-up of both matchers on the 3 km scene (JIT)."""
+(bench_region_growing's scene(), the demo's SceneConfig at a quarter of its area; SIZE_KM to change it).
+Supplied models, bench_region_growing's height range; after a warm-up of both matchers on the 3 km scene (JIT).
+Then tiles: the 20 km demo scene whole (one 4000 px tile) and in tiles of TILES px, each run in its own
+process: points, seconds and peak resident memory (memory bounded by the tile, not the scene)."""
+import json
+import subprocess
+import sys
 import tempfile
 import time
 
@@ -19,6 +23,21 @@ from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 NAMES = ("HRG", "HRS1", "HRS2")
 SIZE_KM = 10.0
 WORKERS = 2
+TILES = (4096, 2048, 1024)     # 4096: the 20 km scene's 4000 px images whole
+CHILD = f"""
+import json, sys, time
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.matching.hierarchical import HierParams, match_hierarchical
+folder, tile = sys.argv[1], int(sys.argv[2])
+names = {NAMES!r}
+models = [sensors.load(f"{{folder}}/{{n}}/METADATA.DIM") for n in names]
+start = time.perf_counter()
+points = match_hierarchical([f"{{folder}}/{{n}}/IMAGERY.TIF" for n in names], models, params=HierParams(tile=tile),
+                            height_range={HEIGHT_RANGE!r})
+peak = [int(line.split()[1]) / 1024.0 for line in open("/proc/self/status") if line.startswith("VmHWM:")][0]
+print(json.dumps({{"points": len(points), "three": points.stats["group3"], "seconds": time.perf_counter() - start,
+                  "tiles": points.stats.get("tiles", 1), "peak_mib": peak}}))
+"""
 
 
 def both(images, models, height_range):
@@ -40,9 +59,9 @@ def inputs(folder):
                                                                   for n in NAMES]
 
 
-def row(matcher, step, points, seconds, three=""):
+def row(matcher, step, points, seconds, three="", peak=""):
     return {"matcher": matcher, "step": step, "points": points, "three-ray points": three, "seconds": seconds,
-            "points/s": points / seconds if points else ""}
+            "points/s": points / seconds if points else "", "peak MiB": peak}
 
 
 def run():
@@ -63,6 +82,14 @@ def run():
     rg, seconds = results["region growing"]
     rows.append(row(f"region growing ({WORKERS} workers)", "total", len(rg), seconds,
                     int((rg.points["group"] >= 2).sum())))
+    big = scene(20.0)
+    for tile in TILES:
+        proc = subprocess.run([sys.executable, "-c", CHILD, str(big), str(tile)], capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(proc.stderr[-2000:])
+        r = json.loads(proc.stdout.strip().splitlines()[-1])
+        rows.append(row(f"coarse-to-fine, 20 km scene, tile {tile} px ({r['tiles']} tiles)", "total", r["points"],
+                        r["seconds"], r["three"], r["peak_mib"]))
     return rows
 
 
