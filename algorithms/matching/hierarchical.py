@@ -144,6 +144,8 @@ class HierParams:
                 or self.edge_min_level < 0:
             raise InputError("the edge window must be odd and >= 3 px, the edgel step >= 1, the chain length >= 2 "
                              "and the edge level >= 0")
+        if self.tile < 2 * TILE_MARGIN:
+            raise InputError(f"tiles must be at least {2 * TILE_MARGIN} px, got {self.tile}")
         if self.max_candidates < 1 or self.search_px_at_top <= 0 or self.tol_px <= 0 or self.agree_px <= 0:
             raise InputError("max_candidates, search_px_at_top, tol_px and agree_px must be positive")
         self.final.check()
@@ -421,7 +423,7 @@ def _tile_windows(adapted, models, core, hr, grid):
     def clip(box, size):
         x0, y0 = max(int(math.floor(box[0])), 0), max(int(math.floor(box[1])), 0)
         x1, y1 = min(int(math.ceil(box[2])), size[0]), min(int(math.ceil(box[3])), size[1])
-        return (x0, y0, x1, y1) if x1 - x0 > 2 * TILE_MARGIN // 4 and y1 - y0 > 2 * TILE_MARGIN // 4 else None
+        return (x0, y0, x1, y1) if min(x1 - x0, y1 - y0) >= TILE_MARGIN // 2 else None
 
     ref = clip((max(core[0] - TILE_MARGIN, 0) // grid * grid, max(core[1] - TILE_MARGIN, 0) // grid * grid,
                 core[2] + TILE_MARGIN, core[3] + TILE_MARGIN), models[0].size)

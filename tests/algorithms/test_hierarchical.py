@@ -102,6 +102,9 @@ def test_bad_input(small_scene, monkeypatch):
     monkeypatch.setattr(hier, "MAX_PIXELS", 1000)
     with pytest.raises(InputError, match="search window.*narrow the terrain height range or make the tiles smaller"):
         hier.match_hierarchical(images, models, height_range=(200.0, 400.0))
+    with pytest.raises(InputError, match="tiles must be at least 512 px"):
+        hier.HierParams(tile=300).check()
+    monkeypatch.setattr(hier, "TILE_MARGIN", 64)
     with pytest.raises(InputError, match="no tile of the reference image gave points.*narrow the terrain height"):
         hier.match_hierarchical(images, models, params=hier.HierParams(tile=300), height_range=(200.0, 400.0))
 
