@@ -106,14 +106,20 @@ def relax(x, y, h, score, choice, tol, radius, rounds=3, edge_mask=None):
     return choice
 
 
-def crosses_edge(edge_mask, x, y, pairs, step=0.5):
-    """For each pair (i, j) of points: does the segment between them pass an edge pixel?"""
+def crosses_edge(edge_mask, x, y, pairs, step=0.5, chunk=20_000):
+    """For each pair (i, j) of points: does the segment between them pass an edge pixel? (Samples
+    every `step` px; `chunk` pairs at a time, so memory stays bounded: a level of 10^6 pairs of
+    120 samples would otherwise take gigabytes.)"""
     rows, cols = edge_mask.shape
     d = np.hypot(x[pairs[:, 1]] - x[pairs[:, 0]], y[pairs[:, 1]] - y[pairs[:, 0]])
     k = max(2, int(np.ceil(d.max() / step)) + 1) if len(d) else 2
     t = np.linspace(0.0, 1.0, k)[1:-1]
-    sx = x[pairs[:, 0], None] + t * (x[pairs[:, 1]] - x[pairs[:, 0]])[:, None]
-    sy = y[pairs[:, 0], None] + t * (y[pairs[:, 1]] - y[pairs[:, 0]])[:, None]
-    i = np.clip(np.floor(sy).astype(np.int64), 0, rows - 1)
-    j = np.clip(np.floor(sx).astype(np.int64), 0, cols - 1)
-    return edge_mask[i, j].any(axis=1)
+    out = np.zeros(len(pairs), bool)
+    for a in range(0, len(pairs), chunk):
+        p = pairs[a:a + chunk]
+        sx = x[p[:, 0], None] + t * (x[p[:, 1]] - x[p[:, 0]])[:, None]
+        sy = y[p[:, 0], None] + t * (y[p[:, 1]] - y[p[:, 0]])[:, None]
+        i = np.clip(np.floor(sy).astype(np.int64), 0, rows - 1)
+        j = np.clip(np.floor(sx).astype(np.int64), 0, cols - 1)
+        out[a:a + chunk] = edge_mask[i, j].any(axis=1)
+    return out
