@@ -91,8 +91,8 @@ FACTOR = 3
 
 
 #: the largest window (pixels) matched in one piece, the search windows of a tile included: each is held
-#: whole with its pyramids, candidates and level TINs (peak ~220 bytes a pixel of the three images: 10.4 GB
-#: for the 20 km triplet's 4000 px images matched whole, 3.7 GB in tiles of 2048 px; bench_hierarchical)
+#: whole with its pyramids, candidates and level TINs (peak ~70 bytes a pixel of the three images: 2.2 GB
+#: for the 20 km triplet's 4000 px images matched whole, 1.0 GB in tiles of 2048 px; bench_hierarchical)
 MAX_PIXELS = 40_000_000
 #: px of the reference image around a tile's core matched with it (context for the windows, the
 #: relaxation and the TINs; its points are dropped) and added around the search windows
@@ -122,7 +122,7 @@ class HierParams:
     relax_radius: float = 3.0          # in grid spacings
     blunder_k: float = 4.0             # TIN blunder filter, robust sigmas
     wallis: bool = True
-    tile: int = 2048                   # px: square tiles of the reference image (cores; memory: MAX_PIXELS)
+    tile: int = 4096                   # px: square tiles of the reference image (cores; memory: MAX_PIXELS)
     edges: bool = True                 # relaxation does not cross the reference level's Canny edges (step 2)
     edge_points: bool = False          # edge chains matched with figural continuity become points (step 2; off:
     #                                    module docstring, Ventoux)
