@@ -13,6 +13,13 @@ import numpy as np
 from ..errors import InputError
 
 
+def clipped(size, x0, y0, cols, rows):
+    """(xa, ya, xb, yb): the window of `cols` x `rows` px at (x0, y0) clipped to an image of `size`
+    (empty where xb <= xa or yb <= ya)."""
+    c, r = size
+    return max(int(x0), 0), max(int(y0), 0), min(int(x0) + int(cols), c), min(int(y0) + int(rows), r)
+
+
 class Image:
     """One band of a GDAL raster (a path) or of an in-memory 2-D array (tests, derived images).
 
@@ -55,9 +62,7 @@ class Image:
         """Window of `cols` x `rows` pixels whose top-left corner is pixel (x0, y0), clipped to
         the image: returns (float32 array, x0, y0) of the clipped window (shape (0, 0) when the
         window misses the image)."""
-        c, r = self.size
-        xa, ya = max(int(x0), 0), max(int(y0), 0)
-        xb, yb = min(int(x0) + int(cols), c), min(int(y0) + int(rows), r)
+        xa, ya, xb, yb = clipped(self.size, x0, y0, cols, rows)
         if xb <= xa or yb <= ya:
             return np.zeros((0, 0), np.float32), xa, ya
         if self._array is not None:
@@ -87,9 +92,7 @@ class Window:
 
     def read(self, x0, y0, cols, rows):
         """As Image.read, in window coordinates."""
-        c, r = self.size
-        xa, ya = max(int(x0), 0), max(int(y0), 0)
-        xb, yb = min(int(x0) + int(cols), c), min(int(y0) + int(rows), r)
+        xa, ya, xb, yb = clipped(self.size, x0, y0, cols, rows)
         if xb <= xa or yb <= ya:
             return np.zeros((0, 0), np.float32), xa, ya
         data, xr, yr = self.image.read(self.x0 + xa, self.y0 + ya, xb - xa, yb - ya)
@@ -119,9 +122,7 @@ class Smoothed:
         if data.size == 0:
             return data, xa, ya
         data = ndimage.gaussian_filter(data, self.sigma, mode="nearest", truncate=4.0)
-        c, r = self.size
-        xb, yb = min(int(x0) + int(cols), c), min(int(y0) + int(rows), r)
-        xs, ys = max(int(x0), 0), max(int(y0), 0)
+        xs, ys, xb, yb = clipped(self.size, x0, y0, cols, rows)
         if xb <= xs or yb <= ys:
             return np.zeros((0, 0), np.float32), xs, ys
         return np.ascontiguousarray(data[ys - ya:yb - ya, xs - xa:xb - xa]), xs, ys

@@ -10,7 +10,7 @@ domain raises GeometryError. Callers that need every point (footprints, DEM rays
 import numpy as np
 
 from ..errors import GeometryError
-from ..geodesy import flat_points
+from ..geodesy import flat_points, geodetic_to_ecef
 
 
 def shaped_points(values, shape, scalar):
@@ -37,6 +37,16 @@ class SensorModel:
         work such as intersection starting values). Models whose image_to_ground already returns
         NaN there use this default."""
         return self.image_to_ground(col, row, h)
+
+    def ray_points(self, col, row, h, half):
+        """Two ECEF points (n, 3) on the line of sight of each image point (arrays col, row), about
+        its ground point at height h, NaN where it has none: here its ground points at heights
+        h -+ half (image_to_ground_or_nan). Models with straight rays may do it in one pass."""
+        ends = []
+        for height in (h - half, h + half):
+            lon, lat = self.image_to_ground_or_nan(col, row, np.full(col.size, height))
+            ends.append(geodetic_to_ecef(lon, lat, height))
+        return ends[0], ends[1]
 
     def image_to_dem(self, col, row, dem, samples=64, tol=1e-3):
         """Ground (lon, lat, h) where the ray of (col, row) first meets the DEM surface.

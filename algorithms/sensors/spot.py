@@ -152,6 +152,14 @@ class SpotModel(SensorModel):
         k.line_of_sight_kernel(*self._packed(), c, r, pos, direction)
         return pos.reshape(shape + (3,)), direction.reshape(shape + (3,))
 
+    def ray_points(self, col, row, h, half):
+        """As SensorModel.ray_points, on the straight line of sight: the ground point at height h
+        -+ `half` metres along the ray (one ground intersection instead of two)."""
+        lon, lat = self.image_to_ground_or_nan(col, row, np.full(np.size(col), h))
+        mid = geodetic_to_ecef(lon, lat, h)
+        direction = self.line_of_sight(col, row)[1]
+        return mid - half * direction, mid + half * direction
+
     def partials(self, lon, lat, h, exterior=True):
         """Image coordinates of ground points and their partial derivatives.
 

@@ -28,7 +28,7 @@ from numba import njit
 from .. import progress
 from ..adjustment.observations import IMAGE_SIGMA
 from ..errors import InputError
-from ..geodesy import ecef_to_geodetic, geodetic_to_ecef, metres_per_degree, offset_enu
+from ..geodesy import ecef_to_geodetic, metres_per_degree, offset_enu
 
 STATUS_NAMES = ("converged", "not converged", "diverged", "outside a model's domain", "fewer than 2 rays",
                 "singular geometry")
@@ -92,36 +92,19 @@ def _inverse_symmetric(m):
         return inverse / det[:, None, None], det
 
 
-def _ray_ends(model, col, row, h0):
-    """Two ECEF points on the line of sight of each image point (NaN where it has no ground point):
-    its ground points at h0 -+ START_HALF_HEIGHT from `image_to_ground`, or, for models with
-    straight rays and a `line_of_sight` (SpotModel), the ground point at h0 -+ START_HALF_HEIGHT m
-    along the ray: one ground intersection instead of two."""
-    if hasattr(model, "line_of_sight"):
-        lon, lat = model.image_to_ground_or_nan(col, row, np.full(col.size, h0))
-        mid = geodetic_to_ecef(lon, lat, h0)
-        direction = model.line_of_sight(col, row)[1]
-        return mid - START_HALF_HEIGHT * direction, mid + START_HALF_HEIGHT * direction
-    ends = []
-    for height in (h0 - START_HALF_HEIGHT, h0 + START_HALF_HEIGHT):
-        lon, lat = model.image_to_ground_or_nan(col, row, np.full(col.size, height))
-        ends.append(geodetic_to_ecef(lon, lat, height))
-    return ends
-
-
 def _start(models, image, col, row, point, go, h0):
     """ECEF starting points of the points `go` (sorted, each with a measurement; `point` sorted) and
     whether each is a true intersection: the point closest in least squares to the lines of sight of
-    all their measurements (each through the two points of `_ray_ends`; `closest_to_lines`). With
-    fewer than two lines or parallel ones, the point at h0 of the first line (NaN if no ray meets
-    the ground) and ok False."""
+    all their measurements (each through the two points of the model's `ray_points` at h0 -+
+    START_HALF_HEIGHT; `closest_to_lines`). With fewer than two lines or parallel ones, the point
+    at h0 of the first line (NaN if no ray meets the ground) and ok False."""
     if not go.size:
         return np.zeros((0, 3)), np.zeros(0, bool)
     sel = np.flatnonzero(np.isin(point, go))
     ends = np.full((2, sel.size, 3), np.nan)
     for key in np.unique(image[sel]):
         s = image[sel] == key
-        ends[0, s], ends[1, s] = _ray_ends(models[key], col[sel][s], row[sel][s], h0)
+        ends[0, s], ends[1, s] = models[key].ray_points(col[sel][s], row[sel][s], h0, START_HALF_HEIGHT)
     starts = np.flatnonzero(np.r_[True, point[sel][1:] != point[sel][:-1]])
     xyz, ok = np.empty((starts.size, 3)), np.zeros(starts.size, np.bool_)
     closest_to_lines(ends[0], ends[1], np.r_[starts, sel.size], SINGULAR_RATIO, xyz, ok)

@@ -88,8 +88,9 @@ def test_closest_to_lines_kernel_against_numpy():
 
 def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_rays(scene):
     """The start alone (the adjustment's starting points): exact measurements' lines of sight meet in
-    the true point, the same from SpotModel.line_of_sight as from two ground points per ray; with
-    0.3 px noise the start is metres close; a point with fewer than two images' lines is not usable."""
+    the true point, the same from SpotModel.ray_points (line of sight) as from SensorModel's (two
+    ground points per ray); with 0.3 px noise the start is metres close; a point with fewer than two
+    images' lines is not usable."""
     models, truth = scene["models"], (scene["lon"], scene["lat"], scene["h"])
     image, point, col, row = measure(models, NAMES, *truth)
     me, mn = metres_per_degree(float(np.mean(scene["lat"])))
@@ -107,7 +108,7 @@ def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_
     assert exact < 1e-3
     assert noisy.max() < 5.0
 
-    class TwoHeights:       # the same model without line_of_sight: rays through two ground points
+    class TwoHeights(sensors.SensorModel):      # SensorModel.ray_points: rays through two ground points
         def __init__(self, model):
             self.image_to_ground_or_nan, self.size = model.image_to_ground_or_nan, model.size
 
@@ -304,7 +305,7 @@ def test_bad_points_get_a_status(scene):
                                       "singular geometry": 1}
 
 
-class Patchy:
+class Patchy(sensors.SensorModel):
     """A sensor model without ground for rows beyond `row_max`: image_to_ground_or_nan gives NaN
     there (as RpcModel where its iteration fails) or `partials` gives NaN there (as SpotModel
     beyond its orbit data)."""

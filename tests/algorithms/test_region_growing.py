@@ -10,7 +10,7 @@ import pytest
 from matching_scene import DISCONTINUOUS, LOW_CONTRAST_DN, SINGLE_SURFACE, Scene
 from feedback import Feedback
 from pushbroom.algorithms.errors import CancelledError, InputError
-from pushbroom.algorithms.matching.imagery import Image, Smoothed
+from pushbroom.algorithms.matching.imagery import Image, Smoothed, Window
 from pushbroom.algorithms.matching.lsm import LSM_OUT, lsm_point
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import (_DC, _DR, Lattice, _quantise, adapt_resolution,
@@ -202,6 +202,20 @@ def test_smoothed_window_equals_whole_image_filter():
         ref, xr, yr = Image(full).read(x0, y0, cols, rows)
         assert (xa, ya) == (xr, yr)
         np.testing.assert_allclose(win, ref, rtol=1e-5, atol=1e-3)
+
+
+def test_window_reads_are_the_image_crop():
+    """A Window reads its image's pixels in its own coordinates, clipped to the window (also where
+    the window of a Smoothed image lies at its border)."""
+    img = texture((70, 90), 6)
+    win = Window(Image(img), 20, 10, 40, 30)
+    data, xa, ya = win.read(-5, 3, 50, 10)
+    assert (xa, ya) == (0, 3) and data.shape == (10, 40)
+    np.testing.assert_array_equal(data, img[13:23, 20:60])
+    assert win.read(45, 0, 5, 5)[0].size == 0
+    smooth = Smoothed(Image(img), 0.8, 0.8)
+    data, xa, ya = Window(smooth, 50, 40, 40, 30).read(0, 0, 40, 30)
+    np.testing.assert_array_equal(data, smooth.read(50, 40, 40, 30)[0])
 
 
 def test_adapt_resolution_low_passes_the_finer_image(scene):
