@@ -20,9 +20,16 @@ linearisation to LINEARISATION_TOLERANCE px.
 Weights: the grey-level equations of image i get 1 / (s^2 (1 + rep_i)) (template noise plus
 image-i noise, equal noise s in every image, rep_i = 1 / |det A_i| when image i is coarser, as in
 lsm.py), independent of r1 (weights that grow as r1 -> 0 let f = constant win on weak texture);
-s^2 is re-estimated every iteration from the residuals, sum_i v_i'v_i / (1 + r1_i^2 kappa_i) /
-(n (N - 8)), kappa_i the mean squared interpolation weight (lsm.py); sigma0 = s (DN). The
-geometric observations get 1 / sigma_geometry^2.
+times a robust weight per sample and image, Tukey's biweight w = (1 - (v / (c s_i))^2)^2 (0
+beyond c s_i, c = TUKEY_C = 4.685) of its residual v against image i's weighted residual RMS s_i
+of the previous iteration. The first iteration is plain least squares, the next REWEIGHTINGS = 3
+re-weight, later ones keep the weights (re-weighting to the end left 10 % of the simulated field
+points unconverged at 10 iterations). Samples that see another surface (canopy or a roof inside a
+field's template) so stop pulling the match: on the simulated triplet the 10 m DSM RMS of the
+coarse-to-fine points fell from 1.82 to 1.70 m on bare fields and from 2.32 to 2.27 m on crops
+(test_hierarchical.py). s^2 is re-estimated every iteration from the residuals,
+sum_i v_i'W_i v_i / (1 + r1_i^2 kappa_i) / sum_i (sum w_i - 8), kappa_i the mean squared
+interpolation weight (lsm.py); sigma0 = s (DN). The geometric observations get 1 / sigma_geometry^2.
 
 Precision: the n equations of one template sample share the template's noise, so their
 covariance is s^2 (1 1' + diag(r1_i^2 rep_i)), not the diagonal the weights assume; the

@@ -23,6 +23,10 @@ from .lsm import NOT_CONVERGED, OK, OUTSIDE, SINGULAR, _chol_solve, _cholesky, _
 NPI = 8
 #: unknowns of the object point: dE, dN, dU
 NPX = 3
+#: Tukey biweight constant (95 % efficiency for Gaussian residuals), in units of the residual scale
+TUKEY_C = 4.685
+#: iterations that re-weight (the first ones after the unweighted one); later ones keep the weights
+REWEIGHTINGS = 3
 #: out fields after the 3 per search image
 COV, SIGMA0, GEO_VTPV, GEO_RED, GEO_RMS = 0, 6, 7, 8, 9
 _TAIL = 10
@@ -118,6 +122,9 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
     sgg = np.empty(n)
     sfg = np.empty(n)
     svv = np.empty(n)
+    sw = np.empty(n)
+    cs = np.zeros(n)        # per search image Tukey's c times its residual scale
+    wbuf = np.ones((ns, n))
     skap = np.empty(n)
     coef = np.empty(NPX)
     it = 0
@@ -153,6 +160,7 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
         sfg[:] = 0.0
         svv[:] = 0.0
         skap[:] = 0.0
+        sw[:] = 0.0
         idx = 0
         for l in range(-half, half + 1):
             fl_ = float(l)
@@ -176,44 +184,44 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
                     arow[i, 6] = 1.0
                     arow[i, 7] = g
                     obs[i] = o
+                    if 0 < it <= REWEIGHTINGS:        # Tukey's biweight (mpgc.py)
+                        u = o / cs[i] if cs[i] > 0.0 else 0.0
+                        wbuf[idx, i] = (1.0 - u * u) ** 2 if abs(u) < 1.0 else 0.0
+                    w = wbuf[idx, i]
+                    sw[i] += w
                     sg[i] += g
                     sgg[i] += g * g
                     sfg[i] += fv * g
-                    svv[i] += o * o
+                    svv[i] += w * o * o
                     skap[i] += kap
+                # N: pw_i w_i a_i a_i'; M (the sandwich's middle, shared template noise): w_i w_j cn_ij a_i a_j'
                 for i in range(n):
                     bi = NPX + NPI * i
-                    wi = pw[i]
+                    wi = pw[i] * wbuf[idx, i]
+                    wm = wbuf[idx, i] * wbuf[idx, i] * cn[i, i]
                     for p in range(NPI):
                         t = arow[i, p]
                         b[bi + p] += wi * t * obs[i]
                         for q in range(p, NPI):
                             nmat[bi + p, bi + q] += wi * t * arow[i, q]
+                            mmat[bi + p, bi + q] += wm * t * arow[i, q]
                     for j in range(i + 1, n):
                         bj = NPX + NPI * j
+                        wm = wbuf[idx, i] * wbuf[idx, j] * cn[i, j]
                         for p in range(NPI):
-                            t = arow[i, p]
+                            t = wm * arow[i, p]
                             for q in range(NPI):
                                 mmat[bi + p, bj + q] += t * arow[j, q]
                 idx += 1
         # noise variance of one image (DN^2) from the residuals: image i's residual variance is
         # s2 (1 + r1_i^2 kappa_i) (template noise plus resampled image-i noise)
         s2 = 0.0
+        red = 0.0
         for i in range(n):
             s2 += svv[i] / (1.0 + r1[i] * r1[i] * skap[i] / ns)
-        s2 /= n * (ns - NPI)
+            red += max(sw[i] - NPI, 1.0)
+        s2 /= red
         s2 = max(s2, 1e-10)
-        # M: grey-level blocks of the sandwich (cross-image blocks from the shared template noise)
-        for i in range(n):
-            bi = NPX + NPI * i
-            for j in range(i, n):
-                bj = NPX + NPI * j
-                for p in range(NPI):
-                    for q in range(p if j == i else 0, NPI):
-                        if j == i:
-                            mmat[bi + p, bj + q] = nmat[bi + p, bj + q] * cn[i, i] / pw[i]
-                        else:
-                            mmat[bi + p, bj + q] *= cn[i, j]
         for p in range(NPX, npar):
             b[p] /= s2
             for q in range(p, npar):
@@ -248,6 +256,8 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
             for p in range(NPI):
                 state[i, p] += d[NPX + NPI * i + p]
         it += 1
+        for i in range(n):
+            cs[i] = TUKEY_C * math.sqrt(svv[i] / sw[i]) if sw[i] > 0.0 else 0.0
         # largest position change in any image (reference: the projection of the object point)
         step = 0.0
         for i in range(n + 1):

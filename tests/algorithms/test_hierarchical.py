@@ -195,13 +195,14 @@ def test_triplet_dsm_by_class_against_region_growing(both, with_edge_points):
     """Issue 7 acceptance on the DSM (dsm_comparison.py: points intersected with the truth models,
     10 m TIN DEM, the same maximum triangle edge for both) against the true DSM by class, side by
     side with region growing and with edge points and breaklines on. Measured (defaults; with edge
-    points): DEM coverage bare 88 (89) vs 81 %, crops 76 (78) vs 34 %, low-texture fields 56 (55) vs
-    5 %; open-class RMS on the cells both cover bare 1.83 (1.83) vs 1.85 m, crops 2.37 (2.43) vs
-    2.40 m, on each one's own cells bare 1.82 (1.86) vs 1.80 m (7 % more, harder cells), crops 2.32
-    (2.38) vs 2.40 m; building-edge zone (within 10 m of an outline) MAE 4.32 (4.32) vs 4.40 m, 99
-    (99) vs 100 % covered. Points MPGC does not accept but that converged keep MPGC's position
-    (before: their NCC one, bare 2.08 m, crops 2.89 m). Edge points do not help measurably here
-    (printed, not asserted). Forest: 8.36 vs 7.83 m (printed)."""
+    points): DEM coverage bare 89 (89) vs 81 %, crops 78 (79) vs 34 %, low-texture fields 57 (55) vs
+    5 %; open-class RMS on each one's own cells bare 1.70 (1.71) vs 1.80 m, crops 2.27 (2.31) vs
+    2.40 m, on the cells both cover bare 1.71 (1.72) vs 1.84 m, crops 2.28 (2.28) vs 2.41 m;
+    building-edge zone (within 10 m of an outline) MAE 4.28 (4.28) vs 4.40 m, 99 (99) vs 100 %
+    covered. MPGC's robust weights (mpgc.py) brought own-cell bare / crops from 1.82 / 2.32 m;
+    points MPGC does not accept but that converged keep MPGC's position (with their NCC one: bare
+    2.08 m, crops 2.89 m). Edge points do not help measurably here (printed, not asserted).
+    Forest: 8.50 vs 7.83 m (printed)."""
     scene, rg, hi, _, _, _, _ = both
     truth = Truth(scene.paths)
     tables = compare(truth, {"region growing": rg, "hierarchical": hi, "edge points": with_edge_points})
@@ -209,8 +210,8 @@ def test_triplet_dsm_by_class_against_region_growing(both, with_edge_points):
     r, h = tables["region growing"], tables["hierarchical"]
     for name in ("bare", "crops"):                           # (cells, coverage, RMS, NMAD, MAE, RMS common)
         assert h[name][1] >= r[name][1]
+        assert h[name][2] <= r[name][2]                      # RMS on its own, larger, set of cells
         assert h[name][5] <= r[name][5]                      # RMS on the common cells
-        assert h[name][2] <= r[name][2] + 0.05               # RMS on its own, larger, set of cells
     assert h["low-tex"][1] > r["low-tex"][1] + 0.2
     assert h["bldg edge"][1] >= r["bldg edge"][1] - 0.03
     assert h["bldg edge"][4] < r["bldg edge"][4]
