@@ -14,9 +14,10 @@ Zhang & Gruen; methods.md section 6; issue 7).
    grid points (`grid` px apart at level 0, `coarse_grid` above); each is searched in every
    search image by NCC along its quasi-epipolar path (hierarchical_level.candidates) over a height
    interval: the block's range at the top, below it the previous level's TIN height +- (`tol_px`
-   px of parallax + the TIN roughness there). Window per point from its texture
-   (hierarchical_level.window_halves), rho threshold per level (`rho_min` at level 0,
-   `rho_min_coarse` above); up to `max_candidates` candidates per image, resolved by the third
+   px of parallax + the TIN roughness there). Window per point from its texture and, below the
+   top level, the TIN roughness (hierarchical_level.window_halves, Kanade-Okutomi); rho threshold
+   per level (`rho_min` at level 0, `rho_min_coarse` above) lowered by up to `rho_drop` where the
+   TIN is rough (hierarchical_level.rho_thresholds); up to `max_candidates` candidates per image, resolved by the third
    image (height agreement), the peak ratio and relaxation (relaxation.py), then back-matching in
    every search image (a failing image drops out of the point). The orientation bias of each
    search image (constant image shift) is estimated per level from the unique candidates
@@ -73,7 +74,8 @@ from ..surface.tin_grid import Grid, rasterize
 from . import preprocess
 from .edges import canny, link, match_edges
 from .mpgc import MpgcParams, accepted, match_points
-from .hierarchical_level import LevelModel, ShiftedModel, back_match, candidates, noise_sigma, window_halves
+from .hierarchical_level import (LevelModel, ShiftedModel, back_match, candidates, noise_sigma, rho_thresholds,
+                                 window_halves)
 from .imagery import Window, as_image
 from .interest import interest_points
 from .params import GrowParams
@@ -111,6 +113,7 @@ class HierParams:
     precision: float = 0.05            # px: window choice target (hierarchical_level.window_halves)
     rho_min: float = 0.7               # NCC threshold at level 0
     rho_min_coarse: float = 0.6        # NCC threshold above level 0
+    rho_drop: float = 0.1              # NCC threshold lowered by up to this where the TIN is rough (1 px parallax)
     max_candidates: int = 5
     peak_ratio: float = 0.9            # second / first peak below this: unique
     margin: float = 0.05               # score margin of the best hypothesis: unique
@@ -138,8 +141,9 @@ class HierParams:
             raise InputError("grid spacings must be >= 2 px and the Foerstner patch >= 3 px")
         if not self.windows or any(int(w) < 5 or int(w) % 2 == 0 for w in self.windows):
             raise InputError(f"window sizes must be odd and >= 5 px, got {self.windows}")
-        if not (0 < self.rho_min < 1 and 0 < self.rho_min_coarse < 1):
-            raise InputError("rho thresholds must lie between 0 and 1")
+        if not (0 < self.rho_min < 1 and 0 < self.rho_min_coarse < 1 and 0 <= self.rho_drop < min(self.rho_min,
+                                                                                                   self.rho_min_coarse)):
+            raise InputError("rho thresholds must lie between 0 and 1, and rho_drop between 0 and the thresholds")
         if self.edge_window < 3 or self.edge_window % 2 == 0 or self.edge_step < 1 or self.edge_min_length < 2 \
                 or self.edge_min_level < 0:
             raise InputError("the edge window must be odd and >= 3 px, the edgel step >= 1, the chain length >= 2 "
@@ -256,7 +260,13 @@ def match_level(ref, ref_raw, searches, models, level, params, hr, guide, edge_m
     x, y = primitives(ref, level, params, border)
     n, m = len(x), len(searches)
     h_lo, h_hi, sens = height_interval(lm, x, y, params, hr, guide)
-    halves = window_halves(ref_raw, x, y, params.windows, noise_sigma(ref_raw), params.precision)
+    # the previous level's TIN roughness in px of parallax, less (in quadrature) its median, the
+    # matching noise that the roughness of plane residuals includes
+    rough_px = np.zeros(n) if guide is None else guide.at(x * s, y * s)[1] * sens
+    rough_px = np.sqrt(np.maximum(rough_px ** 2 - np.median(rough_px) ** 2, 0.0)) if n else rough_px
+    halves = window_halves(ref_raw, x, y, params.windows, noise_sigma(ref_raw), params.precision,
+                           rough_px ** 2 / (params.coarse_grid * FACTOR))
+    rho_min = rho_thresholds(rho_min, params.rho_drop, rough_px)
     across = max(1, int(math.ceil(params.across / s)))
     cands = [candidates(ref, searches[k], lm[0], lm[k + 1], x, y, h_lo, h_hi, halves, across, rho_min,
                         params.max_candidates) for k in range(m)]

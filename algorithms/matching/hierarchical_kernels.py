@@ -93,7 +93,7 @@ def _point(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out
 @njit(cache=True, nogil=True, parallel=True)
 def path_candidates(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out_h, out_rho, out_x, out_y,
                     second):
-    """Candidates of all points (hierarchical_level.candidates): x, y, half, a1..a5 (n,), cx, cy
+    """Candidates of all points (hierarchical_level.candidates): x, y, half, a1..a5, rho_min (n,), cx, cy
     (n, k, na), heights (n, k); out_* (n, C) NaN-filled, second (n,) NaN-filled. Points with a
     non-finite affine or path position (cx) are skipped."""
     for i in prange(x.shape[0]):
@@ -102,4 +102,4 @@ def path_candidates(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho
         if not np.isfinite(cx[i]).all():
             continue
         second[i] = _point(img1, img2, x[i], y[i], half[i], cx[i], cy[i], a1[i], a2[i], a4[i], a5[i], heights[i],
-                           rho_min, out_h[i], out_rho[i], out_x[i], out_y[i])
+                           rho_min[i], out_h[i], out_rho[i], out_x[i], out_y[i])

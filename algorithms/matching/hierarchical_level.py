@@ -6,11 +6,18 @@ Level geometry: level L of a factor-f pyramid has pixels of s = f^L full-resolut
 whose edges align (GDAL coordinates: level position (x, y) is full position (s x, s y));
 `LevelModel` wraps a sensor model accordingly.
 
-Window choice (Kanade & Okutomi style, by the expected precision instead of the full adaptive
-search): the NCC/LSM shift precision of a w x w window is about sigma_n sqrt(2 / sum g^2)
-(sigma_n the image noise, g the grey-level gradients in the window); each point takes the
-smallest of the given window sizes whose precision reaches `target` px, else the largest (weak
-texture gets large windows, textured areas and discontinuities small ones).
+Window choice (Kanade & Okutomi 1994, by the expected error instead of their full adaptive
+search; Z section 3.2): a w x w window has the expected shift error
+    e^2 = sigma_n^2 2 / sum g^2  +  a mean|xi|
+(sigma_n the image noise, g the grey-level gradients in the window: the noise term; the second
+the disparity variation inside the window, K-O's model of a disparity that departs from the
+centre's with variance a |xi| at distance xi, taken as systematic (terrain shape does not
+average out over the window as noise does); a from the previous level's TIN: rough_px^2 /
+spacing, the TIN's terrain roughness in px of parallax at its vertex spacing). Each point takes the smallest of the
+given sizes whose e reaches `target` px, else the one with the smallest e: weak texture on flat
+ground gets large windows, textured areas and rough terrain (steps, canopy) small ones. The NCC
+threshold drops likewise with the roughness (rho_thresholds): larger in flat areas, smaller in
+rough terrain (Z section 3.2).
 
 Candidates: the reference ray of a point is cut by the height interval [h_lo, h_hi]; its
 projection into the search image (quasi-epipolar path) is sampled every <= PATH_STEP px (each
@@ -85,9 +92,10 @@ def noise_sigma(img):
     return max(NMAD_SCALE * float(np.median(np.abs(lap))) / math.sqrt(20.0), 0.3) if lap.size else 1.0
 
 
-def window_halves(img, x, y, sizes, noise, target):
-    """Half window per point (module docstring): the smallest of `sizes` (odd, px) whose
-    precision noise sqrt(2 / sum g^2) <= target px, else the largest."""
+def window_halves(img, x, y, sizes, noise, target, rate=None):
+    """Half window per point (module docstring): the smallest of `sizes` (odd, px) whose expected
+    error sqrt(noise^2 2 / sum g^2 + rate mean|xi|) <= target px, else the one with the smallest
+    error. rate: (n,) disparity variance per px of distance (px^2 / px; None: 0, flat)."""
     a = np.nan_to_num(np.asarray(img, float))
     g = np.zeros_like(a)
     g[:, 1:-1] += (0.5 * (a[:, 2:] - a[:, :-2])) ** 2
@@ -96,20 +104,31 @@ def window_halves(img, x, y, sizes, noise, target):
     rows, cols = a.shape
     i = np.clip(np.floor(y).astype(np.int64), 0, rows - 1)
     j = np.clip(np.floor(x).astype(np.int64), 0, cols - 1)
+    rate = np.zeros(len(x)) if rate is None else np.asarray(rate, float)
     sizes = sorted(int(s) for s in sizes)
     half = np.full(len(x), sizes[-1] // 2, np.int64)
+    best = np.full(len(x), np.inf)
     done = np.zeros(len(x), bool)
     for w in sizes:
         h = w // 2
         i0, i1 = np.clip(i - h, 0, rows), np.clip(i + h + 1, 0, rows)
         j0, j1 = np.clip(j - h, 0, cols), np.clip(j + h + 1, 0, cols)
         energy = c[i1, j1] - c[i0, j1] - c[i1, j0] + c[i0, j0]
+        k = np.arange(-h, h + 1.0)
+        spread = np.hypot(k[:, None], k[None, :]).mean()                  # mean |xi|
         with np.errstate(divide="ignore"):
-            precise = noise * np.sqrt(2.0 / energy) <= target
-        take = precise & ~done
+            error = np.sqrt(noise ** 2 * 2.0 / energy + rate * spread)
+        take = ~done & ((error <= target) | (error <= best))
         half[take] = h
-        done |= take
+        best = np.where(take, error, best)
+        done |= error <= target
     return half
+
+
+def rho_thresholds(rho_min, drop, rough_px):
+    """NCC threshold per point (module docstring): rho_min lowered by up to `drop` as the TIN
+    roughness reaches 1 px of parallax, rho_min - drop min(1, rough_px)."""
+    return rho_min - drop * np.minimum(np.asarray(rough_px, float), 1.0)
 
 
 def path_samples(model1, model2, x, y, h_lo, h_hi, across, count):
@@ -146,6 +165,7 @@ def sample_counts(model1, model2, x, y, h_lo, h_hi, step=PATH_STEP, bucket=COUNT
 def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_min, max_candidates):
     """Candidates of points (x, y) of img1 in img2 (module docstring); level models and px. Each
     point's path is sampled at its own spacing (sample_counts), in batches of equal count.
+    rho_min: (n,) NCC thresholds.
     Returns dict of (n, C) arrays h, rho, x, y (NaN padded, best first) and (n,) `second`."""
     n, cmax = len(x), int(max_candidates)
     out = {key: np.full((n, cmax), np.nan) for key in ("h", "rho", "x", "y")}
@@ -154,6 +174,7 @@ def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_m
         return out
     x, y, h_lo, h_hi = (np.asarray(v, float) for v in (x, y, h_lo, h_hi))
     half = np.broadcast_to(np.asarray(half, np.int64), (n,))
+    rho_min = np.broadcast_to(np.asarray(rho_min, float), (n,))
     _, _, a1, a2, a4, a5 = local_affine(model1, model2, x, y, 0.5 * (h_lo + h_hi))
     counts = sample_counts(model1, model2, x, y, h_lo, h_hi)
     for count in np.unique(counts):
@@ -163,7 +184,7 @@ def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_m
         part["second"] = np.full(sel.size, np.nan)
         vec = [np.ascontiguousarray(v[sel], float) for v in (x, y, a1, a2, a4, a5)]
         path_candidates(img1, img2, vec[0], vec[1], np.ascontiguousarray(half[sel]), np.ascontiguousarray(cx),
-                        np.ascontiguousarray(cy), *vec[2:], np.ascontiguousarray(heights), float(rho_min),
+                        np.ascontiguousarray(cy), *vec[2:], np.ascontiguousarray(heights), np.ascontiguousarray(rho_min[sel]),
                         part["h"], part["rho"], part["x"], part["y"], part["second"])
         for key, value in part.items():
             out[key][sel] = value
@@ -174,7 +195,7 @@ def back_match(img1, img2, model1, model2, x, y, x2, y2, h_lo, h_hi, half, acros
     """Back-matching: the template of img2 at (x2, y2) searched in img1 along its own path over
     the same heights; returns the distance (level px) of the best img1 position from (x, y)
     (inf where nothing correlates)."""
-    back = candidates(img2, img1, model2, model1, x2, y2, h_lo, h_hi, half, across, -1.0, 1)
+    back = candidates(img2, img1, model2, model1, x2, y2, h_lo, h_hi, half, across, np.full(len(x2), -1.0), 1)
     with np.errstate(invalid="ignore"):
         d = np.hypot(back["x"][:, 0] - x, back["y"][:, 0] - y)
     return np.where(np.isfinite(d), d, np.inf)

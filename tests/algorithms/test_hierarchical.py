@@ -13,7 +13,7 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.matching import hierarchical as hier
 from pushbroom.algorithms.matching.combinations import match_block
-from pushbroom.algorithms.matching.hierarchical_level import LevelModel, ShiftedModel, window_halves
+from pushbroom.algorithms.matching.hierarchical_level import LevelModel, ShiftedModel, rho_thresholds, window_halves
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.points import COMB_A, COMB_B
 from pushbroom.algorithms.matching.relaxation import crosses_edge, hypotheses, relax, unique_choice
@@ -35,6 +35,28 @@ def test_window_choice_follows_texture():
     assert list(halves) == [4, 10, 10]
     halves = window_halves(img, np.array([15.5, 45.5]), np.array([30.5] * 2), (9, 15, 21), 1.0, 0.2)
     assert list(halves) == [4, 7]
+
+
+def test_window_choice_follows_tin_roughness():
+    """Kanade-Okutomi: the disparity variation a mean|xi| of a rough TIN shrinks the window of weak
+    texture to the size of the smallest expected error, computed here from plain window sums; the
+    NCC threshold drops with the roughness up to rho_drop."""
+    rng = np.random.default_rng(1)
+    img = rng.normal(0, 0.6, (60, 60))
+    x, y, sizes, noise = np.full(4, 30.5), np.full(4, 30.5), (9, 15, 21), 1.0
+    rate = np.array([0.0, 0.002, 0.005, 1.0])
+    gx = np.zeros_like(img)
+    gx[:, 1:-1] = (0.5 * (img[:, 2:] - img[:, :-2])) ** 2
+    gx[1:-1] += (0.5 * (img[2:] - img[:-2])) ** 2
+    energy = np.array([gx[30 - w // 2:31 + w // 2, 30 - w // 2:31 + w // 2].sum() for w in sizes])
+    spread = np.array([np.mean([np.hypot(i, j) for i in range(-(w // 2), w // 2 + 1)
+                                for j in range(-(w // 2), w // 2 + 1)]) for w in sizes])
+    error = np.sqrt(noise ** 2 * 2 / energy[None] + rate[:, None] * spread[None])
+    assert (error > 0.05).all()                            # no size reaches the target: the smallest error
+    expected = np.array(sizes)[np.argmin(error, axis=1)] // 2
+    halves = window_halves(img, x, y, sizes, noise, 0.05, rate)
+    assert list(halves) == list(expected) and halves[0] == 10 and halves[-1] == 4
+    np.testing.assert_allclose(rho_thresholds(0.7, 0.1, [0.0, 0.5, 1.0, 3.0]), [0.7, 0.65, 0.6, 0.6])
 
 
 def test_hypotheses_agreement_and_relaxation():

@@ -25,7 +25,7 @@ def test_path_candidates_find_the_shift():
     one = np.ones(3)
     out = [np.full((3, 2), np.nan) for _ in range(4)]
     second = np.full(3, np.nan)
-    path_candidates(img1, img2, x, y, half, cx, cy, one, 0 * one, 0 * one, one, heights, 0.7, *out, second)
+    path_candidates(img1, img2, x, y, half, cx, cy, one, 0 * one, 0 * one, one, heights, np.full(3, 0.7), *out, second)
     h, rho, px, py = out
     assert np.allclose(h[:2, 0], 3.3, atol=0.05)
     assert np.allclose(px[:2, 0], x[:2] + h[:2, 0]) and np.allclose(py[:2, 0], y[:2], atol=0.05)
