@@ -9,11 +9,12 @@ Foerstner points); its two-ray points (group 1) are intersected with the supplie
 relative bias is across the epipolar direction; the matcher estimates it itself, about -4.6 px in
 columns, and it does not move the heights) and gridded at 1, 2 (asserted) and 5 m. Both matchers'
 DSMs carry the same west-east ramp against the SRTM (~0.13 m/m), which is what sets their NMAD
-near the 10 m bound (region growing ~9.9 m, this matcher ~10.7 m at 2 m cells, with 5 and 10 px
-grids ~8-9 m: each node set leaves other gaps on the ramp); without the plane both are ~3.6 m. Where both DSMs
-are defined they agree to millimetres (median 0.000 m, NMAD 0.003 m, RMS 0.4 m): on the same nodes
-MPGC and region growing's LSM converge to the same positions; the medians against the SRTM differ
-(3.8 / 4.8 m) by the cells each leaves empty. Asserted:
+near the 10 m bound (region growing 9.9 m, this matcher 10.5 m at 2 m cells and 9.5 m at 1 m; with
+its 5 and 10 px grids 9.0 and 6.8 m but medians +5.3 and +7.3 m: each node set leaves other gaps on
+the ramp); without the plane both are ~3.6 m. Where both DSMs are defined they agree to centimetres
+(median -0.02 m, NMAD 0.05 m, RMS 0.5 m): on the same nodes MPGC and region growing's LSM converge to
+nearly the same positions; the medians against the SRTM differ (4.0 / 4.8 m) by the cells each
+leaves empty. Asserted:
 |median| < 5 m, NMAD < 12 m, NMAD without the plane < 5 m, and the matchers' agreement.
 
 Pleiades triplet: match_hierarchical with its default parameters (grid 10 px = 5 m nodes plus one
@@ -24,9 +25,9 @@ of the common footprint and the pairs' consistency (each pair matched on its own
 match_hierarchical, before / after the RPC bias adjustment on tie points of the triplet's
 matching) as in test_dsm_real; test_side_by_side_with_region_growing prints both matchers in one
 table (region growing's coverage also at 10 m, the same rule) and compares the two 0.5 m DSMs.
-Measured (2 cores): coverage 81 % (region growing 69 % at 3 m, 94 % at 10 m), pairs after adjustment medians
-<= 0.04 m and NMAD 0.28-0.40 m (region growing 0.23-0.41 m), matching ~90 s (region growing ~55 s); this
-DSM - region growing's: median 0.003 m, NMAD 0.14 m."""
+Measured (2 cores): coverage 79 % (region growing 69 % at 3 m, 94 % at 10 m), pairs after adjustment
+medians <= 0.01 m and NMAD 0.28-0.41 m (region growing 0.05-0.11 m, 0.23-0.41 m), matching the triplet and
+its pairs 25 s (region growing 39 s); this DSM - region growing's: median -0.02 m, NMAD 0.15 m."""
 import time
 
 import numpy as np
