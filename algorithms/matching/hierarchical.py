@@ -15,11 +15,13 @@ Zhang & Gruen; methods.md section 6; issue 7).
    search image by NCC along its quasi-epipolar path (hierarchical_level.candidates) over a height
    interval: the block's range at the top, below it the previous level's TIN height +- (`tol_px`
    px of parallax + the TIN roughness there). Window per point from its texture and, below the
-   top level, the TIN roughness (hierarchical_level.window_halves, Kanade-Okutomi); rho threshold
-   per level (`rho_min` at level 0, `rho_min_coarse` above) lowered by up to `rho_drop` where the
-   TIN is rough (hierarchical_level.rho_thresholds); up to `max_candidates` candidates per image, resolved by the third
-   image (height agreement), the peak ratio and relaxation (relaxation.py), then back-matching in
-   every search image (a failing image drops out of the point). The orientation bias of each
+   top level, the TIN's terrain roughness (its roughness less, in quadrature, the level's median,
+   the matching noise; hierarchical_level.window_halves, Kanade-Okutomi); rho threshold per level
+   (`rho_min` at level 0, `rho_min_coarse` above) lowered by up to `rho_drop` where that roughness
+   reaches 1 px of parallax (hierarchical_level.rho_thresholds); up to `max_candidates` candidates
+   per image, resolved by the third image (height agreement), the peak ratio and relaxation
+   (relaxation.py), then back-matching in every search image (a failing image drops out of the
+   point). The orientation bias of each
    search image (constant image shift) is estimated per level from the unique candidates
    (estimate_shift) and compensated from then on (hierarchical_level.ShiftedModel), MPGC included.
    With `edges`, Canny edges of the reference level image (edges.canny, default thresholds) bound
@@ -142,8 +144,8 @@ class HierParams:
             raise InputError("grid spacings must be >= 2 px and the Foerstner patch >= 3 px")
         if not self.windows or any(int(w) < 5 or int(w) % 2 == 0 for w in self.windows):
             raise InputError(f"window sizes must be odd and >= 5 px, got {self.windows}")
-        if not (0 < self.rho_min < 1 and 0 < self.rho_min_coarse < 1 and 0 <= self.rho_drop < min(self.rho_min,
-                                                                                                   self.rho_min_coarse)):
+        lowest = min(self.rho_min, self.rho_min_coarse)
+        if not (0 < self.rho_min < 1 and 0 < self.rho_min_coarse < 1 and 0 <= self.rho_drop < lowest):
             raise InputError("rho thresholds must lie between 0 and 1, and rho_drop between 0 and the thresholds")
         if self.edge_window < 3 or self.edge_window % 2 == 0 or self.edge_step < 1 or self.edge_min_length < 2 \
                 or self.edge_min_level < 0:

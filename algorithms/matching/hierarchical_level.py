@@ -13,11 +13,11 @@ search; Z section 3.2): a w x w window has the expected shift error
 the disparity variation inside the window, K-O's model of a disparity that departs from the
 centre's with variance a |xi| at distance xi, taken as systematic (terrain shape does not
 average out over the window as noise does); a from the previous level's TIN: rough_px^2 /
-spacing, the TIN's terrain roughness in px of parallax at its vertex spacing). Each point takes the smallest of the
-given sizes whose e reaches `target` px, else the one with the smallest e: weak texture on flat
-ground gets large windows, textured areas and rough terrain (steps, canopy) small ones. The NCC
-threshold drops likewise with the roughness (rho_thresholds): larger in flat areas, smaller in
-rough terrain (Z section 3.2).
+spacing, the TIN's terrain roughness in px of parallax at its vertex spacing (hierarchical.py,
+step 2). Each point takes the smallest of the given sizes whose e reaches `target` px, else the
+one with the smallest e: weak texture on flat ground gets large windows, textured areas and rough
+terrain (steps, canopy) small ones. The NCC threshold drops likewise with the roughness
+(rho_thresholds): larger in flat areas, smaller in rough terrain (Z section 3.2).
 
 Candidates: the reference ray of a point is cut by the height interval [h_lo, h_hi]; its
 projection into the search image (quasi-epipolar path) is sampled every <= PATH_STEP px (each
@@ -184,8 +184,9 @@ def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_m
         part["second"] = np.full(sel.size, np.nan)
         vec = [np.ascontiguousarray(v[sel], float) for v in (x, y, a1, a2, a4, a5)]
         path_candidates(img1, img2, vec[0], vec[1], np.ascontiguousarray(half[sel]), np.ascontiguousarray(cx),
-                        np.ascontiguousarray(cy), *vec[2:], np.ascontiguousarray(heights), np.ascontiguousarray(rho_min[sel]),
-                        part["h"], part["rho"], part["x"], part["y"], part["second"])
+                        np.ascontiguousarray(cy), *vec[2:], np.ascontiguousarray(heights),
+                        np.ascontiguousarray(rho_min[sel]), part["h"], part["rho"], part["x"], part["y"],
+                        part["second"])
         for key, value in part.items():
             out[key][sel] = value
     return out
