@@ -89,10 +89,12 @@ class MatchPoints(PushbroomAlgorithm):
             "geometrically constrained matching (MPGC); its points (group 3 three-ray, 1 two-ray) carry MPGC's "
             "reliability as rho, points MPGC does not accept keep a low one (and MPGC's position where it "
             "converged, else the NCC one); the region "
-            "growing parameters (seeds, template, STEP, thresholds) do not apply to it.")
+            "growing parameters (seeds, template, STEP, thresholds, tile) do not apply to it, its own are the "
+            "advanced 'Coarse-to-fine' ones.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         d = GrowParams()
+        c = hierarchical.HierParams()
         self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
         self.addParameter(QgsProcessingParameterEnum("STRATEGY", "Matching strategy",
                                                      [label for label, _ in STRATEGIES], defaultValue=0))
@@ -123,6 +125,14 @@ class MatchPoints(PushbroomAlgorithm):
             QgsProcessingParameterBoolean("GROW_SECOND", "Also grow combination (b) where (a) found no points",
                                           True),
             Number("WORKERS", "Worker threads", Number.Integer, 1, minValue=1),
+            Number("C2F_GRID", "Coarse-to-fine: grid point spacing at full resolution (px)", Number.Integer, c.grid,
+                   minValue=2),
+            Number("C2F_RHO_MIN", "Coarse-to-fine: minimum correlation coefficient at full resolution",
+                   Number.Double, c.rho_min, minValue=0.0, maxValue=1.0),
+            Number("C2F_TILE", "Coarse-to-fine: tile size of the reference image (px)", Number.Integer, c.tile,
+                   minValue=16),
+            QgsProcessingParameterBoolean("C2F_EDGE_POINTS", "Coarse-to-fine: matched edges as extra points and "
+                                          "breaklines (off: blunders on steep forest)", c.edge_points),
         ]
         self.addAdvancedParameters(advanced)
         self.addParameter(QgsProcessingParameterFileDestination(
@@ -152,9 +162,15 @@ class MatchPoints(PushbroomAlgorithm):
         feedback.pushInfo("combination order: " + ", ".join(r["name"] for r in rows)
                           + f"; height range {height_range}")
         if STRATEGIES[self.parameterAsEnum(parameters, "STRATEGY", context)][1] == "hierarchical":
+            hier_params = hierarchical.HierParams(
+                grid=self.parameterAsInt(parameters, "C2F_GRID", context),
+                rho_min=self.parameterAsDouble(parameters, "C2F_RHO_MIN", context),
+                tile=self.parameterAsInt(parameters, "C2F_TILE", context),
+                edge_points=self.parameterAsBool(parameters, "C2F_EDGE_POINTS", context)).check()
             result = hierarchical.match_hierarchical(
                 [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
-                image_ids=[r["id"] for r in rows], height_range=height_range, feedback=feedback)
+                image_ids=[r["id"] for r in rows], params=hier_params, height_range=height_range,
+                feedback=feedback)
         else:
             result = combinations.match_block(
                 [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
