@@ -21,9 +21,9 @@ Zhang & Gruen; methods.md section 6; issue 7).
    reaches 1 px of parallax (hierarchical_level.rho_thresholds); up to `max_candidates` candidates
    per image, resolved by the third image (height agreement), the peak ratio and relaxation
    (relaxation.py), then back-matching in every search image (a failing image drops out of the
-   point). The orientation bias of each
-   search image (constant image shift) is estimated per level from the unique candidates
-   (estimate_shift) and compensated from then on (hierarchical_level.ShiftedModel), MPGC included.
+   point). The orientation bias of each search image (constant image shift) is estimated per
+   level from the unique candidates (estimate_shift) and compensated from then on
+   (hierarchical_level.ShiftedModel), MPGC included.
    With `edges`, Canny edges of the reference level image (edges.canny, default thresholds) bound
    the relaxation: neighbours across an edge are left out. With `edge_points` (levels >=
    `edge_min_level`), the edges linked into chains (edges.link) are matched edgel by edgel (every
@@ -42,8 +42,8 @@ Zhang & Gruen; methods.md section 6; issue 7).
    x rho; both are flagged NCC_ONLY (not accepted). On the simulated triplet's 10 m DSM
    (test_hierarchical.py) MPGC's positions took the open-class RMS from bare 2.08 / crops 2.89 m
    (NCC's) to 1.82 / 2.33 m at the same coverage (1.71 / 2.28 m since MPGC's robust weights and the
-   TIN-adapted windows; region growing 1.80 / 2.40 m); dropping the points
-   near accepted ones instead (tried: within 10 px) lowers the coverage and not the RMS.
+   TIN-adapted windows; region growing 1.80 / 2.40 m); dropping the points near accepted ones
+   instead (tried: within 10 px) lowers the coverage and not the RMS.
 5. Output: MultiPoints (points.py) with group 3 (reference + 2 search images) or 1 (reference + 1),
    rho_min = the reliability (MPGC's, mpgc.py, or the NCC one), flags COMB_A / COMB_B for the
    search images 1 / 2 observed (+ NCC_ONLY), stats with provenance "hierarchical" and the

@@ -88,9 +88,8 @@ class MatchPoints(PushbroomAlgorithm):
             "level of a factor-3 pyramid, each level's TIN guiding the next, refined by multi-photo "
             "geometrically constrained matching (MPGC); its points (group 3 three-ray, 1 two-ray) carry MPGC's "
             "reliability as rho, points MPGC does not accept keep a low one (and MPGC's position where it "
-            "converged, else the NCC one); the region "
-            "growing parameters (seeds, template, STEP, thresholds, tile) do not apply to it, its own are the "
-            "advanced 'Coarse-to-fine' ones.")
+            "converged, else the NCC one); the region growing parameters (seeds, template, STEP, thresholds, "
+            "tile) do not apply to it, its own are the advanced 'Coarse-to-fine' ones.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         d = GrowParams()

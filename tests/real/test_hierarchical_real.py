@@ -8,13 +8,13 @@ Ventoux pair vs SRTM: match_hierarchical's level-0 grid points lie on region gro
 Foerstner points); its two-ray points (group 1) are intersected with the supplied RPCs (their
 relative bias is across the epipolar direction; the matcher estimates it itself, about -4.6 px in
 columns, and it does not move the heights) and gridded at 1, 2 (asserted) and 5 m. Both matchers'
-DSMs carry the same west-east ramp against the SRTM (~0.13 m/m), which is what sets their NMAD
-near the 10 m bound (region growing 9.9 m, this matcher 10.5 m at 2 m cells and 9.5 m at 1 m; with
-its 5 and 10 px grids 9.0 and 6.8 m but medians +5.3 and +7.3 m: each node set leaves other gaps on
-the ramp); without the plane both are ~3.6 m. Where both DSMs are defined they agree to centimetres
-(median -0.02 m, NMAD 0.05 m, RMS 0.5 m): on the same nodes MPGC and region growing's LSM converge to
-nearly the same positions; the medians against the SRTM differ (4.0 / 4.8 m) by the cells each
-leaves empty. Asserted:
+DSMs carry the same west-east ramp against the SRTM (~0.13 m/m), which is what sets their NMAD near
+the 10 m bound (region growing 9.9 m, this matcher 10.5 m at 2 m cells and 9.4 m at 1 m; with its 5
+and 10 px grids 9.1 and 6.9 m but medians +5.2 and +7.2 m, scripts/ventoux_grid_spacing.py: each
+node set leaves other gaps on the ramp); without the plane both are ~3.6 m. Where both DSMs are
+defined they agree to centimetres (median -0.02 m, NMAD 0.05 m, RMS 0.5 m): on the same nodes MPGC
+and region growing's LSM converge to nearly the same positions; the medians against the SRTM differ
+(4.0 / 4.8 m) by the cells each leaves empty. Asserted:
 |median| < 5 m, NMAD < 12 m, NMAD without the plane < 5 m, and the matchers' agreement.
 
 Pleiades triplet: match_hierarchical with its default parameters (grid 10 px = 5 m nodes plus one

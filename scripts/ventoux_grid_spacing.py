@@ -1,0 +1,41 @@
+"""How the Ventoux pair's DSM - SRTM statistics depend on the coarse-to-fine matcher's grid spacing
+(issue 7's Ventoux point; closing note of 2026-11-22): match_hierarchical on the two Pleiades crops
+with grid points every 2 (region growing's nodes, as tests/real/test_hierarchical_real.py), 5 and 10
+px, the points intersected with the supplied RPCs and gridded at 1, 2 and 5 m, each DSM against the
+SRTM tile (EGM96 -> ellipsoidal) with the test's code (tests/real/real_dsm.py). Needs ../shared/data.
+
+    QT_QPA_PLATFORM=offscreen .venv/bin/python scripts/ventoux_grid_spacing.py [GRID ...]   (about 1 min)"""
+import pathlib
+import sys
+import tempfile
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "real"))
+from real_dsm import cut, srtm_comparison  # noqa: E402
+
+from pushbroom.algorithms import sensors  # noqa: E402
+from pushbroom.algorithms.matching.hierarchical import HierParams, match_hierarchical  # noqa: E402
+from pushbroom.algorithms.matching.imagery import Image  # noqa: E402
+
+DATA = ROOT.parent / "shared" / "data" / "pleiades_pair_ventoux"
+CELLS = (1.0, 2.0, 5.0)
+
+
+def main(grids):
+    paths = [DATA / "left_image.tif", DATA / "right_image.tif"]
+    models = [sensors.load(p) for p in paths]
+    for grid in grids:
+        points = match_hierarchical([Image(p) for p in paths], models, names=[p.stem for p in paths],
+                                    params=HierParams(grid=grid))
+        result = cut({1: models[0], 2: models[1]}, points.observations)
+        with tempfile.TemporaryDirectory() as tmp:
+            c = srtm_comparison(result, str(DATA / "N44E005.hgt"), CELLS, 2.0, pathlib.Path(tmp))
+        print(f"grid {grid} px: {len(points)} points; without the 2 m DSM's plane NMAD {c['detrended'].nmad:.2f} m")
+        for cell, s in c["stats"].items():
+            print(f"  {cell:g} m DSM - SRTM: N {s.n:6d}, median {s.median:+6.2f} m, NMAD {s.nmad:5.2f} m")
+
+
+if __name__ == "__main__":
+    if not DATA.is_dir():
+        sys.exit(f"{DATA} is missing (the shared data sets)")
+    main([int(g) for g in sys.argv[1:]] or [2, 5, 10])
