@@ -19,7 +19,8 @@ floored at `min_sigma` px so that perfectly consistent data keep all their point
 points failing the test are dropped (inconsistent: one of the two image-1 matches is wrong, and
 which one is unknown); their count is kept in `stats` for the summary (K Table 1). Points
 matched only in (c) do not exist: (c) runs on transfer points only. A two-image block gives
-combination (a) and group 1 only."""
+combination (a) and group 1 only. match_block then refines the group 3 points by MPGC in both
+search images at once (refinement.py; `refine`, on by default)."""
 import numpy as np
 
 from .. import progress
@@ -195,14 +196,15 @@ def pair_seeds(image1, image2, model1, model2, seed_points, id1, id2, params=Non
 
 
 def match_block(images, models, names=None, image_ids=None, params=None, height_range=None, seed_points=None,
-                automatic=True, feedback=None, workers=1, grow_second=True, sigma_factor=3.0):
+                automatic=True, feedback=None, workers=1, grow_second=True, sigma_factor=3.0, refine=True):
     """Match 2 or 3 images in combination order (reference/nadir, forward, backward) and return
     the MultiPoints of `combine`. `images` are whatever region_growing.match_pair takes (arrays),
     `image_ids` the block ids (default 1, 2, 3), `names` only label the log. Seeds: the points
     of `seed_points` (MultiPoints with block image ids: tie or control points) seen in the
     reference and the other image of a region-grown pair, re-matched there (pair_seeds), and/or
     `automatic` ones in every tile. With `grow_second`, combination (b) is also region-grown for
-    points where (a) found none."""
+    points where (a) found none; with `refine`, MPGC refines the group 3 points
+    (refinement.refine_three_ray)."""
     from .region_growing import match_pair, transfer_points
     n = len(images)
     if n not in (2, 3) or len(models) != n:
@@ -213,7 +215,7 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
     log = progress.ensure(feedback)
     if seed_points is None and not automatic:
         raise InputError("region growing needs seeds: give seed points or allow automatic seeds")
-    share = [0, 100] if n == 2 else [0, 40, 55, 85, 100]
+    share = [0, 100] if n == 2 else [0, 35, 50, 75, 90, 100]
     progress.step(feedback, 0, f"combination (a): {names[0]} - {names[1]}")
 
     def seeds(k):
@@ -255,6 +257,11 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
     c["x1"], c["y1"] = b["x2"][c_src], b["y2"][c_src]
     log.pushInfo(f"(c) {names[2]} - {names[1]}: {len(c)} of {len(b)} transfer points matched")
     result = combine(a, b, b_src, c, c_src, image_ids=image_ids, sigma_factor=sigma_factor)
+    if refine:
+        from .refinement import refine_three_ray
+        refined = refine_three_ray(result, images, models, image_ids, height_range,
+                                   progress.scaled(feedback, share[4], share[5]))
+        log.pushInfo(f"MPGC refined {refined} of {result.group_counts()[3]} three-ray points")
     progress.step(feedback, 100)
     return result
 
@@ -277,6 +284,8 @@ def summary_rows(points, rho_dem=0.7):
     for key, label in [("sigma_dx", "sigma of dx (px, robust)"), ("sigma_dy", "sigma of dy (px, robust)")]:
         if stats.get(key) is not None:
             rows.append((label, round(float(stats[key]), 4)))
+    if "refined_mpgc" in stats:
+        rows.append(("Group 3 points refined by MPGC", int(stats["refined_mpgc"])))
     return rows
 
 

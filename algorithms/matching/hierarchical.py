@@ -355,7 +355,7 @@ def edge_breaklines(edge, scale, step):
     return [part for part in np.split(line, cut) if len(part) >= 2]
 
 
-def _adapted(images, models, hr):
+def adapted_images(images, models, hr):
     """The images, the finer of each reference-search pair low-passed to the coarser one's
     resolution (region_growing.adapt_resolution; Image-like, read by windows)."""
     grow = GrowParams()
@@ -408,7 +408,7 @@ def match_hierarchical(images, models, names=None, image_ids=None, params=None, 
     image_ids = list(image_ids or range(1, n + 1))
     hr = resolve_height_range(models[0], height_range)
     progress.step(feedback, 0, "coarse-to-fine matching: preprocessing (resolution adaptation, Wallis, pyramids)")
-    adapted = _adapted(images, models, hr)
+    adapted = adapted_images(images, models, hr)
     boxes = _tiles(models[0].size, params.tile)
     if len(boxes) == 1:
         out, stats = _match(adapted, models, params, hr, feedback)

@@ -43,25 +43,42 @@ COUNT_BUCKET = 8
 
 
 class ShiftedModel:
-    """A sensor model whose image positions are moved by (dx, dy) full px: the bias compensation
-    of an orientation error (hierarchical.estimate_shift), or the model of a window of the image
-    (dx, dy = minus its top-left corner, `size` its size: the tiles of hierarchical.py)."""
+    """A sensor model whose image positions are moved by (dx, dy) full px, (col', row') = M (col,
+    row) + (dx, dy) with M = `linear` (default the identity): the bias compensation of an
+    orientation error (hierarchical.estimate_shift's shifts, refinement.affine_bias's affine
+    maps), or the model of a window of the image (dx, dy = minus its top-left corner, `size` its
+    size: the tiles of hierarchical.py)."""
 
-    def __init__(self, model, dx=0.0, dy=0.0, size=None):
+    def __init__(self, model, dx=0.0, dy=0.0, size=None, linear=None):
         self.model, self.dx, self.dy = model, float(dx), float(dy)
         self.size = model.size if size is None else tuple(size)
+        self.linear = np.eye(2) if linear is None else np.asarray(linear, float).reshape(2, 2)
+        self._inverse = np.linalg.inv(self.linear)
+
+    def _unmoved(self, col, row):
+        u = np.asarray(col, float) - self.dx
+        v = np.asarray(row, float) - self.dy
+        (a, b), (c, d) = self._inverse
+        return a * u + b * v, c * u + d * v
 
     def image_to_ground(self, col, row, h):
-        return self.model.image_to_ground(np.asarray(col, float) - self.dx, np.asarray(row, float) - self.dy, h)
+        return self.model.image_to_ground(*self._unmoved(col, row), h)
+
+    def ray_points(self, col, row, h, half):
+        return self.model.ray_points(*self._unmoved(col, row), h, half)
+
+    def _moved(self, x, y):
+        (a, b), (c, d) = self.linear
+        return a * x + b * y + self.dx, c * x + d * y + self.dy
 
     def ground_to_image(self, lon, lat, h):
         x, y = self.model.ground_to_image(lon, lat, h)
-        return np.asarray(x, float) + self.dx, np.asarray(y, float) + self.dy
+        return self._moved(np.asarray(x, float), np.asarray(y, float))
 
     def partials(self, lon, lat, h):
         part = dict(self.model.partials(lon, lat, h))
-        part["col"] = np.asarray(part["col"], float) + self.dx
-        part["row"] = np.asarray(part["row"], float) + self.dy
+        part["col"], part["row"] = self._moved(np.asarray(part["col"], float), np.asarray(part["row"], float))
+        part["d_ground"] = np.einsum("ij,...jk->...ik", self.linear, np.asarray(part["d_ground"], float))
         return part
 
 

@@ -4,7 +4,8 @@ A `MultiPoints` holds two numpy structured arrays:
 
 - `points` (POINT_DTYPE), one row per ground point: id, group (1 two-ray, 2 three-ray from two
   combinations, 3 three-ray from all three combinations; paper K 3.3), `flags` (the combinations
-  that matched it: COMB_A nadir-forward, COMB_B nadir-backward, COMB_C backward-forward),
+  that matched it: COMB_A nadir-forward, COMB_B nadir-backward, COMB_C backward-forward; and
+  REFINED where MPGC refined its search positions, refinement.py),
   rho_min (the smallest correlation coefficient of its combinations), rho_a/rho_b/rho_c (NaN
   where that combination did not match it) and dx/dy, the deviation of the doubly determined
   coordinates of group 3 points from their average (px of the forward image; NaN otherwise);
@@ -42,6 +43,8 @@ from ..crs import wgs84
 from ..errors import InputError
 
 COMB_A, COMB_B, COMB_C = 1, 2, 4
+#: flag of a three-ray point whose search positions MPGC refined (refinement.py)
+REFINED = 8
 
 POINT_DTYPE = np.dtype([
     ("id", "i8"), ("group", "i1"), ("flags", "u1"), ("rho_min", "f4"),

@@ -75,7 +75,9 @@ class MatchPoints(PushbroomAlgorithm):
             "reference points of (a) as transfer points, (c) backward-forward with the backward points of "
             "(b) as transfer points. Points are grouped: 1 two-ray, 2 three-ray from two combinations, 3 "
             "three-ray from all three (the doubly matched forward coordinates averaged and kept where their "
-            "deviation is below 3 robust sigma). A two-image block gives group 1 only. The points are "
+            "deviation is below 3 robust sigma), then, by default, refined by multi-photo geometrically "
+            "constrained matching (MPGC) in both search images at once, on the sensor models corrected by an "
+            "affine image bias fitted to the points' rays. A two-image block gives group 1 only. The points are "
             "stored beside the block (<block>.mass_points.npz), shown as a point layer on the reference "
             "image at the mean height, and counted per group like Table 1 of the paper (log and CSV). Seeds "
             "are automatic (interest points matched along the path the sensor models predict over the "
@@ -123,6 +125,7 @@ class MatchPoints(PushbroomAlgorithm):
                    3.0, minValue=0.1),
             QgsProcessingParameterBoolean("GROW_SECOND", "Also grow combination (b) where (a) found no points",
                                           True),
+            QgsProcessingParameterBoolean("MPGC_REFINE", "Refine the group 3 points by MPGC (three images)", True),
             Number("WORKERS", "Worker threads", Number.Integer, 1, minValue=1),
             Number("C2F_GRID", "Coarse-to-fine: grid point spacing at full resolution (px)", Number.Integer, c.grid,
                    minValue=2),
@@ -177,7 +180,8 @@ class MatchPoints(PushbroomAlgorithm):
                 seed_points=seed_points, automatic=automatic, feedback=feedback,
                 workers=self.parameterAsInt(parameters, "WORKERS", context),
                 grow_second=self.parameterAsBool(parameters, "GROW_SECOND", context),
-                sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context))
+                sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context),
+                refine=self.parameterAsBool(parameters, "MPGC_REFINE", context))
         npz = points.save_points(path, result, "mass_points")
         layer = points.write_point_layer(path, "mass_points", result, models[0], rows[0]["id"],
                                          display_height(height_range))

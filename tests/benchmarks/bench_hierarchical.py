@@ -1,6 +1,7 @@
 """Coarse-to-fine matching (match_hierarchical) of the simulated SPOT 5 triplet HRG, HRS1, HRS2: seconds
 per step (preprocessing, each pyramid level, MPGC; MultiPoints.stats) and in all, against region growing
-(match_block, the demo's STEP 10, 2 workers) on the same images in the same run. Scene: the 10 km triplet
+(match_block, the demo's STEP 10, 2 workers; with its MPGC refinement of the group 3 points, the default,
+and without) on the same images in the same run. Scene: the 10 km triplet
 (bench_region_growing's scene(), the demo's SceneConfig at a quarter of its area; SIZE_KM to change it).
 Supplied models, bench_region_growing's height range; after a warm-up of both matchers on the 3 km scene (JIT).
 Then tiles: the 20 km demo scene whole (one 4000 px tile) and in tiles of TILES px, each run in its own
@@ -41,12 +42,16 @@ print(json.dumps({{"points": len(points), "three": points.stats["group3"], "seco
 
 
 def both(images, models, height_range):
-    """{matcher: (MultiPoints, seconds)} of the two matchers on the same images."""
+    """{matcher: (MultiPoints, seconds)} of the matchers on the same images."""
+    def region_growing(refine):
+        return lambda: match_block(images, models, names=NAMES, params=GrowParams(), height_range=height_range,
+                                   workers=WORKERS, refine=refine)
+
     out = {}
     for label, match in (("coarse-to-fine", lambda: match_hierarchical(images, models, names=NAMES,
                                                                        height_range=height_range)),
-                         ("region growing", lambda: match_block(images, models, names=NAMES, params=GrowParams(),
-                                                                height_range=height_range, workers=WORKERS))):
+                         ("region growing + MPGC refinement", region_growing(True)),
+                         ("region growing", region_growing(False))):
         start = time.perf_counter()
         points = match()
         out[label] = points, time.perf_counter() - start
@@ -79,9 +84,10 @@ def run():
         n = stats["points_per_level"].get(step, len(points) if step == "mpgc" else 0)
         rows.append(row(label, step, n, seconds))
     rows.append(row(label, "total", len(points), total, stats["group3"]))
-    rg, seconds = results["region growing"]
-    rows.append(row(f"region growing ({WORKERS} workers)", "total", len(rg), seconds,
-                    int((rg.points["group"] >= 2).sum())))
+    for label in ("region growing + MPGC refinement", "region growing"):
+        rg, seconds = results[label]
+        three = int((rg.points["group"] >= 2).sum())
+        rows.append(row(f"{label} ({WORKERS} workers)", "total", len(rg), seconds, three))
     big = scene(20.0)
     for tile in TILES:
         proc = subprocess.run([sys.executable, "-c", CHILD, str(big), str(tile)], capture_output=True, text=True)

@@ -9,7 +9,7 @@ from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessin
 
 from pushbroom.algorithms import block
 from pushbroom.algorithms.block import read_info
-from pushbroom.algorithms.matching.points import load_points
+from pushbroom.algorithms.matching.points import REFINED, load_points
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 
 
@@ -42,6 +42,7 @@ def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, 
     counts = mass.group_counts()
     assert counts[3] > 100, counts                         # most points are three-ray (K Table 1)
     assert counts[3] > counts[1] and counts[3] > counts[2]
+    assert np.count_nonzero(mass.points["flags"] & REFINED) > 0.9 * counts[3]      # MPGC refinement, the default
     ids = {r["name"]: r["id"] for r in block.read_images(path)}
     assert mass.stats["images"] == [ids["HRG"], ids["HRS1"], ids["HRS2"]]   # ordered by name, not block
     assert read_info(path)["mass_points_count"] == str(len(mass))
@@ -72,6 +73,10 @@ def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, 
     processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6,
                                              "SEEDS": 2}, context=context)
     assert load_points(path).group_counts()[3] >= 0.99 * counts[3]          # both: at least the automatic run
+    processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6,
+                                             "MPGC_REFINE": False}, context=context)
+    plain = load_points(path)
+    assert plain.group_counts() == counts and not np.any(plain.points["flags"] & REFINED)
 
 
 def test_two_images_give_group_1(pushbroom_provider, triplet):
