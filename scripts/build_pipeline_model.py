@@ -8,7 +8,8 @@ runs it); this script is how it is made: edit here, then run
 Model "Pushbroom pipeline" in group "Pushbroom": id `model:Pushbroom pipeline` once it is in a models
 folder (e.g. <profile>/processing/models; checked with `qgis_process list`); by path, without that:
 `qgis_process run resources/models/pushbroom_pipeline.model3 -- IMAGES=... createblock:block=...`
-(scripts/demo.sh).
+(scripts/demo.sh). QT_HASH_SEED is set to 0 before Qt starts, so the XML attributes come out in the
+same order on every build (Qt otherwise seeds its hashes at random and the file's diff is noise).
 Steps, each a pushbroom algorithm, chained through their BLOCK outputs (which also orders them):
 createblock -> matchpoints -> selecttiepoints -> importpoints -> bundleadjust -> intersectpoints
 (mass points) -> interpolatedem -> orthorectify (IMAGE_NAME, adjusted model, produced DEM) and
@@ -24,8 +25,11 @@ intersectpoints:pointcloud, interpolatedem:dem, orthorectify:orthoimage, assessa
 assessaccuracy:table (CSV), assessaccuracy:dh; outputs not given go to temporary files (optional
 ones are skipped).
 """
+import os
 import pathlib
 import sys
+
+os.environ["QT_HASH_SEED"] = "0"    # before Qt starts: a reproducible XML attribute order (docstring)
 
 from qgis.core import (QgsApplication, QgsExpression, QgsProcessing, QgsProcessingModelAlgorithm,
                        QgsProcessingModelChildAlgorithm, QgsProcessingModelChildParameterSource,

@@ -11,11 +11,11 @@ positions, fitted by least squares with the residuals beyond 3 robust sigmas lef
 term), so the common along-track part, which the rays cannot see, does not drift. On the 84 883
 group 3 points of the simulated 20 km triplet (SceneConfig()) a constant shift per search image
 left the 1024 px tiles' residual medians at 0.044 px RMS (up to 0.09 px in x: the look-angle
-errors); the affine maps leave 0.002 px. The corrected models
-are hierarchical_level.ShiftedModels; `systematic`, the RMS of the residuals' medians in
-CONSISTENCY_TILE tiles of the reference image, measures the orientation's consistency after the
-correction (refinement.py weights MPGC's geometric observations by it, so that an orientation the
-affine maps do not fit loosens the constraint instead of biasing the matches)."""
+errors); the affine maps leave 0.002 px. The corrected models are hierarchical_level.ShiftedModels;
+`systematic`, the RMS of the residuals' medians in CONSISTENCY_TILE tiles of the reference image,
+measures the orientation's consistency after the correction (refinement.py weights MPGC's geometric
+observations by it, so that an orientation the affine maps do not fit loosens the constraint
+instead of biasing the matches)."""
 import numpy as np
 
 from ..surface.intersection import intersect

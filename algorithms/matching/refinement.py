@@ -64,4 +64,3 @@ def refine_three_ray(points, images, models, image_ids, height_range, feedback=N
     points.stats.update({"refined_mpgc": int(which.size), "refine_sigma_geometry_px": round(params.sigma_geometry, 4),
                          "refine_bias_px": bias})
     return int(which.size)
-
