@@ -259,7 +259,7 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
     result = combine(a, b, b_src, c, c_src, image_ids=image_ids, sigma_factor=sigma_factor)
     if refine:
         from .refinement import refine_three_ray
-        refined = refine_three_ray(result, images, models, image_ids, height_range,
+        refined = refine_three_ray(result, images, models, image_ids, height_range, params,
                                    progress.scaled(feedback, share[4], share[5]))
         log.pushInfo(f"MPGC refined {refined} of {result.group_counts()[3]} three-ray points")
     progress.step(feedback, 100)

@@ -82,14 +82,10 @@ from .hierarchical_level import (LevelModel, ShiftedModel, back_match, candidate
 from .imagery import Window, as_image
 from .interest import interest_points
 from .params import GrowParams
-from .points import COMB_A, COMB_B, OBS_DTYPE, POINT_DTYPE, MultiPoints
+from .points import COMB_A, COMB_B, EDGE, NCC_ONLY, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .relaxation import hypotheses, relax, unique_choice
 from .seeds import predict, resolve_height_range
 
-#: flag of points MPGC did not accept (MPGC's position where it converged, else the NCC one; step 4)
-NCC_ONLY = 8
-#: flag of the points matched as edgels (primitive "edge", step 2)
-EDGE = 16
 #: reliability of a point that failed MPGC: this factor x its smallest NCC rho
 NCC_RELIABILITY = 0.25
 FACTOR = 3
@@ -355,10 +351,11 @@ def edge_breaklines(edge, scale, step):
     return [part for part in np.split(line, cut) if len(part) >= 2]
 
 
-def adapted_images(images, models, hr):
+def adapted_images(images, models, hr, grow=None):
     """The images, the finer of each reference-search pair low-passed to the coarser one's
-    resolution (region_growing.adapt_resolution; Image-like, read by windows)."""
-    grow = GrowParams()
+    resolution (region_growing.adapt_resolution with `grow`'s PSF settings, default GrowParams();
+    Image-like, read by windows)."""
+    grow = grow or GrowParams()
     ref, s1 = _adapt(images[0], images[1], models[0], models[1], grow, hr)
     adapted = [ref, s1]
     if len(images) == 3:

@@ -78,7 +78,8 @@ class ShiftedModel:
     def partials(self, lon, lat, h):
         part = dict(self.model.partials(lon, lat, h))
         part["col"], part["row"] = self._moved(np.asarray(part["col"], float), np.asarray(part["row"], float))
-        part["d_ground"] = np.einsum("ij,...jk->...ik", self.linear, np.asarray(part["d_ground"], float))
+        for key in [k for k in part if k.startswith("d_")]:     # d(col, row)/d(...): (..., 2, k), times M
+            part[key] = np.einsum("ij,...jk->...ik", self.linear, np.asarray(part[key], float))
         return part
 
 

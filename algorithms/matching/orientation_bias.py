@@ -1,6 +1,5 @@
-"""Affine image-space bias of search images against a reference image, from the rays of matched
-points (the orientation that the MPGC refinement's geometric constraint rests on,
-refinement.py).
+"""Affine image-space bias of search images against a reference image, from the rays of matched points
+(the orientation that the MPGC refinement's geometric constraint rests on, refinement.py).
 
 The supplied models are biased (tens of metres before the adjustment), and their relative errors
 vary across a scene. Each search image gets an affine image-space bias,
@@ -9,13 +8,13 @@ f_i the model's projection, X_p the least-squares intersection of the points' bi
 positions, fitted by least squares with the residuals beyond 3 robust sigmas left out and iterated
 `BIAS_ITERATIONS` times. The reference image's residual is moved to the search images (the last
 term), so the common along-track part, which the rays cannot see, does not drift. On the 84 883
-group 3 points of the simulated 20 km triplet (SceneConfig()) a constant shift per search image
-left the 1024 px tiles' residual medians at 0.044 px RMS (up to 0.09 px in x: the look-angle
-errors); the affine maps leave 0.002 px. The corrected models are hierarchical_level.ShiftedModels;
-`systematic`, the RMS of the residuals' medians in CONSISTENCY_TILE tiles of the reference image,
-measures the orientation's consistency after the correction (refinement.py weights MPGC's geometric
-observations by it, so that an orientation the affine maps do not fit loosens the constraint
-instead of biasing the matches)."""
+group 3 points of the simulated 20 km triplet (SceneConfig()) a constant shift per search image left
+the tiles' residual medians at 0.062 px RMS in the worst image coordinate (up to 0.09 px, across
+track: the look-angle errors); the affine maps leave 0.003 px. The corrected models are
+hierarchical_level.ShiftedModels; `systematic`, the RMS of the residuals' medians in tiles of the
+points' extent in the reference image (the worst image coordinate), measures the orientation's
+consistency after the correction (refinement.py weights MPGC's geometric observations by it, so that
+an orientation the affine maps do not fit loosens the constraint instead of biasing the matches)."""
 import numpy as np
 
 from ..surface.intersection import intersect
@@ -24,8 +23,10 @@ from .hierarchical_level import ShiftedModel
 BIAS_ITERATIONS = 4
 #: median of the length of a 2-D normal vector of unit sigma per axis, sqrt(2 ln 2)
 RAYLEIGH_MEDIAN = 1.1774
-#: px of the reference image: tiles whose residual medians measure the orientation's consistency
-CONSISTENCY_TILE = 1024
+#: the points' extent in the reference image is cut into GRID x GRID tiles whose residual medians
+#: measure the orientation's consistency (tiles with at least TILE_POINTS points)
+CONSISTENCY_GRID = 4
+TILE_POINTS = 20
 
 
 def _intersect(models, cols, rows):
@@ -52,8 +53,10 @@ def _fit_affine(target, f, centre):
 def affine_bias(models, cols, rows, iterations=BIAS_ITERATIONS):
     """(corrected models: the reference and ShiftedModels of the search images, Intersection of
     the corrected positions, systematic px) for positions cols, rows (k, m) of m points in the k
-    images of `models` (reference first); module docstring. `systematic`: the RMS of the ray
-    residuals' medians in CONSISTENCY_TILE tiles of the reference image (tiles with >= 20 points)."""
+    images of `models` (reference first); module docstring. `systematic`: the RMS over
+    CONSISTENCY_GRID x CONSISTENCY_GRID tiles of the points' extent in the reference image (tiles
+    with >= TILE_POINTS points; NaN where there is none) of the ray residuals' medians, in the
+    image coordinate where it is largest."""
     k = len(models)
     maps = [(np.eye(2), np.zeros(2)) for _ in range(k)]
     for _ in range(iterations):
@@ -66,10 +69,18 @@ def affine_bias(models, cols, rows, iterations=BIAS_ITERATIONS):
     corrected = [models[0]] + [ShiftedModel(m, *maps[i][1], linear=maps[i][0]) for i, m in enumerate(models) if i]
     residuals = np.concatenate([np.array([cols[i], rows[i]]) - np.array(corrected[i].ground_to_image(
         inter.lon, inter.lat, inter.h), float) for i in range(k)])
-    key = np.floor(rows[0] / CONSISTENCY_TILE) * 1e6 + np.floor(cols[0] / CONSISTENCY_TILE)
-    medians = [np.nanmedian(residuals[:, key == t], axis=1) for t in np.unique(key) if np.sum(key == t) >= 20]
-    systematic = float(np.sqrt(np.nanmean(np.square(medians)))) if medians else 0.0
-    return corrected, inter, systematic
+    key = _tile(cols[0]) * CONSISTENCY_GRID + _tile(rows[0])
+    medians = [np.nanmedian(residuals[:, key == t], axis=1) for t in np.unique(key) if np.sum(key == t) >= TILE_POINTS]
+    if not medians:
+        return corrected, inter, float("nan")
+    # the worst image coordinate: RMS over the tiles of its residual medians
+    return corrected, inter, float(np.nanmax(np.sqrt(np.nanmean(np.square(medians), axis=0))))
+
+
+def _tile(v):
+    """Index 0 .. CONSISTENCY_GRID - 1 of v's tile across the extent of v."""
+    lo, hi = np.nanmin(v), np.nanmax(v)
+    return np.clip(np.floor((v - lo) / max(hi - lo, 1e-9) * CONSISTENCY_GRID), 0, CONSISTENCY_GRID - 1)
 
 
 def _unbiased(maps, cols, rows):

@@ -5,12 +5,14 @@ A `MultiPoints` holds two numpy structured arrays:
 - `points` (POINT_DTYPE), one row per ground point: id, group (1 two-ray, 2 three-ray from two
   combinations, 3 three-ray from all three combinations; paper K 3.3), `flags` (the combinations
   that matched it: COMB_A nadir-forward, COMB_B nadir-backward, COMB_C backward-forward; and
-  REFINED where MPGC refined its search positions, refinement.py),
+  REFINED where MPGC refined its search positions, refinement.py; the coarse-to-fine strategy's
+  NCC_ONLY and EDGE: hierarchical.py),
   rho_min (the smallest correlation coefficient of its combinations), rho_a/rho_b/rho_c (NaN
   where that combination did not match it) and dx/dy, the deviation of the doubly determined
   coordinates of group 3 points from their average (px of the forward image; NaN otherwise);
 - `observations` (OBS_DTYPE), one row per image measurement: point id, block image id, col, row
-  (GDAL convention), rho and the error-ellipse semi-axes (px) of the match that gave it. The
+  (GDAL convention), rho and the error-ellipse semi-axes (px) of the match that gave it (MPGC's
+  for REFINED points, whose rho_min and rho_a/b/c stay the combinations' values). The
   first image of a combination is not matched (it is the template position): rho NaN, axes 0.
   Observations are sorted by point id, then image id.
 
@@ -42,9 +44,14 @@ from ..atomic import atomic_path
 from ..crs import wgs84
 from ..errors import InputError
 
+# flag bits of POINT_DTYPE["flags"], one place for both matching strategies
 COMB_A, COMB_B, COMB_C = 1, 2, 4
-#: flag of a three-ray point whose search positions MPGC refined (refinement.py)
-REFINED = 8
+#: coarse-to-fine: a point MPGC did not accept (hierarchical.py, step 4)
+NCC_ONLY = 8
+#: coarse-to-fine: a point matched as an edgel (hierarchical.py, step 2)
+EDGE = 16
+#: region growing: a three-ray point whose search positions MPGC refined (refinement.py)
+REFINED = 32
 
 POINT_DTYPE = np.dtype([
     ("id", "i8"), ("group", "i1"), ("flags", "u1"), ("rho_min", "f4"),

@@ -10,7 +10,10 @@ kept, so transfer points keep their first-image coordinates.
 
 Orientation: the search images' models are corrected by affine image biases fitted to the points'
 rays (orientation_bias.py) and the geometric observations weighted by sigma_geometry =
-max(SIGMA_GEOMETRY, 2 x the corrected orientation's measured inconsistency).
+max(SIGMA_GEOMETRY, 2 x the corrected orientation's measured inconsistency), or MPGC's default
+(MpgcParams, 0.2 px) where no tile holds enough points to measure it. Fewer than MIN_POINTS
+group 3 points (6 bias parameters per search image) are left as they are. Template, thresholds
+and iterations are region growing's (GrowParams), and so is the resolution adaptation.
 
 A point whose MPGC result passes mpgc.accepted takes MPGC's search positions, correlation and
 error ellipses and the flag REFINED; the others keep region growing's positions. On the simulated
@@ -19,34 +22,43 @@ were refined and the field points' RMS against the point truth fell from 0.192 /
 / backward) to 0.146 / 0.146 px; with a constant shift instead of the affine maps and
 sigma_geometry 0.2 px it was 0.167 / 0.172 px. The 10 m DSM of the points on bare fields went from
 1.80 to 1.64 m RMS (tests/algorithms/test_hierarchical.py)."""
+from dataclasses import fields
+
 import numpy as np
 
 from .. import progress
 from .hierarchical import adapted_images
 from .mpgc import MpgcParams, accepted, match_points
 from .orientation_bias import affine_bias
+from .params import GrowParams, LsmParams
 from .points import REFINED
 from .seeds import resolve_height_range
 
 #: px: sigma of the geometric observations where the corrected orientation is consistent (module
 #: docstring; on the 3 km triplet's fields 0.1 / 0.05 / 0.03 px gave 0.154 / 0.146 / 0.142 px)
 SIGMA_GEOMETRY = 0.05
+#: fewest group 3 points the refinement runs on
+MIN_POINTS = 50
 
 
-def refine_three_ray(points, images, models, image_ids, height_range, feedback=None):
+def refine_three_ray(points, images, models, image_ids, height_range, grow=None, feedback=None):
     """MPGC refinement of the group 3 points of `points` (MultiPoints of combinations.combine;
-    images and models in combination order, `image_ids` their block ids). Returns the number of
-    points refined; `points` is changed in place (module docstring)."""
+    images and models in combination order, `image_ids` their block ids, `grow` the GrowParams of
+    the matching). Returns the number of points refined; `points` is changed in place (module
+    docstring)."""
+    grow = grow or GrowParams()
     g3 = np.flatnonzero(points.points["group"] == 3)
-    if g3.size < 10:
+    if g3.size < MIN_POINTS:
         return 0
     cols, rows = (np.array(v) for v in zip(*(points.coordinates(i) for i in image_ids)))
     cols, rows = cols[:, g3], rows[:, g3]
     progress.step(feedback, 0, f"MPGC refinement of {g3.size} three-ray points")
     corrected, inter, systematic = affine_bias(models, cols, rows)
-    params = MpgcParams(sigma_geometry=max(SIGMA_GEOMETRY, 2.0 * systematic))
+    lsm = {f.name: getattr(grow, f.name) for f in fields(LsmParams)}
+    params = MpgcParams(**lsm, **({"sigma_geometry": max(SIGMA_GEOMETRY, 2.0 * systematic)}
+                                  if np.isfinite(systematic) else {})).check()
     ok = np.isfinite(inter.h)
-    adapted = adapted_images(images, models, resolve_height_range(models[0], height_range))
+    adapted = adapted_images(images, models, resolve_height_range(models[0], height_range), grow)
     rec = match_points(adapted[0], adapted[1:], corrected, cols[0, ok], rows[0, ok], inter.lon[ok], inter.lat[ok],
                        inter.h[ok], params, progress.scaled(feedback, 5, 100))
     good = accepted(rec, params)

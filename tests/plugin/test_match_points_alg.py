@@ -77,6 +77,13 @@ def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, 
                                              "MPGC_REFINE": False}, context=context)
     plain = load_points(path)
     assert plain.group_counts() == counts and not np.any(plain.points["flags"] & REFINED)
+    # block image ids in name order (HRS2 1, HRG 2, HRS1 3): the refined positions went to their own images
+    refined = (mass.points["flags"] & REFINED) > 0
+    np.testing.assert_array_equal(mass.coordinates(ids["HRG"])[0], plain.coordinates(ids["HRG"])[0])
+    for name in ("HRS1", "HRS2"):
+        moved = np.hypot(*(np.array(mass.coordinates(ids[name])) - np.array(plain.coordinates(ids[name]))))
+        assert np.all((moved[~refined] == 0) | np.isnan(moved[~refined]))      # NaN: two-ray points
+        assert moved[refined].max() < 2.0 and np.mean(moved[refined] > 0) > 0.9
 
 
 def test_two_images_give_group_1(pushbroom_provider, triplet):
