@@ -35,7 +35,8 @@ from .points import REFINED
 from .seeds import resolve_height_range
 
 #: px: sigma of the geometric observations where the corrected orientation is consistent (module
-#: docstring; on the 3 km triplet's fields 0.1 / 0.05 / 0.03 px gave 0.154 / 0.146 / 0.142 px)
+#: docstring; on the 3 km triplet's fields, with a constant-shift orientation, 0.1 / 0.05 / 0.03 px gave
+#: 0.154 / 0.146 / 0.142 px)
 SIGMA_GEOMETRY = 0.05
 #: fewest group 3 points the refinement runs on
 MIN_POINTS = 50
