@@ -46,8 +46,8 @@ class ShiftedModel:
     """A sensor model whose image positions are moved by (dx, dy) full px, (col', row') = M (col,
     row) + (dx, dy) with M = `linear` (default the identity): the bias compensation of an
     orientation error (hierarchical.estimate_shift's shifts, orientation_bias.affine_bias's
-    affine maps), or the model of a window of the image (dx, dy = minus its top-left corner, `size` its
-    size: the tiles of hierarchical.py)."""
+    affine maps), or the model of a window of the image (dx, dy = minus its top-left corner,
+    `size` its size: the tiles of hierarchical.py)."""
 
     def __init__(self, model, dx=0.0, dy=0.0, size=None, linear=None):
         self.model, self.dx, self.dy = model, float(dx), float(dy)
