@@ -18,8 +18,10 @@ from scipy import ndimage
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.matching.imagery import Image, Smoothed
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.region_growing import Lattice
+from pushbroom.algorithms.matching.region_growing import Lattice, adapt_resolution
+from pushbroom.algorithms.matching.seeds import local_affine
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
 
 SINGLE_SURFACE = (BARE, CROPS)      # DSM = DTM: one (rough) surface inside a template
@@ -31,6 +33,7 @@ class Scene:
     def __init__(self, paths, first="HRG", second="HRS1"):
         """`paths`: simulate_scene's paths of SceneConfig.small() (the `small_scene` fixture)."""
         self.paths = paths
+        self.names = (first, second)
         self.image1 = paths["images"][first]["imagery"]
         self.image2 = paths["images"][second]["imagery"]
         self.model1 = sensors.load(paths["images"][first]["metadata"])
@@ -78,6 +81,49 @@ class Scene:
         """Ground radiance std (DN) over the template footprint of image-1 points."""
         lon, lat, _ = self.truth1.image_to_dem(np.asarray(x1, float), np.asarray(y1, float), self.dsm)
         return self.ground_std[self._cell(lon, lat)]
+
+    def matchable_precision(self, x1, y1, noise_free, noise_dn=1.0, params=None):
+        """Cramer-Rao bound of LSM (px of image 2, the error ellipse's semi-major axis) at image-1
+        points: the best precision any least-squares matcher can report there, from the texture
+        and the noise alone. `noise_free`: simulate_scene paths of the same scene with noise 0
+        (the same rendering without the noise draw), whose images give the gradients. The pair is
+        seen as region growing sees it (region_growing.adapt_resolution low-passes the finer
+        image); the Jacobian is LSM's (8 parameters, template gradients through the models'
+        affine A). Noise per template sample: sigma^2 (f1 + rep f2), with sigma^2 = noise_dn^2 +
+        1/12 (quantisation) in each raw image, f the variance factor of white noise through that
+        image's low-pass (1 for raw pixels) and rep = 1 / |det A| (image-2 noise repeats on the
+        template samples inside one coarser pixel)."""
+        params = params or GrowParams()
+        pair = adapt_resolution(*(Image(noise_free["images"][name]["imagery"]) for name in self.names),
+                                self.model1, self.model2, params, self.height_range)
+
+        def factor(image):      # white noise through the image's low-pass, by simulation
+            if not isinstance(image, Smoothed):
+                return 1.0
+            white = np.random.default_rng(0).standard_normal((400, 400))
+            return float(np.var(ndimage.gaussian_filter(white, image.sigma, truncate=4.0)[50:-50, 50:-50]))
+        f1, f2 = factor(pair[0]), factor(pair[1])
+        img, _, _ = pair[0].read(0, 0, *pair[0].size)
+        img = img.astype(float)
+        gk, gl = np.zeros_like(img), np.zeros_like(img)
+        gk[:, 1:-1] = 0.5 * (img[:, 2:] - img[:, :-2])
+        gl[1:-1] = 0.5 * (img[2:] - img[:-2])
+        half = params.template // 2
+        k, l = (v.ravel() for v in np.meshgrid(np.arange(-half, half + 1.0), np.arange(-half, half + 1.0)))
+        x1, y1 = np.asarray(x1, float), np.asarray(y1, float)
+        _, _, a1, a2, a4, a5 = local_affine(self.model1, self.model2, x1, y1, 0.5 * sum(self.height_range))
+        sigma2 = noise_dn ** 2 + 1.0 / 12.0
+        out = np.empty(len(x1))
+        for p in range(len(x1)):
+            ii = (y1[p] - 0.5 + l).astype(int)
+            jj = (x1[p] - 0.5 + k).astype(int)
+            a = np.array([[a1[p], a2[p]], [a4[p], a5[p]]])
+            gx, gy = np.linalg.inv(a).T @ np.vstack([gk[ii, jj], gl[ii, jj]])
+            jac = np.column_stack([gx, gx * k, gx * l, gy, gy * k, gy * l, np.ones_like(gx), img[ii, jj]])
+            q = np.linalg.inv(jac.T @ jac)[np.ix_([0, 3], [0, 3])]
+            rep = max(1.0, 1.0 / abs(np.linalg.det(a)))
+            out[p] = np.sqrt(sigma2 * (f1 + rep * f2) * np.linalg.eigvalsh(q).max())
+        return out
 
     def area_truth(self, records, half=9, model2=None):
         """(x2, y2) an ideal area matcher gives for matched records (module docstring); model2 as

@@ -181,10 +181,14 @@ def grown(scene):
 
 
 @pytest.fixture(scope="module")
-def nodes(scene):
-    """Lattice nodes whose template lies inside image 2: class, ground texture."""
+def nodes(scene, tmp_path_factory):
+    """Lattice nodes whose template lies inside image 2: class, ground texture, and the best
+    precision LSM can reach there (Scene.matchable_precision, from the same scene simulated
+    without noise)."""
+    from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+    quiet = simulate_scene(SceneConfig.small(noise=0.0), tmp_path_factory.mktemp("noise_free") / "scene")
     x1, y1, cls = scene.lattice_nodes()
-    return x1, y1, cls, scene.texture(x1, y1)
+    return x1, y1, cls, scene.texture(x1, y1), scene.matchable_precision(x1, y1, quiet)
 
 
 def rms(e):
@@ -289,8 +293,9 @@ def test_region_growing_accuracy_against_truth(grown):
 
 def coverage(records, error, nodes):
     """Print and return (share of textured nodes covered, share of low-texture nodes covered, the
-    errors of the points on low-texture nodes)."""
-    x1, y1, cls, texture = nodes
+    errors of the points on low-texture nodes, share of matchable nodes covered: those whose
+    texture and noise allow the acceptance's error ellipse, Cramer-Rao bound < 0.1 px)."""
+    x1, y1, cls, texture, bound = nodes
     key = np.rint(x1 * 2) + 1e5 * np.rint(y1 * 2)
     rkey = np.rint(records["x1"] * 2) + 1e5 * np.rint(records["y1"] * 2)
     hit = np.isin(key, rkey)
@@ -302,7 +307,12 @@ def coverage(records, error, nodes):
         print(f"{name:7} textured nodes {k.sum():5d} covered {100 * hit[k].mean():.1f} %")
     print(f"textured {100 * hit[textured].mean():.1f} %, uniform grass parcels {100 * hit[low].mean():.1f} % "
           f"(RMS {rms(on_low):.3f} px, > 1 px {100 * np.mean(on_low > 1):.2f} %)")
-    return hit[textured].mean(), hit[low].mean(), on_low
+    matchable = bound < GrowParams().max_ellipse
+    print(f"matchable (Cramer-Rao bound < {GrowParams().max_ellipse} px): {matchable.sum()} nodes "
+          f"({100 * matchable[textured].mean():.1f} % of the textured ones), covered {100 * hit[matchable].mean():.1f} %; "
+          + ", ".join(f"{name} {100 * hit[matchable & (cls == c)].mean():.1f} %"
+                      for c, name in {2: "bare", 3: "crops", 4: "forest", 5: "city"}.items()))
+    return hit[textured].mean(), hit[low].mean(), on_low, hit[matchable].mean()
 
 
 @pytest.mark.slow
@@ -312,9 +322,17 @@ def test_region_growing_coverage(grown, nodes):
     grass parcels: crop nodes whose ground DN std over the template is < LOW_CONTRAST_DN.
     68.5 % with psf "sensor" (71.2 % "pixel", 60.2 % with point-sampled pixels, 53.5 % without the
     resolution adaptation); the 0.1 px ellipse is the binding criterion. The textured nodes left
-    empty are mostly striped crop parcels (rho 0.99, the error ellipse long along the stripes)."""
-    textured, low, _ = coverage(grown[0], grown[1], nodes)
-    assert textured > 0.66      # target 0.9: open (68.5 % measured), see the issue note
+    empty are mostly striped crop parcels (rho 0.99, the error ellipse long along the stripes).
+    A ground std of 5 DN at 5 m does not make a node matchable at 0.1 px: stripes of 8-20 m
+    period are texture in one direction only and mostly below HRS's 10 m PSF, and 1 DN of noise
+    in HRS (repeated on two template rows per line) outweighs 3 DN of crop fBm. The Cramer-Rao
+    bound of LSM from the noise-free images (Scene.matchable_precision) is above the 0.1 px
+    threshold on 999 of the 2568 textured nodes (39 %): no matcher with that acceptance can take
+    them. Of the 1602 nodes whose bound is below it, region growing covers 92.1 % (bare 89.5,
+    crops 89.0, forest 95.3, city 99.7 %); the wide template 99.2 %."""
+    textured, low, _, matchable = coverage(grown[0], grown[1], nodes)
+    assert textured > 0.66      # 68.5 % measured: 39 % of these nodes cannot reach the 0.1 px ellipse
+    assert matchable > 0.9      # 92.1 % measured
     assert low < 0.06           # low texture stays mostly empty (3.3 % measured)
 
 
@@ -332,7 +350,7 @@ def test_wide_template_option(scene, grown, nodes):
     print(f"\nwide template 27: {len(records)} points (default {len(grown[0])}), "
           f"fields RMS {rms(error[single]):.3f} px, "
           f"> 1 px {100 * np.mean(error[single] > 1):.2f} %")
-    textured, low, on_low = coverage(records, error, nodes)
+    textured, low, on_low, _ = coverage(records, error, nodes)
     assert textured > 0.9 and len(records) > 1.3 * len(grown[0])
     kept = np.isin(grown[0]["x1"] + 1e5 * grown[0]["y1"], records["x1"] + 1e5 * records["y1"])
     print(f"default points kept: {kept.sum()} of {len(kept)}")
