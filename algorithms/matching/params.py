@@ -69,6 +69,9 @@ class GrowParams(LsmParams):
     # of the 12 km scene fills (76 points/km2, 14 % beyond 5 m) and the Ventoux DSM's NMAD rises
     # 9.9 -> 10.8 m (tests/algorithms/test_region_growing.py, test_end_to_end.py)
     wide_template: int = 0
+    # px of image 1: second round of automatic seeds, one interest point per cell at the lattice
+    # nodes the first round's growth did not try (region_growing.py's docstring); 0 = one round
+    reseed_cell: int = 16
 
     @property
     def widest(self):
@@ -83,6 +86,8 @@ class GrowParams(LsmParams):
         if self.wide_template and (self.wide_template % 2 == 0 or self.wide_template <= self.template):
             raise InputError(f"the wide template must be 0 (off) or an odd size larger than the template "
                              f"({self.template} px), got {self.wide_template}")
+        if self.reseed_cell and self.reseed_cell < 3:
+            raise InputError(f"the reseed cell must be 0 (off) or at least 3 pixels, got {self.reseed_cell}")
         if self.psf not in ("sensor", "pixel", "off"):
             raise InputError(f"psf must be 'sensor', 'pixel' or 'off', got {self.psf!r}")
         return self

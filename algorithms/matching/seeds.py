@@ -168,10 +168,13 @@ def search_margin(model1, model2, params, hr, x1, y1):
     return (params.widest // 2 + 2) * scale + ACROSS + params.max_shift + 4
 
 
-def automatic_seeds(image1, image2, model1, model2, params=None, height_range=None, box=None, windows=None):
+def automatic_seeds(image1, image2, model1, model2, params=None, height_range=None, box=None, windows=None,
+                    cell=CELL, keep=None):
     """Automatic seeds in image 1's `box` (x0, y0, x1, y1; default the whole image): Foerstner
-    points, NCC along the predicted path, LSM; returns the accepted PAIR_DTYPE records (seed = -1).
-    `windows`: the (win1, ox1, oy1, win2, ox2, oy2) already read for the box (region growing)."""
+    points (one per `cell` x `cell` px, interest.py), NCC along the predicted path, LSM; returns
+    the accepted PAIR_DTYPE records (seed = -1).
+    `windows`: the (win1, ox1, oy1, win2, ox2, oy2) already read for the box (region growing);
+    `keep`: a function of image-1 positions (x1, y1) -> mask of the points worth matching."""
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)
     hr = resolve_height_range(model1, height_range)
@@ -186,12 +189,14 @@ def automatic_seeds(image1, image2, model1, model2, params=None, height_range=No
     win1, ox1, oy1, win2, ox2, oy2 = windows
     if win1.size == 0 or win2.size == 0:
         return np.zeros(0, PAIR_DTYPE)
-    px, py, _ = interest_points(win1, patch=CELL, window=2 * max(2, half // 3) + 1, border=half + 2)
+    px, py, _ = interest_points(win1, patch=cell, window=2 * max(2, half // 3) + 1, border=half + 2)
     if len(px) == 0:
         return np.zeros(0, PAIR_DTYPE)
     x1 = px + ox1
     y1 = py + oy1
     inside = (x1 >= box[0]) & (x1 < box[2]) & (y1 >= box[1]) & (y1 < box[3])
+    if keep is not None:
+        inside &= keep(x1, y1)
     x1, y1 = x1[inside], y1[inside]
     rec, ok = match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr, params)
     return rec[ok]

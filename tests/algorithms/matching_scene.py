@@ -29,6 +29,25 @@ DISCONTINUOUS = (FOREST, CITY)      # crowns on an 8 m lattice, buildings: heigh
 LOW_CONTRAST_DN = 5.0               # ground DN std over the template footprint below which a node is low texture
 
 
+class TemplateGradients:
+    """Central-difference gradients of an image and LSM's template samples: `at(x, y, A)` gives
+    the offsets (k, l), the gradients mapped through the affine A (A^-T (g_k, g_l), LSM's Jacobian)
+    and the grey values of the (2 half + 1)^2 pixels around the pixel centre (x, y)."""
+
+    def __init__(self, img, half):
+        self.img = np.asarray(img, float)
+        self.gk, self.gl = np.zeros_like(self.img), np.zeros_like(self.img)
+        self.gk[:, 1:-1] = 0.5 * (self.img[:, 2:] - self.img[:, :-2])
+        self.gl[1:-1] = 0.5 * (self.img[2:] - self.img[:-2])
+        self.k, self.l = (v.ravel() for v in np.meshgrid(np.arange(-half, half + 1.0), np.arange(-half, half + 1.0)))
+
+    def at(self, x, y, a):
+        ii = (y - 0.5 + self.l).astype(int)
+        jj = (x - 0.5 + self.k).astype(int)
+        gx, gy = np.linalg.inv(a).T @ np.vstack([self.gk[ii, jj], self.gl[ii, jj]])
+        return self.k, self.l, gx, gy, self.img[ii, jj]
+
+
 class Scene:
     def __init__(self, paths, first="HRG", second="HRS1"):
         """`paths`: simulate_scene's paths of SceneConfig.small() (the `small_scene` fixture)."""
@@ -103,23 +122,15 @@ class Scene:
             white = np.random.default_rng(0).standard_normal((400, 400))
             return float(np.var(ndimage.gaussian_filter(white, image.sigma, truncate=4.0)[50:-50, 50:-50]))
         f1, f2 = factor(pair[0]), factor(pair[1])
-        img, _, _ = pair[0].read(0, 0, *pair[0].size)
-        img = img.astype(float)
-        gk, gl = np.zeros_like(img), np.zeros_like(img)
-        gk[:, 1:-1] = 0.5 * (img[:, 2:] - img[:, :-2])
-        gl[1:-1] = 0.5 * (img[2:] - img[:-2])
-        half = params.template // 2
-        k, l = (v.ravel() for v in np.meshgrid(np.arange(-half, half + 1.0), np.arange(-half, half + 1.0)))
+        grads = TemplateGradients(pair[0].read(0, 0, *pair[0].size)[0], params.template // 2)
         x1, y1 = np.asarray(x1, float), np.asarray(y1, float)
         _, _, a1, a2, a4, a5 = local_affine(self.model1, self.model2, x1, y1, 0.5 * sum(self.height_range))
         sigma2 = noise_dn ** 2 + 1.0 / 12.0
         out = np.empty(len(x1))
         for p in range(len(x1)):
-            ii = (y1[p] - 0.5 + l).astype(int)
-            jj = (x1[p] - 0.5 + k).astype(int)
             a = np.array([[a1[p], a2[p]], [a4[p], a5[p]]])
-            gx, gy = np.linalg.inv(a).T @ np.vstack([gk[ii, jj], gl[ii, jj]])
-            jac = np.column_stack([gx, gx * k, gx * l, gy, gy * k, gy * l, np.ones_like(gx), img[ii, jj]])
+            k, l, gx, gy, grey = grads.at(x1[p], y1[p], a)
+            jac = np.column_stack([gx, gx * k, gx * l, gy, gy * k, gy * l, np.ones_like(gx), grey])
             q = np.linalg.inv(jac.T @ jac)[np.ix_([0, 3], [0, 3])]
             rep = max(1.0, 1.0 / abs(np.linalg.det(a)))
             out[p] = np.sqrt(sigma2 * (f1 + rep * f2) * np.linalg.eigvalsh(q).max())
@@ -128,21 +139,15 @@ class Scene:
     def area_truth(self, records, half=9, model2=None):
         """(x2, y2) an ideal area matcher gives for matched records (module docstring); model2 as
         in `truth`."""
-        img = gdal.Open(str(self.image1)).ReadAsArray().astype(float)
-        gk, gl = np.zeros_like(img), np.zeros_like(img)
-        gk[:, 1:-1] = 0.5 * (img[:, 2:] - img[:, :-2])
-        gl[1:-1] = 0.5 * (img[2:] - img[:-2])
-        k, l = (v.ravel() for v in np.meshgrid(np.arange(-half, half + 1.0), np.arange(-half, half + 1.0)))
+        grads = TemplateGradients(gdal.Open(str(self.image1)).ReadAsArray(), half)
+        k, l = grads.k, grads.l
         n = len(records)
         tx, ty, _ = self.truth((records["x1"][:, None] + k).ravel(), (records["y1"][:, None] + l).ravel(), model2)
         tx, ty = tx.reshape(n, -1), ty.reshape(n, -1)
         out = np.empty((n, 2))
         for p in range(n):
-            ii = (records["y1"][p] - 0.5 + l).astype(int)
-            jj = (records["x1"][p] - 0.5 + k).astype(int)
-            a1, a2, a4, a5 = (float(records[q][p]) for q in ("a1", "a2", "a4", "a5"))
-            inv = np.linalg.inv([[a1, a2], [a4, a5]]).T
-            gx, gy = inv @ np.vstack([gk[ii, jj], gl[ii, jj]])
+            a = np.array([[float(records[q][p]) for q in ("a1", "a2")], [float(records[q][p]) for q in ("a4", "a5")]])
+            _, _, gx, gy, _ = grads.at(records["x1"][p], records["y1"][p], a)
             jac = np.column_stack([gx, gx * k, gx * l, gy, gy * k, gy * l])
             sol = np.linalg.lstsq(jac, gx * tx[p] + gy * ty[p], rcond=None)[0]
             out[p] = sol[0], sol[3]

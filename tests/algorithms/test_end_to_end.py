@@ -14,7 +14,7 @@ Targets (issue 5) are printed next to the measured values. Met: the orthoimage (
   the MPGC refinement of group 3, refinement.py). 84 % of those points lie within half an HRG
   template (50 m) of forest, city or water, whose heights enter the 95 m template (mean +1.1 m next
   to 20 m canopies); on the interior of the fields 1.25 m (NMAD 0.96 m; 1.48 m before): the
-  matcher's 0.146 px per image on fields (test_combinations, vs the point truth) through the
+  matcher's 0.144 px per image on fields (test_combinations, vs the point truth) through the
   HRS1-HRS2 B/H of 0.83 with 5 m along-track pixels (the nadir HRG adds no height precision); 0.7 m
   would need ~0.09 px;
 - the 10 m DEM there: RMS 4.08 m (interior 1.80 m; 4.32 / 1.91 m before; target 1.0 m): the

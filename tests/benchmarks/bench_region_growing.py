@@ -1,10 +1,13 @@
 """Region growing HRG -> HRS1 on simulated triplets: points/s per core with 1 and 2 threads, and
 peak memory for the 20 km demo scene and a 10 km scene of a quarter of its area (each run in its
-own process, so its peak resident memory is its own)."""
+own process, so its peak resident memory is its own); on 2 threads also with one round of
+automatic seeds (GrowParams.reseed_cell 0), the cost of the second."""
 import json
 import pathlib
 import subprocess
 import sys
+
+from pushbroom.algorithms.matching.params import GrowParams
 
 SCENES = pathlib.Path(__file__).resolve().parents[2] / "bench-output" / "scenes"
 
@@ -20,11 +23,11 @@ def peak_mib():
     for line in open("/proc/self/status"):
         if line.startswith("VmHWM:"):
             return int(line.split()[1]) / 1024.0
-folder, workers = sys.argv[1], int(sys.argv[2])
+folder, workers, reseed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 numba.set_num_threads(workers)
 m1, m2 = sensors.load(folder + "/HRG/METADATA.DIM"), sensors.load(folder + "/HRS1/METADATA.DIM")
 start = time.perf_counter()
-records = match_pair(folder + "/HRG/IMAGERY.TIF", folder + "/HRS1/IMAGERY.TIF", m1, m2, GrowParams(),
+records = match_pair(folder + "/HRG/IMAGERY.TIF", folder + "/HRS1/IMAGERY.TIF", m1, m2, GrowParams(reseed_cell=reseed),
                      height_range={HEIGHT_RANGE!r}, workers=workers)
 print(json.dumps({{"points": int(len(records)), "seconds": time.perf_counter() - start,
                   "peak_mib": peak_mib()}}))
@@ -40,9 +43,12 @@ def scene(size_km):
     return folder
 
 
-def run_child(folder, workers):
-    """Points, seconds and peak resident memory (MiB) of one region-growing run in a fresh process."""
-    proc = subprocess.run([sys.executable, "-c", CHILD, str(folder), str(workers)], capture_output=True, text=True)
+def run_child(folder, workers, reseed=None):
+    """Points, seconds and peak resident memory (MiB) of one region-growing run in a fresh process
+    (reseed: GrowParams.reseed_cell, default its default)."""
+    reseed = GrowParams().reseed_cell if reseed is None else reseed
+    proc = subprocess.run([sys.executable, "-c", CHILD, str(folder), str(workers), str(reseed)], capture_output=True,
+                          text=True)
     if proc.returncode != 0:
         raise RuntimeError(proc.stderr[-2000:])
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -53,9 +59,10 @@ def run():
     for size in (10.0, 20.0):
         folder = scene(size)
         run_child(folder, 1)  # numba cache warm-up
-        for workers in (1, 2):
-            result = run_child(folder, workers)
-            rows.append({"scene": f"triplet {size:g} km, HRG -> HRS1", "threads": workers,
+        for workers, reseed in ((1, None), (2, None), (2, 0)):
+            result = run_child(folder, workers, reseed)
+            rounds = "one seed round" if reseed == 0 else "two seed rounds"
+            rows.append({"scene": f"triplet {size:g} km, HRG -> HRS1, {rounds}", "threads": workers,
                          "points": result["points"], "seconds": result["seconds"],
                          "points/s": result["points"] / result["seconds"],
                          "points/s per core": result["points"] / result["seconds"] / workers,
