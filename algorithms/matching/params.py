@@ -69,8 +69,9 @@ class GrowParams(LsmParams):
     # of the 12 km scene fills (76 points/km2, 14 % beyond 5 m) and the Ventoux DSM's NMAD rises
     # 9.9 -> 10.8 m (tests/algorithms/test_region_growing.py, test_end_to_end.py)
     wide_template: int = 0
-    # px of image 1: second round of automatic seeds, one interest point per cell at the lattice
-    # nodes the first round's growth did not try (region_growing.py's docstring); 0 = one round
+    # px of image 1: where automatic seeds are used, a second round of them, one interest point per
+    # cell at the lattice nodes the first round's growth did not try (region_growing.py's
+    # docstring); 0 = one round
     reseed_cell: int = 16
 
     @property

@@ -19,9 +19,9 @@ A point whose MPGC result passes mpgc.accepted takes MPGC's search positions, co
 error ellipses and the flag REFINED; the others keep region growing's positions. On the simulated
 3 km triplet (supplied models; tests/algorithms/test_combinations.py) 1310 of 1328 group 3 points
 were refined and the field points' RMS against the point truth fell from 0.192 / 0.176 px (forward
-/ backward) to 0.144 / 0.145 px (0.146 / 0.146 px with one round of seeds); with a constant shift instead of the affine maps and
-sigma_geometry 0.2 px it was 0.167 / 0.172 px. The 10 m DSM of the points on bare fields went from
-1.80 to 1.64 m RMS (tests/algorithms/test_hierarchical.py)."""
+/ backward) to 0.144 / 0.145 px (0.146 / 0.146 px with one round of seeds); with a constant shift
+instead of the affine maps and sigma_geometry 0.2 px it was 0.167 / 0.172 px. The 10 m DSM of the
+points on bare fields went from 1.80 to 1.64 m RMS with one round of seeds (test_hierarchical.py)."""
 from dataclasses import fields
 
 import numpy as np

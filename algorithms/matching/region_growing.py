@@ -15,11 +15,12 @@ grown; then one per GrowParams.reseed_cell px at the nodes the growth has not tr
 the untried nodes only (the first round's points stay as they were). The second round reaches
 parcels without a seed of their own (a CELL px cell keeps only its strongest interest point,
 which may lie in another parcel, cut off by nodes that failed). On the 3 km triplet (HRG -> HRS1)
-it raises the coverage of the nodes whose texture allows the 0.1 px ellipse from 92.1 to 94.1 %
+it raises the coverage of the nodes whose texture allows the 0.1 px ellipse from 93.7 to 95.6 %
 and leaves the uniform grass parcels at 3.3 % (tests/algorithms/test_region_growing.py); group 3
 after the MPGC refinement has 1328 instead of 1287 points, fields 0.144 / 0.145 instead of 0.146
 / 0.146 px (test_combinations.py). On the 10 and 20 km triplets, where it adds only 0.2 % of
-points, it costs 15 / 11 % of the run time (tests/benchmarks/bench_region_growing.py).
+points, it costs 15 / 11 % of the run time (tests/benchmarks/bench_region_growing.py); a tile
+whose first round accepted nothing (water, cloud) is searched at the second round's density.
 
 The reference image is cut into tiles of `params.tile` px; a node belongs to the tile
 containing it, each tile grows from its own seeds inside windows of both images (image 1: the
@@ -40,7 +41,7 @@ from .imagery import Smoothed, as_image
 from .lsm import LSM_OUT, OUTSIDE, lsm_point, match_accepted, to_records
 from .params import GrowParams
 from .records import PAIR_DTYPE
-from .seeds import (automatic_seeds, local_affine, predict, resolve_height_range, search_margin,
+from .seeds import (CELL, automatic_seeds, local_affine, predict, resolve_height_range, search_margin,
                     seeds_from_points, window_pair)
 
 _DC = np.array([-1, 1, 0, 0], np.int64)
@@ -270,6 +271,13 @@ def _seed_rows(seeds, lattice, n_a, n_b, m_a, m_b, ids):
     return np.ascontiguousarray(rows[order])
 
 
+def seed_stride(params):
+    """Seed ids per tile: at least the interest points both rounds of automatic seeds can find in
+    a tile (one per cell; 10000 for the default tile and cells)."""
+    cells = sum((params.tile // c + 2) ** 2 for c in (CELL, params.reseed_cell) if c)
+    return max(10000, cells)
+
+
 def _grow_tile(ctx, index, box):
     image1, image2, model1, model2, params, hr, lattice, seeds, automatic = ctx
     n_a, n_b, m_a, m_b = box
@@ -294,7 +302,7 @@ def _grow_tile(ctx, index, box):
                ((m >= m_a) | (m_a == 0)) & ((m < m_b) | (m_b == lattice.nrows))
         parts.append(seeds[mine])
         ids.append(np.flatnonzero(mine))
-    first_id = (0 if seeds is None else len(seeds)) + index * 10000
+    first_id = (0 if seeds is None else len(seeds)) + index * seed_stride(params)
     own = (gx0 - 0.5 * step, gy0 - 0.5 * step, x_last + 0.5 * step, y_last + 0.5 * step)
     if automatic:
         found = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows)
@@ -309,8 +317,8 @@ def _grow_tile(ctx, index, box):
     state = np.zeros(nx * ny, np.int8)
     origin = np.full(nx * ny, -1, np.int64)
 
-    def grow(found, ids):
-        rows = _seed_rows(found, lattice, n_a, n_b, m_a, m_b, ids)
+    def grow(tile_seeds, seed_ids):
+        rows = _seed_rows(tile_seeds, lattice, n_a, n_b, m_a, m_b, seed_ids)
         return grow_kernel(win1, win2, float(ox1), float(oy1), float(ox2), float(oy2), float(gx0), float(gy0),
                            float(step), nx, ny, rows, half, params.widest // 2, params.max_iterations,
                            params.convergence, params.rho_min, params.max_ellipse, params.max_shift, results, state,
@@ -324,11 +332,11 @@ def _grow_tile(ctx, index, box):
     nseeds = len(tile_seeds)
     tries = grow(tile_seeds, ids) if nseeds else 0
     if automatic and params.reseed_cell:   # second round: denser interest points where growth has not been
-        found = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows,
+        again = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows,
                                 cell=params.reseed_cell, keep=untried)
-        if len(found):
-            tries += grow(found, first_id + nseeds + np.arange(len(found)))
-            nseeds += len(found)
+        if len(again):
+            tries += grow(again, first_id + len(found) + np.arange(len(again)))
+            nseeds += len(again)
     if nseeds == 0:
         return empty, 0, 0
     good = np.flatnonzero(state == 1)
@@ -441,7 +449,7 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
     so that tiles without a given seed still grow; a tile tries all its seeds in decreasing rho;
     workers: threads over tiles (results identical). Returns the accepted lattice points as a
     PAIR_DTYPE array sorted by (y1, x1); `seed` holds the id of the seed each point grew from
-    (index into `seeds`, or len(seeds) + tile * 10000 + k for automatic ones).
+    (index into `seeds`, or len(seeds) + tile * seed_stride(params) + k for automatic ones).
     Raises InputError for images smaller than the template or without overlap, CancelledError
     when cancelled; no accepted seed gives an empty array and a message via feedback."""
     params = (params or GrowParams()).check()

@@ -102,27 +102,26 @@ class Scene:
         return self.ground_std[self._cell(lon, lat)]
 
     def matchable_precision(self, x1, y1, noise_free, noise_dn=1.0, params=None):
-        """Cramer-Rao bound of LSM (px of image 2, the error ellipse's semi-major axis) at image-1
-        points: the best precision any least-squares matcher can report there, from the texture
-        and the noise alone. `noise_free`: simulate_scene paths of the same scene with noise 0
-        (the same rendering without the noise draw), whose images give the gradients. The pair is
-        seen as region growing sees it (region_growing.adapt_resolution low-passes the finer
-        image); the Jacobian is LSM's (8 parameters, template gradients through the models'
-        affine A). Noise per template sample: sigma^2 (f1 + rep f2), with sigma^2 = noise_dn^2 +
-        1/12 (quantisation) in each raw image, f the variance factor of white noise through that
-        image's low-pass (1 for raw pixels) and rep = 1 / |det A| (image-2 noise repeats on the
-        template samples inside one coarser pixel)."""
+        """Noise-only precision of LSM (px of image 2, the error ellipse's semi-major axis) at
+        image-1 points: the covariance of the least-squares position from the texture and the
+        image noise alone, as if the model fitted exactly; what any least-squares matcher with
+        this template can report there at best. `noise_free`: simulate_scene paths of the same
+        scene with noise 0 (the same rendering without the noise draw), whose images give the
+        Jacobian. The pair is seen as region growing sees it (region_growing.adapt_resolution
+        low-passes the finer image, here image 1); the Jacobian J is LSM's (8 parameters, template
+        gradients through the models' affine A). With Q = (J'J)^-1 the covariance is Q (M1 + M2) Q:
+        image 1's raw white noise sigma^2 (noise_dn^2 + 1/12 quantisation, in DN) through the
+        low-pass h gives M1 = sigma^2 (h * J)'(h * J) (the columns of J zero-padded and filtered:
+        the smoothed noise is correlated over the template); image 2's, repeated on the 1 / |det A|
+        template samples inside one coarser pixel, M2 = sigma^2 rep J'J."""
         params = params or GrowParams()
         pair = adapt_resolution(*(Image(noise_free["images"][name]["imagery"]) for name in self.names),
                                 self.model1, self.model2, params, self.height_range)
-
-        def factor(image):      # white noise through the image's low-pass, by simulation
-            if not isinstance(image, Smoothed):
-                return 1.0
-            white = np.random.default_rng(0).standard_normal((400, 400))
-            return float(np.var(ndimage.gaussian_filter(white, image.sigma, truncate=4.0)[50:-50, 50:-50]))
-        f1, f2 = factor(pair[0]), factor(pair[1])
-        grads = TemplateGradients(pair[0].read(0, 0, *pair[0].size)[0], params.template // 2)
+        assert not isinstance(pair[1], Smoothed), "image 2 finer than image 1: not modelled"
+        sigma = pair[0].sigma if isinstance(pair[0], Smoothed) else (0.0, 0.0)
+        half = params.template // 2
+        side, pad = 2 * half + 1, int(4 * max(sigma)) + 2
+        grads = TemplateGradients(pair[0].read(0, 0, *pair[0].size)[0], half)
         x1, y1 = np.asarray(x1, float), np.asarray(y1, float)
         _, _, a1, a2, a4, a5 = local_affine(self.model1, self.model2, x1, y1, 0.5 * sum(self.height_range))
         sigma2 = noise_dn ** 2 + 1.0 / 12.0
@@ -131,9 +130,13 @@ class Scene:
             a = np.array([[a1[p], a2[p]], [a4[p], a5[p]]])
             k, l, gx, gy, grey = grads.at(x1[p], y1[p], a)
             jac = np.column_stack([gx, gx * k, gx * l, gy, gy * k, gy * l, np.ones_like(gx), grey])
-            q = np.linalg.inv(jac.T @ jac)[np.ix_([0, 3], [0, 3])]
+            padded = np.zeros((8, side + 2 * pad, side + 2 * pad))
+            padded[:, pad:pad + side, pad:pad + side] = jac.T.reshape(8, side, side)
+            hj = ndimage.gaussian_filter(padded, (0.0, *sigma), mode="constant", truncate=4.0).reshape(8, -1)
+            q = np.linalg.inv(jac.T @ jac)
             rep = max(1.0, 1.0 / abs(np.linalg.det(a)))
-            out[p] = np.sqrt(sigma2 * (f1 + rep * f2) * np.linalg.eigvalsh(q).max())
+            cov = sigma2 * q @ (hj @ hj.T + rep * (jac.T @ jac)) @ q
+            out[p] = np.sqrt(np.linalg.eigvalsh(cov[np.ix_([0, 3], [0, 3])]).max())
         return out
 
     def area_truth(self, records, half=9, model2=None):
