@@ -49,9 +49,15 @@ def foerstner(img, window=5):
 def interest_points(img, patch=32, window=5, q_min=0.5, w_factor=1.0, border=0):
     """One point per patch x patch cell, at least `border` pixels from the image edge:
     (x, y, w) arrays in GDAL coordinates, ordered by decreasing w (ties by position)."""
+    return best_per_cell(*foerstner(img, window), patch, q_min, w_factor, border)
+
+
+def best_per_cell(w, q, patch=32, q_min=0.5, w_factor=1.0, border=0):
+    """interest_points from the operator's (w, q) images (foerstner; not changed), so that one
+    operator serves several patch sizes."""
     if patch < 3:
         raise InputError(f"the patch must be at least 3 pixels, got {patch}")
-    w, q = foerstner(img, window)
+    w = w.copy()
     if border > 0:
         w[:border] = w[-border:] = 0.0
         w[:, :border] = w[:, -border:] = 0.0

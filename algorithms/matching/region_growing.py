@@ -19,7 +19,7 @@ it raises the coverage of the nodes whose texture allows the 0.1 px ellipse from
 and leaves the uniform grass parcels at 3.3 % (tests/algorithms/test_region_growing.py); group 3
 after the MPGC refinement has 1328 instead of 1287 points, fields 0.144 / 0.145 instead of 0.146
 / 0.146 px (test_combinations.py). On the 10 and 20 km triplets, where it adds only 0.2 % of
-points, it costs 15 / 11 % of the run time (tests/benchmarks/bench_region_growing.py); a tile
+points, it costs 7-15 % of the run time (three runs of tests/benchmarks/bench_region_growing.py); a tile
 whose first round accepted nothing (water, cloud) is searched at the second round's density.
 
 The reference image is cut into tiles of `params.tile` px; a node belongs to the tile
@@ -42,7 +42,7 @@ from .lsm import LSM_OUT, OUTSIDE, lsm_point, match_accepted, to_records
 from .params import GrowParams
 from .records import PAIR_DTYPE
 from .seeds import (CELL, automatic_seeds, local_affine, predict, resolve_height_range, search_margin,
-                    seeds_from_points, window_pair)
+                    seed_operator, seeds_from_points, window_pair)
 
 _DC = np.array([-1, 1, 0, 0], np.int64)
 _DR = np.array([0, 0, -1, 1], np.int64)
@@ -304,8 +304,10 @@ def _grow_tile(ctx, index, box):
         ids.append(np.flatnonzero(mine))
     first_id = (0 if seeds is None else len(seeds)) + index * seed_stride(params)
     own = (gx0 - 0.5 * step, gy0 - 0.5 * step, x_last + 0.5 * step, y_last + 0.5 * step)
+    operator = seed_operator(win1, params) if automatic else None
     if automatic:
-        found = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows)
+        found = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows,
+                                operator=operator)
         parts.append(found)
         ids.append(first_id + np.arange(len(found)))
     tile_seeds, ids = np.concatenate(parts), np.concatenate(ids)     # match_pair ensures one source
@@ -333,7 +335,7 @@ def _grow_tile(ctx, index, box):
     tries = grow(tile_seeds, ids) if nseeds else 0
     if automatic and params.reseed_cell:   # second round: denser interest points where growth has not been
         again = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows,
-                                cell=params.reseed_cell, keep=untried)
+                                cell=params.reseed_cell, keep=untried, operator=operator)
         if len(again):
             tries += grow(again, first_id + len(found) + np.arange(len(again)))
             nseeds += len(again)

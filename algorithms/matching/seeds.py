@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from .imagery import as_image
-from .interest import interest_points
+from .interest import best_per_cell, foerstner
 from .lsm import match_accepted
 from .ncc import ncc_path
 from .params import GrowParams
@@ -168,13 +168,20 @@ def search_margin(model1, model2, params, hr, x1, y1):
     return (params.widest // 2 + 2) * scale + ACROSS + params.max_shift + 4
 
 
+def seed_operator(win1, params):
+    """The Foerstner operator's (w, q) images of an image-1 window (interest.foerstner) with the
+    window automatic seeds use: a third of the template, at least 5 px."""
+    return foerstner(win1, 2 * max(2, (params.template // 2) // 3) + 1)
+
+
 def automatic_seeds(image1, image2, model1, model2, params=None, height_range=None, box=None, windows=None,
-                    cell=CELL, keep=None):
+                    cell=CELL, keep=None, operator=None):
     """Automatic seeds in image 1's `box` (x0, y0, x1, y1; default the whole image): Foerstner
     points (one per `cell` x `cell` px, interest.py), NCC along the predicted path, LSM; returns
     the accepted PAIR_DTYPE records (seed = -1).
     `windows`: the (win1, ox1, oy1, win2, ox2, oy2) already read for the box (region growing);
-    `keep`: a function of image-1 positions (x1, y1) -> mask of the points worth matching."""
+    `keep`: a function of image-1 positions (x1, y1) -> mask of the points worth matching;
+    `operator`: seed_operator of win1, if already computed."""
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)
     hr = resolve_height_range(model1, height_range)
@@ -189,7 +196,8 @@ def automatic_seeds(image1, image2, model1, model2, params=None, height_range=No
     win1, ox1, oy1, win2, ox2, oy2 = windows
     if win1.size == 0 or win2.size == 0:
         return np.zeros(0, PAIR_DTYPE)
-    px, py, _ = interest_points(win1, patch=cell, window=2 * max(2, half // 3) + 1, border=half + 2)
+    w, q = seed_operator(win1, params) if operator is None else operator
+    px, py, _ = best_per_cell(w, q, patch=cell, border=half + 2)
     if len(px) == 0:
         return np.zeros(0, PAIR_DTYPE)
     x1 = px + ox1

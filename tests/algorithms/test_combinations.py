@@ -210,7 +210,7 @@ def test_group3_accuracy_on_the_simulated_triplet(triplet):
     (HRS1 / HRS2) with the MPGC refinement (refinement.py, the default): 1328 points, 1310 refined,
     fields 0.144 / 0.145 px (template-area truth 0.086 / 0.093), forest and city 0.087 / 0.078 px
     vs the area truth, none beyond 1 px. Without it (the averaged (a) and (c) positions, (b)'s
-    backward ones): fields 0.192 / 0.175 px, forest and city 0.106 / 0.070 px."""
+    backward ones): fields 0.192 / 0.176 px, forest and city 0.106 / 0.070 px."""
     cls = triplet["class"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
     rms = lambda e: float(np.sqrt(np.mean(e ** 2)))   # noqa: E731
