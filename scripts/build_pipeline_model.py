@@ -59,7 +59,7 @@ INPUTS = [
     QgsProcessingParameterRasterLayer("REFERENCE", "Reference DEM (tie point heights, accuracy assessment; "
                                       "ellipsoidal heights)"),
     QgsProcessingParameterRasterLayer("CLASS_RASTER", "Class raster for the assessment", optional=True),
-    Number("STEP", "Matching: distance of the region-growing neighbours (px)", Number.Integer, 10, minValue=1),
+    Number("STEP", "Matching: distance of the region-growing neighbours (px)", Number.Integer, 5, minValue=1),
     Number("CELL", "DEM cell size (m)", Number.Double, 10.0, minValue=1e-6),
     Number("MAX_EDGE", "DEM: maximum triangle edge (m; empty: 3 cells or 2.5 point spacings); longer triangles "
            "are gaps", Number.Double, None, optional=True, minValue=0.0),

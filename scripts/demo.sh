@@ -24,7 +24,7 @@ check=$(tail -n +21 "$out/scene/points.csv" | cut -d, -f1 | paste -sd, -)
 echo "== 2/3 model Pushbroom pipeline ($repo/resources/models/pushbroom_pipeline.model3) -> $out (log: pipeline.log)"
 qp "$repo/resources/models/pushbroom_pipeline.model3" -- "${images[@]}" APPROX_DEM="$out/scene/dsm.tif" \
   OVERWRITE=true POINTS="$out/scene/points.csv" CHECK_IDS="$check" MEAS_SUFFIX=_meas \
-  REFERENCE="$out/scene/dsm.tif" CLASS_RASTER="$out/scene/classes.tif" STEP=10 CELL=10 \
+  REFERENCE="$out/scene/dsm.tif" CLASS_RASTER="$out/scene/classes.tif" STEP=5 CELL=10 \
   IMAGE_NAME=HRG THREADS=2 \
   createblock:block="$out/block.gpkg" matchpoints:groups="$out/point_groups.csv" \
   bundleadjust:report="$out/adjustment.html" bundleadjust:residuals="$out/residuals.gpkg" \

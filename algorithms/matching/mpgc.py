@@ -17,19 +17,31 @@ lines), a larger one tolerates orientation errors. The linearisation point is mo
 estimate and the match re-run (warm) until the models' projections of X agree with the
 linearisation to LINEARISATION_TOLERANCE px.
 
-Weights: the grey-level equations of image i get 1 / (s^2 (1 + rep_i)) (template noise plus
-image-i noise, equal noise s in every image, rep_i = 1 / |det A_i| when image i is coarser, as in
-lsm.py), independent of r1 (weights that grow as r1 -> 0 let f = constant win on weak texture);
-times a robust weight per sample and image, Tukey's biweight w = (1 - (v / (c s_i))^2)^2 (0
-beyond c s_i, c = TUKEY_C = 4.685) of its residual v against image i's weighted residual RMS s_i
-of the previous iteration. The first iteration is plain least squares, the next REWEIGHTINGS = 3
-re-weight, later ones keep the weights (re-weighting to the end left 10 % of the simulated field
-points unconverged at 10 iterations). Samples that see another surface (canopy or a roof inside a
-field's template) so stop pulling the match: on the simulated triplet the 10 m DSM RMS of the
-coarse-to-fine points fell from 1.82 to 1.70 m on bare fields and from 2.32 to 2.27 m on crops
-(test_hierarchical.py). s^2 is re-estimated every iteration from the residuals,
+Weights: the grey-level equations of image i get 1 / (s^2 (1 + rep_i)) (template noise plus image-i
+noise, equal noise s in every image, rep_i = 1 / |det A_i| when image i is coarser, as in lsm.py),
+independent of r1 (weights that grow as r1 -> 0 let f = constant win on weak texture); times a
+robust weight per sample and image, Tukey's biweight w = (1 - (v / (c s_i))^2)^2 (0 beyond c s_i, c
+= TUKEY_C = 4.685) of its residual v against image i's weighted residual RMS s_i of the previous
+iteration. The first iteration is plain least squares (with the support weights below, where set),
+the next REWEIGHTINGS = 3 re-weight, later ones keep the weights (re-weighting to the end left 10 %
+of the simulated field points unconverged at 10 iterations). Samples that see another surface
+(canopy or a roof inside a field's template) so stop pulling the match: on the simulated triplet the
+10 m DSM RMS of the coarse-to-fine points fell from 1.82 to 1.70 m on bare fields and from 2.32 to
+2.27 m on crops (test_hierarchical.py). s^2 is re-estimated every iteration from the residuals,
 sum_i v_i'W_i v_i / (1 + r1_i^2 kappa_i) / sum_i (sum w_i - 8), kappa_i the mean squared
 interpolation weight (lsm.py); sigma0 = s (DN). The geometric observations get 1 / sigma_geometry^2.
+
+Support weights (optional; adaptive support weights after Yoon and Kweon 2006): a fixed weight per
+template sample (k, l) that multiplies the Tukey weights from the first iteration on,
+    exp(-(k^2 + l^2) / (2 centre_sigma^2)) exp(-(m(k, l) - m(0, 0))^2 / (2 (similarity s_f)^2)),
+m the template's mean grey value over SUPPORT_BOX^2 samples around (k, l), s_f the template's
+standard deviation (a factor is 1 where its parameter is 0). The match then measures the surface
+around the template centre: the periphery, whose relief departs most from the centre's plane, and
+samples of another brightness (the forest or the roofs beside a field, the field beside a roof)
+pull less. The precision's sandwich holds for any fixed weights; the geometric test t assumes
+weights inverse to the variances and comes out smaller with them (0.48 on the planar patches of
+test_mpgc.py with 5 px and 1.0). Off by default; the refinement of region growing's three-ray
+points uses them (refinement.py).
 
 Precision: the n equations of one template sample share the template's noise, so their
 covariance is s^2 (1 1' + diag(r1_i^2 rep_i)), not the diagonal the weights assume; the
@@ -82,6 +94,8 @@ class MpgcParams(LsmParams):
     sigma_geometry: float = 0.2   # px: a priori sigma of the geometric observations (orientation)
     max_geo_test: float = 4.0     # geometric test t above which a point is rejected (chi^2_3 / 3 > 4: 0.7 %)
     tile: int = 512               # px of the reference image per tile of windows read at once
+    centre_sigma: float = 0.0     # px: the support weights' Gaussian of the distance from the centre (0 = off)
+    similarity: float = 0.0       # the support weights' grey-level scale, times the template's std (0 = off)
 
     def check(self):
         super().check()
@@ -89,6 +103,9 @@ class MpgcParams(LsmParams):
             raise InputError(f"sigma_geometry must be at least 1e-4 px, got {self.sigma_geometry}")
         if not self.max_geo_test > 0 or self.tile < 4 * self.template:
             raise InputError("max_geo_test must be positive and the tile at least 4 templates wide")
+        if not (self.centre_sigma >= 0 and self.similarity >= 0):
+            raise InputError(f"the support weights' centre_sigma and similarity must be 0 (off) or positive, got "
+                             f"{self.centre_sigma} and {self.similarity}")
         return self
 
 
@@ -240,7 +257,8 @@ def _match_tile(images, models, x0, y0, lon, lat, h, params):
     active = good.copy()
     for _ in range(PASSES):
         mpgc_batch(buf, meta, offs, x0, y0, cen, jac, state, dx, active, half, params.max_iterations,
-                   params.convergence, params.sigma_geometry, out, status, iterations)
+                   params.convergence, params.sigma_geometry, params.centre_sigma, params.similarity, out, status,
+                   iterations)
         moved = np.flatnonzero(active & (status == OK))
         point = offset_enu(base[0][moved], base[1][moved], base[2][moved], dx[moved])
         cen_new, jac_new = geometry(models, *point)

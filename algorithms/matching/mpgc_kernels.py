@@ -27,6 +27,8 @@ NPX = 3
 TUKEY_C = 4.685
 #: iterations that re-weight (the first ones after the unweighted one); later ones keep the weights
 REWEIGHTINGS = 3
+#: samples per side of the box whose mean grey value the support weights compare (support_weights)
+SUPPORT_BOX = 5
 #: out fields after the 3 per search image
 COV, SIGMA0, GEO_VTPV, GEO_RED, GEO_RMS = 0, 6, 7, 8, 9
 _TAIL = 10
@@ -53,6 +55,39 @@ def grey_weights(rep, pw):
     covariance noise_covariance describes) make r1 -> 0, f fitted by a constant, win on weak texture."""
     for i in range(rep.shape[0]):
         pw[i] = 1.0 / (1.0 + rep[i])
+
+
+@njit(cache=True, nogil=True)
+def support_weights(f, half, centre, similarity, cw):
+    """Adaptive support weights of the template samples (mpgc.py), row-major like f:
+    cw(k, l) = exp(-(k^2 + l^2) / (2 centre^2)) exp(-(m(k, l) - m(0, 0))^2 / (2 (similarity s_f)^2)),
+    m the mean of f over the SUPPORT_BOX^2 samples around (k, l) inside the template, s_f the
+    template's standard deviation; a factor is 1 where its parameter is 0 (or the template flat)."""
+    nside = 2 * half + 1
+    ns = nside * nside
+    hb = SUPPORT_BOX // 2
+    sf = 0.0
+    sff = 0.0
+    for idx in range(ns):
+        sf += f[idx]
+        sff += f[idx] * f[idx]
+    gamma = similarity * math.sqrt(max(sff / ns - (sf / ns) ** 2, 0.0))
+    for r in range(nside):
+        for c in range(nside):
+            acc = 0.0
+            cnt = 0
+            for rr in range(max(0, r - hb), min(nside, r + hb + 1)):
+                for cc in range(max(0, c - hb), min(nside, c + hb + 1)):
+                    acc += f[rr * nside + cc]
+                    cnt += 1
+            cw[r * nside + c] = acc / cnt
+    mc = cw[half * nside + half]
+    for r in range(nside):
+        for c in range(nside):
+            idx = r * nside + c
+            u = (cw[idx] - mc) / gamma if gamma > 0.0 else 0.0
+            d2 = float((r - half) ** 2 + (c - half) ** 2)
+            cw[idx] = (math.exp(-0.5 * d2 / (centre * centre)) if centre > 0.0 else 1.0) * math.exp(-0.5 * u * u)
 
 
 @njit(cache=True, nogil=True)
@@ -86,7 +121,7 @@ def _geo_row(i, c, x0, y0, cen, jac, state, dx, coef):
 
 
 @njit(cache=True, nogil=True)
-def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, conv, sigma_g, out):
+def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, conv, sigma_g, centre, similarity, out):
     """Gauss-Newton MPGC of one point from the given state (updated in place); fills out.
     Returns (status, iterations): 0 ok, 1 a window leaves its image, 2 singular normal equations
     (flat texture, degenerate affine), 3 not converged within max_iter (state and out hold the
@@ -124,7 +159,12 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
     svv = np.empty(n)
     sw = np.empty(n)
     cs = np.zeros(n)        # per search image Tukey's c times its residual scale
-    wbuf = np.ones((ns, n))
+    wbuf = np.empty((ns, n))
+    cw = np.empty(ns)
+    support_weights(f, half, centre, similarity, cw)
+    for idx in range(ns):
+        for i in range(n):
+            wbuf[idx, i] = cw[idx]
     skap = np.empty(n)
     coef = np.empty(NPX)
     it = 0
@@ -186,7 +226,7 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
                     obs[i] = o
                     if 0 < it <= REWEIGHTINGS:        # Tukey's biweight (mpgc.py)
                         u = o / cs[i] if cs[i] > 0.0 else 0.0
-                        wbuf[idx, i] = (1.0 - u * u) ** 2 if abs(u) < 1.0 else 0.0
+                        wbuf[idx, i] = cw[idx] * (1.0 - u * u) ** 2 if abs(u) < 1.0 else 0.0
                     w = wbuf[idx, i]
                     sw[i] += w
                     sg[i] += g
@@ -352,12 +392,12 @@ def _precision(lower, mmat, n, npar, x0, y0, cen, jac, state, dx, wg, out):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def mpgc_batch(buf, meta, offs, x0, y0, cen, jac, state, dx, active, half, max_iter, conv, sigma_g, out, status,
-               iterations):
+def mpgc_batch(buf, meta, offs, x0, y0, cen, jac, state, dx, active, half, max_iter, conv, sigma_g, centre,
+               similarity, out, status, iterations):
     """mpgc_point over the points with active[p] (parallel); iterations[p] accumulates."""
     for p in prange(x0.shape[0]):
         if active[p]:
             st, it = mpgc_point(buf, meta, offs, x0[p], y0[p], cen[p], jac[p], state[p], dx[p], half, max_iter, conv,
-                                sigma_g, out[p])
+                                sigma_g, centre, similarity, out[p])
             status[p] = st
             iterations[p] += it

@@ -11,7 +11,9 @@ by 0.136 px RMS on fields (sub-template relief; 0.099 px with fractal = 0: the c
 DEM's own curvature over 95 m is the larger part, plane-fit residual 0.71 m vs 0.46 m fractal).
 The matcher's own error vs the area truth (0.154 px, deterministic: same with noise 0) is larger
 than the relief gap; centre-weighted LSM does not reduce the point-truth RMS (prototype: Gaussian
-sigma 9.5 / 6 / 4.75 / 3.5 px -> 0.206 / 0.207 / 0.212 / 0.237 px vs 0.208 unweighted)."""
+sigma 9.5 / 6 / 4.75 / 3.5 px -> 0.206 / 0.207 / 0.212 / 0.237 px vs 0.208 unweighted).
+`area_truth` can weight the samples as MPGC's support weights do (mpgc.py), computed on the
+template without the resolution adaptation's low-pass (the 5 x 5 box means hardly differ)."""
 import numpy as np
 from osgeo import gdal
 from scipy import ndimage
@@ -19,6 +21,7 @@ from scipy import ndimage
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.imagery import Image, Smoothed
+from pushbroom.algorithms.matching.mpgc_kernels import support_weights
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import Lattice, adapt_resolution
 from pushbroom.algorithms.matching.seeds import local_affine
@@ -139,19 +142,22 @@ class Scene:
             out[p] = np.sqrt(np.linalg.eigvalsh(cov[np.ix_([0, 3], [0, 3])]).max())
         return out
 
-    def area_truth(self, records, half=9, model2=None):
+    def area_truth(self, records, half=9, model2=None, support=(0.0, 0.0)):
         """(x2, y2) an ideal area matcher gives for matched records (module docstring); model2 as
-        in `truth`."""
+        in `truth`; `support` = (centre_sigma, similarity) of MPGC's support weights on the template
+        samples (mpgc.py; (0, 0): uniform)."""
         grads = TemplateGradients(gdal.Open(str(self.image1)).ReadAsArray(), half)
         k, l = grads.k, grads.l
         n = len(records)
         tx, ty, _ = self.truth((records["x1"][:, None] + k).ravel(), (records["y1"][:, None] + l).ravel(), model2)
         tx, ty = tx.reshape(n, -1), ty.reshape(n, -1)
         out = np.empty((n, 2))
+        w = np.empty(k.size)
         for p in range(n):
             a = np.array([[float(records[q][p]) for q in ("a1", "a2")], [float(records[q][p]) for q in ("a4", "a5")]])
-            _, _, gx, gy, _ = grads.at(records["x1"][p], records["y1"][p], a)
-            jac = np.column_stack([gx, gx * k, gx * l, gy, gy * k, gy * l])
-            sol = np.linalg.lstsq(jac, gx * tx[p] + gy * ty[p], rcond=None)[0]
+            _, _, gx, gy, f = grads.at(records["x1"][p], records["y1"][p], a)
+            support_weights(f, half, *support, w)
+            jac = np.column_stack([gx, gx * k, gx * l, gy, gy * k, gy * l]) * np.sqrt(w)[:, None]
+            sol = np.linalg.lstsq(jac, (gx * tx[p] + gy * ty[p]) * np.sqrt(w), rcond=None)[0]
             out[p] = sol[0], sol[3]
         return out[:, 0], out[:, 1]

@@ -103,14 +103,29 @@ def pack(images, offsets):
     return buf, meta, np.asarray(offsets, float)
 
 
-def gn_step_reference(images, offs, x0, y0, cen, jac, state, dx, half, sigma_g, cs=None, w=None):
+def support_reference(f, half, centre, similarity):
+    """Support weights (mpgc_kernels.support_weights) in numpy: Gaussian of the distance from the
+    centre times a Gaussian of the difference of the SUPPORT_BOX box means (zero-padded sums over
+    the template / the samples they hold) from the centre's, in units of similarity x std(f)."""
+    side = 2 * half + 1
+    img = f.reshape(side, side)
+    box = np.ones((kern.SUPPORT_BOX, kern.SUPPORT_BOX))
+    mean = (ndimage.convolve(img, box, mode="constant") / ndimage.convolve(np.ones_like(img), box, mode="constant"))
+    k, l = np.meshgrid(np.arange(-half, half + 1), np.arange(-half, half + 1))
+    w = np.exp(-0.5 * (k ** 2 + l ** 2) / centre ** 2) if centre > 0 else np.ones_like(img)
+    if similarity > 0:
+        w = w * np.exp(-0.5 * ((mean - mean[half, half]) / (similarity * img.std())) ** 2)
+    return w.ravel()
+
+
+def gn_step_reference(images, offs, x0, y0, cen, jac, state, dx, half, sigma_g, cs=None, w=None, support=(0.0, 0.0)):
     """One MPGC Gauss-Newton step in plain numpy: the dense design matrix of all grey-level and
     geometric observations, weights diag(w / (1 + rep_i)) / s^2 and 1 / sigma_g^2, normal equations
     solved by numpy; the sandwich covariance N^-1 A'P C P A N^-1 with the grey-level covariance
     C = s^2 kron(I, 1 1' + diag(r1^2 rep)) (shared template noise) and the geometric statistics.
     w (samples x search images): Tukey's biweight of each residual against cs_i per search image
-    where cs is given, else as given (1 where None); the step also returns w and the next
-    cs_i = TUKEY_C sqrt(sum w v^2 / sum w)."""
+    where cs is given, else as given (1 where None), times the support weights of `support` =
+    (centre, similarity); the step also returns w and the next cs_i = TUKEY_C sqrt(sum w v^2 / sum w)."""
     n = len(state)
     npar = 3 + 8 * n
     k, l = np.meshgrid(np.arange(-half - 1, half + 2), np.arange(-half - 1, half + 2))
@@ -135,11 +150,12 @@ def gn_step_reference(images, offs, x0, y0, cen, jac, state, dx, half, sigma_g, 
         resid[:, i] = f - (r0 + r1i * g)
         det = abs(a1 * a5 - a2 * a4)
         rep[i] = 1 / det if det < 1 else 1.0
+    prior = support_reference(f, half, *support)[:, None]
     if cs is not None:
         u = resid / np.asarray(cs)
-        w = np.where(np.abs(u) < 1, (1 - u ** 2) ** 2, 0.0)
+        w = prior * np.where(np.abs(u) < 1, (1 - u ** 2) ** 2, 0.0)
     elif w is None:
-        w = np.ones_like(resid)
+        w = prior * np.ones_like(resid)
     s2 = ((w * resid ** 2).sum(axis=0) / (1 + r1 ** 2 * kap)).sum() / np.maximum(w.sum(axis=0) - 8, 1).sum()
     weight = np.diag((w / (1 + rep)).ravel()) / s2
     noise = s2 * np.kron(np.eye(ns), np.ones((n, n)) + np.diag(r1 ** 2 * rep))
@@ -180,12 +196,14 @@ def gn_step_reference(images, offs, x0, y0, cen, jac, state, dx, half, sigma_g, 
                                    cs=kern.TUKEY_C * np.sqrt((w * resid ** 2).sum(axis=0) / w.sum(axis=0)), w=w)
 
 
+@pytest.mark.parametrize("support", [(0.0, 0.0), (5.0, 1.0), (3.0, 0.0), (0.0, 0.5)])
 @pytest.mark.parametrize("steps", [1, 2, 4])
-def test_gauss_newton_steps_against_numpy(steps):
+def test_gauss_newton_steps_against_numpy(steps, support):
     """Three windows of one texture (reference, and two search images seen through affines with
-    gains), a state slightly off, the object point off its ray: the kernel's first step (plain
-    least squares), the re-weighted ones (Tukey's biweight against the previous step's scale) and
-    those with the weights kept, precision and geometric statistics equal the dense numpy reference."""
+    gains), a state slightly off, the object point off its ray: the kernel's first step (least
+    squares with the support weights), the re-weighted ones (Tukey's biweight against the previous
+    step's scale, times the support weights) and those with the weights kept, precision and
+    geometric statistics equal the dense numpy reference; with and without each support factor."""
     rng = np.random.default_rng(2)
     tex = texture(rng)
     jj, ii = np.meshgrid(np.arange(44) + 0.5, np.arange(40) + 0.5)
@@ -205,11 +223,11 @@ def test_gauss_newton_steps_against_numpy(steps):
     for it in range(steps):
         reweight = 0 < it <= kern.REWEIGHTINGS
         ref_state, ref_dx, ref = gn_step_reference(images, offs, x0, y0, cen, jac, ref_state, ref_dx, 7, 0.3,
-                                                   ref["cs"] if reweight else None, ref["w"])
+                                                   ref["cs"] if reweight else None, ref["w"], support)
     buf, meta, offs_k = pack(images, offs)
     st, dxk = state.copy(), dx.copy()
     out = np.empty(kern.out_size(2))
-    status, it = kern.mpgc_point(buf, meta, offs_k, x0, y0, cen, jac, st, dxk, 7, steps, 1e-12, 0.3, out)
+    status, it = kern.mpgc_point(buf, meta, offs_k, x0, y0, cen, jac, st, dxk, 7, steps, 1e-12, 0.3, *support, out)
     assert (status, it) == (lsm.NOT_CONVERGED, steps)
     np.testing.assert_allclose(st, ref_state, rtol=1e-7, atol=1e-7)
     np.testing.assert_allclose(dxk, ref_dx, rtol=1e-7, atol=1e-7)
@@ -227,7 +245,7 @@ def test_gauss_newton_steps_against_numpy(steps):
     st2, dx2 = state[None].copy(), dx[None].copy()
     outb, statb, itb = np.empty((1, kern.out_size(2))), np.zeros(1, np.int8), np.zeros(1, np.int64)
     kern.mpgc_batch(buf, meta, offs_k, np.array([x0]), np.array([y0]), cen[None], jac[None], st2, dx2,
-                    np.ones(1, bool), 7, steps, 1e-12, 0.3, outb, statb, itb)
+                    np.ones(1, bool), 7, steps, 1e-12, 0.3, *support, outb, statb, itb)
     np.testing.assert_array_equal(st2[0], st)
     np.testing.assert_array_equal(outb[0], out)
     assert statb[0] == status and itb[0] == steps
