@@ -42,7 +42,7 @@ Zhang & Gruen; methods.md section 6; issue 7).
    x rho; both are flagged NCC_ONLY (not accepted). On the simulated triplet's 10 m DSM
    (test_hierarchical.py) MPGC's positions took the open-class RMS from bare 2.08 / crops 2.89 m
    (NCC's) to 1.82 / 2.33 m at the same coverage (1.71 / 2.28 m since MPGC's robust weights and the
-   TIN-adapted windows; region growing 1.80 / 2.40 m); dropping the points near accepted ones
+   TIN-adapted windows; region growing 1.79 / 2.37 m); dropping the points near accepted ones
    instead (tried: within 10 px) lowers the coverage and not the RMS.
 5. Output: MultiPoints (points.py) with group 3 (reference + 2 search images) or 1 (reference + 1),
    rho_min = the reliability (MPGC's, mpgc.py, or the NCC one), flags COMB_A / COMB_B for the

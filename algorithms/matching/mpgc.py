@@ -41,7 +41,7 @@ samples of another brightness (the forest or the roofs beside a field, the field
 pull less. The precision's sandwich holds for any fixed weights; the geometric test t assumes
 weights inverse to the variances and comes out smaller with them (0.48 on the planar patches of
 test_mpgc.py with 5 px and 1.0). Off by default; the refinement of region growing's three-ray
-points uses them (refinement.py).
+points uses them where GrowParams.support_weights is set (refinement.py).
 
 Precision: the n equations of one template sample share the template's noise, so their
 covariance is s^2 (1 1' + diag(r1_i^2 rep_i)), not the diagonal the weights assume; the

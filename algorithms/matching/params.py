@@ -73,6 +73,14 @@ class GrowParams(LsmParams):
     # cell at the lattice nodes the first round's growth did not try (region_growing.py's
     # docstring); 0 = one round
     reseed_cell: int = 16
+    # the MPGC refinement of the group 3 points with support weights (refinement.py's SUPPORT_CENTRE,
+    # SUPPORT_SIMILARITY), which make each match measure the surface around its template centre:
+    # on the 12 km simulated triplet the three-ray heights on textured open ground 2.70 -> 2.26 m
+    # RMS (test_end_to_end.py; on in the DEM pipeline model). Off by default: the positions are then
+    # no longer those a uniform window finds, and the Pleiades triplet's forward-backward check
+    # against pairwise LSM (uniform windows) rises 0.070 / 0.065 / 0.116 -> 0.127 / 0.117 / 0.199 px
+    # (tests/real/test_matching_pleiades.py), while its tie points' sigma_0 falls 0.086 -> 0.067
+    support_weights: bool = False
 
     @property
     def widest(self):

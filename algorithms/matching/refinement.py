@@ -18,19 +18,21 @@ and iterations are region growing's (GrowParams), and so is the resolution adapt
 A point whose MPGC result passes mpgc.accepted takes MPGC's search positions, correlation and
 error ellipses and the flag REFINED; the others keep region growing's positions. On the simulated
 3 km triplet (supplied models; tests/algorithms/test_combinations.py) 1310 of 1328 group 3 points
-were refined and the field points' RMS against the point truth fell from 0.192 / 0.176 px (forward
-/ backward) to 0.144 / 0.145 px (0.146 / 0.146 px with one round of seeds); with a constant shift
-instead of the affine maps and sigma_geometry 0.2 px it was 0.167 / 0.172 px. The 10 m DSM of the
-points on bare fields went from 1.80 to 1.64 m RMS with one round of seeds (test_hierarchical.py).
+are refined and the field points' RMS against the point truth falls from 0.192 / 0.176 px (forward
+/ backward) to 0.144 / 0.145 px (0.128 / 0.129 px with the support weights below); with a constant
+shift instead of the affine maps and sigma_geometry 0.2 px it was 0.167 / 0.172 px. The 10 m DSM of
+the points on bare fields goes from 1.79 to 1.64 m RMS (1.62 m with the support weights;
+test_hierarchical.py).
 
-MPGC's support weights (mpgc.py; SUPPORT_CENTRE, SUPPORT_SIMILARITY) make each match measure the
-surface around its template centre: of the points on textured open ground of the 12 km triplet
+With GrowParams.support_weights (off by default; on in the DEM pipeline model) MPGC's support
+weights (mpgc.py; SUPPORT_CENTRE, SUPPORT_SIMILARITY) make each match measure the surface around its
+template centre: of the points on textured open ground of the 12 km triplet
 84 % lie within half a template of forest, city or water, whose heights the uniform window averaged
 in. There (test_end_to_end.py, STEP 10) the group-3 points' height RMS against the true DSM fell
 from 2.70 to 2.26 m (interior of the fields 1.25 -> 1.16 m); on the 3 km triplet's fields the RMS
 against the point truth from 0.144 / 0.145 to 0.128 / 0.129 px (test_combinations.py). Measured
 alternatives (12 km, STEP 10, RMS textured open / interior, m): uniform 2.70 / 1.25; centre 5 px
-alone 2.39 / 1.12, 3 px 2.35 / 1.37; similarity alone (a fixed 20 DN scale) 2.49 / 1.25; centre
+alone 2.39 / 1.12, 3 px 2.35 / 1.37; similarity alone (prototype with a fixed 20 DN scale) 2.49 / 1.25; centre
 5 px with similarity 0.6: 2.27 / 1.20; uniform MPGC windows of 13 or 9 px 2.57 / 1.33 and 2.70 /
 1.52."""
 from dataclasses import fields
@@ -70,9 +72,9 @@ def refine_three_ray(points, images, models, image_ids, height_range, grow=None,
     progress.step(feedback, 0, f"MPGC refinement of {g3.size} three-ray points")
     corrected, inter, systematic = affine_bias(models, cols, rows)
     lsm = {f.name: getattr(grow, f.name) for f in fields(LsmParams)}
-    params = MpgcParams(**lsm, centre_sigma=SUPPORT_CENTRE, similarity=SUPPORT_SIMILARITY,
-                        **({"sigma_geometry": max(SIGMA_GEOMETRY, 2.0 * systematic)}
-                           if np.isfinite(systematic) else {})).check()
+    support = {"centre_sigma": SUPPORT_CENTRE, "similarity": SUPPORT_SIMILARITY} if grow.support_weights else {}
+    params = MpgcParams(**lsm, **support, **({"sigma_geometry": max(SIGMA_GEOMETRY, 2.0 * systematic)}
+                                             if np.isfinite(systematic) else {})).check()
     ok = np.isfinite(inter.h)
     adapted = adapted_images(images, models, resolve_height_range(models[0], height_range), grow)
     rec = match_points(adapted[0], adapted[1:], corrected, cols[0, ok], rows[0, ok], inter.lon[ok], inter.lat[ok],

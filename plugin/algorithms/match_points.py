@@ -126,6 +126,8 @@ class MatchPoints(PushbroomAlgorithm):
             QgsProcessingParameterBoolean("GROW_SECOND", "Also grow combination (b) where (a) found no points",
                                           True),
             QgsProcessingParameterBoolean("MPGC_REFINE", "Refine the group 3 points by MPGC (three images)", True),
+            QgsProcessingParameterBoolean("MPGC_SUPPORT", "MPGC refinement with support weights (heights of the "
+                                          "template centre's surface; for DEMs)", d.support_weights),
             Number("WORKERS", "Worker threads", Number.Integer, 1, minValue=1),
             Number("C2F_GRID", "Coarse-to-fine: grid point spacing at full resolution (px)", Number.Integer, c.grid,
                    minValue=2),
@@ -158,7 +160,8 @@ class MatchPoints(PushbroomAlgorithm):
             max_ellipse=self.parameterAsDouble(parameters, "MAX_ELLIPSE", context),
             max_shift=self.parameterAsDouble(parameters, "MAX_SHIFT", context),
             max_iterations=self.parameterAsInt(parameters, "MAX_ITERATIONS", context),
-            tile=self.parameterAsInt(parameters, "TILE", context)).check()
+            tile=self.parameterAsInt(parameters, "TILE", context),
+            support_weights=self.parameterAsBool(parameters, "MPGC_SUPPORT", context)).check()
         _, use_tie_points, automatic = SEED_SOURCES[self.parameterAsEnum(parameters, "SEEDS", context)]
         seed_points = points.load_points(path, "tie_points") if use_tie_points else None
         feedback.pushInfo("combination order: " + ", ".join(r["name"] for r in rows)

@@ -50,8 +50,8 @@ N_CONTROL = 19
 DEM_CELL = 10.0
 #: px of HRG between region growing's neighbours: the pipeline model's default (build_pipeline_model.py); the
 #: 10 m DEM on textured open ground, RMS vs the true DSM (textured open / interior, m): STEP 10 (H's value)
-#: 3.85 / 1.76, 5 2.75 / 1.29, 3 2.53 / 1.19 (test_end_to_end.py; the last with a fixed 30 DN grey-level
-#: scale of the support weights); about 5 x and 10 x the matching time of STEP 10
+#: 3.85 / 1.76, 5 2.75 / 1.29, 3 2.53 / 1.19 (test_end_to_end.py; the last with a prototype of the
+#: support weights whose grey-level scale was a fixed 30 DN); about 5 x and 10 x the matching time of STEP 10
 STEP = 5
 LOW_TEXTURE = 6          # class code of the open classes' low-texture cells
 TEXTURE_CLASSES = {WATER: "water", BARE: "bare fields", CROPS: "grass/crops", LOW_TEXTURE: "low-texture fields",
@@ -137,7 +137,7 @@ def run_chain(config, folder, workers=2):
     for label, names in RUNS.items():
         supplied = [sensors.load(paths["images"][n]["metadata"]) for n in names]
         mass = match_block([paths["images"][n]["imagery"] for n in names], supplied, names=names,
-                           image_ids=[IDS[n] for n in names], params=GrowParams(step=STEP),
+                           image_ids=[IDS[n] for n in names], params=GrowParams(step=STEP, support_weights=True),
                            height_range=(lo - 100.0, hi + 100.0), workers=workers)
         lap(f"match {label}")
         models, selection, check = adjust(paths, names, mass, h0)

@@ -21,22 +21,28 @@ chain's STEP 5 (end_to_end_chain.STEP) and MPGC's support weights (refinement.py
   precision), and the relief inside the template (the true DSM minus its 19 x 19 mean: 0.79 m RMS on
   the interior cells, printed); 0.7 m would need ~0.08 px and a smaller window;
 - the 10 m DEM there: RMS 2.75 m (interior 1.29 m; target 1.0 m; 3.85 / 1.76 m with STEP 10, 4.07 /
-  1.81 m with STEP 10 and uniform windows): the points' error plus the relief between points 25 m
-  apart and the TIN's ramps across field/forest edges."""
+  1.81 m with STEP 10 and uniform windows). The same DEM step on the same point positions with the
+  true DSM's heights gives 2.91 m (interior 0.31 m, printed): at this spacing the TIN's ramps
+  between field and canopy or roof points alone exceed the target; in the interior the matched
+  heights' error dominates."""
 import numpy as np
 import pytest
 from osgeo import gdal
 from scipy import ndimage
 from scipy.spatial import Delaunay
 
-from end_to_end_chain import INTERIOR, LOW_TEXTURE, TEMPLATE_CELLS, TEXTURE_CLASSES, TEXTURED_OPEN, run_chain
+from end_to_end_chain import (DEM_CELL, INTERIOR, LOW_TEXTURE, TEMPLATE_CELLS, TEXTURE_CLASSES, TEXTURED_OPEN,
+                              run_chain)
 from ortho_oracle import geometric_error
+from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.quality.assessment import labels
+from pushbroom.algorithms.quality.assessment import assess, labels
 from pushbroom.algorithms.quality.classes import ClassRaster
 from pushbroom.algorithms.quality.statistics import summarize
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.simulation.terrain import BARE, CROPS, WATER
+from pushbroom.algorithms.surface.point_input import PointSet, read_points
+from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
 
 pytestmark = pytest.mark.slow
 
@@ -131,14 +137,28 @@ def test_object_points_against_the_true_dsm_and_dtm(chain):
           f"{floor[0]:.2f} m, interior {floor[1]:.2f} m")
 
 
-def test_dem_against_the_true_dsm_and_dtm(chain):
+def test_dem_against_the_true_dsm_and_dtm(chain, tmp_path):
     """Issue target: the 10 m DEM, RMS vs the true DSM <= 1.0 m on textured open classes: not met (module
-    docstring)."""
+    docstring). Beside it the same DEM step on the same point positions with the true DSM's heights: the
+    part of the error that the points' spacing and the TIN's ramps make whatever the matcher measures.
+    Measured: 2.91 m on the textured open cells (more than the 2.75 m of the matched heights, which the
+    template smooths across the field/canopy steps), 0.31 m on their interior (1.29 m matched)."""
     dsm = dem_table(chain, "three images", "dsm")
     dem_table(chain, "three images", "dtm")
     print(f"DEM, {OPEN}: RMS {dsm[OPEN].rms:.3f} m, interior {dsm[INNER].rms:.3f} m (target <= {DEM_TARGET} m)")
-    assert dsm[OPEN].n > 10000
+    cloud = read_points(chain["three images"]["las"])
+    lon, lat = reproject(cloud.x, cloud.y, cloud.srs, wgs84())
+    exact = PointSet(cloud.x, cloud.y, Dem.from_file(chain["paths"]["dsm"]).height(lon, lat), cloud.srs)
+    write_dem(interpolate_dem(exact, cell=DEM_CELL), tmp_path / "exact_heights_dem.tif")
+    floor = rows(chain, assess(chain["paths"]["dsm"], dem=tmp_path / "exact_heights_dem.tif",
+                               classes=ClassRaster(chain["classes"]))[0])
+    print(f"DEM of the same points with their true heights, {OPEN}: RMS {floor[OPEN].rms:.3f} m, interior "
+          f"{floor[INNER].rms:.3f} m")
+    assert dsm[OPEN].n > 10000 and floor[OPEN].n > 0.9 * dsm[OPEN].n
     assert dsm[OPEN].rms <= DEM_BOUND[0] and dsm[INNER].rms <= DEM_BOUND[1]
+    # interior: the matched heights' error dominates; all textured open cells: the ramps between field and
+    # canopy or roof points alone exceed the target (the matched heights, smoothed over the template, less so)
+    assert floor[INNER].rms < dsm[INNER].rms and floor[OPEN].rms > DEM_TARGET
 
 
 def test_low_texture_areas_are_gaps_not_blunders(chain):

@@ -214,22 +214,22 @@ def test_triplet_side_by_side_with_region_growing(both):
 
 @pytest.mark.slow
 def test_triplet_dsm_by_class_against_region_growing(both, with_edge_points):
-    """Issue 7 acceptance on the DSM (dsm_comparison.py: points intersected with the truth models,
-    10 m TIN DEM, the same maximum triangle edge for both) against the true DSM by class, side by
-    side with region growing (paper K's, the strategy of issue 3, as when issue 7 was accepted) and
-    with edge points and breaklines on. Region growing with the MPGC refinement of its group 3
-    (refinement.py, added later and now the default, with its support weights) is printed beside
-    them: own cells bare 1.62 m, crops 2.27 m, coverage 83 / 36 %, so on bare fields it is now more accurate than the
-    coarse-to-fine strategy on its own cells (1.71 m), which still covers far more. Measured
-    (defaults; with edge points): DEM coverage bare 88 (87) vs 81 %, crops 76 (76) vs 34 %, low-texture fields 51 (48) vs
-    5 %; open-class RMS on each one's own cells bare 1.71 (1.76) vs 1.80 m, crops 2.28 (2.33) vs
-    2.40 m, on the cells both cover bare 1.73 (1.75) vs 1.85 m, crops 2.24 (2.25) vs 2.40 m;
-    building-edge zone (within 10 m of an outline) MAE 4.28 (4.28) vs 4.40 m, 99 (99) vs 100 %
-    covered. MPGC's robust weights (mpgc.py) brought own-cell bare / crops from 1.82 / 2.32 m (then
-    1.70 / 2.27 m), the windows and NCC thresholds adapted to the TIN's roughness
-    (hierarchical_level.py) forest from 8.50 to 8.32 m; points MPGC does not accept but that
-    converged keep MPGC's position (with their NCC one: bare 2.08 m, crops 2.89 m). Edge points do
-    not help measurably here (printed, not asserted). Forest: region growing 7.83 m (printed)."""
+    """Issue 7 acceptance on the DSM (dsm_comparison.py: points intersected with the truth models, 10 m TIN
+    DEM, the same maximum triangle edge for both) against the true DSM by class, side by side with
+    region growing (paper K's, the strategy of issue 3, as when issue 7 was accepted) and with edge
+    points and breaklines on. Region growing with the MPGC refinement of its group 3 (refinement.py,
+    added later and now the default) is printed beside them: own cells
+    bare 1.64 m, crops 2.29 m, coverage 81 / 35 %, so on bare fields it is now more accurate than
+    the coarse-to-fine strategy on its own cells (1.71 m), which still covers far more. Measured
+    (defaults; with edge points): DEM coverage bare 88 (87) vs 82 %, crops 76 (76) vs 35 %,
+    low-texture fields 51 (48) vs 5 %; open-class RMS on each one's own cells bare 1.71 (1.76) vs
+    1.79 m, crops 2.28 (2.33) vs 2.37 m, on the cells both cover bare 1.72 (1.74) vs 1.84 m, crops
+    2.22 (2.23) vs 2.38 m; building-edge zone (within 10 m of an outline) MAE 4.28 (4.28) vs 4.40 m,
+    99 (99) vs 100 % covered. MPGC's robust weights (mpgc.py) brought own-cell bare / crops from
+    1.82 / 2.32 m (then 1.70 / 2.27 m), the windows and NCC thresholds adapted to the TIN's
+    roughness (hierarchical_level.py) forest from 8.50 to 8.32 m; points MPGC does not accept but
+    that converged keep MPGC's position (with their NCC one: bare 2.08 m, crops 2.89 m). Edge points
+    do not help measurably here (printed, not asserted). Forest: region growing 7.83 m (printed)."""
     scene, rg, hi, _, _, images, models = both
     truth = Truth(scene.paths)
     refined = match_block(images, models, params=GrowParams(), height_range=scene.height_range, workers=4)

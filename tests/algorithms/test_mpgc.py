@@ -10,6 +10,7 @@ from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.matching import lsm, mpgc
 from pushbroom.algorithms.matching import mpgc_kernels as kern
 from pushbroom.algorithms.matching.params import LsmParams
+from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIMILARITY
 
 LON0, LAT0 = 10.0, 45.0
 
@@ -307,16 +308,11 @@ def enu_error(cameras, rec, enu):
     return np.column_stack([e, n, u]) - enu
 
 
-def test_planar_precision_calibrated_and_better_than_pairwise(planar):
-    """Issue 7 acceptance (MPGC alone): with models that the images follow exactly (so the hard
-    constraint, sigma_geometry 0.001 px), 3-image MPGC positions and object points against the
-    truth; empirical RMS / reported sigma within 0.8-1.25; pairwise LSM (lsm.match_points from the
-    reference into each search image, same template, approximations and initial affine) is less
-    precise (ratio > 1). Measured: 1.02 / 1.02 (positions), 1.03 (object point), pairwise / MPGC
-    2.96 (seed 42; 1.02-1.05 with seeds 1-3). With sigma_geometry 0.01 px the reported sigmas hold
-    that prior across the rays, which the exact models do not realise (positions 0.74 / 0.80)."""
+def calibrated(planar, params):
+    """MPGC of the planar patches with `params`: asserts convergence, acceptance and empirical RMS /
+    reported sigma within 0.8-1.25 (positions in both search images, object points); returns the
+    records, the converged ones and their geometric test t."""
     cameras, images, x0, y0, enu, pos, (lon, lat, h) = planar
-    params = mpgc.MpgcParams(sigma_geometry=0.001)
     rec = mpgc.match_points(images[0], images[1:], cameras, x0, y0, lon, lat, h, params)
     ok = rec["status"] == mpgc.OK
     print(f"\nMPGC: {ok.sum()} of {len(rec)} converged, iterations median {np.median(rec['iterations'][ok]):.0f}")
@@ -338,6 +334,19 @@ def test_planar_precision_calibrated_and_better_than_pairwise(planar):
     t = rec["geo_test"][ok]
     print(f"geometric test t: mean {t.mean():.2f}, redundancy {np.median(rec['geo_redundancy'][ok]):.2f}, "
           f"reliability median {np.median(rec['reliability'][ok]):.3f}")
+    return rec, ok, t
+
+
+def test_planar_precision_calibrated_and_better_than_pairwise(planar):
+    """Issue 7 acceptance (MPGC alone): with models that the images follow exactly (so the hard
+    constraint, sigma_geometry 0.001 px), 3-image MPGC positions and object points against the
+    truth; empirical RMS / reported sigma within 0.8-1.25; pairwise LSM (lsm.match_points from the
+    reference into each search image, same template, approximations and initial affine) is less
+    precise (ratio > 1). Measured: 1.02 / 1.02 (positions), 1.03 (object point), pairwise / MPGC
+    2.96 (seed 42; 1.02-1.05 with seeds 1-3). With sigma_geometry 0.01 px the reported sigmas hold
+    that prior across the rays, which the exact models do not realise (positions 0.74 / 0.80)."""
+    cameras, images, x0, y0, enu, pos, (lon, lat, h) = planar
+    rec, ok, t = calibrated(planar, mpgc.MpgcParams(sigma_geometry=0.001))
     assert 0.6 < t.mean() < 1.6
     # pairwise LSM on the same patches
     cen, jac = mpgc.geometry(cameras, lon, lat, h)
@@ -357,6 +366,16 @@ def test_planar_precision_calibrated_and_better_than_pairwise(planar):
     print(f"pairwise LSM RMS {rms_pair:.4f} px, MPGC {rms_mpgc:.4f} px over {both.sum()} points: "
           f"ratio pairwise / MPGC {rms_pair / rms_mpgc:.2f}")
     assert rms_pair / rms_mpgc > 1.5
+
+
+def test_planar_precision_calibrated_with_support_weights(planar):
+    """With the refinement's support weights (refinement.py) the sandwich covariance stays
+    calibrated (0.8-1.25); the geometric test t, whose redundancy assumes weights inverse to the
+    variances, comes out smaller (mpgc.py). Measured: empirical / reported 1.07 / 1.07 (positions),
+    1.07 (object point), t 0.48; MPGC RMS 0.0176 px against 0.0123 px with uniform windows."""
+    _, _, t = calibrated(planar, mpgc.MpgcParams(sigma_geometry=0.001, centre_sigma=SUPPORT_CENTRE,
+                                                 similarity=SUPPORT_SIMILARITY))
+    assert 0.3 < t.mean() < 0.8
 
 
 def test_linearisation_and_loose_constraint(planar):
@@ -450,6 +469,8 @@ def test_input_errors(planar):
         mpgc.match_points(images[0], images[1:], cameras, x0[:3], y0[:2], lon[:3], lat[:3], h[:3])
     with pytest.raises(InputError, match="sigma_geometry"):
         mpgc.MpgcParams(sigma_geometry=0.0).check()
+    with pytest.raises(InputError, match="support weights"):
+        mpgc.MpgcParams(centre_sigma=-1.0).check()
     with pytest.raises(InputError, match="template"):
         mpgc.match_points(images[0], images[1:], cameras, x0, y0, lon, lat, h, mpgc.MpgcParams(template=4))
     empty = mpgc.match_points(images[0], images[1:], cameras, [], [], [], [], [])
