@@ -58,36 +58,32 @@ def grey_weights(rep, pw):
 
 
 @njit(cache=True, nogil=True)
-def support_weights(f, half, centre, similarity, cw):
-    """Adaptive support weights of the template samples (mpgc.py), row-major like f:
-    cw(k, l) = exp(-(k^2 + l^2) / (2 centre^2)) exp(-(m(k, l) - m(0, 0))^2 / (2 (similarity s_f)^2)),
-    m the mean of f over the SUPPORT_BOX^2 samples around (k, l) inside the template, s_f the
-    template's standard deviation; a factor is 1 where its parameter is 0 (or the template flat)."""
+def support_weights(f, half, centre, gamma, cw):
+    """Support weights of the template samples (mpgc.py), row-major like f:
+    cw(k, l) = exp(-(k^2 + l^2) / (2 centre^2)) exp(-(m(k, l) - m(0, 0))^2 / (2 gamma^2)), m the mean
+    of f over the SUPPORT_BOX^2 samples around (k, l) inside the template (DN; gamma = similarity
+    times the template's standard deviation); a factor is 1 where its parameter is 0."""
     nside = 2 * half + 1
-    ns = nside * nside
     hb = SUPPORT_BOX // 2
-    sf = 0.0
-    sff = 0.0
-    for idx in range(ns):
-        sf += f[idx]
-        sff += f[idx] * f[idx]
-    gamma = similarity * math.sqrt(max(sff / ns - (sf / ns) ** 2, 0.0))
-    for r in range(nside):
-        for c in range(nside):
-            acc = 0.0
-            cnt = 0
-            for rr in range(max(0, r - hb), min(nside, r + hb + 1)):
-                for cc in range(max(0, c - hb), min(nside, c + hb + 1)):
-                    acc += f[rr * nside + cc]
-                    cnt += 1
-            cw[r * nside + c] = acc / cnt
-    mc = cw[half * nside + half]
+    if gamma > 0.0:      # box means first (cw), then the weights in place
+        for r in range(nside):
+            for c in range(nside):
+                acc = 0.0
+                cnt = 0
+                for rr in range(max(0, r - hb), min(nside, r + hb + 1)):
+                    for cc in range(max(0, c - hb), min(nside, c + hb + 1)):
+                        acc += f[rr * nside + cc]
+                        cnt += 1
+                cw[r * nside + c] = acc / cnt
+    mc = cw[half * nside + half] if gamma > 0.0 else 0.0
     for r in range(nside):
         for c in range(nside):
             idx = r * nside + c
-            u = (cw[idx] - mc) / gamma if gamma > 0.0 else 0.0
-            d2 = float((r - half) ** 2 + (c - half) ** 2)
-            cw[idx] = (math.exp(-0.5 * d2 / (centre * centre)) if centre > 0.0 else 1.0) * math.exp(-0.5 * u * u)
+            w = math.exp(-0.5 * float((r - half) ** 2 + (c - half) ** 2) / (centre * centre)) if centre > 0.0 else 1.0
+            if gamma > 0.0:
+                u = (cw[idx] - mc) / gamma
+                w *= math.exp(-0.5 * u * u)
+            cw[idx] = w
 
 
 @njit(cache=True, nogil=True)
@@ -142,6 +138,8 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
     for idx in range(ns):
         sf += f[idx]
         sff += f[idx] * f[idx]
+    cw = np.empty(ns)
+    support_weights(f, half, centre, similarity * math.sqrt(max(sff / ns - (sf / ns) ** 2, 0.0)), cw)
     nmat = np.empty((npar, npar))
     b = np.empty(npar)
     d = np.empty(npar)
@@ -160,8 +158,6 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
     sw = np.empty(n)
     cs = np.zeros(n)        # per search image Tukey's c times its residual scale
     wbuf = np.empty((ns, n))
-    cw = np.empty(ns)
-    support_weights(f, half, centre, similarity, cw)
     for idx in range(ns):
         for i in range(n):
             wbuf[idx, i] = cw[idx]

@@ -26,13 +26,13 @@ test_hierarchical.py).
 
 With GrowParams.support_weights (off by default; on in the DEM pipeline model) MPGC's support
 weights (mpgc.py; SUPPORT_CENTRE, SUPPORT_SIMILARITY) make each match measure the surface around its
-template centre: of the points on textured open ground of the 12 km triplet
-84 % lie within half a template of forest, city or water, whose heights the uniform window averaged
-in. There (test_end_to_end.py, STEP 10) the group-3 points' height RMS against the true DSM fell
-from 2.70 to 2.26 m (interior of the fields 1.25 -> 1.16 m); on the 3 km triplet's fields the RMS
-against the point truth from 0.144 / 0.145 to 0.128 / 0.129 px (test_combinations.py). Measured
-alternatives (12 km, STEP 10, RMS textured open / interior, m): uniform 2.70 / 1.25; centre 5 px
-alone 2.39 / 1.12, 3 px 2.35 / 1.37; similarity alone (prototype with a fixed 20 DN scale) 2.49 / 1.25; centre
+template centre: of the points on textured open ground of the 12 km triplet 84 % lie within half a
+template of forest, city or water, whose heights the uniform window averaged in. There
+(test_end_to_end.py, STEP 10) the group-3 points' height RMS against the true DSM fell from 2.70 to
+2.26 m (interior of the fields 1.25 -> 1.16 m); on the 3 km triplet's fields the RMS against the
+point truth from 0.144 / 0.145 to 0.128 / 0.129 px (test_combinations.py). Measured alternatives
+(12 km, STEP 10, RMS textured open / interior, m): uniform 2.70 / 1.25; centre 5 px alone 2.39 /
+1.12, 3 px 2.35 / 1.37; similarity alone (prototype with a fixed 20 DN scale) 2.49 / 1.25; centre
 5 px with similarity 0.6: 2.27 / 1.20; uniform MPGC windows of 13 or 9 px 2.57 / 1.33 and 2.70 /
 1.52."""
 from dataclasses import fields

@@ -12,7 +12,8 @@ DEM's own curvature over 95 m is the larger part, plane-fit residual 0.71 m vs 0
 The matcher's own error vs the area truth (0.154 px, deterministic: same with noise 0) is larger
 than the relief gap; centre-weighted LSM does not reduce the point-truth RMS (prototype: Gaussian
 sigma 9.5 / 6 / 4.75 / 3.5 px -> 0.206 / 0.207 / 0.212 / 0.237 px vs 0.208 unweighted).
-`area_truth` can weight the samples as MPGC's support weights do (mpgc.py), computed on the
+`area_truth` can weight the samples as MPGC's support weights do (mpgc.py; support_reference, a
+numpy implementation of mpgc_kernels.support_weights), computed on the
 template without the resolution adaptation's low-pass (the 5 x 5 box means hardly differ)."""
 import numpy as np
 from osgeo import gdal
@@ -21,7 +22,7 @@ from scipy import ndimage
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.imagery import Image, Smoothed
-from pushbroom.algorithms.matching.mpgc_kernels import support_weights
+from pushbroom.algorithms.matching.mpgc_kernels import SUPPORT_BOX
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import Lattice, adapt_resolution
 from pushbroom.algorithms.matching.seeds import local_affine
@@ -30,6 +31,21 @@ from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
 SINGLE_SURFACE = (BARE, CROPS)      # DSM = DTM: one (rough) surface inside a template
 DISCONTINUOUS = (FOREST, CITY)      # crowns on an 8 m lattice, buildings: height steps inside a template
 LOW_CONTRAST_DN = 5.0               # ground DN std over the template footprint below which a node is low texture
+
+
+def support_reference(f, half, centre, similarity):
+    """Support weights (mpgc_kernels.support_weights) in numpy: Gaussian of the distance from the
+    centre times a Gaussian of the difference of the SUPPORT_BOX box means (zero-padded sums over
+    the template / the samples they hold) from the centre's, in units of similarity x std(f)."""
+    side = 2 * half + 1
+    img = f.reshape(side, side)
+    box = np.ones((SUPPORT_BOX, SUPPORT_BOX))
+    mean = (ndimage.convolve(img, box, mode="constant") / ndimage.convolve(np.ones_like(img), box, mode="constant"))
+    k, l = np.meshgrid(np.arange(-half, half + 1), np.arange(-half, half + 1))
+    w = np.exp(-0.5 * (k ** 2 + l ** 2) / centre ** 2) if centre > 0 else np.ones_like(img)
+    if similarity > 0 and img.std() > 0:
+        w = w * np.exp(-0.5 * ((mean - mean[half, half]) / (similarity * img.std())) ** 2)
+    return w.ravel()
 
 
 class TemplateGradients:
@@ -152,11 +168,10 @@ class Scene:
         tx, ty, _ = self.truth((records["x1"][:, None] + k).ravel(), (records["y1"][:, None] + l).ravel(), model2)
         tx, ty = tx.reshape(n, -1), ty.reshape(n, -1)
         out = np.empty((n, 2))
-        w = np.empty(k.size)
         for p in range(n):
             a = np.array([[float(records[q][p]) for q in ("a1", "a2")], [float(records[q][p]) for q in ("a4", "a5")]])
             _, _, gx, gy, f = grads.at(records["x1"][p], records["y1"][p], a)
-            support_weights(f, half, *support, w)
+            w = support_reference(f, half, *support)
             jac = np.column_stack([gx, gx * k, gx * l, gy, gy * k, gy * l]) * np.sqrt(w)[:, None]
             sol = np.linalg.lstsq(jac, (gx * tx[p] + gy * ty[p]) * np.sqrt(w), rcond=None)[0]
             out[p] = sol[0], sol[3]

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from matching_scene import support_reference
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.matching import lsm, mpgc
@@ -104,19 +105,22 @@ def pack(images, offsets):
     return buf, meta, np.asarray(offsets, float)
 
 
-def support_reference(f, half, centre, similarity):
-    """Support weights (mpgc_kernels.support_weights) in numpy: Gaussian of the distance from the
-    centre times a Gaussian of the difference of the SUPPORT_BOX box means (zero-padded sums over
-    the template / the samples they hold) from the centre's, in units of similarity x std(f)."""
-    side = 2 * half + 1
-    img = f.reshape(side, side)
-    box = np.ones((kern.SUPPORT_BOX, kern.SUPPORT_BOX))
-    mean = (ndimage.convolve(img, box, mode="constant") / ndimage.convolve(np.ones_like(img), box, mode="constant"))
-    k, l = np.meshgrid(np.arange(-half, half + 1), np.arange(-half, half + 1))
-    w = np.exp(-0.5 * (k ** 2 + l ** 2) / centre ** 2) if centre > 0 else np.ones_like(img)
-    if similarity > 0:
-        w = w * np.exp(-0.5 * ((mean - mean[half, half]) / (similarity * img.std())) ** 2)
-    return w.ravel()
+@pytest.mark.parametrize("support", [(0.0, 0.0), (5.0, 1.0), (3.0, 0.0), (0.0, 0.5)])
+def test_support_weights_against_numpy(support):
+    """The kernel's support weights equal the numpy reference on an uneven template (a dark corner
+    beside texture, not symmetric under transposition) and are 1 on a flat one where only the
+    grey-level factor is on."""
+    rng = np.random.default_rng(5)
+    half = 9
+    f = 120 + 10 * rng.standard_normal((2 * half + 1, 2 * half + 1))
+    f[:6, :11] -= 70
+    f = f.ravel()
+    cw = np.empty(f.size)
+    kern.support_weights(f, half, support[0], support[1] * f.std(), cw)
+    np.testing.assert_allclose(cw, support_reference(f, half, *support), rtol=1e-12, atol=1e-15)
+    if support[0] == 0:
+        kern.support_weights(np.full(f.size, 80.0), half, 0.0, 0.0, cw)
+        assert np.all(cw == 1.0)
 
 
 def gn_step_reference(images, offs, x0, y0, cen, jac, state, dx, half, sigma_g, cs=None, w=None, support=(0.0, 0.0)):
