@@ -73,6 +73,15 @@ def _write_classes(like, out, values, names):
     return out
 
 
+def field_edge_distance(land, geotransform):
+    """Distance (m) of each cell of the texture-class raster `land` (north-up lon/lat grid) from the
+    nearest cell of forest, city or water (0 on those)."""
+    _, dlon, _, lat0, _, dlat = geotransform
+    me, mn = metres_per_degree(lat0 + 0.5 * land.shape[0] * dlat)
+    return ndimage.distance_transform_edt(np.isin(land, TEXTURED_OPEN + (LOW_TEXTURE,)),
+                                          sampling=(abs(dlat) * mn, dlon * me))
+
+
 def class_rasters(paths, folder):
     """Paths of the (texture classes, interior) rasters (module docstring)."""
     ds = gdal.Open(str(paths["classes"]))
@@ -81,11 +90,7 @@ def class_rasters(paths, folder):
     m1, m2 = ndimage.uniform_filter(ortho, TEMPLATE_CELLS), ndimage.uniform_filter(ortho * ortho, TEMPLATE_CELLS)
     flat = np.sqrt(np.maximum(m2 - m1 * m1, 0.0)) < LOW_CONTRAST_DN
     land = np.where(np.isin(land, TEXTURED_OPEN) & flat, LOW_TEXTURE, land)
-    _, dlon, _, lat0, _, dlat = ds.GetGeoTransform()
-    me, mn = metres_per_degree(lat0 + 0.5 * ds.RasterYSize * dlat)
-    distance = ndimage.distance_transform_edt(np.isin(land, TEXTURED_OPEN + (LOW_TEXTURE,)),
-                                              sampling=(abs(dlat) * mn, dlon * me))
-    interior = np.isin(land, TEXTURED_OPEN) & (distance >= EDGE_M)
+    interior = np.isin(land, TEXTURED_OPEN) & (field_edge_distance(land, ds.GetGeoTransform()) >= EDGE_M)
     return (_write_classes(ds, folder / "classes.tif", land, TEXTURE_CLASSES),
             _write_classes(ds, folder / "interior.tif", interior * INTERIOR,
                            {INTERIOR: f"textured open, >= {EDGE_M:g} m from forest, city, water"}))
