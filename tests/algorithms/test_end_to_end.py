@@ -19,10 +19,12 @@ chain's STEP 5 (end_to_end_chain.STEP) and MPGC's support weights (refinement.py
   HRS1 or HRS2: B/H 0.83 is tan 22.5 degrees each side) hold 72 % of the squared error (printed);
   the orientation adds 0.33 m, the rest is the matching's
   (test_group3_height_error_is_the_matched_surface_not_the_orientation); on the interior of the
-  fields 1.15 m (NMAD 0.87 m; STEP 10: 1.16 m, 1.25 m with uniform windows): the matcher's 0.128 px per image on fields (test_combinations, vs the point
-  truth) through the HRS1-HRS2 B/H of 0.83 with 5 m along-track pixels (the nadir HRG adds no height
-  precision), and the relief inside the template (the true DSM minus its 19 x 19 mean: 0.79 m RMS on
-  the interior cells, printed); 0.7 m would need ~0.08 px and a smaller window;
+  fields 1.15 m (NMAD 0.87 m; STEP 10: 1.16 m, 1.25 m with uniform windows): the matcher's 0.096 /
+  0.097 px along-track error in HRS1 / HRS2 (0.128 px per image in 2-D on the 3 km scene,
+  test_combinations, vs the point truth) through the HRS1-HRS2 B/H of 0.83 with 5 m along-track
+  pixels (the nadir HRG adds no height precision), from aliasing and the relief inside the template
+  (the true DSM minus its 19 x 19 mean: 0.79 m RMS on the interior cells, printed); with the
+  orientation's 0.33 m, 0.7 m would need about 0.055 px;
 - the 10 m DEM there: RMS 2.75 m (interior 1.29 m; target 1.0 m; 3.85 / 1.76 m with STEP 10, 4.07 /
   1.81 m with STEP 10 and uniform windows). The same DEM step on the same point positions with the
   true DSM's heights gives 2.91 m (interior 0.31 m, printed): at this spacing the TIN's ramps
@@ -171,7 +173,7 @@ def test_group3_height_error_is_the_matched_surface_not_the_orientation(chain):
     template centre's ray meets the true DSM, projected into HRS1 and HRS2 by their truth models: the
     orientation's error alone). Measured on the interior of the fields: matching 1.09 m (HRS1 / HRS2
     along-track errors 0.096 / 0.097 px RMS: what 0.7 m would need the matcher to halve), orientation
-    0.33 m (mean -0.28 m: the height datum from 19 control points with 2.2 m height sigma); on all
+    0.33 m (mean -0.28 m: the height datum from the noisy image measurements of 19 control points); on all
     textured open points matching 2.40 m, orientation 0.33 m. The matching's error on fields is
     deterministic, not the image noise (matching_scene.py: the same with noise 0): aliasing of the HRS
     images and the relief inside the template (module docstring)."""
