@@ -1,56 +1,301 @@
-"""Atomic writes: write to a temporary name beside the target, then rename over it, so a crash or
-a cancel never leaves a half-written file under the final name."""
+"""Safe writes: the one place that makes a file or a folder appear whole under its final name, or not
+at all.
+
+A write goes to a temporary name in the target's folder, `.<name>.<host>-<pid>.<8 hex>.part<ext>`
+(the extension kept, so drivers that choose a format by it still do), and is renamed over the target
+only when everything succeeded:
+
+- GDAL's failures during the write are checked, including those on closing a dataset, which the
+  Python bindings print and then swallow (a full disk met while GDAL writes the last tiles on close):
+  a GDAL error handler records them in the writing thread, and any CE_Failure recorded fails the write;
+- a file is flushed to disk (fsync) before the rename, so a file system that reports a full disk late
+  (delayed allocation, NFS, quotas) fails the write here, not after the rename;
+- the file system's errors (no permission, no space, quota, read-only, a missing folder) become
+  StorageError naming the path, the cause and what to do. `check_destination` runs the same checks
+  before a long computation, so a bad output folder fails in a second, not after an hour.
+
+Leftovers of killed runs. A process killed mid-write leaves its temporary name behind. On the first
+write into a folder, a process removes the temporary names of that folder whose writer is gone: same
+host and no process with that pid, or another host's name older than STALE_SECONDS (a writer on
+another machine of a cluster cannot be asked). A live writer's name is never touched. `leftovers`
+lists them with their owner and whether they are stale. A folder replaced by `atomic_dir` is swapped
+in two renames; a kill between them leaves the old folder as `.<name>.<host>-<pid>.<hex>.old/x`, which
+the clean-up puts back."""
 import contextlib
+import errno
 import os
+import re
+import secrets
 import shutil
-import tempfile
+import socket
+import threading
+import time
+
+from .errors import StorageError
+
+#: age (s) after which another host's temporary name counts as stale (its writer cannot be checked)
+STALE_SECONDS = 24 * 3600.0
+_HOST = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname().split(".")[0]) or "host"
+_NAME = re.compile(r"^\.(?P<name>.+)\.(?P<host>[A-Za-z0-9_]+)-(?P<pid>\d+)\.(?P<tag>[0-9a-f]{8})"
+                   r"\.(?P<kind>part|old)(?P<rest>.*)$")
+#: what to do, per errno of a failed write
+ADVICE = {
+    errno.ENOSPC: "the disk is full: free space there or choose a folder on another disk",
+    errno.EDQUOT: "the disk quota is used up: free space or choose a folder on another disk",
+    errno.EACCES: "no permission to write there: choose a folder you can write to",
+    errno.EPERM: "no permission to write there: choose a folder you can write to",
+    errno.EROFS: "the file system is read-only: choose a folder on a writable disk",
+    errno.ENOENT: "the folder does not exist and cannot be made: check the path",
+    errno.ENOTDIR: "a part of the path is a file, not a folder: check the path",
+    errno.EISDIR: "a folder of that name is in the way: choose another name",
+    errno.ENAMETOOLONG: "the path is too long: choose a shorter one",
+}
+#: GDAL/SQLite error texts of a failed write and the errno they stand for
+_GDAL_TEXTS = (("no space left", errno.ENOSPC), ("disk is full", errno.ENOSPC), ("disk full", errno.ENOSPC),
+               ("quota", errno.EDQUOT), ("permission denied", errno.EACCES), ("readonly database", errno.EROFS),
+               ("read-only", errno.EROFS), ("unable to open database file", errno.EACCES))
+#: texts that can only come from a failed write
+_WRITE_TEXTS = ("no space left", "disk is full", "disk full", "quota", "read-only file system", "write error")
+_cleaned = set()
+_cleaned_lock = threading.Lock()
+
+
+def storage_error(exc, path, what="the output"):
+    """StorageError for `exc` (an OSError, or a GDAL/SQLite error text) met while writing `path`."""
+    code = getattr(exc, "errno", None)
+    text = getattr(exc, "strerror", None) or str(exc)
+    if code not in ADVICE:
+        low = str(exc).lower()
+        code = next((c for key, c in _GDAL_TEXTS if key in low), code)
+    advice = ADVICE.get(code, "check the path, the free space and the permissions")
+    return StorageError(f"cannot write {what} {os.fspath(path)}: {text.strip()} ({advice})")
+
+
+def _io_failure(exc, tmp):
+    """Whether `exc`, raised while writing `tmp`, is a failure of that write rather than of the code or of
+    reading an input: a full disk, a quota or a read-only file system anywhere in the body; another
+    error of the file system only where it names the temporary path."""
+    if isinstance(exc, OSError):
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG):
+            return True
+        return exc.filename is not None and os.fspath(exc.filename).startswith(tmp)
+    low = str(exc).lower()
+    if isinstance(exc, RuntimeError):
+        return (any(key in low for key in _WRITE_TEXTS)
+                or (os.path.basename(tmp).lower() in low and any(key in low for key, _ in _GDAL_TEXTS)))
+    return False
+
+
+def _owner_gone(host, pid, age):
+    """Whether the writer (host, pid) of a temporary name `age` seconds old has gone (module docstring)."""
+    if host != _HOST:
+        return age > STALE_SECONDS
+    if int(pid) == os.getpid():
+        return False
+    try:
+        os.kill(int(pid), 0)
+    except ProcessLookupError:
+        return True
+    except (PermissionError, OverflowError):
+        return False
+    return False
+
+
+def leftovers(folder):
+    """Temporary names of this module in `folder`: a list of dicts (path, target, host, pid, age s, stale)."""
+    found = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return found
+    now = time.time()
+    for entry in entries:
+        match = _NAME.match(entry.name)
+        if not match:
+            continue
+        try:
+            age = now - entry.stat(follow_symlinks=False).st_mtime
+        except OSError:
+            continue
+        found.append({"path": entry.path, "target": os.path.join(folder, match["name"] + match["rest"]),
+                      "kind": match["kind"],
+                      "host": match["host"], "pid": int(match["pid"]), "age": age,
+                      "stale": _owner_gone(match["host"], match["pid"], age)})
+    return found
+
+
+def clean_leftovers(folder):
+    """Remove the stale temporary names of `folder` (a folder swapped out by a killed `atomic_dir` is put
+    back where its target is missing); returns the paths removed or restored."""
+    done = []
+    for item in leftovers(folder):
+        if not item["stale"]:
+            continue
+        path = item["path"]
+        try:
+            inner = os.path.join(path, "x")
+            if item["kind"] == "old" and os.path.isdir(inner) and not os.path.lexists(item["target"]):
+                os.rename(inner, item["target"])
+            if os.path.isdir(path) and not os.path.islink(path):
+                shutil.rmtree(path)
+            else:
+                os.unlink(path)
+            done.append(path)
+        except OSError:
+            continue
+    return done
+
+
+def _clean_once(folder):
+    with _cleaned_lock:
+        if folder in _cleaned:
+            return
+        _cleaned.add(folder)
+    clean_leftovers(folder)
+
+
+def _temporary_name(path, kind="part"):
+    folder = os.path.dirname(os.path.abspath(path))
+    base, ext = os.path.splitext(os.path.basename(path))
+    return os.path.join(folder, f".{base}.{_HOST}-{os.getpid()}.{secrets.token_hex(4)}.{kind}{ext}")
+
+
+def _folder(path, what):
+    """The target's folder, made if missing; StorageError if it cannot be made."""
+    folder = os.path.dirname(os.path.abspath(os.fspath(path)))
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as exc:
+        raise storage_error(exc, path, what) from None
+    return folder
+
+
+def check_destination(path, what="the output"):
+    """Fail now, with a StorageError that says what to do, where `path` cannot be written: its folder
+    cannot be made, is not writable (a probe file is created and removed) or a folder is in the way."""
+    path = os.fspath(path)
+    folder = _folder(path, what)
+    if os.path.isdir(path):
+        raise storage_error(OSError(errno.EISDIR, "a folder has that name"), path, what)
+    probe = _temporary_name(path)
+    try:
+        with open(probe, "wb"):
+            pass
+    except OSError as exc:
+        raise storage_error(exc, path, what) from None
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(probe)
+    return folder
+
+
+class _GdalFailures:
+    """Records GDAL's CE_Failure/CE_Fatal messages in this thread (other messages are passed on to
+    the handler below once the block ends)."""
+
+    def __init__(self):
+        from osgeo import gdal
+        self.gdal, self.failures, self.passed = gdal, [], []
+
+    def __call__(self, level, number, message):
+        if level >= self.gdal.CE_Failure:
+            self.failures.append(message)
+        else:
+            self.passed.append((level, number, message))
+
+    def __enter__(self):
+        self.gdal.PushErrorHandler(self)
+        return self
+
+    def __exit__(self, *exc):
+        self.gdal.PopErrorHandler()
+        for level, number, message in self.passed:
+            self.gdal.Error(level, number, message)
+        return False
+
+
+def _fsync(path):
+    if os.path.isdir(path):
+        for root, _dirs, files in os.walk(path):
+            for name in files:
+                _fsync(os.path.join(root, name))
+        return
+    if os.path.isfile(path):
+        with open(path, "rb+") as f:
+            os.fsync(f.fileno())
 
 
 @contextlib.contextmanager
-def atomic_path(path):
-    """Yield a temporary path in the target's folder; on success rename it to `path`.
-
-    The temporary file keeps the target's extension so drivers that choose a format by
-    extension (GDAL) still do so."""
-    path = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
-    base, ext = os.path.splitext(os.path.basename(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".part{ext}", dir=folder)
-    os.close(fd)
-    os.unlink(tmp)
+def _guarded(path, what, tmp):
+    """Run the body of a write of `tmp` for `path`: GDAL failures recorded, I/O errors translated, the
+    result flushed (module docstring)."""
     try:
-        yield tmp
-        os.replace(tmp, path)
+        with _GdalFailures() as gdal_failures:
+            yield
+        if gdal_failures.failures:
+            raise storage_error(RuntimeError("; ".join(dict.fromkeys(gdal_failures.failures))), path, what)
+        _fsync(tmp)
+    except StorageError:
+        raise
+    except (OSError, RuntimeError) as exc:
+        if _io_failure(exc, tmp):
+            raise storage_error(exc, path, what) from exc
+        raise
+
+
+@contextlib.contextmanager
+def atomic_path(path, what="the output"):
+    """Yield a temporary path in the target's folder; when the body succeeds, rename it to `path`
+    (module docstring). GDAL datasets written to it must be closed inside the body."""
+    path = os.fspath(path)
+    folder = _folder(path, what)
+    _clean_once(folder)
+    tmp = _temporary_name(path)
+    try:
+        with _guarded(path, what, tmp):
+            yield tmp
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise storage_error(exc, path, what) from exc
     finally:
-        for leftover in (tmp, tmp + ".aux.xml", tmp + ".ovr"):
-            if os.path.exists(leftover):
+        for leftover in (tmp, tmp + ".aux.xml", tmp + ".ovr", tmp + "-journal", tmp + "-wal", tmp + "-shm"):
+            with contextlib.suppress(OSError):
                 os.unlink(leftover)
 
 
-def write_text(path, text):
+def write_text(path, text, what="the output"):
     """Write `text` to `path` atomically (UTF-8)."""
-    with atomic_path(path) as tmp:
+    with atomic_path(path, what) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(text)
 
 
 @contextlib.contextmanager
-def atomic_dir(path):
-    """Yield a temporary folder beside `path`; on success it replaces `path` as a whole."""
+def atomic_dir(path, what="the output folder"):
+    """Yield a temporary folder beside `path`; when the body succeeds it replaces `path` as a whole."""
     path = os.path.abspath(os.fspath(path))
-    parent = os.path.dirname(path)
-    os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(path)}.", suffix=".part", dir=parent)
+    parent = _folder(path, what)
+    _clean_once(parent)
+    tmp = _temporary_name(path)
     try:
-        yield tmp
-        if os.path.exists(path):
-            old = tempfile.mkdtemp(prefix=f".{os.path.basename(path)}.", suffix=".old", dir=parent)
-            os.rename(path, os.path.join(old, "x"))
-            os.rename(tmp, path)
-            shutil.rmtree(old)
-        else:
-            os.rename(tmp, path)
+        os.mkdir(tmp)
+    except OSError as exc:
+        raise storage_error(exc, path, what) from None
+    try:
+        with _guarded(path, what, tmp):
+            yield tmp
+        try:
+            if os.path.exists(path):
+                old = _temporary_name(path, "old")
+                os.mkdir(old)
+                os.rename(path, os.path.join(old, "x"))
+                os.rename(tmp, path)
+                shutil.rmtree(old)
+            else:
+                os.rename(tmp, path)
+        except OSError as exc:
+            raise storage_error(exc, path, what) from exc
     finally:
         if os.path.exists(tmp):
-            shutil.rmtree(tmp)
+            shutil.rmtree(tmp, ignore_errors=True)

@@ -20,5 +20,11 @@ class GeometryError(PushbroomError):
     iteration did not converge)."""
 
 
+class StorageError(PushbroomError):
+    """A file or the block cannot be written or read as stored: no permission, no space, a read-only or
+    missing folder, a block locked by another program, a damaged or foreign file. The message names the
+    path and what to do."""
+
+
 class CancelledError(PushbroomError):
     """The user cancelled a long step; nothing half-done was written under a final name."""
