@@ -35,7 +35,8 @@ from .errors import StorageError
 
 #: age (s) after which another host's temporary name counts as stale (its writer cannot be checked)
 STALE_SECONDS = 24 * 3600.0
-_HOST = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname().split(".")[0]) or "host"
+#: this host's name as it appears in temporary names
+HOST = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname().split(".")[0]) or "host"
 _NAME = re.compile(r"^\.(?P<name>.+)\.(?P<host>[A-Za-z0-9_]+)-(?P<pid>\d+)\.(?P<tag>[0-9a-f]{8})"
                    r"\.(?P<kind>part|old)(?P<rest>.*)$")
 #: what to do, per errno of a failed write
@@ -60,15 +61,16 @@ _cleaned = set()
 _cleaned_lock = threading.Lock()
 
 
-def storage_error(exc, path, what="the output"):
-    """StorageError for `exc` (an OSError, or a GDAL/SQLite error text) met while writing `path`."""
+def storage_error(exc, path, what="the output", action=None):
+    """StorageError for `exc` (an OSError, or a GDAL/SQLite error text) met while writing `path`: "cannot
+    <action>: <cause> (<what to do>)", the action by default "write <what> <path>"."""
     code = getattr(exc, "errno", None)
     text = getattr(exc, "strerror", None) or str(exc)
     if code not in ADVICE:
         low = str(exc).lower()
         code = next((c for key, c in _GDAL_TEXTS if key in low), code)
     advice = ADVICE.get(code, "check the path, the free space and the permissions")
-    return StorageError(f"cannot write {what} {os.fspath(path)}: {text.strip()} ({advice})")
+    return StorageError(f"cannot {action or f'write {what} {os.fspath(path)}'}: {text.strip()} ({advice})")
 
 
 def _io_failure(exc, tmp):
@@ -86,9 +88,10 @@ def _io_failure(exc, tmp):
     return False
 
 
-def _owner_gone(host, pid, age):
-    """Whether the writer (host, pid) of a temporary name `age` seconds old has gone (module docstring)."""
-    if host != _HOST:
+def owner_gone(host, pid, age):
+    """Whether the writer (host, pid) of a temporary name `age` seconds old has gone: no process `pid` on this
+    host, or another host's name older than STALE_SECONDS (module docstring)."""
+    if host != HOST:
         return age > STALE_SECONDS
     if int(pid) == os.getpid():
         return False
@@ -120,7 +123,7 @@ def leftovers(folder):
         found.append({"path": entry.path, "target": os.path.join(folder, match["name"] + match["rest"]),
                       "kind": match["kind"],
                       "host": match["host"], "pid": int(match["pid"]), "age": age,
-                      "stale": _owner_gone(match["host"], match["pid"], age)})
+                      "stale": owner_gone(match["host"], match["pid"], age)})
     return found
 
 
@@ -157,7 +160,7 @@ def _clean_once(folder):
 def _temporary_name(path, kind="part"):
     folder = os.path.dirname(os.path.abspath(path))
     base, ext = os.path.splitext(os.path.basename(path))
-    return os.path.join(folder, f".{base}.{_HOST}-{os.getpid()}.{secrets.token_hex(4)}.{kind}{ext}")
+    return os.path.join(folder, f".{base}.{HOST}-{os.getpid()}.{secrets.token_hex(4)}.{kind}{ext}")
 
 
 def _folder(path, what):

@@ -6,7 +6,19 @@ image: name, raster path, orientation source, model kind, sensor, size, and the 
 a model-file document, see sensors/model_file.py),
 `footprints` (polygon layer, EPSG:4326, the image border projected on a DEM or a mean height) and
 `run_log` (one row per processing step). A block is written under a temporary name and renamed,
-so a failed or cancelled creation leaves any existing block untouched."""
+so a failed or cancelled creation leaves any existing block untouched.
+
+Every later write is one SQLite transaction (`transaction`) that takes the write lock first, waiting up to
+BUSY_TIMEOUT_MS for another writer (QGIS saving an edit, another step) and then failing with a message that
+says what to do; nothing is half-stored. Every connection waits the same way for other connections' locks.
+
+Generations. block_info holds a counter per part of the block a computation reads: `generation_<part>` for
+GENERATIONS. A step that computes from the block for a long time (the bundle adjustment) reads them first
+(`generations`) and stores its results only if they are unchanged (`transaction(..., expect=...)`), so a
+result computed from a control set that an import or an edit replaced meanwhile is refused, not stored
+beside the new set. The point files and the models bump theirs in their own transactions; the control
+points' counter is bumped by SQLite triggers on the `control_points` layer and the `image_measurements`
+table (`control_point_triggers`), so edits made in QGIS's own attribute table count too."""
 import contextlib
 import datetime
 import json
@@ -16,9 +28,9 @@ import numpy as np
 from osgeo import ogr
 
 from . import progress
-from .atomic import atomic_path
+from .atomic import atomic_path, storage_error
 from .crs import wgs84
-from .errors import InputError, PushbroomError
+from .errors import InputError, PushbroomError, StorageError
 from .geodesy import utm_epsg
 from .sensors.model_file import model_from_dict, model_to_dict
 
@@ -138,14 +150,9 @@ def create_schema(path):
 
 def read_images(path):
     """The images table of a block as a list of dicts (id, name, image_path, ...)."""
-    if not os.path.exists(path):
-        raise InputError(f"no block at {path}")
-    ds = ogr.Open(os.fspath(path))
-    layer = ds.GetLayerByName("images") if ds is not None else None
-    if layer is None:
-        raise InputError(f"{path} is not a Pushbroom block (no images table)")
+    ds = open_block(path)
     rows = []
-    for feat in layer:
+    for feat in ds.GetLayerByName("images"):
         row = {"id": feat.GetFID()}
         row.update({name: feat[name] for name, _ in IMAGE_FIELDS if name != "model"})
         rows.append(row)
@@ -154,33 +161,31 @@ def read_images(path):
 
 def load_model(path, image_id):
     """The sensor model stored in the block for image `image_id`."""
-    ds = ogr.Open(os.fspath(path))
-    layer = ds.GetLayerByName("images") if ds is not None else None
-    feat = layer.GetFeature(int(image_id)) if layer is not None else None
+    ds = open_block(path)
+    feat = ds.GetLayerByName("images").GetFeature(int(image_id))
     if feat is None:
         raise InputError(f"block {path} has no image with id {image_id}")
     return model_from_dict(json.loads(feat["model"]), f"model of image {image_id} in {path}")
 
 
-def save_models(path, models, step="adjust", message=""):
-    """Replace the stored sensor models of the images {image_id: model} and log the step, in one
-    transaction (all or nothing)."""
-    docs = {int(i): json.dumps(model_to_dict(m)) for i, m in models.items()}
-    ds = open_block(path, update=True)
+def write_models(ds, models, step="adjust", message=""):
+    """Replace the stored sensor models of the images {image_id: model} of the open block `ds` and log the
+    step, inside the caller's transaction; bumps generation_models."""
     layer = ds.GetLayerByName("images")
-    ds.StartTransaction()
-    try:
-        for image_id, doc in docs.items():
-            feat = layer.GetFeature(image_id)
-            if feat is None:
-                raise InputError(f"block {path} has no image with id {image_id}")
-            feat["model"] = doc
-            layer.SetFeature(feat)
-        write_info(ds, {}, step=step, message=message or f"{len(docs)} sensor model(s) updated")
-    except BaseException:
-        ds.RollbackTransaction()
-        raise
-    ds.CommitTransaction()
+    for image_id, model in models.items():
+        feat = layer.GetFeature(int(image_id))
+        if feat is None:
+            raise InputError(f"the block has no image with id {image_id}")
+        feat["model"] = json.dumps(model_to_dict(model))
+        layer.SetFeature(feat)
+    bump(ds, "models")
+    write_info(ds, {}, step=step, message=message or f"{len(models)} sensor model(s) updated")
+
+
+def save_models(path, models, step="adjust", message=""):
+    """`write_models` in one transaction (all or nothing)."""
+    with transaction(path, "the sensor models") as ds:
+        write_models(ds, models, step, message)
 
 
 def image_name(image_path):
@@ -212,42 +217,157 @@ def open_images(image_paths, orientation_paths=None):
     return result
 
 
+#: ms a connection waits for another connection's lock (QGIS saving an edit of one of the block's layers, a step
+#: storing its results) before it gives up with a StorageError
+BUSY_TIMEOUT_MS = 10000
+#: the parts of a block whose changes a long computation must not miss (module docstring)
+GENERATIONS = ("control_points", "tie_points", "mass_points", "models")
+
+
+def _execute(ds, sql):
+    result = ds.ExecuteSQL(sql)
+    if result is not None:
+        ds.ReleaseResultSet(result)
+
+
+def locked_error(block_path, what, exc):
+    """StorageError for a block another connection keeps locked beyond BUSY_TIMEOUT_MS."""
+    return StorageError(f"cannot store {what} in the block {block_path}: another program keeps it locked ({exc}; "
+                        f"waited {BUSY_TIMEOUT_MS / 1000:g} s). Save or stop the edits of its layers in QGIS, or wait "
+                        "for the other Pushbroom step to finish, then run this one again; nothing was stored")
+
+
+def _is_locked(exc):
+    text = str(exc).lower()
+    return "locked" in text or "busy" in text
+
+
 def open_block(path, update=False):
-    """The block's OGR data source; InputError if `path` is no Pushbroom block."""
-    if not os.path.exists(os.fspath(path)):
+    """The block's OGR data source, waiting up to BUSY_TIMEOUT_MS for other connections' locks; InputError
+    if `path` is no Pushbroom block (no file, not a GeoPackage, or a GeoPackage of another program),
+    StorageError if it cannot be opened (damaged, no permission)."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
         raise InputError(f"no block at {path}")
     ogr.UseExceptions()
-    ds = ogr.Open(os.fspath(path), 1 if update else 0)
+    try:
+        ds = ogr.Open(path, 1 if update else 0)
+    except RuntimeError as exc:
+        text = str(exc).lower()
+        if "not recognized" in text or "not a database" in text:
+            raise InputError(f"{path} is not a Pushbroom block (not a GeoPackage): give the .gpkg that "
+                             "pushbroom:createblock made") from None
+        raise storage_error(exc, path, "the block") from None
     if ds is None or ds.GetLayerByName("block_info") is None:
-        raise InputError(f"{path} is not a Pushbroom block (no block_info table)")
+        raise InputError(f"{path} is not a Pushbroom block (a GeoPackage without Pushbroom's block_info table, "
+                         "perhaps made by another program): give the .gpkg that pushbroom:createblock made")
+    _execute(ds, f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+    images = ds.GetLayerByName("images")
+    defn = images.GetLayerDefn() if images is not None else None
+    fields = {defn.GetFieldDefn(k).GetName() for k in range(defn.GetFieldCount())} if defn is not None else set()
+    missing = [name for name, _ in IMAGE_FIELDS if name not in fields]
+    if missing:
+        raise InputError(f"{path} is not a Pushbroom block: its images table lacks {', '.join(missing)} "
+                         "(a GeoPackage of another program, or of an incompatible version)")
     return ds
 
 
-#: ms a transaction waits for another connection's write lock (QGIS editing the layer, an adjustment storing
-#: its results) before it gives up with an error
-BUSY_TIMEOUT_MS = 5000
+def _failed(exc, block_path, what):
+    """StorageError for an OGR/SQLite failure while storing `what` in the block."""
+    if _is_locked(exc):
+        return locked_error(block_path, what, exc)
+    return storage_error(exc, block_path, what, action=f"store {what} in the block {block_path}")
 
 
 @contextlib.contextmanager
-def transaction(block_path, what="the edit"):
-    """The block's data source (update mode) inside one SQLite transaction that already holds the
-    write lock (taken first, so a concurrent writer is waited for up to BUSY_TIMEOUT_MS rather than
-    failing the edit half-way), committed when the block ends, rolled back on any error; OGR/SQLite
-    errors become InputError("cannot store <what> ...")."""
+def transaction(block_path, what="the edit", expect=None):
+    """The block's data source (update mode) inside one SQLite transaction that already holds the write
+    lock (taken first, waiting up to BUSY_TIMEOUT_MS, so a concurrent writer fails this one before anything
+    is written), committed when the block ends, rolled back on any error. `expect`: {part: generation} read
+    before a computation; the transaction is refused (StorageError, nothing written) if any changed since.
+    OGR/SQLite failures become StorageError("cannot store <what> ..."). The data source is closed when the
+    block ends: do not use it afterwards."""
     ds = open_block(block_path, update=True)
-    result = ds.ExecuteSQL(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
-    if result is not None:
-        ds.ReleaseResultSet(result)
-    ds.StartTransaction()
+    failed = True
     try:
-        ds.ExecuteSQL("UPDATE block_info SET value = value WHERE key = 'format_version'")
-        yield ds
-        ds.CommitTransaction()
-    except BaseException as exc:
-        ds.RollbackTransaction()
-        if isinstance(exc, RuntimeError):   # OGR/SQLite: locked, read-only, disk full
-            raise InputError(f"cannot store {what} in {block_path}: {exc}") from exc
-        raise
+        try:
+            ds.StartTransaction()
+            _execute(ds, "UPDATE block_info SET value = value WHERE key = 'format_version'")
+        except RuntimeError as exc:
+            raise _failed(exc, block_path, what) from None
+        try:
+            if expect:
+                _check_generations(ds, block_path, what, expect)
+            yield ds
+            ds.CommitTransaction()
+            failed = False
+        except BaseException as exc:
+            with contextlib.suppress(RuntimeError):
+                ds.RollbackTransaction()
+            if isinstance(exc, RuntimeError):   # OGR/SQLite: locked, read-only, disk full
+                raise _failed(exc, block_path, what) from exc
+            raise
+    finally:
+        try:
+            _close(ds, block_path, what)
+        except StorageError:
+            if not failed:      # a failure already on its way is the one to report
+                raise
+
+
+def _close(ds, block_path, what):
+    """Close `ds` now (OGR finishes deferred work, such as feature count triggers, on close)."""
+    try:
+        ds.Destroy()
+    except RuntimeError as exc:
+        raise _failed(exc, block_path, what) from None
+
+
+def check_writable(block_path, what="the results"):
+    """Fail now (StorageError) where the block cannot be written: locked by another program beyond
+    BUSY_TIMEOUT_MS, read-only, damaged. A long step calls it before it computes."""
+    with transaction(block_path, what):
+        pass
+
+
+def _generation_values(info):
+    return {part: int(info.get(f"generation_{part}", 0) or 0) for part in GENERATIONS}
+
+
+def generations(block_path):
+    """{part: generation} of the block now (module docstring)."""
+    return _generation_values(read_info(block_path))
+
+
+def _check_generations(ds, block_path, what, expect):
+    now = _generation_values({f["key"]: f["value"] for f in ds.GetLayerByName("block_info")})
+    changed = [part.replace("_", " ") for part, value in expect.items() if now.get(part) != value]
+    if changed:
+        raise StorageError(f"cannot store {what} in {block_path}: the block's {' and '.join(changed)} changed while "
+                           "this step computed (an import, an edit in the measurement window or in QGIS, or another "
+                           "step), so its results belong to the old state; nothing was stored. Run it again")
+
+
+def bump(ds, part):
+    """Increment the generation of `part` in the open block `ds` (inside the caller's transaction)."""
+    info = {f["key"]: f["value"] for f in ds.GetLayerByName("block_info")}
+    write_info(ds, {f"generation_{part}": _generation_values(info)[part] + 1})
+
+
+def control_point_triggers(ds, layer, table):
+    """Create (where missing) the triggers that bump generation_control_points on any change of the control
+    points' names, roles, coordinates and sigmas (not of residual_px, which the adjustment writes) and of
+    their image measurements, in the open block `ds`."""
+    bump_sql = "UPDATE block_info SET value = CAST(value AS INTEGER) + 1 WHERE key = 'generation_control_points'"
+    info = {f["key"] for f in ds.GetLayerByName("block_info")}
+    if "generation_control_points" not in info:
+        write_info(ds, {"generation_control_points": 0})
+    columns = {layer: "name, role, lon, lat, h, sigma_e, sigma_n, sigma_h, geom",
+               table: "point_name, image_id, col, row, sigma"}
+    for name, cols in columns.items():
+        for event in ("INSERT", "DELETE", f"UPDATE OF {cols}"):
+            trigger = f"pushbroom_generation_{name}_{event.split()[0].lower()}"
+            _execute(ds, f'CREATE TRIGGER IF NOT EXISTS "{trigger}" AFTER {event} ON "{name}" BEGIN {bump_sql}; END')
 
 
 def read_info(path):
@@ -289,7 +409,5 @@ def write_info(ds, values, step=None, message=""):
 
 def update_info(path, values, step=None, message=""):
     """Set block_info keys (a dict) and, with `step`, append a run_log row, in one transaction."""
-    ds = open_block(path, update=True)
-    ds.StartTransaction()
-    write_info(ds, values, step, message)
-    ds.CommitTransaction()
+    with transaction(path, "the block information") as ds:
+        write_info(ds, values, step, message)

@@ -38,6 +38,7 @@ from .. import block, progress
 from ..crs import egm96_undulation, reproject, srs as parse_crs, wgs84
 from ..atomic import write_text
 from ..errors import InputError
+from . import point_plausibility
 from .observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
 
 DEFAULT_SIGMAS = (2.5, 2.5, 2.2)    # ground east, north, height (m), methods.md section 4 (K)
@@ -171,6 +172,12 @@ def read_csv(path, image_names, crs=None, heights="ellipsoidal", default_role="c
     ({name: id}); `crs` is the CRS of x/y columns (default WGS 84); `check_ids` names points that
     are check points whatever their role column says. Measurements are ordered by point, then
     image id."""
+    return _read_csv(path, image_names, crs, heights, default_role, check_ids, sigmas, image_sigma, suffix,
+                     feedback)[0]
+
+
+def _read_csv(path, image_names, crs, heights, default_role, check_ids, sigmas, image_sigma, suffix, feedback):
+    """read_csv's Observations and, per point, whether its x/y looked like degrees in a projected CRS."""
     if heights not in HEIGHT_TYPES:
         raise InputError(f"heights must be one of {', '.join(HEIGHT_TYPES)}, not {heights!r}")
     if default_role not in ROLES:
@@ -224,15 +231,19 @@ def read_csv(path, image_names, crs=None, heights="ellipsoidal", default_role="c
     if unknown:
         raise InputError(f"check point id(s) {', '.join(unknown)} are not in {table.path}")
     points["role"][np.isin(points["name"], check_ids)] = "check"
-    _ground_to_wgs84(points, table, crs, heights, seen)
+    degrees = _ground_to_wgs84(points, table, crs, heights, seen)
     meas = np.array(meas, MEAS_DTYPE)
-    return Observations(points, meas).sorted().check()
+    return Observations(points, meas).sorted().check(), degrees
 
 
 def _ground_to_wgs84(points, table, crs, heights, lines):
     """Convert the points' x/y (table.horizontal) and heights in place to WGS 84 lon/lat and
-    ellipsoidal h; coordinates out of range name their line."""
+    ellipsoidal h; coordinates out of range name their line. Returns per point whether its x/y were
+    within +-180, +-90 in a projected CRS (degrees given as projected coordinates?)."""
+    degrees = np.zeros(len(points), bool)
     if table.horizontal == ("x", "y"):
+        if crs is not None and parse_crs(crs).IsProjected():
+            degrees = (np.abs(points["lon"]) <= 180.0) & (np.abs(points["lat"]) <= 90.0)
         points["lon"], points["lat"] = to_wgs84(points["lon"], points["lat"], 4326 if crs is None else crs)
     bad = ~(np.isfinite(points["lon"]) & np.isfinite(points["lat"]) & (np.abs(points["lat"]) <= 90.0)
             & (np.abs(points["lon"]) <= 360.0))
@@ -243,6 +254,7 @@ def _ground_to_wgs84(points, table, crs, heights, lines):
                          "coordinates (name the columns x, y and give their CRS)?")
     if heights == "orthometric":
         points["h"] = orthometric_to_ellipsoidal(points["lon"], points["lat"], points["h"])
+    return degrees
 
 
 def write_csv(path, observations, image_names):
@@ -295,9 +307,11 @@ def image_ids(block_path):
 
 
 def layers(ds):
-    """The control_points layer and image_measurements table of an open block (created if missing)."""
+    """The control_points layer and image_measurements table of an open block (created if missing, with the
+    triggers that count their changes: block.control_point_triggers)."""
     points = ds.GetLayerByName(LAYER) or block.create_layer(ds, LAYER, ogr.wkbPoint25D, wgs84(), POINT_FIELDS)
     table = ds.GetLayerByName(TABLE) or block.create_layer(ds, TABLE, ogr.wkbNone, None, MEAS_FIELDS)
+    block.control_point_triggers(ds, LAYER, TABLE)
     return points, table
 
 
@@ -410,14 +424,40 @@ def check_extent(observations, images):
                              "row swapped or the image columns mixed up?")
 
 
-def import_csv(block_path, csv_path, mode="replace", feedback=None, **options):
-    """Read `csv_path` (`read_csv` with `options`) against the block's images, check the
-    measurements lie inside their images and store the points (`save_control_points`).
-    Returns the points now in the block."""
+def check_plausible(block_path, observations, degrees_as_projected=None, keep=False, feedback=None):
+    """Refuse (InputError naming them) the points that do not lie where the block's images are
+    (point_plausibility.py), or with `keep` only warn about them through `feedback`."""
+    images = block.read_images(block_path)
+    models = {r["id"]: block.load_model(block_path, r["id"]) for r in images}
+    heights = list(block.height_range(block_path) or ()) + observations.points["h"].tolist()
+    footprints = point_plausibility.Footprints(models, {r["id"]: r["name"] for r in images}, heights)
+    lines = point_plausibility.implausible_points(observations, footprints, degrees_as_projected)
+    if not lines:
+        return []
+    shown = "; ".join(lines[:10]) + (f"; and {len(lines) - 10} more" if len(lines) > 10 else "")
+    if not keep:
+        raise InputError(f"{len(lines)} point(s) do not lie where the block's images are, nothing was imported: "
+                         f"{shown}. Correct them, or import them anyway with the option to keep such points")
+    progress.ensure(feedback).pushInfo(f"warning: kept {len(lines)} point(s) that do not lie where the block's "
+                                       f"images are: {shown}")
+    return lines
+
+
+def import_csv(block_path, csv_path, mode="replace", feedback=None, keep_implausible=False, **options):
+    """Read `csv_path` (`read_csv` with `options`) against the block's images, check the measurements
+    lie inside their images and the points where the images are (`check_plausible`; refused unless
+    `keep_implausible`) and store the points (`save_control_points`). Returns the points now in the block."""
     images = block.read_images(block_path)
     names = {r["name"]: r["id"] for r in images}
-    observations = read_csv(csv_path, names, feedback=feedback, **options)
+    defaults = {"crs": None, "heights": "ellipsoidal", "default_role": "control", "check_ids": (),
+                "sigmas": DEFAULT_SIGMAS, "image_sigma": IMAGE_SIGMA, "suffix": ""}
+    unknown = set(options) - set(defaults)
+    if unknown:
+        raise TypeError(f"unknown option(s) {sorted(unknown)}")
+    defaults.update(options)
+    observations, degrees = _read_csv(csv_path, names, feedback=feedback, **defaults)
     check_extent(observations, images)
+    check_plausible(block_path, observations, degrees, keep_implausible, feedback)
     return save_control_points(block_path, observations, mode=mode, feedback=feedback, names=names)
 
 

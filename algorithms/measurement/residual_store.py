@@ -95,6 +95,24 @@ def _write(layer, fields, rows):
         layer.CreateFeature(feat)
 
 
+def write_residuals(ds, meas_rows, point_rows):
+    """Replace the residual tables and the control_points layer's residual_px of the open block `ds` by
+    `residual_rows`' rows, inside the caller's transaction."""
+    rms = {name: row[-1] for name, *row in point_rows}
+    _write(_table(ds, MEASUREMENT_TABLE, MEASUREMENT_FIELDS), MEASUREMENT_FIELDS, meas_rows)
+    _write(_table(ds, POINT_TABLE, POINT_FIELDS), POINT_FIELDS, point_rows)
+    points, _ = cp.layers(ds)
+    if points.GetLayerDefn().GetFieldIndex(FIELD) < 0:
+        points.CreateField(ogr.FieldDefn(FIELD, ogr.OFTReal))
+    for feat in list(points):
+        value = rms.get(feat["name"], np.nan)
+        if np.isfinite(value):
+            feat[FIELD] = float(value)
+        else:
+            feat.SetFieldNull(FIELD)
+        points.SetFeature(feat)
+
+
 def save_residuals(block_path, adjustment, check, observations=None):
     """Store the residuals of `adjustment` (bundle.Adjustment, its models adjusted) and of the check
     points `check` (bundle.check_points' dict) in the block, replacing earlier ones, in one
@@ -103,20 +121,8 @@ def save_residuals(block_path, adjustment, check, observations=None):
     if observations is None:
         observations = cp.load_control_points(block_path)
     meas_rows, point_rows = residual_rows(adjustment, check, observations)
-    rms = {name: row[-1] for name, *row in point_rows}
     with block.transaction(block_path, "the residuals") as ds:
-        _write(_table(ds, MEASUREMENT_TABLE, MEASUREMENT_FIELDS), MEASUREMENT_FIELDS, meas_rows)
-        _write(_table(ds, POINT_TABLE, POINT_FIELDS), POINT_FIELDS, point_rows)
-        points, _ = cp.layers(ds)
-        if points.GetLayerDefn().GetFieldIndex(FIELD) < 0:
-            points.CreateField(ogr.FieldDefn(FIELD, ogr.OFTReal))
-        for feat in list(points):
-            value = rms.get(feat["name"], np.nan)
-            if np.isfinite(value):
-                feat[FIELD] = float(value)
-            else:
-                feat.SetFieldNull(FIELD)
-            points.SetFeature(feat)
+        write_residuals(ds, meas_rows, point_rows)
     return meas_rows, point_rows
 
 

@@ -1,10 +1,66 @@
-"""Common base of the Processing algorithms: naming, help, icon, and the translation of the
-engine's errors into QgsProcessingException (a clear message, never a traceback)."""
-from qgis.core import QgsProcessingAlgorithm, QgsProcessingException, QgsProcessingParameterDefinition
+"""Common base of the Processing algorithms: naming, help, icon, and what every algorithm does the same
+way around its engine call:
+
+- its file outputs are checked before the work starts (atomic.check_destination): a folder that cannot
+  be written fails in a second with a clear message, not after an hour of computing;
+- a CRS parameter the user filled in must be a valid CRS (an unknown code is an error, never the default);
+- GDAL's "Unable to compute a transformation between pixel/line and georeferenced coordinates", which QGIS
+  prints when it loads a raw level-1A image (no geotransform) as a raster layer, is silenced while the
+  parameters are checked or read: those images are expected to have none;
+- the engine's errors become QgsProcessingException, printed once (`_single_error`)."""
+import os
+
+from osgeo import gdal
+from qgis.core import (QgsApplication, QgsProcessingAlgorithm, QgsProcessingException,
+                       QgsProcessingParameterDefinition, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterFolderDestination, QgsProcessingParameterRasterDestination,
+                       QgsProcessingParameterVectorDestination)
 from qgis.PyQt.QtGui import QIcon
 
-from ...algorithms.errors import PushbroomError
+from ...algorithms import atomic
+from ...algorithms.errors import InputError, PushbroomError
 from ..plugin import resource_path
+
+#: GDAL's message for an image without georeferencing, expected for level-1A imagery
+NO_GEOREFERENCING = "Unable to compute a transformation between pixel/line and georeferenced coordinates"
+
+
+class _QuietNoGeoreferencing:
+    """GDAL error handler that drops NO_GEOREFERENCING and passes every other message on once the block ends."""
+
+    def __init__(self):
+        self.passed = []
+
+    def __call__(self, level, number, message):
+        if NO_GEOREFERENCING not in message:
+            self.passed.append((level, number, message))
+
+    def __enter__(self):
+        gdal.PushErrorHandler(self)
+        return self
+
+    def __exit__(self, *exc):
+        gdal.PopErrorHandler()
+        for level, number, message in self.passed:
+            gdal.Error(level, number, message)
+        return False
+
+
+def _single_error():
+    """qgis_process echoes the message log's critical messages to stderr, and Processing logs a failed
+    algorithm's exception there twice besides reporting it: under qgis_process (which ends after the
+    failure), stop the echo so the error is printed once, as "ERROR: <message>"."""
+    app = QgsApplication.instance()
+    if app is not None and app.platform() == "qgis_process":
+        QgsApplication.messageLog().blockSignals(True)
+
+
+def _file_path(value):
+    """`value` when it names a local file or folder (not a database, a URI or a memory layer), else None."""
+    text = str(value or "").strip()
+    if not text or text.startswith(("memory:", "postgres", "ogr:", "TEMPORARY_OUTPUT")) or "://" in text:
+        return None
+    return text
 
 
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
@@ -46,17 +102,61 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         return None if value is None or value == "" else self.parameterAsDouble(parameters, key, context)
 
     def parameterAsCrsDefinition(self, parameters, key, context):  # noqa: N802 (QGIS naming)
-        """The CRS of a CRS parameter as the engine takes it (authority id, else WKT), or None where unset."""
+        """The CRS of a CRS parameter as the engine takes it (authority id, else WKT), or None where unset.
+        A text the user gave that is no valid CRS is an InputError (QGIS would treat it as unset)."""
         crs = self.parameterAsCrs(parameters, key, context)
-        return (crs.authid() or crs.toWkt(crs.WKT_PREFERRED)) if crs.isValid() else None
+        if crs.isValid():
+            return crs.authid() or crs.toWkt(crs.WKT_PREFERRED)
+        given = parameters.get(key)
+        if isinstance(given, str) and given.strip():
+            definition = self.parameterDefinition(key)
+            raise InputError(f"{definition.description() if definition else key}: {given.strip()[:200]!r} is not a "
+                             "coordinate reference system QGIS knows; give an EPSG code such as EPSG:32632, or WKT, "
+                             "or leave it empty for the default")
+        return None
 
     def icon(self):
         return QIcon(resource_path("icons", "pushbroom.svg"))
 
+    def checkParameterValues(self, parameters, context):  # noqa: N802 (QGIS API)
+        with _QuietNoGeoreferencing():
+            return super().checkParameterValues(parameters, context)
+
+    def parameterAsLayerList(self, parameters, key, context):  # noqa: N802 (QGIS API)
+        with _QuietNoGeoreferencing():
+            return super().parameterAsLayerList(parameters, key, context)
+
+    def parameterAsRasterLayer(self, parameters, key, context):  # noqa: N802 (QGIS API)
+        with _QuietNoGeoreferencing():
+            return super().parameterAsRasterLayer(parameters, key, context)
+
+    def check_destinations(self, parameters, context):
+        """atomic.check_destination on every file or folder output that was given."""
+        for definition in self.destinationParameterDefinitions():
+            name = definition.name()
+            if isinstance(definition, QgsProcessingParameterFolderDestination):
+                path = _file_path(self.parameterAsString(parameters, name, context))
+                if path and os.path.isdir(path):    # written into: it must be writable
+                    atomic.check_destination(os.path.join(path, "probe"), f"into {definition.description().lower()}")
+                elif path:                          # made (or replaced as a whole) in its parent folder
+                    atomic.check_destination(path, f"the {definition.description().lower()}")
+                continue
+            if isinstance(definition, QgsProcessingParameterFileDestination):
+                path = _file_path(self.parameterAsFileOutput(parameters, name, context))
+            elif isinstance(definition, (QgsProcessingParameterRasterDestination,
+                                         QgsProcessingParameterVectorDestination)):
+                path = _file_path(self.parameterAsOutputLayer(parameters, name, context))
+            else:
+                continue
+            if path:
+                atomic.check_destination(path, f"the {definition.description().lower()}")
+
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 (QGIS API)
         try:
+            self.check_destinations(parameters, context)
             return self.execute(parameters, context, feedback)
         except PushbroomError as exc:
+            _single_error()
             raise QgsProcessingException(str(exc)) from exc
 
     def execute(self, parameters, context, feedback):

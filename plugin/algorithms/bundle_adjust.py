@@ -2,7 +2,9 @@
 points (algorithms/adjustment/bundle.py); the adjusted models and the control and check points'
 residuals (algorithms/measurement/residual_store.py) are stored in the block, with a
 report (K Tables 2-4; adjustment/report.py) and a residual-vector layer of the control and check
-points (adjustment/residual_vectors.py)."""
+points (adjustment/residual_vectors.py). The models and residuals are stored in one transaction, and only if
+the block's control points, tie points and models are still those the adjustment started from
+(block.generations)."""
 from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry,
                        QgsPointXY, QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
                        QgsProcessingParameterBoolean, QgsProcessingParameterEnum, QgsProcessingParameterFeatureSink,
@@ -25,7 +27,7 @@ from ...algorithms.dem import Dem
 from ...algorithms.errors import InputError
 from ...algorithms.stats import statistics_table
 from ...algorithms.matching import points
-from ...algorithms.measurement.residual_store import save_residuals
+from ...algorithms.measurement.residual_store import residual_rows, write_residuals
 from ..styles import style_on_completion
 from .base import PushbroomAlgorithm
 from .import_points import HEIGHTS
@@ -143,6 +145,8 @@ class BundleAdjust(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
+        block.check_writable(path, "the adjusted models")
+        generations = block.generations(path)
         rows = block.read_images(path)
         models = {r["id"]: block.load_model(path, r["id"]) for r in rows}
         names = {r["id"]: r["name"] for r in rows}
@@ -216,9 +220,11 @@ class BundleAdjust(PushbroomAlgorithm):
         parts = report.sections(result, check, table, critical, heights, vectors)
         parts[1:1] = extra
         feedback.pushInfo(report.render_text(parts))
-        block.save_models(path, models, step="bundleadjust",
-                          message=f"sigma_0 {result.sigma0:.4f}, free: {', '.join(free)}")
-        save_residuals(path, result, check, obs)
+        residuals = residual_rows(result, check, obs)
+        with block.transaction(path, "the adjusted models and residuals", expect=generations) as ds:
+            block.write_models(ds, models, step="bundleadjust",
+                               message=f"sigma_0 {result.sigma0:.4f}, free: {', '.join(free)}")
+            write_residuals(ds, *residuals)
         out = {"BLOCK": path, "SIGMA0": result.sigma0}
         destination = self.parameterAsFileOutput(parameters, "REPORT", context)
         if destination:

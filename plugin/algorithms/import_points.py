@@ -1,7 +1,8 @@
 """pushbroom:importpoints and pushbroom:exportpoints — control/check points and their image
 measurements between a CSV file and the block (algorithms/adjustment/control_points.py)."""
 from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
-                       QgsProcessingOutputVectorLayer, QgsProcessingParameterCrs, QgsProcessingParameterEnum,
+                       QgsProcessingOutputVectorLayer, QgsProcessingParameterBoolean, QgsProcessingParameterCrs,
+                       QgsProcessingParameterEnum,
                        QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterNumber, QgsProcessingParameterString)
 
@@ -32,7 +33,10 @@ class ImportPoints(PushbroomAlgorithm):
             "that image. Other columns are ignored with a warning. 'Check point ids' makes the listed points "
             "check points whatever their role column says. Replace mode replaces the block's points; merge "
             "mode updates points with the same id (their measurements in the images the file gives) and adds "
-            "new ones. The import is one transaction: a bad file leaves the block as it was.")
+            "new ones. Points that do not lie within 2 km of an image footprint (at the block's terrain height "
+            "range), or whose measurements lie over 2 km from where their coordinates project, are named and "
+            "refused (lon/lat swapped, degrees given as projected x/y, another CRS) unless kept on purpose. The "
+            "import is one transaction: a bad file leaves the block as it was.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
@@ -55,6 +59,8 @@ class ImportPoints(PushbroomAlgorithm):
                    IMAGE_SIGMA, minValue=1e-6),
             QgsProcessingParameterString("MEAS_SUFFIX", "Measurement column suffix ('_meas' for the simulator's "
                                          "points.csv)", "", optional=True),
+            QgsProcessingParameterBoolean("KEEP_IMPLAUSIBLE", "Keep points that do not lie where the block's images "
+                                          "are (with a warning)", False),
         ])
         self.addOutput(QgsProcessingOutputVectorLayer("POINTS", "Control and check points",
                                                       QgsProcessing.TypeVectorPoint))
@@ -74,7 +80,8 @@ class ImportPoints(PushbroomAlgorithm):
             check_ids=[c.strip() for c in self.parameterAsString(parameters, "CHECK_IDS", context).split(",")],
             sigmas=tuple(self.parameterAsDouble(parameters, key, context) for key in ("SIGMA_E", "SIGMA_N", "SIGMA_H")),
             image_sigma=self.parameterAsDouble(parameters, "SIGMA_IMAGE", context),
-            suffix=self.parameterAsString(parameters, "MEAS_SUFFIX", context))
+            suffix=self.parameterAsString(parameters, "MEAS_SUFFIX", context),
+            keep_implausible=self.parameterAsBool(parameters, "KEEP_IMPLAUSIBLE", context))
         feedback.pushInfo("points in the block: " + cp.summary(stored, cp.image_ids(path)))
         layer = f"{path}|layername={cp.LAYER}"
         load_styled(context, layer, "Control and check points", "POINTS", "control_points.qml")

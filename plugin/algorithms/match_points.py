@@ -188,9 +188,9 @@ class MatchPoints(PushbroomAlgorithm):
                 grow_second=self.parameterAsBool(parameters, "GROW_SECOND", context),
                 sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context),
                 refine=self.parameterAsBool(parameters, "MPGC_REFINE", context))
-        npz = points.save_points(path, result, "mass_points")
-        layer = points.write_point_layer(path, "mass_points", result, models[0], rows[0]["id"],
-                                         display_height(height_range))
+        npz = points.save_points(path, result, "mass_points",
+                                 display=(models[0], rows[0]["id"], display_height(height_range)))
+        layer = points.layer_source(path, "mass_points")
         summary = combinations.summary_rows(result)
         feedback.pushInfo("points per group (Kornus et al. 2006, Table 1):\n" + combinations.format_summary(summary))
         out = {"BLOCK": path, "POINTS": layer, "POINTS_FILE": npz}

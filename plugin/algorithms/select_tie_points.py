@@ -43,8 +43,8 @@ class SelectTiePoints(PushbroomAlgorithm):
         counts = tie.group_counts()
         feedback.pushInfo(f"{len(tie)} tie points from {len(mass)} mass points: "
                           + ", ".join(f"group {g}: {n}" for g, n in counts.items()))
-        npz = points.save_points(path, tie, "tie_points")
-        layer = points.write_point_layer(path, "tie_points", tie, block.load_model(path, reference), reference,
-                                         display_height(height_range_of(path, None, None)))
+        npz = points.save_points(path, tie, "tie_points", display=(
+            block.load_model(path, reference), reference, display_height(height_range_of(path, None, None))))
+        layer = points.layer_source(path, "tie_points")
         load_styled(context, layer, "Tie points", "TIE_POINTS", "points_by_group.qml")
         return {"BLOCK": path, "TIE_POINTS": layer, "TIE_POINTS_FILE": npz}

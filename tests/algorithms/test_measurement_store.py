@@ -10,7 +10,7 @@ from osgeo import ogr
 
 from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp
-from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.errors import InputError, StorageError
 from pushbroom.algorithms.measurement.store import MeasurementStore
 
 POINT = dict(name="N1", role="check", lon=-84.19, lat=36.615, h=310.5, sigma_e=1.5, sigma_n=1.25, sigma_h=2.0)
@@ -150,7 +150,7 @@ def test_a_failure_inside_the_transaction_rolls_back(blk, monkeypatch):
 
     real = cp.write_measurement
     monkeypatch.setattr(cp, "write_measurement", failing)
-    with pytest.raises(InputError, match="cannot store the edit.*disk I/O error"):
+    with pytest.raises(StorageError, match="cannot store the edit in the block .*disk I/O error"):
         store.restore(record, removed)
     assert written and same(store.load(), before) and stored(blk) == files and counts(blk) == (6, 0, 18)
 

@@ -1,9 +1,11 @@
 """MultiPoints storage beside a block, the point layer, and tie point selection."""
+import os
+
 import numpy as np
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.errors import InputError, StorageError
 from pushbroom.algorithms.block import create_schema, read_info
 from pushbroom.algorithms.matching.points import (OBS_DTYPE, POINT_DTYPE, MultiPoints, load_arrays,
                                                   load_points, save_arrays, save_points, write_point_layer)
@@ -52,15 +54,16 @@ def assert_same(a, b):
 def test_save_and_load_beside_the_block(block, tmp_path):
     mp = synthetic(3000)
     path = save_points(block, mp)
-    assert path.endswith("b.mass_points.npz")
     info = read_info(block)
-    assert info["mass_points"] == "b.mass_points.npz" and info["mass_points_count"] == "3000"
+    assert info["mass_points"] == os.path.basename(path) and info["mass_points_count"] == "3000"
+    assert os.path.basename(path).startswith("b.mass_points.") and path.endswith(".npz")
     assert_same(load_points(block), mp)
-    # saving again replaces (no duplicate keys), other kinds are separate
+    # saving again replaces (no duplicate keys, the old file removed), other kinds are separate
     save_points(block, mp.subset([1, 2, 3]))
     save_points(block, mp.subset([5]), kind="tie_points")
     assert len(load_points(block)) == 3 and len(load_points(block, "tie_points")) == 1
     assert read_info(block)["mass_points_count"] == "3"
+    assert sorted(f.name.split(".")[1] for f in tmp_path.glob("b.*.npz")) == ["mass_points", "tie_points"]
     assert [f for f in tmp_path.iterdir() if ".part" in f.name] == []
 
 
@@ -78,7 +81,7 @@ def test_missing_points_give_clear_errors(block, tmp_path):
     with pytest.raises(InputError, match="no block"):
         save_points(tmp_path / "none.gpkg", synthetic(3))
     (tmp_path / "x.npz").write_bytes(b"not a zip")
-    with pytest.raises(Exception):
+    with pytest.raises(StorageError, match="x.npz is damaged"):
         load_arrays(tmp_path / "x.npz")
 
 
