@@ -168,6 +168,8 @@ def _folder(path, what):
     folder = os.path.dirname(os.path.abspath(os.fspath(path)))
     try:
         os.makedirs(folder, exist_ok=True)
+    except FileExistsError:             # a part of the path is a file
+        raise storage_error(OSError(errno.ENOTDIR, "Not a directory"), path, what) from None
     except OSError as exc:
         raise storage_error(exc, path, what) from None
     return folder
@@ -217,6 +219,35 @@ class _GdalFailures:
         return False
 
 
+def close_dataset(ds):
+    """Close a GDAL or OGR dataset now and raise its failure here (RuntimeError with exceptions on), where the
+    caller can catch it: GDAL writes cached blocks, overviews and headers on close, and the Python bindings of
+    GDAL < 3.8 report a failed close made by reference counting only as an "Exception ignored" print. The
+    dataset must not be used afterwards."""
+    if ds is None:
+        return
+    if hasattr(ds, "Destroy"):          # ogr.DataSource
+        ds.Destroy()
+        return
+    try:
+        type(ds).__swig_destroy__(ds)
+    finally:
+        ds.thisown = 0
+
+
+@contextlib.contextmanager
+def closing(ds):
+    """Yield the GDAL/OGR dataset `ds` and close it when the block ends (`close_dataset`), also when the block
+    fails (that close's own failure then gives way to the block's)."""
+    try:
+        yield ds
+    except BaseException:
+        with contextlib.suppress(RuntimeError):
+            close_dataset(ds)
+        raise
+    close_dataset(ds)
+
+
 def _fsync(path):
     if os.path.isdir(path):
         for root, _dirs, files in os.walk(path):
@@ -228,21 +259,29 @@ def _fsync(path):
             os.fsync(f.fileno())
 
 
+def _cause(messages):
+    """The message of a failed GDAL write that names its cause (a full disk, a permission), else the first:
+    one failure makes GDAL report a dozen follow-ups."""
+    return next((m for m in messages if any(key in m.lower() for key, _ in _GDAL_TEXTS)), messages[0])
+
+
 @contextlib.contextmanager
 def _guarded(path, what, tmp):
     """Run the body of a write of `tmp` for `path`: GDAL failures recorded, I/O errors translated, the
     result flushed (module docstring)."""
+    gdal_failures = _GdalFailures()
     try:
-        with _GdalFailures() as gdal_failures:
+        with gdal_failures:
             yield
         if gdal_failures.failures:
-            raise storage_error(RuntimeError("; ".join(dict.fromkeys(gdal_failures.failures))), path, what)
+            raise storage_error(RuntimeError(_cause(gdal_failures.failures)), path, what)
         _fsync(tmp)
     except StorageError:
         raise
     except (OSError, RuntimeError) as exc:
-        if _io_failure(exc, tmp):
-            raise storage_error(exc, path, what) from exc
+        if _io_failure(exc, tmp) or any(_io_failure(RuntimeError(m), tmp) for m in gdal_failures.failures):
+            cause = RuntimeError(_cause(gdal_failures.failures + [str(exc)])) if isinstance(exc, RuntimeError) else exc
+            raise storage_error(cause, path, what) from exc
         raise
 
 

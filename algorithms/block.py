@@ -28,7 +28,7 @@ import numpy as np
 from osgeo import ogr
 
 from . import progress
-from .atomic import atomic_path, storage_error
+from .atomic import atomic_path, closing, storage_error
 from .crs import wgs84
 from .errors import InputError, PushbroomError, StorageError
 from .geodesy import utm_epsg
@@ -100,30 +100,8 @@ def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=N
     centre = sum(r[:-1].mean(axis=0) for r in rings) / len(rings)
     h_min, h_max = terrain_height_range(rings, height, dem)
     with atomic_path(path) as tmp:
-        ds = create_schema(tmp)
-        table, footprints = ds.GetLayerByName("images"), ds.GetLayerByName("footprints")
-        for k, ((name, image, orientation, model), ring) in enumerate(zip(images, rings), start=1):
-            kind, sensor = describe_model(model)
-            feat = ogr.Feature(table.GetLayerDefn())
-            feat.SetFID(k)
-            cols, rows = model.size
-            for key, value in [("name", name), ("image_path", os.path.abspath(image) if image else ""),
-                               ("orientation_path", os.path.abspath(orientation)), ("model_kind", kind),
-                               ("sensor", sensor), ("cols", int(cols)), ("rows", int(rows)),
-                               ("model", json.dumps(model_to_dict(model)))]:
-                feat[key] = value
-            table.CreateFeature(feat)
-            poly = ogr.Geometry(ogr.wkbPolygon)
-            lr = ogr.Geometry(ogr.wkbLinearRing)
-            for lon, lat in ring:
-                lr.AddPoint_2D(float(lon), float(lat))
-            poly.AddGeometry(lr)
-            feat = ogr.Feature(footprints.GetLayerDefn())
-            feat.SetFID(k)
-            feat["image_id"], feat["name"] = k, name
-            feat.SetGeometry(poly)
-            footprints.CreateFeature(feat)
-        ds = None
+        with closing(create_schema(tmp)) as ds:
+            _write_images(ds, images, rings)
         update_info(tmp, {"created": datetime.datetime.now(datetime.timezone.utc).isoformat(),
                           "default_crs": f"EPSG:{utm_epsg(*centre)}",
                           "footprint_height": "dem" if dem is not None else repr(float(height)),
@@ -131,6 +109,32 @@ def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=N
                     step="createblock", message=f"block created with {len(images)} image(s): {', '.join(names)}")
         progress.step(feedback, 100.0)
     return path
+
+
+def _write_images(ds, images, rings):
+    """The images table and the footprints layer of a new block `ds`."""
+    table, footprints = ds.GetLayerByName("images"), ds.GetLayerByName("footprints")
+    for k, ((name, image, orientation, model), ring) in enumerate(zip(images, rings), start=1):
+        kind, sensor = describe_model(model)
+        feat = ogr.Feature(table.GetLayerDefn())
+        feat.SetFID(k)
+        cols, rows = model.size
+        for key, value in [("name", name), ("image_path", os.path.abspath(image) if image else ""),
+                           ("orientation_path", os.path.abspath(orientation)), ("model_kind", kind),
+                           ("sensor", sensor), ("cols", int(cols)), ("rows", int(rows)),
+                           ("model", json.dumps(model_to_dict(model)))]:
+            feat[key] = value
+        table.CreateFeature(feat)
+        poly = ogr.Geometry(ogr.wkbPolygon)
+        lr = ogr.Geometry(ogr.wkbLinearRing)
+        for lon, lat in ring:
+            lr.AddPoint_2D(float(lon), float(lat))
+        poly.AddGeometry(lr)
+        feat = ogr.Feature(footprints.GetLayerDefn())
+        feat.SetFID(k)
+        feat["image_id"], feat["name"] = k, name
+        feat.SetGeometry(poly)
+        footprints.CreateFeature(feat)
 
 
 def create_schema(path):

@@ -37,6 +37,9 @@ class PushbroomPlugin:
 
     def initProcessing(self):  # noqa: N802 (QGIS API)
         from .provider import PushbroomProvider
+        if QgsApplication.instance() is not None and QgsApplication.instance().platform() == "qgis_process":
+            from .gdal_messages import install_console_filter
+            install_console_filter()
         self.provider = PushbroomProvider()
         QgsApplication.processingRegistry().addProvider(self.provider)
 

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..algorithms import progress
-from ..algorithms.atomic import atomic_path
+from ..algorithms.atomic import atomic_path, closing
 from ..algorithms.errors import CancelledError, InputError
 from ..algorithms.surface.geotiff import overview_levels
 
@@ -311,14 +311,13 @@ def build_overviews(path, feedback=None, factors=None, resampling="AVERAGE"):
         vrt = tmp[:-len(".ovr")]
         try:
             gdal.Translate(vrt, source, format="VRT")
-            ds = gdal.Open(vrt, gdal.GA_ReadOnly)
-            try:
-                ds.BuildOverviews(resampling, factors, callback, options=["COMPRESS_OVERVIEW=DEFLATE"])
-            except RuntimeError:
-                if feedback is not None and feedback.isCanceled():
-                    raise CancelledError("cancelled by the user: no overviews written") from None
-                raise
-            ds = None
+            with closing(gdal.Open(vrt, gdal.GA_ReadOnly)) as ds:
+                try:
+                    ds.BuildOverviews(resampling, factors, callback, options=["COMPRESS_OVERVIEW=DEFLATE"])
+                except RuntimeError:
+                    if feedback is not None and feedback.isCanceled():
+                        raise CancelledError("cancelled by the user: no overviews written") from None
+                    raise
         finally:
             if os.path.exists(vrt):
                 os.unlink(vrt)

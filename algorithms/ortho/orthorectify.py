@@ -17,7 +17,7 @@ from osgeo import gdal, gdal_array
 from scipy.interpolate import RegularGridInterpolator
 
 from .. import progress
-from ..atomic import atomic_path
+from ..atomic import atomic_path, closing
 from ..crs import egm96_undulation
 from ..dem import Dem
 from ..errors import CancelledError, InputError
@@ -168,8 +168,7 @@ def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None,
     worker = _TileWorker(str(image), model, dem, mapper, resampling_method, occlusion_mask, np_type, nodata)
     windows = _windows(grid, int(tile))
     steps, bound, cells, hidden = {}, 0.0, 0, 0
-    with atomic_path(output) as tmp:
-        out = _create(tmp, grid, ds.RasterCount, band.DataType, nodata)
+    with atomic_path(output) as tmp, closing(_create(tmp, grid, ds.RasterCount, band.DataType, nodata)) as out:
         with ThreadPoolExecutor(max(int(threads), 1)) as pool:
             pending = []
             try:
@@ -185,13 +184,11 @@ def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None,
             except CancelledError:
                 for _, future in pending:
                     future.cancel()
-                out = None
                 raise
         levels = overview_levels((grid.rows, grid.cols)) if overviews else []
         if levels:
             progress.step(feedback, 90, "building overviews")
             out.BuildOverviews("AVERAGE", levels)
-        out = None
     result = OrthoResult(str(output), grid, bound, steps, cells, hidden, time.perf_counter() - start)
     progress.step(feedback, 100, result.summary())
     return result

@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 
+from ..atomic import closing
+
 GEOTIFF_OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "ZLEVEL=1"]
 
 
@@ -18,19 +20,19 @@ def write_raster(path, array, grid, nodata=None, description="", metadata=None):
     types = {np.dtype(np.uint8): gdal.GDT_Byte, np.dtype(np.float32): gdal.GDT_Float32}
     array = np.asarray(array)
     predictor = "PREDICTOR=3" if array.dtype == np.float32 else "PREDICTOR=2"
-    ds = gdal.GetDriverByName("GTiff").Create(str(path), grid.cols, grid.rows, 1, types[array.dtype],
-                                              GEOTIFF_OPTIONS + [predictor])
-    ds.SetGeoTransform(grid.geotransform)
-    ds.SetProjection(wgs84().ExportToWkt())
-    band = ds.GetRasterBand(1)
-    if nodata is not None:
-        band.SetNoDataValue(nodata)
-    band.SetDescription(description)
-    band.WriteArray(array)
-    if metadata:
-        ds.SetMetadata({k: str(v) for k, v in metadata.items()})
-    ds.BuildOverviews("NEAREST" if array.dtype == np.uint8 and nodata == 0 else "AVERAGE", [2, 4, 8, 16])
-    ds = None
+    with closing(gdal.GetDriverByName("GTiff").Create(str(path), grid.cols, grid.rows, 1, types[array.dtype],
+                                                      GEOTIFF_OPTIONS + [predictor])) as ds:
+        ds.SetGeoTransform(grid.geotransform)
+        ds.SetProjection(wgs84().ExportToWkt())
+        band = ds.GetRasterBand(1)
+        if nodata is not None:
+            band.SetNoDataValue(nodata)
+        band.SetDescription(description)
+        band.WriteArray(array)
+        band = None
+        if metadata:
+            ds.SetMetadata({k: str(v) for k, v in metadata.items()})
+        ds.BuildOverviews("NEAREST" if array.dtype == np.uint8 and nodata == 0 else "AVERAGE", [2, 4, 8, 16])
 
 
 def write_imagery(path, dn):
@@ -38,9 +40,8 @@ def write_imagery(path, dn):
     from osgeo import gdal
     gdal.UseExceptions()
     dtype = gdal.GDT_Byte if dn.dtype == np.uint8 else gdal.GDT_UInt16
-    ds = gdal.GetDriverByName("GTiff").Create(str(path), dn.shape[1], dn.shape[0], 1, dtype)
-    ds.GetRasterBand(1).WriteArray(dn)
-    ds = None
+    with closing(gdal.GetDriverByName("GTiff").Create(str(path), dn.shape[1], dn.shape[0], 1, dtype)) as ds:
+        ds.GetRasterBand(1).WriteArray(dn)
 
 
 def write_points(path, candidates):

@@ -3,7 +3,7 @@ overviews and nodata, written atomically (a cancel or a crash leaves nothing und
 import numpy as np
 
 from .. import progress
-from ..atomic import atomic_path
+from ..atomic import atomic_path, closing
 
 #: nodata of the Float32 height and precision rasters
 NODATA = -32767.0
@@ -25,17 +25,18 @@ def write_float_raster(path, array, geotransform, srs, description="", metadata=
     gdal.UseExceptions()
     array = np.where(np.isfinite(array), array, NODATA).astype(np.float32)
     with atomic_path(path) as tmp:
-        ds = gdal.GetDriverByName("GTiff").Create(tmp, array.shape[1], array.shape[0], 1, gdal.GDT_Float32, OPTIONS)
-        ds.SetGeoTransform(tuple(geotransform))
-        ds.SetProjection(srs.ExportToWkt())
-        if metadata:
-            ds.SetMetadata({k: str(v) for k, v in metadata.items()})
-        band = ds.GetRasterBand(1)
-        band.SetNoDataValue(NODATA)
-        band.SetDescription(description)
-        band.WriteArray(array)
-        progress.step(feedback, 50)
-        ds.BuildOverviews("AVERAGE", overview_levels(array.shape))
-        ds = None
+        with closing(gdal.GetDriverByName("GTiff").Create(tmp, array.shape[1], array.shape[0], 1, gdal.GDT_Float32,
+                                                          OPTIONS)) as ds:
+            ds.SetGeoTransform(tuple(geotransform))
+            ds.SetProjection(srs.ExportToWkt())
+            if metadata:
+                ds.SetMetadata({k: str(v) for k, v in metadata.items()})
+            band = ds.GetRasterBand(1)
+            band.SetNoDataValue(NODATA)
+            band.SetDescription(description)
+            band.WriteArray(array)
+            band = None
+            progress.step(feedback, 50)
+            ds.BuildOverviews("AVERAGE", overview_levels(array.shape))
         progress.step(feedback, 100)
     return path

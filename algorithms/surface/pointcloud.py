@@ -16,7 +16,7 @@ import numpy as np
 from osgeo import ogr
 
 from .. import progress
-from ..atomic import atomic_path
+from ..atomic import atomic_path, closing
 from ..crs import reproject, srs as parse_crs, wgs84
 from ..errors import InputError
 from ..geodesy import utm_epsg
@@ -131,8 +131,7 @@ OGR_TYPES = {"i": ogr.OFTInteger64, "u": ogr.OFTInteger64, "f": ogr.OFTReal, "b"
 def write_gpkg(path, x, y, z, fields, srs, feedback=None):
     """A GeoPackage with one 3-D point layer GPKG_LAYER in `srs` and `fields` as attributes."""
     ogr.UseExceptions()
-    with atomic_path(path) as tmp:
-        ds = ogr.GetDriverByName("GPKG").CreateDataSource(tmp)
+    with atomic_path(path) as tmp, closing(ogr.GetDriverByName("GPKG").CreateDataSource(tmp)) as ds:
         layer = ds.CreateLayer(GPKG_LAYER, srs, ogr.wkbPoint25D, options=["FID=fid", "GEOMETRY_NAME=geom"])
         for name, values in fields.items():
             layer.CreateField(ogr.FieldDefn(name, OGR_TYPES.get(values.dtype.kind, ogr.OFTString)))
@@ -150,5 +149,5 @@ def write_gpkg(path, x, y, z, fields, srs, feedback=None):
             feat.SetGeometryDirectly(point)
             layer.CreateFeature(feat)
         ds.CommitTransaction()
-        ds = None
+        layer = None
     return path

@@ -4,13 +4,9 @@ way around its engine call:
 - its file outputs are checked before the work starts (atomic.check_destination): a folder that cannot
   be written fails in a second with a clear message, not after an hour of computing;
 - a CRS parameter the user filled in must be a valid CRS (an unknown code is an error, never the default);
-- GDAL's "Unable to compute a transformation between pixel/line and georeferenced coordinates", which QGIS
-  prints when it loads a raw level-1A image (no geotransform) as a raster layer, is silenced while the
-  parameters are checked or read: those images are expected to have none;
 - the engine's errors become QgsProcessingException, printed once (`_single_error`)."""
 import os
 
-from osgeo import gdal
 from qgis.core import (QgsApplication, QgsProcessingAlgorithm, QgsProcessingException,
                        QgsProcessingParameterDefinition, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterRasterDestination,
@@ -20,30 +16,6 @@ from qgis.PyQt.QtGui import QIcon
 from ...algorithms import atomic
 from ...algorithms.errors import InputError, PushbroomError
 from ..plugin import resource_path
-
-#: GDAL's message for an image without georeferencing, expected for level-1A imagery
-NO_GEOREFERENCING = "Unable to compute a transformation between pixel/line and georeferenced coordinates"
-
-
-class _QuietNoGeoreferencing:
-    """GDAL error handler that drops NO_GEOREFERENCING and passes every other message on once the block ends."""
-
-    def __init__(self):
-        self.passed = []
-
-    def __call__(self, level, number, message):
-        if NO_GEOREFERENCING not in message:
-            self.passed.append((level, number, message))
-
-    def __enter__(self):
-        gdal.PushErrorHandler(self)
-        return self
-
-    def __exit__(self, *exc):
-        gdal.PopErrorHandler()
-        for level, number, message in self.passed:
-            gdal.Error(level, number, message)
-        return False
 
 
 def _single_error():
@@ -117,18 +89,6 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
     def icon(self):
         return QIcon(resource_path("icons", "pushbroom.svg"))
-
-    def checkParameterValues(self, parameters, context):  # noqa: N802 (QGIS API)
-        with _QuietNoGeoreferencing():
-            return super().checkParameterValues(parameters, context)
-
-    def parameterAsLayerList(self, parameters, key, context):  # noqa: N802 (QGIS API)
-        with _QuietNoGeoreferencing():
-            return super().parameterAsLayerList(parameters, key, context)
-
-    def parameterAsRasterLayer(self, parameters, key, context):  # noqa: N802 (QGIS API)
-        with _QuietNoGeoreferencing():
-            return super().parameterAsRasterLayer(parameters, key, context)
 
     def check_destinations(self, parameters, context):
         """atomic.check_destination on every file or folder output that was given."""
