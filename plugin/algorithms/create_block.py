@@ -1,10 +1,11 @@
 """pushbroom:createblock — images and their orientation into a block GeoPackage."""
 from qgis.core import (QgsProcessing, QgsProcessingParameterBoolean, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterMultipleLayers, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterLayer, QgsProcessingOutputVectorLayer)
+                       QgsProcessingParameterRasterLayer, QgsProcessingOutputVectorLayer, QgsProcessingUtils)
 
-from ...algorithms import block
+from ...algorithms import block, sensors
 from ...algorithms.dem import Dem
+from ...algorithms.errors import PushbroomError
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
 
@@ -32,6 +33,21 @@ class CreateBlock(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterBoolean("OVERWRITE", "Overwrite an existing block", False))
         self.addParameter(QgsProcessingParameterFileDestination("OUTPUT", "Block", "GeoPackage (*.gpkg)"))
         self.addOutput(QgsProcessingOutputVectorLayer("FOOTPRINTS", "Footprints", QgsProcessing.TypeVectorPolygon))
+
+    def checkParameterValues(self, parameters, context):  # noqa: N802 (QGIS API)
+        """QGIS's check; where it refuses the images, the engine's reason for a file path that is no
+        layer (a missing file, a SPOT DIMAP product without its raster) instead of 'Incorrect parameter
+        value for IMAGES'."""
+        ok, message = super().checkParameterValues(parameters, context)
+        if not ok:
+            values = parameters.get("IMAGES")
+            for value in values if isinstance(values, (list, tuple)) else [values]:
+                if isinstance(value, str) and QgsProcessingUtils.mapLayerFromString(value, context, False) is None:
+                    try:
+                        sensors.check_image(value)
+                    except PushbroomError as exc:
+                        return False, str(exc)
+        return ok, message
 
     def execute(self, parameters, context, feedback):
         images = [layer.source() for layer in self.parameterAsLayerList(parameters, "IMAGES", context)]
