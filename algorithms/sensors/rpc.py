@@ -256,11 +256,12 @@ def _check_domain(arrays, values, source):
         if np.all(np.isfinite(den)) and not keeps_sign(den):
             other = np.sign(den) != np.sign(den[centre])
             i = np.flatnonzero(other)[np.argmin((x * x + y * y + z * z)[other])]
+            pole = "there" if den[i] == 0.0 else "in between"
             raise _metadata_error(
                 source, f"{name.upper()}_DEN_COEFF, the denominator of the image {coordinate}, changes sign within "
                         f"{domain}: it is {den[centre]:+.3g} at the centre ({where(centre)}) and {den[i]:+.3g} at "
-                        f"{where(i)}, so the {coordinate} has a pole in between and image positions near it are "
-                        "wrong by any amount")
+                        f"{where(i)}, so the {coordinate} has a pole {pole} and image positions near it are wrong "
+                        "by any amount")
         if not np.all(np.isfinite(image)):
             i = np.flatnonzero(~np.isfinite(image))[0]
             raise _metadata_error(source, f"the image {coordinate} is not a finite number at {where(i)}, within "
