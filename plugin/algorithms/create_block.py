@@ -3,11 +3,12 @@ from qgis.core import (QgsProcessing, QgsProcessingParameterBoolean, QgsProcessi
                        QgsProcessingParameterMultipleLayers, QgsProcessingParameterNumber,
                        QgsProcessingParameterRasterLayer, QgsProcessingOutputVectorLayer, QgsProcessingUtils)
 
-from ...algorithms import block, sensors
+from ...algorithms import block, progress, sensors
 from ...algorithms.dem import Dem
 from ...algorithms.errors import PushbroomError
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
+from .dem_nodata import nodata_parameter
 
 
 class CreateBlock(PushbroomAlgorithm):
@@ -18,8 +19,9 @@ class CreateBlock(PushbroomAlgorithm):
     HELP = ("Creates a block GeoPackage from images and their supplied orientation: SPOT 1-5 DIMAP "
             "(METADATA.DIM beside IMAGERY.TIF), rasters with RPC tags or _RPC.TXT/.RPB, or OSSIM .geom "
             "files of the same name. The footprint of each image is projected on the DEM (ellipsoidal "
-            "heights) or at the mean height and loaded as a polygon layer. An existing block is only "
-            "replaced when 'Overwrite' is checked.")
+            "heights) or at the mean height and loaded as a polygon layer; DEM heights outside -500 .. 9000 m "
+            "(voids not flagged as nodata) are reported, and a void value can be declared as the DEM's nodata. "
+            "An existing block is only replaced when 'Overwrite' is checked.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         self.addParameter(QgsProcessingParameterMultipleLayers("IMAGES", "Images", QgsProcessing.TypeRaster))
@@ -31,6 +33,7 @@ class CreateBlock(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterNumber(
             "HEIGHT", "Mean ellipsoidal height when no DEM is given (m)", QgsProcessingParameterNumber.Double, 0.0))
         self.addParameter(QgsProcessingParameterBoolean("OVERWRITE", "Overwrite an existing block", False))
+        self.addAdvancedParameters([nodata_parameter()])
         self.addParameter(QgsProcessingParameterFileDestination("OUTPUT", "Block", "GeoPackage (*.gpkg)"))
         self.addOutput(QgsProcessingOutputVectorLayer("FOOTPRINTS", "Footprints", QgsProcessing.TypeVectorPolygon))
 
@@ -53,7 +56,10 @@ class CreateBlock(PushbroomAlgorithm):
         images = [layer.source() for layer in self.parameterAsLayerList(parameters, "IMAGES", context)]
         orientation = [p for p in self.parameterAsFileList(parameters, "ORIENTATION", context) if p]
         dem_layer = self.parameterAsRasterLayer(parameters, "DEM", context)
-        dem = Dem.from_file(dem_layer.source()) if dem_layer is not None else None
+        dem = None
+        if dem_layer is not None:
+            dem = Dem.from_file(dem_layer.source(), self.parameterAsOptionalDouble(parameters, "DEM_NODATA", context))
+            progress.warn(feedback, dem.implausible)
         output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
         opened = block.open_images(images, orientation)
         block.create_block(output, opened, height=self.parameterAsDouble(parameters, "HEIGHT", context), dem=dem,
