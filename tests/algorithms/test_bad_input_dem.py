@@ -69,6 +69,7 @@ def test_implausible_heights_names_the_value_and_the_cells():
 
 def test_unflagged_voids_are_used_with_a_warning(dems):
     dem = Dem.from_file(dems["voids"])
+    # the file, the exact count of void cells and their value
     assert dem.implausible.startswith(f"the DEM {dems['voids']} has {VOID_CELLS} cells at -32767 m, outside")
     assert np.all(dem.heights[VOID] == -32767)        # used as given: the warning is the only safeguard
     assert Dem.from_file(dems["dsm"]).implausible is None      # the simulated terrain is plausible
@@ -79,12 +80,13 @@ def test_declared_nodata_makes_the_voids_nan(dems):
     clean = Dem.from_file(dems["dsm"])
     outside = np.ones(dem.shape, bool)
     outside[VOID] = False
-    assert dem.implausible is None and np.isnan(dem.heights[VOID]).all()
+    assert dem.implausible is None and np.isnan(dem.heights[VOID]).all()    # declared: no warning, all NaN
     np.testing.assert_array_equal(dem.heights[outside], clean.heights[outside])   # the rest untouched
 
 
 def test_declared_nodata_is_applied_before_a_warp(dems):
     warned = Dem.from_file(dems["utm"])
+    # undeclared, the voids are counted in the file's own (UTM) cells, before the warp
     assert f"the DEM {dems['utm']} has " in warned.implausible and "cells at -32767 m" in warned.implausible
     dem = load_dem(dems["utm"], nodata=-32767)
     low, high = Dem.from_file(dems["dsm"]).height_range
@@ -109,7 +111,7 @@ def test_the_reference_of_the_assessment_warns_and_takes_a_nodata_value(dems):
     log = Feedback()
     href, _ = reference_at_points(dems["voids"], lon, lat, srs(4326), nodata=-32767, feedback=log)
     assert np.isnan(href[inside]).all() and np.isfinite(href[ring]).all()    # the voids left out, the rest kept
-    assert not any("-32767" in m for m in log.messages)
+    assert not any("-32767" in m for m in log.messages)     # declared: no warning
 
 
 def test_a_dem_against_a_reference_with_declared_voids(dems):
@@ -117,7 +119,7 @@ def test_a_dem_against_a_reference_with_declared_voids(dems):
     d = dem_differences(dems["dsm"], dems["voids"], feedback=log, reference_nodata=-32767)
     # the DSM against itself: dh = 0 wherever the reference has a height, the void cells left out
     assert d.excluded["outside the reference or on its nodata"] >= VOID_CELLS and np.abs(d.dh).max() < 1e-3
-    assert not any("-32767" in m for m in log.messages)
+    assert not any("-32767" in m for m in log.messages)     # declared: no warning
     log = Feedback()
     d = dem_differences(dems["dsm"], dems["voids"], feedback=log)
     assert np.abs(d.dh).max() > 30000 and any("cells at -32767 m" in m for m in log.messages)   # warned

@@ -63,13 +63,13 @@ def test_a_denominator_changing_sign_is_refused_by_every_reader(tmp_path, kind):
         sensors.load(path)
     text = str(err.value)
     assert text.startswith(f"{path}: LINE_DEN_COEFF")                   # the file and the culprit first
-    assert "changes sign within the RPC's validity domain" in text and "pole" in text
+    assert "changes sign within the RPC's validity domain" in text and "pole" in text     # what is wrong
     lat = float(re.search(r"\+1 at the centre \(lon [\d.]+, lat ([\d.]+)", text).group(1))
     where = float(re.search(r"-[\d.e+-]+ at lon [\d.]+, lat ([\d.]+)", text).group(1))
     fields = synthetic_fields()
     # the place named lies south of the pole (P < -2/3), one grid step (0.1 P) from it at most
     assert fields["LAT_OFF"] + (POLE_P - 0.1) * fields["LAT_SCALE"] - 1e-6 <= where
-    assert where < fields["LAT_OFF"] + POLE_P * fields["LAT_SCALE"] < lat
+    assert where < fields["LAT_OFF"] + POLE_P * fields["LAT_SCALE"] < lat      # the pole lies between the two
 
 
 def test_a_denominator_reaching_zero_on_the_grid_is_refused():
@@ -83,7 +83,7 @@ def test_a_denominator_reaching_zero_on_the_grid_is_refused():
 def test_a_pole_just_outside_the_domain_is_accepted():
     fields = synthetic_fields()
     fields["LINE_DEN_COEFF"] = [1.0, 0.0, 0.99] + [0.0] * 17    # 1 + 0.99 P > 0 on [-1, 1]
-    assert RpcCoefficients.from_fields(fields, "near_RPC.TXT").line_den[2] == 0.99
+    assert RpcCoefficients.from_fields(fields, "near_RPC.TXT").line_den[2] == 0.99    # read, not refused
 
 
 def test_image_coordinates_that_overflow_are_refused():
@@ -196,12 +196,12 @@ VALID = valid_files()
 def assert_usable(model):
     """A model the engine can work with: a positive size and finite image positions of ground points
     over its validity domain."""
-    assert isinstance(model, SensorModel) and min(model.size) >= 1
+    assert isinstance(model, SensorModel) and min(model.size) >= 1     # an image of at least one pixel
     c = model.coefficients
     x, y, z = (v[::97] for v in domain_grid())
     col, row = model.ground_to_image(c.long_off + x * c.long_scale, c.lat_off + y * c.lat_scale,
                                      c.height_off + z * c.height_scale)
-    assert np.isfinite(col).all() and np.isfinite(row).all()
+    assert np.isfinite(col).all() and np.isfinite(row).all()     # no pole or overflow over the domain
 
 
 @pytest.mark.parametrize("name", sorted(VALID))

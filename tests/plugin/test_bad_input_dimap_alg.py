@@ -33,12 +33,12 @@ def test_createblock_names_the_missing_raster(pushbroom_provider, product, small
                                 "OUTPUT": str(tmp_path / "b.gpkg")})
     # the missing raster, the product it belongs to, and no QGIS parameter text
     assert f"{raster} does not exist: the SPOT DIMAP product {product} has its metadata" in message
-    assert "Incorrect parameter value" not in message
+    assert "Incorrect parameter value" not in message      # QGIS's text replaced, not appended to
     message = processing_error({"IMAGES": [str(product / "METADATA.DIM")], "OUTPUT": str(tmp_path / "b.gpkg")})
     # the metadata given as the image: the raster it names (after Processing's 'Unable to execute algorithm')
-    assert message.endswith(f"{product / 'METADATA.DIM'} is a SPOT DIMAP product without its raster: {raster}, which its "
-                       "metadata names, does not exist; copy the product's raster back beside its METADATA.DIM, or "
-                       "give an image that exists")
+    assert message.endswith(f"{product / 'METADATA.DIM'} is a SPOT DIMAP product without its raster: {raster}, "
+                            "which its metadata names, does not exist; copy the product's raster back beside its "
+                            "METADATA.DIM, or give an image that exists")
     assert not (tmp_path / "b.gpkg").exists()       # refused before anything was written
 
 
@@ -49,4 +49,4 @@ def test_createblock_with_qgis_process_names_the_missing_raster(qgis_process, pr
                      f"OUTPUT={tmp_path / 'b.gpkg'}")
     # what the user reads on the terminal: the missing raster and what to do, no traceback
     assert f"{product / 'IMAGERY.TIF'} does not exist: the SPOT DIMAP product {product}" in str(err.value)
-    assert "copy the product's raster" in str(err.value) and "Traceback" not in str(err.value)
+    assert "copy the product's raster" in str(err.value) and "Traceback" not in str(err.value)     # and what to do

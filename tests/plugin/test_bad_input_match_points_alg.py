@@ -31,5 +31,5 @@ def test_matchpoints_on_a_one_image_block(pushbroom_provider, small_scene, tmp_p
         processing.run("pushbroom:matchpoints", {"BLOCK": path}, context=QgsProcessingContext())
     except QgsProcessingException as exc:      # only the text is kept (no traceback holding QGIS objects)
         message = str(exc)
-    assert message is not None and message.endswith(ONE_IMAGE)
+    assert message is not None and message.endswith(ONE_IMAGE)     # refused, with the reason and the remedy
     assert "Images parameter" not in message       # not the advice one image cannot follow

@@ -48,7 +48,7 @@ def test_identical_points(pushbroom_provider, tmp_path):
     # what is wrong with the points and what a TIN needs, in Pushbroom's words, not Qhull's
     assert "the 100 points of the point cloud are all at one position (x 650000.000, y 4890000.000): a TIN needs " \
            "at least 3 points that are not on one line" in message
-    assert "Qz" not in message and "QH" not in message
+    assert "Qz" not in message and "QH" not in message      # no Qhull text left
 
 
 def test_a_cloud_without_crs_and_the_point_cloud_crs_parameter(pushbroom_provider, tmp_path):
@@ -61,7 +61,8 @@ def test_a_cloud_without_crs_and_the_point_cloud_crs_parameter(pushbroom_provide
         message = processing_error({"INPUT": source, "OUTPUT": str(tmp_path / "dem.tif")})
         # the file, what it lacks, and the parameter that supplies it; no PROJ text
         assert f"the point cloud {source} has no coordinate reference system ({why}" in message
-        assert "give the CRS its x, y are in (the point cloud CRS parameter)" in message and "PROJ" not in message
+        assert "give the CRS its x, y are in (the point cloud CRS parameter)" in message     # what to do
+        assert "PROJ" not in message            # no PROJ text left
     result = processing.run("pushbroom:interpolatedem", {"INPUT": path, "INPUT_CRS": f"EPSG:{UTM31}", "CELL": 20.0,
                                                          "OUTPUT": str(tmp_path / "dem.tif")})
     assert result["POINTS"] == 400          # the CRS given, every point is in the TIN
@@ -73,7 +74,7 @@ def test_degrees_labelled_utm(pushbroom_provider, tmp_path):
     message = processing_error({"INPUT": path, "OUTPUT": str(tmp_path / "dem.tif")})
     # the diagnosis instead of the symptom ("raise the maximum edge")
     assert "these look like longitude/latitude degrees labelled with a projected CRS" in message
-    assert "maximum edge" not in message
+    assert "maximum edge" not in message     # not the old, misleading advice
 
 
 @pytest.mark.slow
@@ -84,4 +85,4 @@ def test_qgis_process_degrees_labelled_utm(qgis_process, tmp_path):
         qgis_process("run", "pushbroom:interpolatedem", "--", f"INPUT={path}", f"OUTPUT={tmp_path / 'dem.tif'}")
     # what the user reads on the terminal: the file, the diagnosis and the remedy, no traceback
     assert f"the point cloud {path} spans only" in str(err.value)
-    assert "EPSG:4326 for degrees" in str(err.value) and "Traceback" not in str(err.value)
+    assert "EPSG:4326 for degrees" in str(err.value) and "Traceback" not in str(err.value)     # the remedy
