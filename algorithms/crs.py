@@ -27,6 +27,16 @@ def srs(definition):
     return out
 
 
+#: names GeoPackage gives the CRS of a layer written without one (srs_id 0 and -1)
+UNDEFINED_NAMES = ("Undefined geographic SRS", "Undefined Cartesian SRS")
+
+
+def is_undefined(definition):
+    """Whether the osr.SpatialReference `definition` places nothing on Earth: a local (engineering) CRS
+    or a GeoPackage's 'Undefined ... SRS'."""
+    return bool(definition.IsLocal()) or definition.GetName() in UNDEFINED_NAMES
+
+
 def wgs84():
     """WGS 84 geographic 2-D (EPSG:4326), longitude first."""
     return srs(4326)
@@ -45,7 +55,10 @@ def transform(source, target, xyz, what):
     except RuntimeError:
         ct = None
     if ct is None:
-        raise InputError(f"PROJ has no transformation for {what}: {source.GetName()} -> {target.GetName()}")
+        raise InputError(f"cannot transform {what} from {source.GetName()} to {target.GetName()}: PROJ knows no "
+                         "transformation between them here (one of them is a local or undefined CRS, or the datum "
+                         "shift grid it needs is not installed: install PROJ's grids with projsync or the proj-data "
+                         "package), so give the data in another CRS")
     return np.array(ct.TransformPoints(xyz.tolist()), float).reshape(len(xyz), -1)
 
 

@@ -2,8 +2,13 @@
 
 The grid uses GDAL's pixel-is-area geotransform (lon0, dlon, 0, lat0, 0, dlat), dlat < 0; a cell's
 value is its centre's height. `height` interpolates bilinearly between centres and returns NaN
-outside the grid or next to nodata cells."""
+outside the grid or next to nodata cells.
+
+Heights outside PLAUSIBLE_HEIGHTS are no terrain on Earth: voids the file does not flag as nodata
+(SRTM's -32768), or another unit. They are used as given, with a warning (implausible_heights) that
+says how to declare their value as nodata."""
 import math
+import os
 
 import numpy as np
 from numba import njit
@@ -36,6 +41,30 @@ def _bilinear_arrays(grid, lon0, dlon, lat0, dlat, lon, lat, out):
         out[k] = bilinear_scalar(grid, lon0, dlon, lat0, dlat, lon[k], lat[k])
 
 
+#: heights (m) of terrain on Earth, ellipsoidal or orthometric, with a margin: the Dead Sea shore lies at
+#: -430 m, Everest at 8849 m, and the geoid departs from the ellipsoid by -106 .. +85 m
+PLAUSIBLE_HEIGHTS = (-500.0, 9000.0)
+
+
+def implausible_heights(heights, what="the DEM"):
+    """A warning about the finite `heights` (array) outside PLAUSIBLE_HEIGHTS: how many cells, the value
+    most of them hold, and how to declare it as nodata; None where every height is plausible. `what`
+    names the raster ("the DEM dem.tif")."""
+    low, high = PLAUSIBLE_HEIGHTS
+    heights = np.asarray(heights, dtype=np.float64)
+    bad = heights[(heights < low) | (heights > high)]
+    if not bad.size:
+        return None
+    values, counts = np.unique(bad, return_counts=True)
+    value = float(values[np.argmax(counts)])
+    found = (f"{bad.size} cells at {value:g} m" if values.size == 1 else
+             f"{bad.size} cells from {values[0]:g} to {values[-1]:g} m ({counts.max()} of them at {value:g} m)")
+    return (f"{what} has {found}, outside the heights of terrain on Earth ({low:g} .. {high:g} m): voids that are "
+            f"not flagged as nodata, or heights in another unit. They are used as heights as they are; if they are "
+            f"voids, declare {value:g} as the DEM's nodata value (the DEM nodata parameter, or gdal_edit.py "
+            f"-a_nodata {value:g} on the file) and run again")
+
+
 def grid_bounds(geotransform, shape):
     """(lon_min, lat_min, lon_max, lat_max) of the outer cell edges of a north-up grid."""
     lon0, dlon, _, lat0, _, dlat = geotransform
@@ -45,6 +74,9 @@ def grid_bounds(geotransform, shape):
 
 class Dem:
     """Ellipsoidal heights (metres, WGS 84) on a geographic grid."""
+
+    #: implausible_heights of the heights as read by from_file (None: all plausible, or not read from a file)
+    implausible = None
 
     def __init__(self, heights, geotransform):
         heights = np.ascontiguousarray(heights, dtype=np.float64)
@@ -93,10 +125,13 @@ class Dem:
                    (lon_min, (lon_max - lon_min) / 2, 0.0, lat_max, 0.0, -(lat_max - lat_min) / 2))
 
     @classmethod
-    def from_file(cls, path):
-        """Read a DEM raster with ellipsoidal heights; other CRSs are warped to EPSG:4326.
+    def from_file(cls, path, nodata=None):
+        """Read a DEM raster with ellipsoidal heights; other CRSs are warped (bilinear) to EPSG:4326.
 
-        Nodata becomes NaN. Geoid-referenced heights (SRTM) must be converted by the caller."""
+        The raster's own nodata and `nodata` (a value the user declares, such as SRTM's -32768 in a
+        file that does not flag its voids) become NaN; `implausible` is implausible_heights of the
+        heights as read. InputError where the file cannot be opened or has no CRS (where its cells lie
+        would be a guess). Geoid-referenced heights (SRTM) must be converted by the caller."""
         from osgeo import gdal
 
         from .crs import wgs84
@@ -104,14 +139,30 @@ class Dem:
         try:
             ds = gdal.Open(str(path))
         except RuntimeError as exc:
-            raise InputError(f"cannot open DEM {path}: {exc}") from exc
+            if not os.path.exists(path):
+                raise InputError(f"cannot open DEM {path}: the file does not exist; check the path") from None
+            raise InputError(f"cannot open DEM {path}: GDAL does not read it as a raster ({exc})") from exc
         srs = ds.GetSpatialRef()
-        if srs is not None and not srs.IsSame(wgs84(), ["IGNORE_DATA_AXIS_TO_SRS_AXIS_MAPPING=YES"]):
-            ds = gdal.Warp("", ds, format="MEM", dstSRS="EPSG:4326", resampleAlg="bilinear",
-                           outputType=gdal.GDT_Float64, dstNodata=float("nan"))
+        if srs is None:
+            raise InputError(f"the DEM {path} has no coordinate reference system, so where its cells lie is unknown: "
+                             f"assign the CRS of its coordinates, e.g. 'gdal_edit.py -a_srs EPSG:4326 {path}' for "
+                             "longitude/latitude in degrees (or the EPSG code of its map projection), and run again")
         band = ds.GetRasterBand(1)
         heights = band.ReadAsArray().astype(np.float64)
-        nodata = band.GetNoDataValue()
-        if nodata is not None and not math.isnan(nodata):
-            heights[heights == nodata] = np.nan
-        return cls(heights, ds.GetGeoTransform())
+        for value in (band.GetNoDataValue(), nodata):
+            if value is not None and not math.isnan(value):
+                heights[heights == value] = np.nan
+        implausible = implausible_heights(heights, f"the DEM {path}")
+        geotransform = ds.GetGeoTransform()
+        if not srs.IsSame(wgs84(), ["IGNORE_DATA_AXIS_TO_SRS_AXIS_MAPPING=YES"]):
+            source = gdal.GetDriverByName("MEM").Create("", ds.RasterXSize, ds.RasterYSize, 1, gdal.GDT_Float64)
+            source.SetGeoTransform(geotransform)
+            source.SetSpatialRef(srs)
+            source.GetRasterBand(1).SetNoDataValue(float("nan"))
+            source.GetRasterBand(1).WriteArray(heights)
+            warped = gdal.Warp("", source, format="MEM", dstSRS="EPSG:4326", resampleAlg="bilinear",
+                               outputType=gdal.GDT_Float64, dstNodata=float("nan"))
+            heights, geotransform = warped.GetRasterBand(1).ReadAsArray(), warped.GetGeoTransform()
+        dem = cls(heights, geotransform)
+        dem.implausible = implausible
+        return dem

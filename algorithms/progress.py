@@ -1,5 +1,6 @@
 """Progress reporting and cancelling without QGIS: any object with the methods of
-QgsProcessingFeedback (setProgress, isCanceled, pushInfo) can be passed as `feedback`."""
+QgsProcessingFeedback (setProgress, isCanceled, pushInfo; pushWarning where it has it) can be
+passed as `feedback`."""
 from .errors import CancelledError
 
 
@@ -32,6 +33,15 @@ def step(feedback, percent, message=None):
         feedback.pushInfo(message)
 
 
+def warn(feedback, message):
+    """Report a warning: feedback.pushWarning where the feedback has it (QgsProcessingFeedback), else
+    pushInfo; nothing where `feedback` or `message` is None."""
+    if feedback is None or not message:
+        return
+    push = getattr(feedback, "pushWarning", None) or feedback.pushInfo
+    push(message)
+
+
 class _Scaled:
     """Feedback proxy mapping 0-100 % of a sub-step onto [start, stop] of the whole."""
 
@@ -47,6 +57,9 @@ class _Scaled:
     def pushInfo(self, text):  # noqa: N802 (QGIS API)
         self.feedback.pushInfo(text)
 
+    def pushWarning(self, text):  # noqa: N802 (QGIS API)
+        warn(self.feedback, text)
+
 
 def scaled(feedback, start, stop):
     """Feedback for a sub-step: its 0-100 % reported as start-stop % of `feedback` (None stays None)."""
@@ -54,7 +67,7 @@ def scaled(feedback, start, stop):
 
 
 class _Quiet(NullFeedback):
-    """Feedback proxy that only forwards cancelling."""
+    """Feedback proxy that only forwards cancelling and warnings."""
 
     def __init__(self, feedback):
         self.feedback = feedback
@@ -62,7 +75,11 @@ class _Quiet(NullFeedback):
     def isCanceled(self):  # noqa: N802 (QGIS API)
         return self.feedback.isCanceled()
 
+    def pushWarning(self, text):  # noqa: N802 (QGIS API)
+        warn(self.feedback, text)
+
 
 def quiet(feedback):
-    """Feedback for a repeated sub-step whose own messages and progress would be noise: cancelling only."""
+    """Feedback for a repeated sub-step whose own messages and progress would be noise: cancelling and
+    warnings only."""
     return None if feedback is None else _Quiet(feedback)

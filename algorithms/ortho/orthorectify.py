@@ -32,13 +32,14 @@ CREATION_OPTIONS = ("TILED=YES", "BLOCKXSIZE=256", "BLOCKYSIZE=256", "COMPRESS=D
 VERTICAL = ("ellipsoidal", "egm96")
 
 
-def load_dem(dem, vertical="ellipsoidal"):
+def load_dem(dem, vertical="ellipsoidal", nodata=None):
     """A Dem of ellipsoidal heights from a Dem or a raster path (any CRS: Dem.from_file warps it to WGS 84
-    lon/lat); vertical 'egm96' adds the EGM96 undulation N (h = H + N, PROJ), computed on a lattice of at
-    most 257 x 257 cells and interpolated bilinearly (N varies over tens of kilometres)."""
+    lon/lat; `nodata` a declared void value); vertical 'egm96' adds the EGM96 undulation N (h = H + N,
+    PROJ), computed on a lattice of at most 257 x 257 cells and interpolated bilinearly (N varies over
+    tens of kilometres). The result keeps the read Dem's `implausible` warning."""
     if vertical not in VERTICAL:
         raise InputError(f"the DEM heights are {' or '.join(VERTICAL)}, not {vertical!r}")
-    dem = dem if isinstance(dem, Dem) else Dem.from_file(dem)
+    dem = dem if isinstance(dem, Dem) else Dem.from_file(dem, nodata)
     if vertical == "ellipsoidal":
         return dem
     rows, cols = dem.shape
@@ -49,7 +50,9 @@ def load_dem(dem, vertical="ellipsoidal"):
     n = egm96_undulation(*np.meshgrid(lon_c, lat_r))
     rr, cc = np.mgrid[0:rows, 0:cols]
     und = RegularGridInterpolator((r, c), n)(np.column_stack([rr.ravel(), cc.ravel()])).reshape(rows, cols)
-    return Dem(dem.heights + und, dem.geotransform)
+    ellipsoidal = Dem(dem.heights + und, dem.geotransform)
+    ellipsoidal.implausible = dem.implausible
+    return ellipsoidal
 
 
 @dataclass

@@ -31,9 +31,12 @@ def labels(source, differences):
 
 
 def assess(reference, points=None, dem=None, reference_datum="ellipsoidal", points_datum="ellipsoidal",
-           dem_datum="ellipsoidal", classes=None, slope_threshold=SLOPE_THRESHOLD, feedback=None):
+           dem_datum="ellipsoidal", classes=None, slope_threshold=SLOPE_THRESHOLD, feedback=None,
+           reference_nodata=None):
     """[Assessed] of the point cloud `points` and the DEM raster `dem` (either or both) against the
-    `reference` raster; `classes` a classes.ClassRaster or classes.PolygonClasses (or None)."""
+    `reference` raster; `classes` a classes.ClassRaster or classes.PolygonClasses (or None);
+    `reference_nodata` a void value of the reference that its file does not flag as nodata. Implausible
+    reference heights are reported as a warning (height_differences)."""
     if points is None and dem is None:
         raise InputError("give a point cloud, a DEM or both to assess")
     if not slope_threshold > 0:
@@ -43,7 +46,8 @@ def assess(reference, points=None, dem=None, reference_datum="ellipsoidal", poin
     out = []
     for k, (compute, path, datum) in enumerate(jobs):
         span = 100.0 / len(jobs)
-        d = compute(path, reference, reference_datum, datum, progress.scaled(feedback, k * span, (k + 0.8) * span))
+        d = compute(path, reference, reference_datum, datum, progress.scaled(feedback, k * span, (k + 0.8) * span),
+                    reference_nodata=reference_nodata)
         if not d.dh.size:
             raise InputError(f"no {d.what} of {path} has a reference height: check that the reference covers it")
         terrain, terrain_names = slope_classes(d.slope, slope_threshold)

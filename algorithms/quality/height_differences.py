@@ -7,7 +7,11 @@ around the points), NaN next to nodata. DEM cells: the reference is resampled on
 and CRS with gdalwarp: the average of the reference cells inside a DEM cell where the reference is
 finer, bilinear otherwise. Vertical datum per input: "ellipsoidal" or "orthometric" (EGM96:
 h = H + N, adjustment.control_points.orthometric_to_ellipsoidal). The slope (K 3.7: flat/moderate
-vs mountainous) is the reference's (rasters.slope_degrees): at the points, or on the DEM grid."""
+vs mountainous) is the reference's (rasters.slope_degrees): at the points, or on the DEM grid.
+
+The reference is read by the window of its cells under the assessed data, its nodata and a declared
+void value (`reference_nodata`) as NaN; implausible heights among those cells (dem.implausible_heights,
+such as SRTM voids not flagged as nodata) are reported as a warning (progress.warn) and used as given."""
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,11 +19,12 @@ import numpy as np
 from .. import progress
 from ..adjustment.control_points import HEIGHT_TYPES, orthometric_to_ellipsoidal
 from ..crs import reproject, wgs84
-from ..dem import Dem
+from ..dem import Dem, implausible_heights
 from ..errors import InputError
 from ..surface.geotiff import write_float_raster
 from ..surface.point_input import read_points
-from .rasters import Grid, cell_metres, open_raster, raster_srs, read_grid, read_window, slope_degrees, warp_to
+from .rasters import (Grid, cell_metres, memory_dataset, open_raster, outline, raster_srs, read_grid, read_window,
+                      slope_degrees, warp_to)
 
 
 @dataclass
@@ -54,13 +59,22 @@ def _ellipsoidal(h, x, y, srs, datum):
     return h
 
 
-def reference_at_points(reference, x, y, srs, datum="ellipsoidal"):
+def _reference_window(ds, reference, x, y, nodata, feedback):
+    """The reference cells around points (x, y in its CRS) as a Grid (rasters.read_window, `nodata` a
+    declared void value), with a warning about implausible heights among them."""
+    window = read_window(ds, x, y, "reference DEM", nodata=nodata)
+    progress.warn(feedback, implausible_heights(window.values, f"the reference DEM {reference}"))
+    return window
+
+
+def reference_at_points(reference, x, y, srs, datum="ellipsoidal", nodata=None, feedback=None):
     """(ellipsoidal reference height, reference slope in degrees) at points (x, y in `srs`): bilinear in
-    the reference's CRS; NaN outside it and next to its nodata. InputError when it does not overlap."""
+    the reference's CRS; NaN outside it and next to its nodata (and cells equal to `nodata`, a declared
+    void value). InputError when it does not overlap; a warning (`feedback`) about implausible heights."""
     _check_datum(datum, "reference")
     ds = open_raster(reference, "reference DEM")
     xr, yr = reproject(x, y, srs, raster_srs(ds))
-    window = read_window(ds, xr, yr, "reference DEM")
+    window = _reference_window(ds, reference, xr, yr, nodata, feedback)
     if np.isnan(window.values).all():
         raise InputError(f"the reference DEM {reference} has only nodata where the assessed data are: choose a "
                          "reference that covers them")
@@ -72,16 +86,18 @@ def reference_at_points(reference, x, y, srs, datum="ellipsoidal"):
     return _ellipsoidal(href, x, y, srs, datum), slope
 
 
-def point_differences(path, reference, reference_datum="ellipsoidal", points_datum="ellipsoidal", feedback=None):
+def point_differences(path, reference, reference_datum="ellipsoidal", points_datum="ellipsoidal", feedback=None,
+                      reference_nodata=None):
     """Differences of the object points of a point cloud (surface.point_input.read_points) against
-    the reference raster; its `group` field, where present, is kept."""
+    the reference raster (`reference_nodata`: a declared void value); its `group` field, where present,
+    is kept."""
     _check_datum(points_datum, "points")
     cloud = read_points(path)
     x, y, z, srs, fields = cloud.x, cloud.y, cloud.z, cloud.srs, cloud.fields
     if not len(x):
         raise InputError(f"the point cloud {path} holds no point")
     progress.step(feedback, 10, f"{len(x)} points read from {path}")
-    href, slope = reference_at_points(reference, x, y, srs, reference_datum)
+    href, slope = reference_at_points(reference, x, y, srs, reference_datum, reference_nodata, feedback)
     progress.step(feedback, 60)
     h = _ellipsoidal(z, x, y, srs, points_datum)
     ok = np.isfinite(h) & np.isfinite(href)
@@ -91,8 +107,10 @@ def point_differences(path, reference, reference_datum="ellipsoidal", points_dat
                        excluded={"outside the reference or next to its nodata": int((~ok).sum())})
 
 
-def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="ellipsoidal", feedback=None):
-    """Differences of the cells of a DEM raster against the reference raster resampled onto its grid."""
+def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="ellipsoidal", feedback=None,
+                    reference_nodata=None):
+    """Differences of the cells of a DEM raster against the reference raster (`reference_nodata`: a
+    declared void value) resampled onto its grid: the reference's window under the DEM, warped."""
     _check_datum(dem_datum, "DEM")
     _check_datum(reference_datum, "reference")
     dem = read_grid(open_raster(path, "DEM"))
@@ -102,11 +120,17 @@ def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="e
     progress.step(feedback, 10, f"DEM {path}: {dem.shape[1]} x {dem.shape[0]} cells, {int(defined.sum())} "
                                 "with a height")
     ds = open_raster(reference, "reference DEM")
+    no_overlap = InputError(f"the reference DEM {reference} does not overlap the DEM {path} (or holds only nodata "
+                            "there): choose a reference that covers it")
+    try:
+        window = _reference_window(ds, reference, *reproject(*outline(dem), dem.srs, raster_srs(ds)),
+                                   reference_nodata, feedback)
+    except InputError:
+        raise no_overlap from None
     finer = np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize)) < np.prod(dem.cell_metres())
-    ref = warp_to(ds, dem, "average" if finer else "bilinear")
+    ref = warp_to(memory_dataset(window), dem, "average" if finer else "bilinear")
     if not np.isfinite(ref).any():
-        raise InputError(f"the reference DEM {reference} does not overlap the DEM {path} (or holds only nodata "
-                         "there): choose a reference that covers it")
+        raise no_overlap
     progress.step(feedback, 50, f"reference resampled onto the DEM grid ({'average' if finer else 'bilinear'})")
     valid = defined & np.isfinite(ref)
     x, y = (v[valid] for v in dem.centres())

@@ -67,22 +67,24 @@ def raster_srs(ds):
     return parse_crs(ds.GetSpatialRef())
 
 
-def _as_float(array, nodata):
+def _as_float(array, *nodata):
+    """`array` as float64 with NaN where it equals one of the `nodata` values (None and NaN: none)."""
     values = array.astype(np.float64)
-    if nodata is not None and not math.isnan(nodata):
-        values[values == nodata] = np.nan
+    for value in nodata:
+        if value is not None and not math.isnan(value):
+            values[values == value] = np.nan
     return values
 
 
-def read_grid(ds):
-    """The whole first band as a Grid."""
+def read_grid(ds, nodata=None):
+    """The whole first band as a Grid; its nodata and `nodata` (a declared void value) are NaN."""
     band = ds.GetRasterBand(1)
-    return Grid(_as_float(band.ReadAsArray(), band.GetNoDataValue()), ds.GetGeoTransform(), raster_srs(ds))
+    return Grid(_as_float(band.ReadAsArray(), band.GetNoDataValue(), nodata), ds.GetGeoTransform(), raster_srs(ds))
 
 
-def read_window(ds, x, y, what, margin=2):
-    """Grid of the cells of `ds` around points (x, y) given in its CRS, `margin` cells beyond them;
-    InputError when no point falls on the raster."""
+def read_window(ds, x, y, what, margin=2, nodata=None):
+    """Grid of the cells of `ds` around points (x, y) given in its CRS, `margin` cells beyond them; its
+    nodata and `nodata` (a declared void value) are NaN. InputError when no point falls on the raster."""
     x0, dx, _, y0, _, dy = ds.GetGeoTransform()
     finite = np.isfinite(x) & np.isfinite(y)
     if finite.any():
@@ -92,8 +94,31 @@ def read_window(ds, x, y, what, margin=2):
     if not finite.any() or c1 - c0 < 2 or r1 - r0 < 2:
         raise InputError(f"the {what} does not overlap the data to assess: choose a {what} that covers it")
     band = ds.GetRasterBand(1)
-    values = _as_float(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue())
+    values = _as_float(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue(), nodata)
     return Grid(values, (x0 + c0 * dx, dx, 0.0, y0 + r0 * dy, 0.0, dy), raster_srs(ds))
+
+
+def outline(grid, n=64):
+    """(x, y) of n points along each of the four outer cell edges of `grid`, in its CRS (to find the cells
+    of another raster under it with read_window)."""
+    x0, dx, _, y0, _, dy = grid.geotransform
+    rows, cols = grid.shape
+    t = np.linspace(0.0, 1.0, n)
+    x1, y1 = x0 + cols * dx, y0 + rows * dy
+    return (np.concatenate([x0 + t * (x1 - x0), x0 + t * (x1 - x0), np.full(n, x0), np.full(n, x1)]),
+            np.concatenate([np.full(n, y0), np.full(n, y1), y0 + t * (y1 - y0), y0 + t * (y1 - y0)]))
+
+
+def memory_dataset(grid):
+    """An in-memory float64 GDAL dataset of `grid`, NaN as its nodata (for warp_to)."""
+    rows, cols = grid.shape
+    ds = gdal.GetDriverByName("MEM").Create("", cols, rows, 1, gdal.GDT_Float64)
+    ds.SetGeoTransform(grid.geotransform)
+    ds.SetSpatialRef(grid.srs)
+    band = ds.GetRasterBand(1)
+    band.SetNoDataValue(float("nan"))
+    band.WriteArray(grid.values)
+    return ds
 
 
 def warp_to(ds, grid, resampling):

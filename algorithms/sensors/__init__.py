@@ -8,7 +8,7 @@ supported orientation source:
 """
 import os
 
-from ..errors import MetadataError
+from ..errors import InputError, MetadataError
 from .base import SensorModel
 
 MODEL_FILE_SUFFIX = ".pbmodel.json"
@@ -48,14 +48,44 @@ def orientation_source(path):
     return path
 
 
+def missing_file_error(path):
+    """InputError for `path`, which does not exist: the raster of a SPOT DIMAP product whose
+    METADATA.DIM lies where the raster should be, or any other file."""
+    folder = os.path.dirname(os.path.abspath(path))
+    dim = os.path.join(folder, "METADATA.DIM")
+    if not path.lower().endswith(ORIENTATION_SUFFIXES) and _is_dimap(dim):
+        return InputError(f"{path} does not exist: the SPOT DIMAP product {folder} has its metadata {dim} but "
+                          "not this raster; copy the product's raster (as delivered: IMAGERY.TIF) back beside its "
+                          "METADATA.DIM, or give an image that exists")
+    return InputError(f"{path} does not exist: check the path (a file moved, renamed or deleted?)")
+
+
+def check_image(path):
+    """InputError unless the image `path` exists (missing_file_error) and, where it is a SPOT DIMAP
+    METADATA.DIM or product folder, the product's raster (dimap.product_raster) exists beside it."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise missing_file_error(path)
+    dim = os.path.join(path, "METADATA.DIM") if os.path.isdir(path) else path
+    if _is_dimap(dim):
+        from .dimap import product_raster
+        raster = product_raster(dim)
+        if not os.path.isfile(raster):
+            raise InputError(f"{path} is a SPOT DIMAP product without its raster: {raster}, which its metadata "
+                             "names, does not exist; copy the product's raster back beside its METADATA.DIM, or "
+                             "give an image that exists")
+
+
 def load(path, image=None):
     """Open the orientation at `path` and return its SensorModel (see module docstring).
 
     `image` is the raster the model describes when `path` is a separate orientation file: its size
-    is checked against the metadata, and a crop offset (Pleiades .geom crops) is honoured."""
+    is checked against the metadata, and a crop offset (Pleiades .geom crops) is honoured. A missing
+    `path` or `image` is an InputError naming it (missing_file_error)."""
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise MetadataError(f"no such file or folder: {path}")
+    for given in (path, image):
+        if given is not None and not os.path.exists(given):
+            raise missing_file_error(os.fspath(given))
     if image is None and not path.lower().endswith(MODEL_FILE_SUFFIX):
         source = orientation_source(path)
         if source != path:
@@ -81,4 +111,5 @@ def save(model, path):
     save_model_file(model, path)
 
 
-__all__ = ["SensorModel", "load", "save", "orientation_source", "MODEL_FILE_SUFFIX"]
+__all__ = ["SensorModel", "load", "save", "orientation_source", "check_image", "missing_file_error",
+           "MODEL_FILE_SUFFIX"]

@@ -204,6 +204,16 @@ def _own_raster(doc, path):
     return raster if os.path.isfile(raster) else None
 
 
+def product_raster(path):
+    """Path of the raster of the SPOT DIMAP product whose METADATA.DIM (or folder) is `path`: its
+    Data_Access DATA_FILE_PATH beside the metadata, IMAGERY.TIF where it names none (whether it exists
+    or not). MetadataError where the metadata cannot be read."""
+    path = _dim_path(path)
+    href = _Doc(path).root.find("Data_Access/Data_File/DATA_FILE_PATH")
+    name = (href.get("href") if href is not None else "") or "IMAGERY.TIF"
+    return os.path.join(os.path.dirname(path), name)
+
+
 def check_image_size(orientation, image, path=""):
     """Raise MetadataError unless the raster `image` has NCOLS x NROWS pixels."""
     from osgeo import gdal

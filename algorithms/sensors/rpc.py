@@ -29,6 +29,12 @@ raster centre (c_c, r_c) = size / 2,
     col' = col + A0 + A1 u + A2 v,   row' = row + B0 + B1 u + B2 v,   bias = (A0, A1, A2, B0, B1, B2).
 
 RPC files cannot hold it: an adjusted model is exported by fitting new RPCs to it (rpc_fit.py).
+
+Validity domain: the normalised cube L, P, H in [-1, 1]. Every RPC is checked when it is read
+(RpcCoefficients.from_fields, which all readers and the model file pass through) on a grid of
+DOMAIN_NODES^3 points of that cube: both denominators must keep one sign (neither vanishes: no pole
+inside the domain, where a ratio would jump by any amount) and the image coordinates must be finite.
+A pole between two grid points closer than the grid step is not seen.
 """
 import math
 from dataclasses import dataclass
@@ -43,6 +49,8 @@ from .base import SensorModel, shaped_points
 from .rpc_io import COEFF_KEYS, OFFSET_KEYS, SCALE_KEYS
 
 NUM_TERMS = 20
+#: grid points per axis of the validity-domain check (module docstring): steps of 0.1 in L, P, H
+DOMAIN_NODES = 21
 
 #: image_to_ground stops when the image residual is below PX_TOL pixels and the last Newton step
 #: below DEG_TOL degrees
@@ -57,6 +65,18 @@ def rpc_terms(x, y, z):
     return np.column_stack([np.ones_like(x), x, y, z, x * y, x * z, y * z, x * x, y * y, z * z,
                             x * y * z, x ** 3, x * y * y, x * z * z, x * x * y, y ** 3, y * z * z,
                             x * x * z, y * y * z, z ** 3])
+
+
+def domain_grid():
+    """(L, P, H) of the DOMAIN_NODES^3 grid points of the validity domain [-1, 1]^3, flat arrays, the
+    centre (0, 0, 0) among them."""
+    axis = np.linspace(-1.0, 1.0, DOMAIN_NODES)
+    return tuple(a.ravel() for a in np.meshgrid(axis, axis, axis, indexing="ij"))
+
+
+def keeps_sign(values):
+    """Whether a denominator's values are all finite and all > 0 or all < 0 (no pole among them)."""
+    return bool(np.all(np.isfinite(values)) and (np.all(values > 0.0) or np.all(values < 0.0)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -210,6 +230,44 @@ def _coefficient_list(value, key, source):
     return np.array([_number(v, f"{key}[{i + 1}]", source) for i, v in enumerate(items)])
 
 
+def _check_domain(arrays, values, source):
+    """MetadataError unless, on the domain_grid, both denominators keep one sign and the image
+    coordinates are finite (module docstring); the message names the first grid point (nearest the
+    centre) where the sign differs from the centre's."""
+    x, y, z = domain_grid()
+    t = rpc_terms(x, y, z)
+    with np.errstate(all="ignore"):
+        ground = (values["long_off"] + x * values["long_scale"], values["lat_off"] + y * values["lat_scale"],
+                  values["height_off"] + z * values["height_scale"])
+
+    def where(i):
+        return f"lon {ground[0][i]:.6f}, lat {ground[1][i]:.6f}, h {ground[2][i]:.0f} m"
+
+    lon, lat, h = (np.sort([a - abs(s), a + abs(s)]) for a, s in (
+        (values["long_off"], values["long_scale"]), (values["lat_off"], values["lat_scale"]),
+        (values["height_off"], values["height_scale"])))
+    domain = (f"the RPC's validity domain (lon {lon[0]:.6f} .. {lon[1]:.6f}, lat {lat[0]:.6f} .. {lat[1]:.6f}, "
+              f"h {h[0]:.0f} .. {h[1]:.0f} m)")
+    centre = x.size // 2
+    for name, coordinate in (("line", "row"), ("samp", "column")):
+        with np.errstate(all="ignore"):
+            den = t @ arrays[f"{name}_den"]
+            image = (t @ arrays[f"{name}_num"]) / den * values[f"{name}_scale"] + values[f"{name}_off"]
+        if np.all(np.isfinite(den)) and not keeps_sign(den):
+            other = np.sign(den) != np.sign(den[centre])
+            i = np.flatnonzero(other)[np.argmin((x * x + y * y + z * z)[other])]
+            pole = "there" if den[i] == 0.0 else "in between"
+            raise _metadata_error(
+                source, f"{name.upper()}_DEN_COEFF, the denominator of the image {coordinate}, changes sign within "
+                        f"{domain}: it is {den[centre]:+.3g} at the centre ({where(centre)}) and {den[i]:+.3g} at "
+                        f"{where(i)}, so the {coordinate} has a pole {pole} and image positions near it are wrong "
+                        "by any amount")
+        if not np.all(np.isfinite(image)):
+            i = np.flatnonzero(~np.isfinite(image))[0]
+            raise _metadata_error(source, f"the image {coordinate} is not a finite number at {where(i)}, within "
+                                          f"{domain}: coefficients, offsets or scales out of range")
+
+
 @dataclass(frozen=True, eq=False)
 class RpcCoefficients:
     """The 90 RPC00B values as in the file: polynomial coefficients in RPC00B term order, offsets
@@ -236,7 +294,8 @@ class RpcCoefficients:
         """Parse and check a mapping with the RPC00B (GDAL metadata) names: LINE_OFF ... as numbers
         or texts, LINE_NUM_COEFF ... as 20 numbers (text or sequence). `source` names the origin
         in error messages. Raises MetadataError on missing, non-numeric, non-finite, zero-scale,
-        wrong-count values, or a denominator that vanishes at the normalisation centre."""
+        wrong-count values, a denominator that vanishes at the normalisation centre or changes sign
+        within the validity domain, or image coordinates that are not finite there (module docstring)."""
         missing = [k for k in OFFSET_KEYS + SCALE_KEYS + COEFF_KEYS if k not in fields]
         if missing:
             raise _metadata_error(source, f"missing {', '.join(missing)}")
@@ -249,6 +308,7 @@ class RpcCoefficients:
             if arrays[key][0] == 0.0:
                 raise _metadata_error(source, f"{key.upper()}_COEFF vanishes at the normalisation "
                                               "centre (its first coefficient is 0)")
+        _check_domain(arrays, values, source)
         for a in arrays.values():
             a.setflags(write=False)
         return cls(**arrays, **values)
@@ -274,7 +334,7 @@ class RpcModel(SensorModel):
 
     `size` is the raster's (cols, rows); where no raster is known it is estimated as the upper end
     of the RPC's image normalisation, ceil(SAMP_OFF + 0.5 + |SAMP_SCALE| - col0) and likewise for
-    rows (the RPC's validity domain)."""
+    rows (the RPC's validity domain); MetadataError where that is not a positive size."""
 
     #: d_corrections columns of an exterior orientation: none (the bias acts in image space)
     EXTERIOR_COEFFICIENTS = 0
@@ -293,6 +353,9 @@ class RpcModel(SensorModel):
         if size is None:
             size = (math.ceil(c.samp_off + 0.5 + abs(c.samp_scale) - col0),
                     math.ceil(c.line_off + 0.5 + abs(c.line_scale) - row0))
+            if min(size) < 1:
+                raise _metadata_error(self.source, f"SAMP_OFF + SAMP_SCALE, LINE_OFF + LINE_SCALE describe an image "
+                                                   f"of {size[0]} x {size[1]} pixels")
         self.size = (int(size[0]), int(size[1]))
 
     def __repr__(self):

@@ -19,10 +19,12 @@ Tikhonov regularisation, lambda * |den_1..19|^2 with lambda = r * trace(N) / 39 
 normal matrix); the system is solved in its augmented form [A; sqrt(lambda) D] x = [b; 0] by SVD,
 so its conditioning is not squared. r runs over a ladder (REGULARISATIONS, or the one value given);
 a candidate whose denominator comes near zero over the points (a change of sign, or min |den| below
-MIN_DEN_RATIO max |den|) is rejected, and a plain cubic polynomial (den = 1, the paper's fallback
-for the nadir image) is always a candidate. Of the candidates, the one with the smallest RMS on the
-selection points is kept, per image coordinate; the validation points take no part in that choice
-(only a candidate whose denominator nears zero there too is rejected), so their errors are independent.
+MIN_DEN_RATIO max |den|) or changes sign anywhere on the grid of the validity domain that every RPC
+reader checks (rpc.domain_grid) is rejected, and a plain cubic polynomial (den = 1, the paper's
+fallback for the nadir image) is always a candidate, so a fitted RPC always reads back. Of the
+candidates, the one with the smallest RMS on the selection points is kept, per image coordinate;
+the validation points take no part in that choice (only a candidate whose denominator nears zero
+there too is rejected), so their errors are independent.
 
 surface.intersection.height_differences compares object points intersected with the RPCs and with
 the rigorous models (K Table 5)."""
@@ -35,7 +37,7 @@ import numpy as np
 from .. import progress
 from ..errors import GeometryError, InputError, PushbroomError
 from . import rpc_io
-from .rpc import NUM_TERMS, RpcCoefficients, RpcModel, rpc_terms
+from .rpc import NUM_TERMS, RpcCoefficients, RpcModel, domain_grid, keeps_sign, rpc_terms
 
 #: default cube: image grid columns x rows x height levels
 DEFAULT_GRID = (11, 11, 11)
@@ -158,7 +160,9 @@ def _near_pole(den):
 
 def _fit_rational(t, v, r, checks):
     """(num, den, iterations) of v = num.t / den.t by reweighted, denominator-damped least squares
-    (module docstring); None where the denominator comes near zero on t or any of `checks`."""
+    (module docstring); None where the denominator comes near zero on t or any of `checks`, or changes
+    sign on the validity domain's grid."""
+    domain = rpc_terms(*domain_grid())
     a = np.hstack([t, -v[:, None] * t[:, 1:]])
     damping = np.hstack([np.zeros((NUM_TERMS - 1, NUM_TERMS)), np.eye(NUM_TERMS - 1)])
     den = np.ones(v.size)
@@ -168,7 +172,7 @@ def _fit_rational(t, v, r, checks):
         x = np.linalg.lstsq(np.vstack([aw, math.sqrt(lam) * damping]),
                             np.concatenate([v / den, np.zeros(NUM_TERMS - 1)]), rcond=None)[0]
         coef = np.concatenate([[1.0], x[NUM_TERMS:]])
-        if any(_near_pole(c @ coef) for c in (t,) + checks):
+        if any(_near_pole(c @ coef) for c in (t,) + checks) or not keeps_sign(domain @ coef):
             return None
         previous, den = den, t @ coef
         if np.max(np.abs(den - previous)) < DEN_TOL:

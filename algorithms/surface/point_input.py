@@ -1,18 +1,29 @@
 """Reading point clouds and breaklines for the DEM: LAS/LAZ (laspy; the files pointcloud.py writes)
 and any OGR vector layer of 3-D points (the GeoPackage point layer of pointcloud.py, a shapefile,
-GeoJSON ...) or 3-D lines. z is taken as the WGS 84 ellipsoidal height (pointcloud.py's convention)."""
+GeoJSON ...) or 3-D lines. z is taken as the WGS 84 ellipsoidal height (pointcloud.py's convention).
+
+Failure modes, each an InputError in Pushbroom's words: a missing or unreadable file; no CRS, or an
+undefined one (crs.is_undefined: no CRS VLR in a LAS, a GeoPackage layer without SRS); coordinates
+that cannot be in their CRS (check_coordinates: degrees labelled with a projected CRS, metres with a
+geographic one, points far outside the CRS's area of use)."""
 import os
 from dataclasses import dataclass, field
 
 import numpy as np
 from osgeo import ogr
 
-from ..crs import srs as parse_crs, transform
+from ..crs import is_undefined, reproject, srs as parse_crs, transform, wgs84
 from ..errors import InputError
 from .pointcloud import laspy_module
 
 #: LAS GeoTIFF keys holding an EPSG code: ProjectedCSTypeGeoKey, GeographicTypeGeoKey
 EPSG_GEOKEYS = (3072, 2048)
+#: in a projected CRS a satellite point cloud spans more than this (m); less, with values in the ranges
+#: of longitude and latitude, means degrees labelled with a projected CRS
+MIN_SPAN = 10.0
+#: degrees a point cloud may lie beyond the area of use of its CRS (a scene across a UTM zone border, a
+#: country mapped in one zone); farther, the CRS is not the cloud's
+AREA_MARGIN = 10.0
 
 
 @dataclass
@@ -42,25 +53,53 @@ class PointSet:
         return PointSet(xy[:, 0], xy[:, 1], self.z, target, self.fields)
 
 
+def no_crs_error(path, what, why, vector):
+    """InputError: the `what` ('point cloud' or 'breaklines') `path` has no usable CRS (`why`): how to
+    give one (a point cloud's CRS can also be given with the points: read_points(path, crs))."""
+    assign = (f"ogr2ogr -a_srs EPSG:<code> out.gpkg {path}, or QGIS's 'Assign projection'" if vector else
+              f"pdal translate {path} out.las --writers.las.a_srs=EPSG:<code>")
+    give = "give the CRS its x, y are in (the point cloud CRS parameter), or " if what == "point cloud" else ""
+    return InputError(f"the {what} {path} has no coordinate reference system ({why}), so where it lies is unknown: "
+                      f"{give}assign the CRS to the file (e.g. {assign})")
+
+
+def _defined(srs, path, what, vector):
+    """`srs` (osr.SpatialReference) unless it places nothing on Earth (crs.is_undefined)."""
+    if is_undefined(srs):
+        raise no_crs_error(path, what, f"its CRS '{srs.GetName()}' is a local or undefined one, not placed on "
+                                       "Earth", vector)
+    return srs
+
+
 def _las_srs(las, path):
     laspy = laspy_module()
     for vlr in list(las.header.vlrs) + list(las.header.evlrs or []):
         if isinstance(vlr, laspy.vlrs.known.WktCoordinateSystemVlr):
-            return parse_crs(vlr.string)
+            try:
+                return _defined(parse_crs(vlr.string), path, "point cloud", False)
+            except InputError as exc:
+                if "unknown coordinate reference system" not in str(exc):
+                    raise
+                raise no_crs_error(path, "point cloud", "its WKT VLR holds no CRS PROJ reads", False) from None
         if isinstance(vlr, laspy.vlrs.known.GeoKeyDirectoryVlr):
             for key in vlr.geo_keys:
                 if key.id in EPSG_GEOKEYS and 0 < key.value_offset < 32767:
                     return parse_crs(int(key.value_offset))
-    raise InputError(f"{path} has no coordinate reference system (no WKT or EPSG GeoKey VLR): give the CRS")
+    raise no_crs_error(path, "point cloud", "no WKT or EPSG GeoKey VLR", False)
 
 
 def read_las(path, crs=None):
     """PointSet of a LAS/LAZ file (fields: its extra dimensions)."""
     laspy = laspy_module()
+    if not os.path.exists(path):
+        raise InputError(f"cannot read the point cloud {path}: the file does not exist; check the path")
+    if os.fspath(path).lower().endswith(".laz") and not laspy.LazBackend.detect_available():
+        raise InputError(f"cannot read the point cloud {path}: reading LAZ needs the lazrs or laszip Python "
+                         "package (pip install lazrs), or convert the file to LAS")
     try:
         las = laspy.read(os.fspath(path))
     except Exception as exc:  # laspy raises its own and OS errors
-        raise InputError(f"cannot read the point cloud {path}: {exc}") from exc
+        raise InputError(f"cannot read the point cloud {path}: not a LAS/LAZ file laspy reads ({exc})") from exc
     srs = parse_crs(crs) if crs else _las_srs(las, path)
     fields = {name: np.asarray(las[name]) for name in las.point_format.extra_dimension_names}
     return PointSet(np.asarray(las.x, float), np.asarray(las.y, float), np.asarray(las.z, float), srs, fields)
@@ -68,6 +107,8 @@ def read_las(path, crs=None):
 
 def _open_layer(path, layer_name, what):
     ogr.UseExceptions()
+    if not os.path.exists(path):
+        raise InputError(f"cannot open the {what} {path}: the file does not exist; check the path")
     try:
         ds = ogr.Open(os.fspath(path))
     except RuntimeError as exc:
@@ -80,12 +121,12 @@ def _open_layer(path, layer_name, what):
     return ds, layer
 
 
-def _layer_srs(layer, crs, path):
+def _layer_srs(layer, crs, path, what):
     if crs:
         return parse_crs(crs)
     if layer.GetSpatialRef() is None:
-        raise InputError(f"{path} has no coordinate reference system: give the CRS")
-    return parse_crs(layer.GetSpatialRef())
+        raise no_crs_error(path, what, "its layer has none", True)
+    return _defined(parse_crs(layer.GetSpatialRef()), path, what, True)
 
 
 def read_ogr_points(path, layer_name=None, crs=None):
@@ -105,24 +146,79 @@ def read_ogr_points(path, layer_name=None, crs=None):
             for name in numeric:
                 values[name].append(np.nan if feature[name] is None else feature[name])
     xyz = np.asarray(xyz, float).reshape(-1, 3)
-    srs = _layer_srs(layer, crs, path)
+    srs = _layer_srs(layer, crs, path, "point cloud")
     ds = None
     return PointSet(xyz[:, 0], xyz[:, 1], xyz[:, 2], srs, {k: np.asarray(v, float) for k, v in values.items()})
 
 
+def check_coordinates(points, path):
+    """InputError where the points' x, y cannot be coordinates in their CRS: outside the ranges of
+    longitude and latitude in a geographic CRS; in a projected CRS, within MIN_SPAN metres with values
+    in those ranges (degrees labelled as metres); their centre more than AREA_MARGIN degrees outside the
+    CRS's area of use (or not placeable on Earth at all)."""
+    ok = np.isfinite(points.x) & np.isfinite(points.y)
+    if not ok.any():
+        return
+    x, y = points.x[ok], points.y[ok]
+    box = f"x {x.min():.8g} .. {x.max():.8g}, y {y.min():.8g} .. {y.max():.8g}"
+    name = points.srs.GetName()
+    degrees = x.min() >= -180.0 and x.max() <= 360.0 and y.min() >= -90.0 and y.max() <= 90.0
+    if points.srs.IsGeographic() and not degrees:
+        raise InputError(f"the point cloud {path} has coordinates {box}, which are not longitude/latitude degrees, "
+                         f"but its CRS {name} is geographic: are they projected metres? Give the point cloud the CRS "
+                         "its coordinates are in")
+    span = max(np.ptp(x), np.ptp(y)) * points.srs.GetLinearUnits()
+    if points.srs.IsProjected() and 0.0 < span < MIN_SPAN and degrees:
+        raise InputError(f"the point cloud {path} spans only {span:.3g} m in its CRS {name} ({box}): these look like "
+                         "longitude/latitude degrees labelled with a projected CRS. Give the point cloud the CRS its "
+                         "coordinates are in (EPSG:4326 for degrees)")
+    lon, lat = reproject(np.array([np.mean(x)]), np.array([np.mean(y)]), points.srs, wgs84(),
+                         "the point cloud's centre")
+    if not within_area_of_use(points.srs, float(lon[0]), float(lat[0])):
+        where = (f"at longitude {lon[0]:.4f}, latitude {lat[0]:.4f}" if np.isfinite(lon[0]) and np.isfinite(lat[0])
+                 else "nowhere on Earth (outside what the CRS's projection covers)")
+        raise InputError(f"the point cloud {path} ({box}) lies {where} according to its CRS {name}, far from where "
+                         f"that CRS is used ({area_of_use(points.srs)}): the file's CRS is not the one of its "
+                         "coordinates (x and y swapped?). Give the point cloud the CRS its coordinates are in")
+
+
+def area_of_use(target):
+    """'longitude w .. e, latitude s .. n' of the area of use of the osr.SpatialReference `target`."""
+    area = target.GetAreaOfUse()
+    return (f"longitude {area.west_lon_degree:g} .. {area.east_lon_degree:g}, latitude {area.south_lat_degree:g} .. "
+            f"{area.north_lat_degree:g}")
+
+
+def within_area_of_use(target, lon, lat):
+    """Whether (lon, lat) (degrees) lies within AREA_MARGIN degrees of the area of use of `target` (True
+    where the CRS has none, False where lon or lat is not finite)."""
+    area = target.GetAreaOfUse()
+    if area is None:
+        return True
+    if not (np.isfinite(lon) and np.isfinite(lat)):
+        return False
+    west, east = area.west_lon_degree - AREA_MARGIN, area.east_lon_degree + AREA_MARGIN
+    across = area.west_lon_degree > area.east_lon_degree      # an area across the antimeridian
+    return ((lon >= west or lon <= east) if across else west <= lon <= east) and \
+        area.south_lat_degree - AREA_MARGIN <= lat <= area.north_lat_degree + AREA_MARGIN
+
+
 def read_points(path, crs=None):
     """PointSet of a LAS/LAZ file or an OGR point layer (`path` or 'path|layername=name'); `crs`
-    overrides the file's CRS."""
+    overrides the file's CRS. InputError where the coordinates cannot be in that CRS (check_coordinates)."""
     path, _, layer = os.fspath(path).partition("|layername=")
     if os.path.splitext(path)[1].lower() in (".las", ".laz"):
-        return read_las(path, crs)
-    return read_ogr_points(path, layer or None, crs)
+        points = read_las(path, crs)
+    else:
+        points = read_ogr_points(path, layer or None, crs)
+    check_coordinates(points, path)
+    return points
 
 
 def read_breaklines(path, layer_name=None):
     """3-D breaklines of an OGR line layer: (list of (n, 3) arrays, the layer's osr.SpatialReference)."""
     ds, layer = _open_layer(path, layer_name, "breaklines")
-    srs = _layer_srs(layer, None, path)
+    srs = _layer_srs(layer, None, path, "breaklines")
     lines = []
     for feature in layer:
         geometry = feature.GetGeometryRef()

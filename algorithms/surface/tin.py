@@ -18,29 +18,51 @@ from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from ..errors import InputError
 from ..stats import NMAD_SCALE
-from .delaunay import triangulate
+from .delaunay import seed, triangulate
 
 #: smallest robust sigma of the blunder filter (m), below the height precision of any satellite point
 #: cloud: a noise-free smooth surface loses no points to its curvature
 MIN_SIGMA = 0.05
 
 
+def flat_points(x, y):
+    """Why the points (x, y) span no area, in words ('are all at one position ...', 'all lie on one line
+    ...'), or None where three of them are not on one line (delaunay.seed's orientation tolerance)."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if np.ptp(x) == 0.0 and np.ptp(y) == 0.0:
+        return f"are all at one position (x {x[0]:.3f}, y {y[0]:.3f})"
+    if seed(x - np.mean(x), y - np.mean(y))[2] < 0:
+        ends = np.argmin(x + y), np.argmax(x + y)
+        return (f"all lie on one line (from x {x[ends[0]]:.3f}, y {y[ends[0]]:.3f} to x {x[ends[1]]:.3f}, "
+                f"y {y[ends[1]]:.3f})")
+    return None
+
+
 def delaunay(x, y):
     """Delaunay triangulation of (x, y) (shifted to their mean for precision): the numba sweep-hull of
-    delaunay.py, or scipy's (qhull) where that fails its validity check; InputError for fewer than 3 points or
-    points on one line. Both results have `simplices` and `vertex_neighbor_vertices`."""
+    delaunay.py, or scipy's (qhull) where that fails its validity check; InputError for fewer than 3 points,
+    points at one position or on one line (flat_points), or points qhull cannot triangulate either. Both
+    results have `simplices` and `vertex_neighbor_vertices`."""
     if len(x) < 3:
         raise InputError(f"a TIN needs at least 3 points, the point cloud has {len(x)}: check the input "
                          "(an empty or almost empty point cloud, or every point filtered out)")
-    x, y = x - np.mean(x), y - np.mean(y)
-    tin = triangulate(x, y)
+    if not (np.isfinite(x).all() and np.isfinite(y).all()):
+        raise InputError(f"{np.sum(~(np.isfinite(x) & np.isfinite(y)))} of the {len(x)} points of the TIN are not "
+                         "finite: leave them out")
+    tin = triangulate(x - np.mean(x), y - np.mean(y))
     if tin is not None:
         return tin
+    flat = flat_points(x, y)
+    if flat is not None:
+        raise InputError(f"the {len(x)} points of the point cloud {flat}: a TIN needs at least 3 points that are "
+                         "not on one line; check the point cloud (duplicated points, or coordinates lost or "
+                         "rounded in an export?)")
+    x, y = x - np.mean(x), y - np.mean(y)
     try:
         return Delaunay(np.column_stack([x, y]))
     except (QhullError, ValueError) as exc:
-        raise InputError(f"the {len(x)} points cannot be triangulated (all on one line, or not finite): "
-                         f"{str(exc).splitlines()[0]}") from None
+        raise InputError(f"the {len(x)} points cannot be triangulated, not even by qhull: they are nearly all at "
+                         "one position or on one line; check the point cloud") from exc
 
 
 def longest_edge(x, y, triangles):

@@ -15,6 +15,7 @@ from .. import progress
 from ..crs import egm96_undulation, reproject, transform, wgs84
 from ..errors import InputError
 from .geotiff import write_float_raster
+from .point_input import area_of_use, within_area_of_use
 from .pointcloud import output_srs
 from .tin import conform_breaklines, delaunay, filter_blunders, longest_edge
 from .tin_grid import Grid, rasterize
@@ -75,13 +76,22 @@ def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=N
         raise InputError(f"a DEM needs at least 3 points with finite coordinates, the point cloud has "
                          f"{int(finite.sum())}: check the input point cloud")
     progress.step(feedback, 0, f"{len(points)} points ({len(points) - int(finite.sum())} not finite, left out)")
+    ll = transform(points.srs, wgs84(), np.column_stack([np.mean(points.x[finite]), np.mean(points.y[finite])]),
+                   "the point cloud's centre")
     if crs is None or crs == "":
-        ll = transform(points.srs, wgs84(), np.column_stack([np.mean(points.x[finite]), np.mean(points.y[finite])]),
-                       "the point cloud's centre")
         target = output_srs(None, ll[:, 0], ll[:, 1])
     else:
         target = output_srs(crs)
+        if not within_area_of_use(target, float(ll[0, 0]), float(ll[0, 1])):
+            raise InputError(f"the output CRS {target.GetName()} is used at {area_of_use(target)}, far from the point "
+                             f"cloud (longitude {ll[0, 0]:.4f}, latitude {ll[0, 1]:.4f}): choose an output CRS for "
+                             "where the points lie, or leave it empty for their UTM zone")
     pts = points.to(target)
+    lost = finite & ~(np.isfinite(pts.x) & np.isfinite(pts.y))
+    if lost.any():
+        raise InputError(f"{int(lost.sum())} of the {len(points)} points cannot be expressed in the output CRS "
+                         f"{target.GetName()} (outside the area its projection covers): choose an output CRS for "
+                         "where the point cloud lies, or leave it empty for the points' UTM zone")
     x, y, z = pts.x[finite], pts.y[finite], pts.z[finite]
     sigma = pts.sigma_h[finite] if pts.sigma_h is not None else None
     max_edge = default_max_edge(x, y, cell) if max_edge is None else float(max_edge)

@@ -14,6 +14,7 @@ from ...algorithms.quality.classes import ClassRaster, PolygonClasses
 from ...algorithms.quality.height_differences import write_dh_raster
 from ..styles import style_on_completion
 from .base import PushbroomAlgorithm
+from .dem_nodata import nodata_parameter
 from .import_points import HEIGHTS
 
 
@@ -31,7 +32,9 @@ class AssessAccuracy(PushbroomAlgorithm):
             "shares of |dh| < 2 m, 2-5 m, > 5 m) per point group, per class (a class raster such as the "
             "simulator's classes.tif, or polygons with a class field) and for flat/moderate vs mountainous "
             "terrain (slope of the reference against a threshold) go to the log, an HTML report with "
-            "histograms and a colour-coded dh map, and optionally a CSV table; for a DEM an optional dh raster.")
+            "histograms and a colour-coded dh map, and optionally a CSV table; for a DEM an optional dh raster. "
+            "Reference heights outside -500 .. 9000 m (voids not flagged as nodata) are reported, and a void value "
+            "can be declared as the reference's nodata.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         self.addParameter(QgsProcessingParameterRasterLayer("REFERENCE", "Reference DTM/DSM"))
@@ -50,7 +53,8 @@ class AssessAccuracy(PushbroomAlgorithm):
             "SLOPE_THRESHOLD", "Slope of mountainous terrain (degrees, of the reference)",
             QgsProcessingParameterNumber.Double, SLOPE_THRESHOLD, minValue=0.01, maxValue=89.9))
         self.addAdvancedParameters([
-            QgsProcessingParameterEnum("POINTS_HEIGHTS", "Point cloud heights", HEIGHTS, defaultValue=0)])
+            QgsProcessingParameterEnum("POINTS_HEIGHTS", "Point cloud heights", HEIGHTS, defaultValue=0),
+            nodata_parameter("REFERENCE_NODATA", "reference DTM/DSM")])
         self.addParameter(QgsProcessingParameterFileDestination("REPORT", "Report", "HTML files (*.html)"))
         self.addParameter(QgsProcessingParameterRasterDestination("DH", "dh raster (DEM input)", optional=True,
                                                                   createByDefault=False))
@@ -90,7 +94,8 @@ class AssessAccuracy(PushbroomAlgorithm):
             raise InputError("the dh raster needs a DEM input: give a DEM or leave the dh raster unset")
         assessed = assess(reference, points=points, dem=dem, reference_datum=datums["REFERENCE_HEIGHTS"],
                           points_datum=datums["POINTS_HEIGHTS"], dem_datum=datums["DEM_HEIGHTS"], classes=classes,
-                          slope_threshold=threshold, feedback=progress.scaled(feedback, 0, 70))
+                          slope_threshold=threshold, feedback=progress.scaled(feedback, 0, 70),
+                          reference_nodata=self.parameterAsOptionalDouble(parameters, "REFERENCE_NODATA", context))
         used = [("reference", f"{reference} ({datums['REFERENCE_HEIGHTS']} heights)")]
         if points:
             used.append(("point cloud", f"{points} ({datums['POINTS_HEIGHTS']} heights)"))

@@ -30,7 +30,9 @@ class InterpolateDem(PushbroomAlgorithm):
             "Delaunay); points very close to a breakline give way to it. Heights "
             "are ellipsoidal or EGM96 (H = h - N, PROJ's EGM96 grid). The optional precision raster holds the "
             "points' sigma_h interpolated on the TIN where the cloud has it, otherwise the distance to the "
-            "nearest point. Output: tiled Float32 GeoTIFF with overviews, nodata -32767.")
+            "nearest point. A point cloud without a CRS (or with coordinates that cannot be in its CRS, such as "
+            "degrees labelled UTM) is refused; its CRS can be given. Output: tiled Float32 GeoTIFF with overviews, "
+            "nodata -32767.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         self.addParameter(QgsProcessingParameterFile(
@@ -42,6 +44,7 @@ class InterpolateDem(PushbroomAlgorithm):
         self.addParameter(Number("CELL", "Cell size (output CRS units)", Number.Double, 10.0, minValue=1e-6))
         self.addParameter(QgsProcessingParameterEnum("DATUM", "Height datum", [t for _, t in DATUMS], defaultValue=0))
         self.addAdvancedParameters([
+            QgsProcessingParameterCrs("INPUT_CRS", "Point cloud CRS (empty: the file's own)", None, optional=True),
             Number("MAX_EDGE", "Maximum triangle edge (empty: 3 cells or 2.5 point spacings); longer triangles "
                    "are gaps", Number.Double, None, optional=True, minValue=0.0),
             Number("BLUNDER_K", "Blunder threshold k (robust sigmas; 0: no filter)", Number.Double, 4.0, minValue=0.0),
@@ -54,7 +57,8 @@ class InterpolateDem(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputNumber("REMOVED", "Blunders removed"))
 
     def execute(self, parameters, context, feedback):
-        points = point_input.read_points(self.parameterAsFile(parameters, "INPUT", context))
+        points = point_input.read_points(self.parameterAsFile(parameters, "INPUT", context),
+                                         self.parameterAsCrsDefinition(parameters, "INPUT_CRS", context))
         crs = self.parameterAsCrsDefinition(parameters, "CRS", context)
         cell = self.parameterAsDouble(parameters, "CELL", context)
         lines, lines_srs = [], None

@@ -27,7 +27,13 @@ STRATEGIES = (("Region growing (K, H)", "region_growing"),
 def combination_order(rows, text):
     """The block's image rows in combination order: `text` is a comma-separated list of names
     (reference, forward[, backward]); empty or 'all' orders the block's 2 or 3 images itself
-    (HRG, HRS1, HRS2 when so named, else block order)."""
+    (HRG, HRS1, HRS2 when so named, else block order). InputError for a block of fewer than 2 images,
+    whatever `text` names."""
+    if len(rows) < 2:
+        has = f"one image ({rows[0]['name']})" if rows else "no image"
+        raise InputError(f"matching needs two or three images of the same ground, and the block has {has}: create a "
+                         "block with the stereo pair or triplet (pushbroom:createblock with all its images) and match "
+                         "that")
     by_name = {r["name"]: r for r in rows}
     names = [n.strip() for n in (text or "").split(",") if n.strip()]
     if names and names != ["all"]:

@@ -5,12 +5,13 @@ from qgis.core import (QgsProcessingOutputNumber, QgsProcessingParameterBoolean,
                        QgsProcessingParameterRasterDestination, QgsProcessingParameterRasterLayer,
                        QgsProcessingParameterString)
 
-from ...algorithms import block, sensors
+from ...algorithms import block, progress, sensors
 from ...algorithms.errors import InputError
 from ...algorithms.ortho import load_dem, orthorectify
 from ...algorithms.ortho.orthorectify import VERTICAL
 from ...algorithms.ortho.resampling import METHODS
 from .base import PushbroomAlgorithm
+from .dem_nodata import nodata_parameter
 
 Number = QgsProcessingParameterNumber
 RESAMPLING = tuple(METHODS)
@@ -25,8 +26,10 @@ class Orthorectify(PushbroomAlgorithm):
             "(height from the DEM) is projected into the image with the sensor model, and the image is resampled "
             "there (bilinear or bicubic, Keys a = -0.5). The model is the block's (adjusted) model of the named "
             "image, or the image's own orientation (DIMAP, RPC, .geom or an orientation file given). The DEM may be "
-            "in any CRS, with ellipsoidal or EGM96 heights. Ground-to-image runs exactly on a coarse grid of each "
-            "512-cell tile and is interpolated in between (bilinear in position, linear in height); the step is "
+            "in any CRS, with ellipsoidal or EGM96 heights; heights outside -500 .. 9000 m (voids not flagged as "
+            "nodata) are reported, and a void value can be declared as the DEM's nodata. Ground-to-image runs "
+            "exactly on a coarse grid of each 512-cell tile and is interpolated in between (bilinear in position, "
+            "linear in height); the step is "
             "halved until the interpolation error, checked exactly at the coarse cells' midpoints and at "
             "mid-height, is below the bound (default 0.01 px); the achieved bound is reported. Cells outside the "
             "image (or occluded by the DEM, when asked) are nodata. Output: tiled GeoTIFF of the image's data type "
@@ -53,6 +56,7 @@ class Orthorectify(PushbroomAlgorithm):
             Number("MAX_ERROR", "Bound of the coarse-grid interpolation error (px)", Number.Double, 0.01,
                    minValue=1e-6),
             Number("THREADS", "Threads", Number.Integer, 1, minValue=1),
+            nodata_parameter(),
         ])
         self.addParameter(QgsProcessingParameterRasterDestination("OUTPUT", "Orthoimage"))
         self.addOutput(QgsProcessingOutputNumber("BOUND", "Achieved interpolation error bound (px)"))
@@ -78,7 +82,9 @@ class Orthorectify(PushbroomAlgorithm):
     def execute(self, parameters, context, feedback):
         image, model = self.image_and_model(parameters, context)
         dem = load_dem(self.parameterAsRasterLayer(parameters, "DEM", context).source(),
-                       VERTICAL[self.parameterAsEnum(parameters, "DEM_HEIGHTS", context)])
+                       VERTICAL[self.parameterAsEnum(parameters, "DEM_HEIGHTS", context)],
+                       self.parameterAsOptionalDouble(parameters, "DEM_NODATA", context))
+        progress.warn(feedback, dem.implausible)
         crs = self.parameterAsCrsDefinition(parameters, "CRS", context)
         output = self.parameterAsOutputLayer(parameters, "OUTPUT", context)
         result = orthorectify(

@@ -1,0 +1,125 @@
+"""Bad DEMs (issue 19): a DEM without a CRS is refused with how to assign one (not 'does not overlap');
+heights no terrain has (SRTM voids -32767 not flagged as nodata) give a warning naming the value and the
+number of cells, and a declared nodata value makes them NaN, also through a warp and in the accuracy
+assessment's reference."""
+import re
+
+import numpy as np
+import pytest
+from osgeo import gdal
+
+from feedback import Feedback
+from pushbroom.algorithms.crs import srs
+from pushbroom.algorithms.dem import Dem, implausible_heights
+from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.ortho import load_dem
+from pushbroom.algorithms.quality.height_differences import dem_differences, reference_at_points
+
+#: the void block of the test DEMs: rows, columns of the simulated DSM (889 x 1011 cells)
+VOID = (slice(400, 500), slice(300, 400))
+VOID_CELLS = 100 * 100
+
+
+def copy_dem(source, path, crs=True, voids=False):
+    """The DSM `source` as a Float32 GeoTIFF: with or without its CRS, optionally with the VOID block at
+    -32767 and no nodata flagged (as an SRTM tile converted without -a_nodata)."""
+    ds = gdal.Open(str(source))
+    z = ds.GetRasterBand(1).ReadAsArray().astype(np.float32)
+    if voids:
+        z[VOID] = -32767
+    out = gdal.GetDriverByName("GTiff").Create(str(path), ds.RasterXSize, ds.RasterYSize, 1, gdal.GDT_Float32)
+    out.SetGeoTransform(ds.GetGeoTransform())
+    if crs:
+        out.SetProjection(ds.GetProjection())
+    out.GetRasterBand(1).WriteArray(z)
+    out = None
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def dems(small_scene, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("bad_dems")
+    voids = copy_dem(small_scene["dsm"], folder / "voids.tif", voids=True)
+    utm = str(folder / "voids_utm.tif")
+    gdal.Warp(utm, voids, dstSRS="EPSG:32616", xRes=10.0, yRes=10.0, resampleAlg="near", dstNodata=-9999)
+    return {"nocrs": copy_dem(small_scene["dsm"], folder / "nocrs.tif", crs=False), "voids": voids, "utm": utm,
+            "dsm": small_scene["dsm"]}
+
+
+def test_a_dem_without_crs_is_refused_with_how_to_assign_one(dems):
+    path = dems["nocrs"]
+    expected = (f"the DEM {path} has no coordinate reference system, so where its cells lie is unknown: assign the "
+                f"CRS of its coordinates, e.g. 'gdal_edit.py -a_srs EPSG:4326 {path}' for longitude/latitude in "
+                "degrees (or the EPSG code of its map projection), and run again")
+    for read in (Dem.from_file, load_dem):      # createblock's and orthorectify's way in
+        with pytest.raises(InputError, match=f"^{re.escape(expected)}$"):
+            read(path)
+
+
+def test_implausible_heights_names_the_value_and_the_cells():
+    assert implausible_heights(np.array([[-430.0, 8849.0], [np.nan, 0.0]])) is None   # Dead Sea, Everest, nodata
+    heights = np.array([[-32768.0, -32767.0, 100.0], [-32768.0, 9500.0, np.nan]])
+    message = implausible_heights(heights, "the DEM x.tif")
+    # the count, the span and the most frequent value, and the remedy with that value
+    assert message.startswith("the DEM x.tif has 4 cells from -32768 to 9500 m (2 of them at -32768 m), outside "
+                              "the heights of terrain on Earth (-500 .. 9000 m)")
+    assert "declare -32768 as the DEM's nodata value (the DEM nodata parameter, or gdal_edit.py -a_nodata -32768" \
+           in message
+
+
+def test_unflagged_voids_are_used_with_a_warning(dems):
+    dem = Dem.from_file(dems["voids"])
+    # the file, the exact count of void cells and their value
+    assert dem.implausible.startswith(f"the DEM {dems['voids']} has {VOID_CELLS} cells at -32767 m, outside")
+    assert np.all(dem.heights[VOID] == -32767)        # used as given: the warning is the only safeguard
+    assert Dem.from_file(dems["dsm"]).implausible is None      # the simulated terrain is plausible
+
+
+def test_declared_nodata_makes_the_voids_nan(dems):
+    dem = Dem.from_file(dems["voids"], nodata=-32767)
+    clean = Dem.from_file(dems["dsm"])
+    outside = np.ones(dem.shape, bool)
+    outside[VOID] = False
+    assert dem.implausible is None and np.isnan(dem.heights[VOID]).all()    # declared: no warning, all NaN
+    np.testing.assert_array_equal(dem.heights[outside], clean.heights[outside])   # the rest untouched
+
+
+def test_declared_nodata_is_applied_before_a_warp(dems):
+    warned = Dem.from_file(dems["utm"])
+    # undeclared, the voids are counted in the file's own (UTM) cells, before the warp
+    assert f"the DEM {dems['utm']} has " in warned.implausible and "cells at -32767 m" in warned.implausible
+    dem = load_dem(dems["utm"], nodata=-32767)
+    low, high = Dem.from_file(dems["dsm"]).height_range
+    # neither the file's nodata (-9999) nor the declared void value leaks into the bilinear warp to WGS 84:
+    # every height within the terrain's range
+    assert low - 1e-3 <= np.nanmin(dem.heights) and np.nanmax(dem.heights) <= high + 1e-3
+    assert dem.implausible is None and np.isnan(dem.heights).sum() > VOID_CELLS / 2   # the hole is kept
+
+
+def test_the_reference_of_the_assessment_warns_and_takes_a_nodata_value(dems):
+    reference = Dem.from_file(dems["dsm"])
+    lon0, dlon, _, lat0, _, dlat = reference.geotransform
+    rows, cols = np.mgrid[390:510, 290:410]      # the void's cells and a 10-cell ring around them
+    lon, lat = lon0 + (cols.ravel() + 0.5) * dlon, lat0 + (rows.ravel() + 0.5) * dlat
+    inside = ((rows >= 401) & (rows < 499) & (cols >= 301) & (cols < 399)).ravel()   # bilinear: void cells only
+    ring = ((rows < 399) | (rows >= 501) | (cols < 299) | (cols >= 401)).ravel()
+    log = Feedback()
+    href, _ = reference_at_points(dems["voids"], lon, lat, srs(4326), feedback=log)
+    np.testing.assert_allclose(href[inside], -32767, atol=1e-3)      # used as given ...
+    assert any(m.startswith(f"the reference DEM {dems['voids']} has ") and "cells at -32767 m" in m
+               for m in log.messages)            # ... with the warning (pushInfo: this feedback has no pushWarning)
+    log = Feedback()
+    href, _ = reference_at_points(dems["voids"], lon, lat, srs(4326), nodata=-32767, feedback=log)
+    assert np.isnan(href[inside]).all() and np.isfinite(href[ring]).all()    # the voids left out, the rest kept
+    assert not any("-32767" in m for m in log.messages)     # declared: no warning
+
+
+def test_a_dem_against_a_reference_with_declared_voids(dems):
+    log = Feedback()
+    d = dem_differences(dems["dsm"], dems["voids"], feedback=log, reference_nodata=-32767)
+    # the DSM against itself: dh = 0 wherever the reference has a height, the void cells left out
+    assert d.excluded["outside the reference or on its nodata"] >= VOID_CELLS and np.abs(d.dh).max() < 1e-3
+    assert not any("-32767" in m for m in log.messages)     # declared: no warning
+    log = Feedback()
+    d = dem_differences(dems["dsm"], dems["voids"], feedback=log)
+    assert np.abs(d.dh).max() > 30000 and any("cells at -32767 m" in m for m in log.messages)   # warned
