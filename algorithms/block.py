@@ -5,7 +5,9 @@ references to the point files beside the block), `images` (one row per
 image: name, raster path, orientation source, model kind, sensor, size, and the sensor model as
 a model-file document, see sensors/model_file.py),
 `footprints` (polygon layer, EPSG:4326, the image border projected on a DEM or a mean height) and
-`run_log` (one row per processing step). A block is written under a temporary name and renamed,
+`run_log` (one row per processing step). The images table also keeps each image's supplied model
+(`supplied_model`, the orientation the block was created with), from which every bundle adjustment
+starts, so that adjusting again gives the result of the first adjustment, not a correction of it. A block is written under a temporary name and renamed,
 so a failed or cancelled creation leaves any existing block untouched.
 
 Every later write is one SQLite transaction (`transaction`) that takes the write lock first, waiting up to
@@ -39,6 +41,8 @@ IMAGE_FIELDS = [("name", ogr.OFTString), ("image_path", ogr.OFTString),
                 ("orientation_path", ogr.OFTString), ("model_kind", ogr.OFTString),
                 ("sensor", ogr.OFTString), ("cols", ogr.OFTInteger), ("rows", ogr.OFTInteger),
                 ("model", ogr.OFTString)]
+#: the images table's field of the supplied models (missing in blocks of format 1 made before it)
+SUPPLIED = "supplied_model"
 
 
 def describe_model(model):
@@ -122,7 +126,8 @@ def _write_images(ds, images, rings):
         for key, value in [("name", name), ("image_path", os.path.abspath(image) if image else ""),
                            ("orientation_path", os.path.abspath(orientation)), ("model_kind", kind),
                            ("sensor", sensor), ("cols", int(cols)), ("rows", int(rows)),
-                           ("model", json.dumps(model_to_dict(model)))]:
+                           ("model", json.dumps(model_to_dict(model))),
+                           (SUPPLIED, json.dumps(model_to_dict(model)))]:
             feat[key] = value
         table.CreateFeature(feat)
         poly = ogr.Geometry(ogr.wkbPolygon)
@@ -145,7 +150,7 @@ def create_schema(path):
     feat = ogr.Feature(info.GetLayerDefn())
     feat["key"], feat["value"] = "format_version", FORMAT_VERSION
     info.CreateFeature(feat)
-    create_layer(ds, "images", ogr.wkbNone, None, IMAGE_FIELDS)
+    create_layer(ds, "images", ogr.wkbNone, None, IMAGE_FIELDS + [(SUPPLIED, ogr.OFTString)])
     create_layer(ds, "footprints", ogr.wkbPolygon, wgs84(), [("image_id", ogr.OFTInteger), ("name", ogr.OFTString)])
     create_layer(ds, "run_log", ogr.wkbNone, None, [("time", ogr.OFTString), ("step", ogr.OFTString),
                                                       ("parameters", ogr.OFTString), ("message", ogr.OFTString)])
@@ -163,33 +168,43 @@ def read_images(path):
     return rows
 
 
-def load_model(path, image_id):
-    """The sensor model stored in the block for image `image_id`."""
+def load_model(path, image_id, supplied=False):
+    """The sensor model stored in the block for image `image_id`; with `supplied`, the model the block was
+    created with (module docstring; the stored one in blocks made before the block kept it)."""
     ds = open_block(path)
-    feat = ds.GetLayerByName("images").GetFeature(int(image_id))
+    layer = ds.GetLayerByName("images")
+    feat = layer.GetFeature(int(image_id))
     if feat is None:
         raise InputError(f"block {path} has no image with id {image_id}")
-    return model_from_dict(json.loads(feat["model"]), f"model of image {image_id} in {path}")
+    key = "model"
+    if supplied and layer.GetLayerDefn().GetFieldIndex(SUPPLIED) >= 0 and feat[SUPPLIED]:
+        key = SUPPLIED
+    return model_from_dict(json.loads(feat[key]), f"{key.replace('_', ' ')} of image {image_id} in {path}")
 
 
-def write_models(ds, models, step="adjust", message=""):
-    """Replace the stored sensor models of the images {image_id: model} of the open block `ds` and log the
-    step, inside the caller's transaction; bumps generation_models."""
+def write_models(ds, models, step="adjust", message="", supplied=False):
+    """Replace the stored sensor models of the images {image_id: model} of the open block `ds` (with
+    `supplied`, the supplied models too: a new supplied orientation) and log the step, inside the caller's
+    transaction; bumps generation_models."""
     layer = ds.GetLayerByName("images")
+    if supplied and layer.GetLayerDefn().GetFieldIndex(SUPPLIED) < 0:
+        layer.CreateField(ogr.FieldDefn(SUPPLIED, ogr.OFTString))
     for image_id, model in models.items():
         feat = layer.GetFeature(int(image_id))
         if feat is None:
             raise InputError(f"the block has no image with id {image_id}")
         feat["model"] = json.dumps(model_to_dict(model))
+        if supplied:
+            feat[SUPPLIED] = feat["model"]
         layer.SetFeature(feat)
     bump(ds, "models")
     write_info(ds, {}, step=step, message=message or f"{len(models)} sensor model(s) updated")
 
 
-def save_models(path, models, step="adjust", message=""):
+def save_models(path, models, step="adjust", message="", supplied=False):
     """`write_models` in one transaction (all or nothing)."""
     with transaction(path, "the sensor models") as ds:
-        write_models(ds, models, step, message)
+        write_models(ds, models, step, message, supplied)
 
 
 def image_name(image_path):
@@ -234,11 +249,11 @@ def _execute(ds, sql):
         ds.ReleaseResultSet(result)
 
 
-def locked_error(block_path, what, exc):
+def locked_error(block_path, what):
     """StorageError for a block another connection keeps locked beyond BUSY_TIMEOUT_MS."""
-    return StorageError(f"cannot store {what} in the block {block_path}: another program keeps it locked ({exc}; "
-                        f"waited {BUSY_TIMEOUT_MS / 1000:g} s). Save or stop the edits of its layers in QGIS, or wait "
-                        "for the other Pushbroom step to finish, then run this one again; nothing was stored")
+    return StorageError(f"cannot store {what} in the block {block_path}: another program keeps it locked (waited "
+                        f"{BUSY_TIMEOUT_MS / 1000:g} s). Save or stop the edits of its layers in QGIS, or wait for the "
+                        "other Pushbroom step to finish, then run this one again; nothing was stored")
 
 
 def _is_locked(exc):
@@ -255,7 +270,14 @@ def open_block(path, update=False):
         raise InputError(f"no block at {path}")
     ogr.UseExceptions()
     try:
-        ds = ogr.Open(path, 1 if update else 0)
+        try:
+            ds = ogr.Open(path, 1 if update else 0)
+        except RuntimeError as exc:
+            # a writer killed mid-transaction leaves a hot journal, which only a writable connection rolls back
+            if update or "readonly database" not in str(exc).lower() or not os.access(path, os.W_OK):
+                raise
+            ogr.Open(path, 1).Destroy()
+            ds = ogr.Open(path, 0)
     except RuntimeError as exc:
         text = str(exc).lower()
         if "not recognized" in text or "not a database" in text:
@@ -279,7 +301,7 @@ def open_block(path, update=False):
 def _failed(exc, block_path, what):
     """StorageError for an OGR/SQLite failure while storing `what` in the block."""
     if _is_locked(exc):
-        return locked_error(block_path, what, exc)
+        return locked_error(block_path, what)
     return storage_error(exc, block_path, what, action=f"store {what} in the block {block_path}")
 
 

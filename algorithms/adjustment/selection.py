@@ -142,11 +142,15 @@ def _solvable(run, free, fixable, log, what):
                 log(f"{what}: fixed {name}: the points cannot determine it together with the other free unknowns")
 
 
-def _eliminate(run, result, free, fixable, significance, max_increase, systematic, log, what):
-    """Backward elimination of insignificant members of `fixable` (module docstring)."""
+def _eliminate(run, result, free, fixable, significance, max_increase, systematic, log, what, report):
+    """Backward elimination of insignificant members of `fixable` (module docstring); report(fraction)
+    after each trial (at most one trial per member)."""
     kept = set()
     state = _ControlState.of(result)
+    trials = 0
     while True:
+        report(min(trials / max(len(fixable), 1), 1.0))
+        trials += 1
         params = result.parameters
         t = {params.label(q): abs(result.values[q]) / result.sigmas[q] for q in np.flatnonzero(params.free)}
         trial = sorted((t[n], n) for n in free if n in fixable and n not in kept and t[n] < significance)
@@ -192,6 +196,10 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
 
     run = Restart(models, observations, names, feedback, height=height,
                   defect_eigenvalue=SELECTION_DEFECT_EIGENVALUE, **adjust_kwargs)
+
+    def phase(start, stop):
+        """report(fraction) of a phase spanning start..stop % (cancelling checked there too)."""
+        return lambda fraction: progress.step(feedback, start + (stop - start) * fraction)
     params = run.base
     look = [p.name for p in params.parameters
             if (p.kind in LOOK and p.degree <= look_degree) or p.kind not in LOOK + EXTERIOR]
@@ -200,16 +208,18 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
     result, free = _solvable(run, look, set(look), log, "step 1")
     components = []
     if variance_components:
-        result, run.observations, components = estimate(lambda o: run(free, o), run.observations, log=log)
+        result, run.observations, components = estimate(lambda o: run(free, o), run.observations, log=log,
+                                                        report=phase(0, 10))
         log("a posteriori sigmas used from here on: " + ", ".join(f"{c.group} {c.sigma:.3g}" for c in components
                                                                   if np.isfinite(c.sigma)))
     progress.step(feedback, 10)
-    result, free = _eliminate(run, result, free, set(look), significance, max_increase, systematic, log, "step 1")
+    result, free = _eliminate(run, result, free, set(look), significance, max_increase, systematic, log, "step 1",
+                              phase(10, 40))
     log(f"step 1: {len(free)} coefficient(s) free: {', '.join(free) or 'none'}")
     exterior = [p.name for p in params.parameters if p.kind in EXTERIOR and p.degree <= exterior_degree]
     if test_exterior and exterior:
         chosen = list(free)
-        for part, kinds, pct in (("attitude", EXTERIOR[3:], 40), ("position", EXTERIOR[:3], 70)):
+        for part, kinds, pct, end in (("attitude", EXTERIOR[3:], 40, 70), ("position", EXTERIOR[:3], 70, 90)):
             candidates = [n for n in exterior if _kind(params, n) in kinds]
             progress.step(feedback, pct)
             log(f"step 2 ({part}): testing {len(candidates)} coefficients with the {len(free)} chosen so far free")
@@ -219,13 +229,13 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
                 log(f"step 2 ({part}): not tested, the block cannot be solved with them: {error}")
                 continue
             result, free = _eliminate(run, result, free, set(candidates), significance, max_increase, systematic,
-                                      log, f"step 2 ({part})")
+                                      log, f"step 2 ({part})", phase(pct, end))
         added = [n for n in free if n not in chosen]
         log(f"step 2: {len(added)} exterior coefficient(s) significant: {', '.join(added) or 'none'}")
         if added:
             progress.step(feedback, 90)
             result, free = _eliminate(run, result, free, set(chosen), significance, max_increase, systematic, log,
-                                      "step 3")
+                                      "step 3", phase(90, 99))
     result = run(free)          # the models carry the last trial's solution: adjust the chosen set again
     progress.step(feedback, 100)
     log(f"selected {len(free)} free coefficient(s) in {run.count} adjustments: {', '.join(free) or 'none'}")

@@ -70,12 +70,14 @@ def rescaled(observations, factors):
     return Observations(p, m)
 
 
-def estimate(run, observations, max_rounds=6, tolerance=0.05, log=None):
+def estimate(run, observations, max_rounds=6, tolerance=0.05, log=None, report=None):
     """Iterate `run(observations) -> Adjustment` with rescaled sigmas until every group factor is
-    within `tolerance` of 1 (at most `max_rounds` adjustments). Returns (the last Adjustment, the
-    rescaled observations, [Component])."""
+    within `tolerance` of 1 (at most `max_rounds` adjustments; report(fraction) before each). Returns (the
+    last Adjustment, the rescaled observations, [Component])."""
     obs = observations
     for round_ in range(1, max_rounds + 1):
+        if report:
+            report((round_ - 1) / max_rounds)
         result = run(obs)
         factors = group_factors(result)
         change = {g: f for g, (_, _, f) in factors.items() if np.isfinite(f)}
@@ -99,7 +101,8 @@ def adjust_with_components(models, observations, free, names=None, feedback=None
     current orientation (so priors and fixed parameters keep their meaning). Returns (Adjustment,
     the rescaled observations, [Component]); the models carry the last solution."""
     run = Restart(models, observations, names, feedback, **kwargs)
-    return estimate(lambda obs: run(free, obs), observations, log=progress.ensure(feedback).pushInfo)
+    return estimate(lambda obs: run(free, obs), observations, log=progress.ensure(feedback).pushInfo,
+                    report=lambda fraction: progress.step(feedback, 100.0 * fraction))
 
 
 def _group_sigma(obs, group):

@@ -322,7 +322,7 @@ def _write_layer(block_path, layer_name, points, model, image_id, height, feedba
                                "WHERE table_name = ?", (float(lon.min()), float(lat.min()), float(lon.max()),
                                                         float(lat.max()), layer_name))
     except sqlite3.OperationalError as exc:
-        raise (block.locked_error(block_path, what, exc) if "locked" in str(exc)
+        raise (block.locked_error(block_path, what) if "locked" in str(exc)
                else atomic.storage_error(exc, block_path, what)) from None
     progress.step(feedback, 80)
     with block.transaction(block_path, what) as ds:

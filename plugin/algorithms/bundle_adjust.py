@@ -13,7 +13,7 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsFeatureSink,
                        QgsWkbTypes)
 from qgis.PyQt.QtCore import QVariant
 
-from ...algorithms import block
+from ...algorithms import block, progress
 from ...algorithms.adjustment import report
 from ...algorithms.adjustment.bundle import CRITICAL_W, adjust, check_points
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES, load_control_points
@@ -30,6 +30,7 @@ from ...algorithms.matching import points
 from ...algorithms.measurement.residual_store import residual_rows, write_residuals
 from ..styles import style_on_completion
 from .base import PushbroomAlgorithm
+from .dem_nodata import nodata_parameter
 from .import_points import HEIGHTS
 from .match_points import display_height
 
@@ -101,7 +102,8 @@ class BundleAdjust(PushbroomAlgorithm):
             "reference position to the position plus the planimetric residual (computed - reference) times "
             "the vector scale, with dE, dN, dH (m), their sigmas, the image residual RMS (px), the largest "
             "|normalised residual| and whether it exceeds the critical value (check points: residuals of their "
-            "forward intersection with the adjusted models).")
+            "forward intersection with the adjusted models). Every adjustment starts from the orientation the block was "
+            "created with, so adjusting again gives the first adjustment's result, not a correction of it.")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
@@ -134,6 +136,7 @@ class BundleAdjust(PushbroomAlgorithm):
                    minValue=1e-3),
             QgsProcessingParameterString("PRIORS", "Prior sigmas of orientation unknowns: pattern=sigma, ... "
                                          "(m, rad, px; e.g. bias:shift=10)", "", optional=True),
+            nodata_parameter("REFERENCE_DEM_NODATA", "reference DTM"),
         ])
         self.addParameter(QgsProcessingParameterFileDestination("REPORT", "Report", "HTML files (*.html)",
                                                                 optional=True))
@@ -148,7 +151,7 @@ class BundleAdjust(PushbroomAlgorithm):
         block.check_writable(path, "the adjusted models")
         generations = block.generations(path)
         rows = block.read_images(path)
-        models = {r["id"]: block.load_model(path, r["id"]) for r in rows}
+        models = {r["id"]: block.load_model(path, r["id"], supplied=True) for r in rows}
         names = {r["id"]: r["name"] for r in rows}
         obs = load_control_points(path)
         if self.parameterAsBool(parameters, "USE_TIE_POINTS", context):
@@ -165,7 +168,11 @@ class BundleAdjust(PushbroomAlgorithm):
         height = display_height(block.height_range(path))
         critical = self.parameterAsDouble(parameters, "CRITICAL", context)
         dem_layer = self.parameterAsRasterLayer(parameters, "REFERENCE_DEM", context)
-        dem = Dem.from_file(dem_layer.source()) if dem_layer is not None else None
+        dem = None
+        if dem_layer is not None:
+            dem = Dem.from_file(dem_layer.source(),
+                                self.parameterAsOptionalDouble(parameters, "REFERENCE_DEM_NODATA", context))
+            progress.warn(feedback, dem.implausible)
         options = {"height": height, "critical": critical, "priors": priors,
                    "max_iterations": self.parameterAsInt(parameters, "MAX_ITERATIONS", context),
                    "remove_blunders": self.parameterAsBool(parameters, "REMOVE_BLUNDERS", context)}
@@ -200,7 +207,8 @@ class BundleAdjust(PushbroomAlgorithm):
                 counts = [int(c) for c in counts.replace(";", ",").split(",") if c.strip()]
             except ValueError:
                 raise InputError(f"control point counts must be whole numbers separated by commas, not {counts!r}")
-            series = control_point_series({r["id"]: block.load_model(path, r["id"]) for r in rows}, obs, counts,
+            series = control_point_series({r["id"]: block.load_model(path, r["id"], supplied=True) for r in rows},
+                                          obs, counts,
                                           free, names=names, feedback=feedback,
                                           **{k: v for k, v in options.items() if k != "remove_blunders"})
             extra.append(report.series_section(series))

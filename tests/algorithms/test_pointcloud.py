@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from osgeo import ogr, osr
 
-from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.errors import InputError, StorageError
 from pushbroom.algorithms.surface import pointcloud as pc
 from pushbroom.algorithms.surface.intersection import CONVERGED, OUTSIDE, Intersection
 from osr_oracle import utm
@@ -126,7 +126,7 @@ def test_an_existing_file_survives_a_failed_write(points, tmp_path, monkeypatch)
         raise RuntimeError("disk full")
 
     monkeypatch.setattr(pc.laspy_module().LasData, "write", broken)
-    with pytest.raises(RuntimeError):
+    with pytest.raises(StorageError, match="cannot write the output .*cloud.las: disk full"):
         pc.write_point_cloud(path, lon[:10], lat[:10], h[:10])
     assert open(path, "rb").read() == before
     assert os.listdir(tmp_path) == ["cloud.las"]

@@ -43,7 +43,7 @@ def make_block(paths, path):
     models = {i: block.load_model(path, i) for i in ids.values()}
     for i, model in models.items():                   # inject 20 urad look-angle errors
         model.orientation.corrections.look[:, 0] = (2e-5, -2e-5 if i % 2 else 2e-5)
-    block.save_models(path, models)
+    block.save_models(path, models, supplied=True)     # the supplied orientation, with its errors
     check = [r["id"] for r in csv.DictReader(open(paths["points"]))][N_CONTROL:]
     import_csv(path, paths["points"], suffix="_meas", check_ids=check)
     return ids
@@ -208,6 +208,20 @@ def test_automatic_selection_and_variance_components(pushbroom_provider, scene, 
     chosen = set(selected[-1].split(", "))
     assert {f"{n} {k}_0" for n in ids for k in ("psi_x", "psi_y")} <= chosen
     assert max(truth_rms(path, paths, ids).values()) < 0.3
+    # adjusting the adjusted block again starts from the supplied orientation: the same selection in as many
+    # adjustments, the same models (a restart from the adjusted models fixed every coefficient one by one)
+    first = [block.load_model(path, i).orientation.corrections.look.copy() for i in ids.values()]
+    again, progress = type(log)(), []
+    again.progressChanged.connect(progress.append)
+    processing.run("pushbroom:bundleadjust", {"BLOCK": path}, feedback=again)
+    assert [m for m in again.messages if m.startswith("selected ")] == [m for m in log.messages
+                                                                        if m.startswith("selected ")]
+    for i, look in zip(ids.values(), first):
+        np.testing.assert_allclose(block.load_model(path, i).orientation.corrections.look, look, rtol=0, atol=1e-12)
+    # progress moves with every adjustment of the selection: no stretch of adjustments without a report
+    count = int(re.search(r"in (\d+) adjustments", next(m for m in again.messages if m.startswith("selected ")))
+                .group(1))
+    assert len(set(progress)) >= count // 2 and progress == sorted(progress)
 
 
 def test_lagrange_model(pushbroom_provider, adjusted_block, tmp_path, log):

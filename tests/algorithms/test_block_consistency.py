@@ -1,0 +1,141 @@
+"""The block stays consistent when a store is killed (kill -9 of a subprocess) or meets another writer: the
+point layer, the point file and the counts are the old ones or the new ones, never a mix; generations
+count every change of the control points, also one made with plain SQL as QGIS's attribute table would."""
+import csv
+import shutil
+import sqlite3
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from osgeo import ogr
+
+from pushbroom.algorithms import block
+from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.block import create_schema, read_info
+from pushbroom.algorithms.errors import StorageError
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, load_points, save_points
+
+STORE = """
+import sys
+import numpy as np
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
+
+class FlatModel:
+    size = (1000, 1000)
+    def image_to_ground(self, col, row, h):
+        return -84.2 + np.asarray(col) * 1e-5, 36.6 - np.asarray(row) * 1e-5
+
+n = int(sys.argv[2])
+p = np.zeros(n, POINT_DTYPE)
+p["id"], p["group"] = np.arange(n), 1
+o = np.zeros(2 * n, OBS_DTYPE)
+o["point_id"], o["image_id"] = np.repeat(p["id"], 2), np.tile([1, 2], n)
+o["col"], o["row"] = np.random.default_rng(0).uniform(0, 1000, (2, 2 * n))
+print("storing", flush=True)
+save_points(sys.argv[1], MultiPoints(p, o), display=(FlatModel(), 1, 0.0))
+print("stored", flush=True)
+"""
+
+
+class FlatModel:
+    size = (1000, 1000)
+
+    def image_to_ground(self, col, row, h):
+        return -84.2 + np.asarray(col) * 1e-5, 36.6 - np.asarray(row) * 1e-5
+
+
+def points(n):
+    p = np.zeros(n, POINT_DTYPE)
+    p["id"], p["group"] = np.arange(n), 1
+    o = np.zeros(2 * n, OBS_DTYPE)
+    o["point_id"], o["image_id"] = np.repeat(p["id"], 2), np.tile([1, 2], n)
+    o["col"], o["row"] = 500.0, 500.0
+    return MultiPoints(p, o)
+
+
+def tables(path):
+    with sqlite3.connect(path) as db:
+        return {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+
+
+def layer_rows(path, name="mass_points"):
+    with sqlite3.connect(path) as db:
+        return db.execute(f'SELECT COUNT(*) FROM "{name}"').fetchone()[0]
+
+
+@pytest.fixture
+def blk(tmp_path):
+    path = tmp_path / "b.gpkg"
+    create_schema(path)
+    save_points(path, points(1000), display=(FlatModel(), 1, 0.0))
+    return str(path)
+
+
+def test_a_store_killed_while_it_builds_the_layer_leaves_the_old_points(blk, tmp_path):
+    proc = subprocess.Popen([sys.executable, "-c", STORE, blk, "1500000"], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "storing"
+    deadline = time.time() + 300
+    while not any(t.startswith("mass_points__staged_") for t in tables(blk)):   # the new layer is being built
+        assert proc.poll() is None and time.time() < deadline, "the store ended before it built its layer"
+        time.sleep(0.02)
+    time.sleep(0.5)
+    proc.kill()
+    proc.wait()
+    # the block's layer, point file and counts are still the first store's
+    assert read_info(blk)["mass_points_count"] == "1000"
+    assert len(load_points(blk)) == 1000 == layer_rows(blk)
+    leftovers = sorted(f.name for f in tmp_path.glob("b.mass_points.*.npz"))
+    assert len(leftovers) == 2                          # the killed store's file, not referenced
+    # the next store removes what the killed one left and switches to its own points
+    save_points(blk, points(7), display=(FlatModel(), 1, 0.0))
+    assert not any(t.startswith("mass_points__staged_") for t in tables(blk))
+    assert [f.name for f in tmp_path.glob("b.mass_points.*.npz")] == [read_info(blk)["mass_points"]]
+    assert len(load_points(blk)) == 7 == layer_rows(blk)
+
+
+def test_a_store_waits_for_another_writer_then_says_so(blk, monkeypatch):
+    monkeypatch.setattr(block, "BUSY_TIMEOUT_MS", 300)
+    holder = sqlite3.connect(blk, isolation_level=None)
+    holder.execute("BEGIN IMMEDIATE")
+    try:
+        with pytest.raises(StorageError, match="another program keeps it locked .* nothing was stored"):
+            save_points(blk, points(5), display=(FlatModel(), 1, 0.0))
+    finally:
+        holder.execute("ROLLBACK")
+        holder.close()
+    assert len(load_points(blk)) == 1000 == layer_rows(blk)
+
+
+def test_generations_count_every_change(small_scene_block, tmp_path):
+    path = str(tmp_path / "g.gpkg")
+    shutil.copy(small_scene_block[0], path)
+    start = block.generations(path)
+    cp.import_csv(path, write_csv(small_scene_block[1], tmp_path), suffix="_meas")
+    after_import = block.generations(path)
+    assert after_import["control_points"] > start["control_points"]
+    assert after_import["models"] == start["models"] and after_import["mass_points"] == start["mass_points"]
+    ds = ogr.Open(path, 1)                              # an edit in QGIS's attribute table, through OGR
+    ds.ExecuteSQL("UPDATE control_points SET h = h + 1 WHERE name = 'P001'")
+    ds = None
+    assert block.generations(path)["control_points"] > after_import["control_points"]
+    edited = block.generations(path)
+    ds = ogr.Open(path, 1)                              # the adjustment's residual field is not a change of the set
+    ds.GetLayerByName("control_points").CreateField(ogr.FieldDefn("residual_px", ogr.OFTReal))
+    ds.ExecuteSQL("UPDATE control_points SET residual_px = 0.5")
+    ds = None
+    assert block.generations(path) == edited
+    models = {r["id"]: block.load_model(path, r["id"]) for r in block.read_images(path)}
+    block.save_models(path, models)
+    assert block.generations(path)["models"] == edited["models"] + 1
+
+
+def write_csv(rows, folder):
+    path = folder / "points.csv"
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    return str(path)
