@@ -248,7 +248,7 @@
   </renderer-v2>
   <labeling type="simple">
     <settings calloutType="simple">
-      <text-style multilineHeight="1" fontStrikeout="0" fontKerning="1" fontSizeMapUnitScale="3x:0,0,0,0,0,0" useSubstitutions="0" textColor="0,0,0,255" previewBkgrdColor="255,255,255,255" fontWordSpacing="0" textOrientation="horizontal" fontSizeUnit="Point" allowHtml="0" blendMode="0" fontFamily="DejaVu LGC Sans" fontLetterSpacing="0" fieldName="&quot;name&quot; || coalesce(' ' || format_number(&quot;residual_px&quot;, 2) || ' px', '')" legendString="Aa" isExpression="1" fontItalic="0" fontUnderline="0" capitalization="0" fontSize="8" textOpacity="1" fontWeight="50" namedStyle="">
+      <text-style multilineHeight="1" fontStrikeout="0" fontKerning="1" fontSizeMapUnitScale="3x:0,0,0,0,0,0" useSubstitutions="0" textColor="0,0,0,255" previewBkgrdColor="255,255,255,255" fontWordSpacing="0" textOrientation="horizontal" fontSizeUnit="Point" allowHtml="0" blendMode="0" fontLetterSpacing="0" fieldName="&quot;name&quot; || coalesce(' ' || format_number(&quot;residual_px&quot;, 2) || ' px', '')" legendString="Aa" isExpression="1" fontItalic="0" fontUnderline="0" capitalization="0" fontSize="8" textOpacity="1" fontWeight="50" namedStyle="">
         <families/>
         <text-buffer bufferColor="255,255,255,255" bufferBlendMode="0" bufferNoFill="1" bufferOpacity="1" bufferJoinStyle="128" bufferSizeMapUnitScale="3x:0,0,0,0,0,0" bufferSizeUnits="MM" bufferSize="0.80000000000000004" bufferDraw="1"/>
         <text-mask maskSizeMapUnitScale="3x:0,0,0,0,0,0" maskOpacity="1" maskJoinStyle="128" maskedSymbolLayers="" maskSizeUnits="MM" maskEnabled="0" maskSize="1.5" maskType="0"/>

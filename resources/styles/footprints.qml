@@ -62,7 +62,7 @@
   </renderer-v2>
   <labeling type="simple">
     <settings calloutType="simple">
-      <text-style legendString="Aa" fontItalic="0" fontUnderline="0" textColor="30,45,80,255" multilineHeight="1" allowHtml="0" namedStyle="" fontFamily="DejaVu LGC Sans" fontSizeUnit="Point" fieldName="name" textOrientation="horizontal" blendMode="0" capitalization="0" fontWordSpacing="0" useSubstitutions="0" fontStrikeout="0" isExpression="0" fontSize="10" fontSizeMapUnitScale="3x:0,0,0,0,0,0" fontKerning="1" previewBkgrdColor="255,255,255,255" textOpacity="1" fontLetterSpacing="0" fontWeight="50">
+      <text-style legendString="Aa" fontItalic="0" fontUnderline="0" textColor="30,45,80,255" multilineHeight="1" allowHtml="0" namedStyle="" fontSizeUnit="Point" fieldName="name" textOrientation="horizontal" blendMode="0" capitalization="0" fontWordSpacing="0" useSubstitutions="0" fontStrikeout="0" isExpression="0" fontSize="10" fontSizeMapUnitScale="3x:0,0,0,0,0,0" fontKerning="1" previewBkgrdColor="255,255,255,255" textOpacity="1" fontLetterSpacing="0" fontWeight="50">
         <families/>
         <text-buffer bufferJoinStyle="128" bufferBlendMode="0" bufferSize="1" bufferSizeMapUnitScale="3x:0,0,0,0,0,0" bufferColor="255,255,255,255" bufferNoFill="1" bufferSizeUnits="MM" bufferDraw="1" bufferOpacity="1"/>
         <text-mask maskOpacity="1" maskSizeUnits="MM" maskJoinStyle="128" maskedSymbolLayers="" maskEnabled="0" maskType="0" maskSizeMapUnitScale="3x:0,0,0,0,0,0" maskSize="1.5"/>

@@ -422,7 +422,7 @@
   </renderer-v2>
   <labeling type="simple">
     <settings calloutType="simple">
-      <text-style fontStrikeout="0" fontSizeUnit="Point" isExpression="0" fontItalic="0" fieldName="name" textColor="0,0,0,255" fontLetterSpacing="0" namedStyle="" fontWordSpacing="0" legendString="Aa" fontUnderline="0" capitalization="0" fontKerning="1" fontFamily="DejaVu LGC Sans" fontWeight="50" useSubstitutions="0" fontSizeMapUnitScale="3x:0,0,0,0,0,0" textOrientation="horizontal" allowHtml="0" textOpacity="1" fontSize="8" blendMode="0" previewBkgrdColor="255,255,255,255" multilineHeight="1">
+      <text-style fontStrikeout="0" fontSizeUnit="Point" isExpression="0" fontItalic="0" fieldName="name" textColor="0,0,0,255" fontLetterSpacing="0" namedStyle="" fontWordSpacing="0" legendString="Aa" fontUnderline="0" capitalization="0" fontKerning="1" fontWeight="50" useSubstitutions="0" fontSizeMapUnitScale="3x:0,0,0,0,0,0" textOrientation="horizontal" allowHtml="0" textOpacity="1" fontSize="8" blendMode="0" previewBkgrdColor="255,255,255,255" multilineHeight="1">
         <families/>
         <text-buffer bufferDraw="0" bufferSizeMapUnitScale="3x:0,0,0,0,0,0" bufferOpacity="1" bufferJoinStyle="128" bufferBlendMode="0" bufferNoFill="1" bufferSize="1" bufferSizeUnits="MM" bufferColor="255,255,255,255"/>
         <text-mask maskedSymbolLayers="" maskType="0" maskSizeMapUnitScale="3x:0,0,0,0,0,0" maskOpacity="1" maskEnabled="0" maskSize="1.5" maskJoinStyle="128" maskSizeUnits="MM"/>
