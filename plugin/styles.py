@@ -36,3 +36,12 @@ def style_on_completion(context, dest_id, qml_name):
     """Style a sink output (`dest_id`) with `qml_name` where Processing loads it on completion."""
     if context.willLoadLayerOnCompletion(dest_id):
         context.layerToLoadOnCompletionDetails(dest_id).setPostProcessor(_post_processor(qml_name))
+
+
+def resolve_application_font(app):
+    """Set the application font to the installed family it resolves to. Qt's offscreen platform names
+    "DejaVu LGC Sans", a font no system has, as the application font; QGIS writes that name into a project
+    for every label without a font of its own (the plugin's styles name none), and the desktop then opens
+    the project with a warning bar about a missing font."""
+    from qgis.PyQt.QtGui import QFont, QFontInfo
+    app.setFont(QFont(QFontInfo(app.font()).family(), app.font().pointSize()))

@@ -12,6 +12,7 @@ from qgis.core import (QgsApplication, QgsPointCloudLayer, QgsProject, QgsProvid
                        QgsVectorLayer)
 
 from pushbroom.plugin.plugin import resource_path
+from pushbroom.plugin.styles import resolve_application_font
 
 #: (file in OUT, layer name in a GeoPackage or None, layer name, QML in resources/styles or None, kind);
 #: top of the layer list first
@@ -49,6 +50,7 @@ def main(out):
     out = os.path.abspath(out)
     app = QgsApplication([], False)
     app.initQgis()
+    resolve_application_font(app)
     project = QgsProject.instance()
     added, skipped = [], []
     for file_name, sublayer, name, qml, kind in LAYERS:
