@@ -2,7 +2,8 @@
 at all.
 
 A write goes to a temporary name in the target's folder, `.<name>.<host>-<pid>.<8 hex>.part<ext>`
-(the extension kept, so drivers that choose a format by it still do), and is renamed over the target
+(the extension kept, so drivers that choose a format by it still do; the dot left out on request), and is
+renamed over the target
 only when everything succeeded:
 
 - GDAL's failures during the write are checked, including those on closing a dataset, which the
@@ -37,7 +38,7 @@ from .errors import StorageError
 STALE_SECONDS = 24 * 3600.0
 #: this host's name as it appears in temporary names
 HOST = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname().split(".")[0]) or "host"
-_NAME = re.compile(r"^\.(?P<name>.+)\.(?P<host>[A-Za-z0-9_]+)-(?P<pid>\d+)\.(?P<tag>[0-9a-f]{8})"
+_NAME = re.compile(r"^\.?(?P<name>.+)\.(?P<host>[A-Za-z0-9_]+)-(?P<pid>\d+)\.(?P<tag>[0-9a-f]{8})"
                    r"\.(?P<kind>part|old)(?P<rest>.*)$")
 #: what to do, per errno of a failed write
 ADVICE = {
@@ -157,10 +158,11 @@ def _clean_once(folder):
     clean_leftovers(folder)
 
 
-def _temporary_name(path, kind="part"):
+def _temporary_name(path, kind="part", hidden=True):
     folder = os.path.dirname(os.path.abspath(path))
     base, ext = os.path.splitext(os.path.basename(path))
-    return os.path.join(folder, f".{base}.{HOST}-{os.getpid()}.{secrets.token_hex(4)}.{kind}{ext}")
+    name = f"{base}.{HOST}-{os.getpid()}.{secrets.token_hex(4)}.{kind}{ext}"
+    return os.path.join(folder, "." + name if hidden else name)
 
 
 def _folder(path, what):
@@ -286,13 +288,15 @@ def _guarded(path, what, tmp):
 
 
 @contextlib.contextmanager
-def atomic_path(path, what="the output"):
+def atomic_path(path, what="the output", hidden=True):
     """Yield a temporary path in the target's folder; when the body succeeds, rename it to `path`
-    (module docstring). GDAL datasets written to it must be closed inside the body."""
+    (module docstring). GDAL datasets written to it must be closed inside the body. `hidden=False` for a
+    writer that names something after the file's base name, which a leading dot leaves empty (QGIS names the
+    .qgs inside a .qgz so)."""
     path = os.fspath(path)
     folder = _folder(path, what)
     _clean_once(folder)
-    tmp = _temporary_name(path)
+    tmp = _temporary_name(path, hidden=hidden)
     try:
         with _guarded(path, what, tmp):
             yield tmp

@@ -11,6 +11,7 @@ import sys
 from qgis.core import (QgsApplication, QgsPointCloudLayer, QgsProject, QgsProviderRegistry, QgsRasterLayer,
                        QgsVectorLayer)
 
+from pushbroom.algorithms.atomic import atomic_path
 from pushbroom.plugin.plugin import resource_path
 from pushbroom.plugin.styles import resolve_application_font
 
@@ -69,16 +70,11 @@ def main(out):
     if dem:
         project.setCrs(dem[0].crs())
     target = os.path.join(out, "pushbroom_demo.qgz")
-    # written beside the target (layer paths stay relative), then renamed: atomic. Not atomic_path: QGIS names
-    # the .qgs inside the archive after the file's base name, which atomic_path's hidden name leaves empty
-    tmp = os.path.join(out, "pushbroom_demo.part.qgz")
-    try:
+    # beside the target, so that layer paths stay relative; not hidden: QGIS names the .qgs inside the
+    # archive after the file's base name
+    with atomic_path(target, "the demo project", hidden=False) as tmp:
         if not project.write(tmp):
             sys.exit(f"cannot write {target}: {project.error()}")
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     print(f"{target}: {len(added)} layers ({', '.join(added)})"
           + (f"; not added (missing or unreadable here): {', '.join(skipped)}" if skipped else ""))
     app.exitQgis()
