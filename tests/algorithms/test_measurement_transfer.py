@@ -17,7 +17,7 @@ from pushbroom.algorithms import block
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching import imagery
 from pushbroom.algorithms.measurement.transfer import transfer
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.algorithms.simulation import SceneConfig
 
 NAMES = ("HRG", "HRS1", "HRS2")
 
@@ -31,8 +31,8 @@ def setup(paths):
 
 
 @pytest.fixture(scope="module")
-def marked(tmp_path_factory):
-    return setup(simulate_scene(SceneConfig.small(markers=True), tmp_path_factory.mktemp("marked") / "scene"))
+def marked(simulated):
+    return setup(simulated(SceneConfig.small(markers=True)))
 
 
 def errors(result, row):

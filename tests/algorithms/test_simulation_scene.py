@@ -21,11 +21,10 @@ pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module", params=["spot5_triplet", "spot14_pair"])
-def scene(request, tmp_path_factory):
+def scene(request, simulated):
     bits = 8 if request.param == "spot5_triplet" else 12
     config = SceneConfig.small(configuration=request.param, markers=True, blunders=2, bits=bits)
-    folder = tmp_path_factory.mktemp(request.param) / "scene"
-    paths = simulate_scene(config, folder)
+    paths = simulated(config)
     with open(paths["truth"]) as f:
         truth = json.load(f)
     with open(paths["points"], newline="") as f:
