@@ -1,5 +1,6 @@
-"""Shared fixtures: the real data in ../shared/data (skipped with a reason where absent) and the
-small simulated SPOT 5 triplet most engine and plugin tests use."""
+"""Shared fixtures: the real data in ../shared/data (skipped with a reason where absent), the
+simulated scenes (each configuration simulated once per run) and the small SPOT 5 triplet most
+engine and plugin tests use."""
 import os
 import pathlib
 import sys
@@ -45,11 +46,55 @@ def ventoux_image(request):
 
 
 @pytest.fixture(scope="session")
-def small_scene(tmp_path_factory):
-    """simulate_scene paths of the default 3 km SPOT 5 triplet (SceneConfig.small()), simulated once
-    per run and shared read-only: tests write their blocks and outputs into their own folders."""
-    from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
-    return simulate_scene(SceneConfig.small(), tmp_path_factory.mktemp("small_scene") / "scene")
+def ventoux_pair():
+    """The Ventoux pair's left_image and right_image (paths)."""
+    return [shared_file("pleiades_pair_ventoux", f"{side}_image.tif") for side in ("left", "right")]
+
+
+@pytest.fixture(scope="session")
+def simulated(tmp_path_factory):
+    """simulated(config) -> simulate_scene's paths of a SceneConfig: each distinct resolved
+    configuration is simulated once per run, into a folder of the session, and shared read-only
+    (tests write their blocks and outputs into their own folders). Tests of simulate_scene itself
+    call it directly."""
+    from pushbroom.algorithms.simulation import simulate_scene
+    done = {}
+
+    def get(config):
+        key = repr(config.resolved())
+        if key not in done:
+            done[key] = simulate_scene(config, tmp_path_factory.mktemp("scene") / "scene")
+        return done[key]
+    return get
+
+
+@pytest.fixture(scope="session")
+def small_scene(simulated):
+    """simulate_scene paths of the default 3 km SPOT 5 triplet (SceneConfig.small())."""
+    from pushbroom.algorithms.simulation import SceneConfig
+    return simulated(SceneConfig.small())
+
+
+@pytest.fixture(scope="session")
+def small_scene_matched(small_scene):
+    """small_scene_matched(params, refine=True) -> MultiPoints of match_block on the small scene's
+    HRG, HRS1, HRS2 (supplied models, the DSM's height range +- 100 m, 4 workers): each (GrowParams,
+    refine) matched once per run and shared read-only."""
+    from pushbroom.algorithms import sensors
+    from pushbroom.algorithms.dem import Dem
+    from pushbroom.algorithms.matching.combinations import match_block
+    names = ("HRG", "HRS1", "HRS2")
+    lo, hi = Dem.from_file(small_scene["dsm"]).height_range
+    done = {}
+
+    def get(params, refine=True):
+        key = (repr(params), refine)
+        if key not in done:
+            done[key] = match_block([small_scene["images"][n]["imagery"] for n in names],
+                                    [sensors.load(small_scene["images"][n]["metadata"]) for n in names],
+                                    params=params, height_range=(lo - 100.0, hi + 100.0), workers=4, refine=refine)
+        return done[key]
+    return get
 
 
 @pytest.fixture(scope="session")

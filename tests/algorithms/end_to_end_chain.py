@@ -1,8 +1,8 @@
 """The whole chain of issue 5 on a simulated SPOT 5 triplet, run once for test_end_to_end.py:
-simulate, match, select tie points, adjust from 19 control points (the rest check) with the
-automatic parameter selection, intersect the mass points, interpolate the 10 m DEM, orthorectify
-the HRG image on the adjusted model and that DEM, and assess points and DEM against the true DSM
-and DTM per class. Twice: with the three images (HRG, HRS1, HRS2) and with HRS1 + HRS2 alone
+match, select tie points, adjust from 19 control points (the rest check) with the automatic
+parameter selection, intersect the mass points, interpolate the 10 m DEM, orthorectify the HRG
+image on the adjusted model and that DEM, and assess points and DEM against the true DSM and DTM
+per class. Twice: with the three images (HRG, HRS1, HRS2) and with HRS1 + HRS2 alone
 (matched as a pair, adjusted from the same control points), K 3.6-3.7's "2 images only".
 
 Classes (a class raster on classes.tif's grid): the simulator's land cover with the open classes
@@ -36,7 +36,6 @@ from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from pushbroom.algorithms.ortho import OutputGrid, load_dem, orthorectify
 from pushbroom.algorithms.quality.assessment import assess
 from pushbroom.algorithms.quality.classes import ClassRaster
-from pushbroom.algorithms.simulation import simulate_scene
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST, WATER
 from pushbroom.algorithms.surface import intersection, pointcloud
 from pushbroom.algorithms.surface.point_input import read_points
@@ -124,8 +123,9 @@ def adjust(paths, names, mass, h0):
     return models, selection, check_points(selection.result, obs, height=h0)
 
 
-def run_chain(config, folder, workers=2):
-    """Everything the tests read (module docstring), with the time of each step (s)."""
+def run_chain(paths, folder, workers=2):
+    """Everything the tests read (module docstring) from the simulate_scene `paths`, with the time of each
+    step (s); outputs in `folder`."""
     times = {}
     clock = [time.perf_counter()]
 
@@ -133,8 +133,6 @@ def run_chain(config, folder, workers=2):
         now = time.perf_counter()
         times[step], clock[0] = now - clock[0], now
 
-    paths = simulate_scene(config, folder / "scene")
-    lap("simulate")
     lo, hi = Dem.from_file(paths["dsm"]).height_range
     h0 = 0.5 * (lo + hi)
     classes, interior = class_rasters(paths, folder)

@@ -20,7 +20,7 @@ from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree, utm_epsg
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.stats import statistics_table
 
 NAMES = ("HRG", "HRS1", "HRS2")
@@ -49,11 +49,10 @@ def dsm_tie_points(scene, n, seed):
 
 
 @pytest.fixture(scope="module")
-def adjusted(tmp_path_factory):
+def adjusted(simulated):
     """Supplied = truth + 20 urad look-angle offsets; 3 blunders among the point measurements;
     14 control points, the rest check; 300 tie points on the DSM; blunders removed by snooping."""
-    scene = simulate_scene(SceneConfig.small(points=30, error_scale=0.0, blunders=3),
-                           tmp_path_factory.mktemp("report") / "s")
+    scene = simulated(SceneConfig.small(points=30, error_scale=0.0, blunders=3))
     models = models_of(scene, NAMES)
     for i, model in models.items():
         model.orientation.corrections.look[:, 0] = (2e-5, -2e-5 if i % 2 else 2e-5)

@@ -6,8 +6,7 @@ import pytest
 from matching_scene import DISCONTINUOUS, SINGLE_SURFACE, Scene
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.matching.combinations import (combine, format_summary, match_block, new_cells, robust_sigma,
-                                                        summary_rows)
+from pushbroom.algorithms.matching.combinations import combine, format_summary, new_cells, robust_sigma, summary_rows
 from pushbroom.algorithms.matching.points import COMB_A, COMB_B, COMB_C, REFINED
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
@@ -172,20 +171,16 @@ def test_guide_for_combination_c_composes_the_affines():
 # the issue's target on the simulated triplet: GROUP-3 points of match_block (HRG, HRS1, HRS2)
 
 @pytest.fixture(scope="module")
-def triplet(small_scene):
+def triplet(small_scene, small_scene_matched):
     """match_block on the 3 km triplet (supplied, perturbed models), with and without the MPGC
     refinement; per group-3 point of the refined run: class and the errors of its HRS1 and HRS2
     positions against the point truth and the template-area truth (matching_scene) of its HRG
     position; for both runs the errors against the point truth."""
     scene = Scene(small_scene)
-    names = ("HRG", "HRS1", "HRS2")
-    images = [scene.paths["images"][k]["imagery"] for k in names]
-    models = [sensors.load(scene.paths["images"][k]["metadata"]) for k in names]
-    mp = match_block(images, models, params=GrowParams(), height_range=scene.height_range, workers=4)
-    plain = match_block(images, models, params=GrowParams(), height_range=scene.height_range, workers=4,
-                        refine=False)
-    supported = match_block(images, models, params=GrowParams(support_weights=True),
-                            height_range=scene.height_range, workers=4)
+    models = [sensors.load(scene.paths["images"][k]["metadata"]) for k in ("HRG", "HRS1", "HRS2")]
+    mp = small_scene_matched(GrowParams())
+    plain = small_scene_matched(GrowParams(), refine=False)
+    supported = small_scene_matched(GrowParams(support_weights=True))
     out = {"points": mp, "plain": plain}
     for run, points, support in (("", mp, (0.0, 0.0)), (" support", supported, (SUPPORT_CENTRE, SUPPORT_SIMILARITY))):
         g3 = points.points["group"] == 3

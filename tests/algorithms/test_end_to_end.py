@@ -64,8 +64,8 @@ OPEN, INNER = "textured open", "  interior"
 
 
 @pytest.fixture(scope="module")
-def chain(tmp_path_factory):
-    return run_chain(CONFIG, tmp_path_factory.mktemp("end_to_end"))
+def chain(simulated, tmp_path_factory):
+    return run_chain(simulated(CONFIG), tmp_path_factory.mktemp("end_to_end"))
 
 
 def rows(chain, assessed, select=None):

@@ -12,7 +12,7 @@ from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import ecef_to_geodetic, geodetic_to_ecef, metres_per_degree
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.surface import intersection as ix
 
 NAMES = ("HRG", "HRS1", "HRS2")
@@ -172,10 +172,10 @@ def reference_intersection(models, names, cols, rows, start, iterations=6, step=
 
 
 @pytest.fixture(scope="module")
-def pair(tmp_path_factory):
+def pair(simulated):
     """Truth models of a simulated SPOT 1-4 pair (look angles linear across the array) and ground
     points on its DSM."""
-    paths = simulate_scene(SceneConfig.small(configuration="spot14_pair"), tmp_path_factory.mktemp("pair") / "scene")
+    paths = simulated(SceneConfig.small(configuration="spot14_pair"))
     models = {name: sensors.load(path) for name, path in paths["truth_metadata"].items()}
     first = models["HRV1_A"]
     c, r = np.meshgrid(np.linspace(0.3, 0.7, 3) * first.size[0], np.linspace(0.3, 0.7, 2) * first.size[1])

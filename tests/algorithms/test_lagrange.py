@@ -20,7 +20,7 @@ from pushbroom.algorithms.adjustment.report import render_text, series_section
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.sensors.spot import SpotModel
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.algorithms.simulation import SceneConfig
 
 NAMES = ("HRV1_A", "HRV2_B")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}
@@ -107,12 +107,12 @@ def test_lagrange_names_patterns_and_refusals():
 
 
 @pytest.fixture(scope="module")
-def pair(tmp_path_factory):
+def pair(simulated):
     """A 20 km SPOT 2 HRV across-track pair (+-12 deg, 3 days apart, 1996 lines) with 60 point
     candidates; the supplied orientation carries the simulator's errors. A 20 m ground grid keeps
     the simulation quick (the points' truth does not depend on it)."""
     config = SceneConfig(configuration="spot14_pair", size_km=20.0, points=60, grid_m=20.0)
-    return simulate_scene(config, tmp_path_factory.mktemp("lagrange") / "pair")
+    return simulated(config)
 
 
 def tie_points(scene, per_side, rng):

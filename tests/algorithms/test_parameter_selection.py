@@ -19,7 +19,7 @@ from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.algorithms.simulation import SceneConfig
 
 pytestmark = pytest.mark.slow
 
@@ -33,10 +33,10 @@ INJECTED = {"HRG psi_x_0": 2.8e-5, "HRG psi_y_0": -1.2e-5, "HRG psi_y_1": 8e-6, 
 
 
 @pytest.fixture(scope="module")
-def block(tmp_path_factory):
+def block(simulated):
     """A 20 km scene (supplied = truth), 30 point candidates; tie points: region growing at STEP 18
     from automatic seeds, one per 100 x 100 HRG pixels."""
-    paths = simulate_scene(SceneConfig(size_km=20.0, points=30, error_scale=0.0), tmp_path_factory.mktemp("sel") / "s")
+    paths = simulated(SceneConfig(size_km=20.0, points=30, error_scale=0.0))
     models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
     lo, hi = Dem.from_file(paths["dsm"]).height_range
     matched = match_block([paths["images"][n]["imagery"] for n in NAMES], models, params=GrowParams(step=18),

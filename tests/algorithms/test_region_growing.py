@@ -181,12 +181,12 @@ def grown(scene):
 
 
 @pytest.fixture(scope="module")
-def nodes(scene, tmp_path_factory):
+def nodes(scene, simulated):
     """Lattice nodes whose template lies inside image 2: class, ground texture, and the best
     precision LSM can reach there (Scene.matchable_precision, from the same scene simulated
     without noise)."""
-    from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
-    quiet = simulate_scene(SceneConfig.small(noise=0.0), tmp_path_factory.mktemp("noise_free") / "scene")
+    from pushbroom.algorithms.simulation import SceneConfig
+    quiet = simulated(SceneConfig.small(noise=0.0))
     x1, y1, cls = scene.lattice_nodes()
     return x1, y1, cls, scene.texture(x1, y1), scene.matchable_precision(x1, y1, quiet)
 

@@ -18,7 +18,7 @@ from pushbroom.algorithms.sensors.rpc import RpcCoefficients, RpcModel, _poly
 from pushbroom.algorithms.sensors.rpc_io import write_rpb
 from pushbroom.algorithms.sensors.rpc_fit import (default_height_range, fit_rpc, raster_reads,
                                                   report_text, rpc_txt_path, write_fitted_rpc)
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.surface.intersection import height_differences
 
 gdal.UseExceptions()
@@ -29,11 +29,9 @@ GDAL_TOLERANCE_PX = 0.02  # GDAL's RPC transformer on the written file vs rigoro
 
 
 @pytest.fixture(scope="module")
-def scenes(small_scene, tmp_path_factory):
+def scenes(simulated):
     """Both simulated scenes: {configuration: simulate_scene paths}."""
-    folder = tmp_path_factory.mktemp("rpc_fit")
-    return {c: small_scene if c == "spot5_triplet" else simulate_scene(SceneConfig.small(configuration=c), folder / c)
-            for c in SCENES}
+    return {c: simulated(SceneConfig.small(configuration=c)) for c in SCENES}
 
 
 def scene_model(scenes, configuration, name):

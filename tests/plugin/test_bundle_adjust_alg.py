@@ -22,7 +22,7 @@ from pushbroom.algorithms.adjustment.residual_vectors import ATTRIBUTES
 from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.surface.intersection import intersect
 
 N_CONTROL = 19
@@ -30,8 +30,8 @@ N_TIE = 200
 
 
 @pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    return simulate_scene(SceneConfig.small(points=30, error_scale=0.0), tmp_path_factory.mktemp("bundle") / "scene")
+def scene(simulated):
+    return simulated(SceneConfig.small(points=30, error_scale=0.0))
 
 
 def make_block(paths, path):

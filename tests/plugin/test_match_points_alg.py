@@ -10,14 +10,14 @@ from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessin
 from pushbroom.algorithms import block
 from pushbroom.algorithms.block import read_info
 from pushbroom.algorithms.matching.points import REFINED, load_points
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from pushbroom.algorithms.simulation import SceneConfig
 
 
 @pytest.fixture(scope="module")
-def triplet(tmp_path_factory):
+def triplet(simulated, tmp_path_factory):
     """A 3 x 3 km HRG/HRS1/HRS2 block (supplied orientation = truth) and its DSM height range."""
     folder = tmp_path_factory.mktemp("triplet")
-    paths = simulate_scene(SceneConfig.small(error_scale=0.0), folder / "scene")
+    paths = simulated(SceneConfig.small(error_scale=0.0))
     dsm = gdal.Open(paths["dsm"]).ReadAsArray()
     lo, hi = float(np.nanmin(dsm)), float(np.nanmax(dsm))
     images = block.open_images([paths["images"][n]["imagery"] for n in ("HRS2", "HRG", "HRS1")])

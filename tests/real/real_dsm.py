@@ -22,6 +22,11 @@ from pushbroom.algorithms.surface.point_input import PointSet
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
 
+#: region growing on the Ventoux pair: nodes every VENTOUX_STEP px (1 m), the DSM asserted at VENTOUX_CELL m
+VENTOUX_STEP, VENTOUX_CELL = 2, 2.0
+#: region growing's triplet DSM: nodes every TRIPLET_STEP px (1.5 m), CELL m cells, gaps where a triangle is
+#: longer than RG_MAX_EDGE m (two node spacings)
+TRIPLET_STEP, CELL, RG_MAX_EDGE = 3, 0.5, 3.0
 #: the three pairs, as indices into the combination order (img_02, img_01, img_03)
 PAIRS = ((0, 1), (0, 2), (1, 2))
 #: the bias adjustment of test_adjust_pleiades: shifts of img_01 and img_03 free (img_02 fixed), 10 px priors

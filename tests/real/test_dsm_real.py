@@ -15,97 +15,63 @@ mostly a west-east ramp of ~0.13 m/m (26 m over the 200 m): it would take ~17 px
 across 400 px to come from the images, far beyond an RPC's bias, so it is the SRTM's 66-93 m
 postings on ravine relief (or their registration); removed as a plane, dh has an NMAD of ~3.5 m.
 The median (+4.8 m) is of the order of the canopy over the C-band SRTM surface. The 1 m and 5 m
-DSMs are printed beside the asserted 2 m one: the NMAD moves with the cell (9.2 .. 11.1 m), since
-each cell size leaves other gaps on the same ramp; the 2 m result passes the 10 m bound narrowly.
+DSMs are made beside the asserted 2 m one: the NMAD moves with the cell (9.2 .. 11.1 m), since
+each cell size leaves other gaps on the same ramp; the 2 m result (9.9 m) is held to 12 m, above
+that spread, as the coarse-to-fine matcher's in test_hierarchical_real.
 
-Pleiades triplet (pleiades_scene: img_02 reference, img_01 forward, img_03 backward; STEP 3 px,
-1.5 m nodes): the 0.5 m DSM from the three-ray points (groups 2 and 3); gaps where a triangle is
-longer than 3 m (two node spacings: one missing node is bridged, larger holes are not). Coverage =
-share of defined cells among those whose centre, at the points' median height, lies in all three
-images. Internal consistency: each pair (img_02-img_01, img_02-img_03, img_01-img_03) matched on
-its own (match_block of 2 images), intersected and gridded on the same 0.5 m lattice
-(Grid.covering aligns on multiples of the cell); median and NMAD of the pairwise differences over
-the common footprint, with the supplied RPCs and after the RPC bias adjustment of
+Region growing's matching of both (conftest.py) is shared with test_hierarchical_real and
+test_matching_pleiades. Pleiades triplet (pleiades_scene: img_02 reference, img_01 forward, img_03
+backward; STEP 3 px, 1.5 m nodes): the 0.5 m DSM from the three-ray points (groups 2 and 3); gaps
+where a triangle is longer than 3 m (two node spacings: one missing node is bridged, larger holes
+are not). Coverage = share of defined cells among those whose centre, at the points' median height,
+lies in all three images. Internal consistency: each pair (img_02-img_01, img_02-img_03,
+img_01-img_03) matched on its own (match_block of 2 images), intersected and gridded on the same
+0.5 m lattice (Grid.covering aligns on multiples of the cell); median and NMAD of the pairwise
+differences over the common footprint, with the supplied RPCs and after the RPC bias adjustment of
 test_adjust_pleiades (shifts of img_01 and img_03, img_02 fixed, 10 px priors) on tie points of the
 triplet's matching. Before it, the pairs' DSMs are offset by ~2.4 m (an along-track bias of 0.5 px
 is 2.3 m of height at B/H 0.11); after it, the medians are ~0.1 m. The NMAD bound 0.6 m is the
-height precision of a difference of two B/H 0.11 pair DSMs at 0.1 px matching precision
-(sqrt(2) x 0.1 x 0.5 m / 0.11 = 0.64 m)."""
-import time
-
+height precision of a difference of two B/H 0.11 pair DSMs at 0.1 px matching precision (sqrt(2) x
+0.1 x 0.5 m / 0.11 = 0.64 m)."""
 import numpy as np
 import pytest
 from osgeo import gdal
 
-from feedback import Feedback
-from pushbroom.algorithms import sensors
-from pushbroom.algorithms.matching.combinations import match_block
-from pushbroom.algorithms.matching.imagery import Image
-from pushbroom.algorithms.matching.params import GrowParams
-from real_dsm import build_triplet_dsms, check_pair_consistency, cut, footprint, srtm_comparison
+from real_dsm import CELL, VENTOUX_CELL, check_pair_consistency, footprint
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
-VENTOUX_STEP, VENTOUX_CELL = 2, 2.0
-MAX_MEDIAN, MAX_NMAD = 5.0, 10.0                     # m, the acceptance against SRTM
-TRIPLET_STEP, CELL, MAX_EDGE = 3, 0.5, 3.0
+#: m, against SRTM: the NMAD is the ramp's, 9.2-11.1 m with the cell (docstring); the matcher's own error is held by
+#: the median and the NMAD without the ramp (< 5 m)
+MAX_MEDIAN, MAX_NMAD = 5.0, 12.0
 MIN_COVERAGE = 0.6
 MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6          # m, after the bias adjustment
 
 
-@pytest.mark.parametrize("ventoux_image", ["left_image"], indirect=True)
-def test_ventoux_dsm_against_srtm(ventoux_image, tmp_path):
-    t0 = time.perf_counter()
-    paths = [ventoux_image, ventoux_image.with_name("right_image.tif")]
-    srtm = str(ventoux_image.with_name("N44E005.hgt"))
-    models = [sensors.load(p) for p in paths]
-    points = match_block([Image(p) for p in paths], models, names=[p.stem for p in paths],
-                         params=GrowParams(step=VENTOUX_STEP), workers=2)
-    result = cut({1: models[0], 2: models[1]}, points.observations)
+def test_ventoux_dsm_against_srtm(ventoux_region_growing):
+    points, result, srtm_dh = ventoux_region_growing
     assert result.ok.all() and len(result) == len(points) > 5000, (len(points), result.status_counts())
-    lines = [f"Ventoux: {len(points)} two-ray points (STEP {VENTOUX_STEP}), median image residual RMS "
-             f"{np.median(result.rms):.2f} px, heights {np.percentile(result.h, 1):.0f} .. "
-             f"{np.percentile(result.h, 99):.0f} m"]
-    srtm_dh = srtm_comparison(result, srtm, (1.0, VENTOUX_CELL, 5.0), VENTOUX_CELL, tmp_path)
     s, detrended = srtm_dh["stats"][VENTOUX_CELL], srtm_dh["detrended"]
     # the geoid: the same DSM against the SRTM taken as ellipsoidal differs by N(EGM96) ~ 50 m near Mont Ventoux
     n = srtm_dh["geoid"]
     assert 48.0 < n.mean() < 52.0 and np.ptp(n) < 0.1, (n.mean(), np.ptp(n))
-    # what is left after the median: a ramp over the overlap, at the scale of the SRTM postings (detrended)
-    lines += srtm_dh["lines"] + [f"  time {time.perf_counter() - t0:.1f} s"]
-    print("\n" + "\n".join(lines))
     assert abs(s.median) < MAX_MEDIAN and s.nmad < MAX_NMAD, s
+    # what is left after the median: a ramp over the overlap, at the scale of the SRTM postings (detrended)
     assert s.n > 2000 and detrended.nmad < 5.0, (s.n, detrended)
 
 
-@pytest.fixture(scope="module")
-def triplet_dsms(pleiades_triplet, tmp_path_factory):
-    """The pairs' DSMs (one matching each) with the supplied RPCs ("before") and the bias-adjusted ones
-    ("after"), and the 0.5 m DSM of the triplet's three-ray points (adjusted RPCs), written
-    (real_dsm.build_triplet_dsms with match_block)."""
-    log = Feedback()
-    params = GrowParams(step=TRIPLET_STEP)
-
-    def match(images, models, names):
-        return match_block(images, models, names=names, params=params, feedback=log, workers=2)
-    out = build_triplet_dsms(pleiades_triplet, match, CELL, MAX_EDGE, tmp_path_factory.mktemp("triplet_dsm"), log)
-    print(f"\nregion growing STEP {TRIPLET_STEP}\n" + "\n".join(log.messages))
-    return out
-
-
-def test_triplet_dsm_coverage(triplet_dsms):
-    dem = triplet_dsms["triplet"]
-    ds = gdal.Open(str(triplet_dsms["path"]))
+def test_triplet_dsm_coverage(region_growing_triplet_dsms):
+    dsms = region_growing_triplet_dsms
+    dem = dsms["triplet"]
+    ds = gdal.Open(str(dsms["path"]))
     band = ds.GetRasterBand(1)
     written = band.ReadAsArray().astype(float)
     defined = written != band.GetNoDataValue()
     assert ds.GetGeoTransform()[1] == CELL and np.array_equal(defined, np.isfinite(dem.heights))
-    inside = footprint(dem.grid, triplet_dsms["srs"], triplet_dsms["models"], triplet_dsms["height"])
+    inside = footprint(dem.grid, dsms["srs"], dsms["models"], dsms["height"])
     coverage = defined[inside].mean()
-    print(f"\n0.5 m DSM: {dem.summary()}\ncommon footprint {inside.sum()} cells ({inside.sum() * CELL ** 2 / 1e4:.1f} "
-          f"ha), coverage {coverage:.1%}; {int((defined & ~inside).sum())} defined cells outside it")
     assert coverage > MIN_COVERAGE and (defined & ~inside).sum() < 0.01 * defined.sum()
 
 
-def test_pair_dsms_agree_after_bias_adjustment(triplet_dsms):
-    check_pair_consistency(triplet_dsms, "region-growing", MAX_PAIR_MEDIAN, MAX_PAIR_NMAD)
+def test_pair_dsms_agree_after_bias_adjustment(region_growing_triplet_dsms):
+    check_pair_consistency(region_growing_triplet_dsms, "region-growing", MAX_PAIR_MEDIAN, MAX_PAIR_NMAD)

@@ -23,50 +23,37 @@ take ~4 min on 2 cores), the three-ray points (group 3) gridded at 0.5 m with ga
 is longer than MAX_EDGE = 10 m (two node spacings, as region growing's 3 m at 1.5 m nodes). Coverage
 of the common footprint and the pairs' consistency (each pair matched on its own by
 match_hierarchical, before / after the RPC bias adjustment on tie points of the triplet's
-matching) as in test_dsm_real; test_side_by_side_with_region_growing prints both matchers in one
-table (region growing's coverage also at 10 m, the same rule) and compares the two 0.5 m DSMs.
+matching) as in test_dsm_real; test_side_by_side_with_region_growing compares the two 0.5 m DSMs
+(region growing's from conftest.py, shared with test_dsm_real, as its run on the Ventoux pair).
 Measured (2 cores): coverage 79 % (region growing 69 % at 3 m, 94 % at 10 m), pairs after adjustment
 medians <= 0.01 m and NMAD 0.28-0.41 m (region growing 0.05-0.11 m, 0.23-0.41 m), matching the triplet and
 its pairs 25 s (region growing 39 s); this DSM - region growing's: median -0.02 m, NMAD 0.15 m."""
-import time
-
 import numpy as np
 import pytest
 from osgeo import gdal
 
 from feedback import Feedback
-from pleiades_scene import NAMES
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.hierarchical import HierParams, match_hierarchical
 from pushbroom.algorithms.matching.imagery import Image
-from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.quality.statistics import summarize
-from real_dsm import (PAIRS, build_triplet_dsms, check_pair_consistency, cut, dsm, footprint, on_grid,
-                      pair_differences, pair_name, srtm_comparison, stats_line)
+from real_dsm import (CELL, VENTOUX_CELL, VENTOUX_STEP, build_triplet_dsms, check_pair_consistency, cut, footprint,
+                      on_grid, srtm_comparison)
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
-VENTOUX_STEP, VENTOUX_CELL = 2, 2.0
 MAX_MEDIAN, MAX_NMAD, MAX_DETRENDED_NMAD = 5.0, 12.0, 5.0     # m, against SRTM
 MAX_MATCHER_MEDIAN, MAX_MATCHER_NMAD = 0.5, 1.0                # m, Ventoux: this DSM - region growing's
-TRIPLET_STEP, CELL, RG_MAX_EDGE = 3, 0.5, 3.0                  # region growing as in test_dsm_real
 MAX_EDGE = 10.0                                                # m, two of the default grid's 5 m spacings
 MIN_COVERAGE = 0.7
 MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6                     # m, after the bias adjustment
 MAX_TRIPLET_MEDIAN, MAX_TRIPLET_NMAD = 0.25, 0.6               # m, this 0.5 m DSM - region growing's
 
 
-def hierarchical(params=None, log=None):
+def hierarchical(params=None):
     """match(images, models, names) -> MultiPoints of match_hierarchical, for build_triplet_dsms."""
     def match(images, models, names):
-        return match_hierarchical(images, models, names=names, params=params, feedback=log)
-    return match
-
-
-def region_growing(step, log=None):
-    def match(images, models, names):
-        return match_block(images, models, names=names, params=GrowParams(step=step), feedback=log, workers=2)
+        return match_hierarchical(images, models, names=names, params=params)
     return match
 
 
@@ -75,36 +62,15 @@ def groups(points):
     return {g for g, n in points.group_counts().items() if n}
 
 
-@pytest.mark.parametrize("ventoux_image", ["left_image"], indirect=True)
-def test_ventoux_dsm_against_srtm(ventoux_image, tmp_path):
-    paths = [ventoux_image, ventoux_image.with_name("right_image.tif")]
-    srtm = str(ventoux_image.with_name("N44E005.hgt"))
-    models = [sensors.load(p) for p in paths]
-    names = [p.stem for p in paths]
-    runs = {}
-    for label, match in (("coarse-to-fine", hierarchical(HierParams(grid=VENTOUX_STEP))),
-                         ("region growing", region_growing(VENTOUX_STEP))):
-        t0 = time.perf_counter()
-        points = match([Image(p) for p in paths], models, names)
-        seconds = time.perf_counter() - t0
-        result = cut({1: models[0], 2: models[1]}, points.observations)
-        folder = tmp_path / label.replace(" ", "_")
-        folder.mkdir()
-        runs[label] = (points, result, seconds, srtm_comparison(result, srtm, (1.0, VENTOUX_CELL, 5.0), VENTOUX_CELL,
-                                                                folder))
-    lines = [f"Ventoux pair, nodes every {VENTOUX_STEP} px, {VENTOUX_CELL:g} m DSM - SRTM (EGM96 -> ellipsoidal):",
-             f"  {'matcher':15} {'points':>7} {'s':>6} {'cells':>6} {'median':>7} {'NMAD':>6} {'NMAD w/o plane':>14}"]
-    for label, (points, result, seconds, c) in runs.items():
-        s = c["stats"][VENTOUX_CELL]
-        lines.append(f"  {label:15} {len(points):7d} {seconds:6.1f} {s.n:6d} {s.median:+7.2f} {s.nmad:6.2f} "
-                     f"{c['detrended'].nmad:14.2f}")
-    points, result, _, c = runs["coarse-to-fine"]
-    rg = runs["region growing"][3]["dems"][VENTOUX_CELL]
-    mine = c["dems"][VENTOUX_CELL]
-    between = summarize((on_grid(mine, rg.grid) - rg.heights).ravel())
-    lines += [stats_line("  coarse-to-fine DSM - region growing DSM", between), "coarse-to-fine details:"] + c["lines"]
-    lines.append(f"  stats: {points.stats}")
-    print("\n" + "\n".join(lines))
+def test_ventoux_dsm_against_srtm(ventoux_pair, ventoux_region_growing, tmp_path):
+    srtm = str(ventoux_pair[0].with_name("N44E005.hgt"))
+    models = [sensors.load(p) for p in ventoux_pair]
+    points = hierarchical(HierParams(grid=VENTOUX_STEP))([Image(p) for p in ventoux_pair], models,
+                                                         [p.stem for p in ventoux_pair])
+    result = cut({1: models[0], 2: models[1]}, points.observations)
+    c = srtm_comparison(result, srtm, (1.0, VENTOUX_CELL, 5.0), VENTOUX_CELL, tmp_path)
+    rg = ventoux_region_growing[2]["dems"][VENTOUX_CELL]
+    between = summarize((on_grid(c["dems"][VENTOUX_CELL], rg.grid) - rg.heights).ravel())
     assert groups(points) == {1} and result.ok.all() and len(points) > 5000, (points.group_counts(),
                                                                             result.status_counts())
     assert 48.0 < c["geoid"].mean() < 52.0 and np.ptp(c["geoid"]) < 0.1
@@ -117,21 +83,8 @@ def test_ventoux_dsm_against_srtm(ventoux_image, tmp_path):
 @pytest.fixture(scope="module")
 def hier_dsms(pleiades_triplet, tmp_path_factory):
     """build_triplet_dsms of match_hierarchical (default parameters), cells 0.5 m, MAX_EDGE."""
-    log = Feedback()
-    out = build_triplet_dsms(pleiades_triplet, hierarchical(log=log), CELL, MAX_EDGE,
-                             tmp_path_factory.mktemp("hier_dsm"), log)
-    print("\ncoarse-to-fine:\n" + "\n".join(m for m in log.messages if m.startswith(("level", "triplet", "orient"))))
-    return out
-
-
-@pytest.fixture(scope="module")
-def rg_dsms(pleiades_triplet, tmp_path_factory):
-    """build_triplet_dsms of region growing as test_dsm_real makes it (STEP 3, 3 m max edge)."""
-    log = Feedback()
-    out = build_triplet_dsms(pleiades_triplet, region_growing(TRIPLET_STEP), CELL, RG_MAX_EDGE,
-                             tmp_path_factory.mktemp("rg_dsm"), log)
-    print("\nregion growing:\n" + "\n".join(log.messages))
-    return out
+    return build_triplet_dsms(pleiades_triplet, hierarchical(), CELL, MAX_EDGE, tmp_path_factory.mktemp("hier_dsm"),
+                              Feedback())
 
 
 def coverage(dem, dsms):
@@ -161,26 +114,10 @@ def test_pair_dsms_agree_after_bias_adjustment(hier_dsms):
     check_pair_consistency(hier_dsms, "coarse-to-fine", MAX_PAIR_MEDIAN, MAX_PAIR_NMAD)
 
 
-def test_side_by_side_with_region_growing(hier_dsms, rg_dsms):
-    """One table of both matchers on the triplet; the two 0.5 m DSMs (adjusted RPCs each) agree."""
-    rows = []
-    for label, dsms, spacing, edge in (("coarse-to-fine", hier_dsms, HierParams().grid * 0.5, MAX_EDGE),
-                                       ("region growing", rg_dsms, TRIPLET_STEP * 0.5, RG_MAX_EDGE)):
-        share, inside = coverage(dsms["triplet"], dsms)
-        same_rule = coverage(dsm(dsms["three"], dsms["srs"], CELL, MAX_EDGE), dsms)[0]
-        after = pair_differences(dsms["after"], dsms["triplet"].grid, inside)
-        rows.append(f"  {label:15} {spacing:5.1f} m {len(dsms['points']):7d} {int(dsms['three'].ok.sum()):7d} "
-                    f"{dsms['seconds']:6.1f} {edge:5.1f} m {share:6.1%} {same_rule:9.1%} {dsms['sigma0']:6.3f} "
-                    + " ".join(f"{s.median:+6.3f}/{s.nmad:5.3f}" for s in after.values()))
+def test_side_by_side_with_region_growing(hier_dsms, region_growing_triplet_dsms):
+    """The two matchers' 0.5 m DSMs of the triplet (adjusted RPCs each) agree over the common footprint."""
     grid = hier_dsms["triplet"].grid
     inside = footprint(grid, hier_dsms["srs"], hier_dsms["models"], hier_dsms["height"])
-    between = summarize((hier_dsms["triplet"].heights - on_grid(rg_dsms["triplet"], grid))[inside])
-    print("\nPleiades triplet, 0.5 m DSMs of the three-ray points (adjusted RPCs); pairs after the bias adjustment, "
-          "median/NMAD m: " + ", ".join(f"({pair_name(p)}) - ({pair_name(q)})" for i, p in enumerate(PAIRS)
-                                        for q in PAIRS[i + 1:])
-          + f"\n  {'matcher':15} {'nodes':>7} {'points':>7} {'3-ray':>7} {'s':>6} {'edge':>7} {'cover':>6} "
-          f"{f'cover@{MAX_EDGE:g}m':>9} {'sigma0':>6} pairs\n" + "\n".join(rows) + "\n"
-          + stats_line("  coarse-to-fine DSM - region growing DSM (footprint)", between)
-          + f"\n  (s: matching the triplet and its three pairs; images {', '.join(NAMES)})")
+    between = summarize((hier_dsms["triplet"].heights - on_grid(region_growing_triplet_dsms["triplet"], grid))[inside])
     assert between.n > 0.5 * inside.sum(), between
     assert abs(between.median) < MAX_TRIPLET_MEDIAN and between.nmad < MAX_TRIPLET_NMAD, between

@@ -18,22 +18,20 @@ STEP 4 gives 63 000 nodes and ~43 500 group 3 points, short of 50 000), automati
 tile, and the RPCs' own height range (40 .. 1090 m ellipsoidal, which holds Marseille's relief).
 Forward-backward differences are measured on the final observations of the group 3 points, for
 each combination's image pair (consistency.observation_pairs + forward_backward)."""
-import time
-
 import numpy as np
 import pytest
 
-from feedback import Feedback
-from pleiades_scene import NAMES, match_triplet
+from pleiades_scene import in_order
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.matching.combinations import format_summary, summary_rows
-from pushbroom.algorithms.matching.consistency import fb_summary, format_fb, forward_backward, observation_pairs
+from pushbroom.algorithms.matching.consistency import fb_summary, forward_backward, observation_pairs
+from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.seeds import predict
+from real_dsm import TRIPLET_STEP
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
-PARAMS = GrowParams(step=3)
+PARAMS = GrowParams(step=TRIPLET_STEP)
 # combinations as (template image, search image) indices in combination order, and the block
 # image ids (1, 2, 3 = reference, forward, backward) of their observations
 COMBINATIONS = {"a": (0, 1), "b": (0, 2), "c": (2, 1)}
@@ -67,23 +65,15 @@ def test_reference_is_the_most_nadir(pleiades_triplet):
 
 
 @pytest.fixture(scope="module")
-def matched(pleiades_triplet):
-    log = Feedback()
-    t0 = time.perf_counter()
-    images, models, points = match_triplet(pleiades_triplet, PARAMS, feedback=log)
-    t_match = time.perf_counter() - t0
+def matched(pleiades_triplet, region_growing_triplet_dsms):
+    """The triplet's points (region growing at STEP = TRIPLET_STEP, conftest.py) and the forward-backward
+    summary of each combination's group 3 points."""
+    points, models = region_growing_triplet_dsms["points"], region_growing_triplet_dsms["models"]
+    images = [Image(p) for p in in_order(pleiades_triplet)]
     group3 = points.points["group"] == 3
-    fb = {}
-    for label, (i, j) in COMBINATIONS.items():
-        records = observation_pairs(points, i + 1, j + 1, which=group3)
-        diff = forward_backward(images[i], images[j], models[i], models[j], records, PARAMS)
-        fb[label] = fb_summary(diff)
-    t_total = time.perf_counter() - t0
-    report = log.messages + [format_summary(summary_rows(points))]
-    report += [format_fb(f"forward-backward ({label}) {NAMES[i]} -> {NAMES[j]}, group 3", fb[label])
-               for label, (i, j) in COMBINATIONS.items()]
-    report.append(f"time: matching {t_match:.1f} s, with forward-backward {t_total:.1f} s")
-    print("\n" + "\n".join(report))
+    fb = {label: fb_summary(forward_backward(images[i], images[j], models[i], models[j],
+                                             observation_pairs(points, i + 1, j + 1, which=group3), PARAMS))
+          for label, (i, j) in COMBINATIONS.items()}
     return points, fb
 
 

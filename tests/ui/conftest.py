@@ -5,10 +5,10 @@ import pytest
 
 
 @pytest.fixture(scope="session")
-def marked_scene(tmp_path_factory):
+def marked_scene(simulated):
     """simulate_scene paths of SceneConfig.small(markers=True), shared read-only."""
-    from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
-    return simulate_scene(SceneConfig.small(markers=True), tmp_path_factory.mktemp("marked_scene") / "scene")
+    from pushbroom.algorithms.simulation import SceneConfig
+    return simulated(SceneConfig.small(markers=True))
 
 
 @pytest.fixture(scope="session")

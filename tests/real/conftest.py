@@ -1,0 +1,35 @@
+"""Session data of the real-data tests, computed once per run and shared read-only: region growing
+on the Ventoux pair (test_dsm_real, test_hierarchical_real) and region growing's triplet DSMs
+(test_dsm_real, test_hierarchical_real, test_matching_pleiades)."""
+import pytest
+
+from feedback import Feedback
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.matching.combinations import match_block
+from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.params import GrowParams
+from real_dsm import (CELL, RG_MAX_EDGE, TRIPLET_STEP, VENTOUX_CELL, VENTOUX_STEP, build_triplet_dsms, cut,
+                      srtm_comparison)
+
+
+@pytest.fixture(scope="session")
+def ventoux_region_growing(ventoux_pair, tmp_path_factory):
+    """Region growing on the Ventoux pair, nodes every VENTOUX_STEP px: (MultiPoints, their Intersection
+    with the supplied RPCs, real_dsm.srtm_comparison of its 1, VENTOUX_CELL and 5 m DSMs)."""
+    models = [sensors.load(p) for p in ventoux_pair]
+    points = match_block([Image(p) for p in ventoux_pair], models, names=[p.stem for p in ventoux_pair],
+                         params=GrowParams(step=VENTOUX_STEP), workers=2)
+    result = cut({1: models[0], 2: models[1]}, points.observations)
+    srtm = str(ventoux_pair[0].with_name("N44E005.hgt"))
+    return points, result, srtm_comparison(result, srtm, (1.0, VENTOUX_CELL, 5.0), VENTOUX_CELL,
+                                           tmp_path_factory.mktemp("ventoux_region_growing"))
+
+
+@pytest.fixture(scope="session")
+def region_growing_triplet_dsms(pleiades_triplet, tmp_path_factory):
+    """real_dsm.build_triplet_dsms of region growing (nodes every TRIPLET_STEP px, CELL m cells, gaps
+    beyond RG_MAX_EDGE m)."""
+    def match(images, models, names):
+        return match_block(images, models, names=names, params=GrowParams(step=TRIPLET_STEP), workers=2)
+    return build_triplet_dsms(pleiades_triplet, match, CELL, RG_MAX_EDGE, tmp_path_factory.mktemp("rg_triplet_dsm"),
+                              Feedback())
