@@ -41,9 +41,9 @@ from real_dsm import CELL, VENTOUX_CELL, check_pair_consistency, footprint
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
-#: m, against SRTM: the NMAD is the ramp's, 9.2-11.1 m with the cell (docstring); the matcher's own error is held by
-#: the median and the NMAD without the ramp (< 5 m)
-MAX_MEDIAN, MAX_NMAD = 5.0, 12.0
+#: m, against SRTM: issue 5's acceptance on the 2 m DSM. The NMAD is mostly the ramp's and moves with the cell
+#: (9.2-11.1 m, docstring), not with the machine; the matcher's own error is held by the NMAD without the ramp (< 5 m)
+MAX_MEDIAN, MAX_NMAD = 5.0, 10.0
 MIN_COVERAGE = 0.6
 MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6          # m, after the bias adjustment
 
