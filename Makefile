@@ -40,7 +40,7 @@ $(PROFILE)/.enabled: .venv/.setup-done metadata.txt
 
 # The whole suite, slow end-to-end tests included (CI runs this).
 test: setup
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q --durations=15 tests
 
 # Without the slow end-to-end tests, for quick iterations.
 test-fast: setup
