@@ -20,11 +20,17 @@ from ..plugin import resource_path
 
 def _single_error():
     """qgis_process echoes the message log's critical messages to stderr, and Processing logs a failed
-    algorithm's exception there twice besides reporting it: under qgis_process (which ends after the
-    failure), stop the echo so the error is printed once, as "ERROR: <message>"."""
+    algorithm's exception there twice besides reporting it (as "ERROR: <message>", not in --json mode).
+    Under qgis_process, which ends after the failure, stop the echo: at once where the report prints the
+    message, after the first echo in --json mode."""
     app = QgsApplication.instance()
-    if app is not None and app.platform() == "qgis_process":
-        QgsApplication.messageLog().blockSignals(True)
+    if app is None or app.platform() != "qgis_process":
+        return
+    log = QgsApplication.messageLog()
+    if "--json" not in app.arguments():
+        log.blockSignals(True)
+    else:
+        log.messageReceived.connect(lambda *_: log.blockSignals(True))
 
 
 def _file_path(value):
