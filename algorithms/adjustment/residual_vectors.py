@@ -109,3 +109,46 @@ def residual_vectors(result, check, observations, scale=DEFAULT_SCALE, crs=None,
     n = len(out)
     out["x0"], out["y0"], out["x1"], out["y1"] = xy[:n, 0], xy[:n, 1], xy[n:, 0], xy[n:, 1]
     return out, crs
+
+
+#: OGR field type per numpy kind of VECTOR_DTYPE's attributes
+_OGR_TYPES = {"U": "OFTString", "f": "OFTReal", "b": "OFTInteger"}
+_DRIVERS = {".gpkg": "GPKG", ".shp": "ESRI Shapefile", ".geojson": "GeoJSON"}
+
+
+def write_residual_vectors(path, vectors, crs, scale):
+    """Write the residual vectors (`residual_vectors`' rows) as a line layer in `crs` with the ATTRIBUTES and
+    the map `scale`, to a GeoPackage, shapefile or GeoJSON file by the extension of `path` (atomically)."""
+    import os
+
+    from osgeo import ogr
+
+    from ..atomic import atomic_path, closing
+    from ..errors import InputError
+    driver = _DRIVERS.get(os.path.splitext(os.fspath(path))[1].lower())
+    if driver is None:
+        raise InputError(f"write the residual vectors to a {', '.join(_DRIVERS)} file, not {path}")
+    ogr.UseExceptions()
+    with atomic_path(path, "the residual vectors") as tmp, \
+            closing(ogr.GetDriverByName(driver).CreateDataSource(tmp)) as ds:
+        layer = ds.CreateLayer("residual_vectors", srs(crs), ogr.wkbLineString)
+        for name in ATTRIBUTES:
+            field = ogr.FieldDefn(name, getattr(ogr, _OGR_TYPES[VECTOR_DTYPE[name].kind]))
+            if VECTOR_DTYPE[name].kind == "b":
+                field.SetSubType(ogr.OFSTBoolean)
+            layer.CreateField(field)
+        layer.CreateField(ogr.FieldDefn("scale", ogr.OFTReal))
+        ds.StartTransaction()
+        for v in vectors:
+            feature = ogr.Feature(layer.GetLayerDefn())
+            for name in ATTRIBUTES:
+                feature[name] = v[name].item()
+            feature["scale"] = float(scale)
+            line = ogr.Geometry(ogr.wkbLineString)
+            line.AddPoint_2D(float(v["x0"]), float(v["y0"]))
+            line.AddPoint_2D(float(v["x1"]), float(v["y1"]))
+            feature.SetGeometry(line)
+            layer.CreateFeature(feature)
+        ds.CommitTransaction()
+        layer = None
+    return os.fspath(path)

@@ -5,13 +5,11 @@ report (K Tables 2-4; adjustment/report.py) and a residual-vector layer of the c
 points (adjustment/residual_vectors.py). The models and residuals are stored in one transaction, and only if
 the block's control points, tie points and models are still those the adjustment started from
 (block.generations)."""
-from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry,
-                       QgsPointXY, QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum, QgsProcessingParameterFeatureSink,
-                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
-                       QgsWkbTypes)
-from qgis.PyQt.QtCore import QVariant
+from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
+                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum, QgsProcessingParameterFile,
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
+                       QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
+                       QgsProcessingParameterVectorDestination)
 
 from ...algorithms import block, progress
 from ...algorithms.adjustment import report
@@ -19,7 +17,7 @@ from ...algorithms.adjustment.bundle import CRITICAL_W, adjust, check_points
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES, load_control_points
 from ...algorithms.adjustment.control_series import control_point_series
 from ...algorithms.adjustment.observations import IMAGE_SIGMA, tie_observations
-from ...algorithms.adjustment.residual_vectors import ATTRIBUTES, DEFAULT_SCALE, VECTOR_DTYPE, residual_vectors
+from ...algorithms.adjustment.residual_vectors import DEFAULT_SCALE, residual_vectors, write_residual_vectors
 from ...algorithms.adjustment.selection import select_parameters
 from ...algorithms.adjustment.tie_heights import tie_height_differences
 from ...algorithms.adjustment.variance import adjust_with_components
@@ -28,7 +26,7 @@ from ...algorithms.errors import InputError
 from ...algorithms.stats import statistics_table
 from ...algorithms.matching import points
 from ...algorithms.measurement.residual_store import residual_rows, write_residuals
-from ..styles import style_on_completion
+from ..styles import load_styled
 from .base import PushbroomAlgorithm
 from .dem_nodata import nodata_parameter
 from .import_points import HEIGHTS
@@ -40,17 +38,6 @@ MODELS = {"polynomial": "Correction polynomials with autocalibration (Kornus et 
           "lagrange": "Lagrange polynomials on orientation images (Hofmann, 003 section 3)"}
 #: FREE = auto with the Lagrange model: H's setting (header positions enter as priors)
 LAGRANGE_AUTO = ["lagrange:attitude", "lagrange:offset"]
-#: QVariant type of each kind of numpy field in the residual-vector layer
-FIELD_TYPES = {"U": QVariant.String, "f": QVariant.Double, "b": QVariant.Bool}
-
-
-def residual_fields():
-    """The residual-vector layer's fields: residual_vectors.ATTRIBUTES and the map scale."""
-    fields = QgsFields()
-    for name in ATTRIBUTES:
-        fields.append(QgsField(name, FIELD_TYPES[VECTOR_DTYPE[name].kind]))
-    fields.append(QgsField("scale", QVariant.Double))
-    return fields
 
 
 def parse_priors(text):
@@ -140,7 +127,7 @@ class BundleAdjust(PushbroomAlgorithm):
         ])
         self.addParameter(QgsProcessingParameterFileDestination("REPORT", "Report", "HTML files (*.html)",
                                                                 optional=True))
-        self.addParameter(QgsProcessingParameterFeatureSink(
+        self.addParameter(QgsProcessingParameterVectorDestination(
             "RESIDUALS", "Residual vectors of control and check points", QgsProcessing.TypeVectorLine,
             optional=True, createByDefault=False))
         self.addOutput(QgsProcessingOutputNumber("SIGMA0", "sigma_0"))
@@ -149,6 +136,10 @@ class BundleAdjust(PushbroomAlgorithm):
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
         block.check_writable(path, "the adjusted models")
+        vector_path = self.parameterAsOutputLayer(parameters, "RESIDUALS", context)
+        if vector_path and vector_path.startswith("memory:"):
+            raise InputError("write the residual vectors to a file (GeoPackage, shapefile or GeoJSON), not to a "
+                             "temporary memory layer")
         generations = block.generations(path)
         rows = block.read_images(path)
         models = {r["id"]: block.load_model(path, r["id"], supplied=True) for r in rows}
@@ -237,16 +228,7 @@ class BundleAdjust(PushbroomAlgorithm):
         destination = self.parameterAsFileOutput(parameters, "REPORT", context)
         if destination:
             out["REPORT"] = report.write_html(destination, f"Bundle adjustment of {path}", parts=parts)
-        fields = residual_fields()
-        sink, dest_id = self.parameterAsSink(parameters, "RESIDUALS", context, fields, QgsWkbTypes.LineString,
-                                             QgsCoordinateReferenceSystem(crs))
-        if sink is not None:
-            for v in vectors:
-                feature = QgsFeature(fields)
-                feature.setGeometry(QgsGeometry.fromPolylineXY([QgsPointXY(v["x0"], v["y0"]),
-                                                                QgsPointXY(v["x1"], v["y1"])]))
-                feature.setAttributes([v[name].item() for name in ATTRIBUTES] + [scale])
-                sink.addFeature(feature, QgsFeatureSink.FastInsert)
-            style_on_completion(context, dest_id, "residual_vectors.qml")
-            out["RESIDUALS"] = dest_id
+        if vector_path:
+            out["RESIDUALS"] = write_residual_vectors(vector_path, vectors, crs, scale)
+            load_styled(context, vector_path, "Residual vectors", "RESIDUALS", "residual_vectors.qml")
         return out
