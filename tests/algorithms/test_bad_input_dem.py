@@ -12,29 +12,9 @@ from feedback import Feedback
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.dem import Dem, implausible_heights
 from pushbroom.algorithms.errors import InputError
+from bad_inputs import VOID, VOID_CELLS, copy_dem
 from pushbroom.algorithms.ortho import load_dem
 from pushbroom.algorithms.quality.height_differences import dem_differences, reference_at_points
-
-#: the void block of the test DEMs: rows, columns of the simulated DSM (889 x 1011 cells)
-VOID = (slice(400, 500), slice(300, 400))
-VOID_CELLS = 100 * 100
-
-
-def copy_dem(source, path, crs=True, voids=False):
-    """The DSM `source` as a Float32 GeoTIFF: with or without its CRS, optionally with the VOID block at
-    -32767 and no nodata flagged (as an SRTM tile converted without -a_nodata)."""
-    ds = gdal.Open(str(source))
-    z = ds.GetRasterBand(1).ReadAsArray().astype(np.float32)
-    if voids:
-        z[VOID] = -32767
-    out = gdal.GetDriverByName("GTiff").Create(str(path), ds.RasterXSize, ds.RasterYSize, 1, gdal.GDT_Float32)
-    out.SetGeoTransform(ds.GetGeoTransform())
-    if crs:
-        out.SetProjection(ds.GetProjection())
-    out.GetRasterBand(1).WriteArray(z)
-    out = None
-    return str(path)
-
 
 @pytest.fixture(scope="module")
 def dems(small_scene, tmp_path_factory):

@@ -1,21 +1,16 @@
 """A SPOT DIMAP product without its raster (issue 19): METADATA.DIM present, IMAGERY.TIF deleted. Opening
 the image names the missing raster and the product instead of GDAL's text."""
-import shutil
-from pathlib import Path
 
 import pytest
 
+from bad_inputs import product_without_raster
 from pushbroom.algorithms import block, sensors
 from pushbroom.algorithms.errors import InputError
 
 
 @pytest.fixture
 def product(small_scene, tmp_path):
-    """A copy of the simulated HRG product folder without its IMAGERY.TIF."""
-    folder = tmp_path / "HRG"
-    shutil.copytree(Path(small_scene["images"]["HRG"]["metadata"]).parent, folder)
-    (folder / "IMAGERY.TIF").unlink()
-    return folder
+    return product_without_raster(small_scene, tmp_path)
 
 
 def test_opening_the_deleted_raster_names_it_and_the_product(product):

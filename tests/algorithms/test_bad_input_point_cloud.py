@@ -9,28 +9,17 @@ import numpy as np
 import pytest
 from osgeo import ogr, osr
 
+from bad_inputs import las
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.surface import point_input, pointcloud, tin_dem
-from pushbroom.algorithms.surface.pointcloud import laspy_module
 
 UTM31 = 32631
 #: 500 points over 1 km near Mont Ventoux, UTM 31N
 X, Y, Z = np.random.default_rng(19).uniform((650_000, 4_890_000, 300), (651_000, 4_891_000, 400), (500, 3)).T
 
 
-def las(path, x, y, z, wkt=None):
-    """A LAS 1.4 file of the points with `wkt` in a WKT VLR (none: no CRS VLR at all)."""
-    laspy = laspy_module()
-    header = laspy.LasHeader(point_format=6, version="1.4")
-    step = 1e-8 if np.abs(x).max() <= 360 else 1e-3      # degrees or metres
-    header.scales, header.offsets = np.array([step, step, 1e-3]), np.floor([x.min(), y.min(), z.min()])
-    if wkt is not None:
-        header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(wkt))
-    data = laspy.LasData(header)
-    data.x, data.y, data.z = x, y, z
-    data.write(str(path))
-    return str(path)
+
 
 
 def gpkg(path, x, y, z, layer_srs):

@@ -6,29 +6,9 @@ import numpy as np
 import pytest
 from osgeo import gdal, osr
 from qgis import processing
-from qgis.core import QgsProcessingContext, QgsProcessingException
 
+from bad_inputs import VOID, copy_dem, processing_error
 from pushbroom.algorithms.crs import reproject, srs
-
-#: the void block: rows, columns of the simulated DSM (889 x 1011 cells)
-VOID = (slice(400, 500), slice(300, 400))
-
-
-def copy_dem(source, path, crs=True, voids=False):
-    """The DSM `source` as a Float32 GeoTIFF: with or without its CRS, optionally with the VOID block at
-    -32767 and no nodata flagged (as an SRTM tile converted without -a_nodata)."""
-    ds = gdal.Open(str(source))
-    z = ds.GetRasterBand(1).ReadAsArray().astype(np.float32)
-    if voids:
-        z[VOID] = -32767
-    out = gdal.GetDriverByName("GTiff").Create(str(path), ds.RasterXSize, ds.RasterYSize, 1, gdal.GDT_Float32)
-    out.SetGeoTransform(ds.GetGeoTransform())
-    if crs:
-        out.SetProjection(ds.GetProjection())
-    out.GetRasterBand(1).WriteArray(z)
-    out = None
-    return str(path)
-
 
 @pytest.fixture(scope="module")
 def dems(small_scene, tmp_path_factory):
@@ -38,14 +18,7 @@ def dems(small_scene, tmp_path_factory):
             "image": small_scene["images"]["HRG"]["imagery"], "dsm": small_scene["dsm"]}
 
 
-def processing_error(algorithm, parameters):
-    """The message of the QgsProcessingException of `algorithm` (only the text is kept: a kept traceback
-    holding QGIS objects crashes the interpreter's last garbage collection after QGIS exits)."""
-    try:
-        processing.run(algorithm, parameters, context=QgsProcessingContext())
-    except QgsProcessingException as exc:
-        return str(exc)
-    raise AssertionError(f"{algorithm} accepted the DEM")
+
 
 
 def test_a_dem_without_crs_is_refused_by_createblock_and_orthorectify(pushbroom_provider, dems, tmp_path):

@@ -1,40 +1,27 @@
 """pushbroom:createblock on a SPOT DIMAP product without its raster (issue 19): in Processing and through
 qgis_process the message names the missing IMAGERY.TIF instead of 'Incorrect parameter value for IMAGES'."""
-import shutil
-from pathlib import Path
 
 import pytest
-from qgis import processing
-from qgis.core import QgsProcessingException
+from bad_inputs import processing_error, product_without_raster
 
 
 @pytest.fixture
 def product(small_scene, tmp_path):
-    """A copy of the simulated HRG product folder without its IMAGERY.TIF."""
-    folder = tmp_path / "HRG"
-    shutil.copytree(Path(small_scene["images"]["HRG"]["metadata"]).parent, folder)
-    (folder / "IMAGERY.TIF").unlink()
-    return folder
+    return product_without_raster(small_scene, tmp_path)
 
 
-def processing_error(parameters):
-    """The message of the QgsProcessingException of pushbroom:createblock (only the text is kept: a kept
-    traceback holding QGIS objects crashes the interpreter's last garbage collection after QGIS exits)."""
-    try:
-        processing.run("pushbroom:createblock", parameters)
-    except QgsProcessingException as exc:
-        return str(exc)
-    raise AssertionError("createblock accepted the product without its raster")
+
 
 
 def test_createblock_names_the_missing_raster(pushbroom_provider, product, small_scene, tmp_path):
     raster = product / "IMAGERY.TIF"
-    message = processing_error({"IMAGES": [small_scene["images"]["HRS1"]["imagery"], str(raster)],
-                                "OUTPUT": str(tmp_path / "b.gpkg")})
+    message = processing_error("pushbroom:createblock", {
+        "IMAGES": [small_scene["images"]["HRS1"]["imagery"], str(raster)], "OUTPUT": str(tmp_path / "b.gpkg")})
     # the missing raster, the product it belongs to, and no QGIS parameter text
     assert f"{raster} does not exist: the SPOT DIMAP product {product} has its metadata" in message
     assert "Incorrect parameter value" not in message      # QGIS's text replaced, not appended to
-    message = processing_error({"IMAGES": [str(product / "METADATA.DIM")], "OUTPUT": str(tmp_path / "b.gpkg")})
+    message = processing_error("pushbroom:createblock", {"IMAGES": [str(product / "METADATA.DIM")],
+                                                         "OUTPUT": str(tmp_path / "b.gpkg")})
     # the metadata given as the image: the raster it names (after Processing's 'Unable to execute algorithm')
     assert message.endswith(f"{product / 'METADATA.DIM'} is a SPOT DIMAP product without its raster: {raster}, "
                             "which its metadata names, does not exist; copy the product's raster back beside its "

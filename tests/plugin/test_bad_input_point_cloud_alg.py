@@ -5,26 +5,16 @@ parameter reads a file without a CRS."""
 import numpy as np
 import pytest
 from qgis import processing
-from qgis.core import QgsProcessingContext, QgsProcessingException
 
+from bad_inputs import las, processing_error
 from pushbroom.algorithms.crs import srs
-from pushbroom.algorithms.surface.pointcloud import laspy_module, write_gpkg
+from pushbroom.algorithms.surface.pointcloud import write_gpkg
 
 UTM31 = 32631
+UTM31_WKT = srs(UTM31).ExportToWkt()
 
 
-def las(path, x, y, z, crs=None):
-    """A LAS 1.4 file of the points with the WKT of `crs` (None: no CRS VLR at all)."""
-    laspy = laspy_module()
-    header = laspy.LasHeader(point_format=6, version="1.4")
-    step = 1e-8 if np.abs(x).max() <= 360 else 1e-3      # degrees or metres
-    header.scales, header.offsets = np.array([step, step, 1e-3]), np.floor([x.min(), y.min(), z.min()])
-    if crs is not None:
-        header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(srs(crs).ExportToWkt()))
-    data = laspy.LasData(header)
-    data.x, data.y, data.z = x, y, z
-    data.write(str(path))
-    return str(path)
+
 
 
 def cloud(n=400):
@@ -32,19 +22,13 @@ def cloud(n=400):
     return np.random.default_rng(3).uniform((650_000, 4_890_000, 300), (651_000, 4_891_000, 400), (n, 3)).T
 
 
-def processing_error(parameters):
-    """The message of the QgsProcessingException of pushbroom:interpolatedem (only the text is kept: a kept
-    traceback holding QGIS objects crashes the interpreter's last garbage collection after QGIS exits)."""
-    try:
-        processing.run("pushbroom:interpolatedem", parameters, context=QgsProcessingContext())
-    except QgsProcessingException as exc:
-        return str(exc)
-    raise AssertionError("interpolatedem accepted the point cloud")
+
 
 
 def test_identical_points(pushbroom_provider, tmp_path):
-    path = las(tmp_path / "same.las", np.full(100, 650_000.0), np.full(100, 4_890_000.0), np.full(100, 400.0), UTM31)
-    message = processing_error({"INPUT": path, "OUTPUT": str(tmp_path / "dem.tif")})
+    path = las(tmp_path / "same.las", np.full(100, 650_000.0), np.full(100, 4_890_000.0), np.full(100, 400.0),
+               UTM31_WKT)
+    message = processing_error("pushbroom:interpolatedem", {"INPUT": path, "OUTPUT": str(tmp_path / "dem.tif")})
     # what is wrong with the points and what a TIN needs, in Pushbroom's words, not Qhull's
     assert "the 100 points of the point cloud are all at one position (x 650000.000, y 4890000.000): a TIN needs " \
            "at least 3 points that are not on one line" in message
@@ -58,7 +42,7 @@ def test_a_cloud_without_crs_and_the_point_cloud_crs_parameter(pushbroom_provide
     write_gpkg(gpkg, x, y, z, {}, None)
     for source, why in ((path, "no WKT or EPSG GeoKey VLR"),
                         (gpkg, "its CRS 'Undefined geographic SRS' is a local or undefined one")):
-        message = processing_error({"INPUT": source, "OUTPUT": str(tmp_path / "dem.tif")})
+        message = processing_error("pushbroom:interpolatedem", {"INPUT": source, "OUTPUT": str(tmp_path / "dem.tif")})
         # the file, what it lacks, and the parameter that supplies it; no PROJ text
         assert f"the point cloud {source} has no coordinate reference system ({why}" in message
         assert "give the CRS its x, y are in (the point cloud CRS parameter)" in message     # what to do
@@ -70,8 +54,8 @@ def test_a_cloud_without_crs_and_the_point_cloud_crs_parameter(pushbroom_provide
 
 def test_degrees_labelled_utm(pushbroom_provider, tmp_path):
     x, y, z = cloud()
-    path = las(tmp_path / "degrees.las", 5.27 + (x - x.min()) * 1e-5, 44.17 + (y - y.min()) * 1e-5, z, UTM31)
-    message = processing_error({"INPUT": path, "OUTPUT": str(tmp_path / "dem.tif")})
+    path = las(tmp_path / "degrees.las", 5.27 + (x - x.min()) * 1e-5, 44.17 + (y - y.min()) * 1e-5, z, UTM31_WKT)
+    message = processing_error("pushbroom:interpolatedem", {"INPUT": path, "OUTPUT": str(tmp_path / "dem.tif")})
     # the diagnosis instead of the symptom ("raise the maximum edge")
     assert "these look like longitude/latitude degrees labelled with a projected CRS" in message
     assert "maximum edge" not in message     # not the old, misleading advice
@@ -80,7 +64,7 @@ def test_degrees_labelled_utm(pushbroom_provider, tmp_path):
 @pytest.mark.slow
 def test_qgis_process_degrees_labelled_utm(qgis_process, tmp_path):
     x, y, z = cloud()
-    path = las(tmp_path / "degrees.las", 5.27 + (x - x.min()) * 1e-5, 44.17 + (y - y.min()) * 1e-5, z, UTM31)
+    path = las(tmp_path / "degrees.las", 5.27 + (x - x.min()) * 1e-5, 44.17 + (y - y.min()) * 1e-5, z, UTM31_WKT)
     with pytest.raises(RuntimeError) as err:
         qgis_process("run", "pushbroom:interpolatedem", "--", f"INPUT={path}", f"OUTPUT={tmp_path / 'dem.tif'}")
     # what the user reads on the terminal: the file, the diagnosis and the remedy, no traceback

@@ -1,5 +1,5 @@
-"""A QGIS desktop session (`qgis.bin --code THIS_FILE`, run by tests/ui/test_project_opens_clean.py, and by
-hand for the demo project): open the project named by PUSHBROOM_PROJECT as a user would (File > Open), let
+"""A QGIS desktop session (`qgis.bin --code THIS_FILE` with tests/ui on PYTHONPATH, run by
+tests/ui/test_project_opens_clean.py, and by hand for the demo project): open the project named by PUSHBROOM_PROJECT as a user would (File > Open), let
 it render, then write to the JSON file PUSHBROOM_RESULT the message bar's items (QGIS shows a missing font,
 an unreadable layer or a bad style there), the layers and whether they are valid, and a screenshot of the
 main window to PUSHBROOM_SCREENSHOT; then quit."""
@@ -8,6 +8,7 @@ import os
 import traceback
 
 import qgis.utils
+from desktop_exit import run_then_quit
 from qgis.core import QgsProject
 from qgis.PyQt.QtCore import QTimer
 
@@ -19,19 +20,11 @@ def write():
         json.dump(RESULT, f, indent=1)
 
 
-def inspect_and_quit():
-    try:
-        iface = qgis.utils.iface
-        bar = iface.messageBar()
-        RESULT["messages"] = [f"{item.title()}: {item.text()}" for item in bar.items()]
-        RESULT["layers"] = [[layer.name(), layer.isValid()] for layer in QgsProject.instance().mapLayers().values()]
-        iface.mainWindow().grab().save(os.environ["PUSHBROOM_SCREENSHOT"])
-    except Exception:  # noqa: BLE001 (everything goes to the test's log)
-        RESULT["errors"].append(traceback.format_exc())
-    write()
-    QgsProject.instance().clear()
-    QgsProject.instance().setDirty(False)
-    qgis.utils.iface.actionExit().trigger()
+def inspect():
+    iface = qgis.utils.iface
+    RESULT["messages"] = [f"{item.title()}: {item.text()}" for item in iface.messageBar().items()]
+    RESULT["layers"] = [[layer.name(), layer.isValid()] for layer in QgsProject.instance().mapLayers().values()]
+    iface.mainWindow().grab().save(os.environ["PUSHBROOM_SCREENSHOT"])
 
 
 def open_project():
@@ -42,7 +35,7 @@ def open_project():
         qgis.utils.iface.mapCanvas().refreshAllLayers()
     except Exception:  # noqa: BLE001
         RESULT["errors"].append(traceback.format_exc())
-    QTimer.singleShot(8000, inspect_and_quit)       # the canvas renders and QGIS posts its messages meanwhile
+    QTimer.singleShot(8000, lambda: run_then_quit(inspect, RESULT, write))       # the canvas renders and QGIS posts its messages meanwhile
 
 
 QTimer.singleShot(0, open_project)

@@ -13,6 +13,7 @@ import sys
 import traceback
 
 import qgis.utils
+from desktop_exit import run_then_quit
 from qgis.core import QgsProject, QgsVectorLayer
 from qgis.PyQt.QtCore import QTimer
 from qgis.PyQt.QtWidgets import QAction, QApplication, QMessageBox, QToolBar
@@ -83,15 +84,7 @@ def session():
 
 
 def run_and_quit():
-    try:
-        session()
-    except Exception:  # noqa: BLE001 (everything goes to the test's log)
-        RESULT["errors"].append(traceback.format_exc())
-    write_result()
-    # no "save the project?" and no "layers in a temporary folder" question on exit (the block is under /tmp)
-    QgsProject.instance().clear()
-    QgsProject.instance().setDirty(False)
-    qgis.utils.iface.actionExit().trigger()
+    run_then_quit(session, RESULT, write_result)
 
 
 def watchdog():

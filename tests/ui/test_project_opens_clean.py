@@ -5,7 +5,6 @@ import json
 import os
 import pathlib
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -67,7 +66,7 @@ def open_in_desktop(project, folder):
     """Run the real QGIS desktop on `project` (tests/ui/project_session.py); returns its result dict."""
     profiles = folder / "profiles"
     (profiles / "profiles" / "default").mkdir(parents=True)
-    env = dict(os.environ, QT_QPA_PLATFORM="xcb", PUSHBROOM_PROJECT=str(project),
+    env = dict(os.environ, QT_QPA_PLATFORM="xcb", PUSHBROOM_PROJECT=str(project), PYTHONPATH=str(SESSION.parent),
                PUSHBROOM_RESULT=str(folder / "result.json"), PUSHBROOM_SCREENSHOT=str(folder / "screenshot.png"))
     command = ["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", "/usr/bin/qgis.bin", "--profiles-path",
                str(profiles), "--nologo", "--noversioncheck", "--code", str(SESSION)]

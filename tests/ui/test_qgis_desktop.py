@@ -39,7 +39,7 @@ def run_qgis(profiles, job_path, log_path):
     """Run QGIS under Xvfb with the session script; returns its exit status (fails the test on a timeout)."""
     site = [p for p in sys.path if p.endswith("site-packages") and ".venv" in p]
     env = dict(os.environ, QT_QPA_PLATFORM="xcb", PUSHBROOM_SESSION=str(job_path),
-               PYTHONPATH=os.pathsep.join(site + [os.environ.get("PYTHONPATH", "")]))
+               PYTHONPATH=os.pathsep.join(site + [str(SESSION.parent), os.environ.get("PYTHONPATH", "")]))
     command = ["xvfb-run", "-a", QGIS, "--profiles-path", str(profiles), "--profile", "test", "--nologo",
                "--noversioncheck", "--code", str(SESSION)]
     with open(log_path, "w") as log:
