@@ -59,7 +59,7 @@ bench: setup
 # The plugin zip for "Install from ZIP" in QGIS (tests and development files left out).
 package:
 	@rm -rf build/package && mkdir -p build/package/pushbroom dist
-	@cp -r metadata.txt __init__.py LICENSE README.md algorithms plugin ui resources build/package/pushbroom/
+	@cp -r metadata.txt __init__.py LICENSE README.md algorithms plugin ui resources docs build/package/pushbroom/
 	@find build/package -name __pycache__ -prune -exec rm -rf {} + ; find build/package -name '*.nb[ic]' -delete
 	@rm -f dist/pushbroom-$(VERSION).zip && cd build/package && zip -qr ../../dist/pushbroom-$(VERSION).zip pushbroom
 	@echo "dist/pushbroom-$(VERSION).zip"

@@ -11,6 +11,7 @@ from qgis.core import (QgsApplication, QgsProcessingAlgorithm, QgsProcessingExce
                        QgsProcessingParameterDefinition, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterRasterDestination,
                        QgsProcessingParameterVectorDestination)
+from qgis.PyQt.QtCore import QCoreApplication, QUrl
 from qgis.PyQt.QtGui import QIcon
 
 from ...algorithms import atomic
@@ -33,6 +34,11 @@ def _single_error():
         log.messageReceived.connect(lambda *_: log.blockSignals(True))
 
 
+def help_page(name):
+    """Path of algorithm `name`'s documentation page, docs/steps/<name>.md."""
+    return os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "docs", "steps", f"{name}.md")
+
+
 def _file_path(value):
     """`value` when it names a local file or folder (not a database, a URI or a memory layer), else None."""
     text = str(value or "").strip()
@@ -42,7 +48,9 @@ def _file_path(value):
 
 
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
-    """Subclasses set NAME, DISPLAY_NAME, GROUP, GROUP_ID, HELP and implement `execute`."""
+    """Subclasses set NAME, DISPLAY_NAME, GROUP, GROUP_ID, a short HELP (a few sentences; the whole story is
+    on the step's page, docs/steps/<NAME>.md, reached by helpUrl) and implement `execute`: read the
+    parameters, call the step's one engine entry point, load its outputs."""
 
     NAME = ""
     DISPLAY_NAME = ""
@@ -53,20 +61,28 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     def createInstance(self):  # noqa: N802 (QGIS API)
         return type(self)()
 
+    def tr(self, text):
+        """`text` translated in the Processing context (QGIS's ScriptTemplate convention)."""
+        return QCoreApplication.translate("Processing", text)
+
     def name(self):
         return self.NAME
 
     def displayName(self):  # noqa: N802 (QGIS API)
-        return self.DISPLAY_NAME
+        return self.tr(self.DISPLAY_NAME)
 
     def group(self):
-        return self.GROUP
+        return self.tr(self.GROUP)
 
     def groupId(self):  # noqa: N802 (QGIS API)
         return self.GROUP_ID
 
     def shortHelpString(self):  # noqa: N802 (QGIS API)
-        return self.HELP
+        return self.tr(self.HELP)
+
+    def helpUrl(self):  # noqa: N802 (QGIS API)
+        """The step's page in the repository's docs (docs/steps/<name>.md), shipped with the plugin."""
+        return QUrl.fromLocalFile(help_page(self.NAME)).toString()
 
     def addAdvancedParameters(self, parameters):  # noqa: N802 (QGIS naming)
         """Add `parameters` flagged as advanced (folded away in the dialog)."""
