@@ -30,7 +30,7 @@ from ..styles import load_styled
 from .base import PushbroomAlgorithm
 from .dem_nodata import nodata_parameter
 from .import_points import HEIGHTS
-from .match_points import display_height
+from ...algorithms.height_range import mean_height
 
 Number = QgsProcessingParameterNumber
 #: the MODEL choices: parameters.OrientationParameters model -> label
@@ -156,7 +156,7 @@ class BundleAdjust(PushbroomAlgorithm):
             raise InputError("the block has no control points: import them (pushbroom:importpoints), or adjust "
                              "with tie points alone by naming the free parameters and priors that fix the "
                              "datum (e.g. FREE bias:shift, PRIORS bias:shift=10 for RPC images)")
-        height = display_height(block.height_range(path))
+        height = mean_height(block.height_range(path))
         critical = self.parameterAsDouble(parameters, "CRITICAL", context)
         dem_layer = self.parameterAsRasterLayer(parameters, "REFERENCE_DEM", context)
         dem = None

@@ -13,7 +13,7 @@ from ...algorithms.matching import points
 from ...algorithms.sensors import rpc_fit
 from ...algorithms.surface.intersection import height_differences
 from .base import PushbroomAlgorithm
-from .match_points import display_height
+from ...algorithms.height_range import mean_height
 
 Number = QgsProcessingParameterNumber
 
@@ -55,7 +55,7 @@ def rpc_height_check(block_path, rpcs):
         return ""
     rigorous = {i: block.load_model(block_path, i) for i in images}
     return height_differences(rigorous, {i: rpcs[i] for i in images}, obs["image_id"], obs["point_id"],
-                              obs["col"], obs["row"], h0=display_height(block.height_range(block_path))).summary()
+                              obs["col"], obs["row"], h0=mean_height(block.height_range(block_path))).summary()
 
 
 class FitRpc(PushbroomAlgorithm):

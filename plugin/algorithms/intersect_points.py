@@ -14,7 +14,7 @@ from ...algorithms.matching import points
 from ...algorithms.surface import intersection, pointcloud
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
-from .match_points import display_height
+from ...algorithms.height_range import mean_height
 
 Number = QgsProcessingParameterNumber
 KINDS = (("mass_points", "Mass points (pushbroom:matchpoints)"),
@@ -69,7 +69,7 @@ class IntersectPoints(PushbroomAlgorithm):
         result = intersection.intersect(
             models, obs["image_id"], obs["point_id"], obs["col"], obs["row"],
             sigma=self.parameterAsDouble(parameters, "SIGMA", context),
-            h0=None if heights is None else display_height(heights),
+            h0=None if heights is None else mean_height(heights),
             max_iter=self.parameterAsInt(parameters, "MAX_ITERATIONS", context),
             feedback=progress.scaled(feedback, 0, 80))
         pos = np.searchsorted(multi.points["id"], result.point).clip(max=max(len(multi) - 1, 0))

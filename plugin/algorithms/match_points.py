@@ -6,7 +6,7 @@ from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutp
                        QgsProcessingParameterString)
 
 from ...algorithms import block
-from ...algorithms.errors import InputError
+from ...algorithms.height_range import height_range, mean_height
 from ...algorithms.matching import combinations, hierarchical, points
 from ...algorithms.matching.params import GrowParams
 from ..styles import load_styled
@@ -22,53 +22,6 @@ SEED_SOURCES = (("Automatic: interest points matched along the path predicted by
 #: matching strategies: (label, engine key)
 STRATEGIES = (("Region growing (K, H)", "region_growing"),
               ("Coarse-to-fine multi-primitive with MPGC (Z)", "hierarchical"))
-
-
-def combination_order(rows, text):
-    """The block's image rows in combination order: `text` is a comma-separated list of names
-    (reference, forward[, backward]); empty or 'all' orders the block's 2 or 3 images itself
-    (HRG, HRS1, HRS2 when so named, else block order). InputError for a block of fewer than 2 images,
-    whatever `text` names."""
-    if len(rows) < 2:
-        has = f"one image ({rows[0]['name']})" if rows else "no image"
-        raise InputError(f"matching needs two or three images of the same ground, and the block has {has}: create a "
-                         "block with the stereo pair or triplet (pushbroom:createblock with all its images) and match "
-                         "that")
-    by_name = {r["name"]: r for r in rows}
-    names = [n.strip() for n in (text or "").split(",") if n.strip()]
-    if names and names != ["all"]:
-        missing = [n for n in names if n not in by_name]
-        if missing:
-            raise InputError(f"image(s) {', '.join(missing)} not in the block; it has {', '.join(by_name)}")
-        if len(names) not in (2, 3) or len(set(names)) != len(names):
-            raise InputError(f"give 2 or 3 different images (reference, forward[, backward]), got {names}")
-        return [by_name[n] for n in names]
-    if len(rows) not in (2, 3):
-        raise InputError(f"the block has {len(rows)} images: name the 2 or 3 to match in the Images parameter "
-                         "(reference, forward[, backward])")
-    upper = {r["name"].upper(): r for r in rows}
-    if len(rows) == 3 and all(any(k.startswith(p) for k in upper) for p in ("HRG", "HRS1", "HRS2")):
-        return [next(r for k, r in upper.items() if k.startswith(p)) for p in ("HRG", "HRS1", "HRS2")]
-    return list(rows)
-
-
-def height_range_of(block_path, h_min, h_max):
-    """(h_min, h_max) from the parameters (one given: that height +- 500 m), else the terrain height
-    range recorded in the block at its creation (DEM heights under the footprints, or the mean
-    height +- 500 m)."""
-    if h_min is not None and h_max is not None:
-        return (h_min, h_max)
-    if h_min is not None or h_max is not None:
-        return float(h_min if h_min is not None else h_max)
-    return block.height_range(block_path)
-
-
-def display_height(height_range):
-    if height_range is None:
-        return 0.0
-    if isinstance(height_range, tuple):
-        return 0.5 * (height_range[0] + height_range[1])
-    return float(height_range)
 
 
 class MatchPoints(PushbroomAlgorithm):
@@ -156,11 +109,11 @@ class MatchPoints(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
-        rows = combination_order(block.read_images(path), self.parameterAsString(parameters, "IMAGES", context))
+        rows = combinations.combination_order(block.read_images(path), self.parameterAsString(parameters, "IMAGES", context))
         models = [block.load_model(path, r["id"]) for r in rows]
 
-        height_range = height_range_of(path, self.parameterAsOptionalDouble(parameters, "MIN_HEIGHT", context),
-                                       self.parameterAsOptionalDouble(parameters, "MAX_HEIGHT", context))
+        heights = height_range(self.parameterAsOptionalDouble(parameters, "MIN_HEIGHT", context),
+                               self.parameterAsOptionalDouble(parameters, "MAX_HEIGHT", context), block.height_range(path))
         params = GrowParams(
             template=self.parameterAsInt(parameters, "TEMPLATE", context),
             wide_template=self.parameterAsInt(parameters, "WIDE_TEMPLATE", context),
@@ -174,7 +127,7 @@ class MatchPoints(PushbroomAlgorithm):
         _, use_tie_points, automatic = SEED_SOURCES[self.parameterAsEnum(parameters, "SEEDS", context)]
         seed_points = points.load_points(path, "tie_points") if use_tie_points else None
         feedback.pushInfo("combination order: " + ", ".join(r["name"] for r in rows)
-                          + f"; height range {height_range}")
+                          + f"; height range {heights}")
         if STRATEGIES[self.parameterAsEnum(parameters, "STRATEGY", context)][1] == "hierarchical":
             hier_params = hierarchical.HierParams(
                 grid=self.parameterAsInt(parameters, "C2F_GRID", context),
@@ -183,19 +136,19 @@ class MatchPoints(PushbroomAlgorithm):
                 edge_points=self.parameterAsBool(parameters, "C2F_EDGE_POINTS", context)).check()
             result = hierarchical.match_hierarchical(
                 [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
-                image_ids=[r["id"] for r in rows], params=hier_params, height_range=height_range,
+                image_ids=[r["id"] for r in rows], params=hier_params, height_range=heights,
                 feedback=feedback)
         else:
             result = combinations.match_block(
                 [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
-                image_ids=[r["id"] for r in rows], params=params, height_range=height_range,
+                image_ids=[r["id"] for r in rows], params=params, height_range=heights,
                 seed_points=seed_points, automatic=automatic, feedback=feedback,
                 workers=self.parameterAsInt(parameters, "WORKERS", context),
                 grow_second=self.parameterAsBool(parameters, "GROW_SECOND", context),
                 sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context),
                 refine=self.parameterAsBool(parameters, "MPGC_REFINE", context))
         npz = points.save_points(path, result, "mass_points",
-                                 display=(models[0], rows[0]["id"], display_height(height_range)))
+                                 display=(models[0], rows[0]["id"], mean_height(heights)))
         layer = points.layer_source(path, "mass_points")
         summary = combinations.summary_rows(result)
         feedback.pushInfo("points per group (Kornus et al. 2006, Table 1):\n" + combinations.format_summary(summary))

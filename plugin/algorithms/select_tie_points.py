@@ -8,7 +8,7 @@ from ...algorithms.matching import points
 from ...algorithms.matching.tiepoints import select_tie_points
 from .base import PushbroomAlgorithm
 from ..styles import load_styled
-from .match_points import display_height, height_range_of
+from ...algorithms.height_range import mean_height
 
 Number = QgsProcessingParameterNumber
 
@@ -44,7 +44,7 @@ class SelectTiePoints(PushbroomAlgorithm):
         feedback.pushInfo(f"{len(tie)} tie points from {len(mass)} mass points: "
                           + ", ".join(f"group {g}: {n}" for g, n in counts.items()))
         npz = points.save_points(path, tie, "tie_points", display=(
-            block.load_model(path, reference), reference, display_height(height_range_of(path, None, None))))
+            block.load_model(path, reference), reference, mean_height(block.height_range(path))))
         layer = points.layer_source(path, "tie_points")
         load_styled(context, layer, "Tie points", "TIE_POINTS", "points_by_group.qml")
         return {"BLOCK": path, "TIE_POINTS": layer, "TIE_POINTS_FILE": npz}
