@@ -2,7 +2,7 @@
 and of their adjusted orientation (the block's models) against the truth, the stereo geometry,
 the files, the mass points per group, the accuracy of the group-3 image points against the truth
 per land-cover class, and from the log of the pipeline model (pipeline.log): the bundle
-adjustment's tables (K Tables 2-4, check points) and the accuracy of the object points per point
+adjustment's tables (Kornus et al. 2006, Tables 2-4, check points) and the accuracy of the object points per point
 group and of the DEM against the true DSM (pushbroom:assessaccuracy)."""
 import csv
 import json

@@ -1,7 +1,7 @@
-"""Text/HTML report of a bundle adjustment, as K 3.4.3 reports it: the coefficient table of
-K Table 2 (value, sigma, x/sigma, maximum effect in pixels over the image: parameters.max_effects),
-the check point statistics of K Table 3 (dE, dN, dH: n, min, mean, max, RMS, sigma, with the
-theoretical RMS), the tie point heights against a reference DTM of K Table 4 (dh: n, min, mean,
+"""Text/HTML report of a bundle adjustment, as Kornus et al. 2006, section 3.4.3 reports it: the coefficient table of
+Kornus et al. 2006, Table 2 (value, sigma, x/sigma, maximum effect in pixels over the image: parameters.max_effects),
+the check point statistics of Kornus et al. 2006, Table 3 (dE, dN, dH: n, min, mean, max, RMS, sigma, with the
+theoretical RMS), the tie point heights against a reference DTM of Kornus et al. 2006, Table 4 (dh: n, min, mean,
 max, RMS, sigma; tie_heights.py), the residuals per control/check point (residual_vectors.py),
 the removed blunders and the count of measurements still flagged. The same sections render as
 text (the log) and as HTML tables (one self-contained page)."""
@@ -97,7 +97,7 @@ def variance_section(components):
 
 
 def series_section(rows):
-    """Section of control_series.control_point_series (H Table 1)."""
+    """Section of control_series.control_point_series (Heipke et al. 1992, Table 1)."""
     return Section("Check points against the number of control points (H Table 1)",
                    ("control points", "check points", "RMS dE", "RMS dN", "RMS dH", "theor. E", "theor. N",
                     "theor. H", "sigma_0"),

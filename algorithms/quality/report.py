@@ -1,8 +1,8 @@
 """Tables, log text, CSV and the self-contained HTML report of an accuracy assessment.
 
-Tables mirror the papers: K Tables 4, 6, 7 (N, Min, Mean, Max, RMS, sigma of dh; per point group
+Tables mirror the papers: Kornus et al. 2006, Tables 4, 6, 7 (N, Min, Mean, Max, RMS, sigma of dh; per point group
 as Table 6, groups 3, 2, 1), with the robust extras NMAD and Q95(|dh|) (statistics.py) as last
-columns, and Z Tables 2-3 (area, number of compared points, mean, RMSE, % of |dh| < 2 m, 2-5 m,
+columns, and Zhang and Gruen 2004, Tables 2-3 (area, number of compared points, mean, RMSE, % of |dh| < 2 m, 2-5 m,
 > 5 m) over nested class sets (statistics.cumulative). The HTML page embeds its figures as base64
 PNG (figures.py): it references no other file."""
 import base64

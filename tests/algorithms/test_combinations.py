@@ -1,5 +1,5 @@
-"""Three-image combinations and point groups (K 3.3) on synthetic PAIR_DTYPE records, and the
-issue's group-3 accuracy target on the simulated 3 km SPOT 5 triplet."""
+"""Three-image combinations and point groups (Kornus et al. 2006, section 3.3) on synthetic PAIR_DTYPE records,
+and the issue's group-3 accuracy target on the simulated 3 km SPOT 5 triplet."""
 import numpy as np
 import pytest
 

@@ -1,7 +1,7 @@
 """pushbroom:bundleadjust on a small simulated SPOT 5 triplet with injected look-angle errors:
 the adjusted models land in the block and reproduce the true image positions of check points; the
 residual-vector layer of control/check points (against the simulator's points and OSR) with its
-style; the tie point heights against the true DTM (K Table 4) against a forward intersection with
+style; the tie point heights against the true DTM (Kornus et al. 2006, Table 4) against a forward intersection with
 the adjusted models and a numpy interpolation, for an ellipsoidal and an EGM96 reference."""
 import csv
 import re
@@ -155,7 +155,7 @@ def _table_row(page, label):
 
 
 def test_tie_heights_against_the_reference_dtm(pushbroom_provider, tie_block, tmp_path):
-    """K Table 4: the adjusted tie points are the forward intersections with the adjusted models;
+    """Kornus et al. 2006, Table 4: the adjusted tie points are the forward intersections with the adjusted models;
     their heights minus the DTM interpolated in numpy give the table's n, min, mean, max, RMS and
     sigma. The DTM read as EGM96 heights shifts every dh by minus the geoid undulation."""
     path, paths, ids, obs = tie_block
