@@ -93,7 +93,7 @@ def group3_accuracy(out, step=10.0, margin=20.0):
 
 
 #: titles of the log sections printed: the adjustment's, then the assessment's (algorithms/quality/report.py)
-ADJUSTMENT_SECTIONS = ("Adjustment", "Free orientation parameters", "Check points (K Table 3)",
+ADJUSTMENT_SECTIONS = ("Adjustment", "Free orientation parameters", "Check points (Kornus et al. 2006, Table 3)",
                        "Tie point heights against the reference")
 ACCURACY_SECTIONS = ("of the object points - reference: per point group", "of the DEM cells")
 

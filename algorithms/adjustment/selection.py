@@ -185,8 +185,9 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
     raises what adjust raises (a DefectError when even the look-angle constants cannot be
     determined)."""
     if adjust_kwargs.get("model", "polynomial") != "polynomial":
-        raise InputError("automatic parameter selection (K 3.4.3) is for the correction polynomial model; with "
-                         "the Lagrange model give the free set (e.g. lagrange:attitude, lagrange:offset)")
+        raise InputError("automatic parameter selection (Kornus et al. 2006, section 3.4.3) is for the correction "
+                         "polynomial model; with the Lagrange model give the free set (e.g. lagrange:attitude, "
+                         "lagrange:offset)")
     fb = progress.ensure(feedback)
     lines = []
 

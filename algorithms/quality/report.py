@@ -35,14 +35,15 @@ def _z_row(label, s):
 def tables(assessed):
     """[(table name, [(label, Stats)], form "K" or "Z")] of one Assessed."""
     d = assessed.differences
-    out = [("all (K Table 4)", [("dh", summarize(d.dh))], "K")]
+    out = [("all (Kornus et al. 2006, Table 4)", [("dh", summarize(d.dh))], "K")]
     if d.group is not None:
-        out.append(("per point group (K Tables 6, 7)", by_label(d.dh, d.group, GROUP_NAMES), "K"))
+        out.append(("per point group (Kornus et al. 2006, Tables 6, 7)", by_label(d.dh, d.group, GROUP_NAMES), "K"))
     if assessed.classes is not None:
         out.append(("per class", by_label(d.dh, assessed.classes, assessed.class_names), "K"))
-        out.append(("nested classes (Z Tables 2-3)", cumulative(d.dh, assessed.classes, assessed.class_names), "Z"))
-    out.append(("flat/moderate vs mountainous (K 3.7)", by_label(d.dh, assessed.terrain, assessed.terrain_names),
-                "K"))
+        out.append(("nested classes (Zhang and Gruen 2004, Tables 2-3)",
+                    cumulative(d.dh, assessed.classes, assessed.class_names), "Z"))
+    out.append(("flat/moderate vs mountainous (Kornus et al. 2006, section 3.7)",
+                by_label(d.dh, assessed.terrain, assessed.terrain_names), "K"))
     return out
 
 

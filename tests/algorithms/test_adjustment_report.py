@@ -211,7 +211,7 @@ def test_report_tables(adjusted, tmp_path):
                                                np.std(de, ddof=1))]]
     assert text == report.text_report(result, check, table, heights=(tie, "dtm.tif"), vectors=vectors)
     page = open(report.write_html(tmp_path / "r.html", "Bundle adjustment", parts=parts)).read()
-    assert page.count("<table>") == 5 and "K Table 4" in page
+    assert page.count("<table>") == 5 and "Kornus et al. 2006, Table 4" in page
     assert "<td>dh</td>" + "".join(f"<td>{c}</td>" for c in want) in page
     for name in vectors["name"]:
         assert f"<td>{name}</td>" in page
