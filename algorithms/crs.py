@@ -1,4 +1,4 @@
-"""Coordinate reference systems through OSR/PROJ (DESIGN.md: all datum, CRS and geoid work goes
+"""Coordinate reference systems through OSR/PROJ (all datum, CRS and geoid work goes
 through PROJ): parsing a user's CRS, WGS 84, strict transformations and EGM96 undulations."""
 import numpy as np
 from osgeo import osr

@@ -6,7 +6,8 @@ NMAD_SCALE = 1.4826
 
 
 def statistics_table(values):
-    """{name: (n, min, mean, max, RMS, sigma)} of each array in `values` (K Table 3's columns)."""
+    """{name: (n, min, mean, max, RMS, sigma)} of each array in `values` (the columns of Kornus et al. 2006,
+    Table 3)."""
     table = {}
     for key, v in values.items():
         v = np.asarray(v, float)

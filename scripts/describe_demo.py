@@ -2,7 +2,7 @@
 and of their adjusted orientation (the block's models) against the truth, the stereo geometry,
 the files, the mass points per group, the accuracy of the group-3 image points against the truth
 per land-cover class, and from the log of the pipeline model (pipeline.log): the bundle
-adjustment's tables (K Tables 2-4, check points) and the accuracy of the object points per point
+adjustment's tables (Kornus et al. 2006, Tables 2-4, check points) and the accuracy of the object points per point
 group and of the DEM against the true DSM (pushbroom:assessaccuracy)."""
 import csv
 import json
@@ -93,7 +93,7 @@ def group3_accuracy(out, step=10.0, margin=20.0):
 
 
 #: titles of the log sections printed: the adjustment's, then the assessment's (algorithms/quality/report.py)
-ADJUSTMENT_SECTIONS = ("Adjustment", "Free orientation parameters", "Check points (K Table 3)",
+ADJUSTMENT_SECTIONS = ("Adjustment", "Free orientation parameters", "Check points (Kornus et al. 2006, Table 3)",
                        "Tie point heights against the reference")
 ACCURACY_SECTIONS = ("of the object points - reference: per point group", "of the DEM cells")
 

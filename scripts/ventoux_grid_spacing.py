@@ -2,7 +2,7 @@
 (issue 7's Ventoux point; closing note of 2026-11-22): match_hierarchical on the two Pleiades crops
 with grid points every 2 (region growing's nodes, as tests/real/test_hierarchical_real.py), 5 and 10
 px, the points intersected with the supplied RPCs and gridded at 1, 2 and 5 m, each DSM against the
-SRTM tile (EGM96 -> ellipsoidal) with the test's code (tests/real/real_dsm.py). Needs ../shared/data.
+SRTM tile (EGM96 -> ellipsoidal) with the test's code (tests/real/real_dsm.py). Needs the real test data (tests/conftest.py SHARED_DATA).
 
     QT_QPA_PLATFORM=offscreen .venv/bin/python scripts/ventoux_grid_spacing.py [GRID ...]   (about 1 min)"""
 import pathlib

@@ -1,4 +1,4 @@
-"""Shared fixtures: the real data in ../shared/data (skipped with a reason where absent), the
+"""Shared fixtures: the real test data in SHARED_DATA (skipped with a reason where absent), the
 simulated scenes (each configuration simulated once per run) and the small SPOT 5 triplet most
 engine and plugin tests use."""
 import os
@@ -12,10 +12,10 @@ SHARED_DATA = pathlib.Path(os.environ.get("PUSHBROOM_SHARED_DATA", REPO.parent /
 
 
 def shared_file(*parts):
-    """Path of a file in ../shared/data, or skip the test with the reason it is missing."""
+    """Path of a file in SHARED_DATA, or skip the test with the reason it is missing."""
     path = SHARED_DATA.joinpath(*parts)
     if not path.exists():
-        pytest.skip(f"real test data not available: {path} (needs ../shared/data beside the repository)")
+        pytest.skip(f"real test data not available: {path} (set PUSHBROOM_SHARED_DATA or put the data in {SHARED_DATA})")
     return path
 
 

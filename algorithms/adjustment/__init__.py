@@ -1,2 +1,2 @@
 """Block adjustment: observations, the bundle adjustment with its statistics and blunder tests,
-and the automatic choice of free orientation parameters (methods.md section 4)."""
+and the automatic choice of free orientation parameters."""

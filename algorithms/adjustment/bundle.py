@@ -1,4 +1,4 @@
-"""Bundle adjustment of a block (methods.md section 4; paper K 3.4).
+"""Bundle adjustment of a block (Kornus et al. 2006, section 3.4).
 
 Unknowns: the free orientation parameters (parameters.py) and every control/tie point (lon, lat,
 h, updated in local metres east/north/up). Observations: image coordinates (sigma px) and the

@@ -1,4 +1,4 @@
-"""Check point accuracy against the number of control points (paper H 4.1.2, Table 1).
+"""Check point accuracy against the number of control points (Heipke et al. 1992, section 4.1.2, Table 1).
 
 The candidates are the observations' control points; the check and tie points stay the same in
 every row. For each count n the block is adjusted (bundle.adjust, on a copy of the models) with n

@@ -63,8 +63,8 @@ def cholesky_solve(m, rhs, out):
     """out = m^-1 rhs (rhs (n, k)) for a symmetric positive definite m, by m = L L' and two
     triangular solves; False (out untouched) where a pivot is not positive. The reduced normal
     equations are small (the free orientation unknowns): solved here rather than by LAPACK, whose
-    threads contend with the parallel kernels' waiting ones on a 2-core machine (a 12 x 12 solve
-    took 1.7 ms on average instead of 30 us)."""
+    threads contend with the parallel kernels' waiting ones on a 2-core machine
+    (docs/validation.md#cholesky-solve)."""
     n = m.shape[0]
     low = np.zeros((n, n))
     for j in range(n):

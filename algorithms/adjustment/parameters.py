@@ -1,4 +1,4 @@
-"""Orientation unknowns of the block adjustment (methods.md section 4; paper K 3.4, eq. 2-4).
+"""Orientation unknowns of the block adjustment (Kornus et al. 2006, section 3.4, eq. 2-4).
 
 Rigorous SPOT images: correction polynomials of degree 0-3. The exterior ones (ECEF position
 X, Y, Z in m; yaw, pitch, roll in rad) are common to a trajectory, i.e. to all images taken by one
@@ -9,7 +9,7 @@ to the image's by re-expanding about t_c,i: with d = (t_c,i - t_ref) / s,
     sum_j g_j (tau_i + d)^j = sum_k (sum_{j>=k} C(j, k) d^(j-k) g_j) tau_i^k.
 The look-angle corrections (psi_x, psi_y over (p - p_c) / 1000) belong to each image (sensor).
 
-Lagrange model (model="lagrange"; paper H 3, methods.md section 4): per trajectory n orientation
+Lagrange model (model="lagrange"; Heipke et al. 1992, section 3): per trajectory n orientation
 images at times t_0 < .. < t_(n-1), equally spaced from the centre time of the first line its
 images cover to that of the last (n = 4 by default: ~2000 lines apart on a 6000-line SPOT 1-4
 scene). Unknowns: the corrections of X, Y, Z, yaw, pitch, roll at each orientation image
@@ -22,7 +22,7 @@ tau_i are V_i^-1 v with V_i[k, j] = tau_k^j, tau_k = (t_k - t_c,i) / s (`lagrang
 the sensor model is unchanged. More than 4 orientation images would need a piecewise cubic (each
 line from its 4 nearest nodes), which one Corrections polynomial cannot hold: refused
 (InputError). The header positions enter as observations with high relative and low absolute
-accuracy (H 4.1.1): `default_priors` delta_k = 0 +- 1 m, offset = 0 +- 1000 m (bundle.adjust
+accuracy (Heipke et al. 1992, section 4.1.1): `default_priors` delta_k = 0 +- 1 m, offset = 0 +- 1000 m (bundle.adjust
 merges the user's priors over them). Look-angle (and RPC bias) unknowns are the same in both models.
 
 RPC images: an image-space affine bias per image (the RpcModel's `bias`, see sensors/rpc.py):
@@ -46,9 +46,11 @@ MODELS = ("polynomial", "lagrange")
 #: select patterns lagrange:<set> of the Lagrange model
 LAGRANGE_SETS = {"attitude": EXTERIOR[3:], "position": EXTERIOR[:3], "offset": OFFSETS,
                  "all": EXTERIOR + OFFSETS}
-#: orientation images per trajectory (H 3: four, about 2000 lines apart); at most 4 (module docstring)
+#: orientation images per trajectory (Heipke et al. 1992, section 3: four, about 2000 lines apart); at most 4
+#: (module docstring)
 ORIENTATION_IMAGES = 4
-#: prior sigmas (m) of the Lagrange model: header positions good to 1 m relative, 1000 m absolute (H 4.1.1)
+#: prior sigmas (m) of the Lagrange model: header positions good to 1 m relative, 1000 m absolute (Heipke et al.
+#: 1992, section 4.1.1)
 LAGRANGE_PRIORS = {"lagrange:position": 1.0, "lagrange:offset": 1000.0}
 LOOK = ("psi_x", "psi_y")
 BIAS = ("A0", "A1", "A2", "B0", "B1", "B2")
@@ -288,7 +290,7 @@ class OrientationParameters:
         return self.parameters[index].name
 
     def max_effects(self, x, height):
-        """Largest image displacement (px) each free unknown causes on its own (K Table 2's
+        """Largest image displacement (px) each free unknown causes on its own (Kornus et al. 2006, Table 2:
         "maximum effect"): the 3 x 3 grid of image corners, edge midpoints and centre of every
         image it acts on is projected to the ground at `height` with the solution x, then back
         with that unknown alone set to 0."""

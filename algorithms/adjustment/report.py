@@ -1,7 +1,7 @@
-"""Text/HTML report of a bundle adjustment, as K 3.4.3 reports it: the coefficient table of
-K Table 2 (value, sigma, x/sigma, maximum effect in pixels over the image: parameters.max_effects),
-the check point statistics of K Table 3 (dE, dN, dH: n, min, mean, max, RMS, sigma, with the
-theoretical RMS), the tie point heights against a reference DTM of K Table 4 (dh: n, min, mean,
+"""Text/HTML report of a bundle adjustment, as Kornus et al. 2006, section 3.4.3 reports it: the coefficient table of
+Kornus et al. 2006, Table 2 (value, sigma, x/sigma, maximum effect in pixels over the image: parameters.max_effects),
+the check point statistics of Kornus et al. 2006, Table 3 (dE, dN, dH: n, min, mean, max, RMS, sigma, with the
+theoretical RMS), the tie point heights against a reference DTM of Kornus et al. 2006, Table 4 (dh: n, min, mean,
 max, RMS, sigma; tie_heights.py), the residuals per control/check point (residual_vectors.py),
 the removed blunders and the count of measurements still flagged. The same sections render as
 text (the log) and as HTML tables (one self-contained page)."""
@@ -50,7 +50,7 @@ def sections(result, check=None, table=None, critical=CRITICAL_W, heights=None, 
     heights: (TieHeights, description of the reference); vectors: residual_vectors.residual_vectors."""
     out = [Section("Adjustment", notes=[f"sigma_0 = {result.sigma0:.4f} (a priori 1), redundancy "
                                         f"{result.redundancy}, {result.iterations} iteration(s)"])]
-    out.append(Section("Free orientation parameters (K Table 2)",
+    out.append(Section("Free orientation parameters (Kornus et al. 2006, Table 2)",
                        ("parameter", "value", "sigma", "x/sigma", "unit", "max. effect px"),
                        [(n, f"{v:.4f}", f"{s:.4f}", f"{t:.1f}", u, f"{e:.3f}")
                         for n, v, s, t, u, e in coefficient_rows(result)]))
@@ -61,7 +61,7 @@ def sections(result, check=None, table=None, critical=CRITICAL_W, heights=None, 
                         "left in the adjustment"]))
     if table:
         theoretical = np.sqrt(np.mean(check["sigma"] ** 2, axis=0))
-        out.append(Section("Check points (K Table 3)", ("m",) + STATISTICS + ("theor. RMS",),
+        out.append(Section("Check points (Kornus et al. 2006, Table 3)", ("m",) + STATISTICS + ("theor. RMS",),
                            [(key, *_statistics_cells(table[key]), f"{theoretical[k]:.3f}")
                             for k, key in enumerate(("dE", "dN", "dH"))],
                            ["computed - reference; theor. RMS: RMS of the check points' theoretical sigmas"]))
@@ -72,7 +72,8 @@ def sections(result, check=None, table=None, critical=CRITICAL_W, heights=None, 
                                      f"intersection ({', '.join(bad)})")
     if heights is not None:
         tie, reference = heights
-        out.append(Section("Tie point heights against the reference DTM (K Table 4)", ("m",) + STATISTICS,
+        out.append(Section("Tie point heights against the reference DTM (Kornus et al. 2006, Table 4)",
+                           ("m",) + STATISTICS,
                            [("dh", *_statistics_cells(statistics_table({"dh": tie.dh})["dh"]))],
                            [f"adjusted - reference ({reference}); {tie.outside} tie point(s) outside the "
                             "reference left out"]))
@@ -97,8 +98,8 @@ def variance_section(components):
 
 
 def series_section(rows):
-    """Section of control_series.control_point_series (H Table 1)."""
-    return Section("Check points against the number of control points (H Table 1)",
+    """Section of control_series.control_point_series (Heipke et al. 1992, Table 1)."""
+    return Section("Check points against the number of control points (Heipke et al. 1992, Table 1)",
                    ("control points", "check points", "RMS dE", "RMS dN", "RMS dH", "theor. E", "theor. N",
                     "theor. H", "sigma_0"),
                    [(str(len(r.control)), str(r.check), *(f"{v:.3f}" for v in (*r.rms, *r.theoretical)),

@@ -9,7 +9,7 @@ residual|:
   sigmas, the image residuals v and normalised residuals w of the adjustment;
 - check points: d = intersected - reference (bundle.check_points) with their theoretical sigmas;
   their image residuals are those of their own forward intersection with the adjusted models
-  (K 3.5.1): v = computed - measured at the intersected point, redundancy numbers
+  (Kornus et al. 2006, section 3.5.1): v = computed - measured at the intersected point, redundancy numbers
   r_i = 1 - p_i a_i (A'PA)^-1 a_i' (a_i the row of A = d(col, row)/d(E, N, U); they sum to 2k - 3
   over a point's k rays) and w = v / (sigma sqrt(r)).
 

@@ -1,4 +1,4 @@
-"""Automatic selection of the free orientation parameters (paper K 3.4.3; methods.md section 4).
+"""Automatic selection of the free orientation parameters (Kornus et al. 2006, section 3.4.3).
 
 Step 1: the look-angle correction coefficients (degree 0-`look_degree` of psi_x, psi_y of every
 SPOT image; the affine bias of every RPC image) are estimated with the exterior ones fixed. Those
@@ -16,7 +16,7 @@ the orbit is better known than the attitude, and a position drift can mimic an a
 They join the chosen set as free unknowns; those the points cannot determine together with the
 rest are fixed first (find_defects; of each defect the highest-degree exterior coefficient), then
 the insignificant ones are fixed as in step 1. Only exterior coefficients are fixed here: look
-angles and exterior angles (and positions) can stand in for each other, and K's preference is
+angles and exterior angles (and positions) can stand in for each other, and Kornus et al.'s preference is
 the look angles. All coefficients are estimated jointly and the final adjustment carries the full
 covariance. (K held the look-angle set fixed at its step-1 values instead; then a trajectory
 drift, whose image-wise constant parts the look-angle constants have already absorbed, could
@@ -185,8 +185,9 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
     raises what adjust raises (a DefectError when even the look-angle constants cannot be
     determined)."""
     if adjust_kwargs.get("model", "polynomial") != "polynomial":
-        raise InputError("automatic parameter selection (K 3.4.3) is for the correction polynomial model; with "
-                         "the Lagrange model give the free set (e.g. lagrange:attitude, lagrange:offset)")
+        raise InputError("automatic parameter selection (Kornus et al. 2006, section 3.4.3) is for the correction "
+                         "polynomial model; with the Lagrange model give the free set (e.g. lagrange:attitude, "
+                         "lagrange:offset)")
     fb = progress.ensure(feedback)
     lines = []
 

@@ -1,4 +1,4 @@
-"""Heights of the adjusted tie points against a reference DTM (K 3.4.3.1, Table 4):
+"""Heights of the adjusted tie points against a reference DTM (Kornus et al. 2006, section 3.4.3.1, Table 4):
 dh = adjusted ellipsoidal height - reference height, the reference interpolated bilinearly at the
 point's lon/lat (dem.Dem.height). A reference in EGM96 orthometric heights H (SRTM) becomes
 ellipsoidal at the point, h = H + N (control_points.orthometric_to_ellipsoidal)."""

@@ -1,4 +1,4 @@
-"""Three-image matching combinations and point groups (paper K section 3.3, methods.md section 3).
+"""Three-image matching combinations and point groups (Kornus et al. 2006, section 3.3).
 
 Images in combination order: 0 = the reference (nadir, HRG), 1 = forward (HRS1), 2 = backward
 (HRS2). Combinations:
@@ -13,11 +13,11 @@ Groups: 1 = two-ray points matched in (a) only or (b) only; 2 = three-ray points
 combinations ((a) and (b), or (b) and (c)); 3 = three-ray points matched in all three, whose
 doubly determined image-1 coordinates (from (a) and (c)) are averaged. The deviations from the
 average, dx = (x1_a - x1_c) / 2 and dy likewise, are tested against 3 sigma of all such
-deviations, separately in x and y as in K. Sigma is robust: 1.4826 * median(|d|), the MAD about
+deviations, separately in x and y as in Kornus et al. 2006. Sigma is robust: 1.4826 * median(|d|), the MAD about
 zero (the deviations from a two-value average are +-d by construction, so zero is their centre),
 floored at `min_sigma` px so that perfectly consistent data keep all their points. Group 3
 points failing the test are dropped (inconsistent: one of the two image-1 matches is wrong, and
-which one is unknown); their count is kept in `stats` for the summary (K Table 1). Points
+which one is unknown); their count is kept in `stats` for the summary (Kornus et al. 2006, Table 1). Points
 matched only in (c) do not exist: (c) runs on transfer points only. A two-image block gives
 combination (a) and group 1 only. match_block then refines the group 3 points by MPGC in both
 search images at once (refinement.py; `refine`, on by default)."""
@@ -295,7 +295,7 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
 
 
 def summary_rows(points, rho_dem=0.7):
-    """Counts per group like K Table 1: a list of (label, value)."""
+    """Counts per group like Kornus et al. 2006, Table 1: a list of (label, value)."""
     p = points.points
     g1, g2, g3 = (p["group"] == 1), (p["group"] == 2), (p["group"] == 3)
     high = p["rho_min"] > rho_dem

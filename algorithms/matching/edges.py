@@ -1,4 +1,4 @@
-"""Edges for the multi-primitive matcher (Z section 3.3): Canny edge pixels, linked into chains,
+"""Edges for the multi-primitive matcher (Zhang and Gruen 2004, section 3.3): Canny edge pixels, linked into chains,
 matched edgel by edgel along quasi-epipolar segments with the figural continuity constraint.
 
 - `canny`: Gaussian smoothing (normalised convolution, so nodata NaN does not bleed in), Sobel
@@ -13,7 +13,7 @@ matched edgel by edgel along quasi-epipolar segments with the figural continuity
   rho >= 0.5 and the gradient direction (modulo 2 pi) agrees within 40 degrees (Z steps a, b), at
   most 5 (none for edges within 30 degrees of parallel to the quasi-epipolar line); then per chain
   the candidate sequence that minimises unary cost + disparity jumps (dynamic programming, edgels
-  may be skipped at a cost) replaces Z's relaxation (figural continuity). An edgel is ok
+  may be skipped at a cost) replaces Zhang and Gruen's relaxation (figural continuity). An edgel is ok
   when its chosen rho >= rho_min and it agrees within 1 px with a chosen neighbour on its chain.
 Positions are GDAL image coordinates (pixel (i, j) has its centre at (j + 0.5, i + 0.5))."""
 import math

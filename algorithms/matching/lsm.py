@@ -1,4 +1,4 @@
-"""Least-squares matching (methods.md section 3; H section 2, K section 3.3).
+"""Least-squares matching (Heipke et al. 1992, section 2, Kornus et al. 2006, section 3.3).
 
 Model: a template of image 1 centred at (x1, y1) (offsets k, l in px of image 1) is matched to
 image 2 under an affine geometric transformation
@@ -470,7 +470,7 @@ def to_records(x1, y1, out):
 
 
 def accepted(records, status, params=None):
-    """Boolean mask of the points meeting the acceptance criteria (methods.md section 3):
+    """Boolean mask of the points meeting the acceptance criteria:
     status 0, rho > rho_min, semi-major axis < max_ellipse, shift < max_shift,
     iterations < max_iterations."""
     params = params or LsmParams()

@@ -1,68 +1,35 @@
-"""Multi-photo geometrically constrained least-squares matching, MPGC (Gruen 1985, Baltsavias
-1991; paper Z's final refinement, methods.md section 6).
+"""Multi-photo geometrically constrained least-squares matching, MPGC (Gruen 1985; Baltsavias 1991),
+the final refinement of Zhang and Gruen (2004).
 
 A template of the reference image (0) centred at (x0, y0) is matched into n >= 1 search images at
-once. Per search image i the grey-level model of pairwise LSM (lsm.py): f(k, l) = r0_i + r1_i
-g_i(x_i + a1_i k + a2_i l, y_i + a4_i k + a5_i l), Keys-cubic resampling, the Jacobian from the
-template gradients mapped through the affine. Unknowns: the object point X (dE, dN, dU in metres
-from a linearisation point) and per search image 8 (the shifts x_i, y_i, 4 shape, 2 radiometric).
+once. Per search image i the grey-level model of LSM (lsm.py), f(k, l) = r0_i + r1_i g_i(x_i + a1_i k
++ a2_i l, y_i + a4_i k + a5_i l), Keys-cubic resampling. Unknowns: the object point X (dE, dN, dU in
+metres from a linearisation point) and 8 per search image (shifts, 4 shape, 2 radiometric).
 
-Geometric constraint, formulation (a) of Baltsavias: the shifts stay free and the sensor models
-enter as weighted observations (sigma_geometry px, the orientation's precision),
-    x_i - f_i(X) = v   (search images, 2 each),     x0 - f_0(X) = v   (the reference ray, 2),
-linearised with the models' partials f_i(X) ~ f_i(X_lin) + J_i dX (J_i = d(col, row)/d(E, N, U),
-px/m). So X has one free direction along the reference ray plus what the search images add; a
-small sigma_geometry approaches the hard constraint (b) x_i = f_i(X) (matching along the epipolar
-lines), a larger one tolerates orientation errors. The linearisation point is moved to the
-estimate and the match re-run (warm) until the models' projections of X agree with the
-linearisation to LINEARISATION_TOLERANCE px.
+Geometric constraint, Baltsavias' formulation (a): the shifts stay free and the sensor models enter
+as observations of weight 1 / sigma_geometry^2, x_i - f_i(X) = v (2 per search image) and x0 - f_0(X)
+= v (the reference ray), linearised with J_i = d(col, row)/d(E, N, U). A small sigma_geometry
+approaches the hard constraint x_i = f_i(X); a larger one tolerates orientation errors. The
+linearisation point follows the estimate until the projections agree to LINEARISATION_TOLERANCE px.
 
-Weights: the grey-level equations of image i get 1 / (s^2 (1 + rep_i)) (template noise plus image-i
-noise, equal noise s in every image, rep_i = 1 / |det A_i| when image i is coarser, as in lsm.py),
-independent of r1 (weights that grow as r1 -> 0 let f = constant win on weak texture); times a
-robust weight per sample and image, Tukey's biweight w = (1 - (v / (c s_i))^2)^2 (0 beyond c s_i, c
-= TUKEY_C = 4.685) of its residual v against image i's weighted residual RMS s_i of the previous
-iteration. The first iteration is plain least squares (with the support weights below, where set),
-the next REWEIGHTINGS = 3 re-weight, later ones keep the weights (re-weighting to the end left 10 %
-of the simulated field points unconverged at 10 iterations). Samples that see another surface
-(canopy or a roof inside a field's template) so stop pulling the match: on the simulated triplet the
-10 m DSM RMS of the coarse-to-fine points fell from 1.82 to 1.70 m on bare fields and from 2.32 to
-2.27 m on crops (test_hierarchical.py). s^2 is re-estimated every iteration from the residuals,
-sum_i v_i'W_i v_i / (1 + r1_i^2 kappa_i) / sum_i (sum w_i - 8), kappa_i the mean squared
-interpolation weight (lsm.py); sigma0 = s (DN). The geometric observations get 1 / sigma_geometry^2.
+Weights of image i's grey-level equations: 1 / (s^2 (1 + rep_i)) (rep_i = 1 / |det A_i| where image i
+is coarser, as in lsm.py), times Tukey's biweight (1 - (v / (c s_i))^2)^2, c = TUKEY_C (mpgc_kernels.py), against image
+i's weighted residual RMS s_i of the previous iteration: plain least squares first, REWEIGHTINGS
+re-weighted iterations, then fixed weights (docs/validation.md#mpgc-spot-triplet). s^2 is re-estimated
+every iteration; sigma0 = s (DN). Optional support weights (Yoon and Kweon 2006) multiply them per
+template sample: exp(-(k^2 + l^2) / (2 centre_sigma^2)) exp(-(m(k, l) - m(0, 0))^2 / (2 (similarity
+s_f)^2)), m the mean over SUPPORT_BOX^2 samples (mpgc_kernels.py), s_f the template's standard deviation (a factor is 1
+where its parameter is 0); off by default (docs/validation.md#mpgc-support-weights).
 
-Support weights (optional; adaptive support weights after Yoon and Kweon 2006): a fixed weight per
-template sample (k, l) that multiplies the Tukey weights from the first iteration on,
-    exp(-(k^2 + l^2) / (2 centre_sigma^2)) exp(-(m(k, l) - m(0, 0))^2 / (2 (similarity s_f)^2)),
-m the template's mean grey value over SUPPORT_BOX^2 samples around (k, l), s_f the template's
-standard deviation (a factor is 1 where its parameter is 0). The match then measures the surface
-around the template centre: the periphery, whose relief departs most from the centre's plane, and
-samples of another brightness (the forest or the roofs beside a field, the field beside a roof)
-pull less. The precision's sandwich holds for any fixed weights; the geometric test t assumes
-weights inverse to the variances and comes out smaller with them (0.48 on the planar patches of
-test_mpgc.py with 5 px and 1.0). Off by default; the refinement of region growing's three-ray
-points uses them where GrowParams.support_weights is set (refinement.py).
+Precision: the n equations of a template sample share its noise, covariance s^2 (1 1' + diag(r1_i^2
+rep_i)); the unknowns' covariance is the sandwich N^-1 (A'P C P A) N^-1. From it: error ellipses of
+the search positions (px) and sigmas of E, N, U (m). Geometric test t = v'Pv / r over the 2 (n + 1)
+geometric observations (r their redundancy), about 1 for a consistent match, large when the rays do
+not meet (a wrong match or orientation); support weights make it smaller (docs/validation.md#mpgc-precision).
 
-Precision: the n equations of one template sample share the template's noise, so their
-covariance is s^2 (1 1' + diag(r1_i^2 rep_i)), not the diagonal the weights assume; the
-covariance of the unknowns is the sandwich N^-1 (A'P C P A) N^-1 (C that covariance, geometry a
-priori). On the simulated patches (forward and backward images) it is calibrated, where treating
-the equations as independent reported 1.4x pessimistic sigmas: the template's noise moves the
-two epipolar positions in opposite directions and cancels in the object point (it adds up where
-the search images look the same way).
-From it: error ellipses of the search positions (px), sigma of E, N, U (m). Geometric
-consistency: the residuals of the 2 (n + 1) geometric observations at the solution, their RMS
-(px) and the test t = v'Pv / r (r the sum of their redundancy numbers 1 - a'N^-1 a /
-sigma_geometry^2, their share of the redundancy, small for a tight constraint), about 1 for a
-consistent match (1.3 on the simulated patches: the weights ignore the shared template noise),
-large when the rays of the matched positions do not meet: a wrong match in one image or wrong
-orientation.
-
-Reliability in [0, 1]: 0 where the match failed (status != OK) or moved more than max_shift px
-from its approximation in any image; else min_i rho_i * min(1, max_ellipse / largest semi-major
-axis) * min(1, max_geo_test / t), i.e. the worst correlation, lowered where the ellipse or the
-geometric test fail. Failed points keep their approximate values (object point as given, image
-positions its projections) with reliability 0."""
+Reliability in [0, 1]: 0 where the match failed or moved more than max_shift px; else min_i rho_i *
+min(1, max_ellipse / largest semi-major axis) * min(1, max_geo_test / t). Failed points keep their
+approximate values with reliability 0."""
 from dataclasses import dataclass
 
 import numpy as np

@@ -7,10 +7,9 @@ vary across a scene. Each search image gets an affine image-space bias,
 f_i the model's projection, X_p the least-squares intersection of the points' bias-corrected
 positions, fitted by least squares with the residuals beyond 3 robust sigmas left out and iterated
 `BIAS_ITERATIONS` times. The reference image's residual is moved to the search images (the last
-term), so the common along-track part, which the rays cannot see, does not drift. On the 84 883
-group 3 points of the simulated 20 km triplet (SceneConfig()) a constant shift per search image left
-the tiles' residual medians at 0.062 px RMS in the worst image coordinate (up to 0.09 px, across
-track: the look-angle errors); the affine maps leave 0.003 px. The corrected models are
+term), so the common along-track part, which the rays cannot see, does not drift. An affine map,
+not a constant shift, because the relative errors vary across the scene
+(docs/validation.md#orientation-bias). The corrected models are
 hierarchical_level.ShiftedModels; `systematic`, the RMS of the residuals' medians in tiles of the
 points' extent in the reference image (the worst image coordinate), measures the orientation's
 consistency after the correction (refinement.py weights MPGC's geometric observations by it, so that

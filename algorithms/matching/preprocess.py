@@ -1,4 +1,4 @@
-"""Image preprocessing for the multi-primitive matcher (Z section 3.1): edge-preserving smoothing
+"""Image preprocessing for the multi-primitive matcher (Zhang and Gruen 2004, section 3.1): edge-preserving smoothing
 (Saint-Marc, Chen & Medioni 1991), then the Wallis filter, then an image pyramid reducing the
 resolution by a factor 3 per level. Everything works on float32 copies, so 12/16-bit input (uint16)
 keeps its full depth (float32 holds every integer up to 2^24 exactly); NaN marks nodata and stays
@@ -89,7 +89,7 @@ def _wallis_kernel(img, out, h, shift, mf, sf, c, b):
 
 
 def wallis(img, window=21, target_mean=127.0, target_std=50.0, contrast=0.8, brightness=0.9):
-    """Wallis filter (Z section 3.1 names it without an equation; this is the usual form):
+    """Wallis filter (Zhang and Gruen 2004, section 3.1 names it without an equation; this is the usual form):
 
         g' = (g - m_w) r1 + r0,   r1 = c s_f / (c s_w + (1 - c) s_f),   r0 = b m_f + (1 - b) m_w
 
@@ -223,8 +223,8 @@ def _check_factor(factor):
 
 
 def pyramid(img, levels, factor=3):
-    """Image pyramid (Z section 3.1): [level 0 = the input as float32, level 1, ... level levels - 1],
-    each level the mean over factor x factor blocks of the level below (module docstring for the
+    """Image pyramid (Zhang and Gruen 2004, section 3.1): [level 0 = the input as float32, level 1, ... level
+    levels - 1], each level the mean over factor x factor blocks of the level below (module docstring for the
     pixel convention); sizes ceil(size / factor) per level."""
     _check_factor(factor)
     if int(levels) != levels or levels < 1:

@@ -1,5 +1,5 @@
-"""MPGC refinement of region growing's three-ray points (group 3; paper Z's final step applied to
-paper K's combinations, methods.md sections 3 and 6).
+"""MPGC refinement of region growing's three-ray points (group 3): the final step of Zhang and Gruen
+(2004) applied to the combinations of Kornus et al. (2006).
 
 Group 3 points have a template position in the reference image and matched positions in both
 search images: the forward one the average of combinations (a) and (c), the backward one from (b).
@@ -10,31 +10,18 @@ kept, so transfer points keep their first-image coordinates.
 
 Orientation: the search images' models are corrected by affine image biases fitted to the points'
 rays (orientation_bias.py) and the geometric observations weighted by sigma_geometry =
-max(SIGMA_GEOMETRY, 2 x the corrected orientation's measured inconsistency), or MPGC's default
+max(SIGMA_GEOMETRY, 2 x the corrected orientation's inconsistency), or MPGC's default
 (MpgcParams, 0.2 px) where no tile holds enough points to measure it. Fewer than MIN_POINTS
 group 3 points (6 bias parameters per search image) are left as they are. Template, thresholds
 and iterations are region growing's (GrowParams), and so is the resolution adaptation.
 
 A point whose MPGC result passes mpgc.accepted takes MPGC's search positions, correlation and
-error ellipses and the flag REFINED; the others keep region growing's positions. On the simulated
-3 km triplet (supplied models; tests/algorithms/test_combinations.py) 1310 of 1328 group 3 points
-are refined and the field points' RMS against the point truth falls from 0.192 / 0.176 px (forward
-/ backward) to 0.144 / 0.145 px (0.128 / 0.129 px with the support weights below); with a constant
-shift instead of the affine maps and sigma_geometry 0.2 px it was 0.167 / 0.172 px. The 10 m DSM of
-the points on bare fields goes from 1.79 to 1.64 m RMS (1.62 m with the support weights;
-test_hierarchical.py).
+error ellipses and the flag REFINED; the others keep region growing's positions.
 
 With GrowParams.support_weights (off by default; on in the DEM pipeline model) MPGC's support
-weights (mpgc.py; SUPPORT_CENTRE, SUPPORT_SIMILARITY) make each match measure the surface around its
-template centre: of the points on textured open ground of the 12 km triplet 84 % lie within half a
-template of forest, city or water, whose heights the uniform window averaged in. There
-(test_end_to_end.py, STEP 10) the group-3 points' height RMS against the true DSM fell from 2.70 to
-2.26 m (interior of the fields 1.25 -> 1.16 m); on the 3 km triplet's fields the RMS against the
-point truth from 0.144 / 0.145 to 0.128 / 0.129 px (test_combinations.py). Measured alternatives
-(12 km, STEP 10, RMS textured open / interior, m): uniform 2.70 / 1.25; centre 5 px alone 2.39 /
-1.12, 3 px 2.35 / 1.37; similarity alone (prototype with a fixed 20 DN scale) 2.49 / 1.25; centre
-5 px with similarity 0.6: 2.27 / 1.20; uniform MPGC windows of 13 or 9 px 2.57 / 1.33 and 2.70 /
-1.52."""
+weights (SUPPORT_CENTRE, SUPPORT_SIMILARITY) make each match measure the surface around its
+template centre rather than average in the forest, city or water beside a field.
+Figures: docs/validation.md#group3-accuracy, docs/validation.md#mpgc-support-weights."""
 from dataclasses import fields
 
 import numpy as np
@@ -47,9 +34,8 @@ from .params import GrowParams, LsmParams
 from .points import REFINED
 from .seeds import resolve_height_range
 
-#: px: sigma of the geometric observations where the corrected orientation is consistent (module
-#: docstring; on the 3 km triplet's fields, with a constant-shift orientation, 0.1 / 0.05 / 0.03 px gave
-#: 0.154 / 0.146 / 0.142 px)
+#: px: sigma of the geometric observations where the corrected orientation is consistent
+#: (docs/validation.md#group3-accuracy)
 SIGMA_GEOMETRY = 0.05
 #: fewest group 3 points the refinement runs on
 MIN_POINTS = 50

@@ -1,4 +1,4 @@
-"""Resolving the NCC candidates of the coarse-to-fine matcher (paper Z; methods.md section 6).
+"""Resolving the NCC candidates of the coarse-to-fine matcher (Zhang and Gruen 2004).
 
 Hypotheses per point: with two search images, every pair of candidates (one per image) whose
 heights agree within `agree` m (the third image's check: both rays meet the reference ray at one

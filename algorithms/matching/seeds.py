@@ -1,4 +1,4 @@
-"""Seed points for region growing (methods.md section 3; H section 2).
+"""Seed points for region growing (Heipke et al. 1992, section 2).
 
 Automatic seeds: interest points (Foerstner) of image 1, each searched in image 2 by normalised
 cross-correlation along the path the two sensor models predict over the height range (image 1 ray

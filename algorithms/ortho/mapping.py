@@ -1,4 +1,5 @@
-"""Output cell -> image (col, row) for the indirect method (H 4.1) on a coarse grid, with a stated bound.
+"""Output cell -> image (col, row) for the indirect method (Heipke et al. 1992, section 4.1) on a coarse grid,
+with a stated bound.
 
 The exact chain of a cell centre (x, y) of the output grid is
 

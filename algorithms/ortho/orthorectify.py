@@ -1,6 +1,6 @@
-"""Orthoimage by the indirect method (H 4.1): for every output cell its ground point (x, y; h from the
-DEM) is mapped into the image with any sensor model (mapping.py: coarse grid with a stated error bound)
-and the image is resampled there (resampling.py), optionally with occluded cells as nodata
+"""Orthoimage by the indirect method (Heipke et al. 1992, section 4.1): for every output cell its ground point
+(x, y; h from the DEM) is mapped into the image with any sensor model (mapping.py: coarse grid with a stated
+error bound) and the image is resampled there (resampling.py), optionally with occluded cells as nodata
 (occlusion.py).
 
 The output is processed in square tiles; per tile only the image window it needs is read (GDAL), so a

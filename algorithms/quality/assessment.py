@@ -1,7 +1,7 @@
 """The accuracy assessment as one call: dh of a point cloud and/or a DEM against a reference
 (height_differences), each value labelled with its class (a class raster or polygons, classes.py)
-and its slope class (flat/moderate vs mountainous, K 3.7), ready for the tables and figures of
-report.py."""
+and its slope class (flat/moderate vs mountainous, Kornus et al. 2006, section 3.7), ready for the tables and
+figures of report.py."""
 from dataclasses import dataclass
 
 import numpy as np

@@ -1,7 +1,7 @@
-"""Classes of the assessed points and cells (Z 4.2: open / city / trees / alpine; K 3.7: flat vs
-mountainous): from a class raster (e.g. the simulator's classes.tif, names in its CLASS_<n>
-metadata or the band's category names), from polygons with a class field, or from the slope of the
-reference. Class 0 (and the raster's nodata) means "no class"."""
+"""Classes of the assessed points and cells (Zhang and Gruen 2004, section 4.2: open / city / trees / alpine;
+Kornus et al. 2006, section 3.7: flat vs mountainous): from a class raster (e.g. the simulator's classes.tif,
+names in its CLASS_<n> metadata or the band's category names), from polygons with a class field, or from the
+slope of the reference. Class 0 (and the raster's nodata) means "no class"."""
 import numpy as np
 from matplotlib.path import Path
 from osgeo import ogr

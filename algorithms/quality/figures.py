@@ -1,6 +1,6 @@
 """Figures of height differences as PNG bytes, drawn with matplotlib's Agg canvas (no display, no
-pyplot state): histograms of dh per group or class (K Figs. 4, 7) and a colour-coded dh map
-(K Fig. 5) with a diverging colormap centred on 0 and symmetric limits +-Q95(|dh|)."""
+pyplot state): histograms of dh per group or class (Kornus et al. 2006, Figs. 4, 7) and a colour-coded dh map
+(Kornus et al. 2006, Fig. 5) with a diverging colormap centred on 0 and symmetric limits +-Q95(|dh|)."""
 import io
 
 import numpy as np

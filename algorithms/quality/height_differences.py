@@ -1,13 +1,14 @@
 """Height differences dh = assessed height - reference height (m, both ellipsoidal WGS 84) of object
-points and of DEM cells against a reference DTM/DSM raster in any CRS (K 3.6-3.7, Z 4.2-4.3).
+points and of DEM cells against a reference DTM/DSM raster in any CRS (Kornus et al. 2006, section 3.6-3.7,
+Zhang and Gruen 2004, section 4.2-4.3).
 
 Points: the reference is interpolated bilinearly between its cell centres at each point, in the
 reference's own CRS (the points are transformed to it; dem.Dem.height on the window of cells
 around the points), NaN next to nodata. DEM cells: the reference is resampled onto the DEM's grid
 and CRS with gdalwarp: the average of the reference cells inside a DEM cell where the reference is
 finer, bilinear otherwise. Vertical datum per input: "ellipsoidal" or "orthometric" (EGM96:
-h = H + N, adjustment.control_points.orthometric_to_ellipsoidal). The slope (K 3.7: flat/moderate
-vs mountainous) is the reference's (rasters.slope_degrees): at the points, or on the DEM grid.
+h = H + N, adjustment.control_points.orthometric_to_ellipsoidal). The slope (Kornus et al. 2006, section 3.7:
+flat/moderate vs mountainous) is the reference's (rasters.slope_degrees): at the points, or on the DEM grid.
 
 The reference is read by the window of its cells under the assessed data, its nodata and a declared
 void value (`reference_nodata`) as NaN; implausible heights among those cells (dem.implausible_heights,

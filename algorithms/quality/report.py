@@ -1,8 +1,8 @@
 """Tables, log text, CSV and the self-contained HTML report of an accuracy assessment.
 
-Tables mirror the papers: K Tables 4, 6, 7 (N, Min, Mean, Max, RMS, sigma of dh; per point group
+Tables mirror the papers: Kornus et al. 2006, Tables 4, 6, 7 (N, Min, Mean, Max, RMS, sigma of dh; per point group
 as Table 6, groups 3, 2, 1), with the robust extras NMAD and Q95(|dh|) (statistics.py) as last
-columns, and Z Tables 2-3 (area, number of compared points, mean, RMSE, % of |dh| < 2 m, 2-5 m,
+columns, and Zhang and Gruen 2004, Tables 2-3 (area, number of compared points, mean, RMSE, % of |dh| < 2 m, 2-5 m,
 > 5 m) over nested class sets (statistics.cumulative). The HTML page embeds its figures as base64
 PNG (figures.py): it references no other file."""
 import base64
@@ -35,14 +35,15 @@ def _z_row(label, s):
 def tables(assessed):
     """[(table name, [(label, Stats)], form "K" or "Z")] of one Assessed."""
     d = assessed.differences
-    out = [("all (K Table 4)", [("dh", summarize(d.dh))], "K")]
+    out = [("all (Kornus et al. 2006, Table 4)", [("dh", summarize(d.dh))], "K")]
     if d.group is not None:
-        out.append(("per point group (K Tables 6, 7)", by_label(d.dh, d.group, GROUP_NAMES), "K"))
+        out.append(("per point group (Kornus et al. 2006, Tables 6, 7)", by_label(d.dh, d.group, GROUP_NAMES), "K"))
     if assessed.classes is not None:
         out.append(("per class", by_label(d.dh, assessed.classes, assessed.class_names), "K"))
-        out.append(("nested classes (Z Tables 2-3)", cumulative(d.dh, assessed.classes, assessed.class_names), "Z"))
-    out.append(("flat/moderate vs mountainous (K 3.7)", by_label(d.dh, assessed.terrain, assessed.terrain_names),
-                "K"))
+        out.append(("nested classes (Zhang and Gruen 2004, Tables 2-3)",
+                    cumulative(d.dh, assessed.classes, assessed.class_names), "Z"))
+    out.append(("flat/moderate vs mountainous (Kornus et al. 2006, section 3.7)",
+                by_label(d.dh, assessed.terrain, assessed.terrain_names), "K"))
     return out
 
 

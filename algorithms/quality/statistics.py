@@ -1,5 +1,5 @@
-"""Statistics of height differences dh (m): K Tables 3, 4, 6, 7 (N, min, mean, max, RMS, sigma;
-adjustment.bundle.statistics_table, sigma with n - 1), the shares of Z Tables 2-3 (|dh| < 2 m,
+"""Statistics of height differences dh (m): Kornus et al. 2006, Tables 3, 4, 6, 7 (N, min, mean, max, RMS, sigma;
+adjustment.bundle.statistics_table, sigma with n - 1), the shares of Zhang and Gruen 2004, Tables 2-3 (|dh| < 2 m,
 2 m <= |dh| <= 5 m, |dh| > 5 m, in %) and the robust extras NMAD = 1.4826 median(|dh - median(dh)|)
 and the 95 % quantile of |dh| (linear interpolation between order statistics, numpy's default)."""
 from dataclasses import dataclass
@@ -53,8 +53,8 @@ def by_label(dh, labels, names):
 
 
 def cumulative(dh, labels, names):
-    """Z Tables 2-3: [(name, Stats)] of nested class sets, all classes first, then the class with the
-    largest RMS left out, and so on down to the best class alone ("open+city+trees", ...)."""
+    """Zhang and Gruen 2004, Tables 2-3: [(name, Stats)] of nested class sets, all classes first, then the class
+    with the largest RMS left out, and so on down to the best class alone ("open+city+trees", ...)."""
     dh, labels = np.asarray(dh, float), np.asarray(labels)
     single = {value: summarize(dh[labels == value]) for value in names if np.any(labels == value)}
     order = sorted(single, key=lambda v: single[v].rms)

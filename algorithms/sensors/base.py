@@ -1,4 +1,4 @@
-"""The sensor-model interface every model implements (DESIGN.md, "Sensor model interface").
+"""The sensor-model interface every model implements.
 
 Image coordinates are (col, row) in GDAL's convention: (0, 0) is the top-left corner of the first
 pixel. Ground coordinates are WGS 84 longitude/latitude in degrees and ellipsoidal height in

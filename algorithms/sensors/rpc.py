@@ -4,26 +4,20 @@ With ground coordinates normalised as
 
     L = (lon - LONG_OFF) / LONG_SCALE,  P = (lat - LAT_OFF) / LAT_SCALE,  H = (h - HEIGHT_OFF) / HEIGHT_SCALE
 
-the normalised image coordinates are ratios of 20-term cubic polynomials
-
-    s = SAMP_NUM(L, P, H) / SAMP_DEN(L, P, H),   l = LINE_NUM(L, P, H) / LINE_DEN(L, P, H)
-
-with the terms in the RPC00B order (NITF STDI-0002, GDAL's RPCComputeTerms):
-
-    1 L P H LP LH PH L^2 P^2 H^2 PLH L^3 LP^2 LH^2 L^2P P^3 PH^2 L^2H P^2H H^3
-
-and the image point is (SAMP_OFF + s SAMP_SCALE, LINE_OFF + l LINE_SCALE) with RPC00B's pixel
-convention: the centre of the first pixel is (0, 0). This model works in GDAL's convention
-(DESIGN.md: the first pixel's top-left corner is (0, 0)) on the raster actually opened, a crop whose
-top-left corner lies at (col0, row0) of the image the RPC describes:
+the normalised image coordinates are ratios of 20-term cubic polynomials, s = SAMP_NUM / SAMP_DEN,
+l = LINE_NUM / LINE_DEN of (L, P, H), with the terms in the RPC00B order (NITF STDI-0002, GDAL's
+RPCComputeTerms): 1 L P H LP LH PH L^2 P^2 H^2 PLH L^3 LP^2 LH^2 L^2P P^3 PH^2 L^2H P^2H H^3.
+RPC00B puts the centre of the first pixel at (0, 0); this model works in GDAL's convention (the first
+pixel's top-left corner is (0, 0)) on the raster actually opened, a crop whose top-left corner lies at
+(col0, row0) of the image the RPC describes:
 
     col = SAMP_OFF + s SAMP_SCALE + 0.5 - col0,   row = LINE_OFF + l LINE_SCALE + 0.5 - row0
 
-(the + 0.5 is what GDAL's RPC transformer adds too). The conversion happens once, when the
-model is built; the readers and writers are in rpc_io.py.
+(the + 0.5 is what GDAL's RPC transformer adds too). The conversion happens once, when the model is
+built; the readers and writers are in rpc_io.py.
 
 An adjusted model carries an image-space affine bias correction (the block adjustment's RPC bias
-compensation, methods.md section 4): with u = (col - c_c) / 1000, v = (row - r_c) / 1000 about the
+compensation, Grodecki and Dial 2003): with u = (col - c_c) / 1000, v = (row - r_c) / 1000 about the
 raster centre (c_c, r_c) = size / 2,
 
     col' = col + A0 + A1 u + A2 v,   row' = row + B0 + B1 u + B2 v,   bias = (A0, A1, A2, B0, B1, B2).
@@ -32,10 +26,9 @@ RPC files cannot hold it: an adjusted model is exported by fitting new RPCs to i
 
 Validity domain: the normalised cube L, P, H in [-1, 1]. Every RPC is checked when it is read
 (RpcCoefficients.from_fields, which all readers and the model file pass through) on a grid of
-DOMAIN_NODES^3 points of that cube: both denominators must keep one sign (neither vanishes: no pole
-inside the domain, where a ratio would jump by any amount) and the image coordinates must be finite.
-A pole between two grid points closer than the grid step is not seen.
-"""
+DOMAIN_NODES^3 points of that cube: both denominators must keep one sign (no pole inside the domain)
+and the image coordinates must be finite. A pole between two grid points closer than the grid step is
+not seen."""
 import math
 from dataclasses import dataclass
 

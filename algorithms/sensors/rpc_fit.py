@@ -1,4 +1,4 @@
-"""RPC00B fitted to any sensor model over a terrain-independent cube (paper K 3.5.2, methods.md 5).
+"""RPC00B fitted to any sensor model over a terrain-independent cube (Kornus et al. 2006, section 3.5.2).
 
 Points: the cube, an image grid (default 11 x 11 over the whole image, pixel edges 0 .. cols,
 0 .. rows) times height levels (default 11 over the height range), ground positions from the
@@ -27,7 +27,7 @@ the validation points take no part in that choice (only a candidate whose denomi
 there too is rejected), so their errors are independent.
 
 surface.intersection.height_differences compares object points intersected with the RPCs and with
-the rigorous models (K Table 5)."""
+the rigorous models (Kornus et al. 2006, Table 5)."""
 import math
 import os
 from dataclasses import dataclass, fields

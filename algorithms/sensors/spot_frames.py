@@ -12,12 +12,11 @@ A detector's line of sight goes through three frames:
   change of pitch (about X) and roll (about Y); yaw is applied first.
 - ECEF (O3): u3 = R32 u2, R32 = [X2 Y2 Z2] (columns).
 
-So the ground point is X = P + mu * R32 R21 u1 (methods.md section 1).
+So the ground point is X = P + mu * R32 R21 u1.
 
-Verified on the real SPOT 5 HRG scene (shared/data/spot5_hrg1_2005): with these conventions the
-producer's four corners are reproduced to 0.05 m; flipping the sign of yaw, roll or pitch puts them
-90 m, 270 m or 1.2 km off, applying yaw last (Rz on the left) 0.6 m
-(tests/real/test_spot_dimap.py::test_frame_convention_is_the_one_the_producer_used).
+These are the conventions the producer used: its scene corners are reproduced, and flipping a sign or
+the order of the rotations is not (docs/validation.md#spot-producer-corners;
+tests/real/test_spot_dimap.py::test_frame_convention_is_the_one_the_producer_used).
 
 Rotations are returned as row-major 9-tuples (no allocation inside numba kernels); `r21` and
 `r32` give numpy 3 x 3 arrays for Python callers (the simulator, tests). Kernels use numba's

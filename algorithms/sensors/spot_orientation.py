@@ -21,7 +21,7 @@ INSTRUMENTS = {1: ("HRV",), 2: ("HRV",), 3: ("HRV",), 4: ("HIR", "HRVIR"), 5: ("
 
 @dataclass
 class Corrections:
-    """Correction polynomials of methods.md section 4 (paper 000 eq. 2-4); zeros = none.
+    """Correction polynomials (Kornus et al. 2006, eq. 2-4); zeros = none.
 
     position[k, j]: coefficient j (degree j) of the correction of ECEF axis k (m) over the
     normalised time tau = (t - t_centre) / time_scale, t_centre = SpotOrientation.centre_time; the

@@ -2,8 +2,8 @@
 truth = supplied + correction polynomials, so an adjustment of the supplied orientation should
 estimate exactly these coefficients.
 
-- Look angles: the correction polynomials paper 000 (K) estimated, Table 2, with random signs.
-  K's "x" coefficients act in the scan direction, i.e. on psi_y (Corrections.look[1]); its "y"
+- Look angles: the correction polynomials Kornus et al. 2006 estimated, Table 2, with random signs.
+  Kornus et al.'s "x" coefficients act in the scan direction, i.e. on psi_y (Corrections.look[1]); its "y"
   ones in the flight direction, on psi_x (look[0]). SPOT 1-4 arrays keep degree <= 1 (their
   DIMAP look-angle table is linear).
 - Exterior orientation, common to the trajectory of a pass (so the images of one pass share it):
@@ -15,7 +15,7 @@ import numpy as np
 
 from ..sensors.spot_orientation import Corrections
 
-#: K Table 2 (x: scan -> psi_y, y: flight -> psi_x), coefficients A, B, C, D
+#: Kornus et al. 2006, Table 2 (x: scan -> psi_y, y: flight -> psi_x), coefficients A, B, C, D
 TABLE2 = {
     "HRG": {"psi_x": (2.8e-5, 0.0, 0.0, 0.0), "psi_y": (5.3e-6, 1.0e-6, 0.0, 0.0)},
     "HRS1": {"psi_x": (1.5e-5, 0.0, -4.2e-7, -6.9e-8), "psi_y": (-4.9e-6, 0.0, 0.0, 0.0)},

@@ -20,11 +20,9 @@ so MTF(Nyquist) = sinc(1/2) exp(-pi^2 0.4^2 / 2) = 0.29 across (typical of SPOT)
 applies it on the ground: the radiance grid is convolved once per image with the PSF projected
 onto it (scene.ground_psf_filter, FFT, exact on flat ground) and one ray per pixel samples that;
 scene._integrate, a quadrature on `SUPERSAMPLE` x `SUPERSAMPLE` rays per pixel (`psf_kernel`),
-is the slow reference (0.3 / 0.6 DN RMS apart on flat ground, 1.5 DN with surface objects).
-Why it matters: point sampling a 10 m HRS pixel from 5 m ground texture folds everything between
-1/20 and 1/10 cycles/m back into the image, differently in each image; that deterministic
-misfit was 0.15 px RMS of the matcher against the template-area truth on fields (0.21 / 0.26 px
-with a 2.5 / 2 m ground grid, i.e. more texture, more aliasing; 0.18 px HRS1 -> HRS2).
+is the slow reference. Why it matters: point sampling a 10 m HRS pixel from 5 m ground texture folds
+everything between 1/20 and 1/10 cycles/m back into the image, differently in each image, a
+deterministic misfit of the matcher (docs/validation.md#simulator-psf).
 Then DN = gain L + offset (path radiance; gain and offset differ between sensors), additive Gaussian
 noise, rounding to `bits` (DN 0 is kept for nodata, as in DIMAP). The true orthoimage product is
 the ground radiance L with the nominal gain and offset."""

@@ -1,1 +1,1 @@
-"""Object points: forward intersection, point clouds, DEMs (methods.md sections 5-6)."""
+"""Object points: forward intersection, point clouds, DEMs."""

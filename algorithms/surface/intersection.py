@@ -1,5 +1,5 @@
 """Forward intersection of object points from their image measurements in two or more images
-(methods.md section 5; paper K 3.5.1, eq. 5).
+(Kornus et al. 2006, section 3.5.1, eq. 5).
 
 Per point a rigorous least-squares adjustment: unknowns the ground point, in local metres
 (E, N, U) around the current estimate; observations the image coordinates (col, row) of its k rays
@@ -364,8 +364,8 @@ class HeightDifferences:
 
 
 def height_differences(models_rigorous, models_rpc, image_ids, point_index, col, row, h0=None):
-    """K 3.5.2, Table 5: the object points of image measurements (one row per measurement: image id,
-    point index, col, row) intersected once with the rigorous models
+    """Kornus et al. 2006, section 3.5.2, Table 5: the object points of image measurements (one row per
+    measurement: image id, point index, col, row) intersected once with the rigorous models
     and once with their RPCs (dicts image id -> model with the same ids), and the differences."""
     if set(models_rigorous) != set(models_rpc):
         raise InputError(f"the rigorous models (images {sorted(models_rigorous)}) and the RPCs (images "

@@ -1,4 +1,4 @@
-"""DEM from a point cloud (K 3.6; methods.md 6): Delaunay TIN of the object points (breaklines as
+"""DEM from a point cloud (Kornus et al. 2006, section 3.6): Delaunay TIN of the object points (breaklines as
 conforming constraints), blunder filter against the TIN neighbours, linear interpolation on a regular
 grid in the output CRS, gaps where triangles are longer than a threshold (no surface invented over
 unmatched water or forest), heights ellipsoidal or EGM96 (PROJ), an optional precision raster.

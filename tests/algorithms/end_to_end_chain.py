@@ -3,7 +3,8 @@ match, select tie points, adjust from 19 control points (the rest check) with th
 parameter selection, intersect the mass points, interpolate the 10 m DEM, orthorectify the HRG
 image on the adjusted model and that DEM, and assess points and DEM against the true DSM and DTM
 per class. Twice: with the three images (HRG, HRS1, HRS2) and with HRS1 + HRS2 alone
-(matched as a pair, adjusted from the same control points), K 3.6-3.7's "2 images only".
+(matched as a pair, adjusted from the same control points), the "2 images only" of Kornus et al. (2006, sections
+3.6-3.7).
 
 Classes (a class raster on classes.tif's grid): the simulator's land cover with the open classes
 (bare fields, grass/crops) split by the texture an area matcher sees: where the standard deviation
@@ -48,7 +49,8 @@ RUNS = {"three images": NAMES, "HRS only": NAMES[1:]}
 N_CONTROL = 19
 DEM_CELL = 10.0
 #: px of HRG between region growing's neighbours: the pipeline model's default (build_pipeline_model.py); the
-#: 10 m DEM on textured open ground, RMS vs the true DSM (textured open / interior, m): STEP 10 (H's value)
+#: 10 m DEM on textured open ground, RMS vs the true DSM (textured open / interior, m): STEP 10 (Heipke et al.'s
+#: value)
 #: 3.85 / 1.76, 5 2.75 / 1.29, 3 2.53 / 1.19 (test_end_to_end.py; the last with a prototype of the
 #: support weights whose grey-level scale was a fixed 30 DN); about 5 x and 10 x the matching time of STEP 10
 STEP = 5

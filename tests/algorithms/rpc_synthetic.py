@@ -1,5 +1,5 @@
 """A synthetic Pleiades-like RPC00B, a plain numpy reference of its evaluation and small file
-writers, for the RPC tests that must not depend on ../shared/data."""
+writers, for the RPC tests that must not depend on the real test data."""
 import numpy as np
 from osgeo import gdal
 

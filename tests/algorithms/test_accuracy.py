@@ -341,8 +341,8 @@ def test_html_report_is_self_contained(small_scene, utm_dem, tmp_path):
     images = re.findall(r"src='data:image/png;base64,([A-Za-z0-9+/=]+)'", text)
     assert len(images) == 2 + 3 + 2    # per input a map; histograms per group, class, terrain (no groups for the DEM)
     assert all(base64.b64decode(i).startswith(b"\x89PNG") for i in images)
-    for needle in ("K Tables 6, 7", "Z Tables 2-3", "Point group 3", "RMSE (m)", "NMAD", CLASSES[FOREST],
-                   small_scene["dtm"], "mountainous"):
+    for needle in ("Kornus et al. 2006, Tables 6, 7", "Zhang and Gruen 2004, Tables 2-3", "Point group 3", "RMSE (m)",
+                   "NMAD", CLASSES[FOREST], small_scene["dtm"], "mountainous"):
         assert needle in text
     table = report.write_csv(tmp_path / "stats.csv", assessed)
     rows = list(csv.DictReader(open(table)))

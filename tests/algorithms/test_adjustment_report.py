@@ -2,7 +2,7 @@
 errors and measurement blunders: residual vectors of control/check points (against the
 Adjustment's numbers, a numpy forward-intersection reference and OSR), tie point heights against
 the true DSM/DTM (against a plain numpy bilinear interpolation; EGM96 references), and the report's
-K Table 3/4 rows."""
+Kornus et al. 2006, Table 3/4 rows."""
 import csv
 
 import numpy as np
@@ -151,7 +151,8 @@ def test_vector_geometry_against_osr(adjusted):
 
 def test_tie_heights_against_numpy_and_the_true_surface(adjusted):
     """dh = adjusted - reference; on the DSM (where the tie points lie) as large as the adjusted
-    points' height sigmas say, on the DTM larger and positive (trees and buildings, K 3.4.3.1)."""
+    points' height sigmas say, on the DTM larger and positive (trees and buildings, Kornus et al. 2006, section
+    3.4.3.1)."""
     scene, _, result, _, _ = adjusted
     tie = result.observations.points["role"] == "tie"
     tables = {}
@@ -192,7 +193,7 @@ def test_tie_heights_with_an_egm96_reference(adjusted):
 
 
 def test_report_tables(adjusted, tmp_path):
-    """K Tables 3 and 4 rows equal numpy statistics; the HTML page holds them as tables."""
+    """Kornus et al. 2006, Tables 3 and 4 rows equal numpy statistics; the HTML page holds them as tables."""
     scene, obs, result, check, _ = adjusted
     table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")})
     tie = tie_height_differences(result, Dem.from_file(scene["dtm"]))
@@ -210,7 +211,7 @@ def test_report_tables(adjusted, tmp_path):
                                                np.std(de, ddof=1))]]
     assert text == report.text_report(result, check, table, heights=(tie, "dtm.tif"), vectors=vectors)
     page = open(report.write_html(tmp_path / "r.html", "Bundle adjustment", parts=parts)).read()
-    assert page.count("<table>") == 5 and "K Table 4" in page
+    assert page.count("<table>") == 5 and "Kornus et al. 2006, Table 4" in page
     assert "<td>dh</td>" + "".join(f"<td>{c}</td>" for c in want) in page
     for name in vectors["name"]:
         assert f"<td>{name}</td>" in page

@@ -242,7 +242,7 @@ def test_rpc_bias_correction_recovers_an_injected_affine_bias(scene):
 
 
 def test_report_gives_each_coefficient_its_maximum_effect(scene):
-    """K Table 2: a look-angle offset of d rad moves HRG (near nadir, 5 m lines at ~830 km) by
+    """Kornus et al. 2006, Table 2: a look-angle offset of d rad moves HRG (near nadir, 5 m lines at ~830 km) by
     about d * 830 km / 5 m lines; every free unknown has a finite effect, fixed ones none."""
     from pushbroom.algorithms.adjustment.report import text_report
     result = adjust(perturbed(scene), point_observations(scene["points"], IDS, 19), ["look:0"], names=LABELS,
@@ -278,8 +278,9 @@ def test_variance_components_recover_the_groups_noise(scene):
 
 @pytest.mark.slow
 def test_automatic_selection_on_a_small_block(scene):
-    """K 3.4.3 on the 3 km block with 300 synthetic tie points: the injected look-angle constants
-    are chosen (at most 2 others), every decision is logged, and the models carry the solution."""
+    """Kornus et al. 2006, section 3.4.3 on the 3 km block with 300 synthetic tie points: the injected
+    look-angle constants are chosen (at most 2 others), every decision is logged, and the models carry the
+    solution."""
     from pushbroom.algorithms.adjustment.selection import select_parameters
     tie = synthetic_points(scene, IDS, 300, 0.2, 5)
     tie.points["role"] = "tie"

@@ -1,5 +1,5 @@
-"""Three-image combinations and point groups (K 3.3) on synthetic PAIR_DTYPE records, and the
-issue's group-3 accuracy target on the simulated 3 km SPOT 5 triplet."""
+"""Three-image combinations and point groups (Kornus et al. 2006, section 3.3) on synthetic PAIR_DTYPE records,
+and the issue's group-3 accuracy target on the simulated 3 km SPOT 5 triplet."""
 import numpy as np
 import pytest
 
@@ -207,11 +207,8 @@ def triplet(small_scene, small_scene_matched):
 def test_group3_accuracy_on_the_simulated_triplet(triplet):
     """Issue target: group-3 points on textured classes, RMS < 0.15 px and < 0.5 % beyond 1 px.
     Bare fields and crops (one surface inside the template) are held to the pointwise truth;
-    forest and city (height steps inside the template) to the template-area truth. Measured
-    (HRS1 / HRS2) with the MPGC refinement (refinement.py, the default): 1328 points, 1310 refined,
-    fields 0.144 / 0.145 px (template-area truth 0.086 / 0.093), forest and city 0.087 / 0.078 px
-    vs the area truth, none beyond 1 px. Without it (the averaged (a) and (c) positions, (b)'s
-    backward ones): fields 0.192 / 0.176 px, forest and city 0.106 / 0.070 px."""
+    forest and city (height steps inside the template) to the template-area truth; the MPGC refinement
+    (refinement.py, the default) is what meets the target (docs/validation.md#group3-accuracy)."""
     cls = triplet["class"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
     rms = lambda e: float(np.sqrt(np.mean(e ** 2)))   # noqa: E731
@@ -236,9 +233,8 @@ def test_group3_accuracy_on_the_simulated_triplet(triplet):
 def test_group3_with_support_weights(triplet):
     """GrowParams.support_weights (the DEM pipeline's setting; refinement.py): the MPGC windows weighted
     towards the template centre and its own surface. Fields closer to the point truth than with uniform
-    windows; forest and city held to the template-area truth with the same weights. Measured (HRS1 /
-    HRS2): 1328 points, 1312 refined, fields 0.128 / 0.129 px (area truth 0.083 / 0.088), forest and
-    city 0.123 / 0.117 px vs the area truth, none beyond 1 px."""
+    windows; forest and city held to the template-area truth with the same weights
+    (docs/validation.md#group3-accuracy)."""
     cls = triplet["class support"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
     rms = lambda e: float(np.sqrt(np.mean(e ** 2)))   # noqa: E731

@@ -1,4 +1,4 @@
-"""Control point series (adjustment/control_series.py, H Table 1): the farthest-point choice on a
+"""Control point series (adjustment/control_series.py, Heipke et al. 1992, Table 1): the farthest-point choice on a
 regular grid, each row against a direct adjustment with the same control points, fixed check
 points, untouched input models, progress, cancelling and refusals; on the small SPOT 5 triplet."""
 import numpy as np

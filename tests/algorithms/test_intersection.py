@@ -249,7 +249,7 @@ def rpcs(scene):
 
 def test_rpc_models(scene, rpcs):
     """The same intersection with RpcModel: exact to 1 mm on RPC-projected measurements, and within
-    the fit error of the rigorous result on the same measurements (K Table 5)."""
+    the fit error of the rigorous result on the same measurements (Kornus et al. 2006, Table 5)."""
     rigorous = scene["models"]
     truth = scene["lon"], scene["lat"], scene["h"]
     result = ix.intersect(rpcs, *measure(rpcs, NAMES, *truth), sigma=0.5)

@@ -1,5 +1,5 @@
-"""The Lagrange orientation-image model (paper H 3; adjustment/parameters.py) and the H Table 1
-series (adjustment/control_series.py): the map from orientation-image values to each image's
+"""The Lagrange orientation-image model (Heipke et al. 1992, section 3; adjustment/parameters.py) and the Heipke
+et al. 1992, Table 1 series (adjustment/control_series.py): the map from orientation-image values to each image's
 correction polynomials against numpy's Lagrange interpolation, injected orientation-image errors
 recovered by the adjustment, and the acceptance on a simulated SPOT 1-4 across-track pair."""
 import copy
@@ -26,7 +26,7 @@ NAMES = ("HRV1_A", "HRV2_B")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}
 LABELS = {k + 1: n for k, n in enumerate(NAMES)}
 SIGMA_PX = 0.3
-#: H's setting: attitude at the orientation images and the offsets free, header positions as priors
+#: Heipke et al.'s setting: attitude at the orientation images and the offsets free, header positions as priors
 #: (the offsets are nearly collinear with the attitude: a position shift of d m moves the ground as an
 #: attitude change of d / 830 km does; their 1000 m prior holds that combination, so it is no defect)
 FREE = ["lagrange:attitude", "lagrange:offset"]
@@ -205,14 +205,14 @@ def test_injected_orientation_image_errors_are_recovered(pair):
 
 @pytest.mark.slow
 def test_control_point_series_on_a_spot14_pair(pair):
-    """THE ACCEPTANCE (issue 4, H Table 1): the supplied (perturbed) orientation of the pair, the
+    """THE ACCEPTANCE (issue 4, Heipke et al. 1992, Table 1): the supplied (perturbed) orientation of the pair, the
     Lagrange model with the attitude at the orientation images and the offsets free, the header
     positions as priors (1 m relative, 1000 m absolute), 64 tie points; of the 60 points, 30
     candidates give 5, 6, 10 and 15 farthest-point control points, the other 30 are the fixed
     check points (27 of them in both images).
 
     H places 4 orientation images ~2000 lines apart over a 6000-line scene; the simulator's largest
-    SPOT 1-4 scene is 25 km (2500 lines), so the acceptance keeps H's spacing: 2 orientation images
+    SPOT 1-4 scene is 25 km (2500 lines), so the acceptance keeps Heipke et al.'s spacing: 2 orientation images
     on this 1996-line scene. One draw of the image noise moves the RMS ratios by up to +-30 %, so
     the RMS is pooled over 12 draws (0.3 px on the points' true image coordinates): 5 and 6 control
     points then come within 20 % of 15 in E, N and H, as does the adjustment's own (noise-free)

@@ -346,9 +346,7 @@ def test_planar_precision_calibrated_and_better_than_pairwise(planar):
     constraint, sigma_geometry 0.001 px), 3-image MPGC positions and object points against the
     truth; empirical RMS / reported sigma within 0.8-1.25; pairwise LSM (lsm.match_points from the
     reference into each search image, same template, approximations and initial affine) is less
-    precise (ratio > 1). Measured: 1.02 / 1.02 (positions), 1.03 (object point), pairwise / MPGC
-    2.96 (seed 42; 1.02-1.05 with seeds 1-3). With sigma_geometry 0.01 px the reported sigmas hold
-    that prior across the rays, which the exact models do not realise (positions 0.74 / 0.80)."""
+    precise (ratio > 1) (docs/validation.md#mpgc-precision)."""
     cameras, images, x0, y0, enu, pos, (lon, lat, h) = planar
     rec, ok, t = calibrated(planar, mpgc.MpgcParams(sigma_geometry=0.001))
     assert 0.6 < t.mean() < 1.6
@@ -375,8 +373,7 @@ def test_planar_precision_calibrated_and_better_than_pairwise(planar):
 def test_planar_precision_calibrated_with_support_weights(planar):
     """With the refinement's support weights (refinement.py) the sandwich covariance stays
     calibrated (0.8-1.25); the geometric test t, whose redundancy assumes weights inverse to the
-    variances, comes out smaller (mpgc.py). Measured: empirical / reported 1.07 / 1.07 (positions),
-    1.07 (object point), t 0.48; MPGC RMS 0.0176 px against 0.0123 px with uniform windows."""
+    variances, comes out smaller (mpgc.py; docs/validation.md#mpgc-precision)."""
     _, _, t = calibrated(planar, mpgc.MpgcParams(sigma_geometry=0.001, centre_sigma=SUPPORT_CENTRE,
                                                  similarity=SUPPORT_SIMILARITY))
     assert 0.3 < t.mean() < 0.8
@@ -531,13 +528,8 @@ def test_spot_triplet_against_truth_and_pairwise(spot):
     """HRG -> HRS1 + HRS2 with the truth models (sigma_geometry 0.05 px), approximations 10-20 m
     off along the ray: MPGC converges for > 90 % of the textured field points and is not worse
     than pairwise LSM (same template, approximations and initial affine from the models) against
-    the pointwise truth. Measured: 734 points, MPGC converged 95.2 % (accepted 87.3 %), pairwise
-    converged in both HRS 88.7 %; over the 646 converged in both, RMS 0.163 px MPGC vs 0.256 px
-    pairwise (ratio 1.57), empirical / reported 2.46 (MPGC) and 2.51 (pairwise): sub-template
-    relief and aliasing, not noise, dominate here (matching_scene.py), so the ratio is not held to
-    0.8-1.25. MPGC accepted: RMS 0.168 px, 0.31 % beyond 1 px: the constraint lets weak templates
-    (std ~2 DN, one edge) converge where pairwise LSM does not. Before MPGC's robust weights
-    (mpgc.py): converged 95.9 %, accepted 80.7 %, common RMS 0.179 px, accepted 0.189 px."""
+    the pointwise truth. Sub-template relief and aliasing, not noise, dominate here (matching_scene.py),
+    so the empirical / reported ratio is not held to 0.8-1.25 (docs/validation.md#mpgc-spot-triplet)."""
     (paths, height_range), models, x0, y0, pos, (lon, lat, h) = spot
     images = spot_images(paths, models, height_range)
     params = mpgc.MpgcParams(sigma_geometry=0.05)

@@ -1,4 +1,4 @@
-"""The engine under algorithms/ must not import QGIS or Qt (DESIGN.md, Layout)."""
+"""The engine under algorithms/ must not import QGIS or Qt (docs/architecture.md, Layers)."""
 import ast
 import pathlib
 import subprocess

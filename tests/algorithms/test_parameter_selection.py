@@ -1,8 +1,8 @@
-"""Automatic parameter selection (algorithms/adjustment/selection.py, K 3.4.3) on a simulated
-SPOT 5 triplet whose supplied orientation is the truth plus known errors, adjusted from 19 control
+"""Automatic parameter selection (algorithms/adjustment/selection.py, Kornus et al. 2006, section 3.4.3) on a
+simulated SPOT 5 triplet whose supplied orientation is the truth plus known errors, adjusted from 19 control
 points and region-growing tie points.
 
-The errors (about 30 m on the ground) are look-angle offsets and a scale term as in K Table 2
+The errors (about 30 m on the ground) are look-angle offsets and a scale term as in Kornus et al. 2006, Table 2
 and an attitude (roll) drift common to the pass. They are chosen to be identifiable: a constant
 attitude or position error of the pass moves each image like its own look-angle constants do, so
 no adjustment can tell those apart (the simulator's default perturbation contains such errors;
@@ -74,8 +74,8 @@ def test_selection_frees_the_injected_coefficients_and_recovers_them(block):
 
 
 def test_hrs_only_solves_with_a_larger_planimetric_error(block):
-    """K 3.4.3.2 / Table 3: without the nadir HRG the block still solves; the planimetric check
-    point error grows (same 300 check points, measured in HRS1 and HRS2 only)."""
+    """Kornus et al. 2006, section 3.4.3.2 / Table 3: without the nadir HRG the block still solves; the
+    planimetric check point error grows (same 300 check points, measured in HRS1 and HRS2 only)."""
     paths, obs = block
     results = {}
     for label, names in (("HRG+HRS", NAMES), ("HRS only", NAMES[1:])):

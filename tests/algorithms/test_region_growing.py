@@ -125,9 +125,7 @@ def test_kernel_matches_python_reference(prior):
 def test_wide_window_where_the_narrow_one_fails():
     """Weak texture on the left: 9 x 9 windows fail the 0.1 px ellipse there; with the 15 x 15
     second window the numba core and the reference agree, more nodes are accepted (a superset),
-    every accepted one within the ellipse. Measured 59 -> 161 nodes, error RMS 0.116 px, max 0.33
-    px (the 0.1 px ellipse is optimistic on texture this weak: noise adds to the template
-    gradients; at contrast 0.08, 57 -> 90 nodes, RMS 0.158 px, max 0.80 px)."""
+    every accepted one within the ellipse (docs/validation.md#region-growing-wide-template)."""
     narrow, nx, step = kernel_case(np.zeros(0), 0, contrast=0.16, noise=4.0)
     wide, _, _ = kernel_case(np.zeros(0), 7, contrast=0.16, noise=4.0)
     (r1, s1, o1, t1), (r2, s2, o2, t2) = wide
@@ -267,14 +265,8 @@ def test_adapt_resolution_low_passes_the_finer_image(scene):
 def test_region_growing_accuracy_against_truth(grown):
     """Pairwise region growing HRG -> HRS1 (combination (a) alone). The issue's targets, RMS < 0.15
     px and < 0.5 % errors > 1 px on textured classes, are for the group-3 points, which the MPGC
-    refinement brings to 0.144 px on fields (test_combinations.py). Measured here with the second
-    seed round (GrowParams.reseed_cell 16): 1959 points, fields 0.195 px against the pointwise
-    truth (bare 0.181, crops 0.211). With one seed round (1891 points), for the sensor-PSF
-    resolution adaptation (GrowParams.psf "sensor"; "pixel" with psf_sigma 0.5 in brackets):
-    fields 0.197 (0.208) px (bare 0.182 (0.193), crops 0.214 (0.226)), 0.135 (0.152) against the
-    template-area truth, none (0.07 %) beyond 1 px; a hand-set 0.87 / 0.855 px low-pass gives
-    0.185 / 0.119. Forest and city are dominated by height steps inside the template and are held
-    to the template-area truth instead, where they meet the target (0.084 px)."""
+    refinement brings below it (test_combinations.py). Forest and city are dominated by height steps inside
+    the template and are held to the template-area truth instead (docs/validation.md#region-growing-accuracy)."""
     records, error, area_error, cls, seconds, feedback = grown
     single = np.isin(cls, SINGLE_SURFACE)
     steps = np.isin(cls, DISCONTINUOUS)
@@ -285,7 +277,7 @@ def test_region_growing_accuracy_against_truth(grown):
         print(f"{name:7} n {k.sum():5d}  RMS {rms(error[k]):.3f} px (template-area truth {rms(area_error[k]):.3f}), "
               f"> 1 px {100 * np.mean(error[k] > 1):.2f} %")
     assert len(records) > 1000
-    assert rms(error[single]) < 0.21                 # 0.195 measured; group 3 after MPGC: test_combinations
+    assert rms(error[single]) < 0.21                 # docs/validation.md#region-growing-accuracy
     assert np.mean(error[single] > 1.0) < 0.005      # target met
     assert rms(area_error[steps]) < 0.15 and np.mean(area_error[steps] > 1.0) < 0.005
     assert np.all(records["rho"] > 0.6) and np.all(records["semi_major"] < 0.1)
@@ -331,35 +323,23 @@ def coverage(records, error, nodes):
 
 @pytest.mark.slow
 def test_region_growing_coverage(grown, nodes):
-    """Coverage of lattice nodes. Bare fields are textured in the simulator (fBm 0.035 of
-    reflectance, ~14 DN); the low-texture ground of the 3 km scene (no water in it) is the uniform
-    grass parcels: crop nodes whose ground DN std over the template is < LOW_CONTRAST_DN.
-    70.8 % (68.5 % with one seed round; psf "pixel" 71.2 %, point-sampled pixels 60.2 %, no
-    resolution adaptation 53.5 %, all one round); the 0.1 px ellipse is the binding criterion.
-    The textured nodes left empty are mostly striped crop parcels (rho 0.99, the error ellipse
-    long along the stripes). A ground std of 5 DN at 5 m does not make a node matchable at 0.1 px:
-    stripes of 8-20 m period are texture in one direction only and mostly below HRS's 10 m PSF,
-    and 1 DN of noise in HRS (repeated on two template rows per line) outweighs 3 DN of crop fBm.
-    LSM's noise-only precision from the noise-free images (Scene.matchable_precision) is worse
-    than the 0.1 px threshold on 1096 of the 2568 textured nodes (43 %): no matcher with that
-    acceptance can take them, and where region growing takes them anyway (its ellipse is
-    optimistic on this pair) they are no less accurate: fields 0.186 px RMS against 0.199 px on
-    matchable nodes. Of the 1496 nodes where it is better, region growing covers 95.6 % (bare
-    95.0, crops 93.8, forest 95.0, city 99.7 %; one seed round 93.7 %); the wide template 99.3 %.
-    Against 0.133 px, where LSM's ellipse on this resolution-adapted pair, 1.33x optimistic
-    (scripts/adapted_lsm_calibration.py), puts the acceptance: 92.0 % of 1834 nodes (one round:
-    89.7 %)."""
+    """Coverage of lattice nodes. Bare fields are textured in the simulator; the low-texture ground of
+    the 3 km scene (no water in it) is the uniform grass parcels: crop nodes whose ground DN std over the
+    template is < LOW_CONTRAST_DN. The 0.1 px ellipse is the binding criterion: the textured nodes left
+    empty are mostly striped crop parcels, and many textured nodes cannot reach that precision at all
+    (LSM's noise-only precision from the noise-free images, Scene.matchable_precision), so coverage is
+    also measured on the nodes where it can (docs/validation.md#region-growing-coverage)."""
     textured, low, _, matchable = coverage(grown[0], grown[1], nodes)
-    assert textured > 0.68      # 70.8 % measured: 43 % of these nodes cannot reach the 0.1 px ellipse
-    assert matchable > 0.93     # 95.6 % measured
-    assert low < 0.06           # low texture stays mostly empty (3.3 % measured)
+    assert textured > 0.68      # many textured nodes cannot reach the 0.1 px ellipse
+    assert matchable > 0.93     # nearly every node that can reach it
+    assert low < 0.06           # low texture stays mostly empty
 
 
 @pytest.mark.slow
 def test_second_seed_round(scene, grown, nodes):
     """GrowParams.reseed_cell: the second round of automatic seeds only adds points, at nodes the
-    first round did not reach; every first-round point is the same. One round: 1891 points,
-    93.7 % of the matchable nodes; two: 1959, 95.6 %; low texture 3.3 % either way."""
+    first round did not reach; every first-round point is the same
+    (docs/validation.md#region-growing-second-seed-round)."""
     one = match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(reseed_cell=0),
                      scene.height_range)
     two = grown[0]
@@ -378,11 +358,9 @@ def test_second_seed_round(scene, grown, nodes):
 
 @pytest.mark.slow
 def test_wide_template_option(scene, grown, nodes):
-    """GrowParams.wide_template 27 (off by default, see params.py): coverage of textured nodes 70.8
-    -> 93.1 %, fields RMS 0.195 -> 0.214 px (the added points 0.240 px, measured with one seed
-    round), none beyond 1 px; the grass parcels get 38.5 % of their nodes (RMS 0.30 px, none beyond
-    1 px). The nodes of the default run are kept (1957 of 1959: the growth order changes with the
-    added points)."""
+    """GrowParams.wide_template 27 (off by default): more textured nodes covered, none beyond 1 px; the
+    nodes of the default run are kept up to a few the growth order changes
+    (docs/validation.md#region-growing-wide-template)."""
     records = match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(wide_template=27),
                          scene.height_range)
     x2, y2, cls = scene.truth(records["x1"], records["y1"])
@@ -445,9 +423,7 @@ def test_given_seeds_alone_and_with_automatic_ones(scene, grown):
 def test_pair_seeds_rematch_stored_points(scene, grown):
     """Tie points (MultiPoints with block image ids) become pair seeds re-matched on the images the
     growth uses: their image-2 positions agree with the region-grown ones they were taken from,
-    also when the stored positions are 1.5 px off. (Measured: 32 of 76 pass the acceptance
-    criteria from a start 1.5 px off, 52 from the exact position, against 23 / 35 when matched on
-    the images without the resolution adaptation.)"""
+    also when the stored positions are 1.5 px off (docs/validation.md#region-growing-resolution-adaptation)."""
     from pushbroom.algorithms.matching.combinations import pair_seeds
     from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
     records = grown[0][::25]

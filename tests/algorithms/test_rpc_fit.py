@@ -173,8 +173,8 @@ def test_the_forced_fallback_still_fits_a_spot_scene(scenes, monkeypatch):
 
 
 def test_height_differences_rpc_vs_rigorous_intersection(scenes):
-    """K Table 5 on the simulated triplet: random ground points seen in HRG, HRS1 and HRS2 (projected by
-    the rigorous models), intersected with the rigorous models and with the fitted RPCs. The RPCs'
+    """Kornus et al. 2006, Table 5 on the simulated triplet: random ground points seen in HRG, HRS1 and HRS2
+    (projected by the rigorous models), intersected with the rigorous models and with the fitted RPCs. The RPCs'
     image errors (below 4e-4 px at 5-10 m pixels) allow millimetres: below 1 cm asserted."""
     names = SCENES["spot5_triplet"]
     rigorous, rpcs = {}, {}

@@ -288,7 +288,7 @@ def test_orbit_is_sun_synchronous_circular_and_consistent():
 
 def test_sun_position_matches_spot5_metadata():
     az, el = sun_position(np.datetime64("2005-03-13T05:21:07"), 87.921433, 49.953937)
-    assert az == pytest.approx(162.435, abs=0.1)    # SUN_AZIMUTH of shared/data/spot5_hrg1_2005
+    assert az == pytest.approx(162.435, abs=0.1)    # SUN_AZIMUTH of the real spot5_hrg1_2005 scene
     assert el == pytest.approx(35.25, abs=0.6)      # SUN_ELEVATION (SPOT's own definition differs slightly)
 
 

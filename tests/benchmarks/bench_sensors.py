@@ -1,6 +1,6 @@
 """Rigorous SPOT model throughput: image_to_ground, ground_to_image, image_to_dem, partials.
 
-Runs on the real SPOT 5 scene (../shared/data) when present, else on a synthetic 12000-detector
+Runs on the real SPOT 5 scene (benchutil.SHARED_DATA) when present, else on a synthetic 12000-detector
 scene; times are the best of three after JIT warm-up."""
 import os
 import pathlib

@@ -5,7 +5,7 @@ import time
 
 import numba
 
-#: the real test data (../shared/data beside the repository, or $PUSHBROOM_SHARED_DATA)
+#: the real test data ($PUSHBROOM_SHARED_DATA, by default the data folder of the shared folder beside the repository)
 SHARED_DATA = pathlib.Path(os.environ.get("PUSHBROOM_SHARED_DATA",
                                           pathlib.Path(__file__).resolve().parents[3] / "shared" / "data"))
 

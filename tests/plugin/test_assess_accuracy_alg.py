@@ -49,7 +49,8 @@ def test_report_table_and_dh_raster(pushbroom_provider, small_scene, inputs, log
         context=context, feedback=log)
     text = open(result["REPORT"], encoding="utf-8").read()
     assert not re.search(r"(src|href)\s*=\s*['\"](?!data:)", text)
-    assert text.count("data:image/png;base64,") == 7 and "Z Tables 2-3" in text and CLASSES[FOREST] in text
+    assert text.count("data:image/png;base64,") == 7 and "Zhang and Gruen 2004, Tables 2-3" in text
+    assert CLASSES[FOREST] in text
     assert "slope &lt; 12 deg" in text and inputs["dem"] in text     # html-escaped "<"
     rows = list(csv.DictReader(open(result["TABLE"])))
     ds = gdal.Open(result["DH"])

@@ -1,7 +1,7 @@
 """pushbroom:bundleadjust on a small simulated SPOT 5 triplet with injected look-angle errors:
 the adjusted models land in the block and reproduce the true image positions of check points; the
 residual-vector layer of control/check points (against the simulator's points and OSR) with its
-style; the tie point heights against the true DTM (K Table 4) against a forward intersection with
+style; the tie point heights against the true DTM (Kornus et al. 2006, Table 4) against a forward intersection with
 the adjusted models and a numpy interpolation, for an ellipsoidal and an EGM96 reference."""
 import csv
 import re
@@ -100,7 +100,7 @@ def test_adjusts_and_stores_models(pushbroom_provider, adjusted_block, tmp_path)
                                                       "CONTROL_SERIES": "4,8,19", "REPORT": str(tmp_path / "r.html")})
     assert 0.3 < result["SIGMA0"] < 3.0
     text = open(result["REPORT"]).read()
-    assert "HRS2 psi_y_0" in text and "<td>dH</td>" in text and "K Table 4" not in text
+    assert "HRS2 psi_y_0" in text and "<td>dH</td>" in text and "Kornus et al. 2006, Table 4" not in text
     series = re.findall(r"<tr><td>(\d+)</td><td>(\d+)</td><td>([\d.]+)</td><td>([\d.]+)</td><td>([\d.]+)</td>", text)
     assert [int(r[0]) for r in series] == [4, 8, 19] and len({r[1] for r in series}) == 1   # same check points
     assert float(series[0][4]) < 3.0 * float(series[-1][4])
@@ -155,7 +155,7 @@ def _table_row(page, label):
 
 
 def test_tie_heights_against_the_reference_dtm(pushbroom_provider, tie_block, tmp_path):
-    """K Table 4: the adjusted tie points are the forward intersections with the adjusted models;
+    """Kornus et al. 2006, Table 4: the adjusted tie points are the forward intersections with the adjusted models;
     their heights minus the DTM interpolated in numpy give the table's n, min, mean, max, RMS and
     sigma. The DTM read as EGM96 heights shifts every dh by minus the geoid undulation."""
     path, paths, ids, obs = tie_block
@@ -166,7 +166,7 @@ def test_tie_heights_against_the_reference_dtm(pushbroom_provider, tie_block, tm
                                                   "REFERENCE_DEM": paths["dtm"], "REFERENCE_HEIGHTS": datum,
                                                   "REPORT": str(report)})
         page = report.read_text()
-        assert "K Table 4" in page
+        assert "Kornus et al. 2006, Table 4" in page
         tables[key] = _table_row(page, "dh")
     models = {i: block.load_model(path, i) for i in ids.values()}
     cut = intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"], 0.5, h0=300.0)

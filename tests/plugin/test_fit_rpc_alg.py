@@ -143,7 +143,8 @@ def test_cancel_writes_nothing(pushbroom_provider, triplet_block):
 def test_report_compares_rpc_and_rigorous_object_points_of_the_tie_points(pushbroom_provider, triplet_block,
                                                                            tmp_path):
     """With tie points in the block (here: 200 ground points projected into the three images), the
-    report gives K Table 5's RPC minus rigorous differences; the fit is good to well below 1 cm."""
+    report gives the RPC minus rigorous differences of Kornus et al. (2006, Table 5); the fit is good to well
+    below 1 cm."""
     import re
     from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
     path, _ = triplet_block

@@ -40,7 +40,7 @@ def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, 
         context=context, feedback=feedback)
     mass = load_points(path)
     counts = mass.group_counts()
-    assert counts[3] > 100, counts                         # most points are three-ray (K Table 1)
+    assert counts[3] > 100, counts                         # most points are three-ray (Kornus et al. 2006, Table 1)
     assert counts[3] > counts[1] and counts[3] > counts[2]
     assert np.count_nonzero(mass.points["flags"] & REFINED) > 0.9 * counts[3]      # MPGC refinement, the default
     ids = {r["name"]: r["id"] for r in block.read_images(path)}

@@ -126,10 +126,10 @@ def test_pipeline_orthoimage_matches_the_true_orthoimage(pipeline, small_scene):
 def test_pipeline_reports_hold_the_tables(pipeline):
     _, out = pipeline
     adjustment = (out / "adjustment.html").read_text()
-    assert "Check points (K Table 3)" in adjustment and "P006" in adjustment and "P007" in adjustment
+    assert "Check points (Kornus et al. 2006, Table 3)" in adjustment and "P006" in adjustment and "P007" in adjustment
     report = (out / "report.html").read_text()
     for title in ("dh [m] of the object points - reference: per point group", "dh [m] of the DEM cells - reference: "
-                  "per class", "nested classes (Z Tables 2-3)"):
+                  "per class", "nested classes (Zhang and Gruen 2004, Tables 2-3)"):
         assert title in report, title
     with open(out / "accuracy.csv", newline="") as f:
         rows = list(csv.DictReader(f))

@@ -1,4 +1,4 @@
-"""The Pleiades triplet of ../shared/data/pleiades_triplet as the real-data tests match it: in
+"""The Pleiades triplet of the real test data (pleiades_triplet) as the real-data tests match it: in
 combination order (reference, forward, backward) = (img_02, img_01, img_03), block image ids 1, 2,
 3 (test_matching_pleiades.test_reference_is_the_most_nadir gives the reasons), matched by
 match_block from automatic seeds in every tile over the RPCs' own height range."""

@@ -1,11 +1,11 @@
 """Acceptance of the RPC bias-compensated adjustment on real pixels (issue 4): the Pleiades triplet
-of ../shared/data/pleiades_triplet adjusted with automatic tie points (RPC bias correction) brings
+of the real test data (pleiades_triplet) adjusted with automatic tie points (RPC bias correction) brings
 the tie point reprojection RMS below 0.3 px, and lower than before adjustment.
 
 Tie points: the triplet matched as in test_matching_pleiades (pleiades_scene: img_02 reference,
 img_01 forward, img_03 backward, automatic seeds, the RPCs' height range) with STEP = 10 px, which
 is enough for one point per 100 x 100 px cell of the reference (select_tie_points: best group,
-then rho); a priori sigma 0.5 px (methods.md section 4). "Before" is `adjust` with nothing free:
+then rho); a priori sigma 0.5 px. "Before" is `adjust` with nothing free:
 every tie point intersected from all its rays with the supplied RPCs. The reprojection RMS is the
 RMS length of the residual vectors, sqrt(mean(v_col^2 + v_row^2)) (reprojection.reprojection_rms).
 

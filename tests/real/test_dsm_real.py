@@ -1,38 +1,26 @@
-"""Issue 5 acceptance "Real data": DSMs from real Pleiades pixels, matched (match_block), intersected
-(surface.intersection) and gridded (surface.tin_dem) by the engine.
+"""DSMs from real Pleiades pixels, matched (match_block), intersected (surface.intersection) and gridded
+(surface.tin_dem) by the engine. Figures: docs/validation.md#ventoux-dsm, docs/validation.md#pleiades-dsm.
 
-Ventoux pair (../shared/data/pleiades_pair_ventoux, RPC from the .geom with the crops' offsets
-(5000, 5000) and (4915, 5162)): the crops (500 x 500 px of 0.5 m) overlap by only ~170 rows (at
-540 m, left rows 327..500 fall inside the right crop), so the DSM covers ~200 m x 85 m of forested
-slope, about 3 x 1 postings of the SRTM tile (3": 66 m E-W, 93 m N-S). Matching STEP 2 px (1 m
-nodes); DSM cell 2 m: twice the node spacing, so every cell is interpolated from its own points,
-while a cell near the SRTM's 90 m would leave one or two cells on this overlap. dh = DSM - SRTM
-with SRTM's EGM96 heights made ellipsoidal (h = H + N, N ~ 50 m here; quality.height_differences,
-reference bilinear onto the 2 m grid). The two RPCs have a constant relative bias (mean
-intersection residuals -2.3 / +2.3 px in columns, -0.6 / +0.6 px in rows, 0.07 px spread), across
-the epipolar direction, so it does not move the heights, and is left. What remains of dh is
-mostly a west-east ramp of ~0.13 m/m (26 m over the 200 m): it would take ~17 px of parallax error
-across 400 px to come from the images, far beyond an RPC's bias, so it is the SRTM's 66-93 m
-postings on ravine relief (or their registration); removed as a plane, dh has an NMAD of ~3.5 m.
-The median (+4.8 m) is of the order of the canopy over the C-band SRTM surface. The 1 m and 5 m
-DSMs are made beside the asserted 2 m one: the NMAD moves with the cell (9.2 .. 11.1 m), since
-each cell size leaves other gaps on the same ramp; the 2 m result (9.9 m) is held to 12 m, above
-that spread, as the coarse-to-fine matcher's in test_hierarchical_real.
+Ventoux pair (pleiades_pair_ventoux of the real test data, RPC from the .geom with the crops' offsets
+(5000, 5000) and (4915, 5162)): the 500 x 500 px crops of 0.5 m overlap by only ~170 rows, so the DSM
+covers ~200 m x 85 m of forested slope, about 3 x 1 postings of the SRTM tile. Matching STEP 2 px (1 m
+nodes); DSM cell 2 m, so every cell is interpolated from its own points. dh = DSM - SRTM with SRTM's
+EGM96 heights made ellipsoidal (h = H + N; reference bilinear onto the 2 m grid). The two RPCs' relative
+bias lies across the epipolar direction, so it does not move the heights, and is left. What remains of
+dh is mostly a west-east ramp (~0.13 m/m), far beyond what an RPC bias could cause: the SRTM's 66-93 m
+postings on ravine relief; it is also checked with that plane removed. The 1 m and 5 m DSMs are made
+beside the asserted 2 m one: the NMAD moves with the cell, since each cell size leaves other gaps on
+the same ramp.
 
 Region growing's matching of both (conftest.py) is shared with test_hierarchical_real and
 test_matching_pleiades. Pleiades triplet (pleiades_scene: img_02 reference, img_01 forward, img_03
-backward; STEP 3 px, 1.5 m nodes): the 0.5 m DSM from the three-ray points (groups 2 and 3); gaps
-where a triangle is longer than 3 m (two node spacings: one missing node is bridged, larger holes
-are not). Coverage = share of defined cells among those whose centre, at the points' median height,
-lies in all three images. Internal consistency: each pair (img_02-img_01, img_02-img_03,
-img_01-img_03) matched on its own (match_block of 2 images), intersected and gridded on the same
-0.5 m lattice (Grid.covering aligns on multiples of the cell); median and NMAD of the pairwise
+backward; STEP 3 px, 1.5 m nodes): the 0.5 m DSM from the three-ray points (groups 2 and 3), with gaps
+where a triangle is longer than 3 m (two node spacings). Coverage = share of defined cells among those
+whose centre, at the points' median height, lies in all three images. Internal consistency: each pair
+matched on its own, intersected and gridded on the same 0.5 m lattice; median and NMAD of the pairwise
 differences over the common footprint, with the supplied RPCs and after the RPC bias adjustment of
-test_adjust_pleiades (shifts of img_01 and img_03, img_02 fixed, 10 px priors) on tie points of the
-triplet's matching. Before it, the pairs' DSMs are offset by ~2.4 m (an along-track bias of 0.5 px
-is 2.3 m of height at B/H 0.11); after it, the medians are ~0.1 m. The NMAD bound 0.6 m is the
-height precision of a difference of two B/H 0.11 pair DSMs at 0.1 px matching precision (sqrt(2) x
-0.1 x 0.5 m / 0.11 = 0.64 m)."""
+test_adjust_pleiades. The NMAD bound 0.6 m is the height precision of a difference of two B/H 0.11
+pair DSMs at 0.1 px matching precision (sqrt(2) x 0.1 x 0.5 m / 0.11 = 0.64 m)."""
 import numpy as np
 import pytest
 from osgeo import gdal
@@ -41,8 +29,8 @@ from real_dsm import CELL, VENTOUX_CELL, check_pair_consistency, footprint
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
-#: m, against SRTM: issue 5's acceptance on the 2 m DSM. The NMAD is mostly the ramp's and moves with the cell
-#: (9.2-11.1 m, docstring), not with the machine; the matcher's own error is held by the NMAD without the ramp (< 5 m)
+#: m, against SRTM, on the 2 m DSM. The NMAD is mostly the ramp's and moves with the cell, not with the machine
+#: (docs/validation.md#ventoux-dsm); the matcher's own error is held by the NMAD without the ramp (< 5 m)
 MAX_MEDIAN, MAX_NMAD = 5.0, 10.0
 MIN_COVERAGE = 0.6
 MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6          # m, after the bias adjustment

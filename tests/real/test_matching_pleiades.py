@@ -1,5 +1,5 @@
 """Acceptance of the dense matching on real pixels (issue: region-growing LSM, three images): on the
-Pleiades triplet of ../shared/data/pleiades_triplet (RPC, 0.5 m, ~1024 x 1024 crops near
+Pleiades triplet of the real test data (pleiades_triplet: RPC, 0.5 m, ~1024 x 1024 crops near
 Marseille), matching img_01-img_02-img_03 from automatic seeds yields at least 50 000 three-ray
 points (group 3) whose forward-backward matching differences are below 0.2 px RMS.
 
@@ -8,11 +8,11 @@ viewing geometry (test_reference_is_the_most_nadir): the ground point of the ima
 by 0.12 m (img_01), 0.07 m (img_02) and 0.14 m (img_03) per metre of height, so img_02 looks
 closest to nadir; and it lies between the other two along track (500 m of height move an img_02
 point by +113 rows in img_01 and by -111 rows in img_03: opposite parallax, B/H ~0.11 to each),
-i.e. the triplet's middle image, like HRG between HRS1 and HRS2 in K. img_01 is the
+i.e. the triplet's middle image, like HRG between HRS1 and HRS2 in Kornus et al. 2006. img_01 is the
 forward view (its ground shift per height points north-east, ahead of a descending orbit),
 img_03 the backward one (south).
 
-Parameters: the defaults of methods.md section 3 (template 19, rho > 0.6, ellipse < 0.1 px,
+Parameters: the LsmParams defaults (template 19, rho > 0.6, ellipse < 0.1 px,
 shift < 2.5 px, 10 iterations) with STEP = 3 px (nodes = ~1005^2 / 9 = 112 000 per combination;
 STEP 4 gives 63 000 nodes and ~43 500 group 3 points, short of 50 000), automatic seeds in every
 tile, and the RPCs' own height range (40 .. 1090 m ellipsoidal, which holds Marseille's relief).

@@ -1,4 +1,4 @@
-"""RpcModel against GDAL's RPC transformer on the real Pleiades images of ../shared/data: the
+"""RpcModel against GDAL's RPC transformer on the real Pleiades images of the real test data: the
 triplet's GeoTIFF RPC tags, and the Ventoux crops whose RPC comes from an OSSIM .geom describing
 the full image. GDAL's reference for Ventoux gets the .geom's values, parsed here and shifted by
 the crop's geotransform origin, in a MEM dataset (GDAL does not read .geom)."""
