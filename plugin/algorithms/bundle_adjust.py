@@ -49,7 +49,8 @@ class BundleAdjust(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterBoolean(self.REMOVE_BLUNDERS, tr("Remove flagged measurements "
                                                                                  "iteratively"), d.remove_blunders))
         self.addParameter(QgsProcessingParameterRasterLayer(
-            self.REFERENCE_DEM, tr("Reference DTM for the tie point heights (K Table 4)"), optional=True))
+            self.REFERENCE_DEM, tr("Reference DTM for the tie point heights (Kornus et al. 2006, Table 4)"),
+            optional=True))
         self.addParameter(heights_parameter(self.REFERENCE_HEIGHTS, tr("Heights of the reference DTM")))
         self.addAdvancedParameters([
             Number(self.SIGMA_TIE, tr("Sigma of tie point image measurements (px)"), Number.Double, d.sigma_tie,
@@ -62,7 +63,8 @@ class BundleAdjust(PushbroomAlgorithm):
             Number(self.SIGNIFICANCE, tr("Automatic selection: significance threshold x/sigma"), Number.Double,
                    d.significance, minValue=0.0),
             QgsProcessingParameterString(self.CONTROL_SERIES, tr("Check point accuracy vs number of control "
-                                         "points (H Table 1): counts, e.g. 4,6,10"), d.control_series, optional=True),
+                                         "points (Heipke et al. 1992, Table 1): counts, e.g. 4,6,10"),
+                                         d.control_series, optional=True),
             Number(self.ORIENTATION_IMAGES, tr("Lagrange model: orientation images per trajectory"), Number.Integer,
                    d.orientation_images, minValue=2, maxValue=4),
             Number(self.VECTOR_SCALE, tr("Scale of the residual vectors on the map"), Number.Double, d.vector_scale,
