@@ -41,6 +41,7 @@ TERRAIN_MARGIN_M = 400.0    # ground beyond the images' footprints (shadows, pad
 OBJECT_MAX_M = 60.0         # highest surface object, for the footprint bounds
 MARKER_SIGMA_M = 10.0       # Gaussian marker sigma: 1 px of the coarsest (10 m) images
 CLEARANCE_M = 40.0          # open ground around a point candidate without markers
+BITS = (8, 12)              # radiometric resolutions of the simulated imagery
 
 
 @dataclass
@@ -85,7 +86,7 @@ class SceneConfig:
         checks = [
             (int(self.seed) == self.seed and 0 <= self.seed < 2 ** 31, f"seed {self.seed} is not an integer 0..2^31-1"),
             (1.0 <= self.size_km <= 25.0, f"scene size {self.size_km} km is outside 1..25 km (the DEM is 30 km wide)"),
-            (self.bits in (8, 12), f"bits must be 8 or 12, not {self.bits}"),
+            (self.bits in BITS, f"bits must be 8 or 12, not {self.bits}"),
             (0.0 <= self.noise <= 50.0, f"noise {self.noise} DN is outside 0..50"),
             (0.0 <= self.fractal <= 5.0, f"fractal detail {self.fractal} is outside 0..5"),
             (0 <= self.points <= 400, f"points {self.points} is outside 0..400"),

@@ -1,21 +1,17 @@
-"""pushbroom:assessaccuracy — height differences of a point cloud and/or a DEM against a reference
-DTM/DSM with statistics per point group, class and slope, figures and one HTML report
-(K 3.6-3.7, Z 4; algorithms/quality/)."""
-from qgis.core import (QgsProcessing, QgsProcessingParameterEnum, QgsProcessingParameterField,
-                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
-                       QgsProcessingParameterRasterLayer, QgsProcessingParameterVectorLayer)
+"""pushbroom:assessaccuracy — the Processing face of quality.assess_accuracy.assess_accuracy: height
+differences of a point cloud and/or a DEM against a reference DTM/DSM, with statistics, figures and an
+HTML report."""
+from qgis.core import (QgsProcessing, QgsProcessingParameterField, QgsProcessingParameterFile,
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
+                       QgsProcessingParameterRasterDestination, QgsProcessingParameterRasterLayer,
+                       QgsProcessingParameterVectorLayer)
 
-from ...algorithms import progress
-from ...algorithms.adjustment.control_points import HEIGHT_TYPES
 from ...algorithms.errors import InputError
-from ...algorithms.quality.assessment import SLOPE_THRESHOLD, assess
-from ...algorithms.quality.classes import ClassRaster, PolygonClasses
-from ...algorithms.quality.height_differences import write_dh_raster
+from ...algorithms.quality.assess_accuracy import AssessParams, assess_accuracy
+from ...algorithms.quality.classes import PolygonClasses
 from ..styles import style_on_completion
-from .base import PushbroomAlgorithm
+from .base import PushbroomAlgorithm, heights_choice, heights_parameter
 from .dem_nodata import nodata_parameter
-from .import_points import HEIGHTS
 
 
 class AssessAccuracy(PushbroomAlgorithm):
@@ -23,54 +19,50 @@ class AssessAccuracy(PushbroomAlgorithm):
     DISPLAY_NAME = "Assess accuracy (dh against a reference DEM)"
     GROUP = "Surface"
     GROUP_ID = "surface"
-    HELP = ("Height differences dh = assessed height - reference height of the object points of a point cloud "
-            "(LAS/LAZ or GeoPackage from pushbroom:intersectpoints) and/or of the cells of a DEM against a "
-            "reference DTM or DSM in any CRS (Kornus et al. 2006, 3.6-3.7; Zhang and Gruen 2004, 4). The "
-            "reference is interpolated bilinearly at each point; for a DEM it is resampled onto the DEM's grid "
-            "(the average of its cells where it is finer, bilinear otherwise). Heights are ellipsoidal or EGM96 "
-            "orthometric per input. Statistics (N, min, mean, max, RMS, sigma, NMAD, 95 % quantile of |dh|, "
-            "shares of |dh| < 2 m, 2-5 m, > 5 m) per point group, per class (a class raster such as the "
-            "simulator's classes.tif, or polygons with a class field) and for flat/moderate vs mountainous "
-            "terrain (slope of the reference against a threshold) go to the log, an HTML report with "
-            "histograms and a colour-coded dh map, and optionally a CSV table; for a DEM an optional dh raster. "
-            "Reference heights outside -500 .. 9000 m (voids not flagged as nodata) are reported, and a void value "
-            "can be declared as the reference's nodata.")
+    HELP = ("Height differences dh = assessed - reference height of the points of a point cloud and/or the cells "
+            "of a DEM against a reference DTM or DSM (Kornus et al. 2006; Zhang and Gruen 2004). Statistics per "
+            "point group, per land-cover class and for flat vs mountainous terrain go to the log and an HTML "
+            "report with histograms and a dh map; optionally a CSV table and, for a DEM, a dh raster.")
+
+    REFERENCE, REFERENCE_HEIGHTS, POINTS, DEM, DEM_HEIGHTS = "REFERENCE", "REFERENCE_HEIGHTS", "POINTS", "DEM", \
+        "DEM_HEIGHTS"
+    CLASS_RASTER, CLASS_POLYGONS, CLASS_FIELD = "CLASS_RASTER", "CLASS_POLYGONS", "CLASS_FIELD"
+    SLOPE_THRESHOLD, POINTS_HEIGHTS, REFERENCE_NODATA = "SLOPE_THRESHOLD", "POINTS_HEIGHTS", "REFERENCE_NODATA"
+    REPORT, DH, TABLE = "REPORT", "DH", "TABLE"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
-        self.addParameter(QgsProcessingParameterRasterLayer("REFERENCE", "Reference DTM/DSM"))
-        self.addParameter(QgsProcessingParameterEnum("REFERENCE_HEIGHTS", "Reference heights", HEIGHTS, defaultValue=0))
+        d, tr = AssessParams(), self.tr
+        self.addParameter(QgsProcessingParameterRasterLayer(self.REFERENCE, tr("Reference DTM/DSM")))
+        self.addParameter(heights_parameter(self.REFERENCE_HEIGHTS, tr("Reference heights")))
         self.addParameter(QgsProcessingParameterFile(
-            "POINTS", "Point cloud (object points)", optional=True,
-            fileFilter="Point clouds (*.las *.laz *.gpkg);;All files (*.*)"))
-        self.addParameter(QgsProcessingParameterRasterLayer("DEM", "DEM", optional=True))
-        self.addParameter(QgsProcessingParameterEnum("DEM_HEIGHTS", "DEM heights", HEIGHTS, defaultValue=0))
-        self.addParameter(QgsProcessingParameterRasterLayer("CLASS_RASTER", "Class raster", optional=True))
-        self.addParameter(QgsProcessingParameterVectorLayer("CLASS_POLYGONS", "Class polygons", optional=True,
+            self.POINTS, tr("Point cloud (object points)"), optional=True,
+            fileFilter=tr("Point clouds (*.las *.laz *.gpkg);;All files (*.*)")))
+        self.addParameter(QgsProcessingParameterRasterLayer(self.DEM, tr("DEM"), optional=True))
+        self.addParameter(heights_parameter(self.DEM_HEIGHTS, tr("DEM heights")))
+        self.addParameter(QgsProcessingParameterRasterLayer(self.CLASS_RASTER, tr("Class raster"), optional=True))
+        self.addParameter(QgsProcessingParameterVectorLayer(self.CLASS_POLYGONS, tr("Class polygons"), optional=True,
                                                             types=[QgsProcessing.TypeVectorPolygon]))
-        self.addParameter(QgsProcessingParameterField("CLASS_FIELD", "Class field of the polygons", optional=True,
-                                                      parentLayerParameterName="CLASS_POLYGONS"))
+        self.addParameter(QgsProcessingParameterField(self.CLASS_FIELD, tr("Class field of the polygons"),
+                                                      optional=True, parentLayerParameterName=self.CLASS_POLYGONS))
         self.addParameter(QgsProcessingParameterNumber(
-            "SLOPE_THRESHOLD", "Slope of mountainous terrain (degrees, of the reference)",
-            QgsProcessingParameterNumber.Double, SLOPE_THRESHOLD, minValue=0.01, maxValue=89.9))
+            self.SLOPE_THRESHOLD, tr("Slope of mountainous terrain (degrees, of the reference)"),
+            QgsProcessingParameterNumber.Double, d.slope_threshold, minValue=0.01, maxValue=89.9))
         self.addAdvancedParameters([
-            QgsProcessingParameterEnum("POINTS_HEIGHTS", "Point cloud heights", HEIGHTS, defaultValue=0),
-            nodata_parameter("REFERENCE_NODATA", "reference DTM/DSM")])
-        self.addParameter(QgsProcessingParameterFileDestination("REPORT", "Report", "HTML files (*.html)"))
-        self.addParameter(QgsProcessingParameterRasterDestination("DH", "dh raster (DEM input)", optional=True,
+            heights_parameter(self.POINTS_HEIGHTS, tr("Point cloud heights")),
+            nodata_parameter(self.REFERENCE_NODATA, "reference DTM/DSM")])
+        self.addParameter(QgsProcessingParameterFileDestination(self.REPORT, tr("Report"), tr("HTML files (*.html)")))
+        self.addParameter(QgsProcessingParameterRasterDestination(self.DH, tr("dh raster (DEM input)"), optional=True,
                                                                   createByDefault=False))
-        self.addParameter(QgsProcessingParameterFileDestination("TABLE", "Statistics table", "CSV files (*.csv)",
-                                                                optional=True, createByDefault=False))
+        self.addParameter(QgsProcessingParameterFileDestination(self.TABLE, tr("Statistics table"),
+                                                                tr("CSV files (*.csv)"), optional=True,
+                                                                createByDefault=False))
 
-    def _classes(self, parameters, context):
-        raster = self.parameterAsRasterLayer(parameters, "CLASS_RASTER", context)
-        polygons = self.parameterAsVectorLayer(parameters, "CLASS_POLYGONS", context)
-        if raster is not None and polygons is not None:
-            raise InputError("give a class raster or class polygons, not both")
-        if raster is not None:
-            return ClassRaster(raster.source()), raster.source()
+    def _class_polygons(self, parameters, context):
+        """(PolygonClasses, description) of the class polygons and their class field, or (None, "")."""
+        polygons = self.parameterAsVectorLayer(parameters, self.CLASS_POLYGONS, context)
         if polygons is None:
-            return None, "none"
-        fields = self.parameterAsFields(parameters, "CLASS_FIELD", context)
+            return None, ""
+        fields = self.parameterAsFields(parameters, self.CLASS_FIELD, context)
         if not fields:
             raise InputError("name the class field of the class polygons")
         geometries, values = [], []
@@ -81,38 +73,27 @@ class AssessAccuracy(PushbroomAlgorithm):
         return PolygonClasses(geometries, values, polygons.crs().toWkt()), f"{polygons.source()} ({fields[0]})"
 
     def execute(self, parameters, context, feedback):
-        reference = self.parameterAsRasterLayer(parameters, "REFERENCE", context).source()
-        points = self.parameterAsFile(parameters, "POINTS", context) or None
-        dem_layer = self.parameterAsRasterLayer(parameters, "DEM", context)
-        dem = dem_layer.source() if dem_layer is not None else None
-        datums = {key: HEIGHT_TYPES[self.parameterAsEnum(parameters, key, context)]
-                  for key in ("REFERENCE_HEIGHTS", "POINTS_HEIGHTS", "DEM_HEIGHTS")}
-        classes, class_source = self._classes(parameters, context)
-        threshold = self.parameterAsDouble(parameters, "SLOPE_THRESHOLD", context)
-        dh_path = self.parameterAsOutputLayer(parameters, "DH", context)
-        if dh_path and dem is None:
-            raise InputError("the dh raster needs a DEM input: give a DEM or leave the dh raster unset")
-        assessed = assess(reference, points=points, dem=dem, reference_datum=datums["REFERENCE_HEIGHTS"],
-                          points_datum=datums["POINTS_HEIGHTS"], dem_datum=datums["DEM_HEIGHTS"], classes=classes,
-                          slope_threshold=threshold, feedback=progress.scaled(feedback, 0, 70),
-                          reference_nodata=self.parameterAsOptionalDouble(parameters, "REFERENCE_NODATA", context))
-        used = [("reference", f"{reference} ({datums['REFERENCE_HEIGHTS']} heights)")]
-        if points:
-            used.append(("point cloud", f"{points} ({datums['POINTS_HEIGHTS']} heights)"))
-        if dem:
-            used.append(("DEM", f"{dem} ({datums['DEM_HEIGHTS']} heights; reference resampled onto its grid)"))
-        used += [("classes", class_source), ("slope threshold", f"{threshold:g} deg")]
-        from ...algorithms.quality import report   # matplotlib: loaded on use, not with the plugin
-        feedback.pushInfo(report.text(assessed, used))
-        progress.step(feedback, 75, "drawing the figures")
-        out = {"REPORT": report.write_report(self.parameterAsFileOutput(parameters, "REPORT", context),
-                                             "Accuracy assessment", assessed, used)}
-        progress.step(feedback, 95)
-        table = self.parameterAsFileOutput(parameters, "TABLE", context)
-        if table:
-            out["TABLE"] = report.write_csv(table, assessed)
-        if dh_path:
-            grid = next(a.differences.grid for a in assessed if a.differences.grid is not None)
-            out["DH"] = write_dh_raster(dh_path, grid)
-            style_on_completion(context, dh_path, "dh.qml")
+        def source(key):
+            layer = self.parameterAsRasterLayer(parameters, key, context)
+            return layer.source() if layer is not None else None
+
+        heights = {name: heights_choice(self, parameters, key, context) for name, key in [
+            ("reference_heights", self.REFERENCE_HEIGHTS), ("points_heights", self.POINTS_HEIGHTS),
+            ("dem_heights", self.DEM_HEIGHTS)]}
+        polygons, polygons_source = self._class_polygons(parameters, context)
+        params = AssessParams(
+            reference=source(self.REFERENCE), dem=source(self.DEM), class_raster=source(self.CLASS_RASTER),
+            points=self.parameterAsFile(parameters, self.POINTS, context) or None, class_polygons=polygons,
+            class_polygons_source=polygons_source, report=self.parameterAsFileOutput(parameters, self.REPORT, context),
+            table=self.parameterAsFileOutput(parameters, self.TABLE, context) or None,
+            dh=self.parameterAsOutputLayer(parameters, self.DH, context) or None, **heights,
+            **self.parameterValues(parameters, context, slope_threshold=self.SLOPE_THRESHOLD,
+                                   reference_nodata=self.REFERENCE_NODATA))
+        result = assess_accuracy(params, feedback)
+        out = {self.REPORT: result.report}
+        if result.table:
+            out[self.TABLE] = result.table
+        if result.dh:
+            out[self.DH] = result.dh
+            style_on_completion(context, params.dh, "dh.qml")
         return out

@@ -8,13 +8,15 @@ way around its engine call:
 import os
 
 from qgis.core import (QgsApplication, QgsProcessingAlgorithm, QgsProcessingException,
-                       QgsProcessingParameterDefinition, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterFolderDestination, QgsProcessingParameterRasterDestination,
-                       QgsProcessingParameterVectorDestination)
+                       QgsProcessingParameterBoolean, QgsProcessingParameterDefinition,
+                       QgsProcessingParameterEnum, QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber,
+                       QgsProcessingParameterRasterDestination, QgsProcessingParameterVectorDestination)
 from qgis.PyQt.QtCore import QCoreApplication, QUrl
 from qgis.PyQt.QtGui import QIcon
 
 from ...algorithms import atomic
+from ...algorithms.adjustment.control_points import HEIGHT_TYPES
 from ...algorithms.errors import InputError, PushbroomError
 from ..plugin import resource_path
 
@@ -143,3 +145,44 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
     def execute(self, parameters, context, feedback):
         raise NotImplementedError
+
+    def parameterValues(self, parameters, context, **keys):  # noqa: N802 (QGIS naming)
+        """{name: value} of the plain parameters keys {name: parameter key}, each read by its definition's
+        type: boolean, integer, double (None where an optional one is unset), file, enum (the index) or
+        string."""
+        values = {}
+        for name, key in keys.items():
+            definition = self.parameterDefinition(key)
+            if isinstance(definition, QgsProcessingParameterBoolean):
+                values[name] = self.parameterAsBool(parameters, key, context)
+            elif isinstance(definition, QgsProcessingParameterNumber):
+                if definition.dataType() == QgsProcessingParameterNumber.Integer:
+                    values[name] = self.parameterAsInt(parameters, key, context)
+                elif definition.flags() & QgsProcessingParameterDefinition.FlagOptional:
+                    values[name] = self.parameterAsOptionalDouble(parameters, key, context)
+                else:
+                    values[name] = self.parameterAsDouble(parameters, key, context)
+            elif isinstance(definition, QgsProcessingParameterFile):
+                values[name] = self.parameterAsFile(parameters, key, context)
+            elif isinstance(definition, QgsProcessingParameterEnum):
+                values[name] = self.parameterAsEnum(parameters, key, context)
+            else:
+                values[name] = self.parameterAsString(parameters, key, context)
+        return values
+
+
+#: labels of the height datums control_points.HEIGHT_TYPES
+HEIGHT_LABELS = {"ellipsoidal": "Ellipsoidal (WGS 84)",
+                 "orthometric": "Orthometric (EGM96 geoid; needs PROJ's us_nga_egm96_15.tif grid)"}
+
+
+def heights_parameter(key, description):
+    """An enum parameter choosing one of control_points.HEIGHT_TYPES (default: ellipsoidal); read it with
+    heights_choice."""
+    labels = [QCoreApplication.translate("Processing", HEIGHT_LABELS[h]) for h in HEIGHT_TYPES]
+    return QgsProcessingParameterEnum(key, description, labels, defaultValue=0)
+
+
+def heights_choice(algorithm, parameters, key, context):
+    """The HEIGHT_TYPES value of a heights_parameter."""
+    return HEIGHT_TYPES[algorithm.parameterAsEnum(parameters, key, context)]

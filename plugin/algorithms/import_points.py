@@ -1,19 +1,20 @@
-"""pushbroom:importpoints and pushbroom:exportpoints — control/check points and their image
-measurements between a CSV file and the block (algorithms/adjustment/control_points.py)."""
+"""pushbroom:importpoints and pushbroom:exportpoints — the Processing faces of
+adjustment.point_files.import_points and export_points: control/check points and their image
+measurements between a CSV file and the block."""
 from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
                        QgsProcessingOutputVectorLayer, QgsProcessingParameterBoolean, QgsProcessingParameterCrs,
-                       QgsProcessingParameterEnum,
-                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterEnum, QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterNumber, QgsProcessingParameterString)
 
-from ...algorithms.adjustment import control_points as cp
-from ...algorithms.adjustment.observations import IMAGE_SIGMA
+from ...algorithms.adjustment.control_points import MODES, ROLES
+from ...algorithms.adjustment.point_files import ImportParams, export_points, import_points
 from ..styles import load_styled
-from .base import PushbroomAlgorithm
+from .base import PushbroomAlgorithm, heights_choice, heights_parameter
 
 Number = QgsProcessingParameterNumber
-HEIGHTS = ("Ellipsoidal (WGS 84)", "Orthometric (EGM96 geoid; needs PROJ's us_nga_egm96_15.tif grid)")
-MODES = ("Replace the block's points", "Merge: update points with the same id, add the others")
+#: labels of the import modes (control_points.MODES)
+MODE_LABELS = {"replace": "Replace the block's points",
+               "merge": "Merge: update points with the same id, add the others"}
 
 
 class ImportPoints(PushbroomAlgorithm):
@@ -21,73 +22,62 @@ class ImportPoints(PushbroomAlgorithm):
     DISPLAY_NAME = "Import control and check points (CSV)"
     GROUP = "Block"
     GROUP_ID = "block"
-    HELP = ("Imports control and check points and their image measurements from a CSV file into the block "
-            "(point layer 'control_points', table 'image_measurements'). Columns (any case; comma, semicolon or "
-            "tab separated): <b>id</b>; <b>role</b> (control or check; optional, empty = the default role); "
-            "<b>lon</b>, <b>lat</b> (WGS 84 degrees) or <b>x</b>, <b>y</b> (easting/northing in the CRS "
-            "parameter); <b>h</b> (m, ellipsoidal or EGM96 orthometric, see Heights); optional <b>sigma_e</b>, "
-            "<b>sigma_n</b>, <b>sigma_h</b> (m; empty = the default sigmas); per block image "
-            "<b>&lt;image&gt;_col</b>, <b>&lt;image&gt;_row</b> and optional <b>&lt;image&gt;_sigma</b> (px, GDAL "
-            "convention: centre of the first pixel 0.5, 0.5), each followed by the measurement column suffix "
-            "(empty by default; '_meas' for the simulator's points.csv). Empty image cells: not measured in "
-            "that image. Other columns are ignored with a warning. 'Check point ids' makes the listed points "
-            "check points whatever their role column says. Replace mode replaces the block's points; merge "
-            "mode updates points with the same id (their measurements in the images the file gives) and adds "
-            "new ones. Points that do not lie within 2 km of an image footprint (at the block's terrain height "
-            "range), or whose measurements lie over 2 km from where their coordinates project, are named and "
-            "refused (lon/lat swapped, degrees given as projected x/y, another CRS) unless kept on purpose. The "
-            "import is one transaction: a bad file leaves the block as it was.")
+    HELP = ("Imports control and check points and their image measurements from a CSV file into the block: "
+            "columns id, role, lon/lat or x/y, h, optional sigmas, and per image &lt;image&gt;_col, "
+            "&lt;image&gt;_row. Points that do not lie where the block's images are are refused unless kept on "
+            "purpose. The import replaces or merges with the block's points in one transaction.")
+
+    BLOCK, INPUT, CRS, HEIGHTS, ROLE = "BLOCK", "INPUT", "CRS", "HEIGHTS", "ROLE"
+    CHECK_IDS, MODE, SIGMA_E, SIGMA_N, SIGMA_H = "CHECK_IDS", "MODE", "SIGMA_E", "SIGMA_N", "SIGMA_H"
+    SIGMA_IMAGE, MEAS_SUFFIX, KEEP_IMPLAUSIBLE = "SIGMA_IMAGE", "MEAS_SUFFIX", "KEEP_IMPLAUSIBLE"
+    POINTS, CONTROL, CHECK, MEASUREMENTS = "POINTS", "CONTROL", "CHECK", "MEASUREMENTS"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
-        self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
-        self.addParameter(QgsProcessingParameterFile("INPUT", "Point file (CSV)",
-                                                     fileFilter="CSV files (*.csv *.txt);;All files (*.*)"))
-        self.addParameter(QgsProcessingParameterCrs("CRS", "CRS of x/y columns (lon/lat columns are WGS 84)",
+        d, tr = ImportParams(), self.tr
+        self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
+        self.addParameter(QgsProcessingParameterFile(self.INPUT, tr("Point file (CSV)"),
+                                                     fileFilter=tr("CSV files (*.csv *.txt);;All files (*.*)")))
+        self.addParameter(QgsProcessingParameterCrs(self.CRS, tr("CRS of x/y columns (lon/lat columns are WGS 84)"),
                                                     "EPSG:4326", optional=True))
-        self.addParameter(QgsProcessingParameterEnum("HEIGHTS", "Heights", list(HEIGHTS), defaultValue=0))
-        self.addParameter(QgsProcessingParameterEnum("ROLE", "Role of points without one in the file",
-                                                     list(cp.ROLES), defaultValue=0))
-        self.addParameter(QgsProcessingParameterString("CHECK_IDS", "Check point ids (comma-separated)", "",
-                                                       optional=True))
-        self.addParameter(QgsProcessingParameterEnum("MODE", "Import mode", list(MODES), defaultValue=0))
-        east, north, up = cp.DEFAULT_SIGMAS
+        self.addParameter(heights_parameter(self.HEIGHTS, tr("Heights")))
+        self.addParameter(QgsProcessingParameterEnum(self.ROLE, tr("Role of points without one in the file"),
+                                                     list(ROLES), defaultValue=ROLES.index(d.default_role)))
+        self.addParameter(QgsProcessingParameterString(self.CHECK_IDS, tr("Check point ids (comma-separated)"),
+                                                       d.check_ids, optional=True))
+        self.addParameter(QgsProcessingParameterEnum(self.MODE, tr("Import mode"), [tr(MODE_LABELS[m]) for m in MODES],
+                                                     defaultValue=MODES.index(d.mode)))
         self.addAdvancedParameters([
-            Number("SIGMA_E", "Default sigma east (m)", Number.Double, east, minValue=1e-6),
-            Number("SIGMA_N", "Default sigma north (m)", Number.Double, north, minValue=1e-6),
-            Number("SIGMA_H", "Default sigma height (m)", Number.Double, up, minValue=1e-6),
-            Number("SIGMA_IMAGE", "Default sigma of the image measurements (px)", Number.Double,
-                   IMAGE_SIGMA, minValue=1e-6),
-            QgsProcessingParameterString("MEAS_SUFFIX", "Measurement column suffix ('_meas' for the simulator's "
-                                         "points.csv)", "", optional=True),
-            QgsProcessingParameterBoolean("KEEP_IMPLAUSIBLE", "Keep points that do not lie where the block's images "
-                                          "are (with a warning)", False),
+            Number(self.SIGMA_E, tr("Default sigma east (m)"), Number.Double, d.sigma_e, minValue=1e-6),
+            Number(self.SIGMA_N, tr("Default sigma north (m)"), Number.Double, d.sigma_n, minValue=1e-6),
+            Number(self.SIGMA_H, tr("Default sigma height (m)"), Number.Double, d.sigma_h, minValue=1e-6),
+            Number(self.SIGMA_IMAGE, tr("Default sigma of the image measurements (px)"), Number.Double,
+                   d.image_sigma, minValue=1e-6),
+            QgsProcessingParameterString(self.MEAS_SUFFIX, tr("Measurement column suffix ('_meas' for the "
+                                         "simulator's points.csv)"), d.suffix, optional=True),
+            QgsProcessingParameterBoolean(self.KEEP_IMPLAUSIBLE, tr("Keep points that do not lie where the block's "
+                                          "images are (with a warning)"), d.keep_implausible),
         ])
-        self.addOutput(QgsProcessingOutputVectorLayer("POINTS", "Control and check points",
+        self.addOutput(QgsProcessingOutputVectorLayer(self.POINTS, tr("Control and check points"),
                                                       QgsProcessing.TypeVectorPoint))
-        for name, text in [("CONTROL", "Control points"), ("CHECK", "Check points"),
-                           ("MEASUREMENTS", "Image measurements")]:
-            self.addOutput(QgsProcessingOutputNumber(name, text))
-        self.addOutput(QgsProcessingOutputFile("BLOCK", "Block (updated; chains the next step in a model)"))
+        for name, text in [(self.CONTROL, "Control points"), (self.CHECK, "Check points"),
+                           (self.MEASUREMENTS, "Image measurements")]:
+            self.addOutput(QgsProcessingOutputNumber(name, tr(text)))
+        self.addOutput(QgsProcessingOutputFile(self.BLOCK, tr("Block (updated; chains the next step in a model)")))
 
     def execute(self, parameters, context, feedback):
-        path = self.parameterAsFile(parameters, "BLOCK", context)
-        stored = cp.import_csv(
-            path, self.parameterAsFile(parameters, "INPUT", context),
-            mode=cp.MODES[self.parameterAsEnum(parameters, "MODE", context)], feedback=feedback,
-            crs=self.parameterAsCrsDefinition(parameters, "CRS", context),
-            heights=cp.HEIGHT_TYPES[self.parameterAsEnum(parameters, "HEIGHTS", context)],
-            default_role=cp.ROLES[self.parameterAsEnum(parameters, "ROLE", context)],
-            check_ids=[c.strip() for c in self.parameterAsString(parameters, "CHECK_IDS", context).split(",")],
-            sigmas=tuple(self.parameterAsDouble(parameters, key, context) for key in ("SIGMA_E", "SIGMA_N", "SIGMA_H")),
-            image_sigma=self.parameterAsDouble(parameters, "SIGMA_IMAGE", context),
-            suffix=self.parameterAsString(parameters, "MEAS_SUFFIX", context),
-            keep_implausible=self.parameterAsBool(parameters, "KEEP_IMPLAUSIBLE", context))
-        feedback.pushInfo("points in the block: " + cp.summary(stored, cp.image_ids(path)))
-        layer = f"{path}|layername={cp.LAYER}"
-        load_styled(context, layer, "Control and check points", "POINTS", "control_points.qml")
-        roles = stored.points["role"]
-        return {"BLOCK": path, "POINTS": layer, "CONTROL": int((roles == "control").sum()),
-                "CHECK": int((roles == "check").sum()), "MEASUREMENTS": len(stored.measurements)}
+        path = self.parameterAsFile(parameters, self.BLOCK, context)
+        params = ImportParams(
+            mode=MODES[self.parameterAsEnum(parameters, self.MODE, context)],
+            crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
+            heights=heights_choice(self, parameters, self.HEIGHTS, context),
+            default_role=ROLES[self.parameterAsEnum(parameters, self.ROLE, context)],
+            **self.parameterValues(parameters, context, check_ids=self.CHECK_IDS, sigma_e=self.SIGMA_E,
+                                   sigma_n=self.SIGMA_N, sigma_h=self.SIGMA_H, image_sigma=self.SIGMA_IMAGE,
+                                   suffix=self.MEAS_SUFFIX, keep_implausible=self.KEEP_IMPLAUSIBLE))
+        result = import_points(path, self.parameterAsFile(parameters, self.INPUT, context), params, feedback)
+        load_styled(context, result.layer, "Control and check points", self.POINTS, "control_points.qml")
+        return {self.BLOCK: path, self.POINTS: result.layer, self.CONTROL: result.control, self.CHECK: result.check,
+                self.MEASUREMENTS: result.measurements}
 
 
 class ExportPoints(PushbroomAlgorithm):
@@ -96,17 +86,17 @@ class ExportPoints(PushbroomAlgorithm):
     GROUP = "Block"
     GROUP_ID = "block"
     HELP = ("Writes the block's control and check points and their image measurements to a CSV file in the "
-            "format 'Import control and check points' reads (columns id, role, lon, lat, h, sigma_e, sigma_n, "
-            "sigma_h, then <image>_col, <image>_row, <image>_sigma per block image; WGS 84 degrees, "
-            "ellipsoidal heights, numbers at full precision), so an export imports back exactly.")
+            "format 'Import control and check points' reads (WGS 84 degrees, ellipsoidal heights, full "
+            "precision), so an export imports back exactly.")
+
+    BLOCK, OUTPUT = "BLOCK", "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
-        self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
-        self.addParameter(QgsProcessingParameterFileDestination("OUTPUT", "Point file", "CSV files (*.csv)"))
+        self.addParameter(QgsProcessingParameterFile(self.BLOCK, self.tr("Block"), extension="gpkg"))
+        self.addParameter(QgsProcessingParameterFileDestination(self.OUTPUT, self.tr("Point file"),
+                                                                self.tr("CSV files (*.csv)")))
 
     def execute(self, parameters, context, feedback):
-        path = self.parameterAsFile(parameters, "BLOCK", context)
-        output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
-        stored = cp.export_csv(path, output)
-        feedback.pushInfo(f"{output}: " + cp.summary(stored, cp.image_ids(path)))
-        return {"OUTPUT": output}
+        output = export_points(self.parameterAsFile(parameters, self.BLOCK, context),
+                               self.parameterAsFileOutput(parameters, self.OUTPUT, context), feedback)
+        return {self.OUTPUT: output}

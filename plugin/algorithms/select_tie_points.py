@@ -1,14 +1,11 @@
-"""pushbroom:selecttiepoints — one tie point per grid cell of the reference image from the
-block's mass points (algorithms/matching/tiepoints.py)."""
+"""pushbroom:selecttiepoints — the Processing face of matching.block_tie_points.select_block_tie_points:
+one tie point per grid cell of the reference image from the block's mass points."""
 from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputVectorLayer,
                        QgsProcessingParameterFile, QgsProcessingParameterNumber)
 
-from ...algorithms import block
-from ...algorithms.matching import points
-from ...algorithms.matching.tiepoints import select_tie_points
-from .base import PushbroomAlgorithm
+from ...algorithms.matching.block_tie_points import TieParams, select_block_tie_points
 from ..styles import load_styled
-from ...algorithms.height_range import mean_height
+from .base import PushbroomAlgorithm
 
 Number = QgsProcessingParameterNumber
 
@@ -18,33 +15,28 @@ class SelectTiePoints(PushbroomAlgorithm):
     DISPLAY_NAME = "Select tie points"
     GROUP = "Matching"
     GROUP_ID = "matching"
-    HELP = ("Selects tie points for the bundle adjustment from the block's mass points (Kornus et al. 2006, "
-            "3.3): one point per regular grid cell of the reference image, the one with the highest "
-            "correlation coefficient among the most reliable point group present in the cell (group 3 before "
-            "2 before 1). The tie points are stored with the block (<block>.tie_points.npz, referenced in "
-            "block_info) and written as the point layer 'tie_points'.")
+    HELP = ("Selects tie points for the bundle adjustment from the block's mass points (Kornus et al. 2006): "
+            "one point per grid cell of the reference image, the best correlated of the most reliable point "
+            "group present. The tie points are stored with the block and loaded as the point layer 'tie_points'.")
+
+    BLOCK, CELL, MIN_GROUP = "BLOCK", "CELL", "MIN_GROUP"
+    TIE_POINTS, TIE_POINTS_FILE = "TIE_POINTS", "TIE_POINTS_FILE"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
-        self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
-        self.addParameter(Number("CELL", "Grid cell size (px of the reference image)", Number.Double, 100.0,
+        d, tr = TieParams(), self.tr
+        self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
+        self.addParameter(Number(self.CELL, tr("Grid cell size (px of the reference image)"), Number.Double, d.cell,
                                  minValue=1.0))
-        self.addParameter(Number("MIN_GROUP", "Lowest point group accepted (1, 2 or 3)", Number.Integer, 1,
-                                 minValue=1, maxValue=3))
-        self.addOutput(QgsProcessingOutputVectorLayer("TIE_POINTS", "Tie points", QgsProcessing.TypeVectorPoint))
-        self.addOutput(QgsProcessingOutputFile("BLOCK", "Block (updated; chains the next step in a model)"))
-        self.addOutput(QgsProcessingOutputFile("TIE_POINTS_FILE", "Tie point file (.npz)"))
+        self.addParameter(Number(self.MIN_GROUP, tr("Lowest point group accepted (1, 2 or 3)"), Number.Integer,
+                                 d.min_group, minValue=1, maxValue=3))
+        self.addOutput(QgsProcessingOutputVectorLayer(self.TIE_POINTS, tr("Tie points"),
+                                                      QgsProcessing.TypeVectorPoint))
+        self.addOutput(QgsProcessingOutputFile(self.BLOCK, tr("Block (updated; chains the next step in a model)")))
+        self.addOutput(QgsProcessingOutputFile(self.TIE_POINTS_FILE, tr("Tie point file (.npz)")))
 
     def execute(self, parameters, context, feedback):
-        path = self.parameterAsFile(parameters, "BLOCK", context)
-        mass = points.load_points(path, "mass_points")
-        tie = select_tie_points(mass, cell=self.parameterAsDouble(parameters, "CELL", context),
-                                min_group=self.parameterAsInt(parameters, "MIN_GROUP", context))
-        reference = tie.stats.get("tie_reference", (mass.stats.get("images") or [1])[0])
-        counts = tie.group_counts()
-        feedback.pushInfo(f"{len(tie)} tie points from {len(mass)} mass points: "
-                          + ", ".join(f"group {g}: {n}" for g, n in counts.items()))
-        npz = points.save_points(path, tie, "tie_points", display=(
-            block.load_model(path, reference), reference, mean_height(block.height_range(path))))
-        layer = points.layer_source(path, "tie_points")
-        load_styled(context, layer, "Tie points", "TIE_POINTS", "points_by_group.qml")
-        return {"BLOCK": path, "TIE_POINTS": layer, "TIE_POINTS_FILE": npz}
+        path = self.parameterAsFile(parameters, self.BLOCK, context)
+        params = TieParams(**self.parameterValues(parameters, context, cell=self.CELL, min_group=self.MIN_GROUP))
+        result = select_block_tie_points(path, params, feedback)
+        load_styled(context, result.layer, "Tie points", self.TIE_POINTS, "points_by_group.qml")
+        return {self.BLOCK: path, self.TIE_POINTS: result.layer, self.TIE_POINTS_FILE: result.sidecar}

@@ -1,0 +1,207 @@
+"""The bundle adjustment step (pushbroom:bundleadjust): adjust a block's orientation from its control
+and tie points and store the result.
+
+`adjust_block(block_path, params, feedback)`:
+
+1. loads the supplied models (every adjustment starts from the orientation the block was created
+   with), the control/check points and, with `use_tie_points`, the tie points (sigma `sigma_tie`);
+2. adjusts with one of three solvers: the automatic parameter selection (selection.py, Kornus et al.
+   2006 section 3.4.3) when `free` is "auto", else variance components (variance.py) or one plain
+   adjustment (bundle.adjust) of the named free parameters. With the Lagrange model (orientation images,
+   Heipke et al. 1992 section 3) "auto" means LAGRANGE_AUTO, adjusted as named parameters;
+3. optionally runs the control point series (control_series.py, Heipke et al. 1992 Table 1);
+4. intersects the check points with the adjusted models, compares the adjusted tie point heights
+   with a reference DTM (tie_heights.py; Kornus et al. 2006 Table 4) and builds the residual vectors;
+5. stores the adjusted models and the residuals in one block transaction, refused when the block's
+   control points, tie points or models changed since step 1 (block.generations);
+6. writes the HTML report and the residual vector file when asked.
+
+A block without control points can only be adjusted with named free parameters and priors that fix
+the datum (InputError otherwise)."""
+from dataclasses import dataclass
+from typing import Optional
+
+from .. import block, progress
+from ..dem import Dem
+from ..errors import InputError
+from ..height_range import mean_height
+from ..matching import points
+from ..measurement.residual_store import residual_rows, write_residuals
+from ..stats import statistics_table
+from . import report
+from .bundle import CRITICAL_W, adjust, check_points
+from .control_points import HEIGHT_TYPES, load_control_points
+from .control_series import control_point_series
+from .observations import IMAGE_SIGMA, tie_observations
+from .parameters import MODELS
+from .residual_vectors import DEFAULT_SCALE, residual_vectors, write_residual_vectors
+from .selection import select_parameters
+from .tie_heights import tie_height_differences
+from .variance import adjust_with_components
+
+#: the free parameters "auto" stands for with the Lagrange model: attitude and offsets (the header
+#: positions enter as priors)
+LAGRANGE_AUTO = ["lagrange:attitude", "lagrange:offset"]
+
+
+def parse_priors(text):
+    """{pattern: sigma} of the text "pattern=sigma, ..." (commas or semicolons; empty text: none)."""
+    priors = {}
+    for item in (text or "").replace(";", ",").split(","):
+        if not item.strip():
+            continue
+        pattern, _, value = item.partition("=")
+        try:
+            priors[pattern.strip()] = float(value)
+        except ValueError:
+            raise InputError(f"a prior is pattern=sigma (e.g. bias:shift=10), not {item.strip()!r}") from None
+    return priors
+
+
+def parse_counts(text):
+    """The control point counts of the text "4,6,10" (commas or semicolons; empty text: none)."""
+    try:
+        return [int(c) for c in (text or "").replace(";", ",").split(",") if c.strip()]
+    except ValueError:
+        raise InputError(f"control point counts must be whole numbers separated by commas, not {text!r}") from None
+
+
+@dataclass
+class AdjustParams:
+    """The bundle adjustment's settings; each is a pushbroom:bundleadjust parameter."""
+
+    free: str = "auto"                  # "auto" or comma-separated parameter names/patterns
+    model: str = "polynomial"           # one of parameters.MODELS
+    use_tie_points: bool = True
+    remove_blunders: bool = False       # remove flagged measurements one by one
+    reference_dem: Optional[str] = None         # DTM for the tie point height table
+    reference_dem_nodata: Optional[float] = None
+    reference_heights: str = "ellipsoidal"      # one of control_points.HEIGHT_TYPES
+    sigma_tie: float = IMAGE_SIGMA      # px, tie point measurements
+    critical: float = CRITICAL_W        # critical normalised residual (data snooping)
+    max_iterations: int = 15
+    variance_components: bool = True
+    significance: float = 3.0           # automatic selection: x/sigma threshold
+    control_series: str = ""            # control point counts, e.g. "4,6,10"
+    orientation_images: int = 4         # Lagrange model: orientation images per trajectory
+    vector_scale: float = DEFAULT_SCALE
+    priors: str = ""                    # "pattern=sigma, ..."
+    report: Optional[str] = None        # HTML report path
+    residual_vectors: Optional[str] = None      # residual vector file (GeoPackage, shapefile, GeoJSON)
+
+    @property
+    def free_list(self):
+        """The FREE text as a list of names/patterns."""
+        return [f for f in (self.free or "").split(",") if f.strip()]
+
+    @property
+    def auto(self):
+        return [f.strip().lower() for f in self.free_list] == ["auto"]
+
+    def check(self):
+        """Raise InputError for settings the adjustment cannot use."""
+        if self.model not in MODELS:
+            raise InputError(f"the orientation model must be one of {', '.join(MODELS)}, not {self.model!r}")
+        if self.reference_heights not in HEIGHT_TYPES:
+            raise InputError(f"the reference DTM heights must be one of {', '.join(HEIGHT_TYPES)}, "
+                             f"not {self.reference_heights!r}")
+        if self.residual_vectors and self.residual_vectors.startswith("memory:"):
+            raise InputError("write the residual vectors to a file (GeoPackage, shapefile or GeoJSON), not to a "
+                             "temporary memory layer")
+        parse_priors(self.priors)
+        parse_counts(self.control_series)
+        return self
+
+
+@dataclass
+class AdjustResult:
+    """What adjust_block stored and wrote."""
+
+    sigma0: float
+    report: Optional[str] = None            # the HTML report written, if asked
+    residual_vectors: Optional[str] = None  # the residual vector file written, if asked
+
+
+def _solve(models, obs, names, params, options, feedback):
+    """(result, observations, free, extra report sections) of the solver the settings choose."""
+    free, auto, extra = params.free_list, params.auto, []
+    if params.model == "lagrange":
+        options.update(model=params.model, orientation_images=params.orientation_images)
+        if auto:
+            free, auto = LAGRANGE_AUTO, False
+            progress.ensure(feedback).pushInfo(f"Lagrange model: free {', '.join(free)} (header positions as "
+                                               "priors: 1 m relative, offsets 1000 m)")
+    if auto:
+        selection = select_parameters(models, obs, names=names, variance_components=params.variance_components,
+                                      significance=params.significance, feedback=feedback, **options)
+        extra.append(report.Section("Parameter selection (K 3.4.3)", notes=selection.log))
+        if selection.components:
+            extra.append(report.variance_section(selection.components))
+        return selection.result, selection.observations, selection.free, extra
+    if params.variance_components:
+        result, obs, components = adjust_with_components(models, obs, free, names=names, feedback=feedback,
+                                                         **options)
+        return result, obs, free, [report.variance_section(components)]
+    return adjust(models, obs, free, names=names, feedback=feedback, **options), obs, free, extra
+
+
+def adjust_block(block_path, params, feedback=None):
+    """Adjust the block at `block_path` with AdjustParams `params` (module docstring); returns an
+    AdjustResult. Raises InputError (settings, no control points), the solvers' errors, and
+    block.transaction's StorageError when the block changed meanwhile. A reference DTM that holds no
+    adjusted tie point is a warning (the height table is empty)."""
+    params.check()
+    priors = parse_priors(params.priors)
+    block.check_writable(block_path, "the adjusted models")
+    generations = block.generations(block_path)
+    rows = block.read_images(block_path)
+    models = {r["id"]: block.load_model(block_path, r["id"], supplied=True) for r in rows}
+    names = {r["id"]: r["name"] for r in rows}
+    obs = load_control_points(block_path)
+    if params.use_tie_points:
+        obs = obs.concatenate(tie_observations(points.load_points(block_path, "tie_points"), params.sigma_tie))
+    if not (obs.points["role"] == "control").any() and (params.auto or not priors):
+        raise InputError("the block has no control points: import them (pushbroom:importpoints), or adjust "
+                         "with tie points alone by naming the free parameters and priors that fix the "
+                         "datum (e.g. FREE bias:shift, PRIORS bias:shift=10 for RPC images)")
+    height = mean_height(block.height_range(block_path))
+    dem = None
+    if params.reference_dem:
+        dem = Dem.from_file(params.reference_dem, params.reference_dem_nodata)
+        progress.warn(feedback, dem.implausible)
+    options = {"height": height, "critical": params.critical, "priors": priors,
+               "max_iterations": params.max_iterations, "remove_blunders": params.remove_blunders}
+    result, obs, free, extra = _solve(models, obs, names, params, options, feedback)
+    counts = parse_counts(params.control_series)
+    if counts:
+        series = control_point_series({r["id"]: block.load_model(block_path, r["id"], supplied=True) for r in rows},
+                                      obs, counts, free, names=names, feedback=feedback,
+                                      **{k: v for k, v in options.items() if k != "remove_blunders"})
+        extra.append(report.series_section(series))
+    check = check_points(result, obs, height)
+    table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")}) if len(check["dE"]) else None
+    heights = None
+    if dem is not None:
+        datum = params.reference_heights
+        heights = (tie_height_differences(result, dem, datum),
+                   f"{params.reference_dem}, {'EGM96 ' if datum == 'orthometric' else ''}{datum} heights")
+        if not len(heights[0].dh):
+            progress.warn(feedback, "no adjusted tie point lies on the reference DTM: the tie point height table "
+                          "is empty (use the block's tie points and a DTM that covers the block)")
+    vectors, crs = residual_vectors(result, check, obs, params.vector_scale,
+                                    block.read_info(block_path).get("default_crs"), params.critical)
+    parts = report.sections(result, check, table, params.critical, heights, vectors)
+    parts[1:1] = extra
+    progress.ensure(feedback).pushInfo(report.render_text(parts))
+    residuals = residual_rows(result, check, obs)
+    # storage: the adjusted models and the residuals in one transaction, if the block is unchanged
+    with block.transaction(block_path, "the adjusted models and residuals", expect=generations) as ds:
+        block.write_models(ds, models, step="bundleadjust",
+                           message=f"sigma_0 {result.sigma0:.4f}, free: {', '.join(free)}")
+        write_residuals(ds, *residuals)
+    out = AdjustResult(result.sigma0)
+    if params.report:
+        out.report = report.write_html(params.report, f"Bundle adjustment of {block_path}", parts=parts)
+    if params.residual_vectors:
+        out.residual_vectors = write_residual_vectors(params.residual_vectors, vectors, crs, params.vector_scale)
+    return out

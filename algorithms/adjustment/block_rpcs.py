@@ -1,0 +1,141 @@
+"""The RPC fitting step (pushbroom:fitrpc): RPC00B fitted to the sensor models a block holds
+(sensors/rpc_fit.py; Kornus et al. 2006 section 3.5.2), written as _RPC.TXT files GDAL reads.
+
+`fit_block_rpcs(block_path, params, feedback)` fits one RPC per chosen image over the cube's height
+range (both heights given, or the block's terrain height range widened by rpc_fit.default_height_range),
+writes <image stem>_RPC.TXT beside each raster or <image name>_RPC.TXT into a folder (every destination
+is checked before the first fit), compares the object points of the block's tie points intersected
+with the RPCs and with the rigorous models (surface.intersection.height_differences; Kornus et al.
+2006 Table 5) when RPCs were fitted for all their images, and records the step in the block's
+history."""
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from .. import block, progress
+from ..errors import InputError
+from ..height_range import mean_height
+from ..matching import points
+from ..sensors import rpc_fit
+from ..surface.intersection import height_differences
+from . import report
+
+
+@dataclass
+class RpcParams:
+    """The RPC fit's settings; each is a pushbroom:fitrpc parameter."""
+
+    image: str = ""                     # image name; empty: every image of the block
+    min_height: Optional[float] = None  # cube heights (m, ellipsoidal); both or neither
+    max_height: Optional[float] = None
+    overwrite: bool = False             # replace existing _RPC.TXT files
+    grid: int = rpc_fit.DEFAULT_GRID[0]             # image grid points along columns and rows
+    height_levels: int = rpc_fit.DEFAULT_GRID[2]
+    folder: Optional[str] = None        # output folder; None: beside each image raster
+    report: Optional[str] = None        # HTML report path
+
+    def check(self):
+        """Raise InputError for settings the fit cannot use."""
+        if self.grid < 4 or self.height_levels < 4:
+            raise InputError(f"the RPC cube needs at least 4 grid points and 4 height levels, not {self.grid} and "
+                             f"{self.height_levels}")
+        return self
+
+
+@dataclass
+class RpcResult:
+    """The files fit_block_rpcs wrote."""
+
+    files: list = field(default_factory=list)   # the _RPC.TXT files, in the order of the images
+    report: Optional[str] = None
+
+
+def selected_images(rows, name):
+    """The block's image rows, or the one called `name` (empty: all)."""
+    name = (name or "").strip()
+    if not name:
+        return list(rows)
+    chosen = [r for r in rows if r["name"] == name]
+    if not chosen:
+        raise InputError(f"image {name} is not in the block; it has {', '.join(r['name'] for r in rows)}")
+    return chosen
+
+
+def cube_heights(block_path, h_min, h_max):
+    """(min, max) heights of the cube: both given, or the block's terrain height range widened by a margin
+    (rpc_fit.default_height_range)."""
+    if h_min is not None and h_max is not None:
+        return h_min, h_max
+    if h_min is not None or h_max is not None:
+        raise InputError("give both the lowest and the highest height of the RPC cube, or neither (then the "
+                         "block's terrain height range is used, widened by a margin)")
+    terrain = block.height_range(block_path)
+    if terrain is None:
+        raise InputError(f"block {block_path} records no terrain height range: give the lowest and highest "
+                         "heights of the RPC cube")
+    return rpc_fit.default_height_range(terrain)
+
+
+def rpc_height_check(block_path, rpcs):
+    """The summary of surface.intersection.height_differences on the block's tie points, when the
+    block has tie points and RPCs were fitted for all their images ("" otherwise)."""
+    if "tie_points" not in block.read_info(block_path):
+        return ""
+    obs = points.load_points(block_path, "tie_points").observations
+    images = set(np.unique(obs["image_id"]).tolist())
+    if not images or not images <= set(rpcs):
+        return ""
+    rigorous = {i: block.load_model(block_path, i) for i in images}
+    return height_differences(rigorous, {i: rpcs[i] for i in images}, obs["image_id"], obs["point_id"],
+                              obs["col"], obs["row"], h0=mean_height(block.height_range(block_path))).summary()
+
+
+def _destinations(rows, params):
+    """The _RPC.TXT path of each image row, checked writable (and absent unless overwriting)."""
+    destinations = []
+    for row in rows:
+        if params.folder is None and not row["image_path"]:
+            raise InputError(f"image {row['name']} has no raster path in the block: give an output folder")
+        destination = rpc_fit.rpc_txt_path(row["image_path"], params.folder, row["name"])
+        rpc_fit.check_destination(destination, params.overwrite)
+        destinations.append(destination)
+    return destinations
+
+
+def fit_block_rpcs(block_path, params, feedback=None):
+    """Fit and write the RPCs of the block at `block_path` with RpcParams `params` (module docstring);
+    returns an RpcResult. Raises InputError (an unknown image, no height range, a destination that
+    exists or cannot be written), rpc_fit's errors, CancelledError when cancelled."""
+    params.check()
+    rows = selected_images(block.read_images(block_path), params.image)
+    heights = cube_heights(block_path, params.min_height, params.max_height)
+    grid = (params.grid, params.grid, params.height_levels)
+    destinations = _destinations(rows, params)
+    fitted = []
+    for k, row in enumerate(rows):
+        progress.step(feedback, 95.0 * k / len(rows), f"fitting the RPC of {row['name']}")
+        fitted.append(rpc_fit.fit_rpc(block.load_model(block_path, row["id"]), heights, grid,
+                                      feedback=progress.scaled(feedback, 95.0 * k / len(rows),
+                                                               95.0 * (k + 1) / len(rows))))
+    progress.step(feedback, 95.0)
+    entries = []
+    for row, (rpc, fit), destination in zip(rows, fitted, destinations):
+        written = rpc_fit.write_fitted_rpc(rpc, destination, params.overwrite)
+        entries.append((row["name"], written, fit))
+        if params.folder is None and not rpc_fit.raster_reads(row["image_path"], rpc):
+            progress.warn(feedback, f"GDAL does not read {written} with {row['image_path']} (the raster carries "
+                          "other RPC metadata it prefers, or cannot be opened): load the _RPC.TXT itself")
+    text = rpc_fit.report_text(entries)
+    comparison = rpc_height_check(block_path, {row["id"]: rpc for row, (rpc, _) in zip(rows, fitted)})
+    if comparison:
+        text += "\n\nRPC minus rigorous object points of the block's tie points (Kornus et al. 2006, Table 5): " \
+                + comparison
+    progress.ensure(feedback).pushInfo(text)
+    # storage: the step in the block's history
+    block.update_info(block_path, {}, step="fitrpc",
+                      message="; ".join(f"{name}: {written}" for name, written, _ in entries))
+    out = RpcResult([written for _, written, _ in entries])
+    if params.report:
+        out.report = report.write_html(params.report, f"RPC fit for {block_path}", text)
+    return out

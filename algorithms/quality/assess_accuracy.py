@@ -1,0 +1,87 @@
+"""The accuracy assessment step (pushbroom:assessaccuracy): height differences of a point cloud and/or
+a DEM against a reference DTM/DSM (assessment.assess; Kornus et al. 2006 sections 3.6-3.7, Zhang and
+Gruen 2004 section 4), written as an HTML report with figures, optionally a CSV table of the statistics
+and, for a DEM, a dh raster."""
+from dataclasses import dataclass, field
+from typing import Optional
+
+from .. import progress
+from ..adjustment.control_points import HEIGHT_TYPES
+from ..errors import InputError
+from .assessment import SLOPE_THRESHOLD, assess
+from .classes import ClassRaster, PolygonClasses
+from .height_differences import write_dh_raster
+
+
+@dataclass
+class AssessParams:
+    """The assessment's settings; each is a pushbroom:assessaccuracy parameter. Datums are one of
+    control_points.HEIGHT_TYPES."""
+
+    reference: str = ""                         # reference DTM/DSM raster
+    report: str = ""                            # HTML report path
+    points: Optional[str] = None                # point cloud (LAS/LAZ, GeoPackage)
+    dem: Optional[str] = None                   # DEM raster
+    reference_heights: str = "ellipsoidal"
+    points_heights: str = "ellipsoidal"
+    dem_heights: str = "ellipsoidal"
+    class_raster: Optional[str] = None          # class raster, or
+    class_polygons: Optional[PolygonClasses] = None     # class polygons,
+    class_polygons_source: str = ""             # and their description in the report
+    slope_threshold: float = SLOPE_THRESHOLD    # degrees: mountainous terrain above
+    reference_nodata: Optional[float] = None    # void value of the reference its file does not flag
+    table: Optional[str] = None                 # CSV statistics table path
+    dh: Optional[str] = None                    # dh raster path (DEM input)
+
+    def check(self):
+        """Raise InputError for settings the assessment cannot use."""
+        for datum in (self.reference_heights, self.points_heights, self.dem_heights):
+            if datum not in HEIGHT_TYPES:
+                raise InputError(f"heights must be one of {', '.join(HEIGHT_TYPES)}, not {datum!r}")
+        if self.class_raster and self.class_polygons is not None:
+            raise InputError("give a class raster or class polygons, not both")
+        if self.dh and not self.dem:
+            raise InputError("the dh raster needs a DEM input: give a DEM or leave the dh raster unset")
+        return self
+
+
+@dataclass
+class AssessResult:
+    """The files assess_accuracy wrote (None: not asked)."""
+
+    report: str
+    table: Optional[str] = None
+    dh: Optional[str] = None
+    used: list = field(default_factory=list)    # (what, description) of the inputs, as in the report
+
+
+def assess_accuracy(params, feedback=None):
+    """Assess with AssessParams `params` and write the outputs; returns an AssessResult. Raises
+    InputError (settings, inputs the reference does not cover) and the readers' errors."""
+    params.check()
+    classes, class_source = None, "none"
+    if params.class_raster:
+        classes, class_source = ClassRaster(params.class_raster), params.class_raster
+    elif params.class_polygons is not None:
+        classes, class_source = params.class_polygons, params.class_polygons_source
+    assessed = assess(params.reference, points=params.points, dem=params.dem,
+                      reference_datum=params.reference_heights, points_datum=params.points_heights,
+                      dem_datum=params.dem_heights, classes=classes, slope_threshold=params.slope_threshold,
+                      feedback=progress.scaled(feedback, 0, 70), reference_nodata=params.reference_nodata)
+    used = [("reference", f"{params.reference} ({params.reference_heights} heights)")]
+    if params.points:
+        used.append(("point cloud", f"{params.points} ({params.points_heights} heights)"))
+    if params.dem:
+        used.append(("DEM", f"{params.dem} ({params.dem_heights} heights; reference resampled onto its grid)"))
+    used += [("classes", class_source), ("slope threshold", f"{params.slope_threshold:g} deg")]
+    from . import report   # matplotlib: loaded on use, not with the plugin
+    progress.ensure(feedback).pushInfo(report.text(assessed, used))
+    progress.step(feedback, 75, "drawing the figures")
+    out = AssessResult(report.write_report(params.report, "Accuracy assessment", assessed, used), used=used)
+    progress.step(feedback, 95)
+    if params.table:
+        out.table = report.write_csv(params.table, assessed)
+    if params.dh:
+        grid = next(a.differences.grid for a in assessed if a.differences.grid is not None)
+        out.dh = write_dh_raster(params.dh, grid)
+    return out
