@@ -16,7 +16,8 @@ from ...algorithms.adjustment import report
 from ...algorithms.adjustment.bundle import CRITICAL_W, adjust, check_points
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES, load_control_points
 from ...algorithms.adjustment.control_series import control_point_series
-from ...algorithms.adjustment.observations import IMAGE_SIGMA, tie_observations
+from ...algorithms.adjustment.observations import tie_observations
+from ...algorithms.sigmas import IMAGE_SIGMA
 from ...algorithms.adjustment.residual_vectors import DEFAULT_SCALE, residual_vectors, write_residual_vectors
 from ...algorithms.adjustment.selection import select_parameters
 from ...algorithms.adjustment.tie_heights import tie_height_differences

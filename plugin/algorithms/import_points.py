@@ -7,7 +7,7 @@ from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutp
                        QgsProcessingParameterNumber, QgsProcessingParameterString)
 
 from ...algorithms.adjustment import control_points as cp
-from ...algorithms.adjustment.observations import IMAGE_SIGMA
+from ...algorithms.sigmas import IMAGE_SIGMA
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
 
