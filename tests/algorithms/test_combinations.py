@@ -7,8 +7,8 @@ from matching_scene import DISCONTINUOUS, SINGLE_SURFACE, Scene
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.combinations import combine, format_summary, new_cells, robust_sigma, summary_rows
-from pushbroom.algorithms.matching.points import COMB_A, COMB_B, COMB_C, REFINED
 from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.points import COMB_A, COMB_B, COMB_C, REFINED
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIMILARITY
 from pushbroom.algorithms.matching.seeds import local_affine
@@ -214,7 +214,7 @@ def test_group3_accuracy_on_the_simulated_triplet(triplet):
     backward ones): fields 0.192 / 0.176 px, forest and city 0.106 / 0.070 px."""
     cls = triplet["class"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
-    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))   # noqa: E731
+    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))
     print(f"\n{triplet['n']} group-3 points, stats {triplet['stats']}")
     for name in ("HRS1", "HRS2"):
         point, area = triplet[name]
@@ -241,7 +241,7 @@ def test_group3_with_support_weights(triplet):
     city 0.123 / 0.117 px vs the area truth, none beyond 1 px."""
     cls = triplet["class support"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
-    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))   # noqa: E731
+    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))
     assert triplet["n support"] > 800 and triplet["stats support"]["refined_mpgc"] > 0.95 * triplet["n support"]
     uniform_fields = np.isin(triplet["class"], SINGLE_SURFACE)
     for name in ("HRS1", "HRS2"):

@@ -36,7 +36,6 @@ height precision of a difference of two B/H 0.11 pair DSMs at 0.1 px matching pr
 import numpy as np
 import pytest
 from osgeo import gdal
-
 from real_dsm import CELL, VENTOUX_CELL, check_pair_consistency, footprint
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
