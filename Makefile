@@ -3,8 +3,10 @@ SHELL := /bin/bash
 PY := .venv/bin/python
 APT_PACKAGES := qgis python3-qgis qgis-providers python3-gdal gdal-bin python3-scipy \
                 python3-matplotlib python3-numpy python3-venv python3-pip xvfb zip
+# the test and lint pins equal pyproject.toml's extras (tests/test_packaging.py checks it)
 PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest-qgis==2.1.0 \
-            hypothesis==6.112.2 laspy==2.5.4
+            hypothesis==6.112.2 laspy==2.5.4 ruff==0.17.6
+# metadata.txt holds the one version; pyproject.toml reads it through pushbroom.__version__
 VERSION := $(shell sed -n 's/^version=//p' metadata.txt)
 PROFILE := $(CURDIR)/build/qgis-profile
 # qgis_process embeds the system Python: give it the venv's packages (numba) and a profile with the plugin
@@ -14,7 +16,7 @@ QGIS_PROCESS = env QGIS_CUSTOM_CONFIG_PATH=$(PROFILE) PYTHONPATH=$(SITE) /usr/bi
 export QT_QPA_PLATFORM ?= offscreen
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: setup test test-fast demo bench package clean
+.PHONY: setup lint test test-fast demo bench package clean
 
 setup: .venv/.setup-done $(PROFILE)/.enabled
 
@@ -38,6 +40,10 @@ $(PROFILE)/.enabled: .venv/.setup-done metadata.txt
 	@$(PY) -c "import numpy, numba, qgis.core, osgeo.gdal; assert numpy.__version__.startswith('1.'), numpy.__version__"
 	@touch $@
 
+# ruff (configured in pyproject.toml); CI runs it before the tests.
+lint: .venv/.setup-done
+	.venv/bin/ruff check .
+
 # The whole suite, slow end-to-end tests included (CI runs this).
 test: setup
 	$(PY) -m pytest -q --durations=15 tests
@@ -59,7 +65,7 @@ bench: setup
 # The plugin zip for "Install from ZIP" in QGIS (tests and development files left out).
 package:
 	@rm -rf build/package && mkdir -p build/package/pushbroom dist
-	@cp -r metadata.txt __init__.py LICENSE README.md algorithms plugin ui resources docs build/package/pushbroom/
+	@cp -r metadata.txt __init__.py resource_files.py LICENSE README.md algorithms plugin ui resources docs build/package/pushbroom/
 	@find build/package -name __pycache__ -prune -exec rm -rf {} + ; find build/package -name '*.nb[ic]' -delete
 	@rm -f dist/pushbroom-$(VERSION).zip && cd build/package && zip -qr ../../dist/pushbroom-$(VERSION).zip pushbroom
 	@echo "dist/pushbroom-$(VERSION).zip"

@@ -48,16 +48,16 @@ class _Scaled:
     def __init__(self, feedback, start, stop):
         self.feedback, self.start, self.stop = feedback, start, stop
 
-    def setProgress(self, percent):  # noqa: N802 (QGIS API)
+    def setProgress(self, percent):
         self.feedback.setProgress(self.start + (self.stop - self.start) * float(percent) / 100.0)
 
-    def isCanceled(self):  # noqa: N802 (QGIS API)
+    def isCanceled(self):
         return self.feedback.isCanceled()
 
-    def pushInfo(self, text):  # noqa: N802 (QGIS API)
+    def pushInfo(self, text):
         self.feedback.pushInfo(text)
 
-    def pushWarning(self, text):  # noqa: N802 (QGIS API)
+    def pushWarning(self, text):
         warn(self.feedback, text)
 
 
@@ -72,10 +72,10 @@ class _Quiet(NullFeedback):
     def __init__(self, feedback):
         self.feedback = feedback
 
-    def isCanceled(self):  # noqa: N802 (QGIS API)
+    def isCanceled(self):
         return self.feedback.isCanceled()
 
-    def pushWarning(self, text):  # noqa: N802 (QGIS API)
+    def pushWarning(self, text):
         warn(self.feedback, text)
 
 

@@ -8,7 +8,7 @@ from qgis.core import QgsProject, QgsProviderRegistry, QgsVectorLayer
 
 from ..algorithms import block
 from ..algorithms.adjustment.control_points import LAYER, layers
-from .plugin import resource_path
+from ..resource_files import resource_path
 
 LAYER_NAME = "Control and check points"
 

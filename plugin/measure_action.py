@@ -9,7 +9,7 @@ from qgis.PyQt import sip
 from qgis.PyQt.QtGui import QIcon
 from qgis.PyQt.QtWidgets import QAction, QFileDialog, QMenu
 
-from .plugin import resource_path
+from ..resource_files import resource_path
 
 ACTION_NAME = "pushbroom_measure"
 TOOLBAR_NAME = "PushbroomToolbar"

@@ -1,6 +1,4 @@
 """The plugin object QGIS creates through classFactory."""
-import os
-
 from qgis.core import QgsApplication
 
 PIP_HINT = "python3 -m pip install numba"
@@ -35,7 +33,7 @@ class PushbroomPlugin:
         self.provider = None
         self.measure = None
 
-    def initProcessing(self):  # noqa: N802 (QGIS API)
+    def initProcessing(self):
         from .provider import PushbroomProvider
         if QgsApplication.instance() is not None and QgsApplication.instance().platform() == "qgis_process":
             from .gdal_messages import install_console_filter
@@ -43,7 +41,7 @@ class PushbroomPlugin:
         self.provider = PushbroomProvider()
         QgsApplication.processingRegistry().addProvider(self.provider)
 
-    def initGui(self):  # noqa: N802 (QGIS API)
+    def initGui(self):
         self.initProcessing()
         if self.iface is not None:
             from .measure_action import MeasureAction
@@ -71,19 +69,14 @@ class MissingDependencyPlugin:
                 f"Install them for the Python that runs QGIS: on Debian/Ubuntu `{APT_HINT}`, "
                 f"elsewhere (Windows OSGeo4W shell, macOS) `{PIP_HINT}`; then restart QGIS.")
 
-    def initGui(self):  # noqa: N802 (QGIS API)
+    def initGui(self):
         from qgis.core import Qgis, QgsMessageLog
         QgsMessageLog.logMessage(self.message(), "Pushbroom", Qgis.Critical)
         if self.iface is not None and hasattr(self.iface, "messageBar"):
             self.iface.messageBar().pushMessage("Pushbroom", self.message(), level=Qgis.Critical, duration=0)
 
-    def initProcessing(self):  # noqa: N802 (QGIS API)
+    def initProcessing(self):
         pass
 
     def unload(self):
         pass
-
-
-def resource_path(*parts):
-    """Absolute path of a file under resources/."""
-    return os.path.join(os.path.dirname(os.path.dirname(__file__)), "resources", *parts)

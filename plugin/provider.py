@@ -2,7 +2,7 @@
 from qgis.core import QgsProcessingProvider
 from qgis.PyQt.QtGui import QIcon
 
-from .plugin import resource_path
+from ..resource_files import resource_path
 
 
 class PushbroomProvider(QgsProcessingProvider):
@@ -14,13 +14,13 @@ class PushbroomProvider(QgsProcessingProvider):
     def name(self):
         return "Pushbroom photogrammetry"
 
-    def longName(self):  # noqa: N802 (QGIS API)
+    def longName(self):
         return "Pushbroom photogrammetry for linear-array satellite imagery"
 
     def icon(self):
         return QIcon(resource_path("icons", "pushbroom.svg"))
 
-    def loadAlgorithms(self):  # noqa: N802 (QGIS API)
+    def loadAlgorithms(self):
         from .algorithms import algorithm_classes
         for cls in algorithm_classes():
             self.addAlgorithm(cls())

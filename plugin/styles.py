@@ -1,7 +1,7 @@
 """Styling of the layers Processing loads on completion (QML files in resources/styles)."""
 from qgis.core import QgsProcessingContext, QgsProcessingLayerPostProcessorInterface
 
-from .plugin import resource_path
+from ..resource_files import resource_path
 
 # Post-processors must outlive the algorithm run that created them (Processing keeps only a pointer).
 _KEEP_ALIVE = []
@@ -14,7 +14,7 @@ class ApplyStyle(QgsProcessingLayerPostProcessorInterface):
         super().__init__()
         self.qml = resource_path("styles", qml_name)
 
-    def postProcessLayer(self, layer, context, feedback):  # noqa: N802 (QGIS API)
+    def postProcessLayer(self, layer, context, feedback):
         layer.loadNamedStyle(self.qml)
         layer.triggerRepaint()
 

@@ -13,10 +13,9 @@ import sys
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests" / "algorithms"))
-from test_lsm import texture  # noqa: E402
-
-from pushbroom.algorithms.matching import lsm  # noqa: E402
-from pushbroom.algorithms.matching.imagery import Smoothed  # noqa: E402
+from pushbroom.algorithms.matching import lsm
+from pushbroom.algorithms.matching.imagery import Smoothed
+from test_lsm import texture
 
 SCALE = np.diag([1.0, 2.0])
 BLUR = (0.79, 0.855)

@@ -10,7 +10,6 @@ import os
 import sys
 
 import numpy as np
-
 from osgeo import gdal
 
 from pushbroom.algorithms import block, sensors

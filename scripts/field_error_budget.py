@@ -14,11 +14,10 @@ import numpy as np
 from scipy import ndimage
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests" / "algorithms"))
-from matching_scene import SINGLE_SURFACE, Scene  # noqa: E402
-
-from pushbroom.algorithms.matching.params import GrowParams  # noqa: E402
-from pushbroom.algorithms.matching.region_growing import match_pair, transfer_points  # noqa: E402
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene  # noqa: E402
+from matching_scene import SINGLE_SURFACE, Scene
+from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing import match_pair, transfer_points
+from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 
 NEAR_M = 50.0          # half an HRG template
 WINDOWS = (9, 11, 13, 15, 19)

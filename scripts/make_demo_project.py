@@ -8,12 +8,18 @@ vectors. The LAS point cloud is added where this QGIS reads point clouds (PDAL p
 import os
 import sys
 
-from qgis.core import (QgsApplication, QgsPointCloudLayer, QgsProject, QgsProviderRegistry, QgsRasterLayer,
-                       QgsVectorLayer)
+from qgis.core import (
+    QgsApplication,
+    QgsPointCloudLayer,
+    QgsProject,
+    QgsProviderRegistry,
+    QgsRasterLayer,
+    QgsVectorLayer,
+)
 
 from pushbroom.algorithms.atomic import atomic_path
-from pushbroom.plugin.plugin import resource_path
 from pushbroom.plugin.styles import resolve_application_font
+from pushbroom.resource_files import resource_path
 
 #: (file in OUT, layer name in a GeoPackage or None, layer name, QML in resources/styles or None, kind);
 #: top of the layer list first

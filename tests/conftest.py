@@ -117,6 +117,18 @@ def small_scene_block(small_scene, tmp_path_factory):
 _EXIT = {"status": 0}
 
 
+@pytest.fixture
+def pushbroom_provider(qgis_processing, qgis_iface):
+    """Processing initialised and the plugin's provider registered (removed afterwards)."""
+    from qgis.core import QgsApplication
+
+    import pushbroom
+    plugin = pushbroom.classFactory(qgis_iface)
+    plugin.initProcessing()
+    yield QgsApplication.processingRegistry().providerById("pushbroom")
+    plugin.unload()
+
+
 def pytest_sessionfinish(session, exitstatus):
     _EXIT["status"] = int(exitstatus)
 

@@ -10,14 +10,14 @@ class Feedback:
         self.messages, self.progress = [], []
         self.cancel_after, self.cancel_at, self.checks = cancel_after, cancel_at, 0
 
-    def setProgress(self, percent):  # noqa: N802 (QGIS API)
+    def setProgress(self, percent):
         self.progress.append(float(percent))
 
-    def isCanceled(self):  # noqa: N802 (QGIS API)
+    def isCanceled(self):
         self.checks += 1
         if self.cancel_at is not None and self.progress and self.progress[-1] >= self.cancel_at:
             return True
         return self.cancel_after is not None and self.checks > self.cancel_after
 
-    def pushInfo(self, text):  # noqa: N802 (QGIS API)
+    def pushInfo(self, text):
         self.messages.append(text)

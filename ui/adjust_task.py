@@ -1,18 +1,23 @@
 """'Adjust now' of the measurement window: pushbroom:bundleadjust on the block in a background
 QgsTask (QgsProcessingAlgRunnerTask), so the GUI keeps responding.
 
-The algorithm is the Processing registry's when the Pushbroom provider is registered (the plugin
-loaded in QGIS); otherwise (a standalone window, a script) an instance of the same algorithm class
-runs outside the registry, so both paths store the same models and residuals. The engine's errors
-(InputError: too few control points, no points at all...) arrive as the algorithm's reported error
-text, never as a traceback."""
+The algorithm is taken from QGIS's Processing registry, where the Pushbroom provider registers it
+when the plugin is loaded; without the provider the adjustment fails with a message saying so. The
+engine's errors (InputError: too few control points, no points at all...) arrive as the algorithm's
+reported error text, never as a traceback."""
 import functools
 
-from qgis.core import (QgsApplication, QgsProcessingAlgRunnerTask, QgsProcessingContext, QgsProcessingFeedback,
-                       QgsProject)
-from qgis.PyQt.QtCore import QObject, pyqtSignal
+from qgis.core import (
+    QgsApplication,
+    QgsProcessingAlgRunnerTask,
+    QgsProcessingContext,
+    QgsProcessingFeedback,
+    QgsProject,
+)
+from qgis.PyQt.QtCore import QObject, QTimer, pyqtSignal
 
 from ..algorithms import block
+from ..algorithms.errors import PushbroomError
 
 ALGORITHM = "pushbroom:bundleadjust"
 #: (task, context, feedback) of running adjustments by id(task): they outlive a window closed meanwhile
@@ -26,19 +31,17 @@ class ErrorFeedback(QgsProcessingFeedback):
         super().__init__()
         self.errors = []
 
-    def reportError(self, error, fatalError=False):  # noqa: N802,N803 (QGIS API)
+    def reportError(self, error, fatalError=False):
         self.errors.append(error)
         super().reportError(error, fatalError)
 
 
 def bundle_adjust_algorithm():
-    """The registered pushbroom:bundleadjust, else an unregistered instance of its class."""
-    registered = QgsApplication.processingRegistry().algorithmById(ALGORITHM)
-    if registered is not None:
-        return registered
-    from ..plugin.algorithms.bundle_adjust import BundleAdjust
-    algorithm = BundleAdjust()
-    algorithm.initAlgorithm()
+    """The registered pushbroom:bundleadjust; PushbroomError when the Pushbroom provider is not loaded."""
+    algorithm = QgsApplication.processingRegistry().algorithmById(ALGORITHM)
+    if algorithm is None:
+        raise PushbroomError(f"the Processing algorithm {ALGORITHM} is not registered: enable the Pushbroom "
+                             "plugin (Plugins > Manage and Install Plugins) so that its provider is loaded")
     return algorithm
 
 
@@ -64,14 +67,20 @@ class AdjustRunner(QObject):
         return self.task is not None
 
     def start(self):
-        """Queue the adjustment in QGIS's task manager; False if one is already running."""
+        """Queue the adjustment in QGIS's task manager; False if one is already running. Without the
+        registered algorithm, finished(False, why) is emitted once control returns to the event loop."""
         if self.running():
             return False
+        try:
+            algorithm = bundle_adjust_algorithm()
+        except PushbroomError as exc:
+            QTimer.singleShot(0, functools.partial(self.finished.emit, False, str(exc)))
+            return True
         self.context = QgsProcessingContext()
         self.context.setProject(QgsProject.instance())
         self.feedback = ErrorFeedback()
         self.feedback.progressChanged.connect(self.progressChanged)
-        self.task = QgsProcessingAlgRunnerTask(bundle_adjust_algorithm(), parameters(self.block_path), self.context,
+        self.task = QgsProcessingAlgRunnerTask(algorithm, parameters(self.block_path), self.context,
                                                self.feedback)
         self.task.executed.connect(self._executed)
         key = id(self.task)

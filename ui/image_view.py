@@ -233,20 +233,20 @@ class ImageView(QWidget):
         half = 0.5 / self.devicePixelRatioF()
         return p.x() + half, p.y() + half
 
-    def wheelEvent(self, event):  # noqa: N802 (Qt API)
+    def wheelEvent(self, event):
         notches = event.angleDelta().y() / 120.0
         if notches and self.reader is not None:
             p = event.position()
             self.set_zoom(self._zoom * ZOOM_STEP ** notches, (p.x(), p.y()))
         event.accept()
 
-    def mousePressEvent(self, event):  # noqa: N802 (Qt API)
+    def mousePressEvent(self, event):
         if event.button() in (Qt.LeftButton, Qt.MiddleButton):
             self._press = (event.button(), event.pos(), self._centre, self._event_point(event))
             self._dragging = False
         event.accept()
 
-    def mouseMoveEvent(self, event):  # noqa: N802 (Qt API)
+    def mouseMoveEvent(self, event):
         if self._press is None:
             return
         _, start, centre, _ = self._press
@@ -259,7 +259,7 @@ class ImageView(QWidget):
             self._set_view((centre[0] - delta.x() / self._zoom, centre[1] - delta.y() / (self._zoom * self.aspect)),
                            self._zoom)
 
-    def mouseReleaseEvent(self, event):  # noqa: N802 (Qt API)
+    def mouseReleaseEvent(self, event):
         if self._press is None:
             return
         button, start, _, point = self._press
@@ -271,7 +271,7 @@ class ImageView(QWidget):
         if clicked:
             self.clicked.emit(*self.widget_to_image(*point))
 
-    def keyPressEvent(self, event):  # noqa: N802 (Qt API)
+    def keyPressEvent(self, event):
         key = event.key()
         if self.reader is None:
             super().keyPressEvent(event)
@@ -286,7 +286,7 @@ class ImageView(QWidget):
         else:
             super().keyPressEvent(event)
 
-    def resizeEvent(self, event):  # noqa: N802 (Qt API)
+    def resizeEvent(self, event):
         super().resizeEvent(event)
         if self._fitted:
             self.fit()
@@ -307,7 +307,7 @@ class ImageView(QWidget):
             self._display.put(key, image, data.nbytes)
         return image
 
-    def paintEvent(self, event):  # noqa: N802 (Qt API)
+    def paintEvent(self, event):
         painter = QPainter(self)
         painter.fillRect(self.rect(), BACKGROUND)
         if self.reader is not None:

@@ -32,7 +32,8 @@ from qgis.PyQt.QtWidgets import (QAction, QFileDialog, QFrame, QHBoxLayout, QInp
 
 from ..algorithms import block
 from ..algorithms.adjustment import control_points
-from ..algorithms.adjustment.observations import IMAGE_SIGMA, Observations
+from ..algorithms.adjustment.observations import Observations
+from ..algorithms.sigmas import IMAGE_SIGMA
 from ..algorithms.errors import InputError, PushbroomError
 from ..algorithms.geodesy import metres_per_degree
 from ..algorithms.measurement import georeferencer, prediction, residual_store, transfer

@@ -4,8 +4,7 @@ height (ellipsoidal, m; empty: from the DEM). Apply (or Return in a field) emits
 import math
 
 from qgis.PyQt.QtCore import pyqtSignal
-from qgis.PyQt.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QHBoxLayout, QLineEdit,
-                                 QPushButton)
+from qgis.PyQt.QtWidgets import QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QHBoxLayout, QLineEdit, QPushButton
 
 from ..algorithms.adjustment.control_points import DEFAULT_SIGMAS, ROLES
 

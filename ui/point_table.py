@@ -4,8 +4,14 @@ last adjustment per image, and its ground residuals dE, dN, dH (m); cells colour
 below 2, orange below the critical value 3.29, red above), sortable on every column."""
 import math
 
-from qgis.PyQt.QtCore import (QAbstractTableModel, QItemSelectionModel, QModelIndex, QSortFilterProxyModel, Qt,
-                              pyqtSignal)
+from qgis.PyQt.QtCore import (
+    QAbstractTableModel,
+    QItemSelectionModel,
+    QModelIndex,
+    QSortFilterProxyModel,
+    Qt,
+    pyqtSignal,
+)
 from qgis.PyQt.QtGui import QBrush, QColor
 from qgis.PyQt.QtWidgets import QAbstractItemView, QHeaderView, QTableView
 
@@ -63,13 +69,13 @@ class PointTableModel(QAbstractTableModel):
         per_image = [f"{self.image_names[i]} {what}" for i in self.image_names for what in ("|v|", "|w|")]
         return BASE_COLUMNS + per_image + GROUND_COLUMNS
 
-    def rowCount(self, parent=QModelIndex()):  # noqa: N802 (Qt API)
+    def rowCount(self, parent=QModelIndex()):
         return 0 if parent.isValid() else len(self.rows)
 
-    def columnCount(self, parent=QModelIndex()):  # noqa: N802 (Qt API)
+    def columnCount(self, parent=QModelIndex()):
         return 0 if parent.isValid() else len(BASE_COLUMNS) + 2 * len(self.image_names) + len(GROUND_COLUMNS)
 
-    def headerData(self, section, orientation, role=Qt.DisplayRole):  # noqa: N802 (Qt API)
+    def headerData(self, section, orientation, role=Qt.DisplayRole):
         if orientation == Qt.Horizontal and role == Qt.DisplayRole:
             return self.columns()[section]
         if orientation == Qt.Horizontal and role == Qt.ToolTipRole:

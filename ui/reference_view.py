@@ -9,8 +9,18 @@ the block's mean terrain height."""
 import math
 import os
 
-from qgis.core import (QgsCoordinateReferenceSystem, QgsCoordinateTransform, QgsCsException, QgsFeature, QgsGeometry,
-                       QgsMapLayerProxyModel, QgsPointXY, QgsProject, QgsRasterLayer, QgsVectorLayer)
+from qgis.core import (
+    QgsCoordinateReferenceSystem,
+    QgsCoordinateTransform,
+    QgsCsException,
+    QgsFeature,
+    QgsGeometry,
+    QgsMapLayerProxyModel,
+    QgsPointXY,
+    QgsProject,
+    QgsRasterLayer,
+    QgsVectorLayer,
+)
 from qgis.gui import QgsMapCanvas, QgsMapLayerComboBox, QgsMapTool, QgsVertexMarker
 from qgis.PyQt.QtCore import Qt, pyqtSignal
 from qgis.PyQt.QtGui import QColor
@@ -20,7 +30,7 @@ from ..algorithms import block
 from ..algorithms.adjustment.control_points import orthometric_to_ellipsoidal
 from ..algorithms.dem import Dem
 from ..algorithms.errors import InputError, PushbroomError
-from ..plugin.plugin import resource_path
+from ..resource_files import resource_path
 
 WGS84 = "EPSG:4326"
 #: mouse travel (screen px) that turns a click into a pan
@@ -37,11 +47,11 @@ class ClickPanTool(QgsMapTool):
         self.press = None
         self.dragging = False
 
-    def canvasPressEvent(self, event):  # noqa: N802 (QGIS API)
+    def canvasPressEvent(self, event):
         if event.button() == Qt.LeftButton:
             self.press, self.dragging = event.pos(), False
 
-    def canvasMoveEvent(self, event):  # noqa: N802 (QGIS API)
+    def canvasMoveEvent(self, event):
         if self.press is None or not event.buttons() & Qt.LeftButton:
             return
         if not self.dragging and (event.pos() - self.press).manhattanLength() > DRAG_THRESHOLD:
@@ -49,7 +59,7 @@ class ClickPanTool(QgsMapTool):
         if self.dragging:
             self.canvas().panAction(event)
 
-    def canvasReleaseEvent(self, event):  # noqa: N802 (QGIS API)
+    def canvasReleaseEvent(self, event):
         if event.button() != Qt.LeftButton or self.press is None:
             return
         if self.dragging:

@@ -32,7 +32,8 @@ from . import report
 from .bundle import CRITICAL_W, adjust, check_points
 from .control_points import HEIGHT_TYPES, load_control_points
 from .control_series import control_point_series
-from .observations import IMAGE_SIGMA, tie_observations
+from ..sigmas import IMAGE_SIGMA
+from .observations import tie_observations
 from .parameters import MODELS
 from .residual_vectors import DEFAULT_SCALE, residual_vectors, write_residual_vectors
 from .selection import select_parameters

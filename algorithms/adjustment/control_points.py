@@ -39,7 +39,8 @@ from ..crs import egm96_undulation, reproject, srs as parse_crs, wgs84
 from ..atomic import write_text
 from ..errors import InputError
 from . import point_plausibility
-from .observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
+from ..sigmas import IMAGE_SIGMA
+from .observations import MEAS_DTYPE, POINT_DTYPE, Observations
 
 DEFAULT_SIGMAS = (2.5, 2.5, 2.2)    # ground east, north, height (m), methods.md section 4 (K)
 HEIGHT_TYPES = ("ellipsoidal", "orthometric")

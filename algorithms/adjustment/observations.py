@@ -14,12 +14,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..sigmas import IMAGE_SIGMA
 
 ROLES = ("control", "check", "tie")
 POINT_DTYPE = np.dtype([("name", "U32"), ("role", "U7"), ("lon", "f8"), ("lat", "f8"), ("h", "f8"),
                         ("sigma_e", "f8"), ("sigma_n", "f8"), ("sigma_h", "f8")])
-#: a priori sigma of image measurements, px
-IMAGE_SIGMA = 0.5
 MEAS_DTYPE = np.dtype([("point", "i8"), ("image_id", "i8"), ("col", "f8"), ("row", "f8"), ("sigma", "f8")])
 
 

@@ -6,7 +6,7 @@ from typing import Optional
 
 from .. import progress
 from . import control_points as cp
-from .observations import IMAGE_SIGMA
+from ..sigmas import IMAGE_SIGMA
 
 
 @dataclass

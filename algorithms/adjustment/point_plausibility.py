@@ -46,7 +46,8 @@ def distance_to_polygon(x, y, ring):
     length2 = np.maximum((d ** 2).sum(axis=1), 1e-300)[:, None]
     t = np.clip(((x - a[:, 0][:, None]) * d[:, 0][:, None] + (y - a[:, 1][:, None]) * d[:, 1][:, None]) / length2,
                 0.0, 1.0)
-    dist = np.hypot(a[:, 0][:, None] + t * d[:, 0][:, None] - x, a[:, 1][:, None] + t * d[:, 1][:, None] - y).min(axis=0)
+    dist = np.hypot(a[:, 0][:, None] + t * d[:, 0][:, None] - x,
+                    a[:, 1][:, None] + t * d[:, 1][:, None] - y).min(axis=0)
     return np.where(inside, 0.0, dist)
 
 

@@ -32,7 +32,6 @@ from .points import COMB_A, COMB_B, COMB_C, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .records import PAIR_DTYPE
 
 
-
 def combination_order(rows, text):
     """The block's image rows in combination order: `text` is a comma-separated list of names
     (reference, forward[, backward]); empty or 'all' orders the block's 2 or 3 images itself

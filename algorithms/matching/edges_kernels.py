@@ -6,7 +6,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .lsm import bilinear
+from ..interpolation import bilinear
 from .ncc import ncc_path
 
 #: the 8 neighbours (d_row, d_col) counter-clockwise from east: E, NE, N, NW, W, SW, S, SE

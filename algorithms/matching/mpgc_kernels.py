@@ -17,7 +17,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .lsm import NOT_CONVERGED, OK, OUTSIDE, SINGULAR, _chol_solve, _cholesky, _window_inside, cubic, template
+from ..interpolation import cubic
+from .lsm import NOT_CONVERGED, OK, OUTSIDE, SINGULAR, _chol_solve, _cholesky, _window_inside, template
 
 #: unknowns per search image: x, a1, a2, y, a4, a5, r0, r1
 NPI = 8

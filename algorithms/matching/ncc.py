@@ -6,7 +6,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .lsm import bilinear
+from ..interpolation import bilinear
 
 
 @njit(cache=True, nogil=True)

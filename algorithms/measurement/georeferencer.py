@@ -20,11 +20,12 @@ import os
 import numpy as np
 
 from ..adjustment.control_points import DEFAULT_SIGMAS, ROLES
-from ..adjustment.observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
+from ..adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from ..atomic import write_text
 from ..crs import reproject, srs, wgs84
 from ..errors import InputError
 from ..geodesy import utm_epsg
+from ..sigmas import IMAGE_SIGMA
 
 HEADER = "mapX,mapY,pixelX,pixelY,enable,dX,dY,residual"
 CRS_PREFIX = "#CRS:"

@@ -19,8 +19,9 @@ import numpy as np
 
 from .. import block
 from ..adjustment import control_points as cp
-from ..adjustment.observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE
+from ..adjustment.observations import MEAS_DTYPE, POINT_DTYPE
 from ..errors import InputError
+from ..sigmas import IMAGE_SIGMA
 
 def _quoted(text):
     """`text` as an SQL string literal."""

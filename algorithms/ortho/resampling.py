@@ -1,5 +1,5 @@
 """Resampling of the image at the image points of output cells: bilinear, or bicubic convolution (Keys
-1981, a = -0.5), the kernels of matching/lsm.py (GDAL's pixel convention).
+1981, a = -0.5), the kernels of algorithms/interpolation.py (GDAL's pixel convention).
 
 The image is read by windows: `padded_window` reads the pixels a tile needs plus a margin of PAD pixels
 and replicates the border pixels where the margin passes the image edge, so both kernels run without
@@ -10,7 +10,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..matching.lsm import bilinear, cubic
+from ..interpolation import bilinear, cubic
 
 BILINEAR, BICUBIC = 0, 1
 METHODS = {"bilinear": BILINEAR, "bicubic": BICUBIC}

@@ -24,8 +24,18 @@ from ..dem import Dem, implausible_heights
 from ..errors import InputError
 from ..surface.geotiff import write_float_raster
 from ..surface.point_input import read_points
-from .rasters import (Grid, cell_metres, memory_dataset, open_raster, outline, raster_srs, read_grid, read_window,
-                      slope_degrees, warp_to)
+from .rasters import (
+    Grid,
+    cell_metres,
+    memory_dataset,
+    open_raster,
+    outline,
+    raster_srs,
+    read_grid,
+    read_window,
+    slope_degrees,
+    warp_to,
+)
 
 
 @dataclass

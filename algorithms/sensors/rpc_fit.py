@@ -166,7 +166,7 @@ def _fit_rational(t, v, r, checks):
     a = np.hstack([t, -v[:, None] * t[:, 1:]])
     damping = np.hstack([np.zeros((NUM_TERMS - 1, NUM_TERMS)), np.eye(NUM_TERMS - 1)])
     den = np.ones(v.size)
-    for iteration in range(1, MAX_ITERATIONS + 1):
+    for iteration in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (the count is returned)
         aw = a / den[:, None]
         lam = r * float(np.sum(aw * aw)) / aw.shape[1]
         x = np.linalg.lstsq(np.vstack([aw, math.sqrt(lam) * damping]),
@@ -307,7 +307,7 @@ def report_text(entries):
     """A text table of fit and validation errors (px), one row per image coordinate: `entries` are
     (image name, RPC file written, RpcFitReport)."""
     lines = [f"{'image':12} {'coord':5} {'cube RMS':>9} {'cube max':>9} {'valid RMS':>9} {'valid max':>9}  fit"]
-    for name, path, r in entries:
+    for name, _path, r in entries:
         for axis, a in (("col", r.col), ("row", r.row)):
             lines.append(f"{name:12} {axis:5} {a.cube.rms:9.2e} {a.cube.max:9.2e} {a.validation.rms:9.2e} "
                          f"{a.validation.max:9.2e}  {a.describe()}")

@@ -4,7 +4,7 @@ writing _RPC.TXT / .RPB files that GDAL reads back beside a raster. Number parsi
 is RpcCoefficients.from_fields's job (rpc.py)."""
 import os
 import re
-from typing import NamedTuple, Optional, Tuple
+from typing import NamedTuple, Optional
 
 from ..atomic import write_text
 from ..errors import InputError, MetadataError
@@ -33,8 +33,8 @@ _A_TO_B = (0, 1, 2, 3, 4, 5, 6, 10, 7, 8, 9, 11, 14, 17, 12, 15, 18, 13, 16, 19)
 class RpcRecord(NamedTuple):
     """What a reader found: RPC00B fields (texts), (cols, rows) or None, crop offset, file name."""
     fields: dict
-    size: Optional[Tuple[int, int]]
-    offset: Tuple[float, float]
+    size: Optional[tuple[int, int]]
+    offset: tuple[float, float]
     source: str
 
 

@@ -18,9 +18,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..dem import bilinear_scalar
-from ..geodesy import A, B, E2, bowring, ecef_to_geodetic_scalar, geodetic_to_ecef_scalar
-from .spot_frames import (attitude_rotation, look_angles, look_vector, mat_mul, mat_t_vec, mat_vec,
-                          orbital_rotation)
+from ..geodesy import E2, A, B, bowring, ecef_to_geodetic_scalar, geodetic_to_ecef_scalar
+from .spot_frames import attitude_rotation, look_angles, look_vector, mat_mul, mat_t_vec, mat_vec, orbital_rotation
 
 NAN = math.nan
 

@@ -1,6 +1,6 @@
 """The supplied orientation of one SPOT level-1A scene, in the engine's conventions.
 
-This is the contract between the DIMAP reader/writer (`dimap.py`), the rigorous model
+This is the contract between the DIMAP reader and writer (`dimap.py`, `dimap_writer.py`), the rigorous model
 (`spot.py`) and the simulator: times are seconds since `epoch` (UTC), angles radians, positions
 ECEF metres, pixel coordinates in GDAL's convention. The DIMAP 1-based pixel-centre convention is
 converted at the reader: DIMAP line L (1-based, centre) is GDAL row L - 0.5, detector D (1-based)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import GeometryError
-from ..geodesy import A, OMEGA_EARTH
+from ..geodesy import OMEGA_EARTH, A
 from ..sensors import spot_frames
 
 GM = 3.986004418e14               # m^3/s^2, WGS 84

@@ -26,7 +26,8 @@ from ..dem import Dem
 from ..errors import GeometryError, InputError, MetadataError
 from ..geodesy import geodetic_to_ecef, metres_per_degree
 from ..progress import step
-from ..sensors.dimap import read_dimap, write_dimap
+from ..sensors.dimap import read_dimap
+from ..sensors.dimap_writer import write_dimap
 from . import outputs, radiometry
 from .acquisition import footprint_bounds, plan, ray_at_height
 from .grid import Grid

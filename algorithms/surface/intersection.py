@@ -26,9 +26,9 @@ import numpy as np
 from numba import njit
 
 from .. import progress
-from ..adjustment.observations import IMAGE_SIGMA
 from ..errors import InputError
 from ..geodesy import ecef_to_geodetic, metres_per_degree, offset_enu
+from ..sigmas import IMAGE_SIGMA
 
 STATUS_NAMES = ("converged", "not converged", "diverged", "outside a model's domain", "fewer than 2 rays",
                 "singular geometry")

@@ -147,7 +147,7 @@ def read_ogr_points(path, layer_name=None, crs=None):
                 values[name].append(np.nan if feature[name] is None else feature[name])
     xyz = np.asarray(xyz, float).reshape(-1, 3)
     srs = _layer_srs(layer, crs, path, "point cloud")
-    ds = None
+    del ds
     return PointSet(xyz[:, 0], xyz[:, 1], xyz[:, 2], srs, {k: np.asarray(v, float) for k, v in values.items()})
 
 
@@ -232,5 +232,5 @@ def read_breaklines(path, layer_name=None):
             xyz = np.asarray(part.GetPoints() or [], float).reshape(-1, 3)
             if len(xyz) >= 2:
                 lines.append(xyz)
-    ds = None
+    del ds
     return lines, srs

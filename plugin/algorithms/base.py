@@ -18,7 +18,7 @@ from qgis.PyQt.QtGui import QIcon
 from ...algorithms import atomic
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES
 from ...algorithms.errors import InputError, PushbroomError
-from ..plugin import resource_path
+from ...resource_files import resource_path
 
 
 def _single_error():

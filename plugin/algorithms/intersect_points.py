@@ -8,7 +8,7 @@ from qgis.core import (QgsProcessing, QgsProcessingOutputNumber,
                        QgsProcessingParameterNumber)
 
 from ...algorithms import block, progress
-from ...algorithms.adjustment.observations import IMAGE_SIGMA
+from ...algorithms.sigmas import IMAGE_SIGMA
 from ...algorithms.errors import InputError
 from ...algorithms.matching import points
 from ...algorithms.surface import intersection, pointcloud

@@ -6,9 +6,9 @@ import numpy as np
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import check_points
-from pushbroom.algorithms.stats import statistics_table
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.stats import statistics_table
 
 
 def point_observations(csv_path, image_ids, n_control, sigma_px=0.3, sigma_ground=(0.5, 0.5, 0.5)):

@@ -22,11 +22,11 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.geodesy import metres_per_degree
+from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
 from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.point_input import PointSet
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_dem import interpolate_dem
-from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
 
 NAMES = ("HRG", "HRS1", "HRS2")
 CELL = 10.0

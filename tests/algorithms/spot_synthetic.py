@@ -19,7 +19,7 @@ def orbit(t, radius=7.2e6, inclination=np.radians(98.7), node=np.radians(20.0), 
                                          si * np.cos(u)])
     a = -OMEGA_EARTH * t
     ca, sa = np.cos(a), np.sin(a)
-    rot = lambda v: np.column_stack([ca * v[:, 0] - sa * v[:, 1], sa * v[:, 0] + ca * v[:, 1], v[:, 2]])  # noqa
+    rot = lambda v: np.column_stack([ca * v[:, 0] - sa * v[:, 1], sa * v[:, 0] + ca * v[:, 1], v[:, 2]])
     pos = rot(p_in)
     vel = rot(v_in) - OMEGA_EARTH * np.column_stack([-pos[:, 1], pos[:, 0], np.zeros(len(t))])
     return pos, vel

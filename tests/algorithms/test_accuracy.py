@@ -12,19 +12,23 @@ import pytest
 from osgeo import gdal, ogr, osr
 
 from feedback import Feedback
+from osr_oracle import utm
 from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.quality import report
 from pushbroom.algorithms.quality.assessment import assess
 from pushbroom.algorithms.quality.classes import FLAT, MOUNTAINOUS, NO_CLASS, ClassRaster, PolygonClasses
-from pushbroom.algorithms.quality.height_differences import (dem_differences, point_differences,
-                                                             reference_at_points, write_dh_raster)
+from pushbroom.algorithms.quality.height_differences import (
+    dem_differences,
+    point_differences,
+    reference_at_points,
+    write_dh_raster,
+)
 from pushbroom.algorithms.quality.statistics import cumulative, summarize
 from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS, FOREST
 from pushbroom.algorithms.surface.geotiff import NODATA
 from pushbroom.algorithms.surface.point_input import read_points
 from pushbroom.algorithms.surface.pointcloud import write_point_cloud
-from osr_oracle import utm
 
 UTM16 = 32616
 
@@ -140,7 +144,7 @@ def test_reference_in_another_crs_is_reprojected_not_refused(tmp_path):
     e0, n1 = np.floor(x.min()) - 100, np.floor(y.max()) + 100
     cols, rows = int(x.max() - e0) // 10 + 10, int(n1 - y.min()) // 10 + 10
     e, n = np.meshgrid(e0 + 10 * (np.arange(cols) + 0.5), n1 - 10 * (np.arange(rows) + 0.5))
-    plane = lambda e, n: 100 + 0.02 * (e - e0) - 0.01 * (n - n1)   # noqa: E731
+    plane = lambda e, n: 100 + 0.02 * (e - e0) - 0.01 * (n - n1)
     reference = write_raster(tmp_path / "plane.tif", plane(e, n), (e0, 10, 0, n1, 0, -10), UTM16)
     cloud = tmp_path / "points.gpkg"
     write_point_cloud(cloud, lon, lat, plane(x, y), {"group": np.full(500, 3, np.uint8)}, crs=4326)
@@ -182,7 +186,7 @@ def test_finer_reference_is_averaged_onto_the_dem_grid(small_scene, tmp_path):
 
 def test_coarser_reference_is_bilinear_on_the_dem_grid(tmp_path):
     e0, n0 = 749000.0, 4053000.0
-    plane = lambda e, n: 300 + 0.05 * (e - e0) + 0.03 * (n - n0)   # noqa: E731
+    plane = lambda e, n: 300 + 0.05 * (e - e0) + 0.03 * (n - n0)
     e, n = np.meshgrid(e0 + 40 * (np.arange(50) + 0.5), n0 + 2000 - 40 * (np.arange(50) + 0.5))
     reference = write_raster(tmp_path / "coarse.tif", plane(e, n), (e0, 40, 0, n0 + 2000, 0, -40), UTM16)
     e, n = np.meshgrid(e0 + 10 * (np.arange(200) + 0.5), n0 + 2000 - 10 * (np.arange(200) + 0.5))

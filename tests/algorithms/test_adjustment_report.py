@@ -10,7 +10,6 @@ import pytest
 
 from adjustment_scene import models_of, point_observations
 from osr_oracle import utm
-from raster_oracle import bilinear
 from pushbroom.algorithms.adjustment import report
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
@@ -22,6 +21,7 @@ from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree, utm_epsg
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.stats import statistics_table
+from raster_oracle import bilinear
 
 NAMES = ("HRG", "HRS1", "HRS2")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}

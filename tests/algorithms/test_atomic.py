@@ -58,7 +58,8 @@ def test_a_fake_enospc_is_a_storage_error(tmp_path, monkeypatch):
     def full(*_args, **_kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
     monkeypatch.setattr(np, "savez", full)
-    with pytest.raises(StorageError, match=r"cannot write the point file .*p\.npz: No space left on device \(the disk is full"):
+    with pytest.raises(StorageError,
+                       match=r"cannot write the point file .*p\.npz: No space left on device \(the disk is full"):
         save_arrays(tmp_path / "p.npz", MultiPoints())
     assert os.listdir(tmp_path) == []
 

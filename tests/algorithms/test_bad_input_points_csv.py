@@ -5,8 +5,7 @@ another exception."""
 import math
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.errors import PushbroomError

@@ -292,5 +292,5 @@ def test_automatic_selection_on_a_small_block(scene):
     assert injected <= set(selection.free) and len(set(selection.free) - injected) <= 2
     assert any(line.startswith("step 1: fixed") for line in selection.log)
     assert selection.log[-1].startswith(f"selected {len(selection.free)} free coefficient(s)")
-    for i, (dx, dy) in INJECTED.items():
+    for i, (_dx, _dy) in INJECTED.items():
         assert np.allclose(models[i].orientation.corrections.look[:, 0], 0.0, atol=2e-6)

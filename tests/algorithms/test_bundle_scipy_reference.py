@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
-from bench_adjustment import FREE, INJECTED, LABELS, SCIPY_TOLERANCE, problem, supplied_models  # noqa: E402
-from scipy_bundle import ScipyBundle  # noqa: E402
+from bench_adjustment import FREE, INJECTED, LABELS, SCIPY_TOLERANCE, problem, supplied_models
+from scipy_bundle import ScipyBundle
 
-from pushbroom.algorithms.adjustment.bundle import adjust  # noqa: E402
-from pushbroom.algorithms.geodesy import B, metres_per_degree  # noqa: E402
+from pushbroom.algorithms.adjustment.bundle import adjust
+from pushbroom.algorithms.geodesy import B, metres_per_degree
 
 ADJUST_TOLERANCE = 1e-4     # m, adjust's default stop: the largest point update
 
@@ -56,7 +56,8 @@ def test_adjust_and_scipy_least_squares_reach_the_same_solution(tiny):
     the points' and v'Pv's bounds by 50 x or more, the orientation's by 1.9 x or more."""
     paths, obs, height = tiny
     ours = adjust(supplied_models(paths), obs, FREE, names=LABELS, height=height, tolerance=ADJUST_TOLERANCE)
-    x, lon, lat, h, result = ScipyBundle(supplied_models(paths), obs, FREE, names=LABELS, height=height).solve(SCIPY_TOLERANCE)
+    bundle = ScipyBundle(supplied_models(paths), obs, FREE, names=LABELS, height=height)
+    x, lon, lat, h, result = bundle.solve(SCIPY_TOLERANCE)
     assert result.success
     free = ours.parameters.free
     relative = np.abs(x - ours.values[free]) / ours.sigmas[free]

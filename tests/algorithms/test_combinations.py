@@ -7,8 +7,8 @@ from matching_scene import DISCONTINUOUS, SINGLE_SURFACE, Scene
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.combinations import combine, format_summary, new_cells, robust_sigma, summary_rows
-from pushbroom.algorithms.matching.points import COMB_A, COMB_B, COMB_C, REFINED
 from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.points import COMB_A, COMB_B, COMB_C, REFINED
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIMILARITY
 from pushbroom.algorithms.matching.seeds import local_affine
@@ -211,7 +211,7 @@ def test_group3_accuracy_on_the_simulated_triplet(triplet):
     (refinement.py, the default) is what meets the target (docs/validation.md#group3-accuracy)."""
     cls = triplet["class"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
-    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))   # noqa: E731
+    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))
     print(f"\n{triplet['n']} group-3 points, stats {triplet['stats']}")
     for name in ("HRS1", "HRS2"):
         point, area = triplet[name]
@@ -237,7 +237,7 @@ def test_group3_with_support_weights(triplet):
     (docs/validation.md#group3-accuracy)."""
     cls = triplet["class support"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
-    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))   # noqa: E731
+    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))
     assert triplet["n support"] > 800 and triplet["stats support"]["refined_mpgc"] > 0.95 * triplet["n support"]
     uniform_fields = np.isin(triplet["class"], SINGLE_SURFACE)
     for name in ("HRS1", "HRS2"):

@@ -5,10 +5,16 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.matching.consistency import (back_guide, fb_summary, format_fb, forward_backward,
-                                                       invert_affine, observation_pairs)
+from pushbroom.algorithms.matching.consistency import (
+    back_guide,
+    fb_summary,
+    format_fb,
+    forward_backward,
+    invert_affine,
+    observation_pairs,
+)
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.points import MultiPoints, OBS_DTYPE, POINT_DTYPE
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 
 A = np.array([[1.04, 0.03], [-0.02, 0.97]])   # image 1 -> image 2 (GDAL px), plus T

@@ -10,12 +10,13 @@ import pytest
 from osgeo import gdal, ogr, osr
 
 from feedback import Feedback
+from osr_oracle import utm
 from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp
-from pushbroom.algorithms.adjustment.observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
+from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import utm_epsg
-from osr_oracle import utm
+from pushbroom.algorithms.sigmas import IMAGE_SIGMA
 
 NAMES = ("HRG", "HRS1", "HRS2")
 

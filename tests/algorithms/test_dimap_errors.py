@@ -8,14 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 from osgeo import gdal
-from spot_synthetic import synthetic_orientation
 
 from pushbroom.algorithms.errors import MetadataError
-from pushbroom.algorithms.sensors.dimap import read_dimap, write_dimap
+from pushbroom.algorithms.sensors.dimap import read_dimap
+from pushbroom.algorithms.sensors.dimap_writer import write_dimap
 from pushbroom.algorithms.sensors.spot import SpotModel
+from spot_synthetic import synthetic_orientation
 
 
 def dimap_text(mission):
@@ -126,7 +126,7 @@ def mutated(draw):
         by_tag = {}
         for e in parents:
             by_tag.setdefault(e.tag, []).append(e)
-        pick = lambda: draw(st.sampled_from(by_tag[draw(st.sampled_from(sorted(by_tag)))]))  # noqa: E731
+        pick = lambda: draw(st.sampled_from(by_tag[draw(st.sampled_from(sorted(by_tag)))]))
         kind = draw(st.sampled_from(["delete", "garbage", "garbage", "swap"]))
         element = pick()
         if kind == "delete":

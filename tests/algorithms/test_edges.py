@@ -7,8 +7,7 @@ import pytest
 from scipy import ndimage
 
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.matching import edges
-from pushbroom.algorithms.matching import edges_kernels as kernels
+from pushbroom.algorithms.matching import edges, edges_kernels as kernels
 
 # --------------------------------------------------------------------------------------------
 # references (plain numpy / scipy)

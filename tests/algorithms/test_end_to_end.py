@@ -18,8 +18,17 @@ from osgeo import gdal
 from scipy import ndimage
 from scipy.spatial import Delaunay
 
-from end_to_end_chain import (DEM_CELL, IDS, INTERIOR, LOW_TEXTURE, TEMPLATE_CELLS, TEXTURE_CLASSES,
-                              TEXTURED_OPEN, field_edge_distance, run_chain)
+from end_to_end_chain import (
+    DEM_CELL,
+    IDS,
+    INTERIOR,
+    LOW_TEXTURE,
+    TEMPLATE_CELLS,
+    TEXTURE_CLASSES,
+    TEXTURED_OPEN,
+    field_edge_distance,
+    run_chain,
+)
 from ortho_oracle import geometric_error
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84

@@ -3,10 +3,10 @@ pieces against independent references, and the simulated 3 km SPOT 5 triplet aga
 side by side with region growing (combinations.match_block) by class."""
 import numpy as np
 import pytest
+
 from dsm_comparison import Truth, compare
 from feedback import Feedback
 from matching_scene import LOW_CONTRAST_DN, SINGLE_SURFACE, Scene
-
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.matching import hierarchical as hier

@@ -9,7 +9,7 @@ def test_foerstner_against_loop():
     rng = np.random.default_rng(0)
     img = rng.normal(size=(15, 17))
     w, q = interest.foerstner(img, 5)
-    gx = np.zeros_like(img); gy = np.zeros_like(img)
+    gx, gy = np.zeros_like(img), np.zeros_like(img)
     gx[:, 1:-1] = (img[:, 2:] - img[:, :-2]) / 2
     gy[1:-1] = (img[2:] - img[:-2]) / 2
     for i in range(3, 12):

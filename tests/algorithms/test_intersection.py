@@ -377,7 +377,8 @@ def test_bad_input_raises_clear_errors(scene):
 def test_cancel(scene):
     models = scene["models"]
     with pytest.raises(CancelledError):
-        ix.intersect(models, *measure(models, NAMES, scene["lon"], scene["lat"], scene["h"]), feedback=Feedback(cancel_after=0))
+        ix.intersect(models, *measure(models, NAMES, scene["lon"], scene["lat"], scene["h"]),
+                     feedback=Feedback(cancel_after=0))
 
 
 def test_summary_rows(scene):

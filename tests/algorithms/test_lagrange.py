@@ -11,7 +11,6 @@ import pytest
 from scipy.stats import chi2
 
 from adjustment_scene import models_of, point_observations
-from spot_synthetic import synthetic_orientation
 from pushbroom.algorithms.adjustment.bundle import adjust
 from pushbroom.algorithms.adjustment.control_series import control_point_series
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
@@ -21,6 +20,7 @@ from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.sensors.spot import SpotModel
 from pushbroom.algorithms.simulation import SceneConfig
+from spot_synthetic import synthetic_orientation
 
 NAMES = ("HRV1_A", "HRV2_B")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}

@@ -68,7 +68,7 @@ def test_residuals_are_stored_and_loaded(adjusted):
     cut = intersect(models, m["image_id"], m["point"], m["col"], m["row"], m["sigma"], h0=300.0)
     assert cut.ok.all()
     worst = 0.0
-    for k, mk in enumerate(m):
+    for mk in m:
         p = mk["point"]
         col, row = models[int(mk["image_id"])].ground_to_image(cut.lon[p], cut.lat[p], cut.h[p])
         v = np.array([col - mk["col"], row - mk["row"]])

@@ -38,7 +38,8 @@ def test_spot_model_with_corrections_round_trips_exactly(spot5_dim, tmp_path):
     assert_same_model(model, again, 250.0)
     # the corrections matter: the same model without them maps elsewhere
     plain = sensors.load(spot5_dim)
-    assert np.max(np.abs(np.subtract(plain.image_to_ground(10.0, 10.0, 0.0), again.image_to_ground(10.0, 10.0, 0.0)))) > 1e-5
+    assert np.max(np.abs(np.subtract(plain.image_to_ground(10.0, 10.0, 0.0),
+                                     again.image_to_ground(10.0, 10.0, 0.0)))) > 1e-5
 
 
 def test_spot2_with_drift_off_round_trips(spot2_dim, tmp_path):
@@ -84,8 +85,8 @@ def test_truncated_model_file_raises_metadata_error(spot5_dim, tmp_path):
 
 @pytest.mark.parametrize("size", [[1], [-5, 3], [0, 10], "ab", None, [1e400, 3]])
 def test_rpc_model_file_with_a_bad_size_raises_metadata_error(tmp_path, size):
-    from rpc_synthetic import synthetic_coefficients
     from pushbroom.algorithms.sensors.rpc import RpcModel
+    from rpc_synthetic import synthetic_coefficients
     path = tmp_path / "r.pbmodel.json"
     sensors.save(RpcModel(synthetic_coefficients()), path)
     doc = json.loads(path.read_text())

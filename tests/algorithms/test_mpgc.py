@@ -6,10 +6,10 @@ import pytest
 from scipy import ndimage
 
 from matching_scene import support_reference
+from pushbroom.algorithms import interpolation
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree
-from pushbroom.algorithms.matching import lsm, mpgc
-from pushbroom.algorithms.matching import mpgc_kernels as kern
+from pushbroom.algorithms.matching import lsm, mpgc, mpgc_kernels as kern
 from pushbroom.algorithms.matching.params import LsmParams
 from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIMILARITY
 
@@ -146,7 +146,7 @@ def gn_step_reference(images, offs, x0, y0, cen, jac, state, dx, half, sigma_g, 
     r1, rep, kap, gs = state[:, 7], np.empty(n), np.empty(n), []
     for i, (x, a1, a2, y, a4, a5, r0, r1i) in enumerate(state):
         xs, ys = x - offs[i + 1, 0] + a1 * k + a2 * l, y - offs[i + 1, 1] + a4 * k + a5 * l
-        gk = np.array([lsm.cubic(images[i + 1], a, b) for a, b in zip(xs, ys)])
+        gk = np.array([interpolation.cubic(images[i + 1], a, b) for a, b in zip(xs, ys)])
         g, kap[i] = gk[:, 0], gk[:, 1].mean()
         gs.append(g)
         rgx, rgy = np.linalg.inv(np.array([[a1, a2], [a4, a5]])).T @ np.vstack([fk, fl])

@@ -7,8 +7,8 @@ import pytest
 from osgeo import gdal
 from scipy import ndimage
 
-from ortho_oracle import geometric_error
 from feedback import Feedback
+from ortho_oracle import geometric_error
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import egm96_undulation, srs
 from pushbroom.algorithms.dem import Dem

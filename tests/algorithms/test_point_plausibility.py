@@ -8,8 +8,7 @@ import pytest
 
 from feedback import Feedback
 from pushbroom.algorithms import block
-from pushbroom.algorithms.adjustment import control_points as cp
-from pushbroom.algorithms.adjustment import point_plausibility
+from pushbroom.algorithms.adjustment import control_points as cp, point_plausibility
 from pushbroom.algorithms.adjustment.point_plausibility import MARGIN_M, distance_to_polygon
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import utm_epsg
@@ -75,8 +74,9 @@ def test_a_measurement_of_another_point_is_named(blk, rows, tmp_path, monkeypatc
     # the small scene is 3 km across, the margin 2 km: a smaller margin lets the farthest point's
     # measurement (over 1 km away in a 3 km scene) stand for a wrong one
     monkeypatch.setattr(point_plausibility, "MARGIN_M", 500.0)
-    far = max(range(1, len(rows)), key=lambda k: np.hypot(float(rows[k]["HRG_col_meas"]) - float(rows[0]["HRG_col_meas"]),
-                                                          float(rows[k]["HRG_row_meas"]) - float(rows[0]["HRG_row_meas"])))
+    far = max(range(1, len(rows)),
+              key=lambda k: np.hypot(float(rows[k]["HRG_col_meas"]) - float(rows[0]["HRG_col_meas"]),
+                                     float(rows[k]["HRG_row_meas"]) - float(rows[0]["HRG_row_meas"])))
     rows[0]["HRG_col_meas"], rows[0]["HRG_row_meas"] = rows[far]["HRG_col_meas"], rows[far]["HRG_row_meas"]
     with pytest.raises(InputError, match=rf"{rows[0]['id']}: measured in HRG at .* km from where its coordinates"):
         cp.import_csv(blk, write_rows(tmp_path / "p.csv", rows), suffix="_meas")

@@ -5,10 +5,18 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms.errors import InputError, StorageError
 from pushbroom.algorithms.block import create_schema, read_info
-from pushbroom.algorithms.matching.points import (OBS_DTYPE, POINT_DTYPE, MultiPoints, load_arrays,
-                                                  load_points, save_arrays, save_points, write_point_layer)
+from pushbroom.algorithms.errors import InputError, StorageError
+from pushbroom.algorithms.matching.points import (
+    OBS_DTYPE,
+    POINT_DTYPE,
+    MultiPoints,
+    load_arrays,
+    load_points,
+    save_arrays,
+    save_points,
+    write_point_layer,
+)
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 
 

@@ -16,7 +16,7 @@ def wallis_reference(img, window, mf, sf, c, b):
     img = img.astype(np.float64)
     valid = np.isfinite(img)
     v = np.where(valid, img, 0.0)
-    box = lambda a: ndimage.uniform_filter(a, window, mode="constant") * window ** 2  # noqa: E731
+    box = lambda a: ndimage.uniform_filter(a, window, mode="constant") * window ** 2
     n = box(valid.astype(np.float64))
     with np.errstate(divide="ignore", invalid="ignore"):       # n = 0 inside large holes
         mw = box(v) / n
@@ -31,8 +31,8 @@ def saint_marc_reference(img, k, iterations):
     rows, cols = a.shape
     for _ in range(iterations):
         p = np.pad(a, 1, constant_values=np.nan)
-        nb = lambda di, dj: p[1 + di:1 + di + rows, 1 + dj:1 + dj + cols]  # noqa: E731
-        fill = lambda q: np.where(np.isnan(q), a, q)  # noqa: E731
+        nb = lambda di, dj: p[1 + di:1 + di + rows, 1 + dj:1 + dj + cols]
+        fill = lambda q: np.where(np.isnan(q), a, q)
         g2 = ((fill(nb(0, 1)) - fill(nb(0, -1))) ** 2 + (fill(nb(1, 0)) - fill(nb(-1, 0))) ** 2) / 4
         w = np.pad(np.where(np.isnan(a), 0.0, np.exp(-g2 / (2 * k * k))), 1)
         sw = sum(w[1 + di:1 + di + rows, 1 + dj:1 + dj + cols] for di in (-1, 0, 1) for dj in (-1, 0, 1))

@@ -11,8 +11,14 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import GeometryError
 from pushbroom.algorithms.sensors.rpc import RpcCoefficients, RpcModel, _poly, rpc_terms
 from pushbroom.algorithms.sensors.rpc_io import write_rpb, write_rpc_txt
-from rpc_synthetic import (SCALARS, geom_text, numpy_ground_to_image, synthetic_coefficients,
-                           synthetic_fields, write_raster)
+from rpc_synthetic import (
+    SCALARS,
+    geom_text,
+    numpy_ground_to_image,
+    synthetic_coefficients,
+    synthetic_fields,
+    write_raster,
+)
 
 gdal.UseExceptions()
 
@@ -203,9 +209,8 @@ def test_geom_beside_a_crop_takes_its_offset_and_size(tmp_path, fields, model):
 def test_orientation_files_are_not_redirected_to_a_metadata_dim_beside_them(tmp_path, fields, model):
     """A folder holding a SPOT METADATA.DIM and a Pleiades crop with its .geom: the .geom (given,
     or found beside its raster) is the crop's orientation; the folder itself is the SPOT product."""
+    from pushbroom.algorithms.sensors.dimap_writer import write_dimap
     from spot_synthetic import synthetic_orientation
-
-    from pushbroom.algorithms.sensors.dimap import write_dimap
     write_dimap(tmp_path / "METADATA.DIM", synthetic_orientation(ncols=40))
     (tmp_path / "left.geom").write_text(geom_text(fields))
     raster = write_raster(tmp_path / "left.tif", SIZE, geotransform=(CROP[0], 1, 0, CROP[1], 0, 1))
@@ -267,8 +272,10 @@ def test_bias_is_an_affine_image_correction_with_exact_partials(model, tmp_path)
     for k in range(6):
         e = np.zeros(6)
         e[k] = 1e-3
-        plus = np.array(RpcModel(model.coefficients, model.size, model.offset, bias=BIAS + e).ground_to_image(lon, lat, h))
-        minus = np.array(RpcModel(model.coefficients, model.size, model.offset, bias=BIAS - e).ground_to_image(lon, lat, h))
+        plus = np.array(RpcModel(model.coefficients, model.size, model.offset,
+                                 bias=BIAS + e).ground_to_image(lon, lat, h))
+        minus = np.array(RpcModel(model.coefficients, model.size, model.offset,
+                                  bias=BIAS - e).ground_to_image(lon, lat, h))
         np.testing.assert_allclose(p["d_corrections"][:, :, k], ((plus - minus) / 2e-3).T, atol=1e-9)
     path = tmp_path / "m.pbmodel.json"
     save_model_file(biased, path)

@@ -6,8 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import MetadataError
@@ -35,7 +34,8 @@ BAD_FIELDS = [
     (_set("LONG_OFF", "-inf"), "LONG_OFF is not finite"),
     (_set("HEIGHT_SCALE", "0"), "HEIGHT_SCALE is zero"),
     (_set("LINE_SCALE", ""), "LINE_SCALE is not a number"),
-    (lambda f: f.__setitem__("LINE_NUM_COEFF", f["LINE_NUM_COEFF"][:19]), "LINE_NUM_COEFF has 19 values; RPC00B needs 20"),
+    (lambda f: f.__setitem__("LINE_NUM_COEFF", f["LINE_NUM_COEFF"][:19]),
+     "LINE_NUM_COEFF has 19 values; RPC00B needs 20"),
     (lambda f: f.__setitem__("SAMP_DEN_COEFF", " ".join(["1"] * 21)), "SAMP_DEN_COEFF has 21 values"),
     (_set_coefficient("SAMP_DEN_COEFF", 5, "NaN"), r"SAMP_DEN_COEFF\[6\] is not finite"),
     (_set_coefficient("LINE_NUM_COEFF", 19, "1.2.3"), r"LINE_NUM_COEFF\[20\] is not a number"),

@@ -15,9 +15,15 @@ from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.sensors import rpc_fit
 from pushbroom.algorithms.sensors.base import SensorModel
 from pushbroom.algorithms.sensors.rpc import RpcCoefficients, RpcModel, _poly
+from pushbroom.algorithms.sensors.rpc_fit import (
+    default_height_range,
+    fit_rpc,
+    raster_reads,
+    report_text,
+    rpc_txt_path,
+    write_fitted_rpc,
+)
 from pushbroom.algorithms.sensors.rpc_io import write_rpb
-from pushbroom.algorithms.sensors.rpc_fit import (default_height_range, fit_rpc, raster_reads,
-                                                  report_text, rpc_txt_path, write_fitted_rpc)
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.surface.intersection import height_differences
 
@@ -234,7 +240,7 @@ def test_too_small_a_grid_is_an_input_error():
 
 def test_cancel_raises():
     class Cancelled:
-        def isCanceled(self):  # noqa: N802 (QGIS API)
+        def isCanceled(self):
             return True
 
     with pytest.raises(CancelledError):

@@ -6,11 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from pushbroom.algorithms.geodesy import ecef_to_geodetic, geodetic_to_ecef
+from pushbroom.algorithms.geodesy import ecef_to_geodetic, geodetic_to_ecef, metres_per_degree
 from pushbroom.algorithms.sensors import spot_frames
 from pushbroom.algorithms.sensors.spot import SpotModel
 from pushbroom.algorithms.simulation import acquisition, noise, orbit, perturbation, radiometry, render, terrain
-from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.simulation.grid import Grid
 from pushbroom.algorithms.simulation.sun import sun_position
 

@@ -3,16 +3,15 @@ import numpy as np
 import pytest
 from osgeo import osr
 from scipy.optimize import brentq
-from spot_synthetic import synthetic_orientation
 
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import GeometryError, InputError
 from pushbroom.algorithms.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from pushbroom.algorithms.sensors import spot_frames as frames
-from pushbroom.algorithms.sensors import spot_kernels as k
+from pushbroom.algorithms.sensors import spot_frames as frames, spot_kernels as k
 from pushbroom.algorithms.sensors.base import SensorModel
 from pushbroom.algorithms.sensors.spot import SpotModel, integrated_attitude, lagrange_window
 from pushbroom.algorithms.sensors.spot_orientation import Corrections
+from spot_synthetic import synthetic_orientation
 
 RNG = np.random.default_rng(7)
 #: unit-size entries of up to four 3 x 3 rotation products whose sines and cosines numpy's SIMD code gives
@@ -161,7 +160,7 @@ def test_ray_height_lands_at_the_height_on_the_ray(h):
     assert (lon, lat) == pytest.approx((lon_ref, lat_ref), abs=1e-10)  # 10 micrometres
     assert h_ref == pytest.approx(h, abs=1e-6)
     # the first intersection: the same height is not met nearer the satellite
-    g = lambda m: ecef_to_geodetic(p + m * u)[2] - h  # noqa: E731
+    g = lambda m: ecef_to_geodetic(p + m * u)[2] - h
     assert mu == pytest.approx(brentq(g, 0.5 * mu, 1.0001 * mu, xtol=1e-7), abs=1e-5)
     assert np.isnan(k.ray_height(*p, *(-u), h)[0])  # looking away from the Earth
 
@@ -375,7 +374,8 @@ def test_image_to_dem_meets_a_cliff_face_not_the_plateau_behind_it():
     lats = np.arange(lat0 + 0.05, lat0 - 0.05, -cell)
     x, _ = np.meshgrid(lons, lats)
     edge = 0.5 * (lon0 + lon_top)  # the ray passes the cliff edge at about 1500 m
-    z = np.where((x - edge) * np.sign(lon_top - lon0) < 0, 3000.0, 0.0)  # plateau beyond the edge, its face turned to the satellite
+    # plateau beyond the edge, its face turned to the satellite
+    z = np.where((x - edge) * np.sign(lon_top - lon0) < 0, 3000.0, 0.0)
     dem = Dem(z, (lons[0] - cell / 2, cell, 0.0, lats[0] + cell / 2, 0.0, -cell))
     cols = np.array([149.9, 150.0, 150.1])  # 20 m apart on the ground
     lon, lat, h = model.image_to_dem(cols, np.full(3, 100.0), dem)

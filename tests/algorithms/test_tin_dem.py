@@ -6,8 +6,8 @@ from osgeo import gdal, osr
 from scipy.interpolate import LinearNDInterpolator
 from scipy.spatial import Delaunay
 
-from osr_oracle import utm
 from feedback import Feedback
+from osr_oracle import utm
 from pushbroom.algorithms.crs import egm96_undulation, srs
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.surface import geotiff, point_input, pointcloud, tin, tin_dem
@@ -105,7 +105,7 @@ def test_breaklines_keep_triangles_off_a_ridge():
     on both planes; without it triangles cut the ridge."""
     rng = np.random.default_rng(7)
     x, y = X0 + rng.uniform(0, 1000, 3000), Y0 + rng.uniform(0, 1000, 3000)
-    roof = lambda px: 100 - 0.5 * np.abs(px - X0 - 500)               # noqa: E731
+    roof = lambda px: 100 - 0.5 * np.abs(px - X0 - 500)
     points = point_input.PointSet(x, y, roof(x), srs(UTM31))
     ridge = np.array([[X0 + 500, Y0 - 10, 100.0], [X0 + 500, Y0 + 1010, 100.0]])
     plain = tin_dem.interpolate_dem(points, cell=5.0, k=0, max_edge=100.0)

@@ -20,12 +20,11 @@ import numpy as np
 from scipy_bundle import ScipyBundle
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "algorithms"))
-from adjustment_scene import point_observations, synthetic_points  # noqa: E402
-
-from pushbroom.algorithms import sensors  # noqa: E402
-from pushbroom.algorithms.adjustment.bundle import adjust  # noqa: E402
-from pushbroom.algorithms.geodesy import metres_per_degree  # noqa: E402
-from pushbroom.algorithms.simulation import SceneConfig, simulate_scene  # noqa: E402
+from adjustment_scene import point_observations, synthetic_points
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.adjustment.bundle import adjust
+from pushbroom.algorithms.geodesy import metres_per_degree
+from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 
 SIZES = (5000, 20000, 80000)
 REPEAT = 3

@@ -2,8 +2,8 @@
 sweep-hull Delaunay of surface/delaunay.py + the numba rasteriser) against GDAL's `gdal_grid -a
 linear` (osgeo.gdal.Grid, qhull Delaunay + a triangle walk per cell) in the same run, on the same
 points and grid; the largest difference where both define a value. One run each after a warm-up
-(gdal_grid takes ~8 s, dominated by qhull's triangulation). GDAL gets the points and grid in coordinates local to the grid
-corner: on raw UTM coordinates (6e5, 4.9e6 m) its qhull triangulation loses precision and differs from
+(gdal_grid takes ~8 s, dominated by qhull's triangulation). GDAL gets the points and grid in coordinates
+local to the grid corner: on raw UTM coordinates (6e5, 4.9e6 m) its qhull triangulation loses precision and differs from
 the true Delaunay one in places (up to 0.85 m in 460 of 1e6 cells with 200 000 points), while
 tin.delaunay shifts the points to their mean itself."""
 import time

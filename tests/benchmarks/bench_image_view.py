@@ -7,9 +7,8 @@ import tempfile
 import time
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "ui"))
-from image_view_session import run_in_subprocess, write_textured_raster  # noqa: E402
-
-from pushbroom.ui.raster_tiles import build_overviews  # noqa: E402
+from image_view_session import run_in_subprocess, write_textured_raster
+from pushbroom.ui.raster_tiles import build_overviews
 
 SIZE = 20000
 

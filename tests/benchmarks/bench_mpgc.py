@@ -54,5 +54,6 @@ def run():
                 rows.append({"operation": name, "threads": threads, "points": int(x0.size),
                              "seconds": seconds, "points/s": x0.size / seconds,
                              "points/s/core": x0.size / seconds / threads})
-        del images, ref
+        images.clear()
+        del ref
         return rows

@@ -12,12 +12,11 @@ from benchutil import best_time
 from pushbroom.algorithms.block import create_schema
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "algorithms"))
-from test_points_store import FlatModel, synthetic  # noqa: E402
-
-from pushbroom.algorithms.matching.combinations import combine  # noqa: E402
-from pushbroom.algorithms.matching.points import load_points, save_points, write_point_layer  # noqa: E402
-from pushbroom.algorithms.matching.records import PAIR_DTYPE  # noqa: E402
-from pushbroom.algorithms.matching.tiepoints import select_tie_points  # noqa: E402
+from pushbroom.algorithms.matching.combinations import combine
+from pushbroom.algorithms.matching.points import load_points, save_points, write_point_layer
+from pushbroom.algorithms.matching.records import PAIR_DTYPE
+from pushbroom.algorithms.matching.tiepoints import select_tie_points
+from test_points_store import FlatModel, synthetic
 
 N = 2_000_000
 

@@ -15,7 +15,7 @@ HERE = pathlib.Path(__file__).resolve().parent
 def markdown_table(rows):
     """Rows (dicts with the same keys) as a markdown table; floats with 4 significant digits."""
     keys = list(rows[0])
-    fmt = lambda v: f"{v:.4g}" if isinstance(v, float) else str(v)  # noqa: E731
+    fmt = lambda v: f"{v:.4g}" if isinstance(v, float) else str(v)
     lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
     lines += ["| " + " | ".join(fmt(r.get(k, "")) for k in keys) + " |" for r in rows]
     return "\n".join(lines)

@@ -1,5 +1,5 @@
-"""Fixtures for the QGIS side: the Processing framework with the Pushbroom provider, and a private
-QGIS profile for running qgis_process as a user would."""
+"""Fixtures of the Processing algorithm tests: a recording feedback, and a private QGIS profile for
+running qgis_process as a user would (the provider fixture is in tests/conftest.py)."""
 import json
 import os
 import pathlib
@@ -7,21 +7,12 @@ import subprocess
 import sys
 
 import pytest
-from qgis.core import QgsApplication, QgsProcessingFeedback
+from qgis.core import QgsProcessingFeedback
 
 import pushbroom
 
 REPO = pathlib.Path(pushbroom.__file__).resolve().parent
 QGIS_PROCESS = "/usr/bin/qgis_process.bin"
-
-
-@pytest.fixture
-def pushbroom_provider(qgis_processing, qgis_iface):
-    """Processing initialised and the plugin's provider registered (removed afterwards)."""
-    plugin = pushbroom.classFactory(qgis_iface)
-    plugin.initProcessing()
-    yield QgsApplication.processingRegistry().providerById("pushbroom")
-    plugin.unload()
 
 
 class RecordingFeedback(QgsProcessingFeedback):
@@ -31,11 +22,11 @@ class RecordingFeedback(QgsProcessingFeedback):
         super().__init__()
         self.messages, self.warnings = [], []
 
-    def pushInfo(self, text):  # noqa: N802 (QGIS API)
+    def pushInfo(self, text):
         self.messages.append(text)
         super().pushInfo(text)
 
-    def pushWarning(self, text):  # noqa: N802 (QGIS API)
+    def pushWarning(self, text):
         self.warnings.append(text)
         super().pushWarning(text)
 

@@ -12,12 +12,12 @@ from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProject, QgsRasterLayer
 
 import pushbroom
+from osr_oracle import utm
 from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.surface.geotiff import NODATA
 from pushbroom.algorithms.quality.statistics import summarize
 from pushbroom.algorithms.simulation.terrain import CLASSES, FOREST
+from pushbroom.algorithms.surface.geotiff import NODATA
 from pushbroom.algorithms.surface.pointcloud import write_point_cloud
-from osr_oracle import utm
 
 ALG = "pushbroom:assessaccuracy"
 REPO = pathlib.Path(pushbroom.__file__).resolve().parent

@@ -10,6 +10,7 @@ from qgis import processing
 from bad_inputs import VOID, copy_dem, processing_error
 from pushbroom.algorithms.crs import reproject, srs
 
+
 @pytest.fixture(scope="module")
 def dems(small_scene, tmp_path_factory):
     folder = tmp_path_factory.mktemp("bad_dems_alg")

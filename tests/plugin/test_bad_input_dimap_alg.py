@@ -2,6 +2,7 @@
 qgis_process the message names the missing IMAGERY.TIF instead of 'Incorrect parameter value for IMAGES'."""
 
 import pytest
+
 from bad_inputs import processing_error, product_without_raster
 
 

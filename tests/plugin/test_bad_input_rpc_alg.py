@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from osgeo import gdal
 from qgis import processing
+
 from bad_inputs import processing_error
 
 #: an affine Pleiades-like RPC (row from latitude, column from longitude) over 0.1 x 0.1 degrees

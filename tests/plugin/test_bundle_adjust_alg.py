@@ -10,11 +10,17 @@ import shutil
 import numpy as np
 import pytest
 from qgis import processing
-from qgis.core import (QgsCategorizedSymbolRenderer, QgsProcessingContext, QgsProcessingException,
-                       QgsProcessingOutputLayerDefinition, QgsProject, QgsVectorLayer, QgsWkbTypes)
+from qgis.core import (
+    QgsCategorizedSymbolRenderer,
+    QgsProcessingContext,
+    QgsProcessingException,
+    QgsProcessingOutputLayerDefinition,
+    QgsProject,
+    QgsVectorLayer,
+    QgsWkbTypes,
+)
 
 from osr_oracle import utm
-from raster_oracle import bilinear
 from pushbroom.algorithms import block, sensors
 from pushbroom.algorithms.adjustment.control_points import import_csv, save_control_points
 from pushbroom.algorithms.adjustment.observations import Observations
@@ -24,6 +30,7 @@ from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.surface.intersection import intersect
+from raster_oracle import bilinear
 
 N_CONTROL = 19
 N_TIE = 200

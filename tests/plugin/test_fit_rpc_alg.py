@@ -23,7 +23,8 @@ NAMES = ("HRG", "HRS1", "HRS2")
 def scene(small_scene):
     """(folder, paths, mean DSM height) of the small scene (tests copy the folder before writing)."""
     import pathlib
-    return pathlib.Path(small_scene["folder"]), small_scene, float(np.nanmean(Dem.from_file(small_scene["dsm"]).heights))
+    height = float(np.nanmean(Dem.from_file(small_scene["dsm"]).heights))
+    return pathlib.Path(small_scene["folder"]), small_scene, height
 
 
 @pytest.fixture
@@ -146,6 +147,7 @@ def test_report_compares_rpc_and_rigorous_object_points_of_the_tie_points(pushbr
     report gives the RPC minus rigorous differences of Kornus et al. (2006, Table 5); the fit is good to well
     below 1 cm."""
     import re
+
     from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
     path, _ = triplet_block
     rows = block.read_images(path)

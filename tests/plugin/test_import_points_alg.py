@@ -5,13 +5,18 @@ import shutil
 import numpy as np
 import pytest
 from qgis import processing
-from qgis.core import (QgsCategorizedSymbolRenderer, QgsProcessingContext, QgsProcessingException,
-                       QgsProject, QgsVectorLayer)
+from qgis.core import (
+    QgsCategorizedSymbolRenderer,
+    QgsProcessingContext,
+    QgsProcessingException,
+    QgsProject,
+    QgsVectorLayer,
+)
 
+from osr_oracle import utm
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.plugin.algorithms.import_points import ExportPoints, ImportPoints
-from osr_oracle import utm
 
 
 @pytest.fixture

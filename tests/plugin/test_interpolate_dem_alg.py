@@ -4,8 +4,13 @@ import numpy as np
 import pytest
 from osgeo import gdal, ogr
 from qgis import processing
-from qgis.core import (QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback,
-                       QgsProcessingOutputLayerDefinition, QgsProject)
+from qgis.core import (
+    QgsProcessingContext,
+    QgsProcessingException,
+    QgsProcessingFeedback,
+    QgsProcessingOutputLayerDefinition,
+    QgsProject,
+)
 
 from pushbroom.algorithms.crs import srs, transform
 from pushbroom.algorithms.surface import pointcloud
@@ -18,7 +23,7 @@ def roof_cloud(folder, n=4000):
     with the ridge as a 3-D breakline. Returns (las, breaklines, roof(x))."""
     rng = np.random.default_rng(0)
     x, y = 650_000 + rng.uniform(0, 1000, n), 4_890_000 + rng.uniform(0, 1000, n)
-    roof = lambda px: 400 - 0.5 * np.abs(px - 650_500)   # noqa: E731
+    roof = lambda px: 400 - 0.5 * np.abs(px - 650_500)
     lon, lat = transform(srs(UTM31), srs(4326), np.column_stack([x, y]), "the test points")[:, :2].T
     las, _, _ = pointcloud.write_point_cloud(folder / "cloud.las", lon, lat, roof(x),
                                              {"sigma_h": np.full(n, 0.4, np.float32)}, crs=UTM31)

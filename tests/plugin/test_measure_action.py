@@ -6,8 +6,17 @@ import types
 import numpy as np
 import pytest
 from osgeo import ogr
-from qgis.core import (NULL, Qgis, QgsCategorizedSymbolRenderer, QgsExpressionContext, QgsExpressionContextUtils,
-                       QgsProject, QgsSettings, QgsSymbolLayer, QgsVectorLayer)
+from qgis.core import (
+    NULL,
+    Qgis,
+    QgsCategorizedSymbolRenderer,
+    QgsExpressionContext,
+    QgsExpressionContextUtils,
+    QgsProject,
+    QgsSettings,
+    QgsSymbolLayer,
+    QgsVectorLayer,
+)
 from qgis.PyQt import sip
 from qgis.PyQt.QtCore import QCoreApplication, QEvent, pyqtSignal
 from qgis.PyQt.QtWidgets import QAction, QMainWindow, QToolBar, QUndoCommand, QUndoStack
@@ -16,9 +25,9 @@ import pushbroom
 from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment.control_points import save_control_points
 from pushbroom.algorithms.adjustment.observations import POINT_DTYPE, Observations
-from pushbroom.plugin.control_layer import find_control_layer, show_control_points
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.measurement.store import MeasurementStore
+from pushbroom.plugin.control_layer import find_control_layer, show_control_points
 from pushbroom.plugin.measure_action import ACTION_NAME, LAST_BLOCK, layer_block
 
 

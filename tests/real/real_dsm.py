@@ -7,8 +7,8 @@ order). test_dsm_real.py's docstring gives the reasons for the choices."""
 import time
 
 import numpy as np
-
 from pleiades_scene import LABELS, NAMES, in_order, models_of
+
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import adjust
 from pushbroom.algorithms.adjustment.observations import tie_observations

@@ -27,9 +27,9 @@ import time
 
 import numpy as np
 import pytest
+from pleiades_scene import LABELS, match_triplet, models_of
 
 from feedback import Feedback
-from pleiades_scene import LABELS, match_triplet, models_of
 from pushbroom.algorithms.adjustment.bundle import CRITICAL_W, adjust
 from pushbroom.algorithms.adjustment.observations import tie_observations
 from pushbroom.algorithms.adjustment.reprojection import ALL, reprojection_rms

@@ -24,7 +24,6 @@ pair DSMs at 0.1 px matching precision (sqrt(2) x 0.1 x 0.5 m / 0.11 = 0.64 m)."
 import numpy as np
 import pytest
 from osgeo import gdal
-
 from real_dsm import CELL, VENTOUX_CELL, check_pair_consistency, footprint
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]

@@ -31,14 +31,23 @@ its pairs 25 s (region growing 39 s); this DSM - region growing's: median -0.02 
 import numpy as np
 import pytest
 from osgeo import gdal
+from real_dsm import (
+    CELL,
+    VENTOUX_CELL,
+    VENTOUX_STEP,
+    build_triplet_dsms,
+    check_pair_consistency,
+    cut,
+    footprint,
+    on_grid,
+    srtm_comparison,
+)
 
 from feedback import Feedback
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.hierarchical import HierParams, match_hierarchical
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.quality.statistics import summarize
-from real_dsm import (CELL, VENTOUX_CELL, VENTOUX_STEP, build_triplet_dsms, check_pair_consistency, cut, footprint,
-                      on_grid, srtm_comparison)
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 

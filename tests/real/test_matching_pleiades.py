@@ -20,14 +20,14 @@ Forward-backward differences are measured on the final observations of the group
 each combination's image pair (consistency.observation_pairs + forward_backward)."""
 import numpy as np
 import pytest
-
 from pleiades_scene import in_order
+from real_dsm import TRIPLET_STEP
+
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.consistency import fb_summary, forward_backward, observation_pairs
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.seeds import predict
-from real_dsm import TRIPLET_STEP
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 

@@ -8,7 +8,8 @@ from osgeo import gdal
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.geodesy import geodetic_to_ecef
-from pushbroom.algorithms.sensors.dimap import read_dimap, write_dimap
+from pushbroom.algorithms.sensors.dimap import read_dimap
+from pushbroom.algorithms.sensors.dimap_writer import write_dimap
 from pushbroom.algorithms.sensors.spot import SpotModel
 
 pytestmark = pytest.mark.real

@@ -11,7 +11,7 @@ def run_then_quit(step, result, write):
     """step(); a failure goes to result["errors"]; then write() and quit."""
     try:
         step()
-    except Exception:  # noqa: BLE001 (everything goes to the test's log)
+    except Exception:  # everything goes to the test's log
         result["errors"].append(traceback.format_exc())
     write()
     QgsProject.instance().clear()

@@ -1,16 +1,18 @@
 """A QGIS desktop session (`qgis.bin --code THIS_FILE` with tests/ui on PYTHONPATH, run by
-tests/ui/test_project_opens_clean.py, and by hand for the demo project): open the project named by PUSHBROOM_PROJECT as a user would (File > Open), let
-it render, then write to the JSON file PUSHBROOM_RESULT the message bar's items (QGIS shows a missing font,
-an unreadable layer or a bad style there), the layers and whether they are valid, and a screenshot of the
-main window to PUSHBROOM_SCREENSHOT; then quit."""
+tests/ui/test_project_opens_clean.py, and by hand for the demo project): open the project named by
+PUSHBROOM_PROJECT as a user would (File > Open), let it render, then write to the JSON file
+PUSHBROOM_RESULT the message bar's items (QGIS shows a missing font, an unreadable layer or a bad style
+there), the layers and whether they are valid, and a screenshot of the main window to
+PUSHBROOM_SCREENSHOT; then quit."""
 import json
 import os
 import traceback
 
 import qgis.utils
-from desktop_exit import run_then_quit
 from qgis.core import QgsProject
 from qgis.PyQt.QtCore import QTimer
+
+from desktop_exit import run_then_quit
 
 RESULT = {"errors": []}
 
@@ -33,9 +35,10 @@ def open_project():
         qgis.utils.iface.mainWindow().showMaximized()
         qgis.utils.iface.mapCanvas().zoomToFullExtent()
         qgis.utils.iface.mapCanvas().refreshAllLayers()
-    except Exception:  # noqa: BLE001
+    except Exception:
         RESULT["errors"].append(traceback.format_exc())
-    QTimer.singleShot(8000, lambda: run_then_quit(inspect, RESULT, write))       # the canvas renders and QGIS posts its messages meanwhile
+    # the canvas renders and QGIS posts its messages meanwhile
+    QTimer.singleShot(8000, lambda: run_then_quit(inspect, RESULT, write))
 
 
 QTimer.singleShot(0, open_project)

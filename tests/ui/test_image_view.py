@@ -5,12 +5,12 @@ import os
 
 import numpy as np
 import pytest
-from feedback import Feedback
 from osgeo import gdal
 from qgis.PyQt.QtCore import QPoint, QPointF, Qt
 from qgis.PyQt.QtGui import QColor, QWheelEvent
 from qgis.PyQt.QtWidgets import QApplication
 
+from feedback import Feedback
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.ui.image_view import MARKER_STYLES, ImageView, Marker, Vector
 from pushbroom.ui.raster_tiles import TILE, TileReader, build_overviews

@@ -3,8 +3,8 @@ process below 1 GB through zooms from fit to 4:1, pans across the image and 200 
 filled to their bounds), without overviews (decimated reads) and with them (build_overviews). The redraw times
 are measured in benchmarks/bench_image_view.py."""
 import pytest
-from image_view_session import run_in_subprocess, write_textured_raster
 
+from image_view_session import run_in_subprocess, write_textured_raster
 from pushbroom.ui.raster_tiles import CACHE_BYTES, build_overviews
 
 LIMIT_MB = 1e9 / 2 ** 20

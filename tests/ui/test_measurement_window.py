@@ -15,16 +15,16 @@ from osgeo import osr
 from qgis.core import QgsApplication, QgsPointXY, QgsRasterLayer
 from qgis.PyQt.QtCore import QPoint, Qt, QTimer
 
-from osr_oracle import utm
-from raster_oracle import bilinear
 import pushbroom
+from osr_oracle import utm
 from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment.control_points import DEFAULT_SIGMAS
 from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.errors import InputError, PushbroomError
 from pushbroom.algorithms.measurement.store import MeasurementStore
 from pushbroom.ui import adjust_task, measurement_window as mw
 from pushbroom.ui.point_table import COLOURS, SORT_ROLE
+from raster_oracle import bilinear
 
 #: transfers must land this close (px) to the simulator's true positions
 TRANSFER_TOLERANCE = 0.3
@@ -422,7 +422,7 @@ def test_keyboard_shortcuts(qtbot, open_window, block_path, marked_scene, truth)
         "Zoom to prediction"] and "Ctrl+N" in texts["New point"] and "Tab" in texts["Next image"]
 
 
-def test_adjust_now_refreshes_residuals(qtbot, open_window, block_path, marked_scene, truth):
+def test_adjust_now_refreshes_residuals(qtbot, pushbroom_provider, open_window, block_path, marked_scene, truth):
     """'Adjust now' on the imported simulator points runs in a QgsTask (the window keeps processing
     events), then the table shows each point's image residuals and w colours, the views draw residual
     vectors from the measurements, and the predictions come from the adjusted models."""
@@ -481,16 +481,22 @@ def test_adjust_now_refreshes_residuals(qtbot, open_window, block_path, marked_s
 
 def test_adjust_through_the_processing_registry(qtbot, qgis_processing, qgis_iface, open_window, block_path,
                                                marked_scene):
-    """With the plugin's provider registered (the plugin in QGIS), 'adjust now' runs the registry's
-    pushbroom:bundleadjust; without it an unregistered instance of the same algorithm class."""
-    assert adjust_task.bundle_adjust_algorithm().provider() is None
+    """'Adjust now' runs the registry's pushbroom:bundleadjust, which the plugin's provider registers;
+    without the provider it fails with a message that says to enable the plugin."""
+    window = open_window(block_path)
+    window.import_csv(marked_scene["points"], suffix="_meas")
+    with pytest.raises(PushbroomError, match="enable the Pushbroom plugin"):
+        adjust_task.bundle_adjust_algorithm()
+    with qtbot.waitSignal(window.adjusted, timeout=10000) as signal:
+        window.adjust_now()
+    ok, message = signal.args
+    assert not ok and "enable the Pushbroom plugin" in message
+    assert not window.progress.isVisible()
     plugin = pushbroom.classFactory(qgis_iface)
     plugin.initProcessing()
     try:
         registered = QgsApplication.processingRegistry().algorithmById(adjust_task.ALGORITHM)
         assert registered is not None and adjust_task.bundle_adjust_algorithm() is registered
-        window = open_window(block_path)
-        window.import_csv(marked_scene["points"], suffix="_meas")
         with qtbot.waitSignal(window.adjusted, timeout=180000) as signal:
             window.adjust_now()
         assert signal.args[0], signal.args[1]
@@ -502,7 +508,7 @@ def test_adjust_through_the_processing_registry(qtbot, qgis_processing, qgis_ifa
         plugin.unload()
 
 
-def test_adjust_failure_is_a_message(qtbot, open_window, block_path, truth):
+def test_adjust_failure_is_a_message(qtbot, pushbroom_provider, open_window, block_path, truth):
     """A block without control points: the adjustment fails with the engine's message in the status bar,
     the message bar and the adjusted signal, no traceback; the models stay as they were."""
     window = open_window(block_path)
@@ -542,7 +548,7 @@ def test_csv_and_georeferencer_round_trips(open_window, block_path, marked_scene
     original = stored(block_path)
     dsm = marked_scene["dsm"]
     by_pixel = {v[1][ids["HRS1"]]: v[0] for v in got.values()}
-    for name, (record, meas) in original.items():
+    for record, meas in original.values():
         p = by_pixel[meas[ids["HRS1"]]]
         assert (p["lon"], p["lat"]) == pytest.approx((record["lon"], record["lat"]), abs=1e-8)
         assert p["h"] == pytest.approx(bilinear(dsm, p["lon"], p["lat"]), abs=1e-6)
