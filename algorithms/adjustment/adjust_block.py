@@ -135,7 +135,7 @@ def _solve(models, obs, names, params, options, feedback):
     if auto:
         selection = select_parameters(models, obs, names=names, variance_components=params.variance_components,
                                       significance=params.significance, feedback=feedback, **options)
-        extra.append(report.Section("Parameter selection (K 3.4.3)", notes=selection.log))
+        extra.append(report.Section("Parameter selection (Kornus et al. 2006, section 3.4.3)", notes=selection.log))
         if selection.components:
             extra.append(report.variance_section(selection.components))
         return selection.result, selection.observations, selection.free, extra

@@ -1,4 +1,4 @@
-"""Rigorous SPOT 1-5 level-1A sensor model (SPOT Satellite Geometry Handbook; methods.md section 1).
+"""Rigorous SPOT 1-5 level-1A sensor model (SPOT Satellite Geometry Handbook).
 
 Ground point of image point (col, row): X = P(t) + mu R32(t) R21(t) u1(col), t = t_c + (row - r_c) T,
 u1 = (-tan psi_y, tan psi_x, -1) (frames in spot_frames.py, kernels in spot_kernels.py).
