@@ -1,31 +1,31 @@
 """pushbroom:bundleadjust — bundle adjustment of the block from its control/check points and tie
 points (algorithms/adjustment/bundle.py); the adjusted models and the control and check points'
-residuals (algorithms/measurement/residual_store.py) are stored in the block, with a
+residuals (algorithms/measurement/residuals.py) are stored in the block, with a
 report (K Tables 2-4; adjustment/report.py) and a residual-vector layer of the control and check
 points (adjustment/residual_vectors.py). The models and residuals are stored in one transaction, and only if
 the block's control points, tie points and models are still those the adjustment started from
-(block.generations)."""
+(Block.generations)."""
 from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
                        QgsProcessingParameterBoolean, QgsProcessingParameterEnum, QgsProcessingParameterFile,
                        QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
                        QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
                        QgsProcessingParameterVectorDestination)
 
-from ...algorithms import block, progress
+from ...algorithms import progress
 from ...algorithms.adjustment import report
 from ...algorithms.adjustment.bundle import CRITICAL_W, adjust, check_points
-from ...algorithms.adjustment.control_points import HEIGHT_TYPES, load_control_points
+from ...algorithms.adjustment.control_points import HEIGHT_TYPES
 from ...algorithms.adjustment.control_series import control_point_series
 from ...algorithms.adjustment.observations import IMAGE_SIGMA, tie_observations
 from ...algorithms.adjustment.residual_vectors import DEFAULT_SCALE, residual_vectors, write_residual_vectors
 from ...algorithms.adjustment.selection import select_parameters
 from ...algorithms.adjustment.tie_heights import tie_height_differences
 from ...algorithms.adjustment.variance import adjust_with_components
+from ...algorithms.block import Block
 from ...algorithms.dem import Dem
 from ...algorithms.errors import InputError
 from ...algorithms.stats import statistics_table
-from ...algorithms.matching import points
-from ...algorithms.measurement.residual_store import residual_rows, write_residuals
+from ...algorithms.measurement.residuals import residual_rows
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
 from .dem_nodata import nodata_parameter
@@ -135,18 +135,19 @@ class BundleAdjust(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
-        block.check_writable(path, "the adjusted models")
+        blk = Block(path)
+        blk.check_writable("the adjusted models")
         vector_path = self.parameterAsOutputLayer(parameters, "RESIDUALS", context)
         if vector_path and vector_path.startswith("memory:"):
             raise InputError("write the residual vectors to a file (GeoPackage, shapefile or GeoJSON), not to a "
                              "temporary memory layer")
-        generations = block.generations(path)
-        rows = block.read_images(path)
-        models = {r["id"]: block.load_model(path, r["id"], supplied=True) for r in rows}
+        generations = blk.generations()
+        rows = blk.images()
+        models = {r["id"]: blk.model(r["id"], supplied=True) for r in rows}
         names = {r["id"]: r["name"] for r in rows}
-        obs = load_control_points(path)
+        obs = blk.control_points()
         if self.parameterAsBool(parameters, "USE_TIE_POINTS", context):
-            tie = tie_observations(points.load_points(path, "tie_points"),
+            tie = tie_observations(blk.points("tie_points"),
                                    self.parameterAsDouble(parameters, "SIGMA_TIE", context))
             obs = obs.concatenate(tie)
         free = [f for f in self.parameterAsString(parameters, "FREE", context).split(",") if f.strip()]
@@ -156,7 +157,7 @@ class BundleAdjust(PushbroomAlgorithm):
             raise InputError("the block has no control points: import them (pushbroom:importpoints), or adjust "
                              "with tie points alone by naming the free parameters and priors that fix the "
                              "datum (e.g. FREE bias:shift, PRIORS bias:shift=10 for RPC images)")
-        height = mean_height(block.height_range(path))
+        height = mean_height(blk.height_range())
         critical = self.parameterAsDouble(parameters, "CRITICAL", context)
         dem_layer = self.parameterAsRasterLayer(parameters, "REFERENCE_DEM", context)
         dem = None
@@ -198,7 +199,7 @@ class BundleAdjust(PushbroomAlgorithm):
                 counts = [int(c) for c in counts.replace(";", ",").split(",") if c.strip()]
             except ValueError:
                 raise InputError(f"control point counts must be whole numbers separated by commas, not {counts!r}")
-            series = control_point_series({r["id"]: block.load_model(path, r["id"], supplied=True) for r in rows},
+            series = control_point_series({r["id"]: blk.model(r["id"], supplied=True) for r in rows},
                                           obs, counts,
                                           free, names=names, feedback=feedback,
                                           **{k: v for k, v in options.items() if k != "remove_blunders"})
@@ -214,16 +215,16 @@ class BundleAdjust(PushbroomAlgorithm):
                 feedback.pushWarning("no adjusted tie point lies on the reference DTM: the tie point height table "
                                      "is empty (use the block's tie points and a DTM that covers the block)")
         scale = self.parameterAsDouble(parameters, "VECTOR_SCALE", context)
-        vectors, crs = residual_vectors(result, check, obs, scale, block.read_info(path).get("default_crs"),
+        vectors, crs = residual_vectors(result, check, obs, scale, blk.info().get("default_crs"),
                                         critical)
         parts = report.sections(result, check, table, critical, heights, vectors)
         parts[1:1] = extra
         feedback.pushInfo(report.render_text(parts))
         residuals = residual_rows(result, check, obs)
-        with block.transaction(path, "the adjusted models and residuals", expect=generations) as ds:
-            block.write_models(ds, models, step="bundleadjust",
-                               message=f"sigma_0 {result.sigma0:.4f}, free: {', '.join(free)}")
-            write_residuals(ds, *residuals)
+        with blk.transaction("the adjusted models and residuals", expect=generations) as tx:
+            tx.write_models(models, step="bundleadjust",
+                            message=f"sigma_0 {result.sigma0:.4f}, free: {', '.join(free)}")
+            tx.write_residuals(*residuals)
         out = {"BLOCK": path, "SIGMA0": result.sigma0}
         destination = self.parameterAsFileOutput(parameters, "REPORT", context)
         if destination:

@@ -3,7 +3,8 @@ from qgis.core import (QgsProcessing, QgsProcessingParameterBoolean, QgsProcessi
                        QgsProcessingParameterMultipleLayers, QgsProcessingParameterNumber,
                        QgsProcessingParameterRasterLayer, QgsProcessingOutputVectorLayer, QgsProcessingUtils)
 
-from ...algorithms import block, progress, sensors
+from ...algorithms import progress, sensors
+from ...algorithms.block import Block
 from ...algorithms.dem import Dem
 from ...algorithms.errors import PushbroomError
 from ..styles import load_styled
@@ -61,10 +62,10 @@ class CreateBlock(PushbroomAlgorithm):
             dem = Dem.from_file(dem_layer.source(), self.parameterAsOptionalDouble(parameters, "DEM_NODATA", context))
             progress.warn(feedback, dem.implausible)
         output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
-        opened = block.open_images(images, orientation)
-        block.create_block(output, opened, height=self.parameterAsDouble(parameters, "HEIGHT", context), dem=dem,
+        opened = Block.open_images(images, orientation)
+        blk = Block.create(output, opened, height=self.parameterAsDouble(parameters, "HEIGHT", context), dem=dem,
                            overwrite=self.parameterAsBool(parameters, "OVERWRITE", context), feedback=feedback)
-        footprints = f"{output}|layername=footprints"
+        footprints = blk.layer_source("footprints")
         load_styled(context, footprints, "Footprints", "FOOTPRINTS", "footprints.qml")
         feedback.pushInfo(f"block {output}: " + ", ".join(f"{name} ({model.size[0]} x {model.size[1]})"
                                                           for name, _, _, model in opened))

@@ -6,10 +6,10 @@ from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputMultipleLayer
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber,
                        QgsProcessingParameterString)
 
-from ...algorithms import block, progress
+from ...algorithms import progress
+from ...algorithms.block import Block
 from ...algorithms.adjustment import report
 from ...algorithms.errors import InputError
-from ...algorithms.matching import points
 from ...algorithms.sensors import rpc_fit
 from ...algorithms.surface.intersection import height_differences
 from .base import PushbroomAlgorithm
@@ -37,7 +37,7 @@ def cube_heights(block_path, h_min, h_max):
     if h_min is not None or h_max is not None:
         raise InputError("give both the lowest and the highest height of the RPC cube, or neither (then the "
                          "block's terrain height range is used, widened by a margin)")
-    terrain = block.height_range(block_path)
+    terrain = Block(block_path).height_range()
     if terrain is None:
         raise InputError(f"block {block_path} records no terrain height range: give the lowest and highest "
                          "heights of the RPC cube")
@@ -47,15 +47,16 @@ def cube_heights(block_path, h_min, h_max):
 def rpc_height_check(block_path, rpcs):
     """The summary of surface.intersection.height_differences on the block's tie points, when the
     block has tie points and RPCs were fitted for all their images ("" otherwise)."""
-    if "tie_points" not in block.read_info(block_path):
+    blk = Block(block_path)
+    if "tie_points" not in blk.info():
         return ""
-    obs = points.load_points(block_path, "tie_points").observations
+    obs = blk.points("tie_points").observations
     images = set(np.unique(obs["image_id"]).tolist())
     if not images or not images <= set(rpcs):
         return ""
-    rigorous = {i: block.load_model(block_path, i) for i in images}
+    rigorous = {i: blk.model(i) for i in images}
     return height_differences(rigorous, {i: rpcs[i] for i in images}, obs["image_id"], obs["point_id"],
-                              obs["col"], obs["row"], h0=mean_height(block.height_range(block_path))).summary()
+                              obs["col"], obs["row"], h0=mean_height(blk.height_range())).summary()
 
 
 class FitRpc(PushbroomAlgorithm):
@@ -99,7 +100,8 @@ class FitRpc(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
-        rows = selected_images(block.read_images(path), self.parameterAsString(parameters, "IMAGE", context))
+        blk = Block(path)
+        rows = selected_images(blk.images(), self.parameterAsString(parameters, "IMAGE", context))
 
         heights = cube_heights(path, self.parameterAsOptionalDouble(parameters, "MIN_HEIGHT", context),
                                self.parameterAsOptionalDouble(parameters, "MAX_HEIGHT", context))
@@ -117,7 +119,7 @@ class FitRpc(PushbroomAlgorithm):
         fitted = []
         for k, row in enumerate(rows):
             progress.step(feedback, 95.0 * k / len(rows), f"fitting the RPC of {row['name']}")
-            fitted.append(rpc_fit.fit_rpc(block.load_model(path, row["id"]), heights, grid,
+            fitted.append(rpc_fit.fit_rpc(blk.model(row["id"]), heights, grid,
                                           feedback=progress.scaled(feedback, 95.0 * k / len(rows),
                                                                    95.0 * (k + 1) / len(rows))))
         progress.step(feedback, 95.0)
@@ -134,8 +136,8 @@ class FitRpc(PushbroomAlgorithm):
             text += "\n\nRPC minus rigorous object points of the block's tie points (Kornus et al. 2006, Table 5): " \
                     + comparison
         feedback.pushInfo(text)
-        block.update_info(path, {}, step="fitrpc",
-                          message="; ".join(f"{name}: {written}" for name, written, _ in entries))
+        blk.update_info({}, step="fitrpc",
+                        message="; ".join(f"{name}: {written}" for name, written, _ in entries))
         out = {"BLOCK": path, "FILES": [written for _, written, _ in entries]}
         if folder:
             out["OUTPUT_FOLDER"] = folder

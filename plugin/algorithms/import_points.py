@@ -1,5 +1,5 @@
 """pushbroom:importpoints and pushbroom:exportpoints — control/check points and their image
-measurements between a CSV file and the block (algorithms/adjustment/control_points.py)."""
+measurements between a CSV file (algorithms/adjustment/control_points.py) and the block (algorithms/block/)."""
 from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
                        QgsProcessingOutputVectorLayer, QgsProcessingParameterBoolean, QgsProcessingParameterCrs,
                        QgsProcessingParameterEnum,
@@ -7,6 +7,7 @@ from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutp
                        QgsProcessingParameterNumber, QgsProcessingParameterString)
 
 from ...algorithms.adjustment import control_points as cp
+from ...algorithms.block import Block
 from ...algorithms.adjustment.observations import IMAGE_SIGMA
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
@@ -71,9 +72,10 @@ class ImportPoints(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
+        blk = Block(path)
         stored = cp.import_csv(
-            path, self.parameterAsFile(parameters, "INPUT", context),
-            mode=cp.MODES[self.parameterAsEnum(parameters, "MODE", context)], feedback=feedback,
+            blk, self.parameterAsFile(parameters, "INPUT", context),
+            mode=Block.IMPORT_MODES[self.parameterAsEnum(parameters, "MODE", context)], feedback=feedback,
             crs=self.parameterAsCrsDefinition(parameters, "CRS", context),
             heights=cp.HEIGHT_TYPES[self.parameterAsEnum(parameters, "HEIGHTS", context)],
             default_role=cp.ROLES[self.parameterAsEnum(parameters, "ROLE", context)],
@@ -82,8 +84,8 @@ class ImportPoints(PushbroomAlgorithm):
             image_sigma=self.parameterAsDouble(parameters, "SIGMA_IMAGE", context),
             suffix=self.parameterAsString(parameters, "MEAS_SUFFIX", context),
             keep_implausible=self.parameterAsBool(parameters, "KEEP_IMPLAUSIBLE", context))
-        feedback.pushInfo("points in the block: " + cp.summary(stored, cp.image_ids(path)))
-        layer = f"{path}|layername={cp.LAYER}"
+        feedback.pushInfo("points in the block: " + cp.summary(stored, blk.image_ids()))
+        layer = blk.layer_source(Block.CONTROL_LAYER)
         load_styled(context, layer, "Control and check points", "POINTS", "control_points.qml")
         roles = stored.points["role"]
         return {"BLOCK": path, "POINTS": layer, "CONTROL": int((roles == "control").sum()),
@@ -106,7 +108,8 @@ class ExportPoints(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
+        blk = Block(path)
         output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
-        stored = cp.export_csv(path, output)
-        feedback.pushInfo(f"{output}: " + cp.summary(stored, cp.image_ids(path)))
+        stored = cp.export_csv(blk, output)
+        feedback.pushInfo(f"{output}: " + cp.summary(stored, blk.image_ids()))
         return {"OUTPUT": output}

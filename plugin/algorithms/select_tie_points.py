@@ -3,8 +3,7 @@ block's mass points (algorithms/matching/tiepoints.py)."""
 from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputVectorLayer,
                        QgsProcessingParameterFile, QgsProcessingParameterNumber)
 
-from ...algorithms import block
-from ...algorithms.matching import points
+from ...algorithms.block import Block
 from ...algorithms.matching.tiepoints import select_tie_points
 from .base import PushbroomAlgorithm
 from ..styles import load_styled
@@ -36,15 +35,16 @@ class SelectTiePoints(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
-        mass = points.load_points(path, "mass_points")
+        blk = Block(path)
+        mass = blk.points("mass_points")
         tie = select_tie_points(mass, cell=self.parameterAsDouble(parameters, "CELL", context),
                                 min_group=self.parameterAsInt(parameters, "MIN_GROUP", context))
         reference = tie.stats.get("tie_reference", (mass.stats.get("images") or [1])[0])
         counts = tie.group_counts()
         feedback.pushInfo(f"{len(tie)} tie points from {len(mass)} mass points: "
                           + ", ".join(f"group {g}: {n}" for g, n in counts.items()))
-        npz = points.save_points(path, tie, "tie_points", display=(
-            block.load_model(path, reference), reference, mean_height(block.height_range(path))))
-        layer = points.layer_source(path, "tie_points")
+        npz = blk.save_points(tie, "tie_points", display=(
+            blk.model(reference), reference, mean_height(blk.height_range())))
+        layer = blk.layer_source("tie_points")
         load_styled(context, layer, "Tie points", "TIE_POINTS", "points_by_group.qml")
         return {"BLOCK": path, "TIE_POINTS": layer, "TIE_POINTS_FILE": npz}
