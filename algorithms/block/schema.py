@@ -36,6 +36,7 @@ IMAGE_FIELDS = [("name", ogr.OFTString), ("image_path", ogr.OFTString),
 #: the images table's field of the supplied models (missing in blocks of format 1 made before it)
 SUPPLIED = "supplied_model"
 
+
 def create_layer(ds, name, geom_type, srs, fields):
     """A new layer (or table, geom_type wkbNone) with an integer fid and the given (name, OFT type) fields."""
     layer = ds.CreateLayer(name, srs, geom_type, options=["FID=fid"])

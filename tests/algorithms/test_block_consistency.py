@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.adjustment import control_points as cp
-from pushbroom.algorithms.block import schema
+from pushbroom.algorithms.block import Block, schema
 from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import StorageError
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints

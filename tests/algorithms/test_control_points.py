@@ -10,9 +10,9 @@ import pytest
 from osgeo import gdal, ogr, osr
 
 from feedback import Feedback
-from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.adjustment.observations import IMAGE_SIGMA, MEAS_DTYPE, POINT_DTYPE, Observations
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import utm_epsg
 from osr_oracle import utm

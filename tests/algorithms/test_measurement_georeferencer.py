@@ -9,11 +9,11 @@ from osgeo import osr
 
 from osr_oracle import utm
 from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.algorithms.measurement.georeferencer import HEADER, read_points, write_points
-from pushbroom.algorithms.block import Block
 
 HRG = 1
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.measurement.residuals import residual_rows
 from pushbroom.algorithms.surface.intersection import intersect
 

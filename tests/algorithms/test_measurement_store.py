@@ -8,8 +8,8 @@ import sys
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms.block import Block, control_points as stored_points
 from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.block import Block, control_points as stored_points
 from pushbroom.algorithms.errors import InputError, StorageError
 
 POINT = dict(name="N1", role="check", lon=-84.19, lat=36.615, h=310.5, sigma_e=1.5, sigma_n=1.25, sigma_h=2.0)

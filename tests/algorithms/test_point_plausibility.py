@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from feedback import Feedback
-from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.adjustment import point_plausibility
 from pushbroom.algorithms.adjustment.point_plausibility import MARGIN_M, distance_to_polygon
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import utm_epsg
 

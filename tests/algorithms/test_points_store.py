@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms.errors import InputError, StorageError
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.block.points import load_arrays, save_arrays
 from pushbroom.algorithms.block.schema import create_schema
+from pushbroom.algorithms.errors import InputError, StorageError
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
-from pushbroom.algorithms.block import Block
 
 
 def synthetic(n, seed=0, images=(1, 2, 3)):

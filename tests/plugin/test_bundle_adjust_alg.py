@@ -16,10 +16,10 @@ from qgis.core import (QgsCategorizedSymbolRenderer, QgsProcessingContext, QgsPr
 from osr_oracle import utm
 from raster_oracle import bilinear
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.adjustment.control_points import import_csv
 from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.adjustment.residual_vectors import ATTRIBUTES
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints

@@ -17,8 +17,8 @@ from qgis import processing
 from qgis.core import QgsProcessingException
 
 import pushbroom
-from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.crs import reproject, srs, wgs84
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.surface.pointcloud import write_point_cloud

@@ -10,7 +10,6 @@ from qgis import processing
 from qgis.core import QgsProcessingException, QgsProcessingFeedback
 
 from pushbroom.algorithms import sensors
-
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.sensors.rpc import RpcModel

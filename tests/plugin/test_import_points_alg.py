@@ -9,9 +9,9 @@ from qgis.core import (QgsCategorizedSymbolRenderer, QgsProcessingContext, QgsPr
                        QgsProject, QgsVectorLayer)
 
 from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.plugin.algorithms.import_points import ExportPoints, ImportPoints
-from pushbroom.algorithms.block import Block
 from osr_oracle import utm
 
 

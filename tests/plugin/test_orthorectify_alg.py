@@ -7,7 +7,6 @@ from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback
 
 from pushbroom.algorithms import sensors
-
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.ortho import orthorectify

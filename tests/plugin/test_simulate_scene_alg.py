@@ -7,8 +7,8 @@ from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
 from pushbroom.algorithms import sensors
-
 from pushbroom.algorithms.block import Block
+
 
 
 @pytest.mark.slow

@@ -18,8 +18,8 @@ from qgis.PyQt.QtCore import QPoint, Qt, QTimer
 from osr_oracle import utm
 from raster_oracle import bilinear
 import pushbroom
-from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.adjustment.control_points import DEFAULT_SIGMAS
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.ui import adjust_task, measurement_window as mw

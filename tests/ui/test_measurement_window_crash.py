@@ -8,8 +8,9 @@ import shutil
 import signal
 import subprocess
 import sys
-from pushbroom.ui.measurement_window import MeasurementWindow
+
 from pushbroom.algorithms.block import Block
+from pushbroom.ui.measurement_window import MeasurementWindow
 
 SESSION = pathlib.Path(__file__).with_name("measurement_crash_session.py")
 
