@@ -6,11 +6,10 @@ Storage choice: a sidecar `<block stem>.<kind>.<host>-<pid>-<8 hex>.npz` next to
 name relative to the block). Why not BLOB or attribute tables in the GeoPackage: millions of rows written through OGR
 feature by feature take tens of seconds, a single BLOB hits SQLite's 1 GB value limit near 10
 million points and rewrites the whole database page chain, while an .npz of the structured arrays
-is written and read at disk speed (2 million points with 5.3 million observations, 281 MB: save
-0.35 s, load 0.23 s; tests/benchmarks/bench_points.py) and loads straight into the arrays the adjustment and the
-surface steps use. For display, the points are also written as a point layer into the block
-(`write_point_layer`), which can be rebuilt from the sidecar at any time (2 million points about
-30 s, most of it OGR building the R-tree spatial index).
+is written and read at disk speed (tests/benchmarks/bench_points.py) and loads straight into the arrays the
+adjustment and the surface steps use. For display, the points are also written as a point layer into the block
+(`write_point_layer`), which can be rebuilt from the sidecar at any time (most of that time is OGR building the
+R-tree spatial index).
 
 Versioned storage: a store never overwrites what the block references. The new sidecar gets a new name;
 the new point layer is built under a staged name (`<layer>__staged_<host>_<pid>`); then ONE transaction
@@ -227,7 +226,7 @@ def _write_layer(block_path, layer_name, points, model, image_id, height, feedba
             layer.CreateField(ogr.FieldDefn(name, kind))
     progress.step(feedback, 10)
     # The rows go in through sqlite3 with the GeoPackage geometry blobs built by numpy: OGR's
-    # feature-by-feature path costs about 35 us a point (70 s for 2 million), this about 1 us.
+    # feature-by-feature path is tens of times slower (tests/benchmarks/bench_points.py).
     blobs = np.zeros(len(ids), GPKG_POINT_DTYPE)
     blobs["magic"], blobs["flags"], blobs["srs_id"] = b"GP", 1, 4326
     blobs["order"], blobs["type"], blobs["x"], blobs["y"] = 1, 1, lon, lat
