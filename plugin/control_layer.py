@@ -6,8 +6,7 @@ import os
 
 from qgis.core import QgsProject, QgsProviderRegistry, QgsVectorLayer
 
-from ..algorithms import block
-from ..algorithms.adjustment.control_points import LAYER, layers
+from ..algorithms.block import Block
 from ..resource_files import resource_path
 
 LAYER_NAME = "Control and check points"
@@ -25,7 +24,7 @@ def find_control_layer(block_path, project=None):
         if layer.providerType() != "ogr":
             continue
         parts = QgsProviderRegistry.instance().decodeUri("ogr", layer.source())
-        if parts.get("layerName") == LAYER and _file_key(parts.get("path", "")) == key:
+        if parts.get("layerName") == Block.CONTROL_LAYER and _file_key(parts.get("path", "")) == key:
             return layer
     return None
 
@@ -33,8 +32,7 @@ def find_control_layer(block_path, project=None):
 def create_control_points(block_path):
     """Create the block's (empty) `control_points` layer and `image_measurements` table where missing, in one
     transaction, so that the map shows the points from the first one measured."""
-    with block.transaction(block_path, "the control points layer") as ds:
-        layers(ds)
+    Block(block_path).create_control_points()
 
 
 def show_control_points(block_path, project=None, create=False):
@@ -50,7 +48,7 @@ def show_control_points(block_path, project=None, create=False):
         return layer
     if create:
         create_control_points(block_path)
-    layer = QgsVectorLayer(f"{block_path}|layername={LAYER}", LAYER_NAME, "ogr")
+    layer = QgsVectorLayer(Block(block_path).layer_source(Block.CONTROL_LAYER), LAYER_NAME, "ogr")
     if not layer.isValid():
         return None
     layer.loadNamedStyle(resource_path("styles", "control_points.qml"))

@@ -19,7 +19,7 @@ LAST_BLOCK = "pushbroom/last_block"
 
 def layer_block(layer):
     """Path of the block GeoPackage `layer` is read from, or None (no layer, not a GeoPackage, not a block)."""
-    from ..algorithms.block import open_block
+    from ..algorithms.block import Block
     from ..algorithms.errors import InputError
     if layer is None or layer.providerType() != "ogr":
         return None
@@ -27,7 +27,7 @@ def layer_block(layer):
     if not path.lower().endswith(".gpkg"):
         return None
     try:
-        open_block(path)
+        Block(path).info()
     except InputError:
         return None
     return path

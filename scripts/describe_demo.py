@@ -12,10 +12,10 @@ import sys
 import numpy as np
 from osgeo import gdal
 
-from pushbroom.algorithms import block, sensors
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.geodesy import metres_per_degree
-from pushbroom.algorithms.matching.points import load_points
 
 #: land-cover classes of the simulator (classes.tif) grouped as in the report
 CLASS_GROUPS = {"fields (bare, crops)": (2, 3), "forest": (4,), "city": (5,), "water": (1,)}
@@ -38,8 +38,8 @@ def group3_accuracy(out, step=10.0, margin=20.0):
     intersected with the true DSM and projected with the truth HRS1/HRS2 model; coverage is the
     share of STEP-spaced HRG lattice nodes (inside `margin` px) holding a group-3 point."""
     scene = os.path.join(out, "scene")
-    blk = os.path.join(out, "block.gpkg")
-    ids = {r["name"]: r["id"] for r in block.read_images(blk)}
+    blk = Block(os.path.join(out, "block.gpkg"))
+    ids = {r["name"]: r["id"] for r in blk.images()}
     truth = {name: sensors.load(os.path.join(scene, "truth", name, "METADATA.DIM")) for name in ids}
     dsm = Dem.from_file(os.path.join(scene, "dsm.tif"))
     ds = gdal.Open(os.path.join(scene, "classes.tif"))
@@ -50,7 +50,7 @@ def group3_accuracy(out, step=10.0, margin=20.0):
         j = np.clip(((lon - gt[0]) / gt[1]).astype(int), 0, classes.shape[1] - 1)
         return classes[i, j]
 
-    mass = load_points(blk, "mass_points")
+    mass = blk.points("mass_points")
     g3 = mass.points["id"][mass.points["group"] == 3]
 
     def observed(name):
@@ -123,10 +123,10 @@ def main(out):
     print(f"\nDemo output in {out}")
     print(f"{'image':6} {'cols x rows':>13}  orientation vs truth on the ground (h = {h:.0f} m): supplied, "
           "block (after the adjustment)")
-    for row in block.read_images(blk):
+    for row in Block(blk).images():
         exact = sensors.load(os.path.join(scene, "truth", row["name"], "METADATA.DIM"))
         errors = [orientation_error_m(model, exact, h) for model in
-                  (sensors.load(os.path.join(scene, row["name"], "METADATA.DIM")), block.load_model(blk, row["id"]))]
+                  (sensors.load(os.path.join(scene, row["name"], "METADATA.DIM")), Block(blk).model(row["id"]))]
         print(f"{row['name']:6} {row['cols']:>6} x {row['rows']:<6} "
               + "; ".join(f"RMS {rms:5.1f} m, max {worst:5.1f} m" for rms, worst in errors))
     print("base-to-height ratios: " + ", ".join(f"{k} {v:.2f}" for k, v in truth["base_to_height"].items()))

@@ -105,12 +105,12 @@ def small_scene_block(small_scene, tmp_path_factory):
 
     import numpy as np
 
-    from pushbroom.algorithms import block
+    from pushbroom.algorithms.block import Block
     with open(small_scene["points"], newline="") as f:
         rows = list(csv.DictReader(f))
     path = tmp_path_factory.mktemp("small_scene_block") / "template.gpkg"
-    images = block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
-    block.create_block(path, images, height=float(np.mean([float(r["h"]) for r in rows])))
+    images = Block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
+    Block.create(path, images, height=float(np.mean([float(r["h"]) for r in rows])))
     return path, rows
 
 

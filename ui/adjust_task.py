@@ -16,7 +16,7 @@ from qgis.core import (
 )
 from qgis.PyQt.QtCore import QObject, QTimer, pyqtSignal
 
-from ..algorithms import block
+from ..algorithms.block import Block
 from ..algorithms.errors import PushbroomError
 
 ALGORITHM = "pushbroom:bundleadjust"
@@ -48,7 +48,7 @@ def bundle_adjust_algorithm():
 def parameters(block_path):
     """The algorithm's parameters for the block: automatic parameter selection, the block's tie points
     when it has some."""
-    return {"BLOCK": str(block_path), "FREE": "auto", "USE_TIE_POINTS": "tie_points" in block.read_info(block_path)}
+    return {"BLOCK": str(block_path), "FREE": "auto", "USE_TIE_POINTS": "tie_points" in Block(block_path).info()}
 
 
 class AdjustRunner(QObject):

@@ -1,5 +1,5 @@
 """Undo/redo of the measurement window: QUndoCommands around the MeasurementStore's methods
-(algorithms/measurement/store.py). Every do and undo writes through the store at once, each in one
+(algorithms/block/measurements.py). Every do and undo writes through the store at once, each in one
 committed transaction, so the block on disk always equals what the window shows.
 
 `push(stack, command)` performs the command first and pushes it only when that worked, so an
@@ -8,7 +8,7 @@ was; QUndoStack.push's own redo() is then skipped once. Later redo()/undo() call
 raise: a failure there is handed to `report` and the command made obsolete."""
 from qgis.PyQt.QtWidgets import QUndoCommand
 
-from ..algorithms.adjustment.control_points import save_control_points
+from ..algorithms.block import Block
 from ..algorithms.errors import PushbroomError
 
 POINT_KEYS = ("name", "role", "lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h")
@@ -147,7 +147,7 @@ class DeleteMeasurement(StoreCommand):
 
 class ReplacePoints(StoreCommand):
     """An import: the block's points `before` and `after` (Observations); do/undo store one of them
-    whole (control_points.save_control_points, one transaction). The import itself is the first do:
+    whole (Block.save_control_points, one transaction). The import itself is the first do:
     push it with done=True."""
 
     def __init__(self, block_path, before, after, text, report=None):
@@ -155,7 +155,7 @@ class ReplacePoints(StoreCommand):
         self.block_path, self.before, self.after = block_path, before, after
 
     def do(self):
-        save_control_points(self.block_path, self.after, mode="replace")
+        Block(self.block_path).save_control_points(self.after, mode="replace")
 
     def undo_(self):
-        save_control_points(self.block_path, self.before, mode="replace")
+        Block(self.block_path).save_control_points(self.before, mode="replace")

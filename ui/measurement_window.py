@@ -27,17 +27,30 @@ from qgis.core import Qgis, QgsProject, QgsRasterLayer
 from qgis.gui import QgsMessageBar
 from qgis.PyQt.QtCore import Qt, pyqtSignal
 from qgis.PyQt.QtGui import QKeySequence
-from qgis.PyQt.QtWidgets import (QAction, QFileDialog, QFrame, QHBoxLayout, QInputDialog, QLabel, QMainWindow,
-                                 QProgressBar, QSizePolicy, QSplitter, QToolButton, QUndoStack, QVBoxLayout, QWidget)
+from qgis.PyQt.QtWidgets import (
+    QAction,
+    QFileDialog,
+    QFrame,
+    QHBoxLayout,
+    QInputDialog,
+    QLabel,
+    QMainWindow,
+    QProgressBar,
+    QSizePolicy,
+    QSplitter,
+    QToolButton,
+    QUndoStack,
+    QVBoxLayout,
+    QWidget,
+)
 
-from ..algorithms import block
 from ..algorithms.adjustment import control_points
 from ..algorithms.adjustment.observations import Observations
-from ..algorithms.sigmas import IMAGE_SIGMA
+from ..algorithms.block import Block
 from ..algorithms.errors import InputError, PushbroomError
 from ..algorithms.geodesy import metres_per_degree
-from ..algorithms.measurement import georeferencer, prediction, residual_store, transfer
-from ..algorithms.measurement.store import MeasurementStore
+from ..algorithms.measurement import georeferencer, prediction, transfer
+from ..algorithms.sigmas import IMAGE_SIGMA
 from . import commands
 from .adjust_task import AdjustRunner
 from .image_view import ImageView, Marker, Vector
@@ -140,14 +153,15 @@ class MeasurementWindow(QMainWindow):
         super().__init__(parent)
         self.block_path = os.fspath(block_path)
         self.iface = iface
-        self.store = MeasurementStore(self.block_path)
-        rows = block.read_images(self.block_path)
+        self.block = Block(self.block_path)
+        self.store = self.block.measurement_store()
+        rows = self.block.images()
         self.image_names = {r["id"]: r["name"] for r in rows}
         self.image_paths = {r["id"]: r["image_path"] for r in rows}
-        heights = block.height_range(self.block_path)
+        heights = self.block.height_range()
         self.default_height = 0.5 * (heights[0] + heights[1]) if heights else 0.0
         self.models = self._load_models()
-        self.residuals = residual_store.load_residuals(self.block_path)
+        self.residuals = self.block.residuals()
         self.observations = Observations()
         self.current = None              # name of the current point (stored or a draft)
         self.draft = None                # values of a new point not stored yet
@@ -166,7 +180,7 @@ class MeasurementWindow(QMainWindow):
 
     # --- construction ----------------------------------------------------------------------------------
     def _load_models(self):
-        return {i: block.load_model(self.block_path, i) for i in self.image_names}
+        return {i: self.block.model(i) for i in self.image_names}
 
     def _build(self, reference_layers, dem_path):
         self.panes, self.image_views = {}, {}
@@ -757,7 +771,7 @@ class MeasurementWindow(QMainWindow):
         self.progress.hide()
         if ok:
             self.models = self._load_models()
-            self.residuals = residual_store.load_residuals(self.block_path)
+            self.residuals = self.block.residuals()
             self.refresh()
             self.show_message(message, Qgis.Success)
         else:
@@ -772,12 +786,12 @@ class MeasurementWindow(QMainWindow):
     def import_csv(self, path, **options):
         """Merge the points of a CSV file (control_points.import_csv options) into the block (undoable)."""
         before = self.store.load()
-        after = control_points.import_csv(self.block_path, path, mode="merge", **options)
+        after = control_points.import_csv(self.block, path, mode="merge", **options)
         self._replace_points(f"Import {os.path.basename(path)}", before, after)
         self.show_message(f"imported {path}: {len(after.points)} points in the block")
 
     def export_csv(self, path):
-        control_points.export_csv(self.block_path, path)
+        control_points.export_csv(self.block, path)
         self.show_message(f"points written to {path}")
 
     def import_points_file(self, path, image_id):
@@ -794,7 +808,7 @@ class MeasurementWindow(QMainWindow):
         read = georeferencer.read_points(path, int(image_id), dem=self.reference.dem, height=self.default_height,
                                          crs=crs, prefix=prefix)
         try:
-            after = control_points.save_control_points(self.block_path, read, mode="merge")
+            after = self.block.save_control_points(read, mode="merge")
         except RuntimeError as exc:    # an OGR/SQLite failure: the transaction was rolled back
             raise InputError(f"cannot store the points in {self.block_path}: {exc}") from exc
         self._replace_points(f"Import {os.path.basename(path)}", before, after)

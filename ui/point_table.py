@@ -42,7 +42,7 @@ class PointTableModel(QAbstractTableModel):
 
     def set_data(self, observations, image_names, residuals=({}, {})):
         """observations: algorithms.adjustment.observations.Observations; image_names {image id: name};
-        residuals: residual_store.load_residuals's ({(point, image id): (vx, vy, wx, wy)},
+        residuals: Block.residuals's ({(point, image id): (vx, vy, wx, wy)},
         {point: (dE, dN, dH, image RMS px)})."""
         image_res, ground = residuals
         self.beginResetModel()

@@ -26,8 +26,8 @@ from qgis.PyQt.QtCore import Qt, pyqtSignal
 from qgis.PyQt.QtGui import QColor
 from qgis.PyQt.QtWidgets import QCheckBox, QFileDialog, QHBoxLayout, QLabel, QToolButton, QVBoxLayout, QWidget
 
-from ..algorithms import block
 from ..algorithms.adjustment.control_points import orthometric_to_ellipsoidal
+from ..algorithms.block import Block
 from ..algorithms.dem import Dem
 from ..algorithms.errors import InputError, PushbroomError
 from ..resource_files import resource_path
@@ -76,13 +76,6 @@ def memory_layer(definition, name, qml):
     return layer
 
 
-def footprint_features(block_path):
-    """[(name, WKT polygon)] of the block's image footprints (EPSG:4326), read once."""
-    ds = block.open_block(block_path)
-    layer = ds.GetLayerByName("footprints")
-    return [(feat["name"], feat.GetGeometryRef().ExportToWkt()) for feat in layer] if layer is not None else []
-
-
 class ReferenceView(QWidget):
     """Map canvas with reference `layers` (QgsMapLayer list), footprints and points of the block;
     DEM from `dem_path` or a raster layer chosen in the DEM box. Signals: clicked(x, y) in the canvas
@@ -117,7 +110,7 @@ class ReferenceView(QWidget):
         self.marker.setPenWidth(3)
         self.marker.hide()
         crs = self.layers[0].crs() if self.layers else QgsCoordinateReferenceSystem(
-            block.read_info(self.block_path).get("default_crs", WGS84))
+            Block(self.block_path).info().get("default_crs", WGS84))
         self.canvas.setDestinationCrs(crs)
         self.canvas.setLayers([self.points_layer, self.footprints_layer] + self.layers)
         self.dem_box = QgsMapLayerComboBox(self)
@@ -232,7 +225,7 @@ class ReferenceView(QWidget):
 
     def _fill_footprints(self):
         features = []
-        for k, (name, wkt) in enumerate(footprint_features(self.block_path), start=1):
+        for k, (name, wkt) in enumerate(Block(self.block_path).footprints(), start=1):
             feature = QgsFeature(self.footprints_layer.fields())
             feature.setAttributes([k, name])
             feature.setGeometry(QgsGeometry.fromWkt(wkt))

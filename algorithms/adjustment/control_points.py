@@ -1,4 +1,4 @@
-"""Control and check points of a block: CSV import/export and storage in the block GeoPackage.
+"""Control and check points of a block: CSV import and export.
 
 CSV format: one header row, then one row per point; column names are matched case-insensitively,
 the delimiter is a comma, semicolon or tab, the encoding UTF-8 (a BOM is allowed).
@@ -21,36 +21,26 @@ the delimiter is a comma, semicolon or tab, the encoding UTF-8 (a BOM is allowed
 
 Other columns are ignored with a warning. Errors name the line and column.
 
-Storage in the block: the point layer `control_points` (EPSG:4326 point Z: lon, lat, ellipsoidal
-h; fields name, role, lon, lat, h, sigma_e, sigma_n, sigma_h, and residual_px once a bundle adjustment
-has run, see measurement/residual_store.py) and the table `image_measurements` (point_name, image_id,
-col, row, sigma), both replaced in one SQLite transaction, so an import either lands whole or leaves
-the block as it was; measurement/store.py edits single points and measurements."""
+Storage in the block: block/control_points.py (through block.Block).
+"""
 import csv
 import io
 import math
 import os
 
 import numpy as np
-from osgeo import ogr
 
-from .. import block, progress
-from ..crs import egm96_undulation, reproject, srs as parse_crs, wgs84
+from .. import progress
 from ..atomic import write_text
+from ..crs import egm96_undulation, reproject, srs as parse_crs, wgs84
 from ..errors import InputError
-from . import point_plausibility
 from ..sigmas import IMAGE_SIGMA
+from . import point_plausibility
 from .observations import MEAS_DTYPE, POINT_DTYPE, Observations
 
 DEFAULT_SIGMAS = (2.5, 2.5, 2.2)    # ground east, north, height (m), methods.md section 4 (K)
 HEIGHT_TYPES = ("ellipsoidal", "orthometric")
 ROLES = ("control", "check")
-MODES = ("replace", "merge")
-LAYER, TABLE = "control_points", "image_measurements"
-POINT_FIELDS = [("name", ogr.OFTString), ("role", ogr.OFTString)] + [
-    (key, ogr.OFTReal) for key in ("lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h")]
-MEAS_FIELDS = [("point_name", ogr.OFTString), ("image_id", ogr.OFTInteger), ("col", ogr.OFTReal),
-               ("row", ogr.OFTReal), ("sigma", ogr.OFTReal)]
 ALIASES = {"name": "id", "height": "h", "z": "h"}
 BASE_COLUMNS = ("id", "role", "lon", "lat", "x", "y", "h", "sigma_e", "sigma_n", "sigma_h")
 NAME_LENGTH = int(POINT_DTYPE["name"].itemsize // 4)
@@ -284,124 +274,6 @@ def write_csv(path, observations, image_names):
     return path
 
 
-def merge(old, new):
-    """`old` updated by `new`: a point of `new` replaces the point of the same name (role,
-    coordinates, sigmas; in old's order) or is appended; its measurements replace old's in the
-    same images, old's measurements in other images are kept."""
-    known = set(old.points["name"])
-    names = list(old.points["name"]) + [n for n in new.points["name"] if n not in known]
-    index = {n: i for i, n in enumerate(names)}
-    points = np.zeros(len(names), POINT_DTYPE)
-    points[:len(old.points)] = old.points
-    points[[index[n] for n in new.points["name"]]] = new.points
-    by_key = {}
-    for obs in (old, new):
-        for m in obs.measurements:
-            key = (index[obs.points["name"][m["point"]]], int(m["image_id"]))
-            by_key[key] = (key[0], key[1], m["col"], m["row"], m["sigma"])
-    return Observations(points, np.array(list(by_key.values()), MEAS_DTYPE)).sorted().check()
-
-
-def image_ids(block_path):
-    """{image name: image id} of the block's images, in block order."""
-    return {r["name"]: r["id"] for r in block.read_images(block_path)}
-
-
-def layers(ds):
-    """The control_points layer and image_measurements table of an open block (created if missing, with the
-    triggers that count their changes: block.control_point_triggers)."""
-    points = ds.GetLayerByName(LAYER) or block.create_layer(ds, LAYER, ogr.wkbPoint25D, wgs84(), POINT_FIELDS)
-    table = ds.GetLayerByName(TABLE) or block.create_layer(ds, TABLE, ogr.wkbNone, None, MEAS_FIELDS)
-    block.control_point_triggers(ds, LAYER, TABLE)
-    return points, table
-
-
-def write_point(layer, p, feat=None):
-    """Store point record `p` (POINT_DTYPE) in the control_points layer: as a new feature, or into
-    `feat` (an existing feature of the layer; its other fields, such as residual_px, kept)."""
-    new = feat is None
-    feat = ogr.Feature(layer.GetLayerDefn()) if new else feat
-    for name, _ in POINT_FIELDS:
-        feat[name] = p[name].item()
-    geom = ogr.Geometry(ogr.wkbPoint25D)
-    geom.AddPoint(float(p["lon"]), float(p["lat"]), float(p["h"]))
-    feat.SetGeometry(geom)
-    (layer.CreateFeature if new else layer.SetFeature)(feat)
-
-
-def write_measurement(table, name, m):
-    """A new row of the image_measurements table: measurement `m` (MEAS_DTYPE) of point `name`."""
-    feat = ogr.Feature(table.GetLayerDefn())
-    feat["point_name"] = name
-    for key, _ in MEAS_FIELDS[1:]:
-        feat[key] = m[key].item()
-    table.CreateFeature(feat)
-
-
-def read_stored(ds, block_path):
-    """The Observations stored in the open block `ds` (see load_control_points)."""
-    points_layer, table = ds.GetLayerByName(LAYER), ds.GetLayerByName(TABLE)
-    if points_layer is None:
-        return Observations()
-    rows = [tuple(feat[name] for name, _ in POINT_FIELDS) for feat in points_layer]
-    points = np.array(rows, POINT_DTYPE) if rows else np.zeros(0, POINT_DTYPE)
-    index = {n: i for i, n in enumerate(points["name"])}
-    meas = []
-    for feat in table if table is not None else []:
-        if feat["point_name"] not in index:
-            raise InputError(f"block {block_path}: image measurement of unknown point {feat['point_name']!r}; "
-                             "import the points again")
-        meas.append((index[feat["point_name"]], feat["image_id"], feat["col"], feat["row"], feat["sigma"]))
-    meas = np.array(meas, MEAS_DTYPE)
-    return Observations(points, meas).sorted()
-
-
-def load_control_points(block_path):
-    """The control/check points stored in the block and their measurements (image ids = block
-    image ids); empty Observations when none were imported."""
-    ds = block.open_block(block_path)
-    return read_stored(ds, block_path)
-
-
-def save_control_points(block_path, observations, mode="replace", feedback=None, names=None):
-    """Store `observations` (control/check points only) in the block, replacing its points
-    (mode "replace") or updating them (mode "merge", see `merge`), in one SQLite transaction:
-    on any error or a cancel the block keeps its earlier points. `names`: {image name: id} of the
-    block (read from it if not given). Returns what is stored. A block locked by another writer is
-    waited for (block.transaction); an OGR/SQLite failure is an InputError."""
-    if mode not in MODES:
-        raise InputError(f"the import mode must be one of {', '.join(MODES)}, not {mode!r}")
-    observations.check()
-    roles = set(observations.points["role"].tolist()) - set(ROLES)
-    if roles:
-        raise InputError(f"only control and check points are stored with the block, not {', '.join(roles)} points")
-    names = names or image_ids(block_path)
-    known = set(names.values())
-    unknown = sorted(set(observations.measurements["image_id"].tolist()) - known)
-    if unknown:
-        raise InputError(f"measurements in image id(s) {unknown}, which the block {block_path} does not have")
-    with block.transaction(block_path, "the points") as ds:
-        if mode == "merge":
-            observations = merge(read_stored(ds, block_path), observations)
-        points_layer, table = layers(ds)
-        ds.ExecuteSQL(f"DELETE FROM {TABLE}")
-        ds.ExecuteSQL(f"DELETE FROM {LAYER}")
-        for k, p in enumerate(observations.points):
-            progress.step(feedback, 80.0 * k / max(len(observations.points), 1))
-            write_point(points_layer, p)
-        for m in observations.measurements:
-            write_measurement(table, observations.points["name"][m["point"]].item(), m)
-        progress.step(feedback, 90.0)
-        ds.ExecuteSQL(f"RECOMPUTE EXTENT ON {LAYER}")
-        roles = observations.points["role"]
-        block.write_info(ds, {"control_points": int((roles == "control").sum()),
-                              "check_points": int((roles == "check").sum()),
-                              "image_measurements": len(observations.measurements)},
-                         step="importpoints", message=f"{mode}: " + summary(observations, names))
-    progress.ensure(feedback).setProgress(100.0)
-    return observations
-
-
 def summary(observations, image_names):
     """Counts per role and per image, one line ("control 5, check 2; HRG: 5 control, 2 check; ...")."""
     points, meas = observations.points, observations.measurements
@@ -414,7 +286,7 @@ def summary(observations, image_names):
 
 
 def check_extent(observations, images):
-    """InputError if a measurement lies outside its image (`images`: block.read_images rows)."""
+    """InputError if a measurement lies outside its image (`images`: Block.images() rows)."""
     sizes = {r["id"]: (r["cols"], r["rows"]) for r in images}
     names = {r["id"]: r["name"] for r in images}
     for m in observations.measurements:
@@ -425,12 +297,12 @@ def check_extent(observations, images):
                              "row swapped or the image columns mixed up?")
 
 
-def check_plausible(block_path, observations, degrees_as_projected=None, keep=False, feedback=None):
-    """Refuse (InputError naming them) the points that do not lie where the block's images are
-    (point_plausibility.py), or with `keep` only warn about them through `feedback`."""
-    images = block.read_images(block_path)
-    models = {r["id"]: block.load_model(block_path, r["id"]) for r in images}
-    heights = list(block.height_range(block_path) or ()) + observations.points["h"].tolist()
+def check_plausible(blk, observations, degrees_as_projected=None, keep=False, feedback=None):
+    """Refuse (InputError naming them) the points that do not lie where the images of the block `blk`
+    (block.Block) are (point_plausibility.py), or with `keep` only warn about them through `feedback`."""
+    images = blk.images()
+    models = {r["id"]: blk.model(r["id"]) for r in images}
+    heights = list(blk.height_range() or ()) + observations.points["h"].tolist()
     footprints = point_plausibility.Footprints(models, {r["id"]: r["name"] for r in images}, heights)
     lines = point_plausibility.implausible_points(observations, footprints, degrees_as_projected)
     if not lines:
@@ -444,11 +316,12 @@ def check_plausible(block_path, observations, degrees_as_projected=None, keep=Fa
     return lines
 
 
-def import_csv(block_path, csv_path, mode="replace", feedback=None, keep_implausible=False, **options):
-    """Read `csv_path` (`read_csv` with `options`) against the block's images, check the measurements
-    lie inside their images and the points where the images are (`check_plausible`; refused unless
-    `keep_implausible`) and store the points (`save_control_points`). Returns the points now in the block."""
-    images = block.read_images(block_path)
+def import_csv(blk, csv_path, mode="replace", feedback=None, keep_implausible=False, **options):
+    """Read `csv_path` (`read_csv` with `options`) against the images of the block `blk` (block.Block),
+    check the measurements lie inside their images and the points where the images are (`check_plausible`;
+    refused unless `keep_implausible`) and store the points (Block.save_control_points, `mode` replace or
+    merge). Returns the points now in the block."""
+    images = blk.images()
     names = {r["name"]: r["id"] for r in images}
     defaults = {"crs": None, "heights": "ellipsoidal", "default_role": "control", "check_ids": (),
                 "sigmas": DEFAULT_SIGMAS, "image_sigma": IMAGE_SIGMA, "suffix": ""}
@@ -458,16 +331,17 @@ def import_csv(block_path, csv_path, mode="replace", feedback=None, keep_implaus
     defaults.update(options)
     observations, degrees = _read_csv(csv_path, names, feedback=feedback, **defaults)
     check_extent(observations, images)
-    check_plausible(block_path, observations, degrees, keep_implausible, feedback)
-    return save_control_points(block_path, observations, mode=mode, feedback=feedback, names=names)
+    check_plausible(blk, observations, degrees, keep_implausible, feedback)
+    return blk.save_control_points(observations, mode=mode, feedback=feedback, names=names)
 
 
-def export_csv(block_path, csv_path):
-    """Write the block's control/check points to `csv_path` (`write_csv`); returns them."""
-    observations = load_control_points(block_path)
+def export_csv(blk, csv_path):
+    """Write the control/check points of the block `blk` (block.Block) to `csv_path` (`write_csv`);
+    returns them."""
+    observations = blk.control_points()
     if not len(observations.points):
-        raise InputError(f"block {block_path} has no control or check points: import some first "
+        raise InputError(f"block {blk.path} has no control or check points: import some first "
                          "(pushbroom:importpoints)")
-    write_csv(csv_path, observations, image_ids(block_path))
+    write_csv(csv_path, observations, blk.image_ids())
     return observations
 

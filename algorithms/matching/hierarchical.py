@@ -76,11 +76,18 @@ from ..surface.tin import conform_breaklines, delaunay, filter_blunders, neighbo
 from ..surface.tin_grid import Grid, rasterize
 from . import preprocess
 from .edges import canny, link, match_edges
-from .mpgc import MpgcParams, accepted, match_points
-from .hierarchical_level import (LevelModel, ShiftedModel, back_match, candidates, noise_sigma, rho_thresholds,
-                                 window_halves)
+from .hierarchical_level import (
+    LevelModel,
+    ShiftedModel,
+    back_match,
+    candidates,
+    noise_sigma,
+    rho_thresholds,
+    window_halves,
+)
 from .imagery import Window, as_image
 from .interest import interest_points
+from .mpgc import MpgcParams, accepted, match_points
 from .params import GrowParams
 from .points import COMB_A, COMB_B, EDGE, NCC_ONLY, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .relaxation import hypotheses, relax, unique_choice

@@ -41,8 +41,17 @@ from .imagery import Smoothed, as_image
 from .lsm import LSM_OUT, OUTSIDE, lsm_point, match_accepted, to_records
 from .params import GrowParams
 from .records import PAIR_DTYPE
-from .seeds import (CELL, automatic_seeds, local_affine, predict, resolve_height_range, search_margin,
-                    seed_operator, seeds_from_points, window_pair)
+from .seeds import (
+    CELL,
+    automatic_seeds,
+    local_affine,
+    predict,
+    resolve_height_range,
+    search_margin,
+    seed_operator,
+    seeds_from_points,
+    window_pair,
+)
 
 _DC = np.array([-1, 1, 0, 0], np.int64)
 _DR = np.array([0, 0, -1, 1], np.int64)

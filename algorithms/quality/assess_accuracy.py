@@ -74,7 +74,7 @@ def assess_accuracy(params, feedback=None):
     if params.dem:
         used.append(("DEM", f"{params.dem} ({params.dem_heights} heights; reference resampled onto its grid)"))
     used += [("classes", class_source), ("slope threshold", f"{params.slope_threshold:g} deg")]
-    from . import report   # matplotlib: loaded on use, not with the plugin
+    from . import report  # matplotlib: loaded on use, not with the plugin
     progress.ensure(feedback).pushInfo(report.text(assessed, used))
     progress.step(feedback, 75, "drawing the figures")
     out = AssessResult(report.write_report(params.report, "Accuracy assessment", assessed, used), used=used)

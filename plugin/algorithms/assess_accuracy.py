@@ -1,10 +1,16 @@
 """pushbroom:assessaccuracy — the Processing face of quality.assess_accuracy.assess_accuracy: height
 differences of a point cloud and/or a DEM against a reference DTM/DSM, with statistics, figures and an
 HTML report."""
-from qgis.core import (QgsProcessing, QgsProcessingParameterField, QgsProcessingParameterFile,
-                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterDestination, QgsProcessingParameterRasterLayer,
-                       QgsProcessingParameterVectorLayer)
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingParameterField,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterDestination,
+    QgsProcessingParameterRasterLayer,
+    QgsProcessingParameterVectorLayer,
+)
 
 from ...algorithms.errors import InputError
 from ...algorithms.quality.assess_accuracy import AssessParams, assess_accuracy

@@ -1,13 +1,21 @@
-"""pushbroom:bundleadjust — the Processing face of adjustment.adjust_block.adjust_block: reads the
+"""pushbroom:bundleadjust — the Processing face of steps.adjust_block.adjust_block: reads the
 parameters, adjusts the block, loads the residual vectors."""
-from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum, QgsProcessingParameterFile,
-                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
-                       QgsProcessingParameterVectorDestination)
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingOutputFile,
+    QgsProcessingOutputNumber,
+    QgsProcessingParameterBoolean,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterLayer,
+    QgsProcessingParameterString,
+    QgsProcessingParameterVectorDestination,
+)
 
-from ...algorithms.adjustment.adjust_block import AdjustParams, adjust_block
 from ...algorithms.adjustment.parameters import MODELS
+from ...algorithms.steps.adjust_block import AdjustParams, adjust_block
 from ..styles import load_styled
 from .base import PushbroomAlgorithm, heights_choice, heights_parameter
 from .dem_nodata import nodata_parameter

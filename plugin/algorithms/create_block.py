@@ -1,12 +1,19 @@
 """pushbroom:createblock — the Processing face of block_creation.create_block: images and their
 orientation into a block GeoPackage."""
-from qgis.core import (QgsProcessing, QgsProcessingParameterBoolean, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterMultipleLayers, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterLayer, QgsProcessingOutputVectorLayer, QgsProcessingUtils)
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingOutputVectorLayer,
+    QgsProcessingParameterBoolean,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterMultipleLayers,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterLayer,
+    QgsProcessingUtils,
+)
 
 from ...algorithms import sensors
-from ...algorithms.block_creation import CreateParams, create_block
 from ...algorithms.errors import PushbroomError
+from ...algorithms.steps.block_creation import CreateParams, create_block
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
 from .dem_nodata import nodata_parameter

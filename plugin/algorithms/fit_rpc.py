@@ -1,11 +1,17 @@
-"""pushbroom:fitrpc — the Processing face of adjustment.block_rpcs.fit_block_rpcs: RPC00B fitted to the
+"""pushbroom:fitrpc — the Processing face of steps.block_rpcs.fit_block_rpcs: RPC00B fitted to the
 block's sensor models, written as _RPC.TXT files GDAL reads."""
-from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputMultipleLayers, QgsProcessingParameterBoolean,
-                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber,
-                       QgsProcessingParameterString)
+from qgis.core import (
+    QgsProcessingOutputFile,
+    QgsProcessingOutputMultipleLayers,
+    QgsProcessingParameterBoolean,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterFolderDestination,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterString,
+)
 
-from ...algorithms.adjustment.block_rpcs import RpcParams, fit_block_rpcs
+from ...algorithms.steps.block_rpcs import RpcParams, fit_block_rpcs
 from .base import PushbroomAlgorithm
 
 Number = QgsProcessingParameterNumber

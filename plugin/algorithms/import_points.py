@@ -1,13 +1,22 @@
 """pushbroom:importpoints and pushbroom:exportpoints — the Processing faces of
-adjustment.point_files.import_points and export_points: control/check points and their image
+steps.point_files.import_points and export_points: control/check points and their image
 measurements between a CSV file and the block."""
-from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputNumber,
-                       QgsProcessingOutputVectorLayer, QgsProcessingParameterBoolean, QgsProcessingParameterCrs,
-                       QgsProcessingParameterEnum, QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterNumber, QgsProcessingParameterString)
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingOutputFile,
+    QgsProcessingOutputNumber,
+    QgsProcessingOutputVectorLayer,
+    QgsProcessingParameterBoolean,
+    QgsProcessingParameterCrs,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterString,
+)
 
 from ...algorithms.adjustment.control_points import MODES, ROLES
-from ...algorithms.adjustment.point_files import ImportParams, export_points, import_points
+from ...algorithms.steps.point_files import ImportParams, export_points, import_points
 from ..styles import load_styled
 from .base import PushbroomAlgorithm, heights_choice, heights_parameter
 

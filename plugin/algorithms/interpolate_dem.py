@@ -1,8 +1,15 @@
 """pushbroom:interpolatedem — a DEM from a point cloud: Delaunay TIN with optional breaklines,
 blunder filter, linear interpolation on a regular grid (algorithms/surface/tin_dem.py)."""
-from qgis.core import (QgsProcessing, QgsProcessingOutputNumber, QgsProcessingParameterCrs,
-                       QgsProcessingParameterEnum, QgsProcessingParameterFeatureSource, QgsProcessingParameterFile,
-                       QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination)
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingOutputNumber,
+    QgsProcessingParameterCrs,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterFeatureSource,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterDestination,
+)
 
 from ...algorithms import progress
 from ...algorithms.surface import point_input, tin_dem

@@ -2,19 +2,25 @@
 intersection (K 3.5.1; algorithms/surface/intersection.py), written as a point cloud (LAS/LAZ or a
 GeoPackage point layer; algorithms/surface/pointcloud.py)."""
 import numpy as np
-from qgis.core import (QgsProcessing, QgsProcessingOutputNumber,
-                       QgsProcessingOutputVectorLayer, QgsProcessingParameterCrs, QgsProcessingParameterEnum,
-                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterNumber)
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingOutputNumber,
+    QgsProcessingOutputVectorLayer,
+    QgsProcessingParameterCrs,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterNumber,
+)
 
-from ...algorithms import block, progress
-from ...algorithms.sigmas import IMAGE_SIGMA
+from ...algorithms import progress
+from ...algorithms.adjustment.observations import IMAGE_SIGMA
+from ...algorithms.block import Block
 from ...algorithms.errors import InputError
-from ...algorithms.matching import points
+from ...algorithms.height_range import mean_height
 from ...algorithms.surface import intersection, pointcloud
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
-from ...algorithms.height_range import mean_height
 
 Number = QgsProcessingParameterNumber
 KINDS = (("mass_points", "Mass points (pushbroom:matchpoints)"),
@@ -54,17 +60,18 @@ class IntersectPoints(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
+        blk = Block(path)
         kind = KINDS[self.parameterAsEnum(parameters, "POINTS", context)][0]
-        multi = points.load_points(path, kind)
-        known = {r["id"] for r in block.read_images(path)}
+        multi = blk.points(kind)
+        known = {r["id"] for r in blk.images()}
         ids = [int(i) for i in multi.image_ids()]
         if not ids:
             raise InputError(f"the block's {kind.replace('_', ' ')} have no image measurements")
         if set(ids) - known:
             raise InputError(f"the {kind.replace('_', ' ')} refer to image ids {sorted(set(ids) - known)} which the "
                              "block does not have: run the matching step again")
-        models = {i: block.load_model(path, i) for i in ids}
-        heights = block.height_range(path)
+        models = {i: blk.model(i) for i in ids}
+        heights = blk.height_range()
         obs = multi.observations
         result = intersection.intersect(
             models, obs["image_id"], obs["point_id"], obs["col"], obs["row"],
@@ -85,14 +92,14 @@ class IntersectPoints(PushbroomAlgorithm):
         if not ok.any():
             raise InputError(f"none of the {len(result)} points could be intersected "
                              f"({result.status_counts()}): check the block's sensor models and the points")
-        crs = self.parameterAsCrsDefinition(parameters, "CRS", context) or block.read_info(path).get("default_crs")
+        crs = self.parameterAsCrsDefinition(parameters, "CRS", context) or blk.info().get("default_crs")
         out = self.parameterAsFileOutput(parameters, "OUTPUT", context)
         fields = pointcloud.cloud_fields(result, group=group, rho=multi.points["rho_min"][pos])
         out, srs, fmt = pointcloud.write_point_cloud(out, result.lon[ok], result.lat[ok], result.h[ok], fields, crs=crs,
                                                      feedback=progress.scaled(feedback, 80, 100))
         message = f"{int(ok.sum())} points written to {out} ({srs.GetName()}; z ellipsoidal height)"
         feedback.pushInfo(message)
-        block.update_info(path, {}, step="intersectpoints", message=message)
+        blk.update_info({}, step="intersectpoints", message=message)
         results = {"OUTPUT": out, "COUNT": int(ok.sum())}
         if fmt == "gpkg":
             results["LAYER"] = f"{out}|layername={pointcloud.GPKG_LAYER}"

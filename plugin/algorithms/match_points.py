@@ -1,13 +1,20 @@
 """pushbroom:matchpoints — dense image points by region-growing least-squares matching in the
 three combinations of paper K 3.3 (algorithms/matching/combinations.py)."""
-from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputVectorLayer,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum, QgsProcessingParameterFile,
-                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
-                       QgsProcessingParameterString)
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingOutputFile,
+    QgsProcessingOutputVectorLayer,
+    QgsProcessingParameterBoolean,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterString,
+)
 
-from ...algorithms import block
+from ...algorithms.block import Block
 from ...algorithms.height_range import height_range, mean_height
-from ...algorithms.matching import combinations, hierarchical, points
+from ...algorithms.matching import combinations, hierarchical
 from ...algorithms.matching.params import GrowParams
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
@@ -109,11 +116,12 @@ class MatchPoints(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, "BLOCK", context)
-        rows = combinations.combination_order(block.read_images(path), self.parameterAsString(parameters, "IMAGES", context))
-        models = [block.load_model(path, r["id"]) for r in rows]
+        blk = Block(path)
+        rows = combinations.combination_order(blk.images(), self.parameterAsString(parameters, "IMAGES", context))
+        models = [blk.model(r["id"]) for r in rows]
 
         heights = height_range(self.parameterAsOptionalDouble(parameters, "MIN_HEIGHT", context),
-                               self.parameterAsOptionalDouble(parameters, "MAX_HEIGHT", context), block.height_range(path))
+                               self.parameterAsOptionalDouble(parameters, "MAX_HEIGHT", context), blk.height_range())
         params = GrowParams(
             template=self.parameterAsInt(parameters, "TEMPLATE", context),
             wide_template=self.parameterAsInt(parameters, "WIDE_TEMPLATE", context),
@@ -125,7 +133,7 @@ class MatchPoints(PushbroomAlgorithm):
             tile=self.parameterAsInt(parameters, "TILE", context),
             support_weights=self.parameterAsBool(parameters, "MPGC_SUPPORT", context)).check()
         _, use_tie_points, automatic = SEED_SOURCES[self.parameterAsEnum(parameters, "SEEDS", context)]
-        seed_points = points.load_points(path, "tie_points") if use_tie_points else None
+        seed_points = blk.points("tie_points") if use_tie_points else None
         feedback.pushInfo("combination order: " + ", ".join(r["name"] for r in rows)
                           + f"; height range {heights}")
         if STRATEGIES[self.parameterAsEnum(parameters, "STRATEGY", context)][1] == "hierarchical":
@@ -147,9 +155,9 @@ class MatchPoints(PushbroomAlgorithm):
                 grow_second=self.parameterAsBool(parameters, "GROW_SECOND", context),
                 sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context),
                 refine=self.parameterAsBool(parameters, "MPGC_REFINE", context))
-        npz = points.save_points(path, result, "mass_points",
-                                 display=(models[0], rows[0]["id"], mean_height(heights)))
-        layer = points.layer_source(path, "mass_points")
+        npz = blk.save_points(result, "mass_points",
+                              display=(models[0], rows[0]["id"], mean_height(heights)))
+        layer = blk.layer_source("mass_points")
         summary = combinations.summary_rows(result)
         feedback.pushInfo("points per group (Kornus et al. 2006, Table 1):\n" + combinations.format_summary(summary))
         out = {"BLOCK": path, "POINTS": layer, "POINTS_FILE": npz}

@@ -1,11 +1,19 @@
 """pushbroom:orthorectify — orthoimage by the indirect method (H 4.1; algorithms/ortho) with a block's
 (adjusted) sensor model or an image's own orientation, on a DEM, as a tiled GeoTIFF with overviews."""
-from qgis.core import (QgsProcessingOutputNumber, QgsProcessingParameterBoolean, QgsProcessingParameterCrs,
-                       QgsProcessingParameterEnum, QgsProcessingParameterFile, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterDestination, QgsProcessingParameterRasterLayer,
-                       QgsProcessingParameterString)
+from qgis.core import (
+    QgsProcessingOutputNumber,
+    QgsProcessingParameterBoolean,
+    QgsProcessingParameterCrs,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterDestination,
+    QgsProcessingParameterRasterLayer,
+    QgsProcessingParameterString,
+)
 
-from ...algorithms import block, progress, sensors
+from ...algorithms import progress, sensors
+from ...algorithms.block import Block
 from ...algorithms.errors import InputError
 from ...algorithms.ortho import load_dem, orthorectify
 from ...algorithms.ortho.orthorectify import VERTICAL
@@ -65,13 +73,14 @@ class Orthorectify(PushbroomAlgorithm):
     def image_and_model(self, parameters, context):
         """(image path, sensor model): the block's model of IMAGE_NAME, or the IMAGE's own orientation."""
         path = self.parameterAsFile(parameters, "BLOCK", context)
+        blk = Block(path)
         name = self.parameterAsString(parameters, "IMAGE_NAME", context).strip()
         if path:
-            rows = block.read_images(path)
+            rows = blk.images()
             chosen = [r for r in rows if r["name"] == name]
             if not chosen:
                 raise InputError(f"give the name of one of the block's images ({', '.join(r['name'] for r in rows)})")
-            return chosen[0]["image_path"], block.load_model(path, chosen[0]["id"])
+            return chosen[0]["image_path"], blk.model(chosen[0]["id"])
         layer = self.parameterAsRasterLayer(parameters, "IMAGE", context)
         if layer is None:
             raise InputError("give a block and an image name, or an image")

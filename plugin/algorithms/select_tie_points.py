@@ -1,9 +1,14 @@
-"""pushbroom:selecttiepoints — the Processing face of matching.block_tie_points.select_block_tie_points:
+"""pushbroom:selecttiepoints — the Processing face of steps.block_tie_points.select_block_tie_points:
 one tie point per grid cell of the reference image from the block's mass points."""
-from qgis.core import (QgsProcessing, QgsProcessingOutputFile, QgsProcessingOutputVectorLayer,
-                       QgsProcessingParameterFile, QgsProcessingParameterNumber)
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingOutputFile,
+    QgsProcessingOutputVectorLayer,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterNumber,
+)
 
-from ...algorithms.matching.block_tie_points import TieParams, select_block_tie_points
+from ...algorithms.steps.block_tie_points import TieParams, select_block_tie_points
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
 

@@ -1,13 +1,20 @@
 """pushbroom:simulatescene — the Processing face of simulation.scene.simulate_scene: a simulated SPOT
 block with exact truth."""
-from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputMultipleLayers,
-                       QgsProcessingOutputRasterLayer, QgsProcessingParameterBoolean,
-                       QgsProcessingParameterEnum, QgsProcessingParameterFile,
-                       QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterLayer)
+from qgis.core import (
+    QgsProcessingOutputFile,
+    QgsProcessingOutputFolder,
+    QgsProcessingOutputMultipleLayers,
+    QgsProcessingOutputRasterLayer,
+    QgsProcessingParameterBoolean,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterFolderDestination,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterLayer,
+)
 
-from ...algorithms.simulation.instruments import CONFIGURATIONS
 from ...algorithms.simulation import scene
+from ...algorithms.simulation.instruments import CONFIGURATIONS
 from ...algorithms.simulation.scene import SceneConfig, simulate_scene
 from .base import PushbroomAlgorithm
 

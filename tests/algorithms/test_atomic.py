@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms import atomic
+from pushbroom.algorithms.block.points import save_arrays
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.errors import StorageError
-from pushbroom.algorithms.matching.points import MultiPoints, save_arrays
+from pushbroom.algorithms.matching.points import MultiPoints
 from pushbroom.algorithms.surface.geotiff import write_float_raster
 
 

@@ -4,7 +4,8 @@ the image names the missing raster and the product instead of GDAL's text."""
 import pytest
 
 from bad_inputs import product_without_raster
-from pushbroom.algorithms import block, sensors
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
 
 
@@ -15,7 +16,7 @@ def product(small_scene, tmp_path):
 
 def test_opening_the_deleted_raster_names_it_and_the_product(product):
     raster = product / "IMAGERY.TIF"
-    for call in (lambda: block.open_images([str(raster)]), lambda: sensors.load(raster),
+    for call in (lambda: Block.open_images([str(raster)]), lambda: sensors.load(raster),
                  lambda: sensors.load(product / "METADATA.DIM", image=raster)):
         with pytest.raises(InputError) as err:
             call()

@@ -7,7 +7,8 @@ import pytest
 from osgeo import ogr
 
 from feedback import Feedback
-from pushbroom.algorithms import block, sensors
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import metres_per_degree
 
@@ -28,10 +29,10 @@ def producer_corners(dim):
 
 
 def test_block_holds_images_and_footprints(spot5_product, tmp_path):
-    images = block.open_images([str(spot5_product)])
+    images = Block.open_images([str(spot5_product)])
     assert [name for name, *_ in images] == ["HRG1"]
-    path = block.create_block(tmp_path / "b.gpkg", images, height=0.0)
-    rows = block.read_images(path)
+    path = Block.create(tmp_path / "b.gpkg", images, height=0.0).path
+    rows = Block(path).images()
     assert rows[0]["name"] == "HRG1" and rows[0]["model_kind"] == "spot_dimap"
     assert (rows[0]["cols"], rows[0]["rows"]) == (12000, 12000)
     assert rows[0]["sensor"] == "SPOT 5 HRG1"
@@ -45,7 +46,7 @@ def test_block_holds_images_and_footprints(spot5_product, tmp_path):
         me, mn = metres_per_degree(lat)
         d = np.hypot((ring[:, 0] - lon) * me, (ring[:, 1] - lat) * mn)
         assert d.min() < 10.0
-    stored = block.load_model(path, rows[0]["id"])
+    stored = Block(path).model(rows[0]["id"])
     lon, lat = images[0][3].image_to_ground(np.array([0.5, 6000.0]), np.array([0.5, 11999.5]), 0.0)
     assert np.array_equal(stored.image_to_ground(np.array([0.5, 6000.0]), np.array([0.5, 11999.5]), 0.0), (lon, lat))
     info = {f["key"]: f["value"] for f in ds.GetLayerByName("block_info")}
@@ -53,37 +54,37 @@ def test_block_holds_images_and_footprints(spot5_product, tmp_path):
 
 
 def test_existing_block_needs_overwrite(spot5_product, tmp_path):
-    images = block.open_images([str(spot5_product)])
-    path = block.create_block(tmp_path / "b.gpkg", images)
+    images = Block.open_images([str(spot5_product)])
+    path = Block.create(tmp_path / "b.gpkg", images).path
     before = open(path, "rb").read()
     with pytest.raises(InputError, match="overwrite"):
-        block.create_block(path, images)
+        Block.create(path, images)
     assert open(path, "rb").read() == before
-    block.create_block(path, images, height=500.0, overwrite=True)
+    Block.create(path, images, height=500.0, overwrite=True)
     assert open(path, "rb").read() != before
 
 
 def test_cancel_leaves_existing_block_and_no_partial_file(spot5_product, tmp_path):
-    images = block.open_images([str(spot5_product)] * 2)
+    images = Block.open_images([str(spot5_product)] * 2)
     assert [n for n, *_ in images] == ["HRG1", "HRG1_2"]
-    path = block.create_block(tmp_path / "b.gpkg", images[:1])
+    path = Block.create(tmp_path / "b.gpkg", images[:1]).path
     before = open(path, "rb").read()
     with pytest.raises(CancelledError):
-        block.create_block(path, images, overwrite=True, feedback=Feedback(cancel_after=1))
+        Block.create(path, images, overwrite=True, feedback=Feedback(cancel_after=1))
     assert open(path, "rb").read() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["HRG1", "b.gpkg"]
 
 
 @pytest.mark.parametrize("bad, message", [("block.txt", "GeoPackage"), (None, "at least one image")])
 def test_bad_block_requests(spot5_product, tmp_path, bad, message):
-    images = [] if bad is None else block.open_images([str(spot5_product)])
+    images = [] if bad is None else Block.open_images([str(spot5_product)])
     with pytest.raises(InputError, match=message):
-        block.create_block(tmp_path / (bad or "b.gpkg"), images)
+        Block.create(tmp_path / (bad or "b.gpkg"), images)
 
 
 def test_orientation_count_must_match(spot5_product):
     with pytest.raises(InputError, match="one per image"):
-        block.open_images([str(spot5_product)] * 2, [str(spot5_product)])
+        Block.open_images([str(spot5_product)] * 2, [str(spot5_product)])
 
 
 def test_model_loaded_from_product_folder_equals_metadata(spot5_product):
@@ -95,17 +96,17 @@ def test_model_loaded_from_product_folder_equals_metadata(spot5_product):
 
 def test_block_records_terrain_height_range_and_logs_steps(spot5_product, tmp_path):
     from pushbroom.algorithms.dem import Dem
-    images = block.open_images([str(spot5_product)])
-    path = block.create_block(tmp_path / "b.gpkg", images, height=250.0)
-    assert block.height_range(path) == (-250.0, 750.0)
+    images = Block.open_images([str(spot5_product)])
+    path = Block.create(tmp_path / "b.gpkg", images, height=250.0).path
+    assert Block(path).height_range() == (-250.0, 750.0)
     heights = np.full((50, 50), 300.0)
     heights[10:20, 10:20] = 1200.0  # a mountain inside the footprint's box
     heights[0, 0] = 5000.0          # a peak outside it
     dem = Dem(heights, (87.0, 0.04, 0.0, 51.0, 0.0, -0.04))
-    path2 = block.create_block(tmp_path / "d.gpkg", images, dem=dem)
-    assert block.height_range(path2) == (300.0, 1200.0)
-    block.update_info(path, {"mass_points_count": 12}, step="matchpoints", message="12 points")
-    assert block.read_info(path)["mass_points_count"] == "12"
+    path2 = Block.create(tmp_path / "d.gpkg", images, dem=dem).path
+    assert Block(path2).height_range() == (300.0, 1200.0)
+    Block(path).update_info({"mass_points_count": 12}, step="matchpoints", message="12 points")
+    assert Block(path).info()["mass_points_count"] == "12"
     ds = ogr.Open(str(path))
     steps = [f["step"] for f in ds.GetLayerByName("run_log")]
     assert steps == ["createblock", "matchpoints"]

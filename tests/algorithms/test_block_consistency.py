@@ -12,16 +12,17 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp
-from pushbroom.algorithms.block import create_schema, read_info
+from pushbroom.algorithms.block import Block, schema
+from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import StorageError
-from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, load_points, save_points
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 
 STORE = """
 import sys
 import numpy as np
-from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
+from pushbroom.algorithms.block import Block
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 
 class FlatModel:
     size = (1000, 1000)
@@ -35,7 +36,7 @@ o = np.zeros(2 * n, OBS_DTYPE)
 o["point_id"], o["image_id"] = np.repeat(p["id"], 2), np.tile([1, 2], n)
 o["col"], o["row"] = np.random.default_rng(0).uniform(0, 1000, (2, 2 * n))
 print("storing", flush=True)
-save_points(sys.argv[1], MultiPoints(p, o), display=(FlatModel(), 1, 0.0))
+Block(sys.argv[1]).save_points(MultiPoints(p, o), display=(FlatModel(), 1, 0.0))
 print("stored", flush=True)
 """
 
@@ -70,7 +71,7 @@ def layer_rows(path, name="mass_points"):
 def blk(tmp_path):
     path = tmp_path / "b.gpkg"
     create_schema(path)
-    save_points(path, points(1000), display=(FlatModel(), 1, 0.0))
+    Block(path).save_points(points(1000), display=(FlatModel(), 1, 0.0))
     return str(path)
 
 
@@ -85,51 +86,51 @@ def test_a_store_killed_while_it_builds_the_layer_leaves_the_old_points(blk, tmp
     proc.kill()
     proc.wait()
     # the block's layer, point file and counts are still the first store's
-    assert read_info(blk)["mass_points_count"] == "1000"
-    assert len(load_points(blk)) == 1000 == layer_rows(blk)
+    assert Block(blk).info()["mass_points_count"] == "1000"
+    assert len(Block(blk).points()) == 1000 == layer_rows(blk)
     leftovers = sorted(f.name for f in tmp_path.glob("b.mass_points.*.npz"))
     assert len(leftovers) == 2                          # the killed store's file, not referenced
     # the next store removes what the killed one left and switches to its own points
-    save_points(blk, points(7), display=(FlatModel(), 1, 0.0))
+    Block(blk).save_points(points(7), display=(FlatModel(), 1, 0.0))
     assert not any(t.startswith("mass_points__staged_") for t in tables(blk))
-    assert [f.name for f in tmp_path.glob("b.mass_points.*.npz")] == [read_info(blk)["mass_points"]]
-    assert len(load_points(blk)) == 7 == layer_rows(blk)
+    assert [f.name for f in tmp_path.glob("b.mass_points.*.npz")] == [Block(blk).info()["mass_points"]]
+    assert len(Block(blk).points()) == 7 == layer_rows(blk)
 
 
 def test_a_store_waits_for_another_writer_then_says_so(blk, monkeypatch):
-    monkeypatch.setattr(block, "BUSY_TIMEOUT_MS", 300)
+    monkeypatch.setattr(schema, "BUSY_TIMEOUT_MS", 300)
     holder = sqlite3.connect(blk, isolation_level=None)
     holder.execute("BEGIN IMMEDIATE")
     try:
         with pytest.raises(StorageError, match="another program keeps it locked .* nothing was stored"):
-            save_points(blk, points(5), display=(FlatModel(), 1, 0.0))
+            Block(blk).save_points(points(5), display=(FlatModel(), 1, 0.0))
     finally:
         holder.execute("ROLLBACK")
         holder.close()
-    assert len(load_points(blk)) == 1000 == layer_rows(blk)
+    assert len(Block(blk).points()) == 1000 == layer_rows(blk)
 
 
 def test_generations_count_every_change(small_scene_block, tmp_path):
     path = str(tmp_path / "g.gpkg")
     shutil.copy(small_scene_block[0], path)
-    start = block.generations(path)
-    cp.import_csv(path, write_csv(small_scene_block[1], tmp_path), suffix="_meas")
-    after_import = block.generations(path)
+    start = Block(path).generations()
+    cp.import_csv(Block(path), write_csv(small_scene_block[1], tmp_path), suffix="_meas")
+    after_import = Block(path).generations()
     assert after_import["control_points"] > start["control_points"]
     assert after_import["models"] == start["models"] and after_import["mass_points"] == start["mass_points"]
     ds = ogr.Open(path, 1)                              # an edit in QGIS's attribute table, through OGR
     ds.ExecuteSQL("UPDATE control_points SET h = h + 1 WHERE name = 'P001'")
     ds = None
-    assert block.generations(path)["control_points"] > after_import["control_points"]
-    edited = block.generations(path)
+    assert Block(path).generations()["control_points"] > after_import["control_points"]
+    edited = Block(path).generations()
     ds = ogr.Open(path, 1)                              # the adjustment's residual field is not a change of the set
     ds.GetLayerByName("control_points").CreateField(ogr.FieldDefn("residual_px", ogr.OFTReal))
     ds.ExecuteSQL("UPDATE control_points SET residual_px = 0.5")
     ds = None
-    assert block.generations(path) == edited
-    models = {r["id"]: block.load_model(path, r["id"]) for r in block.read_images(path)}
-    block.save_models(path, models)
-    assert block.generations(path)["models"] == edited["models"] + 1
+    assert Block(path).generations() == edited
+    models = {r["id"]: Block(path).model(r["id"]) for r in Block(path).images()}
+    Block(path).save_models(models)
+    assert Block(path).generations()["models"] == edited["models"] + 1
 
 
 def write_csv(rows, folder):

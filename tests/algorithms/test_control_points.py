@@ -11,9 +11,9 @@ from osgeo import gdal, ogr, osr
 
 from feedback import Feedback
 from osr_oracle import utm
-from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.algorithms.sigmas import IMAGE_SIGMA
@@ -58,9 +58,9 @@ def same(a, b):
 def test_simulator_points_import(scene, blk, tmp_path):
     rows = blanked(scene["rows"])
     path = write_rows(tmp_path / "points.csv", rows)
-    ids = cp.image_ids(blk)
+    ids = Block(blk).image_ids()
     log = Feedback()
-    obs = cp.import_csv(blk, path, suffix="_meas", feedback=log)
+    obs = cp.import_csv(Block(blk), path, suffix="_meas", feedback=log)
     assert any("ignored column" in m and "HRG_blunder" in m and "HRS1_col," in m for m in log.messages)
     cells = [(k, ids[n], float(r[f"{n}_col_meas"]), float(r[f"{n}_row_meas"]))
              for k, r in enumerate(rows) for n in NAMES if r[f"{n}_col_meas"]]
@@ -74,7 +74,7 @@ def test_simulator_points_import(scene, blk, tmp_path):
     m = obs.measurements
     assert sorted(zip(m["point"].tolist(), m["image_id"].tolist(), m["col"].tolist(), m["row"].tolist())) == cells
     assert (m["sigma"] == IMAGE_SIGMA).all()
-    assert same(cp.load_control_points(blk), obs)
+    assert same(Block(blk).control_points(), obs)
     # the stored layer and table, read with OGR
     ds = ogr.Open(blk)
     layer = ds.GetLayerByName("control_points")
@@ -84,14 +84,14 @@ def test_simulator_points_import(scene, blk, tmp_path):
     assert ds.GetLayerByName("image_measurements").GetFeatureCount() == len(cells)
     log_rows = [(f["step"], f["message"]) for f in ds.GetLayerByName("run_log")]
     assert log_rows[-1][0] == "importpoints" and f"control {len(rows)}, check 0" in log_rows[-1][1]
-    info = block.read_info(blk)
+    info = Block(blk).info()
     assert info["control_points"] == str(len(rows)) and info["image_measurements"] == str(len(cells))
 
 
 def test_roles_and_check_ids(scene, blk, tmp_path):
     rows = [dict(r, role="check" if k == 0 else "") for k, r in enumerate(scene["rows"])]
     path = write_rows(tmp_path / "roles.csv", rows)
-    ids = cp.image_ids(blk)
+    ids = Block(blk).image_ids()
     obs = cp.read_csv(path, ids, suffix="_meas", check_ids=["P003"])
     assert obs.points["role"].tolist() == ["check", "control", "check"] + ["control"] * (len(rows) - 3)
     obs = cp.read_csv(path, ids, suffix="_meas", default_role="check")
@@ -115,14 +115,14 @@ def test_projected_input(scene, blk, tmp_path):
     wkt = osr.SpatialReference()
     wkt.ImportFromEPSG(epsg)
     for crs in (f"EPSG:{epsg}", wkt.ExportToWkt(), epsg):
-        obs = cp.read_csv(path, cp.image_ids(blk), crs=crs)
+        obs = cp.read_csv(path, Block(blk).image_ids(), crs=crs)
         err = max(np.abs(obs.points["lon"] - lon).max(), np.abs(obs.points["lat"] - lat).max())
         assert err < 1e-8, err
     print(f"UTM {epsg} -> WGS 84: largest difference {err:.1e} deg")
     with pytest.raises(InputError, match="swapped|projected"):
-        cp.read_csv(path, cp.image_ids(blk))                          # metres read as degrees
+        cp.read_csv(path, Block(blk).image_ids())                          # metres read as degrees
     with pytest.raises(InputError, match="unknown coordinate reference system"):
-        cp.read_csv(path, cp.image_ids(blk), crs="EPSG:999999")
+        cp.read_csv(path, Block(blk).image_ids(), crs="EPSG:999999")
 
 
 def egm96_grid():
@@ -139,8 +139,8 @@ def test_orthometric_heights_add_the_egm96_undulation(scene, blk, tmp_path):
     gt, undulation = grid.GetGeoTransform(), grid.ReadAsArray().astype(float)
     rows = scene["rows"]
     path = write_rows(tmp_path / "ortho.csv", rows)
-    ell = cp.read_csv(path, cp.image_ids(blk), suffix="_meas")
-    ortho = cp.read_csv(path, cp.image_ids(blk), suffix="_meas", heights="orthometric")
+    ell = cp.read_csv(path, Block(blk).image_ids(), suffix="_meas")
+    ortho = cp.read_csv(path, Block(blk).image_ids(), suffix="_meas", heights="orthometric")
     assert ortho.points[["lon", "lat"]].tolist() == ell.points[["lon", "lat"]].tolist()
     lon, lat = ell.points["lon"], ell.points["lat"]
     x, y = (np.mod(lon - gt[0], 360.0)) / gt[1] - 0.5, (lat - gt[3]) / gt[5] - 0.5
@@ -174,12 +174,12 @@ def test_missing_geoid_grid_is_a_clear_error(tmp_path):
 
 
 def test_export_import_round_trip(scene, blk, tmp_path):
-    cp.import_csv(blk, write_rows(tmp_path / "points.csv", blanked(scene["rows"])), suffix="_meas",
+    cp.import_csv(Block(blk), write_rows(tmp_path / "points.csv", blanked(scene["rows"])), suffix="_meas",
                   check_ids=["P002"])
-    stored = cp.load_control_points(blk)
+    stored = Block(blk).control_points()
     out = tmp_path / "export.csv"
-    assert same(cp.export_csv(blk, out), stored)
-    ids = cp.image_ids(blk)
+    assert same(cp.export_csv(Block(blk), out), stored)
+    ids = Block(blk).image_ids()
     again = cp.read_csv(out, ids)
     assert same(again, stored)
     cp.write_csv(tmp_path / "again.csv", again, ids)
@@ -205,15 +205,15 @@ def test_export_import_round_trip(scene, blk, tmp_path):
 
 def test_merge_updates_and_replace_replaces(scene, blk, tmp_path):
     rows = scene["rows"]
-    ids = cp.image_ids(blk)
-    cp.import_csv(blk, write_rows(tmp_path / "first.csv", rows[:4]), suffix="_meas")
-    before = cp.load_control_points(blk)
+    ids = Block(blk).image_ids()
+    cp.import_csv(Block(blk), write_rows(tmp_path / "first.csv", rows[:4]), suffix="_meas")
+    before = Block(blk).control_points()
     update = [dict(rows[2], h="1000.5", HRG_col_meas="10.25", HRG_row_meas="20.5", HRS1_col_meas="",
                    HRS1_row_meas="", HRS2_col_meas="", HRS2_row_meas="", role="check"),
               dict(rows[5], id="NEW", role="")]
-    merged = cp.import_csv(blk, write_rows(tmp_path / "update.csv", update, list(rows[0]) + ["role"]),
+    merged = cp.import_csv(Block(blk), write_rows(tmp_path / "update.csv", update, list(rows[0]) + ["role"]),
                            suffix="_meas", mode="merge")
-    assert same(cp.load_control_points(blk), merged)
+    assert same(Block(blk).control_points(), merged)
     assert merged.points["name"].tolist() == ["P001", "P002", "P003", "P004", "NEW"]
     keep = [0, 1, 3]
     assert merged.points[keep].tobytes() == before.points[keep].tobytes()
@@ -224,9 +224,9 @@ def test_merge_updates_and_replace_replaces(scene, blk, tmp_path):
     old3 = before.measurements[before.measurements["point"] == 2]
     assert p3[1:].tobytes() == old3[1:].tobytes()                      # HRS1, HRS2 kept
     assert (m["point"] == 4).sum() == 3 and len(m) == len(before.measurements) + 3
-    replaced = cp.import_csv(blk, tmp_path / "update.csv", suffix="_meas")
+    replaced = cp.import_csv(Block(blk), tmp_path / "update.csv", suffix="_meas")
     assert replaced.points["name"].tolist() == ["P003", "NEW"] and len(replaced.measurements) == 4
-    assert same(cp.load_control_points(blk), replaced)
+    assert same(Block(blk).control_points(), replaced)
 
 
 BAD = [
@@ -250,39 +250,39 @@ BAD = [
 
 @pytest.mark.parametrize("case, edit, message", BAD, ids=[b[0] for b in BAD])
 def test_bad_file_leaves_the_block_unchanged(scene, blk, tmp_path, case, edit, message):
-    cp.import_csv(blk, write_rows(tmp_path / "good.csv", scene["rows"]), suffix="_meas", check_ids=["P004"])
-    before = cp.load_control_points(blk)
+    cp.import_csv(Block(blk), write_rows(tmp_path / "good.csv", scene["rows"]), suffix="_meas", check_ids=["P004"])
+    before = Block(blk).control_points()
     rows = edit(scene["rows"])
     bad = write_rows(tmp_path / "bad.csv", rows, list(rows[0]))
-    for mode in cp.MODES:
+    for mode in Block.IMPORT_MODES:
         with pytest.raises(InputError, match=message):
-            cp.import_csv(blk, bad, suffix="_meas", mode=mode)
-        assert same(cp.load_control_points(blk), before)
+            cp.import_csv(Block(blk), bad, suffix="_meas", mode=mode)
+        assert same(Block(blk).control_points(), before)
 
 
 def test_cancelled_save_rolls_back(scene, blk, tmp_path):
     path = write_rows(tmp_path / "points.csv", scene["rows"])
-    ids = cp.image_ids(blk)
+    ids = Block(blk).image_ids()
     obs = cp.read_csv(path, ids, suffix="_meas")
     with pytest.raises(CancelledError):                             # the first import: nothing lands
-        cp.save_control_points(blk, obs, feedback=Feedback(cancel_after=3))
-    assert len(cp.load_control_points(blk).points) == 0
+        Block(blk).save_control_points(obs, feedback=Feedback(cancel_after=3))
+    assert len(Block(blk).control_points().points) == 0
     ds = ogr.Open(blk)
     log_rows = ds.GetLayerByName("run_log").GetFeatureCount()
     ds = None
-    cp.save_control_points(blk, obs.subset(np.arange(len(obs.points)) < 3))
-    before = cp.load_control_points(blk)
-    for mode in cp.MODES:
+    Block(blk).save_control_points(obs.subset(np.arange(len(obs.points)) < 3))
+    before = Block(blk).control_points()
+    for mode in Block.IMPORT_MODES:
         with pytest.raises(CancelledError):
-            cp.save_control_points(blk, obs, mode=mode, feedback=Feedback(cancel_after=len(obs.points) - 1))
-        assert same(cp.load_control_points(blk), before)
+            Block(blk).save_control_points(obs, mode=mode, feedback=Feedback(cancel_after=len(obs.points) - 1))
+        assert same(Block(blk).control_points(), before)
     ds = ogr.Open(blk)
     assert ds.GetLayerByName("run_log").GetFeatureCount() == log_rows + 1
     assert ds.GetLayerByName("control_points").GetFeatureCount() == 3
 
 
 def test_delimiters_aliases_and_case(blk, tmp_path):
-    ids = cp.image_ids(blk)
+    ids = Block(blk).image_ids()
     text = ("\ufeffName;LON;Lat;Height;Sigma_H;hrg_COL;HRG_Row;HRG_sigma;HRS2_col;HRS2_row\n"
             "A;-84.2;36.6;300.5;0.75;10.5;20.5;0.25;;\n\n"
             "B;-84.19;36.61;310;;11;21;;30.5;40.5\n")

@@ -9,6 +9,7 @@ from osgeo import osr
 
 from osr_oracle import utm
 from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import utm_epsg
@@ -22,7 +23,7 @@ def observations(small_scene, small_scene_block, tmp_path):
     """The simulator's points and measurements as stored in a copy of the small scene's block."""
     path = str(tmp_path / "block.gpkg")
     shutil.copy(small_scene_block[0], path)
-    return cp.import_csv(path, small_scene["points"], suffix="_meas", check_ids=["P002"])
+    return cp.import_csv(Block(path), small_scene["points"], suffix="_meas", check_ids=["P002"])
 
 
 def test_write_and_read_back(observations, small_scene, tmp_path):

@@ -1,4 +1,4 @@
-"""Residuals of the last adjustment in the block (measurement/residual_store.py): the control points'
+"""Residuals of the last adjustment in the block (adjustment/residual_rows.py, block/residuals.py): the control points'
 against Adjustment.residuals / .normalised / .ground_residuals, the check points' against an
 independent forward intersection (surface.intersection) reprojected with the adjusted models, the
 residual_px field on the control_points layer (with load/save of the points still working), and
@@ -9,11 +9,10 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points
-from pushbroom.algorithms.measurement.residual_store import load_residuals, save_residuals
-from pushbroom.algorithms.measurement.store import MeasurementStore
+from pushbroom.algorithms.adjustment.residual_rows import residual_rows
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.surface.intersection import intersect
 
 CHECK = ["P002", "P005"]
@@ -25,8 +24,8 @@ def adjusted(small_scene, small_scene_block, tmp_path):
     0): (block path, Adjustment, check dict, observations)."""
     path = str(tmp_path / "block.gpkg")
     shutil.copy(small_scene_block[0], path)
-    obs = cp.import_csv(path, small_scene["points"], suffix="_meas", check_ids=CHECK)
-    models = {r["id"]: block.load_model(path, r["id"]) for r in block.read_images(path)}
+    obs = cp.import_csv(Block(path), small_scene["points"], suffix="_meas", check_ids=CHECK)
+    models = {r["id"]: Block(path).model(r["id"]) for r in Block(path).images()}
     result = adjust(models, obs, ["look:0"], height=300.0)
     check = check_points(result, obs, 300.0)
     return path, result, check, obs
@@ -41,14 +40,14 @@ def layer_values(path):
 
 
 def test_before_any_adjustment(small_scene_block):
-    assert load_residuals(small_scene_block[0]) == ({}, {})
+    assert Block(small_scene_block[0]).residuals() == ({}, {})
 
 
 def test_residuals_are_stored_and_loaded(adjusted):
     path, result, check, obs = adjusted
     assert set(layer_values(path).values()) == {None}
-    save_residuals(path, result, check, obs)
-    image, ground = load_residuals(path)
+    Block(path).save_residuals(*residual_rows(result, check, obs))
+    image, ground = Block(path).residuals()
     ao = result.observations
     names = ao.points["name"]
     # control points: exactly the adjustment's residuals
@@ -91,36 +90,36 @@ def test_residuals_are_stored_and_loaded(adjusted):
 
 def test_points_load_and_save_with_the_field_and_edits_since(adjusted):
     path, result, check, obs = adjusted
-    save_residuals(path, result, check, obs)
-    before = cp.load_control_points(path)
+    Block(path).save_residuals(*residual_rows(result, check, obs))
+    before = Block(path).control_points()
     assert before.points.tobytes() == obs.points.tobytes()
-    store = MeasurementStore(path)
+    store = Block(path).measurement_store()
     store.put_point("NEW", "control", -84.19, 36.615, 300.0, 2.5, 2.5, 2.2)
     store.rename_point("P003", "R3")
     store.delete_point("P004")
-    image, ground = load_residuals(path)
+    image, ground = Block(path).residuals()
     assert "NEW" not in ground and "R3" not in ground and "P003" not in ground and "P004" not in ground
     assert not any(name in ("P003", "P004", "R3") for name, _ in image)
     assert "P001" in ground and ("P001", 1) in image
     values = layer_values(path)
     assert values["NEW"] is None and values["P001"] == pytest.approx(ground["P001"][3])
     # a merge import and a replace import work on the layer with the field (new features: NULL)
-    cp.save_control_points(path, obs, mode="merge")
-    assert layer_values(path)["P004"] is None and len(cp.load_control_points(path).points) == 9
-    cp.save_control_points(path, obs)
-    assert cp.load_control_points(path).points.tobytes() == obs.points.tobytes()
+    Block(path).save_control_points(obs, mode="merge")
+    assert layer_values(path)["P004"] is None and len(Block(path).control_points().points) == 9
+    Block(path).save_control_points(obs)
+    assert Block(path).control_points().points.tobytes() == obs.points.tobytes()
     assert set(layer_values(path).values()) == {None}
 
 
 def test_a_new_adjustment_replaces_the_residuals(adjusted):
     path, result, check, obs = adjusted
-    save_residuals(path, result, check, obs)
-    first = load_residuals(path)
+    Block(path).save_residuals(*residual_rows(result, check, obs))
+    first = Block(path).residuals()
     less = obs.subset(obs.points["name"] != "P001")
-    models = {r["id"]: block.load_model(path, r["id"]) for r in block.read_images(path)}
+    models = {r["id"]: Block(path).model(r["id"]) for r in Block(path).images()}
     again = adjust(models, less, ["look:0"], height=300.0)
-    save_residuals(path, again, check_points(again, less, 300.0), less)
-    image, ground = load_residuals(path)
+    Block(path).save_residuals(*residual_rows(again, check_points(again, less, 300.0), less))
+    image, ground = Block(path).residuals()
     assert "P001" not in ground and len(ground) == len(first[1]) - 1
     assert len(image) == len(first[0]) - 3
     assert layer_values(path)["P001"] is None

@@ -8,10 +8,9 @@ import sys
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.block import Block, control_points as stored_points
 from pushbroom.algorithms.errors import InputError, StorageError
-from pushbroom.algorithms.measurement.store import MeasurementStore
 
 POINT = dict(name="N1", role="check", lon=-84.19, lat=36.615, h=310.5, sigma_e=1.5, sigma_n=1.25, sigma_h=2.0)
 
@@ -21,7 +20,7 @@ def blk(small_scene, small_scene_block, tmp_path):
     """A copy of the small scene's block with the simulator's 7 points and their measurements."""
     path = str(tmp_path / "block.gpkg")
     shutil.copy(small_scene_block[0], path)
-    cp.import_csv(path, small_scene["points"], suffix="_meas")
+    cp.import_csv(Block(path), small_scene["points"], suffix="_meas")
     return path
 
 
@@ -42,12 +41,12 @@ def stored(path):
 
 
 def counts(path):
-    info = block.read_info(path)
+    info = Block(path).info()
     return tuple(int(info[k]) for k in ("control_points", "check_points", "image_measurements"))
 
 
 def test_edits_are_stored_at_once(blk):
-    store = MeasurementStore(blk)
+    store = Block(blk).measurement_store()
     before = store.load()
     assert len(before.points) == 7 and len(before.measurements) == 21 and counts(blk) == (7, 0, 21)
     assert store.put_point(**POINT) is None
@@ -93,7 +92,7 @@ def test_edits_are_stored_at_once(blk):
 
 
 def test_snapshot_restores_an_edited_point(blk):
-    store = MeasurementStore(blk)
+    store = Block(blk).measurement_store()
     before = store.load()
     snap = store.snapshot("P003")
     assert snap[0]["name"] == "P003" and snap[1]["image_id"].tolist() == [1, 2, 3]
@@ -128,7 +127,7 @@ def test_snapshot_restores_an_edited_point(blk):
     (lambda s: s.put_measurement("P001", 1, 10.0, 10.0, sigma=0.0), "sigma must be positive"),
 ])
 def test_refused_edits_leave_the_block_unchanged(blk, call, message):
-    store = MeasurementStore(blk)
+    store = Block(blk).measurement_store()
     before, files = store.load(), stored(blk)
     with pytest.raises(InputError, match=message):
         call(store)
@@ -137,7 +136,7 @@ def test_refused_edits_leave_the_block_unchanged(blk, call, message):
 
 def test_a_failure_inside_the_transaction_rolls_back(blk, monkeypatch):
     """restore() fails while writing its second measurement (an OGR error): nothing of it is stored."""
-    store = MeasurementStore(blk)
+    store = Block(blk).measurement_store()
     record, removed = store.delete_point("P002")
     before, files = store.load(), stored(blk)
     written = []
@@ -148,8 +147,8 @@ def test_a_failure_inside_the_transaction_rolls_back(blk, monkeypatch):
         written.append(m)
         real(table, name, m)
 
-    real = cp.write_measurement
-    monkeypatch.setattr(cp, "write_measurement", failing)
+    real = stored_points.write_measurement
+    monkeypatch.setattr(stored_points, "write_measurement", failing)
     with pytest.raises(StorageError, match="cannot store the edit in the block .*disk I/O error"):
         store.restore(record, removed)
     assert written and same(store.load(), before) and stored(blk) == files and counts(blk) == (6, 0, 18)
@@ -158,8 +157,8 @@ def test_a_failure_inside_the_transaction_rolls_back(blk, monkeypatch):
 def test_edits_survive_a_killed_process(blk):
     """A process that edits and is then killed (SIGKILL, no clean-up) leaves every returned edit in the block."""
     code = ("import os, signal, sys\n"
-            "from pushbroom.algorithms.measurement.store import MeasurementStore\n"
-            "s = MeasurementStore(sys.argv[1])\n"
+            "from pushbroom.algorithms.block import Block\n"
+            "s = Block(sys.argv[1]).measurement_store()\n"
             "s.put_point('K1', 'control', -84.19, 36.615, 300.0, 2.5, 2.5, 2.2)\n"
             "s.put_measurement('K1', 2, 150.5, 200.25)\n"
             "s.delete_measurement('P001', 1)\n"
@@ -172,7 +171,7 @@ def test_edits_survive_a_killed_process(blk):
     assert "K1" in points and "R2" in points and "P002" not in points
     assert meas[("K1", 2)] == (150.5, 200.25, 0.5) and ("P001", 1) not in meas and ("R2", 3) in meas
     assert counts(blk) == (8, 0, 21)
-    assert len(MeasurementStore(blk).load().points) == 8
+    assert len(Block(blk).measurement_store().load().points) == 8
 
 
 def test_an_edit_waits_for_another_writer(blk):
@@ -190,7 +189,7 @@ def test_an_edit_waits_for_another_writer(blk):
     holder = subprocess.Popen([sys.executable, "-c", code, blk], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "holding"
-        MeasurementStore(blk).put_point(**POINT)
+        Block(blk).measurement_store().put_point(**POINT)
     finally:
         holder.wait(timeout=60)
-    assert block.read_info(blk)["default_crs"] == "held" and "N1" in stored(blk)[0]
+    assert Block(blk).info()["default_crs"] == "held" and "N1" in stored(blk)[0]

@@ -13,7 +13,7 @@ import csv
 import numpy as np
 import pytest
 
-from pushbroom.algorithms import block
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching import imagery
 from pushbroom.algorithms.measurement.transfer import transfer
@@ -25,7 +25,7 @@ NAMES = ("HRG", "HRS1", "HRS2")
 def setup(paths):
     """(images {name: raster path}, models {name: supplied model}, points.csv rows)."""
     images = {n: paths["images"][n]["imagery"] for n in NAMES}
-    models = {name: model for name, _, _, model in block.open_images([images[n] for n in NAMES])}
+    models = {name: model for name, _, _, model in Block.open_images([images[n] for n in NAMES])}
     with open(paths["points"], newline="") as f:
         return images, models, list(csv.DictReader(f))
 

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from feedback import Feedback
-from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp, point_plausibility
 from pushbroom.algorithms.adjustment.point_plausibility import MARGIN_M, distance_to_polygon
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import utm_epsg
 
@@ -45,29 +45,29 @@ def test_distance_to_polygon_against_a_square():
 
 def test_the_simulated_points_pass(blk, rows, tmp_path):
     # every simulated candidate lies on the images and is measured where its coordinates project
-    obs = cp.import_csv(blk, write_rows(tmp_path / "p.csv", rows), suffix="_meas")
+    obs = cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas")
     assert len(obs.points) == len(rows)
 
 
 def test_swapped_lon_lat_is_named_and_refused(blk, rows, tmp_path):
     rows[3]["lon"], rows[3]["lat"] = rows[3]["lat"], rows[3]["lon"]
-    before = cp.load_control_points(blk)
+    before = Block(blk).control_points()
     with pytest.raises(InputError, match=rf"{rows[3]['id']}: lon .* and lat .* look swapped"):
-        cp.import_csv(blk, write_rows(tmp_path / "p.csv", rows), suffix="_meas")
-    assert len(cp.load_control_points(blk).points) == len(before.points) == 0      # nothing imported
+        cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas")
+    assert len(Block(blk).control_points().points) == len(before.points) == 0      # nothing imported
 
 
 def test_a_point_ten_degrees_off_is_named(blk, rows, tmp_path):
     rows[5]["lon"] = str(float(rows[5]["lon"]) + 10.0)
     with pytest.raises(InputError, match=rf"1 point\(s\).*{rows[5]['id']}: lies \d+\.\d km outside every image"):
-        cp.import_csv(blk, write_rows(tmp_path / "p.csv", rows), suffix="_meas")
+        cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas")
 
 
 def test_degrees_given_as_utm_x_y_are_named(blk, rows, tmp_path):
     epsg = utm_epsg(float(rows[0]["lon"]), float(rows[0]["lat"]))
     path = write_rows(tmp_path / "p.csv", rows, rename={"lon": "x", "lat": "y"})
     with pytest.raises(InputError, match="x/y look like degrees, not coordinates of the projected CRS"):
-        cp.import_csv(blk, path, suffix="_meas", crs=f"EPSG:{epsg}")
+        cp.import_csv(Block(blk), path, suffix="_meas", crs=f"EPSG:{epsg}")
 
 
 def test_a_measurement_of_another_point_is_named(blk, rows, tmp_path, monkeypatch):
@@ -79,17 +79,17 @@ def test_a_measurement_of_another_point_is_named(blk, rows, tmp_path, monkeypatc
                                      float(rows[k]["HRG_row_meas"]) - float(rows[0]["HRG_row_meas"])))
     rows[0]["HRG_col_meas"], rows[0]["HRG_row_meas"] = rows[far]["HRG_col_meas"], rows[far]["HRG_row_meas"]
     with pytest.raises(InputError, match=rf"{rows[0]['id']}: measured in HRG at .* km from where its coordinates"):
-        cp.import_csv(blk, write_rows(tmp_path / "p.csv", rows), suffix="_meas")
+        cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas")
 
 
 def test_kept_on_request_with_a_warning(blk, rows, tmp_path):
     rows[2]["lat"] = str(float(rows[2]["lat"]) - 10.0)
     log = Feedback()
-    obs = cp.import_csv(blk, write_rows(tmp_path / "p.csv", rows), suffix="_meas", keep_implausible=True,
+    obs = cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas", keep_implausible=True,
                         feedback=log)
     assert len(obs.points) == len(rows)
     assert any(m.startswith("warning: kept 1 point(s)") and rows[2]["id"] in m for m in log.messages)
-    assert block.read_info(blk)["control_points"] == str(len(rows))
+    assert Block(blk).info()["control_points"] == str(len(rows))
 
 
 def test_margin_is_kilometres():

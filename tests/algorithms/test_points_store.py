@@ -5,18 +5,11 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms.block import create_schema, read_info
+from pushbroom.algorithms.block import Block
+from pushbroom.algorithms.block.points import load_arrays, save_arrays
+from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import InputError, StorageError
-from pushbroom.algorithms.matching.points import (
-    OBS_DTYPE,
-    POINT_DTYPE,
-    MultiPoints,
-    load_arrays,
-    load_points,
-    save_arrays,
-    save_points,
-    write_point_layer,
-)
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 
 
@@ -61,16 +54,16 @@ def assert_same(a, b):
 
 def test_save_and_load_beside_the_block(block, tmp_path):
     mp = synthetic(3000)
-    path = save_points(block, mp)
-    info = read_info(block)
+    path = Block(block).save_points(mp)
+    info = Block(block).info()
     assert info["mass_points"] == os.path.basename(path) and info["mass_points_count"] == "3000"
     assert os.path.basename(path).startswith("b.mass_points.") and path.endswith(".npz")
-    assert_same(load_points(block), mp)
+    assert_same(Block(block).points(), mp)
     # saving again replaces (no duplicate keys, the old file removed), other kinds are separate
-    save_points(block, mp.subset([1, 2, 3]))
-    save_points(block, mp.subset([5]), kind="tie_points")
-    assert len(load_points(block)) == 3 and len(load_points(block, "tie_points")) == 1
-    assert read_info(block)["mass_points_count"] == "3"
+    Block(block).save_points(mp.subset([1, 2, 3]))
+    Block(block).save_points(mp.subset([5]), kind="tie_points")
+    assert len(Block(block).points()) == 3 and len(Block(block).points("tie_points")) == 1
+    assert Block(block).info()["mass_points_count"] == "3"
     assert sorted(f.name.split(".")[1] for f in tmp_path.glob("b.*.npz")) == ["mass_points", "tie_points"]
     assert [f for f in tmp_path.iterdir() if ".part" in f.name] == []
 
@@ -83,11 +76,11 @@ def test_two_million_points_round_trip(tmp_path):
 
 def test_missing_points_give_clear_errors(block, tmp_path):
     with pytest.raises(InputError, match="matchpoints"):
-        load_points(block)
+        Block(block).points()
     with pytest.raises(InputError, match="missing"):
         load_arrays(tmp_path / "nothing.npz")
     with pytest.raises(InputError, match="no block"):
-        save_points(tmp_path / "none.gpkg", synthetic(3))
+        Block(tmp_path / "none.gpkg").save_points(synthetic(3))
     (tmp_path / "x.npz").write_bytes(b"not a zip")
     with pytest.raises(StorageError, match="x.npz is damaged"):
         load_arrays(tmp_path / "x.npz")
@@ -95,9 +88,9 @@ def test_missing_points_give_clear_errors(block, tmp_path):
 
 def test_point_layer(block):
     mp = synthetic(300)
-    source = write_point_layer(block, "mass_points", mp, FlatModel(), 1, 500.0)
+    source = Block(block).write_point_layer("mass_points", mp, FlatModel(), 1, 500.0)
     assert source.endswith("|layername=mass_points")
-    write_point_layer(block, "mass_points", mp, FlatModel(), 3, 500.0)  # replaced, image 3 lacks group 1
+    Block(block).write_point_layer("mass_points", mp, FlatModel(), 3, 500.0)  # replaced, image 3 lacks group 1
     ds = ogr.Open(str(block))
     layer = ds.GetLayerByName("mass_points")
     assert layer.GetFeatureCount() == 200

@@ -2,11 +2,10 @@
 parameters parsed, contradictory settings refused with InputError before any work."""
 import pytest
 
-from pushbroom.algorithms.adjustment.adjust_block import (LAGRANGE_AUTO, AdjustParams, parse_counts,
-                                                          parse_priors)
-from pushbroom.algorithms.adjustment.block_rpcs import RpcParams, cube_heights, selected_images
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.quality.assess_accuracy import AssessParams
+from pushbroom.algorithms.steps.adjust_block import LAGRANGE_AUTO, AdjustParams, parse_counts, parse_priors
+from pushbroom.algorithms.steps.block_rpcs import RpcParams, cube_heights, selected_images
 
 
 def test_priors_parse_commas_and_semicolons():

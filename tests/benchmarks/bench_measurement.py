@@ -11,8 +11,7 @@ import time
 
 import numpy as np
 
-from pushbroom.algorithms import block
-from pushbroom.algorithms.measurement.store import MeasurementStore
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.measurement.transfer import transfer
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 
@@ -57,10 +56,10 @@ def run():
         paths = simulate_scene(SceneConfig.small(markers=True), pathlib.Path(folder) / "scene")
         names = ("HRG", "HRS1", "HRS2")
         images = {n: paths["images"][n]["imagery"] for n in names}
-        opened = block.open_images([images[n] for n in names])
+        opened = Block.open_images([images[n] for n in names])
         path = pathlib.Path(folder) / "block.gpkg"
-        block.create_block(path, opened, height=300.0)
-        store = MeasurementStore(path)
+        Block.create(path, opened, height=300.0)
+        store = Block(path).measurement_store()
         for k in range(POINTS):
             store.put_point(f"B{k}", "control", -84.19 + 1e-5 * k, 36.61, 300.0, 2.5, 2.5, 2.2)
             for image_id in (1, 2, 3):

@@ -9,11 +9,11 @@ import time
 import numpy as np
 from benchutil import best_time
 
-from pushbroom.algorithms.block import create_schema
+from pushbroom.algorithms.block import Block
+from pushbroom.algorithms.block.schema import create_schema
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "algorithms"))
 from pushbroom.algorithms.matching.combinations import combine
-from pushbroom.algorithms.matching.points import load_points, save_points, write_point_layer
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from test_points_store import FlatModel, synthetic
@@ -40,8 +40,8 @@ def run():
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         block = _block(folder)
-        save = best_time(lambda: save_points(block, mp), repeat=2)
-        load = best_time(lambda: load_points(block), repeat=2)
+        save = best_time(lambda: Block(block).save_points(mp), repeat=2)
+        load = best_time(lambda: Block(block).points(), repeat=2)
         size = pathlib.Path(folder, "bench.mass_points.npz").stat().st_size / 1e6
         rows.append({"step": f"save {N} points, {len(mp.observations)} observations (.npz, {size:.0f} MB)",
                      "seconds": save})
@@ -57,7 +57,7 @@ def run():
                      "seconds": best_time(lambda: select_tie_points(mp, 100.0), repeat=1)})
         small = mp.subset(np.arange(1, 2_000_001))
         start = time.perf_counter()
-        write_point_layer(block, "mass_points", small, FlatModel(), 1, 0.0)
+        Block(block).write_point_layer("mass_points", small, FlatModel(), 1, 0.0)
         rows.append({"step": "write the display layer, 2000000 points (GeoPackage: sqlite3 rows + OGR R-tree)",
                      "seconds": time.perf_counter() - start})
     return rows

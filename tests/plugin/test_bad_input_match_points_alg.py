@@ -7,7 +7,7 @@ import pytest
 from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException
 
-from pushbroom.algorithms import block
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.combinations import combination_order
 
@@ -25,7 +25,7 @@ def test_combination_order_of_one_or_no_image():
 
 def test_matchpoints_on_a_one_image_block(pushbroom_provider, small_scene, tmp_path):
     path = str(tmp_path / "one.gpkg")
-    block.create_block(path, block.open_images([small_scene["images"]["HRG"]["imagery"]]), height=400.0)
+    Block.create(path, Block.open_images([small_scene["images"]["HRG"]["imagery"]]), height=400.0)
     message = None
     try:
         processing.run("pushbroom:matchpoints", {"BLOCK": path}, context=QgsProcessingContext())

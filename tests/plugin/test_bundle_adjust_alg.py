@@ -21,13 +21,14 @@ from qgis.core import (
 )
 
 from osr_oracle import utm
-from pushbroom.algorithms import block, sensors
-from pushbroom.algorithms.adjustment.control_points import import_csv, save_control_points
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.adjustment.control_points import import_csv
 from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.adjustment.residual_vectors import ATTRIBUTES
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.surface.intersection import intersect
 from raster_oracle import bilinear
@@ -44,15 +45,15 @@ def scene(simulated):
 def make_block(paths, path):
     """A block of the scene's triplet with 20 urad look-angle errors and the simulator's points
     (the first N_CONTROL control, the rest check); {name: image id}."""
-    images = block.open_images([paths["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
-    block.create_block(path, images, height=300.0)
-    ids = {r["name"]: r["id"] for r in block.read_images(path)}
-    models = {i: block.load_model(path, i) for i in ids.values()}
+    images = Block.open_images([paths["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
+    Block.create(path, images, height=300.0)
+    ids = {r["name"]: r["id"] for r in Block(path).images()}
+    models = {i: Block(path).model(i) for i in ids.values()}
     for i, model in models.items():                   # inject 20 urad look-angle errors
         model.orientation.corrections.look[:, 0] = (2e-5, -2e-5 if i % 2 else 2e-5)
-    block.save_models(path, models, supplied=True)     # the supplied orientation, with its errors
+    Block(path).save_models(models, supplied=True)     # the supplied orientation, with its errors
     check = [r["id"] for r in csv.DictReader(open(paths["points"]))][N_CONTROL:]
-    import_csv(path, paths["points"], suffix="_meas", check_ids=check)
+    import_csv(Block(path), paths["points"], suffix="_meas", check_ids=check)
     return ids
 
 
@@ -63,7 +64,7 @@ def truth_rms(path, paths, ids):
     ground = [np.array([float(r[k]) for r in rows]) for k in ("lon", "lat", "h")]
     out = {}
     for name, i in ids.items():
-        col, row = block.load_model(path, i).ground_to_image(*ground)
+        col, row = Block(path).model(i).ground_to_image(*ground)
         true = np.array([[float(r[f"{name}_col"]), float(r[f"{name}_row"])] for r in rows])
         out[name] = float(np.sqrt(np.mean((col - true[:, 0]) ** 2 + (row - true[:, 1]) ** 2)))
     return out
@@ -91,7 +92,7 @@ def make_tie_block(scene, path):
         obs["image_id"][k::3] = i
         c, r = truth[i].ground_to_image(lon, lat, h)
         obs["col"][k::3], obs["row"][k::3] = c + rng.normal(0, 0.2, N_TIE), r + rng.normal(0, 0.2, N_TIE)
-    save_points(path, MultiPoints(pts, obs), "tie_points")
+    Block(path).save_points(MultiPoints(pts, obs), "tie_points")
     return ids, obs
 
 
@@ -112,7 +113,7 @@ def test_adjusts_and_stores_models(pushbroom_provider, adjusted_block, tmp_path)
     assert [int(r[0]) for r in series] == [4, 8, 19] and len({r[1] for r in series}) == 1   # same check points
     assert float(series[0][4]) < 3.0 * float(series[-1][4])
     for i in ids.values():
-        assert block.load_model(path, i).orientation.corrections.look[0, 0] == pytest.approx(0.0, abs=3e-6)
+        assert Block(path).model(i).orientation.corrections.look[0, 0] == pytest.approx(0.0, abs=3e-6)
     assert max(truth_rms(path, paths, ids).values()) < 0.3
 
 
@@ -129,7 +130,7 @@ def test_residual_vector_layer(pushbroom_provider, adjusted_block, tmp_path, log
         "BLOCK": path, "FREE": "look:0", "USE_TIE_POINTS": False, "VECTOR_SCALE": 250.0,
         "RESIDUALS": QgsProcessingOutputLayerDefinition(out, QgsProject.instance())}, context=context, feedback=log)
     layer = QgsVectorLayer(result["RESIDUALS"], "residuals", "ogr")
-    epsg = int(block.read_info(path)["default_crs"].split(":")[1])
+    epsg = int(Block(path).info()["default_crs"].split(":")[1])
     assert layer.isValid() and layer.crs().authid() == f"EPSG:{epsg}"
     assert QgsWkbTypes.flatType(layer.wkbType()) == QgsWkbTypes.LineString
     assert [f.name() for f in layer.fields() if f.name() != "fid"] == list(ATTRIBUTES) + ["scale"]
@@ -175,7 +176,7 @@ def test_tie_heights_against_the_reference_dtm(pushbroom_provider, tie_block, tm
         page = report.read_text()
         assert "Kornus et al. 2006, Table 4" in page
         tables[key] = _table_row(page, "dh")
-    models = {i: block.load_model(path, i) for i in ids.values()}
+    models = {i: Block(path).model(i) for i in ids.values()}
     cut = intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"], 0.5, h0=300.0)
     assert cut.ok.all()
     dh = cut.h - bilinear(paths["dtm"], cut.lon, cut.lat)
@@ -217,14 +218,14 @@ def test_automatic_selection_and_variance_components(pushbroom_provider, scene, 
     assert max(truth_rms(path, paths, ids).values()) < 0.3
     # adjusting the adjusted block again starts from the supplied orientation: the same selection in as many
     # adjustments, the same models (a restart from the adjusted models fixed every coefficient one by one)
-    first = [block.load_model(path, i).orientation.corrections.look.copy() for i in ids.values()]
+    first = [Block(path).model(i).orientation.corrections.look.copy() for i in ids.values()]
     again, progress = type(log)(), []
     again.progressChanged.connect(progress.append)
     processing.run("pushbroom:bundleadjust", {"BLOCK": path}, feedback=again)
     assert [m for m in again.messages if m.startswith("selected ")] == [m for m in log.messages
                                                                         if m.startswith("selected ")]
     for i, look in zip(ids.values(), first):
-        np.testing.assert_allclose(block.load_model(path, i).orientation.corrections.look, look, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(Block(path).model(i).orientation.corrections.look, look, rtol=0, atol=1e-12)
     # progress moves with every adjustment of the selection: no stretch of adjustments without a report
     count = int(re.search(r"in (\d+) adjustments", next(m for m in again.messages if m.startswith("selected ")))
                 .group(1))
@@ -252,17 +253,17 @@ def test_tie_points_alone_with_priors(pushbroom_provider, scene, tmp_path, log):
     ones (psi_x, injected equal) move the heights of all points together: the priors hold them."""
     path = str(tmp_path / "ties_only.gpkg")
     ids, _ = make_tie_block(scene, path)
-    save_control_points(path, Observations())
+    Block(path).save_control_points(Observations())
     for params in ({}, {"FREE": "look:0"}):
         with pytest.raises(QgsProcessingException, match="no control points.*PRIORS"):
             processing.run("pushbroom:bundleadjust", {"BLOCK": path, "VARIANCE_COMPONENTS": False, **params})
     with pytest.raises(QgsProcessingException, match="pattern=sigma"):
         processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "PRIORS": "look:0"})
-    before = {i: block.load_model(path, i).orientation.corrections.look[1, 0] for i in ids.values()}
+    before = {i: Block(path).model(i).orientation.corrections.look[1, 0] for i in ids.values()}
     result = processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "PRIORS": "look:0=1e-4",
                                                       "VARIANCE_COMPONENTS": False}, feedback=log)
     assert 0.25 < result["SIGMA0"] < 0.6                     # 0.2 px noise against the a priori 0.5 px
-    after = {i: block.load_model(path, i).orientation.corrections.look[1, 0] for i in ids.values()}
+    after = {i: Block(path).model(i).orientation.corrections.look[1, 0] for i in ids.values()}
     print(f"psi_y constants before {before}, after {after} (rad)")
     assert np.ptp(list(before.values())) == pytest.approx(4e-5)
     assert np.ptp(list(after.values())) < 1e-6

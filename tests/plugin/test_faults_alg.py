@@ -17,10 +17,10 @@ from qgis import processing
 from qgis.core import QgsProcessingException
 
 import pushbroom
-from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.crs import reproject, srs, wgs84
-from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, load_points, save_points
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.surface.pointcloud import write_point_cloud
 
 REPO = os.path.dirname(os.path.abspath(pushbroom.__file__))
@@ -99,16 +99,16 @@ def public_scene(small_scene, public):
     shutil.copytree(os.path.dirname(small_scene["images"]["HRG"]["imagery"]), image)
     shutil.copy(small_scene["dsm"], folder / "dsm.tif")
     path = str(folder / "block.gpkg")
-    block.create_block(path, block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")]),
+    Block.create(path, Block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")]),
                        height=300.0)
-    cp.import_csv(path, small_scene["points"], suffix="_meas")
-    ids = [r["id"] for r in block.read_images(path)]
+    cp.import_csv(Block(path), small_scene["points"], suffix="_meas")
+    ids = [r["id"] for r in Block(path).images()]
     pts = np.zeros(50, POINT_DTYPE)
     pts["id"], pts["group"] = np.arange(50), 3
     obs = np.zeros(150, OBS_DTYPE)
     obs["point_id"], obs["image_id"] = np.repeat(np.arange(50), 3), np.tile(ids, 50)
     obs["col"], obs["row"] = 100.0 + np.repeat(np.arange(50), 3), 200.0
-    save_points(path, MultiPoints(pts, obs), "mass_points")
+    Block(path).save_points(MultiPoints(pts, obs), "mass_points")
     for name in ("HRS1", "HRS2"):
         shutil.copytree(os.path.dirname(small_scene["images"][name]["imagery"]), folder / name)
     return {"image": str(image / "IMAGERY.TIF"), "dsm": str(folder / "dsm.tif"), "block": path,
@@ -178,7 +178,7 @@ def test_a_geopackage_of_another_program(runner, tmp_path):
 
 def test_a_truncated_point_file_is_named(runner, public_scene, tmp_path):
     path = copy_block(public_scene["block"], tmp_path)
-    name = block.read_info(path)["mass_points"]
+    name = Block(path).info()["mass_points"]
     data = (tmp_path / name).read_bytes()
     (tmp_path / name).write_bytes(data[:len(data) // 2])
     result = runner("pushbroom:intersectpoints", "--", f"BLOCK={path}", f"OUTPUT={tmp_path / 'c.las'}")
@@ -230,7 +230,7 @@ def test_bundleadjust_refuses_results_of_a_control_set_replaced_meanwhile(pushbr
 
     def import_meanwhile(*args, **kwargs):
         result = real(*args, **kwargs)
-        cp.import_csv(control_block, small_scene["points"], suffix="_meas", check_ids=["P001", "P002"])
+        cp.import_csv(Block(control_block), small_scene["points"], suffix="_meas", check_ids=["P001", "P002"])
         return result
     monkeypatch.setattr(bundle_adjust, "adjust_with_components", import_meanwhile)
     with pytest.raises(QgsProcessingException, match="control points changed while this step computed"):
@@ -243,4 +243,4 @@ def test_bundleadjust_refuses_results_of_a_control_set_replaced_meanwhile(pushbr
     monkeypatch.setattr(bundle_adjust, "adjust_with_components", real)
     processing.run("pushbroom:bundleadjust", {"BLOCK": control_block, "FREE": "look:0", "USE_TIE_POINTS": False})
     assert stored_models(control_block) != before
-    assert len(load_points(control_block)) == 50
+    assert len(Block(control_block).points()) == 50

@@ -9,7 +9,8 @@ from osgeo import gdal, ogr
 from qgis import processing
 from qgis.core import QgsProcessingException, QgsProcessingFeedback
 
-from pushbroom.algorithms import block, sensors
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.sensors.rpc import RpcModel
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
@@ -33,7 +34,7 @@ def triplet_block(scene, tmp_path):
     folder, _, height = scene
     copy = shutil.copytree(folder, tmp_path / "scene")
     path = tmp_path / "block.gpkg"
-    block.create_block(path, block.open_images([copy / n / "IMAGERY.TIF" for n in NAMES]), height=height)
+    Block.create(path, Block.open_images([copy / n / "IMAGERY.TIF" for n in NAMES]), height=height)
     return str(path), copy
 
 
@@ -47,8 +48,8 @@ def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(pushbroom_pr
     result = processing.run("pushbroom:fitrpc", {"BLOCK": path, "REPORT": str(tmp_path / "fit.html")})
     expected = [str(scene_copy / n / "IMAGERY_RPC.TXT") for n in NAMES]
     assert sorted(result["FILES"]) == sorted(expected)
-    rows = {r["name"]: r for r in block.read_images(path)}
-    terrain = block.height_range(path)
+    rows = {r["name"]: r for r in Block(path).images()}
+    terrain = Block(path).height_range()
     rng = np.random.default_rng(5)
     for name in NAMES:
         raster = scene_copy / name / "IMAGERY.TIF"
@@ -57,7 +58,7 @@ def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(pushbroom_pr
         assert fields, f"GDAL reads no RPC for {raster}"
         h_off, h_scale = float(fields["HEIGHT_OFF"]), float(fields["HEIGHT_SCALE"])
         assert h_off - h_scale < terrain[0] and h_off + h_scale > terrain[1]   # the terrain range and a margin
-        model = block.load_model(path, rows[name]["id"])
+        model = Block(path).model(rows[name]["id"])
         col, row = rng.uniform(0, model.size[0], 200), rng.uniform(0, model.size[1], 200)
         h = rng.uniform(*terrain, 200)
         lon, lat = model.image_to_ground(col, row, h)
@@ -91,7 +92,7 @@ def test_fitrpc_one_image_into_a_folder(pushbroom_provider, triplet_block, tmp_p
     assert result["FILES"] == [str(out / "HRS1_RPC.TXT")] and [p.name for p in out.iterdir()] == ["HRS1_RPC.TXT"]
     assert not (scene_copy / "HRS1" / "IMAGERY_RPC.TXT").exists()
     rpc = sensors.load(out / "HRS1_RPC.TXT")
-    model = block.load_model(path, next(r["id"] for r in block.read_images(path) if r["name"] == "HRS1"))
+    model = Block(path).model(next(r["id"] for r in Block(path).images() if r["name"] == "HRS1"))
     assert isinstance(rpc, RpcModel) and rpc.size == model.size   # the normalisation spans the whole image
     assert rpc.height_range == pytest.approx((100.0, 900.0))
     col, row = np.meshgrid(np.linspace(0, model.size[0], 7), np.linspace(0, model.size[1], 7))
@@ -109,8 +110,8 @@ def test_an_rpc_image_delivered_with_an_rpb_is_refitted_with_a_warning(pushbroom
     supplied, _ = fit_rpc(sensors.load(paths["images"]["HRS2"]["metadata"]), (height - 600.0, height + 600.0))
     write_rpb(supplied, tmp_path / "img.RPB")
     path = str(tmp_path / "rpc_block.gpkg")
-    block.create_block(path, block.open_images([raster]), height=height)
-    assert block.read_images(path)[0]["model_kind"] == "rpc"
+    Block.create(path, Block.open_images([raster]), height=height)
+    assert Block(path).images()[0]["model_kind"] == "rpc"
     feedback = log
     result = processing.run("pushbroom:fitrpc", {"BLOCK": path}, feedback=feedback)
     assert result["FILES"] == [str(tmp_path / "img_RPC.TXT")]
@@ -148,10 +149,10 @@ def test_report_compares_rpc_and_rigorous_object_points_of_the_tie_points(pushbr
     below 1 cm."""
     import re
 
-    from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
+    from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
     path, _ = triplet_block
-    rows = block.read_images(path)
-    models = {r["id"]: block.load_model(path, r["id"]) for r in rows}
+    rows = Block(path).images()
+    models = {r["id"]: Block(path).model(r["id"]) for r in rows}
     first = models[rows[0]["id"]]
     rng = np.random.default_rng(2)
     lon, lat = first.image_to_ground(rng.uniform(50, first.size[0] - 50, 200),
@@ -163,7 +164,7 @@ def test_report_compares_rpc_and_rigorous_object_points_of_the_tie_points(pushbr
     for k, (i, model) in enumerate(models.items()):
         obs["image_id"][k::3] = i
         obs["col"][k::3], obs["row"][k::3] = model.ground_to_image(lon, lat, 300.0)
-    save_points(path, MultiPoints(pts, obs), "tie_points")
+    Block(path).save_points(MultiPoints(pts, obs), "tie_points")
     processing.run("pushbroom:fitrpc", {"BLOCK": path, "REPORT": str(tmp_path / "fit.html")})
     page = (tmp_path / "fit.html").read_text()
     found = re.search(r"Table 5\): 200 points .* max \|dh\| ([0-9.]+) m", page)

@@ -15,6 +15,7 @@ from qgis.core import (
 
 from osr_oracle import utm
 from pushbroom.algorithms.adjustment import control_points as cp
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.plugin.algorithms.import_points import ExportPoints, ImportPoints
 
@@ -67,8 +68,8 @@ def test_import_simulator_points_and_export(algorithms, scene, blk, tmp_path, lo
     out = tmp_path / "export.csv"
     exported = processing.run("pushbroom:exportpoints", {"BLOCK": blk, "OUTPUT": str(out)})
     assert exported["OUTPUT"] == str(out)
-    back = cp.read_csv(out, cp.image_ids(blk))
-    stored = cp.load_control_points(blk)
+    back = cp.read_csv(out, Block(blk).image_ids())
+    stored = Block(blk).control_points()
     assert back.points.tobytes() == stored.points.tobytes()
     assert back.measurements.tobytes() == stored.measurements.tobytes()
 
@@ -88,18 +89,18 @@ def test_import_projected_coordinates_and_merge(algorithms, scene, blk, tmp_path
     result = processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(path), "CRS": f"EPSG:{epsg}",
                                                        "MODE": 1})
     assert (result["CONTROL"], result["CHECK"], result["MEASUREMENTS"]) == (0, len(rows), 3 * len(rows))
-    stored = cp.load_control_points(blk)
+    stored = Block(blk).control_points()
     assert np.abs(stored.points["lon"] - lon).max() < 1e-8 and np.abs(stored.points["lat"] - lat).max() < 1e-8
 
 
 def test_bad_file_is_a_processing_error(algorithms, scene, blk, tmp_path):
     processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas"})
-    before = cp.load_control_points(blk)
+    before = Block(blk).control_points()
     bad = tmp_path / "bad.csv"
     bad.write_text("id,lon,lat,h,SPOT4_col,SPOT4_row\nA,-84.2,36.6,300,1,2\n")
     with pytest.raises(QgsProcessingException, match="SPOT4_col, SPOT4_row name images that are not in the block"):
         processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(bad)})
-    assert cp.load_control_points(blk).points.tobytes() == before.points.tobytes()
+    assert Block(blk).control_points().points.tobytes() == before.points.tobytes()
     empty = tmp_path / "empty.gpkg"
     shutil.copy(scene["template"], empty)
     with pytest.raises(QgsProcessingException, match="no control or check points"):

@@ -8,15 +8,15 @@ from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
 from osr_oracle import utm
-from pushbroom.algorithms import block
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.surface.pointcloud import laspy_module
 
 
 @pytest.fixture(scope="module")
 def triplet(small_scene, tmp_path_factory):
-    images = block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
+    images = Block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
     dsm = Dem.from_file(small_scene["dsm"])
     return {"images": images, "dsm": dsm, "folder": tmp_path_factory.mktemp("intersect"),
             "height": float(np.nanmean(dsm.heights))}
@@ -26,9 +26,9 @@ def make_block(triplet, name, kinds=("mass_points",)):
     """A block with points of `kinds`: ground points on the DSM seen in all three images; ids 0..199
     three-ray (group 3), 200..299 only in HRG and HRS1 (group 1). Returns (path, lon, lat, h)."""
     path = str(triplet["folder"] / name)
-    block.create_block(path, triplet["images"], height=triplet["height"], overwrite=True)
-    ids = {r["name"]: r["id"] for r in block.read_images(path)}
-    models = {n: block.load_model(path, i) for n, i in ids.items()}
+    Block.create(path, triplet["images"], height=triplet["height"], overwrite=True)
+    ids = {r["name"]: r["id"] for r in Block(path).images()}
+    models = {n: Block(path).model(i) for n, i in ids.items()}
     rng = np.random.default_rng(1)
     cols, rows = models["HRG"].size
     lon, lat, h = models["HRG"].image_to_dem(rng.uniform(150, cols - 150, 300), rng.uniform(100, rows - 100, 300),
@@ -47,7 +47,7 @@ def make_block(triplet, name, kinds=("mass_points",)):
     pts["group"] = np.where(pts["id"] < 200, 3, 1)
     pts["rho_min"] = rng.uniform(0.7, 1.0, 300)
     for kind in kinds:
-        save_points(path, MultiPoints(pts, obs), kind)
+        Block(path).save_points(MultiPoints(pts, obs), kind)
     return path, lon, lat, h
 
 
@@ -72,7 +72,7 @@ def test_las_in_the_blocks_utm_zone(pushbroom_provider, triplet, tmp_path, log):
     laspy = laspy_module()
     las = laspy.read(result["OUTPUT"])
     wkt = [v.string for v in las.header.vlrs if isinstance(v, laspy.vlrs.known.WktCoordinateSystemVlr)]
-    assert block.read_info(path)["default_crs"] == "EPSG:32616" and "UTM zone 16N" in wkt[0]
+    assert Block(path).info()["default_crs"] == "EPSG:32616" and "UTM zone 16N" in wkt[0]
     order = np.argsort(np.asarray(las["point_id"]))
     x, y = utm(lon, lat, 32616)
     np.testing.assert_allclose(np.asarray(las.x)[order], x, atol=0.0011)   # 1 mm resolution + intersection
@@ -87,8 +87,7 @@ def test_las_in_the_blocks_utm_zone(pushbroom_provider, triplet, tmp_path, log):
     summary = [line.split() for line in log.splitlines() if line.split()[:1] in (["1"], ["3"])]
     assert [(s[0], s[1]) for s in summary] == [("1", "100"), ("3", "200")]
     assert float(summary[1][5]) == pytest.approx(np.median(sigma_h[:200]), rel=1e-3)
-    ds = block.open_block(path)   # keep the data source alive while its layer is read
-    assert "intersectpoints" in [f["step"] for f in ds.GetLayerByName("run_log")]
+    assert "intersectpoints" in [r["step"] for r in Block(path).run_log()]
 
 
 def test_geopackage_of_tie_points_in_a_given_crs(pushbroom_provider, triplet, tmp_path):

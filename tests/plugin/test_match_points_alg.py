@@ -7,9 +7,8 @@ from osgeo import gdal
 from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
-from pushbroom.algorithms import block
-from pushbroom.algorithms.block import read_info
-from pushbroom.algorithms.matching.points import REFINED, load_points
+from pushbroom.algorithms.block import Block
+from pushbroom.algorithms.matching.points import REFINED
 from pushbroom.algorithms.simulation import SceneConfig
 
 
@@ -20,13 +19,13 @@ def triplet(simulated, tmp_path_factory):
     paths = simulated(SceneConfig.small(error_scale=0.0))
     dsm = gdal.Open(paths["dsm"]).ReadAsArray()
     lo, hi = float(np.nanmin(dsm)), float(np.nanmax(dsm))
-    images = block.open_images([paths["images"][n]["imagery"] for n in ("HRS2", "HRG", "HRS1")])
+    images = Block.open_images([paths["images"][n]["imagery"] for n in ("HRS2", "HRG", "HRS1")])
     return {"images": images, "range": (lo - 30.0, hi + 30.0), "folder": folder}
 
 
 def make_block(triplet, name, names):
     path = triplet["folder"] / name
-    block.create_block(path, [i for i in triplet["images"] if i[0] in names], height=sum(triplet["range"]) / 2,
+    Block.create(path, [i for i in triplet["images"] if i[0] in names], height=sum(triplet["range"]) / 2,
                        overwrite=True)
     return str(path)
 
@@ -38,14 +37,14 @@ def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, 
     result = processing.run("pushbroom:matchpoints", {
         "BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6, "SUMMARY": str(tmp_path / "summary.csv")},
         context=context, feedback=feedback)
-    mass = load_points(path)
+    mass = Block(path).points()
     counts = mass.group_counts()
     assert counts[3] > 100, counts                         # most points are three-ray (Kornus et al. 2006, Table 1)
     assert counts[3] > counts[1] and counts[3] > counts[2]
     assert np.count_nonzero(mass.points["flags"] & REFINED) > 0.9 * counts[3]      # MPGC refinement, the default
-    ids = {r["name"]: r["id"] for r in block.read_images(path)}
+    ids = {r["name"]: r["id"] for r in Block(path).images()}
     assert mass.stats["images"] == [ids["HRG"], ids["HRS1"], ids["HRS2"]]   # ordered by name, not block
-    assert read_info(path)["mass_points_count"] == str(len(mass))
+    assert Block(path).info()["mass_points_count"] == str(len(mass))
     layer = QgsVectorLayer(result["POINTS"], "mass", "ogr")
     assert layer.isValid() and layer.featureCount() == len(mass)
     assert layer.crs().authid() == "EPSG:4326"
@@ -55,7 +54,7 @@ def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, 
     assert result["POINTS"] in context.layersToLoadOnCompletion()
 
     tie = processing.run("pushbroom:selecttiepoints", {"BLOCK": path, "CELL": 100}, context=context)
-    tie_points = load_points(path, "tie_points")
+    tie_points = Block(path).points("tie_points")
     assert 0 < len(tie_points) < len(mass)
     col, row = tie_points.coordinates(ids["HRG"])
     cells = np.floor(row / 100) * 1000 + np.floor(col / 100)
@@ -67,15 +66,15 @@ def test_match_three_images_then_select_tie_points(pushbroom_provider, triplet, 
     feedback = log
     processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6,
                                              "SEEDS": 1}, context=context, feedback=feedback)
-    again = load_points(path)
+    again = Block(path).points()
     assert again.group_counts()[3] > 0.9 * counts[3], (again.group_counts(), counts)
     assert any("seeds from the given points" in m for m in feedback.messages)
     processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6,
                                              "SEEDS": 2}, context=context)
-    assert load_points(path).group_counts()[3] >= 0.99 * counts[3]          # both: at least the automatic run
+    assert Block(path).points().group_counts()[3] >= 0.99 * counts[3]          # both: at least the automatic run
     processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6,
                                              "MPGC_REFINE": False}, context=context)
-    plain = load_points(path)
+    plain = Block(path).points()
     assert plain.group_counts() == counts and not np.any(plain.points["flags"] & REFINED)
     # block image ids in name order (HRS2 1, HRG 2, HRS1 3): the refined positions went to their own images
     refined = (mass.points["flags"] & REFINED) > 0
@@ -91,12 +90,12 @@ def test_two_images_give_group_1(pushbroom_provider, triplet):
     lo, hi = triplet["range"]
     processing.run("pushbroom:matchpoints", {"BLOCK": path, "IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo,
                                              "MAX_HEIGHT": hi, "STEP": 8})
-    mass = load_points(path)
+    mass = Block(path).points()
     assert len(mass) > 100 and mass.group_counts()[2] == mass.group_counts()[3] == 0
     wide = make_block(triplet, "wide.gpkg", ("HRG", "HRS1"))
     processing.run("pushbroom:matchpoints", {"BLOCK": wide, "IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo,
                                              "MAX_HEIGHT": hi, "STEP": 8, "WIDE_TEMPLATE": 27})
-    assert len(load_points(wide)) > 1.2 * len(mass)      # the second window reaches weak texture
+    assert len(Block(wide).points()) > 1.2 * len(mass)      # the second window reaches weak texture
 
 
 def test_bad_input_gives_clear_errors(pushbroom_provider, triplet):
@@ -118,7 +117,7 @@ def test_cancel_writes_nothing(pushbroom_provider, triplet):
     with pytest.raises(QgsProcessingException, match="cancel"):
         processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": 0, "MAX_HEIGHT": 900},
                        feedback=feedback)
-    assert "mass_points" not in read_info(path)
+    assert "mass_points" not in Block(path).info()
 
 
 def test_coarse_to_fine_strategy(pushbroom_provider, triplet):
@@ -130,21 +129,21 @@ def test_coarse_to_fine_strategy(pushbroom_provider, triplet):
     path = make_block(triplet, "c2f.gpkg", ("HRG", "HRS1", "HRS2"))
     result = processing.run("pushbroom:matchpoints", {"BLOCK": path, "STRATEGY": 1, "MIN_HEIGHT": lo,
                                                       "MAX_HEIGHT": hi})
-    mass = load_points(path)
+    mass = Block(path).points()
     counts = mass.group_counts()
     assert counts[3] > 500 and counts[2] == 0 and counts[3] > counts[1], counts
     assert mass.stats["provenance"] == "hierarchical"
-    ids = {r["name"]: r["id"] for r in block.read_images(path)}
+    ids = {r["name"]: r["id"] for r in Block(path).images()}
     assert mass.stats["images"] == [ids["HRG"], ids["HRS1"], ids["HRS2"]]
     assert QgsVectorLayer(result["POINTS"], "mass", "ogr").featureCount() == len(mass)
     path = make_block(triplet, "c2f_two.gpkg", ("HRG", "HRS1"))
     two = {"BLOCK": path, "STRATEGY": 1, "IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo, "MAX_HEIGHT": hi}
     processing.run("pushbroom:matchpoints", two)
-    default = load_points(path)
+    default = Block(path).points()
     assert set(default.group_counts().values()) - {0} and default.group_counts()[3] == 0
     assert default.stats.get("tiles", 1) == 1
     processing.run("pushbroom:matchpoints", {**two, "C2F_GRID": 20, "C2F_TILE": 512})
-    coarse = load_points(path)
+    coarse = Block(path).points()
     assert len(coarse) < 0.7 * len(default) and coarse.stats["tiles"] == 4, (len(coarse), len(default), coarse.stats)
     with pytest.raises(QgsProcessingException, match="tiles must be at least 512 px"):
         processing.run("pushbroom:matchpoints", {**two, "C2F_TILE": 300})

@@ -22,11 +22,10 @@ from qgis.PyQt.QtCore import QCoreApplication, QEvent, pyqtSignal
 from qgis.PyQt.QtWidgets import QAction, QMainWindow, QToolBar, QUndoCommand, QUndoStack
 
 import pushbroom
-from pushbroom.algorithms import block
-from pushbroom.algorithms.adjustment.control_points import save_control_points
 from pushbroom.algorithms.adjustment.observations import POINT_DTYPE, Observations
+from pushbroom.algorithms.block import Block
+from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.measurement.store import MeasurementStore
 from pushbroom.plugin.control_layer import find_control_layer, show_control_points
 from pushbroom.plugin.measure_action import ACTION_NAME, LAST_BLOCK, layer_block
 
@@ -39,10 +38,10 @@ def flush_deletes():
 def points_block(tmp_path):
     """An image-less block with one control and one check point."""
     path = tmp_path / "block.gpkg"
-    block.create_schema(path)
+    create_schema(path)
     points = np.array([("C1", "control", 7.0, 45.0, 100.0, 2.5, 2.5, 2.2),
                        ("K1", "check", 7.01, 45.01, 120.0, np.nan, np.nan, np.nan)], POINT_DTYPE)
-    save_control_points(path, Observations(points), names={})
+    Block(path).save_control_points(Observations(points), names={})
     return path
 
 
@@ -129,11 +128,11 @@ def test_control_points_layer_is_added_once_styled_and_reloaded(points_block, pr
 
 def test_a_block_without_points_gets_an_empty_layer_on_request(tmp_path, project):
     path = tmp_path / "empty.gpkg"
-    block.create_schema(path)
+    create_schema(path)
     assert show_control_points(path, project) is None and not project.mapLayers()
     layer = show_control_points(path, project, create=True)
     assert layer.isValid() and layer.featureCount() == 0 and list(project.mapLayers().values()) == [layer]
-    save_control_points(path, Observations(np.array([("C1", "control", 7.0, 45.0, 100.0, 2.5, 2.5, 2.2)],
+    Block(path).save_control_points(Observations(np.array([("C1", "control", 7.0, 45.0, 100.0, 2.5, 2.5, 2.2)],
                                                     POINT_DTYPE)), names={})
     assert show_control_points(path, project) is layer and layer.featureCount() == 1
 
@@ -159,7 +158,7 @@ class AddPoint(QUndoCommand):
         self.path, self.name = path, name
 
     def redo(self):
-        MeasurementStore(self.path).put_point(self.name, "control", 7.0, 45.0, 100.0, 2.5, 2.5, 2.2)
+        Block(self.path).measurement_store().put_point(self.name, "control", 7.0, 45.0, 100.0, 2.5, 2.5, 2.2)
 
 
 class BrokenWindow(QMainWindow):

@@ -6,7 +6,8 @@ from osgeo import gdal
 from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback
 
-from pushbroom.algorithms import block, sensors
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.ortho import orthorectify
 
@@ -43,7 +44,7 @@ def test_image_with_its_own_orientation_equals_the_engine(pushbroom_provider, in
 
 def test_block_model_crs_and_cell_size(pushbroom_provider, inputs, tmp_path):
     path = str(tmp_path / "block.gpkg")
-    block.create_block(path, block.open_images([inputs["image"]]), height=400.0)
+    Block.create(path, Block.open_images([inputs["image"]]), height=400.0)
     out = str(tmp_path / "ortho_block.tif")
     result = run({"BLOCK": path, "IMAGE_NAME": "HRG", "DEM": inputs["scene"]["dsm"], "CRS": "EPSG:32617",
                   "CELL_SIZE": 10.0, "OCCLUSION": True, "OUTPUT": out})

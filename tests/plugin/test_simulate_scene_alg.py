@@ -6,7 +6,8 @@ import pytest
 from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
-from pushbroom.algorithms import block, sensors
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.block import Block
 
 
 @pytest.mark.slow
@@ -20,11 +21,11 @@ def test_simulated_triplet_becomes_a_block(pushbroom_provider, tmp_path):
     result = processing.run("pushbroom:createblock", {
         "IMAGES": scene["IMAGES"], "DEM": scene["DSM"], "OUTPUT": str(tmp_path / "block.gpkg")},
         context=context, feedback=QgsProcessingFeedback())
-    rows = block.read_images(result["OUTPUT"])
+    rows = Block(result["OUTPUT"]).images()
     assert sorted(r["name"] for r in rows) == ["HRG", "HRS1", "HRS2"]
     # the stored model is the supplied one of each product
     for row in rows:
-        stored = block.load_model(result["OUTPUT"], row["id"])
+        stored = Block(result["OUTPUT"]).model(row["id"])
         supplied = sensors.load(row["image_path"])
         c, r = np.array([10.0, row["cols"] - 10.0]), np.array([10.0, row["rows"] - 10.0])
         assert np.array_equal(stored.image_to_ground(c, r, 300.0), supplied.image_to_ground(c, r, 300.0))

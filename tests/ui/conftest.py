@@ -19,10 +19,10 @@ def marked_block(marked_scene, tmp_path_factory):
 
     import numpy as np
 
-    from pushbroom.algorithms import block
+    from pushbroom.algorithms.block import Block
     with open(marked_scene["points"], newline="") as f:
         height = float(np.mean([float(r["h"]) for r in csv.DictReader(f)]))
     path = tmp_path_factory.mktemp("marked_block") / "template.gpkg"
-    images = block.open_images([marked_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
-    block.create_block(path, images, height=height)
+    images = Block.open_images([marked_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
+    Block.create(path, images, height=height)
     return path

@@ -17,11 +17,10 @@ from qgis.PyQt.QtCore import QPoint, Qt, QTimer
 
 import pushbroom
 from osr_oracle import utm
-from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment.control_points import DEFAULT_SIGMAS
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError, PushbroomError
-from pushbroom.algorithms.measurement.store import MeasurementStore
 from pushbroom.ui import adjust_task, measurement_window as mw
 from pushbroom.ui.point_table import COLOURS, SORT_ROLE
 from raster_oracle import bilinear
@@ -73,7 +72,7 @@ def ids_by_name(window):
 
 def stored(path):
     """{name: (point record, {image id: (col, row)})} of the block."""
-    obs = MeasurementStore(path).load()
+    obs = Block(path).measurement_store().load()
     out = {}
     for k, p in enumerate(obs.points):
         m = obs.measurements[obs.measurements["point"] == k]
@@ -96,11 +95,11 @@ def test_layout_views_and_aspect(open_window, block_path):
     """One view per block image, titled with its name, HRS shown with the 2:1 correction; at 1280 x 800
     no view is narrower than 200 px, the reference canvas and the table have room."""
     window = open_window(block_path)
-    names = {r["id"]: r["name"] for r in block.read_images(block_path)}
+    names = {r["id"]: r["name"] for r in Block(block_path).images()}
     assert window.image_names == names and set(window.image_views) == set(names)
-    h = np.mean(block.height_range(block_path))
+    h = np.mean(Block(block_path).height_range())
     for image_id, view in window.image_views.items():   # ground size of a row / of a column, through OSR's UTM
-        model = block.load_model(block_path, image_id)
+        model = Block(block_path).model(image_id)
         c, r = 0.5 * np.array(model.size)
         lon, lat = model.image_to_ground(np.array([c, c + 1, c]), np.array([r, r, r + 1]), np.full(3, h))
         x, y = utm(lon, lat, 32616)
@@ -135,7 +134,7 @@ def test_reference_click_sets_ground_and_predictions(qtbot, open_window, block_p
     assert record["role"] == "control"
     assert [record[k] for k in ("sigma_e", "sigma_n", "sigma_h")] == list(DEFAULT_SIGMAS)
     for image_id, view in window.image_views.items():
-        model = block.load_model(block_path, image_id)
+        model = Block(block_path).model(image_id)
         col, row = model.ground_to_image(record["lon"], record["lat"], record["h"])
         predictions = [m for m in view._markers if m.kind == "prediction"]
         assert len(predictions) == 1
@@ -149,7 +148,7 @@ def test_reference_click_in_a_projected_canvas(qtbot, open_window, block_path, t
     map coordinate converted by OSR (independently)."""
     window = open_window(block_path, reference_layers=[])
     crs = window.reference.crs().authid()
-    assert crs == block.read_info(block_path)["default_crs"] and crs.startswith("EPSG:326")
+    assert crs == Block(block_path).info()["default_crs"] and crs.startswith("EPSG:326")
     source, target = osr.SpatialReference(), osr.SpatialReference()
     source.ImportFromEPSG(int(crs.split(":")[1]))
     target.ImportFromEPSG(4326)
@@ -261,7 +260,7 @@ def test_image_first_point_is_provisional(open_window, block_path, marked_scene,
     window.edit_point(name, sigma_e=1.5)
     window.click_image(ids["HRG"], p["HRG_col"], p["HRG_row"], transfer=False)
     record, meas = stored(block_path)[name]
-    model = block.load_model(block_path, ids["HRG"])
+    model = Block(block_path).model(ids["HRG"])
     lon, lat, h = model.image_to_dem(p["HRG_col"], p["HRG_row"], Dem.from_file(marked_scene["dsm"]))
     assert (record["lon"], record["lat"], record["h"]) == pytest.approx((float(lon), float(lat), float(h)), abs=1e-9)
     assert [record[k] for k in mw.SIGMA_KEYS] == [mw.PROVISIONAL_SIGMA] * 3
@@ -443,7 +442,7 @@ def test_adjust_now_refreshes_residuals(qtbot, pushbroom_provider, open_window, 
     ok, message = signal.args
     assert ok, message
     assert len(ticks) > 1                     # the event loop ran while the task adjusted
-    models = {i: block.load_model(block_path, i) for i in window.image_names}
+    models = {i: Block(block_path).model(i) for i in window.image_names}
     p = truth["P001"]
     after = window.predictions("P001")
     for image_id, model in models.items():
@@ -501,8 +500,7 @@ def test_adjust_through_the_processing_registry(qtbot, qgis_processing, qgis_ifa
             window.adjust_now()
         assert signal.args[0], signal.args[1]
         assert set(window.residuals[1]) == set(window.table.names())
-        ds = block.open_block(block_path)
-        log = [f["step"] for f in ds.GetLayerByName("run_log")]
+        log = [r["step"] for r in Block(block_path).run_log()]
         assert log[-1] == "bundleadjust"
     finally:
         plugin.unload()
@@ -514,7 +512,7 @@ def test_adjust_failure_is_a_message(qtbot, pushbroom_provider, open_window, blo
     window = open_window(block_path)
     ids = ids_by_name(window)
     p = truth["P001"]
-    before = {i: block.load_model(block_path, i).ground_to_image(p["lon"], p["lat"], p["h"]) for i in ids.values()}
+    before = {i: Block(block_path).model(i).ground_to_image(p["lon"], p["lat"], p["h"]) for i in ids.values()}
     with qtbot.waitSignal(window.adjusted, timeout=120000) as signal:
         window.adjust_now()
     ok, message = signal.args
@@ -522,7 +520,7 @@ def test_adjust_failure_is_a_message(qtbot, pushbroom_provider, open_window, blo
     assert message in window.statusBar().currentMessage()
     assert window.message_bar.currentItem() is not None and message in window.message_bar.currentItem().text()
     for i in ids.values():
-        assert block.load_model(block_path, i).ground_to_image(p["lon"], p["lat"], p["h"]) == before[i]
+        assert Block(block_path).model(i).ground_to_image(p["lon"], p["lat"], p["h"]) == before[i]
     assert not window.progress.isVisible()
 
 

@@ -9,7 +9,7 @@ import signal
 import subprocess
 import sys
 
-from pushbroom.algorithms.measurement.store import MeasurementStore
+from pushbroom.algorithms.block import Block
 from pushbroom.ui.measurement_window import MeasurementWindow
 
 SESSION = pathlib.Path(__file__).with_name("measurement_crash_session.py")
@@ -27,7 +27,7 @@ def test_killed_session_loses_nothing(qtbot, marked_block, marked_scene, tmp_pat
     assert [m[0] for m in shown["measurements"]] == ["K1"] * 3
     assert not os.path.exists(f"{path}-journal")            # no transaction was open at the kill
 
-    obs = MeasurementStore(path).load()
+    obs = Block(path).measurement_store().load()
     stored = {str(p["name"]): [p[k].item() for k in ("role", "lon", "lat", "h", "sigma_e")] for p in obs.points}
     assert stored == shown["points"]
     meas = sorted([str(obs.points["name"][m["point"]]), int(m["image_id"]), float(m["col"]), float(m["row"])]

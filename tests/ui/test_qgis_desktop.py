@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 import pushbroom
-from pushbroom.algorithms import block
-from pushbroom.algorithms.measurement.store import MeasurementStore
+from pushbroom.algorithms.block import Block
 
 REPO = pathlib.Path(pushbroom.__file__).resolve().parent
 QGIS = "/usr/bin/qgis.bin"
@@ -70,7 +69,7 @@ def test_measure_three_points_in_qgis_desktop(small_scene_block, tmp_path):
     template, rows = small_scene_block
     block_path = tmp_path / "block.gpkg"
     shutil.copy(template, block_path)
-    images = {r["name"]: r["id"] for r in block.read_images(block_path)}
+    images = {r["name"]: r["id"] for r in Block(block_path).images()}
     points = job_points(rows, images)
     job = tmp_path / "job.json"
     result_path, log_path = tmp_path / "result.json", tmp_path / "qgis.log"
@@ -88,7 +87,7 @@ def test_measure_three_points_in_qgis_desktop(small_scene_block, tmp_path):
     assert len(result["layers_on_open"]) == 1 and renderer == "categorizedSymbol"
     assert result["layers_at_end"] == [[name, POINTS, renderer]]
 
-    obs = MeasurementStore(block_path).load()
+    obs = Block(block_path).measurement_store().load()
     assert sorted(obs.points["name"]) == [p["name"] for p in points]
     first = min(images.values())
     for point in points:

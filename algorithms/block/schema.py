@@ -1,18 +1,14 @@
-"""The block store: one GeoPackage per block (DESIGN.md, "Data").
+"""The block GeoPackage's schema, its opening and its transactions.
 
 Tables: `block_info` (key/value: format version, creation time, default CRS, terrain height range,
-references to the point files beside the block), `images` (one row per
-image: name, raster path, orientation source, model kind, sensor, size, and the sensor model as
-a model-file document, see sensors/model_file.py),
-`footprints` (polygon layer, EPSG:4326, the image border projected on a DEM or a mean height) and
-`run_log` (one row per processing step). The images table also keeps each image's supplied model
-(`supplied_model`, the orientation the block was created with), from which every bundle adjustment
-starts, so that adjusting again gives the result of the first adjustment, not a correction of it. A block is written under a temporary name and renamed,
-so a failed or cancelled creation leaves any existing block untouched.
+references to the point files beside the block, generation counters), `images` (images.py),
+`footprints` (polygon layer, EPSG:4326) and `run_log` (one row per processing step); the point layers
+(points.py), the control points (control_points.py) and the residual tables (residuals.py) are added by
+the steps that make them.
 
-Every later write is one SQLite transaction (`transaction`) that takes the write lock first, waiting up to
-BUSY_TIMEOUT_MS for another writer (QGIS saving an edit, another step) and then failing with a message that
-says what to do; nothing is half-stored. Every connection waits the same way for other connections' locks.
+Every write after creation is one SQLite transaction (`transaction`) that takes the write lock first, waiting
+up to BUSY_TIMEOUT_MS for another writer (QGIS saving an edit, another step) and then failing with a message
+that says what to do; nothing is half-stored. Every connection waits the same way for other connections' locks.
 
 Generations. block_info holds a counter per part of the block a computation reads: `generation_<part>` for
 GENERATIONS. A step that computes from the block for a long time (the bundle adjustment) reads them first
@@ -26,15 +22,11 @@ import datetime
 import json
 import os
 
-import numpy as np
 from osgeo import ogr
 
-from . import progress
-from .atomic import atomic_path, closing, storage_error
-from .crs import wgs84
-from .errors import InputError, PushbroomError, StorageError
-from .geodesy import utm_epsg
-from .sensors.model_file import model_from_dict, model_to_dict
+from ..atomic import storage_error
+from ..crs import wgs84
+from ..errors import InputError, StorageError
 
 FORMAT_VERSION = "1"
 IMAGE_FIELDS = [("name", ogr.OFTString), ("image_path", ogr.OFTString),
@@ -45,101 +37,12 @@ IMAGE_FIELDS = [("name", ogr.OFTString), ("image_path", ogr.OFTString),
 SUPPLIED = "supplied_model"
 
 
-def describe_model(model):
-    """(model kind, sensor description) of a sensor model, for the images table."""
-    orientation = getattr(model, "orientation", None)
-    if orientation is not None:
-        sensor = f"SPOT {orientation.mission} {orientation.instrument}{orientation.instrument_index}"
-        return "spot_dimap", sensor.strip()
-    return "rpc", "RPC"
-
-
 def create_layer(ds, name, geom_type, srs, fields):
     """A new layer (or table, geom_type wkbNone) with an integer fid and the given (name, OFT type) fields."""
     layer = ds.CreateLayer(name, srs, geom_type, options=["FID=fid"])
     for field_name, field_type in fields:
         layer.CreateField(ogr.FieldDefn(field_name, field_type))
     return layer
-
-
-#: half width (m) of the terrain height range recorded for a block made at a mean height
-HEIGHT_MARGIN = 500.0
-
-
-def terrain_height_range(rings, height, dem):
-    """(min, max) ellipsoidal terrain height of the block: the DEM's valid heights inside the
-    footprints' bounding box, or the mean height +- HEIGHT_MARGIN."""
-    if dem is None:
-        return float(height) - HEIGHT_MARGIN, float(height) + HEIGHT_MARGIN
-    allpts = np.vstack(rings)
-    lon0, dlon, _, lat0, _, dlat = dem.geotransform
-    cols = np.clip(((allpts[:, 0] - lon0) / dlon).astype(int), 0, dem.shape[1] - 1)
-    rows = np.clip(((allpts[:, 1] - lat0) / dlat).astype(int), 0, dem.shape[0] - 1)
-    window = dem.heights[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
-    return float(np.nanmin(window)), float(np.nanmax(window))
-
-
-def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=None):
-    """Create `path` (a .gpkg) from `images`, a list of (name, image_path, orientation_path, model).
-
-    Footprints are the image borders on `dem` (algorithms.dem.Dem) or at ellipsoidal `height`.
-    Refuses to replace an existing block unless `overwrite` is true."""
-    path = os.fspath(path)
-    if not path.lower().endswith(".gpkg"):
-        raise InputError(f"a block is a GeoPackage: give a path ending in .gpkg, not {path}")
-    if os.path.exists(path) and not overwrite:
-        raise InputError(f"block {path} exists already; set the overwrite parameter to replace it")
-    if not images:
-        raise InputError("a block needs at least one image")
-    names = [name for name, *_ in images]
-    if len(set(names)) != len(names):
-        raise InputError(f"image names must be unique in a block, got {names}")
-    rings = []
-    for k, (name, _image, _orientation, model) in enumerate(images):
-        progress.step(feedback, 90.0 * k / len(images), f"footprint of {name}")
-        try:
-            rings.append(model.footprint(h=height, dem=dem))
-        except PushbroomError as exc:
-            raise InputError(f"cannot project the footprint of image {name}: {exc}") from exc
-    centre = sum(r[:-1].mean(axis=0) for r in rings) / len(rings)
-    h_min, h_max = terrain_height_range(rings, height, dem)
-    with atomic_path(path) as tmp:
-        with closing(create_schema(tmp)) as ds:
-            _write_images(ds, images, rings)
-        update_info(tmp, {"created": datetime.datetime.now(datetime.timezone.utc).isoformat(),
-                          "default_crs": f"EPSG:{utm_epsg(*centre)}",
-                          "footprint_height": "dem" if dem is not None else repr(float(height)),
-                          "height_min": repr(h_min), "height_max": repr(h_max)},
-                    step="createblock", message=f"block created with {len(images)} image(s): {', '.join(names)}")
-        progress.step(feedback, 100.0)
-    return path
-
-
-def _write_images(ds, images, rings):
-    """The images table and the footprints layer of a new block `ds`."""
-    table, footprints = ds.GetLayerByName("images"), ds.GetLayerByName("footprints")
-    for k, ((name, image, orientation, model), ring) in enumerate(zip(images, rings), start=1):
-        kind, sensor = describe_model(model)
-        feat = ogr.Feature(table.GetLayerDefn())
-        feat.SetFID(k)
-        cols, rows = model.size
-        for key, value in [("name", name), ("image_path", os.path.abspath(image) if image else ""),
-                           ("orientation_path", os.path.abspath(orientation)), ("model_kind", kind),
-                           ("sensor", sensor), ("cols", int(cols)), ("rows", int(rows)),
-                           ("model", json.dumps(model_to_dict(model))),
-                           (SUPPLIED, json.dumps(model_to_dict(model)))]:
-            feat[key] = value
-        table.CreateFeature(feat)
-        poly = ogr.Geometry(ogr.wkbPolygon)
-        lr = ogr.Geometry(ogr.wkbLinearRing)
-        for lon, lat in ring:
-            lr.AddPoint_2D(float(lon), float(lat))
-        poly.AddGeometry(lr)
-        feat = ogr.Feature(footprints.GetLayerDefn())
-        feat.SetFID(k)
-        feat["image_id"], feat["name"] = k, name
-        feat.SetGeometry(poly)
-        footprints.CreateFeature(feat)
 
 
 def create_schema(path):
@@ -155,85 +58,6 @@ def create_schema(path):
     create_layer(ds, "run_log", ogr.wkbNone, None, [("time", ogr.OFTString), ("step", ogr.OFTString),
                                                       ("parameters", ogr.OFTString), ("message", ogr.OFTString)])
     return ds
-
-
-def read_images(path):
-    """The images table of a block as a list of dicts (id, name, image_path, ...)."""
-    ds = open_block(path)
-    rows = []
-    for feat in ds.GetLayerByName("images"):
-        row = {"id": feat.GetFID()}
-        row.update({name: feat[name] for name, _ in IMAGE_FIELDS if name != "model"})
-        rows.append(row)
-    return rows
-
-
-def load_model(path, image_id, supplied=False):
-    """The sensor model stored in the block for image `image_id`; with `supplied`, the model the block was
-    created with (module docstring; the stored one in blocks made before the block kept it)."""
-    ds = open_block(path)
-    layer = ds.GetLayerByName("images")
-    feat = layer.GetFeature(int(image_id))
-    if feat is None:
-        raise InputError(f"block {path} has no image with id {image_id}")
-    key = "model"
-    if supplied and layer.GetLayerDefn().GetFieldIndex(SUPPLIED) >= 0 and feat[SUPPLIED]:
-        key = SUPPLIED
-    return model_from_dict(json.loads(feat[key]), f"{key.replace('_', ' ')} of image {image_id} in {path}")
-
-
-def write_models(ds, models, step="adjust", message="", supplied=False):
-    """Replace the stored sensor models of the images {image_id: model} of the open block `ds` (with
-    `supplied`, the supplied models too: a new supplied orientation) and log the step, inside the caller's
-    transaction; bumps generation_models."""
-    layer = ds.GetLayerByName("images")
-    if supplied and layer.GetLayerDefn().GetFieldIndex(SUPPLIED) < 0:
-        layer.CreateField(ogr.FieldDefn(SUPPLIED, ogr.OFTString))
-    for image_id, model in models.items():
-        feat = layer.GetFeature(int(image_id))
-        if feat is None:
-            raise InputError(f"the block has no image with id {image_id}")
-        feat["model"] = json.dumps(model_to_dict(model))
-        if supplied:
-            feat[SUPPLIED] = feat["model"]
-        layer.SetFeature(feat)
-    bump(ds, "models")
-    write_info(ds, {}, step=step, message=message or f"{len(models)} sensor model(s) updated")
-
-
-def save_models(path, models, step="adjust", message="", supplied=False):
-    """`write_models` in one transaction (all or nothing)."""
-    with transaction(path, "the sensor models") as ds:
-        write_models(ds, models, step, message, supplied)
-
-
-def image_name(image_path):
-    """A readable image name: the product folder for DIMAP (…/HRS1/IMAGERY.TIF -> HRS1), else the stem."""
-    stem = os.path.splitext(os.path.basename(image_path))[0]
-    if stem.upper() == "IMAGERY" or os.path.basename(image_path).upper() == "METADATA.DIM":
-        return os.path.basename(os.path.dirname(os.path.abspath(image_path))) or stem
-    return stem
-
-
-def open_images(image_paths, orientation_paths=None):
-    """(name, image path, orientation path, model) per image; orientation found beside the image
-    unless given (same order)."""
-    from . import sensors
-    orientation_paths = list(orientation_paths or [])
-    if orientation_paths and len(orientation_paths) != len(image_paths):
-        raise InputError(f"{len(orientation_paths)} orientation files for {len(image_paths)} images: "
-                         "give one per image, in the same order, or none")
-    result, seen = [], set()
-    for k, image in enumerate(image_paths):
-        orientation = orientation_paths[k] if orientation_paths else sensors.orientation_source(image)
-        model = sensors.load(orientation, image=image)
-        name = image_name(image)
-        unique, n = name, 2
-        while unique in seen:
-            unique, n = f"{name}_{n}", n + 1
-        seen.add(unique)
-        result.append((unique, image, orientation, model))
-    return result
 
 
 #: ms a connection waits for another connection's lock (QGIS saving an edit of one of the block's layers, a step
@@ -437,3 +261,10 @@ def update_info(path, values, step=None, message=""):
     """Set block_info keys (a dict) and, with `step`, append a run_log row, in one transaction."""
     with transaction(path, "the block information") as ds:
         write_info(ds, values, step, message)
+
+
+def read_run_log(path):
+    """The run_log table (time, step, parameters, message) as a list of dicts, oldest first."""
+    ds = open_block(path)
+    return [{key: feat[key] for key in ("time", "step", "parameters", "message")}
+            for feat in ds.GetLayerByName("run_log")]

@@ -1,17 +1,18 @@
 """The block creation step (pushbroom:createblock): images and their supplied orientation into a new
 block GeoPackage.
 
-`create_block(output, images, params, feedback)` opens each image's sensor model (block.open_images:
+`create_block(output, images, params, feedback)` opens each image's sensor model (Block.open_images:
 SPOT 1-5 DIMAP, RPC tags or _RPC.TXT/.RPB files, OSSIM .geom; the orientation files found beside the
 images unless given, one per image in the same order), reads the optional DEM (ellipsoidal heights;
 implausible heights are warned about, a void value can be declared as nodata) and stores the block
-(block.create_block: footprints on the DEM or at the mean height, the terrain height range). An existing
+(Block.create: footprints on the DEM or at the mean height, the terrain height range). An existing
 block is only replaced with `overwrite`."""
 from dataclasses import dataclass, field
 from typing import Optional
 
-from . import block, progress
-from .dem import Dem
+from .. import progress
+from ..block import Block
+from ..dem import Dem
 
 
 @dataclass
@@ -43,10 +44,10 @@ def create_block(output, images, params, feedback=None):
     if params.dem:
         dem = Dem.from_file(params.dem, params.dem_nodata)
         progress.warn(feedback, dem.implausible)
-    opened = block.open_images(images, [p for p in params.orientation if p])
+    opened = Block.open_images(images, [p for p in params.orientation if p])
     # storage: the new block
-    block.create_block(output, opened, height=params.height, dem=dem, overwrite=params.overwrite, feedback=feedback)
+    Block.create(output, opened, height=params.height, dem=dem, overwrite=params.overwrite, feedback=feedback)
     progress.ensure(feedback).pushInfo(f"block {output}: " + ", ".join(
         f"{name} ({model.size[0]} x {model.size[1]})" for name, _, _, model in opened))
-    return CreateResult(output, f"{output}|layername=footprints",
+    return CreateResult(output, Block(output).layer_source("footprints"),
                         [(name, model.size[0], model.size[1]) for name, _, _, model in opened])

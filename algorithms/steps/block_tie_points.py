@@ -4,10 +4,10 @@ stored with the block: the sidecar <block>.tie_points.npz referenced in block_in
 'tie_points' placed through the reference image's model at the block's mean terrain height."""
 from dataclasses import dataclass
 
-from .. import block, progress
+from .. import progress
+from ..block import Block
 from ..height_range import mean_height
-from . import points
-from .tiepoints import select_tie_points
+from ..matching.tiepoints import select_tie_points
 
 
 @dataclass
@@ -30,12 +30,12 @@ class TieResult:
 def select_block_tie_points(block_path, params, feedback=None):
     """Select and store the tie points of the block at `block_path` with TieParams `params`; returns a
     TieResult. Raises InputError (a cell size that is not positive, no mass points)."""
-    mass = points.load_points(block_path, "mass_points")
+    blk = Block(block_path)
+    mass = blk.points("mass_points")
     tie = select_tie_points(mass, cell=params.cell, min_group=params.min_group)
     reference = tie.stats.get("tie_reference", (mass.stats.get("images") or [1])[0])
     progress.ensure(feedback).pushInfo(f"{len(tie)} tie points from {len(mass)} mass points: "
                                        + ", ".join(f"group {g}: {n}" for g, n in tie.group_counts().items()))
     # storage: the sidecar and the point layer
-    npz = points.save_points(block_path, tie, "tie_points", display=(
-        block.load_model(block_path, reference), reference, mean_height(block.height_range(block_path))))
-    return TieResult(len(tie), npz, points.layer_source(block_path, "tie_points"))
+    npz = blk.save_points(tie, "tie_points", display=(blk.model(reference), reference, mean_height(blk.height_range())))
+    return TieResult(len(tie), npz, blk.layer_source("tie_points"))

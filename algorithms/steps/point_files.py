@@ -5,7 +5,8 @@ from dataclasses import dataclass
 from typing import Optional
 
 from .. import progress
-from . import control_points as cp
+from ..adjustment import control_points as cp
+from ..block import Block
 from ..sigmas import IMAGE_SIGMA
 
 
@@ -40,20 +41,22 @@ def import_points(block_path, csv_path, params, feedback=None):
     """Import the CSV file `csv_path` into the block at `block_path` with ImportParams `params`; returns
     an ImportResult. Raises control_points.import_csv's InputErrors (format, CRS, implausible points)."""
     # storage: control_points.import_csv writes the points and measurements in one transaction
+    blk = Block(block_path)
     stored = cp.import_csv(
-        block_path, csv_path, mode=params.mode, feedback=feedback, crs=params.crs, heights=params.heights,
+        blk, csv_path, mode=params.mode, feedback=feedback, crs=params.crs, heights=params.heights,
         default_role=params.default_role, check_ids=[c.strip() for c in (params.check_ids or "").split(",")],
         sigmas=(params.sigma_e, params.sigma_n, params.sigma_h), image_sigma=params.image_sigma,
         suffix=params.suffix, keep_implausible=params.keep_implausible)
-    progress.ensure(feedback).pushInfo("points in the block: " + cp.summary(stored, cp.image_ids(block_path)))
+    progress.ensure(feedback).pushInfo("points in the block: " + cp.summary(stored, blk.image_ids()))
     roles = stored.points["role"]
     return ImportResult(int((roles == "control").sum()), int((roles == "check").sum()), len(stored.measurements),
-                        f"{block_path}|layername={cp.LAYER}")
+                        blk.layer_source(Block.CONTROL_LAYER))
 
 
 def export_points(block_path, csv_path, feedback=None):
     """Write the block's control and check points to `csv_path` in the format import_points reads;
     returns `csv_path`. Raises InputError when the block has no points."""
-    stored = cp.export_csv(block_path, csv_path)
-    progress.ensure(feedback).pushInfo(f"{csv_path}: " + cp.summary(stored, cp.image_ids(block_path)))
+    blk = Block(block_path)
+    stored = cp.export_csv(blk, csv_path)
+    progress.ensure(feedback).pushInfo(f"{csv_path}: " + cp.summary(stored, blk.image_ids()))
     return csv_path

@@ -13,7 +13,7 @@ and tie points and store the result.
 4. intersects the check points with the adjusted models, compares the adjusted tie point heights
    with a reference DTM (tie_heights.py; Kornus et al. 2006 Table 4) and builds the residual vectors;
 5. stores the adjusted models and the residuals in one block transaction, refused when the block's
-   control points, tie points or models changed since step 1 (block.generations);
+   control points, tie points or models changed since step 1 (Block.generations);
 6. writes the HTML report and the residual vector file when asked.
 
 A block without control points can only be adjusted with named free parameters and priors that fix
@@ -21,24 +21,24 @@ the datum (InputError otherwise)."""
 from dataclasses import dataclass
 from typing import Optional
 
-from .. import block, progress
+from .. import progress
+from ..adjustment import report
+from ..adjustment.bundle import CRITICAL_W, adjust, check_points
+from ..adjustment.control_points import HEIGHT_TYPES
+from ..adjustment.control_series import control_point_series
+from ..adjustment.observations import tie_observations
+from ..adjustment.parameters import MODELS
+from ..adjustment.residual_rows import residual_rows
+from ..adjustment.residual_vectors import DEFAULT_SCALE, residual_vectors, write_residual_vectors
+from ..adjustment.selection import select_parameters
+from ..adjustment.tie_heights import tie_height_differences
+from ..adjustment.variance import adjust_with_components
+from ..block import Block
 from ..dem import Dem
 from ..errors import InputError
 from ..height_range import mean_height
-from ..matching import points
-from ..measurement.residual_store import residual_rows, write_residuals
-from ..stats import statistics_table
-from . import report
-from .bundle import CRITICAL_W, adjust, check_points
-from .control_points import HEIGHT_TYPES, load_control_points
-from .control_series import control_point_series
 from ..sigmas import IMAGE_SIGMA
-from .observations import tie_observations
-from .parameters import MODELS
-from .residual_vectors import DEFAULT_SCALE, residual_vectors, write_residual_vectors
-from .selection import select_parameters
-from .tie_heights import tie_height_differences
-from .variance import adjust_with_components
+from ..stats import statistics_table
 
 #: the free parameters "auto" stands for with the Lagrange model: attitude and offsets (the header
 #: positions enter as priors)
@@ -149,23 +149,24 @@ def _solve(models, obs, names, params, options, feedback):
 def adjust_block(block_path, params, feedback=None):
     """Adjust the block at `block_path` with AdjustParams `params` (module docstring); returns an
     AdjustResult. Raises InputError (settings, no control points), the solvers' errors, and
-    block.transaction's StorageError when the block changed meanwhile. A reference DTM that holds no
+    Block.transaction's StorageError when the block changed meanwhile. A reference DTM that holds no
     adjusted tie point is a warning (the height table is empty)."""
     params.check()
     priors = parse_priors(params.priors)
-    block.check_writable(block_path, "the adjusted models")
-    generations = block.generations(block_path)
-    rows = block.read_images(block_path)
-    models = {r["id"]: block.load_model(block_path, r["id"], supplied=True) for r in rows}
+    blk = Block(block_path)
+    blk.check_writable("the adjusted models")
+    generations = blk.generations()
+    rows = blk.images()
+    models = {r["id"]: blk.model(r["id"], supplied=True) for r in rows}
     names = {r["id"]: r["name"] for r in rows}
-    obs = load_control_points(block_path)
+    obs = blk.control_points()
     if params.use_tie_points:
-        obs = obs.concatenate(tie_observations(points.load_points(block_path, "tie_points"), params.sigma_tie))
+        obs = obs.concatenate(tie_observations(blk.points("tie_points"), params.sigma_tie))
     if not (obs.points["role"] == "control").any() and (params.auto or not priors):
         raise InputError("the block has no control points: import them (pushbroom:importpoints), or adjust "
                          "with tie points alone by naming the free parameters and priors that fix the "
                          "datum (e.g. FREE bias:shift, PRIORS bias:shift=10 for RPC images)")
-    height = mean_height(block.height_range(block_path))
+    height = mean_height(blk.height_range())
     dem = None
     if params.reference_dem:
         dem = Dem.from_file(params.reference_dem, params.reference_dem_nodata)
@@ -175,7 +176,7 @@ def adjust_block(block_path, params, feedback=None):
     result, obs, free, extra = _solve(models, obs, names, params, options, feedback)
     counts = parse_counts(params.control_series)
     if counts:
-        series = control_point_series({r["id"]: block.load_model(block_path, r["id"], supplied=True) for r in rows},
+        series = control_point_series({r["id"]: blk.model(r["id"], supplied=True) for r in rows},
                                       obs, counts, free, names=names, feedback=feedback,
                                       **{k: v for k, v in options.items() if k != "remove_blunders"})
         extra.append(report.series_section(series))
@@ -190,16 +191,15 @@ def adjust_block(block_path, params, feedback=None):
             progress.warn(feedback, "no adjusted tie point lies on the reference DTM: the tie point height table "
                           "is empty (use the block's tie points and a DTM that covers the block)")
     vectors, crs = residual_vectors(result, check, obs, params.vector_scale,
-                                    block.read_info(block_path).get("default_crs"), params.critical)
+                                    blk.info().get("default_crs"), params.critical)
     parts = report.sections(result, check, table, params.critical, heights, vectors)
     parts[1:1] = extra
     progress.ensure(feedback).pushInfo(report.render_text(parts))
     residuals = residual_rows(result, check, obs)
     # storage: the adjusted models and the residuals in one transaction, if the block is unchanged
-    with block.transaction(block_path, "the adjusted models and residuals", expect=generations) as ds:
-        block.write_models(ds, models, step="bundleadjust",
-                           message=f"sigma_0 {result.sigma0:.4f}, free: {', '.join(free)}")
-        write_residuals(ds, *residuals)
+    with blk.transaction("the adjusted models and residuals", expect=generations) as tx:
+        tx.write_models(models, step="bundleadjust", message=f"sigma_0 {result.sigma0:.4f}, free: {', '.join(free)}")
+        tx.write_residuals(*residuals)
     out = AdjustResult(result.sigma0)
     if params.report:
         out.report = report.write_html(params.report, f"Bundle adjustment of {block_path}", parts=parts)

@@ -13,13 +13,13 @@ from typing import Optional
 
 import numpy as np
 
-from .. import block, progress
+from .. import progress
+from ..adjustment import report
+from ..block import Block
 from ..errors import InputError
 from ..height_range import mean_height
-from ..matching import points
 from ..sensors import rpc_fit
 from ..surface.intersection import height_differences
-from . import report
 
 
 @dataclass
@@ -70,7 +70,7 @@ def cube_heights(block_path, h_min, h_max):
     if h_min is not None or h_max is not None:
         raise InputError("give both the lowest and the highest height of the RPC cube, or neither (then the "
                          "block's terrain height range is used, widened by a margin)")
-    terrain = block.height_range(block_path)
+    terrain = Block(block_path).height_range()
     if terrain is None:
         raise InputError(f"block {block_path} records no terrain height range: give the lowest and highest "
                          "heights of the RPC cube")
@@ -80,15 +80,16 @@ def cube_heights(block_path, h_min, h_max):
 def rpc_height_check(block_path, rpcs):
     """The summary of surface.intersection.height_differences on the block's tie points, when the
     block has tie points and RPCs were fitted for all their images ("" otherwise)."""
-    if "tie_points" not in block.read_info(block_path):
+    blk = Block(block_path)
+    if "tie_points" not in blk.info():
         return ""
-    obs = points.load_points(block_path, "tie_points").observations
+    obs = blk.points("tie_points").observations
     images = set(np.unique(obs["image_id"]).tolist())
     if not images or not images <= set(rpcs):
         return ""
-    rigorous = {i: block.load_model(block_path, i) for i in images}
+    rigorous = {i: blk.model(i) for i in images}
     return height_differences(rigorous, {i: rpcs[i] for i in images}, obs["image_id"], obs["point_id"],
-                              obs["col"], obs["row"], h0=mean_height(block.height_range(block_path))).summary()
+                              obs["col"], obs["row"], h0=mean_height(blk.height_range())).summary()
 
 
 def _destinations(rows, params):
@@ -108,14 +109,15 @@ def fit_block_rpcs(block_path, params, feedback=None):
     returns an RpcResult. Raises InputError (an unknown image, no height range, a destination that
     exists or cannot be written), rpc_fit's errors, CancelledError when cancelled."""
     params.check()
-    rows = selected_images(block.read_images(block_path), params.image)
+    blk = Block(block_path)
+    rows = selected_images(blk.images(), params.image)
     heights = cube_heights(block_path, params.min_height, params.max_height)
     grid = (params.grid, params.grid, params.height_levels)
     destinations = _destinations(rows, params)
     fitted = []
     for k, row in enumerate(rows):
         progress.step(feedback, 95.0 * k / len(rows), f"fitting the RPC of {row['name']}")
-        fitted.append(rpc_fit.fit_rpc(block.load_model(block_path, row["id"]), heights, grid,
+        fitted.append(rpc_fit.fit_rpc(blk.model(row["id"]), heights, grid,
                                       feedback=progress.scaled(feedback, 95.0 * k / len(rows),
                                                                95.0 * (k + 1) / len(rows))))
     progress.step(feedback, 95.0)
@@ -133,7 +135,7 @@ def fit_block_rpcs(block_path, params, feedback=None):
                 + comparison
     progress.ensure(feedback).pushInfo(text)
     # storage: the step in the block's history
-    block.update_info(block_path, {}, step="fitrpc",
+    blk.update_info({}, step="fitrpc",
                       message="; ".join(f"{name}: {written}" for name, written, _ in entries))
     out = RpcResult([written for _, written, _ in entries])
     if params.report:

@@ -1,7 +1,8 @@
 """Residuals of the last bundle adjustment, kept in the block for the measurement window (issue 6).
 
-Written by `save_residuals` (pushbroom:bundleadjust calls it after storing the adjusted models), all
-in one SQLite transaction, replacing what an earlier adjustment stored:
+Written by `write_residuals` inside the transaction that stores the adjusted models
+(pushbroom:bundleadjust), replacing what an earlier adjustment stored; the rows come from
+adjustment/residual_rows.py (`residual_rows`):
 
 - table `measurement_residuals` (point_name, image_id, role, vx, vy, wx, wy): per image measurement
   of a control or check point the residual v = computed - measured (px; x = col, y = row) and the
@@ -22,10 +23,7 @@ until the next adjustment)."""
 import numpy as np
 from osgeo import ogr
 
-from .. import block
-from ..adjustment import control_points as cp
-from ..adjustment.residual_vectors import intersection_residuals, per_point
-from ..geodesy import offset_enu
+from . import control_points as cp, schema
 
 MEASUREMENT_TABLE, POINT_TABLE, FIELD = "measurement_residuals", "point_residuals", "residual_px"
 MEASUREMENT_FIELDS = [("point_name", ogr.OFTString), ("image_id", ogr.OFTInteger), ("role", ogr.OFTString)] + [
@@ -34,52 +32,11 @@ POINT_FIELDS = [("point_name", ogr.OFTString), ("role", ogr.OFTString)] + [
     (key, ogr.OFTReal) for key in ("dE", "dN", "dH", "image_rms_px")]
 
 
-def check_residuals(models, check, observations):
-    """(names, measurements, v, w, rms): the image residuals of the check points of
-    bundle.check_points' dict `check`, at their intersected positions (reference + dE, dN, dH)
-    reprojected with the adjusted `models`: `measurements` (MEAS_DTYPE, `point` indexing `names`)
-    are their measurements in `observations`, v and w (M, 2) residuals (px) and normalised
-    residuals, rms (px) per point."""
-    names = [str(n) for n in check["names"]]
-    chk = observations.subset(np.isin(observations.points["name"], names))
-    row_of = {n: k for k, n in enumerate(names)}
-    rows = np.array([row_of[n] for n in chk.points["name"].tolist()], np.int64)
-    d = np.column_stack([check["dE"], check["dN"], check["dH"]]).reshape(-1, 3)[rows]
-    pts, meas = chk.points, chk.measurements
-    if not len(meas):
-        return pts["name"], meas, np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(len(pts))
-    lon, lat, h = offset_enu(pts["lon"], pts["lat"], pts["h"], d)
-    v, r = intersection_residuals(models, lon, lat, h, meas)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        w = v / (meas["sigma"][:, None] * np.sqrt(np.clip(r, 1e-12, None)))
-    rms, _ = per_point(meas["point"], len(pts), v, w)
-    return pts["name"], meas, v, w, rms
-
-
-def residual_rows(adjustment, check, observations):
-    """(measurement rows, point rows) of the tables (module docstring): tuples in MEASUREMENT_FIELDS
-    and POINT_FIELDS order, control points first, then check points."""
-    obs = adjustment.observations
-    roles = obs.points["role"]
-    m = obs.measurements
-    rms, _ = per_point(m["point"], len(obs.points), adjustment.residuals, adjustment.normalised)
-    keep = roles[m["point"]] == "control"
-    meas_rows = [(str(obs.points["name"][k["point"]]), int(k["image_id"]), "control", *v, *w)
-                 for k, v, w in zip(m[keep], adjustment.residuals[keep], adjustment.normalised[keep])]
-    point_rows = [(str(obs.points["name"][p]), "control", *adjustment.ground_residuals[p], rms[p])
-                  for p in np.flatnonzero(roles == "control")]
-    names, meas, v, w, rms = check_residuals(adjustment.parameters.models, check, observations)
-    meas_rows += [(str(names[k["point"]]), int(k["image_id"]), "check", *vk, *wk) for k, vk, wk in zip(meas, v, w)]
-    d = {str(n): (e, nn, h) for n, e, nn, h in zip(check["names"], check["dE"], check["dN"], check["dH"])}
-    point_rows += [(str(n), "check", *d[str(n)], rms[k]) for k, n in enumerate(names)]
-    return meas_rows, point_rows
-
-
 def _table(ds, name, fields):
     """The (emptied) residual table `name` of an open block, created if missing."""
     layer = ds.GetLayerByName(name)
     if layer is None:
-        return block.create_layer(ds, name, ogr.wkbNone, None, fields)
+        return schema.create_layer(ds, name, ogr.wkbNone, None, fields)
     ds.ExecuteSQL(f"DELETE FROM {name}")
     return layer
 
@@ -113,24 +70,11 @@ def write_residuals(ds, meas_rows, point_rows):
         points.SetFeature(feat)
 
 
-def save_residuals(block_path, adjustment, check, observations=None):
-    """Store the residuals of `adjustment` (bundle.Adjustment, its models adjusted) and of the check
-    points `check` (bundle.check_points' dict) in the block, replacing earlier ones, in one
-    transaction (module docstring). `observations` hold the check points' measurements (default:
-    the block's control/check points). Returns (measurement rows, point rows) written."""
-    if observations is None:
-        observations = cp.load_control_points(block_path)
-    meas_rows, point_rows = residual_rows(adjustment, check, observations)
-    with block.transaction(block_path, "the residuals") as ds:
-        write_residuals(ds, meas_rows, point_rows)
-    return meas_rows, point_rows
-
-
 def load_residuals(block_path):
     """({(point name, image id): (vx, vy, wx, wy)}, {point name: (dE, dN, dH, image_rms_px)}) of the
     last adjustment, for the points the block holds now (NaN where a value is undefined); two empty
     dicts before any adjustment."""
-    ds = block.open_block(block_path)
+    ds = schema.open_block(block_path)
     points = ds.GetLayerByName(cp.LAYER)
     tables = ds.GetLayerByName(MEASUREMENT_TABLE), ds.GetLayerByName(POINT_TABLE)
     if points is None or None in tables:

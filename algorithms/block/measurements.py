@@ -1,12 +1,12 @@
 """Single edits of a block's control/check points and their image measurements (the measurement
 window, issue 6), in the block's layer `control_points` and table `image_measurements`
-(adjustment/control_points.py).
+(control_points.py).
 
 Every edit is ONE SQLite transaction, committed before the method returns: a killed process loses
 nothing already returned, and an edit that fails (a refused value, a locked or broken file) leaves
 the block as it was. Each edit opens the block anew (no connection kept between edits, so edits from
 a background adjustment or QGIS's own layer never meet stale state), takes the write lock first
-(block.transaction: waiting up to BUSY_TIMEOUT_MS for another writer) and updates block_info's counts control_points,
+(schema.transaction: waiting up to BUSY_TIMEOUT_MS for another writer) and updates block_info's counts control_points,
 check_points and image_measurements in the same transaction, without a run_log row per edit.
 
 Records handed back for undo: points as POINT_DTYPE records; measurements as MEAS_DTYPE records
@@ -17,11 +17,13 @@ import os
 
 import numpy as np
 
-from .. import block
-from ..adjustment import control_points as cp
+from ..adjustment.control_points import NAME_LENGTH, ROLES
 from ..adjustment.observations import MEAS_DTYPE, POINT_DTYPE
 from ..errors import InputError
 from ..sigmas import IMAGE_SIGMA
+from . import control_points as cp, schema
+from .images import read_images
+
 
 def _quoted(text):
     """`text` as an SQL string literal."""
@@ -31,8 +33,8 @@ def _quoted(text):
 def check_name(name):
     """The point name `name`, or InputError: 1 to 32 characters, no leading or trailing spaces."""
     name = str(name)
-    if not name.strip() or len(name) > cp.NAME_LENGTH:
-        raise InputError(f"a point name must have 1 to {cp.NAME_LENGTH} characters, got {name!r}")
+    if not name.strip() or len(name) > NAME_LENGTH:
+        raise InputError(f"a point name must have 1 to {NAME_LENGTH} characters, got {name!r}")
     if name != name.strip():
         raise InputError(f"a point name must not begin or end with spaces, got {name!r}")
     return name
@@ -41,8 +43,8 @@ def check_name(name):
 def point_record(name, role, lon, lat, h, sigma_e, sigma_n, sigma_h):
     """A checked POINT_DTYPE record (InputError naming the bad value)."""
     name = check_name(name)
-    if role not in cp.ROLES:
-        raise InputError(f"point {name}: the role must be one of {', '.join(cp.ROLES)}, not {role!r}")
+    if role not in ROLES:
+        raise InputError(f"point {name}: the role must be one of {', '.join(ROLES)}, not {role!r}")
     try:
         values = [float(v) for v in (lon, lat, h, sigma_e, sigma_n, sigma_h)]
     except (TypeError, ValueError):
@@ -95,7 +97,7 @@ class MeasurementStore:
 
     def __init__(self, block_path):
         self.path = os.fspath(block_path)
-        self.images = {int(r["id"]): r for r in block.read_images(self.path)}
+        self.images = {int(r["id"]): r for r in read_images(self.path)}
 
     # -- reading --------------------------------------------------------------------------------
 
@@ -106,7 +108,7 @@ class MeasurementStore:
 
     def snapshot(self, name):
         """(point record, its measurements) as stored, or None: what restore() needs to put it back."""
-        ds = block.open_block(self.path)
+        ds = schema.open_block(self.path)
         points, table = ds.GetLayerByName(cp.LAYER), ds.GetLayerByName(cp.TABLE)
         feat = _find(points, f"name = {_quoted(name)}") if points is not None else None
         if feat is None:
@@ -120,7 +122,7 @@ class MeasurementStore:
     def _edit(self):
         """(data source, points layer, measurement table) inside one `transaction`, with
         block_info's counts written before the commit."""
-        with block.transaction(self.path) as ds:
+        with schema.transaction(self.path) as ds:
             points, table = cp.layers(ds)
             yield ds, points, table
             self._write_counts(ds)
@@ -130,13 +132,13 @@ class MeasurementStore:
         counts = {"control_points": 0, "check_points": 0}
         result = ds.ExecuteSQL(f"SELECT role, COUNT(*) AS n FROM {cp.LAYER} GROUP BY role")
         for feat in result:
-            if feat["role"] in cp.ROLES:
+            if feat["role"] in ROLES:
                 counts[f"{feat['role']}_points"] = feat["n"]
         ds.ReleaseResultSet(result)
         result = ds.ExecuteSQL(f"SELECT COUNT(*) AS n FROM {cp.TABLE}")
         counts["image_measurements"] = result.GetNextFeature()["n"]
         ds.ReleaseResultSet(result)
-        block.write_info(ds, counts)
+        schema.write_info(ds, counts)
 
     def _point_feature(self, points, name, required=True):
         feat = _find(points, f"name = {_quoted(name)}")

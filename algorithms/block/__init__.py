@@ -1,0 +1,168 @@
+"""The block: one GeoPackage per block and the point files beside it, read and written only through `Block`.
+
+The submodules hold the implementation by concern: schema.py (tables, opening, transactions, generation
+counters, block_info), images.py (creation, images table, sensor models), points.py (mass and tie points:
+versioned .npz sidecars and their display layers), control_points.py (control/check points and image
+measurements), measurements.py (single edits of those, for the measurement window) and residuals.py (the
+last adjustment's residuals). Code outside this package goes through `Block`."""
+import contextlib
+import os
+
+from . import control_points, images, measurements, points, residuals, schema
+
+
+class Transaction:
+    """Writes inside one `Block.transaction`: all are committed together when the `with` block ends, or none."""
+
+    def __init__(self, ds):
+        self._ds = ds
+
+    def write_models(self, models, step="adjust", message="", supplied=False):
+        """Replace the sensor models {image_id: model} (with `supplied`, the supplied models too) and log
+        the step; bumps the models' generation."""
+        images.write_models(self._ds, models, step, message, supplied)
+
+    def write_residuals(self, meas_rows, point_rows):
+        """Replace the residual tables and the control points' residual_px (adjustment/residual_rows.py's
+        residual_rows)."""
+        residuals.write_residuals(self._ds, meas_rows, point_rows)
+
+    def write_info(self, values, step=None, message=""):
+        """Set block_info keys (a dict) and, with `step`, append a run_log row."""
+        schema.write_info(self._ds, values, step, message)
+
+
+class Block:
+    """The block GeoPackage `path` (.gpkg) and its point files. Every method opens the block anew (no
+    connection is kept); each write is one SQLite transaction (schema.py)."""
+
+    #: the kinds of multi-image points a block stores (points.py)
+    POINT_KINDS = points.KINDS
+    #: the ways to store control points: replace the stored ones, or merge into them (control_points.py)
+    IMPORT_MODES = control_points.MODES
+    #: the layer of the control/check points
+    CONTROL_LAYER = control_points.LAYER
+
+    def __init__(self, path):
+        self.path = os.fspath(path)
+
+    def __repr__(self):
+        return f"Block({self.path!r})"
+
+    # -- creation ---------------------------------------------------------------------------------
+
+    @staticmethod
+    def open_images(image_paths, orientation_paths=None):
+        """(name, image path, orientation path, model) per image, the input of `create` (images.py)."""
+        return images.open_images(image_paths, orientation_paths)
+
+    @classmethod
+    def create(cls, path, image_list, height=0.0, dem=None, overwrite=False, feedback=None):
+        """Create the block `path` from `image_list` (`open_images`), footprints on `dem` or at `height`;
+        refuses to replace an existing block unless `overwrite` (images.create_block). Returns the Block."""
+        return cls(images.create_block(path, image_list, height, dem, overwrite, feedback))
+
+    # -- block information, generations, transactions ---------------------------------------------
+
+    def info(self):
+        """The block_info table as a dict."""
+        return schema.read_info(self.path)
+
+    def update_info(self, values, step=None, message=""):
+        """Set block_info keys and, with `step`, append a run_log row, in one transaction."""
+        schema.update_info(self.path, values, step, message)
+
+    def run_log(self):
+        """The run_log rows (dicts: time, step, parameters, message), oldest first."""
+        return schema.read_run_log(self.path)
+
+    def height_range(self):
+        """The terrain height range (min, max) recorded at the block's creation, or None."""
+        return schema.height_range(self.path)
+
+    def generations(self):
+        """{part: generation} of the block now (schema.py)."""
+        return schema.generations(self.path)
+
+    def check_writable(self, what="the results"):
+        """StorageError now where the block cannot be written (locked, read-only, damaged)."""
+        schema.check_writable(self.path, what)
+
+    @contextlib.contextmanager
+    def transaction(self, what="the edit", expect=None):
+        """A `Transaction` holding the block's write lock; committed when the `with` block ends, rolled back
+        on any error; refused (StorageError, nothing written) if a generation of `expect` changed
+        (schema.transaction)."""
+        with schema.transaction(self.path, what, expect) as ds:
+            yield Transaction(ds)
+
+    def layer_source(self, layer_name):
+        """The OGR source string of the block's layer `layer_name`."""
+        return f"{self.path}|layername={layer_name}"
+
+    # -- images and sensor models ----------------------------------------------------------------
+
+    def images(self):
+        """The images table as a list of dicts (id, name, image_path, orientation_path, model_kind, ...)."""
+        return images.read_images(self.path)
+
+    def image_ids(self):
+        """{image name: image id}, in block order."""
+        return images.image_ids(self.path)
+
+    def model(self, image_id, supplied=False):
+        """The stored sensor model of image `image_id`; with `supplied`, the one the block was created with."""
+        return images.load_model(self.path, image_id, supplied)
+
+    def save_models(self, models, step="adjust", message="", supplied=False):
+        """`Transaction.write_models` in a transaction of its own."""
+        images.save_models(self.path, models, step, message, supplied)
+
+    def footprints(self):
+        """[(name, WKT polygon)] of the image footprints (EPSG:4326)."""
+        return images.read_footprints(self.path)
+
+    # -- multi-image points ----------------------------------------------------------------------
+
+    def points(self, kind="mass_points"):
+        """The MultiPoints of `kind` (POINT_KINDS) stored with the block."""
+        return points.load_points(self.path, kind)
+
+    def save_points(self, multi, kind="mass_points", display=None, feedback=None):
+        """Store `multi` (MultiPoints) as the block's points of `kind` and, given `display` = (sensor model,
+        image id, mean height), as its point layer `kind`; returns the sidecar path (points.save_points)."""
+        return points.save_points(self.path, multi, kind, display, feedback)
+
+    def write_point_layer(self, layer_name, multi, model, image_id, height, feedback=None):
+        """(Re)write the display layer `layer_name` of `multi`; returns its source (points.write_point_layer)."""
+        return points.write_point_layer(self.path, layer_name, multi, model, image_id, height, feedback)
+
+    # -- control points, measurements, residuals -------------------------------------------------
+
+    def control_points(self):
+        """The stored control/check points and their image measurements (Observations; empty before any)."""
+        return control_points.load_control_points(self.path)
+
+    def save_control_points(self, observations, mode="replace", feedback=None, names=None):
+        """Store control/check points, replacing or merging into the stored ones (IMPORT_MODES), in one
+        transaction; returns what is stored (control_points.save_control_points)."""
+        return control_points.save_control_points(self.path, observations, mode, feedback, names)
+
+    def create_control_points(self):
+        """Create the (empty) control points layer and measurement table where missing."""
+        with schema.transaction(self.path, "the control points layer") as ds:
+            control_points.layers(ds)
+
+    def measurement_store(self):
+        """A MeasurementStore: single, undoable edits of points and measurements (measurements.py)."""
+        return measurements.MeasurementStore(self.path)
+
+    def save_residuals(self, meas_rows, point_rows):
+        """`Transaction.write_residuals` in a transaction of its own."""
+        with self.transaction("the residuals") as tx:
+            tx.write_residuals(meas_rows, point_rows)
+
+    def residuals(self):
+        """({(point, image id): (vx, vy, wx, wy)}, {point: (dE, dN, dH, image_rms_px)}) of the last
+        adjustment for the points the block holds now; empty before any (residuals.load_residuals)."""
+        return residuals.load_residuals(self.path)
