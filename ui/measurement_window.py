@@ -494,8 +494,8 @@ class MeasurementWindow(QMainWindow):
                 self.image_views[target].center_on(t.col, t.row)
         notes = [f"{session.image_names[target]}: {t.reason}" for target, t in results.items() if not t.ok]
         if session.pending:
-            self.show_message(f"{name}: transfers pending in {', '.join(session.image_names[i] for i in session.pending)}"
-                              " - accept (Return) or reject (Delete)")
+            pending = ", ".join(session.image_names[i] for i in session.pending)
+            self.show_message(f"{name}: transfers pending in {pending} - accept (Return) or reject (Delete)")
         if notes:
             self.show_message(f"{name}: no transfer into " + "; ".join(notes), Qgis.Warning)
 
