@@ -20,6 +20,7 @@ QGIS loses nothing. 'Adjust now' runs pushbroom:bundleadjust in a QgsTask and th
 and the residuals."""
 import math
 import os
+import weakref
 
 from qgis.core import Qgis, QgsProject, QgsRasterLayer
 from qgis.gui import QgsMessageBar
@@ -125,7 +126,10 @@ class MeasurementWindow(QMainWindow):
         self.block_path = os.fspath(block_path)
         self.iface = iface
         self.undo_stack = QUndoStack(self)
-        self.session = MeasurementSession(self.block_path, record=self._push)
+        # the session reaches back weakly: no reference cycle keeps the window's widgets (the QGIS
+        # canvas) alive until a garbage collection, which may run after QGIS has exited
+        push = weakref.WeakMethod(self._push)
+        self.session = MeasurementSession(self.block_path, record=lambda edit: push()(edit))
         self.current_image = next(iter(self.session.image_names), None)
         self.runner = AdjustRunner(self.block_path, self)
         self.runner.finished.connect(self._adjust_finished)
