@@ -1,6 +1,6 @@
 """Shared fixtures: the real test data in SHARED_DATA (skipped with a reason where absent), the
-simulated scenes (each configuration simulated once per run) and the small SPOT 5 triplet most
-engine and plugin tests use."""
+simulated scenes (each configuration simulated once per run), the small SPOT 5 triplet most
+engine and plugin tests use and its marked variant of the measurement tests."""
 import os
 import pathlib
 import sys
@@ -113,6 +113,41 @@ def small_scene_block(small_scene, tmp_path_factory):
     Block.create(path, images, height=float(np.mean([float(r["h"]) for r in rows])))
     return path, rows
 
+
+
+@pytest.fixture(scope="session")
+def marked_scene(simulated):
+    """simulate_scene paths of SceneConfig.small(markers=True): the small triplet with markers painted
+    at its points (signalised control points; the unmarked scene's points lie in uniform fields where
+    matching has nothing to hold on to), shared read-only."""
+    from pushbroom.algorithms.simulation import SceneConfig
+    return simulated(SceneConfig.small(markers=True))
+
+
+@pytest.fixture(scope="session")
+def marked_block(marked_scene, tmp_path_factory):
+    """A template block (copy it before changing it) of the marked scene's HRG, HRS1, HRS2 at the
+    mean height of its points."""
+    import csv
+
+    import numpy as np
+
+    from pushbroom.algorithms.block import Block
+    with open(marked_scene["points"], newline="") as f:
+        height = float(np.mean([float(r["h"]) for r in csv.DictReader(f)]))
+    path = tmp_path_factory.mktemp("marked_block") / "template.gpkg"
+    images = Block.open_images([marked_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
+    Block.create(path, images, height=height)
+    return path
+
+
+@pytest.fixture(scope="session")
+def marked_points(marked_scene):
+    """The marked scene's points: {id: row} (true lon/lat/h, true image positions <image>_col/_row and
+    the simulated measurements <image>_col_meas/_row_meas)."""
+    import csv
+    with open(marked_scene["points"], newline="") as f:
+        return {r["id"]: {k: (v if k == "id" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)}
 
 _EXIT = {"status": 0}
 

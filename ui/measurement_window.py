@@ -10,18 +10,17 @@ Workflow: pick or create a point; a click on the reference sets its ground posit
 map, Z from the DEM), the predictions of the current block models are marked in every image and the
 views jump there; a click in an image measures the point there and least-squares matching transfers
 it into the images where it is not measured yet, as pending results (with rho) to accept or reject.
-A point measured in an image before it has ground coordinates is stored at once (nothing waits in
-memory) at a provisional ground position, the ray of that first measurement intersected with the DEM
-(or the block's mean height), which gives the predictions in the other images. It is stored with a
-priori ground sigmas of PROVISIONAL_SIGMA (1 km): in an adjustment it then acts as a tie point, never
-as control, and the window recognises it after a reopen. A reference click or typed coordinates
-replace the position and give it the sigmas chosen before (else the defaults).
+A point measured in an image before it has ground coordinates is stored at once at a provisional
+ground position.
 
-Every edit is one command on the undo stack that writes through the MeasurementStore (one SQLite
-transaction each), so closing, a crash or a killed QGIS loses nothing. 'Adjust now' runs
-pushbroom:bundleadjust in a QgsTask and then reloads the models and the residuals."""
+The state and the edits are the MeasurementSession's (algorithms/measurement/session.py): the window
+presents it, turns clicks and keys into its calls and pushes each of its edits onto a QUndoStack
+(ui/commands.py). Every edit is written to the block when it is done, so closing, a crash or a killed
+QGIS loses nothing. 'Adjust now' runs pushbroom:bundleadjust in a QgsTask and then reloads the models
+and the residuals."""
 import math
 import os
+import weakref
 
 from qgis.core import Qgis, QgsProject, QgsRasterLayer
 from qgis.gui import QgsMessageBar
@@ -44,15 +43,11 @@ from qgis.PyQt.QtWidgets import (
     QWidget,
 )
 
-from ..algorithms.adjustment import control_points
-from ..algorithms.adjustment.observations import Observations
-from ..algorithms.block import Block
-from ..algorithms.errors import InputError, PushbroomError
+from ..algorithms.errors import PushbroomError
 from ..algorithms.geodesy import metres_per_degree
-from ..algorithms.measurement import georeferencer, prediction, transfer
-from ..algorithms.sigmas import IMAGE_SIGMA
-from . import commands
+from ..algorithms.measurement.session import SIGMA_KEYS, MeasurementSession, residual_magnitudes
 from .adjust_task import AdjustRunner
+from .commands import EditCommand
 from .image_view import ImageView, Marker, Vector
 from .point_editor import PointEditor
 from .point_table import CRITICAL, PointTable
@@ -62,15 +57,6 @@ from .reference_view import ReferenceView
 DETAIL_ZOOM = 4.0
 #: residual vectors: screen px per image px
 VECTOR_SCALE = 40.0
-POINT_PREFIX = "P"
-#: a priori ground sigma (m) of a point whose ground position is provisional (see the module docstring)
-PROVISIONAL_SIGMA = 1000.0
-SIGMA_KEYS = ("sigma_e", "sigma_n", "sigma_h")
-
-
-def is_provisional(values):
-    """True for a point (record or put_point values) stored at a provisional ground position."""
-    return all(float(values[k]) == PROVISIONAL_SIGMA for k in SIGMA_KEYS)
 
 
 def display_aspect(model, h):
@@ -142,9 +128,9 @@ class ImagePane(QFrame):
 
 
 class MeasurementWindow(QMainWindow):
-    """See the module docstring. Scripting methods (the GUI actions call the same): new_point,
-    select_point, edit_point, set_ground, click_image, accept_pending, reject_pending, delete_point,
-    adjust_now (signal adjusted(ok, message)), import_csv, export_csv, import_points_file,
+    """See the module docstring; `session` holds the state. Scripting methods (the GUI actions call the
+    same): new_point, select_point, edit_point, set_ground, click_image, accept_pending, reject_pending,
+    delete_point, adjust_now (signal adjusted(ok, message)), import_csv, export_csv, import_points_file,
     export_points_file."""
 
     adjusted = pyqtSignal(bool, str)
@@ -153,23 +139,12 @@ class MeasurementWindow(QMainWindow):
         super().__init__(parent)
         self.block_path = os.fspath(block_path)
         self.iface = iface
-        self.block = Block(self.block_path)
-        self.store = self.block.measurement_store()
-        rows = self.block.images()
-        self.image_names = {r["id"]: r["name"] for r in rows}
-        self.image_paths = {r["id"]: r["image_path"] for r in rows}
-        heights = self.block.height_range()
-        self.default_height = 0.5 * (heights[0] + heights[1]) if heights else 0.0
-        self.models = self._load_models()
-        self.residuals = self.block.residuals()
-        self.observations = Observations()
-        self.current = None              # name of the current point (stored or a draft)
-        self.draft = None                # values of a new point not stored yet
-        self.intended = {}               # name -> sigmas chosen for a provisional point, used once it has ground
-        self.pending = {}                # image id -> Transfer of the current point, not accepted yet
-        self.transfer_notes = {}         # image id -> why a transfer into it failed
-        self.current_image = rows[0]["id"] if rows else None
         self.undo_stack = QUndoStack(self)
+        # the session reaches back weakly: no reference cycle keeps the window's widgets (the QGIS
+        # canvas) alive until a garbage collection, which may run after QGIS has exited
+        push = weakref.WeakMethod(self._push)
+        self.session = MeasurementSession(self.block_path, record=lambda edit: push()(edit))
+        self.current_image = next(iter(self.session.image_names), None)
         self.runner = AdjustRunner(self.block_path, self)
         self.runner.finished.connect(self._adjust_finished)
         self.setWindowTitle(f"Pushbroom measurement: {os.path.basename(self.block_path)}")
@@ -179,19 +154,18 @@ class MeasurementWindow(QMainWindow):
         self.resize(1280, 800)
 
     # --- construction ----------------------------------------------------------------------------------
-    def _load_models(self):
-        return {i: self.block.model(i) for i in self.image_names}
-
     def _build(self, reference_layers, dem_path):
+        session = self.session
         self.panes, self.image_views = {}, {}
         images = QWidget(self)
         grid = QHBoxLayout(images)
         grid.setContentsMargins(0, 0, 0, 0)
         grid.setSpacing(2)
-        for image_id, name in self.image_names.items():
+        for image_id, name in session.image_names.items():
             pane = ImagePane(image_id, name, images)
             try:
-                pane.view.open(self.image_paths[image_id], display_aspect(self.models[image_id], self.default_height))
+                pane.view.open(session.image_paths[image_id],
+                               display_aspect(session.models[image_id], session.default_height))
             except PushbroomError as exc:      # a moved or deleted raster: the other images stay usable
                 pane.view.title(f"{name}: {exc}")
             pane.view.set_vector_scale(VECTOR_SCALE)
@@ -205,7 +179,7 @@ class MeasurementWindow(QMainWindow):
         layers = reference_layers
         if layers is None:
             layers = self._project_rasters() if self.iface is not None else []
-        self.reference = ReferenceView(self.block_path, layers, dem_path, self.default_height, self)
+        self.reference = ReferenceView(self.block_path, layers, dem_path, session.default_height, self)
         self.reference.clicked.connect(self._reference_clicked)
         self.reference.message.connect(self.show_message)
         top = QSplitter(Qt.Horizontal, self)
@@ -310,7 +284,7 @@ class MeasurementWindow(QMainWindow):
                      tip="Reject the pending LSM transfers of the current point")
         self._action("Delete measurement in current image", self.delete_measurement, ["Shift+Delete"], menu=point)
         point.addSeparator()
-        self._action("Delete point", lambda: self.delete_point(self.current), ["Ctrl+Delete"], work_area=False,
+        self._action("Delete point", lambda: self.delete_point(self.session.current), ["Ctrl+Delete"], work_area=False,
                      menu=point, tip="Delete the current point and its measurements")
         view = bar.addMenu("&View")
         self._action("Zoom to prediction", self.zoom_to_prediction, ["Z"], menu=view, toolbar=tools,
@@ -368,165 +342,98 @@ class MeasurementWindow(QMainWindow):
     def _progress(self, percent):
         self.progress.setValue(int(percent))
 
-    def image_id(self, name):
-        """The block id of the image called `name`."""
-        for image_id, image_name in self.image_names.items():
-            if image_name == name:
-                return image_id
-        raise InputError(f"no image {name!r} in the block; its images are "
-                         f"{', '.join(self.image_names.values())}")
+    def _push(self, edit):
+        """The session's `record`: its edit, done, onto the undo stack (which redraws the window)."""
+        self.undo_stack.push(EditCommand(self.session, edit, self._report))
 
-    # --- state ------------------------------------------------------------------------------------------
-    def _record(self, name):
-        """The stored POINT_DTYPE record of `name`, or None."""
-        points = self.observations.points
-        hit = (points["name"] == name).nonzero()[0]
-        return points[hit[0]] if len(hit) else None
+    def _report(self, text):
+        self.show_message(text, Qgis.Warning)
 
-    def measurements(self, name):
-        """{image id: (col, row, sigma)} stored for point `name`."""
-        points, meas = self.observations.points, self.observations.measurements
-        hit = (points["name"] == name).nonzero()[0]
-        if not len(hit):
-            return {}
-        mine = meas[meas["point"] == hit[0]]
-        return {int(m["image_id"]): (float(m["col"]), float(m["row"]), float(m["sigma"])) for m in mine}
-
-    def ground(self, name):
-        """(lon, lat, h, provisional) of stored point `name`, or None (a draft, no point)."""
-        record = self._record(name) if name is not None else None
-        if record is None:
-            return None
-        return float(record["lon"]), float(record["lat"]), float(record["h"]), is_provisional(record)
-
-    def predictions(self, name):
-        """{image id: (col, row)} of point `name` from the current models (None outside the image)."""
-        ground = self.ground(name)
-        return {} if ground is None else prediction.predict(self.models, *ground[:3])
-
-    def _point_values(self, name):
-        """store.put_point keywords of the current point (stored record, else the draft)."""
-        record = self._record(name)
-        if record is not None:
-            return commands.point_values(record)
-        if self.draft is not None and self.draft["name"] == name:
-            return dict(self.draft)
-        raise InputError(f"no point {name!r}: create it with New point")
-
+    # --- drawing -----------------------------------------------------------------------------------------
     def refresh(self):
-        """Reload the points from the block and redraw the table, the views and the reference."""
-        self.observations = self.store.load()
-        names = set(self.observations.points["name"].tolist())
-        if self.current not in names and (self.draft is None or self.draft["name"] != self.current):
-            self.current, self.pending, self.transfer_notes = None, {}, {}   # undone or renamed by an undo
-        self.table.set_data(self.observations, self.image_names, self.residuals, self.current)
+        """Redraw the table, the views and the reference from the session."""
+        self.table.set_data(self.session.point_summaries(), self.session.image_names, self.session.current)
         self._redraw()
 
     def _redraw(self):
         """Markers and residual vectors in the views, points on the reference, editor, status."""
-        image_res, _ = self.residuals
-        predicted = self.predictions(self.current) if self.current is not None else {}
-        names = self.observations.points["name"]
-        meas = self.observations.measurements
+        session = self.session
+        current = session.current
+        predicted = session.predictions(current) if current is not None else {}
+        measured_here = session.measurements(current)
         for image_id, pane in self.panes.items():
             markers, vectors = [], []
-            for m in meas[meas["image_id"] == image_id]:
-                name = str(names[m["point"]])
-                kind = "selected" if name == self.current else "measurement"
-                markers.append(Marker(float(m["col"]), float(m["row"]), kind, name))
-                res = image_res.get((name, image_id))
+            for name, col, row in session.measured_in(image_id):
+                markers.append(Marker(col, row, "selected" if name == current else "measurement", name))
+                res = session.image_residual(name, image_id)
                 if res is not None:
-                    vx, vy, wx, wy = res
-                    vectors.append(Vector(float(m["col"]), float(m["row"]), vx, vy, max(abs(wx), abs(wy)) > CRITICAL))
+                    vectors.append(Vector(col, row, res[0], res[1], residual_magnitudes(res)[1] > CRITICAL))
             p = predicted.get(image_id)
             if p is not None:
-                markers.append(Marker(p[0], p[1], "prediction", "" if image_id in self.measurements(self.current)
-                                      else self.current))
-            t = self.pending.get(image_id)
+                markers.append(Marker(p[0], p[1], "prediction", "" if image_id in measured_here else current))
+            t = session.pending.get(image_id)
             if t is not None:
-                markers.append(Marker(t.col, t.row, "transfer", f"{self.current} rho {t.rho:.2f}"))
+                markers.append(Marker(t.col, t.row, "transfer", f"{current} rho {t.rho:.2f}"))
             pane.view.set_markers(markers)
             pane.view.set_vectors(vectors)
             pane.set_pending(t is not None)
             text, tip = self._pane_text(image_id, p)
             pane.status.setText(text)
             pane.status.setToolTip(tip)
-        self.reference.set_points(self.observations.points, self.current,
-                                  residual_px={n: g[3] for n, g in self.residuals[1].items()})
+        self.reference.set_points(session.observations.points, current, residual_px=session.residual_px())
         self._show_editor()
-        n = len(self.observations.points)
-        self.point_label.setText(f"{n} point{'s' if n != 1 else ''}, {len(meas)} measurements"
-                                 + (f" | current: {self.current}" if self.current else ""))
+        n, m = len(session.observations.points), len(session.observations.measurements)
+        self.point_label.setText(f"{n} point{'s' if n != 1 else ''}, {m} measurements"
+                                 + (f" | current: {current}" if current else ""))
 
     def _pane_text(self, image_id, predicted):
-        name = self.image_names[image_id]
-        if self.current is None:
+        session = self.session
+        name = session.image_names[image_id]
+        if session.current is None:
             return name, ""
-        ground = self.ground(self.current)
+        ground = session.ground(session.current)
         if ground is not None and ground[3]:
             name += " (provisional)"
-        if image_id in self.pending:
-            t = self.pending[image_id]
+        if image_id in session.pending:
+            t = session.pending[image_id]
             return f"{name}: rho {t.rho:.2f} (pending)", f"LSM transfer: rho {t.rho:.3f}, sigma {t.sigma_px:.3f} px"
-        measured = self.measurements(self.current).get(image_id)
+        measured = session.measurements(session.current).get(image_id)
         if measured is not None:
             return f"{name}: measured", f"measured at col {measured[0]:.2f}, row {measured[1]:.2f}"
-        if image_id in self.transfer_notes:
-            return f"{name}: no transfer", self.transfer_notes[image_id]
+        if image_id in session.transfer_notes:
+            return f"{name}: no transfer", session.transfer_notes[image_id]
         return f"{name}: {'predicted' if predicted is not None else 'outside'}", ""
 
     def _show_editor(self):
-        if self.current is None:
+        current = self.session.current
+        if current is None:
             self.editor.setEnabled(False)
             self.editor.show_point("", "control", (math.nan,) * 3)
             return
         self.editor.setEnabled(True)
-        values = self._point_values(self.current)
-        ground = self.ground(self.current)
+        values = self.session.values(current)
+        ground = self.session.ground(current)
         lon, lat, h = ground[:3] if ground is not None else (math.nan,) * 3
         xy = self.reference.from_wgs84(lon, lat) if math.isfinite(lon) else (math.nan, math.nan)
-        self.editor.show_point(self.current, values["role"], [values[k] for k in SIGMA_KEYS], lon, lat, h, xy)
+        self.editor.show_point(current, values["role"], [values[k] for k in SIGMA_KEYS], lon, lat, h, xy)
 
     # --- points -----------------------------------------------------------------------------------------
-    def free_name(self):
-        """The first unused name P001, P002, ..."""
-        used = set(self.observations.points["name"].tolist())
-        k = 1
-        while f"{POINT_PREFIX}{k:03d}" in used:
-            k += 1
-        return f"{POINT_PREFIX}{k:03d}"
-
-    @staticmethod
-    def _new_values(name, role="control"):
-        sigma_e, sigma_n, sigma_h = control_points.DEFAULT_SIGMAS
-        return {"name": name, "role": role, "lon": math.nan, "lat": math.nan, "h": math.nan,
-                "sigma_e": sigma_e, "sigma_n": sigma_n, "sigma_h": sigma_h}
-
     def new_point(self, name=None, role="control"):
         """Make a new point current (stored once it gets ground coordinates or a measurement); returns
         its name."""
-        name = name or self.free_name()
-        if self._record(name) is not None:
-            raise InputError(f"point {name} exists already: choose another name")
-        if role not in control_points.ROLES:
-            raise InputError(f"role {role!r} is not one of {', '.join(control_points.ROLES)}")
-        self.draft = self._new_values(name, role)
-        self._set_current(name)
+        name = self.session.new_point(name, role)
+        self._show_current()
         self.show_message(f"new point {name}: click it on the reference map or in an image")
         return name
 
-    def _set_current(self, name):
-        if name != self.current:
-            self.pending, self.transfer_notes = {}, {}
-        self.current = name
-        self.table.select(name)
+    def _show_current(self):
+        self.table.select(self.session.current)
         self._redraw()
 
     def select_point(self, name):
         """Make stored point `name` current; the views centre on it."""
-        if self._record(name) is None:
-            raise InputError(f"no point {name!r} in the block")
-        self._set_current(name)
+        self.session.select_point(name)
+        self._show_current()
         self.zoom_to_prediction(zoom=None)
 
     def next_point(self, step=1):
@@ -534,64 +441,24 @@ class MeasurementWindow(QMainWindow):
         names = self.table.names()
         if not names:
             return
-        k = names.index(self.current) + step if self.current in names else (0 if step > 0 else -1)
+        current = self.session.current
+        k = names.index(current) + step if current in names else (0 if step > 0 else -1)
         self.select_point(names[k % len(names)])
 
     def previous_point(self):
         self.next_point(-1)
 
-    def _store_point(self, values):
-        """Create or edit the current point with `values` (undoable)."""
-        record = self._record(values["name"])
-        old = commands.point_values(record) if record is not None else None
-        commands.push(self.undo_stack, commands.PutPoint(self.store, values, old, self._report))
-        if self.draft is not None and self.draft["name"] == values["name"]:
-            self.draft = None
-
     def edit_point(self, name, new_name=None, role=None, sigma_e=None, sigma_n=None, sigma_h=None):
         """Change role and sigmas and rename point `name` (one undo step)."""
-        values = self._point_values(name)
-        changes = {k: v for k, v in (("role", role), ("sigma_e", sigma_e), ("sigma_n", sigma_n),
-                                     ("sigma_h", sigma_h)) if v is not None and v != values[k]}
-        stored = self._record(name) is not None
-        rename = bool(new_name) and new_name != name
-        if rename and self._record(new_name) is not None:
-            raise InputError(f"point {new_name} exists already: choose another name")
-        if not changes and not rename:
-            return
-        self.undo_stack.beginMacro(f"Edit point {name}")
-        try:
-            if changes:
-                values.update(changes)
-                if stored:
-                    self._store_point(values)
-                else:
-                    self.draft = values
-            if rename:
-                if stored:
-                    commands.push(self.undo_stack, commands.RenamePoint(self.store, name, new_name, self._report,
-                                                                        self._renamed))
-                else:
-                    self.draft["name"] = new_name
-                    self._renamed(name, new_name)
-        finally:
-            self.undo_stack.endMacro()
-        self.refresh()
-
-    def _renamed(self, before, after):
-        """Follow a rename (done or undone) in the window's state."""
-        if before in self.intended:
-            self.intended[after] = self.intended.pop(before)
-        if self.current == before:
-            self.current = after
+        if self.session.edit_point(name, new_name, role, sigma_e, sigma_n, sigma_h):
+            self.refresh()
 
     def apply_editor(self, values):
         """The editor's Apply: name, role, sigmas, and the typed coordinates when they changed."""
-        if self.current is None:
+        if self.session.current is None:
             self.new_point(values["name"] or None, values["role"])
-        name = self.current
-        self.edit_point(name, new_name=values["name"] or None, role=values["role"],
-                        **{k: values[k] for k in ("sigma_e", "sigma_n", "sigma_h")})
+        self.edit_point(self.session.current, new_name=values["name"] or None, role=values["role"],
+                        **{k: values[k] for k in SIGMA_KEYS})
         shown = self.editor.shown
         typed = [values[k] for k in ("x", "y", "h")]
         if values["x"] is not None and values["y"] is not None and (
@@ -603,19 +470,10 @@ class MeasurementWindow(QMainWindow):
         """Delete point `name` and its measurements (undo restores them)."""
         if name is None:
             return
-        if self._record(name) is None:
-            if self.draft is not None and self.draft["name"] == name:
-                self.draft = None
-                self._set_current(None)
-                return
-            raise InputError(f"no point {name!r} in the block")
-        if name == self.current:
-            self.current, self.pending, self.transfer_notes = None, {}, {}
-        commands.push(self.undo_stack, commands.DeletePoint(self.store, name, self._report))
-        self.show_message(f"point {name} deleted (undo: {self.undo_action.shortcut().toString()})")
-
-    def _report(self, text):
-        self.show_message(text, Qgis.Warning)
+        if self.session.delete_point(name):
+            self.show_message(f"point {name} deleted (undo: {self.undo_action.shortcut().toString()})")
+        else:
+            self._show_current()
 
     # --- ground ------------------------------------------------------------------------------------------
     def set_ground(self, x, y, crs=None, h=None):
@@ -626,118 +484,61 @@ class MeasurementWindow(QMainWindow):
         source = "typed"
         if h is None:
             h, source = self.reference.height(lon, lat)
-        if self.current is None:
+        if self.session.current is None:
             self.new_point()
-        values = self._point_values(self.current)
-        if is_provisional(values):
-            values.update(zip(SIGMA_KEYS, self.intended.pop(self.current, control_points.DEFAULT_SIGMAS)))
-        values.update(lon=float(lon), lat=float(lat), h=float(h))
-        self._store_point(values)
-        self.pending, self.transfer_notes = {}, {}
+        self.session.set_ground(lon, lat, h)
         self.refresh()
         self.zoom_to_prediction(zoom=None)
-        self.show_message(f"{self.current}: lon {lon:.7f}, lat {lat:.7f}, h {h:.2f} m ({source})")
+        self.show_message(f"{self.session.current}: lon {lon:.7f}, lat {lat:.7f}, h {h:.2f} m ({source})")
 
     # --- image measurements --------------------------------------------------------------------------------
     def click_image(self, image_id, col, row, transfer=True):
         """Measure the current point (a new one if none) at (col, row) in image `image_id`; with
         `transfer`, LSM transfers it into the images where it is not measured yet (pending results)."""
-        image_id = int(image_id)
-        if image_id not in self.image_names:
-            raise InputError(f"no image with id {image_id} in the block; its images are {self.image_names}")
-        if self.current is None:
+        image_id = self.session.check_image(image_id)
+        if self.session.current is None:
             self.new_point()
-        name = self.current
-        old = self.measurements(name).get(image_id)
-        draft = None
-        if self._record(name) is None:       # a draft: stored at a provisional ground position
-            draft = self._point_values(name)
-            lon, lat, h = prediction.ground_from_click(self.models[image_id], col, row, dem=self.reference.dem,
-                                                       height=self.default_height)
-            self.intended[name] = tuple(draft[k] for k in SIGMA_KEYS)
-            draft.update(lon=lon, lat=lat, h=h, **dict.fromkeys(SIGMA_KEYS, PROVISIONAL_SIGMA))
-        self.undo_stack.beginMacro(f"Measure {name} in {self.image_names[image_id]}")
-        try:
-            if draft is not None:
-                self._store_point(draft)
-            commands.push(self.undo_stack, commands.PutMeasurement(
-                self.store, name, image_id, col, row, IMAGE_SIGMA, old, self.image_names[image_id], self._report))
-        finally:
-            self.undo_stack.endMacro()
-        self.pending.pop(image_id, None)
-        self.transfer_notes.pop(image_id, None)
-        self.observations = self.store.load()
+        self.session.measure(image_id, col, row, dem=self.reference.dem)
         if transfer:
-            self._transfer(name, image_id, col, row)
+            self._transfer(image_id, col, row)
         self.refresh()
 
-    def _transfer(self, name, image_id, col, row):
-        measured = self.measurements(name)
-        targets = [i for i in self.image_names if i != image_id and i not in measured]
-        if not targets:
-            return
-        height = self.ground(name)[2]
-        results = transfer.transfer(self.image_paths, self.models, image_id, col, row, targets=targets, height=height)
-        notes = []
+    def _transfer(self, image_id, col, row):
+        session = self.session
+        name = session.current
+        results = session.transfer(image_id, col, row)
         for target, t in results.items():
             if t.ok:
-                self.pending[target] = t
                 self.image_views[target].center_on(t.col, t.row)
-            else:
-                self.transfer_notes[target] = t.reason
-                notes.append(f"{self.image_names[target]}: {t.reason}")
-        if self.pending:
-            self.show_message(f"{name}: transfers pending in {', '.join(self.image_names[i] for i in self.pending)}"
-                              " - accept (Return) or reject (Delete)")
+        notes = [f"{session.image_names[target]}: {t.reason}" for target, t in results.items() if not t.ok]
+        if session.pending:
+            pending = ", ".join(session.image_names[i] for i in session.pending)
+            self.show_message(f"{name}: transfers pending in {pending} - accept (Return) or reject (Delete)")
         if notes:
             self.show_message(f"{name}: no transfer into " + "; ".join(notes), Qgis.Warning)
 
     def accept_pending(self, image_id=None):
         """Store the pending transfers (of `image_id` only, or all)."""
-        ids = [i for i in self.pending if image_id is None or i == int(image_id)]
-        if not ids:
-            return
-        self.undo_stack.beginMacro(f"Accept transfers of {self.current}")
-        try:
-            for i in ids:
-                t = self.pending[i]
-                commands.push(self.undo_stack, commands.PutMeasurement(
-                    self.store, self.current, i, t.col, t.row, IMAGE_SIGMA, self.measurements(self.current).get(i),
-                    self.image_names[i], self._report))
-                del self.pending[i]
-        finally:
-            self.undo_stack.endMacro()
-        self.refresh()
+        self.session.accept_pending(image_id)
 
     def reject_pending(self, image_id=None):
         """Drop the pending transfers (of `image_id` only, or all)."""
-        for i in [i for i in self.pending if image_id is None or i == int(image_id)]:
-            del self.pending[i]
+        self.session.reject_pending(image_id)
         self._redraw()
 
     def delete_measurement(self, image_id=None):
         """Delete the current point's measurement in `image_id` (default: the current image)."""
-        image_id = self.current_image if image_id is None else int(image_id)
-        old = self.measurements(self.current).get(image_id) if self.current is not None else None
-        if old is None:
-            return
-        commands.push(self.undo_stack, commands.DeleteMeasurement(self.store, self.current, image_id, old,
-                                                                  self.image_names[image_id], self._report))
+        self.session.delete_measurement(self.current_image if image_id is None else image_id)
 
     # --- views --------------------------------------------------------------------------------------------
     def zoom_to_prediction(self, zoom=DETAIL_ZOOM):
         """Centre every view on the current point: its measurement, pending transfer or prediction, at
         `zoom` screen px per column (None: the view's zoom, at least DETAIL_ZOOM / 2)."""
-        if self.current is None:
-            return
-        measured = self.measurements(self.current)
-        predicted = self.predictions(self.current)
-        pending = {i: (t.col, t.row) for i, t in self.pending.items()}
-        for image_id, view in self.image_views.items():
-            where = measured.get(image_id) or pending.get(image_id) or predicted.get(image_id)
-            if where is not None:
-                view.center_on(where[0], where[1], zoom if zoom is not None else max(view.zoom, DETAIL_ZOOM / 2))
-        ground = self.ground(self.current)
+        session = self.session
+        for image_id, (col, row) in session.current_positions().items():
+            view = self.image_views[image_id]
+            view.center_on(col, row, zoom if zoom is not None else max(view.zoom, DETAIL_ZOOM / 2))
+        ground = session.ground(session.current)
         if ground is not None:
             self.reference.center_on(ground[0], ground[1])
 
@@ -747,7 +548,7 @@ class MeasurementWindow(QMainWindow):
 
     def next_image(self, step=1):
         """Make the next (step -1: previous) image current: its frame is highlighted and its view focused."""
-        ids = list(self.image_names)
+        ids = list(self.session.image_names)
         k = ids.index(self.current_image) if self.current_image in ids else -step
         self.current_image = ids[(k + step) % len(ids)]
         self._highlight_image()
@@ -770,8 +571,7 @@ class MeasurementWindow(QMainWindow):
     def _adjust_finished(self, ok, message):
         self.progress.hide()
         if ok:
-            self.models = self._load_models()
-            self.residuals = self.block.residuals()
+            self.session.adjusted()
             self.refresh()
             self.show_message(message, Qgis.Success)
         else:
@@ -779,45 +579,27 @@ class MeasurementWindow(QMainWindow):
         self.adjusted.emit(ok, message)
 
     # --- files ------------------------------------------------------------------------------------------------
-    def _replace_points(self, text, before, after):
-        commands.push(self.undo_stack, commands.ReplacePoints(self.block_path, before, after, text, self._report),
-                      done=True)
-
     def import_csv(self, path, **options):
         """Merge the points of a CSV file (control_points.import_csv options) into the block (undoable)."""
-        before = self.store.load()
-        after = control_points.import_csv(self.block, path, mode="merge", **options)
-        self._replace_points(f"Import {os.path.basename(path)}", before, after)
+        after = self.session.import_csv(path, **options)
         self.show_message(f"imported {path}: {len(after.points)} points in the block")
 
     def export_csv(self, path):
-        control_points.export_csv(self.block, path)
+        self.session.export_csv(path)
         self.show_message(f"points written to {path}")
 
     def import_points_file(self, path, image_id):
         """Merge a QGIS Georeferencer .points file measured in image `image_id` (heights from the DEM,
-        else the block's mean height; undoable)."""
-        before = self.store.load()
-        try:
-            with open(path, encoding="utf-8-sig", errors="replace") as f:
-                stated = f.readline().startswith(georeferencer.CRS_PREFIX)
-        except OSError as exc:
-            raise InputError(f"cannot read the GCP file {path}: {exc}") from exc
-        crs = None if stated else self.reference.crs().toWkt()       # as QGIS: no #CRS line, the map's CRS
-        prefix = os.path.splitext(os.path.basename(path))[0][:24] + "_"
-        read = georeferencer.read_points(path, int(image_id), dem=self.reference.dem, height=self.default_height,
-                                         crs=crs, prefix=prefix)
-        try:
-            after = self.block.save_control_points(read, mode="merge")
-        except RuntimeError as exc:    # an OGR/SQLite failure: the transaction was rolled back
-            raise InputError(f"cannot store the points in {self.block_path}: {exc}") from exc
-        self._replace_points(f"Import {os.path.basename(path)}", before, after)
-        self.show_message(f"imported {len(read.points)} points of {path} measured in {self.image_names[int(image_id)]}")
+        else the block's mean height; map coordinates without a #CRS line in the canvas CRS; undoable)."""
+        read = self.session.import_points_file(path, image_id, map_crs=self.reference.crs().toWkt(),
+                                               dem=self.reference.dem)
+        self.show_message(f"imported {len(read.points)} points of {path} measured in "
+                          f"{self.session.image_names[int(image_id)]}")
 
     def export_points_file(self, path, image_id):
         """Write the points measured in image `image_id` as a QGIS Georeferencer .points file."""
-        georeferencer.write_points(path, self.store.load(), int(image_id), crs=self.reference.crs().toWkt())
-        self.show_message(f"points of {self.image_names[int(image_id)]} written to {path}")
+        self.session.export_points_file(path, image_id, crs=self.reference.crs().toWkt())
+        self.show_message(f"points of {self.session.image_names[int(image_id)]} written to {path}")
 
     def _ask_file(self, save, title, filters):
         dialog = QFileDialog.getSaveFileName if save else QFileDialog.getOpenFileName
@@ -825,11 +607,11 @@ class MeasurementWindow(QMainWindow):
         return path or None
 
     def _ask_image(self, title):
-        ids = list(self.image_names)
-        current = ids.index(self.current_image) if self.current_image in ids else 0
-        name, ok = QInputDialog.getItem(self, title, "Image of the pixel coordinates", list(self.image_names.values()),
-                                        current, False)
-        return self.image_id(name) if ok else None
+        names = self.session.image_names
+        current = list(names).index(self.current_image) if self.current_image in names else 0
+        name, ok = QInputDialog.getItem(self, title, "Image of the pixel coordinates", list(names.values()), current,
+                                        False)
+        return self.session.image_id(name) if ok else None
 
     def _ask_import_csv(self):
         path = self._ask_file(False, "Import points CSV", "CSV files (*.csv *.txt);;All files (*)")

@@ -15,8 +15,10 @@ from qgis.PyQt.QtCore import (
 from qgis.PyQt.QtGui import QBrush, QColor
 from qgis.PyQt.QtWidgets import QAbstractItemView, QHeaderView, QTableView
 
-#: |w| limits of the colours: below WARNING green, below CRITICAL orange, else red
-WARNING, CRITICAL = 2.0, 3.29
+from ..algorithms.adjustment.bundle import CRITICAL_W
+
+#: |w| limits of the colours: below WARNING green, below CRITICAL (data snooping's default) orange, else red
+WARNING, CRITICAL = 2.0, CRITICAL_W
 COLOURS = {"good": QColor(200, 240, 200), "warning": QColor(255, 217, 160), "bad": QColor(255, 176, 176)}
 SORT_ROLE = Qt.UserRole
 BASE_COLUMNS = ["Point", "Role", "h (m)", "Images"]
@@ -33,35 +35,18 @@ def _number(value, digits):
 
 
 class PointTableModel(QAbstractTableModel):
-    """The table's data: `set_data(observations, image_names, residuals)`; rows in point order."""
+    """The table's data: `set_data(rows, image_names)`, one row per point."""
 
     def __init__(self, parent=None):
         super().__init__(parent)
         self.image_names = {}
         self.rows = []
 
-    def set_data(self, observations, image_names, residuals=({}, {})):
-        """observations: algorithms.adjustment.observations.Observations; image_names {image id: name};
-        residuals: Block.residuals's ({(point, image id): (vx, vy, wx, wy)},
-        {point: (dE, dN, dH, image RMS px)})."""
-        image_res, ground = residuals
+    def set_data(self, rows, image_names):
+        """rows: MeasurementSession.point_summaries(); image_names {image id: name}."""
         self.beginResetModel()
         self.image_names = dict(image_names)
-        self.rows = []
-        meas = observations.measurements
-        for k, p in enumerate(observations.points):
-            name = str(p["name"])
-            measured = set(meas["image_id"][meas["point"] == k].tolist())
-            per_image = {}
-            for image_id in self.image_names:
-                res = image_res.get((name, image_id)) if image_id in measured else None
-                if res is not None:
-                    vx, vy, wx, wy = res
-                    per_image[image_id] = (math.hypot(vx, vy), max(abs(wx), abs(wy)))
-                else:
-                    per_image[image_id] = None
-            self.rows.append({"name": name, "role": str(p["role"]), "h": float(p["h"]), "count": len(measured),
-                              "measured": measured, "images": per_image, "ground": ground.get(name)})
+        self.rows = list(rows)
         self.endResetModel()
 
     def columns(self):
@@ -156,11 +141,11 @@ class PointTable(QTableView):
         self.selectionModel().currentRowChanged.connect(self._row_changed)
         self._selecting = False
 
-    def set_data(self, observations, image_names, residuals=({}, {}), current=None):
+    def set_data(self, rows, image_names, current=None):
         """Fill the table (PointTableModel.set_data) and select `current`."""
         self._selecting = True
         try:
-            self.model_.set_data(observations, image_names, residuals)
+            self.model_.set_data(rows, image_names)
         finally:
             self._selecting = False
         self.select(current)

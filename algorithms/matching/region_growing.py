@@ -364,7 +364,7 @@ def _psf_aspect(model, cols, rows, h):
     try:
         lon, lat = (np.asarray(v, float) for v in model.image_to_ground(
             np.array([cols, cols + 1.0, cols]), np.array([rows, rows, rows + 1.0]), np.full(3, h))[:2])
-    except Exception:   # noqa: BLE001 - any model failure leaves the default
+    except Exception:
         return 1.0
     c = math.cos(math.radians(float(lat[0])))
     across = math.hypot((lon[1] - lon[0]) * c, lat[1] - lat[0])

@@ -14,7 +14,7 @@ from ..sigmas import IMAGE_SIGMA
 class ImportParams:
     """The import's settings; each is a pushbroom:importpoints parameter."""
 
-    mode: str = "replace"               # one of control_points.MODES
+    mode: str = "replace"               # one of Block.IMPORT_MODES
     crs: Optional[str] = None           # CRS of x/y columns (authority id or WKT); None: WGS 84
     heights: str = "ellipsoidal"        # one of control_points.HEIGHT_TYPES
     default_role: str = "control"       # role of points without one (control_points.ROLES)

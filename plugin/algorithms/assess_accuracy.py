@@ -36,7 +36,7 @@ class AssessAccuracy(PushbroomAlgorithm):
     SLOPE_THRESHOLD, POINTS_HEIGHTS, REFERENCE_NODATA = "SLOPE_THRESHOLD", "POINTS_HEIGHTS", "REFERENCE_NODATA"
     REPORT, DH, TABLE = "REPORT", "DH", "TABLE"
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         d, tr = AssessParams(), self.tr
         self.addParameter(QgsProcessingParameterRasterLayer(self.REFERENCE, tr("Reference DTM/DSM")))
         self.addParameter(heights_parameter(self.REFERENCE_HEIGHTS, tr("Reference heights")))

@@ -69,7 +69,7 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     GROUP_ID = ""
     HELP = ""
 
-    def createInstance(self):  # noqa: N802 (QGIS API)
+    def createInstance(self):
         return type(self)()
 
     def tr(self, text):
@@ -79,34 +79,34 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     def name(self):
         return self.NAME
 
-    def displayName(self):  # noqa: N802 (QGIS API)
+    def displayName(self):
         return self.tr(self.DISPLAY_NAME)
 
     def group(self):
         return self.tr(self.GROUP)
 
-    def groupId(self):  # noqa: N802 (QGIS API)
+    def groupId(self):
         return self.GROUP_ID
 
-    def shortHelpString(self):  # noqa: N802 (QGIS API)
+    def shortHelpString(self):
         return self.tr(self.HELP)
 
-    def helpUrl(self):  # noqa: N802 (QGIS API)
+    def helpUrl(self):
         """The step's page in the repository's docs (docs/steps/<name>.md), shipped with the plugin."""
         return QUrl.fromLocalFile(help_page(self.NAME)).toString()
 
-    def addAdvancedParameters(self, parameters):  # noqa: N802 (QGIS naming)
+    def addAdvancedParameters(self, parameters):
         """Add `parameters` flagged as advanced (folded away in the dialog)."""
         for parameter in parameters:
             parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
             self.addParameter(parameter)
 
-    def parameterAsOptionalDouble(self, parameters, key, context):  # noqa: N802 (QGIS naming)
+    def parameterAsOptionalDouble(self, parameters, key, context):
         """The number of an optional parameter, or None where it is not set."""
         value = parameters.get(key)
         return None if value is None or value == "" else self.parameterAsDouble(parameters, key, context)
 
-    def parameterAsCrsDefinition(self, parameters, key, context):  # noqa: N802 (QGIS naming)
+    def parameterAsCrsDefinition(self, parameters, key, context):
         """The CRS of a CRS parameter as the engine takes it (authority id, else WKT), or None where unset.
         A text the user gave that is no valid CRS is an InputError (QGIS would treat it as unset)."""
         crs = self.parameterAsCrs(parameters, key, context)
@@ -144,7 +144,7 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
             if path:
                 atomic.check_destination(path, f"the {definition.description().lower()}")
 
-    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 (QGIS API)
+    def processAlgorithm(self, parameters, context, feedback):
         try:
             self.check_destinations(parameters, context)
             return self.execute(parameters, context, feedback)
@@ -155,7 +155,7 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     def execute(self, parameters, context, feedback):
         raise NotImplementedError
 
-    def parameterValues(self, parameters, context, **keys):  # noqa: N802 (QGIS naming)
+    def parameterValues(self, parameters, context, **keys):
         """{name: value} of the plain parameters keys {name: parameter key}, each read by its definition's
         type: boolean, integer, double (None where an optional one is unset), file, enum (the index) or
         string."""

@@ -44,7 +44,7 @@ class BundleAdjust(PushbroomAlgorithm):
     ORIENTATION_IMAGES, VECTOR_SCALE, PRIORS = "ORIENTATION_IMAGES", "VECTOR_SCALE", "PRIORS"
     REFERENCE_DEM_NODATA, REPORT, RESIDUALS, SIGMA0 = "REFERENCE_DEM_NODATA", "REPORT", "RESIDUALS", "SIGMA0"
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         d, tr = AdjustParams(), self.tr
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
         self.addParameter(QgsProcessingParameterString(self.FREE, tr("Free parameters ('auto' or comma-separated "

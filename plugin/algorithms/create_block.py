@@ -31,7 +31,7 @@ class CreateBlock(PushbroomAlgorithm):
     IMAGES, ORIENTATION, DEM, HEIGHT, OVERWRITE = "IMAGES", "ORIENTATION", "DEM", "HEIGHT", "OVERWRITE"
     DEM_NODATA, OUTPUT, FOOTPRINTS = "DEM_NODATA", "OUTPUT", "FOOTPRINTS"
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         d, tr = CreateParams(), self.tr
         self.addParameter(QgsProcessingParameterMultipleLayers(self.IMAGES, tr("Images"), QgsProcessing.TypeRaster))
         self.addParameter(QgsProcessingParameterMultipleLayers(
@@ -49,7 +49,7 @@ class CreateBlock(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputVectorLayer(self.FOOTPRINTS, tr("Footprints"),
                                                       QgsProcessing.TypeVectorPolygon))
 
-    def checkParameterValues(self, parameters, context):  # noqa: N802 (QGIS API)
+    def checkParameterValues(self, parameters, context):
         """QGIS's check; where it refuses the images, the engine's reason for a file path that is no
         layer (a missing file, a SPOT DIMAP product without its raster) instead of 'Incorrect parameter
         value for IMAGES'."""

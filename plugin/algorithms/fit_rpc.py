@@ -30,7 +30,7 @@ class FitRpc(PushbroomAlgorithm):
     BLOCK, IMAGE, MIN_HEIGHT, MAX_HEIGHT, OVERWRITE = "BLOCK", "IMAGE", "MIN_HEIGHT", "MAX_HEIGHT", "OVERWRITE"
     GRID, HEIGHT_LEVELS, OUTPUT_FOLDER, REPORT, FILES = "GRID", "HEIGHT_LEVELS", "OUTPUT_FOLDER", "REPORT", "FILES"
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         d, tr = RpcParams(), self.tr
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
         self.addParameter(QgsProcessingParameterString(self.IMAGE, tr("Image name (empty: every image of the "

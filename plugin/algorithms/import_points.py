@@ -15,13 +15,14 @@ from qgis.core import (
     QgsProcessingParameterString,
 )
 
-from ...algorithms.adjustment.control_points import MODES, ROLES
+from ...algorithms.adjustment.control_points import ROLES
+from ...algorithms.block import Block
 from ...algorithms.steps.point_files import ImportParams, export_points, import_points
 from ..styles import load_styled
 from .base import PushbroomAlgorithm, heights_choice, heights_parameter
 
 Number = QgsProcessingParameterNumber
-#: labels of the import modes (control_points.MODES)
+#: labels of the import modes (Block.IMPORT_MODES)
 MODE_LABELS = {"replace": "Replace the block's points",
                "merge": "Merge: update points with the same id, add the others"}
 
@@ -41,7 +42,7 @@ class ImportPoints(PushbroomAlgorithm):
     SIGMA_IMAGE, MEAS_SUFFIX, KEEP_IMPLAUSIBLE = "SIGMA_IMAGE", "MEAS_SUFFIX", "KEEP_IMPLAUSIBLE"
     POINTS, CONTROL, CHECK, MEASUREMENTS = "POINTS", "CONTROL", "CHECK", "MEASUREMENTS"
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         d, tr = ImportParams(), self.tr
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
         self.addParameter(QgsProcessingParameterFile(self.INPUT, tr("Point file (CSV)"),
@@ -53,8 +54,8 @@ class ImportPoints(PushbroomAlgorithm):
                                                      list(ROLES), defaultValue=ROLES.index(d.default_role)))
         self.addParameter(QgsProcessingParameterString(self.CHECK_IDS, tr("Check point ids (comma-separated)"),
                                                        d.check_ids, optional=True))
-        self.addParameter(QgsProcessingParameterEnum(self.MODE, tr("Import mode"), [tr(MODE_LABELS[m]) for m in MODES],
-                                                     defaultValue=MODES.index(d.mode)))
+        self.addParameter(QgsProcessingParameterEnum(self.MODE, tr("Import mode"), [tr(MODE_LABELS[m]) for m in Block.IMPORT_MODES],
+                                                     defaultValue=Block.IMPORT_MODES.index(d.mode)))
         self.addAdvancedParameters([
             Number(self.SIGMA_E, tr("Default sigma east (m)"), Number.Double, d.sigma_e, minValue=1e-6),
             Number(self.SIGMA_N, tr("Default sigma north (m)"), Number.Double, d.sigma_n, minValue=1e-6),
@@ -76,7 +77,7 @@ class ImportPoints(PushbroomAlgorithm):
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, self.BLOCK, context)
         params = ImportParams(
-            mode=MODES[self.parameterAsEnum(parameters, self.MODE, context)],
+            mode=Block.IMPORT_MODES[self.parameterAsEnum(parameters, self.MODE, context)],
             crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
             heights=heights_choice(self, parameters, self.HEIGHTS, context),
             default_role=ROLES[self.parameterAsEnum(parameters, self.ROLE, context)],
@@ -100,7 +101,7 @@ class ExportPoints(PushbroomAlgorithm):
 
     BLOCK, OUTPUT = "BLOCK", "OUTPUT"
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, self.tr("Block"), extension="gpkg"))
         self.addParameter(QgsProcessingParameterFileDestination(self.OUTPUT, self.tr("Point file"),
                                                                 self.tr("CSV files (*.csv)")))

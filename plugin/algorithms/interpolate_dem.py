@@ -41,7 +41,7 @@ class InterpolateDem(PushbroomAlgorithm):
             "degrees labelled UTM) is refused; its CRS can be given. Output: tiled Float32 GeoTIFF with overviews, "
             "nodata -32767.")
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         self.addParameter(QgsProcessingParameterFile(
             "INPUT", "Point cloud", fileFilter="Point clouds (*.las *.laz *.gpkg *.shp *.geojson);;All files (*)"))
         self.addParameter(QgsProcessingParameterFeatureSource(

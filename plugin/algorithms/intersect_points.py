@@ -43,7 +43,7 @@ class IntersectPoints(PushbroomAlgorithm):
             "convergence) are left out and counted in the log, which also lists per point group the count and "
             "the median sigmas.")
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
         self.addParameter(QgsProcessingParameterEnum("POINTS", "Points", [text for _, text in KINDS], defaultValue=0))
         self.addParameter(QgsProcessingParameterCrs("CRS", "Output CRS (empty: the block's UTM zone)", None,

@@ -62,7 +62,7 @@ class MatchPoints(PushbroomAlgorithm):
             "converged, else the NCC one); the region growing parameters (seeds, template, STEP, thresholds, "
             "tile) do not apply to it, its own are the advanced 'Coarse-to-fine' ones.")
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         d = GrowParams()
         c = hierarchical.HierParams()
         self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))

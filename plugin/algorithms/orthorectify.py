@@ -44,7 +44,7 @@ class Orthorectify(PushbroomAlgorithm):
             "with overviews, in the CRS given (default: the UTM zone of the footprint) with the cell size given "
             "(default: the image's ground sampling distance).")
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         self.addParameter(QgsProcessingParameterFile("BLOCK", "Block (empty: the image's own orientation)",
                                                      extension="gpkg", optional=True))
         self.addParameter(QgsProcessingParameterString("IMAGE_NAME", "Image name in the block", optional=True))

@@ -27,7 +27,7 @@ class SelectTiePoints(PushbroomAlgorithm):
     BLOCK, CELL, MIN_GROUP = "BLOCK", "CELL", "MIN_GROUP"
     TIE_POINTS, TIE_POINTS_FILE = "TIE_POINTS", "TIE_POINTS_FILE"
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         d, tr = TieParams(), self.tr
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
         self.addParameter(Number(self.CELL, tr("Grid cell size (px of the reference image)"), Number.Double, d.cell,

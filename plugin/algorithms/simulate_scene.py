@@ -40,7 +40,7 @@ class SimulateScene(PushbroomAlgorithm):
     LOOK_TABLE, ORTHOIMAGE, OUTPUT = "LOOK_TABLE", "ORTHOIMAGE", "OUTPUT"
     IMAGES, DSM, DTM, CLASSES, TRUTH, FOLDER = "IMAGES", "DSM", "DTM", "CLASSES", "TRUTH", "FOLDER"
 
-    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
+    def initAlgorithm(self, config=None):
         d, tr = SceneConfig(), self.tr
         self.addParameter(QgsProcessingParameterEnum(self.CONFIGURATION, tr("Configuration"),
                                                      [tr(CONFIGURATION_LABELS[c]) for c in CONFIGURATIONS],

@@ -17,7 +17,6 @@ from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching import imagery
 from pushbroom.algorithms.measurement.transfer import transfer
-from pushbroom.algorithms.simulation import SceneConfig
 
 NAMES = ("HRG", "HRS1", "HRS2")
 
@@ -31,8 +30,8 @@ def setup(paths):
 
 
 @pytest.fixture(scope="module")
-def marked(simulated):
-    return setup(simulated(SceneConfig.small(markers=True)))
+def marked(marked_scene):
+    return setup(marked_scene)
 
 
 def errors(result, row):

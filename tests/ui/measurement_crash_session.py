@@ -22,7 +22,7 @@ def main(block_path, dem_path, points_csv):
     window = MeasurementWindow(block_path, reference_layers=[], dem_path=dem_path)
     window.show()
     app.processEvents()
-    ids = {name: i for i, name in window.image_names.items()}
+    ids = {name: i for i, name in window.session.image_names.items()}
     for name, point in (("K1", "P001"), ("K2", "P002"), ("K3", "P003")):
         p = truth[point]
         window.new_point(name)
@@ -38,7 +38,7 @@ def main(block_path, dem_path, points_csv):
     window.delete_point("K2")
     window.edit_point("K1", role="check", sigma_e=1.25)
     app.processEvents()
-    obs = window.observations
+    obs = window.session.observations
     state = {"points": {str(p["name"]): [p[k].item() for k in ("role", "lon", "lat", "h", "sigma_e")]
                         for p in obs.points},
              "measurements": sorted([str(obs.points["name"][m["point"]]), int(m["image_id"]), float(m["col"]),

@@ -49,9 +49,9 @@ def measure(window, point):
     window.new_point(point["name"], role="control")
     window.set_ground(point["lon"], point["lat"], crs="EPSG:4326", h=point["h"])
     window.click_image(first, *images[first])
-    RESULT["transfer_notes"][point["name"]] = dict(window.transfer_notes)
+    RESULT["transfer_notes"][point["name"]] = dict(window.session.transfer_notes)
     window.accept_pending()
-    obs = window.store.load()
+    obs = window.session.observations
     index = list(obs.points["name"]).index(point["name"])
     measured = {int(m["image_id"]) for m in obs.measurements if m["point"] == index}
     for image_id in sorted(set(images) - measured):

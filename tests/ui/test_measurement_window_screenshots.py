@@ -52,11 +52,11 @@ def test_screenshots(qtbot, marked_block, marked_scene, tmp_path):
         assert signal.args[0], signal.args[1]
         window.delete_point("NEW")
         window.select_point("P004")
-        window.delete_measurement(window.image_id("HRS1"))
-        window.delete_measurement(window.image_id("HRS2"))
-        measured = window.measurements("P004")[window.image_id("HRG")]
-        window.click_image(window.image_id("HRG"), measured[0], measured[1])
-        assert len(window.pending) == 2
+        window.delete_measurement(window.session.image_id("HRS1"))
+        window.delete_measurement(window.session.image_id("HRS2"))
+        measured = window.session.measurements("P004")[window.session.image_id("HRG")]
+        window.click_image(window.session.image_id("HRG"), measured[0], measured[1])
+        assert len(window.session.pending) == 2
         for view in window.image_views.values():
             assert view._vectors and view.width() >= MIN_VIEW
         window.fit_images()
