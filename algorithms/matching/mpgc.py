@@ -27,7 +27,7 @@ the next REWEIGHTINGS = 3 re-weight, later ones keep the weights (re-weighting t
 of the simulated field points unconverged at 10 iterations). Samples that see another surface
 (canopy or a roof inside a field's template) so stop pulling the match: on the simulated triplet the
 10 m DSM RMS of the coarse-to-fine points fell from 1.82 to 1.70 m on bare fields and from 2.32 to
-2.27 m on crops (test_hierarchical.py). s^2 is re-estimated every iteration from the residuals,
+2.27 m on crops (test_coarse_to_fine.py). s^2 is re-estimated every iteration from the residuals,
 sum_i v_i'W_i v_i / (1 + r1_i^2 kappa_i) / sum_i (sum w_i - 8), kappa_i the mean squared
 interpolation weight (lsm.py); sigma0 = s (DN). The geometric observations get 1 / sigma_geometry^2.
 

@@ -22,7 +22,7 @@ are refined and the field points' RMS against the point truth falls from 0.192 /
 / backward) to 0.144 / 0.145 px (0.128 / 0.129 px with the support weights below); with a constant
 shift instead of the affine maps and sigma_geometry 0.2 px it was 0.167 / 0.172 px. The 10 m DSM of
 the points on bare fields goes from 1.79 to 1.64 m RMS (1.62 m with the support weights;
-test_hierarchical.py).
+test_coarse_to_fine.py).
 
 With GrowParams.support_weights (off by default; on in the DEM pipeline model) MPGC's support
 weights (mpgc.py; SUPPORT_CENTRE, SUPPORT_SIMILARITY) make each match measure the surface around its
@@ -40,7 +40,7 @@ from dataclasses import fields
 import numpy as np
 
 from .. import progress
-from .hierarchical import adapted_images
+from .coarse_to_fine import adapted_images
 from .mpgc import MpgcParams, accepted, match_points
 from .orientation_bias import affine_bias
 from .params import GrowParams, LsmParams

@@ -21,7 +21,7 @@ SEED_SOURCES = (("Automatic: interest points matched along the path predicted by
 
 #: matching strategies: (label, engine key)
 STRATEGIES = (("Region growing (K, H)", "region_growing"),
-              ("Coarse-to-fine multi-primitive with MPGC (Z)", "hierarchical"))
+              ("Coarse-to-fine multi-primitive with MPGC (Z)", "coarse_to_fine"))
 
 
 class MatchPoints(PushbroomAlgorithm):
@@ -57,7 +57,7 @@ class MatchPoints(PushbroomAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API)
         d = GrowParams()
-        c = hierarchical.HierParams()
+        c = hierarchical.CoarseToFineParams()
         self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
         self.addParameter(QgsProcessingParameterEnum("STRATEGY", "Matching strategy",
                                                      [label for label, _ in STRATEGIES], defaultValue=0))
@@ -91,13 +91,13 @@ class MatchPoints(PushbroomAlgorithm):
             QgsProcessingParameterBoolean("MPGC_SUPPORT", "MPGC refinement with support weights (heights of the "
                                           "template centre's surface; for DEMs)", d.support_weights),
             Number("WORKERS", "Worker threads", Number.Integer, 1, minValue=1),
-            Number("C2F_GRID", "Coarse-to-fine: grid point spacing at full resolution (px)", Number.Integer, c.grid,
+            Number("COARSE_TO_FINE_GRID", "Coarse-to-fine: grid point spacing at full resolution (px)", Number.Integer, c.grid,
                    minValue=2),
-            Number("C2F_RHO_MIN", "Coarse-to-fine: minimum correlation coefficient at full resolution",
+            Number("COARSE_TO_FINE_RHO_MIN", "Coarse-to-fine: minimum correlation coefficient at full resolution",
                    Number.Double, c.rho_min, minValue=0.0, maxValue=1.0),
-            Number("C2F_TILE", "Coarse-to-fine: tile size of the reference image (px)", Number.Integer, c.tile,
+            Number("COARSE_TO_FINE_TILE", "Coarse-to-fine: tile size of the reference image (px)", Number.Integer, c.tile,
                    minValue=16),
-            QgsProcessingParameterBoolean("C2F_EDGE_POINTS", "Coarse-to-fine: matched edges as extra points and "
+            QgsProcessingParameterBoolean("COARSE_TO_FINE_EDGE_POINTS", "Coarse-to-fine: matched edges as extra points and "
                                           "breaklines (off: blunders on steep forest)", c.edge_points),
         ]
         self.addAdvancedParameters(advanced)
@@ -128,13 +128,13 @@ class MatchPoints(PushbroomAlgorithm):
         seed_points = points.load_points(path, "tie_points") if use_tie_points else None
         feedback.pushInfo("combination order: " + ", ".join(r["name"] for r in rows)
                           + f"; height range {heights}")
-        if STRATEGIES[self.parameterAsEnum(parameters, "STRATEGY", context)][1] == "hierarchical":
-            hier_params = hierarchical.HierParams(
-                grid=self.parameterAsInt(parameters, "C2F_GRID", context),
-                rho_min=self.parameterAsDouble(parameters, "C2F_RHO_MIN", context),
-                tile=self.parameterAsInt(parameters, "C2F_TILE", context),
-                edge_points=self.parameterAsBool(parameters, "C2F_EDGE_POINTS", context)).check()
-            result = hierarchical.match_hierarchical(
+        if STRATEGIES[self.parameterAsEnum(parameters, "STRATEGY", context)][1] == "coarse_to_fine":
+            hier_params = hierarchical.CoarseToFineParams(
+                grid=self.parameterAsInt(parameters, "COARSE_TO_FINE_GRID", context),
+                rho_min=self.parameterAsDouble(parameters, "COARSE_TO_FINE_RHO_MIN", context),
+                tile=self.parameterAsInt(parameters, "COARSE_TO_FINE_TILE", context),
+                edge_points=self.parameterAsBool(parameters, "COARSE_TO_FINE_EDGE_POINTS", context)).check()
+            result = coarse_to_fine.match_coarse_to_fine(
                 [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
                 image_ids=[r["id"] for r in rows], params=hier_params, height_range=heights,
                 feedback=feedback)

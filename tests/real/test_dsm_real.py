@@ -17,9 +17,9 @@ postings on ravine relief (or their registration); removed as a plane, dh has an
 The median (+4.8 m) is of the order of the canopy over the C-band SRTM surface. The 1 m and 5 m
 DSMs are made beside the asserted 2 m one: the NMAD moves with the cell (9.2 .. 11.1 m), since
 each cell size leaves other gaps on the same ramp; the 2 m result (9.9 m) is held to 12 m, above
-that spread, as the coarse-to-fine matcher's in test_hierarchical_real.
+that spread, as the coarse-to-fine matcher's in test_coarse_to_fine_real.
 
-Region growing's matching of both (conftest.py) is shared with test_hierarchical_real and
+Region growing's matching of both (conftest.py) is shared with test_coarse_to_fine_real and
 test_matching_pleiades. Pleiades triplet (pleiades_scene: img_02 reference, img_01 forward, img_03
 backward; STEP 3 px, 1.5 m nodes): the 0.5 m DSM from the three-ray points (groups 2 and 3); gaps
 where a triangle is longer than 3 m (two node spacings: one missing node is bridged, larger holes
