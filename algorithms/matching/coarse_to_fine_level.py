@@ -62,7 +62,7 @@ COUNT_BUCKET = 8
 class ShiftedModel:
     """A sensor model whose image positions are moved by (dx, dy) full px, (col', row') = M (col,
     row) + (dx, dy) with M = `linear` (default the identity): the bias compensation of an
-    orientation error (coarse_to_fine.estimate_shift's shifts, orientation_bias.affine_bias's
+    orientation error (estimate_shift's shifts, orientation_bias.affine_bias's
     affine maps), or the model of a window of the image (dx, dy = minus its top-left corner,
     `size` its size: the tiles of coarse_to_fine.py)."""
 
