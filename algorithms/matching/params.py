@@ -1,5 +1,6 @@
-"""Matching parameters with the papers' defaults (methods.md section 3; paper 003 section 2,
-paper 000 section 3.3)."""
+"""Matching parameters with the papers' defaults (Hofmann et al.; Kornus et al. 2006, section 3.3).
+Where a default departs from the papers or a switch is off, the reason is measured in
+docs/validation.md."""
 from dataclasses import dataclass
 
 from ..errors import InputError
@@ -12,13 +13,8 @@ class LsmParams:
     template: int = 19          # window size, px (odd)
     max_iterations: int = 10    # iterations < maximum
     convergence: float = 0.01   # px: stop when the position update is smaller
-    rho_min: float = 0.6        # correlation coefficient > rho_min (0.7 in K for DEM points)
-    # px: semi-major axis of the error ellipse < threshold. H/K's 0.1 px; on the simulated SPOT 5
-    # triplet (8 bit, noise 1 DN) the ellipses are 1.7-2.2x optimistic (the residuals are aliasing
-    # and sub-template relief, not noise: the same with noise 0) and 0.1 px is the binding
-    # criterion (60 % of textured nodes); 0.15 px gives 79 % but fills 29 % of the uniform grass
-    # and raises the field RMS 0.21 -> 0.24 px, so the paper's value stays
-    max_ellipse: float = 0.1
+    rho_min: float = 0.6        # correlation coefficient > rho_min (0.7 in Kornus et al. for DEM points)
+    max_ellipse: float = 0.1    # px: semi-major axis of the error ellipse < threshold (the papers' value)
     max_shift: float = 2.5      # px: shift from the initial values < threshold
 
     @property
@@ -41,45 +37,24 @@ class LsmParams:
 class GrowParams(LsmParams):
     """Region growing: neighbour distance STEP and the tiling of the reference image."""
 
-    step: int = 10              # px between a point and its four neighbours (10-15 in H)
+    step: int = 10              # px between a point and its four neighbours (10-15 in Hofmann et al.)
     tile: int = 1024            # px, square tiles of the reference image, grown independently
     # neighbours' initial affine shape: the sensor models' local affine of the tile (True), or the
-    # popped point's estimate as in H (False), which drifted along growth paths in the simulated
-    # triplet (a5 up to 1.48 where ~1 is right; 0.49 px RMS vs 0.24 px on crops)
+    # popped point's estimate as in Hofmann et al. (False), which drifts along growth paths
     model_affine: bool = True
-    # resolution adaptation (K 3.3: "different image scales (HRS 10 x 5 m, HRG) are adapted by
-    # scale factors"): the finer image is low-passed to the coarser one's footprint through the
-    # models' local affine A (region_growing.adapt_resolution). psf selects the PSF model:
-    #   "sensor": each instrument's own PSF (region_growing.SENSOR_PSF: detector box, detector_lines
-    #             along track, 1 line of motion smear, Gaussian optics) as Gaussian-equivalent
-    #             variances; the finer image gets the difference of variances per axis. Images
-    #             whose PSF is unknown (RPC, unlisted instruments) fall back to "pixel";
-    #   "pixel":  both PSFs Gaussian of psf_sigma px of each image's own pixels (square
-    #             detectors); 0.5 px is SPOT's MTF(Nyquist) ~ 0.3;
-    #   "off":    no adaptation (as psf_sigma 0 in "pixel").
-    # Measured on the 3 km triplet, HRG -> HRS1: see tests/algorithms/test_region_growing.py
+    # resolution adaptation (Kornus et al. 2006, 3.3: image scales adapted by scale factors): the finer
+    # image is low-passed to the coarser one's footprint (region_growing.adapt_resolution); the PSF is
+    # "sensor" (each instrument's own, region_growing.SENSOR_PSF; unknown ones fall back to "pixel"),
+    # "pixel" (Gaussian of psf_sigma px of each image's own pixels) or "off"
     psf: str = "sensor"
     psf_sigma: float = 0.5
-    # second, wider window (odd px; 0 = off) for a node whose LSM at `template` fails inside the
-    # images (mostly the error ellipse or convergence on weak or striped texture): a larger window
-    # lowers the noise part of the precision at the price of more relief inside it (the
-    # Kanade-Okutomi trade, one step); the point must still pass every criterion. Off by default:
-    # 27 raises the coverage of textured ground on the 3 km triplet from 68.5 to 93.1 %, but the
-    # added points are worse than the ellipse says (fields 0.24 px RMS, 3x their ellipses), the lake
-    # of the 12 km scene fills (76 points/km2, 14 % beyond 5 m) and the Ventoux DSM's NMAD rises
-    # 9.9 -> 10.8 m (tests/algorithms/test_region_growing.py, test_end_to_end.py)
+    # second, wider window (odd px; 0 = off) for a node whose LSM at `template` fails inside the images:
+    # less noise in the precision, more relief inside the window; the point must still pass every criterion
     wide_template: int = 0
-    # px of image 1: where automatic seeds are used, a second round of them, one interest point per
-    # cell at the lattice nodes the first round's growth did not try (region_growing.py's
-    # docstring); 0 = one round
+    # px of image 1: cell of the second round of automatic seeds (region_growing.py); 0 = one round
     reseed_cell: int = 16
-    # the MPGC refinement of the group 3 points with support weights (refinement.py's SUPPORT_CENTRE,
-    # SUPPORT_SIMILARITY), which make each match measure the surface around its template centre:
-    # on the 12 km simulated triplet the three-ray heights on textured open ground 2.70 -> 2.26 m
-    # RMS (test_end_to_end.py; on in the DEM pipeline model). Off by default: the positions are then
-    # no longer those a uniform window finds, and the Pleiades triplet's forward-backward check
-    # against pairwise LSM (uniform windows) rises 0.070 / 0.065 / 0.116 -> 0.127 / 0.117 / 0.199 px
-    # (tests/real/test_matching_pleiades.py), while its tie points' sigma_0 falls 0.086 -> 0.067
+    # MPGC refinement of the group 3 points with support weights (refinement.py: SUPPORT_CENTRE,
+    # SUPPORT_SIMILARITY), so each match measures the surface around its template centre (for DEMs)
     support_weights: bool = False
 
     @property
