@@ -217,7 +217,7 @@ def test_triplet_dsm_by_class_against_region_growing(both, with_edge_points, sma
                              "RG + MPGC": refined})
     r, h, m = tables["region growing"], tables["coarse_to_fine"], tables["RG + MPGC"]
     for name in ("bare", "crops"):
-        assert m[name][2] < r[name][2] and h[name][1] > m[name][1]    # refinement: more accurate; C2F: more cells
+        assert m[name][2] < r[name][2] and h[name][1] > m[name][1]    # refinement: more accurate; coarse-to-fine: more cells
     for name in ("bare", "crops"):                           # (cells, coverage, RMS, NMAD, MAE, RMS common)
         assert h[name][1] >= r[name][1]
         assert h[name][2] <= r[name][2]                      # RMS on its own, larger, set of cells
