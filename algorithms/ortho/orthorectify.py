@@ -1,7 +1,8 @@
-"""Orthoimage by the indirect method (Hofmann et al., section 4.1): for every output cell its ground point (x, y; h from the
-DEM) is mapped into the image with any sensor model (mapping.py: coarse grid with a stated error bound)
-and the image is resampled there (resampling.py), optionally with occluded cells as nodata
-(occlusion.py).
+"""Orthoimage by the indirect method (Hofmann et al., section 4.1): for every output cell its ground
+point (x, y; h from the DEM) is mapped into the image with any sensor model (mapping.py: coarse grid
+with a stated error bound) and the image is resampled there (resampling.py), optionally with occluded
+cells as nodata (occlusion.py). The step's entry point, orthorectify_image, picks the image and model
+(a block's image, or an image with its own orientation) and reads the DEM.
 
 The output is processed in square tiles; per tile only the image window it needs is read (GDAL), so a
 12000 x 12000 image is never held whole. Tiles run on `threads` worker threads (numba kernels release

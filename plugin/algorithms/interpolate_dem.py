@@ -76,7 +76,8 @@ class InterpolateDem(PushbroomAlgorithm):
             path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
                 parameters, self.BREAKLINES, context, ["gpkg", "shp"], "gpkg", feedback)
             breaklines = (path, layer or None)
-        out, precision = (self.parameterAsOutputLayer(parameters, key, context) for key in (self.OUTPUT, self.PRECISION))
+        out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
+        precision = self.parameterAsOutputLayer(parameters, self.PRECISION, context)
         result = dem_from_point_cloud(self.parameterAsFile(parameters, self.INPUT, context), out, params, breaklines,
                                       precision or None, feedback)
         style_on_completion(context, out, "dem.qml")

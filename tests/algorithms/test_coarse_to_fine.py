@@ -10,10 +10,11 @@ from matching_scene import LOW_CONTRAST_DN, SINGLE_SURFACE, Scene
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.matching import coarse_to_fine
-from pushbroom.algorithms.matching.coarse_to_fine_level import (LevelModel, ShiftedModel, edge_breaklines, rho_thresholds,
-                                                                  window_halves)
+from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
+from pushbroom.algorithms.matching.coarse_to_fine_level import (LevelModel, ShiftedModel, edge_breaklines,
+                                                                 rho_thresholds, window_halves)
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.points import COMB_A, COMB_B
+from pushbroom.algorithms.matching.points import COMB_A, COMB_B, EDGE, NCC_ONLY
 from pushbroom.algorithms.matching.relaxation import crosses_edge, hypotheses, relax, unique_choice
 
 NAMES = ("HRG", "HRS1", "HRS2")
@@ -98,7 +99,7 @@ def test_edge_breaklines():
     assert [line[:, 0].tolist() for line in lines] == [[3.0, 6.0, 9.0], [15.0, 21.0]]
     assert lines[1][:, 2].tolist() == [3.0, 4.0]
     with pytest.raises(InputError, match="edge window"):
-        coarse_to_fine.CoarseToFineParams(edge_window=6).check()
+        CoarseToFineParams(edge_window=6).check()
 
 
 def test_level_and_shifted_models(small_scene):
@@ -113,19 +114,19 @@ def test_level_and_shifted_models(small_scene):
 
 def test_bad_input(small_scene, monkeypatch):
     with pytest.raises(InputError, match="2 or 3 images"):
-        coarse_to_fine.match_coarse_to_fine([np.zeros((50, 50))], [None])
+        match_coarse_to_fine([np.zeros((50, 50))], [None])
     with pytest.raises(InputError, match="odd"):
-        coarse_to_fine.CoarseToFineParams(windows=(8,)).check()
+        CoarseToFineParams(windows=(8,)).check()
     images = [small_scene["images"][k]["imagery"] for k in NAMES[:2]]
     models = [sensors.load(small_scene["images"][k]["metadata"]) for k in NAMES[:2]]
     monkeypatch.setattr(coarse_to_fine, "MAX_PIXELS", 1000)
     with pytest.raises(InputError, match="search window.*narrow the terrain height range or make the tiles smaller"):
-        coarse_to_fine.match_coarse_to_fine(images, models, height_range=(200.0, 400.0))
+        match_coarse_to_fine(images, models, height_range=(200.0, 400.0))
     with pytest.raises(InputError, match="tiles must be at least 512 px"):
-        coarse_to_fine.CoarseToFineParams(tile=300).check()
+        CoarseToFineParams(tile=300).check()
     monkeypatch.setattr(coarse_to_fine, "TILE_MARGIN", 64)
     with pytest.raises(InputError, match="no tile of the reference image gave points.*narrow the terrain height"):
-        coarse_to_fine.match_coarse_to_fine(images, models, params=coarse_to_fine.CoarseToFineParams(tile=300), height_range=(200.0, 400.0))
+        match_coarse_to_fine(images, models, params=CoarseToFineParams(tile=300), height_range=(200.0, 400.0))
 
 
 # ------------------------------------------------------------------------------------------
@@ -137,7 +138,7 @@ def both(small_scene, small_scene_matched):
     images = [scene.paths["images"][k]["imagery"] for k in NAMES]
     models = [sensors.load(scene.paths["images"][k]["metadata"]) for k in NAMES]
     rg = small_scene_matched(GrowParams(), refine=False)   # paper K's, without the MPGC refinement of its group 3
-    hi = coarse_to_fine.match_coarse_to_fine(images, models, params=coarse_to_fine.CoarseToFineParams(), height_range=scene.height_range)
+    hi = match_coarse_to_fine(images, models, params=CoarseToFineParams(), height_range=scene.height_range)
     return scene, rg, hi, images, models
 
 
@@ -145,7 +146,7 @@ def both(small_scene, small_scene_matched):
 def with_edge_points(both):
     """The coarse-to-fine matcher with edge points at level 1 and breaklines (off by default)."""
     scene, _, _, images, models = both
-    return coarse_to_fine.match_coarse_to_fine(images, models, params=coarse_to_fine.CoarseToFineParams(edge_points=True),
+    return match_coarse_to_fine(images, models, params=CoarseToFineParams(edge_points=True),
                                    height_range=scene.height_range)
 
 
@@ -184,7 +185,7 @@ def test_triplet_side_by_side_with_region_growing(both):
         table[label] = (cls, err, flags, hit, (ncls == 3) & (texture < LOW_CONTRAST_DN))
     cls, err, flags, hit, low = table["coarse_to_fine"]
     hit_rg = table["region growing"][3]
-    mpgc_ok = (flags & coarse_to_fine.NCC_ONLY) == 0
+    mpgc_ok = (flags & NCC_ONLY) == 0
     assert hit[low].mean() > hit_rg[low].mean()                 # acceptance: low texture covered more
     open_ok = mpgc_ok & np.isin(cls, SINGLE_SURFACE)
     assert np.mean(err[open_ok] > 1.0) < 0.02                   # MPGC-accepted on open ground: few blunders
@@ -217,7 +218,8 @@ def test_triplet_dsm_by_class_against_region_growing(both, with_edge_points, sma
                              "RG + MPGC": refined})
     r, h, m = tables["region growing"], tables["coarse_to_fine"], tables["RG + MPGC"]
     for name in ("bare", "crops"):
-        assert m[name][2] < r[name][2] and h[name][1] > m[name][1]    # refinement: more accurate; coarse-to-fine: more cells
+        # refinement: more accurate; coarse-to-fine: more cells
+        assert m[name][2] < r[name][2] and h[name][1] > m[name][1]
     for name in ("bare", "crops"):                           # (cells, coverage, RMS, NMAD, MAE, RMS common)
         assert h[name][1] >= r[name][1]
         assert h[name][2] <= r[name][2]                      # RMS on its own, larger, set of cells
@@ -237,7 +239,7 @@ def test_tiles_give_the_whole_image_result(both, monkeypatch):
     scene, _, hi, images, models = both
     monkeypatch.setattr(coarse_to_fine, "TILE_MARGIN", 64)
     log = Feedback()
-    tiled = coarse_to_fine.match_coarse_to_fine(images, models, params=coarse_to_fine.CoarseToFineParams(tile=300), height_range=scene.height_range,
+    tiled = match_coarse_to_fine(images, models, params=CoarseToFineParams(tile=300), height_range=scene.height_range,
                                     feedback=log)
     assert tiled.stats["tiles"] == tiled.stats["tiles_matched"] == 4
     assert sum(t["points"] for t in tiled.stats["per_tile"]) == len(tiled)
@@ -254,7 +256,7 @@ def test_tiles_give_the_whole_image_result(both, monkeypatch):
         assert abs(tables["tiled"][name][2] - tables["untiled"][name][2]) < 0.1
     stop = Feedback(cancel_at=50.0)
     with pytest.raises(CancelledError):
-        coarse_to_fine.match_coarse_to_fine(images, models, params=coarse_to_fine.CoarseToFineParams(tile=300), height_range=scene.height_range,
+        match_coarse_to_fine(images, models, params=CoarseToFineParams(tile=300), height_range=scene.height_range,
                                 feedback=stop)
     assert max(stop.progress) < 75.0          # stopped in the third of four tiles
 
@@ -265,11 +267,11 @@ def test_triplet_edge_points(both):
     both search images, flagged EDGE, most of them MPGC-accepted, and accurate against the point
     truth on open ground (measured: 0.19 px RMS, none > 1 px; the other points 0.3 - 0.45 px)."""
     scene, _, _, images, models = both
-    mp = coarse_to_fine.match_coarse_to_fine(images, models, params=coarse_to_fine.CoarseToFineParams(edge_points=True, edge_min_level=0),
+    mp = match_coarse_to_fine(images, models, params=CoarseToFineParams(edge_points=True, edge_min_level=0),
                                  height_range=scene.height_range)
     cls, err, flags = errors(scene, mp)
-    edge = (flags & coarse_to_fine.EDGE) != 0
-    assert mp.stats["edge_points"] == int(np.count_nonzero((mp.points["flags"] & coarse_to_fine.EDGE) != 0)) > 1000
+    edge = (flags & EDGE) != 0
+    assert mp.stats["edge_points"] == int(np.count_nonzero((mp.points["flags"] & EDGE) != 0)) > 1000
     assert mp.stats["edge_points_mpgc"] > 0.8 * mp.stats["edge_points"]
     open_edge = edge & np.isin(cls, SINGLE_SURFACE)
     assert open_edge.sum() > 500

@@ -33,8 +33,9 @@ folder, tile = sys.argv[1], int(sys.argv[2])
 names = {NAMES!r}
 models = [sensors.load(f"{{folder}}/{{n}}/METADATA.DIM") for n in names]
 start = time.perf_counter()
-points = match_coarse_to_fine([f"{{folder}}/{{n}}/IMAGERY.TIF" for n in names], models, params=CoarseToFineParams(tile=tile),
-                            height_range={HEIGHT_RANGE!r})
+points = match_coarse_to_fine([f"{{folder}}/{{n}}/IMAGERY.TIF" for n in names], models,
+                              params=CoarseToFineParams(tile=tile),
+                              height_range={HEIGHT_RANGE!r})
 peak = [int(line.split()[1]) / 1024.0 for line in open("/proc/self/status") if line.startswith("VmHWM:")][0]
 print(json.dumps({{"points": len(points), "three": points.stats["group3"], "seconds": time.perf_counter() - start,
                   "tiles": points.stats.get("tiles", 1), "peak_mib": peak}}))

@@ -83,8 +83,8 @@ def test_ventoux_dsm_against_srtm(ventoux_pair, ventoux_region_growing, tmp_path
 @pytest.fixture(scope="module")
 def coarse_to_fine_dsms(pleiades_triplet, tmp_path_factory):
     """build_triplet_dsms of match_coarse_to_fine (default parameters), cells 0.5 m, MAX_EDGE."""
-    return build_triplet_dsms(pleiades_triplet, coarse_to_fine_matcher(), CELL, MAX_EDGE, tmp_path_factory.mktemp("coarse_to_fine_dsm"),
-                              Feedback())
+    return build_triplet_dsms(pleiades_triplet, coarse_to_fine_matcher(), CELL, MAX_EDGE,
+                              tmp_path_factory.mktemp("coarse_to_fine_dsm"), Feedback())
 
 
 def coverage(dem, dsms):
@@ -118,6 +118,7 @@ def test_side_by_side_with_region_growing(coarse_to_fine_dsms, region_growing_tr
     """The two matchers' 0.5 m DSMs of the triplet (adjusted RPCs each) agree over the common footprint."""
     grid = coarse_to_fine_dsms["triplet"].grid
     inside = footprint(grid, coarse_to_fine_dsms["srs"], coarse_to_fine_dsms["models"], coarse_to_fine_dsms["height"])
-    between = summarize((coarse_to_fine_dsms["triplet"].heights - on_grid(region_growing_triplet_dsms["triplet"], grid))[inside])
+    mine = coarse_to_fine_dsms["triplet"].heights
+    between = summarize((mine - on_grid(region_growing_triplet_dsms["triplet"], grid))[inside])
     assert between.n > 0.5 * inside.sum(), between
     assert abs(between.median) < MAX_TRIPLET_MEDIAN and between.nmad < MAX_TRIPLET_NMAD, between
