@@ -20,6 +20,7 @@ from . import points
 from .coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
 from .combinations import combination_order, format_summary, match_block, summary_rows, write_summary_csv
 from .params import GrowParams
+from .points import MultiPoints
 
 #: seed sources of region growing: key -> (use the block's tie points, seek automatic seeds)
 SEED_SOURCES = {"automatic": (False, True), "tie_points": (True, False), "both": (True, True)}
@@ -59,7 +60,7 @@ class MatchParams:
 class MatchResult:
     """What match_block_points stored."""
 
-    points: points.MultiPoints  # the matched points
+    points: MultiPoints         # the matched points
     sidecar: str                # the mass point file (.npz)
     layer: str                  # OGR source of the block's 'mass_points' layer
     summary: list               # points per group (combinations.summary_rows)
