@@ -1,6 +1,6 @@
 """How the Ventoux pair's DSM - SRTM statistics depend on the coarse-to-fine matcher's grid spacing
-(issue 7's Ventoux point; closing note of 2026-11-22): match_hierarchical on the two Pleiades crops
-with grid points every 2 (region growing's nodes, as tests/real/test_hierarchical_real.py), 5 and 10
+(issue 7's Ventoux point; closing note of 2026-11-22): match_coarse_to_fine on the two Pleiades crops
+with grid points every 2 (region growing's nodes, as tests/real/test_coarse_to_fine_real.py), 5 and 10
 px, the points intersected with the supplied RPCs and gridded at 1, 2 and 5 m, each DSM against the
 SRTM tile (EGM96 -> ellipsoidal) with the test's code (tests/real/real_dsm.py). Needs the real test data (tests/conftest.py SHARED_DATA).
 
@@ -11,11 +11,11 @@ import tempfile
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "real"))
-from real_dsm import cut, srtm_comparison  # noqa: E402
+from real_dsm import cut, srtm_comparison
 
-from pushbroom.algorithms import sensors  # noqa: E402
-from pushbroom.algorithms.matching.hierarchical import HierParams, match_hierarchical  # noqa: E402
-from pushbroom.algorithms.matching.imagery import Image  # noqa: E402
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
+from pushbroom.algorithms.matching.imagery import Image
 
 DATA = ROOT.parent / "shared" / "data" / "pleiades_pair_ventoux"
 CELLS = (1.0, 2.0, 5.0)
@@ -25,8 +25,8 @@ def main(grids):
     paths = [DATA / "left_image.tif", DATA / "right_image.tif"]
     models = [sensors.load(p) for p in paths]
     for grid in grids:
-        points = match_hierarchical([Image(p) for p in paths], models, names=[p.stem for p in paths],
-                                    params=HierParams(grid=grid))
+        points = match_coarse_to_fine([Image(p) for p in paths], models, names=[p.stem for p in paths],
+                                    params=CoarseToFineParams(grid=grid))
         result = cut({1: models[0], 2: models[1]}, points.observations)
         with tempfile.TemporaryDirectory() as tmp:
             c = srtm_comparison(result, str(DATA / "N44E005.hgt"), CELLS, 2.0, pathlib.Path(tmp))

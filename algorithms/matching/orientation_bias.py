@@ -10,14 +10,14 @@ positions, fitted by least squares with the residuals beyond 3 robust sigmas lef
 term), so the common along-track part, which the rays cannot see, does not drift. An affine map,
 not a constant shift, because the relative errors vary across the scene
 (docs/validation.md#orientation-bias). The corrected models are
-hierarchical_level.ShiftedModels; `systematic`, the RMS of the residuals' medians in tiles of the
+coarse_to_fine_level.ShiftedModels; `systematic`, the RMS of the residuals' medians in tiles of the
 points' extent in the reference image (the worst image coordinate), measures the orientation's
 consistency after the correction (refinement.py weights MPGC's geometric observations by it, so that
 an orientation the affine maps do not fit loosens the constraint instead of biasing the matches)."""
 import numpy as np
 
 from ..surface.intersection import intersect
-from .hierarchical_level import ShiftedModel
+from .coarse_to_fine_level import ShiftedModel
 
 BIAS_ITERATIONS = 4
 #: median of the length of a 2-D normal vector of unit sigma per axis, sqrt(2 ln 2)

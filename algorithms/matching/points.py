@@ -6,7 +6,7 @@ A `MultiPoints` holds two numpy structured arrays:
   combinations, 3 three-ray from all three combinations; paper K 3.3), `flags` (the combinations
   that matched it: COMB_A nadir-forward, COMB_B nadir-backward, COMB_C backward-forward; and
   REFINED where MPGC refined its search positions, refinement.py; the coarse-to-fine strategy's
-  NCC_ONLY and EDGE: hierarchical.py),
+  NCC_ONLY and EDGE: coarse_to_fine.py),
   rho_min (the smallest correlation coefficient of its combinations), rho_a/rho_b/rho_c (NaN
   where that combination did not match it) and dx/dy, the deviation of the doubly determined
   coordinates of group 3 points from their average (px of the forward image; NaN otherwise);
@@ -25,9 +25,9 @@ import numpy as np
 
 # flag bits of POINT_DTYPE["flags"], one place for both matching strategies
 COMB_A, COMB_B, COMB_C = 1, 2, 4
-#: coarse-to-fine: a point MPGC did not accept (hierarchical.py, step 4)
+#: coarse-to-fine: a point MPGC did not accept (coarse_to_fine.py, step 4)
 NCC_ONLY = 8
-#: coarse-to-fine: a point matched as an edgel (hierarchical.py, step 2)
+#: coarse-to-fine: a point matched as an edgel (coarse_to_fine.py, step 2)
 EDGE = 16
 #: region growing: a three-ray point whose search positions MPGC refined (refinement.py)
 REFINED = 32

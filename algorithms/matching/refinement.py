@@ -27,7 +27,7 @@ from dataclasses import fields
 import numpy as np
 
 from .. import progress
-from .hierarchical import adapted_images
+from .coarse_to_fine import adapted_images
 from .mpgc import MpgcParams, accepted, match_points
 from .orientation_bias import affine_bias
 from .params import GrowParams, LsmParams

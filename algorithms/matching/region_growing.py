@@ -1,4 +1,4 @@
-"""Region-growing least-squares matching after Otto & Chau as refined in H (methods.md section 3).
+"""Region-growing least-squares matching after Otto & Chau, as refined by Hofmann et al.
 
 Seeds are matched by LSM; accepted points enter a priority list ordered by decreasing correlation
 coefficient rho. The best point is popped and its four neighbours at distance STEP in image 1
@@ -6,7 +6,7 @@ coefficient rho. The best point is popped and its four neighbours at distance ST
 and affine transported by STEP); a neighbour enters the list only if it passes the acceptance
 criteria (rho > rho_min, error-ellipse semi-major axis < max_ellipse, shift from the initial values
 < max_shift, iterations < max_iterations). Every lattice node is matched at most once; the run
-stops when the list is empty.
+stops when the list is empty. The growth of a tile is a numba kernel (region_growing_kernels.py).
 
 The lattice is global: node (m, n) of image 1 lies at (L0 + n STEP, L0 + m STEP) with L0 = half +
 0.5 (the first pixel centre with a complete template), so lattices of different seeds and tiles
@@ -14,13 +14,8 @@ coincide. Automatic seeds come in two rounds per tile: interest points, one per 
 grown; then one per GrowParams.reseed_cell px at the nodes the growth has not tried, grown on into
 the untried nodes only (the first round's points stay as they were). The second round reaches
 parcels without a seed of their own (a CELL px cell keeps only its strongest interest point,
-which may lie in another parcel, cut off by nodes that failed). On the 3 km triplet (HRG -> HRS1)
-it raises the coverage of the nodes whose texture allows the 0.1 px ellipse from 93.7 to 95.6 %
-and leaves the uniform grass parcels at 3.3 % (tests/algorithms/test_region_growing.py); group 3
-after the MPGC refinement has 1328 instead of 1287 points, fields 0.144 / 0.145 instead of 0.146
-/ 0.146 px (test_combinations.py). On the 10 and 20 km triplets, where it adds only 0.2 % of
-points, it costs 7-15 % of the run time (three runs of tests/benchmarks/bench_region_growing.py); a tile
-whose first round accepted nothing (water, cloud) is searched at the second round's density.
+which may lie in another parcel, cut off by nodes that failed); a tile whose first round accepted
+nothing (water, cloud) is searched at the second round's density.
 
 The reference image is cut into tiles of `params.tile` px; a node belongs to the tile
 containing it, each tile grows from its own seeds inside windows of both images (image 1: the
@@ -31,16 +26,17 @@ not depend on the number of workers.
 """
 import math
 from concurrent.futures import ThreadPoolExecutor, as_completed
+from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..errors import CancelledError, InputError
 from ..progress import ensure, step as progress_step
 from .imagery import Smoothed, as_image
-from .lsm import LSM_OUT, OUTSIDE, lsm_point, match_accepted, to_records
+from .lsm import LSM_OUT, match_accepted, to_records
 from .params import GrowParams
 from .records import PAIR_DTYPE
+from .region_growing_kernels import grow_kernel
 from .seeds import (
     CELL,
     automatic_seeds,
@@ -52,152 +48,6 @@ from .seeds import (
     seeds_from_points,
     window_pair,
 )
-
-_DC = np.array([-1, 1, 0, 0], np.int64)
-_DR = np.array([0, 0, -1, 1], np.int64)
-
-
-# --------------------------------------------------------------------------------------------
-# numba core
-
-@njit(cache=True, nogil=True)
-def _quantise(rho):
-    """Heap key: rho rounded to 1e-6, so rounding noise between builds cannot reorder the list
-    (ties go to the smaller node index)."""
-    return math.floor(rho * 1e6 + 0.5) * 1e-6
-
-
-@njit(cache=True, nogil=True)
-def _before(k1, n1, k2, n2):
-    """Heap order: larger rho first, ties by smaller node index (deterministic)."""
-    return k1 > k2 or (k1 == k2 and n1 < n2)
-
-
-@njit(cache=True, nogil=True)
-def _push(key, node, size, k, n):
-    i = size
-    key[i] = k
-    node[i] = n
-    while i > 0:
-        p = (i - 1) // 2
-        if _before(key[i], node[i], key[p], node[p]):
-            key[i], key[p] = key[p], key[i]
-            node[i], node[p] = node[p], node[i]
-            i = p
-        else:
-            break
-    return size + 1
-
-
-@njit(cache=True, nogil=True)
-def _pop(key, node, size):
-    """Remove the top of the heap; returns the new size (the caller read node[0] before)."""
-    size -= 1
-    key[0] = key[size]
-    node[0] = node[size]
-    i = 0
-    while True:
-        left = 2 * i + 1
-        right = left + 1
-        best = i
-        if left < size and _before(key[left], node[left], key[best], node[best]):
-            best = left
-        if right < size and _before(key[right], node[right], key[best], node[best]):
-            best = right
-        if best == i:
-            break
-        key[i], key[best] = key[best], key[i]
-        node[i], node[best] = node[best], node[i]
-        i = best
-    return size
-
-
-@njit(cache=True, nogil=True)
-def _passes(status, out, rho_min, max_ellipse, max_shift, max_iter):
-    """The acceptance criteria."""
-    return (status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift
-            and out[6] < max_iter)
-
-
-@njit(cache=True, nogil=True)
-def _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, x2, y2, a1, a2, a4, a5,
-             half, whalf, max_iter, conv, rho_min, max_ellipse, max_shift, out, results, state):
-    """LSM at lattice node `node` from initial values in image coordinates, again with the wide
-    window (half-size whalf > half) where the match failed inside the image; stores the result
-    (image coordinates) and the state (1 accepted, 2 rejected); returns whether accepted."""
-    x1 = gx0 + (node % nx) * step - ox1
-    y1 = gy0 + (node // nx) * step - oy1
-    status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out)
-    ok = _passes(status, out, rho_min, max_ellipse, max_shift, max_iter)
-    if not ok and status != OUTSIDE and whalf > half:
-        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out)
-        ok = _passes(status, out, rho_min, max_ellipse, max_shift, max_iter)
-    for f in range(out.shape[0]):
-        results[node, f] = out[f]
-    results[node, 0] += ox2
-    results[node, 1] += oy2
-    state[node] = 1 if ok else 2
-    return ok
-
-
-@njit(cache=True, nogil=True)
-def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, whalf, max_iter, conv,
-                rho_min, max_ellipse, max_shift, results, state, origin, prior):
-    """Region growing on the nx x ny lattice of a tile (node = row * nx + col at image-1 position
-    (gx0 + col step, gy0 + row step)). img1/img2 are windows whose top-left corners lie at image
-    positions (ox1, oy1), (ox2, oy2). seeds: (ns, 8) rows (node, x2, y2, a1, a2, a4, a5, seed id)
-    of initial values in image coordinates, tried in order. Fills results (nodes, LSM_OUT; image
-    coordinates), state (0 untried, 1 accepted, 2 rejected) and origin (seed id per node).
-    prior: the models' (a1, a2, a4, a5) for the tile, the initial affine of every neighbour (the
-    popped point's own affine when prior is empty: pure H); returns the number of LSM attempts."""
-    n = nx * ny
-    key = np.empty(n)
-    hnode = np.empty(n, np.int64)
-    size = 0
-    out = np.empty(results.shape[1])
-    tries = 0
-    for s in range(seeds.shape[0]):
-        node = int(seeds[s, 0])
-        if node < 0 or node >= n or state[node] != 0:
-            continue
-        tries += 1
-        if _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, seeds[s, 1], seeds[s, 2],
-                    seeds[s, 3], seeds[s, 4], seeds[s, 5], seeds[s, 6], half, whalf, max_iter, conv, rho_min,
-                    max_ellipse, max_shift, out, results, state):
-            origin[node] = int(seeds[s, 7])
-            size = _push(key, hnode, size, _quantise(results[node, 2]), node)
-    while size > 0:
-        node = hnode[0]
-        size = _pop(key, hnode, size)
-        r = node // nx
-        c = node % nx
-        for d in range(4):
-            cc = c + _DC[d]
-            rr = r + _DR[d]
-            if cc < 0 or cc >= nx or rr < 0 or rr >= ny:
-                continue
-            nb = rr * nx + cc
-            if state[nb] != 0:
-                continue
-            dk = _DC[d] * step
-            dl = _DR[d] * step
-            a1 = results[node, 7]
-            a2 = results[node, 8]
-            a4 = results[node, 9]
-            a5 = results[node, 10]
-            if prior.shape[0] == 4:   # the models' affine: no drift along long growth paths
-                a1 = prior[0]
-                a2 = prior[1]
-                a4 = prior[2]
-                a5 = prior[3]
-            tries += 1
-            if _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, nb,
-                        results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl,
-                        a1, a2, a4, a5, half, whalf, max_iter, conv, rho_min, max_ellipse, max_shift, out,
-                        results, state):
-                origin[nb] = origin[node]
-                size = _push(key, hnode, size, _quantise(results[nb, 2]), nb)
-    return tries
 
 
 class Lattice:
@@ -287,8 +137,26 @@ def seed_stride(params):
     return max(10000, cells)
 
 
-def _grow_tile(ctx, index, box):
-    image1, image2, model1, model2, params, hr, lattice, seeds, automatic = ctx
+class GrowJob(NamedTuple):
+    """What every tile of one match_pair run shares: the (resolution-adapted) images and their models,
+    the parameters, the height range, the lattice, the given seeds (PAIR_DTYPE or None) and whether
+    automatic seeds are sought."""
+
+    image1: object
+    image2: object
+    model1: object
+    model2: object
+    params: GrowParams
+    hr: tuple
+    lattice: Lattice
+    seeds: object
+    automatic: bool
+
+
+def _grow_tile(job, index, box):
+    """Region growing of the tile with node ranges `box` (Lattice.tiles), the index-th tile of `job`:
+    (PAIR_DTYPE records, LSM attempts, seeds tried)."""
+    image1, image2, model1, model2, params, hr, lattice, seeds, automatic = job
     n_a, n_b, m_a, m_b = box
     half, step = lattice.half, lattice.step
     pad = params.widest // 2 + 2
@@ -410,8 +278,8 @@ def _pixel_psf(model, cols, rows, h, s):
 
 
 def adapt_resolution(image1, image2, model1, model2, params, hr):
-    """(image1, image2) with the finer image low-passed to the coarser one's footprint (K 3.3's
-    scale factors; GrowParams.psf / psf_sigma). Each image's PSF is a Gaussian-equivalent
+    """(image1, image2) with the finer image low-passed to the coarser one's footprint (Kornus et al.
+    2006, 3.3: scale factors; GrowParams.psf / psf_sigma). Each image's PSF is a Gaussian-equivalent
     covariance P in its own px: psf "sensor" takes it from the instrument (sensor_psf: detector
     box, detector lines, motion smear, optics as variances), for both images or, if either is
     unknown (RPC), neither; psf "pixel" (and the fallback) uses s^2 diag(1, q^2) with s =
@@ -475,19 +343,19 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
     if seeds is None and not automatic:
         raise InputError("region growing needs seeds: give seed points or allow automatic seeds")
     tiles = lattice.tiles(int(params.tile))
-    ctx = (image1, image2, model1, model2, params, hr, lattice, seeds, automatic)
+    job = GrowJob(image1, image2, model1, model2, params, hr, lattice, seeds, automatic)
     fb = ensure(feedback)
     parts = [None] * len(tiles)
     progress_step(feedback, 0.0)
     done = 0
     if workers <= 1 or len(tiles) == 1:
         for i, box in enumerate(tiles):
-            parts[i] = _grow_tile(ctx, i, box)
+            parts[i] = _grow_tile(job, i, box)
             done += 1
             progress_step(feedback, 100.0 * done / len(tiles))
     else:
         with ThreadPoolExecutor(max_workers=int(workers)) as pool:
-            futures = {pool.submit(_grow_tile, ctx, i, box): i for i, box in enumerate(tiles)}
+            futures = {pool.submit(_grow_tile, job, i, box): i for i, box in enumerate(tiles)}
             try:
                 for fut in as_completed(futures):
                     parts[futures[fut]] = fut.result()

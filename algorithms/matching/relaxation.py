@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 
 def hypotheses(cands, agree):
     """(h, score, i1, i2) arrays (n, H) from the candidate dicts of 1 or 2 search images
-    (hierarchical_level.candidates); i1, i2 index the candidates (-1 where that image has none)."""
+    (coarse_to_fine_level.candidates); i1, i2 index the candidates (-1 where that image has none)."""
     c1 = cands[0]
     n, c = c1["h"].shape
     if len(cands) == 1:

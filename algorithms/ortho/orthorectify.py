@@ -1,7 +1,7 @@
 """Orthoimage by the indirect method (Heipke et al. 1992, section 4.1): for every output cell its ground point
 (x, y; h from the DEM) is mapped into the image with any sensor model (mapping.py: coarse grid with a stated
 error bound) and the image is resampled there (resampling.py), optionally with occluded cells as nodata
-(occlusion.py).
+(occlusion.py). The step's entry point is steps/orthoimage.py's orthorectify_image.
 
 The output is processed in square tiles; per tile only the image window it needs is read (GDAL), so a
 12000 x 12000 image is never held whole. Tiles run on `threads` worker threads (numba kernels release
@@ -195,4 +195,3 @@ def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None,
     result = OrthoResult(str(output), grid, bound, steps, cells, hidden, time.perf_counter() - start)
     progress.step(feedback, 100, result.summary())
     return result
-

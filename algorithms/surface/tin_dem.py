@@ -15,7 +15,7 @@ from .. import progress
 from ..crs import egm96_undulation, reproject, transform, wgs84
 from ..errors import InputError
 from .geotiff import write_float_raster
-from .point_input import area_of_use, within_area_of_use
+from .point_input import area_of_use, read_breaklines, read_points, within_area_of_use
 from .pointcloud import output_srs
 from .tin import conform_breaklines, delaunay, filter_blunders, longest_edge
 from .tin_grid import Grid, rasterize
@@ -159,3 +159,40 @@ def write_dem(result, path, precision_path=None, feedback=None):
             raise InputError("this DEM was interpolated without a precision raster (precision=True)")
         write_float_raster(precision_path, result.precision, result.grid.geotransform, result.srs,
                            result.precision_kind, feedback=progress.scaled(feedback, 80, 100))
+
+
+@dataclass
+class DemParams:
+    """The DEM step's settings (pushbroom:interpolatedem); see interpolate_dem."""
+
+    cell: float = 10.0              # output CRS units
+    crs: str = None                 # output CRS (authority id or WKT); None: the UTM zone of the points
+    input_crs: str = None           # the point cloud's CRS; None: the file's own
+    datum: str = "ellipsoidal"      # one of DATUMS
+    max_edge: float = None          # longer triangles are gaps; None: default_max_edge
+    k: float = 4.0                  # blunder threshold in robust sigmas (0: no filter)
+    iterations: int = 3             # of the blunder filter
+
+    def check(self):
+        """Raise InputError for settings no interpolation can use."""
+        if not self.cell > 0 or self.datum not in DATUMS or self.k < 0 or self.iterations < 1 \
+                or (self.max_edge is not None and self.max_edge < 0):
+            raise InputError(f"the cell size must be positive, the datum one of {', '.join(DATUMS)}, the blunder "
+                             "threshold and the maximum edge not negative and the iterations at least 1")
+        return self
+
+
+def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_path=None, feedback=None):
+    """The DEM step: the point cloud file `cloud` (point_input.read_points) interpolated with DemParams
+    `params` and written to the GeoTIFF `output` (and the precision raster to `precision_path` where
+    given). `breaklines`: (path, layer name or None) of a 3-D line layer, or None. Returns the
+    DemResult; raises InputError (unreadable input, no CRS, too few points), CancelledError."""
+    params = (params or DemParams()).check()
+    points = read_points(cloud, params.input_crs)
+    lines, lines_srs = read_breaklines(*breaklines) if breaklines else ([], None)
+    result = interpolate_dem(points, cell=params.cell, crs=params.crs, datum=params.datum, max_edge=params.max_edge,
+                             k=params.k, iterations=params.iterations, breaklines=lines, breakline_srs=lines_srs,
+                             precision=bool(precision_path), feedback=progress.scaled(feedback, 0, 85))
+    write_dem(result, output, precision_path or None, feedback=progress.scaled(feedback, 85, 100))
+    progress.ensure(feedback).pushInfo(result.summary())
+    return result

@@ -1,5 +1,4 @@
-"""pushbroom:interpolatedem — a DEM from a point cloud: Delaunay TIN with optional breaklines,
-blunder filter, linear interpolation on a regular grid (algorithms/surface/tin_dem.py)."""
+"""pushbroom:interpolatedem: a DEM from a point cloud (algorithms/surface/tin_dem.py)."""
 from qgis.core import (
     QgsProcessing,
     QgsProcessingOutputNumber,
@@ -11,12 +10,12 @@ from qgis.core import (
     QgsProcessingParameterRasterDestination,
 )
 
-from ...algorithms import progress
-from ...algorithms.surface import point_input, tin_dem
+from ...algorithms.surface.tin_dem import DemParams, dem_from_point_cloud
 from ..styles import style_on_completion
 from .base import PushbroomAlgorithm
 
 Number = QgsProcessingParameterNumber
+#: height datums: (engine key, label)
 DATUMS = (("ellipsoidal", "WGS 84 ellipsoidal height"), ("egm96", "EGM96 (orthometric) height"))
 
 
@@ -25,67 +24,71 @@ class InterpolateDem(PushbroomAlgorithm):
     DISPLAY_NAME = "Interpolate DEM (TIN)"
     GROUP = "Surface"
     GROUP_ID = "surface"
-    HELP = ("A DEM from a point cloud (Kornus et al. 2006, 3.6): the Delaunay TIN of the points (LAS/LAZ or a "
-            "3-D point layer such as the GeoPackage of pushbroom:intersectpoints; z = WGS 84 ellipsoidal height) "
-            "is interpolated linearly on a regular grid in the output CRS (default: the UTM zone of the points). "
-            "Triangles with an edge longer than the maximum edge length (default: the larger of 3 cells and 2.5 "
-            "point spacings) are left as gaps: no surface is invented over unmatched water or forest. Blunders are "
-            "removed first: points whose height departs from the least-squares plane through their TIN neighbours "
-            "by more than k robust sigmas (NMAD = 1.4826 x the median absolute deviation of all residuals; the "
-            "largest of neighbouring candidates per iteration); the log gives the count. Breaklines (3-D lines) "
-            "are densified and split until no point encroaches on them, so no triangle crosses them (conforming "
-            "Delaunay); points very close to a breakline give way to it. Heights "
-            "are ellipsoidal or EGM96 (H = h - N, PROJ's EGM96 grid). The optional precision raster holds the "
-            "points' sigma_h interpolated on the TIN where the cloud has it, otherwise the distance to the "
-            "nearest point. A point cloud without a CRS (or with coordinates that cannot be in its CRS, such as "
-            "degrees labelled UTM) is refused; its CRS can be given. Output: tiled Float32 GeoTIFF with overviews, "
-            "nodata -32767.")
+    HELP = ("A DEM from a point cloud (Kornus et al. 2006, 3.6): the Delaunay TIN of the points, cleared of "
+            "blunders and constrained by optional 3-D breaklines, interpolated linearly on a regular grid; "
+            "triangles longer than the maximum edge are left as gaps. Heights ellipsoidal or EGM96; an optional "
+            "precision raster. Output: tiled Float32 GeoTIFF, nodata -32767.")
+
+    INPUT = "INPUT"
+    BREAKLINES = "BREAKLINES"
+    CRS = "CRS"
+    CELL = "CELL"
+    DATUM = "DATUM"
+    INPUT_CRS = "INPUT_CRS"
+    MAX_EDGE = "MAX_EDGE"
+    BLUNDER_K = "BLUNDER_K"
+    ITERATIONS = "ITERATIONS"
+    OUTPUT = "OUTPUT"
+    PRECISION = "PRECISION"
+    POINTS = "POINTS"
+    REMOVED = "REMOVED"
 
     def initAlgorithm(self, config=None):
+        d, tr = DemParams(), self.tr
         self.addParameter(QgsProcessingParameterFile(
-            "INPUT", "Point cloud", fileFilter="Point clouds (*.las *.laz *.gpkg *.shp *.geojson);;All files (*)"))
+            self.INPUT, tr("Point cloud"),
+            fileFilter=tr("Point clouds (*.las *.laz *.gpkg *.shp *.geojson);;All files (*)")))
         self.addParameter(QgsProcessingParameterFeatureSource(
-            "BREAKLINES", "Breaklines (3-D lines)", [QgsProcessing.TypeVectorLine], optional=True))
-        self.addParameter(QgsProcessingParameterCrs("CRS", "Output CRS (empty: the UTM zone of the points)", None,
-                                                    optional=True))
-        self.addParameter(Number("CELL", "Cell size (output CRS units)", Number.Double, 10.0, minValue=1e-6))
-        self.addParameter(QgsProcessingParameterEnum("DATUM", "Height datum", [t for _, t in DATUMS], defaultValue=0))
+            self.BREAKLINES, tr("Breaklines (3-D lines)"), [QgsProcessing.TypeVectorLine], optional=True))
+        self.addParameter(QgsProcessingParameterCrs(self.CRS, tr("Output CRS (empty: the UTM zone of the points)"),
+                                                    None, optional=True))
+        self.addParameter(Number(self.CELL, tr("Cell size (output CRS units)"), Number.Double, d.cell, minValue=1e-6))
+        self.addParameter(QgsProcessingParameterEnum(self.DATUM, tr("Height datum"), [tr(t) for _, t in DATUMS],
+                                                     defaultValue=0))
         self.addAdvancedParameters([
-            QgsProcessingParameterCrs("INPUT_CRS", "Point cloud CRS (empty: the file's own)", None, optional=True),
-            Number("MAX_EDGE", "Maximum triangle edge (empty: 3 cells or 2.5 point spacings); longer triangles "
-                   "are gaps", Number.Double, None, optional=True, minValue=0.0),
-            Number("BLUNDER_K", "Blunder threshold k (robust sigmas; 0: no filter)", Number.Double, 4.0, minValue=0.0),
-            Number("ITERATIONS", "Blunder filter iterations", Number.Integer, 3, minValue=1),
+            QgsProcessingParameterCrs(self.INPUT_CRS, tr("Point cloud CRS (empty: the file's own)"), None,
+                                      optional=True),
+            Number(self.MAX_EDGE, tr("Maximum triangle edge (empty: 3 cells or 2.5 point spacings); longer "
+                                     "triangles are gaps"), Number.Double, None, optional=True, minValue=0.0),
+            Number(self.BLUNDER_K, tr("Blunder threshold k (robust sigmas; 0: no filter)"), Number.Double, d.k,
+                   minValue=0.0),
+            Number(self.ITERATIONS, tr("Blunder filter iterations"), Number.Integer, d.iterations, minValue=1),
         ])
-        self.addParameter(QgsProcessingParameterRasterDestination("OUTPUT", "DEM"))
-        self.addParameter(QgsProcessingParameterRasterDestination("PRECISION", "Precision raster", optional=True,
-                                                                  createByDefault=False))
-        self.addOutput(QgsProcessingOutputNumber("POINTS", "Points in the TIN"))
-        self.addOutput(QgsProcessingOutputNumber("REMOVED", "Blunders removed"))
+        self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("DEM")))
+        self.addParameter(QgsProcessingParameterRasterDestination(self.PRECISION, tr("Precision raster"),
+                                                                  optional=True, createByDefault=False))
+        self.addOutput(QgsProcessingOutputNumber(self.POINTS, tr("Points in the TIN")))
+        self.addOutput(QgsProcessingOutputNumber(self.REMOVED, tr("Blunders removed")))
 
     def execute(self, parameters, context, feedback):
-        points = point_input.read_points(self.parameterAsFile(parameters, "INPUT", context),
-                                         self.parameterAsCrsDefinition(parameters, "INPUT_CRS", context))
-        crs = self.parameterAsCrsDefinition(parameters, "CRS", context)
-        cell = self.parameterAsDouble(parameters, "CELL", context)
-        lines, lines_srs = [], None
-        if parameters.get("BREAKLINES"):
+        params = DemParams(cell=self.parameterAsDouble(parameters, self.CELL, context),
+                           crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
+                           input_crs=self.parameterAsCrsDefinition(parameters, self.INPUT_CRS, context),
+                           datum=DATUMS[self.parameterAsEnum(parameters, self.DATUM, context)][0],
+                           max_edge=self.parameterAsOptionalDouble(parameters, self.MAX_EDGE, context),
+                           k=self.parameterAsDouble(parameters, self.BLUNDER_K, context),
+                           iterations=self.parameterAsInt(parameters, self.ITERATIONS, context))
+        breaklines = None
+        if parameters.get(self.BREAKLINES):
             path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
-                parameters, "BREAKLINES", context, ["gpkg", "shp"], "gpkg", feedback)
-            lines, lines_srs = point_input.read_breaklines(path, layer or None)
-        precision_path = self.parameterAsOutputLayer(parameters, "PRECISION", context)
-        result = tin_dem.interpolate_dem(
-            points, cell=cell, crs=crs, datum=DATUMS[self.parameterAsEnum(parameters, "DATUM", context)][0],
-            max_edge=self.parameterAsOptionalDouble(parameters, "MAX_EDGE", context),
-            k=self.parameterAsDouble(parameters, "BLUNDER_K", context),
-            iterations=self.parameterAsInt(parameters, "ITERATIONS", context),
-            breaklines=lines, breakline_srs=lines_srs,
-            precision=bool(precision_path), feedback=progress.scaled(feedback, 0, 85))
-        out = self.parameterAsOutputLayer(parameters, "OUTPUT", context)
-        tin_dem.write_dem(result, out, precision_path or None, feedback=progress.scaled(feedback, 85, 100))
-        feedback.pushInfo(result.summary())
+                parameters, self.BREAKLINES, context, ["gpkg", "shp"], "gpkg", feedback)
+            breaklines = (path, layer or None)
+        out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
+        precision = self.parameterAsOutputLayer(parameters, self.PRECISION, context)
+        result = dem_from_point_cloud(self.parameterAsFile(parameters, self.INPUT, context), out, params, breaklines,
+                                      precision or None, feedback)
         style_on_completion(context, out, "dem.qml")
-        results = {"OUTPUT": out, "POINTS": result.points, "REMOVED": sum(result.removed)}
-        if precision_path:
-            results["PRECISION"] = precision_path
+        results = {self.OUTPUT: out, self.POINTS: result.points, self.REMOVED: sum(result.removed)}
+        if precision:
+            results[self.PRECISION] = precision
         return results

@@ -1,5 +1,4 @@
-"""pushbroom:matchpoints — dense image points by region-growing least-squares matching in the
-three combinations of paper K 3.3 (algorithms/matching/combinations.py)."""
+"""pushbroom:matchpoints: dense image points of the block (algorithms/steps/block_matching.py)."""
 from qgis.core import (
     QgsProcessing,
     QgsProcessingOutputFile,
@@ -12,23 +11,20 @@ from qgis.core import (
     QgsProcessingParameterString,
 )
 
-from ...algorithms.block import Block
-from ...algorithms.height_range import height_range, mean_height
-from ...algorithms.matching import combinations, hierarchical
+from ...algorithms.matching.coarse_to_fine import CoarseToFineParams
 from ...algorithms.matching.params import GrowParams
+from ...algorithms.steps.block_matching import MatchParams, match_block_points
 from ..styles import load_styled
 from .base import PushbroomAlgorithm
 
 Number = QgsProcessingParameterNumber
-#: seed choices: (label, use the block's tie points, automatic seeds)
-SEED_SOURCES = (("Automatic: interest points matched along the path predicted by the sensor models", False, True),
-                ("The block's tie points (pushbroom:selecttiepoints)", True, False),
-                ("Both: the block's tie points and automatic seeds", True, True))
-
-
-#: matching strategies: (label, engine key)
-STRATEGIES = (("Region growing (K, H)", "region_growing"),
-              ("Coarse-to-fine multi-primitive with MPGC (Z)", "hierarchical"))
+#: seed choices: (engine key, label)
+SEED_SOURCES = (("automatic", "Automatic: interest points matched along the path predicted by the sensor models"),
+                ("tie_points", "The block's tie points (pushbroom:selecttiepoints)"),
+                ("both", "Both: the block's tie points and automatic seeds"))
+#: matching strategies: (engine key, label)
+STRATEGIES = (("region_growing", "Region growing (Otto & Chau; Kornus et al. 2006)"),
+              ("coarse_to_fine", "Coarse-to-fine multi-primitive with MPGC (Zhang & Gruen)"))
 
 
 class MatchPoints(PushbroomAlgorithm):
@@ -36,133 +32,116 @@ class MatchPoints(PushbroomAlgorithm):
     DISPLAY_NAME = "Match points (region growing)"
     GROUP = "Matching"
     GROUP_ID = "matching"
-    HELP = ("Dense image points by region-growing least-squares matching (Otto & Chau) in the combinations "
-            "of Kornus et al. 2006, section 3.3: (a) reference-forward, (b) reference-backward with the "
-            "reference points of (a) as transfer points, (c) backward-forward with the backward points of "
-            "(b) as transfer points. Points are grouped: 1 two-ray, 2 three-ray from two combinations, 3 "
-            "three-ray from all three (the doubly matched forward coordinates averaged and kept where their "
-            "deviation is below 3 robust sigma), then, by default, refined by multi-photo geometrically "
-            "constrained matching (MPGC) in both search images at once, on the sensor models corrected by an "
-            "affine image bias fitted to the points' rays; with 'support weights' (advanced, off by default, "
-            "on in the pipeline model) MPGC's window is weighted towards the template centre and the samples "
-            "of its brightness, so a point near forest or buildings takes less of their height into "
-            "the field's. A two-image block gives group 1 only. The points are "
-            "stored beside the block (<block>.mass_points.npz), shown as a point layer on the reference "
-            "image at the mean height, and counted per group like Table 1 of the paper (log and CSV). Seeds "
-            "are automatic (interest points matched along the path the sensor models predict over the "
-            "terrain height range), the block's tie points (re-matched from their stored positions), or "
-            "both; with tie points only, tiles without one stay empty. With a second, wider template "
-            "(advanced, off by default), a point whose match fails in the template is matched again in it: "
-            "weak or striped texture then gets points that pass every acceptance criterion but are less "
-            "accurate than their error ellipses say. Strategy 'coarse-to-fine' (Zhang & Gruen): Foerstner "
-            "and grid points matched by NCC along the sensor models' epipolar paths level by "
-            "level of a factor-3 pyramid, each level's TIN guiding the next, refined by multi-photo "
-            "geometrically constrained matching (MPGC); its points (group 3 three-ray, 1 two-ray) carry MPGC's "
-            "reliability as rho, points MPGC does not accept keep a low one (and MPGC's position where it "
-            "converged, else the NCC one); the region growing parameters (seeds, template, STEP, thresholds, "
-            "tile) do not apply to it, its own are the advanced 'Coarse-to-fine' ones.")
+    HELP = ("Dense image points of the block's stereo pair or triplet, by region-growing least-squares matching in "
+            "the three combinations of Kornus et al. 2006 (refined by MPGC) or by the coarse-to-fine matcher of "
+            "Zhang & Gruen. The points are stored with the block, shown as a layer and counted per group. "
+            "Every parameter is explained on the step's help page.")
+
+    BLOCK = "BLOCK"
+    STRATEGY = "STRATEGY"
+    IMAGES = "IMAGES"
+    MIN_HEIGHT = "MIN_HEIGHT"
+    MAX_HEIGHT = "MAX_HEIGHT"
+    SEEDS = "SEEDS"
+    TEMPLATE = "TEMPLATE"
+    STEP = "STEP"
+    WIDE_TEMPLATE = "WIDE_TEMPLATE"
+    RHO_MIN = "RHO_MIN"
+    MAX_ELLIPSE = "MAX_ELLIPSE"
+    MAX_SHIFT = "MAX_SHIFT"
+    MAX_ITERATIONS = "MAX_ITERATIONS"
+    TILE = "TILE"
+    SIGMA_FACTOR = "SIGMA_FACTOR"
+    GROW_SECOND = "GROW_SECOND"
+    MPGC_REFINE = "MPGC_REFINE"
+    MPGC_SUPPORT = "MPGC_SUPPORT"
+    WORKERS = "WORKERS"
+    COARSE_TO_FINE_GRID = "COARSE_TO_FINE_GRID"
+    COARSE_TO_FINE_RHO_MIN = "COARSE_TO_FINE_RHO_MIN"
+    COARSE_TO_FINE_TILE = "COARSE_TO_FINE_TILE"
+    COARSE_TO_FINE_EDGE_POINTS = "COARSE_TO_FINE_EDGE_POINTS"
+    SUMMARY = "SUMMARY"
+    POINTS = "POINTS"
+    POINTS_FILE = "POINTS_FILE"
 
     def initAlgorithm(self, config=None):
-        d = GrowParams()
-        c = hierarchical.HierParams()
-        self.addParameter(QgsProcessingParameterFile("BLOCK", "Block", extension="gpkg"))
-        self.addParameter(QgsProcessingParameterEnum("STRATEGY", "Matching strategy",
-                                                     [label for label, _ in STRATEGIES], defaultValue=0))
+        d, c, m = GrowParams(), CoarseToFineParams(), MatchParams()
+        tr = self.tr
+        self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
+        self.addParameter(QgsProcessingParameterEnum(self.STRATEGY, tr("Matching strategy"),
+                                                     [tr(label) for _, label in STRATEGIES], defaultValue=0))
         self.addParameter(QgsProcessingParameterString(
-            "IMAGES", "Images in combination order: reference (nadir), forward[, backward]; empty = all",
+            self.IMAGES, tr("Images in combination order: reference (nadir), forward[, backward]; empty = all"),
             "", optional=True))
-        self.addParameter(Number("MIN_HEIGHT", "Lowest ellipsoidal terrain height (m; empty: the block's terrain "
-                                 "height range)", Number.Double, None, optional=True))
-        self.addParameter(Number("MAX_HEIGHT", "Highest ellipsoidal terrain height (m; empty: the block's terrain "
-                                 "height range)", Number.Double, None, optional=True))
-        self.addParameter(QgsProcessingParameterEnum("SEEDS", "Seeds", [label for label, _, _ in SEED_SOURCES],
+        self.addParameter(Number(self.MIN_HEIGHT, tr("Lowest ellipsoidal terrain height (m; empty: the block's "
+                                                     "terrain height range)"), Number.Double, None, optional=True))
+        self.addParameter(Number(self.MAX_HEIGHT, tr("Highest ellipsoidal terrain height (m; empty: the block's "
+                                                     "terrain height range)"), Number.Double, None, optional=True))
+        self.addParameter(QgsProcessingParameterEnum(self.SEEDS, tr("Seeds"), [tr(label) for _, label in SEED_SOURCES],
                                                      defaultValue=0))
-        self.addParameter(Number("TEMPLATE", "Template size (px, odd)", Number.Integer, d.template, minValue=5))
-        self.addParameter(Number("STEP", "STEP: distance of the neighbours (px)", Number.Integer, d.step, minValue=1))
-        advanced = [
-            Number("WIDE_TEMPLATE", "Second, wider template where the first one fails (px, odd; 0 = off)",
+        self.addParameter(Number(self.TEMPLATE, tr("Template size (px, odd)"), Number.Integer, d.template, minValue=5))
+        self.addParameter(Number(self.STEP, tr("STEP: distance of the neighbours (px)"), Number.Integer, d.step,
+                                 minValue=1))
+        self.addAdvancedParameters([
+            Number(self.WIDE_TEMPLATE, tr("Second, wider template where the first one fails (px, odd; 0 = off)"),
                    Number.Integer, d.wide_template, minValue=0),
-            Number("RHO_MIN", "Minimum correlation coefficient", Number.Double, d.rho_min, minValue=0.0,
+            Number(self.RHO_MIN, tr("Minimum correlation coefficient"), Number.Double, d.rho_min, minValue=0.0,
                    maxValue=1.0),
-            Number("MAX_ELLIPSE", "Maximum semi-major axis of the error ellipse (px)", Number.Double,
+            Number(self.MAX_ELLIPSE, tr("Maximum semi-major axis of the error ellipse (px)"), Number.Double,
                    d.max_ellipse, minValue=0.0),
-            Number("MAX_SHIFT", "Maximum shift from the initial values (px)", Number.Double, d.max_shift,
+            Number(self.MAX_SHIFT, tr("Maximum shift from the initial values (px)"), Number.Double, d.max_shift,
                    minValue=0.0),
-            Number("MAX_ITERATIONS", "Maximum LSM iterations", Number.Integer, d.max_iterations, minValue=1),
-            Number("TILE", "Tile size of the reference image (px)", Number.Integer, d.tile, minValue=16),
-            Number("SIGMA_FACTOR", "Group 3 consistency test: deviations below k robust sigma", Number.Double,
-                   3.0, minValue=0.1),
-            QgsProcessingParameterBoolean("GROW_SECOND", "Also grow combination (b) where (a) found no points",
-                                          True),
-            QgsProcessingParameterBoolean("MPGC_REFINE", "Refine the group 3 points by MPGC (three images)", True),
-            QgsProcessingParameterBoolean("MPGC_SUPPORT", "MPGC refinement with support weights (heights of the "
-                                          "template centre's surface; for DEMs)", d.support_weights),
-            Number("WORKERS", "Worker threads", Number.Integer, 1, minValue=1),
-            Number("C2F_GRID", "Coarse-to-fine: grid point spacing at full resolution (px)", Number.Integer, c.grid,
-                   minValue=2),
-            Number("C2F_RHO_MIN", "Coarse-to-fine: minimum correlation coefficient at full resolution",
-                   Number.Double, c.rho_min, minValue=0.0, maxValue=1.0),
-            Number("C2F_TILE", "Coarse-to-fine: tile size of the reference image (px)", Number.Integer, c.tile,
-                   minValue=16),
-            QgsProcessingParameterBoolean("C2F_EDGE_POINTS", "Coarse-to-fine: matched edges as extra points and "
-                                          "breaklines (off: blunders on steep forest)", c.edge_points),
-        ]
-        self.addAdvancedParameters(advanced)
+            Number(self.MAX_ITERATIONS, tr("Maximum LSM iterations"), Number.Integer, d.max_iterations, minValue=1),
+            Number(self.TILE, tr("Tile size of the reference image (px)"), Number.Integer, d.tile, minValue=16),
+            Number(self.SIGMA_FACTOR, tr("Group 3 consistency test: deviations below k robust sigma"),
+                   Number.Double, m.sigma_factor, minValue=0.1),
+            QgsProcessingParameterBoolean(self.GROW_SECOND, tr("Also grow combination (b) where (a) found no points"),
+                                          m.grow_second),
+            QgsProcessingParameterBoolean(self.MPGC_REFINE, tr("Refine the group 3 points by MPGC (three images)"),
+                                          m.refine),
+            QgsProcessingParameterBoolean(self.MPGC_SUPPORT, tr("MPGC refinement with support weights (heights of the "
+                                          "template centre's surface; for DEMs)"), d.support_weights),
+            Number(self.WORKERS, tr("Worker threads"), Number.Integer, m.workers, minValue=1),
+            Number(self.COARSE_TO_FINE_GRID, tr("Coarse-to-fine: grid point spacing at full resolution (px)"),
+                   Number.Integer, c.grid, minValue=2),
+            Number(self.COARSE_TO_FINE_RHO_MIN, tr("Coarse-to-fine: minimum correlation coefficient at full "
+                                                   "resolution"), Number.Double, c.rho_min, minValue=0.0, maxValue=1.0),
+            Number(self.COARSE_TO_FINE_TILE, tr("Coarse-to-fine: tile size of the reference image (px)"),
+                   Number.Integer, c.tile, minValue=16),
+            QgsProcessingParameterBoolean(self.COARSE_TO_FINE_EDGE_POINTS, tr("Coarse-to-fine: matched edges as extra "
+                                          "points and breaklines (off: blunders on steep forest)"), c.edge_points),
+        ])
         self.addParameter(QgsProcessingParameterFileDestination(
-            "SUMMARY", "Summary per point group (CSV)", "CSV files (*.csv)", optional=True))
-        self.addOutput(QgsProcessingOutputVectorLayer("POINTS", "Mass points", QgsProcessing.TypeVectorPoint))
-        self.addOutput(QgsProcessingOutputFile("BLOCK", "Block (updated; chains the next step in a model)"))
-        self.addOutput(QgsProcessingOutputFile("POINTS_FILE", "Mass point file (.npz)"))
+            self.SUMMARY, tr("Summary per point group (CSV)"), tr("CSV files (*.csv)"), optional=True))
+        self.addOutput(QgsProcessingOutputVectorLayer(self.POINTS, tr("Mass points"), QgsProcessing.TypeVectorPoint))
+        self.addOutput(QgsProcessingOutputFile(self.BLOCK, tr("Block (updated; chains the next step in a model)")))
+        self.addOutput(QgsProcessingOutputFile(self.POINTS_FILE, tr("Mass point file (.npz)")))
+
+    def match_params(self, parameters, context):
+        """MatchParams of the parameters."""
+        def get(kind, key):
+            return getattr(self, f"parameterAs{kind}")(parameters, key, context)
+        grow = GrowParams(template=get("Int", self.TEMPLATE), wide_template=get("Int", self.WIDE_TEMPLATE),
+                          step=get("Int", self.STEP), rho_min=get("Double", self.RHO_MIN),
+                          max_ellipse=get("Double", self.MAX_ELLIPSE), max_shift=get("Double", self.MAX_SHIFT),
+                          max_iterations=get("Int", self.MAX_ITERATIONS), tile=get("Int", self.TILE),
+                          support_weights=get("Bool", self.MPGC_SUPPORT))
+        coarse_to_fine = CoarseToFineParams(
+            grid=get("Int", self.COARSE_TO_FINE_GRID), rho_min=get("Double", self.COARSE_TO_FINE_RHO_MIN),
+            tile=get("Int", self.COARSE_TO_FINE_TILE), edge_points=get("Bool", self.COARSE_TO_FINE_EDGE_POINTS))
+        return MatchParams(
+            images=get("String", self.IMAGES), min_height=get("OptionalDouble", self.MIN_HEIGHT),
+            max_height=get("OptionalDouble", self.MAX_HEIGHT), strategy=STRATEGIES[get("Enum", self.STRATEGY)][0],
+            seeds=SEED_SOURCES[get("Enum", self.SEEDS)][0], grow=grow, coarse_to_fine=coarse_to_fine,
+            sigma_factor=get("Double", self.SIGMA_FACTOR), grow_second=get("Bool", self.GROW_SECOND),
+            refine=get("Bool", self.MPGC_REFINE), workers=get("Int", self.WORKERS))
 
     def execute(self, parameters, context, feedback):
-        path = self.parameterAsFile(parameters, "BLOCK", context)
-        blk = Block(path)
-        rows = combinations.combination_order(blk.images(), self.parameterAsString(parameters, "IMAGES", context))
-        models = [blk.model(r["id"]) for r in rows]
-
-        heights = height_range(self.parameterAsOptionalDouble(parameters, "MIN_HEIGHT", context),
-                               self.parameterAsOptionalDouble(parameters, "MAX_HEIGHT", context), blk.height_range())
-        params = GrowParams(
-            template=self.parameterAsInt(parameters, "TEMPLATE", context),
-            wide_template=self.parameterAsInt(parameters, "WIDE_TEMPLATE", context),
-            step=self.parameterAsInt(parameters, "STEP", context),
-            rho_min=self.parameterAsDouble(parameters, "RHO_MIN", context),
-            max_ellipse=self.parameterAsDouble(parameters, "MAX_ELLIPSE", context),
-            max_shift=self.parameterAsDouble(parameters, "MAX_SHIFT", context),
-            max_iterations=self.parameterAsInt(parameters, "MAX_ITERATIONS", context),
-            tile=self.parameterAsInt(parameters, "TILE", context),
-            support_weights=self.parameterAsBool(parameters, "MPGC_SUPPORT", context)).check()
-        _, use_tie_points, automatic = SEED_SOURCES[self.parameterAsEnum(parameters, "SEEDS", context)]
-        seed_points = blk.points("tie_points") if use_tie_points else None
-        feedback.pushInfo("combination order: " + ", ".join(r["name"] for r in rows)
-                          + f"; height range {heights}")
-        if STRATEGIES[self.parameterAsEnum(parameters, "STRATEGY", context)][1] == "hierarchical":
-            hier_params = hierarchical.HierParams(
-                grid=self.parameterAsInt(parameters, "C2F_GRID", context),
-                rho_min=self.parameterAsDouble(parameters, "C2F_RHO_MIN", context),
-                tile=self.parameterAsInt(parameters, "C2F_TILE", context),
-                edge_points=self.parameterAsBool(parameters, "C2F_EDGE_POINTS", context)).check()
-            result = hierarchical.match_hierarchical(
-                [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
-                image_ids=[r["id"] for r in rows], params=hier_params, height_range=heights,
-                feedback=feedback)
-        else:
-            result = combinations.match_block(
-                [r["image_path"] for r in rows], models, names=[r["name"] for r in rows],
-                image_ids=[r["id"] for r in rows], params=params, height_range=heights,
-                seed_points=seed_points, automatic=automatic, feedback=feedback,
-                workers=self.parameterAsInt(parameters, "WORKERS", context),
-                grow_second=self.parameterAsBool(parameters, "GROW_SECOND", context),
-                sigma_factor=self.parameterAsDouble(parameters, "SIGMA_FACTOR", context),
-                refine=self.parameterAsBool(parameters, "MPGC_REFINE", context))
-        npz = blk.save_points(result, "mass_points",
-                              display=(models[0], rows[0]["id"], mean_height(heights)))
-        layer = blk.layer_source("mass_points")
-        summary = combinations.summary_rows(result)
-        feedback.pushInfo("points per group (Kornus et al. 2006, Table 1):\n" + combinations.format_summary(summary))
-        out = {"BLOCK": path, "POINTS": layer, "POINTS_FILE": npz}
-        csv = self.parameterAsFileOutput(parameters, "SUMMARY", context)
-        if csv:
-            out["SUMMARY"] = combinations.write_summary_csv(csv, summary)
-        load_styled(context, layer, "Mass points", "POINTS", "points_by_group.qml")
+        path = self.parameterAsFile(parameters, self.BLOCK, context)
+        result = match_block_points(path, self.match_params(parameters, context),
+                                    self.parameterAsFileOutput(parameters, self.SUMMARY, context) or None, feedback)
+        out = {self.BLOCK: path, self.POINTS: result.layer, self.POINTS_FILE: result.sidecar}
+        if result.summary_csv:
+            out[self.SUMMARY] = result.summary_csv
+        load_styled(context, result.layer, self.tr("Mass points"), self.POINTS, "points_by_group.qml")
         return out

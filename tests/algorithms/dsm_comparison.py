@@ -1,5 +1,5 @@
 """The DSM of a matcher's points against the simulator's true DSM, by class (issue 7's acceptance,
-test_hierarchical.py): the points are intersected with the TRUTH models (the error is the
+test_coarse_to_fine.py): the points are intersected with the TRUTH models (the error is the
 matcher's alone, not the supplied models' orientation error, which the chain's adjustment would
 remove), gridded as the chain does (surface/tin_dem.interpolate_dem, 10 m UTM cells, its blunder
 filter) but with one maximum triangle edge for both strategies, MAX_EDGE_M (the chain's default

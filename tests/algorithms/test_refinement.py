@@ -7,7 +7,7 @@ import pytest
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.matching.hierarchical_level import ShiftedModel
+from pushbroom.algorithms.matching.coarse_to_fine_level import ShiftedModel
 from pushbroom.algorithms.matching.refinement import affine_bias
 
 NAMES = ("HRG", "HRS1", "HRS2")

@@ -13,21 +13,13 @@ from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.matching.imagery import Image, Smoothed, Window
 from pushbroom.algorithms.matching.lsm import LSM_OUT, lsm_point
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.region_growing import (
-    _DC,
-    _DR,
-    Lattice,
-    _quantise,
-    adapt_resolution,
-    grow_kernel,
-    match_pair,
-    transfer_points,
-)
+from pushbroom.algorithms.matching.region_growing import Lattice, adapt_resolution, match_pair, transfer_points
+from pushbroom.algorithms.matching.region_growing_kernels import _DC, _DR, _quantise, grow_kernel
 
 
 def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, whalf, max_iter, conv,
                    rho_min, max_ellipse, max_shift, results, state, origin, prior):
-    """Plain-Python reference of region_growing.grow_kernel (heapq; same arguments and outputs)."""
+    """Plain-Python reference of region_growing_kernels.grow_kernel (heapq; same arguments and outputs)."""
     heap = []
     out = np.empty(results.shape[1])
     tries = 0

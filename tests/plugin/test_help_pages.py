@@ -8,7 +8,7 @@ from qgis.PyQt.QtCore import QUrl
 
 #: the algorithms whose help moved to docs/steps (extend as the others move)
 DOCUMENTED = ("bundleadjust", "createblock", "importpoints", "exportpoints", "selecttiepoints", "fitrpc",
-              "assessaccuracy", "simulatescene")
+              "assessaccuracy", "simulatescene", "matchpoints", "intersectpoints", "interpolatedem", "orthorectify")
 
 
 @pytest.mark.parametrize("name", DOCUMENTED)

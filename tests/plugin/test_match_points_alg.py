@@ -121,29 +121,29 @@ def test_cancel_writes_nothing(pushbroom_provider, triplet):
 
 
 def test_coarse_to_fine_strategy(pushbroom_provider, triplet):
-    """STRATEGY 1: the coarse-to-fine matcher (algorithms/matching/hierarchical.py) stores the same
+    """STRATEGY 1: the coarse-to-fine matcher (algorithms/matching/coarse_to_fine.py) stores the same
     point format: group 3 (three images) and group 1 (two), provenance in the stats; two images give
     group 1 only; its advanced parameters reach it (a wider grid gives fewer points, smaller tiles
     more tiles, a tile below the minimum a clear error)."""
     lo, hi = triplet["range"]
-    path = make_block(triplet, "c2f.gpkg", ("HRG", "HRS1", "HRS2"))
+    path = make_block(triplet, "coarse_to_fine.gpkg", ("HRG", "HRS1", "HRS2"))
     result = processing.run("pushbroom:matchpoints", {"BLOCK": path, "STRATEGY": 1, "MIN_HEIGHT": lo,
                                                       "MAX_HEIGHT": hi})
     mass = Block(path).points()
     counts = mass.group_counts()
     assert counts[3] > 500 and counts[2] == 0 and counts[3] > counts[1], counts
-    assert mass.stats["provenance"] == "hierarchical"
+    assert mass.stats["provenance"] == "coarse_to_fine"
     ids = {r["name"]: r["id"] for r in Block(path).images()}
     assert mass.stats["images"] == [ids["HRG"], ids["HRS1"], ids["HRS2"]]
     assert QgsVectorLayer(result["POINTS"], "mass", "ogr").featureCount() == len(mass)
-    path = make_block(triplet, "c2f_two.gpkg", ("HRG", "HRS1"))
+    path = make_block(triplet, "coarse_to_fine_two.gpkg", ("HRG", "HRS1"))
     two = {"BLOCK": path, "STRATEGY": 1, "IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo, "MAX_HEIGHT": hi}
     processing.run("pushbroom:matchpoints", two)
     default = Block(path).points()
     assert set(default.group_counts().values()) - {0} and default.group_counts()[3] == 0
     assert default.stats.get("tiles", 1) == 1
-    processing.run("pushbroom:matchpoints", {**two, "C2F_GRID": 20, "C2F_TILE": 512})
+    processing.run("pushbroom:matchpoints", {**two, "COARSE_TO_FINE_GRID": 20, "COARSE_TO_FINE_TILE": 512})
     coarse = Block(path).points()
     assert len(coarse) < 0.7 * len(default) and coarse.stats["tiles"] == 4, (len(coarse), len(default), coarse.stats)
     with pytest.raises(QgsProcessingException, match="tiles must be at least 512 px"):
-        processing.run("pushbroom:matchpoints", {**two, "C2F_TILE": 300})
+        processing.run("pushbroom:matchpoints", {**two, "COARSE_TO_FINE_TILE": 300})

@@ -1,6 +1,6 @@
 """Session data of the real-data tests, computed once per run and shared read-only: region growing
-on the Ventoux pair (test_dsm_real, test_hierarchical_real) and region growing's triplet DSMs
-(test_dsm_real, test_hierarchical_real, test_matching_pleiades)."""
+on the Ventoux pair (test_dsm_real, test_coarse_to_fine_real) and region growing's triplet DSMs
+(test_dsm_real, test_coarse_to_fine_real, test_matching_pleiades)."""
 import pytest
 from real_dsm import (
     CELL,

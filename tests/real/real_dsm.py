@@ -1,5 +1,5 @@
 """DSMs from matched real Pleiades pixels, shared by the real-data DSM tests of region growing
-(test_dsm_real.py) and of the coarse-to-fine matcher (test_hierarchical_real.py): intersection
+(test_dsm_real.py) and of the coarse-to-fine matcher (test_coarse_to_fine_real.py): intersection
 (surface.intersection), TIN gridding (surface.tin_dem), the comparison with the SRTM tile of the
 Ventoux pair, the common footprint of the triplet, the pairs' differences on one lattice, and the
 triplet DSMs of one matcher with the supplied and the bias-adjusted RPCs (pleiades_scene's image

@@ -12,7 +12,7 @@ postings on ravine relief; it is also checked with that plane removed. The 1 m a
 beside the asserted 2 m one: the NMAD moves with the cell, since each cell size leaves other gaps on
 the same ramp.
 
-Region growing's matching of both (conftest.py) is shared with test_hierarchical_real and
+Region growing's matching of both (conftest.py) is shared with test_coarse_to_fine_real and
 test_matching_pleiades. Pleiades triplet (pleiades_scene: img_02 reference, img_01 forward, img_03
 backward; STEP 3 px, 1.5 m nodes): the 0.5 m DSM from the three-ray points (groups 2 and 3), with gaps
 where a triangle is longer than 3 m (two node spacings). Coverage = share of defined cells among those

@@ -1,5 +1,5 @@
-"""Numba kernel of the coarse-to-fine matcher's candidates (hierarchical_level.candidates, paper Z,
-methods.md section 6): for every point at once (prange), NCC of its template along its sampled
+"""Numba kernel of the coarse-to-fine matcher's candidates (coarse_to_fine_level.candidates; Zhang &
+Gruen): for every point at once (prange), NCC of its template along its sampled
 quasi-epipolar path (ncc.ncc_path), the across-maximum profile, its local maxima and their
 parabola refinement in height and across the path."""
 import math
@@ -29,7 +29,7 @@ def _bilinear_at(arr, lo, w, qlo, qhi, wa):
 
 @njit(cache=True, nogil=True)
 def _point(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out_h, out_rho, out_x, out_y):
-    """Candidates of one point (hierarchical_level.candidates): cx, cy (k, na) its path samples,
+    """Candidates of one point (coarse_to_fine_level.candidates): cx, cy (k, na) its path samples,
     heights (k,); fills out_* (C,) best first and returns `second` (NaN if none)."""
     k, na = cx.shape
     scores = np.empty(k * na)
@@ -93,7 +93,7 @@ def _point(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out
 @njit(cache=True, nogil=True, parallel=True)
 def path_candidates(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out_h, out_rho, out_x, out_y,
                     second):
-    """Candidates of all points (hierarchical_level.candidates): x, y, half, a1..a5, rho_min (n,), cx, cy
+    """Candidates of all points (coarse_to_fine_level.candidates): x, y, half, a1..a5, rho_min (n,), cx, cy
     (n, k, na), heights (n, k); out_* (n, C) NaN-filled, second (n,) NaN-filled. Points with a
     non-finite affine or path position (cx) are skipped."""
     for i in prange(x.shape[0]):

@@ -1,4 +1,4 @@
-"""Coarse-to-fine matching (match_hierarchical) of the simulated SPOT 5 triplet HRG, HRS1, HRS2: seconds
+"""Coarse-to-fine matching (match_coarse_to_fine) of the simulated SPOT 5 triplet HRG, HRS1, HRS2: seconds
 per step (preprocessing, each pyramid level, MPGC; MultiPoints.stats) and in all, against region growing
 (match_block, the demo's STEP 10, 2 workers; with its MPGC refinement of the group 3 points, the default,
 and without) on the same images in the same run. Scene: the 10 km triplet
@@ -15,8 +15,8 @@ import time
 from bench_region_growing import HEIGHT_RANGE, scene
 
 from pushbroom.algorithms import sensors
+from pushbroom.algorithms.matching.coarse_to_fine import match_coarse_to_fine
 from pushbroom.algorithms.matching.combinations import match_block
-from pushbroom.algorithms.matching.hierarchical import match_hierarchical
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
@@ -28,13 +28,14 @@ TILES = (4096, 2048, 1024)     # 4096: the 20 km scene's 4000 px images whole
 CHILD = f"""
 import json, sys, time
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.matching.hierarchical import HierParams, match_hierarchical
+from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
 folder, tile = sys.argv[1], int(sys.argv[2])
 names = {NAMES!r}
 models = [sensors.load(f"{{folder}}/{{n}}/METADATA.DIM") for n in names]
 start = time.perf_counter()
-points = match_hierarchical([f"{{folder}}/{{n}}/IMAGERY.TIF" for n in names], models, params=HierParams(tile=tile),
-                            height_range={HEIGHT_RANGE!r})
+points = match_coarse_to_fine([f"{{folder}}/{{n}}/IMAGERY.TIF" for n in names], models,
+                              params=CoarseToFineParams(tile=tile),
+                              height_range={HEIGHT_RANGE!r})
 peak = [int(line.split()[1]) / 1024.0 for line in open("/proc/self/status") if line.startswith("VmHWM:")][0]
 print(json.dumps({{"points": len(points), "three": points.stats["group3"], "seconds": time.perf_counter() - start,
                   "tiles": points.stats.get("tiles", 1), "peak_mib": peak}}))
@@ -48,7 +49,7 @@ def both(images, models, height_range):
                                    workers=WORKERS, refine=refine)
 
     out = {}
-    for label, match in (("coarse-to-fine", lambda: match_hierarchical(images, models, names=NAMES,
+    for label, match in (("coarse-to-fine", lambda: match_coarse_to_fine(images, models, names=NAMES,
                                                                        height_range=height_range)),
                          ("region growing + MPGC refinement", region_growing(True)),
                          ("region growing", region_growing(False))):

@@ -1,10 +1,10 @@
-"""Candidates of all points in one kernel (hierarchical_kernels.path_candidates) against the known
+"""Candidates of all points in one kernel (coarse_to_fine_kernels.path_candidates) against the known
 shift of a synthetic pair and against ncc.ncc_path per point."""
 import numpy as np
 from scipy import ndimage
 
 from pushbroom.algorithms.matching import ncc
-from pushbroom.algorithms.matching.hierarchical_kernels import path_candidates
+from pushbroom.algorithms.matching.coarse_to_fine_kernels import path_candidates
 
 
 def test_path_candidates_find_the_shift():

@@ -1,4 +1,4 @@
-"""Coarse-to-fine multi-primitive matching with MPGC (algorithms/matching/hierarchical.py, issue 7):
+"""Coarse-to-fine multi-primitive matching with MPGC (algorithms/matching/coarse_to_fine.py, issue 7):
 pieces against independent references, and the simulated 3 km SPOT 5 triplet against its truth,
 side by side with region growing (combinations.match_block) by class."""
 import numpy as np
@@ -9,10 +9,17 @@ from feedback import Feedback
 from matching_scene import LOW_CONTRAST_DN, SINGLE_SURFACE, Scene
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import CancelledError, InputError
-from pushbroom.algorithms.matching import hierarchical as hier
-from pushbroom.algorithms.matching.hierarchical_level import LevelModel, ShiftedModel, rho_thresholds, window_halves
+from pushbroom.algorithms.matching import coarse_to_fine
+from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
+from pushbroom.algorithms.matching.coarse_to_fine_level import (
+    LevelModel,
+    ShiftedModel,
+    edge_breaklines,
+    rho_thresholds,
+    window_halves,
+)
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.points import COMB_A, COMB_B
+from pushbroom.algorithms.matching.points import COMB_A, COMB_B, EDGE, NCC_ONLY
 from pushbroom.algorithms.matching.relaxation import crosses_edge, hypotheses, relax, unique_choice
 
 NAMES = ("HRG", "HRS1", "HRS2")
@@ -93,11 +100,11 @@ def test_edge_breaklines():
     chain changes cut them, single edgels are no line."""
     edge = {"x": np.array([1.0, 2.0, 3.0, 5.0, 7.0, 1.0]), "y": np.zeros(6), "h": np.arange(6.0),
             "chain": np.array([0, 0, 0, 0, 0, 1]), "index": np.array([0, 2, 4, 8, 10, 0])}
-    lines = hier.edge_breaklines(edge, 3.0, 2)
+    lines = edge_breaklines(edge, 3.0, 2)
     assert [line[:, 0].tolist() for line in lines] == [[3.0, 6.0, 9.0], [15.0, 21.0]]
     assert lines[1][:, 2].tolist() == [3.0, 4.0]
     with pytest.raises(InputError, match="edge window"):
-        hier.HierParams(edge_window=6).check()
+        CoarseToFineParams(edge_window=6).check()
 
 
 def test_level_and_shifted_models(small_scene):
@@ -112,19 +119,19 @@ def test_level_and_shifted_models(small_scene):
 
 def test_bad_input(small_scene, monkeypatch):
     with pytest.raises(InputError, match="2 or 3 images"):
-        hier.match_hierarchical([np.zeros((50, 50))], [None])
+        match_coarse_to_fine([np.zeros((50, 50))], [None])
     with pytest.raises(InputError, match="odd"):
-        hier.HierParams(windows=(8,)).check()
+        CoarseToFineParams(windows=(8,)).check()
     images = [small_scene["images"][k]["imagery"] for k in NAMES[:2]]
     models = [sensors.load(small_scene["images"][k]["metadata"]) for k in NAMES[:2]]
-    monkeypatch.setattr(hier, "MAX_PIXELS", 1000)
+    monkeypatch.setattr(coarse_to_fine, "MAX_PIXELS", 1000)
     with pytest.raises(InputError, match="search window.*narrow the terrain height range or make the tiles smaller"):
-        hier.match_hierarchical(images, models, height_range=(200.0, 400.0))
+        match_coarse_to_fine(images, models, height_range=(200.0, 400.0))
     with pytest.raises(InputError, match="tiles must be at least 512 px"):
-        hier.HierParams(tile=300).check()
-    monkeypatch.setattr(hier, "TILE_MARGIN", 64)
+        CoarseToFineParams(tile=300).check()
+    monkeypatch.setattr(coarse_to_fine, "TILE_MARGIN", 64)
     with pytest.raises(InputError, match="no tile of the reference image gave points.*narrow the terrain height"):
-        hier.match_hierarchical(images, models, params=hier.HierParams(tile=300), height_range=(200.0, 400.0))
+        match_coarse_to_fine(images, models, params=CoarseToFineParams(tile=300), height_range=(200.0, 400.0))
 
 
 # ------------------------------------------------------------------------------------------
@@ -136,7 +143,7 @@ def both(small_scene, small_scene_matched):
     images = [scene.paths["images"][k]["imagery"] for k in NAMES]
     models = [sensors.load(scene.paths["images"][k]["metadata"]) for k in NAMES]
     rg = small_scene_matched(GrowParams(), refine=False)   # paper K's, without the MPGC refinement of its group 3
-    hi = hier.match_hierarchical(images, models, params=hier.HierParams(), height_range=scene.height_range)
+    hi = match_coarse_to_fine(images, models, params=CoarseToFineParams(), height_range=scene.height_range)
     return scene, rg, hi, images, models
 
 
@@ -144,7 +151,7 @@ def both(small_scene, small_scene_matched):
 def with_edge_points(both):
     """The coarse-to-fine matcher with edge points at level 1 and breaklines (off by default)."""
     scene, _, _, images, models = both
-    return hier.match_hierarchical(images, models, params=hier.HierParams(edge_points=True),
+    return match_coarse_to_fine(images, models, params=CoarseToFineParams(edge_points=True),
                                    height_range=scene.height_range)
 
 
@@ -177,13 +184,13 @@ def test_triplet_side_by_side_with_region_growing(both):
     points on open ground."""
     scene, rg, hi, _, _ = both
     table = {}
-    for label, mp in (("region growing", rg), ("hierarchical", hi)):
+    for label, mp in (("region growing", rg), ("coarse_to_fine", hi)):
         cls, err, flags = errors(scene, mp)
         ncls, texture, hit = coverage(scene, mp)
         table[label] = (cls, err, flags, hit, (ncls == 3) & (texture < LOW_CONTRAST_DN))
-    cls, err, flags, hit, low = table["hierarchical"]
+    cls, err, flags, hit, low = table["coarse_to_fine"]
     hit_rg = table["region growing"][3]
-    mpgc_ok = (flags & hier.NCC_ONLY) == 0
+    mpgc_ok = (flags & NCC_ONLY) == 0
     assert hit[low].mean() > hit_rg[low].mean()                 # acceptance: low texture covered more
     open_ok = mpgc_ok & np.isin(cls, SINGLE_SURFACE)
     assert np.mean(err[open_ok] > 1.0) < 0.02                   # MPGC-accepted on open ground: few blunders
@@ -206,17 +213,18 @@ def test_triplet_dsm_by_class_against_region_growing(both, with_edge_points, sma
     2.22 (2.23) vs 2.38 m; building-edge zone (within 10 m of an outline) MAE 4.28 (4.28) vs 4.40 m,
     99 (99) vs 100 % covered. MPGC's robust weights (mpgc.py) brought own-cell bare / crops from
     1.82 / 2.32 m (then 1.70 / 2.27 m), the windows and NCC thresholds adapted to the TIN's
-    roughness (hierarchical_level.py) forest from 8.50 to 8.32 m; points MPGC does not accept but
+    roughness (coarse_to_fine_level.py) forest from 8.50 to 8.32 m; points MPGC does not accept but
     that converged keep MPGC's position (with their NCC one: bare 2.08 m, crops 2.89 m). Edge points
     do not help measurably here (not asserted). Forest: region growing 7.83 m."""
     scene, rg, hi, _, _ = both
     truth = Truth(scene.paths)
     refined = small_scene_matched(GrowParams())
-    tables = compare(truth, {"region growing": rg, "hierarchical": hi, "edge points": with_edge_points,
+    tables = compare(truth, {"region growing": rg, "coarse_to_fine": hi, "edge points": with_edge_points,
                              "RG + MPGC": refined})
-    r, h, m = tables["region growing"], tables["hierarchical"], tables["RG + MPGC"]
+    r, h, m = tables["region growing"], tables["coarse_to_fine"], tables["RG + MPGC"]
     for name in ("bare", "crops"):
-        assert m[name][2] < r[name][2] and h[name][1] > m[name][1]    # refinement: more accurate; C2F: more cells
+        # refinement: more accurate; coarse-to-fine: more cells
+        assert m[name][2] < r[name][2] and h[name][1] > m[name][1]
     for name in ("bare", "crops"):                           # (cells, coverage, RMS, NMAD, MAE, RMS common)
         assert h[name][1] >= r[name][1]
         assert h[name][2] <= r[name][2]                      # RMS on its own, larger, set of cells
@@ -234,9 +242,9 @@ def test_tiles_give_the_whole_image_result(both, monkeypatch):
     Measured (10 m DSM coverage / RMS): bare 88 % / 1.68 m, crops 73 % / 2.28 m (untiled 88 / 1.71,
     76 / 2.28)."""
     scene, _, hi, images, models = both
-    monkeypatch.setattr(hier, "TILE_MARGIN", 64)
+    monkeypatch.setattr(coarse_to_fine, "TILE_MARGIN", 64)
     log = Feedback()
-    tiled = hier.match_hierarchical(images, models, params=hier.HierParams(tile=300), height_range=scene.height_range,
+    tiled = match_coarse_to_fine(images, models, params=CoarseToFineParams(tile=300), height_range=scene.height_range,
                                     feedback=log)
     assert tiled.stats["tiles"] == tiled.stats["tiles_matched"] == 4
     assert sum(t["points"] for t in tiled.stats["per_tile"]) == len(tiled)
@@ -253,7 +261,7 @@ def test_tiles_give_the_whole_image_result(both, monkeypatch):
         assert abs(tables["tiled"][name][2] - tables["untiled"][name][2]) < 0.1
     stop = Feedback(cancel_at=50.0)
     with pytest.raises(CancelledError):
-        hier.match_hierarchical(images, models, params=hier.HierParams(tile=300), height_range=scene.height_range,
+        match_coarse_to_fine(images, models, params=CoarseToFineParams(tile=300), height_range=scene.height_range,
                                 feedback=stop)
     assert max(stop.progress) < 75.0          # stopped in the third of four tiles
 
@@ -264,11 +272,11 @@ def test_triplet_edge_points(both):
     both search images, flagged EDGE, most of them MPGC-accepted, and accurate against the point
     truth on open ground (measured: 0.19 px RMS, none > 1 px; the other points 0.3 - 0.45 px)."""
     scene, _, _, images, models = both
-    mp = hier.match_hierarchical(images, models, params=hier.HierParams(edge_points=True, edge_min_level=0),
+    mp = match_coarse_to_fine(images, models, params=CoarseToFineParams(edge_points=True, edge_min_level=0),
                                  height_range=scene.height_range)
     cls, err, flags = errors(scene, mp)
-    edge = (flags & hier.EDGE) != 0
-    assert mp.stats["edge_points"] == int(np.count_nonzero((mp.points["flags"] & hier.EDGE) != 0)) > 1000
+    edge = (flags & EDGE) != 0
+    assert mp.stats["edge_points"] == int(np.count_nonzero((mp.points["flags"] & EDGE) != 0)) > 1000
     assert mp.stats["edge_points_mpgc"] > 0.8 * mp.stats["edge_points"]
     open_edge = edge & np.isin(cls, SINGLE_SURFACE)
     assert open_edge.sum() > 500

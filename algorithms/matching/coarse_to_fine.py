@@ -1,106 +1,55 @@
-"""Coarse-to-fine multi-primitive matching with MPGC, the second dense-matching strategy (paper Z,
-Zhang & Gruen; methods.md section 6; issue 7).
+"""Coarse-to-fine multi-primitive matching with MPGC, the second dense-matching strategy (Zhang &
+Gruen): the orchestration. The work of one pyramid level is in coarse_to_fine_level.py.
 
 0. Tiles: a reference image larger than `tile` px is cut into tiles (`_tiles`), each matched with
    TILE_MARGIN px of context in windows of the adapted images (the search windows from the
    models' prediction over the height range), each keeping the points of its core; the
-   orientation bias of step 2 is estimated per tile. Memory is bounded by the tile size.
+   orientation bias is estimated per tile. Memory is bounded by the tile size (MAX_PIXELS).
 1. Preprocessing (preprocess.py): the reference (nadir) is low-passed to the search images'
    footprint (region_growing.adapt_resolution), every image Wallis-filtered and reduced to a
    factor-3 pyramid; the number of levels brings the parallax range of the block's height range
    to about `search_px_at_top` px at the top level (preprocess.levels_for), as far as the top
    level keeps 3 of the largest windows across the smallest image.
-2. Per level, primitives of the reference: Foerstner points (one per `patch` x `patch` cell) and
-   grid points (`grid` px apart at level 0, `coarse_grid` above); each is searched in every
-   search image by NCC along its quasi-epipolar path (hierarchical_level.candidates) over a height
-   interval: the block's range at the top, below it the previous level's TIN height +- (`tol_px`
-   px of parallax + the TIN roughness there). Window per point from its texture and, below the
-   top level, the TIN's terrain roughness (its roughness less, in quadrature, the level's median,
-   the matching noise; hierarchical_level.window_halves, Kanade-Okutomi); rho threshold per level
-   (`rho_min` at level 0, `rho_min_coarse` above) lowered by up to `rho_drop` where that roughness
-   reaches 1 px of parallax (hierarchical_level.rho_thresholds); up to `max_candidates` candidates
-   per image, resolved by the third image (height agreement), the peak ratio and relaxation
-   (relaxation.py), then back-matching in every search image (a failing image drops out of the
-   point). The orientation bias of each search image (constant image shift) is estimated per
-   level from the unique candidates (estimate_shift) and compensated from then on
-   (hierarchical_level.ShiftedModel), MPGC included.
-   With `edges`, Canny edges of the reference level image (edges.canny, default thresholds) bound
-   the relaxation: neighbours across an edge are left out. With `edge_points` (levels >=
-   `edge_min_level`), the edges linked into chains (edges.link) are matched edgel by edgel (every
-   `edge_step`-th) into every search image with the figural continuity constraint
-   (edges.match_edges) over the same height interval, with the level models after this level's
-   shift update; edgels ok in every search image whose heights agree within agree_px of parallax
-   are extra points of the level (flag EDGE; at level 0 they go through MPGC like the others).
-3. A TIN of the accepted points (reference image position at full resolution, height) with the
-   blunder filter of surface/tin.py guides the next level; with `breaklines` the matched edge
-   chains (runs of consecutive ok edgels) are conforming breaklines of it (tin.conform_breaklines)
-   instead of mass points, so triangles do not bridge building steps.
+2. From the top level down, each level's points (coarse_to_fine_level.match_level, and with
+   `edge_points` match_level_edges) over the height interval its predecessor's TIN gives; the
+   search images' orientation bias estimated per level is compensated from then on (ShiftedModel).
+3. A TIN of each level's accepted points (coarse_to_fine_level.TinGuide, with the matched edge
+   chains as breaklines when `breaklines`) guides the next level.
 4. Level 0's points go through MPGC (mpgc.match_points) in all their images at once. Points MPGC
    does not accept but that converged within the shift limit keep MPGC's positions with its
-   lowered reliability (mpgc.py: rho x ellipse and geometric-test ratios; mostly an ellipse just
-   over the limit); the others keep their NCC positions with the low reliability NCC_RELIABILITY
-   x rho; both are flagged NCC_ONLY (not accepted). On the simulated triplet's 10 m DSM
-   (test_hierarchical.py) MPGC's positions took the open-class RMS from bare 2.08 / crops 2.89 m
-   (NCC's) to 1.82 / 2.33 m at the same coverage (1.71 / 2.28 m since MPGC's robust weights and the
-   TIN-adapted windows; region growing 1.79 / 2.37 m); dropping the points near accepted ones
-   instead (tried: within 10 px) lowers the coverage and not the RMS.
+   lowered reliability (mpgc.py: rho x ellipse and geometric-test ratios); the others keep their
+   NCC positions with the low reliability NCC_RELIABILITY x rho; both are flagged NCC_ONLY.
 5. Output: MultiPoints (points.py) with group 3 (reference + 2 search images) or 1 (reference + 1),
-   rho_min = the reliability (MPGC's, mpgc.py, or the NCC one), flags COMB_A / COMB_B for the
-   search images 1 / 2 observed (+ NCC_ONLY), stats with provenance "hierarchical" and the
-   timings per level.
+   rho_min = the reliability (MPGC's, or the NCC one), flags COMB_A / COMB_B for the search images
+   1 / 2 observed (+ NCC_ONLY, EDGE), stats with provenance "coarse_to_fine" and the timings per
+   level.
 
-Edges, measured on the simulated triplet's 10 m DSM (test_hierarchical.py, against the version
-without them): the edge mask (on by default) changes little. Edge points at level 1 with
-breaklines gave bare coverage 88 -> 89 %, RMS 2.27 -> 2.17 m, crops 80 -> 81 %, low texture
-56 -> 58 %, building-edge MAE 4.32 -> 4.33 m (region growing 4.40; the 10 m TIN DEM smooths the
-steps whatever the points), and nothing measurable once every path is sampled at its own spacing;
-on the Ventoux pair (forest slope, tests/real/test_hierarchical_real.py) they add gross blunders
-(2 m DSM - SRTM NMAD 10.7 -> 13.4 m, minimum -15 -> -352 m), so `edge_points` (and with it the
-breaklines, which come from the matched edges) is off by default. Edge points at level 0 too
-(edge_min_level 0) are the most accurate points (0.19 px RMS, none > 1 px on open ground) and lower the open-class RMS further
-(bare 2.10, crops 2.74 m) but cost DEM coverage (bare 84, crops 70, low texture 43 %): the DEM's
-blunder filter takes its robust sigma over all points, and the dense, precise edge points shrink
-it, so more of the other points go.
-
-Not yet (issue 7): tiling (the pyramids are whole-image arrays)."""
+Failure modes: InputError for other than 2 or 3 images, a level with fewer than 3 points, a search
+window over MAX_PIXELS or no tile with points; CancelledError when cancelled. Why `edge_points` is
+off by default: docs/validation.md."""
 import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage
 
 from .. import progress
 from ..errors import InputError
-from ..surface.tin import conform_breaklines, delaunay, filter_blunders, neighbour_residuals
-from ..surface.tin_grid import Grid, rasterize
 from . import preprocess
-from .edges import canny, link, match_edges
-from .hierarchical_level import (
-    LevelModel,
-    ShiftedModel,
-    back_match,
-    candidates,
-    noise_sigma,
-    rho_thresholds,
-    window_halves,
-)
+from .coarse_to_fine_level import FACTOR, ShiftedModel, TinGuide, edge_breaklines, match_level, match_level_edges
+from .edges import canny, link
 from .imagery import Window, as_image
-from .interest import interest_points
 from .mpgc import MpgcParams, accepted, match_points
 from .params import GrowParams
 from .points import COMB_A, COMB_B, EDGE, NCC_ONLY, OBS_DTYPE, POINT_DTYPE, MultiPoints
-from .relaxation import hypotheses, relax, unique_choice
 from .seeds import predict, resolve_height_range
 
 #: reliability of a point that failed MPGC: this factor x its smallest NCC rho
 NCC_RELIABILITY = 0.25
-FACTOR = 3
 
 
 #: the largest window (pixels) matched in one piece, the search windows of a tile included: each is held
-#: whole with its pyramids, candidates and level TINs (peak ~70 bytes a pixel of the three images: 2.2 GB
-#: for the 20 km triplet's 4000 px images matched whole, 1.0 GB in tiles of 2048 px; bench_hierarchical)
+#: whole with its pyramids, candidates and level TINs (memory per pixel: docs/validation.md)
 MAX_PIXELS = 40_000_000
 #: px of the reference image around a tile's core matched with it (context for the windows, the
 #: relaxation and the TINs; its points are dropped) and added around the search windows
@@ -108,7 +57,7 @@ TILE_MARGIN = 256
 
 
 @dataclass
-class HierParams:
+class CoarseToFineParams:
     """Parameters of the coarse-to-fine matcher (module docstring)."""
 
     search_px_at_top: float = 4.0      # parallax range (px) at the top level
@@ -116,7 +65,7 @@ class HierParams:
     coarse_grid: int = 6               # px between grid points above level 0
     patch: int = 16                    # px: one Foerstner point per patch x patch cell (every level)
     windows: tuple = (9, 15, 21)       # candidate window sizes (px, every level)
-    precision: float = 0.05            # px: window choice target (hierarchical_level.window_halves)
+    precision: float = 0.05            # px: window choice target (coarse_to_fine_level.window_halves)
     rho_min: float = 0.7               # NCC threshold at level 0
     rho_min_coarse: float = 0.6        # NCC threshold above level 0
     rho_drop: float = 0.1              # NCC threshold lowered by up to this where the TIN is rough (1 px parallax)
@@ -133,13 +82,13 @@ class HierParams:
     wallis: bool = True
     tile: int = 4096                   # px: square tiles of the reference image (cores; memory: MAX_PIXELS)
     edges: bool = True                 # relaxation does not cross the reference level's Canny edges (step 2)
-    edge_points: bool = False          # edge chains matched with figural continuity become points (step 2; off:
-    #                                    module docstring, Ventoux)
+    edge_points: bool = False          # edge chains matched with figural continuity become points (off: blunders
+    #                                    on steep forest, docs/validation.md)
     breaklines: bool = True            # matched edge chains are breaklines of the level TIN (step 3)
     edge_window: int = 7               # px: NCC window of edge matching (every level)
     edge_step: int = 2                 # every edge_step-th edgel of a chain is matched
     edge_min_length: int = 10          # px: shorter edge chains are dropped
-    edge_min_level: int = 1            # edge points on this pyramid level and above (module docstring, step 2)
+    edge_min_level: int = 1            # edge points on this pyramid level and above (coarse_to_fine_level)
     final: MpgcParams = field(default_factory=lambda: MpgcParams(sigma_geometry=0.5))   # MPGC
 
     def check(self):
@@ -160,202 +109,6 @@ class HierParams:
             raise InputError("max_candidates, search_px_at_top, tol_px and agree_px must be positive")
         self.final.check()
         return self
-
-
-def parallax_per_metre(model0, model, x, y, h):
-    """Search-image px per metre of height along the reference rays at (x, y) (any level)."""
-    return np.hypot(*parallax_vector(model0, model, x, y, h))
-
-
-class TinGuide:
-    """Heights of the accepted points of a level as a TIN (full-resolution reference px) after the
-    blunder filter, interpolated (with the roughness |plane residual| of the vertices) on a grid
-    of `cell` px for the next level; outside the TIN the nearest grid value. `breaklines`: (n, 3)
-    polylines (x, y, h), densified to `spacing` px and conformed (surface/tin.py conform_breaklines:
-    no triangle crosses them; their vertices are never filtered, mass points closer than
-    spacing / 4 give way)."""
-
-    def __init__(self, x, y, h, shape, cell, k, breaklines=(), spacing=1.0):
-        vertices, _, near = conform_breaklines(list(breaklines), x, y, spacing=spacing, min_length=spacing / 2)
-        x, y, h = (np.concatenate([v[near], vertices[:, i]]) for i, v in enumerate((x, y, h)))
-        fixed = np.arange(len(x)) >= int(near.sum())
-        tin = delaunay(x, y)
-        keep, self.removed = filter_blunders(tin, x, y, h, k=k, fixed=fixed)
-        x, y, h = x[keep], y[keep], h[keep]
-        self.count = int(keep.sum())
-        tin = delaunay(x, y)
-        rough = np.empty(len(h))
-        indptr, indices = tin.vertex_neighbor_vertices
-        neighbour_residuals(indptr, indices, *(np.ascontiguousarray(v, float) for v in (x, y, h)),
-                            np.ones(len(h), bool), rough)
-        rough = np.nan_to_num(np.abs(rough))
-        self.cell = float(cell)
-        grid = Grid(0.0, 0.0, self.cell, int(math.ceil(shape[1] / cell)) + 1, int(math.ceil(shape[0] / cell)) + 1)
-        values = rasterize(x, -y, np.column_stack([h, rough]), tin.simplices, grid)
-        missing = ~np.isfinite(values[0])
-        if missing.any():
-            idx = ndimage.distance_transform_edt(missing, return_distances=False, return_indices=True)
-            values = values[:, idx[0], idx[1]]
-        self.values = values
-
-    def at(self, x, y):
-        """(h, roughness) at full-resolution reference positions."""
-        rows, cols = self.values.shape[1:]
-        i = np.clip(np.floor(np.asarray(y) / self.cell).astype(np.int64), 0, rows - 1)
-        j = np.clip(np.floor(np.asarray(x) / self.cell).astype(np.int64), 0, cols - 1)
-        return self.values[0, i, j], self.values[1, i, j]
-
-
-def estimate_shift(lm, x, y, cands, rho_min, peak_ratio):
-    """Orientation bias of each search image (level px), from the points whose best candidate is
-    unique (peak ratio) in every search image: median of (matched position - the model's
-    prediction at the height of search image 1's match). Image 1's match defines the height, so
-    its shift is across its path; image 2's is complete. Also returns the candidates' heights
-    corrected for the shifts (h - (d . u) / (px per m), u the path direction). Zero shifts with
-    fewer than 10 such points."""
-    m = len(cands)
-    best = np.ones(len(x), bool)
-    for c in cands:
-        with np.errstate(invalid="ignore"):
-            best &= (c["rho"][:, 0] > rho_min) & ~(c["second"] / c["rho"][:, 0] >= peak_ratio)
-    shifts = np.zeros((m, 2))
-    heights = [c["h"] for c in cands]
-    if best.sum() < 10:
-        return shifts, heights
-    h1 = cands[0]["h"][best, 0]
-    for k, c in enumerate(cands):
-        px, py = predict(lm[0], lm[k + 1], x[best], y[best], h1)
-        shifts[k] = np.nanmedian(c["x"][best, 0] - px), np.nanmedian(c["y"][best, 0] - py)
-        sens = parallax_vector(lm[0], lm[k + 1], x, y, h1.mean())
-        along = (shifts[k, 0] * sens[0] + shifts[k, 1] * sens[1]) / (sens[0] ** 2 + sens[1] ** 2)
-        heights[k] = c["h"] - along[:, None]
-    return shifts, heights
-
-
-def parallax_vector(model0, model, x, y, h):
-    """d(x, y)/dh of the search image along the reference rays at (x, y): px per metre."""
-    xa, ya = predict(model0, model, x, y, np.full(len(x), h - 50.0))
-    xb, yb = predict(model0, model, x, y, np.full(len(x), h + 50.0))
-    return (xb - xa) / 100.0, (yb - ya) / 100.0
-
-
-def primitives(img, level, params, border):
-    """Foerstner points and grid points of a reference level image: (x, y) level px."""
-    rows, cols = img.shape
-    px, py, _ = interest_points(img, patch=params.patch, window=5, border=border)
-    if level == 0:    # region growing's lattice (half template 9): comparable nodes
-        gx = np.arange(9.5, cols - border, params.grid)
-        gy = np.arange(9.5, rows - border, params.grid)
-    else:
-        gx = np.arange(border + 0.5, cols - border, params.coarse_grid)
-        gy = np.arange(border + 0.5, rows - border, params.coarse_grid)
-    gx, gy = (v.ravel() for v in np.meshgrid(gx, gy))
-    inside = (gx >= border) & (gy >= border)
-    x, y = np.concatenate([px, gx[inside]]), np.concatenate([py, gy[inside]])
-    first = np.sort(np.unique(np.column_stack([x, y]), axis=0, return_index=True)[1])   # a Foerstner point on a node
-    return x[first], y[first]
-
-
-def match_level(ref, ref_raw, searches, models, level, params, hr, guide, edge_mask=None):
-    """One level (module docstring, step 2): dict with x, y (level px), h, per search image x/y/rho
-    arrays (n, m) (NaN where not matched)."""
-    s = float(FACTOR) ** level
-    lm = [LevelModel(m, s) for m in models]
-    rho_min = params.rho_min if level == 0 else params.rho_min_coarse
-    border = max(params.windows) // 2 + 2
-    x, y = primitives(ref, level, params, border)
-    n, m = len(x), len(searches)
-    h_lo, h_hi, sens = height_interval(lm, x, y, params, hr, guide)
-    # the previous level's TIN roughness in px of parallax, less (in quadrature) its median, the
-    # matching noise that the roughness of plane residuals includes
-    rough_px = np.zeros(n) if guide is None else guide.at(x * s, y * s)[1] * sens
-    rough_px = np.sqrt(np.maximum(rough_px ** 2 - np.median(rough_px) ** 2, 0.0)) if n else rough_px
-    halves = window_halves(ref_raw, x, y, params.windows, noise_sigma(ref_raw), params.precision,
-                           rough_px ** 2 / (params.coarse_grid * FACTOR))
-    rho_min = rho_thresholds(rho_min, params.rho_drop, rough_px)
-    across = max(1, int(math.ceil(params.across / s)))
-    cands = [candidates(ref, searches[k], lm[0], lm[k + 1], x, y, h_lo, h_hi, halves, across, rho_min,
-                        params.max_candidates) for k in range(m)]
-    agree = params.agree_px / sens
-    shifts, heights = estimate_shift(lm, x, y, cands, rho_min, params.peak_ratio)
-    for c, hk in zip(cands, heights):
-        c["h"] = hk
-    h, score, i1, i2 = hypotheses(cands, agree)
-    choice = unique_choice(h, score, i1, i2, cands, params.peak_ratio, params.margin)
-    spacing = params.grid if level == 0 else params.coarse_grid
-    choice = relax(x, y, h, score, choice, np.maximum(agree, 1e-3), params.relax_radius * spacing,
-                   edge_mask=edge_mask)
-    rows = np.arange(n)
-    c = np.maximum(choice, 0)
-    out = {"x": x, "y": y, "h": np.where(choice >= 0, h[rows, c], np.nan),
-           "sx": np.full((n, m), np.nan), "sy": np.full((n, m), np.nan), "rho": np.full((n, m), np.nan),
-           "candidates": int(np.isfinite(h).any(axis=1).sum()), "shifts": shifts * s}
-    for k, idx in enumerate((i1, i2)[:m]):
-        j = np.where(choice >= 0, idx[rows, c], -1)
-        has = j >= 0
-        sel = np.flatnonzero(has)
-        cx = cands[k]["x"][sel, j[sel]]
-        cy = cands[k]["y"][sel, j[sel]]
-        d = back_match(ref, searches[k], lm[0], lm[k + 1], x[sel], y[sel], cx, cy, h_lo[sel], h_hi[sel],
-                       halves[sel], across)
-        ok = d <= params.back_px
-        sel = sel[ok]
-        out["sx"][sel, k], out["sy"][sel, k] = cx[ok], cy[ok]
-        out["rho"][sel, k] = cands[k]["rho"][sel, j[sel]]
-    matched = np.isfinite(out["sx"]).any(axis=1)
-    for key in ("x", "y", "h", "sx", "sy", "rho"):
-        out[key] = out[key][matched]
-    return out
-
-
-def height_interval(lm, x, y, params, hr, guide):
-    """(h_lo, h_hi, px of parallax per m) of level points (x, y): the block's range + top_margin_px at
-    the top level, below it the guide's height +- (tol_px of parallax + its roughness)."""
-    s = lm[0].scale
-    hmid = 0.5 * (hr[0] + hr[1])
-    sens = np.max([parallax_per_metre(lm[0], mk, x, y, hmid) for mk in lm[1:]], axis=0)
-    sens = np.where(np.isfinite(sens) & (sens > 0), sens, np.nanmedian(sens))
-    if guide is None:
-        pad = params.top_margin_px / sens
-        return np.full(len(x), hr[0]) - pad, np.full(len(x), hr[1]) + pad, sens
-    h0, rough = guide.at(x * s, y * s)
-    tol = params.tol_px / sens + rough
-    return h0 - tol, h0 + tol, sens
-
-
-def match_level_edges(ref, searches, models, level, params, hr, guide, chains):
-    """Edge points of one level (step 2): the chains' edgels matched into every search image
-    (edges.match_edges, figural continuity) over the height interval of `height_interval`; kept
-    where ok in every search image with heights agreeing within agree_px of parallax (height: the
-    rho-weighted mean). Returns match_level's keys (x, y, h, sx, sy, rho) and chain, index."""
-    lm = [LevelModel(mk, float(FACTOR) ** level) for mk in models]
-    m = len(searches)
-    pts = np.concatenate(chains) if chains else np.zeros((0, 2))
-    lo, hi, _ = height_interval(lm, pts[:, 0], pts[:, 1], params, hr, guide)
-    rho_min = params.rho_min if level == 0 else params.rho_min_coarse
-    recs = [match_edges(ref, searches[k], chains, lambda c, r, h, k=k: predict(lm[0], lm[k + 1], c, r, h), (lo, hi),
-                        window=params.edge_window, step=params.edge_step, rho_min=rho_min) for k in range(m)]
-    x, y = recs[0]["col"], recs[0]["row"]
-    ok = np.logical_and.reduce([r["ok"] for r in recs])
-    rho = np.column_stack([r["rho"] for r in recs]).astype(float)
-    hk = np.column_stack([r["h"] for r in recs])
-    h = (rho * hk).sum(axis=1) / rho.sum(axis=1)
-    if m > 1 and ok.any():
-        _, _, sens = height_interval(lm, x[ok], y[ok], params, hr, guide)
-        idx = np.flatnonzero(ok)
-        ok[idx] = np.abs(hk[idx, 0] - hk[idx, 1]) <= params.agree_px / sens
-    return {"x": x[ok], "y": y[ok], "h": h[ok], "rho": rho[ok],
-            "sx": np.column_stack([r["col2"] for r in recs])[ok], "sy": np.column_stack([r["row2"] for r in recs])[ok],
-            "chain": recs[0]["chain"][ok], "index": recs[0]["index"][ok], "edgels": len(x)}
-
-
-def edge_breaklines(edge, scale, step):
-    """Breaklines (full px x, y, h) of the matched edgels: runs of consecutive edgels of a chain."""
-    if len(edge["x"]) < 2:
-        return []
-    cut = np.flatnonzero((np.diff(edge["chain"]) != 0) | (np.diff(edge["index"]) != step)) + 1
-    line = np.column_stack([edge["x"] * scale, edge["y"] * scale, edge["h"]])
-    return [part for part in np.split(line, cut) if len(part) >= 2]
 
 
 def adapted_images(images, models, hr, grow=None):
@@ -399,12 +152,12 @@ def _adapt(image0, image, model0, model, grow, hr):
     return adapt_resolution(as_image(image0), as_image(image), model0, model, grow, hr)
 
 
-def match_hierarchical(images, models, names=None, image_ids=None, params=None, height_range=None, feedback=None):
+def match_coarse_to_fine(images, models, names=None, image_ids=None, params=None, height_range=None, feedback=None):
     """Coarse-to-fine multi-primitive matching with MPGC of 2 or 3 images (reference/nadir first,
     then the search images; paths, arrays or Images) with their sensor models. A reference image
     larger than `params.tile` px is matched tile by tile (`_tiles`). Returns MultiPoints (module
     docstring, step 5). Raises InputError on unusable input, CancelledError when cancelled."""
-    params = (params or HierParams()).check()
+    params = (params or CoarseToFineParams()).check()
     n = len(images)
     if n not in (2, 3) or len(models) != n:
         raise InputError(f"the coarse-to-fine matcher takes 2 or 3 images (reference, search[, search]), got {n}")
@@ -498,7 +251,7 @@ def _match_tiles(adapted, models, params, hr, cores, feedback):
     for t in tiles:
         for key, v in t["seconds"].items():
             seconds[key] = round(seconds.get(key, 0.0) + v, 3)
-    stats = {"provenance": "hierarchical", "tiles": len(cores), "tiles_matched": len(tiles), "seconds": seconds,
+    stats = {"provenance": "coarse_to_fine", "tiles": len(cores), "tiles_matched": len(tiles), "seconds": seconds,
              "mpgc_failed": int(np.count_nonzero(~out["mpgc_ok"])), "edge_points": int(np.count_nonzero(out["edge"])),
              "per_tile": [{key: t[key] for key in ("core", "points", "levels", "search_image_shifts_px")}
                           for t in tiles]}
@@ -560,7 +313,7 @@ def _match(adapted, models, params, hr, feedback):
                                                                           for d in shifts))
     out = _final(adapted, [models[0]] + [ShiftedModel(mk, *d) for mk, d in zip(models[1:], shifts)], result, params)
     timings["mpgc"] = time.perf_counter() - t
-    stats = {"provenance": "hierarchical", "levels": levels, "points_per_level": counts,
+    stats = {"provenance": "coarse_to_fine", "levels": levels, "points_per_level": counts,
              "seconds": {k: round(v, 3) for k, v in timings.items()},
              "mpgc_failed": int(np.count_nonzero(~out["mpgc_ok"])), "edges_per_level": edge_counts,
              "edge_points": int(np.count_nonzero(out["edge"])),

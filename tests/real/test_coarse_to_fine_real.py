@@ -1,10 +1,10 @@
-"""Issue 7 acceptance "Real data": the coarse-to-fine matcher (matching/hierarchical.py,
-match_hierarchical) on real Pleiades pixels, next to region growing (match_block) on the same
+"""Issue 7 acceptance "Real data": the coarse-to-fine matcher (matching/coarse_to_fine.py,
+match_coarse_to_fine) on real Pleiades pixels, next to region growing (match_block) on the same
 images, with the same intersection, gridding and statistics (real_dsm.py; test_dsm_real.py's
 docstring gives the reasons for the cells, the footprint, the geoid and the bias adjustment).
 
-Ventoux pair vs SRTM: match_hierarchical's level-0 grid points lie on region growing's lattice
-(hierarchical.primitives), so `grid` = VENTOUX_STEP = 2 px gives the same 1 m nodes (plus its
+Ventoux pair vs SRTM: match_coarse_to_fine's level-0 grid points lie on region growing's lattice
+(coarse_to_fine_level.primitives), so `grid` = VENTOUX_STEP = 2 px gives the same 1 m nodes (plus its
 Foerstner points); its two-ray points (group 1) are intersected with the supplied RPCs (their
 relative bias is across the epipolar direction; the matcher estimates it itself, about -4.6 px in
 columns, and it does not move the heights) and gridded at 1, 2 (asserted) and 5 m. Both matchers'
@@ -17,12 +17,12 @@ and region growing's LSM converge to nearly the same positions; the medians agai
 (4.0 / 4.8 m) by the cells each leaves empty. Asserted:
 |median| < 5 m, NMAD < 12 m, NMAD without the plane < 5 m, and the matchers' agreement.
 
-Pleiades triplet: match_hierarchical with its default parameters (grid 10 px = 5 m nodes plus one
+Pleiades triplet: match_coarse_to_fine with its default parameters (grid 10 px = 5 m nodes plus one
 Foerstner point per 16 x 16 px; at region growing's STEP 3 the triplet and its three pairs would
 take ~4 min on 2 cores), the three-ray points (group 3) gridded at 0.5 m with gaps where a triangle
 is longer than MAX_EDGE = 10 m (two node spacings, as region growing's 3 m at 1.5 m nodes). Coverage
 of the common footprint and the pairs' consistency (each pair matched on its own by
-match_hierarchical, before / after the RPC bias adjustment on tie points of the triplet's
+match_coarse_to_fine, before / after the RPC bias adjustment on tie points of the triplet's
 matching) as in test_dsm_real; test_side_by_side_with_region_growing compares the two 0.5 m DSMs
 (region growing's from conftest.py, shared with test_dsm_real, as its run on the Ventoux pair).
 Measured (2 cores): coverage 79 % (region growing 69 % at 3 m, 94 % at 10 m), pairs after adjustment
@@ -45,7 +45,7 @@ from real_dsm import (
 
 from feedback import Feedback
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.matching.hierarchical import HierParams, match_hierarchical
+from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.quality.statistics import summarize
 
@@ -59,10 +59,10 @@ MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6                     # m, after the bi
 MAX_TRIPLET_MEDIAN, MAX_TRIPLET_NMAD = 0.25, 0.6               # m, this 0.5 m DSM - region growing's
 
 
-def hierarchical(params=None):
-    """match(images, models, names) -> MultiPoints of match_hierarchical, for build_triplet_dsms."""
+def coarse_to_fine_matcher(params=None):
+    """match(images, models, names) -> MultiPoints of match_coarse_to_fine, for build_triplet_dsms."""
     def match(images, models, names):
-        return match_hierarchical(images, models, names=names, params=params)
+        return match_coarse_to_fine(images, models, names=names, params=params)
     return match
 
 
@@ -74,7 +74,7 @@ def groups(points):
 def test_ventoux_dsm_against_srtm(ventoux_pair, ventoux_region_growing, tmp_path):
     srtm = str(ventoux_pair[0].with_name("N44E005.hgt"))
     models = [sensors.load(p) for p in ventoux_pair]
-    points = hierarchical(HierParams(grid=VENTOUX_STEP))([Image(p) for p in ventoux_pair], models,
+    points = coarse_to_fine_matcher(CoarseToFineParams(grid=VENTOUX_STEP))([Image(p) for p in ventoux_pair], models,
                                                          [p.stem for p in ventoux_pair])
     result = cut({1: models[0], 2: models[1]}, points.observations)
     c = srtm_comparison(result, srtm, (1.0, VENTOUX_CELL, 5.0), VENTOUX_CELL, tmp_path)
@@ -90,10 +90,10 @@ def test_ventoux_dsm_against_srtm(ventoux_pair, ventoux_region_growing, tmp_path
 
 
 @pytest.fixture(scope="module")
-def hier_dsms(pleiades_triplet, tmp_path_factory):
-    """build_triplet_dsms of match_hierarchical (default parameters), cells 0.5 m, MAX_EDGE."""
-    return build_triplet_dsms(pleiades_triplet, hierarchical(), CELL, MAX_EDGE, tmp_path_factory.mktemp("hier_dsm"),
-                              Feedback())
+def coarse_to_fine_dsms(pleiades_triplet, tmp_path_factory):
+    """build_triplet_dsms of match_coarse_to_fine (default parameters), cells 0.5 m, MAX_EDGE."""
+    return build_triplet_dsms(pleiades_triplet, coarse_to_fine_matcher(), CELL, MAX_EDGE,
+                              tmp_path_factory.mktemp("coarse_to_fine_dsm"), Feedback())
 
 
 def coverage(dem, dsms):
@@ -102,31 +102,32 @@ def coverage(dem, dsms):
     return np.isfinite(dem.heights)[inside].mean(), inside
 
 
-def test_triplet_dsm_coverage(hier_dsms):
-    dem = hier_dsms["triplet"]
-    points = hier_dsms["points"]
-    ds = gdal.Open(str(hier_dsms["path"]))
+def test_triplet_dsm_coverage(coarse_to_fine_dsms):
+    dem = coarse_to_fine_dsms["triplet"]
+    points = coarse_to_fine_dsms["points"]
+    ds = gdal.Open(str(coarse_to_fine_dsms["path"]))
     band = ds.GetRasterBand(1)
     defined = band.ReadAsArray() != band.GetNoDataValue()
     assert ds.GetGeoTransform()[1] == CELL and np.array_equal(defined, np.isfinite(dem.heights))
     ds = None
-    share, inside = coverage(dem, hier_dsms)
+    share, inside = coverage(dem, coarse_to_fine_dsms)
     print(f"\ncoarse-to-fine 0.5 m DSM: {dem.summary()}\ncommon footprint {inside.sum()} cells, coverage {share:.1%}; "
           f"{int((defined & ~inside).sum())} defined cells outside it; points {points.group_counts()}, "
           f"stats {points.stats}")
     assert groups(points) <= {1, 3} and points.group_counts().get(3, 0) > 0.5 * len(points)
-    assert hier_dsms["three"].ok.mean() > 0.99
+    assert coarse_to_fine_dsms["three"].ok.mean() > 0.99
     assert share > MIN_COVERAGE and (defined & ~inside).sum() < 0.01 * defined.sum()
 
 
-def test_pair_dsms_agree_after_bias_adjustment(hier_dsms):
-    check_pair_consistency(hier_dsms, "coarse-to-fine", MAX_PAIR_MEDIAN, MAX_PAIR_NMAD)
+def test_pair_dsms_agree_after_bias_adjustment(coarse_to_fine_dsms):
+    check_pair_consistency(coarse_to_fine_dsms, "coarse-to-fine", MAX_PAIR_MEDIAN, MAX_PAIR_NMAD)
 
 
-def test_side_by_side_with_region_growing(hier_dsms, region_growing_triplet_dsms):
+def test_side_by_side_with_region_growing(coarse_to_fine_dsms, region_growing_triplet_dsms):
     """The two matchers' 0.5 m DSMs of the triplet (adjusted RPCs each) agree over the common footprint."""
-    grid = hier_dsms["triplet"].grid
-    inside = footprint(grid, hier_dsms["srs"], hier_dsms["models"], hier_dsms["height"])
-    between = summarize((hier_dsms["triplet"].heights - on_grid(region_growing_triplet_dsms["triplet"], grid))[inside])
+    grid = coarse_to_fine_dsms["triplet"].grid
+    inside = footprint(grid, coarse_to_fine_dsms["srs"], coarse_to_fine_dsms["models"], coarse_to_fine_dsms["height"])
+    mine = coarse_to_fine_dsms["triplet"].heights
+    between = summarize((mine - on_grid(region_growing_triplet_dsms["triplet"], grid))[inside])
     assert between.n > 0.5 * inside.sum(), between
     assert abs(between.median) < MAX_TRIPLET_MEDIAN and between.nmad < MAX_TRIPLET_NMAD, between

@@ -1,0 +1,62 @@
+"""The orthorectification step (pushbroom:orthorectify): one image, with a block's (adjusted) sensor model or
+its own orientation, on a DEM, by ortho.orthorectify (the indirect method, Heipke et al. 1992, section 4.1)."""
+from dataclasses import dataclass
+
+from .. import progress, sensors
+from ..block import Block
+from ..errors import InputError
+from ..ortho.orthorectify import VERTICAL, load_dem, orthorectify
+from ..ortho.resampling import METHODS
+
+
+@dataclass
+class OrthoParams:
+    """The orthorectification step's settings (pushbroom:orthorectify); see orthorectify and load_dem."""
+
+    dem_heights: str = "ellipsoidal"    # one of VERTICAL
+    dem_nodata: float = None            # a void value of the DEM declared as nodata
+    crs: str = None                     # output CRS (authority id or WKT); None: the UTM zone of the footprint
+    cell_size: float = None             # CRS units; None: the image's ground sampling distance
+    resampling: str = "bilinear"        # one of resampling.METHODS
+    occlusion: bool = False             # occluded cells as nodata
+    max_error: float = 0.01             # px: bound of the coarse-grid interpolation error
+    threads: int = 1
+
+    def check(self):
+        """Raise InputError for settings no orthorectification can use."""
+        if self.dem_heights not in VERTICAL or self.resampling not in METHODS:
+            raise InputError(f"the DEM heights must be one of {', '.join(VERTICAL)} and the resampling one of "
+                             f"{', '.join(METHODS)}")
+        if not self.max_error > 0 or self.threads < 1 or (self.cell_size is not None and self.cell_size < 0):
+            raise InputError("the error bound must be positive, the threads at least 1 and the cell size not negative")
+        return self
+
+
+def image_and_model(block_path=None, image_name="", image=None, orientation=None):
+    """(image path, sensor model): the block's (adjusted) model of the image named `image_name`, or,
+    without a block, raster `image` with its own orientation (sensors.load: `orientation`, else the
+    metadata found beside the image). InputError where neither is given or the name is not the block's."""
+    if block_path:
+        blk = Block(block_path)
+        rows = blk.images()
+        chosen = [r for r in rows if r["name"] == (image_name or "").strip()]
+        if not chosen:
+            raise InputError(f"give the name of one of the block's images ({', '.join(r['name'] for r in rows)})")
+        return chosen[0]["image_path"], blk.model(chosen[0]["id"])
+    if not image:
+        raise InputError("give a block and an image name, or an image")
+    return image, sensors.load(orientation or image, image=image if orientation else None)
+
+
+def orthorectify_image(output, dem, params=None, block_path=None, image_name="", image=None, orientation=None,
+                       feedback=None):
+    """The orthorectification step: the image chosen as in image_and_model on the raster DEM `dem`
+    (load_dem with the params' heights and nodata; implausible heights are reported), written to the
+    GeoTIFF `output` with OrthoParams `params`. Returns the OrthoResult."""
+    params = (params or OrthoParams()).check()
+    path, model = image_and_model(block_path, image_name, image, orientation)
+    heights = load_dem(dem, params.dem_heights, params.dem_nodata)
+    progress.warn(feedback, heights.implausible)
+    return orthorectify(path, model, heights, output, crs=params.crs, cell_size=params.cell_size,
+                        resampling_method=params.resampling, occlusion_mask=params.occlusion,
+                        max_error=params.max_error, threads=params.threads, feedback=feedback)
