@@ -6,9 +6,10 @@ import pathlib
 import pytest
 from qgis.PyQt.QtCore import QUrl
 
-#: the algorithms whose help moved to docs/steps (extend as the others move)
-DOCUMENTED = ("bundleadjust", "createblock", "importpoints", "exportpoints", "selecttiepoints", "fitrpc",
-              "assessaccuracy", "simulatescene", "matchpoints", "intersectpoints", "interpolatedem", "orthorectify")
+from pushbroom.plugin.algorithms import algorithm_classes
+
+#: every algorithm's help is on its page in docs/steps
+DOCUMENTED = [cls.NAME for cls in algorithm_classes()]
 
 
 @pytest.mark.parametrize("name", DOCUMENTED)
