@@ -15,7 +15,8 @@ def shared_file(*parts):
     """Path of a file in SHARED_DATA, or skip the test with the reason it is missing."""
     path = SHARED_DATA.joinpath(*parts)
     if not path.exists():
-        pytest.skip(f"real test data not available: {path} (set PUSHBROOM_SHARED_DATA or put the data in {SHARED_DATA})")
+        pytest.skip(f"real test data not available: {path} "
+                    f"(set PUSHBROOM_SHARED_DATA or put the data in {SHARED_DATA})")
     return path
 
 

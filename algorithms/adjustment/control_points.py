@@ -13,7 +13,7 @@ the delimiter is a comma, semicolon or tab, the encoding UTF-8 (a BOM is allowed
   heights="orthometric": h = H + N, the geoid undulation N from PROJ's EGM96 grid
   (us_nga_egm96_15.tif or egm96_15.gtx) through the transformation EPSG:4326+5773 -> EPSG:4979;
 - `sigma_e`, `sigma_n`, `sigma_h`: a priori standard deviations (m; optional, empty: defaults,
-  methods.md 4: 2.5, 2.5, 2.2 m);
+  Kornus et al. 2006: 2.5, 2.5, 2.2 m);
 - `<image>_col<suffix>`, `<image>_row<suffix>` and optionally `<image>_sigma<suffix>` (px) per
   block image: the measurement in that image (GDAL pixel convention, centre of the first pixel
   (0.5, 0.5)); empty cells: not measured there. `suffix` is "" by default; the simulator's
@@ -38,7 +38,7 @@ from ..sigmas import IMAGE_SIGMA
 from . import point_plausibility
 from .observations import MEAS_DTYPE, POINT_DTYPE, Observations
 
-DEFAULT_SIGMAS = (2.5, 2.5, 2.2)    # ground east, north, height (m), methods.md section 4 (K)
+DEFAULT_SIGMAS = (2.5, 2.5, 2.2)    # ground east, north, height (m), Kornus et al. 2006
 HEIGHT_TYPES = ("ellipsoidal", "orthometric")
 ROLES = ("control", "check")
 ALIASES = {"name": "id", "height": "h", "z": "h"}

@@ -3,9 +3,9 @@
 
 - per image measurement of a control or check point the residual v = computed - measured (px; x = col,
   y = row) and the normalised residual w = v / (sigma sqrt(r)). Control points: Adjustment.residuals /
-  .normalised; check points: the residuals of their forward intersection with the adjusted models (Kornus et al. 2006, section 3.5.1,
-  adjustment/residual_vectors.intersection_residuals: reprojection of the intersected point, with the
-  redundancy numbers of that intersection);
+  .normalised; check points: the residuals of their forward intersection with the adjusted models
+  (Kornus et al. 2006, section 3.5.1, adjustment/residual_vectors.intersection_residuals: reprojection
+  of the intersected point, with the redundancy numbers of that intersection);
 - per point the ground residuals (m; control: adjusted - observed, check: intersected - reference) and the
   RMS of the point's 2k image residual coordinates (residual_vectors.per_point).
 

@@ -1,5 +1,5 @@
 """Transfer of a point clicked in one image into the block's other images by least-squares matching
-(methods.md section 3; H section 2, K 3.3), for the measurement window (issue 6).
+(Heipke et al. 1992, section 2; Kornus et al. 2006, section 3.3), for the measurement window.
 
 Initial values come from the sensor models: with a `height` (m, e.g. the point's own or the DEM's
 at it) the clicked ray at that height is projected into the target and the normalised

@@ -166,7 +166,7 @@ def _fit_rational(t, v, r, checks):
     a = np.hstack([t, -v[:, None] * t[:, 1:]])
     damping = np.hstack([np.zeros((NUM_TERMS - 1, NUM_TERMS)), np.eye(NUM_TERMS - 1)])
     den = np.ones(v.size)
-    for iteration in range(1, MAX_ITERATIONS + 1):
+    for iteration in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (the count is returned)
         aw = a / den[:, None]
         lam = r * float(np.sum(aw * aw)) / aw.shape[1]
         x = np.linalg.lstsq(np.vstack([aw, math.sqrt(lam) * damping]),

@@ -54,8 +54,9 @@ class ImportPoints(PushbroomAlgorithm):
                                                      list(ROLES), defaultValue=ROLES.index(d.default_role)))
         self.addParameter(QgsProcessingParameterString(self.CHECK_IDS, tr("Check point ids (comma-separated)"),
                                                        d.check_ids, optional=True))
-        self.addParameter(QgsProcessingParameterEnum(self.MODE, tr("Import mode"), [tr(MODE_LABELS[m]) for m in Block.IMPORT_MODES],
-                                                     defaultValue=Block.IMPORT_MODES.index(d.mode)))
+        modes = Block.IMPORT_MODES
+        self.addParameter(QgsProcessingParameterEnum(self.MODE, tr("Import mode"), [tr(MODE_LABELS[m]) for m in modes],
+                                                     defaultValue=modes.index(d.mode)))
         self.addAdvancedParameters([
             Number(self.SIGMA_E, tr("Default sigma east (m)"), Number.Double, d.sigma_e, minValue=1e-6),
             Number(self.SIGMA_N, tr("Default sigma north (m)"), Number.Double, d.sigma_n, minValue=1e-6),

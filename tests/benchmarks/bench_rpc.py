@@ -1,7 +1,7 @@
 """RPC00B evaluation speed: RpcModel against GDAL's RPC transformer, both directions.
 
-On the Pleiades triplet image img_01.tif of the real test data (benchutil.SHARED_DATA); points spread over the image and the
-RPC's height range; best of 3 runs after a warm-up (numba compiled or loaded from its cache).
+On the Pleiades triplet image img_01.tif of the real test data (benchutil.SHARED_DATA); points spread over
+the image and the RPC's height range; best of 3 runs after a warm-up (numba compiled or loaded from its cache).
 GDAL's image -> ground runs with RPC_PIXEL_ERROR_THRESHOLD=1e-9 px, comparable to RpcModel's
 1e-8 px (GDAL's default, 0.1 px, is faster and coarser)."""
 import numpy as np

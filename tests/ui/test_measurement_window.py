@@ -345,7 +345,8 @@ def test_keyboard_shortcuts(qtbot, open_window, block_path, marked_scene, marked
         "Zoom to prediction"] and "Ctrl+N" in texts["New point"] and "Tab" in texts["Next image"]
 
 
-def test_adjust_now_refreshes_residuals(qtbot, pushbroom_provider, open_window, block_path, marked_scene, marked_points):
+def test_adjust_now_refreshes_residuals(qtbot, pushbroom_provider, open_window, block_path, marked_scene,
+                                        marked_points):
     """'Adjust now' on the imported simulator points runs in a QgsTask (the window keeps processing
     events), then the table shows each point's image residuals and w colours, the views draw residual
     vectors from the measurements, and the predictions come from the adjusted models."""

@@ -41,7 +41,7 @@ def test_killed_session_loses_nothing(qtbot, marked_block, marked_scene, tmp_pat
         assert sorted(window.table.names()) == ["K1", "K3"]
         window.select_point("K1")
         assert window.session.current == "K1" and window.editor.role.currentText() == "check"
-        for image_id, view in window.image_views.items():
+        for view in window.image_views.values():
             selected = [m for m in view._markers if m.kind == "selected"]
             assert len(selected) == 1 and selected[0].label == "K1"
     finally:
