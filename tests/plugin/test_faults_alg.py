@@ -224,7 +224,7 @@ def test_bundleadjust_refuses_results_of_a_control_set_replaced_meanwhile(pushbr
                                                                           small_scene, monkeypatch):
     """importpoints replaces the control set while the adjustment computes: nothing of the old set's
     adjustment is stored (the measurement window's "Adjust now" runs the same algorithm)."""
-    from pushbroom.algorithms.adjustment import adjust_block as bundle_adjust
+    from pushbroom.algorithms.steps import adjust_block as bundle_adjust
     before = stored_models(control_block)
     real = bundle_adjust.adjust_with_components
 
