@@ -1,14 +1,19 @@
 """Shared fixtures: the real data in ../shared/data (skipped with a reason where absent), the
-simulated scenes (each configuration simulated once per run) and the small SPOT 5 triplet most
-engine and plugin tests use."""
+simulated scenes (each configuration simulated once per run), the small SPOT 5 triplet most
+engine and plugin tests use, and `figures`, through which tests report what they measured."""
 import os
 import pathlib
 import sys
 
 import pytest
 
+from tests.helpers.figures import Figures
+
 REPO = pathlib.Path(__file__).resolve().parents[1]
 SHARED_DATA = pathlib.Path(os.environ.get("PUSHBROOM_SHARED_DATA", REPO.parent / "shared" / "data"))
+#: where a run's figures are written (and shown in the terminal summary)
+FIGURES_PATH = REPO / "build" / "test-figures.md"
+_FIGURES = pytest.StashKey[Figures]()
 
 
 def shared_file(*parts):
@@ -76,6 +81,14 @@ def small_scene(simulated):
 
 
 @pytest.fixture(scope="session")
+def small_matching_scene(small_scene):
+    """matching_scene.Scene of the small scene (HRG -> HRS1: models, truth models, DSM, classes, ground
+    texture), built once per run and shared read-only."""
+    from tests.helpers.matching_scene import Scene
+    return Scene(small_scene)
+
+
+@pytest.fixture(scope="session")
 def small_scene_matched(small_scene):
     """small_scene_matched(params, refine=True) -> MultiPoints of match_block on the small scene's
     HRG, HRS1, HRS2 (supplied models, the DSM's height range +- 100 m, 4 workers): each (GrowParams,
@@ -114,11 +127,40 @@ def small_scene_block(small_scene, tmp_path_factory):
     return path, rows
 
 
+@pytest.fixture(scope="session")
+def figures(request):
+    """figures.report(name, value, unit="", note="") and figures.table(name, rows): what the running test
+    (or a fixture it set up) measured, shown in the terminal summary and written to build/test-figures.md."""
+    return request.config.stash[_FIGURES]
+
+
+def pytest_configure(config):
+    config.stash[_FIGURES] = Figures()
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    item.config.stash[_FIGURES].current = item.nodeid
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    figures = config.stash[_FIGURES]
+    if figures:
+        terminalreporter.write_sep("=", f"figures measured by the tests (also in {FIGURES_PATH})")
+        for line in figures.lines():
+            terminalreporter.write_line(line)
+
+
 _EXIT = {"status": 0}
 
 
 def pytest_sessionfinish(session, exitstatus):
     _EXIT["status"] = int(exitstatus)
+    figures = session.config.stash[_FIGURES]
+    if figures:
+        from pushbroom.algorithms.atomic import write_text
+        FIGURES_PATH.parent.mkdir(exist_ok=True)
+        write_text(FIGURES_PATH, figures.markdown(), what="the tests' figures")
 
 
 @pytest.hookimpl(trylast=True)

@@ -3,9 +3,9 @@ the image names the missing raster and the product instead of GDAL's text."""
 
 import pytest
 
-from bad_inputs import product_without_raster
 from pushbroom.algorithms import block, sensors
 from pushbroom.algorithms.errors import InputError
+from tests.helpers.bad_inputs import product_without_raster
 
 
 @pytest.fixture

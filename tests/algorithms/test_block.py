@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from feedback import Feedback
 from pushbroom.algorithms import block, sensors
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import metres_per_degree
+from tests.helpers.feedback import Feedback
 
 
 @pytest.fixture

@@ -11,11 +11,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from osgeo import gdal
-from spot_synthetic import synthetic_orientation
 
 from pushbroom.algorithms.errors import MetadataError
 from pushbroom.algorithms.sensors.dimap import read_dimap, write_dimap
 from pushbroom.algorithms.sensors.spot import SpotModel
+from tests.helpers.spot_synthetic import synthetic_orientation
 
 
 def dimap_text(mission):

@@ -9,7 +9,7 @@ from osgeo import ogr, osr
 from pushbroom.algorithms.errors import InputError, StorageError
 from pushbroom.algorithms.surface import pointcloud as pc
 from pushbroom.algorithms.surface.intersection import CONVERGED, OUTSIDE, Intersection
-from osr_oracle import utm
+from tests.helpers.osr_oracle import utm
 
 N = 500
 

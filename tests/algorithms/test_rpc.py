@@ -11,8 +11,8 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import GeometryError
 from pushbroom.algorithms.sensors.rpc import RpcCoefficients, RpcModel, _poly, rpc_terms
 from pushbroom.algorithms.sensors.rpc_io import write_rpb, write_rpc_txt
-from rpc_synthetic import (SCALARS, geom_text, numpy_ground_to_image, synthetic_coefficients,
-                           synthetic_fields, write_raster)
+from tests.helpers.rpc_synthetic import (SCALARS, geom_text, numpy_ground_to_image, synthetic_coefficients,
+                                         synthetic_fields, write_raster)
 
 gdal.UseExceptions()
 
@@ -203,7 +203,7 @@ def test_geom_beside_a_crop_takes_its_offset_and_size(tmp_path, fields, model):
 def test_orientation_files_are_not_redirected_to_a_metadata_dim_beside_them(tmp_path, fields, model):
     """A folder holding a SPOT METADATA.DIM and a Pleiades crop with its .geom: the .geom (given,
     or found beside its raster) is the crop's orientation; the folder itself is the SPOT product."""
-    from spot_synthetic import synthetic_orientation
+    from tests.helpers.spot_synthetic import synthetic_orientation
 
     from pushbroom.algorithms.sensors.dimap import write_dimap
     write_dimap(tmp_path / "METADATA.DIM", synthetic_orientation(ncols=40))

@@ -3,7 +3,6 @@ import numpy as np
 import pytest
 from osgeo import osr
 from scipy.optimize import brentq
-from spot_synthetic import synthetic_orientation
 
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import GeometryError, InputError
@@ -13,6 +12,7 @@ from pushbroom.algorithms.sensors import spot_kernels as k
 from pushbroom.algorithms.sensors.base import SensorModel
 from pushbroom.algorithms.sensors.spot import SpotModel, integrated_attitude, lagrange_window
 from pushbroom.algorithms.sensors.spot_orientation import Corrections
+from tests.helpers.spot_synthetic import synthetic_orientation
 
 RNG = np.random.default_rng(7)
 #: unit-size entries of up to four 3 x 3 rotation products whose sines and cosines numpy's SIMD code gives

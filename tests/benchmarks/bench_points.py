@@ -2,22 +2,19 @@
 block's .npz sidecar, the combination of three matching runs, tie point selection, and writing
 the display point layer into the GeoPackage."""
 import pathlib
-import sys
 import tempfile
 import time
 
 import numpy as np
-from benchutil import best_time
 
 from pushbroom.algorithms.block import create_schema
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "algorithms"))
-from test_points_store import FlatModel, synthetic  # noqa: E402
-
-from pushbroom.algorithms.matching.combinations import combine  # noqa: E402
-from pushbroom.algorithms.matching.points import load_points, save_points, write_point_layer  # noqa: E402
-from pushbroom.algorithms.matching.records import PAIR_DTYPE  # noqa: E402
-from pushbroom.algorithms.matching.tiepoints import select_tie_points  # noqa: E402
+from pushbroom.algorithms.matching.combinations import combine
+from pushbroom.algorithms.matching.points import load_points, save_points, write_point_layer
+from pushbroom.algorithms.matching.records import PAIR_DTYPE
+from pushbroom.algorithms.matching.tiepoints import select_tie_points
+from tests.benchmarks.benchutil import best_time
+from tests.helpers.points_synthetic import FlatModel, synthetic
 
 N = 2_000_000
 

@@ -11,7 +11,7 @@ from qgis.core import (QgsCategorizedSymbolRenderer, QgsProcessingContext, QgsPr
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.plugin.algorithms.import_points import ExportPoints, ImportPoints
-from osr_oracle import utm
+from tests.helpers.osr_oracle import utm
 
 
 @pytest.fixture

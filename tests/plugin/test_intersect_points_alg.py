@@ -11,7 +11,7 @@ from pushbroom.algorithms import block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints, save_points
 from pushbroom.algorithms.surface.pointcloud import laspy_module
-from osr_oracle import utm
+from tests.helpers.osr_oracle import utm
 
 
 @pytest.fixture(scope="module")

@@ -3,13 +3,13 @@ on the Ventoux pair (test_dsm_real, test_hierarchical_real) and region growing's
 (test_dsm_real, test_hierarchical_real, test_matching_pleiades)."""
 import pytest
 
-from feedback import Feedback
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
-from real_dsm import (CELL, RG_MAX_EDGE, TRIPLET_STEP, VENTOUX_CELL, VENTOUX_STEP, build_triplet_dsms, cut,
-                      srtm_comparison)
+from tests.helpers.feedback import Feedback
+from tests.helpers.real_dsm import (CELL, RG_MAX_EDGE, TRIPLET_STEP, VENTOUX_CELL, VENTOUX_STEP, build_triplet_dsms,
+                                    cut, srtm_comparison)
 
 
 @pytest.fixture(scope="session")

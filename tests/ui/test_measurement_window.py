@@ -15,8 +15,6 @@ from osgeo import osr
 from qgis.core import QgsApplication, QgsPointXY, QgsRasterLayer
 from qgis.PyQt.QtCore import QPoint, Qt, QTimer
 
-from osr_oracle import utm
-from raster_oracle import bilinear
 import pushbroom
 from pushbroom.algorithms import block
 from pushbroom.algorithms.adjustment.control_points import DEFAULT_SIGMAS
@@ -25,6 +23,8 @@ from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.measurement.store import MeasurementStore
 from pushbroom.ui import adjust_task, measurement_window as mw
 from pushbroom.ui.point_table import COLOURS, SORT_ROLE
+from tests.helpers.osr_oracle import utm
+from tests.helpers.raster_oracle import bilinear
 
 #: transfers must land this close (px) to the simulator's true positions
 TRANSFER_TOLERANCE = 0.3

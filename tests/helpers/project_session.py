@@ -1,4 +1,4 @@
-"""A QGIS desktop session (`qgis.bin --code THIS_FILE` with tests/ui on PYTHONPATH, run by
+"""A QGIS desktop session (`qgis.bin --code THIS_FILE` with the repository root on PYTHONPATH, run by
 tests/ui/test_project_opens_clean.py, and by hand for the demo project): open the project named by PUSHBROOM_PROJECT as a user would (File > Open), let
 it render, then write to the JSON file PUSHBROOM_RESULT the message bar's items (QGIS shows a missing font,
 an unreadable layer or a bad style there), the layers and whether they are valid, and a screenshot of the
@@ -8,9 +8,10 @@ import os
 import traceback
 
 import qgis.utils
-from desktop_exit import run_then_quit
 from qgis.core import QgsProject
 from qgis.PyQt.QtCore import QTimer
+
+from tests.helpers.desktop_exit import run_then_quit
 
 RESULT = {"errors": []}
 
