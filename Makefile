@@ -60,7 +60,7 @@ demo: setup
 
 # Benchmarks: writes bench-output/benchmarks.md and prints it.
 bench: setup
-	$(PY) tests/benchmarks/run_all.py bench-output/benchmarks.md
+	$(PY) -m tests.benchmarks.run_all bench-output/benchmarks.md
 
 # The plugin zip for "Install from ZIP" in QGIS (tests and development files left out).
 package:

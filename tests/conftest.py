@@ -1,14 +1,20 @@
 """Shared fixtures: the real test data in SHARED_DATA (skipped with a reason where absent), the
 simulated scenes (each configuration simulated once per run), the small SPOT 5 triplet most
-engine and plugin tests use and its marked variant of the measurement tests."""
+engine and plugin tests use and its marked variant of the measurement tests, and `figures`, through
+which tests report what they measured."""
 import os
 import pathlib
 import sys
 
 import pytest
 
+from tests.helpers.figures import Figures
+
 REPO = pathlib.Path(__file__).resolve().parents[1]
 SHARED_DATA = pathlib.Path(os.environ.get("PUSHBROOM_SHARED_DATA", REPO.parent / "shared" / "data"))
+#: where a run's figures are written (and shown in the terminal summary)
+FIGURES_PATH = REPO / "build" / "test-figures.md"
+_FIGURES = pytest.StashKey[Figures]()
 
 
 def shared_file(*parts):
@@ -74,6 +80,14 @@ def small_scene(simulated):
     """simulate_scene paths of the default 3 km SPOT 5 triplet (SceneConfig.small())."""
     from pushbroom.algorithms.simulation import SceneConfig
     return simulated(SceneConfig.small())
+
+
+@pytest.fixture(scope="session")
+def small_matching_scene(small_scene):
+    """matching_scene.Scene of the small scene (HRG -> HRS1: models, truth models, DSM, classes, ground
+    texture), built once per run and shared read-only."""
+    from tests.helpers.matching_scene import Scene
+    return Scene(small_scene)
 
 
 @pytest.fixture(scope="session")
@@ -150,6 +164,31 @@ def marked_points(marked_scene):
     with open(marked_scene["points"], newline="") as f:
         return {r["id"]: {k: (v if k == "id" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)}
 
+
+@pytest.fixture(scope="session")
+def figures(request):
+    """figures.report(name, value, unit="", note="") and figures.table(name, rows): what the running test
+    (or a fixture it set up) measured, shown in the terminal summary and written to build/test-figures.md."""
+    return request.config.stash[_FIGURES]
+
+
+def pytest_configure(config):
+    config.stash[_FIGURES] = Figures()
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    item.config.stash[_FIGURES].current = item.nodeid
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    figures = config.stash[_FIGURES]
+    if figures:
+        terminalreporter.write_sep("=", f"figures measured by the tests (also in {FIGURES_PATH})")
+        for line in figures.lines():
+            terminalreporter.write_line(line)
+
+
 _EXIT = {"status": 0}
 
 
@@ -167,6 +206,11 @@ def pushbroom_provider(qgis_processing, qgis_iface):
 
 def pytest_sessionfinish(session, exitstatus):
     _EXIT["status"] = int(exitstatus)
+    figures = session.config.stash[_FIGURES]
+    if figures:
+        from pushbroom.algorithms.atomic import write_text
+        FIGURES_PATH.parent.mkdir(exist_ok=True)
+        write_text(FIGURES_PATH, figures.markdown(), what="the tests' figures")
 
 
 @pytest.hookimpl(trylast=True)

@@ -165,6 +165,6 @@ def test_importing_every_engine_module_loads_no_qgis():
     code = ("import importlib, sys\n"
             f"for m in {modules!r}: importlib.import_module(m)\n"
             f"bad = sorted(m for m in sys.modules if m.split('.')[0] in {QT_OR_QGIS!r})\n"
-            "print(bad); sys.exit(1 if bad else 0)")
+            "sys.stdout.write(str(bad)); sys.exit(1 if bad else 0)")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert run.returncode == 0, run.stdout + run.stderr

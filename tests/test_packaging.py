@@ -63,8 +63,9 @@ def test_the_wheel_installs_and_imports(tmp_path):
     run("/usr/bin/python3", "-m", "venv", "--system-site-packages", "venv")
     run("venv/bin/python", "-m", "pip", "install", "-q", "--no-deps", *map(str, (tmp_path / "wheels").glob("*.whl")))
     out = run("venv/bin/python", "-c",
-              "import os, pushbroom, pushbroom.algorithms.matching, pushbroom.plugin.algorithms\n"
+              "import os, sys, pushbroom, pushbroom.algorithms.matching, pushbroom.plugin.algorithms\n"
               "from pushbroom.resource_files import resource_path\n"
-              "print(pushbroom.__file__, pushbroom.__version__, os.path.isfile(resource_path('styles', 'dem.qml')))")
+              "sys.stdout.write(' '.join(map(str, (pushbroom.__file__, pushbroom.__version__, "
+              "os.path.isfile(resource_path('styles', 'dem.qml'))))))")
     location, version, styles = out.split()
     assert location.startswith(str(tmp_path / "venv")) and version == pushbroom.__version__ and styles == "True"

@@ -11,8 +11,6 @@ import numpy as np
 import pytest
 from osgeo import gdal, ogr, osr
 
-from feedback import Feedback
-from osr_oracle import utm
 from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.quality import report
@@ -29,6 +27,8 @@ from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS, FOREST
 from pushbroom.algorithms.surface.geotiff import NODATA
 from pushbroom.algorithms.surface.point_input import read_points
 from pushbroom.algorithms.surface.pointcloud import write_point_cloud
+from tests.helpers.feedback import Feedback
+from tests.helpers.osr_oracle import utm
 
 UTM16 = 32616
 
@@ -124,18 +124,18 @@ def test_nested_classes_drop_the_worst_class_first():
 
 # --- the reference at points ------------------------------------------------------------------------
 
-def test_reference_at_points_is_bilinear_on_the_simulated_dsm(small_scene):
+def test_reference_at_points_is_bilinear_on_the_simulated_dsm(small_scene, figures):
     lon, lat = random_lonlat(small_scene["dsm"], 2000)
     href, slope = reference_at_points(small_scene["dsm"], lon, lat, srs_of(4326))
     values, gt = read(small_scene["dsm"])
     expected = numpy_bilinear(values, gt, lon, lat)
     assert np.isfinite(href).all()
-    print(f"reference at 2000 points vs numpy bilinear: max |diff| {np.max(np.abs(href - expected)):.2e} m")
+    figures.report("reference at 2000 points vs numpy bilinear, max |diff|", np.max(np.abs(href - expected)), "m")
     np.testing.assert_allclose(href, expected, atol=1e-9)
     assert np.all((slope >= 0) & (slope < 90))
 
 
-def test_reference_in_another_crs_is_reprojected_not_refused(tmp_path):
+def test_reference_in_another_crs_is_reprojected_not_refused(tmp_path, figures):
     """A UTM plane h = 100 + 0.02 dE - 0.01 dN (bilinear reproduces it exactly) against points in
     WGS 84 lon/lat whose heights lie on the plane (their UTM coordinates from an OSR oracle)."""
     lon = np.random.default_rng(5).uniform(-84.2, -84.17, 500)
@@ -150,7 +150,7 @@ def test_reference_in_another_crs_is_reprojected_not_refused(tmp_path):
     write_point_cloud(cloud, lon, lat, plane(x, y), {"group": np.full(500, 3, np.uint8)}, crs=4326)
     d = point_differences(cloud, reference)
     assert d.dh.size == 500
-    print(f"points in EPSG:4326 vs a UTM plane: max |dh| {np.max(np.abs(d.dh)):.2e} m")
+    figures.report("points in EPSG:4326 vs a UTM plane, max |dh|", np.max(np.abs(d.dh)), "m")
     assert np.max(np.abs(d.dh)) < 1e-6
     np.testing.assert_allclose(d.slope, np.degrees(np.arctan(np.hypot(0.02, 0.01))), atol=1e-9)
 
@@ -171,7 +171,7 @@ def test_point_clouds_read_back(tmp_path):
 
 # --- the reference on a DEM grid ----------------------------------------------------------------------
 
-def test_finer_reference_is_averaged_onto_the_dem_grid(small_scene, tmp_path):
+def test_finer_reference_is_averaged_onto_the_dem_grid(small_scene, tmp_path, figures):
     """A DEM of 2 x 2 block means of the simulated DTM (numpy) against the DTM itself: the reference
     averaged onto the DEM's cells is the same block mean, dh = 0."""
     values, gt = read(small_scene["dtm"])
@@ -180,7 +180,7 @@ def test_finer_reference_is_averaged_onto_the_dem_grid(small_scene, tmp_path):
     dem = write_raster(tmp_path / "mean.tif", means, (gt[0], 2 * gt[1], 0, gt[3], 0, 2 * gt[5]), 4326)
     d = dem_differences(dem, small_scene["dtm"])
     assert d.dh.size == means.size
-    print(f"2x2 block means vs the averaged reference: max |dh| {np.max(np.abs(d.dh)):.2e} m")
+    figures.report("2x2 block means vs the averaged reference, max |dh|", np.max(np.abs(d.dh)), "m")
     assert np.max(np.abs(d.dh)) < 1e-6
 
 
@@ -197,12 +197,13 @@ def test_coarser_reference_is_bilinear_on_the_dem_grid(tmp_path):
     np.testing.assert_allclose(inner, 1.5, atol=1e-6)
 
 
-def test_dem_in_utm_against_the_geographic_dsm(small_scene, utm_dem):
+def test_dem_in_utm_against_the_geographic_dsm(small_scene, utm_dem, figures):
     """The UTM DEM made from the DTM against the DTM: only resampling differences; against the DSM:
     the canopy and buildings, positive, in forest and city."""
     same = dem_differences(utm_dem, small_scene["dtm"])
     s = summarize(same.dh)
-    print(f"UTM 10 m DEM (bilinear from the DTM) vs the DTM averaged onto it: mean {s.mean:.3f} RMS {s.rms:.3f} m")
+    figures.table("UTM 10 m DEM (bilinear from the DTM) vs the DTM averaged onto it (m)",
+                  [{"mean": s.mean, "RMS": s.rms}])
     assert abs(s.mean) < 0.1 and s.rms < 1.0
     dsm = dem_differences(utm_dem, small_scene["dsm"])
     assert summarize(dsm.dh).mean < -1.0        # DEM = DTM lies below the DSM's canopy
@@ -210,7 +211,7 @@ def test_dem_in_utm_against_the_geographic_dsm(small_scene, utm_dem):
 
 # --- datum, overlap, nodata ---------------------------------------------------------------------------
 
-def test_egm96_reference(small_scene, tmp_path):
+def test_egm96_reference(small_scene, tmp_path, figures):
     values, gt = read(small_scene["dsm"])
     lon, lat = (gt[0] + (np.arange(values.shape[1]) + 0.5) * gt[1], gt[3] + (np.arange(values.shape[0]) + 0.5) * gt[5])
     lon, lat = np.meshgrid(lon, lat)
@@ -223,7 +224,8 @@ def test_egm96_reference(small_scene, tmp_path):
     right = point_differences(cloud, geoid, reference_datum="orthometric")
     wrong = point_differences(cloud, geoid, reference_datum="ellipsoidal")
     n = egm96_undulation(plon, plat)
-    print(f"EGM96 N {n.mean():.2f} m; dh with the geoid handled: max |dh| {np.max(np.abs(right.dh)):.2e} m")
+    figures.report("EGM96 N, mean", n.mean(), "m")
+    figures.report("dh with the geoid handled, max |dh|", np.max(np.abs(right.dh)), "m")
     assert np.max(np.abs(right.dh)) < 1e-3
     np.testing.assert_allclose(wrong.dh, n, atol=1e-3)
     dem = write_raster(tmp_path / "dem_egm96.tif", values - undulation, gt, 4326)
@@ -267,7 +269,7 @@ def test_nodata_is_left_out(small_scene, utm_dem, tmp_path):
 
 # --- classes ------------------------------------------------------------------------------------------
 
-def test_per_class_tables_on_the_simulated_classes(small_scene, tmp_path):
+def test_per_class_tables_on_the_simulated_classes(small_scene, tmp_path, figures):
     """Points on the true DSM against the true DTM: dh = 0 on fields, the canopy height in forest."""
     values, gt = read(small_scene["dsm"])
     classes, cgt = read(small_scene["classes"])
@@ -286,8 +288,7 @@ def test_per_class_tables_on_the_simulated_classes(small_scene, tmp_path):
         if np.any(expected == value):
             assert rows[name].n == int(np.sum(expected == value))
             np.testing.assert_allclose(rows[name].rms, np.sqrt(np.mean(d.dh[expected == value] ** 2)))
-    print("points on the DSM vs the DTM per class: "
-          + ", ".join(f"{n} median {s.median:.2f} m" for n, s in rows.items()))
+    figures.report("points on the DSM vs the DTM, median per class", {n: s.median for n, s in rows.items()}, "m")
     assert abs(rows[CLASSES[BARE]].median) < 1e-3 and abs(rows[CLASSES[CROPS]].median) < 1e-3   # LAS: 1 mm z
     assert rows[CLASSES[FOREST]].median > 5.0
     assert set(np.unique(a.terrain)) <= {FLAT, MOUNTAINOUS}

@@ -8,8 +8,6 @@ import csv
 import numpy as np
 import pytest
 
-from adjustment_scene import models_of, point_observations
-from osr_oracle import utm
 from pushbroom.algorithms.adjustment import report
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
@@ -21,7 +19,10 @@ from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree, utm_epsg
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.stats import statistics_table
-from raster_oracle import bilinear
+from tests.helpers.adjustment_scene import models_of, point_observations
+from tests.helpers.figures import section_rows
+from tests.helpers.osr_oracle import utm
+from tests.helpers.raster_oracle import bilinear
 
 NAMES = ("HRG", "HRS1", "HRS2")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}
@@ -65,7 +66,7 @@ def adjusted(simulated):
     return scene, obs, result, check, blunders
 
 
-def test_control_vectors_carry_the_adjustments_numbers(adjusted):
+def test_control_vectors_carry_the_adjustments_numbers(adjusted, figures):
     _, obs, result, check, blunders = adjusted
     vectors, crs = residual_vectors(result, check, obs, scale=50.0)
     pts, meas = result.observations.points, result.observations.measurements
@@ -82,13 +83,14 @@ def test_control_vectors_carry_the_adjustments_numbers(adjusted):
         assert row["max_w"] == pytest.approx(np.max(np.abs(result.normalised[mine])), rel=1e-12)
         assert row["flagged"] == (row["max_w"] > 3.29)
     removed = {name for name, _, _ in result.removed}
-    print(f"removed by data snooping: {result.removed}; blunders in {sorted(blunders)}")
+    figures.report("removed by data snooping", result.removed)
+    figures.report("blunders in", sorted(blunders))
     assert removed == blunders & set(pts["name"][control])
     assert not ctrl["flagged"].any()
     assert crs == f"EPSG:{utm_epsg(float(np.mean(pts['lon'][control])), float(np.mean(pts['lat'][control])))}"
 
 
-def test_check_vectors_hold_their_intersection_residuals(adjusted):
+def test_check_vectors_hold_their_intersection_residuals(adjusted, figures):
     """Check points: dE, dN, dH and sigmas of check_points; image residuals and redundancy numbers
     against a dense numpy intersection with finite-difference partials; the blundered check point
     (and only it) flagged."""
@@ -123,11 +125,11 @@ def test_check_vectors_hold_their_intersection_residuals(adjusted):
         assert got_r.sum() == pytest.approx(2 * len(m) - 3)
         assert row["rms_px"] == pytest.approx(np.sqrt(np.mean(v ** 2)), abs=1e-6)
         assert row["max_w"] == pytest.approx(np.max(np.abs(v / (sigma * np.sqrt(r)))), rel=1e-4)
-    print("check points: " + ", ".join(f"{r['name']} |w| {r['max_w']:.1f}" for r in chk))
+    figures.table("check points", [{"name": r["name"], "max |w|": r["max_w"]} for r in chk])
     assert set(chk["name"][chk["flagged"]]) == blunders & set(chk["name"])
 
 
-def test_vector_geometry_against_osr(adjusted):
+def test_vector_geometry_against_osr(adjusted, figures):
     """Start: the reference position in UTM; end: start + scale x (dE, dN) along the UTM images of
     true east and north at the point (OSR, point by point)."""
     _, obs, result, check, _ = adjusted
@@ -145,11 +147,11 @@ def test_vector_geometry_against_osr(adjusted):
     length = scale * np.hypot(vectors["dE"], vectors["dN"])
     assert np.all(np.hypot(vectors["x1"] - expected[0], vectors["y1"] - expected[1]) < 1e-3 * length + 0.01)
     convergence = np.degrees(np.arctan2(north[0], north[1]))
-    print(f"meridian convergence in EPSG:32617: {convergence.min():.2f} .. {convergence.max():.2f} deg")
+    figures.report("meridian convergence in EPSG:32617", [convergence.min(), convergence.max()], "deg")
     assert np.all(np.abs(convergence) > 1.0)
 
 
-def test_tie_heights_against_numpy_and_the_true_surface(adjusted):
+def test_tie_heights_against_numpy_and_the_true_surface(adjusted, figures):
     """dh = adjusted - reference; on the DSM (where the tie points lie) as large as the adjusted
     points' height sigmas say, on the DTM larger and positive (trees and buildings, Kornus et al. 2006, section
     3.4.3.1)."""
@@ -162,9 +164,10 @@ def test_tie_heights_against_numpy_and_the_true_surface(adjusted):
         expected = result.h[tie] - bilinear(scene[key], result.lon[tie], result.lat[tie])
         np.testing.assert_allclose(got.dh, expected, atol=1e-6)
         tables[key] = statistics_table({"dh": got.dh})["dh"]
-        print(f"tie heights - {key}: n {tables[key][0]}, mean {tables[key][2]:.2f} m, RMS {tables[key][4]:.2f} m")
+        figures.table(f"tie heights - {key} (m)",
+                      [{"n": tables[key][0], "mean": tables[key][2], "RMS": tables[key][4]}])
     theoretical = np.sqrt(np.mean(result.point_sigmas[tie, 2] ** 2))
-    print(f"RMS of the adjusted tie points' sigma H: {theoretical:.2f} m")
+    figures.report("RMS of the adjusted tie points' sigma H", theoretical, "m")
     assert abs(tables["dsm"][2]) < 0.5 * theoretical and 0.7 < tables["dsm"][4] / theoretical < 1.4
     assert tables["dtm"][2] > tables["dsm"][2] + 1.0
 
@@ -192,7 +195,7 @@ def test_tie_heights_with_an_egm96_reference(adjusted):
         tie_height_differences(result, dsm, "geoid")
 
 
-def test_report_tables(adjusted, tmp_path):
+def test_report_tables(adjusted, tmp_path, figures):
     """Kornus et al. 2006, Tables 3 and 4 rows equal numpy statistics; the HTML page holds them as tables."""
     scene, obs, result, check, _ = adjusted
     table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")})
@@ -200,7 +203,8 @@ def test_report_tables(adjusted, tmp_path):
     vectors, _ = residual_vectors(result, check, obs)
     parts = report.sections(result, check, table, heights=(tie, "dtm.tif"), vectors=vectors)
     text = report.render_text(parts)
-    print(text)
+    for part in parts:
+        figures.table(part.title, section_rows(part))
     dh = tie.dh
     want = [str(dh.size)] + [f"{v:.3f}" for v in (dh.min(), dh.mean(), dh.max(), np.sqrt(np.mean(dh ** 2)),
                                                    np.std(dh, ddof=1))]

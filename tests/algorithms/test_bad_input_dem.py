@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from osgeo import gdal
 
-from bad_inputs import VOID, VOID_CELLS, copy_dem
-from feedback import Feedback
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.dem import Dem, implausible_heights
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.ortho import load_dem
 from pushbroom.algorithms.quality.height_differences import dem_differences, reference_at_points
+from tests.helpers.bad_inputs import VOID, VOID_CELLS, copy_dem
+from tests.helpers.feedback import Feedback
 
 
 @pytest.fixture(scope="module")

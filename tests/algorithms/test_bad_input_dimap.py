@@ -3,10 +3,10 @@ the image names the missing raster and the product instead of GDAL's text."""
 
 import pytest
 
-from bad_inputs import product_without_raster
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
+from tests.helpers.bad_inputs import product_without_raster
 
 
 @pytest.fixture

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from osgeo import ogr, osr
 
-from bad_inputs import las
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.surface import point_input, pointcloud, tin_dem
+from tests.helpers.bad_inputs import las
 
 UTM31 = 32631
 #: 500 points over 1 km near Mont Ventoux, UTM 31N

@@ -14,7 +14,7 @@ from pushbroom.algorithms.errors import MetadataError, PushbroomError
 from pushbroom.algorithms.sensors.base import SensorModel
 from pushbroom.algorithms.sensors.rpc import RpcCoefficients, RpcModel, domain_grid, rpc_terms
 from pushbroom.algorithms.sensors.rpc_io import write_rpb, write_rpc_txt
-from rpc_synthetic import geom_text, synthetic_coefficients, synthetic_fields, write_raster
+from tests.helpers.rpc_synthetic import geom_text, synthetic_coefficients, synthetic_fields, write_raster
 
 #: the line denominator 1 + 1.5 P of a poled RPC vanishes at P = -2/3, inside the domain [-1, 1]
 POLE_P = -2.0 / 3.0

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from feedback import Feedback
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import metres_per_degree
+from tests.helpers.feedback import Feedback
 
 
 @pytest.fixture

@@ -35,9 +35,11 @@ p["id"], p["group"] = np.arange(n), 1
 o = np.zeros(2 * n, OBS_DTYPE)
 o["point_id"], o["image_id"] = np.repeat(p["id"], 2), np.tile([1, 2], n)
 o["col"], o["row"] = np.random.default_rng(0).uniform(0, 1000, (2, 2 * n))
-print("storing", flush=True)
+sys.stdout.write("storing\\n")
+sys.stdout.flush()
 Block(sys.argv[1]).save_points(MultiPoints(p, o), display=(FlatModel(), 1, 0.0))
-print("stored", flush=True)
+sys.stdout.write("stored\\n")
+sys.stdout.flush()
 """
 
 

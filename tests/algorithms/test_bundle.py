@@ -4,12 +4,12 @@ precision, data snooping, and named datum defects; on a small simulated SPOT 5 t
 import numpy as np
 import pytest
 
-from adjustment_scene import check_rms, models_of, point_observations, synthetic_points
 from pushbroom.algorithms.adjustment import normals
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.simulation import SceneConfig
+from tests.helpers.adjustment_scene import check_rms, models_of, point_observations, synthetic_points
 
 NAMES = ("HRG", "HRS1", "HRS2")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}
@@ -136,7 +136,7 @@ def test_cholesky_solve_and_the_regularity_bound_against_numpy():
     assert not _clearly_regular(near, DEFECT_EIGENVALUE)
 
 
-def test_recovers_injected_look_angles_and_check_points_match_their_precision(scene):
+def test_recovers_injected_look_angles_and_check_points_match_their_precision(scene, figures):
     """19 control points (0.3 px, ground sigma 0.5 m) and 8 check points from the simulator, plus
     300 synthetic check points; free psi_x_0, psi_y_0 of every image."""
     obs = point_observations(scene["points"], IDS, 19)
@@ -149,7 +149,7 @@ def test_recovers_injected_look_angles_and_check_points_match_their_precision(sc
             assert result.sigmas[q] < 2e-6
     assert 0.7 < result.sigma0 < 1.3          # 0.3 px noise against a priori 0.3 px
     assert result.redundancy == 2 * len(result.observations.measurements) + 3 * 19 - 3 * 19 - 6
-    rms, theoretical = check_rms(result, synthetic_points(scene, IDS, 300, 0.3, 7), 300.0)
+    rms, theoretical = check_rms(result, synthetic_points(scene, IDS, 300, 0.3, 7), 300.0, figures)
     assert np.all((0.8 < rms / theoretical) & (rms / theoretical < 1.25))
     few = check_points(result, obs, height=300.0)
     assert len(few["dE"]) == len(obs.points) - 19 and np.all(np.abs(few["dH"]) < 5 * few["sigma"][:, 2])
@@ -254,7 +254,7 @@ def test_report_gives_each_coefficient_its_maximum_effect(scene):
     assert "max. effect px" in text_report(result)
 
 
-def test_variance_components_recover_the_groups_noise(scene):
+def test_variance_components_recover_the_groups_noise(scene, figures):
     """Tie points measured with 0.1 px noise but given 0.5 px a priori, control points 0.3 px as
     given: the estimated sigmas come back to the simulated noise, and the groups' redundancies add
     up to the block's."""
@@ -267,7 +267,8 @@ def test_variance_components_recover_the_groups_noise(scene):
     result, rescaled, components = variance.estimate(
         lambda o: adjust(perturbed(scene), o, ["look:0"], names=LABELS, height=300.0), both)
     by_group = {c.group: c for c in components}
-    print({g: (round(c.sigma, 4), round(c.redundancy, 1)) for g, c in by_group.items()})
+    figures.table("variance components", [{"group": g, "sigma": c.sigma, "redundancy": c.redundancy}
+                                          for g, c in by_group.items()])
     assert by_group["tie image"].sigma == pytest.approx(0.1, rel=0.1)
     assert by_group["control image"].sigma == pytest.approx(0.3, rel=0.3)
     assert sum(c.redundancy for c in components) == pytest.approx(result.redundancy, abs=1e-6)
@@ -277,7 +278,7 @@ def test_variance_components_recover_the_groups_noise(scene):
 
 
 @pytest.mark.slow
-def test_automatic_selection_on_a_small_block(scene):
+def test_automatic_selection_on_a_small_block(scene, figures):
     """Kornus et al. 2006, section 3.4.3 on the 3 km block with 300 synthetic tie points: the injected
     look-angle constants are chosen (at most 2 others), every decision is logged, and the models carry the
     solution."""
@@ -288,7 +289,7 @@ def test_automatic_selection_on_a_small_block(scene):
     models = perturbed(scene)
     selection = select_parameters(models, obs, names=LABELS, height=300.0)
     injected = {f"{LABELS[i]} {k}_0" for i in INJECTED for k in ("psi_x", "psi_y")}
-    print(selection.free)
+    figures.report("selected free coefficients", selection.free)
     assert injected <= set(selection.free) and len(set(selection.free) - injected) <= 2
     assert any(line.startswith("step 1: fixed") for line in selection.log)
     assert selection.log[-1].startswith(f"selected {len(selection.free)} free coefficient(s)")

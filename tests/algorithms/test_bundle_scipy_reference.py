@@ -1,19 +1,14 @@
 """`adjust` against an independent formulation of the same least-squares problem solved by
-scipy.optimize.least_squares (tests/benchmarks/scipy_bundle.py, the benchmark's peer): the small
+scipy.optimize.least_squares (tests/helpers/scipy_bundle.py, the benchmark's peer): the small
 simulated SPOT 5 triplet, truth models with injected look-angle errors, 6 control points and 60
 tie points, look:1 free (12 unknowns)."""
-import pathlib
-import sys
-
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
-from bench_adjustment import FREE, INJECTED, LABELS, SCIPY_TOLERANCE, problem, supplied_models
-from scipy_bundle import ScipyBundle
-
 from pushbroom.algorithms.adjustment.bundle import adjust
 from pushbroom.algorithms.geodesy import B, metres_per_degree
+from tests.benchmarks.bench_adjustment import FREE, INJECTED, LABELS, SCIPY_TOLERANCE, problem, supplied_models
+from tests.helpers.scipy_bundle import ScipyBundle
 
 ADJUST_TOLERANCE = 1e-4     # m, adjust's default stop: the largest point update
 

@@ -4,9 +4,6 @@ side by side with region growing (combinations.match_block) by class."""
 import numpy as np
 import pytest
 
-from dsm_comparison import Truth, compare
-from feedback import Feedback
-from matching_scene import LOW_CONTRAST_DN, SINGLE_SURFACE, Scene
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.matching import coarse_to_fine
@@ -21,6 +18,9 @@ from pushbroom.algorithms.matching.coarse_to_fine_level import (
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.points import COMB_A, COMB_B, EDGE, NCC_ONLY
 from pushbroom.algorithms.matching.relaxation import crosses_edge, hypotheses, relax, unique_choice
+from tests.helpers.dsm_comparison import Truth, compare
+from tests.helpers.feedback import Feedback
+from tests.helpers.matching_scene import LOW_CONTRAST_DN, SINGLE_SURFACE
 
 NAMES = ("HRG", "HRS1", "HRS2")
 
@@ -138,8 +138,8 @@ def test_bad_input(small_scene, monkeypatch):
 # the simulated triplet, side by side with region growing
 
 @pytest.fixture(scope="module")
-def both(small_scene, small_scene_matched):
-    scene = Scene(small_scene)
+def both(small_matching_scene, small_scene_matched):
+    scene = small_matching_scene
     images = [scene.paths["images"][k]["imagery"] for k in NAMES]
     models = [sensors.load(scene.paths["images"][k]["metadata"]) for k in NAMES]
     rg = small_scene_matched(GrowParams(), refine=False)   # paper K's, without the MPGC refinement of its group 3
@@ -178,6 +178,7 @@ def coverage(scene, mp):
 
 
 @pytest.mark.slow
+@pytest.mark.ratchet
 def test_triplet_side_by_side_with_region_growing(both):
     """Issue 7 acceptance on the simulated triplet (supplied, perturbed models), group-3 points: more
     of the low-texture nodes covered than by region growing, few blunders among the MPGC-accepted
@@ -199,6 +200,7 @@ def test_triplet_side_by_side_with_region_growing(both):
 
 
 @pytest.mark.slow
+@pytest.mark.ratchet
 def test_triplet_dsm_by_class_against_region_growing(both, with_edge_points, small_scene_matched):
     """Issue 7 acceptance on the DSM (dsm_comparison.py: points intersected with the truth models, 10 m TIN
     DEM, the same maximum triangle edge for both) against the true DSM by class, side by side with
@@ -267,6 +269,7 @@ def test_tiles_give_the_whole_image_result(both, monkeypatch):
 
 
 @pytest.mark.slow
+@pytest.mark.ratchet
 def test_triplet_edge_points(both):
     """Edge points on every level (edge_min_level 0): edgels matched with figural continuity in
     both search images, flagged EDGE, most of them MPGC-accepted, and accurate against the point

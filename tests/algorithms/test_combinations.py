@@ -3,7 +3,6 @@ and the issue's group-3 accuracy target on the simulated 3 km SPOT 5 triplet."""
 import numpy as np
 import pytest
 
-from matching_scene import DISCONTINUOUS, SINGLE_SURFACE, Scene
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.combinations import combine, format_summary, new_cells, robust_sigma, summary_rows
@@ -12,6 +11,7 @@ from pushbroom.algorithms.matching.points import COMB_A, COMB_B, COMB_C, REFINED
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIMILARITY
 from pushbroom.algorithms.matching.seeds import local_affine
+from tests.helpers.matching_scene import DISCONTINUOUS, SINGLE_SURFACE
 
 SHIFT1 = np.array([10.25, 5.5])    # image 0 -> forward image 1
 SHIFT2 = np.array([-7.125, 3.0])   # image 0 -> backward image 2
@@ -171,12 +171,12 @@ def test_guide_for_combination_c_composes_the_affines():
 # the issue's target on the simulated triplet: GROUP-3 points of match_block (HRG, HRS1, HRS2)
 
 @pytest.fixture(scope="module")
-def triplet(small_scene, small_scene_matched):
+def triplet(small_matching_scene, small_scene_matched):
     """match_block on the 3 km triplet (supplied, perturbed models), with and without the MPGC
     refinement; per group-3 point of the refined run: class and the errors of its HRS1 and HRS2
     positions against the point truth and the template-area truth (matching_scene) of its HRG
     position; for both runs the errors against the point truth."""
-    scene = Scene(small_scene)
+    scene = small_matching_scene
     models = [sensors.load(scene.paths["images"][k]["metadata"]) for k in ("HRG", "HRS1", "HRS2")]
     mp = small_scene_matched(GrowParams())
     plain = small_scene_matched(GrowParams(), refine=False)
@@ -204,7 +204,8 @@ def triplet(small_scene, small_scene_matched):
     return out
 
 
-def test_group3_accuracy_on_the_simulated_triplet(triplet):
+@pytest.mark.ratchet
+def test_group3_accuracy_on_the_simulated_triplet(triplet, figures):
     """Issue target: group-3 points on textured classes, RMS < 0.15 px and < 0.5 % beyond 1 px.
     Bare fields and crops (one surface inside the template) are held to the pointwise truth;
     forest and city (height steps inside the template) to the template-area truth; the MPGC refinement
@@ -212,15 +213,18 @@ def test_group3_accuracy_on_the_simulated_triplet(triplet):
     cls = triplet["class"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
     rms = lambda e: float(np.sqrt(np.mean(e ** 2)))
-    print(f"\n{triplet['n']} group-3 points, stats {triplet['stats']}")
+    figures.report("group-3 points", triplet["n"])
+    figures.report("matching statistics", triplet["stats"])
     for name in ("HRS1", "HRS2"):
         point, area = triplet[name]
-        for c, label in {2: "bare", 3: "crops", 4: "forest", 5: "city"}.items():
-            k = cls == c
-            print(f"{name} {label:6} n {k.sum():5d} RMS {rms(point[k]):.3f} px (area truth {rms(area[k]):.3f}), "
-                  f"> 1 px {100 * np.mean(point[k] > 1):.2f} %")
-        print(f"{name} fields RMS {rms(point[single]):.3f} (area {rms(area[single]):.3f}; without the refinement "
-              f"{rms(triplet[name + ' plain'][single]):.3f}), forest+city area RMS {rms(area[steps]):.3f}")
+        figures.table(f"{name} per class (px)", [
+            {"class": label, "n": (cls == c).sum(), "RMS": rms(point[cls == c]),
+             "RMS vs the area truth": rms(area[cls == c]), "> 1 px %": 100 * np.mean(point[cls == c] > 1)}
+            for c, label in {2: "bare", 3: "crops", 4: "forest", 5: "city"}.items()])
+        figures.report(f"{name} fields RMS", rms(point[single]), "px")
+        figures.report(f"{name} fields RMS vs the area truth", rms(area[single]), "px")
+        figures.report(f"{name} fields RMS without the refinement", rms(triplet[name + " plain"][single]), "px")
+        figures.report(f"{name} forest+city RMS vs the area truth", rms(area[steps]), "px")
     assert triplet["n"] > 800 and triplet["stats"]["refined_mpgc"] > 0.95 * triplet["n"]
     for name in ("HRS1", "HRS2"):
         point, area = triplet[name]
@@ -230,7 +234,8 @@ def test_group3_accuracy_on_the_simulated_triplet(triplet):
         assert np.mean(area[steps] > 1.0) < 0.005
 
 
-def test_group3_with_support_weights(triplet):
+@pytest.mark.ratchet
+def test_group3_with_support_weights(triplet, figures):
     """GrowParams.support_weights (the DEM pipeline's setting; refinement.py): the MPGC windows weighted
     towards the template centre and its own surface. Fields closer to the point truth than with uniform
     windows; forest and city held to the template-area truth with the same weights
@@ -243,8 +248,10 @@ def test_group3_with_support_weights(triplet):
     for name in ("HRS1", "HRS2"):
         point, area = triplet[name + " support"]
         uniform = rms(triplet[name][0][uniform_fields])
-        print(f"{name} with support weights: fields RMS {rms(point[single]):.3f} px (area {rms(area[single]):.3f}; "
-              f"uniform windows {uniform:.3f}), forest+city area RMS {rms(area[steps]):.3f}")
+        figures.report(f"{name} fields RMS", rms(point[single]), "px")
+        figures.report(f"{name} fields RMS vs the area truth", rms(area[single]), "px")
+        figures.report(f"{name} fields RMS with uniform windows", uniform, "px")
+        figures.report(f"{name} forest+city RMS vs the area truth", rms(area[steps]), "px")
         assert rms(point[single]) < uniform
         assert np.mean(point[single] > 1.0) < 0.005
         assert rms(area[steps]) < 0.15 and np.mean(area[steps] > 1.0) < 0.005

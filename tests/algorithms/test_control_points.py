@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 from osgeo import gdal, ogr, osr
 
-from feedback import Feedback
-from osr_oracle import utm
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.algorithms.sigmas import IMAGE_SIGMA
+from tests.helpers.feedback import Feedback
+from tests.helpers.osr_oracle import utm
 
 NAMES = ("HRG", "HRS1", "HRS2")
 
@@ -102,7 +102,7 @@ def test_roles_and_check_ids(scene, blk, tmp_path):
     assert text.startswith(f"control {len(rows) - 2}, check 2; HRG: {len(rows) - 2} control, 2 check;")
 
 
-def test_projected_input(scene, blk, tmp_path):
+def test_projected_input(scene, blk, tmp_path, figures):
     """x/y in UTM made with osr from known lon/lat come back to 1e-8 deg, with the CRS as EPSG code or WKT."""
     rows = scene["rows"]
     lon, lat = np.array([float(r["lon"]) for r in rows]), np.array([float(r["lat"]) for r in rows])
@@ -118,7 +118,7 @@ def test_projected_input(scene, blk, tmp_path):
         obs = cp.read_csv(path, Block(blk).image_ids(), crs=crs)
         err = max(np.abs(obs.points["lon"] - lon).max(), np.abs(obs.points["lat"] - lat).max())
         assert err < 1e-8, err
-    print(f"UTM {epsg} -> WGS 84: largest difference {err:.1e} deg")
+    figures.report(f"UTM {epsg} -> WGS 84, largest difference", err, "deg")
     with pytest.raises(InputError, match="swapped|projected"):
         cp.read_csv(path, Block(blk).image_ids())                          # metres read as degrees
     with pytest.raises(InputError, match="unknown coordinate reference system"):
@@ -133,7 +133,7 @@ def egm96_grid():
     pytest.skip("PROJ's EGM96 grid (us_nga_egm96_15.tif / egm96_15.gtx) is not installed")
 
 
-def test_orthometric_heights_add_the_egm96_undulation(scene, blk, tmp_path):
+def test_orthometric_heights_add_the_egm96_undulation(scene, blk, tmp_path, figures):
     """h - H equals the EGM96 grid read by GDAL and interpolated bilinearly (to 1 mm)."""
     grid = gdal.Open(egm96_grid())
     gt, undulation = grid.GetGeoTransform(), grid.ReadAsArray().astype(float)
@@ -150,7 +150,7 @@ def test_orthometric_heights_add_the_egm96_undulation(scene, blk, tmp_path):
          + fy * ((1 - fx) * undulation[i + 1, j] + fx * undulation[i + 1, j + 1]))
     diff = ortho.points["h"] - ell.points["h"]
     assert np.abs(diff - n).max() < 1e-3, (diff, n)
-    print(f"EGM96 undulation at the scene: {diff.mean():.3f} m (grid {n.mean():.3f} m)")
+    figures.report("EGM96 undulation at the scene, h - H", diff.mean(), "m", f"grid {n.mean():.3f} m")
 
 
 def test_missing_geoid_grid_is_a_clear_error(tmp_path):
@@ -164,8 +164,9 @@ def test_missing_geoid_grid_is_a_clear_error(tmp_path):
     shutil.copy(proj_db, data)
     code = ("from pushbroom.algorithms.adjustment.control_points import orthometric_to_ellipsoidal\n"
             "from pushbroom.algorithms.errors import InputError\n"
-            "try:\n    print(orthometric_to_ellipsoidal(-84.2, 36.6, 300.0))\n"
-            "except InputError as exc:\n    print('InputError:', exc)\n")
+            "import sys\n"
+            "try:\n    sys.stdout.write(repr(orthometric_to_ellipsoidal(-84.2, 36.6, 300.0)))\n"
+            "except InputError as exc:\n    sys.stdout.write(f'InputError: {exc}')\n")
     env = dict(os.environ, PROJ_DATA=str(data), PROJ_LIB=str(data), PROJ_NETWORK="OFF", HOME=str(tmp_path),
                XDG_DATA_HOME=str(tmp_path))
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)

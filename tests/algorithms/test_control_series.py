@@ -4,12 +4,12 @@ points, untouched input models, progress, cancelling and refusals; on the small 
 import numpy as np
 import pytest
 
-from adjustment_scene import models_of, point_observations
-from feedback import Feedback
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.control_series import control_point_series, farthest_points
 from pushbroom.algorithms.adjustment.report import render_text, series_section
 from pushbroom.algorithms.errors import CancelledError, InputError
+from tests.helpers.adjustment_scene import models_of, point_observations
+from tests.helpers.feedback import Feedback
 
 NAMES = ("HRG", "HRS1", "HRS2")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}

@@ -15,7 +15,7 @@ from pushbroom.algorithms.errors import MetadataError
 from pushbroom.algorithms.sensors.dimap import read_dimap
 from pushbroom.algorithms.sensors.dimap_writer import write_dimap
 from pushbroom.algorithms.sensors.spot import SpotModel
-from spot_synthetic import synthetic_orientation
+from tests.helpers.spot_synthetic import synthetic_orientation
 
 
 def dimap_text(mission):

@@ -306,7 +306,8 @@ def test_predict_and_rendering_agree_on_the_ground():
     assert np.corrcoef(f.ravel(), g.ravel())[0, 1] > 0.99
 
 
-def test_match_edges_recovers_the_disparity(pair):
+@pytest.mark.ratchet
+def test_match_edges_recovers_the_disparity(pair, figures):
     ref, search, chains = pair
     rec = edges.match_edges(ref, search, chains, predict, H_RANGE)
     assert rec.dtype == edges.EDGEL_DTYPE and rec.size == sum((len(c) + 1) // 2 for c in chains)
@@ -319,16 +320,22 @@ def test_match_edges_recovers_the_disparity(pair):
     matchable = crossing > np.sin(np.radians(35.0))      # edges >= 35 degrees from parallel to the epipolar line
     roof = ok & (np.abs(true_height(rec["col"], rec["row"]) - plane(rec["col"], rec["row"])) > 1)
     roof_within = np.mean(errors_px(rec[roof]) <= 0.5)
-    print(f"\nedgels {rec.size}: ok {ok.mean():.1%}, of the {matchable.sum()} >= 35 degrees from the epipolar "
-          f"direction {ok[matchable].mean():.1%}, |error| <= 0.5 px {within:.1%} (roof outline: {roof.sum()} ok, "
-          f"{roof_within:.1%}), median {np.median(err):.3f} px, > 2 px {np.mean(err > 2):.1%}")
+    figures.report("edgels", rec.size)
+    figures.report("ok", 100 * ok.mean(), "%")
+    figures.report("edgels >= 35 degrees from the epipolar direction", matchable.sum())
+    figures.report("of those ok", 100 * ok[matchable].mean(), "%")
+    figures.report("|error| <= 0.5 px", 100 * within, "%")
+    figures.report("roof outline edgels ok", roof.sum())
+    figures.report("of those |error| <= 0.5 px", 100 * roof_within, "%")
+    figures.report("median error", np.median(err), "px")
+    figures.report("error > 2 px", 100 * np.mean(err > 2), "%")
     assert ok[matchable].mean() > 0.8 and within > 0.9 and np.mean(err > 2) < 0.02
     assert roof.sum() > 50 and roof_within > 0.9
     h = rec["h"][ok]
     assert np.median(np.abs(h - true_height(rec["col"][ok], rec["row"][ok]))) < 3.0     # m (0.15 px)
 
 
-def test_figural_continuity_removes_injected_repeats(pair):
+def test_figural_continuity_removes_injected_repeats(pair, figures):
     ref, search, chains = pair
     # a look-alike of the road: the reference's own pixels pasted next to the true road
     fake = search.copy()
@@ -344,9 +351,10 @@ def test_figural_continuity_removes_injected_repeats(pair):
     wrong_plain = np.mean(~(errors_px(plain[inside & plain["ok"]]) <= 1.0))
     wrong_figural = np.mean(~(errors_px(figural[inside & figural["ok"]]) <= 1.0))
     kept = np.mean(figural["ok"][inside])
-    print(f"\nroad edgels among the repeats {inside.sum()}: wrong (> 1 px) plain best-NCC {wrong_plain:.1%} "
-          f"of {np.sum(inside & plain['ok'])} ok, figural continuity {wrong_figural:.1%} of "
-          f"{np.sum(inside & figural['ok'])} ok")
+    figures.report("road edgels among the repeats", inside.sum())
+    figures.report("wrong (> 1 px), plain best NCC", 100 * wrong_plain, "%", f"of {np.sum(inside & plain['ok'])} ok")
+    figures.report("wrong (> 1 px), figural continuity", 100 * wrong_figural, "%",
+                   f"of {np.sum(inside & figural['ok'])} ok")
     assert wrong_plain > 0.5 and wrong_figural < 0.05 and kept > 0.8
 
 

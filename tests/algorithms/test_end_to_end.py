@@ -18,18 +18,6 @@ from osgeo import gdal
 from scipy import ndimage
 from scipy.spatial import Delaunay
 
-from end_to_end_chain import (
-    DEM_CELL,
-    IDS,
-    INTERIOR,
-    LOW_TEXTURE,
-    TEMPLATE_CELLS,
-    TEXTURE_CLASSES,
-    TEXTURED_OPEN,
-    field_edge_distance,
-    run_chain,
-)
-from ortho_oracle import geometric_error
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dem import Dem
@@ -41,6 +29,18 @@ from pushbroom.algorithms.simulation.terrain import BARE, CROPS, WATER
 from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.point_input import PointSet, read_points
 from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
+from tests.helpers.end_to_end_chain import (
+    DEM_CELL,
+    IDS,
+    INTERIOR,
+    LOW_TEXTURE,
+    TEMPLATE_CELLS,
+    TEXTURE_CLASSES,
+    TEXTURED_OPEN,
+    field_edge_distance,
+    run_chain,
+)
+from tests.helpers.ortho_oracle import geometric_error
 
 pytestmark = pytest.mark.slow
 
@@ -70,26 +70,26 @@ def rows(chain, assessed, select=None):
     return {**out, OPEN: summarize(dh[np.isin(classes, TEXTURED_OPEN)]), INNER: summarize(dh[inner])}
 
 
-def print_table(title, table):
-    print(f"\n{title}\n{'class':20} {'N':>7} {'mean':>7} {'RMS':>7} {'sigma':>7} {'NMAD':>7}  "
-          f"{'<2 m':>6} {'2-5 m':>6} {'>5 m':>6}")
-    for label, s in table.items():
-        print(f"{label:20} {s.n:7d} {s.mean:7.2f} {s.rms:7.2f} {s.sigma:7.2f} {s.nmad:7.2f}  "
-              + " ".join(f"{v:5.1f}%" for v in s.shares))
+def report_table(figures, title, table):
+    """Report a {label: Stats} table; returns it."""
+    figures.table(title, [{"class": label.strip(), "N": s.n, "mean": s.mean, "RMS": s.rms, "sigma": s.sigma,
+                           "NMAD": s.nmad, "<2 m %": s.shares[0], "2-5 m %": s.shares[1], ">5 m %": s.shares[2]}
+                          for label, s in table.items()])
     return table
 
 
-def point_tables(chain, run, reference):
+def point_tables(chain, run, reference, figures):
     """{group: table} of the object points of `run` against `reference` ('dsm' / 'dtm'): group 3 and >= 2
     (three images), all two-ray points (HRS only)."""
     points = chain[run][reference][0]
     groups = ((3, "3 (3 rays)"), (2, ">= 2")) if run == "three images" else ((1, "1 (2 rays)"),)
-    return {g: print_table(f"{run}: object points of group {text} vs the true {reference.upper()} (m)",
-                           rows(chain, points, points.differences.group >= g)) for g, text in groups}
+    return {g: report_table(figures, f"{run}: object points of group {text} vs the true {reference.upper()} (m)",
+                            rows(chain, points, points.differences.group >= g)) for g, text in groups}
 
 
-def dem_table(chain, run, reference):
-    return print_table(f"{run}: 10 m DEM vs the true {reference.upper()} (m)", rows(chain, chain[run][reference][1]))
+def dem_table(chain, run, reference, figures):
+    return report_table(figures, f"{run}: 10 m DEM vs the true {reference.upper()} (m)",
+                        rows(chain, chain[run][reference][1]))
 
 
 def group3_open(assessed):
@@ -97,7 +97,7 @@ def group3_open(assessed):
     return np.isin(assessed.classes, TEXTURED_OPEN) & (assessed.differences.group >= 3)
 
 
-def test_adjustment_check_points(chain):
+def test_adjustment_check_points(chain, figures):
     """The orientation the surface rests on: check point RMS with three images and with HRS only
     (Kornus et al. 2006, Table 3, real data: 2.7 / 2.3 / 1.9 m and 3.8 / 2.9 / 2.1 m); without the HRG the planimetric
     error grows."""
@@ -106,23 +106,26 @@ def test_adjustment_check_points(chain):
         check = chain[run]["check"]
         rms = np.array([np.sqrt(np.mean(check[k] ** 2)) for k in ("dE", "dN", "dH")])
         theory = np.sqrt(np.mean(check["sigma"] ** 2, axis=0))
-        print(f"{run}: free {chain[run]['selection'].free}\n  {len(check['dE'])} check points, RMS E/N/H "
-              + " / ".join(f"{v:.2f}" for v in rms) + " m, theoretical " + " / ".join(f"{v:.2f}" for v in theory))
+        figures.report(f"{run}: selected free coefficients", chain[run]["selection"].free)
+        figures.report(f"{run}: check points", len(check["dE"]))
+        figures.report(f"{run}: check point RMS E, N, H", rms, "m")
+        figures.report(f"{run}: theoretical RMS E, N, H", theory, "m")
         assert len(check["dE"]) >= 8
         assert np.all(rms < 2.0 * theory)
         planimetric[run] = np.hypot(*rms[:2])
-    print("times: " + ", ".join(f"{k} {v:.0f} s" for k, v in chain["times"].items()))
+    figures.report("times", chain["times"], "s")
     assert planimetric["HRS only"] > planimetric["three images"]
 
 
-def test_object_points_against_the_true_dsm_and_dtm(chain):
+@pytest.mark.ratchet
+def test_object_points_against_the_true_dsm_and_dtm(chain, figures):
     """Issue target: 3-ray (group 3) points, RMS vs the true DSM <= 0.7 m on textured open classes: not met
     (module docstring)."""
-    dsm = point_tables(chain, "three images", "dsm")
-    point_tables(chain, "three images", "dtm")
+    dsm = point_tables(chain, "three images", "dsm", figures)
+    point_tables(chain, "three images", "dtm", figures)
     measured = dsm[3]
-    print(f"group 3, {OPEN}: RMS {measured[OPEN].rms:.3f} m, interior {measured[INNER].rms:.3f} m "
-          f"(target <= {POINT_TARGET} m)")
+    figures.report(f"group 3, {OPEN}: RMS", measured[OPEN].rms, "m", f"target <= {POINT_TARGET} m")
+    figures.report("group 3, interior: RMS", measured[INNER].rms, "m", f"target <= {POINT_TARGET} m")
     # the assessment's dh are the intersected heights minus the DSM at the points (LAS and assess round trip)
     r = chain["three images"]["intersection"]
     direct = r.h[r.ok] - Dem.from_file(chain["paths"]["dsm"]).height(r.lon[r.ok], r.lat[r.ok])
@@ -136,26 +139,27 @@ def test_object_points_against_the_true_dsm_and_dtm(chain):
     cls, inner = (gdal.Open(str(chain[k])).ReadAsArray() for k in ("classes", "interior"))
     assert cls.shape == inner.shape == z.shape
     floor = [float(np.sqrt(np.mean(rough[m] ** 2))) for m in (np.isin(cls, TEXTURED_OPEN), inner == INTERIOR)]
-    print(f"relief inside a uniform {TEMPLATE_CELLS}-cell window (DSM minus its window mean), {OPEN}: RMS "
-          f"{floor[0]:.2f} m, interior {floor[1]:.2f} m")
+    figures.report(f"relief inside a uniform {TEMPLATE_CELLS}-cell window (DSM minus its window mean), {OPEN}: RMS",
+                   floor[0], "m")
+    figures.report(f"relief inside a uniform {TEMPLATE_CELLS}-cell window, interior: RMS", floor[1], "m")
     # where the squared error is: by the points' distance from forest, city and water
     assessed = chain["three images"]["dsm"][0]
     d, group3 = assessed.differences, group3_open(assessed)
     gt = gdal.Open(str(chain["classes"])).GetGeoTransform()
     edge = Dem(field_edge_distance(cls, gt), gt).height(*reproject(d.x[group3], d.y[group3], d.srs, wgs84()))
     dh = d.dh[group3]
-    print(f"group 3, {OPEN}, by distance from forest, city, water:\n{'m':>9} {'N':>6} {'share':>6} {'mean':>6} "
-          f"{'RMS':>6} {'of dh^2':>7}")
-    share = {}
+    share, by_distance = {}, []
     for lo, hi in ((0, 10), (10, 20), (20, 50), (50, 100), (100, np.inf)):
         m = (edge >= lo) & (edge < hi)
         share[lo] = np.sum(dh[m] ** 2) / np.sum(dh ** 2)
-        print(f"{lo:4.0f}-{hi:<4.0f} {m.sum():6d} {m.mean():6.1%} {dh[m].mean():6.2f} "
-              f"{np.sqrt(np.mean(dh[m] ** 2)):6.2f} {share[lo]:7.1%}")
+        by_distance.append({"m": f"{lo:g}-{hi:g}", "N": m.sum(), "share %": 100 * m.mean(), "mean": dh[m].mean(),
+                            "RMS": np.sqrt(np.mean(dh[m] ** 2)), "of dh^2 %": 100 * share[lo]})
+    figures.table(f"group 3, {OPEN}, by distance from forest, city, water (m)", by_distance)
     assert share[0] > 0.5 and share[50] + share[100] < 0.1
 
 
-def test_group3_height_error_is_the_matched_surface_not_the_orientation(chain):
+@pytest.mark.ratchet
+def test_group3_height_error_is_the_matched_surface_not_the_orientation(chain, figures):
     """Where the group-3 height error comes from: the points intersected again with the truth models
     (the matching's error alone) and with the adjusted models at the exact image positions (the HRG
     template centre's ray meets the true DSM, projected into HRS1 and HRS2 by their truth models: the
@@ -190,15 +194,16 @@ def test_group3_height_error_is_the_matched_surface_not_the_orientation(chain):
 
     parts = {"adjusted models, matched": dh(models, matched), "truth models, matched (matching)": dh(truth, matched),
              "adjusted models, exact (orientation)": dh(models, exact), "truth models, exact": dh(truth, exact)}
-    print(f"\ngroup 3 height error vs the true DSM, RMS / mean (m) {'':12} {OPEN:>16} {INNER:>16}")
     stats = {}
     for label, values in parts.items():
         stats[label] = {k: summarize(values[m & np.isfinite(values)]) for k, m in where.items()}
-        print(f"{label:50} " + " ".join(f"{s.rms:8.2f} {s.mean:7.2f}" for s in stats[label].values()))
+    figures.table("group 3 height error vs the true DSM (m)", [
+        {"": label, **{f"{k.strip()} {q}": getattr(s, q.lower()) for k, s in by_class.items() for q in ("RMS", "mean")}}
+        for label, by_class in stats.items()])
     for k, m in where.items():
-        print(f"{k}: along-track (row) matching error RMS HRS1 / HRS2 " + " / ".join(
-            f"{np.sqrt(np.mean((matched[IDS[n]][1] - exact[IDS[n]][1])[m] ** 2)):.3f}" for n in ("HRS1", "HRS2"))
-            + " px")
+        figures.report(f"{k.strip()}: along-track (row) matching error RMS HRS1, HRS2",
+                       [np.sqrt(np.mean((matched[IDS[n]][1] - exact[IDS[n]][1])[m] ** 2)) for n in ("HRS1", "HRS2")],
+                       "px")
     assert stats["truth models, exact"][INNER].rms < 0.01 and stats["truth models, exact"][OPEN].rms < 0.01
     assessed = chain["three images"]["dsm"][0]         # the same points, classed where they were intersected
     assert abs(stats["adjusted models, matched"][OPEN].rms
@@ -208,22 +213,24 @@ def test_group3_height_error_is_the_matched_surface_not_the_orientation(chain):
     assert orientation[OPEN].rms < 0.5 and matching[OPEN].rms > 4.0 * orientation[OPEN].rms
 
 
-def test_dem_against_the_true_dsm_and_dtm(chain, tmp_path):
+@pytest.mark.ratchet
+def test_dem_against_the_true_dsm_and_dtm(chain, tmp_path, figures):
     """Issue target: the 10 m DEM, RMS vs the true DSM <= 1.0 m on textured open classes: not met (module
     docstring). Beside it the same DEM step on the same point positions with the true DSM's heights: the
     part of the error that the points' spacing and the TIN's ramps make whatever the matcher measures.
     Figures: docs/validation.md#end-to-end."""
-    dsm = dem_table(chain, "three images", "dsm")
-    dem_table(chain, "three images", "dtm")
-    print(f"DEM, {OPEN}: RMS {dsm[OPEN].rms:.3f} m, interior {dsm[INNER].rms:.3f} m (target <= {DEM_TARGET} m)")
+    dsm = dem_table(chain, "three images", "dsm", figures)
+    dem_table(chain, "three images", "dtm", figures)
+    figures.report(f"DEM, {OPEN}: RMS", dsm[OPEN].rms, "m", f"target <= {DEM_TARGET} m")
+    figures.report("DEM, interior: RMS", dsm[INNER].rms, "m", f"target <= {DEM_TARGET} m")
     cloud = read_points(chain["three images"]["las"])
     lon, lat = reproject(cloud.x, cloud.y, cloud.srs, wgs84())
     exact = PointSet(cloud.x, cloud.y, Dem.from_file(chain["paths"]["dsm"]).height(lon, lat), cloud.srs)
     write_dem(interpolate_dem(exact, cell=DEM_CELL), tmp_path / "exact_heights_dem.tif")
     floor = rows(chain, assess(chain["paths"]["dsm"], dem=tmp_path / "exact_heights_dem.tif",
                                classes=ClassRaster(chain["classes"]))[0])
-    print(f"DEM of the same points with their true heights, {OPEN}: RMS {floor[OPEN].rms:.3f} m, interior "
-          f"{floor[INNER].rms:.3f} m")
+    figures.report(f"DEM of the same points with their true heights, {OPEN}: RMS", floor[OPEN].rms, "m")
+    figures.report("DEM of the same points with their true heights, interior: RMS", floor[INNER].rms, "m")
     assert dsm[OPEN].n > 10000 and floor[OPEN].n > 0.9 * dsm[OPEN].n
     assert dsm[OPEN].rms <= DEM_BOUND[0] and dsm[INNER].rms <= DEM_BOUND[1]
     # interior: the matched heights' error dominates; all textured open cells: the ramps between field and
@@ -231,7 +238,7 @@ def test_dem_against_the_true_dsm_and_dtm(chain, tmp_path):
     assert floor[INNER].rms < dsm[INNER].rms and floor[OPEN].rms > DEM_TARGET
 
 
-def test_low_texture_areas_are_gaps_not_blunders(chain):
+def test_low_texture_areas_are_gaps_not_blunders(chain, figures):
     """Water and low-texture fields are gaps: few points and DEM cells (the matcher fails there and the
     DEM leaves triangles longer than MAX_EDGE open); not blunders: the points there are no worse (within
     20 %) than on the textured open classes (share of |dh| > 5 m vs the true DSM; the shore and field
@@ -244,17 +251,17 @@ def test_low_texture_areas_are_gaps_not_blunders(chain):
     hull = Delaunay(np.column_stack([points.differences.x, points.differences.y]))
     inside = (hull.find_simplex(np.column_stack([x.ravel(), y.ravel()])) >= 0).reshape(grid_classes.shape)
     cell_km2 = abs(d.grid.geotransform[1] * d.grid.geotransform[5]) * 1e-6
-    print(f"\n{'class':20} {'km2':>6} {'points/km2':>10} {'DEM cover':>9} {'points |dh|>5m':>14} "
-          f"{'DEM |dh|>5m':>11} {'area w/ DEM blunder':>19}")
-    found = {}
+    found, table = {}, []
     for c, name in TEXTURE_CLASSES.items():
         area = inside & (grid_classes == c)
         density = np.sum(points.classes == c) / (area.sum() * cell_km2)
         cover = np.mean(np.isfinite(d.grid.values[area]))
         blunders = [np.mean(np.abs(a.differences.dh[a.classes == c]) > BLUNDER) for a in (points, dem)]
         found[c] = (density, cover, blunders[0], cover * blunders[1])
-        print(f"{name:20} {area.sum() * cell_km2:6.2f} {density:10.0f} {cover:9.1%} {blunders[0]:14.2%} "
-              f"{blunders[1]:11.2%} {cover * blunders[1]:19.2%}")
+        table.append({"class": name, "km2": area.sum() * cell_km2, "points/km2": density, "DEM cover %": 100 * cover,
+                      "points |dh|>5m %": 100 * blunders[0], "DEM |dh|>5m %": 100 * blunders[1],
+                      "area w/ DEM blunder %": 100 * cover * blunders[1]})
+    figures.table("per class", table)
     open_density, open_cover, open_blunders, _ = np.mean([found[c] for c in TEXTURED_OPEN], axis=0)
     for c in (WATER, LOW_TEXTURE):
         density, cover, point_blunders, blunder_area = found[c]
@@ -262,7 +269,7 @@ def test_low_texture_areas_are_gaps_not_blunders(chain):
         assert point_blunders < 1.2 * open_blunders and blunder_area < 0.01        # not blunders
 
 
-def test_hrs_only_against_three_images(chain):
+def test_hrs_only_against_three_images(chain, figures):
     """Kornus et al. 2006, section 3.6-3.7: HRS1 + HRS2 matched as a pair, adjusted from the same control
     points, against the three images, per class vs the true DTM (the papers' case) and DSM. The nadir HRG adds
     no height precision to HRS1 + HRS2 (a third ray at the mean of the other two's viewing angles), but its
@@ -273,25 +280,29 @@ def test_hrs_only_against_three_images(chain):
     tables = {}
     for reference in ("dtm", "dsm"):
         for run in ("three images", "HRS only"):
-            tables[run, reference] = (point_tables(chain, run, reference), dem_table(chain, run, reference))
-    print(f"\n{'vs the true DTM, RMS (m)':40} {'three images':>12} {'HRS only':>9}")
+            tables[run, reference] = (point_tables(chain, run, reference, figures),
+                                      dem_table(chain, run, reference, figures))
     three, hrs = tables["three images", "dtm"], tables["HRS only", "dtm"]
     pairs = {f"points, {OPEN} (group 3 / 2 rays)": (three[0][3][OPEN], hrs[0][1][OPEN]),
              "points, interior": (three[0][3][INNER], hrs[0][1][INNER]),
              f"DEM, {OPEN}": (three[1][OPEN], hrs[1][OPEN]), "DEM, interior": (three[1][INNER], hrs[1][INNER])}
-    for label, (a, b) in pairs.items():
-        print(f"{label:40} {a.rms:12.2f} {b.rms:9.2f}   ({100 * (b.rms / a.rms - 1):+.0f} %)")
+    figures.table("vs the true DTM, RMS (m)", [{"": label, "three images": a.rms, "HRS only": b.rms,
+                                                "HRS only - three images %": 100 * (b.rms / a.rms - 1)}
+                                               for label, (a, b) in pairs.items()])
     assert pairs["points, interior"][1].rms > pairs["points, interior"][0].rms
     assert pairs["DEM, interior"][1].rms > pairs["DEM, interior"][0].rms
 
 
-def test_orthoimage_geometric_error(chain):
+@pytest.mark.ratchet
+def test_orthoimage_geometric_error(chain, figures):
     """Issue target: HRG orthoimage on the adjusted model and the produced DEM, geometric error vs the
     true orthoimage below 0.3 px on open classes."""
     shifts = geometric_error(chain["paths"], chain["ortho"].path, (BARE, CROPS))
     rms = float(np.sqrt(np.mean(np.sum(shifts ** 2, axis=1))))
     mean = shifts.mean(axis=0)
-    print(f"HRG orthoimage vs the true orthoimage, open classes: {len(shifts)} patches, RMS {rms:.3f} px, mean "
-          f"({mean[0]:.3f}, {mean[1]:.3f}) px (target < {ORTHO_TARGET} px); {chain['ortho'].summary()}")
+    figures.report("patches in the open classes", len(shifts))
+    figures.report("shift against the true orthoimage, RMS", rms, "px", f"target < {ORTHO_TARGET} px")
+    figures.report("shift against the true orthoimage, mean", mean, "px")
+    figures.report("orthoimage", chain["ortho"].summary())
     assert len(shifts) > 1000
     assert rms < ORTHO_TARGET

@@ -6,7 +6,6 @@ import time
 import numpy as np
 import pytest
 
-from feedback import Feedback
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import CancelledError, InputError
@@ -14,6 +13,7 @@ from pushbroom.algorithms.geodesy import ecef_to_geodetic, geodetic_to_ecef, met
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.surface import intersection as ix
+from tests.helpers.feedback import Feedback
 
 NAMES = ("HRG", "HRS1", "HRS2")
 N_POINTS = 3000
@@ -86,7 +86,7 @@ def test_closest_to_lines_kernel_against_numpy():
     assert not ok[7] and ok.sum() > 200
 
 
-def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_rays(scene):
+def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_rays(scene, figures):
     """The start alone (the adjustment's starting points): exact measurements' lines of sight meet in
     the true point, the same from SpotModel.ray_points (line of sight) as from SensorModel's (two
     ground points per ray); with 0.3 px noise the start is metres close; a point with fewer than two
@@ -104,7 +104,8 @@ def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_
     noise = np.random.default_rng(2).normal(0.0, 0.3, (2, col.size))
     noisy = np.sqrt(np.mean(error(*ix.closest_points(models, image, point, col + noise[0], row + noise[1])[1:4]) ** 2,
                             axis=0))
-    print(f"closest points: largest error {exact:.2e} m exact; RMS E/N/H {np.round(noisy, 2)} m with 0.3 px")
+    figures.report("closest points of exact lines of sight, largest error", exact, "m")
+    figures.report("closest points with 0.3 px noise, RMS E, N, H", noisy, "m")
     assert exact < 1e-3
     assert noisy.max() < 5.0
 
@@ -121,18 +122,18 @@ def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_
 
 
 @pytest.mark.parametrize("names", [NAMES, ("HRG", "HRS1"), ("HRS1", "HRS2")])
-def test_exact_measurements_give_the_truth(scene, names):
+def test_exact_measurements_give_the_truth(scene, names, figures):
     models = scene["models"]
     result = ix.intersect(models, *measure(models, names, scene["lon"], scene["lat"], scene["h"]), sigma=0.5)
     assert result.status_counts() == {"converged": N_POINTS}
     assert np.all(result.rays == len(names))
     err = errors_enu(result, scene["lon"], scene["lat"], scene["h"])
-    print(f"{'-'.join(names)}: largest error {np.abs(err).max():.2e} m")
+    figures.report("largest error", np.abs(err).max(), "m")
     assert np.abs(err).max() < 1e-3
     assert np.all(result.sigma0 < 1e-4) and np.all(result.rms < 1e-5)
 
 
-def test_noisy_measurements_agree_with_the_predicted_sigmas(scene):
+def test_noisy_measurements_agree_with_the_predicted_sigmas(scene, figures):
     """Empirical RMS of the normalised errors per axis between 0.8 and 1.25, E[sigma0^2] = 1, and
     the third ray sharpens the height (K: three-ray points are the best)."""
     models, truth = scene["models"], (scene["lon"], scene["lat"], scene["h"])
@@ -143,8 +144,9 @@ def test_noisy_measurements_agree_with_the_predicted_sigmas(scene):
         assert result.status_counts() == {"converged": N_POINTS}
         ratio = np.sqrt(np.mean((errors_enu(result, *truth) / result.sigma) ** 2, axis=0))
         mean_var = np.mean(result.sigma0 ** 2)
-        print(f"{'-'.join(names)}: RMS(error / sigma) E N H = {np.round(ratio, 3)}, mean sigma0^2 = {mean_var:.3f}, "
-              f"median sigma E N H = {np.round(np.median(result.sigma, axis=0), 3)} m")
+        figures.report(f"{'-'.join(names)}: RMS(error / sigma) E, N, H", ratio)
+        figures.report(f"{'-'.join(names)}: mean sigma0^2", mean_var)
+        figures.report(f"{'-'.join(names)}: median sigma E, N, H", np.median(result.sigma, axis=0), "m")
         assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
         assert 0.9 < mean_var < 1.1
         # image residual RMS: E[v'v] = r sigma^2 over the 2k coordinates
@@ -184,7 +186,7 @@ def pair(simulated):
 
 
 @pytest.mark.parametrize("case, tolerance", [("spot14", 1e-6), ("rpc", 1e-6), ("spot5", 1e-4)])
-def test_agrees_with_an_independent_solution(scene, pair, rpcs, case, tolerance):
+def test_agrees_with_an_independent_solution(scene, pair, rpcs, case, tolerance, figures):
     """Against reference_intersection on 6 points with 0.3 px noise: to 1e-6 m with the rigorous
     SPOT 1-4 pair and with RPC models; with SPOT 5 (per-detector look-angle tables) to about 1e-5 m
     only: SpotModel.partials takes the look angles' derivative along the array by a +-0.5 px
@@ -208,7 +210,7 @@ def test_agrees_with_an_independent_solution(scene, pair, rpcs, case, tolerance)
                                      (truth[0][p] + 2e-5, truth[1][p] - 3e-5, truth[2][p] + 4.0))
         worst = max(worst, np.abs([(result.lon[p] - ref[0]) * me, (result.lat[p] - ref[1]) * mn,
                                    result.h[p] - ref[2]]).max())
-    print(f"{case}: largest difference to the independent solution {worst:.1e} m")
+    figures.report("largest difference to the independent solution", worst, "m")
     assert worst < tolerance
 
 
@@ -247,7 +249,7 @@ def rpcs(scene):
     return {name: fit_rpc(model, (0.0, 1000.0))[0] for name, model in scene["models"].items()}
 
 
-def test_rpc_models(scene, rpcs):
+def test_rpc_models(scene, rpcs, figures):
     """The same intersection with RpcModel: exact to 1 mm on RPC-projected measurements, and within
     the fit error of the rigorous result on the same measurements (Kornus et al. 2006, Table 5)."""
     rigorous = scene["models"]
@@ -258,12 +260,13 @@ def test_rpc_models(scene, rpcs):
     obs = measure(rigorous, NAMES, *truth, noise=0.3)
     a, b = ix.intersect(rigorous, *obs, sigma=0.3), ix.intersect(rpcs, *obs, sigma=0.3)
     dh = a.h - b.h
-    print(f"RPC - rigorous heights: RMS {np.sqrt(np.mean(dh ** 2)):.4f} m, max {np.abs(dh).max():.4f} m")
+    figures.report("RPC - rigorous heights, RMS", np.sqrt(np.mean(dh ** 2)), "m")
+    figures.report("RPC - rigorous heights, max", np.abs(dh).max(), "m")
     assert np.abs(errors_enu(a, b.lon, b.lat, b.h)).max() < 0.05
     np.testing.assert_allclose(b.sigma, a.sigma, rtol=0.01)
 
 
-def test_pleiades_triplet_rpcs(pleiades_triplet):
+def test_pleiades_triplet_rpcs(pleiades_triplet, figures):
     """Real Pleiades RPCs: synthetic ground points (img_02 points at heights in the RPC range)
     projected into the three images are intersected to 1 mm."""
     models = {k: sensors.load(str(path)) for k, path in enumerate(pleiades_triplet, start=1)}
@@ -283,7 +286,7 @@ def test_pleiades_triplet_rpcs(pleiades_triplet):
     assert np.all(result.status[~inside] == ix.OUTSIDE)
     err = errors_enu(result, lon, lat, h)[inside]
     assert np.abs(err).max() < 1e-3
-    print(f"Pleiades triplet: median sigma E N H {np.round(np.median(result.sigma[inside], axis=0), 3)} m at 0.5 px")
+    figures.report("median sigma E, N, H at 0.5 px", np.median(result.sigma[inside], axis=0), "m")
 
 
 def test_bad_points_get_a_status(scene):
@@ -407,8 +410,8 @@ def test_inverse_symmetric():
 
 
 @pytest.mark.slow
-def test_throughput(scene):
-    """Hundreds of thousands of three-ray points (times printed, not asserted)."""
+def test_throughput(scene, figures):
+    """Hundreds of thousands of three-ray points (throughput reported, not asserted)."""
     models = scene["models"]
     rng = np.random.default_rng(4)
     n = 200_000
@@ -419,6 +422,7 @@ def test_throughput(scene):
     start = time.perf_counter()
     result = ix.intersect(models, *obs, sigma=0.1)
     seconds = time.perf_counter() - start
-    print(f"{n} three-ray points in {seconds:.2f} s: {n / seconds:,.0f} points/s")
+    figures.report("three-ray points", n)
+    figures.report("throughput", n / seconds, "points/s")
     assert result.status_counts() == {"converged": n}
     assert np.sqrt(np.mean((errors_enu(result, lon, lat, h) / result.sigma) ** 2)) < 1.1

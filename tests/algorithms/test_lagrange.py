@@ -10,17 +10,18 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from adjustment_scene import models_of, point_observations
 from pushbroom.algorithms.adjustment.bundle import adjust
 from pushbroom.algorithms.adjustment.control_series import control_point_series
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.adjustment.parameters import EXTERIOR, OrientationParameters, line_time
-from pushbroom.algorithms.adjustment.report import render_text, series_section
+from pushbroom.algorithms.adjustment.report import series_section
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.sensors.spot import SpotModel
 from pushbroom.algorithms.simulation import SceneConfig
-from spot_synthetic import synthetic_orientation
+from tests.helpers.adjustment_scene import models_of, point_observations
+from tests.helpers.figures import section_rows
+from tests.helpers.spot_synthetic import synthetic_orientation
 
 NAMES = ("HRV1_A", "HRV2_B")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}
@@ -164,7 +165,7 @@ def image_displacement(truth, models):
 
 
 @pytest.mark.slow
-def test_injected_orientation_image_errors_are_recovered(pair):
+def test_injected_orientation_image_errors_are_recovered(pair, figures):
     """The truth models given known attitude errors at 4 orientation images per pass (random signs,
     10-30 urad, i.e. 8-25 m on the ground), all 60 points as control, 64 tie points: the adjustment
     (attitude at the orientation images free) estimates minus the injected values within their
@@ -188,14 +189,17 @@ def test_injected_orientation_image_errors_are_recovered(pair):
                     priors={"lagrange:offset": 100.0})
     error = (result.values + injected)[free]
     distance = float(error @ np.linalg.solve(result.covariance, error))
-    print(f"\nrecovered {free.sum()} orientation-image attitudes: Mahalanobis^2 {distance:.1f}, |x + injected| / "
-          f"sigma max {np.max(np.abs(error) / result.sigmas[free]):.2f}; sigma {1e6 * result.sigmas[free].min():.1f}-"
-          f"{1e6 * result.sigmas[free].max():.1f} urad; sigma_0 {result.sigma0:.3f}")
+    figures.report("orientation-image attitudes recovered", free.sum())
+    figures.report("Mahalanobis^2 of their errors", distance)
+    figures.report("max |x + injected| / sigma", np.max(np.abs(error) / result.sigmas[free]))
+    figures.report("their sigmas", [1e6 * result.sigmas[free].min(), 1e6 * result.sigmas[free].max()], "urad")
+    figures.report("sigma_0", result.sigma0)
     assert distance < chi2.ppf(0.999, free.sum()) and np.all(np.abs(error) < 3.0 * result.sigmas[free])
     roll = result.parameters.select(["roll@0123"])
     assert np.all(result.sigmas[roll] < np.abs(injected[roll]) / 3.0)
     before, after = (image_displacement(truth, m) for m in (perturbed, models))
-    print(f"image displacement against the truth models: max {before:.2f} px injected, {after:.3f} px adjusted")
+    figures.report("image displacement against the truth models, max injected", before, "px")
+    figures.report("image displacement against the truth models, max adjusted", after, "px")
     assert after < 0.3 * before
     weights = result.parameters.prior_weights
     assert np.allclose(weights[result.parameters.select(["lagrange:offset"])], 1e-4)
@@ -204,7 +208,7 @@ def test_injected_orientation_image_errors_are_recovered(pair):
 
 
 @pytest.mark.slow
-def test_control_point_series_on_a_spot14_pair(pair):
+def test_control_point_series_on_a_spot14_pair(pair, figures):
     """THE ACCEPTANCE (issue 4, Heipke et al. 1992, Table 1): the supplied (perturbed) orientation of the pair, the
     Lagrange model with the attitude at the orientation images and the offsets free, the header
     positions as priors (1 m relative, 1000 m absolute), 64 tie points; of the 60 points, 30
@@ -217,7 +221,7 @@ def test_control_point_series_on_a_spot14_pair(pair):
     the RMS is pooled over 12 draws (0.3 px on the points' true image coordinates): 5 and 6 control
     points then come within 20 % of 15 in E, N and H, as does the adjustment's own (noise-free)
     theoretical RMS. The margin is thin for N at 5 (1.16 here; 1.11-1.24 over other sets of 12
-    draws, 1.11 in theory). With 4 orientation images over 2000 lines (printed), 5-6 control
+    draws, 1.11 in theory). With 4 orientation images over 2000 lines (reported), 5-6 control
     points cannot hold the cubic (yaw and pitch at each image are nearly the same along-track
     shift in an oblique view), and the adjustment says so: its theoretical RMS N at 5 is many
     times that at 15."""
@@ -234,12 +238,12 @@ def test_control_point_series_on_a_spot14_pair(pair):
                                   theoretical=np.sqrt(np.mean([r.theoretical ** 2 for r in rows], axis=0)),
                                   sigma0=float(np.sqrt(np.mean([r.sigma0 ** 2 for r in rows]))))
               for rows in zip(*runs)]
-    print("\nH Table 1 on the simulated SPOT 2 pair, 2 orientation images, check points pooled over 12 noise "
-          "draws:\n" + render_text([series_section(pooled)]))
+    figures.table("H Table 1 on the simulated SPOT 2 pair, 2 orientation images, check points pooled over 12 noise "
+                  "draws (m)", section_rows(series_section(pooled)))
     rms = np.array([r.rms for r in pooled])
     theory = np.array([r.theoretical for r in pooled])
-    print(f"5 and 6 relative to 15: {np.round(rms[:2] / rms[-1], 2).tolist()}, theoretical "
-          f"{np.round(theory[:2] / theory[-1], 2).tolist()}")
+    figures.report("RMS E, N, H with 5 and 6 control points relative to 15", rms[:2] / rms[-1])
+    figures.report("theoretical RMS E, N, H with 5 and 6 control points relative to 15", theory[:2] / theory[-1])
     assert np.all(rms[:2] < 1.2 * rms[-1]) and np.all(theory[:2] < 1.2 * theory[-1])
     assert np.all(rms < 1.5 * theory)
 
@@ -249,6 +253,7 @@ def test_control_point_series_on_a_spot14_pair(pair):
     # (bundle.find_defects names them); let the adjustment run anyway to show what that costs
     cubic = control_point_series(models, obs, counts, FREE, names=LABELS, height=500.0, model="lagrange",
                                  defect_eigenvalue=1e-10)
-    print("4 orientation images (one draw, the simulator's measurements):\n" + render_text([series_section(cubic)]))
+    figures.table("4 orientation images (one draw, the simulator's measurements) (m)",
+                  section_rows(series_section(cubic)))
     assert cubic[0].theoretical[1] > 3.0 * cubic[-1].theoretical[1]
     assert cubic[-1].rms[1] < 1.5 * rms[-1][1]

@@ -8,20 +8,7 @@ from pushbroom.algorithms import interpolation
 from pushbroom.algorithms.matching import lsm
 from pushbroom.algorithms.matching.params import LsmParams
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
-
-
-def texture(rng, ncomp=150, sigma_freq=0.06):
-    """A continuous band-limited random texture (unit variance, Gaussian spectrum with standard
-    deviation sigma_freq cycles/px per axis), exactly evaluable anywhere; f(x, y, blur) is the
-    texture seen through a Gaussian low-pass of (sigma_x, sigma_y) = blur px."""
-    u, v = rng.normal(0, sigma_freq, ncomp), rng.normal(0, sigma_freq, ncomp)
-    phase = rng.uniform(0, 2 * np.pi, ncomp)
-    amp = np.sqrt(2.0 / ncomp)
-
-    def f(x, y, blur=(0.0, 0.0)):
-        att = amp * np.exp(-2 * np.pi ** 2 * (blur[0] ** 2 * u ** 2 + blur[1] ** 2 * v ** 2))
-        return (att * np.cos(2 * np.pi * (np.multiply.outer(x, u) + np.multiply.outer(y, v)) + phase)).sum(-1)
-    return f
+from tests.helpers.texture import texture
 
 
 def gn_step_reference(img1, img2, x1, y1, p, half):
@@ -96,7 +83,7 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_precision_is_calibrated(case):
+def test_precision_is_calibrated(case, figures):
     m, gain, offset = CASES[case]
     rec, status, truth = simulate(300, m, gain, offset, noise=4.0, seed=list(CASES).index(case) + 11)
     ok = status == 0
@@ -105,7 +92,9 @@ def test_precision_is_calibrated(case):
     rms = np.sqrt((err ** 2).sum(1).mean())
     predicted = np.sqrt((rec["semi_major"][ok].astype(float) ** 2 + rec["semi_minor"][ok] ** 2).mean())
     ratio = rms / predicted
-    print(f"{case}: RMS {rms:.4f} px, predicted {predicted:.4f} px, ratio {ratio:.3f}")
+    figures.report("RMS error", rms, "px")
+    figures.report("predicted (error ellipses)", predicted, "px")
+    figures.report("ratio", ratio)
     assert 0.8 < ratio < 1.25
     assert rms < 0.1
     assert lsm.accepted(rec, status, LsmParams()).mean() > 0.9

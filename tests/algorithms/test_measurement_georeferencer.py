@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 from osgeo import osr
 
-from osr_oracle import utm
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.algorithms.measurement.georeferencer import HEADER, read_points, write_points
+from tests.helpers.osr_oracle import utm
 
 HRG = 1
 
@@ -26,7 +26,7 @@ def observations(small_scene, small_scene_block, tmp_path):
     return cp.import_csv(Block(path), small_scene["points"], suffix="_meas", check_ids=["P002"])
 
 
-def test_write_and_read_back(observations, small_scene, tmp_path):
+def test_write_and_read_back(observations, small_scene, tmp_path, figures):
     obs = observations
     path = write_points(tmp_path / "hrg.points", obs, HRG)
     lines = open(path).read().splitlines()
@@ -58,8 +58,8 @@ def test_write_and_read_back(observations, small_scene, tmp_path):
     # a given height, the map CRS given explicitly
     flat = read_points(path, HRG, height=250.0, crs=f"EPSG:{epsg}")
     assert (flat.points["h"] == 250.0).all() and (flat.points["role"] == "control").all()
-    print(f"{len(m)} points through {path}: lon/lat back within "
-          f"{np.abs(back.points['lon'] - obs.points['lon']).max():.1e} deg")
+    figures.report("points through the Georeferencer file", len(m))
+    figures.report("largest lon difference read back", np.abs(back.points["lon"] - obs.points["lon"]).max(), "deg")
 
 
 def write(path, text):

@@ -23,7 +23,7 @@ def truth(small_scene):
         return models, list(csv.DictReader(f)), Dem.from_file(small_scene["dsm"])
 
 
-def test_predict_lands_on_the_true_positions(truth):
+def test_predict_lands_on_the_true_positions(truth, figures):
     models, rows, _ = truth
     worst = 0.0
     for r in rows:
@@ -31,14 +31,14 @@ def test_predict_lands_on_the_true_positions(truth):
         assert sorted(got) == sorted(NAMES)
         for n, (col, row) in got.items():
             worst = max(worst, abs(col - float(r[f"{n}_col"])), abs(row - float(r[f"{n}_row"])))
-    print(f"largest difference to the simulator's true positions: {worst:.1e} px")
+    figures.report("largest difference to the simulator's true positions", worst, "px")
     assert worst < 1e-2
     r = rows[0]
     outside = predict(models, float(r["lon"]) + 0.2, float(r["lat"]), float(r["h"]))
     assert outside == {n: None for n in NAMES}
 
 
-def test_ground_from_click_on_the_dsm_and_at_a_height(truth):
+def test_ground_from_click_on_the_dsm_and_at_a_height(truth, figures):
     models, rows, dsm = truth
     worst = np.zeros(3)
     for r in rows:
@@ -51,7 +51,7 @@ def test_ground_from_click_on_the_dsm_and_at_a_height(truth):
                 d = np.abs([(got[0] - lon) * e_deg, (got[1] - lat) * n_deg, got[2] - h])
                 worst = np.maximum(worst, d)
             assert ground_from_click(models[n], col, row, height=h)[2] == h
-    print(f"largest ground differences E, N, H (m): {worst}")
+    figures.report("largest ground differences E, N, H", worst, "m")
     assert (worst < 0.05).all()
 
 

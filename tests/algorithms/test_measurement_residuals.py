@@ -43,7 +43,7 @@ def test_before_any_adjustment(small_scene_block):
     assert Block(small_scene_block[0]).residuals() == ({}, {})
 
 
-def test_residuals_are_stored_and_loaded(adjusted):
+def test_residuals_are_stored_and_loaded(adjusted, figures):
     path, result, check, obs = adjusted
     assert set(layer_values(path).values()) == {None}
     Block(path).save_residuals(*residual_rows(result, check, obs))
@@ -84,8 +84,9 @@ def test_residuals_are_stored_and_loaded(adjusted):
     # the layer field: each point's image RMS
     values = layer_values(path)
     assert values == pytest.approx({n: ground[n][3] for n in names.tolist() + CHECK}, abs=1e-12)
-    print(f"check point image residuals: reprojection of the independent intersection within {worst:.1e} px; "
-          f"residual_px {values}")
+    figures.report("check point image residuals against the reprojection of an independent intersection, max",
+                   worst, "px")
+    figures.report("residual_px of the point layer", values, "px")
 
 
 def test_points_load_and_save_with_the_field_and_edits_since(adjusted):

@@ -163,7 +163,8 @@ def test_edits_survive_a_killed_process(blk):
             "s.put_measurement('K1', 2, 150.5, 200.25)\n"
             "s.delete_measurement('P001', 1)\n"
             "s.rename_point('P002', 'R2')\n"
-            "print('edited', flush=True)\n"
+            "sys.stdout.write('edited\\n')\n"
+            "sys.stdout.flush()\n"
             "os.kill(os.getpid(), signal.SIGKILL)\n")
     run = subprocess.run([sys.executable, "-c", code, blk], capture_output=True, text=True, timeout=120)
     assert run.returncode == -9 and "edited" in run.stdout
@@ -183,7 +184,8 @@ def test_an_edit_waits_for_another_writer(blk):
             "ds = ogr.Open(sys.argv[1], 1)\n"
             "ds.StartTransaction()\n"
             "ds.ExecuteSQL(\"UPDATE block_info SET value = 'held' WHERE key = 'default_crs'\")\n"
-            "print('holding', flush=True)\n"
+            "sys.stdout.write('holding\\n')\n"
+            "sys.stdout.flush()\n"
             "time.sleep(1.0)\n"
             "ds.CommitTransaction()\n")
     holder = subprocess.Popen([sys.executable, "-c", code, blk], stdout=subprocess.PIPE, text=True)

@@ -43,15 +43,15 @@ def errors(result, row):
     return out
 
 
-def table(rows):
-    for line in rows:
-        print(" ".join(f"{k}: {v[2]:.3f} px ({v[0]:+.3f}, {v[1]:+.3f}) rho {v[3]:.3f} sigma {v[4]:.3f}"
-                       + ("" if v[5] else f" REFUSED: {v[6]}") for k, v in line.items()))
+def table_rows(ids, lines):
+    """The transfers' errors (errors() of each point) as rows for Figures.table."""
+    return [{"point": point, "target": k, "error px": v[2], "d col": v[0], "d row": v[1], "rho": v[3], "sigma px": v[4],
+             "refused": "" if v[5] else v[6]} for point, line in zip(ids, lines) for k, v in line.items()]
 
 
 @pytest.mark.parametrize("source", ["HRG", "HRS1"])
 @pytest.mark.parametrize("height", ["point", "range"])
-def test_marked_points_land_on_the_truth(marked, source, height):
+def test_marked_points_land_on_the_truth(marked, source, height, figures):
     images, models, rows = marked
     assert len(rows) >= 6
     worst, lines = 0.0, []
@@ -64,8 +64,8 @@ def test_marked_points_land_on_the_truth(marked, source, height):
         for target, v in e.items():
             assert v[5] and v[6] == "", (r["id"], target, v)
             worst = max(worst, v[2])
-    print(f"\n{source} -> others, height {height}: largest error {worst:.3f} px")
-    table(lines)
+    figures.report("largest error", worst, "px")
+    figures.table(f"{source} -> others", table_rows([r["id"] for r in rows], lines))
     assert worst < 0.3
 
 
@@ -85,7 +85,7 @@ def test_unmarked_points(small_scene):
     assert accepted >= 1
 
 
-def test_only_windows_are_read(marked, monkeypatch):
+def test_only_windows_are_read(marked, monkeypatch, figures):
     images, models, rows = marked
     sizes = []
     read = imagery.Image.read
@@ -98,7 +98,7 @@ def test_only_windows_are_read(marked, monkeypatch):
     r = rows[0]
     transfer(images, models, "HRG", float(r["HRG_col"]), float(r["HRG_row"]), height=(-200.0, 800.0))
     transfer(images, models, "HRS1", float(r["HRS1_col"]), float(r["HRS1_row"]), height=float(r["h"]))
-    print(f"\nwindows read (cols x rows): {sizes}")
+    figures.report("windows read (cols x rows)", [f"{c} x {r}" for c, r in sizes])
     assert sizes and max(c * w for c, w in sizes) < 200 * 200
 
 

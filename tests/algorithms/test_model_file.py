@@ -86,7 +86,7 @@ def test_truncated_model_file_raises_metadata_error(spot5_dim, tmp_path):
 @pytest.mark.parametrize("size", [[1], [-5, 3], [0, 10], "ab", None, [1e400, 3]])
 def test_rpc_model_file_with_a_bad_size_raises_metadata_error(tmp_path, size):
     from pushbroom.algorithms.sensors.rpc import RpcModel
-    from rpc_synthetic import synthetic_coefficients
+    from tests.helpers.rpc_synthetic import synthetic_coefficients
     path = tmp_path / "r.pbmodel.json"
     sensors.save(RpcModel(synthetic_coefficients()), path)
     doc = json.loads(path.read_text())

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from matching_scene import support_reference
 from pushbroom.algorithms import interpolation
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.matching import lsm, mpgc, mpgc_kernels as kern
 from pushbroom.algorithms.matching.params import LsmParams
 from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIMILARITY
+from tests.helpers.matching_scene import support_reference
 
 LON0, LAT0 = 10.0, 45.0
 
@@ -312,43 +312,45 @@ def enu_error(cameras, rec, enu):
     return np.column_stack([e, n, u]) - enu
 
 
-def calibrated(planar, params):
+def calibrated(planar, params, figures):
     """MPGC of the planar patches with `params`: asserts convergence, acceptance and empirical RMS /
-    reported sigma within 0.8-1.25 (positions in both search images, object points); returns the
-    records, the converged ones and their geometric test t."""
+    reported sigma within 0.8-1.25 (positions in both search images, object points), reports the
+    figures; returns the records, the converged ones and their geometric test t."""
     cameras, images, x0, y0, enu, pos, (lon, lat, h) = planar
     rec = mpgc.match_points(images[0], images[1:], cameras, x0, y0, lon, lat, h, params)
     ok = rec["status"] == mpgc.OK
-    print(f"\nMPGC: {ok.sum()} of {len(rec)} converged, iterations median {np.median(rec['iterations'][ok]):.0f}")
+    figures.report("converged", ok.sum(), note=f"of {len(rec)}")
+    figures.report("iterations, median", np.median(rec["iterations"][ok]))
     assert ok.mean() > 0.99
     assert mpgc.accepted(rec, params).mean() > 0.9
     err = np.stack([rec["x"] - pos[..., 0], rec["y"] - pos[..., 1]], axis=-1)[ok]     # (m, 2 images, 2)
     for i in range(2):
         rms = np.sqrt((err[:, i] ** 2).sum(-1).mean())
         pred = np.sqrt((rec["semi_major"][ok, i].astype(float) ** 2 + rec["semi_minor"][ok, i] ** 2).mean())
-        print(f"search image {i + 1}: RMS {rms:.4f} px, predicted {pred:.4f} px, ratio {rms / pred:.3f}")
+        figures.table(f"search image {i + 1}", [{"RMS px": rms, "predicted px": pred, "ratio": rms / pred}])
         assert 0.8 < rms / pred < 1.25
     d = enu_error(cameras, rec, enu)[ok]
     rms_x = np.sqrt((d ** 2).sum(1).mean())
     pred_x = np.sqrt((rec["sigma"][ok].astype(float) ** 2).sum(1).mean())
     e, n, u = np.sqrt((d ** 2).mean(0))
-    print(f"object point: RMS {rms_x:.4f} m (E {e:.4f}, N {n:.4f}, U {u:.4f}), "
-          f"predicted {pred_x:.4f} m, ratio {rms_x / pred_x:.3f}")
+    figures.table("object point (m)", [{"RMS": rms_x, "E": e, "N": n, "U": u, "predicted": pred_x,
+                                        "ratio": rms_x / pred_x}])
     assert 0.8 < rms_x / pred_x < 1.25
     t = rec["geo_test"][ok]
-    print(f"geometric test t: mean {t.mean():.2f}, redundancy {np.median(rec['geo_redundancy'][ok]):.2f}, "
-          f"reliability median {np.median(rec['reliability'][ok]):.3f}")
+    figures.report("geometric test t, mean", t.mean())
+    figures.report("geometric redundancy, median", np.median(rec["geo_redundancy"][ok]))
+    figures.report("reliability, median", np.median(rec["reliability"][ok]))
     return rec, ok, t
 
 
-def test_planar_precision_calibrated_and_better_than_pairwise(planar):
+def test_planar_precision_calibrated_and_better_than_pairwise(planar, figures):
     """Issue 7 acceptance (MPGC alone): with models that the images follow exactly (so the hard
     constraint, sigma_geometry 0.001 px), 3-image MPGC positions and object points against the
     truth; empirical RMS / reported sigma within 0.8-1.25; pairwise LSM (lsm.match_points from the
     reference into each search image, same template, approximations and initial affine) is less
     precise (ratio > 1) (docs/validation.md#mpgc-precision)."""
     cameras, images, x0, y0, enu, pos, (lon, lat, h) = planar
-    rec, ok, t = calibrated(planar, mpgc.MpgcParams(sigma_geometry=0.001))
+    rec, ok, t = calibrated(planar, mpgc.MpgcParams(sigma_geometry=0.001), figures)
     assert 0.6 < t.mean() < 1.6
     # pairwise LSM on the same patches
     cen, jac = mpgc.geometry(cameras, lon, lat, h)
@@ -365,17 +367,19 @@ def test_planar_precision_calibrated_and_better_than_pairwise(planar):
     merr = np.stack([rec["x"] - pos[..., 0], rec["y"] - pos[..., 1]], axis=-1)[both]
     rms_pair = np.sqrt((perr ** 2).sum(-1).mean())
     rms_mpgc = np.sqrt((merr ** 2).sum(-1).mean())
-    print(f"pairwise LSM RMS {rms_pair:.4f} px, MPGC {rms_mpgc:.4f} px over {both.sum()} points: "
-          f"ratio pairwise / MPGC {rms_pair / rms_mpgc:.2f}")
+    figures.report("points converged in both", both.sum())
+    figures.report("pairwise LSM RMS", rms_pair, "px")
+    figures.report("MPGC RMS", rms_mpgc, "px")
+    figures.report("pairwise / MPGC", rms_pair / rms_mpgc)
     assert rms_pair / rms_mpgc > 1.5
 
 
-def test_planar_precision_calibrated_with_support_weights(planar):
+def test_planar_precision_calibrated_with_support_weights(planar, figures):
     """With the refinement's support weights (refinement.py) the sandwich covariance stays
     calibrated (0.8-1.25); the geometric test t, whose redundancy assumes weights inverse to the
     variances, comes out smaller (mpgc.py; docs/validation.md#mpgc-precision)."""
     _, _, t = calibrated(planar, mpgc.MpgcParams(sigma_geometry=0.001, centre_sigma=SUPPORT_CENTRE,
-                                                 similarity=SUPPORT_SIMILARITY))
+                                                 similarity=SUPPORT_SIMILARITY), figures)
     assert 0.3 < t.mean() < 0.8
 
 
@@ -423,7 +427,7 @@ def test_tiles_and_one_search_image(planar):
 # --------------------------------------------------------------------------------------------
 # failures
 
-def test_failures_give_status_not_exceptions(planar):
+def test_failures_give_status_not_exceptions(planar, figures):
     """Blank patch, template off the reference, window off a search image, approximation far off
     along the ray, no approximation: statuses, reliability 0 (or rejected), approximate values
     kept; the good point of the same batch is unaffected."""
@@ -442,7 +446,8 @@ def test_failures_give_status_not_exceptions(planar):
     lo[5] = np.nan
     rec = mpgc.match_points(ref, images[1:], cameras, xs, ys, lo, la, hh)
     status = list(rec["status"])
-    print("\nstatuses", [mpgc.STATUS_NAMES[s] for s in status], "reliability", rec["reliability"].round(3))
+    figures.report("statuses", [mpgc.STATUS_NAMES[s] for s in status])
+    figures.report("reliability", rec["reliability"])
     assert status[0] == mpgc.OK and rec["reliability"][0] > 0.8
     assert status[1] == mpgc.SINGULAR
     assert status[2] == mpgc.OUTSIDE
@@ -482,8 +487,8 @@ def test_input_errors(planar):
 # simulated SPOT 5 triplet
 
 @pytest.fixture(scope="module")
-def spot(small_scene):
-    return spot_points(small_scene)
+def spot(small_matching_scene):
+    return spot_points(small_matching_scene)
 
 
 def spot_images(paths, models, height_range):
@@ -496,13 +501,13 @@ def spot_images(paths, models, height_range):
     return [ref, hrs1, Image(paths[2])]
 
 
-def spot_points(small_scene):
+def spot_points(scene):
     """HRG template centres on a 15 px lattice over textured open fields (bare, grass/crops; ground
     DN std over the template >= LOW_CONTRAST_DN) whose HRS1 and HRS2 positions lie 30 px inside;
     the truth (HRG truth ray meets the true DSM, projected by the HRS truth models); approximate
-    object points moved 10-20 m along the HRG ray; image paths and the height range."""
-    from matching_scene import LOW_CONTRAST_DN, SINGLE_SURFACE, Scene
-    scene = Scene(small_scene)
+    object points moved 10-20 m along the HRG ray; image paths and the height range. `scene`: the
+    small scene's matching_scene.Scene."""
+    from tests.helpers.matching_scene import LOW_CONTRAST_DN, SINGLE_SURFACE
     names = ("HRG", "HRS1", "HRS2")
     models = [scene.truth_model(name) for name in names]
     cols, rows = models[0].size
@@ -520,11 +525,12 @@ def spot_points(small_scene):
     rng = np.random.default_rng(5)
     h = h + rng.choice([-1, 1], x0.size) * rng.uniform(10.0, 20.0, x0.size)
     lon, lat = models[0].image_to_ground(x0, y0, h)
-    paths = [small_scene["images"][name]["imagery"] for name in names]
+    paths = [scene.paths["images"][name]["imagery"] for name in names]
     return (paths, scene.height_range), models, x0, y0, pos, (lon, lat, h)
 
 
-def test_spot_triplet_against_truth_and_pairwise(spot):
+@pytest.mark.ratchet
+def test_spot_triplet_against_truth_and_pairwise(spot, figures):
     """HRG -> HRS1 + HRS2 with the truth models (sigma_geometry 0.05 px), approximations 10-20 m
     off along the ray: MPGC converges for > 90 % of the textured field points and is not worse
     than pairwise LSM (same template, approximations and initial affine from the models) against
@@ -553,14 +559,18 @@ def test_spot_triplet_against_truth_and_pairwise(spot):
 
     def rms(v):
         return float(np.sqrt(np.mean(v ** 2)))
-    print(f"\n{len(x0)} textured field points; MPGC converged {100 * ok.mean():.1f} %, accepted "
-          f"{100 * acc.mean():.1f} %; pairwise LSM converged in both {100 * pok.mean():.1f} %")
-    print(f"over {both.sum()} points: RMS MPGC {rms(err[both]):.3f} px (reported {rms(pred[both]):.3f}, ratio "
-          f"{rms(err[both]) / rms(pred[both]):.2f}), pairwise {rms(perr[both]):.3f} px (reported "
-          f"{rms(ppred[both]):.3f}, ratio {rms(perr[both]) / rms(ppred[both]):.2f}); pairwise / MPGC "
-          f"{rms(perr[both]) / rms(err[both]):.2f}")
-    print(f"MPGC accepted: RMS {rms(err[acc]):.3f} px, > 1 px {100 * np.mean(err[acc] > 1):.2f} %; object point "
-          f"sigma U median {np.median(rec['sigma'][ok, 2]):.2f} m, geometric test mean "
-          f"{np.nanmean(rec['geo_test'][ok]):.2f}")
+    figures.report("textured field points", len(x0))
+    figures.report("MPGC converged", 100 * ok.mean(), "%")
+    figures.report("MPGC accepted", 100 * acc.mean(), "%")
+    figures.report("pairwise LSM converged in both", 100 * pok.mean(), "%")
+    figures.table(f"over the {both.sum()} points converged in both (px)", [
+        {"": "MPGC", "RMS": rms(err[both]), "reported": rms(pred[both]), "ratio": rms(err[both]) / rms(pred[both])},
+        {"": "pairwise", "RMS": rms(perr[both]), "reported": rms(ppred[both]),
+         "ratio": rms(perr[both]) / rms(ppred[both])}])
+    figures.report("pairwise / MPGC", rms(perr[both]) / rms(err[both]))
+    figures.report("MPGC accepted, RMS", rms(err[acc]), "px")
+    figures.report("MPGC accepted, > 1 px", 100 * np.mean(err[acc] > 1), "%")
+    figures.report("object point sigma U, median", np.median(rec["sigma"][ok, 2]), "m")
+    figures.report("geometric test, mean", np.nanmean(rec["geo_test"][ok]))
     assert ok.mean() > 0.9
     assert rms(err[both]) <= rms(perr[both])

@@ -7,8 +7,6 @@ import pytest
 from osgeo import gdal
 from scipy import ndimage
 
-from feedback import Feedback
-from ortho_oracle import geometric_error
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import egm96_undulation, srs
 from pushbroom.algorithms.dem import Dem
@@ -19,6 +17,8 @@ from pushbroom.algorithms.ortho.mapping import TileMapper
 from pushbroom.algorithms.ortho.occlusion import occluded, ray_direction
 from pushbroom.algorithms.ortho.resampling import BICUBIC, BILINEAR, resample_kernel
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
+from tests.helpers.feedback import Feedback
+from tests.helpers.ortho_oracle import geometric_error
 
 
 @pytest.fixture(scope="module")
@@ -32,21 +32,24 @@ def scene(small_scene):
 
 
 @pytest.mark.parametrize("method", ["bilinear", "bicubic"])
-def test_hrg_on_the_true_dsm_matches_the_true_orthoimage(scene, tmp_path, method):
+@pytest.mark.ratchet
+def test_hrg_on_the_true_dsm_matches_the_true_orthoimage(scene, tmp_path, method, figures):
     out = tmp_path / "hrg.tif"
     result = orthorectify(scene["image"], scene["hrg"], scene["dsm"], out, grid=scene["grid"],
                           resampling_method=method)
     shifts = geometric_error(scene["paths"], str(out))
     rms = float(np.sqrt(np.mean(np.sum(shifts ** 2, axis=1))))
     mean = shifts.mean(axis=0)
-    print(f"HRG {method} vs true orthoimage, open classes: {len(shifts)} patches, RMS {rms:.3f} px, "
-          f"mean ({mean[0]:.3f}, {mean[1]:.3f}) px; {result.summary()}")
+    figures.report("patches in the open classes", len(shifts))
+    figures.report("shift against the true orthoimage, RMS", rms, "px")
+    figures.report("shift against the true orthoimage, mean", mean, "px")
+    figures.report("orthoimage", result.summary())
     assert len(shifts) >= 150
     assert rms < 0.25 and np.all(np.abs(mean) < 0.05)
     assert result.bound <= 0.01
 
 
-def test_the_coarse_grid_bound_holds_against_the_exact_chain(scene):
+def test_the_coarse_grid_bound_holds_against_the_exact_chain(scene, figures):
     grid = default_grid(scene["hrg"], scene["dsm"])
     assert grid.srs.GetAuthorityCode(None) == "32616"
     for max_error, start in ((0.01, 16), (1e-4, 64), (2e-5, 128)):
@@ -54,14 +57,14 @@ def test_the_coarse_grid_bound_holds_against_the_exact_chain(scene):
         tile = mapper.tile(100, 200, 300, 256)
         exact = mapper.exact(100, 200, 300, 256)
         error = np.hypot(tile.col - exact.col, tile.row - exact.row)
-        print(f"bound {max_error:g} px from step {start}: step {tile.step}, achieved bound {tile.bound:.2e}, "
-              f"largest true error {np.nanmax(error):.2e} px")
+        figures.table(f"bound {max_error:g} px from step {start}", [{"step": tile.step, "achieved bound px": tile.bound,
+                                                                    "largest true error px": np.nanmax(error)}])
         assert np.array_equal(np.isnan(tile.col), np.isnan(exact.col))
         assert tile.bound <= max_error and np.nanmax(error) <= tile.bound
     assert tile.step < 128    # the tight bound forced a refinement
 
 
-def test_rpc_and_rigorous_orthoimages_agree(scene, tmp_path):
+def test_rpc_and_rigorous_orthoimages_agree(scene, tmp_path, figures):
     rpc, report = fit_rpc(scene["hrg"], (scene["dsm"].height_range[0] - 100, scene["dsm"].height_range[1] + 100))
     grid = scene["grid"]
     rigorous = TileMapper(scene["hrg"], scene["dsm"], grid).tile(0, 0, grid.rows, grid.cols)
@@ -69,14 +72,15 @@ def test_rpc_and_rigorous_orthoimages_agree(scene, tmp_path):
     cols, rows = scene["hrg"].size
     inside = (rigorous.col >= 0) & (rigorous.col <= cols) & (rigorous.row >= 0) & (rigorous.row <= rows)
     diff = np.hypot(rigorous.col - rational.col, rigorous.row - rational.row)[inside]
-    print(f"RPC vs rigorous image points per cell in the image: max {np.nanmax(diff):.4f} px (fit: {report.summary()})")
+    figures.report("RPC vs rigorous image points per cell in the image, max", np.nanmax(diff), "px")
+    figures.report("RPC fit", report.summary())
     assert np.nanmax(diff) < report.max_error + 0.02
     orthorectify(scene["image"], rpc, scene["dsm"], tmp_path / "rpc.tif", grid=grid)
     shifts = geometric_error(scene["paths"], str(tmp_path / "rpc.tif"))
     assert np.sqrt(np.mean(np.sum(shifts ** 2, axis=1))) < 0.25
 
 
-def test_a_dem_in_another_crs_and_in_egm96_heights(scene, tmp_path):
+def test_a_dem_in_another_crs_and_in_egm96_heights(scene, tmp_path, figures):
     utm_dem = tmp_path / "dsm_utm.tif"
     gdal.Warp(str(utm_dem), scene["paths"]["dsm"], dstSRS="EPSG:32616", xRes=5.0, yRes=5.0, resampleAlg="bilinear")
     warped = load_dem(utm_dem)
@@ -85,8 +89,8 @@ def test_a_dem_in_another_crs_and_in_egm96_heights(scene, tmp_path):
     a = TileMapper(scene["hrg"], scene["dsm"], grid).tile(150, 150, 256, 256)
     b = TileMapper(scene["hrg"], warped, grid).tile(150, 150, 256, 256)
     dh = np.abs(a.h - b.h)
-    print(f"DEM warped to UTM and back: median |dh| {np.nanmedian(dh):.3f} m, "
-          f"median image-point change {np.nanmedian(np.hypot(a.col - b.col, a.row - b.row)):.4f} px")
+    figures.report("DEM warped to UTM and back, median |dh|", np.nanmedian(dh), "m")
+    figures.report("median image-point change", np.nanmedian(np.hypot(a.col - b.col, a.row - b.row)), "px")
     assert np.nanmedian(dh) < 0.5    # two bilinear resamplings of a 5 m DSM with 1-4 m texture
     # the same DSM as EGM96 orthometric heights H = h - N, converted back by load_dem
     ds = gdal.Open(scene["paths"]["dsm"])
@@ -107,7 +111,7 @@ def test_a_dem_in_another_crs_and_in_egm96_heights(scene, tmp_path):
         load_dem(geoid_dem, "navd88")
 
 
-def test_nodata_outside_the_image_and_the_data_type(scene, tmp_path):
+def test_nodata_outside_the_image_and_the_data_type(scene, tmp_path, figures):
     grid = default_grid(scene["hrg"], scene["dsm"])
     out = tmp_path / "hrg_utm.tif"
     orthorectify(scene["image"], scene["hrg"], scene["dsm"], out, grid=grid)
@@ -122,12 +126,13 @@ def test_nodata_outside_the_image_and_the_data_type(scene, tmp_path):
     cols, rows = scene["hrg"].size
     outside = ~((exact.col >= 0) & (exact.col <= cols) & (exact.row >= 0) & (exact.row <= rows))
     inside = (exact.col > 1) & (exact.col < cols - 1) & (exact.row > 1) & (exact.row < rows - 1)
-    print(f"{outside.sum()} cells outside the image, {inside.sum()} well inside")
+    figures.report("cells outside the image", outside.sum())
+    figures.report("cells well inside", inside.sum())
     assert outside.sum() > 1000 and inside.sum() > 100000
     assert np.all(values[outside] == 0) and np.all(values[inside] > 0)
 
 
-def test_occlusions_agree_with_the_models_ray_casting(scene):
+def test_occlusions_agree_with_the_models_ray_casting(scene, figures):
     """HRS1 looks 20 degrees forward: cells behind trees and buildings are occluded. Reference: the first
     DSM crossing of the cell's image ray (SpotModel.image_to_dem) lies elsewhere than the cell."""
     model = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
@@ -145,8 +150,11 @@ def test_occlusions_agree_with_the_models_ray_casting(scene):
     reference = distance > 2.0
     ours = mask.ravel()[pick]
     agree, found, right = np.mean(ours == reference), np.mean(ours[reference]), np.mean(reference[ours])
-    print(f"HRS1 occlusion: {mask.mean():.2%} of cells occluded, {reference.mean():.2%} of the sample by ray "
-          f"casting; agreement {agree:.2%}, {found:.0%} of the occluded found, {right:.0%} of those flagged right")
+    figures.report("HRS1 cells occluded", 100 * mask.mean(), "%")
+    figures.report("sample occluded by ray casting", 100 * reference.mean(), "%")
+    figures.report("agreement", 100 * agree, "%")
+    figures.report("occluded found", 100 * found, "%")
+    figures.report("flagged right", 100 * right, "%")
     assert reference.sum() > 50 and agree > 0.99 and found > 0.85 and right > 0.85
 
 

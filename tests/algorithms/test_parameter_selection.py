@@ -10,7 +10,6 @@ test_bundle.py covers it), whereas a drift also shows inside each image."""
 import numpy as np
 import pytest
 
-from adjustment_scene import check_rms, models_of, point_observations, synthetic_points
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.observations import Observations, tie_observations
 from pushbroom.algorithms.adjustment.parameters import OrientationParameters
@@ -20,6 +19,7 @@ from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from pushbroom.algorithms.simulation import SceneConfig
+from tests.helpers.adjustment_scene import check_rms, models_of, point_observations, synthetic_points
 
 pytestmark = pytest.mark.slow
 
@@ -55,25 +55,25 @@ def perturbed(paths, names):
     return {IDS[n]: models[IDS[n]] for n in names}
 
 
-def test_selection_frees_the_injected_coefficients_and_recovers_them(block):
+def test_selection_frees_the_injected_coefficients_and_recovers_them(block, figures):
     paths, obs = block
     selection = select_parameters(perturbed(paths, NAMES), obs, names=LABELS, height=300.0)
     result = selection.result
     free = set(selection.free)
-    print(f"selected {len(free)}: {sorted(free)}; {sum('adjust' in l for l in selection.log)} log lines")
+    figures.report("selected free coefficients", sorted(free))
     for line in selection.log:
-        print("  " + line)
+        figures.report("selection log", line)
     assert set(INJECTED) <= free and len(free - set(INJECTED)) <= 2
     params = result.parameters
     for name, value in INJECTED.items():
         q = params.select([name]).argmax()
-        print(f"{name:24} estimated {result.values[q]:.4g} +- {result.sigmas[q]:.2g}, injected {value:.4g}")
+        figures.report(f"{name} estimated", result.values[q], note=f"+- {result.sigmas[q]:.2g}, injected {value:.4g}")
         assert abs(result.values[q] - value) < 2.0 * result.sigmas[q]
-    rms, theoretical = check_rms(result, synthetic_points(paths, IDS, 300, 0.3, 7), 300.0)
+    rms, theoretical = check_rms(result, synthetic_points(paths, IDS, 300, 0.3, 7), 300.0, figures)
     assert np.all((0.8 < rms / theoretical) & (rms / theoretical < 1.2))
 
 
-def test_hrs_only_solves_with_a_larger_planimetric_error(block):
+def test_hrs_only_solves_with_a_larger_planimetric_error(block, figures):
     """Kornus et al. 2006, section 3.4.3.2 / Table 3: without the nadir HRG the block still solves; the
     planimetric check point error grows (same 300 check points, measured in HRS1 and HRS2 only)."""
     paths, obs = block
@@ -82,6 +82,7 @@ def test_hrs_only_solves_with_a_larger_planimetric_error(block):
         ids = {n: IDS[n] for n in names}
         sub = Observations(obs.points, obs.measurements[np.isin(obs.measurements["image_id"], list(ids.values()))])
         selection = select_parameters(perturbed(paths, names), sub, names=LABELS, height=300.0)
-        print(f"{label}: free {selection.free}")
-        results[label], _ = check_rms(selection.result, synthetic_points(paths, ids, 300, 0.3, 7), 300.0)
+        figures.report(f"{label}: selected free coefficients", selection.free)
+        results[label], _ = check_rms(selection.result, synthetic_points(paths, ids, 300, 0.3, 7), 300.0, figures,
+                                      f"{label} check points")
     assert np.hypot(*results["HRS only"][:2]) > np.hypot(*results["HRG+HRS"][:2])

@@ -6,12 +6,12 @@ import shutil
 import numpy as np
 import pytest
 
-from feedback import Feedback
 from pushbroom.algorithms.adjustment import control_points as cp, point_plausibility
 from pushbroom.algorithms.adjustment.point_plausibility import MARGIN_M, distance_to_polygon
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import utm_epsg
+from tests.helpers.feedback import Feedback
 
 
 @pytest.fixture

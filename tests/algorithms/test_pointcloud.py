@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from osgeo import ogr, osr
 
-from osr_oracle import utm
 from pushbroom.algorithms.errors import InputError, StorageError
 from pushbroom.algorithms.surface import pointcloud as pc
 from pushbroom.algorithms.surface.intersection import CONVERGED, OUTSIDE, Intersection
+from tests.helpers.osr_oracle import utm
 
 N = 500
 

@@ -77,7 +77,7 @@ def ray_rms(corrected, inter, observed, clean):
 
 
 @pytest.mark.parametrize("noise", [0.0, 0.1])
-def test_affine_bias_removes_injected_biases(rays, noise):
+def test_affine_bias_removes_injected_biases(rays, noise, figures):
     """Affine biases injected into the search images' true positions (up to 5 px shift and 2e-4
     rotation and scale, the supplied models' size; 1 % gross errors of 3-8 px): the corrected
     models' rays meet again (residual RMS of the clean points at the noise level) and the
@@ -88,17 +88,18 @@ def test_affine_bias_removes_injected_biases(rays, noise):
     observed, maps, gross = biased(pos, noise)
     corrected, inter, systematic = affine_bias(truths, observed[:, 0], observed[:, 1])
     rms = ray_rms(corrected, inter, observed, np.setdiff1d(np.arange(pos.shape[2]), gross))
-    print(f"\nnoise {noise}: ray residual RMS {np.round(rms, 4)} px, systematic {systematic:.4f} px")
+    figures.report("ray residual RMS", rms, "px")
+    figures.report("systematic", systematic, "px")
     assert max(rms) < 0.01 + noise and systematic < 0.01 + 0.15 * noise
     for i, (lin, d) in enumerate(maps, start=1):
         # the rays cannot see a common along-track shift: compare the maps' columns at the points
         got = corrected[i].linear[0] @ pos[i] + corrected[i].dx
         want = np.asarray(lin[0]) @ pos[i] + d[0]
-        print(f"{NAMES[i]}: column map vs the injected one, RMS {np.sqrt(np.mean((got - want) ** 2)):.4f} px")
+        figures.report(f"{NAMES[i]}: column map vs the injected one, RMS", np.sqrt(np.mean((got - want) ** 2)), "px")
         assert np.sqrt(np.mean((got - want) ** 2)) < 0.01 + 0.2 * noise
 
 
-def test_affine_bias_moves_a_reference_bias_to_the_search_images(rays):
+def test_affine_bias_moves_a_reference_bias_to_the_search_images(rays, figures):
     """A shift and rotation of the reference image too (its model is held): the reference's
     residual is moved into the search images' maps, and the rays meet as without it; without that
     move (the reference residual left in the fit) they would not."""
@@ -107,13 +108,14 @@ def test_affine_bias_moves_a_reference_bias_to_the_search_images(rays):
     corrected, inter, systematic = affine_bias(truths, observed[:, 0], observed[:, 1])
     clean = np.setdiff1d(np.arange(pos.shape[2]), gross)
     rms = ray_rms(corrected, inter, observed, clean)
-    print(f"\nreference biased: ray residual RMS {np.round(rms, 4)} px, systematic {systematic:.4f} px")
+    figures.report("ray residual RMS", rms, "px")
+    figures.report("systematic", systematic, "px")
     assert max(rms) < 0.02 and systematic < 0.01
     plain = affine_bias(truths, observed[:, 0], observed[:, 1], iterations=0)
     assert max(ray_rms(*plain[:2], observed, clean)) > 0.5
 
 
-def test_consistency_measures_what_an_affine_map_cannot_fit(rays):
+def test_consistency_measures_what_an_affine_map_cannot_fit(rays, figures):
     """A quadratic distortion across the forward image (0.3 px at its edges) is beyond the affine
     maps: the tile-median consistency rises well above the affine case's, so the refinement's
     sigma_geometry (2 x it, at least 0.05 px) loosens; with too few points per tile it is NaN."""
@@ -122,6 +124,6 @@ def test_consistency_measures_what_an_affine_map_cannot_fit(rays):
     half = 0.5 * truths[1].size[0]
     observed[1, 0] += 0.3 * ((pos[1, 0] - half) / half) ** 2
     systematic = affine_bias(truths, observed[:, 0], observed[:, 1])[2]
-    print(f"\nquadratic 0.3 px: systematic {systematic:.4f} px")
+    figures.report("systematic with a quadratic 0.3 px", systematic, "px")
     assert systematic > 0.02
     assert np.isnan(affine_bias(truths, observed[:, 0, :30], observed[:, 1, :30])[2])

@@ -11,7 +11,7 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import GeometryError
 from pushbroom.algorithms.sensors.rpc import RpcCoefficients, RpcModel, _poly, rpc_terms
 from pushbroom.algorithms.sensors.rpc_io import write_rpb, write_rpc_txt
-from rpc_synthetic import (
+from tests.helpers.rpc_synthetic import (
     SCALARS,
     geom_text,
     numpy_ground_to_image,
@@ -210,7 +210,7 @@ def test_orientation_files_are_not_redirected_to_a_metadata_dim_beside_them(tmp_
     """A folder holding a SPOT METADATA.DIM and a Pleiades crop with its .geom: the .geom (given,
     or found beside its raster) is the crop's orientation; the folder itself is the SPOT product."""
     from pushbroom.algorithms.sensors.dimap_writer import write_dimap
-    from spot_synthetic import synthetic_orientation
+    from tests.helpers.spot_synthetic import synthetic_orientation
     write_dimap(tmp_path / "METADATA.DIM", synthetic_orientation(ncols=40))
     (tmp_path / "left.geom").write_text(geom_text(fields))
     raster = write_raster(tmp_path / "left.tif", SIZE, geotransform=(CROP[0], 1, 0, CROP[1], 0, 1))

@@ -12,7 +12,7 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import MetadataError
 from pushbroom.algorithms.sensors.rpc import RpcCoefficients, RpcModel
 from pushbroom.algorithms.sensors.rpc_io import write_rpb, write_rpc_txt
-from rpc_synthetic import geom_text, synthetic_coefficients, synthetic_fields, write_raster
+from tests.helpers.rpc_synthetic import geom_text, synthetic_coefficients, synthetic_fields, write_raster
 
 
 def _set(key, value):

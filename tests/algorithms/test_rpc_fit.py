@@ -57,10 +57,10 @@ IMAGES = [(c, n) for c, names in SCENES.items() for n in names]
 
 
 @pytest.mark.parametrize("configuration, name", IMAGES)
-def test_fitted_rpc_reproduces_the_rigorous_model(scenes, configuration, name):
+def test_fitted_rpc_reproduces_the_rigorous_model(scenes, configuration, name, figures):
     model, height_range, _ = scene_model(scenes, configuration, name)
     rpc, report = fit_rpc(model, height_range)
-    print(f"{name}: {report.summary()}")
+    figures.report("fit", report.summary())
     assert isinstance(rpc, RpcModel) and rpc.size == model.size
     assert report.cube_points == 11 ** 3 and report.validation_points == 20 ** 3
     assert report.max_error < TOLERANCE_PX
@@ -70,14 +70,14 @@ def test_fitted_rpc_reproduces_the_rigorous_model(scenes, configuration, name):
     rc, rr = rpc.ground_to_image(lon, lat, h)
     mc, mr = model.ground_to_image(lon, lat, h)
     err = max(np.abs(rc - mc).max(), np.abs(rr - mr).max())
-    print(f"{name}: max |RPC - rigorous| at 500 random points {err:.2e} px")
+    figures.report("max |RPC - rigorous| at 500 random points", err, "px")
     assert err < TOLERANCE_PX
     # the report's validation figures are what the RPC does between the cube points
     assert err <= 2.0 * max(report.col.validation.max, report.row.validation.max)
 
 
 @pytest.mark.parametrize("configuration, name", [("spot5_triplet", "HRS1"), ("spot14_pair", "HRV1_A")])
-def test_gdal_reads_the_written_rpc_txt_beside_the_raster(scenes, configuration, name, tmp_path):
+def test_gdal_reads_the_written_rpc_txt_beside_the_raster(scenes, configuration, name, tmp_path, figures):
     """Beside IMAGERY.TIF in a copy of the DIMAP product folder (GDAL's own <stem>_RPC.TXT naming):
     GDAL prefers it to the DIMAP metadata, and its RPC transformer matches the rigorous model both
     ways."""
@@ -101,8 +101,8 @@ def test_gdal_reads_the_written_rpc_txt_beside_the_raster(scenes, configuration,
     assert all(ok)
     back_col, back_row = model.ground_to_image(out[:, 0], out[:, 1], h)
     image_to_ground = max(np.abs(back_col - col).max(), np.abs(back_row - row).max())
-    print(f"{name}: GDAL RPC vs rigorous: ground->image {ground_to_image:.2e} px, image->ground "
-          f"{image_to_ground:.2e} px")
+    figures.report("GDAL RPC vs rigorous, ground -> image", ground_to_image, "px")
+    figures.report("GDAL RPC vs rigorous, image -> ground", image_to_ground, "px")
     assert ground_to_image < GDAL_TOLERANCE_PX and image_to_ground < GDAL_TOLERANCE_PX
     # and the project's own reader of the file alone: same size (the normalisation spans the image)
     loaded = sensors.load(path)
@@ -126,38 +126,38 @@ def known_rpc(samp_den, size=None):
     return RpcModel(RpcCoefficients.from_fields(fields, "known"), size=size)
 
 
-def test_a_rational_rpc_is_recovered_exactly(monkeypatch):
+def test_a_rational_rpc_is_recovered_exactly(monkeypatch, figures):
     """The iteratively reweighted fit recovers a truly rational mapping (denominator 1 + 0.3 L -
     0.1 P + 0.05 H) to 1e-6 px, which a cubic polynomial cannot (the forced fallback: > 0.1 px)."""
     model = known_rpc([1.0, 0.3, -0.1, 0.05] + [0.0] * 16)
     rpc, report = fit_rpc(model, (0.0, 2000.0))
-    print(f"known rational RPC: {report.summary()}")
+    figures.report("known rational RPC", report.summary())
     assert not report.polynomial and report.max_error < 1e-6
     col, row, _ = random_image_points(model, (0.0, 2000.0))
     lon, lat = model.image_to_ground(col, row, 1234.0)
     assert np.allclose(rpc.ground_to_image(lon, lat, 1234.0), (col, row), rtol=0, atol=1e-6)
     monkeypatch.setattr(rpc_fit, "MIN_DEN_RATIO", 1.0)   # every non-constant denominator is "near a pole"
     polynomial, forced = fit_rpc(model, (0.0, 2000.0))
-    print(f"known rational RPC, polynomial forced: {forced.summary()}")
+    figures.report("known rational RPC, polynomial forced", forced.summary())
     assert forced.polynomial == ("col", "row") and forced.col.near_pole == len(rpc_fit.REGULARISATIONS)
     assert forced.col.validation.max > 0.1
     assert list(polynomial.coefficients.samp_den) == list(polynomial.coefficients.line_den) == [1.0] + [0.0] * 19
 
 
-def test_a_denominator_near_zero_is_rejected():
+def test_a_denominator_near_zero_is_rejected(figures):
     """Column = (L + ...) / (1 + 0.9 L): the free fit finds the true denominator, which falls to
     0.05 of its largest value over the image; unregularised (the paper's situation) the column
     falls back to a cubic polynomial and says so; with the damping ladder a damped, pole-free
     rational fit is kept, better than the polynomial. The row is rational and exact either way."""
     model = known_rpc([1.0, 0.9] + [0.0] * 18)
     free, report = fit_rpc(model, (0.0, 2000.0), regularisation=1e-14)
-    print(f"near-pole RPC, r = 1e-14: {report.summary()}")
+    figures.report("near-pole RPC, r = 1e-14", report.summary())
     assert report.polynomial == ("col",) and report.col.near_pole == 1
     assert "1 of 1 rational fits had a denominator near zero" in report.summary()
     assert list(free.coefficients.samp_den) == [1.0] + [0.0] * 19
     assert report.row.validation.max < 1e-6
     damped, ladder = fit_rpc(model, (0.0, 2000.0))
-    print(f"near-pole RPC, ladder: {ladder.summary()}")
+    figures.report("near-pole RPC, ladder", ladder.summary())
     assert ladder.col.near_pole >= 1 and not ladder.col.polynomial
     assert ladder.col.validation.rms < report.col.validation.rms
     # the kept denominator stays away from zero over the image and heights
@@ -170,15 +170,15 @@ def test_a_denominator_near_zero_is_rejected():
     assert den.min() > rpc_fit.MIN_DEN_RATIO * den.max()
 
 
-def test_the_forced_fallback_still_fits_a_spot_scene(scenes, monkeypatch):
+def test_the_forced_fallback_still_fits_a_spot_scene(scenes, monkeypatch, figures):
     monkeypatch.setattr(rpc_fit, "MIN_DEN_RATIO", 1.0)
     model, height_range, _ = scene_model(scenes, "spot5_triplet", "HRG")
     _, report = fit_rpc(model, height_range)
-    print(f"HRG, polynomial forced: {report.summary()}")
+    figures.report("HRG, polynomial forced", report.summary())
     assert report.polynomial == ("col", "row") and report.max_error < TOLERANCE_PX
 
 
-def test_height_differences_rpc_vs_rigorous_intersection(scenes):
+def test_height_differences_rpc_vs_rigorous_intersection(scenes, figures):
     """Kornus et al. 2006, Table 5 on the simulated triplet: random ground points seen in HRG, HRS1 and HRS2
     (projected by the rigorous models), intersected with the rigorous models and with the fitted RPCs. The RPCs'
     image errors (below 4e-4 px at 5-10 m pixels) allow millimetres: below 1 cm asserted."""
@@ -197,7 +197,7 @@ def test_height_differences_rpc_vs_rigorous_intersection(scenes):
                                      np.concatenate([c[inside] for c, _ in projected]),
                                      np.concatenate([r[inside] for _, r in projected]))
     diff = height_differences(rigorous, rpcs, image_ids, points, cols, rows)
-    print(f"RPC - rigorous intersection: {diff.summary()}")
+    figures.report("RPC - rigorous intersection", diff.summary())
     assert n > 200 and diff.point.size == n and diff.missing == 0
     assert np.abs(diff.dh).max() < 0.01 and max(np.abs(diff.de).max(), np.abs(diff.dn).max()) < 0.01
     with pytest.raises(InputError, match="same images"):
@@ -271,11 +271,11 @@ def test_files_and_report(tmp_path):
 
 @pytest.mark.real
 @pytest.mark.parametrize("fixture", ["spot5_dim", "spot2_dim"])
-def test_real_spot_scene_with_the_papers_cube(fixture, request):
+def test_real_spot_scene_with_the_papers_cube(fixture, request, figures):
     """A full real SPOT scene, the paper's cube (11 x 11 image grid, -250 .. 2250 m in 250 m steps):
     sub-pixel, though not 0.01 px: the attitude samples and look-angle tables wiggle more than a
-    cubic follows (errors printed)."""
+    cubic follows (errors reported)."""
     model = sensors.load(request.getfixturevalue(fixture))
     rpc, report = fit_rpc(model, (-250.0, 2250.0))
-    print(f"{fixture} {model.size}: {report.summary()}")
+    figures.report(f"{model.size[0]} x {model.size[1]} px", report.summary())
     assert report.max_error < 0.5

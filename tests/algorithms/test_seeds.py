@@ -2,7 +2,6 @@
 import numpy as np
 import pytest
 
-from matching_scene import Scene
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.interest import interest_points
@@ -52,16 +51,19 @@ def test_height_range():
 
 
 @pytest.fixture(scope="module")
-def scene(small_scene):
-    return Scene(small_scene)
+def scene(small_matching_scene):
+    return small_matching_scene
 
 
 @pytest.mark.slow
-def test_automatic_seeds_are_correct(scene):
+@pytest.mark.ratchet
+def test_automatic_seeds_are_correct(scene, figures):
     seeds = automatic_seeds(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range)
     x2, y2, _ = scene.truth(seeds["x1"], seeds["y1"])
     error = np.hypot(seeds["x2"] - x2, seeds["y2"] - y2)
-    print(f"\n{len(seeds)} automatic seeds, median error {np.median(error):.3f} px, max {error.max():.2f} px")
+    figures.report("automatic seeds", len(seeds))
+    figures.report("median error", np.median(error), "px")
+    figures.report("max error", error.max(), "px")
     assert len(seeds) > 20
     assert np.mean(error > 1.0) < 0.1 and np.median(error) < 0.4
 

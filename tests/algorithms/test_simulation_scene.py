@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from osgeo import gdal
 
-from feedback import Feedback
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import geodetic_to_ecef
 from pushbroom.algorithms.sensors.spot_orientation import Corrections
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene, terrain
+from tests.helpers.feedback import Feedback
 
 gdal.UseExceptions()
 pytestmark = pytest.mark.slow
@@ -48,7 +48,7 @@ def centroid(image, col, row, scale_col, scale_row):
     return (weight * x).sum() / weight.sum(), (weight * y).sum() / weight.sum()
 
 
-def test_marker_centroids_match_the_truth_model(scene):
+def test_marker_centroids_match_the_truth_model(scene, figures):
     """Bright markers at the point candidates: detected centroids within 0.1 px of the truth
     model's ground_to_image (typically 0.01 px), and the CSV's true coordinates equal it."""
     config, paths, truth, points = scene
@@ -65,7 +65,8 @@ def test_marker_centroids_match_the_truth_model(scene):
             c, r = centroid(image, col, row, 10.0 / gsd_col, 10.0 / gsd_row)
             assert abs(c - col) < 0.1 and abs(r - row) < 0.1, (name, p["id"], c - col, r - row)
             worst = max(worst, abs(c - col), abs(r - row))
-    print(f"{config.configuration}: {len(points)} markers, largest centroid error {worst:.4f} px")
+    figures.report("markers", len(points))
+    figures.report("largest centroid error", worst, "px")
 
 
 def test_round_trip_on_simulated_products(scene):

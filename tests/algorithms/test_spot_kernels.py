@@ -11,7 +11,7 @@ from pushbroom.algorithms.sensors import spot_frames as frames, spot_kernels as 
 from pushbroom.algorithms.sensors.base import SensorModel
 from pushbroom.algorithms.sensors.spot import SpotModel, integrated_attitude, lagrange_window
 from pushbroom.algorithms.sensors.spot_orientation import Corrections
-from spot_synthetic import synthetic_orientation
+from tests.helpers.spot_synthetic import synthetic_orientation
 
 RNG = np.random.default_rng(7)
 #: unit-size entries of up to four 3 x 3 rotation products whose sines and cosines numpy's SIMD code gives

@@ -6,12 +6,12 @@ from osgeo import gdal, osr
 from scipy.interpolate import LinearNDInterpolator
 from scipy.spatial import Delaunay
 
-from feedback import Feedback
-from osr_oracle import utm
 from pushbroom.algorithms.crs import egm96_undulation, srs
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.surface import geotiff, point_input, pointcloud, tin, tin_dem
 from pushbroom.algorithms.surface.tin_grid import Grid, rasterize
+from tests.helpers.feedback import Feedback
+from tests.helpers.osr_oracle import utm
 
 UTM31 = 32631
 X0, Y0 = 640_000.0, 4_890_000.0   # near Mont Ventoux, UTM 31N
@@ -82,15 +82,16 @@ def test_long_triangles_are_gaps():
     assert np.isfinite(filled.heights[r < 250]).all()
 
 
-def test_blunder_filter_removes_injected_spikes():
+def test_blunder_filter_removes_injected_spikes(figures):
     x, y, z = cloud(20000, seed=5, noise=0.3)
     rng = np.random.default_rng(6)
     spikes = rng.choice(len(x), 200, replace=False)
     z[spikes] += rng.choice([-1, 1], 200) * rng.uniform(8, 60, 200)
     keep, removed = tin.filter_blunders(tin.delaunay(x, y), x, y, z, k=4.0, iterations=3)
     false = int((~keep).sum() - (~keep[spikes]).sum())
-    print(f"spikes removed {(~keep[spikes]).sum()} of 200, clean points removed {false} of {len(x) - 200}, "
-          f"per iteration {removed}")
+    figures.report("spikes removed", (~keep[spikes]).sum(), note="of 200")
+    figures.report("clean points removed", false, note=f"of {len(x) - 200}")
+    figures.report("removed per iteration", removed)
     assert (~keep[spikes]).all()
     assert false < 0.002 * len(x)
     assert sum(removed) == (~keep).sum()

@@ -12,19 +12,17 @@ their `partials`, method="trf" with tr_solver="lsmr", timed from the start point
 unknowns over `adjust`'s sigmas and in microrad, points in metres."""
 import os
 import pathlib
-import sys
 import tempfile
 import time
 
 import numpy as np
-from scipy_bundle import ScipyBundle
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "algorithms"))
-from adjustment_scene import point_observations, synthetic_points
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import adjust
 from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from tests.helpers.adjustment_scene import point_observations, synthetic_points
+from tests.helpers.scipy_bundle import ScipyBundle
 
 SIZES = (5000, 20000, 80000)
 REPEAT = 3

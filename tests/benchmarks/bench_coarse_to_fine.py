@@ -12,14 +12,13 @@ import sys
 import tempfile
 import time
 
-from bench_region_growing import HEIGHT_RANGE, scene
-
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.coarse_to_fine import match_coarse_to_fine
 from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from tests.benchmarks.bench_region_growing import HEIGHT_RANGE, scene
 
 NAMES = ("HRG", "HRS1", "HRS2")
 SIZE_KM = 10.0
@@ -101,5 +100,5 @@ def run():
 
 
 if __name__ == "__main__":
-    from run_all import markdown_table
+    from tests.benchmarks.run_all import markdown_table
     print(markdown_table(run()))

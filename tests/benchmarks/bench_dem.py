@@ -9,12 +9,12 @@ tin.delaunay shifts the points to their mean itself."""
 import time
 
 import numpy as np
-from benchutil import best_time
 from osgeo import gdal, ogr
 
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.surface.tin import delaunay
 from pushbroom.algorithms.surface.tin_grid import Grid, rasterize
+from tests.benchmarks.benchutil import best_time
 
 N = 1_000_000
 SIZE, CELL = 10_000.0, 10.0

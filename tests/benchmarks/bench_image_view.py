@@ -2,13 +2,11 @@
 (repaint + processEvents after each step) and the process's peak memory (VmHWM, bound 1 GB = 954 MiB), first
 without overviews (GDAL decimated reads), then with external AVERAGE overviews 2-64 from build_overviews."""
 import pathlib
-import sys
 import tempfile
 import time
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "ui"))
-from image_view_session import run_in_subprocess, write_textured_raster
 from pushbroom.ui.raster_tiles import build_overviews
+from tests.helpers.image_view_session import run_in_subprocess, write_textured_raster
 
 SIZE = 20000
 

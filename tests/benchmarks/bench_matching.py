@@ -6,11 +6,11 @@ import os
 
 import numba
 import numpy as np
-from benchutil import best_time, thread_counts
 from scipy import ndimage
 
 from pushbroom.algorithms.matching import lsm
 from pushbroom.algorithms.matching.params import LsmParams
+from tests.benchmarks.benchutil import best_time, thread_counts
 
 
 def images(size=1200, seed=0):

@@ -5,7 +5,6 @@ both HRS images from the same approximations. Best of three after JIT warm-up.""
 import tempfile
 
 import numpy as np
-from benchutil import best_time, thread_counts
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
@@ -14,6 +13,7 @@ from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams, LsmParams
 from pushbroom.algorithms.matching.region_growing import adapt_resolution
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from tests.benchmarks.benchutil import best_time, thread_counts
 
 NAMES = ("HRG", "HRS1", "HRS2")
 

@@ -12,7 +12,6 @@ import shutil
 import tempfile
 
 import numpy as np
-from benchutil import best_time
 from osgeo import gdal
 
 from pushbroom.algorithms import sensors
@@ -22,6 +21,7 @@ from pushbroom.algorithms.ortho.mapping import TileMapper
 from pushbroom.algorithms.ortho.orthorectify import CREATION_OPTIONS
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc, rpc_txt_path, write_fitted_rpc
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from tests.benchmarks.benchutil import best_time
 
 CELL = 1.25
 

@@ -2,21 +2,18 @@
 block's .npz sidecar, the combination of three matching runs, tie point selection, and writing
 the display point layer into the GeoPackage."""
 import pathlib
-import sys
 import tempfile
 import time
 
 import numpy as np
-from benchutil import best_time
 
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.block.schema import create_schema
-
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "algorithms"))
 from pushbroom.algorithms.matching.combinations import combine
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
-from test_points_store import FlatModel, synthetic
+from tests.benchmarks.benchutil import best_time
+from tests.helpers.points_synthetic import FlatModel, synthetic
 
 N = 2_000_000
 

@@ -3,9 +3,9 @@ algorithms/matching/preprocess.py: Saint-Marc smoothing (3 iterations, k from th
 (21 px window), 4-level pyramid (factor 3), and the chain of the three; seconds and Mpx/s with 1 and 2
 numba threads. Best of three after JIT warm-up."""
 import numpy as np
-from benchutil import best_time, thread_counts
 
 from pushbroom.algorithms.matching import preprocess
+from tests.benchmarks.benchutil import best_time, thread_counts
 
 SIZE = 6000
 

@@ -71,5 +71,5 @@ def run():
 
 
 if __name__ == "__main__":
-    from run_all import markdown_table
+    from tests.benchmarks.run_all import markdown_table
     print(markdown_table(run()))

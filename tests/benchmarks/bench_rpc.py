@@ -5,10 +5,10 @@ the image and the RPC's height range; best of 3 runs after a warm-up (numba comp
 GDAL's image -> ground runs with RPC_PIXEL_ERROR_THRESHOLD=1e-9 px, comparable to RpcModel's
 1e-8 px (GDAL's default, 0.1 px, is faster and coarser)."""
 import numpy as np
-from benchutil import SHARED_DATA, best_time
 from osgeo import gdal
 
 from pushbroom.algorithms import sensors
+from tests.benchmarks.benchutil import SHARED_DATA, best_time
 
 IMAGE = SHARED_DATA / "pleiades_triplet" / "img_01.tif"
 N_OURS = 1_000_000

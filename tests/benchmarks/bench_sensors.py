@@ -4,13 +4,12 @@ Runs on the real SPOT 5 scene (benchutil.SHARED_DATA) when present, else on a sy
 scene; times are the best of three after JIT warm-up."""
 import os
 import pathlib
-import sys
 
 import numpy as np
-from benchutil import SHARED_DATA, best_time
 
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.sensors.spot import SpotModel
+from tests.benchmarks.benchutil import SHARED_DATA, best_time
 
 HERE = pathlib.Path(__file__).resolve().parent
 SPOT5 = SHARED_DATA / "spot5_hrg1_2005" / "METADATA.DIM"
@@ -20,8 +19,7 @@ def scene_model():
     """(model, label): the real SPOT 5 scene, or a synthetic one of the same size."""
     if SPOT5.exists():
         return SpotModel.from_dimap(SPOT5), "SPOT 5 HRG (real metadata)"
-    sys.path.insert(0, str(HERE.parent / "algorithms"))
-    from spot_synthetic import synthetic_orientation
+    from tests.helpers.spot_synthetic import synthetic_orientation
     return SpotModel(synthetic_orientation(ncols=12000, nrows=12000)), "synthetic 12000 x 12000"
 
 

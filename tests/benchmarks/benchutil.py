@@ -1,4 +1,4 @@
-"""Helpers shared by the bench_*.py scripts (run as scripts, so this folder is on sys.path)."""
+"""Helpers shared by the bench_*.py modules."""
 import os
 import pathlib
 import time

@@ -1,6 +1,8 @@
 """Run every tests/benchmarks/bench_*.py (each has `run() -> list of dict rows`) and write one
-markdown file with a table per benchmark. Usage: run_all.py OUTPUT.md [name ...]"""
-import importlib.util
+markdown file with a table per benchmark. Usage, from the repository root (the benchmarks import the
+test helpers as the `tests` package): python -m tests.benchmarks.run_all OUTPUT.md [name ...]; one
+benchmark alone: python -m tests.benchmarks.bench_<name>."""
+import importlib
 import os
 import pathlib
 import platform
@@ -27,9 +29,7 @@ def main(output, names):
     for path in sorted(HERE.glob("bench_*.py")):
         if names and path.stem not in names:
             continue
-        spec = importlib.util.spec_from_file_location(path.stem, path)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
+        module = importlib.import_module(f"tests.benchmarks.{path.stem}")
         print(f"running {path.stem} ...", flush=True)
         rows = module.run()
         title = (module.__doc__ or path.stem).strip().splitlines()[0]

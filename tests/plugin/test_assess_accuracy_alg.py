@@ -12,12 +12,12 @@ from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProject, QgsRasterLayer
 
 import pushbroom
-from osr_oracle import utm
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.quality.statistics import summarize
 from pushbroom.algorithms.simulation.terrain import CLASSES, FOREST
 from pushbroom.algorithms.surface.geotiff import NODATA
 from pushbroom.algorithms.surface.pointcloud import write_point_cloud
+from tests.helpers.osr_oracle import utm
 
 ALG = "pushbroom:assessaccuracy"
 REPO = pathlib.Path(pushbroom.__file__).resolve().parent
@@ -38,7 +38,7 @@ def inputs(small_scene, tmp_path_factory):
     return {"folder": folder, "points": str(cloud), "dem": str(dem), "lon": lon, "lat": lat}
 
 
-def test_report_table_and_dh_raster(pushbroom_provider, small_scene, inputs, log):
+def test_report_table_and_dh_raster(pushbroom_provider, small_scene, inputs, log, figures):
     out = inputs["folder"] / "run"
     context = QgsProcessingContext()
     context.setProject(QgsProject.instance())
@@ -60,7 +60,7 @@ def test_report_table_and_dh_raster(pushbroom_provider, small_scene, inputs, log
     dh = dh[dh != NODATA]
     dem_all = next(r for r in rows if r["data"] == "DEM cells" and r["label"] == "dh")
     s = summarize(dh)
-    print(f"DEM (DSM averaged to 10 m) vs DTM: N {s.n}, mean {s.mean:.2f}, RMS {s.rms:.2f}, NMAD {s.nmad:.2f} m")
+    figures.table("DEM (DSM averaged to 10 m) vs DTM (m)", [{"N": s.n, "mean": s.mean, "RMS": s.rms, "NMAD": s.nmad}])
     assert int(dem_all["n"]) == s.n
     np.testing.assert_allclose([float(dem_all[k]) for k in ("mean", "rms", "nmad")], [s.mean, s.rms, s.nmad],
                                atol=1e-3)

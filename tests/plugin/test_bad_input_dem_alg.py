@@ -7,8 +7,8 @@ import pytest
 from osgeo import gdal, osr
 from qgis import processing
 
-from bad_inputs import VOID, copy_dem, processing_error
 from pushbroom.algorithms.crs import reproject, srs
+from tests.helpers.bad_inputs import VOID, copy_dem, processing_error
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@ qgis_process the message names the missing IMAGERY.TIF instead of 'Incorrect par
 
 import pytest
 
-from bad_inputs import processing_error, product_without_raster
+from tests.helpers.bad_inputs import processing_error, product_without_raster
 
 
 @pytest.fixture

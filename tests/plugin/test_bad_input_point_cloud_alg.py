@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from qgis import processing
 
-from bad_inputs import las, processing_error
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.surface.pointcloud import write_gpkg
+from tests.helpers.bad_inputs import las, processing_error
 
 UTM31 = 32631
 UTM31_WKT = srs(UTM31).ExportToWkt()

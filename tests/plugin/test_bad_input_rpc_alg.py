@@ -6,7 +6,7 @@ import pytest
 from osgeo import gdal
 from qgis import processing
 
-from bad_inputs import processing_error
+from tests.helpers.bad_inputs import processing_error
 
 #: an affine Pleiades-like RPC (row from latitude, column from longitude) over 0.1 x 0.1 degrees
 AFFINE = {"LINE_OFF": 500.0, "SAMP_OFF": 500.0, "LAT_OFF": 44.1, "LONG_OFF": 5.2, "HEIGHT_OFF": 500.0,

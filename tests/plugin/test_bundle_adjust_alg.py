@@ -20,7 +20,6 @@ from qgis.core import (
     QgsWkbTypes,
 )
 
-from osr_oracle import utm
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.control_points import import_csv
 from pushbroom.algorithms.adjustment.observations import Observations
@@ -31,7 +30,8 @@ from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.surface.intersection import intersect
-from raster_oracle import bilinear
+from tests.helpers.osr_oracle import utm
+from tests.helpers.raster_oracle import bilinear
 
 N_CONTROL = 19
 N_TIE = 200
@@ -162,7 +162,7 @@ def _table_row(page, label):
     return [float(c) for c in re.findall(r"<td>([^<]*)</td>", cells)]
 
 
-def test_tie_heights_against_the_reference_dtm(pushbroom_provider, tie_block, tmp_path):
+def test_tie_heights_against_the_reference_dtm(pushbroom_provider, tie_block, tmp_path, figures):
     """Kornus et al. 2006, Table 4: the adjusted tie points are the forward intersections with the adjusted models;
     their heights minus the DTM interpolated in numpy give the table's n, min, mean, max, RMS and
     sigma. The DTM read as EGM96 heights shifts every dh by minus the geoid undulation."""
@@ -181,7 +181,7 @@ def test_tie_heights_against_the_reference_dtm(pushbroom_provider, tie_block, tm
     assert cut.ok.all()
     dh = cut.h - bilinear(paths["dtm"], cut.lon, cut.lat)
     want = [dh.size, dh.min(), dh.mean(), dh.max(), np.sqrt(np.mean(dh ** 2)), np.std(dh, ddof=1)]
-    print("tie heights - DTM: " + ", ".join(f"{v:.3f}" for v in want))
+    figures.table("tie heights - DTM (m)", [dict(zip(("n", "min", "mean", "max", "RMS", "sigma"), want))])
     np.testing.assert_allclose(tables["ellipsoidal"], want, atol=2e-3)
     undulation = egm96_undulation(cut.lon, cut.lat)
     assert tables["egm96"][2] == pytest.approx(np.mean(dh - undulation), abs=2e-3)
@@ -246,7 +246,7 @@ def test_lagrange_model(pushbroom_provider, adjusted_block, tmp_path, log):
     assert max(truth_rms(path, paths, ids).values()) < 0.5
 
 
-def test_tie_points_alone_with_priors(pushbroom_provider, scene, tmp_path, log):
+def test_tie_points_alone_with_priors(pushbroom_provider, scene, tmp_path, log, figures):
     """No control points: refused with 'auto' or without priors; with named free look-angle constants and
     weak priors holding the datum, the tie points alone remove the injected across-track differences
     between the images (+-20 urad): the adjusted psi_y constants agree (truth: all equal). The along-track
@@ -264,6 +264,7 @@ def test_tie_points_alone_with_priors(pushbroom_provider, scene, tmp_path, log):
                                                       "VARIANCE_COMPONENTS": False}, feedback=log)
     assert 0.25 < result["SIGMA0"] < 0.6                     # 0.2 px noise against the a priori 0.5 px
     after = {i: Block(path).model(i).orientation.corrections.look[1, 0] for i in ids.values()}
-    print(f"psi_y constants before {before}, after {after} (rad)")
+    figures.report("psi_y constants by image id, before", before, "rad")
+    figures.report("psi_y constants by image id, after", after, "rad")
     assert np.ptp(list(before.values())) == pytest.approx(4e-5)
     assert np.ptp(list(after.values())) < 1e-6

@@ -43,7 +43,8 @@ def run_log_steps(path):
     return [f["step"] for f in ds.GetLayerByName("run_log")]
 
 
-def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(pushbroom_provider, triplet_block, tmp_path):
+def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(pushbroom_provider, triplet_block, tmp_path,
+                                                                     figures):
     path, scene_copy = triplet_block
     result = processing.run("pushbroom:fitrpc", {"BLOCK": path, "REPORT": str(tmp_path / "fit.html")})
     expected = [str(scene_copy / n / "IMAGERY_RPC.TXT") for n in NAMES]
@@ -65,7 +66,7 @@ def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(pushbroom_pr
         out, ok = gdal.Transformer(ds, None, ["METHOD=RPC"]).TransformPoints(1, np.column_stack([lon, lat, h]))
         out = np.array(out)
         err = max(np.abs(out[:, 0] - col).max(), np.abs(out[:, 1] - row).max())
-        print(f"{name}: GDAL on the written _RPC.TXT vs the block's model: max {err:.2e} px")
+        figures.report(f"{name}: GDAL on the written _RPC.TXT vs the block's model, max", err, "px")
         assert all(ok) and err < 0.02
     page = (tmp_path / "fit.html").read_text()
     assert all(n in page for n in NAMES) and "validation" in page
@@ -143,7 +144,7 @@ def test_cancel_writes_nothing(pushbroom_provider, triplet_block):
 
 
 def test_report_compares_rpc_and_rigorous_object_points_of_the_tie_points(pushbroom_provider, triplet_block,
-                                                                           tmp_path):
+                                                                           tmp_path, figures):
     """With tie points in the block (here: 200 ground points projected into the three images), the
     report gives the RPC minus rigorous differences of Kornus et al. (2006, Table 5); the fit is good to well
     below 1 cm."""
@@ -169,5 +170,5 @@ def test_report_compares_rpc_and_rigorous_object_points_of_the_tie_points(pushbr
     page = (tmp_path / "fit.html").read_text()
     found = re.search(r"Table 5\): 200 points .* max \|dh\| ([0-9.]+) m", page)
     assert found, page
-    print(f"RPC - rigorous object points of 200 tie points: max |dh| {found.group(1)} m")
+    figures.report("RPC - rigorous object points of 200 tie points, max |dh|", float(found.group(1)), "m")
     assert float(found.group(1)) < 0.01

@@ -13,11 +13,11 @@ from qgis.core import (
     QgsVectorLayer,
 )
 
-from osr_oracle import utm
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.plugin.algorithms.import_points import ExportPoints, ImportPoints
+from tests.helpers.osr_oracle import utm
 
 
 @pytest.fixture

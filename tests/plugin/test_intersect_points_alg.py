@@ -7,11 +7,11 @@ from osgeo import ogr
 from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
-from osr_oracle import utm
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.surface.pointcloud import laspy_module
+from tests.helpers.osr_oracle import utm
 
 
 @pytest.fixture(scope="module")

@@ -93,15 +93,17 @@ def test_pipeline_writes_every_output(pipeline):
 
 
 @pytest.mark.slow
-def test_pipeline_dem_against_the_true_dsm(pipeline, small_scene):
+@pytest.mark.ratchet
+def test_pipeline_dem_against_the_true_dsm(pipeline, small_scene, figures):
     """The DEM against the true DSM resampled by GDAL; the dh raster of pushbroom:assessaccuracy
     (reference averaged over the DEM cells) agrees with it."""
     _, out = pipeline
     dem = band(out / "dem.tif")
     dh = dem - warped(small_scene["dsm"], out / "dem.tif")
     defined = np.isfinite(dh)
-    print(f"DEM: {defined.mean():.1%} of the cells defined; median |dh| {np.median(np.abs(dh[defined])):.2f} m, "
-          f"median dh {np.median(dh[defined]):.2f} m")
+    figures.report("DEM cells defined", 100 * defined.mean(), "%")
+    figures.report("DEM - true DSM, median |dh|", np.median(np.abs(dh[defined])), "m")
+    figures.report("DEM - true DSM, median dh", np.median(dh[defined]), "m")
     assert defined.mean() > 0.25
     assert np.median(np.abs(dh[defined])) < 4.0 and abs(np.median(dh[defined])) < 2.0
     reported = band(out / "dh.tif")
@@ -111,14 +113,16 @@ def test_pipeline_dem_against_the_true_dsm(pipeline, small_scene):
 
 
 @pytest.mark.slow
-def test_pipeline_orthoimage_matches_the_true_orthoimage(pipeline, small_scene):
+@pytest.mark.ratchet
+def test_pipeline_orthoimage_matches_the_true_orthoimage(pipeline, small_scene, figures):
     """The HRG orthoimage against the simulator's true orthoimage resampled by GDAL onto its grid."""
     _, out = pipeline
     ortho = band(out / "ortho.tif")
     truth = warped(small_scene["orthoimage"], out / "ortho.tif")
     both = np.isfinite(ortho) & np.isfinite(truth)
     r = np.corrcoef(ortho[both], truth[both])[0, 1]
-    print(f"orthoimage: {both.sum()} cells compared, correlation with the true orthoimage {r:.3f}")
+    figures.report("orthoimage cells compared", both.sum())
+    figures.report("orthoimage, correlation with the true orthoimage", r)
     assert both.sum() > 0.5 * np.isfinite(ortho).sum() and r > 0.8
 
 

@@ -2,7 +2,13 @@
 on the Ventoux pair (test_dsm_real, test_coarse_to_fine_real) and region growing's triplet DSMs
 (test_dsm_real, test_coarse_to_fine_real, test_matching_pleiades)."""
 import pytest
-from real_dsm import (
+
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.matching.combinations import match_block
+from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.params import GrowParams
+from tests.helpers.feedback import Feedback
+from tests.helpers.real_dsm import (
     CELL,
     RG_MAX_EDGE,
     TRIPLET_STEP,
@@ -12,12 +18,6 @@ from real_dsm import (
     cut,
     srtm_comparison,
 )
-
-from feedback import Feedback
-from pushbroom.algorithms import sensors
-from pushbroom.algorithms.matching.combinations import match_block
-from pushbroom.algorithms.matching.imagery import Image
-from pushbroom.algorithms.matching.params import GrowParams
 
 
 @pytest.fixture(scope="session")

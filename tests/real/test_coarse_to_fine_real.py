@@ -10,7 +10,7 @@ relative bias is across the epipolar direction; the matcher estimates it itself,
 columns, and it does not move the heights) and gridded at 1, 2 (asserted) and 5 m. Both matchers'
 DSMs carry the same west-east ramp against the SRTM (~0.13 m/m), which is what sets their NMAD near
 the 10 m bound (region growing 9.9 m, this matcher 10.5 m at 2 m cells and 9.4 m at 1 m; with its 5
-and 10 px grids 9.1 and 6.9 m but medians +5.2 and +7.2 m, scripts/ventoux_grid_spacing.py: each
+and 10 px grids 9.1 and 6.9 m but medians +5.2 and +7.2 m, studies/ventoux_grid_spacing.py: each
 node set leaves other gaps on the ramp); without the plane both are ~3.6 m. Where both DSMs are
 defined they agree to centimetres (median -0.02 m, NMAD 0.05 m, RMS 0.5 m): on the same nodes MPGC
 and region growing's LSM converge to nearly the same positions; the medians against the SRTM differ
@@ -31,25 +31,26 @@ its pairs 25 s (region growing 39 s); this DSM - region growing's: median -0.02 
 import numpy as np
 import pytest
 from osgeo import gdal
-from real_dsm import (
+
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
+from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.quality.statistics import summarize
+from tests.helpers.feedback import Feedback
+from tests.helpers.real_dsm import (
     CELL,
     VENTOUX_CELL,
     VENTOUX_STEP,
     build_triplet_dsms,
     check_pair_consistency,
     cut,
-    footprint,
+    footprint_mask,
     on_grid,
+    report_srtm_comparison,
     srtm_comparison,
 )
 
-from feedback import Feedback
-from pushbroom.algorithms import sensors
-from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
-from pushbroom.algorithms.matching.imagery import Image
-from pushbroom.algorithms.quality.statistics import summarize
-
-pytestmark = [pytest.mark.slow, pytest.mark.real]
+pytestmark = [pytest.mark.slow, pytest.mark.real, pytest.mark.ratchet]
 
 MAX_MEDIAN, MAX_NMAD, MAX_DETRENDED_NMAD = 5.0, 12.0, 5.0     # m, against SRTM
 MAX_MATCHER_MEDIAN, MAX_MATCHER_NMAD = 0.5, 1.0                # m, Ventoux: this DSM - region growing's
@@ -71,13 +72,14 @@ def groups(points):
     return {g for g, n in points.group_counts().items() if n}
 
 
-def test_ventoux_dsm_against_srtm(ventoux_pair, ventoux_region_growing, tmp_path):
+def test_ventoux_dsm_against_srtm(ventoux_pair, ventoux_region_growing, tmp_path, figures):
     srtm = str(ventoux_pair[0].with_name("N44E005.hgt"))
     models = [sensors.load(p) for p in ventoux_pair]
     points = coarse_to_fine_matcher(CoarseToFineParams(grid=VENTOUX_STEP))([Image(p) for p in ventoux_pair], models,
                                                          [p.stem for p in ventoux_pair])
     result = cut({1: models[0], 2: models[1]}, points.observations)
     c = srtm_comparison(result, srtm, (1.0, VENTOUX_CELL, 5.0), VENTOUX_CELL, tmp_path)
+    report_srtm_comparison(c, figures)
     rg = ventoux_region_growing[2]["dems"][VENTOUX_CELL]
     between = summarize((on_grid(c["dems"][VENTOUX_CELL], rg.grid) - rg.heights).ravel())
     assert groups(points) == {1} and result.ok.all() and len(points) > 5000, (points.group_counts(),
@@ -98,11 +100,11 @@ def coarse_to_fine_dsms(pleiades_triplet, tmp_path_factory):
 
 def coverage(dem, dsms):
     """Share of the triplet's common footprint (on dem's grid) where `dem` is defined."""
-    inside = footprint(dem.grid, dsms["srs"], dsms["models"], dsms["height"])
+    inside = footprint_mask(dem.grid, dsms["srs"], dsms["models"], dsms["height"])
     return np.isfinite(dem.heights)[inside].mean(), inside
 
 
-def test_triplet_dsm_coverage(coarse_to_fine_dsms):
+def test_triplet_dsm_coverage(coarse_to_fine_dsms, figures):
     dem = coarse_to_fine_dsms["triplet"]
     points = coarse_to_fine_dsms["points"]
     ds = gdal.Open(str(coarse_to_fine_dsms["path"]))
@@ -111,23 +113,26 @@ def test_triplet_dsm_coverage(coarse_to_fine_dsms):
     assert ds.GetGeoTransform()[1] == CELL and np.array_equal(defined, np.isfinite(dem.heights))
     ds = None
     share, inside = coverage(dem, coarse_to_fine_dsms)
-    print(f"\ncoarse-to-fine 0.5 m DSM: {dem.summary()}\ncommon footprint {inside.sum()} cells, coverage {share:.1%}; "
-          f"{int((defined & ~inside).sum())} defined cells outside it; points {points.group_counts()}, "
-          f"stats {points.stats}")
+    figures.report("coarse-to-fine 0.5 m DSM", dem.summary())
+    figures.report("common footprint", inside.sum(), "cells")
+    figures.report("coverage of the common footprint", 100 * share, "%")
+    figures.report("defined cells outside the footprint", int((defined & ~inside).sum()))
+    figures.report("points per group", points.group_counts())
+    figures.report("matching statistics", points.stats)
     assert groups(points) <= {1, 3} and points.group_counts().get(3, 0) > 0.5 * len(points)
     assert coarse_to_fine_dsms["three"].ok.mean() > 0.99
     assert share > MIN_COVERAGE and (defined & ~inside).sum() < 0.01 * defined.sum()
 
 
-def test_pair_dsms_agree_after_bias_adjustment(coarse_to_fine_dsms):
-    check_pair_consistency(coarse_to_fine_dsms, "coarse-to-fine", MAX_PAIR_MEDIAN, MAX_PAIR_NMAD)
+def test_pair_dsms_agree_after_bias_adjustment(coarse_to_fine_dsms, figures):
+    check_pair_consistency(coarse_to_fine_dsms, "coarse-to-fine", MAX_PAIR_MEDIAN, MAX_PAIR_NMAD, figures)
 
 
 def test_side_by_side_with_region_growing(coarse_to_fine_dsms, region_growing_triplet_dsms):
     """The two matchers' 0.5 m DSMs of the triplet (adjusted RPCs each) agree over the common footprint."""
-    grid = coarse_to_fine_dsms["triplet"].grid
-    inside = footprint(grid, coarse_to_fine_dsms["srs"], coarse_to_fine_dsms["models"], coarse_to_fine_dsms["height"])
-    mine = coarse_to_fine_dsms["triplet"].heights
-    between = summarize((mine - on_grid(region_growing_triplet_dsms["triplet"], grid))[inside])
+    dsms = coarse_to_fine_dsms
+    grid = dsms["triplet"].grid
+    inside = footprint_mask(grid, dsms["srs"], dsms["models"], dsms["height"])
+    between = summarize((dsms["triplet"].heights - on_grid(region_growing_triplet_dsms["triplet"], grid))[inside])
     assert between.n > 0.5 * inside.sum(), between
     assert abs(between.median) < MAX_TRIPLET_MEDIAN and between.nmad < MAX_TRIPLET_NMAD, between

@@ -24,9 +24,10 @@ pair DSMs at 0.1 px matching precision (sqrt(2) x 0.1 x 0.5 m / 0.11 = 0.64 m)."
 import numpy as np
 import pytest
 from osgeo import gdal
-from real_dsm import CELL, VENTOUX_CELL, check_pair_consistency, footprint
 
-pytestmark = [pytest.mark.slow, pytest.mark.real]
+from tests.helpers.real_dsm import CELL, VENTOUX_CELL, check_pair_consistency, footprint_mask, report_srtm_comparison
+
+pytestmark = [pytest.mark.slow, pytest.mark.real, pytest.mark.ratchet]
 
 #: m, against SRTM, on the 2 m DSM. The NMAD is mostly the ramp's and moves with the cell, not with the machine
 #: (docs/validation.md#ventoux-dsm); the matcher's own error is held by the NMAD without the ramp (< 5 m)
@@ -35,8 +36,9 @@ MIN_COVERAGE = 0.6
 MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6          # m, after the bias adjustment
 
 
-def test_ventoux_dsm_against_srtm(ventoux_region_growing):
+def test_ventoux_dsm_against_srtm(ventoux_region_growing, figures):
     points, result, srtm_dh = ventoux_region_growing
+    report_srtm_comparison(srtm_dh, figures)
     assert result.ok.all() and len(result) == len(points) > 5000, (len(points), result.status_counts())
     s, detrended = srtm_dh["stats"][VENTOUX_CELL], srtm_dh["detrended"]
     # the geoid: the same DSM against the SRTM taken as ellipsoidal differs by N(EGM96) ~ 50 m near Mont Ventoux
@@ -55,10 +57,10 @@ def test_triplet_dsm_coverage(region_growing_triplet_dsms):
     written = band.ReadAsArray().astype(float)
     defined = written != band.GetNoDataValue()
     assert ds.GetGeoTransform()[1] == CELL and np.array_equal(defined, np.isfinite(dem.heights))
-    inside = footprint(dem.grid, dsms["srs"], dsms["models"], dsms["height"])
+    inside = footprint_mask(dem.grid, dsms["srs"], dsms["models"], dsms["height"])
     coverage = defined[inside].mean()
     assert coverage > MIN_COVERAGE and (defined & ~inside).sum() < 0.01 * defined.sum()
 
 
-def test_pair_dsms_agree_after_bias_adjustment(region_growing_triplet_dsms):
-    check_pair_consistency(region_growing_triplet_dsms, "region-growing", MAX_PAIR_MEDIAN, MAX_PAIR_NMAD)
+def test_pair_dsms_agree_after_bias_adjustment(region_growing_triplet_dsms, figures):
+    check_pair_consistency(region_growing_triplet_dsms, "region-growing", MAX_PAIR_MEDIAN, MAX_PAIR_NMAD, figures)

@@ -20,14 +20,14 @@ Forward-backward differences are measured on the final observations of the group
 each combination's image pair (consistency.observation_pairs + forward_backward)."""
 import numpy as np
 import pytest
-from pleiades_scene import in_order
-from real_dsm import TRIPLET_STEP
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.consistency import fb_summary, forward_backward, observation_pairs
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.seeds import predict
+from tests.helpers.pleiades_scene import in_order
+from tests.helpers.real_dsm import TRIPLET_STEP
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
@@ -77,6 +77,7 @@ def matched(pleiades_triplet, region_growing_triplet_dsms):
     return points, fb
 
 
+@pytest.mark.ratchet
 def test_group3_points_from_automatic_seeds(matched):
     points, _ = matched
     counts = points.group_counts()
@@ -84,6 +85,7 @@ def test_group3_points_from_automatic_seeds(matched):
 
 
 @pytest.mark.parametrize("label", sorted(COMBINATIONS))
+@pytest.mark.ratchet
 def test_forward_backward_rms_of_group3(matched, label):
     points, fb = matched
     s = fb[label]

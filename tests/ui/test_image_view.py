@@ -10,10 +10,10 @@ from qgis.PyQt.QtCore import QPoint, QPointF, Qt
 from qgis.PyQt.QtGui import QColor, QWheelEvent
 from qgis.PyQt.QtWidgets import QApplication
 
-from feedback import Feedback
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.ui.image_view import MARKER_STYLES, ImageView, Marker, Vector
 from pushbroom.ui.raster_tiles import TILE, TileReader, build_overviews
+from tests.helpers.feedback import Feedback
 
 gdal.UseExceptions()
 TYPES = {np.dtype(np.uint8): gdal.GDT_Byte, np.dtype(np.uint16): gdal.GDT_UInt16,

@@ -15,13 +15,16 @@ from qgis.core import QgsApplication, QgsPointXY, QgsRasterLayer
 from qgis.PyQt.QtCore import QPoint, Qt, QTimer
 
 import pushbroom
-from osr_oracle import utm
 from pushbroom.algorithms.adjustment.control_points import DEFAULT_SIGMAS
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError, PushbroomError
 from pushbroom.ui import adjust_task, measurement_window as mw
 from pushbroom.ui.point_table import COLOURS, SORT_ROLE
-from raster_oracle import bilinear
+from tests.helpers.osr_oracle import utm
+from tests.helpers.raster_oracle import bilinear
+
+#: transfers must land this close (px) to the simulator's true positions
+TRANSFER_TOLERANCE = 0.3
 
 
 @pytest.fixture

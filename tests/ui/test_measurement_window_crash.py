@@ -1,5 +1,5 @@
 """Nothing is lost when the measurement window's process is killed: a session in a subprocess
-(measurement_crash_session.py) edits a block and SIGKILLs itself before closing; the block, read
+(tests/helpers/measurement_crash_session.py) edits a block and SIGKILLs itself before closing; the block, read
 again, holds exactly what the window showed, and a new window opens it with those points."""
 import json
 import os
@@ -12,17 +12,18 @@ import sys
 from pushbroom.algorithms.block import Block
 from pushbroom.ui.measurement_window import MeasurementWindow
 
-SESSION = pathlib.Path(__file__).with_name("measurement_crash_session.py")
+SESSION = pathlib.Path(__file__).parents[1] / "helpers" / "measurement_crash_session.py"
 
 
 def test_killed_session_loses_nothing(qtbot, marked_block, marked_scene, tmp_path):
     path = tmp_path / "block.gpkg"
     shutil.copy(marked_block, path)
     env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
-    proc = subprocess.run([sys.executable, str(SESSION), str(path), marked_scene["dsm"], marked_scene["points"]],
-                          env=env, capture_output=True, text=True, timeout=300)
+    result = tmp_path / "shown.json"
+    proc = subprocess.run([sys.executable, str(SESSION), str(path), marked_scene["dsm"], marked_scene["points"],
+                           str(result)], env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == -signal.SIGKILL, proc.stderr[-3000:]
-    shown = json.loads(proc.stdout.strip().splitlines()[-1])
+    shown = json.loads(result.read_text())
     assert sorted(shown["points"]) == ["K1", "K3"] and shown["points"]["K1"][0] == "check"
     assert [m[0] for m in shown["measurements"]] == ["K1"] * 3
     assert not os.path.exists(f"{path}-journal")            # no transaction was open at the kill

@@ -15,7 +15,7 @@ import pushbroom
 from pushbroom.plugin.styles import resolve_application_font
 
 REPO = pathlib.Path(pushbroom.__file__).resolve().parent
-SESSION = pathlib.Path(__file__).with_name("project_session.py")
+SESSION = REPO / "tests" / "helpers" / "project_session.py"
 STYLES = REPO / "resources" / "styles"
 
 
@@ -63,10 +63,10 @@ def make_project(folder):
 
 
 def open_in_desktop(project, folder):
-    """Run the real QGIS desktop on `project` (tests/ui/project_session.py); returns its result dict."""
+    """Run the real QGIS desktop on `project` (tests/helpers/project_session.py); returns its result dict."""
     profiles = folder / "profiles"
     (profiles / "profiles" / "default").mkdir(parents=True)
-    env = dict(os.environ, QT_QPA_PLATFORM="xcb", PUSHBROOM_PROJECT=str(project), PYTHONPATH=str(SESSION.parent),
+    env = dict(os.environ, QT_QPA_PLATFORM="xcb", PUSHBROOM_PROJECT=str(project), PYTHONPATH=str(REPO),
                PUSHBROOM_RESULT=str(folder / "result.json"), PUSHBROOM_SCREENSHOT=str(folder / "screenshot.png"))
     command = ["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", "/usr/bin/qgis.bin", "--profiles-path",
                str(profiles), "--nologo", "--noversioncheck", "--code", str(SESSION)]

@@ -1,5 +1,5 @@
 """The plugin in the real QGIS desktop under Xvfb: a throw-away profile with the plugin installed (a link to the
-repository) and enabled, and a startup script (tests/ui/qgis_desktop_session.py) that opens the measurement
+repository) and enabled, and a startup script (tests/helpers/qgis_desktop_session.py) that opens the measurement
 window from the toolbar action and measures 3 points of the simulated block; the block must hold them after
 QGIS has quit."""
 import json
@@ -18,7 +18,7 @@ from pushbroom.algorithms.block import Block
 
 REPO = pathlib.Path(pushbroom.__file__).resolve().parent
 QGIS = "/usr/bin/qgis.bin"
-SESSION = pathlib.Path(__file__).with_name("qgis_desktop_session.py")
+SESSION = REPO / "tests" / "helpers" / "qgis_desktop_session.py"
 TIMEOUT_S = 180
 POINTS = 3
 
@@ -38,7 +38,7 @@ def run_qgis(profiles, job_path, log_path):
     """Run QGIS under Xvfb with the session script; returns its exit status (fails the test on a timeout)."""
     site = [p for p in sys.path if p.endswith("site-packages") and ".venv" in p]
     env = dict(os.environ, QT_QPA_PLATFORM="xcb", PUSHBROOM_SESSION=str(job_path),
-               PYTHONPATH=os.pathsep.join(site + [str(SESSION.parent), os.environ.get("PYTHONPATH", "")]))
+               PYTHONPATH=os.pathsep.join(site + [str(REPO), os.environ.get("PYTHONPATH", "")]))
     command = ["xvfb-run", "-a", QGIS, "--profiles-path", str(profiles), "--profile", "test", "--nologo",
                "--noversioncheck", "--code", str(SESSION)]
     with open(log_path, "w") as log:

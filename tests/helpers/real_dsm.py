@@ -7,7 +7,6 @@ order). test_dsm_real.py's docstring gives the reasons for the choices."""
 import time
 
 import numpy as np
-from pleiades_scene import LABELS, NAMES, in_order, models_of
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import adjust
@@ -21,6 +20,7 @@ from pushbroom.algorithms.surface.intersection import intersect
 from pushbroom.algorithms.surface.point_input import PointSet
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
+from tests.helpers.pleiades_scene import LABELS, NAMES, in_order, models_of
 
 #: region growing on the Ventoux pair: nodes every VENTOUX_STEP px (1 m), the DSM asserted at VENTOUX_CELL m
 VENTOUX_STEP, VENTOUX_CELL = 2, 2.0
@@ -60,9 +60,9 @@ def on_grid(dem, grid):
     return out
 
 
-def stats_line(label, s):
-    return (f"{label}: N {s.n}, median {s.median:+.3f}, NMAD {s.nmad:.3f}, mean {s.mean:+.3f}, RMS {s.rms:.3f}, "
-            f"95 % |dh| {s.q95:.2f} m")
+def stats_row(label, s):
+    """Stats as a row of a figures table (m)."""
+    return {"": label, "N": s.n, "median": s.median, "NMAD": s.nmad, "mean": s.mean, "RMS": s.rms, "95 % |dh|": s.q95}
 
 
 def srtm_comparison(result, srtm, cells, cell, folder):
@@ -70,30 +70,33 @@ def srtm_comparison(result, srtm, cells, cell, folder):
     `srtm` (EGM96 heights made ellipsoidal: quality.height_differences). Returns a dict: "dems" and
     "stats" (of DSM - SRTM) per cell; for `cell`: "diff" (HeightDifferences), "geoid" (the same DSM
     against the SRTM taken as ellipsoidal, minus "diff": N(EGM96) per cell), "plane" (least-squares
-    plane of dh: offset, m/m east, m/m north) and "detrended" (Stats of dh without it); "lines" to print."""
+    plane of dh: offset, m/m east, m/m north) and "detrended" (Stats of dh without it)."""
     srs = output_srs(None, result.lon[result.ok], result.lat[result.ok])
-    out = {"dems": {}, "stats": {}, "lines": []}
+    out = {"dems": {}, "stats": {}}
     for c in cells:
         dem = out["dems"][c] = dsm(result, srs, c)
         path = folder / f"dsm_{c:g}m.tif"
         write_dem(dem, path)
         diff = dem_differences(path, srtm, reference_datum="orthometric")
         out["stats"][c] = summarize(diff.dh)
-        out["lines"] += [f"  {c:g} m DSM: {dem.summary()}",
-                         "  " + stats_line(f"{c:g} m DSM - SRTM (EGM96 -> ellipsoidal)", out["stats"][c])]
         if c == cell:
             out["diff"] = d = diff
             out["geoid"] = dem_differences(path, srtm, reference_datum="ellipsoidal").dh - d.dh
     a = np.column_stack([np.ones_like(d.x), d.x - d.x.mean(), d.y - d.y.mean()])
     out["plane"], *_ = np.linalg.lstsq(a, d.dh, rcond=None)
     out["detrended"] = summarize(d.dh - a @ out["plane"])
-    out["lines"].append(f"  overlap {np.ptp(d.x):.0f} m x {np.ptp(d.y):.0f} m; geoid N {out['geoid'].mean():.2f} m; "
-                        f"dh plane: {out['plane'][1]:+.3f} m/m east, {out['plane'][2]:+.3f} m/m north; "
-                        + stats_line("without it", out["detrended"]))
     return out
 
 
-def footprint(grid, srs, models, height):
+def report_srtm_comparison(comparison, figures):
+    """Report an srtm_comparison: DSM - SRTM per cell size, the plane of dh and dh without it."""
+    figures.table("DSM - SRTM (EGM96 -> ellipsoidal) (m)",
+                  [stats_row(f"{c:g} m DSM", s) for c, s in comparison["stats"].items()]
+                  + [stats_row("without the plane", comparison["detrended"])])
+    figures.report("plane of dh, east and north", comparison["plane"][1:], "m/m")
+
+
+def footprint_mask(grid, srs, models, height):
     """Cells of `grid` whose centre at `height` lies inside every model's image."""
     x, y = grid.centres()
     ll = transform(srs, wgs84(), np.column_stack([x.ravel(), y.ravel()]), "the DSM cells")
@@ -152,21 +155,21 @@ def build_triplet_dsms(triplet, match, cell, max_edge, folder, log):
     return out
 
 
-def check_pair_consistency(dsms, title, max_median, max_nmad):
-    """Print the differences of the pair DSMs of `build_triplet_dsms` before and after the bias
+def check_pair_consistency(dsms, title, max_median, max_nmad, figures):
+    """Report (`figures`) the differences of the pair DSMs of `build_triplet_dsms` before and after the bias
     adjustment (title: what matched them) and assert that afterwards each pair covers more than half
     of the common footprint and agrees to |median| < max_median (and < 0.2 x the largest median
     before) and NMAD < max_nmad (m)."""
     grid = dsms["triplet"].grid
-    inside = footprint(grid, dsms["srs"], dsms["models"], dsms["height"])
-    lines, stats = [], {}
+    inside = footprint_mask(grid, dsms["srs"], dsms["models"], dsms["height"])
+    stats = {}
     for label in ("before", "after"):
         stats[label] = pair_differences(dsms[label], grid, inside)
         covered = {p: np.isfinite(on_grid(dsms[label][p], grid))[inside].mean() for p in PAIRS}
-        lines.append(f"{title} pair DSMs, {label} the bias adjustment (coverage of the footprint: "
-                     + ", ".join(f"{pair_name(p)} {c:.1%}" for p, c in covered.items()) + "):")
-        lines += [f"  {stats_line(f'({pair_name(p)}) - ({pair_name(q)})', s)}" for (p, q), s in stats[label].items()]
-    print("\n" + "\n".join(lines))
+        figures.report(f"{title} pair DSMs {label} the bias adjustment, coverage of the footprint",
+                       {pair_name(p): 100 * c for p, c in covered.items()}, "%")
+        figures.table(f"{title} pair DSMs {label} the bias adjustment, differences (m)",
+                      [stats_row(f"({pair_name(p)}) - ({pair_name(q)})", s) for (p, q), s in stats[label].items()])
     before = max(abs(s.median) for s in stats["before"].values())
     for key, s in stats["after"].items():
         assert s.n > 0.5 * inside.sum(), (key, s)

@@ -1,21 +1,19 @@
-"""How the Ventoux pair's DSM - SRTM statistics depend on the coarse-to-fine matcher's grid spacing
-(issue 7's Ventoux point; closing note of 2026-11-22): match_coarse_to_fine on the two Pleiades crops
-with grid points every 2 (region growing's nodes, as tests/real/test_coarse_to_fine_real.py), 5 and 10
-px, the points intersected with the supplied RPCs and gridded at 1, 2 and 5 m, each DSM against the
-SRTM tile (EGM96 -> ellipsoidal) with the test's code (tests/real/real_dsm.py). Needs the real test data (tests/conftest.py SHARED_DATA).
-
-    QT_QPA_PLATFORM=offscreen .venv/bin/python scripts/ventoux_grid_spacing.py [GRID ...]   (about 1 min)"""
+"""How do the Ventoux pair's DSM - SRTM statistics depend on the coarse-to-fine matcher's grid spacing
+(issue 7's Ventoux point)? match_coarse_to_fine on the two Pleiades crops with grid points every 2
+(region growing's nodes, as tests/real/test_coarse_to_fine_real.py), 5 and 10 px (or the GRID arguments),
+the points intersected with the supplied RPCs and gridded at 1, 2 and 5 m, each DSM against the SRTM
+tile (EGM96 -> ellipsoidal) with the real-data tests' code (tests.helpers.real_dsm). Needs the shared
+data sets in ../shared/data."""
 import pathlib
 import sys
 import tempfile
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests" / "real"))
-from real_dsm import cut, srtm_comparison
-
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
 from pushbroom.algorithms.matching.imagery import Image
+from tests.helpers.real_dsm import cut, srtm_comparison
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 DATA = ROOT.parent / "shared" / "data" / "pleiades_pair_ventoux"
 CELLS = (1.0, 2.0, 5.0)

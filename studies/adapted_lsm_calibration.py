@@ -1,21 +1,14 @@
-"""How honest LSM's error ellipse is on a resolution-adapted pair (closing note of 2026-11-25):
-empirical RMS of the matched positions over the reported precision, on band-limited patches
-(tests/algorithms/test_lsm.py's texture, noise 4 DN in both images) at scale 2:1 along rows as
-HRG -> HRS, with the template raw and low-passed as region_growing.adapt_resolution does to HRG
-(imagery.Smoothed, 0.79 / 0.855 px: the 3 km triplet's HRG -> HRS1); image 2 shows the texture
-through the same low-pass. lsm_point scales sigma0 for equal white noise in both images, which
-the low-passed template does not carry.
-
-    .venv/bin/python scripts/adapted_lsm_calibration.py   (about 20 s)"""
-import pathlib
-import sys
-
+"""How honest is LSM's error ellipse on a resolution-adapted pair? The empirical RMS of the matched
+positions over the reported precision, on band-limited patches (tests.helpers.texture, noise 4 DN in
+both images) at scale 2:1 along rows as HRG -> HRS, with the template raw and low-passed as
+region_growing.adapt_resolution does to HRG (imagery.Smoothed, 0.79 / 0.855 px: the 3 km triplet's
+HRG -> HRS1); image 2 shows the texture through the same low-pass. lsm_point scales sigma0 for equal
+white noise in both images, which the low-passed template does not carry."""
 import numpy as np
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests" / "algorithms"))
 from pushbroom.algorithms.matching import lsm
 from pushbroom.algorithms.matching.imagery import Smoothed
-from test_lsm import texture
+from tests.helpers.texture import texture
 
 SCALE = np.diag([1.0, 2.0])
 BLUR = (0.79, 0.855)

@@ -17,7 +17,7 @@ from qgis.core import QgsProject, QgsVectorLayer
 from qgis.PyQt.QtCore import QTimer
 from qgis.PyQt.QtWidgets import QAction, QApplication, QMessageBox, QToolBar
 
-from desktop_exit import run_then_quit
+from tests.helpers.desktop_exit import run_then_quit
 
 JOB = json.load(open(os.environ["PUSHBROOM_SESSION"], encoding="utf-8"))
 RESULT = {"errors": [], "transfer_notes": {}}

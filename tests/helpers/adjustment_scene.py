@@ -52,13 +52,13 @@ def synthetic_points(scene, image_ids, n, sigma_px, seed):
     return Observations(points, np.array(meas, MEAS_DTYPE))
 
 
-def check_rms(result, observations, height):
+def check_rms(result, observations, height, figures, label="check points"):
     """(RMS of dE, dN, dH, RMS of their theoretical sigmas) of the check points of `observations`
-    intersected with the adjusted models (bundle.check_points), printed."""
+    intersected with the adjusted models (bundle.check_points), reported to `figures` as `label`."""
     check = check_points(result, observations, height=height)
     table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")})
     rms = np.array([table[k][4] for k in ("dE", "dN", "dH")])
     theoretical = np.sqrt(np.mean(check["sigma"] ** 2, axis=0))
-    for k, key in enumerate(("dE", "dN", "dH")):
-        print(f"{key}: RMS {rms[k]:.3f} m, theoretical {theoretical[k]:.3f} m")
+    figures.table(f"{label} (m)", [{"": key, "RMS": rms[k], "theoretical": theoretical[k]}
+                                   for k, key in enumerate(("dE", "dN", "dH"))])
     return rms, theoretical

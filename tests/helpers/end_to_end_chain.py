@@ -22,8 +22,6 @@ import numpy as np
 from osgeo import gdal
 from scipy import ndimage
 
-from adjustment_scene import point_observations
-from matching_scene import LOW_CONTRAST_DN
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import check_points
 from pushbroom.algorithms.adjustment.observations import Observations, tie_observations
@@ -41,6 +39,8 @@ from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST, W
 from pushbroom.algorithms.surface import intersection, pointcloud
 from pushbroom.algorithms.surface.point_input import read_points
 from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
+from tests.helpers.adjustment_scene import point_observations
+from tests.helpers.matching_scene import LOW_CONTRAST_DN
 
 NAMES = ("HRG", "HRS1", "HRS2")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}

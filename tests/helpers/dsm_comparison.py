@@ -17,7 +17,6 @@ import numpy as np
 from osgeo import gdal
 from scipy import ndimage
 
-from matching_scene import LOW_CONTRAST_DN
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dem import Dem
@@ -27,6 +26,7 @@ from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.point_input import PointSet
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_dem import interpolate_dem
+from tests.helpers.matching_scene import LOW_CONTRAST_DN
 
 NAMES = ("HRG", "HRS1", "HRS2")
 CELL = 10.0

@@ -1,10 +1,10 @@
 """A measurement window session that is killed (SIGKILL) before it closes, run as its own process by
 test_measurement_window_crash.py.
 
-measurement_crash_session.py BLOCK DEM POINTS_CSV: opens the window (offscreen), makes edits through
+measurement_crash_session.py BLOCK DEM POINTS_CSV RESULT_JSON: opens the window (offscreen), makes edits through
 its scripting methods (two points set on the reference and measured, one with LSM transfers accepted,
 a third created, deleted and restored by undo, the second deleted, the first made a check point),
-prints the state the window shows as one JSON line and kills itself without closing anything."""
+writes the state the window shows to RESULT_JSON and kills itself without closing anything."""
 import csv
 import json
 import os
@@ -12,10 +12,11 @@ import signal
 import sys
 
 
-def main(block_path, dem_path, points_csv):
+def main(block_path, dem_path, points_csv, result_path):
     from qgis.core import QgsApplication
     app = QgsApplication([], True)
     app.initQgis()
+    from pushbroom.algorithms.atomic import write_text
     from pushbroom.ui.measurement_window import MeasurementWindow
     with open(points_csv, newline="") as f:
         truth = {r["id"]: {k: float(v) for k, v in r.items() if k != "id"} for r in csv.DictReader(f)}
@@ -44,9 +45,9 @@ def main(block_path, dem_path, points_csv):
              "measurements": sorted([str(obs.points["name"][m["point"]]), int(m["image_id"]), float(m["col"]),
                                      float(m["row"])] for m in obs.measurements),
              "undo_steps": window.undo_stack.count()}
-    print(json.dumps(state), flush=True)
+    write_text(result_path, json.dumps(state))
     os.kill(os.getpid(), signal.SIGKILL)
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:4])
+    main(*sys.argv[1:5])

@@ -2,8 +2,8 @@
 timed) that runs in its own process, so that its peak memory (VmHWM) is the view's alone. Shared by
 test_image_view_memory.py and benchmarks/bench_image_view.py.
 
-Run as a script: image_view_session.py RASTER [--pans N] [--jumps N] prints one JSON object: {"rows": [...],
-"peak_mb": ..., "cache_mb": ...}."""
+Run as a script: image_view_session.py RASTER RESULT_JSON [--pans N] [--jumps N] writes one JSON object to
+RESULT_JSON: {"rows": [...], "peak_mb": ..., "cache_mb": ..., "levels": ...}."""
 import argparse
 import json
 import os
@@ -107,19 +107,25 @@ def session(path, pans=62, jumps=200):
 def run_in_subprocess(path, pans=62, jumps=200):
     """session() in a fresh Python process (offscreen Qt); returns its JSON result."""
     import subprocess
+    import tempfile
     env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
-    proc = subprocess.run([sys.executable, os.path.abspath(__file__), os.fspath(path), "--pans", str(pans),
-                           "--jumps", str(jumps)], env=env, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"the ImageView session failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n"
-                           f"{proc.stderr[-3000:]}")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    with tempfile.TemporaryDirectory() as folder:
+        result = os.path.join(folder, "session.json")
+        proc = subprocess.run([sys.executable, os.path.abspath(__file__), os.fspath(path), result, "--pans", str(pans),
+                               "--jumps", str(jumps)], env=env, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"the ImageView session failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n"
+                               f"{proc.stderr[-3000:]}")
+        with open(result, encoding="utf-8") as f:
+            return json.load(f)
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser()
     parser.add_argument("raster")
+    parser.add_argument("result")
     parser.add_argument("--pans", type=int, default=62)
     parser.add_argument("--jumps", type=int, default=200)
     args = parser.parse_args()
-    print(json.dumps(session(args.raster, args.pans, args.jumps)))
+    from pushbroom.algorithms.atomic import write_text
+    write_text(args.result, json.dumps(session(args.raster, args.pans, args.jumps)))

@@ -1,4 +1,4 @@
-"""A QGIS desktop session (`qgis.bin --code THIS_FILE` with tests/ui on PYTHONPATH, run by
+"""A QGIS desktop session (`qgis.bin --code THIS_FILE` with the repository root on PYTHONPATH, run by
 tests/ui/test_project_opens_clean.py, and by hand for the demo project): open the project named by
 PUSHBROOM_PROJECT as a user would (File > Open), let it render, then write to the JSON file
 PUSHBROOM_RESULT the message bar's items (QGIS shows a missing font, an unreadable layer or a bad style
@@ -12,7 +12,7 @@ import qgis.utils
 from qgis.core import QgsProject
 from qgis.PyQt.QtCore import QTimer
 
-from desktop_exit import run_then_quit
+from tests.helpers.desktop_exit import run_then_quit
 
 RESULT = {"errors": []}
 

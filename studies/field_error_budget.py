@@ -1,23 +1,19 @@
-"""Where region growing's error on fields comes from (issue 3's 0.15 px target; closing note of
-2026-11-22). On the 3 km simulated triplet (HRG -> HRS1, default GrowParams), with image noise 1 DN
-(the default) and 0, the field points' error against the point truth split by their distance to
-forest, city or water (templates that see height steps) into: the gap between the template-area
-truth and the point truth (relief inside the template) and the matcher's error against the
-template-area truth; then the best of LSM windows 9..19 px per point with the truth as the oracle.
-
-    QT_QPA_PLATFORM=offscreen .venv/bin/python scripts/field_error_budget.py   (about 10 s)"""
+"""Where does region growing's error on fields come from (issue 3's 0.15 px target)? On the 3 km
+simulated triplet (HRG -> HRS1, default GrowParams), with image noise 1 DN (the default) and 0, the
+field points' error against the point truth split by their distance to forest, city or water
+(templates that see height steps) into: the gap between the template-area truth and the point truth
+(relief inside the template) and the matcher's error against the template-area truth; then the best
+of LSM windows 9..19 px per point with the truth as the oracle."""
 import pathlib
-import sys
 import tempfile
 
 import numpy as np
 from scipy import ndimage
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests" / "algorithms"))
-from matching_scene import SINGLE_SURFACE, Scene
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import match_pair, transfer_points
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+from tests.helpers.matching_scene import SINGLE_SURFACE, Scene
 
 NEAR_M = 50.0          # half an HRG template
 WINDOWS = (9, 11, 13, 15, 19)
