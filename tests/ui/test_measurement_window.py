@@ -4,7 +4,7 @@ from the scene's DSM against a numpy bilinear lookup), predictions marked in the
 in an image with its pending transfers marked and rejected, the panes' texts, undo failures and errors
 as messages, the table (contents, colours, sorting, selection), keyboard shortcuts, 'adjust now' in a
 QgsTask with its residuals and the File menu. The session's state and edits themselves are tested
-without Qt in tests/algorithms/test_measurement_session.py."""
+without Qt in tests/algorithms/measurement/test_measurement_session.py."""
 import math
 import shutil
 

@@ -4,7 +4,7 @@ import ast
 import pathlib
 import re
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+ROOT = pathlib.Path(__file__).resolve().parents[3]
 SCANNED = ("algorithms", "plugin", "ui")
 DOOR = "algorithms/block/"
 #: modules that write GeoPackages of their own (step outputs, never the block), each for the reason given
