@@ -1,7 +1,7 @@
 """How honest is LSM's error ellipse on a resolution-adapted pair? The empirical RMS of the matched
 positions over the reported precision, on band-limited patches (tests.helpers.texture, noise 4 DN in
 both images) at scale 2:1 along rows as HRG -> HRS, with the template raw and low-passed as
-region_growing.adapt_resolution does to HRG (imagery.Smoothed, 0.79 / 0.855 px: the 3 km triplet's
+resolution.adapt_resolution does to HRG (imagery.Smoothed, 0.79 / 0.855 px: the 3 km triplet's
 HRG -> HRS1); image 2 shows the texture through the same low-pass. lsm_point scales sigma0 for equal
 white noise in both images, which the low-passed template does not carry."""
 import numpy as np

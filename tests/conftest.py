@@ -156,6 +156,15 @@ def marked_block(marked_scene, tmp_path_factory):
     return path
 
 
+@pytest.fixture
+def block_path(marked_block, tmp_path):
+    """A copy of the marked block this test may change: its path."""
+    import shutil
+    path = tmp_path / "block.gpkg"
+    shutil.copy(marked_block, path)
+    return str(path)
+
+
 @pytest.fixture(scope="session")
 def marked_points(marked_scene):
     """The marked scene's points: {id: row} (true lon/lat/h, true image positions <image>_col/_row and

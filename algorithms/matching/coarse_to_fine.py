@@ -6,7 +6,7 @@ Gruen): the orchestration. The work of one pyramid level is in coarse_to_fine_le
    models' prediction over the height range), each keeping the points of its core; the
    orientation bias is estimated per tile. Memory is bounded by the tile size (MAX_PIXELS).
 1. Preprocessing (preprocess.py): the reference (nadir) is low-passed to the search images'
-   footprint (region_growing.adapt_resolution), every image Wallis-filtered and reduced to a
+   footprint (resolution.adapt_resolution), every image Wallis-filtered and reduced to a
    factor-3 pyramid; the number of levels brings the parallax range of the block's height range
    to about `search_px_at_top` px at the top level (preprocess.levels_for), as far as the top
    level keeps 3 of the largest windows across the smallest image.
@@ -38,10 +38,10 @@ from ..errors import InputError
 from . import preprocess
 from .coarse_to_fine_level import FACTOR, ShiftedModel, TinGuide, edge_breaklines, match_level, match_level_edges
 from .edges import canny, link
-from .imagery import Window, as_image
+from .imagery import Window
 from .mpgc import MpgcParams, accepted, match_points
-from .params import GrowParams
 from .points import COMB_A, COMB_B, EDGE, NCC_ONLY, OBS_DTYPE, POINT_DTYPE, MultiPoints
+from .resolution import adapted_images
 from .seeds import predict, resolve_height_range
 
 #: reliability of a point that failed MPGC: this factor x its smallest NCC rho
@@ -111,18 +111,6 @@ class CoarseToFineParams:
         return self
 
 
-def adapted_images(images, models, hr, grow=None):
-    """The images, the finer of each reference-search pair low-passed to the coarser one's
-    resolution (region_growing.adapt_resolution with `grow`'s PSF settings, default GrowParams();
-    Image-like, read by windows)."""
-    grow = grow or GrowParams()
-    ref, s1 = _adapt(images[0], images[1], models[0], models[1], grow, hr)
-    adapted = [ref, s1]
-    if len(images) == 3:
-        adapted.append(_adapt(images[0], images[2], models[0], models[2], grow, hr)[1])
-    return adapted
-
-
 def _pyramids(adapted, models, hr, params):
     """Per image (NCC pyramid, raw pyramid) of the adapted images; levels; parallax range (px)."""
     cols, rows = models[0].size
@@ -145,11 +133,6 @@ def _pyramids(adapted, models, hr, params):
         ncc = preprocess.wallis(raw) if params.wallis else raw
         pyr.append((preprocess.pyramid(ncc, levels, FACTOR), preprocess.pyramid(raw, levels, FACTOR)))
     return pyr, levels, parallax
-
-
-def _adapt(image0, image, model0, model, grow, hr):
-    from .region_growing import adapt_resolution
-    return adapt_resolution(as_image(image0), as_image(image), model0, model, grow, hr)
 
 
 def match_coarse_to_fine(images, models, names=None, image_ids=None, params=None, height_range=None, feedback=None):

@@ -148,7 +148,7 @@ def match_points(reference, searches, models, x0, y0, lon, lat, h, params=None, 
     approximate object points (lon, lat, h) (module docstring).
 
     reference, searches: Image, Smoothed, raster path or 2-D array (resolution adaptation, e.g.
-    region_growing.adapt_resolution, is the caller's); models: the n + 1 sensor models (reference
+    resolution.adapt_resolution, is the caller's); models: the n + 1 sensor models (reference
     first) with `partials`; params: MpgcParams. Points are processed in tiles of the reference
     image (windows read once per tile, the kernel parallel over points). Returns mpgc_dtype(n)
     records in the order given; raises InputError on unusable input, CancelledError when

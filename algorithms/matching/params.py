@@ -44,8 +44,8 @@ class GrowParams(LsmParams):
     # point's estimate as in Heipke et al. 1992 (False); docs/validation.md#region-growing-model-affine
     model_affine: bool = True
     # resolution adaptation (Kornus et al. 2006, section 3.3): the finer image is low-passed to the coarser
-    # one's footprint through the models' local affine (region_growing.adapt_resolution). psf: "sensor"
-    # (each instrument's PSF, region_growing.SENSOR_PSF, as Gaussian-equivalent variances; "pixel" where
+    # one's footprint through the models' local affine (resolution.adapt_resolution). psf: "sensor"
+    # (each instrument's PSF, resolution.SENSOR_PSF, as Gaussian-equivalent variances; "pixel" where
     # the instrument is unknown), "pixel" (Gaussian of psf_sigma px of each image's pixels; 0.5 px is
     # SPOT's MTF(Nyquist) ~ 0.3) or "off"; docs/validation.md#region-growing-resolution-adaptation
     psf: str = "sensor"

@@ -27,11 +27,11 @@ from dataclasses import fields
 import numpy as np
 
 from .. import progress
-from .coarse_to_fine import adapted_images
 from .mpgc import MpgcParams, accepted, match_points
 from .orientation_bias import affine_bias
 from .params import GrowParams, LsmParams
 from .points import REFINED
+from .resolution import adapted_images
 from .seeds import resolve_height_range
 
 #: px: sigma of the geometric observations where the corrected orientation is consistent

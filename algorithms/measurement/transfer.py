@@ -7,7 +7,7 @@ cross-correlation is searched within `radius` px of that prediction (orientation
 supplied models reach a few pixels), else the path that the ray over a height range (h_min, h_max)
 traces in the target is searched (seeds.seeds_from_points). The best correlation peak, if it is
 distinct (NCC >= 0.7, 0.05 above any rival more than 2 px away), is refined by LSM on the
-resolution-adapted images (region_growing.adapt_resolution: the finer image low-passed to the
+resolution-adapted images (resolution.adapt_resolution: the finer image low-passed to the
 coarser one's footprint, HRG vs HRS) and accepted with the papers' criteria (params.LsmParams:
 rho > rho_min, error-ellipse semi-major axis < max_ellipse, shift < max_shift, converged).
 
@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import InputError
 from ..matching.imagery import as_image
 from ..matching.params import GrowParams
-from ..matching.region_growing import adapt_resolution
+from ..matching.resolution import adapt_resolution
 from ..matching.seeds import NCC_MARGIN, NCC_MIN, predict, resolve_height_range, seeds_from_points
 
 #: px of the target searched around the prediction when a height is given

@@ -23,18 +23,10 @@ from .dem_nodata import nodata_parameter
 class AssessAccuracy(PushbroomAlgorithm):
     NAME = "assessaccuracy"
     DISPLAY_NAME = "Assess accuracy (dh against a reference DEM)"
-    GROUP = "Surface"
     GROUP_ID = "surface"
-    HELP = ("Height differences dh = assessed - reference height of the points of a point cloud and/or the cells "
-            "of a DEM against a reference DTM or DSM (Kornus et al. 2006; Zhang and Gruen 2004). Statistics per "
-            "point group, per land-cover class and for flat vs mountainous terrain go to the log and an HTML "
-            "report with histograms and a dh map; optionally a CSV table and, for a DEM, a dh raster.")
 
-    REFERENCE, REFERENCE_HEIGHTS, POINTS, DEM, DEM_HEIGHTS = "REFERENCE", "REFERENCE_HEIGHTS", "POINTS", "DEM", \
-        "DEM_HEIGHTS"
-    CLASS_RASTER, CLASS_POLYGONS, CLASS_FIELD = "CLASS_RASTER", "CLASS_POLYGONS", "CLASS_FIELD"
-    SLOPE_THRESHOLD, POINTS_HEIGHTS, REFERENCE_NODATA = "SLOPE_THRESHOLD", "POINTS_HEIGHTS", "REFERENCE_NODATA"
-    REPORT, DH, TABLE = "REPORT", "DH", "TABLE"
+    KEYS = ("REFERENCE REFERENCE_HEIGHTS POINTS DEM DEM_HEIGHTS CLASS_RASTER CLASS_POLYGONS CLASS_FIELD "
+            "SLOPE_THRESHOLD POINTS_HEIGHTS REFERENCE_NODATA REPORT DH TABLE")
 
     def initAlgorithm(self, config=None):
         d, tr = AssessParams(), self.tr

@@ -45,9 +45,21 @@ def _single_error():
         log.messageReceived.connect(lambda *_: log.blockSignals(True))
 
 
+#: the toolbox groups: GROUP_ID -> display name
+GROUPS = {"simulation": "Simulation", "block": "Block", "matching": "Matching", "adjustment": "Adjustment",
+          "surface": "Surface"}
+
+
 def help_page(name):
     """Path of algorithm `name`'s documentation page, docs/steps/<name>.md."""
     return os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "docs", "steps", f"{name}.md")
+
+
+def short_help(name):
+    """The first paragraph of algorithm `name`'s page (the summary under its heading), on one line."""
+    with open(help_page(name), encoding="utf-8") as f:
+        paragraphs = f.read().split("\n\n")
+    return " ".join(paragraphs[1].split())
 
 
 def _file_path(value):
@@ -59,15 +71,21 @@ def _file_path(value):
 
 
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
-    """Subclasses set NAME, DISPLAY_NAME, GROUP, GROUP_ID, a short HELP (a few sentences; the whole story is
-    on the step's page, docs/steps/<NAME>.md, reached by helpUrl) and implement `execute`: read the
-    parameters, call the step's one engine entry point, load its outputs."""
+    """Subclasses set NAME, DISPLAY_NAME, GROUP_ID (a key of GROUPS), KEYS and implement `execute`: read
+    the parameters, call the step's one engine entry point, load its outputs. The help is the step's page,
+    docs/steps/<NAME>.md: its first paragraph is the short help, helpUrl opens the whole page."""
 
     NAME = ""
     DISPLAY_NAME = ""
-    GROUP = ""
     GROUP_ID = ""
-    HELP = ""
+    #: the parameter and output keys, separated by spaces; each becomes a class constant holding its own name
+    #: (`self.BLOCK == "BLOCK"`), the names Processing, models and qgis_process use
+    KEYS = ""
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        for key in cls.KEYS.split():
+            setattr(cls, key, key)
 
     def createInstance(self):
         return type(self)()
@@ -83,13 +101,13 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         return self.tr(self.DISPLAY_NAME)
 
     def group(self):
-        return self.tr(self.GROUP)
+        return self.tr(GROUPS[self.GROUP_ID])
 
     def groupId(self):
         return self.GROUP_ID
 
     def shortHelpString(self):
-        return self.tr(self.HELP)
+        return self.tr(short_help(self.NAME))
 
     def helpUrl(self):
         """The step's page in the repository's docs (docs/steps/<name>.md), shipped with the plugin."""
@@ -122,6 +140,11 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
     def icon(self):
         return QIcon(resource_path("icons", "pushbroom.svg"))
+
+    @staticmethod
+    def given(outputs):
+        """The outputs dict without the optional outputs that were not made (value None or empty)."""
+        return {key: value for key, value in outputs.items() if value is not None and value != ""}
 
     def check_destinations(self, parameters, context):
         """atomic.check_destination on every file or folder output that was given."""

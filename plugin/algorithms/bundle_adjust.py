@@ -29,20 +29,11 @@ MODEL_LABELS = {"polynomial": "Correction polynomials with autocalibration (Korn
 class BundleAdjust(PushbroomAlgorithm):
     NAME = "bundleadjust"
     DISPLAY_NAME = "Bundle adjustment"
-    GROUP = "Adjustment"
     GROUP_ID = "adjustment"
-    HELP = ("Adjusts the block's orientation from its control points and tie points (Kornus et al. 2006): "
-            "correction polynomials or Lagrange orientation images for SPOT images, an image-space bias for RPC "
-            "images. 'auto' chooses the free parameters by their significance; check points are intersected with "
-            "the adjusted models and compared with their ground coordinates. The adjusted models and residuals "
-            "are stored in the block, with an optional HTML report and residual-vector layer.")
 
-    BLOCK, FREE, MODEL, USE_TIE_POINTS = "BLOCK", "FREE", "MODEL", "USE_TIE_POINTS"
-    REMOVE_BLUNDERS, REFERENCE_DEM, REFERENCE_HEIGHTS = "REMOVE_BLUNDERS", "REFERENCE_DEM", "REFERENCE_HEIGHTS"
-    SIGMA_TIE, CRITICAL, MAX_ITERATIONS = "SIGMA_TIE", "CRITICAL", "MAX_ITERATIONS"
-    VARIANCE_COMPONENTS, SIGNIFICANCE, CONTROL_SERIES = "VARIANCE_COMPONENTS", "SIGNIFICANCE", "CONTROL_SERIES"
-    ORIENTATION_IMAGES, VECTOR_SCALE, PRIORS = "ORIENTATION_IMAGES", "VECTOR_SCALE", "PRIORS"
-    REFERENCE_DEM_NODATA, REPORT, RESIDUALS, SIGMA0 = "REFERENCE_DEM_NODATA", "REPORT", "RESIDUALS", "SIGMA0"
+    KEYS = ("BLOCK FREE MODEL USE_TIE_POINTS REMOVE_BLUNDERS REFERENCE_DEM REFERENCE_HEIGHTS SIGMA_TIE CRITICAL "
+            "MAX_ITERATIONS VARIANCE_COMPONENTS SIGNIFICANCE CONTROL_SERIES ORIENTATION_IMAGES VECTOR_SCALE "
+            "PRIORS REFERENCE_DEM_NODATA REPORT RESIDUALS SIGMA0")
 
     def initAlgorithm(self, config=None):
         d, tr = AdjustParams(), self.tr
@@ -106,10 +97,7 @@ class BundleAdjust(PushbroomAlgorithm):
                 control_series=self.CONTROL_SERIES, orientation_images=self.ORIENTATION_IMAGES,
                 vector_scale=self.VECTOR_SCALE, priors=self.PRIORS))
         result = adjust_block(path, params, feedback)
-        out = {self.BLOCK: path, self.SIGMA0: result.sigma0}
-        if result.report:
-            out[self.REPORT] = result.report
         if result.residual_vectors:
-            out[self.RESIDUALS] = result.residual_vectors
             load_styled(context, params.residual_vectors, "Residual vectors", self.RESIDUALS, "residual_vectors.qml")
-        return out
+        return self.given({self.BLOCK: path, self.SIGMA0: result.sigma0, self.REPORT: result.report,
+                           self.RESIDUALS: result.residual_vectors})

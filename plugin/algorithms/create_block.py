@@ -22,14 +22,9 @@ from .dem_nodata import nodata_parameter
 class CreateBlock(PushbroomAlgorithm):
     NAME = "createblock"
     DISPLAY_NAME = "Create block"
-    GROUP = "Block"
     GROUP_ID = "block"
-    HELP = ("Creates a block GeoPackage from images and their supplied orientation (SPOT 1-5 DIMAP, RPC, OSSIM "
-            ".geom). Each image's footprint is projected on the DEM or at the mean height and loaded as a polygon "
-            "layer. An existing block is only replaced when 'Overwrite' is checked.")
 
-    IMAGES, ORIENTATION, DEM, HEIGHT, OVERWRITE = "IMAGES", "ORIENTATION", "DEM", "HEIGHT", "OVERWRITE"
-    DEM_NODATA, OUTPUT, FOOTPRINTS = "DEM_NODATA", "OUTPUT", "FOOTPRINTS"
+    KEYS = "IMAGES ORIENTATION DEM HEIGHT OVERWRITE DEM_NODATA OUTPUT FOOTPRINTS"
 
     def initAlgorithm(self, config=None):
         d, tr = CreateParams(), self.tr

@@ -20,15 +20,9 @@ Number = QgsProcessingParameterNumber
 class FitRpc(PushbroomAlgorithm):
     NAME = "fitrpc"
     DISPLAY_NAME = "Fit RPC"
-    GROUP = "Adjustment"
     GROUP_ID = "adjustment"
-    HELP = ("Fits rational polynomial coefficients (RPC00B) to the sensor model the block holds for each image, "
-            "supplied or adjusted, over a terrain-independent cube of image points and heights (Kornus et al. "
-            "2006). The RPC is written as an _RPC.TXT file beside each image raster, or into an output folder; "
-            "the report gives the fit's errors in pixels.")
 
-    BLOCK, IMAGE, MIN_HEIGHT, MAX_HEIGHT, OVERWRITE = "BLOCK", "IMAGE", "MIN_HEIGHT", "MAX_HEIGHT", "OVERWRITE"
-    GRID, HEIGHT_LEVELS, OUTPUT_FOLDER, REPORT, FILES = "GRID", "HEIGHT_LEVELS", "OUTPUT_FOLDER", "REPORT", "FILES"
+    KEYS = "BLOCK IMAGE MIN_HEIGHT MAX_HEIGHT OVERWRITE GRID HEIGHT_LEVELS OUTPUT_FOLDER REPORT FILES"
 
     def initAlgorithm(self, config=None):
         d, tr = RpcParams(), self.tr
@@ -62,9 +56,5 @@ class FitRpc(PushbroomAlgorithm):
                                    max_height=self.MAX_HEIGHT, overwrite=self.OVERWRITE, grid=self.GRID,
                                    height_levels=self.HEIGHT_LEVELS))
         result = fit_block_rpcs(path, params, feedback)
-        out = {self.BLOCK: path, self.FILES: result.files}
-        if params.folder:
-            out[self.OUTPUT_FOLDER] = params.folder
-        if result.report:
-            out[self.REPORT] = result.report
-        return out
+        return self.given({self.BLOCK: path, self.FILES: result.files, self.OUTPUT_FOLDER: params.folder,
+                           self.REPORT: result.report})

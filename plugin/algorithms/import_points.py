@@ -30,17 +30,10 @@ MODE_LABELS = {"replace": "Replace the block's points",
 class ImportPoints(PushbroomAlgorithm):
     NAME = "importpoints"
     DISPLAY_NAME = "Import control and check points (CSV)"
-    GROUP = "Block"
     GROUP_ID = "block"
-    HELP = ("Imports control and check points and their image measurements from a CSV file into the block: "
-            "columns id, role, lon/lat or x/y, h, optional sigmas, and per image &lt;image&gt;_col, "
-            "&lt;image&gt;_row. Points that do not lie where the block's images are are refused unless kept on "
-            "purpose. The import replaces or merges with the block's points in one transaction.")
 
-    BLOCK, INPUT, CRS, HEIGHTS, ROLE = "BLOCK", "INPUT", "CRS", "HEIGHTS", "ROLE"
-    CHECK_IDS, MODE, SIGMA_E, SIGMA_N, SIGMA_H = "CHECK_IDS", "MODE", "SIGMA_E", "SIGMA_N", "SIGMA_H"
-    SIGMA_IMAGE, MEAS_SUFFIX, KEEP_IMPLAUSIBLE = "SIGMA_IMAGE", "MEAS_SUFFIX", "KEEP_IMPLAUSIBLE"
-    POINTS, CONTROL, CHECK, MEASUREMENTS = "POINTS", "CONTROL", "CHECK", "MEASUREMENTS"
+    KEYS = ("BLOCK INPUT CRS HEIGHTS ROLE CHECK_IDS MODE SIGMA_E SIGMA_N SIGMA_H SIGMA_IMAGE MEAS_SUFFIX "
+            "KEEP_IMPLAUSIBLE POINTS CONTROL CHECK MEASUREMENTS")
 
     def initAlgorithm(self, config=None):
         d, tr = ImportParams(), self.tr
@@ -94,13 +87,9 @@ class ImportPoints(PushbroomAlgorithm):
 class ExportPoints(PushbroomAlgorithm):
     NAME = "exportpoints"
     DISPLAY_NAME = "Export control and check points (CSV)"
-    GROUP = "Block"
     GROUP_ID = "block"
-    HELP = ("Writes the block's control and check points and their image measurements to a CSV file in the "
-            "format 'Import control and check points' reads (WGS 84 degrees, ellipsoidal heights, full "
-            "precision), so an export imports back exactly.")
 
-    BLOCK, OUTPUT = "BLOCK", "OUTPUT"
+    KEYS = "BLOCK OUTPUT"
 
     def initAlgorithm(self, config=None):
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, self.tr("Block"), extension="gpkg"))

@@ -22,26 +22,10 @@ DATUMS = (("ellipsoidal", "WGS 84 ellipsoidal height"), ("egm96", "EGM96 (orthom
 class InterpolateDem(PushbroomAlgorithm):
     NAME = "interpolatedem"
     DISPLAY_NAME = "Interpolate DEM (TIN)"
-    GROUP = "Surface"
     GROUP_ID = "surface"
-    HELP = ("A DEM from a point cloud (Kornus et al. 2006, 3.6): the Delaunay TIN of the points, cleared of "
-            "blunders and constrained by optional 3-D breaklines, interpolated linearly on a regular grid; "
-            "triangles longer than the maximum edge are left as gaps. Heights ellipsoidal or EGM96; an optional "
-            "precision raster. Output: tiled Float32 GeoTIFF, nodata -32767.")
 
-    INPUT = "INPUT"
-    BREAKLINES = "BREAKLINES"
-    CRS = "CRS"
-    CELL = "CELL"
-    DATUM = "DATUM"
-    INPUT_CRS = "INPUT_CRS"
-    MAX_EDGE = "MAX_EDGE"
-    BLUNDER_K = "BLUNDER_K"
-    ITERATIONS = "ITERATIONS"
-    OUTPUT = "OUTPUT"
-    PRECISION = "PRECISION"
-    POINTS = "POINTS"
-    REMOVED = "REMOVED"
+    KEYS = ("INPUT BREAKLINES CRS CELL DATUM INPUT_CRS MAX_EDGE BLUNDER_K ITERATIONS OUTPUT PRECISION POINTS "
+            "REMOVED")
 
     def initAlgorithm(self, config=None):
         d, tr = DemParams(), self.tr

@@ -24,21 +24,9 @@ KINDS = (("mass_points", "Mass points (pushbroom:matchpoints)"),
 class IntersectPoints(PushbroomAlgorithm):
     NAME = "intersectpoints"
     DISPLAY_NAME = "Intersect points (point cloud)"
-    GROUP = "Surface"
     GROUP_ID = "surface"
-    HELP = ("Object points of the block's mass or tie points by forward intersection with the block's current "
-            "sensor models (Kornus et al. 2006, 3.5.1), with their precision, written as a LAS/LAZ point cloud or a "
-            "GeoPackage point layer (z = WGS 84 ellipsoidal height). Points that cannot be intersected are left "
-            "out and counted in the log.")
 
-    BLOCK = "BLOCK"
-    POINTS = "POINTS"
-    CRS = "CRS"
-    SIGMA = "SIGMA"
-    MAX_ITERATIONS = "MAX_ITERATIONS"
-    OUTPUT = "OUTPUT"
-    LAYER = "LAYER"
-    COUNT = "COUNT"
+    KEYS = "BLOCK POINTS CRS SIGMA MAX_ITERATIONS OUTPUT LAYER COUNT"
 
     def initAlgorithm(self, config=None):
         d, tr = IntersectParams(), self.tr

@@ -30,39 +30,12 @@ STRATEGIES = (("region_growing", "Region growing (Otto & Chau; Kornus et al. 200
 class MatchPoints(PushbroomAlgorithm):
     NAME = "matchpoints"
     DISPLAY_NAME = "Match points (region growing)"
-    GROUP = "Matching"
     GROUP_ID = "matching"
-    HELP = ("Dense image points of the block's stereo pair or triplet, by region-growing least-squares matching in "
-            "the three combinations of Kornus et al. 2006 (refined by MPGC) or by the coarse-to-fine matcher of "
-            "Zhang & Gruen. The points are stored with the block, shown as a layer and counted per group. "
-            "Every parameter is explained on the step's help page.")
 
-    BLOCK = "BLOCK"
-    STRATEGY = "STRATEGY"
-    IMAGES = "IMAGES"
-    MIN_HEIGHT = "MIN_HEIGHT"
-    MAX_HEIGHT = "MAX_HEIGHT"
-    SEEDS = "SEEDS"
-    TEMPLATE = "TEMPLATE"
-    STEP = "STEP"
-    WIDE_TEMPLATE = "WIDE_TEMPLATE"
-    RHO_MIN = "RHO_MIN"
-    MAX_ELLIPSE = "MAX_ELLIPSE"
-    MAX_SHIFT = "MAX_SHIFT"
-    MAX_ITERATIONS = "MAX_ITERATIONS"
-    TILE = "TILE"
-    SIGMA_FACTOR = "SIGMA_FACTOR"
-    GROW_SECOND = "GROW_SECOND"
-    MPGC_REFINE = "MPGC_REFINE"
-    MPGC_SUPPORT = "MPGC_SUPPORT"
-    WORKERS = "WORKERS"
-    COARSE_TO_FINE_GRID = "COARSE_TO_FINE_GRID"
-    COARSE_TO_FINE_RHO_MIN = "COARSE_TO_FINE_RHO_MIN"
-    COARSE_TO_FINE_TILE = "COARSE_TO_FINE_TILE"
-    COARSE_TO_FINE_EDGE_POINTS = "COARSE_TO_FINE_EDGE_POINTS"
-    SUMMARY = "SUMMARY"
-    POINTS = "POINTS"
-    POINTS_FILE = "POINTS_FILE"
+    KEYS = ("BLOCK STRATEGY IMAGES MIN_HEIGHT MAX_HEIGHT SEEDS TEMPLATE STEP WIDE_TEMPLATE RHO_MIN MAX_ELLIPSE "
+            "MAX_SHIFT MAX_ITERATIONS TILE SIGMA_FACTOR GROW_SECOND MPGC_REFINE MPGC_SUPPORT WORKERS "
+            "COARSE_TO_FINE_GRID COARSE_TO_FINE_RHO_MIN COARSE_TO_FINE_TILE COARSE_TO_FINE_EDGE_POINTS SUMMARY "
+            "POINTS POINTS_FILE")
 
     def initAlgorithm(self, config=None):
         d, c, m = GrowParams(), CoarseToFineParams(), MatchParams()

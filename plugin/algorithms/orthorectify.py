@@ -26,29 +26,10 @@ DEM_HEIGHTS = ("ellipsoidal (WGS 84)", "EGM96")
 class Orthorectify(PushbroomAlgorithm):
     NAME = "orthorectify"
     DISPLAY_NAME = "Orthorectify image"
-    GROUP = "Surface"
     GROUP_ID = "surface"
-    HELP = ("Orthoimage of one image by the indirect method (Hofmann et al., 4.1) on a DEM, with the block's "
-            "(adjusted) model of the named image or the image's own orientation. Ground-to-image runs on a coarse "
-            "grid with a stated interpolation error bound; cells outside the image (or occluded, when asked) are "
-            "nodata. Output: tiled GeoTIFF of the image's data type with overviews.")
 
-    BLOCK = "BLOCK"
-    IMAGE_NAME = "IMAGE_NAME"
-    IMAGE = "IMAGE"
-    ORIENTATION = "ORIENTATION"
-    DEM = "DEM"
-    DEM_HEIGHTS = "DEM_HEIGHTS"
-    CRS = "CRS"
-    CELL_SIZE = "CELL_SIZE"
-    RESAMPLING = "RESAMPLING"
-    OCCLUSION = "OCCLUSION"
-    MAX_ERROR = "MAX_ERROR"
-    THREADS = "THREADS"
-    DEM_NODATA = "DEM_NODATA"
-    OUTPUT = "OUTPUT"
-    BOUND = "BOUND"
-    CELLS = "CELLS"
+    KEYS = ("BLOCK IMAGE_NAME IMAGE ORIENTATION DEM DEM_HEIGHTS CRS CELL_SIZE RESAMPLING OCCLUSION MAX_ERROR "
+            "THREADS DEM_NODATA OUTPUT BOUND CELLS")
 
     def initAlgorithm(self, config=None):
         d, tr = OrthoParams(), self.tr

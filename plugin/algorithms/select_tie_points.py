@@ -18,14 +18,9 @@ Number = QgsProcessingParameterNumber
 class SelectTiePoints(PushbroomAlgorithm):
     NAME = "selecttiepoints"
     DISPLAY_NAME = "Select tie points"
-    GROUP = "Matching"
     GROUP_ID = "matching"
-    HELP = ("Selects tie points for the bundle adjustment from the block's mass points (Kornus et al. 2006): "
-            "one point per grid cell of the reference image, the best correlated of the most reliable point "
-            "group present. The tie points are stored with the block and loaded as the point layer 'tie_points'.")
 
-    BLOCK, CELL, MIN_GROUP = "BLOCK", "CELL", "MIN_GROUP"
-    TIE_POINTS, TIE_POINTS_FILE = "TIE_POINTS", "TIE_POINTS_FILE"
+    KEYS = "BLOCK CELL MIN_GROUP TIE_POINTS TIE_POINTS_FILE"
 
     def initAlgorithm(self, config=None):
         d, tr = TieParams(), self.tr

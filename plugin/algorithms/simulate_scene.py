@@ -27,18 +27,10 @@ Number = QgsProcessingParameterNumber
 class SimulateScene(PushbroomAlgorithm):
     NAME = "simulatescene"
     DISPLAY_NAME = "Simulate scene"
-    GROUP = "Simulation"
     GROUP_ID = "simulation"
-    HELP = ("Simulates a block of SPOT level-1A products (IMAGERY.TIF + METADATA.DIM) over a real DEM with exact "
-            "truth; the supplied orientation is perturbed by known errors. The folder also holds the true DSM, "
-            "DTM, land-cover classes, orthoimage, control/check point candidates (points.csv) and the exact "
-            "orientation. Same seed, same bytes.")
 
-    CONFIGURATION, SIZE_KM, SEED, BITS, POINTS = "CONFIGURATION", "SIZE_KM", "SEED", "BITS", "POINTS"
-    BLUNDERS, NOISE, FRACTAL, SURFACE_OBJECTS = "BLUNDERS", "NOISE", "FRACTAL", "SURFACE_OBJECTS"
-    MEASUREMENT_SIGMA, MARKERS, ERROR_SCALE, GRID_M = "MEASUREMENT_SIGMA", "MARKERS", "ERROR_SCALE", "GRID_M"
-    LOOK_TABLE, ORTHOIMAGE, OUTPUT = "LOOK_TABLE", "ORTHOIMAGE", "OUTPUT"
-    IMAGES, DSM, DTM, CLASSES, TRUTH, FOLDER = "IMAGES", "DSM", "DTM", "CLASSES", "TRUTH", "FOLDER"
+    KEYS = ("CONFIGURATION SIZE_KM SEED BITS POINTS BLUNDERS NOISE FRACTAL SURFACE_OBJECTS MEASUREMENT_SIGMA "
+            "MARKERS ERROR_SCALE GRID_M LOOK_TABLE ORTHOIMAGE OUTPUT IMAGES DSM DTM CLASSES TRUTH FOLDER")
 
     def initAlgorithm(self, config=None):
         d, tr = SceneConfig(), self.tr

@@ -11,7 +11,7 @@ from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching import lsm, mpgc
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams, LsmParams
-from pushbroom.algorithms.matching.region_growing import adapt_resolution
+from pushbroom.algorithms.matching.resolution import adapt_resolution
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from tests.benchmarks.benchutil import best_time, thread_counts
 

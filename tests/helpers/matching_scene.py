@@ -24,7 +24,8 @@ from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.imagery import Image, Smoothed
 from pushbroom.algorithms.matching.mpgc_kernels import SUPPORT_BOX
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.region_growing import Lattice, adapt_resolution
+from pushbroom.algorithms.matching.region_growing import Lattice
+from pushbroom.algorithms.matching.resolution import adapt_resolution
 from pushbroom.algorithms.matching.seeds import local_affine
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
 
@@ -126,7 +127,7 @@ class Scene:
         image noise alone, as if the model fitted exactly; what any least-squares matcher with
         this template can report there at best. `noise_free`: simulate_scene paths of the same
         scene with noise 0 (the same rendering without the noise draw), whose images give the
-        Jacobian. The pair is seen as region growing sees it (region_growing.adapt_resolution
+        Jacobian. The pair is seen as region growing sees it (resolution.adapt_resolution
         low-passes the finer image, here image 1); the Jacobian J is LSM's (8 parameters, template
         gradients through the models' affine A). With Q = (J'J)^-1 the covariance is Q (M1 + M2) Q:
         image 1's raw white noise sigma^2 (noise_dn^2 + 1/12 quantisation, in DN) through the

@@ -28,13 +28,6 @@ TRANSFER_TOLERANCE = 0.3
 
 
 @pytest.fixture
-def block_path(marked_block, tmp_path):
-    path = tmp_path / "block.gpkg"
-    shutil.copy(marked_block, path)
-    return str(path)
-
-
-@pytest.fixture
 def open_window(qtbot, marked_scene):
     """open_window(block, **options): a shown 1280 x 800 MeasurementWindow (reference: the scene's
     orthoimage, DEM: its DSM, unless options say otherwise); its images are closed afterwards."""

@@ -492,11 +492,11 @@ def spot(small_matching_scene):
 
 
 def spot_images(paths, models, height_range):
-    """HRG low-passed to the HRS footprint (region_growing.adapt_resolution, sensor PSFs), HRS1, HRS2
+    """HRG low-passed to the HRS footprint (resolution.adapt_resolution, sensor PSFs), HRS1, HRS2
     (made in the test: GDAL datasets must not outlive QGIS)."""
     from pushbroom.algorithms.matching.imagery import Image
     from pushbroom.algorithms.matching.params import GrowParams
-    from pushbroom.algorithms.matching.region_growing import adapt_resolution
+    from pushbroom.algorithms.matching.resolution import adapt_resolution
     ref, hrs1 = adapt_resolution(Image(paths[0]), Image(paths[1]), models[0], models[1], GrowParams(), height_range)
     return [ref, hrs1, Image(paths[2])]
 

@@ -11,8 +11,9 @@ from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.matching.imagery import Image, Smoothed, Window
 from pushbroom.algorithms.matching.lsm import LSM_OUT, lsm_point
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.region_growing import Lattice, adapt_resolution, match_pair, transfer_points
+from pushbroom.algorithms.matching.region_growing import Lattice, match_pair, transfer_points
 from pushbroom.algorithms.matching.region_growing_kernels import _DC, _DR, _quantise, grow_kernel
+from pushbroom.algorithms.matching.resolution import adapt_resolution
 from tests.helpers.feedback import Feedback
 from tests.helpers.matching_scene import DISCONTINUOUS, LOW_CONTRAST_DN, SINGLE_SURFACE
 
@@ -231,7 +232,7 @@ def test_adapt_resolution_low_passes_the_finer_image(scene):
     HRS1 stays and HRG (now image 2) is low-passed. psf "pixel" (square detectors of psf_sigma
     0.5 px): 0.81 / 0.8 px. psf "off" or "pixel" with psf_sigma 0 turns it off; a model without an
     instrument (RPC) falls back to "pixel"."""
-    from pushbroom.algorithms.matching.region_growing import sensor_psf
+    from pushbroom.algorithms.matching.resolution import sensor_psf
     args = (Image(str(scene.image1)), Image(str(scene.image2)))
     hr = scene.height_range
     assert np.allclose(np.diag(sensor_psf(scene.model2)), [1 / 12 + 0.16, 5 / 12 + 0.64])

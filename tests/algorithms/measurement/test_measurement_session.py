@@ -46,13 +46,6 @@ class History:
 
 
 @pytest.fixture
-def block_path(marked_block, tmp_path):
-    path = tmp_path / "block.gpkg"
-    shutil.copy(marked_block, path)
-    return str(path)
-
-
-@pytest.fixture
 def dem(marked_scene):
     return Dem.from_file(marked_scene["dsm"])
 
