@@ -29,3 +29,14 @@ class FlatModel:
 
     def image_to_ground(self, col, row, h):
         return -84.2 + np.asarray(col) * 1e-5, 36.6 - np.asarray(row) * 1e-5
+
+
+def two_ray_points(n, rng=None):
+    """n group-1 points, each measured on images 1 and 2: all at (500, 500) px, or, with a numpy
+    Generator `rng`, spread uniformly over 1000 x 1000 px."""
+    p = np.zeros(n, POINT_DTYPE)
+    p["id"], p["group"] = np.arange(n), 1
+    o = np.zeros(2 * n, OBS_DTYPE)
+    o["point_id"], o["image_id"] = np.repeat(p["id"], 2), np.tile([1, 2], n)
+    o["col"], o["row"] = (500.0, 500.0) if rng is None else rng.uniform(0, 1000, (2, 2 * n))
+    return MultiPoints(p, o)

@@ -30,7 +30,7 @@ def grab(qtbot, window, name):
     return path
 
 
-def test_screenshots(qtbot, marked_block, marked_scene, tmp_path):
+def test_screenshots(qtbot, pushbroom_provider, marked_block, marked_scene, tmp_path):
     path = tmp_path / "block.gpkg"
     shutil.copy(marked_block, path)
     window = MeasurementWindow(str(path), reference_layers=[QgsRasterLayer(marked_scene["orthoimage"], "ortho")],

@@ -2,13 +2,13 @@
 point layer, the point file and the counts are the old ones or the new ones, never a mix; generations
 count every change of the control points, also one made with plain SQL as QGIS's attribute table would."""
 import csv
+import pathlib
 import shutil
 import sqlite3
 import subprocess
 import sys
 import time
 
-import numpy as np
 import pytest
 from osgeo import ogr
 
@@ -16,47 +16,21 @@ from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.block import Block, schema
 from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import StorageError
-from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
+from tests.helpers.points_synthetic import FlatModel, two_ray_points
 
+REPO = pathlib.Path(__file__).resolve().parents[3]
 STORE = """
 import sys
 import numpy as np
 from pushbroom.algorithms.block import Block
-from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
-
-class FlatModel:
-    size = (1000, 1000)
-    def image_to_ground(self, col, row, h):
-        return -84.2 + np.asarray(col) * 1e-5, 36.6 - np.asarray(row) * 1e-5
-
-n = int(sys.argv[2])
-p = np.zeros(n, POINT_DTYPE)
-p["id"], p["group"] = np.arange(n), 1
-o = np.zeros(2 * n, OBS_DTYPE)
-o["point_id"], o["image_id"] = np.repeat(p["id"], 2), np.tile([1, 2], n)
-o["col"], o["row"] = np.random.default_rng(0).uniform(0, 1000, (2, 2 * n))
+from tests.helpers.points_synthetic import FlatModel, two_ray_points
 sys.stdout.write("storing\\n")
 sys.stdout.flush()
-Block(sys.argv[1]).save_points(MultiPoints(p, o), display=(FlatModel(), 1, 0.0))
+points = two_ray_points(int(sys.argv[2]), np.random.default_rng(0))
+Block(sys.argv[1]).save_points(points, display=(FlatModel(), 1, 0.0))
 sys.stdout.write("stored\\n")
 sys.stdout.flush()
 """
-
-
-class FlatModel:
-    size = (1000, 1000)
-
-    def image_to_ground(self, col, row, h):
-        return -84.2 + np.asarray(col) * 1e-5, 36.6 - np.asarray(row) * 1e-5
-
-
-def points(n):
-    p = np.zeros(n, POINT_DTYPE)
-    p["id"], p["group"] = np.arange(n), 1
-    o = np.zeros(2 * n, OBS_DTYPE)
-    o["point_id"], o["image_id"] = np.repeat(p["id"], 2), np.tile([1, 2], n)
-    o["col"], o["row"] = 500.0, 500.0
-    return MultiPoints(p, o)
 
 
 def tables(path):
@@ -73,12 +47,12 @@ def layer_rows(path, name="mass_points"):
 def blk(tmp_path):
     path = tmp_path / "b.gpkg"
     create_schema(path)
-    Block(path).save_points(points(1000), display=(FlatModel(), 1, 0.0))
+    Block(path).save_points(two_ray_points(1000), display=(FlatModel(), 1, 0.0))
     return str(path)
 
 
 def test_a_store_killed_while_it_builds_the_layer_leaves_the_old_points(blk, tmp_path):
-    proc = subprocess.Popen([sys.executable, "-c", STORE, blk, "1500000"], stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-c", STORE, blk, "1500000"], stdout=subprocess.PIPE, text=True, cwd=REPO)
     assert proc.stdout.readline().strip() == "storing"
     deadline = time.time() + 300
     while not any(t.startswith("mass_points__staged_") for t in tables(blk)):   # the new layer is being built
@@ -93,7 +67,7 @@ def test_a_store_killed_while_it_builds_the_layer_leaves_the_old_points(blk, tmp
     leftovers = sorted(f.name for f in tmp_path.glob("b.mass_points.*.npz"))
     assert len(leftovers) == 2                          # the killed store's file, not referenced
     # the next store removes what the killed one left and switches to its own points
-    Block(blk).save_points(points(7), display=(FlatModel(), 1, 0.0))
+    Block(blk).save_points(two_ray_points(7), display=(FlatModel(), 1, 0.0))
     assert not any(t.startswith("mass_points__staged_") for t in tables(blk))
     assert [f.name for f in tmp_path.glob("b.mass_points.*.npz")] == [Block(blk).info()["mass_points"]]
     assert len(Block(blk).points()) == 7 == layer_rows(blk)
@@ -105,7 +79,7 @@ def test_a_store_waits_for_another_writer_then_says_so(blk, monkeypatch):
     holder.execute("BEGIN IMMEDIATE")
     try:
         with pytest.raises(StorageError, match="another program keeps it locked .* nothing was stored"):
-            Block(blk).save_points(points(5), display=(FlatModel(), 1, 0.0))
+            Block(blk).save_points(two_ray_points(5), display=(FlatModel(), 1, 0.0))
     finally:
         holder.execute("ROLLBACK")
         holder.close()
