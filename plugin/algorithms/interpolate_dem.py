@@ -55,13 +55,11 @@ class InterpolateDem(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputNumber(self.REMOVED, tr("Blunders removed")))
 
     def execute(self, parameters, context, feedback):
-        params = DemParams(cell=self.parameterAsDouble(parameters, self.CELL, context),
-                           crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
-                           input_crs=self.parameterAsCrsDefinition(parameters, self.INPUT_CRS, context),
-                           datum=DATUMS[self.parameterAsEnum(parameters, self.DATUM, context)][0],
-                           max_edge=self.parameterAsOptionalDouble(parameters, self.MAX_EDGE, context),
-                           k=self.parameterAsDouble(parameters, self.BLUNDER_K, context),
-                           iterations=self.parameterAsInt(parameters, self.ITERATIONS, context))
+        values = self.parameterValues(parameters, context, cell=self.CELL, datum=self.DATUM, max_edge=self.MAX_EDGE,
+                                      k=self.BLUNDER_K, iterations=self.ITERATIONS)
+        values["datum"] = DATUMS[values["datum"]][0]
+        params = DemParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
+                           input_crs=self.parameterAsCrsDefinition(parameters, self.INPUT_CRS, context), **values)
         breaklines = None
         if parameters.get(self.BREAKLINES):
             path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
@@ -72,7 +70,5 @@ class InterpolateDem(PushbroomAlgorithm):
         result = dem_from_point_cloud(self.parameterAsFile(parameters, self.INPUT, context), out, params, breaklines,
                                       precision or None, feedback)
         style_on_completion(context, out, "dem.qml")
-        results = {self.OUTPUT: out, self.POINTS: result.points, self.REMOVED: sum(result.removed)}
-        if precision:
-            results[self.PRECISION] = precision
-        return results
+        return self.given({self.OUTPUT: out, self.POINTS: result.points, self.REMOVED: sum(result.removed),
+                           self.PRECISION: precision})

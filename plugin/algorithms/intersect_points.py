@@ -47,14 +47,12 @@ class IntersectPoints(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputNumber(self.COUNT, tr("Points written")))
 
     def execute(self, parameters, context, feedback):
-        params = IntersectParams(kind=KINDS[self.parameterAsEnum(parameters, self.POINTS, context)][0],
-                                 crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
-                                 sigma=self.parameterAsDouble(parameters, self.SIGMA, context),
-                                 max_iterations=self.parameterAsInt(parameters, self.MAX_ITERATIONS, context))
+        values = self.parameterValues(parameters, context, kind=self.POINTS, sigma=self.SIGMA,
+                                      max_iterations=self.MAX_ITERATIONS)
+        values["kind"] = KINDS[values["kind"]][0]
+        params = IntersectParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context), **values)
         result = intersect_block_points(self.parameterAsFile(parameters, self.BLOCK, context),
                                         self.parameterAsFileOutput(parameters, self.OUTPUT, context), params, feedback)
-        results = {self.OUTPUT: result.path, self.COUNT: result.count}
         if result.layer:
-            results[self.LAYER] = result.layer
             load_styled(context, result.layer, self.tr("Object points"), self.LAYER, "points_by_group.qml")
-        return results
+        return self.given({self.OUTPUT: result.path, self.COUNT: result.count, self.LAYER: result.layer})

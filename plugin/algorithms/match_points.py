@@ -92,22 +92,19 @@ class MatchPoints(PushbroomAlgorithm):
 
     def match_params(self, parameters, context):
         """MatchParams of the parameters."""
-        def get(kind, key):
-            return getattr(self, f"parameterAs{kind}")(parameters, key, context)
-        grow = GrowParams(template=get("Int", self.TEMPLATE), wide_template=get("Int", self.WIDE_TEMPLATE),
-                          step=get("Int", self.STEP), rho_min=get("Double", self.RHO_MIN),
-                          max_ellipse=get("Double", self.MAX_ELLIPSE), max_shift=get("Double", self.MAX_SHIFT),
-                          max_iterations=get("Int", self.MAX_ITERATIONS), tile=get("Int", self.TILE),
-                          support_weights=get("Bool", self.MPGC_SUPPORT))
-        coarse_to_fine = CoarseToFineParams(
-            grid=get("Int", self.COARSE_TO_FINE_GRID), rho_min=get("Double", self.COARSE_TO_FINE_RHO_MIN),
-            tile=get("Int", self.COARSE_TO_FINE_TILE), edge_points=get("Bool", self.COARSE_TO_FINE_EDGE_POINTS))
-        return MatchParams(
-            images=get("String", self.IMAGES), min_height=get("OptionalDouble", self.MIN_HEIGHT),
-            max_height=get("OptionalDouble", self.MAX_HEIGHT), strategy=STRATEGIES[get("Enum", self.STRATEGY)][0],
-            seeds=SEED_SOURCES[get("Enum", self.SEEDS)][0], grow=grow, coarse_to_fine=coarse_to_fine,
-            sigma_factor=get("Double", self.SIGMA_FACTOR), grow_second=get("Bool", self.GROW_SECOND),
-            refine=get("Bool", self.MPGC_REFINE), workers=get("Int", self.WORKERS))
+        grow = GrowParams(**self.parameterValues(
+            parameters, context, template=self.TEMPLATE, wide_template=self.WIDE_TEMPLATE, step=self.STEP,
+            rho_min=self.RHO_MIN, max_ellipse=self.MAX_ELLIPSE, max_shift=self.MAX_SHIFT,
+            max_iterations=self.MAX_ITERATIONS, tile=self.TILE, support_weights=self.MPGC_SUPPORT))
+        coarse_to_fine = CoarseToFineParams(**self.parameterValues(
+            parameters, context, grid=self.COARSE_TO_FINE_GRID, rho_min=self.COARSE_TO_FINE_RHO_MIN,
+            tile=self.COARSE_TO_FINE_TILE, edge_points=self.COARSE_TO_FINE_EDGE_POINTS))
+        values = self.parameterValues(
+            parameters, context, images=self.IMAGES, min_height=self.MIN_HEIGHT, max_height=self.MAX_HEIGHT,
+            strategy=self.STRATEGY, seeds=self.SEEDS, sigma_factor=self.SIGMA_FACTOR, grow_second=self.GROW_SECOND,
+            refine=self.MPGC_REFINE, workers=self.WORKERS)
+        values.update(strategy=STRATEGIES[values["strategy"]][0], seeds=SEED_SOURCES[values["seeds"]][0])
+        return MatchParams(grow=grow, coarse_to_fine=coarse_to_fine, **values)
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, self.BLOCK, context)

@@ -60,14 +60,11 @@ class Orthorectify(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputNumber(self.CELLS, tr("Cells with image values")))
 
     def execute(self, parameters, context, feedback):
-        params = OrthoParams(dem_heights=VERTICAL[self.parameterAsEnum(parameters, self.DEM_HEIGHTS, context)],
-                             dem_nodata=self.parameterAsOptionalDouble(parameters, self.DEM_NODATA, context),
-                             crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
-                             cell_size=self.parameterAsOptionalDouble(parameters, self.CELL_SIZE, context),
-                             resampling=RESAMPLING[self.parameterAsEnum(parameters, self.RESAMPLING, context)],
-                             occlusion=self.parameterAsBool(parameters, self.OCCLUSION, context),
-                             max_error=self.parameterAsDouble(parameters, self.MAX_ERROR, context),
-                             threads=self.parameterAsInt(parameters, self.THREADS, context))
+        values = self.parameterValues(parameters, context, dem_heights=self.DEM_HEIGHTS, dem_nodata=self.DEM_NODATA,
+                                      cell_size=self.CELL_SIZE, resampling=self.RESAMPLING, occlusion=self.OCCLUSION,
+                                      max_error=self.MAX_ERROR, threads=self.THREADS)
+        values.update(dem_heights=VERTICAL[values["dem_heights"]], resampling=RESAMPLING[values["resampling"]])
+        params = OrthoParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context), **values)
         image = self.parameterAsRasterLayer(parameters, self.IMAGE, context)
         output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
         result = orthorectify_image(
