@@ -301,7 +301,7 @@ def check_plausible(blk, observations, degrees_as_projected=None, keep=False, fe
     """Refuse (InputError naming them) the points that do not lie where the images of the block `blk`
     (block.Block) are (point_plausibility.py), or with `keep` only warn about them through `feedback`."""
     images = blk.images()
-    models = {r["id"]: blk.model(r["id"]) for r in images}
+    models = blk.models()
     heights = list(blk.height_range() or ()) + observations.points["h"].tolist()
     footprints = point_plausibility.Footprints(models, {r["id"]: r["name"] for r in images}, heights)
     lines = point_plausibility.implausible_points(observations, footprints, degrees_as_projected)

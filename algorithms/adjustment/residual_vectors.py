@@ -14,9 +14,14 @@ residual|:
   over a point's k rays) and w = v / (sigma sqrt(r)).
 
 A point is flagged where any of its measurements has |w| > critical (Baarda's data snooping)."""
-import numpy as np
+import os
 
+import numpy as np
+from osgeo import ogr
+
+from ..atomic import atomic_path, closing
 from ..crs import srs, transform, wgs84
+from ..errors import InputError
 from ..geodesy import metres_per_degree, offset_enu, utm_epsg
 from .bundle import CRITICAL_W
 
@@ -119,12 +124,6 @@ _DRIVERS = {".gpkg": "GPKG", ".shp": "ESRI Shapefile", ".geojson": "GeoJSON"}
 def write_residual_vectors(path, vectors, crs, scale):
     """Write the residual vectors (`residual_vectors`' rows) as a line layer in `crs` with the ATTRIBUTES and
     the map `scale`, to a GeoPackage, shapefile or GeoJSON file by the extension of `path` (atomically)."""
-    import os
-
-    from osgeo import ogr
-
-    from ..atomic import atomic_path, closing
-    from ..errors import InputError
     driver = _DRIVERS.get(os.path.splitext(os.fspath(path))[1].lower())
     if driver is None:
         raise InputError(f"write the residual vectors to a {', '.join(_DRIVERS)} file, not {path}")

@@ -36,8 +36,6 @@ class Block:
     """The block GeoPackage `path` (.gpkg) and its point files. Every method opens the block anew (no
     connection is kept); each write is one SQLite transaction (schema.py)."""
 
-    #: the kinds of multi-image points a block stores (points.py)
-    POINT_KINDS = points.KINDS
     #: the ways to store control points: replace the stored ones, or merge into them (control_points.py)
     IMPORT_MODES = control_points.MODES
     #: the layer of the control/check points
@@ -98,7 +96,7 @@ class Block:
 
     def layer_source(self, layer_name):
         """The OGR source string of the block's layer `layer_name`."""
-        return f"{self.path}|layername={layer_name}"
+        return points.layer_source(self.path, layer_name)
 
     # -- images and sensor models ----------------------------------------------------------------
 
@@ -110,9 +108,14 @@ class Block:
         """{image name: image id}, in block order."""
         return images.image_ids(self.path)
 
+    def models(self, image_ids=None, supplied=False):
+        """{image id: stored sensor model} of `image_ids` (default: all, in block order), read at once; with
+        `supplied`, the ones the block was created with."""
+        return images.load_models(self.path, image_ids, supplied)
+
     def model(self, image_id, supplied=False):
-        """The stored sensor model of image `image_id`; with `supplied`, the one the block was created with."""
-        return images.load_model(self.path, image_id, supplied)
+        """The stored sensor model of image `image_id` (`models`)."""
+        return self.models([image_id], supplied)[image_id]
 
     def save_models(self, models, step="adjust", message="", supplied=False):
         """`Transaction.write_models` in a transaction of its own."""
@@ -125,7 +128,7 @@ class Block:
     # -- multi-image points ----------------------------------------------------------------------
 
     def points(self, kind="mass_points"):
-        """The MultiPoints of `kind` (POINT_KINDS) stored with the block."""
+        """The MultiPoints of `kind` (points.KINDS) stored with the block."""
         return points.load_points(self.path, kind)
 
     def save_points(self, multi, kind="mass_points", display=None, feedback=None):

@@ -104,7 +104,7 @@ def save_control_points(block_path, observations, mode="replace", feedback=None,
     (mode "replace") or updating them (mode "merge", see `merge`), in one SQLite transaction:
     on any error or a cancel the block keeps its earlier points. `names`: {image name: id} of the
     block (read from it if not given). Returns what is stored. A block locked by another writer is
-    waited for (schema.transaction); an OGR/SQLite failure is an InputError."""
+    waited for (schema.transaction); an OGR/SQLite failure is a StorageError."""
     if mode not in MODES:
         raise InputError(f"the import mode must be one of {', '.join(MODES)}, not {mode!r}")
     observations.check()

@@ -126,18 +126,24 @@ def image_ids(path):
     return {r["name"]: r["id"] for r in read_images(path)}
 
 
-def load_model(path, image_id, supplied=False):
-    """The sensor model stored in the block for image `image_id`; with `supplied`, the model the block was
-    created with (module docstring; the stored one in blocks made before the block kept it)."""
+def load_models(path, image_ids=None, supplied=False):
+    """{image id: sensor model} stored in the block for `image_ids` (default: every image, in block order),
+    read in one pass; with `supplied`, the models the block was created with (module docstring; the
+    stored ones in blocks made before the block kept them)."""
     ds = open_block(path)
     layer = ds.GetLayerByName("images")
-    feat = layer.GetFeature(int(image_id))
-    if feat is None:
-        raise InputError(f"block {path} has no image with id {image_id}")
-    key = "model"
-    if supplied and layer.GetLayerDefn().GetFieldIndex(SUPPLIED) >= 0 and feat[SUPPLIED]:
-        key = SUPPLIED
-    return model_from_dict(json.loads(feat[key]), f"{key.replace('_', ' ')} of image {image_id} in {path}")
+    keeps_supplied = layer.GetLayerDefn().GetFieldIndex(SUPPLIED) >= 0
+    if image_ids is None:
+        image_ids = [feat.GetFID() for feat in layer]
+    models = {}
+    for image_id in image_ids:
+        feat = layer.GetFeature(int(image_id))
+        if feat is None:
+            raise InputError(f"block {path} has no image with id {image_id}")
+        key = SUPPLIED if supplied and keeps_supplied and feat[SUPPLIED] else "model"
+        models[image_id] = model_from_dict(json.loads(feat[key]),
+                                           f"{key.replace('_', ' ')} of image {image_id} in {path}")
+    return models
 
 
 def write_models(ds, models, step="adjust", message="", supplied=False):

@@ -1,22 +1,16 @@
-"""Residuals of the last bundle adjustment, kept in the block for the measurement window (issue 6).
+"""Residuals of the last bundle adjustment, kept in the block for the measurement window.
 
 Written by `write_residuals` inside the transaction that stores the adjusted models
-(pushbroom:bundleadjust), replacing what an earlier adjustment stored; the rows come from
-adjustment/residual_rows.py (`residual_rows`):
+(pushbroom:bundleadjust), replacing what an earlier adjustment stored; the rows and what they mean
+are adjustment/residual_rows.py's:
 
 - table `measurement_residuals` (point_name, image_id, role, vx, vy, wx, wy): per image measurement
-  of a control or check point the residual v = computed - measured (px; x = col, y = row) and the
-  normalised residual w = v / (sigma sqrt(r)). Control points: Adjustment.residuals / .normalised;
-  check points: the residuals of their forward intersection with the adjusted models (K 3.5.1,
-  adjustment/residual_vectors.intersection_residuals: reprojection of the intersected point, with
-  the redundancy numbers of that intersection);
-- table `point_residuals` (point_name, role, dE, dN, dH, image_rms_px): ground residuals (m;
-  control: adjusted - observed, check: intersected - reference) and the RMS of the point's 2k
-  image residual coordinates (residual_vectors.per_point);
+  of a control or check point, its residual (px) and normalised residual;
+- table `point_residuals` (point_name, role, dE, dN, dH, image_rms_px): per point, its ground
+  residuals (m) and the RMS of its image residual coordinates;
 - field `residual_px` of the `control_points` layer: that RMS (NULL for points without residuals,
   e.g. measured in fewer than two images or added after the adjustment), for styling the map layer.
 
-Measurements the adjustment removed as blunders, points it left out and tie points have no rows.
 `load_residuals` returns the residuals of the points the block holds now: those of points removed
 or renamed since are absent (a point created later under an old name shows the old residuals
 until the next adjustment)."""

@@ -1,10 +1,10 @@
 """Coarse-to-fine multi-primitive matching with MPGC, the second dense-matching strategy (Zhang &
 Gruen): the orchestration. The work of one pyramid level is in coarse_to_fine_level.py.
 
-0. Tiles: a reference image larger than `tile` px is cut into tiles (`_tiles`), each matched with
-   TILE_MARGIN px of context in windows of the adapted images (the search windows from the
-   models' prediction over the height range), each keeping the points of its core; the
-   orientation bias is estimated per tile. Memory is bounded by the tile size (MAX_PIXELS).
+0. Tiles: a reference image larger than `tile` px is cut into tiles (tiling.tile_grid), each
+   matched with TILE_MARGIN px of context in windows of the adapted images (the search windows:
+   pair_geometry.search_box), each keeping the points of its core; the orientation bias is
+   estimated per tile. Memory is bounded by the tile size (MAX_PIXELS).
 1. Preprocessing (preprocess.py): the reference (nadir) is low-passed to the search images'
    footprint (resolution.adapt_resolution), every image Wallis-filtered and reduced to a
    factor-3 pyramid; the number of levels brings the parallax range of the block's height range
@@ -35,14 +35,15 @@ import numpy as np
 
 from .. import progress
 from ..errors import InputError
+from ..tiling import tile_grid
 from . import preprocess
 from .coarse_to_fine_level import FACTOR, ShiftedModel, TinGuide, edge_breaklines, match_level, match_level_edges
 from .edges import canny, link
 from .imagery import Window
 from .mpgc import MpgcParams, accepted, match_points
+from .pair_geometry import predict, resolve_height_range, search_box
 from .points import COMB_A, COMB_B, EDGE, NCC_ONLY, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .resolution import adapted_images
-from .seeds import predict, resolve_height_range
 
 #: reliability of a point that failed MPGC: this factor x its smallest NCC rho
 NCC_RELIABILITY = 0.25
@@ -138,8 +139,8 @@ def _pyramids(adapted, models, hr, params):
 def match_coarse_to_fine(images, models, names=None, image_ids=None, params=None, height_range=None, feedback=None):
     """Coarse-to-fine multi-primitive matching with MPGC of 2 or 3 images (reference/nadir first,
     then the search images; paths, arrays or Images) with their sensor models. A reference image
-    larger than `params.tile` px is matched tile by tile (`_tiles`). Returns MultiPoints (module
-    docstring, step 5). Raises InputError on unusable input, CancelledError when cancelled."""
+    larger than `params.tile` px is matched tile by tile (tiling.tile_grid). Returns MultiPoints
+    (module docstring, step 5). Raises InputError on unusable input, CancelledError when cancelled."""
     params = (params or CoarseToFineParams()).check()
     n = len(images)
     if n not in (2, 3) or len(models) != n:
@@ -149,7 +150,7 @@ def match_coarse_to_fine(images, models, names=None, image_ids=None, params=None
     hr = resolve_height_range(models[0], height_range)
     progress.step(feedback, 0, "coarse-to-fine matching: preprocessing (resolution adaptation, Wallis, pyramids)")
     adapted = adapted_images(images, models, hr)
-    boxes = _tiles(models[0].size, params.tile)
+    boxes = tile_grid(models[0].size, params.tile)
     if len(boxes) == 1:
         out, stats = _match(adapted, models, params, hr, feedback)
     else:
@@ -160,19 +161,11 @@ def match_coarse_to_fine(images, models, names=None, image_ids=None, params=None
     return points
 
 
-def _tiles(size, tile):
-    """Cores (x0, y0, x1, y1) of the square tiles of an image of `size` (one: the whole image)."""
-    cols, rows = size
-    nx, ny = max(1, math.ceil(cols / tile)), max(1, math.ceil(rows / tile))
-    xs, ys = np.linspace(0, cols, nx + 1).round().astype(int), np.linspace(0, rows, ny + 1).round().astype(int)
-    return [(xs[i], ys[j], xs[i + 1], ys[j + 1]) for j in range(ny) for i in range(nx)]
-
-
 def _tile_windows(adapted, models, core, hr, grid):
     """Windows (imagery.Window) and window models (ShiftedModel) of one tile: the reference core
     plus TILE_MARGIN (its corner on a multiple of `grid`, so level 0's grid points are the whole
-    image's), and per search image the box its models predict for it over the height range plus
-    TILE_MARGIN, clipped to the images; None where a search window is empty."""
+    image's), and per search image pair_geometry.search_box of it with TILE_MARGIN, clipped to the
+    images; None where a search window is empty."""
     def clip(box, size):
         x0, y0 = max(int(math.floor(box[0])), 0), max(int(math.floor(box[1])), 0)
         x1, y1 = min(int(math.ceil(box[2])), size[0]), min(int(math.ceil(box[3])), size[1])
@@ -180,17 +173,10 @@ def _tile_windows(adapted, models, core, hr, grid):
 
     ref = clip((max(core[0] - TILE_MARGIN, 0) // grid * grid, max(core[1] - TILE_MARGIN, 0) // grid * grid,
                 core[2] + TILE_MARGIN, core[3] + TILE_MARGIN), models[0].size)
-    gx, gy = (v.ravel() for v in np.meshgrid(np.linspace(ref[0], ref[2], 5), np.linspace(ref[1], ref[3], 5)))
     boxes = [ref]
     for mk in models[1:]:
-        with np.errstate(invalid="ignore"):
-            xy = [predict(models[0], mk, gx, gy, np.full(gx.size, h)) for h in hr]
-        x = np.concatenate([v[0] for v in xy])
-        y = np.concatenate([v[1] for v in xy])
-        if not np.isfinite(x).any():
-            return None
-        box = clip((np.nanmin(x) - TILE_MARGIN, np.nanmin(y) - TILE_MARGIN, np.nanmax(x) + TILE_MARGIN,
-                    np.nanmax(y) + TILE_MARGIN), mk.size)
+        box = search_box(models[0], mk, ref, hr, TILE_MARGIN)
+        box = None if box is None else clip(box, mk.size)
         if box is None:
             return None
         boxes.append(box)

@@ -47,8 +47,8 @@ from ..surface.tin_grid import Grid, rasterize
 from .coarse_to_fine_kernels import path_candidates
 from .edges import match_edges
 from .interest import interest_points
+from .pair_geometry import local_affine, predict
 from .relaxation import hypotheses, relax, unique_choice
-from .seeds import local_affine, predict
 
 #: pyramid reduction factor between levels
 FACTOR = 3

@@ -23,8 +23,10 @@ import math
 import numpy as np
 
 from ..errors import InputError
+from .pair_geometry import local_affine, resolve_height_range
 from .params import GrowParams
 from .records import PAIR_DTYPE
+from .region_growing import transfer_points
 
 #: px searched around the start in image 1 beyond the template (window margin of the back-match)
 SEARCH = 5.0
@@ -53,7 +55,6 @@ def back_guide(records, model1=None, model2=None, height=None):
     if missing.any():
         if model1 is None or model2 is None or height is None:
             raise InputError("records without an affine need the sensor models and a height")
-        from .seeds import local_affine
         _, _, *aff = local_affine(model2, model1, records["x2"][missing], records["y2"][missing], height)
         b[missing] = np.column_stack(aff)
     guide["a1"], guide["a2"], guide["a4"], guide["a5"] = b.T
@@ -81,8 +82,6 @@ def forward_backward(image1, image2, model1, model2, records, params=None, heigh
     usable = np.flatnonzero(np.isfinite(records["x1"]) & np.isfinite(records["y1"])
                             & np.isfinite(records["x2"]) & np.isfinite(records["y2"]))
     if len(usable):
-        from .region_growing import transfer_points
-        from .seeds import resolve_height_range
         rec = records[usable]
         hr = resolve_height_range(model1, height_range)
         guide = back_guide(rec, model1, model2, 0.5 * (hr[0] + hr[1]))

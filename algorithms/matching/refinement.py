@@ -29,10 +29,10 @@ import numpy as np
 from .. import progress
 from .mpgc import MpgcParams, accepted, match_points
 from .orientation_bias import affine_bias
+from .pair_geometry import resolve_height_range
 from .params import GrowParams, LsmParams
 from .points import REFINED
 from .resolution import adapted_images
-from .seeds import resolve_height_range
 
 #: px: sigma of the geometric observations where the corrected orientation is consistent
 #: (docs/validation.md#group3-accuracy)

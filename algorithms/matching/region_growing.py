@@ -17,11 +17,11 @@ parcels without a seed of their own (a CELL px cell keeps only its strongest int
 which may lie in another parcel, cut off by nodes that failed); a tile whose first round accepted
 nothing (water, cloud) is searched at the second round's density.
 
-The reference image is cut into tiles of `params.tile` px; a node belongs to the tile
-containing it, each tile grows from its own seeds inside windows of both images (image 1: the
-tile plus the template; image 2: the models' prediction of the tile over the height range plus a
-margin), so memory is bounded by the tile size and tiles run independently (threads over the
-nogil kernel here, processes or a cluster later). Results are merged by lattice index, so they do
+The reference image is cut into tiles of `params.tile` px (tiling.tile_grid); a node belongs to
+the tile containing it, each tile grows from its own seeds inside windows of both images (image 1:
+the tile plus the template; image 2: pair_geometry.search_box of the tile plus a margin), so
+memory is bounded by the tile size and tiles run independently (threads over the nogil kernel
+here, processes or a cluster later). Results are merged by lattice index, so they do
 not depend on the number of workers.
 """
 import math
@@ -32,23 +32,15 @@ import numpy as np
 
 from ..errors import CancelledError, InputError
 from ..progress import ensure, step as progress_step
+from ..tiling import tile_grid
 from .imagery import as_image
 from .lsm import LSM_OUT, match_accepted, to_records
+from .pair_geometry import local_affine, predict, resolve_height_range
 from .params import GrowParams
 from .records import PAIR_DTYPE
 from .region_growing_kernels import grow_kernel
 from .resolution import adapt_resolution
-from .seeds import (
-    CELL,
-    automatic_seeds,
-    local_affine,
-    predict,
-    resolve_height_range,
-    search_margin,
-    seed_operator,
-    seeds_from_points,
-    window_pair,
-)
+from .seeds import CELL, automatic_seeds, search_margin, seed_operator, seeds_from_points, window_pair
 
 
 class Lattice:
@@ -58,6 +50,7 @@ class Lattice:
         self.step = int(params.step)
         self.half = params.template // 2
         self.l0 = self.half + 0.5
+        self.size = size
         cols, rows = size
         last_x = cols - 0.5 - self.half
         last_y = rows - 0.5 - self.half
@@ -74,16 +67,13 @@ class Lattice:
         return a, b
 
     def tiles(self, tile):
-        """(n_a, n_b, m_a, m_b) node ranges of the non-empty tiles, row by row."""
+        """(n_a, n_b, m_a, m_b) node ranges of the tiles of tiling.tile_grid holding nodes, row by row."""
         out = []
-        cols_px = self.l0 + self.ncols * self.step
-        rows_px = self.l0 + self.nrows * self.step
-        for ty in range(0, int(math.ceil(rows_px)), tile):
-            for tx in range(0, int(math.ceil(cols_px)), tile):
-                n_a, n_b = self.index_range(tx, tx + tile, self.ncols)
-                m_a, m_b = self.index_range(ty, ty + tile, self.nrows)
-                if n_b > n_a and m_b > m_a:
-                    out.append((n_a, n_b, m_a, m_b))
+        for x0, y0, x1, y1 in tile_grid(self.size, tile):
+            n_a, n_b = self.index_range(x0, x1, self.ncols)
+            m_a, m_b = self.index_range(y0, y1, self.nrows)
+            if n_b > n_a and m_b > m_a:
+                out.append((n_a, n_b, m_a, m_b))
         return out
 
 

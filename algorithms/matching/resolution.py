@@ -13,8 +13,8 @@ import math
 import numpy as np
 
 from .imagery import Smoothed, as_image
+from .pair_geometry import local_affine
 from .params import GrowParams
-from .seeds import local_affine
 
 
 def _psf_aspect(model, cols, rows, h):

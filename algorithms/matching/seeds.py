@@ -8,9 +8,7 @@ Jacobian, so a 5 m HRG template meets a 10 x 5 m HRS image without resampling ei
 best candidate is refined by least-squares matching and kept if it passes the acceptance criteria.
 
 `seeds_from_points` does the same for given image-1 points (control or tie points), optionally with
-image-2 approximations (then the search is a small square around them).
-
-Geometry helpers shared with region_growing: `resolve_height_range`, `predict`, `local_affine`."""
+image-2 approximations (then the search is a small square around them)."""
 import math
 
 import numpy as np
@@ -20,6 +18,7 @@ from .imagery import as_image
 from .interest import best_per_cell, foerstner
 from .lsm import match_accepted
 from .ncc import ncc_path
+from .pair_geometry import local_affine, predict, resolve_height_range, search_box
 from .params import GrowParams
 from .records import PAIR_DTYPE
 
@@ -28,53 +27,6 @@ NCC_MARGIN = 0.05    # the peak must beat the best candidate > 2 px away by this
 ACROSS = 3           # px of image 2 searched on each side of the predicted path
 CELL = 48            # px of image 1: at most one automatic seed per CELL x CELL cell
 
-
-# --------------------------------------------------------------------------------------------
-# geometry
-
-def resolve_height_range(model1, height_range):
-    """(h_min, h_max) from a pair, a scalar mean height (-> +-500 m) or the model's own
-    `height_range` (RPC validity domain); raises InputError when none is known."""
-    if height_range is None:
-        hr = getattr(model1, "height_range", None)
-        if hr is None:
-            raise InputError("the height range of the scene is unknown: give height_range=(h_min, h_max) "
-                             "or a mean ellipsoidal height (then +-500 m are searched)")
-        height_range = hr
-    if np.ndim(height_range) == 0:
-        h = float(height_range)
-        height_range = (h - 500.0, h + 500.0)
-    lo, hi = (float(v) for v in height_range)
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo:
-        raise InputError(f"height_range must be (h_min, h_max) with h_min <= h_max, got {height_range}")
-    return lo, hi
-
-
-def predict(model1, model2, x1, y1, h):
-    """Image-2 (x2, y2) of image-1 points (x1, y1) at ellipsoidal height(s) h (NaN outside)."""
-    x1, y1, h = np.broadcast_arrays(np.asarray(x1, float), np.asarray(y1, float), np.asarray(h, float))
-    lon, lat = model1.image_to_ground(x1.ravel().copy(), y1.ravel().copy(), h.ravel().copy())
-    x2, y2 = model2.ground_to_image(np.asarray(lon), np.asarray(lat), h.ravel().copy())
-    return np.asarray(x2, float).reshape(x1.shape), np.asarray(y2, float).reshape(x1.shape)
-
-
-def local_affine(model1, model2, x1, y1, h, d=5.0):
-    """Image-2 position and the affine (a1, a2, a4, a5) = d(x2, y2)/d(x1, y1) at height h, by
-    central differences of `d` px. Returns (x2, y2, a1, a2, a4, a5) arrays."""
-    x1 = np.atleast_1d(np.asarray(x1, float))
-    y1 = np.atleast_1d(np.asarray(y1, float))
-    h = np.broadcast_to(np.asarray(h, float), x1.shape)
-    xs = np.concatenate([x1, x1 + d, x1 - d, x1, x1])
-    ys = np.concatenate([y1, y1, y1, y1 + d, y1 - d])
-    x2, y2 = predict(model1, model2, xs, ys, np.concatenate([h] * 5))
-    n = x1.size
-    c, px, mx, py, my = (slice(k * n, (k + 1) * n) for k in range(5))
-    return (x2[c], y2[c], (x2[px] - x2[mx]) / (2 * d), (x2[py] - x2[my]) / (2 * d),
-            (y2[px] - y2[mx]) / (2 * d), (y2[py] - y2[my]) / (2 * d))
-
-
-# --------------------------------------------------------------------------------------------
-# matching seeds
 
 def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr, params,
                      x2=None, y2=None, radius=3.0):
@@ -135,26 +87,16 @@ def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr,
 
 
 def window_pair(image1, image2, model1, model2, box1, hr, margin2):
-    """Windows of image 1 (box1 = x0, y0, x1, y1 in px) and of image 2 covering the models'
-    prediction of box1 over the height range plus margin2 px. Returns (win1, ox1, oy1, win2, ox2,
-    oy2); win2 is empty where the prediction misses image 2."""
+    """Windows of image 1 (box1 = x0, y0, x1, y1 in px) and of image 2 (pair_geometry.search_box of
+    box1 with margin2 px). Returns (win1, ox1, oy1, win2, ox2, oy2); win2 is empty where the prediction
+    misses image 2."""
     x0, y0, xe, ye = box1
     win1, ox1, oy1 = image1.read(x0, y0, xe - x0, ye - y0)
-    gx, gy = np.meshgrid(np.linspace(x0, xe, 5), np.linspace(y0, ye, 5))
-    xs, ys = [], []
-    for h in np.linspace(hr[0], hr[1], 3):
-        px, py = predict(model1, model2, gx.ravel(), gy.ravel(), np.full(gx.size, h))
-        xs.append(px)
-        ys.append(py)
-    xs = np.concatenate(xs)
-    ys = np.concatenate(ys)
-    good = np.isfinite(xs) & np.isfinite(ys)
-    if not good.any():
+    box2 = search_box(model1, model2, box1, hr, margin2)
+    if box2 is None:
         return win1, ox1, oy1, np.zeros((0, 0), np.float32), 0, 0
-    xa = int(math.floor(xs[good].min() - margin2))
-    xb = int(math.ceil(xs[good].max() + margin2))
-    ya = int(math.floor(ys[good].min() - margin2))
-    yb = int(math.ceil(ys[good].max() + margin2))
+    xa, ya = int(math.floor(box2[0])), int(math.floor(box2[1]))
+    xb, yb = int(math.ceil(box2[2])), int(math.ceil(box2[3]))
     win2, ox2, oy2 = image2.read(xa, ya, xb - xa, yb - ya)
     return win1, ox1, oy1, win2, ox2, oy2
 

@@ -54,8 +54,8 @@ def write_points(path, observations, image_id, crs=None):
     return path
 
 
-def _map_crs(path, text, crs):
-    """The map CRS: the file's #CRS line or `crs` (both given: they must agree)."""
+def _map_crs(path, text, crs, default=None):
+    """The map CRS: the file's #CRS line or `crs` (both given: they must agree), else `default`."""
     given = srs(crs) if crs is not None else None
     if text:
         try:
@@ -66,6 +66,8 @@ def _map_crs(path, text, crs):
             raise InputError(f"{path} states its CRS as {stated.GetName()!r}, not the {given.GetName()!r} given: "
                              "leave the CRS out or correct the file")
         return stated
+    if given is None and default is not None:
+        given = srs(default)
     if given is None:
         raise InputError(f"{path} has no '#CRS:' line: give the CRS of its map coordinates")
     return given
@@ -89,12 +91,12 @@ def _rows(path):
                       for k, text in numbered[1:]]
 
 
-def read_points(path, image_id, dem=None, height=None, crs=None, role="control", prefix="GEO"):
+def read_points(path, image_id, dem=None, height=None, crs=None, role="control", prefix="GEO", default_crs=None):
     """Observations of the enabled rows of a .points file measured in image `image_id`: points
     prefix + row number (1 = the first point row) of `role`, lon/lat from the map coordinates
-    (CRS: the file's #CRS line, else `crs`), ellipsoidal h from `dem` (algorithms.dem.Dem) at the
-    point, else (or where the DEM has no height) `height`; default sigmas (control_points.DEFAULT_SIGMAS,
-    IMAGE_SIGMA px). InputError naming the line for a malformed row."""
+    (CRS: the file's #CRS line, else `crs`, else `default_crs`: QGIS's map CRS), ellipsoidal h from
+    `dem` (algorithms.dem.Dem) at the point, else (or where the DEM has no height) `height`; default
+    sigmas (control_points.DEFAULT_SIGMAS, IMAGE_SIGMA px). InputError naming the line for a malformed row."""
     path = os.fspath(path)
     if role not in ROLES:
         raise InputError(f"the role must be one of {', '.join(ROLES)}, not {role!r}")
@@ -122,7 +124,7 @@ def read_points(path, image_id, dem=None, height=None, crs=None, role="control",
         k = int(np.flatnonzero(py > 0)[0])
         raise InputError(f"{path} line {lines[k]}: pixelY {py[k]} is positive where other rows are negative "
                          "(-row, a raw image): rows must all use one convention")
-    lon, lat = reproject(x, y, _map_crs(path, crs_text, crs), wgs84(), f"the points of {path}")
+    lon, lat = reproject(x, y, _map_crs(path, crs_text, crs, default_crs), wgs84(), f"the points of {path}")
     h = dem.height(lon, lat) if dem is not None else np.full(len(lon), np.nan)
     h = np.where(np.isfinite(h), h, np.nan if height is None else float(height))
     if not np.isfinite(h).all():

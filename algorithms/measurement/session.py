@@ -36,6 +36,7 @@ from ..adjustment import control_points
 from ..adjustment.control_points import DEFAULT_SIGMAS, ROLES
 from ..block import Block
 from ..errors import InputError
+from ..height_range import mean_height
 from ..sigmas import IMAGE_SIGMA
 from . import georeferencer, prediction, transfer
 from .edits import (
@@ -80,8 +81,7 @@ class MeasurementSession:
         images = self.block.images()
         self.image_names = {r["id"]: r["name"] for r in images}
         self.image_paths = {r["id"]: r["image_path"] for r in images}
-        heights = self.block.height_range()
-        self.default_height = 0.5 * (heights[0] + heights[1]) if heights else 0.0
+        self.default_height = mean_height(self.block.height_range())
         self.models = self._read_models()
         self.residuals = self.block.residuals()
         self.current = None
@@ -94,7 +94,7 @@ class MeasurementSession:
     # --- the block on disk: the session reads and writes it through `block` (Block): the single edits
     # through `store` (its measurement store), an import's undo and redo in edits.ReplacePoints --------
     def _read_models(self):
-        return {i: self.block.model(i) for i in self.image_names}
+        return self.block.models(list(self.image_names))
 
     def reload(self):
         """Read the points again; a current point that vanished (deleted, its creation undone) is
@@ -437,18 +437,10 @@ class MeasurementSession:
         coordinates in the file's #CRS, else (as QGIS: the map's) in `map_crs` (crs.srs definition);
         heights from `dem`, else the block's mean height. Returns the points read (Observations)."""
         before = self.store.load()
-        try:
-            with open(path, encoding="utf-8-sig", errors="replace") as f:
-                stated = f.readline().startswith(georeferencer.CRS_PREFIX)
-        except OSError as exc:
-            raise InputError(f"cannot read the GCP file {path}: {exc}") from exc
         prefix = os.path.splitext(os.path.basename(path))[0][:24] + "_"
         read = georeferencer.read_points(path, int(image_id), dem=dem, height=self.default_height,
-                                         crs=None if stated else map_crs, prefix=prefix)
-        try:
-            after = self.block.save_control_points(read, mode="merge")
-        except RuntimeError as exc:    # an OGR/SQLite failure: the transaction was rolled back
-            raise InputError(f"cannot store the points in {self.block_path}: {exc}") from exc
+                                         default_crs=map_crs, prefix=prefix)
+        after = self.block.save_control_points(read, mode="merge")
         self._replace_points(f"Import {os.path.basename(path)}", before, after)
         return read
 

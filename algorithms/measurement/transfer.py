@@ -20,9 +20,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..matching.imagery import as_image
+from ..matching.pair_geometry import predict, resolve_height_range
 from ..matching.params import GrowParams
 from ..matching.resolution import adapt_resolution
-from ..matching.seeds import NCC_MARGIN, NCC_MIN, predict, resolve_height_range, seeds_from_points
+from ..matching.seeds import NCC_MARGIN, NCC_MIN, seeds_from_points
 
 #: px of the target searched around the prediction when a height is given
 DEFAULT_RADIUS = 10.0

@@ -22,6 +22,7 @@ from ..crs import egm96_undulation
 from ..dem import Dem
 from ..errors import CancelledError, InputError
 from ..surface.geotiff import overview_levels
+from ..tiling import tile_grid
 from . import occlusion, resampling
 from .grid import default_grid
 from .mapping import START_STEP, TileMapper
@@ -128,11 +129,6 @@ class _TileWorker:
         return occlusion.ray_direction(self.model, tile.col.ravel()[k], tile.row.ravel()[k], low, high + 1.0)
 
 
-def _windows(grid, tile):
-    return [(r, c, min(tile, grid.rows - r), min(tile, grid.cols - c))
-            for r in range(0, grid.rows, tile) for c in range(0, grid.cols, tile)]
-
-
 def _create(path, grid, bands, gdal_type, nodata):
     ds = gdal.GetDriverByName("GTiff").Create(path, grid.cols, grid.rows, bands, gdal_type, list(CREATION_OPTIONS))
     ds.SetGeoTransform(grid.geotransform)
@@ -169,7 +165,7 @@ def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None,
                                f"({grid.srs.GetName()}), {resampling_method} resampling")
     mapper = TileMapper(model, dem, grid, max_error, start_step)
     worker = _TileWorker(str(image), model, dem, mapper, resampling_method, occlusion_mask, np_type, nodata)
-    windows = _windows(grid, int(tile))
+    windows = [(y0, x0, y1 - y0, x1 - x0) for x0, y0, x1, y1 in tile_grid((grid.cols, grid.rows), tile)]
     steps, bound, cells, hidden = {}, 0.0, 0, 0
     with atomic_path(output) as tmp, closing(_create(tmp, grid, ds.RasterCount, band.DataType, nodata)) as out:
         with ThreadPoolExecutor(max(int(threads), 1)) as pool:

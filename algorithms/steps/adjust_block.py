@@ -157,7 +157,7 @@ def adjust_block(block_path, params, feedback=None):
     blk.check_writable("the adjusted models")
     generations = blk.generations()
     rows = blk.images()
-    models = {r["id"]: blk.model(r["id"], supplied=True) for r in rows}
+    models = blk.models(supplied=True)
     names = {r["id"]: r["name"] for r in rows}
     obs = blk.control_points()
     if params.use_tie_points:
@@ -176,7 +176,7 @@ def adjust_block(block_path, params, feedback=None):
     result, obs, free, extra = _solve(models, obs, names, params, options, feedback)
     counts = parse_counts(params.control_series)
     if counts:
-        series = control_point_series({r["id"]: blk.model(r["id"], supplied=True) for r in rows},
+        series = control_point_series(blk.models(supplied=True),            # _solve adjusted `models`
                                       obs, counts, free, names=names, feedback=feedback,
                                       **{k: v for k, v in options.items() if k != "remove_blunders"})
         extra.append(report.series_section(series))

@@ -46,8 +46,8 @@ def create_block(output, images, params, feedback=None):
         progress.warn(feedback, dem.implausible)
     opened = Block.open_images(images, [p for p in params.orientation if p])
     # storage: the new block
-    Block.create(output, opened, height=params.height, dem=dem, overwrite=params.overwrite, feedback=feedback)
+    blk = Block.create(output, opened, height=params.height, dem=dem, overwrite=params.overwrite, feedback=feedback)
     progress.ensure(feedback).pushInfo(f"block {output}: " + ", ".join(
         f"{name} ({model.size[0]} x {model.size[1]})" for name, _, _, model in opened))
-    return CreateResult(output, Block(output).layer_source("footprints"),
+    return CreateResult(output, blk.layer_source("footprints"),
                         [(name, model.size[0], model.size[1]) for name, _, _, model in opened])

@@ -72,7 +72,7 @@ def intersect_block_points(block_path, output, params=None, feedback=None):
     blk = Block(block_path)
     multi = blk.points(kind)
     ids = _check_images(multi, kind, {r["id"] for r in blk.images()})
-    models = {i: blk.model(i) for i in ids}
+    models = blk.models(ids)
     heights = blk.height_range()
     obs = multi.observations
     result = intersection.intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"],

@@ -76,7 +76,7 @@ def match_block_points(block_path, params=None, summary_csv=None, feedback=None)
     log = progress.ensure(feedback)
     blk = Block(block_path)
     rows = combination_order(blk.images(), params.images)
-    models = [blk.model(r["id"]) for r in rows]
+    models = list(blk.models([r["id"] for r in rows]).values())
     heights = height_range(params.min_height, params.max_height, blk.height_range())
     use_tie_points, automatic = SEED_SOURCES[params.seeds]
     seed_points = blk.points("tie_points") if use_tie_points else None

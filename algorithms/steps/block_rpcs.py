@@ -62,32 +62,31 @@ def selected_images(rows, name):
     return chosen
 
 
-def cube_heights(block_path, h_min, h_max):
-    """(min, max) heights of the cube: both given, or the block's terrain height range widened by a margin
+def cube_heights(blk, h_min, h_max):
+    """(min, max) heights of the cube: both given, or the Block `blk`'s terrain height range widened by a margin
     (rpc_fit.default_height_range)."""
     if h_min is not None and h_max is not None:
         return h_min, h_max
     if h_min is not None or h_max is not None:
         raise InputError("give both the lowest and the highest height of the RPC cube, or neither (then the "
                          "block's terrain height range is used, widened by a margin)")
-    terrain = Block(block_path).height_range()
+    terrain = blk.height_range()
     if terrain is None:
-        raise InputError(f"block {block_path} records no terrain height range: give the lowest and highest "
+        raise InputError(f"block {blk.path} records no terrain height range: give the lowest and highest "
                          "heights of the RPC cube")
     return rpc_fit.default_height_range(terrain)
 
 
-def rpc_height_check(block_path, rpcs):
-    """The summary of surface.intersection.height_differences on the block's tie points, when the
-    block has tie points and RPCs were fitted for all their images ("" otherwise)."""
-    blk = Block(block_path)
+def rpc_height_check(blk, rpcs):
+    """The summary of surface.intersection.height_differences on the Block `blk`'s tie points, when
+    it has tie points and RPCs were fitted for all their images ("" otherwise)."""
     if "tie_points" not in blk.info():
         return ""
     obs = blk.points("tie_points").observations
     images = set(np.unique(obs["image_id"]).tolist())
     if not images or not images <= set(rpcs):
         return ""
-    rigorous = {i: blk.model(i) for i in images}
+    rigorous = blk.models(sorted(images))
     return height_differences(rigorous, {i: rpcs[i] for i in images}, obs["image_id"], obs["point_id"],
                               obs["col"], obs["row"], h0=mean_height(blk.height_range())).summary()
 
@@ -111,7 +110,7 @@ def fit_block_rpcs(block_path, params, feedback=None):
     params.check()
     blk = Block(block_path)
     rows = selected_images(blk.images(), params.image)
-    heights = cube_heights(block_path, params.min_height, params.max_height)
+    heights = cube_heights(blk, params.min_height, params.max_height)
     grid = (params.grid, params.grid, params.height_levels)
     destinations = _destinations(rows, params)
     fitted = []
@@ -129,14 +128,14 @@ def fit_block_rpcs(block_path, params, feedback=None):
             progress.warn(feedback, f"GDAL does not read {written} with {row['image_path']} (the raster carries "
                           "other RPC metadata it prefers, or cannot be opened): load the _RPC.TXT itself")
     text = rpc_fit.report_text(entries)
-    comparison = rpc_height_check(block_path, {row["id"]: rpc for row, (rpc, _) in zip(rows, fitted)})
+    comparison = rpc_height_check(blk, {row["id"]: rpc for row, (rpc, _) in zip(rows, fitted)})
     if comparison:
         text += "\n\nRPC minus rigorous object points of the block's tie points (Kornus et al. 2006, Table 5): " \
                 + comparison
     progress.ensure(feedback).pushInfo(text)
     # storage: the step in the block's history
     blk.update_info({}, step="fitrpc",
-                      message="; ".join(f"{name}: {written}" for name, written, _ in entries))
+                    message="; ".join(f"{name}: {written}" for name, written, _ in entries))
     out = RpcResult([written for _, written, _ in entries])
     if params.report:
         out.report = report.write_html(params.report, f"RPC fit for {block_path}", text)

@@ -34,9 +34,8 @@ def main(output, names):
         rows = module.run()
         title = (module.__doc__ or path.stem).strip().splitlines()[0]
         sections.append(f"## {path.stem}: {title}\n\n{markdown_table(rows)}\n")
-    text = "\n".join(sections)
-    write_text(output, text)
-    print(text)
+        write_text(output, "\n".join(sections))      # what ran so far survives a later failure
+    print("\n".join(sections))
 
 
 if __name__ == "__main__":

@@ -26,7 +26,9 @@ def point_observations(csv_path, image_ids, n_control, sigma_px=0.3, sigma_groun
     return Observations(points, np.array(meas, MEAS_DTYPE))
 
 
-def models_of(paths, names, truth=False):
+def scene_models(paths, names, truth=False):
+    """{block image id: sensor model} of the simulated scene `paths` (simulate_scene) images `names`, ids
+    1, 2, ... in that order; with `truth`, the models the images were simulated with."""
     key = "truth_metadata" if truth else None
     return {k + 1: sensors.load(paths[key][n] if truth else paths["images"][n]["metadata"])
             for k, n in enumerate(names)}

@@ -23,10 +23,10 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.matching.imagery import Image, Smoothed
 from pushbroom.algorithms.matching.mpgc_kernels import SUPPORT_BOX
+from pushbroom.algorithms.matching.pair_geometry import local_affine
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import Lattice
 from pushbroom.algorithms.matching.resolution import adapt_resolution
-from pushbroom.algorithms.matching.seeds import local_affine
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
 
 SINGLE_SURFACE = (BARE, CROPS)      # DSM = DTM: one (rough) surface inside a template

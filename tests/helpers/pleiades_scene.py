@@ -17,7 +17,7 @@ def in_order(triplet):
     return [triplet[k - 1] for k in ORDER]
 
 
-def models_of(triplet):
+def triplet_models(triplet):
     """{block image id: RpcModel}, freshly loaded (the adjustment edits its models)."""
     return {k + 1: sensors.load(p) for k, p in enumerate(in_order(triplet))}
 

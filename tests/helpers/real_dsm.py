@@ -20,7 +20,7 @@ from pushbroom.algorithms.surface.intersection import intersect
 from pushbroom.algorithms.surface.point_input import PointSet
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
-from tests.helpers.pleiades_scene import LABELS, NAMES, in_order, models_of
+from tests.helpers.pleiades_scene import LABELS, NAMES, in_order, triplet_models
 
 #: region growing on the Ventoux pair: nodes every VENTOUX_STEP px (1 m), the DSM asserted at VENTOUX_CELL m
 VENTOUX_STEP, VENTOUX_CELL = 2, 2.0
@@ -137,7 +137,7 @@ def build_triplet_dsms(triplet, match, cell, max_edge, folder, log):
     first = cut(supplied, points.observations, three)
     srs = output_srs(None, first.lon[first.ok], first.lat[first.ok])
     height = float(np.nanmedian(first.h))
-    adjusted = adjust(models_of(triplet), tie_observations(select_tie_points(points)), OTHERS, names=LABELS,
+    adjusted = adjust(triplet_models(triplet), tie_observations(select_tie_points(points)), OTHERS, names=LABELS,
                       height=height, priors=PRIORS)
     out = {"points": points, "srs": srs, "height": height, "models": models, "seconds": t_match,
            "sigma0": adjusted.sigma0}

@@ -35,7 +35,7 @@ from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from tests.helpers.feedback import Feedback
-from tests.helpers.pleiades_scene import LABELS, match_triplet, models_of
+from tests.helpers.pleiades_scene import LABELS, match_triplet, triplet_models
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
@@ -74,8 +74,8 @@ def block(pleiades_triplet):
 def adjusted(pleiades_triplet, block, figures):
     obs, height, log = block
     t0 = time.perf_counter()
-    before = adjust(models_of(pleiades_triplet), obs, [], names=LABELS, height=height)
-    after = adjust(models_of(pleiades_triplet), obs, OTHERS, names=LABELS, height=float(np.mean(before.h)),
+    before = adjust(triplet_models(pleiades_triplet), obs, [], names=LABELS, height=height)
+    after = adjust(triplet_models(pleiades_triplet), obs, OTHERS, names=LABELS, height=float(np.mean(before.h)),
                    priors=PRIORS, remove_blunders=True)
     free = np.flatnonzero(after.parameters.free)
     w = np.nanmax(np.abs(after.normalised), axis=1)
@@ -130,7 +130,7 @@ def test_biases_are_the_shifts_the_residuals_showed(pleiades_triplet, adjusted):
     before, after = adjusted
     models = after.parameters.models
     assert np.all(models[REFERENCE].bias == 0.0)
-    original = models_of(pleiades_triplet)[REFERENCE]
+    original = triplet_models(pleiades_triplet)[REFERENCE]
     c, r = np.meshgrid(np.linspace(0, 1024, 5), np.linspace(0, 1024, 5))
     h = np.full(c.size, 200.0)
     assert np.array_equal(models[REFERENCE].image_to_ground(c.ravel(), r.ravel(), h),
@@ -152,12 +152,12 @@ def test_biases_are_the_shifts_the_residuals_showed(pleiades_triplet, adjusted):
 def test_defects_are_named_without_priors(pleiades_triplet, block):
     obs, height, _ = block
     with pytest.raises(InputError, match="cannot be determined from these points: .*fix these parameters") as error:
-        adjust(models_of(pleiades_triplet), obs, OTHERS, names=LABELS, height=height)
+        adjust(triplet_models(pleiades_triplet), obs, OTHERS, names=LABELS, height=height)
     # one defect, led by the row shifts of the forward and backward images (the height)
     named = str(error.value).split(": ", 1)[1].split(". ")[0].split(" with ")
     assert ";" not in str(error.value) and set(named[:2]) == {"img_01 B0", "img_03 B0"}, named
     with pytest.raises(InputError, match="cannot be determined") as error:
-        adjust(models_of(pleiades_triplet), obs, ["bias:shift"], names=LABELS, height=height)
+        adjust(triplet_models(pleiades_triplet), obs, ["bias:shift"], names=LABELS, height=height)
     assert str(error.value).count(";") == 2         # three defects: the translation of the ground
     assert all(f"{name} A0" in str(error.value) for name in LABELS.values())
 
@@ -167,7 +167,7 @@ def test_residuals_do_not_depend_on_the_datum(pleiades_triplet, block, adjusted)
     fixed reference): the same residuals, and the same bias differences to the reference."""
     obs, _, _ = block
     _, after = adjusted
-    free = adjust(models_of(pleiades_triplet), obs, ["bias:shift"], names=LABELS, height=float(np.mean(after.h)),
+    free = adjust(triplet_models(pleiades_triplet), obs, ["bias:shift"], names=LABELS, height=float(np.mean(after.h)),
                   priors=PRIORS)
     assert np.abs(free.residuals - after.residuals).max() < 0.01
     fixed, loose = after.parameters.models, free.parameters.models
@@ -182,7 +182,7 @@ def test_shift_is_enough(pleiades_triplet, block, adjusted, figures):
     for kind in ("drift", "affine"):
         terms = [t for t in ("A0", "A1", "A2", "B0", "B1", "B2") if kind == "affine" or t[1] in "02"]
         free = [f"{LABELS[i]} {t}" for i in (2, 3) for t in terms]
-        richer = adjust(models_of(pleiades_triplet), obs, free, names=LABELS, height=float(np.mean(after.h)),
+        richer = adjust(triplet_models(pleiades_triplet), obs, free, names=LABELS, height=float(np.mean(after.h)),
                         priors={f"bias:{kind}": 10.0})
         figures.report(f"{kind}: sigma_0", richer.sigma0, note=f"shift: {after.sigma0:.4f}")
         figures.report(f"{kind}: tie point RMS", reprojection_rms(richer)[-1]["rms"], "px")

@@ -24,8 +24,8 @@ import pytest
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.consistency import fb_summary, forward_backward, observation_pairs
 from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.pair_geometry import predict
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.seeds import predict
 from tests.helpers.pleiades_scene import in_order
 from tests.helpers.real_dsm import TRIPLET_STEP
 

@@ -19,7 +19,7 @@ from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree, utm_epsg
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.stats import statistics_table
-from tests.helpers.adjustment_scene import models_of, point_observations
+from tests.helpers.adjustment_scene import point_observations, scene_models
 from tests.helpers.figures import section_rows
 from tests.helpers.osr_oracle import utm
 from tests.helpers.raster_oracle import bilinear
@@ -34,7 +34,7 @@ SIGMA_PX = 0.3
 def dsm_tie_points(scene, n, seed):
     """n tie points on the true DSM seen in the three images (truth models, SIGMA_PX noise)."""
     rng = np.random.default_rng(seed)
-    truth = models_of(scene, NAMES, truth=True)
+    truth = scene_models(scene, NAMES, truth=True)
     cols, rows = truth[1].size
     lon, lat, h = truth[1].image_to_dem(rng.uniform(30, cols - 30, n), rng.uniform(30, rows - 30, n),
                                         Dem.from_file(scene["dsm"]))
@@ -54,7 +54,7 @@ def adjusted(simulated):
     """Supplied = truth + 20 urad look-angle offsets; 3 blunders among the point measurements;
     14 control points, the rest check; 300 tie points on the DSM; blunders removed by snooping."""
     scene = simulated(SceneConfig.small(points=30, error_scale=0.0, blunders=3))
-    models = models_of(scene, NAMES)
+    models = scene_models(scene, NAMES)
     for i, model in models.items():
         model.orientation.corrections.look[:, 0] = (2e-5, -2e-5 if i % 2 else 2e-5)
     obs = point_observations(scene["points"], IDS, N_CONTROL, sigma_px=SIGMA_PX).concatenate(

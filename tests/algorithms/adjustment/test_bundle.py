@@ -9,7 +9,7 @@ from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.simulation import SceneConfig
-from tests.helpers.adjustment_scene import check_rms, models_of, point_observations, synthetic_points
+from tests.helpers.adjustment_scene import check_rms, point_observations, scene_models, synthetic_points
 
 NAMES = ("HRG", "HRS1", "HRS2")
 IDS = {n: k + 1 for k, n in enumerate(NAMES)}
@@ -25,7 +25,7 @@ def scene(simulated):
 
 
 def perturbed(scene):
-    models = models_of(scene, NAMES)
+    models = scene_models(scene, NAMES)
     for i, (dx, dy) in INJECTED.items():
         models[i].orientation.corrections.look[:, 0] = (dx, dy)
     return models
@@ -229,7 +229,7 @@ def test_rpc_bias_correction_recovers_an_injected_affine_bias(scene):
     injected = {1: [2.0, 0.5, -1.0, -3.0, 0.2, 1.0], 2: [-2.5, -0.4, 0.8, 2.0, 0.6, -0.7],
                 3: [1.0, 0.3, 0.5, 2.5, -0.5, 0.9]}
     models = {}
-    for i, truth in models_of(scene, NAMES, truth=True).items():
+    for i, truth in scene_models(scene, NAMES, truth=True).items():
         rpc = fit_rpc(truth, (150.0, 750.0))[0]
         models[i] = RpcModel(rpc.coefficients, rpc.size, rpc.offset, LABELS[i], bias=injected[i])
     obs = point_observations(scene["points"], IDS, 19)

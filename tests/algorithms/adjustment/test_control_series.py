@@ -8,7 +8,7 @@ from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.control_series import control_point_series, farthest_points
 from pushbroom.algorithms.adjustment.report import render_text, series_section
 from pushbroom.algorithms.errors import CancelledError, InputError
-from tests.helpers.adjustment_scene import models_of, point_observations
+from tests.helpers.adjustment_scene import point_observations, scene_models
 from tests.helpers.feedback import Feedback
 
 NAMES = ("HRG", "HRS1", "HRS2")
@@ -38,7 +38,7 @@ def test_series_rows_equal_direct_adjustments(small_scene):
     left out), the check points stay the same, the input models are not edited, progress rises
     to 100 % and a cancel stops the series."""
     obs = point_observations(small_scene["points"], IDS, 5)
-    models = models_of(small_scene, NAMES)
+    models = scene_models(small_scene, NAMES)
     before = {i: m.orientation.corrections.look.copy() for i, m in models.items()}
     feedback = Feedback()
     rows = control_point_series(models, obs, [5, 3], ["look:0"], names=LABELS, height=300.0, feedback=feedback)
@@ -49,7 +49,7 @@ def test_series_rows_equal_direct_adjustments(small_scene):
         role = obs.points["role"].copy()
         role[(role == "control") & ~np.isin(obs.points["name"], row.control)] = "gone"
         used = obs.subset(role != "gone")
-        result = adjust(models_of(small_scene, NAMES), used, ["look:0"], names=LABELS, height=300.0)
+        result = adjust(scene_models(small_scene, NAMES), used, ["look:0"], names=LABELS, height=300.0)
         check = check_points(result, used, 300.0)
         rms = [np.sqrt(np.mean(check[k] ** 2)) for k in ("dE", "dN", "dH")]
         assert row.check == len(check["dE"]) == np.count_nonzero(obs.points["role"] == "check") > 1

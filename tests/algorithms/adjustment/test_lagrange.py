@@ -19,7 +19,7 @@ from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.sensors.spot import SpotModel
 from pushbroom.algorithms.simulation import SceneConfig
-from tests.helpers.adjustment_scene import models_of, point_observations
+from tests.helpers.adjustment_scene import point_observations, scene_models
 from tests.helpers.figures import section_rows
 from tests.helpers.spot_synthetic import synthetic_orientation
 
@@ -119,7 +119,7 @@ def pair(simulated):
 def tie_points(scene, per_side, rng):
     """per_side^2 tie points on a regular grid of image 1: its truth ray meets the true DSM, the
     truth models project the point into both images, plus image noise SIGMA_PX."""
-    truth = models_of(scene, NAMES, truth=True)
+    truth = scene_models(scene, NAMES, truth=True)
     cols, rows = truth[1].size
     c, r = (v.ravel() for v in np.meshgrid(np.linspace(60, cols - 60, per_side), np.linspace(60, rows - 60, per_side)))
     lon, lat, h = truth[1].image_to_dem(c, r, Dem.from_file(scene["dsm"]))
@@ -176,7 +176,7 @@ def test_injected_orientation_image_errors_are_recovered(pair, figures):
     adjusted models reproduce the truth models to under 0.3 of the injected image displacement
     (0.09-0.23 over 8 noise draws). The model's default priors are merged with the user's, and
     max_effects works."""
-    models, truth = models_of(pair, NAMES, truth=True), models_of(pair, NAMES, truth=True)
+    models, truth = scene_models(pair, NAMES, truth=True), scene_models(pair, NAMES, truth=True)
     params = OrientationParameters(models, LABELS, model="lagrange")
     injected = np.zeros(len(params))
     free = params.select(["lagrange:attitude"])
@@ -226,7 +226,7 @@ def test_control_point_series_on_a_spot14_pair(pair, figures):
     shift in an oblique view), and the adjustment says so: its theoretical RMS N at 5 is many
     times that at 15."""
     counts = [5, 6, 10, 15]
-    models = models_of(pair, NAMES)
+    models = scene_models(pair, NAMES)
     runs = []
     for draw in range(12):
         rng = np.random.default_rng(100 + draw)

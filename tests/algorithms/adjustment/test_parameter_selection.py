@@ -19,7 +19,7 @@ from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from pushbroom.algorithms.simulation import SceneConfig
-from tests.helpers.adjustment_scene import check_rms, models_of, point_observations, synthetic_points
+from tests.helpers.adjustment_scene import check_rms, point_observations, scene_models, synthetic_points
 
 pytestmark = pytest.mark.slow
 
@@ -46,7 +46,7 @@ def block(simulated):
 
 
 def perturbed(paths, names):
-    models = models_of(paths, NAMES)
+    models = scene_models(paths, NAMES)
     params = OrientationParameters(models, LABELS)
     x = np.zeros(len(params))
     for name, value in INJECTED.items():

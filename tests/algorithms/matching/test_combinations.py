@@ -6,11 +6,11 @@ import pytest
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.combinations import combine, format_summary, new_cells, robust_sigma, summary_rows
+from pushbroom.algorithms.matching.pair_geometry import local_affine
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.points import COMB_A, COMB_B, COMB_C, REFINED
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIMILARITY
-from pushbroom.algorithms.matching.seeds import local_affine
 from tests.helpers.matching_scene import DISCONTINUOUS, SINGLE_SURFACE
 
 SHIFT1 = np.array([10.25, 5.5])    # image 0 -> forward image 1

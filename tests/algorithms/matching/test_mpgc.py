@@ -12,27 +12,9 @@ from pushbroom.algorithms.matching import lsm, mpgc, mpgc_kernels as kern
 from pushbroom.algorithms.matching.params import LsmParams
 from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIMILARITY
 from tests.helpers.matching_scene import support_reference
+from tests.helpers.texture import texture
 
 LON0, LAT0 = 10.0, 45.0
-
-
-def texture(rng, ncomp=150, sigma_freq=0.06):
-    """Continuous band-limited random texture (unit variance, Gaussian spectrum of sigma_freq
-    cycles per unit), evaluable anywhere (in chunks: memory)."""
-    u, v = rng.normal(0, sigma_freq, ncomp), rng.normal(0, sigma_freq, ncomp)
-    phase = rng.uniform(0, 2 * np.pi, ncomp)
-    amp = np.sqrt(2.0 / ncomp)
-
-    def f(x, y):
-        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-        out = np.empty(x.shape)
-        fx, fy, fo = x.ravel(), y.ravel(), out.reshape(-1)
-        for a in range(0, fx.size, 20000):
-            s = slice(a, a + 20000)
-            arg = 2 * np.pi * (np.multiply.outer(fx[s], u) + np.multiply.outer(fy[s], v)) + phase
-            fo[s] = amp * np.cos(arg).sum(-1)
-        return out
-    return f
 
 
 class AffineCamera:

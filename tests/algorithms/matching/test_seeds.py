@@ -5,8 +5,9 @@ import pytest
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.interest import interest_points
+from pushbroom.algorithms.matching.pair_geometry import resolve_height_range
 from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.seeds import automatic_seeds, resolve_height_range, seeds_from_points
+from pushbroom.algorithms.matching.seeds import automatic_seeds, seeds_from_points
 
 
 def test_image_window_clipping_and_nodata(tmp_path):

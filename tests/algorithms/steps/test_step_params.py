@@ -2,6 +2,7 @@
 parameters parsed, contradictory settings refused with InputError before any work."""
 import pytest
 
+from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.quality.assess_accuracy import AssessParams
 from pushbroom.algorithms.steps.adjust_block import LAGRANGE_AUTO, AdjustParams, parse_counts, parse_priors
@@ -48,9 +49,9 @@ def test_adjust_params_check_refuses(settings, message):
 
 
 def test_rpc_cube_heights_both_or_neither():
-    assert cube_heights("unused.gpkg", 100.0, 900.0) == (100.0, 900.0)   # given: the block is not read
+    assert cube_heights(Block("unused.gpkg"), 100.0, 900.0) == (100.0, 900.0)   # given: the block is not read
     with pytest.raises(InputError, match="both the lowest and the highest"):
-        cube_heights("unused.gpkg", 100.0, None)
+        cube_heights(Block("unused.gpkg"), 100.0, None)
     with pytest.raises(InputError, match="at least 4"):
         RpcParams(grid=3).check()
 
