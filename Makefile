@@ -2,7 +2,8 @@
 SHELL := /bin/bash
 PY := .venv/bin/python
 APT_PACKAGES := qgis python3-qgis qgis-providers python3-gdal gdal-bin python3-scipy \
-                python3-matplotlib python3-numpy python3-venv python3-pip xvfb zip
+                python3-matplotlib python3-numpy python3-venv python3-pip xvfb zip \
+                python3-dask python3-distributed
 # the test and lint pins equal pyproject.toml's extras (tests/test_packaging.py checks it)
 PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest-qgis==2.1.0 \
             hypothesis==6.112.2 laspy==2.5.4 ruff==0.17.6
@@ -37,7 +38,7 @@ $(PROFILE)/.enabled: .venv/.setup-done metadata.txt
 	@[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages .venv
 	@$(PY) -m pip install -q $(PIP_PINS) "numpy==$$(/usr/bin/python3 -c 'import numpy; print(numpy.__version__)')"
 	@$(PY) -m pip install -q --no-deps --no-build-isolation -e .
-	@$(PY) -c "import numpy, numba, qgis.core, osgeo.gdal; assert numpy.__version__.startswith('1.'), numpy.__version__"
+	@$(PY) -c "import numpy, numba, qgis.core, osgeo.gdal, distributed; assert numpy.__version__.startswith('1.'), numpy.__version__"
 	@touch $@
 
 # ruff (configured in pyproject.toml); CI runs it before the tests.

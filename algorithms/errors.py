@@ -26,5 +26,10 @@ class StorageError(PushbroomError):
     path and what to do."""
 
 
+class ExecutionError(PushbroomError):
+    """Tile tasks could not run where they were sent: no scheduler at the address, a worker process
+    died, no Python interpreter to start workers with. The message says what to change."""
+
+
 class CancelledError(PushbroomError):
     """The user cancelled a long step; nothing half-done was written under a final name."""

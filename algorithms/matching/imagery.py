@@ -58,6 +58,11 @@ class Image:
     def __repr__(self):
         return f"Image({self.path or 'array'}, {self.size[0]} x {self.size[1]})"
 
+    def __reduce__(self):
+        """Pickled as what it was opened from (a worker process reopens the raster by its path; the
+        path must be the same there: a shared file system)."""
+        return Image, (self.path if self._array is None else self._array, self.band, self.nodata)
+
     def read(self, x0, y0, cols, rows):
         """Window of `cols` x `rows` pixels whose top-left corner is pixel (x0, y0), clipped to
         the image: returns (float32 array, x0, y0) of the clipped window (shape (0, 0) when the

@@ -20,17 +20,17 @@ nothing (water, cloud) is searched at the second round's density.
 The reference image is cut into tiles of `params.tile` px (tiling.tile_grid); a node belongs to
 the tile containing it, each tile grows from its own seeds inside windows of both images (image 1:
 the tile plus the template; image 2: pair_geometry.search_box of the tile plus a margin), so
-memory is bounded by the tile size and tiles run independently (threads over the nogil kernel
-here, processes or a cluster later). Results are merged by lattice index, so they do
+memory is bounded by the tile size and tiles run independently (execution.run_tasks: threads over
+the nogil kernel, local processes or Dask). Results are merged by lattice index, so they do
 not depend on the number of workers.
 """
 import math
-from concurrent.futures import ThreadPoolExecutor, as_completed
 from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import CancelledError, InputError
+from ..errors import InputError
+from ..execution import Execution, run_tasks
 from ..progress import ensure, step as progress_step
 from ..tiling import tile_grid
 from .imagery import as_image
@@ -224,7 +224,7 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
     own range (RPC); seeds: PAIR_DTYPE records of already matched points (e.g. seeds_from_points);
     automatic: also seek automatic seeds in every tile (default: only when no seeds are given),
     so that tiles without a given seed still grow; a tile tries all its seeds in decreasing rho;
-    workers: threads over tiles (results identical). Returns the accepted lattice points as a
+    workers: threads over tiles, or an execution.Execution (results identical). Returns the accepted lattice points as a
     PAIR_DTYPE array sorted by (y1, x1); `seed` holds the id of the seed each point grew from
     (index into `seeds`, or len(seeds) + tile * seed_stride(params) + k for automatic ones).
     Raises InputError for images smaller than the template or without overlap, CancelledError
@@ -243,26 +243,9 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
     tiles = lattice.tiles(int(params.tile))
     job = GrowJob(image1, image2, model1, model2, params, hr, lattice, seeds, automatic)
     fb = ensure(feedback)
-    parts = [None] * len(tiles)
     progress_step(feedback, 0.0)
-    done = 0
-    if workers <= 1 or len(tiles) == 1:
-        for i, box in enumerate(tiles):
-            parts[i] = _grow_tile(job, i, box)
-            done += 1
-            progress_step(feedback, 100.0 * done / len(tiles))
-    else:
-        with ThreadPoolExecutor(max_workers=int(workers)) as pool:
-            futures = {pool.submit(_grow_tile, job, i, box): i for i, box in enumerate(tiles)}
-            try:
-                for fut in as_completed(futures):
-                    parts[futures[fut]] = fut.result()
-                    done += 1
-                    progress_step(feedback, 100.0 * done / len(tiles))
-            except CancelledError:
-                for fut in futures:
-                    fut.cancel()
-                raise
+    where = workers if isinstance(workers, Execution) else Execution("threads", max(int(workers), 1))
+    parts = run_tasks(_grow_tile, [(job, i, box) for i, box in enumerate(tiles)], where, feedback, "region growing")
     records = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, PAIR_DTYPE)
     records = records[np.lexsort((records["x1"], records["y1"]))]
     tries = sum(p[1] for p in parts)

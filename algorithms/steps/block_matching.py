@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from .. import progress
 from ..block import Block
 from ..errors import InputError
+from ..execution import Execution
 from ..height_range import height_range, mean_height
 from ..matching.coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
 from ..matching.combinations import combination_order, format_summary, match_block, summary_rows, write_summary_csv
@@ -42,7 +43,7 @@ class MatchParams:
     sigma_factor: float = 3.0           # group 3 consistency test: deviations below k robust sigma
     grow_second: bool = True            # also grow combination (b) where (a) found no points
     refine: bool = True                 # MPGC refinement of the group 3 points
-    workers: int = 1                    # threads over the tiles of region growing
+    execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # region growing's tiles
 
     def check(self):
         """Raise InputError for settings no matching can use."""
@@ -50,9 +51,10 @@ class MatchParams:
             raise InputError(f"the matching strategy must be one of {', '.join(STRATEGIES)}, got {self.strategy!r}")
         if self.seeds not in SEED_SOURCES:
             raise InputError(f"the seeds must be one of {', '.join(SEED_SOURCES)}, got {self.seeds!r}")
-        if self.sigma_factor <= 0 or self.workers < 1:
-            raise InputError("the consistency factor must be positive and the workers at least 1")
+        if self.sigma_factor <= 0:
+            raise InputError("the consistency factor must be positive")
         self.grow.check()
+        self.execution.check()
         return self
 
 
@@ -88,7 +90,7 @@ def match_block_points(block_path, params=None, summary_csv=None, feedback=None)
     else:
         result = match_block(images, models, names=names, image_ids=ids, params=params.grow, height_range=heights,
                              seed_points=seed_points, automatic=automatic, feedback=feedback,
-                             workers=params.workers, grow_second=params.grow_second,
+                             workers=params.execution, grow_second=params.grow_second,
                              sigma_factor=params.sigma_factor, refine=params.refine)
     # storage: the sidecar and the point layer
     sidecar = blk.save_points(result, "mass_points", display=(models[0], rows[0]["id"], mean_height(heights)))

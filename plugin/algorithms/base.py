@@ -19,6 +19,7 @@ from qgis.core import (
     QgsProcessingParameterFolderDestination,
     QgsProcessingParameterNumber,
     QgsProcessingParameterRasterDestination,
+    QgsProcessingParameterString,
     QgsProcessingParameterVectorDestination,
 )
 from qgis.PyQt.QtCore import QCoreApplication, QUrl
@@ -27,6 +28,7 @@ from qgis.PyQt.QtGui import QIcon
 from ...algorithms import atomic
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES
 from ...algorithms.errors import InputError, PushbroomError
+from ...algorithms.execution import BACKENDS, Execution
 from ...resource_files import resource_path
 
 
@@ -218,3 +220,31 @@ def heights_parameter(key, description):
 def heights_choice(algorithm, parameters, key, context):
     """The HEIGHT_TYPES value of a heights_parameter."""
     return HEIGHT_TYPES[algorithm.parameterAsEnum(parameters, key, context)]
+
+
+#: labels of the execution backends execution.BACKENDS
+EXECUTION_LABELS = {"threads": "Threads in this process",
+                    "processes": "Local worker processes",
+                    "dask": "Dask distributed: a local cluster, or the scheduler at the address below"}
+
+
+def execution_parameters(algorithm, workers):
+    """The advanced parameters EXECUTION, DASK_ADDRESS and WORKERS (default `workers`) of an algorithm whose
+    tiles run on execution.run_tasks (its KEYS name the three); read them with execution_choice."""
+    tr = algorithm.tr
+    return [QgsProcessingParameterEnum(algorithm.EXECUTION, tr("Execution of the tiles"),
+                                       [tr(EXECUTION_LABELS[b]) for b in BACKENDS], defaultValue=0),
+            QgsProcessingParameterString(algorithm.DASK_ADDRESS, tr("Dask scheduler address (tcp://host:8786; empty: "
+                                                                    "a local cluster of the workers below)"),
+                                         "", optional=True),
+            QgsProcessingParameterNumber(algorithm.WORKERS, tr("Workers (threads, processes or local Dask workers)"),
+                                         QgsProcessingParameterNumber.Integer, workers, minValue=1)]
+
+
+def execution_choice(algorithm, parameters, context):
+    """The execution.Execution of an algorithm's execution_parameters."""
+    values = algorithm.parameterValues(parameters, context, backend=algorithm.EXECUTION,
+                                       address=algorithm.DASK_ADDRESS, workers=algorithm.WORKERS)
+    values["backend"] = BACKENDS[values["backend"]]
+    values["address"] = values["address"].strip()
+    return Execution(**values).check()

@@ -15,7 +15,7 @@ from ...algorithms.matching.coarse_to_fine import CoarseToFineParams
 from ...algorithms.matching.params import GrowParams
 from ...algorithms.steps.block_matching import MatchParams, match_block_points
 from ..styles import load_styled
-from .base import PushbroomAlgorithm
+from .base import PushbroomAlgorithm, execution_choice, execution_parameters
 
 Number = QgsProcessingParameterNumber
 #: seed choices: (engine key, label)
@@ -33,8 +33,9 @@ class MatchPoints(PushbroomAlgorithm):
     GROUP_ID = "matching"
 
     KEYS = ("BLOCK STRATEGY IMAGES MIN_HEIGHT MAX_HEIGHT SEEDS TEMPLATE STEP WIDE_TEMPLATE RHO_MIN MAX_ELLIPSE "
-            "MAX_SHIFT MAX_ITERATIONS TILE SIGMA_FACTOR GROW_SECOND MPGC_REFINE MPGC_SUPPORT WORKERS "
-            "COARSE_TO_FINE_GRID COARSE_TO_FINE_RHO_MIN COARSE_TO_FINE_TILE COARSE_TO_FINE_EDGE_POINTS SUMMARY "
+            "MAX_SHIFT MAX_ITERATIONS TILE SIGMA_FACTOR GROW_SECOND MPGC_REFINE MPGC_SUPPORT "
+            "EXECUTION DASK_ADDRESS WORKERS COARSE_TO_FINE_GRID COARSE_TO_FINE_RHO_MIN COARSE_TO_FINE_TILE "
+            "COARSE_TO_FINE_EDGE_POINTS SUMMARY "
             "POINTS POINTS_FILE")
 
     def initAlgorithm(self, config=None):
@@ -74,7 +75,7 @@ class MatchPoints(PushbroomAlgorithm):
                                           m.refine),
             QgsProcessingParameterBoolean(self.MPGC_SUPPORT, tr("MPGC refinement with support weights (heights of the "
                                           "template centre's surface; for DEMs)"), d.support_weights),
-            Number(self.WORKERS, tr("Worker threads"), Number.Integer, m.workers, minValue=1),
+            *execution_parameters(self, m.execution.workers),
             Number(self.COARSE_TO_FINE_GRID, tr("Coarse-to-fine: grid point spacing at full resolution (px)"),
                    Number.Integer, c.grid, minValue=2),
             Number(self.COARSE_TO_FINE_RHO_MIN, tr("Coarse-to-fine: minimum correlation coefficient at full "
@@ -102,9 +103,10 @@ class MatchPoints(PushbroomAlgorithm):
         values = self.parameterValues(
             parameters, context, images=self.IMAGES, min_height=self.MIN_HEIGHT, max_height=self.MAX_HEIGHT,
             strategy=self.STRATEGY, seeds=self.SEEDS, sigma_factor=self.SIGMA_FACTOR, grow_second=self.GROW_SECOND,
-            refine=self.MPGC_REFINE, workers=self.WORKERS)
+            refine=self.MPGC_REFINE)
         values.update(strategy=STRATEGIES[values["strategy"]][0], seeds=SEED_SOURCES[values["seeds"]][0])
-        return MatchParams(grow=grow, coarse_to_fine=coarse_to_fine, **values)
+        return MatchParams(grow=grow, coarse_to_fine=coarse_to_fine,
+                           execution=execution_choice(self, parameters, context), **values)
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, self.BLOCK, context)

@@ -147,3 +147,25 @@ def test_coarse_to_fine_strategy(pushbroom_provider, triplet):
     assert len(coarse) < 0.7 * len(default) and coarse.stats["tiles"] == 4, (len(coarse), len(default), coarse.stats)
     with pytest.raises(QgsProcessingException, match="tiles must be at least 512 px"):
         processing.run("pushbroom:matchpoints", {**two, "COARSE_TO_FINE_TILE": 300})
+
+
+@pytest.mark.slow
+def test_every_execution_gives_the_same_points_from_qgis_process(pushbroom_provider, triplet, qgis_process):
+    """Region growing's tiles on threads in this process, on local worker processes and on a Dask local
+    cluster started by qgis_process (whose sys.executable is not Python): the same points, bit for bit."""
+    lo, hi = triplet["range"]
+    common = {"IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 8, "TILE": 256}
+    paths = {}
+    for k, execution in enumerate(("threads", "processes", "dask")):
+        paths[execution] = make_block(triplet, f"exec_{execution}.gpkg", ("HRG", "HRS1"))
+        if execution == "threads":
+            processing.run("pushbroom:matchpoints", {"BLOCK": paths[execution], **common})
+        else:
+            args = [f"--{key}={value}" for key, value in {**common, "EXECUTION": k, "WORKERS": 2}.items()]
+            qgis_process("run", "pushbroom:matchpoints", f"--BLOCK={paths[execution]}", *args)
+    reference = Block(paths["threads"]).points()
+    assert len(reference) > 100
+    for execution in ("processes", "dask"):
+        points = Block(paths[execution]).points()
+        assert points.points.tobytes() == reference.points.tobytes(), execution     # NaN included
+        assert points.observations.tobytes() == reference.observations.tobytes(), execution

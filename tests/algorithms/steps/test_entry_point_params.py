@@ -3,6 +3,7 @@ values no step can use are InputErrors before any work starts."""
 import pytest
 
 from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.steps.block_intersection import IntersectParams
@@ -17,7 +18,7 @@ def test_defaults_are_valid(params):
 
 
 @pytest.mark.parametrize("params", [
-    MatchParams(strategy="hierarchy"), MatchParams(seeds="none"), MatchParams(workers=0),
+    MatchParams(strategy="hierarchy"), MatchParams(seeds="none"), MatchParams(execution=Execution("threads", 0)),
     MatchParams(grow=GrowParams(template=8)),
     IntersectParams(kind="control_points"), IntersectParams(sigma=0.0),
     DemParams(cell=0.0), DemParams(datum="navd88"), DemParams(iterations=0),

@@ -1,0 +1,83 @@
+"""The execution layer (algorithms/execution.py): the same results in the same order on threads, local
+processes and a Dask LocalCluster; progress, cancel, task errors, a dying worker, a scheduler that
+does not answer, and worker processes started from a host program that is not Python (QGIS)."""
+import os
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from pushbroom.algorithms import execution
+from pushbroom.algorithms.errors import CancelledError, ExecutionError, InputError
+from pushbroom.algorithms.execution import Execution, run_tasks
+from tests.helpers import execution_tasks as tasks
+from tests.helpers.feedback import Feedback
+
+BACKENDS = [Execution("threads", 2), Execution("processes", 2), Execution("dask", 2)]
+
+
+@pytest.mark.parametrize("where", BACKENDS, ids=lambda e: e.backend)
+def test_every_backend_returns_the_numpy_results_in_task_order(where):
+    log = Feedback()
+    out = run_tasks(tasks.statistic, [(seed, 1000) for seed in range(12)], where, log)
+    # the plain numpy reference, in this process, bit for bit
+    reference = [(s, float(np.random.default_rng(s).standard_normal(1000).mean())) for s in range(12)]
+    assert [r[:2] for r in out] == reference
+    pids = {r[2] for r in out}
+    assert (pids == {os.getpid()}) == (where.backend == "threads")     # processes ran elsewhere
+    assert log.progress[-1] == 100.0 and len(log.progress) == 12          # one step per finished task
+
+
+@pytest.mark.parametrize("where", BACKENDS[:2], ids=lambda e: e.backend)
+def test_a_cancel_stops_the_pending_tasks(where, tmp_path):
+    stop = Feedback(cancel_at=1.0)                  # cancelled once the first task has finished
+    with pytest.raises(CancelledError):
+        run_tasks(tasks.slow_marker, [(str(tmp_path), k, 0.3) for k in range(20)], where, stop)
+    time.sleep(1.0)
+    # only the tasks a worker had started or queued ran: the first two (finishing together), the 2 running
+    # then, and for processes the pool's call queue (workers + 1, which concurrent.futures cannot cancel);
+    # the 13 or more others never ran
+    assert len(os.listdir(tmp_path)) <= 2 + 2 + (3 if where.backend == "processes" else 0)
+
+
+@pytest.mark.parametrize("where", BACKENDS, ids=lambda e: e.backend)
+def test_a_task_error_is_raised_as_it_is(where):
+    with pytest.raises(InputError, match="task 2 refuses"):
+        run_tasks(tasks.refuse, [(k,) for k in range(6)], where)
+
+
+def test_dask_reruns_the_task_of_a_killed_worker(tmp_path):
+    out = run_tasks(tasks.die_once, [(str(tmp_path), k) for k in range(6)], Execution("dask", 2))
+    assert (tmp_path / "died-1").exists()            # the worker did die
+    assert out == [k * k for k in range(6)]          # and the run completed with every result
+
+
+def test_a_process_pool_names_a_dead_worker(tmp_path):
+    with pytest.raises(ExecutionError, match="worker process .* died"):
+        run_tasks(tasks.die_once, [(str(tmp_path), k) for k in range(6)], Execution("processes", 2), what="the test")
+
+
+def test_a_scheduler_that_does_not_answer_is_a_clear_error():
+    start = time.monotonic()
+    with pytest.raises(ExecutionError, match="no Dask scheduler answers at tcp://127.0.0.1:9 within 3 s"):
+        run_tasks(tasks.refuse, [(0,)], Execution("dask", 2, address="tcp://127.0.0.1:9", connect_timeout=3))
+    assert time.monotonic() - start < 30       # the issue's bound: an error, not a hang
+
+
+@pytest.mark.parametrize("host", ["/usr/bin/qgis", "/root/.pyenv/shims/python3"])
+def test_worker_processes_start_this_python_when_the_host_is_not_it(monkeypatch, host):
+    # QGIS reports its binary, or (embedded Python) the first python3 on PATH, maybe another installation's
+    monkeypatch.setattr(sys, "executable", host)
+    exe = execution.python_executable()
+    assert exe.startswith(sys.exec_prefix + os.sep) and os.path.basename(exe).startswith("python")   # this venv's
+    out = run_tasks(tasks.statistic, [(1, 10), (2, 10)], Execution("processes", 2))
+    assert [r[0] for r in out] == [1, 2]
+
+
+@pytest.mark.parametrize("bad, message", [(Execution("cluster"), "must be one of threads, processes, dask"),
+                                          (Execution("threads", 0), "at least one worker"),
+                                          (Execution("threads", address="tcp://h:8786"), "is for the dask execution")])
+def test_settings_no_backend_can_use_are_refused(bad, message):
+    with pytest.raises(InputError, match=message):
+        bad.check()
