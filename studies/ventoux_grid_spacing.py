@@ -2,8 +2,8 @@
 (issue 7's Ventoux point)? match_coarse_to_fine on the two Pleiades crops with grid points every 2
 (region growing's nodes, as tests/real/test_coarse_to_fine_real.py), 5 and 10 px (or the GRID arguments),
 the points intersected with the supplied RPCs and gridded at 1, 2 and 5 m, each DSM against the SRTM
-tile (EGM96 -> ellipsoidal) with the real-data tests' code (tests.helpers.real_dsm). Needs the shared
-data sets in ../shared/data."""
+tile (EGM96 -> ellipsoidal) with the real-data tests' code (tests.helpers.real_dsm). Needs the real
+data sets of the tests (tests/conftest.py, SHARED_DATA)."""
 import pathlib
 import sys
 import tempfile
