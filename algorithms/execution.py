@@ -138,7 +138,11 @@ class _Dask:
             self.cluster = distributed.LocalCluster(n_workers=int(execution.workers), threads_per_worker=1,
                                                     processes=True, dashboard_address=None,
                                                     silence_logs=40)        # logging.ERROR
-            self.client = distributed.Client(self.cluster, set_as_default=False)
+            try:
+                self.client = distributed.Client(self.cluster, set_as_default=False)
+            except BaseException:
+                self.cluster.close()
+                raise
 
     def submit(self, function, args):
         # pure=False: a task is run, not looked up (two runs of the same tile may write different files)

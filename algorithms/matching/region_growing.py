@@ -224,10 +224,10 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
     own range (RPC); seeds: PAIR_DTYPE records of already matched points (e.g. seeds_from_points);
     automatic: also seek automatic seeds in every tile (default: only when no seeds are given),
     so that tiles without a given seed still grow; a tile tries all its seeds in decreasing rho;
-    workers: threads over tiles, or an execution.Execution (results identical). Returns the accepted lattice points as a
-    PAIR_DTYPE array sorted by (y1, x1); `seed` holds the id of the seed each point grew from
-    (index into `seeds`, or len(seeds) + tile * seed_stride(params) + k for automatic ones).
-    Raises InputError for images smaller than the template or without overlap, CancelledError
+    workers: threads over tiles, or an execution.Execution (results identical). Returns the
+    accepted lattice points as a PAIR_DTYPE array sorted by (y1, x1); `seed` holds the id of the
+    seed each point grew from (index into `seeds`, or len(seeds) + tile * seed_stride(params) + k
+    for automatic ones). Raises InputError for images smaller than the template or without overlap, CancelledError
     when cancelled; no accepted seed gives an empty array and a message via feedback."""
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)

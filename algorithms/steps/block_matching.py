@@ -85,6 +85,9 @@ def match_block_points(block_path, params=None, summary_csv=None, feedback=None)
     log.pushInfo("combination order: " + ", ".join(r["name"] for r in rows) + f"; height range {heights}")
     images, names, ids = [r["image_path"] for r in rows], [r["name"] for r in rows], [r["id"] for r in rows]
     if params.strategy == "coarse_to_fine":
+        if params.execution.backend != "threads":
+            progress.warn(feedback, f"the coarse-to-fine matcher runs its tiles in this process: the "
+                                    f"{params.execution.backend} execution applies to region growing only")
         result = match_coarse_to_fine(images, models, names=names, image_ids=ids,
                                       params=params.coarse_to_fine.check(), height_range=heights, feedback=feedback)
     else:

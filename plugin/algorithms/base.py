@@ -247,4 +247,4 @@ def execution_choice(algorithm, parameters, context):
                                        address=algorithm.DASK_ADDRESS, workers=algorithm.WORKERS)
     values["backend"] = BACKENDS[values["backend"]]
     values["address"] = values["address"].strip()
-    return Execution(**values).check()
+    return Execution(**values)

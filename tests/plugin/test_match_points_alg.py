@@ -8,6 +8,7 @@ from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
 from pushbroom.algorithms.block import Block
+from pushbroom.algorithms.execution import BACKENDS
 from pushbroom.algorithms.matching.points import REFINED
 from pushbroom.algorithms.simulation import SceneConfig
 
@@ -156,12 +157,13 @@ def test_every_execution_gives_the_same_points_from_qgis_process(pushbroom_provi
     lo, hi = triplet["range"]
     common = {"IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 8, "TILE": 256}
     paths = {}
-    for k, execution in enumerate(("threads", "processes", "dask")):
+    for execution in BACKENDS:
         paths[execution] = make_block(triplet, f"exec_{execution}.gpkg", ("HRG", "HRS1"))
         if execution == "threads":
             processing.run("pushbroom:matchpoints", {"BLOCK": paths[execution], **common})
         else:
-            args = [f"--{key}={value}" for key, value in {**common, "EXECUTION": k, "WORKERS": 2}.items()]
+            chosen = {**common, "EXECUTION": BACKENDS.index(execution), "WORKERS": 2}
+            args = [f"--{key}={value}" for key, value in chosen.items()]
             qgis_process("run", "pushbroom:matchpoints", f"--BLOCK={paths[execution]}", *args)
     reference = Block(paths["threads"]).points()
     assert len(reference) > 100
