@@ -318,6 +318,24 @@ def write_text(path, text, what="the output"):
 
 
 @contextlib.contextmanager
+def work_dir(path, what="the intermediate files"):
+    """Yield a hidden temporary folder beside `path` for a step's intermediate files (what the tile tasks
+    write, where every worker sees the output's file system), removed when the body ends; after a kill, the
+    next write into that folder removes it once its writer has gone (clean_leftovers)."""
+    folder = _folder(path, what)
+    _clean_once(folder)
+    tmp = _temporary_name(path)
+    try:
+        os.mkdir(tmp)
+    except OSError as exc:
+        raise storage_error(exc, path, what) from None
+    try:
+        yield tmp
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+@contextlib.contextmanager
 def atomic_dir(path, what="the output folder"):
     """Yield a temporary folder beside `path`; when the body succeeds it replaces `path` as a whole."""
     path = os.path.abspath(os.fspath(path))

@@ -31,6 +31,7 @@ import multiprocessing
 import os
 import sys
 import time
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 
 from . import progress
@@ -106,7 +107,7 @@ class _Pool:
     def result(self, future, what):
         try:
             return future.result()
-        except cf.process.BrokenProcessPool as exc:
+        except BrokenProcessPool as exc:
             raise ExecutionError(f"a worker process of {what} died (out of memory, or killed): run again with "
                                  "fewer workers or smaller tiles") from exc
 

@@ -83,3 +83,16 @@ def quiet(feedback):
     """Feedback for a repeated sub-step whose own messages and progress would be noise: cancelling and
     warnings only."""
     return None if feedback is None else _Quiet(feedback)
+
+
+def gdal_callback(feedback):
+    """A GDAL progress callback reporting to `feedback` (None: nothing); it stops GDAL when the user cancels,
+    which the caller then raises as CancelledError (GDAL returns no dataset or an error)."""
+    def callback(fraction, *_):
+        if feedback is None:
+            return 1
+        if feedback.isCanceled():
+            return 0
+        feedback.setProgress(100.0 * fraction)
+        return 1
+    return callback

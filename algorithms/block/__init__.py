@@ -2,7 +2,7 @@
 
 The submodules hold the implementation by concern: schema.py (tables, opening, transactions, generation
 counters, block_info), images.py (creation, images table, sensor models), points.py (mass and tie points:
-versioned .npz sidecars and their display layers), control_points.py (control/check points and image
+versioned sidecar folders of point parts and their display layers), control_points.py (control/check points and image
 measurements), measurements.py (single edits of those, for the measurement window) and residuals.py (the
 last adjustment's residuals). Code outside this package goes through `Block`."""
 import contextlib
@@ -130,6 +130,11 @@ class Block:
     def points(self, kind="mass_points"):
         """The MultiPoints of `kind` (points.KINDS) stored with the block."""
         return points.load_points(self.path, kind)
+
+    def point_parts(self, kind="mass_points"):
+        """The part files of the points of `kind` stored with the block, to be read one at a time
+        (points.load_arrays); points.py has the layout."""
+        return points.point_parts(points.sidecar_path(self.path, kind), points.MAKERS.get(kind, "the step"))
 
     def save_points(self, multi, kind="mass_points", display=None, feedback=None):
         """Store `multi` (MultiPoints) as the block's points of `kind` and, given `display` = (sensor model,

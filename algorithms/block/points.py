@@ -1,28 +1,36 @@
 """Storage of multi-image points (matching/points.py's MultiPoints) beside a block.
 
-Storage choice: a sidecar `<block stem>.<kind>.<host>-<pid>-<8 hex>.npz` next to the GeoPackage
-(uncompressed numpy archive of the two tables and the stats as JSON), written atomically
-(algorithms/atomic.py) and referenced from the block's `block_info` table (key = kind, value = the file
-name relative to the block). Why not BLOB or attribute tables in the GeoPackage: millions of rows written through OGR
-feature by feature take tens of seconds, a single BLOB hits SQLite's 1 GB value limit near 10
-million points and rewrites the whole database page chain, while an .npz of the structured arrays
-is written and read at disk speed (tests/benchmarks/bench_points.py) and loads straight into the arrays the
-adjustment and the surface steps use. For display, the points are also written as a point layer into the block
-(`write_point_layer`), which can be rebuilt from the sidecar at any time (most of that time is OGR building the
-R-tree spatial index).
+Storage choice: a sidecar folder `<block stem>.<kind>.<host>-<pid>-<8 hex>` next to the GeoPackage,
+referenced from the block's `block_info` table (key = kind, value = the folder name relative to the
+block). It holds the points in parts of at most PART_POINTS points each (`part-<k>.npz`: an
+uncompressed numpy archive of the part's two tables, point ids ascending) and `index.json` (the format,
+the stats, and per part its file, point and observation counts and id range). A step reads one part at a
+time (`point_parts`, `load_arrays`), so its memory follows the part, not the scene; `load_points`
+gives all of them at once, for the steps whose points are few (tie points) or small scenes. A
+sidecar of earlier versions (one `.npz` file) is read as one part.
 
-Versioned storage: a store never overwrites what the block references. The new sidecar gets a new name;
-the new point layer is built under a staged name (`<layer>__staged_<host>_<pid>`); then ONE transaction
-replaces the layer by the staged one, points block_info at the new sidecar with its counts and bumps the
-kind's generation (schema.GENERATIONS); only then is the old sidecar removed. A kill at any moment leaves
-the old points, layer and counts, or the new ones, never a mix; the staged layer and the sidecar a killed
-store leaves behind are removed by the next store once their writer has gone (atomic.owner_gone).
+Why not BLOB or attribute tables in the GeoPackage: millions of rows written through OGR feature by
+feature take tens of seconds, a single BLOB hits SQLite's 1 GB value limit near 10 million points and
+rewrites the whole database page chain, while an .npz of the structured arrays is written and read at
+disk speed (tests/benchmarks/bench_points.py) and loads straight into the arrays the adjustment and the
+surface steps use. For display, the points are also written as a point layer into the block
+(`write_point_layer`), which can be rebuilt from the sidecar at any time (most of that time is OGR
+building the R-tree spatial index).
+
+Versioned storage: a store never overwrites what the block references. The new sidecar gets a new name
+(and is written as a whole: atomic.atomic_dir); the new point layer is built under a staged name
+(`<layer>__staged_<host>_<pid>`); then ONE transaction replaces the layer by the staged one, points
+block_info at the new sidecar with its counts and bumps the kind's generation (schema.GENERATIONS); only
+then is the old sidecar removed. A kill at any moment leaves the old points, layer and counts, or the new
+ones, never a mix; the staged layer and the sidecar a killed store leaves behind are removed by the next
+store once their writer has gone (atomic.owner_gone).
 """
 import contextlib
 import json
 import os
 import re
 import secrets
+import shutil
 import sqlite3
 import zipfile
 
@@ -37,6 +45,10 @@ from ..matching.points import MultiPoints
 from . import schema
 
 FILE_FORMAT = "pushbroom-multipoints-1"
+INDEX_FORMAT = "pushbroom-multipoints-parts-1"
+INDEX = "index.json"
+#: points per part of a sidecar: about 50 MB of a three-image part in memory
+PART_POINTS = 262_144
 # a GeoPackage point geometry: header (magic, version, flags = little endian without envelope,
 # srs id) and the WKB point
 GPKG_POINT_DTYPE = np.dtype([("magic", "S2"), ("version", "u1"), ("flags", "u1"), ("srs_id", "<i4"),
@@ -55,7 +67,7 @@ def _stem(block_path):
 
 
 def save_arrays(path, points):
-    """Write `points` (MultiPoints) to the .npz `path` atomically."""
+    """Write `points` (MultiPoints) to the .npz `path` atomically (one part of a sidecar)."""
     with atomic_path(path, "the point file") as tmp:
         with open(tmp, "wb") as f:
             np.savez(f, format=np.array(FILE_FORMAT), points=points.points, observations=points.observations,
@@ -63,31 +75,98 @@ def save_arrays(path, points):
     return path
 
 
-def load_arrays(path, step="the matching step"):
-    """Read a MultiPoints .npz written by `save_arrays`; a damaged file (cut short, overwritten) is a
-    StorageError that names it."""
-    if not os.path.exists(path):
-        raise InputError(f"point file {path} is missing: run {step} again")
+def _damaged(path, step, exc):
+    return StorageError(f"the point file {path} is damaged ({exc}): it was cut short or overwritten; run {step} "
+                        "again")
+
+
+def _read_part(path, step):
     try:
         with np.load(path, allow_pickle=False) as data:
             if "format" not in data.files or str(data["format"]) != FILE_FORMAT:
                 raise InputError(f"{path} is not a Pushbroom point file")
             return MultiPoints(data["points"], data["observations"], json.loads(str(data["stats"])))
     except (zipfile.BadZipFile, EOFError, ValueError, KeyError, OSError) as exc:
-        raise StorageError(f"the point file {path} is damaged ({exc}): it was cut short or overwritten; run {step} "
-                           "again") from None
+        raise _damaged(path, step, exc) from None
+
+
+def read_index(path, step="the matching step"):
+    """The index of the sidecar folder `path` (module docstring), or None for a one-file sidecar."""
+    if not os.path.exists(path):
+        raise InputError(f"point file {path} is missing: run {step} again")
+    if not os.path.isdir(path):
+        return None
+    try:
+        with open(os.path.join(path, INDEX), encoding="utf-8") as f:
+            index = json.load(f)
+    except (OSError, ValueError) as exc:
+        raise _damaged(path, step, exc) from None
+    if index.get("format") != INDEX_FORMAT:
+        raise InputError(f"{path} is not a Pushbroom point folder")
+    return index
+
+
+def point_parts(path, step="the matching step"):
+    """The part files of the sidecar `path` (a folder, or one .npz file), in point id order."""
+    index = read_index(path, step)
+    return [os.fspath(path)] if index is None else [os.path.join(path, p["file"]) for p in index["parts"]]
+
+
+def load_arrays(path, step="the matching step"):
+    """Read the MultiPoints of a sidecar folder written by `save_parts` (all parts), or of one part or
+    .npz file written by `save_arrays`; a damaged file (cut short, overwritten) is a StorageError that
+    names it."""
+    index = read_index(path, step)
+    if index is None:
+        return _read_part(path, step)
+    parts = [_read_part(p, step) for p in point_parts(path, step)]
+    return MultiPoints(np.concatenate([p.points for p in parts]) if parts else None,
+                       np.concatenate([p.observations for p in parts]) if parts else None, index["stats"])
+
+
+def save_parts(path, points, part_points=None):
+    """Write `points` (MultiPoints) to the sidecar folder `path` (module docstring) as a whole: parts of
+    `part_points` (default PART_POINTS) points in id order and the index. Returns `path`."""
+    part_points = int(part_points or PART_POINTS)
+    order = np.argsort(points.points["id"], kind="stable")
+    pts = points.points[order]
+    obs = points.observations[np.lexsort((points.observations["image_id"], points.observations["point_id"]))]
+    starts = np.arange(0, len(pts), part_points)
+    ends = np.append(starts[1:], len(pts))
+    bounds = np.searchsorted(obs["point_id"], [pts["id"][s] for s in starts] + [np.iinfo(np.int64).max])
+    parts = []
+    with atomic.atomic_dir(path, "the point folder") as tmp:
+        for k, (a, b) in enumerate(zip(starts, ends)):
+            name = f"part-{k:05d}.npz"
+            save_arrays(os.path.join(tmp, name), MultiPoints(pts[a:b], obs[bounds[k]:bounds[k + 1]]))
+            parts.append({"file": name, "points": int(b - a), "observations": int(bounds[k + 1] - bounds[k]),
+                          "first_id": int(pts["id"][a]), "last_id": int(pts["id"][b - 1])})
+        atomic.write_text(os.path.join(tmp, INDEX), json.dumps(
+            {"format": INDEX_FORMAT, "points": len(pts), "stats": points.stats, "parts": parts}, indent=1),
+            "the point index")
+    return path
 
 
 def _remove_orphan_sidecars(block_path, kind, keep):
     """Remove the sidecars of `kind` other than `keep` whose writer has gone (unversioned ones: always)."""
     folder = _folder(block_path)
-    pattern = re.compile(rf"^{re.escape(_stem(block_path))}\.{kind}(?:\.([A-Za-z0-9_]+)-(\d+)-[0-9a-f]{{8}})?\.npz$")
+    # a versioned folder or .npz file, or the unversioned .npz of the first versions
+    pattern = re.compile(rf"^{re.escape(_stem(block_path))}\.{kind}(?:\.([A-Za-z0-9_]+)-(\d+)-[0-9a-f]{{8}}(?:\.npz)?"
+                         r"|\.npz)$")
     for name in os.listdir(folder):
         match = pattern.match(name)
         if match and name != keep and (match.group(1) is None
                                        or atomic.owner_gone(match.group(1), int(match.group(2)), 0.0)):
-            with contextlib.suppress(OSError):
-                os.unlink(os.path.join(folder, name))
+            _remove_sidecar(os.path.join(folder, name))
+
+
+def _remove_sidecar(path):
+    """Remove a sidecar: a folder or, of earlier versions, one file."""
+    if os.path.isdir(path):
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
 
 
 def _drop_layers(block_path, names):
@@ -144,10 +223,10 @@ def save_points(block_path, points, kind="mass_points", display=None, feedback=N
     what = f"the {kind.replace('_', ' ')}"
     schema.check_writable(block_path, what)
     old = schema.read_info(block_path).get(kind)
-    name = f"{_stem(block_path)}.{kind}.{atomic.HOST}-{os.getpid()}-{secrets.token_hex(4)}.npz"
+    name = f"{_stem(block_path)}.{kind}.{atomic.HOST}-{os.getpid()}-{secrets.token_hex(4)}"
     path = os.path.join(_folder(block_path), name)
     try:
-        save_arrays(path, points)
+        save_parts(path, points)
         progress.step(feedback, 5)
         with _staged_layer(block_path, kind, points, display, progress.scaled(feedback, 5, 95)) as staged:
             with schema.transaction(block_path, what) as ds:
@@ -157,24 +236,27 @@ def save_points(block_path, points, kind="mass_points", display=None, feedback=N
                                  step=f"store {kind}", message=f"{len(points)} points in {name}")
                 schema.bump(ds, kind)
     except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(path)
+        _remove_sidecar(path)
         raise
     if old and old != name:
-        with contextlib.suppress(OSError):
-            os.unlink(os.path.join(_folder(block_path), old))
+        _remove_sidecar(os.path.join(_folder(block_path), old))
     _remove_orphan_sidecars(block_path, kind, keep=name)
     progress.step(feedback, 100)
     return path
 
 
-def load_points(block_path, kind="mass_points"):
-    """The MultiPoints of `kind` stored with the schema."""
+def sidecar_path(block_path, kind="mass_points"):
+    """The sidecar of the points of `kind` stored with the schema (InputError where there is none)."""
     info = schema.read_info(block_path)
     if kind not in info:
         raise InputError(f"block {block_path} has no {kind.replace('_', ' ')}: run {MAKERS.get(kind, 'the step')} "
                          "first")
-    return load_arrays(os.path.join(_folder(block_path), info[kind]), MAKERS.get(kind, "the step"))
+    return os.path.join(_folder(block_path), info[kind])
+
+
+def load_points(block_path, kind="mass_points"):
+    """The MultiPoints of `kind` stored with the schema, all parts at once."""
+    return load_arrays(sidecar_path(block_path, kind), MAKERS.get(kind, "the step"))
 
 
 def layer_source(block_path, layer_name):

@@ -1,18 +1,28 @@
 """The intersection step (pushbroom:intersectpoints): object points of a block's mass or tie points by
 forward intersection with the block's current sensor models (intersection.intersect; Kornus et al.
-2006, section 3.5.1), written as a point cloud (pointcloud.write_point_cloud: LAS/LAZ, or a GeoPackage
-point layer) in the output CRS, default the block's UTM zone, z = WGS 84 ellipsoidal height.
+2006, section 3.5.1), written as a point cloud (pointcloud.write_point_cloud_parts: LAS/LAZ, or a
+GeoPackage point layer) in the output CRS, default the block's UTM zone, z = WGS 84 ellipsoidal height.
+
+Tiled: each part of the stored points (block/points.py) is one task on the chosen execution
+(execution.run_tasks), which intersects it and writes its object points to a file in a work folder
+beside the output; the cloud is then written part by part. Memory follows the part and the number of
+workers, not the scene, and the cloud does not depend on the execution (parts keep their order).
 
 Points that cannot be intersected are left out and counted in the log, which also gives per point
-group the count and the median sigmas. Storage: the points are read from the block
-(Block.points) and the step is recorded in its block_info (Block.update_info)."""
-from dataclasses import dataclass
+group the count and the median sigmas (intersection.Summary). Storage: the points are read from the
+block (Block.point_parts) and the step is recorded in its block_info (Block.update_info)."""
+import functools
+import os
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .. import progress
+from ..atomic import work_dir
 from ..block import Block
+from ..block.points import load_arrays
 from ..errors import InputError
+from ..execution import Execution, run_tasks
 from ..height_range import mean_height
 from ..sigmas import IMAGE_SIGMA
 from ..surface import intersection, pointcloud
@@ -29,6 +39,7 @@ class IntersectParams:
     crs: str = None                 # output CRS (authority id or WKT); None: the block's UTM zone
     sigma: float = IMAGE_SIGMA      # px: a priori sigma of the image coordinates
     max_iterations: int = 10        # per point
+    execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the parts run
 
     def check(self):
         """Raise InputError for settings no intersection can use."""
@@ -36,6 +47,7 @@ class IntersectParams:
             raise InputError(f"the points must be one of {', '.join(KINDS)}, got {self.kind!r}")
         if self.sigma <= 0 or self.max_iterations < 1:
             raise InputError("the image sigma must be positive and the iterations at least 1")
+        self.execution.check()
         return self
 
 
@@ -49,53 +61,77 @@ class IntersectResult:
     layer: str = None   # OGR source of the point layer (GeoPackage output)
 
 
-def _check_images(multi, kind, known):
-    """The image ids of `multi`'s observations, all of them in the block (`known`)."""
-    what = kind.replace("_", " ")
-    ids = [int(i) for i in multi.image_ids()]
-    if not ids:
-        raise InputError(f"the block's {what} have no image measurements")
-    if set(ids) - known:
-        raise InputError(f"the {what} refer to image ids {sorted(set(ids) - known)} which the block does not have: "
+def _intersect_part(job, part, out):
+    """Task: intersect the points of the part file `part` (block/points.py) with `job` = (models, h0,
+    sigma, max_iter, what) and write the converged ones (lon, lat, h and the cloud fields) to `out`.
+    Returns a small summary: points, written, status counts, intersection.Summary, sums of lon and lat."""
+    models, h0, sigma, max_iter, what = job
+    multi = load_arrays(part)
+    obs = multi.observations
+    if len(obs) == 0:
+        return {"points": 0, "written": 0, "status": {}, "summary": intersection.Summary(), "lonlat": (0, 0)}
+    unknown = set(np.unique(obs["image_id"]).tolist()) - set(models)
+    if unknown:
+        raise InputError(f"the {what} refer to image ids {sorted(unknown)} which the block does not have: "
                          "run the matching step again")
-    return ids
+    result = intersection.intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma=sigma,
+                                    h0=h0, max_iter=max_iter)
+    pos = np.searchsorted(multi.points["id"], result.point).clip(max=max(len(multi) - 1, 0))
+    if len(multi) == 0 or np.any(multi.points["id"][pos] != result.point):
+        raise InputError(f"the stored {what} have observations of unknown points: run the matching step again")
+    group = multi.points["group"][pos]
+    ok = result.ok
+    fields = pointcloud.cloud_fields(result, group=group, rho=multi.points["rho_min"][pos])
+    pointcloud.save_part(out, result.lon[ok], result.lat[ok], result.h[ok], fields)
+    return {"points": len(result), "written": int(ok.sum()), "status": result.status_counts(),
+            "summary": intersection.Summary().add(result, group),
+            "lonlat": (float(result.lon[ok].sum()), float(result.lat[ok].sum()))}
 
 
 def intersect_block_points(block_path, output, params=None, feedback=None):
     """Intersect the block's points (IntersectParams `params`) and write them to the point cloud `output`;
     returns an IntersectResult. Raises InputError (no points or measurements, unknown images or points,
-    none intersected), CancelledError when cancelled."""
+    none intersected), ExecutionError (module execution's), CancelledError when cancelled."""
     params = (params or IntersectParams()).check()
     log = progress.ensure(feedback)
     kind, what = params.kind, params.kind.replace("_", " ")
-    # storage: the points, the images and their models
+    # storage: the point parts, the images and their models
     blk = Block(block_path)
-    multi = blk.points(kind)
-    ids = _check_images(multi, kind, {r["id"] for r in blk.images()})
-    models = blk.models(ids)
+    parts = blk.point_parts(kind)
+    images = [r["id"] for r in blk.images()]
+    if not images:
+        raise InputError("the block has no images")
+    models = blk.models(images)
     heights = blk.height_range()
-    obs = multi.observations
-    result = intersection.intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"],
-                                    sigma=params.sigma, h0=None if heights is None else mean_height(heights),
-                                    max_iter=params.max_iterations, feedback=progress.scaled(feedback, 0, 80))
-    pos = np.searchsorted(multi.points["id"], result.point).clip(max=max(len(multi) - 1, 0))
-    if len(multi) == 0 or np.any(multi.points["id"][pos] != result.point):
-        raise InputError(f"the stored {what} have observations of unknown points: run the matching step again")
-    group = multi.points["group"][pos]
-    log.pushInfo(f"{len(result)} {what}: " + ", ".join(f"{name} {n}" for name, n in result.status_counts().items()))
-    log.pushInfo("per point group (a priori sigmas in m from the image sigma; sigma0 a posteriori):\n"
-                 + intersection.format_summary(intersection.summary_rows(result, group)))
-    ok = result.ok
-    if not ok.any():
-        raise InputError(f"none of the {len(result)} points could be intersected "
-                         f"({result.status_counts()}): check the block's sensor models and the points")
-    crs = params.crs or blk.info().get("default_crs")
-    fields = pointcloud.cloud_fields(result, group=group, rho=multi.points["rho_min"][pos])
-    out, srs, fmt = pointcloud.write_point_cloud(output, result.lon[ok], result.lat[ok], result.h[ok], fields,
-                                                 crs=crs, feedback=progress.scaled(feedback, 80, 100))
-    message = f"{int(ok.sum())} points written to {out} ({srs.GetName()}; z ellipsoidal height)"
+    job = (models, None if heights is None else mean_height(heights), params.sigma, params.max_iterations, what)
+    with work_dir(output, "the intersected parts") as work:
+        files = [os.path.join(work, f"part-{k:05d}.npz") for k in range(len(parts))]
+        done = run_tasks(_intersect_part, [(job, part, out) for part, out in zip(parts, files)], params.execution,
+                         progress.scaled(feedback, 0, 80), "the intersection")
+        points = sum(d["points"] for d in done)
+        if points == 0 or all(not d["status"] for d in done):
+            raise InputError(f"the block's {what} have no image measurements")
+        status, summary = {}, intersection.Summary()
+        for d in done:
+            summary.merge(d["summary"])
+            for name, n in d["status"].items():
+                status[name] = status.get(name, 0) + n
+        written = sum(d["written"] for d in done)
+        log.pushInfo(f"{points} {what} in {len(parts)} part(s): "
+                     + ", ".join(f"{name} {n}" for name, n in status.items()))
+        log.pushInfo("per point group (a priori sigmas in m from the image sigma; sigma0 a posteriori):\n"
+                     + intersection.format_summary(summary.rows()))
+        if written == 0:
+            raise InputError(f"none of the {points} points could be intersected ({status}): check the block's sensor "
+                             "models and the points")
+        centre = tuple(sum(d["lonlat"][i] for d in done) / written for i in range(2))
+        kept = [f for f, d in zip(files, done) if d["written"]]
+        out, srs, fmt = pointcloud.write_point_cloud_parts(
+            output, [functools.partial(pointcloud.load_part, f) for f in kept], written, centre=centre,
+            crs=params.crs or blk.info().get("default_crs"), feedback=progress.scaled(feedback, 80, 100))
+    message = f"{written} points written to {out} ({srs.GetName()}; z ellipsoidal height)"
     log.pushInfo(message)
     # storage: the step in the block's info
     blk.update_info({}, step="intersectpoints", message=message)
     layer = f"{out}|layername={pointcloud.GPKG_LAYER}" if fmt == "gpkg" else None
-    return IntersectResult(out, fmt, int(ok.sum()), layer)
+    return IntersectResult(out, fmt, written, layer)

@@ -8,8 +8,9 @@ the three combinations of Kornus et al. 2006, section 3.3 (combinations.match_bl
 automatically, from the block's tie points, or both. Strategy "coarse_to_fine": Zhang & Gruen's
 coarse-to-fine multi-primitive matching with MPGC (coarse_to_fine.match_coarse_to_fine).
 
-Storage: the points go to the sidecar <block>.mass_points.npz and the block's 'mass_points' layer,
-placed through the reference image's model at the mean height of the range (Block.save_points);
+Storage: the points go to the sidecar folder <block>.mass_points.<id> (block/points.py) and the block's
+'mass_points' layer, placed through the reference image's model at the mean height of the range
+(Block.save_points);
 the points per group (Kornus et al. 2006, Table 1) are logged and, when asked, written as CSV."""
 from dataclasses import dataclass, field
 
@@ -63,7 +64,7 @@ class MatchResult:
     """What match_block_points stored."""
 
     points: MultiPoints         # the matched points
-    sidecar: str                # the mass point file (.npz)
+    sidecar: str                # the mass point folder (block/points.py)
     layer: str                  # OGR source of the block's 'mass_points' layer
     summary: list               # points per group (combinations.summary_rows)
     summary_csv: str = None     # the summary CSV, where one was asked for

@@ -1,6 +1,6 @@
 """The tie point selection step (pushbroom:selecttiepoints): tie points for the bundle adjustment
 chosen from the block's mass points (tiepoints.select_tie_points; Kornus et al. 2006 section 3.3) and
-stored with the block: the sidecar <block>.tie_points.npz referenced in block_info, and the point layer
+stored with the block: the sidecar folder <block>.tie_points.<id> referenced in block_info, and the point layer
 'tie_points' placed through the reference image's model at the block's mean terrain height."""
 from dataclasses import dataclass
 
@@ -23,7 +23,7 @@ class TieResult:
     """What select_block_tie_points stored."""
 
     count: int      # tie points selected
-    sidecar: str    # the tie point file (.npz)
+    sidecar: str    # the tie point folder (block/points.py)
     layer: str      # OGR source of the block's 'tie_points' layer
 
 

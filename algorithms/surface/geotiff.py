@@ -19,8 +19,9 @@ def overview_levels(shape, smallest=256):
     return levels
 
 
-def write_float_raster(path, array, geotransform, srs, description="", metadata=None, feedback=None):
-    """One Float32 band (NaN -> NODATA) with `geotransform` (GDAL's) and `srs` (osr.SpatialReference)."""
+def write_float_raster(path, array, geotransform, srs, description="", metadata=None, feedback=None, overviews=True):
+    """One Float32 band (NaN -> NODATA) with `geotransform` (GDAL's) and `srs` (osr.SpatialReference);
+    without `overviews` for a tile that dem_tiles.assemble joins to others."""
     from osgeo import gdal
     gdal.UseExceptions()
     array = np.where(np.isfinite(array), array, NODATA).astype(np.float32)
@@ -37,6 +38,7 @@ def write_float_raster(path, array, geotransform, srs, description="", metadata=
             band.WriteArray(array)
             band = None
             progress.step(feedback, 50)
-            ds.BuildOverviews("AVERAGE", overview_levels(array.shape))
+            if overviews:
+                ds.BuildOverviews("AVERAGE", overview_levels(array.shape))
         progress.step(feedback, 100)
     return path

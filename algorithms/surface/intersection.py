@@ -320,19 +320,87 @@ def _check_height_domain(models, image, point, h, status):
         status[p[beyond]] = OUTSIDE
 
 
+#: the summary's medians come from sparse histograms of log10(value) in bins of SUMMARY_BIN decades
+#: over SUMMARY_DECADES (values beyond fall in the end bins), so that the summaries of the parts of a
+#: tiled run add up: a median comes from the geometric centres of its bins, within 0.012 % of the exact median
+SUMMARY_BIN = 1e-4
+SUMMARY_DECADES = (-6.0, 6.0)
+_SUMMARY_LAST = int(round((SUMMARY_DECADES[1] - SUMMARY_DECADES[0]) / SUMMARY_BIN)) - 1
+
+
+def _add_counts(a, b):
+    """The sum of two sparse histograms (bins ascending, counts)."""
+    bins, inverse = np.unique(np.concatenate([a[0], b[0]]), return_inverse=True)
+    return bins, np.bincount(inverse, weights=np.concatenate([a[1], b[1]]), minlength=len(bins)).astype(np.int64)
+
+
+class Summary:
+    """Per point group: points, converged, and the medians of the a priori sigma_E, sigma_N, sigma_H (m)
+    and of sigma0 of the converged ones; `add` takes the Intersection of a part, `merge` another
+    part's Summary (both in any order: the sums are the same)."""
+
+    def __init__(self):
+        self.groups = {}    # group -> [points, converged, 4 sparse histograms (bins, counts)]
+
+    def _group(self, g):
+        empty = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        return self.groups.setdefault(int(g), [0, 0, [empty] * 4])
+
+    def add(self, result, group=None):
+        """Count the points of `result` (Intersection) with `group` (one per point; None: all group 0)."""
+        group = np.zeros(len(result), int) if group is None else np.asarray(group)
+        values = np.column_stack([result.sigma, result.sigma0])
+        for g in np.unique(group):
+            sel = group == g
+            ok = sel & result.ok
+            entry = self._group(g)
+            entry[0] += int(sel.sum())
+            entry[1] += int(ok.sum())
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bins = np.floor((np.log10(values[ok]) - SUMMARY_DECADES[0]) / SUMMARY_BIN)
+            finite = np.isfinite(values[ok])            # a NaN sigma is no value; 0 and inf go to the end bins
+            bins = np.nan_to_num(bins, nan=0.0, neginf=0.0, posinf=_SUMMARY_LAST).clip(0, _SUMMARY_LAST)
+            for q in range(4):
+                counts = np.unique(bins[finite[:, q], q].astype(np.int64), return_counts=True)
+                entry[2][q] = _add_counts(entry[2][q], counts)
+        return self
+
+    def merge(self, other):
+        """Add the counts of the Summary `other`; returns self."""
+        for g, (points, converged, hists) in other.groups.items():
+            entry = self._group(g)
+            entry[0] += points
+            entry[1] += converged
+            entry[2] = [_add_counts(mine, theirs) for mine, theirs in zip(entry[2], hists)]
+        return self
+
+    def rows(self):
+        """One dict per group, ascending: group, points, converged, sigma_e, sigma_n, sigma_h, sigma0."""
+        rows = []
+        for g in sorted(self.groups):
+            points, converged, hists = self.groups[g]
+            medians = [_histogram_median(*h) for h in hists]
+            rows.append({"group": g, "points": points, "converged": converged, "sigma_e": medians[0],
+                         "sigma_n": medians[1], "sigma_h": medians[2], "sigma0": medians[3]})
+        return rows
+
+
+def _histogram_median(bins, counts):
+    """The median of a sparse Summary histogram: the mean of the geometric centres of the bins holding the
+    two middle values (one bin for an odd count); NaN when empty."""
+    total = int(counts.sum())
+    if total == 0:
+        return float("nan")
+    cumulative = np.cumsum(counts)
+    lower = bins[int(np.searchsorted(cumulative, (total + 1) // 2))]      # the lower middle value's bin
+    upper = bins[int(np.searchsorted(cumulative, total // 2 + 1))]        # the upper one's
+    centres = 10.0 ** (SUMMARY_DECADES[0] + (np.array([lower, upper]) + 0.5) * SUMMARY_BIN)
+    return float(centres.mean())
+
+
 def summary_rows(result, group=None):
-    """Per point group (one value per point of `result`; all points as group 0 when None): points,
-    converged, median a priori sigma_E, sigma_N, sigma_H (m) and median sigma0 of the converged ones."""
-    group = np.zeros(len(result), int) if group is None else np.asarray(group)
-    rows = []
-    for g in np.unique(group):
-        sel = group == g
-        ok = sel & result.ok
-        sig = np.median(result.sigma[ok], axis=0) if ok.any() else np.full(3, np.nan)
-        rows.append({"group": int(g), "points": int(sel.sum()), "converged": int(ok.sum()),
-                     "sigma_e": float(sig[0]), "sigma_n": float(sig[1]), "sigma_h": float(sig[2]),
-                     "sigma0": float(np.median(result.sigma0[ok])) if ok.any() else float("nan")})
-    return rows
+    """The Summary rows of one Intersection `result` with `group` (one per point; None: all group 0)."""
+    return Summary().add(result, group).rows()
 
 
 def format_summary(rows):

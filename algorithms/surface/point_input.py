@@ -88,8 +88,8 @@ def _las_srs(las, path):
     raise no_crs_error(path, "point cloud", "no WKT or EPSG GeoKey VLR", False)
 
 
-def read_las(path, crs=None):
-    """PointSet of a LAS/LAZ file (fields: its extra dimensions)."""
+def _open_las(path):
+    """laspy's reader of the LAS/LAZ file `path` (InputError where it cannot be read)."""
     laspy = laspy_module()
     if not os.path.exists(path):
         raise InputError(f"cannot read the point cloud {path}: the file does not exist; check the path")
@@ -97,12 +97,48 @@ def read_las(path, crs=None):
         raise InputError(f"cannot read the point cloud {path}: reading LAZ needs the lazrs or laszip Python "
                          "package (pip install lazrs), or convert the file to LAS")
     try:
-        las = laspy.read(os.fspath(path))
+        return laspy.open(os.fspath(path))
     except Exception as exc:  # laspy raises its own and OS errors
         raise InputError(f"cannot read the point cloud {path}: not a LAS/LAZ file laspy reads ({exc})") from exc
-    srs = parse_crs(crs) if crs else _las_srs(las, path)
-    fields = {name: np.asarray(las[name]) for name in las.point_format.extra_dimension_names}
-    return PointSet(np.asarray(las.x, float), np.asarray(las.y, float), np.asarray(las.z, float), srs, fields)
+
+
+def _las_chunks(path, crs, chunk):
+    with _open_las(path) as reader:
+        srs = parse_crs(crs) if crs else _las_srs(reader, path)
+        names = list(reader.header.point_format.extra_dimension_names)
+        try:
+            for records in reader.chunk_iterator(chunk):
+                yield PointSet(np.asarray(records.x, float), np.asarray(records.y, float),
+                               np.asarray(records.z, float), srs, {name: np.asarray(records[name]) for name in names})
+        except InputError:
+            raise
+        except Exception as exc:  # laspy raises its own and OS errors
+            raise InputError(f"cannot read the point cloud {path}: {exc}") from exc
+
+
+def read_las(path, crs=None):
+    """PointSet of a LAS/LAZ file (fields: its extra dimensions)."""
+    chunks = list(_las_chunks(path, crs, 1 << 62))
+    if len(chunks) == 1:
+        return chunks[0]
+    with _open_las(path) as reader:
+        srs = parse_crs(crs) if crs else _las_srs(reader, path)
+        names = list(reader.header.point_format.extra_dimension_names)
+    return PointSet(np.zeros(0), np.zeros(0), np.zeros(0), srs, {name: np.zeros(0) for name in names})
+
+
+def point_chunks(path, crs=None, chunk=1_000_000):
+    """The points of `read_points` as PointSets of at most `chunk` points, read one at a time from a LAS/LAZ
+    file (memory follows the chunk; an OGR layer is read as one chunk). Each chunk is checked as
+    read_points checks the whole (check_coordinates)."""
+    path, _, layer = os.fspath(path).partition("|layername=")
+    if os.path.splitext(path)[1].lower() in (".las", ".laz"):
+        chunks = _las_chunks(path, crs, chunk)
+    else:
+        chunks = iter([read_ogr_points(path, layer or None, crs)])
+    for points in chunks:
+        check_coordinates(points, path)
+        yield points
 
 
 def _open_layer(path, layer_name, what):

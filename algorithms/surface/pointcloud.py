@@ -93,6 +93,46 @@ def write_point_cloud(path, lon, lat, h, fields=None, crs=None, fmt=None, feedba
     return os.fspath(path), srs, fmt
 
 
+def save_part(path, lon, lat, h, fields):
+    """Write a part of a cloud (lon, lat in degrees, h ellipsoidal m, `fields`) to the .npz `path` atomically:
+    what a tile task hands on to `write_point_cloud_parts` (load_part reads it)."""
+    with atomic_path(path, "a part of the point cloud") as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, lon=lon, lat=lat, h=h, **fields)
+    return path
+
+
+def load_part(path):
+    """(lon, lat, h, fields) of a part written by save_part."""
+    with np.load(path, allow_pickle=False) as data:
+        return data["lon"], data["lat"], data["h"], {k: data[k] for k in data.files if k not in ("lon", "lat", "h")}
+
+
+def write_point_cloud_parts(path, parts, count, centre=None, crs=None, fmt=None, feedback=None):
+    """`write_point_cloud` of a cloud in parts: `parts` is a list of functions, each returning the
+    (lon, lat, h, fields) of a part, called one at a time; `count` the points of all parts; `centre`
+    (lon, lat) of the cloud chooses the UTM zone where `crs` is None. LAS/LAZ are written part by part
+    (write_las_parts: memory follows the part); a GeoPackage, at most GPKG_MAX_POINTS, at once.
+    Returns (path, srs, format)."""
+    fmt = output_format(path, count, fmt)
+    srs = output_srs(crs, *(np.array([v], float) for v in (centre if centre is not None else (np.nan, np.nan))))
+    if fmt == "gpkg":
+        loaded = [load() for load in parts]
+        fields = {name: np.concatenate([p[3][name] for p in loaded]) for name in (loaded[0][3] if loaded else {})}
+        return write_point_cloud(path, *(np.concatenate([p[i] for p in loaded]) for i in range(3)), fields,
+                                 crs=srs, fmt=fmt, feedback=feedback)
+
+    def projected():
+        for k, load in enumerate(parts):
+            lon, lat, h, fields = load()
+            x, y = reproject(np.asarray(lon, float), np.asarray(lat, float), wgs84(), srs)
+            yield x, y, np.asarray(h, float), fields
+            progress.step(feedback, 100.0 * (k + 1) / len(parts))
+
+    write_las_parts(path, projected(), srs, compress=fmt == "laz")
+    return os.fspath(path), srs, fmt
+
+
 def laspy_module():
     """laspy, imported quietly."""
     with warnings.catch_warnings():
@@ -104,24 +144,41 @@ def laspy_module():
 
 def write_las(path, x, y, z, fields, srs, compress=False):
     """LAS 1.4 / point format 6 (LAZ when `compress`) with the WKT of `srs` and `fields` as extra bytes."""
+    return write_las_parts(path, [(x, y, z, fields)], srs, compress)
+
+
+def write_las_parts(path, parts, srs, compress=False):
+    """`write_las` from `parts`, an iterable of (x, y, z, fields) in `srs` taken one at a time, so that
+    memory follows the part, not the cloud (every part has the same fields). The header's offsets are
+    the floor of the first part's minima: coordinates are stored as 32-bit integers of the scale (1 mm),
+    so the cloud may reach 2 147 km beyond them."""
     laspy = laspy_module()
     if compress and not laspy.LazBackend.detect_available():
         raise InputError("writing LAZ needs the lazrs or laszip Python package (pip install lazrs); "
                          "write a .las file instead")
-    header = laspy.LasHeader(point_format=6, version="1.4")
-    header.global_encoding.wkt = True
-    header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(srs.ExportToWkt()))
-    header.generating_software = "Pushbroom (z: ellipsoidal h)"
-    step = 1e-8 if srs.IsGeographic() else 1e-3
-    header.scales = np.array([step, step, 1e-3])
-    header.offsets = np.array([np.floor(v.min()) if v.size else 0.0 for v in (x, y, z)])
-    header.add_extra_dims([laspy.ExtraBytesParams(name=name, type=values.dtype) for name, values in fields.items()])
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = x, y, z
-    for name, values in fields.items():
-        las[name] = values
     with atomic_path(path) as tmp:
-        las.write(tmp)
+        writer = None
+        try:
+            for x, y, z, fields in parts:
+                if writer is None:
+                    header = laspy.LasHeader(point_format=6, version="1.4")
+                    header.global_encoding.wkt = True
+                    header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(srs.ExportToWkt()))
+                    header.generating_software = "Pushbroom (z: ellipsoidal h)"
+                    step = 1e-8 if srs.IsGeographic() else 1e-3
+                    header.scales = np.array([step, step, 1e-3])
+                    header.offsets = np.array([np.floor(v.min()) if v.size else 0.0 for v in (x, y, z)])
+                    header.add_extra_dims([laspy.ExtraBytesParams(name=name, type=values.dtype)
+                                           for name, values in fields.items()])
+                    writer = laspy.open(tmp, mode="w", header=header, do_compress=compress)
+                records = laspy.ScaleAwarePointRecord.zeros(len(x), header=writer.header)
+                records.x, records.y, records.z = x, y, z
+                for name, values in fields.items():
+                    records[name] = values
+                writer.write_points(records)
+        finally:
+            if writer is not None:
+                writer.close()
     return path
 
 

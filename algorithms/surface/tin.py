@@ -167,13 +167,14 @@ def local_maxima(indptr, indices, score, candidate, out):
                 break
 
 
-def filter_blunders(tin, x, y, z, k=4.0, iterations=3, fixed=None):
+def filter_blunders(tin, x, y, z, k=4.0, iterations=3, fixed=None, counted=None):
     """Points of `tin` (`delaunay(x, y)`) whose height departs from the plane fitted to their TIN
     neighbours by more than k robust sigmas: |r - median(r)| > k * max(1.4826 * median(|r - median(r)|),
     MIN_SIGMA) over the tested points, r = neighbour_residuals. Of neighbouring candidates only the
     largest |r| goes per iteration; each iteration recomputes r and the sigma without the points
     already removed (on the same TIN). Points where `fixed` is True (breakline vertices) are
-    neighbours but never removed. Returns (keep mask, removed per iteration)."""
+    neighbours but never removed. Returns (keep mask, removed per iteration: of the points where
+    `counted` is True, default all)."""
     indptr, indices = tin.vertex_neighbor_vertices
     x, y, z = (np.ascontiguousarray(v, float) for v in (x, y, z))
     keep = np.ones(len(z), bool)
@@ -189,7 +190,7 @@ def filter_blunders(tin, x, y, z, k=4.0, iterations=3, fixed=None):
         score = np.abs(r - centre)
         sigma = max(NMAD_SCALE * np.median(score[ok]), MIN_SIGMA)
         local_maxima(indptr, indices, np.nan_to_num(score), ok & (score > k * sigma), bad)
-        removed.append(int(bad.sum()))
+        removed.append(int(bad.sum() if counted is None else (bad & counted).sum()))
         keep &= ~bad
         if not bad.any():
             break

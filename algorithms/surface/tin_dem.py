@@ -14,10 +14,11 @@ from scipy.spatial import cKDTree
 from .. import progress
 from ..crs import egm96_undulation, reproject, transform, wgs84
 from ..errors import InputError
+from ..execution import Execution
 from .geotiff import write_float_raster
-from .point_input import area_of_use, read_breaklines, read_points, within_area_of_use
+from .point_input import area_of_use, within_area_of_use
 from .pointcloud import output_srs
-from .tin import conform_breaklines, delaunay, filter_blunders, longest_edge
+from .tin import conform_breaklines, delaunay, filter_blunders, flat_points, longest_edge
 from .tin_grid import Grid, rasterize
 
 DATUMS = ("ellipsoidal", "egm96")
@@ -62,6 +63,20 @@ def default_max_edge(x, y, cell):
     return max(3.0 * cell, EDGE_SPACINGS * spacing)
 
 
+def output_crs(srs, x, y, crs=None):
+    """The DEM's CRS (osr.SpatialReference) for points centred at (x, y) in `srs`: `crs` (InputError where
+    its area of use is far from the points), or the UTM zone of the centre where `crs` is None or ''."""
+    ll = transform(srs, wgs84(), np.array([[x, y]], float), "the point cloud's centre")
+    if crs is None or crs == "":
+        return output_srs(None, ll[:, 0], ll[:, 1])
+    target = output_srs(crs)
+    if not within_area_of_use(target, float(ll[0, 0]), float(ll[0, 1])):
+        raise InputError(f"the output CRS {target.GetName()} is used at {area_of_use(target)}, far from the point "
+                         f"cloud (longitude {ll[0, 0]:.4f}, latitude {ll[0, 1]:.4f}): choose an output CRS for "
+                         "where the points lie, or leave it empty for their UTM zone")
+    return target
+
+
 def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=None, k=4.0, iterations=3,
                     breaklines=(), breakline_srs=None, precision=False, feedback=None):
     """DemResult of a PointSet (point_input.py; z ellipsoidal). `crs`: output CRS (default: the UTM
@@ -76,16 +91,7 @@ def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=N
         raise InputError(f"a DEM needs at least 3 points with finite coordinates, the point cloud has "
                          f"{int(finite.sum())}: check the input point cloud")
     progress.step(feedback, 0, f"{len(points)} points ({len(points) - int(finite.sum())} not finite, left out)")
-    ll = transform(points.srs, wgs84(), np.column_stack([np.mean(points.x[finite]), np.mean(points.y[finite])]),
-                   "the point cloud's centre")
-    if crs is None or crs == "":
-        target = output_srs(None, ll[:, 0], ll[:, 1])
-    else:
-        target = output_srs(crs)
-        if not within_area_of_use(target, float(ll[0, 0]), float(ll[0, 1])):
-            raise InputError(f"the output CRS {target.GetName()} is used at {area_of_use(target)}, far from the point "
-                             f"cloud (longitude {ll[0, 0]:.4f}, latitude {ll[0, 1]:.4f}): choose an output CRS for "
-                             "where the points lie, or leave it empty for their UTM zone")
+    target = output_crs(points.srs, np.mean(points.x[finite]), np.mean(points.y[finite]), crs)
     pts = points.to(target)
     lost = finite & ~(np.isfinite(pts.x) & np.isfinite(pts.y))
     if lost.any():
@@ -99,52 +105,78 @@ def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=N
     if breakline_srs is not None:
         breaklines = [np.column_stack([transform(breakline_srs, target, b[:, :2], "the breaklines")[:, :2],
                                        b[:, 2]]) for b in breaklines]
+    if len(x) >= 3 and flat_points(x, y):
+        delaunay(x, y)          # the clear InputError of points that span no area
+    result = surface_on_grid(x, y, z, sigma, grid, target, max_edge, datum=datum, k=k, iterations=iterations,
+                             breaklines=breaklines, precision=precision, feedback=feedback)
+    if not np.isfinite(result.heights).any():
+        raise InputError(f"no grid cell lies in a triangle with edges up to {max_edge:g}: raise the maximum edge "
+                         f"length or the cell size ({cell:g})")
+    progress.step(feedback, 100, result.summary())
+    return result
+
+
+def surface_on_grid(x, y, z, sigma, grid, srs, max_edge, datum="ellipsoidal", k=4.0, iterations=3, breaklines=(),
+                    precision=False, own=None, feedback=None):
+    """The DemResult of points x, y (in `srs`, the grid's CRS), z (ellipsoidal) and their sigma_h (or
+    None) on `grid`: breakline vertices (conform_breaklines; (n, 3) arrays in `srs`) added, Delaunay
+    TIN, blunder filter (`k` robust sigmas of these points, `iterations`), linear interpolation in the
+    triangles with edges up to `max_edge`, the precision raster where asked, EGM96 heights for that
+    `datum`. Cells outside every used triangle are NaN: all of them where the points span no area
+    (tin.flat_points). The counts (points, blunders removed, vertices, points dropped) are of the points
+    and vertices where `own(x, y)` is True (default: all), so that a tile's counts leave out its margin."""
+    cell = grid.cell
+    own = own or (lambda px, py: np.ones(len(px), bool))
+    inside = own(x, y)
     vertices, _, near = conform_breaklines(list(breaklines), x, y, spacing=min(cell, max_edge) / 2,
                                            min_length=cell / 20)
+    dropped = int((inside & ~near).sum())
     x, y, z = (np.concatenate([v[near], vertices[:, i]]) for i, v in enumerate((x, y, z)))
     fixed = np.arange(len(x)) >= int(near.sum())
+    inside = np.concatenate([inside[near], own(vertices[:, 0], vertices[:, 1])])
     if sigma is not None:   # a breakline vertex takes the sigma_h of the nearest point
         sigma = sigma[near]
         nearest = cKDTree(np.column_stack([x[:len(sigma)], y[:len(sigma)]])).query(vertices[:, :2])[1]
         sigma = np.concatenate([sigma, sigma[nearest]])
+    result = DemResult(np.full(grid.shape, np.nan), grid, srs, datum, points=int(inside.sum()),
+                       dropped_near_breaklines=dropped, breakline_vertices=int((fixed & inside).sum()))
+    if precision:
+        result.precision = np.full(grid.shape, np.nan)
+        result.precision_kind = ("interpolated point sigma_h (m)" if sigma is not None
+                                 else "distance to the nearest point (CRS units)")
+    if len(x) < 3 or flat_points(x, y):
+        return result
     progress.step(feedback, 10, "Delaunay triangulation")
     tin = delaunay(x, y)
-    removed = []
     if k > 0:
-        keep, removed = filter_blunders(tin, x, y, z, k=k, iterations=iterations, fixed=fixed)
-        progress.step(feedback, 40, f"blunder filter (k = {k:g} robust sigmas): {sum(removed)} points removed "
-                                    f"({removed} per iteration)")
+        keep, result.removed = filter_blunders(tin, x, y, z, k=k, iterations=iterations, fixed=fixed, counted=inside)
+        progress.step(feedback, 40, f"blunder filter (k = {k:g} robust sigmas): {sum(result.removed)} points removed "
+                                    f"({result.removed} per iteration)")
         if not keep.all():
             x, y, z, fixed = x[keep], y[keep], z[keep], fixed[keep]
             sigma = sigma[keep] if sigma is not None else None
+            if len(x) < 3 or flat_points(x, y):
+                return result
             tin = delaunay(x, y)
     progress.step(feedback, 60, "interpolating on the grid")
     triangles = tin.simplices
     use = longest_edge(x, y, triangles) <= max_edge
     values = z if sigma is None or not precision else np.column_stack([z, sigma])
     bands = rasterize(x, y, values, triangles, grid, use)
-    heights = bands if values.ndim == 1 else bands[0]
+    result.heights = heights = bands if values.ndim == 1 else bands[0]
     defined = np.isfinite(heights)
-    if not defined.any():
-        raise InputError(f"no grid cell lies in a triangle with edges up to {max_edge:g}: raise the maximum edge "
-                         f"length or the cell size ({cell:g})")
-    result = DemResult(heights, grid, target, datum, points=len(x), removed=removed,
-                       dropped_near_breaklines=int((~near).sum()), breakline_vertices=int(fixed.sum()))
     if precision:
         progress.step(feedback, 75, "precision raster")
         if values.ndim == 2:
-            result.precision, result.precision_kind = bands[1], "interpolated point sigma_h (m)"
-        else:
+            result.precision = bands[1]
+        elif defined.any():
             cx, cy = grid.centres()
-            result.precision = np.full(grid.shape, np.nan)
             result.precision[defined] = cKDTree(np.column_stack([x, y])).query(
                 np.column_stack([cx[defined], cy[defined]]), workers=-1)[0]
-            result.precision_kind = "distance to the nearest point (CRS units)"
-    if datum == "egm96":
+    if datum == "egm96" and defined.any():
         progress.step(feedback, 85, "EGM96 heights")
         cx, cy = grid.centres()
-        heights[defined] -= egm96_undulation(*reproject(cx[defined], cy[defined], target, wgs84(), "the DEM cells"))
-    progress.step(feedback, 100, result.summary())
+        heights[defined] -= egm96_undulation(*reproject(cx[defined], cy[defined], srs, wgs84(), "the DEM cells"))
     return result
 
 
@@ -172,27 +204,15 @@ class DemParams:
     max_edge: float = None          # longer triangles are gaps; None: default_max_edge
     k: float = 4.0                  # blunder threshold in robust sigmas (0: no filter)
     iterations: int = 3             # of the blunder filter
+    tile: int = 1024                # cells per tile side (dem_tiles.py)
+    execution: Execution = field(default_factory=lambda: Execution("threads", 1))   # where the tiles run
 
     def check(self):
         """Raise InputError for settings no interpolation can use."""
         if not self.cell > 0 or self.datum not in DATUMS or self.k < 0 or self.iterations < 1 \
-                or (self.max_edge is not None and self.max_edge < 0):
+                or (self.max_edge is not None and self.max_edge < 0) or int(self.tile) < 16:
             raise InputError(f"the cell size must be positive, the datum one of {', '.join(DATUMS)}, the blunder "
-                             "threshold and the maximum edge not negative and the iterations at least 1")
+                             "threshold and the maximum edge not negative, the iterations at least 1 and the tiles "
+                             "at least 16 cells")
+        self.execution.check()
         return self
-
-
-def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_path=None, feedback=None):
-    """The DEM step: the point cloud file `cloud` (point_input.read_points) interpolated with DemParams
-    `params` and written to the GeoTIFF `output` (and the precision raster to `precision_path` where
-    given). `breaklines`: (path, layer name or None) of a 3-D line layer, or None. Returns the
-    DemResult; raises InputError (unreadable input, no CRS, too few points), CancelledError."""
-    params = (params or DemParams()).check()
-    points = read_points(cloud, params.input_crs)
-    lines, lines_srs = read_breaklines(*breaklines) if breaklines else ([], None)
-    result = interpolate_dem(points, cell=params.cell, crs=params.crs, datum=params.datum, max_edge=params.max_edge,
-                             k=params.k, iterations=params.iterations, breaklines=lines, breakline_srs=lines_srs,
-                             precision=bool(precision_path), feedback=progress.scaled(feedback, 0, 85))
-    write_dem(result, output, precision_path or None, feedback=progress.scaled(feedback, 85, 100))
-    progress.ensure(feedback).pushInfo(result.summary())
-    return result

@@ -10,9 +10,10 @@ from qgis.core import (
     QgsProcessingParameterRasterDestination,
 )
 
-from ...algorithms.surface.tin_dem import DemParams, dem_from_point_cloud
+from ...algorithms.surface.dem_tiles import dem_from_point_cloud
+from ...algorithms.surface.tin_dem import DemParams
 from ..styles import style_on_completion
-from .base import PushbroomAlgorithm
+from .base import PushbroomAlgorithm, execution_choice, execution_parameters
 
 Number = QgsProcessingParameterNumber
 #: height datums: (engine key, label)
@@ -24,8 +25,8 @@ class InterpolateDem(PushbroomAlgorithm):
     DISPLAY_NAME = "Interpolate DEM (TIN)"
     GROUP_ID = "surface"
 
-    KEYS = ("INPUT BREAKLINES CRS CELL DATUM INPUT_CRS MAX_EDGE BLUNDER_K ITERATIONS OUTPUT PRECISION POINTS "
-            "REMOVED")
+    KEYS = ("INPUT BREAKLINES CRS CELL DATUM INPUT_CRS MAX_EDGE BLUNDER_K ITERATIONS TILE EXECUTION DASK_ADDRESS "
+            "WORKERS OUTPUT PRECISION POINTS REMOVED")
 
     def initAlgorithm(self, config=None):
         d, tr = DemParams(), self.tr
@@ -47,6 +48,8 @@ class InterpolateDem(PushbroomAlgorithm):
             Number(self.BLUNDER_K, tr("Blunder threshold k (robust sigmas; 0: no filter)"), Number.Double, d.k,
                    minValue=0.0),
             Number(self.ITERATIONS, tr("Blunder filter iterations"), Number.Integer, d.iterations, minValue=1),
+            Number(self.TILE, tr("Tile size (cells)"), Number.Integer, d.tile, minValue=16),
+            *execution_parameters(self, d.execution.workers),
         ])
         self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("DEM")))
         self.addParameter(QgsProcessingParameterRasterDestination(self.PRECISION, tr("Precision raster"),
@@ -56,10 +59,11 @@ class InterpolateDem(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         values = self.parameterValues(parameters, context, cell=self.CELL, datum=self.DATUM, max_edge=self.MAX_EDGE,
-                                      k=self.BLUNDER_K, iterations=self.ITERATIONS)
+                                      k=self.BLUNDER_K, iterations=self.ITERATIONS, tile=self.TILE)
         values["datum"] = DATUMS[values["datum"]][0]
         params = DemParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
-                           input_crs=self.parameterAsCrsDefinition(parameters, self.INPUT_CRS, context), **values)
+                           input_crs=self.parameterAsCrsDefinition(parameters, self.INPUT_CRS, context),
+                           execution=execution_choice(self, parameters, context), **values)
         breaklines = None
         if parameters.get(self.BREAKLINES):
             path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(

@@ -13,7 +13,7 @@ from qgis.core import (
 
 from ...algorithms.steps.block_intersection import IntersectParams, intersect_block_points
 from ..styles import load_styled
-from .base import PushbroomAlgorithm
+from .base import PushbroomAlgorithm, execution_choice, execution_parameters
 
 Number = QgsProcessingParameterNumber
 #: the point sets: (engine key, label)
@@ -26,7 +26,7 @@ class IntersectPoints(PushbroomAlgorithm):
     DISPLAY_NAME = "Intersect points (point cloud)"
     GROUP_ID = "surface"
 
-    KEYS = "BLOCK POINTS CRS SIGMA MAX_ITERATIONS OUTPUT LAYER COUNT"
+    KEYS = "BLOCK POINTS CRS SIGMA MAX_ITERATIONS EXECUTION DASK_ADDRESS WORKERS OUTPUT LAYER COUNT"
 
     def initAlgorithm(self, config=None):
         d, tr = IntersectParams(), self.tr
@@ -39,6 +39,7 @@ class IntersectPoints(PushbroomAlgorithm):
             Number(self.SIGMA, tr("Sigma of the image coordinates (px)"), Number.Double, d.sigma, minValue=1e-6),
             Number(self.MAX_ITERATIONS, tr("Maximum iterations per point"), Number.Integer, d.max_iterations,
                    minValue=1),
+            *execution_parameters(self, d.execution.workers),
         ])
         self.addParameter(QgsProcessingParameterFileDestination(
             self.OUTPUT, tr("Point cloud"), tr("LAS files (*.las);;LAZ files (*.laz);;GeoPackage (*.gpkg)")))
@@ -50,7 +51,8 @@ class IntersectPoints(PushbroomAlgorithm):
         values = self.parameterValues(parameters, context, kind=self.POINTS, sigma=self.SIGMA,
                                       max_iterations=self.MAX_ITERATIONS)
         values["kind"] = KINDS[values["kind"]][0]
-        params = IntersectParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context), **values)
+        params = IntersectParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
+                                 execution=execution_choice(self, parameters, context), **values)
         result = intersect_block_points(self.parameterAsFile(parameters, self.BLOCK, context),
                                         self.parameterAsFileOutput(parameters, self.OUTPUT, context), params, feedback)
         if result.layer:

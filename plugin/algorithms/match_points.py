@@ -89,7 +89,7 @@ class MatchPoints(PushbroomAlgorithm):
             self.SUMMARY, tr("Summary per point group (CSV)"), tr("CSV files (*.csv)"), optional=True))
         self.addOutput(QgsProcessingOutputVectorLayer(self.POINTS, tr("Mass points"), QgsProcessing.TypeVectorPoint))
         self.addOutput(QgsProcessingOutputFile(self.BLOCK, tr("Block (updated; chains the next step in a model)")))
-        self.addOutput(QgsProcessingOutputFile(self.POINTS_FILE, tr("Mass point file (.npz)")))
+        self.addOutput(QgsProcessingOutputFile(self.POINTS_FILE, tr("Mass point folder (index and parts)")))
 
     def match_params(self, parameters, context):
         """MatchParams of the parameters."""

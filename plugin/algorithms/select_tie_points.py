@@ -32,7 +32,7 @@ class SelectTiePoints(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputVectorLayer(self.TIE_POINTS, tr("Tie points"),
                                                       QgsProcessing.TypeVectorPoint))
         self.addOutput(QgsProcessingOutputFile(self.BLOCK, tr("Block (updated; chains the next step in a model)")))
-        self.addOutput(QgsProcessingOutputFile(self.TIE_POINTS_FILE, tr("Tie point file (.npz)")))
+        self.addOutput(QgsProcessingOutputFile(self.TIE_POINTS_FILE, tr("Tie point folder (index and parts)")))
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, self.BLOCK, context)

@@ -64,12 +64,12 @@ def test_a_store_killed_while_it_builds_the_layer_leaves_the_old_points(blk, tmp
     # the block's layer, point file and counts are still the first store's
     assert Block(blk).info()["mass_points_count"] == "1000"
     assert len(Block(blk).points()) == 1000 == layer_rows(blk)
-    leftovers = sorted(f.name for f in tmp_path.glob("b.mass_points.*.npz"))
-    assert len(leftovers) == 2                          # the killed store's file, not referenced
+    leftovers = sorted(f.name for f in tmp_path.glob("b.mass_points.*"))
+    assert len(leftovers) == 2                          # the killed store's folder, not referenced
     # the next store removes what the killed one left and switches to its own points
     Block(blk).save_points(two_ray_points(7), display=(FlatModel(), 1, 0.0))
     assert not any(t.startswith("mass_points__staged_") for t in tables(blk))
-    assert [f.name for f in tmp_path.glob("b.mass_points.*.npz")] == [Block(blk).info()["mass_points"]]
+    assert [f.name for f in tmp_path.glob("b.mass_points.*")] == [Block(blk).info()["mass_points"]]
     assert len(Block(blk).points()) == 7 == layer_rows(blk)
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from pushbroom.algorithms.block import Block
+from pushbroom.algorithms.block import Block, points as points_store
 from pushbroom.algorithms.block.points import load_arrays, save_arrays
 from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import InputError, StorageError
@@ -32,14 +32,14 @@ def test_save_and_load_beside_the_block(block, tmp_path):
     path = Block(block).save_points(mp)
     info = Block(block).info()
     assert info["mass_points"] == os.path.basename(path) and info["mass_points_count"] == "3000"
-    assert os.path.basename(path).startswith("b.mass_points.") and path.endswith(".npz")
+    assert os.path.basename(path).startswith("b.mass_points.") and os.path.isdir(path)
     assert_same(Block(block).points(), mp)
     # saving again replaces (no duplicate keys, the old file removed), other kinds are separate
     Block(block).save_points(mp.subset([1, 2, 3]))
     Block(block).save_points(mp.subset([5]), kind="tie_points")
     assert len(Block(block).points()) == 3 and len(Block(block).points("tie_points")) == 1
     assert Block(block).info()["mass_points_count"] == "3"
-    assert sorted(f.name.split(".")[1] for f in tmp_path.glob("b.*.npz")) == ["mass_points", "tie_points"]
+    assert sorted(f.name.split(".")[1] for f in tmp_path.glob("b.*_points.*")) == ["mass_points", "tie_points"]
     assert [f for f in tmp_path.iterdir() if ".part" in f.name] == []
 
 
@@ -47,6 +47,32 @@ def test_two_million_points_round_trip(tmp_path):
     mp = synthetic(2_000_000)
     path = save_arrays(tmp_path / "big.npz", mp)
     assert_same(load_arrays(path), mp)
+
+
+def test_parts_hold_the_points_in_id_order(block, tmp_path, monkeypatch):
+    monkeypatch.setattr(points_store, "PART_POINTS", 1000)
+    mp = synthetic(3500)
+    shuffled = MultiPoints(mp.points[::-1], mp.observations[::-1], mp.stats)
+    Block(block).save_points(shuffled)
+    parts = Block(block).point_parts()
+    assert [os.path.basename(p) for p in parts] == [f"part-{k:05d}.npz" for k in range(4)]
+    loaded = [load_arrays(p) for p in parts]
+    assert [len(p) for p in loaded] == [1000, 1000, 1000, 500]
+    # each part holds its points' observations and no other
+    for part in loaded:
+        assert set(part.observations["point_id"]) == set(part.points["id"])
+    assert_same(Block(block).points(), mp)
+    index = points_store.read_index(os.path.dirname(parts[0]))
+    assert [(p["first_id"], p["last_id"]) for p in index["parts"]] == [(1, 1000), (1001, 2000), (2001, 3000),
+                                                                      (3001, 3500)]
+
+
+def test_a_sidecar_of_one_file_is_read_as_one_part(block, tmp_path):
+    mp = synthetic(50)
+    path = save_arrays(tmp_path / "b.mass_points.npz", mp)
+    Block(block).update_info({"mass_points": "b.mass_points.npz"})
+    assert Block(block).point_parts() == [str(path)]
+    assert_same(Block(block).points(), mp)
 
 
 def test_missing_points_give_clear_errors(block, tmp_path):
@@ -59,6 +85,10 @@ def test_missing_points_give_clear_errors(block, tmp_path):
     (tmp_path / "x.npz").write_bytes(b"not a zip")
     with pytest.raises(StorageError, match="x.npz is damaged"):
         load_arrays(tmp_path / "x.npz")
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "folder" / "index.json").write_text('{"format": "pushbroom-multipoints-parts-1", "par')
+    with pytest.raises(StorageError, match="folder is damaged"):
+        load_arrays(tmp_path / "folder")
 
 
 def test_point_layer(block):

@@ -1,6 +1,7 @@
 """Forward intersection (algorithms/surface/intersection.py) on the simulated SPOT 5 triplet with its
 truth models: ground points on the true DSM, projected into the images with the truth models, with
 and without Gaussian image noise; RPC models fitted to the truth models; the Pleiades triplet."""
+import dataclasses
 import time
 
 import numpy as np
@@ -393,7 +394,13 @@ def test_summary_rows(scene):
     group = np.where(result.rays == 3, 3, 1)
     rows = ix.summary_rows(result, group)
     assert [(r["group"], r["points"], r["converged"]) for r in rows] == [(1, 40, 40), (3, 60, 60)]
-    assert rows[1]["sigma_h"] == pytest.approx(np.median(result.sigma[:60, 2]))
+    assert rows[1]["sigma_h"] == pytest.approx(np.median(result.sigma[:60, 2]), rel=1.2e-4)
+    assert rows[1]["sigma0"] == pytest.approx(np.median(result.sigma0[:60]), rel=1.2e-4)
+    # the summaries of parts add up to the summary of the whole
+    half = np.arange(len(result)) < 50
+    parts = [ix.Intersection(*(getattr(result, f.name)[m] for f in dataclasses.fields(result))) for m in (half, ~half)]
+    merged = ix.Summary().add(parts[0], group[half]).merge(ix.Summary().add(parts[1], group[~half]))
+    assert merged.rows() == rows
     assert rows[1]["sigma_h"] < rows[0]["sigma_h"]
     table = ix.format_summary(rows).splitlines()
     assert table[0].split() == ["group", "points", "converged", "sigma_E", "sigma_N", "sigma_H", "sigma0"]

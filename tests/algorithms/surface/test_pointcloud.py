@@ -125,7 +125,7 @@ def test_an_existing_file_survives_a_failed_write(points, tmp_path, monkeypatch)
     def broken(*args, **kwargs):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(pc.laspy_module().LasData, "write", broken)
+    monkeypatch.setattr(pc.laspy_module().LasWriter, "write_points", broken)
     with pytest.raises(StorageError, match="cannot write the output .*cloud.las: disk full"):
         pc.write_point_cloud(path, lon[:10], lat[:10], h[:10])
     assert open(path, "rb").read() == before
