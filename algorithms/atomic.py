@@ -317,6 +317,31 @@ def write_text(path, text, what="the output"):
             f.write(text)
 
 
+class _Writer:
+    """A file's write method alone: numpy writes an array through it in chunks, and a full disk raises the
+    OSError with its errno (ndarray.tofile, which numpy uses on real files, loses it)."""
+
+    def __init__(self, f):
+        self.write = f.write
+
+
+def save_array(path, array, what="an intermediate file"):
+    """numpy.save of `array` to `path` (.npy) atomically; a failed write is the StorageError of `what`."""
+    import numpy as np
+    with atomic_path(path, what) as tmp, open(tmp, "wb") as f:
+        np.save(_Writer(f), array)
+    return path
+
+
+def append_bytes(path, data, what="an intermediate file"):
+    """Append `data` (bytes-like) to the file `path`; a failed write is the StorageError of `what`."""
+    try:
+        with open(path, "ab") as f:
+            f.write(data)
+    except OSError as exc:
+        raise storage_error(exc, path, what) from None
+
+
 @contextlib.contextmanager
 def work_dir(path, what="the intermediate files"):
     """Yield a hidden temporary folder beside `path` for a step's intermediate files (what the tile tasks

@@ -104,9 +104,14 @@ class Dem:
         """(lon_min, lat_min, lon_max, lat_max) of the grid's outer cell edges."""
         return grid_bounds(self.geotransform, self.heights.shape)
 
+    #: a window's (dem_window) height range: the whole DEM's
+    _height_range = None
+
     @property
     def height_range(self):
-        """(min, max) of the valid heights."""
+        """(min, max) of the valid heights (of the whole DEM, for a dem_window)."""
+        if self._height_range is not None:
+            return self._height_range
         return float(np.nanmin(self.heights)), float(np.nanmax(self.heights))
 
     def height(self, lon, lat):
@@ -166,3 +171,27 @@ class Dem:
         dem = cls(heights, geotransform)
         dem.implausible = implausible
         return dem
+
+
+def dem_window(heights, geotransform, height_range, bounds):
+    """The Dem of the cells of `heights` (the grid of a Dem with `geotransform`, e.g. memory-mapped from a
+    file: only the window is read) that cover the lon/lat `bounds` (lon_min, lat_min, lon_max, lat_max)
+    and one more cell around, so that `height` is the whole DEM's there. Its height_range is the whole
+    DEM's `height_range`. A window outside the grid is 2 x 2 nodata cells."""
+    lon0, dlon, _, lat0, _, dlat = geotransform
+    rows, cols = heights.shape
+    lon_min, lat_min, lon_max, lat_max = bounds
+    c0 = min(max(int(math.floor((lon_min - lon0) / dlon - 0.5)) - 1, 0), cols)
+    c1 = max(min(int(math.ceil((lon_max - lon0) / dlon - 0.5)) + 2, cols), 0)
+    r0 = min(max(int(math.floor((lat_max - lat0) / dlat - 0.5)) - 1, 0), rows)
+    r1 = max(min(int(math.ceil((lat_min - lat0) / dlat - 0.5)) + 2, rows), 0)
+    dem = Dem.__new__(Dem)
+    if c1 - c0 < 2 or r1 - r0 < 2:
+        dem.heights = np.full((2, 2), np.nan)
+        half_lon, half_lat = (lon_max - lon_min) / 2 or 1.0, (lat_max - lat_min) / 2 or 1.0
+        dem.geotransform = (lon_min, half_lon, 0.0, lat_max, 0.0, -half_lat)
+    else:
+        dem.heights = np.array(heights[r0:r1, c0:c1], dtype=np.float64)
+        dem.geotransform = (lon0 + c0 * dlon, dlon, 0.0, lat0 + r0 * dlat, 0.0, dlat)
+    dem._height_range = tuple(float(v) for v in height_range)
+    return dem

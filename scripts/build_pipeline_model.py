@@ -75,7 +75,8 @@ INPUTS = [
     Number("MAX_EDGE", "DEM: maximum triangle edge (m; empty: 3 cells or 2.5 point spacings); longer triangles "
            "are gaps", Number.Double, None, optional=True, minValue=0.0),
     QgsProcessingParameterString("IMAGE_NAME", "Image to orthorectify (name in the block)", "HRG"),
-    Number("THREADS", "Threads (matching, orthorectification)", Number.Integer, 1, minValue=1),
+    Number("THREADS", "Threads of the tiled steps (matching, intersection, DEM, orthoimage)", Number.Integer, 1,
+           minValue=1),
 ]
 
 #: child steps: (child id, algorithm id, {parameter: source}, {model output name: (description, child output)}),
@@ -99,15 +100,15 @@ STEPS = [
      {"report": ("Adjustment report", "REPORT"),
       "residuals": ("Residual vectors of the control and check points", "RESIDUALS")}),
     ("intersectpoints", "pushbroom:intersectpoints",
-     {"BLOCK": ("child", "bundleadjust", "BLOCK"), "POINTS": ("static", 0)},
+     {"BLOCK": ("child", "bundleadjust", "BLOCK"), "POINTS": ("static", 0), "WORKERS": ("model", "THREADS")},
      {"pointcloud": ("Point cloud", "OUTPUT")}),
     ("interpolatedem", "pushbroom:interpolatedem",
      {"INPUT": ("child", "intersectpoints", "OUTPUT"), "CELL": ("model", "CELL"),
-      "MAX_EDGE": ("model", "MAX_EDGE")},
+      "MAX_EDGE": ("model", "MAX_EDGE"), "WORKERS": ("model", "THREADS")},
      {"dem": ("DEM", "OUTPUT")}),
     ("orthorectify", "pushbroom:orthorectify",
      {"BLOCK": ("child", "bundleadjust", "BLOCK"), "IMAGE_NAME": ("model", "IMAGE_NAME"),
-      "DEM": ("child", "interpolatedem", "OUTPUT"), "THREADS": ("model", "THREADS")},
+      "DEM": ("child", "interpolatedem", "OUTPUT"), "WORKERS": ("model", "THREADS")},
      {"orthoimage": ("Orthoimage", "OUTPUT")}),
     ("assessaccuracy", "pushbroom:assessaccuracy",
      {"REFERENCE": ("model", "REFERENCE"), "POINTS": ("child", "intersectpoints", "OUTPUT"),

@@ -141,6 +141,15 @@ class Block:
         image id, mean height), as its point layer `kind`; returns the sidecar path (points.save_points)."""
         return points.save_points(self.path, multi, kind, display, feedback)
 
+    def point_stats(self, kind="mass_points"):
+        """The run-level stats of the points of `kind` stored with the block (without reading the points)."""
+        return points.read_stats(points.sidecar_path(self.path, kind), points.MAKERS.get(kind, "the step"))
+
+    def store_points(self, kind, fill, display=None, feedback=None):
+        """Store the points that `fill(folder)` writes as parts into the new sidecar folder (points.store_points:
+        a tiled step's tasks); returns the sidecar path."""
+        return points.store_points(self.path, kind, fill, display, feedback)
+
     def write_point_layer(self, layer_name, multi, model, image_id, height, feedback=None):
         """(Re)write the display layer `layer_name` of `multi`; returns its source (points.write_point_layer)."""
         return points.write_point_layer(self.path, layer_name, multi, model, image_id, height, feedback)

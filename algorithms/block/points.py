@@ -26,6 +26,7 @@ ones, never a mix; the staged layer and the sidecar a killed store leaves behind
 store once their writer has gone (atomic.owner_gone).
 """
 import contextlib
+import functools
 import json
 import os
 import re
@@ -106,6 +107,12 @@ def read_index(path, step="the matching step"):
     return index
 
 
+def read_stats(path, step="the matching step"):
+    """The stats of the points of the sidecar `path` (a folder, or one .npz file)."""
+    index = read_index(path, step)
+    return index["stats"] if index is not None else _read_part(path, step).stats
+
+
 def point_parts(path, step="the matching step"):
     """The part files of the sidecar `path` (a folder, or one .npz file), in point id order."""
     index = read_index(path, step)
@@ -124,26 +131,44 @@ def load_arrays(path, step="the matching step"):
                        np.concatenate([p.observations for p in parts]) if parts else None, index["stats"])
 
 
-def save_parts(path, points, part_points=None):
-    """Write `points` (MultiPoints) to the sidecar folder `path` (module docstring) as a whole: parts of
-    `part_points` (default PART_POINTS) points in id order and the index. Returns `path`."""
+def save_part(folder, k, points):
+    """Write `points` (MultiPoints, ids ascending, with their observations) as the k-th part of the sidecar
+    folder being written at `folder`; returns its index entry. What a tile task writes (store_points)."""
+    name = f"part-{k:05d}.npz"
+    if len(points):         # an empty part is left out of the folder and its index
+        save_arrays(os.path.join(folder, name), points)
+    ids = points.points["id"]
+    return {"file": name, "points": len(points), "observations": len(points.observations),
+            "first_id": int(ids[0]) if len(ids) else None, "last_id": int(ids[-1]) if len(ids) else None,
+            "groups": {str(g): n for g, n in points.group_counts().items()}}
+
+
+def write_index(folder, entries, stats):
+    """Write the index of the sidecar folder at `folder` from its parts' entries (save_part) and `stats`."""
+    entries = [e for e in entries if e["points"]]
+    atomic.write_text(os.path.join(folder, INDEX), json.dumps(
+        {"format": INDEX_FORMAT, "points": sum(e["points"] for e in entries), "stats": stats, "parts": entries},
+        indent=1), "the point index")
+
+
+def split_parts(folder, points, part_points=None):
+    """Write `points` (MultiPoints) into the sidecar folder at `folder` as parts of `part_points` (default
+    PART_POINTS) points in id order; returns their index entries."""
     part_points = int(part_points or PART_POINTS)
     order = np.argsort(points.points["id"], kind="stable")
     pts = points.points[order]
     obs = points.observations[np.lexsort((points.observations["image_id"], points.observations["point_id"]))]
     starts = np.arange(0, len(pts), part_points)
-    ends = np.append(starts[1:], len(pts))
     bounds = np.searchsorted(obs["point_id"], [pts["id"][s] for s in starts] + [np.iinfo(np.int64).max])
-    parts = []
+    return [save_part(folder, k, MultiPoints(pts[a:a + part_points], obs[bounds[k]:bounds[k + 1]]))
+            for k, a in enumerate(starts)]
+
+
+def save_parts(path, points, part_points=None):
+    """Write `points` (MultiPoints) to the sidecar folder `path` (module docstring) as a whole: parts of
+    `part_points` (default PART_POINTS) points in id order and the index. Returns `path`."""
     with atomic.atomic_dir(path, "the point folder") as tmp:
-        for k, (a, b) in enumerate(zip(starts, ends)):
-            name = f"part-{k:05d}.npz"
-            save_arrays(os.path.join(tmp, name), MultiPoints(pts[a:b], obs[bounds[k]:bounds[k + 1]]))
-            parts.append({"file": name, "points": int(b - a), "observations": int(bounds[k + 1] - bounds[k]),
-                          "first_id": int(pts["id"][a]), "last_id": int(pts["id"][b - 1])})
-        atomic.write_text(os.path.join(tmp, INDEX), json.dumps(
-            {"format": INDEX_FORMAT, "points": len(pts), "stats": points.stats, "parts": parts}, indent=1),
-            "the point index")
+        write_index(tmp, split_parts(tmp, points, part_points), points.stats)
     return path
 
 
@@ -189,7 +214,8 @@ def _drop_orphan_layers(block_path, layer_name):
 
 @contextlib.contextmanager
 def _staged_layer(block_path, layer_name, points, display, feedback):
-    """Build the point layer of `points` (display = (model, image id, height)) under a staged name and
+    """Build the point layer of `points` (a MultiPoints or a sidecar folder; display = (model, image id,
+    height)) under a staged name and
     yield that name (None without `display`); dropped again where the switch did not happen."""
     if display is None:
         yield None
@@ -215,9 +241,17 @@ def _switch(ds, staged, layer_name):
 
 
 def save_points(block_path, points, kind="mass_points", display=None, feedback=None):
-    """Store `points` beside the block as a new sidecar of `kind` and, given `display` = (sensor model,
-    image id, mean height), as the block's point layer `kind` (`write_point_layer`), switched in one
+    """Store `points` (MultiPoints) beside the block as a new sidecar of `kind` and, given `display` = (sensor
+    model, image id, mean height), as the block's point layer `kind` (`write_point_layer`), switched in one
     transaction (module docstring). Returns the sidecar path."""
+    return store_points(block_path, kind, lambda folder: (split_parts(folder, points), points.stats), display,
+                        feedback)
+
+
+def store_points(block_path, kind, fill, display=None, feedback=None):
+    """`save_points` of points that `fill(folder)` writes into the new sidecar folder (save_part: e.g. the
+    tasks of a tiled step, each writing its parts, in the order of their ids) and returns as (index
+    entries, stats). The layer is built part by part: memory follows the part. Returns the sidecar path."""
     if kind not in KINDS:
         raise InputError(f"point kind must be one of {KINDS}, not {kind!r}")
     what = f"the {kind.replace('_', ' ')}"
@@ -226,14 +260,21 @@ def save_points(block_path, points, kind="mass_points", display=None, feedback=N
     name = f"{_stem(block_path)}.{kind}.{atomic.HOST}-{os.getpid()}-{secrets.token_hex(4)}"
     path = os.path.join(_folder(block_path), name)
     try:
-        save_parts(path, points)
+        with atomic.atomic_dir(path, "the point folder") as tmp:
+            entries, stats = fill(tmp)
+            write_index(tmp, entries, stats)
         progress.step(feedback, 5)
-        with _staged_layer(block_path, kind, points, display, progress.scaled(feedback, 5, 95)) as staged:
+        index = read_index(path)
+        groups = {1: 0, 2: 0, 3: 0}
+        for entry in index["parts"]:
+            for g, n in entry["groups"].items():
+                groups[int(g)] = groups.get(int(g), 0) + n
+        with _staged_layer(block_path, kind, path, display, progress.scaled(feedback, 5, 95)) as staged:
             with schema.transaction(block_path, what) as ds:
                 _switch(ds, staged, kind)
-                schema.write_info(ds, {kind: name, f"{kind}_count": len(points),
-                                      **{f"{kind}_group{g}": n for g, n in points.group_counts().items()}},
-                                 step=f"store {kind}", message=f"{len(points)} points in {name}")
+                schema.write_info(ds, {kind: name, f"{kind}_count": index["points"],
+                                      **{f"{kind}_group{g}": n for g, n in sorted(groups.items())}},
+                                 step=f"store {kind}", message=f"{index['points']} points in {name}")
                 schema.bump(ds, kind)
     except BaseException:
         _remove_sidecar(path)
@@ -284,8 +325,54 @@ def write_point_layer(block_path, layer_name, points, model, image_id, height, f
     return layer_source(block_path, layer_name)
 
 
+def _parts_of(points):
+    """The parts to display: a MultiPoints as one part, or the part files of a sidecar folder (read one at a
+    time)."""
+    if isinstance(points, MultiPoints):
+        return [points]
+    return [functools.partial(load_arrays, p) for p in point_parts(points)]
+
+
 def _write_layer(block_path, layer_name, points, model, image_id, height, feedback=None):
-    """Create the point layer `layer_name` of `points` in the block (write_point_layer's content)."""
+    """Create the point layer `layer_name` of `points` (a MultiPoints, or a sidecar folder read part by
+    part) in the block (write_point_layer's content)."""
+    what = f"the layer {layer_name}"
+    with schema.transaction(block_path, what) as ds:
+        if ds.GetLayerByName(layer_name) is not None:
+            ds.DeleteLayer(layer_name)
+        layer = ds.CreateLayer(layer_name, wgs84(), ogr.wkbPoint,
+                               options=["FID=fid", "GEOMETRY_NAME=geom", "SPATIAL_INDEX=NO"])
+        for name, kind in [("id", ogr.OFTInteger64), ("group", ogr.OFTInteger), ("rho", ogr.OFTReal)]:
+            layer.CreateField(ogr.FieldDefn(name, kind))
+    progress.step(feedback, 10)
+    parts = _parts_of(points)
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    try:
+        with contextlib.closing(sqlite3.connect(os.fspath(block_path), timeout=schema.BUSY_TIMEOUT_MS / 1000)) as db:
+            with db:
+                for k, part in enumerate(parts):
+                    part = part if isinstance(part, MultiPoints) else part()
+                    lon, lat = _insert_rows(db, layer_name, part, model, image_id, height)
+                    if len(lon):
+                        lo = np.minimum(lo, [lon.min(), lat.min()])
+                        hi = np.maximum(hi, [lon.max(), lat.max()])
+                    progress.step(feedback, 10 + 70 * (k + 1) / len(parts))
+                if np.isfinite(lo).all():
+                    db.execute("UPDATE gpkg_contents SET min_x = ?, min_y = ?, max_x = ?, max_y = ? "
+                               "WHERE table_name = ?", (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]),
+                                                        layer_name))
+    except sqlite3.OperationalError as exc:
+        raise (schema.locked_error(block_path, what) if "locked" in str(exc)
+               else atomic.storage_error(exc, block_path, what)) from None
+    progress.step(feedback, 80)
+    with schema.transaction(block_path, what) as ds:
+        ds.ExecuteSQL(f"SELECT CreateSpatialIndex('{layer_name}', 'geom')")
+    progress.step(feedback, 100)
+
+
+def _insert_rows(db, layer_name, points, model, image_id, height):
+    """Insert the rows of `points` seen in image `image_id` into the layer through `db`; returns their
+    (lon, lat)."""
     ids, col, row = points.observations_of(image_id)
     # rows in a spatially coherent order (strips of 64 px): the R-tree builds several times faster
     order = np.lexsort((col, np.floor(row / 64.0)))
@@ -298,35 +385,12 @@ def _write_layer(block_path, layer_name, points, model, image_id, height, feedba
         lon, lat = np.asarray(lon, float), np.asarray(lat, float)
     else:
         lon = lat = np.zeros(0)
-    what = f"the layer {layer_name}"
-    with schema.transaction(block_path, what) as ds:
-        if ds.GetLayerByName(layer_name) is not None:
-            ds.DeleteLayer(layer_name)
-        layer = ds.CreateLayer(layer_name, wgs84(), ogr.wkbPoint,
-                               options=["FID=fid", "GEOMETRY_NAME=geom", "SPATIAL_INDEX=NO"])
-        for name, kind in [("id", ogr.OFTInteger64), ("group", ogr.OFTInteger), ("rho", ogr.OFTReal)]:
-            layer.CreateField(ogr.FieldDefn(name, kind))
-    progress.step(feedback, 10)
     # The rows go in through sqlite3 with the GeoPackage geometry blobs built by numpy: OGR's
     # feature-by-feature path is tens of times slower (tests/benchmarks/bench_points.py).
     blobs = np.zeros(len(ids), GPKG_POINT_DTYPE)
     blobs["magic"], blobs["flags"], blobs["srs_id"] = b"GP", 1, 4326
     blobs["order"], blobs["type"], blobs["x"], blobs["y"] = 1, 1, lon, lat
     raw = blobs.view(np.dtype((np.void, GPKG_POINT_DTYPE.itemsize)))
-    rows = zip((memoryview(r).tobytes() for r in raw), ids.tolist(), group.tolist(),
-               rho.astype(float).tolist())
-    try:
-        with contextlib.closing(sqlite3.connect(os.fspath(block_path), timeout=schema.BUSY_TIMEOUT_MS / 1000)) as db:
-            with db:
-                db.executemany(f'INSERT INTO "{layer_name}" (geom, id, "group", rho) VALUES (?, ?, ?, ?)', rows)
-                if len(ids):
-                    db.execute("UPDATE gpkg_contents SET min_x = ?, min_y = ?, max_x = ?, max_y = ? "
-                               "WHERE table_name = ?", (float(lon.min()), float(lat.min()), float(lon.max()),
-                                                        float(lat.max()), layer_name))
-    except sqlite3.OperationalError as exc:
-        raise (schema.locked_error(block_path, what) if "locked" in str(exc)
-               else atomic.storage_error(exc, block_path, what)) from None
-    progress.step(feedback, 80)
-    with schema.transaction(block_path, what) as ds:
-        ds.ExecuteSQL(f"SELECT CreateSpatialIndex('{layer_name}', 'geom')")
-    progress.step(feedback, 100)
+    rows = zip((memoryview(r).tobytes() for r in raw), ids.tolist(), group.tolist(), rho.astype(float).tolist())
+    db.executemany(f'INSERT INTO "{layer_name}" (geom, id, "group", rho) VALUES (?, ?, ?, ?)', rows)
+    return lon, lat

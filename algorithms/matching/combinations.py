@@ -21,13 +21,13 @@ which one is unknown); their count is kept in `stats` for the summary (Kornus et
 matched only in (c) do not exist: (c) runs on transfer points only. A two-image block gives
 combination (a) and group 1 only. match_block then refines the group 3 points by MPGC in both
 search images at once (refinement.py; `refine`, on by default)."""
+import os
+
 import numpy as np
 
-from .. import progress
 from ..errors import InputError
 from ..stats import NMAD_SCALE
 from .consistency import invert_affine
-from .params import GrowParams
 from .points import COMB_A, COMB_B, COMB_C, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .records import PAIR_DTYPE
 
@@ -231,83 +231,46 @@ def match_block(images, models, names=None, image_ids=None, params=None, height_
     reference and the other image of a region-grown pair, re-matched there (pair_seeds), and/or
     `automatic` ones in every tile. With `grow_second`, combination (b) is also region-grown for
     points where (a) found none; with `refine`, MPGC refines the group 3 points
-    (refinement.refine_three_ray)."""
-    from .region_growing import match_pair, transfer_points
-    n = len(images)
-    if n not in (2, 3) or len(models) != n:
-        raise InputError(f"matching combines 2 or 3 images (reference, forward[, backward]), got {n}")
-    params = (params or GrowParams()).check()
-    names = list(names or [f"image {k + 1}" for k in range(n)])
-    image_ids = list(image_ids or range(1, n + 1))
-    log = progress.ensure(feedback)
-    if seed_points is None and not automatic:
-        raise InputError("region growing needs seeds: give seed points or allow automatic seeds")
-    share = [0, 100] if n == 2 else [0, 35, 50, 75, 90, 100]
-    progress.step(feedback, 0, f"combination (a): {names[0]} - {names[1]}")
+    (refinement.refine_three_ray). The tiles run on `workers` (threads, or an execution.Execution
+    whose workers see this machine's temporary folder) by block_tiles.match_tiles, and the points
+    are gathered here: for a whole scene, the matching step writes them part by part instead."""
+    import tempfile
 
-    def seeds(k):
-        if seed_points is None:
-            return None
-        found = pair_seeds(images[0], images[k], models[0], models[k], seed_points, image_ids[0], image_ids[k],
-                           params, height_range)
-        log.pushInfo(f"{names[0]} - {names[k]}: {len(found)} seeds from the given points")
-        return found
-
-    a = match_pair(images[0], images[1], models[0], models[1], params=params, height_range=height_range,
-                   seeds=seeds(1), automatic=automatic, feedback=progress.scaled(feedback, share[0], share[1]),
-                   workers=workers)
-    log.pushInfo(f"(a) {names[0]} - {names[1]}: {len(a)} points")
-    if n == 2:
-        return combine(a, image_ids=image_ids)
-    grown = None
-    if grow_second:
-        progress.step(feedback, share[1], f"combination (b): {names[0]} - {names[2]}, region growing")
-        grown = match_pair(images[0], images[2], models[0], models[2], params=params, height_range=height_range,
-                           seeds=seeds(2), automatic=automatic, feedback=progress.scaled(feedback, share[1], share[2]),
-                           workers=workers)
-    progress.step(feedback, share[2], f"combination (b): {names[0]} - {names[2]}, {len(a)} transfer points")
-    bt, ok = transfer_points(images[0], images[2], models[0], models[2], a["x1"], a["y1"], params, height_range,
-                             guide=grown if grown is not None and len(grown) else None)
-    b, b_src = bt[ok], np.flatnonzero(ok)
-    b["x1"], b["y1"] = a["x1"][b_src], a["y1"][b_src]        # transfer points keep image 0 exactly
-    log.pushInfo(f"(b) {names[0]} - {names[2]}: {len(b)} of {len(a)} transfer points matched")
-    if grown is not None:
-        fresh = grown[new_cells(grown["x1"], grown["y1"], a["x1"], a["y1"], params.step)]
-        log.pushInfo(f"(b) {names[0]} - {names[2]}: {len(fresh)} more points grown where (a) has none")
-        b = np.concatenate([b, fresh])
-        b_src = np.concatenate([b_src, np.full(len(fresh), -1)])
-    progress.step(feedback, share[3], f"combination (c): {names[2]} - {names[1]}, {len(b)} transfer points")
-    guide = compose_guide(a, b, b_src)
-    ct, ok = transfer_points(images[2], images[1], models[2], models[1], b["x2"], b["y2"], params, height_range,
-                             guide=guide if len(guide) else None)
-    c, c_src = ct[ok], np.flatnonzero(ok)
-    c["x1"], c["y1"] = b["x2"][c_src], b["y2"][c_src]
-    log.pushInfo(f"(c) {names[2]} - {names[1]}: {len(c)} of {len(b)} transfer points matched")
-    result = combine(a, b, b_src, c, c_src, image_ids=image_ids, sigma_factor=sigma_factor)
-    if refine:
-        from .refinement import refine_three_ray
-        refined = refine_three_ray(result, images, models, image_ids, height_range, params,
-                                   progress.scaled(feedback, share[4], share[5]))
-        log.pushInfo(f"MPGC refined {refined} of {result.group_counts()[3]} three-ray points")
-    progress.step(feedback, 100)
-    return result
+    from ..execution import Execution
+    from .block_tiles import match_tiles
+    execution = workers if isinstance(workers, Execution) else Execution("threads", max(int(workers), 1))
+    parts, stats = match_tiles(images, models, os.path.join(tempfile.gettempdir(), "pushbroom-matching"),
+                               names=names, image_ids=image_ids, params=params, height_range=height_range,
+                               seed_points=seed_points, automatic=automatic, feedback=feedback, execution=execution,
+                               grow_second=grow_second, sigma_factor=sigma_factor, refine=refine)
+    if not parts:
+        return MultiPoints(stats=stats)
+    return MultiPoints(np.concatenate([p.points for p in parts]), np.concatenate([p.observations for p in parts]),
+                       stats)
 
 
-def summary_rows(points, rho_dem=0.7):
-    """Counts per group like Kornus et al. 2006, Table 1: a list of (label, value)."""
-    p = points.points
-    g1, g2, g3 = (p["group"] == 1), (p["group"] == 2), (p["group"] == 3)
-    high = p["rho_min"] > rho_dem
-    stats = points.stats
-    matched_3 = stats.get("matched_3", int(g3.sum()))
-    rows = [("Two-ray points (group 1)", int(g1.sum())),
-            (f"Two-ray points with rho > {rho_dem:g}", int((g1 & high).sum())),
-            ("Three-ray points matched in 2 combinations (group 2)", int(g2.sum())),
-            (f"Three-ray points in 2 combinations with rho > {rho_dem:g}", int((g2 & high).sum())),
-            ("Points matched in 3 combinations", int(matched_3)),
-            (f"Points in 3 combinations with |d| < {stats.get('sigma_factor', 3.0):g} sigma (group 3)", int(g3.sum())),
-            (f"Three-ray points selected for DEM generation (rho > {rho_dem:g})", int(((g2 | g3) & high).sum())),
-            ("All points", int(len(p)))]
+def summary_rows(points, rho_dem=0.7, stats=None):
+    """Counts per group like Kornus et al. 2006, Table 1: a list of (label, value). `points` is a
+    MultiPoints, or a list of parts (MultiPoints, or functions returning one, taken one at a time) with
+    the run's `stats`."""
+    parts = [points] if isinstance(points, MultiPoints) else points
+    stats = points.stats if isinstance(points, MultiPoints) else dict(stats or {})
+    counts = np.zeros(7, np.int64)
+    for part in parts:
+        p = (part if isinstance(part, MultiPoints) else part()).points
+        g1, g2, g3 = (p["group"] == 1), (p["group"] == 2), (p["group"] == 3)
+        high = p["rho_min"] > rho_dem
+        counts += [g1.sum(), (g1 & high).sum(), g2.sum(), (g2 & high).sum(), g3.sum(), ((g2 | g3) & high).sum(),
+                   len(p)]
+    n1, n1_high, n2, n2_high, n3, n23_high, total = (int(c) for c in counts)
+    rows = [("Two-ray points (group 1)", n1),
+            (f"Two-ray points with rho > {rho_dem:g}", n1_high),
+            ("Three-ray points matched in 2 combinations (group 2)", n2),
+            (f"Three-ray points in 2 combinations with rho > {rho_dem:g}", n2_high),
+            ("Points matched in 3 combinations", int(stats.get("matched_3", n3))),
+            (f"Points in 3 combinations with |d| < {stats.get('sigma_factor', 3.0):g} sigma (group 3)", n3),
+            (f"Three-ray points selected for DEM generation (rho > {rho_dem:g})", n23_high),
+            ("All points", total)]
     for key, label in [("sigma_dx", "sigma of dx (px, robust)"), ("sigma_dy", "sigma of dy (px, robust)")]:
         if stats.get(key) is not None:
             rows.append((label, round(float(stats[key]), 4)))

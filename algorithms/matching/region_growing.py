@@ -215,6 +215,24 @@ def _grow_tile(job, index, box):
     return rec, tries, nseeds
 
 
+def grow_job(image1, image2, model1, model2, params=None, height_range=None, seeds=None, automatic=None):
+    """(GrowJob, tiles: Lattice.tiles) of a match_pair run (its arguments; InputError as it raises), for
+    _grow_tile tasks. Every pair with the same image 1 and params has the same tiles."""
+    params = (params or GrowParams()).check()
+    image1, image2 = as_image(image1), as_image(image2)
+    hr = resolve_height_range(model1, height_range)
+    _check_inputs(image1, image2, model1, model2, params, hr)
+    image1, image2 = adapt_resolution(image1, image2, model1, model2, params, hr)
+    lattice = Lattice(image1.size, params)
+    if seeds is not None:
+        seeds = _as_seed_records(seeds)
+    automatic = seeds is None if automatic is None else bool(automatic)
+    if seeds is None and not automatic:
+        raise InputError("region growing needs seeds: give seed points or allow automatic seeds")
+    return GrowJob(image1, image2, model1, model2, params, hr, lattice, seeds, automatic), \
+        lattice.tiles(int(params.tile))
+
+
 def match_pair(image1, image2, model1, model2, params=None, height_range=None, seeds=None, feedback=None,
                workers=1, automatic=None):
     """Region-growing LSM of image 1 (reference) into image 2.
@@ -229,19 +247,7 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
     seed each point grew from (index into `seeds`, or len(seeds) + tile * seed_stride(params) + k
     for automatic ones). Raises InputError for images smaller than the template or without overlap, CancelledError
     when cancelled; no accepted seed gives an empty array and a message via feedback."""
-    params = (params or GrowParams()).check()
-    image1, image2 = as_image(image1), as_image(image2)
-    hr = resolve_height_range(model1, height_range)
-    _check_inputs(image1, image2, model1, model2, params, hr)
-    image1, image2 = adapt_resolution(image1, image2, model1, model2, params, hr)
-    lattice = Lattice(image1.size, params)
-    if seeds is not None:
-        seeds = _as_seed_records(seeds)
-    automatic = seeds is None if automatic is None else bool(automatic)
-    if seeds is None and not automatic:
-        raise InputError("region growing needs seeds: give seed points or allow automatic seeds")
-    tiles = lattice.tiles(int(params.tile))
-    job = GrowJob(image1, image2, model1, model2, params, hr, lattice, seeds, automatic)
+    job, tiles = grow_job(image1, image2, model1, model2, params, height_range, seeds, automatic)
     fb = ensure(feedback)
     progress_step(feedback, 0.0)
     where = workers if isinstance(workers, Execution) else Execution("threads", max(int(workers), 1))

@@ -3,13 +3,18 @@
 error bound) and the image is resampled there (resampling.py), optionally with occluded cells as nodata
 (occlusion.py). The step's entry point is steps/orthoimage.py's orthorectify_image.
 
-The output is processed in square tiles; per tile only the image window it needs is read (GDAL), so a
-12000 x 12000 image is never held whole. Tiles run on `threads` worker threads (numba kernels release
-the GIL) and are written in order to a tiled, DEFLATE-compressed GeoTIFF of the image's data type with
-nodata set and overviews, under a temporary name renamed at the end (a cancel leaves no file)."""
+The output is processed in square tiles (tiling.tile_grid), each a task on the chosen execution
+(execution.run_tasks: threads, local processes or Dask). Per tile only the image window it needs is
+read (GDAL) and only the DEM window under the tile's footprint, widened by the reach of an occluding
+ray (the DEM's height range times the slope of the lines of sight), is taken from the DEM, which the
+step stores once as a memory-mapped file in a work folder beside the output (dem.dem_window). So
+memory follows the tile and the number of workers, and the result does not depend on the execution.
+Each task writes its tile as a GeoTIFF; GDAL assembles them (a VRT translated into a tiled,
+DEFLATE-compressed GeoTIFF of the image's data type with nodata set and overviews,
+geotiff.assemble_tiles) under a temporary name renamed at the end (a cancel leaves no file)."""
 import math
+import os
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,14 +22,15 @@ from osgeo import gdal, gdal_array
 from scipy.interpolate import RegularGridInterpolator
 
 from .. import progress
-from ..atomic import atomic_path, closing
-from ..crs import egm96_undulation
-from ..dem import Dem
-from ..errors import CancelledError, InputError
-from ..surface.geotiff import overview_levels
+from ..atomic import atomic_path, closing, save_array, work_dir
+from ..crs import egm96_undulation, srs as parse_crs
+from ..dem import Dem, dem_window
+from ..errors import InputError
+from ..execution import run_tasks
+from ..surface.geotiff import assemble_tiles
 from ..tiling import tile_grid
 from . import occlusion, resampling
-from .grid import default_grid
+from .grid import OutputGrid, default_grid
 from .mapping import START_STEP, TileMapper
 
 TILE = 512
@@ -129,23 +135,58 @@ class _TileWorker:
         return occlusion.ray_direction(self.model, tile.col.ravel()[k], tile.row.ravel()[k], low, high + 1.0)
 
 
-def _create(path, grid, bands, gdal_type, nodata):
-    ds = gdal.GetDriverByName("GTiff").Create(path, grid.cols, grid.rows, bands, gdal_type, list(CREATION_OPTIONS))
-    ds.SetGeoTransform(grid.geotransform)
-    ds.SetSpatialRef(grid.srs)
-    for b in range(bands):
-        ds.GetRasterBand(b + 1).SetNoDataValue(float(nodata))
-    return ds
+def _reach(model, dem):
+    """Degrees (longitude, latitude) an occluding ray can run from a ground point: the DEM's height range
+    times the largest slope of the lines of sight at the image's corners and centre, with 20 % to spare."""
+    low, high = dem.height_range
+    cols, rows = model.size
+    slopes = [occlusion.ray_direction(model, c, r, low, high + 1.0)
+              for c, r in ((0, 0), (cols, 0), (0, rows), (cols, rows), (cols / 2, rows / 2))]
+    slopes = np.array([s for s in slopes if s is not None] or [(0.0, 0.0)])
+    return tuple(1.2 * (high - low + 1.0) * np.abs(slopes).max(axis=0))
+
+
+def _footprint(grid, window, reach):
+    """lon/lat bounds of the cells of `window` (row0, col0, rows, cols) of `grid`, widened by `reach`."""
+    row0, col0, rows, cols = window
+    t = np.linspace(0.0, 1.0, 9)
+    r = np.concatenate([row0 + t * rows, np.full(9, row0 + rows), row0 + t * rows, np.full(9, row0)]) - 0.5
+    c = np.concatenate([np.full(9, col0), col0 + t * cols, np.full(9, col0 + cols), col0 + t * cols]) - 0.5
+    lon, lat = grid.to_lonlat(*grid.centres(r, c))
+    return (np.nanmin(lon) - reach[0], np.nanmin(lat) - reach[1], np.nanmax(lon) + reach[0], np.nanmax(lat) + reach[1])
+
+
+def _ortho_tile(job, window, out):
+    """Task: the output tile `window` (row0, col0, rows, cols) of the orthoimage of `job`, written to the
+    GeoTIFF `out`; returns (valid cells, occluded cells, coarse step, achieved bound)."""
+    (image, model, dem_file, dem_geotransform, dem_range, grid_wkt, grid_geotransform, size, method, occlusion_on,
+     dtype, nodata, max_error, start_step, reach, gdal_type) = job
+    grid = OutputGrid(parse_crs(grid_wkt), grid_geotransform, *size)
+    dem = dem_window(np.load(dem_file, mmap_mode="r"), dem_geotransform, dem_range, _footprint(grid, window, reach))
+    worker = _TileWorker(image, model, dem, TileMapper(model, dem, grid, max_error, start_step), method, occlusion_on,
+                         np.dtype(dtype), nodata)
+    values, n, hidden, step, bound = worker(window)
+    row0, col0, rows, cols = window
+    x0, dx, _, y0, _, dy = grid_geotransform
+    with atomic_path(out, "an orthoimage tile") as tmp:
+        with closing(gdal.GetDriverByName("GTiff").Create(tmp, cols, rows, values.shape[0], gdal_type)) as ds:
+            ds.SetGeoTransform((x0 + col0 * dx, dx, 0.0, y0 + row0 * dy, 0.0, dy))
+            ds.SetProjection(grid_wkt)
+            for b in range(values.shape[0]):
+                ds.GetRasterBand(b + 1).SetNoDataValue(float(nodata))
+                ds.GetRasterBand(b + 1).WriteArray(values[b])
+    return n, hidden, step, bound
 
 
 def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None, resampling_method="bilinear",
-                 occlusion_mask=False, max_error=0.01, start_step=START_STEP, tile=TILE, threads=1, overviews=True,
+                 occlusion_mask=False, max_error=0.01, start_step=START_STEP, tile=TILE, execution=None, overviews=True,
                  feedback=None):
     """Orthoimage of raster `image` (path) with sensor `model` on `dem` (Dem of ellipsoidal heights; see
     load_dem), written to GeoTIFF `output`. The grid is `grid` (OutputGrid) or default_grid(model, dem, crs,
     cell_size); resampling 'bilinear' or 'bicubic'; occlusion_mask sets occluded cells to nodata;
-    max_error (px) bounds the coarse-grid interpolation (mapping.py). Returns an OrthoResult; raises
-    CancelledError (nothing written) when feedback cancels."""
+    max_error (px) bounds the coarse-grid interpolation (mapping.py); the tiles run on `execution`
+    (execution.Execution; default one thread). Returns an OrthoResult; raises CancelledError (nothing
+    written) when feedback cancels, ExecutionError (execution.py's)."""
     start = time.perf_counter()
     if resampling_method not in resampling.METHODS:
         raise InputError(f"resampling is one of {', '.join(resampling.METHODS)}, not {resampling_method!r}")
@@ -163,31 +204,24 @@ def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None,
     grid = grid or default_grid(model, dem, crs, cell_size)
     progress.step(feedback, 0, f"orthoimage grid {grid.cols} x {grid.rows} cells of {grid.geotransform[1]:g} "
                                f"({grid.srs.GetName()}), {resampling_method} resampling")
-    mapper = TileMapper(model, dem, grid, max_error, start_step)
-    worker = _TileWorker(str(image), model, dem, mapper, resampling_method, occlusion_mask, np_type, nodata)
     windows = [(y0, x0, y1 - y0, x1 - x0) for x0, y0, x1, y1 in tile_grid((grid.cols, grid.rows), tile)]
-    steps, bound, cells, hidden = {}, 0.0, 0, 0
-    with atomic_path(output) as tmp, closing(_create(tmp, grid, ds.RasterCount, band.DataType, nodata)) as out:
-        with ThreadPoolExecutor(max(int(threads), 1)) as pool:
-            pending = []
-            try:
-                for k, window in enumerate(windows):
-                    pending.append((window, pool.submit(worker, window)))
-                    while pending and (len(pending) > 2 * threads or k == len(windows) - 1):
-                        (row0, col0, _, _), future = pending.pop(0)
-                        values, n, n_hidden, step, tile_bound = future.result()
-                        out.WriteArray(values, col0, row0, band_list=list(range(1, values.shape[0] + 1)))
-                        steps[step] = steps.get(step, 0) + 1
-                        bound, cells, hidden = max(bound, tile_bound), cells + n, hidden + n_hidden
-                        progress.step(feedback, 90.0 * sum(steps.values()) / len(windows))
-            except CancelledError:
-                for _, future in pending:
-                    future.cancel()
-                raise
-        levels = overview_levels((grid.rows, grid.cols)) if overviews else []
-        if levels:
-            progress.step(feedback, 90, "building overviews")
-            out.BuildOverviews("AVERAGE", levels)
-    result = OrthoResult(str(output), grid, bound, steps, cells, hidden, time.perf_counter() - start)
+    reach = _reach(model, dem) if occlusion_mask else (0.0, 0.0)
+    with work_dir(output, "the orthoimage tiles") as work:
+        dem_file = os.path.join(work, "dem.npy")
+        save_array(dem_file, dem.heights, "a copy of the DEM")
+        job = (str(image), model, dem_file, dem.geotransform, dem.height_range, grid.srs.ExportToWkt(),
+               tuple(grid.geotransform), (grid.cols, grid.rows), resampling_method, occlusion_mask, np_type.str,
+               nodata, max_error, start_step, reach, band.DataType)
+        tiles = [os.path.join(work, f"tile-{k:05d}.tif") for k in range(len(windows))]
+        done = run_tasks(_ortho_tile, [(job, w, t) for w, t in zip(windows, tiles)], execution,
+                         progress.scaled(feedback, 0, 90), "the orthoimage tiles")
+        steps = {}
+        for _, _, step, _ in done:
+            steps[step] = steps.get(step, 0) + 1
+        with atomic_path(output) as tmp:
+            assemble_tiles(tiles, tmp, grid.geotransform, (grid.cols, grid.rows), grid.srs, CREATION_OPTIONS,
+                           overviews=overviews, feedback=progress.scaled(feedback, 90, 100))
+    result = OrthoResult(str(output), grid, max(d[3] for d in done), steps, sum(d[0] for d in done),
+                         sum(d[1] for d in done), time.perf_counter() - start)
     progress.step(feedback, 100, result.summary())
     return result

@@ -4,25 +4,28 @@ stored with the block.
 The images are taken in combination order (combinations.combination_order: reference, forward[,
 backward]) with their current sensor models, over the terrain height range (height_range.height_range:
 the one given, else the block's). Strategy "region_growing": region-growing least-squares matching in
-the three combinations of Kornus et al. 2006, section 3.3 (combinations.match_block), seeded
-automatically, from the block's tie points, or both. Strategy "coarse_to_fine": Zhang & Gruen's
-coarse-to-fine multi-primitive matching with MPGC (coarse_to_fine.match_coarse_to_fine).
+the three combinations of Kornus et al. 2006, section 3.3, tile by tile on the chosen execution
+(block_tiles.match_tiles: memory follows the tile), seeded automatically, from the block's tie points,
+or both. Strategy "coarse_to_fine": Zhang & Gruen's coarse-to-fine multi-primitive matching with MPGC
+(coarse_to_fine.match_coarse_to_fine), in this process.
 
-Storage: the points go to the sidecar folder <block>.mass_points.<id> (block/points.py) and the block's
-'mass_points' layer, placed through the reference image's model at the mean height of the range
-(Block.save_points);
-the points per group (Kornus et al. 2006, Table 1) are logged and, when asked, written as CSV."""
+Storage: the points go to the sidecar folder <block>.mass_points.<id> (block/points.py; region growing's
+tiles write its parts themselves, Block.store_points) and the block's 'mass_points' layer, placed
+through the reference image's model at the mean height of the range; the points per group (Kornus et
+al. 2006, Table 1) are counted part by part, logged and, when asked, written as CSV."""
+import functools
 from dataclasses import dataclass, field
 
 from .. import progress
 from ..block import Block
+from ..block.points import load_arrays, read_stats, save_part
 from ..errors import InputError
 from ..execution import Execution
 from ..height_range import height_range, mean_height
+from ..matching.block_tiles import match_tiles
 from ..matching.coarse_to_fine import CoarseToFineParams, match_coarse_to_fine
-from ..matching.combinations import combination_order, format_summary, match_block, summary_rows, write_summary_csv
+from ..matching.combinations import combination_order, format_summary, summary_rows, write_summary_csv
 from ..matching.params import GrowParams
-from ..matching.points import MultiPoints
 
 #: seed sources of region growing: key -> (use the block's tie points, seek automatic seeds)
 SEED_SOURCES = {"automatic": (False, True), "tie_points": (True, False), "both": (True, True)}
@@ -63,7 +66,7 @@ class MatchParams:
 class MatchResult:
     """What match_block_points stored."""
 
-    points: MultiPoints         # the matched points
+    count: int                  # the points matched
     sidecar: str                # the mass point folder (block/points.py)
     layer: str                  # OGR source of the block's 'mass_points' layer
     summary: list               # points per group (combinations.summary_rows)
@@ -85,21 +88,26 @@ def match_block_points(block_path, params=None, summary_csv=None, feedback=None)
     seed_points = blk.points("tie_points") if use_tie_points else None
     log.pushInfo("combination order: " + ", ".join(r["name"] for r in rows) + f"; height range {heights}")
     images, names, ids = [r["image_path"] for r in rows], [r["name"] for r in rows], [r["id"] for r in rows]
+    display = (models[0], rows[0]["id"], mean_height(heights))
     if params.strategy == "coarse_to_fine":
         if params.execution.backend != "threads":
             progress.warn(feedback, f"the coarse-to-fine matcher runs its tiles in this process: the "
                                     f"{params.execution.backend} execution applies to region growing only")
         result = match_coarse_to_fine(images, models, names=names, image_ids=ids,
                                       params=params.coarse_to_fine.check(), height_range=heights, feedback=feedback)
+        # storage: the sidecar and the point layer
+        sidecar = blk.save_points(result, "mass_points", display=display)
     else:
-        result = match_block(images, models, names=names, image_ids=ids, params=params.grow, height_range=heights,
-                             seed_points=seed_points, automatic=automatic, feedback=feedback,
-                             workers=params.execution, grow_second=params.grow_second,
-                             sigma_factor=params.sigma_factor, refine=params.refine)
-    # storage: the sidecar and the point layer
-    sidecar = blk.save_points(result, "mass_points", display=(models[0], rows[0]["id"], mean_height(heights)))
+        def fill(folder):
+            return match_tiles(images, models, folder, save_part, names=names, image_ids=ids, params=params.grow,
+                               height_range=heights, seed_points=seed_points, automatic=automatic,
+                               feedback=progress.scaled(feedback, 0, 90), execution=params.execution,
+                               grow_second=params.grow_second, sigma_factor=params.sigma_factor, refine=params.refine)
+        # storage: the tiles write the parts of the new sidecar, then the point layer is built
+        sidecar = blk.store_points("mass_points", fill, display=display, feedback=progress.scaled(feedback, 90, 100))
     layer = blk.layer_source("mass_points")
-    summary = summary_rows(result)
+    parts = blk.point_parts("mass_points")
+    summary = summary_rows([functools.partial(load_arrays, p) for p in parts], stats=read_stats(sidecar))
     log.pushInfo("points per group (Kornus et al. 2006, Table 1):\n" + format_summary(summary))
     csv = write_summary_csv(summary_csv, summary) if summary_csv else None
-    return MatchResult(result, sidecar, layer, summary, csv)
+    return MatchResult(dict(summary)["All points"], sidecar, layer, summary, csv)

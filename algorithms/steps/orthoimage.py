@@ -1,10 +1,11 @@
 """The orthorectification step (pushbroom:orthorectify): one image, with a block's (adjusted) sensor model or
 its own orientation, on a DEM, by ortho.orthorectify (the indirect method, Heipke et al. 1992, section 4.1)."""
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from .. import progress, sensors
 from ..block import Block
 from ..errors import InputError
+from ..execution import Execution
 from ..ortho.orthorectify import VERTICAL, load_dem, orthorectify
 from ..ortho.resampling import METHODS
 
@@ -20,15 +21,16 @@ class OrthoParams:
     resampling: str = "bilinear"        # one of resampling.METHODS
     occlusion: bool = False             # occluded cells as nodata
     max_error: float = 0.01             # px: bound of the coarse-grid interpolation error
-    threads: int = 1
+    execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the tiles run
 
     def check(self):
         """Raise InputError for settings no orthorectification can use."""
         if self.dem_heights not in VERTICAL or self.resampling not in METHODS:
             raise InputError(f"the DEM heights must be one of {', '.join(VERTICAL)} and the resampling one of "
                              f"{', '.join(METHODS)}")
-        if not self.max_error > 0 or self.threads < 1 or (self.cell_size is not None and self.cell_size < 0):
-            raise InputError("the error bound must be positive, the threads at least 1 and the cell size not negative")
+        if not self.max_error > 0 or (self.cell_size is not None and self.cell_size < 0):
+            raise InputError("the error bound must be positive and the cell size not negative")
+        self.execution.check()
         return self
 
 
@@ -59,4 +61,4 @@ def orthorectify_image(output, dem, params=None, block_path=None, image_name="",
     progress.warn(feedback, heights.implausible)
     return orthorectify(path, model, heights, output, crs=params.crs, cell_size=params.cell_size,
                         resampling_method=params.resampling, occlusion_mask=params.occlusion,
-                        max_error=params.max_error, threads=params.threads, feedback=feedback)
+                        max_error=params.max_error, execution=params.execution, feedback=feedback)

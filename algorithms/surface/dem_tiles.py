@@ -32,16 +32,15 @@ import os
 from dataclasses import dataclass, field
 
 import numpy as np
-from osgeo import gdal
 from scipy.spatial import cKDTree
 
 from .. import progress
-from ..atomic import atomic_path, closing, work_dir
+from ..atomic import append_bytes, atomic_path, save_array, work_dir
 from ..crs import srs as parse_crs, transform
 from ..errors import CancelledError, InputError
 from ..execution import run_tasks
 from ..tiling import tile_grid
-from .geotiff import NODATA, OPTIONS, overview_levels, write_float_raster
+from .geotiff import assemble_tiles, write_float_raster
 from .point_input import point_chunks, read_breaklines
 from .tin import flat_points
 from .tin_dem import EDGE_SPACINGS, SPACING_SAMPLE, DemParams, output_crs, surface_on_grid
@@ -120,8 +119,7 @@ def _to_work_chunks(path, crs, target, count, work, feedback):
         if len(rows):
             lo = np.minimum(lo, [rows["x"].min(), rows["y"].min()])
             hi = np.maximum(hi, [rows["x"].max(), rows["y"].max()])
-        files.append(os.path.join(work, f"chunk-{k:05d}.npy"))
-        np.save(files[-1], rows)
+        files.append(save_array(os.path.join(work, f"chunk-{k:05d}.npy"), rows, "the DEM's work files"))
         progress.step(feedback, 100.0 * seen / count)
     return files, (lo[0], lo[1], hi[0], hi[1])
 
@@ -150,8 +148,7 @@ def _bucket(chunks, grid, tile, margin, work, name, feedback):
                 for t, lo, hi in zip(tiles, starts, np.append(starts[1:], len(order))):
                     if files[t] is None:
                         files[t] = os.path.join(work, f"{name}-{t:05d}.bin")
-                    with open(files[t], "ab") as f:
-                        selected[lo:hi].tofile(f)
+                    append_bytes(files[t], selected[lo:hi].tobytes(), "the DEM's work files")
     return files
 
 
@@ -199,33 +196,6 @@ def _dem_tile(job, box, points_file, out, precision_out):
     return {"flat": flat, "points": result.points, "removed": result.removed, "dropped": result.dropped_near_breaklines,
             "vertices": result.breakline_vertices, "defined": int(np.isfinite(result.heights).sum()),
             "precision_kind": result.precision_kind}
-
-
-def assemble(tiles, path, grid, srs, description, metadata=None, feedback=None):
-    """Write the GeoTIFF tiles (Float32, NODATA) that cover parts of `grid` as one raster at `path` (a
-    temporary name: the caller renames it; geotiff.OPTIONS, overviews): a VRT translated and its
-    overviews built by GDAL in blocks. CancelledError when the user cancels."""
-    bounds = (grid.x0, grid.y0 - grid.rows * grid.cell, grid.x0 + grid.cols * grid.cell, grid.y0)
-    vrt = gdal.BuildVRT("", tiles, outputBounds=bounds, xRes=grid.cell, yRes=grid.cell, srcNodata=NODATA,
-                        VRTNodata=NODATA)
-    try:
-        vrt.SetProjection(srs.ExportToWkt())
-        if metadata:
-            vrt.SetMetadata({k: str(v) for k, v in metadata.items()})
-        vrt.GetRasterBand(1).SetDescription(description)
-        with closing(gdal.Translate(path, vrt, format="GTiff", creationOptions=OPTIONS,
-                                    callback=progress.gdal_callback(progress.scaled(feedback, 0, 60)))) as ds:
-            ds.GetRasterBand(1).SetDescription(description)
-            ds.BuildOverviews("AVERAGE", overview_levels(grid.shape),
-                              callback=progress.gdal_callback(progress.scaled(feedback, 60, 100)))
-    except RuntimeError:
-        if feedback is not None and feedback.isCanceled():
-            raise CancelledError("cancelled by the user") from None
-        raise
-    finally:
-        vrt = None
-    progress.step(feedback, 100)
-    return path
 
 
 def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_path=None, feedback=None):
@@ -294,12 +264,13 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
         # both outputs are renamed at the end, or neither
         with atomic_path(output) as tmp, (atomic_path(precision_path) if precision_path
                                           else contextlib.nullcontext()) as tmp_precision:
-            assemble(outs, tmp, grid, target, f"height ({datum}, m)",
-                     {"HEIGHT_DATUM": datum, "POINTS": result.points, "BLUNDERS_REMOVED": sum(removed)},
-                     progress.scaled(feedback, 80, 95 if precision_path else 100))
+            assemble_tiles(outs, tmp, grid.geotransform, (grid.cols, grid.rows), target,
+                           description=f"height ({datum}, m)",
+                           metadata={"HEIGHT_DATUM": datum, "POINTS": result.points, "BLUNDERS_REMOVED": sum(removed)},
+                           feedback=progress.scaled(feedback, 80, 95 if precision_path else 100))
             if precision_path:
-                assemble(precisions, tmp_precision, grid, target, done[0]["precision_kind"],
-                         feedback=progress.scaled(feedback, 95, 100))
+                assemble_tiles(precisions, tmp_precision, grid.geotransform, (grid.cols, grid.rows), target,
+                               description=done[0]["precision_kind"], feedback=progress.scaled(feedback, 95, 100))
     log.pushInfo(result.summary())
     return result
 

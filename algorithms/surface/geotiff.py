@@ -4,6 +4,7 @@ import numpy as np
 
 from .. import progress
 from ..atomic import atomic_path, closing
+from ..errors import CancelledError
 
 #: nodata of the Float32 height and precision rasters
 NODATA = -32767.0
@@ -41,4 +42,39 @@ def write_float_raster(path, array, geotransform, srs, description="", metadata=
             if overviews:
                 ds.BuildOverviews("AVERAGE", overview_levels(array.shape))
         progress.step(feedback, 100)
+    return path
+
+
+def assemble_tiles(tiles, path, geotransform, size, srs, options=OPTIONS, description=None, metadata=None,
+                   overviews=True, feedback=None):
+    """Write the GeoTIFF `tiles` (one data type, bands and nodata; together they cover parts of the raster
+    of `size` (cols, rows) with `geotransform` in `srs`) as one GeoTIFF at `path` (a temporary name: the
+    caller renames it) with creation `options` and AVERAGE overviews (overview_levels; none without
+    `overviews`): a VRT translated
+    and its overviews built by GDAL in blocks, so memory follows GDAL's cache, not the raster. Cells no
+    tile covers are the tiles' nodata. CancelledError when `feedback` cancels."""
+    from osgeo import gdal
+    gdal.UseExceptions()
+    x0, dx, _, y0, _, dy = geotransform
+    bounds = (x0, y0 + size[1] * dy, x0 + size[0] * dx, y0)
+    vrt = gdal.BuildVRT("", list(tiles), outputBounds=bounds, xRes=dx, yRes=-dy)
+    try:
+        vrt.SetProjection(srs.ExportToWkt())
+        if metadata:
+            vrt.SetMetadata({k: str(v) for k, v in metadata.items()})
+        with closing(gdal.Translate(path, vrt, format="GTiff", creationOptions=list(options),
+                                    callback=progress.gdal_callback(progress.scaled(feedback, 0, 60)))) as ds:
+            if description is not None:
+                ds.GetRasterBand(1).SetDescription(description)
+            levels = overview_levels((size[1], size[0])) if overviews else []
+            if levels:
+                ds.BuildOverviews("AVERAGE", levels,
+                                  callback=progress.gdal_callback(progress.scaled(feedback, 60, 100)))
+    except RuntimeError:
+        if feedback is not None and feedback.isCanceled():
+            raise CancelledError("cancelled by the user") from None
+        raise
+    finally:
+        vrt = None
+    progress.step(feedback, 100)
     return path

@@ -14,7 +14,7 @@ from qgis.core import (
 from ...algorithms.ortho.orthorectify import VERTICAL
 from ...algorithms.ortho.resampling import METHODS
 from ...algorithms.steps.orthoimage import OrthoParams, orthorectify_image
-from .base import PushbroomAlgorithm
+from .base import PushbroomAlgorithm, execution_choice, execution_parameters
 from .dem_nodata import nodata_parameter
 
 Number = QgsProcessingParameterNumber
@@ -29,7 +29,7 @@ class Orthorectify(PushbroomAlgorithm):
     GROUP_ID = "surface"
 
     KEYS = ("BLOCK IMAGE_NAME IMAGE ORIENTATION DEM DEM_HEIGHTS CRS CELL_SIZE RESAMPLING OCCLUSION MAX_ERROR "
-            "THREADS DEM_NODATA OUTPUT BOUND CELLS")
+            "EXECUTION DASK_ADDRESS WORKERS DEM_NODATA OUTPUT BOUND CELLS")
 
     def initAlgorithm(self, config=None):
         d, tr = OrthoParams(), self.tr
@@ -52,7 +52,7 @@ class Orthorectify(PushbroomAlgorithm):
         self.addAdvancedParameters([
             Number(self.MAX_ERROR, tr("Bound of the coarse-grid interpolation error (px)"), Number.Double,
                    d.max_error, minValue=1e-6),
-            Number(self.THREADS, tr("Threads"), Number.Integer, d.threads, minValue=1),
+            *execution_parameters(self, d.execution.workers),
             nodata_parameter(self.DEM_NODATA),
         ])
         self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Orthoimage")))
@@ -62,9 +62,10 @@ class Orthorectify(PushbroomAlgorithm):
     def execute(self, parameters, context, feedback):
         values = self.parameterValues(parameters, context, dem_heights=self.DEM_HEIGHTS, dem_nodata=self.DEM_NODATA,
                                       cell_size=self.CELL_SIZE, resampling=self.RESAMPLING, occlusion=self.OCCLUSION,
-                                      max_error=self.MAX_ERROR, threads=self.THREADS)
+                                      max_error=self.MAX_ERROR)
         values.update(dem_heights=VERTICAL[values["dem_heights"]], resampling=RESAMPLING[values["resampling"]])
-        params = OrthoParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context), **values)
+        params = OrthoParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
+                             execution=execution_choice(self, parameters, context), **values)
         image = self.parameterAsRasterLayer(parameters, self.IMAGE, context)
         output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
         result = orthorectify_image(

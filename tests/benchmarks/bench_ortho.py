@@ -16,6 +16,7 @@ from osgeo import gdal
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.ortho import default_grid, orthorectify
 from pushbroom.algorithms.ortho.mapping import TileMapper
 from pushbroom.algorithms.ortho.orthorectify import CREATION_OPTIONS
@@ -74,7 +75,7 @@ def run():
         rows = []
         for threads in (1, 2):
             t_ours = best_time(lambda: orthorectify(image, model, dem, ours_path, grid=grid, overviews=False,
-                                                     threads=threads))
+                                                     execution=Execution("threads", threads)))
             t_gdal = best_time(lambda: gdal_warp(image, dsm, grid, gdal_path, threads))
             a = gdal.Open(ours_path).ReadAsArray().astype(float)
             b = gdal.Open(gdal_path).ReadAsArray().astype(float)

@@ -28,6 +28,7 @@ from pushbroom.algorithms.adjustment.observations import Observations, tie_obser
 from pushbroom.algorithms.adjustment.selection import select_parameters
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.params import GrowParams
@@ -158,6 +159,6 @@ def run_chain(paths, folder, workers=2):
     grid = OutputGrid(srs(4326), truth.GetGeoTransform(), truth.RasterXSize, truth.RasterYSize)
     out["ortho"] = orthorectify(paths["images"]["HRG"]["imagery"], out["three images"]["models"][IDS["HRG"]],
                                 load_dem(out["three images"]["dem_path"]), folder / "hrg_ortho.tif", grid=grid,
-                                threads=workers)
+                                execution=Execution("threads", workers))
     lap("orthorectify")
     return out

@@ -9,12 +9,14 @@ from scipy import ndimage
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import egm96_undulation, srs
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem import Dem, dem_window
 from pushbroom.algorithms.errors import CancelledError, InputError
+from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.ortho import OutputGrid, default_grid, load_dem, orthorectify
 from pushbroom.algorithms.ortho.mapping import TileMapper
 from pushbroom.algorithms.ortho.occlusion import occluded, ray_direction
+from pushbroom.algorithms.ortho.orthorectify import _footprint, _reach
 from pushbroom.algorithms.ortho.resampling import BICUBIC, BILINEAR, resample_kernel
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
 from tests.helpers.feedback import Feedback
@@ -156,6 +158,39 @@ def test_occlusions_agree_with_the_models_ray_casting(scene, figures):
     figures.report("occluded found", 100 * found, "%")
     figures.report("flagged right", 100 * right, "%")
     assert reference.sum() > 50 and agree > 0.99 and found > 0.85 and right > 0.85
+
+
+def test_a_tiles_dem_window_holds_its_occluders(scene):
+    """The DEM window a tile task takes (its footprint widened by the rays' reach) gives the whole DEM's
+    heights and occlusions for the tile's cells."""
+    model = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
+    dsm = scene["dsm"]
+    grid = default_grid(model, dsm)
+    window = (100, 100, 256, 256)
+    tile = TileMapper(model, dsm, grid).tile(*window)
+    part = dem_window(dsm.heights, dsm.geotransform, dsm.height_range,
+                      _footprint(grid, window, _reach(model, dsm)))
+    assert part.heights.size < dsm.heights.size / 4 and part.height_range == dsm.height_range
+    np.testing.assert_allclose(part.height(tile.lon, tile.lat), tile.h, atol=1e-9)
+    direction = ray_direction(model, tile.col.flat[tile.col.size // 2], tile.row.flat[tile.col.size // 2],
+                              *dsm.height_range)
+    whole = occluded(dsm, tile.lon, tile.lat, tile.h, direction)
+    assert whole.sum() > 100                  # occluded cells to check
+    assert np.mean(occluded(part, tile.lon, tile.lat, tile.h, direction) == whole) > 0.9999
+
+
+@pytest.mark.slow
+def test_every_execution_gives_the_same_orthoimage(scene, tmp_path):
+    model = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
+    grid = default_grid(model, scene["dsm"])
+    images = {}
+    for backend, workers in (("threads", 1), ("processes", 2), ("dask", 2)):
+        orthorectify(scene["paths"]["images"]["HRS1"]["imagery"], model, scene["dsm"], tmp_path / f"{backend}.tif",
+                     grid=grid, occlusion_mask=True, tile=256, execution=Execution(backend, workers))
+        images[backend] = gdal.Open(str(tmp_path / f"{backend}.tif")).ReadAsArray()
+    assert (images["threads"] > 0).mean() > 0.5
+    for backend in ("processes", "dask"):
+        np.testing.assert_array_equal(images[backend], images["threads"])
 
 
 def keys(t):
