@@ -2,9 +2,10 @@
 
 Storage choice: a sidecar folder `<block stem>.<kind>.<host>-<pid>-<8 hex>` next to the GeoPackage,
 referenced from the block's `block_info` table (key = kind, value = the folder name relative to the
-block). It holds the points in parts of at most PART_POINTS points each (`part-<k>.npz`: an
-uncompressed numpy archive of the part's two tables, point ids ascending) and `index.json` (the format,
-the stats, and per part its file, point and observation counts and id range). A step reads one part at a
+block). It holds the points in parts (`part-<k>.npz`: an uncompressed numpy archive of the part's two
+tables, point ids ascending; save_points cuts a MultiPoints into parts of PART_POINTS points, a tiled
+step writes one part per tile) and `index.json` (the format, the stats, and per part its file, point,
+observation and group counts and id range). A step reads one part at a
 time (`point_parts`, `load_arrays`), so its memory follows the part, not the scene; `load_points`
 gives all of them at once, for the steps whose points are few (tie points) or small scenes. A
 sidecar of earlier versions (one `.npz` file) is read as one part.

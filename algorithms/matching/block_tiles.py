@@ -8,19 +8,24 @@ rounds:
 1. `_match_tile`: (a) grown in the tile; (b) grown in the tile where asked; (a)'s points transferred
    into image 2 (guided by the tile's (b) points), (b)'s own points added where (a) has none; (b)'s
    points transferred into image 1 (c); combined (combinations.combine) without the consistency
-   test, written to a work file. It returns the deviations dx, dy of its group 3 candidates.
+   test, written to a work file. It returns the deviations dx, dy (float64) of its group 3
+   candidates and a sample of their image positions (BIAS_SAMPLE over the scene, in proportion to the
+   tile's lattice nodes).
 2. The consistency test's robust sigmas come from the deviations of all tiles (as for the whole
    scene), so every tile keeps the points the whole scene would, and its point ids can be numbered
-   on from the tiles before it. `_finish_tile` applies the test, numbers the points, refines its
-   group 3 points by MPGC (refinement.refine_three_ray, with the bias and geometry sigma of the tile's
-   points) and hands them to `write_part` (the step passes block/points.save_part, which writes them as
-   a part of the new sidecar folder), or returns them.
+   on from the tiles before it. MPGC's affine image biases and geometry sigma
+   (orientation_bias.affine_bias) are fitted to the sample's points that pass the test: one
+   orientation for the scene, as when it is matched at once (which fits them to all its points; the
+   refinement needs MIN_POINTS of them in the scene). `_finish_tile` applies the test, numbers the
+   points, refines its group 3 points by MPGC with that orientation (refinement.refine_three_ray) and
+   hands them to `write_part` (the step passes block/points.save_part, which writes them as a part of
+   the new sidecar folder), or returns them.
 
 The work files of round 1 (two .npy arrays per tile) lie in a work folder beside the sidecar folder
 (atomic.work_dir), where every worker sees them.
 
 What differs from matching the scene at once: a transfer point takes its initial values from its own
-tile's points, and MPGC's affine bias is estimated per tile. The result does not depend on the
+tile's points, and MPGC's biases come from a sample of the points. The result does not depend on the
 execution or the number of workers."""
 import os
 from typing import NamedTuple
@@ -32,14 +37,17 @@ from ..atomic import save_array, work_dir
 from ..errors import InputError
 from ..execution import run_tasks
 from .combinations import combine, compose_guide, new_cells, pair_seeds, robust_sigma
+from .orientation_bias import affine_bias
 from .params import GrowParams
 from .points import MultiPoints
 from .records import PAIR_DTYPE
-from .refinement import refine_three_ray
+from .refinement import MIN_POINTS, refine_three_ray
 from .region_growing import _grow_tile, grow_job, transfer_points
 
 #: floor of the consistency test's robust sigmas (px), as combinations.combine's
 MIN_SIGMA = 0.01
+#: group 3 points of the scene that MPGC's affine biases are fitted to
+BIAS_SAMPLE = 50_000
 #: counts of combinations.combine's stats that add up over the tiles
 ADDED = ("matched_a", "matched_b", "matched_c", "transfer_b", "own_b", "matched_3")
 
@@ -51,10 +59,11 @@ class TileJob(NamedTuple):
     models: list
     image_ids: list
     params: GrowParams
-    height_range: tuple
+    height_range: object    # as given (the pair functions resolve it per model, as match_block always did)
     grow_a: object          # region_growing.GrowJob of (a)
     grow_b: object          # of (b), or None where (b) is not grown
-    refine: bool
+    refine: bool            # round 2: with the scene's MPGC orientation `bias`
+    bias: object            # (corrected models, systematic px) of orientation_bias.affine_bias, or None
     write_part: object      # write_part(folder, k, MultiPoints) -> index entry, a module-level function; or None
 
 
@@ -75,13 +84,15 @@ def _load_work(path):
     return MultiPoints(np.load(path + ".points.npy"), np.load(path + ".observations.npy"))
 
 
-def _match_tile(job, index, box, out):
+def _match_tile(job, index, box, out, quota):
     """Task, round 1 (module docstring): the tile `box` (the index-th of Lattice.tiles) combined without
-    the consistency test, written to `out`. Returns its counts and the dx, dy of its group 3 candidates."""
+    the consistency test, written to `out`. Returns its counts, the dx, dy of its group 3 candidates and
+    the image positions and deviations of up to `quota` of them."""
     images, models, ids, params, hr = job.images, job.models, job.image_ids, job.params, job.height_range
     a, tries, seeds = _grow_tile(job.grow_a, index, box)
     if len(images) == 2:
         multi = combine(a, image_ids=ids)
+        dx = dy = np.full(len(multi), np.nan)
     else:
         grown = _grow_tile(job.grow_b, index, box)[0] if job.grow_b is not None else None
         bt, ok = _transfer(images[0], images[2], models[0], models[2], a["x1"], a["y1"], params, hr, grown)
@@ -95,10 +106,13 @@ def _match_tile(job, index, box, out):
                            compose_guide(a, b, b_src))
         c, c_src = ct[ok], np.flatnonzero(ok)
         c["x1"], c["y1"] = b["x2"][c_src], b["y2"][c_src]
-        multi = combine(a, b, b_src, c, c_src, image_ids=ids, sigma_factor=np.inf)
+        multi, dx, dy = combine(a, b, b_src, c, c_src, image_ids=ids, sigma_factor=np.inf, deviations=True)
     _save_work(out, multi)
-    both = np.isfinite(multi.points["dx"])
-    return {"points": len(multi), "dx": multi.points["dx"][both], "dy": multi.points["dy"][both],
+    save_array(out + ".deviations.npy", np.column_stack([dx, dy]), "the matched tiles")
+    both = np.flatnonzero(np.isfinite(dx))
+    take = both[np.unique(np.linspace(0, len(both) - 1, min(len(both), quota)).astype(int))] if len(both) else both
+    cols, rows = (np.array(v)[:, take] for v in zip(*(multi.coordinates(i) for i in ids)))
+    return {"points": len(multi), "dx": dx[both], "dy": dy[both], "sample": (cols, rows, dx[take], dy[take]),
             "tries": tries, "seeds": seeds, **{k: multi.stats.get(k, 0) for k in ADDED}}
 
 
@@ -109,17 +123,28 @@ def _finish_tile(job, pre, limits, first_id, k, folder):
     (its index entry, or the MultiPoints without a write_part; MPGC's stats)."""
     multi = _load_work(pre)
     p = multi.points
-    both = np.isfinite(p["dx"])
-    keep = ~both | ((np.abs(p["dx"]) < limits[0]) & (np.abs(p["dy"]) < limits[1]))
+    dx, dy = np.load(pre + ".deviations.npy").T
+    keep = ~np.isfinite(dx) | ((np.abs(dx) < limits[0]) & (np.abs(dy) < limits[1]))
     points, obs = p[keep], multi.observations
     obs = obs[np.isin(obs["point_id"], points["id"])]
     new_id = np.zeros(len(p) + 1, np.int64)
     new_id[points["id"]] = first_id + np.arange(len(points))
     points["id"], obs["point_id"] = new_id[points["id"]], new_id[obs["point_id"]]
     multi = MultiPoints(points, obs, {})
-    if job.refine and len(job.images) == 3:
-        refine_three_ray(multi, job.images, job.models, job.image_ids, job.height_range, job.params)
+    if job.refine and job.bias is not None:
+        refine_three_ray(multi, job.images, job.models, job.image_ids, job.height_range, job.params, bias=job.bias)
     return (multi if job.write_part is None else job.write_part(folder, k, multi)), multi.stats
+
+
+def _scene_bias(job, first, limits):
+    """(corrected models, systematic px) of orientation_bias.affine_bias fitted to the sampled group 3
+    points of the tiles (round 1) that pass the consistency test; None for fewer than MIN_POINTS."""
+    cols, rows, dx, dy = (np.concatenate([t["sample"][i] for t in first], axis=-1) for i in range(4))
+    keep = (np.abs(dx) < limits[0]) & (np.abs(dy) < limits[1])
+    if keep.sum() < MIN_POINTS:
+        return None
+    corrected, _, systematic = affine_bias(job.models, cols[:, keep], rows[:, keep])
+    return corrected, systematic
 
 
 def match_tiles(images, models, folder, write_part=None, names=None, image_ids=None, params=None, height_range=None,
@@ -151,12 +176,15 @@ def match_tiles(images, models, folder, write_part=None, names=None, image_ids=N
     grow_b = None
     if n == 3 and grow_second:
         grow_b = grow_job(images[0], images[2], models[0], models[2], params, height_range, seeds(2), automatic)[0]
-    job = TileJob(images, models, image_ids, params, grow_a.hr, grow_a, grow_b, refine, write_part)
+    job = TileJob(images, models, image_ids, params, height_range, grow_a, grow_b, refine and n == 3, None, write_part)
+    nodes = np.array([(n_b - n_a) * (m_b - m_a) for n_a, n_b, m_a, m_b in tiles], float)
+    quotas = np.ceil(BIAS_SAMPLE * nodes / max(nodes.sum(), 1.0)).astype(int)
     log.pushInfo(f"{len(tiles)} tile(s) of {params.tile} px: " + (f"(a) {names[0]} - {names[1]}" if n == 2 else
                  f"(a) {names[0]} - {names[1]}, (b) {names[0]} - {names[2]}, (c) {names[2]} - {names[1]}"))
     with work_dir(folder, "the matched tiles") as work:
         pre = [os.path.join(work, f"tile-{k:05d}") for k in range(len(tiles))]
-        first = run_tasks(_match_tile, [(job, k, box, out) for k, (box, out) in enumerate(zip(tiles, pre))],
+        first = run_tasks(_match_tile, [(job, k, box, out, int(q)) for k, (box, out, q)
+                                        in enumerate(zip(tiles, pre, quotas))],
                           execution, progress.scaled(feedback, 0, 75), "matching")
         dx = np.concatenate([t["dx"] for t in first]) if first else np.zeros(0)
         dy = np.concatenate([t["dy"] for t in first]) if first else np.zeros(0)
@@ -165,6 +193,7 @@ def match_tiles(images, models, folder, write_part=None, names=None, image_ids=N
         kept = [t["points"] - int(np.count_nonzero(~((np.abs(t["dx"]) < limits[0]) & (np.abs(t["dy"]) < limits[1]))))
                 for t in first]
         first_ids = np.concatenate([[1], 1 + np.cumsum(kept)[:-1]]).astype(int) if kept else []
+        job = job._replace(bias=_scene_bias(job, first, limits) if job.refine else None)
         second = run_tasks(_finish_tile, [(job, out, limits, int(i), k, folder)
                                           for k, (out, i) in enumerate(zip(pre, first_ids))],
                            execution, progress.scaled(feedback, 75, 100), "the consistency test and MPGC")
@@ -172,12 +201,11 @@ def match_tiles(images, models, folder, write_part=None, names=None, image_ids=N
              "rejected_3sigma": int(len(dx) - np.count_nonzero((np.abs(dx) < limits[0]) & (np.abs(dy) < limits[1]))),
              "sigma_dx": sigmas[0] if len(dx) else None, "sigma_dy": sigmas[1] if len(dx) else None,
              "sigma_factor": float(sigma_factor)}
-    if n == 3 and refine:
-        refined = [s for _, s in second if s.get("refined_mpgc")]
+    if job.bias is not None:
+        refined = [s for _, s in second if "refined_mpgc" in s]
         stats["refined_mpgc"] = int(sum(s["refined_mpgc"] for s in refined))
-        if refined:         # MPGC's bias and geometry sigma of the tile with the most refined points
-            most = max(refined, key=lambda s: s["refined_mpgc"])
-            stats.update({k: most[k] for k in ("refine_sigma_geometry_px", "refine_bias_px")})
+        if refined:         # the scene's orientation: the same in every tile
+            stats.update({k: refined[0][k] for k in ("refine_sigma_geometry_px", "refine_bias_px")})
     points, tries, nseeds = sum(kept), sum(t["tries"] for t in first), sum(t["seeds"] for t in first)
     if stats["matched_a"] == 0:
         progress.warn(feedback, "region growing found no matched point: no seed passed the acceptance criteria "

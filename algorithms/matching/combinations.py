@@ -20,7 +20,8 @@ points failing the test are dropped (inconsistent: one of the two image-1 matche
 which one is unknown); their count is kept in `stats` for the summary (Kornus et al. 2006, Table 1). Points
 matched only in (c) do not exist: (c) runs on transfer points only. A two-image block gives
 combination (a) and group 1 only. match_block then refines the group 3 points by MPGC in both
-search images at once (refinement.py; `refine`, on by default)."""
+search images at once (refinement.py; `refine`, on by default). match_block runs tile by tile
+(block_tiles.py), with the test's sigmas and MPGC's orientation of the whole scene."""
 import os
 
 import numpy as np
@@ -82,14 +83,15 @@ def _link(src, n_target):
 
 
 def combine(a, b=None, b_src=None, c=None, c_src=None, image_ids=(1, 2, 3), sigma_factor=3.0,
-            min_sigma=0.01):
+            min_sigma=0.01, deviations=False):
     """Merge the PAIR_DTYPE results of combinations (a), (b), (c) into a MultiPoints.
 
     `b_src[j]` is the index in `a` of the transfer point that b[j] was matched from, or -1 for a
     point grown in (b) itself; `c_src[k]` the index in `b` of the transfer point of c[k] (records
     with -1 are ignored). `image_ids` are the block ids of images 0, 1, 2. Image-0 coordinates
     come from (a) (or from (b) for its own points), image-2 coordinates from (b), so transfer
-    points keep their first-image coordinates exactly."""
+    points keep their first-image coordinates exactly. With `deviations`, returns (MultiPoints, dx,
+    dy): the deviations per point as float64 (POINT_DTYPE keeps them as float32), NaN where not both."""
     a = np.asarray(a, PAIR_DTYPE)
     three = b is not None
     b = np.asarray(b if three else np.zeros(0), PAIR_DTYPE)
@@ -176,7 +178,8 @@ def combine(a, b=None, b_src=None, c=None, c_src=None, image_ids=(1, 2, 3), sigm
              "matched_3": int(np.count_nonzero(both)), "rejected_3sigma": int(np.count_nonzero(~keep)),
              "sigma_dx": sigma_x if both.any() else None, "sigma_dy": sigma_y if both.any() else None,
              "sigma_factor": float(sigma_factor)}
-    return MultiPoints(points, observations, stats)
+    multi = MultiPoints(points, observations, stats)
+    return (multi, dx[keep], dy[keep]) if deviations else multi
 
 
 def new_cells(x_new, y_new, x_old, y_old, cell):

@@ -88,3 +88,11 @@ def _unbiased(maps, cols, rows):
     for i, (linear, shift) in enumerate(maps):
         out[:, i] = np.linalg.solve(linear, np.array([cols[i], rows[i]]) - shift[:, None])
     return out[0], out[1]
+
+
+def intersect_corrected(models, corrected, cols, rows):
+    """The Intersection of positions cols, rows (k, m) with the biases of `corrected` (affine_bias's
+    corrected models of `models`) taken out, as affine_bias intersects its own points."""
+    maps = [(np.eye(2), np.zeros(2))] + [(np.asarray(c.linear, float), np.array([c.dx, c.dy], float))
+                                         for c in corrected[1:]]
+    return _intersect(models, *_unbiased(maps, cols, rows))

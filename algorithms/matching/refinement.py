@@ -12,7 +12,9 @@ Orientation: the search images' models are corrected by affine image biases fitt
 rays (orientation_bias.py) and the geometric observations weighted by sigma_geometry =
 max(SIGMA_GEOMETRY, 2 x the corrected orientation's inconsistency), or MPGC's default
 (MpgcParams, 0.2 px) where no tile holds enough points to measure it. Fewer than MIN_POINTS
-group 3 points (6 bias parameters per search image) are left as they are. Template, thresholds
+group 3 points (6 bias parameters per search image) are left as they are. A tiled run
+(block_tiles.py) fits the biases once to a sample of the scene's points and refines each tile with
+them. Template, thresholds
 and iterations are region growing's (GrowParams), and so is the resolution adaptation.
 
 A point whose MPGC result passes mpgc.accepted takes MPGC's search positions, correlation and
@@ -28,7 +30,7 @@ import numpy as np
 
 from .. import progress
 from .mpgc import MpgcParams, accepted, match_points
-from .orientation_bias import affine_bias
+from .orientation_bias import affine_bias, intersect_corrected
 from .pair_geometry import resolve_height_range
 from .params import GrowParams, LsmParams
 from .points import REFINED
@@ -44,19 +46,25 @@ MIN_POINTS = 50
 SUPPORT_CENTRE, SUPPORT_SIMILARITY = 5.0, 1.0
 
 
-def refine_three_ray(points, images, models, image_ids, height_range, grow=None, feedback=None):
+def refine_three_ray(points, images, models, image_ids, height_range, grow=None, feedback=None, bias=None):
     """MPGC refinement of the group 3 points of `points` (MultiPoints of combinations.combine;
     images and models in combination order, `image_ids` their block ids, `grow` the GrowParams of
-    the matching). Returns the number of points refined; `points` is changed in place (module
-    docstring)."""
+    the matching). `bias`: (corrected models, systematic px) of orientation_bias.affine_bias fitted to
+    the points of the whole scene (block_tiles.py: the points of one tile are refined with it), else
+    fitted here to `points`. Returns the number of points refined; `points` is changed in place
+    (module docstring)."""
     grow = grow or GrowParams()
     g3 = np.flatnonzero(points.points["group"] == 3)
-    if g3.size < MIN_POINTS:
+    if g3.size < (MIN_POINTS if bias is None else 1):
         return 0
     cols, rows = (np.array(v) for v in zip(*(points.coordinates(i) for i in image_ids)))
     cols, rows = cols[:, g3], rows[:, g3]
     progress.step(feedback, 0, f"MPGC refinement of {g3.size} three-ray points")
-    corrected, inter, systematic = affine_bias(models, cols, rows)
+    if bias is None:
+        corrected, inter, systematic = affine_bias(models, cols, rows)
+    else:
+        corrected, systematic = bias
+        inter = intersect_corrected(models, corrected, cols, rows)
     lsm = {f.name: getattr(grow, f.name) for f in fields(LsmParams)}
     support = {"centre_sigma": SUPPORT_CENTRE, "similarity": SUPPORT_SIMILARITY} if grow.support_weights else {}
     params = MpgcParams(**lsm, **support, **({"sigma_geometry": max(SIGMA_GEOMETRY, 2.0 * systematic)}

@@ -120,7 +120,11 @@ class _TileWorker:
                 hidden &= np.isfinite(col)
                 n_occluded = int(hidden.sum())
                 col = np.where(hidden, np.nan, col)
-        ds = gdal.Open(self.image)
+        try:
+            ds = gdal.Open(self.image)
+        except RuntimeError as exc:
+            raise InputError(f"cannot open the image {self.image} ({exc}): every worker must see it under this "
+                             "path") from None
         values, valid = resampling.resample(ds, col, row, self.method)
         out = _to_dtype(values, self.dtype, self.nodata)
         out[:, ~valid] = self.nodata
@@ -146,9 +150,12 @@ def _reach(model, dem):
     return tuple(1.2 * (high - low + 1.0) * np.abs(slopes).max(axis=0))
 
 
-def _footprint(grid, window, reach):
-    """lon/lat bounds of the cells of `window` (row0, col0, rows, cols) of `grid`, widened by `reach`."""
+def _footprint(grid, window, reach, step):
+    """lon/lat bounds of the cells of `window` (row0, col0, rows, cols) of `grid` and of the nodes of the
+    coarse lattice of `step` that mapping.TileMapper lays over it (up to step - 1 cells beyond it), widened
+    by `reach`."""
     row0, col0, rows, cols = window
+    rows, cols = (max(-(-(n - 1) // step), 1) * step + 1 for n in (rows, cols))
     t = np.linspace(0.0, 1.0, 9)
     r = np.concatenate([row0 + t * rows, np.full(9, row0 + rows), row0 + t * rows, np.full(9, row0)]) - 0.5
     c = np.concatenate([np.full(9, col0), col0 + t * cols, np.full(9, col0 + cols), col0 + t * cols]) - 0.5
@@ -161,8 +168,10 @@ def _ortho_tile(job, window, out):
     GeoTIFF `out`; returns (valid cells, occluded cells, coarse step, achieved bound)."""
     (image, model, dem_file, dem_geotransform, dem_range, grid_wkt, grid_geotransform, size, method, occlusion_on,
      dtype, nodata, max_error, start_step, reach, gdal_type) = job
+    gdal.UseExceptions()
     grid = OutputGrid(parse_crs(grid_wkt), grid_geotransform, *size)
-    dem = dem_window(np.load(dem_file, mmap_mode="r"), dem_geotransform, dem_range, _footprint(grid, window, reach))
+    dem = dem_window(np.load(dem_file, mmap_mode="r"), dem_geotransform, dem_range,
+                     _footprint(grid, window, reach, start_step))
     worker = _TileWorker(image, model, dem, TileMapper(model, dem, grid, max_error, start_step), method, occlusion_on,
                          np.dtype(dtype), nodata)
     values, n, hidden, step, bound = worker(window)
@@ -221,7 +230,7 @@ def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None,
         with atomic_path(output) as tmp:
             assemble_tiles(tiles, tmp, grid.geotransform, (grid.cols, grid.rows), grid.srs, CREATION_OPTIONS,
                            overviews=overviews, feedback=progress.scaled(feedback, 90, 100))
-    result = OrthoResult(str(output), grid, max(d[3] for d in done), steps, sum(d[0] for d in done),
+    result = OrthoResult(str(output), grid, max((d[3] for d in done), default=0.0), steps, sum(d[0] for d in done),
                          sum(d[1] for d in done), time.perf_counter() - start)
     progress.step(feedback, 100, result.summary())
     return result

@@ -22,7 +22,7 @@ def overview_levels(shape, smallest=256):
 
 def write_float_raster(path, array, geotransform, srs, description="", metadata=None, feedback=None, overviews=True):
     """One Float32 band (NaN -> NODATA) with `geotransform` (GDAL's) and `srs` (osr.SpatialReference);
-    without `overviews` for a tile that dem_tiles.assemble joins to others."""
+    without `overviews` for a tile that assemble_tiles joins to others."""
     from osgeo import gdal
     gdal.UseExceptions()
     array = np.where(np.isfinite(array), array, NODATA).astype(np.float32)

@@ -1,5 +1,6 @@
 """pushbroom:matchpoints and pushbroom:selecttiepoints on a small simulated SPOT-5 triplet."""
 import csv
+import os
 
 import numpy as np
 import pytest
@@ -119,6 +120,33 @@ def test_cancel_writes_nothing(pushbroom_provider, triplet):
         processing.run("pushbroom:matchpoints", {"BLOCK": path, "MIN_HEIGHT": 0, "MAX_HEIGHT": 900},
                        feedback=feedback)
     assert "mass_points" not in Block(path).info()
+
+
+class CancelAtProgress(QgsProcessingFeedback):
+    """Cancels once the run has reported `percent` progress (a user pressing Cancel while it runs)."""
+
+    def __init__(self, percent):
+        super().__init__()
+        self.progressChanged.connect(lambda value: self.cancel() if value >= percent else None)
+
+
+@pytest.mark.slow
+def test_a_cancel_in_the_middle_leaves_the_block_as_it_was(pushbroom_provider, triplet):
+    path = make_block(triplet, "cancel_later.gpkg", ("HRG", "HRS1", "HRS2"))
+    lo, hi = triplet["range"]
+    tiles = {"BLOCK": path, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 6, "TILE": 128}
+    processing.run("pushbroom:matchpoints", tiles, feedback=QgsProcessingFeedback())
+    before = Block(path).info()
+    folder = os.path.dirname(path)
+    files = sorted(os.listdir(folder))
+    feedback = CancelAtProgress(20)
+    with pytest.raises(QgsProcessingException, match="cancel"):
+        processing.run("pushbroom:matchpoints", {**tiles, "EXECUTION": BACKENDS.index("processes"), "WORKERS": 2},
+                       feedback=feedback)
+    after = Block(path).info()
+    assert {k: after[k] for k in before} == before                  # the same points, counts and generation
+    assert sorted(os.listdir(folder)) == files                      # no new point folder, no work files
+    assert len(Block(path).points()) == int(before["mass_points_count"])
 
 
 def test_coarse_to_fine_strategy(pushbroom_provider, triplet):

@@ -14,7 +14,7 @@ from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.ortho import OutputGrid, default_grid, load_dem, orthorectify
-from pushbroom.algorithms.ortho.mapping import TileMapper
+from pushbroom.algorithms.ortho.mapping import START_STEP, TileMapper
 from pushbroom.algorithms.ortho.occlusion import occluded, ray_direction
 from pushbroom.algorithms.ortho.orthorectify import _footprint, _reach
 from pushbroom.algorithms.ortho.resampling import BICUBIC, BILINEAR, resample_kernel
@@ -166,12 +166,15 @@ def test_a_tiles_dem_window_holds_its_occluders(scene):
     model = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
     dsm = scene["dsm"]
     grid = default_grid(model, dsm)
-    window = (100, 100, 256, 256)
+    window = (100, 100, 250, 250)             # the coarse lattice reaches 6 cells beyond
     tile = TileMapper(model, dsm, grid).tile(*window)
     part = dem_window(dsm.heights, dsm.geotransform, dsm.height_range,
-                      _footprint(grid, window, _reach(model, dsm)))
+                      _footprint(grid, window, _reach(model, dsm), START_STEP))
     assert part.heights.size < dsm.heights.size / 4 and part.height_range == dsm.height_range
     np.testing.assert_allclose(part.height(tile.lon, tile.lat), tile.h, atol=1e-9)
+    windowed = TileMapper(model, part, grid).tile(*window)          # the same coarse lattice and bound
+    assert (windowed.step, windowed.bound) == pytest.approx((tile.step, tile.bound), rel=1e-6)
+    np.testing.assert_allclose(windowed.col, tile.col, atol=1e-6)
     direction = ray_direction(model, tile.col.flat[tile.col.size // 2], tile.row.flat[tile.col.size // 2],
                               *dsm.height_range)
     whole = occluded(dsm, tile.lon, tile.lat, tile.h, direction)

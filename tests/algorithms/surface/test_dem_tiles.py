@@ -1,6 +1,12 @@
 """The tiled DEM (algorithms/surface/dem_tiles.py) against the whole cloud's (tin_dem.interpolate_dem),
 between tilings, and between executions: a LAS of about 60 000 points on a jittered 12 m lattice (as
 matching gives them) on an analytic surface in UTM 31N, with blunders and a hole, gridded at 10 m."""
+import glob
+import os
+import signal
+import threading
+import time
+
 import numpy as np
 import pytest
 from osgeo import gdal
@@ -12,6 +18,7 @@ from pushbroom.algorithms.surface import dem_tiles, pointcloud
 from pushbroom.algorithms.surface.point_input import read_points
 from pushbroom.algorithms.surface.tin_dem import DemParams, interpolate_dem
 from tests.helpers.feedback import Feedback
+from tests.helpers.processes import command_line, descendants
 
 UTM31 = 32631
 SIZE = 3000.0       # m: 300 x 300 cells of 10 m
@@ -119,6 +126,32 @@ def test_every_execution_gives_the_same_dem(cloud, tmp_path):
     reference, _, _ = read(paths["threads"])
     for backend in ("processes", "dask"):
         np.testing.assert_array_equal(read(paths[backend])[0], reference)
+
+
+@pytest.mark.slow
+def test_a_killed_dask_worker_leaves_the_same_dem(cloud, tmp_path):
+    """kill -9 of a worker process of the LocalCluster once three tiles are written: the run completes
+    (Dask runs the lost tasks again) and its DEM is the undisturbed run's."""
+    reference = tmp_path / "reference.tif"
+    run(cloud, reference, 32)
+    killed = []
+
+    def kill_a_worker():
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not killed:
+            if len(glob.glob(str(tmp_path / ".killed.*" / "dem-*.tif"))) >= 3:
+                workers = [pid for pid in descendants(os.getpid()) if "spawn_main" in command_line(pid)]
+                if workers:
+                    os.kill(workers[0], signal.SIGKILL)
+                    killed.append(workers[0])
+            time.sleep(0.01)
+
+    thread = threading.Thread(target=kill_a_worker)
+    thread.start()
+    result = run(cloud, tmp_path / "killed.tif", 32, Execution("dask", 2))
+    thread.join()
+    assert killed and result.tiles == 100
+    np.testing.assert_array_equal(read(tmp_path / "killed.tif")[0], read(reference)[0])
 
 
 def test_the_precision_raster_is_tiled_too(cloud, tmp_path):
