@@ -1,7 +1,9 @@
 """The plugin in the real QGIS desktop under Xvfb: a throw-away profile with the plugin installed (a link to the
-repository) and enabled, and a startup script (tests/helpers/qgis_desktop_session.py) that opens the measurement
+repository) and enabled, and a startup script. tests/helpers/qgis_desktop_session.py opens the measurement
 window from the toolbar action and measures 3 points of the simulated block; the block must hold them after
-QGIS has quit."""
+QGIS has quit. tests/helpers/desktop_execution_session.py runs the tiled DEM through Processing on local
+worker processes and on a Dask local cluster: the workers must be Python interpreters, not QGIS, and the
+DEMs those of threads."""
 import json
 import os
 import pathlib
@@ -34,13 +36,13 @@ def make_profile(root):
     return root
 
 
-def run_qgis(profiles, job_path, log_path):
+def run_qgis(profiles, job_path, log_path, session=SESSION):
     """Run QGIS under Xvfb with the session script; returns its exit status (fails the test on a timeout)."""
     site = [p for p in sys.path if p.endswith("site-packages") and ".venv" in p]
     env = dict(os.environ, QT_QPA_PLATFORM="xcb", PUSHBROOM_SESSION=str(job_path),
                PYTHONPATH=os.pathsep.join(site + [str(REPO), os.environ.get("PYTHONPATH", "")]))
     command = ["xvfb-run", "-a", QGIS, "--profiles-path", str(profiles), "--profile", "test", "--nologo",
-               "--noversioncheck", "--code", str(SESSION)]
+               "--noversioncheck", "--code", str(session)]
     with open(log_path, "w") as log:
         proc = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         try:
@@ -103,3 +105,28 @@ def test_measure_three_points_in_qgis_desktop(small_scene_block, tmp_path):
             tolerance = 0.5 if image_id in result["transferred"][point["name"]] else 1e-6
             assert np.hypot(*np.subtract(meas[image_id], truth)) < tolerance, (point["name"], image_id)
         assert first not in result["transferred"][point["name"]]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (shutil.which("xvfb-run") and os.path.exists(QGIS)), reason="needs xvfb-run and qgis.bin")
+def test_worker_processes_and_dask_from_qgis_desktop(tmp_path):
+    from pushbroom.algorithms.execution import BACKENDS
+    from pushbroom.algorithms.surface.dem_tiles import dem_from_point_cloud
+    from pushbroom.algorithms.surface.tin_dem import DemParams
+    from tests.helpers.dem_cloud import read_raster, write_cloud
+    cloud = write_cloud(tmp_path / "cloud.las")
+    dem_from_point_cloud(str(cloud), str(tmp_path / "threads.tif"), DemParams(cell=10.0, tile=75))
+    runs = {name: [BACKENDS.index(name), str(tmp_path / f"{name}.tif")] for name in ("processes", "dask")}
+    job, result_path, log_path = tmp_path / "job.json", tmp_path / "result.json", tmp_path / "qgis.log"
+    job.write_text(json.dumps({"cloud": str(cloud), "result": str(result_path), "runs": runs}))
+    status = run_qgis(make_profile(tmp_path / "qgis"), job, log_path,
+                      REPO / "tests" / "helpers" / "desktop_execution_session.py")
+    log = log_path.read_text()
+    assert result_path.exists(), f"the session script wrote no result (QGIS exit {status}); log:\n{log[-5000:]}"
+    result = json.loads(result_path.read_text())
+    assert result["errors"] == [], result["errors"]
+    print(f"QGIS runs as {result['host']}; workers: {result['workers']}")
+    for name in runs:
+        workers = result["workers"][name]
+        assert workers and all(os.path.basename(w).startswith("python3") for w in workers), (name, workers)
+        np.testing.assert_array_equal(read_raster(runs[name][1])[0], read_raster(tmp_path / "threads.tif")[0])

@@ -1,6 +1,5 @@
 """The tiled DEM (algorithms/surface/dem_tiles.py) against the whole cloud's (tin_dem.interpolate_dem),
-between tilings, and between executions: a LAS of about 60 000 points on a jittered 12 m lattice (as
-matching gives them) on an analytic surface in UTM 31N, with blunders and a hole, gridded at 10 m."""
+between tilings, and between executions, on tests/helpers/dem_cloud.py's cloud gridded at 10 m."""
 import glob
 import os
 import signal
@@ -9,7 +8,6 @@ import time
 
 import numpy as np
 import pytest
-from osgeo import gdal
 
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.errors import CancelledError
@@ -17,40 +15,17 @@ from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.surface import dem_tiles, pointcloud
 from pushbroom.algorithms.surface.point_input import read_points
 from pushbroom.algorithms.surface.tin_dem import DemParams, interpolate_dem
+from tests.helpers.dem_cloud import UTM31, read_raster, surface, write_cloud
 from tests.helpers.feedback import Feedback
 from tests.helpers.processes import command_line, descendants
-
-UTM31 = 32631
-SIZE = 3000.0       # m: 300 x 300 cells of 10 m
-
-
-def surface(x, y):
-    return 400.0 + 120.0 * np.sin(x / 500.0) * np.cos(y / 700.0) + 0.02 * (x - 500000.0)
 
 
 @pytest.fixture(scope="module")
 def cloud(tmp_path_factory):
-    rng = np.random.default_rng(7)
-    x, y = np.meshgrid(np.arange(6.0, SIZE, 12.0), np.arange(6.0, SIZE, 12.0))
-    x = 500000.0 + x.ravel() + rng.uniform(-3, 3, x.size)
-    y = 4800000.0 + y.ravel() + rng.uniform(-3, 3, y.size)
-    keep = np.hypot(x - 501200.0, y - 4801800.0) > 250.0         # a hole: a gap in the DEM
-    x, y = x[keep], y[keep]
-    z = surface(x, y) + rng.normal(0, 0.3, len(x))
-    blunders = rng.choice(len(x), 300, replace=False)
-    z[blunders] += rng.choice([-1, 1], 300) * rng.uniform(30, 80, 300)
-    sigma = rng.uniform(0.5, 2.0, len(x)).astype(np.float32)
-    path = tmp_path_factory.mktemp("cloud") / "cloud.las"
-    pointcloud.write_las(path, x, y, z, {"sigma_h": sigma}, srs(UTM31))
-    return path
+    return write_cloud(tmp_path_factory.mktemp("cloud") / "cloud.las")
 
 
-def read(path):
-    ds = gdal.Open(str(path))
-    band = ds.GetRasterBand(1)
-    values = band.ReadAsArray().astype(float)
-    values[values == band.GetNoDataValue()] = np.nan
-    return values, ds.GetGeoTransform(), band.GetOverviewCount()
+read = read_raster
 
 
 def run(cloud, path, tile, execution=Execution("threads", 1), **kwargs):
