@@ -342,18 +342,23 @@ def append_bytes(path, data, what="an intermediate file"):
         raise storage_error(exc, path, what) from None
 
 
-@contextlib.contextmanager
-def work_dir(path, what="the intermediate files"):
-    """Yield a hidden temporary folder beside `path` for a step's intermediate files (what the tile tasks
-    write, where every worker sees the output's file system), removed when the body ends; after a kill, the
-    next write into that folder removes it once its writer has gone (clean_leftovers)."""
-    folder = _folder(path, what)
-    _clean_once(folder)
+def _temporary_dir(path, what):
+    """A new temporary folder beside `path` (its folder made and cleaned of stale leftovers first)."""
+    _clean_once(_folder(path, what))
     tmp = _temporary_name(path)
     try:
         os.mkdir(tmp)
     except OSError as exc:
         raise storage_error(exc, path, what) from None
+    return tmp
+
+
+@contextlib.contextmanager
+def work_dir(path, what="the intermediate files"):
+    """Yield a hidden temporary folder beside `path` for a step's intermediate files (what the tile tasks
+    write, where every worker sees the output's file system), removed when the body ends; after a kill, the
+    next write into that folder removes it once its writer has gone (clean_leftovers)."""
+    tmp = _temporary_dir(path, what)
     try:
         yield tmp
     finally:
@@ -364,13 +369,7 @@ def work_dir(path, what="the intermediate files"):
 def atomic_dir(path, what="the output folder"):
     """Yield a temporary folder beside `path`; when the body succeeds it replaces `path` as a whole."""
     path = os.path.abspath(os.fspath(path))
-    parent = _folder(path, what)
-    _clean_once(parent)
-    tmp = _temporary_name(path)
-    try:
-        os.mkdir(tmp)
-    except OSError as exc:
-        raise storage_error(exc, path, what) from None
+    tmp = _temporary_dir(path, what)
     try:
         with _guarded(path, what, tmp):
             yield tmp

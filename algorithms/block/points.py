@@ -121,7 +121,7 @@ def point_parts(path, step="the matching step"):
 
 
 def load_arrays(path, step="the matching step"):
-    """Read the MultiPoints of a sidecar folder written by `save_parts` (all parts), or of one part or
+    """Read the MultiPoints of a sidecar folder written by `store_points` (all parts), or of one part or
     .npz file written by `save_arrays`; a damaged file (cut short, overwritten) is a StorageError that
     names it."""
     index = read_index(path, step)
@@ -163,14 +163,6 @@ def split_parts(folder, points, part_points=None):
     bounds = np.searchsorted(obs["point_id"], [pts["id"][s] for s in starts] + [np.iinfo(np.int64).max])
     return [save_part(folder, k, MultiPoints(pts[a:a + part_points], obs[bounds[k]:bounds[k + 1]]))
             for k, a in enumerate(starts)]
-
-
-def save_parts(path, points, part_points=None):
-    """Write `points` (MultiPoints) to the sidecar folder `path` (module docstring) as a whole: parts of
-    `part_points` (default PART_POINTS) points in id order and the index. Returns `path`."""
-    with atomic.atomic_dir(path, "the point folder") as tmp:
-        write_index(tmp, split_parts(tmp, points, part_points), points.stats)
-    return path
 
 
 def _remove_orphan_sidecars(block_path, kind, keep):

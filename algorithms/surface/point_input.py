@@ -102,12 +102,16 @@ def _open_las(path):
         raise InputError(f"cannot read the point cloud {path}: not a LAS/LAZ file laspy reads ({exc})") from exc
 
 
-def _las_chunks(path, crs, chunk):
+def _las_chunks(path, crs, chunk=None):
+    """PointSets of at most `chunk` points (None: all) of a LAS/LAZ file; one, empty, for an empty file."""
     with _open_las(path) as reader:
         srs = parse_crs(crs) if crs else _las_srs(reader, path)
         names = list(reader.header.point_format.extra_dimension_names)
+        total = reader.header.point_count
+        step = max(total, 1) if chunk is None else int(chunk)
         try:
-            for records in reader.chunk_iterator(chunk):
+            for _ in range(0, max(total, 1), step):
+                records = reader.read_points(step)
                 yield PointSet(np.asarray(records.x, float), np.asarray(records.y, float),
                                np.asarray(records.z, float), srs, {name: np.asarray(records[name]) for name in names})
         except InputError:
@@ -118,13 +122,7 @@ def _las_chunks(path, crs, chunk):
 
 def read_las(path, crs=None):
     """PointSet of a LAS/LAZ file (fields: its extra dimensions)."""
-    chunks = list(_las_chunks(path, crs, 1 << 62))
-    if len(chunks) == 1:
-        return chunks[0]
-    with _open_las(path) as reader:
-        srs = parse_crs(crs) if crs else _las_srs(reader, path)
-        names = list(reader.header.point_format.extra_dimension_names)
-    return PointSet(np.zeros(0), np.zeros(0), np.zeros(0), srs, {name: np.zeros(0) for name in names})
+    return next(_las_chunks(path, crs))
 
 
 def point_chunks(path, crs=None, chunk=1_000_000):

@@ -115,7 +115,8 @@ def write_point_cloud_parts(path, parts, count, centre=None, crs=None, fmt=None,
     (write_las_parts: memory follows the part); a GeoPackage, at most GPKG_MAX_POINTS, at once.
     Returns (path, srs, format)."""
     fmt = output_format(path, count, fmt)
-    srs = output_srs(crs, *(np.array([v], float) for v in (centre if centre is not None else (np.nan, np.nan))))
+    lon, lat = centre if centre is not None else (np.nan, np.nan)
+    srs = output_srs(crs, np.array([lon], float), np.array([lat], float))
     if fmt == "gpkg":
         loaded = [load() for load in parts]
         fields = {name: np.concatenate([p[3][name] for p in loaded]) for name in (loaded[0][3] if loaded else {})}
