@@ -51,6 +51,17 @@ class Execution:
     address: str = ""                   # Dask scheduler address; empty: a LocalCluster of `workers`
     connect_timeout: float = 30.0       # s to wait for the scheduler at `address`
 
+    def describe(self):
+        """Where the tasks run, in words ("2 threads", "a Dask local cluster of 2 worker processes")."""
+        n = int(self.workers)
+        if self.backend == "threads":
+            return f"{n} thread{'s' * (n != 1)}"
+        if self.backend == "processes":
+            return f"{n} local worker process{'es' * (n != 1)}"
+        if self.address:
+            return f"the Dask cluster at {self.address}"
+        return f"a Dask local cluster of {n} worker process{'es' * (n != 1)}"
+
     def check(self):
         """Raise InputError for settings no backend can use."""
         if self.backend not in BACKENDS:
@@ -176,6 +187,7 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
     results = [None] * len(tasks)
     if not tasks:
         return results
+    progress.info(feedback, f"{what}: {len(tasks)} task{'s' * (len(tasks) != 1)} on {execution.describe()}")
     backend = _Dask(execution) if execution.backend == "dask" else _Pool(execution)
     futures, cancel = {}, True
     try:

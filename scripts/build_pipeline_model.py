@@ -20,11 +20,12 @@ Inputs: IMAGES, APPROX_DEM (optional; footprints and the matching height range, 
 HEIGHT, OVERWRITE, POINTS (control/check point CSV), CHECK_IDS, MEAS_SUFFIX, REFERENCE (DEM for the
 tie point heights of the adjustment and the accuracy assessment), CLASS_RASTER (optional), STEP,
 CELL, MAX_EDGE (optional; default: 3 cells or 2.5 point spacings, whichever is larger),
-IMAGE_NAME, THREADS. Outputs (QGIS 3.22 names a model output `<child id>:<output name>`):
-createblock:block, matchpoints:groups (CSV), bundleadjust:report, bundleadjust:residuals,
-intersectpoints:pointcloud, interpolatedem:dem, orthorectify:orthoimage, assessaccuracy:report,
-assessaccuracy:table (CSV), assessaccuracy:dh; outputs not given go to temporary files (optional
-ones are skipped).
+IMAGE_NAME, THREADS (the workers of every tiled step), EXECUTION and DASK_ADDRESS (where their tiles
+run: threads, local processes or Dask, as on each step). Outputs (QGIS 3.22 names a model output
+`<child id>:<output name>`): createblock:block, matchpoints:groups (CSV), bundleadjust:report,
+bundleadjust:residuals, intersectpoints:pointcloud, interpolatedem:dem, orthorectify:orthoimage,
+assessaccuracy:report, assessaccuracy:table (CSV), assessaccuracy:dh; outputs not given go to
+temporary files (optional ones are skipped).
 """
 import os
 import pathlib
@@ -42,6 +43,7 @@ from qgis.core import (
     QgsProcessingModelOutput,
     QgsProcessingModelParameter,
     QgsProcessingParameterBoolean,
+    QgsProcessingParameterEnum,
     QgsProcessingParameterFile,
     QgsProcessingParameterMultipleLayers,
     QgsProcessingParameterNumber,
@@ -49,6 +51,9 @@ from qgis.core import (
     QgsProcessingParameterString,
 )
 from qgis.PyQt.QtCore import QPointF
+
+from pushbroom.algorithms.execution import BACKENDS
+from pushbroom.plugin.algorithms.base import EXECUTION_LABELS
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 MODEL = REPO / "resources" / "models" / "pushbroom_pipeline.model3"
@@ -75,9 +80,15 @@ INPUTS = [
     Number("MAX_EDGE", "DEM: maximum triangle edge (m; empty: 3 cells or 2.5 point spacings); longer triangles "
            "are gaps", Number.Double, None, optional=True, minValue=0.0),
     QgsProcessingParameterString("IMAGE_NAME", "Image to orthorectify (name in the block)", "HRG"),
-    Number("THREADS", "Threads of the tiled steps (matching, intersection, DEM, orthoimage)", Number.Integer, 1,
-           minValue=1),
+    Number("THREADS", "Workers of the tiled steps (matching, intersection, DEM, orthoimage): threads, processes "
+           "or local Dask workers", Number.Integer, 1, minValue=1),
+    QgsProcessingParameterEnum("EXECUTION", "Execution of the tiled steps", [EXECUTION_LABELS[b] for b in BACKENDS],
+                               defaultValue=0),
+    QgsProcessingParameterString("DASK_ADDRESS", "Dask scheduler address of the tiled steps (tcp://host:8786; empty: "
+                                 "a local cluster)", "", optional=True),
 ]
+TILED = {"EXECUTION": ("model", "EXECUTION"), "DASK_ADDRESS": ("model", "DASK_ADDRESS"),
+         "WORKERS": ("model", "THREADS")}
 
 #: child steps: (child id, algorithm id, {parameter: source}, {model output name: (description, child output)}),
 #: a source is ("model", name), ("child", child id, output) or ("static", value)
@@ -87,7 +98,7 @@ STEPS = [
       "OVERWRITE": ("model", "OVERWRITE")},
      {"block": ("Block", "OUTPUT")}),
     ("matchpoints", "pushbroom:matchpoints",
-     {"BLOCK": ("child", "createblock", "OUTPUT"), "WORKERS": ("model", "THREADS"),
+     {"BLOCK": ("child", "createblock", "OUTPUT"), **TILED,
       "STEP": ("model", "STEP"), "MPGC_SUPPORT": ("static", True)},
      {"groups": ("Mass points per group (CSV)", "SUMMARY")}),
     ("selecttiepoints", "pushbroom:selecttiepoints", {"BLOCK": ("child", "matchpoints", "BLOCK")}, {}),
@@ -100,15 +111,15 @@ STEPS = [
      {"report": ("Adjustment report", "REPORT"),
       "residuals": ("Residual vectors of the control and check points", "RESIDUALS")}),
     ("intersectpoints", "pushbroom:intersectpoints",
-     {"BLOCK": ("child", "bundleadjust", "BLOCK"), "POINTS": ("static", 0), "WORKERS": ("model", "THREADS")},
+     {"BLOCK": ("child", "bundleadjust", "BLOCK"), "POINTS": ("static", 0), **TILED},
      {"pointcloud": ("Point cloud", "OUTPUT")}),
     ("interpolatedem", "pushbroom:interpolatedem",
      {"INPUT": ("child", "intersectpoints", "OUTPUT"), "CELL": ("model", "CELL"),
-      "MAX_EDGE": ("model", "MAX_EDGE"), "WORKERS": ("model", "THREADS")},
+      "MAX_EDGE": ("model", "MAX_EDGE"), **TILED},
      {"dem": ("DEM", "OUTPUT")}),
     ("orthorectify", "pushbroom:orthorectify",
      {"BLOCK": ("child", "bundleadjust", "BLOCK"), "IMAGE_NAME": ("model", "IMAGE_NAME"),
-      "DEM": ("child", "interpolatedem", "OUTPUT"), "WORKERS": ("model", "THREADS")},
+      "DEM": ("child", "interpolatedem", "OUTPUT"), **TILED},
      {"orthoimage": ("Orthoimage", "OUTPUT")}),
     ("assessaccuracy", "pushbroom:assessaccuracy",
      {"REFERENCE": ("model", "REFERENCE"), "POINTS": ("child", "intersectpoints", "OUTPUT"),

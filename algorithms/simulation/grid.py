@@ -59,6 +59,10 @@ class Grid:
         me, mn = metres_per_degree(self.centre[1])
         return self.dlon * me, -self.dlat * mn
 
+    def window(self, i0, i1, j0, j1):
+        """The grid of rows i0..i1 and columns j0..j1 of this one."""
+        return Grid(self.lon0 + j0 * self.dlon, self.dlon, self.lat0 + i0 * self.dlat, self.dlat, j1 - j0, i1 - i0)
+
     def vertex(self, lon, lat):
         """Vertex coordinates (x, y) of (lon, lat)."""
         return ((np.asarray(lon) - self.lon0) / self.dlon - 0.5,

@@ -1,6 +1,7 @@
 """Writers of the simulator's products (all called inside one atomic folder, see scene.py):
 geographic GeoTIFFs (EPSG:4326, heights ellipsoidal WGS 84), raw level-1A imagery, the point
 candidates CSV and the truth JSON. Byte-for-byte reproducible (no timestamps)."""
+import contextlib
 import csv
 import json
 
@@ -11,16 +12,21 @@ from ..atomic import closing
 GEOTIFF_OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "ZLEVEL=1"]
 
 
-def write_raster(path, array, grid, nodata=None, description="", metadata=None):
-    """North-up GeoTIFF of `array` on `grid` (EPSG:4326), tiled, DEFLATE, with overviews."""
+ROWS = 1024      # raster rows written at a time
+
+
+def write_raster(path, array, grid, dtype, nodata=None, description="", metadata=None, convert=None):
+    """North-up GeoTIFF of the grid array `array` (in memory or tiles.DiskArray) on `grid`
+    (EPSG:4326) as `dtype` (uint8 or float32), ROWS rows at a time (`convert` applied to each
+    block first), tiled, DEFLATE, with overviews."""
     from osgeo import gdal
 
     from ..crs import wgs84
     gdal.UseExceptions()
+    dtype = np.dtype(dtype)
     types = {np.dtype(np.uint8): gdal.GDT_Byte, np.dtype(np.float32): gdal.GDT_Float32}
-    array = np.asarray(array)
-    predictor = "PREDICTOR=3" if array.dtype == np.float32 else "PREDICTOR=2"
-    with closing(gdal.GetDriverByName("GTiff").Create(str(path), grid.cols, grid.rows, 1, types[array.dtype],
+    predictor = "PREDICTOR=3" if dtype == np.float32 else "PREDICTOR=2"
+    with closing(gdal.GetDriverByName("GTiff").Create(str(path), grid.cols, grid.rows, 1, types[dtype],
                                                       GEOTIFF_OPTIONS + [predictor])) as ds:
         ds.SetGeoTransform(grid.geotransform)
         ds.SetProjection(wgs84().ExportToWkt())
@@ -28,20 +34,26 @@ def write_raster(path, array, grid, nodata=None, description="", metadata=None):
         if nodata is not None:
             band.SetNoDataValue(nodata)
         band.SetDescription(description)
-        band.WriteArray(array)
+        for a in range(0, grid.rows, ROWS):
+            block = np.asarray(array[a:min(a + ROWS, grid.rows)])
+            band.WriteArray(np.asarray(convert(block) if convert else block, dtype=dtype), 0, a)
         band = None
         if metadata:
             ds.SetMetadata({k: str(v) for k, v in metadata.items()})
-        ds.BuildOverviews("NEAREST" if array.dtype == np.uint8 and nodata == 0 else "AVERAGE", [2, 4, 8, 16])
+        ds.BuildOverviews("NEAREST" if dtype == np.uint8 and nodata == 0 else "AVERAGE", [2, 4, 8, 16])
 
 
-def write_imagery(path, dn):
-    """Level-1A IMAGERY.TIF: raw DN, no georeferencing (the geometry is in METADATA.DIM)."""
+@contextlib.contextmanager
+def imagery_writer(path, ncols, nrows, bits):
+    """Level-1A IMAGERY.TIF written block of lines by block: raw DN (uint8 for 8 bit, else uint16),
+    no georeferencing (the geometry is in METADATA.DIM). Yields write(dn, first_row)."""
     from osgeo import gdal
     gdal.UseExceptions()
-    dtype = gdal.GDT_Byte if dn.dtype == np.uint8 else gdal.GDT_UInt16
-    with closing(gdal.GetDriverByName("GTiff").Create(str(path), dn.shape[1], dn.shape[0], 1, dtype)) as ds:
-        ds.GetRasterBand(1).WriteArray(dn)
+    dtype = gdal.GDT_Byte if bits == 8 else gdal.GDT_UInt16
+    with closing(gdal.GetDriverByName("GTiff").Create(str(path), ncols, nrows, 1, dtype)) as ds:
+        band = ds.GetRasterBand(1)
+        yield lambda dn, row: band.WriteArray(dn, 0, row)
+        band = None
 
 
 def write_points(path, candidates):

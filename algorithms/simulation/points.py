@@ -8,6 +8,7 @@ import numpy as np
 
 from ..geodesy import geodetic_to_ecef
 from .terrain import BARE, CROPS
+from .tiles import TILE, cut, grid_array, grown, windows
 
 EDGE_PX = 10.0          # candidates keep this distance from every image border
 VISIBLE_M = 0.5         # a candidate is visible if the ray of its true pixel lands this close
@@ -29,13 +30,13 @@ class Candidates:
         return len(self.lon)
 
 
-def select_sites(terrain, images, count, clearance_m, rng, tries=20):
-    """Up to `count` sites (lon, lat) on eligible cells (`eligible_cells`) inside every image
-    (EDGE_PX), spread out: first one site in each stratum of a ceil(sqrt(count))^2 division of
-    the grid (strata in random order), then anywhere, always at least half a stratum from the
-    sites already chosen; `tries` random cells per attempt."""
+def select_sites(terrain, images, count, clearance_m, rng, tries=20, folder=None, tile=TILE):
+    """Up to `count` sites (lon, lat) on eligible cells (`eligible_cells`, a grid array in `folder`
+    or in memory) inside every image (EDGE_PX), spread out: first one site in each stratum of a
+    ceil(sqrt(count))^2 division of the grid (strata in random order), then anywhere, always at
+    least half a stratum from the sites already chosen; `tries` random cells per attempt."""
     grid = terrain.grid
-    eligible = eligible_cells(terrain, clearance_m)
+    eligible = eligible_cells(terrain, clearance_m, folder, tile)
     k = max(1, int(math.ceil(math.sqrt(count))))
     spacing = 0.5 * min(grid.rows, grid.cols) / k
     sites = []
@@ -57,26 +58,49 @@ def select_sites(terrain, images, count, clearance_m, rng, tries=20):
         ii, jj = np.nonzero(eligible[i0:i1, j0:j1])
         if len(sites) < count and ii.size:
             take((ii + i0) * grid.cols + jj + j0)
-    everywhere = np.flatnonzero(eligible)
-    for _ in range(count - len(sites)):
-        if everywhere.size:
-            take(everywhere)
+    if len(sites) < count:
+        everywhere = np.flatnonzero(eligible[:, :])
+        for _ in range(count - len(sites)):
+            if everywhere.size:
+                take(everywhere)
     if not sites:
         return np.zeros((0, 2))
     i, j = np.array(sites).T
     return np.column_stack(grid.lonlat(j, i))
 
 
-def eligible_cells(terrain, clearance_m):
+def eligible_cells(terrain, clearance_m, folder=None, tile=TILE):
     """Cells whose whole +-clearance_m neighbourhood is BARE or CROPS and whose DTM there stays
     within +-SLOPE_MAX x clearance of its middle (open, flat ground: no occlusion, symmetric
-    markers)."""
+    markers): a bool grid array, made tile by tile with the neighbourhood as margin."""
     from scipy import ndimage
-    de, dn = terrain.grid.cell_metres
-    size = (2 * int(math.ceil(clearance_m / dn)) + 1, 2 * int(math.ceil(clearance_m / de)) + 1)
-    open_ground = np.isin(terrain.classes, (BARE, CROPS)).astype(np.uint8)
-    relief = ndimage.maximum_filter(terrain.dtm, size) - ndimage.minimum_filter(terrain.dtm, size)
-    return (ndimage.minimum_filter(open_ground, size) > 0) & (relief <= 2.0 * SLOPE_MAX * clearance_m)
+    grid = terrain.grid
+    de, dn = grid.cell_metres
+    ri, rj = int(math.ceil(clearance_m / dn)), int(math.ceil(clearance_m / de))
+    size = (2 * ri + 1, 2 * rj + 1)
+    out = grid_array(folder, "eligible", grid.shape, np.bool_)
+    for window in windows(grid.shape, tile):
+        outer, inner = grown(window, grid.shape, ri, ri, rj, rj)
+        dtm = cut(terrain.dtm, outer)
+        open_ground = np.isin(cut(terrain.classes, outer), (BARE, CROPS)).astype(np.uint8)
+        relief = ndimage.maximum_filter(dtm, size) - ndimage.minimum_filter(dtm, size)
+        ok = (ndimage.minimum_filter(open_ground, size) > 0) & (relief <= 2.0 * SLOPE_MAX * clearance_m)
+        i0, i1, j0, j1 = window
+        out[i0:i1, j0:j1] = ok[inner]
+    return out
+
+
+def ground_heights(array, grid, lon, lat):
+    """Bilinear heights of the grid array `array` at (lon, lat) inside the grid (as dem.Dem.height),
+    reading the 2 x 2 cells around each point."""
+    x, y = grid.vertex(np.atleast_1d(lon), np.atleast_1d(lat))
+    out = np.empty(x.size)
+    for k, (xk, yk) in enumerate(zip(x, y)):
+        i, j = min(int(yk), grid.rows - 2), min(int(xk), grid.cols - 2)
+        z = np.asarray(array[i:i + 2, j:j + 2], dtype=np.float64)
+        fx, fy = xk - j, yk - i
+        out[k] = (z[0, 0] * (1 - fx) + z[0, 1] * fx) * (1 - fy) + (z[1, 0] * (1 - fx) + z[1, 1] * fx) * fy
+    return out
 
 
 def _inside(image, xyz):

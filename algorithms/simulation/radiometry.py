@@ -108,16 +108,17 @@ def reflectance(classes, feature, objects, e0, de, n0, dn, seed):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def illumination(z, bmax, de, dn, sun_az, sun_el, hmax):
-    """E_dir cos(i) lit + E_sky (1 + n_z)/2 per vertex of the DSM z (cells de x dn metres, rows
-    southwards); `lit` from a ray towards the sun, started 5 cm above the surface."""
-    rows, cols = z.shape
+def illumination(z, bmax, de, dn, sun_az, sun_el, hmax, i0, i1, j0, j1):
+    """E_dir cos(i) lit + E_sky (1 + n_z)/2 per vertex (i0..i1, j0..j1) of the DSM z (cells de x dn
+    metres, rows southwards); `lit` from a ray towards the sun, started 5 cm above the surface, that
+    climbs to `hmax` (the highest DSM height, of the whole grid where z is a window: the window must
+    reach that far towards the sun, see sun_margins)."""
     se, sn, su = math.sin(sun_az) * math.cos(sun_el), math.cos(sun_az) * math.cos(sun_el), math.sin(sun_el)
     gx, gy = math.sin(sun_az) / de, -math.cos(sun_az) / dn     # grid cells per metre towards the sun
     slope = math.tan(sun_el)
-    out = np.empty((rows, cols), np.float32)
-    for i in prange(rows):
-        for j in range(cols):
+    out = np.empty((i1 - i0, j1 - j0), np.float32)
+    for i in prange(i0, i1):
+        for j in range(j0, j1):
             dzde, dzdn = gradient_en(z, i, j, de, dn)
             norm = math.sqrt(dzde * dzde + dzdn * dzdn + 1.0)
             cos_i = (-dzde * se - dzdn * sn + su) / norm
@@ -129,20 +130,36 @@ def illumination(z, bmax, de, dn, sun_az, sun_el, hmax):
                 s = first_hit(float(j), float(i), z0, j + gx * length, i + gy * length, z0 + slope * length,
                               z, bmax, BLOCK)
                 lit = 1.0 if s < 0.0 else 0.0
-            out[i, j] = E_DIRECT * max(cos_i, 0.0) * lit + E_SKY * sky
+            out[i - i0, j - j0] = E_DIRECT * max(cos_i, 0.0) * lit + E_SKY * sky
     return out
 
 
-def paint_markers(rho, grid, lon, lat, sigma_m, pad=0.03, peak=0.85):
+def sun_margins(de, dn, sun_az, sun_el, relief):
+    """(top, bottom, left, right) cells a window needs around a tile for `illumination`: the reach of
+    a shadow ray over `relief` metres, on the sun's side (1 cell elsewhere, for the gradient)."""
+    reach = relief / math.tan(sun_el) + 1.0
+    rows = int(math.ceil(reach * abs(math.cos(sun_az)) / dn)) + 2
+    cols = int(math.ceil(reach * abs(math.sin(sun_az)) / de)) + 2
+    north, east = math.cos(sun_az) > 0.0, math.sin(sun_az) > 0.0
+    return rows if north else 1, 1 if north else rows, 1 if east else cols, cols if east else 1
+
+
+def paint_markers(rho, grid, lon, lat, sigma_m, pad=0.03, peak=0.85, origin=(0, 0)):
     """Bright targets: rho = pad + peak exp(-d^2 / 2 sigma^2) within 5 sigma of each (lon, lat)
-    (d in metres), a Gaussian spot on a round dark pad."""
+    (d in metres), a Gaussian spot on a round dark pad. `rho` holds the cells of `grid` from row and
+    column `origin` on (a tile)."""
     de, dn = grid.cell_metres
     radius = 5.0 * sigma_m
     x, y = grid.vertex(np.atleast_1d(lon), np.atleast_1d(lat))
+    x, y = x - origin[1], y - origin[0]
+    rows, cols = rho.shape
     ri, rj = int(math.ceil(radius / dn)), int(math.ceil(radius / de))
     for xc, yc in zip(x, y):
         i, j = int(math.floor(yc)), int(math.floor(xc))
-        ii, jj = np.mgrid[max(i - ri, 0):min(i + ri + 2, grid.rows), max(j - rj, 0):min(j + rj + 2, grid.cols)]
+        i0, i1, j0, j1 = max(i - ri, 0), min(i + ri + 2, rows), max(j - rj, 0), min(j + rj + 2, cols)
+        if i1 <= i0 or j1 <= j0:
+            continue        # off this tile
+        ii, jj = np.mgrid[i0:i1, j0:j1]
         d2 = ((jj - xc) * de) ** 2 + ((ii - yc) * dn) ** 2
         inside = d2 <= radius * radius
         rho[ii[inside], jj[inside]] = pad + peak * np.exp(-0.5 * d2[inside] / sigma_m ** 2)
@@ -167,23 +184,39 @@ def orthoimage(radiance):
     return np.clip(np.rint(NOMINAL_GAIN * radiance + NOMINAL_OFFSET), 1, 255).astype(np.uint8)
 
 
-def load_orthoimage(path, grid):
-    """Reflectance from a user orthoimage (any CRS GDAL reads): band 1 warped bilinearly onto the
-    grid, its 1st..99th percentiles mapped linearly to reflectance 0.03..0.45."""
-    from osgeo import gdal
-    gdal.UseExceptions()
-    try:
-        src = gdal.Open(str(path))
-        warped = gdal.Warp("", src, format="MEM", dstSRS="EPSG:4326", outputBounds=grid.bounds,
-                           width=grid.cols, height=grid.rows, resampleAlg="bilinear",
-                           outputType=gdal.GDT_Float32, dstNodata=float("nan"))
-    except RuntimeError as exc:
-        raise InputError(f"cannot read the orthoimage {path}: {exc}") from exc
-    values = warped.GetRasterBand(1).ReadAsArray().astype(np.float32)
-    if not np.all(np.isfinite(values)):
-        raise InputError(f"the orthoimage {path} does not cover the scene's ground "
-                         f"(lon/lat {', '.join(f'{b:.4f}' for b in grid.bounds)}); give one that does")
-    lo, hi = np.percentile(values, [1, 99])
-    if not hi > lo:
-        raise InputError(f"the orthoimage {path} is constant over the scene; it has no texture to image")
-    return (0.03 + 0.42 * np.clip((values - lo) / (hi - lo), 0.0, 1.0)).astype(np.float32)
+class OrthoimageReflectance:
+    """Reflectance from a user orthoimage (any CRS GDAL reads), tile by tile: band 1 warped
+    bilinearly onto the grid's window, its 1st..99th percentiles over the scene's ground (sampled
+    on a warp of at most PERCENTILE_SIDE cells a side) mapped linearly to reflectance 0.03..0.45."""
+
+    PERCENTILE_SIDE = 1024
+
+    def __init__(self, path, grid):
+        self.path, self.grid = str(path), grid
+        scale = max(1, math.ceil(max(grid.rows, grid.cols) / self.PERCENTILE_SIDE))
+        coarse = self._warp(grid.bounds, math.ceil(grid.cols / scale), math.ceil(grid.rows / scale))
+        self.low, self.high = np.percentile(coarse, [1, 99])
+        if not self.high > self.low:
+            raise InputError(f"the orthoimage {path} is constant over the scene; it has no texture to image")
+
+    def _warp(self, bounds, width, height):
+        from osgeo import gdal
+        gdal.UseExceptions()
+        try:
+            src = gdal.Open(self.path)
+            warped = gdal.Warp("", src, format="MEM", dstSRS="EPSG:4326", outputBounds=bounds, width=width,
+                               height=height, resampleAlg="bilinear", outputType=gdal.GDT_Float32,
+                               dstNodata=float("nan"))
+        except RuntimeError as exc:
+            raise InputError(f"cannot read the orthoimage {self.path}: {exc}") from exc
+        values = warped.GetRasterBand(1).ReadAsArray().astype(np.float32)
+        if not np.all(np.isfinite(values)):
+            raise InputError(f"the orthoimage {self.path} does not cover the scene's ground "
+                             f"(lon/lat {', '.join(f'{b:.4f}' for b in self.grid.bounds)}); give one that does")
+        return values
+
+    def __call__(self, window):
+        """Reflectance of the cells (i0, i1, j0, j1)."""
+        i0, i1, j0, j1 = window
+        values = self._warp(self.grid.window(*window).bounds, j1 - j0, i1 - i0)
+        return (0.03 + 0.42 * np.clip((values - self.low) / (self.high - self.low), 0.0, 1.0)).astype(np.float32)

@@ -269,23 +269,27 @@ def osculating_sphere(lon, lat):
 
 
 class Surface:
-    """The DSM ready for ray casting: heights, block maxima and the osculating sphere."""
+    """The DSM ready for ray casting: heights, block maxima and the osculating sphere. A window of a
+    larger grid (tiled_surface.TiledSurface) passes the whole grid's `height_range` and `sphere`, so
+    its rays are cut at the same heights and its hits are the whole grid's."""
 
-    def __init__(self, grid, dsm):
+    def __init__(self, grid, dsm, height_range=None, sphere=None):
         self.grid = grid
         self.z = np.ascontiguousarray(dsm, dtype=np.float64)
         self.bmax = block_max(self.z, BLOCK)
-        centre, radius = osculating_sphere(*grid.centre)
-        self.sphere = np.array([centre[0], centre[1], centre[2], radius])
+        if sphere is None:
+            centre, radius = osculating_sphere(*grid.centre)
+            sphere = np.array([centre[0], centre[1], centre[2], radius])
+        self.sphere = sphere
         self.gt = np.array([grid.lon0, grid.dlon, grid.lat0, grid.dlat])
-        self.hmin = float(self.z.min())
-        self.hmax = float(self.z.max())
+        self.hmin, self.hmax = ((float(self.z.min()), float(self.z.max())) if height_range is None
+                                else (float(height_range[0]), float(height_range[1])))
 
     def _args(self):
         return self.z, self.bmax, BLOCK, self.gt, self.sphere, self.hmin, self.hmax
 
     def render(self, pos, mat, look, radiance):
-        return render(pos, mat, look, *self._args(), radiance)
+        return render(pos, mat, look, *self._args(), np.ascontiguousarray(radiance))
 
     def trace(self, pos, mat, look):
         return trace(np.ascontiguousarray(pos), np.ascontiguousarray(mat), np.ascontiguousarray(look), *self._args())

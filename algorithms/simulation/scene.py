@@ -12,10 +12,16 @@ Folder layout (written atomically: a cancel or an error leaves nothing under `ou
     classes.tif                                  land cover (uint8, terrain.CLASSES)
     orthoimage.tif                               ground radiance, nominal gain, 8 bit
     points.csv                                   control/check point candidates (outputs.write_points)
+
+Memory follows tiles, not the scene: the ground grids are files in a work folder inside the output
+being built (tiles.py), the terrain, radiance and PSF filter run per ground tile, and each image is
+rendered in bands of BAND lines, cast in windows (tiled_surface.py) and written band by band. A
+full-size SPOT 5 triplet (60 km: HRG 12 000 x 12 000 px) thus fits a small machine.
 """
 import dataclasses
 import math
 import os
+import shutil
 from dataclasses import dataclass
 from typing import Optional
 
@@ -33,16 +39,20 @@ from .acquisition import footprint_bounds, plan, ray_at_height
 from .grid import Grid
 from .instruments import CONFIGURATIONS, DEFAULT_DATES, DEFAULT_ROLL_DEG, instruments
 from .perturbation import inject
-from .points import image_coordinates, level_pads, select_sites
-from .render import Surface
+from .points import ground_heights, image_coordinates, level_pads, select_sites
+from .render import BLOCK, block_max
 from .sun import sun_position
-from .terrain import CLASSES, FOREST, build_terrain, check_coverage, jacksboro_dem
+from .terrain import CLASSES, FOREST, build_terrain, check_coverage, extended_dem, jacksboro_dem
+from .tiled_surface import TiledSurface
+from .tiles import TILE, cut, grid_array, grown, value_range, windows
 
 TERRAIN_MARGIN_M = 400.0    # ground beyond the images' footprints (shadows, pads)
 OBJECT_MAX_M = 60.0         # highest surface object, for the footprint bounds
 MARKER_SIGMA_M = 10.0       # Gaussian marker sigma: 1 px of the coarsest (10 m) images
 CLEARANCE_M = 40.0          # open ground around a point candidate without markers
 BITS = (8, 12)              # radiometric resolutions of the simulated imagery
+SIZE_KM = (1.0, 60.0)       # scene sizes: up to a full SPOT scene (60 km swath)
+BAND = 256                  # image lines rendered, noised and written at a time
 
 
 @dataclass
@@ -86,7 +96,8 @@ class SceneConfig:
         passes = len(DEFAULT_DATES[self.configuration])
         checks = [
             (int(self.seed) == self.seed and 0 <= self.seed < 2 ** 31, f"seed {self.seed} is not an integer 0..2^31-1"),
-            (1.0 <= self.size_km <= 25.0, f"scene size {self.size_km} km is outside 1..25 km (the DEM is 30 km wide)"),
+            (SIZE_KM[0] <= self.size_km <= SIZE_KM[1],
+             f"scene size {self.size_km} km is outside {SIZE_KM[0]:g}..{SIZE_KM[1]:g} km (a full SPOT scene)"),
             (self.bits in BITS, f"bits must be 8 or 12, not {self.bits}"),
             (0.0 <= self.noise <= 50.0, f"noise {self.noise} DN is outside 0..50"),
             (0.0 <= self.fractal <= 5.0, f"fractal detail {self.fractal} is outside 0..5"),
@@ -145,31 +156,40 @@ def _look_table(config):
     return o.psi_x, o.psi_y, o.line_period
 
 
-def simulate_scene(config, out_dir, feedback=None):
+def simulate_scene(config, out_dir, feedback=None, tile=TILE):
     """Simulate the scene of `config` into the folder `out_dir` (replaced as a whole) and return
     the paths written: {'folder', 'images': {name: {'imagery', 'metadata'}}, 'truth_metadata':
-    {name: path}, 'truth', 'dsm', 'dtm', 'classes', 'orthoimage', 'points'}."""
+    {name: path}, 'truth', 'dsm', 'dtm', 'classes', 'orthoimage', 'points'}. `tile`: the ground
+    tile side in cells (the products do not depend on it)."""
     config = config.resolved()
     step(feedback, 0, f"planning the {config.configuration} acquisition")
-    source = jacksboro_dem()
+    source = extended_dem(jacksboro_dem())
     images, grid, centre = _plan(config, source)
-    step(feedback, 5, f"building the terrain ({grid.cols} x {grid.rows} cells of {config.grid_m:g} m)")
-    terrain = build_terrain(source, grid, config.seed, config.fractal, config.surface_objects)
-    step(feedback, 20, "choosing control/check point candidates")
-    candidates, surface = _candidates(config, terrain, images)
-    step(feedback, 30, "computing the ground radiance")
-    radiance, suns = _radiance(config, terrain, surface, images, candidates, centre)
-    rendered, radiometric, footprints = {}, {}, {}
-    for k, image in enumerate(images):
-        step(feedback, 40 + 45 * k / len(images), f"rendering {image.name} ({image.ncols} x {image.nrows})")
-        rendered[image.name], radiometric[image.name] = _render(config, image, surface,
-                                                                radiance[image.instrument.pass_index], k)
-        footprints[image.name] = _footprint(image, surface)
-    step(feedback, 85, "writing the products")
-    corrections, trajectory = inject(images, np.random.default_rng([config.seed, 3]), config.error_scale)
     with atomic_dir(out_dir) as tmp:
-        paths = _write(tmp, config, images, terrain, rendered, radiance[0], candidates, corrections,
-                       trajectory, suns, radiometric, footprints, geodetic_to_ecef(*centre))
+        work = os.path.join(tmp, "ground")
+        os.mkdir(work)
+        step(feedback, 5, f"building the terrain ({grid.cols} x {grid.rows} cells of {config.grid_m:g} m)")
+        terrain = build_terrain(source, grid, config.seed, config.fractal, config.surface_objects, work, tile)
+        step(feedback, 20, "choosing control/check point candidates")
+        candidates, surface = _candidates(config, terrain, images, work, tile)
+        step(feedback, 30, "computing the ground radiance")
+        radiance, suns = _radiance(config, terrain, surface, images, candidates, centre, work, tile)
+        corrections, trajectory = inject(images, np.random.default_rng([config.seed, 3]), config.error_scale)
+        paths = _products(tmp, images)
+        radiometric, footprints = {}, {}
+        for k, image in enumerate(images):
+            start, span = 40 + 45 * k / len(images), 45 / len(images)
+            step(feedback, start, f"rendering {image.name} ({image.ncols} x {image.nrows})")
+            filtered = grid_array(work, "filtered", grid.shape, np.float32)
+            ground_psf_filter(image, grid, 0.5 * (surface.hmin + surface.hmax), radiance[image.instrument.pass_index],
+                              filtered, tile)
+            radiometric[image.name] = _render(config, image, surface, filtered, k,
+                                              paths["images"][image.name]["imagery"], feedback, (start, span))
+            footprints[image.name] = _footprint(image, surface)
+        step(feedback, 85, "writing the products")
+        _write(paths, config, images, terrain, radiance[0], candidates, corrections, trajectory, suns, radiometric,
+               footprints, geodetic_to_ecef(*centre))
+        shutil.rmtree(work)
     step(feedback, 100)
     return _rebase(paths, tmp, os.path.abspath(os.fspath(out_dir)))
 
@@ -186,7 +206,7 @@ def _plan(config, source):
     centre = (lon_c, lat_c, source_dem.height(lon_c, lat_c))
     images = plan(config.configuration, centre, config.size_km * 1000.0, config.dates, config.roll_deg,
                   np.random.default_rng([config.seed, 1]), _look_table(config))
-    low, high = source_dem.height_range
+    low, high = source.planning_range
     bounds = footprint_bounds(images, (low - 10.0, high + OBJECT_MAX_M))
     me, mn = metres_per_degree(lat_c)
     bounds = (bounds[0] - TERRAIN_MARGIN_M / me, bounds[1] - TERRAIN_MARGIN_M / mn,
@@ -195,53 +215,72 @@ def _plan(config, source):
     return images, Grid.covering(bounds, config.grid_m), centre
 
 
-def _candidates(config, terrain, images):
+def _candidates(config, terrain, images, folder=None, tile=TILE):
     """Point candidates (pads levelled under markers first) and the ray-casting surface."""
     rng = np.random.default_rng([config.seed, 2])
     pad = 5.0 * MARKER_SIGMA_M
     clearance = 1.5 * pad + 30.0 if config.markers else CLEARANCE_M
-    sites = select_sites(terrain, images, config.points, clearance, rng)
+    sites = select_sites(terrain, images, config.points, clearance, rng, folder=folder, tile=tile)
     if config.markers and len(sites):
         level_pads(terrain, sites[:, 0], sites[:, 1], pad)
-    surface = Surface(terrain.grid, terrain.dsm)
-    heights = Dem(terrain.dtm, terrain.grid.geotransform).height(sites[:, 0], sites[:, 1])
-    candidates = image_coordinates(sites, np.atleast_1d(heights), images, surface, config.measurement_sigma,
-                                   config.blunders, rng)
+    surface = TiledSurface(terrain.grid, terrain.dsm, value_range(terrain.dsm, terrain.grid.shape, tile))
+    heights = ground_heights(terrain.dtm, terrain.grid, sites[:, 0], sites[:, 1])
+    candidates = image_coordinates(sites, heights, images, surface, config.measurement_sigma, config.blunders, rng)
     return candidates, surface
 
 
-def _radiance(config, terrain, surface, images, candidates, centre):
-    """Ground radiance of each pass ({pass: array}) and its sun (azimuth, elevation) in degrees."""
-    e0, de, n0, dn = terrain.grid.local_metres()
-    if config.orthoimage:
-        rho = radiometry.load_orthoimage(config.orthoimage, terrain.grid)
-    else:
-        rho = radiometry.reflectance(terrain.classes, terrain.feature, terrain.dsm - terrain.dtm,
-                                     e0, de, n0, dn, config.seed)
-    if config.markers:
-        radiometry.paint_markers(rho, terrain.grid, candidates.lon, candidates.lat, MARKER_SIGMA_M)
-    radiance, suns = {}, {}
+def _radiance(config, terrain, surface, images, candidates, centre, folder=None, tile=TILE):
+    """Ground radiance of each pass ({pass: grid array}) and its sun (azimuth, elevation) in
+    degrees, tile by tile; each tile's shadows are cast in a window reaching the highest ground."""
+    grid = terrain.grid
+    e0, de, n0, dn = grid.local_metres()
+    suns = {}
     for image in images:
         key = image.instrument.pass_index
-        if key not in radiance:
+        if key not in suns:
             when = image.epoch + np.timedelta64(int(round(image.centre_time * 1e9)), "ns")
             suns[key] = sun_position(when, centre[0], centre[1])
-            light = radiometry.illumination(surface.z, surface.bmax, de, dn, math.radians(suns[key][0]),
-                                            math.radians(suns[key][1]), surface.hmax)
-            radiance[key] = rho * light
+    user = radiometry.OrthoimageReflectance(config.orthoimage, grid) if config.orthoimage else None
+    radiance = {key: grid_array(folder, f"radiance-{key}", grid.shape, np.float32) for key in suns}
+    for window in windows(grid.shape, tile):
+        i0, i1, j0, j1 = window
+        if user:
+            rho = user(window)
+        else:
+            dsm = cut(terrain.dsm, window)
+            rho = radiometry.reflectance(cut(terrain.classes, window), cut(terrain.feature, window),
+                                         dsm - cut(terrain.dtm, window), e0 + j0 * de, de, n0 - i0 * dn, dn,
+                                         config.seed)
+        if config.markers:
+            radiometry.paint_markers(rho, grid, candidates.lon, candidates.lat, MARKER_SIGMA_M, origin=(i0, j0))
+        for key, (azimuth, elevation) in suns.items():
+            az, el = math.radians(azimuth), math.radians(elevation)
+            margins = radiometry.sun_margins(de, dn, az, el, surface.hmax - surface.hmin + 0.05)
+            outer, inner = grown(window, grid.shape, *margins)
+            z = cut(terrain.dsm, outer)
+            light = radiometry.illumination(z, block_max(z, BLOCK), de, dn, az, el, surface.hmax,
+                                            inner[0].start, inner[0].stop, inner[1].start, inner[1].stop)
+            radiance[key][i0:i1, j0:j1] = rho * light
     return radiance, suns
 
 
-def _render(config, image, surface, radiance, index):
-    """DN image of one instrument, with its gain (nominal +-8 %) and offset (+-30 %)."""
-    sample = surface.render(*image.line_geometry(), image.look_vectors(), ground_psf_filter(image, surface, radiance))
-    if np.isnan(sample).any():
-        raise GeometryError(f"{np.isnan(sample).sum()} rays of {image.name} miss the simulated terrain")
+def _render(config, image, surface, filtered, index, path, feedback=None, progress=(0, 0)):
+    """Render the DN image of one instrument into `path`, BAND lines at a time, with its gain
+    (nominal +-8 %) and offset (+-30 %); the noise of consecutive bands continues one random stream."""
     rng = np.random.default_rng([config.seed, 10 + index])
     gain = radiometry.NOMINAL_GAIN * (1.0 + rng.normal(0.0, 0.08))
     offset = radiometry.NOMINAL_OFFSET * (1.0 + rng.normal(0.0, 0.3))
-    dn = radiometry.sensor_image(sample, gain, offset, config.noise, config.bits, rng)
-    return dn, {"gain": gain, "offset": offset}
+    look = image.look_vectors()
+    with outputs.imagery_writer(path, image.ncols, image.nrows, config.bits) as write:
+        for a in range(0, image.nrows, BAND):
+            step(feedback, progress[0] + progress[1] * a / image.nrows)
+            b = min(a + BAND, image.nrows)
+            sample = surface.render(*image.line_geometry(np.arange(a, b) + 0.5), look, filtered)
+            if np.isnan(sample).any():
+                raise GeometryError(f"{np.isnan(sample).sum()} rays of {image.name} (lines {a}..{b - 1}) miss the "
+                                    "simulated terrain")
+            write(radiometry.sensor_image(sample, gain, offset, config.noise, config.bits, rng), a)
+    return {"gain": gain, "offset": offset}
 
 
 def ground_psf_jacobian(image, grid, h, d=16.0):
@@ -256,23 +295,36 @@ def ground_psf_jacobian(image, grid, h, d=16.0):
     return np.array([[x[1] - x[0], x[3] - x[2]], [y[1] - y[0], y[3] - y[2]]]) / (2.0 * d)
 
 
-def ground_psf_filter(image, surface, radiance, pad=64):
+def ground_psf_filter(image, grid, height, radiance, out=None, tile=TILE, pad=64):
     """The ground radiance convolved with the image's PSF projected onto the ground grid, so that
     one ray per pixel sampling it equals the PSF integral of the pixel (radiometry module
     docstring) on locally flat ground. The PSF is separable in (detector, line) with transfer
     function Hc(u) Hr(v), u, v in cycles per detector / line:
       Hc(u) = sinc(u) exp(-2 pi^2 s^2 u^2),  Hr(v) = sinc(n v) sinc(v) exp(-2 pi^2 (s n)^2 v^2)
     (s = OPTICS_SIGMA, n = detector_lines, the line smear box of 1 line); with J the pixel -> grid
-    Jacobian (ground_psf_jacobian at the mean DSM height), a ground frequency k (cycles per cell)
+    Jacobian (ground_psf_jacobian at `height`, the mean DSM height), a ground frequency k (cycles per cell)
     is (u, v) = J^T k, so the filter is exact (analytic, oriented, elongated along track off
     nadir) for the band-limited grid. Relief changes the footprint only through J: a slope or a
     height off the mean rescales it by a few % (second order in the image, see _integrate), J's
-    drift across the swath (view angle) likewise. Edges: reflect-padded by `pad` cells."""
+    drift across the swath (view angle) likewise. Tile by tile into `out` (a grid array, in memory
+    if None): each tile is filtered with `pad` cells of its neighbours (the PSF's support is a few
+    cells), reflect-padded at the grid's edges."""
+    out = np.empty(grid.shape, np.float32) if out is None else out
+    jac = ground_psf_jacobian(image, grid, height)
+    for window in windows(grid.shape, tile):
+        outer, _ = grown(window, grid.shape, pad)
+        a0, a1, b0, b1 = outer
+        i0, i1, j0, j1 = window
+        data = np.pad(cut(radiance, outer).astype(np.float32),
+                      ((pad - (i0 - a0), pad - (a1 - i1)), (pad - (j0 - b0), pad - (b1 - j1))), mode="reflect")
+        out[i0:i1, j0:j1] = _psf_filtered(data, jac, image.instrument)[pad:pad + i1 - i0, pad:pad + j1 - j0]
+    return out
+
+
+def _psf_filtered(data, jac, ins):
+    """`data` convolved with the PSF of instrument `ins` under the pixel -> grid Jacobian `jac`
+    (ground_psf_filter), by FFT."""
     from scipy import fft
-    ins = image.instrument
-    h = 0.5 * (surface.hmin + surface.hmax)
-    jac = ground_psf_jacobian(image, surface.grid, h)
-    data = np.pad(np.asarray(radiance, np.float32), pad, mode="reflect")
     shape = [fft.next_fast_len(n, real=True) for n in data.shape]
     ky = fft.fftfreq(shape[0])[:, None]
     kx = fft.rfftfreq(shape[1])[None, :]
@@ -286,8 +338,7 @@ def ground_psf_filter(image, surface, radiance, pad=64):
     spec = fft.rfft2(data, s=shape, workers=-1)
     spec *= tf
     del tf
-    out = fft.irfft2(spec, s=shape, workers=-1)[pad:pad + radiance.shape[0], pad:pad + radiance.shape[1]]
-    return np.ascontiguousarray(out, dtype=radiance.dtype)
+    return fft.irfft2(spec, s=shape, workers=-1)[:data.shape[0], :data.shape[1]].astype(np.float32)
 
 
 def _integrate(image, surface, radiance, k=radiometry.SUPERSAMPLE, block=128):
@@ -329,33 +380,39 @@ def _footprint(image, surface):
     return [{"col": c, "row": r, "lon": g[0], "lat": g[1], "h": g[2]} for c, r, g in zip(cols, rows, ground)]
 
 
-def _write(folder, config, images, terrain, rendered, radiance, candidates, corrections, trajectory,
-           suns, radiometric, footprints, centre):
+def _products(folder, images):
+    """The product folders of the images and the paths of their files (written later)."""
     join = os.path.join
     paths = {"folder": folder, "images": {}, "truth_metadata": {}}
     for image in images:
+        os.makedirs(join(folder, image.name))
+        os.makedirs(join(folder, "truth", image.name))
+        paths["images"][image.name] = {"imagery": join(folder, image.name, "IMAGERY.TIF"),
+                                       "metadata": join(folder, image.name, "METADATA.DIM")}
+        paths["truth_metadata"][image.name] = join(folder, "truth", image.name, "METADATA.DIM")
+    return paths
+
+
+def _write(paths, config, images, terrain, radiance, candidates, corrections, trajectory, suns, radiometric,
+           footprints, centre):
+    """Everything but the imagery into the folder of `paths` (its entries added)."""
+    join, folder = os.path.join, paths["folder"]
+    for image in images:
         sun = suns[image.instrument.pass_index]
-        product = join(folder, image.name)
-        os.makedirs(product)
-        outputs.write_imagery(join(product, "IMAGERY.TIF"), rendered[image.name])
-        write_dimap(join(product, "METADATA.DIM"), image.orientation(corrections[image.name]), sun=sun,
+        write_dimap(paths["images"][image.name]["metadata"], image.orientation(corrections[image.name]), sun=sun,
                     nbits=config.bits)
-        truth_dir = join(folder, "truth", image.name)
-        os.makedirs(truth_dir)
-        write_dimap(join(truth_dir, "METADATA.DIM"), image.orientation(), sun=sun, nbits=config.bits)
-        paths["images"][image.name] = {"imagery": join(product, "IMAGERY.TIF"),
-                                       "metadata": join(product, "METADATA.DIM")}
-        paths["truth_metadata"][image.name] = join(truth_dir, "METADATA.DIM")
+        write_dimap(paths["truth_metadata"][image.name], image.orientation(), sun=sun, nbits=config.bits)
     grid = terrain.grid
     heights = {"HEIGHTS": "ellipsoidal, WGS 84 (EPSG:4979), metres"}
     for name, array, description in (("dsm", terrain.dsm, "DSM"), ("dtm", terrain.dtm, "DTM")):
         paths[name] = join(folder, f"{name}.tif")
-        outputs.write_raster(paths[name], array.astype(np.float32), grid, description=description, metadata=heights)
+        outputs.write_raster(paths[name], array, grid, np.float32, description=description, metadata=heights)
     paths["classes"] = join(folder, "classes.tif")
-    outputs.write_raster(paths["classes"], terrain.classes, grid, nodata=0, description="land cover",
+    outputs.write_raster(paths["classes"], terrain.classes, grid, np.uint8, nodata=0, description="land cover",
                          metadata={f"CLASS_{k}": v for k, v in CLASSES.items() if k})
     paths["orthoimage"] = join(folder, "orthoimage.tif")
-    outputs.write_raster(paths["orthoimage"], radiometry.orthoimage(radiance), grid, description="ground radiance")
+    outputs.write_raster(paths["orthoimage"], radiance, grid, np.uint8, description="ground radiance",
+                         convert=radiometry.orthoimage)
     paths["points"] = join(folder, "points.csv")
     outputs.write_points(paths["points"], candidates)
     paths["truth"] = join(folder, "truth", "truth.json")
@@ -386,13 +443,18 @@ def _truth(config, images, corrections, trajectory, suns, radiometric, footprint
         "base_to_height": _base_to_height(images, centre),
         "classes": {str(k): v for k, v in CLASSES.items()},
         "towns": terrain.towns,
-        "forest_fraction": float(np.mean(terrain.classes == FOREST)),
+        "forest_fraction": _fraction(terrain.classes, terrain.grid.shape, FOREST),
         "grid": {"geotransform": terrain.grid.geotransform, "size": [terrain.grid.cols, terrain.grid.rows],
                  "crs": "EPSG:4326, heights ellipsoidal (WGS 84)"},
         "conventions": "image (col, row): GDAL, (0, 0) top-left corner of the first pixel; truth = supplied "
                        "+ corrections (spot_orientation.Corrections, tau about each image's centre_time); "
                        "look[0] psi_x, look[1] psi_y",
     }
+
+
+def _fraction(classes, shape, code):
+    """Fraction of the cells of class `code`, tile by tile."""
+    return float(sum(np.count_nonzero(cut(classes, w) == code) for w in windows(shape)) / (shape[0] * shape[1]))
 
 
 def _base_to_height(images, centre):

@@ -11,7 +11,20 @@ N50W) and the reservoir would lie in the north. `xmin`/`xmax` and the swapped y 
 edges (403 x 3" = xmax - xmin). Heights are orthometric (NGVD29, within a metre of EGM96); they
 become ellipsoidal by adding the EGM96 geoid undulation from PROJ (about -31 m here).
 
-Land-cover classes (codes in the class raster): see CLASSES. Surface objects sit only on their
+Beyond the source, for scenes wider than it (a full 60 km SPOT scene), `extended_dem` continues it
+honestly and visibly: the source is mirrored across each of its edges into a 3 x 3 block (heights
+continuous at the mirror lines, slopes reversed there, so each mirror line is a crease), and the
+copies are told apart by a low-frequency fBm relief (wavelengths 6 km down to 750 m, up to 60 m)
+that rises from zero at the source's edge to full strength 3 km beyond it. The geoid is PROJ's EGM96
+everywhere (not mirrored); the mirrored lake zone holds water only where the continued heights stay
+at the lake level. Inside the source nothing changes. The fine fractal detail, land cover, towns and
+objects are procedural in the scene's own coordinates, so they never repeat.
+
+Land-cover classes (codes in the class raster): see CLASSES.
+
+Every grid is built tile by tile (tiles.py): in memory for small grids, in files of a work folder for
+a full-size scene, with the margins each kernel's neighbourhood needs, so the result does not depend
+on the tiling. Surface objects sit only on their
 classes: forest canopy (class FOREST) and buildings (class CITY); elsewhere DSM = DTM."""
 import math
 from dataclasses import dataclass
@@ -22,9 +35,11 @@ from numba import njit, prange
 from ..crs import egm96_undulation
 from ..dem import grid_bounds
 from ..errors import InputError
+from ..geodesy import metres_per_degree
 from .grid import Grid
 from .noise import fbm, gradient_noise, hash3, uniform, worley
 from .render import bilinear
+from .tiles import TILE, cut, grid_array, grown, windows
 
 WATER, BARE, CROPS, FOREST, CITY = 1, 2, 3, 4, 5
 CLASSES = {0: "nodata", WATER: "water", BARE: "bare fields", CROPS: "grass/crops",
@@ -34,6 +49,11 @@ LAKE_MIN_CELLS = 200        # source-DEM components at or below LAKE_LEVEL that 
 FRACTAL_AMPLITUDE = 4.0     # m, largest fractal octave at fractal = 1
 FRACTAL_WAVELENGTH = 180.0  # m: the source DEM resolves ~2 x 90 m; detail is added below that
 FRACTAL_PERSISTENCE = 2.0 ** -0.8  # amplitude ratio per octave (fBm with Hurst exponent 0.8)
+CONTINUATION_AMPLITUDE = 60.0      # m, relief that tells the mirrored copies of the source apart
+CONTINUATION_WAVELENGTH = 6000.0   # m, its largest octave (4 octaves)
+CONTINUATION_RAMP = 3000.0         # m beyond the source's edge to its full strength
+CONTINUATION_SEED = 977            # fixed: the extended source is the same for every scene seed
+CITY_REACH_M = 60.0                # a city cell reads the DTM at its lot's centre, at most this far
 
 
 @dataclass
@@ -44,6 +64,12 @@ class SourceDem:
     geoid: np.ndarray     # (rows, cols) float64, EGM96 undulation N, m
     lake: np.ndarray      # (rows, cols) bool, Norris Lake zone
     geotransform: tuple
+    planning_range: tuple = None   # (low, high) ellipsoidal heights the acquisition is planned for
+
+    def __post_init__(self):
+        if self.planning_range is None:
+            ellipsoidal = self.heights + self.geoid
+            self.planning_range = (float(ellipsoidal.min()), float(ellipsoidal.max()))
 
     @property
     def bounds(self):
@@ -70,12 +96,49 @@ def jacksboro_dem():
     return SourceDem(heights, _geoid_undulation(heights.shape, geotransform), lake, geotransform)
 
 
-def _geoid_undulation(shape, geotransform):
-    """EGM96 undulation N at the cell centres (crs.egm96_undulation)."""
+def extended_dem(source):
+    """The source mirrored into a 3 x 3 block with a low-frequency continuation relief outside it
+    (module docstring); the source's own cells keep their heights. Its planning range stays the
+    source's: the continuation moves heights by at most CONTINUATION_AMPLITUDE (60 m), which shifts
+    a footprint by 60 m x tan 27 deg = 31 m at SPOT's widest view, well inside the ground margin
+    the scene adds (scene.TERRAIN_MARGIN_M)."""
+    rows, cols = source.heights.shape
+    pad = ((rows, rows), (cols, cols))
+    lon0, dlon, _, lat0, _, dlat = source.geotransform
+    geotransform = (lon0 - cols * dlon, dlon, 0.0, lat0 - rows * dlat, 0.0, dlat)
+    me, mn = metres_per_degree(source.centre[1])
+    de, dn = dlon * me, -dlat * mn
+    heights = np.pad(source.heights, pad, mode="symmetric")
+    _add_continuation(heights, rows, cols, de, dn)
+    lake = np.pad(source.lake, pad, mode="symmetric")
+    return SourceDem(heights, _geoid_undulation(heights.shape, geotransform), lake, geotransform,
+                     source.planning_range)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _add_continuation(heights, rows, cols, de, dn):
+    """heights += w(d) A fbm((e, n) / L) outside the middle block of `rows` x `cols` cells, d the
+    distance beyond its edge, w rising linearly from 0 to 1 over CONTINUATION_RAMP."""
+    for i in prange(heights.shape[0]):
+        dy = max(rows - i - 0.5, i + 0.5 - 2 * rows, 0.0) * dn
+        for j in range(heights.shape[1]):
+            dx = max(cols - j - 0.5, j + 0.5 - 2 * cols, 0.0) * de
+            w = min(math.hypot(dx, dy) / CONTINUATION_RAMP, 1.0)
+            if w > 0.0:
+                heights[i, j] += w * CONTINUATION_AMPLITUDE * fbm(
+                    j * de / CONTINUATION_WAVELENGTH, -i * dn / CONTINUATION_WAVELENGTH, CONTINUATION_SEED, 4, 0.5)
+
+
+def _geoid_undulation(shape, geotransform, band=64):
+    """EGM96 undulation N at the cell centres (crs.egm96_undulation), `band` rows at a time."""
     rows, cols = shape
     lon0, dlon, _, lat0, _, dlat = geotransform
-    lon, lat = np.meshgrid(lon0 + (np.arange(cols) + 0.5) * dlon, lat0 + (np.arange(rows) + 0.5) * dlat)
-    return egm96_undulation(lon, lat)
+    lon = lon0 + (np.arange(cols) + 0.5) * dlon
+    out = np.empty(shape)
+    for a in range(0, rows, band):
+        b = min(a + band, rows)
+        out[a:b] = egm96_undulation(*np.meshgrid(lon, lat0 + (np.arange(a, b) + 0.5) * dlat))
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -286,32 +349,61 @@ def check_coverage(source, bounds):
             "make the scene smaller or move its centre")
 
 
-def build_terrain(source, grid, seed, fractal=1.0, surface_objects=True):
+def build_terrain(source, grid, seed, fractal=1.0, surface_objects=True, folder=None, tile=TILE):
     """DTM = cubic resampling of the source + fractal detail (fBm below 180 m wavelength,
     `fractal` x 4 m), lake cells set to the water level; then land cover and surface objects;
-    finally + geoid undulation, so all heights are ellipsoidal."""
+    finally + geoid undulation, so all heights are ellipsoidal. Tile by tile (module docstring);
+    the grids are arrays in memory, or files in `folder` (tiles.grid_array)."""
+    shape = grid.shape
     lon0, dlon, _, lat0, _, dlat = source.geotransform
     x0 = (grid.lon0 + 0.5 * grid.dlon - lon0) / dlon - 0.5
     y0 = (grid.lat0 + 0.5 * grid.dlat - lat0) / dlat - 0.5
     sdx, sdy = grid.dlon / dlon, grid.dlat / dlat
-    dtm = cubic_resample(source.heights, x0, sdx, y0, sdy, grid.rows, grid.cols)
     e0, de, n0, dn = grid.local_metres()
-    if fractal > 0:
-        octaves = max(1, int(math.floor(math.log2(FRACTAL_WAVELENGTH / (2.0 * min(de, dn))))) + 1)
-        _add_fractal(dtm, e0, de, n0, dn, FRACTAL_WAVELENGTH, octaves, fractal * FRACTAL_AMPLITUDE,
-                     FRACTAL_PERSISTENCE, seed + 3)
-    lake_zone = _nearest(source.lake.astype(np.uint8), x0, sdx, y0, sdy, grid.rows, grid.cols) > 0
-    water = lake_zone & (dtm <= LAKE_LEVEL)
-    dtm[water] = LAKE_LEVEL
-    slope = slope_degrees(dtm, de, dn)
+
+    def resample(src, window, kernel=cubic_resample):
+        i0, i1, j0, j1 = window
+        return kernel(src, x0 + j0 * sdx, sdx, y0 + i0 * sdy, sdy, i1 - i0, j1 - j0)
+
+    octaves = max(1, int(math.floor(math.log2(FRACTAL_WAVELENGTH / (2.0 * min(de, dn))))) + 1)
+    orthometric = grid_array(folder, "orthometric", shape, np.float64)
+    water = grid_array(folder, "water", shape, np.bool_)
+    for window in windows(shape, tile):
+        i0, i1, j0, j1 = window
+        dtm = resample(source.heights, window)
+        if fractal > 0:
+            _add_fractal(dtm, e0 + j0 * de, de, n0 - i0 * dn, dn, FRACTAL_WAVELENGTH, octaves,
+                         fractal * FRACTAL_AMPLITUDE, FRACTAL_PERSISTENCE, seed + 3)
+        wet = (resample(source.lake.astype(np.uint8), window, _nearest) > 0) & (dtm <= LAKE_LEVEL)
+        dtm[wet] = LAKE_LEVEL
+        orthometric[i0:i1, j0:j1] = dtm
+        water[i0:i1, j0:j1] = wet
+    slope = grid_array(folder, "slope", shape, np.float32)
+    for window in windows(shape, tile):
+        outer, inner = grown(window, shape, 1)
+        i0, i1, j0, j1 = window
+        slope[i0:i1, j0:j1] = slope_degrees(cut(orthometric, outer), de, dn)[inner]
     towns = _place_towns(slope, water, grid, seed)
-    classes = np.empty(grid.shape, np.uint8)
-    objects = np.empty(grid.shape, np.float64)
-    feature = np.empty(grid.shape, np.int64)
-    _land_cover(dtm, slope, water, e0, de, n0, dn, towns, seed, bool(surface_objects), classes, objects, feature)
-    geoid = cubic_resample(source.geoid, x0, sdx, y0, sdy, grid.rows, grid.cols)
-    dtm += geoid
-    return Terrain(grid, dtm, dtm + objects, classes, feature, towns)
+    classes = grid_array(folder, "classes", shape, np.uint8)
+    feature = grid_array(folder, "feature", shape, np.int64)
+    dtm = grid_array(folder, "dtm", shape, np.float64)
+    dsm = grid_array(folder, "dsm", shape, np.float64)
+    margin = int(math.ceil(CITY_REACH_M / min(de, dn))) + 2
+    for window in windows(shape, tile):
+        outer, inner = grown(window, shape, margin)
+        i0, i1, j0, j1 = window
+        z = cut(orthometric, outer)
+        c = np.empty(z.shape, np.uint8)
+        objects = np.empty(z.shape, np.float64)
+        f = np.empty(z.shape, np.int64)
+        _land_cover(z, cut(slope, outer), cut(water, outer), e0 + outer[2] * de, de, n0 - outer[0] * dn, dn,
+                    towns, seed, bool(surface_objects), c, objects, f)
+        ground = z[inner] + resample(source.geoid, window)
+        dtm[i0:i1, j0:j1] = ground
+        dsm[i0:i1, j0:j1] = ground + objects[inner]
+        classes[i0:i1, j0:j1] = c[inner]
+        feature[i0:i1, j0:j1] = f[inner]
+    return Terrain(grid, dtm, dsm, classes, feature, towns)
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -337,8 +429,11 @@ def _place_towns(slope, water, grid, seed):
     radius = float(np.clip(0.12 * size, 250.0, 900.0))
     k = max(1, int(round(radius / (2 * min(de, dn)))))
     rows, cols = (grid.rows // k) * k, (grid.cols // k) * k
-    coarse = slope[:rows, :cols].reshape(rows // k, k, cols // k, k).mean(axis=(1, 3))
-    wet = water[:rows, :cols].reshape(rows // k, k, cols // k, k).any(axis=(1, 3))
+    coarse = np.empty((rows // k, cols // k), np.float32)
+    wet = np.empty((rows // k, cols // k), bool)
+    for b in range(rows // k):     # one band of blocks at a time (the grids may be files)
+        coarse[b] = slope[b * k:(b + 1) * k, :cols].reshape(k, cols // k, k).mean(axis=(0, 2))
+        wet[b] = water[b * k:(b + 1) * k, :cols].reshape(k, cols // k, k).any(axis=(0, 2))
     ci, cj = np.mgrid[0:coarse.shape[0], 0:coarse.shape[1]]
     yc, xc = (ci + 0.5) * k, (cj + 0.5) * k
     inner = (np.abs(yc / grid.rows - 0.5) < 0.3) & (np.abs(xc / grid.cols - 0.5) < 0.3)

@@ -15,7 +15,7 @@ from qgis.core import (
 
 from ...algorithms.simulation import scene
 from ...algorithms.simulation.instruments import CONFIGURATIONS
-from ...algorithms.simulation.scene import SceneConfig, simulate_scene
+from ...algorithms.simulation.scene import SIZE_KM, SceneConfig, simulate_scene
 from .base import PushbroomAlgorithm
 
 #: labels of the configurations (instruments.CONFIGURATIONS)
@@ -38,7 +38,7 @@ class SimulateScene(PushbroomAlgorithm):
                                                      [tr(CONFIGURATION_LABELS[c]) for c in CONFIGURATIONS],
                                                      defaultValue=CONFIGURATIONS.index(d.configuration)))
         self.addParameter(Number(self.SIZE_KM, tr("Scene size (km)"), Number.Double, d.size_km, minValue=1.0,
-                                 maxValue=25.0))
+                                 maxValue=SIZE_KM[1]))
         self.addParameter(Number(self.SEED, tr("Random seed"), Number.Integer, d.seed, minValue=0))
         self.addParameter(QgsProcessingParameterEnum(self.BITS, tr("Radiometric resolution (bits)"),
                                                      [str(b) for b in scene.BITS],

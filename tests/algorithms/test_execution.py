@@ -27,6 +27,14 @@ def test_every_backend_returns_the_numpy_results_in_task_order(where):
     pids = {r[2] for r in out}
     assert (pids == {os.getpid()}) == (where.backend == "threads")     # processes ran elsewhere
     assert log.progress[-1] == 100.0 and len(log.progress) == 12          # one step per finished task
+    assert log.messages == [f"the tiles: 12 tasks on {where.describe()}"]
+
+
+def test_an_execution_says_where_it_runs():
+    assert [e.describe() for e in BACKENDS] == ["2 threads", "2 local worker processes",
+                                                "a Dask local cluster of 2 worker processes"]
+    assert Execution("dask", 1, "tcp://10.0.0.5:8786").describe() == "the Dask cluster at tcp://10.0.0.5:8786"
+    assert Execution("threads", 1).describe() == "1 thread"
 
 
 @pytest.mark.parametrize("where", BACKENDS[:2], ids=lambda e: e.backend)

@@ -1,9 +1,10 @@
 """The graphical-modeler model resources/models/pushbroom_pipeline.model3: it is what
-scripts/build_pipeline_model.py builds, and it runs end to end through qgis_process on the small
-simulated triplet (5 control, 2 check points) with its results checked against the simulator's
-truth through GDAL."""
+scripts/build_pipeline_model.py builds, and it runs end to end through qgis_process, its tiled steps
+on a Dask LocalCluster of 2 worker processes, on the small simulated triplet (5 control, 2 check
+points) with its results checked against the simulator's truth through GDAL."""
 import csv
 import importlib.util
+import json
 import pathlib
 
 import numpy as np
@@ -68,15 +69,17 @@ def band(path):
 
 @pytest.fixture(scope="module")
 def pipeline(small_scene, qgis_process, tmp_path_factory):
-    """The model run once through qgis_process (by its path, as make demo runs it): (results, folder)."""
+    """The model run once through qgis_process (by its path, as make demo runs it), its tiled steps on a Dask
+    LocalCluster of 2 worker processes: (results, folder)."""
     out = tmp_path_factory.mktemp("pipeline")
     with open(small_scene["points"], newline="") as f:
         ids = [r["id"] for r in csv.DictReader(f)]
     images = [f"IMAGES={small_scene['images'][n]['imagery']}" for n in ("HRG", "HRS1", "HRS2")]
     result = qgis_process("run", str(MODEL), "--", *images, "HEIGHT=300", f"POINTS={small_scene['points']}",
                           f"CHECK_IDS={','.join(ids[5:])}", "MEAS_SUFFIX=_meas", f"REFERENCE={small_scene['dsm']}",
-                          f"CLASS_RASTER={small_scene['classes']}",
+                          f"CLASS_RASTER={small_scene['classes']}", "EXECUTION=2", "THREADS=2",
                           *(f"{k}={out / v}" for k, v in OUTPUTS.items()))
+    assert "on a Dask local cluster of 2 worker processes" in json.dumps(result["log"])
     return result["results"], out
 
 

@@ -218,7 +218,7 @@ def test_illumination_of_an_open_tilted_plane_is_lambertian():
     ii, jj = np.mgrid[0:rows, 0:cols]
     z = 100.0 + 0.2 * jj * de + 0.1 * (-ii * dn)   # dz/de = 0.2, dz/dnorth = 0.1 (rows run south)
     az, el = math.radians(250.0), math.radians(50.0)   # the slope faces west-south-west: lit
-    got = radiometry.illumination(z, render.block_max(z, render.BLOCK), de, dn, az, el, z.max())
+    got = radiometry.illumination(z, render.block_max(z, render.BLOCK), de, dn, az, el, z.max(), 0, rows, 0, cols)
     normal = np.array([-0.2, -0.1, 1.0]) / math.sqrt(1.05)
     sun = np.array([math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)])
     want = radiometry.E_DIRECT * normal @ sun + radiometry.E_SKY * 0.5 * (1 + normal[2])
@@ -231,7 +231,7 @@ def test_cast_shadow_of_a_block_matches_numpy_ray_march():
     de = dn = 2.0
     az, el = math.radians(135.0), math.radians(40.0)   # sun in the south-east: shadow north-west
     bmax = render.block_max(z, render.BLOCK)
-    lit = radiometry.illumination(z, bmax, de, dn, az, el, z.max()) > radiometry.E_SKY + 1e-6
+    lit = radiometry.illumination(z, bmax, de, dn, az, el, z.max(), 0, 40, 0, 40) > radiometry.E_SKY + 1e-6
     gx, gy = math.sin(az) / de, -math.cos(az) / dn
     for i in range(40):
         for j in range(40):
@@ -401,12 +401,14 @@ def test_ground_psf_filter_matches_the_pixel_psf_integral():
     ground = terrain.build_terrain(source, grid, config.seed, config.fractal, config.surface_objects)
     candidates, surface = scene._candidates(config, ground, images)
     radiance, _ = scene._radiance(config, ground, surface, images, candidates, centre)
-    flat = Surface(grid, np.full_like(ground.dsm, 0.5 * (surface.hmin + surface.hmax)))
+    height = 0.5 * (surface.hmin + surface.hmax)
+    flat = Surface(grid, np.full_like(ground.dsm, height))
     bare = Surface(grid, ground.dtm)
     for image in images:
         rad = radiance[image.instrument.pass_index]
         for surf in (flat, bare):
-            fast = surf.render(*image.line_geometry(), image.look_vectors(), scene.ground_psf_filter(image, surf, rad))
+            fast = surf.render(*image.line_geometry(), image.look_vectors(),
+                               scene.ground_psf_filter(image, grid, height, rad))
             slow = scene._integrate(image, surf, rad)
             d = radiometry.NOMINAL_GAIN * (fast - slow)
             assert np.sqrt(np.mean(d * d)) < 1.0, image.name

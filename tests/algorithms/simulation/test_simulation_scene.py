@@ -190,7 +190,7 @@ def test_cancel_leaves_nothing(tmp_path):
 
 @pytest.mark.parametrize("overrides,message", [
     ({"configuration": "spot7"}, "configuration"),
-    ({"size_km": 40.0}, "scene size"),
+    ({"size_km": 80.0}, "scene size"),
     ({"bits": 10}, "bits"),
     ({"roll_deg": (30.0,)}, "27"),
     ({"dates": ("2005-13-01",)}, "ISO date"),

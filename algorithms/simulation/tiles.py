@@ -1,0 +1,88 @@
+"""The simulator's ground grids, tile by tile: every grid-sized array (DTM, DSM, land cover,
+radiance) lives either in memory (small scenes, tests) or in a `.npy` file of a work folder, and
+every kernel runs on a tile of at most TILE x TILE cells plus the margin its neighbourhood needs.
+So a full-size scene (60 km at 5 m: about 14 000 x 14 000 cells per grid) keeps a few windows in
+memory, never a grid.
+
+A file-backed grid (DiskArray) is opened as a memory map only for the one slice read or written,
+then closed: pages of the scene do not stay mapped into the process between tiles."""
+import os
+
+import numpy as np
+
+from ..atomic import storage_error
+
+TILE = 2048     # ground tile side, cells
+
+
+def windows(shape, tile=TILE):
+    """(i0, i1, j0, j1) of the tiles of a `shape` grid, row by row."""
+    rows, cols = shape
+    for i0 in range(0, rows, tile):
+        for j0 in range(0, cols, tile):
+            yield i0, min(i0 + tile, rows), j0, min(j0 + tile, cols)
+
+
+def grown(window, shape, top, bottom=None, left=None, right=None):
+    """`window` (i0, i1, j0, j1) grown by the given margins in cells (bottom, left and right default
+    to top), clipped to the grid: (outer window, inner slices of the tile within the outer one)."""
+    bottom = top if bottom is None else bottom
+    left = top if left is None else left
+    right = left if right is None else right
+    i0, i1, j0, j1 = window
+    rows, cols = shape
+    a0, a1 = max(i0 - top, 0), min(i1 + bottom, rows)
+    b0, b1 = max(j0 - left, 0), min(j1 + right, cols)
+    return (a0, a1, b0, b1), (slice(i0 - a0, i1 - a0), slice(j0 - b0, j1 - b0))
+
+
+def cut(array, window):
+    """The cells of `window` (i0, i1, j0, j1) as an in-memory array."""
+    i0, i1, j0, j1 = window
+    return np.asarray(array[i0:i1, j0:j1])
+
+
+class DiskArray:
+    """A 2-D array in a .npy file with numpy slicing: a[key] reads (a copy), a[key] = v writes."""
+
+    def __init__(self, path, shape, dtype):
+        self.path, self.shape, self.dtype = path, tuple(shape), np.dtype(dtype)
+        try:
+            np.lib.format.open_memmap(path, mode="w+", dtype=self.dtype, shape=self.shape).flush()
+        except OSError as exc:
+            raise storage_error(exc, path, "the simulator's ground grids") from None
+
+    def _map(self, mode):
+        return np.load(self.path, mmap_mode=mode)
+
+    def __getitem__(self, key):
+        data = self._map("r")
+        out = np.array(data[key])
+        del data
+        return out
+
+    def __setitem__(self, key, value):
+        data = self._map("r+")
+        try:
+            data[key] = value
+            data.flush()
+        except OSError as exc:
+            raise storage_error(exc, self.path, "the simulator's ground grids") from None
+        finally:
+            del data
+
+
+def grid_array(folder, name, shape, dtype):
+    """A grid-shaped array: in memory where `folder` is None, else a DiskArray `<folder>/<name>.npy`."""
+    if folder is None:
+        return np.empty(shape, dtype)
+    return DiskArray(os.path.join(folder, f"{name}.npy"), shape, dtype)
+
+
+def value_range(array, shape, tile=TILE):
+    """(min, max) of a grid array, tile by tile."""
+    low, high = np.inf, -np.inf
+    for window in windows(shape, tile):
+        part = cut(array, window)
+        low, high = min(low, float(part.min())), max(high, float(part.max()))
+    return low, high
