@@ -12,7 +12,7 @@ from ..atomic import closing
 GEOTIFF_OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "ZLEVEL=1"]
 
 
-ROWS = 1024      # raster rows written at a time
+ROWS = 256       # raster rows written at a time
 
 
 def write_raster(path, array, grid, dtype, nodata=None, description="", metadata=None, convert=None):

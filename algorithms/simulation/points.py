@@ -7,8 +7,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geodesy import geodetic_to_ecef
+from .render import bilinear
 from .terrain import BARE, CROPS
-from .tiles import TILE, cut, grid_array, grown, windows
+from .tiles import TILE, cut, grid_array, grown, release, windows
 
 EDGE_PX = 10.0          # candidates keep this distance from every image border
 VISIBLE_M = 0.5         # a candidate is visible if the ray of its true pixel lands this close
@@ -34,39 +35,64 @@ def select_sites(terrain, images, count, clearance_m, rng, tries=20, folder=None
     """Up to `count` sites (lon, lat) on eligible cells (`eligible_cells`, a grid array in `folder`
     or in memory) inside every image (EDGE_PX), spread out: first one site in each stratum of a
     ceil(sqrt(count))^2 division of the grid (strata in random order), then anywhere, always at
-    least half a stratum from the sites already chosen; `tries` random cells per attempt."""
+    least half a stratum from the sites already chosen; `tries` random cells per attempt, drawn
+    by rank among the eligible cells (EligibleCells: no index array of the grid's cells)."""
     grid = terrain.grid
     eligible = eligible_cells(terrain, clearance_m, folder, tile)
     k = max(1, int(math.ceil(math.sqrt(count))))
     spacing = 0.5 * min(grid.rows, grid.cols) / k
     sites = []
 
-    def take(candidates):
-        for flat in rng.choice(candidates, size=min(tries, candidates.size), replace=False):
-            i, j = divmod(int(flat), grid.cols)
+    def take(cells):
+        for rank in rng.choice(cells.size, size=min(tries, cells.size), replace=False):
+            i, j = cells.cell(int(rank))
             if any(math.hypot(i - a, j - b) < spacing for a, b in sites):
                 continue
-            xyz = geodetic_to_ecef(*grid.lonlat(j, i), terrain.dtm[i, j])
+            xyz = geodetic_to_ecef(*grid.lonlat(j, i), float(terrain.dtm[i, j]))
             if all(_inside(image, xyz) for image in images):
                 sites.append((i, j))
                 return
 
     for stratum in rng.permutation(k * k):
         si, sj = divmod(int(stratum), k)
-        i0, i1 = si * grid.rows // k, (si + 1) * grid.rows // k
-        j0, j1 = sj * grid.cols // k, (sj + 1) * grid.cols // k
-        ii, jj = np.nonzero(eligible[i0:i1, j0:j1])
-        if len(sites) < count and ii.size:
-            take((ii + i0) * grid.cols + jj + j0)
+        if len(sites) < count:
+            cells = EligibleCells(eligible, (si * grid.rows // k, (si + 1) * grid.rows // k,
+                                             sj * grid.cols // k, (sj + 1) * grid.cols // k))
+            if cells.size:
+                take(cells)
     if len(sites) < count:
-        everywhere = np.flatnonzero(eligible[:, :])
+        cells = EligibleCells(eligible, (0, grid.rows, 0, grid.cols))
         for _ in range(count - len(sites)):
-            if everywhere.size:
-                take(everywhere)
+            if cells.size:
+                take(cells)
+    release(eligible)
     if not sites:
         return np.zeros((0, 2))
     i, j = np.array(sites).T
     return np.column_stack(grid.lonlat(j, i))
+
+
+class EligibleCells:
+    """The True cells of a bool grid array within `window` (i0, i1, j0, j1), in row-major order (as
+    numpy.nonzero lists them), addressed by rank: only the count per row is held."""
+
+    BAND = 256
+
+    def __init__(self, mask, window):
+        self.mask, self.window = mask, window
+        i0, i1, j0, j1 = window
+        counts = [np.count_nonzero(cut(mask, (a, min(a + self.BAND, i1), j0, j1)), axis=1)
+                  for a in range(i0, i1, self.BAND)]
+        self.ends = np.cumsum(np.concatenate(counts)) if counts else np.zeros(0, np.int64)
+        self.size = int(self.ends[-1]) if self.ends.size else 0
+
+    def cell(self, rank):
+        """(row, column) in the grid of the cell of rank `rank`."""
+        i0, _, j0, j1 = self.window
+        r = int(np.searchsorted(self.ends, rank, side="right"))
+        before = int(self.ends[r - 1]) if r else 0
+        j = np.flatnonzero(cut(self.mask, (i0 + r, i0 + r + 1, j0, j1))[0])[rank - before]
+        return i0 + r, j0 + int(j)
 
 
 def eligible_cells(terrain, clearance_m, folder=None, tile=TILE):
@@ -91,15 +117,13 @@ def eligible_cells(terrain, clearance_m, folder=None, tile=TILE):
 
 
 def ground_heights(array, grid, lon, lat):
-    """Bilinear heights of the grid array `array` at (lon, lat) inside the grid (as dem.Dem.height),
-    reading the 2 x 2 cells around each point."""
+    """Bilinear heights of the grid array `array` at (lon, lat) inside the grid (render.bilinear, as
+    dem.Dem.height), reading the 2 x 2 cells around each point."""
     x, y = grid.vertex(np.atleast_1d(lon), np.atleast_1d(lat))
     out = np.empty(x.size)
     for k, (xk, yk) in enumerate(zip(x, y)):
         i, j = min(int(yk), grid.rows - 2), min(int(xk), grid.cols - 2)
-        z = np.asarray(array[i:i + 2, j:j + 2], dtype=np.float64)
-        fx, fy = xk - j, yk - i
-        out[k] = (z[0, 0] * (1 - fx) + z[0, 1] * fx) * (1 - fy) + (z[1, 0] * (1 - fx) + z[1, 1] * fx) * fy
+        out[k] = bilinear(cut(array, (i, i + 2, j, j + 2)).astype(np.float64), float(xk - j), float(yk - i))
     return out
 
 

@@ -192,7 +192,13 @@ class OrthoimageReflectance:
     PERCENTILE_SIDE = 1024
 
     def __init__(self, path, grid):
+        from osgeo import gdal
+        gdal.UseExceptions()
         self.path, self.grid = str(path), grid
+        try:
+            self.src = gdal.Open(self.path)
+        except RuntimeError as exc:
+            raise InputError(f"cannot read the orthoimage {self.path}: {exc}") from exc
         scale = max(1, math.ceil(max(grid.rows, grid.cols) / self.PERCENTILE_SIDE))
         coarse = self._warp(grid.bounds, math.ceil(grid.cols / scale), math.ceil(grid.rows / scale))
         self.low, self.high = np.percentile(coarse, [1, 99])
@@ -201,10 +207,8 @@ class OrthoimageReflectance:
 
     def _warp(self, bounds, width, height):
         from osgeo import gdal
-        gdal.UseExceptions()
         try:
-            src = gdal.Open(self.path)
-            warped = gdal.Warp("", src, format="MEM", dstSRS="EPSG:4326", outputBounds=bounds, width=width,
+            warped = gdal.Warp("", self.src, format="MEM", dstSRS="EPSG:4326", outputBounds=bounds, width=width,
                                height=height, resampleAlg="bilinear", outputType=gdal.GDT_Float32,
                                dstNodata=float("nan"))
         except RuntimeError as exc:

@@ -5,8 +5,8 @@ radiance is sampled where it lands.
 A pixel's ray X(mu) = P + mu d (P: satellite position of its line, d = R32 R21 u1 of its
 detector) is cut at the heights hmax + 5 m and hmin - 5 m of the DSM: mu from a sphere
 osculating the ellipsoid at the grid centre (Gaussian radius sqrt(M N); within 0.1 m of the
-geodetic height over 20 km), then both points are converted to geodetic coordinates (Bowring,
-micrometres).
+geodetic height over 20 km, 0.25 m at the edge of a 60 km scene's grid), then both points are
+converted to geodetic coordinates (Bowring, micrometres).
 Between them the ray is nearly linear in (lon, lat, h): a degree of longitude or latitude spans
 (R + h) times an angle, so the horizontal position bends by about x dh / 4R (x the horizontal
 run, dh the height span: 1.5 cm for a 20 deg ray through 900 m of relief); the hit is therefore
@@ -257,7 +257,7 @@ def trace(pos, mat, look, z, bmax, bs, gt, sphere, hmin, hmax):
 
 
 def osculating_sphere(lon, lat):
-    """(cx, cy, cz, R): the sphere of Gaussian radius R = sqrt(M N) tangent to the ellipsoid at
+    """(centre (3,), R): the sphere of Gaussian radius R = sqrt(M N) tangent to the ellipsoid at
     (lon, lat)."""
     n, m = radii(lat)
     radius = math.sqrt(n * m)
@@ -266,6 +266,12 @@ def osculating_sphere(lon, lat):
     cb, sb = math.cos(math.radians(lat)), math.sin(math.radians(lat))
     normal = np.array([cb * cl, cb * sl, sb])
     return np.array([x, y, z]) - radius * normal, radius
+
+
+def grid_sphere(grid):
+    """(cx, cy, cz, R) of the sphere osculating the ellipsoid at the centre of `grid`."""
+    centre, radius = osculating_sphere(*grid.centre)
+    return np.array([centre[0], centre[1], centre[2], radius])
 
 
 class Surface:
@@ -277,10 +283,7 @@ class Surface:
         self.grid = grid
         self.z = np.ascontiguousarray(dsm, dtype=np.float64)
         self.bmax = block_max(self.z, BLOCK)
-        if sphere is None:
-            centre, radius = osculating_sphere(*grid.centre)
-            sphere = np.array([centre[0], centre[1], centre[2], radius])
-        self.sphere = sphere
+        self.sphere = grid_sphere(grid) if sphere is None else sphere
         self.gt = np.array([grid.lon0, grid.dlon, grid.lat0, grid.dlat])
         self.hmin, self.hmax = ((float(self.z.min()), float(self.z.max())) if height_range is None
                                 else (float(height_range[0]), float(height_range[1])))

@@ -20,12 +20,12 @@ everywhere (not mirrored); the mirrored lake zone holds water only where the con
 at the lake level. Inside the source nothing changes. The fine fractal detail, land cover, towns and
 objects are procedural in the scene's own coordinates, so they never repeat.
 
-Land-cover classes (codes in the class raster): see CLASSES.
+Land-cover classes (codes in the class raster): see CLASSES. Surface objects sit only on their
+classes: forest canopy (class FOREST) and buildings (class CITY); elsewhere DSM = DTM.
 
-Every grid is built tile by tile (tiles.py): in memory for small grids, in files of a work folder for
-a full-size scene, with the margins each kernel's neighbourhood needs, so the result does not depend
-on the tiling. Surface objects sit only on their
-classes: forest canopy (class FOREST) and buildings (class CITY); elsewhere DSM = DTM."""
+Every grid is built tile by tile (tiles.py), with the margins each kernel's neighbourhood needs, so
+the result does not depend on the tiling: in files of a work folder (simulate_scene), or in memory
+where no folder is given (tests)."""
 import math
 from dataclasses import dataclass
 
@@ -39,7 +39,7 @@ from ..geodesy import metres_per_degree
 from .grid import Grid
 from .noise import fbm, gradient_noise, hash3, uniform, worley
 from .render import bilinear
-from .tiles import TILE, cut, grid_array, grown, windows
+from .tiles import TILE, cut, grid_array, grown, release, windows
 
 WATER, BARE, CROPS, FOREST, CITY = 1, 2, 3, 4, 5
 CLASSES = {0: "nodata", WATER: "water", BARE: "bare fields", CROPS: "grass/crops",
@@ -325,13 +325,14 @@ def _land_cover(dtm, slope, water, e0, de, n0, dn, towns, seed, objects_on,
 
 @dataclass
 class Terrain:
-    """DTM, DSM (ellipsoidal heights, float64), land cover and per-cell feature ids on `grid`."""
+    """DTM, DSM (ellipsoidal heights, float64), land cover and per-cell feature ids on `grid`: grid
+    arrays (tiles.grid_array: numpy arrays, or DiskArray files read and written by slices)."""
 
     grid: Grid
-    dtm: np.ndarray
-    dsm: np.ndarray
-    classes: np.ndarray   # uint8, CLASSES codes
-    feature: np.ndarray   # int64: parcel / tree / building id (see _land_cover)
+    dtm: object
+    dsm: object
+    classes: object       # uint8, CLASSES codes
+    feature: object       # int64: parcel / tree / building id (see _land_cover)
     towns: np.ndarray     # (k, 5): east, north, radius, angle, block size (local metres)
 
 
@@ -368,13 +369,14 @@ def build_terrain(source, grid, seed, fractal=1.0, surface_objects=True, folder=
     octaves = max(1, int(math.floor(math.log2(FRACTAL_WAVELENGTH / (2.0 * min(de, dn))))) + 1)
     orthometric = grid_array(folder, "orthometric", shape, np.float64)
     water = grid_array(folder, "water", shape, np.bool_)
+    lake = source.lake.astype(np.uint8)
     for window in windows(shape, tile):
         i0, i1, j0, j1 = window
         dtm = resample(source.heights, window)
         if fractal > 0:
             _add_fractal(dtm, e0 + j0 * de, de, n0 - i0 * dn, dn, FRACTAL_WAVELENGTH, octaves,
                          fractal * FRACTAL_AMPLITUDE, FRACTAL_PERSISTENCE, seed + 3)
-        wet = (resample(source.lake.astype(np.uint8), window, _nearest) > 0) & (dtm <= LAKE_LEVEL)
+        wet = (resample(lake, window, _nearest) > 0) & (dtm <= LAKE_LEVEL)
         dtm[wet] = LAKE_LEVEL
         orthometric[i0:i1, j0:j1] = dtm
         water[i0:i1, j0:j1] = wet
@@ -403,6 +405,7 @@ def build_terrain(source, grid, seed, fractal=1.0, surface_objects=True, folder=
         dsm[i0:i1, j0:j1] = ground + objects[inner]
         classes[i0:i1, j0:j1] = c[inner]
         feature[i0:i1, j0:j1] = f[inner]
+    release(orthometric, water, slope)
     return Terrain(grid, dtm, dsm, classes, feature, towns)
 
 

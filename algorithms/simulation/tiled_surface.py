@@ -11,8 +11,9 @@ import math
 
 import numpy as np
 
+from ..errors import GeometryError
 from .acquisition import ray_at_height
-from .render import REFINE_M, Surface, osculating_sphere
+from .render import REFINE_M, Surface, grid_sphere
 from .tiles import cut
 
 WINDOW_MARGIN = 3     # cells around the rays' ground points at the cutting heights
@@ -26,8 +27,7 @@ class TiledSurface:
     def __init__(self, grid, dsm, height_range):
         self.grid, self.dsm = grid, dsm
         self.hmin, self.hmax = (float(h) for h in height_range)
-        centre, radius = osculating_sphere(*grid.centre)
-        self.sphere = np.array([centre[0], centre[1], centre[2], radius])
+        self.sphere = grid_sphere(grid)
 
     def window(self, pos, direction):
         """(i0, i1, j0, j1): the cells the rays pos + mu direction (n, 3) can cross."""
@@ -37,11 +37,14 @@ class TiledSurface:
             xs.append(x)
             ys.append(y)
         xs, ys = np.concatenate(xs), np.concatenate(ys)
-        i0 = max(int(math.floor(ys.min())) - WINDOW_MARGIN, 0)
-        j0 = max(int(math.floor(xs.min())) - WINDOW_MARGIN, 0)
-        i1 = min(int(math.ceil(ys.max())) + WINDOW_MARGIN + 1, self.grid.rows)
-        j1 = min(int(math.ceil(xs.max())) + WINDOW_MARGIN + 1, self.grid.cols)
-        return i0, max(i1, i0 + 2), j0, max(j1, j0 + 2)
+        if not (np.isfinite(xs).all() and np.isfinite(ys).all()):
+            raise GeometryError("a line of sight of the simulated images does not reach the ground")
+        rows, cols = self.grid.rows, self.grid.cols
+        i0 = min(max(int(math.floor(ys.min())) - WINDOW_MARGIN, 0), rows - 2)
+        j0 = min(max(int(math.floor(xs.min())) - WINDOW_MARGIN, 0), cols - 2)
+        i1 = min(max(int(math.ceil(ys.max())) + WINDOW_MARGIN + 1, i0 + 2), rows)
+        j1 = min(max(int(math.ceil(xs.max())) + WINDOW_MARGIN + 1, j0 + 2), cols)
+        return i0, i1, j0, j1
 
     def surface(self, window):
         """The Surface of `window`, cut at the whole grid's heights."""

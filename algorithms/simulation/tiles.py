@@ -1,11 +1,14 @@
 """The simulator's ground grids, tile by tile: every grid-sized array (DTM, DSM, land cover,
-radiance) lives either in memory (small scenes, tests) or in a `.npy` file of a work folder, and
+radiance) lives in a `.npy` file of a work folder (simulate_scene), or in memory where no folder is
+given (tests), and
 every kernel runs on a tile of at most TILE x TILE cells plus the margin its neighbourhood needs.
 So a full-size scene (60 km at 5 m: about 14 000 x 14 000 cells per grid) keeps a few windows in
 memory, never a grid.
 
 A file-backed grid (DiskArray) is opened as a memory map only for the one slice read or written,
-then closed: pages of the scene do not stay mapped into the process between tiles."""
+then closed: pages of the scene do not stay mapped into the process between tiles. Its file is
+allocated in full when it is made, so a full disk is a StorageError then, not a fault (SIGBUS) when
+a page of a sparse file is first written through the map."""
 import os
 
 import numpy as np
@@ -49,6 +52,8 @@ class DiskArray:
         self.path, self.shape, self.dtype = path, tuple(shape), np.dtype(dtype)
         try:
             np.lib.format.open_memmap(path, mode="w+", dtype=self.dtype, shape=self.shape).flush()
+            with open(path, "r+b") as f:
+                os.posix_fallocate(f.fileno(), 0, os.fstat(f.fileno()).st_size)
         except OSError as exc:
             raise storage_error(exc, path, "the simulator's ground grids") from None
 
@@ -77,6 +82,13 @@ def grid_array(folder, name, shape, dtype):
     if folder is None:
         return np.empty(shape, dtype)
     return DiskArray(os.path.join(folder, f"{name}.npy"), shape, dtype)
+
+
+def release(*arrays):
+    """Remove the files of DiskArrays no longer needed (in-memory arrays are left to the collector)."""
+    for array in arrays:
+        if isinstance(array, DiskArray):
+            os.remove(array.path)
 
 
 def value_range(array, shape, tile=TILE):

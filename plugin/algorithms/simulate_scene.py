@@ -37,7 +37,7 @@ class SimulateScene(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterEnum(self.CONFIGURATION, tr("Configuration"),
                                                      [tr(CONFIGURATION_LABELS[c]) for c in CONFIGURATIONS],
                                                      defaultValue=CONFIGURATIONS.index(d.configuration)))
-        self.addParameter(Number(self.SIZE_KM, tr("Scene size (km)"), Number.Double, d.size_km, minValue=1.0,
+        self.addParameter(Number(self.SIZE_KM, tr("Scene size (km)"), Number.Double, d.size_km, minValue=SIZE_KM[0],
                                  maxValue=SIZE_KM[1]))
         self.addParameter(Number(self.SEED, tr("Random seed"), Number.Integer, d.seed, minValue=0))
         self.addParameter(QgsProcessingParameterEnum(self.BITS, tr("Radiometric resolution (bits)"),

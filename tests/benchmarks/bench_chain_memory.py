@@ -11,17 +11,24 @@ class). Peak memory: the sum, over qgis_process and every process it starts (the
 one's VmHWM (its resident peak), sampled from /proc every SAMPLE_S; a sum of peaks, so an upper bound of
 what the step held at once. Per scene and execution a row gives the DEM's RMS / NMAD against the true
 DSM per class; the last rows give, per execution, the largest step peak of each scene and its growth
-from the quarter to the whole scene.
+from the quarter to the whole scene, over the surface chain's tiled steps (TILED) and over all steps
+(createblock, bundleadjust and assessaccuracy read whole rasters: the reference DSM, the DEM).
+On the largest scene (dem_agreement), the DEM of the intersected points is made again with the other
+executions (cells defined, largest |dh|) and in one tile (median |dh|, 99th percentile of |dh| within 3
+cells of the tile borders and away from them).
 
     python -m tests.benchmarks.bench_chain_memory [SIZE_KM ...] [threads|processes|dask ...]
 """
 import csv
+import pathlib
 import shutil
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 
+import numpy as np
 from osgeo import gdal
 
 from pushbroom.algorithms.execution import BACKENDS
@@ -34,6 +41,7 @@ EXECUTIONS = ("threads", "processes")
 WORKERS = 2
 SAMPLE_S = 0.1
 CONTROL = 19          # the first 19 points control, the rest check (as make demo)
+TILED = ("matchpoints", "intersectpoints", "interpolatedem", "orthorectify")   # the surface chain's tiled steps
 CLASSES = ("bare fields", "grass/crops", "forest", "city/buildings", "water")
 
 
@@ -113,9 +121,51 @@ def chain(folder, out, execution, env):
     return rows, accuracy
 
 
-def run(sizes=SIZES, executions=EXECUTIONS):
+def _dem(path):
+    ds = gdal.Open(str(path))
+    band = ds.GetRasterBand(1)
+    values = band.ReadAsArray().astype(np.float64)
+    values[values == band.GetNoDataValue()] = np.nan
+    return values
+
+
+def dem_agreement(points, dem, execution, env, out, tile=1024):
+    """Rows comparing the DEM `dem` (interpolatedem of `points` with `execution`, TILE `tile`) with the
+    DEMs of the other executions and of a single tile."""
+    reference = _dem(dem)
     rows = []
-    env = qgis_process_env(SCENES.parent / "chain-profile")
+    runs = [(other, f"TILE={tile}") for other in BACKENDS if other != execution] + [(execution, "TILE=100000")]
+    for other, tiling in runs:
+        path = out / f"dem-{other}-{tiling.lower().replace('=', '')}.tif"
+        seconds, peak, processes, _ = measured([QGIS_PROCESS, "run", "pushbroom:interpolatedem", "--",
+                                                f"INPUT={points}", "CELL=10", f"EXECUTION={BACKENDS.index(other)}",
+                                                f"WORKERS={WORKERS}", tiling, f"OUTPUT={path}"], env)
+        values = _dem(path)
+        both = np.isfinite(values) & np.isfinite(reference)
+        dh = np.abs(values - reference)[both]
+        changed = float(np.mean(np.isfinite(values) != np.isfinite(reference)))
+        if tiling == f"TILE={tile}":
+            text = (f"{other} vs {execution}: cells defined differ {100 * changed:.4f} %, largest |dh| "
+                    f"{dh.max():.3g} m")
+        else:
+            index = np.indices(values.shape)
+            near = ((np.minimum(index[0] % tile, tile - 1 - index[0] % tile) < 3)
+                    | (np.minimum(index[1] % tile, tile - 1 - index[1] % tile) < 3))[both]
+            text = (f"1 tile vs tiles of {tile}: cells defined differ {100 * changed:.4f} %, median |dh| "
+                    f"{np.median(dh):.3g} m, p99 |dh| along the tile borders {np.percentile(dh[near], 99):.3g} m, "
+                    f"away from them {np.percentile(dh[~near], 99):.3g} m")
+        rows.append({"execution": other, "step": f"interpolatedem, {tiling}", "points": text, "seconds": seconds,
+                     "peak MB": peak, "processes": processes})
+    return rows
+
+
+def run(sizes=SIZES, executions=EXECUTIONS):
+    with tempfile.TemporaryDirectory() as tmp:
+        return _run(sizes, executions, qgis_process_env(pathlib.Path(tmp) / "profile"))
+
+
+def _run(sizes, executions, env):
+    rows = []
     for size in sizes:
         folder = scene(size)
         cols = gdal.Open(str(folder / "HRG" / "IMAGERY.TIF")).RasterXSize
@@ -132,13 +182,18 @@ def run(sizes=SIZES, executions=EXECUTIONS):
             rows.append({"scene km": size, "execution": execution, "step": "DEM - true DSM, RMS / NMAD (m)",
                          "points": "; ".join(f"{c} {accuracy[c][0]:.2f} / {accuracy[c][1]:.2f}" for c in CLASSES
                                              if c in accuracy)})
+            if size == max(sizes) and execution == executions[0]:
+                for row in dem_agreement(out / "points.las", out / "dem.tif", execution, env, out):
+                    rows.append({"scene km": size, "check": True, **row})
             shutil.rmtree(out)
     for execution in executions:
-        peaks = [max(r["peak MB"] for r in rows if r["scene km"] == size and r["execution"] == execution
-                     and "peak MB" in r) for size in sizes]
-        rows.append({"scene km": " -> ".join(f"{s:g}" for s in sizes), "execution": execution,
-                     "step": "largest step peak MB", "peak MB": " / ".join(f"{p:.0f}" for p in peaks),
-                     "seconds": f"growth {100.0 * (peaks[-1] / peaks[0] - 1.0):.1f} %"})
+        for label, names in (("tiled steps", TILED), ("all steps", None)):
+            peaks = [max(r["peak MB"] for r in rows if r["scene km"] == size and r["execution"] == execution
+                         and "peak MB" in r and not r.get("check") and (names is None or r["step"] in names))
+                     for size in sizes]
+            rows.append({"scene km": " -> ".join(f"{s:g}" for s in sizes), "execution": execution,
+                         "step": f"largest peak MB, {label}", "peak MB": " / ".join(f"{p:.0f}" for p in peaks),
+                         "seconds": f"growth {100.0 * (peaks[-1] / peaks[0] - 1.0):.1f} %"})
     return [{k: r.get(k, "") for k in ("scene km", "HRG px", "execution", "step", "points", "seconds", "peak MB",
                                         "processes")} for r in rows]
 
