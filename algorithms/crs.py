@@ -42,9 +42,14 @@ def wgs84():
     return srs(4326)
 
 
+#: points handed to PROJ at a time: osr takes Python lists, about 200 bytes a point
+TRANSFORM_CHUNK = 65536
+
+
 def transform(source, target, xyz, what):
     """Points (n, 2 or 3) from `source` to `target`, no ballpark operations (a missing grid is an
-    error, not a silent metre-level shift); `what` names the points in the error message."""
+    error, not a silent metre-level shift); `what` names the points in the error message. TRANSFORM_CHUNK
+    points at a time, so memory follows the chunk, not the points."""
     xyz = np.asarray(xyz, float)
     if not len(xyz):
         return xyz.reshape(0, xyz.shape[1] if xyz.ndim == 2 else 2)
@@ -59,7 +64,8 @@ def transform(source, target, xyz, what):
                          "transformation between them here (one of them is a local or undefined CRS, or the datum "
                          "shift grid it needs is not installed: install PROJ's grids with projsync or the proj-data "
                          "package), so give the data in another CRS")
-    return np.array(ct.TransformPoints(xyz.tolist()), float).reshape(len(xyz), -1)
+    return np.concatenate([np.array(ct.TransformPoints(xyz[a:a + TRANSFORM_CHUNK].tolist()), float)
+                           for a in range(0, len(xyz), TRANSFORM_CHUNK)]).reshape(len(xyz), -1)
 
 
 def reproject(x, y, source, target, what="the points"):

@@ -187,7 +187,7 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
     results = [None] * len(tasks)
     if not tasks:
         return results
-    progress.info(feedback, f"{what}: {len(tasks)} task{'s' * (len(tasks) != 1)} on {execution.describe()}")
+    progress.ensure(feedback).pushInfo(f"{what}: {len(tasks)} task{'s' * (len(tasks) != 1)} on {execution.describe()}")
     backend = _Dask(execution) if execution.backend == "dask" else _Pool(execution)
     futures, cancel = {}, True
     try:

@@ -33,12 +33,6 @@ def step(feedback, percent, message=None):
         feedback.pushInfo(message)
 
 
-def info(feedback, message):
-    """Report a message without a progress step (nothing where `feedback` is None)."""
-    if feedback is not None:
-        feedback.pushInfo(message)
-
-
 def warn(feedback, message):
     """Report a warning: feedback.pushWarning where the feedback has it (QgsProcessingFeedback), else
     pushInfo; nothing where `feedback` or `message` is None."""

@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..dem import dem_window
 from ..geodesy import geodetic_to_ecef
-from .render import bilinear
 from .terrain import BARE, CROPS
 from .tiles import TILE, cut, grid_array, grown, release, windows
 
@@ -117,14 +117,10 @@ def eligible_cells(terrain, clearance_m, folder=None, tile=TILE):
 
 
 def ground_heights(array, grid, lon, lat):
-    """Bilinear heights of the grid array `array` at (lon, lat) inside the grid (render.bilinear, as
-    dem.Dem.height), reading the 2 x 2 cells around each point."""
-    x, y = grid.vertex(np.atleast_1d(lon), np.atleast_1d(lat))
-    out = np.empty(x.size)
-    for k, (xk, yk) in enumerate(zip(x, y)):
-        i, j = min(int(yk), grid.rows - 2), min(int(xk), grid.cols - 2)
-        out[k] = bilinear(cut(array, (i, i + 2, j, j + 2)).astype(np.float64), float(xk - j), float(yk - i))
-    return out
+    """dem.Dem.height of the grid array `array` at each (lon, lat), read from the few cells around the
+    point (dem.dem_window)."""
+    return np.array([dem_window(array, grid.geotransform, (np.nan, np.nan), (x, y, x, y)).height(x, y)
+                     for x, y in zip(np.atleast_1d(lon), np.atleast_1d(lat))])
 
 
 def _inside(image, xyz):

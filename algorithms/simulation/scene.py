@@ -242,23 +242,25 @@ def _radiance(config, terrain, surface, images, candidates, centre, folder=None,
             suns[key] = sun_position(when, centre[0], centre[1])
     user = radiometry.OrthoimageReflectance(config.orthoimage, grid) if config.orthoimage else None
     radiance = {key: grid_array(folder, f"radiance-{key}", grid.shape, np.float32) for key in suns}
+    sun_rad = {key: (math.radians(azimuth), math.radians(elevation)) for key, (azimuth, elevation) in suns.items()}
+    relief = surface.hmax - surface.hmin + 0.05
+    margins = [radiometry.sun_margins(de, dn, az, el, relief) for az, el in sun_rad.values()]
+    margins = [max(m[side] for m in margins) for side in range(4)]     # one DSM window serves every sun
     for window in windows(grid.shape, tile):
         i0, i1, j0, j1 = window
+        outer, inner = grown(window, grid.shape, *margins)
+        z = cut(terrain.dsm, outer)
         if user:
             rho = user(window)
         else:
-            dsm = cut(terrain.dsm, window)
             rho = radiometry.reflectance(cut(terrain.classes, window), cut(terrain.feature, window),
-                                         dsm - cut(terrain.dtm, window), e0 + j0 * de, de, n0 - i0 * dn, dn,
+                                         z[inner] - cut(terrain.dtm, window), e0 + j0 * de, de, n0 - i0 * dn, dn,
                                          config.seed)
         if config.markers:
             radiometry.paint_markers(rho, grid, candidates.lon, candidates.lat, MARKER_SIGMA_M, origin=(i0, j0))
-        for key, (azimuth, elevation) in suns.items():
-            az, el = math.radians(azimuth), math.radians(elevation)
-            margins = radiometry.sun_margins(de, dn, az, el, surface.hmax - surface.hmin + 0.05)
-            outer, inner = grown(window, grid.shape, *margins)
-            z = cut(terrain.dsm, outer)
-            light = radiometry.illumination(z, block_max(z, BLOCK), de, dn, az, el, surface.hmax,
+        bmax = block_max(z, BLOCK)
+        for key, (az, el) in sun_rad.items():
+            light = radiometry.illumination(z, bmax, de, dn, az, el, surface.hmax,
                                             inner[0].start, inner[0].stop, inner[1].start, inner[1].stop)
             radiance[key][i0:i1, j0:j1] = rho * light
     return radiance, suns

@@ -129,16 +129,12 @@ def _add_continuation(heights, rows, cols, de, dn):
                     j * de / CONTINUATION_WAVELENGTH, -i * dn / CONTINUATION_WAVELENGTH, CONTINUATION_SEED, 4, 0.5)
 
 
-def _geoid_undulation(shape, geotransform, band=64):
-    """EGM96 undulation N at the cell centres (crs.egm96_undulation), `band` rows at a time."""
+def _geoid_undulation(shape, geotransform):
+    """EGM96 undulation N at the cell centres (crs.egm96_undulation)."""
     rows, cols = shape
     lon0, dlon, _, lat0, _, dlat = geotransform
-    lon = lon0 + (np.arange(cols) + 0.5) * dlon
-    out = np.empty(shape)
-    for a in range(0, rows, band):
-        b = min(a + band, rows)
-        out[a:b] = egm96_undulation(*np.meshgrid(lon, lat0 + (np.arange(a, b) + 0.5) * dlat))
-    return out
+    lon, lat = np.meshgrid(lon0 + (np.arange(cols) + 0.5) * dlon, lat0 + (np.arange(rows) + 0.5) * dlat)
+    return egm96_undulation(lon, lat)
 
 
 @njit(cache=True, nogil=True)

@@ -14,16 +14,14 @@ import os
 import numpy as np
 
 from ..atomic import storage_error
+from ..tiling import tile_grid
 
 TILE = 2048     # ground tile side, cells
 
 
 def windows(shape, tile=TILE):
-    """(i0, i1, j0, j1) of the tiles of a `shape` grid, row by row."""
-    rows, cols = shape
-    for i0 in range(0, rows, tile):
-        for j0 in range(0, cols, tile):
-            yield i0, min(i0 + tile, rows), j0, min(j0 + tile, cols)
+    """The tiles of tiling.tile_grid over a `shape` (rows, cols) grid, as array windows (i0, i1, j0, j1)."""
+    return [(y0, y1, x0, x1) for x0, y0, x1, y1 in tile_grid((shape[1], shape[0]), tile)]
 
 
 def grown(window, shape, top, bottom=None, left=None, right=None):

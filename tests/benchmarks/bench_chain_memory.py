@@ -33,7 +33,8 @@ from osgeo import gdal
 
 from pushbroom.algorithms.execution import BACKENDS
 from tests.benchmarks.bench_region_growing import SCENES, scene
-from tests.helpers.processes import descendants
+from tests.helpers.dem_cloud import read_raster
+from tests.helpers.processes import descendants, peak_kb
 from tests.helpers.qgis_process_profile import QGIS_PROCESS, qgis_process_env
 
 SIZES = (15.0, 30.0, 60.0)
@@ -43,17 +44,6 @@ SAMPLE_S = 0.1
 CONTROL = 19          # the first 19 points control, the rest check (as make demo)
 TILED = ("matchpoints", "intersectpoints", "interpolatedem", "orthorectify")   # the surface chain's tiled steps
 CLASSES = ("bare fields", "grass/crops", "forest", "city/buildings", "water")
-
-
-def _hwm_kb(pid):
-    try:
-        with open(f"/proc/{pid}/status", encoding="utf-8") as f:
-            for line in f:
-                if line.startswith("VmHWM:"):
-                    return int(line.split()[1])
-    except (OSError, ValueError):
-        pass
-    return 0
 
 
 def measured(command, env):
@@ -67,7 +57,7 @@ def measured(command, env):
     def sample():
         while not done.is_set():
             for pid in [proc.pid] + descendants(proc.pid):
-                peaks[pid] = max(peaks.get(pid, 0), _hwm_kb(pid))
+                peaks[pid] = max(peaks.get(pid, 0), peak_kb(pid))
             time.sleep(SAMPLE_S)
 
     sampler = threading.Thread(target=sample)
@@ -121,18 +111,10 @@ def chain(folder, out, execution, env):
     return rows, accuracy
 
 
-def _dem(path):
-    ds = gdal.Open(str(path))
-    band = ds.GetRasterBand(1)
-    values = band.ReadAsArray().astype(np.float64)
-    values[values == band.GetNoDataValue()] = np.nan
-    return values
-
-
 def dem_agreement(points, dem, execution, env, out, tile=1024):
     """Rows comparing the DEM `dem` (interpolatedem of `points` with `execution`, TILE `tile`) with the
     DEMs of the other executions and of a single tile."""
-    reference = _dem(dem)
+    reference = read_raster(dem)[0]
     rows = []
     runs = [(other, f"TILE={tile}") for other in BACKENDS if other != execution] + [(execution, "TILE=100000")]
     for other, tiling in runs:
@@ -140,7 +122,7 @@ def dem_agreement(points, dem, execution, env, out, tile=1024):
         seconds, peak, processes, _ = measured([QGIS_PROCESS, "run", "pushbroom:interpolatedem", "--",
                                                 f"INPUT={points}", "CELL=10", f"EXECUTION={BACKENDS.index(other)}",
                                                 f"WORKERS={WORKERS}", tiling, f"OUTPUT={path}"], env)
-        values = _dem(path)
+        values = read_raster(path)[0]
         both = np.isfinite(values) & np.isfinite(reference)
         dh = np.abs(values - reference)[both]
         changed = float(np.mean(np.isfinite(values) != np.isfinite(reference)))

@@ -2,6 +2,18 @@
 import os
 
 
+def peak_kb(pid="self"):
+    """VmHWM, the peak resident memory, of process `pid` in kB (0 where it has gone)."""
+    try:
+        with open(f"/proc/{pid}/status", encoding="utf-8") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1])
+    except (OSError, ValueError):
+        pass
+    return 0
+
+
 def _parent(pid):
     """The parent pid of `pid` (None where it has gone)."""
     try:
