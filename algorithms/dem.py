@@ -8,7 +8,6 @@ Heights outside PLAUSIBLE_HEIGHTS are no terrain on Earth: voids the file does n
 (SRTM's -32768), or another unit. They are used as given, with a warning (implausible_heights) that
 says how to declare their value as nodata."""
 import math
-import os
 
 import numpy as np
 from numba import njit
@@ -50,15 +49,25 @@ def implausible_heights(heights, what="the DEM"):
     """A warning about the finite `heights` (array) outside PLAUSIBLE_HEIGHTS: how many cells, the value
     most of them hold, and how to declare it as nodata; None where every height is plausible. `what`
     names the raster ("the DEM dem.tif")."""
+    return implausible_warning(*implausible_values(heights), what)
+
+
+def implausible_values(heights):
+    """(values, counts) of the finite `heights` outside PLAUSIBLE_HEIGHTS: what implausible_warning tells,
+    to be added up over the bands of a raster read in parts."""
     low, high = PLAUSIBLE_HEIGHTS
     heights = np.asarray(heights, dtype=np.float64)
-    bad = heights[(heights < low) | (heights > high)]
-    if not bad.size:
+    return np.unique(heights[(heights < low) | (heights > high)], return_counts=True)
+
+
+def implausible_warning(values, counts, what="the DEM"):
+    """implausible_heights' warning from the implausible `values` (ascending, unique) and their `counts`."""
+    if not len(values):
         return None
-    values, counts = np.unique(bad, return_counts=True)
-    value = float(values[np.argmax(counts)])
-    found = (f"{bad.size} cells at {value:g} m" if values.size == 1 else
-             f"{bad.size} cells from {values[0]:g} to {values[-1]:g} m ({counts.max()} of them at {value:g} m)")
+    low, high = PLAUSIBLE_HEIGHTS
+    total, value = int(np.sum(counts)), float(values[np.argmax(counts)])
+    found = (f"{total} cells at {value:g} m" if len(values) == 1 else
+             f"{total} cells from {values[0]:g} to {values[-1]:g} m ({max(counts)} of them at {value:g} m)")
     return (f"{what} has {found}, outside the heights of terrain on Earth ({low:g} .. {high:g} m): voids that are "
             f"not flagged as nodata, or heights in another unit. They are used as heights as they are; if they are "
             f"voids, declare {value:g} as the DEM's nodata value (the DEM nodata parameter, or gdal_edit.py "
@@ -72,6 +81,22 @@ def grid_bounds(geotransform, shape):
     return lon0, lat0 + rows * dlat, lon0 + cols * dlon, lat0
 
 
+def check_grid(shape, geotransform):
+    """The geotransform of a DEM grid of `shape` as 6 floats; InputError unless the grid is 2-D, at least
+    2 x 2 cells and north-up."""
+    if len(shape) != 2 or min(shape) < 2:
+        raise InputError(f"a DEM needs a 2-D grid of at least 2 x 2 cells, got {tuple(shape)}")
+    try:
+        gt = tuple(float(v) for v in geotransform)
+    except (TypeError, ValueError):
+        gt = ()
+    if len(gt) != 6 or not all(math.isfinite(v) for v in gt):
+        raise InputError(f"a DEM geotransform is 6 finite numbers (GDAL's), got {geotransform!r}")
+    if gt[2] != 0.0 or gt[4] != 0.0 or gt[1] <= 0.0 or gt[5] >= 0.0:
+        raise InputError("a DEM grid must be north-up (no rotation terms, dlon > 0, dlat < 0)")
+    return gt
+
+
 class Dem:
     """Ellipsoidal heights (metres, WGS 84) on a geographic grid."""
 
@@ -80,20 +105,10 @@ class Dem:
 
     def __init__(self, heights, geotransform):
         heights = np.ascontiguousarray(heights, dtype=np.float64)
-        if heights.ndim != 2 or min(heights.shape) < 2:
-            raise InputError(f"a DEM needs a 2-D grid of at least 2 x 2 cells, got {heights.shape}")
-        try:
-            gt = tuple(float(v) for v in geotransform)
-        except (TypeError, ValueError):
-            gt = ()
-        if len(gt) != 6 or not all(math.isfinite(v) for v in gt):
-            raise InputError(f"a DEM geotransform is 6 finite numbers (GDAL's), got {geotransform!r}")
-        if gt[2] != 0.0 or gt[4] != 0.0 or gt[1] <= 0.0 or gt[5] >= 0.0:
-            raise InputError("a DEM grid must be north-up (no rotation terms, dlon > 0, dlat < 0)")
+        self.geotransform = check_grid(heights.shape, geotransform)
         if np.all(np.isnan(heights)):
             raise InputError("the DEM holds no valid height (all cells are nodata)")
         self.heights = heights
-        self.geotransform = gt
 
     @property
     def shape(self):
@@ -131,51 +146,38 @@ class Dem:
 
     @classmethod
     def from_file(cls, path, nodata=None):
-        """Read a DEM raster with ellipsoidal heights; other CRSs are warped (bilinear) to EPSG:4326.
+        """The whole DEM raster `path` in memory, read as dem_store.store_dem reads it (ellipsoidal heights;
+        other CRSs warped bilinearly to EPSG:4326; its nodata and `nodata`, a declared void value, as NaN;
+        `implausible` set), by way of a temporary folder of the system (a StorageError where it is full).
+        InputError where the file cannot be opened or has no CRS. For a large raster, read windows of
+        dem_store.store_dem's file instead."""
+        import tempfile
 
-        The raster's own nodata and `nodata` (a value the user declares, such as SRTM's -32768 in a
-        file that does not flag its voids) become NaN; `implausible` is implausible_heights of the
-        heights as read. InputError where the file cannot be opened or has no CRS (where its cells lie
-        would be a guess). Geoid-referenced heights (SRTM) must be converted by the caller."""
-        from osgeo import gdal
+        from .dem_store import store_dem
+        with tempfile.TemporaryDirectory(prefix="pushbroom-dem-") as work:
+            return store_dem(path, work, nodata).whole()
 
-        from .crs import wgs84
-        gdal.UseExceptions()
-        try:
-            ds = gdal.Open(str(path))
-        except RuntimeError as exc:
-            if not os.path.exists(path):
-                raise InputError(f"cannot open DEM {path}: the file does not exist; check the path") from None
-            raise InputError(f"cannot open DEM {path}: GDAL does not read it as a raster ({exc})") from exc
-        srs = ds.GetSpatialRef()
-        if srs is None:
-            raise InputError(f"the DEM {path} has no coordinate reference system, so where its cells lie is unknown: "
-                             f"assign the CRS of its coordinates, e.g. 'gdal_edit.py -a_srs EPSG:4326 {path}' for "
-                             "longitude/latitude in degrees (or the EPSG code of its map projection), and run again")
-        band = ds.GetRasterBand(1)
-        heights = band.ReadAsArray().astype(np.float64)
-        for value in (band.GetNoDataValue(), nodata):
-            if value is not None and not math.isnan(value):
-                heights[heights == value] = np.nan
-        implausible = implausible_heights(heights, f"the DEM {path}")
-        geotransform = ds.GetGeoTransform()
-        if not srs.IsSame(wgs84(), ["IGNORE_DATA_AXIS_TO_SRS_AXIS_MAPPING=YES"]):
-            source = gdal.GetDriverByName("MEM").Create("", ds.RasterXSize, ds.RasterYSize, 1, gdal.GDT_Float64)
-            source.SetGeoTransform(geotransform)
-            source.SetSpatialRef(srs)
-            source.GetRasterBand(1).SetNoDataValue(float("nan"))
-            source.GetRasterBand(1).WriteArray(heights)
-            warped = gdal.Warp("", source, format="MEM", dstSRS="EPSG:4326", resampleAlg="bilinear",
-                               outputType=gdal.GDT_Float64, dstNodata=float("nan"))
-            heights, geotransform = warped.GetRasterBand(1).ReadAsArray(), warped.GetGeoTransform()
-        dem = cls(heights, geotransform)
-        dem.implausible = implausible
-        return dem
+    def ground(self, model, col, row):
+        """(lon, lat, h) where the rays of image points (col, row) of sensor `model` meet this DEM
+        (model.image_to_dem)."""
+        return model.image_to_dem(col, row, self)
+
+    def cells_range(self, rows, cols):
+        """(min, max) of the valid heights of the cells rows[0]:rows[1], cols[0]:cols[1] (NaN, NaN where none)."""
+        window = self.heights[rows[0]:rows[1], cols[0]:cols[1]]
+        if not np.isfinite(window).any():
+            return math.nan, math.nan
+        return float(np.nanmin(window)), float(np.nanmax(window))
+
+    def stored(self, work):
+        """This DEM as a dem_store.StoredDem in the folder `work` (its file read by windows)."""
+        from .dem_store import stored_copy
+        return stored_copy(self, work)
 
 
 def dem_window(heights, geotransform, height_range, bounds):
-    """The Dem of the cells of `heights` (the grid of a Dem with `geotransform`, e.g. memory-mapped from a
-    file: only the window is read) that cover the lon/lat `bounds` (lon_min, lat_min, lon_max, lat_max)
+    """The Dem of the cells of `heights` (the grid of a Dem with `geotransform`, or a disk_array.DiskArray of
+    it: only the window is read) that cover the lon/lat `bounds` (lon_min, lat_min, lon_max, lat_max)
     and one more cell around, so that `height` is the whole DEM's there. Its height_range is the whole
     DEM's `height_range`. A window outside the grid is 2 x 2 nodata cells."""
     lon0, dlon, _, lat0, _, dlat = geotransform

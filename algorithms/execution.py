@@ -19,6 +19,7 @@ Inside QGIS `sys.executable` is the QGIS binary, not Python: worker processes ar
 interpreter of this Python (`python_executable`, set through multiprocessing.set_executable), which
 both the process pool and Dask's nannies use. Dask reruns the task of a worker that dies on another
 worker (distributed's allowed-failures); the process pool cannot, and reports which step failed.
+In worker processes each task runs with GDAL's block cache held to raster_cache.STEP_CACHE.
 
 Failure modes: InputError for unknown settings; ExecutionError when no Dask scheduler answers at
 `address` within `connect_timeout` s, when a worker process dies, or when no Python interpreter can
@@ -36,6 +37,7 @@ from dataclasses import dataclass
 
 from . import progress
 from .errors import CancelledError, ExecutionError, InputError
+from .raster_cache import in_worker
 
 BACKENDS = ("threads", "processes", "dask")
 #: s between two looks at the pending tasks and the cancel button
@@ -103,14 +105,17 @@ class _Pool:
     """threads / processes: concurrent.futures."""
 
     def __init__(self, execution):
-        if execution.backend == "threads":
+        self.threads = execution.backend == "threads"
+        if self.threads:
             self.pool = cf.ThreadPoolExecutor(int(execution.workers))
         else:
             _use_python_for_workers()
             self.pool = cf.ProcessPoolExecutor(int(execution.workers), mp_context=multiprocessing.get_context("spawn"))
 
     def submit(self, function, args):
-        return self.pool.submit(function, *args)
+        if self.threads:
+            return self.pool.submit(function, *args)
+        return self.pool.submit(in_worker, function, args)
 
     def done(self, futures):
         return cf.wait(futures, timeout=POLL, return_when=cf.FIRST_COMPLETED)[0]
@@ -158,7 +163,7 @@ class _Dask:
 
     def submit(self, function, args):
         # pure=False: a task is run, not looked up (two runs of the same tile may write different files)
-        return self.client.submit(function, *args, pure=False)
+        return self.client.submit(in_worker, function, args, pure=False)
 
     def done(self, futures):
         done = {f for f in futures if f.done()}

@@ -18,8 +18,8 @@ class TieHeights:
 
 
 def tie_height_differences(result, dem, heights="ellipsoidal"):
-    """TieHeights of the tie points of Adjustment `result` against Dem `dem` whose heights are
-    `heights` (control_points.HEIGHT_TYPES: "ellipsoidal" or "orthometric", EGM96)."""
+    """TieHeights of the tie points of Adjustment `result` against `dem` (dem.Dem or dem_store.StoredDem: its
+    `height`) whose heights are `heights` (control_points.HEIGHT_TYPES: "ellipsoidal" or "orthometric", EGM96)."""
     if heights not in HEIGHT_TYPES:
         raise InputError(f"reference heights {heights!r}: choose one of {', '.join(HEIGHT_TYPES)}")
     tie = result.observations.points["role"] == "tie"

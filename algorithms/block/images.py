@@ -35,22 +35,21 @@ HEIGHT_MARGIN = 500.0
 
 
 def terrain_height_range(rings, height, dem):
-    """(min, max) ellipsoidal terrain height of the block: the DEM's valid heights inside the
-    footprints' bounding box, or the mean height +- HEIGHT_MARGIN."""
+    """(min, max) ellipsoidal terrain height of the block: the valid heights of `dem` (dem.Dem or StoredDem)
+    inside the footprints' bounding box, or the mean height +- HEIGHT_MARGIN."""
     if dem is None:
         return float(height) - HEIGHT_MARGIN, float(height) + HEIGHT_MARGIN
     allpts = np.vstack(rings)
     lon0, dlon, _, lat0, _, dlat = dem.geotransform
     cols = np.clip(((allpts[:, 0] - lon0) / dlon).astype(int), 0, dem.shape[1] - 1)
     rows = np.clip(((allpts[:, 1] - lat0) / dlat).astype(int), 0, dem.shape[0] - 1)
-    window = dem.heights[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
-    return float(np.nanmin(window)), float(np.nanmax(window))
+    return dem.cells_range((rows.min(), rows.max() + 1), (cols.min(), cols.max() + 1))
 
 
 def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=None):
     """Create `path` (a .gpkg) from `images`, a list of (name, image_path, orientation_path, model).
 
-    Footprints are the image borders on `dem` (algorithms.dem.Dem) or at ellipsoidal `height`.
+    Footprints are the image borders on `dem` (dem_store.StoredDem, or dem.Dem) or at ellipsoidal `height`.
     Refuses to replace an existing block unless `overwrite` is true."""
     path = os.fspath(path)
     if not path.lower().endswith(".gpkg"):

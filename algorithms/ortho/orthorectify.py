@@ -7,7 +7,8 @@ The output is processed in square tiles (tiling.tile_grid), each a task on the c
 (execution.run_tasks: threads, local processes or Dask). Per tile only the image window it needs is
 read (GDAL) and only the DEM window under the tile's footprint, widened by the reach of an occluding
 ray (the DEM's height range times the slope of the lines of sight), is taken from the DEM, which the
-step stores once as a memory-mapped file in a work folder beside the output (dem.dem_window). So
+step reads from its stored file (dem_store.StoredDem.window; a DEM in memory is stored in a work folder beside
+the output first). So
 memory follows the tile and the number of workers, and the result does not depend on the execution.
 Each task writes its tile as a GeoTIFF; GDAL assembles them (a VRT translated into a tiled,
 DEFLATE-compressed GeoTIFF of the image's data type with nodata set and overviews,
@@ -19,12 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from osgeo import gdal, gdal_array
-from scipy.interpolate import RegularGridInterpolator
 
 from .. import progress
-from ..atomic import atomic_path, closing, save_array, work_dir
-from ..crs import egm96_undulation, srs as parse_crs
-from ..dem import Dem, dem_window
+from ..atomic import atomic_path, closing, work_dir
+from ..crs import srs as parse_crs
 from ..errors import InputError
 from ..execution import run_tasks
 from ..surface.geotiff import assemble_tiles
@@ -35,31 +34,6 @@ from .mapping import START_STEP, TileMapper
 
 TILE = 512
 CREATION_OPTIONS = ("TILED=YES", "BLOCKXSIZE=256", "BLOCKYSIZE=256", "COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER")
-#: DEM vertical references load_dem converts from
-VERTICAL = ("ellipsoidal", "egm96")
-
-
-def load_dem(dem, vertical="ellipsoidal", nodata=None):
-    """A Dem of ellipsoidal heights from a Dem or a raster path (any CRS: Dem.from_file warps it to WGS 84
-    lon/lat; `nodata` a declared void value); vertical 'egm96' adds the EGM96 undulation N (h = H + N,
-    PROJ), computed on a lattice of at most 257 x 257 cells and interpolated bilinearly (N varies over
-    tens of kilometres). The result keeps the read Dem's `implausible` warning."""
-    if vertical not in VERTICAL:
-        raise InputError(f"the DEM heights are {' or '.join(VERTICAL)}, not {vertical!r}")
-    dem = dem if isinstance(dem, Dem) else Dem.from_file(dem, nodata)
-    if vertical == "ellipsoidal":
-        return dem
-    rows, cols = dem.shape
-    lon0, dlon, _, lat0, _, dlat = dem.geotransform
-    r = np.unique(np.linspace(0, rows - 1, min(rows, 257)).round())
-    c = np.unique(np.linspace(0, cols - 1, min(cols, 257)).round())
-    lon_c, lat_r = lon0 + (c + 0.5) * dlon, lat0 + (r + 0.5) * dlat
-    n = egm96_undulation(*np.meshgrid(lon_c, lat_r))
-    rr, cc = np.mgrid[0:rows, 0:cols]
-    und = RegularGridInterpolator((r, c), n)(np.column_stack([rr.ravel(), cc.ravel()])).reshape(rows, cols)
-    ellipsoidal = Dem(dem.heights + und, dem.geotransform)
-    ellipsoidal.implausible = dem.implausible
-    return ellipsoidal
 
 
 @dataclass
@@ -166,12 +140,11 @@ def _footprint(grid, window, reach, step):
 def _ortho_tile(job, window, out):
     """Task: the output tile `window` (row0, col0, rows, cols) of the orthoimage of `job`, written to the
     GeoTIFF `out`; returns (valid cells, occluded cells, coarse step, achieved bound)."""
-    (image, model, dem_file, dem_geotransform, dem_range, grid_wkt, grid_geotransform, size, method, occlusion_on,
+    (image, model, stored, grid_wkt, grid_geotransform, size, method, occlusion_on,
      dtype, nodata, max_error, start_step, reach, gdal_type) = job
     gdal.UseExceptions()
     grid = OutputGrid(parse_crs(grid_wkt), grid_geotransform, *size)
-    dem = dem_window(np.load(dem_file, mmap_mode="r"), dem_geotransform, dem_range,
-                     _footprint(grid, window, reach, start_step))
+    dem = stored.window(_footprint(grid, window, reach, start_step))
     worker = _TileWorker(image, model, dem, TileMapper(model, dem, grid, max_error, start_step), method, occlusion_on,
                          np.dtype(dtype), nodata)
     values, n, hidden, step, bound = worker(window)
@@ -190,8 +163,8 @@ def _ortho_tile(job, window, out):
 def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None, resampling_method="bilinear",
                  occlusion_mask=False, max_error=0.01, start_step=START_STEP, tile=TILE, execution=None, overviews=True,
                  feedback=None):
-    """Orthoimage of raster `image` (path) with sensor `model` on `dem` (Dem of ellipsoidal heights; see
-    load_dem), written to GeoTIFF `output`. The grid is `grid` (OutputGrid) or default_grid(model, dem, crs,
+    """Orthoimage of raster `image` (path) with sensor `model` on `dem` (ellipsoidal heights: a dem.Dem, or a
+    dem_store.StoredDem), written to GeoTIFF `output`. The grid is `grid` (OutputGrid) or default_grid(model, dem, crs,
     cell_size); resampling 'bilinear' or 'bicubic'; occlusion_mask sets occluded cells to nodata;
     max_error (px) bounds the coarse-grid interpolation (mapping.py); the tiles run on `execution`
     (execution.Execution; default one thread). Returns an OrthoResult; raises CancelledError (nothing
@@ -216,9 +189,8 @@ def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None,
     windows = [(y0, x0, y1 - y0, x1 - x0) for x0, y0, x1, y1 in tile_grid((grid.cols, grid.rows), tile)]
     reach = _reach(model, dem) if occlusion_mask else (0.0, 0.0)
     with work_dir(output, "the orthoimage tiles") as work:
-        dem_file = os.path.join(work, "dem.npy")
-        save_array(dem_file, dem.heights, "a copy of the DEM")
-        job = (str(image), model, dem_file, dem.geotransform, dem.height_range, grid.srs.ExportToWkt(),
+        dem = dem.stored(work)
+        job = (str(image), model, dem, grid.srs.ExportToWkt(),
                tuple(grid.geotransform), (grid.cols, grid.rows), resampling_method, occlusion_mask, np_type.str,
                nodata, max_error, start_step, reach, band.DataType)
         tiles = [os.path.join(work, f"tile-{k:05d}.tif") for k in range(len(windows))]

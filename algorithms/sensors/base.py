@@ -104,7 +104,8 @@ class SensorModel:
         return lon.reshape(shape), lat.reshape(shape), h.reshape(shape)
 
     def footprint(self, h=0.0, dem=None, per_side=16):
-        """Closed ring (N, 2) of (lon, lat) along the image border, at height h or on the DEM."""
+        """Closed ring (N, 2) of (lon, lat) along the image border, at height h or on the DEM `dem`
+        (dem.Dem or dem_store.StoredDem: its `ground` points of the border's rays)."""
         cols, rows = self.size
         t = np.linspace(0.0, 1.0, per_side + 1)[:-1]
         c = np.concatenate([t * cols, np.full(per_side, cols), (1 - t) * cols, np.zeros(per_side)])
@@ -112,7 +113,7 @@ class SensorModel:
         if dem is None:
             lon, lat = self.image_to_ground(c, r, np.full(c.size, float(h)))
         else:
-            lon, lat, _ = self.image_to_dem(c, r, dem)
+            lon, lat, _ = dem.ground(self, c, r)
         ring = np.column_stack([lon, lat])
         if not np.all(np.isfinite(ring)):
             raise GeometryError(f"the image border has no ground position at {np.isnan(ring[:, 0]).sum()} of "

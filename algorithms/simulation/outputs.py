@@ -16,7 +16,7 @@ ROWS = 256       # raster rows written at a time
 
 
 def write_raster(path, array, grid, dtype, nodata=None, description="", metadata=None, convert=None):
-    """North-up GeoTIFF of the grid array `array` (in memory or tiles.DiskArray) on `grid`
+    """North-up GeoTIFF of the grid array `array` (in memory or disk_array.DiskArray) on `grid`
     (EPSG:4326) as `dtype` (uint8 or float32), ROWS rows at a time (`convert` applied to each
     block first), tiled, DEFLATE, with overviews."""
     from osgeo import gdal

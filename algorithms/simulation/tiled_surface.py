@@ -1,5 +1,5 @@
 """Ray casting against a scene's whole DSM one window at a time (render.py casts against a DSM held
-in memory; a full-size scene's DSM is a file of several GB, tiles.DiskArray).
+in memory; a full-size scene's DSM is a file of several GB, disk_array.DiskArray).
 
 A batch of rays can only meet the surface between the heights hmax + 5 m and hmin - 5 m where
 render.ray_ground cuts it (plus REFINE_M of refinement). Their ground points at those two heights
@@ -22,7 +22,7 @@ EDGE_STEP = 128       # px between the border rays that bound a chunk's window
 
 
 class TiledSurface:
-    """The DSM `dsm` (an array or tiles.DiskArray) on `grid`, with its height range (hmin, hmax)."""
+    """The DSM `dsm` (an array or disk_array.DiskArray) on `grid`, with its height range (hmin, hmax)."""
 
     def __init__(self, grid, dsm, height_range):
         self.grid, self.dsm = grid, dsm

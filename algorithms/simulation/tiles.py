@@ -3,17 +3,12 @@ radiance) lives in a `.npy` file of a work folder (simulate_scene), or in memory
 given (tests), and
 every kernel runs on a tile of at most TILE x TILE cells plus the margin its neighbourhood needs.
 So a full-size scene (60 km at 5 m: about 14 000 x 14 000 cells per grid) keeps a few windows in
-memory, never a grid.
-
-A file-backed grid (DiskArray) is opened as a memory map only for the one slice read or written,
-then closed: pages of the scene do not stay mapped into the process between tiles. Its file is
-allocated in full when it is made, so a full disk is a StorageError then, not a fault (SIGBUS) when
-a page of a sparse file is first written through the map."""
+memory, never a grid (disk_array.DiskArray: mapped only for the slice read or written)."""
 import os
 
 import numpy as np
 
-from ..atomic import storage_error
+from ..disk_array import DiskArray
 from ..tiling import tile_grid
 
 TILE = 2048     # ground tile side, cells
@@ -43,43 +38,11 @@ def cut(array, window):
     return np.asarray(array[i0:i1, j0:j1])
 
 
-class DiskArray:
-    """A 2-D array in a .npy file with numpy slicing: a[key] reads (a copy), a[key] = v writes."""
-
-    def __init__(self, path, shape, dtype):
-        self.path, self.shape, self.dtype = path, tuple(shape), np.dtype(dtype)
-        try:
-            np.lib.format.open_memmap(path, mode="w+", dtype=self.dtype, shape=self.shape).flush()
-            with open(path, "r+b") as f:
-                os.posix_fallocate(f.fileno(), 0, os.fstat(f.fileno()).st_size)
-        except OSError as exc:
-            raise storage_error(exc, path, "the simulator's ground grids") from None
-
-    def _map(self, mode):
-        return np.load(self.path, mmap_mode=mode)
-
-    def __getitem__(self, key):
-        data = self._map("r")
-        out = np.array(data[key])
-        del data
-        return out
-
-    def __setitem__(self, key, value):
-        data = self._map("r+")
-        try:
-            data[key] = value
-            data.flush()
-        except OSError as exc:
-            raise storage_error(exc, self.path, "the simulator's ground grids") from None
-        finally:
-            del data
-
-
 def grid_array(folder, name, shape, dtype):
     """A grid-shaped array: in memory where `folder` is None, else a DiskArray `<folder>/<name>.npy`."""
     if folder is None:
         return np.empty(shape, dtype)
-    return DiskArray(os.path.join(folder, f"{name}.npy"), shape, dtype)
+    return DiskArray(os.path.join(folder, f"{name}.npy"), shape, dtype, "the simulator's ground grids")
 
 
 def release(*arrays):

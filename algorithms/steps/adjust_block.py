@@ -18,6 +18,7 @@ and tie points and store the result.
 
 A block without control points can only be adjusted with named free parameters and priors that fix
 the datum (InputError otherwise)."""
+import contextlib
 from dataclasses import dataclass
 from typing import Optional
 
@@ -33,8 +34,9 @@ from ..adjustment.residual_vectors import DEFAULT_SCALE, residual_vectors, write
 from ..adjustment.selection import select_parameters
 from ..adjustment.tie_heights import tie_height_differences
 from ..adjustment.variance import adjust_with_components
+from ..atomic import work_dir
 from ..block import Block
-from ..dem import Dem
+from ..dem_store import store_dem
 from ..errors import InputError
 from ..height_range import mean_height
 from ..sigmas import IMAGE_SIGMA
@@ -167,29 +169,31 @@ def adjust_block(block_path, params, feedback=None):
                          "with tie points alone by naming the free parameters and priors that fix the "
                          "datum (e.g. FREE bias:shift, PRIORS bias:shift=10 for RPC images)")
     height = mean_height(blk.height_range())
-    dem = None
-    if params.reference_dem:
-        dem = Dem.from_file(params.reference_dem, params.reference_dem_nodata)
-        progress.warn(feedback, dem.implausible)
-    options = {"height": height, "critical": params.critical, "priors": priors,
-               "max_iterations": params.max_iterations, "remove_blunders": params.remove_blunders}
-    result, obs, free, extra = _solve(models, obs, names, params, options, feedback)
-    counts = parse_counts(params.control_series)
-    if counts:
-        series = control_point_series(blk.models(supplied=True),            # _solve adjusted `models`
-                                      obs, counts, free, names=names, feedback=feedback,
-                                      **{k: v for k, v in options.items() if k != "remove_blunders"})
-        extra.append(report.series_section(series))
-    check = check_points(result, obs, height)
-    table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")}) if len(check["dE"]) else None
-    heights = None
-    if dem is not None:
-        datum = params.reference_heights
-        heights = (tie_height_differences(result, dem, datum),
-                   f"{params.reference_dem}, {'EGM96 ' if datum == 'orthometric' else ''}{datum} heights")
-        if not len(heights[0].dh):
-            progress.warn(feedback, "no adjusted tie point lies on the reference DTM: the tie point height table "
-                          "is empty (use the block's tie points and a DTM that covers the block)")
+    with contextlib.ExitStack() as stack:     # the reference DEM's work folder, where there is one
+        dem = None
+        if params.reference_dem:
+            dem = store_dem(params.reference_dem, stack.enter_context(work_dir(block_path, "the stored reference DEM")),
+                            params.reference_dem_nodata)
+            progress.warn(feedback, dem.implausible)
+        options = {"height": height, "critical": params.critical, "priors": priors,
+                   "max_iterations": params.max_iterations, "remove_blunders": params.remove_blunders}
+        result, obs, free, extra = _solve(models, obs, names, params, options, feedback)
+        counts = parse_counts(params.control_series)
+        if counts:
+            series = control_point_series(blk.models(supplied=True),            # _solve adjusted `models`
+                                          obs, counts, free, names=names, feedback=feedback,
+                                          **{k: v for k, v in options.items() if k != "remove_blunders"})
+            extra.append(report.series_section(series))
+        check = check_points(result, obs, height)
+        table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")}) if len(check["dE"]) else None
+        heights = None
+        if dem is not None:
+            datum = params.reference_heights
+            heights = (tie_height_differences(result, dem, datum),
+                       f"{params.reference_dem}, {'EGM96 ' if datum == 'orthometric' else ''}{datum} heights")
+            if not len(heights[0].dh):
+                progress.warn(feedback, "no adjusted tie point lies on the reference DTM: the tie point height table "
+                              "is empty (use the block's tie points and a DTM that covers the block)")
     vectors, crs = residual_vectors(result, check, obs, params.vector_scale,
                                     blk.info().get("default_crs"), params.critical)
     parts = report.sections(result, check, table, params.critical, heights, vectors)

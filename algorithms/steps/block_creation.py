@@ -11,8 +11,9 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from .. import progress
+from ..atomic import work_dir
 from ..block import Block
-from ..dem import Dem
+from ..dem_store import store_dem
 
 
 @dataclass
@@ -40,13 +41,15 @@ def create_block(output, images, params, feedback=None):
     returns a CreateResult. Raises InputError (no or duplicate images, orientation files that do not
     match, an existing block without overwrite, a footprint that cannot be projected) and the sensor
     readers' errors."""
-    dem = None
-    if params.dem:
-        dem = Dem.from_file(params.dem, params.dem_nodata)
-        progress.warn(feedback, dem.implausible)
     opened = Block.open_images(images, [p for p in params.orientation if p])
-    # storage: the new block
-    blk = Block.create(output, opened, height=params.height, dem=dem, overwrite=params.overwrite, feedback=feedback)
+    with work_dir(output, "the stored DEM") as work:
+        dem = None
+        if params.dem:
+            dem = store_dem(params.dem, work, params.dem_nodata)
+            progress.warn(feedback, dem.implausible)
+        # storage: the new block
+        blk = Block.create(output, opened, height=params.height, dem=dem, overwrite=params.overwrite,
+                           feedback=feedback)
     progress.ensure(feedback).pushInfo(f"block {output}: " + ", ".join(
         f"{name} ({model.size[0]} x {model.size[1]})" for name, _, _, model in opened))
     return CreateResult(output, blk.layer_source("footprints"),

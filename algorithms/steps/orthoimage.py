@@ -3,16 +3,18 @@ its own orientation, on a DEM, by ortho.orthorectify (the indirect method, Heipk
 from dataclasses import dataclass, field
 
 from .. import progress, sensors
+from ..atomic import work_dir
 from ..block import Block
+from ..dem_store import VERTICAL, store_dem
 from ..errors import InputError
 from ..execution import Execution
-from ..ortho.orthorectify import VERTICAL, load_dem, orthorectify
+from ..ortho.orthorectify import orthorectify
 from ..ortho.resampling import METHODS
 
 
 @dataclass
 class OrthoParams:
-    """The orthorectification step's settings (pushbroom:orthorectify); see orthorectify and load_dem."""
+    """The orthorectification step's settings (pushbroom:orthorectify); see orthorectify and dem_store.store_dem."""
 
     dem_heights: str = "ellipsoidal"    # one of VERTICAL
     dem_nodata: float = None            # a void value of the DEM declared as nodata
@@ -53,12 +55,14 @@ def image_and_model(block_path=None, image_name="", image=None, orientation=None
 def orthorectify_image(output, dem, params=None, block_path=None, image_name="", image=None, orientation=None,
                        feedback=None):
     """The orthorectification step: the image chosen as in image_and_model on the raster DEM `dem`
-    (load_dem with the params' heights and nodata; implausible heights are reported), written to the
+    (dem_store.store_dem with the params' heights and nodata, in a work folder beside the output; implausible
+    heights are reported), written to the
     GeoTIFF `output` with OrthoParams `params`. Returns the OrthoResult."""
     params = (params or OrthoParams()).check()
     path, model = image_and_model(block_path, image_name, image, orientation)
-    heights = load_dem(dem, params.dem_heights, params.dem_nodata)
-    progress.warn(feedback, heights.implausible)
-    return orthorectify(path, model, heights, output, crs=params.crs, cell_size=params.cell_size,
-                        resampling_method=params.resampling, occlusion_mask=params.occlusion,
-                        max_error=params.max_error, execution=params.execution, feedback=feedback)
+    with work_dir(output, "the stored DEM") as work:
+        heights = store_dem(dem, work, params.dem_nodata, params.dem_heights)
+        progress.warn(feedback, heights.implausible)
+        return orthorectify(path, model, heights, output, crs=params.crs, cell_size=params.cell_size,
+                            resampling_method=params.resampling, occlusion_mask=params.occlusion,
+                            max_error=params.max_error, execution=params.execution, feedback=feedback)

@@ -16,11 +16,14 @@ cloud.
 3. Without a given maximum edge, a first round of tasks measures the sampled points' nearest-neighbour
    distances, each tile those in its own cells; the median gives default_max_edge. Should it exceed
    the margin's assumption, the points are bucketed again with a wider margin.
-4. Each tile is a task: surface_on_grid on the tile's cells with its points and the breaklines,
-   written as a GeoTIFF tile. The blunder filter's robust sigma is that of the tile's points (with
-   its margin): a local sigma, so a run's blunders can differ with the tile size where the terrain
-   changes character, never with the execution.
-5. A VRT of the tiles is translated into the output GeoTIFF (geotiff.OPTIONS) and its overviews are
+4. The blunder filter's spread (tin.spread: the median and robust sigma of the residuals) is that of
+   the whole cloud, as a single TIN would take it: per filter iteration, a round of tasks returns each
+   tile's residual histogram (tin.residual_histogram) of the points it owns after the iterations
+   already decided, and their sum gives the iteration's spread. The rounds end when no point lies
+   beyond k sigmas.
+5. Each tile is a task: surface_on_grid on the tile's cells with its points, the breaklines and the
+   spreads, written as a GeoTIFF tile.
+6. A VRT of the tiles is translated into the output GeoTIFF (geotiff.OPTIONS) and its overviews are
    built from it, all by GDAL in blocks; the precision raster likewise. Tiles without points are gaps.
 
 Failure modes: tin_dem's InputErrors (settings, no CRS, points outside the output CRS, no defined
@@ -34,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .. import progress
+from .. import histogram, progress
 from ..atomic import append_bytes, atomic_path, save_array, work_dir
 from ..crs import srs as parse_crs, transform
 from ..errors import CancelledError, InputError
@@ -42,8 +45,8 @@ from ..execution import run_tasks
 from ..tiling import tile_grid
 from .geotiff import assemble_tiles, write_float_raster
 from .point_input import point_chunks, read_breaklines
-from .tin import flat_points
-from .tin_dem import EDGE_SPACINGS, SPACING_SAMPLE, DemParams, output_crs, surface_on_grid
+from .tin import delaunay, filter_blunders, flat_points, residual_histogram, spread
+from .tin_dem import EDGE_SPACINGS, SPACING_SAMPLE, DemParams, output_crs, surface_on_grid, tin_vertices
 from .tin_grid import Grid
 
 #: the margin of a tile in maximum triangle edges
@@ -179,16 +182,49 @@ def _spacings(grid, box, points_file):
     return cKDTree(xy).query(xy[inside], k=2)[0][:, 1]
 
 
-def _dem_tile(job, box, points_file, out, precision_out):
-    """Task: the tile `box` (cells) of the DEM from the points of `points_file`, written to `out` (and
-    the precision raster to `precision_out`); returns its counts."""
+def _residual_tile(job, box, points_file, spreads):
+    """Task: the residual histogram (tin.residual_histogram) of the points the tile `box` owns, after the
+    blunder filter's iterations with the given `spreads`."""
+    grid, _, _, max_edge, k, _, breaklines, margin, _ = job
+    rows = np.fromfile(points_file, POINT)
+    sub = _tile_grid(grid, box)
+    x, y, z, _, fixed, inside, _ = tin_vertices(rows["x"], rows["y"], rows["z"], None, grid.cell, max_edge,
+                                                _near(breaklines, sub, margin), _owner(grid, box))
+    if len(x) < 3 or flat_points(x, y):
+        return histogram.EMPTY
+    tin = delaunay(x, y)
+    keep, _ = filter_blunders(tin, x, y, z, k=k, fixed=fixed, spreads=spreads)
+    return residual_histogram(tin, x, y, z, keep, fixed, inside)
+
+
+def _spreads(job, used, execution, feedback):
+    """The blunder filter's (centre, sigma) per iteration from the residuals of all tiles (module docstring,
+    4.): one round of tasks per iteration, until no point lies beyond k sigmas."""
+    k, iterations = job[4], job[5]
+    spreads = []
+    if k <= 0:
+        return spreads
+    for i in range(iterations):
+        hists = run_tasks(_residual_tile, [(job, box, f, list(spreads)) for box, f, _ in used], execution,
+                          progress.scaled(feedback, 100.0 * i / iterations, 100.0 * (i + 1) / iterations),
+                          f"the blunder filter's iteration {i + 1}")
+        given = spread(histogram.total(hists), k)
+        if given is None or given[2] == 0:
+            break
+        spreads.append(given[:2])
+    return spreads
+
+
+def _dem_tile(job, box, points_file, spreads, out, precision_out):
+    """Task: the tile `box` (cells) of the DEM from the points of `points_file` with the blunder filter's
+    `spreads`, written to `out` (and the precision raster to `precision_out`); returns its counts."""
     grid, wkt, datum, max_edge, k, iterations, breaklines, margin, sigma = job
     srs = parse_crs(wkt)
     rows = np.fromfile(points_file, POINT)
     sub = _tile_grid(grid, box)
     result = surface_on_grid(rows["x"], rows["y"], rows["z"], rows["sigma"] if sigma else None, sub, srs, max_edge,
                              datum=datum, k=k, iterations=iterations, breaklines=_near(breaklines, sub, margin),
-                             precision=precision_out is not None, own=_owner(grid, box))
+                             precision=precision_out is not None, own=_owner(grid, box), spreads=spreads)
     write_float_raster(out, result.heights, sub.geotransform, srs, overviews=False)
     if precision_out is not None:
         write_float_raster(precision_out, result.precision, sub.geotransform, srs, overviews=False)
@@ -242,8 +278,10 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
         used = [(box, f, k) for k, (box, f) in enumerate(zip(boxes, files)) if f is not None]
         outs = [os.path.join(work, f"dem-{k:05d}.tif") for _, _, k in used]
         precisions = [os.path.join(work, f"precision-{k:05d}.tif") if precision_path else None for _, _, k in used]
-        done = run_tasks(_dem_tile, [(job, box, f, out, p) for (box, f, _), out, p in zip(used, outs, precisions)],
-                         params.execution, progress.scaled(feedback, 20, 80), "the DEM tiles")
+        spreads = _spreads(job, used, params.execution, progress.scaled(feedback, 20, 50))
+        done = run_tasks(_dem_tile, [(job, box, f, spreads, out, p)
+                                     for (box, f, _), out, p in zip(used, outs, precisions)],
+                         params.execution, progress.scaled(feedback, 50, 80), "the DEM tiles")
         defined = sum(d["defined"] for d in done)
         if all(d["flat"] for d in done):
             where = f" {done[0]['flat']}" if len(done) == 1 else ", in every tile, span no area:"

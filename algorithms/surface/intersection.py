@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .. import progress
+from .. import histogram, progress
 from ..errors import InputError
 from ..geodesy import ecef_to_geodetic, metres_per_degree, offset_enu
 from ..sigmas import IMAGE_SIGMA
@@ -328,12 +328,6 @@ SUMMARY_DECADES = (-6.0, 6.0)
 _SUMMARY_LAST = int(round((SUMMARY_DECADES[1] - SUMMARY_DECADES[0]) / SUMMARY_BIN)) - 1
 
 
-def _add_counts(a, b):
-    """The sum of two sparse histograms (bins ascending, counts)."""
-    bins, inverse = np.unique(np.concatenate([a[0], b[0]]), return_inverse=True)
-    return bins, np.bincount(inverse, weights=np.concatenate([a[1], b[1]]), minlength=len(bins)).astype(np.int64)
-
-
 class Summary:
     """Per point group: points, converged, and the medians of the a priori sigma_E, sigma_N, sigma_H (m)
     and of sigma0 of the converged ones; `add` takes the Intersection of a part, `merge` another
@@ -343,8 +337,7 @@ class Summary:
         self.groups = {}    # group -> [points, converged, 4 sparse histograms (bins, counts)]
 
     def _group(self, g):
-        empty = (np.zeros(0, np.int64), np.zeros(0, np.int64))
-        return self.groups.setdefault(int(g), [0, 0, [empty] * 4])
+        return self.groups.setdefault(int(g), [0, 0, [histogram.EMPTY] * 4])
 
     def add(self, result, group=None):
         """Count the points of `result` (Intersection) with `group` (one per point; None: all group 0)."""
@@ -361,8 +354,7 @@ class Summary:
             finite = np.isfinite(values[ok])            # a NaN sigma is no value; 0 and inf go to the end bins
             bins = np.nan_to_num(bins, nan=0.0, neginf=0.0, posinf=_SUMMARY_LAST).clip(0, _SUMMARY_LAST)
             for q in range(4):
-                counts = np.unique(bins[finite[:, q], q].astype(np.int64), return_counts=True)
-                entry[2][q] = _add_counts(entry[2][q], counts)
+                entry[2][q] = histogram.add(entry[2][q], histogram.count(bins[finite[:, q], q]))
         return self
 
     def merge(self, other):
@@ -371,7 +363,7 @@ class Summary:
             entry = self._group(g)
             entry[0] += points
             entry[1] += converged
-            entry[2] = [_add_counts(mine, theirs) for mine, theirs in zip(entry[2], hists)]
+            entry[2] = [histogram.add(mine, theirs) for mine, theirs in zip(entry[2], hists)]
         return self
 
     def rows(self):
@@ -386,16 +378,8 @@ class Summary:
 
 
 def _histogram_median(bins, counts):
-    """The median of a sparse Summary histogram: the mean of the geometric centres of the bins holding the
-    two middle values (one bin for an odd count); NaN when empty."""
-    total = int(counts.sum())
-    if total == 0:
-        return float("nan")
-    cumulative = np.cumsum(counts)
-    lower = bins[int(np.searchsorted(cumulative, (total + 1) // 2))]      # the lower middle value's bin
-    upper = bins[int(np.searchsorted(cumulative, total // 2 + 1))]        # the upper one's
-    centres = 10.0 ** (SUMMARY_DECADES[0] + (np.array([lower, upper]) + 0.5) * SUMMARY_BIN)
-    return float(centres.mean())
+    """The median of a sparse Summary histogram, of the geometric centres of its bins; NaN when empty."""
+    return histogram.median(10.0 ** (SUMMARY_DECADES[0] + (bins + 0.5) * SUMMARY_BIN), counts)
 
 
 def summary_rows(result, group=None):

@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
+from .. import histogram
 from ..errors import InputError
 from ..stats import NMAD_SCALE
 from .delaunay import seed, triangulate
@@ -167,31 +168,69 @@ def local_maxima(indptr, indices, score, candidate, out):
                 break
 
 
-def filter_blunders(tin, x, y, z, k=4.0, iterations=3, fixed=None, counted=None):
+#: the blunder filter's residuals are rounded to RESIDUAL_STEP (m), far below MIN_SIGMA, so that their
+#: distribution is a sparse histogram (histogram.py) that the tiles of a tiled run add up exactly
+RESIDUAL_STEP = 1e-3
+
+
+def filter_blunders(tin, x, y, z, k=4.0, iterations=3, fixed=None, counted=None, spreads=None):
     """Points of `tin` (`delaunay(x, y)`) whose height departs from the plane fitted to their TIN
-    neighbours by more than k robust sigmas: |r - median(r)| > k * max(1.4826 * median(|r - median(r)|),
-    MIN_SIGMA) over the tested points, r = neighbour_residuals. Of neighbouring candidates only the
-    largest |r| goes per iteration; each iteration recomputes r and the sigma without the points
-    already removed (on the same TIN). Points where `fixed` is True (breakline vertices) are
-    neighbours but never removed. Returns (keep mask, removed per iteration: of the points where
+    neighbours by more than k robust sigmas: |r - centre| > k * sigma, r = neighbour_residuals rounded to
+    RESIDUAL_STEP, with (centre, sigma) = spread of the tested points' r. Of neighbouring candidates only
+    the largest |r| goes per iteration; each iteration recomputes r and the spread without the points
+    already removed (on the same TIN), until no point is beyond k sigmas. Points where `fixed` is True
+    (breakline vertices) are neighbours but never removed.
+
+    `spreads`: the (centre, sigma) of each iteration given from outside, one iteration per entry, instead
+    of those of these points: a tiled run takes them from the residual_histogram of all tiles, so that its
+    decisions do not depend on the tiling. Returns (keep mask, removed per iteration: of the points where
     `counted` is True, default all)."""
-    indptr, indices = tin.vertex_neighbor_vertices
     x, y, z = (np.ascontiguousarray(v, float) for v in (x, y, z))
     keep = np.ones(len(z), bool)
     tested = np.ones(len(z), bool) if fixed is None else ~np.asarray(fixed, bool)
-    removed = []
-    r, bad = np.empty(len(z)), np.empty(len(z), bool)
-    for _ in range(iterations):
-        neighbour_residuals(indptr, indices, x, y, z, keep, r)
+    removed, bad = [], np.empty(len(z), bool)
+    for i in range(iterations if spreads is None else len(spreads)):
+        r = _residuals(tin, x, y, z, keep)
         ok = np.isfinite(r) & tested
-        if ok.sum() < 3:
-            break
-        centre = np.median(r[ok])
+        if spreads is None:
+            given = spread(histogram.count(np.round(r[ok] / RESIDUAL_STEP)), k)
+            if given is None or given[2] == 0:
+                break
+            centre, sigma = given[:2]
+        else:
+            centre, sigma = spreads[i]
         score = np.abs(r - centre)
-        sigma = max(NMAD_SCALE * np.median(score[ok]), MIN_SIGMA)
-        local_maxima(indptr, indices, np.nan_to_num(score), ok & (score > k * sigma), bad)
+        local_maxima(*tin.vertex_neighbor_vertices, np.nan_to_num(score), ok & (score > k * sigma), bad)
         removed.append(int(bad.sum() if counted is None else (bad & counted).sum()))
         keep &= ~bad
-        if not bad.any():
-            break
     return keep, removed
+
+
+def _residuals(tin, x, y, z, keep):
+    """neighbour_residuals of the kept points, rounded to RESIDUAL_STEP (NaN where undefined)."""
+    r = np.empty(len(z))
+    neighbour_residuals(*tin.vertex_neighbor_vertices, x, y, z, keep, r)
+    return np.round(r / RESIDUAL_STEP) * RESIDUAL_STEP
+
+
+def residual_histogram(tin, x, y, z, keep, fixed=None, counted=None):
+    """The histogram (histogram.count, bins of RESIDUAL_STEP) of the blunder filter's residuals r of the
+    kept, tested points where `counted` is True (default all): a tile's share of an iteration's spread."""
+    r = _residuals(tin, *(np.ascontiguousarray(v, float) for v in (x, y, z)), keep)
+    ok = np.isfinite(r) & (True if fixed is None else ~np.asarray(fixed, bool)) & (True if counted is None else counted)
+    return histogram.count(np.round(r[ok] / RESIDUAL_STEP))
+
+
+def spread(hist, k):
+    """(centre, sigma, beyond) of a blunder filter iteration from the histogram of its residuals
+    (residual_histogram, or the sum of the tiles'): the median of r, the robust sigma
+    max(1.4826 * median(|r - centre|), MIN_SIGMA), and the count of points beyond k sigmas (0: the filter
+    has converged); None with fewer than 3 residuals."""
+    bins, counts = hist
+    if counts.sum() < 3:
+        return None
+    r = bins * RESIDUAL_STEP
+    centre = histogram.median(r, counts)
+    deviation = np.abs(r - centre)
+    sigma = max(NMAD_SCALE * histogram.median(deviation, counts), MIN_SIGMA)
+    return centre, sigma, int(counts[deviation > k * sigma].sum())

@@ -116,16 +116,11 @@ def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=N
     return result
 
 
-def surface_on_grid(x, y, z, sigma, grid, srs, max_edge, datum="ellipsoidal", k=4.0, iterations=3, breaklines=(),
-                    precision=False, own=None, feedback=None):
-    """The DemResult of points x, y (in `srs`, the grid's CRS), z (ellipsoidal) and their sigma_h (or
-    None) on `grid`: breakline vertices (conform_breaklines; (n, 3) arrays in `srs`) added, Delaunay
-    TIN, blunder filter (`k` robust sigmas of these points, `iterations`), linear interpolation in the
-    triangles with edges up to `max_edge`, the precision raster where asked, EGM96 heights for that
-    `datum`. Cells outside every used triangle are NaN: all of them where the points span no area
-    (tin.flat_points). The counts (points, blunders removed, vertices, points dropped) are of the points
-    and vertices where `own(x, y)` is True (default: all), so that a tile's counts leave out its margin."""
-    cell = grid.cell
+def tin_vertices(x, y, z, sigma, cell, max_edge, breaklines=(), own=None):
+    """The TIN's vertices: the points x, y, z with their sigma_h (or None) and the breakline vertices
+    (conform_breaklines, spacing min(cell, max_edge) / 2; (n, 3) arrays in the points' CRS) added, the points
+    too close to a breakline dropped. Returns (x, y, z, sigma, fixed: breakline vertex, inside: where
+    `own(x, y)` is True (default all), points dropped where `own` holds them)."""
     own = own or (lambda px, py: np.ones(len(px), bool))
     inside = own(x, y)
     vertices, _, near = conform_breaklines(list(breaklines), x, y, spacing=min(cell, max_edge) / 2,
@@ -138,6 +133,21 @@ def surface_on_grid(x, y, z, sigma, grid, srs, max_edge, datum="ellipsoidal", k=
         sigma = sigma[near]
         nearest = cKDTree(np.column_stack([x[:len(sigma)], y[:len(sigma)]])).query(vertices[:, :2])[1]
         sigma = np.concatenate([sigma, sigma[nearest]])
+    return x, y, z, sigma, fixed, inside, dropped
+
+
+def surface_on_grid(x, y, z, sigma, grid, srs, max_edge, datum="ellipsoidal", k=4.0, iterations=3, breaklines=(),
+                    precision=False, own=None, spreads=None, feedback=None):
+    """The DemResult of points x, y (in `srs`, the grid's CRS), z (ellipsoidal) and their sigma_h (or
+    None) on `grid`: breakline vertices added (tin_vertices), Delaunay TIN, blunder filter (`k` robust
+    sigmas, `iterations`; with `spreads`, those given per iteration: tin.filter_blunders), linear
+    interpolation in the triangles with edges up to `max_edge`, the precision raster where asked, EGM96
+    heights for that `datum`. Cells outside every used triangle are NaN: all of them where the points span
+    no area (tin.flat_points). The counts (points, blunders removed, vertices, points dropped) are of the
+    points and vertices where `own(x, y)` is True (default: all), so that a tile's counts leave out its
+    margin."""
+    cell = grid.cell
+    x, y, z, sigma, fixed, inside, dropped = tin_vertices(x, y, z, sigma, cell, max_edge, breaklines, own)
     result = DemResult(np.full(grid.shape, np.nan), grid, srs, datum, points=int(inside.sum()),
                        dropped_near_breaklines=dropped, breakline_vertices=int((fixed & inside).sum()))
     if precision:
@@ -149,7 +159,8 @@ def surface_on_grid(x, y, z, sigma, grid, srs, max_edge, datum="ellipsoidal", k=
     progress.step(feedback, 10, "Delaunay triangulation")
     tin = delaunay(x, y)
     if k > 0:
-        keep, result.removed = filter_blunders(tin, x, y, z, k=k, iterations=iterations, fixed=fixed, counted=inside)
+        keep, result.removed = filter_blunders(tin, x, y, z, k=k, iterations=iterations, fixed=fixed, counted=inside,
+                                               spreads=spreads)
         progress.step(feedback, 40, f"blunder filter (k = {k:g} robust sigmas): {sum(result.removed)} points removed "
                                     f"({result.removed} per iteration)")
         if not keep.all():

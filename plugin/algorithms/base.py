@@ -25,7 +25,7 @@ from qgis.core import (
 from qgis.PyQt.QtCore import QCoreApplication, QUrl
 from qgis.PyQt.QtGui import QIcon
 
-from ...algorithms import atomic
+from ...algorithms import atomic, raster_cache
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES
 from ...algorithms.errors import InputError, PushbroomError
 from ...algorithms.execution import BACKENDS, Execution
@@ -172,7 +172,8 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     def processAlgorithm(self, parameters, context, feedback):
         try:
             self.check_destinations(parameters, context)
-            return self.execute(parameters, context, feedback)
+            with raster_cache.bounded():            # GDAL's block cache while the step runs
+                return self.execute(parameters, context, feedback)
         except PushbroomError as exc:
             _single_error()
             raise QgsProcessingException(str(exc)) from exc

@@ -1,6 +1,6 @@
 """The optional, advanced 'nodata value' parameter of the algorithms that read a DEM: declares a value of
 voids that the raster does not flag as nodata (SRTM's -32768), which the engine then reads as NaN
-(dem.Dem.from_file, quality assessment's reference)."""
+(dem_store.store_dem, quality assessment's reference)."""
 from qgis.core import QgsProcessingParameterNumber
 
 

@@ -11,7 +11,7 @@ from qgis.core import (
     QgsProcessingParameterString,
 )
 
-from ...algorithms.ortho.orthorectify import VERTICAL
+from ...algorithms.dem_store import VERTICAL
 from ...algorithms.ortho.resampling import METHODS
 from ...algorithms.steps.orthoimage import OrthoParams, orthorectify_image
 from .base import PushbroomAlgorithm, execution_choice, execution_parameters
@@ -19,7 +19,7 @@ from .dem_nodata import nodata_parameter
 
 Number = QgsProcessingParameterNumber
 RESAMPLING = tuple(METHODS)
-#: labels of the DEM's vertical references (algorithms/ortho/orthorectify.py VERTICAL, in that order)
+#: labels of the DEM's vertical references (algorithms/dem_store.py VERTICAL, in that order)
 DEM_HEIGHTS = ("ellipsoidal (WGS 84)", "EGM96")
 
 

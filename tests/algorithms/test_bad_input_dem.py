@@ -10,8 +10,8 @@ from osgeo import gdal
 
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.dem import Dem, implausible_heights
+from pushbroom.algorithms.dem_store import store_dem
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.ortho import load_dem
 from pushbroom.algorithms.quality.height_differences import dem_differences, reference_at_points
 from tests.helpers.bad_inputs import VOID, VOID_CELLS, copy_dem
 from tests.helpers.feedback import Feedback
@@ -27,12 +27,12 @@ def dems(small_scene, tmp_path_factory):
             "dsm": small_scene["dsm"]}
 
 
-def test_a_dem_without_crs_is_refused_with_how_to_assign_one(dems):
+def test_a_dem_without_crs_is_refused_with_how_to_assign_one(dems, tmp_path):
     path = dems["nocrs"]
     expected = (f"the DEM {path} has no coordinate reference system, so where its cells lie is unknown: assign the "
                 f"CRS of its coordinates, e.g. 'gdal_edit.py -a_srs EPSG:4326 {path}' for longitude/latitude in "
                 "degrees (or the EPSG code of its map projection), and run again")
-    for read in (Dem.from_file, load_dem):      # createblock's and orthorectify's way in
+    for read in (Dem.from_file, lambda p: store_dem(p, tmp_path)):      # in memory, and the steps' way in
         with pytest.raises(InputError, match=f"^{re.escape(expected)}$"):
             read(path)
 
@@ -65,11 +65,11 @@ def test_declared_nodata_makes_the_voids_nan(dems):
     np.testing.assert_array_equal(dem.heights[outside], clean.heights[outside])   # the rest untouched
 
 
-def test_declared_nodata_is_applied_before_a_warp(dems):
+def test_declared_nodata_is_applied_before_a_warp(dems, tmp_path):
     warned = Dem.from_file(dems["utm"])
     # undeclared, the voids are counted in the file's own (UTM) cells, before the warp
     assert f"the DEM {dems['utm']} has " in warned.implausible and "cells at -32767 m" in warned.implausible
-    dem = load_dem(dems["utm"], nodata=-32767)
+    dem = store_dem(dems["utm"], tmp_path, nodata=-32767).whole()
     low, high = Dem.from_file(dems["dsm"]).height_range
     # neither the file's nodata (-9999) nor the declared void value leaks into the bilinear warp to WGS 84:
     # every height within the terrain's range

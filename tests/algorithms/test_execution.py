@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from pushbroom.algorithms import execution
+from pushbroom.algorithms import execution, raster_cache
 from pushbroom.algorithms.errors import CancelledError, ExecutionError, InputError
 from pushbroom.algorithms.execution import Execution, run_tasks
 from tests.helpers import execution_tasks as tasks
@@ -28,6 +28,18 @@ def test_every_backend_returns_the_numpy_results_in_task_order(where):
     assert (pids == {os.getpid()}) == (where.backend == "threads")     # processes ran elsewhere
     assert log.progress[-1] == 100.0 and len(log.progress) == 12          # one step per finished task
     assert log.messages == [f"the tiles: 12 tasks on {where.describe()}"]
+
+
+@pytest.mark.parametrize("where", BACKENDS[1:], ids=lambda e: e.backend)
+def test_worker_processes_hold_gdals_cache_to_the_steps_bound(where):
+    from osgeo import gdal
+    default = gdal.GetCacheMax()
+    if default <= raster_cache.STEP_CACHE:
+        pytest.skip(f"GDAL's cache here ({default} bytes, 5 % of the RAM) is below the steps' bound already")
+    assert {c for _, c in run_tasks(tasks.gdal_cache, [(k,) for k in range(4)], where)} == {raster_cache.STEP_CACHE}
+    with raster_cache.bounded():                    # the step's own process, inside the block only
+        assert gdal.GetCacheMax() == raster_cache.STEP_CACHE
+    assert gdal.GetCacheMax() == default
 
 
 def test_an_execution_says_where_it_runs():

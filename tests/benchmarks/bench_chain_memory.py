@@ -17,7 +17,11 @@ On the largest scene (dem_agreement), the DEM of the intersected points is made 
 executions (cells defined, largest |dh|) and in one tile (median |dh|, 99th percentile of |dh| within 3
 cells of the tile borders and away from them).
 
-    python -m tests.benchmarks.bench_chain_memory [SIZE_KM ...] [threads|processes|dask ...]
+`raster_steps` runs, without matching, the steps that read whole rasters of the scene: createblock
+(footprints on the true DSM), importpoints, bundleadjust with the control points alone and the true DSM as
+reference DTM, and orthorectify (HRG) on the true DSM (5 m, a larger raster than the chain's 10 m DEM).
+
+    python -m tests.benchmarks.bench_chain_memory [SIZE_KM ...] [threads|processes|dask ...] [raster]
 """
 import csv
 import pathlib
@@ -141,6 +145,41 @@ def dem_agreement(points, dem, execution, env, out, tile=1024):
     return rows
 
 
+def raster_steps(sizes=SIZES, execution="threads"):
+    """Rows of the steps that read whole rasters (module docstring) per scene size."""
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        env, out = qgis_process_env(pathlib.Path(tmp) / "profile"), pathlib.Path(tmp)
+        run = [QGIS_PROCESS, "run"]
+        for size in sizes:
+            folder = scene(size)
+            block, dsm = out / f"block-{size:g}.gpkg", folder / "dsm.tif"
+            with open(folder / "points.csv", newline="") as f:
+                check = ",".join(r["id"] for r in list(csv.DictReader(f))[CONTROL:])
+            images = [f"IMAGES={folder / n / 'IMAGERY.TIF'}" for n in ("HRG", "HRS1", "HRS2")]
+            steps = [("createblock", ["pushbroom:createblock", "--", *images, f"DEM={dsm}", f"OUTPUT={block}"]),
+                     ("importpoints", ["pushbroom:importpoints", "--", f"BLOCK={block}",
+                                       f"INPUT={folder / 'points.csv'}", f"CHECK_IDS={check}", "MEAS_SUFFIX=_meas"]),
+                     ("bundleadjust, control points", ["pushbroom:bundleadjust", "--", f"BLOCK={block}",
+                                                       "USE_TIE_POINTS=false", f"REFERENCE_DEM={dsm}"]),
+                     ("orthorectify on the true DSM", ["pushbroom:orthorectify", "--", f"BLOCK={block}",
+                                                       "IMAGE_NAME=HRG", f"DEM={dsm}",
+                                                       f"EXECUTION={BACKENDS.index(execution)}", f"WORKERS={WORKERS}",
+                                                       f"OUTPUT={out / f'ortho-{size:g}.tif'}"])]
+            for name, args in steps:
+                seconds, peak, processes, _ = measured(run + args, env)
+                print(f"  {size:g} km {name}: {seconds:.1f} s, {peak:.0f} MB", flush=True)
+                rows.append({"scene km": size, "execution": execution, "step": name, "seconds": seconds,
+                             "peak MB": peak, "processes": processes})
+    for name in dict.fromkeys(r["step"] for r in rows):
+        peaks = [r["peak MB"] for r in rows if r["step"] == name]
+        rows.append({"scene km": " -> ".join(f"{s:g}" for s in sizes), "execution": execution,
+                     "step": f"{name}: peak MB", "peak MB": " / ".join(f"{p:.0f}" for p in peaks),
+                     "seconds": f"growth {100.0 * (peaks[-1] / peaks[0] - 1.0):.1f} %"})
+    return [{k: r.get(k, "") for k in ("scene km", "execution", "step", "seconds", "peak MB", "processes")}
+            for r in rows]
+
+
 def run(sizes=SIZES, executions=EXECUTIONS):
     with tempfile.TemporaryDirectory() as tmp:
         return _run(sizes, executions, qgis_process_env(pathlib.Path(tmp) / "profile"))
@@ -182,6 +221,9 @@ def _run(sizes, executions, env):
 
 if __name__ == "__main__":
     from tests.benchmarks.run_all import markdown_table
-    sizes = tuple(float(a) for a in sys.argv[1:] if a not in BACKENDS) or SIZES
+    sizes = tuple(float(a) for a in sys.argv[1:] if a not in BACKENDS and a != "raster") or SIZES
     executions = tuple(a for a in sys.argv[1:] if a in BACKENDS) or EXECUTIONS
-    print(markdown_table(run(sizes, executions)))
+    if "raster" in sys.argv[1:]:
+        print(markdown_table(raster_steps(sizes, executions[0])))
+    else:
+        print(markdown_table(run(sizes, executions)))

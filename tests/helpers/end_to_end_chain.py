@@ -26,14 +26,16 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import check_points
 from pushbroom.algorithms.adjustment.observations import Observations, tie_observations
 from pushbroom.algorithms.adjustment.selection import select_parameters
+from pushbroom.algorithms.atomic import work_dir
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import store_dem
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
-from pushbroom.algorithms.ortho import OutputGrid, load_dem, orthorectify
+from pushbroom.algorithms.ortho import OutputGrid, orthorectify
 from pushbroom.algorithms.quality.assessment import assess
 from pushbroom.algorithms.quality.classes import ClassRaster
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST, WATER
@@ -157,8 +159,9 @@ def run_chain(paths, folder, workers=2):
         lap(f"assess {label}")
     truth = gdal.Open(str(paths["orthoimage"]))
     grid = OutputGrid(srs(4326), truth.GetGeoTransform(), truth.RasterXSize, truth.RasterYSize)
-    out["ortho"] = orthorectify(paths["images"]["HRG"]["imagery"], out["three images"]["models"][IDS["HRG"]],
-                                load_dem(out["three images"]["dem_path"]), folder / "hrg_ortho.tif", grid=grid,
-                                execution=Execution("threads", workers))
+    with work_dir(folder / "hrg_ortho.tif", "the stored DEM") as stored:
+        out["ortho"] = orthorectify(paths["images"]["HRG"]["imagery"], out["three images"]["models"][IDS["HRG"]],
+                                    store_dem(out["three images"]["dem_path"], stored), folder / "hrg_ortho.tif",
+                                    grid=grid, execution=Execution("threads", workers))
     lap("orthorectify")
     return out

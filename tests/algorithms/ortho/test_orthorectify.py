@@ -10,10 +10,11 @@ from scipy import ndimage
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import egm96_undulation, srs
 from pushbroom.algorithms.dem import Dem, dem_window
+from pushbroom.algorithms.dem_store import store_dem
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
-from pushbroom.algorithms.ortho import OutputGrid, default_grid, load_dem, orthorectify
+from pushbroom.algorithms.ortho import OutputGrid, default_grid, orthorectify
 from pushbroom.algorithms.ortho.mapping import START_STEP, TileMapper
 from pushbroom.algorithms.ortho.occlusion import occluded, ray_direction
 from pushbroom.algorithms.ortho.orthorectify import _footprint, _reach
@@ -85,7 +86,7 @@ def test_rpc_and_rigorous_orthoimages_agree(scene, tmp_path, figures):
 def test_a_dem_in_another_crs_and_in_egm96_heights(scene, tmp_path, figures):
     utm_dem = tmp_path / "dsm_utm.tif"
     gdal.Warp(str(utm_dem), scene["paths"]["dsm"], dstSRS="EPSG:32616", xRes=5.0, yRes=5.0, resampleAlg="bilinear")
-    warped = load_dem(utm_dem)
+    warped = store_dem(utm_dem, tmp_path).whole()
     assert warped.geotransform != scene["dsm"].geotransform
     grid = default_grid(scene["hrg"], scene["dsm"])
     a = TileMapper(scene["hrg"], scene["dsm"], grid).tile(150, 150, 256, 256)
@@ -94,7 +95,7 @@ def test_a_dem_in_another_crs_and_in_egm96_heights(scene, tmp_path, figures):
     figures.report("DEM warped to UTM and back, median |dh|", np.nanmedian(dh), "m")
     figures.report("median image-point change", np.nanmedian(np.hypot(a.col - b.col, a.row - b.row)), "px")
     assert np.nanmedian(dh) < 0.5    # two bilinear resamplings of a 5 m DSM with 1-4 m texture
-    # the same DSM as EGM96 orthometric heights H = h - N, converted back by load_dem
+    # the same DSM as EGM96 orthometric heights H = h - N, converted back by store_dem
     ds = gdal.Open(scene["paths"]["dsm"])
     heights = ds.ReadAsArray().astype(np.float64)
     lon0, dlon, _, lat0, _, dlat = ds.GetGeoTransform()
@@ -107,10 +108,10 @@ def test_a_dem_in_another_crs_and_in_egm96_heights(scene, tmp_path, figures):
     out.SetProjection(ds.GetProjection())
     out.WriteArray(orthometric)
     out = None
-    back = load_dem(geoid_dem, "egm96")
+    back = store_dem(geoid_dem, tmp_path, vertical="egm96").whole()
     assert np.abs(back.heights - heights).max() < 0.005
     with pytest.raises(InputError, match="egm96"):
-        load_dem(geoid_dem, "navd88")
+        store_dem(geoid_dem, tmp_path, vertical="navd88")
 
 
 def test_nodata_outside_the_image_and_the_data_type(scene, tmp_path, figures):

@@ -8,9 +8,10 @@ import pytest
 from osgeo import gdal
 
 from pushbroom.algorithms.crs import egm96_undulation
+from pushbroom.algorithms.disk_array import DiskArray
 from pushbroom.algorithms.simulation import SceneConfig, scene, simulate_scene, terrain
 from pushbroom.algorithms.simulation.grid import Grid
-from pushbroom.algorithms.simulation.tiles import DiskArray, value_range
+from pushbroom.algorithms.simulation.tiles import value_range
 
 gdal.UseExceptions()
 

@@ -53,8 +53,12 @@ def test_sixteen_tiles_leave_no_seam(cloud, tmp_path):
     a, _, _ = read(tmp_path / "one.tif")
     b, _, _ = read(tmp_path / "sixteen.tif")
     both = np.isfinite(a) & np.isfinite(b)
-    # the blunder filter's robust sigma is the tile's: a few cells change where it removed other points
-    assert (np.isfinite(a) != np.isfinite(b)).mean() < 1e-3
+    # the filter's spread is the whole cloud's in both; only on the cloud's outer edge, where the convex hull's
+    # long triangles are the whole cloud's in one run and a tile's own in the other, can a decision change
+    assert abs(sum(sixteen.removed) - sum(one.removed)) <= 0.01 * sum(one.removed)
+    rows, cols = np.indices(a.shape)
+    inner = np.minimum(np.minimum(rows, a.shape[0] - 1 - rows), np.minimum(cols, a.shape[1] - 1 - cols)) >= 2
+    np.testing.assert_array_equal(a[inner], b[inner])
     dh = np.abs(a - b)[both]
     rows, cols = np.indices(a.shape)
     near = lambda index: np.minimum(index % 75, 74 - index % 75) < 3
