@@ -74,6 +74,25 @@ def implausible_warning(values, counts, what="the DEM"):
             f"-a_nodata {value:g} on the file) and run again")
 
 
+class ImplausibleTally:
+    """implausible_values added up over the parts (bands, windows) of a raster read in parts."""
+
+    def __init__(self):
+        self.values, self.counts = np.zeros(0), np.zeros(0, np.int64)
+
+    def add(self, heights):
+        """Count the implausible values among `heights`; returns `heights`."""
+        values, counts = implausible_values(heights)
+        if len(values):
+            self.values, inverse = np.unique(np.concatenate([self.values, values]), return_inverse=True)
+            self.counts = np.bincount(inverse, np.concatenate([self.counts, counts])).astype(np.int64)
+        return heights
+
+    def warning(self, what="the DEM"):
+        """implausible_warning of all parts."""
+        return implausible_warning(self.values, self.counts, what)
+
+
 def grid_bounds(geotransform, shape):
     """(lon_min, lat_min, lon_max, lat_max) of the outer cell edges of a north-up grid."""
     lon0, dlon, _, lat0, _, dlat = geotransform

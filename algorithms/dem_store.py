@@ -29,7 +29,7 @@ from scipy.interpolate import RegularGridInterpolator
 
 from .atomic import close_dataset, closing, storage_error
 from .crs import egm96_undulation, wgs84
-from .dem import Dem, check_grid, dem_window, grid_bounds, implausible_values, implausible_warning
+from .dem import Dem, ImplausibleTally, check_grid, dem_window, grid_bounds
 from .disk_array import DiskArray
 from .errors import GeometryError, InputError
 from .geodesy import flat_points
@@ -144,20 +144,6 @@ def _bands(ds, *nodata):
         yield r0, heights
 
 
-class _Implausible:
-    """implausible_values added up over the bands."""
-
-    def __init__(self):
-        self.values, self.counts = np.zeros(0), np.zeros(0, np.int64)
-
-    def add(self, heights):
-        values, counts = implausible_values(heights)
-        if len(values):
-            self.values, inverse = np.unique(np.concatenate([self.values, values]), return_inverse=True)
-            self.counts = np.bincount(inverse, np.concatenate([self.counts, counts])).astype(np.int64)
-        return heights
-
-
 def _warped(ds, nodata, work, tally):
     """`ds` (not in EPSG:4326) with its nodata as NaN, copied to the work folder and warped bilinearly to
     EPSG:4326 by GDAL; returns the path of the warped GeoTIFF. StorageError where a write fails."""
@@ -203,7 +189,7 @@ def store_dem(path, work, nodata=None, vertical="ellipsoidal"):
     if vertical not in VERTICAL:
         raise InputError(f"the DEM heights are {' or '.join(VERTICAL)}, not {vertical!r}")
     ds = _open(path)
-    tally, warped = _Implausible(), None
+    tally, warped = ImplausibleTally(), None
     if ds.GetSpatialRef().IsSame(wgs84(), ["IGNORE_DATA_AXIS_TO_SRS_AXIS_MAPPING=YES"]):
         grid, bands = ds, ((r0, tally.add(h)) for r0, h in _bands(ds, ds.GetRasterBand(1).GetNoDataValue(), nodata))
     else:
@@ -228,7 +214,7 @@ def store_dem(path, work, nodata=None, vertical="ellipsoidal"):
     if not low <= high:
         raise InputError("the DEM holds no valid height (all cells are nodata)")
     return StoredDem(out.path, geotransform, shape, (low, high),
-                     implausible_warning(tally.values, tally.counts, f"the DEM {path}"))
+                     tally.warning(f"the DEM {path}"))
 
 
 def stored_copy(dem, work):

@@ -19,7 +19,8 @@ Inside QGIS `sys.executable` is the QGIS binary, not Python: worker processes ar
 interpreter of this Python (`python_executable`, set through multiprocessing.set_executable), which
 both the process pool and Dask's nannies use. Dask reruns the task of a worker that dies on another
 worker (distributed's allowed-failures); the process pool cannot, and reports which step failed.
-In worker processes each task runs with GDAL's block cache held to raster_cache.STEP_CACHE.
+In worker processes each task runs with GDAL's block cache held to raster_cache.STEP_CACHE. A step that
+runs several rounds of tasks keeps its workers across them (`session`).
 
 Failure modes: InputError for unknown settings; ExecutionError when no Dask scheduler answers at
 `address` within `connect_timeout` s, when a worker process dies, or when no Python interpreter can
@@ -31,6 +32,7 @@ import contextlib
 import multiprocessing
 import os
 import sys
+import threading
 import time
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -182,6 +184,27 @@ class _Dask:
                 self.cluster.close()
 
 
+_sessions = {}          # (thread, Execution) -> the backend a `session` keeps
+
+
+@contextlib.contextmanager
+def session(execution=None):
+    """Keep the worker processes (the pool, or the Dask LocalCluster or client) of `execution` for every
+    run_tasks of it on this thread inside the block, so that a step that runs several rounds of tasks starts
+    its workers once; they are closed when the block ends. Threads need no session."""
+    execution = (execution or Execution()).check()
+    key = (threading.get_ident(), execution)
+    if execution.backend == "threads" or key in _sessions:
+        yield
+        return
+    _sessions[key] = backend = _Dask(execution) if execution.backend == "dask" else _Pool(execution)
+    try:
+        yield
+    finally:
+        del _sessions[key]
+        backend.close(cancel=True)
+
+
 def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
     """Run `function(*args)` for each `args` of the list `tasks` on `execution` (Execution; default
     threads) and return the results in the order of `tasks`. Progress runs 0-100 % over the tasks;
@@ -193,7 +216,8 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
     if not tasks:
         return results
     progress.ensure(feedback).pushInfo(f"{what}: {len(tasks)} task{'s' * (len(tasks) != 1)} on {execution.describe()}")
-    backend = _Dask(execution) if execution.backend == "dask" else _Pool(execution)
+    kept = _sessions.get((threading.get_ident(), execution))
+    backend = kept or (_Dask(execution) if execution.backend == "dask" else _Pool(execution))
     futures, cancel = {}, True
     try:
         for k, args in enumerate(tasks):
@@ -211,5 +235,6 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
         if cancel:
             for future in futures:
                 future.cancel()
-        backend.close(cancel)
+        if kept is None:
+            backend.close(cancel)
     return results

@@ -44,3 +44,19 @@ def median(values, counts):
     lower = values[order[int(np.searchsorted(cumulative, (n + 1) // 2))]]
     upper = values[order[int(np.searchsorted(cumulative, n // 2 + 1))]]
     return float((lower + upper) / 2)
+
+
+def quantile(values, counts, q):
+    """The q quantile (0..1) of values[i] repeated counts[i] times, by linear interpolation between order
+    statistics (numpy's default); NaN when empty."""
+    values, counts = np.asarray(values, float), np.asarray(counts, np.int64)
+    n = int(counts.sum())
+    if n == 0:
+        return float("nan")
+    order = np.argsort(values, kind="stable")
+    cumulative = np.cumsum(counts[order])
+    position = q * (n - 1)
+    below, above = int(np.floor(position)), int(np.ceil(position))
+    lo = values[order[int(np.searchsorted(cumulative, below + 1))]]
+    hi = values[order[int(np.searchsorted(cumulative, above + 1))]]
+    return float(lo + (hi - lo) * (position - below))

@@ -33,6 +33,12 @@ def step(feedback, percent, message=None):
         feedback.pushInfo(message)
 
 
+def check(feedback):
+    """Raise CancelledError if `feedback` (or None) is cancelled; the progress stays where it is."""
+    if feedback is not None and feedback.isCanceled():
+        raise CancelledError("cancelled by the user")
+
+
 def warn(feedback, message):
     """Report a warning: feedback.pushWarning where the feedback has it (QgsProcessingFeedback), else
     pushInfo; nothing where `feedback` or `message` is None."""

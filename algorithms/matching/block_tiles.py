@@ -8,12 +8,14 @@ rounds:
 1. `_match_tile`: (a) grown in the tile; (b) grown in the tile where asked; (a)'s points transferred
    into image 2 (guided by the tile's (b) points), (b)'s own points added where (a) has none; (b)'s
    points transferred into image 1 (c); combined (combinations.combine) without the consistency
-   test, written to a work file. It returns the deviations dx, dy (float64) of its group 3
-   candidates and a sample of their image positions (BIAS_SAMPLE over the scene, in proportion to the
+   test, written to a work file with the deviations dx, dy of its group 3 candidates. It returns their
+   histograms of |dx| and |dy| (histogram.py, DEVIATION_STEP bins: what travels back does not grow with
+   the points) and a sample of their image positions (BIAS_SAMPLE over the scene, in proportion to the
    tile's lattice nodes).
-2. The consistency test's robust sigmas come from the deviations of all tiles (as for the whole
-   scene), so every tile keeps the points the whole scene would, and its point ids can be numbered
-   on from the tiles before it. MPGC's affine image biases and geometry sigma
+2. The consistency test's robust sigmas, 1.4826 median(|d|), come from the sum of all tiles' histograms
+   (as for the whole scene, to within a bin), so every tile keeps the points the whole scene would; a
+   short round (`_kept`) counts each tile's points that pass, so that its point ids can be numbered on
+   from the tiles before it. MPGC's affine image biases and geometry sigma
    (orientation_bias.affine_bias) are fitted to the sample's points that pass the test: one
    orientation for the scene, as when it is matched at once (which fits them to all its points; the
    refinement needs MIN_POINTS of them in the scene). `_finish_tile` applies the test, numbers the
@@ -32,11 +34,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .. import progress
+from .. import histogram, progress
 from ..atomic import save_array, work_dir
 from ..errors import InputError
-from ..execution import run_tasks
-from .combinations import combine, compose_guide, new_cells, pair_seeds, robust_sigma
+from ..execution import run_tasks, session
+from ..stats import NMAD_SCALE
+from .combinations import combine, compose_guide, new_cells, pair_seeds
 from .orientation_bias import affine_bias
 from .params import GrowParams
 from .points import MultiPoints
@@ -46,6 +49,8 @@ from .region_growing import _grow_tile, grow_job, transfer_points
 
 #: floor of the consistency test's robust sigmas (px), as combinations.combine's
 MIN_SIGMA = 0.01
+#: bin of the deviation histograms (px) the tiles return
+DEVIATION_STEP = 1e-4
 #: group 3 points of the scene that MPGC's affine biases are fitted to
 BIAS_SAMPLE = 50_000
 #: counts of combinations.combine's stats that add up over the tiles
@@ -86,8 +91,8 @@ def _load_work(path):
 
 def _match_tile(job, index, box, out, quota):
     """Task, round 1 (module docstring): the tile `box` (the index-th of Lattice.tiles) combined without
-    the consistency test, written to `out`. Returns its counts, the dx, dy of its group 3 candidates and
-    the image positions and deviations of up to `quota` of them."""
+    the consistency test, written to `out`. Returns its counts, the histograms of |dx|, |dy| of its group 3
+    candidates and the image positions and deviations of up to `quota` of them."""
     images, models, ids, params, hr = job.images, job.models, job.image_ids, job.params, job.height_range
     a, tries, seeds = _grow_tile(job.grow_a, index, box)
     if len(images) == 2:
@@ -112,8 +117,26 @@ def _match_tile(job, index, box, out, quota):
     both = np.flatnonzero(np.isfinite(dx))
     take = both[np.unique(np.linspace(0, len(both) - 1, min(len(both), quota)).astype(int))] if len(both) else both
     cols, rows = (np.array(v)[:, take] for v in zip(*(multi.coordinates(i) for i in ids)))
-    return {"points": len(multi), "dx": dx[both], "dy": dy[both], "sample": (cols, rows, dx[take], dy[take]),
+    return {"points": len(multi), **{k: histogram.count(np.round(np.abs(d[both]) / DEVIATION_STEP))
+                                     for k, d in (("dx", dx), ("dy", dy))},
+            "sample": (cols, rows, dx[take], dy[take]),
             "tries": tries, "seeds": seeds, **{k: multi.stats.get(k, 0) for k in ADDED}}
+
+
+def _passes(dx, dy, limits):
+    """The points that pass the consistency test: |dx| < limits[0] and |dy| < limits[1] where both are defined."""
+    return ~np.isfinite(dx) | ((np.abs(dx) < limits[0]) & (np.abs(dy) < limits[1]))
+
+
+def _kept(pre, limits):
+    """Task, between the rounds: how many points of the work file `pre` pass the consistency test."""
+    return int(np.count_nonzero(_passes(*np.load(pre + ".deviations.npy").T, limits)))
+
+
+def _robust_sigma(hists):
+    """1.4826 median(|d|) of the deviations whose |d| histograms are `hists`, at least MIN_SIGMA."""
+    bins, counts = histogram.total(hists)
+    return max(NMAD_SCALE * histogram.median(bins * DEVIATION_STEP, counts), MIN_SIGMA) if counts.sum() else MIN_SIGMA
 
 
 def _finish_tile(job, pre, limits, first_id, k, folder):
@@ -123,8 +146,7 @@ def _finish_tile(job, pre, limits, first_id, k, folder):
     (its index entry, or the MultiPoints without a write_part; MPGC's stats)."""
     multi = _load_work(pre)
     p = multi.points
-    dx, dy = np.load(pre + ".deviations.npy").T
-    keep = ~np.isfinite(dx) | ((np.abs(dx) < limits[0]) & (np.abs(dy) < limits[1]))
+    keep = _passes(*np.load(pre + ".deviations.npy").T, limits)
     points, obs = p[keep], multi.observations
     obs = obs[np.isin(obs["point_id"], points["id"])]
     new_id = np.zeros(len(p) + 1, np.int64)
@@ -181,25 +203,23 @@ def match_tiles(images, models, folder, write_part=None, names=None, image_ids=N
     quotas = np.ceil(BIAS_SAMPLE * nodes / max(nodes.sum(), 1.0)).astype(int)
     log.pushInfo(f"{len(tiles)} tile(s) of {params.tile} px: " + (f"(a) {names[0]} - {names[1]}" if n == 2 else
                  f"(a) {names[0]} - {names[1]}, (b) {names[0]} - {names[2]}, (c) {names[2]} - {names[1]}"))
-    with work_dir(folder, "the matched tiles") as work:
+    with work_dir(folder, "the matched tiles") as work, session(execution):     # the rounds share workers
         pre = [os.path.join(work, f"tile-{k:05d}") for k in range(len(tiles))]
         first = run_tasks(_match_tile, [(job, k, box, out, int(q)) for k, (box, out, q)
                                         in enumerate(zip(tiles, pre, quotas))],
                           execution, progress.scaled(feedback, 0, 75), "matching")
-        dx = np.concatenate([t["dx"] for t in first]) if first else np.zeros(0)
-        dy = np.concatenate([t["dy"] for t in first]) if first else np.zeros(0)
-        sigmas = (robust_sigma(dx, MIN_SIGMA), robust_sigma(dy, MIN_SIGMA))
+        sigmas = (_robust_sigma(t["dx"] for t in first), _robust_sigma(t["dy"] for t in first))
         limits = (sigma_factor * sigmas[0], sigma_factor * sigmas[1])
-        kept = [t["points"] - int(np.count_nonzero(~((np.abs(t["dx"]) < limits[0]) & (np.abs(t["dy"]) < limits[1]))))
-                for t in first]
+        candidates = int(sum(t["dx"][1].sum() for t in first))
+        kept = run_tasks(_kept, [(out, limits) for out in pre], execution, None, "the consistency test's counts")
         first_ids = np.concatenate([[1], 1 + np.cumsum(kept)[:-1]]).astype(int) if kept else []
         job = job._replace(bias=_scene_bias(job, first, limits) if job.refine else None)
         second = run_tasks(_finish_tile, [(job, out, limits, int(i), k, folder)
                                           for k, (out, i) in enumerate(zip(pre, first_ids))],
                            execution, progress.scaled(feedback, 75, 100), "the consistency test and MPGC")
     stats = {"images": image_ids if n == 3 else image_ids[:2], **{k: int(sum(t[k] for t in first)) for k in ADDED},
-             "rejected_3sigma": int(len(dx) - np.count_nonzero((np.abs(dx) < limits[0]) & (np.abs(dy) < limits[1]))),
-             "sigma_dx": sigmas[0] if len(dx) else None, "sigma_dy": sigmas[1] if len(dx) else None,
+             "rejected_3sigma": int(sum(t["points"] for t in first) - sum(kept)),
+             "sigma_dx": sigmas[0] if candidates else None, "sigma_dy": sigmas[1] if candidates else None,
              "sigma_factor": float(sigma_factor)}
     if job.bias is not None:
         refined = [s for _, s in second if "refined_mpgc" in s]

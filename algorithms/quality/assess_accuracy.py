@@ -1,16 +1,19 @@
 """The accuracy assessment step (pushbroom:assessaccuracy): height differences of a point cloud and/or
-a DEM against a reference DTM/DSM (assessment.assess; Kornus et al. 2006 sections 3.6-3.7, Zhang and
-Gruen 2004 section 4), written as an HTML report with figures, optionally a CSV table of the statistics
-and, for a DEM, a dh raster."""
+a DEM against a reference DTM/DSM (assessment.assess_by_parts: in chunks and windows, memory following
+them; Kornus et al. 2006 sections 3.6-3.7, Zhang and Gruen 2004 section 4), written as an HTML report with
+figures, optionally a CSV table of the statistics and, for a DEM, a dh raster (its windows written as
+tiles in a work folder beside it, assembled by GDAL)."""
+import contextlib
 from dataclasses import dataclass, field
 from typing import Optional
 
 from .. import progress
 from ..adjustment.control_points import HEIGHT_TYPES
+from ..atomic import atomic_path, work_dir
 from ..errors import InputError
-from .assessment import SLOPE_THRESHOLD, assess
+from ..surface.geotiff import assemble_tiles
+from .assessment import SLOPE_THRESHOLD, assess_by_parts
 from .classes import ClassRaster, PolygonClasses
-from .height_differences import write_dh_raster
 
 
 @dataclass
@@ -64,10 +67,17 @@ def assess_accuracy(params, feedback=None):
         classes, class_source = ClassRaster(params.class_raster), params.class_raster
     elif params.class_polygons is not None:
         classes, class_source = params.class_polygons, params.class_polygons_source
-    assessed = assess(params.reference, points=params.points, dem=params.dem,
-                      reference_datum=params.reference_heights, points_datum=params.points_heights,
-                      dem_datum=params.dem_heights, classes=classes, slope_threshold=params.slope_threshold,
-                      feedback=progress.scaled(feedback, 0, 70), reference_nodata=params.reference_nodata)
+    with (work_dir(params.dh, "the dh tiles") if params.dh else contextlib.nullcontext()) as tiles:
+        assessed = assess_by_parts(params.reference, points=params.points, dem=params.dem,
+                                   reference_datum=params.reference_heights, points_datum=params.points_heights,
+                                   dem_datum=params.dem_heights, classes=classes,
+                                   slope_threshold=params.slope_threshold, feedback=progress.scaled(feedback, 0, 70),
+                                   reference_nodata=params.reference_nodata, tiles=tiles)
+        return _write(params, assessed, class_source, feedback)
+
+
+def _write(params, assessed, class_source, feedback):
+    """The report, the table and the dh raster of the Summaries `assessed`."""
     used = [("reference", f"{params.reference} ({params.reference_heights} heights)")]
     if params.points:
         used.append(("point cloud", f"{params.points} ({params.points_heights} heights)"))
@@ -82,6 +92,10 @@ def assess_accuracy(params, feedback=None):
     if params.table:
         out.table = report.write_csv(params.table, assessed)
     if params.dh:
-        grid = next(a.differences.grid for a in assessed if a.differences.grid is not None)
-        out.dh = write_dh_raster(params.dh, grid)
+        dem = next(a for a in assessed if a.tiles is not None)
+        with atomic_path(params.dh) as tmp:
+            assemble_tiles(dem.tiles, tmp, dem.geotransform, dem.size, dem.srs,
+                           description="dh = DEM - reference (m, ellipsoidal)",
+                           feedback=progress.scaled(feedback, 95, 100))
+        out.dh = str(params.dh)
     return out

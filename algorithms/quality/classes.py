@@ -8,10 +8,12 @@ from osgeo import ogr
 
 from ..crs import reproject, srs as parse_crs
 from ..errors import InputError
-from .rasters import cell_metres, open_raster, raster_srs, warp_to
+from .rasters import by_blocks, cell_metres, open_raster, raster_srs, warp_to
 
 NO_CLASS = 0
 FLAT, MOUNTAINOUS = 1, 2
+#: rows of a class raster read at a time for its class values
+BAND_ROWS = 512
 
 
 def slope_classes(slope, threshold):
@@ -32,7 +34,9 @@ class ClassRaster:
         band = ds.GetRasterBand(1)
         self.nodata = band.GetNoDataValue()
         meta = ds.GetMetadata() or {}
-        values = np.unique(band.ReadAsArray())
+        values = np.unique(np.concatenate([np.unique(band.ReadAsArray(0, r0, ds.RasterXSize,
+                                                                      min(BAND_ROWS, ds.RasterYSize - r0)))
+                                           for r0 in range(0, ds.RasterYSize, BAND_ROWS)]))
         categories = band.GetCategoryNames() or []
         self.names = {}
         for v in values.tolist():
@@ -46,15 +50,22 @@ class ClassRaster:
         return open_raster(self.path, "class raster")
 
     def at_points(self, x, y, srs):
-        """Class of the cell holding each point (x, y in `srs`); NO_CLASS outside or on nodata."""
+        """Class of the cell holding each point (x, y in `srs`); NO_CLASS outside or on nodata. The raster is
+        read by the window of each block of its cells that holds points (rasters.by_blocks)."""
         ds = self._open()
         xr, yr = reproject(x, y, srs, raster_srs(ds))
         x0, dx, _, y0, _, dy = ds.GetGeoTransform()
         c, r = np.floor((xr - x0) / dx), np.floor((yr - y0) / dy)
         inside = (c >= 0) & (r >= 0) & (c < ds.RasterXSize) & (r < ds.RasterYSize)
         out = np.full(len(xr), NO_CLASS, np.int64)
-        values = ds.GetRasterBand(1).ReadAsArray()
-        out[inside] = values[r[inside].astype(int), c[inside].astype(int)]
+        for index in by_blocks(ds, xr, yr):
+            index = index[inside[index]]
+            if not index.size:
+                continue
+            ci, ri = c[index].astype(int), r[index].astype(int)
+            window = ds.GetRasterBand(1).ReadAsArray(int(ci.min()), int(ri.min()), int(ci.max() - ci.min() + 1),
+                                                     int(ri.max() - ri.min() + 1))
+            out[index] = window[ri - ri.min(), ci - ci.min()]
         return self._clean(out)
 
     def on_grid(self, grid):

@@ -10,9 +10,12 @@ finer, bilinear otherwise. Vertical datum per input: "ellipsoidal" or "orthometr
 h = H + N, adjustment.control_points.orthometric_to_ellipsoidal). The slope (Kornus et al. 2006, section 3.7:
 flat/moderate vs mountainous) is the reference's (rasters.slope_degrees): at the points, or on the DEM grid.
 
-The reference is read by the window of its cells under the assessed data, its nodata and a declared
-void value (`reference_nodata`) as NaN; implausible heights among those cells (dem.implausible_heights,
-such as SRTM voids not flagged as nodata) are reported as a warning (progress.warn) and used as given."""
+The reference is read by the window of its cells under the assessed data (for points, block by block
+of its cells; for a DEM, under the DEM or under one window of it), its nodata and a declared void value
+(`reference_nodata`) as NaN; implausible heights among those cells (dem.implausible_heights, such as
+SRTM voids not flagged as nodata) are counted (dem.ImplausibleTally), reported as a warning
+(progress.warn) and used as given. A point cloud can be given in chunks and a DEM in windows
+(assessment.assess_by_parts), so that memory follows the chunk and the window."""
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,12 +23,12 @@ import numpy as np
 from .. import progress
 from ..adjustment.control_points import HEIGHT_TYPES, orthometric_to_ellipsoidal
 from ..crs import reproject, wgs84
-from ..dem import Dem, implausible_heights
+from ..dem import Dem, ImplausibleTally
 from ..errors import InputError
-from ..surface.geotiff import write_float_raster
 from ..surface.point_input import read_points
 from .rasters import (
     Grid,
+    by_blocks,
     cell_metres,
     memory_dataset,
     open_raster,
@@ -70,45 +73,58 @@ def _ellipsoidal(h, x, y, srs, datum):
     return h
 
 
-def _reference_window(ds, reference, x, y, nodata, feedback):
-    """The reference cells around points (x, y in its CRS) as a Grid (rasters.read_window, `nodata` a
-    declared void value), with a warning about implausible heights among them."""
-    window = read_window(ds, x, y, "reference DEM", nodata=nodata)
-    progress.warn(feedback, implausible_heights(window.values, f"the reference DEM {reference}"))
-    return window
-
-
-def reference_at_points(reference, x, y, srs, datum="ellipsoidal", nodata=None, feedback=None):
+def reference_at_points(reference, x, y, srs, datum="ellipsoidal", nodata=None, feedback=None, tally=None,
+                        required=True):
     """(ellipsoidal reference height, reference slope in degrees) at points (x, y in `srs`): bilinear in
-    the reference's CRS; NaN outside it and next to its nodata (and cells equal to `nodata`, a declared
-    void value). InputError when it does not overlap; a warning (`feedback`) about implausible heights."""
+    the reference's CRS, the reference read by the window of each block of its cells that holds points
+    (rasters.by_blocks); NaN outside it and next to its nodata (and cells equal to `nodata`, a declared
+    void value). InputError when it does not overlap (unless not `required`: a chunk of a cloud). Implausible
+    heights among the cells read are counted in `tally` (dem.ImplausibleTally) where given, else reported as
+    a warning (`feedback`)."""
     _check_datum(datum, "reference")
     ds = open_raster(reference, "reference DEM")
     xr, yr = reproject(x, y, srs, raster_srs(ds))
-    window = _reference_window(ds, reference, xr, yr, nodata, feedback)
-    if np.isnan(window.values).all():
+    counted = tally or ImplausibleTally()
+    href, slope = np.full(len(xr), np.nan), np.full(len(xr), np.nan)
+    read = seen = False
+    for index in by_blocks(ds, xr, yr):
+        progress.check(feedback)
+        try:
+            window = read_window(ds, xr[index], yr[index], "reference DEM", nodata=nodata)
+        except InputError:                  # a block of points beyond the raster's last cells
+            continue
+        seen = True
+        counted.add(window.values)
+        if np.isnan(window.values).all():
+            continue
+        read = True
+        href[index] = Dem(window.values, window.geotransform).height(xr[index], yr[index])
+        slope[index] = Dem(slope_degrees(window), window.geotransform).height(xr[index], yr[index])
+    if tally is None:
+        progress.warn(feedback, counted.warning(f"the reference DEM {reference}"))
+    if required and seen and not read:
         raise InputError(f"the reference DEM {reference} has only nodata where the assessed data are: choose a "
                          "reference that covers them")
-    href = Dem(window.values, window.geotransform).height(xr, yr)
-    slope = Dem(slope_degrees(window), window.geotransform).height(xr, yr)
-    if not np.isfinite(href).any():
+    if required and not np.isfinite(href).any():
         raise InputError(f"the reference DEM {reference} does not overlap the assessed points: choose a reference "
                          "that covers them")
     return _ellipsoidal(href, x, y, srs, datum), slope
 
 
 def point_differences(path, reference, reference_datum="ellipsoidal", points_datum="ellipsoidal", feedback=None,
-                      reference_nodata=None):
-    """Differences of the object points of a point cloud (surface.point_input.read_points) against
-    the reference raster (`reference_nodata`: a declared void value); its `group` field, where present,
-    is kept."""
+                      reference_nodata=None, points=None, tally=None, required=True):
+    """Differences of the object points of a point cloud (surface.point_input.read_points; or `points`, a
+    PointSet of it such as a chunk) against the reference raster (`reference_nodata`: a declared void
+    value; implausible heights counted in `tally` where given, and the overlap `required`, as
+    reference_at_points); its `group` field, where present, is kept."""
     _check_datum(points_datum, "points")
-    cloud = read_points(path)
+    cloud = read_points(path) if points is None else points
     x, y, z, srs, fields = cloud.x, cloud.y, cloud.z, cloud.srs, cloud.fields
     if not len(x):
         raise InputError(f"the point cloud {path} holds no point")
     progress.step(feedback, 10, f"{len(x)} points read from {path}")
-    href, slope = reference_at_points(reference, x, y, srs, reference_datum, reference_nodata, feedback)
+    href, slope = reference_at_points(reference, x, y, srs, reference_datum, reference_nodata, feedback, tally,
+                                      required)
     progress.step(feedback, 60)
     h = _ellipsoidal(z, x, y, srs, points_datum)
     ok = np.isfinite(h) & np.isfinite(href)
@@ -119,44 +135,63 @@ def point_differences(path, reference, reference_datum="ellipsoidal", points_dat
 
 
 def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="ellipsoidal", feedback=None,
-                    reference_nodata=None):
+                    reference_nodata=None, window=None, tally=None):
     """Differences of the cells of a DEM raster against the reference raster (`reference_nodata`: a
-    declared void value) resampled onto its grid: the reference's window under the DEM, warped."""
+    declared void value) resampled onto its grid: the reference's window under the DEM, warped. With
+    `window` (c0, r0, c1, r1: cells of the DEM), those cells only, the reference's slope taken with one
+    more cell around as on the whole grid; a window that the reference does not cover gives no differences
+    instead of an InputError. Implausible heights: counted in `tally` where given, else a warning."""
     _check_datum(dem_datum, "DEM")
     _check_datum(reference_datum, "reference")
-    dem = read_grid(open_raster(path, "DEM"))
+    source = open_raster(path, "DEM")
+    c0, r0, c1, r1 = window or (0, 0, source.RasterXSize, source.RasterYSize)
+    g0, h0 = max(c0 - 1, 0), max(r0 - 1, 0)                                 # one cell around for the slope
+    g1, h1 = min(c1 + 1, source.RasterXSize), min(r1 + 1, source.RasterYSize)
+    wide = read_grid(source, window=(g0, h0, g1, h1))
+    inner = (slice(r0 - h0, r0 - h0 + r1 - r0), slice(c0 - g0, c0 - g0 + c1 - c0))
+    dem = Grid(wide.values[inner], _shifted(wide.geotransform, c0 - g0, r0 - h0), wide.srs)
     defined = np.isfinite(dem.values)
-    if not defined.any():
+    if window is None and not defined.any():
         raise InputError(f"the DEM {path} holds no valid height (all cells are nodata)")
     progress.step(feedback, 10, f"DEM {path}: {dem.shape[1]} x {dem.shape[0]} cells, {int(defined.sum())} "
                                 "with a height")
     ds = open_raster(reference, "reference DEM")
     no_overlap = InputError(f"the reference DEM {reference} does not overlap the DEM {path} (or holds only nodata "
                             "there): choose a reference that covers it")
-    try:
-        window = _reference_window(ds, reference, *reproject(*outline(dem), dem.srs, raster_srs(ds)),
-                                   reference_nodata, feedback)
-    except InputError:
-        raise no_overlap from None
-    finer = np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize)) < np.prod(dem.cell_metres())
-    ref = warp_to(memory_dataset(window), dem, "average" if finer else "bilinear")
-    if not np.isfinite(ref).any():
+    counted = tally or ImplausibleTally()
+    ref, method = np.full(wide.shape, np.nan), None
+    if defined.any():
+        finer = (np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize))
+                 < np.prod(dem.cell_metres()))
+        method = "average" if finer else "bilinear"
+        try:
+            under = read_window(ds, *reproject(*outline(wide), wide.srs, raster_srs(ds)), "reference DEM",
+                                nodata=reference_nodata)
+        except InputError:                  # the reference lies elsewhere
+            under = None
+        if under is not None:
+            counted.add(under.values)
+            ref = warp_to(memory_dataset(under), wide, method)
+    if tally is None:
+        progress.warn(feedback, counted.warning(f"the reference DEM {reference}"))
+    if window is None and not np.isfinite(ref).any():
         raise no_overlap
-    progress.step(feedback, 50, f"reference resampled onto the DEM grid ({'average' if finer else 'bilinear'})")
+    progress.step(feedback, 50, f"reference resampled onto the DEM grid ({method})" if method else None)
+    slope = slope_degrees(Grid(ref, wide.geotransform, wide.srs))[inner]
+    ref = ref[inner]
     valid = defined & np.isfinite(ref)
     x, y = (v[valid] for v in dem.centres())
     h = _ellipsoidal(dem.values[valid], x, y, dem.srs, dem_datum)
     href = _ellipsoidal(ref[valid], x, y, dem.srs, reference_datum)
     dh = np.full(dem.shape, np.nan)
     dh[valid] = h - href
-    slope = slope_degrees(Grid(ref, dem.geotransform, dem.srs))[valid]
-    return Differences("DEM cells", str(path), dh[valid], x, y, dem.srs, slope,
+    return Differences("DEM cells", str(path), dh[valid], x, y, dem.srs, slope[valid],
                        grid=Grid(dh, dem.geotransform, dem.srs), valid=valid,
                        excluded={"DEM nodata": int((~defined).sum()),
                                  "outside the reference or on its nodata": int((defined & ~valid).sum())})
 
 
-def write_dh_raster(path, grid):
-    """The dh Grid as a float raster (surface.geotiff.write_float_raster: tiled, overviews, nodata, atomic)."""
-    return str(write_float_raster(path, grid.values, grid.geotransform, grid.srs,
-                                  "dh = DEM - reference (m, ellipsoidal)"))
+def _shifted(geotransform, cols, rows):
+    """The geotransform of a grid starting `cols`, `rows` cells into the grid of `geotransform`."""
+    x0, dx, _, y0, _, dy = geotransform
+    return (x0 + cols * dx, dx, 0.0, y0 + rows * dy, 0.0, dy)

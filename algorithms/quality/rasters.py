@@ -1,7 +1,8 @@
 """Single-band rasters for the accuracy assessment, read with GDAL: a height raster as float64 with
-NaN for nodata, read by the window that covers the points (never a whole SRTM tile for a 3 km
-scene), or resampled onto another raster's grid with gdalwarp (the reference onto the tested DEM:
-bilinear, or the average of the reference cells inside a DEM cell when the reference is finer).
+NaN for nodata, read by the window that covers the points, block by block for points spread over a
+large raster (never a whole SRTM tile for a 3 km scene, nor a whole 60 km DSM at once), or resampled
+onto another raster's grid with gdalwarp (the reference onto the tested DEM: bilinear, or the average of
+the reference cells inside a DEM cell when the reference is finer).
 Grids are north-up (GDAL geotransform, pixel-is-area)."""
 import math
 from dataclasses import dataclass
@@ -76,10 +77,14 @@ def _as_float(array, *nodata):
     return values
 
 
-def read_grid(ds, nodata=None):
-    """The whole first band as a Grid; its nodata and `nodata` (a declared void value) are NaN."""
+def read_grid(ds, nodata=None, window=None):
+    """The first band as a Grid, whole or its `window` (c0, r0, c1, r1); its nodata and `nodata` (a declared
+    void value) are NaN."""
     band = ds.GetRasterBand(1)
-    return Grid(_as_float(band.ReadAsArray(), band.GetNoDataValue(), nodata), ds.GetGeoTransform(), raster_srs(ds))
+    c0, r0, c1, r1 = window or (0, 0, ds.RasterXSize, ds.RasterYSize)
+    x0, dx, _, y0, _, dy = ds.GetGeoTransform()
+    return Grid(_as_float(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue(), nodata),
+                (x0 + c0 * dx, dx, 0.0, y0 + r0 * dy, 0.0, dy), raster_srs(ds))
 
 
 def read_window(ds, x, y, what, margin=2, nodata=None):
@@ -96,6 +101,26 @@ def read_window(ds, x, y, what, margin=2, nodata=None):
     band = ds.GetRasterBand(1)
     values = _as_float(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue(), nodata)
     return Grid(values, (x0 + c0 * dx, dx, 0.0, y0 + r0 * dy, 0.0, dy), raster_srs(ds))
+
+
+#: side (cells) of the blocks in which points sample a raster (by_blocks)
+BLOCK = 1024
+
+
+def by_blocks(ds, x, y):
+    """The indices of the points (x, y in the CRS of `ds`) in each BLOCK x BLOCK cell block of `ds` that holds
+    some, so that points spread over a large raster read it one block at a time (read_window of a block's
+    points). Points off the raster are in no block."""
+    x0, dx, _, y0, _, dy = ds.GetGeoTransform()
+    with np.errstate(invalid="ignore"):
+        c, r = (np.asarray(x) - x0) / dx, (np.asarray(y) - y0) / dy
+        on = (c >= 0) & (c <= ds.RasterXSize) & (r >= 0) & (r <= ds.RasterYSize)
+    key = np.where(on, np.floor(r / BLOCK) * (ds.RasterXSize // BLOCK + 1) + np.floor(c / BLOCK), -1)
+    order = np.argsort(key, kind="stable")
+    values, starts = np.unique(key[order], return_index=True)
+    for value, lo, hi in zip(values, starts, np.append(starts[1:], len(order))):
+        if value >= 0:
+            yield order[lo:hi]
 
 
 def outline(grid, n=64):

@@ -13,7 +13,7 @@ import io
 from ..adjustment.report import Section, html_sections, render_text
 from ..atomic import write_text
 from . import figures
-from .statistics import by_label, cumulative, summarize
+from .statistics import by_label, cumulative
 
 GROUP_NAMES = {3: "Point group 3: three-ray points from 3 matching runs",
                2: "Point group 2: three-ray points from 2 matching runs",
@@ -32,80 +32,81 @@ def _z_row(label, s):
     return (label, str(s.n), f"{s.mean:.2f}", f"{s.rms:.2f}", *(f"{p:.1f}%" for p in s.shares))
 
 
-def tables(assessed):
-    """[(table name, [(label, Stats)], form "K" or "Z")] of one Assessed."""
-    d = assessed.differences
-    out = [("all (Kornus et al. 2006, Table 4)", [("dh", summarize(d.dh))], "K")]
-    if d.group is not None:
-        out.append(("per point group (Kornus et al. 2006, Tables 6, 7)", by_label(d.dh, d.group, GROUP_NAMES), "K"))
-    if assessed.classes is not None:
-        out.append(("per class", by_label(d.dh, assessed.classes, assessed.class_names), "K"))
+def tables(summary):
+    """[(table name, [(label, Stats)], form "K" or "Z")] of one assessment.Summary."""
+    out = [("all (Kornus et al. 2006, Table 4)", [("dh", summary.all.stats())], "K")]
+    if summary.groups is not None:
+        out.append(("per point group (Kornus et al. 2006, Tables 6, 7)", by_label(summary.groups, GROUP_NAMES), "K"))
+    if summary.classes is not None:
+        out.append(("per class", by_label(summary.classes, summary.class_names), "K"))
         out.append(("nested classes (Zhang and Gruen 2004, Tables 2-3)",
-                    cumulative(d.dh, assessed.classes, assessed.class_names), "Z"))
+                    cumulative(summary.classes, summary.class_names), "Z"))
     out.append(("flat/moderate vs mountainous (Kornus et al. 2006, section 3.7)",
-                by_label(d.dh, assessed.terrain, assessed.terrain_names), "K"))
+                by_label(summary.terrain, summary.terrain_names), "K"))
     return out
 
 
-def sections(assessed_list, parameters=()):
-    """Report Sections: the inputs and parameters [(name, value)], then every table of every input."""
+def sections(summaries, parameters=()):
+    """Report Sections: the inputs and parameters [(name, value)], then every table of every input
+    (assessment.Summary)."""
     parts = [Section("Inputs and parameters", ("parameter", "value"), [(str(k), str(v)) for k, v in parameters])]
-    for a in assessed_list:
-        d = a.differences
+    for a in summaries:
         for name, rows, form in tables(a):
             header, cell = (K_HEADER, _k_row) if form == "K" else (Z_HEADER, _z_row)
-            parts.append(Section(f"dh [m] of the {d.what} - reference: {name}", header,
+            parts.append(Section(f"dh [m] of the {a.what} - reference: {name}", header,
                                  [cell(label, s) for label, s in rows]))
-        parts[-1].notes.append(f"{d.what} of {d.source}: {d.dh.size} compared; left out: "
-                               + ", ".join(f"{reason} {n}" for reason, n in d.excluded.items()))
+        parts[-1].notes.append(f"{a.what} of {a.source}: {a.all.n} compared; left out: "
+                               + ", ".join(f"{reason} {n}" for reason, n in a.excluded.items()))
     return parts
 
 
-def text(assessed_list, parameters=()):
+def text(summaries, parameters=()):
     """The report's tables as plain text (the log)."""
-    return render_text(sections(assessed_list, parameters))
+    return render_text(sections(summaries, parameters))
 
 
-def write_csv(path, assessed_list):
+def write_csv(path, summaries):
     """Every table row with every statistic (CSV_HEADER), written atomically."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(CSV_HEADER)
-    for a in assessed_list:
+    for a in summaries:
         for name, rows, _ in tables(a):
             for label, s in rows:
-                writer.writerow([a.differences.what, name, label, s.n, *(f"{v:.4f}" for v in (
+                writer.writerow([a.what, name, label, s.n, *(f"{v:.4f}" for v in (
                     s.min, s.mean, s.max, s.rms, s.sigma, s.median, s.nmad, s.q95, *s.shares))])
     write_text(path, buffer.getvalue())
     return str(path)
 
 
-def figure_list(assessed_list):
+def figure_list(summaries):
     """[(caption, PNG bytes)]: per input the dh map and histograms per point group, class and terrain."""
     out = []
-    for a in assessed_list:
-        d = a.differences
-        out.append((f"dh of the {d.what} (colour limits +-Q95 |dh| = {figures.map_limit(d.dh):.2f} m)",
-                    figures.dh_map(d, f"dh of the {d.what}")))
-        splits = [("point group", d.group, GROUP_NAMES), ("class", a.classes, a.class_names),
+    for a in summaries:
+        every = (f"; every {a.map_step}th {'cell of each row and column' if a.map_grid is not None else 'point'}"
+                 if a.map_step > 1 else "")
+        out.append((f"dh of the {a.what} (colour limits +-Q95 |dh| = {figures.map_limit(a.all):.2f} m{every})",
+                    figures.dh_map(a, f"dh of the {a.what}")))
+        splits = [("point group", a.groups, GROUP_NAMES), ("class", a.classes, a.class_names),
                   ("terrain", a.terrain, a.terrain_names)]
-        for kind, labels, names in splits:
-            if labels is not None:
-                series = [(name, d.dh[labels == value]) for value, name in names.items() if (labels == value).any()]
-                out.append((f"Histogram of dh of the {d.what} per {kind}",
-                            figures.histogram(series, f"dh of the {d.what} per {kind}")))
+        for kind, labelled, names in splits:
+            if labelled is not None:
+                series = [(name, labelled[value]) for value, name in names.items()
+                          if value in labelled and labelled[value].n]
+                out.append((f"Histogram of dh of the {a.what} per {kind}",
+                            figures.histogram(series, f"dh of the {a.what} per {kind}")))
     return out
 
 
-def write_report(path, title, assessed_list, parameters=()):
+def write_report(path, title, summaries, parameters=()):
     """One self-contained HTML page: the Sections' tables and the figures as embedded PNGs."""
     style = ("body{font-family:sans-serif}table{border-collapse:collapse}th,td{border:1px solid #bbb;"
              "padding:2px 8px;text-align:right}th:first-child,td:first-child{text-align:left}")
     images = "\n".join(f"<figure><img alt='{html.escape(caption)}' src='data:image/png;base64,"
                        f"{base64.b64encode(png).decode('ascii')}'><figcaption>{html.escape(caption)}</figcaption>"
-                       "</figure>" for caption, png in figure_list(assessed_list))
+                       "</figure>" for caption, png in figure_list(summaries))
     write_text(path, f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
                      f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>\n"
-                     f"{html_sections(sections(assessed_list, parameters))}\n<h2>Figures</h2>\n{images}\n"
+                     f"{html_sections(sections(summaries, parameters))}\n<h2>Figures</h2>\n{images}\n"
                      "</body></html>\n")
     return str(path)

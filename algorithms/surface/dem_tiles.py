@@ -41,7 +41,7 @@ from .. import histogram, progress
 from ..atomic import append_bytes, atomic_path, save_array, work_dir
 from ..crs import srs as parse_crs, transform
 from ..errors import CancelledError, InputError
-from ..execution import run_tasks
+from ..execution import run_tasks, session
 from ..tiling import tile_grid
 from .geotiff import assemble_tiles, write_float_raster
 from .point_input import point_chunks, read_breaklines
@@ -247,7 +247,7 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
     target = output_crs(cloud_srs, mx, my, params.crs)
     lines = [np.column_stack([transform(lines_srs, target, b[:, :2], "the breaklines")[:, :2], b[:, 2]])
              for b in lines]
-    with work_dir(output, "the DEM tiles") as work:
+    with work_dir(output, "the DEM tiles") as work, session(params.execution):      # the rounds share workers
         chunks, (x0, y0, x1, y1) = _to_work_chunks(cloud, params.input_crs, target, count, work,
                                                    progress.scaled(feedback, 3, 8))
         grid = Grid.covering(np.array([x0, x1]), np.array([y0, y1]), params.cell)

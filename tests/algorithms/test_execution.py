@@ -42,6 +42,16 @@ def test_worker_processes_hold_gdals_cache_to_the_steps_bound(where):
     assert gdal.GetCacheMax() == default
 
 
+@pytest.mark.parametrize("where", BACKENDS[1:], ids=lambda e: e.backend)
+def test_a_session_keeps_the_workers_across_rounds(where):
+    with execution.session(where):
+        rounds = [{r[2] for r in run_tasks(tasks.statistic, [(s, 100) for s in range(8)], where)} for _ in range(3)]
+    kept = set().union(*rounds)
+    assert len(kept) <= 2 and os.getpid() not in kept          # the session's 2 workers ran every round
+    outside = [{r[2] for r in run_tasks(tasks.statistic, [(s, 100) for s in range(8)], where)} for _ in range(2)]
+    assert not outside[0] & kept and not outside[0] & outside[1]          # closed at its end; new workers each time
+
+
 def test_an_execution_says_where_it_runs():
     assert [e.describe() for e in BACKENDS] == ["2 threads", "2 local worker processes",
                                                 "a Dask local cluster of 2 worker processes"]
