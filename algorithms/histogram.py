@@ -32,6 +32,13 @@ def total(hists):
     return out
 
 
+def _ranked(values, counts, ranks):
+    """The values at the 1-based `ranks` of values[i] repeated counts[i] times (values in any order)."""
+    order = np.argsort(values, kind="stable")
+    cumulative = np.cumsum(counts[order])
+    return [values[order[int(np.searchsorted(cumulative, rank))]] for rank in ranks]
+
+
 def median(values, counts):
     """The median of values[i] repeated counts[i] times (values in any order), as numpy's median: the
     mean of the two middle order statistics, the middle one for an odd count; NaN when empty."""
@@ -39,10 +46,7 @@ def median(values, counts):
     n = int(counts.sum())
     if n == 0:
         return float("nan")
-    order = np.argsort(values, kind="stable")
-    cumulative = np.cumsum(counts[order])
-    lower = values[order[int(np.searchsorted(cumulative, (n + 1) // 2))]]
-    upper = values[order[int(np.searchsorted(cumulative, n // 2 + 1))]]
+    lower, upper = _ranked(values, counts, ((n + 1) // 2, n // 2 + 1))
     return float((lower + upper) / 2)
 
 
@@ -53,10 +57,7 @@ def quantile(values, counts, q):
     n = int(counts.sum())
     if n == 0:
         return float("nan")
-    order = np.argsort(values, kind="stable")
-    cumulative = np.cumsum(counts[order])
     position = q * (n - 1)
     below, above = int(np.floor(position)), int(np.ceil(position))
-    lo = values[order[int(np.searchsorted(cumulative, below + 1))]]
-    hi = values[order[int(np.searchsorted(cumulative, above + 1))]]
+    lo, hi = _ranked(values, counts, (below + 1, above + 1))
     return float(lo + (hi - lo) * (position - below))
