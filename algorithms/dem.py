@@ -119,7 +119,7 @@ def check_grid(shape, geotransform):
 class Dem:
     """Ellipsoidal heights (metres, WGS 84) on a geographic grid."""
 
-    #: implausible_heights of the heights as read by from_file (None: all plausible, or not read from a file)
+    #: implausible_heights of the heights as read by dem_store.read_dem (None: all plausible, or not read from a file)
     implausible = None
 
     def __init__(self, heights, geotransform):
@@ -163,19 +163,6 @@ class Dem:
         return cls(np.full((2, 2), float(h)),
                    (lon_min, (lon_max - lon_min) / 2, 0.0, lat_max, 0.0, -(lat_max - lat_min) / 2))
 
-    @classmethod
-    def from_file(cls, path, nodata=None):
-        """The whole DEM raster `path` in memory, read as dem_store.store_dem reads it (ellipsoidal heights;
-        other CRSs warped bilinearly to EPSG:4326; its nodata and `nodata`, a declared void value, as NaN;
-        `implausible` set), by way of a temporary folder of the system (a StorageError where it is full).
-        InputError where the file cannot be opened or has no CRS. For a large raster, read windows of
-        dem_store.store_dem's file instead."""
-        import tempfile
-
-        from .dem_store import store_dem
-        with tempfile.TemporaryDirectory(prefix="pushbroom-dem-") as work:
-            return store_dem(path, work, nodata).whole()
-
     def ground(self, model, col, row):
         """(lon, lat, h) where the rays of image points (col, row) of sensor `model` meet this DEM
         (model.image_to_dem)."""
@@ -187,11 +174,6 @@ class Dem:
         if not np.isfinite(window).any():
             return math.nan, math.nan
         return float(np.nanmin(window)), float(np.nanmax(window))
-
-    def stored(self, work):
-        """This DEM as a dem_store.StoredDem in the folder `work` (its file read by windows)."""
-        from .dem_store import stored_copy
-        return stored_copy(self, work)
 
 
 def dem_window(heights, geotransform, height_range, bounds):

@@ -2,7 +2,7 @@
 grid (dem.Dem's conventions) in a float64 `.npy` file of a work folder (disk_array.DiskArray), written
 and read by bands of ROWS rows, so that memory follows the band or the window, never the raster.
 
-Reading (store_dem; dem.Dem.from_file reads a DEM into memory this way):
+Reading (store_dem; read_dem reads a DEM into memory this way):
 1. the raster's band 1 as float64, its own nodata and a declared void value (`nodata`, such as SRTM's
    -32768 in a file that does not flag its voids) as NaN; implausible heights (dem.implausible_heights)
    counted over all bands, reported and used as given;
@@ -62,10 +62,6 @@ class StoredDem:
     def window(self, bounds):
         """The Dem of the cells over lon/lat `bounds` and one more around (dem.dem_window)."""
         return dem_window(DiskArray.existing(self.path), self.geotransform, self.height_range, bounds)
-
-    def stored(self, work):
-        """This StoredDem (dem.Dem.stored's counterpart: already in a file)."""
-        return self
 
     def whole(self):
         """The whole grid as a Dem in memory (for a small DEM)."""
@@ -215,6 +211,21 @@ def store_dem(path, work, nodata=None, vertical="ellipsoidal"):
         raise InputError("the DEM holds no valid height (all cells are nodata)")
     return StoredDem(out.path, geotransform, shape, (low, high),
                      tally.warning(f"the DEM {path}"))
+
+
+def read_dem(path, nodata=None):
+    """The whole DEM raster `path` as a dem.Dem in memory, read as store_dem reads it (ellipsoidal heights;
+    other CRSs warped bilinearly to EPSG:4326; its nodata and `nodata`, a declared void value, as NaN;
+    `implausible` set), by way of a temporary folder of the system (a StorageError where it is full).
+    InputError where the file cannot be opened or has no CRS. For a large raster, use store_dem's windows."""
+    import tempfile
+    with tempfile.TemporaryDirectory(prefix="pushbroom-dem-") as work:
+        return store_dem(path, work, nodata).whole()
+
+
+def as_stored(dem, work):
+    """`dem` as a StoredDem: itself, or a dem.Dem in memory stored in the folder `work` (stored_copy)."""
+    return dem if isinstance(dem, StoredDem) else stored_copy(dem, work)
 
 
 def stored_copy(dem, work):

@@ -14,7 +14,7 @@ from osgeo import gdal
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.block import Block
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.geodesy import metres_per_degree
 
 #: land-cover classes of the simulator (classes.tif) grouped as in the report
@@ -41,7 +41,7 @@ def group3_accuracy(out, step=10.0, margin=20.0):
     blk = Block(os.path.join(out, "block.gpkg"))
     ids = {r["name"]: r["id"] for r in blk.images()}
     truth = {name: sensors.load(os.path.join(scene, "truth", name, "METADATA.DIM")) for name in ids}
-    dsm = Dem.from_file(os.path.join(scene, "dsm.tif"))
+    dsm = read_dem(os.path.join(scene, "dsm.tif"))
     ds = gdal.Open(os.path.join(scene, "classes.tif"))
     classes, gt = ds.ReadAsArray(), ds.GetGeoTransform()
 

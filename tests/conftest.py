@@ -8,6 +8,7 @@ import sys
 
 import pytest
 
+from pushbroom.algorithms.dem_store import read_dem
 from tests.helpers.figures import Figures
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
@@ -96,10 +97,9 @@ def small_scene_matched(small_scene):
     HRG, HRS1, HRS2 (supplied models, the DSM's height range +- 100 m, 4 workers): each (GrowParams,
     refine) matched once per run and shared read-only."""
     from pushbroom.algorithms import sensors
-    from pushbroom.algorithms.dem import Dem
     from pushbroom.algorithms.matching.combinations import match_block
     names = ("HRG", "HRS1", "HRS2")
-    lo, hi = Dem.from_file(small_scene["dsm"]).height_range
+    lo, hi = read_dem(small_scene["dsm"]).height_range
     done = {}
 
     def get(params, refine=True):

@@ -28,7 +28,7 @@ from qgis.PyQt.QtWidgets import QCheckBox, QFileDialog, QHBoxLayout, QLabel, QTo
 
 from ..algorithms.adjustment.control_points import orthometric_to_ellipsoidal
 from ..algorithms.block import Block
-from ..algorithms.dem import Dem
+from ..algorithms.dem_store import read_dem
 from ..algorithms.errors import InputError, PushbroomError
 from ..resource_files import resource_path
 
@@ -205,7 +205,7 @@ class ReferenceView(QWidget):
             self.dem = None
             return
         try:
-            self.dem = Dem.from_file(layer.source())
+            self.dem = read_dem(layer.source())
         except PushbroomError as exc:
             self.dem = None
             self.message.emit(f"DEM {layer.name()} not used: {exc}")

@@ -24,6 +24,7 @@ from osgeo import gdal, gdal_array
 from .. import progress
 from ..atomic import atomic_path, closing, work_dir
 from ..crs import srs as parse_crs
+from ..dem_store import as_stored
 from ..errors import InputError
 from ..execution import run_tasks
 from ..surface.geotiff import assemble_tiles
@@ -189,7 +190,7 @@ def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None,
     windows = [(y0, x0, y1 - y0, x1 - x0) for x0, y0, x1, y1 in tile_grid((grid.cols, grid.rows), tile)]
     reach = _reach(model, dem) if occlusion_mask else (0.0, 0.0)
     with work_dir(output, "the orthoimage tiles") as work:
-        dem = dem.stored(work)
+        dem = as_stored(dem, work)
         job = (str(image), model, dem, grid.srs.ExportToWkt(),
                tuple(grid.geotransform), (grid.cols, grid.rows), resampling_method, occlusion_mask, np_type.str,
                nodata, max_error, start_step, reach, band.DataType)

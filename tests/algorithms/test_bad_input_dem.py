@@ -9,8 +9,8 @@ import pytest
 from osgeo import gdal
 
 from pushbroom.algorithms.crs import srs
-from pushbroom.algorithms.dem import Dem, implausible_heights
-from pushbroom.algorithms.dem_store import store_dem
+from pushbroom.algorithms.dem import implausible_heights
+from pushbroom.algorithms.dem_store import read_dem, store_dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.quality.height_differences import dem_differences, reference_at_points
 from tests.helpers.bad_inputs import VOID, VOID_CELLS, copy_dem
@@ -32,7 +32,7 @@ def test_a_dem_without_crs_is_refused_with_how_to_assign_one(dems, tmp_path):
     expected = (f"the DEM {path} has no coordinate reference system, so where its cells lie is unknown: assign the "
                 f"CRS of its coordinates, e.g. 'gdal_edit.py -a_srs EPSG:4326 {path}' for longitude/latitude in "
                 "degrees (or the EPSG code of its map projection), and run again")
-    for read in (Dem.from_file, lambda p: store_dem(p, tmp_path)):      # in memory, and the steps' way in
+    for read in (read_dem, lambda p: store_dem(p, tmp_path)):      # in memory, and the steps' way in
         with pytest.raises(InputError, match=f"^{re.escape(expected)}$"):
             read(path)
 
@@ -49,16 +49,16 @@ def test_implausible_heights_names_the_value_and_the_cells():
 
 
 def test_unflagged_voids_are_used_with_a_warning(dems):
-    dem = Dem.from_file(dems["voids"])
+    dem = read_dem(dems["voids"])
     # the file, the exact count of void cells and their value
     assert dem.implausible.startswith(f"the DEM {dems['voids']} has {VOID_CELLS} cells at -32767 m, outside")
     assert np.all(dem.heights[VOID] == -32767)        # used as given: the warning is the only safeguard
-    assert Dem.from_file(dems["dsm"]).implausible is None      # the simulated terrain is plausible
+    assert read_dem(dems["dsm"]).implausible is None      # the simulated terrain is plausible
 
 
 def test_declared_nodata_makes_the_voids_nan(dems):
-    dem = Dem.from_file(dems["voids"], nodata=-32767)
-    clean = Dem.from_file(dems["dsm"])
+    dem = read_dem(dems["voids"], nodata=-32767)
+    clean = read_dem(dems["dsm"])
     outside = np.ones(dem.shape, bool)
     outside[VOID] = False
     assert dem.implausible is None and np.isnan(dem.heights[VOID]).all()    # declared: no warning, all NaN
@@ -66,11 +66,11 @@ def test_declared_nodata_makes_the_voids_nan(dems):
 
 
 def test_declared_nodata_is_applied_before_a_warp(dems, tmp_path):
-    warned = Dem.from_file(dems["utm"])
+    warned = read_dem(dems["utm"])
     # undeclared, the voids are counted in the file's own (UTM) cells, before the warp
     assert f"the DEM {dems['utm']} has " in warned.implausible and "cells at -32767 m" in warned.implausible
     dem = store_dem(dems["utm"], tmp_path, nodata=-32767).whole()
-    low, high = Dem.from_file(dems["dsm"]).height_range
+    low, high = read_dem(dems["dsm"]).height_range
     # neither the file's nodata (-9999) nor the declared void value leaks into the bilinear warp to WGS 84:
     # every height within the terrain's range
     assert low - 1e-3 <= np.nanmin(dem.heights) and np.nanmax(dem.heights) <= high + 1e-3
@@ -78,7 +78,7 @@ def test_declared_nodata_is_applied_before_a_warp(dems, tmp_path):
 
 
 def test_the_reference_of_the_assessment_warns_and_takes_a_nodata_value(dems):
-    reference = Dem.from_file(dems["dsm"])
+    reference = read_dem(dems["dsm"])
     lon0, dlon, _, lat0, _, dlat = reference.geotransform
     rows, cols = np.mgrid[390:510, 290:410]      # the void's cells and a 10-cell ring around them
     lon, lat = lon0 + (cols.ravel() + 0.5) * dlon, lat0 + (rows.ravel() + 0.5) * dlat

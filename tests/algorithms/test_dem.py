@@ -5,6 +5,7 @@ from osgeo import gdal, osr
 from scipy.interpolate import RegularGridInterpolator
 
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.errors import InputError
 
 GT = (10.0, 0.25, 0.0, 50.0, 0.0, -0.5)  # 0.25 x 0.5 degree cells, north-up
@@ -53,7 +54,7 @@ def test_unusable_grids_raise_input_error(heights, gt, message):
         Dem(heights, gt)
 
 
-def test_from_file_reads_nodata_as_nan_and_warps_projected_dems(tmp_path):
+def test_read_dem_reads_nodata_as_nan_and_warps_projected_dems(tmp_path):
     gdal.UseExceptions()
     srs = osr.SpatialReference()
     srs.ImportFromEPSG(4326)
@@ -65,7 +66,7 @@ def test_from_file_reads_nodata_as_nan_and_warps_projected_dems(tmp_path):
     z[1, 2] = -32768
     ds.GetRasterBand(1).WriteArray(z)
     ds = None
-    dem = Dem.from_file(tmp_path / "geo.tif")
+    dem = read_dem(tmp_path / "geo.tif")
     assert dem.geotransform == GT and np.isnan(dem.heights[1, 2]) and dem.heights[2, 3] == 11.0
     utm = osr.SpatialReference()
     utm.ImportFromEPSG(32632)
@@ -74,9 +75,9 @@ def test_from_file_reads_nodata_as_nan_and_warps_projected_dems(tmp_path):
     ds.SetSpatialRef(utm)
     ds.GetRasterBand(1).Fill(123.0)
     ds = None
-    dem = Dem.from_file(tmp_path / "utm.tif")
+    dem = read_dem(tmp_path / "utm.tif")
     west, south, east, north = dem.bounds
     assert 8.9 < west < east < 9.1 and 45.1 < south < north < 45.2
     assert dem.height(0.5 * (west + east), 0.5 * (south + north)) == pytest.approx(123.0)
     with pytest.raises(InputError, match="cannot open DEM"):
-        Dem.from_file(tmp_path / "missing.tif")
+        read_dem(tmp_path / "missing.tif")

@@ -5,7 +5,7 @@ import pytest
 from osgeo import gdal
 
 from pushbroom.algorithms import dem_store, sensors
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +40,7 @@ def test_a_warped_dem_is_gdals_in_memory_warp(utm_dsm, tmp_path, small_bands):
 
 def test_heights_and_ranges_by_blocks_are_the_whole_grids(small_scene, tmp_path, small_bands):
     stored = dem_store.store_dem(small_scene["dsm"], tmp_path)
-    whole = Dem.from_file(small_scene["dsm"])
+    whole = read_dem(small_scene["dsm"])
     np.testing.assert_array_equal(stored.whole().heights, whole.heights)
     west, south, east, north = whole.bounds
     rng = np.random.default_rng(5)
@@ -55,7 +55,7 @@ def test_heights_and_ranges_by_blocks_are_the_whole_grids(small_scene, tmp_path,
 
 def test_rays_meet_the_stored_dem_where_they_meet_the_whole_one(small_scene, tmp_path, small_bands):
     stored = dem_store.store_dem(small_scene["dsm"], tmp_path)
-    whole = Dem.from_file(small_scene["dsm"])
+    whole = read_dem(small_scene["dsm"])
     for name in ("HRG", "HRS1"):
         model = sensors.load(small_scene["images"][name]["imagery"])
         cols, rows = model.size

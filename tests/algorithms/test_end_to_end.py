@@ -21,6 +21,7 @@ from scipy.spatial import Delaunay
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.quality.assessment import assess, labels
 from pushbroom.algorithms.quality.classes import ClassRaster
 from pushbroom.algorithms.quality.statistics import summarize
@@ -128,7 +129,7 @@ def test_object_points_against_the_true_dsm_and_dtm(chain, figures):
     figures.report("group 3, interior: RMS", measured[INNER].rms, "m", f"target <= {POINT_TARGET} m")
     # the assessment's dh are the intersected heights minus the DSM at the points (LAS and assess round trip)
     r = chain["three images"]["intersection"]
-    direct = r.h[r.ok] - Dem.from_file(chain["paths"]["dsm"]).height(r.lon[r.ok], r.lat[r.ok])
+    direct = r.h[r.ok] - read_dem(chain["paths"]["dsm"]).height(r.lon[r.ok], r.lat[r.ok])
     assert abs(summarize(direct).rms - summarize(chain["three images"]["dsm"][0].differences.dh).rms) < 0.01
     assert measured[OPEN].n > 5000 and measured[INNER].n > 1000
     assert measured[OPEN].rms <= POINT_BOUND[0] and measured[INNER].rms <= POINT_BOUND[1]
@@ -167,7 +168,7 @@ def test_group3_height_error_is_the_matched_surface_not_the_orientation(chain, f
     image noise (aliasing of the HRS images and the relief inside the template): docs/validation.md#end-to-end."""
     mass, models, paths = chain["three images"]["mass"], chain["three images"]["models"], chain["paths"]
     truth = {IDS[name]: sensors.load(path) for name, path in paths["truth_metadata"].items()}
-    dsm = Dem.from_file(paths["dsm"])
+    dsm = read_dem(paths["dsm"])
     ids = mass.points["id"][mass.points["group"] == 3]
     obs = mass.observations[np.isin(mass.observations["point_id"], ids)]
     matched = {}
@@ -225,7 +226,7 @@ def test_dem_against_the_true_dsm_and_dtm(chain, tmp_path, figures):
     figures.report("DEM, interior: RMS", dsm[INNER].rms, "m", f"target <= {DEM_TARGET} m")
     cloud = read_points(chain["three images"]["las"])
     lon, lat = reproject(cloud.x, cloud.y, cloud.srs, wgs84())
-    exact = PointSet(cloud.x, cloud.y, Dem.from_file(chain["paths"]["dsm"]).height(lon, lat), cloud.srs)
+    exact = PointSet(cloud.x, cloud.y, read_dem(chain["paths"]["dsm"]).height(lon, lat), cloud.srs)
     write_dem(interpolate_dem(exact, cell=DEM_CELL), tmp_path / "exact_heights_dem.tif")
     floor = rows(chain, assess(chain["paths"]["dsm"], dem=tmp_path / "exact_heights_dem.tif",
                                classes=ClassRaster(chain["classes"]))[0])

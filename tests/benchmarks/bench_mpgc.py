@@ -7,7 +7,7 @@ import tempfile
 import numpy as np
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.matching import lsm, mpgc
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams, LsmParams
@@ -22,7 +22,7 @@ def run():
     with tempfile.TemporaryDirectory() as tmp:
         paths = simulate_scene(SceneConfig.small(), tmp + "/scene")
         models = [sensors.load(paths["truth_metadata"][name]) for name in NAMES]
-        dsm = Dem.from_file(paths["dsm"])
+        dsm = read_dem(paths["dsm"])
         lo, hi = dsm.height_range
         cols, rows = models[0].size
         x0, y0 = (v.ravel() for v in np.meshgrid(np.arange(25.5, cols - 25, 10.0), np.arange(25.5, rows - 25, 10.0)))

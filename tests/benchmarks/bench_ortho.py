@@ -15,7 +15,7 @@ import numpy as np
 from osgeo import gdal
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.ortho import default_grid, orthorectify
 from pushbroom.algorithms.ortho.mapping import TileMapper
@@ -31,7 +31,7 @@ def prepare(folder):
     """(image with GDAL-readable RPC, its RpcModel, DSM path, Dem, OutputGrid)."""
     paths = simulate_scene(SceneConfig.small(), os.path.join(folder, "scene"))
     truth = sensors.load(paths["truth_metadata"]["HRG"])
-    dem = Dem.from_file(paths["dsm"])
+    dem = read_dem(paths["dsm"])
     lo, hi = dem.height_range
     rpc, _ = fit_rpc(truth, (lo - 100.0, hi + 100.0))
     image = os.path.join(folder, "hrg.tif")

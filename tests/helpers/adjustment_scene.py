@@ -7,7 +7,7 @@ import numpy as np
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import check_points
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.stats import statistics_table
 
 
@@ -42,7 +42,7 @@ def synthetic_points(scene, image_ids, n, sigma_px, seed):
     first = truth[next(iter(image_ids.values()))]
     cols, rows = first.size
     x, y = rng.uniform(30, cols - 30, n), rng.uniform(30, rows - 30, n)
-    lon, lat, h = first.image_to_dem(x, y, Dem.from_file(scene["dsm"]))
+    lon, lat, h = first.image_to_dem(x, y, read_dem(scene["dsm"]))
     meas = []
     for i, model in truth.items():
         c, r = model.ground_to_image(lon, lat, h)

@@ -19,7 +19,7 @@ from scipy import ndimage
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
 from pushbroom.algorithms.surface import intersection
@@ -44,8 +44,8 @@ class Truth:
 
     def __init__(self, paths):
         self.models = {k + 1: sensors.load(paths["truth_metadata"][n]) for k, n in enumerate(NAMES)}
-        self.dsm = Dem.from_file(paths["dsm"])
-        dtm = Dem.from_file(paths["dtm"])
+        self.dsm = read_dem(paths["dsm"])
+        dtm = read_dem(paths["dtm"])
         lon0, lat0, lon1, lat1 = self.dsm.bounds
         self.srs = output_srs(None, np.array([0.5 * (lon0 + lon1)]), np.array([0.5 * (lat0 + lat1)]))
         corners = reproject(np.array([lon0, lon1, lon0, lon1]), np.array([lat0, lat0, lat1, lat1]), wgs84(), self.srs)

@@ -28,8 +28,7 @@ from pushbroom.algorithms.adjustment.observations import Observations, tie_obser
 from pushbroom.algorithms.adjustment.selection import select_parameters
 from pushbroom.algorithms.atomic import work_dir
 from pushbroom.algorithms.crs import srs
-from pushbroom.algorithms.dem import Dem
-from pushbroom.algorithms.dem_store import store_dem
+from pushbroom.algorithms.dem_store import read_dem, store_dem
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.matching.combinations import match_block
@@ -138,7 +137,7 @@ def run_chain(paths, folder, workers=2):
         now = time.perf_counter()
         times[step], clock[0] = now - clock[0], now
 
-    lo, hi = Dem.from_file(paths["dsm"]).height_range
+    lo, hi = read_dem(paths["dsm"]).height_range
     h0 = 0.5 * (lo + hi)
     classes, interior = class_rasters(paths, folder)
     out = {"paths": paths, "times": times, "classes": classes, "interior": interior}

@@ -20,7 +20,7 @@ from osgeo import gdal
 from scipy import ndimage
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.matching.imagery import Image, Smoothed
 from pushbroom.algorithms.matching.mpgc_kernels import SUPPORT_BOX
 from pushbroom.algorithms.matching.pair_geometry import local_affine
@@ -79,7 +79,7 @@ class Scene:
         self.model2 = sensors.load(paths["images"][second]["metadata"])
         self.truth1 = sensors.load(paths["truth_metadata"][first])
         self.truth2 = sensors.load(paths["truth_metadata"][second])
-        self.dsm = Dem.from_file(paths["dsm"])
+        self.dsm = read_dem(paths["dsm"])
         lo, hi = self.dsm.height_range
         self.height_range = (lo - 100.0, hi + 100.0)
         ds = gdal.Open(str(paths["classes"]))

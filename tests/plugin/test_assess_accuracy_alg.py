@@ -12,7 +12,7 @@ from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProject, QgsRasterLayer
 
 import pushbroom
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.quality.statistics import summarize
 from pushbroom.algorithms.simulation.terrain import CLASSES, FOREST
 from pushbroom.algorithms.surface.geotiff import NODATA
@@ -26,7 +26,7 @@ REPO = pathlib.Path(pushbroom.__file__).resolve().parent
 @pytest.fixture(scope="module")
 def inputs(small_scene, tmp_path_factory):
     folder = tmp_path_factory.mktemp("assess")
-    dsm = Dem.from_file(small_scene["dsm"])
+    dsm = read_dem(small_scene["dsm"])
     rng = np.random.default_rng(2)
     lon0, lat0, lon1, lat1 = dsm.bounds
     lon, lat = rng.uniform(lon0 + 1e-3, lon1 - 1e-3, 3000), rng.uniform(lat0 + 1e-3, lat1 - 1e-3, 3000)

@@ -26,7 +26,7 @@ from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.adjustment.residual_vectors import ATTRIBUTES
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.crs import egm96_undulation
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.surface.intersection import intersect
@@ -83,7 +83,7 @@ def make_tie_block(scene, path):
     truth = {i: sensors.load(scene["truth_metadata"][n]) for n, i in ids.items()}
     cols, rows = truth[ids["HRG"]].size
     lon, lat, h = truth[ids["HRG"]].image_to_dem(rng.uniform(30, cols - 30, N_TIE), rng.uniform(30, rows - 30, N_TIE),
-                                                 Dem.from_file(scene["dsm"]))
+                                                 read_dem(scene["dsm"]))
     pts = np.zeros(N_TIE, POINT_DTYPE)
     pts["id"], pts["group"] = np.arange(N_TIE), 3
     obs = np.zeros(3 * N_TIE, OBS_DTYPE)

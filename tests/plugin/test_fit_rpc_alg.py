@@ -11,7 +11,7 @@ from qgis.core import QgsProcessingException, QgsProcessingFeedback
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.block import Block
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.sensors.rpc import RpcModel
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
 from pushbroom.algorithms.sensors.rpc_io import write_rpb
@@ -24,7 +24,7 @@ NAMES = ("HRG", "HRS1", "HRS2")
 def scene(small_scene):
     """(folder, paths, mean DSM height) of the small scene (tests copy the folder before writing)."""
     import pathlib
-    height = float(np.nanmean(Dem.from_file(small_scene["dsm"]).heights))
+    height = float(np.nanmean(read_dem(small_scene["dsm"]).heights))
     return pathlib.Path(small_scene["folder"]), small_scene, height
 
 

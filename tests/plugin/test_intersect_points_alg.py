@@ -8,7 +8,7 @@ from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
 from pushbroom.algorithms.block import Block
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.surface.pointcloud import laspy_module
 from tests.helpers.osr_oracle import utm
@@ -17,7 +17,7 @@ from tests.helpers.osr_oracle import utm
 @pytest.fixture(scope="module")
 def triplet(small_scene, tmp_path_factory):
     images = Block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
-    dsm = Dem.from_file(small_scene["dsm"])
+    dsm = read_dem(small_scene["dsm"])
     return {"images": images, "dsm": dsm, "folder": tmp_path_factory.mktemp("intersect"),
             "height": float(np.nanmean(dsm.heights))}
 

@@ -8,7 +8,7 @@ from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessin
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.block import Block
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.ortho import orthorectify
 
 
@@ -36,7 +36,7 @@ def test_image_with_its_own_orientation_equals_the_engine(pushbroom_provider, in
     band = ds.GetRasterBand(1)
     assert band.DataType == gdal.GDT_Byte and band.GetNoDataValue() == 0 and band.GetOverviewCount() >= 1
     assert abs(ds.GetGeoTransform()[1] - 5.0) < 0.1    # HRG's 5 m ground sampling distance
-    engine = orthorectify(inputs["image"], sensors.load(inputs["image"]), Dem.from_file(inputs["dem"]),
+    engine = orthorectify(inputs["image"], sensors.load(inputs["image"]), read_dem(inputs["dem"]),
                           tmp_path / "engine.tif", resampling_method="bicubic")
     assert engine.cells == result["CELLS"] > 300000
     np.testing.assert_array_equal(band.ReadAsArray(), gdal.Open(str(tmp_path / "engine.tif")).ReadAsArray())

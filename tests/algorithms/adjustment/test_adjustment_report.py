@@ -15,6 +15,7 @@ from pushbroom.algorithms.adjustment.residual_vectors import intersection_residu
 from pushbroom.algorithms.adjustment.tie_heights import tie_height_differences
 from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree, utm_epsg
 from pushbroom.algorithms.simulation import SceneConfig
@@ -37,7 +38,7 @@ def dsm_tie_points(scene, n, seed):
     truth = scene_models(scene, NAMES, truth=True)
     cols, rows = truth[1].size
     lon, lat, h = truth[1].image_to_dem(rng.uniform(30, cols - 30, n), rng.uniform(30, rows - 30, n),
-                                        Dem.from_file(scene["dsm"]))
+                                        read_dem(scene["dsm"]))
     meas = []
     for i, model in truth.items():
         c, r = model.ground_to_image(lon, lat, h)
@@ -159,7 +160,7 @@ def test_tie_heights_against_numpy_and_the_true_surface(adjusted, figures):
     tie = result.observations.points["role"] == "tie"
     tables = {}
     for key in ("dsm", "dtm"):
-        got = tie_height_differences(result, Dem.from_file(scene[key]))
+        got = tie_height_differences(result, read_dem(scene[key]))
         assert got.outside == 0 and list(got.names) == list(result.observations.points["name"][tie])
         expected = result.h[tie] - bilinear(scene[key], result.lon[tie], result.lat[tie])
         np.testing.assert_allclose(got.dh, expected, atol=1e-6)
@@ -176,7 +177,7 @@ def test_tie_heights_with_an_egm96_reference(adjusted):
     """An EGM96 (orthometric) copy of the DSM gives the ellipsoidal comparison back; a DEM covering
     half the block counts the other tie points as outside."""
     scene, _, result, _, _ = adjusted
-    dsm = Dem.from_file(scene["dsm"])
+    dsm = read_dem(scene["dsm"])
     lon0, dlon, _, lat0, _, dlat = dsm.geotransform
     rows, cols = dsm.shape
     lon, lat = np.meshgrid(lon0 + dlon * (np.arange(cols) + 0.5), lat0 + dlat * (np.arange(rows) + 0.5))
@@ -199,7 +200,7 @@ def test_report_tables(adjusted, tmp_path, figures):
     """Kornus et al. 2006, Tables 3 and 4 rows equal numpy statistics; the HTML page holds them as tables."""
     scene, obs, result, check, _ = adjusted
     table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")})
-    tie = tie_height_differences(result, Dem.from_file(scene["dtm"]))
+    tie = tie_height_differences(result, read_dem(scene["dtm"]))
     vectors, _ = residual_vectors(result, check, obs)
     parts = report.sections(result, check, table, heights=(tie, "dtm.tif"), vectors=vectors)
     text = report.render_text(parts)

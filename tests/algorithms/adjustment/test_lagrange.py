@@ -15,7 +15,7 @@ from pushbroom.algorithms.adjustment.control_series import control_point_series
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.adjustment.parameters import EXTERIOR, OrientationParameters, line_time
 from pushbroom.algorithms.adjustment.report import series_section
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.sensors.spot import SpotModel
 from pushbroom.algorithms.simulation import SceneConfig
@@ -122,7 +122,7 @@ def tie_points(scene, per_side, rng):
     truth = scene_models(scene, NAMES, truth=True)
     cols, rows = truth[1].size
     c, r = (v.ravel() for v in np.meshgrid(np.linspace(60, cols - 60, per_side), np.linspace(60, rows - 60, per_side)))
-    lon, lat, h = truth[1].image_to_dem(c, r, Dem.from_file(scene["dsm"]))
+    lon, lat, h = truth[1].image_to_dem(c, r, read_dem(scene["dsm"]))
     meas = []
     for i, model in truth.items():
         col, row = model.ground_to_image(lon, lat, h)

@@ -14,7 +14,7 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.observations import Observations, tie_observations
 from pushbroom.algorithms.adjustment.parameters import OrientationParameters
 from pushbroom.algorithms.adjustment.selection import select_parameters
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
@@ -38,7 +38,7 @@ def block(simulated):
     from automatic seeds, one per 100 x 100 HRG pixels."""
     paths = simulated(SceneConfig(size_km=20.0, points=30, error_scale=0.0))
     models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
-    lo, hi = Dem.from_file(paths["dsm"]).height_range
+    lo, hi = read_dem(paths["dsm"]).height_range
     matched = match_block([paths["images"][n]["imagery"] for n in NAMES], models, params=GrowParams(step=18),
                           height_range=(lo - 100.0, hi + 100.0), workers=2)
     tie = tie_observations(select_tie_points(matched, cell=100.0))

@@ -96,13 +96,14 @@ def test_model_loaded_from_product_folder_equals_metadata(spot5_product):
 
 def test_block_records_terrain_height_range_and_logs_steps(spot5_product, tmp_path):
     from pushbroom.algorithms.dem import Dem
+    from pushbroom.algorithms.dem_store import stored_copy
     images = Block.open_images([str(spot5_product)])
     path = Block.create(tmp_path / "b.gpkg", images, height=250.0).path
     assert Block(path).height_range() == (-250.0, 750.0)
     heights = np.full((50, 50), 300.0)
     heights[10:20, 10:20] = 1200.0  # a mountain inside the footprint's box
     heights[0, 0] = 5000.0          # a peak outside it
-    dem = Dem(heights, (87.0, 0.04, 0.0, 51.0, 0.0, -0.04)).stored(tmp_path)
+    dem = stored_copy(Dem(heights, (87.0, 0.04, 0.0, 51.0, 0.0, -0.04)), tmp_path)
     path2 = Block.create(tmp_path / "d.gpkg", images, dem=dem).path
     assert Block(path2).height_range() == (300.0, 1200.0)
     Block(path).update_info({"mass_points_count": 12}, step="matchpoints", message="12 points")

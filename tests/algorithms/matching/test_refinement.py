@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.matching.coarse_to_fine_level import ShiftedModel
 from pushbroom.algorithms.matching.refinement import affine_bias
 
@@ -17,7 +17,7 @@ NAMES = ("HRG", "HRS1", "HRS2")
 def rays(small_scene):
     """Truth models and the true positions of 2000 ground points seen by all three images."""
     truths = [sensors.load(small_scene["truth_metadata"][k]) for k in NAMES]
-    dsm = Dem.from_file(small_scene["dsm"])
+    dsm = read_dem(small_scene["dsm"])
     rng = np.random.default_rng(5)
     cols, rows = truths[0].size
     x0, y0 = rng.uniform(100, cols - 100, 2000), rng.uniform(100, rows - 100, 2000)

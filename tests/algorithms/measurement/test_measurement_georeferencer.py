@@ -10,6 +10,7 @@ from osgeo import osr
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import utm_epsg
 from pushbroom.algorithms.measurement.georeferencer import HEADER, read_points, write_points
@@ -44,7 +45,7 @@ def test_write_and_read_back(observations, small_scene, tmp_path, figures):
     assert rows[:, 2].tolist() == m["col"].tolist() and rows[:, 3].tolist() == (-m["row"]).tolist()
     assert (rows[:, 4:] == [1, 0, 0, 0]).all()
     # back as reference points: Z from the true DTM
-    dtm = Dem.from_file(small_scene["dtm"])
+    dtm = read_dem(small_scene["dtm"])
     back = read_points(path, HRG, dem=dtm, role="check", prefix="G")
     assert back.points["name"].tolist() == [f"G{k}" for k in range(1, len(m) + 1)]
     assert (back.points["role"] == "check").all()

@@ -9,6 +9,7 @@ import pytest
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.measurement.prediction import ground_from_click, predict
@@ -20,7 +21,7 @@ NAMES = ("HRG", "HRS1", "HRS2")
 def truth(small_scene):
     models = {n: sensors.load(small_scene["truth_metadata"][n]) for n in NAMES}
     with open(small_scene["points"], newline="") as f:
-        return models, list(csv.DictReader(f)), Dem.from_file(small_scene["dsm"])
+        return models, list(csv.DictReader(f)), read_dem(small_scene["dsm"])
 
 
 def test_predict_lands_on_the_true_positions(truth, figures):

@@ -13,7 +13,7 @@ from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.control_points import DEFAULT_SIGMAS
 from pushbroom.algorithms.adjustment.residual_rows import residual_rows
 from pushbroom.algorithms.block import Block
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.measurement.session import PROVISIONAL_SIGMA, SIGMA_KEYS, MeasurementSession
 
@@ -47,7 +47,7 @@ class History:
 
 @pytest.fixture
 def dem(marked_scene):
-    return Dem.from_file(marked_scene["dsm"])
+    return read_dem(marked_scene["dsm"])
 
 
 def open_session(path):

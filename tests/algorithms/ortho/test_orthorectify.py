@@ -10,7 +10,7 @@ from scipy import ndimage
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import egm96_undulation, srs
 from pushbroom.algorithms.dem import Dem, dem_window
-from pushbroom.algorithms.dem_store import store_dem
+from pushbroom.algorithms.dem_store import read_dem, store_dem
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
@@ -27,7 +27,7 @@ from tests.helpers.ortho_oracle import geometric_error
 @pytest.fixture(scope="module")
 def scene(small_scene):
     truth = gdal.Open(small_scene["orthoimage"])
-    return {"paths": small_scene, "dsm": Dem.from_file(small_scene["dsm"]),
+    return {"paths": small_scene, "dsm": read_dem(small_scene["dsm"]),
             "hrg": sensors.load(small_scene["truth_metadata"]["HRG"]),
             "image": small_scene["images"]["HRG"]["imagery"],
             # the true orthoimage's own grid (EPSG:4326, 5 m cells)

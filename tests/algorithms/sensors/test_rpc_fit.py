@@ -10,7 +10,7 @@ import pytest
 from osgeo import gdal
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.sensors import rpc_fit
 from pushbroom.algorithms.sensors.base import SensorModel
@@ -44,7 +44,7 @@ def scene_model(scenes, configuration, name):
     """(supplied sensor model, cube height range = DSM range widened, paths) of one simulated image."""
     paths = scenes[configuration]
     return (sensors.load(paths["images"][name]["metadata"]),
-            default_height_range(Dem.from_file(paths["dsm"]).height_range), paths)
+            default_height_range(read_dem(paths["dsm"]).height_range), paths)
 
 
 def random_image_points(model, height_range, n=500, seed=3):

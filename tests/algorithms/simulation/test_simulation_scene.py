@@ -9,7 +9,7 @@ import pytest
 from osgeo import gdal
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import geodetic_to_ecef
 from pushbroom.algorithms.sensors.spot_orientation import Corrections
@@ -103,7 +103,7 @@ def test_measurements_noise_and_blunders(scene):
 
 def test_footprint_rays_meet_the_dsm_where_the_truth_model_puts_them(scene):
     config, paths, truth, points = scene
-    dsm = Dem.from_file(paths["dsm"])
+    dsm = read_dem(paths["dsm"])
     for name, info in truth["images"].items():
         model = sensors.load(paths["truth_metadata"][name])
         fp = info["footprint"]

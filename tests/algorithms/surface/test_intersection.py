@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dem import Dem
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.geodesy import ecef_to_geodetic, geodetic_to_ecef, metres_per_degree
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
@@ -25,7 +25,7 @@ def scene(small_scene):
     """Truth models and N_POINTS ground points on the DSM seen inside all three images."""
     paths = small_scene
     models = {name: sensors.load(paths["truth_metadata"][name]) for name in NAMES}
-    dsm = Dem.from_file(paths["dsm"])
+    dsm = read_dem(paths["dsm"])
     rng = np.random.default_rng(3)
     cols, rows = models["HRG"].size
     col, row = rng.uniform(0, cols, 2 * N_POINTS), rng.uniform(0, rows, 2 * N_POINTS)
@@ -182,7 +182,7 @@ def pair(simulated):
     models = {name: sensors.load(path) for name, path in paths["truth_metadata"].items()}
     first = models["HRV1_A"]
     c, r = np.meshgrid(np.linspace(0.3, 0.7, 3) * first.size[0], np.linspace(0.3, 0.7, 2) * first.size[1])
-    lon, lat, h = first.image_to_dem(c.ravel(), r.ravel(), Dem.from_file(paths["dsm"]))
+    lon, lat, h = first.image_to_dem(c.ravel(), r.ravel(), read_dem(paths["dsm"]))
     return {"models": models, "lon": lon, "lat": lat, "h": h}
 
 
