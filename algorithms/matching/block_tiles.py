@@ -211,7 +211,8 @@ def match_tiles(images, models, folder, write_part=None, names=None, image_ids=N
         sigmas = (_robust_sigma(t["dx"] for t in first), _robust_sigma(t["dy"] for t in first))
         limits = (sigma_factor * sigmas[0], sigma_factor * sigmas[1])
         candidates = int(sum(t["dx"][1].sum() for t in first))
-        kept = run_tasks(_kept, [(out, limits) for out in pre], execution, None, "the consistency test's counts")
+        kept = run_tasks(_kept, [(out, limits) for out in pre], execution, progress.scaled(feedback, 75, 75),
+                         "the consistency test's counts")
         first_ids = np.concatenate([[1], 1 + np.cumsum(kept)[:-1]]).astype(int) if kept else []
         job = job._replace(bias=_scene_bias(job, first, limits) if job.refine else None)
         second = run_tasks(_finish_tile, [(job, out, limits, int(i), k, folder)

@@ -18,13 +18,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import progress
-from ..dem import ImplausibleTally
 from ..errors import InputError
 from ..surface.geotiff import write_float_raster
-from ..surface.point_input import point_chunks
+from ..surface.point_input import point_chunks, point_count
 from ..tiling import tile_grid
 from .classes import slope_classes
-from .height_differences import Differences, dem_differences, point_differences
+from .height_differences import Differences, ReferenceReach, dem_differences, point_differences
 from .rasters import Grid, open_raster, raster_srs
 from .statistics import DhSummary, labelled, merge_labelled
 
@@ -32,8 +31,7 @@ SLOPE_THRESHOLD = 10.0   # degrees
 #: points per chunk and DEM cells per window side of assess_by_parts
 CHUNK = 1_000_000
 TILE = 1024
-#: the dh map figure: at most MAP_CELLS cells a side of a DEM, at most MAP_POINTS points (and twice that while
-#: a cloud is read)
+#: the dh map figure: at most MAP_CELLS cells a side of a DEM, at most MAP_POINTS points
 MAP_CELLS = 1000
 MAP_POINTS = 200_000
 
@@ -52,7 +50,8 @@ class Summary:
     """The statistics of one assessed input, added up over its parts (`add`): DhSummary of all its dh and
     {label: DhSummary} per point group, class and terrain (None where the input has no such label), the
     left-out counts, and the dh map: `map_grid` (a DEM's dh on every `map_step`-th cell of each row and
-    column) or `map_points` (x, y, dh of every `map_step`-th point)."""
+    column: the centre cell of each block of map_step x map_step cells) or `map_points` (x, y, dh of every
+    `map_step`-th point)."""
 
     what: str
     source: str
@@ -97,20 +96,20 @@ class Summary:
         step = self.map_step
         c0 = int(round((tile.geotransform[0] - x0) / (dx / step)))
         r0 = int(round((tile.geotransform[3] - y0) / (dy / step)))
-        rows, cols = tile.shape
-        first_r, first_c = -r0 % step, -c0 % step
+        centre = step // 2                  # each map cell shows the centre cell of its block
+        first_r, first_c = (centre - r0) % step, (centre - c0) % step
         part = tile.values[first_r::step, first_c::step]
         i, j = (r0 + first_r) // step, (c0 + first_c) // step
         self.map_grid.values[i:i + part.shape[0], j:j + part.shape[1]] = part
 
     def _map_points(self, d):
-        """Keep every map_step-th point of the stream; past 2 x MAP_POINTS, every other one of those kept."""
+        """Keep every map_step-th point of the stream; past MAP_POINTS, every other one of those kept."""
         k = np.arange(self.seen, self.seen + len(d.dh))
         keep = k % self.map_step == 0
         self.seen += len(d.dh)
         old = self.map_points or (np.zeros(0), np.zeros(0), np.zeros(0))
         self.map_points = tuple(np.concatenate([a, b[keep]]) for a, b in zip(old, (d.x, d.y, d.dh)))
-        while len(self.map_points[0]) > 2 * MAP_POINTS:
+        while len(self.map_points[0]) > MAP_POINTS:
             self.map_points = tuple(a[::2] for a in self.map_points)
             self.map_step *= 2
 
@@ -196,21 +195,20 @@ def assess_by_parts(reference, points=None, dem=None, reference_datum="ellipsoid
 
 
 def _points_by_chunks(reference, path, reference_datum, datum, classes, slope_threshold, feedback, nodata):
-    tally, summary = ImplausibleTally(), None
+    reach, summary, total = ReferenceReach(reference, nodata), None, max(point_count(path), 1)
     for k, chunk in enumerate(point_chunks(path, None, CHUNK)):
-        progress.check(feedback)
+        progress.step(feedback, 100.0 * min(k * CHUNK, total) / total)
         if not len(chunk):
             raise InputError(f"the point cloud {path} holds no point")
         d = point_differences(path, reference, reference_datum, datum, reference_nodata=nodata, points=chunk,
-                              tally=tally, required=False)
+                              reach=reach, required=False)
         summary = summary or Summary(d.what, str(path), d.srs)
         summary.add(_assessed(d, classes, slope_threshold))
         progress.ensure(feedback).pushInfo(f"object points: chunk {k + 1}, {summary.all.n} with a reference "
                                            "height so far")
-    progress.warn(feedback, tally.warning(f"the reference DEM {reference}"))
+    progress.warn(feedback, reach.warning())
     if not summary.all.n:
-        raise InputError(f"the reference DEM {reference} does not overlap the assessed points: choose a reference "
-                         "that covers them")
+        raise reach.no_heights("the assessed points")
     return summary
 
 
@@ -221,16 +219,16 @@ def _dem_by_windows(reference, path, reference_datum, datum, classes, slope_thre
     summary = Summary("DEM cells", str(path), srs)
     summary.map_grid, summary.map_step = _map_grid((size[1], size[0]), geotransform, srs)
     summary.tiles = []
-    tally, boxes = ImplausibleTally(), tile_grid(size, TILE)
+    reach, boxes = ReferenceReach(reference, nodata), tile_grid(size, TILE)
     for k, box in enumerate(boxes):
         progress.step(feedback, 100.0 * k / len(boxes))
         d = dem_differences(path, reference, reference_datum, datum, reference_nodata=nodata, window=box,
-                            tally=tally)
+                            reach=reach)
         summary.add(_assessed(d, classes, slope_threshold))
         if folder is not None:
             summary.tiles.append(write_float_raster(os.path.join(folder, f"dh-{k:05d}.tif"), d.grid.values,
                                                     d.grid.geotransform, srs, overviews=False))
-    progress.warn(feedback, tally.warning(f"the reference DEM {reference}"))
+    progress.warn(feedback, reach.warning())
     if summary.excluded.get("DEM nodata", 0) == size[0] * size[1]:
         raise InputError(f"the DEM {path} holds no valid height (all cells are nodata)")
     if not summary.all.n:

@@ -13,7 +13,7 @@ flat/moderate vs mountainous) is the reference's (rasters.slope_degrees): at the
 The reference is read by the window of its cells under the assessed data (for points, block by block
 of its cells; for a DEM, under the DEM or under one window of it), its nodata and a declared void value
 (`reference_nodata`) as NaN; implausible heights among those cells (dem.implausible_heights, such as
-SRTM voids not flagged as nodata) are counted (dem.ImplausibleTally), reported as a warning
+SRTM voids not flagged as nodata) are counted once over the cells read (ReferenceReach), reported as a warning
 (progress.warn) and used as given. A point cloud can be given in chunks and a DEM in windows
 (assessment.assess_by_parts), so that memory follows the chunk and the window."""
 from dataclasses import dataclass, field
@@ -58,6 +58,44 @@ class Differences:
     excluded: dict = field(default_factory=dict)   # {reason: count} of left-out points or cells
 
 
+class ReferenceReach:
+    """The cells of the reference that an assessment read, over all its windows (the box around them), and
+    whether any held a height: the implausible heights are counted once over that box, band by band, and a
+    reference without heights there is told from one that lies elsewhere."""
+
+    #: rows of the reference read at a time to count its implausible heights
+    ROWS = 512
+
+    def __init__(self, reference, nodata=None):
+        self.reference, self.nodata, self.box, self.heights = reference, nodata, None, False
+
+    def add(self, ds, window):
+        """Note the window (a rasters.Grid read from `ds`, the reference)."""
+        x0, dx, _, y0, _, dy = ds.GetGeoTransform()
+        c0, r0 = (int(round((window.geotransform[0] - x0) / dx)), int(round((window.geotransform[3] - y0) / dy)))
+        box = (c0, r0, c0 + window.shape[1], r0 + window.shape[0])
+        self.box = box if self.box is None else (*np.minimum(self.box[:2], box[:2]), *np.maximum(self.box[2:], box[2:]))
+        self.heights = self.heights or bool(np.isfinite(window.values).any())
+
+    def warning(self):
+        """dem.implausible_warning of the reference's cells in the box (None: none read, or all plausible)."""
+        if self.box is None:
+            return None
+        ds, tally = open_raster(self.reference, "reference DEM"), ImplausibleTally()
+        c0, r0, c1, r1 = (int(v) for v in self.box)
+        for row in range(r0, r1, self.ROWS):
+            tally.add(read_grid(ds, self.nodata, (c0, row, c1, min(row + self.ROWS, r1))).values)
+        return tally.warning(f"the reference DEM {self.reference}")
+
+    def no_heights(self, what):
+        """The InputError of a reference without a height under the assessed `what`."""
+        if self.box is not None and not self.heights:
+            return InputError(f"the reference DEM {self.reference} has only nodata where the assessed data are: "
+                              "choose a reference that covers them")
+        return InputError(f"the reference DEM {self.reference} does not overlap {what}: choose a reference that "
+                          "covers them")
+
+
 def _check_datum(datum, what):
     if datum not in HEIGHT_TYPES:
         raise InputError(f"the heights of the {what} must be one of {', '.join(HEIGHT_TYPES)}, not {datum!r}")
@@ -73,49 +111,42 @@ def _ellipsoidal(h, x, y, srs, datum):
     return h
 
 
-def reference_at_points(reference, x, y, srs, datum="ellipsoidal", nodata=None, feedback=None, tally=None,
+def reference_at_points(reference, x, y, srs, datum="ellipsoidal", nodata=None, feedback=None, reach=None,
                         required=True):
     """(ellipsoidal reference height, reference slope in degrees) at points (x, y in `srs`): bilinear in
     the reference's CRS, the reference read by the window of each block of its cells that holds points
     (rasters.by_blocks); NaN outside it and next to its nodata (and cells equal to `nodata`, a declared
-    void value). InputError when it does not overlap (unless not `required`: a chunk of a cloud). Implausible
-    heights among the cells read are counted in `tally` (dem.ImplausibleTally) where given, else reported as
-    a warning (`feedback`)."""
+    void value). InputError when it does not overlap (unless not `required`: a chunk of a cloud). The cells
+    read are noted in `reach` (ReferenceReach: a cloud's over all its chunks) where given, else their
+    implausible heights are reported as a warning (`feedback`)."""
     _check_datum(datum, "reference")
     ds = open_raster(reference, "reference DEM")
     xr, yr = reproject(x, y, srs, raster_srs(ds))
-    counted = tally or ImplausibleTally()
+    counted = reach or ReferenceReach(reference, nodata)
     href, slope = np.full(len(xr), np.nan), np.full(len(xr), np.nan)
-    read = seen = False
     for index in by_blocks(ds, xr, yr):
         progress.check(feedback)
         try:
             window = read_window(ds, xr[index], yr[index], "reference DEM", nodata=nodata)
         except InputError:                  # a block of points beyond the raster's last cells
             continue
-        seen = True
-        counted.add(window.values)
+        counted.add(ds, window)
         if np.isnan(window.values).all():
             continue
-        read = True
         href[index] = Dem(window.values, window.geotransform).height(xr[index], yr[index])
         slope[index] = Dem(slope_degrees(window), window.geotransform).height(xr[index], yr[index])
-    if tally is None:
-        progress.warn(feedback, counted.warning(f"the reference DEM {reference}"))
-    if required and seen and not read:
-        raise InputError(f"the reference DEM {reference} has only nodata where the assessed data are: choose a "
-                         "reference that covers them")
+    if reach is None:
+        progress.warn(feedback, counted.warning())
     if required and not np.isfinite(href).any():
-        raise InputError(f"the reference DEM {reference} does not overlap the assessed points: choose a reference "
-                         "that covers them")
+        raise counted.no_heights("the assessed points")
     return _ellipsoidal(href, x, y, srs, datum), slope
 
 
 def point_differences(path, reference, reference_datum="ellipsoidal", points_datum="ellipsoidal", feedback=None,
-                      reference_nodata=None, points=None, tally=None, required=True):
+                      reference_nodata=None, points=None, reach=None, required=True):
     """Differences of the object points of a point cloud (surface.point_input.read_points; or `points`, a
     PointSet of it such as a chunk) against the reference raster (`reference_nodata`: a declared void
-    value; implausible heights counted in `tally` where given, and the overlap `required`, as
+    value; the cells read noted in `reach` where given, and the overlap `required`, as
     reference_at_points); its `group` field, where present, is kept."""
     _check_datum(points_datum, "points")
     cloud = read_points(path) if points is None else points
@@ -123,7 +154,7 @@ def point_differences(path, reference, reference_datum="ellipsoidal", points_dat
     if not len(x):
         raise InputError(f"the point cloud {path} holds no point")
     progress.step(feedback, 10, f"{len(x)} points read from {path}")
-    href, slope = reference_at_points(reference, x, y, srs, reference_datum, reference_nodata, feedback, tally,
+    href, slope = reference_at_points(reference, x, y, srs, reference_datum, reference_nodata, feedback, reach,
                                       required)
     progress.step(feedback, 60)
     h = _ellipsoidal(z, x, y, srs, points_datum)
@@ -135,12 +166,13 @@ def point_differences(path, reference, reference_datum="ellipsoidal", points_dat
 
 
 def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="ellipsoidal", feedback=None,
-                    reference_nodata=None, window=None, tally=None):
+                    reference_nodata=None, window=None, reach=None):
     """Differences of the cells of a DEM raster against the reference raster (`reference_nodata`: a
     declared void value) resampled onto its grid: the reference's window under the DEM, warped. With
     `window` (c0, r0, c1, r1: cells of the DEM), those cells only, the reference's slope taken with one
     more cell around as on the whole grid; a window that the reference does not cover gives no differences
-    instead of an InputError. Implausible heights: counted in `tally` where given, else a warning."""
+    instead of an InputError. The reference's cells read are noted in `reach` where given (ReferenceReach),
+    else its implausible heights are a warning."""
     _check_datum(dem_datum, "DEM")
     _check_datum(reference_datum, "reference")
     source = open_raster(path, "DEM")
@@ -158,11 +190,11 @@ def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="e
     ds = open_raster(reference, "reference DEM")
     no_overlap = InputError(f"the reference DEM {reference} does not overlap the DEM {path} (or holds only nodata "
                             "there): choose a reference that covers it")
-    counted = tally or ImplausibleTally()
+    counted = reach or ReferenceReach(reference, reference_nodata)
     ref, method = np.full(wide.shape, np.nan), None
     if defined.any():
-        finer = (np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize))
-                 < np.prod(dem.cell_metres()))
+        finer = (np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize))     # the whole DEM's
+                 < np.prod(cell_metres(source.GetGeoTransform(), wide.srs, source.RasterYSize)))
         method = "average" if finer else "bilinear"
         try:
             under = read_window(ds, *reproject(*outline(wide), wide.srs, raster_srs(ds)), "reference DEM",
@@ -170,10 +202,10 @@ def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="e
         except InputError:                  # the reference lies elsewhere
             under = None
         if under is not None:
-            counted.add(under.values)
+            counted.add(ds, under)
             ref = warp_to(memory_dataset(under), wide, method)
-    if tally is None:
-        progress.warn(feedback, counted.warning(f"the reference DEM {reference}"))
+    if reach is None:
+        progress.warn(feedback, counted.warning())
     if window is None and not np.isfinite(ref).any():
         raise no_overlap
     progress.step(feedback, 50, f"reference resampled onto the DEM grid ({method})" if method else None)

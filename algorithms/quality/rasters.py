@@ -162,7 +162,13 @@ def warp_to(ds, grid, resampling):
 
 
 def slope_degrees(grid):
-    """Slope (degrees) of a height Grid by central differences (np.gradient) with metric cell sizes."""
-    east, north = grid.cell_metres()
-    gy, gx = np.gradient(grid.values, north, east)
-    return np.degrees(np.arctan(np.hypot(gx, gy)))
+    """Slope (degrees) of a height Grid by central differences (np.gradient) with metric cell sizes, on a
+    geographic grid those at each row's latitude (so that a window's slope is the whole grid's there)."""
+    x0, dx, _, y0, _, dy = grid.geotransform
+    if grid.srs.IsGeographic():
+        east, north = metres_per_degree(y0 + (np.arange(grid.shape[0]) + 0.5) * dy)
+        east, north = (dx * east)[:, None], abs(dy) * north[:, None]
+    else:
+        east, north = (abs(v) * grid.srs.GetLinearUnits() for v in (dx, dy))
+    gy, gx = np.gradient(grid.values)
+    return np.degrees(np.arctan(np.hypot(gx / east, gy / north)))

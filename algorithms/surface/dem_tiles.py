@@ -247,7 +247,7 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
     target = output_crs(cloud_srs, mx, my, params.crs)
     lines = [np.column_stack([transform(lines_srs, target, b[:, :2], "the breaklines")[:, :2], b[:, 2]])
              for b in lines]
-    with work_dir(output, "the DEM tiles") as work, session(params.execution):      # the rounds share workers
+    with work_dir(output, "the DEM tiles") as work:
         chunks, (x0, y0, x1, y1) = _to_work_chunks(cloud, params.input_crs, target, count, work,
                                                    progress.scaled(feedback, 3, 8))
         grid = Grid.covering(np.array([x0, x1]), np.array([y0, y1]), params.cell)
@@ -257,31 +257,34 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
         edge = params.max_edge if params.max_edge is not None else max(3 * params.cell, EDGE_SPACINGS * spacing)
         margin = MARGIN_EDGES * edge
         files = _bucket(chunks, grid, tile, margin, work, "tile", progress.scaled(feedback, 8, 10))
-        max_edge = params.max_edge
-        if max_edge is None:
-            tasks = [(grid, box, f) for box, f in zip(boxes, files) if f is not None]
-            distances = np.concatenate(run_tasks(_spacings, tasks, params.execution, progress.scaled(feedback, 10, 20),
-                                                 "the point spacing") + [np.zeros(0)])
-            max_edge = max(3.0 * params.cell, EDGE_SPACINGS * float(np.median(distances)) if len(distances) else 0.0)
-            if max_edge > edge:
-                margin = MARGIN_EDGES * max_edge
-                log.pushInfo(f"the maximum edge {max_edge:.4g} exceeds the density's bound {edge:.4g}: the tiles' "
-                             f"margin is widened to {margin:.4g}")
-                for f in files:
-                    if f is not None:
-                        os.unlink(f)
-                files = _bucket(chunks, grid, tile, margin, work, "wide", progress.scaled(feedback, 20, 22))
-        for chunk in chunks:
-            os.unlink(chunk)
-        job = (grid, target.ExportToWkt(), params.datum, max_edge, params.k, params.iterations,
-               _near(lines, grid, margin), margin, has_sigma)
-        used = [(box, f, k) for k, (box, f) in enumerate(zip(boxes, files)) if f is not None]
-        outs = [os.path.join(work, f"dem-{k:05d}.tif") for _, _, k in used]
-        precisions = [os.path.join(work, f"precision-{k:05d}.tif") if precision_path else None for _, _, k in used]
-        spreads = _spreads(job, used, params.execution, progress.scaled(feedback, 20, 50))
-        done = run_tasks(_dem_tile, [(job, box, f, spreads, out, p)
-                                     for (box, f, _), out, p in zip(used, outs, precisions)],
-                         params.execution, progress.scaled(feedback, 50, 80), "the DEM tiles")
+        with session(params.execution):           # the rounds of tasks share the workers
+            max_edge = params.max_edge
+            if max_edge is None:
+                tasks = [(grid, box, f) for box, f in zip(boxes, files) if f is not None]
+                distances = np.concatenate(run_tasks(_spacings, tasks, params.execution,
+                                                     progress.scaled(feedback, 10, 20), "the point spacing")
+                                           + [np.zeros(0)])
+                median = float(np.median(distances)) if len(distances) else 0.0
+                max_edge = max(3.0 * params.cell, EDGE_SPACINGS * median)
+                if max_edge > edge:
+                    margin = MARGIN_EDGES * max_edge
+                    log.pushInfo(f"the maximum edge {max_edge:.4g} exceeds the density's bound {edge:.4g}: the tiles' "
+                                 f"margin is widened to {margin:.4g}")
+                    for f in files:
+                        if f is not None:
+                            os.unlink(f)
+                    files = _bucket(chunks, grid, tile, margin, work, "wide", progress.scaled(feedback, 20, 22))
+            for chunk in chunks:
+                os.unlink(chunk)
+            job = (grid, target.ExportToWkt(), params.datum, max_edge, params.k, params.iterations,
+                   _near(lines, grid, margin), margin, has_sigma)
+            used = [(box, f, k) for k, (box, f) in enumerate(zip(boxes, files)) if f is not None]
+            outs = [os.path.join(work, f"dem-{k:05d}.tif") for _, _, k in used]
+            precisions = [os.path.join(work, f"precision-{k:05d}.tif") if precision_path else None for _, _, k in used]
+            spreads = _spreads(job, used, params.execution, progress.scaled(feedback, 20, 50))
+            done = run_tasks(_dem_tile, [(job, box, f, spreads, out, p)
+                                         for (box, f, _), out, p in zip(used, outs, precisions)],
+                             params.execution, progress.scaled(feedback, 50, 80), "the DEM tiles")
         defined = sum(d["defined"] for d in done)
         if all(d["flat"] for d in done):
             where = f" {done[0]['flat']}" if len(done) == 1 else ", in every tile, span no area:"

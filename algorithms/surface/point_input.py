@@ -125,6 +125,19 @@ def read_las(path, crs=None):
     return next(_las_chunks(path, crs))
 
 
+def point_count(path):
+    """The number of points of a LAS/LAZ file (its header) or of an OGR point layer (`path|layername=...`),
+    for the progress over point_chunks."""
+    path, _, layer = os.fspath(path).partition("|layername=")
+    if os.path.splitext(path)[1].lower() in (".las", ".laz"):
+        with _open_las(path) as reader:
+            return int(reader.header.point_count)
+    ds, lyr = _open_layer(path, layer or None, "point cloud")
+    count = int(lyr.GetFeatureCount())
+    del lyr, ds
+    return count
+
+
 def point_chunks(path, crs=None, chunk=1_000_000):
     """The points of `read_points` as PointSets of at most `chunk` points, read one at a time from a LAS/LAZ
     file (memory follows the chunk; an OGR layer is read as one chunk). Each chunk is checked as
