@@ -93,6 +93,15 @@ class ImplausibleTally:
         return implausible_warning(self.values, self.counts, what)
 
 
+def nodata_as_nan(array, *nodata):
+    """`array` as float64 with NaN where it equals one of the `nodata` values (None and NaN: none)."""
+    values = np.asarray(array).astype(np.float64)
+    for value in nodata:
+        if value is not None and not math.isnan(value):
+            values[values == value] = np.nan
+    return values
+
+
 def grid_bounds(geotransform, shape):
     """(lon_min, lat_min, lon_max, lat_max) of the outer cell edges of a north-up grid."""
     lon0, dlon, _, lat0, _, dlat = geotransform
@@ -162,18 +171,6 @@ class Dem:
         lon_min, lat_min, lon_max, lat_max = bounds
         return cls(np.full((2, 2), float(h)),
                    (lon_min, (lon_max - lon_min) / 2, 0.0, lat_max, 0.0, -(lat_max - lat_min) / 2))
-
-    def ground(self, model, col, row):
-        """(lon, lat, h) where the rays of image points (col, row) of sensor `model` meet this DEM
-        (model.image_to_dem)."""
-        return model.image_to_dem(col, row, self)
-
-    def cells_range(self, rows, cols):
-        """(min, max) of the valid heights of the cells rows[0]:rows[1], cols[0]:cols[1] (NaN, NaN where none)."""
-        window = self.heights[rows[0]:rows[1], cols[0]:cols[1]]
-        if not np.isfinite(window).any():
-            return math.nan, math.nan
-        return float(np.nanmin(window)), float(np.nanmax(window))
 
 
 def dem_window(heights, geotransform, height_range, bounds):

@@ -13,9 +13,9 @@ Reading (store_dem; read_dem reads a DEM into memory this way):
    bilinearly (N varies over tens of kilometres).
 
 A StoredDem answers what the steps ask of a DEM without holding it: the Dem of a window (dem.dem_window:
-its heights are the whole DEM's there), heights at points (each block of BLOCK x BLOCK cells read once),
-the ground points of image rays (each ray in the window its height range can reach), and the height range
-of a box of cells.
+its heights are the whole DEM's there), heights at points (each block of BLOCK x BLOCK cells read once,
+tiling.cell_blocks), the ground points of image rays (each ray in the window its height range can reach),
+and the height range of a box of cells.
 
 Failure modes: InputError (a file that cannot be opened or has no CRS, a grid that is not north-up or
 holds no height, unknown vertical), StorageError (the work folder's disk)."""
@@ -29,10 +29,11 @@ from scipy.interpolate import RegularGridInterpolator
 
 from .atomic import close_dataset, closing, storage_error
 from .crs import egm96_undulation, wgs84
-from .dem import Dem, ImplausibleTally, check_grid, dem_window, grid_bounds
+from .dem import Dem, ImplausibleTally, check_grid, dem_window, grid_bounds, nodata_as_nan
 from .disk_array import DiskArray
 from .errors import GeometryError, InputError
 from .geodesy import flat_points
+from .tiling import cell_blocks
 
 #: rows of a band read or written at a time
 ROWS = 128
@@ -73,14 +74,9 @@ class StoredDem:
         """Bilinear height at (lon, lat) (arrays or scalars), as dem.Dem.height: the points of each block
         of BLOCK x BLOCK cells from a window of that block's cells."""
         (lon, lat), shape, scalar = flat_points(lon, lat)
-        out = np.full(lon.size, np.nan)
+        out = np.full(lon.size, np.nan)                               # off the grid: no height
         lon0, dlon, _, lat0, _, dlat = self.geotransform
-        rows, cols = self.shape
-        x, y = (lon - lon0) / dlon, (lat - lat0) / dlat
-        on = (x >= 0) & (x <= cols) & (y >= 0) & (y <= rows)          # elsewhere no height (NaN)
-        key = np.where(on, (np.floor(y / BLOCK) * (cols // BLOCK + 1) + np.floor(x / BLOCK)), -1)
-        for k in np.unique(key[on]):
-            sel = np.flatnonzero(key == k)
+        for sel in cell_blocks((lon - lon0) / dlon, (lat - lat0) / dlat, self.shape, BLOCK):
             window = self.window((lon[sel].min(), lat[sel].min(), lon[sel].max(), lat[sel].max()))
             out[sel] = window.height(lon[sel], lat[sel])
         return float(out[0]) if scalar else out.reshape(shape)
@@ -133,11 +129,7 @@ def _bands(ds, *nodata):
     """(first row, float64 heights) of band 1 of `ds` by ROWS rows, the `nodata` values (None: none) as NaN."""
     band = ds.GetRasterBand(1)
     for r0 in range(0, ds.RasterYSize, ROWS):
-        heights = band.ReadAsArray(0, r0, ds.RasterXSize, min(ROWS, ds.RasterYSize - r0)).astype(np.float64)
-        for value in nodata:
-            if value is not None and not math.isnan(value):
-                heights[heights == value] = np.nan
-        yield r0, heights
+        yield r0, nodata_as_nan(band.ReadAsArray(0, r0, ds.RasterXSize, min(ROWS, ds.RasterYSize - r0)), *nodata)
 
 
 def _warped(ds, nodata, work, tally):

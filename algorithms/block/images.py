@@ -35,7 +35,7 @@ HEIGHT_MARGIN = 500.0
 
 
 def terrain_height_range(rings, height, dem):
-    """(min, max) ellipsoidal terrain height of the block: the valid heights of `dem` (dem.Dem or StoredDem)
+    """(min, max) ellipsoidal terrain height of the block: the valid heights of `dem` (dem_store.StoredDem)
     inside the footprints' bounding box, or the mean height +- HEIGHT_MARGIN."""
     if dem is None:
         return float(height) - HEIGHT_MARGIN, float(height) + HEIGHT_MARGIN
@@ -49,7 +49,7 @@ def terrain_height_range(rings, height, dem):
 def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=None):
     """Create `path` (a .gpkg) from `images`, a list of (name, image_path, orientation_path, model).
 
-    Footprints are the image borders on `dem` (dem_store.StoredDem, or dem.Dem) or at ellipsoidal `height`.
+    Footprints are the image borders on `dem` (dem_store.StoredDem) or at ellipsoidal `height`.
     Refuses to replace an existing block unless `overwrite` is true."""
     path = os.fspath(path)
     if not path.lower().endswith(".gpkg"):

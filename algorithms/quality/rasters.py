@@ -4,15 +4,16 @@ large raster (never a whole SRTM tile for a 3 km scene, nor a whole 60 km DSM at
 onto another raster's grid with gdalwarp (the reference onto the tested DEM: bilinear, or the average of
 the reference cells inside a DEM cell when the reference is finer).
 Grids are north-up (GDAL geotransform, pixel-is-area)."""
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from osgeo import gdal, osr
 
 from ..crs import srs as parse_crs
+from ..dem import nodata_as_nan
 from ..errors import InputError
 from ..geodesy import metres_per_degree
+from ..tiling import cell_blocks
 
 
 @dataclass
@@ -68,22 +69,13 @@ def raster_srs(ds):
     return parse_crs(ds.GetSpatialRef())
 
 
-def _as_float(array, *nodata):
-    """`array` as float64 with NaN where it equals one of the `nodata` values (None and NaN: none)."""
-    values = array.astype(np.float64)
-    for value in nodata:
-        if value is not None and not math.isnan(value):
-            values[values == value] = np.nan
-    return values
-
-
 def read_grid(ds, nodata=None, window=None):
     """The first band as a Grid, whole or its `window` (c0, r0, c1, r1); its nodata and `nodata` (a declared
     void value) are NaN."""
     band = ds.GetRasterBand(1)
     c0, r0, c1, r1 = window or (0, 0, ds.RasterXSize, ds.RasterYSize)
     x0, dx, _, y0, _, dy = ds.GetGeoTransform()
-    return Grid(_as_float(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue(), nodata),
+    return Grid(nodata_as_nan(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue(), nodata),
                 (x0 + c0 * dx, dx, 0.0, y0 + r0 * dy, 0.0, dy), raster_srs(ds))
 
 
@@ -99,7 +91,7 @@ def read_window(ds, x, y, what, margin=2, nodata=None):
     if not finite.any() or c1 - c0 < 2 or r1 - r0 < 2:
         raise InputError(f"the {what} does not overlap the data to assess: choose a {what} that covers it")
     band = ds.GetRasterBand(1)
-    values = _as_float(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue(), nodata)
+    values = nodata_as_nan(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue(), nodata)
     return Grid(values, (x0 + c0 * dx, dx, 0.0, y0 + r0 * dy, 0.0, dy), raster_srs(ds))
 
 
@@ -109,18 +101,10 @@ BLOCK = 1024
 
 def by_blocks(ds, x, y):
     """The indices of the points (x, y in the CRS of `ds`) in each BLOCK x BLOCK cell block of `ds` that holds
-    some, so that points spread over a large raster read it one block at a time (read_window of a block's
-    points). Points off the raster are in no block."""
+    some (tiling.cell_blocks), so that points spread over a large raster read it one block at a time
+    (read_window of a block's points). Points off the raster are in no block."""
     x0, dx, _, y0, _, dy = ds.GetGeoTransform()
-    with np.errstate(invalid="ignore"):
-        c, r = (np.asarray(x) - x0) / dx, (np.asarray(y) - y0) / dy
-        on = (c >= 0) & (c <= ds.RasterXSize) & (r >= 0) & (r <= ds.RasterYSize)
-    key = np.where(on, np.floor(r / BLOCK) * (ds.RasterXSize // BLOCK + 1) + np.floor(c / BLOCK), -1)
-    order = np.argsort(key, kind="stable")
-    values, starts = np.unique(key[order], return_index=True)
-    for value, lo, hi in zip(values, starts, np.append(starts[1:], len(order))):
-        if value >= 0:
-            yield order[lo:hi]
+    return cell_blocks((np.asarray(x) - x0) / dx, (np.asarray(y) - y0) / dy, (ds.RasterYSize, ds.RasterXSize), BLOCK)
 
 
 def outline(grid, n=64):

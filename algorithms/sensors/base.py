@@ -105,7 +105,7 @@ class SensorModel:
 
     def footprint(self, h=0.0, dem=None, per_side=16):
         """Closed ring (N, 2) of (lon, lat) along the image border, at height h or on the DEM `dem`
-        (dem.Dem or dem_store.StoredDem: its `ground` points of the border's rays)."""
+        (dem_store.StoredDem: its `ground` points of the border's rays)."""
         cols, rows = self.size
         t = np.linspace(0.0, 1.0, per_side + 1)[:-1]
         c = np.concatenate([t * cols, np.full(per_side, cols), (1 - t) * cols, np.zeros(per_side)])

@@ -190,35 +190,35 @@ def filter_blunders(tin, x, y, z, k=4.0, iterations=3, fixed=None, counted=None,
     tested = np.ones(len(z), bool) if fixed is None else ~np.asarray(fixed, bool)
     removed, bad = [], np.empty(len(z), bool)
     for i in range(iterations if spreads is None else len(spreads)):
-        r = _residuals(tin, x, y, z, keep)
+        r = _residual_steps(tin, x, y, z, keep)
         ok = np.isfinite(r) & tested
         if spreads is None:
-            given = spread(histogram.count(np.round(r[ok] / RESIDUAL_STEP)), k)
+            given = spread(histogram.count(r[ok]), k)
             if given is None or given[2] == 0:
                 break
             centre, sigma = given[:2]
         else:
             centre, sigma = spreads[i]
-        score = np.abs(r - centre)
+        score = np.abs(r * RESIDUAL_STEP - centre)
         local_maxima(*tin.vertex_neighbor_vertices, np.nan_to_num(score), ok & (score > k * sigma), bad)
         removed.append(int(bad.sum() if counted is None else (bad & counted).sum()))
         keep &= ~bad
     return keep, removed
 
 
-def _residuals(tin, x, y, z, keep):
-    """neighbour_residuals of the kept points, rounded to RESIDUAL_STEP (NaN where undefined)."""
+def _residual_steps(tin, x, y, z, keep):
+    """neighbour_residuals of the kept points in whole RESIDUAL_STEPs (NaN where undefined)."""
     r = np.empty(len(z))
     neighbour_residuals(*tin.vertex_neighbor_vertices, x, y, z, keep, r)
-    return np.round(r / RESIDUAL_STEP) * RESIDUAL_STEP
+    return np.round(r / RESIDUAL_STEP)
 
 
 def residual_histogram(tin, x, y, z, keep, fixed=None, counted=None):
     """The histogram (histogram.count, bins of RESIDUAL_STEP) of the blunder filter's residuals r of the
     kept, tested points where `counted` is True (default all): a tile's share of an iteration's spread."""
-    r = _residuals(tin, *(np.ascontiguousarray(v, float) for v in (x, y, z)), keep)
+    r = _residual_steps(tin, *(np.ascontiguousarray(v, float) for v in (x, y, z)), keep)
     ok = np.isfinite(r) & (True if fixed is None else ~np.asarray(fixed, bool)) & (True if counted is None else counted)
-    return histogram.count(np.round(r[ok] / RESIDUAL_STEP))
+    return histogram.count(r[ok])
 
 
 def spread(hist, k):
