@@ -143,9 +143,9 @@ def surface_on_grid(x, y, z, sigma, grid, srs, max_edge, datum="ellipsoidal", k=
     sigmas, `iterations`; with `spreads`, those given per iteration: tin.filter_blunders), linear
     interpolation in the triangles with edges up to `max_edge`, the precision raster where asked, EGM96
     heights for that `datum`. Cells outside every used triangle are NaN: all of them where the points span
-    no area (tin.flat_points). The counts (points, blunders removed, vertices, points dropped) are of the
-    points and vertices where `own(x, y)` is True (default: all), so that a tile's counts leave out its
-    margin."""
+    no area (tin.flat_points). The counts (points and vertices left in the TIN, blunders removed, points
+    dropped) are of the points and vertices where `own(x, y)` is True (default: all), so that a tile's
+    counts leave out its margin."""
     cell = grid.cell
     x, y, z, sigma, fixed, inside, dropped = tin_vertices(x, y, z, sigma, cell, max_edge, breaklines, own)
     result = DemResult(np.full(grid.shape, np.nan), grid, srs, datum, points=int(inside.sum()),
@@ -163,6 +163,7 @@ def surface_on_grid(x, y, z, sigma, grid, srs, max_edge, datum="ellipsoidal", k=
                                                spreads=spreads)
         progress.step(feedback, 40, f"blunder filter (k = {k:g} robust sigmas): {sum(result.removed)} points removed "
                                     f"({result.removed} per iteration)")
+        result.points -= sum(result.removed)
         if not keep.all():
             x, y, z, fixed = x[keep], y[keep], z[keep], fixed[keep]
             sigma = sigma[keep] if sigma is not None else None

@@ -42,7 +42,6 @@ from tests.helpers.processes import descendants, peak_kb
 from tests.helpers.qgis_process_profile import QGIS_PROCESS, qgis_process_env
 
 SIZES = (15.0, 30.0, 60.0)
-EXECUTIONS = ("threads", "processes")
 WORKERS = 2
 SAMPLE_S = 0.1
 CONTROL = 19          # the first 19 points control, the rest check (as make demo)
@@ -75,17 +74,18 @@ def measured(command, env):
     return seconds, sum(peaks.values()) / 1024.0, len(peaks), output
 
 
-def chain(folder, out, execution, env):
-    """Rows of the steps of the chain on the simulated scene in `folder`, writing into `out`; and the DEM's
-    accuracy per class {class: (rms, nmad)}."""
+def chain(folder, out, execution, env, step=5, cell=10, workers=WORKERS):
+    """Rows of the steps of the chain on the simulated scene in `folder`, matched every `step` px with a DEM
+    of `cell` m and `workers` workers, writing into `out`; and the DEM's accuracy per class {class: (rms,
+    nmad)}."""
     run = [QGIS_PROCESS, "run"]
-    workers = [f"EXECUTION={BACKENDS.index(execution)}", f"WORKERS={WORKERS}"]
+    workers = [f"EXECUTION={BACKENDS.index(execution)}", f"WORKERS={workers}"]
     block, dsm = out / "block.gpkg", folder / "dsm.tif"
     with open(folder / "points.csv", newline="") as f:
         check = ",".join(r["id"] for r in list(csv.DictReader(f))[CONTROL:])
     images = [f"IMAGES={folder / n / 'IMAGERY.TIF'}" for n in ("HRG", "HRS1", "HRS2")]
     steps = [("createblock", ["pushbroom:createblock", "--", *images, f"DEM={dsm}", f"OUTPUT={block}"]),
-             ("matchpoints", ["pushbroom:matchpoints", "--", f"BLOCK={block}", "STEP=5", "MPGC_SUPPORT=true",
+             ("matchpoints", ["pushbroom:matchpoints", "--", f"BLOCK={block}", f"STEP={step}", "MPGC_SUPPORT=true",
                               *workers]),
              ("selecttiepoints", ["pushbroom:selecttiepoints", "--", f"BLOCK={block}"]),
              ("importpoints", ["pushbroom:importpoints", "--", f"BLOCK={block}", f"INPUT={folder / 'points.csv'}",
@@ -94,7 +94,7 @@ def chain(folder, out, execution, env):
                                f"REPORT={out / 'adjustment.html'}"]),
              ("intersectpoints", ["pushbroom:intersectpoints", "--", f"BLOCK={block}", "POINTS=0", *workers,
                                   f"OUTPUT={out / 'points.las'}"]),
-             ("interpolatedem", ["pushbroom:interpolatedem", "--", f"INPUT={out / 'points.las'}", "CELL=10",
+             ("interpolatedem", ["pushbroom:interpolatedem", "--", f"INPUT={out / 'points.las'}", f"CELL={cell}",
                                  *workers, f"OUTPUT={out / 'dem.tif'}"]),
              ("orthorectify", ["pushbroom:orthorectify", "--", f"BLOCK={block}", "IMAGE_NAME=HRG",
                                f"DEM={out / 'dem.tif'}", *workers, f"OUTPUT={out / 'ortho.tif'}"]),
@@ -180,50 +180,90 @@ def raster_steps(sizes=SIZES, execution="threads"):
             for r in rows]
 
 
-def run(sizes=SIZES, executions=EXECUTIONS):
+def _chain_rows(size, execution, env, label="", agreement=False, **settings):
+    """The rows of one chain (`chain` with `settings`) on the scene of `size` km, its execution labelled
+    `label`; with `agreement`, also dem_agreement's rows on its points."""
+    folder = scene(size)
+    cols = gdal.Open(str(folder / "HRG" / "IMAGERY.TIF")).RasterXSize
+    name = ", ".join(filter(None, (execution, label)))
+    out = SCENES.parent / f"chain-{size:g}km-{name.replace(', ', '-').replace(' ', '')}"
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    print(f"{size:g} km, {name}:", flush=True)
+    steps, accuracy = chain(folder, out, execution, env, **settings)
+    rows = [{"scene km": size, "HRG px": f"{cols} x {cols}", "execution": name, **row} for row in steps]
+    rows.append({"scene km": size, "execution": name, "step": "total", "seconds": sum(r["seconds"] for r in steps),
+                 "peak MB": max(r["peak MB"] for r in steps)})
+    rows.append({"scene km": size, "execution": name, "step": "DEM - true DSM, RMS / NMAD (m)",
+                 "points": "; ".join(f"{c} {accuracy[c][0]:.2f} / {accuracy[c][1]:.2f}" for c in CLASSES
+                                     if c in accuracy)})
+    if agreement:
+        rows += [{"scene km": size, "check": True, **row}
+                 for row in dem_agreement(out / "points.las", out / "dem.tif", execution, env, out)]
+    shutil.rmtree(out)
+    return rows
+
+
+def workers_speed(size=15.0, execution="threads"):
+    """The chain at STEP 5 on the scene of `size` km with 1 and with 2 workers: time per step and the
+    speed-up."""
     with tempfile.TemporaryDirectory() as tmp:
-        return _run(sizes, executions, qgis_process_env(pathlib.Path(tmp) / "profile"))
+        env = qgis_process_env(pathlib.Path(tmp) / "profile")
+        rows = {n: _chain_rows(size, execution, env, f"{n} worker{'s' * (n > 1)}", workers=n) for n in (1, 2)}
+    speed = [{"scene km": size, "execution": execution, "step": f"{a['step']}: 1 / 2 workers",
+              "seconds": f"x {a['seconds'] / b['seconds']:.2f}"}
+             for a, b in zip(rows[1], rows[2]) if isinstance(a.get("seconds"), float)]
+    return _columns(rows[1] + rows[2] + speed)
+
+
+def dense_window(size=20.0, execution="threads"):
+    """The chain matched at STEP 1 (a point per HRG pixel, 5 m DEM) on the scene of `size` km (20 km: HRG
+    4000 x 4000 px, the issue's window of about 16 M nodes per image pair)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        env = qgis_process_env(pathlib.Path(tmp) / "profile")
+        return _columns(_chain_rows(size, execution, env, "STEP 1", step=1, cell=5))
+
+
+def _columns(rows):
+    return [{k: r.get(k, "") for k in ("scene km", "HRG px", "execution", "step", "points", "seconds", "peak MB",
+                                        "processes")} for r in rows]
+
+
+def run(sizes=SIZES, executions=BACKENDS):
+    with tempfile.TemporaryDirectory() as tmp:
+        rows = _run(sizes, executions, qgis_process_env(pathlib.Path(tmp) / "profile"))
+    return rows + workers_speed() + dense_window()
 
 
 def _run(sizes, executions, env):
     rows = []
     for size in sizes:
-        folder = scene(size)
-        cols = gdal.Open(str(folder / "HRG" / "IMAGERY.TIF")).RasterXSize
         for execution in executions:
-            print(f"{size:g} km, {execution}:", flush=True)
-            out = SCENES.parent / f"chain-{size:g}km-{execution}"
-            shutil.rmtree(out, ignore_errors=True)
-            out.mkdir(parents=True)
-            steps, accuracy = chain(folder, out, execution, env)
-            for row in steps:
-                rows.append({"scene km": size, "HRG px": f"{cols} x {cols}", "execution": execution, **row})
-            rows.append({"scene km": size, "execution": execution, "step": "total",
-                         "seconds": sum(r["seconds"] for r in steps)})
-            rows.append({"scene km": size, "execution": execution, "step": "DEM - true DSM, RMS / NMAD (m)",
-                         "points": "; ".join(f"{c} {accuracy[c][0]:.2f} / {accuracy[c][1]:.2f}" for c in CLASSES
-                                             if c in accuracy)})
-            if size == max(sizes) and execution == executions[0]:
-                for row in dem_agreement(out / "points.las", out / "dem.tif", execution, env, out):
-                    rows.append({"scene km": size, "check": True, **row})
-            shutil.rmtree(out)
+            rows += _chain_rows(size, execution, env, agreement=size == max(sizes) and execution == executions[0])
     for execution in executions:
         for label, names in (("tiled steps", TILED), ("all steps", None)):
             peaks = [max(r["peak MB"] for r in rows if r["scene km"] == size and r["execution"] == execution
-                         and "peak MB" in r and not r.get("check") and (names is None or r["step"] in names))
+                         and isinstance(r.get("peak MB"), float) and not r.get("check")
+                         and (names is None or r["step"] in names))
                      for size in sizes]
             rows.append({"scene km": " -> ".join(f"{s:g}" for s in sizes), "execution": execution,
                          "step": f"largest peak MB, {label}", "peak MB": " / ".join(f"{p:.0f}" for p in peaks),
                          "seconds": f"growth {100.0 * (peaks[-1] / peaks[0] - 1.0):.1f} %"})
-    return [{k: r.get(k, "") for k in ("scene km", "HRG px", "execution", "step", "points", "seconds", "peak MB",
-                                        "processes")} for r in rows]
+    return _columns(rows)
 
 
 if __name__ == "__main__":
     from tests.benchmarks.run_all import markdown_table
-    sizes = tuple(float(a) for a in sys.argv[1:] if a not in BACKENDS and a != "raster") or SIZES
-    executions = tuple(a for a in sys.argv[1:] if a in BACKENDS) or EXECUTIONS
-    if "raster" in sys.argv[1:]:
-        print(markdown_table(raster_steps(sizes, executions[0])))
+    modes = {"raster", "workers", "dense"}
+    sizes = tuple(float(a) for a in sys.argv[1:] if a not in BACKENDS and a not in modes)
+    executions = tuple(a for a in sys.argv[1:] if a in BACKENDS) or BACKENDS
+    mode = next((a for a in sys.argv[1:] if a in modes), None)
+    if mode == "raster":
+        print(markdown_table(raster_steps(sizes or SIZES, executions[0])))
+    elif mode == "workers":
+        print(markdown_table(workers_speed(*sizes[:1], *executions[:1])))
+    elif mode == "dense":
+        print(markdown_table(dense_window(*sizes[:1], *executions[:1])))
     else:
-        print(markdown_table(run(sizes, executions)))
+        with tempfile.TemporaryDirectory() as tmp:
+            print(markdown_table(_run(sizes or SIZES, executions, qgis_process_env(pathlib.Path(tmp) / "profile"))))

@@ -11,12 +11,12 @@ REPO = pathlib.Path(pushbroom.__file__).resolve().parent
 QGIS_PROCESS = "/usr/bin/qgis_process.bin"
 
 
-def qgis_process_env(folder):
+def qgis_process_env(folder, plugin=REPO):
     """The environment of qgis_process with a new profile in `folder` (pathlib.Path) that has the plugin
-    enabled."""
+    enabled: a link to `plugin` (this repository, or another checkout of it)."""
     plugins = folder / "profiles" / "default" / "python" / "plugins"
     plugins.mkdir(parents=True)
-    (plugins / "pushbroom").symlink_to(REPO)
+    (plugins / "pushbroom").symlink_to(plugin)
     site = [p for p in sys.path if p.endswith("site-packages") and ".venv" in p]
     env = dict(os.environ, QT_QPA_PLATFORM="offscreen", QGIS_CUSTOM_CONFIG_PATH=str(folder),
                PYTHONPATH=os.pathsep.join(site + [os.environ.get("PYTHONPATH", "")]))
