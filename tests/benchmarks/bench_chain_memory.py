@@ -21,8 +21,13 @@ cells of the tile borders and away from them).
 (footprints on the true DSM), importpoints, bundleadjust with the control points alone and the true DSM as
 reference DTM, and orthorectify (HRG) on the true DSM (5 m, a larger raster than the chain's 10 m DEM).
 
-    python -m tests.benchmarks.bench_chain_memory [SIZE_KM ...] [threads|processes|dask ...] [raster]
+`workers` runs the chain on one scene (15 km) with 1 and then 2 workers and gives the ratio per step;
+`dense` runs it at STEP 1 with a 5 m DEM on one scene (20 km: HRG 4000 x 4000 px). `make bench` runs
+every execution on the three scenes, then `workers` and `dense` with threads.
+
+    python -m tests.benchmarks.bench_chain_memory [SIZE_KM ...] [threads|processes|dask ...] [raster|workers|dense]
 """
+import contextlib
 import csv
 import pathlib
 import shutil
@@ -47,6 +52,13 @@ SAMPLE_S = 0.1
 CONTROL = 19          # the first 19 points control, the rest check (as make demo)
 TILED = ("matchpoints", "intersectpoints", "interpolatedem", "orthorectify")   # the surface chain's tiled steps
 CLASSES = ("bare fields", "grass/crops", "forest", "city/buildings", "water")
+
+
+@contextlib.contextmanager
+def profile_env():
+    """The qgis_process environment of a temporary profile with the plugin (qgis_process_env)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        yield qgis_process_env(pathlib.Path(tmp) / "profile")
 
 
 def measured(command, env):
@@ -207,8 +219,7 @@ def _chain_rows(size, execution, env, label="", agreement=False, **settings):
 def workers_speed(size=15.0, execution="threads"):
     """The chain at STEP 5 on the scene of `size` km with 1 and with 2 workers: time per step and the
     speed-up."""
-    with tempfile.TemporaryDirectory() as tmp:
-        env = qgis_process_env(pathlib.Path(tmp) / "profile")
+    with profile_env() as env:
         rows = {n: _chain_rows(size, execution, env, f"{n} worker{'s' * (n > 1)}", workers=n) for n in (1, 2)}
     speed = [{"scene km": size, "execution": execution, "step": f"{a['step']}: 1 / 2 workers",
               "seconds": f"x {a['seconds'] / b['seconds']:.2f}"}
@@ -219,8 +230,7 @@ def workers_speed(size=15.0, execution="threads"):
 def dense_window(size=20.0, execution="threads"):
     """The chain matched at STEP 1 (a point per HRG pixel, 5 m DEM) on the scene of `size` km (20 km: HRG
     4000 x 4000 px, the issue's window of about 16 M nodes per image pair)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        env = qgis_process_env(pathlib.Path(tmp) / "profile")
+    with profile_env() as env:
         return _columns(_chain_rows(size, execution, env, "STEP 1", step=1, cell=5))
 
 
@@ -230,8 +240,8 @@ def _columns(rows):
 
 
 def run(sizes=SIZES, executions=BACKENDS):
-    with tempfile.TemporaryDirectory() as tmp:
-        rows = _run(sizes, executions, qgis_process_env(pathlib.Path(tmp) / "profile"))
+    with profile_env() as env:
+        rows = _run(sizes, executions, env)
     return rows + workers_speed() + dense_window()
 
 
@@ -265,5 +275,5 @@ if __name__ == "__main__":
     elif mode == "dense":
         print(markdown_table(dense_window(*sizes[:1], *executions[:1])))
     else:
-        with tempfile.TemporaryDirectory() as tmp:
-            print(markdown_table(_run(sizes or SIZES, executions, qgis_process_env(pathlib.Path(tmp) / "profile"))))
+        with profile_env() as env:
+            print(markdown_table(_run(sizes or SIZES, executions, env)))

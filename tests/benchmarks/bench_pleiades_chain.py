@@ -1,13 +1,14 @@
 """The real Pleiades triplet's surface chain at STEP 1 through qgis_process: this version against the version
 before the tiled pipeline (issue 21), in the same run.
 
-The chain, each step one `qgis_process run` with 2 workers (threads): createblock (the three crops of
-../shared/data/pleiades_triplet, RPC in the GeoTIFFs), matchpoints (region growing, automatic seeds, a node
-every pixel), intersectpoints, interpolatedem (0.5 m cells) and orthorectify (img_02 on that DEM). The
-earlier version is BASELINE, checked out as a git worktree under build/ and loaded as the plugin of its
-own QGIS profile; both run on the same machine one after the other. Rows: time and peak memory (the sum
-of the processes' VmHWM) per step, the point counts, and the ratios of this version's times to the earlier
-one's. Issue 22 measured the chain without orthorectify at 495 s before.
+The chain, each step one `qgis_process run`, with 2 threads where the version has the parameter (the
+earlier one had none for intersectpoints and interpolatedem): createblock (the three crops of
+pleiades_triplet in benchutil.SHARED_DATA, RPC in the GeoTIFFs), matchpoints (region growing, automatic
+seeds, a node every pixel), intersectpoints, interpolatedem (0.5 m cells) and orthorectify (img_02 on
+that DEM). The earlier version is BASELINE, checked out as a git worktree under build/ and loaded as the
+plugin of its own QGIS profile; both run on the same machine one after the other. Rows: time and peak
+memory (the sum of the processes' VmHWM) per step, the point counts, and the ratios of this version's
+times to the earlier one's. Issue 22 measured the chain without orthorectify at 495 s before.
 
     python -m tests.benchmarks.bench_pleiades_chain
 """
@@ -16,9 +17,10 @@ import subprocess
 import tempfile
 
 from tests.benchmarks.bench_chain_memory import measured
+from tests.benchmarks.benchutil import SHARED_DATA
 from tests.helpers.qgis_process_profile import QGIS_PROCESS, REPO, qgis_process_env
 
-DATA = REPO.parent / "shared" / "data" / "pleiades_triplet"
+DATA = SHARED_DATA / "pleiades_triplet"
 BASELINE = "cdd5892b6c38048d548363c9713d8c4cf0d4bba0"    # main before the execution layer (2c637c4)
 WORKERS = 2
 
@@ -62,11 +64,11 @@ def chain(plugin, label, tiled):
             count = [line.split()[-1] for line in output.splitlines() if line.startswith("COUNT:")]
             rows.append({"version": label, "step": name, "points": count[0] if count else "", "seconds": seconds,
                          "peak MB": peak, "processes": processes})
-    rows.append({"version": label, "step": "total", "seconds": sum(r["seconds"] for r in rows),
-                 "peak MB": max(r["peak MB"] for r in rows)})
-    rows.append({"version": label, "step": "total without orthorectify (issue 22's chain)",
-                 "seconds": sum(r["seconds"] for r in rows[:-1] if r["step"] != "orthorectify")})
-    return rows
+    seconds = [r["seconds"] for r in rows]
+    return rows + [{"version": label, "step": "total", "seconds": sum(seconds),
+                    "peak MB": max(r["peak MB"] for r in rows)},
+                   {"version": label, "step": "total without orthorectify (issue 22's chain)",
+                    "seconds": sum(seconds[:-1])}]
 
 
 def run():
