@@ -95,8 +95,9 @@ class EpipolarGrid:
         (extrapolated by the border cells outside the grid)."""
         fb = (np.asarray(u, float) - self.u0) / self.step
         fa = (np.asarray(v, float) - self.v0) / self.step
-        b = np.clip(np.floor(fb), 0, nodes.shape[1] - 2).astype(int)
-        a = np.clip(np.floor(fa), 0, nodes.shape[0] - 2).astype(int)
+        with np.errstate(invalid="ignore"):     # NaN (u, v) give NaN, through tb, ta
+            b = np.clip(np.nan_to_num(np.floor(fb)), 0, nodes.shape[1] - 2).astype(int)
+            a = np.clip(np.nan_to_num(np.floor(fa)), 0, nodes.shape[0] - 2).astype(int)
         tb, ta = (fb - b)[..., None], (fa - a)[..., None]
         n00, n01, n10, n11 = nodes[a, b], nodes[a, b + 1], nodes[a + 1, b], nodes[a + 1, b + 1]
         top, bottom = n00 + tb * (n01 - n00), n10 + tb * (n11 - n10)

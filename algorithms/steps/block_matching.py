@@ -7,7 +7,9 @@ the one given, else the block's). Strategy "region_growing": region-growing leas
 the three combinations of Kornus et al. 2006, section 3.3, tile by tile on the chosen execution
 (block_tiles.match_tiles: memory follows the tile), seeded automatically, from the block's tie points,
 or both. Strategy "coarse_to_fine": Zhang & Gruen's coarse-to-fine multi-primitive matching with MPGC
-(coarse_to_fine.match_coarse_to_fine), in this process.
+(coarse_to_fine.match_coarse_to_fine), in this process. Strategy "dense": semi-global matching of every
+pixel (or every DenseParams.step px) of the reference image on epipolar tiles (dense.block_tiles), tile by
+tile on the chosen execution, into the same point parts.
 
 Storage: the points go to the sidecar folder <block>.mass_points.<id> (block/points.py; region growing's
 tiles write its parts themselves, Block.store_points) and the block's 'mass_points' layer, placed
@@ -19,6 +21,8 @@ from dataclasses import dataclass, field
 from .. import progress
 from ..block import Block
 from ..block.points import load_arrays, read_stats, save_part
+from ..dense.block_tiles import match_dense_tiles
+from ..dense.params import DenseParams
 from ..errors import InputError
 from ..execution import Execution
 from ..height_range import height_range, mean_height
@@ -30,7 +34,7 @@ from ..matching.params import GrowParams
 #: seed sources of region growing: key -> (use the block's tie points, seek automatic seeds)
 SEED_SOURCES = {"automatic": (False, True), "tie_points": (True, False), "both": (True, True)}
 #: matching strategies
-STRATEGIES = ("region_growing", "coarse_to_fine")
+STRATEGIES = ("region_growing", "coarse_to_fine", "dense")
 
 
 @dataclass
@@ -44,10 +48,11 @@ class MatchParams:
     seeds: str = "automatic"            # one of SEED_SOURCES (region growing)
     grow: GrowParams = field(default_factory=GrowParams)                            # region growing, LSM
     coarse_to_fine: CoarseToFineParams = field(default_factory=CoarseToFineParams)  # the second strategy
+    dense: DenseParams = field(default_factory=DenseParams)                         # the third
     sigma_factor: float = 3.0           # group 3 consistency test: deviations below k robust sigma
     grow_second: bool = True            # also grow combination (b) where (a) found no points
     refine: bool = True                 # MPGC refinement of the group 3 points
-    execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # region growing's tiles
+    execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # region growing's, dense tiles
 
     def check(self):
         """Raise InputError for settings no matching can use."""
@@ -58,6 +63,7 @@ class MatchParams:
         if self.sigma_factor <= 0:
             raise InputError("the consistency factor must be positive")
         self.grow.check()
+        self.dense.check()
         self.execution.check()
         return self
 
@@ -97,6 +103,12 @@ def match_block_points(block_path, params=None, summary_csv=None, feedback=None)
                                       params=params.coarse_to_fine.check(), height_range=heights, feedback=feedback)
         # storage: the sidecar and the point layer
         sidecar = blk.save_points(result, "mass_points", display=display)
+    elif params.strategy == "dense":
+        def fill(folder):
+            return match_dense_tiles(images, models, folder, save_part, names=names, image_ids=ids,
+                                     params=params.dense, height_range=heights,
+                                     feedback=progress.scaled(feedback, 0, 90), execution=params.execution)
+        sidecar = blk.store_points("mass_points", fill, display=display, feedback=progress.scaled(feedback, 90, 100))
     else:
         def fill(folder):
             return match_tiles(images, models, folder, save_part, names=names, image_ids=ids, params=params.grow,

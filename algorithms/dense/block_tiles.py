@@ -1,0 +1,133 @@
+"""Dense matching of a pair or a triplet, tile by tile on the chosen execution, into the same point parts as
+region growing (matching/points.py's MultiPoints, block/points.save_part), so that the rest of the chain reads
+them unchanged.
+
+The tiles are the reference image's (tiling.tile_grid of DenseParams.tile px). Each is a task in two rounds:
+1. `_dense_tile`: for each pair (reference, forward) and, for a triplet, (reference, backward), the lattice
+   nodes' image-2 positions (pair_tile.match_pair_tile); a node becomes a point where one pair matched it (group
+   1, two rays) or both did (group 2, three rays from the two combinations; flags COMB_A, COMB_B as region
+   growing's). Written to a work file; the task returns its counts.
+2. `_finish_tile`: the points numbered on from the tiles before it (ids 1 ... N in tile order) and handed to
+   `write_part`.
+
+Observations: the reference image's position is the lattice node (rho NaN, axes 0: the template, as region
+growing's); a matched image's position has rho NaN and axes NaN until a refinement measures them. A tile
+without texture gives no points and a warning, not an error.
+
+The result does not depend on the execution or the number of workers: a tile's points depend only on its box."""
+import os
+from typing import NamedTuple
+
+import numpy as np
+
+from .. import progress
+from ..atomic import save_array, work_dir
+from ..errors import InputError
+from ..execution import run_tasks, session
+from ..matching.points import COMB_A, COMB_B, OBS_DTYPE, POINT_DTYPE, MultiPoints
+from ..tiling import tile_grid
+from .pair_tile import match_pair_tile
+from .params import DenseParams
+
+
+class DenseJob(NamedTuple):
+    """What every tile shares."""
+
+    images: list
+    models: list
+    image_ids: list
+    params: DenseParams
+    height_range: object
+    write_part: object      # write_part(folder, k, MultiPoints) -> index entry (module-level), or None
+
+
+def tile_points(job, box):
+    """The MultiPoints of one tile (ids 1 ... n in lattice order) and its per-pair information."""
+    n = len(job.images)
+    positions, infos = [], []
+    for k in range(1, n):
+        x1, y1, x2, y2, info = match_pair_tile(job.images[0], job.images[k], job.models[0], job.models[k], box,
+                                               job.height_range, job.params)
+        positions.append((x2, y2))
+        infos.append(info)
+    matched = np.array([np.isfinite(x2) for x2, _ in positions])
+    keep = matched.any(axis=0)
+    count = int(keep.sum())
+    points = np.zeros(count, POINT_DTYPE)
+    points["id"] = np.arange(1, count + 1)
+    both = matched[:, keep].all(axis=0)
+    points["group"] = np.where(both, 2, 1)
+    flags = np.zeros(count, np.uint8)
+    for k, bit in zip(range(n - 1), (COMB_A, COMB_B)):
+        flags |= np.where(matched[k, keep], bit, 0).astype(np.uint8)
+    points["flags"] = flags
+    for name in ("rho_min", "rho_a", "rho_b", "rho_c", "dx", "dy"):
+        points[name] = np.nan
+    obs = [np.zeros(count, OBS_DTYPE)]
+    obs[0]["point_id"], obs[0]["image_id"] = points["id"], job.image_ids[0]
+    obs[0]["col"], obs[0]["row"], obs[0]["rho"] = x1[keep], y1[keep], np.nan
+    for k, (x2, y2) in enumerate(positions, start=1):
+        m = matched[k - 1, keep]
+        o = np.zeros(int(m.sum()), OBS_DTYPE)
+        o["point_id"], o["image_id"] = points["id"][m], job.image_ids[k]
+        o["col"], o["row"] = x2[keep][m], y2[keep][m]
+        o["rho"] = o["semi_major"] = o["semi_minor"] = np.nan
+        obs.append(o)
+    obs = np.concatenate(obs)
+    obs = obs[np.lexsort((obs["image_id"], obs["point_id"]))]
+    return MultiPoints(points, obs), infos
+
+
+def _dense_tile(job, box, out):
+    """Task, round 1: the tile's points to the work file `out`; returns its counts."""
+    multi, infos = tile_points(job, box)
+    save_array(out + ".points.npy", multi.points, "the matched tiles")
+    save_array(out + ".observations.npy", multi.observations, "the matched tiles")
+    return {"points": len(multi), "group_2": int((multi.points["group"] == 2).sum()),
+            "seeds": [i["seeds"] for i in infos], "row_offset": [i["row_offset"] for i in infos]}
+
+
+def _finish_tile(job, pre, first_id, k, folder):
+    """Task, round 2: the work file's points numbered from first_id, as the k-th part of `folder` (or
+    returned without a write_part)."""
+    multi = MultiPoints(np.load(pre + ".points.npy"), np.load(pre + ".observations.npy"))
+    multi.points["id"] += first_id - 1
+    multi.observations["point_id"] += first_id - 1
+    return multi if job.write_part is None else job.write_part(folder, k, multi)
+
+
+def match_dense_tiles(images, models, folder, write_part=None, names=None, image_ids=None, params=None,
+                      height_range=None, feedback=None, execution=None):
+    """Dense matching tile by tile (module docstring): each tile's points handed to write_part(folder, k,
+    points), or returned without it. Returns (the index entries or MultiPoints, in id order; stats). Raises
+    InputError for other than 2 or 3 images, or where a pair has no epipolar geometry."""
+    n = len(images)
+    if n not in (2, 3) or len(models) != n:
+        raise InputError(f"dense matching takes 2 or 3 images (reference, forward[, backward]), got {n}")
+    params = (params or DenseParams()).check()
+    names = list(names or [f"image {k + 1}" for k in range(n)])
+    image_ids = list(image_ids or range(1, n + 1))
+    job = DenseJob(images, models, image_ids, params, height_range, write_part)
+    tiles = tile_grid(models[0].size, params.tile)
+    log = progress.ensure(feedback)
+    log.pushInfo(f"dense matching: {len(tiles)} tile(s) of {params.tile} px, a point every {params.step} px of "
+                 f"{names[0]}; pairs " + ", ".join(f"{names[0]} - {names[k]}" for k in range(1, n)))
+    with work_dir(folder, "the matched tiles") as work, session(execution):
+        pre = [os.path.join(work, f"tile-{k:05d}") for k in range(len(tiles))]
+        first = run_tasks(_dense_tile, [(job, box, out) for box, out in zip(tiles, pre)], execution,
+                          progress.scaled(feedback, 0, 90), "dense matching")
+        counts = [t["points"] for t in first]
+        first_ids = np.concatenate([[1], 1 + np.cumsum(counts)[:-1]]).astype(int)
+        parts = run_tasks(_finish_tile, [(job, out, int(i), k, folder)
+                                         for k, (out, i) in enumerate(zip(pre, first_ids))], execution,
+                          progress.scaled(feedback, 90, 100), "numbering the points")
+    empty = [k for k, c in enumerate(counts) if c == 0]
+    if empty:
+        progress.warn(feedback, f"{len(empty)} of {len(tiles)} tile(s) gave no point (no texture, or no overlap): "
+                                f"tiles {', '.join(map(str, empty[:20]))}{' ...' if len(empty) > 20 else ''}")
+    stats = {"images": image_ids, "strategy": "dense", "points": int(sum(counts)),
+             "group_2": int(sum(t["group_2"] for t in first)),
+             "seeds": int(sum(sum(t["seeds"]) for t in first))}
+    log.pushInfo(f"dense matching: {stats['points']} points"
+                 + (f", {stats['group_2']} of them in three images" if n == 3 else ""))
+    return parts, stats

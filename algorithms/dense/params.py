@@ -1,0 +1,34 @@
+"""Settings of dense matching (the "dense" strategy of pushbroom:matchpoints)."""
+from dataclasses import dataclass, field
+
+from ..errors import InputError
+from .sgm import SgmParams
+
+
+@dataclass
+class DenseParams:
+    """tile: image-1 tile size (px), each tile one task; step: lattice step of the points (image-1 px, 1:
+    every pixel); grid_step: epipolar grid node spacing (epipolar px); max_spread: the largest spread (px)
+    of the four disparities a lattice node is interpolated from; sgm: census and SGM settings."""
+    tile: int = 512
+    step: int = 1
+    grid_step: int = 16
+    max_spread: float = 1.0
+    sgm: SgmParams = field(default_factory=SgmParams)
+
+    def check(self):
+        """Raise InputError for settings dense matching cannot use."""
+        if not 64 <= int(self.tile) <= 4096:
+            raise InputError(f"the dense matching tile must be 64 to 4096 px, got {self.tile}")
+        if not 1 <= int(self.step) <= int(self.tile):
+            raise InputError(f"the dense lattice step must be 1 px to the tile size, got {self.step}")
+        if not 4 <= int(self.grid_step) <= 64:
+            raise InputError(f"the epipolar grid step must be 4 to 64 px, got {self.grid_step}")
+        if not self.max_spread > 0:
+            raise InputError("the disparity spread of a lattice node must be positive")
+        if not 1 <= int(self.sgm.census_radius) <= 3:
+            raise InputError(f"the census radius must be 1 to 3 px (a 3 x 3 to 7 x 7 window: 64 bits at most), "
+                             f"got {self.sgm.census_radius}")
+        if not 0 < self.sgm.p1 < self.sgm.p2:
+            raise InputError(f"the SGM penalties must satisfy 0 < P1 < P2, got {self.sgm.p1}, {self.sgm.p2}")
+        return self

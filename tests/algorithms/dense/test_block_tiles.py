@@ -1,0 +1,79 @@
+"""Dense matching of the simulated SPOT 5 triplet against its truth: the image-2 positions of the lattice, the
+rows corrected for the supplied orientation's error, the same points on any number of workers, and a
+textureless pair that gives no point and a warning."""
+import numpy as np
+import pytest
+
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
+from pushbroom.algorithms.dense.pair_tile import lattice, match_pair_tile, sample_disparity
+from pushbroom.algorithms.dense.params import DenseParams
+from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.simulation.terrain import BARE, CLASSES
+from tests.helpers.feedback import Feedback
+from tests.helpers.matching_scene import Scene
+
+NAMES = ("HRG", "HRS1", "HRS2")
+
+
+def test_lattice_and_disparity_sampling_against_numpy():
+    x, y = lattice((10, 20, 17, 25), 2)
+    assert np.array_equal(np.unique(x), [10.5, 12.5, 14.5, 16.5]) and np.array_equal(np.unique(y), [20.5, 22.5, 24.5])
+    disp = np.array([[1.0, 2.0, 2.5], [1.5, 1.9, np.nan], [1.0, 5.0, 3.0]], np.float32)
+    u, v = np.array([0.25, 1.5, 0.5, 0.0, 2.5]), np.array([0.5, 0.5, 1.5, 0.0, 0.0])
+    d = sample_disparity(disp, u, v, 1.0)
+    expect0 = 0.5 * (0.75 * 1.0 + 0.25 * 2.0) + 0.5 * (0.75 * 1.5 + 0.25 * 1.9)
+    assert d[0] == pytest.approx(expect0, abs=1e-6)
+    assert np.isnan(d[1])             # a NaN among the four
+    assert np.isnan(d[2])             # 1.0 ... 5.0: two surfaces
+    assert d[3] == pytest.approx(1.0)
+    assert np.isnan(d[4])             # off the last column
+
+
+@pytest.fixture(scope="module")
+def scene(small_scene):
+    return Scene(small_scene, "HRG", "HRS1")
+
+
+def test_dense_positions_against_the_truth(scene, figures):
+    x1, y1, x2, y2, info = match_pair_tile(scene.image1, scene.image2, scene.model1, scene.model2,
+                                           (44, 44, 556, 556), scene.height_range, DenseParams())
+    tx, ty, cls = scene.truth(x1, y1)
+    # the supplied orientation is off by about 30 m: image 2 lies 0.7 epipolar rows off the models' rows,
+    # which the tile's seeds measure
+    truth_offset = np.median(info["grid"].epipolar2(tx, ty)[1] - info["grid"].epipolar1(x1, y1)[1])
+    assert abs(info["row_offset"] - truth_offset) < 0.05 and abs(truth_offset) > 0.5
+    err = np.hypot(x2 - tx, y2 - ty)
+    for c in np.unique(cls):
+        m = cls == c
+        figures.report(f"dense HRG-HRS1 on {CLASSES[c]}, matched", np.isfinite(x2[m]).mean() * 100, "%",
+                       f"median |error| {np.nanmedian(err[m]):.3f} px of HRS1")
+    bare = cls == BARE
+    assert np.isfinite(x2[bare]).mean() > 0.85 and np.nanmedian(err[bare]) < 0.3
+    assert np.nanpercentile(err[bare], 90) < 1.0
+
+
+def test_the_points_do_not_depend_on_the_workers(small_scene, tmp_path):
+    images = [small_scene["images"][n]["imagery"] for n in NAMES]
+    models = [sensors.load(small_scene["images"][n]["metadata"]) for n in NAMES]
+    hr = Scene(small_scene).height_range
+    runs = [match_dense_tiles(images, models, tmp_path / f"run{w}", params=DenseParams(tile=256, step=2),
+                              height_range=hr, execution=Execution("threads", w)) for w in (1, 2)]
+    (one, stats), (two, _) = runs
+    assert len(one) == 9 and stats["points"] > 0.6 * (600 // 2) * (599 // 2) and stats["group_2"] > 0
+    for a, b in zip(one, two):
+        for table in ("points", "observations"):
+            x, y = getattr(a, table), getattr(b, table)
+            assert all(np.array_equal(x[f], y[f], equal_nan=x.dtype[f].kind == "f") for f in x.dtype.names)
+    ids = np.concatenate([p.points["id"] for p in one])
+    assert np.array_equal(ids, np.arange(1, stats["points"] + 1))
+
+
+def test_a_textureless_pair_gives_no_point_and_a_warning(small_scene, tmp_path):
+    models = [sensors.load(small_scene["images"][n]["metadata"]) for n in NAMES[:2]]
+    images = [np.full((m.size[1], m.size[0]), 90.0, np.float32) for m in models]
+    feedback = Feedback()
+    parts, stats = match_dense_tiles(images, models, tmp_path / "flat", params=DenseParams(tile=300, step=3),
+                                     height_range=Scene(small_scene).height_range, feedback=feedback)
+    assert stats["points"] == 0 and all(len(p) == 0 for p in parts)
+    assert any("gave no point" in m for m in feedback.messages)
