@@ -11,8 +11,10 @@ The tiles are the reference image's (tiling.tile_grid of DenseParams.tile px). E
    `write_part`.
 
 Observations: the reference image's position is the lattice node (rho NaN, axes 0: the template, as region
-growing's); a matched image's position has rho NaN and axes NaN until a refinement measures them. A tile
-without texture gives no points and a warning, not an error.
+growing's); a matched image's position carries LSM's rho and error-ellipse semi-axes where the refinement
+(refine.py) replaced it, NaN where it stayed the semi-global matcher's. A point's rho_a / rho_b are its pairs'
+LSM rho, rho_min the smaller; flags DENSE. A tile without texture gives no points and a warning, not an
+error.
 
 The result does not depend on the execution or the number of workers: a tile's points depend only on its box."""
 import os
@@ -24,10 +26,11 @@ from .. import progress
 from ..atomic import save_array, work_dir
 from ..errors import InputError
 from ..execution import run_tasks, session
-from ..matching.points import COMB_A, COMB_B, OBS_DTYPE, POINT_DTYPE, MultiPoints
+from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from ..tiling import tile_grid
 from .pair_tile import match_pair_tile
 from .params import DenseParams
+from .refine import refine_positions
 
 
 class DenseJob(NamedTuple):
@@ -44,11 +47,19 @@ class DenseJob(NamedTuple):
 def tile_points(job, box):
     """The MultiPoints of one tile (ids 1 ... n in lattice order) and its per-pair information."""
     n = len(job.images)
-    positions, infos = [], []
+    positions, quality, infos = [], [], []
+    p = job.params
     for k in range(1, n):
         x1, y1, x2, y2, info = match_pair_tile(job.images[0], job.images[k], job.models[0], job.models[k], box,
-                                               job.height_range, job.params)
+                                               job.height_range, p)
+        nan = np.full(x2.size, np.nan, np.float32)
+        q = (nan, nan, nan)
+        if p.refine:
+            x2, y2, *q = refine_positions(job.images[0], job.images[k], job.models[0], job.models[k], x1, y1, x2,
+                                          y2, info["grid"].heights[::2], p.template, p.max_shift)
         positions.append((x2, y2))
+        quality.append(q)
+        info["refined"] = int(np.isfinite(q[0]).sum())
         infos.append(info)
     matched = np.array([np.isfinite(x2) for x2, _ in positions])
     keep = matched.any(axis=0)
@@ -60,9 +71,13 @@ def tile_points(job, box):
     flags = np.zeros(count, np.uint8)
     for k, bit in zip(range(n - 1), (COMB_A, COMB_B)):
         flags |= np.where(matched[k, keep], bit, 0).astype(np.uint8)
-    points["flags"] = flags
-    for name in ("rho_min", "rho_a", "rho_b", "rho_c", "dx", "dy"):
+    points["flags"] = flags | DENSE
+    for name in ("rho_c", "dx", "dy"):
         points[name] = np.nan
+    points["rho_a"] = quality[0][0][keep]
+    points["rho_b"] = quality[1][0][keep] if n == 3 else np.nan
+    with np.errstate(invalid="ignore"):
+        points["rho_min"] = np.fmin(points["rho_a"], points["rho_b"]) if n == 3 else points["rho_a"]
     obs = [np.zeros(count, OBS_DTYPE)]
     obs[0]["point_id"], obs[0]["image_id"] = points["id"], job.image_ids[0]
     obs[0]["col"], obs[0]["row"], obs[0]["rho"] = x1[keep], y1[keep], np.nan
@@ -71,7 +86,7 @@ def tile_points(job, box):
         o = np.zeros(int(m.sum()), OBS_DTYPE)
         o["point_id"], o["image_id"] = points["id"][m], job.image_ids[k]
         o["col"], o["row"] = x2[keep][m], y2[keep][m]
-        o["rho"] = o["semi_major"] = o["semi_minor"] = np.nan
+        o["rho"], o["semi_major"], o["semi_minor"] = (v[keep][m] for v in quality[k - 1])
         obs.append(o)
     obs = np.concatenate(obs)
     obs = obs[np.lexsort((obs["image_id"], obs["point_id"]))]
@@ -84,7 +99,8 @@ def _dense_tile(job, box, out):
     save_array(out + ".points.npy", multi.points, "the matched tiles")
     save_array(out + ".observations.npy", multi.observations, "the matched tiles")
     return {"points": len(multi), "group_2": int((multi.points["group"] == 2).sum()),
-            "seeds": [i["seeds"] for i in infos], "row_offset": [i["row_offset"] for i in infos]}
+            "seeds": [i["seeds"] for i in infos], "row_offset": [i["row_offset"] for i in infos],
+            "refined": sum(i["refined"] for i in infos)}
 
 
 def _finish_tile(job, pre, first_id, k, folder):
@@ -127,7 +143,8 @@ def match_dense_tiles(images, models, folder, write_part=None, names=None, image
                                 f"tiles {', '.join(map(str, empty[:20]))}{' ...' if len(empty) > 20 else ''}")
     stats = {"images": image_ids, "strategy": "dense", "points": int(sum(counts)),
              "group_2": int(sum(t["group_2"] for t in first)),
-             "seeds": int(sum(sum(t["seeds"]) for t in first))}
+             "seeds": int(sum(sum(t["seeds"]) for t in first)), "refined": int(sum(t["refined"] for t in first))}
     log.pushInfo(f"dense matching: {stats['points']} points"
-                 + (f", {stats['group_2']} of them in three images" if n == 3 else ""))
+                 + (f", {stats['group_2']} of them in three images" if n == 3 else "")
+                 + (f"; {stats['refined']} image positions refined by LSM" if params.refine else ""))
     return parts, stats

@@ -9,12 +9,17 @@ from .sgm import SgmParams
 class DenseParams:
     """tile: image-1 tile size (px), each tile one task; step: lattice step of the points (image-1 px, 1:
     every pixel); grid_step: epipolar grid node spacing (epipolar px); max_spread: the largest spread (px)
-    of the four disparities a lattice node is interpolated from; sgm: census and SGM settings."""
+    of the four disparities a lattice node is interpolated from; sgm: census and SGM settings; refine: LSM
+    refinement in the original images (refine.py) with a `template` px window, kept within `max_shift` px
+    of the dense position."""
     tile: int = 512
     step: int = 1
     grid_step: int = 16
     max_spread: float = 1.0
     sgm: SgmParams = field(default_factory=SgmParams)
+    refine: bool = True
+    template: int = 19
+    max_shift: float = 0.5
 
     def check(self):
         """Raise InputError for settings dense matching cannot use."""
@@ -29,6 +34,10 @@ class DenseParams:
         if not 1 <= int(self.sgm.census_radius) <= 3:
             raise InputError(f"the census radius must be 1 to 3 px (a 3 x 3 to 7 x 7 window: 64 bits at most), "
                              f"got {self.sgm.census_radius}")
+        if self.template < 5 or self.template % 2 == 0:
+            raise InputError(f"the refinement template must be an odd number of at least 5 px, got {self.template}")
+        if not self.max_shift > 0:
+            raise InputError("the refinement's largest shift must be positive")
         if not 0 < self.sgm.p1 < self.sgm.p2:
             raise InputError(f"the SGM penalties must satisfy 0 < P1 < P2, got {self.sgm.p1}, {self.sgm.p2}")
         return self

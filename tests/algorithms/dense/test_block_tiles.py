@@ -8,8 +8,9 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
 from pushbroom.algorithms.dense.pair_tile import lattice, match_pair_tile, sample_disparity
 from pushbroom.algorithms.dense.params import DenseParams
+from pushbroom.algorithms.dense.refine import refine_positions
 from pushbroom.algorithms.execution import Execution
-from pushbroom.algorithms.simulation.terrain import BARE, CLASSES
+from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS
 from tests.helpers.feedback import Feedback
 from tests.helpers.matching_scene import Scene
 
@@ -51,16 +52,30 @@ def test_dense_positions_against_the_truth(scene, figures):
     bare = cls == BARE
     assert np.isfinite(x2[bare]).mean() > 0.85 and np.nanmedian(err[bare]) < 0.3
     assert np.nanpercentile(err[bare], 90) < 1.0
+    # LSM in the original images, on every 3rd lattice node
+    k = np.arange(0, x1.size, 3)
+    rx, ry, rho, major, _ = refine_positions(scene.image1, scene.image2, scene.model1, scene.model2, x1[k], y1[k],
+                                             x2[k], y2[k], scene.height_range)
+    done = np.isfinite(rho)
+    moved = np.hypot(rx - x2[k], ry - y2[k])
+    assert (moved[~done & np.isfinite(x2[k])] == 0).all() and (moved[done] < 0.5).all()
+    assert np.isfinite(major[done]).all() and (rho[done] > 0.6).all()
+    refined_err = np.hypot(rx - tx[k], ry - ty[k])
+    open_ground = done & (bare[k] | (cls[k] == CROPS))
+    figures.report("dense HRG-HRS1 refined by LSM on open ground", open_ground.sum() / np.isfinite(x2[k]).sum() * 100,
+                   "% of the matched", f"median |error| {np.median(refined_err[open_ground]):.3f} px of HRS1, "
+                   f"{np.median(err[k][open_ground]):.3f} px before")
+    assert np.median(refined_err[open_ground]) < 0.75 * np.median(err[k][open_ground])
 
 
 def test_the_points_do_not_depend_on_the_workers(small_scene, tmp_path):
     images = [small_scene["images"][n]["imagery"] for n in NAMES]
     models = [sensors.load(small_scene["images"][n]["metadata"]) for n in NAMES]
     hr = Scene(small_scene).height_range
-    runs = [match_dense_tiles(images, models, tmp_path / f"run{w}", params=DenseParams(tile=256, step=2),
+    runs = [match_dense_tiles(images, models, tmp_path / f"run{w}", params=DenseParams(tile=256, step=4),
                               height_range=hr, execution=Execution("threads", w)) for w in (1, 2)]
     (one, stats), (two, _) = runs
-    assert len(one) == 9 and stats["points"] > 0.6 * (600 // 2) * (599 // 2) and stats["group_2"] > 0
+    assert len(one) == 9 and stats["points"] > 0.6 * (600 // 4) * (599 // 4) and stats["group_2"] > 0
     for a, b in zip(one, two):
         for table in ("points", "observations"):
             x, y = getattr(a, table), getattr(b, table)
