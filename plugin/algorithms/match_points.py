@@ -11,6 +11,8 @@ from qgis.core import (
     QgsProcessingParameterString,
 )
 
+from ...algorithms.dense.params import DenseParams
+from ...algorithms.dense.sgm import SgmParams
 from ...algorithms.matching.coarse_to_fine import CoarseToFineParams
 from ...algorithms.matching.params import GrowParams
 from ...algorithms.steps.block_matching import MatchParams, match_block_points
@@ -24,22 +26,23 @@ SEED_SOURCES = (("automatic", "Automatic: interest points matched along the path
                 ("both", "Both: the block's tie points and automatic seeds"))
 #: matching strategies: (engine key, label)
 STRATEGIES = (("region_growing", "Region growing (Otto & Chau; Kornus et al. 2006)"),
-              ("coarse_to_fine", "Coarse-to-fine multi-primitive with MPGC (Zhang & Gruen)"))
+              ("coarse_to_fine", "Coarse-to-fine multi-primitive with MPGC (Zhang & Gruen)"),
+              ("dense", "Dense: semi-global matching on epipolar tiles, refined by LSM"))
 
 
 class MatchPoints(PushbroomAlgorithm):
     NAME = "matchpoints"
-    DISPLAY_NAME = "Match points (region growing)"
+    DISPLAY_NAME = "Match points"
     GROUP_ID = "matching"
 
     KEYS = ("BLOCK STRATEGY IMAGES MIN_HEIGHT MAX_HEIGHT SEEDS TEMPLATE STEP WIDE_TEMPLATE RHO_MIN MAX_ELLIPSE "
             "MAX_SHIFT MAX_ITERATIONS TILE SIGMA_FACTOR GROW_SECOND MPGC_REFINE MPGC_SUPPORT "
             "EXECUTION DASK_ADDRESS WORKERS COARSE_TO_FINE_GRID COARSE_TO_FINE_RHO_MIN COARSE_TO_FINE_TILE "
-            "COARSE_TO_FINE_EDGE_POINTS SUMMARY "
+            "COARSE_TO_FINE_EDGE_POINTS DENSE_TILE DENSE_STEP DENSE_REFINE DENSE_P1 DENSE_P2 SUMMARY "
             "POINTS POINTS_FILE")
 
     def initAlgorithm(self, config=None):
-        d, c, m = GrowParams(), CoarseToFineParams(), MatchParams()
+        d, c, m, e = GrowParams(), CoarseToFineParams(), MatchParams(), DenseParams()
         tr = self.tr
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
         self.addParameter(QgsProcessingParameterEnum(self.STRATEGY, tr("Matching strategy"),
@@ -84,6 +87,16 @@ class MatchPoints(PushbroomAlgorithm):
                    Number.Integer, c.tile, minValue=16),
             QgsProcessingParameterBoolean(self.COARSE_TO_FINE_EDGE_POINTS, tr("Coarse-to-fine: matched edges as extra "
                                           "points and breaklines (off: blunders on steep forest)"), c.edge_points),
+            Number(self.DENSE_TILE, tr("Dense: tile size of the reference image (px)"), Number.Integer, e.tile,
+                   minValue=64, maxValue=4096),
+            Number(self.DENSE_STEP, tr("Dense: a point every ... px of the reference image"), Number.Integer, e.step,
+                   minValue=1),
+            QgsProcessingParameterBoolean(self.DENSE_REFINE, tr("Dense: refine the positions by LSM in the original "
+                                                                "images (TEMPLATE px)"), e.refine),
+            Number(self.DENSE_P1, tr("Dense: SGM penalty P1 (a disparity change of 1 px)"), Number.Double, e.sgm.p1,
+                   minValue=0.0),
+            Number(self.DENSE_P2, tr("Dense: SGM penalty P2 (a larger change)"), Number.Double, e.sgm.p2,
+                   minValue=0.0),
         ])
         self.addParameter(QgsProcessingParameterFileDestination(
             self.SUMMARY, tr("Summary per point group (CSV)"), tr("CSV files (*.csv)"), optional=True))
@@ -100,12 +113,15 @@ class MatchPoints(PushbroomAlgorithm):
         coarse_to_fine = CoarseToFineParams(**self.parameterValues(
             parameters, context, grid=self.COARSE_TO_FINE_GRID, rho_min=self.COARSE_TO_FINE_RHO_MIN,
             tile=self.COARSE_TO_FINE_TILE, edge_points=self.COARSE_TO_FINE_EDGE_POINTS))
+        dense = self.parameterValues(parameters, context, tile=self.DENSE_TILE, step=self.DENSE_STEP,
+                                     refine=self.DENSE_REFINE, template=self.TEMPLATE)
+        sgm = SgmParams(**self.parameterValues(parameters, context, p1=self.DENSE_P1, p2=self.DENSE_P2))
         values = self.parameterValues(
             parameters, context, images=self.IMAGES, min_height=self.MIN_HEIGHT, max_height=self.MAX_HEIGHT,
             strategy=self.STRATEGY, seeds=self.SEEDS, sigma_factor=self.SIGMA_FACTOR, grow_second=self.GROW_SECOND,
             refine=self.MPGC_REFINE)
         values.update(strategy=STRATEGIES[values["strategy"]][0], seeds=SEED_SOURCES[values["seeds"]][0])
-        return MatchParams(grow=grow, coarse_to_fine=coarse_to_fine,
+        return MatchParams(grow=grow, coarse_to_fine=coarse_to_fine, dense=DenseParams(sgm=sgm, **dense),
                            execution=execution_choice(self, parameters, context), **values)
 
     def execute(self, parameters, context, feedback):

@@ -10,7 +10,7 @@ from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessin
 
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.execution import BACKENDS
-from pushbroom.algorithms.matching.points import REFINED
+from pushbroom.algorithms.matching.points import DENSE, REFINED
 from pushbroom.algorithms.simulation import SceneConfig
 
 
@@ -199,3 +199,20 @@ def test_every_execution_gives_the_same_points_from_qgis_process(pushbroom_provi
         points = Block(paths[execution]).points()
         assert points.points.tobytes() == reference.points.tobytes(), execution     # NaN included
         assert points.observations.tobytes() == reference.observations.tobytes(), execution
+
+
+def test_dense_strategy_stores_points_for_the_next_steps(pushbroom_provider, triplet):
+    path = make_block(triplet, "dense.gpkg", ("HRG", "HRS1", "HRS2"))
+    lo, hi = triplet["range"]
+    feedback = QgsProcessingFeedback()
+    result = processing.run("pushbroom:matchpoints", {
+        "BLOCK": path, "STRATEGY": 2, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "DENSE_TILE": 300, "DENSE_STEP": 4,
+        "EXECUTION": BACKENDS.index("processes"), "WORKERS": 2}, context=QgsProcessingContext(), feedback=feedback)
+    mass = Block(path).points()
+    counts = mass.group_counts()
+    cols, rows = 600 // 4, 599 // 4
+    assert counts[2] > 0.5 * cols * rows and counts[3] == 0           # three rays from two pairs
+    assert np.all(mass.points["flags"] & DENSE)
+    assert np.isfinite(mass.points["rho_min"]).mean() > 0.5           # LSM refined most of them
+    layer = QgsVectorLayer(result["POINTS"], "mass", "ogr")
+    assert layer.isValid() and layer.featureCount() == len(mass)
