@@ -43,6 +43,8 @@ def test_dense_positions_against_the_truth(scene, figures):
     # the supplied orientation is off by about 30 m: image 2 lies 0.7 epipolar rows off the models' rows,
     # which the tile's seeds measure
     truth_offset = np.median(info["grid"].epipolar2(tx, ty)[1] - info["grid"].epipolar1(x1, y1)[1])
+    figures.report("dense HRG-HRS1 tile, image 2 off the models' epipolar rows", info["row_offset"], "px",
+                   f"from {info['seeds']} seeds; truth {truth_offset:.3f} px")
     assert abs(info["row_offset"] - truth_offset) < 0.05 and abs(truth_offset) > 0.5
     err = np.hypot(x2 - tx, y2 - ty)
     for c in np.unique(cls):
