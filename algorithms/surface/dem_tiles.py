@@ -26,6 +26,11 @@ cloud.
 6. A VRT of the tiles is translated into the output GeoTIFF (geotiff.OPTIONS) and its overviews are
    built from it, all by GDAL in blocks; the precision raster likewise. Tiles without points are gaps.
 
+Method "cells" (dense points): each point goes to the tile that holds its cell (a margin of half a cell,
+ownership by cell), and each tile is one task of cell_dem.cells_on_grid (per-cell medians after the
+per-cell outlier test, k = DemParams.k); steps 3 and 4 do not apply. Besides the precision raster it can
+write the count of points per cell.
+
 Failure modes: tin_dem's InputErrors (settings, no CRS, points outside the output CRS, no defined
 cell), ExecutionError from the execution, CancelledError; nothing is left under an output name
 (atomic.atomic_path) and the work folder is removed (atomic.work_dir)."""
@@ -43,6 +48,7 @@ from ..crs import srs as parse_crs, transform
 from ..errors import CancelledError, InputError
 from ..execution import run_tasks, session
 from ..tiling import tile_grid
+from .cell_dem import cells_on_grid
 from .geotiff import assemble_tiles, write_float_raster
 from .point_input import point_chunks, read_breaklines
 from .tin import delaunay, filter_blunders, flat_points, residual_histogram, spread
@@ -73,8 +79,14 @@ class TiledDem:
     defined: float = 0.0            # fraction of the cells with a height
     max_edge: float = 0.0
     precision_path: str = None
+    count_path: str = None
+    method: str = "tin"
 
     def summary(self):
+        if self.method == "cells":
+            return (f"{self.points} points in per-cell medians ({sum(self.removed)} outliers removed), "
+                    f"{self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g} in {self.tiles} tile(s), "
+                    f"{self.defined:.1%} defined, {self.datum} heights")
         return (f"{self.points} points ({sum(self.removed)} blunders removed: {self.removed} per iteration; "
                 f"{self.dropped_near_breaklines} next to breaklines dropped; {self.breakline_vertices} breakline "
                 f"vertices), {self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g} in {self.tiles} "
@@ -234,14 +246,89 @@ def _dem_tile(job, box, points_file, spreads, out, precision_out):
             "precision_kind": result.precision_kind}
 
 
-def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_path=None, feedback=None):
+def _cell_tile(job, box, points_file, out, precision_out, count_out):
+    """Task (method "cells"): the tile `box` (cells) of the DEM from the points of `points_file` it owns,
+    written to `out` (and the precision and count rasters where asked); returns its counts."""
+    grid, wkt, k, sigma = job
+    srs = parse_crs(wkt)
+    rows = np.fromfile(points_file, POINT)
+    sub = _tile_grid(grid, box)
+    heights, count, precision, removed = cells_on_grid(rows["x"], rows["y"], rows["z"],
+                                                       rows["sigma"] if sigma else None, sub, k=k,
+                                                       own=_owner(grid, box))
+    write_float_raster(out, heights, sub.geotransform, srs, overviews=False)
+    if precision_out is not None:
+        write_float_raster(precision_out, precision, sub.geotransform, srs, overviews=False)
+    if count_out is not None:
+        write_float_raster(count_out, count, sub.geotransform, srs, overviews=False)
+    return {"points": int(count.sum()), "removed": removed, "defined": int(np.isfinite(heights).sum())}
+
+
+def _cells_dem(cloud, output, params, precision_path, count_path, feedback):
+    """The DEM step with method "cells" (module docstring)."""
+    count, mx, my, cloud_srs, has_sigma = _centre(cloud, params.input_crs, progress.scaled(feedback, 0, 3))
+    target = output_crs(cloud_srs, mx, my, params.crs)
+    with work_dir(output, "the DEM tiles") as work:
+        chunks, (x0, y0, x1, y1) = _to_work_chunks(cloud, params.input_crs, target, count, work,
+                                                   progress.scaled(feedback, 3, 10))
+        grid = Grid.covering(np.array([x0, x1]), np.array([y0, y1]), params.cell)
+        boxes = tile_grid((grid.cols, grid.rows), int(params.tile))
+        files = _bucket(chunks, grid, int(params.tile), 0.5 * params.cell, work, "tile",
+                        progress.scaled(feedback, 10, 20))
+        for chunk in chunks:
+            os.unlink(chunk)
+        job = (grid, target.ExportToWkt(), params.k, has_sigma)
+        used = [(box, f, k) for k, (box, f) in enumerate(zip(boxes, files)) if f is not None]
+        names = {kind: [os.path.join(work, f"{kind}-{k:05d}.tif") if wanted else None for _, _, k in used]
+                 for kind, wanted in (("dem", True), ("precision", precision_path), ("count", count_path))}
+        with session(params.execution):
+            done = run_tasks(_cell_tile, [(job, box, f, *outs) for (box, f, _), *outs
+                                          in zip(used, names["dem"], names["precision"], names["count"])],
+                             params.execution, progress.scaled(feedback, 20, 80), "the DEM tiles")
+        defined = sum(d["defined"] for d in done)
+        removed = sum(d["removed"] for d in done)
+        result = TiledDem(output, grid, target, params.datum, len(boxes), points=sum(d["points"] for d in done),
+                          removed=[removed], defined=defined / (grid.rows * grid.cols),
+                          precision_path=precision_path or None, count_path=count_path or None, method="cells")
+        datum = "WGS 84 ellipsoidal height" if params.datum == "ellipsoidal" else "EGM96 height (h - N)"
+        extra = [(path, names[kind], description) for kind, path, description in (
+            ("precision", precision_path, "standard error of the cell's median height (m)"),
+            ("count", count_path, "points in the cell"))]
+        with contextlib.ExitStack() as stack:        # every output is renamed at the end, or none
+            tmp = stack.enter_context(atomic_path(output))
+            temps = [stack.enter_context(atomic_path(path)) if path else None for path, _, _ in extra]
+            assemble_tiles(names["dem"], tmp, grid.geotransform, (grid.cols, grid.rows), target,
+                           description=f"height ({datum}, m)",
+                           metadata={"HEIGHT_DATUM": datum, "POINTS": result.points, "OUTLIERS_REMOVED": removed,
+                                     "METHOD": "per-cell median"}, feedback=progress.scaled(feedback, 80, 94))
+            for (path, tiles, description), tmp_extra in zip(extra, temps):
+                if path:
+                    assemble_tiles(tiles, tmp_extra, grid.geotransform, (grid.cols, grid.rows), target,
+                                   description=description, feedback=progress.scaled(feedback, 94, 100))
+    if result.points == 0:
+        raise InputError("no point of the point cloud lies in a cell of the grid: check the point cloud")
+    return result
+
+
+def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_path=None, feedback=None,
+                         count_path=None):
     """The DEM step: the point cloud file `cloud` (point_input.point_chunks) interpolated with DemParams
     `params` tile by tile (module docstring) and written to the GeoTIFF `output` (and the precision raster
-    to `precision_path` where given). `breaklines`: (path, layer name or None) of a 3-D line layer, or
-    None. Returns a TiledDem; raises InputError (unreadable input, no CRS, too few points), ExecutionError,
-    CancelledError."""
+    to `precision_path`, with method "cells" the count of points per cell to `count_path`, where given).
+    `breaklines`: (path, layer name or None) of a 3-D line layer, or None (method "tin"). Returns a TiledDem;
+    raises InputError (unreadable input, no CRS, too few points, breaklines or a count raster with the
+    wrong method), ExecutionError, CancelledError."""
     params = (params or DemParams()).check()
     log = progress.ensure(feedback)
+    if params.method == "cells":
+        if breaklines:
+            raise InputError("breaklines shape a TIN: the per-cell DEM does not use them; choose the TIN method or "
+                             "leave the breaklines out")
+        result = _cells_dem(cloud, output, params, precision_path, count_path, feedback)
+        log.pushInfo(result.summary())
+        return result
+    if count_path:
+        raise InputError("the count of points per cell is an output of the per-cell method, not of the TIN")
     lines, lines_srs = read_breaklines(*breaklines) if breaklines else ([], None)
     count, mx, my, cloud_srs, has_sigma = _centre(cloud, params.input_crs, progress.scaled(feedback, 0, 3))
     target = output_crs(cloud_srs, mx, my, params.crs)

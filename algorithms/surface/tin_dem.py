@@ -22,6 +22,9 @@ from .tin import conform_breaklines, delaunay, filter_blunders, flat_points, lon
 from .tin_grid import Grid, rasterize
 
 DATUMS = ("ellipsoidal", "egm96")
+#: interpolation methods of the DEM step: a TIN of the points (sparse points), or per-cell medians (dense
+#: points, cell_dem.py)
+METHODS = ("tin", "cells")
 
 
 @dataclass
@@ -217,10 +220,13 @@ class DemParams:
     k: float = 4.0                  # blunder threshold in robust sigmas (0: no filter)
     iterations: int = 3             # of the blunder filter
     tile: int = 1024                # cells per tile side (dem_tiles.py)
+    method: str = "tin"             # one of METHODS
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))   # where the tiles run
 
     def check(self):
         """Raise InputError for settings no interpolation can use."""
+        if self.method not in METHODS:
+            raise InputError(f"the DEM's method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if not self.cell > 0 or self.datum not in DATUMS or self.k < 0 or self.iterations < 1 \
                 or (self.max_edge is not None and self.max_edge < 0) or int(self.tile) < 16:
             raise InputError(f"the cell size must be positive, the datum one of {', '.join(DATUMS)}, the blunder "

@@ -1,4 +1,5 @@
-"""pushbroom:interpolatedem: a DEM from a point cloud (algorithms/surface/tin_dem.py)."""
+"""pushbroom:interpolatedem: a DEM from a point cloud (algorithms/surface/dem_tiles.py: a TIN, or per-cell
+medians for dense points)."""
 from qgis.core import (
     QgsProcessing,
     QgsProcessingOutputNumber,
@@ -18,15 +19,18 @@ from .base import PushbroomAlgorithm, execution_choice, execution_parameters
 Number = QgsProcessingParameterNumber
 #: height datums: (engine key, label)
 DATUMS = (("ellipsoidal", "WGS 84 ellipsoidal height"), ("egm96", "EGM96 (orthometric) height"))
+#: interpolation methods: (engine key, label)
+METHODS = (("tin", "TIN of the points (sparse points: region growing, coarse-to-fine)"),
+           ("cells", "Per-cell median (dense points: the dense matching strategy)"))
 
 
 class InterpolateDem(PushbroomAlgorithm):
     NAME = "interpolatedem"
-    DISPLAY_NAME = "Interpolate DEM (TIN)"
+    DISPLAY_NAME = "Interpolate DEM"
     GROUP_ID = "surface"
 
-    KEYS = ("INPUT BREAKLINES CRS CELL DATUM INPUT_CRS MAX_EDGE BLUNDER_K ITERATIONS TILE EXECUTION DASK_ADDRESS "
-            "WORKERS OUTPUT PRECISION POINTS REMOVED")
+    KEYS = ("INPUT BREAKLINES CRS CELL METHOD DATUM INPUT_CRS MAX_EDGE BLUNDER_K ITERATIONS TILE EXECUTION "
+            "DASK_ADDRESS WORKERS OUTPUT PRECISION COUNT POINTS REMOVED")
 
     def initAlgorithm(self, config=None):
         d, tr = DemParams(), self.tr
@@ -38,6 +42,8 @@ class InterpolateDem(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterCrs(self.CRS, tr("Output CRS (empty: the UTM zone of the points)"),
                                                     None, optional=True))
         self.addParameter(Number(self.CELL, tr("Cell size (output CRS units)"), Number.Double, d.cell, minValue=1e-6))
+        self.addParameter(QgsProcessingParameterEnum(self.METHOD, tr("Method"), [tr(t) for _, t in METHODS],
+                                                     defaultValue=0))
         self.addParameter(QgsProcessingParameterEnum(self.DATUM, tr("Height datum"), [tr(t) for _, t in DATUMS],
                                                      defaultValue=0))
         self.addAdvancedParameters([
@@ -45,8 +51,8 @@ class InterpolateDem(PushbroomAlgorithm):
                                       optional=True),
             Number(self.MAX_EDGE, tr("Maximum triangle edge (empty: 3 cells or 2.5 point spacings); longer "
                                      "triangles are gaps"), Number.Double, None, optional=True, minValue=0.0),
-            Number(self.BLUNDER_K, tr("Blunder threshold k (robust sigmas; 0: no filter)"), Number.Double, d.k,
-                   minValue=0.0),
+            Number(self.BLUNDER_K, tr("Blunder threshold k (robust sigmas; 0: no filter); per cell with the "
+                                      "per-cell method"), Number.Double, d.k, minValue=0.0),
             Number(self.ITERATIONS, tr("Blunder filter iterations"), Number.Integer, d.iterations, minValue=1),
             Number(self.TILE, tr("Tile size (cells)"), Number.Integer, d.tile, minValue=16),
             *execution_parameters(self, d.execution.workers),
@@ -54,13 +60,15 @@ class InterpolateDem(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("DEM")))
         self.addParameter(QgsProcessingParameterRasterDestination(self.PRECISION, tr("Precision raster"),
                                                                   optional=True, createByDefault=False))
-        self.addOutput(QgsProcessingOutputNumber(self.POINTS, tr("Points in the TIN")))
-        self.addOutput(QgsProcessingOutputNumber(self.REMOVED, tr("Blunders removed")))
+        self.addParameter(QgsProcessingParameterRasterDestination(self.COUNT, tr("Points per cell (per-cell method)"),
+                                                                  optional=True, createByDefault=False))
+        self.addOutput(QgsProcessingOutputNumber(self.POINTS, tr("Points in the DEM")))
+        self.addOutput(QgsProcessingOutputNumber(self.REMOVED, tr("Blunders (outliers) removed")))
 
     def execute(self, parameters, context, feedback):
         values = self.parameterValues(parameters, context, cell=self.CELL, datum=self.DATUM, max_edge=self.MAX_EDGE,
-                                      k=self.BLUNDER_K, iterations=self.ITERATIONS, tile=self.TILE)
-        values["datum"] = DATUMS[values["datum"]][0]
+                                      k=self.BLUNDER_K, iterations=self.ITERATIONS, tile=self.TILE, method=self.METHOD)
+        values.update(datum=DATUMS[values["datum"]][0], method=METHODS[values["method"]][0])
         params = DemParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
                            input_crs=self.parameterAsCrsDefinition(parameters, self.INPUT_CRS, context),
                            execution=execution_choice(self, parameters, context), **values)
@@ -71,8 +79,9 @@ class InterpolateDem(PushbroomAlgorithm):
             breaklines = (path, layer or None)
         out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
         precision = self.parameterAsOutputLayer(parameters, self.PRECISION, context)
+        count = self.parameterAsOutputLayer(parameters, self.COUNT, context)
         result = dem_from_point_cloud(self.parameterAsFile(parameters, self.INPUT, context), out, params, breaklines,
-                                      precision or None, feedback)
+                                      precision or None, feedback, count_path=count or None)
         style_on_completion(context, out, "dem.qml")
         return self.given({self.OUTPUT: out, self.POINTS: result.points, self.REMOVED: sum(result.removed),
-                           self.PRECISION: precision})
+                           self.PRECISION: precision, self.COUNT: count})

@@ -77,6 +77,28 @@ def test_egm96_heights_in_a_given_crs(pushbroom_provider, tmp_path):
     assert "EGM96" in big_h.GetMetadata()["HEIGHT_DATUM"]
 
 
+def test_per_cell_dem_with_counts(pushbroom_provider, tmp_path):
+    las, lines, roof = roof_cloud(tmp_path, n=40000)
+    result = run({"INPUT": las, "CELL": 20.0, "METHOD": 1, "OUTPUT": str(tmp_path / "cells.tif"),
+                  "PRECISION": str(tmp_path / "se.tif"), "COUNT": str(tmp_path / "n.tif")})
+    dem, count, se = (gdal.Open(result[k]) for k in ("OUTPUT", "COUNT", "PRECISION"))
+    n = count.ReadAsArray()
+    assert n.sum() == result["POINTS"] == 40000 - result["REMOVED"] and 0.9 * 2500 < (n > 0).sum() <= 2601
+    x0, cell, _, _, _, _ = dem.GetGeoTransform()
+    h = dem.ReadAsArray().astype(float)
+    ok = n > 0
+    ridge = np.abs(x0 + (np.arange(h.shape[1]) + 0.5) * cell - 650_500) < cell    # the ridge's own cells
+    truth = np.broadcast_to(roof(x0 + (np.arange(h.shape[1]) + 0.5) * cell), h.shape)
+    dh = np.abs(h - truth)[ok & ~ridge]        # a cell's median on a 0.5 slope: within its +-5 m, near its centre
+    assert dh.max() < 5.0 and np.median(dh) < 1.0
+    assert np.allclose(se.ReadAsArray()[ok & (n >= 1)], 1.2533 * 0.4 / np.sqrt(n[ok & (n >= 1)]), rtol=1e-4)
+    assert dem.GetMetadata()["METHOD"] == "per-cell median"
+    with pytest.raises(QgsProcessingException, match="per-cell method"):
+        run({"INPUT": las, "CELL": 20.0, "OUTPUT": str(tmp_path / "tin.tif"), "COUNT": str(tmp_path / "n2.tif")})
+    with pytest.raises(QgsProcessingException, match="breaklines"):
+        run({"INPUT": las, "CELL": 20.0, "METHOD": 1, "BREAKLINES": lines, "OUTPUT": str(tmp_path / "c2.tif")})
+
+
 def test_errors_and_cancel(pushbroom_provider, tmp_path):
     las, _, _ = roof_cloud(tmp_path)
     few = pointcloud.write_point_cloud(tmp_path / "two.gpkg", [5.0, 5.1], [44.0, 44.1], [1.0, 2.0])[0]

@@ -1,0 +1,103 @@
+"""The per-cell DEM of dense points against a plain numpy loop over the cells, and through the tiled DEM
+step: tiles and executions leave the same rasters, the counts add up, the wrong combinations are clear
+errors."""
+import numpy as np
+import pytest
+
+from pushbroom.algorithms.crs import srs
+from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.surface import pointcloud
+from pushbroom.algorithms.surface.cell_dem import MEDIAN_SE, MIN_SPREAD, cells_on_grid
+from pushbroom.algorithms.surface.dem_tiles import dem_from_point_cloud
+from pushbroom.algorithms.surface.tin_dem import DemParams
+from pushbroom.algorithms.surface.tin_grid import Grid
+from tests.helpers.dem_cloud import UTM31, read_raster
+
+
+def dense_points(seed=3, n=20000, outliers=200):
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(0.0, 200.0, n)
+    y = rng.uniform(0.0, 150.0, n)
+    z = 100.0 + 0.1 * x + np.where(x > 120.0, 15.0, 0.0) + rng.normal(0.0, 0.4, n)    # a 15 m step at x = 120
+    z[rng.choice(n, outliers, replace=False)] += rng.uniform(10.0, 40.0, outliers)
+    return x, y, z, rng.uniform(0.3, 1.0, n)
+
+
+def reference(x, y, z, sigma, grid, k):
+    """Per cell: the median, MAD test, median, count and precision of the module's docstring, by a loop."""
+    out = np.full((grid.rows, grid.cols), np.nan), np.zeros((grid.rows, grid.cols)), \
+        np.full((grid.rows, grid.cols), np.nan)
+    col = np.floor((x - grid.x0) / grid.cell).astype(int)
+    row = np.floor((grid.y0 - y) / grid.cell).astype(int)
+    removed = 0
+    for r in range(grid.rows):
+        for c in range(grid.cols):
+            m = (row == r) & (col == c)
+            if not m.any():
+                continue
+            zz, ss = z[m], None if sigma is None else sigma[m]
+            med = np.median(zz)
+            mad = np.median(np.abs(zz - med))
+            keep = np.abs(zz - med) <= k * max(1.4826 * mad, MIN_SPREAD)
+            removed += int((~keep).sum())
+            zz = zz[keep]
+            med = np.median(zz)
+            n = len(zz)
+            if ss is not None:
+                spread = np.sqrt(np.mean(ss[keep] ** 2))
+            else:
+                spread = 1.4826 * np.median(np.abs(zz - med)) if n >= 3 else np.nan
+            out[0][r, c], out[1][r, c], out[2][r, c] = med, n, MEDIAN_SE * spread / np.sqrt(n)
+    return out, removed
+
+
+@pytest.mark.parametrize("with_sigma", [False, True])
+def test_cells_against_a_loop(with_sigma):
+    x, y, z, sigma = dense_points()
+    grid = Grid(0.0, 150.0, 10.0, 20, 15)
+    heights, count, precision, removed = cells_on_grid(x, y, z, sigma if with_sigma else None, grid, k=3.0)
+    (h_ref, n_ref, p_ref), removed_ref = reference(x, y, z, sigma if with_sigma else None, grid, 3.0)
+    np.testing.assert_allclose(heights, h_ref, rtol=0, atol=1e-4)
+    np.testing.assert_array_equal(count, n_ref)
+    np.testing.assert_allclose(precision, p_ref, rtol=1e-5)
+    assert removed == removed_ref and removed >= 190           # the outliers, and hardly anything else
+    assert np.nanmax(np.abs(heights[:, :12] - (100.0 + 0.1 * (np.arange(12) * 10 + 5)))) < 1.0
+
+
+def write(path, x, y, z, sigma=None):
+    fields = {} if sigma is None else {"sigma_h": sigma.astype(np.float32)}
+    pointcloud.write_las(path, 500000.0 + x, 4800000.0 + y, z, fields, srs(UTM31))
+    return path
+
+
+def test_tiles_and_executions_leave_the_same_rasters(tmp_path):
+    x, y, z, sigma = dense_points(n=60000)
+    cloud = write(tmp_path / "dense.las", x, y, z, sigma)
+    runs = {}
+    for name, tile, execution in (("one", 1024, Execution()), ("tiles", 16, Execution("threads", 2)),
+                                  ("processes", 16, Execution("processes", 2))):
+        out = tmp_path / f"{name}.tif"
+        result = dem_from_point_cloud(cloud, out, DemParams(cell=2.0, method="cells", tile=tile, k=3.0,
+                                                            execution=execution),
+                                      precision_path=tmp_path / f"{name}_p.tif", count_path=tmp_path / f"{name}_n.tif")
+        runs[name] = [read_raster(p)[0] for p in (out, tmp_path / f"{name}_p.tif", tmp_path / f"{name}_n.tif")]
+        assert result.points + result.removed[0] == len(x)
+        assert np.nansum(runs[name][2]) == result.points
+    assert result.tiles == -(-result.grid.cols // 16) * -(-result.grid.rows // 16) > 20
+    for name in ("tiles", "processes"):
+        for a, b in zip(runs["one"], runs[name]):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_wrong_combinations_are_clear_errors(tmp_path):
+    x, y, z, _ = dense_points(n=1000)
+    cloud = write(tmp_path / "dense.las", x, y, z)
+    with pytest.raises(InputError, match="per-cell method"):
+        dem_from_point_cloud(cloud, tmp_path / "a.tif", DemParams(cell=5.0), count_path=tmp_path / "n.tif")
+    with pytest.raises(InputError, match="breaklines"):
+        dem_from_point_cloud(cloud, tmp_path / "b.tif", DemParams(cell=5.0, method="cells"),
+                             breaklines=(tmp_path / "lines.gpkg", None))
+    with pytest.raises(InputError, match="method"):
+        DemParams(method="kriging").check()
+    assert not list(tmp_path.glob("*.tif"))
