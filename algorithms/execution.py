@@ -19,8 +19,12 @@ Inside QGIS `sys.executable` is the QGIS binary, not Python: worker processes ar
 interpreter of this Python (`python_executable`, set through multiprocessing.set_executable), which
 both the process pool and Dask's nannies use. Dask reruns the task of a worker that dies on another
 worker (distributed's allowed-failures); the process pool cannot, and reports which step failed.
-In worker processes each task runs with GDAL's block cache held to raster_cache.STEP_CACHE. A step that
-runs several rounds of tasks keeps its workers across them (`session`).
+In worker processes each task runs with GDAL's block cache held to raster_cache.STEP_CACHE. The process
+pool's workers start with glibc's malloc returning freed memory above 64 KB to the system
+(WORKER_ENVIRONMENT, what Dask's nannies set for theirs): otherwise glibc raises its mmap threshold as large
+arrays are freed, serves the next ones from its heap, and a long-lived worker's resident memory creeps up
+with the number of tiles it has run, i.e. with the scene. A step that runs several rounds of tasks keeps its
+workers across them (`session`).
 
 Failure modes: InputError for unknown settings; ExecutionError when no Dask scheduler answers at
 `address` within `connect_timeout` s, when a worker process dies, or when no Python interpreter can
@@ -42,6 +46,9 @@ from .errors import CancelledError, ExecutionError, InputError
 from .raster_cache import in_worker
 
 BACKENDS = ("threads", "processes", "dask")
+#: the environment a process pool's workers start with (module docstring; distributed's
+#: nanny.pre-spawn-environ sets the same for Dask's workers)
+WORKER_ENVIRONMENT = {"MALLOC_TRIM_THRESHOLD_": "65536"}
 #: s between two looks at the pending tasks and the cancel button
 POLL = 0.1
 
@@ -103,6 +110,23 @@ def _use_python_for_workers():
         multiprocessing.set_executable(exe)
 
 
+_environ_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def _worker_environment():
+    """os.environ with WORKER_ENVIRONMENT (where not set already) for the worker processes started inside,
+    as it was afterwards."""
+    with _environ_lock:
+        added = {k: v for k, v in WORKER_ENVIRONMENT.items() if k not in os.environ}
+        os.environ.update(added)
+        try:
+            yield
+        finally:
+            for k in added:
+                os.environ.pop(k, None)
+
+
 class _Pool:
     """threads / processes: concurrent.futures."""
 
@@ -117,7 +141,8 @@ class _Pool:
     def submit(self, function, args):
         if self.threads:
             return self.pool.submit(function, *args)
-        return self.pool.submit(in_worker, function, args)
+        with _worker_environment():         # the pool starts its workers as the first tasks arrive
+            return self.pool.submit(in_worker, function, args)
 
     def done(self, futures):
         return cf.wait(futures, timeout=POLL, return_when=cf.FIRST_COMPLETED)[0]

@@ -43,6 +43,14 @@ def test_worker_processes_hold_gdals_cache_to_the_steps_bound(where):
 
 
 @pytest.mark.parametrize("where", BACKENDS[1:], ids=lambda e: e.backend)
+def test_worker_processes_return_freed_memory_to_the_system(where):
+    name = "MALLOC_TRIM_THRESHOLD_"
+    before = os.environ.get(name)
+    assert {v for v in run_tasks(tasks.environment, [(name,)] * 4, where)} == {execution.WORKER_ENVIRONMENT[name]}
+    assert os.environ.get(name) == before                     # this process's environment as it was
+
+
+@pytest.mark.parametrize("where", BACKENDS[1:], ids=lambda e: e.backend)
 def test_a_session_keeps_the_workers_across_rounds(where):
     with execution.session(where):
         rounds = [{r[2] for r in run_tasks(tasks.statistic, [(s, 100) for s in range(8)], where)} for _ in range(3)]

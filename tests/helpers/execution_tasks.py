@@ -42,3 +42,8 @@ def gdal_cache(k):
     """(k, the GDAL block cache limit of the process running the task, in bytes)."""
     from osgeo import gdal
     return k, gdal.GetCacheMax()
+
+
+def environment(name):
+    """The worker's value of the environment variable `name` (None: unset)."""
+    return os.environ.get(name)
