@@ -30,7 +30,11 @@ Failure modes: InputError for unknown settings; ExecutionError when no Dask sche
 `address` within `connect_timeout` s, when a worker process dies, or when no Python interpreter can
 be found; a task's own exception is raised as it is; CancelledError when cancelled (pending tasks
 are cancelled, running ones finish and are discarded). The design follows the cluster abstraction of
-CNES CARS (create tasks, start them, iterate over the futures as they complete)."""
+CNES CARS (create tasks, start them, iterate over the futures as they complete).
+
+Memory on Dask: what all of a round's tasks share (a step's job: models, images, parameters) is sent to
+the workers once and passed as a future, and each task is let go as soon as its result is in, so that the
+scheduler does not hold a copy of the job per task, nor the results of the finished ones."""
 import concurrent.futures as cf
 import contextlib
 import multiprocessing
@@ -138,6 +142,10 @@ class _Pool:
             _use_python_for_workers()
             self.pool = cf.ProcessPoolExecutor(int(execution.workers), mp_context=multiprocessing.get_context("spawn"))
 
+    def prepare(self, tasks):
+        """The tasks as they are submitted (a pool passes every argument by reference or pickles it per task)."""
+        return tasks, []
+
     def submit(self, function, args):
         if self.threads:
             return self.pool.submit(function, *args)
@@ -187,6 +195,22 @@ class _Dask:
             except BaseException:
                 self.cluster.close()
                 raise
+
+    def prepare(self, tasks):
+        """(tasks, futures to keep): each object that every task passes at the same place (a step's job: its
+        models, images and parameters) sent to the workers once (scatter, to every worker) and passed as its
+        future, which the workers resolve: the scheduler holds it once, not once per task."""
+        shared = {}
+        if len(tasks) > 1:
+            for i, value in enumerate(tasks[0]):
+                if isinstance(value, (str, bytes, int, float, bool, type(None))):
+                    continue
+                if all(len(t) > i and t[i] is value for t in tasks):
+                    # in a list: scatter sends a tuple's items one by one, a list's items as they are
+                    shared[i] = self.client.scatter([value], broadcast=True, hash=False)[0]
+        if not shared:
+            return tasks, []
+        return [tuple(shared.get(i, a) for i, a in enumerate(t)) for t in tasks], list(shared.values())
 
     def submit(self, function, args):
         # pure=False: a task is run, not looked up (two runs of the same tile may write different files)
@@ -245,7 +269,8 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
     backend = kept or (_Dask(execution) if execution.backend == "dask" else _Pool(execution))
     futures, cancel = {}, True
     try:
-        for k, args in enumerate(tasks):
+        submitted, shared = backend.prepare(tasks)
+        for k, args in enumerate(submitted):
             futures[backend.submit(function, args)] = k
         pending = set(futures)
         while pending:
@@ -253,9 +278,11 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
                 raise CancelledError("cancelled by the user")
             for future in backend.done(pending):
                 pending.discard(future)
-                results[futures[future]] = backend.result(future, what)
+                # a finished task is let go at once: Dask then forgets its result and its arguments
+                results[futures.pop(future)] = backend.result(future, what)
                 progress.step(feedback, 100.0 * (len(tasks) - len(pending)) / len(tasks))
         cancel = False
+        del shared
     finally:
         if cancel:
             for future in futures:

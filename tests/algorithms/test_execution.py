@@ -50,6 +50,20 @@ def test_worker_processes_return_freed_memory_to_the_system(where):
     assert os.environ.get(name) == before                     # this process's environment as it was
 
 
+@pytest.mark.parametrize("where", BACKENDS, ids=lambda e: e.backend)
+def test_what_every_task_shares_is_sent_once(where):
+    job = {"values": np.arange(200_000, dtype=float)}
+    tasks_ = [(job, k) for k in range(6)]
+    assert run_tasks(tasks.weighted_sum, tasks_, where) == [k * float(job["values"].sum()) for k in range(6)]
+    if where.backend != "dask":
+        return
+    with execution.session(where):
+        backend = execution._sessions[(execution.threading.get_ident(), where)]
+        submitted, shared = backend.prepare(tasks_)
+        assert len(shared) == 1 and all(t[0] is shared[0] and t[1] == k for k, t in enumerate(submitted))
+        assert type(shared[0]).__name__ == "Future"             # the job travels once, as a future
+
+
 @pytest.mark.parametrize("where", BACKENDS[1:], ids=lambda e: e.backend)
 def test_a_session_keeps_the_workers_across_rounds(where):
     with execution.session(where):

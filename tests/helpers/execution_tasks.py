@@ -47,3 +47,8 @@ def gdal_cache(k):
 def environment(name):
     """The worker's value of the environment variable `name` (None: unset)."""
     return os.environ.get(name)
+
+
+def weighted_sum(job, k):
+    """k times the sum of the array job["values"] (a job every task shares)."""
+    return k * float(job["values"].sum())
