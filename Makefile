@@ -7,9 +7,13 @@ APT_PACKAGES := qgis python3-qgis qgis-providers python3-gdal gdal-bin python3-s
 # the test and lint pins equal pyproject.toml's extras (tests/test_packaging.py checks it)
 PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest-qgis==2.1.0 \
             hypothesis==6.112.2 laspy==2.5.4 lazrs==0.8.2 libsgm==0.5.2 ruff==0.17.6
-# CNES pandora, the dense matcher's reference in the tests: without its dependencies, which come from Debian
-# (rasterio, xarray, scikit-image: built on the system GDAL and numpy; rasterio's wheel would bring a second GDAL)
+# CNES pandora, the dense matcher's reference in one test (tests/algorithms/dense/test_sgm_pandora.py), in its own
+# folder that only that test puts on sys.path: json-checker's and pandora-plugin-libsgm's wheels install a top-level
+# `tests` package, which in the venv would shadow ours in QGIS's processes. Without its dependencies, which come
+# from Debian (rasterio, xarray, scikit-image: built on the system GDAL and numpy; rasterio's wheel would bring a
+# second GDAL).
 PANDORA_PINS := pandora==1.9.0 pandora-plugin-libsgm==1.5.8 json-checker==2.0.0 transitions==0.9.3
+PANDORA_DIR := build/pandora
 # metadata.txt holds the one version; pyproject.toml reads it through pushbroom.__version__
 VERSION := $(shell sed -n 's/^version=//p' metadata.txt)
 PROFILE := $(CURDIR)/build/qgis-profile
@@ -22,7 +26,12 @@ export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
 .PHONY: setup lint test test-fast demo bench package clean
 
-setup: .venv/.setup-done $(PROFILE)/.enabled
+setup: .venv/.setup-done $(PROFILE)/.enabled $(PANDORA_DIR)/.done
+
+$(PANDORA_DIR)/.done: .venv/.setup-done Makefile
+	@rm -rf $(PANDORA_DIR) && $(PY) -m pip install -q --no-deps --target $(PANDORA_DIR) $(PANDORA_PINS)
+	@PYTHONPATH=$(PANDORA_DIR) $(PY) -c "import pandora, rasterio; assert rasterio.__file__.startswith('/usr/lib/python3/'), rasterio.__file__"
+	@touch $@
 
 $(PROFILE)/.enabled: .venv/.setup-done metadata.txt
 	@mkdir -p $(PROFILE)/profiles/default/python/plugins
@@ -40,9 +49,8 @@ $(PROFILE)/.enabled: .venv/.setup-done metadata.txt
 	fi
 	@[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages .venv
 	@$(PY) -m pip install -q $(PIP_PINS) "numpy==$$(/usr/bin/python3 -c 'import numpy; print(numpy.__version__)')"
-	@$(PY) -m pip install -q --no-deps $(PANDORA_PINS)
 	@$(PY) -m pip install -q --no-deps --no-build-isolation -e .
-	@$(PY) -c "import numpy, numba, qgis.core, osgeo.gdal, distributed, c_libsgm, lazrs, pandora, rasterio; assert numpy.__version__.startswith('1.'), numpy.__version__; assert rasterio.__file__.startswith('/usr/lib/python3/'), rasterio.__file__"
+	@$(PY) -c "import numpy, numba, qgis.core, osgeo.gdal, distributed, c_libsgm, lazrs; assert numpy.__version__.startswith('1.'), numpy.__version__"
 	@touch $@
 
 # ruff (configured in pyproject.toml); CI runs it before the tests.

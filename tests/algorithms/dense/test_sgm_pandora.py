@@ -3,6 +3,8 @@ V fit, accurate cross-checking) on one epipolar pair of the real Pleiades triple
 where both keep a pixel, and nearly the same pixels kept (the left-right checks differ: pandora matches
 image 2 against image 1 again, we read image 2's disparity off the same aggregated volume)."""
 import json
+import pathlib
+import sys
 
 import numpy as np
 import pytest
@@ -13,7 +15,11 @@ from pushbroom.algorithms.dense.epipolar import disparity_range, epipolar_grid
 from pushbroom.algorithms.dense.resample import epipolar_image
 from pushbroom.algorithms.dense.sgm import SgmParams, disparity
 
-pandora = pytest.importorskip("pandora", reason="pandora is installed by `make setup`")
+#: where `make setup` installs pandora, out of the venv (Makefile, PANDORA_DIR)
+PANDORA_DIR = pathlib.Path(__file__).resolve().parents[3] / "build" / "pandora"
+if PANDORA_DIR.is_dir() and str(PANDORA_DIR) not in sys.path:
+    sys.path.append(str(PANDORA_DIR))              # after ours: its wheels bring a `tests` package of their own
+pandora = pytest.importorskip("pandora", reason=f"pandora is installed into {PANDORA_DIR} by `make setup`")
 NODATA = -9999
 
 
