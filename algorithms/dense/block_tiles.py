@@ -24,8 +24,8 @@ import numpy as np
 
 from .. import progress
 from ..atomic import save_array, work_dir
-from ..errors import InputError
 from ..execution import run_tasks, session
+from ..matching.block_tiles import block_inputs, first_ids
 from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from ..tiling import tile_grid
 from .pair_tile import match_pair_tile
@@ -118,11 +118,8 @@ def match_dense_tiles(images, models, folder, write_part=None, names=None, image
     points), or returned without it. Returns (the index entries or MultiPoints, in id order; stats). Raises
     InputError for other than 2 or 3 images, or where a pair has no epipolar geometry."""
     n = len(images)
-    if n not in (2, 3) or len(models) != n:
-        raise InputError(f"dense matching takes 2 or 3 images (reference, forward[, backward]), got {n}")
+    names, image_ids = block_inputs(images, models, names, image_ids, "dense matching")
     params = (params or DenseParams()).check()
-    names = list(names or [f"image {k + 1}" for k in range(n)])
-    image_ids = list(image_ids or range(1, n + 1))
     job = DenseJob(images, models, image_ids, params, height_range, write_part)
     tiles = tile_grid(models[0].size, params.tile)
     log = progress.ensure(feedback)
@@ -133,9 +130,8 @@ def match_dense_tiles(images, models, folder, write_part=None, names=None, image
         first = run_tasks(_dense_tile, [(job, box, out) for box, out in zip(tiles, pre)], execution,
                           progress.scaled(feedback, 0, 90), "dense matching")
         counts = [t["points"] for t in first]
-        first_ids = np.concatenate([[1], 1 + np.cumsum(counts)[:-1]]).astype(int)
         parts = run_tasks(_finish_tile, [(job, out, int(i), k, folder)
-                                         for k, (out, i) in enumerate(zip(pre, first_ids))], execution,
+                                         for k, (out, i) in enumerate(zip(pre, first_ids(counts)))], execution,
                           progress.scaled(feedback, 90, 100), "numbering the points")
     empty = [k for k, c in enumerate(counts) if c == 0]
     if empty:

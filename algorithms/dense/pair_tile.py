@@ -93,7 +93,7 @@ def match_pair_tile(image1, image2, model1, model2, box, height_range, params):
     epi2 = epipolar_image(a2, shifted_rows(grid, offset), grid.step)
     if not np.isfinite(epi1).any() or not np.isfinite(epi2).any():
         return x1, y1, np.full(x1.size, np.nan), np.full(x1.size, np.nan), info
-    disp, _ = disparity(epi1, epi2, d_range, params.sgm)
+    disp = disparity(epi1, epi2, d_range, params.sgm)
     u, v = grid.epipolar1(x1, y1)
     d = sample_disparity(disp, u - grid.u0, v - grid.v0, params.max_spread)
     x2, y2 = grid.image2(u + d, v + offset)

@@ -179,9 +179,8 @@ def census(img, radius, min_contrast=0.0):
 
 
 def disparity(epi1, epi2, d_range, params=SgmParams()):
-    """(disparity, cost): the dense disparity (float32, epi1's shape, u2 - u1 in epipolar px, NaN where
-    unmatched or inconsistent) of epipolar images epi1, epi2 (same rows) over the integer range
-    d_range = (d_min, d_max), and each pixel's aggregated minimum cost."""
+    """The dense disparity (float32, epi1's shape, u2 - u1 in epipolar px, NaN where unmatched or
+    inconsistent) of epipolar images epi1, epi2 (same rows) over the integer range d_range = (d_min, d_max)."""
     import c_libsgm
     if epi1.shape[0] != epi2.shape[0]:
         raise ValueError(f"epipolar images must have the same rows, got {epi1.shape} and {epi2.shape}")
@@ -208,4 +207,4 @@ def disparity(epi1, epi2, d_range, params=SgmParams()):
     disp2 = np.empty(epi2.shape, np.float32)
     right_kernel(s, d_min, limit, epi2.shape[1], disp2)
     lr_check_kernel(disp, disp2, np.float32(params.lr_tolerance))
-    return disp, cost
+    return disp

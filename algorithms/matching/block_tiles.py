@@ -169,6 +169,20 @@ def _scene_bias(job, first, limits):
     return corrected, systematic
 
 
+def block_inputs(images, models, names, image_ids, what):
+    """(names, image ids) of a pair or triplet matched tile by tile (defaults "image k", 1 ... n); InputError
+    for other than 2 or 3 images with a model each (`what`: the matcher, for the message)."""
+    n = len(images)
+    if n not in (2, 3) or len(models) != n:
+        raise InputError(f"{what} takes 2 or 3 images (reference, forward[, backward]), got {n}")
+    return list(names or [f"image {k + 1}" for k in range(n)]), list(image_ids or range(1, n + 1))
+
+
+def first_ids(counts):
+    """The first point id of each tile whose points number `counts`, so that ids run 1 ... N in tile order."""
+    return np.concatenate([[1], 1 + np.cumsum(counts)[:-1]]).astype(int) if len(counts) else []
+
+
 def match_tiles(images, models, folder, write_part=None, names=None, image_ids=None, params=None, height_range=None,
                 seed_points=None, automatic=True, feedback=None, execution=None, grow_second=True, sigma_factor=3.0,
                 refine=True):
@@ -177,11 +191,8 @@ def match_tiles(images, models, folder, write_part=None, names=None, image_ids=N
     returned. Returns (the index entries or MultiPoints of the tiles, in id order; stats). The work
     folder lies beside `folder`. Raises what match_block raises."""
     n = len(images)
-    if n not in (2, 3) or len(models) != n:
-        raise InputError(f"matching combines 2 or 3 images (reference, forward[, backward]), got {n}")
+    names, image_ids = block_inputs(images, models, names, image_ids, "matching")
     params = (params or GrowParams()).check()
-    names = list(names or [f"image {k + 1}" for k in range(n)])
-    image_ids = list(image_ids or range(1, n + 1))
     log = progress.ensure(feedback)
     if seed_points is None and not automatic:
         raise InputError("region growing needs seeds: give seed points or allow automatic seeds")
@@ -213,10 +224,10 @@ def match_tiles(images, models, folder, write_part=None, names=None, image_ids=N
         candidates = int(sum(t["dx"][1].sum() for t in first))
         kept = run_tasks(_kept, [(out, limits) for out in pre], execution, progress.scaled(feedback, 75, 75),
                          "the consistency test's counts")
-        first_ids = np.concatenate([[1], 1 + np.cumsum(kept)[:-1]]).astype(int) if kept else []
+        ids = first_ids(kept)
         job = job._replace(bias=_scene_bias(job, first, limits) if job.refine else None)
         second = run_tasks(_finish_tile, [(job, out, limits, int(i), k, folder)
-                                          for k, (out, i) in enumerate(zip(pre, first_ids))],
+                                          for k, (out, i) in enumerate(zip(pre, ids))],
                            execution, progress.scaled(feedback, 75, 100), "the consistency test and MPGC")
     stats = {"images": image_ids if n == 3 else image_ids[:2], **{k: int(sum(t[k] for t in first)) for k in ADDED},
              "rejected_3sigma": int(sum(t["points"] for t in first) - sum(kept)),
