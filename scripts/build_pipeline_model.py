@@ -16,7 +16,7 @@ DEM) -> selecttiepoints -> importpoints -> bundleadjust -> intersectpoints
 (mass points) -> interpolatedem -> orthorectify (IMAGE_NAME, adjusted model, produced DEM) and
 assessaccuracy (point cloud and DEM against REFERENCE, per class of CLASS_RASTER).
 
-Inputs: IMAGES, APPROX_DEM (optional; footprints and the matching height range, else HEIGHT),
+Inputs: IMAGES, APPROX_DEM (optional; footprints and the matching height range, else HEIGHT, else found),
 HEIGHT, OVERWRITE, POINTS (control/check point CSV), CHECK_IDS, MEAS_SUFFIX, REFERENCE (DEM for the
 tie point heights of the adjustment and the accuracy assessment), CLASS_RASTER (optional), STEP,
 CELL, MAX_EDGE (optional; default: 3 cells or 2.5 point spacings, whichever is larger),
@@ -65,7 +65,8 @@ INPUTS = [
                                          QgsProcessing.TypeRaster),
     QgsProcessingParameterRasterLayer("APPROX_DEM", "Approximate DEM (footprints, matching height range; "
                                       "ellipsoidal heights)", optional=True),
-    Number("HEIGHT", "Mean ellipsoidal terrain height when no approximate DEM is given (m)", Number.Double, 0.0),
+    Number("HEIGHT", "Mean ellipsoidal terrain height when no approximate DEM is given (m; empty: found by "
+           "matching the images)", Number.Double, None, optional=True),
     QgsProcessingParameterBoolean("OVERWRITE", "Overwrite an existing block", False),
     QgsProcessingParameterFile("POINTS", "Control and check points (CSV)",
                                fileFilter="CSV files (*.csv *.txt);;All files (*.*)"),

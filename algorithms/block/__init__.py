@@ -55,10 +55,11 @@ class Block:
         return images.open_images(image_paths, orientation_paths)
 
     @classmethod
-    def create(cls, path, image_list, height=0.0, dem=None, overwrite=False, feedback=None):
-        """Create the block `path` from `image_list` (`open_images`), footprints on `dem` or at `height`;
-        refuses to replace an existing block unless `overwrite` (images.create_block). Returns the Block."""
-        return cls(images.create_block(path, image_list, height, dem, overwrite, feedback))
+    def create(cls, path, image_list, height=0.0, dem=None, overwrite=False, feedback=None, height_range=None):
+        """Create the block `path` from `image_list` (`open_images`), footprints on `dem` or at `height`, with
+        the terrain `height_range` where known; refuses to replace an existing block unless `overwrite`
+        (images.create_block). Returns the Block."""
+        return cls(images.create_block(path, image_list, height, dem, overwrite, feedback, height_range))
 
     # -- block information, generations, transactions ---------------------------------------------
 

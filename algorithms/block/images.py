@@ -46,10 +46,11 @@ def terrain_height_range(rings, height, dem):
     return dem.cells_range((rows.min(), rows.max() + 1), (cols.min(), cols.max() + 1))
 
 
-def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=None):
+def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=None, height_range=None):
     """Create `path` (a .gpkg) from `images`, a list of (name, image_path, orientation_path, model).
 
-    Footprints are the image borders on `dem` (dem_store.StoredDem) or at ellipsoidal `height`.
+    Footprints are the image borders on `dem` (dem_store.StoredDem) or at ellipsoidal `height`; the terrain
+    height range recorded is `height_range` where given (found by matching), else terrain_height_range's.
     Refuses to replace an existing block unless `overwrite` is true."""
     path = os.fspath(path)
     if not path.lower().endswith(".gpkg"):
@@ -69,7 +70,7 @@ def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=N
         except PushbroomError as exc:
             raise InputError(f"cannot project the footprint of image {name}: {exc}") from exc
     centre = sum(r[:-1].mean(axis=0) for r in rings) / len(rings)
-    h_min, h_max = terrain_height_range(rings, height, dem)
+    h_min, h_max = terrain_height_range(rings, height, dem) if height_range is None else height_range
     with atomic_path(path) as tmp:
         with closing(create_schema(tmp)) as ds:
             _write_images(ds, images, rings)

@@ -6,7 +6,12 @@ SPOT 1-5 DIMAP, RPC tags or _RPC.TXT/.RPB files, OSSIM .geom; the orientation fi
 images unless given, one per image in the same order), reads the optional DEM (ellipsoidal heights;
 implausible heights are warned about, a void value can be declared as nodata) and stores the block
 (Block.create: footprints on the DEM or at the mean height, the terrain height range). An existing
-block is only replaced with `overwrite`."""
+block is only replaced with `overwrite`.
+
+The terrain height range comes from the DEM; else from the mean height given (+- 500 m); else, with two or
+more images, it is found by matching (matching/height_search.py: sparse points over the orientation's whole
+valid height range, intersected; the footprints at their median height); a single image without either
+takes its orientation's mean height (an RPC's HEIGHT_OFF; 0 m for a SPOT model), with a warning."""
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -14,6 +19,8 @@ from .. import progress
 from ..atomic import work_dir
 from ..block import Block
 from ..dem_store import store_dem
+from ..errors import InputError
+from ..matching.height_search import search_heights, validity_range
 
 
 @dataclass
@@ -23,7 +30,7 @@ class CreateParams:
     orientation: list = field(default_factory=list)   # orientation files, one per image; empty: beside them
     dem: Optional[str] = None           # DEM for the footprints (ellipsoidal heights)
     dem_nodata: Optional[float] = None  # void value of the DEM its file does not flag
-    height: float = 0.0                 # mean ellipsoidal height without a DEM (m)
+    height: Optional[float] = None      # mean ellipsoidal height without a DEM (m); None: found by matching
     overwrite: bool = False             # replace an existing block
 
 
@@ -47,10 +54,39 @@ def create_block(output, images, params, feedback=None):
         if params.dem:
             dem = store_dem(params.dem, work, params.dem_nodata)
             progress.warn(feedback, dem.implausible)
+        height, heights, found = params.height, None, None
+        if dem is None and height is None:
+            height, heights, found = _terrain_heights(opened, feedback)
         # storage: the new block
-        blk = Block.create(output, opened, height=params.height, dem=dem, overwrite=params.overwrite,
-                           feedback=feedback)
+        blk = Block.create(output, opened, height=height, dem=dem, overwrite=params.overwrite,
+                           feedback=progress.scaled(feedback, 80, 100) if found else feedback, height_range=heights)
+        if found:
+            blk.update_info({"height_search": f"{found.points} points matched over {found.searched[0]:.0f} to "
+                                              f"{found.searched[1]:.0f} m, {found.rejected} rejected"})
     progress.ensure(feedback).pushInfo(f"block {output}: " + ", ".join(
         f"{name} ({model.size[0]} x {model.size[1]})" for name, _, _, model in opened))
     return CreateResult(output, blk.layer_source("footprints"),
                         [(name, model.size[0], model.size[1]) for name, _, _, model in opened])
+
+
+def _terrain_heights(opened, feedback):
+    """(footprint height, terrain height range or None, HeightSearch or None) of a block made without a DEM
+    and without a height (module docstring)."""
+    names, paths, models = [o[0] for o in opened], [o[1] for o in opened], [o[3] for o in opened]
+    log = progress.ensure(feedback)
+    if len(opened) < 2:
+        height = getattr(models[0], "height_range", None)
+        height = 0.5 * (height[0] + height[1]) if height else 0.0
+        progress.warn(feedback, f"no DEM and no height given: the footprint of {names[0]} is at its orientation's "
+                                f"mean height {height:.0f} m +- 500 m; give a DEM or a mean height for a better one")
+        return height, None, None
+    if not all(paths):
+        raise InputError("no DEM and no height given, and the terrain height cannot be found without the images' "
+                         "pixels: give a DEM or a mean height")
+    log.pushInfo(f"no DEM and no height given: finding the terrain height by matching {names[0]} with "
+                 f"{', '.join(names[1:])} over the orientation's valid heights "
+                 f"{validity_range(models)[0]:.0f} to {validity_range(models)[1]:.0f} m")
+    found = search_heights(paths, models, names, progress.scaled(feedback, 0, 80))
+    log.pushInfo(f"terrain heights {found.height_range[0]:.0f} to {found.height_range[1]:.0f} m (median "
+                 f"{found.median:.0f} m) from {found.points} matched points ({found.rejected} rejected as mismatches)")
+    return found.median, found.height_range, found

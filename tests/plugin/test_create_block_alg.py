@@ -38,3 +38,17 @@ def test_createblock_with_qgis_process(qgis_process, product, tmp_path):
     result = qgis_process("run", "pushbroom:createblock", "--", f"IMAGES={product}", f"OUTPUT={out}")
     assert result["results"]["OUTPUT"] == str(out)
     assert out.exists()
+
+
+def test_createblock_without_dem_and_height_finds_the_terrain(pushbroom_provider, ventoux_pair, tmp_path):
+    from pushbroom.algorithms.block import Block
+    given = tmp_path / "given.gpkg"
+    processing.run("pushbroom:createblock", {"IMAGES": [str(p) for p in ventoux_pair], "HEIGHT": 0.0,
+                                             "OUTPUT": str(given)})
+    assert Block(str(given)).height_range() == (-500.0, 500.0)
+    found = tmp_path / "found.gpkg"
+    processing.run("pushbroom:createblock", {"IMAGES": [str(p) for p in ventoux_pair], "OUTPUT": str(found)})
+    h_min, h_max = Block(str(found)).height_range()
+    # the terrain under the pair: 512-568 m (tests/real/test_height_search_real.py), the RPC valid for 190-1960 m
+    assert 190.0 < h_min < 512.0 and 568.0 < h_max < 1000.0, (h_min, h_max)
+    assert "points matched over 190 to 1960 m" in Block(str(found)).info()["height_search"]

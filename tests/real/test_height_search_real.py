@@ -1,0 +1,105 @@
+"""The terrain height found by matching (issue 22, matching/height_search.py) on real Pleiades pixels.
+
+With no DEM and no height, the range found must hold the terrain the images see (the region growing points
+matched over the RPCs' whole validity range, the session's fixtures of tests/real/conftest.py, are the
+reference), be far narrower than that validity range, and give
+the DSM a user gets with the terrain's height typed in (that height +- 500 m): both DSMs are printed, and
+their difference must be the matching's noise (median and NMAD of a few cm)."""
+import numpy as np
+import pytest
+
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.matching.combinations import match_block
+from pushbroom.algorithms.matching.height_search import search_heights
+from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.quality.statistics import summarize
+from pushbroom.algorithms.surface.pointcloud import output_srs
+from tests.helpers.pleiades_scene import NAMES, in_order
+from tests.helpers.real_dsm import (
+    CELL,
+    RG_MAX_EDGE,
+    TRIPLET_STEP,
+    VENTOUX_CELL,
+    VENTOUX_STEP,
+    cut,
+    dsm,
+    on_grid,
+    srtm_comparison,
+    stats_row,
+)
+
+#: m: the two DSMs' difference where both are defined (the same points matched from other seeds)
+MAX_MEDIAN, MAX_NMAD = 0.05, 0.10
+
+
+def matched(paths, models, names, step, heights):
+    """Intersection (supplied RPCs) of the points region growing matched in all images over `heights`."""
+    points = match_block([Image(p) for p in paths], models, names=names, params=GrowParams(step=step),
+                         height_range=heights, workers=2)
+    return cut({k + 1: m for k, m in enumerate(models)}, points.observations,
+               points.points["id"][points.points["group"] >= len(paths) - 1])
+
+
+def found_and_given(paths, names, step, reference):
+    """(HeightSearch, the height given, {"found" / "given": Intersection}) for the range found and for the
+    terrain's median height (of `reference`, the points matched over the RPCs' validity range) typed in
+    (+- 500 m)."""
+    models = [sensors.load(p) for p in paths]
+    found = search_heights(paths, models, names)
+    given = float(np.median(reference.h[reference.ok]))
+    return found, given, {k: matched(paths, models, names, step, h)
+                          for k, h in (("found", found.height_range), ("given", given))}
+
+
+def check_range(found, reference, figures, title):
+    h = reference.h[reference.ok]
+    lo, hi = np.percentile(h, (0.5, 99.5))
+    figures.report(f"{title}: heights found (range, median, points, rejected)",
+                   [*found.height_range, found.median, found.points, found.rejected], "m")
+    figures.report(f"{title}: terrain (0.5 / 99.5 % of the points over the RPC's {found.searched} m)", [lo, hi], "m")
+    assert found.height_range[0] <= lo and hi <= found.height_range[1], (found, lo, hi)
+    span = found.searched[1] - found.searched[0]
+    assert found.height_range[1] - found.height_range[0] < 0.5 * span, found
+
+
+def compare_dsms(a, b, figures, title):
+    grid = a.grid
+    diff = summarize((on_grid(b, grid) - a.heights).ravel())
+    figures.table(f"{title}: DSM with the height found minus DSM with the height given (m)",
+                  [stats_row("found - given", diff)])
+    assert diff.n > 1000 and abs(diff.median) < MAX_MEDIAN and diff.nmad < MAX_NMAD, diff
+
+
+@pytest.mark.slow
+def test_triplet_height_found_gives_the_dsm_of_the_height(pleiades_triplet, region_growing_triplet_dsms, figures):
+    paths = in_order(pleiades_triplet)
+    points = region_growing_triplet_dsms["points"]
+    reference = cut({k + 1: m for k, m in enumerate(region_growing_triplet_dsms["models"])}, points.observations,
+                    points.points["id"][points.points["group"] >= 2])
+    found, given, out = found_and_given(paths, list(NAMES), TRIPLET_STEP, reference)
+    check_range(found, reference, figures, "Pleiades triplet")
+    figures.report("Pleiades triplet: the height given", given, "m")
+    srs = output_srs(None, out["given"].lon[out["given"].ok], out["given"].lat[out["given"].ok])
+    dems = {k: dsm(out[k], srs, CELL, RG_MAX_EDGE) for k in ("given", "found")}
+    for k, dem in dems.items():
+        figures.report(f"Pleiades triplet, 0.5 m DSM of the 3-ray points, height {k}: cells, median height",
+                       [int(np.isfinite(dem.heights).sum()), float(np.nanmedian(dem.heights))], "m")
+    compare_dsms(dems["given"], dems["found"], figures, "Pleiades triplet")
+
+
+def test_ventoux_height_found_gives_the_dsm_of_the_height(ventoux_pair, ventoux_region_growing, figures, tmp_path):
+    (tmp_path / "given").mkdir()
+    (tmp_path / "found").mkdir()
+    reference = ventoux_region_growing[1]
+    found, given, out = found_and_given(ventoux_pair, [p.stem for p in ventoux_pair], VENTOUX_STEP, reference)
+    check_range(found, reference, figures, "Ventoux pair")
+    figures.report("Ventoux pair: the height given", given, "m")
+    srtm = str(ventoux_pair[0].with_name("N44E005.hgt"))
+    comparisons = {k: srtm_comparison(out[k], srtm, (VENTOUX_CELL,), VENTOUX_CELL, tmp_path / k)
+                   for k in ("given", "found")}
+    figures.table("Ventoux pair, 2 m DSM - SRTM (EGM96 -> ellipsoidal) (m)",
+                  [stats_row(f"height {k}", c["stats"][VENTOUX_CELL]) for k, c in comparisons.items()]
+                  + [stats_row(f"height {k}, without the plane", c["detrended"]) for k, c in comparisons.items()])
+    compare_dsms(comparisons["given"]["dems"][VENTOUX_CELL], comparisons["found"]["dems"][VENTOUX_CELL], figures,
+                 "Ventoux pair")
