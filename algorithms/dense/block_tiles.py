@@ -56,7 +56,8 @@ def tile_points(job, box):
         q = (nan, nan, nan)
         if p.refine:
             x2, y2, *q = refine_positions(job.images[0], job.images[k], job.models[0], job.models[k], x1, y1, x2,
-                                          y2, info["grid"].heights[::2], p.template, p.max_shift)
+                                          y2, info["grid"].heights[::2], p.template, p.max_shift,
+                                          p.max_ellipse, p.wide_template)
         positions.append((x2, y2))
         quality.append(q)
         info["refined"] = int(np.isfinite(q[0]).sum())
