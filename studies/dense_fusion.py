@@ -5,7 +5,10 @@ matching's alone), the points' height error against the true DSM by class and by
 or the semi-global position kept), then 10 m DSMs (cell_dem.cells_on_grid, per-cell medians) against the
 true DSM at the cell centres, by class: from every point; from the refined points only; refined where a
 cell has one, else the unrefined; refined, with the other cells filled by linear interpolation (Delaunay)
-of the refined cells; and on the cells so filled, the fill against the unrefined points' median."""
+of the refined cells; and on the cells so filled, the fill against the unrefined points' median. Last, the
+product's way (surface/dem_tiles.py, method "cells"): the cloud as a LAS with its rho, per-cell medians of
+each cell's best tier, with and without the unrefined fallback, the gaps filled within FILL cells by GDAL
+(gap_fill.py)."""
 import tempfile
 import time
 
@@ -22,13 +25,16 @@ from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.cell_dem import cells_on_grid
-from pushbroom.algorithms.surface.pointcloud import output_srs
+from pushbroom.algorithms.surface.dem_tiles import dem_from_point_cloud
+from pushbroom.algorithms.surface.pointcloud import output_srs, write_las
+from pushbroom.algorithms.surface.tin_dem import DemParams
 from pushbroom.algorithms.surface.tin_grid import Grid
 
 NAMES = ("HRG", "HRS1", "HRS2")
 CLASSES = {2: "bare", 3: "crops", 4: "forest", 5: "city"}
 CELL = 10.0
 WIDE = 31              # px: the wide second template tried
+FILL = 10.0            # cells: the gap filling's reach
 
 
 def rms(v):
@@ -97,6 +103,22 @@ def study(paths, wide):
     print(row("  the interpolated cells", only, ref, ccls))
     only[gaps] = every[gaps]
     print(row("  the same cells, unrefined points", only, ref, ccls))
+    folder = tempfile.mkdtemp()
+    rho = pts["rho_min"][np.searchsorted(pts["id"], res.point[ok])]
+    write_las(folder + "/dense.las", x, y, z, {"rho": rho.astype(np.float32)}, srs)
+    for label, fallback, fill in (("interpolatedem: best tier", True, 0.0),
+                                  ("interpolatedem: refined only", False, 0.0),
+                                  (f"interpolatedem: refined, filled within {FILL:g}", False, FILL)):
+        out = f"{folder}/dem-{fallback}-{fill:g}.tif"
+        dem = dem_from_point_cloud(folder + "/dense.las", out, DemParams(cell=CELL, method="cells", fallback=fallback,
+                                                                         fill=fill))
+        ds = gdal.Open(out)
+        heights = ds.ReadAsArray().astype(float)
+        heights[heights == ds.GetRasterBand(1).GetNoDataValue()] = np.nan
+        dx, dy = dem.grid.centres()
+        dlon, dlat = reproject(dx.ravel(), dy.ravel(), srs, wgs84())
+        print(row(label, heights, dsm.height(dlon, dlat).reshape(dem.grid.shape),
+                  class_at(classes, dlon, dlat).reshape(dem.grid.shape)))
 
 
 def main():

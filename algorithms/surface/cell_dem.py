@@ -11,6 +11,12 @@ MAD = median |z - m|:
 A cell without a point is NaN (a gap), never filled here. Points on the grid's far edges belong to its last
 column and row.
 
+Tiers: where the points carry a `tier` (0 the most precise: dense points LSM refined, or any sparse point; 1
+those it left at the semi-global position), a cell uses only the points of the best tier it has; with
+`fallback` off, no point of a tier above 0 is used (such a cell is a gap). studies/dense_fusion.py measures
+why: the unrefined points' heights are worse than the refined ones' everywhere but in the city, and worse
+than interpolating the refined cells on bare fields, crops and forest.
+
 The TIN (tin_dem.py) suits sparse points, which it interpolates between; a dense cloud has several points
 per cell, whose median resists mismatches and follows height steps within a cell's width.
 
@@ -32,9 +38,10 @@ def _group_medians(key, values):
     return keys, 0.5 * (v[lo] + v[hi]), counts
 
 
-def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None):
+def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=True):
     """(heights, count, precision, removed) on `grid` (tin_grid.Grid) from points x, y, z (and sigma_h, or
-    None) in its CRS (module docstring); `own(x, y)`: the points this grid owns (a tile's), default all."""
+    None; and their `tier`, or None: all 0) in its CRS (module docstring); `own(x, y)`: the points this grid
+    owns (a tile's), default all."""
     x, y, z = (np.asarray(v, float) for v in (x, y, z))
     col = np.floor((x - grid.x0) / grid.cell).astype(np.int64)
     row = np.floor((grid.y0 - y) / grid.cell).astype(np.int64)
@@ -44,9 +51,19 @@ def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None):
     use = np.isfinite(z) & (col >= 0) & (row >= 0) & (col < grid.cols) & (row < grid.rows)
     if own is not None:
         use &= own(x, y)
+    if tier is not None:
+        tier = np.asarray(tier)
+        use &= fallback | (tier == 0)
     key = (row * grid.cols + col)[use]
     z = z[use]
     s = None if sigma is None else np.asarray(sigma, float)[use]
+    if tier is not None and key.size:
+        tier = tier[use]
+        best = np.full(grid.rows * grid.cols, np.iinfo(np.int64).max)
+        np.minimum.at(best, key, tier.astype(np.int64))
+        first = tier == best[key]
+        key, z = key[first], z[first]
+        s = None if s is None else s[first]
     heights = np.full((grid.rows, grid.cols), np.nan, np.float32)
     count = np.zeros((grid.rows, grid.cols), np.int32)
     precision = np.full((grid.rows, grid.cols), np.nan, np.float32)

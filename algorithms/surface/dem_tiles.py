@@ -28,8 +28,10 @@ cloud.
 
 Method "cells" (dense points): each point goes to the tile that holds its cell (a margin of half a cell,
 ownership by cell), and each tile is one task of cell_dem.cells_on_grid (per-cell medians after the
-per-cell outlier test, k = DemParams.k); steps 3 and 4 do not apply. Besides the precision raster it can
-write the count of points per cell.
+per-cell outlier test, k = DemParams.k; a cell uses its best tier of points: the refined dense points where it
+has one, and the unrefined ones only with DemParams.fallback); steps 3 and 4 do not apply. Besides the
+precision raster it can write the count of points per cell. With DemParams.fill, the gaps within that many
+cells of measured ones are filled and flagged in a mask raster (gap_fill.py), never silently.
 
 Failure modes: tin_dem's InputErrors (settings, no CRS, points outside the output CRS, no defined
 cell), ExecutionError from the execution, CancelledError; nothing is left under an output name
@@ -49,6 +51,7 @@ from ..errors import CancelledError, InputError
 from ..execution import run_tasks, session
 from ..tiling import tile_grid
 from .cell_dem import cells_on_grid
+from .gap_fill import fill_gaps
 from .geotiff import assemble_tiles, write_float_raster
 from .point_input import point_chunks, read_breaklines
 from .tin import delaunay, filter_blunders, flat_points, residual_histogram, spread
@@ -59,8 +62,9 @@ from .tin_grid import Grid
 MARGIN_EDGES = 4.0
 #: points read at a time
 CHUNK = 1_000_000
-#: a point in a work file: output CRS coordinates, ellipsoidal height, sigma_h (NaN: none), sampled for the spacing
-POINT = np.dtype([("x", "f8"), ("y", "f8"), ("z", "f8"), ("sigma", "f8"), ("sample", "?")])
+#: a point in a work file: output CRS coordinates, ellipsoidal height, sigma_h (NaN: none), sampled for the spacing,
+#: tier (cell_dem: 1 a dense point LSM left unrefined, its rho NaN; else 0)
+POINT = np.dtype([("x", "f8"), ("y", "f8"), ("z", "f8"), ("sigma", "f8"), ("sample", "?"), ("tier", "u1")])
 
 
 @dataclass
@@ -81,12 +85,16 @@ class TiledDem:
     precision_path: str = None
     count_path: str = None
     method: str = "tin"
+    filled: int = 0                 # gap cells filled (method "cells" with DemParams.fill)
+    mask_path: str = None           # the mask raster of the filled cells
 
     def summary(self):
         if self.method == "cells":
+            fill = (f"; {self.filled} gap cells filled ({self.filled / (self.grid.rows * self.grid.cols):.1%}), "
+                    f"flagged in {self.mask_path}" if self.mask_path else "")
             return (f"{self.points} points in per-cell medians ({sum(self.removed)} outliers removed), "
                     f"{self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g} in {self.tiles} tile(s), "
-                    f"{self.defined:.1%} defined, {self.datum} heights")
+                    f"{self.defined:.1%} measured, {self.datum} heights{fill}")
         return (f"{self.points} points ({sum(self.removed)} blunders removed: {self.removed} per iteration; "
                 f"{self.dropped_near_breaklines} next to breaklines dropped; {self.breakline_vertices} breakline "
                 f"vertices), {self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g} in {self.tiles} "
@@ -130,6 +138,8 @@ def _to_work_chunks(path, crs, target, count, work, feedback):
         rows["x"], rows["y"], rows["z"] = pts.x[finite], pts.y[finite], pts.z[finite]
         rows["sigma"] = pts.sigma_h[finite] if pts.sigma_h is not None else np.nan
         rows["sample"] = np.isin(np.arange(seen, seen + len(rows)), sample)
+        rho = pts.fields.get("rho")
+        rows["tier"] = np.isnan(rho[finite]) if rho is not None else 0
         seen += len(rows)
         if len(rows):
             lo = np.minimum(lo, [rows["x"].min(), rows["y"].min()])
@@ -249,13 +259,14 @@ def _dem_tile(job, box, points_file, spreads, out, precision_out):
 def _cell_tile(job, box, points_file, out, precision_out, count_out):
     """Task (method "cells"): the tile `box` (cells) of the DEM from the points of `points_file` it owns,
     written to `out` (and the precision and count rasters where asked); returns its counts."""
-    grid, wkt, k, sigma = job
+    grid, wkt, k, sigma, fallback = job
     srs = parse_crs(wkt)
     rows = np.fromfile(points_file, POINT)
     sub = _tile_grid(grid, box)
     heights, count, precision, removed = cells_on_grid(rows["x"], rows["y"], rows["z"],
                                                        rows["sigma"] if sigma else None, sub, k=k,
-                                                       own=_owner(grid, box))
+                                                       own=_owner(grid, box), tier=rows["tier"],
+                                                       fallback=fallback)
     write_float_raster(out, heights, sub.geotransform, srs, overviews=False)
     if precision_out is not None:
         write_float_raster(precision_out, precision, sub.geotransform, srs, overviews=False)
@@ -264,7 +275,7 @@ def _cell_tile(job, box, points_file, out, precision_out, count_out):
     return {"points": int(count.sum()), "removed": removed, "defined": int(np.isfinite(heights).sum())}
 
 
-def _cells_dem(cloud, output, params, precision_path, count_path, feedback):
+def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, feedback):
     """The DEM step with method "cells" (module docstring)."""
     count, mx, my, cloud_srs, has_sigma = _centre(cloud, params.input_crs, progress.scaled(feedback, 0, 3))
     target = output_crs(cloud_srs, mx, my, params.crs)
@@ -277,7 +288,7 @@ def _cells_dem(cloud, output, params, precision_path, count_path, feedback):
                         progress.scaled(feedback, 10, 20))
         for chunk in chunks:
             os.unlink(chunk)
-        job = (grid, target.ExportToWkt(), params.k, has_sigma)
+        job = (grid, target.ExportToWkt(), params.k, has_sigma, params.fallback)
         used = [(box, f, k) for k, (box, f) in enumerate(zip(boxes, files)) if f is not None]
         names = {kind: [os.path.join(work, f"{kind}-{k:05d}.tif") if wanted else None for _, _, k in used]
                  for kind, wanted in (("dem", True), ("precision", precision_path), ("count", count_path))}
@@ -289,7 +300,8 @@ def _cells_dem(cloud, output, params, precision_path, count_path, feedback):
         removed = sum(d["removed"] for d in done)
         result = TiledDem(output, grid, target, params.datum, len(boxes), points=sum(d["points"] for d in done),
                           removed=[removed], defined=defined / (grid.rows * grid.cols),
-                          precision_path=precision_path or None, count_path=count_path or None, method="cells")
+                          precision_path=precision_path or None, count_path=count_path or None, method="cells",
+                          mask_path=mask_path or None)
         datum = "WGS 84 ellipsoidal height" if params.datum == "ellipsoidal" else "EGM96 height (h - N)"
         extra = [(path, names[kind], description) for kind, path, description in (
             ("precision", precision_path, "standard error of the cell's median height (m)"),
@@ -300,7 +312,11 @@ def _cells_dem(cloud, output, params, precision_path, count_path, feedback):
             assemble_tiles(names["dem"], tmp, grid.geotransform, (grid.cols, grid.rows), target,
                            description=f"height ({datum}, m)",
                            metadata={"HEIGHT_DATUM": datum, "POINTS": result.points, "OUTLIERS_REMOVED": removed,
-                                     "METHOD": "per-cell median"}, feedback=progress.scaled(feedback, 80, 94))
+                                     "METHOD": "per-cell median", "GAPS_FILLED_WITHIN_CELLS": params.fill},
+                           overviews=not mask_path, feedback=progress.scaled(feedback, 80, 90))
+            if mask_path:
+                result.filled = fill_gaps(tmp, stack.enter_context(atomic_path(mask_path)), params.fill,
+                                          progress.scaled(feedback, 90, 94))
             for (path, tiles, description), tmp_extra in zip(extra, temps):
                 if path:
                     assemble_tiles(tiles, tmp_extra, grid.geotransform, (grid.cols, grid.rows), target,
@@ -311,10 +327,11 @@ def _cells_dem(cloud, output, params, precision_path, count_path, feedback):
 
 
 def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_path=None, feedback=None,
-                         count_path=None):
+                         count_path=None, mask_path=None):
     """The DEM step: the point cloud file `cloud` (point_input.point_chunks) interpolated with DemParams
     `params` tile by tile (module docstring) and written to the GeoTIFF `output` (and the precision raster
-    to `precision_path`, with method "cells" the count of points per cell to `count_path`, where given).
+    to `precision_path`, with method "cells" the count of points per cell to `count_path`, where given, and
+    with DemParams.fill the mask of the filled cells to `mask_path`, by default beside the output).
     `breaklines`: (path, layer name or None) of a 3-D line layer, or None (method "tin"). Returns a TiledDem;
     raises InputError (unreadable input, no CRS, too few points, breaklines or a count raster with the
     wrong method), ExecutionError, CancelledError."""
@@ -324,11 +341,17 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
         if breaklines:
             raise InputError("breaklines shape a TIN: the per-cell DEM does not use them; choose the TIN method or "
                              "leave the breaklines out")
-        result = _cells_dem(cloud, output, params, precision_path, count_path, feedback)
+        if params.fill and not mask_path:
+            mask_path = os.path.splitext(os.fspath(output))[0] + "_filled.tif"
+        result = _cells_dem(cloud, output, params, precision_path, count_path, mask_path if params.fill else None,
+                            feedback)
         log.pushInfo(result.summary())
         return result
     if count_path:
         raise InputError("the count of points per cell is an output of the per-cell method, not of the TIN")
+    if params.fill:
+        raise InputError("gap filling is for the per-cell DEM: the TIN interpolates between its points already, and "
+                         "leaves gaps only under triangles longer than the maximum edge (raise it to fill more)")
     lines, lines_srs = read_breaklines(*breaklines) if breaklines else ([], None)
     count, mx, my, cloud_srs, has_sigma = _centre(cloud, params.input_crs, progress.scaled(feedback, 0, 3))
     target = output_crs(cloud_srs, mx, my, params.crs)

@@ -221,6 +221,8 @@ class DemParams:
     iterations: int = 3             # of the blunder filter
     tile: int = 1024                # cells per tile side (dem_tiles.py)
     method: str = "tin"             # one of METHODS
+    fallback: bool = True           # "cells": the unrefined dense points where a cell has no refined one
+    fill: float = 0.0               # gaps filled from the cells within this many cells (gap_fill.py; 0: none)
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))   # where the tiles run
 
     def check(self):
@@ -228,9 +230,9 @@ class DemParams:
         if self.method not in METHODS:
             raise InputError(f"the DEM's method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if not self.cell > 0 or self.datum not in DATUMS or self.k < 0 or self.iterations < 1 \
-                or (self.max_edge is not None and self.max_edge < 0) or int(self.tile) < 16:
+                or (self.max_edge is not None and self.max_edge < 0) or int(self.tile) < 16 or not self.fill >= 0:
             raise InputError(f"the cell size must be positive, the datum one of {', '.join(DATUMS)}, the blunder "
-                             "threshold and the maximum edge not negative, the iterations at least 1 and the tiles "
-                             "at least 16 cells")
+                             "threshold, the maximum edge and the fill distance not negative, the iterations at least 1 "
+                             "and the tiles at least 16 cells")
         self.execution.check()
         return self

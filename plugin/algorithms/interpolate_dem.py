@@ -2,6 +2,7 @@
 medians for dense points)."""
 from qgis.core import (
     QgsProcessing,
+    QgsProcessingParameterBoolean,
     QgsProcessingOutputNumber,
     QgsProcessingParameterCrs,
     QgsProcessingParameterEnum,
@@ -30,7 +31,7 @@ class InterpolateDem(PushbroomAlgorithm):
     GROUP_ID = "surface"
 
     KEYS = ("INPUT BREAKLINES CRS CELL METHOD DATUM INPUT_CRS MAX_EDGE BLUNDER_K ITERATIONS TILE EXECUTION "
-            "DASK_ADDRESS WORKERS OUTPUT PRECISION COUNT POINTS REMOVED")
+            "DASK_ADDRESS WORKERS FALLBACK FILL OUTPUT PRECISION COUNT MASK POINTS REMOVED FILLED")
 
     def initAlgorithm(self, config=None):
         d, tr = DemParams(), self.tr
@@ -55,6 +56,10 @@ class InterpolateDem(PushbroomAlgorithm):
                                       "per-cell method"), Number.Double, d.k, minValue=0.0),
             Number(self.ITERATIONS, tr("Blunder filter iterations"), Number.Integer, d.iterations, minValue=1),
             Number(self.TILE, tr("Tile size (cells)"), Number.Integer, d.tile, minValue=16),
+            QgsProcessingParameterBoolean(self.FALLBACK, tr("Per-cell method: a cell without a refined dense point "
+                                                            "takes the unrefined (semi-global) ones"), d.fallback),
+            Number(self.FILL, tr("Per-cell method: fill the gaps within this many cells (0: none; the filled "
+                                 "cells are flagged in the mask raster)"), Number.Double, d.fill, minValue=0.0),
             *execution_parameters(self, d.execution.workers),
         ])
         self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("DEM")))
@@ -62,12 +67,17 @@ class InterpolateDem(PushbroomAlgorithm):
                                                                   optional=True, createByDefault=False))
         self.addParameter(QgsProcessingParameterRasterDestination(self.COUNT, tr("Points per cell (per-cell method)"),
                                                                   optional=True, createByDefault=False))
+        self.addParameter(QgsProcessingParameterRasterDestination(
+            self.MASK, tr("Filled cells mask (0 measured, 1 filled, 255 gap; empty: beside the DEM when filling)"),
+            optional=True, createByDefault=False))
         self.addOutput(QgsProcessingOutputNumber(self.POINTS, tr("Points in the DEM")))
+        self.addOutput(QgsProcessingOutputNumber(self.FILLED, tr("Gap cells filled")))
         self.addOutput(QgsProcessingOutputNumber(self.REMOVED, tr("Blunders (outliers) removed")))
 
     def execute(self, parameters, context, feedback):
         values = self.parameterValues(parameters, context, cell=self.CELL, datum=self.DATUM, max_edge=self.MAX_EDGE,
-                                      k=self.BLUNDER_K, iterations=self.ITERATIONS, tile=self.TILE, method=self.METHOD)
+                                      k=self.BLUNDER_K, iterations=self.ITERATIONS, tile=self.TILE, method=self.METHOD,
+                                      fallback=self.FALLBACK, fill=self.FILL)
         values.update(datum=DATUMS[values["datum"]][0], method=METHODS[values["method"]][0])
         params = DemParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
                            input_crs=self.parameterAsCrsDefinition(parameters, self.INPUT_CRS, context),
@@ -80,8 +90,10 @@ class InterpolateDem(PushbroomAlgorithm):
         out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
         precision = self.parameterAsOutputLayer(parameters, self.PRECISION, context)
         count = self.parameterAsOutputLayer(parameters, self.COUNT, context)
+        mask = self.parameterAsOutputLayer(parameters, self.MASK, context)
         result = dem_from_point_cloud(self.parameterAsFile(parameters, self.INPUT, context), out, params, breaklines,
-                                      precision or None, feedback, count_path=count or None)
+                                      precision or None, feedback, count_path=count or None, mask_path=mask or None)
         style_on_completion(context, out, "dem.qml")
         return self.given({self.OUTPUT: out, self.POINTS: result.points, self.REMOVED: sum(result.removed),
-                           self.PRECISION: precision, self.COUNT: count})
+                           self.PRECISION: precision, self.COUNT: count, self.MASK: result.mask_path,
+                           self.FILLED: result.filled})

@@ -109,3 +109,18 @@ def test_errors_and_cancel(pushbroom_provider, tmp_path):
     with pytest.raises(QgsProcessingException, match="cancel"):
         run({"INPUT": las, "OUTPUT": str(tmp_path / "b.tif")}, feedback=cancelled)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cloud.las", "lines.gpkg", "two.gpkg"]
+
+
+def test_per_cell_dem_fills_its_gaps_into_a_mask(pushbroom_provider, tmp_path):
+    las, _, _ = roof_cloud(tmp_path, n=3000)        # about one point per cell of 20 m: gaps between them
+    plain = run({"INPUT": las, "CELL": 20.0, "METHOD": 1, "OUTPUT": str(tmp_path / "plain.tif")})
+    result = run({"INPUT": las, "CELL": 20.0, "METHOD": 1, "FILL": 3, "OUTPUT": str(tmp_path / "filled.tif"),
+                  "MASK": str(tmp_path / "mask.tif")})
+    ds = gdal.Open(plain["OUTPUT"])
+    before, nodata = ds.ReadAsArray(), ds.GetRasterBand(1).GetNoDataValue()
+    after = gdal.Open(result["OUTPUT"]).ReadAsArray()
+    mask = gdal.Open(result["MASK"]).ReadAsArray()
+    gaps = before == nodata
+    assert result["FILLED"] == (mask == 1).sum() == (gaps & (after != nodata)).sum() > 0.1 * gaps.sum()
+    assert np.array_equal(mask == 0, ~gaps) and np.array_equal(after[~gaps], before[~gaps])
+    assert "MASK" not in plain

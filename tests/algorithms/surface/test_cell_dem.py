@@ -101,3 +101,52 @@ def test_wrong_combinations_are_clear_errors(tmp_path):
     with pytest.raises(InputError, match="method"):
         DemParams(method="kriging").check()
     assert not list(tmp_path.glob("*.tif"))
+
+
+def test_a_cell_uses_its_best_tier_of_points():
+    x, y, z, _ = dense_points(outliers=0)
+    rng = np.random.default_rng(5)
+    tier = (rng.uniform(size=x.size) < 0.6).astype(np.uint8)       # 60 % unrefined ...
+    tier[(x < 50.0) & (y < 50.0)] = 1                               # ... and a corner with no refined point
+    z = np.where(tier == 1, z + 5.0, z)                             # the unrefined ones 5 m off
+    grid = Grid(0.0, 150.0, 10.0, 20, 15)
+    heights, count, _, _ = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier)
+    refined, _, _, _ = cells_on_grid(x[tier == 0], y[tier == 0], z[tier == 0], None, grid, k=0.0)
+    unrefined, _, _, _ = cells_on_grid(x[tier == 1], y[tier == 1], z[tier == 1], None, grid, k=0.0)
+    expected = np.where(np.isfinite(refined), refined, unrefined)
+    np.testing.assert_array_equal(heights, expected)
+    assert np.isnan(refined[10:, :5]).all() and np.isfinite(heights[10:, :5]).all()
+    assert count.sum() == (tier == 0).sum() + ((tier == 1) & (x < 50.0) & (y < 50.0)).sum()
+    strict, _, _, _ = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier, fallback=False)
+    np.testing.assert_array_equal(strict, refined)
+
+
+def test_gaps_filled_and_flagged(tmp_path):
+    from osgeo import gdal
+    x, y, z, _ = dense_points(n=60000, outliers=0)
+    strip = (x > 130.0) & (x < 190.0)                               # 30 cells wide: its middle beyond reach
+    hole = (np.hypot(x - 60.0, y - 75.0) < 15.0) | strip            # and a round hole
+    rho = np.where(rng_mask := np.random.default_rng(1).uniform(size=x.size) < 0.3, np.nan, 0.9)
+    keep = ~hole | (~np.isfinite(rho) & ~strip)                      # the hole has unrefined points only
+    fields = {"rho": rho[keep].astype(np.float32)}
+    cloud = tmp_path / "dense.las"
+    pointcloud.write_las(cloud, 500000.0 + x[keep], 4800000.0 + y[keep], z[keep], fields, srs(UTM31))
+    plain = dem_from_point_cloud(cloud, tmp_path / "plain.tif", DemParams(cell=2.0, method="cells", k=0.0))
+    result = dem_from_point_cloud(cloud, tmp_path / "dem.tif", DemParams(cell=2.0, method="cells", k=0.0,
+                                                                          fallback=False, fill=10.0, tile=32))
+    assert rng_mask.any() and plain.mask_path is None and result.mask_path == str(tmp_path / "dem_filled.tif")
+    dem, _, _ = read_raster(tmp_path / "dem.tif")
+    before, _, _ = read_raster(tmp_path / "plain.tif")
+    mask = gdal.Open(result.mask_path).ReadAsArray()
+    # the round hole (no refined point) is filled and flagged; the measured cells are the refined medians
+    assert result.filled == (mask == 1).sum() > 150
+    assert np.isfinite(dem[mask == 1]).all() and (mask[np.isfinite(before) & ~np.isfinite(dem)] == 255).all()
+    gx, gy = result.grid.centres()
+    in_hole = np.hypot(gx - 500060.0, gy - 4800075.0) < 13.0       # the cells wholly inside it
+    assert (mask[in_hole] == 1).all() and np.abs(dem[in_hole] - (100.0 + 0.1 * (gx[in_hole] - 500000.0))).max() < 1.5
+    # the middle of the strip lies beyond 10 cells of any measured cell: still a gap, flagged 255
+    middle = np.abs(gx - 500160.0) < 8.0
+    assert (mask[middle] == 255).all() and np.isnan(dem[middle]).all()
+    assert (mask[mask != 1] != 1).all() and ((mask == 0) == (np.isfinite(dem) & (mask != 1))).all()
+    with pytest.raises(InputError, match="gap filling is for the per-cell DEM"):
+        dem_from_point_cloud(cloud, tmp_path / "tin.tif", DemParams(cell=2.0, fill=5.0))
