@@ -232,7 +232,7 @@ class DemParams:
         if not self.cell > 0 or self.datum not in DATUMS or self.k < 0 or self.iterations < 1 \
                 or (self.max_edge is not None and self.max_edge < 0) or int(self.tile) < 16 or not self.fill >= 0:
             raise InputError(f"the cell size must be positive, the datum one of {', '.join(DATUMS)}, the blunder "
-                             "threshold, the maximum edge and the fill distance not negative, the iterations at least 1 "
-                             "and the tiles at least 16 cells")
+                             "threshold, the maximum edge and the fill distance not negative, the iterations at "
+                             "least 1 and the tiles at least 16 cells")
         self.execution.check()
         return self
