@@ -26,6 +26,11 @@ run: threads, local processes or Dask, as on each step). Outputs (QGIS 3.22 name
 bundleadjust:residuals, intersectpoints:pointcloud, interpolatedem:dem, orthorectify:orthoimage,
 assessaccuracy:report, assessaccuracy:table (CSV), assessaccuracy:dh; outputs not given go to
 temporary files (optional ones are skipped).
+
+The dense variant, resources/models/pushbroom_pipeline_dense.model3 ("Pushbroom pipeline (dense)"), is the same
+chain with semi-global matching refined by LSM (matchpoints STRATEGY 2, a point every pixel) and the per-cell
+DEM of the refined points (interpolatedem METHOD 1, FALLBACK off: studies/dense_fusion.py); its STEP and
+MAX_EDGE inputs do not apply and are left out.
 """
 import os
 import pathlib
@@ -57,6 +62,7 @@ from pushbroom.plugin.algorithms.base import EXECUTION_LABELS
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 MODEL = REPO / "resources" / "models" / "pushbroom_pipeline.model3"
+DENSE_MODEL = REPO / "resources" / "models" / "pushbroom_pipeline_dense.model3"
 Number = QgsProcessingParameterNumber
 
 #: model inputs: (parameter, position in the modeler)
@@ -146,22 +152,43 @@ def source(spec, child_default=None):
     return QgsProcessingModelChildParameterSource.fromStaticValue(args[0])
 
 
-def build():
-    """The model (needs a QgsApplication with the pushbroom provider registered, so that the
-    children's algorithms and their outputs resolve)."""
-    model = QgsProcessingModelAlgorithm("Pushbroom pipeline", "Pushbroom")
+#: the dense variant's changes: {child id: {parameter: source}}, and the model inputs it leaves out
+DENSE = {"matchpoints": {"STRATEGY": ("static", 2), "STEP": None, "MPGC_SUPPORT": None},
+         "interpolatedem": {"METHOD": ("static", 1), "FALLBACK": ("static", False), "MAX_EDGE": None}}
+DENSE_UNUSED = {"STEP", "MAX_EDGE"}
+
+
+def variant(dense):
+    """(inputs, steps) of the model or of its dense variant."""
+    if not dense:
+        return INPUTS, STEPS
+    steps = []
+    for child_id, algorithm_id, sources, outputs in STEPS:
+        sources = {**sources, **DENSE.get(child_id, {})}
+        steps.append((child_id, algorithm_id, {k: v for k, v in sources.items() if v is not None}, outputs))
+    return [p for p in INPUTS if p.name() not in DENSE_UNUSED], steps
+
+
+def build(dense=False):
+    """The model, or its dense variant (needs a QgsApplication with the pushbroom provider registered, so that
+    the children's algorithms and their outputs resolve)."""
+    inputs, steps = variant(dense)
+    model = QgsProcessingModelAlgorithm("Pushbroom pipeline (dense)" if dense else "Pushbroom pipeline", "Pushbroom")
+    matching = ("semi-global matching on epipolar tiles refined by least squares, a point every pixel" if dense
+                else "region-growing matching")
+    dem = "DEM (per-cell medians of the refined points)" if dense else "DEM (TIN, gaps at long triangles)"
     model.setHelpContent({"ALG_DESC": (
-        "The whole Pushbroom chain: block from the images and their orientation, region-growing matching, tie "
+        f"The whole Pushbroom chain: block from the images and their orientation, {matching}, tie "
         "point selection, control/check point import, bundle adjustment (automatic parameter selection), "
-        "intersection of the mass points, DEM (TIN, gaps at long triangles), orthoimage of one image on the "
+        f"intersection of the mass points, {dem}, orthoimage of one image on the "
         "adjusted model and the produced DEM, and accuracy assessment of the point cloud and the DEM against a "
         "reference."),
         "ALG_CREATOR": "Pushbroom (scripts/build_pipeline_model.py)"})
-    for k, parameter in enumerate(INPUTS):
+    for k, parameter in enumerate(inputs):
         component = QgsProcessingModelParameter(parameter.name())
         component.setPosition(QPointF(120, 60 + 70 * k))
-        model.addModelParameter(parameter, component)
-    for k, (child_id, algorithm_id, sources, outputs) in enumerate(STEPS):
+        model.addModelParameter(parameter.clone(), component)   # the model owns it: one copy per model
+    for k, (child_id, algorithm_id, sources, outputs) in enumerate(steps):
         child = QgsProcessingModelChildAlgorithm(algorithm_id)
         child.setChildId(child_id)
         algorithm = QgsApplication.processingRegistry().algorithmById(algorithm_id)
@@ -192,16 +219,17 @@ def main():
     app.initQgis()
     plugin = pushbroom.classFactory(None)
     plugin.initProcessing()
-    model = build()
-    ok, problems = model.validate()
-    if not ok:
-        sys.exit("model invalid:\n" + "\n".join(problems))
-    MODEL.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(MODEL) as tmp:
-        if not model.toFile(str(tmp)):
-            sys.exit(f"cannot write {MODEL}")
-    print(f"{MODEL}: {len(STEPS)} steps; inputs " + ", ".join(p.name() for p in INPUTS) + "; outputs "
-          + ", ".join(d.name() for d in model.destinationParameterDefinitions()))
+    for path, dense in ((MODEL, False), (DENSE_MODEL, True)):
+        model = build(dense)
+        ok, problems = model.validate()
+        if not ok:
+            sys.exit(f"model {path.name} invalid:\n" + "\n".join(problems))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(path) as tmp:
+            if not model.toFile(str(tmp)):
+                sys.exit(f"cannot write {path}")
+        print(f"{path}: {len(STEPS)} steps; inputs " + ", ".join(p.name() for p in variant(dense)[0])
+              + "; outputs " + ", ".join(d.name() for d in model.destinationParameterDefinitions()))
 
 
 if __name__ == "__main__":

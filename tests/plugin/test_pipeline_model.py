@@ -16,6 +16,7 @@ import pushbroom
 
 REPO = pathlib.Path(pushbroom.__file__).resolve().parent
 MODEL = REPO / "resources" / "models" / "pushbroom_pipeline.model3"
+DENSE_MODEL = REPO / "resources" / "models" / "pushbroom_pipeline_dense.model3"
 STEPS = {"createblock", "matchpoints", "selecttiepoints", "importpoints", "bundleadjust", "intersectpoints",
          "interpolatedem", "orthorectify", "assessaccuracy"}
 OUTPUTS = {"createblock:block": "block.gpkg", "bundleadjust:report": "adjustment.html",
@@ -47,6 +48,16 @@ def test_model_file_is_what_the_script_builds(pushbroom_provider, tmp_path):
     assert {d.name() for d in model.destinationParameterDefinitions()} >= set(OUTPUTS)
     assert builder().build().toFile(str(tmp_path / "built.model3"))
     assert model.toVariant() == load(tmp_path / "built.model3").toVariant(), "run scripts/build_pipeline_model.py"
+    dense = load(DENSE_MODEL)
+    assert dense.name() == "Pushbroom pipeline (dense)" and set(dense.childAlgorithms()) == STEPS
+    assert dense.validate()[0] and {d.name() for d in dense.destinationParameterDefinitions()} >= set(OUTPUTS)
+    assert builder().build(dense=True).toFile(str(tmp_path / "dense.model3"))
+    assert dense.toVariant() == load(tmp_path / "dense.model3").toVariant(), "run scripts/build_pipeline_model.py"
+    sources = {k: c.parameterSources() for k, c in dense.childAlgorithms().items()}
+    assert sources["matchpoints"]["STRATEGY"][0].staticValue() == 2
+    assert sources["interpolatedem"]["METHOD"][0].staticValue() == 1
+    assert sources["interpolatedem"]["FALLBACK"][0].staticValue() is False
+    assert {p.name() for p in dense.parameterDefinitions()}.isdisjoint({"STEP", "MAX_EDGE"})
 
 
 def warped(path, like, resampling="bilinear"):
@@ -145,3 +156,36 @@ def test_pipeline_reports_hold_the_tables(pipeline):
     assert len(dem_all) == 1 and 0 < int(dem_all[0]["n"]) <= np.isfinite(dem).sum()
     classes = {r["label"] for r in rows if r["table"] == "per class"}
     assert {"bare fields", "forest"} <= classes
+
+
+def dem_per_class(out):
+    """{class: (n, RMS)} of the DEM cells in assessaccuracy's table."""
+    with open(out / "accuracy.csv", newline="") as f:
+        return {r["label"]: (int(r["n"]), float(r["rms"])) for r in csv.DictReader(f)
+                if r["data"] == "DEM cells" and r["table"] == "per class"}
+
+
+@pytest.mark.slow
+def test_dense_pipeline_without_a_height(pipeline, small_scene, qgis_process, tmp_path, figures):
+    """The dense variant on the same scene with no DEM and no height (createblock finds the terrain's), its DEM
+    per class next to the region-growing model's."""
+    with open(small_scene["points"], newline="") as f:
+        ids = [r["id"] for r in csv.DictReader(f)]
+    images = [f"IMAGES={small_scene['images'][n]['imagery']}" for n in ("HRG", "HRS1", "HRS2")]
+    result = qgis_process("run", str(DENSE_MODEL), "--", *images, f"POINTS={small_scene['points']}",
+                          f"CHECK_IDS={','.join(ids[5:])}", "MEAS_SUFFIX=_meas", f"REFERENCE={small_scene['dsm']}",
+                          f"CLASS_RASTER={small_scene['classes']}", "THREADS=2",
+                          *(f"{k}={tmp_path / v}" for k, v in OUTPUTS.items()))
+    log = json.dumps(result["log"])
+    assert "finding the terrain height by matching" in log and "dense matching:" in log
+    dense, region_growing = dem_per_class(tmp_path), dem_per_class(pipeline[1])
+    figures.table("10 m DEM against the true DSM per class: the dense model, no height / the region-growing model",
+                  [{"class": k, "dense cells": dense[k][0], "dense RMS m": dense[k][1],
+                    "region growing cells": region_growing[k][0], "region growing RMS m": region_growing[k][1]}
+                   for k in dense if k in region_growing])
+    dem = band(tmp_path / "dem.tif")
+    dh = dem - warped(small_scene["dsm"], tmp_path / "dem.tif")
+    figures.report("dense model: DEM cells defined, median |dh|", [100 * np.isfinite(dh).mean(),
+                                                                    np.median(np.abs(dh[np.isfinite(dh)]))], "%, m")
+    assert np.isfinite(dh).mean() > 0.25 and np.median(np.abs(dh[np.isfinite(dh)])) < 4.0     # as region growing's
+    assert all(dense[k][1] < 1.25 * region_growing[k][1] for k in ("bare fields", "grass/crops", "forest")), dense
