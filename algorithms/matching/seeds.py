@@ -110,10 +110,14 @@ def search_margin(model1, model2, params, hr, x1, y1):
     return (params.widest // 2 + 2) * scale + ACROSS + params.max_shift + 4
 
 
+def seed_window(params):
+    """The Foerstner window automatic seeds use: a third of the template, at least 5 px."""
+    return 2 * max(2, (params.template // 2) // 3) + 1
+
+
 def seed_operator(win1, params):
-    """The Foerstner operator's (w, q) images of an image-1 window (interest.foerstner) with the
-    window automatic seeds use: a third of the template, at least 5 px."""
-    return foerstner(win1, 2 * max(2, (params.template // 2) // 3) + 1)
+    """The Foerstner operator's (w, q) images of an image-1 window (interest.foerstner) with seed_window."""
+    return foerstner(win1, seed_window(params))
 
 
 def automatic_seeds(image1, image2, model1, model2, params=None, height_range=None, box=None, windows=None,
@@ -136,7 +140,7 @@ def automatic_seeds(image1, image2, model1, model2, params=None, height_range=No
         windows = window_pair(image1, image2, model1, model2, box, hr,
                               search_margin(model1, model2, params, hr, cx, cy))
     win1, ox1, oy1, win2, ox2, oy2 = windows
-    if win1.size == 0 or win2.size == 0:
+    if win1.size == 0 or win2.size == 0 or min(win1.shape) < seed_window(params) + 2:    # a sliver: no operator
         return np.zeros(0, PAIR_DTYPE)
     w, q = seed_operator(win1, params) if operator is None else operator
     px, py, _ = best_per_cell(w, q, patch=cell, border=half + 2)

@@ -69,6 +69,15 @@ def test_automatic_seeds_are_correct(scene, figures):
     assert np.mean(error > 1.0) < 0.1 and np.median(error) < 0.4
 
 
+def test_a_sliver_box_has_no_seed(scene):
+    cols, rows = scene.model1.size
+    for box in ((cols - 4, 0, cols, rows), (0, rows - 6, cols, rows)):     # the last tile of a 1028 px image ...
+        assert len(automatic_seeds(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(),
+                                   scene.height_range, box=box)) == 0
+    assert len(automatic_seeds(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(),
+                               scene.height_range, box=(0, 0, 200, 200))) > 0
+
+
 @pytest.mark.slow
 def test_seeds_from_points_with_and_without_approximations(scene):
     x1 = np.array([150.5, 300.5, 450.5, 200.5])
