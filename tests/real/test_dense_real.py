@@ -1,0 +1,92 @@
+"""Dense matching (issue 22, algorithms/dense) on real Pleiades pixels, next to region growing.
+
+Ventoux pair: the 2 m DSM of the dense points LSM refined against the SRTM tile (EGM96 made ellipsoidal),
+beside region growing's (the session fixture, nodes every 2 px), both as TINs of their points
+(real_dsm.srtm_comparison). Pleiades triplet: the refined dense points of the triplet and of each pair
+alone, their 0.5 m DSMs' coverage of the common footprint and the pairs' agreement (real_dsm), beside
+region growing's; issue 22 asks 98 % and NMAD 0.25 m: the figures are printed, the bounds asserted are
+today's, as regression bounds."""
+import time
+
+import numpy as np
+import pytest
+
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
+from pushbroom.algorithms.dense.params import DenseParams
+from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.points import MultiPoints
+from tests.helpers.feedback import Feedback
+from tests.helpers.real_dsm import (
+    CELL,
+    RG_MAX_EDGE,
+    VENTOUX_CELL,
+    build_triplet_dsms,
+    cut,
+    footprint_mask,
+    pair_differences,
+    pair_name,
+    srtm_comparison,
+    stats_row,
+)
+
+
+def refined_points(images, models, names, folder):
+    """MultiPoints of the dense points with an LSM-refined position (every pixel of image 1, over the RPCs'
+    validity range), and the matching's seconds."""
+    t = time.perf_counter()
+    parts, _ = match_dense_tiles(images, models, folder, names=names, params=DenseParams(),
+                                 height_range=models[0].height_range, execution=Execution("threads", 2))
+    seconds = time.perf_counter() - t
+    points = np.concatenate([p.points for p in parts])
+    obs = np.concatenate([p.observations for p in parts])
+    keep = points[np.isfinite(points["rho_min"])]
+    return MultiPoints(keep, obs[np.isin(obs["point_id"], keep["id"])]), seconds
+
+
+def test_ventoux_dense_dsm_against_srtm_beside_region_growing(ventoux_pair, ventoux_region_growing, figures,
+                                                             tmp_path):
+    models = [sensors.load(p) for p in ventoux_pair]
+    points, seconds = refined_points([Image(p) for p in ventoux_pair], models, [p.stem for p in ventoux_pair],
+                                     tmp_path / "dense")
+    result = cut({1: models[0], 2: models[1]}, points.observations)
+    (tmp_path / "dsm").mkdir()
+    dense = srtm_comparison(result, str(ventoux_pair[0].with_name("N44E005.hgt")), (VENTOUX_CELL,), VENTOUX_CELL,
+                            tmp_path / "dsm")
+    rg = ventoux_region_growing[2]
+    figures.report("Ventoux dense: refined points, matching", [len(points), seconds], "points, s")
+    figures.table("Ventoux pair, 2 m DSM - SRTM (m): dense (refined points) and region growing",
+                  [stats_row("dense", dense["stats"][VENTOUX_CELL]),
+                   stats_row("region growing", rg["stats"][VENTOUX_CELL]),
+                   stats_row("dense, without the plane", dense["detrended"]),
+                   stats_row("region growing, without the plane", rg["detrended"])])
+    d, r = dense["stats"][VENTOUX_CELL], rg["stats"][VENTOUX_CELL]
+    assert d.n > 0.9 * r.n and abs(d.median - r.median) < 1.0
+    assert dense["detrended"].nmad < 1.1 * rg["detrended"].nmad, (dense["detrended"], rg["detrended"])
+
+
+@pytest.mark.slow
+def test_triplet_dense_coverage_and_pair_agreement(pleiades_triplet, region_growing_triplet_dsms, figures, tmp_path):
+    log = Feedback()
+    folders = iter(range(10))
+
+    def match(images, models, names):
+        return refined_points(images, models, names, tmp_path / f"dense-{next(folders)}")[0]
+    dsms = build_triplet_dsms(pleiades_triplet, match, CELL, RG_MAX_EDGE, tmp_path, log)
+    rows, coverage = [], {}
+    for label, d in (("dense", dsms), ("region growing", region_growing_triplet_dsms)):
+        grid = d["triplet"].grid
+        inside = footprint_mask(grid, d["srs"], d["models"], d["height"])
+        coverage[label] = float(np.isfinite(d["triplet"].heights)[inside].mean())
+        for (p, q), s in pair_differences(d["before"], grid, inside).items():
+            rows.append({"matcher": label, "pairs": f"{pair_name(p)} vs {pair_name(q)}", "median": s.median,
+                         "NMAD": s.nmad, "N": s.n})
+    figures.report("Pleiades triplet, 0.5 m DSM coverage of the common footprint: dense (refined), region growing",
+                   [100 * coverage["dense"], 100 * coverage["region growing"]], "%", "issue 22 asks 98 %")
+    figures.table("Pleiades triplet: the pair DSMs' differences with the supplied RPCs (m)", rows)
+    figures.report("dense matching", log.messages)
+    assert coverage["dense"] > max(0.85, coverage["region growing"])
+    dense_nmad = [r["NMAD"] for r in rows if r["matcher"] == "dense"]
+    assert max(dense_nmad) < 0.6, rows
+
