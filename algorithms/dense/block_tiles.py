@@ -13,8 +13,9 @@ The tiles are the reference image's (tiling.tile_grid of DenseParams.tile px). E
 Observations: the reference image's position is the lattice node (rho NaN, axes 0: the template, as region
 growing's); a matched image's position carries LSM's rho and error-ellipse semi-axes where the refinement
 (refine.py) replaced it, NaN where it stayed the semi-global matcher's. A point's rho_a / rho_b are its pairs'
-LSM rho, rho_min the smaller; flags DENSE. A tile without texture gives no points and a warning, not an
-error.
+LSM rho; rho_min the smaller, NaN where one of its matched positions is unrefined (a point is "refined" only
+if all of them are: the DEM's tiers and the tie point selection read it); flags DENSE. A tile without texture
+gives no points and a warning, not an error.
 
 The result does not depend on the execution or the number of workers: a tile's points depend only on its box."""
 import os
@@ -77,8 +78,10 @@ def tile_points(job, box):
         points[name] = np.nan
     points["rho_a"] = quality[0][0][keep]
     points["rho_b"] = quality[1][0][keep] if n == 3 else np.nan
-    with np.errstate(invalid="ignore"):
-        points["rho_min"] = np.fmin(points["rho_a"], points["rho_b"]) if n == 3 else points["rho_a"]
+    # rho_min: the smaller of the pairs' rho, NaN where a pair's position is the semi-global one (unrefined)
+    rhos = np.array([q[0][keep] for q in quality])
+    unrefined = (matched[:, keep] & ~np.isfinite(rhos)).any(axis=0)
+    points["rho_min"] = np.where(unrefined, np.nan, np.nanmin(np.where(np.isfinite(rhos), rhos, np.inf), axis=0))
     obs = [np.zeros(count, OBS_DTYPE)]
     obs[0]["point_id"], obs[0]["image_id"] = points["id"], job.image_ids[0]
     obs[0]["col"], obs[0]["row"], obs[0]["rho"] = x1[keep], y1[keep], np.nan

@@ -11,6 +11,7 @@ DOOR = "algorithms/block/"
 ALLOWED = {
     "algorithms/surface/pointcloud.py": "pushbroom:intersectpoints' point cloud output",
     "algorithms/adjustment/residual_vectors.py": "pushbroom:bundleadjust's residual vector layer output",
+    "algorithms/surface/gap_fill.py": "pushbroom:interpolatedem's DEM (a GeoTIFF, temporary name) filled in place",
 }
 #: OGR calls that change a data source
 WRITE_METHODS = {"CreateDataSource", "CreateLayer", "DeleteLayer", "CreateField", "DeleteField", "AlterFieldDefn",

@@ -93,6 +93,17 @@ def test_the_points_do_not_depend_on_the_workers(small_scene, tmp_path):
             assert all(np.array_equal(x[f], y[f], equal_nan=x.dtype[f].kind == "f") for f in x.dtype.names)
     ids = np.concatenate([p.points["id"] for p in one])
     assert np.array_equal(ids, np.arange(1, stats["points"] + 1))
+    # rho_min: the smallest rho of a point's matched positions, NaN where one of them is unrefined
+    points = np.concatenate([p.points for p in one])
+    obs = np.concatenate([p.observations for p in one])
+    matched = obs[obs["image_id"] != 1]
+    slot = np.searchsorted(points["id"], matched["point_id"])
+    unrefined = np.zeros(len(points), bool)
+    unrefined[slot[~np.isfinite(matched["rho"])]] = True
+    smallest = np.full(len(points), np.inf)
+    np.minimum.at(smallest, slot, np.where(np.isfinite(matched["rho"]), matched["rho"], np.inf))
+    assert np.array_equal(np.isnan(points["rho_min"]), unrefined) and unrefined.any() and not unrefined.all()
+    assert np.array_equal(points["rho_min"][~unrefined], smallest[~unrefined].astype(np.float32))
 
 
 def test_a_textureless_pair_gives_no_point_and_a_warning(small_scene, tmp_path):
