@@ -24,7 +24,7 @@ QGIS_PROCESS = env QGIS_CUSTOM_CONFIG_PATH=$(PROFILE) PYTHONPATH=$(SITE) /usr/bi
 export QT_QPA_PLATFORM ?= offscreen
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: setup lint test test-fast demo bench package clean
+.PHONY: setup lint test test-fast demo bench bench-peers package clean
 
 setup: .venv/.setup-done $(PROFILE)/.enabled $(PANDORA_DIR)/.done
 
@@ -74,6 +74,16 @@ demo: setup
 # Benchmarks: writes bench-output/benchmarks.md and prints it.
 bench: setup
 	$(PY) -m tests.benchmarks.run_all bench-output/benchmarks.md
+
+# The peers (not in CI): CNES CARS 1.3.0 in its own venv (it needs numpy 2; never in .venv), then Pushbroom's
+# dense chain and CARS on the Pleiades triplet in one run; writes bench-output/peers.md and prints it.
+CARS_VENV := build/peers/cars
+$(CARS_VENV)/.done: Makefile
+	@rm -rf $(CARS_VENV) && /usr/bin/python3 -m venv $(CARS_VENV) && $(CARS_VENV)/bin/pip install -q cars==1.3.0
+	@touch $@
+
+bench-peers: setup $(CARS_VENV)/.done
+	@mkdir -p bench-output && $(PY) -m scripts.bench_peers | tee bench-output/peers.md
 
 # The plugin zip for "Install from ZIP" in QGIS (tests and development files left out).
 package:
