@@ -1,6 +1,6 @@
 """Which dense points should a DSM cell trust? On the 3 km simulated SPOT 5 triplet (HRG, HRS1, HRS2; the
-DSM's height range +- 100 m), dense matching (algorithms/dense, default DenseParams but 256 px tiles) with
-and without the wide second LSM template, every point intersected with the TRUE models (so the error is the
+DSM's height range +- 100 m), dense matching (algorithms/dense, default DenseParams but 256 px tiles), every
+point intersected with the TRUE models (so the error is the
 matching's alone), the points' height error against the true DSM by class and by refinement (LSM accepted
 or the semi-global position kept), then 10 m DSMs (cell_dem.cells_on_grid, per-cell medians) against the
 true DSM at the cell centres, by class: from every point; from the refined points only; refined where a
@@ -33,7 +33,6 @@ from pushbroom.algorithms.surface.tin_grid import Grid
 NAMES = ("HRG", "HRS1", "HRS2")
 CLASSES = {2: "bare", 3: "crops", 4: "forest", 5: "city"}
 CELL = 10.0
-WIDE = 31              # px: the wide second template tried
 FILL = 10.0            # cells: the gap filling's reach
 
 
@@ -54,7 +53,7 @@ def row(label, heights, ref, cls):
     return out + "".join(f" | {name} {rms(d[(cls == k) & np.isfinite(d)]):5.2f}" for k, name in CLASSES.items())
 
 
-def study(paths, wide):
+def study(paths):
     images = [paths["images"][n]["imagery"] for n in NAMES]
     models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
     truth = {k: sensors.load(paths["truth_metadata"][n]) for k, n in enumerate(NAMES, start=1)}
@@ -62,9 +61,9 @@ def study(paths, wide):
     lo, hi = dsm.height_range
     t = time.perf_counter()
     parts, stats = match_dense_tiles(images, models, tempfile.mkdtemp() + "/dense",
-                                     params=DenseParams(tile=256, wide_template=wide),
+                                     params=DenseParams(tile=256),
                                      height_range=(lo - 100.0, hi + 100.0), execution=Execution("threads", 2))
-    print(f"wide template {wide or 'off'}: {stats['points']} points, {stats['refined']} image positions refined, "
+    print(f"{stats['points']} points, {stats['refined']} image positions refined, "
           f"{time.perf_counter() - t:.0f} s")
     pts = np.concatenate([p.points for p in parts])
     obs = np.concatenate([p.observations for p in parts])
@@ -123,8 +122,7 @@ def study(paths, wide):
 
 def main():
     paths = simulate_scene(SceneConfig.small(), tempfile.mkdtemp() + "/scene")
-    for wide in (0, WIDE):
-        study(paths, wide)
+    study(paths)
 
 
 if __name__ == "__main__":

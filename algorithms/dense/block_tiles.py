@@ -57,8 +57,7 @@ def tile_points(job, box):
         q = (nan, nan, nan)
         if p.refine:
             x2, y2, *q = refine_positions(job.images[0], job.images[k], job.models[0], job.models[k], x1, y1, x2,
-                                          y2, info["grid"].heights[::2], p.template, p.max_shift,
-                                          p.max_ellipse, p.wide_template)
+                                          y2, info["grid"].heights[::2], p.template, p.max_shift)
         positions.append((x2, y2))
         quality.append(q)
         info["refined"] = int(np.isfinite(q[0]).sum())
@@ -81,7 +80,7 @@ def tile_points(job, box):
     # rho_min: the smaller of the pairs' rho, NaN where a pair's position is the semi-global one (unrefined)
     rhos = np.array([q[0][keep] for q in quality])
     unrefined = (matched[:, keep] & ~np.isfinite(rhos)).any(axis=0)
-    points["rho_min"] = np.where(unrefined, np.nan, np.nanmin(np.where(np.isfinite(rhos), rhos, np.inf), axis=0))
+    points["rho_min"] = np.where(unrefined, np.nan, np.where(np.isfinite(rhos), rhos, np.inf).min(axis=0))
     obs = [np.zeros(count, OBS_DTYPE)]
     obs[0]["point_id"], obs[0]["image_id"] = points["id"], job.image_ids[0]
     obs[0]["col"], obs[0]["row"], obs[0]["rho"] = x1[keep], y1[keep], np.nan

@@ -11,8 +11,7 @@ class DenseParams:
     every pixel); grid_step: epipolar grid node spacing (epipolar px); max_spread: the largest spread (px)
     of the four disparities a lattice node is interpolated from; sgm: census and SGM settings; refine: LSM
     refinement in the original images (refine.py) with a `template` px window, kept within `max_shift` px
-    of the dense position and accepted with an error ellipse below `max_ellipse` px, the points it leaves tried
-    again with a `wide_template` px window (0: not)."""
+    of the dense position."""
     tile: int = 512
     step: int = 1
     grid_step: int = 16
@@ -21,8 +20,6 @@ class DenseParams:
     refine: bool = True
     template: int = 19
     max_shift: float = 0.5
-    max_ellipse: float = 0.1
-    wide_template: int = 0
 
     def check(self):
         """Raise InputError for settings dense matching cannot use."""
@@ -39,11 +36,8 @@ class DenseParams:
                              f"got {self.sgm.census_radius}")
         if self.template < 5 or self.template % 2 == 0:
             raise InputError(f"the refinement template must be an odd number of at least 5 px, got {self.template}")
-        if self.wide_template and (self.wide_template <= self.template or self.wide_template % 2 == 0):
-            raise InputError(f"the wide refinement template must be an odd number above the template ({self.template} "
-                             f"px), or 0, got {self.wide_template}")
-        if not self.max_shift > 0 or not self.max_ellipse > 0:
-            raise InputError("the refinement's largest shift and error ellipse must be positive")
+        if not self.max_shift > 0:
+            raise InputError("the refinement's largest shift must be positive")
         if not 0 < self.sgm.p1 < self.sgm.p2:
             raise InputError(f"the SGM penalties must satisfy 0 < P1 < P2, got {self.sgm.p1}, {self.sgm.p2}")
         return self

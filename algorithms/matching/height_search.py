@@ -105,23 +105,18 @@ def search_heights(images, models, names=None, feedback=None):
         raise InputError("the terrain height cannot be found from one image: give a DEM or a mean height")
     names = names or [f"image {k + 1}" for k in range(len(images))]
     searched = validity_range(models)
-    image1 = as_image(images[0])
+    images = [as_image(image) for image in images]
     boxes = windows(models[0].size)
     params = GrowParams()
     heights = []
     tasks = [(k, box) for k in range(1, len(images)) for box in boxes]
     for t, (k, box) in enumerate(tasks):
         progress.step(feedback, 100.0 * t / len(tasks))
-        seeds = automatic_seeds(image1, as_image(images[k]), models[0], models[k], params, searched, box=box,
-                                cell=CELL)
-        if len(seeds) == 0:
-            continue
-        n = len(seeds)
-        result = intersection.intersect({1: models[0], 2: models[k]}, np.repeat([1, 2], n),
-                                        np.tile(np.arange(n), 2), np.concatenate([seeds["x1"], seeds["x2"]]),
-                                        np.concatenate([seeds["y1"], seeds["y2"]]),
-                                        h0=0.5 * (searched[0] + searched[1]))
-        heights.append(result.h[result.ok])
+        seeds = automatic_seeds(images[0], images[k], models[0], models[k], params, searched, box=box, cell=CELL)
+        if len(seeds):
+            result = intersection.intersect_measured([models[0], models[k]], [seeds["x1"], seeds["x2"]],
+                                                     [seeds["y1"], seeds["y2"]], h0=0.5 * (searched[0] + searched[1]))
+            heights.append(result.h[result.ok])
     progress.step(feedback, 100.0)
     found = robust_range(np.concatenate(heights) if heights else [], searched)
     if found is None:

@@ -16,7 +16,7 @@ consistency after the correction (refinement.py weights MPGC's geometric observa
 an orientation the affine maps do not fit loosens the constraint instead of biasing the matches)."""
 import numpy as np
 
-from ..surface.intersection import intersect
+from ..surface.intersection import intersect_measured
 from .coarse_to_fine_level import ShiftedModel
 
 BIAS_ITERATIONS = 4
@@ -26,12 +26,6 @@ RAYLEIGH_MEDIAN = 1.1774
 #: measure the orientation's consistency (tiles with at least TILE_POINTS points)
 CONSISTENCY_GRID = 4
 TILE_POINTS = 20
-
-
-def _intersect(models, cols, rows):
-    k, m = cols.shape
-    return intersect(dict(enumerate(models)), np.tile(np.arange(k), m), np.repeat(np.arange(m), k),
-                     cols.T.ravel(), rows.T.ravel())
 
 
 def _fit_affine(target, f, centre):
@@ -59,12 +53,12 @@ def affine_bias(models, cols, rows, iterations=BIAS_ITERATIONS):
     k = len(models)
     maps = [(np.eye(2), np.zeros(2)) for _ in range(k)]
     for _ in range(iterations):
-        inter = _intersect(models, *_unbiased(maps, cols, rows))
+        inter = intersect_measured(models, *_unbiased(maps, cols, rows))
         f = np.array([np.array(m.ground_to_image(inter.lon, inter.lat, inter.h), float) for m in models])
         r0 = np.array([cols[0], rows[0]]) - f[0]
         for i in range(1, k):
             maps[i] = _fit_affine(np.array([cols[i], rows[i]]) - r0, f[i], 0.5 * np.array(models[i].size, float))
-    inter = _intersect(models, *_unbiased(maps, cols, rows))
+    inter = intersect_measured(models, *_unbiased(maps, cols, rows))
     corrected = [models[0]] + [ShiftedModel(m, *maps[i][1], linear=maps[i][0]) for i, m in enumerate(models) if i]
     residuals = np.concatenate([np.array([cols[i], rows[i]]) - np.array(corrected[i].ground_to_image(
         inter.lon, inter.lat, inter.h), float) for i in range(k)])
@@ -95,4 +89,4 @@ def intersect_corrected(models, corrected, cols, rows):
     corrected models of `models`) taken out, as affine_bias intersects its own points."""
     maps = [(np.eye(2), np.zeros(2))] + [(np.asarray(c.linear, float), np.array([c.dx, c.dy], float))
                                          for c in corrected[1:]]
-    return _intersect(models, *_unbiased(maps, cols, rows))
+    return intersect_measured(models, *_unbiased(maps, cols, rows))

@@ -83,9 +83,9 @@ def _terrain_heights(opened, feedback):
     if not all(paths):
         raise InputError("no DEM and no height given, and the terrain height cannot be found without the images' "
                          "pixels: give a DEM or a mean height")
+    lo, hi = validity_range(models)
     log.pushInfo(f"no DEM and no height given: finding the terrain height by matching {names[0]} with "
-                 f"{', '.join(names[1:])} over the orientation's valid heights "
-                 f"{validity_range(models)[0]:.0f} to {validity_range(models)[1]:.0f} m")
+                 f"{', '.join(names[1:])} over the orientation's valid heights {lo:.0f} to {hi:.0f} m")
     found = search_heights(paths, models, names, progress.scaled(feedback, 0, 80))
     log.pushInfo(f"terrain heights {found.height_range[0]:.0f} to {found.height_range[1]:.0f} m (median "
                  f"{found.median:.0f} m) from {found.points} matched points ({found.rejected} rejected as mismatches)")

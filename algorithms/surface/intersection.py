@@ -220,6 +220,15 @@ def intersect(models, image_ids, point_index, col, row, sigma=IMAGE_SIGMA, h0=No
     return Intersection(ids, lon, lat, h, rays, status, iterations, sigma0, rms, covariance)
 
 
+def intersect_measured(models, cols, rows, h0=None):
+    """`intersect` of m points measured in each of k images: `models` a list of k models, `cols` and `rows`
+    (k, m) arrays (row i: image i's positions); the points are 0 ... m - 1, the images 0 ... k - 1."""
+    cols, rows = np.asarray(cols, float), np.asarray(rows, float)
+    k, m = cols.shape
+    return intersect(dict(enumerate(models)), np.tile(np.arange(k), m), np.repeat(np.arange(m), k),
+                     cols.T.ravel(), rows.T.ravel(), h0=h0)
+
+
 def _initial_status(models, image, point, col, row, rays):
     """Per point: TOO_FEW_RAYS, OUTSIDE (a measurement outside its image) or NOT_CONVERGED (to go)."""
     status = np.where(rays < 2, TOO_FEW_RAYS, NOT_CONVERGED).astype(np.int8)

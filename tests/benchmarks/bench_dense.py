@@ -1,16 +1,15 @@
 """Dense matching per stage and per core (algorithms/dense): one 512 px tile of the Pleiades triplet
 (img_02 -> img_01, its RPCs, heights 40-535 m), numba on 1 thread: epipolar resampling (grid and both
-images, per epipolar pixel), census cost and semi-global aggregation (libsgm; per epipolar pixel, at the
-tile's disparity range), LSM refinement of every matched pixel (per node tried), triangulation (per point)
-and the per-cell rasterization at 0.5 m (per point). Best of three after a warm-up."""
-import math
-
+images, per epipolar pixel), census cost and semi-global aggregation (libsgm; per epipolar pixel, over the
+disparity range the tile's seeds narrow it to, as pair_tile.match_pair_tile does), LSM refinement of every
+matched pixel (per node tried), triangulation (per point) and the per-cell rasterization at 0.5 m (per point).
+Best of three after a warm-up."""
 import numpy as np
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
-from pushbroom.algorithms.dense.epipolar import disparity_range, epipolar_grid
-from pushbroom.algorithms.dense.pair_tile import DISPARITY_MARGIN, match_pair_tile
+from pushbroom.algorithms.dense.epipolar import epipolar_grid
+from pushbroom.algorithms.dense.pair_tile import match_pair_tile
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.dense.refine import refine_positions
 from pushbroom.algorithms.dense.resample import epipolar_image
@@ -45,15 +44,14 @@ def run():
             grid = epipolar_grid(models[0], models[1], BOX, HEIGHTS, step=params.grid_step, margin=margin)
             return grid, epipolar_image(a1, grid.p, grid.step), epipolar_image(a2, grid.q, grid.step)
         grid, epi1, epi2 = resample()
-        span = disparity_range(models[0], models[1], grid, HEIGHTS)
-        d_range = (math.floor(span[0] - DISPARITY_MARGIN), math.ceil(span[1] + DISPARITY_MARGIN))
         pixels = epi1.size
         rows.append({"stage": "epipolar resampling (grid, 2 images)", "items": pixels,
                      "per second": pixels / best_time(resample), "unit": "epipolar px"})
+        x1, y1, x2, y2, info = match_pair_tile(images[0], images[1], models[0], models[1], BOX, HEIGHTS, params)
+        d_range = info["d_range"]
         seconds = best_time(lambda: disparity(epi1, epi2, d_range, params.sgm))
         rows.append({"stage": f"census + SGM + WTA + LR check ({d_range[1] - d_range[0] + 1} disparities)",
                      "items": pixels, "per second": pixels / seconds, "unit": "epipolar px"})
-        x1, y1, x2, y2, info = match_pair_tile(images[0], images[1], models[0], models[1], BOX, HEIGHTS, params)
         ok = np.isfinite(x2)
         x1, y1, x2, y2 = x1[ok], y1[ok], x2[ok], y2[ok]
         refined = refine_positions(images[0], images[1], models[0], models[1], x1, y1, x2, y2,

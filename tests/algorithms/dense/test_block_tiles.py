@@ -68,15 +68,6 @@ def test_dense_positions_against_the_truth(scene, figures):
                    "% of the matched", f"median |error| {np.median(refined_err[open_ground]):.3f} px of HRS1, "
                    f"{np.median(err[k][open_ground]):.3f} px before")
     assert np.median(refined_err[open_ground]) < 0.75 * np.median(err[k][open_ground])
-    # a wide second template: the first template's results kept, more points refined (studies/dense_fusion.py)
-    wx, wy, wrho, *_ = refine_positions(scene.image1, scene.image2, scene.model1, scene.model2, x1[k], y1[k], x2[k],
-                                        y2[k], scene.height_range, wide=31)
-    again = np.isfinite(wrho) & ~done
-    assert np.array_equal(wx[done], rx[done]) and np.array_equal(wrho[done], rho[done])
-    assert again.sum() > 0.1 * done.sum()
-    figures.report("dense HRG-HRS1, points the 31 px template refines after the 19 px one",
-                   again.sum() / done.sum() * 100, "% of those refined",
-                   f"median |error| {np.median(np.hypot(wx - tx[k], wy - ty[k])[again]):.3f} px")
 
 
 def test_the_points_do_not_depend_on_the_workers(small_scene, tmp_path):
