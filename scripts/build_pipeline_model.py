@@ -29,8 +29,10 @@ temporary files (optional ones are skipped).
 
 The dense variant, resources/models/pushbroom_pipeline_dense.model3 ("Pushbroom pipeline (dense)"), is the same
 chain with semi-global matching refined by LSM (matchpoints STRATEGY 2, a point every pixel) and the per-cell
-DEM of the refined points (interpolatedem METHOD 1, FALLBACK off: studies/dense_fusion.py); its STEP and
-MAX_EDGE inputs do not apply and are left out.
+DEM of the refined points (interpolatedem METHOD 1, FALLBACK off, an empty cell the refined points of the cells
+around it (RADIUS 1, the default), the gaps within FILL 10 cells filled and flagged in the mask raster beside the
+DEM: studies/dense_fusion.py, docs/validation.md#dense-peers); its STEP and MAX_EDGE inputs do not apply and are
+left out.
 """
 import os
 import pathlib
@@ -87,7 +89,8 @@ INPUTS = [
     Number("MAX_EDGE", "DEM: maximum triangle edge (m; empty: 3 cells or 2.5 point spacings); longer triangles "
            "are gaps", Number.Double, None, optional=True, minValue=0.0),
     QgsProcessingParameterString("IMAGE_NAME", "Image to orthorectify (name in the block)", "HRG"),
-    Number("THREADS", "Workers of the tiled steps (matching, intersection, DEM, orthoimage): threads, processes "
+    Number("THREADS", "Workers of the tiled steps (height search, matching, intersection, DEM, orthoimage): threads, "
+           "processes "
            "or local Dask workers", Number.Integer, 1, minValue=1),
     QgsProcessingParameterEnum("EXECUTION", "Execution of the tiled steps", [EXECUTION_LABELS[b] for b in BACKENDS],
                                defaultValue=0),
@@ -102,7 +105,7 @@ TILED = {"EXECUTION": ("model", "EXECUTION"), "DASK_ADDRESS": ("model", "DASK_AD
 STEPS = [
     ("createblock", "pushbroom:createblock",
      {"IMAGES": ("model", "IMAGES"), "DEM": ("model", "APPROX_DEM"), "HEIGHT": ("model", "HEIGHT"),
-      "OVERWRITE": ("model", "OVERWRITE")},
+      "OVERWRITE": ("model", "OVERWRITE"), **TILED},
      {"block": ("Block", "OUTPUT")}),
     ("matchpoints", "pushbroom:matchpoints",
      {"BLOCK": ("child", "createblock", "OUTPUT"), **TILED,
@@ -154,7 +157,8 @@ def source(spec, child_default=None):
 
 #: the dense variant's changes: {child id: {parameter: source}}, and the model inputs it leaves out
 DENSE = {"matchpoints": {"STRATEGY": ("static", 2), "STEP": None, "MPGC_SUPPORT": None},
-         "interpolatedem": {"METHOD": ("static", 1), "FALLBACK": ("static", False), "MAX_EDGE": None}}
+         "interpolatedem": {"METHOD": ("static", 1), "FALLBACK": ("static", False), "FILL": ("static", 10.0),
+                            "MAX_EDGE": None}}
 DENSE_UNUSED = {"STEP", "MAX_EDGE"}
 
 

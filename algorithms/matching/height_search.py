@@ -8,7 +8,8 @@ sparsely, over the whole height range the orientation is valid for:
    extremes);
 2. interest points in up to WINDOWS x WINDOWS windows of WINDOW px spread evenly over image 1 (all of a small
    image), each matched in every other image by seeds.automatic_seeds over that range (NCC along the whole
-   predicted path, uniqueness, LSM and its acceptance criteria): memory follows the window, not the scene;
+   predicted path, uniqueness, LSM and its acceptance criteria), each window and image one task on the chosen
+   execution (execution.run_tasks): memory follows the window, not the scene;
 3. every matched pair intersected with the two models (surface.intersection);
 4. the robust range: heights further than OUTLIER_NMAD robust sigmas (1.4826 MAD, at least MIN_SPREAD m)
    from their median are dropped as mismatches; of the rest, the PERCENTILES (the highest and lowest few
@@ -25,8 +26,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .. import progress
 from ..errors import InputError
+from ..execution import run_tasks
 from ..surface import intersection
 from .imagery import as_image
 from .params import GrowParams
@@ -98,27 +99,29 @@ def robust_range(heights, searched):
             int((~keep).sum()))
 
 
-def search_heights(images, models, names=None, feedback=None):
+def _window_heights(image1, image2, model1, model2, searched, box):
+    """Task: the heights of the points of window `box` of image 1 matched in image 2 (steps 2 and 3)."""
+    seeds = automatic_seeds(image1, image2, model1, model2, GrowParams(), searched, box=box, cell=CELL)
+    if not len(seeds):
+        return np.zeros(0)
+    result = intersection.intersect_measured([model1, model2], [seeds["x1"], seeds["x2"]], [seeds["y1"], seeds["y2"]],
+                                             h0=0.5 * (searched[0] + searched[1]))
+    return result.h[result.ok]
+
+
+def search_heights(images, models, names=None, feedback=None, execution=None):
     """The terrain height range of a block of `images` (paths or Image) with sensor `models` (module
-    docstring): a HeightSearch. Raises InputError where it cannot be found."""
+    docstring), the windows on `execution` (default: threads, 1 worker): a HeightSearch. Raises InputError
+    where it cannot be found, ExecutionError, CancelledError."""
     if len(images) < 2:
         raise InputError("the terrain height cannot be found from one image: give a DEM or a mean height")
     names = names or [f"image {k + 1}" for k in range(len(images))]
     searched = validity_range(models)
     images = [as_image(image) for image in images]
-    boxes = windows(models[0].size)
-    params = GrowParams()
-    heights = []
-    tasks = [(k, box) for k in range(1, len(images)) for box in boxes]
-    for t, (k, box) in enumerate(tasks):
-        progress.step(feedback, 100.0 * t / len(tasks))
-        seeds = automatic_seeds(images[0], images[k], models[0], models[k], params, searched, box=box, cell=CELL)
-        if len(seeds):
-            result = intersection.intersect_measured([models[0], models[k]], [seeds["x1"], seeds["x2"]],
-                                                     [seeds["y1"], seeds["y2"]], h0=0.5 * (searched[0] + searched[1]))
-            heights.append(result.h[result.ok])
-    progress.step(feedback, 100.0)
-    found = robust_range(np.concatenate(heights) if heights else [], searched)
+    tasks = [(images[0], images[k], models[0], models[k], searched, box)
+             for k in range(1, len(images)) for box in windows(models[0].size)]
+    heights = run_tasks(_window_heights, tasks, execution, feedback, "the height search")
+    found = robust_range(np.concatenate(heights), searched)
     if found is None:
         count = int(sum(len(h) for h in heights))
         raise InputError(f"the terrain height could not be found: {count} point(s) of {names[0]} matched in "

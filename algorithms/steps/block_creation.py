@@ -20,6 +20,7 @@ from ..atomic import work_dir
 from ..block import Block
 from ..dem_store import store_dem
 from ..errors import InputError
+from ..execution import Execution
 from ..matching.height_search import search_heights, validity_range
 
 
@@ -32,6 +33,7 @@ class CreateParams:
     dem_nodata: Optional[float] = None  # void value of the DEM its file does not flag
     height: Optional[float] = None      # mean ellipsoidal height without a DEM (m); None: found by matching
     overwrite: bool = False             # replace an existing block
+    execution: Execution = field(default_factory=lambda: Execution("threads", 1))   # where the height search runs
 
 
 @dataclass
@@ -56,7 +58,7 @@ def create_block(output, images, params, feedback=None):
             progress.warn(feedback, dem.implausible)
         height, heights, found = params.height, None, None
         if dem is None and height is None:
-            height, heights, found = _terrain_heights(opened, feedback)
+            height, heights, found = _terrain_heights(opened, params.execution, feedback)
         # storage: the new block
         blk = Block.create(output, opened, height=height, dem=dem, overwrite=params.overwrite,
                            feedback=progress.scaled(feedback, 80, 100) if found else feedback, height_range=heights)
@@ -69,7 +71,7 @@ def create_block(output, images, params, feedback=None):
                         [(name, model.size[0], model.size[1]) for name, _, _, model in opened])
 
 
-def _terrain_heights(opened, feedback):
+def _terrain_heights(opened, execution, feedback):
     """(footprint height, terrain height range or None, HeightSearch or None) of a block made without a DEM
     and without a height (module docstring)."""
     names, paths, models = [o[0] for o in opened], [o[1] for o in opened], [o[3] for o in opened]
@@ -86,7 +88,7 @@ def _terrain_heights(opened, feedback):
     lo, hi = validity_range(models)
     log.pushInfo(f"no DEM and no height given: finding the terrain height by matching {names[0]} with "
                  f"{', '.join(names[1:])} over the orientation's valid heights {lo:.0f} to {hi:.0f} m")
-    found = search_heights(paths, models, names, progress.scaled(feedback, 0, 80))
+    found = search_heights(paths, models, names, progress.scaled(feedback, 0, 80), execution)
     log.pushInfo(f"terrain heights {found.height_range[0]:.0f} to {found.height_range[1]:.0f} m (median "
                  f"{found.median:.0f} m) from {found.points} matched points ({found.rejected} rejected as mismatches)")
     return found.median, found.height_range, found

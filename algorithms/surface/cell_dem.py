@@ -8,11 +8,18 @@ MAD = median |z - m|:
 - count: the points kept;
 - precision (m): the standard error of a median, 1.2533 s / sqrt(n), with s the RMS of the kept points'
   sigma_h where every one has it, else 1.4826 MAD of the kept points (n >= 3; NaN below).
-A cell without a point is NaN (a gap), never filled here. Points on the grid's far edges belong to its last
-column and row.
+Points on the grid's far edges belong to its last column and row.
+
+Radius (cells, r >= 0; rasterization, not gap filling): a cell with no point of its own takes the points of
+the nearest ring of cells around it that has some, up to r cells away (Chebyshev distance), with the same
+median, outlier test and precision. A dense cloud with about one point per pixel leaves cells of the pixel's
+size empty by sampling alone (points fall two to a cell here, none there); CARS's rasterization likewise
+reads the points within one cell (its dsm_radius). The ring each cell used is returned: 0 its own points.
+A cell with no point within r is NaN (a gap), never filled here.
 
 Tiers: where the points carry a `tier` (0 the most precise: dense points LSM refined, or any sparse point; 1
-those it left at the semi-global position), a cell uses only the points of the best tier it has; with
+those it left at the semi-global position), a cell uses only the points of the best tier it has (the tier
+first, then the ring: a refined point a cell away is preferred to an unrefined one of the cell's own); with
 `fallback` off, no point of a tier above 0 is used (such a cell is a gap). studies/dense_fusion.py measures
 why: the unrefined points' heights are worse than the refined ones' everywhere but in the city, and worse
 than interpolating the refined cells on bare fields, crops and forest.
@@ -22,11 +29,18 @@ per cell, whose median resists mismatches and follows height steps within a cell
 
 Reference: P. J. Rousseeuw, C. Croux, "Alternatives to the median absolute deviation", JASA 88(424), 1993
 (1.4826 MAD); the standard error of the median, sqrt(pi / 2) s / sqrt(n), for normal errors."""
+from typing import NamedTuple
+
 import numpy as np
+from scipy import ndimage
 
 #: m: the spread below which the outlier test does not tighten (quantised or identical heights)
 MIN_SPREAD = 0.05
 MEDIAN_SE = np.sqrt(np.pi / 2.0)
+#: the ring of a cell without a height
+NO_RING = 255
+#: the rank of a cell without points (beyond any tier and ring; scipy's filters overflow on the int64 maximum)
+NO_RANK = 2 ** 30
 
 
 def _group_medians(key, values):
@@ -38,37 +52,73 @@ def _group_medians(key, values):
     return keys, 0.5 * (v[lo] + v[hi]), counts
 
 
-def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=True):
-    """(heights, count, precision, removed) on `grid` (tin_grid.Grid) from points x, y, z (and sigma_h, or
-    None; and their `tier`, or None: all 0) in its CRS (module docstring); `own(x, y)`: the points this grid
-    owns (a tile's), default all."""
+class Cells(NamedTuple):
+    """A per-cell DSM (module docstring) on a grid's (rows, cols)."""
+
+    heights: np.ndarray     # float32, NaN: a gap
+    count: np.ndarray       # int32, the points the cell's height used
+    precision: np.ndarray   # float32, m
+    removed: int            # points the per-cell outlier test dropped from their own cell
+    ring: np.ndarray        # uint8: 0 the cell's own points, r those of the cells r away, NO_RING a gap
+
+
+def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=True, radius=0):
+    """Cells on `grid` (tin_grid.Grid) from points x, y, z (and sigma_h, or None; and their `tier`, or None:
+    all 0) in its CRS (module docstring); `own(x, y)`: the points whose cell this grid owns (a tile's),
+    default all; `radius`: a cell without points of its own takes those of the nearest ring of cells within
+    that many cells."""
     x, y, z = (np.asarray(v, float) for v in (x, y, z))
+    radius = int(radius)
     col = np.floor((x - grid.x0) / grid.cell).astype(np.int64)
     row = np.floor((grid.y0 - y) / grid.cell).astype(np.int64)
+    owned = np.ones(x.size, bool) if own is None else np.asarray(own(x, y), bool)
     # the last column and row hold the points on the grid's far edges (as dem_tiles' tile owners)
-    col[(col == grid.cols) & (x <= grid.x0 + grid.cols * grid.cell)] = grid.cols - 1
-    row[(row == grid.rows) & (y >= grid.y0 - grid.rows * grid.cell)] = grid.rows - 1
-    use = np.isfinite(z) & (col >= 0) & (row >= 0) & (col < grid.cols) & (row < grid.rows)
-    if own is not None:
-        use &= own(x, y)
-    if tier is not None:
-        tier = np.asarray(tier)
-        use &= fallback | (tier == 0)
-    key = (row * grid.cols + col)[use]
-    z = z[use]
-    s = None if sigma is None else np.asarray(sigma, float)[use]
-    if tier is not None and key.size:
-        tier = tier[use]
-        best = np.full(grid.rows * grid.cols, np.iinfo(np.int64).max)
-        np.minimum.at(best, key, tier.astype(np.int64))
-        first = tier == best[key]
-        key, z = key[first], z[first]
-        s = None if s is None else s[first]
+    col[(col == grid.cols) & (x <= grid.x0 + grid.cols * grid.cell) & owned] = grid.cols - 1
+    row[(row == grid.rows) & (y >= grid.y0 - grid.rows * grid.cell) & owned] = grid.rows - 1
+    use = np.isfinite(z)
+    t = np.zeros(x.size, np.int64) if tier is None else np.asarray(tier).astype(np.int64)
+    if not fallback:
+        use &= t == 0
+    index = np.flatnonzero(use)
+    # each point offered to the cells within `radius` of its own, ring by ring; rank: tier first, then the ring.
+    # Only where a cell within reach lacks a point of the offer's tier on its own (most cells have them), and
+    # an offer to a cell that already has a better rank is dropped at once.
+    best = np.full(grid.rows * grid.cols, NO_RANK, np.int64)
+    keys, picks, ranks, rings = [], [], [], []
+    for ring in range(radius + 1):
+        if ring == 1:
+            inside = (row[index] >= 0) & (col[index] >= 0) & (row[index] < grid.rows) & (col[index] < grid.cols)
+            worst = ndimage.maximum_filter(best.reshape(grid.rows, grid.cols), size=2 * radius + 1, mode="nearest")
+            home = np.where(inside, row[index] * grid.cols + col[index], 0)
+            index = index[~inside | (worst.ravel()[home] > t[index] * (radius + 1))]
+        for dr, dc in ((a, b) for a in range(-ring, ring + 1) for b in range(-ring, ring + 1)
+                       if max(abs(a), abs(b)) == ring):
+            r, c = row[index] + dr, col[index] + dc
+            ok = (r >= 0) & (c >= 0) & (r < grid.rows) & (c < grid.cols)
+            if ring == 0:
+                ok &= owned[index]
+            key, pick = (r * grid.cols + c)[ok], index[ok]
+            rank = t[pick] * (radius + 1) + ring
+            better = rank <= best[key]
+            key, pick, rank = key[better], pick[better], rank[better]
+            for value in np.unique(rank):       # a tier or two: plain assignments, not the slow ufunc.at
+                at = key[rank == value]
+                best[at] = np.minimum(best[at], value)
+            keys.append(key)
+            picks.append(pick)
+            ranks.append(rank)
+            rings.append(np.full(key.size, ring, np.uint8))
+    key, pick, rank, ring = (np.concatenate(v) for v in (keys, picks, ranks, rings))
     heights = np.full((grid.rows, grid.cols), np.nan, np.float32)
     count = np.zeros((grid.rows, grid.cols), np.int32)
     precision = np.full((grid.rows, grid.cols), np.nan, np.float32)
+    source = np.full((grid.rows, grid.cols), NO_RING, np.uint8)
     if key.size == 0:
-        return heights, count, precision, 0
+        return Cells(heights, count, precision, 0, source)
+    first = rank == best[key]
+    key, pick, ring = key[first], pick[first], ring[first]
+    z = z[pick]
+    s = None if sigma is None else np.asarray(sigma, float)[pick]
     keys, median, _ = _group_medians(key, z)
     slot = np.searchsorted(keys, key)
     dev = np.abs(z - median[slot])
@@ -76,8 +126,8 @@ def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=Tru
     if k > 0:
         _, mad, _ = _group_medians(key, dev)
         keep = dev <= k * np.maximum(1.4826 * mad[slot], MIN_SPREAD)
-        removed = int((~keep).sum())
-        key, z, dev = key[keep], z[keep], dev[keep]
+        removed = int((~keep & (ring == 0)).sum())
+        key, z, dev, ring = key[keep], z[keep], dev[keep], ring[keep]
         s = None if s is None else s[keep]
         keys, median, _ = _group_medians(key, z)
         slot = np.searchsorted(keys, key)
@@ -90,4 +140,5 @@ def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=Tru
     heights[r, c] = median
     count[r, c] = n
     precision[r, c] = MEDIAN_SE * spread / np.sqrt(n)
-    return heights, count, precision, removed
+    source.flat[key] = ring         # a cell's points share their rank, so their ring
+    return Cells(heights, count, precision, removed, source)

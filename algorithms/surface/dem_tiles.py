@@ -26,12 +26,14 @@ cloud.
 6. A VRT of the tiles is translated into the output GeoTIFF (geotiff.OPTIONS) and its overviews are
    built from it, all by GDAL in blocks; the precision raster likewise. Tiles without points are gaps.
 
-Method "cells" (dense points): each point goes to the tile that holds its cell (a margin of half a cell,
-ownership by cell), and each tile is one task of cell_dem.cells_on_grid (per-cell medians after the
-per-cell outlier test, k = DemParams.k; a cell uses its best tier of points: the refined dense points where it
-has one, and the unrefined ones only with DemParams.fallback); steps 3 and 4 do not apply. Besides the
-precision raster it can write the count of points per cell. With DemParams.fill, the gaps within that many
-cells of measured ones are filled and flagged in a mask raster (gap_fill.py), never silently.
+Method "cells" (dense points): each point goes to every tile within DemParams.radius cells of its own cell
+(a margin of radius + 1/2 cells; ownership by cell), and each tile is one task of cell_dem.cells_on_grid
+(per-cell medians after the per-cell outlier test, k = DemParams.k; a cell uses its best tier of points: the
+refined dense points where it has one, and the unrefined ones only with DemParams.fallback; an empty cell the
+points of the cells within the radius); steps 3 and 4 do not apply. Besides the precision raster it can write
+the count of points per cell, and a mask raster of what each cell is: its own points' median, its
+neighbours', filled, or a gap (gap_fill.py). With DemParams.fill, the gaps within that many cells of measured
+ones are filled, and the mask is always written (by default beside the DEM): filling is never silent.
 
 Failure modes: tin_dem's InputErrors (settings, no CRS, points outside the output CRS, no defined
 cell), ExecutionError from the execution, CancelledError; nothing is left under an output name
@@ -86,7 +88,8 @@ class TiledDem:
     count_path: str = None
     method: str = "tin"
     filled: int = 0                 # gap cells filled (method "cells" with DemParams.fill)
-    mask_path: str = None           # the mask raster of the filled cells
+    mask_path: str = None           # the mask raster (method "cells": own points, neighbours', filled, gap)
+    own: float = 0.0                # method "cells": fraction of the cells with points of their own
 
     def summary(self):
         if self.method == "cells":
@@ -94,7 +97,8 @@ class TiledDem:
                     f"flagged in {self.mask_path}" if self.mask_path else "")
             return (f"{self.points} points in per-cell medians ({sum(self.removed)} outliers removed), "
                     f"{self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g} in {self.tiles} tile(s), "
-                    f"{self.defined:.1%} measured, {self.datum} heights{fill}")
+                    f"{self.defined:.1%} measured ({self.own:.1%} from points of their own, the others from "
+                    f"the cells around), {self.datum} heights{fill}")
         return (f"{self.points} points ({sum(self.removed)} blunders removed: {self.removed} per iteration; "
                 f"{self.dropped_near_breaklines} next to breaklines dropped; {self.breakline_vertices} breakline "
                 f"vertices), {self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g} in {self.tiles} "
@@ -256,23 +260,22 @@ def _dem_tile(job, box, points_file, spreads, out, precision_out):
             "precision_kind": result.precision_kind}
 
 
-def _cell_tile(job, box, points_file, out, precision_out, count_out):
-    """Task (method "cells"): the tile `box` (cells) of the DEM from the points of `points_file` it owns,
-    written to `out` (and the precision and count rasters where asked); returns its counts."""
-    grid, wkt, k, sigma, fallback = job
+def _cell_tile(job, box, points_file, out, precision_out, count_out, ring_out):
+    """Task (method "cells"): the tile `box` (cells) of the DEM from the points of `points_file`, written to
+    `out` (and the precision, count and ring rasters where asked); returns its counts."""
+    grid, wkt, k, sigma, fallback, radius = job
     srs = parse_crs(wkt)
     rows = np.fromfile(points_file, POINT)
     sub = _tile_grid(grid, box)
-    heights, count, precision, removed = cells_on_grid(rows["x"], rows["y"], rows["z"],
-                                                       rows["sigma"] if sigma else None, sub, k=k,
-                                                       own=_owner(grid, box), tier=rows["tier"],
-                                                       fallback=fallback)
-    write_float_raster(out, heights, sub.geotransform, srs, overviews=False)
-    if precision_out is not None:
-        write_float_raster(precision_out, precision, sub.geotransform, srs, overviews=False)
-    if count_out is not None:
-        write_float_raster(count_out, count, sub.geotransform, srs, overviews=False)
-    return {"points": int(count.sum()), "removed": removed, "defined": int(np.isfinite(heights).sum())}
+    cells = cells_on_grid(rows["x"], rows["y"], rows["z"], rows["sigma"] if sigma else None, sub, k=k,
+                          own=_owner(grid, box), tier=rows["tier"], fallback=fallback, radius=radius)
+    write_float_raster(out, cells.heights, sub.geotransform, srs, overviews=False)
+    for path, values in ((precision_out, cells.precision), (count_out, cells.count), (ring_out, cells.ring)):
+        if path is not None:
+            write_float_raster(path, values, sub.geotransform, srs, overviews=False)
+    own = cells.ring == 0
+    return {"points": int(cells.count[own].sum()), "removed": cells.removed,
+            "defined": int(np.isfinite(cells.heights).sum()), "own": int(own.sum())}
 
 
 def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, feedback):
@@ -284,24 +287,27 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
                                                    progress.scaled(feedback, 3, 10))
         grid = Grid.covering(np.array([x0, x1]), np.array([y0, y1]), params.cell)
         boxes = tile_grid((grid.cols, grid.rows), int(params.tile))
-        files = _bucket(chunks, grid, int(params.tile), 0.5 * params.cell, work, "tile",
+        files = _bucket(chunks, grid, int(params.tile), (int(params.radius) + 0.5) * params.cell, work, "tile",
                         progress.scaled(feedback, 10, 20))
         for chunk in chunks:
             os.unlink(chunk)
-        job = (grid, target.ExportToWkt(), params.k, has_sigma, params.fallback)
+        job = (grid, target.ExportToWkt(), params.k, has_sigma, params.fallback, int(params.radius))
         used = [(box, f, k) for k, (box, f) in enumerate(zip(boxes, files)) if f is not None]
         names = {kind: [os.path.join(work, f"{kind}-{k:05d}.tif") if wanted else None for _, _, k in used]
-                 for kind, wanted in (("dem", True), ("precision", precision_path), ("count", count_path))}
+                 for kind, wanted in (("dem", True), ("precision", precision_path), ("count", count_path),
+                                      ("ring", mask_path))}
         with session(params.execution):
             done = run_tasks(_cell_tile, [(job, box, f, *outs) for (box, f, _), *outs
-                                          in zip(used, names["dem"], names["precision"], names["count"])],
+                                          in zip(used, names["dem"], names["precision"], names["count"],
+                                                 names["ring"])],
                              params.execution, progress.scaled(feedback, 20, 80), "the DEM tiles")
         defined = sum(d["defined"] for d in done)
         removed = sum(d["removed"] for d in done)
+        own = sum(d["own"] for d in done)
         result = TiledDem(output, grid, target, params.datum, len(boxes), points=sum(d["points"] for d in done),
                           removed=[removed], defined=defined / (grid.rows * grid.cols),
                           precision_path=precision_path or None, count_path=count_path or None, method="cells",
-                          mask_path=mask_path or None)
+                          mask_path=mask_path or None, own=own / (grid.rows * grid.cols))
         datum = "WGS 84 ellipsoidal height" if params.datum == "ellipsoidal" else "EGM96 height (h - N)"
         extra = [(path, names[kind], description) for kind, path, description in (
             ("precision", precision_path, "standard error of the cell's median height (m)"),
@@ -312,11 +318,15 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
             assemble_tiles(names["dem"], tmp, grid.geotransform, (grid.cols, grid.rows), target,
                            description=f"height ({datum}, m)",
                            metadata={"HEIGHT_DATUM": datum, "POINTS": result.points, "OUTLIERS_REMOVED": removed,
-                                     "METHOD": "per-cell median", "GAPS_FILLED_WITHIN_CELLS": params.fill},
+                                     "METHOD": "per-cell median", "RADIUS_CELLS": int(params.radius),
+                                     "GAPS_FILLED_WITHIN_CELLS": params.fill},
                            overviews=not mask_path, feedback=progress.scaled(feedback, 80, 90))
             if mask_path:
+                rings = os.path.join(work, "rings.tif")
+                assemble_tiles(names["ring"], rings, grid.geotransform, (grid.cols, grid.rows), target,
+                               overviews=False)
                 result.filled = fill_gaps(tmp, stack.enter_context(atomic_path(mask_path)), params.fill,
-                                          progress.scaled(feedback, 90, 94))
+                                          progress.scaled(feedback, 90, 94), rings=rings)
             for (path, tiles, description), tmp_extra in zip(extra, temps):
                 if path:
                     assemble_tiles(tiles, tmp_extra, grid.geotransform, (grid.cols, grid.rows), target,
@@ -343,8 +353,7 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
                              "leave the breaklines out")
         if params.fill and not mask_path:
             mask_path = os.path.splitext(os.fspath(output))[0] + "_filled.tif"
-        result = _cells_dem(cloud, output, params, precision_path, count_path, mask_path if params.fill else None,
-                            feedback)
+        result = _cells_dem(cloud, output, params, precision_path, count_path, mask_path, feedback)
         log.pushInfo(result.summary())
         return result
     if count_path:

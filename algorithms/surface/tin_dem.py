@@ -25,6 +25,8 @@ DATUMS = ("ellipsoidal", "egm96")
 #: interpolation methods of the DEM step: a TIN of the points (sparse points), or per-cell medians (dense
 #: points, cell_dem.py)
 METHODS = ("tin", "cells")
+#: cells: the largest radius of the per-cell method (each point is offered to (2 r + 1)^2 cells)
+MAX_RADIUS = 5
 
 
 @dataclass
@@ -223,6 +225,7 @@ class DemParams:
     method: str = "tin"             # one of METHODS
     fallback: bool = True           # "cells": the unrefined dense points where a cell has no refined one
     fill: float = 0.0               # gaps filled from the cells within this many cells (gap_fill.py; 0: none)
+    radius: int = 1                 # "cells": an empty cell takes the points within this many cells (cell_dem.py)
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))   # where the tiles run
 
     def check(self):
@@ -230,9 +233,10 @@ class DemParams:
         if self.method not in METHODS:
             raise InputError(f"the DEM's method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if not self.cell > 0 or self.datum not in DATUMS or self.k < 0 or self.iterations < 1 \
-                or (self.max_edge is not None and self.max_edge < 0) or int(self.tile) < 16 or not self.fill >= 0:
+                or (self.max_edge is not None and self.max_edge < 0) or int(self.tile) < 16 or not self.fill >= 0 \
+                or not 0 <= int(self.radius) <= MAX_RADIUS:
             raise InputError(f"the cell size must be positive, the datum one of {', '.join(DATUMS)}, the blunder "
                              "threshold, the maximum edge and the fill distance not negative, the iterations at "
-                             "least 1 and the tiles at least 16 cells")
+                             f"least 1, the tiles at least 16 cells and the radius 0 to {MAX_RADIUS} cells")
         self.execution.check()
         return self

@@ -15,7 +15,7 @@ from ...algorithms import sensors
 from ...algorithms.errors import PushbroomError
 from ...algorithms.steps.block_creation import CreateParams, create_block
 from ..styles import load_styled
-from .base import PushbroomAlgorithm
+from .base import PushbroomAlgorithm, execution_choice, execution_parameters
 from .dem_nodata import nodata_parameter
 
 
@@ -24,7 +24,7 @@ class CreateBlock(PushbroomAlgorithm):
     DISPLAY_NAME = "Create block"
     GROUP_ID = "block"
 
-    KEYS = "IMAGES ORIENTATION DEM HEIGHT OVERWRITE DEM_NODATA OUTPUT FOOTPRINTS"
+    KEYS = "IMAGES ORIENTATION DEM HEIGHT OVERWRITE DEM_NODATA EXECUTION DASK_ADDRESS WORKERS OUTPUT FOOTPRINTS"
 
     def initAlgorithm(self, config=None):
         d, tr = CreateParams(), self.tr
@@ -39,7 +39,8 @@ class CreateBlock(PushbroomAlgorithm):
             QgsProcessingParameterNumber.Double, d.height, optional=True))
         self.addParameter(QgsProcessingParameterBoolean(self.OVERWRITE, tr("Overwrite an existing block"),
                                                         d.overwrite))
-        self.addAdvancedParameters([nodata_parameter(self.DEM_NODATA)])
+        self.addAdvancedParameters([nodata_parameter(self.DEM_NODATA),
+                                    *execution_parameters(self, d.execution.workers)])   # the height search
         self.addParameter(QgsProcessingParameterFileDestination(self.OUTPUT, tr("Block"), tr("GeoPackage (*.gpkg)")))
         self.addOutput(QgsProcessingOutputVectorLayer(self.FOOTPRINTS, tr("Footprints"),
                                                       QgsProcessing.TypeVectorPolygon))
@@ -65,7 +66,8 @@ class CreateBlock(PushbroomAlgorithm):
             orientation=self.parameterAsFileList(parameters, self.ORIENTATION, context),
             dem=dem.source() if dem is not None else None,
             **self.parameterValues(parameters, context, dem_nodata=self.DEM_NODATA, height=self.HEIGHT,
-                                   overwrite=self.OVERWRITE))
+                                   overwrite=self.OVERWRITE),
+            execution=execution_choice(self, parameters, context))
         images = [layer.source() for layer in self.parameterAsLayerList(parameters, self.IMAGES, context)]
         result = create_block(self.parameterAsFileOutput(parameters, self.OUTPUT, context), images, params, feedback)
         load_styled(context, result.footprints, "Footprints", self.FOOTPRINTS, "footprints.qml")

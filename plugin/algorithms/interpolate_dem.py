@@ -13,7 +13,7 @@ from qgis.core import (
 )
 
 from ...algorithms.surface.dem_tiles import dem_from_point_cloud
-from ...algorithms.surface.tin_dem import DemParams
+from ...algorithms.surface.tin_dem import MAX_RADIUS, DemParams
 from ..styles import style_on_completion
 from .base import PushbroomAlgorithm, execution_choice, execution_parameters
 
@@ -31,7 +31,7 @@ class InterpolateDem(PushbroomAlgorithm):
     GROUP_ID = "surface"
 
     KEYS = ("INPUT BREAKLINES CRS CELL METHOD DATUM INPUT_CRS MAX_EDGE BLUNDER_K ITERATIONS TILE EXECUTION "
-            "DASK_ADDRESS WORKERS FALLBACK FILL OUTPUT PRECISION COUNT MASK POINTS REMOVED FILLED")
+            "DASK_ADDRESS WORKERS FALLBACK RADIUS FILL OUTPUT PRECISION COUNT MASK POINTS REMOVED FILLED")
 
     def initAlgorithm(self, config=None):
         d, tr = DemParams(), self.tr
@@ -58,6 +58,9 @@ class InterpolateDem(PushbroomAlgorithm):
             Number(self.TILE, tr("Tile size (cells)"), Number.Integer, d.tile, minValue=16),
             QgsProcessingParameterBoolean(self.FALLBACK, tr("Per-cell method: a cell without a refined dense point "
                                                             "takes the unrefined (semi-global) ones"), d.fallback),
+            Number(self.RADIUS, tr("Per-cell method: a cell without points takes those within this many cells "
+                                   "(0: none; flagged 2 in the mask raster)"), Number.Integer, d.radius, minValue=0,
+                   maxValue=MAX_RADIUS),
             Number(self.FILL, tr("Per-cell method: fill the gaps within this many cells (0: none; the filled "
                                  "cells are flagged in the mask raster)"), Number.Double, d.fill, minValue=0.0),
             *execution_parameters(self, d.execution.workers),
@@ -68,7 +71,8 @@ class InterpolateDem(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterRasterDestination(self.COUNT, tr("Points per cell (per-cell method)"),
                                                                   optional=True, createByDefault=False))
         self.addParameter(QgsProcessingParameterRasterDestination(
-            self.MASK, tr("Filled cells mask (0 measured, 1 filled, 255 gap; empty: beside the DEM when filling)"),
+            self.MASK, tr("Cell mask (per-cell method: 0 own points, 2 points of the cells around, 1 filled, 255 gap; "
+                          "empty: beside the DEM when filling)"),
             optional=True, createByDefault=False))
         self.addOutput(QgsProcessingOutputNumber(self.POINTS, tr("Points in the DEM")))
         self.addOutput(QgsProcessingOutputNumber(self.FILLED, tr("Gap cells filled")))
@@ -77,7 +81,7 @@ class InterpolateDem(PushbroomAlgorithm):
     def execute(self, parameters, context, feedback):
         values = self.parameterValues(parameters, context, cell=self.CELL, datum=self.DATUM, max_edge=self.MAX_EDGE,
                                       k=self.BLUNDER_K, iterations=self.ITERATIONS, tile=self.TILE, method=self.METHOD,
-                                      fallback=self.FALLBACK, fill=self.FILL)
+                                      fallback=self.FALLBACK, radius=self.RADIUS, fill=self.FILL)
         values.update(datum=DATUMS[values["datum"]][0], method=METHODS[values["method"]][0])
         params = DemParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
                            input_crs=self.parameterAsCrsDefinition(parameters, self.INPUT_CRS, context),

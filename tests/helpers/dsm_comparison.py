@@ -12,7 +12,8 @@ the 10 m cells seen by all three images (12 px inside each), compared with the t
 Classes per cell: the simulator's land cover with the open classes split by texture as
 end_to_end_chain.py does (ground std over a 95 m window < LOW_CONTRAST_DN: LOW_TEXTURE), and a
 building-edge zone: cells within EDGE_M (2 HRG pixels, 10 m) of a building outline; a building is a
-connected set of city cells whose DSM stands more than BUILDING_M above the DTM."""
+connected set of city cells whose DSM stands more than BUILDING_M above the DTM; and the open cells (bare,
+crops, low texture) within EDGE_M of forest, city or water, where a matching window straddles two surfaces."""
 import numpy as np
 from osgeo import gdal
 from scipy import ndimage
@@ -21,7 +22,7 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.geodesy import metres_per_degree
-from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
+from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST, WATER
 from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.point_input import PointSet
 from pushbroom.algorithms.surface.pointcloud import output_srs
@@ -33,6 +34,7 @@ CELL = 10.0
 LOW_TEXTURE = 6
 CLASSES = {BARE: "bare", CROPS: "crops", LOW_TEXTURE: "low-tex", FOREST: "forest", CITY: "city"}
 EDGE = 100                   # pseudo class: building-edge zone
+NEAR = "open near forest/city/water"
 EDGE_M = 10.0                # 2 HRG pixels
 BUILDING_M = 2.0
 MARGIN_PX = 12.0
@@ -61,6 +63,7 @@ class Truth:
             seen &= (c > MARGIN_PX) & (c < cols - MARGIN_PX) & (r > MARGIN_PX) & (r < rows - MARGIN_PX)
         self.x, self.y, self.h = x[seen], y[seen], h[seen]
         lon, lat = lon[seen], lat[seen]
+        self.dtm_h = dtm.height(lon, lat)
         ds = gdal.Open(str(paths["classes"]))
         land, gt = ds.ReadAsArray(), ds.GetGeoTransform()
         ds = None
@@ -79,6 +82,10 @@ class Truth:
         j = np.clip(((lon - gt[0]) / gt[1]).astype(int), 0, land.shape[1] - 1)
         self.cls = land[i, j]
         self.edge = dist[i, j] <= EDGE_M
+        other = ndimage.distance_transform_edt(~np.isin(land, (FOREST, CITY, WATER)),
+                                               sampling=(abs(gt[5]) * mn, gt[1] * me))
+        self.near = np.isin(self.cls, (BARE, CROPS, LOW_TEXTURE)) & (other[i, j] <= EDGE_M)
+        self.water = self.cls == WATER
         self.buildings = int(ndimage.label(building)[1])
 
     def dem(self, mp):
@@ -102,6 +109,7 @@ class Truth:
         rows = {}
         zones = {name: self.cls == c for c, name in CLASSES.items()}
         zones["bldg edge"] = self.edge
+        zones[NEAR] = self.near
         for name, k in zones.items():
             d = dh[k][np.isfinite(dh[k])]
             med = np.median(d) if d.size else np.nan

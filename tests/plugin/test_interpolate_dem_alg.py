@@ -113,9 +113,11 @@ def test_errors_and_cancel(pushbroom_provider, tmp_path):
 
 def test_per_cell_dem_fills_its_gaps_into_a_mask(pushbroom_provider, tmp_path):
     las, _, _ = roof_cloud(tmp_path, n=3000)        # about one point per cell of 20 m: gaps between them
-    plain = run({"INPUT": las, "CELL": 20.0, "METHOD": 1, "OUTPUT": str(tmp_path / "plain.tif")})
-    result = run({"INPUT": las, "CELL": 20.0, "METHOD": 1, "FILL": 3, "OUTPUT": str(tmp_path / "filled.tif"),
-                  "MASK": str(tmp_path / "mask.tif")})
+    plain = run({"INPUT": las, "CELL": 20.0, "METHOD": 1, "RADIUS": 0, "OUTPUT": str(tmp_path / "plain.tif")})
+    result = run({"INPUT": las, "CELL": 20.0, "METHOD": 1, "RADIUS": 0, "FILL": 3,
+                  "OUTPUT": str(tmp_path / "filled.tif"), "MASK": str(tmp_path / "mask.tif")})
+    near = run({"INPUT": las, "CELL": 20.0, "METHOD": 1, "OUTPUT": str(tmp_path / "near.tif"),
+                "MASK": str(tmp_path / "near_mask.tif")})          # RADIUS 1 by default
     ds = gdal.Open(plain["OUTPUT"])
     before, nodata = ds.ReadAsArray(), ds.GetRasterBand(1).GetNoDataValue()
     after = gdal.Open(result["OUTPUT"]).ReadAsArray()
@@ -124,3 +126,8 @@ def test_per_cell_dem_fills_its_gaps_into_a_mask(pushbroom_provider, tmp_path):
     assert result["FILLED"] == (mask == 1).sum() == (gaps & (after != nodata)).sum() > 0.1 * gaps.sum()
     assert np.array_equal(mask == 0, ~gaps) and np.array_equal(after[~gaps], before[~gaps])
     assert "MASK" not in plain
+    # radius 1: the empty cells next to points take theirs, flagged 2; the others are as before
+    around = gdal.Open(near["MASK"]).ReadAsArray()
+    heights = gdal.Open(near["OUTPUT"]).ReadAsArray()
+    assert np.array_equal(around == 0, ~gaps) and np.array_equal(heights[~gaps], before[~gaps])
+    assert near["FILLED"] == 0 and (around == 2).sum() > 0.5 * gaps.sum() and (heights[around == 2] != nodata).all()

@@ -57,6 +57,7 @@ def test_model_file_is_what_the_script_builds(pushbroom_provider, tmp_path):
     assert sources["matchpoints"]["STRATEGY"][0].staticValue() == 2
     assert sources["interpolatedem"]["METHOD"][0].staticValue() == 1
     assert sources["interpolatedem"]["FALLBACK"][0].staticValue() is False
+    assert sources["interpolatedem"]["FILL"][0].staticValue() == 10.0
     assert {p.name() for p in dense.parameterDefinitions()}.isdisjoint({"STEP", "MAX_EDGE"})
 
 
@@ -187,5 +188,5 @@ def test_dense_pipeline_without_a_height(pipeline, small_scene, qgis_process, tm
     dh = dem - warped(small_scene["dsm"], tmp_path / "dem.tif")
     figures.report("dense model: DEM cells defined, median |dh|", [100 * np.isfinite(dh).mean(),
                                                                     np.median(np.abs(dh[np.isfinite(dh)]))], "%, m")
-    assert np.isfinite(dh).mean() > 0.25 and np.median(np.abs(dh[np.isfinite(dh)])) < 4.0     # as region growing's
+    assert np.isfinite(dh).mean() > 0.6 and np.median(np.abs(dh[np.isfinite(dh)])) < 4.0     # filled within 10 cells
     assert all(dense[k][1] < 1.25 * region_growing[k][1] for k in ("bare fields", "grass/crops", "forest")), dense

@@ -4,11 +4,15 @@ With no DEM and no height, the range found must hold the terrain the images see 
 matched over the RPCs' whole validity range, the session's fixtures of tests/real/conftest.py, are the
 reference), be far narrower than that validity range, and give
 the DSM a user gets with the terrain's height typed in (that height +- 500 m): both DSMs are printed, and
-their difference must be the matching's noise (median and NMAD of a few cm)."""
+their difference must be the matching's noise (median and NMAD of a few cm). Likewise for dense matching
+(algorithms/dense): the DSMs of its LSM-refined points with the range found and with the height given."""
 import numpy as np
 import pytest
 
 from pushbroom.algorithms import sensors
+from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
+from pushbroom.algorithms.dense.params import DenseParams
+from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.height_search import search_heights
 from pushbroom.algorithms.matching.imagery import Image
@@ -41,13 +45,28 @@ def matched(paths, models, names, step, heights):
                points.points["id"][points.points["group"] >= len(paths) - 1])
 
 
-def found_and_given(paths, names, step, reference):
+def dense_matched(paths, models, names, heights, folder):
+    """Intersection (supplied RPCs) of the dense points LSM refined, matched over `heights` (a range, or one
+    height: +- 500 m as the block's)."""
+    if np.ndim(heights) == 0:
+        heights = (heights - 500.0, heights + 500.0)
+    parts, _ = match_dense_tiles([Image(p) for p in paths], models, folder, names=names, params=DenseParams(),
+                                 height_range=tuple(heights), execution=Execution("threads", 2))
+    points = np.concatenate([p.points for p in parts])
+    observations = np.concatenate([p.observations for p in parts])
+    return cut({k + 1: m for k, m in enumerate(models)}, observations, points["id"][np.isfinite(points["rho_min"])])
+
+
+def found_and_given(paths, names, step, reference, folder=None):
     """(HeightSearch, the height given, {"found" / "given": Intersection}) for the range found and for the
     terrain's median height (of `reference`, the points matched over the RPCs' validity range) typed in
-    (+- 500 m)."""
+    (+- 500 m); region growing at `step`, or dense matching in `folder` where given."""
     models = [sensors.load(p) for p in paths]
     found = search_heights(paths, models, names)
     given = float(np.median(reference.h[reference.ok]))
+    if folder is not None:
+        return found, given, {k: dense_matched(paths, models, names, h, folder / k)
+                              for k, h in (("found", found.height_range), ("given", given))}
     return found, given, {k: matched(paths, models, names, step, h)
                           for k, h in (("found", found.height_range), ("given", given))}
 
@@ -72,34 +91,42 @@ def compare_dsms(a, b, figures, title):
 
 
 @pytest.mark.slow
-def test_triplet_height_found_gives_the_dsm_of_the_height(pleiades_triplet, region_growing_triplet_dsms, figures):
+@pytest.mark.parametrize("matcher", ["region growing", "dense"])
+def test_triplet_height_found_gives_the_dsm_of_the_height(pleiades_triplet, region_growing_triplet_dsms, figures,
+                                                          matcher, tmp_path):
     paths = in_order(pleiades_triplet)
     points = region_growing_triplet_dsms["points"]
     reference = cut({k + 1: m for k, m in enumerate(region_growing_triplet_dsms["models"])}, points.observations,
                     points.points["id"][points.points["group"] >= 2])
-    found, given, out = found_and_given(paths, list(NAMES), TRIPLET_STEP, reference)
-    check_range(found, reference, figures, "Pleiades triplet")
-    figures.report("Pleiades triplet: the height given", given, "m")
+    found, given, out = found_and_given(paths, list(NAMES), TRIPLET_STEP, reference,
+                                        tmp_path if matcher == "dense" else None)
+    title = f"Pleiades triplet, {matcher}"
+    check_range(found, reference, figures, title)
+    figures.report(f"{title}: the height given", given, "m")
     srs = output_srs(None, out["given"].lon[out["given"].ok], out["given"].lat[out["given"].ok])
     dems = {k: dsm(out[k], srs, CELL, RG_MAX_EDGE) for k in ("given", "found")}
     for k, dem in dems.items():
-        figures.report(f"Pleiades triplet, 0.5 m DSM of the 3-ray points, height {k}: cells, median height",
+        figures.report(f"{title}, 0.5 m DSM of the points, height {k}: cells, median height",
                        [int(np.isfinite(dem.heights).sum()), float(np.nanmedian(dem.heights))], "m")
-    compare_dsms(dems["given"], dems["found"], figures, "Pleiades triplet")
+    compare_dsms(dems["given"], dems["found"], figures, title)
 
 
-def test_ventoux_height_found_gives_the_dsm_of_the_height(ventoux_pair, ventoux_region_growing, figures, tmp_path):
+@pytest.mark.parametrize("matcher", ["region growing", "dense"])
+def test_ventoux_height_found_gives_the_dsm_of_the_height(ventoux_pair, ventoux_region_growing, figures, tmp_path,
+                                                          matcher):
     (tmp_path / "given").mkdir()
     (tmp_path / "found").mkdir()
     reference = ventoux_region_growing[1]
-    found, given, out = found_and_given(ventoux_pair, [p.stem for p in ventoux_pair], VENTOUX_STEP, reference)
-    check_range(found, reference, figures, "Ventoux pair")
-    figures.report("Ventoux pair: the height given", given, "m")
+    found, given, out = found_and_given(ventoux_pair, [p.stem for p in ventoux_pair], VENTOUX_STEP, reference,
+                                        tmp_path / "dense" if matcher == "dense" else None)
+    title = f"Ventoux pair, {matcher}"
+    check_range(found, reference, figures, title)
+    figures.report(f"{title}: the height given", given, "m")
     srtm = str(ventoux_pair[0].with_name("N44E005.hgt"))
     comparisons = {k: srtm_comparison(out[k], srtm, (VENTOUX_CELL,), VENTOUX_CELL, tmp_path / k)
                    for k in ("given", "found")}
-    figures.table("Ventoux pair, 2 m DSM - SRTM (EGM96 -> ellipsoidal) (m)",
+    figures.table(f"{title}, 2 m DSM - SRTM (EGM96 -> ellipsoidal) (m)",
                   [stats_row(f"height {k}", c["stats"][VENTOUX_CELL]) for k, c in comparisons.items()]
                   + [stats_row(f"height {k}, without the plane", c["detrended"]) for k, c in comparisons.items()])
     compare_dsms(comparisons["given"]["dems"][VENTOUX_CELL], comparisons["found"]["dems"][VENTOUX_CELL], figures,
-                 "Ventoux pair")
+                 title)

@@ -24,8 +24,9 @@ def dense_points(seed=3, n=20000, outliers=200):
     return x, y, z, rng.uniform(0.3, 1.0, n)
 
 
-def reference(x, y, z, sigma, grid, k):
-    """Per cell: the median, MAD test, median, count and precision of the module's docstring, by a loop."""
+def reference(x, y, z, sigma, grid, k, radius=0):
+    """Per cell: the median, MAD test, median, count and precision of the module's docstring, by a loop, from
+    the points of the nearest ring of cells (up to `radius`) that has some; and the outliers of own cells."""
     out = np.full((grid.rows, grid.cols), np.nan), np.zeros((grid.rows, grid.cols)), \
         np.full((grid.rows, grid.cols), np.nan)
     col = np.floor((x - grid.x0) / grid.cell).astype(int)
@@ -33,14 +34,15 @@ def reference(x, y, z, sigma, grid, k):
     removed = 0
     for r in range(grid.rows):
         for c in range(grid.cols):
-            m = (row == r) & (col == c)
+            ring = np.maximum(np.abs(row - r), np.abs(col - c))
+            m = (ring == ring.min()) & (ring <= radius)
             if not m.any():
                 continue
             zz, ss = z[m], None if sigma is None else sigma[m]
             med = np.median(zz)
             mad = np.median(np.abs(zz - med))
             keep = np.abs(zz - med) <= k * max(1.4826 * mad, MIN_SPREAD)
-            removed += int((~keep).sum())
+            removed += int((~keep).sum()) if ring[m][0] == 0 else 0
             zz = zz[keep]
             med = np.median(zz)
             n = len(zz)
@@ -56,13 +58,32 @@ def reference(x, y, z, sigma, grid, k):
 def test_cells_against_a_loop(with_sigma):
     x, y, z, sigma = dense_points()
     grid = Grid(0.0, 150.0, 10.0, 20, 15)
-    heights, count, precision, removed = cells_on_grid(x, y, z, sigma if with_sigma else None, grid, k=3.0)
+    heights, count, precision, removed, ring = cells_on_grid(x, y, z, sigma if with_sigma else None, grid, k=3.0)
     (h_ref, n_ref, p_ref), removed_ref = reference(x, y, z, sigma if with_sigma else None, grid, 3.0)
     np.testing.assert_allclose(heights, h_ref, rtol=0, atol=1e-4)
     np.testing.assert_array_equal(count, n_ref)
     np.testing.assert_allclose(precision, p_ref, rtol=1e-5)
     assert removed == removed_ref and removed >= 190           # the outliers, and hardly anything else
+    assert (ring == 0).all()
     assert np.nanmax(np.abs(heights[:, :12] - (100.0 + 0.1 * (np.arange(12) * 10 + 5)))) < 1.0
+
+
+@pytest.mark.parametrize("radius", [1, 2])
+def test_empty_cells_take_the_nearest_ring_of_points(radius):
+    x, y, z, _ = dense_points(n=900, outliers=30)                  # 0.3 points per 2 m cell: most cells empty
+    x, y, z = (v[(np.hypot(x - 100.0, y - 75.0) > 12.0)] for v in (x, y, z))     # and a hole of 6 cells
+    grid = Grid(0.0, 150.0, 2.0, 100, 75)
+    cells = cells_on_grid(x, y, z, None, grid, k=3.0, radius=radius)
+    (h_ref, n_ref, p_ref), removed_ref = reference(x, y, z, None, grid, 3.0, radius)
+    np.testing.assert_allclose(cells.heights, h_ref, rtol=0, atol=1e-4)
+    np.testing.assert_array_equal(cells.count, n_ref)
+    np.testing.assert_allclose(cells.precision, p_ref, rtol=1e-5)
+    assert cells.removed == removed_ref
+    own = cells_on_grid(x, y, z, None, grid, k=3.0)
+    assert (cells.ring == 0).sum() == np.isfinite(own.heights).sum() < 0.3 * grid.rows * grid.cols
+    np.testing.assert_array_equal(cells.heights[cells.ring == 0], own.heights[cells.ring == 0])
+    assert set(np.unique(cells.ring)) == set(range(radius + 1)) | {255}       # the hole's middle stays a gap
+    assert np.isnan(cells.heights[cells.ring == 255]).all() and np.isfinite(cells.heights[cells.ring < 255]).all()
 
 
 def write(path, x, y, z, sigma=None):
@@ -80,10 +101,15 @@ def test_tiles_and_executions_leave_the_same_rasters(tmp_path):
         out = tmp_path / f"{name}.tif"
         result = dem_from_point_cloud(cloud, out, DemParams(cell=2.0, method="cells", tile=tile, k=3.0,
                                                             execution=execution),
-                                      precision_path=tmp_path / f"{name}_p.tif", count_path=tmp_path / f"{name}_n.tif")
-        runs[name] = [read_raster(p)[0] for p in (out, tmp_path / f"{name}_p.tif", tmp_path / f"{name}_n.tif")]
+                                      precision_path=tmp_path / f"{name}_p.tif", count_path=tmp_path / f"{name}_n.tif",
+                                      mask_path=tmp_path / f"{name}_m.tif")
+        runs[name] = [read_raster(p)[0] for p in (out, tmp_path / f"{name}_p.tif", tmp_path / f"{name}_n.tif",
+                                                  tmp_path / f"{name}_m.tif")]
         assert result.points + result.removed[0] == len(x)
-        assert np.nansum(runs[name][2]) == result.points
+        mask = runs[name][3]
+        # the points count once, in their own cells; the few empty cells take their neighbours' (radius 1)
+        assert np.nansum(runs[name][2][mask == 0]) == result.points
+        assert 0 < (mask == 2).sum() < 0.01 * mask.size and np.isfinite(runs[name][0][mask == 2]).all()
     assert result.tiles == -(-result.grid.cols // 16) * -(-result.grid.rows // 16) > 20
     for name in ("tiles", "processes"):
         for a, b in zip(runs["one"], runs[name]):
@@ -110,15 +136,20 @@ def test_a_cell_uses_its_best_tier_of_points():
     tier[(x < 50.0) & (y < 50.0)] = 1                               # ... and a corner with no refined point
     z = np.where(tier == 1, z + 5.0, z)                             # the unrefined ones 5 m off
     grid = Grid(0.0, 150.0, 10.0, 20, 15)
-    heights, count, _, _ = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier)
-    refined, _, _, _ = cells_on_grid(x[tier == 0], y[tier == 0], z[tier == 0], None, grid, k=0.0)
-    unrefined, _, _, _ = cells_on_grid(x[tier == 1], y[tier == 1], z[tier == 1], None, grid, k=0.0)
+    heights, count, *_ = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier)
+    refined = cells_on_grid(x[tier == 0], y[tier == 0], z[tier == 0], None, grid, k=0.0).heights
+    unrefined = cells_on_grid(x[tier == 1], y[tier == 1], z[tier == 1], None, grid, k=0.0).heights
     expected = np.where(np.isfinite(refined), refined, unrefined)
     np.testing.assert_array_equal(heights, expected)
     assert np.isnan(refined[10:, :5]).all() and np.isfinite(heights[10:, :5]).all()
     assert count.sum() == (tier == 0).sum() + ((tier == 1) & (x < 50.0) & (y < 50.0)).sum()
-    strict, _, _, _ = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier, fallback=False)
+    strict = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier, fallback=False).heights
     np.testing.assert_array_equal(strict, refined)
+    # with a radius, the refined points a cell away come before a cell's own unrefined ones
+    near = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier, radius=1)
+    around = cells_on_grid(x[tier == 0], y[tier == 0], z[tier == 0], None, grid, k=0.0, radius=1).heights
+    np.testing.assert_array_equal(near.heights, np.where(np.isfinite(around), around, unrefined))
+    assert (near.ring[10, :5] == 1).all() and (near.ring[11:, 4] == 1).all() and (near.ring[11:, :4] == 0).all()
 
 
 def test_gaps_filled_and_flagged(tmp_path):
@@ -139,14 +170,17 @@ def test_gaps_filled_and_flagged(tmp_path):
     before, _, _ = read_raster(tmp_path / "plain.tif")
     mask = gdal.Open(result.mask_path).ReadAsArray()
     # the round hole (no refined point) is filled and flagged; the measured cells are the refined medians
-    assert result.filled == (mask == 1).sum() > 150
+    assert result.filled == (mask == 1).sum() > 80
     assert np.isfinite(dem[mask == 1]).all() and (mask[np.isfinite(before) & ~np.isfinite(dem)] == 255).all()
     gx, gy = result.grid.centres()
-    in_hole = np.hypot(gx - 500060.0, gy - 4800075.0) < 13.0       # the cells wholly inside it
+    in_hole = np.hypot(gx - 500060.0, gy - 4800075.0) < 11.0       # its cells more than a cell (radius 1) inside
     assert (mask[in_hole] == 1).all() and np.abs(dem[in_hole] - (100.0 + 0.1 * (gx[in_hole] - 500000.0))).max() < 1.5
-    # the middle of the strip lies beyond 10 cells of any measured cell: still a gap, flagged 255
+    # the middle of the strip lies beyond 10 cells of any measured cell: still a gap, flagged 255; and the strip,
+    # 30 cells wide, is no gap the measured cells enclose (their closing by 21 cells): none of it is filled
     middle = np.abs(gx - 500160.0) < 8.0
     assert (mask[middle] == 255).all() and np.isnan(dem[middle]).all()
-    assert (mask[mask != 1] != 1).all() and ((mask == 0) == (np.isfinite(dem) & (mask != 1))).all()
+    in_strip = np.abs(gx - 500160.0) < 28.0
+    assert not (mask[in_strip] == 1).any() and (mask[in_strip] == 255).mean() > 0.9
+    assert ((mask != 255) == np.isfinite(dem)).all() and (mask == 2).sum() > 50   # the holes' rims: radius 1
     with pytest.raises(InputError, match="gap filling is for the per-cell DEM"):
         dem_from_point_cloud(cloud, tmp_path / "tin.tif", DemParams(cell=2.0, fill=5.0))
