@@ -32,10 +32,11 @@ import sys
 import tempfile
 
 import numpy as np
-from osgeo import gdal, osr
+from osgeo import gdal
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import transform
+from pushbroom.algorithms.quality.rasters import open_raster, read_grid, warp_to
 from pushbroom.algorithms.quality.statistics import summarize
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.surface.tin_grid import Grid
@@ -114,28 +115,15 @@ def cars(out, images, pairs, resolution, label="CARS 1.3.0"):
     return [{"tool": label, "step": "whole pipeline", "seconds": seconds, "peak MB": peak}], dsm
 
 
-def band(ds):
-    values = ds.GetRasterBand(1).ReadAsArray().astype(float)
-    nodata = ds.GetRasterBand(1).GetNoDataValue()
-    if nodata is not None:
-        values[values == nodata] = np.nan
-    return values
-
-
 def compare(dem, mask, dsm, label, cars_row=True):
     """Rows: the coverage of the Pleiades footprint of Pushbroom's DSM `dem` (with its `mask`; `label` names
     its settings) and of CARS's `dsm` on Pushbroom's grid, and their difference."""
     source = gdal.Open(str(mask)).ReadAsArray()
-    ds = gdal.Open(str(dem))
-    gt, cols, rows = ds.GetGeoTransform(), ds.RasterXSize, ds.RasterYSize
-    ours = band(ds)
-    warped = gdal.Warp("", str(dsm), format="MEM", dstSRS=ds.GetProjection(), outputType=gdal.GDT_Float32,
-                       outputBounds=(gt[0], gt[3] + rows * gt[5], gt[0] + cols * gt[1], gt[3]), width=cols,
-                       height=rows, resampleAlg="bilinear", dstNodata=np.nan)
-    theirs = band(warped)
-    srs = ds.GetSpatialRef()
+    grid = read_grid(open_raster(dem, "Pushbroom's DSM"))
+    ours, (rows, cols), gt = grid.values, grid.shape, grid.geotransform
+    theirs = warp_to(open_raster(dsm, "CARS's DSM"), grid, "bilinear")
     models = [sensors.load(p) for p in IMAGES]
-    inside = footprint_mask(Grid(gt[0], gt[3], gt[1], cols, rows), srs, models, float(np.nanmedian(ours)))
+    inside = footprint_mask(Grid(gt[0], gt[3], gt[1], cols, rows), grid.srs, models, float(np.nanmedian(ours)))
     both = inside & np.isfinite(ours) & np.isfinite(theirs)
     share = {k: 100 * (source == v)[inside].mean() for k, v in (("own", 0), ("around", 2), ("filled", 1))}
     rows = [{"tool": f"Pushbroom, {label}", "step": "coverage of the common footprint",
@@ -168,13 +156,12 @@ def pleiades(tmp):
 
 
 def sample(path, truth):
-    """The raster `path` at the evaluation cells of `truth` (dsm_comparison.Truth; the cell holding each
-    centre; NaN outside or on nodata)."""
-    ds = gdal.Open(str(path))
-    gt, values = ds.GetGeoTransform(), band(ds)
-    srs = ds.GetSpatialRef()
-    srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    xy = transform(truth.srs, srs, np.column_stack([truth.x, truth.y]), "the evaluation cells")
+    """The raster `path` at the evaluation cells of `truth` (dsm_comparison.Truth): the value of the cell holding
+    each centre, NaN outside or on nodata (not quality.height_differences.reference_at_points' bilinear, which
+    leaves the cells next to a gap undefined: the coverage counted would not be the DSM's)."""
+    grid = read_grid(open_raster(path, "a DSM"))
+    gt, values = grid.geotransform, grid.values
+    xy = transform(truth.srs, grid.srs, np.column_stack([truth.x, truth.y]), "the evaluation cells")
     j, i = np.floor((xy[:, 0] - gt[0]) / gt[1]).astype(int), np.floor((xy[:, 1] - gt[3]) / gt[5]).astype(int)
     inside = (i >= 0) & (j >= 0) & (i < values.shape[0]) & (j < values.shape[1])
     out = np.full(len(truth.x), np.nan)

@@ -90,8 +90,7 @@ INPUTS = [
            "are gaps", Number.Double, None, optional=True, minValue=0.0),
     QgsProcessingParameterString("IMAGE_NAME", "Image to orthorectify (name in the block)", "HRG"),
     Number("THREADS", "Workers of the tiled steps (height search, matching, intersection, DEM, orthoimage): threads, "
-           "processes "
-           "or local Dask workers", Number.Integer, 1, minValue=1),
+           "processes or local Dask workers", Number.Integer, 1, minValue=1),
     QgsProcessingParameterEnum("EXECUTION", "Execution of the tiled steps", [EXECUTION_LABELS[b] for b in BACKENDS],
                                defaultValue=0),
     QgsProcessingParameterString("DASK_ADDRESS", "Dask scheduler address of the tiled steps (tcp://host:8786; empty: "

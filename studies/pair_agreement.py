@@ -7,7 +7,7 @@ matched on its own, with the supplied RPCs, by both tools:
 - Pushbroom: dense matching (algorithms/dense, default DenseParams), the LSM-refined points intersected
   (surface.intersection), per-cell medians at 0.5 m (cell_dem.cells_on_grid, RADIUS 1, no fill);
 - CNES CARS 1.3.0 (build/peers/cars, `make bench-peers` installs it): its default pipeline, 0.5 m, heights
-  on the ellipsoid; its DSM warped by GDAL (bilinear) onto Pushbroom's grid.
+  on the ellipsoid; its DSM warped by GDAL (bilinear, quality.rasters.warp_to) onto Pushbroom's grid.
 Per tool, each two pair DSMs' difference over the cells whose centre lies in all three images (at the median
 height): median, NMAD, count. Then, were the pairs' errors independent with standard deviations s_a, s_b,
 s_c, the differences' variances would be s_a^2 + s_b^2 and so on; the three NMADs give the three s^2, and a
@@ -22,21 +22,17 @@ import sys
 import tempfile
 
 import numpy as np
-from osgeo import gdal
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
-from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
-from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.execution import Execution
-from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.quality import rasters
+from pushbroom.algorithms.quality.rasters import open_raster, warp_to
 from pushbroom.algorithms.quality.statistics import summarize
-from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.cell_dem import cells_on_grid
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_grid import Grid
-from scripts.bench_peers import CARS, DATA, band, cars
-from tests.helpers.real_dsm import footprint_mask
+from scripts.bench_peers import CARS, DATA, cars
+from tests.helpers.real_dsm import cut, footprint_mask, refined_dense_points
 
 #: the triplet in the order both tools pair it (the reference first), and the three pairs as indices
 PATHS = [DATA / f"img_0{k}.tif" for k in (2, 1, 3)]
@@ -47,25 +43,11 @@ CELL = 0.5
 
 def pushbroom_pair(models, a, b, folder):
     """(lon, lat, h) of the refined dense points of the pair (a, b)."""
-    parts, _ = match_dense_tiles([Image(PATHS[a]), Image(PATHS[b])], [models[a], models[b]], folder,
-                                 names=[NAMES[a], NAMES[b]], params=DenseParams(),
-                                 height_range=models[a].height_range, execution=Execution("threads", 2))
-    points = np.concatenate([p.points for p in parts])
-    obs = np.concatenate([p.observations for p in parts])
-    obs = obs[np.isin(obs["point_id"], points["id"][np.isfinite(points["rho_min"])])]
-    result = intersection.intersect({1: models[a], 2: models[b]}, obs["image_id"], obs["point_id"], obs["col"],
-                                    obs["row"])
+    points, _ = refined_dense_points([PATHS[a], PATHS[b]], [models[a], models[b]], [NAMES[a], NAMES[b]], folder,
+                                     models[a].height_range)
+    result = cut({1: models[a], 2: models[b]}, points.observations)
     ok = result.ok
     return result.lon[ok], result.lat[ok], result.h[ok]
-
-
-def on_grid(dsm, grid, srs):
-    """CARS's DSM warped onto `grid` in `srs`."""
-    x0, y0 = grid.x0, grid.y0
-    warped = gdal.Warp("", str(dsm), format="MEM", dstSRS=srs.ExportToWkt(), outputType=gdal.GDT_Float32,
-                       outputBounds=(x0, y0 - grid.rows * grid.cell, x0 + grid.cols * grid.cell, y0),
-                       width=grid.cols, height=grid.rows, resampleAlg="bilinear", dstNodata=np.nan)
-    return band(warped)
 
 
 def implied_sigmas(nmad):
@@ -92,7 +74,8 @@ def run():
             dsms["Pushbroom"][pair] = cells_on_grid(px, py, ph, None, grid, radius=1).heights.astype(float)
             _, dsm = cars(tmp / f"cars-{pair[0]}{pair[1]}", {NAMES[k]: PATHS[k] for k in pair},
                           [(NAMES[pair[0]], NAMES[pair[1]])], CELL)
-            dsms["CARS 1.3.0"][pair] = on_grid(dsm, grid, srs)
+            dsms["CARS 1.3.0"][pair] = warp_to(open_raster(dsm, "CARS's DSM"), rasters.Grid(
+                dsms["Pushbroom"][pair], grid.geotransform, srs), "bilinear")
     for tool, pairs in dsms.items():
         nmads = []
         for i, p in enumerate(PAIRS):

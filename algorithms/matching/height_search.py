@@ -111,8 +111,8 @@ def _window_heights(image1, image2, model1, model2, searched, box):
 
 def search_heights(images, models, names=None, feedback=None, execution=None):
     """The terrain height range of a block of `images` (paths or Image) with sensor `models` (module
-    docstring), the windows on `execution` (default: threads, 1 worker): a HeightSearch. Raises InputError
-    where it cannot be found, ExecutionError, CancelledError."""
+    docstring), the windows on `execution` (default Execution()): a HeightSearch. Raises InputError where it
+    cannot be found, ExecutionError, CancelledError."""
     if len(images) < 2:
         raise InputError("the terrain height cannot be found from one image: give a DEM or a mean height")
     names = names or [f"image {k + 1}" for k in range(len(images))]

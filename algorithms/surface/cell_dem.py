@@ -32,15 +32,12 @@ Reference: P. J. Rousseeuw, C. Croux, "Alternatives to the median absolute devia
 from typing import NamedTuple
 
 import numpy as np
-from scipy import ndimage
 
 #: m: the spread below which the outlier test does not tighten (quantised or identical heights)
 MIN_SPREAD = 0.05
 MEDIAN_SE = np.sqrt(np.pi / 2.0)
 #: the ring of a cell without a height
 NO_RING = 255
-#: the rank of a cell without points (beyond any tier and ring; scipy's filters overflow on the int64 maximum)
-NO_RANK = 2 ** 30
 
 
 def _group_medians(key, values):
@@ -80,17 +77,11 @@ def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=Tru
     if not fallback:
         use &= t == 0
     index = np.flatnonzero(use)
-    # each point offered to the cells within `radius` of its own, ring by ring; rank: tier first, then the ring.
-    # Only where a cell within reach lacks a point of the offer's tier on its own (most cells have them), and
-    # an offer to a cell that already has a better rank is dropped at once.
-    best = np.full(grid.rows * grid.cols, NO_RANK, np.int64)
+    # each point offered to the cells within `radius` of its own, ring by ring; rank: tier first, then the ring;
+    # an offer to a cell that already has a better rank is dropped at once
+    best = np.full(grid.rows * grid.cols, np.iinfo(np.int64).max)
     keys, picks, ranks, rings = [], [], [], []
     for ring in range(radius + 1):
-        if ring == 1:
-            inside = (row[index] >= 0) & (col[index] >= 0) & (row[index] < grid.rows) & (col[index] < grid.cols)
-            worst = ndimage.maximum_filter(best.reshape(grid.rows, grid.cols), size=2 * radius + 1, mode="nearest")
-            home = np.where(inside, row[index] * grid.cols + col[index], 0)
-            index = index[~inside | (worst.ravel()[home] > t[index] * (radius + 1))]
         for dr, dc in ((a, b) for a in range(-ring, ring + 1) for b in range(-ring, ring + 1)
                        if max(abs(a), abs(b)) == ring):
             r, c = row[index] + dr, col[index] + dc

@@ -3,7 +3,8 @@
 (surface.intersection), TIN gridding (surface.tin_dem), the comparison with the SRTM tile of the
 Ventoux pair, the common footprint of the triplet, the pairs' differences on one lattice, and the
 triplet DSMs of one matcher with the supplied and the bias-adjusted RPCs (pleiades_scene's image
-order). test_dsm_real.py's docstring gives the reasons for the choices."""
+order), and the points dense matching refined. test_dsm_real.py's docstring gives the reasons for the
+choices."""
 import time
 
 import numpy as np
@@ -12,7 +13,11 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import adjust
 from pushbroom.algorithms.adjustment.observations import tie_observations
 from pushbroom.algorithms.crs import reproject, transform, wgs84
-from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
+from pushbroom.algorithms.dense.params import DenseParams
+from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.matching.imagery import Image, as_image
+from pushbroom.algorithms.matching.points import MultiPoints
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from pushbroom.algorithms.quality.height_differences import dem_differences
 from pushbroom.algorithms.quality.statistics import summarize
@@ -32,6 +37,21 @@ PAIRS = ((0, 1), (0, 2), (1, 2))
 #: the bias adjustment of test_adjust_pleiades: shifts of img_01 and img_03 free (img_02 fixed), 10 px priors
 OTHERS = [f"{LABELS[i]} {k}" for i in (2, 3) for k in ("A0", "B0")]
 PRIORS = {"bias:shift": 10.0}
+
+
+def refined_dense_points(images, models, names, folder, heights):
+    """(MultiPoints of the dense points LSM refined in every position, seconds of the matching): dense matching
+    (default DenseParams, 2 threads) of `images` (paths or Image) with `models` over `heights` (h_min, h_max) in
+    the work `folder`."""
+    t = time.perf_counter()
+    parts, _ = match_dense_tiles([as_image(p) for p in images], models, folder,
+                                 names=names, params=DenseParams(), height_range=tuple(heights),
+                                 execution=Execution("threads", 2))
+    seconds = time.perf_counter() - t
+    points = np.concatenate([p.points for p in parts])
+    observations = np.concatenate([p.observations for p in parts])
+    keep = points[np.isfinite(points["rho_min"])]
+    return MultiPoints(keep, observations[np.isin(observations["point_id"], keep["id"])]), seconds
 
 
 def cut(models, observations, which=None):

@@ -7,17 +7,10 @@ alone, their 0.5 m DSMs' coverage of the common footprint and the pairs' agreeme
 the bias-adjusted RPCs (real_dsm: the adjustment on tie points of the triplet's dense points), beside
 region growing's; issue 22 asks 98 % and NMAD 0.25 m: the figures are printed, the bounds asserted are
 today's, as regression bounds."""
-import time
-
 import numpy as np
 import pytest
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
-from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.execution import Execution
-from pushbroom.algorithms.matching.imagery import Image
-from pushbroom.algorithms.matching.points import MultiPoints
 from tests.helpers.feedback import Feedback
 from tests.helpers.real_dsm import (
     CELL,
@@ -28,29 +21,17 @@ from tests.helpers.real_dsm import (
     footprint_mask,
     pair_differences,
     pair_name,
+    refined_dense_points,
     srtm_comparison,
     stats_row,
 )
 
 
-def refined_points(images, models, names, folder):
-    """MultiPoints of the dense points with an LSM-refined position (every pixel of image 1, over the RPCs'
-    validity range), and the matching's seconds."""
-    t = time.perf_counter()
-    parts, _ = match_dense_tiles(images, models, folder, names=names, params=DenseParams(),
-                                 height_range=models[0].height_range, execution=Execution("threads", 2))
-    seconds = time.perf_counter() - t
-    points = np.concatenate([p.points for p in parts])
-    obs = np.concatenate([p.observations for p in parts])
-    keep = points[np.isfinite(points["rho_min"])]
-    return MultiPoints(keep, obs[np.isin(obs["point_id"], keep["id"])]), seconds
-
-
 def test_ventoux_dense_dsm_against_srtm_beside_region_growing(ventoux_pair, ventoux_region_growing, figures,
                                                              tmp_path):
     models = [sensors.load(p) for p in ventoux_pair]
-    points, seconds = refined_points([Image(p) for p in ventoux_pair], models, [p.stem for p in ventoux_pair],
-                                     tmp_path / "dense")
+    points, seconds = refined_dense_points(ventoux_pair, models, [p.stem for p in ventoux_pair], tmp_path / "dense",
+                                           models[0].height_range)
     result = cut({1: models[0], 2: models[1]}, points.observations)
     (tmp_path / "dsm").mkdir()
     dense = srtm_comparison(result, str(ventoux_pair[0].with_name("N44E005.hgt")), (VENTOUX_CELL,), VENTOUX_CELL,
@@ -73,7 +54,8 @@ def test_triplet_dense_coverage_and_pair_agreement(pleiades_triplet, region_grow
     folders = iter(range(10))
 
     def match(images, models, names):
-        return refined_points(images, models, names, tmp_path / f"dense-{next(folders)}")[0]
+        return refined_dense_points(images, models, names, tmp_path / f"dense-{next(folders)}",
+                                    models[0].height_range)[0]
     dsms = build_triplet_dsms(pleiades_triplet, match, CELL, RG_MAX_EDGE, tmp_path, log)
     rows, coverage = [], {}
     for label, d in (("dense", dsms), ("region growing", region_growing_triplet_dsms)):

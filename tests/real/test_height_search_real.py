@@ -10,9 +10,6 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
-from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.height_search import search_heights
 from pushbroom.algorithms.matching.imagery import Image
@@ -29,6 +26,7 @@ from tests.helpers.real_dsm import (
     cut,
     dsm,
     on_grid,
+    refined_dense_points,
     srtm_comparison,
     stats_row,
 )
@@ -50,11 +48,8 @@ def dense_matched(paths, models, names, heights, folder):
     height: +- 500 m as the block's)."""
     if np.ndim(heights) == 0:
         heights = (heights - 500.0, heights + 500.0)
-    parts, _ = match_dense_tiles([Image(p) for p in paths], models, folder, names=names, params=DenseParams(),
-                                 height_range=tuple(heights), execution=Execution("threads", 2))
-    points = np.concatenate([p.points for p in parts])
-    observations = np.concatenate([p.observations for p in parts])
-    return cut({k + 1: m for k, m in enumerate(models)}, observations, points["id"][np.isfinite(points["rho_min"])])
+    points, _ = refined_dense_points(paths, models, names, folder, heights)
+    return cut({k + 1: m for k, m in enumerate(models)}, points.observations)
 
 
 def found_and_given(paths, names, step, reference, folder=None):
