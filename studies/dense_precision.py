@@ -1,30 +1,44 @@
-"""How honest would the dense points' precision be if each image position carried LSM's error ellipse? On the
-3 km simulated SPOT 5 triplet (HRG, HRS1, HRS2; the DSM's height range +- 100 m), dense matching with the
-default DenseParams but 256 px tiles, the points whose every image-2 position LSM refined, intersected with
-the TRUE models (so the error is the matching's alone) with each matched image's sigma = K x its ellipse's
-semi-major axis / sqrt(2) and the reference image's the smallest of those (the pair's relative error shared
-between its two rays), for K = 1 ... 4: per class and per number of rays, the NMAD of dh / sigma_h and
-RMS(dh) / RMS(sigma_h) (1 is calibrated) against the true DSM."""
+"""Calibration of the refined dense points' precision (dense/precision.py). On a 3 km simulated SPOT 5 triplet
+(HRG, HRS1, HRS2; the DSM's height range +- 100 m), dense matching with the default DenseParams but 256 px
+tiles; the refined points (every matched position refined by LSM) intersected with the TRUE models (so the error
+is the matching's alone) with dense/precision.image_sigmas at F = 1, and the local spread of their heights
+(surface/local_spread.py, R = precision.spread_radius). F_2, F_3 and C are the least-squares fit of dh^2 =
+F_k^2 sigma_h,rays^2 + C^2 s^2 over the open classes (bare fields, crops) of the calibration scene. Then per
+number of rays and open class, over all their points and over those at least 50 m (the template's half-width)
+from forest, city or water: RMS(dh) / RMS(sigma_h) and the NMAD of dh / sigma_h (1 is calibrated), with the
+product's constants, and with F = 1 and no spread term.
+
+Scenes: SceneConfig.small() (seed 1, the calibration) and, to check that the constants carry over, another
+seed and centre (seed 2, 4 km west: small fields among forest)."""
 import tempfile
 
 import numpy as np
 from osgeo import gdal
+from scipy import ndimage
+from scipy.optimize import nnls
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem_store import read_dem
+from pushbroom.algorithms.dense import precision
 from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.geodesy import metres_per_degree
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.surface import intersection
-from studies.dense_fusion import NAMES, class_at
+from pushbroom.algorithms.surface.local_spread import local_metres, local_spread
+from studies.dense_fusion import NAMES
 
-SCALES = (1.0, 2.0, 3.0, 4.0)
 OPEN = {2: "bare", 3: "crops"}
+INTERIOR = 50.0     # m from forest, city or water
+SCENES = {"seed 1 (calibration)": SceneConfig.small(),
+          "seed 2, 4 km west": SceneConfig.small(seed=2, centre_lon=-84.235)}
 
 
-def main():
-    paths = simulate_scene(SceneConfig.small(), tempfile.mkdtemp() + "/scene")
+def scene_errors(config):
+    """Per refined dense point intersected: dh against the true DSM, sigma_h at F = 1, rays, the local spread,
+    the class and the distance (m) to the nearest forest, city or water cell."""
+    paths = simulate_scene(config, tempfile.mkdtemp() + "/scene")
     images = [paths["images"][n]["imagery"] for n in NAMES]
     models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
     truth = {k: sensors.load(paths["truth_metadata"][n]) for k, n in enumerate(NAMES, start=1)}
@@ -32,32 +46,71 @@ def main():
     lo, hi = dsm.height_range
     parts, _ = match_dense_tiles(images, models, tempfile.mkdtemp() + "/dense", params=DenseParams(tile=256),
                                  height_range=(lo - 100.0, hi + 100.0), execution=Execution("threads", 2))
+    points = np.concatenate([p.points for p in parts])
     obs = np.concatenate([p.observations for p in parts])
-    unrefined = np.unique(obs["point_id"][~np.isfinite(obs["semi_major"]) & (obs["image_id"] != 1)])
-    obs = obs[~np.isin(obs["point_id"], unrefined)]
+    keep = points["id"][precision.refined_dense(points)]
+    points, obs = points[np.isin(points["id"], keep)], obs[np.isin(obs["point_id"], keep)]
+    sigma = precision.image_sigmas(points, obs, np.nan, {2: 1.0, 3: 1.0})
+    res = intersection.intersect(truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma=sigma,
+                                 h0=0.5 * (lo + hi))
+    ok = res.ok
+    lon, lat, h = res.lon[ok], res.lat[ok], res.h[ok]
+    centre = (float(np.mean(lon)), float(np.mean(lat)))
+    x, y = local_metres(lon, lat, centre)
+    cols, rows = truth[1].size
+    radius = precision.spread_radius(truth[1], cols / 2, rows / 2, 0.5 * (lo + hi))
     classes = gdal.Open(str(paths["classes"]))
-    _, inverse = np.unique(obs["point_id"], return_inverse=True)
-    matched = obs["image_id"] != 1
-    for scale in SCALES:
-        relative = np.where(matched, scale * obs["semi_major"], np.inf)
-        smallest = np.full(inverse.max() + 1, np.inf)
-        np.minimum.at(smallest, inverse, relative)
-        sigma = np.where(matched, relative, smallest[inverse]) / np.sqrt(2.0)
-        res = intersection.intersect(truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma=sigma,
-                                     h0=0.5 * (lo + hi))
-        ok = res.ok
-        dh = res.h[ok] - dsm.height(res.lon[ok], res.lat[ok])
-        sh = res.sigma[ok, 2]
-        cls = class_at(classes, res.lon[ok], res.lat[ok])
-        line = [f"K {scale:g}"]
-        for k, name in OPEN.items():
-            for rays in (2, 3):
-                m = (cls == k) & (res.rays[ok] == rays)
-                z = dh[m] / sh[m]
-                nmad = 1.4826 * np.median(np.abs(z - np.median(z)))
-                line.append(f"{name} {rays} rays ({m.sum()}): NMAD(dh/s) {nmad:.2f}, RMS ratio "
-                            f"{np.sqrt(np.mean(dh[m] ** 2) / np.mean(sh[m] ** 2)):.2f}")
-        print(" | ".join(line))
+    gt, values = classes.GetGeoTransform(), classes.ReadAsArray()
+    distance = ndimage.distance_transform_edt(np.isin(values, list(OPEN))) * abs(gt[1]) * metres_per_lon(gt)
+    i = np.clip(((lat - gt[3]) / gt[5]).astype(int), 0, values.shape[0] - 1)
+    j = np.clip(((lon - gt[0]) / gt[1]).astype(int), 0, values.shape[1] - 1)
+    return {"dh": h - dsm.height(lon, lat), "sh": res.sigma[ok, 2], "rays": res.rays[ok],
+            "spread": local_spread(x, y, h, x, y, radius), "cls": values[i, j], "distance": distance[i, j],
+            "radius": radius}
+
+
+def metres_per_lon(gt):
+    """Metres per degree of the class raster's columns (its geotransform is in degrees): 1 if projected."""
+    return metres_per_degree(gt[3])[0] if abs(gt[1]) < 1.0 else 1.0
+
+
+def sigma_h(e, calibration, factor):
+    f = np.array([calibration.get(int(k), np.nan) for k in range(4)])[e["rays"]]
+    return precision.with_spread(f * e["sh"], e["spread"], factor)
+
+
+def fit(e):
+    """(F_2, F_3, C) by non-negative least squares of dh^2 over the open classes."""
+    m = np.isin(e["cls"], list(OPEN)) & np.isfinite(e["spread"])
+    a = np.c_[np.where(e["rays"][m] == 2, e["sh"][m] ** 2, 0.0), np.where(e["rays"][m] == 3, e["sh"][m] ** 2, 0.0),
+              e["spread"][m] ** 2]
+    return np.sqrt(nnls(a, e["dh"][m] ** 2)[0])
+
+
+def ratios(e, s, m):
+    z = e["dh"][m] / s[m]
+    return (f"{np.sqrt(np.mean(e['dh'][m] ** 2) / np.mean(s[m] ** 2)):.2f} / "
+            f"{1.4826 * np.median(np.abs(z - np.median(z))):.2f}")
+
+
+def main():
+    for label, config in SCENES.items():
+        e = scene_errors(config)
+        f2, f3, c = fit(e)
+        product = sigma_h(e, precision.CALIBRATION, precision.SPREAD_FACTOR)
+        raw = sigma_h(e, {2: 1.0, 3: 1.0}, 0.0)
+        print(f"\n{label}: R {e['radius']:.1f} m; fitted here F_2 {f2:.2f}, F_3 {f3:.2f}, C {c:.2f}; the product's "
+              f"F {precision.CALIBRATION}, C {precision.SPREAD_FACTOR}")
+        fitted = sigma_h(e, {2: f2, 3: f3}, c)
+        print("| rays, class | points (interior) | product: all; interior | fitted here: all; interior | F = 1, no "
+              "spread: all; interior |\n|---|---|---|---|---|")
+        for rays in (2, 3):
+            for k, name in OPEN.items():
+                m = (e["cls"] == k) & (e["rays"] == rays)
+                inner = m & (e["distance"] >= INTERIOR)
+                print(f"| {rays}, {name} | {m.sum()} ({inner.sum()}) | {ratios(e, product, m)}; "
+                      f"{ratios(e, product, inner)} | {ratios(e, fitted, m)}; {ratios(e, fitted, inner)} | "
+                      f"{ratios(e, raw, m)}; {ratios(e, raw, inner)} |")
 
 
 if __name__ == "__main__":

@@ -56,7 +56,7 @@ def _unit(v):
         return v / n[..., None]
 
 
-def _gsd(model, x, y, h, d1, d2):
+def pixel_gsd(model, x, y, h, d1, d2):
     """Ground metres per px along image directions d1, d2 at (x, y, h), and the pixel's mean GSD
     (the square root of its ground area)."""
     xs = np.array([x, x + d1[0], x + d2[0]])
@@ -197,9 +197,9 @@ def epipolar_grid(model1, model2, box1, height_range, step=16, margin=8):
                          "different directions")
     e = e[0]
     n = np.array([-e[1], e[0]])
-    g1u, g1v, gsd1 = _gsd(model1, pc[0, 0], pc[0, 1], h_m, e, n)
+    g1u, g1v, gsd1 = pixel_gsd(model1, pc[0, 0], pc[0, 1], h_m, e, n)
     t2 = np.column_stack(predict(model1, model2, pc[:, 0] + e[0], pc[:, 1] + e[1], np.array([h_m])))[0] - qc[0]
-    gsd2 = _gsd(model2, qc[0, 0], qc[0, 1], h_m, t2, np.array([-t2[1], t2[0]]))[2]
+    gsd2 = pixel_gsd(model2, qc[0, 0], qc[0, 1], h_m, t2, np.array([-t2[1], t2[0]]))[2]
     gsd = max(gsd1, gsd2)
     su, sv = gsd / g1u, gsd / g1v                  # image-1 px per epipolar px along e1, n1
     # disparity range at the centre, in epipolar px: image-2 parallax over the range / image-2 px per u

@@ -9,9 +9,13 @@ from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
 from pushbroom.algorithms.block import Block
+from pushbroom.algorithms.crs import reproject, srs as srs_of, wgs84
+from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.execution import BACKENDS
 from pushbroom.algorithms.matching.points import DENSE, REFINED
 from pushbroom.algorithms.simulation import SceneConfig
+from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS
+from pushbroom.algorithms.surface.pointcloud import laspy_module
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +26,7 @@ def triplet(simulated, tmp_path_factory):
     dsm = gdal.Open(paths["dsm"]).ReadAsArray()
     lo, hi = float(np.nanmin(dsm)), float(np.nanmax(dsm))
     images = Block.open_images([paths["images"][n]["imagery"] for n in ("HRS2", "HRG", "HRS1")])
-    return {"images": images, "range": (lo - 30.0, hi + 30.0), "folder": folder}
+    return {"images": images, "range": (lo - 30.0, hi + 30.0), "folder": folder, "paths": paths}
 
 
 def make_block(triplet, name, names):
@@ -201,13 +205,26 @@ def test_every_execution_gives_the_same_points_from_qgis_process(pushbroom_provi
         assert points.observations.tobytes() == reference.observations.tobytes(), execution
 
 
-def test_dense_strategy_stores_points_for_the_next_steps(pushbroom_provider, triplet):
-    path = make_block(triplet, "dense.gpkg", ("HRG", "HRS1", "HRS2"))
-    lo, hi = triplet["range"]
-    feedback = QgsProcessingFeedback()
-    result = processing.run("pushbroom:matchpoints", {
-        "BLOCK": path, "STRATEGY": 2, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "DENSE_TILE": 300, "DENSE_STEP": 4,
-        "EXECUTION": BACKENDS.index("processes"), "WORKERS": 2}, context=QgsProcessingContext(), feedback=feedback)
+@pytest.fixture(scope="module")
+def dense_block(triplet):
+    """dense_block() -> (path, the run's result): the triplet's block matched by the dense strategy (every 4th
+    pixel), once per module, by the first test that asks (with the provider registered)."""
+    done = []
+
+    def get():
+        if not done:
+            path = make_block(triplet, "dense.gpkg", ("HRG", "HRS1", "HRS2"))
+            lo, hi = triplet["range"]
+            done.append((path, processing.run("pushbroom:matchpoints", {
+                "BLOCK": path, "STRATEGY": 2, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "DENSE_TILE": 300, "DENSE_STEP": 4,
+                "EXECUTION": BACKENDS.index("processes"), "WORKERS": 2}, context=QgsProcessingContext(),
+                feedback=QgsProcessingFeedback())))
+        return done[0]
+    return get
+
+
+def test_dense_strategy_stores_points_for_the_next_steps(pushbroom_provider, dense_block):
+    path, result = dense_block()
     mass = Block(path).points()
     counts = mass.group_counts()
     cols, rows = 600 // 4, 599 // 4
@@ -216,3 +233,27 @@ def test_dense_strategy_stores_points_for_the_next_steps(pushbroom_provider, tri
     assert np.isfinite(mass.points["rho_min"]).mean() > 0.35          # LSM refined all its positions (43 %)
     layer = QgsVectorLayer(result["POINTS"], "mass", "ogr")
     assert layer.isValid() and layer.featureCount() == len(mass)
+
+
+def test_dense_points_report_a_calibrated_precision(pushbroom_provider, dense_block, triplet, tmp_path, figures):
+    """The refined dense points' sigma_h in the cloud of pushbroom:intersectpoints (the block's models are the
+    truth, so the error is the matching's alone) against their error from the true DSM, on the open classes:
+    RMS(dh) / RMS(sigma_h) within 0.8 ... 1.25 (issue 22; dense/precision.py)."""
+    path, _ = dense_block()
+    out = processing.run("pushbroom:intersectpoints", {"BLOCK": path, "OUTPUT": str(tmp_path / "dense.las")},
+                         context=QgsProcessingContext(), feedback=QgsProcessingFeedback())["OUTPUT"]
+    las = laspy_module().read(out)
+    lon, lat = reproject(np.asarray(las.x), np.asarray(las.y), srs_of("EPSG:32616"), wgs84())
+    paths = triplet["paths"]
+    dh = np.asarray(las.z) - read_dem(paths["dsm"]).height(lon, lat)
+    sigma_h, refined = np.asarray(las["sigma_h"], float), np.isfinite(np.asarray(las["rho"]))
+    classes = gdal.Open(str(paths["classes"]))
+    gt, values = classes.GetGeoTransform(), classes.ReadAsArray()
+    cls = values[((lat - gt[3]) / gt[5]).astype(int).clip(0, values.shape[0] - 1),
+                 ((lon - gt[0]) / gt[1]).astype(int).clip(0, values.shape[1] - 1)]
+    for k in (BARE, CROPS):
+        m = refined & (cls == k) & np.isfinite(dh)
+        ratio = np.sqrt(np.mean(dh[m] ** 2) / np.mean(sigma_h[m] ** 2))
+        figures.report(f"dense points' precision on {CLASSES[k]}, RMS(dh) / RMS(sigma_h)", ratio, "",
+                       f"{m.sum()} refined points, every 4th pixel")
+        assert m.sum() > 1500 and 0.8 <= ratio <= 1.25, (k, m.sum(), ratio)

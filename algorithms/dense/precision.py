@@ -1,0 +1,80 @@
+"""The precision of the refined dense points: LSM's error ellipses and the surface around each point, calibrated
+against the truth.
+
+A dense point is refined when LSM refined every one of its matched positions (dense/refine.py; rho_min finite).
+Its height sigma has two parts:
+
+1. Matching noise. Each refined position carries LSM's error ellipse relative to the template's position,
+   semi-major axis a_i (px of image i). The pair's relative error is shared between its two rays, and the
+   reference image's position is the template that both pairs of a triplet share. The intersection
+   (surface/intersection.py) propagates the image sigmas
+
+       sigma_i = F_k a_i / sqrt(2)   (a matched image i),    sigma_0 = min_i sigma_i   (the reference image)
+
+   (k the point's rays) into the point's sigma_h,rays. F_k calibrates the ellipse, which assumes white
+   residuals where a dense template's are the relief and aliasing inside it (docs/validation.md#lsm-error-
+   ellipse-threshold), and, for three rays, the two pairs' shared template.
+2. The template's surface. A template that sees more than one height (a field beside a forest, a roof, a slope
+   break) measures a mixture of them; that error grows with the heights' spread and no ellipse sees it. With
+   s the local spread of the refined points' heights around the point (surface/local_spread.py, half-width R =
+   SPREAD_RADIUS_PX reference pixels, the default template's half-width):
+
+       sigma_h = sqrt(sigma_h,rays^2 + (C s)^2).
+
+F_2, F_3 and C are fitted on the simulated 3 km SPOT 5 triplet against its truth (least squares of dh^2 on
+the open classes, `studies/dense_precision.py`; figures and the check on a second scene in
+studies/README.md#dense_precision). They hold for LSM's default template (19 px).
+
+Every other point (unrefined dense points, region growing's, coarse-to-fine's, tie points) keeps the one a
+priori image sigma given, and no spread term."""
+import numpy as np
+
+from ..matching.points import DENSE
+from .epipolar import pixel_gsd
+
+#: F_k by number of rays (module docstring; studies/README.md#dense_precision)
+CALIBRATION = {2: 1.6, 3: 1.8}
+#: C, the spread term's factor (module docstring)
+SPREAD_FACTOR = 0.5
+#: px of the reference image: the spread's half-width R, the default template's (19 px) half-width
+SPREAD_RADIUS_PX = 9.5
+
+
+def image_sigmas(points, observations, default, calibration=None):
+    """Per observation (OBS_DTYPE rows sorted by point id, of the POINT_DTYPE `points`), the a priori sigma
+    (px) for the intersection: the module docstring's for the refined dense points, `default` elsewhere.
+    `calibration`: F_k by number of rays, default CALIBRATION."""
+    calibration = CALIBRATION if calibration is None else calibration
+    sigma = np.full(len(observations), float(default))
+    if len(observations) == 0 or len(points) == 0:
+        return sigma
+    slot = np.searchsorted(points["id"], observations["point_id"]).clip(max=len(points) - 1)
+    refined = refined_dense(points)[slot]
+    matched = np.isfinite(observations["rho"])
+    if not refined.any():
+        return sigma
+    relative = np.where(matched, observations["semi_major"] / np.sqrt(2.0), np.inf)
+    smallest = np.full(len(points), np.inf)
+    np.minimum.at(smallest, slot, relative)
+    rays = np.bincount(slot, minlength=len(points))
+    factor = np.array([calibration.get(k, np.nan) for k in range(rays.max() + 1)])[rays[slot]]
+    own = factor * np.where(matched, relative, smallest[slot])
+    use = refined & np.isfinite(own) & (own > 0)
+    sigma[use] = own[use]
+    return sigma
+
+
+def refined_dense(points):
+    """Per POINT_DTYPE row, whether it is a refined dense point (module docstring)."""
+    return ((points["flags"] & DENSE) != 0) & np.isfinite(points["rho_min"])
+
+
+def spread_radius(model, col, row, h):
+    """R (m): SPREAD_RADIUS_PX pixels of the reference image `model` at (col, row, h)."""
+    return SPREAD_RADIUS_PX * pixel_gsd(model, float(col), float(row), float(h), (1.0, 0.0), (0.0, 1.0))[2]
+
+
+def with_spread(sigma_h, spread, factor=SPREAD_FACTOR):
+    """sigma_h with the template's surface term (module docstring); unchanged where the spread is NaN."""
+    extra = np.where(np.isfinite(spread), factor * np.asarray(spread, float), 0.0)
+    return np.sqrt(np.square(sigma_h) + extra * extra)
