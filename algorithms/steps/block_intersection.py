@@ -10,14 +10,14 @@ workers, not the scene, and the cloud does not depend on the execution (parts ke
 
 Precision: the refined dense points are intersected with image sigmas from LSM's error ellipses, and their
 sigma_h takes the template's surface term (dense/precision.py), from the local spread of the refined points'
-heights (surface/local_spread.py): a second round of tasks, each part with the refined points of the parts
-beside it, so a part's spread does not depend on the tiling. Every other point has the one a priori image
-sigma given.
+heights. Every other point has the one a priori image sigma given. Optionally (outlier_neighbours k > 0) the
+statistical outlier removal leaves out the points whose mean distance to their k nearest points is beyond the
+cloud's mu + n s (surface/outlier_filter.py). Both are a second round of tasks, each part with the points of
+the parts beside it (cloud_neighbourhood.py).
 
 Points that cannot be intersected are left out and counted in the log, which also gives per point group the
 count and the median sigmas (intersection.Summary; sigma_h before the surface term). Storage: the points are
 read from the block (Block.point_parts) and the step is recorded in its block_info (Block.update_info)."""
-import functools
 import os
 from dataclasses import dataclass, field
 
@@ -30,12 +30,13 @@ from ..block.points import load_arrays
 from ..dense import precision
 from ..errors import InputError
 from ..execution import Execution, run_tasks
-from ..geodesy import metres_per_degree
 from ..height_range import mean_height
 from ..sigmas import IMAGE_SIGMA
-from ..surface import intersection, pointcloud
-from ..surface.local_spread import local_metres, local_spread, reach_m
+from ..surface import intersection, outlier_filter, pointcloud
+from .cloud_neighbourhood import second_round
 
+#: the most neighbours the outlier removal takes
+MAX_NEIGHBOURS = 100
 #: the block's point sets that can be intersected
 KINDS = ("mass_points", "tie_points")
 
@@ -48,6 +49,8 @@ class IntersectParams:
     crs: str = None                 # output CRS (authority id or WKT); None: the block's UTM zone
     sigma: float = IMAGE_SIGMA      # px: a priori sigma of the image coordinates
     max_iterations: int = 10        # per point
+    outlier_neighbours: int = 0     # k of the statistical outlier removal (surface/outlier_filter.py); 0: off
+    outlier_factor: float = outlier_filter.FACTOR   # its n: d > mu + n s is an outlier
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the parts run
 
     def check(self):
@@ -56,6 +59,9 @@ class IntersectParams:
             raise InputError(f"the points must be one of {', '.join(KINDS)}, got {self.kind!r}")
         if self.sigma <= 0 or self.max_iterations < 1:
             raise InputError("the image sigma must be positive and the iterations at least 1")
+        if not (0 <= self.outlier_neighbours <= MAX_NEIGHBOURS and self.outlier_factor > 0):
+            raise InputError(f"the outlier removal needs 0 (off) to {MAX_NEIGHBOURS} neighbours and a positive factor, "
+                             f"got {self.outlier_neighbours} and {self.outlier_factor}")
         self.execution.check()
         return self
 
@@ -74,8 +80,9 @@ def _intersect_part(job, part, out):
     """Task: intersect the points of the part file `part` (block/points.py) with `job` = (models, h0,
     sigma, max_iter, what) and write the converged ones (lon, lat, h and the cloud fields) to `out`.
     Returns a small summary: points, written, status counts, intersection.Summary, sums of lon, lat and h; and
-    of its refined dense points (precision.refined_dense, marked in `out`.refined.npy): their count, bounding
-    box (lon, lon, lat, lat) and the image id of their template (the reference image)."""
+    the bounding box (lon, lon, lat, lat) of its points; the count of its refined dense points
+    (precision.refined_dense, marked in `out`.refined.npy) and the image id of their template (the reference
+    image)."""
     models, h0, sigma, max_iter, what = job
     multi = load_arrays(part)
     obs = multi.observations
@@ -100,52 +107,13 @@ def _intersect_part(job, part, out):
     done = {"points": len(result), "written": int(ok.sum()), "status": result.status_counts(),
             "summary": intersection.Summary().add(result, group),
             "lonlat": (float(lon.sum()), float(lat.sum()), float(h.sum())), "refined": int(refined.sum())}
+    if ok.any():
+        done["box"] = (float(lon.min()), float(lon.max()), float(lat.min()), float(lat.max()))
     if refined.any():
         save_array(out + ".refined.npy", refined, "the intersected parts")
         template = obs["image_id"][np.isin(obs["point_id"], result.point[ok][refined]) & np.isnan(obs["rho"])]
-        done.update(box=(float(lon[refined].min()), float(lon[refined].max()), float(lat[refined].min()),
-                         float(lat[refined].max())), reference=int(np.bincount(template).argmax()))
+        done["reference"] = int(np.bincount(template).argmax())
     return done
-
-
-def _spread_part(job, k):
-    """Task, round 2: part k's refined dense points with the template's surface term in sigma_h
-    (precision.with_spread of the local spread of the refined points of the parts whose boxes lie within
-    `margin` degrees of part k's), written beside it; returns that file. `job`: (part files, their boxes or
-    None, centre (lon, lat), R m, margin (dlon, dlat))."""
-    files, boxes, centre, radius, margin = job
-    lon, lat, h, fields = pointcloud.load_part(files[k])
-    own = np.load(files[k] + ".refined.npy")
-    box = boxes[k]
-    near = [j for j, b in enumerate(boxes) if b is not None and b[0] <= box[1] + margin[0]
-            and b[1] >= box[0] - margin[0] and b[2] <= box[3] + margin[1] and b[3] >= box[2] - margin[1]]
-    context = [(p[0][m], p[1][m], p[2][m]) for p, m in
-               ((pointcloud.load_part(files[j]), np.load(files[j] + ".refined.npy")) for j in near)]
-    x, y = local_metres(np.concatenate([c[0] for c in context]), np.concatenate([c[1] for c in context]), centre)
-    qx, qy = local_metres(lon[own], lat[own], centre)
-    spread = local_spread(x, y, np.concatenate([c[2] for c in context]), qx, qy, radius)
-    fields["sigma_h"][own] = precision.with_spread(fields["sigma_h"][own], spread).astype(np.float32)
-    return pointcloud.save_part(files[k][:-len(".npz")] + "-spread.npz", lon, lat, h, fields)
-
-
-def _with_spread(files, done, models, centre, mean_h, execution, feedback):
-    """The part files, those with refined dense points replaced by round 2's (_spread_part); `centre` (lon,
-    lat) and `mean_h` of the cloud."""
-    refined = [k for k, d in enumerate(done) if d["refined"]]
-    if not refined:
-        return files
-    reference = models[int(np.bincount([done[k]["reference"] for k in refined]).argmax())]
-    col, row = reference.ground_to_image(np.array([centre[0]]), np.array([centre[1]]), np.array([mean_h]))
-    radius = precision.spread_radius(reference, col[0], row[0], mean_h)
-    east, north = metres_per_degree(centre[1])
-    margin = 1.01 * reach_m(radius)         # and 1 % for the local frame's approximation of the ellipsoid
-    job = (files, [d.get("box") for d in done], centre, radius, (margin / east, margin / north))
-    spread = run_tasks(_spread_part, [(job, k) for k in refined], execution, feedback,
-                       "the dense points' precision")
-    out = list(files)
-    for k, path in zip(refined, spread):
-        out[k] = path
-    return out
 
 
 def intersect_block_points(block_path, output, params=None, feedback=None):
@@ -186,11 +154,11 @@ def intersect_block_points(block_path, output, params=None, feedback=None):
                              "models and the points")
         centre, mean_h = (tuple(sum(d["lonlat"][i] for d in done) / written for i in range(2)),
                           sum(d["lonlat"][2] for d in done) / written)
-        files = _with_spread(files, done, models, centre, mean_h, params.execution,
-                             progress.scaled(feedback, 70, 80))
-        kept = [f for f, d in zip(files, done) if d["written"]]
+        loaders, written = second_round(files, done, models, centre, mean_h, params.outlier_neighbours,
+                                        params.outlier_factor, params.execution, progress.scaled(feedback, 70, 80),
+                                        log)
         out, srs, fmt = pointcloud.write_point_cloud_parts(
-            output, [functools.partial(pointcloud.load_part, f) for f in kept], written, centre=centre,
+            output, [load for load, d in zip(loaders, done) if d["written"]], written, centre=centre,
             crs=params.crs or blk.info().get("default_crs"), feedback=progress.scaled(feedback, 80, 100))
     message = f"{written} points written to {out} ({srs.GetName()}; z ellipsoidal height)"
     log.pushInfo(message)

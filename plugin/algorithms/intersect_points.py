@@ -11,7 +11,7 @@ from qgis.core import (
     QgsProcessingParameterNumber,
 )
 
-from ...algorithms.steps.block_intersection import IntersectParams, intersect_block_points
+from ...algorithms.steps.block_intersection import MAX_NEIGHBOURS, IntersectParams, intersect_block_points
 from ..styles import load_styled
 from .base import PushbroomAlgorithm, execution_choice, execution_parameters
 
@@ -26,7 +26,8 @@ class IntersectPoints(PushbroomAlgorithm):
     DISPLAY_NAME = "Intersect points (point cloud)"
     GROUP_ID = "surface"
 
-    KEYS = "BLOCK POINTS CRS SIGMA MAX_ITERATIONS EXECUTION DASK_ADDRESS WORKERS OUTPUT LAYER COUNT"
+    KEYS = ("BLOCK POINTS CRS SIGMA MAX_ITERATIONS OUTLIER_NEIGHBOURS OUTLIER_FACTOR EXECUTION DASK_ADDRESS WORKERS "
+            "OUTPUT LAYER COUNT")
 
     def initAlgorithm(self, config=None):
         d, tr = IntersectParams(), self.tr
@@ -39,6 +40,10 @@ class IntersectPoints(PushbroomAlgorithm):
             Number(self.SIGMA, tr("Sigma of the image coordinates (px)"), Number.Double, d.sigma, minValue=1e-6),
             Number(self.MAX_ITERATIONS, tr("Maximum iterations per point"), Number.Integer, d.max_iterations,
                    minValue=1),
+            Number(self.OUTLIER_NEIGHBOURS, tr("Statistical outlier removal: neighbours k (0: off)"), Number.Integer,
+                   d.outlier_neighbours, minValue=0, maxValue=MAX_NEIGHBOURS),
+            Number(self.OUTLIER_FACTOR, tr("Statistical outlier removal: factor n (mean distance > mu + n sigma)"),
+                   Number.Double, d.outlier_factor, minValue=0.1),
             *execution_parameters(self, d.execution.workers),
         ])
         self.addParameter(QgsProcessingParameterFileDestination(
@@ -49,7 +54,8 @@ class IntersectPoints(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         values = self.parameterValues(parameters, context, kind=self.POINTS, sigma=self.SIGMA,
-                                      max_iterations=self.MAX_ITERATIONS)
+                                      max_iterations=self.MAX_ITERATIONS, outlier_neighbours=self.OUTLIER_NEIGHBOURS,
+                                      outlier_factor=self.OUTLIER_FACTOR)
         values["kind"] = KINDS[values["kind"]][0]
         params = IntersectParams(crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
                                  execution=execution_choice(self, parameters, context), **values)

@@ -15,6 +15,8 @@ from pushbroom.algorithms.execution import BACKENDS
 from pushbroom.algorithms.matching.points import DENSE, REFINED
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS
+from pushbroom.algorithms.surface.local_spread import local_metres
+from pushbroom.algorithms.surface.outlier_filter import mean_distances, threshold
 from pushbroom.algorithms.surface.pointcloud import laspy_module
 
 
@@ -257,3 +259,30 @@ def test_dense_points_report_a_calibrated_precision(pushbroom_provider, dense_bl
         figures.report(f"dense points' precision on {CLASSES[k]}, RMS(dh) / RMS(sigma_h)", ratio, "",
                        f"{m.sum()} refined points, every 4th pixel")
         assert m.sum() > 1500 and 0.8 <= ratio <= 1.25, (k, m.sum(), ratio)
+
+
+def test_statistical_outlier_removal_of_the_dense_cloud(pushbroom_provider, dense_block, triplet, tmp_path,
+                                                        figures):
+    """pushbroom:intersectpoints with OUTLIER_NEIGHBOURS 20 removes the points a single whole-cloud computation
+    (outlier_filter on all the points at once, in the same local frame) removes, although it runs part by part;
+    and those points are mostly blunders against the true DSM."""
+    path, _ = dense_block()
+    feedback = QgsProcessingFeedback()
+    clouds = [processing.run("pushbroom:intersectpoints", {"BLOCK": path, "OUTPUT": str(tmp_path / f"k{k}.las"),
+                                                           "OUTLIER_NEIGHBOURS": k, "OUTLIER_FACTOR": 3.0},
+                             context=QgsProcessingContext(), feedback=feedback)["OUTPUT"] for k in (0, 20)]
+    every, kept = (laspy_module().read(c) for c in clouds)
+    lon, lat = reproject(np.asarray(every.x), np.asarray(every.y), srs_of("EPSG:32616"), wgs84())
+    x, y = local_metres(lon, lat, (lon.mean(), lat.mean()))
+    xyz = np.c_[x, y, np.asarray(every.z)]
+    d = mean_distances(xyz, xyz, 20)
+    expected = d > threshold(d.size, d.sum(), np.square(d).sum(), 3.0)
+    removed = ~np.isin(np.asarray(every["point_id"]), np.asarray(kept["point_id"]))
+    assert len(Block(path).point_parts("mass_points")) == 4 and 0.005 < removed.mean() < 0.05
+    assert np.count_nonzero(removed != expected) <= 0.01 * expected.sum()    # the LAS's mm rounding at the limit
+    dh = np.asarray(every.z) - read_dem(triplet["paths"]["dsm"]).height(lon, lat)
+    blunder = np.abs(dh) > 10.0
+    figures.report("statistical outlier removal (k 20, n 3) of the dense cloud, removed", removed.mean() * 100, "%",
+                   f"{blunder[removed].mean() * 100:.1f} % of them 10 m or more off the true DSM, "
+                   f"{blunder.mean() * 100:.1f} % of the cloud")
+    assert blunder[removed].mean() > 5 * blunder.mean()
