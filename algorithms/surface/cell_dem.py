@@ -17,12 +17,15 @@ size empty by sampling alone (points fall two to a cell here, none there); CARS'
 reads the points within one cell (its dsm_radius). The ring each cell used is returned: 0 its own points.
 A cell with no point within r is NaN (a gap), never filled here.
 
-Tiers: where the points carry a `tier` (0 the most precise: dense points LSM refined, or any sparse point; 1
-those it left at the semi-global position), a cell uses only the points of the best tier it has (the tier
-first, then the ring: a refined point a cell away is preferred to an unrefined one of the cell's own); with
-`fallback` off, no point of a tier above 0 is used (such a cell is a gap). studies/dense_fusion.py measures
-why: the unrefined points' heights are worse than the refined ones' everywhere but in the city, and worse
-than interpolating the refined cells on bare fields, crops and forest.
+Tiers: where the points carry a `tier` (THREE_RAYS: refined and intersected from three or more rays, or any
+sparse point; TWO_RAYS: refined, two rays; UNREFINED: a dense point LSM left at the semi-global position), a
+cell uses only the points of the best tier it has (the tier first, then the ring: a three-ray point a cell away
+is preferred to a two-ray one of the cell's own, and a refined one to an unrefined one); with `fallback` off,
+no UNREFINED point is used (such a cell is a gap). studies/dense_fusion.py measures why the unrefined points
+come last: their heights are worse than the refined ones' everywhere but in the city, and worse than
+interpolating the refined cells on bare fields, crops and forest. Three rays come before two: their wider base
+and their redundancy give the better heights (docs/validation.md#dense-peers: the simulated triplet's bare
+fields).
 
 The TIN (tin_dem.py) suits sparse points, which it interpolates between; a dense cloud has several points
 per cell, whose median resists mismatches and follows height steps within a cell's width.
@@ -38,6 +41,8 @@ MIN_SPREAD = 0.05
 MEDIAN_SE = np.sqrt(np.pi / 2.0)
 #: the ring of a cell without a height
 NO_RING = 255
+#: tiers of points (module docstring)
+THREE_RAYS, TWO_RAYS, UNREFINED = 0, 1, 2
 
 
 def _group_medians(key, values):
@@ -75,7 +80,7 @@ def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=Tru
     use = np.isfinite(z)
     t = np.zeros(x.size, np.int64) if tier is None else np.asarray(tier).astype(np.int64)
     if not fallback:
-        use &= t == 0
+        use &= t < UNREFINED
     index = np.flatnonzero(use)
     # each point offered to the cells within `radius` of its own, ring by ring; rank: tier first, then the ring;
     # an offer to a cell that already has a better rank is dropped at once

@@ -29,11 +29,12 @@ cloud.
 Method "cells" (dense points): each point goes to every tile within DemParams.radius cells of its own cell
 (a margin of radius + 1/2 cells; ownership by cell), and each tile is one task of cell_dem.cells_on_grid
 (per-cell medians after the per-cell outlier test, k = DemParams.k; a cell uses its best tier of points: the
-refined dense points where it has one, and the unrefined ones only with DemParams.fallback; an empty cell the
-points of the cells within the radius); steps 3 and 4 do not apply. Besides the precision raster it can write
-the count of points per cell, and a mask raster of what each cell is: its own points' median, its
-neighbours', filled, or a gap (gap_fill.py). With DemParams.fill, the gaps within that many cells of measured
-ones are filled, and the mask is always written (by default beside the DEM): filling is never silent.
+refined three-ray points, then the refined two-ray ones, and the unrefined dense ones only with
+DemParams.fallback; an empty cell the points of the cells within the radius); steps 3 and 4 do not apply.
+Besides the precision raster it can write the count of points per cell, and a mask raster of what each cell
+is: its own points' median, its neighbours', filled, or a gap (gap_fill.py). With DemParams.fill, the gaps
+within that many cells of measured ones are filled, and the mask is always written (by default beside the
+DEM): filling is never silent.
 
 Failure modes: tin_dem's InputErrors (settings, no CRS, points outside the output CRS, no defined
 cell), ExecutionError from the execution, CancelledError; nothing is left under an output name
@@ -52,7 +53,7 @@ from ..crs import srs as parse_crs, transform
 from ..errors import CancelledError, InputError
 from ..execution import run_tasks, session
 from ..tiling import tile_grid
-from .cell_dem import cells_on_grid
+from .cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, cells_on_grid
 from .gap_fill import fill_gaps
 from .geotiff import assemble_tiles, write_float_raster
 from .point_input import point_chunks, read_breaklines
@@ -65,7 +66,8 @@ MARGIN_EDGES = 4.0
 #: points read at a time
 CHUNK = 1_000_000
 #: a point in a work file: output CRS coordinates, ellipsoidal height, sigma_h (NaN: none), sampled for the spacing,
-#: tier (cell_dem: 1 a dense point LSM left unrefined, its rho NaN; else 0)
+#: tier (cell_dem: UNREFINED a dense point LSM left unrefined, its rho NaN; TWO_RAYS a point of two rays; else
+#: THREE_RAYS)
 POINT = np.dtype([("x", "f8"), ("y", "f8"), ("z", "f8"), ("sigma", "f8"), ("sample", "?"), ("tier", "u1")])
 
 
@@ -123,6 +125,17 @@ def _centre(path, crs, feedback):
     return count, sx / count, sy / count, srs, sigma
 
 
+def _tiers(fields, finite):
+    """cell_dem's tier of the `finite` points of a chunk from its cloud fields rho and rays (module docstring);
+    THREE_RAYS where the cloud has neither."""
+    tier = np.full(int(finite.sum()), THREE_RAYS, np.uint8)
+    if fields.get("rays") is not None:
+        tier[np.asarray(fields["rays"])[finite] == 2] = TWO_RAYS
+    if fields.get("rho") is not None:
+        tier[np.isnan(np.asarray(fields["rho"], float)[finite])] = UNREFINED
+    return tier
+
+
 def _to_work_chunks(path, crs, target, count, work, feedback):
     """Write the finite points of the cloud in the output CRS `target` as work chunks (POINT); returns
     (chunk files, bounds (xmin, ymin, xmax, ymax))."""
@@ -142,8 +155,7 @@ def _to_work_chunks(path, crs, target, count, work, feedback):
         rows["x"], rows["y"], rows["z"] = pts.x[finite], pts.y[finite], pts.z[finite]
         rows["sigma"] = pts.sigma_h[finite] if pts.sigma_h is not None else np.nan
         rows["sample"] = np.isin(np.arange(seen, seen + len(rows)), sample)
-        rho = pts.fields.get("rho")
-        rows["tier"] = np.isnan(rho[finite]) if rho is not None else 0
+        rows["tier"] = _tiers(pts.fields, finite)
         seen += len(rows)
         if len(rows):
             lo = np.minimum(lo, [rows["x"].min(), rows["y"].min()])

@@ -8,7 +8,7 @@ from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.surface import pointcloud
-from pushbroom.algorithms.surface.cell_dem import MEDIAN_SE, MIN_SPREAD, cells_on_grid
+from pushbroom.algorithms.surface.cell_dem import MEDIAN_SE, MIN_SPREAD, THREE_RAYS, TWO_RAYS, UNREFINED, cells_on_grid
 from pushbroom.algorithms.surface.dem_tiles import dem_from_point_cloud
 from pushbroom.algorithms.surface.tin_dem import DemParams
 from pushbroom.algorithms.surface.tin_grid import Grid
@@ -132,23 +132,32 @@ def test_wrong_combinations_are_clear_errors(tmp_path):
 def test_a_cell_uses_its_best_tier_of_points():
     x, y, z, _ = dense_points(outliers=0)
     rng = np.random.default_rng(5)
-    tier = (rng.uniform(size=x.size) < 0.6).astype(np.uint8)       # 60 % unrefined ...
-    tier[(x < 50.0) & (y < 50.0)] = 1                               # ... and a corner with no refined point
-    z = np.where(tier == 1, z + 5.0, z)                             # the unrefined ones 5 m off
+    tier = np.digitize(rng.uniform(size=x.size), [0.4, 0.7]).astype(np.uint8)     # 40 % three rays, 30 % two
+    tier[(x < 50.0) & (y < 50.0) & (tier == THREE_RAYS)] = TWO_RAYS               # a corner without three rays
+    tier[(x > 150.0) & (y > 100.0)] = UNREFINED                                    # and one with no refined point
+    z = z + np.array([0.0, 2.0, 5.0])[tier]                                        # each tier its own offset
     grid = Grid(0.0, 150.0, 10.0, 20, 15)
+
+    def first_finite(*layers):
+        out = np.full(layers[0].shape, np.nan, np.float32)
+        for layer in layers:
+            out = np.where(np.isfinite(out), out, layer)
+        return out
+
+    def alone(t, radius=0):
+        m = tier == t
+        return cells_on_grid(x[m], y[m], z[m], None, grid, k=0.0, radius=radius).heights
+
     heights, count, *_ = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier)
-    refined = cells_on_grid(x[tier == 0], y[tier == 0], z[tier == 0], None, grid, k=0.0).heights
-    unrefined = cells_on_grid(x[tier == 1], y[tier == 1], z[tier == 1], None, grid, k=0.0).heights
-    expected = np.where(np.isfinite(refined), refined, unrefined)
-    np.testing.assert_array_equal(heights, expected)
-    assert np.isnan(refined[10:, :5]).all() and np.isfinite(heights[10:, :5]).all()
-    assert count.sum() == (tier == 0).sum() + ((tier == 1) & (x < 50.0) & (y < 50.0)).sum()
+    np.testing.assert_array_equal(heights, first_finite(alone(0), alone(1), alone(2)))
+    assert np.isnan(alone(0)[10:, :5]).all() and np.isfinite(alone(1)[10:, :5]).all()
+    assert np.isnan(alone(1)[:5, 15:]).all() and np.isfinite(heights[:5, 15:]).all()
     strict = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier, fallback=False).heights
-    np.testing.assert_array_equal(strict, refined)
-    # with a radius, the refined points a cell away come before a cell's own unrefined ones
+    np.testing.assert_array_equal(strict, first_finite(alone(0), alone(1)))
+    assert np.isnan(strict[:5, 15:]).all()
+    # with a radius, a better tier a cell away comes before a cell's own worse one
     near = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier, radius=1)
-    around = cells_on_grid(x[tier == 0], y[tier == 0], z[tier == 0], None, grid, k=0.0, radius=1).heights
-    np.testing.assert_array_equal(near.heights, np.where(np.isfinite(around), around, unrefined))
+    np.testing.assert_array_equal(near.heights, first_finite(alone(0, 1), alone(1, 1), alone(2, 1)))
     assert (near.ring[10, :5] == 1).all() and (near.ring[11:, 4] == 1).all() and (near.ring[11:, :4] == 0).all()
 
 
