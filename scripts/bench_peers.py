@@ -2,8 +2,9 @@
 the real Pleiades triplet and on the simulated 3 km SPOT 5 triplet.
 
 Pushbroom, each step one `qgis_process run` with 2 threads: createblock (no DEM, no height: the range is found
-by matching), matchpoints (STRATEGY 2, dense, every pixel of the first image; region growing, STRATEGY 0, beside
-it on the simulated scene), intersectpoints, interpolatedem. The dense DEM is the dense pipeline model's
+by matching), matchpoints (STRATEGY 2, dense, every pixel of the first image; again with DENSE_MPGC, the MPGC refinement of
+the three-ray points; region growing, STRATEGY 0, beside them on the simulated scene), intersectpoints,
+interpolatedem. The dense DEM is the dense pipeline model's
 (resources/models/pushbroom_pipeline_dense.model3): per-cell medians of the LSM-refined points, an empty cell the
 points of the cells around it (RADIUS 1), the gaps within 10 cells filled and flagged in the mask raster. A
 second, untimed interpolatedem of the same cloud takes every point instead (FALLBACK: a cell without refined
@@ -67,19 +68,22 @@ def qgis_steps(steps, env, label):
 DENSE_MODEL = ["METHOD=1", "FALLBACK=false", "FILL=10"]
 EVERY_POINT = ["METHOD=1"]
 TIN = ["METHOD=0"]
+#: matchpoints' dense strategy with the MPGC refinement of a triplet's three-ray points
+MPGC = ["DENSE_MPGC=true"]
 
 
-def chain(out, images, strategy, cell, surface, orientation=(), label="Pushbroom"):
+def chain(out, images, strategy, cell, surface, orientation=(), label="Pushbroom", match=()):
     """(rows, DEM, mask or None, block) of Pushbroom's chain: createblock with no DEM and no height
-    (`orientation` files, or those beside the images), matchpoints with `strategy` (2 dense, 0 region growing),
-    intersectpoints, and interpolatedem with the `surface` settings (surface_step)."""
+    (`orientation` files, or those beside the images), matchpoints with `strategy` (2 dense, 0 region growing)
+    and the further arguments `match`, intersectpoints, and interpolatedem with the `surface` settings
+    (surface_step)."""
     block, cloud = out / "block.gpkg", out / "points.las"
     tiled = ["EXECUTION=0", f"WORKERS={WORKERS}"]
     kind = "dense" if strategy == 2 else "region growing"
     steps = [("createblock", ["pushbroom:createblock", "--", *(f"IMAGES={p}" for p in images),
                               *(f"ORIENTATION={p}" for p in orientation), *tiled, f"OUTPUT={block}"]),
-             (f"matchpoints ({kind})", ["pushbroom:matchpoints", "--", f"BLOCK={block}", f"STRATEGY={strategy}",
-                                        *tiled]),
+             (f"matchpoints ({kind}{''.join(' ' + a for a in match)})",
+              ["pushbroom:matchpoints", "--", f"BLOCK={block}", f"STRATEGY={strategy}", *match, *tiled]),
              ("intersectpoints", ["pushbroom:intersectpoints", "--", f"BLOCK={block}", "POINTS=0", *tiled,
                                   f"OUTPUT={cloud}"])]
     out.mkdir(parents=True, exist_ok=True)
@@ -152,7 +156,14 @@ def pleiades(tmp):
     total = sum(r["seconds"] for r in ours)
     rows = ours + [{"tool": "Pushbroom", "step": "total", "seconds": total}] + theirs
     rows.append({"tool": "CARS / Pushbroom", "step": "time ratio", "value": f"{theirs[0]['seconds'] / total:.2f}"})
-    return rows + compare(dem, mask, dsm, "refined, filled") + compare(every, every_mask, dsm, "every point", False)
+    mpgc, mpgc_dem, mpgc_mask, _ = chain(tmp / "mpgc", IMAGES, 2, 0.5, DENSE_MODEL, label="Pushbroom MPGC",
+                                         match=MPGC)
+    mpgc_total = sum(r["seconds"] for r in mpgc)
+    rows += mpgc + [{"tool": "Pushbroom MPGC", "step": "total", "seconds": mpgc_total},
+                    {"tool": "CARS / Pushbroom MPGC", "step": "time ratio",
+                     "value": f"{theirs[0]['seconds'] / mpgc_total:.2f}"}]
+    return (rows + compare(dem, mask, dsm, "refined, filled") + compare(every, every_mask, dsm, "every point", False)
+            + compare(mpgc_dem, mpgc_mask, dsm, "MPGC, refined, filled", False))
 
 
 def sample(path, truth):
@@ -175,9 +186,10 @@ def simulated(tmp):
     images = [paths["images"][n]["imagery"] for n in NAMES]
     orientation = [paths["truth_metadata"][n] for n in NAMES]
     rows, dems = [], {}
-    for label, strategy, surface in (("dense", 2, DENSE_MODEL), ("region growing", 0, TIN)):
-        steps, dems[label], _, block = chain(tmp / label, images, strategy, CELL, surface, orientation,
-                                             f"Pushbroom {label}")
+    for label, strategy, surface, match in (("dense", 2, DENSE_MODEL, ()), ("dense MPGC", 2, DENSE_MODEL, MPGC),
+                                            ("region growing", 0, TIN, ())):
+        steps, dems[label], _, block = chain(tmp / label.replace(" ", "-"), images, strategy, CELL, surface,
+                                             orientation, f"Pushbroom {label}", match)
         rows += steps + [{"tool": f"Pushbroom {label}", "step": "total", "seconds": sum(r["seconds"] for r in steps)}]
     _, dems["dense, every point"], _ = surface_step(tmp / "dense", tmp / "dense" / "points.las", CELL, EVERY_POINT,
                                                     "Pushbroom dense (untimed)")

@@ -9,11 +9,13 @@ matched on its own, with the supplied RPCs, by both tools:
 - CNES CARS 1.3.0 (build/peers/cars, `make bench-peers` installs it): its default pipeline, 0.5 m, heights
   on the ellipsoid; its DSM warped by GDAL (bilinear, quality.rasters.warp_to) onto Pushbroom's grid.
 Per tool, each two pair DSMs' difference over the cells whose centre lies in all three images (at the median
-height): median, NMAD, count. Then, were the pairs' errors independent with standard deviations s_a, s_b,
-s_c, the differences' variances would be s_a^2 + s_b^2 and so on; the three NMADs give the three s^2, and a
-negative one shows that two pairs' errors are correlated: img_02-img_01 and img_02-img_03 share the reference
-image, seen from opposite sides, so an error of the reference's template moves their heights in opposite
-directions and adds up in their difference.
+height): median, NMAD, count; and, with each pair's height per px of parallax (m_a, from the RPCs at the scene
+centre), the parallax precision per pair that NMAD means were the pairs independent and equally precise in px,
+NMAD / sqrt(m_a^2 + m_b^2), beside what 0.25 m would need. Then, were the pairs' errors independent with
+standard deviations s_a, s_b, s_c, the differences' variances would be s_a^2 + s_b^2 and so on; the three
+NMADs give the three s^2, and a negative one shows that two pairs' errors are correlated: img_02-img_01 and
+img_02-img_03 share the reference image, seen from opposite sides, so an error of the reference's template
+moves their heights in opposite directions and adds up in their difference.
 
     QT_QPA_PLATFORM=offscreen .venv/bin/python -m studies.pair_agreement
 """
@@ -50,6 +52,17 @@ def pushbroom_pair(models, a, b, folder):
     return result.lon[ok], result.lat[ok], result.h[ok]
 
 
+def metres_per_px(models, a, b):
+    """Height (m) per px of parallax of the pair (a, b) at the reference image's centre and the RPCs' mean
+    height: the pair's image motions for 1 m up, their difference's length."""
+    cols, rows = models[0].size
+    h = float(np.mean(models[0].height_range))
+    lon, lat = models[0].image_to_ground(np.array([cols / 2]), np.array([rows / 2]), np.array([h]))
+    motion = [np.subtract(models[k].ground_to_image(lon, lat, np.array([h + 1.0])),
+                          models[k].ground_to_image(lon, lat, np.array([h]))).ravel() for k in (a, b)]
+    return 1.0 / float(np.hypot(*(motion[1] - motion[0])))
+
+
 def implied_sigmas(nmad):
     """s^2 of the three pairs from the NMADs of (a-b, a-c, b-c) were their errors independent."""
     ab, ac, bc = (v * v for v in nmad)
@@ -76,14 +89,19 @@ def run():
                           [(NAMES[pair[0]], NAMES[pair[1]])], CELL)
             dsms["CARS 1.3.0"][pair] = warp_to(open_raster(dsm, "CARS's DSM"), rasters.Grid(
                 dsms["Pushbroom"][pair], grid.geotransform, srs), "bilinear")
+    scale = {p: metres_per_px(models, *p) for p in PAIRS}
+    for p, m in scale.items():
+        print(f"{NAMES[p[0]]}-{NAMES[p[1]]}: {m:.2f} m of height per px of parallax")
     for tool, pairs in dsms.items():
         nmads = []
         for i, p in enumerate(PAIRS):
             for q in PAIRS[i + 1:]:
                 s = summarize((pairs[p] - pairs[q])[inside])
                 nmads.append(s.nmad)
+                px = s.nmad / np.hypot(scale[p], scale[q])     # each pair's parallax NMAD, were they independent
                 print(f"{tool}: {NAMES[p[0]]}-{NAMES[p[1]]} minus {NAMES[q[0]]}-{NAMES[q[1]]}: N {s.n}, median "
-                      f"{s.median:+.3f} m, NMAD {s.nmad:.3f} m")
+                      f"{s.median:+.3f} m, NMAD {s.nmad:.3f} m: {px:.3f} px of parallax per pair (0.25 m needs "
+                      f"{0.25 / np.hypot(scale[p], scale[q]):.3f} px)")
         print(f"{tool}: implied s^2 of the pairs were their errors independent: "
               + ", ".join(f"{NAMES[p[0]]}-{NAMES[p[1]]} {v:+.4f} m^2" for p, v in zip(PAIRS, implied_sigmas(nmads))))
 

@@ -26,8 +26,11 @@ import numpy as np
 from .. import progress
 from ..atomic import save_array, work_dir
 from ..execution import run_tasks, session
-from ..matching.block_tiles import block_inputs, first_ids
-from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, MultiPoints
+from ..matching.block_tiles import BIAS_SAMPLE, block_inputs, first_ids
+from ..matching.orientation_bias import affine_bias
+from ..matching.params import GrowParams
+from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, REFINED, MultiPoints
+from ..matching.refinement import MIN_POINTS, refine_three_ray
 from ..tiling import tile_grid
 from .pair_tile import match_pair_tile
 from .params import DenseParams
@@ -43,6 +46,7 @@ class DenseJob(NamedTuple):
     params: DenseParams
     height_range: object
     write_part: object      # write_part(folder, k, MultiPoints) -> index entry (module-level), or None
+    bias: object = None     # DenseParams.mpgc: (corrected models, systematic px) of the scene's sample
 
 
 def tile_points(job, box):
@@ -96,23 +100,53 @@ def tile_points(job, box):
     return MultiPoints(points, obs), infos
 
 
-def _dense_tile(job, box, out):
-    """Task, round 1: the tile's points to the work file `out`; returns its counts."""
+def _dense_tile(job, box, out, quota):
+    """Task, round 1: the tile's points to the work file `out`; returns its counts, and with DenseParams.mpgc
+    the image positions of up to `quota` of its refined three-ray points (the orientation bias's sample)."""
     multi, infos = tile_points(job, box)
     save_array(out + ".points.npy", multi.points, "the matched tiles")
     save_array(out + ".observations.npy", multi.observations, "the matched tiles")
+    three = np.flatnonzero((multi.points["group"] == 2) & np.isfinite(multi.points["rho_min"]))
+    take = three[np.unique(np.linspace(0, three.size - 1, min(three.size, quota)).astype(int))] if three.size \
+        else three
+    sample = tuple(np.array(v)[:, take] for v in zip(*(multi.coordinates(i) for i in job.image_ids)))
     return {"points": len(multi), "group_2": int((multi.points["group"] == 2).sum()),
             "seeds": [i["seeds"] for i in infos], "row_offset": [i["row_offset"] for i in infos],
-            "refined": sum(i["refined"] for i in infos)}
+            "refined": sum(i["refined"] for i in infos), "sample": sample}
 
 
 def _finish_tile(job, pre, first_id, k, folder):
-    """Task, round 2: the work file's points numbered from first_id, as the k-th part of `folder` (or
-    returned without a write_part)."""
+    """Task, round 2: the work file's points numbered from first_id, their three-ray points refined by MPGC
+    where job.bias is set (_mpgc), as the k-th part of `folder` (or returned without a write_part). Returns (the
+    part, the points MPGC refined)."""
     multi = MultiPoints(np.load(pre + ".points.npy"), np.load(pre + ".observations.npy"))
     multi.points["id"] += first_id - 1
     multi.observations["point_id"] += first_id - 1
-    return multi if job.write_part is None else job.write_part(folder, k, multi)
+    refined = _mpgc(job, multi) if job.bias is not None else 0
+    return (multi if job.write_part is None else job.write_part(folder, k, multi)), refined
+
+
+def _mpgc(job, multi):
+    """MPGC refinement of the three-ray points of `multi` in place (refinement.refine_three_ray with the scene's
+    orientation bias, LSM's template and largest shift of DenseParams): a point MPGC accepts takes its search
+    positions, correlations and error ellipses, the flag REFINED and rho_a, rho_b, rho_min from them (so it
+    counts as refined even where the pairwise LSM had left a semi-global position). Returns the count."""
+    p = job.params
+    grow = GrowParams(template=p.template, max_shift=p.max_shift)
+    count = refine_three_ray(multi, job.images, job.models, job.image_ids, job.height_range, grow, bias=job.bias,
+                             group=2)
+    done = np.flatnonzero(multi.points["flags"] & REFINED)
+    if done.size:
+        obs = multi.observations
+        rho = []
+        for image_id in job.image_ids[1:]:
+            mine = obs[obs["image_id"] == image_id]
+            values = np.full(len(multi.points), np.nan, np.float32)
+            values[np.searchsorted(multi.points["id"], mine["point_id"])] = mine["rho"]
+            rho.append(values[done])
+        multi.points["rho_a"][done], multi.points["rho_b"][done] = rho
+        multi.points["rho_min"][done] = np.minimum(*rho)
+    return count
 
 
 def match_dense_tiles(images, models, folder, write_part=None, names=None, image_ids=None, params=None,
@@ -128,14 +162,21 @@ def match_dense_tiles(images, models, folder, write_part=None, names=None, image
     log = progress.ensure(feedback)
     log.pushInfo(f"dense matching: {len(tiles)} tile(s) of {params.tile} px, a point every {params.step} px of "
                  f"{names[0]}; pairs " + ", ".join(f"{names[0]} - {names[k]}" for k in range(1, n)))
+    mpgc = params.mpgc and n == 3
+    nodes = np.array([(b[1] - b[0]) * (b[3] - b[2]) for b in tiles], float)
+    quotas = np.ceil(BIAS_SAMPLE * nodes / max(nodes.sum(), 1.0)).astype(int) if mpgc else np.zeros(len(tiles), int)
     with work_dir(folder, "the matched tiles") as work, session(execution):
         pre = [os.path.join(work, f"tile-{k:05d}") for k in range(len(tiles))]
-        first = run_tasks(_dense_tile, [(job, box, out) for box, out in zip(tiles, pre)], execution,
-                          progress.scaled(feedback, 0, 90), "dense matching")
+        first = run_tasks(_dense_tile, [(job, box, out, int(q)) for box, out, q in zip(tiles, pre, quotas)],
+                          execution, progress.scaled(feedback, 0, 80 if mpgc else 90), "dense matching")
         counts = [t["points"] for t in first]
-        parts = run_tasks(_finish_tile, [(job, out, int(i), k, folder)
-                                         for k, (out, i) in enumerate(zip(pre, first_ids(counts)))], execution,
-                          progress.scaled(feedback, 90, 100), "numbering the points")
+        if mpgc:
+            job = job._replace(bias=_scene_bias(job, first, feedback))
+        done = run_tasks(_finish_tile, [(job, out, int(i), k, folder)
+                                        for k, (out, i) in enumerate(zip(pre, first_ids(counts)))], execution,
+                         progress.scaled(feedback, 80 if mpgc else 90, 100),
+                         "MPGC and numbering the points" if job.bias is not None else "numbering the points")
+        parts = [part for part, _ in done]
     empty = [k for k, c in enumerate(counts) if c == 0]
     if empty:
         progress.warn(feedback, f"{len(empty)} of {len(tiles)} tile(s) gave no point (no texture, or no overlap): "
@@ -143,7 +184,23 @@ def match_dense_tiles(images, models, folder, write_part=None, names=None, image
     stats = {"images": image_ids, "strategy": "dense", "points": int(sum(counts)),
              "group_2": int(sum(t["group_2"] for t in first)),
              "seeds": int(sum(sum(t["seeds"]) for t in first)), "refined": int(sum(t["refined"] for t in first))}
+    if job.bias is not None:
+        stats["refined_mpgc"] = int(sum(r for _, r in done))
     log.pushInfo(f"dense matching: {stats['points']} points"
                  + (f", {stats['group_2']} of them in three images" if n == 3 else "")
-                 + (f"; {stats['refined']} image positions refined by LSM" if params.refine else ""))
+                 + (f"; {stats['refined']} image positions refined by LSM" if params.refine else "")
+                 + (f"; {stats['refined_mpgc']} three-ray points refined by MPGC" if job.bias is not None else ""))
     return parts, stats
+
+
+def _scene_bias(job, first, feedback):
+    """(corrected models, systematic px) of orientation_bias.affine_bias fitted to the sampled refined three-ray
+    points of round 1, or None (and a warning) for fewer than refinement.MIN_POINTS."""
+    cols, rows = (np.concatenate([t["sample"][i] for t in first], axis=-1) for i in range(2))
+    if cols.shape[-1] < MIN_POINTS:
+        progress.warn(feedback, f"MPGC needs at least {MIN_POINTS} refined three-ray points to fit the orientation's "
+                                f"bias; the dense matching has {cols.shape[-1]}: the points keep their pairwise LSM "
+                                "positions")
+        return None
+    corrected, _, systematic = affine_bias(job.models, cols, rows)
+    return corrected, systematic

@@ -46,15 +46,16 @@ MIN_POINTS = 50
 SUPPORT_CENTRE, SUPPORT_SIMILARITY = 5.0, 1.0
 
 
-def refine_three_ray(points, images, models, image_ids, height_range, grow=None, feedback=None, bias=None):
-    """MPGC refinement of the group 3 points of `points` (MultiPoints of combinations.combine;
+def refine_three_ray(points, images, models, image_ids, height_range, grow=None, feedback=None, bias=None, group=3):
+    """MPGC refinement of the `group` points (three rays: region growing's 3, dense matching's 2) of `points`
+    (MultiPoints of combinations.combine or dense/block_tiles.py;
     images and models in combination order, `image_ids` their block ids, `grow` the GrowParams of
     the matching). `bias`: (corrected models, systematic px) of orientation_bias.affine_bias fitted to
     the points of the whole scene (block_tiles.py: the points of one tile are refined with it), else
     fitted here to `points`. Returns the number of points refined; `points` is changed in place
     (module docstring)."""
     grow = grow or GrowParams()
-    g3 = np.flatnonzero(points.points["group"] == 3)
+    g3 = np.flatnonzero(points.points["group"] == group)
     if g3.size < (MIN_POINTS if bias is None else 1):
         return 0
     cols, rows = (np.array(v) for v in zip(*(points.coordinates(i) for i in image_ids)))

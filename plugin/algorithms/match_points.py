@@ -38,7 +38,7 @@ class MatchPoints(PushbroomAlgorithm):
     KEYS = ("BLOCK STRATEGY IMAGES MIN_HEIGHT MAX_HEIGHT SEEDS TEMPLATE STEP WIDE_TEMPLATE RHO_MIN MAX_ELLIPSE "
             "MAX_SHIFT MAX_ITERATIONS TILE SIGMA_FACTOR GROW_SECOND MPGC_REFINE MPGC_SUPPORT "
             "EXECUTION DASK_ADDRESS WORKERS COARSE_TO_FINE_GRID COARSE_TO_FINE_RHO_MIN COARSE_TO_FINE_TILE "
-            "COARSE_TO_FINE_EDGE_POINTS DENSE_TILE DENSE_STEP DENSE_REFINE DENSE_P1 DENSE_P2 SUMMARY "
+            "COARSE_TO_FINE_EDGE_POINTS DENSE_TILE DENSE_STEP DENSE_REFINE DENSE_MPGC DENSE_P1 DENSE_P2 SUMMARY "
             "POINTS POINTS_FILE")
 
     def initAlgorithm(self, config=None):
@@ -93,6 +93,9 @@ class MatchPoints(PushbroomAlgorithm):
                    minValue=1),
             QgsProcessingParameterBoolean(self.DENSE_REFINE, tr("Dense: refine the positions by LSM in the original "
                                                                 "images (TEMPLATE px)"), e.refine),
+            QgsProcessingParameterBoolean(self.DENSE_MPGC, tr("Dense: refine a triplet's three-ray points by MPGC "
+                                                              "(more and better points, matching about 4x slower)"),
+                                          e.mpgc),
             Number(self.DENSE_P1, tr("Dense: SGM penalty P1 (a disparity change of 1 px)"), Number.Double, e.sgm.p1,
                    minValue=0.0),
             Number(self.DENSE_P2, tr("Dense: SGM penalty P2 (a larger change)"), Number.Double, e.sgm.p2,
@@ -114,7 +117,7 @@ class MatchPoints(PushbroomAlgorithm):
             parameters, context, grid=self.COARSE_TO_FINE_GRID, rho_min=self.COARSE_TO_FINE_RHO_MIN,
             tile=self.COARSE_TO_FINE_TILE, edge_points=self.COARSE_TO_FINE_EDGE_POINTS))
         dense = self.parameterValues(parameters, context, tile=self.DENSE_TILE, step=self.DENSE_STEP,
-                                     refine=self.DENSE_REFINE, template=self.TEMPLATE)
+                                     refine=self.DENSE_REFINE, mpgc=self.DENSE_MPGC, template=self.TEMPLATE)
         sgm = SgmParams(**self.parameterValues(parameters, context, p1=self.DENSE_P1, p2=self.DENSE_P2))
         values = self.parameterValues(
             parameters, context, images=self.IMAGES, min_height=self.MIN_HEIGHT, max_height=self.MAX_HEIGHT,
