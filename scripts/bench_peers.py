@@ -2,9 +2,9 @@
 the real Pleiades triplet and on the simulated 3 km SPOT 5 triplet.
 
 Pushbroom, each step one `qgis_process run` with 2 threads: createblock (no DEM, no height: the range is found
-by matching), matchpoints (STRATEGY 2, dense, every pixel of the first image; again with DENSE_MPGC, the MPGC refinement of
-the three-ray points; region growing, STRATEGY 0, beside them on the simulated scene), intersectpoints,
-interpolatedem. The dense DEM is the dense pipeline model's
+by matching), matchpoints (STRATEGY 2, dense, every pixel of the first image; again with DENSE_MPGC, the MPGC
+refinement of the three-ray points; region growing, STRATEGY 0, beside them on the simulated scene),
+intersectpoints, interpolatedem. The dense DEM is the dense pipeline model's
 (resources/models/pushbroom_pipeline_dense.model3): per-cell medians of the LSM-refined points, an empty cell the
 points of the cells around it (RADIUS 1), the gaps within 10 cells filled and flagged in the mask raster. A
 second, untimed interpolatedem of the same cloud takes every point instead (FALLBACK: a cell without refined

@@ -209,19 +209,20 @@ def test_every_execution_gives_the_same_points_from_qgis_process(pushbroom_provi
 
 @pytest.fixture(scope="module")
 def dense_block(triplet):
-    """dense_block() -> (path, the run's result): the triplet's block matched by the dense strategy (every 4th
-    pixel), once per module, by the first test that asks (with the provider registered)."""
-    done = []
+    """dense_block(mpgc=False) -> (path, the run's result): the triplet's block matched by the dense strategy
+    (every 4th pixel; with DENSE_MPGC or not), once per module, by the first test that asks (with the provider
+    registered)."""
+    done = {}
 
-    def get():
-        if not done:
-            path = make_block(triplet, "dense.gpkg", ("HRG", "HRS1", "HRS2"))
+    def get(mpgc=False):
+        if mpgc not in done:
+            path = make_block(triplet, f"dense-{mpgc}.gpkg", ("HRG", "HRS1", "HRS2"))
             lo, hi = triplet["range"]
-            done.append((path, processing.run("pushbroom:matchpoints", {
+            done[mpgc] = (path, processing.run("pushbroom:matchpoints", {
                 "BLOCK": path, "STRATEGY": 2, "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "DENSE_TILE": 300, "DENSE_STEP": 4,
-                "EXECUTION": BACKENDS.index("processes"), "WORKERS": 2}, context=QgsProcessingContext(),
-                feedback=QgsProcessingFeedback())))
-        return done[0]
+                "DENSE_MPGC": mpgc, "EXECUTION": BACKENDS.index("processes"), "WORKERS": 2},
+                context=QgsProcessingContext(), feedback=QgsProcessingFeedback()))
+        return done[mpgc]
     return get
 
 
@@ -237,11 +238,12 @@ def test_dense_strategy_stores_points_for_the_next_steps(pushbroom_provider, den
     assert layer.isValid() and layer.featureCount() == len(mass)
 
 
-def test_dense_points_report_a_calibrated_precision(pushbroom_provider, dense_block, triplet, tmp_path, figures):
+@pytest.mark.parametrize("mpgc", [False, True], ids=["pairwise LSM", "MPGC"])
+def test_dense_points_report_a_calibrated_precision(pushbroom_provider, dense_block, triplet, tmp_path, figures, mpgc):
     """The refined dense points' sigma_h in the cloud of pushbroom:intersectpoints (the block's models are the
     truth, so the error is the matching's alone) against their error from the true DSM, on the open classes:
-    RMS(dh) / RMS(sigma_h) within 0.8 ... 1.25 (issue 22; dense/precision.py)."""
-    path, _ = dense_block()
+    RMS(dh) / RMS(sigma_h) within 0.8 ... 1.25 (issue 22; dense/precision.py), refined pairwise or by MPGC."""
+    path, _ = dense_block(mpgc)
     out = processing.run("pushbroom:intersectpoints", {"BLOCK": path, "OUTPUT": str(tmp_path / "dense.las")},
                          context=QgsProcessingContext(), feedback=QgsProcessingFeedback())["OUTPUT"]
     las = laspy_module().read(out)
@@ -256,7 +258,8 @@ def test_dense_points_report_a_calibrated_precision(pushbroom_provider, dense_bl
     for k in (BARE, CROPS):
         m = refined & (cls == k) & np.isfinite(dh)
         ratio = np.sqrt(np.mean(dh[m] ** 2) / np.mean(sigma_h[m] ** 2))
-        figures.report(f"dense points' precision on {CLASSES[k]}, RMS(dh) / RMS(sigma_h)", ratio, "",
+        figures.report(f"dense points' precision ({'MPGC' if mpgc else 'pairwise LSM'}) on {CLASSES[k]}, RMS(dh) / "
+                       "RMS(sigma_h)", ratio, "",
                        f"{m.sum()} refined points, every 4th pixel")
         assert m.sum() > 1500 and 0.8 <= ratio <= 1.25, (k, m.sum(), ratio)
 
