@@ -17,7 +17,9 @@ NMADs give the three s^2, and a negative one shows that two pairs' errors are co
 img_02-img_03 share the reference image, seen from opposite sides, so an error of the reference's template
 moves their heights in opposite directions and adds up in their difference.
 
-    QT_QPA_PLATFORM=offscreen .venv/bin/python -m studies.pair_agreement
+    QT_QPA_PLATFORM=offscreen .venv/bin/python -m studies.pair_agreement [TEMPLATE ...]
+
+(Pushbroom at each LSM template size given in px, default 19.)
 """
 import pathlib
 import sys
@@ -27,6 +29,7 @@ import numpy as np
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
+from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.quality import rasters
 from pushbroom.algorithms.quality.rasters import open_raster, warp_to
 from pushbroom.algorithms.quality.statistics import summarize
@@ -43,10 +46,10 @@ PAIRS = ((0, 1), (0, 2), (1, 2))
 CELL = 0.5
 
 
-def pushbroom_pair(models, a, b, folder):
-    """(lon, lat, h) of the refined dense points of the pair (a, b)."""
+def pushbroom_pair(models, a, b, folder, template):
+    """(lon, lat, h) of the refined dense points of the pair (a, b), LSM's template `template` px."""
     points, _ = refined_dense_points([PATHS[a], PATHS[b]], [models[a], models[b]], [NAMES[a], NAMES[b]], folder,
-                                     models[a].height_range)
+                                     models[a].height_range, DenseParams(template=template))
     result = cut({1: models[a], 2: models[b]}, points.observations)
     ok = result.ok
     return result.lon[ok], result.lat[ok], result.h[ok]
@@ -69,26 +72,33 @@ def implied_sigmas(nmad):
     return ((ab + ac - bc) / 2, (ab + bc - ac) / 2, (ac + bc - ab) / 2)
 
 
-def run():
+def run(templates=(19,)):
+    """The study (module docstring) with Pushbroom's LSM template at each of `templates` px."""
     if not CARS.exists():
         sys.exit(f"{CARS} is missing: run make bench-peers, which installs CARS 1.3.0 into build/peers/cars")
     models = [sensors.load(p) for p in PATHS]
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
-        clouds = {pair: pushbroom_pair(models, *pair, tmp / f"dense-{pair[0]}{pair[1]}") for pair in PAIRS}
-        lon, lat, h = (np.concatenate([c[k] for c in clouds.values()]) for k in range(3))
+        clouds = {t: {pair: pushbroom_pair(models, *pair, tmp / f"dense-{t}-{pair[0]}{pair[1]}", t) for pair in PAIRS}
+                  for t in templates}
+        first = clouds[templates[0]]
+        lon, lat, h = (np.concatenate([c[k] for c in first.values()]) for k in range(3))
         srs = output_srs(None, lon, lat)
         x, y = reproject(lon, lat, wgs84(), srs)
         grid = Grid.covering(x, y, CELL)
         inside = footprint_mask(grid, srs, models, float(np.median(h)))
-        dsms = {"Pushbroom": {}, "CARS 1.3.0": {}}
-        for pair, (plon, plat, ph) in clouds.items():
-            px, py = reproject(plon, plat, wgs84(), srs)
-            dsms["Pushbroom"][pair] = cells_on_grid(px, py, ph, None, grid, radius=1).heights.astype(float)
+        dsms = {f"Pushbroom, {t} px template": {} for t in templates}
+        for t in templates:
+            for pair, (plon, plat, ph) in clouds[t].items():
+                px, py = reproject(plon, plat, wgs84(), srs)
+                dsms[f"Pushbroom, {t} px template"][pair] = cells_on_grid(px, py, ph, None, grid,
+                                                                          radius=1).heights.astype(float)
+        dsms["CARS 1.3.0"] = {}
+        for pair in PAIRS:
             _, dsm = cars(tmp / f"cars-{pair[0]}{pair[1]}", {NAMES[k]: PATHS[k] for k in pair},
                           [(NAMES[pair[0]], NAMES[pair[1]])], CELL)
             dsms["CARS 1.3.0"][pair] = warp_to(open_raster(dsm, "CARS's DSM"), rasters.Grid(
-                dsms["Pushbroom"][pair], grid.geotransform, srs), "bilinear")
+                np.zeros((grid.rows, grid.cols)), grid.geotransform, srs), "bilinear")
     scale = {p: metres_per_px(models, *p) for p in PAIRS}
     for p, m in scale.items():
         print(f"{NAMES[p[0]]}-{NAMES[p[1]]}: {m:.2f} m of height per px of parallax")
@@ -107,4 +117,4 @@ def run():
 
 
 if __name__ == "__main__":
-    run()
+    run(tuple(int(a) for a in sys.argv[1:]) or (19,))

@@ -39,13 +39,13 @@ OTHERS = [f"{LABELS[i]} {k}" for i in (2, 3) for k in ("A0", "B0")]
 PRIORS = {"bias:shift": 10.0}
 
 
-def refined_dense_points(images, models, names, folder, heights):
+def refined_dense_points(images, models, names, folder, heights, params=None):
     """(MultiPoints of the dense points LSM refined in every position, seconds of the matching): dense matching
-    (default DenseParams, 2 threads) of `images` (paths or Image) with `models` over `heights` (h_min, h_max) in
-    the work `folder`."""
+    (DenseParams `params`, default the defaults; 2 threads) of `images` (paths or Image) with `models` over
+    `heights` (h_min, h_max) in the work `folder`."""
     t = time.perf_counter()
     parts, _ = match_dense_tiles([as_image(p) for p in images], models, folder,
-                                 names=names, params=DenseParams(), height_range=tuple(heights),
+                                 names=names, params=params or DenseParams(), height_range=tuple(heights),
                                  execution=Execution("threads", 2))
     seconds = time.perf_counter() - t
     points = np.concatenate([p.points for p in parts])
