@@ -15,8 +15,12 @@ feature take tens of seconds, a single BLOB hits SQLite's 1 GB value limit near 
 rewrites the whole database page chain, while an .npz of the structured arrays is written and read at
 disk speed (tests/benchmarks/bench_points.py) and loads straight into the arrays the adjustment and the
 surface steps use. For display, the points are also written as a point layer into the block
-(`write_point_layer`), which can be rebuilt from the sidecar at any time (most of that time is OGR
-building the R-tree spatial index).
+(`write_point_layer`), which can be rebuilt from the sidecar at any time (most of that time is SQLite
+building the R-tree spatial index, about 10 s per million points). A set of more than DISPLAY_POINTS points
+is shown by a uniform subsample of about that many (a point is shown where its id, hashed by Knuth's
+multiplicative hash, falls below the share): dense matching gives about one point per pixel, hundreds of
+millions over a scene, which no display needs and whose layer would take longer to build than the matching.
+The stored points are always all of them.
 
 Versioned storage: a store never overwrites what the block references. The new sidecar gets a new name
 (and is written as a whole: atomic.atomic_dir); the new point layer is built under a staged name
@@ -56,6 +60,8 @@ PART_POINTS = 262_144
 GPKG_POINT_DTYPE = np.dtype([("magic", "S2"), ("version", "u1"), ("flags", "u1"), ("srs_id", "<i4"),
                              ("order", "u1"), ("type", "<u4"), ("x", "<f8"), ("y", "<f8")])
 KINDS = ("mass_points", "tie_points")
+#: the most points a display layer shows (module docstring)
+DISPLAY_POINTS = 250_000
 #: the step that makes each kind (named in errors)
 MAKERS = {"mass_points": "pushbroom:matchpoints", "tie_points": "pushbroom:selecttiepoints"}
 
@@ -339,13 +345,19 @@ def _write_layer(block_path, layer_name, points, model, image_id, height, feedba
             layer.CreateField(ogr.FieldDefn(name, kind))
     progress.step(feedback, 10)
     parts = _parts_of(points)
+    index = None if isinstance(points, MultiPoints) else read_index(points)
+    total = index["points"] if index is not None else sum(len(p if isinstance(p, MultiPoints) else p()) for p in parts)
+    share = min(1.0, DISPLAY_POINTS / max(total, 1))
+    if share < 1.0:
+        progress.ensure(feedback).pushInfo(f"the layer {layer_name} shows a uniform {100 * share:.1f} % of the "
+                                           f"{total} points (at most {DISPLAY_POINTS}: display only; all are stored)")
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     try:
         with contextlib.closing(sqlite3.connect(os.fspath(block_path), timeout=schema.BUSY_TIMEOUT_MS / 1000)) as db:
             with db:
                 for k, part in enumerate(parts):
                     part = part if isinstance(part, MultiPoints) else part()
-                    lon, lat = _insert_rows(db, layer_name, part, model, image_id, height)
+                    lon, lat = _insert_rows(db, layer_name, part, model, image_id, height, share)
                     if len(lon):
                         lo = np.minimum(lo, [lon.min(), lat.min()])
                         hi = np.maximum(hi, [lon.max(), lat.max()])
@@ -363,10 +375,13 @@ def _write_layer(block_path, layer_name, points, model, image_id, height, feedba
     progress.step(feedback, 100)
 
 
-def _insert_rows(db, layer_name, points, model, image_id, height):
-    """Insert the rows of `points` seen in image `image_id` into the layer through `db`; returns their
-    (lon, lat)."""
+def _insert_rows(db, layer_name, points, model, image_id, height, share=1.0):
+    """Insert the rows of `points` seen in image `image_id` into the layer through `db`, of a `share` < 1
+    those whose hashed id falls below it (module docstring); returns their (lon, lat)."""
     ids, col, row = points.observations_of(image_id)
+    if share < 1.0:
+        shown = (ids.astype(np.uint64) * np.uint64(2654435761)) % np.uint64(2 ** 32) < np.uint64(share * 2 ** 32)
+        ids, col, row = ids[shown], col[shown], row[shown]
     # rows in a spatially coherent order (strips of 64 px): the R-tree builds several times faster
     order = np.lexsort((col, np.floor(row / 64.0)))
     ids, col, row = ids[order], col[order], row[order]

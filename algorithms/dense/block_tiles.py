@@ -34,7 +34,7 @@ from ..matching.refinement import MIN_POINTS, refine_three_ray
 from ..tiling import tile_grid
 from .pair_tile import match_pair_tile
 from .params import DenseParams
-from .refine import refine_positions
+from .refine import isolated, refine_positions
 
 
 class DenseJob(NamedTuple):
@@ -60,8 +60,13 @@ def tile_points(job, box):
         nan = np.full(x2.size, np.nan, np.float32)
         q = (nan, nan, nan)
         if p.refine:
-            x2, y2, *q = refine_positions(job.images[0], job.images[k], job.models[0], job.models[k], x1, y1, x2,
-                                          y2, info["grid"].heights[::2], p.template, p.max_shift)
+            rx, ry, *q = refine_positions(job.images[0], job.images[k], job.models[0], job.models[k], x1, y1, x2,
+                                          y2, info["grid"].heights[::2], p.template, p.max_shift, p.robust)
+            lone = isolated(x1, y1, np.isfinite(q[0]), p.step)      # they keep their dense positions
+            rx[lone], ry[lone] = x2[lone], y2[lone]
+            for v in q:
+                v[lone] = np.nan
+            x2, y2 = rx, ry
         positions.append((x2, y2))
         quality.append(q)
         info["refined"] = int(np.isfinite(q[0]).sum())

@@ -11,8 +11,8 @@ class DenseParams:
     every pixel); grid_step: epipolar grid node spacing (epipolar px); max_spread: the largest spread (px)
     of the four disparities a lattice node is interpolated from; sgm: census and SGM settings; refine: LSM
     refinement in the original images (refine.py) with a `template` px window, kept within `max_shift` px
-    of the dense position; mpgc: a triplet's three-ray points refined again by MPGC in both search images at
-    once (block_tiles.py)."""
+    of the dense position, with LSM's robust weighting where `robust`; mpgc: a triplet's three-ray points
+    refined again by MPGC in both search images at once (block_tiles.py)."""
     tile: int = 512
     step: int = 1
     grid_step: int = 16
@@ -21,6 +21,7 @@ class DenseParams:
     refine: bool = True
     template: int = 19
     max_shift: float = 0.5
+    robust: bool = True
     mpgc: bool = False
 
     def check(self):

@@ -1,24 +1,42 @@
 """Sub-pixel refinement of dense image-2 positions by least-squares matching in the original images.
 
 Each dense point (x1, y1) -> (x2, y2) is matched again by LSM (matching.lsm through
-region_growing.transfer_points: an affine template of GrowParams.template px on the resolution-adapted
-images), starting at its dense position with the models' local affine at the middle height. The LSM result
-replaces the dense position where it passes region growing's acceptance criteria (rho, error ellipse,
-iterations) and lies within `max_shift` px of the dense position: a larger move means the template straddles
-two surfaces (a forest edge, a building), where the 5 x 5 census window's position is the better one. A
-refined point carries LSM's rho and error-ellipse semi-axes (its precision); the others keep NaN.
+region_growing.match_windows: an affine template of GrowParams.template px on the resolution-adapted
+images, with LSM's robust weighting where `robust`: Tukey's biweight keeps the samples of a forest or a
+building beside a field from pulling the field's match), starting at its dense position with the models'
+local affine at the middle height (per AFFINE_CELL). The LSM result replaces the dense position where it
+passes region growing's acceptance criteria (rho, error ellipse, iterations) and lies within `max_shift` px
+of the dense position: a larger move means the template straddles two surfaces (a forest edge, a building),
+where the 5 x 5 census window's position is the better one. A refined point carries LSM's rho and
+error-ellipse semi-axes (its precision); the others keep NaN.
+
+Isolated refinements (`isolated`, on a lattice): the templates of neighbouring nodes overlap almost entirely,
+so where the surface lets LSM succeed it succeeds at most of them. A node LSM accepted while fewer than
+LEAST_REFINED of the (2 REACH + 1)^2 - 1 nodes around it were accepted is more likely a chance fit to a
+mismatch (repetitive or weak texture: the semi-global position it started from was already wrong) than a
+lone good match; it keeps its dense position. Where the DEM takes refined points only, one such point
+otherwise sets the heights of the empty cells around it.
 
 Measured on the simulated triplet (docs/validation.md#dense-matching): LSM halves the dense position's error
 on open ground where it is accepted, and makes it worse within a template of a height step."""
 import numpy as np
+from scipy import ndimage
 
-from ..matching.pair_geometry import local_affine
+from ..matching.imagery import as_image
+from ..matching.pair_geometry import local_affine, resolve_height_range
 from ..matching.params import GrowParams
-from ..matching.records import PAIR_DTYPE
-from ..matching.region_growing import transfer_points
+from ..matching.region_growing import match_windows
+from ..matching.resolution import adapt_resolution
+
+#: px of image 1: the cells of LSM's initial affine (the models' local affine, only LSM's starting shape,
+#: changes by 1e-4 at most across one: 1e-3 px at a 19 px template's edge on the simulated SPOT 5 scene)
+AFFINE_CELL = 32
+#: lattice nodes (Chebyshev) around a refined node, and the fewest of them refined too (module docstring)
+REACH, LEAST_REFINED = 2, 3
 
 
-def refine_positions(image1, image2, model1, model2, x1, y1, x2, y2, height_range, template=19, max_shift=0.5):
+def refine_positions(image1, image2, model1, model2, x1, y1, x2, y2, height_range, template=19, max_shift=0.5,
+                     robust=True):
     """(x2, y2, rho, semi_major, semi_minor): the refined image-2 positions of points (x1, y1) matched at
     (x2, y2) (NaN: unmatched, left as they are), with LSM's quality where refined (NaN elsewhere)."""
     x2, y2 = np.array(x2, float), np.array(y2, float)
@@ -27,15 +45,32 @@ def refine_positions(image1, image2, model1, model2, x1, y1, x2, y2, height_rang
     if idx.size == 0:
         return x2, y2, rho, major, minor
     h_m = 0.5 * (height_range[0] + height_range[1])
-    _, _, a1, a2, a4, a5 = local_affine(model1, model2, x1[idx], y1[idx], h_m)
-    guide = np.zeros(idx.size, PAIR_DTYPE)
-    guide["x1"], guide["y1"], guide["x2"], guide["y2"] = x1[idx], y1[idx], x2[idx], y2[idx]
-    guide["a1"], guide["a2"], guide["a4"], guide["a5"] = a1, a2, a4, a5
-    params = GrowParams(template=int(template), max_shift=float(max_shift))
-    records, accepted = transfer_points(image1, image2, model1, model2, x1[idx], y1[idx], params, height_range,
-                                        guide=guide)
+    # LSM's initial affine: the models' local affine at the middle height, once per AFFINE_CELL px cell
+    cells = np.column_stack([np.floor(v[idx] / AFFINE_CELL) for v in (x1, y1)])
+    cells, cell = np.unique(cells, axis=0, return_inverse=True)
+    cx, cy = (np.clip((c + 0.5) * AFFINE_CELL, v[idx].min(), v[idx].max()) for c, v in zip(cells.T, (x1, y1)))
+    affine = np.column_stack(local_affine(model1, model2, cx, cy, h_m)[2:])[cell.ravel()]
+    params = GrowParams(template=int(template), max_shift=float(max_shift), robust=bool(robust)).check()
+    image1, image2 = adapt_resolution(as_image(image1), as_image(image2), model1, model2, params,
+                                      resolve_height_range(model1, height_range))
+    records, accepted = match_windows(image1, image2, x1[idx], y1[idx], x2[idx], y2[idx], affine, params)
     take = idx[accepted]
     r = records[accepted]
     x2[take], y2[take] = r["x2"], r["y2"]
     rho[take], major[take], minor[take] = r["rho"], r["semi_major"], r["semi_minor"]
     return x2, y2, rho, major, minor
+
+
+def isolated(x1, y1, refined, step):
+    """Mask of the `refined` nodes among lattice nodes (x1, y1) `step` px apart with fewer than LEAST_REFINED
+    refined nodes within REACH nodes (module docstring; nodes beyond the given ones count as unrefined)."""
+    refined = np.asarray(refined, bool)
+    if not refined.any():
+        return refined.copy()
+    j = np.rint((x1 - x1.min()) / step).astype(np.int64)
+    i = np.rint((y1 - y1.min()) / step).astype(np.int64)
+    grid = np.zeros((i.max() + 1, j.max() + 1), np.float32)
+    grid[i[refined], j[refined]] = 1.0
+    size = 2 * REACH + 1
+    around = np.rint(ndimage.uniform_filter(grid, size, mode="constant") * size * size) - grid
+    return refined & (around[i, j] < LEAST_REFINED)

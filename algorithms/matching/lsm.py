@@ -14,11 +14,22 @@ image-2 gradients the noise biases positions towards half-pixel phases and the r
 came out 2x optimistic). The template is sampled bilinearly (exact pixel values at pixel centres).
 Coordinates are GDAL's: array pixel (i, j) has its centre at (j + 0.5, i + 0.5).
 
-Precision: sigma0^2 = v'v / (n - 8) a posteriori, covariance of (x2, y2) = sigma0^2 times the
-(x2, y2) block of N^-1; `semi_major` / `semi_minor` are the square roots of its eigenvalues (1-sigma
-error ellipse, px of image 2).
+Robust weighting (tukey > 0, GrowParams.robust): after the first, unweighted iteration each sample's
+equation is weighted by Tukey's biweight w = (1 - (v / (c s))^2)^2 (0 for |v| >= c s) of its residual v
+against the weighted residual RMS s of the previous iteration, c = `tukey` (params.TUKEY_C: 95 % efficiency for
+Gaussian residuals); the weights are updated for REWEIGHTINGS iterations and then kept, so the iteration
+converges. Samples of another surface inside the template (a forest or a building beside a field) then
+stop pulling the match (Huber 1981, ch. 7; as MPGC, mpgc.py). The first iteration is unweighted, so the
+weights help where the other surface is a minority of the template (a template sliding onto a field's edge);
+where it covers a quarter or more, the first step already lands between the two and the weights keep it
+there (tests/algorithms/matching/test_lsm.py). tukey = 0: plain least squares.
+
+Precision: sigma0^2 = v'Pv / (sum w - 8) a posteriori (sum w = n unweighted), covariance of (x2, y2) =
+sigma0^2 times the (x2, y2) block of N^-1; `semi_major` / `semi_minor` are the square roots of its
+eigenvalues (1-sigma error ellipse, px of image 2).
 """
 import math
+from dataclasses import replace
 
 import numpy as np
 from numba import njit, prange
@@ -37,6 +48,8 @@ LSM_OUT = len(LSM_FIELDS)
 OK, OUTSIDE, SINGULAR, NOT_CONVERGED = 0, 1, 2, 3
 
 _NPAR = 8
+#: iterations that re-weight (the first ones after the unweighted one); later ones keep the weights
+REWEIGHTINGS = 3
 
 
 @njit(cache=True, nogil=True)
@@ -124,10 +137,11 @@ def template(img, x, y, half, f, fk, fl):
 
 
 @njit(cache=True, nogil=True)
-def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, out):
-    """Match one point; see the module docstring. Fills out (float64, LSM_OUT, order LSM_FIELDS)
-    and returns the status: 0 ok, 1 window leaves image 1 or 2, 2 singular normal equations
-    (flat texture), 3 not converged within max_iter (out holds the last state)."""
+def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, out, tukey=0.0):
+    """Match one point; see the module docstring (`tukey`: Tukey's constant of the robust weighting, 0:
+    off). Fills out (float64, LSM_OUT, order LSM_FIELDS) and returns the status: 0 ok, 1 window leaves
+    image 1 or 2, 2 singular normal equations (flat texture), 3 not converged within max_iter (out holds the
+    last state)."""
     for i in range(out.shape[0]):
         out[i] = np.nan
     out[6] = 0.0
@@ -156,6 +170,9 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
     sg = sgg = sfg = 0.0
     sll = 0.0
     skap = 0.0
+    w = np.ones(nsamp)
+    sw = float(nsamp)
+    cs = 0.0
     while it < max_iter:
         if not (math.isfinite(x2) and math.isfinite(y2)) or \
                 not _window_inside(nr2, nc2, x2, y2, a1, a2, a4, a5, half):
@@ -174,16 +191,19 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
         sg = sgg = sfg = 0.0
         sll = 0.0
         skap = 0.0
+        sw = 0.0
+        reweight = cs > 0.0 and 0 < it <= REWEIGHTINGS
         idx = 0
         for l in range(-half, half + 1):
             # Jacobian row (gx, gx k, gx l, gy, gy k, gy l, 1, g) with (gx, gy) = r1 grad g at the
             # sample, from the template gradients (f = r0 + r1 g o T): (r1 gx, r1 gy) = A^-T (fk, fl).
             # Template gradients keep the noise of image 2 out of the Jacobian, which otherwise biases
             # the position towards half-pixel phases. The products with l are constant along a
-            # template row: sums over k in moments of k first, then folded in with l below.
+            # template row: sums over k in moments of k first, then folded in with l below. Each
+            # equation carries its robust weight (1 without); rg, rgg are unweighted (the correlation).
             xx0 = xx1 = xx2 = xy0 = xy1 = xy2 = yy0 = yy1 = yy2 = 0.0
             x0 = x1s = y0 = y1s = xg0 = xg1 = yg0 = yg1 = 0.0
-            rg = rgg = 0.0
+            rg = rgg = rgw = rggw = 0.0
             bx0 = bx1 = by0 = by1 = bo = bgo = 0.0
             ya = y2 + a5 * l
             xa = x2 + a2 * l
@@ -191,42 +211,52 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
                 g, kap = cubic(img2, xa + a1 * k, ya + a4 * k)
                 fv = f[idx]
                 obs = fv - (r0 + r1 * g)
+                if reweight:
+                    u = obs / cs
+                    w[idx] = (1.0 - u * u) ** 2 if abs(u) < 1.0 else 0.0
+                wi = w[idx]
                 gx = ia11 * fk[idx] + ia21 * fl[idx]
                 gy = ia12 * fk[idx] + ia22 * fl[idx]
+                wx = wi * gx
+                wy = wi * gy
+                wg = wi * g
                 fk_ = float(k)
-                t = gx * gx
+                t = wx * gx
                 xx0 += t
                 xx1 += t * fk_
                 xx2 += t * fk_ * fk_
-                t = gx * gy
+                t = wx * gy
                 xy0 += t
                 xy1 += t * fk_
                 xy2 += t * fk_ * fk_
-                t = gy * gy
+                t = wy * gy
                 yy0 += t
                 yy1 += t * fk_
                 yy2 += t * fk_ * fk_
-                x0 += gx
-                x1s += gx * fk_
-                y0 += gy
-                y1s += gy * fk_
-                t = gx * g
+                x0 += wx
+                x1s += wx * fk_
+                y0 += wy
+                y1s += wy * fk_
+                t = wx * g
                 xg0 += t
                 xg1 += t * fk_
-                t = gy * g
+                t = wy * g
                 yg0 += t
                 yg1 += t * fk_
                 rg += g
                 rgg += g * g
-                t = gx * obs
+                rgw += wg
+                rggw += wg * g
+                t = wx * obs
                 bx0 += t
                 bx1 += t * fk_
-                t = gy * obs
+                t = wy * obs
                 by0 += t
                 by1 += t * fk_
-                bo += obs
-                bgo += g * obs
-                sll += obs * obs
+                bo += wi * obs
+                bgo += wg * obs
+                sll += wi * obs * obs
+                sw += wi
                 sfg += fv * g
                 skap += kap
                 idx += 1
@@ -265,8 +295,8 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
             nmat[3, 7] += yg0
             nmat[4, 7] += yg1
             nmat[5, 7] += fl_ * yg0
-            nmat[6, 7] += rg
-            nmat[7, 7] += rgg
+            nmat[6, 7] += rgw
+            nmat[7, 7] += rggw
             b[0] += bx0
             b[1] += bx1
             b[2] += fl_ * bx0
@@ -277,7 +307,7 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
             b[7] += bgo
             sg += rg
             sgg += rgg
-        nmat[6, 6] = float(nsamp)
+        nmat[6, 6] = sw
         # only the upper triangle is filled: _cholesky reads n[j, i] for i > j
         if not _cholesky(nmat, _NPAR):
             out[6] = it
@@ -295,6 +325,8 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
         r0 += dx[6]
         r1 += dx[7]
         it += 1
+        if tukey > 0.0:
+            cs = tukey * math.sqrt(sll / sw) if sw > 0.0 else 0.0
         if math.sqrt(dx[0] * dx[0] + dx[3] * dx[3]) < conv:
             converged = True
             break
@@ -304,7 +336,7 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
         vtv -= dx[p] * b[p]
     if vtv < 0.0:
         vtv = 0.0
-    s02 = vtv / (nsamp - _NPAR)
+    s02 = vtv / max(sw - _NPAR, 1.0)
     # The residuals see image-2 noise after resampling (variance scaled by kappa < 1) while the
     # position error feels it at full strength, repeated on every template sample that falls in
     # the same image-2 pixel when image 2 is coarser (|det A| < 1). Assuming equal white noise in
@@ -349,10 +381,10 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _match_kernel(img1, img2, x1, y1, x2, y2, aff, half, max_iter, conv, out, status):
+def _match_kernel(img1, img2, x1, y1, x2, y2, aff, half, max_iter, conv, tukey, out, status):
     for p in prange(x1.shape[0]):
         status[p] = lsm_point(img1, img2, x1[p], y1[p], x2[p], y2[p], aff[p, 0], aff[p, 1], aff[p, 2],
-                              aff[p, 3], half, max_iter, conv, out[p])
+                              aff[p, 3], half, max_iter, conv, out[p], tukey)
 
 
 def _as_image(img, name):
@@ -397,7 +429,8 @@ def match_points(img1, img2, x1, y1, x2, y2, affine=None, params=None):
     half = params.template // 2
     out = np.empty((n, LSM_OUT))
     status = np.empty(n, dtype=np.int8)
-    _match_kernel(img1, img2, x1, y1, x2, y2, aff, half, params.max_iterations, params.convergence, out, status)
+    _match_kernel(img1, img2, x1, y1, x2, y2, aff, half, params.max_iterations, params.convergence, params.tukey, out,
+                  status)
     return to_records(x1, y1, out), status
 
 
@@ -432,9 +465,7 @@ def match_accepted(img1, img2, x1, y1, x2, y2, affine=None, params=None):
     ok = accepted(rec, status, params)
     again = np.flatnonzero(~ok & (status != OUTSIDE))
     if params.widest > params.template and again.size:
-        wide = LsmParams(template=params.widest, max_iterations=params.max_iterations,
-                         convergence=params.convergence, rho_min=params.rho_min, max_ellipse=params.max_ellipse,
-                         max_shift=params.max_shift)
+        wide = replace(params, template=params.widest, wide_template=0)   # only GrowParams has a wider one
         x2, y2 = (np.broadcast_to(np.asarray(v, float), rec.shape)[again] for v in (x2, y2))
         rec_w, status_w = match_points(img1, img2, rec["x1"][again], rec["y1"][again], x2, y2,
                                        _affine_array(affine, len(rec))[again], wide)

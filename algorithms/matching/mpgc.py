@@ -13,7 +13,7 @@ approaches the hard constraint x_i = f_i(X); a larger one tolerates orientation 
 linearisation point follows the estimate until the projections agree to LINEARISATION_TOLERANCE px.
 
 Weights of image i's grey-level equations: 1 / (s^2 (1 + rep_i)) (rep_i = 1 / |det A_i| where image i
-is coarser, as in lsm.py), times Tukey's biweight (1 - (v / (c s_i))^2)^2, c = TUKEY_C (mpgc_kernels.py), against image
+is coarser, as in lsm.py), times Tukey's biweight (1 - (v / (c s_i))^2)^2, c = TUKEY_C (params.py), against image
 i's weighted residual RMS s_i of the previous iteration: plain least squares first, REWEIGHTINGS
 re-weighted iterations, then fixed weights (docs/validation.md#mpgc-spot-triplet). s^2 is re-estimated
 every iteration; sigma0 = s (DN). Optional support weights (Yoon and Kweon 2006) multiply them per

@@ -18,16 +18,13 @@ import numpy as np
 from numba import njit, prange
 
 from ..interpolation import cubic
-from .lsm import NOT_CONVERGED, OK, OUTSIDE, SINGULAR, _chol_solve, _cholesky, _window_inside, template
+from .lsm import NOT_CONVERGED, OK, OUTSIDE, REWEIGHTINGS, SINGULAR, _chol_solve, _cholesky, _window_inside, template
+from .params import TUKEY_C
 
 #: unknowns per search image: x, a1, a2, y, a4, a5, r0, r1
 NPI = 8
 #: unknowns of the object point: dE, dN, dU
 NPX = 3
-#: Tukey biweight constant (95 % efficiency for Gaussian residuals), in units of the residual scale
-TUKEY_C = 4.685
-#: iterations that re-weight (the first ones after the unweighted one); later ones keep the weights
-REWEIGHTINGS = 3
 #: samples per side of the box whose mean grey value the support weights compare (support_weights)
 SUPPORT_BOX = 5
 #: out fields after the 3 per search image

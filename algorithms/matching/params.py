@@ -4,6 +4,9 @@ from dataclasses import dataclass
 
 from ..errors import InputError
 
+#: Tukey biweight constant (95 % efficiency for Gaussian residuals), in units of the residual scale
+TUKEY_C = 4.685
+
 
 @dataclass
 class LsmParams:
@@ -22,6 +25,11 @@ class LsmParams:
     def widest(self):
         """The largest window a match may use (px)."""
         return self.template
+
+    @property
+    def tukey(self):
+        """Tukey's constant of LSM's robust weighting (lsm.py), 0: plain least squares."""
+        return 0.0
 
     def check(self):
         """Raise InputError for values no matcher can use."""
@@ -59,10 +67,17 @@ class GrowParams(LsmParams):
     # MPGC refinement of the group 3 points with support weights (refinement.SUPPORT_CENTRE,
     # SUPPORT_SIMILARITY): on in the DEM pipeline model; docs/validation.md#mpgc-support-weights
     support_weights: bool = False
+    # LSM's robust weighting (Tukey's biweight, lsm.py) against the samples of another surface in the
+    # template: on in dense matching's refinement (dense/refine.py); docs/validation.md#dense-robust-lsm
+    robust: bool = False
 
     @property
     def widest(self):
         return max(self.template, self.wide_template)
+
+    @property
+    def tukey(self):
+        return TUKEY_C if self.robust else 0.0
 
     def check(self):
         super().check()

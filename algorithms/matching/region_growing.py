@@ -191,8 +191,8 @@ def _grow_tile(job, index, box):
         rows = _seed_rows(tile_seeds, lattice, n_a, n_b, m_a, m_b, seed_ids)
         return grow_kernel(win1, win2, float(ox1), float(oy1), float(ox2), float(oy2), float(gx0), float(gy0),
                            float(step), nx, ny, rows, half, params.widest // 2, params.max_iterations,
-                           params.convergence, params.rho_min, params.max_ellipse, params.max_shift, results, state,
-                           origin, prior)
+                           params.convergence, params.tukey, params.rho_min, params.max_ellipse, params.max_shift,
+                           results, state, origin, prior)
 
     def untried(x1, y1):
         n = np.clip(np.rint((x1 - lattice.l0) / step), n_a, n_b - 1).astype(np.int64) - n_a
@@ -295,11 +295,21 @@ def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_
     dk, dl = x1 - g["x1"], y1 - g["y1"]
     x2 = g["x2"] + a[:, 0] * dk + a[:, 1] * dl
     y2 = g["y2"] + a[:, 2] * dk + a[:, 3] * dl
+    records, ok = match_windows(image1, image2, x1, y1, x2, y2, a, params)
+    records["seed"] = nearest
+    return records, ok
+
+
+def match_windows(image1, image2, x1, y1, x2, y2, a, params):
+    """LSM (lsm.match_accepted with GrowParams `params`) of image-1 points (x1, y1) from the image-2
+    positions (x2, y2) and initial affines `a` (n, 4: a1, a2, a4, a5), on windows of the Images `image1`,
+    `image2` read per params.tile px of image 1. Returns (PAIR_DTYPE records in the order of x1, NaN where
+    none was tried, seed -1; ok mask of the accepted ones)."""
     records = np.zeros(len(x1), PAIR_DTYPE)
     records["x1"], records["y1"] = x1, y1
     for name in PAIR_DTYPE.names[2:-1]:
         records[name] = np.nan if PAIR_DTYPE[name].kind == "f" else 0
-    records["seed"] = nearest
+    records["seed"] = -1
     ok = np.zeros(len(x1), bool)
     half = params.widest // 2
     tile = int(params.tile)
@@ -326,7 +336,6 @@ def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_
         rec["y1"] += oy1
         rec["x2"] += ox2
         rec["y2"] += oy2
-        rec["seed"] = nearest[idx]
         records[idx] = rec
         ok[idx] = good
     return records, ok

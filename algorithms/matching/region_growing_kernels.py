@@ -83,16 +83,17 @@ def _passes(status, out, rho_min, max_ellipse, max_shift, max_iter):
 
 @njit(cache=True, nogil=True)
 def _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, x2, y2, a1, a2, a4, a5,
-             half, whalf, max_iter, conv, rho_min, max_ellipse, max_shift, out, results, state):
+             half, whalf, max_iter, conv, tukey, rho_min, max_ellipse, max_shift, out, results, state):
     """LSM at lattice node `node` from initial values in image coordinates, again with the wide
     window (half-size whalf > half) where the match failed inside the image; stores the result
     (image coordinates) and the state (1 accepted, 2 rejected); returns whether accepted."""
     x1 = gx0 + (node % nx) * step - ox1
     y1 = gy0 + (node // nx) * step - oy1
-    status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out)
+    status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out, tukey)
     ok = _passes(status, out, rho_min, max_ellipse, max_shift, max_iter)
     if not ok and status != OUTSIDE and whalf > half:
-        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out)
+        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out,
+                           tukey)
         ok = _passes(status, out, rho_min, max_ellipse, max_shift, max_iter)
     for f in range(out.shape[0]):
         results[node, f] = out[f]
@@ -103,7 +104,7 @@ def _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, x2, y2, a
 
 
 @njit(cache=True, nogil=True)
-def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, whalf, max_iter, conv,
+def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, whalf, max_iter, conv, tukey,
                 rho_min, max_ellipse, max_shift, results, state, origin, prior):
     """Region growing on the nx x ny lattice of a tile (node = row * nx + col at image-1 position
     (gx0 + col step, gy0 + row step)). img1/img2 are windows whose top-left corners lie at image
@@ -124,7 +125,7 @@ def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, h
             continue
         tries += 1
         if _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, seeds[s, 1], seeds[s, 2],
-                    seeds[s, 3], seeds[s, 4], seeds[s, 5], seeds[s, 6], half, whalf, max_iter, conv, rho_min,
+                    seeds[s, 3], seeds[s, 4], seeds[s, 5], seeds[s, 6], half, whalf, max_iter, conv, tukey, rho_min,
                     max_ellipse, max_shift, out, results, state):
             origin[node] = int(seeds[s, 7])
             size = _push(key, hnode, size, _quantise(results[node, 2]), node)
@@ -155,7 +156,7 @@ def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, h
             tries += 1
             if _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, nb,
                         results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl,
-                        a1, a2, a4, a5, half, whalf, max_iter, conv, rho_min, max_ellipse, max_shift, out,
+                        a1, a2, a4, a5, half, whalf, max_iter, conv, tukey, rho_min, max_ellipse, max_shift, out,
                         results, state):
                 origin[nb] = origin[node]
                 size = _push(key, hnode, size, _quantise(results[nb, 2]), nb)

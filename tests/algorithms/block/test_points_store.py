@@ -11,6 +11,7 @@ from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import InputError, StorageError
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
+from tests.helpers.feedback import Feedback
 from tests.helpers.points_synthetic import FlatModel, synthetic
 
 
@@ -148,3 +149,24 @@ def test_tie_points_keep_observations_and_ids():
         assert mp.points["rho_min"][pid - 1] == mp.points["rho_min"][rivals].max()
     assert np.array_equal(np.unique(tie.observations["point_id"]), tie.points["id"])
     assert len(tie.observations) == 3 * len(tie)
+
+
+def test_a_large_point_set_is_shown_by_a_uniform_subsample(block, monkeypatch):
+    """Above DISPLAY_POINTS the layer shows about that many points, spread evenly over the ids (so over a
+    tile-ordered dense lattice) and over the image; the stored points are all kept."""
+    monkeypatch.setattr(points_store, "PART_POINTS", 3000)
+    monkeypatch.setattr(points_store, "DISPLAY_POINTS", 2500)
+    mp = synthetic(10_000)
+    log = Feedback()
+    Block(block).save_points(mp, display=(FlatModel(), 1, 500.0), feedback=log)
+    assert len(Block(block).points()) == 10_000
+    ds = ogr.Open(str(block))
+    ids = np.array([f["id"] for f in ds.GetLayerByName("mass_points")])
+    ds = None
+    seen = mp.points["id"][np.isin(mp.points["id"], mp.observations["point_id"][mp.observations["image_id"] == 1])]
+    assert len(ids) == pytest.approx(0.25 * len(seen), rel=0.02)
+    assert np.isin(ids, seen).all()
+    counts = np.histogram(ids, bins=10, range=(1, 10_001))[0]
+    expected = 0.25 * np.histogram(seen, bins=10, range=(1, 10_001))[0]
+    assert np.all(np.abs(counts - expected) < 0.1 * expected)
+    assert any("shows a uniform 25.0 % of the 10000 points" in m for m in log.messages)

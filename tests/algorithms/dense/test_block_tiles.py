@@ -8,7 +8,7 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
 from pushbroom.algorithms.dense.pair_tile import lattice, match_pair_tile, sample_disparity
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.refine import refine_positions
+from pushbroom.algorithms.dense.refine import isolated, refine_positions
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS
 from pushbroom.algorithms.surface import intersection
@@ -133,4 +133,18 @@ def test_mpgc_refines_more_three_ray_points_and_better(small_scene, tmp_path, fi
         figures.report(f"dense three-ray points on open ground, {'MPGC' if mpgc else 'pairwise LSM'}: height RMS",
                        rows[mpgc][1], "m", f"{rows[mpgc][0]} refined points, every 4th pixel")
     assert rows[False][2] == 0 and rows[True][2] > 0.5 * rows[False][0]
-    assert rows[True][0] > 1.3 * rows[False][0] and rows[True][1] < 0.95 * rows[False][1]
+    assert rows[True][0] > 1.3 * rows[False][0] and rows[True][1] < rows[False][1]
+
+
+def test_isolated_refinements_on_the_lattice():
+    """A refined node needs LEAST_REFINED refined nodes within REACH nodes (a square of them around it)."""
+    step = 2
+    x, y = lattice((0, 0, 40, 30), step)
+    nodes = np.zeros((15, 20), bool)
+    nodes[2:6, 2:6] = True                  # a block: each node has at least 3 refined around it
+    nodes[10, 14] = True                    # alone
+    nodes[10, 3] = nodes[11, 4] = True      # a pair: one neighbour each
+    nodes[12, 10] = nodes[12, 11] = nodes[13, 12] = nodes[14, 10] = True    # four within reach of each other
+    lone = isolated(x, y, nodes.ravel(), step).reshape(nodes.shape)
+    assert set(zip(*np.nonzero(lone))) == {(10, 14), (10, 3), (11, 4)}
+    assert not isolated(x, y, np.zeros(x.size, bool), step).any()

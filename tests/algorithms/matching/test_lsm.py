@@ -6,7 +6,7 @@ from scipy import ndimage
 
 from pushbroom.algorithms import interpolation
 from pushbroom.algorithms.matching import lsm
-from pushbroom.algorithms.matching.params import LsmParams
+from pushbroom.algorithms.matching.params import GrowParams, LsmParams
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 from tests.helpers.texture import texture
 
@@ -48,7 +48,7 @@ def test_one_gauss_newton_step_against_numpy():
     assert got["shift"] == pytest.approx(np.hypot(ref[0] - p[0], ref[3] - p[3]))
 
 
-def simulate(n, m, gain, offset, noise, seed, size=33, init_scale=True):
+def simulate(n, m, gain, offset, noise, seed, size=33, init_scale=True, params=None):
     """n patch pairs: image 1 shows F at its pixel centres, image 2 pixel (x, y) shows
     gain * F(M (x, y) + t) + offset; both get white noise of sigma `noise`. Returns the LSM
     records, status and true image-2 positions of the image-1 centre (16.5, 16.5)."""
@@ -67,7 +67,7 @@ def simulate(n, m, gain, offset, noise, seed, size=33, init_scale=True):
         ym = m[1, 0] * jj + m[1, 1] * ii + t[1]
         img2 = (gain * (100 + 30 * tex(xm, ym)) + offset + rng.normal(0, noise, jj.shape)).astype(np.float32)
         init = truth[p] + rng.uniform(-1, 1, 2)
-        rec, st = lsm.match_points(img1, img2, [x1], [y1], [init[0]], [init[1]], affine=a0)
+        rec, st = lsm.match_points(img1, img2, [x1], [y1], [init[0]], [init[1]], affine=a0, params=params)
         recs.append(rec[0])
         stats.append(st[0])
     return np.array(recs, dtype=PAIR_DTYPE), np.array(stats), truth
@@ -146,3 +146,54 @@ def test_match_points_input_errors():
         lsm.match_points(img, img, [1.0], [1.0], [1.0], [1.0], params=LsmParams(template=4))
     with pytest.raises(InputError):
         lsm.match_points(np.zeros(30), img, [1.0], [1.0], [1.0], [1.0])
+
+
+def other_surface(n, share, seed, params, size=41):
+    """n patch pairs whose image 2 shows image 1's texture F shifted by a known sub-pixel offset, except the
+    right `share` of the template's columns, which shows another surface (F shifted 3 px further along the
+    columns: a canopy's parallax beside a field). Returns (records, status, truth) of LSM from 0.5 px off."""
+    rng = np.random.default_rng(seed)
+    jj, ii = np.meshgrid(np.arange(size) + 0.5, np.arange(size) + 0.5)
+    c = size / 2.0
+    half = params.template // 2
+    edge = c + half + 0.5 - share * params.template      # image-2 columns right of it show the other surface
+    recs, stats, truth = [], [], np.empty((n, 2))
+    for p in range(n):
+        tex = texture(rng)
+        img1 = (100 + 30 * tex(jj, ii) + rng.normal(0, 2.0, jj.shape)).astype(np.float32)
+        truth[p] = c + rng.uniform(-0.5, 0.5, 2)
+        shift = np.where(jj > edge + truth[p, 0] - c, 3.0, 0.0)
+        img2 = (100 + 30 * tex(jj - (truth[p, 0] - c) - shift, ii - (truth[p, 1] - c))
+                + rng.normal(0, 2.0, jj.shape)).astype(np.float32)
+        init = truth[p] + rng.uniform(-0.5, 0.5, 2)
+        rec, st = lsm.match_points(img1, img2, [c], [c], [init[0]], [init[1]], params=params)
+        recs.append(rec[0])
+        stats.append(st[0])
+    return np.array(recs, dtype=PAIR_DTYPE), np.array(stats), truth
+
+
+def test_robust_weighting_resists_another_surface(figures):
+    """A template with 15 % of another surface (the template reaching onto a canopy beside a field): plain
+    least squares moves towards it, Tukey's weights keep to the field. (From a quarter on, both end between
+    the two surfaces: lsm.py's docstring.)"""
+    errors = {}
+    for robust in (False, True):
+        rec, status, truth = other_surface(60, 0.15, 5, GrowParams(template=19, robust=robust))
+        ok = status == lsm.OK
+        assert ok.mean() > 0.9
+        errors[robust] = np.abs(rec["x2"] - truth[:, 0])[ok]
+        figures.report(f"median |column error|, {'robust' if robust else 'plain'}", np.median(errors[robust]), "px")
+    assert np.median(errors[False]) > 0.4                  # pulled towards the other surface
+    assert np.median(errors[True]) < 0.3 * np.median(errors[False])
+
+
+def test_robust_precision_is_calibrated(figures):
+    rec, status, truth = simulate(300, np.eye(2), 1.0, 0.0, noise=4.0, seed=11, params=GrowParams(robust=True))
+    ok = status == lsm.OK
+    assert ok.mean() > 0.95
+    err = np.column_stack([rec["x2"] - truth[:, 0], rec["y2"] - truth[:, 1]])[ok]
+    ratio = np.sqrt((err ** 2).sum(1).mean()) / np.sqrt((rec["semi_major"][ok].astype(float) ** 2
+                                                         + rec["semi_minor"][ok] ** 2).mean())
+    figures.report("RMS error / predicted, robust", ratio)
+    assert 0.8 < ratio < 1.25
+

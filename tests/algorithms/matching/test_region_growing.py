@@ -18,7 +18,7 @@ from tests.helpers.feedback import Feedback
 from tests.helpers.matching_scene import DISCONTINUOUS, LOW_CONTRAST_DN, SINGLE_SURFACE
 
 
-def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, whalf, max_iter, conv,
+def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, whalf, max_iter, conv, tukey,
                    rho_min, max_ellipse, max_shift, results, state, origin, prior):
     """Plain-Python reference of region_growing_kernels.grow_kernel (heapq; same arguments and outputs)."""
     heap = []
@@ -32,10 +32,11 @@ def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds
             return bool(status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift
                         and out[6] < max_iter)
 
-        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out)
+        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out, tukey)
         ok = criteria(status)
         if not ok and status != 1 and whalf > half:     # failed inside the images: the wide window
-            status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out)
+            status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out,
+                               tukey)
             ok = criteria(status)
         results[node] = out
         results[node, 0] += ox2
@@ -101,7 +102,7 @@ def kernel_case(prior, whalf, contrast=1.0, noise=0.0):
         state = np.zeros(nx * ny, np.int8)
         origin = np.full(nx * ny, -1, np.int64)
         tries = fn(img1, img2, 0.0, 0.0, 0.0, 0.0, 7.5, 7.5, float(step), nx, ny, seeds, half, whalf, 10, 0.01,
-                   0.6, 0.1, 2.5, results, state, origin, prior)
+                   0.0, 0.6, 0.1, 2.5, results, state, origin, prior)
         outs.append((results, state, origin, tries))
     return outs, nx, step
 
