@@ -15,10 +15,12 @@ so where the surface lets LSM succeed it succeeds at most of them. A node LSM ac
 LEAST_REFINED of the (2 REACH + 1)^2 - 1 nodes around it were accepted is more likely a chance fit to a
 mismatch (repetitive or weak texture: the semi-global position it started from was already wrong) than a
 lone good match; it keeps its dense position. Where the DEM takes refined points only, one such point
-otherwise sets the heights of the empty cells around it.
+otherwise sets the heights of the empty cells around it. The test runs per tile: a node at a tile's edge has
+fewer nodes around it (a corner 8), so there it is a little stricter.
 
-Measured on the simulated triplet (docs/validation.md#dense-matching): LSM halves the dense position's error
-on open ground where it is accepted, and makes it worse within a template of a height step."""
+Measured on the simulated triplet (docs/validation.md#dense-matching, with the plain LSM): LSM halves the dense
+position's error on open ground where it is accepted, and makes it worse within a template of a height step;
+the robust weights and the isolation test: docs/validation.md#dense-robust-lsm."""
 import numpy as np
 from scipy import ndimage
 
@@ -38,7 +40,9 @@ REACH, LEAST_REFINED = 2, 3
 def refine_positions(image1, image2, model1, model2, x1, y1, x2, y2, height_range, template=19, max_shift=0.5,
                      robust=True):
     """(x2, y2, rho, semi_major, semi_minor): the refined image-2 positions of points (x1, y1) matched at
-    (x2, y2) (NaN: unmatched, left as they are), with LSM's quality where refined (NaN elsewhere)."""
+    (x2, y2) (NaN: unmatched, left as they are), with LSM's quality where refined (NaN elsewhere); LSM with
+    `template`, `max_shift` and, where `robust`, the robust weights. The isolation test (`isolated`) is the
+    caller's, on its lattice."""
     x2, y2 = np.array(x2, float), np.array(y2, float)
     rho, major, minor = (np.full(x2.size, np.nan, np.float32) for _ in range(3))
     idx = np.flatnonzero(np.isfinite(x2) & np.isfinite(y2))

@@ -57,10 +57,12 @@ def run():
         ok = np.isfinite(x2)
         x1, y1, x2, y2 = x1[ok], y1[ok], x2[ok], y2[ok]
         refined = refine_positions(images[0], images[1], models[0], models[1], x1, y1, x2, y2,
-                                   info["grid"].heights[::2], params.template, params.max_shift)
+                                   info["grid"].heights[::2], params.template, params.max_shift, params.robust)
         seconds = best_time(lambda: refine_positions(images[0], images[1], models[0], models[1], x1, y1, x2, y2,
-                                                     info["grid"].heights[::2], params.template, params.max_shift))
-        rows.append({"stage": f"LSM refinement ({100 * np.isfinite(refined[2]).mean():.0f} % accepted)",
+                                                     info["grid"].heights[::2], params.template, params.max_shift,
+                                                     params.robust))
+        kind = "robust" if params.robust else "plain"
+        rows.append({"stage": f"LSM refinement, {kind} ({100 * np.isfinite(refined[2]).mean():.0f} % accepted)",
                      "items": x1.size, "per second": x1.size / seconds, "unit": "nodes"})
         n = x1.size
         rx, ry = refined[0], refined[1]

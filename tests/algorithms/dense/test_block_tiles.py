@@ -133,7 +133,9 @@ def test_mpgc_refines_more_three_ray_points_and_better(small_scene, tmp_path, fi
         figures.report(f"dense three-ray points on open ground, {'MPGC' if mpgc else 'pairwise LSM'}: height RMS",
                        rows[mpgc][1], "m", f"{rows[mpgc][0]} refined points, every 4th pixel")
     assert rows[False][2] == 0 and rows[True][2] > 0.5 * rows[False][0]
-    assert rows[True][0] > 1.3 * rows[False][0] and rows[True][1] < rows[False][1]
+    # the robust pairwise LSM narrowed the gap (1.79 against 1.72 m; 1.93 with the plain one): MPGC's gain is
+    # mostly the count
+    assert rows[True][0] > 1.3 * rows[False][0] and rows[True][1] < 0.98 * rows[False][1]
 
 
 def test_isolated_refinements_on_the_lattice():

@@ -6,13 +6,15 @@ from scipy import ndimage
 
 from pushbroom.algorithms import interpolation
 from pushbroom.algorithms.matching import lsm
-from pushbroom.algorithms.matching.params import GrowParams, LsmParams
+from pushbroom.algorithms.matching.params import TUKEY_C, GrowParams, LsmParams
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 from tests.helpers.texture import texture
 
 
-def gn_step_reference(img1, img2, x1, y1, p, half):
-    """One Gauss-Newton step in plain numpy (same model and Jacobian as lsm_point)."""
+def gn_step_reference(img1, img2, x1, y1, p, half, weights=None):
+    """One Gauss-Newton step in plain numpy (same model and Jacobian as lsm_point), each equation weighted by
+    `weights` (row-major over the template; None: 1). Returns (the parameters after it, rho, the residuals
+    before it)."""
     x2, a1, a2, y2, a4, a5, r0, r1 = p
     k, l = np.meshgrid(np.arange(-half - 1, half + 2), np.arange(-half - 1, half + 2))
     t = ndimage.map_coordinates(img1.astype(float), [y1 + l - 0.5, x1 + k - 0.5], order=1)
@@ -25,8 +27,10 @@ def gn_step_reference(img1, img2, x1, y1, p, half):
     ia = np.linalg.inv(np.array([[a1, a2], [a4, a5]])).T
     rgx, rgy = ia @ np.vstack([fk, fl])
     a = np.column_stack([rgx, rgx * k, rgx * l, rgy, rgy * k, rgy * l, np.ones_like(g), g])
-    dx = np.linalg.lstsq(a, f - (r0 + r1 * g), rcond=None)[0]
-    return np.asarray(p) + dx, np.corrcoef(f, g)[0, 1]
+    v = f - (r0 + r1 * g)
+    w = np.sqrt(np.ones_like(v) if weights is None else weights)
+    dx = np.linalg.lstsq(a * w[:, None], v * w, rcond=None)[0]
+    return np.asarray(p) + dx, np.corrcoef(f, g)[0, 1], v
 
 
 def test_one_gauss_newton_step_against_numpy():
@@ -39,7 +43,7 @@ def test_one_gauss_newton_step_against_numpy():
     out = np.empty(lsm.LSM_OUT)
     status = lsm.lsm_point(img1, img2, 20.5, 20.5, p[0], p[3], p[1], p[2], p[4], p[5], 7, 1, 1e-9, out)
     assert status == lsm.NOT_CONVERGED
-    ref, rho = gn_step_reference(img1, img2, 20.5, 20.5, p, 7)
+    ref, rho, _ = gn_step_reference(img1, img2, 20.5, 20.5, p, 7)
     got = dict(zip(lsm.LSM_FIELDS, out))
     for name, value in zip(("x2", "a1", "a2", "y2", "a4", "a5", "r0", "r1"), ref):
         assert got[name] == pytest.approx(value, rel=1e-6, abs=1e-7), name
@@ -187,7 +191,34 @@ def test_robust_weighting_resists_another_surface(figures):
     assert np.median(errors[True]) < 0.3 * np.median(errors[False])
 
 
+def test_robust_step_against_numpy():
+    """Two iterations of the robust LSM: the first unweighted, the second weighted by Tukey's biweight of each
+    sample's residual against TUKEY_C times the RMS residual before the first; a template whose right columns
+    show another surface, so that the weights range from under 0.5 to nearly 1."""
+    rng = np.random.default_rng(4)
+    tex = texture(rng)
+    jj, ii = np.meshgrid(np.arange(40) + 0.5, np.arange(40) + 0.5)
+    img1 = (100 + 30 * tex(jj, ii) + rng.normal(0, 2.0, jj.shape)).astype(np.float32)
+    img2 = (100 + 30 * tex(jj - 0.3 - np.where(jj > 24.5, 3.0, 0.0), ii + 0.2)).astype(np.float32)
+    p = (20.7, 1.0, 0.0, 20.4, 0.0, 1.0, 0.0, 1.0)
+    out = np.empty(lsm.LSM_OUT)
+    status = lsm.lsm_point(img1, img2, 20.5, 20.5, p[0], p[3], p[1], p[2], p[4], p[5], 7, 2, 1e-9, out, TUKEY_C)
+    assert status == lsm.NOT_CONVERGED
+    first, _, v0 = gn_step_reference(img1, img2, 20.5, 20.5, p, 7)
+    scale = TUKEY_C * np.sqrt(np.mean(v0 ** 2))
+    _, _, v1 = gn_step_reference(img1, img2, 20.5, 20.5, first, 7)
+    u = v1 / scale
+    weights = np.where(np.abs(u) < 1.0, (1.0 - u ** 2) ** 2, 0.0)
+    assert weights.min() < 0.5 < 0.9 < weights.max()          # a weighting that matters
+    ref, _, _ = gn_step_reference(img1, img2, 20.5, 20.5, first, 7, weights)
+    got = dict(zip(lsm.LSM_FIELDS, out))
+    for name, value in zip(("x2", "a1", "a2", "y2", "a4", "a5", "r0", "r1"), ref):
+        assert got[name] == pytest.approx(value, rel=1e-6, abs=1e-7), name
+    assert got["iterations"] == 2
+
+
 def test_robust_precision_is_calibrated(figures):
+    """On clean texture (no other surface) the weighted error ellipses still predict the error."""
     rec, status, truth = simulate(300, np.eye(2), 1.0, 0.0, noise=4.0, seed=11, params=GrowParams(robust=True))
     ok = status == lsm.OK
     assert ok.mean() > 0.95
@@ -196,4 +227,3 @@ def test_robust_precision_is_calibrated(figures):
                                                          + rec["semi_minor"][ok] ** 2).mean())
     figures.report("RMS error / predicted, robust", ratio)
     assert 0.8 < ratio < 1.25
-
