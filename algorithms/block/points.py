@@ -346,7 +346,9 @@ def _write_layer(block_path, layer_name, points, model, image_id, height, feedba
     progress.step(feedback, 10)
     parts = _parts_of(points)
     index = None if isinstance(points, MultiPoints) else read_index(points)
-    total = index["points"] if index is not None else sum(len(p if isinstance(p, MultiPoints) else p()) for p in parts)
+    if index is None and not isinstance(parts[0], MultiPoints):
+        parts = [parts[0]()]            # a one-file sidecar: its one part, read once
+    total = index["points"] if index is not None else len(parts[0])
     share = min(1.0, DISPLAY_POINTS / max(total, 1))
     if share < 1.0:
         progress.ensure(feedback).pushInfo(f"the layer {layer_name} shows a uniform {100 * share:.1f} % of the "

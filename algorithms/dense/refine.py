@@ -30,8 +30,8 @@ from ..matching.params import GrowParams
 from ..matching.region_growing import match_windows
 from ..matching.resolution import adapt_resolution
 
-#: px of image 1: the cells of LSM's initial affine (the models' local affine, only LSM's starting shape,
-#: changes by 1e-4 at most across one: 1e-3 px at a 19 px template's edge on the simulated SPOT 5 scene)
+#: px of image 1: the cells of LSM's initial affine (the models' local affine: only LSM's starting shape, which
+#: LSM estimates; how little it changes across a cell: tests/algorithms/dense/test_block_tiles.py)
 AFFINE_CELL = 32
 #: lattice nodes (Chebyshev) around a refined node, and the fewest of them refined too (module docstring)
 REACH, LEAST_REFINED = 2, 3

@@ -8,8 +8,9 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
 from pushbroom.algorithms.dense.pair_tile import lattice, match_pair_tile, sample_disparity
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.refine import isolated, refine_positions
+from pushbroom.algorithms.dense.refine import AFFINE_CELL, isolated, refine_positions
 from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.matching.pair_geometry import local_affine
 from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS
 from pushbroom.algorithms.surface import intersection
 from tests.helpers.feedback import Feedback
@@ -150,3 +151,17 @@ def test_isolated_refinements_on_the_lattice():
     lone = isolated(x, y, nodes.ravel(), step).reshape(nodes.shape)
     assert set(zip(*np.nonzero(lone))) == {(10, 14), (10, 3), (11, 4)}
     assert not isolated(x, y, np.zeros(x.size, bool), step).any()
+
+
+def test_the_initial_affine_once_per_cell(scene, figures):
+    """refine.AFFINE_CELL: the models' local affine at every pixel of a 512 px tile of HRG -> HRS1 against the one
+    at its cell's centre (LSM's starting shape only)."""
+    x, y = lattice((0, 0, 512, 512), 1)
+    h = 0.5 * sum(scene.height_range)
+    at_pixel = np.column_stack(local_affine(scene.model1, scene.model2, x, y, h)[2:])
+    cx, cy = ((np.floor(v / AFFINE_CELL) + 0.5) * AFFINE_CELL for v in (x, y))
+    at_cell = np.column_stack(local_affine(scene.model1, scene.model2, cx, cy, h)[2:])
+    worst = float(np.abs(at_pixel - at_cell).max())
+    figures.report("largest difference of the affine within a cell", worst, "",
+                   f"{worst * 9:.1e} px at a 19 px template's edge")
+    assert worst < 2e-4
