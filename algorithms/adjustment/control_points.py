@@ -316,11 +316,13 @@ def check_plausible(blk, observations, degrees_as_projected=None, keep=False, fe
     return lines
 
 
-def import_csv(blk, csv_path, mode="replace", feedback=None, keep_implausible=False, **options):
+def import_csv(blk, csv_path: str, mode: str = "replace", feedback=None, keep_implausible: bool = False,
+               replace_fewer: bool = False, **options) -> Observations:
     """Read `csv_path` (`read_csv` with `options`) against the images of the block `blk` (block.Block),
     check the measurements lie inside their images and the points where the images are (`check_plausible`;
     refused unless `keep_implausible`) and store the points (Block.save_control_points, `mode` replace or
-    merge). Returns the points now in the block."""
+    merge; far fewer points or measurements than the block holds only with `replace_fewer`). Returns the
+    points now in the block."""
     images = blk.images()
     names = {r["name"]: r["id"] for r in images}
     defaults = {"crs": None, "heights": "ellipsoidal", "default_role": "control", "check_ids": (),
@@ -332,7 +334,8 @@ def import_csv(blk, csv_path, mode="replace", feedback=None, keep_implausible=Fa
     observations, degrees = _read_csv(csv_path, names, feedback=feedback, **defaults)
     check_extent(observations, images)
     check_plausible(blk, observations, degrees, keep_implausible, feedback)
-    return blk.save_control_points(observations, mode=mode, feedback=feedback, names=names)
+    return blk.save_control_points(observations, mode=mode, feedback=feedback, names=names,
+                                   replace_fewer=replace_fewer)
 
 
 def export_csv(blk, csv_path):

@@ -3,8 +3,9 @@
 The submodules hold the implementation by concern: schema.py (tables, opening, transactions, generation
 counters, block_info), images.py (creation, images table, sensor models), points.py (mass and tie points:
 versioned sidecar folders of point parts and their display layers), control_points.py (control/check points and image
-measurements), measurements.py (single edits of those, for the measurement window) and residuals.py (the
-last adjustment's residuals). Code outside this package goes through `Block`."""
+measurements), measurements.py (single edits of those, for the measurement window), residuals.py (the
+last adjustment's residuals) and replacement.py (a new result far fewer than the stored one is refused).
+Code outside this package goes through `Block`."""
 import contextlib
 import os
 
@@ -137,19 +138,22 @@ class Block:
         (points.load_arrays); points.py has the layout."""
         return points.point_parts(points.sidecar_path(self.path, kind), points.MAKERS.get(kind, "the step"))
 
-    def save_points(self, multi, kind="mass_points", display=None, feedback=None):
+    def save_points(self, multi, kind: str = "mass_points", display=None, feedback=None,
+                    replace_fewer: bool = False) -> str:
         """Store `multi` (MultiPoints) as the block's points of `kind` and, given `display` = (sensor model,
-        image id, mean height), as its point layer `kind`; returns the sidecar path (points.save_points)."""
-        return points.save_points(self.path, multi, kind, display, feedback)
+        image id, mean height), as its point layer `kind`; far fewer than the stored ones only with
+        `replace_fewer` (replacement.py). Returns the sidecar path (points.save_points)."""
+        return points.save_points(self.path, multi, kind, display, feedback, replace_fewer)
 
     def point_stats(self, kind="mass_points"):
         """The run-level stats of the points of `kind` stored with the block (without reading the points)."""
         return points.read_stats(points.sidecar_path(self.path, kind), points.MAKERS.get(kind, "the step"))
 
-    def store_points(self, kind, fill, display=None, feedback=None):
+    def store_points(self, kind: str, fill, display=None, feedback=None, replace_fewer: bool = False) -> str:
         """Store the points that `fill(folder)` writes as parts into the new sidecar folder (points.store_points:
-        a tiled step's tasks); returns the sidecar path."""
-        return points.store_points(self.path, kind, fill, display, feedback)
+        a tiled step's tasks; far fewer than the stored ones only with `replace_fewer`); returns the sidecar
+        path."""
+        return points.store_points(self.path, kind, fill, display, feedback, replace_fewer)
 
     def write_point_layer(self, layer_name, multi, model, image_id, height, feedback=None):
         """(Re)write the display layer `layer_name` of `multi`; returns its source (points.write_point_layer)."""
@@ -161,10 +165,12 @@ class Block:
         """The stored control/check points and their image measurements (Observations; empty before any)."""
         return control_points.load_control_points(self.path)
 
-    def save_control_points(self, observations, mode="replace", feedback=None, names=None):
+    def save_control_points(self, observations, mode: str = "replace", feedback=None, names=None,
+                            replace_fewer: bool = False):
         """Store control/check points, replacing or merging into the stored ones (IMPORT_MODES), in one
-        transaction; returns what is stored (control_points.save_control_points)."""
-        return control_points.save_control_points(self.path, observations, mode, feedback, names)
+        transaction; far fewer points or measurements than the stored ones only with `replace_fewer`
+        (replacement.py). Returns what is stored (control_points.save_control_points)."""
+        return control_points.save_control_points(self.path, observations, mode, feedback, names, replace_fewer)
 
     def create_control_points(self):
         """Create the (empty) control points layer and measurement table where missing."""

@@ -4,8 +4,11 @@ The point layer `control_points` (EPSG:4326 point Z: lon, lat, ellipsoidal h; fi
 h, sigma_e, sigma_n, sigma_h, and residual_px once a bundle adjustment has run, see residuals.py) and the
 table `image_measurements` (point_name, image_id, col, row, sigma). `save_control_points` replaces or
 merges both in one SQLite transaction, so an import either lands whole or leaves the block as it was;
-measurements.py edits single points and measurements. The CSV format and its parsing:
+one that leaves far fewer points, measured points or measurements than the block holds is refused
+(replacement.py) unless asked for. measurements.py edits single points and measurements. The CSV format and its parsing:
 adjustment/control_points.py."""
+from typing import Optional
+
 import numpy as np
 from osgeo import ogr
 
@@ -16,6 +19,7 @@ from ..crs import wgs84
 from ..errors import InputError
 from . import schema
 from .images import image_ids
+from .replacement import Tally, check_replacement
 
 MODES = ("replace", "merge")
 LAYER, TABLE = "control_points", "image_measurements"
@@ -92,6 +96,15 @@ def read_stored(ds, block_path):
     return Observations(points, meas).sorted()
 
 
+def tallies(stored: Observations, new: Observations) -> list[Tally]:
+    """The counts `save_control_points` compares (replacement.py) of the Observations `stored` and `new`:
+    points, points measured in at least one image, image measurements."""
+    def counts(obs):
+        return (len(obs.points), len(set(obs.measurements["point"].tolist())), len(obs.measurements))
+    return [Tally(name, a, b) for name, a, b in zip(("control and check points", "measured points",
+                                                     "image measurements"), counts(stored), counts(new))]
+
+
 def load_control_points(block_path):
     """The control/check points stored in the block and their measurements (image ids = block
     image ids); empty Observations when none were imported."""
@@ -99,10 +112,13 @@ def load_control_points(block_path):
     return read_stored(ds, block_path)
 
 
-def save_control_points(block_path, observations, mode="replace", feedback=None, names=None):
+def save_control_points(block_path: str, observations: Observations, mode: str = "replace", feedback=None,
+                        names: Optional[dict] = None, replace_fewer: bool = False) -> Observations:
     """Store `observations` (control/check points only) in the block, replacing its points
     (mode "replace") or updating them (mode "merge", see `merge`), in one SQLite transaction:
-    on any error or a cancel the block keeps its earlier points. `names`: {image name: id} of the
+    on any error or a cancel the block keeps its earlier points. What would leave far fewer points,
+    measured points or image measurements than the block holds (`tallies`, replacement.py) is refused with
+    an InputError before anything is written, unless `replace_fewer`. `names`: {image name: id} of the
     block (read from it if not given). Returns what is stored. A block locked by another writer is
     waited for (schema.transaction); an OGR/SQLite failure is a StorageError."""
     if mode not in MODES:
@@ -117,8 +133,12 @@ def save_control_points(block_path, observations, mode="replace", feedback=None,
     if unknown:
         raise InputError(f"measurements in image id(s) {unknown}, which the block {block_path} does not have")
     with schema.transaction(block_path, "the points") as ds:
+        stored = read_stored(ds, block_path)
         if mode == "merge":
-            observations = merge(read_stored(ds, block_path), observations)
+            observations = merge(stored, observations)
+        check_replacement(tallies(stored, observations), replace_fewer, "control and check points",
+                          "pushbroom:importpoints", "To add the file's points to the block's, import them with "
+                          "MODE merge.", feedback)
         points_layer, table = layers(ds)
         ds.ExecuteSQL(f"DELETE FROM {TABLE}")
         ds.ExecuteSQL(f"DELETE FROM {LAYER}")

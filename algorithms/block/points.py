@@ -29,6 +29,11 @@ block_info at the new sidecar with its counts and bumps the kind's generation (s
 then is the old sidecar removed. A kill at any moment leaves the old points, layer and counts, or the new
 ones, never a mix; the staged layer and the sidecar a killed store leaves behind are removed by the next
 store once their writer has gone (atomic.owner_gone).
+
+A store that finds far fewer points than the block holds (none, or below half of what the stored points give
+at the new run's spacing: replacement.py) is refused before the layer is built, its new sidecar removed,
+unless `replace_fewer`. The spacing is the stats' SPACING key of the kind (the matching's grid in the
+reference image, the tie point cell): a sidecar without it is compared by its count alone.
 """
 import contextlib
 import functools
@@ -39,6 +44,8 @@ import secrets
 import shutil
 import sqlite3
 import zipfile
+from collections.abc import Callable
+from typing import Optional
 
 import numpy as np
 from osgeo import ogr
@@ -49,6 +56,7 @@ from ..crs import wgs84
 from ..errors import InputError, StorageError
 from ..matching.points import MultiPoints
 from . import schema
+from .replacement import Tally, check_replacement
 
 FILE_FORMAT = "pushbroom-multipoints-1"
 INDEX_FORMAT = "pushbroom-multipoints-parts-1"
@@ -64,6 +72,8 @@ KINDS = ("mass_points", "tie_points")
 DISPLAY_POINTS = 250_000
 #: the step that makes each kind (named in errors)
 MAKERS = {"mass_points": "pushbroom:matchpoints", "tie_points": "pushbroom:selecttiepoints"}
+#: the stats key of each kind's spacing in the reference image (px; module docstring)
+SPACING = {"mass_points": "spacing_px", "tie_points": "tie_cell"}
 
 
 def _folder(block_path):
@@ -239,18 +249,46 @@ def _switch(ds, staged, layer_name):
     ds.GetLayerByName(staged).Rename(layer_name)
 
 
-def save_points(block_path, points, kind="mass_points", display=None, feedback=None):
+def save_points(block_path: str, points: MultiPoints, kind: str = "mass_points", display: Optional[tuple] = None,
+                feedback=None, replace_fewer: bool = False) -> str:
     """Store `points` (MultiPoints) beside the block as a new sidecar of `kind` and, given `display` = (sensor
     model, image id, mean height), as the block's point layer `kind` (`write_point_layer`), switched in one
-    transaction (module docstring). Returns the sidecar path."""
+    transaction (module docstring). Far fewer points than the block holds are refused (InputError, the block
+    unchanged) unless `replace_fewer`. Returns the sidecar path."""
     return store_points(block_path, kind, lambda folder: (split_parts(folder, points), points.stats), display,
-                        feedback)
+                        feedback, replace_fewer)
 
 
-def store_points(block_path, kind, fill, display=None, feedback=None):
+def _spacing(stats: Optional[dict], kind: str) -> Optional[float]:
+    """The spacing (px) of the points of `kind` with run stats `stats`, or None where not recorded."""
+    value = (stats or {}).get(SPACING[kind])
+    return float(value) if isinstance(value, (int, float)) and value > 0 else None
+
+
+def _tally(block_path: str, kind: str, stored_name: Optional[str], index: dict) -> Tally:
+    """The Tally of the points of `kind` in the new sidecar's `index` against the stored sidecar `stored_name`
+    (None: none); a stored sidecar that is missing or damaged counts as none, so that it can be replaced."""
+    name = kind.replace("_", " ")
+    if not stored_name:
+        return Tally(name, 0, index["points"])
+    try:
+        stored = read_index(os.path.join(_folder(block_path), stored_name))
+    except (InputError, StorageError):      # missing or damaged: nothing to keep
+        return Tally(name, 0, index["points"])
+    if stored is None:                      # a one-file sidecar of earlier versions: its count is in block_info
+        return Tally(name, int(schema.read_info(block_path).get(f"{kind}_count") or 0), index["points"])
+    old, new = _spacing(stored["stats"], kind), _spacing(index["stats"], kind)
+    expected = stored["points"] * (old / new) ** 2 if old and new else None
+    return Tally(name, stored["points"], index["points"], expected)
+
+
+def store_points(block_path: str, kind: str, fill: Callable[[str], tuple], display: Optional[tuple] = None,
+                 feedback=None, replace_fewer: bool = False) -> str:
     """`save_points` of points that `fill(folder)` writes into the new sidecar folder (save_part: e.g. the
     tasks of a tiled step, each writing its parts, in the order of their ids) and returns as (index
-    entries, stats). The layer is built part by part: memory follows the part. Returns the sidecar path."""
+    entries, stats). The layer is built part by part: memory follows the part. Far fewer points than the
+    block holds are refused (InputError: the block keeps its points, layer and counts, the new folder is
+    removed) unless `replace_fewer` (module docstring). Returns the sidecar path."""
     if kind not in KINDS:
         raise InputError(f"point kind must be one of {KINDS}, not {kind!r}")
     what = f"the {kind.replace('_', ' ')}"
@@ -264,6 +302,8 @@ def store_points(block_path, kind, fill, display=None, feedback=None):
             write_index(tmp, entries, stats)
         progress.step(feedback, 5)
         index = read_index(path)
+        check_replacement([_tally(block_path, kind, old, index)], replace_fewer, kind.replace("_", " "),
+                          MAKERS[kind], feedback=feedback)
         groups = {1: 0, 2: 0, 3: 0}
         for entry in index["parts"]:
             for g, n in entry["groups"].items():

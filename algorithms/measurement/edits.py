@@ -115,18 +115,18 @@ class DeleteMeasurement(Command):
 
 class ReplacePoints(Command):
     """An import: the block's points `before` and `after` (Observations); do and undo store one of
-    them whole (Block.save_control_points, one transaction). The import itself is the
-    first do: add it to its Edit with done=True."""
+    them whole (Block.save_control_points, one transaction; fewer points than stored too: an undo or a redo
+    restores what the user had). The import itself is the first do: add it to its Edit with done=True."""
 
     def __init__(self, block, before, after, text):
         self.text = text
         self.block, self.before, self.after = block, before, after
 
     def do(self):
-        self.block.save_control_points(self.after, mode="replace")
+        self.block.save_control_points(self.after, mode="replace", replace_fewer=True)
 
     def undo(self):
-        self.block.save_control_points(self.before, mode="replace")
+        self.block.save_control_points(self.before, mode="replace", replace_fewer=True)
 
 
 class Edit:

@@ -1,6 +1,8 @@
 """The point file steps (pushbroom:importpoints, pushbroom:exportpoints): control and check points
 and their image measurements between a CSV file and the block (control_points.py has the format and
-the checks). An import is one transaction: a bad file leaves the block as it was."""
+the checks). An import is one transaction: a bad file leaves the block as it was, and so does one that would
+leave far fewer points, measured points or image measurements than the block holds (block/replacement.py),
+unless `replace_fewer`."""
 from dataclasses import dataclass
 from typing import Optional
 
@@ -25,6 +27,7 @@ class ImportParams:
     image_sigma: float = IMAGE_SIGMA    # px, default sigma of the image measurements
     suffix: str = ""                    # measurement column suffix ('_meas' for the simulator's points.csv)
     keep_implausible: bool = False      # keep points that do not lie where the images are
+    replace_fewer: bool = False         # replace the block's points even by far fewer (block/replacement.py)
 
 
 @dataclass
@@ -37,16 +40,17 @@ class ImportResult:
     layer: str      # OGR source of the block's control point layer
 
 
-def import_points(block_path, csv_path, params, feedback=None):
+def import_points(block_path: str, csv_path: str, params: ImportParams, feedback=None) -> ImportResult:
     """Import the CSV file `csv_path` into the block at `block_path` with ImportParams `params`; returns
-    an ImportResult. Raises control_points.import_csv's InputErrors (format, CRS, implausible points)."""
+    an ImportResult. Raises control_points.import_csv's InputErrors (format, CRS, implausible points, far fewer
+    points or measurements than the block holds)."""
     # storage: control_points.import_csv writes the points and measurements in one transaction
     blk = Block(block_path)
     stored = cp.import_csv(
         blk, csv_path, mode=params.mode, feedback=feedback, crs=params.crs, heights=params.heights,
         default_role=params.default_role, check_ids=[c.strip() for c in (params.check_ids or "").split(",")],
         sigmas=(params.sigma_e, params.sigma_n, params.sigma_h), image_sigma=params.image_sigma,
-        suffix=params.suffix, keep_implausible=params.keep_implausible)
+        suffix=params.suffix, keep_implausible=params.keep_implausible, replace_fewer=params.replace_fewer)
     progress.ensure(feedback).pushInfo("points in the block: " + cp.summary(stored, blk.image_ids()))
     roles = stored.points["role"]
     return ImportResult(int((roles == "control").sum()), int((roles == "check").sum()), len(stored.measurements),

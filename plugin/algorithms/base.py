@@ -249,3 +249,11 @@ def execution_choice(algorithm, parameters, context):
     values["backend"] = BACKENDS[values["backend"]]
     values["address"] = values["address"].strip()
     return Execution(**values)
+
+
+def replace_fewer_parameter(algorithm: QgsProcessingAlgorithm, what: str) -> QgsProcessingParameterBoolean:
+    """The boolean REPLACE_FEWER (off; put it among the advanced parameters): store the new `what` even where they
+    are far fewer than the block holds, which the engine otherwise refuses (algorithms/block/replacement.py).
+    Optional, so that the models saved before it still validate."""
+    return QgsProcessingParameterBoolean(algorithm.REPLACE_FEWER, algorithm.tr("Replace the block's {} even by far "
+                                         "fewer (none, or below half)").format(what), False, optional=True)

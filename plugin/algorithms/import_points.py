@@ -19,7 +19,7 @@ from ...algorithms.adjustment.control_points import ROLES
 from ...algorithms.block import Block
 from ...algorithms.steps.point_files import ImportParams, export_points, import_points
 from ..styles import load_styled
-from .base import PushbroomAlgorithm, heights_choice, heights_parameter
+from .base import PushbroomAlgorithm, heights_choice, heights_parameter, replace_fewer_parameter
 
 Number = QgsProcessingParameterNumber
 #: labels of the import modes (Block.IMPORT_MODES)
@@ -33,7 +33,7 @@ class ImportPoints(PushbroomAlgorithm):
     GROUP_ID = "block"
 
     KEYS = ("BLOCK INPUT CRS HEIGHTS ROLE CHECK_IDS MODE SIGMA_E SIGMA_N SIGMA_H SIGMA_IMAGE MEAS_SUFFIX "
-            "KEEP_IMPLAUSIBLE POINTS CONTROL CHECK MEASUREMENTS")
+            "KEEP_IMPLAUSIBLE REPLACE_FEWER POINTS CONTROL CHECK MEASUREMENTS")
 
     def initAlgorithm(self, config=None):
         d, tr = ImportParams(), self.tr
@@ -60,6 +60,7 @@ class ImportPoints(PushbroomAlgorithm):
                                          "simulator's points.csv)"), d.suffix, optional=True),
             QgsProcessingParameterBoolean(self.KEEP_IMPLAUSIBLE, tr("Keep points that do not lie where the block's "
                                           "images are (with a warning)"), d.keep_implausible),
+            replace_fewer_parameter(self, tr("points and measurements")),
         ])
         self.addOutput(QgsProcessingOutputVectorLayer(self.POINTS, tr("Control and check points"),
                                                       QgsProcessing.TypeVectorPoint))
@@ -77,7 +78,8 @@ class ImportPoints(PushbroomAlgorithm):
             default_role=ROLES[self.parameterAsEnum(parameters, self.ROLE, context)],
             **self.parameterValues(parameters, context, check_ids=self.CHECK_IDS, sigma_e=self.SIGMA_E,
                                    sigma_n=self.SIGMA_N, sigma_h=self.SIGMA_H, image_sigma=self.SIGMA_IMAGE,
-                                   suffix=self.MEAS_SUFFIX, keep_implausible=self.KEEP_IMPLAUSIBLE))
+                                   suffix=self.MEAS_SUFFIX, keep_implausible=self.KEEP_IMPLAUSIBLE,
+                                   replace_fewer=self.REPLACE_FEWER))
         result = import_points(path, self.parameterAsFile(parameters, self.INPUT, context), params, feedback)
         load_styled(context, result.layer, "Control and check points", self.POINTS, "control_points.qml")
         return {self.BLOCK: path, self.POINTS: result.layer, self.CONTROL: result.control, self.CHECK: result.check,

@@ -17,7 +17,7 @@ from ...algorithms.matching.coarse_to_fine import CoarseToFineParams
 from ...algorithms.matching.params import GrowParams
 from ...algorithms.steps.block_matching import MatchParams, match_block_points
 from ..styles import load_styled
-from .base import PushbroomAlgorithm, execution_choice, execution_parameters
+from .base import PushbroomAlgorithm, execution_choice, execution_parameters, replace_fewer_parameter
 
 Number = QgsProcessingParameterNumber
 #: seed choices: (engine key, label)
@@ -38,8 +38,8 @@ class MatchPoints(PushbroomAlgorithm):
     KEYS = ("BLOCK STRATEGY IMAGES MIN_HEIGHT MAX_HEIGHT SEEDS TEMPLATE STEP WIDE_TEMPLATE RHO_MIN MAX_ELLIPSE "
             "MAX_SHIFT MAX_ITERATIONS TILE SIGMA_FACTOR GROW_SECOND MPGC_REFINE MPGC_SUPPORT "
             "EXECUTION DASK_ADDRESS WORKERS COARSE_TO_FINE_GRID COARSE_TO_FINE_RHO_MIN COARSE_TO_FINE_TILE "
-            "COARSE_TO_FINE_EDGE_POINTS DENSE_TILE DENSE_STEP DENSE_REFINE DENSE_MPGC DENSE_P1 DENSE_P2 SUMMARY "
-            "POINTS POINTS_FILE")
+            "COARSE_TO_FINE_EDGE_POINTS DENSE_TILE DENSE_STEP DENSE_REFINE DENSE_MPGC DENSE_P1 DENSE_P2 REPLACE_FEWER "
+            "SUMMARY POINTS POINTS_FILE")
 
     def initAlgorithm(self, config=None):
         d, c, m, e = GrowParams(), CoarseToFineParams(), MatchParams(), DenseParams()
@@ -100,6 +100,7 @@ class MatchPoints(PushbroomAlgorithm):
                    minValue=0.0),
             Number(self.DENSE_P2, tr("Dense: SGM penalty P2 (a larger change)"), Number.Double, e.sgm.p2,
                    minValue=0.0),
+            replace_fewer_parameter(self, tr("mass points")),
         ])
         self.addParameter(QgsProcessingParameterFileDestination(
             self.SUMMARY, tr("Summary per point group (CSV)"), tr("CSV files (*.csv)"), optional=True))
@@ -122,7 +123,7 @@ class MatchPoints(PushbroomAlgorithm):
         values = self.parameterValues(
             parameters, context, images=self.IMAGES, min_height=self.MIN_HEIGHT, max_height=self.MAX_HEIGHT,
             strategy=self.STRATEGY, seeds=self.SEEDS, sigma_factor=self.SIGMA_FACTOR, grow_second=self.GROW_SECOND,
-            refine=self.MPGC_REFINE)
+            refine=self.MPGC_REFINE, replace_fewer=self.REPLACE_FEWER)
         values.update(strategy=STRATEGIES[values["strategy"]][0], seeds=SEED_SOURCES[values["seeds"]][0])
         return MatchParams(grow=grow, coarse_to_fine=coarse_to_fine, dense=DenseParams(sgm=sgm, **dense),
                            execution=execution_choice(self, parameters, context), **values)

@@ -10,7 +10,7 @@ from qgis.core import (
 
 from ...algorithms.steps.block_tie_points import TieParams, select_block_tie_points
 from ..styles import load_styled
-from .base import PushbroomAlgorithm
+from .base import PushbroomAlgorithm, replace_fewer_parameter
 
 Number = QgsProcessingParameterNumber
 
@@ -20,7 +20,7 @@ class SelectTiePoints(PushbroomAlgorithm):
     DISPLAY_NAME = "Select tie points"
     GROUP_ID = "matching"
 
-    KEYS = "BLOCK CELL MIN_GROUP TIE_POINTS TIE_POINTS_FILE"
+    KEYS = "BLOCK CELL MIN_GROUP REPLACE_FEWER TIE_POINTS TIE_POINTS_FILE"
 
     def initAlgorithm(self, config=None):
         d, tr = TieParams(), self.tr
@@ -29,6 +29,7 @@ class SelectTiePoints(PushbroomAlgorithm):
                                  minValue=1.0))
         self.addParameter(Number(self.MIN_GROUP, tr("Lowest point group accepted (1, 2 or 3)"), Number.Integer,
                                  d.min_group, minValue=1, maxValue=3))
+        self.addAdvancedParameters([replace_fewer_parameter(self, tr("tie points"))])
         self.addOutput(QgsProcessingOutputVectorLayer(self.TIE_POINTS, tr("Tie points"),
                                                       QgsProcessing.TypeVectorPoint))
         self.addOutput(QgsProcessingOutputFile(self.BLOCK, tr("Block (updated; chains the next step in a model)")))
@@ -36,7 +37,8 @@ class SelectTiePoints(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, self.BLOCK, context)
-        params = TieParams(**self.parameterValues(parameters, context, cell=self.CELL, min_group=self.MIN_GROUP))
+        params = TieParams(**self.parameterValues(parameters, context, cell=self.CELL, min_group=self.MIN_GROUP,
+                                                  replace_fewer=self.REPLACE_FEWER))
         result = select_block_tie_points(path, params, feedback)
         load_styled(context, result.layer, "Tie points", self.TIE_POINTS, "points_by_group.qml")
         return {self.BLOCK: path, self.TIE_POINTS: result.layer, self.TIE_POINTS_FILE: result.sidecar}

@@ -253,7 +253,7 @@ def test_tie_points_alone_with_priors(pushbroom_provider, scene, tmp_path, log, 
     ones (psi_x, injected equal) move the heights of all points together: the priors hold them."""
     path = str(tmp_path / "ties_only.gpkg")
     ids, _ = make_tie_block(scene, path)
-    Block(path).save_control_points(Observations())
+    Block(path).save_control_points(Observations(), replace_fewer=True)
     for params in ({}, {"FREE": "look:0"}):
         with pytest.raises(QgsProcessingException, match="no control points.*PRIORS"):
             processing.run("pushbroom:bundleadjust", {"BLOCK": path, "VARIANCE_COMPONENTS": False, **params})

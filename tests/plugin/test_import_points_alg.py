@@ -93,6 +93,26 @@ def test_import_projected_coordinates_and_merge(algorithms, scene, blk, tmp_path
     assert np.abs(stored.points["lon"] - lon).max() < 1e-8 and np.abs(stored.points["lat"] - lat).max() < 1e-8
 
 
+def test_a_file_without_measurements_keeps_the_measured_points(algorithms, scene, blk, tmp_path, log):
+    """Issue 36: a CSV without measurement columns replaced the block's measured points by one unmeasured
+    point. Now it is refused and the block keeps them; REPLACE_FEWER replaces them, with a warning."""
+    processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas"})
+    before = Block(blk).control_points()
+    row = scene["rows"][0]
+    bare = tmp_path / "bare.csv"
+    bare.write_text(f"id,lon,lat,h\n{row['id']},{row['lon']},{row['lat']},{row['h']}\n")
+    n = len(scene["rows"])
+    with pytest.raises(QgsProcessingException, match=rf"0 image measurements against {3 * n}.*REPLACE_FEWER"):
+        processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(bare)})
+    after = Block(blk).control_points()
+    assert after.points.tobytes() == before.points.tobytes()
+    assert after.measurements.tobytes() == before.measurements.tobytes()
+    result = processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(bare), "REPLACE_FEWER": True},
+                            feedback=log)
+    assert (result["CONTROL"], result["CHECK"], result["MEASUREMENTS"]) == (1, 0, 0)
+    assert any("far fewer" in w for w in log.warnings)
+
+
 def test_bad_file_is_a_processing_error(algorithms, scene, blk, tmp_path):
     processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas"})
     before = Block(blk).control_points()

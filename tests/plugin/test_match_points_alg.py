@@ -100,6 +100,10 @@ def test_two_images_give_group_1(pushbroom_provider, triplet):
                                              "MAX_HEIGHT": hi, "STEP": 8})
     mass = Block(path).points()
     assert len(mass) > 100 and mass.group_counts()[2] == mass.group_counts()[3] == 0
+    # a pair has no three-ray point: tie points of group 3 are refused with what to do instead
+    with pytest.raises(QgsProcessingException, match=r"no point of group 3 or higher .*Set MIN_GROUP to 1"):
+        processing.run("pushbroom:selecttiepoints", {"BLOCK": path, "MIN_GROUP": 3})
+    assert "tie_points" not in Block(path).info()
     wide = make_block(triplet, "wide.gpkg", ("HRG", "HRS1"))
     processing.run("pushbroom:matchpoints", {"BLOCK": wide, "IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo,
                                              "MAX_HEIGHT": hi, "STEP": 8, "WIDE_TEMPLATE": 27})

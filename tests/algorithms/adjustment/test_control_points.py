@@ -225,7 +225,8 @@ def test_merge_updates_and_replace_replaces(scene, blk, tmp_path):
     old3 = before.measurements[before.measurements["point"] == 2]
     assert p3[1:].tobytes() == old3[1:].tobytes()                      # HRS1, HRS2 kept
     assert (m["point"] == 4).sum() == 3 and len(m) == len(before.measurements) + 3
-    replaced = cp.import_csv(Block(blk), tmp_path / "update.csv", suffix="_meas")
+    # 2 points for 5: far fewer, replaced only when asked (block/replacement.py)
+    replaced = cp.import_csv(Block(blk), tmp_path / "update.csv", suffix="_meas", replace_fewer=True)
     assert replaced.points["name"].tolist() == ["P003", "NEW"] and len(replaced.measurements) == 4
     assert same(Block(blk).control_points(), replaced)
 

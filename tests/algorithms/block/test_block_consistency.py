@@ -67,7 +67,7 @@ def test_a_store_killed_while_it_builds_the_layer_leaves_the_old_points(blk, tmp
     leftovers = sorted(f.name for f in tmp_path.glob("b.mass_points.*"))
     assert len(leftovers) == 2                          # the killed store's folder, not referenced
     # the next store removes what the killed one left and switches to its own points
-    Block(blk).save_points(two_ray_points(7), display=(FlatModel(), 1, 0.0))
+    Block(blk).save_points(two_ray_points(7), display=(FlatModel(), 1, 0.0), replace_fewer=True)
     assert not any(t.startswith("mass_points__staged_") for t in tables(blk))
     assert [f.name for f in tmp_path.glob("b.mass_points.*")] == [Block(blk).info()["mass_points"]]
     assert len(Block(blk).points()) == 7 == layer_rows(blk)
@@ -79,7 +79,7 @@ def test_a_store_waits_for_another_writer_then_says_so(blk, monkeypatch):
     holder.execute("BEGIN IMMEDIATE")
     try:
         with pytest.raises(StorageError, match="another program keeps it locked .* nothing was stored"):
-            Block(blk).save_points(two_ray_points(5), display=(FlatModel(), 1, 0.0))
+            Block(blk).save_points(two_ray_points(5), display=(FlatModel(), 1, 0.0), replace_fewer=True)
     finally:
         holder.execute("ROLLBACK")
         holder.close()

@@ -35,8 +35,9 @@ def test_save_and_load_beside_the_block(block, tmp_path):
     assert info["mass_points"] == os.path.basename(path) and info["mass_points_count"] == "3000"
     assert os.path.basename(path).startswith("b.mass_points.") and os.path.isdir(path)
     assert_same(Block(block).points(), mp)
-    # saving again replaces (no duplicate keys, the old file removed), other kinds are separate
-    Block(block).save_points(mp.subset([1, 2, 3]))
+    # saving again replaces (no duplicate keys, the old file removed; far fewer points only when asked),
+    # other kinds are separate
+    Block(block).save_points(mp.subset([1, 2, 3]), replace_fewer=True)
     Block(block).save_points(mp.subset([5]), kind="tie_points")
     assert len(Block(block).points()) == 3 and len(Block(block).points("tie_points")) == 1
     assert Block(block).info()["mass_points_count"] == "3"
