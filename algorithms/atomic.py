@@ -13,7 +13,12 @@ only when everything succeeded:
   (delayed allocation, NFS, quotas) fails the write here, not after the rename;
 - the file system's errors (no permission, no space, quota, read-only, a missing folder) become
   StorageError naming the path, the cause and what to do. `check_destination` runs the same checks
-  before a long computation, so a bad output folder fails in a second, not after an hour.
+  before a long computation, so a bad output folder fails in a second, not after an hour;
+- only a regular file (or nothing) is ever replaced by a file, only a folder (or nothing) by a folder:
+  a device node (/dev/full), a FIFO, a socket or a folder in the way is a StorageError, never replaced;
+- a format that is several files (a shapefile's .shp, .shx, .dbf, .prj: COMPANIONS) is written as one:
+  the companions the driver made beside the temporary name are renamed with it, stale ones of the old
+  file removed.
 
 Leftovers of killed runs. A process killed mid-write leaves its temporary name behind. On the first
 write into a folder, a process removes the temporary names of that folder whose writer is gone: same
@@ -29,8 +34,10 @@ import re
 import secrets
 import shutil
 import socket
+import stat
 import threading
 import time
+from typing import Optional
 
 from .errors import StorageError
 
@@ -58,6 +65,8 @@ _GDAL_TEXTS = (("no space left", errno.ENOSPC), ("disk is full", errno.ENOSPC), 
                ("read-only", errno.EROFS), ("unable to open database file", errno.EACCES))
 #: texts that can only come from a failed write
 _WRITE_TEXTS = ("no space left", "disk is full", "disk full", "quota", "read-only file system", "write error")
+#: the files a format writes beside the one named (lower-case extensions), renamed with it by atomic_path
+COMPANIONS = {".shp": (".shx", ".dbf", ".prj", ".cpg")}
 _cleaned = set()
 _cleaned_lock = threading.Lock()
 
@@ -177,13 +186,44 @@ def _folder(path, what):
     return folder
 
 
+def companions(path) -> list:
+    """The files written beside `path` with it (COMPANIONS: a shapefile's .shx, .dbf, ...)."""
+    base, ext = os.path.splitext(os.fspath(path))
+    return [base + extra for extra in COMPANIONS.get(ext.lower(), ())]
+
+
+def node_kind(path) -> Optional[str]:
+    """What `path` is where it is neither missing nor a regular file: "a folder", "a device", "a FIFO" or "a
+    socket" (a symbolic link is followed); None for a regular file or nothing."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    for test, kind in ((stat.S_ISREG, None), (stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return "a device"
+
+
+def refuse_non_file(path, what: str = "the output") -> None:
+    """StorageError where `path` exists and is not a regular file (node_kind): a file is never written over a
+    folder, a device node, a FIFO or a socket."""
+    kind = node_kind(path)
+    if kind == "a folder":
+        raise storage_error(OSError(errno.EISDIR, "a folder has that name"), path, what)
+    if kind is not None:
+        raise StorageError(f"cannot write {what} {os.fspath(path)}: it is {kind}, not a regular file, and is never "
+                           "replaced: give the path of a file (nothing was written)")
+
+
 def check_destination(path, what="the output"):
     """Fail now, with a StorageError that says what to do, where `path` cannot be written: its folder
-    cannot be made, is not writable (a probe file is created and removed) or a folder is in the way."""
+    cannot be made, is not writable (a probe file is created and removed), or something that is not a
+    regular file is in the way (a folder, a device, a FIFO, a socket: never replaced)."""
     path = os.fspath(path)
     folder = _folder(path, what)
-    if os.path.isdir(path):
-        raise storage_error(OSError(errno.EISDIR, "a folder has that name"), path, what)
+    refuse_non_file(path, what)
     probe = _temporary_name(path)
     try:
         with open(probe, "wb"):
@@ -296,16 +336,24 @@ def atomic_path(path, what="the output", hidden=True):
     path = os.fspath(path)
     folder = _folder(path, what)
     _clean_once(folder)
+    refuse_non_file(path, what)
     tmp = _temporary_name(path, hidden=hidden)
     try:
         with _guarded(path, what, tmp):
             yield tmp
+        refuse_non_file(path, what)     # again: something may have taken the name meanwhile
         try:
+            for made, target in zip(companions(tmp), companions(path)):
+                if os.path.exists(made):
+                    os.replace(made, target)
+                elif os.path.lexists(target):       # the old file's, which would describe the new one wrongly
+                    os.unlink(target)
             os.replace(tmp, path)
         except OSError as exc:
             raise storage_error(exc, path, what) from exc
     finally:
-        for leftover in (tmp, tmp + ".aux.xml", tmp + ".ovr", tmp + "-journal", tmp + "-wal", tmp + "-shm"):
+        for leftover in (tmp, tmp + ".aux.xml", tmp + ".ovr", tmp + "-journal", tmp + "-wal", tmp + "-shm",
+                         *companions(tmp)):
             with contextlib.suppress(OSError):
                 os.unlink(leftover)
 
@@ -367,8 +415,13 @@ def work_dir(path, what="the intermediate files"):
 
 @contextlib.contextmanager
 def atomic_dir(path, what="the output folder"):
-    """Yield a temporary folder beside `path`; when the body succeeds it replaces `path` as a whole."""
+    """Yield a temporary folder beside `path`; when the body succeeds it replaces `path` as a whole. A file,
+    a device, a FIFO or a socket at `path` is a StorageError before the body runs (only a folder is replaced
+    by a folder)."""
     path = os.path.abspath(os.fspath(path))
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise StorageError(f"cannot write {what} {path}: {node_kind(path) or 'a file'} has that name, and only a "
+                           "folder is replaced by the folder written there: choose another name (nothing was written)")
     tmp = _temporary_dir(path, what)
     try:
         with _guarded(path, what, tmp):

@@ -119,6 +119,8 @@ def residual_vectors(result, check, observations, scale=DEFAULT_SCALE, crs=None,
 #: OGR field type per numpy kind of VECTOR_DTYPE's attributes
 _OGR_TYPES = {"U": "OFTString", "f": "OFTReal", "b": "OFTInteger"}
 _DRIVERS = {".gpkg": "GPKG", ".shp": "ESRI Shapefile", ".geojson": "GeoJSON"}
+#: the extensions (without the dot) of the formats write_residual_vectors writes
+FORMATS = tuple(ext[1:] for ext in _DRIVERS)
 
 
 def write_residual_vectors(path, vectors, crs, scale):
@@ -137,7 +139,9 @@ def write_residual_vectors(path, vectors, crs, scale):
                 field.SetSubType(ogr.OFSTBoolean)
             layer.CreateField(field)
         layer.CreateField(ogr.FieldDefn("scale", ogr.OFTReal))
-        ds.StartTransaction()
+        transaction = ds.TestCapability(ogr.ODsCTransactions)     # GeoPackage, not a shapefile
+        if transaction:
+            ds.StartTransaction()
         for v in vectors:
             feature = ogr.Feature(layer.GetLayerDefn())
             for name in ATTRIBUTES:
@@ -148,6 +152,7 @@ def write_residual_vectors(path, vectors, crs, scale):
             line.AddPoint_2D(float(v["x1"]), float(v["y1"]))
             feature.SetGeometry(line)
             layer.CreateFeature(feature)
-        ds.CommitTransaction()
+        if transaction:
+            ds.CommitTransaction()
         layer = None
     return os.fspath(path)

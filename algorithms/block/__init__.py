@@ -35,7 +35,11 @@ class Transaction:
 
 class Block:
     """The block GeoPackage `path` (.gpkg) and its point files. Every method opens the block anew (no
-    connection is kept); each write is one SQLite transaction (schema.py)."""
+    connection is kept); each write is one SQLite transaction (schema.py).
+
+    One identity: `path` is the block's real path (schema.real_path), whatever symbolic link the user
+    gave, so its point folders live beside the real file and every step sees the same points through a
+    link and through the real path. A step reports the path the user gave back as its BLOCK output."""
 
     #: the ways to store control points: replace the stored ones, or merge into them (control_points.py)
     IMPORT_MODES = control_points.MODES
@@ -43,7 +47,7 @@ class Block:
     CONTROL_LAYER = control_points.LAYER
 
     def __init__(self, path):
-        self.path = os.fspath(path)
+        self.path = schema.real_path(path)
 
     def __repr__(self):
         return f"Block({self.path!r})"
@@ -60,7 +64,8 @@ class Block:
         """Create the block `path` from `image_list` (`open_images`), footprints on `dem` or at `height`, with
         the terrain `height_range` where known; refuses to replace an existing block unless `overwrite`
         (images.create_block). Returns the Block."""
-        return cls(images.create_block(path, image_list, height, dem, overwrite, feedback, height_range))
+        return cls(images.create_block(schema.real_path(path), image_list, height, dem, overwrite, feedback,
+                                       height_range))
 
     # -- block information, generations, transactions ---------------------------------------------
 
@@ -95,6 +100,19 @@ class Block:
         (schema.transaction)."""
         with schema.transaction(self.path, what, expect) as ds:
             yield Transaction(ds)
+
+    def files(self) -> dict:
+        """{path: what it is to the block} of every file and folder of the block and every file it refers to, by
+        real path: the GeoPackage, its SQLite journals (schema.journals), its point folders (points.sidecars:
+        referenced or left by a killed store) and its images' rasters and orientation files. No step writes
+        over one of them (algorithms/destinations.py)."""
+        referred = {}
+        for row in self.images():
+            for key, part in (("image_path", "the image"), ("orientation_path", "the orientation file of image")):
+                if row[key]:
+                    referred.setdefault(os.path.realpath(row[key]), f"{part} {row['name']}")
+        return {self.path: "", **{p: "its SQLite journal" for p in schema.journals(self.path)},
+                **{p: "its point folder" for p in points.sidecars(self.path)}, **referred}
 
     def layer_source(self, layer_name):
         """The OGR source string of the block's layer `layer_name`."""

@@ -76,12 +76,34 @@ MAKERS = {"mass_points": "pushbroom:matchpoints", "tie_points": "pushbroom:selec
 SPACING = {"mass_points": "spacing_px", "tie_points": "tie_cell"}
 
 
-def _folder(block_path):
-    return os.path.dirname(os.path.abspath(os.fspath(block_path)))
+def _folder(block_path) -> str:
+    """The folder of the block's point folders: the real block file's (schema.real_path)."""
+    return os.path.dirname(schema.real_path(block_path))
 
 
-def _stem(block_path):
-    return os.path.splitext(os.path.basename(os.fspath(block_path)))[0]
+def _stem(block_path) -> str:
+    """The name stem of the block's point folders: the real block file's (schema.real_path)."""
+    return os.path.splitext(os.path.basename(schema.real_path(block_path)))[0]
+
+
+def _sidecar_name(block_path, kind: str) -> re.Pattern:
+    """The names of the point folders (and the one-file sidecars of earlier versions) of `kind` beside the
+    block: a versioned folder or .npz file (groups: writer host, pid), or the unversioned .npz of the first
+    versions."""
+    return re.compile(rf"^{re.escape(_stem(block_path))}\.{kind}(?:\.([A-Za-z0-9_]+)-(\d+)-[0-9a-f]{{8}}(?:\.npz)?"
+                      r"|\.npz)$")
+
+
+def sidecars(block_path) -> list:
+    """The paths of every point folder (or one-file sidecar) of the block beside it, of every kind: the
+    referenced ones and those a killed store left."""
+    folder = _folder(block_path)
+    patterns = [_sidecar_name(block_path, kind) for kind in KINDS]
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return []
+    return [os.path.join(folder, name) for name in names if any(p.match(name) for p in patterns)]
 
 
 def save_arrays(path, points):
@@ -184,9 +206,7 @@ def split_parts(folder, points, part_points=None):
 def _remove_orphan_sidecars(block_path, kind, keep):
     """Remove the sidecars of `kind` other than `keep` whose writer has gone (unversioned ones: always)."""
     folder = _folder(block_path)
-    # a versioned folder or .npz file, or the unversioned .npz of the first versions
-    pattern = re.compile(rf"^{re.escape(_stem(block_path))}\.{kind}(?:\.([A-Za-z0-9_]+)-(\d+)-[0-9a-f]{{8}}(?:\.npz)?"
-                         r"|\.npz)$")
+    pattern = _sidecar_name(block_path, kind)
     for name in os.listdir(folder):
         match = pattern.match(name)
         if match and name != keep and (match.group(1) is None

@@ -37,6 +37,21 @@ IMAGE_FIELDS = [("name", ogr.OFTString), ("image_path", ogr.OFTString),
 SUPPLIED = "supplied_model"
 
 
+def real_path(path) -> str:
+    """The block's one identity: the real path of `path` (symbolic links resolved), where its point folders
+    live beside it and under whose name they are recorded."""
+    return os.path.realpath(os.fspath(path))
+
+
+#: the files SQLite keeps beside a database while it writes (rollback journal, write-ahead log and its index)
+JOURNAL_SUFFIXES = ("-journal", "-wal", "-shm")
+
+
+def journals(path) -> list:
+    """The SQLite journal files of the block `path` (which exist only while a connection writes)."""
+    return [os.fspath(path) + suffix for suffix in JOURNAL_SUFFIXES]
+
+
 def create_layer(ds, name, geom_type, srs, fields):
     """A new layer (or table, geom_type wkbNone) with an integer fid and the given (name, OFT type) fields."""
     layer = ds.CreateLayer(name, srs, geom_type, options=["FID=fid"])

@@ -46,6 +46,8 @@ from .terrain import CLASSES, FOREST, build_terrain, check_coverage, extended_de
 from .tiled_surface import TiledSurface
 from .tiles import TILE, cut, grid_array, grown, value_range, windows
 
+#: the truth file, relative to the scene folder: it marks a folder simulate_scene made (and may replace)
+TRUTH = os.path.join("truth", "truth.json")
 TERRAIN_MARGIN_M = 400.0    # ground beyond the images' footprints (shadows, pads)
 OBJECT_MAX_M = 60.0         # highest surface object, for the footprint bounds
 MARKER_SIGMA_M = 10.0       # Gaussian marker sigma: 1 px of the coarsest (10 m) images
@@ -417,7 +419,7 @@ def _write(paths, config, images, terrain, radiance, candidates, corrections, tr
                          convert=radiometry.orthoimage)
     paths["points"] = join(folder, "points.csv")
     outputs.write_points(paths["points"], candidates)
-    paths["truth"] = join(folder, "truth", "truth.json")
+    paths["truth"] = join(folder, TRUTH)
     outputs.write_json(paths["truth"], _truth(config, images, corrections, trajectory, suns, radiometric, footprints,
                                               terrain, centre))
     return paths

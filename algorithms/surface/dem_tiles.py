@@ -348,6 +348,12 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
     return result
 
 
+def default_mask_path(output) -> str:
+    """Where the per-cell DEM `output` puts the mask of its filled cells when no mask path is given: beside it,
+    '<stem>_filled.tif'."""
+    return os.path.splitext(os.fspath(output))[0] + "_filled.tif"
+
+
 def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_path=None, feedback=None,
                          count_path=None, mask_path=None):
     """The DEM step: the point cloud file `cloud` (point_input.point_chunks) interpolated with DemParams
@@ -364,7 +370,7 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
             raise InputError("breaklines shape a TIN: the per-cell DEM does not use them; choose the TIN method or "
                              "leave the breaklines out")
         if params.fill and not mask_path:
-            mask_path = os.path.splitext(os.fspath(output))[0] + "_filled.tif"
+            mask_path = default_mask_path(output)
         result = _cells_dem(cloud, output, params, precision_path, count_path, mask_path, feedback)
         log.pushInfo(result.summary())
         return result

@@ -1,32 +1,44 @@
 """Common base of the Processing algorithms: naming, help, icon, and what every algorithm does the same
 way around its engine call:
 
-- its file outputs are checked before the work starts (atomic.check_destination): a folder that cannot
-  be written fails in a second with a clear message, not after an hour of computing;
+- its outputs are checked before the work starts (algorithms/destinations.py): an output that would
+  overwrite an input (by its real path, through a symbolic or a hard link, or inside a block's point
+  folder) or another output, that is a device, a FIFO or a folder, whose extension its writer does not
+  honour, or whose folder cannot be written fails in a second with a clear message, not after an hour
+  of computing and never over the input;
 - a CRS parameter the user filled in must be a valid CRS (an unknown code is an error, never the default);
 - the engine's errors become QgsProcessingException, printed once (`_single_error`)."""
 import os
+import re
+from typing import Optional
 
 from qgis.core import (
     QgsApplication,
+    QgsProcessing,
     QgsProcessingAlgorithm,
     QgsProcessingException,
     QgsProcessingParameterBoolean,
     QgsProcessingParameterDefinition,
     QgsProcessingParameterEnum,
+    QgsProcessingParameterFeatureSource,
     QgsProcessingParameterFile,
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterFolderDestination,
+    QgsProcessingParameterMultipleLayers,
     QgsProcessingParameterNumber,
     QgsProcessingParameterRasterDestination,
+    QgsProcessingParameterRasterLayer,
     QgsProcessingParameterString,
     QgsProcessingParameterVectorDestination,
+    QgsProcessingParameterVectorLayer,
+    QgsProviderRegistry,
 )
 from qgis.PyQt.QtCore import QCoreApplication, QUrl
 from qgis.PyQt.QtGui import QIcon
 
-from ...algorithms import atomic, raster_cache
+from ...algorithms import destinations, raster_cache
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES
+from ...algorithms.block import Block
 from ...algorithms.errors import InputError, PushbroomError
 from ...algorithms.execution import BACKENDS, Execution
 from ...resource_files import resource_path
@@ -72,6 +84,21 @@ def _file_path(value):
     return text
 
 
+def _layer_path(layer) -> Optional[str]:
+    """The file a map layer reads (its source without the provider's options, such as '|layername='), or None."""
+    if layer is None:
+        return None
+    return QgsProviderRegistry.instance().decodeUri(layer.providerType(), layer.source()).get("path") or None
+
+
+def filter_extensions(file_filter: str) -> tuple:
+    """The extensions (lower case, without the dot) of a Qt file filter such as 'CSV files (*.csv)'; empty
+    where the filter also admits any file ('All files (*.*)')."""
+    if re.search(r"\(\*(\.\*)?\)|\*\.\*", file_filter):
+        return ()
+    return tuple(dict.fromkeys(e.lower() for e in re.findall(r"\*\.(\w+)", file_filter)))
+
+
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
     """Subclasses set NAME, DISPLAY_NAME, GROUP_ID (a key of GROUPS), KEYS and implement `execute`: read
     the parameters, call the step's one engine entry point, load its outputs. The help is the step's page,
@@ -83,6 +110,11 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     #: the parameter and output keys, separated by spaces; each becomes a class constant holding its own name
     #: (`self.BLOCK == "BLOCK"`), the names Processing, models and qgis_process use
     KEYS = ""
+    #: the file parameter that names a block: its files and images are inputs (Block.files)
+    BLOCK_PARAMETER = "BLOCK"
+    #: {folder output: the file that marks a folder the step made} of the folder outputs the step replaces as a
+    #: whole (destinations.FOLDER); the other folder outputs are written into
+    WHOLE_FOLDERS = {}
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -148,26 +180,85 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         """The outputs dict without the optional outputs that were not made (value None or empty)."""
         return {key: value for key, value in outputs.items() if value is not None and value != ""}
 
-    def check_destinations(self, parameters, context):
-        """atomic.check_destination on every file or folder output that was given."""
-        for definition in self.destinationParameterDefinitions():
+    def inputs(self, parameters, context) -> list:
+        """destinations.Input of every file and folder the step reads: what its file, layer and multiple-layer
+        parameters name and, of a block parameter (BLOCK_PARAMETER), the block's own files and the images it
+        refers to (Block.files); each with the files read with it (destinations.files_of)."""
+        found = []
+        for definition in self.parameterDefinitions():
             name = definition.name()
-            if isinstance(definition, QgsProcessingParameterFolderDestination):
-                path = _file_path(self.parameterAsString(parameters, name, context))
-                if path and os.path.isdir(path):    # written into: it must be writable
-                    atomic.check_destination(os.path.join(path, "probe"), f"into {definition.description().lower()}")
-                elif path:                          # made (or replaced as a whole) in its parent folder
-                    atomic.check_destination(path, f"the {definition.description().lower()}")
+            if definition.isDestination():
                 continue
-            if isinstance(definition, QgsProcessingParameterFileDestination):
-                path = _file_path(self.parameterAsFileOutput(parameters, name, context))
-            elif isinstance(definition, (QgsProcessingParameterRasterDestination,
-                                         QgsProcessingParameterVectorDestination)):
-                path = _file_path(self.parameterAsOutputLayer(parameters, name, context))
+            if name == self.BLOCK_PARAMETER and isinstance(definition, QgsProcessingParameterFile):
+                path = self.parameterAsFile(parameters, name, context)
+                named = Block(path).files() if path else {}
+            else:
+                named = dict.fromkeys(self._read_paths(definition, parameters, context), "")
+            for path, part in named.items():
+                for file in destinations.files_of(path):
+                    with_it = "" if file == path else "a file read with it"
+                    found.append(destinations.Input(file, self._label(name), ", ".join(filter(None, (part, with_it)))))
+        return found
+
+    def _read_paths(self, definition, parameters, context) -> list:
+        """The local files a file, layer or multiple-layer parameter names (none for the other kinds)."""
+        name = definition.name()
+        if isinstance(definition, QgsProcessingParameterFile):
+            paths = [self.parameterAsFile(parameters, name, context)]
+        elif isinstance(definition, QgsProcessingParameterRasterLayer):
+            paths = [_layer_path(self.parameterAsRasterLayer(parameters, name, context))]
+        elif isinstance(definition, (QgsProcessingParameterVectorLayer, QgsProcessingParameterFeatureSource)):
+            paths = [_layer_path(self.parameterAsVectorLayer(parameters, name, context))]
+        elif isinstance(definition, QgsProcessingParameterMultipleLayers):
+            if definition.layerType() == QgsProcessing.TypeFile:
+                paths = self.parameterAsFileList(parameters, name, context)
+            else:
+                paths = [_layer_path(layer) for layer in self.parameterAsLayerList(parameters, name, context)]
+        else:
+            paths = []
+        return [p for p in map(_file_path, paths) if p]
+
+    def destinations(self, parameters, context) -> list:
+        """destinations.Destination of every file or folder output that was given, with the extensions its
+        writer honours (a file output's file filter, the provider's raster and vector formats), and those of
+        `extra_destinations`."""
+        found = []
+        for definition in self.destinationParameterDefinitions():
+            name, kind, extensions, mark = definition.name(), destinations.FILE, (), ""
+            if isinstance(definition, QgsProcessingParameterFolderDestination):
+                path = self.parameterAsString(parameters, name, context)
+                kind = destinations.FOLDER if name in self.WHOLE_FOLDERS else destinations.INTO
+                mark = self.WHOLE_FOLDERS.get(name, "")
+            elif isinstance(definition, QgsProcessingParameterFileDestination):
+                path = self.parameterAsFileOutput(parameters, name, context)
+                extensions = filter_extensions(definition.fileFilter())
+            elif isinstance(definition, QgsProcessingParameterRasterDestination):
+                path = self.parameterAsOutputLayer(parameters, name, context)
+                extensions = tuple(definition.supportedOutputRasterLayerExtensions())
+            elif isinstance(definition, QgsProcessingParameterVectorDestination):
+                path = self.parameterAsOutputLayer(parameters, name, context)
+                extensions = tuple(definition.supportedOutputVectorLayerExtensions())
             else:
                 continue
+            path = _file_path(path)
             if path:
-                atomic.check_destination(path, f"the {definition.description().lower()}")
+                found.append(destinations.Destination(path, self._label(name), kind, extensions, mark))
+        return found + self.extra_destinations(parameters, context)
+
+    def extra_destinations(self, parameters, context) -> list:
+        """destinations.Destination of the files the step writes that no parameter names (a file made beside an
+        output); none by default."""
+        return []
+
+    def _label(self, name: str) -> str:
+        """A parameter as messages name it: 'OUTPUT (Point file)' (without a description's own parentheses)."""
+        definition = self.parameterDefinition(name)
+        description = re.sub(r"\s*\(.*\)\s*$", "", definition.description()) if definition is not None else ""
+        return f"{name} ({description})" if description else name
+
+    def check_destinations(self, parameters, context) -> None:
+        """destinations.check of the step's outputs against its inputs, before any work."""
+        destinations.check(self.inputs(parameters, context), self.destinations(parameters, context))
 
     def processAlgorithm(self, parameters, context, feedback):
         try:

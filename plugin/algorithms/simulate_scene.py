@@ -29,6 +29,7 @@ class SimulateScene(PushbroomAlgorithm):
     DISPLAY_NAME = "Simulate scene"
     GROUP_ID = "simulation"
 
+    WHOLE_FOLDERS = {"OUTPUT": scene.TRUTH}     # the scene folder is replaced as a whole (simulate_scene)
     KEYS = ("CONFIGURATION SIZE_KM SEED BITS POINTS BLUNDERS NOISE FRACTAL SURFACE_OBJECTS MEASUREMENT_SIGMA "
             "MARKERS ERROR_SCALE GRID_M LOOK_TABLE ORTHOIMAGE OUTPUT IMAGES DSM DTM CLASSES TRUTH FOLDER")
 

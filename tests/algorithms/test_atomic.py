@@ -95,6 +95,47 @@ def test_check_destination_names_the_problem(tmp_path):
     assert os.listdir(tmp_path / "new") == []        # the probe is gone
 
 
+
+def test_a_file_is_never_written_over_what_is_not_a_regular_file(tmp_path):
+    """A device node (/dev/full, which root could replace), a FIFO or a folder: refused before the body runs."""
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)
+    for path, match in [(fifo, "it is a FIFO, not a regular file"), ("/dev/full", "it is a device, not a regular file"),
+                        (tmp_path, "a folder of that name is in the way")]:
+        ran = []
+        with pytest.raises(StorageError, match=match):
+            with atomic.atomic_path(path) as tmp:
+                ran.append(tmp)
+        assert ran == []
+    assert fifo.is_fifo() and os.path.exists("/dev/full") and sorted(os.listdir(tmp_path)) == ["fifo.csv"]
+
+
+def test_a_folder_is_never_written_over_a_file(tmp_path):
+    target = tmp_path / "scene"
+    target.write_text("the user's file")
+    with pytest.raises(StorageError, match="a file has that name, and only a folder is replaced"):
+        with atomic.atomic_dir(target):
+            pass
+    assert target.read_text() == "the user's file" and os.listdir(tmp_path) == ["scene"]
+
+
+def test_a_shapefile_is_written_with_its_companions(tmp_path):
+    """The .shx, .dbf and .prj the driver writes beside the temporary name are renamed with it; a stale companion
+    of the old file (here a .cpg) is removed, since it would describe the new file."""
+    import numpy as np
+    from osgeo import ogr
+
+    from pushbroom.algorithms.adjustment.residual_vectors import VECTOR_DTYPE, write_residual_vectors
+    vectors = np.zeros(3, VECTOR_DTYPE)
+    vectors["x1"], vectors["name"] = [1.0, 2.0, 3.0], ["a", "b", "c"]
+    (tmp_path / "r.cpg").write_text("LATIN1")
+    write_residual_vectors(tmp_path / "r.shp", vectors, "EPSG:32632", 1.0)
+    assert sorted(os.listdir(tmp_path)) == ["r.dbf", "r.prj", "r.shp", "r.shx"]
+    ds = ogr.Open(str(tmp_path / "r.shp"))
+    layer = ds.GetLayer()
+    assert layer.GetFeatureCount() == 3 and layer.GetSpatialRef().GetAuthorityCode(None) == "32632"
+    assert sorted(f["name"] for f in layer) == ["a", "b", "c"]
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders (tests/plugin/test_faults_alg.py "
                                               "checks permissions as another user)")
 def test_check_destination_of_a_read_only_folder(tmp_path):
