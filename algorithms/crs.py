@@ -92,3 +92,75 @@ def egm96_undulation(lon, lat):
         raise InputError("the EGM96 geoid undulation could not be computed for every point: check the "
                          "coordinates and that PROJ's EGM96 grid (us_nga_egm96_15.tif) is installed")
     return out[:, 2].reshape(lon.shape)
+
+
+#: degrees data may lie beyond the area of use of a CRS (a scene across a UTM zone border, a country mapped in one
+#: zone: transverse Mercator stays usable several degrees beyond its zone); farther, the CRS is not the data's
+AREA_MARGIN = 10.0
+
+
+def area_of_use(target):
+    """'longitude w .. e, latitude s .. n' of the area of use of the osr.SpatialReference `target`."""
+    area = target.GetAreaOfUse()
+    return (f"longitude {area.west_lon_degree:g} .. {area.east_lon_degree:g}, latitude {area.south_lat_degree:g} .. "
+            f"{area.north_lat_degree:g}")
+
+
+def within_area_of_use(target, lon, lat):
+    """Whether (lon, lat) (degrees) lies within AREA_MARGIN degrees of the area of use PROJ gives for `target`
+    (True where the CRS has none, False where lon or lat is not finite). Longitudes are compared around the
+    globe, so an area across the antimeridian holds the points on either side of it."""
+    area = target.GetAreaOfUse()
+    if area is None:
+        return True
+    if not (np.isfinite(lon) and np.isfinite(lat)):
+        return False
+    span = (area.east_lon_degree - area.west_lon_degree) % 360.0 or 360.0    # an area across the antimeridian too
+    beyond = (lon - area.west_lon_degree) % 360.0 - span                    # > 0: east of the area, by this much
+    outside = 0.0 if beyond <= 0.0 else min(beyond, 360.0 - span - beyond)
+    return outside <= AREA_MARGIN and \
+        area.south_lat_degree - AREA_MARGIN <= lat <= area.north_lat_degree + AREA_MARGIN
+
+
+def check_output_crs(target, lon, lat, what):
+    """InputError where the output CRS `target` (osr.SpatialReference) is used far from `what` ("the point
+    cloud"), whose centre is at (lon, lat) degrees (within_area_of_use): a projection far from its area of use
+    mirrors or tears the data (a UTM zone 200 degrees away puts a scene at a northing of 15 000 km)."""
+    if not within_area_of_use(target, float(lon), float(lat)):
+        raise InputError(f"the output CRS {target.GetName()} is used at {area_of_use(target)}, far from {what} "
+                         f"(longitude {lon:.4f}, latitude {lat:.4f}): choose an output CRS used there, or leave it "
+                         "empty for the UTM zone there")
+
+
+#: cells a grid has at least along each axis: fewer is no raster of the data (one cell, one value)
+MIN_CELLS = 2
+
+
+def unit_name(target):
+    """The unit of the x/y coordinates of `target` (osr.SpatialReference): 'degrees', 'metres', 'US survey feet' ..."""
+    if target.IsGeographic():
+        return "degrees"
+    name = target.GetLinearUnitsName() or "units"
+    return "metres" if name.lower() in ("metre", "meter", "m") else name
+
+
+def cell_unit_hint(cell, target):
+    """A sentence where the cell size `cell` looks given in another unit than the CRS `target`'s (a cell of
+    metres in a degree CRS: over 0.1 degree, 11 km; a cell of degrees in a metre CRS: under 1 cm), else ''."""
+    if target.IsGeographic() and cell > 0.1:
+        return (" The CRS's unit is the degree: is the cell size in metres? (10 m is about 0.00009 degrees, a "
+                "projected CRS such as the UTM zone takes metres)")
+    if target.IsProjected() and cell * target.GetLinearUnits() < 0.01:
+        return f" The CRS's unit is {unit_name(target)}: is the cell size in degrees?"
+    return ""
+
+
+def check_grid_cells(cols, rows, cell, target, extent, what):
+    """InputError where a grid of `cols` x `rows` cells of `cell` units of the CRS `target` over `extent`
+    (width, height in those units) has fewer than MIN_CELLS along an axis: `what` names it ("the orthoimage")."""
+    if min(cols, rows) >= MIN_CELLS:
+        return
+    unit = unit_name(target)
+    raise InputError(f"a cell size of {cell:g} {unit} makes {what} a grid of {cols} x {rows} cells over "
+                     f"{extent[0]:.4g} x {extent[1]:.4g} {unit} ({target.GetName()}): give a cell size of at most "
+                     f"{min(extent) / MIN_CELLS:.4g} {unit}.{cell_unit_hint(cell, target)}")

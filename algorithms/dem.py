@@ -4,7 +4,7 @@ The grid uses GDAL's pixel-is-area geotransform (lon0, dlon, 0, lat0, 0, dlat), 
 value is its centre's height. `height` interpolates bilinearly between centres and returns NaN
 outside the grid or next to nodata cells.
 
-Heights outside PLAUSIBLE_HEIGHTS are no terrain on Earth: voids the file does not flag as nodata
+Heights outside PLAUSIBLE_HEIGHTS (height_range.py) are no terrain on Earth: voids the file does not flag as nodata
 (SRTM's -32768), or another unit. They are used as given, with a warning (implausible_heights) that
 says how to declare their value as nodata."""
 import math
@@ -14,6 +14,7 @@ from numba import njit
 
 from .errors import InputError
 from .geodesy import flat_points
+from .height_range import PLAUSIBLE_HEIGHTS, outside_plausible
 
 
 @njit(cache=True, nogil=True)
@@ -40,11 +41,6 @@ def _bilinear_arrays(grid, lon0, dlon, lat0, dlat, lon, lat, out):
         out[k] = bilinear_scalar(grid, lon0, dlon, lat0, dlat, lon[k], lat[k])
 
 
-#: heights (m) of terrain on Earth, ellipsoidal or orthometric, with a margin: the Dead Sea shore lies at
-#: -430 m, Everest at 8849 m, and the geoid departs from the ellipsoid by -106 .. +85 m
-PLAUSIBLE_HEIGHTS = (-500.0, 9000.0)
-
-
 def implausible_heights(heights, what="the DEM"):
     """A warning about the finite `heights` (array) outside PLAUSIBLE_HEIGHTS: how many cells, the value
     most of them hold, and how to declare it as nodata; None where every height is plausible. `what`
@@ -55,23 +51,28 @@ def implausible_heights(heights, what="the DEM"):
 def implausible_values(heights):
     """(values, counts) of the finite `heights` outside PLAUSIBLE_HEIGHTS: what implausible_warning tells,
     to be added up over the bands of a raster read in parts."""
-    low, high = PLAUSIBLE_HEIGHTS
     heights = np.asarray(heights, dtype=np.float64)
-    return np.unique(heights[(heights < low) | (heights > high)], return_counts=True)
+    return np.unique(heights[outside_plausible(heights)], return_counts=True)
 
 
-def implausible_warning(values, counts, what="the DEM"):
-    """implausible_heights' warning from the implausible `values` (ascending, unique) and their `counts`."""
+def implausible_warning(values, counts, what="the DEM", left_out=None):
+    """implausible_heights' warning from the implausible `values` (ascending, unique) and their `counts`. With
+    `left_out` (the name of the step's nodata parameter, such as "REFERENCE_NODATA"), the cells are said to be
+    left out as voids, as the step does with them; else used as heights."""
     if not len(values):
         return None
     low, high = PLAUSIBLE_HEIGHTS
     total, value = int(np.sum(counts)), float(values[np.argmax(counts)])
     found = (f"{total} cells at {value:g} m" if len(values) == 1 else
              f"{total} cells from {values[0]:g} to {values[-1]:g} m ({max(counts)} of them at {value:g} m)")
-    return (f"{what} has {found}, outside the heights of terrain on Earth ({low:g} .. {high:g} m): voids that are "
-            f"not flagged as nodata, or heights in another unit. They are used as heights as they are; if they are "
-            f"voids, declare {value:g} as the DEM's nodata value (the DEM nodata parameter, or gdal_edit.py "
-            f"-a_nodata {value:g} on the file) and run again")
+    start = (f"{what} has {found}, outside the heights of terrain on Earth ({low:g} .. {high:g} m): voids that are "
+             f"not flagged as nodata, or heights in another unit. ")
+    if left_out:
+        return start + (f"They are left out as voids; declare {value:g} as its nodata value (the {left_out} "
+                        f"parameter, or gdal_edit.py -a_nodata {value:g} on the file) to say so, or convert the "
+                        "file to metres if they are heights")
+    return start + (f"They are used as heights as they are; if they are voids, declare {value:g} as the DEM's nodata "
+                    f"value (the DEM nodata parameter, or gdal_edit.py -a_nodata {value:g} on the file) and run again")
 
 
 class ImplausibleTally:
@@ -88,9 +89,9 @@ class ImplausibleTally:
             self.counts = np.bincount(inverse, np.concatenate([self.counts, counts])).astype(np.int64)
         return heights
 
-    def warning(self, what="the DEM"):
+    def warning(self, what="the DEM", left_out=None):
         """implausible_warning of all parts."""
-        return implausible_warning(self.values, self.counts, what)
+        return implausible_warning(self.values, self.counts, what, left_out)
 
 
 def nodata_as_nan(array, *nodata):

@@ -1,14 +1,51 @@
-"""The terrain height range a step works in: the user's heights where given, else the block's.
+"""The terrain height range a step works in: the user's heights where given, else the block's; and the
+heights terrain on Earth can have (PLAUSIBLE_HEIGHTS), which every height a user gives is checked against.
 
 A height range is a tuple (h_min, h_max) of ellipsoidal heights (m), a single height, or None (nothing
 known). Matching searches along the rays between h_min and h_max; steps that need one starting height
 (intersection, tie point display, RPC fitting checks) take its middle."""
+import math
+
+import numpy as np
+
+from .errors import InputError
+
+#: heights (m) of terrain on Earth, ellipsoidal or orthometric, with a margin: the Dead Sea shore lies at
+#: -430 m, Everest at 8849 m, and the geoid departs from the ellipsoid by -106 .. +85 m, so that both kinds of
+#: height of any terrain lie within
+PLAUSIBLE_HEIGHTS = (-500.0, 9000.0)
+
+
+def outside_plausible(heights):
+    """Bool array: where the finite `heights` lie outside PLAUSIBLE_HEIGHTS (NaN: False)."""
+    heights = np.asarray(heights, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        return (heights < PLAUSIBLE_HEIGHTS[0]) | (heights > PLAUSIBLE_HEIGHTS[1])
+
+
+def check_height(value, what):
+    """`value` (m) as a float; InputError naming `what` ("the mean height HEIGHT") where it is not finite or
+    lies outside PLAUSIBLE_HEIGHTS. None passes as None (not given)."""
+    if value is None:
+        return None
+    value = float(value)
+    low, high = PLAUSIBLE_HEIGHTS
+    if not math.isfinite(value):
+        raise InputError(f"{what} must be a number of metres within {low:g} .. {high:g} m, not {value}")
+    if outside_plausible(value):
+        raise InputError(f"{what} of {value:g} m lies outside the heights of terrain on Earth ({low:g} .. {high:g} m, "
+                         "ellipsoidal or above sea level): give the terrain's height in metres (not feet, not "
+                         "a flying height)")
+    return value
 
 
 def height_range(h_min, h_max, block_range):
     """(h_min, h_max) when both are given; one given: that height (the matcher searches it +- 500 m);
     neither: `block_range`, the range recorded in the block at its creation (DEM heights under the
-    footprints, or the mean height +- 500 m)."""
+    footprints, or the mean height +- 500 m). A height given outside PLAUSIBLE_HEIGHTS is an InputError
+    (check_height)."""
+    h_min = check_height(h_min, "the lowest terrain height (MIN_HEIGHT)")
+    h_max = check_height(h_max, "the highest terrain height (MAX_HEIGHT)")
     if h_min is not None and h_max is not None:
         return (h_min, h_max)
     if h_min is not None or h_max is not None:

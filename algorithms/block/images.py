@@ -179,17 +179,47 @@ def image_name(image_path):
     return stem
 
 
+def file_identity(path):
+    """What tells one file from another whatever its name: (device, inode) of the file a path, a symbolic link
+    or a hard link leads to; the resolved absolute path where it cannot be read (a path that does not exist)."""
+    try:
+        info = os.stat(path)
+    except (OSError, ValueError):
+        return os.path.realpath(os.fspath(path))
+    return info.st_dev, info.st_ino
+
+
+def check_distinct(paths, what, why):
+    """InputError where two of `paths` are one file (the same path twice, or one file through a link or another
+    path): `what` names the list ("images"), `why` says why that is wrong."""
+    first = {}
+    for k, path in enumerate(paths):
+        key = file_identity(path)
+        if key in first:
+            j = first[key]
+            same = "the same path" if os.path.abspath(paths[j]) == os.path.abspath(path) else "one file"
+            raise InputError(f"{what} {j + 1} and {k + 1} ({paths[j]} and {path}) are {same}: {why}; "
+                             "remove one")
+        first[key] = k
+
+
 def open_images(image_paths, orientation_paths=None):
     """(name, image path, orientation path, model) per image; orientation found beside the image
-    unless given (same order)."""
+    unless given (same order). InputError where an image, or an orientation, comes twice (check_distinct:
+    a DIMAP product given by its folder and by its raster has one METADATA.DIM)."""
     from .. import sensors
-    orientation_paths = list(orientation_paths or [])
+    image_paths = [os.fspath(p) for p in image_paths]
+    orientation_paths = [os.fspath(p) for p in orientation_paths or []]
     if orientation_paths and len(orientation_paths) != len(image_paths):
         raise InputError(f"{len(orientation_paths)} orientation files for {len(image_paths)} images: "
                          "give one per image, in the same order, or none")
+    check_distinct(image_paths, "images", "a block holds each image once (an image matched with itself gives "
+                                          "points without parallax)")
+    orientation_paths = orientation_paths or [sensors.orientation_source(image) for image in image_paths]
+    check_distinct(orientation_paths, "the orientations of images", "each image has an orientation of its own (one "
+                                                                    "image given twice, or a wrong orientation file)")
     result, seen = [], set()
-    for k, image in enumerate(image_paths):
-        orientation = orientation_paths[k] if orientation_paths else sensors.orientation_source(image)
+    for image, orientation in zip(image_paths, orientation_paths):
         model = sensors.load(orientation, image=image)
         name = image_name(image)
         unique, n = name, 2

@@ -1,13 +1,17 @@
 """The output grid of an orthoimage: a north-up raster grid in a CRS (GDAL geotransform, cell centres
 at (x0 + (j + 0.5) dx, y0 + (i + 0.5) dy), dy < 0), by default in the UTM zone of the image footprint
-with the image's ground sampling distance, over the footprint where the DEM covers it."""
+with the image's ground sampling distance, over the footprint where the DEM covers it.
+
+A CRS used far from the image (crs.check_output_crs: a UTM zone 200 degrees away mirrors the image) and a
+cell size that leaves fewer than crs.MIN_CELLS cells along an axis (crs.check_grid_cells: metres given for a
+degree CRS) are InputErrors; `dem_coverage` measures how much of the image the DEM covers."""
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from osgeo import osr
 
-from ..crs import transform, wgs84
+from ..crs import cell_unit_hint, check_grid_cells, transform, wgs84
 from ..errors import InputError
 from ..geodesy import metres_per_degree
 from ..surface.pointcloud import output_srs
@@ -63,10 +67,11 @@ def default_grid(model, dem, crs=None, cell_size=None):
     """OutputGrid over the image footprint (at the DEM's lowest and highest heights) clipped to the DEM's
     extent, in `crs` (default: the UTM zone of the footprint) with square cells of `cell_size` CRS units
     (default: the image's ground sampling distance, in degrees on a geographic CRS), snapped to whole
-    multiples of the cell size. Raises InputError when the DEM does not overlap the footprint."""
+    multiples of the cell size. Raises InputError when the DEM does not overlap the footprint, `crs` is used
+    far from it, or the grid would have fewer than 2 or too many cells along an axis (module docstring)."""
     low, high = dem.height_range
     ring = np.vstack([model.footprint(h=low), model.footprint(h=high)])
-    srs = output_srs(crs, ring[:, 0], ring[:, 1])
+    srs = output_srs(crs, ring[:, 0], ring[:, 1], "the image")
     if cell_size is None:
         cell_size = ground_sampling_distance(model, 0.5 * (low + high))
         if srs.IsGeographic():
@@ -80,8 +85,29 @@ def default_grid(model, dem, crs=None, cell_size=None):
     x1, y1 = np.minimum(image_xy.max(axis=0), dem_xy.max(axis=0))[:2]
     if not (x1 > x0 and y1 > y0):
         raise InputError("the DEM does not overlap the image footprint: give a DEM that covers the image")
+    extent = (x1 - x0, y1 - y0)
     x0, y1 = math.floor(x0 / cell_size) * cell_size, math.ceil(y1 / cell_size) * cell_size
     cols, rows = math.ceil((x1 - x0) / cell_size), math.ceil((y1 - y0) / cell_size)
     if cols * rows > 2 ** 31:
-        raise InputError(f"{cols} x {rows} cells of {cell_size:g} are too many: give a larger cell size")
+        raise InputError(f"{cols} x {rows} cells of {cell_size:g} are too many: give a larger cell "
+                         f"size.{cell_unit_hint(cell_size, srs)}")
+    check_grid_cells(cols, rows, cell_size, srs, extent, "the orthoimage")
     return OutputGrid(srs, (x0, cell_size, 0.0, y1, 0.0, -cell_size), int(cols), int(rows))
+
+
+#: dem_coverage looks for DEM heights under the centres of COVERAGE_SAMPLES x COVERAGE_SAMPLES equal parts of the image
+COVERAGE_SAMPLES = 32
+
+
+def dem_coverage(model, dem):
+    """The share (0..1) of the image of `model` under which the DEM `dem` (dem_store.StoredDem) has heights: of
+    the centres of COVERAGE_SAMPLES x COVERAGE_SAMPLES equal parts of the image, projected at the DEM's middle
+    height, those where the DEM's height is defined (inside its extent, off its nodata). A DEM cut to the image
+    border covers all of them."""
+    cols, rows = model.size
+    t = (np.arange(COVERAGE_SAMPLES) + 0.5) / COVERAGE_SAMPLES
+    c, r = np.meshgrid(t * cols, t * rows)
+    lon, lat = model.image_to_ground(c.ravel(), r.ravel(), np.full(c.size, 0.5 * sum(dem.height_range)))
+    placed = np.isfinite(lon) & np.isfinite(lat)
+    heights = dem.height(lon[placed], lat[placed]) if placed.any() else np.zeros(0)
+    return float(np.count_nonzero(np.isfinite(heights))) / c.size

@@ -1,10 +1,13 @@
 """Classes of the assessed points and cells (Zhang and Gruen 2004, section 4.2: open / city / trees / alpine;
 Kornus et al. 2006, section 3.7: flat vs mountainous): from a class raster (e.g. the simulator's classes.tif,
 names in its CLASS_<n> metadata or the band's category names), from polygons with a class field, or from the
-slope of the reference. Class 0 (and the raster's nodata) means "no class"."""
+slope of the reference. Class 0 (and the raster's nodata) means "no class".
+
+A class raster holds class codes: whole numbers (an integer data type, or floats that are all whole), at most
+MAX_CLASSES of them. Anything else (a DSM given as classes: every height a "class") is an InputError."""
 import numpy as np
 from matplotlib.path import Path
-from osgeo import ogr
+from osgeo import gdal, ogr
 
 from ..crs import reproject, srs as parse_crs
 from ..errors import InputError
@@ -14,6 +17,8 @@ NO_CLASS = 0
 FLAT, MOUNTAINOUS = 1, 2
 #: rows of a class raster read at a time for its class values
 BAND_ROWS = 512
+#: distinct classes a class raster may hold (land-cover maps hold tens: CORINE 44, ESA WorldCover 11)
+MAX_CLASSES = 100
 
 
 def slope_classes(slope, threshold):
@@ -37,14 +42,27 @@ class ClassRaster:
         values = np.unique(np.concatenate([np.unique(band.ReadAsArray(0, r0, ds.RasterXSize,
                                                                       min(BAND_ROWS, ds.RasterYSize - r0)))
                                            for r0 in range(0, ds.RasterYSize, BAND_ROWS)]))
+        values = values[np.isfinite(values) & (values != NO_CLASS)]
+        if self.nodata is not None:
+            values = values[values != self.nodata]
+        self._check(values, gdal.GetDataTypeName(band.DataType))
         categories = band.GetCategoryNames() or []
         self.names = {}
         for v in values.tolist():
-            if v == NO_CLASS or v == self.nodata:
-                continue
             v = int(v)
             name = meta.get(f"CLASS_{v}") or (categories[v] if v < len(categories) and categories[v] else None)
             self.names[v] = name or f"class {v}"
+
+    def _check(self, values, kind):
+        """InputError unless the class `values` (unique, without nodata and NO_CLASS) of a raster of GDAL data
+        type `kind` are class codes (module docstring)."""
+        fractional = values[values != np.round(values)]
+        if fractional.size or values.size > MAX_CLASSES:
+            example = f"such as {fractional[0]:g}" if fractional.size else f"{values[0]:g} .. {values[-1]:g}"
+            raise InputError(f"the class raster {self.path} holds {values.size} distinct values ({kind}, {example}), "
+                             f"not class codes: a class raster holds whole numbers, at most {MAX_CLASSES} classes "
+                             "(a land-cover map such as the simulator's classes.tif). Is it a height raster? Give "
+                             "the classes, or leave the class raster empty")
 
     def _open(self):
         return open_raster(self.path, "class raster")

@@ -10,12 +10,14 @@ finer, bilinear otherwise. Vertical datum per input: "ellipsoidal" or "orthometr
 h = H + N, adjustment.control_points.orthometric_to_ellipsoidal). The slope (Kornus et al. 2006, section 3.7:
 flat/moderate vs mountainous) is the reference's (rasters.slope_degrees): at the points, or on the DEM grid.
 
-The reference is read by the window of its cells under the assessed data (for points, block by block
-of its cells; for a DEM, under the DEM or under one window of it), its nodata and a declared void value
-(`reference_nodata`) as NaN; implausible heights among those cells (dem.implausible_heights, such as
-SRTM voids not flagged as nodata) are counted once over the cells read (ReferenceReach), reported as a warning
-(progress.warn) and used as given. A point cloud can be given in chunks and a DEM in windows
-(assessment.assess_by_parts), so that memory follows the chunk and the window."""
+The reference is read by the window of its cells under the assessed data (for points, block by block of its
+cells; for a DEM, under the DEM or under one window of it), its nodata and a declared void value
+(`reference_nodata`) as NaN; implausible heights among those cells (outside height_range.PLAUSIBLE_HEIGHTS,
+such as SRTM voids not flagged as nodata) are voids too, NaN like nodata: left out of the differences, never
+a height error of kilometres in the statistics. They are counted once over the cells read (ReferenceReach)
+and reported as a warning (progress.warn) naming their value and the REFERENCE_NODATA parameter. A point
+cloud can be given in chunks and a DEM in windows (assessment.assess_by_parts), so that memory follows the
+chunk and the window."""
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,6 +27,7 @@ from ..adjustment.control_points import HEIGHT_TYPES, orthometric_to_ellipsoidal
 from ..crs import reproject, wgs84
 from ..dem import Dem, ImplausibleTally
 from ..errors import InputError
+from ..height_range import outside_plausible
 from ..surface.point_input import read_points
 from .rasters import (
     Grid,
@@ -78,14 +81,15 @@ class ReferenceReach:
         self.heights = self.heights or bool(np.isfinite(window.values).any())
 
     def warning(self):
-        """dem.implausible_warning of the reference's cells in the box (None: none read, or all plausible)."""
+        """dem.implausible_warning of the reference's cells in the box, left out as voids (None: none read, or all
+        plausible)."""
         if self.box is None:
             return None
         ds, tally = open_raster(self.reference, "reference DEM"), ImplausibleTally()
         c0, r0, c1, r1 = (int(v) for v in self.box)
         for row in range(r0, r1, self.ROWS):
             tally.add(read_grid(ds, self.nodata, (c0, row, c1, min(row + self.ROWS, r1))).values)
-        return tally.warning(f"the reference DEM {self.reference}")
+        return tally.warning(f"the reference DEM {self.reference}", left_out=REFERENCE_NODATA)
 
     def no_heights(self, what):
         """The InputError of a reference without a height under the assessed `what`."""
@@ -94,6 +98,18 @@ class ReferenceReach:
                               "choose a reference that covers them")
         return InputError(f"the reference DEM {self.reference} does not overlap {what}: choose a reference that "
                           "covers them")
+
+
+#: the assessment's parameter declaring the reference's void value, named in the warning of its implausible heights
+REFERENCE_NODATA = "REFERENCE_NODATA"
+
+
+def read_reference(ds, x, y, nodata=None):
+    """rasters.read_window of the reference `ds` around points (x, y in its CRS), its implausible heights NaN as
+    voids (module docstring)."""
+    window = read_window(ds, x, y, "reference DEM", nodata=nodata)
+    window.values[outside_plausible(window.values)] = np.nan
+    return window
 
 
 def _check_datum(datum, what):
@@ -127,7 +143,7 @@ def reference_at_points(reference, x, y, srs, datum="ellipsoidal", nodata=None, 
     for index in by_blocks(ds, xr, yr):
         progress.check(feedback)
         try:
-            window = read_window(ds, xr[index], yr[index], "reference DEM", nodata=nodata)
+            window = read_reference(ds, xr[index], yr[index], nodata)
         except InputError:                  # a block of points beyond the raster's last cells
             continue
         counted.add(ds, window)
@@ -197,8 +213,7 @@ def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="e
                  < np.prod(cell_metres(source.GetGeoTransform(), wide.srs, source.RasterYSize)))
         method = "average" if finer else "bilinear"
         try:
-            under = read_window(ds, *reproject(*outline(wide), wide.srs, raster_srs(ds)), "reference DEM",
-                                nodata=reference_nodata)
+            under = read_reference(ds, *reproject(*outline(wide), wide.srs, raster_srs(ds)), reference_nodata)
         except InputError:                  # the reference lies elsewhere
             under = None
         if under is not None:

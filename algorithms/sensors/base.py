@@ -23,6 +23,9 @@ class SensorModel:
 
     #: (cols, rows) of the image the model describes
     size = (0, 0)
+    #: a priori location accuracy of the orientation as supplied, without control points: the standard deviation
+    #: (m) of a ground position along each horizontal axis; None where unknown
+    location_sigma = None
 
     def image_to_ground(self, col, row, h):
         """Ground (lon, lat) of image point (col, row) at ellipsoidal height h."""

@@ -331,6 +331,10 @@ class RpcModel(SensorModel):
 
     #: d_corrections columns of an exterior orientation: none (the bias acts in image space)
     EXTERIOR_COEFFICIENTS = 0
+    #: SensorModel.location_sigma (m): RPC00B's ERR_BIAS is mostly -1 (unknown), so a bound looser than the stated
+    #: accuracy of the RPC products this model reads (Pleiades 8.5 m CE90, WorldView under 5 m CE90): 25 m per axis,
+    #: about 54 m CE90
+    location_sigma = 25.0
 
     def __init__(self, coefficients, size=None, offset=(0.0, 0.0), source="RPC", bias=None):
         self.coefficients = coefficients

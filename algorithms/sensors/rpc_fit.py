@@ -303,6 +303,24 @@ def raster_reads(raster, rpc):
                for f in fields(mine))
 
 
+def raster_rpc_source(raster):
+    """Where GDAL, opening `raster`, finds an RPC of its own: the .RPB or _RPC.TXT beside it that it reads
+    (these come before the raster's metadata), else "the metadata of <raster>" (GeoTIFF RPC tags, a NITF
+    segment, an .aux.xml); None where it finds none or cannot open the raster."""
+    from osgeo import gdal
+    gdal.UseExceptions()
+    try:
+        ds = gdal.Open(os.fspath(raster))
+    except RuntimeError:
+        return None
+    if not ds.GetMetadata("RPC"):
+        return None
+    for path in ds.GetFileList()[1:]:
+        if path.lower().endswith(("_rpc.txt", ".rpb")):
+            return path
+    return f"the metadata of {raster}"
+
+
 def report_text(entries):
     """A text table of fit and validation errors (px), one row per image coordinate: `entries` are
     (image name, RPC file written, RpcFitReport)."""

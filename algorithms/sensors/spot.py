@@ -115,6 +115,13 @@ class SpotModel(SensorModel):
         return self._orientation
 
     @property
+    def location_sigma(self):
+        """SensorModel.location_sigma: SPOT 5 (DORIS orbits, star tracker attitude) 50 m rms, SPOT Image's
+        specification of its level 1A products without control; SPOT 1-4 1000 m, the absolute accuracy of their
+        header positions (Heipke et al. 1992, section 4.1.1; adjustment.parameters.LAGRANGE_PRIORS)."""
+        return 50.0 if self._orientation.mission == 5 else 1000.0
+
+    @property
     def size(self):
         return self._orientation.ncols, self._orientation.nrows
 

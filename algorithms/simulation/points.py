@@ -40,7 +40,7 @@ def select_sites(terrain, images, count, clearance_m, rng, tries=20, folder=None
     grid = terrain.grid
     eligible = eligible_cells(terrain, clearance_m, folder, tile)
     k = max(1, int(math.ceil(math.sqrt(count))))
-    spacing = 0.5 * min(grid.rows, grid.cols) / k
+    spacing = site_spacing(grid, count)
     sites = []
 
     def take(cells):
@@ -70,6 +70,32 @@ def select_sites(terrain, images, count, clearance_m, rng, tries=20, folder=None
         return np.zeros((0, 2))
     i, j = np.array(sites).T
     return np.column_stack(grid.lonlat(j, i))
+
+
+def site_spacing(grid, count):
+    """The least distance (cells) between the sites select_sites chooses for `count` sites on `grid`: half a
+    stratum of its ceil(sqrt(count))^2 division."""
+    return 0.5 * min(grid.rows, grid.cols) / max(1, int(math.ceil(math.sqrt(count))))
+
+
+def shortfall(asked, sites, candidates, blunders, spacing_m, clearance_m):
+    """A warning where fewer candidates or blunders were made than asked (None where all were): `asked`
+    candidates, `sites` chosen (select_sites, `spacing_m` apart on open ground `clearance_m` around),
+    `candidates` (Candidates: the sites seen by every image), `blunders` asked."""
+    lines = []
+    n = len(candidates)
+    if n < asked:
+        hidden = (f", and {sites - n} of them {'is' if sites - n == 1 else 'are'} hidden from an image by trees or "
+                  "buildings" if sites > n else "")
+        lines.append(f"{n} control/check point candidates made of the {asked} asked: the scene holds {sites} sites "
+                     f"of open, flat ground (bare soil or crops {clearance_m:.0f} m around, inside every image) at "
+                     f"least {spacing_m:.0f} m apart{hidden}; a larger scene (SIZE_KM) holds more")
+    measurements = n * len(candidates.measured)
+    made = int(sum(int(b.sum()) for b in candidates.blunder.values()))
+    if made < blunders:
+        lines.append(f"{made} blunders made of the {blunders} asked: the {n} candidates have {measurements} image "
+                     "measurements, and a measurement takes one blunder at most")
+    return "; ".join(lines) or None
 
 
 class EligibleCells:

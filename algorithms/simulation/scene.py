@@ -31,7 +31,7 @@ from ..atomic import atomic_dir
 from ..dem import Dem
 from ..errors import GeometryError, InputError, MetadataError
 from ..geodesy import geodetic_to_ecef, metres_per_degree
-from ..progress import step
+from ..progress import step, warn
 from ..sensors.dimap import read_dimap
 from ..sensors.dimap_writer import write_dimap
 from . import outputs, radiometry
@@ -39,7 +39,7 @@ from .acquisition import footprint_bounds, plan, ray_at_height
 from .grid import Grid
 from .instruments import CONFIGURATIONS, DEFAULT_DATES, DEFAULT_ROLL_DEG, instruments
 from .perturbation import inject
-from .points import ground_heights, image_coordinates, level_pads, select_sites
+from .points import ground_heights, image_coordinates, level_pads, select_sites, shortfall, site_spacing
 from .render import BLOCK, block_max
 from .sun import sun_position
 from .terrain import CLASSES, FOREST, build_terrain, check_coverage, extended_dem, jacksboro_dem
@@ -173,7 +173,7 @@ def simulate_scene(config, out_dir, feedback=None, tile=TILE):
         step(feedback, 5, f"building the terrain ({grid.cols} x {grid.rows} cells of {config.grid_m:g} m)")
         terrain = build_terrain(source, grid, config.seed, config.fractal, config.surface_objects, work, tile)
         step(feedback, 20, "choosing control/check point candidates")
-        candidates, surface = _candidates(config, terrain, images, work, tile)
+        candidates, surface = _candidates(config, terrain, images, work, tile, feedback)
         step(feedback, 30, "computing the ground radiance")
         radiance, suns = _radiance(config, terrain, surface, images, candidates, centre, work, tile)
         corrections, trajectory = inject(images, np.random.default_rng([config.seed, 3]), config.error_scale)
@@ -217,8 +217,9 @@ def _plan(config, source):
     return images, Grid.covering(bounds, config.grid_m), centre
 
 
-def _candidates(config, terrain, images, folder=None, tile=TILE):
-    """Point candidates (pads levelled under markers first) and the ray-casting surface."""
+def _candidates(config, terrain, images, folder=None, tile=TILE, feedback=None):
+    """Point candidates (pads levelled under markers first) and the ray-casting surface; a warning where the
+    scene holds fewer candidates or blunders than asked (points.shortfall)."""
     rng = np.random.default_rng([config.seed, 2])
     pad = 5.0 * MARKER_SIGMA_M
     clearance = 1.5 * pad + 30.0 if config.markers else CLEARANCE_M
@@ -228,6 +229,8 @@ def _candidates(config, terrain, images, folder=None, tile=TILE):
     surface = TiledSurface(terrain.grid, terrain.dsm, value_range(terrain.dsm, terrain.grid.shape, tile))
     heights = ground_heights(terrain.dtm, terrain.grid, sites[:, 0], sites[:, 1])
     candidates = image_coordinates(sites, heights, images, surface, config.measurement_sigma, config.blunders, rng)
+    spacing_m = site_spacing(terrain.grid, config.points) * float(np.mean(terrain.grid.cell_metres))
+    warn(feedback, shortfall(config.points, len(sites), candidates, config.blunders, spacing_m, clearance))
     return candidates, surface
 
 

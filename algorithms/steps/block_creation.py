@@ -21,6 +21,7 @@ from ..block import Block
 from ..dem_store import store_dem
 from ..errors import InputError
 from ..execution import Execution
+from ..height_range import check_height
 from ..matching.height_search import search_heights, validity_range
 
 
@@ -48,8 +49,9 @@ class CreateResult:
 def create_block(output, images, params, feedback=None):
     """Create the block `output` (.gpkg) from the image rasters `images` with CreateParams `params`;
     returns a CreateResult. Raises InputError (no or duplicate images, orientation files that do not
-    match, an existing block without overwrite, a footprint that cannot be projected) and the sensor
-    readers' errors."""
+    match, a mean height outside height_range.PLAUSIBLE_HEIGHTS, an existing block without overwrite, a
+    footprint that cannot be projected) and the sensor readers' errors."""
+    check_height(params.height, "the mean terrain height (HEIGHT)")
     opened = Block.open_images(images, [p for p in params.orientation if p])
     with work_dir(output, "the stored DEM") as work:
         dem = None

@@ -2,12 +2,20 @@
 (sensors/rpc_fit.py; Kornus et al. 2006 section 3.5.2), written as _RPC.TXT files GDAL reads.
 
 `fit_block_rpcs(block_path, params, feedback)` fits one RPC per chosen image over the cube's height
-range (both heights given, or the block's terrain height range widened by rpc_fit.default_height_range),
-writes <image stem>_RPC.TXT beside each raster or <image name>_RPC.TXT into a folder (every destination
-is checked before the first fit), compares the object points of the block's tie points intersected
+range (both heights given, within height_range.PLAUSIBLE_HEIGHTS, or the block's terrain height range widened
+by rpc_fit.default_height_range; a cube that leaves out some of the block's terrain is a warning), writes
+<image stem>_RPC.TXT beside each raster or <image name>_RPC.TXT into a folder (every destination is checked
+before the first fit), compares the object points of the block's tie points intersected
 with the RPCs and with the rigorous models (surface.intersection.height_differences; Kornus et al.
 2006 Table 5) when RPCs were fitted for all their images, and records the step in the block's
-history."""
+history.
+
+Beside the rasters, a _RPC.TXT is what GDAL reads as the raster's RPC, before the RPC in the raster's own
+metadata (GeoTIFF tags) and after a .RPB beside it. So where GDAL finds an RPC of the raster's own
+(rpc_fit.raster_rpc_source: its metadata, a .RPB or a _RPC.TXT), writing beside it replaces or shadows the
+image's supplied orientation for every GDAL program and for any block made from it later: refused unless
+`overwrite`, and then a warning says which RPC GDAL reads. A raster without an RPC (a SPOT DIMAP product's)
+gets its fitted RPC beside it by default, so that GDAL programs use the block's orientation."""
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -17,7 +25,7 @@ from .. import progress
 from ..adjustment import report
 from ..block import Block
 from ..errors import InputError
-from ..height_range import mean_height
+from ..height_range import check_height, mean_height
 from ..sensors import rpc_fit
 from ..surface.intersection import height_differences
 
@@ -29,7 +37,7 @@ class RpcParams:
     image: str = ""                     # image name; empty: every image of the block
     min_height: Optional[float] = None  # cube heights (m, ellipsoidal); both or neither
     max_height: Optional[float] = None
-    overwrite: bool = False             # replace existing _RPC.TXT files
+    overwrite: bool = False             # replace existing _RPC.TXT files, shadow a raster's own RPC
     grid: int = rpc_fit.DEFAULT_GRID[0]             # image grid points along columns and rows
     height_levels: int = rpc_fit.DEFAULT_GRID[2]
     folder: Optional[str] = None        # output folder; None: beside each image raster
@@ -63,8 +71,10 @@ def selected_images(rows, name):
 
 
 def cube_heights(blk, h_min, h_max):
-    """(min, max) heights of the cube: both given, or the Block `blk`'s terrain height range widened by a margin
-    (rpc_fit.default_height_range)."""
+    """(min, max) heights of the cube: both given (each within height_range.PLAUSIBLE_HEIGHTS), or the Block
+    `blk`'s terrain height range widened by a margin (rpc_fit.default_height_range)."""
+    h_min = check_height(h_min, "the lowest height of the RPC cube (MIN_HEIGHT)")
+    h_max = check_height(h_max, "the highest height of the RPC cube (MAX_HEIGHT)")
     if h_min is not None and h_max is not None:
         return h_min, h_max
     if h_min is not None or h_max is not None:
@@ -75,6 +85,16 @@ def cube_heights(blk, h_min, h_max):
         raise InputError(f"block {blk.path} records no terrain height range: give the lowest and highest "
                          "heights of the RPC cube")
     return rpc_fit.default_height_range(terrain)
+
+
+def cube_warning(heights, terrain):
+    """The warning where the cube's `heights` (min, max) leave out some of the block's `terrain` height range
+    (None: none recorded, or the cube holds it)."""
+    if terrain is None or (heights[0] <= terrain[0] and heights[1] >= terrain[1]):
+        return None
+    return (f"the RPC cube's heights {heights[0]:g} .. {heights[1]:g} m leave out some of the block's terrain "
+            f"({terrain[0]:.0f} .. {terrain[1]:.0f} m): the RPCs extrapolate there; leave MIN_HEIGHT and MAX_HEIGHT "
+            "empty for the terrain's range and a margin")
 
 
 def rpc_height_check(blk, rpcs):
@@ -92,25 +112,48 @@ def rpc_height_check(blk, rpcs):
 
 
 def _destinations(rows, params):
-    """The _RPC.TXT path of each image row, checked writable (and absent unless overwriting)."""
+    """(the _RPC.TXT path, the raster's own RPC or None) of each image row, checked writable, absent and, beside
+    the rasters, not shadowing a raster's own RPC, unless overwriting (module docstring)."""
     destinations = []
     for row in rows:
-        if params.folder is None and not row["image_path"]:
-            raise InputError(f"image {row['name']} has no raster path in the block: give an output folder")
+        own = None
+        if params.folder is None:
+            if not row["image_path"]:
+                raise InputError(f"image {row['name']} has no raster path in the block: give an output folder")
+            own = rpc_fit.raster_rpc_source(row["image_path"])
         destination = rpc_fit.rpc_txt_path(row["image_path"], params.folder, row["name"])
+        if own and own != destination and not params.overwrite:
+            raise InputError(f"image {row['name']} carries its own RPC ({own}), which GDAL reads with "
+                             f"{row['image_path']}: a fitted {destination} beside it would replace it for every GDAL "
+                             "program and any block made from the image later. Give an output folder "
+                             "(OUTPUT_FOLDER), or set OVERWRITE to write beside the image all the same")
         rpc_fit.check_destination(destination, params.overwrite)
-        destinations.append(destination)
+        destinations.append((destination, None if own == destination else own))
     return destinations
+
+
+def _gdal_reads(row, written, own, rpc, feedback):
+    """Warn which RPC GDAL reads with the image raster of `row` after `written` was put beside it: not the
+    fitted one (a .RPB comes first), or the fitted one instead of the raster's `own`."""
+    if not rpc_fit.raster_reads(row["image_path"], rpc):
+        progress.warn(feedback, f"GDAL does not read {written} with {row['image_path']} (the raster carries other RPC "
+                                "metadata it prefers, or cannot be opened): load the _RPC.TXT itself")
+    elif own:
+        progress.warn(feedback, f"GDAL now reads {written} with {row['image_path']} instead of the image's own RPC "
+                                f"({own}): every GDAL program, and any block made from the image, uses the fitted "
+                                f"RPC; delete {written} to return to the image's own")
 
 
 def fit_block_rpcs(block_path, params, feedback=None):
     """Fit and write the RPCs of the block at `block_path` with RpcParams `params` (module docstring);
-    returns an RpcResult. Raises InputError (an unknown image, no height range, a destination that
-    exists or cannot be written), rpc_fit's errors, CancelledError when cancelled."""
+    returns an RpcResult. Raises InputError (an unknown image, no height range or an implausible one, a
+    destination that exists or cannot be written, a raster's own RPC in the way without `overwrite`),
+    rpc_fit's errors, CancelledError when cancelled."""
     params.check()
     blk = Block(block_path)
     rows = selected_images(blk.images(), params.image)
     heights = cube_heights(blk, params.min_height, params.max_height)
+    progress.warn(feedback, cube_warning(heights, blk.height_range()))
     grid = (params.grid, params.grid, params.height_levels)
     destinations = _destinations(rows, params)
     fitted = []
@@ -121,12 +164,11 @@ def fit_block_rpcs(block_path, params, feedback=None):
                                                                95.0 * (k + 1) / len(rows))))
     progress.step(feedback, 95.0)
     entries = []
-    for row, (rpc, fit), destination in zip(rows, fitted, destinations):
+    for row, (rpc, fit), (destination, own) in zip(rows, fitted, destinations):
         written = rpc_fit.write_fitted_rpc(rpc, destination, params.overwrite)
         entries.append((row["name"], written, fit))
-        if params.folder is None and not rpc_fit.raster_reads(row["image_path"], rpc):
-            progress.warn(feedback, f"GDAL does not read {written} with {row['image_path']} (the raster carries "
-                          "other RPC metadata it prefers, or cannot be opened): load the _RPC.TXT itself")
+        if params.folder is None:
+            _gdal_reads(row, written, own, rpc, feedback)
     text = rpc_fit.report_text(entries)
     comparison = rpc_height_check(blk, {row["id"]: rpc for row, (rpc, _) in zip(rows, fitted)})
     if comparison:

@@ -1,5 +1,8 @@
 """The orthorectification step (pushbroom:orthorectify): one image, with a block's (adjusted) sensor model or
-its own orientation, on a DEM, by ortho.orthorectify (the indirect method, Heipke et al. 1992, section 4.1)."""
+its own orientation, on a DEM, by ortho.orthorectify (the indirect method, Heipke et al. 1992, section 4.1).
+
+The orthoimage covers the image only where the DEM has heights: a DEM that leaves part of the image out
+(ortho.grid.dem_coverage below FULL_COVERAGE) is a warning with the share it covers."""
 from dataclasses import dataclass, field
 
 from .. import progress, sensors
@@ -8,8 +11,12 @@ from ..block import Block
 from ..dem_store import VERTICAL, store_dem
 from ..errors import InputError
 from ..execution import Execution
+from ..ortho.grid import dem_coverage
 from ..ortho.orthorectify import orthorectify
 from ..ortho.resampling import METHODS
+
+#: the share of the image under DEM heights below which the step warns that the orthoimage is partial
+FULL_COVERAGE = 0.98
 
 
 @dataclass
@@ -63,6 +70,11 @@ def orthorectify_image(output, dem, params=None, block_path=None, image_name="",
     with work_dir(output, "the stored DEM") as work:
         heights = store_dem(dem, work, params.dem_nodata, params.dem_heights)
         progress.warn(feedback, heights.implausible)
+        covered = dem_coverage(model, heights)
+        if covered < FULL_COVERAGE:
+            progress.warn(feedback, f"the DEM {dem} has heights under {covered:.0%} of the image {path} only: the "
+                                    "orthoimage covers that part (the rest lies outside the DEM or on its nodata); "
+                                    "give a DEM that covers the whole image for a whole orthoimage")
         return orthorectify(path, model, heights, output, crs=params.crs, cell_size=params.cell_size,
                             resampling_method=params.resampling, occlusion_mask=params.occlusion,
                             max_error=params.max_error, execution=params.execution, feedback=feedback)

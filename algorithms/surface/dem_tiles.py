@@ -36,8 +36,9 @@ is: its own points' median, its neighbours', filled, or a gap (gap_fill.py). Wit
 within that many cells of measured ones are filled, and the mask is always written (by default beside the
 DEM): filling is never silent.
 
-Failure modes: tin_dem's InputErrors (settings, no CRS, points outside the output CRS, no defined
-cell), ExecutionError from the execution, CancelledError; nothing is left under an output name
+Failure modes: tin_dem's InputErrors (settings, no CRS, points outside the output CRS or an output CRS far
+from them, no defined cell), a cell size that leaves the DEM fewer than 2 cells along an axis
+(crs.check_grid_cells), ExecutionError from the execution, CancelledError; nothing is left under an output name
 (atomic.atomic_path) and the work folder is removed (atomic.work_dir)."""
 import contextlib
 import math
@@ -49,7 +50,7 @@ from scipy.spatial import cKDTree
 
 from .. import histogram, progress
 from ..atomic import append_bytes, atomic_path, save_array, work_dir
-from ..crs import srs as parse_crs, transform
+from ..crs import check_grid_cells, srs as parse_crs, transform
 from ..errors import CancelledError, InputError
 from ..execution import run_tasks, session
 from ..tiling import tile_grid
@@ -298,6 +299,7 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
         chunks, (x0, y0, x1, y1) = _to_work_chunks(cloud, params.input_crs, target, count, work,
                                                    progress.scaled(feedback, 3, 10))
         grid = Grid.covering(np.array([x0, x1]), np.array([y0, y1]), params.cell)
+        check_grid_cells(grid.cols, grid.rows, params.cell, target, (x1 - x0, y1 - y0), "the DEM")
         boxes = tile_grid((grid.cols, grid.rows), int(params.tile))
         files = _bucket(chunks, grid, int(params.tile), (int(params.radius) + 0.5) * params.cell, work, "tile",
                         progress.scaled(feedback, 10, 20))
@@ -388,6 +390,7 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
         chunks, (x0, y0, x1, y1) = _to_work_chunks(cloud, params.input_crs, target, count, work,
                                                    progress.scaled(feedback, 3, 8))
         grid = Grid.covering(np.array([x0, x1]), np.array([y0, y1]), params.cell)
+        check_grid_cells(grid.cols, grid.rows, params.cell, target, (x1 - x0, y1 - y0), "the DEM")
         tile = int(params.tile)
         boxes = tile_grid((grid.cols, grid.rows), tile)
         spacing = math.sqrt(max((x1 - x0) * (y1 - y0), params.cell ** 2) / count)   # >= the median NN distance

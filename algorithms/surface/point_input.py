@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from osgeo import ogr
 
-from ..crs import is_undefined, reproject, srs as parse_crs, transform, wgs84
+from ..crs import area_of_use, is_undefined, reproject, srs as parse_crs, transform, wgs84, within_area_of_use
 from ..errors import InputError
 from .pointcloud import laspy_module
 
@@ -21,9 +21,6 @@ EPSG_GEOKEYS = (3072, 2048)
 #: in a projected CRS a satellite point cloud spans more than this (m); less, with values in the ranges
 #: of longitude and latitude, means degrees labelled with a projected CRS
 MIN_SPAN = 10.0
-#: degrees a point cloud may lie beyond the area of use of its CRS (a scene across a UTM zone border, a
-#: country mapped in one zone); farther, the CRS is not the cloud's
-AREA_MARGIN = 10.0
 
 
 @dataclass
@@ -201,7 +198,7 @@ def read_ogr_points(path, layer_name=None, crs=None):
 def check_coordinates(points, path):
     """InputError where the points' x, y cannot be coordinates in their CRS: outside the ranges of
     longitude and latitude in a geographic CRS; in a projected CRS, within MIN_SPAN metres with values
-    in those ranges (degrees labelled as metres); their centre more than AREA_MARGIN degrees outside the
+    in those ranges (degrees labelled as metres); their centre more than crs.AREA_MARGIN degrees outside the
     CRS's area of use (or not placeable on Earth at all)."""
     ok = np.isfinite(points.x) & np.isfinite(points.y)
     if not ok.any():
@@ -227,27 +224,6 @@ def check_coordinates(points, path):
         raise InputError(f"the point cloud {path} ({box}) lies {where} according to its CRS {name}, far from where "
                          f"that CRS is used ({area_of_use(points.srs)}): the file's CRS is not the one of its "
                          "coordinates (x and y swapped?). Give the point cloud the CRS its coordinates are in")
-
-
-def area_of_use(target):
-    """'longitude w .. e, latitude s .. n' of the area of use of the osr.SpatialReference `target`."""
-    area = target.GetAreaOfUse()
-    return (f"longitude {area.west_lon_degree:g} .. {area.east_lon_degree:g}, latitude {area.south_lat_degree:g} .. "
-            f"{area.north_lat_degree:g}")
-
-
-def within_area_of_use(target, lon, lat):
-    """Whether (lon, lat) (degrees) lies within AREA_MARGIN degrees of the area of use of `target` (True
-    where the CRS has none, False where lon or lat is not finite)."""
-    area = target.GetAreaOfUse()
-    if area is None:
-        return True
-    if not (np.isfinite(lon) and np.isfinite(lat)):
-        return False
-    west, east = area.west_lon_degree - AREA_MARGIN, area.east_lon_degree + AREA_MARGIN
-    across = area.west_lon_degree > area.east_lon_degree      # an area across the antimeridian
-    return ((lon >= west or lon <= east) if across else west <= lon <= east) and \
-        area.south_lat_degree - AREA_MARGIN <= lat <= area.north_lat_degree + AREA_MARGIN
 
 
 def read_points(path, crs=None):

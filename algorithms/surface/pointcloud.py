@@ -17,7 +17,7 @@ from osgeo import ogr
 
 from .. import progress
 from ..atomic import atomic_path, closing
-from ..crs import reproject, srs as parse_crs, wgs84
+from ..crs import check_output_crs, reproject, srs as parse_crs, wgs84
 from ..errors import InputError
 from ..geodesy import utm_epsg
 
@@ -44,15 +44,19 @@ def output_format(path, count, fmt=None):
     return ext
 
 
-def output_srs(crs=None, lon=None, lat=None):
+def output_srs(crs=None, lon=None, lat=None, what="the points"):
     """osr.SpatialReference (x = east / longitude first) of `crs` (EPSG code, 'EPSG:n', WKT, PROJ
-    string or osr.SpatialReference), or of the UTM zone of the centre of (lon, lat)."""
+    string or osr.SpatialReference), or of the UTM zone of the centre of (lon, lat). A `crs` used far from
+    the centre of (lon, lat), where given, is an InputError naming `what` (crs.check_output_crs)."""
+    finite = None if lon is None else np.isfinite(lon) & np.isfinite(lat)
     if crs is None or crs == "":
-        finite = np.isfinite(lon) & np.isfinite(lat)
-        if not finite.any():
+        if finite is None or not finite.any():
             raise InputError("no point to choose the UTM zone from: give the output CRS")
-        crs = utm_epsg(float(np.mean(lon[finite])), float(np.mean(lat[finite])))
-    return parse_crs(crs)
+        return parse_crs(utm_epsg(float(np.mean(lon[finite])), float(np.mean(lat[finite]))))
+    target = parse_crs(crs)
+    if finite is not None and finite.any():
+        check_output_crs(target, float(np.mean(lon[finite])), float(np.mean(lat[finite])), what)
+    return target
 
 
 def cloud_fields(result, group=None, rho=None):

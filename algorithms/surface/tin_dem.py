@@ -16,7 +16,6 @@ from ..crs import egm96_undulation, reproject, transform, wgs84
 from ..errors import InputError
 from ..execution import Execution
 from .geotiff import write_float_raster
-from .point_input import area_of_use, within_area_of_use
 from .pointcloud import output_srs
 from .tin import conform_breaklines, delaunay, filter_blunders, flat_points, longest_edge
 from .tin_grid import Grid, rasterize
@@ -72,14 +71,7 @@ def output_crs(srs, x, y, crs=None):
     """The DEM's CRS (osr.SpatialReference) for points centred at (x, y) in `srs`: `crs` (InputError where
     its area of use is far from the points), or the UTM zone of the centre where `crs` is None or ''."""
     ll = transform(srs, wgs84(), np.array([[x, y]], float), "the point cloud's centre")
-    if crs is None or crs == "":
-        return output_srs(None, ll[:, 0], ll[:, 1])
-    target = output_srs(crs)
-    if not within_area_of_use(target, float(ll[0, 0]), float(ll[0, 1])):
-        raise InputError(f"the output CRS {target.GetName()} is used at {area_of_use(target)}, far from the point "
-                         f"cloud (longitude {ll[0, 0]:.4f}, latitude {ll[0, 1]:.4f}): choose an output CRS for "
-                         "where the points lie, or leave it empty for their UTM zone")
-    return target
+    return output_srs(crs, ll[:, 0], ll[:, 1], "the point cloud")
 
 
 def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=None, k=4.0, iterations=3,

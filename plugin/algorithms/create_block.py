@@ -35,7 +35,8 @@ class CreateBlock(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterRasterLayer(
             self.DEM, tr("DEM for the footprints (ellipsoidal heights)"), optional=True))
         self.addParameter(QgsProcessingParameterNumber(
-            self.HEIGHT, tr("Mean ellipsoidal height when no DEM is given (m; empty: found by matching the images)"),
+            self.HEIGHT, tr("Mean ellipsoidal height when no DEM is given (m, -500 .. 9000; empty: found by matching "
+                            "the images)"),
             QgsProcessingParameterNumber.Double, d.height, optional=True))
         self.addParameter(QgsProcessingParameterBoolean(self.OVERWRITE, tr("Overwrite an existing block"),
                                                         d.overwrite))

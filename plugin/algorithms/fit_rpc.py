@@ -29,18 +29,20 @@ class FitRpc(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
         self.addParameter(QgsProcessingParameterString(self.IMAGE, tr("Image name (empty: every image of the "
                                                                       "block)"), d.image, optional=True))
-        self.addParameter(Number(self.MIN_HEIGHT, tr("Lowest ellipsoidal height of the cube (m; empty: the block's "
-                                 "terrain height range and a margin)"), Number.Double, None, optional=True))
-        self.addParameter(Number(self.MAX_HEIGHT, tr("Highest ellipsoidal height of the cube (m; empty: the "
-                                 "block's terrain height range and a margin)"), Number.Double, None, optional=True))
-        self.addParameter(QgsProcessingParameterBoolean(self.OVERWRITE, tr("Overwrite existing _RPC.TXT files"),
-                                                        d.overwrite))
+        self.addParameter(Number(self.MIN_HEIGHT, tr("Lowest ellipsoidal height of the cube (m, -500 .. 9000; empty: "
+                                 "the block's terrain height range and a margin)"), Number.Double, None, optional=True))
+        self.addParameter(Number(self.MAX_HEIGHT, tr("Highest ellipsoidal height of the cube (m, -500 .. 9000; empty: "
+                                 "the block's terrain height range and a margin)"), Number.Double, None, optional=True))
+        self.addParameter(QgsProcessingParameterBoolean(
+            self.OVERWRITE, tr("Overwrite existing _RPC.TXT files; write beside an image that carries its own RPC "
+                               "(GDAL then reads the fitted one)"), d.overwrite))
         self.addAdvancedParameters([
             Number(self.GRID, tr("Image grid points along columns and rows"), Number.Integer, d.grid, minValue=4),
             Number(self.HEIGHT_LEVELS, tr("Height levels"), Number.Integer, d.height_levels, minValue=4),
         ])
         self.addParameter(QgsProcessingParameterFolderDestination(
-            self.OUTPUT_FOLDER, tr("Output folder (empty: beside each image raster)"), optional=True,
+            self.OUTPUT_FOLDER, tr("Output folder (empty: beside each image raster, where it carries no RPC of its "
+                                   "own)"), optional=True,
             createByDefault=False))
         self.addParameter(QgsProcessingParameterFileDestination(self.REPORT, tr("Report"), tr("HTML files (*.html)"),
                                                                 optional=True))

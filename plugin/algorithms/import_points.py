@@ -59,7 +59,7 @@ class ImportPoints(PushbroomAlgorithm):
             QgsProcessingParameterString(self.MEAS_SUFFIX, tr("Measurement column suffix ('_meas' for the "
                                          "simulator's points.csv)"), d.suffix, optional=True),
             QgsProcessingParameterBoolean(self.KEEP_IMPLAUSIBLE, tr("Keep points that do not lie where the block's "
-                                          "images are (with a warning)"), d.keep_implausible),
+                                          "images and their measurements say (with a warning)"), d.keep_implausible),
             replace_fewer_parameter(self, tr("points and measurements")),
         ])
         self.addOutput(QgsProcessingOutputVectorLayer(self.POINTS, tr("Control and check points"),

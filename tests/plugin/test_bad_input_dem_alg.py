@@ -2,6 +2,8 @@
 with how to assign one (before: 'does not overlap'), also through qgis_process; SRTM-like voids (-32767, not
 flagged as nodata) give a warning in createblock, orthorectify and assessaccuracy, and the DEM_NODATA /
 REFERENCE_NODATA parameters make them nodata (before: a wrong orthoimage over the voids, silently)."""
+import csv
+
 import numpy as np
 import pytest
 from osgeo import gdal, osr
@@ -95,10 +97,18 @@ def test_orthorectify_warns_of_voids_and_leaves_them_nodata_when_declared(pushbr
 def test_assessaccuracy_warns_of_reference_voids_and_takes_their_nodata_value(pushbroom_provider, dems, tmp_path,
                                                                              log):
     run = {"REFERENCE": dems["voids"], "DEM": dems["dsm"], "REPORT": str(tmp_path / "r.html")}
-    processing.run("pushbroom:assessaccuracy", dict(run, DH=str(tmp_path / "a.tif")), feedback=log)
-    assert void_warnings(log)[0].startswith(f"the reference DEM {dems['voids']} has ")     # names the reference
-    dh = gdal.Open(str(tmp_path / "a.tif")).ReadAsArray()
-    assert dh.max() > 30000        # the DSM against itself with the voids used as heights
+    processing.run("pushbroom:assessaccuracy", dict(run, DH=str(tmp_path / "a.tif"), TABLE=str(tmp_path / "a.csv")),
+                   feedback=log)
+    warning = void_warnings(log)[0]
+    assert warning.startswith(f"the reference DEM {dems['voids']} has ")     # names the reference
+    assert "left out as voids; declare -32767 as its nodata value (the REFERENCE_NODATA parameter" in warning
+    ds = gdal.Open(str(tmp_path / "a.tif"))
+    dh = ds.ReadAsArray()
+    valid = dh != ds.GetRasterBand(1).GetNoDataValue()
+    # issue 36: the voids used as heights made 'mean dh 11072 m'; now left out, the DSM equals itself
+    assert (~valid).sum() >= 10000 and np.abs(dh[valid]).max() < 1e-3
+    table = list(csv.DictReader(open(tmp_path / "a.csv")))
+    assert table and all(float(row["rms"]) < 1e-3 for row in table)     # every statistic of the DSM against itself
     log.warnings.clear()
     processing.run("pushbroom:assessaccuracy", dict(run, REFERENCE_NODATA=-32767, DH=str(tmp_path / "b.tif")),
                    feedback=log)

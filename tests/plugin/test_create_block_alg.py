@@ -29,6 +29,25 @@ def test_createblock_in_processing(pushbroom_provider, product, tmp_path):
         processing.run("pushbroom:createblock", {"IMAGES": [str(product)], "OUTPUT": str(out)})
 
 
+@pytest.mark.parametrize("height", [60000.0, -20000.0])
+def test_a_mean_height_off_the_earth_is_refused(pushbroom_provider, product, tmp_path, height):
+    # issue 36: a block made at 60 km (a flying height? feet?) put its footprints and height range there
+    with pytest.raises(QgsProcessingException, match=rf"the mean terrain height \(HEIGHT\) of {height:g} m lies "
+                                                     r"outside the heights of terrain on Earth \(-500 \.\. 9000 m"):
+        processing.run("pushbroom:createblock", {"IMAGES": [str(product)], "HEIGHT": height,
+                                                 "OUTPUT": str(tmp_path / "block.gpkg")})
+    assert not (tmp_path / "block.gpkg").exists()
+
+
+def test_the_same_image_twice_is_refused(pushbroom_provider, product, tmp_path):
+    link = tmp_path / "link.tif"
+    link.symlink_to(product)
+    with pytest.raises(QgsProcessingException, match=r"images 1 and 2 .* are one file: a block holds each image once"):
+        processing.run("pushbroom:createblock", {"IMAGES": [str(product), str(link)],
+                                                 "OUTPUT": str(tmp_path / "block.gpkg")})
+    assert not (tmp_path / "block.gpkg").exists()
+
+
 @pytest.mark.slow
 def test_createblock_with_qgis_process(qgis_process, product, tmp_path):
     listing = qgis_process("list")

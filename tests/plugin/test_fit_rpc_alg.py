@@ -102,25 +102,80 @@ def test_fitrpc_one_image_into_a_folder(pushbroom_provider, triplet_block, tmp_p
     assert max(np.abs(c - col.ravel()).max(), np.abs(r - row.ravel()).max()) < 0.01
 
 
-def test_an_rpc_image_delivered_with_an_rpb_is_refitted_with_a_warning(pushbroom_provider, scene, tmp_path, log):
-    """An RPC image whose RPC came as .RPB (GDAL prefers it to a _RPC.TXT): the fit of the block's RPC
-    is written, and the user is told that GDAL still reads the .RPB."""
+@pytest.fixture
+def rpc_image(scene, tmp_path):
+    """(raster, supplied RpcModel, height): a copy of HRS2's raster carrying an RPC fitted to its DIMAP model
+    in its GeoTIFF metadata, as a Pleiades image carries its own."""
     _, paths, height = scene
     raster = tmp_path / "img.tif"
     shutil.copy(paths["images"]["HRS2"]["imagery"], raster)
     supplied, _ = fit_rpc(sensors.load(paths["images"]["HRS2"]["metadata"]), (height - 600.0, height + 600.0))
-    write_rpb(supplied, tmp_path / "img.RPB")
-    path = str(tmp_path / "rpc_block.gpkg")
+    ds = gdal.Open(str(raster), gdal.GA_Update)
+    ds.SetMetadata(supplied.to_fields(), "RPC")
+    ds = None
+    return raster, supplied, height
+
+
+def gdal_height_offset(raster):
+    """HEIGHT_OFF of the RPC GDAL reads with `raster`."""
+    return float(gdal.Open(str(raster)).GetMetadata("RPC")["HEIGHT_OFF"])
+
+
+def rpc_block(raster, height):
+    path = str(raster.with_name("rpc_block.gpkg"))
     Block.create(path, Block.open_images([raster]), height=height)
     assert Block(path).images()[0]["model_kind"] == "rpc"
-    feedback = log
-    result = processing.run("pushbroom:fitrpc", {"BLOCK": path}, feedback=feedback)
-    assert result["FILES"] == [str(tmp_path / "img_RPC.TXT")]
-    assert len(feedback.warnings) == 1 and "GDAL does not read" in feedback.warnings[0]
-    refit = sensors.load(tmp_path / "img_RPC.TXT")
+    return path
+
+
+def test_an_image_with_its_own_rpc_is_not_shadowed_without_overwrite(pushbroom_provider, rpc_image, log):
+    """The issue-36 case: fitrpc with its defaults on a block of images that carry their RPC in their GeoTIFF
+    metadata wrote <stem>_RPC.TXT beside them, which GDAL reads instead, with no word. Now: refused before
+    any fit, nothing written; with OVERWRITE written, and the warning says GDAL now reads the fitted RPC."""
+    raster, supplied, height = rpc_image
+    path = rpc_block(raster, height)
+    with pytest.raises(QgsProcessingException, match=rf"image img carries its own RPC \(the metadata of {raster}\).*"
+                                                     r"Give an output folder \(OUTPUT_FOLDER\), or set OVERWRITE"):
+        processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 0.0, "MAX_HEIGHT": 3000.0})
+    assert not raster.with_name("img_RPC.TXT").exists() and "fitrpc" not in run_log_steps(path)
+    assert gdal_height_offset(raster) == pytest.approx(supplied.coefficients.height_off)
+    processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 0.0, "MAX_HEIGHT": 3000.0, "OVERWRITE": True,
+                                        "GRID": 4, "HEIGHT_LEVELS": 4}, feedback=log)
+    # GDAL reads the fitted cube's heights now, and the user was told so
+    assert gdal_height_offset(raster) == 1500.0
+    assert [w for w in log.warnings if w.startswith(f"GDAL now reads {raster.with_name('img_RPC.TXT')} with {raster} "
+                                                    f"instead of the image's own RPC (the metadata of {raster})")]
+
+
+def test_an_rpc_image_delivered_with_an_rpb_is_refitted_on_overwrite_with_a_warning(pushbroom_provider, rpc_image,
+                                                                                     log):
+    """An RPC image whose RPC came as .RPB (GDAL prefers it to a _RPC.TXT): refused by default; with OVERWRITE
+    the fit of the block's RPC is written, and the user is told that GDAL still reads the .RPB."""
+    raster, supplied, height = rpc_image
+    ds = gdal.Open(str(raster), gdal.GA_Update)
+    ds.SetMetadata({}, "RPC")
+    ds = None
+    write_rpb(supplied, raster.with_name("img.RPB"))
+    path = rpc_block(raster, height)
+    with pytest.raises(QgsProcessingException, match=rf"carries its own RPC \({raster.with_name('img.RPB')}\)"):
+        processing.run("pushbroom:fitrpc", {"BLOCK": path})
+    result = processing.run("pushbroom:fitrpc", {"BLOCK": path, "OVERWRITE": True}, feedback=log)
+    assert result["FILES"] == [str(raster.with_name("img_RPC.TXT"))]
+    assert len(log.warnings) == 1 and "GDAL does not read" in log.warnings[0]
+    refit = sensors.load(raster.with_name("img_RPC.TXT"))
     lon, lat = supplied.image_to_ground(np.array([1.0, 150.0, 299.0]), np.array([2.0, 300.0, 598.0]), height)
     assert np.allclose(refit.ground_to_image(lon, lat, height), supplied.ground_to_image(lon, lat, height),
                        rtol=0, atol=0.01)
+
+
+def test_an_rpc_image_into_an_output_folder_leaves_the_image_alone(pushbroom_provider, rpc_image, tmp_path):
+    raster, supplied, height = rpc_image
+    path = rpc_block(raster, height)
+    result = processing.run("pushbroom:fitrpc", {"BLOCK": path, "OUTPUT_FOLDER": str(tmp_path / "rpc"), "GRID": 4,
+                                                 "HEIGHT_LEVELS": 4})
+    assert result["FILES"] == [str(tmp_path / "rpc" / "img_RPC.TXT")]
+    assert gdal.Open(str(raster)).GetFileList() == [str(raster)]      # GDAL still reads the image's own RPC
+    assert gdal_height_offset(raster) == pytest.approx(supplied.coefficients.height_off)
 
 
 def test_fitrpc_errors(pushbroom_provider, triplet_block):
@@ -131,6 +186,10 @@ def test_fitrpc_errors(pushbroom_provider, triplet_block):
         processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 100.0})
     with pytest.raises(QgsProcessingException, match="height range 500.0 .. 500.0"):
         processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 500.0, "MAX_HEIGHT": 500.0})
+    # a cube in the stratosphere: no terrain on Earth lies there (issue 36: fitted and written without a word)
+    with pytest.raises(QgsProcessingException, match=r"the lowest height of the RPC cube \(MIN_HEIGHT\) of 20000 m "
+                                                     r"lies outside the heights of terrain on Earth \(-500 \.\. 9000"):
+        processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 20000.0, "MAX_HEIGHT": 30000.0})
     assert "fitrpc" not in run_log_steps(path)
 
 

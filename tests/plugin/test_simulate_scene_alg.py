@@ -1,4 +1,5 @@
 """pushbroom:simulatescene through Processing, chained into pushbroom:createblock."""
+import csv
 import os
 
 import numpy as np
@@ -11,12 +12,22 @@ from pushbroom.algorithms.block import Block
 
 
 @pytest.mark.slow
-def test_simulated_triplet_becomes_a_block(pushbroom_provider, tmp_path):
+def test_simulated_triplet_becomes_a_block(pushbroom_provider, tmp_path, log):
     scene = processing.run("pushbroom:simulatescene", {
-        "CONFIGURATION": 0, "SIZE_KM": 3.0, "SEED": 7, "POINTS": 5, "OUTPUT": str(tmp_path / "scene")})
+        "CONFIGURATION": 0, "SIZE_KM": 3.0, "SEED": 7, "POINTS": 60, "BLUNDERS": 1000,
+        "OUTPUT": str(tmp_path / "scene")}, feedback=log)
     assert len(scene["IMAGES"]) == 3
     for key in ("DSM", "DTM", "CLASSES", "ORTHOIMAGE", "POINTS", "TRUTH"):
         assert os.path.isfile(scene[key]), key
+    # issue 36: a 3 km scene holds fewer than 60 open sites apart, and 1000 blunders need more measurements than
+    # its points have; the warning says so, with the numbers the points file holds
+    with open(scene["POINTS"], newline="") as f:
+        points = list(csv.DictReader(f))
+    blunders = sum(int(p[f"{name}_blunder"]) for p in points for name in ("HRG", "HRS1", "HRS2"))
+    [warning] = [w for w in log.warnings if "control/check point candidates made" in w]
+    assert warning.startswith(f"{len(points)} control/check point candidates made of the 60 asked: the scene holds ")
+    assert f"; {blunders} blunders made of the 1000 asked: the {len(points)} candidates have {3 * len(points)} " \
+           "image measurements" in warning and blunders == 3 * len(points)
     context = QgsProcessingContext()
     result = processing.run("pushbroom:createblock", {
         "IMAGES": scene["IMAGES"], "DEM": scene["DSM"], "OUTPUT": str(tmp_path / "block.gpkg")},

@@ -212,8 +212,9 @@ def test_merge_updates_and_replace_replaces(scene, blk, tmp_path):
     update = [dict(rows[2], h="1000.5", HRG_col_meas="10.25", HRG_row_meas="20.5", HRS1_col_meas="",
                    HRS1_row_meas="", HRS2_col_meas="", HRS2_row_meas="", role="check"),
               dict(rows[5], id="NEW", role="")]
+    # P003's made-up HRG measurement lies 1 km from where its coordinates project: kept (this is about merging)
     merged = cp.import_csv(Block(blk), write_rows(tmp_path / "update.csv", update, list(rows[0]) + ["role"]),
-                           suffix="_meas", mode="merge")
+                           suffix="_meas", mode="merge", keep_implausible=True)
     assert same(Block(blk).control_points(), merged)
     assert merged.points["name"].tolist() == ["P001", "P002", "P003", "P004", "NEW"]
     keep = [0, 1, 3]
@@ -226,7 +227,8 @@ def test_merge_updates_and_replace_replaces(scene, blk, tmp_path):
     assert p3[1:].tobytes() == old3[1:].tobytes()                      # HRS1, HRS2 kept
     assert (m["point"] == 4).sum() == 3 and len(m) == len(before.measurements) + 3
     # 2 points for 5: far fewer, replaced only when asked (block/replacement.py)
-    replaced = cp.import_csv(Block(blk), tmp_path / "update.csv", suffix="_meas", replace_fewer=True)
+    replaced = cp.import_csv(Block(blk), tmp_path / "update.csv", suffix="_meas", replace_fewer=True,
+                             keep_implausible=True)
     assert replaced.points["name"].tolist() == ["P003", "NEW"] and len(replaced.measurements) == 4
     assert same(Block(blk).control_points(), replaced)
 

@@ -65,14 +65,31 @@ def test_existing_block_needs_overwrite(spot5_product, tmp_path):
 
 
 def test_cancel_leaves_existing_block_and_no_partial_file(spot5_product, tmp_path):
-    images = Block.open_images([str(spot5_product)] * 2)
+    other = shutil.copytree(spot5_product.parent, tmp_path / "other" / "HRG1")     # a second product, same name
+    images = Block.open_images([str(spot5_product), str(other / "METADATA.DIM")])
     assert [n for n, *_ in images] == ["HRG1", "HRG1_2"]
     path = Block.create(tmp_path / "b.gpkg", images[:1]).path
     before = open(path, "rb").read()
     with pytest.raises(CancelledError):
         Block.create(path, images, overwrite=True, feedback=Feedback(cancel_after=1))
     assert open(path, "rb").read() == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["HRG1", "b.gpkg"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["HRG1", "b.gpkg", "other"]
+
+
+def test_an_image_given_twice_is_refused(spot5_product, tmp_path):
+    """Issue 36: one image twice made a block whose matching 'found' thousands of points without parallax."""
+    (tmp_path / "links").mkdir()
+    (tmp_path / "links" / "symbolic.DIM").symlink_to(spot5_product)
+    (tmp_path / "links" / "hard.DIM").hardlink_to(spot5_product)
+    for second in (spot5_product, tmp_path / "links" / "symbolic.DIM", tmp_path / "links" / "hard.DIM",
+                   tmp_path / "HRG1" / ".." / "HRG1" / "METADATA.DIM"):
+        with pytest.raises(InputError, match=rf"images 1 and 2 \({spot5_product} and {second}\) are (the same path|one "
+                                             "file): a block holds each image once"):
+            Block.open_images([str(spot5_product), str(second)])
+    # the product by its folder and by its metadata: one METADATA.DIM, one image
+    with pytest.raises(InputError, match="orientations of images 1 and 2 .* are the same path: each image has an "
+                                         "orientation of its own"):
+        Block.open_images([str(spot5_product.parent), str(spot5_product)])
 
 
 @pytest.mark.parametrize("bad, message", [("block.txt", "GeoPackage"), (None, "at least one image")])

@@ -295,6 +295,26 @@ def test_per_class_tables_on_the_simulated_classes(small_scene, tmp_path, figure
     assert set(np.unique(a.terrain)) <= {FLAT, MOUNTAINOUS}
 
 
+def test_a_raster_of_heights_is_no_class_raster(small_scene, tmp_path):
+    """Issue 36: the float DSM given as the class raster made hundreds of 'classes'. A class raster holds whole
+    numbers, few of them, in any data type: a float copy of classes.tif is one, the DSM is not, nor the DSM
+    rounded to whole metres in Int16 (an SRTM tile)."""
+    def copy(source, name, kind):
+        ds = gdal.Translate(str(tmp_path / name), source, outputType=kind)
+        ds.FlushCache()
+        return str(tmp_path / name)
+
+    classes = ClassRaster(copy(small_scene["classes"], "classes_float.tif", gdal.GDT_Float32))
+    assert classes.names == ClassRaster(small_scene["classes"]).names
+    with pytest.raises(InputError, match=rf"the class raster {small_scene['dsm']} holds \d+ distinct values "
+                                         r"\(Float32, such as [-0-9.]+\), not class codes: .*Is it a height raster\?"):
+        ClassRaster(small_scene["dsm"])
+    whole = copy(small_scene["dsm"], "dsm_int16.tif", gdal.GDT_Int16)
+    with pytest.raises(InputError, match=r"holds \d{3,} distinct values \(Int16, \d+ \.\. \d+\), not class codes: a "
+                                         r"class raster holds whole numbers, at most 100 classes"):
+        ClassRaster(whole)
+
+
 def test_classes_on_a_dem_grid(small_scene, utm_dem):
     [a] = assess(small_scene["dsm"], dem=utm_dem, classes=ClassRaster(small_scene["classes"]))
     rows = dict(next(r for name, r, _ in report.tables(summarized(a)) if name == "per class"))

@@ -413,3 +413,18 @@ def test_ground_psf_filter_matches_the_pixel_psf_integral():
             d = radiometry.NOMINAL_GAIN * (fast - slow)
             assert np.sqrt(np.mean(d * d)) < 1.0, image.name
             assert np.percentile(np.abs(d), 99) < 3.0, image.name
+
+
+def test_the_shortfall_of_candidates_and_blunders_is_told_with_its_numbers():
+    from pushbroom.algorithms.simulation.points import Candidates, shortfall
+    three = np.zeros(3)
+    made = Candidates(three, three, three, {}, {"A": np.zeros((3, 2)), "B": np.zeros((3, 2))},
+                      {"A": np.array([True, True, False]), "B": np.array([True, True, True])})
+    assert shortfall(3, 3, made, 5, 400.0, 40.0) is None        # all asked for were made
+    text = shortfall(9, 4, made, 8, 400.0, 40.0)
+    # 9 asked, 4 sites found, one hidden from an image; 8 blunders asked, 6 measurements to take them
+    assert text.startswith("3 control/check point candidates made of the 9 asked: the scene holds 4 sites of open, "
+                           "flat ground (bare soil or crops 40 m around, inside every image) at least 400 m apart, "
+                           "and 1 of them is hidden from an image")
+    assert text.endswith("5 blunders made of the 8 asked: the 3 candidates have 6 image measurements, and a "
+                         "measurement takes one blunder at most")

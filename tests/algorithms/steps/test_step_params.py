@@ -6,7 +6,7 @@ from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.quality.assess_accuracy import AssessParams
 from pushbroom.algorithms.steps.adjust_block import LAGRANGE_AUTO, AdjustParams, parse_counts, parse_priors
-from pushbroom.algorithms.steps.block_rpcs import RpcParams, cube_heights, selected_images
+from pushbroom.algorithms.steps.block_rpcs import RpcParams, cube_heights, cube_warning, selected_images
 
 
 def test_priors_parse_commas_and_semicolons():
@@ -52,6 +52,14 @@ def test_rpc_cube_heights_both_or_neither():
     assert cube_heights(Block("unused.gpkg"), 100.0, 900.0) == (100.0, 900.0)   # given: the block is not read
     with pytest.raises(InputError, match="both the lowest and the highest"):
         cube_heights(Block("unused.gpkg"), 100.0, None)
+    # issue 36: a cube at 20-30 km was fitted and written without a word
+    with pytest.raises(InputError, match=r"the highest height of the RPC cube \(MAX_HEIGHT\) of 30000 m lies outside "
+                                         r"the heights of terrain on Earth \(-500 \.\. 9000 m"):
+        cube_heights(Block("unused.gpkg"), 100.0, 30000.0)
+    # a cube that leaves out part of the terrain (280 .. 970 m) is fitted, with a warning
+    assert cube_warning((0.0, 500.0), (280.0, 970.0)).startswith("the RPC cube's heights 0 .. 500 m leave out some "
+                                                                 "of the block's terrain (280 .. 970 m)")
+    assert cube_warning((200.0, 1100.0), (280.0, 970.0)) is None and cube_warning((0.0, 1.0), None) is None
     with pytest.raises(InputError, match="at least 4"):
         RpcParams(grid=3).check()
 
