@@ -161,6 +161,9 @@ def check_grid_cells(cols, rows, cell, target, extent, what):
     if min(cols, rows) >= MIN_CELLS:
         return
     unit = unit_name(target)
+    if min(extent) <= 0:
+        raise InputError(f"the data span {extent[0]:.4g} x {extent[1]:.4g} {unit} ({target.GetName()}), no area: "
+                         f"{what} needs data spread over at least {MIN_CELLS} x {MIN_CELLS} cells")
     raise InputError(f"a cell size of {cell:g} {unit} makes {what} a grid of {cols} x {rows} cells over "
                      f"{extent[0]:.4g} x {extent[1]:.4g} {unit} ({target.GetName()}): give a cell size of at most "
                      f"{min(extent) / MIN_CELLS:.4g} {unit}.{cell_unit_hint(cell, target)}")

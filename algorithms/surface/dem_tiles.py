@@ -390,7 +390,8 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
         chunks, (x0, y0, x1, y1) = _to_work_chunks(cloud, params.input_crs, target, count, work,
                                                    progress.scaled(feedback, 3, 8))
         grid = Grid.covering(np.array([x0, x1]), np.array([y0, y1]), params.cell)
-        check_grid_cells(grid.cols, grid.rows, params.cell, target, (x1 - x0, y1 - y0), "the DEM")
+        if min(x1 - x0, y1 - y0) > 0:       # else the TIN names the points at one position (tin.flat_points)
+            check_grid_cells(grid.cols, grid.rows, params.cell, target, (x1 - x0, y1 - y0), "the DEM")
         tile = int(params.tile)
         boxes = tile_grid((grid.cols, grid.rows), tile)
         spacing = math.sqrt(max((x1 - x0) * (y1 - y0), params.cell ** 2) / count)   # >= the median NN distance

@@ -33,3 +33,14 @@ def test_metres_on_a_degree_crs_are_named(cloud, tmp_path):
                                          r"is the cell size in metres\?"):
         dem_tiles.dem_from_point_cloud(cloud, str(tmp_path / "dem.tif"), DemParams(cell=10.0, crs="EPSG:4326"))
     assert not list(tmp_path.iterdir())
+
+
+def test_a_cloud_at_one_position_spans_no_area(tmp_path):
+    # per-cell medians of points at one position would be a DEM of one cell: refused, saying why
+    x, y = np.full(50, 500000.0), np.full(50, 4800000.0)
+    path = tmp_path / "one.las"
+    pointcloud.write_las(path, x, y, surface(x, y), {}, srs(UTM31))
+    with pytest.raises(InputError, match=r"the data span 0 x 0 metres .*no area: the DEM needs data spread over at "
+                                         r"least 2 x 2 cells"):
+        dem_tiles.dem_from_point_cloud(str(path), str(tmp_path / "dem.tif"), DemParams(cell=10.0, method="cells"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["one.las"]
