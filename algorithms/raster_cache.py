@@ -4,7 +4,7 @@ GDAL keeps the blocks it reads and writes in one cache per process, by default u
 (1.2 GB on a 24 GiB machine). The steps stream rasters by bands and tiles, reading each block about
 once, so a large cache does not make them faster; but it fills as far as the rasters reach, so a
 step's memory would follow the scene up to that bound. While a step runs, the cache of its process
-(`bounded`) and of its worker processes (`in_worker`, around each task) is held to STEP_CACHE."""
+(`bounded`) and of its worker processes (`hold_in_worker`, before each task) is held to STEP_CACHE."""
 import contextlib
 import threading
 
@@ -36,9 +36,8 @@ def bounded():
                 gdal.SetCacheMax(_held["previous"])
 
 
-def in_worker(function, args):
-    """Task wrapper of a worker process (execution.run_tasks' processes and Dask): `function(*args)` with the
-    worker's GDAL cache held to STEP_CACHE (a worker runs only the steps' tasks: the bound stays)."""
+def hold_in_worker():
+    """Hold the GDAL cache of a worker process (local processes and Dask: execution.in_worker, before each task)
+    to STEP_CACHE; a worker runs only the steps' tasks, so the bound stays."""
     if gdal.GetCacheMax() > STEP_CACHE:
         gdal.SetCacheMax(STEP_CACHE)
-    return function(*args)

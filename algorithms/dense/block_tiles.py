@@ -25,7 +25,7 @@ import numpy as np
 
 from .. import progress
 from ..atomic import save_array, work_dir
-from ..execution import run_tasks, session
+from ..execution import check_cancel, run_tasks, session
 from ..matching.block_tiles import BIAS_SAMPLE, block_inputs, first_ids
 from ..matching.orientation_bias import affine_bias
 from ..matching.params import GrowParams
@@ -55,11 +55,13 @@ def tile_points(job, box):
     positions, quality, infos = [], [], []
     p = job.params
     for k in range(1, n):
+        check_cancel()                  # between the stages (execution: a cancel reaches a running tile)
         x1, y1, x2, y2, info = match_pair_tile(job.images[0], job.images[k], job.models[0], job.models[k], box,
                                                job.height_range, p)
         nan = np.full(x2.size, np.nan, np.float32)
         q = (nan, nan, nan)
         if p.refine:
+            check_cancel()
             rx, ry, *q = refine_positions(job.images[0], job.images[k], job.models[0], job.models[k], x1, y1, x2,
                                           y2, info["grid"].heights[::2], p.template, p.max_shift, p.robust)
             lone = isolated(x1, y1, np.isfinite(q[0]), p.step)      # they keep their dense positions
@@ -127,6 +129,7 @@ def _finish_tile(job, pre, first_id, k, folder):
     multi = MultiPoints(np.load(pre + ".points.npy"), np.load(pre + ".observations.npy"))
     multi.points["id"] += first_id - 1
     multi.observations["point_id"] += first_id - 1
+    check_cancel()
     refined = _mpgc(job, multi) if job.bias is not None else 0
     return (multi if job.write_part is None else job.write_part(folder, k, multi)), refined
 

@@ -37,7 +37,7 @@ import numpy as np
 from .. import histogram, progress
 from ..atomic import save_array, work_dir
 from ..errors import InputError
-from ..execution import run_tasks, session
+from ..execution import check_cancel, run_tasks, session
 from ..stats import NMAD_SCALE
 from .combinations import combine, compose_guide, new_cells, pair_seeds
 from .orientation_bias import affine_bias
@@ -95,11 +95,13 @@ def _match_tile(job, index, box, out, quota):
     candidates and the image positions and deviations of up to `quota` of them."""
     images, models, ids, params, hr = job.images, job.models, job.image_ids, job.params, job.height_range
     a, tries, seeds = _grow_tile(job.grow_a, index, box)
+    check_cancel()                      # between the combinations (execution: a cancel reaches a running tile)
     if len(images) == 2:
         multi = combine(a, image_ids=ids)
         dx = dy = np.full(len(multi), np.nan)
     else:
         grown = _grow_tile(job.grow_b, index, box)[0] if job.grow_b is not None else None
+        check_cancel()
         bt, ok = _transfer(images[0], images[2], models[0], models[2], a["x1"], a["y1"], params, hr, grown)
         b, b_src = bt[ok], np.flatnonzero(ok)
         b["x1"], b["y1"] = a["x1"][b_src], a["y1"][b_src]        # transfer points keep image 0 exactly
@@ -107,6 +109,7 @@ def _match_tile(job, index, box, out, quota):
             fresh = grown[new_cells(grown["x1"], grown["y1"], a["x1"], a["y1"], params.step)]
             b = np.concatenate([b, fresh])
             b_src = np.concatenate([b_src, np.full(len(fresh), -1)])
+        check_cancel()
         ct, ok = _transfer(images[2], images[1], models[2], models[1], b["x2"], b["y2"], params, hr,
                            compose_guide(a, b, b_src))
         c, c_src = ct[ok], np.flatnonzero(ok)
@@ -154,6 +157,7 @@ def _finish_tile(job, pre, limits, first_id, k, folder):
     points["id"], obs["point_id"] = new_id[points["id"]], new_id[obs["point_id"]]
     multi = MultiPoints(points, obs, {})
     if job.refine and job.bias is not None:
+        check_cancel()
         refine_three_ray(multi, job.images, job.models, job.image_ids, job.height_range, job.params, bias=job.bias)
     return (multi if job.write_part is None else job.write_part(folder, k, multi)), multi.stats
 

@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from ..execution import Execution, run_tasks
+from ..execution import Execution, check_cancel, run_tasks
 from ..progress import ensure, step as progress_step
 from ..tiling import tile_grid
 from .imagery import as_image
@@ -202,6 +202,7 @@ def _grow_tile(job, index, box):
     nseeds = len(tile_seeds)
     tries = grow(tile_seeds, ids) if nseeds else 0
     if automatic and params.reseed_cell:   # second round: denser interest points where growth has not been
+        check_cancel()                      # between the rounds (execution: a cancel reaches a running tile)
         again = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows,
                                 cell=params.reseed_cell, keep=untried, operator=operator)
         if len(again):

@@ -26,7 +26,7 @@ from ..atomic import atomic_path, closing, work_dir
 from ..crs import srs as parse_crs
 from ..dem_store import as_stored
 from ..errors import InputError
-from ..execution import run_tasks
+from ..execution import check_cancel, run_tasks
 from ..surface.geotiff import assemble_tiles
 from ..tiling import tile_grid
 from . import occlusion, resampling
@@ -148,7 +148,9 @@ def _ortho_tile(job, window, out):
     dem = stored.window(_footprint(grid, window, reach, start_step))
     worker = _TileWorker(image, model, dem, TileMapper(model, dem, grid, max_error, start_step), method, occlusion_on,
                          np.dtype(dtype), nodata)
+    check_cancel()                      # between the stages (execution: a cancel reaches a running tile)
     values, n, hidden, step, bound = worker(window)
+    check_cancel()
     row0, col0, rows, cols = window
     x0, dx, _, y0, _, dy = grid_geotransform
     with atomic_path(out, "an orthoimage tile") as tmp:

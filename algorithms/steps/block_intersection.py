@@ -29,7 +29,7 @@ from ..block import Block
 from ..block.points import load_arrays
 from ..dense import precision
 from ..errors import InputError
-from ..execution import Execution, run_tasks
+from ..execution import Execution, check_cancel, run_tasks
 from ..height_range import mean_height
 from ..sigmas import IMAGE_SIGMA
 from ..surface import intersection, outlier_filter, pointcloud
@@ -102,6 +102,7 @@ def _intersect_part(job, part, out):
     ok = result.ok
     fields = pointcloud.cloud_fields(result, group=group, rho=multi.points["rho_min"][pos])
     lon, lat, h = result.lon[ok], result.lat[ok], result.h[ok]
+    check_cancel()                      # before the write (execution: a cancel reaches a running part)
     pointcloud.save_part(out, lon, lat, h, fields)
     refined = precision.refined_dense(multi.points)[pos][ok]
     done = {"points": len(result), "written": int(ok.sum()), "status": result.status_counts(),

@@ -52,7 +52,7 @@ from .. import histogram, progress
 from ..atomic import append_bytes, atomic_path, save_array, work_dir
 from ..crs import check_grid_cells, srs as parse_crs, transform
 from ..errors import CancelledError, InputError
-from ..execution import run_tasks, session
+from ..execution import check_cancel, run_tasks, session
 from ..tiling import tile_grid
 from .cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, cells_on_grid
 from .gap_fill import fill_gaps
@@ -232,6 +232,7 @@ def _residual_tile(job, box, points_file, spreads):
     if len(x) < 3 or flat_points(x, y):
         return histogram.EMPTY
     tin = delaunay(x, y)
+    check_cancel()                      # between the stages (execution: a cancel reaches a running tile)
     keep, _ = filter_blunders(tin, x, y, z, k=k, fixed=fixed, spreads=spreads)
     return residual_histogram(tin, x, y, z, keep, fixed, inside)
 
@@ -264,6 +265,7 @@ def _dem_tile(job, box, points_file, spreads, out, precision_out):
     result = surface_on_grid(rows["x"], rows["y"], rows["z"], rows["sigma"] if sigma else None, sub, srs, max_edge,
                              datum=datum, k=k, iterations=iterations, breaklines=_near(breaklines, sub, margin),
                              precision=precision_out is not None, own=_owner(grid, box), spreads=spreads)
+    check_cancel()                      # before the writes (execution: a cancel reaches a running tile)
     write_float_raster(out, result.heights, sub.geotransform, srs, overviews=False)
     if precision_out is not None:
         write_float_raster(precision_out, result.precision, sub.geotransform, srs, overviews=False)
@@ -282,6 +284,7 @@ def _cell_tile(job, box, points_file, out, precision_out, count_out, ring_out):
     sub = _tile_grid(grid, box)
     cells = cells_on_grid(rows["x"], rows["y"], rows["z"], rows["sigma"] if sigma else None, sub, k=k,
                           own=_owner(grid, box), tier=rows["tier"], fallback=fallback, radius=radius)
+    check_cancel()                      # before the writes (execution: a cancel reaches a running tile)
     write_float_raster(out, cells.heights, sub.geotransform, srs, overviews=False)
     for path, values in ((precision_out, cells.precision), (count_out, cells.count), (ring_out, cells.ring)):
         if path is not None:

@@ -33,7 +33,7 @@ from qgis.core import (
     QgsProcessingParameterVectorLayer,
     QgsProviderRegistry,
 )
-from qgis.PyQt.QtCore import QCoreApplication, QUrl
+from qgis.PyQt.QtCore import QCoreApplication, QEventLoop, QThread, QUrl
 from qgis.PyQt.QtGui import QIcon
 
 from ...algorithms import destinations, raster_cache
@@ -326,20 +326,31 @@ def execution_parameters(algorithm, workers):
     tr = algorithm.tr
     return [QgsProcessingParameterEnum(algorithm.EXECUTION, tr("Execution of the tiles"),
                                        [tr(EXECUTION_LABELS[b]) for b in BACKENDS], defaultValue=0),
-            QgsProcessingParameterString(algorithm.DASK_ADDRESS, tr("Dask scheduler address (tcp://host:8786; empty: "
-                                                                    "a local cluster of the workers below)"),
+            QgsProcessingParameterString(algorithm.DASK_ADDRESS, tr("Dask scheduler address (tcp://host:port or "
+                                                                    "tls://host:port; empty: a local cluster of the "
+                                                                    "workers below)"),
                                          "", optional=True),
-            QgsProcessingParameterNumber(algorithm.WORKERS, tr("Workers (threads, processes or local Dask workers)"),
+            QgsProcessingParameterNumber(algorithm.WORKERS, tr("Workers (threads, processes or local Dask workers; "
+                                                               "at most 4 per core are used)"),
                                          QgsProcessingParameterNumber.Integer, workers, minValue=1)]
 
 
 def execution_choice(algorithm, parameters, context):
-    """The execution.Execution of an algorithm's execution_parameters."""
+    """The execution.Execution of an algorithm's execution_parameters, checked (InputError before any work for a
+    malformed scheduler address). Its host_events run Qt's event loop while the tiles run, where the algorithm
+    runs on the application's main thread (qgis_process): qgis_process cancels the feedback on Ctrl+C only from
+    its event loop."""
     values = algorithm.parameterValues(parameters, context, backend=algorithm.EXECUTION,
                                        address=algorithm.DASK_ADDRESS, workers=algorithm.WORKERS)
     values["backend"] = BACKENDS[values["backend"]]
     values["address"] = values["address"].strip()
-    return Execution(**values)
+    app = QCoreApplication.instance()
+
+    def host_events():
+        if app is not None and QThread.currentThread() == app.thread():
+            QCoreApplication.processEvents(QEventLoop.ExcludeUserInputEvents)
+
+    return Execution(**values, host_events=host_events).check()
 
 
 def replace_fewer_parameter(algorithm: QgsProcessingAlgorithm, what: str) -> QgsProcessingParameterBoolean:

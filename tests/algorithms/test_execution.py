@@ -1,8 +1,11 @@
 """The execution layer (algorithms/execution.py): the same results in the same order on threads, local
-processes and a Dask LocalCluster; progress, cancel, task errors, a dying worker, a scheduler that
-does not answer, and worker processes started from a host program that is not Python (QGIS)."""
+processes and a Dask LocalCluster; progress, cancel (also of the running tasks), task errors, a killed
+worker, a scheduler that does not answer or a malformed address, the cap on the workers, and worker
+processes started from a host program that is not Python (QGIS)."""
 import os
+import signal
 import sys
+import threading
 import time
 
 import numpy as np
@@ -13,6 +16,7 @@ from pushbroom.algorithms.errors import CancelledError, ExecutionError, InputErr
 from pushbroom.algorithms.execution import Execution, run_tasks
 from tests.helpers import execution_tasks as tasks
 from tests.helpers.feedback import Feedback
+from tests.helpers.processes import command_line, descendants
 
 BACKENDS = [Execution("threads", 2), Execution("processes", 2), Execution("dask", 2)]
 
@@ -87,10 +91,40 @@ def test_a_cancel_stops_the_pending_tasks(where, tmp_path):
     with pytest.raises(CancelledError):
         run_tasks(tasks.slow_marker, [(str(tmp_path), k, 0.3) for k in range(20)], where, stop)
     time.sleep(1.0)
-    # only the tasks a worker had started or queued ran: the first two (finishing together), the 2 running
-    # then, and for processes the pool's call queue (workers + 1, which concurrent.futures cannot cancel);
-    # the 13 or more others never ran
-    assert len(os.listdir(tmp_path)) <= 2 + 2 + (3 if where.backend == "processes" else 0)
+    # only the tasks a worker had started ran: the first two (finishing together) and the 2 running then (a
+    # worker process is sent a task only when it waits for one); the 16 or more others never ran
+    assert len(os.listdir(tmp_path)) <= 2 + 2
+
+
+class _StopAtFirstStage(Feedback):
+    """Cancels once a task has finished its first stage (a file <k>.0 in `folder`); keeps the files there then."""
+
+    def __init__(self, folder):
+        super().__init__()
+        self.folder, self.seen = folder, None
+
+    def isCanceled(self):
+        if self.seen is None and any(n.endswith(".0") for n in os.listdir(self.folder)):
+            self.seen = set(os.listdir(self.folder))
+        return self.seen is not None
+
+
+@pytest.mark.parametrize("where", BACKENDS, ids=lambda e: e.backend)
+def test_a_cancel_reaches_into_the_running_tasks(where, tmp_path):
+    stop = _StopAtFirstStage(str(tmp_path))
+    with pytest.raises(CancelledError):             # 4 tasks of 100 stages of 0.05 s, 2 at a time
+        run_tasks(tasks.staged, [(str(tmp_path), k, 100, 0.05) for k in range(4)], where, stop)
+    after = set(os.listdir(tmp_path))
+    time.sleep(0.5)
+    assert set(os.listdir(tmp_path)) == after                       # nothing runs on after the cancel
+    started = {n for n in after if n.startswith("pid-")}
+    assert 1 <= len(started) <= 2                                   # the pending tasks never started
+    stages = {k: sum(n.startswith(f"{k}.") for n in after) for k in range(4)}
+    # each running task stopped at its next look at the token: within a stage of the cancel for threads and
+    # processes (a POLL of 0.1 s is 2 stages), within DASK_CHECK (1 s, 20 stages) on Dask; never at its end
+    late = 2 + 2 + (execution.DASK_CHECK / 0.05 if where.backend == "dask" else 0)
+    for k, count in stages.items():
+        assert count < 100 and count <= sum(n.startswith(f"{k}.") for n in stop.seen) + late, (k, count)
 
 
 @pytest.mark.parametrize("where", BACKENDS, ids=lambda e: e.backend)
@@ -105,9 +139,47 @@ def test_dask_reruns_the_task_of_a_killed_worker(tmp_path):
     assert out == [k * k for k in range(6)]          # and the run completed with every result
 
 
-def test_a_process_pool_names_a_dead_worker(tmp_path):
-    with pytest.raises(ExecutionError, match="worker process .* died"):
-        run_tasks(tasks.die_once, [(str(tmp_path), k) for k in range(6)], Execution("processes", 2), what="the test")
+def _kill_first_worker(folder):
+    """A thread that kills (SIGKILL, as the OOM killer) the worker process of the first task that leaves its pid
+    file in `folder`; returns the pid in the list it fills."""
+    killed = []
+
+    def kill():
+        deadline = time.monotonic() + 60
+        while not killed and time.monotonic() < deadline:
+            names = [n for n in os.listdir(folder) if n.startswith("pid-")]
+            if names:
+                with open(os.path.join(folder, names[0])) as f:
+                    killed.append(int(f.read()))
+                os.kill(killed[0], signal.SIGKILL)
+            time.sleep(0.05)
+    threading.Thread(target=kill, daemon=True).start()
+    return killed
+
+
+@pytest.mark.parametrize("rounds", [1, 3], ids=["one round", "the third round of a session"])
+def test_a_killed_worker_process_fails_the_step_within_seconds(tmp_path, rounds):
+    where = Execution("processes", 2)
+    # each task carries 8 MiB, more than a pipe holds (64 KiB): when the worker dies, the next tasks are being
+    # written to the workers (concurrent.futures' pool then hung for ever, CPython 3.11, gh-94777)
+    blob = bytes(8 * 2 ** 20)
+    folders = [tmp_path / f"round-{r}" for r in range(rounds)]
+    start = None
+    with pytest.raises(ExecutionError) as failed:
+        with execution.session(where):
+            for r, folder in enumerate(folders):
+                folder.mkdir()
+                last = r == rounds - 1
+                killed = _kill_first_worker(str(folder)) if last else None
+                start = time.monotonic()
+                run_tasks(tasks.staged, [(str(folder), k, 200 if last else 1, 0.05, blob) for k in range(6)], where,
+                          what="the test")
+    elapsed = time.monotonic() - start
+    assert killed and str(failed.value).startswith(f"the test: worker process {killed[0]} died (killed by SIGKILL")
+    assert "fewer workers" in str(failed.value)                      # and what to do
+    assert elapsed < 20                     # the issue's bound: seconds, not a hang (a task runs 10 s uncancelled)
+    workers = [p for p in descendants(os.getpid()) if "spawn_main" in command_line(p)]
+    assert workers == []                    # the other worker stopped with the round, none is left behind
 
 
 def test_a_scheduler_that_does_not_answer_is_a_clear_error():
@@ -133,3 +205,41 @@ def test_worker_processes_start_this_python_when_the_host_is_not_it(monkeypatch,
 def test_settings_no_backend_can_use_are_refused(bad, message):
     with pytest.raises(InputError, match=message):
         bad.check()
+
+
+@pytest.mark.parametrize("address", ["htp:/nonsense::99", "localhost", "ucx://10.0.0.5:8786", "tcp://10.0.0.5",
+                                     "tcp://10.0.0.5:99999", "tcp://10.0.0.5:8786/path"])
+def test_a_malformed_scheduler_address_is_refused_before_connecting(address):
+    with pytest.raises(InputError, match=r"give the scheduler's address as tcp://host:port .* or tls://host:port, "
+                                         r"or leave it empty for a local cluster") as refused:
+        Execution("dask", 2, address).check()
+    assert repr(address) in str(refused.value)                       # the address as given
+
+
+@pytest.mark.parametrize("address", ["tcp://10.0.0.5:8786", "tls://scheduler.example.org:8786", "localhost:8786",
+                                     "tcp://[::1]:8786"])
+def test_a_scheduler_address_of_the_expected_form_is_accepted(address):
+    assert Execution("dask", 2, address).check().address == address
+
+
+def test_more_workers_than_the_machine_takes_are_capped_with_a_warning():
+    limit = execution.WORKERS_PER_CORE * os.cpu_count()
+    many = Execution("threads", 1000 * limit)
+    log = Feedback()
+    with execution.session(many):
+        for _ in range(2):
+            assert run_tasks(tasks.refuse, [(0,), (1,)], many, log) == [0, 1]
+    warning = f"{1000 * limit} workers asked for, {limit} used: at most {execution.WORKERS_PER_CORE} per core"
+    assert [m for m in log.messages if m.startswith(warning)] == log.messages[:1]      # said once, first
+    assert log.messages[1] == f"the tiles: 2 tasks on {limit} threads"
+    assert Execution("processes", 1000 * limit).describe() == f"{limit} local worker processes"
+    assert Execution("dask", 1000 * limit).describe() == f"a Dask local cluster of {limit} worker processes"
+    assert Execution("dask", 1000 * limit, "tcp://10.0.0.5:8786").capped() is None     # a remote cluster's own
+
+
+def test_a_local_cluster_starts_without_its_known_warnings(recwarn):
+    with execution.session(BACKENDS[2]):
+        actions = run_tasks(tasks.warning_action, [(m, c.__name__) for m, c in execution.DASK_NOISE], BACKENDS[2])
+    assert actions == ["ignore", "ignore"]          # the workers' filters (UserWarning is shown by default)
+    noise = [str(w.message) for w in recwarn if any(str(w.message).startswith(m) for m, _ in execution.DASK_NOISE)]
+    assert noise == []                      # nor does this process show them (recwarn records every warning)

@@ -5,6 +5,7 @@ import time
 import numpy as np
 
 from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.execution import check_cancel
 
 
 def statistic(seed, n):
@@ -52,3 +53,29 @@ def environment(name):
 def weighted_sum(job, k):
     """k times the sum of the array job["values"] (a job every task shares)."""
     return k * float(job["values"].sum())
+
+
+def staged(folder, k, stages, seconds, blob=b""):
+    """Leave <folder>/pid-<k> with the worker's pid, then run `stages` stages of `seconds` each: before each, a
+    look at the cancel token (execution.check_cancel) as the steps' tile functions do; after each, the file
+    <folder>/<k>.<stage>. `blob` is an argument to carry (a large one fills a pipe). Returns k."""
+    with open(os.path.join(folder, f"pid-{k}"), "w") as f:
+        f.write(str(os.getpid()))
+    for stage in range(stages):
+        check_cancel()
+        time.sleep(seconds)
+        with open(os.path.join(folder, f"{k}.{stage}"), "w"):
+            pass
+    return k
+
+
+def warning_action(message, category):
+    """What the worker's warning filters do with a warning `message` of the builtin `category` (its name): the
+    action of the first filter that matches it ("ignore", "default", ...)."""
+    import builtins
+    import warnings
+    kind = getattr(builtins, category)
+    for action, text, of, _, _ in warnings.filters:
+        if (text is None or text.match(message)) and issubclass(kind, of):
+            return action
+    return warnings.defaultaction
