@@ -14,17 +14,19 @@ from pushbroom.plugin.algorithms.base import execution_choice
 from tests.helpers import execution_tasks as tasks
 
 
-def test_a_malformed_scheduler_address_is_refused_before_any_work(pushbroom_provider, tmp_path):
+def test_a_malformed_scheduler_address_is_refused_before_any_work(pushbroom_provider, small_scene_block, tmp_path):
+    block = tmp_path / "block.gpkg"
+    block.write_bytes(small_scene_block[0].read_bytes())
     message = None
-    try:                        # no block there either: the address is refused first, before anything is read
-        processing.run("pushbroom:intersectpoints", {"BLOCK": str(tmp_path / "none.gpkg"), "EXECUTION": 2,
+    try:                        # the block has no points: the address is refused first, before anything is read
+        processing.run("pushbroom:intersectpoints", {"BLOCK": str(block), "EXECUTION": 2,
                                                      "DASK_ADDRESS": " htp:/nonsense::99 ",
                                                      "OUTPUT": str(tmp_path / "points.gpkg")},
                        context=QgsProcessingContext())
     except QgsProcessingException as exc:      # only the text is kept (no traceback holding QGIS objects)
         message = str(exc)
     assert message is not None and "'htp:/nonsense::99'" in message and "tcp://host:port" in message
-    assert os.listdir(tmp_path) == []                                # nothing written
+    assert os.listdir(tmp_path) == ["block.gpkg"]                    # nothing written
 
 
 def test_a_cancel_from_the_qt_event_loop_reaches_the_running_tiles(pushbroom_provider, tmp_path):
