@@ -87,6 +87,7 @@ def match_block_points(block_path, params=None, summary_csv=None, feedback=None)
     params = (params or MatchParams()).check()
     log = progress.ensure(feedback)
     blk = Block(block_path)
+    blk.check_writable("the matched points")        # before the matching, not after it
     rows = combination_order(blk.images(), params.images)
     models = list(blk.models([r["id"] for r in rows]).values())
     heights = height_range(params.min_height, params.max_height, blk.height_range())

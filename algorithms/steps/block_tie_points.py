@@ -36,6 +36,7 @@ def select_block_tie_points(block_path, params, feedback=None):
     """Select and store the tie points of the block at `block_path` with TieParams `params`; returns a
     TieResult. Raises InputError (a cell size that is not positive, no mass points)."""
     blk = Block(block_path)
+    blk.check_writable("the tie points")
     parts = blk.point_parts("mass_points")
     stats = blk.point_stats("mass_points")
     reference = None
