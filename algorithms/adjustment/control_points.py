@@ -94,8 +94,10 @@ class _Table:
         try:
             with open(self.path, "rb") as f:
                 data = f.read()
+        except FileNotFoundError:
+            raise InputError(f"the point file {self.path} does not exist: check the path") from None
         except OSError as exc:
-            raise InputError(f"cannot read the point file {self.path}: {exc}") from exc
+            raise InputError(f"cannot read the point file {self.path}: {exc.strerror}") from exc
         text = decode(data, self.path)
         first = text.splitlines()[0] if text.strip() else ""
         delimiter = max(",;\t", key=first.count)

@@ -46,7 +46,8 @@ def image_and_model(block_path=None, image_name="", image=None, orientation=None
         rows = blk.images()
         chosen = [r for r in rows if r["name"] == (image_name or "").strip()]
         if not chosen:
-            raise InputError(f"give the name of one of the block's images ({', '.join(r['name'] for r in rows)})")
+            raise InputError(f"the block has no image {(image_name or '').strip()!r}: give the name of one of its "
+                             f"images ({', '.join(r['name'] for r in rows)})")
         sensors.check_image(chosen[0]["image_path"])        # moved or deleted since the block was made
         return chosen[0]["image_path"], blk.model(chosen[0]["id"])
     if not image:
