@@ -2,8 +2,8 @@
 # make demo: the main job on the built-in sample, through qgis_process as a user's script would run it.
 # 1. simulate the default SPOT-5 HRS/HRG triplet (20 x 20 km) over the Jacksboro DEM; 2. ONE run of the
 # graphical-modeler model resources/models/pushbroom_pipeline.model3 (scripts/build_pipeline_model.py):
-# block (footprints on the true DSM), region-growing matching, tie points, the simulated control/check points
-# (the first 19 control, the rest check), bundle adjustment (automatic parameter selection), intersection of
+# block (footprints on the true DSM), the simulated control/check points (the first 19 control, the rest check),
+# a coarse orthoimage that checks IMAGE_NAME, region-growing matching, tie points, bundle adjustment (automatic parameter selection), intersection of
 # the mass points (point cloud), 10 m DEM, orthoimage of HRG on the adjusted model and the DEM, accuracy of
 # the points and the DEM against the true DSM per land-cover class (report.html, dh raster);
 # 3. a QGIS project with every layer styled; 4. print what was made and the tables.
