@@ -11,8 +11,8 @@ folder (e.g. <profile>/processing/models; checked with `qgis_process list`); by 
 (scripts/demo.sh). QT_HASH_SEED is set to 0 before Qt starts, so the XML attributes come out in the
 same order on every build (Qt otherwise seeds its hashes at random and the file's diff is noise).
 Steps, each a pushbroom algorithm, chained through their BLOCK outputs (which also orders them):
-createblock -> importpoints -> (checkimage) -> matchpoints (MPGC_SUPPORT on: the heights of the template centres' surface,
-for the DEM) -> selecttiepoints -> bundleadjust -> intersectpoints (mass points) -> interpolatedem ->
+createblock -> importpoints -> (checkimage) -> matchpoints (MPGC_SUPPORT on: the heights of the template
+centres' surface, for the DEM) -> selecttiepoints -> bundleadjust -> intersectpoints (mass points) -> interpolatedem ->
 orthorectify (IMAGE_NAME, adjusted model, produced DEM) and assessaccuracy (point cloud and DEM against
 REFERENCE, per class of CLASS_RASTER).
 

@@ -60,8 +60,8 @@ def test_files_that_are_no_whole_block_are_named(block, tmp_path, capfd):
         Block(plain).info()
     assert "bad application_id" not in capfd.readouterr().err     # GDAL's own warning of it is not printed
     data = open(block, "rb").read()
-    for size, fact in ((len(data) // 2, rf"the file holds {len(data) // 2} bytes, its header records .* \({len(data)}\)"),
-                       (50, "the file holds 50 bytes, less than the 100 of an SQLite header")):
+    half = rf"the file holds {len(data) // 2} bytes, its header records .* \({len(data)}\)"
+    for size, fact in ((len(data) // 2, half), (50, "the file holds 50 bytes, less than the 100 of an SQLite header")):
         cut = tmp_path / f"cut{size}.gpkg"
         cut.write_bytes(data[:size])
         # damaged, how, and what to do: not SQLite's "database disk image is malformed" nor "not a block"
