@@ -33,11 +33,12 @@ not seen.
 Before that, the values must describe an image of a place on Earth (`_check_geometry`), so that a damaged or
 mistyped RPC is refused where it is read, naming its fault, instead of failing later as a singular
 iteration: positive scales; LAT_OFF a latitude and LONG_OFF a longitude; numerators that are not all zero;
-the ground centre (LONG_OFF, LAT_OFF, HEIGHT_OFF) inside the image (|s|, |l| <= 1 there); and, at that
-centre, a pixel whose ground footprint (metres, from the rational functions' derivatives) is at most
-MAX_PIXEL_ELONGATION times longer than wide: sensors look at the ground with near-square pixels (SPOT 5
-HRS: 10 x 5 m), while LAT_OFF and LONG_OFF swapped move the image to another latitude, where the same
-degrees of longitude span other metres."""
+the ground centre (LONG_OFF, LAT_OFF, HEIGHT_OFF) inside the image (|s|, |l| <= 1 there); image coordinates
+that change along two ground directions there. An RPC read from a file must also describe, at that centre,
+a pixel whose ground footprint (metres, from the rational functions' derivatives) is at most
+MAX_PIXEL_ELONGATION times longer than wide (`_check_pixel_shape`): sensors look at the ground with
+near-square pixels (SPOT 5 HRS: 10 x 5 m), while LAT_OFF and LONG_OFF swapped move the image to another
+latitude, where the same degrees of longitude span other metres."""
 import math
 from dataclasses import dataclass
 
@@ -303,14 +304,33 @@ def _check_geometry(arrays, values, source):
                                       f"{values['height_off']:g}) projects to column {col:.0f}, row {row:.0f}, outside "
                                       f"the image it describes (columns {cols[0]:.0f} .. {cols[1]:.0f}, rows "
                                       f"{rows[0]:.0f} .. {rows[1]:.0f})")
-    # d(col, row)/d(east, north) in px/m at the centre: the quotient rule on the terms 1 and L (P) of the cubics
-    metres = np.radians([values["long_scale"] * math.cos(math.radians(lat)), values["lat_scale"]]) * EARTH_RADIUS
-    jacobian = np.array([[(num[name][k] * den[name][0] - num[name][0] * den[name][k]) / den[name][0] ** 2
-                          * values[f"{name}_scale"] / metres[k - 1] for k in (1, 2)] for name in ("samp", "line")])
-    sides = np.linalg.svd(jacobian, compute_uv=False)       # px per metre along the footprint's axes
+    sides = _pixel_sides(arrays, values)
     if not sides[1] > 1e-6 * sides[0]:            # a footprint a million times longer than wide: a line
         raise _metadata_error(source, "the image column and row change along one ground direction only: the "
                                       "numerators (SAMP_NUM_COEFF, LINE_NUM_COEFF) describe no image of the ground")
+
+
+def _pixel_sides(arrays, values):
+    """(longest, shortest) of 1 / the pixel footprint's sides at the centre, px per metre: the singular values of
+    d(col, row)/d(east, north), by the quotient rule on the terms 1, L and P of the cubics."""
+    metres = np.radians([values["long_scale"] * math.cos(math.radians(values["lat_off"])), values["lat_scale"]])
+    metres *= EARTH_RADIUS
+    num = {name: arrays[f"{name}_num"] for name in ("samp", "line")}
+    den = {name: arrays[f"{name}_den"] for name in ("samp", "line")}
+    jacobian = np.array([[(num[name][k] * den[name][0] - num[name][0] * den[name][k]) / den[name][0] ** 2
+                          * values[f"{name}_scale"] / metres[k - 1] for k in (1, 2)] for name in ("samp", "line")])
+    return np.linalg.svd(jacobian, compute_uv=False)
+
+
+def _check_pixel_shape(coefficients, source):
+    """MetadataError where an RPC read from a file describes pixels more than MAX_PIXEL_ELONGATION times longer
+    than wide at its centre (module docstring). Only for RPCs read from files, where offsets are typed or
+    swapped by hand: a fitted RPC follows a model whose pixels may be anything a test makes them."""
+    c = coefficients
+    sides = _pixel_sides({"samp_num": c.samp_num, "samp_den": c.samp_den, "line_num": c.line_num,
+                          "line_den": c.line_den},
+                         {"lat_off": c.lat_off, "long_scale": c.long_scale, "lat_scale": c.lat_scale,
+                          "samp_scale": c.samp_scale, "line_scale": c.line_scale})
     if sides[0] / sides[1] > MAX_PIXEL_ELONGATION:
         raise _metadata_error(source, f"its pixels would cover {1 / sides[1]:.3g} x {1 / sides[0]:.3g} m on the "
                                       f"ground at its centre, {sides[0] / sides[1]:.1f} times longer than wide: the "
@@ -417,8 +437,9 @@ class RpcModel(SensorModel):
 
     @classmethod
     def _from_record(cls, record):
-        return cls(RpcCoefficients.from_fields(record.fields, record.source), record.size,
-                   record.offset, record.source)
+        coefficients = RpcCoefficients.from_fields(record.fields, record.source)
+        _check_pixel_shape(coefficients, record.source)
+        return cls(coefficients, record.size, record.offset, record.source)
 
     @classmethod
     def from_raster(cls, path):

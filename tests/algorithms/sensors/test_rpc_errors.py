@@ -65,17 +65,20 @@ def test_bad_fields_raise_metadata_error(spoil, message):
     assert str(err.value).startswith("the-source.txt: ") and "export the RPC again" in str(err.value)
 
 
-def test_lat_off_and_long_off_swapped_are_named():
+def test_lat_off_and_long_off_swapped_are_named(tmp_path):
     """The synthetic RPC moved to longitude -84.2, latitude 36.6 (where its pixels are about square: the
-    offsets of the 3 km simulated scene), then its offsets swapped: latitude -84.2, where a degree of longitude
-    spans a tenth of the metres, so its pixels would be 8 times longer than wide."""
+    offsets of the 3 km simulated scene), then its offsets swapped in its _RPC.TXT: latitude -84.2, where a
+    degree of longitude spans a tenth of the metres, so its pixels would be 8 times longer than wide."""
     fields = dict(synthetic_fields(), LONG_OFF=-84.2, LAT_OFF=36.6)
-    RpcCoefficients.from_fields(fields, "moved.txt")                       # a valid RPC at its new place
+    write_rpc_txt(RpcModel(RpcCoefficients.from_fields(fields)), tmp_path / "moved_RPC.TXT")
+    sensors.load(tmp_path / "moved_RPC.TXT")                                  # a valid RPC at its new place
     fields["LONG_OFF"], fields["LAT_OFF"] = fields["LAT_OFF"], fields["LONG_OFF"]
-    with pytest.raises(MetadataError, match=r"swapped.txt: its pixels would cover .* m on the ground at its "
-                                            r"centre, (\d+\.\d) times longer than wide: .*\(LAT_OFF and LONG_OFF "
-                                            r"swapped") as err:
-        RpcCoefficients.from_fields(fields, "swapped.txt")
+    path = tmp_path / "swapped_RPC.TXT"
+    write_rpc_txt(RpcModel(RpcCoefficients.from_fields(fields)), path)
+    with pytest.raises(MetadataError, match=re.escape(str(path)) + r": its pixels would cover .* m on the ground at "
+                                            r"its centre, (\d+\.\d) times longer than wide: .*\(LAT_OFF and "
+                                            r"LONG_OFF swapped") as err:
+        sensors.load(path)
     # the pixel's elongation: cos(36.6 deg) / cos(84.2 deg) = 7.9 times the moved RPC's own (1.2 at most)
     assert 6.0 < float(re.search(r"(\d+\.\d) times", str(err.value)).group(1)) < 10.0
 
