@@ -20,20 +20,29 @@ PROFILE := $(CURDIR)/build/qgis-profile
 # qgis_process embeds the system Python: give it the venv's packages (numba) and a profile with the plugin
 # (recursive variables: the venv exists only once setup has run)
 SITE = $(wildcard $(CURDIR)/.venv/lib/python3*/site-packages)
-QGIS_PROCESS = env QGIS_CUSTOM_CONFIG_PATH=$(PROFILE) PYTHONPATH=$(SITE) /usr/bin/qgis_process.bin
+# QGIS's Python start-up warns that sip's setapi() is deprecated, on every run: not ours, not a failure
+QGIS_PROCESS = env QGIS_CUSTOM_CONFIG_PATH=$(PROFILE) PYTHONPATH=$(SITE) PYTHONWARNINGS=ignore:setapi:DeprecationWarning \
+	/usr/bin/qgis_process.bin
 export QT_QPA_PLATFORM ?= offscreen
+# Qt's run-time folder: without one, every Qt program (qgis_process, the tests' QGIS) says "XDG_RUNTIME_DIR not
+# set"; a private one, made as Qt wants it (mode 0700)
+RUNTIME := $(CURDIR)/build/xdg-runtime
+export XDG_RUNTIME_DIR ?= $(RUNTIME)
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
 .PHONY: setup lint test test-fast demo bench bench-peers package clean
 
-setup: .venv/.setup-done $(PROFILE)/.enabled $(PANDORA_DIR)/.done
+setup: $(RUNTIME) .venv/.setup-done $(PROFILE)/.enabled $(PANDORA_DIR)/.done
+
+$(RUNTIME):
+	@mkdir -p -m 700 $@
 
 $(PANDORA_DIR)/.done: .venv/.setup-done Makefile
 	@rm -rf $(PANDORA_DIR) && $(PY) -m pip install -q --no-deps --target $(PANDORA_DIR) $(PANDORA_PINS)
 	@PYTHONPATH=$(PANDORA_DIR) $(PY) -c "import pandora, rasterio; assert rasterio.__file__.startswith('/usr/lib/python3/'), rasterio.__file__"
 	@touch $@
 
-$(PROFILE)/.enabled: .venv/.setup-done metadata.txt
+$(PROFILE)/.enabled: .venv/.setup-done metadata.txt | $(RUNTIME)
 	@mkdir -p $(PROFILE)/profiles/default/python/plugins
 	@ln -sfn $(CURDIR) $(PROFILE)/profiles/default/python/plugins/pushbroom
 	@$(QGIS_PROCESS) plugins enable pushbroom >/dev/null 2>&1 || true  # exits 1 when already enabled

@@ -42,11 +42,14 @@ def check_height(value, what):
 def height_range(h_min, h_max, block_range):
     """(h_min, h_max) when both are given; one given: that height (the matcher searches it +- 500 m);
     neither: `block_range`, the range recorded in the block at its creation (DEM heights under the
-    footprints, or the mean height +- 500 m). A height given outside PLAUSIBLE_HEIGHTS is an InputError
-    (check_height)."""
+    footprints, or the mean height +- 500 m). InputError where a given height is not a number, lies outside
+    PLAUSIBLE_HEIGHTS (check_height), or the lowest is above the highest."""
     h_min = check_height(h_min, "the lowest terrain height (MIN_HEIGHT)")
     h_max = check_height(h_max, "the highest terrain height (MAX_HEIGHT)")
     if h_min is not None and h_max is not None:
+        if h_min > h_max:
+            raise InputError(f"the lowest terrain height ({h_min:g} m) is above the highest ({h_max:g} m): give "
+                             "the lowest height first (swapped?)")
         return (h_min, h_max)
     if h_min is not None or h_max is not None:
         return float(h_min if h_min is not None else h_max)

@@ -11,10 +11,18 @@ folder (e.g. <profile>/processing/models; checked with `qgis_process list`); by 
 (scripts/demo.sh). QT_HASH_SEED is set to 0 before Qt starts, so the XML attributes come out in the
 same order on every build (Qt otherwise seeds its hashes at random and the file's diff is noise).
 Steps, each a pushbroom algorithm, chained through their BLOCK outputs (which also orders them):
-createblock -> matchpoints (MPGC_SUPPORT on: the heights of the template centres' surface, for the
-DEM) -> selecttiepoints -> importpoints -> bundleadjust -> intersectpoints
-(mass points) -> interpolatedem -> orthorectify (IMAGE_NAME, adjusted model, produced DEM) and
-assessaccuracy (point cloud and DEM against REFERENCE, per class of CLASS_RASTER).
+createblock -> importpoints -> (checkimage) -> matchpoints (MPGC_SUPPORT on: the heights of the template
+centres' surface, for the DEM) -> selecttiepoints -> bundleadjust -> intersectpoints (mass points) -> interpolatedem ->
+orthorectify (IMAGE_NAME, adjusted model, produced DEM) and assessaccuracy (point cloud and DEM against
+REFERENCE, per class of CLASS_RASTER).
+
+Cheap inputs are checked before the long steps. QGIS 3.22 checks a model's inputs up front only by their
+types (checkParameterValues of the model: a number within its range, a file name with its extension; not
+whether the file exists, nor what it holds), and runs a child when its inputs are ready. So the control
+points are imported right after the block is made, before the matching (a POINTS file that cannot be
+imported fails in seconds), and `checkimage`, an orthoimage of IMAGE_NAME onto REFERENCE at CHECK_CELL m
+(seconds; the reference must cover the scene for the assessment anyway), runs before the matching too
+(DEPENDS), so that a name not in the block fails then, not after the whole chain.
 
 Inputs: IMAGES, APPROX_DEM (optional; footprints and the matching height range, else HEIGHT, else found),
 HEIGHT, OVERWRITE, POINTS (control/check point CSV), CHECK_IDS, MEAS_SUFFIX, REFERENCE (DEM for the
@@ -46,6 +54,7 @@ from qgis.core import (
     QgsProcessing,
     QgsProcessingModelAlgorithm,
     QgsProcessingModelChildAlgorithm,
+    QgsProcessingModelChildDependency,
     QgsProcessingModelChildParameterSource,
     QgsProcessingModelOutput,
     QgsProcessingModelParameter,
@@ -60,7 +69,7 @@ from qgis.core import (
 from qgis.PyQt.QtCore import QPointF
 
 from pushbroom.algorithms.execution import BACKENDS
-from pushbroom.plugin.algorithms.base import EXECUTION_LABELS
+from pushbroom.plugin.algorithms.base import EXECUTION_LABELS, number_range
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 MODEL = REPO / "resources" / "models" / "pushbroom_pipeline.model3"
@@ -101,21 +110,26 @@ TILED = {"EXECUTION": ("model", "EXECUTION"), "DASK_ADDRESS": ("model", "DASK_AD
 
 #: child steps: (child id, algorithm id, {parameter: source}, {model output name: (description, child output)}),
 #: a source is ("model", name), ("child", child id, output) or ("static", value)
+#: cell (m) of the orthoimage that checks IMAGE_NAME before the matching (docstring): a few hundred cells a side
+CHECK_CELL = 100.0
 STEPS = [
     ("createblock", "pushbroom:createblock",
      {"IMAGES": ("model", "IMAGES"), "DEM": ("model", "APPROX_DEM"), "HEIGHT": ("model", "HEIGHT"),
       "OVERWRITE": ("model", "OVERWRITE"), **TILED},
      {"block": ("Block", "OUTPUT")}),
+    ("importpoints", "pushbroom:importpoints",
+     {"BLOCK": ("child", "createblock", "OUTPUT"), "INPUT": ("model", "POINTS"),
+      "CHECK_IDS": ("model", "CHECK_IDS"), "MEAS_SUFFIX": ("model", "MEAS_SUFFIX")}, {}),
+    ("checkimage", "pushbroom:orthorectify",
+     {"BLOCK": ("child", "importpoints", "BLOCK"), "IMAGE_NAME": ("model", "IMAGE_NAME"),
+      "DEM": ("model", "REFERENCE"), "CELL_SIZE": ("static", CHECK_CELL)}, {}),
     ("matchpoints", "pushbroom:matchpoints",
-     {"BLOCK": ("child", "createblock", "OUTPUT"), **TILED,
+     {"BLOCK": ("child", "importpoints", "BLOCK"), **TILED,
       "STEP": ("model", "STEP"), "MPGC_SUPPORT": ("static", True)},
      {"groups": ("Mass points per group (CSV)", "SUMMARY")}),
     ("selecttiepoints", "pushbroom:selecttiepoints", {"BLOCK": ("child", "matchpoints", "BLOCK")}, {}),
-    ("importpoints", "pushbroom:importpoints",
-     {"BLOCK": ("child", "selecttiepoints", "BLOCK"), "INPUT": ("model", "POINTS"),
-      "CHECK_IDS": ("model", "CHECK_IDS"), "MEAS_SUFFIX": ("model", "MEAS_SUFFIX")}, {}),
     ("bundleadjust", "pushbroom:bundleadjust",
-     {"BLOCK": ("child", "importpoints", "BLOCK"), "FREE": ("static", "auto"),
+     {"BLOCK": ("child", "selecttiepoints", "BLOCK"), "FREE": ("static", "auto"),
       "REFERENCE_DEM": ("model", "REFERENCE")},
      {"report": ("Adjustment report", "REPORT"),
       "residuals": ("Residual vectors of the control and check points", "RESIDUALS")}),
@@ -136,6 +150,12 @@ STEPS = [
      {"report": ("Accuracy report", "REPORT"), "table": ("Accuracy statistics (CSV)", "TABLE"),
       "dh": ("dh raster of the DEM", "DH")}),
 ]
+
+
+#: children that wait for others they take no input from: {child id: [child ids]} (docstring)
+DEPENDS = {"matchpoints": ["checkimage"]}
+#: children described otherwise than by their algorithm's name (QGIS names them in its messages)
+DESCRIPTIONS = {"checkimage": "Check the image to orthorectify (IMAGE_NAME): a coarse orthoimage on REFERENCE"}
 
 
 def source(spec, child_default=None):
@@ -181,8 +201,8 @@ def build(dense=False):
                 else "region-growing matching")
     dem = "DEM (per-cell medians of the refined points)" if dense else "DEM (TIN, gaps at long triangles)"
     model.setHelpContent({"ALG_DESC": (
-        f"The whole Pushbroom chain: block from the images and their orientation, {matching}, tie "
-        "point selection, control/check point import, bundle adjustment (automatic parameter selection), "
+        "The whole Pushbroom chain: block from the images and their orientation, control/check point import, "
+        f"{matching}, tie point selection, bundle adjustment (automatic parameter selection), "
         f"intersection of the mass points, {dem}, orthoimage of one image on the "
         "adjusted model and the produced DEM, and accuracy assessment of the point cloud and the DEM against a "
         "reference."),
@@ -190,12 +210,15 @@ def build(dense=False):
     for k, parameter in enumerate(inputs):
         component = QgsProcessingModelParameter(parameter.name())
         component.setPosition(QPointF(120, 60 + 70 * k))
-        model.addModelParameter(parameter.clone(), component)   # the model owns it: one copy per model
+        parameter = parameter.clone()                           # the model owns it: one copy per model
+        if isinstance(parameter, Number) and number_range(parameter) not in ("a number", "a whole number"):
+            parameter.setHelp(f"Give {number_range(parameter)}.")     # `qgis_process help` prints it
+        model.addModelParameter(parameter, component)
     for k, (child_id, algorithm_id, sources, outputs) in enumerate(steps):
         child = QgsProcessingModelChildAlgorithm(algorithm_id)
         child.setChildId(child_id)
         algorithm = QgsApplication.processingRegistry().algorithmById(algorithm_id)
-        child.setDescription(algorithm.displayName())
+        child.setDescription(DESCRIPTIONS.get(child_id, algorithm.displayName()))
         child.setPosition(QPointF(520, 60 + 100 * k))
         for parameter in algorithm.parameterDefinitions():  # the rest at their defaults, as the modeler does
             name = parameter.name()
@@ -211,6 +234,7 @@ def build(dense=False):
             output.setPosition(QPointF(900, 60 + 100 * k + 30 * len(model_outputs)))
             model_outputs[name] = output
         child.setModelOutputs(model_outputs)
+        child.setDependencies([QgsProcessingModelChildDependency(c) for c in DEPENDS.get(child_id, [])])
         model.addChildAlgorithm(child)
     return model
 

@@ -2,17 +2,17 @@
 # make demo: the main job on the built-in sample, through qgis_process as a user's script would run it.
 # 1. simulate the default SPOT-5 HRS/HRG triplet (20 x 20 km) over the Jacksboro DEM; 2. ONE run of the
 # graphical-modeler model resources/models/pushbroom_pipeline.model3 (scripts/build_pipeline_model.py):
-# block (footprints on the true DSM), region-growing matching, tie points, the simulated control/check points
-# (the first 19 control, the rest check), bundle adjustment (automatic parameter selection), intersection of
+# block (footprints on the true DSM), the simulated control/check points (the first 19 control, the rest check),
+# a coarse orthoimage that checks IMAGE_NAME, region-growing matching, tie points, bundle adjustment (automatic parameter selection), intersection of
 # the mass points (point cloud), 10 m DEM, orthoimage of HRG on the adjusted model and the DEM, accuracy of
 # the points and the DEM against the true DSM per land-cover class (report.html, dh raster);
 # 3. a QGIS project with every layer styled; 4. print what was made and the tables.
-# $QGIS_PROCESS is set by the Makefile.
+# $QGIS_PROCESS and XDG_RUNTIME_DIR are set by the Makefile.
 set -euo pipefail
 out=$(realpath -m "${1:-demo-output}")
 repo=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$out"
-qp() { $QGIS_PROCESS run "$@" 2>&1 | grep -v -e XDG_RUNTIME_DIR -e 'setapi() is deprecated' -e '^proj_create'; }
+qp() { $QGIS_PROCESS run "$@" 2>&1 | grep -v -e '^proj_create'; }
 start=$SECONDS
 
 echo "== 1/3 pushbroom:simulatescene (SPOT-5 triplet, 20 x 20 km) -> $out/scene"
@@ -35,7 +35,7 @@ qp "$repo/resources/models/pushbroom_pipeline.model3" -- "${images[@]}" APPROX_D
 grep -e '^Model processed' "$out/pipeline.log"
 
 echo "== 3/3 QGIS project -> $out/pushbroom_demo.qgz"
-.venv/bin/python scripts/make_demo_project.py "$out" 2>&1 | grep -v -e XDG_RUNTIME_DIR
+.venv/bin/python scripts/make_demo_project.py "$out"
 
 .venv/bin/python scripts/describe_demo.py "$out"
 echo -e "\nmake demo: $((SECONDS - start)) s"

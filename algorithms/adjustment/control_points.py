@@ -1,7 +1,8 @@
 """Control and check points of a block: CSV import and export.
 
 CSV format: one header row, then one row per point; column names are matched case-insensitively,
-the delimiter is a comma, semicolon or tab, the encoding UTF-8 (a BOM is allowed).
+the delimiter is a comma, semicolon or tab, the encoding UTF-8 or, told by a byte order mark, UTF-16 or UTF-32
+(what spreadsheets write as "Unicode text"; `decode`).
 
 - `id` (or `name`): the point name, unique, at most 32 characters;
 - `role`: control or check (optional column; an empty cell or no column: the default role;
@@ -23,6 +24,7 @@ Other columns are ignored with a warning. Errors name the line and column.
 
 Storage in the block: block/control_points.py (through block.Block).
 """
+import codecs
 import csv
 import io
 import math
@@ -60,16 +62,43 @@ def to_wgs84(x, y, definition):
     return reproject(x, y, source, wgs84(), "the x/y coordinates")
 
 
+#: byte order marks and the encodings they announce (UTF-32 before UTF-16, whose mark begins UTF-32 LE's)
+BOMS = ((codecs.BOM_UTF8, "utf-8-sig"), (codecs.BOM_UTF32_LE, "utf-32"), (codecs.BOM_UTF32_BE, "utf-32"),
+        (codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16"))
+
+
+def decode(data, path):
+    """The text of a point file's bytes `data`: in the encoding its byte order mark announces (BOMS), else UTF-16
+    where every other byte of ASCII text is zero (UTF-16 without a mark), else UTF-8; InputError naming the
+    encoding problem and the line otherwise."""
+    encoding = next((name for bom, name in BOMS if data.startswith(bom)), None)
+    if encoding is None and len(data) >= 2 and data[1::2].count(0) > 0.9 * (len(data) // 2):
+        encoding = "utf-16-le"
+    elif encoding is None and len(data) >= 2 and data[0::2].count(0) > 0.9 * (len(data) // 2):
+        encoding = "utf-16-be"
+    try:
+        return data.decode(encoding or "utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        given = f"{encoding.upper()} (as its start tells)" if encoding else "UTF-8"
+        raise InputError(f"the point file {path} is not {given} text: byte {exc.start} (line {line}, "
+                         f"{data[exc.start:exc.start + 1]!r}) is not valid there. Save it as UTF-8 (in a spreadsheet: "
+                         "CSV UTF-8), or as Unicode text (UTF-16)") from None
+
+
 class _Table:
     """The cells of a CSV file with its line numbers and the column roles of its header."""
 
     def __init__(self, path, image_names, suffix):
         self.path = os.fspath(path)
         try:
-            with open(self.path, newline="", encoding="utf-8-sig") as f:
-                text = f.read()
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"cannot read the point file {self.path}: {exc}") from exc
+            with open(self.path, "rb") as f:
+                data = f.read()
+        except FileNotFoundError:
+            raise InputError(f"the point file {self.path} does not exist: check the path") from None
+        except OSError as exc:
+            raise InputError(f"cannot read the point file {self.path}: {exc.strerror}") from exc
+        text = decode(data, self.path)
         first = text.splitlines()[0] if text.strip() else ""
         delimiter = max(",;\t", key=first.count)
         reader = csv.reader(io.StringIO(text), delimiter=delimiter)

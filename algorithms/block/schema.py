@@ -10,6 +10,14 @@ Every write after creation is one SQLite transaction (`transaction`) that takes 
 up to BUSY_TIMEOUT_MS for another writer (QGIS saving an edit, another step) and then failing with a message
 that says what to do; nothing is half-stored. Every connection waits the same way for other connections' locks.
 
+Failures are said in Pushbroom's words, with what to do (SQLite's own words would give wrong advice):
+- a lock held beyond BUSY_TIMEOUT_MS names the program holding it where Linux tells (`lock_holder`, from
+  /proc/locks), and says that nothing was stored: wait for it or close it, then run the step again;
+- a file that is not a whole block (an SQLite database that is no GeoPackage, a GeoPackage without Pushbroom's
+  tables, a file cut short or overwritten: `damage`) is named as such: restore it from a copy;
+- a block this user may not change is refused before a step computes (`write_access_error`): the file itself
+  must be writable, and so must its folder, where SQLite creates its journal (`<block>-journal`) for every change.
+
 Generations. block_info holds a counter per part of the block a computation reads: `generation_<part>` for
 GENERATIONS. A step that computes from the block for a long time (the bundle adjustment) reads them first
 (`generations`) and stores its results only if they are unchanged (`transaction(..., expect=...)`), so a
@@ -21,12 +29,15 @@ import contextlib
 import datetime
 import json
 import os
+import pwd
+import stat
 
-from osgeo import ogr
+from osgeo import gdal, ogr
 
 from ..atomic import storage_error
 from ..crs import wgs84
 from ..errors import InputError, StorageError
+from ..gdal_errors import reported_here
 
 FORMAT_VERSION = "1"
 IMAGE_FIELDS = [("name", ogr.OFTString), ("image_path", ogr.OFTString),
@@ -88,9 +99,43 @@ def _execute(ds, sql):
         ds.ReleaseResultSet(result)
 
 
-def locked_error(block_path, what):
-    """StorageError for a block another connection keeps locked beyond BUSY_TIMEOUT_MS."""
-    return StorageError(f"cannot store {what} in the block {block_path}: another program keeps it locked (waited "
+def lock_holder(path):
+    """'another program (<name>, process <pid>)' holding a write lock on the file `path` (else any lock; Linux's
+    /proc/locks), 'this program (<name>, process <pid>)' where it is this process (another connection: QGIS
+    editing the block's layers), or 'another program' where unknown."""
+    try:
+        info = os.stat(path)
+        with open("/proc/locks") as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return "another program"
+    device = f"{os.major(info.st_dev):02x}:{os.minor(info.st_dev):02x}:{info.st_ino}"
+    holders = []
+    for line in lines:       # "1: POSIX  ADVISORY  WRITE 1234 fe:00:5678 1073741824 1073742335"; "->": waiting
+        fields = line.split()
+        if "->" not in fields and len(fields) >= 6 and fields[5] == device and fields[4].isdigit():
+            holders.append((fields[3] != "WRITE", int(fields[4])))
+    if not holders:
+        return "another program"
+    pid = min(holders)[1]
+    try:
+        with open(f"/proc/{pid}/comm") as f:
+            program = f.read().strip()
+    except OSError:
+        program = "a program"
+    return f"{'this' if pid == os.getpid() else 'another'} program ({program}, process {pid})"
+
+
+def locked_error(block_path, what, reading=False):
+    """StorageError for a block another connection keeps locked beyond BUSY_TIMEOUT_MS; `reading`: the lock
+    (an exclusive one) keeps this step from even reading the block."""
+    who = lock_holder(block_path)
+    if reading:
+        return StorageError(f"cannot read the block {block_path}: {who} holds an exclusive lock on it (waited "
+                            f"{BUSY_TIMEOUT_MS / 1000:g} s), so nothing can read or write it meanwhile. Let that "
+                            "program finish or close it (an SQLite tool with an unfinished transaction, another "
+                            "Pushbroom step), then run this step again; nothing was changed")
+    return StorageError(f"cannot store {what} in the block {block_path}: {who} keeps it locked (waited "
                         f"{BUSY_TIMEOUT_MS / 1000:g} s). Save or stop the edits of its layers in QGIS, or wait for the "
                         "other Pushbroom step to finish, then run this one again; nothing was stored")
 
@@ -100,32 +145,113 @@ def _is_locked(exc):
     return "locked" in text or "busy" in text
 
 
+def _user(uid):
+    try:
+        return pwd.getpwuid(uid).pw_name
+    except KeyError:
+        return f"uid {uid}"
+
+
+def _owner(path):
+    info = os.stat(path)
+    return f"it belongs to {_user(info.st_uid)}, permissions {stat.filemode(info.st_mode)}"
+
+
+def write_access_error(block_path, what):
+    """StorageError where this user may not change the block (module docstring): the file not writable, or
+    its folder, where SQLite creates the journal of every change; None where both are writable, or where there
+    is no block (open_block says so)."""
+    path = os.path.abspath(block_path)
+    if not os.path.isfile(path):
+        return None
+    folder = os.path.dirname(path)
+    me = _user(os.geteuid())
+    start = f"cannot store {what} in the block {block_path}"
+    for target, kind in ((path, "file"), (folder, "folder")):
+        if os.access(target, os.W_OK | (os.X_OK if kind == "folder" else 0)):
+            continue
+        try:
+            read_only = os.statvfs(target).f_flag & os.ST_RDONLY
+        except OSError:
+            read_only = False
+        if read_only:
+            return StorageError(f"{start}: the {kind} is on a read-only file system. Copy the block with its point "
+                                "folders to a writable disk; nothing was stored")
+        if kind == "file":
+            return StorageError(f"{start}: the block file is not writable by you (user {me}; {_owner(target)}). "
+                                "Have its owner give you write permission (chmod, chown), or work on a copy of the "
+                                "block, with its point folders beside it, in a folder of yours; nothing was stored")
+        return StorageError(f"{start}: its folder {folder} is not writable by you (user {me}; {_owner(target)}), and "
+                            f"SQLite must create a journal there ({os.path.basename(path)}-journal) to change the "
+                            "block. Have the folder's owner give you write permission, or move the block with its "
+                            "point folders to a folder you can write; nothing was stored")
+    return None
+
+
+#: the first bytes of every SQLite database file
+SQLITE_HEADER = b"SQLite format 3\x00"
+
+
+def damage(path):
+    """How the SQLite file `path` is cut short, or '': less than a header, no whole number of its pages, or
+    fewer pages than its header records (told only where no journal beside it may hold the rest). Only for a
+    file that failed to open: closing a file releases the POSIX locks this process's SQLite holds on it."""
+    try:
+        size = os.path.getsize(path)
+        with open(path, "rb") as f:
+            head = f.read(100)
+    except OSError:
+        return ""
+    if not head or not SQLITE_HEADER.startswith(head[:16]):
+        return ""
+    if len(head) < 100:
+        return f"the file holds {size} bytes, less than the 100 of an SQLite header"
+    if any(os.path.exists(path + suffix) for suffix in ("-journal", "-wal")):
+        return ""
+    page = int.from_bytes(head[16:18], "big")
+    page = 65536 if page == 1 else page
+    pages = int.from_bytes(head[28:32], "big")
+    counted = head[92:96] == head[24:28]        # the header's page count is valid (SQLite's file format, 1.3.7)
+    if counted and size < pages * page:
+        return f"the file holds {size} bytes, its header records {pages} pages of {page} bytes ({pages * page})"
+    if page < 512 or size % page:
+        return f"the file holds {size} bytes, not a whole number of its {page}-byte pages"
+    return ""
+
+
+def damaged_error(path, cause=""):
+    """InputError: the file `path` is a damaged block (`damage`, else SQLite's `cause`)."""
+    why = damage(path) or (f"SQLite: {cause}" if cause else "")
+    return InputError(f"the block {path} is damaged{f' ({why})' if why else ''}: it was cut short or overwritten (an "
+                      "interrupted copy or download, a full disk, another program writing into it). Restore it from a "
+                      "copy, or make the block again with pushbroom:createblock")
+
+
+def _not_a_block(path, why):
+    return InputError(f"{path} is not a Pushbroom block ({why}): give the .gpkg that pushbroom:createblock made")
+
+
 def open_block(path, update=False):
     """The block's OGR data source, waiting up to BUSY_TIMEOUT_MS for other connections' locks; InputError
-    if `path` is no Pushbroom block (no file, not a GeoPackage, or a GeoPackage of another program),
-    StorageError if it cannot be opened (damaged, no permission)."""
+    if `path` is no Pushbroom block (no file, not a GeoPackage, a GeoPackage of another program, a damaged
+    file), StorageError if it cannot be opened (locked, no permission; module docstring)."""
     path = os.fspath(path)
     if not os.path.exists(path):
         raise InputError(f"no block at {path}")
+    if update and not os.access(path, os.W_OK):
+        raise write_access_error(path, "the edit")
     ogr.UseExceptions()
-    try:
-        try:
-            ds = ogr.Open(path, 1 if update else 0)
-        except RuntimeError as exc:
-            # a writer killed mid-transaction leaves a hot journal, which only a writable connection rolls back
-            if update or "readonly database" not in str(exc).lower() or not os.access(path, os.W_OK):
-                raise
-            ogr.Open(path, 1).Destroy()
-            ds = ogr.Open(path, 0)
-    except RuntimeError as exc:
-        text = str(exc).lower()
-        if "not recognized" in text or "not a database" in text:
-            raise InputError(f"{path} is not a Pushbroom block (not a GeoPackage): give the .gpkg that "
-                             "pushbroom:createblock made") from None
-        raise storage_error(exc, path, "the block") from None
-    if ds is None or ds.GetLayerByName("block_info") is None:
-        raise InputError(f"{path} is not a Pushbroom block (a GeoPackage without Pushbroom's block_info table, "
-                         "perhaps made by another program): give the .gpkg that pushbroom:createblock made")
+    with reported_here():           # GDAL's own lines of a file refused here ("bad application_id") are not printed
+        ds = _open(path, update)
+        if ds is None:
+            raise damaged_error(path) if damage(path) else _not_a_block(path, "not a GeoPackage")
+        if ds.GetDriver().GetName() != "GPKG":
+            raise _not_a_block(path, f"an {ds.GetDriver().GetName()} database, not a GeoPackage")
+        if ds.GetLayerByName("block_info") is None:
+            if damage(path):
+                raise damaged_error(path)
+            raise _not_a_block(path, "a GeoPackage without Pushbroom's block_info table, perhaps made by another "
+                                     "program")
     _execute(ds, f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
     images = ds.GetLayerByName("images")
     defn = images.GetLayerDefn() if images is not None else None
@@ -137,10 +263,53 @@ def open_block(path, update=False):
     return ds
 
 
+@contextlib.contextmanager
+def _busy_timeout():
+    """GDAL's wait for a lock while it opens a GeoPackage (its own default: 5 s) set to BUSY_TIMEOUT_MS."""
+    previous = gdal.GetThreadLocalConfigOption("SQLITE_BUSY_TIMEOUT", None)
+    gdal.SetThreadLocalConfigOption("SQLITE_BUSY_TIMEOUT", str(BUSY_TIMEOUT_MS))
+    try:
+        yield
+    finally:
+        gdal.SetThreadLocalConfigOption("SQLITE_BUSY_TIMEOUT", previous)
+
+
+def _open(path, update):
+    """ogr.Open of the block, with its failures in Pushbroom's words (open_block)."""
+    try:
+        with _busy_timeout():
+            try:
+                return ogr.Open(path, 1 if update else 0)
+            except RuntimeError as exc:
+                # a writer killed mid-transaction leaves a hot journal, which only a writable connection rolls back
+                if update or "readonly database" not in str(exc).lower() or not os.access(path, os.W_OK):
+                    raise
+                ogr.Open(path, 1).Destroy()
+                return ogr.Open(path, 0)
+    except RuntimeError as exc:
+        text = str(exc).lower()
+        if _is_locked(exc):
+            raise locked_error(path, "", reading=True) from None
+        if "malformed" in text or damage(path):
+            raise damaged_error(path, str(exc)) from None
+        if "not recognized" in text or "not a database" in text:
+            raise _not_a_block(path, "not a GeoPackage") from None
+        if "required geopackage tables" in text:
+            raise _not_a_block(path, "an SQLite database, but not a GeoPackage") from None
+        raise storage_error(exc, path, "the block", action=f"read the block {path}") from None
+
+
 def _failed(exc, block_path, what):
     """StorageError for an OGR/SQLite failure while storing `what` in the block."""
     if _is_locked(exc):
         return locked_error(block_path, what)
+    text = str(exc).lower()
+    if any(key in text for key in ("readonly", "read-only", "unable to open", "permission")):
+        denied = write_access_error(block_path, what)
+        if denied is not None:
+            return denied
+    if "malformed" in text:
+        return damaged_error(block_path, str(exc))
     return storage_error(exc, block_path, what, action=f"store {what} in the block {block_path}")
 
 
@@ -150,8 +319,11 @@ def transaction(block_path, what="the edit", expect=None):
     lock (taken first, waiting up to BUSY_TIMEOUT_MS, so a concurrent writer fails this one before anything
     is written), committed when the block ends, rolled back on any error. `expect`: {part: generation} read
     before a computation; the transaction is refused (StorageError, nothing written) if any changed since.
-    OGR/SQLite failures become StorageError("cannot store <what> ..."). The data source is closed when the
-    block ends: do not use it afterwards."""
+    OGR/SQLite failures become StorageError("cannot store <what> ..."); a block this user may not change is
+    refused first (write_access_error). The data source is closed when the block ends: do not use it afterwards."""
+    denied = write_access_error(block_path, what)
+    if denied is not None:
+        raise denied
     ds = open_block(block_path, update=True)
     failed = True
     try:
@@ -190,7 +362,8 @@ def _close(ds, block_path, what):
 
 def check_writable(block_path, what="the results"):
     """Fail now (StorageError) where the block cannot be written: locked by another program beyond
-    BUSY_TIMEOUT_MS, read-only, damaged. A long step calls it before it computes."""
+    BUSY_TIMEOUT_MS, a file or folder this user may not write (write_access_error), damaged. A long step calls it
+    before it computes."""
     with transaction(block_path, what):
         pass
 

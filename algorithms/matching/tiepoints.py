@@ -1,6 +1,8 @@
 """Tie point selection (Kornus et al. 2006, section 3.3): one point per regular grid cell of the reference image
 (default 100 x 100 px), the one with the highest rho among the most reliable group present in
 that cell (group 3 before 2 before 1; rho = the point's smallest correlation coefficient)."""
+import math
+
 import numpy as np
 
 from ..errors import InputError
@@ -13,8 +15,8 @@ def select_tie_points(points, cell=100.0, reference_image_id=None, min_group=1):
     `reference_image_id` is the block id of the image whose grid is used (default: the first
     image of the points' stats, else the smallest image id observed); points without an
     observation there, or of a group below `min_group`, are not candidates."""
-    if cell <= 0:
-        raise InputError(f"the tie point cell size must be positive, got {cell}")
+    if not 0 < cell < math.inf:
+        raise InputError(f"the tie point cell size must be a positive number of pixels, got {cell}")
     if reference_image_id is None:
         images = points.stats.get("images") or points.image_ids().tolist()
         if not len(images):

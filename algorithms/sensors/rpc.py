@@ -28,7 +28,17 @@ Validity domain: the normalised cube L, P, H in [-1, 1]. Every RPC is checked wh
 (RpcCoefficients.from_fields, which all readers and the model file pass through) on a grid of
 DOMAIN_NODES^3 points of that cube: both denominators must keep one sign (no pole inside the domain)
 and the image coordinates must be finite. A pole between two grid points closer than the grid step is
-not seen."""
+not seen.
+
+Before that, the values must describe an image of a place on Earth (`_check_geometry`), so that a damaged or
+mistyped RPC is refused where it is read, naming its fault, instead of failing later as a singular
+iteration: positive scales; LAT_OFF a latitude and LONG_OFF a longitude; numerators that are not all zero;
+the ground centre (LONG_OFF, LAT_OFF, HEIGHT_OFF) inside the image (|s|, |l| <= 1 there); image coordinates
+that change along two ground directions there. An RPC read from a file must also describe, at that centre,
+a pixel whose ground footprint (metres, from the rational functions' derivatives) is at most
+MAX_PIXEL_ELONGATION times longer than wide (`_check_pixel_shape`): sensors look at the ground with
+near-square pixels (SPOT 5 HRS: 10 x 5 m), while LAT_OFF and LONG_OFF swapped move the image to another
+latitude, where the same degrees of longitude span other metres."""
 import math
 from dataclasses import dataclass
 
@@ -36,7 +46,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import GeometryError, MetadataError
-from ..geodesy import flat_points
+from ..geodesy import A as EARTH_RADIUS, flat_points
 from . import rpc_io
 from .base import SensorModel, shaped_points
 from .rpc_io import COEFF_KEYS, OFFSET_KEYS, SCALE_KEYS
@@ -44,6 +54,8 @@ from .rpc_io import COEFF_KEYS, OFFSET_KEYS, SCALE_KEYS
 NUM_TERMS = 20
 #: grid points per axis of the validity-domain check (module docstring): steps of 0.1 in L, P, H
 DOMAIN_NODES = 21
+#: the longest over the shortest side of a pixel's ground footprint an RPC may describe (module docstring)
+MAX_PIXEL_ELONGATION = 5.0
 
 #: image_to_ground stops when the image residual is below PX_TOL pixels and the last Newton step
 #: below DEG_TOL degrees
@@ -261,6 +273,71 @@ def _check_domain(arrays, values, source):
                                           f"{domain}: coefficients, offsets or scales out of range")
 
 
+def _check_geometry(arrays, values, source):
+    """MetadataError unless the RPC's values describe an image of a place on Earth (module docstring); the
+    message names the value at fault."""
+    for key in SCALE_KEYS:
+        if not values[key.lower()] > 0.0:
+            raise _metadata_error(source, f"{key} is {values[key.lower()]:g}: a scale is the positive half-range of "
+                                          "its coordinate")
+    lat, lon = values["lat_off"], values["long_off"]
+    swapped = " (LAT_OFF and LONG_OFF swapped?)" if abs(lon) <= 90.0 else ""
+    if abs(lat) > 90.0 or abs(lat) + values["lat_scale"] > 90.0:
+        raise _metadata_error(source, f"LAT_OFF {lat:g} +- LAT_SCALE {values['lat_scale']:g} is no latitude range "
+                                      f"(-90 .. 90 degrees){swapped}")
+    if not -180.0 <= lon <= 360.0:
+        raise _metadata_error(source, f"LONG_OFF {lon:g} is no longitude (-180 .. 360 degrees)")
+    for name, coordinate in (("line", "row"), ("samp", "column")):
+        if not arrays[f"{name}_num"].any():
+            raise _metadata_error(source, f"{name.upper()}_NUM_COEFF is all zeros: every ground point would have the "
+                                          f"same image {coordinate}")
+    num = {name: arrays[f"{name}_num"] for name in ("samp", "line")}
+    den = {name: arrays[f"{name}_den"] for name in ("samp", "line")}
+    if den["samp"][0] == 0.0 or den["line"][0] == 0.0:
+        return                                  # from_fields names a denominator vanishing at the centre
+    centre = {name: num[name][0] / den[name][0] for name in ("samp", "line")}
+    if max(abs(centre["samp"]), abs(centre["line"])) > 1.0:
+        cols, rows = ((values[f"{n}_off"] - values[f"{n}_scale"], values[f"{n}_off"] + values[f"{n}_scale"])
+                      for n in ("samp", "line"))
+        col, row = (values[f"{n}_off"] + centre[n] * values[f"{n}_scale"] for n in ("samp", "line"))
+        raise _metadata_error(source, f"the ground centre (LONG_OFF {lon:g}, LAT_OFF {lat:g}, HEIGHT_OFF "
+                                      f"{values['height_off']:g}) projects to column {col:.0f}, row {row:.0f}, outside "
+                                      f"the image it describes (columns {cols[0]:.0f} .. {cols[1]:.0f}, rows "
+                                      f"{rows[0]:.0f} .. {rows[1]:.0f})")
+    sides = _pixel_sides(arrays, values)
+    if not sides[1] > 1e-6 * sides[0]:            # a footprint a million times longer than wide: a line
+        raise _metadata_error(source, "the image column and row change along one ground direction only: the "
+                                      "numerators (SAMP_NUM_COEFF, LINE_NUM_COEFF) describe no image of the ground")
+
+
+def _pixel_sides(arrays, values):
+    """(longest, shortest) of 1 / the pixel footprint's sides at the centre, px per metre: the singular values of
+    d(col, row)/d(east, north), by the quotient rule on the terms 1, L and P of the cubics."""
+    metres = np.radians([values["long_scale"] * math.cos(math.radians(values["lat_off"])), values["lat_scale"]])
+    metres *= EARTH_RADIUS
+    num = {name: arrays[f"{name}_num"] for name in ("samp", "line")}
+    den = {name: arrays[f"{name}_den"] for name in ("samp", "line")}
+    jacobian = np.array([[(num[name][k] * den[name][0] - num[name][0] * den[name][k]) / den[name][0] ** 2
+                          * values[f"{name}_scale"] / metres[k - 1] for k in (1, 2)] for name in ("samp", "line")])
+    return np.linalg.svd(jacobian, compute_uv=False)
+
+
+def _check_pixel_shape(coefficients, source):
+    """MetadataError where an RPC read from a file describes pixels more than MAX_PIXEL_ELONGATION times longer
+    than wide at its centre (module docstring). Only for RPCs read from files, where offsets are typed or
+    swapped by hand: a fitted RPC follows a model whose pixels may be anything a test makes them."""
+    c = coefficients
+    sides = _pixel_sides({"samp_num": c.samp_num, "samp_den": c.samp_den, "line_num": c.line_num,
+                          "line_den": c.line_den},
+                         {"lat_off": c.lat_off, "long_scale": c.long_scale, "lat_scale": c.lat_scale,
+                          "samp_scale": c.samp_scale, "line_scale": c.line_scale})
+    if sides[0] / sides[1] > MAX_PIXEL_ELONGATION:
+        raise _metadata_error(source, f"its pixels would cover {1 / sides[1]:.3g} x {1 / sides[0]:.3g} m on the "
+                                      f"ground at its centre, {sides[0] / sides[1]:.1f} times longer than wide: the "
+                                      "ground offsets and scales do not belong to its coefficients (LAT_OFF and "
+                                      "LONG_OFF swapped, or LAT_SCALE and LONG_SCALE?)")
+
+
 @dataclass(frozen=True, eq=False)
 class RpcCoefficients:
     """The 90 RPC00B values as in the file: polynomial coefficients in RPC00B term order, offsets
@@ -287,8 +364,9 @@ class RpcCoefficients:
         """Parse and check a mapping with the RPC00B (GDAL metadata) names: LINE_OFF ... as numbers
         or texts, LINE_NUM_COEFF ... as 20 numbers (text or sequence). `source` names the origin
         in error messages. Raises MetadataError on missing, non-numeric, non-finite, zero-scale,
-        wrong-count values, a denominator that vanishes at the normalisation centre or changes sign
-        within the validity domain, or image coordinates that are not finite there (module docstring)."""
+        wrong-count values, values that describe no image of a place on Earth (_check_geometry), a
+        denominator that vanishes at the normalisation centre or changes sign within the validity domain,
+        or image coordinates that are not finite there (module docstring)."""
         missing = [k for k in OFFSET_KEYS + SCALE_KEYS + COEFF_KEYS if k not in fields]
         if missing:
             raise _metadata_error(source, f"missing {', '.join(missing)}")
@@ -297,6 +375,7 @@ class RpcCoefficients:
             if values[key.lower()] == 0.0:
                 raise _metadata_error(source, f"{key} is zero")
         arrays = {k.lower()[:8]: _coefficient_list(fields[k], k, source) for k in COEFF_KEYS}
+        _check_geometry(arrays, values, source)
         for key in ("line_den", "samp_den"):
             if arrays[key][0] == 0.0:
                 raise _metadata_error(source, f"{key.upper()}_COEFF vanishes at the normalisation "
@@ -362,8 +441,9 @@ class RpcModel(SensorModel):
 
     @classmethod
     def _from_record(cls, record):
-        return cls(RpcCoefficients.from_fields(record.fields, record.source), record.size,
-                   record.offset, record.source)
+        coefficients = RpcCoefficients.from_fields(record.fields, record.source)
+        _check_pixel_shape(coefficients, record.source)
+        return cls(coefficients, record.size, record.offset, record.source)
 
     @classmethod
     def from_raster(cls, path):

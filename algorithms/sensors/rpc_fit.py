@@ -209,9 +209,13 @@ def fit_rpc(model, height_range, grid=DEFAULT_GRID, regularisation=None, feedbac
     chosen per coordinate from REGULARISATIONS). RpcModel(coefficients, size=model.size) reproduces
     model.ground_to_image in GDAL's pixel convention."""
     lo, hi = (float(v) for v in height_range)
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
-        raise InputError(f"cannot fit an RPC over the height range {lo} .. {hi} m: give a finite range with "
-                         "the highest height above the lowest (e.g. the terrain's range plus a margin)")
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise InputError(f"cannot fit an RPC over the heights {lo} .. {hi} m: give two numbers of metres (e.g. the "
+                         "terrain's range plus a margin)")
+    if hi <= lo:
+        raise InputError(f"cannot fit an RPC: the lowest height of its cube ({lo:g} m) is "
+                         f"{'above' if lo > hi else 'the same as'} the highest ({hi:g} m); give the lowest first, "
+                         "below the highest (e.g. the terrain's range plus a margin)")
     grid = tuple(int(g) for g in grid)
     if len(grid) != 3 or min(grid) < 4:
         raise InputError(f"the RPC cube grid {grid} needs 3 sizes (columns, rows, heights) of at least 4 each: "

@@ -88,12 +88,14 @@ def _crop_offset(ds, path):
 
 def read_raster(path):
     """RPC of a raster as GDAL reads it (a same-stem .geom beside it is chosen earlier, by
-    sensors.orientation_source)."""
+    sensors.orientation_source); its source names the _RPC.TXT or .RPB GDAL read it from, where it did."""
     path = os.fspath(path)
     ds = _open_raster(path)
     fields = ds.GetMetadata("RPC") or {}
     if fields:
-        return RpcRecord(fields, _raster_size(ds), (0.0, 0.0), path)
+        beside = [f for f in ds.GetFileList() or [] if f.lower().endswith(("_rpc.txt", ".rpb"))]
+        source = f"{path} (its RPC in {beside[0]})" if beside else path
+        return RpcRecord(fields, _raster_size(ds), (0.0, 0.0), source)
     raise _error(path, "the raster carries no RPC (GDAL finds none in its metadata, GeoTIFF RPC "
                        "tags, or in a _RPC.TXT / .RPB beside it) and no .geom of the same name "
                        "lies beside it; put the image's RPC file beside it or load the RPC file")

@@ -106,6 +106,7 @@ def match_block_points(block_path: str, params: Optional[MatchParams] = None, su
     params = (params or MatchParams()).check()
     log = progress.ensure(feedback)
     blk = Block(block_path)
+    blk.check_writable("the matched points")        # before the matching, not after it
     rows = combination_order(blk.images(), params.images)
     models = list(blk.models([r["id"] for r in rows]).values())
     terrain = blk.height_range()

@@ -43,6 +43,7 @@ def select_block_tie_points(block_path: str, params: TieParams, feedback=None) -
     TieResult. Raises InputError (a cell size that is not positive, no or empty mass points, none of group
     `min_group` or higher, far fewer tie points than the block holds)."""
     blk = Block(block_path)
+    blk.check_writable("the tie points")
     parts = blk.point_parts("mass_points")
     stats = blk.point_stats("mass_points")
     reference = None

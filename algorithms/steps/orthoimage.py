@@ -46,13 +46,16 @@ class OrthoParams:
 def image_and_model(block_path=None, image_name="", image=None, orientation=None):
     """(image path, sensor model): the block's (adjusted) model of the image named `image_name`, or,
     without a block, raster `image` with its own orientation (sensors.load: `orientation`, else the
-    metadata found beside the image). InputError where neither is given or the name is not the block's."""
+    metadata found beside the image). InputError where neither is given, the name is not the block's or the
+    image does not exist (sensors.check_image)."""
     if block_path:
         blk = Block(block_path)
         rows = blk.images()
         chosen = [r for r in rows if r["name"] == (image_name or "").strip()]
         if not chosen:
-            raise InputError(f"give the name of one of the block's images ({', '.join(r['name'] for r in rows)})")
+            raise InputError(f"the block has no image {(image_name or '').strip()!r}: give the name of one of its "
+                             f"images ({', '.join(r['name'] for r in rows)})")
+        sensors.check_image(chosen[0]["image_path"])        # moved or deleted since the block was made
         return chosen[0]["image_path"], blk.model(chosen[0]["id"])
     if not image:
         raise InputError("give a block and an image name, or an image")

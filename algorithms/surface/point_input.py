@@ -2,11 +2,14 @@
 and any OGR vector layer of 3-D points (the GeoPackage point layer of pointcloud.py, a shapefile,
 GeoJSON ...) or 3-D lines. z is taken as the WGS 84 ellipsoidal height (pointcloud.py's convention).
 
-Failure modes, each an InputError in Pushbroom's words: a missing or unreadable file; no CRS, or an
-undefined one (crs.is_undefined: no CRS VLR in a LAS, a GeoPackage layer without SRS); coordinates
-that cannot be in their CRS (check_coordinates: degrees labelled with a projected CRS, metres with a
-geographic one, points far outside the CRS's area of use)."""
+Failure modes, each an InputError in Pushbroom's words: a missing or unreadable file; a LAS/LAZ file cut
+short (an interrupted copy or download: fewer bytes than its header's points need, a LAZ chunk table beyond
+its end) or whose points do not decode (`damaged_error`); no CRS, or an undefined one (crs.is_undefined: no
+CRS VLR in a LAS, a GeoPackage layer without SRS); coordinates that cannot be in their CRS
+(check_coordinates: degrees labelled with a projected CRS, metres with a geographic one, points far outside
+the CRS's area of use)."""
 import os
+import struct
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -85,8 +88,32 @@ def _las_srs(las, path):
     raise no_crs_error(path, "point cloud", "no WKT or EPSG GeoKey VLR", False)
 
 
+def damaged_error(path, why):
+    """InputError: the LAS/LAZ file `path` is damaged (`why`), with what to do."""
+    return InputError(f"the point cloud {path} is damaged: {why}. It was cut short or overwritten (an interrupted "
+                      "copy or download, a full disk): copy it again, or make it again (pushbroom:intersectpoints)")
+
+
+def _cut_short(path, header):
+    """Why the LAS/LAZ file `path` with laspy `header` is cut short, or '': an uncompressed file holds fewer bytes
+    than its points need; a LAZ file's chunk table (its offset: the first 8 bytes of the point data) lies
+    beyond its end."""
+    size = os.path.getsize(path)
+    start, count = int(header.offset_to_point_data), int(header.point_count)
+    if not header.are_points_compressed:
+        need = start + count * int(header.point_format.size)
+        return (f"its header announces {count} points, {need} bytes with the header, but the file holds {size} "
+                "bytes" if size < need else "")
+    with open(path, "rb") as f:
+        f.seek(start)
+        table = f.read(8)
+    offset = struct.unpack("<q", table)[0] if len(table) == 8 else size
+    return (f"its compressed points end at byte {size}, before their chunk table at byte {offset}"
+            if offset > size - 8 else "")
+
+
 def _open_las(path):
-    """laspy's reader of the LAS/LAZ file `path` (InputError where it cannot be read)."""
+    """laspy's reader of the LAS/LAZ file `path` (InputError where it cannot be read or is cut short)."""
     laspy = laspy_module()
     if not os.path.exists(path):
         raise InputError(f"cannot read the point cloud {path}: the file does not exist; check the path")
@@ -94,9 +121,16 @@ def _open_las(path):
         raise InputError(f"cannot read the point cloud {path}: reading LAZ needs the lazrs or laszip Python "
                          "package (pip install lazrs), or convert the file to LAS")
     try:
-        return laspy.open(os.fspath(path))
+        reader = laspy.open(os.fspath(path))
     except Exception as exc:  # laspy raises its own and OS errors
+        if "too small" in str(exc).lower() or "to small" in str(exc).lower():
+            raise damaged_error(path, f"it holds {os.path.getsize(path)} bytes, less than a LAS header") from None
         raise InputError(f"cannot read the point cloud {path}: not a LAS/LAZ file laspy reads ({exc})") from exc
+    why = _cut_short(path, reader.header)
+    if why:
+        reader.close()
+        raise damaged_error(path, why)
+    return reader
 
 
 def _las_chunks(path, crs, chunk=None):
@@ -113,8 +147,8 @@ def _las_chunks(path, crs, chunk=None):
                                np.asarray(records.z, float), srs, {name: np.asarray(records[name]) for name in names})
         except InputError:
             raise
-        except Exception as exc:  # laspy raises its own and OS errors
-            raise InputError(f"cannot read the point cloud {path}: {exc}") from exc
+        except Exception as exc:  # laspy and lazrs raise their own and OS errors
+            raise damaged_error(path, f"its points cannot be read ({exc})") from exc
 
 
 def read_las(path, crs=None):

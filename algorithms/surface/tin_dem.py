@@ -6,6 +6,7 @@ unmatched water or forest), heights ellipsoidal or EGM96 (PROJ), an optional pre
 The precision raster is the points' a priori sigma_h interpolated on the same TIN where the cloud has
 it (pushbroom:intersectpoints writes it; a breakline vertex takes that of the nearest point),
 otherwise the distance (CRS units) from each cell centre to the nearest point of the TIN."""
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -224,11 +225,18 @@ class DemParams:
         """Raise InputError for settings no interpolation can use."""
         if self.method not in METHODS:
             raise InputError(f"the DEM's method must be one of {', '.join(METHODS)}, got {self.method!r}")
-        if not self.cell > 0 or self.datum not in DATUMS or self.k < 0 or self.iterations < 1 \
-                or (self.max_edge is not None and self.max_edge < 0) or int(self.tile) < 16 or not self.fill >= 0 \
-                or not 0 <= int(self.radius) <= MAX_RADIUS:
-            raise InputError(f"the cell size must be positive, the datum one of {', '.join(DATUMS)}, the blunder "
-                             "threshold, the maximum edge and the fill distance not negative, the iterations at "
-                             f"least 1, the tiles at least 16 cells and the radius 0 to {MAX_RADIUS} cells")
+        broken = [text for ok, text in (
+            (0 < self.cell < math.inf, f"the cell size must be a positive number, got {self.cell}"),
+            (self.datum in DATUMS, f"the datum must be one of {', '.join(DATUMS)}, got {self.datum!r}"),
+            (0 <= self.k < math.inf, f"the blunder threshold must be 0 or more, got {self.k}"),
+            (self.iterations >= 1, f"the blunder filter's iterations must be at least 1, got {self.iterations}"),
+            (self.max_edge is None or 0 <= self.max_edge <= math.inf,
+             f"the maximum edge must be 0 or more, got {self.max_edge}"),
+            (int(self.tile) >= 16, f"the tiles must be at least 16 cells, got {self.tile}"),
+            (0 <= self.fill < math.inf, f"the fill distance must be 0 or more cells, got {self.fill}"),
+            (0 <= int(self.radius) <= MAX_RADIUS, f"the radius must be 0 to {MAX_RADIUS} cells, got {self.radius}"))
+            if not ok]
+        if broken:
+            raise InputError("; ".join(broken))
         self.execution.check()
         return self

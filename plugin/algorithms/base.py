@@ -7,7 +7,11 @@ way around its engine call:
   honour, or whose folder cannot be written fails in a second with a clear message, not after an hour
   of computing and never over the input;
 - a CRS parameter the user filled in must be a valid CRS (an unknown code is an error, never the default);
-- the engine's errors become QgsProcessingException, printed once (`_single_error`)."""
+- the engine's errors become QgsProcessingException, printed once (`_single_error`);
+- a number parameter states its range in its help (which `qgis_process help` prints); a value out of it, or
+  not a number (NaN passes QGIS's own check), is refused in Pushbroom's words with that range, and a raster
+  QGIS cannot load is named with why: missing, a DIMAP product without its raster (`checkParameterValues`)."""
+import math
 import os
 import re
 from typing import Optional
@@ -31,16 +35,18 @@ from qgis.core import (
     QgsProcessingParameterString,
     QgsProcessingParameterVectorDestination,
     QgsProcessingParameterVectorLayer,
+    QgsProperty,
     QgsProviderRegistry,
 )
 from qgis.PyQt.QtCore import QCoreApplication, QEventLoop, QThread, QUrl
 from qgis.PyQt.QtGui import QIcon
 
-from ...algorithms import destinations, raster_cache
+from ...algorithms import destinations, raster_cache, sensors
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES
 from ...algorithms.block import Block
 from ...algorithms.errors import InputError, PushbroomError
 from ...algorithms.execution import BACKENDS, Execution
+from ...algorithms.gdal_errors import reported_here
 from ...resource_files import resource_path
 
 
@@ -99,6 +105,56 @@ def filter_extensions(file_filter: str) -> tuple:
     return tuple(dict.fromkeys(e.lower() for e in re.findall(r"\*\.(\w+)", file_filter)))
 
 
+def number_range(definition):
+    """A number parameter's range in words: 'a number from 0 to 1', 'a whole number of at least 1', 'a number
+    of at most 5', or 'a number' where it has none."""
+    low = definition.minimum() if definition.minimum() > -1e300 else None
+    high = definition.maximum() if definition.maximum() < 1e300 else None
+    kind = "a whole number" if definition.dataType() == QgsProcessingParameterNumber.Integer else "a number"
+    if low is not None and high is not None:
+        return f"{kind} from {low:g} to {high:g}"
+    if low is not None:
+        return f"{kind} of at least {low:g}"
+    if high is not None:
+        return f"{kind} of at most {high:g}"
+    return kind
+
+
+def number_problem(definition, value):
+    """Why `value` of the number parameter `definition` is refused, in Pushbroom's words with its range, or ''
+    (unset values are QGIS's to check against the default and the optional flag)."""
+    if value is None or isinstance(value, QgsProperty) or (isinstance(value, str) and not value.strip()):
+        return ""
+    phrase = number_range(definition)
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return f"{definition.name()}: {str(value)[:40]!r} is not a number: give {phrase}"
+    if math.isnan(number):
+        return f"{definition.name()}: {value} is not a number: give {phrase}"
+    if not definition.minimum() <= number <= definition.maximum():
+        return f"{definition.name()}: {number:g} is out of range: give {phrase}"
+    return ""
+
+
+def raster_problem(definition, value):
+    """Why QGIS cannot load `value` of the raster parameter `definition` (a missing file, a SPOT DIMAP product
+    without its raster, a file GDAL does not read as a raster), or '' where it names no local file."""
+    path = _file_path(value if isinstance(value, str) else "")
+    if path is None:
+        return ""
+    try:
+        sensors.check_image(path)
+    except PushbroomError as exc:
+        return f"{definition.name()}: {exc}"
+    return (f"{definition.name()}: {path} is not a raster GDAL reads (a damaged or unsupported file?); give an "
+            "image or DEM file")
+
+
+class _CheckFailedError(Exception):
+    """QGIS's own parameter check failed (PushbroomAlgorithm.checkParameterValues)."""
+
+
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
     """Subclasses set NAME, DISPLAY_NAME, GROUP_ID (a key of GROUPS), KEYS and implement `execute`: read
     the parameters, call the step's one engine entry point, load its outputs. The help is the step's page,
@@ -146,6 +202,39 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     def helpUrl(self):
         """The step's page in the repository's docs (docs/steps/<name>.md), shipped with the plugin."""
         return QUrl.fromLocalFile(help_page(self.NAME)).toString()
+
+    def addParameter(self, parameter, createOutput=True):
+        """QgsProcessingAlgorithm.addParameter; a number parameter's range (number_range) is stated in its help,
+        which `qgis_process help` prints under its description and the dialog shows as its tooltip."""
+        if isinstance(parameter, QgsProcessingParameterNumber):
+            phrase = number_range(parameter)
+            if phrase not in ("a number", "a whole number"):
+                parameter.setHelp(" ".join(filter(None, [parameter.help(), f"Give {phrase}."])))
+        return super().addParameter(parameter, createOutput)
+
+    def checkParameterValues(self, parameters, context):
+        """QGIS's check of the parameter values, its failures in Pushbroom's words (module docstring): numbers
+        first (number_problem); then QGIS's own check, which loads the layers, with GDAL's lines meanwhile
+        held back where it fails (the message below says what is wrong); a raster QGIS cannot load is named
+        with why (raster_problem)."""
+        for definition in self.parameterDefinitions():
+            if isinstance(definition, QgsProcessingParameterNumber):
+                problem = number_problem(definition, parameters.get(definition.name()))
+                if problem:
+                    return False, problem
+        try:
+            with reported_here():
+                ok, message = super().checkParameterValues(parameters, context)
+                if not ok:
+                    raise _CheckFailedError(message)
+        except _CheckFailedError:
+            for definition in self.parameterDefinitions():
+                value = parameters.get(definition.name())
+                if isinstance(definition, QgsProcessingParameterRasterLayer) \
+                        and not definition.checkValueIsAcceptable(value, context):
+                    return False, raster_problem(definition, value) or message
+            return False, message
+        return ok, message
 
     def addAdvancedParameters(self, parameters):
         """Add `parameters` flagged as advanced (folded away in the dialog)."""

@@ -51,7 +51,8 @@ def test_block_model_crs_and_cell_size(pushbroom_provider, inputs, tmp_path):
     ds = gdal.Open(out)
     assert ds.GetSpatialRef().GetAuthorityCode(None) == "32617" and ds.GetGeoTransform()[1] == 10.0
     assert result["CELLS"] > 80000
-    with pytest.raises(QgsProcessingException, match="name of one of the block's images"):
+    with pytest.raises(QgsProcessingException, match=r"the block has no image 'HRS9': give the name of one of its "
+                                                     r"images \(HRG\)"):
         run({"BLOCK": path, "IMAGE_NAME": "HRS9", "DEM": inputs["dem"], "OUTPUT": str(tmp_path / "x.tif")})
 
 

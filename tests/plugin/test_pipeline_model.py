@@ -10,19 +10,35 @@ import pathlib
 import numpy as np
 import pytest
 from osgeo import gdal
-from qgis.core import QgsProcessingModelAlgorithm
+from qgis import processing
+from qgis.core import QgsProcessingException, QgsProcessingFeedback, QgsProcessingModelAlgorithm
 
 import pushbroom
+from pushbroom.algorithms.block import Block
 
 REPO = pathlib.Path(pushbroom.__file__).resolve().parent
 MODEL = REPO / "resources" / "models" / "pushbroom_pipeline.model3"
 DENSE_MODEL = REPO / "resources" / "models" / "pushbroom_pipeline_dense.model3"
-STEPS = {"createblock", "matchpoints", "selecttiepoints", "importpoints", "bundleadjust", "intersectpoints",
-         "interpolatedem", "orthorectify", "assessaccuracy"}
+#: child id -> algorithm: one child per step, and `checkimage`, the orthoimage that checks IMAGE_NAME early
+STEPS = {**{k: k for k in ("createblock", "matchpoints", "selecttiepoints", "importpoints", "bundleadjust",
+                           "intersectpoints", "interpolatedem", "orthorectify", "assessaccuracy")},
+         "checkimage": "orthorectify"}
 OUTPUTS = {"createblock:block": "block.gpkg", "bundleadjust:report": "adjustment.html",
            "intersectpoints:pointcloud": "points.las", "interpolatedem:dem": "dem.tif",
            "orthorectify:orthoimage": "ortho.tif", "assessaccuracy:report": "report.html",
            "assessaccuracy:table": "accuracy.csv", "assessaccuracy:dh": "dh.tif"}
+
+
+class RecordingFeedback(QgsProcessingFeedback):
+    """QgsProcessingFeedback that keeps the errors reported to it."""
+
+    def __init__(self):
+        super().__init__()
+        self.errors = []
+
+    def reportError(self, error, fatalError=False):
+        self.errors.append(error)
+        super().reportError(error, fatalError)
 
 
 def builder():
@@ -41,15 +57,15 @@ def load(path):
 def test_model_file_is_what_the_script_builds(pushbroom_provider, tmp_path):
     model = load(MODEL)
     assert (model.name(), model.group()) == ("Pushbroom pipeline", "Pushbroom")
-    assert set(model.childAlgorithms()) == STEPS
-    assert all(c.algorithmId() == f"pushbroom:{k}" for k, c in model.childAlgorithms().items())
+    assert set(model.childAlgorithms()) == set(STEPS)
+    assert all(c.algorithmId() == f"pushbroom:{STEPS[k]}" for k, c in model.childAlgorithms().items())
     ok, problems = model.validate()
     assert ok, problems
     assert {d.name() for d in model.destinationParameterDefinitions()} >= set(OUTPUTS)
     assert builder().build().toFile(str(tmp_path / "built.model3"))
     assert model.toVariant() == load(tmp_path / "built.model3").toVariant(), "run scripts/build_pipeline_model.py"
     dense = load(DENSE_MODEL)
-    assert dense.name() == "Pushbroom pipeline (dense)" and set(dense.childAlgorithms()) == STEPS
+    assert dense.name() == "Pushbroom pipeline (dense)" and set(dense.childAlgorithms()) == set(STEPS)
     assert dense.validate()[0] and {d.name() for d in dense.destinationParameterDefinitions()} >= set(OUTPUTS)
     assert builder().build(dense=True).toFile(str(tmp_path / "dense.model3"))
     assert dense.toVariant() == load(tmp_path / "dense.model3").toVariant(), "run scripts/build_pipeline_model.py"
@@ -59,6 +75,25 @@ def test_model_file_is_what_the_script_builds(pushbroom_provider, tmp_path):
     assert sources["interpolatedem"]["FALLBACK"][0].staticValue() is False
     assert sources["interpolatedem"]["FILL"][0].staticValue() == 10.0
     assert {p.name() for p in dense.parameterDefinitions()}.isdisjoint({"STEP", "MAX_EDGE"})
+
+
+def test_cheap_inputs_are_checked_before_the_matching(pushbroom_provider, small_scene, tmp_path):
+    """QGIS checks a model's inputs only by type: the control points are imported, and the image to
+    orthorectify is looked up, before the matching, not after the whole chain (before: the last step)."""
+    for path in (MODEL, DENSE_MODEL):
+        assert {"importpoints", "checkimage"} <= set(load(path).dependsOnChildAlgorithms("matchpoints"))
+    block = tmp_path / "block.gpkg"
+    parameters = {"IMAGES": [small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")], "HEIGHT": 300,
+                  "POINTS": small_scene["points"], "MEAS_SUFFIX": "_meas", "REFERENCE": small_scene["dsm"],
+                  "IMAGE_NAME": "SPOT", "createblock:block": str(block),
+                  **{key: str(tmp_path / name) for key, name in OUTPUTS.items() if key != "createblock:block"}}
+    feedback = RecordingFeedback()
+    with pytest.raises(QgsProcessingException):
+        processing.run(load(MODEL), parameters, feedback=feedback)
+    assert any("the block has no image 'SPOT'" in m for m in feedback.errors)      # the reason, named
+    info = Block(block).info()
+    assert "mass_points" not in info                     # refused before the matching ran
+    assert len(Block(block).control_points().points)    # the points were imported first
 
 
 def warped(path, like, resampling="bilinear"):

@@ -5,6 +5,7 @@ another exception."""
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from pushbroom.algorithms.adjustment import control_points as cp
@@ -65,3 +66,26 @@ def test_mutated_point_files_give_observations_or_the_engines_error(tmp_path, da
     assert all(math.isfinite(s) and s > 0 for key in ("sigma_e", "sigma_n", "sigma_h") for s in p[key])
     assert set(m["image_id"].tolist()) <= set(IMAGES.values())
     assert np.isfinite(m["col"]).all() and np.isfinite(m["row"]).all() and (m["sigma"] > 0).all()
+
+
+def test_unicode_text_of_spreadsheets_is_read_like_utf8(tmp_path):
+    """UTF-16 with or without a byte order mark, UTF-8 with one, UTF-32: what spreadsheets save as "Unicode
+    text" (before: the "'utf-8' codec can't decode byte 0xff" text)."""
+    (tmp_path / "utf8.csv").write_bytes(VALID.encode("utf-8"))
+    expected = cp.read_csv(tmp_path / "utf8.csv", IMAGES)
+    for encoding in ("utf-16", "utf-16-le", "utf-16-be", "utf-8-sig", "utf-32"):
+        path = tmp_path / f"{encoding}.csv"
+        path.write_bytes(VALID.replace("\n", "\r\n").encode(encoding))
+        obs = cp.read_csv(path, IMAGES)
+        assert list(obs.points["name"]) == list(expected.points["name"]) == ["P1", "P2", "P3"]
+        assert np.array_equal(obs.points["h"], expected.points["h"])         # the same numbers, exactly
+        assert np.array_equal(obs.measurements["col"], expected.measurements["col"])
+
+
+def test_a_file_in_another_encoding_is_named_with_the_byte_and_line(tmp_path):
+    path = tmp_path / "latin1.csv"
+    path.write_bytes(VALID.replace("P2", "Pé").encode("latin-1"))
+    at = VALID.index("P2") + 1      # the byte of é, on the third line
+    with pytest.raises(PushbroomError, match=rf"the point file {path} is not UTF-8 text: byte {at} \(line 3, "
+                                             r"b'\\xe9'\) is not valid there. Save it as UTF-8"):
+        cp.read_csv(path, IMAGES)

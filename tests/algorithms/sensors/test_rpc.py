@@ -8,7 +8,7 @@ import pytest
 from osgeo import gdal
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.errors import GeometryError
+from pushbroom.algorithms.errors import GeometryError, MetadataError
 from pushbroom.algorithms.sensors.rpc import RpcCoefficients, RpcModel, _poly, rpc_terms
 from pushbroom.algorithms.sensors.rpc_io import write_rpb, write_rpc_txt
 from tests.helpers.rpc_synthetic import (
@@ -99,12 +99,18 @@ def test_nan_in_gives_nan_out(model):
     assert np.isnan(lon[0]) and np.isnan(lat[0]) and np.isfinite(lon[1])
 
 
-def test_degenerate_rpc_raises_geometry_error(fields):
+def test_a_degenerate_rpc_is_refused_where_read(fields):
+    """Column and row both from longitude alone: before, the first image point met "a singular Jacobian"."""
     linear_in_lon = [0.0, 1.0] + [0.0] * 18
     fields.update(LINE_NUM_COEFF=linear_in_lon, SAMP_NUM_COEFF=linear_in_lon)
-    model = RpcModel(RpcCoefficients.from_fields(fields, "degenerate"))
+    with pytest.raises(MetadataError, match="degenerate: the image column and row change along one ground direction"):
+        RpcCoefficients.from_fields(fields, "degenerate")
+
+
+def test_an_image_point_without_a_ground_point_raises_geometry_error(fields):
+    model = RpcModel(RpcCoefficients.from_fields(fields, "synthetic"))
     with pytest.raises(GeometryError, match="no ground point found for 1 of 1"):
-        model.image_to_ground(100.0, 200.0, 1000.0)
+        model.image_to_ground(1e9, 1e9, 1000.0)         # far beyond the image: the cubics have no answer there
 
 
 @pytest.mark.parametrize("crop", [(0.0, 0.0), CROP])

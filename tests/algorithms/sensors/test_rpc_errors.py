@@ -40,6 +40,19 @@ BAD_FIELDS = [
     (_set_coefficient("SAMP_DEN_COEFF", 5, "NaN"), r"SAMP_DEN_COEFF\[6\] is not finite"),
     (_set_coefficient("LINE_NUM_COEFF", 19, "1.2.3"), r"LINE_NUM_COEFF\[20\] is not a number"),
     (_set_coefficient("LINE_DEN_COEFF", 0, 0.0), "LINE_DEN_COEFF vanishes at the normalisation centre"),
+    # values that describe no image of a place on Earth (before: "singular Jacobian ... Is the point inside the
+    # image" when the first image point was projected)
+    (_set("LAT_SCALE", -0.099), "LAT_SCALE is -0.099: a scale is the positive half-range"),
+    (_set("LAT_OFF", 120.0), r"LAT_OFF 120 \+- LAT_SCALE 0.099 is no latitude range \(-90 .. 90 degrees\) "
+                             r"\(LAT_OFF and LONG_OFF swapped\?\)"),
+    (_set("LONG_OFF", 400.0), r"LONG_OFF 400 is no longitude"),
+    (_set("LINE_NUM_COEFF", [0.0] * 20), "LINE_NUM_COEFF is all zeros: every ground point would have the same image "
+                                         "row"),
+    (_set_coefficient("SAMP_NUM_COEFF", 0, 3.0), r"the ground centre \(LONG_OFF 5.2846, LAT_OFF 44.137, HEIGHT_OFF "
+                                                 r"1075\) projects to column 79589, row 20901, outside the image it "
+                                                 r"describes \(columns -409 .. 39590, rows -238 .. 42038\)"),
+    (_set("SAMP_NUM_COEFF", [0.0, 0.0204, -1.032] + [0.0] * 17), "the image column and row change along one ground "
+                                                                "direction only"),
 ]
 
 
@@ -50,6 +63,24 @@ def test_bad_fields_raise_metadata_error(spoil, message):
     with pytest.raises(MetadataError, match=message) as err:
         RpcCoefficients.from_fields(fields, "the-source.txt")
     assert str(err.value).startswith("the-source.txt: ") and "export the RPC again" in str(err.value)
+
+
+def test_lat_off_and_long_off_swapped_are_named(tmp_path):
+    """The synthetic RPC moved to longitude -84.2, latitude 36.6 (where its pixels are about square: the
+    offsets of the 3 km simulated scene), then its offsets swapped in its _RPC.TXT: latitude -84.2, where a
+    degree of longitude spans a tenth of the metres, so its pixels would be 8 times longer than wide."""
+    fields = dict(synthetic_fields(), LONG_OFF=-84.2, LAT_OFF=36.6)
+    write_rpc_txt(RpcModel(RpcCoefficients.from_fields(fields)), tmp_path / "moved_RPC.TXT")
+    sensors.load(tmp_path / "moved_RPC.TXT")                                  # a valid RPC at its new place
+    fields["LONG_OFF"], fields["LAT_OFF"] = fields["LAT_OFF"], fields["LONG_OFF"]
+    path = tmp_path / "swapped_RPC.TXT"
+    write_rpc_txt(RpcModel(RpcCoefficients.from_fields(fields)), path)
+    with pytest.raises(MetadataError, match=re.escape(str(path)) + r": its pixels would cover .* m on the ground at "
+                                            r"its centre, (\d+\.\d) times longer than wide: .*\(LAT_OFF and "
+                                            r"LONG_OFF swapped") as err:
+        sensors.load(path)
+    # the pixel's elongation: cos(36.6 deg) / cos(84.2 deg) = 7.9 times the moved RPC's own (1.2 at most)
+    assert 6.0 < float(re.search(r"(\d+\.\d) times", str(err.value)).group(1)) < 10.0
 
 
 @pytest.fixture

@@ -213,9 +213,10 @@ class NanModel(SensorModel):
         return np.where(col > 50, np.nan, 5.0 + 1e-4 * col), 44.0 - 1e-4 * row + 0.0 * np.asarray(h)
 
 
-@pytest.mark.parametrize("height_range, match", [((500.0, 500.0), "height range 500.0 .. 500.0"),
-                                                 ((800.0, 100.0), "highest height above"),
-                                                 ((0.0, np.nan), "finite range")])
+@pytest.mark.parametrize("height_range, match", [
+    ((500.0, 500.0), r"the lowest height of its cube \(500 m\) is the same as the highest \(500 m\)"),
+    ((800.0, 100.0), r"the lowest height of its cube \(800 m\) is above the highest \(100 m\)"),
+    ((0.0, np.nan), r"the heights 0.0 .. nan m: give two numbers of metres")])
 def test_degenerate_height_ranges_are_input_errors(height_range, match):
     with pytest.raises(InputError, match=match):
         fit_rpc(known_rpc([1.0] + [0.0] * 19), height_range)

@@ -4,6 +4,7 @@ import pytest
 
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.height_range import height_range
 from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.steps.block_intersection import IntersectParams
@@ -34,3 +35,24 @@ def test_coarse_to_fine_settings_are_checked_only_for_that_strategy():
     assert MatchParams(coarse_to_fine=bad).check()      # region growing does not use them
     with pytest.raises(InputError):
         bad.check()
+
+
+@pytest.mark.parametrize("params, message", [
+    (DemParams(cell=float("nan")), "the cell size must be a positive number, got nan"),
+    (DemParams(fill=-1.0, radius=9), "the fill distance must be 0 or more cells, got -1.0; the radius must be 0 to"),
+])
+def test_the_broken_setting_is_the_one_named(params, message):
+    """Before: one sentence of every constraint of the DEM, whichever was broken."""
+    with pytest.raises(InputError) as err:
+        params.check()
+    assert str(err.value).startswith(message)
+    assert "datum" not in str(err.value) and "iterations" not in str(err.value)     # not the settings that hold
+
+
+def test_a_height_range_upside_down_gives_both_heights():
+    """Before: "height_range must be (h_min, h_max) with h_min <= h_max", from deep inside the matcher."""
+    with pytest.raises(InputError, match=r"the lowest terrain height \(6500 m\) is above the highest \(6000 m\)"):
+        height_range(6500.0, 6000.0, None)
+    with pytest.raises(InputError, match="the highest terrain height must be a number of metres, got nan"):
+        height_range(100.0, float("nan"), None)
+    assert height_range(6000.0, 6500.0, None) == (6000.0, 6500.0)

@@ -127,6 +127,30 @@ def test_missing_and_unreadable_files(tmp_path):
         point_input.read_points(tmp_path / "text.las")
 
 
+@pytest.mark.parametrize("ext", ["las", "laz"])
+def test_a_point_cloud_cut_short_is_named_damaged(tmp_path, ext):
+    """Before: laspy's "buffer size must be a multiple of element size", lazrs's "IoError: failed to fill whole
+    buffer"."""
+    lon, lat = degrees()
+    path, _, _ = pointcloud.write_point_cloud(tmp_path / f"whole.{ext}", lon, lat, Z, crs=UTM31)
+    data = open(path, "rb").read()
+    facts = {"las": rf"its header announces 500 points, {len(data)} bytes with the header, but the file holds "
+                    rf"{len(data) // 2} bytes",
+             "laz": rf"its compressed points end at byte {len(data) // 2}, before their chunk table at byte \d+"}
+    for size, fact in ((len(data) // 2, facts[ext]), (100, "it holds 100 bytes, less than a LAS header")):
+        cut = tmp_path / f"cut{size}.{ext}"
+        cut.write_bytes(data[:size])
+        for read in (point_input.read_points, lambda p: list(point_input.point_chunks(p, chunk=100))):
+            with pytest.raises(InputError, match=rf"the point cloud {cut} is damaged: {fact}\. It was cut short .*: "
+                                                 r"copy it again, or make it again"):
+                read(cut)
+    if ext == "laz":        # cut within the chunk table at its end: the points do not decode
+        cut = tmp_path / "end.laz"
+        cut.write_bytes(data[:-3])
+        with pytest.raises(InputError, match=rf"the point cloud {cut} is damaged: its points cannot be read"):
+            point_input.read_points(cut)
+
+
 def test_a_valid_cloud_passes_the_checks(tmp_path):
     lon, lat = degrees()
     for crs in (UTM31, 4326, 2154):     # the points' own zone, degrees, a national projection

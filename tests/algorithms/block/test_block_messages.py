@@ -1,0 +1,118 @@
+"""SQLite's failures said in Pushbroom's words, with the right advice (issue 36): an exclusive lock names the
+program that holds it; a file that is no whole block (an SQLite database, a file cut short) says so; a block
+file or folder the user may not write is refused before any work, saying by whom it may be written."""
+import json
+import os
+import re
+import shutil
+import sqlite3
+import subprocess
+import sys
+import tempfile
+
+import pytest
+
+from pushbroom.algorithms.block import Block, schema
+from pushbroom.algorithms.block.schema import create_schema
+from pushbroom.algorithms.errors import InputError, StorageError
+
+
+@pytest.fixture
+def block(tmp_path):
+    path = tmp_path / "b.gpkg"
+    create_schema(path).Destroy()
+    return str(path)
+
+
+HOLD = """
+import sqlite3, sys
+db = sqlite3.connect(sys.argv[1], isolation_level=None)
+db.execute("BEGIN EXCLUSIVE")
+print("locked", flush=True)
+sys.stdin.read()
+"""
+
+
+def test_an_exclusive_lock_names_the_program_that_holds_it(block, monkeypatch):
+    monkeypatch.setattr(schema, "BUSY_TIMEOUT_MS", 300)
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, block], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(StorageError) as err:
+            Block(block).info()
+    finally:
+        holder.stdin.close()
+        holder.wait()
+    message = str(err.value)
+    # the lock, the program and its process (Linux's /proc/locks), what to do; not SQLite's "check the free space"
+    assert re.search(rf"another program \([^,]+, process {holder.pid}\) holds an exclusive lock on it", message)
+    assert "run this step again" in message and "free space" not in message
+    assert Block(block).info()["format_version"] == "1"     # readable again once the program has let go
+
+
+def test_files_that_are_no_whole_block_are_named(block, tmp_path, capfd):
+    plain = tmp_path / "plain.gpkg"
+    with sqlite3.connect(plain) as db:
+        db.execute("CREATE TABLE t (a)")
+    with pytest.raises(InputError, match=r"plain.gpkg is not a Pushbroom block \(an SQLite database, but not a "
+                                         r"GeoPackage\)"):
+        Block(plain).info()
+    assert "bad application_id" not in capfd.readouterr().err     # GDAL's own warning of it is not printed
+    data = open(block, "rb").read()
+    half = rf"the file holds {len(data) // 2} bytes, its header records .* \({len(data)}\)"
+    for size, fact in ((len(data) // 2, half), (50, "the file holds 50 bytes, less than the 100 of an SQLite header")):
+        cut = tmp_path / f"cut{size}.gpkg"
+        cut.write_bytes(data[:size])
+        # damaged, how, and what to do: not SQLite's "database disk image is malformed" nor "not a block"
+        with pytest.raises(InputError, match=rf"the block {cut} is damaged \({fact}\): .* Restore it from a copy"):
+            Block(cut).info()
+
+
+AS_USER = """
+import json, sys
+from pushbroom.algorithms.block import Block
+messages = {}
+for path in sys.argv[1:]:
+    try:
+        Block(path).check_writable("the adjusted models")
+    except Exception as exc:
+        messages[path] = str(exc)
+print(json.dumps(messages))
+"""
+
+
+def test_a_block_the_user_may_not_write_is_refused_before_any_work(block):
+    """A read-only block file; a writable block file in a read-only folder, where SQLite cannot create its
+    journal (before: "is not a Pushbroom block", and "attempt to write a readonly database" after the adjustment)."""
+    public = tempfile.mkdtemp(prefix="pushbroom-msgs-", dir="/tmp")
+    try:
+        os.chmod(public, 0o755)
+        for name, file_mode, folder_mode in (("file", 0o444, 0o755), ("folder", 0o666, 0o555)):
+            os.mkdir(os.path.join(public, name))
+            shutil.copy(block, os.path.join(public, name, "b.gpkg"))
+            os.chmod(os.path.join(public, name, "b.gpkg"), file_mode)
+            os.chmod(os.path.join(public, name), folder_mode)
+        paths = [os.path.join(public, name, "b.gpkg") for name in ("file", "folder")]
+        command = [sys.executable, "-c", AS_USER, *paths]
+        if os.geteuid() == 0:            # root may write anywhere: run as an unprivileged user
+            command = ["setpriv", "--reuid=nobody", "--regid=nogroup", "--clear-groups"] + command
+        numba = os.path.join(public, "numba")         # numba's cache, which the other user must write
+        os.mkdir(numba)
+        os.chmod(numba, 0o777)
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path), NUMBA_CACHE_DIR=numba)
+        result = subprocess.run(command, capture_output=True, text=True, env=env, cwd=public, check=True)
+        messages = json.loads(result.stdout)
+        user = "nobody" if os.geteuid() == 0 else None
+        file_message, folder_message = messages[paths[0]], messages[paths[1]]
+        assert "the block file is not writable by you (user " in file_message
+        assert "it belongs to root, permissions -r--r--r--" in file_message or user is None
+        assert f"its folder {os.path.dirname(paths[1])} is not writable by you" in folder_message
+        assert "SQLite must create a journal there (b.gpkg-journal)" in folder_message
+        assert all("nothing was stored" in m for m in (file_message, folder_message))
+        assert "GDAL" not in result.stderr and "Warning" not in result.stderr      # no GDAL line before them
+    finally:
+        for name in ("file", "folder"):
+            if os.path.isdir(os.path.join(public, name)):
+                os.chmod(os.path.join(public, name), 0o755)
+        shutil.rmtree(public, ignore_errors=True)
