@@ -53,6 +53,7 @@ def test_a_height_range_upside_down_gives_both_heights():
     """Before: "height_range must be (h_min, h_max) with h_min <= h_max", from deep inside the matcher."""
     with pytest.raises(InputError, match=r"the lowest terrain height \(6500 m\) is above the highest \(6000 m\)"):
         height_range(6500.0, 6000.0, None)
-    with pytest.raises(InputError, match="the highest terrain height must be a number of metres, got nan"):
+    with pytest.raises(InputError, match=r"the highest terrain height \(MAX_HEIGHT\) must be a number of metres within "
+                                         r"-500 .. 9000 m, not nan"):
         height_range(100.0, float("nan"), None)
     assert height_range(6000.0, 6500.0, None) == (6000.0, 6500.0)
