@@ -17,6 +17,10 @@ LSM rho; rho_min the smaller, NaN where one of its matched positions is unrefine
 if all of them are: the DEM's tiers and the tie point selection read it); flags DENSE. A tile without texture
 gives no points and a warning, not an error.
 
+The images are opened once, masking their nodata (the band's value and GDAL mask) and saturated pixels
+(matching.imagery.Image, saturation=True): a node whose census window or LSM template reaches a masked pixel,
+or whose candidate conjugates do, yields no point (pair_tile.py, refine.py).
+
 The result does not depend on the execution or the number of workers: a tile's points depend only on its box."""
 import os
 from typing import NamedTuple
@@ -27,6 +31,7 @@ from .. import progress
 from ..atomic import save_array, work_dir
 from ..execution import check_cancel, run_tasks, session
 from ..matching.block_tiles import BIAS_SAMPLE, block_inputs, first_ids
+from ..matching.imagery import as_image
 from ..matching.orientation_bias import affine_bias
 from ..matching.params import GrowParams
 from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, REFINED, MultiPoints
@@ -78,7 +83,7 @@ def tile_points(job, box):
     count = int(keep.sum())
     points = np.zeros(count, POINT_DTYPE)
     points["id"] = np.arange(1, count + 1)
-    both = matched[:, keep].all(axis=0)
+    both = matched[:, keep].all(axis=0) & (n == 3)      # a pair's points are two-ray (group 1)
     points["group"] = np.where(both, 2, 1)
     flags = np.zeros(count, np.uint8)
     for k, bit in zip(range(n - 1), (COMB_A, COMB_B)):
@@ -159,12 +164,14 @@ def _mpgc(job, multi):
 
 def match_dense_tiles(images, models, folder, write_part=None, names=None, image_ids=None, params=None,
                       height_range=None, feedback=None, execution=None):
-    """Dense matching tile by tile (module docstring): each tile's points handed to write_part(folder, k,
-    points), or returned without it. Returns (the index entries or MultiPoints, in id order; stats). Raises
-    InputError for other than 2 or 3 images, or where a pair has no epipolar geometry."""
+    """Dense matching tile by tile (module docstring) of `images` (paths or arrays, opened masking their saturated
+    pixels too; or Image-likes, read as they are): each tile's points handed to write_part(folder, k, points), or
+    returned without it. Returns (the index entries or MultiPoints, in id order; stats). Raises InputError for
+    other than 2 or 3 images, or where a pair has no epipolar geometry."""
     n = len(images)
     names, image_ids = block_inputs(images, models, names, image_ids, "dense matching")
     params = (params or DenseParams()).check()
+    images = [as_image(image, saturation=True) for image in images]
     job = DenseJob(images, models, image_ids, params, height_range, write_part)
     tiles = tile_grid(models[0].size, params.tile)
     log = progress.ensure(feedback)
@@ -187,8 +194,9 @@ def match_dense_tiles(images, models, folder, write_part=None, names=None, image
         parts = [part for part, _ in done]
     empty = [k for k, c in enumerate(counts) if c == 0]
     if empty:
-        progress.warn(feedback, f"{len(empty)} of {len(tiles)} tile(s) gave no point (no texture, or no overlap): "
-                                f"tiles {', '.join(map(str, empty[:20]))}{' ...' if len(empty) > 20 else ''}")
+        progress.warn(feedback, f"{len(empty)} of {len(tiles)} tile(s) gave no point (no texture, no overlap, or "
+                                f"nodata or saturated pixels only): tiles {', '.join(map(str, empty[:20]))}"
+                                f"{' ...' if len(empty) > 20 else ''}")
     stats = {"images": image_ids, "strategy": "dense", "points": int(sum(counts)),
              "group_2": int(sum(t["group_2"] for t in first)),
              "seeds": int(sum(sum(t["seeds"]) for t in first)), "refined": int(sum(t["refined"] for t in first))}

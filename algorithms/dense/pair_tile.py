@@ -11,6 +11,12 @@ For the tile `box` of image 1 (x0, y0, x1, y1 px) and a pair (image 1, image 2):
    around it (only where the four are defined and span at most `max_spread` px: a node between two
    surfaces takes no disparity), and its image-2 position Q(u + d, v) (EpipolarGrid.image2).
 
+Masked pixels (matching.imagery: nodata, the GDAL mask, saturated; images given as paths or arrays mask their
+saturated pixels) are NaN in the images read: the low-pass and the epipolar resampling spread them over their
+supports (no grey value is interpolated across a nodata edge or a saturated patch's), the census gives no code
+to a window that holds one, and the semi-global matcher keeps no disparity where the conjugate may be a
+candidate without a code (sgm.py, scored candidates). A node yields no point where one of these reaches it.
+
 Image positions are GDAL's. A node without a disparity is NaN. The epipolar images and the cost volume are
 the tile's: memory follows the tile and its disparity range."""
 import math
@@ -71,7 +77,7 @@ def match_pair_tile(image1, image2, model1, model2, box, height_range, params):
     with DenseParams `params`, NaN where a node has none; info: the grid, the row offset, the disparity
     range and the seeds."""
     x1, y1 = lattice(box, params.step)
-    image1, image2 = as_image(image1), as_image(image2)
+    image1, image2 = as_image(image1, saturation=True), as_image(image2, saturation=True)
     a1, a2 = adapt_resolution(image1, image2, model1, model2, GrowParams(), height_range)
     grid = epipolar_grid(model1, model2, box, height_range, step=params.grid_step,
                          margin=params.sgm.census_radius + 2)

@@ -10,6 +10,14 @@ of the dense position: a larger move means the template straddles two surfaces (
 where the 5 x 5 census window's position is the better one. A refined point carries LSM's rho and
 error-ellipse semi-axes (its precision); the others keep NaN.
 
+Masked pixels (matching.imagery: nodata, saturated): a node whose LSM window touches one, in image 1 at the
+node or in image 2 at its dense position, yields no point at all (its position becomes NaN), refined or not:
+a template with a masked sample cannot be matched, and the dense position beside a nodata edge or a saturated
+patch is the least trustworthy one. The window: the template's samples with their interpolation and gradient
+support (TEMPLATE_SUPPORT px beyond the template's half width), in image 2 through the models' local affine
+and widened by `max_shift`, on the resolution-adapted images LSM reads (whose low-pass spreads a masked pixel
+over its support).
+
 Isolated refinements (`isolated`, on a lattice): the templates of neighbouring nodes overlap almost entirely,
 so where the surface lets LSM succeed it succeeds at most of them. A node LSM accepted while fewer than
 LEAST_REFINED of the (2 REACH + 1)^2 - 1 nodes around it were accepted is more likely a chance fit to a
@@ -24,7 +32,7 @@ the robust weights and the isolation test: docs/validation.md#dense-robust-lsm."
 import numpy as np
 from scipy import ndimage
 
-from ..matching.imagery import as_image
+from ..matching.imagery import as_image, touches_masked
 from ..matching.pair_geometry import local_affine, resolve_height_range
 from ..matching.params import GrowParams
 from ..matching.region_growing import match_windows
@@ -35,14 +43,19 @@ from ..matching.resolution import adapt_resolution
 AFFINE_CELL = 32
 #: lattice nodes (Chebyshev) around a refined node, and the fewest of them refined too (module docstring)
 REACH, LEAST_REFINED = 2, 3
+#: px beyond LSM's template that its samples read: bicubic resampling in image 2 (2), bilinear samples and their
+#: central-difference gradients in image 1 (1 + 1)
+TEMPLATE_SUPPORT = 2
 
 
-def refine_positions(image1, image2, model1, model2, x1, y1, x2, y2, height_range, template=19, max_shift=0.5,
-                     robust=True):
+def refine_positions(image1, image2, model1, model2, x1: np.ndarray, y1: np.ndarray, x2: np.ndarray,
+                     y2: np.ndarray, height_range: tuple, template: int = 19, max_shift: float = 0.5,
+                     robust: bool = True) -> tuple:
     """(x2, y2, rho, semi_major, semi_minor): the refined image-2 positions of points (x1, y1) matched at
-    (x2, y2) (NaN: unmatched, left as they are), with LSM's quality where refined (NaN elsewhere); LSM with
-    `template`, `max_shift` and, where `robust`, the robust weights. The isolation test (`isolated`) is the
-    caller's, on its lattice."""
+    (x2, y2) (NaN: unmatched, left as they are; and NaN where LSM's window touches a masked pixel: no point),
+    with LSM's quality where refined (NaN elsewhere); LSM with `template`, `max_shift` and, where `robust`, the
+    robust weights. Images given as paths or arrays mask their saturated pixels too. The isolation test
+    (`isolated`) is the caller's, on its lattice."""
     x2, y2 = np.array(x2, float), np.array(y2, float)
     rho, major, minor = (np.full(x2.size, np.nan, np.float32) for _ in range(3))
     idx = np.flatnonzero(np.isfinite(x2) & np.isfinite(y2))
@@ -55,8 +68,14 @@ def refine_positions(image1, image2, model1, model2, x1, y1, x2, y2, height_rang
     cx, cy = (np.clip((c + 0.5) * AFFINE_CELL, v[idx].min(), v[idx].max()) for c, v in zip(cells.T, (x1, y1)))
     affine = np.column_stack(local_affine(model1, model2, cx, cy, h_m)[2:])[cell.ravel()]
     params = GrowParams(template=int(template), max_shift=float(max_shift), robust=bool(robust)).check()
-    image1, image2 = adapt_resolution(as_image(image1), as_image(image2), model1, model2, params,
-                                      resolve_height_range(model1, height_range))
+    image1, image2 = adapt_resolution(as_image(image1, saturation=True), as_image(image2, saturation=True), model1,
+                                      model2, params, resolve_height_range(model1, height_range))
+    half = params.template // 2
+    reach = half * np.abs(affine).reshape(-1, 2, 2).sum(axis=2) + TEMPLATE_SUPPORT + params.max_shift
+    masked = touches_masked(image1, x1[idx], y1[idx], half + TEMPLATE_SUPPORT, half + TEMPLATE_SUPPORT) \
+        | touches_masked(image2, x2[idx], y2[idx], reach[:, 0], reach[:, 1])
+    x2[idx[masked]], y2[idx[masked]] = np.nan, np.nan
+    idx, affine = idx[~masked], affine[~masked]
     records, accepted = match_windows(image1, image2, x1[idx], y1[idx], x2[idx], y2[idx], affine, params)
     take = idx[accepted]
     r = records[accepted]

@@ -19,7 +19,20 @@ Model (Hirschmuller 2008; Zabih & Woodfill 1994 for the census):
   flat, textureless neighbourhood: nothing to choose);
 - left-right check: image 2's disparity from the same S along its diagonal (Hirschmuller 2008, 3.4),
   D2(u2) = argmin_d S(u2 - d, d); p keeps D1(p) where |D1(p) - D2(round(u + D1(p)))| <= `lr_tolerance`
-  px (occlusions and mismatches fail it).
+  px (occlusions and mismatches fail it);
+- scored candidates: where image 2 has no code at some candidate (u + d, v) of p (nodata or saturated pixels
+  within the census window, image 2's edge, a flat window), p's conjugate may be the candidate that cannot be
+  scored, and the minimum over the others is then a mismatch that the aggregation makes as smooth as its
+  neighbours and the left-right check does not catch (tens of pixels off beside a nodata edge). So p keeps
+  D1(p) where every candidate d_min ... d_max has a code, and otherwise only where its own surface bounds it:
+  with [lo, hi] the range of the kept disparities within LOCAL_RADIUS px, D1(p) lies in
+  [lo - LOCAL_SLACK, hi + LOCAL_SLACK] and every candidate in it has a code. A pixel kept so bounds its own
+  neighbours in turn: the kept set grows outwards from the complete pixels until none is added
+  (`scored_disparities`). Beside a
+  masked area of image 2 this drops a margin of the local relief plus LOCAL_SLACK px around its conjugates,
+  not the whole disparity range; where the surface jumps by more than LOCAL_SLACK px within LOCAL_RADIUS px
+  (a cliff, a building's edge), a pixel may keep the disparity of its neighbours' surface, as the aggregation
+  gives anywhere.
 
 Census and cost are numba kernels of the whole epipolar tile; P1 = 8 and P2 = 32 for a 5 x 5 census
 (pandora's defaults for it). Memory: rows x cols x (d_max - d_min + 1) float32 twice (cost and
@@ -32,7 +45,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+from scipy import ndimage
 
+#: px around a pixel whose kept disparities bound its own, and the px of disparity allowed beyond their range
+#: (module docstring, scored candidates: up to 1 px of disparity change per px, e.g. a 45 degree slope at B/H 1)
+LOCAL_RADIUS, LOCAL_SLACK = 3, 3.0
 DIRECTIONS = np.array([[0, 1], [1, 0], [1, 1], [1, -1], [0, -1], [-1, 0], [-1, -1], [-1, 1]], dtype=np.int32)
 
 
@@ -169,6 +186,53 @@ def lr_check_kernel(disp, disp2, tolerance):
                 disp[i, j] = np.nan
 
 
+def candidates_scored(v1: np.ndarray, v2: np.ndarray, lo: "int | np.ndarray", hi: "int | np.ndarray") -> np.ndarray:
+    """Mask of the image-1 pixels (i, j) with a code (v1) whose every candidate (i, j + d), d = lo ... hi (integers,
+    or arrays of v1's shape), lies inside image 2's array and has a code (v2)."""
+    i, j = np.indices(v1.shape)
+    return v1 & _scored(_missing_codes(v2), i, j, lo, hi)
+
+
+def _missing_codes(v2):
+    """missing[i, m]: the image-2 pixels of row i without a code before column m."""
+    missing = np.zeros((v2.shape[0], v2.shape[1] + 1), np.int64)
+    missing[:, 1:] = np.cumsum(~v2, axis=1)
+    return missing
+
+
+def _scored(missing, i, j, lo, hi):
+    """Per image-1 pixel (i, j): candidates (i, j + lo ... j + hi) all inside image 2 and with a code."""
+    a, b = j + lo, j + hi + 1
+    cols2 = missing.shape[1] - 1
+    inside = (a >= 0) & (b <= cols2)
+    a, b = np.clip(a, 0, cols2), np.clip(b, 0, cols2)
+    return inside & (missing[i, b] - missing[i, a] == 0)
+
+
+def scored_disparities(disp: np.ndarray, v1: np.ndarray, v2: np.ndarray, d_min: int, d_max: int) -> np.ndarray:
+    """`disp` (image 1's disparities over d_min ... d_max, NaN: none) with NaN where a pixel's conjugate may be a
+    candidate without a code (module docstring, scored candidates); v1, v2: the census codes' masks."""
+    missing = _missing_codes(v2)
+    i, j = np.indices(disp.shape)
+    trusted = np.isfinite(disp) & v1 & _scored(missing, i, j, d_min, d_max)
+    pending = np.isfinite(disp) & ~trusted
+    size = 2 * LOCAL_RADIUS + 1
+    while pending.any():
+        lo = ndimage.minimum_filter(np.where(trusted, disp, np.inf), size, mode="constant", cval=np.inf)
+        hi = ndimage.maximum_filter(np.where(trusted, disp, -np.inf), size, mode="constant", cval=-np.inf)
+        with np.errstate(invalid="ignore"):
+            near = pending & (disp >= lo - LOCAL_SLACK) & (disp <= hi + LOCAL_SLACK)
+        k = np.nonzero(near)
+        a = np.clip(np.floor(lo[k] - LOCAL_SLACK), d_min, d_max).astype(np.int64)
+        b = np.clip(np.ceil(hi[k] + LOCAL_SLACK), d_min, d_max).astype(np.int64)
+        ok = _scored(missing, k[0], k[1], a, b)
+        if not ok.any():
+            break
+        trusted[k[0][ok], k[1][ok]] = True
+        pending[k[0][ok], k[1][ok]] = False
+    return np.where(trusted, disp, np.float32(np.nan)).astype(np.float32)
+
+
 def census(img, radius, min_contrast=0.0):
     """(codes uint64, valid bool) of a float image (NaN: nodata)."""
     img = np.ascontiguousarray(img, dtype=np.float32)
@@ -207,4 +271,4 @@ def disparity(epi1, epi2, d_range, params=SgmParams()):
     disp2 = np.empty(epi2.shape, np.float32)
     right_kernel(s, d_min, limit, epi2.shape[1], disp2)
     lr_check_kernel(disp, disp2, np.float32(params.lr_tolerance))
-    return disp
+    return scored_disparities(disp, v1, v2, d_min, d_max)

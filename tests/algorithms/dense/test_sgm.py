@@ -1,5 +1,7 @@
 """Census, cost, winner and left-right kernels against plain numpy; the whole disparity on a pair with a
-known disparity field; an image without texture gives no disparity."""
+known disparity field; an image without texture gives no disparity; where image 2 is masked, no disparity
+whose conjugate may be a candidate without a code (the scored candidates' rule, against a loop and on a
+hand-made case)."""
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -95,3 +97,57 @@ def test_no_texture_gives_no_disparity():
     flat = np.full((40, 60), 80.0, np.float32)
     disp = sgm.disparity(flat, flat, (-4, 4))
     assert np.isnan(disp).all()
+
+
+def test_candidates_scored_against_a_loop():
+    rng = np.random.default_rng(3)
+    v1, v2 = rng.random((5, 30)) > 0.1, rng.random((5, 34)) > 0.05
+    per_pixel = rng.integers(-4, 3, (5, 30)), rng.integers(0, 6, (5, 30))
+    for lo, hi in ((-3, 4), (0, 0), (2, 9), per_pixel):
+        got = sgm.candidates_scored(v1, v2, lo, hi)
+        for i, j in np.ndindex(v1.shape):
+            a, b = (int(v[i, j]) if np.ndim(v) else v for v in (lo, hi))
+            assert got[i, j] == (v1[i, j] and all(0 <= j + d < 34 and v2[i, j + d] for d in range(a, b + 1)))
+
+
+def test_a_disparity_bounded_by_its_surface_or_none():
+    """Image 2 has no code at columns 20 ... 24; the surface's disparity is 5 over the range 0 ... 10. A pixel whose
+    candidates all have a code keeps its disparity; the others only where the kept disparities around them
+    (LOCAL_RADIUS 3 px), widened by LOCAL_SLACK 3 px, bound theirs and every candidate between those bounds has a
+    code: j = 10 and 11 (candidates up to 18 and 19), then none up to j = 22 (its bounds reach column 24), and
+    from j = 23 on (candidates from 25). Pixel 11's disparity 9 is beyond its bounds 2 ... 8; pixel 16's 2, a
+    mismatch (its conjugate 21 has no code), has no kept pixel near it."""
+    v1, v2 = np.ones((7, 40), bool), np.ones((7, 50), bool)
+    v2[:, 20:25] = False
+    disp = np.full((7, 40), 5.0, np.float32)
+    disp[:, 16] = 2.0
+    kept = np.isfinite(sgm.scored_disparities(disp, v1, v2, 0, 10))
+    assert (kept == ((np.arange(40) <= 11) | (np.arange(40) >= 23))[None, :]).all()
+    disp[:, 11] = 9.0
+    kept = np.isfinite(sgm.scored_disparities(disp, v1, v2, 0, 10))
+    assert (kept == ((np.arange(40) <= 10) | (np.arange(40) >= 23))[None, :]).all()
+
+
+def test_masked_image_2_gives_no_wrong_disparity():
+    """Image 2 with a nodata band across the rows and a masked patch: the pixels whose conjugates fall there
+    used to take the best of the other candidates (up to 14 px off); now every kept disparity is right, and the
+    pixels lost are those whose conjugate is masked, within a margin."""
+    img1, img2, truth = shifted_pair()
+    img2[:, 100:130] = np.nan
+    img2[60:90, 160:200] = np.nan
+    d_range = (-5, 20)
+    disp = sgm.disparity(img1, img2, d_range)
+    kept = np.isfinite(disp)
+    # the truth's error where kept: as on the clean pair (test_disparity_of_a_known_field)
+    assert np.abs(disp - truth)[kept].max() < 1.0
+    # no kept pixel's conjugate lies within the census window (2 px) of a masked image-2 pixel
+    masked = ndimage.binary_dilation(np.isnan(img2), np.ones((5, 5), bool))
+    rows, cols = np.nonzero(kept)
+    assert not masked[rows, np.rint(cols + disp[kept]).astype(int)].any()
+    # the others are matched as on the clean pair, up to LOCAL_SLACK + 2 px (and the census window) from the
+    # conjugates of the masked pixels; the clean pair keeps more than 95 % of its pixels
+    conjugate = np.rint(np.arange(240) + truth[0]).astype(int)
+    clear = ~ndimage.binary_dilation(masked[:, conjugate], np.ones((5, 2 * (int(sgm.LOCAL_SLACK) + 2) + 1), bool))
+    clear[:3] = clear[-3:] = False
+    clear[:, :8] = clear[:, -3:] = False            # image 1's edge, and candidates before image 2's
+    assert kept[clear].mean() > 0.95
