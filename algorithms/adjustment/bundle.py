@@ -20,13 +20,23 @@ of a trajectory known to 1000 m) enters as direct observations x_q = 0 with sigm
 1/sigma_q^2 on the diagonal of the reduced normal matrix; they count in the redundancy and in v'Pv.
 
 Datum defects and parameters the points cannot determine are found on the normal matrix (with the
-priors) before solving (correlation-scaled eigen-decomposition) and reported by name."""
+priors) before solving (correlation-scaled eigen-decomposition) and reported by name; a matrix that
+its Cholesky factorisation finds singular in a later iteration is reported the same way.
+
+Failure modes, each an error naming its cause, never a NaN carried on: a measurement whose sensor model
+gives no finite image position or derivatives (GeometryError naming the points and images: a point
+outside a model's domain in the first iteration, an adjustment that diverged later); a point its rays
+do not determine; a non-finite update. Control points without an image measurement take no part
+(noted in the log). An adjustment that does not converge within `max_iterations` returns with
+`converged` False and says so in its log; the caller decides (adjust_block stores nothing).
+
+The kernels run on the calling thread for small blocks (normals.kernel_threads)."""
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .. import progress
-from ..errors import CancelledError, InputError
+from ..errors import CancelledError, GeometryError, InputError
 from ..geodesy import metres_per_degree, offset_enu
 from ..surface.intersection import closest_points, intersect
 from . import normals
@@ -37,6 +47,10 @@ CRITICAL_W = 3.29
 #: an eigenvalue of the correlation-scaled reduced normal matrix below this is a defect: that
 #: combination of unknowns would be over 1000 times less precise than the unknowns alone
 DEFECT_EIGENVALUE = 1e-6
+#: an unknown belongs to a defect when its component in the (unit, correlation-scaled) eigenvector exceeds
+#: this: an exterior constant whose effect the points absorb has a small scaled component (a common roll
+#: against the images' psi_y constants), yet fixing it is what removes the defect
+DEFECT_MEMBER = 1e-3
 
 
 @dataclass
@@ -59,9 +73,12 @@ class Adjustment:
     normalised: np.ndarray              # (M, 2) w = v / (sigma sqrt(r))
     ground_residuals: np.ndarray        # (P, 3) E, N, H of computed - observed (control points; NaN else)
     iterations: int
+    converged: bool                     # the last point update was below the tolerance
+    last_update: float                  # the last iteration's largest point update (m)
     effects: np.ndarray                 # largest image effect (px) of each free unknown (NaN: fixed)
     removed: list = field(default_factory=list)   # (point name, image id, w) of removed blunders
     log: list = field(default_factory=list)
+    notes: list = field(default_factory=list)     # what the report must say: points left out, not converged
 
     def flagged(self, critical=CRITICAL_W):
         """Indices of measurements with |w| > critical in col or row."""
@@ -177,9 +194,11 @@ class DefectError(InputError):
 def defect_groups(normal, labels, threshold=DEFECT_EIGENVALUE, prior=None):
     """The unknowns the reduced normal matrix cannot determine, as groups of labels ([] if regular):
     each unknown nothing depends on alone, and per eigenvector of the correlation-scaled matrix with
-    an eigenvalue below `threshold` the unknowns it involves (|component| > 0.05, most involved
-    first). `prior`: the prior weights included in `normal` (diagonal); a combination they hold
-    (half its eigenvalue or more) is determined by the user's priors, however weak, and not reported."""
+    an eigenvalue below `threshold` the unknowns it involves (|component| > DEFECT_MEMBER, most
+    involved first: fixing any one of them removes that combination). `prior`: the prior weights
+    included in `normal` (diagonal); a combination they hold (a positive share of half its eigenvalue
+    or more) is determined by the user's priors, however weak, and not reported. An exact defect's
+    eigenvalue comes out of the decomposition as +-1e-16 or so: without priors it is always reported."""
     diag = np.diag(normal).copy()
     groups = [[labels[q]] for q in np.flatnonzero(diag <= 0)]
     good = np.flatnonzero(diag > 0)
@@ -193,10 +212,11 @@ def defect_groups(normal, labels, threshold=DEFECT_EIGENVALUE, prior=None):
         for v, vec in zip(vals, vecs.T):
             if v > threshold * max(vals[-1], 1.0):
                 break
-            if np.sum(held * vec * vec) >= 0.5 * v:
+            share = float(np.sum(held * vec * vec))
+            if share > 0.0 and share >= 0.5 * v:
                 continue
             order = np.argsort(-np.abs(vec))
-            groups.append([labels[good[q]] for q in order[np.abs(vec[order]) > 0.05]])
+            groups.append([labels[good[q]] for q in order[np.abs(vec[order]) > DEFECT_MEMBER]])
     return groups
 
 
@@ -237,7 +257,7 @@ def prior_sigmas(params, priors):
 
 def adjust(models, observations, free, names=None, height=0.0, max_iterations=15, tolerance=1e-4,
            remove_blunders=False, critical=CRITICAL_W, max_removals=50, priors=None, model="polynomial",
-           orientation_images=4, defect_eigenvalue=DEFECT_EIGENVALUE, feedback=None):
+           orientation_images=4, defect_eigenvalue=DEFECT_EIGENVALUE, effects=True, feedback=None):
     """Bundle adjustment (module docstring). models {image_id: model} (edited in place: they carry
     the solution); observations: Observations (check points are ignored here); free: bool mask or
     a list of names/patterns for parameters.OrientationParameters.select; height: mean terrain
@@ -245,7 +265,9 @@ def adjust(models, observations, free, names=None, height=0.0, max_iterations=15
     observations x = 0 of orientation unknowns (see `prior_sigmas`), merged over the model's own
     (OrientationParameters.default_priors; a user sigma of inf drops one); model, orientation_images:
     the exterior orientation model (parameters.py: "polynomial" or "lagrange"); defect_eigenvalue:
-    see find_defects (selection.py tests weaker parameters on their significance). Returns an
+    see find_defects (selection.py tests weaker parameters on their significance); effects: compute
+    each free unknown's largest image effect for the report (parameters.max_effects; NaN without:
+    the selection's trials do not need them). Returns an
     Adjustment; raises InputError on too few observations or undeterminable parameters (named),
     CancelledError when cancelled."""
     obs = observations.check()
@@ -261,7 +283,8 @@ def adjust(models, observations, free, names=None, height=0.0, max_iterations=15
     used = obs.subset(obs.points["role"] != "check")
     removed = []
     while True:
-        result = _solve(params, used, height, max_iterations, tolerance, defect_eigenvalue, feedback)
+        with normals.kernel_threads(len(used.measurements)):
+            result = _solve(params, used, height, max_iterations, tolerance, defect_eigenvalue, effects, feedback)
         result.removed = removed
         bad = result.flagged(critical)
         if not remove_blunders or not bad.size or len(removed) >= max_removals:
@@ -286,18 +309,33 @@ def _measurement_index(used, adjusted, k):
     return np.flatnonzero((used.measurements["point"] == point) & (used.measurements["image_id"] == mk["image_id"]))
 
 
-def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, feedback):
-    log = []
+def _measured(obs, notes):
+    """`obs` without its control points that have no image measurement (noted): with nothing but their
+    ground coordinates they would only fit themselves."""
+    control = obs.points["role"] == "control"
+    unmeasured = control & (np.bincount(obs.measurements["point"], minlength=len(obs.points)) == 0)
+    if not unmeasured.any():
+        return obs
+    names = obs.points["name"][unmeasured]
+    notes.append(f"{names.size} control point(s) without an image measurement take no part: {_named(names, 10)} "
+                 "(measure them in at least one image to use them)")
+    return obs.subset(~unmeasured)
+
+
+def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, effects, feedback):
+    notes = []
     fb = progress.ensure(feedback)
+    obs = _measured(obs, notes)
     lon, lat, h, usable = start_points(params.models, obs, height)
     if not usable.all():
-        log.append(f"{(~usable).sum()} point(s) left out: they cannot be intersected (fewer than two rays, "
-                   f"outside an image or no convergence), e.g. {obs.points['name'][~usable][0]}")
+        notes.append(f"{(~usable).sum()} point(s) left out: they cannot be intersected (fewer than two rays, "
+                     f"outside an image or no convergence): {_named(obs.points['name'][~usable])}")
         obs = obs.subset(usable)
         lon, lat, h = lon[usable], lat[usable], h[usable]
     pts = obs.points
     if not len(pts):
         raise InputError("no point can be intersected from its image measurements: nothing to adjust")
+    log = list(notes)
     geo = _Geometry(params, obs)
     start, col, nfree = geo.start, geo.col, geo.nfree
     labels = [params.label(q) for q in np.flatnonzero(params.free)]
@@ -312,6 +350,7 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, fe
         if fb.isCanceled():
             raise CancelledError("bundle adjustment cancelled")
         a, b, l, wg, normal, rhs, cost = _linearise(geo, pts, lon, lat, h, prior, x[params.free], ninv, bp, ok)
+        _check_linearisation(geo, pts, (lon, lat, h), (a, b, l, normal, rhs), ok, iteration)
         if iteration == 1:
             defects = find_defects(normal, labels, defect_eigenvalue, prior)
             if defects:
@@ -321,19 +360,25 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, fe
                 raise InputError(f"too few observations: {n_obs} for {n_obs - redundancy} unknowns ({nfree} "
                                  f"orientation, 3 per point): measure more points, in more images, or fix "
                                  "parameters")
-        do = _solve_scaled(normal, rhs)
+        do = _solve_scaled(normal, rhs, labels, prior)
         normals.back_substitute(start, a, b, geo.w, geo.img, col, ninv, bp, ok, do, dx)
+        step = float(np.max(np.abs(dx))) if n_pts else 0.0
+        if not (np.isfinite(step) and np.isfinite(do).all()):
+            raise GeometryError(f"the adjustment's update in iteration {iteration} is not finite: the normal "
+                                "equations are numerically singular. " + _DIVERGED)
         x[params.free] += do
         params.apply(x)
         lon, lat, h = offset_enu(lon, lat, h, dx)
-        step = float(np.nanmax(np.abs(dx))) if n_pts else 0.0
         log.append(f"iteration {iteration}: weighted misclosure {cost:.6g}, largest point update {step:.3g} m")
         fb.setProgress(min(99.0, 100.0 * iteration / max_iterations))
         if step < tolerance:
             converged = True
             break
     else:
-        log.append(f"not converged in {max_iterations} iterations: the last point update was {step:.3g} m")
+        notes.append(f"NOT CONVERGED in {max_iterations} iteration(s): the last point update was {step:.3g} m "
+                     f"(tolerance {tolerance:g} m); the solution and its statistics are not those of the least "
+                     "squares adjustment")
+        log.append(notes[-1])
     # statistics at the solution
     if converged:
         # the last update was below the tolerance: its linearisation holds at the solution, where the
@@ -341,25 +386,24 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, fe
         dof = np.where(col >= 0, np.r_[do, 0.0][col], 0.0)
         l = l - np.einsum("jer,jr->je", a, dx[geo.point_of]) - np.einsum("jek,jk->je", b, dof[geo.img])
     else:
-        a, b, l, wg, normal, _, _ = _linearise(geo, pts, lon, lat, h, prior, x[params.free], ninv, bp, ok)
+        a, b, l, wg, normal, rhs, _ = _linearise(geo, pts, lon, lat, h, prior, x[params.free], ninv, bp, ok)
+        _check_linearisation(geo, pts, (lon, lat, h), (a, b, l, normal, rhs), ok, iteration + 1)
     lg = _ground_weights(pts, lon, lat, h)[1]
     vpv_prior = float(np.sum(prior * x[params.free] ** 2))
-    qoo = _inverse_scaled(normal)
+    qoo = _inverse_scaled(normal, labels, prior)
     qpp = np.zeros((n_pts, 3, 3))
     red = np.zeros((len(geo.meas), 2))
     normals.point_statistics(start, a, b, geo.w, geo.img, col, ninv, ok, qoo, qpp, red)
     v = -l
     vg = -lg
     control = pts["role"] == "control"
-    used = ok[geo.point_of]
     redundancy = _redundancy(geo, pts, ok, prior)[1]
-    vpv = float(np.sum((v * v * geo.w)[used]) + np.sum((vg * vg * wg)[ok])) + vpv_prior
+    vpv = float(np.sum(v * v * geo.w) + np.sum(vg * vg * wg)) + vpv_prior
     sigma0 = s0 = float(np.sqrt(vpv / redundancy))          # redundancy > 0: checked in the first iteration
     sigmas = np.full(len(params), np.nan)
     sigmas[params.free] = s0 * np.sqrt(np.diag(qoo))
     sig_l = 1.0 / np.sqrt(geo.w)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        normalised = v / (sig_l * np.sqrt(np.clip(red, 1e-12, None)))
+    normalised = v / (sig_l * np.sqrt(np.clip(red, 1e-12, None)))
     ground_res = np.full((n_pts, 3), np.nan)
     ground_res[control] = vg[control]
     back = np.empty_like(geo.order)
@@ -372,8 +416,50 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, fe
                       redundancy=redundancy, observations=obs, lon=lon, lat=lat, h=h,
                       point_sigmas=s0 * np.sqrt(np.abs(np.diagonal(qpp, axis1=1, axis2=2))),
                       residuals=v[back], redundancy_numbers=red[back], normalised=normalised[back],
-                      ground_residuals=ground_res, iterations=iteration, effects=params.max_effects(x, height),
-                      log=log)
+                      ground_residuals=ground_res, iterations=iteration, converged=converged, last_update=step,
+                      effects=params.max_effects(x, height) if effects else np.full(len(params), np.nan),
+                      log=log, notes=notes)
+
+
+#: what to do when the adjustment diverges
+_DIVERGED = ("Free fewer parameters (e.g. FREE look:0), give them prior sigmas, add control points or check "
+             "them and their measurements for gross errors")
+
+
+def _named(names, limit=5):
+    """Up to `limit` distinct names, comma-separated, with "..." when there are more."""
+    unique = list(dict.fromkeys(str(n) for n in names))
+    return ", ".join(unique[:limit]) + (" ..." if len(unique) > limit else "")
+
+
+def _check_linearisation(geo, pts, position, arrays, ok, iteration):
+    """Raise GeometryError naming the cause of a NaN or infinity in a linearisation (a, b, l, N, b of
+    `_linearise`) or of a point its rays do not determine (`ok` False): the measurements (points and
+    images) whose model gives no finite position or derivatives, at `position` (lon, lat, h)."""
+    a, b, l, normal, rhs = arrays
+    bad = ~(np.isfinite(a).all(axis=(1, 2)) & np.isfinite(b).all(axis=(1, 2)) & np.isfinite(l).all(axis=1))
+    if bad.any():
+        points = pts["name"][geo.point_of[bad]]
+        images = [geo.params.names[geo.images[s]] for s in geo.img[bad]]
+        p = geo.point_of[np.flatnonzero(bad)[0]]
+        lon, lat, h = (float(c[p]) for c in position)
+        where = f"point {pts['name'][p]} at lon {lon:.6f}, lat {lat:.6f}, h {h:.1f} m"
+        if iteration == 1:
+            cause = ("where these points start, the sensor models give no image position: they lie outside the "
+                     "models' valid domain (check their coordinates and measurements, or leave them out)")
+        else:
+            cause = (f"the adjustment diverged: its update in iteration {iteration - 1} moved the orientation or "
+                     f"the points where the sensor models are not valid. {_DIVERGED}")
+        raise GeometryError(f"{int(bad.sum())} image measurement(s) have no finite image position or derivatives "
+                            f"(points {_named(points)}; images {_named(images)}; first: {where}): {cause}")
+    if not ok.all():
+        raise GeometryError(f"the image rays of point(s) {_named(pts['name'][~ok])} do not determine them in "
+                            f"iteration {iteration} (parallel rays): leave them out or measure them in an image "
+                            f"that sees them from another direction")
+    if not (np.isfinite(normal).all() and np.isfinite(rhs).all()):
+        raise GeometryError(f"the normal equations of iteration {iteration} overflow (not finite) although every "
+                            "image position and derivative is finite: check the sigmas of the measurements and "
+                            "control points (none may be near 0) and the priors")
 
 
 def _redundancy(geo, pts, ok, prior):
@@ -411,29 +497,42 @@ def _scaled(normal):
     return 1.0 / d
 
 
-def _solve_jacobi(normal, rhs):
-    """N^-1 rhs (rhs (n, k)) with Jacobi scaling (unknowns of m and rad mixed): Cholesky
-    (normals.cholesky_solve), LAPACK where N is not positive definite."""
+def _solve_jacobi(normal, rhs, labels=None, prior=None):
+    """N^-1 rhs (rhs (n, k)) with Jacobi scaling (unknowns of m and rad mixed) by Cholesky
+    (normals.cholesky_solve). A matrix it finds not positive definite is singular to rounding (the
+    normal equations are positive semi-definite, and regular by find_defects in the first
+    iteration): DefectError naming the combinations of `labels` (default "unknown <k>"; prior: the
+    priors' weights in N) whose eigenvalues are below DEFECT_EIGENVALUE, or else the one of the
+    smallest eigenvalue."""
     s = _scaled(normal)
     scaled = np.ascontiguousarray(normal * s[:, None] * s[None, :])
     out = np.empty(rhs.shape)
-    if not normals.cholesky_solve(scaled, np.ascontiguousarray(rhs * s[:, None]), out):
-        out = np.linalg.solve(scaled, rhs * s[:, None])
-    return out * s[:, None]
+    if normals.cholesky_solve(scaled, np.ascontiguousarray(rhs * s[:, None]), out):
+        return out * s[:, None]
+    labels = labels or [f"unknown {k}" for k in range(len(normal))]
+    error = find_defects(normal, labels, DEFECT_EIGENVALUE, prior)
+    if error is None:
+        vec = np.linalg.eigh(scaled)[1][:, 0]
+        order = np.argsort(-np.abs(vec))
+        group = [labels[q] for q in order[np.abs(vec[order]) > DEFECT_MEMBER]]
+        error = DefectError("the normal equations became singular during the iteration, in the combination of "
+                            + " with ".join(group[:4]) + ". Fix some of these parameters or give them prior "
+                            "sigmas", [group])
+    raise error
 
 
-def _solve_scaled(normal, rhs):
-    """Solve N x = b."""
+def _solve_scaled(normal, rhs, labels=None, prior=None):
+    """Solve N x = b (_solve_jacobi)."""
     if not normal.size:
         return np.zeros(0)
-    return _solve_jacobi(normal, rhs[:, None])[:, 0]
+    return _solve_jacobi(normal, rhs[:, None], labels, prior)[:, 0]
 
 
-def _inverse_scaled(normal):
-    """N^-1."""
+def _inverse_scaled(normal, labels=None, prior=None):
+    """N^-1 (_solve_jacobi)."""
     if not normal.size:
         return np.zeros((0, 0))
-    return _solve_jacobi(normal, np.eye(len(normal)))
+    return _solve_jacobi(normal, np.eye(len(normal)), labels, prior)
 
 
 def check_points(adjustment, observations, height=0.0):
@@ -441,14 +540,21 @@ def check_points(adjustment, observations, height=0.0):
     their ground coordinates. Returns a dict: names, dE, dN, dH (m, computed - reference) and
     the theoretical sigma E/N/H of each: the intersection's own (image sigmas scaled by sigma_0)
     plus the orientation covariance propagated, C = Ni + G C_oo G' (G = -Ni sum C_j, normals.py),
-    plus the check point's own ground sigma."""
+    plus the check point's own ground sigma; "left_out": the names of the check points that cannot be
+    intersected (fewer than two measurements, parallel rays)."""
+    with normals.kernel_threads(len(observations.measurements)):
+        return _check_points(adjustment, observations, height)
+
+
+def _check_points(adjustment, observations, height):
     params = adjustment.parameters
     chk = observations.subset(observations.points["role"] == "check")
     m = chk.measurements
     if not len(m):
         return {"names": chk.points["name"][:0], "dE": np.zeros(0), "dN": np.zeros(0), "dH": np.zeros(0),
-                "sigma": np.zeros((0, 3))}
+                "sigma": np.zeros((0, 3)), "left_out": list(chk.points["name"])}
     cut = intersect(params.models, m["image_id"], m["point"], m["col"], m["row"], m["sigma"], h0=height)
+    left_out = list(chk.points["name"][~np.isin(np.arange(len(chk.points)), cut.point[cut.ok])])
     chk = chk.subset(np.isin(np.arange(len(chk.points)), cut.point[cut.ok]))
     pts = chk.points
     lon, lat, h, ninv = cut.lon[cut.ok], cut.lat[cut.ok], cut.h[cut.ok], cut.covariance[cut.ok]
@@ -459,13 +565,15 @@ def check_points(adjustment, observations, height=0.0):
     e_deg, n_deg = metres_per_degree(pts["lat"], pts["h"])
     ground = np.column_stack([pts["sigma_e"], pts["sigma_n"], pts["sigma_h"]])
     return {"names": pts["name"], "dE": (lon - pts["lon"]) * e_deg, "dN": (lat - pts["lat"]) * n_deg,
-            "dH": h - pts["h"], "sigma": np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + np.nan_to_num(ground) ** 2)}
+            "dH": h - pts["h"], "sigma": np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + np.nan_to_num(ground) ** 2),
+            "left_out": left_out}
 
 
 class Restart:
     """Repeated adjustments of one block, each from the orientation the models had when this was
     made (the supplied one), so fixed parameters and priors keep their meaning: the variance
-    components and the parameter selection. `observations` is the default set; `count` the runs."""
+    components and the parameter selection. `observations` is the default set; `count` the runs;
+    `overrides` of a call replace adjust_kwargs for that run."""
 
     def __init__(self, models, observations, names=None, feedback=None, **adjust_kwargs):
         self.base = OrientationParameters(models, names)
@@ -473,8 +581,8 @@ class Restart:
         self.feedback, self.kwargs = feedback, adjust_kwargs
         self.count = 0
 
-    def __call__(self, free, observations=None):
+    def __call__(self, free, observations=None, **overrides):
         self.base.apply(np.zeros(len(self.base)))
         self.count += 1
         return adjust(self.models, self.observations if observations is None else observations, list(free),
-                      names=self.names, feedback=progress.quiet(self.feedback), **self.kwargs)
+                      names=self.names, feedback=progress.quiet(self.feedback), **{**self.kwargs, **overrides})

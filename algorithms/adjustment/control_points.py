@@ -102,7 +102,10 @@ class _Table:
         first = text.splitlines()[0] if text.strip() else ""
         delimiter = max(",;\t", key=first.count)
         reader = csv.reader(io.StringIO(text), delimiter=delimiter)
-        header = next(reader, None)
+        try:
+            header = next(reader, None)
+        except csv.Error as exc:        # e.g. a lone carriage return inside the header line
+            raise InputError(f"{self.path} line 1: {exc}") from exc
         if not header or not any(h.strip() for h in header):
             raise InputError(f"{self.path} is empty: the first line must name the columns")
         self.header = [h.strip() for h in header]

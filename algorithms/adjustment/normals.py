@@ -11,11 +11,37 @@ Ground observations of control points: v = dX_p - l_g with weights Wg_p (3, diag
     b    = sum_j B_j' W l_j - sum_p (sum_j C_j)' N_pp^-1 b_p
     dX_p = N_pp^-1 (b_p - sum_j C_j do)
 
-so the cost grows linearly with the number of points."""
-import math
+so the cost grows linearly with the number of points.
 
+The kernels here and the sensor models' are parallel over points. A block adjustment calls them many
+times on small arrays (the automatic selection runs dozens of adjustments of a few hundred points):
+there, starting a parallel region and the idle threads' spinning cost more than the work, so
+`kernel_threads` runs them on the calling thread below SERIAL_MEASUREMENTS image measurements. The
+results do not depend on it: the points are reduced in CHUNKS chunks whatever the threads."""
+import contextlib
+import math
+from collections.abc import Iterator
+
+import numba
 import numpy as np
 from numba import njit, prange
+
+#: below this many image measurements the adjustment's kernels run on the calling thread (module docstring)
+SERIAL_MEASUREMENTS = 20000
+
+
+@contextlib.contextmanager
+def kernel_threads(measurements: int) -> Iterator[None]:
+    """Run the numba kernels called inside on the calling thread alone when `measurements` is below
+    SERIAL_MEASUREMENTS (numba's thread count is per calling thread: other threads are not affected);
+    the previous count is restored on leaving."""
+    saved = numba.get_num_threads()
+    if measurements < SERIAL_MEASUREMENTS:
+        numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(saved)
 
 
 @njit(cache=True, nogil=True)

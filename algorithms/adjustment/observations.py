@@ -52,6 +52,10 @@ class Observations:
             raise InputError("an image measurement refers to a point that does not exist")
         if m.size and not (np.isfinite(m["sigma"]).all() and (m["sigma"] > 0).all()):
             raise InputError("every image measurement needs a positive sigma")
+        blank = ~(np.isfinite(m["col"]) & np.isfinite(m["row"]))
+        if blank.any():
+            raise InputError(f"the measurement of point {p['name'][m['point'][blank][0]]!r} in image id "
+                             f"{m['image_id'][blank][0]} has no image coordinates (col, row must be numbers)")
         names, counts = np.unique(p["name"], return_counts=True)
         if (counts > 1).any():
             raise InputError(f"point name {names[counts > 1][0]!r} is used twice")

@@ -3,8 +3,9 @@ Kornus et al. 2006, Table 2 (value, sigma, x/sigma, maximum effect in pixels ove
 the check point statistics of Kornus et al. 2006, Table 3 (dE, dN, dH: n, min, mean, max, RMS, sigma, with the
 theoretical RMS), the tie point heights against a reference DTM of Kornus et al. 2006, Table 4 (dh: n, min, mean,
 max, RMS, sigma; tie_heights.py), the residuals per control/check point (residual_vectors.py),
-the removed blunders and the count of measurements still flagged. The same sections render as
-text (the log) and as HTML tables (one self-contained page)."""
+the removed blunders and the count of measurements still flagged. A solution that did not converge
+opens the report with an alert section (red in HTML) saying so. The same sections render as text
+(the log) and as HTML tables (one self-contained page)."""
 import html
 from dataclasses import dataclass, field
 
@@ -26,6 +27,7 @@ class Section:
     header: tuple = ()
     rows: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    alert: bool = False         # shown first and prominently (a solution not to be used)
 
 
 def coefficient_rows(result):
@@ -48,8 +50,16 @@ def _statistics_cells(row):
 def sections(result, check=None, table=None, critical=CRITICAL_W, heights=None, vectors=None):
     """The report's Sections. check: bundle.check_points; table: statistics_table of its dE, dN, dH;
     heights: (TieHeights, description of the reference); vectors: residual_vectors.residual_vectors."""
+    state = "converged" if result.converged else "NOT converged"
     out = [Section("Adjustment", notes=[f"sigma_0 = {result.sigma0:.4f} (a priori 1), redundancy "
-                                        f"{result.redundancy}, {result.iterations} iteration(s)"])]
+                                        f"{result.redundancy}, {result.iterations} iteration(s), {state}",
+                                        *result.notes])]
+    if not result.converged:
+        out.insert(0, Section("Not converged: these results were not stored", alert=True, notes=[
+            f"The adjustment stopped after {result.iterations} iteration(s) with a last point update of "
+            f"{result.last_update:.3g} m: the values, sigmas and residuals below are those of its last iteration, "
+            "not of a least squares solution, and the block keeps its models. Raise the maximum iterations; "
+            "if it still does not converge, free fewer parameters or check the control points."]))
     out.append(Section("Free orientation parameters (Kornus et al. 2006, Table 2)",
                        ("parameter", "value", "sigma", "x/sigma", "unit", "max. effect px"),
                        [(n, f"{v:.4f}", f"{s:.4f}", f"{t:.1f}", u, f"{e:.3f}")
@@ -70,6 +80,10 @@ def sections(result, check=None, table=None, critical=CRITICAL_W, heights=None, 
             if bad.size:
                 out[-1].notes.append(f"included: {bad.size} check point(s) with |w| > {critical:g} in their "
                                      f"intersection ({', '.join(bad)})")
+    if check is not None and check.get("left_out"):
+        out.append(Section("Check points left out", notes=[
+            f"{len(check['left_out'])} check point(s) cannot be intersected (fewer than two image measurements "
+            f"or parallel rays): {', '.join(map(str, check['left_out']))}"]))
     if heights is not None:
         tie, reference = heights
         out.append(Section("Tie point heights against the reference DTM (Kornus et al. 2006, Table 4)",
@@ -131,19 +145,20 @@ def html_sections(parts):
     """Sections as HTML (headings, tables, note paragraphs)."""
     body = []
     for s in parts:
-        body.append(f"<h2>{html.escape(s.title)}</h2>")
+        body.append(f"<h2 class='alert'>{html.escape(s.title)}</h2>" if s.alert else f"<h2>{html.escape(s.title)}</h2>")
         if s.rows:
             body.append("<table><tr>" + "".join(f"<th>{html.escape(str(h))}</th>" for h in s.header) + "</tr>")
             body += ["<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in s.rows]
             body.append("</table>")
-        body += [f"<p>{html.escape(n)}</p>" for n in s.notes]
+        body += [f"<p class='alert'>{html.escape(n)}</p>" if s.alert else f"<p>{html.escape(n)}</p>" for n in s.notes]
     return "\n".join(body)
 
 
 def write_html(path, title, text="", parts=()):
     """A self-contained HTML page: the Sections `parts` as tables, then `text` preformatted."""
     style = ("body{font-family:sans-serif}table{border-collapse:collapse}th,td{border:1px solid #bbb;"
-             "padding:2px 8px;text-align:right}th:first-child,td:first-child{text-align:left}")
+             "padding:2px 8px;text-align:right}th:first-child,td:first-child{text-align:left}"
+             ".alert{color:#b00000;font-weight:bold}")
     pre = f"<pre>{html.escape(text)}</pre>" if text else ""
     write_text(path, f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
                      f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>\n{html_sections(parts)}\n"

@@ -3,13 +3,27 @@
 Step 1: the look-angle correction coefficients (degree 0-`look_degree` of psi_x, psi_y of every
 SPOT image; the affine bias of every RPC image) are estimated with the exterior ones fixed. Those
 whose significance |x| / sigma_x is below `significance` are fixed (to the supplied value, i.e. an
-increment of 0) one at a time, the least significant first, each followed by a new adjustment;
-a coefficient stays free, whatever its significance, when fixing it makes the control point
-residuals larger (image RMS per image, or ground RMS per E/N/H, up by more than `max_increase`)
-or systematic (a mean residual of the control points in an image that a t-test finds non-zero
-at `systematic`, when it was not before). "Up" means by more than `max_increase` of the RMS and
-more than MIN_INCREASE of the observations' a priori sigma: control residuals far below their
-sigma can grow by 20 % without anything becoming visible.
+increment of 0) one at a time, the least significant first, each followed by a new adjustment. Of
+a look-angle polynomial (an image's psi_x or psi_y over the detector) only the highest free degree
+is a candidate: it keeps its lower degrees while a higher one is free. Over the detector, centred,
+the constant and the quadratic term are strongly correlated, so either may look insignificant
+alone; fixing the constant would leave the quadratic and cubic terms to stand in for a shift, and
+they extrapolate it wildly towards the image borders. (The exterior polynomials over time are not
+held so: their constants stand in for the images' look-angle constants, and those are preferred.)
+A coefficient stays free, whatever its significance, when fixing it makes the control point
+residuals larger (image RMS per image, or ground RMS per E/N/H) or systematic (a mean residual of
+the control points in an image that a t-test finds non-zero, when it was not before).
+"Larger" means up by more than `max_increase` of the RMS, and by more than chance explains: the m
+control residuals concerned (2 per measurement in an image, or one per control point in E, N or H)
+gain more than significance^2 in their share of v'Pv, m (RMS_new^2 - RMS_old^2) / sigma^2 >
+significance^2 (the chi-square(1) quantile of the significance test's alpha: fixing one
+coefficient that is truly zero raises the whole v'Pv by chi-square(1)). Control residuals far
+below their sigma, or a few control points that an over-flexible set fits exactly, can thus grow
+without keeping the coefficient. `systematic` is the t-test's threshold as a normal quantile (3.0:
+alpha 0.27 %, two-sided); with n control measurements in an image the mean over their sigma
+follows Student's t with n - 1 degrees of freedom, so the threshold is its quantile of the same
+alpha (`t_threshold`; 6.6 for five control points, where a plain 3.0 is exceeded by chance in 4 %
+of the tests, not 0.27 %).
 Step 2: the exterior coefficients (degree 0-`exterior_degree` of every trajectory) are tested with
 the chosen look-angle set, first the attitude (yaw, pitch, roll), then the position (X, Y, Z):
 the orbit is better known than the attitude, and a position drift can mimic an attitude drift.
@@ -30,6 +44,7 @@ first). Every step is logged; the user overrides the result by giving the free s
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.special import ndtr, stdtrit
 
 from .. import progress
 from ..errors import InputError
@@ -40,8 +55,6 @@ from .variance import estimate
 #: eigenvalue threshold of the defect test while selecting (bundle.find_defects): only numerically
 #: singular combinations are fixed before solving; weakly determined ones are left to the significance test
 SELECTION_DEFECT_EIGENVALUE = 1e-10
-#: a control residual RMS counts as grown only when it grew by more than this share of the a priori sigma
-MIN_INCREASE = 0.2
 #: preference when one coefficient of a defect must be fixed: first by degree (highest first),
 #: then by kind in this order (positions before attitudes before look angles)
 FIX_ORDER = ("X", "Y", "Z", "yaw", "pitch", "roll", "psi_x", "psi_y")
@@ -69,16 +82,19 @@ class _ControlState:
     ground_rms: np.ndarray
     image_sigma: dict             # a priori sigma (RMS) of the control image measurements per image
     ground_sigma: np.ndarray      # and of the control ground coordinates, E/N/H
+    image_count: dict             # control measurements per image
+    ground_count: int             # control points
 
     @classmethod
     def of(cls, result):
         obs = result.observations
         control = obs.points["role"] == "control"
         meas = control[obs.measurements["point"]]
-        rms, t, sig = {}, {}, {}
+        rms, t, sig, count = {}, {}, {}, {}
         for i in np.unique(obs.measurements["image_id"][meas]):
             sel = meas & (obs.measurements["image_id"] == i)
             v = result.residuals[sel]
+            count[int(i)] = len(v)
             rms[int(i)] = float(np.sqrt(np.mean(v * v)))
             sig[int(i)] = float(np.sqrt(np.mean(obs.measurements["sigma"][sel] ** 2)))
             n = len(v)
@@ -87,28 +103,37 @@ class _ControlState:
         g = result.ground_residuals[control]
         gs = np.column_stack([obs.points[k][control] for k in ("sigma_e", "sigma_n", "sigma_h")])
         if not len(g):
-            return cls(rms, t, np.zeros(3), sig, np.zeros(3))
-        return cls(rms, t, np.sqrt(np.mean(g * g, axis=0)), sig, np.sqrt(np.mean(gs * gs, axis=0)))
+            return cls(rms, t, np.zeros(3), sig, np.zeros(3), count, 0)
+        return cls(rms, t, np.sqrt(np.mean(g * g, axis=0)), sig, np.sqrt(np.mean(gs * gs, axis=0)), count, len(g))
 
-    def worse(self, new, max_increase, systematic, names):
-        """Reason why `new` (after fixing) is worse than self, or "" when it is not."""
-        def grown(old, now, sigma):
-            return now > old * (1.0 + max_increase) and now - old > MIN_INCREASE * sigma
+    def worse(self, new, max_increase, systematic, significance, names):
+        """Reason why `new` (after fixing) is worse than self, or "" when it is not (module docstring)."""
+        def grown(old, now, sigma, m):
+            return now > old * (1.0 + max_increase) and m * (now * now - old * old) > (significance * sigma) ** 2
 
         for i, rms in self.image_rms.items():
-            if grown(rms, new.image_rms.get(i, rms), self.image_sigma[i]):
+            if grown(rms, new.image_rms.get(i, rms), self.image_sigma[i], 2 * self.image_count[i]):
                 return (f"the control residuals in {names.get(i, i)} grow from {rms:.3f} to "
                         f"{new.image_rms[i]:.3f} px RMS")
+            threshold = t_threshold(systematic, self.image_count[i])
             for k, axis in enumerate(("col", "row")):
                 tn = new.image_t.get(i, self.image_t[i])[k]
-                if tn > systematic and tn > self.image_t[i][k]:
+                if tn > threshold >= self.image_t[i][k]:
                     return (f"the control residuals in {names.get(i, i)} become systematic in {axis} "
                             f"(mean / its sigma {tn:.1f})")
         for k, axis in enumerate("ENH"):
-            if grown(self.ground_rms[k], new.ground_rms[k], self.ground_sigma[k]):
+            if grown(self.ground_rms[k], new.ground_rms[k], self.ground_sigma[k], self.ground_count):
                 return f"the control ground residuals in {axis} grow from {self.ground_rms[k]:.3f} to " \
                        f"{new.ground_rms[k]:.3f} m RMS"
         return ""
+
+
+def t_threshold(normal_quantile: float, n: int) -> float:
+    """The threshold of |mean| / its sigma over n values (Student's t, n - 1 degrees of freedom) at the
+    two-sided alpha of `normal_quantile` for a normal variable; inf for fewer than two values."""
+    if n < 2:
+        return float("inf")
+    return float(stdtrit(n - 1, ndtr(normal_quantile)))
 
 
 def _parameter(params, name):
@@ -122,6 +147,16 @@ def _kind(params, name):
 def _fix_key(params, name):
     p = _parameter(params, name)
     return (-p.degree, FIX_ORDER.index(p.kind) if p.kind in FIX_ORDER else len(FIX_ORDER))
+
+
+def _highest_degrees(params, free):
+    """The names in `free` that may be fixed next (module docstring): of a look-angle polynomial (owner,
+    kind) the highest free degree, any other coefficient."""
+    found = [(n, _parameter(params, n)) for n in free]
+    top = {}
+    for _, p in found:
+        top[p.owner, p.kind] = max(top.get((p.owner, p.kind), -1), p.degree)
+    return {n for n, p in found if p.kind not in LOOK or p.degree == top[p.owner, p.kind]}
 
 
 def _solvable(run, free, fixable, log, what):
@@ -153,7 +188,8 @@ def _eliminate(run, result, free, fixable, significance, max_increase, systemati
         trials += 1
         params = result.parameters
         t = {params.label(q): abs(result.values[q]) / result.sigmas[q] for q in np.flatnonzero(params.free)}
-        trial = sorted((t[n], n) for n in free if n in fixable and n not in kept and t[n] < significance)
+        top = _highest_degrees(params, free)
+        trial = sorted((t[n], n) for n in free if n in fixable and n not in kept and n in top and t[n] < significance)
         if not trial:
             return result, free
         ratio, name = trial[0]
@@ -165,7 +201,7 @@ def _eliminate(run, result, free, fixable, significance, max_increase, systemati
             log(f"{what}: kept {name} (x/sigma {ratio:.1f}): the block cannot be solved without it")
             continue
         new_state = _ControlState.of(candidate)
-        reason = state.worse(new_state, max_increase, systematic, run.names or {})
+        reason = state.worse(new_state, max_increase, systematic, significance, run.names or {})
         if reason:
             kept.add(name)
             log(f"{what}: kept {name} (x/sigma {ratio:.1f}): fixing it, {reason}")
@@ -195,7 +231,7 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
         lines.append(text)
         fb.pushInfo(text)
 
-    run = Restart(models, observations, names, feedback, height=height,
+    run = Restart(models, observations, names, feedback, height=height, effects=False,
                   defect_eigenvalue=SELECTION_DEFECT_EIGENVALUE, **adjust_kwargs)
 
     def phase(start, stop):
@@ -237,7 +273,7 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
             progress.step(feedback, 90)
             result, free = _eliminate(run, result, free, set(chosen), significance, max_increase, systematic, log,
                                       "step 3", phase(90, 99))
-    result = run(free)          # the models carry the last trial's solution: adjust the chosen set again
+    result = run(free, effects=True)    # the models carry the last trial's solution: adjust the chosen set again
     progress.step(feedback, 100)
     log(f"selected {len(free)} free coefficient(s) in {run.count} adjustments: {', '.join(free) or 'none'}")
     return Selection(result, free, run.observations, components, lines)

@@ -6,9 +6,10 @@ control points. With the redundancy numbers r_i of the adjustment, the group's f
     s_g^2 = sum_g p_i v_i^2 / sum_g r_i,
 
 and its a priori sigmas are multiplied by s_g; repeated until every s_g is within `tolerance` of
-1. Matched tie points are often far more precise than the 0.5 px a priori (0.1-0.2 px), so
-without this sigma_0 mixes the groups and the control-determined unknowns get sigmas (and
-significances) off by the ratio of the groups' factors."""
+1. A group whose redundancy is below MIN_REDUNDANCY, or whose residuals are all zero (s_g = 0 would
+give it infinite weight), keeps its sigmas. Matched tie points are often far more precise than the
+0.5 px a priori (0.1-0.2 px), so without this sigma_0 mixes the groups and the control-determined
+unknowns get sigmas (and significances) off by the ratio of the groups' factors."""
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,7 +43,7 @@ def group_factors(result):
         out[group] = _factor(2 * int(sel.sum()), float(np.sum(r)), float(np.sum(w[sel, None] * v * v)))
     control = obs.points["role"] == "control"
     sig = np.column_stack([obs.points["sigma_e"], obs.points["sigma_n"], obs.points["sigma_h"]])[control]
-    qpp = (result.point_sigmas[control] / result.sigma0) ** 2
+    qpp = (result.point_sigmas[control] / result.sigma0) ** 2 if result.sigma0 > 0 else np.zeros((control.sum(), 3))
     red = 1.0 - qpp / sig ** 2
     v = result.ground_residuals[control]
     out["control ground"] = _factor(v.size, float(np.sum(red)), float(np.sum(v * v / sig ** 2)))
@@ -50,7 +51,7 @@ def group_factors(result):
 
 
 def _factor(count, redundancy, vpv):
-    ok = count and redundancy >= MIN_REDUNDANCY
+    ok = count and redundancy >= MIN_REDUNDANCY and np.isfinite(vpv) and vpv > 0.0
     return count, redundancy, float(np.sqrt(vpv / redundancy)) if ok else float("nan")
 
 

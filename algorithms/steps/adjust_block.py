@@ -5,6 +5,10 @@ and tie points and store the result.
 
 1. loads the supplied models (every adjustment starts from the orientation the block was created
    with), the control/check points and, with `use_tie_points`, the tie points (sigma `sigma_tie`);
+   screens the control points for gross errors (screening.py): a control point whose ground
+   coordinates are grossly off is an InputError naming it, or with `remove_blunders` it is left out
+   (a warning); single measurements grossly off are noted and left to data snooping (a report section
+   lists both);
 2. adjusts with one of three solvers: the automatic parameter selection (selection.py, Kornus et al.
    2006 section 3.4.3) when `free` is "auto", else variance components (variance.py) or one plain
    adjustment (bundle.adjust) of the named free parameters. With the Lagrange model (orientation images,
@@ -15,6 +19,9 @@ and tie points and store the result.
 5. stores the adjusted models and the residuals in one block transaction, refused when the block's
    control points, tie points or models changed since step 1 (Block.generations);
 6. writes the HTML report and the residual vector file when asked.
+
+A solution that did not converge within `max_iterations` is not stored: the report (when asked) is
+written with an alert section saying so, then a GeometryError says it, with the last point update.
 
 A block without control points can only be adjusted with named free parameters and priors that fix
 the datum (InputError otherwise)."""
@@ -31,13 +38,14 @@ from ..adjustment.observations import tie_observations
 from ..adjustment.parameters import MODELS
 from ..adjustment.residual_rows import residual_rows
 from ..adjustment.residual_vectors import DEFAULT_SCALE, residual_vectors, write_residual_vectors
+from ..adjustment.screening import describe, screen_control_points, without
 from ..adjustment.selection import select_parameters
 from ..adjustment.tie_heights import tie_height_differences
 from ..adjustment.variance import adjust_with_components
 from ..atomic import work_dir
 from ..block import Block
 from ..dem_store import store_dem
-from ..errors import InputError
+from ..errors import GeometryError, InputError
 from ..height_range import mean_height
 from ..sigmas import IMAGE_SIGMA
 from ..stats import statistics_table
@@ -148,9 +156,44 @@ def _solve(models, obs, names, params, options, feedback):
     return adjust(models, obs, free, names=names, feedback=feedback, **options), obs, free, extra
 
 
+def _screened(models, obs, names, remove, feedback):
+    """(observations, report sections) after screening the control points for gross errors
+    (screening.py): control points whose ground coordinates are grossly off are an InputError naming
+    them, or with `remove` left out with a warning; measurements grossly off in some images only are
+    noted and left to data snooping. A report section lists the suspects when the adjustment goes on."""
+    screening = screen_control_points(models, obs)
+    if not screening.suspects:
+        return obs, []
+    wrong = screening.ground_points()
+    if wrong and not remove:
+        raise InputError(f"control point(s) grossly off: {describe(screening, obs, names, wrong)}. Check their "
+                         "coordinates and measurements (the measurement window), make them check points "
+                         "(importpoints CHECK_IDS) to see their error after the adjustment, or set REMOVE_BLUNDERS "
+                         "to leave them out")
+    notes = []
+    if wrong:
+        notes.append(f"left out before the adjustment, grossly off: {describe(screening, obs, names, wrong)}")
+        progress.warn(feedback, notes[-1])
+    single = {s.point for s in screening.suspects} - wrong
+    if single:
+        notes.append(f"far off, left to data snooping: {describe(screening, obs, names, single)}")
+        progress.ensure(feedback).pushInfo(notes[-1])
+    points = obs.points["name"]
+    section = report.Section("Control point screening (gross errors)",
+                             ("point", "image", "offset px", "offset m", "|e| / s", "action"),
+                             [(str(points[c.point]), names.get(c.image_id, str(c.image_id)), f"{c.offset_px:.1f}",
+                               f"{c.offset_m:.0f}", f"{c.ratio:.1f}",
+                               "point left out" if c.point in wrong else "data snooping")
+                              for c in screening.suspects],
+                             notes + ["offset: from where the other control points put the point in that image, "
+                                      "with the supplied orientation (screening.py)"])
+    return without(obs, wrong), [section]
+
+
 def adjust_block(block_path, params, feedback=None):
     """Adjust the block at `block_path` with AdjustParams `params` (module docstring); returns an
-    AdjustResult. Raises InputError (settings, no control points), the solvers' errors, and
+    AdjustResult. Raises InputError (settings, no control points, control points grossly off), the
+    solvers' errors, GeometryError when the solution did not converge (nothing stored), and
     Block.transaction's StorageError when the block changed meanwhile. A reference DTM that holds no
     adjusted tie point is a warning (the height table is empty)."""
     params.check()
@@ -168,6 +211,7 @@ def adjust_block(block_path, params, feedback=None):
         raise InputError("the block has no control points: import them (pushbroom:importpoints), or adjust "
                          "with tie points alone by naming the free parameters and priors that fix the "
                          "datum (e.g. FREE bias:shift, PRIORS bias:shift=10 for RPC images)")
+    obs, screened = _screened(models, obs, names, params.remove_blunders, feedback)
     height = mean_height(blk.height_range())
     with contextlib.ExitStack() as stack:     # the reference DEM's work folder, where there is one
         dem = None
@@ -178,6 +222,7 @@ def adjust_block(block_path, params, feedback=None):
         options = {"height": height, "critical": params.critical, "priors": priors,
                    "max_iterations": params.max_iterations, "remove_blunders": params.remove_blunders}
         result, obs, free, extra = _solve(models, obs, names, params, options, feedback)
+        extra[:0] = screened
         counts = parse_counts(params.control_series)
         if counts:
             series = control_point_series(blk.models(supplied=True),            # _solve adjusted `models`
@@ -197,8 +242,17 @@ def adjust_block(block_path, params, feedback=None):
     vectors, crs = residual_vectors(result, check, obs, params.vector_scale,
                                     blk.info().get("default_crs"), params.critical)
     parts = report.sections(result, check, table, params.critical, heights, vectors)
-    parts[1:1] = extra
+    at = next(k for k, part in enumerate(parts) if not part.alert) + 1       # after the "Adjustment" section
+    parts[at:at] = extra
     progress.ensure(feedback).pushInfo(report.render_text(parts))
+    if not result.converged:
+        written = report.write_html(params.report, f"Bundle adjustment of {block_path} (not converged)",
+                                    parts=parts) if params.report else None
+        raise GeometryError(f"the adjustment did not converge in {result.iterations} iteration(s) (the last point "
+                            f"update was {result.last_update:.3g} m): nothing was stored, the block keeps its models"
+                            + (f"; the report {written} shows the last iteration" if written else "")
+                            + ". Raise MAX_ITERATIONS; if it still does not converge, free fewer parameters "
+                            "(e.g. FREE look:0) or check the control points")
     residuals = residual_rows(result, check, obs)
     # storage: the adjusted models and the residuals in one transaction, if the block is unchanged
     with blk.transaction("the adjusted models and residuals", expect=generations) as tx:

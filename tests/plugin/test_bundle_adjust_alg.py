@@ -196,6 +196,19 @@ def test_clear_errors(pushbroom_provider, adjusted_block):
         processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "USE_TIE_POINTS": True})
 
 
+def test_an_unconverged_adjustment_fails_and_stores_nothing(pushbroom_provider, adjusted_block, tmp_path):
+    """MAX_ITERATIONS 1 from the injected 20 urad: one QgsProcessingException saying so, the block's models
+    as they were, and the report written with the alert first."""
+    path = adjusted_block[0]
+    before = Block(path).generations()
+    report = tmp_path / "r.html"
+    with pytest.raises(QgsProcessingException, match=r"did not converge in 1 iteration.*nothing was stored"):
+        processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "USE_TIE_POINTS": False,
+                                                  "MAX_ITERATIONS": 1, "REPORT": str(report)})
+    assert Block(path).generations() == before
+    assert report.read_text().index("class='alert'") < report.read_text().index("<h2>Adjustment</h2>")
+
+
 def test_automatic_selection_and_variance_components(pushbroom_provider, scene, tmp_path, log):
     """FREE = auto (the default): the injected look-angle constants are chosen and the adjusted models
     put the simulator's points where the truth does; the selection's steps and the variance components
