@@ -42,10 +42,11 @@ class ImportResult:
 
 def import_points(block_path: str, csv_path: str, params: ImportParams, feedback=None) -> ImportResult:
     """Import the CSV file `csv_path` into the block at `block_path` with ImportParams `params`; returns
-    an ImportResult. Raises control_points.import_csv's InputErrors (format, CRS, implausible points, far fewer
-    points or measurements than the block holds)."""
+    an ImportResult. Raises StorageError where the block cannot be written, and control_points.import_csv's
+    InputErrors (format, CRS, implausible points, far fewer points or measurements than the block holds)."""
     # storage: control_points.import_csv writes the points and measurements in one transaction
     blk = Block(block_path)
+    blk.check_writable("the imported points")       # before the file is read and checked
     stored = cp.import_csv(
         blk, csv_path, mode=params.mode, feedback=feedback, crs=params.crs, heights=params.heights,
         default_role=params.default_role, check_ids=[c.strip() for c in (params.check_ids or "").split(",")],

@@ -237,6 +237,30 @@ def test_more_workers_than_the_machine_takes_are_capped_with_a_warning():
     assert Execution("dask", 1000 * limit, "tcp://10.0.0.5:8786").capped() is None     # a remote cluster's own
 
 
+def test_a_thousand_workers_start_no_more_processes_than_the_cap(monkeypatch):
+    """The issue's WORKERS=1000 (it exhausted the machine's memory): the local pool runs twice as many tasks as
+    the cap in at most the cap's processes, and the Dask local cluster is asked for the cap (its constructor is
+    recorded, not run: the cap's worker processes are the pool's test)."""
+    import distributed
+    limit = execution.worker_limit()
+    log = Feedback()
+    pids = run_tasks(tasks.pid_after, [(0.3,)] * (2 * limit), Execution("processes", 1000), log)
+    assert 1 < len(set(pids)) <= limit and os.getpid() not in pids
+    assert log.messages[0].startswith(f"1000 workers asked for, {limit} used: at most")
+    asked = {}
+
+    class RecordedError(Exception):
+        pass
+
+    def record(**settings):
+        asked.update(settings)
+        raise RecordedError
+    monkeypatch.setattr(distributed, "LocalCluster", record)
+    with pytest.raises(RecordedError):
+        run_tasks(tasks.pid_after, [(0.0,)], Execution("dask", 1000))
+    assert asked["n_workers"] == limit and asked["threads_per_worker"] == 1 and asked["processes"]
+
+
 def test_a_local_cluster_starts_without_its_known_warnings(recwarn):
     with execution.session(BACKENDS[2]):
         actions = run_tasks(tasks.warning_action, [(m, c.__name__) for m, c in execution.DASK_NOISE], BACKENDS[2])

@@ -64,3 +64,19 @@ def check_rms(result, observations, height, figures, label="check points"):
     figures.table(f"{label} (m)", [{"": key, "RMS": rms[k], "theoretical": theoretical[k]}
                                    for k, key in enumerate(("dE", "dN", "dH"))])
     return rms, theoretical
+
+
+#: the triplet's image names, ids and labels in the adjustment tests' scene
+NAMES = ("HRG", "HRS1", "HRS2")
+IDS = {n: k + 1 for k, n in enumerate(NAMES)}
+LABELS = {k + 1: n for k, n in enumerate(NAMES)}
+#: look-angle errors injected into the supplied models (rad): psi_x_0, psi_y_0 per image
+INJECTED = {1: (2.0e-5, -1.0e-5), 2: (-1.5e-5, 0.8e-5), 3: (1.0e-5, 1.2e-5)}
+
+
+def perturbed(scene):
+    """The scene's supplied models {id: model} with the INJECTED look-angle errors."""
+    models = scene_models(scene, NAMES)
+    for i, (dx, dy) in INJECTED.items():
+        models[i].orientation.corrections.look[:, 0] = (dx, dy)
+    return models

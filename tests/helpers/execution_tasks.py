@@ -79,3 +79,9 @@ def warning_action(message, category):
         if (text is None or text.match(message)) and issubclass(kind, of):
             return action
     return warnings.defaultaction
+
+
+def pid_after(seconds):
+    """The worker's pid, after sleeping `seconds`."""
+    time.sleep(seconds)
+    return os.getpid()

@@ -10,11 +10,15 @@ from tests.helpers.qgis_process_profile import QGIS_PROCESS, qgis_process_env
 
 
 class RecordingFeedback(QgsProcessingFeedback):
-    """QgsProcessingFeedback that also keeps the info and warning messages it is given."""
+    """QgsProcessingFeedback that also keeps the info, warning and error messages it is given."""
 
     def __init__(self):
         super().__init__()
-        self.messages, self.warnings = [], []
+        self.messages, self.warnings, self.errors = [], [], []
+
+    def reportError(self, error, fatalError=False):
+        self.errors.append(error)
+        super().reportError(error, fatalError)
 
     def pushInfo(self, text):
         self.messages.append(text)
@@ -27,7 +31,7 @@ class RecordingFeedback(QgsProcessingFeedback):
 
 @pytest.fixture
 def log():
-    """A fresh RecordingFeedback (.messages, .warnings)."""
+    """A fresh RecordingFeedback (.messages, .warnings, .errors)."""
     return RecordingFeedback()
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from osgeo import gdal
 from qgis import processing
-from qgis.core import QgsProcessingException, QgsProcessingFeedback, QgsProcessingModelAlgorithm
+from qgis.core import QgsProcessingException, QgsProcessingModelAlgorithm
 
 import pushbroom
 from pushbroom.algorithms.block import Block
@@ -28,18 +28,6 @@ OUTPUTS = {"createblock:block": "block.gpkg", "bundleadjust:report": "adjustment
            "intersectpoints:pointcloud": "points.las", "interpolatedem:dem": "dem.tif",
            "orthorectify:orthoimage": "ortho.tif", "assessaccuracy:report": "report.html",
            "assessaccuracy:table": "accuracy.csv", "assessaccuracy:dh": "dh.tif"}
-
-
-class RecordingFeedback(QgsProcessingFeedback):
-    """QgsProcessingFeedback that keeps the errors reported to it."""
-
-    def __init__(self):
-        super().__init__()
-        self.errors = []
-
-    def reportError(self, error, fatalError=False):
-        self.errors.append(error)
-        super().reportError(error, fatalError)
 
 
 def builder():
@@ -78,7 +66,7 @@ def test_model_file_is_what_the_script_builds(pushbroom_provider, tmp_path):
     assert {p.name() for p in dense.parameterDefinitions()}.isdisjoint({"STEP", "MAX_EDGE"})
 
 
-def test_cheap_inputs_are_checked_before_the_matching(pushbroom_provider, small_scene, tmp_path):
+def test_cheap_inputs_are_checked_before_the_matching(pushbroom_provider, small_scene, tmp_path, log):
     """QGIS checks a model's inputs only by type: the control points are imported, and the image to
     orthorectify is looked up, before the matching, not after the whole chain (before: the last step)."""
     for path in (MODEL, DENSE_MODEL):
@@ -88,10 +76,9 @@ def test_cheap_inputs_are_checked_before_the_matching(pushbroom_provider, small_
                   "POINTS": small_scene["points"], "MEAS_SUFFIX": "_meas", "REFERENCE": small_scene["dsm"],
                   "IMAGE_NAME": "SPOT", "createblock:block": str(block),
                   **{key: str(tmp_path / name) for key, name in OUTPUTS.items() if key != "createblock:block"}}
-    feedback = RecordingFeedback()
     with pytest.raises(QgsProcessingException):
-        processing.run(load(MODEL), parameters, feedback=feedback)
-    assert any("the block has no image 'SPOT'" in m for m in feedback.errors)      # the reason, named
+        processing.run(load(MODEL), parameters, feedback=log)
+    assert any("the block has no image 'SPOT'" in m for m in log.errors)      # the reason, named
     info = Block(block).info()
     assert "mass_points" not in info                     # refused before the matching ran
     assert len(Block(block).control_points().points)    # the points were imported first

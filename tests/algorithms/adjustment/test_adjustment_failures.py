@@ -16,26 +16,13 @@ from pushbroom.algorithms.adjustment.screening import describe, screen_control_p
 from pushbroom.algorithms.adjustment.selection import t_threshold
 from pushbroom.algorithms.errors import GeometryError, InputError
 from pushbroom.algorithms.simulation import SceneConfig
-from tests.helpers.adjustment_scene import point_observations, scene_models
-
-NAMES = ("HRG", "HRS1", "HRS2")
-IDS = {n: k + 1 for k, n in enumerate(NAMES)}
-LABELS = {k + 1: n for k, n in enumerate(NAMES)}
-#: look-angle errors of the supplied models (rad): psi_x_0, psi_y_0 per image (as test_bundle.py)
-INJECTED = {1: (2.0e-5, -1.0e-5), 2: (-1.5e-5, 0.8e-5), 3: (1.0e-5, 1.2e-5)}
+from tests.helpers.adjustment_scene import IDS, LABELS, perturbed, point_observations
 
 
 @pytest.fixture(scope="module")
 def scene(simulated):
     """Supplied orientation = truth, 30 point candidates (0.3 px measurement noise); test_bundle.py's scene."""
     return simulated(SceneConfig.small(points=30, error_scale=0.0))
-
-
-def perturbed(scene):
-    models = scene_models(scene, NAMES)
-    for i, (dx, dy) in INJECTED.items():
-        models[i].orientation.corrections.look[:, 0] = (dx, dy)
-    return models
 
 
 def test_an_exact_defect_with_a_negative_eigenvalue_is_named():

@@ -9,26 +9,23 @@ from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.simulation import SceneConfig
-from tests.helpers.adjustment_scene import check_rms, point_observations, scene_models, synthetic_points
-
-NAMES = ("HRG", "HRS1", "HRS2")
-IDS = {n: k + 1 for k, n in enumerate(NAMES)}
-LABELS = {k + 1: n for k, n in enumerate(NAMES)}
-#: look-angle errors injected into the supplied models (rad): psi_x_0, psi_y_0 per image
-INJECTED = {1: (2.0e-5, -1.0e-5), 2: (-1.5e-5, 0.8e-5), 3: (1.0e-5, 1.2e-5)}
+from tests.helpers.adjustment_scene import (
+    IDS,
+    INJECTED,
+    LABELS,
+    NAMES,
+    check_rms,
+    perturbed,
+    point_observations,
+    scene_models,
+    synthetic_points,
+)
 
 
 @pytest.fixture(scope="module")
 def scene(simulated):
     """Supplied orientation = truth, 30 point candidates (0.3 px measurement noise)."""
     return simulated(SceneConfig.small(points=30, error_scale=0.0))
-
-
-def perturbed(scene):
-    models = scene_models(scene, NAMES)
-    for i, (dx, dy) in INJECTED.items():
-        models[i].orientation.corrections.look[:, 0] = (dx, dy)
-    return models
 
 
 def dense_reference(start, a, b, l, w, img, col, wg, lg, nfree):

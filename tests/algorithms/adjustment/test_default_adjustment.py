@@ -51,7 +51,7 @@ def matched(small_scene_block, tmp_path_factory):
     return folder
 
 
-def block_with_points(matched, small_scene, tmp_path, check, edit=None):
+def block_with_points(matched, small_scene, tmp_path, check, edit=None, keep_implausible=False):
     """A copy of the matched block with the simulator's points imported (`check` the check points); `edit`
     changes the CSV's rows ({id: row}) first. Returns the block path."""
     folder = tmp_path / "block"
@@ -65,7 +65,8 @@ def block_with_points(matched, small_scene, tmp_path, check, edit=None):
         writer.writeheader()
         writer.writerows(rows)
     import_points(str(folder / "block.gpkg"), str(tmp_path / "points.csv"),
-                  ImportParams(check_ids=",".join(check), suffix="_meas"))
+                  ImportParams(check_ids=",".join(check), suffix="_meas",
+                               keep_implausible=keep_implausible))
     return str(folder / "block.gpkg")
 
 
@@ -110,12 +111,15 @@ def test_an_unmeasured_control_point_takes_no_part(matched, small_scene, tmp_pat
 
 
 def test_a_control_point_1_km_off_is_named_or_left_out(matched, small_scene, tmp_path):
-    """P003 moved 1 km north (within importpoints' 2 km plausibility): by default an InputError names it
-    with its offset and nothing is stored; with REMOVE_BLUNDERS it is left out with a warning and a report
-    section, and the four others control the block."""
+    """P003 moved 1 km north: importpoints refuses it, naming it; imported anyway (KEEP_IMPLAUSIBLE), the
+    adjustment by default raises an InputError naming it with its offset and stores nothing; with
+    REMOVE_BLUNDERS it is left out with a warning and a report section, and the four others control the
+    block."""
     def move(rows):
         rows["P003"]["lat"] = str(float(rows["P003"]["lat"]) + 1000.0 / 111_000.0)
-    path = block_with_points(matched, small_scene, tmp_path, ("P002", "P006"), move)
+    with pytest.raises(InputError, match=r"P003: its measurements meet .* and (99\d|10\d\d) m beside its position"):
+        block_with_points(matched, small_scene, tmp_path / "refused", ("P002", "P006"), move)
+    path = block_with_points(matched, small_scene, tmp_path, ("P002", "P006"), move, keep_implausible=True)
     before = Block(path).generations()
     named = r"P003: HRG [\d.]+ px \((99\d|100\d) m\).*ground coordinates.*REMOVE_BLUNDERS"     # 1 km within 1 %
     with pytest.raises(InputError, match=named):

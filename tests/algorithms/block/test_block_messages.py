@@ -71,20 +71,29 @@ def test_files_that_are_no_whole_block_are_named(block, tmp_path, capfd):
 
 AS_USER = """
 import json, sys
-from pushbroom.algorithms.block import Block
+from pushbroom.algorithms.steps.adjust_block import AdjustParams, adjust_block
+from pushbroom.algorithms.steps.block_matching import MatchParams, match_block_points
+from pushbroom.algorithms.steps.block_tie_points import TieParams, select_block_tie_points
+from pushbroom.algorithms.steps.point_files import ImportParams, import_points
+steps = {"bundleadjust": lambda path: adjust_block(path, AdjustParams()),
+         "importpoints": lambda path: import_points(path, "points.csv", ImportParams()),
+         "matchpoints": lambda path: match_block_points(path, MatchParams()),
+         "selecttiepoints": lambda path: select_block_tie_points(path, TieParams())}
 messages = {}
 for path in sys.argv[1:]:
-    try:
-        Block(path).check_writable("the adjusted models")
-    except Exception as exc:
-        messages[path] = str(exc)
+    for name, step in steps.items():
+        try:
+            step(path)
+        except Exception as exc:
+            messages[f"{name} {path}"] = str(exc)
 print(json.dumps(messages))
 """
 
 
 def test_a_block_the_user_may_not_write_is_refused_before_any_work(block):
     """A read-only block file; a writable block file in a read-only folder, where SQLite cannot create its
-    journal (before: "is not a Pushbroom block", and "attempt to write a readonly database" after the adjustment)."""
+    journal (before: "is not a Pushbroom block", and "attempt to write a readonly database" after the adjustment):
+    every step that stores into the block refuses it first, by its entry point, as an unprivileged user."""
     public = tempfile.mkdtemp(prefix="pushbroom-msgs-", dir="/tmp")
     try:
         os.chmod(public, 0o755)
@@ -104,12 +113,14 @@ def test_a_block_the_user_may_not_write_is_refused_before_any_work(block):
         result = subprocess.run(command, capture_output=True, text=True, env=env, cwd=public, check=True)
         messages = json.loads(result.stdout)
         user = "nobody" if os.geteuid() == 0 else None
-        file_message, folder_message = messages[paths[0]], messages[paths[1]]
-        assert "the block file is not writable by you (user " in file_message
-        assert "it belongs to root, permissions -r--r--r--" in file_message or user is None
-        assert f"its folder {os.path.dirname(paths[1])} is not writable by you" in folder_message
-        assert "SQLite must create a journal there (b.gpkg-journal)" in folder_message
-        assert all("nothing was stored" in m for m in (file_message, folder_message))
+        assert len(messages) == 8, messages
+        for step in ("bundleadjust", "importpoints", "matchpoints", "selecttiepoints"):
+            file_message, folder_message = messages[f"{step} {paths[0]}"], messages[f"{step} {paths[1]}"]
+            assert "the block file is not writable by you (user " in file_message
+            assert "it belongs to root, permissions -r--r--r--" in file_message or user is None
+            assert f"its folder {os.path.dirname(paths[1])} is not writable by you" in folder_message
+            assert "SQLite must create a journal there (b.gpkg-journal)" in folder_message
+            assert all("nothing was stored" in m for m in (file_message, folder_message))
         assert "GDAL" not in result.stderr and "Warning" not in result.stderr      # no GDAL line before them
     finally:
         for name in ("file", "folder"):

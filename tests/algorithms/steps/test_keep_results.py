@@ -12,7 +12,12 @@ from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.steps.block_creation import CreateParams, create_block
-from pushbroom.algorithms.steps.block_matching import MatchParams, check_height_range, match_block_points
+from pushbroom.algorithms.steps.block_matching import (
+    MatchParams,
+    check_height_range,
+    match_block_points,
+    terrain_source,
+)
 from pushbroom.algorithms.steps.block_tie_points import TieParams, select_block_tie_points
 from tests.helpers.feedback import Feedback
 from tests.helpers.points_synthetic import two_ray_points
@@ -70,6 +75,16 @@ def test_a_range_missing_a_guessed_terrain_or_most_of_it_is_a_warning(searched, 
         assert any(warned in m for m in log.messages), log.messages
     else:
         assert log.messages == []
+
+
+def test_a_range_beside_the_terrain_of_the_height_search_is_refused():
+    """The issue's block took its terrain heights from createblock's height search: measured, so a range
+    beside them is an error, as beside a DEM's."""
+    source = terrain_source({"height_search": "318 points matched over 0 to 2000 m"})
+    assert source == ("matching at its creation", True)
+    with pytest.raises(InputError, match=r"6000 to 6500 m .* miss the block's terrain heights, 280 to 970 m "
+                                         r"\(from matching at its creation\)"):
+        check_height_range((6000.0, 6500.0), (280.0, 970.0), source)
 
 
 def test_region_growing_that_finds_nothing_keeps_the_stored_points(matched):
