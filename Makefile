@@ -6,7 +6,7 @@ APT_PACKAGES := qgis python3-qgis qgis-providers python3-gdal gdal-bin python3-s
                 python3-dask python3-distributed python3-rasterio python3-xarray python3-skimage
 # the test and lint pins equal pyproject.toml's extras (tests/test_packaging.py checks it)
 PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest-qgis==2.1.0 \
-            hypothesis==6.112.2 laspy==2.5.4 lazrs==0.8.2 libsgm==0.5.2 ruff==0.17.6
+            hypothesis==6.112.2 pytest-xdist==3.6.1 laspy==2.5.4 lazrs==0.8.2 libsgm==0.5.2 ruff==0.17.6
 # CNES pandora, the dense matcher's reference in one test (tests/algorithms/dense/test_sgm_pandora.py), in its own
 # folder that only that test puts on sys.path: json-checker's and pandora-plugin-libsgm's wheels install a top-level
 # `tests` package, which in the venv would shadow ours in QGIS's processes. Without its dependencies, which come
@@ -66,9 +66,10 @@ $(PROFILE)/.enabled: .venv/.setup-done metadata.txt | $(RUNTIME)
 lint: .venv/.setup-done
 	.venv/bin/ruff check .
 
-# The whole suite, slow end-to-end tests included (CI runs this).
+# The whole suite, slow end-to-end tests included (CI runs this), on two pytest-xdist workers: a file's tests in
+# one, the real-data tests together and first (tests/conftest.py).
 test: setup
-	$(PY) -m pytest -q --durations=15 tests
+	$(PY) -m pytest -q -n 2 --dist loadgroup --durations=15 tests
 
 # Without the slow end-to-end tests, for quick iterations.
 test-fast: setup

@@ -185,6 +185,25 @@ def pytest_configure(config):
     config.stash[_FIGURES] = Figures()
 
 
+def in_xdist_worker(config):
+    """Whether this session is a pytest-xdist worker (`make test` runs the suite on two)."""
+    return hasattr(config, "workerinput")
+
+
+@pytest.hookimpl(tryfirst=True)        # before pytest-xdist's worker reads the groups
+def pytest_collection_modifyitems(config, items):
+    """With pytest-xdist workers (`make test`: two, --dist loadgroup), each file's tests run in one worker, so its
+    module fixtures are built once; the real-data tests all in one, as their session fixtures
+    (tests/real/conftest.py) are minutes of matching shared between files; and that group first, as the longest.
+    The order is the same in every worker, as pytest-xdist requires."""
+    if not getattr(config.option, "numprocesses", None) and not in_xdist_worker(config):
+        return
+    for item in items:
+        path = item.nodeid.split("::")[0]
+        item.add_marker(pytest.mark.xdist_group("real data" if path.startswith("tests/real/") else path))
+    items.sort(key=lambda item: not item.nodeid.startswith("tests/real/"))
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
     item.config.stash[_FIGURES].current = item.nodeid
@@ -213,9 +232,18 @@ def pushbroom_provider(qgis_processing, qgis_iface):
     plugin.unload()
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    """A pytest-xdist worker's figures, into the session's."""
+    node.config.stash[_FIGURES].merge(getattr(node, "workeroutput", {}).get("figures", {}))    # none if it crashed
+
+
 def pytest_sessionfinish(session, exitstatus):
     _EXIT["status"] = int(exitstatus)
     figures = session.config.stash[_FIGURES]
+    if in_xdist_worker(session.config):
+        session.config.workeroutput["figures"] = figures.entries()
+        return
     if figures:
         from pushbroom.algorithms.atomic import write_text
         FIGURES_PATH.parent.mkdir(exist_ok=True)
@@ -228,7 +256,10 @@ def pytest_unconfigure(config):
 
     QGIS 3.22 can segfault while the interpreter tears down its objects after
     QgsApplication.exitQgis() (seen after a Processing run that failed in processAlgorithm),
-    which would turn a passing run into a crash. Nothing of ours runs after this point."""
+    which would turn a passing run into a crash. Nothing of ours runs after this point. A pytest-xdist worker
+    leaves as pytest-xdist has it (its results are sent, the controller gives the exit status)."""
+    if in_xdist_worker(config):
+        return
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(_EXIT["status"])

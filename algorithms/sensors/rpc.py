@@ -295,21 +295,27 @@ def _check_geometry(arrays, values, source):
                                           f"same image {coordinate}")
     if arrays["samp_den"][0] == 0.0 or arrays["line_den"][0] == 0.0:
         return                                  # from_fields names a denominator vanishing at the centre
-    sides = _pixel_sides(arrays, values)
+    sides = _pixel_sides(arrays, values, source)
     if not sides[1] > 1e-6 * sides[0]:            # a footprint a million times longer than wide: a line
         raise _metadata_error(source, "the image column and row change along one ground direction only: the "
                                       "numerators (SAMP_NUM_COEFF, LINE_NUM_COEFF) describe no image of the ground")
 
 
-def _pixel_sides(arrays, values):
+def _pixel_sides(arrays, values, source):
     """(longest, shortest) of 1 / the pixel footprint's sides at the centre, px per metre: the singular values of
-    d(col, row)/d(east, north), by the quotient rule on the terms 1, L and P of the cubics."""
+    d(col, row)/d(east, north), by the quotient rule on the terms 1, L and P of the cubics. MetadataError where
+    they are no finite numbers (coefficients or scales near the float range's end)."""
     metres = np.radians([values["long_scale"] * math.cos(math.radians(values["lat_off"])), values["lat_scale"]])
     metres *= EARTH_RADIUS
     num = {name: arrays[f"{name}_num"] for name in ("samp", "line")}
     den = {name: arrays[f"{name}_den"] for name in ("samp", "line")}
-    jacobian = np.array([[(num[name][k] * den[name][0] - num[name][0] * den[name][k]) / den[name][0] ** 2
-                          * values[f"{name}_scale"] / metres[k - 1] for k in (1, 2)] for name in ("samp", "line")])
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        jacobian = np.array([[(num[name][k] * den[name][0] - num[name][0] * den[name][k]) / den[name][0] ** 2
+                              * values[f"{name}_scale"] / metres[k - 1] for k in (1, 2)]
+                             for name in ("samp", "line")])
+    if not np.isfinite(jacobian).all():
+        raise _metadata_error(source, "the image coordinates' derivatives at the ground centre are no finite "
+                                      "numbers: coefficients, offsets or scales out of range")
     return np.linalg.svd(jacobian, compute_uv=False)
 
 
@@ -321,7 +327,7 @@ def _check_pixel_shape(coefficients, source):
     sides = _pixel_sides({"samp_num": c.samp_num, "samp_den": c.samp_den, "line_num": c.line_num,
                           "line_den": c.line_den},
                          {"lat_off": c.lat_off, "long_scale": c.long_scale, "lat_scale": c.lat_scale,
-                          "samp_scale": c.samp_scale, "line_scale": c.line_scale})
+                          "samp_scale": c.samp_scale, "line_scale": c.line_scale}, source)
     if sides[0] / sides[1] > MAX_PIXEL_ELONGATION:
         raise _metadata_error(source, f"its pixels would cover {1 / sides[1]:.3g} x {1 / sides[0]:.3g} m on the "
                                       f"ground at its centre, {sides[0] / sides[1]:.1f} times longer than wide: the "

@@ -47,6 +47,18 @@ class Figures:
         self._tests.setdefault(self.current, []).append(
             ("table", name, columns, [[format_value(r.get(c, "")) for c in columns] for r in rows]))
 
+    def entries(self):
+        """{test: [entry, ...]} in plain lists, tuples and str (what a pytest-xdist worker can send: no numpy
+        strings)."""
+        def plain(value):
+            return [plain(v) for v in value] if isinstance(value, (list, tuple)) else str(value)
+        return {str(test): [tuple(plain(v) for v in e) for e in entries] for test, entries in self._tests.items()}
+
+    def merge(self, entries):
+        """Add the `entries` of another session (a pytest-xdist worker's)."""
+        for test, found in entries.items():
+            self._tests.setdefault(test, []).extend(tuple(e) for e in found)
+
     def __bool__(self):
         return any(self._tests.values())
 

@@ -4,7 +4,6 @@ a DSM and a DTM, a point cloud; each raster as QGIS leaves it once loaded (with 
 writes), so that what the tests' runs find does not change as they load them. Used by the output-path tests
 (tests/plugin/test_output_paths_*.py)."""
 import csv
-import hashlib
 import os
 import pathlib
 import shutil
@@ -42,16 +41,3 @@ def build(folder, scene):
         QgsRasterLayer(str(raster), "", "gdal")     # writes the GDAL side file of statistics QGIS keeps of a raster
     return {"folder": str(folder), "block": str(block), "images": images, "dsm": str(folder / "dsm.tif"),
             "dtm": str(folder / "dtm.tif"), "las": str(folder / "cloud.las")}
-
-
-def fingerprint(folder):
-    """{path relative to `folder`: SHA-256 of its bytes, or 'folder'} of everything below `folder`."""
-    found = {}
-    for root, dirs, files in os.walk(folder):
-        for name in dirs:
-            found[os.path.relpath(os.path.join(root, name), folder)] = "folder"
-        for name in files:
-            path = os.path.join(root, name)
-            with open(path, "rb") as f:
-                found[os.path.relpath(path, folder)] = hashlib.sha256(f.read()).hexdigest()
-    return found

@@ -12,6 +12,7 @@ from qgis.core import QgsProcessingException
 
 from pushbroom.algorithms.block import Block
 from tests.helpers import output_world
+from tests.helpers.fingerprint import fingerprint
 
 
 @pytest.fixture(scope="module")
@@ -21,10 +22,10 @@ def world(small_scene, tmp_path_factory):
 
 def refused(algorithm, parameters, match, world):
     """processing.run refuses with a message matching `match`, and no input changed."""
-    before = output_world.fingerprint(world["folder"])
+    before = fingerprint(world["folder"])
     with pytest.raises(QgsProcessingException, match=match) as info:
         processing.run(algorithm, parameters)
-    assert output_world.fingerprint(world["folder"]) == before
+    assert fingerprint(world["folder"]) == before
     return str(info.value)
 
 

@@ -23,6 +23,7 @@ from qgis.core import (
 from pushbroom.algorithms.errors import PushbroomError
 from pushbroom.plugin.algorithms.base import filter_extensions
 from tests.helpers import output_world
+from tests.helpers.fingerprint import fingerprint
 
 #: the input parameters of each algorithm, in the world of output_world.build
 INPUTS = {
@@ -199,10 +200,10 @@ def test_outputs_are_refused_exactly_where_they_would_damage_something(pushbroom
         refused = True
     assert refused == expected, outputs
     if (refused or name in RUN_ACCEPTED) and data.draw(st.booleans(), label="run"):
-        before = output_world.fingerprint(world["folder"])
+        before = fingerprint(world["folder"])
         if refused:
             with pytest.raises(QgsProcessingException):
                 processing.run(f"pushbroom:{name}", parameters)
         else:
             processing.run(f"pushbroom:{name}", parameters)
-        assert output_world.fingerprint(world["folder"]) == before
+        assert fingerprint(world["folder"]) == before

@@ -1,13 +1,16 @@
 """Session data of the real-data tests, computed once per run and shared read-only: region growing
-on the Ventoux pair (test_dsm_real, test_coarse_to_fine_real) and region growing's triplet DSMs
-(test_dsm_real, test_coarse_to_fine_real, test_matching_pleiades)."""
+on the Ventoux pair (test_dsm_real, test_coarse_to_fine_real, test_dense_real, test_height_search_real),
+region growing's triplet DSMs (the same and test_matching_pleiades), the triplet's terrain heights found by
+matching and dense matching's triplet DSMs over them (test_dense_real, test_height_search_real)."""
 import pytest
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.combinations import match_block
+from pushbroom.algorithms.matching.height_search import search_heights
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
 from tests.helpers.feedback import Feedback
+from tests.helpers.pleiades_scene import NAMES, in_order
 from tests.helpers.real_dsm import (
     CELL,
     RG_MAX_EDGE,
@@ -16,6 +19,7 @@ from tests.helpers.real_dsm import (
     VENTOUX_STEP,
     build_triplet_dsms,
     cut,
+    refined_dense_points,
     srtm_comparison,
 )
 
@@ -41,3 +45,24 @@ def region_growing_triplet_dsms(pleiades_triplet, tmp_path_factory):
         return match_block(images, models, names=names, params=GrowParams(step=TRIPLET_STEP), workers=2)
     return build_triplet_dsms(pleiades_triplet, match, CELL, RG_MAX_EDGE, tmp_path_factory.mktemp("rg_triplet_dsm"),
                               Feedback())
+
+
+@pytest.fixture(scope="session")
+def triplet_heights_found(pleiades_triplet):
+    """matching.height_search.search_heights on the triplet (combination order): the terrain height range
+    createblock finds with no DEM and no height given."""
+    paths = in_order(pleiades_triplet)
+    return search_heights(paths, [sensors.load(p) for p in paths], list(NAMES))
+
+
+@pytest.fixture(scope="session")
+def dense_triplet_dsms(pleiades_triplet, triplet_heights_found, tmp_path_factory):
+    """real_dsm.build_triplet_dsms of dense matching (the LSM-refined dense points, real_dsm.refined_dense_points)
+    over the height range found (triplet_heights_found), as the product matches a block created without a DEM or
+    a height; "log": its timings and counts."""
+    folder, runs, log = tmp_path_factory.mktemp("dense_triplet_dsm"), iter(range(4)), Feedback()
+
+    def match(images, models, names):
+        return refined_dense_points(images, models, names, folder / f"dense-{next(runs)}",
+                                    triplet_heights_found.height_range)[0]
+    return {**build_triplet_dsms(pleiades_triplet, match, CELL, RG_MAX_EDGE, folder, log), "log": log.messages}

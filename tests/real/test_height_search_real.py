@@ -5,7 +5,9 @@ matched over the RPCs' whole validity range, the session's fixtures of tests/rea
 reference), be far narrower than that validity range, and give
 the DSM a user gets with the terrain's height typed in (that height +- 500 m): both DSMs are printed, and
 their difference must be the matching's noise (median and NMAD of a few cm). Likewise for dense matching
-(algorithms/dense): the DSMs of its LSM-refined points with the range found and with the height given."""
+(algorithms/dense) on the Ventoux pair: the DSMs of its LSM-refined points with the range found and with the
+height given. On the triplet, dense matching over the range found is test_dense_real's (the session's
+dense_triplet_dsms)."""
 import numpy as np
 import pytest
 
@@ -52,13 +54,19 @@ def dense_matched(paths, models, names, heights, folder):
     return cut({k + 1: m for k, m in enumerate(models)}, points.observations)
 
 
+def given_height(reference):
+    """The terrain's median height (of `reference`, the points matched over the RPCs' validity range), as a user
+    would type it in."""
+    return float(np.median(reference.h[reference.ok]))
+
+
 def found_and_given(paths, names, step, reference, folder=None):
     """(HeightSearch, the height given, {"found" / "given": Intersection}) for the range found and for the
-    terrain's median height (of `reference`, the points matched over the RPCs' validity range) typed in
-    (+- 500 m); region growing at `step`, or dense matching in `folder` where given."""
+    terrain's median height (given_height) typed in (+- 500 m); region growing at `step`, or dense matching in
+    `folder` where given."""
     models = [sensors.load(p) for p in paths]
     found = search_heights(paths, models, names)
-    given = float(np.median(reference.h[reference.ok]))
+    given = given_height(reference)
     if folder is not None:
         return found, given, {k: dense_matched(paths, models, names, h, folder / k)
                               for k, h in (("found", found.height_range), ("given", given))}
@@ -86,16 +94,18 @@ def compare_dsms(a, b, figures, title):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("matcher", ["region growing", "dense"])
-def test_triplet_height_found_gives_the_dsm_of_the_height(pleiades_triplet, region_growing_triplet_dsms, figures,
-                                                          matcher, tmp_path):
-    paths = in_order(pleiades_triplet)
+def test_triplet_height_found_gives_the_dsm_of_the_height(pleiades_triplet, region_growing_triplet_dsms,
+                                                          triplet_heights_found, figures):
+    """Region growing; dense matching over the range found is test_dense_real's triplet (the session's
+    dense_triplet_dsms), and its found-against-given comparison the Ventoux pair's below."""
+    paths, models = in_order(pleiades_triplet), region_growing_triplet_dsms["models"]
     points = region_growing_triplet_dsms["points"]
-    reference = cut({k + 1: m for k, m in enumerate(region_growing_triplet_dsms["models"])}, points.observations,
+    reference = cut({k + 1: m for k, m in enumerate(models)}, points.observations,
                     points.points["id"][points.points["group"] >= 2])
-    found, given, out = found_and_given(paths, list(NAMES), TRIPLET_STEP, reference,
-                                        tmp_path if matcher == "dense" else None)
-    title = f"Pleiades triplet, {matcher}"
+    found, given = triplet_heights_found, given_height(reference)
+    out = {k: matched(paths, models, list(NAMES), TRIPLET_STEP, h)
+           for k, h in (("found", found.height_range), ("given", given))}
+    title = "Pleiades triplet, region growing"
     check_range(found, reference, figures, title)
     figures.report(f"{title}: the height given", given, "m")
     srs = output_srs(None, out["given"].lon[out["given"].ok], out["given"].lat[out["given"].ok])

@@ -50,6 +50,9 @@ BAD_FIELDS = [
                                          "row"),
     (_set("SAMP_NUM_COEFF", [0.0, 0.0204, -1.032] + [0.0] * 17), "the image column and row change along one ground "
                                                                 "direction only"),
+    # hypothesis's example (test_bad_input_rpc): a coefficient at the float range's end overflowed with a warning
+    (_set_coefficient("SAMP_NUM_COEFF", 1, -1e308), "the image coordinates' derivatives at the ground centre are no "
+                                                    "finite numbers"),
 ]
 
 

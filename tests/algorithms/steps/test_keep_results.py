@@ -1,7 +1,6 @@
 """The steps that store points keep the block's good results where they find nothing, or far fewer
 (block/replacement.py): matchpoints with a height range beside the terrain, selecttiepoints with nothing or no
 point of the group asked for. The exact cases of issue 36, on the small simulated triplet."""
-import hashlib
 import os
 import shutil
 
@@ -20,6 +19,7 @@ from pushbroom.algorithms.steps.block_matching import (
 )
 from pushbroom.algorithms.steps.block_tie_points import TieParams, select_block_tie_points
 from tests.helpers.feedback import Feedback
+from tests.helpers.fingerprint import fingerprint
 from tests.helpers.points_synthetic import two_ray_points
 
 #: the issue's height range, 5 km above the simulated terrain
@@ -27,14 +27,8 @@ BESIDE = {"min_height": 6000.0, "max_height": 6500.0}
 
 
 def files(block):
-    """{name: md5} of the files beside the block, in its sidecar folders too."""
-    folder, out = os.path.dirname(block), {}
-    for root, _, names in os.walk(folder):
-        for name in names:
-            path = os.path.join(root, name)
-            with open(path, "rb") as f:
-                out[os.path.relpath(path, folder)] = hashlib.md5(f.read()).hexdigest()
-    return out
+    """What the folder of `block` holds, byte for byte (its sidecar folders too)."""
+    return fingerprint(os.path.dirname(block))
 
 
 @pytest.fixture
