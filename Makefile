@@ -67,7 +67,7 @@ lint: .venv/.setup-done
 	.venv/bin/ruff check .
 
 # The whole suite, slow end-to-end tests included (CI runs this), on two pytest-xdist workers: a file's tests in
-# one, the real-data tests together and first (tests/conftest.py).
+# one, the real-data tests together (tests/conftest.py); pytest-xdist hands out the largest groups first.
 test: setup
 	$(PY) -m pytest -q -n 2 --dist loadgroup --durations=15 tests
 

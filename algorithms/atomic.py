@@ -40,6 +40,7 @@ import time
 from typing import Optional
 
 from .errors import StorageError
+from .gdal_errors import HeldMessages
 
 #: age (s) after which another host's temporary name counts as stale (its writer cannot be checked)
 STALE_SECONDS = 24 * 3600.0
@@ -61,7 +62,10 @@ ADVICE = {
 }
 #: GDAL/SQLite error texts of a failed write and the errno they stand for
 _GDAL_TEXTS = (("no space left", errno.ENOSPC), ("disk is full", errno.ENOSPC), ("disk full", errno.ENOSPC),
-               ("quota", errno.EDQUOT), ("permission denied", errno.EACCES), ("readonly database", errno.EROFS),
+               ("quota", errno.EDQUOT), ("permission denied", errno.EACCES),
+               # SQLite's "attempt to write a readonly database": a file or folder this user may not write, far more
+               # often than a read-only file system (whose own text, "read-only", maps below)
+               ("readonly database", errno.EACCES),
                ("read-only", errno.EROFS), ("unable to open database file", errno.EACCES))
 #: texts that can only come from a failed write
 _WRITE_TEXTS = ("no space left", "disk is full", "disk full", "quota", "read-only file system", "write error")
@@ -217,6 +221,15 @@ def refuse_non_file(path, what: str = "the output") -> None:
                            "replaced: give the path of a file (nothing was written)")
 
 
+def refuse_non_folder(path, what: str = "the output folder") -> None:
+    """StorageError where `path` exists and is not a folder: only a folder is replaced by a folder, and a
+    folder is written into only where it is one."""
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise StorageError(f"cannot write {what} {os.fspath(path)}: {node_kind(path) or 'a file'} has that name, and "
+                           "only a folder is replaced by the folder written there: choose another name (nothing was "
+                           "written)")
+
+
 def check_destination(path, what="the output"):
     """Fail now, with a StorageError that says what to do, where `path` cannot be written: its folder
     cannot be made, is not writable (a probe file is created and removed), or something that is not a
@@ -234,31 +247,6 @@ def check_destination(path, what="the output"):
         with contextlib.suppress(OSError):
             os.unlink(probe)
     return folder
-
-
-class _GdalFailures:
-    """Records GDAL's CE_Failure/CE_Fatal messages in this thread (other messages are passed on to
-    the handler below once the block ends)."""
-
-    def __init__(self):
-        from osgeo import gdal
-        self.gdal, self.failures, self.passed = gdal, [], []
-
-    def __call__(self, level, number, message):
-        if level >= self.gdal.CE_Failure:
-            self.failures.append(message)
-        else:
-            self.passed.append((level, number, message))
-
-    def __enter__(self):
-        self.gdal.PushErrorHandler(self)
-        return self
-
-    def __exit__(self, *exc):
-        self.gdal.PopErrorHandler()
-        for level, number, message in self.passed:
-            self.gdal.Error(level, number, message)
-        return False
 
 
 def close_dataset(ds):
@@ -311,7 +299,7 @@ def _cause(messages):
 def _guarded(path, what, tmp):
     """Run the body of a write of `tmp` for `path`: GDAL failures recorded, I/O errors translated, the
     result flushed (module docstring)."""
-    gdal_failures = _GdalFailures()
+    gdal_failures = HeldMessages()
     try:
         with gdal_failures:
             yield
@@ -419,9 +407,7 @@ def atomic_dir(path, what="the output folder"):
     a device, a FIFO or a socket at `path` is a StorageError before the body runs (only a folder is replaced
     by a folder)."""
     path = os.path.abspath(os.fspath(path))
-    if os.path.exists(path) and not os.path.isdir(path):
-        raise StorageError(f"cannot write {what} {path}: {node_kind(path) or 'a file'} has that name, and only a "
-                           "folder is replaced by the folder written there: choose another name (nothing was written)")
+    refuse_non_folder(path, what)
     tmp = _temporary_dir(path, what)
     try:
         with _guarded(path, what, tmp):

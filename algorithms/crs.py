@@ -134,6 +134,8 @@ def check_output_crs(target, lon, lat, what):
 
 #: cells a grid has at least along each axis: fewer is no raster of the data (one cell, one value)
 MIN_CELLS = 2
+#: cells a grid has at most (GDAL's and the tiles' 32-bit counts): more is a cell size in the wrong unit
+MAX_CELLS = 2 ** 31
 
 
 def unit_name(target):
@@ -157,10 +159,14 @@ def cell_unit_hint(cell, target):
 
 def check_grid_cells(cols, rows, cell, target, extent, what):
     """InputError where a grid of `cols` x `rows` cells of `cell` units of the CRS `target` over `extent`
-    (width, height in those units) has fewer than MIN_CELLS along an axis: `what` names it ("the orthoimage")."""
+    (width, height in those units) has fewer than MIN_CELLS along an axis, or more than MAX_CELLS: `what` names it
+    ("the orthoimage")."""
+    unit = unit_name(target)
+    if cols * rows > MAX_CELLS:
+        raise InputError(f"a cell size of {cell:g} {unit} makes {what} a grid of {cols} x {rows} cells, too many: give "
+                         f"a larger cell size.{cell_unit_hint(cell, target)}")
     if min(cols, rows) >= MIN_CELLS:
         return
-    unit = unit_name(target)
     if min(extent) <= 0:
         raise InputError(f"the data span {extent[0]:.4g} x {extent[1]:.4g} {unit} ({target.GetName()}), no area: "
                          f"{what} needs data spread over at least {MIN_CELLS} x {MIN_CELLS} cells")

@@ -26,10 +26,11 @@ import contextlib
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NoReturn, Optional
+from typing import NoReturn
 
 from . import atomic
 from .errors import InputError, MetadataError
+from .file_identity import FileIdentity
 from .sensors import orientation_source
 
 #: destination kinds: a file written (replacing a file of that name), a folder replaced as a whole, a folder
@@ -60,29 +61,6 @@ class Destination:
     mark: str = ""
 
 
-@dataclass(frozen=True)
-class _Identity:
-    """A path resolved: its real path and, where it exists, its (device, inode)."""
-    real: str
-    inode: Optional[tuple]
-
-    @classmethod
-    def of(cls, path) -> "_Identity":
-        real = os.path.realpath(os.fspath(path))
-        try:
-            st = os.stat(real)
-        except OSError:
-            return cls(real, None)
-        return cls(real, (st.st_dev, st.st_ino))
-
-    def same(self, other: "_Identity") -> bool:
-        return self.real == other.real or (self.inode is not None and self.inode == other.inode)
-
-    def inside(self, folder: "_Identity") -> bool:
-        """Whether this path lies below `folder` (an _Identity)."""
-        return self.real.startswith(folder.real.rstrip(os.sep) + os.sep)
-
-
 def files_of(path) -> list:
     """The files a dataset at `path` consists of: itself, what GDAL reads with it (an image's .aux.xml and
     _RPC.TXT, a DIMAP product's METADATA.DIM and raster) and the orientation file a sensor model is read from
@@ -111,8 +89,8 @@ def _destination_files(destination: Destination) -> list:
     return [destination.path, *atomic.companions(destination.path)]
 
 
-def _how(given: str, other: str, a: _Identity, b: _Identity) -> str:
-    """How the paths `given` and `other`, found the same (_Identity a, b), are the same file, for a message."""
+def _how(given: str, other: str, a: FileIdentity, b: FileIdentity) -> str:
+    """How the paths `given` and `other`, found the same (FileIdentity a, b), are the same file, for a message."""
     if os.path.abspath(given) == os.path.abspath(other):
         return f"both name {given}"
     if a.real == b.real:
@@ -128,9 +106,9 @@ def _check_inputs(destination: Destination, inputs: Sequence[Input]) -> None:
     """Refuse `destination` where it would overwrite or remove one of `inputs` (module docstring)."""
     paths = [destination.path] if destination.kind != FILE else _destination_files(destination)
     for path in paths:
-        target = _Identity.of(path)
+        target = FileIdentity.of(path)
         for item in inputs:
-            source = _Identity.of(item.path)
+            source = FileIdentity.of(item.path)
             name = f"{item.label}, {item.part}" if item.part else item.label
             if target.same(source):
                 _refuse(f"the output {destination.label} would overwrite the input {name}: "
@@ -149,7 +127,7 @@ def _check_each_other(destinations: list) -> None:
         for b in destinations[k + 1:]:
             for pa in ([a.path] if a.kind != FILE else _destination_files(a)):
                 for pb in ([b.path] if b.kind != FILE else _destination_files(b)):
-                    ia, ib = _Identity.of(pa), _Identity.of(pb)
+                    ia, ib = FileIdentity.of(pa), FileIdentity.of(pb)
                     if ia.same(ib):
                         _refuse(f"the outputs {a.label} and {b.label} are the same file: {_how(pa, pb, ia, ib)}. "
                                 "Give each its own path")
@@ -180,10 +158,9 @@ def _check_kind(destination: Destination) -> None:
     if destination.kind == FILE:
         for file in _destination_files(destination):
             atomic.refuse_non_file(file, what)
-    elif os.path.exists(destination.path) and not os.path.isdir(destination.path):
-        _refuse(f"the output folder {destination.label} {destination.path} is "
-                f"{atomic.node_kind(destination.path) or 'a file'}, not a folder. Give the path of a folder")
-    elif (destination.kind == FOLDER and os.path.isdir(destination.path) and os.listdir(destination.path)
+    elif not os.path.isdir(destination.path):
+        atomic.refuse_non_folder(destination.path, f"the output folder {destination.label}")
+    elif (destination.kind == FOLDER and os.listdir(destination.path)
           and not os.path.isfile(os.path.join(destination.path, destination.mark))):
         _refuse(f"the output folder {destination.label} {destination.path} is replaced as a whole, and it holds "
                 f"files this step did not make (it has no {destination.mark}). Give a new or empty folder, or one "
@@ -195,8 +172,7 @@ def _check_writable(destination: Destination) -> None:
     what = f"the output {destination.label}"
     path = destination.path
     if destination.kind == FILE:
-        for file in _destination_files(destination):
-            atomic.check_destination(file, what)
+        atomic.check_destination(path, what)        # its companions lie in its folder (_check_kind saw them)
     elif destination.kind == INTO and os.path.isdir(path):
         atomic.check_destination(os.path.join(path, "probe"), f"into {what}")   # written into
     else:

@@ -296,7 +296,7 @@ class _DaskFlag:
 
 
 # ---- the backends: begin(what), prepare(tasks), submit(function, args) -> future, done(futures) -> the finished,
-# result(future), cancel(futures): set the token and give the running tasks GRACE s to stop, close(cancel);
+# cancel(futures): set the token and give the running tasks GRACE s to stop, close(cancel);
 # `note`: the warning run_tasks gives once (Execution.capped)
 
 class _Threads:
@@ -318,9 +318,6 @@ class _Threads:
 
     def done(self, futures):
         return cf.wait(futures, timeout=POLL, return_when=cf.FIRST_COMPLETED)[0]
-
-    def result(self, future):
-        return future.result()
 
     def cancel(self, futures):
         self.token.set()                # close waits for the running ones (a thread cannot be stopped)
@@ -410,9 +407,6 @@ class _Processes:
         self._receive(POLL)
         self._dispatch()
         return {f for f in futures if f.done()}
-
-    def result(self, future):
-        return future.result()
 
     def cancel(self, futures):
         """Set the token; wait until the busy workers have stopped (or died), GRACE s at most."""
@@ -580,9 +574,6 @@ class _Dask:
             time.sleep(POLL)
         return done
 
-    def result(self, future):
-        return future.result()
-
     def cancel(self, futures):
         """Set the round's Event (it stays on the scheduler, a name) and wait until the round's `futures` are
         done, GRACE s at most (closing a local cluster would kill the tasks wherever they are)."""
@@ -629,9 +620,7 @@ def session(execution=None):
         failed = False
     finally:
         del _sessions[key]
-        if failed:
-            backend.cancel(())
-        backend.close(cancel=failed)
+        backend.close(cancel=failed)        # run_tasks has cancelled a failed round's tasks
 
 
 def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
@@ -664,7 +653,7 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
             for future in backend.done(pending):
                 pending.discard(future)
                 # a finished task is let go at once: Dask then forgets its result and its arguments
-                results[futures.pop(future)] = backend.result(future)
+                results[futures.pop(future)] = future.result()
                 progress.step(feedback, 100.0 * (len(tasks) - len(pending)) / len(tasks))
         failed = False
         del shared

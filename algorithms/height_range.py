@@ -39,17 +39,25 @@ def check_height(value, what):
     return value
 
 
+def check_heights(h_min, h_max, lowest, highest):
+    """(h_min, h_max), each checked by check_height (None: not given); InputError also where both are given and
+    the lowest is above the highest. `lowest`, `highest` name them ("the lowest terrain height"); their
+    parameters are MIN_HEIGHT and MAX_HEIGHT."""
+    h_min = check_height(h_min, f"{lowest} (MIN_HEIGHT)")
+    h_max = check_height(h_max, f"{highest} (MAX_HEIGHT)")
+    if h_min is not None and h_max is not None and h_min > h_max:
+        raise InputError(f"{lowest} ({h_min:g} m) is above the highest ({h_max:g} m): give the lowest height first "
+                         "(swapped?)")
+    return h_min, h_max
+
+
 def height_range(h_min, h_max, block_range):
     """(h_min, h_max) when both are given; one given: that height (the matcher searches it +- 500 m);
     neither: `block_range`, the range recorded in the block at its creation (DEM heights under the
     footprints, or the mean height +- 500 m). InputError where a given height is not a number, lies outside
-    PLAUSIBLE_HEIGHTS (check_height), or the lowest is above the highest."""
-    h_min = check_height(h_min, "the lowest terrain height (MIN_HEIGHT)")
-    h_max = check_height(h_max, "the highest terrain height (MAX_HEIGHT)")
+    PLAUSIBLE_HEIGHTS, or the lowest is above the highest (check_heights)."""
+    h_min, h_max = check_heights(h_min, h_max, "the lowest terrain height", "the highest terrain height")
     if h_min is not None and h_max is not None:
-        if h_min > h_max:
-            raise InputError(f"the lowest terrain height ({h_min:g} m) is above the highest ({h_max:g} m): give "
-                             "the lowest height first (swapped?)")
         return (h_min, h_max)
     if h_min is not None or h_max is not None:
         return float(h_min if h_min is not None else h_max)

@@ -39,8 +39,11 @@ def raised_by_bindings(level):
     a RuntimeError."""
     if level < gdal.CE_Failure:
         return False
-    frame = sys._getframe(2)   # 0: this function, 1: the handler, 2: the code that called into GDAL
-    module = sys.modules.get(frame.f_globals.get("__name__", "")) if frame is not None else None
+    try:
+        frame = sys._getframe(2)   # 0: this function, 1: the handler, 2: the code that called into GDAL
+    except ValueError:             # the handler called from C++ with no Python caller: not the bindings
+        return False
+    module = sys.modules.get(frame.f_globals.get("__name__", ""))
     if module is None or module.__name__ not in _BINDINGS:
         return False
     uses = getattr(module, "GetUseExceptions", None) or gdal.GetUseExceptions

@@ -69,7 +69,7 @@ from qgis.core import (
 from qgis.PyQt.QtCore import QPointF
 
 from pushbroom.algorithms.execution import BACKENDS
-from pushbroom.plugin.algorithms.base import EXECUTION_LABELS, number_range
+from pushbroom.plugin.algorithms.base import EXECUTION_LABELS, state_range
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 MODEL = REPO / "resources" / "models" / "pushbroom_pipeline.model3"
@@ -210,9 +210,7 @@ def build(dense=False):
     for k, parameter in enumerate(inputs):
         component = QgsProcessingModelParameter(parameter.name())
         component.setPosition(QPointF(120, 60 + 70 * k))
-        parameter = parameter.clone()                           # the model owns it: one copy per model
-        if isinstance(parameter, Number) and number_range(parameter) not in ("a number", "a whole number"):
-            parameter.setHelp(f"Give {number_range(parameter)}.")     # `qgis_process help` prints it
+        parameter = state_range(parameter.clone())             # the model owns it: one copy per model
         model.addModelParameter(parameter, component)
     for k, (child_id, algorithm_id, sources, outputs) in enumerate(steps):
         child = QgsProcessingModelChildAlgorithm(algorithm_id)

@@ -190,23 +190,29 @@ def in_xdist_worker(config):
     return hasattr(config, "workerinput")
 
 
-@pytest.hookimpl(tryfirst=True)        # before pytest-xdist's worker reads the groups
+def xdist_group(nodeid):
+    """The pytest-xdist group of a test: its file, so that a module fixture is built once; the real-data tests
+    all in one, as their session fixtures (tests/real/conftest.py) are minutes of matching shared between files."""
+    path = nodeid.split("::")[0]
+    return "real data" if path.startswith("tests/real/") else path
+
+
+@pytest.hookimpl(tryfirst=True)        # before pytest-xdist's worker reads the groups into the node ids
 def pytest_collection_modifyitems(config, items):
-    """With pytest-xdist workers (`make test`: two, --dist loadgroup), each file's tests run in one worker, so its
-    module fixtures are built once; the real-data tests all in one, as their session fixtures
-    (tests/real/conftest.py) are minutes of matching shared between files; and that group first, as the longest.
-    The order is the same in every worker, as pytest-xdist requires."""
-    if not getattr(config.option, "numprocesses", None) and not in_xdist_worker(config):
-        return
-    for item in items:
-        path = item.nodeid.split("::")[0]
-        item.add_marker(pytest.mark.xdist_group("real data" if path.startswith("tests/real/") else path))
-    items.sort(key=lambda item: not item.nodeid.startswith("tests/real/"))
+    """In a pytest-xdist worker (`make test`: two, --dist loadgroup, which hands out the largest groups first),
+    each test in its xdist_group."""
+    if in_xdist_worker(config):
+        for item in items:
+            item.add_marker(pytest.mark.xdist_group(xdist_group(item.nodeid)))
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
-    item.config.stash[_FIGURES].current = item.nodeid
+    # a worker's node ids end in "@<group>" (pytest-xdist): the figures are the test's
+    nodeid = item.nodeid
+    if in_xdist_worker(item.config):
+        nodeid = nodeid.removesuffix(f"@{xdist_group(nodeid)}")
+    item.config.stash[_FIGURES].current = nodeid
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):

@@ -36,9 +36,8 @@ how far its measurement lies from where the coordinates project. For a point off
 what its numbers look like: lon/lat swapped (the swapped position is inside a footprint), degrees given as
 projected x/y (x, y within +-180, +-90 in a projected CRS), or just how far it lies from the images."""
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri
 
-from ..errors import PushbroomError
 from ..geodesy import metres_per_degree
 from ..height_range import PLAUSIBLE_HEIGHTS, outside_plausible
 
@@ -46,9 +45,9 @@ MARGIN_M = 2000.0
 #: the consistency test's rate of refusing a true point
 FALSE_ALARM = 1e-6
 #: a 2-D offset beyond this many sigmas is out of line at the FALSE_ALARM rate (chi-square of 2 degrees)
-SIGMAS_2D = float(np.sqrt(chi2.isf(FALSE_ALARM, 2)))
+SIGMAS_2D = float(np.sqrt(chdtri(2, FALSE_ALARM)))
 #: a height beyond this many sigmas likewise (chi-square of 1 degree)
-SIGMAS_1D = float(np.sqrt(chi2.isf(FALSE_ALARM, 1)))
+SIGMAS_1D = float(np.sqrt(chdtri(1, FALSE_ALARM)))
 #: half the height step (m) over which a ray's horizontal drift per metre of height is measured
 RAY_STEP = 50.0
 #: rays meet at one place where their normal matrix is better conditioned than this (else they are parallel)
@@ -123,10 +122,7 @@ class Footprints:
             ground = []
             for step in (0.0, -RAY_STEP, RAY_STEP):
                 with np.errstate(all="ignore"):
-                    try:
-                        lon, lat = model.image_to_ground(m["col"][k], m["row"][k], pts["h"] + step)
-                    except PushbroomError:
-                        lon = lat = np.full(len(k), np.nan)
+                    lon, lat = model.image_to_ground_or_nan(m["col"][k], m["row"][k], pts["h"] + step)
                 ground.append(np.column_stack([((np.asarray(lon) - pts["lon"] + 180.0) % 360.0 - 180.0) * east,
                                                (np.asarray(lat) - pts["lat"]) * north]))
             offset[k], drift[k] = ground[0], (ground[2] - ground[1]) / (2.0 * RAY_STEP)
@@ -140,7 +136,7 @@ def inconsistency(name, point, rows, rays, observations, names):
     its diagnosis, module docstring). `rays`: Footprints.rays of `observations`; `names`: {image id: name}."""
     offset, drift, sigma = (v[rows] for v in rays)
     w = 1.0 / sigma ** 2
-    if np.sum(w * (offset ** 2).sum(axis=1)) <= chi2.isf(FALSE_ALARM, 2 * len(rows)):
+    if np.sum(w * (offset ** 2).sum(axis=1)) <= chdtri(2 * len(rows), FALSE_ALARM):
         return None
     m = observations.measurements[rows]
 
@@ -156,7 +152,7 @@ def inconsistency(name, point, rows, rays, observations, names):
             x = np.linalg.solve(normal, a.T @ (wv * offset.ravel()))
             residual = (offset.ravel() - a @ x).reshape(-1, 2)
             misses = w * (residual ** 2).sum(axis=1)
-            if misses.sum() > chi2.isf(FALSE_ALARM, 2 * len(rows) - 3):
+            if misses.sum() > chdtri(2 * len(rows) - 3, FALSE_ALARM):
                 if len(rows) == 2:
                     return (f"{name}: its rays do not meet: those of its measurements {where(0)} and {where(1)} pass "
                             f"{np.hypot(*(residual[0] - residual[1])):.0f} m apart, where the orientation's accuracy "

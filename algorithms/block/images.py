@@ -16,6 +16,7 @@ from osgeo import ogr
 from .. import progress
 from ..atomic import atomic_path, closing
 from ..errors import InputError, PushbroomError
+from ..file_identity import FileIdentity
 from ..geodesy import utm_epsg
 from ..sensors.model_file import model_from_dict, model_to_dict
 from .schema import IMAGE_FIELDS, SUPPLIED, bump, create_schema, open_block, transaction, update_info, write_info
@@ -179,22 +180,12 @@ def image_name(image_path):
     return stem
 
 
-def file_identity(path):
-    """What tells one file from another whatever its name: (device, inode) of the file a path, a symbolic link
-    or a hard link leads to; the resolved absolute path where it cannot be read (a path that does not exist)."""
-    try:
-        info = os.stat(path)
-    except (OSError, ValueError):
-        return os.path.realpath(os.fspath(path))
-    return info.st_dev, info.st_ino
-
-
 def check_distinct(paths, what, why):
     """InputError where two of `paths` are one file (the same path twice, or one file through a link or another
     path): `what` names the list ("images"), `why` says why that is wrong."""
     first = {}
     for k, path in enumerate(paths):
-        key = file_identity(path)
+        key = FileIdentity.of(path).key
         if key in first:
             j = first[key]
             same = "the same path" if os.path.abspath(paths[j]) == os.path.abspath(path) else "one file"

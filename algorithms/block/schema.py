@@ -206,7 +206,7 @@ def damage(path):
         return ""
     if len(head) < 100:
         return f"the file holds {size} bytes, less than the 100 of an SQLite header"
-    if any(os.path.exists(path + suffix) for suffix in ("-journal", "-wal")):
+    if any(os.path.exists(journal) for journal in journals(path)):
         return ""
     page = int.from_bytes(head[16:18], "big")
     page = 65536 if page == 1 else page
@@ -238,8 +238,6 @@ def open_block(path, update=False):
     path = os.fspath(path)
     if not os.path.exists(path):
         raise InputError(f"no block at {path}")
-    if update and not os.access(path, os.W_OK):
-        raise write_access_error(path, "the edit")
     ogr.UseExceptions()
     with reported_here():           # GDAL's own lines of a file refused here ("bad application_id") are not printed
         ds = _open(path, update)

@@ -186,13 +186,6 @@ def lr_check_kernel(disp, disp2, tolerance):
                 disp[i, j] = np.nan
 
 
-def candidates_scored(v1: np.ndarray, v2: np.ndarray, lo: "int | np.ndarray", hi: "int | np.ndarray") -> np.ndarray:
-    """Mask of the image-1 pixels (i, j) with a code (v1) whose every candidate (i, j + d), d = lo ... hi (integers,
-    or arrays of v1's shape), lies inside image 2's array and has a code (v2)."""
-    i, j = np.indices(v1.shape)
-    return v1 & _scored(_missing_codes(v2), i, j, lo, hi)
-
-
 def _missing_codes(v2):
     """missing[i, m]: the image-2 pixels of row i without a code before column m."""
     missing = np.zeros((v2.shape[0], v2.shape[1] + 1), np.int64)

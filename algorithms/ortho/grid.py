@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from osgeo import osr
 
-from ..crs import cell_unit_hint, check_grid_cells, transform, wgs84
+from ..crs import check_grid_cells, transform, wgs84
 from ..errors import InputError
 from ..geodesy import metres_per_degree
 from ..surface.pointcloud import output_srs
@@ -88,9 +88,6 @@ def default_grid(model, dem, crs=None, cell_size=None):
     extent = (x1 - x0, y1 - y0)
     x0, y1 = math.floor(x0 / cell_size) * cell_size, math.ceil(y1 / cell_size) * cell_size
     cols, rows = math.ceil((x1 - x0) / cell_size), math.ceil((y1 - y0) / cell_size)
-    if cols * rows > 2 ** 31:
-        raise InputError(f"{cols} x {rows} cells of {cell_size:g} are too many: give a larger cell "
-                         f"size.{cell_unit_hint(cell_size, srs)}")
     check_grid_cells(cols, rows, cell_size, srs, extent, "the orthoimage")
     return OutputGrid(srs, (x0, cell_size, 0.0, y1, 0.0, -cell_size), int(cols), int(rows))
 
@@ -107,7 +104,7 @@ def dem_coverage(model, dem):
     cols, rows = model.size
     t = (np.arange(COVERAGE_SAMPLES) + 0.5) / COVERAGE_SAMPLES
     c, r = np.meshgrid(t * cols, t * rows)
-    lon, lat = model.image_to_ground(c.ravel(), r.ravel(), np.full(c.size, 0.5 * sum(dem.height_range)))
+    lon, lat = model.image_to_ground_or_nan(c.ravel(), r.ravel(), np.full(c.size, 0.5 * sum(dem.height_range)))
     placed = np.isfinite(lon) & np.isfinite(lat)
     heights = dem.height(lon[placed], lat[placed]) if placed.any() else np.zeros(0)
     return float(np.count_nonzero(np.isfinite(heights))) / c.size

@@ -38,7 +38,7 @@ ground centre need not project into the image: the RPC of a crop keeps the groun
 shifts only the image offsets (the Pleiades triplet of the tests projects its centre thousands of pixels away).
 An RPC read from a file must also describe, at that centre,
 a pixel whose ground footprint (metres, from the rational functions' derivatives) is at most
-MAX_PIXEL_ELONGATION times longer than wide (`_check_pixel_shape`): sensors look at the ground with
+MAX_PIXEL_ELONGATION times longer than wide (`_check_geometry` with `pixel_shape`): sensors look at the ground with
 near-square pixels (SPOT 5 HRS: 10 x 5 m), while LAT_OFF and LONG_OFF swapped move the image to another
 latitude, where the same degrees of longitude span other metres."""
 import math
@@ -48,7 +48,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import GeometryError, MetadataError
-from ..geodesy import A as EARTH_RADIUS, flat_points
+from ..geodesy import flat_points, metres_per_degree
 from . import rpc_io
 from .base import SensorModel, shaped_points
 from .rpc_io import COEFF_KEYS, OFFSET_KEYS, SCALE_KEYS
@@ -275,9 +275,10 @@ def _check_domain(arrays, values, source):
                                           f"{domain}: coefficients, offsets or scales out of range")
 
 
-def _check_geometry(arrays, values, source):
-    """MetadataError unless the RPC's values describe an image of a place on Earth (module docstring); the
-    message names the value at fault."""
+def _check_geometry(arrays, values, source, pixel_shape=False):
+    """MetadataError unless the RPC's values describe an image of a place on Earth (module docstring), and with
+    `pixel_shape` (an RPC read from a file) near-square pixels at its centre; the message names the value at
+    fault."""
     for key in SCALE_KEYS:
         if not values[key.lower()] > 0.0:
             raise _metadata_error(source, f"{key} is {values[key.lower()]:g}: a scale is the positive half-range of "
@@ -295,44 +296,33 @@ def _check_geometry(arrays, values, source):
                                           f"same image {coordinate}")
     if arrays["samp_den"][0] == 0.0 or arrays["line_den"][0] == 0.0:
         return                                  # from_fields names a denominator vanishing at the centre
-    sides = _pixel_sides(arrays, values, source)
+    sides = _pixel_sides(arrays, values)
+    if sides is None:
+        return                                  # _check_domain names image coordinates that overflow
     if not sides[1] > 1e-6 * sides[0]:            # a footprint a million times longer than wide: a line
         raise _metadata_error(source, "the image column and row change along one ground direction only: the "
                                       "numerators (SAMP_NUM_COEFF, LINE_NUM_COEFF) describe no image of the ground")
-
-
-def _pixel_sides(arrays, values, source):
-    """(longest, shortest) of 1 / the pixel footprint's sides at the centre, px per metre: the singular values of
-    d(col, row)/d(east, north), by the quotient rule on the terms 1, L and P of the cubics. MetadataError where
-    they are no finite numbers (coefficients or scales near the float range's end)."""
-    metres = np.radians([values["long_scale"] * math.cos(math.radians(values["lat_off"])), values["lat_scale"]])
-    metres *= EARTH_RADIUS
-    num = {name: arrays[f"{name}_num"] for name in ("samp", "line")}
-    den = {name: arrays[f"{name}_den"] for name in ("samp", "line")}
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        jacobian = np.array([[(num[name][k] * den[name][0] - num[name][0] * den[name][k]) / den[name][0] ** 2
-                              * values[f"{name}_scale"] / metres[k - 1] for k in (1, 2)]
-                             for name in ("samp", "line")])
-    if not np.isfinite(jacobian).all():
-        raise _metadata_error(source, "the image coordinates' derivatives at the ground centre are no finite "
-                                      "numbers: coefficients, offsets or scales out of range")
-    return np.linalg.svd(jacobian, compute_uv=False)
-
-
-def _check_pixel_shape(coefficients, source):
-    """MetadataError where an RPC read from a file describes pixels more than MAX_PIXEL_ELONGATION times longer
-    than wide at its centre (module docstring). Only for RPCs read from files, where offsets are typed or
-    swapped by hand: a fitted RPC follows a model whose pixels may be anything a test makes them."""
-    c = coefficients
-    sides = _pixel_sides({"samp_num": c.samp_num, "samp_den": c.samp_den, "line_num": c.line_num,
-                          "line_den": c.line_den},
-                         {"lat_off": c.lat_off, "long_scale": c.long_scale, "lat_scale": c.lat_scale,
-                          "samp_scale": c.samp_scale, "line_scale": c.line_scale}, source)
-    if sides[0] / sides[1] > MAX_PIXEL_ELONGATION:
+    if pixel_shape and sides[0] / sides[1] > MAX_PIXEL_ELONGATION:
         raise _metadata_error(source, f"its pixels would cover {1 / sides[1]:.3g} x {1 / sides[0]:.3g} m on the "
                                       f"ground at its centre, {sides[0] / sides[1]:.1f} times longer than wide: the "
                                       "ground offsets and scales do not belong to its coefficients (LAT_OFF and "
                                       "LONG_OFF swapped, or LAT_SCALE and LONG_SCALE?)")
+
+
+def _pixel_sides(arrays, values):
+    """(longest, shortest) of 1 / the pixel footprint's sides at the ground centre, px per metre: the singular
+    values of d(col, row)/d(east, north), _partials_kernel's derivatives (px/deg) over the metres per degree
+    there; None where they are no finite numbers (coefficients near the float range's end)."""
+    coef = np.array([arrays["line_num"], arrays["line_den"], arrays["samp_num"], arrays["samp_den"]])
+    nrm = np.array([values["long_off"], values["long_scale"], values["lat_off"], values["lat_scale"],
+                    values["height_off"], values["height_scale"], 0.0, values["samp_scale"], 0.0,
+                    values["line_scale"]])
+    centre = [np.array([values[k]]) for k in ("long_off", "lat_off", "height_off")]
+    derivatives = np.empty((1, 2, 3))
+    _partials_kernel(*centre, coef, nrm, derivatives)
+    with np.errstate(over="ignore", invalid="ignore"):
+        jacobian = derivatives[0, :, :2] / np.array(metres_per_degree(values["lat_off"], values["height_off"]))
+    return np.linalg.svd(jacobian, compute_uv=False) if np.isfinite(jacobian).all() else None
 
 
 @dataclass(frozen=True, eq=False)
@@ -357,22 +347,20 @@ class RpcCoefficients:
     height_scale: float
 
     @classmethod
-    def from_fields(cls, fields, source="RPC"):
+    def from_fields(cls, fields, source="RPC", pixel_shape=False):
         """Parse and check a mapping with the RPC00B (GDAL metadata) names: LINE_OFF ... as numbers
         or texts, LINE_NUM_COEFF ... as 20 numbers (text or sequence). `source` names the origin
-        in error messages. Raises MetadataError on missing, non-numeric, non-finite, zero-scale,
-        wrong-count values, values that describe no image of a place on Earth (_check_geometry), a
+        in error messages. Raises MetadataError on missing, non-numeric, non-finite,
+        wrong-count values, values that describe no image of a place on Earth (_check_geometry; with
+        `pixel_shape`, the check of an RPC read from a file, also pixels far from square), a
         denominator that vanishes at the normalisation centre or changes sign within the validity domain,
         or image coordinates that are not finite there (module docstring)."""
         missing = [k for k in OFFSET_KEYS + SCALE_KEYS + COEFF_KEYS if k not in fields]
         if missing:
             raise _metadata_error(source, f"missing {', '.join(missing)}")
         values = {k.lower(): _number(fields[k], k, source) for k in OFFSET_KEYS + SCALE_KEYS}
-        for key in SCALE_KEYS:
-            if values[key.lower()] == 0.0:
-                raise _metadata_error(source, f"{key} is zero")
         arrays = {k.lower()[:8]: _coefficient_list(fields[k], k, source) for k in COEFF_KEYS}
-        _check_geometry(arrays, values, source)
+        _check_geometry(arrays, values, source, pixel_shape)
         for key in ("line_den", "samp_den"):
             if arrays[key][0] == 0.0:
                 raise _metadata_error(source, f"{key.upper()}_COEFF vanishes at the normalisation "
@@ -438,8 +426,7 @@ class RpcModel(SensorModel):
 
     @classmethod
     def _from_record(cls, record):
-        coefficients = RpcCoefficients.from_fields(record.fields, record.source)
-        _check_pixel_shape(coefficients, record.source)
+        coefficients = RpcCoefficients.from_fields(record.fields, record.source, pixel_shape=True)
         return cls(coefficients, record.size, record.offset, record.source)
 
     @classmethod

@@ -319,10 +319,7 @@ def raster_rpc_source(raster):
         return None
     if not ds.GetMetadata("RPC"):
         return None
-    for path in ds.GetFileList()[1:]:
-        if path.lower().endswith(("_rpc.txt", ".rpb")):
-            return path
-    return f"the metadata of {raster}"
+    return rpc_io.rpc_sidecar(ds) or f"the metadata of {raster}"
 
 
 def report_text(entries):

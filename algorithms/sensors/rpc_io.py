@@ -86,6 +86,12 @@ def _crop_offset(ds, path):
                        "was delivered with, or a crop written by OTB/GDAL without georeferencing")
 
 
+def rpc_sidecar(ds):
+    """The _RPC.TXT or .RPB beside the raster of the open GDAL dataset `ds` that GDAL reads its RPC from (these
+    come before the raster's own metadata), or None."""
+    return next((f for f in ds.GetFileList() or [] if f.lower().endswith(("_rpc.txt", ".rpb"))), None)
+
+
 def read_raster(path):
     """RPC of a raster as GDAL reads it (a same-stem .geom beside it is chosen earlier, by
     sensors.orientation_source); its source names the _RPC.TXT or .RPB GDAL read it from, where it did."""
@@ -93,8 +99,8 @@ def read_raster(path):
     ds = _open_raster(path)
     fields = ds.GetMetadata("RPC") or {}
     if fields:
-        beside = [f for f in ds.GetFileList() or [] if f.lower().endswith(("_rpc.txt", ".rpb"))]
-        source = f"{path} (its RPC in {beside[0]})" if beside else path
+        beside = rpc_sidecar(ds)
+        source = f"{path} (its RPC in {beside})" if beside else path
         return RpcRecord(fields, _raster_size(ds), (0.0, 0.0), source)
     raise _error(path, "the raster carries no RPC (GDAL finds none in its metadata, GeoTIFF RPC "
                        "tags, or in a _RPC.TXT / .RPB beside it) and no .geom of the same name "

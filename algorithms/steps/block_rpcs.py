@@ -25,7 +25,7 @@ from .. import progress
 from ..adjustment import report
 from ..block import Block
 from ..errors import InputError
-from ..height_range import check_height, mean_height
+from ..height_range import check_heights, mean_height
 from ..sensors import rpc_fit
 from ..surface.intersection import height_differences
 
@@ -71,10 +71,10 @@ def selected_images(rows, name):
 
 
 def cube_heights(blk, h_min, h_max):
-    """(min, max) heights of the cube: both given (each within height_range.PLAUSIBLE_HEIGHTS), or the Block
+    """(min, max) heights of the cube: both given (height_range.check_heights), or the Block
     `blk`'s terrain height range widened by a margin (rpc_fit.default_height_range)."""
-    h_min = check_height(h_min, "the lowest height of the RPC cube (MIN_HEIGHT)")
-    h_max = check_height(h_max, "the highest height of the RPC cube (MAX_HEIGHT)")
+    h_min, h_max = check_heights(h_min, h_max, "the lowest height of the RPC cube",
+                                 "the highest height of the RPC cube")
     if h_min is not None and h_max is not None:
         return h_min, h_max
     if h_min is not None or h_max is not None:

@@ -353,9 +353,11 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
     return result
 
 
-def default_mask_path(output) -> str:
-    """Where the per-cell DEM `output` puts the mask of its filled cells when no mask path is given: beside it,
-    '<stem>_filled.tif'."""
+def mask_output(output, params, mask_path=None):
+    """Where the per-cell DEM `output` with DemParams `params` writes its cell mask: `mask_path` where given, else
+    beside it ('<stem>_filled.tif') where it fills gaps; None where it writes none."""
+    if mask_path or not params.fill:
+        return mask_path or None
     return os.path.splitext(os.fspath(output))[0] + "_filled.tif"
 
 
@@ -374,9 +376,8 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
         if breaklines:
             raise InputError("breaklines shape a TIN: the per-cell DEM does not use them; choose the TIN method or "
                              "leave the breaklines out")
-        if params.fill and not mask_path:
-            mask_path = default_mask_path(output)
-        result = _cells_dem(cloud, output, params, precision_path, count_path, mask_path, feedback)
+        result = _cells_dem(cloud, output, params, precision_path, count_path, mask_output(output, params, mask_path),
+                            feedback)
         log.pushInfo(result.summary())
         return result
     if count_path:

@@ -112,6 +112,10 @@ def _cut_short(path, header):
             if offset > size - 8 else "")
 
 
+#: bytes of the smallest LAS public header block (LAS 1.0 - 1.2; 1.3 and 1.4 have more)
+LAS_HEADER_BYTES = 227
+
+
 def _open_las(path):
     """laspy's reader of the LAS/LAZ file `path` (InputError where it cannot be read or is cut short)."""
     laspy = laspy_module()
@@ -120,11 +124,13 @@ def _open_las(path):
     if os.fspath(path).lower().endswith(".laz") and not laspy.LazBackend.detect_available():
         raise InputError(f"cannot read the point cloud {path}: reading LAZ needs the lazrs or laszip Python "
                          "package (pip install lazrs), or convert the file to LAS")
+    with open(path, "rb") as f:
+        head = f.read(LAS_HEADER_BYTES)
+    if head.startswith(b"LASF") and len(head) < LAS_HEADER_BYTES:
+        raise damaged_error(path, f"it holds {len(head)} bytes, less than a LAS header ({LAS_HEADER_BYTES})")
     try:
         reader = laspy.open(os.fspath(path))
     except Exception as exc:  # laspy raises its own and OS errors
-        if "too small" in str(exc).lower() or "to small" in str(exc).lower():
-            raise damaged_error(path, f"it holds {os.path.getsize(path)} bytes, less than a LAS header") from None
         raise InputError(f"cannot read the point cloud {path}: not a LAS/LAZ file laspy reads ({exc})") from exc
     why = _cut_short(path, reader.header)
     if why:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..crs import MAX_CELLS
 from ..errors import InputError
 
 
@@ -50,7 +51,7 @@ class Grid:
         x0, x1 = math.floor(np.min(x) / cell) * cell, math.ceil(np.max(x) / cell) * cell
         y0, y1 = math.floor(np.min(y) / cell) * cell, math.ceil(np.max(y) / cell) * cell
         cols, rows = max(round((x1 - x0) / cell), 1), max(round((y1 - y0) / cell), 1)
-        if cols * rows > 2e9:
+        if cols * rows > MAX_CELLS:     # before any array; the steps' crs.check_grid_cells names the unit
             raise InputError(f"a {cols} x {rows} grid is too large: choose a larger cell size than {cell}")
         return cls(float(x0), float(y1), float(cell), int(cols), int(rows))
 

@@ -45,7 +45,7 @@ from ...algorithms import destinations, raster_cache, sensors
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES
 from ...algorithms.block import Block
 from ...algorithms.errors import InputError, PushbroomError
-from ...algorithms.execution import BACKENDS, Execution
+from ...algorithms.execution import BACKENDS, WORKERS_PER_CORE, Execution
 from ...algorithms.gdal_errors import reported_here
 from ...resource_files import resource_path
 
@@ -118,6 +118,16 @@ def number_range(definition):
     if high is not None:
         return f"{kind} of at most {high:g}"
     return kind
+
+
+def state_range(parameter):
+    """`parameter`, where it is a number parameter with a range (number_range), with that range added to its help,
+    which `qgis_process help` prints under its description and the dialog shows as its tooltip."""
+    if isinstance(parameter, QgsProcessingParameterNumber):
+        phrase = number_range(parameter)
+        if phrase not in ("a number", "a whole number"):
+            parameter.setHelp(" ".join(filter(None, [parameter.help(), f"Give {phrase}."])))
+    return parameter
 
 
 def number_problem(definition, value):
@@ -204,13 +214,8 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         return QUrl.fromLocalFile(help_page(self.NAME)).toString()
 
     def addParameter(self, parameter, createOutput=True):
-        """QgsProcessingAlgorithm.addParameter; a number parameter's range (number_range) is stated in its help,
-        which `qgis_process help` prints under its description and the dialog shows as its tooltip."""
-        if isinstance(parameter, QgsProcessingParameterNumber):
-            phrase = number_range(parameter)
-            if phrase not in ("a number", "a whole number"):
-                parameter.setHelp(" ".join(filter(None, [parameter.help(), f"Give {phrase}."])))
-        return super().addParameter(parameter, createOutput)
+        """QgsProcessingAlgorithm.addParameter, with state_range."""
+        return super().addParameter(state_range(parameter), createOutput)
 
     def checkParameterValues(self, parameters, context):
         """QGIS's check of the parameter values, its failures in Pushbroom's words (module docstring): numbers
@@ -225,14 +230,15 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         try:
             with reported_here():
                 ok, message = super().checkParameterValues(parameters, context)
-                if not ok:
+                if not ok:      # QGIS loads the rasters again here: GDAL's lines held back too
+                    for definition in self.parameterDefinitions():
+                        value = parameters.get(definition.name())
+                        if isinstance(definition, QgsProcessingParameterRasterLayer) \
+                                and not definition.checkValueIsAcceptable(value, context):
+                            message = raster_problem(definition, value) or message
+                            break
                     raise _CheckFailedError(message)
         except _CheckFailedError:
-            for definition in self.parameterDefinitions():
-                value = parameters.get(definition.name())
-                if isinstance(definition, QgsProcessingParameterRasterLayer) \
-                        and not definition.checkValueIsAcceptable(value, context):
-                    return False, raster_problem(definition, value) or message
             return False, message
         return ok, message
 
@@ -346,8 +352,11 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         return f"{name} ({description})" if description else name
 
     def check_destinations(self, parameters, context) -> None:
-        """destinations.check of the step's outputs against its inputs, before any work."""
-        destinations.check(self.inputs(parameters, context), self.destinations(parameters, context))
+        """destinations.check of the step's outputs against its inputs, before any work (the inputs are not
+        looked at where no output is given)."""
+        outputs = self.destinations(parameters, context)
+        if outputs:
+            destinations.check(self.inputs(parameters, context), outputs)
 
     def processAlgorithm(self, parameters, context, feedback):
         try:
@@ -419,8 +428,9 @@ def execution_parameters(algorithm, workers):
                                                                     "tls://host:port; empty: a local cluster of the "
                                                                     "workers below)"),
                                          "", optional=True),
-            QgsProcessingParameterNumber(algorithm.WORKERS, tr("Workers (threads, processes or local Dask workers; "
-                                                               "at most 4 per core are used)"),
+            QgsProcessingParameterNumber(algorithm.WORKERS,
+                                         tr("Workers (threads, processes or local Dask workers; at most {} per core "
+                                            "are used)").format(WORKERS_PER_CORE),
                                          QgsProcessingParameterNumber.Integer, workers, minValue=1)]
 
 

@@ -13,6 +13,7 @@ from qgis.core import (
 
 from ...algorithms import sensors
 from ...algorithms.errors import PushbroomError
+from ...algorithms.height_range import PLAUSIBLE_HEIGHTS
 from ...algorithms.steps.block_creation import CreateParams, create_block
 from ..styles import load_styled
 from .base import PushbroomAlgorithm, execution_choice, execution_parameters
@@ -35,8 +36,8 @@ class CreateBlock(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterRasterLayer(
             self.DEM, tr("DEM for the footprints (ellipsoidal heights)"), optional=True))
         self.addParameter(QgsProcessingParameterNumber(
-            self.HEIGHT, tr("Mean ellipsoidal height when no DEM is given (m, -500 .. 9000; empty: found by matching "
-                            "the images)"),
+            self.HEIGHT, tr("Mean ellipsoidal height when no DEM is given (m, {:g} .. {:g}; empty: found by matching "
+                            "the images)").format(*PLAUSIBLE_HEIGHTS),
             QgsProcessingParameterNumber.Double, d.height, optional=True))
         self.addParameter(QgsProcessingParameterBoolean(self.OVERWRITE, tr("Overwrite an existing block"),
                                                         d.overwrite))

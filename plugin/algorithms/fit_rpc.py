@@ -11,6 +11,7 @@ from qgis.core import (
     QgsProcessingParameterString,
 )
 
+from ...algorithms.height_range import PLAUSIBLE_HEIGHTS
 from ...algorithms.steps.block_rpcs import RpcParams, fit_block_rpcs
 from .base import PushbroomAlgorithm
 
@@ -29,10 +30,12 @@ class FitRpc(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
         self.addParameter(QgsProcessingParameterString(self.IMAGE, tr("Image name (empty: every image of the "
                                                                       "block)"), d.image, optional=True))
-        self.addParameter(Number(self.MIN_HEIGHT, tr("Lowest ellipsoidal height of the cube (m, -500 .. 9000; empty: "
-                                 "the block's terrain height range and a margin)"), Number.Double, None, optional=True))
-        self.addParameter(Number(self.MAX_HEIGHT, tr("Highest ellipsoidal height of the cube (m, -500 .. 9000; empty: "
-                                 "the block's terrain height range and a margin)"), Number.Double, None, optional=True))
+        self.addParameter(Number(self.MIN_HEIGHT, tr("Lowest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: "
+                                 "the block's terrain height range and a margin)").format(*PLAUSIBLE_HEIGHTS),
+                                 Number.Double, None, optional=True))
+        self.addParameter(Number(self.MAX_HEIGHT, tr("Highest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: "
+                                 "the block's terrain height range and a margin)").format(*PLAUSIBLE_HEIGHTS),
+                                 Number.Double, None, optional=True))
         self.addParameter(QgsProcessingParameterBoolean(
             self.OVERWRITE, tr("Overwrite existing _RPC.TXT files; write beside an image that carries its own RPC "
                                "(GDAL then reads the fitted one)"), d.overwrite))

@@ -13,7 +13,7 @@ from qgis.core import (
 )
 
 from ...algorithms import destinations
-from ...algorithms.surface.dem_tiles import default_mask_path, dem_from_point_cloud
+from ...algorithms.surface.dem_tiles import dem_from_point_cloud, mask_output
 from ...algorithms.surface.tin_dem import MAX_RADIUS, DemParams
 from ..styles import style_on_completion
 from .base import PushbroomAlgorithm, execution_choice, execution_parameters
@@ -82,11 +82,12 @@ class InterpolateDem(PushbroomAlgorithm):
     def extra_destinations(self, parameters, context) -> list:
         """The cell mask the per-cell method writes beside the DEM when it fills gaps and MASK is not given."""
         output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
-        if (METHODS[self.parameterAsEnum(parameters, self.METHOD, context)][0] != "cells" or not output
-                or not self.parameterAsDouble(parameters, self.FILL, context)
-                or self.parameterAsOutputLayer(parameters, self.MASK, context)):
+        method = METHODS[self.parameterAsEnum(parameters, self.METHOD, context)][0]
+        beside = mask_output(output, DemParams(fill=self.parameterAsDouble(parameters, self.FILL, context)))
+        if method != "cells" or not output or beside is None or self.parameterAsOutputLayer(parameters, self.MASK,
+                                                                                             context):
             return []
-        return [destinations.Destination(default_mask_path(output), f"{self.MASK} (cell mask, beside the DEM)")]
+        return [destinations.Destination(beside, f"{self.MASK} (cell mask, beside the DEM)")]
 
     def execute(self, parameters, context, feedback):
         values = self.parameterValues(parameters, context, cell=self.CELL, datum=self.DATUM, max_edge=self.MAX_EDGE,

@@ -34,3 +34,13 @@ def test_a_grid_of_fewer_than_two_cells_names_the_unit():
                                          r"degree: is the cell size in metres\?"):
         crs.check_grid_cells(1, 1, 5.0, crs.srs(4326), (0.03, 0.02), "the orthoimage")
     crs.check_grid_cells(2, 2, 0.01, crs.srs(4326), (0.03, 0.02), "the orthoimage")     # 2 x 2: a grid
+
+
+def test_a_grid_of_too_many_cells_names_the_unit():
+    # 0.0001 units of a UTM zone over 12 x 12 km (degrees given for metres): 1.2e8 x 1.2e8 cells
+    side = round(12000 / 1e-4)
+    with pytest.raises(InputError, match=rf"a cell size of 0\.0001 metres makes the DEM a grid of {side} x {side} "
+                                         r"cells, too many: give a larger cell size\. The CRS's unit is metres: is the "
+                                         r"cell size in degrees\?"):
+        crs.check_grid_cells(side, side, 1e-4, crs.srs(32617), (12000.0, 12000.0), "the DEM")
+    crs.check_grid_cells(46340, 46340, 0.26, crs.srs(32617), (12000.0, 12000.0), "the DEM")     # 2^31 cells: taken

@@ -98,7 +98,7 @@ def test_what_is_not_a_regular_file_is_never_replaced(world, tmp_path):
                 destinations.check(world["inputs"], [Destination(str(path), "OUTPUT (Point file)", FILE, ("csv",))])
         with pytest.raises(StorageError, match="a folder of that name is in the way"):
             destinations.check(world["inputs"], [Destination(str(tmp_path / "folder.csv"), "OUTPUT")])
-        with pytest.raises(InputError, match="is a FIFO, not a folder"):
+        with pytest.raises(StorageError, match="a FIFO has that name, and only a folder is replaced by the folder"):
             destinations.check(world["inputs"], [Destination(str(fifo), "OUTPUT (Output folder)", FOLDER)])
     finally:
         server.close()

@@ -10,7 +10,7 @@ import numpy as np
 def format_value(value):
     """A figure as text: reals with 4 significant digits, sequences and mappings element by element."""
     if isinstance(value, str):
-        return value
+        return str(value)                   # a numpy str_ as a str
     if isinstance(value, (bool, np.bool_)):
         return str(bool(value))
     if isinstance(value, numbers.Integral):
@@ -38,21 +38,19 @@ class Figures:
 
     def report(self, name, value, unit="", note=""):
         """One figure: `name` = `value` `unit`, with an optional note (the reference, the bound)."""
-        self._tests.setdefault(self.current, []).append(("figure", name, format_value(value), unit, note))
+        entry = ("figure", str(name), format_value(value), str(unit), str(note))
+        self._tests.setdefault(self.current, []).append(entry)
 
     def table(self, name, rows):
         """A table of figures: `rows` are dicts with the same keys (the columns)."""
         rows = list(rows)
         columns = list(rows[0]) if rows else []
-        self._tests.setdefault(self.current, []).append(
-            ("table", name, columns, [[format_value(r.get(c, "")) for c in columns] for r in rows]))
+        cells = [[format_value(r.get(c, "")) for c in columns] for r in rows]
+        self._tests.setdefault(self.current, []).append(("table", str(name), [str(c) for c in columns], cells))
 
     def entries(self):
-        """{test: [entry, ...]} in plain lists, tuples and str (what a pytest-xdist worker can send: no numpy
-        strings)."""
-        def plain(value):
-            return [plain(v) for v in value] if isinstance(value, (list, tuple)) else str(value)
-        return {str(test): [tuple(plain(v) for v in e) for e in entries] for test, entries in self._tests.items()}
+        """{test: [entry, ...]}, in str, lists and tuples only (what a pytest-xdist worker sends)."""
+        return {test: list(entries) for test, entries in self._tests.items()}
 
     def merge(self, entries):
         """Add the `entries` of another session (a pytest-xdist worker's)."""

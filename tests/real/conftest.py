@@ -2,6 +2,8 @@
 on the Ventoux pair (test_dsm_real, test_coarse_to_fine_real, test_dense_real, test_height_search_real),
 region growing's triplet DSMs (the same and test_matching_pleiades), the triplet's terrain heights found by
 matching and dense matching's triplet DSMs over them (test_dense_real, test_height_search_real)."""
+import itertools
+
 import pytest
 
 from pushbroom.algorithms import sensors
@@ -60,7 +62,7 @@ def dense_triplet_dsms(pleiades_triplet, triplet_heights_found, tmp_path_factory
     """real_dsm.build_triplet_dsms of dense matching (the LSM-refined dense points, real_dsm.refined_dense_points)
     over the height range found (triplet_heights_found), as the product matches a block created without a DEM or
     a height; "log": its timings and counts."""
-    folder, runs, log = tmp_path_factory.mktemp("dense_triplet_dsm"), iter(range(4)), Feedback()
+    folder, runs, log = tmp_path_factory.mktemp("dense_triplet_dsm"), itertools.count(), Feedback()
 
     def match(images, models, names):
         return refined_dense_points(images, models, names, folder / f"dense-{next(runs)}",

@@ -6,6 +6,7 @@ import shutil
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from pushbroom.algorithms.adjustment import control_points as cp, point_plausibility
 from pushbroom.algorithms.adjustment.point_plausibility import MARGIN_M, distance_to_polygon
@@ -139,7 +140,7 @@ def test_the_simulated_points_agree_with_their_measurements_far_within_the_bound
                                                list(blk.height_range()))
     offset, _, sigma = footprints.rays(obs)
     per_point = np.bincount(obs.measurements["point"], (offset ** 2).sum(axis=1) / sigma ** 2)
-    bound = point_plausibility.chi2.isf(point_plausibility.FALSE_ALARM, 6)     # three rays each
+    bound = chi2.isf(point_plausibility.FALSE_ALARM, 6)     # three rays each (scipy.stats: the module uses chdtri)
     assert np.all(sigma == pytest.approx(50.0, abs=2.0))      # SPOT 5's 50 m and 0.5 px of 5-10 m
     assert per_point.max() < 0.25 * bound
 

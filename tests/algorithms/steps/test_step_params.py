@@ -56,6 +56,9 @@ def test_rpc_cube_heights_both_or_neither():
     with pytest.raises(InputError, match=r"the highest height of the RPC cube \(MAX_HEIGHT\) of 30000 m lies outside "
                                          r"the heights of terrain on Earth \(-500 \.\. 9000 m"):
         cube_heights(Block("unused.gpkg"), 100.0, 30000.0)
+    # swapped: refused before the fit, not warned about as a cube that leaves out terrain
+    with pytest.raises(InputError, match=r"the lowest height of the RPC cube \(900 m\) is above the highest \(100 m\)"):
+        cube_heights(Block("unused.gpkg"), 900.0, 100.0)
     # a cube that leaves out part of the terrain (280 .. 970 m) is fitted, with a warning
     assert cube_warning((0.0, 500.0), (280.0, 970.0)).startswith("the RPC cube's heights 0 .. 500 m leave out some "
                                                                  "of the block's terrain (280 .. 970 m)")
