@@ -30,9 +30,9 @@ from pushbroom.algorithms.simulation.terrain import BARE, CROPS, WATER
 from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.point_input import PointSet, read_points
 from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
+from tests.helpers.adjustment_scene import IDS
 from tests.helpers.end_to_end_chain import (
     DEM_CELL,
-    IDS,
     INTERIOR,
     LOW_TEXTURE,
     TEMPLATE_CELLS,

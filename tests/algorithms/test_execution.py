@@ -16,7 +16,7 @@ from pushbroom.algorithms.errors import CancelledError, ExecutionError, InputErr
 from pushbroom.algorithms.execution import Execution, run_tasks
 from tests.helpers import execution_tasks as tasks
 from tests.helpers.feedback import Feedback
-from tests.helpers.processes import command_line, descendants
+from tests.helpers.processes import worker_processes
 
 BACKENDS = [Execution("threads", 2), Execution("processes", 2), Execution("dask", 2)]
 
@@ -158,28 +158,25 @@ def _kill_first_worker(folder):
 
 
 @pytest.mark.parametrize("rounds", [1, 3], ids=["one round", "the third round of a session"])
-def test_a_killed_worker_process_fails_the_step_within_seconds(tmp_path, rounds):
+def test_a_killed_worker_process_cuts_its_round_short_and_fails_the_step(tmp_path, rounds):
     where = Execution("processes", 2)
     # each task carries 8 MiB, more than a pipe holds (64 KiB): when the worker dies, the next tasks are being
     # written to the workers (concurrent.futures' pool then hung for ever, CPython 3.11, gh-94777)
     blob = bytes(8 * 2 ** 20)
     folders = [tmp_path / f"round-{r}" for r in range(rounds)]
-    start = None
     with pytest.raises(ExecutionError) as failed:
         with execution.session(where):
             for r, folder in enumerate(folders):
                 folder.mkdir()
                 last = r == rounds - 1
                 killed = _kill_first_worker(str(folder)) if last else None
-                start = time.monotonic()
                 run_tasks(tasks.staged, [(str(folder), k, 200 if last else 1, 0.05, blob) for k in range(6)], where,
                           what="the test")
-    elapsed = time.monotonic() - start
     assert killed and str(failed.value).startswith(f"the test: worker process {killed[0]} died (killed by SIGKILL")
     assert "fewer workers" in str(failed.value)                      # and what to do
-    assert elapsed < 20                     # the issue's bound: seconds, not a hang (a task runs 10 s uncancelled)
-    workers = [p for p in descendants(os.getpid()) if "spawn_main" in command_line(p)]
-    assert workers == []                    # the other worker stopped with the round, none is left behind
+    # cut short, not waited out: no task of the last round ran its 200 stages (10 s uncancelled) to the end
+    assert not list(folders[-1].glob("*.199"))
+    assert worker_processes(os.getpid()) == []      # the other worker stopped with the round, none is left behind
 
 
 def test_a_scheduler_that_does_not_answer_is_a_clear_error():

@@ -41,12 +41,9 @@ from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST, W
 from pushbroom.algorithms.surface import intersection, pointcloud
 from pushbroom.algorithms.surface.point_input import read_points
 from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
-from tests.helpers.adjustment_scene import point_observations
+from tests.helpers.adjustment_scene import IDS, LABELS, NAMES, point_observations
 from tests.helpers.matching_scene import LOW_CONTRAST_DN
 
-NAMES = ("HRG", "HRS1", "HRS2")
-IDS = {n: k + 1 for k, n in enumerate(NAMES)}
-LABELS = {k + 1: n for k, n in enumerate(NAMES)}
 RUNS = {"three images": NAMES, "HRS only": NAMES[1:]}
 N_CONTROL = 19
 DEM_CELL = 10.0

@@ -14,9 +14,8 @@ from qgis.core import QgsRasterLayer
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.surface.pointcloud import write_point_cloud
+from tests.helpers.adjustment_scene import NAMES
 from tests.helpers.points_synthetic import synthetic
-
-NAMES = ("HRG", "HRS1", "HRS2")
 
 
 def build(folder, scene):

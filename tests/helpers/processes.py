@@ -14,13 +14,25 @@ def peak_kb(pid="self"):
     return 0
 
 
-def _parent(pid):
-    """The parent pid of `pid` (None where it has gone)."""
+def _stat(pid: int) -> list[str] | None:
+    """The fields of /proc/<pid>/stat after the command name, the state first (None where it has gone)."""
     try:
         with open(f"/proc/{pid}/stat", encoding="utf-8") as f:
-            return int(f.read().rsplit(")", 1)[1].split()[1])
-    except (OSError, IndexError, ValueError):
+            return f.read().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
         return None
+
+
+def _parent(pid: int) -> int | None:
+    """The parent pid of `pid` (None where it has gone)."""
+    fields = _stat(pid)
+    return int(fields[1]) if fields else None
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of process `pid` (s; 0 where it has gone)."""
+    fields = _stat(pid)
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK") if fields else 0.0
 
 
 def descendants(pid):
@@ -44,3 +56,9 @@ def command_line(pid):
             return f.read().replace(b"\0", b" ").decode(errors="replace")
     except OSError:
         return ""
+
+
+def worker_processes(pid: int) -> list[int]:
+    """The pids of the worker processes descending from `pid`: those multiprocessing spawned (its spawn_main in
+    their command line: the local pool's and the Dask local cluster's workers), children first."""
+    return [child for child in descendants(pid) if "spawn_main" in command_line(child)]

@@ -74,3 +74,15 @@ def write_raster(path, size=(64, 48), geotransform=None, rpc=None):
                         for k, v in rpc.items()}, "RPC")
     ds = None
     return path
+
+
+#: an affine Pleiades-like RPC (row from latitude, column from longitude) over 0.1 x 0.1 degrees
+AFFINE = {"LINE_OFF": 500.0, "SAMP_OFF": 500.0, "LAT_OFF": 44.1, "LONG_OFF": 5.2, "HEIGHT_OFF": 500.0,
+          "LINE_SCALE": 500.0, "SAMP_SCALE": 500.0, "LAT_SCALE": 0.05, "LONG_SCALE": 0.05, "HEIGHT_SCALE": 500.0,
+          "LINE_NUM_COEFF": [0.0, 0.0, -1.0] + [0.0] * 17, "SAMP_NUM_COEFF": [0.0, 1.0] + [0.0] * 18,
+          "LINE_DEN_COEFF": [1.0] + [0.0] * 19, "SAMP_DEN_COEFF": [1.0] + [0.0] * 19}
+
+
+def raster_with_rpc(path, **changes):
+    """A 1000 x 1000 GeoTIFF with the AFFINE RPC (with `changes`) in its RPC tags."""
+    return write_raster(path, size=(1000, 1000), rpc=dict(AFFINE, **changes))

@@ -1,35 +1,15 @@
 """pushbroom:createblock on an image whose RPC has a pole inside its validity domain (issue 19): refused with
 the engine's message naming the file and the place, in Processing and through qgis_process (before the fix
 it was accepted and its footprint lay kilometres off)."""
-import numpy as np
 import pytest
-from osgeo import gdal
 from qgis import processing
 
 from tests.helpers.bad_inputs import processing_error
-
-#: an affine Pleiades-like RPC (row from latitude, column from longitude) over 0.1 x 0.1 degrees
-AFFINE = {"LINE_OFF": 500.0, "SAMP_OFF": 500.0, "LAT_OFF": 44.1, "LONG_OFF": 5.2, "HEIGHT_OFF": 500.0,
-          "LINE_SCALE": 500.0, "SAMP_SCALE": 500.0, "LAT_SCALE": 0.05, "LONG_SCALE": 0.05, "HEIGHT_SCALE": 500.0,
-          "LINE_NUM_COEFF": [0.0, 0.0, -1.0] + [0.0] * 17, "SAMP_NUM_COEFF": [0.0, 1.0] + [0.0] * 18,
-          "LINE_DEN_COEFF": [1.0] + [0.0] * 19, "SAMP_DEN_COEFF": [1.0] + [0.0] * 19}
-
-
-def raster_with_rpc(path, **changes):
-    """A 1000 x 1000 GeoTIFF with the AFFINE RPC (with `changes`) in its RPC tags."""
-    ds = gdal.GetDriverByName("GTiff").Create(str(path), 1000, 1000, 1, gdal.GDT_Byte)
-    rpc = dict(AFFINE, **changes)
-    ds.SetMetadata({k: " ".join(repr(float(v)) for v in np.atleast_1d(x)) for k, x in rpc.items()}, "RPC")
-    ds = None
-    return path
-
+from tests.helpers.rpc_synthetic import raster_with_rpc
 
 #: SAMP_DEN = 1 + 1.3 L: zero at L = -0.77, longitude 5.2 - 0.77 * 0.05 = 5.1615; the grid node of the other
 #: sign nearest the centre is L = -0.8, longitude 5.16
 POLED = {"SAMP_DEN_COEFF": [1.0, 1.3] + [0.0] * 18}
-
-
-
 
 
 def test_createblock_refuses_an_rpc_with_a_pole(pushbroom_provider, tmp_path):

@@ -3,12 +3,9 @@ that cannot be written, an unknown CRS, a foreign or damaged file, a block locke
 program. Each ends with exit status 1 and ONE clear message (no traceback, not printed three times), and
 leaves nothing half-written under a final name and the block as it was."""
 import os
-import pathlib
 import shutil
 import sqlite3
 import subprocess
-import sys
-import tempfile
 
 import numpy as np
 import pytest
@@ -16,48 +13,37 @@ from osgeo import ogr
 from qgis import processing
 from qgis.core import QgsProcessingException
 
-import pushbroom
 from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.crs import reproject, srs, wgs84
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.surface.pointcloud import write_point_cloud
-
-REPO = os.path.dirname(os.path.abspath(pushbroom.__file__))
-QGIS_PROCESS = "/usr/bin/qgis_process.bin"
+from tests.helpers.other_user import USER, as_other_user, public_folder
+from tests.helpers.qgis_process_profile import QGIS_PROCESS, qgis_process_env
 
 
 @pytest.fixture(scope="module")
 def public():
-    """A folder every user may enter and read (pytest's temporary folders are root's alone): where the runs
-    made as another user find their profile and inputs."""
-    folder = tempfile.mkdtemp(prefix="pushbroom-faults-", dir="/tmp")
-    os.chmod(folder, 0o755)
-    yield pathlib.Path(folder)
-    shutil.rmtree(folder, ignore_errors=True)
+    """A folder every user may enter and read: where the runs made as another user find their profile and
+    inputs."""
+    with public_folder("pushbroom-faults-") as folder:
+        yield folder
 
 
 @pytest.fixture(scope="module")
 def runner(public):
     """Run qgis_process (`run(*args, user=None)` -> CompletedProcess) with a profile that has the plugin;
     `user="other"` runs it as an unprivileged user where the tests run as root (root may write anywhere)."""
-    world = public / "world"            # a profile and a numba cache the other user can write
-    plugins = world / "profile" / "profiles" / "default" / "python" / "plugins"
-    plugins.mkdir(parents=True)
-    (plugins / "pushbroom").symlink_to(REPO)
-    site = [p for p in sys.path if p.endswith("site-packages") and ".venv" in p]
-    env = dict(os.environ, QT_QPA_PLATFORM="offscreen", QGIS_CUSTOM_CONFIG_PATH=str(world / "profile"),
-               HOME=str(world), NUMBA_CACHE_DIR=str(world / "numba"),
-               PYTHONPATH=os.pathsep.join(site + [os.environ.get("PYTHONPATH", "")]))
-    subprocess.run([QGIS_PROCESS, "plugins", "enable", "pushbroom"], env=env, capture_output=True)
+    world = public / "world"            # a profile and a home the other user can write
+    env = dict(qgis_process_env(world / "profile"), HOME=str(world))
     if os.geteuid() == 0:
-        subprocess.run(["chown", "-R", "nobody", str(world)], check=True)
+        subprocess.run(["chown", "-R", USER, str(world)], check=True)
 
     def run(*args, user=None):
-        command = [QGIS_PROCESS, "run", *args]
-        if user == "other" and os.geteuid() == 0:
-            command = ["setpriv", "--reuid=nobody", "--regid=nogroup", "--clear-groups"] + command
-        return subprocess.run(command, env=env, capture_output=True, text=True, timeout=600)
+        command, run_env = [QGIS_PROCESS, "run", *args], env
+        if user == "other":
+            command, run_env = as_other_user(command, public, env)
+        return subprocess.run(command, env=run_env, capture_output=True, text=True, timeout=600)
     return run
 
 

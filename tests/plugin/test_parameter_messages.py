@@ -16,7 +16,7 @@ from pushbroom.algorithms.block import Block
 from pushbroom.plugin import gdal_messages
 from pushbroom.plugin.algorithms import algorithm_classes
 from tests.helpers.qgis_process_profile import QGIS_PROCESS, qgis_process_env
-from tests.plugin.test_bad_input_rpc_alg import raster_with_rpc
+from tests.helpers.rpc_synthetic import raster_with_rpc
 
 
 def number_parameters(provider):

@@ -20,14 +20,11 @@ from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.geodesy import metres_per_degree, utm_epsg
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.stats import statistics_table
-from tests.helpers.adjustment_scene import point_observations, scene_models
+from tests.helpers.adjustment_scene import IDS, LABELS, NAMES, point_observations, scene_models
 from tests.helpers.figures import section_rows
 from tests.helpers.osr_oracle import utm
 from tests.helpers.raster_oracle import bilinear
 
-NAMES = ("HRG", "HRS1", "HRS2")
-IDS = {n: k + 1 for k, n in enumerate(NAMES)}
-LABELS = {k + 1: n for k, n in enumerate(NAMES)}
 N_CONTROL = 14
 SIGMA_PX = 0.3
 

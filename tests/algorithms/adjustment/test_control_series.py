@@ -8,12 +8,8 @@ from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.control_series import control_point_series, farthest_points
 from pushbroom.algorithms.adjustment.report import render_text, series_section
 from pushbroom.algorithms.errors import CancelledError, InputError
-from tests.helpers.adjustment_scene import point_observations, scene_models
+from tests.helpers.adjustment_scene import IDS, LABELS, NAMES, point_observations, scene_models
 from tests.helpers.feedback import Feedback
-
-NAMES = ("HRG", "HRS1", "HRS2")
-IDS = {n: k + 1 for k, n in enumerate(NAMES)}
-LABELS = {k + 1: n for k, n in enumerate(NAMES)}
 
 
 def test_farthest_points_take_the_corners_then_the_centre():

@@ -19,13 +19,18 @@ from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from pushbroom.algorithms.simulation import SceneConfig
-from tests.helpers.adjustment_scene import check_rms, point_observations, scene_models, synthetic_points
+from tests.helpers.adjustment_scene import (
+    IDS,
+    LABELS,
+    NAMES,
+    check_rms,
+    point_observations,
+    scene_models,
+    synthetic_points,
+)
 
 pytestmark = pytest.mark.slow
 
-NAMES = ("HRG", "HRS1", "HRS2")
-IDS = {n: k + 1 for k, n in enumerate(NAMES)}
-LABELS = {k + 1: n for k, n in enumerate(NAMES)}
 PASS = "pass HRS1+HRG+HRS2"          # the trajectory, its images in time order
 #: injected corrections (rad; roll drift in rad per time_scale = 10 s): supplied = truth - these
 INJECTED = {"HRG psi_x_0": 2.8e-5, "HRG psi_y_0": -1.2e-5, "HRG psi_y_1": 8e-6, "HRS1 psi_x_0": 1.5e-5,

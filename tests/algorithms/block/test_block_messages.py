@@ -8,13 +8,13 @@ import shutil
 import sqlite3
 import subprocess
 import sys
-import tempfile
 
 import pytest
 
 from pushbroom.algorithms.block import Block, schema
 from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import InputError, StorageError
+from tests.helpers.other_user import as_other_user, public_folder
 
 
 @pytest.fixture
@@ -94,36 +94,22 @@ def test_a_block_the_user_may_not_write_is_refused_before_any_work(block):
     """A read-only block file; a writable block file in a read-only folder, where SQLite cannot create its
     journal (before: "is not a Pushbroom block", and "attempt to write a readonly database" after the adjustment):
     every step that stores into the block refuses it first, by its entry point, as an unprivileged user."""
-    public = tempfile.mkdtemp(prefix="pushbroom-msgs-", dir="/tmp")
-    try:
-        os.chmod(public, 0o755)
+    with public_folder("pushbroom-msgs-") as public:
         for name, file_mode, folder_mode in (("file", 0o444, 0o755), ("folder", 0o666, 0o555)):
-            os.mkdir(os.path.join(public, name))
-            shutil.copy(block, os.path.join(public, name, "b.gpkg"))
-            os.chmod(os.path.join(public, name, "b.gpkg"), file_mode)
-            os.chmod(os.path.join(public, name), folder_mode)
-        paths = [os.path.join(public, name, "b.gpkg") for name in ("file", "folder")]
-        command = [sys.executable, "-c", AS_USER, *paths]
-        if os.geteuid() == 0:            # root may write anywhere: run as an unprivileged user
-            command = ["setpriv", "--reuid=nobody", "--regid=nogroup", "--clear-groups"] + command
-        numba = os.path.join(public, "numba")         # numba's cache, which the other user must write
-        os.mkdir(numba)
-        os.chmod(numba, 0o777)
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path), NUMBA_CACHE_DIR=numba)
+            (public / name).mkdir()
+            shutil.copy(block, public / name / "b.gpkg")
+            os.chmod(public / name / "b.gpkg", file_mode)
+            os.chmod(public / name, folder_mode)
+        paths = [str(public / name / "b.gpkg") for name in ("file", "folder")]
+        command, env = as_other_user([sys.executable, "-c", AS_USER, *paths], public)
         result = subprocess.run(command, capture_output=True, text=True, env=env, cwd=public, check=True)
-        messages = json.loads(result.stdout)
-        user = "nobody" if os.geteuid() == 0 else None
-        assert len(messages) == 8, messages
-        for step in ("bundleadjust", "importpoints", "matchpoints", "selecttiepoints"):
-            file_message, folder_message = messages[f"{step} {paths[0]}"], messages[f"{step} {paths[1]}"]
-            assert "the block file is not writable by you (user " in file_message
-            assert "it belongs to root, permissions -r--r--r--" in file_message or user is None
-            assert f"its folder {os.path.dirname(paths[1])} is not writable by you" in folder_message
-            assert "SQLite must create a journal there (b.gpkg-journal)" in folder_message
-            assert all("nothing was stored" in m for m in (file_message, folder_message))
-        assert "GDAL" not in result.stderr and "Warning" not in result.stderr      # no GDAL line before them
-    finally:
-        for name in ("file", "folder"):
-            if os.path.isdir(os.path.join(public, name)):
-                os.chmod(os.path.join(public, name), 0o755)
-        shutil.rmtree(public, ignore_errors=True)
+    messages = json.loads(result.stdout)
+    assert len(messages) == 8, messages
+    for step in ("bundleadjust", "importpoints", "matchpoints", "selecttiepoints"):
+        file_message, folder_message = messages[f"{step} {paths[0]}"], messages[f"{step} {paths[1]}"]
+        assert "the block file is not writable by you (user " in file_message
+        assert "it belongs to root, permissions -r--r--r--" in file_message or os.geteuid() != 0  # root's file
+        assert f"its folder {os.path.dirname(paths[1])} is not writable by you" in folder_message
+        assert "SQLite must create a journal there (b.gpkg-journal)" in folder_message
+        assert all("nothing was stored" in m for m in (file_message, folder_message))
+    assert "GDAL" not in result.stderr and "Warning" not in result.stderr      # no GDAL line before them

@@ -1,7 +1,6 @@
 """A step that finds nothing, or far fewer than before, never replaces good results silently
 (algorithms/block/replacement.py): the store of points and of control points refuses far fewer than the block
 holds, leaves the block and its sidecar as they were, and replaces them only when asked."""
-import hashlib
 import os
 
 import numpy as np
@@ -15,6 +14,7 @@ from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.points import MultiPoints
 from tests.helpers.feedback import Feedback
+from tests.helpers.fingerprint import fingerprint
 from tests.helpers.points_synthetic import FlatModel, synthetic
 
 DISPLAY = (FlatModel(), 1, 0.0)
@@ -28,17 +28,10 @@ def block(tmp_path):
 
 
 def snapshot(block):
-    """What a refused store must leave as it was: block_info, the layer's rows, every file beside the block
-    (path -> md5)."""
-    folder = os.path.dirname(block)
-    files = {}
-    for root, _, names in os.walk(folder):
-        for name in names:
-            path = os.path.join(root, name)
-            if path != block:
-                with open(path, "rb") as f:
-                    files[os.path.relpath(path, folder)] = hashlib.md5(f.read()).hexdigest()
-    return Block(block).info(), len(Block(block).points()), files
+    """What a refused store must leave as it was: block_info, the layer's rows, everything beside the block."""
+    beside = {path: digest for path, digest in fingerprint(os.path.dirname(block)).items()
+              if path != os.path.basename(block)}
+    return Block(block).info(), len(Block(block).points()), beside
 
 
 def with_spacing(points, spacing):

@@ -17,7 +17,7 @@ from pushbroom.algorithms.surface.point_input import read_points
 from pushbroom.algorithms.surface.tin_dem import DemParams, interpolate_dem
 from tests.helpers.dem_cloud import UTM31, read_raster, surface, write_cloud
 from tests.helpers.feedback import Feedback
-from tests.helpers.processes import command_line, descendants
+from tests.helpers.processes import worker_processes
 
 
 @pytest.fixture(scope="module")
@@ -122,7 +122,7 @@ def test_a_killed_dask_worker_leaves_the_same_dem(cloud, tmp_path):
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline and not killed:
             if len(glob.glob(str(tmp_path / ".killed.*" / "dem-*.tif"))) >= 3:
-                workers = [pid for pid in descendants(os.getpid()) if "spawn_main" in command_line(pid)]
+                workers = worker_processes(os.getpid())
                 if workers:
                     os.kill(workers[0], signal.SIGKILL)
                     killed.append(workers[0])
