@@ -20,9 +20,12 @@ PROFILE := $(CURDIR)/build/qgis-profile
 # qgis_process embeds the system Python: give it the venv's packages (numba) and a profile with the plugin
 # (recursive variables: the venv exists only once setup has run)
 SITE = $(wildcard $(CURDIR)/.venv/lib/python3*/site-packages)
-# QGIS's Python start-up warns that sip's setapi() is deprecated, on every run: not ours, not a failure
+# QGIS's Python start-up warns that sip's setapi() is deprecated, on every run: not ours, not a failure.
+# OpenBLAS preloaded: qgis_process links GSL's reference CBLAS first, which numpy's matrix products would run
+# (docs/architecture.md, "Same bits")
+OPENBLAS := $(firstword $(realpath $(wildcard /usr/lib/*-linux-gnu/libblas.so.3)))
 QGIS_PROCESS = env QGIS_CUSTOM_CONFIG_PATH=$(PROFILE) PYTHONPATH=$(SITE) PYTHONWARNINGS=ignore:setapi:DeprecationWarning \
-	/usr/bin/qgis_process.bin
+	LD_PRELOAD=$(OPENBLAS) /usr/bin/qgis_process.bin
 export QT_QPA_PLATFORM ?= offscreen
 # Qt's run-time folder: without one, every Qt program (qgis_process, the tests' QGIS) says "XDG_RUNTIME_DIR not
 # set"; a private one, made as Qt wants it (mode 0700)

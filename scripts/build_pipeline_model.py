@@ -68,7 +68,7 @@ from qgis.core import (
 )
 from qgis.PyQt.QtCore import QPointF
 
-from pushbroom.algorithms.execution import BACKENDS
+from pushbroom.algorithms.task_runtime import BACKENDS
 from pushbroom.plugin.algorithms.base import EXECUTION_LABELS, state_range
 
 REPO = pathlib.Path(__file__).resolve().parents[1]

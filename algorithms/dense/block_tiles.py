@@ -29,13 +29,14 @@ import numpy as np
 
 from .. import progress
 from ..atomic import save_array, work_dir
-from ..execution import check_cancel, run_tasks, session
+from ..execution import run_tasks, session
 from ..matching.block_tiles import BIAS_SAMPLE, block_inputs, first_ids
 from ..matching.imagery import as_image
 from ..matching.orientation_bias import affine_bias
 from ..matching.params import GrowParams
 from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, REFINED, MultiPoints
 from ..matching.refinement import MIN_POINTS, refine_three_ray
+from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .pair_tile import match_pair_tile
 from .params import DenseParams

@@ -37,8 +37,9 @@ import numpy as np
 from .. import histogram, progress
 from ..atomic import save_array, work_dir
 from ..errors import InputError
-from ..execution import check_cancel, run_tasks, session
+from ..execution import run_tasks, session
 from ..stats import NMAD_SCALE
+from ..task_runtime import check_cancel
 from .combinations import combine, compose_guide, new_cells, pair_seeds
 from .orientation_bias import affine_bias
 from .params import GrowParams

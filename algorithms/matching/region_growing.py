@@ -30,8 +30,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from ..execution import Execution, check_cancel, run_tasks
+from ..execution import Execution, run_tasks
 from ..progress import ensure, step as progress_step
+from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .imagery import as_image
 from .lsm import LSM_OUT, match_accepted, to_records

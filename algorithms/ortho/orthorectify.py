@@ -26,8 +26,9 @@ from ..atomic import atomic_path, closing, work_dir
 from ..crs import srs as parse_crs
 from ..dem_store import as_stored
 from ..errors import InputError
-from ..execution import check_cancel, run_tasks
+from ..execution import run_tasks
 from ..surface.geotiff import assemble_tiles
+from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from . import occlusion, resampling
 from .grid import OutputGrid, default_grid

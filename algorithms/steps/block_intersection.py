@@ -29,10 +29,11 @@ from ..block import Block
 from ..block.points import load_arrays
 from ..dense import precision
 from ..errors import InputError
-from ..execution import Execution, check_cancel, run_tasks
+from ..execution import Execution, run_tasks
 from ..height_range import mean_height
 from ..sigmas import IMAGE_SIGMA
 from ..surface import intersection, outlier_filter, pointcloud
+from ..task_runtime import check_cancel
 from .cloud_neighbourhood import second_round
 
 #: the most neighbours the outlier removal takes

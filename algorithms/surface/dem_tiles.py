@@ -52,7 +52,8 @@ from .. import histogram, progress
 from ..atomic import append_bytes, atomic_path, save_array, work_dir
 from ..crs import check_grid_cells, srs as parse_crs, transform
 from ..errors import CancelledError, InputError
-from ..execution import check_cancel, run_tasks, session
+from ..execution import run_tasks, session
+from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, cells_on_grid
 from .gap_fill import fill_gaps

@@ -45,9 +45,11 @@ from ...algorithms import destinations, raster_cache, sensors
 from ...algorithms.adjustment.control_points import HEIGHT_TYPES
 from ...algorithms.block import Block
 from ...algorithms.errors import InputError, PushbroomError
-from ...algorithms.execution import BACKENDS, WORKERS_PER_CORE, Execution
+from ...algorithms.execution import Execution
 from ...algorithms.gdal_errors import reported_here
+from ...algorithms.task_runtime import BACKENDS, WORKERS_PER_CORE
 from ...resource_files import resource_path
+from ..console import line_buffered_stdout
 
 
 def _single_error():
@@ -359,6 +361,7 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
             destinations.check(self.inputs(parameters, context), outputs)
 
     def processAlgorithm(self, parameters, context, feedback):
+        line_buffered_stdout()                      # qgis_process's lines leave as they are written
         try:
             self.check_destinations(parameters, context)
             with raster_cache.bounded():            # GDAL's block cache while the step runs
@@ -419,8 +422,9 @@ EXECUTION_LABELS = {"threads": "Threads in this process",
 
 
 def execution_parameters(algorithm, workers):
-    """The advanced parameters EXECUTION, DASK_ADDRESS and WORKERS (default `workers`) of an algorithm whose
-    tiles run on execution.run_tasks (its KEYS name the three); read them with execution_choice."""
+    """The advanced parameters EXECUTION, DASK_ADDRESS, DASK_WAIT and WORKERS (default `workers`) of an algorithm
+    whose tiles run on execution.run_tasks (its KEYS name the four); read them with execution_choice. DASK_WAIT is
+    optional, so that the models saved before it still validate."""
     tr = algorithm.tr
     return [QgsProcessingParameterEnum(algorithm.EXECUTION, tr("Execution of the tiles"),
                                        [tr(EXECUTION_LABELS[b]) for b in BACKENDS], defaultValue=0),
@@ -428,6 +432,10 @@ def execution_parameters(algorithm, workers):
                                                                     "tls://host:port; empty: a local cluster of the "
                                                                     "workers below)"),
                                          "", optional=True),
+            QgsProcessingParameterNumber(algorithm.DASK_WAIT, tr("Wait for a Dask worker where the cluster has "
+                                                                 "none, or has lost every one (s)"),
+                                         QgsProcessingParameterNumber.Double, Execution.worker_wait, optional=True,
+                                         minValue=0.0),
             QgsProcessingParameterNumber(algorithm.WORKERS,
                                          tr("Workers (threads, processes or local Dask workers; at most {} per core "
                                             "are used)").format(WORKERS_PER_CORE),
@@ -440,7 +448,10 @@ def execution_choice(algorithm, parameters, context):
     runs on the application's main thread (qgis_process): qgis_process cancels the feedback on Ctrl+C only from
     its event loop."""
     values = algorithm.parameterValues(parameters, context, backend=algorithm.EXECUTION,
-                                       address=algorithm.DASK_ADDRESS, workers=algorithm.WORKERS)
+                                       address=algorithm.DASK_ADDRESS, workers=algorithm.WORKERS,
+                                       worker_wait=algorithm.DASK_WAIT)
+    if values["worker_wait"] is None:
+        del values["worker_wait"]
     values["backend"] = BACKENDS[values["backend"]]
     values["address"] = values["address"].strip()
     app = QCoreApplication.instance()

@@ -25,7 +25,8 @@ class CreateBlock(PushbroomAlgorithm):
     DISPLAY_NAME = "Create block"
     GROUP_ID = "block"
 
-    KEYS = "IMAGES ORIENTATION DEM HEIGHT OVERWRITE DEM_NODATA EXECUTION DASK_ADDRESS WORKERS OUTPUT FOOTPRINTS"
+    KEYS = ("IMAGES ORIENTATION DEM HEIGHT OVERWRITE DEM_NODATA EXECUTION DASK_ADDRESS DASK_WAIT WORKERS OUTPUT "
+            "FOOTPRINTS")
 
     def initAlgorithm(self, config=None):
         d, tr = CreateParams(), self.tr

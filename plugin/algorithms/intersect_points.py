@@ -26,8 +26,8 @@ class IntersectPoints(PushbroomAlgorithm):
     DISPLAY_NAME = "Intersect points (point cloud)"
     GROUP_ID = "surface"
 
-    KEYS = ("BLOCK POINTS CRS SIGMA MAX_ITERATIONS OUTLIER_NEIGHBOURS OUTLIER_FACTOR EXECUTION DASK_ADDRESS WORKERS "
-            "OUTPUT LAYER COUNT")
+    KEYS = ("BLOCK POINTS CRS SIGMA MAX_ITERATIONS OUTLIER_NEIGHBOURS OUTLIER_FACTOR EXECUTION DASK_ADDRESS DASK_WAIT "
+            "WORKERS OUTPUT LAYER COUNT")
 
     def initAlgorithm(self, config=None):
         d, tr = IntersectParams(), self.tr

@@ -29,7 +29,7 @@ class Orthorectify(PushbroomAlgorithm):
     GROUP_ID = "surface"
 
     KEYS = ("BLOCK IMAGE_NAME IMAGE ORIENTATION DEM DEM_HEIGHTS CRS CELL_SIZE RESAMPLING OCCLUSION MAX_ERROR "
-            "EXECUTION DASK_ADDRESS WORKERS DEM_NODATA OUTPUT BOUND CELLS")
+            "EXECUTION DASK_ADDRESS DASK_WAIT WORKERS DEM_NODATA OUTPUT BOUND CELLS")
 
     def initAlgorithm(self, config=None):
         d, tr = OrthoParams(), self.tr

@@ -2,7 +2,9 @@
 processes and a Dask LocalCluster; progress, cancel (also of the running tasks), task errors, a killed
 worker, a scheduler that does not answer or a malformed address, the cap on the workers, and worker
 processes started from a host program that is not Python (QGIS)."""
+import collections
 import os
+import re
 import signal
 import sys
 import threading
@@ -11,7 +13,7 @@ import time
 import numpy as np
 import pytest
 
-from pushbroom.algorithms import execution, raster_cache
+from pushbroom.algorithms import dask_backend, execution, raster_cache, task_runtime
 from pushbroom.algorithms.errors import CancelledError, ExecutionError, InputError
 from pushbroom.algorithms.execution import Execution, run_tasks
 from tests.helpers import execution_tasks as tasks
@@ -31,7 +33,17 @@ def test_every_backend_returns_the_numpy_results_in_task_order(where):
     pids = {r[2] for r in out}
     assert (pids == {os.getpid()}) == (where.backend == "threads")     # processes ran elsewhere
     assert log.progress[-1] == 100.0 and len(log.progress) == 12          # one step per finished task
-    assert log.messages == [f"the tiles: 12 tasks on {where.describe()}"]
+    assert log.messages[0] == f"the tiles: 12 tasks on {where.describe()}"
+    if where.backend != "dask":
+        assert len(log.messages) == 1
+        return
+    # a cluster's log: its workers, then the tasks each ran (their pids' counts)
+    named = re.fullmatch(r"the Dask local cluster: 2 workers \((tcp://\S+), (tcp://\S+)\)", log.messages[1])
+    counts = re.fullmatch(r"the tiles: tasks per worker: (tcp://\S+) (\d+)(?:, (tcp://\S+) (\d+))?", log.messages[2])
+    assert named and counts and len(log.messages) == 3
+    tally = dict(zip(counts.groups()[::2], counts.groups()[1::2]))
+    assert set(tally) - {None} <= set(named.groups())
+    assert sorted(int(n) for n in tally.values() if n) == sorted(collections.Counter(r[2] for r in out).values())
 
 
 @pytest.mark.parametrize("where", BACKENDS[1:], ids=lambda e: e.backend)
@@ -50,7 +62,7 @@ def test_worker_processes_hold_gdals_cache_to_the_steps_bound(where):
 def test_worker_processes_return_freed_memory_to_the_system(where):
     name = "MALLOC_TRIM_THRESHOLD_"
     before = os.environ.get(name)
-    assert {v for v in run_tasks(tasks.environment, [(name,)] * 4, where)} == {execution.WORKER_ENVIRONMENT[name]}
+    assert {v for v in run_tasks(tasks.environment, [(name,)] * 4, where)} == {task_runtime.WORKER_ENVIRONMENT[name]}
     assert os.environ.get(name) == before                     # this process's environment as it was
 
 
@@ -122,7 +134,7 @@ def test_a_cancel_reaches_into_the_running_tasks(where, tmp_path):
     stages = {k: sum(n.startswith(f"{k}.") for n in after) for k in range(4)}
     # each running task stopped at its next look at the token: within a stage of the cancel for threads and
     # processes (a POLL of 0.1 s is 2 stages), within DASK_CHECK (1 s, 20 stages) on Dask; never at its end
-    late = 2 + 2 + (execution.DASK_CHECK / 0.05 if where.backend == "dask" else 0)
+    late = 2 + 2 + (dask_backend.DASK_CHECK / 0.05 if where.backend == "dask" else 0)
     for k, count in stages.items():
         assert count < 100 and count <= sum(n.startswith(f"{k}.") for n in stop.seen) + late, (k, count)
 
@@ -190,7 +202,7 @@ def test_a_scheduler_that_does_not_answer_is_a_clear_error():
 def test_worker_processes_start_this_python_when_the_host_is_not_it(monkeypatch, host):
     # QGIS reports its binary, or (embedded Python) the first python3 on PATH, maybe another installation's
     monkeypatch.setattr(sys, "executable", host)
-    exe = execution.python_executable()
+    exe = task_runtime.python_executable()
     assert exe.startswith(sys.exec_prefix + os.sep) and os.path.basename(exe).startswith("python")   # this venv's
     out = run_tasks(tasks.statistic, [(1, 10), (2, 10)], Execution("processes", 2))
     assert [r[0] for r in out] == [1, 2]
@@ -220,13 +232,13 @@ def test_a_scheduler_address_of_the_expected_form_is_accepted(address):
 
 
 def test_more_workers_than_the_machine_takes_are_capped_with_a_warning():
-    limit = execution.WORKERS_PER_CORE * os.cpu_count()
+    limit = task_runtime.WORKERS_PER_CORE * os.cpu_count()
     many = Execution("threads", 1000 * limit)
     log = Feedback()
     with execution.session(many):
         for _ in range(2):
             assert run_tasks(tasks.refuse, [(0,), (1,)], many, log) == [0, 1]
-    warning = f"{1000 * limit} workers asked for, {limit} used: at most {execution.WORKERS_PER_CORE} per core"
+    warning = f"{1000 * limit} workers asked for, {limit} used: at most {task_runtime.WORKERS_PER_CORE} per core"
     assert [m for m in log.messages if m.startswith(warning)] == log.messages[:1]      # said once, first
     assert log.messages[1] == f"the tiles: 2 tasks on {limit} threads"
     assert Execution("processes", 1000 * limit).describe() == f"{limit} local worker processes"
@@ -239,7 +251,7 @@ def test_a_thousand_workers_start_no_more_processes_than_the_cap(monkeypatch):
     the cap in at most the cap's processes, and the Dask local cluster is asked for the cap (its constructor is
     recorded, not run: the cap's worker processes are the pool's test)."""
     import distributed
-    limit = execution.worker_limit()
+    limit = task_runtime.worker_limit()
     log = Feedback()
     pids = run_tasks(tasks.pid_after, [(0.3,)] * (2 * limit), Execution("processes", 1000), log)
     assert 1 < len(set(pids)) <= limit and os.getpid() not in pids
@@ -260,7 +272,7 @@ def test_a_thousand_workers_start_no_more_processes_than_the_cap(monkeypatch):
 
 def test_a_local_cluster_starts_without_its_known_warnings(recwarn):
     with execution.session(BACKENDS[2]):
-        actions = run_tasks(tasks.warning_action, [(m, c.__name__) for m, c in execution.DASK_NOISE], BACKENDS[2])
+        actions = run_tasks(tasks.warning_action, [(m, c.__name__) for m, c in dask_backend.DASK_NOISE], BACKENDS[2])
     assert actions == ["ignore", "ignore"]          # the workers' filters (UserWarning is shown by default)
-    noise = [str(w.message) for w in recwarn if any(str(w.message).startswith(m) for m, _ in execution.DASK_NOISE)]
+    noise = [str(w.message) for w in recwarn if any(str(w.message).startswith(m) for m, _ in dask_backend.DASK_NOISE)]
     assert noise == []                      # nor does this process show them (recwarn records every warning)

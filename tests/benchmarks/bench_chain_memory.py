@@ -40,7 +40,7 @@ import time
 import numpy as np
 from osgeo import gdal
 
-from pushbroom.algorithms.execution import BACKENDS
+from pushbroom.algorithms.task_runtime import BACKENDS
 from tests.benchmarks.bench_region_growing import SCENES, scene
 from tests.helpers.dem_cloud import read_raster
 from tests.helpers.processes import descendants, peak_kb

@@ -5,7 +5,7 @@ import time
 import numpy as np
 
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.execution import check_cancel
+from pushbroom.algorithms.task_runtime import check_cancel
 
 
 def statistic(seed, n):
@@ -57,7 +57,7 @@ def weighted_sum(job, k):
 
 def staged(folder, k, stages, seconds, blob=b""):
     """Leave <folder>/pid-<k> with the worker's pid, then run `stages` stages of `seconds` each: before each, a
-    look at the cancel token (execution.check_cancel) as the steps' tile functions do; after each, the file
+    look at the cancel token (task_runtime.check_cancel) as the steps' tile functions do; after each, the file
     <folder>/<k>.<stage>. `blob` is an argument to carry (a large one fills a pipe). Returns k."""
     with open(os.path.join(folder, f"pid-{k}"), "w") as f:
         f.write(str(os.getpid()))
@@ -85,3 +85,36 @@ def pid_after(seconds):
     """The worker's pid, after sleeping `seconds`."""
     time.sleep(seconds)
     return os.getpid()
+
+
+def long_first_time(job, folder, k, seconds):
+    """Leave <folder>/pid-<k> with the worker's pid; the first run of task k (no <folder>/ran-<k> yet) then runs
+    `seconds` in stages of 0.1 s with a look at the cancel token before each, a later run (the task run again after
+    its worker died) at once; leave <folder>/done-<k>. Returns k times the sum of job["values"]."""
+    with open(os.path.join(folder, f"pid-{k}"), "w") as f:
+        f.write(str(os.getpid()))
+    first = not os.path.exists(os.path.join(folder, f"ran-{k}"))
+    with open(os.path.join(folder, f"ran-{k}"), "w"):
+        pass
+    for _ in range(int(seconds / 0.1) if first else 0):
+        check_cancel()
+        time.sleep(0.1)
+    with open(os.path.join(folder, f"done-{k}"), "w"):
+        pass
+    return k * float(job["values"].sum())
+
+
+def after_gate(job, folder, k, seconds):
+    """Leave <folder>/started-<k>; wait until <folder>/go exists (looking every 0.05 s, with a look at the cancel
+    token; 120 s at most, so that a test that never opens the gate fails instead of hanging), then `seconds`; leave
+    <folder>/done-<k>. Returns k times the sum of job["values"]."""
+    with open(os.path.join(folder, f"started-{k}"), "w"):
+        pass
+    deadline = time.monotonic() + 120.0
+    while not os.path.exists(os.path.join(folder, "go")) and time.monotonic() < deadline:
+        check_cancel()
+        time.sleep(0.05)
+    time.sleep(seconds)
+    with open(os.path.join(folder, f"done-{k}"), "w"):
+        pass
+    return k * float(job["values"].sum())

@@ -22,3 +22,12 @@ def qgis_process_env(folder, plugin=REPO):
                PYTHONPATH=os.pathsep.join(site + [os.environ.get("PYTHONPATH", "")]))
     subprocess.run([QGIS_PROCESS, "plugins", "enable", "pushbroom"], env=env, capture_output=True)
     return env
+
+
+def openblas() -> str:
+    """OpenBLAS's libblas.so.3 as Debian's alternatives choose it (CBLAS included): LD_PRELOAD puts it before the
+    GSL CBLAS that qgis_process links (docs/architecture.md, "Same bits")."""
+    import glob
+    found = sorted(glob.glob("/usr/lib/*-linux-gnu/libblas.so.3")) + sorted(glob.glob("/lib/*-linux-gnu/libblas.so.3"))
+    assert found, "no libblas.so.3 (Debian's libopenblas0)"
+    return os.path.realpath(found[0])

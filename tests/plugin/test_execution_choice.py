@@ -41,3 +41,11 @@ def test_a_cancel_from_the_qt_event_loop_reaches_the_running_tiles(pushbroom_pro
     stages = [n for n in os.listdir(tmp_path) if not n.startswith("pid-")]
     # both tasks stopped at a look at the token, soon after the 0.3 s (6 stages): far from their 100 stages
     assert 0 < len(stages) < 2 * 50, sorted(stages)
+
+
+@pytest.mark.parametrize("given, wait", [({}, 60.0), ({"DASK_WAIT": 7.5}, 7.5), ({"DASK_WAIT": None}, 60.0)])
+def test_the_wait_for_a_dask_worker_is_a_parameter_with_a_default(pushbroom_provider, given, wait):
+    algorithm = QgsApplication.processingRegistry().algorithmById("pushbroom:interpolatedem")
+    where = execution_choice(algorithm, {"EXECUTION": 2, "DASK_ADDRESS": "tcp://10.0.0.5:8786", **given},
+                             QgsProcessingContext())
+    assert (where.backend, where.address, where.worker_wait) == ("dask", "tcp://10.0.0.5:8786", wait)

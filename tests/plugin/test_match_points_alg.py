@@ -1,6 +1,8 @@
 """pushbroom:matchpoints and pushbroom:selecttiepoints on a small simulated SPOT-5 triplet."""
 import csv
 import os
+import re
+import subprocess
 
 import numpy as np
 import pytest
@@ -8,16 +10,19 @@ from osgeo import gdal
 from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
+import pushbroom
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.crs import reproject, srs as srs_of, wgs84
 from pushbroom.algorithms.dem_store import read_dem
-from pushbroom.algorithms.execution import BACKENDS
 from pushbroom.algorithms.matching.points import DENSE, REFINED
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS
 from pushbroom.algorithms.surface.local_spread import local_metres
 from pushbroom.algorithms.surface.outlier_filter import mean_distances, threshold
 from pushbroom.algorithms.surface.pointcloud import laspy_module
+from pushbroom.algorithms.task_runtime import BACKENDS
+from tests.helpers.dask_cluster import REPO, Cluster, readme_commands
+from tests.helpers.qgis_process_profile import QGIS_PROCESS, openblas, qgis_process_env
 
 
 @pytest.fixture(scope="module")
@@ -190,22 +195,22 @@ def test_coarse_to_fine_strategy(pushbroom_provider, triplet):
 
 @pytest.mark.slow
 def test_every_execution_gives_the_same_points_from_qgis_process(pushbroom_provider, triplet, qgis_process):
-    """Region growing's tiles on threads in this process, on local worker processes and on a Dask local
+    """Region growing's tiles on threads in this process, and on threads, local worker processes and a Dask local
     cluster started by qgis_process (whose sys.executable is not Python): the same points, bit for bit."""
     lo, hi = triplet["range"]
     common = {"IMAGES": "HRG, HRS1", "MIN_HEIGHT": lo, "MAX_HEIGHT": hi, "STEP": 8, "TILE": 256}
     paths = {}
-    for execution in BACKENDS:
+    for execution in ("here", *BACKENDS):
         paths[execution] = make_block(triplet, f"exec_{execution}.gpkg", ("HRG", "HRS1"))
-        if execution == "threads":
+        if execution == "here":
             processing.run("pushbroom:matchpoints", {"BLOCK": paths[execution], **common})
         else:
             chosen = {**common, "EXECUTION": BACKENDS.index(execution), "WORKERS": 2}
             args = [f"--{key}={value}" for key, value in chosen.items()]
             qgis_process("run", "pushbroom:matchpoints", f"--BLOCK={paths[execution]}", *args)
-    reference = Block(paths["threads"]).points()
+    reference = Block(paths["here"]).points()
     assert len(reference) > 100
-    for execution in ("processes", "dask"):
+    for execution in BACKENDS:
         points = Block(paths[execution]).points()
         assert points.points.tobytes() == reference.points.tobytes(), execution     # NaN included
         assert points.observations.tobytes() == reference.observations.tobytes(), execution
@@ -228,6 +233,81 @@ def dense_block(triplet):
                 context=QgsProcessingContext(), feedback=QgsProcessingFeedback()))
         return done[mpgc]
     return get
+
+
+@pytest.mark.slow
+def test_the_readmes_two_host_cluster_runs_dense_matching(pushbroom_provider, triplet, dense_block, tmp_path):
+    """The README's two-host example, its commands as written (node1 and its port this machine's 127.0.0.1 and a
+    free port): a scheduler, two workers and the check of the workers; dense matching through qgis_process on that
+    cluster gives the points of local processes, bit for bit, and its log names the workers and the tiles each
+    ran, with no Python warning and no traceback."""
+    readme = readme_commands(REPO / "README.md")
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}     # a user's shell
+
+    def shell(command, port):
+        settings = [line.replace("/shared/pushbroom", str(REPO)) for line in readme["settings"]]
+        script = "; ".join([*settings, "exec " + command]).replace("node1", "127.0.0.1").replace("8786", str(port))
+        return ["bash", "-c", script]
+    with Cluster(tmp_path, scheduler=lambda port: shell(readme["scheduler"], port), env=env) as cluster:
+        for _ in range(2):
+            cluster.start("worker", shell(readme["worker"], cluster.port), env)
+        cluster.wait_for_workers(2)
+        checked = subprocess.run(shell(readme["check"], cluster.port), env=env, capture_output=True, text=True,
+                                 timeout=120)
+        assert checked.returncode == 0 and checked.stdout.splitlines()[-1] == \
+            f"2 of 2 workers run Pushbroom {pushbroom.__version__}", checked.stdout + checked.stderr
+        path = make_block(triplet, "dense-readme-cluster.gpkg", ("HRG", "HRS1", "HRS2"))
+        lo, hi = triplet["range"]
+        run_env = dict(qgis_process_env(tmp_path / "profile"), PYTHONWARNINGS="ignore:setapi:DeprecationWarning")
+        ran = subprocess.run([QGIS_PROCESS, "run", "pushbroom:matchpoints", "--", f"BLOCK={path}", "STRATEGY=2",
+                              f"MIN_HEIGHT={lo}", f"MAX_HEIGHT={hi}", "DENSE_TILE=300", "DENSE_STEP=4",
+                              "EXECUTION=2", f"DASK_ADDRESS={cluster.address}"],
+                             env=run_env, capture_output=True, text=True, timeout=600)
+    log = ran.stdout + ran.stderr
+    assert ran.returncode == 0, log[-3000:]
+    reference = Block(dense_block()[0]).points()
+    points = Block(path).points()
+    assert len(points) > 1000
+    assert points.points.tobytes() == reference.points.tobytes()
+    assert points.observations.tobytes() == reference.observations.tobytes()
+    assert f"the Dask cluster at {cluster.address}: 2 workers (tcp://127.0.0.1:" in log
+    rounds = re.findall(r"(.*): (\d+) tasks? on the Dask cluster at ", log)
+    tallies = re.findall(r"(.*): tasks per worker: (.*)", log)
+    assert len(tallies) == len(rounds) >= 2
+    for (what, n), (same, counts) in zip(rounds, tallies):
+        # qgis_process writes its progress ("0...10...", "80") before a line
+        assert re.sub(r"^[\d.]*", "", what) == re.sub(r"^[\d.]*", "", same)
+        assert sum(int(c) for c in re.findall(r"tcp://127\.0\.0\.1:\d+ (\d+)", counts)) == int(n)
+    assert any(len(re.findall(r"tcp://", counts)) == 2 for _, counts in tallies)     # both workers ran tiles
+    assert not re.search(r"\w+Warning\b|Traceback|semaphore", log), log[-3000:]
+
+
+@pytest.mark.slow
+def test_threads_inside_qgis_process_differ_only_by_the_cblas_it_links(pushbroom_provider, triplet, dense_block,
+                                                                      tmp_path, figures):
+    """qgis_process links GSL's reference CBLAS before OpenBLAS (docs/architecture.md, "Same bits"): numpy's matrix
+    products in its threads sum in another order, and the dense tiles' image coordinates differ from local worker
+    processes' (plain Python) by rounding, far below a micro-pixel; with OpenBLAS preloaded, bit for bit."""
+    reference = Block(dense_block()[0]).points()          # the tiles in worker processes (/usr/bin/python3)
+    lo, hi = triplet["range"]
+    env = dict(qgis_process_env(tmp_path / "profile"), PYTHONWARNINGS="ignore:setapi:DeprecationWarning")
+    found = {}
+    for name, preload in (("as linked", {}), ("OpenBLAS first", {"LD_PRELOAD": openblas()})):
+        path = make_block(triplet, f"dense-qgis-process-threads-{len(found)}.gpkg", ("HRG", "HRS1", "HRS2"))
+        ran = subprocess.run([QGIS_PROCESS, "run", "pushbroom:matchpoints", "--", f"BLOCK={path}", "STRATEGY=2",
+                              f"MIN_HEIGHT={lo}", f"MAX_HEIGHT={hi}", "DENSE_TILE=300", "DENSE_STEP=4",
+                              "EXECUTION=0", "WORKERS=2"], env={**env, **preload}, capture_output=True, text=True,
+                             timeout=600)
+        assert ran.returncode == 0, (ran.stdout + ran.stderr)[-3000:]
+        found[name] = Block(path).points()
+    linked = found["as linked"].observations
+    assert all(np.array_equal(linked[f], reference.observations[f]) for f in ("point_id", "image_id"))
+    worst = max(float(np.nanmax(np.abs(linked[axis] - reference.observations[axis]))) for axis in ("col", "row"))
+    figures.report("dense image coordinates, threads inside qgis_process (GSL's CBLAS) against worker processes, "
+                   "largest difference", worst, "px")
+    assert worst < 1e-9                     # rounding: a micro-pixel is 1e-6
+    assert found["OpenBLAS first"].observations.tobytes() == reference.observations.tobytes()
+    assert found["OpenBLAS first"].points.tobytes() == reference.points.tobytes()
 
 
 def test_dense_strategy_stores_points_for_the_next_steps(pushbroom_provider, dense_block):

@@ -110,9 +110,9 @@ def test_measure_three_points_in_qgis_desktop(small_scene_block, tmp_path):
 @pytest.mark.slow
 @pytest.mark.skipif(not (shutil.which("xvfb-run") and os.path.exists(QGIS)), reason="needs xvfb-run and qgis.bin")
 def test_worker_processes_and_dask_from_qgis_desktop(tmp_path):
-    from pushbroom.algorithms.execution import BACKENDS
     from pushbroom.algorithms.surface.dem_tiles import dem_from_point_cloud
     from pushbroom.algorithms.surface.tin_dem import DemParams
+    from pushbroom.algorithms.task_runtime import BACKENDS
     from tests.helpers.dem_cloud import read_raster, write_cloud
     cloud = write_cloud(tmp_path / "cloud.las")
     dem_from_point_cloud(str(cloud), str(tmp_path / "threads.tif"), DemParams(cell=10.0, tile=75))
