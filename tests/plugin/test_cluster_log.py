@@ -1,6 +1,7 @@
-"""A step's log under qgis_process, read through a pipe as a script's log or a batch system reads it, on a Dask
-cluster without workers (plugin/console.py, algorithms/dask_backend.py): each line arrives as it is written, not
-at the end; the error is printed once, in our words, with no traceback and no Python warning."""
+"""A step's log under qgis_process, read through a pipe as a script's log or a batch system reads it
+(plugin/console.py, algorithms/dask_backend.py). On a Dask cluster without workers each line arrives as it is
+written, not at the end, and the error is printed once, in our words, with no traceback and no Python warning. On a
+Dask local cluster the log names its workers and the tiles each ran, with no warning and no leaked semaphore."""
 import re
 import subprocess
 import time
@@ -16,14 +17,23 @@ from tests.helpers.qgis_process_profile import QGIS_PROCESS, qgis_process_env
 WAIT = 8.0
 
 
-@pytest.mark.slow
-def test_lines_arrive_as_written_and_the_error_once(tmp_path):
+NOISE = r"Traceback|\w+Warning\b|CancelledError|TimeoutError|semaphore"
+
+
+@pytest.fixture
+def cloud(tmp_path):
+    """A point cloud of 20 000 points over 1 km (UTM 16N) and qgis_process's environment."""
     rng = np.random.default_rng(0)
-    x, y = rng.uniform(500000, 501000, 2000), rng.uniform(4000000, 4001000, 2000)
+    x, y = rng.uniform(500000, 501000, 20000), rng.uniform(4000000, 4001000, 20000)
     lon, lat = reproject(x, y, srs(32616), wgs84())
-    cloud, _, _ = write_point_cloud(str(tmp_path / "cloud.las"), lon, lat, rng.normal(300, 20, 2000), {},
-                                    crs="EPSG:32616")
-    env = dict(qgis_process_env(tmp_path / "profile"), PYTHONWARNINGS="ignore:setapi:DeprecationWarning")
+    path, _, _ = write_point_cloud(str(tmp_path / "cloud.las"), lon, lat, rng.normal(300, 20, 20000), {},
+                                   crs="EPSG:32616")
+    return path, dict(qgis_process_env(tmp_path / "profile"), PYTHONWARNINGS="ignore:setapi:DeprecationWarning")
+
+
+@pytest.mark.slow
+def test_lines_arrive_as_written_and_the_error_once(tmp_path, cloud):
+    cloud, env = cloud
     arrived = []
     with Cluster(tmp_path) as cluster:
         run = subprocess.Popen([QGIS_PROCESS, "run", "pushbroom:interpolatedem", "--", f"INPUT={cloud}", "CELL=10",
@@ -45,5 +55,21 @@ def test_lines_arrive_as_written_and_the_error_once(tmp_path):
     assert len(waiting) == 1 and end - waiting[0] > WAIT / 2
     said = f"no worker joined the Dask cluster at {cluster.address} within {WAIT:g} s (0 workers connected)"
     assert log.count(said) == 1 and "nothing was stored" in log
-    assert not re.search(r"Traceback|\w+Warning\b|CancelledError|TimeoutError", log), log
+    assert not re.search(NOISE, log), log
     assert not (tmp_path / "dem.tif").exists()
+
+
+@pytest.mark.slow
+def test_a_local_cluster_logs_its_workers_and_their_tiles_and_nothing_else(tmp_path, cloud):
+    cloud, env = cloud
+    ran = subprocess.run([QGIS_PROCESS, "run", "pushbroom:interpolatedem", "--", f"INPUT={cloud}", "CELL=2",
+                          "TILE=128", "EXECUTION=2", "WORKERS=2", f"OUTPUT={tmp_path / 'dem.tif'}"],
+                         env=env, capture_output=True, text=True, timeout=600)
+    log = ran.stdout + ran.stderr
+    assert ran.returncode == 0, log[-3000:]
+    assert re.search(r"the Dask local cluster: 2 workers \(tcp://127\.0\.0\.1:\d+, tcp://127\.0\.0\.1:\d+\)", log)
+    rounds = re.findall(r": (\d+) tasks on a Dask local cluster of 2 worker processes", log)
+    tallies = re.findall(r"tasks per worker: (.*)", log)
+    assert len(rounds) == len(tallies) >= 3          # the spacing, the blunder filter's iterations, the DEM's tiles
+    assert [sum(map(int, re.findall(r" (\d+)(?:,|$)", t))) for t in tallies] == [int(n) for n in rounds]
+    assert not re.search(NOISE, log), log
