@@ -16,6 +16,8 @@ The cluster as run_tasks sees it:
   definition, so when the last worker holding it dies it is computed again on another. Scattered data lives only
   on workers, and Dask's active memory manager (on by default, every 2 s) keeps one replica of it: when that
   worker died, the tasks waiting for it were cancelled (the issue of the cluster test, distributed 2022.12).
+  Dask places a task beside its data: a round of up to twice the cluster's threads starts on the worker that holds
+  the job and spreads by work stealing; a larger round is queued on the scheduler and spread as workers free up.
 - **Every worker lost.** When the scheduler has had no worker for `worker_wait` s during a round, the round fails
   with ExecutionError: the step, the tiles finished, and that nothing was stored. A task the cluster cancelled (its
   data lost, the scheduler gone), a task that killed its workers in turn (distributed's KilledWorker) and a task
@@ -28,8 +30,9 @@ The cluster as run_tasks sees it:
   the local cluster is closed and collected at the end of its step, so that qgis_process, which ends without
   Python's exit handlers, leaves no semaphore to the resource tracker.
 
-Failure modes: ExecutionError (no scheduler answers within `connect_timeout` s, no worker, every worker lost, a
-worker that cannot run Pushbroom, Dask distributed not installed). Reference: distributed's documentation,
+Failure modes: ExecutionError (no scheduler answers within `connect_timeout` s, or one stops answering for ANSWER
+s; no worker; every worker lost; a worker that cannot run Pushbroom; Dask distributed not installed). The workers
+are asked for at most every DASK_CHECK s. Reference: distributed's documentation,
 "Data Locality", "Active Memory Manager" and "Resilience" (a lost key is recomputed from its task; scattered data
 is not)."""
 from __future__ import annotations
@@ -53,6 +56,8 @@ DASK_CHECK = 1.0
 #: warnings a Dask local cluster or client gives on every start (the start of the message, the category)
 DASK_NOISE = (("make_current is deprecated", DeprecationWarning),
               ("Creating scratch directories is taking a surprisingly long time", UserWarning))
+#: s the scheduler (and a worker, for its check) has to answer a question before it counts as gone
+ANSWER = 30.0
 #: what nothing stored means to the user, in every message of a failed round
 UNCHANGED = "nothing was stored: the block and the outputs are as they were"
 
@@ -111,7 +116,7 @@ def _reports(client, addresses: list) -> dict:
     """{address: worker_report.report() of that worker, or the exception that kept it from answering}."""
     import cloudpickle
     cloudpickle.register_pickle_by_value(worker_report)      # a worker without pushbroom must still unpickle it
-    return client.run(worker_report.report, workers=addresses, on_error="return")
+    return client.run(worker_report.report, workers=addresses, on_error="return", callback_timeout=ANSWER)
 
 
 def worker_reports(address: str, timeout: float = 30.0) -> dict:
@@ -144,6 +149,7 @@ class DaskBackend:
         self.tally: collections.Counter = collections.Counter()
         self.total = self.finished = 0
         self.alone_since: float | None = None    # when the scheduler was last seen with no worker
+        self.looked = -float("inf")                 # when the scheduler was last asked for its workers
         if execution.address:
             self.client = _connect(execution.address, execution.connect_timeout)
             return
@@ -164,32 +170,44 @@ class DaskBackend:
 
     # ---- the workers
 
-    def _present(self, fresh: bool = False) -> dict:
-        """{address: host} of the scheduler's workers: the client's view, refreshed every 2 s, or (`fresh`) the
-        scheduler's answer now."""
-        info = self.client.sync(self.client.scheduler.identity) if fresh else self.client.scheduler_info()
+    def _ask(self, call: Callable, **kwargs):
+        """`call(**kwargs)` on the client's loop, answered within ANSWER s; ExecutionError where the scheduler does
+        not answer (it died, or the network is gone)."""
+        try:
+            return self.client.sync(call, callback_timeout=ANSWER, **kwargs)
+        except Exception as exc:
+            raise ExecutionError(f"{self.what}: the Dask scheduler of {self.where} stopped answering "
+                                 f"({type(exc).__name__}: {exc}); {self._finished()}, {UNCHANGED}") from None
+
+    def _present(self) -> dict:
+        """{address: host} of the scheduler's workers, as the scheduler answers now."""
+        info = self._ask(self.client.scheduler.identity)
+        self.looked = time.monotonic()
         return {a: str(w.get("host", "")) or a for a, w in info["workers"].items()}
 
     def _label(self, address: str) -> str:
         host = self.workers.get(address, "")
         return f"{address} ({host})" if host and host not in address else address
 
+    def _start_one(self) -> str:
+        return (f"start one on a host that sees the same files, `python3 -m distributed.cli.dask_worker "
+                f"{self.execution.address or '<address>'} --nthreads 1` (README, Scaling out), or raise the wait "
+                "(DASK_WAIT)")
+
     def _wait_for_workers(self):
         """Return once the scheduler has a worker; ExecutionError after `worker_wait` s without one."""
         wait = float(self.execution.worker_wait)
         deadline = time.monotonic() + wait
         told = False
-        while not self._present(fresh=True):
+        while not self._present():
             if time.monotonic() >= deadline:
-                raise ExecutionError(
-                    f"{self.what}: no worker joined {self.where} within {wait:g} s (0 workers connected): start one "
-                    f"on a host that sees the same files, `python3 -m distributed.cli.dask_worker "
-                    f"{self.execution.address or '<address>'} --nthreads 1` (README, Scaling out), or raise the "
-                    f"wait (DASK_WAIT); nothing ran, {UNCHANGED}")
+                raise ExecutionError(f"{self.what}: no worker joined {self.where} within {wait:g} s (0 workers "
+                                     f"connected): {self._start_one()}; {self._finished()}, {UNCHANGED}")
             if not told:
                 progress.warn(self.feedback, f"{self.where} has no worker: waiting up to {wait:g} s for one")
                 told = True
-            self._idle()
+            while time.monotonic() - self.looked < DASK_CHECK:
+                self._idle()
         self.alone_since = None
 
     def _idle(self):
@@ -198,10 +216,15 @@ class DaskBackend:
         progress.check(self.feedback)
         time.sleep(POLL)
 
-    def _check(self, addresses: list):
-        """ExecutionError where a worker of `addresses` cannot run Pushbroom's tasks (module docstring)."""
+    def _check(self, addresses: list, total: int):
+        """ExecutionError where a worker of `addresses` (of the `total` the cluster has) cannot run Pushbroom's
+        tasks (module docstring); the others are checked for good."""
         from .. import __version__
-        reports = _reports(self.client, addresses)
+        try:
+            reports = _reports(self.client, addresses)
+        except Exception as exc:            # the scheduler died, or a worker does not answer within ANSWER s
+            raise ExecutionError(f"{self.what}: the workers of {self.where} could not be checked "
+                                 f"({type(exc).__name__}: {exc}); {self._finished()}, {UNCHANGED}") from None
         failing, dense = [], []
         for address, seen in sorted(reports.items()):
             if isinstance(seen, BaseException):
@@ -211,38 +234,43 @@ class DaskBackend:
             said = worker_report.problems(seen, __version__, platform.python_version())
             if said:
                 failing.append(f"{address} on {seen['host']}: {'; '.join(said)}")
-            elif worker_report.dense_missing(seen):
+                continue
+            if worker_report.dense_missing(seen):
                 dense.append(f"{address} on {seen['host']}")
             self.checked.add(address)
         if failing:
             raise ExecutionError(
-                f"{self.what}: {len(failing)} of {len(reports)} workers of {self.where} cannot run Pushbroom's "
-                f"tasks: {'; '.join(failing)}. `python3 -m pushbroom.algorithms.worker_check "
-                f"{self.execution.address or '<address>'}` checks every worker; nothing ran, {UNCHANGED}")
+                f"{self.what}: {len(failing)} of {total} workers of {self.where} cannot run Pushbroom's tasks: "
+                f"{'; '.join(failing)}. `python3 -m pushbroom.algorithms.worker_check "
+                f"{self.execution.address or '<address>'}` checks every worker; {self._finished()}, {UNCHANGED}")
         if dense:
             progress.warn(self.feedback, f"{len(dense)} worker{'s' * (len(dense) != 1)} of {self.where} lack CNES "
                                          f"libsgm (c_libsgm): {', '.join(dense)}; dense matching's tiles fail there "
                                          "(install the plugin's wheel with its `dense` extra)")
 
-    def _watch(self, fresh: bool = False):
-        """Log the workers that left or joined since the last look (`fresh`: the scheduler's answer, else the
-        client's view), check the new ones; ExecutionError once the scheduler has had no worker for `worker_wait`
-        s."""
-        present = self._present(fresh)
+    def _changes(self, present: dict) -> list:
+        """Log the workers that left or joined since the last look; the joined ones."""
         log = progress.ensure(self.feedback)
+        n = len(present)
         for address in sorted(self.workers.keys() - present.keys()):
-            left = f"{len(present)} worker{'s' * (len(present) != 1)} left"
-            log.pushInfo(f"{self.what}: worker {self._label(address)} left {self.where}; its running tiles run "
-                         f"again on another ({left})")
+            after = (f"its running tiles run again on another ({n} worker{'s' * (n != 1)} left)" if n else
+                     "no worker is left")
+            log.pushInfo(f"{self.what}: worker {self._label(address)} left {self.where}; {after}")
         joined = sorted(present.keys() - self.workers.keys())
         self.workers = present
-        if joined:
-            new = [a for a in joined if a not in self.checked]
-            if new:
-                self._check(new)
-            for address in joined:
-                log.pushInfo(f"{self.what}: worker {self._label(address)} joined {self.where} ({len(present)} "
-                             "workers)")
+        for address in joined:
+            log.pushInfo(f"{self.what}: worker {self._label(address)} joined {self.where} ({n} workers)")
+        return joined
+
+    def _watch(self):
+        """At most every DASK_CHECK s: log the workers that left or joined, check the new ones; ExecutionError once
+        the scheduler has had no worker for `worker_wait` s."""
+        if time.monotonic() - self.looked < DASK_CHECK:
+            return
+        present = self._present()
+        new = [a for a in self._changes(present) if a not in self.checked]
+        if new:
+            self._check(new, len(present))
         if present:
             self.alone_since = None
             return
@@ -253,7 +281,8 @@ class DaskBackend:
                                          "s for one to come back")
         elif time.monotonic() - self.alone_since > wait:
             raise ExecutionError(f"{self.what}: every worker of {self.where} was lost, and none came back within "
-                                 f"{wait:g} s; {self._finished()}, {UNCHANGED}")
+                                 f"{wait:g} s (0 workers connected): {self._start_one()}; {self._finished()}, "
+                                 f"{UNCHANGED}")
 
     def _finished(self) -> str:
         return f"{self.finished} of {self.total} task{'s' * (self.total != 1)} finished"
@@ -265,15 +294,17 @@ class DaskBackend:
         self.tally = collections.Counter()
         self.token = _DaskFlag(f"pushbroom-cancel-{uuid.uuid4().hex}")
         self._wait_for_workers()
-        self.workers = present = self._present(fresh=True)
-        unchecked = [a for a in present if a not in self.checked]
-        if unchecked:
-            self._check(unchecked)
+        present = self._present()
         if not self.named:
-            self.named = True
+            self.named, self.workers = True, present
             progress.ensure(feedback).pushInfo(
                 f"{self.where}: {len(present)} worker{'s' * (len(present) != 1)} "
                 f"({', '.join(self._label(a) for a in sorted(present))})")
+        else:
+            self._changes(present)
+        unchecked = [a for a in present if a not in self.checked]
+        if unchecked:
+            self._check(unchecked, len(present))
 
     def prepare(self, tasks: list):
         """(tasks, futures to keep): each object that every task passes at the same place (a step's job: its
@@ -306,39 +337,52 @@ class DaskBackend:
         return done
 
     def result(self, future):
-        """The task's result; ExecutionError in our words where the cluster lost or refused it (module docstring)."""
+        """The task's result; the task's own exception as it raised it; ExecutionError in our words where the
+        cluster lost or refused it (module docstring). A result whose worker died before it was fetched is
+        computed again: waited for with the cluster watched and the cancel button asked."""
         import distributed
-        if future.status == "cancelled":
-            raise ExecutionError(f"{self.what}: {self.where} cancelled a task (the scheduler lost its data, or "
-                                 f"restarted); {self._finished()}, {UNCHANGED}")
-        if future.status == "error":
-            exc = future.exception()
-            if isinstance(exc, distributed.KilledWorker):
-                raise ExecutionError(f"{self.what}: a task's workers died while running it, one after another "
-                                     f"({exc}): it may need more memory than a worker has; run again with smaller "
-                                     f"tiles; {self._finished()}, {UNCHANGED}")
-            if isinstance(exc, ImportError):
-                raise ExecutionError(f"{self.what}: a worker of {self.where} cannot import what a task needs ({exc}): "
-                                     "install the plugin's wheel with its extras there (README, Scaling out); "
-                                     f"{self._finished()}, {UNCHANGED}")
-        address, value = future.result()
+        while True:
+            try:
+                address, value = future.result(timeout=DASK_CHECK)
+                break
+            except Exception as exc:
+                if future.status == "error":
+                    if isinstance(exc, distributed.KilledWorker):
+                        raise ExecutionError(
+                            f"{self.what}: a task's workers died while running it, one after another ({exc}): it "
+                            f"may need more memory than a worker has; run again with smaller tiles; "
+                            f"{self._finished()}, {UNCHANGED}") from None
+                    if isinstance(exc, ImportError):
+                        raise ExecutionError(
+                            f"{self.what}: a worker of {self.where} cannot import what a task needs ({exc}): "
+                            f"install the plugin's wheel with its extras there (README, Scaling out); "
+                            f"{self._finished()}, {UNCHANGED}") from None
+                    raise
+                if future.status == "cancelled":
+                    raise ExecutionError(f"{self.what}: {self.where} cancelled a task (the scheduler lost its data, "
+                                         f"or restarted); {self._finished()}, {UNCHANGED}") from None
+                if not isinstance(exc, TimeoutError):
+                    raise ExecutionError(f"{self.what}: the result of a task could not be fetched from {self.where} "
+                                         f"({type(exc).__name__}: {exc}); {self._finished()}, {UNCHANGED}") from None
+                self._watch()
+                self._idle()
         self.tally[address] += 1
         self.finished += 1
         return value
 
     def end(self) -> str | None:
-        """The round's last look at the cluster (a worker lost since the last look is named too) and its line for
-        the log: the tasks each worker ran."""
-        self._watch(fresh=True)
+        """The round's last look at the cluster (a worker that left or joined since the last look is named; the
+        next round checks a new one) and its line for the log: the tasks each worker ran."""
+        self._changes(self._present())
         return f"{self.what}: tasks per worker: " + ", ".join(
             f"{self._label(a)} {n}" for a, n in sorted(self.tally.items()))
 
     def cancel(self, futures):
         """Set the round's Event (it stays on the scheduler, a name) and wait until the round's `futures` are
-        done, GRACE s at most (closing a local cluster would kill the tasks wherever they are)."""
-        if not self.token.name:         # no round began
-            return
-        if not self.workers:            # nothing runs: nothing to wait for
+        done, GRACE s at most (closing a local cluster would kill the tasks wherever they are). The futures are let go
+        with the round: the scheduler then drops the tasks that have not started, with no call that a dead
+        scheduler could hold up."""
+        if not self.token.name or not self.workers:     # no round began, or nothing runs: nothing to wait for
             return
         with contextlib.suppress(Exception):
             self.client.sync(self.client.scheduler.event_set, name=self.token.name, callback_timeout=GRACE)

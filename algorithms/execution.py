@@ -128,6 +128,8 @@ class _Threads(_Local):
 
     def cancel(self, futures):
         self.token.set()                # close waits for the running ones (a thread cannot be stopped)
+        for future in futures:
+            future.cancel()
 
     def close(self, cancel):
         self.pool.shutdown(wait=True, cancel_futures=cancel)
@@ -348,7 +350,7 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
     futures, failed = {}, True
     try:
         backend.begin(what, feedback, len(tasks))
-        submitted, shared = backend.prepare(tasks)
+        submitted, _ = backend.prepare(tasks)          # the shared futures are held by `submitted`
         for k, args in enumerate(submitted):
             futures[backend.submit(function, args)] = k
         pending = set(futures)
@@ -363,15 +365,12 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
                 results[futures.pop(future)] = backend.result(future)
                 progress.step(feedback, 100.0 * (len(tasks) - len(pending)) / len(tasks))
         failed = False
-        del shared
         line = backend.end()
         if line is not None:
             progress.ensure(feedback).pushInfo(line)
     finally:
         if failed:
-            backend.cancel(futures)         # the running tasks stop at their next look at the token
-            for future in futures:
-                future.cancel()
+            backend.cancel(futures)         # the pending ones are dropped, the running ones stop at the token
         if kept is None:
             backend.close(failed)
     return results

@@ -37,7 +37,7 @@ def bounded():
 
 
 def hold_in_worker():
-    """Hold the GDAL cache of a worker process (local processes and Dask: execution.in_worker, before each task)
+    """Hold the GDAL cache of a worker process (local processes and Dask: task_runtime.in_worker, before each task)
     to STEP_CACHE; a worker runs only the steps' tasks, so the bound stays."""
     if gdal.GetCacheMax() > STEP_CACHE:
         gdal.SetCacheMax(STEP_CACHE)

@@ -415,7 +415,7 @@ def heights_choice(algorithm, parameters, key, context):
     return HEIGHT_TYPES[algorithm.parameterAsEnum(parameters, key, context)]
 
 
-#: labels of the execution backends execution.BACKENDS
+#: labels of the execution backends task_runtime.BACKENDS
 EXECUTION_LABELS = {"threads": "Threads in this process",
                     "processes": "Local worker processes",
                     "dask": "Dask distributed: a local cluster, or the scheduler at the address below"}

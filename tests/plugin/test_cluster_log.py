@@ -4,6 +4,7 @@ written, not at the end, and the error is printed once, in our words, with no tr
 Dask local cluster the log names its workers and the tiles each ran, with no warning and no leaked semaphore."""
 import re
 import subprocess
+import threading
 import time
 
 import numpy as np
@@ -40,13 +41,16 @@ def test_lines_arrive_as_written_and_the_error_once(tmp_path, cloud):
                                 "EXECUTION=2", f"DASK_ADDRESS={cluster.address}", f"DASK_WAIT={WAIT}",
                                 f"OUTPUT={tmp_path / 'dem.tif'}"],
                                env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        watchdog = threading.Timer(300, run.kill)       # a hang fails the test, not the suite
+        watchdog.start()
         try:
             for line in run.stdout:
                 arrived.append((time.monotonic(), line.rstrip("\n")))
+            end = time.monotonic()                      # the output's end: the step's
             run.wait(60)
         finally:
+            watchdog.cancel()
             run.kill()
-    end = time.monotonic()
     log = "\n".join(line for _, line in arrived)
     assert run.returncode == 1
     waiting = [t for t, line in arrived if f"has no worker: waiting up to {WAIT:g} s for one" in line]
