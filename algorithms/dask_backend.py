@@ -176,8 +176,8 @@ class DaskBackend:
         try:
             return self.client.sync(call, callback_timeout=ANSWER, **kwargs)
         except Exception as exc:
-            raise ExecutionError(f"{self.what}: the Dask scheduler of {self.where} stopped answering "
-                                 f"({type(exc).__name__}: {exc}); {self._finished()}, {UNCHANGED}") from None
+            raise self._failure(f"the Dask scheduler of {self.where} stopped answering ({type(exc).__name__}: {exc})"
+                                ) from None
 
     def _present(self) -> dict:
         """{address: host} of the scheduler's workers, as the scheduler answers now."""
@@ -194,21 +194,22 @@ class DaskBackend:
                 f"{self.execution.address or '<address>'} --nthreads 1` (README, Scaling out), or raise the wait "
                 "(DASK_WAIT)")
 
-    def _wait_for_workers(self):
-        """Return once the scheduler has a worker; ExecutionError after `worker_wait` s without one."""
+    def _wait_for_workers(self) -> dict:
+        """The scheduler's workers (_present) once it has one; ExecutionError after `worker_wait` s without one."""
         wait = float(self.execution.worker_wait)
         deadline = time.monotonic() + wait
         told = False
-        while not self._present():
+        while not (present := self._present()):
             if time.monotonic() >= deadline:
-                raise ExecutionError(f"{self.what}: no worker joined {self.where} within {wait:g} s (0 workers "
-                                     f"connected): {self._start_one()}; {self._finished()}, {UNCHANGED}")
+                raise self._failure(f"no worker joined {self.where} within {wait:g} s (0 workers connected): "
+                                    f"{self._start_one()}")
             if not told:
                 progress.warn(self.feedback, f"{self.where} has no worker: waiting up to {wait:g} s for one")
                 told = True
             while time.monotonic() - self.looked < DASK_CHECK:
                 self._idle()
         self.alone_since = None
+        return present
 
     def _idle(self):
         if self.execution.host_events is not None:
@@ -216,33 +217,30 @@ class DaskBackend:
         progress.check(self.feedback)
         time.sleep(POLL)
 
-    def _check(self, addresses: list, total: int):
-        """ExecutionError where a worker of `addresses` (of the `total` the cluster has) cannot run Pushbroom's
-        tasks (module docstring); the others are checked for good."""
+    def _check(self, addresses: list, present: dict):
+        """ExecutionError where a worker of `addresses` (among the scheduler's `present` workers) cannot run
+        Pushbroom's tasks (module docstring); the others are checked for good."""
         from .. import __version__
         try:
             reports = _reports(self.client, addresses)
         except Exception as exc:            # the scheduler died, or a worker does not answer within ANSWER s
-            raise ExecutionError(f"{self.what}: the workers of {self.where} could not be checked "
-                                 f"({type(exc).__name__}: {exc}); {self._finished()}, {UNCHANGED}") from None
+            raise self._failure(f"the workers of {self.where} could not be checked ({type(exc).__name__}: {exc})"
+                                ) from None
         failing, dense = [], []
         for address, seen in sorted(reports.items()):
-            if isinstance(seen, BaseException):
-                if address in self._present():     # not a worker that has left meanwhile
-                    failing.append(f"{self._label(address)}: the check did not run ({type(seen).__name__}: {seen})")
-                continue
+            if isinstance(seen, BaseException) and address not in present:
+                continue                    # a worker that left before it answered
             said = worker_report.problems(seen, __version__, platform.python_version())
             if said:
-                failing.append(f"{address} on {seen['host']}: {'; '.join(said)}")
+                failing.append(f"{worker_report.describe(address, seen)}: {'; '.join(said)}")
                 continue
             if worker_report.dense_missing(seen):
                 dense.append(f"{address} on {seen['host']}")
             self.checked.add(address)
         if failing:
-            raise ExecutionError(
-                f"{self.what}: {len(failing)} of {total} workers of {self.where} cannot run Pushbroom's tasks: "
-                f"{'; '.join(failing)}. `python3 -m pushbroom.algorithms.worker_check "
-                f"{self.execution.address or '<address>'}` checks every worker; {self._finished()}, {UNCHANGED}")
+            raise self._failure(f"{len(failing)} of {len(present)} workers of {self.where} cannot run Pushbroom's "
+                                f"tasks: {'; '.join(failing)}. `python3 -m pushbroom.algorithms.worker_check "
+                                f"{self.execution.address or '<address>'}` checks every worker")
         if dense:
             progress.warn(self.feedback, f"{len(dense)} worker{'s' * (len(dense) != 1)} of {self.where} lack CNES "
                                          f"libsgm (c_libsgm): {', '.join(dense)}; dense matching's tiles fail there "
@@ -270,7 +268,7 @@ class DaskBackend:
         present = self._present()
         new = [a for a in self._changes(present) if a not in self.checked]
         if new:
-            self._check(new, len(present))
+            self._check(new, present)
         if present:
             self.alone_since = None
             return
@@ -280,12 +278,13 @@ class DaskBackend:
             progress.warn(self.feedback, f"{self.what}: every worker of {self.where} is lost: waiting up to {wait:g} "
                                          "s for one to come back")
         elif time.monotonic() - self.alone_since > wait:
-            raise ExecutionError(f"{self.what}: every worker of {self.where} was lost, and none came back within "
-                                 f"{wait:g} s (0 workers connected): {self._start_one()}; {self._finished()}, "
-                                 f"{UNCHANGED}")
+            raise self._failure(f"every worker of {self.where} was lost, and none came back within {wait:g} s (0 "
+                                f"workers connected): {self._start_one()}")
 
-    def _finished(self) -> str:
-        return f"{self.finished} of {self.total} task{'s' * (self.total != 1)} finished"
+    def _failure(self, text: str) -> ExecutionError:
+        """The round's failure: `text`, the tasks finished, and that nothing was stored."""
+        return ExecutionError(f"{self.what}: {text}; {self.finished} of {self.total} task{'s' * (self.total != 1)} "
+                              f"finished, {UNCHANGED}")
 
     # ---- run_tasks' backend
 
@@ -293,8 +292,7 @@ class DaskBackend:
         self.what, self.feedback, self.total, self.finished = what, feedback, total, 0
         self.tally = collections.Counter()
         self.token = _DaskFlag(f"pushbroom-cancel-{uuid.uuid4().hex}")
-        self._wait_for_workers()
-        present = self._present()
+        present = self._wait_for_workers()
         if not self.named:
             self.named, self.workers = True, present
             progress.ensure(feedback).pushInfo(
@@ -304,10 +302,10 @@ class DaskBackend:
             self._changes(present)
         unchecked = [a for a in present if a not in self.checked]
         if unchecked:
-            self._check(unchecked, len(present))
+            self._check(unchecked, present)
 
-    def prepare(self, tasks: list):
-        """(tasks, futures to keep): each object that every task passes at the same place (a step's job: its
+    def prepare(self, tasks: list) -> list:
+        """The tasks as submitted: each object that every task passes at the same place (a step's job: its
         models, images and parameters) made the result of a task of its own and passed as its future, which the
         workers resolve: the scheduler holds it once, not once per task, and computes it again where it is lost
         (module docstring)."""
@@ -321,9 +319,7 @@ class DaskBackend:
                         warnings.filterwarnings("ignore", message="Large object of size", category=UserWarning)
                         shared[i] = self.client.submit(_held, value, pure=False,
                                                        key=f"pushbroom-job-{uuid.uuid4().hex}")
-        if not shared:
-            return tasks, []
-        return [tuple(shared.get(i, a) for i, a in enumerate(t)) for t in tasks], list(shared.values())
+        return [tuple(shared.get(i, a) for i, a in enumerate(t)) for t in tasks] if shared else tasks
 
     def submit(self, function: Callable, args: tuple):
         # pure=False: a task is run, not looked up (two runs of the same tile may write different files)
@@ -348,22 +344,20 @@ class DaskBackend:
             except Exception as exc:
                 if future.status == "error":
                     if isinstance(exc, distributed.KilledWorker):
-                        raise ExecutionError(
-                            f"{self.what}: a task's workers died while running it, one after another ({exc}): it "
-                            f"may need more memory than a worker has; run again with smaller tiles; "
-                            f"{self._finished()}, {UNCHANGED}") from None
+                        raise self._failure(f"a task's workers died while running it, one after another ({exc}): it "
+                                            "may need more memory than a worker has; run again with smaller tiles"
+                                            ) from None
                     if isinstance(exc, ImportError):
-                        raise ExecutionError(
-                            f"{self.what}: a worker of {self.where} cannot import what a task needs ({exc}): "
-                            f"install the plugin's wheel with its extras there (README, Scaling out); "
-                            f"{self._finished()}, {UNCHANGED}") from None
+                        raise self._failure(f"a worker of {self.where} cannot import what a task needs ({exc}): "
+                                            "install the plugin's wheel with its extras there (README, Scaling out)"
+                                            ) from None
                     raise
                 if future.status == "cancelled":
-                    raise ExecutionError(f"{self.what}: {self.where} cancelled a task (the scheduler lost its data, "
-                                         f"or restarted); {self._finished()}, {UNCHANGED}") from None
+                    raise self._failure(f"{self.where} cancelled a task (the scheduler lost its data, or restarted)"
+                                        ) from None
                 if not isinstance(exc, TimeoutError):
-                    raise ExecutionError(f"{self.what}: the result of a task could not be fetched from {self.where} "
-                                         f"({type(exc).__name__}: {exc}); {self._finished()}, {UNCHANGED}") from None
+                    raise self._failure(f"the result of a task could not be fetched from {self.where} "
+                                        f"({type(exc).__name__}: {exc})") from None
                 self._watch()
                 self._idle()
         self.tally[address] += 1

@@ -88,7 +88,7 @@ class _SharedFlag:
         return self.value.value != 0
 
 
-# ---- the backends: begin(what, feedback, total), prepare(tasks), submit(function, args) -> future,
+# ---- the backends: begin(what, feedback, total), prepare(tasks) -> tasks, submit(function, args) -> future,
 # done(futures) -> the finished, result(future), end() -> a line for the log or None, cancel(futures): set the
 # token and give the running tasks GRACE s to stop, close(cancel); `note`: the warning run_tasks gives once
 # (Execution.capped). dask_backend.DaskBackend is the dask one.
@@ -100,7 +100,7 @@ class _Local:
 
     def prepare(self, tasks):
         """The tasks as they are submitted (pickled per task for worker processes)."""
-        return tasks, []
+        return tasks
 
     def result(self, future):
         return future.result()
@@ -350,7 +350,7 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
     futures, failed = {}, True
     try:
         backend.begin(what, feedback, len(tasks))
-        submitted, _ = backend.prepare(tasks)          # the shared futures are held by `submitted`
+        submitted = backend.prepare(tasks)      # held to the round's end: on Dask it holds the shared job's future
         for k, args in enumerate(submitted):
             futures[backend.submit(function, args)] = k
         pending = set(futures)

@@ -74,7 +74,7 @@ class Execution:
     workers: int = 2                    # threads, processes, or the LocalCluster's worker processes
     address: str = ""                   # Dask scheduler address; empty: a LocalCluster of `workers`
     connect_timeout: float = 30.0       # s to wait for the scheduler at `address`
-    worker_wait: float = 60.0           # s a round on Dask waits for a worker where the scheduler has none
+    worker_wait: float = 60.0           # s a round on Dask waits for a worker where the cluster has none or lost all
     # called while run_tasks waits for tasks: the host program's event loop (module docstring)
     host_events: Optional[Callable[[], None]] = field(default=None, compare=False, repr=False)
 

@@ -32,13 +32,19 @@ def report() -> dict:
             "found": found, "missing": missing}
 
 
-def problems(seen: dict, version: str, python: str) -> list:
-    """What keeps the worker of report `seen` from running Pushbroom's tasks given by a process of Pushbroom
-    `version` and Python `python` (major.minor.micro): each a phrase; none where it can."""
-    said = []
-    for name, provider in NEEDED.items():
-        if name in seen["missing"]:
-            said.append(f"no {name} ({seen['missing'][name]}: {provider})")
+def _missing(seen: dict, modules: dict) -> list:
+    """A phrase for each module of `modules` the worker of report `seen` lacks."""
+    return [f"no {name} ({seen['missing'][name]}: {provider})" for name, provider in modules.items()
+            if name in seen["missing"]]
+
+
+def problems(seen, version: str, python: str) -> list:
+    """What keeps the worker of report `seen` (report(), or the exception it answered with) from running
+    Pushbroom's tasks given by a process of Pushbroom `version` and Python `python` (major.minor.micro): each a
+    phrase; none where it can."""
+    if isinstance(seen, BaseException):
+        return [f"the check did not run ({type(seen).__name__}: {seen})"]
+    said = _missing(seen, NEEDED)
     other = seen["found"].get("pushbroom")
     if other is not None and other != version:
         said.append(f"Pushbroom {other}, not {version} as the step")
@@ -47,14 +53,16 @@ def problems(seen: dict, version: str, python: str) -> list:
     return said
 
 
-def dense_missing(seen: dict) -> list:
-    """The phrases for DENSE's modules the worker of report `seen` lacks."""
-    return [f"no {name} ({seen['missing'][name]}: {provider})" for name, provider in DENSE.items()
-            if name in seen["missing"]]
+def dense_missing(seen) -> list:
+    """The phrases for DENSE's modules the worker of report `seen` lacks (none for a worker that did not answer)."""
+    return [] if isinstance(seen, BaseException) else _missing(seen, DENSE)
 
 
-def describe(address: str, seen: dict) -> str:
-    """One line for a worker: its address, host, Python and Pushbroom's version, or the error."""
+def describe(address: str, seen) -> str:
+    """One line for a worker: its address, host, Python and Pushbroom's version (only the address for a worker
+    that did not answer)."""
+    if isinstance(seen, BaseException):
+        return address
     pushbroom = seen["found"].get("pushbroom")
     return (f"{address} on {seen['host']}: Python {seen['python']} ({seen['executable']}), "
             + (f"Pushbroom {pushbroom}" if pushbroom is not None else "no Pushbroom"))

@@ -7,7 +7,6 @@ import os
 import re
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
@@ -18,6 +17,7 @@ from pushbroom.algorithms.execution import Execution, run_tasks
 from tests.helpers import execution_tasks as tasks
 from tests.helpers.dask_cluster import Cluster
 from tests.helpers.feedback import Feedback
+from tests.helpers.processes import pid_in, when
 
 #: the wait for a worker the tests give (s): a cluster without one fails after it
 WAIT = 3.0
@@ -47,23 +47,8 @@ def _threads_result(job, n):
     return run_tasks(tasks.weighted_sum, [(job, k) for k in range(n)], Execution("threads", 2))
 
 
-def _when(condition, then, timeout=120.0):
-    """A thread that runs `then()` once `condition()` holds (looking every 0.05 s, `timeout` s at most)."""
-    def watch():
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if condition():
-                then()
-                return
-            time.sleep(0.05)
-    thread = threading.Thread(target=watch, daemon=True)
-    thread.start()
-    return thread
-
-
 def _pid_of(folder, k):
-    path = folder / f"pid-{k}"
-    return int(path.read_text()) if path.exists() and path.read_text() else None
+    return pid_in(folder / f"pid-{k}")
 
 
 def test_the_last_busy_worker_killed_after_the_other_idled_gives_the_threads_result(cluster, tmp_path):
@@ -85,7 +70,7 @@ def test_the_last_busy_worker_killed_after_the_other_idled_gives_the_threads_res
         if (folder / "done-0").exists():
             idle_since.setdefault("t", time.monotonic())
         return "t" in idle_since and time.monotonic() - idle_since["t"] >= 5.0 and _pid_of(folder, 1) is not None
-    killer = _when(ready, kill_the_busy_one)
+    killer = when(ready, kill_the_busy_one)
     out = run_tasks(tasks.long_first_time, _tasks(job, folder, [0.5, 60.0]),
                     Execution("dask", address=cluster.address, worker_wait=WAIT), log, what="the test")
     killer.join(1)
@@ -104,7 +89,7 @@ def test_every_worker_killed_mid_step_is_a_clear_error_within_the_wait(cluster, 
     folder.mkdir()
     log = Feedback()
     running = min(n, 2)
-    _when(lambda: sum(_pid_of(folder, k) is not None for k in range(n)) >= running,
+    when(lambda: sum(_pid_of(folder, k) is not None for k in range(n)) >= running,
           lambda: [Cluster.kill(w) for w in workers])
     start = time.monotonic()
     with pytest.raises(ExecutionError) as failed:
@@ -155,7 +140,7 @@ def test_a_worker_without_pushbroom_is_named_before_any_task_runs(cluster, tmp_p
                               "Pushbroom's tasks: tcp://127.0.0.1:")
     assert "no pushbroom (ModuleNotFoundError: No module named 'pushbroom': install the plugin's wheel" in message
     assert "no numba (ModuleNotFoundError: No module named 'numba'" in message
-    assert len(re.findall(r"tcp://127\.0\.0\.1:\d+ on [^:]+: no pushbroom", message)) == 1
+    assert len(re.findall(r"tcp://127\.0\.0\.1:\d+ on [^:]+: Python [^)]+\), no Pushbroom: no pushbroom", message)) == 1
     assert message.endswith("0 of 4 tasks finished, nothing was stored: the block and the outputs are as they were")
     assert not list(tmp_path.glob("pid-*"))                          # no task ran, not even on the good worker
     # the README's one command for checking the workers says the same
@@ -191,7 +176,7 @@ def test_a_worker_added_during_a_step_takes_tasks_and_gives_the_threads_result(c
         cluster.add_worker()
         cluster.wait_for_workers(2)
         (folder / "go").touch()
-    _when(lambda: any(folder.glob("started-*")), add_a_worker)
+    when(lambda: any(folder.glob("started-*")), add_a_worker)
     out = run_tasks(tasks.after_gate, _tasks(job, folder, [1.0] * 8),
                     Execution("dask", address=cluster.address, worker_wait=WAIT), log, what="the test")
     assert out == _threads_result(job, 8)

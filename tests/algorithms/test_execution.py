@@ -4,10 +4,10 @@ worker, a scheduler that does not answer or a malformed address, the cap on the 
 processes started from a host program that is not Python (QGIS)."""
 import collections
 import os
+import pathlib
 import re
 import signal
 import sys
-import threading
 import time
 
 import numpy as np
@@ -18,7 +18,7 @@ from pushbroom.algorithms.errors import CancelledError, ExecutionError, InputErr
 from pushbroom.algorithms.execution import Execution, run_tasks
 from tests.helpers import execution_tasks as tasks
 from tests.helpers.feedback import Feedback
-from tests.helpers.processes import worker_processes
+from tests.helpers.processes import pid_in, when, worker_processes
 
 BACKENDS = [Execution("threads", 2), Execution("processes", 2), Execution("dask", 2)]
 
@@ -75,9 +75,9 @@ def test_what_every_task_shares_is_sent_once(where):
         return
     with execution.session(where):
         backend = execution._sessions[(execution.threading.get_ident(), where)]
-        submitted, shared = backend.prepare(tasks_)
-        assert len(shared) == 1 and all(t[0] is shared[0] and t[1] == k for k, t in enumerate(submitted))
-        assert type(shared[0]).__name__ == "Future"             # the job travels once, as a future
+        submitted = backend.prepare(tasks_)
+        assert all(t[0] is submitted[0][0] and t[1] == k for k, t in enumerate(submitted))
+        assert type(submitted[0][0]).__name__ == "Future"       # the job travels once, as a future
 
 
 @pytest.mark.parametrize("where", BACKENDS[1:], ids=lambda e: e.backend)
@@ -156,16 +156,13 @@ def _kill_first_worker(folder):
     file in `folder`; returns the pid in the list it fills."""
     killed = []
 
+    def first():
+        return next(filter(None, (pid_in(f) for f in sorted(pathlib.Path(folder).glob("pid-*")))), None)
+
     def kill():
-        deadline = time.monotonic() + 60
-        while not killed and time.monotonic() < deadline:
-            names = [n for n in os.listdir(folder) if n.startswith("pid-")]
-            if names:
-                with open(os.path.join(folder, names[0])) as f:
-                    killed.append(int(f.read()))
-                os.kill(killed[0], signal.SIGKILL)
-            time.sleep(0.05)
-    threading.Thread(target=kill, daemon=True).start()
+        killed.append(first())
+        os.kill(killed[0], signal.SIGKILL)
+    when(lambda: first() is not None, kill, timeout=60)
     return killed
 
 

@@ -101,14 +101,21 @@ class Cluster:
 
 
 def readme_commands(readme: Path) -> dict:
-    """The README's two-host example ("Two hosts, worked through"): {"settings": its NAME=value lines, "scheduler",
-    "worker", "check": its commands}, each as written."""
+    """The README's two-host example ("Two hosts, worked through"): {"settings": {name: value} of its NAME=value
+    lines, "scheduler", "worker", "check": its commands}, each as written."""
     text = readme.read_text(encoding="utf-8")
     block = text[text.index("**Two hosts, worked through.**"):]
     block = block[block.index("```bash") + len("```bash"):]
-    lines = [line.strip() for line in block[:block.index("```")].splitlines()]
+    lines = [line.split("  #")[0].strip() for line in block[:block.index("```")].splitlines()]
     lines = [line for line in lines if line and not line.startswith("#")]
-    found = {"settings": [line.split("#")[0].strip() for line in lines if "=" in line.split()[0]]}
+    found: dict = {"settings": dict(line.split("=", 1) for line in lines if "=" in line.split()[0])}
     for key, mark in (("scheduler", "dask_scheduler"), ("worker", "dask_worker"), ("check", "worker_check")):
         found[key] = next(line for line in lines if mark in line)
     return found
+
+
+def readme_shell(readme: dict, command: str, settings: dict) -> list:
+    """bash running the README's `command` (a key of readme_commands) as written, after its settings with those of
+    `settings` in place of the README's values."""
+    assignments = [f"{name}={settings.get(name, value)}" for name, value in readme["settings"].items()]
+    return ["bash", "-c", "; ".join([*assignments, "exec " + readme[command]])]

@@ -1,5 +1,8 @@
-"""The processes of this machine as /proc shows them (Linux): a test's worker processes, to kill one."""
+"""The processes of this machine as /proc shows them (Linux): a test's worker processes, to kill one; the pid a
+task leaves in a file, and a thread that acts once a condition holds."""
 import os
+import threading
+import time
 
 
 def peak_kb(pid="self"):
@@ -62,3 +65,27 @@ def worker_processes(pid: int) -> list[int]:
     """The pids of the worker processes descending from `pid`: those multiprocessing spawned (its spawn_main in
     their command line: the local pool's and the Dask local cluster's workers), children first."""
     return [child for child in descendants(pid) if "spawn_main" in command_line(child)]
+
+
+def pid_in(path) -> int | None:
+    """The pid a task left in the file `path` (None where the file is not there, or not written yet)."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except OSError:
+        return None
+    return int(text) if text.strip() else None
+
+
+def when(condition, then, timeout: float = 120.0) -> threading.Thread:
+    """A thread that runs `then()` once `condition()` holds, looking every 0.05 s for `timeout` s at most."""
+    def watch():
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if condition():
+                then()
+                return
+            time.sleep(0.05)
+    thread = threading.Thread(target=watch, daemon=True)
+    thread.start()
+    return thread

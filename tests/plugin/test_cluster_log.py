@@ -7,12 +7,10 @@ import subprocess
 import threading
 import time
 
-import numpy as np
 import pytest
 
-from pushbroom.algorithms.crs import reproject, srs, wgs84
-from pushbroom.algorithms.surface.pointcloud import write_point_cloud
 from tests.helpers.dask_cluster import Cluster
+from tests.helpers.dem_cloud import write_cloud
 from tests.helpers.qgis_process_profile import QGIS_PROCESS, qgis_process_env
 
 WAIT = 8.0
@@ -23,17 +21,13 @@ NOISE = r"Traceback|\w+Warning\b|CancelledError|TimeoutError|semaphore"
 
 @pytest.fixture
 def cloud(tmp_path):
-    """A point cloud of 20 000 points over 1 km (UTM 16N) and qgis_process's environment."""
-    rng = np.random.default_rng(0)
-    x, y = rng.uniform(500000, 501000, 20000), rng.uniform(4000000, 4001000, 20000)
-    lon, lat = reproject(x, y, srs(32616), wgs84())
-    path, _, _ = write_point_cloud(str(tmp_path / "cloud.las"), lon, lat, rng.normal(300, 20, 20000), {},
-                                   crs="EPSG:32616")
-    return path, dict(qgis_process_env(tmp_path / "profile"), PYTHONWARNINGS="ignore:setapi:DeprecationWarning")
+    """The tiled DEM's test cloud (tests/helpers/dem_cloud.py, 3 x 3 km) and qgis_process's environment."""
+    return (str(write_cloud(tmp_path / "cloud.las")),
+            dict(qgis_process_env(tmp_path / "profile"), PYTHONWARNINGS="ignore:setapi:DeprecationWarning"))
 
 
 @pytest.mark.slow
-def test_lines_arrive_as_written_and_the_error_once(tmp_path, cloud):
+def test_lines_arrive_as_written_and_the_error_once(tmp_path, cloud, figures):
     cloud, env = cloud
     arrived = []
     with Cluster(tmp_path) as cluster:
@@ -56,7 +50,10 @@ def test_lines_arrive_as_written_and_the_error_once(tmp_path, cloud):
     waiting = [t for t, line in arrived if f"has no worker: waiting up to {WAIT:g} s for one" in line]
     # the line of the wait left as it was written, the wait's length before the step's end (a block-buffered
     # pipe gave it with the error, at the end)
-    assert len(waiting) == 1 and end - waiting[0] > WAIT / 2
+    assert len(waiting) == 1
+    figures.report("qgis_process into a pipe, a Dask cluster without workers: the wait's line before the step's end",
+                   end - waiting[0], "s", f"DASK_WAIT {WAIT:g} s")
+    assert end - waiting[0] > WAIT / 2
     said = f"no worker joined the Dask cluster at {cluster.address} within {WAIT:g} s (0 workers connected)"
     assert log.count(said) == 1 and "nothing was stored" in log
     assert not re.search(NOISE, log), log
@@ -66,8 +63,8 @@ def test_lines_arrive_as_written_and_the_error_once(tmp_path, cloud):
 @pytest.mark.slow
 def test_a_local_cluster_logs_its_workers_and_their_tiles_and_nothing_else(tmp_path, cloud):
     cloud, env = cloud
-    ran = subprocess.run([QGIS_PROCESS, "run", "pushbroom:interpolatedem", "--", f"INPUT={cloud}", "CELL=2",
-                          "TILE=128", "EXECUTION=2", "WORKERS=2", f"OUTPUT={tmp_path / 'dem.tif'}"],
+    ran = subprocess.run([QGIS_PROCESS, "run", "pushbroom:interpolatedem", "--", f"INPUT={cloud}", "CELL=20",
+                          "TILE=32", "EXECUTION=2", "WORKERS=2", f"OUTPUT={tmp_path / 'dem.tif'}"],
                          env=env, capture_output=True, text=True, timeout=600)
     log = ran.stdout + ran.stderr
     assert ran.returncode == 0, log[-3000:]

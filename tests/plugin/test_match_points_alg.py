@@ -21,7 +21,7 @@ from pushbroom.algorithms.surface.local_spread import local_metres
 from pushbroom.algorithms.surface.outlier_filter import mean_distances, threshold
 from pushbroom.algorithms.surface.pointcloud import laspy_module
 from pushbroom.algorithms.task_runtime import BACKENDS
-from tests.helpers.dask_cluster import REPO, Cluster, readme_commands
+from tests.helpers.dask_cluster import REPO, Cluster, readme_commands, readme_shell
 from tests.helpers.qgis_process_profile import QGIS_PROCESS, openblas, qgis_process_env
 
 
@@ -237,22 +237,21 @@ def dense_block(triplet):
 
 @pytest.mark.slow
 def test_the_readmes_two_host_cluster_runs_dense_matching(pushbroom_provider, triplet, dense_block, tmp_path):
-    """The README's two-host example, its commands as written (node1 and its port this machine's 127.0.0.1 and a
-    free port): a scheduler, two workers and the check of the workers; dense matching through qgis_process on that
-    cluster gives the points of local processes, bit for bit, and its log names the workers and the tiles each
-    ran, with no Python warning and no traceback."""
+    """The README's two-host example, its commands as written after its settings (HOST this machine's 127.0.0.1,
+    PORT a free port, PUSHBROOM this clone): a scheduler, two workers and the check of the workers; dense matching
+    through qgis_process on that cluster gives the points of local processes, bit for bit, and its log names the
+    workers and the tiles each ran, with no Python warning and no traceback."""
     readme = readme_commands(REPO / "README.md")
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}     # a user's shell
+    here = {"PUSHBROOM": str(REPO), "HOST": "127.0.0.1"}
 
     def shell(command, port):
-        settings = [line.replace("/shared/pushbroom", str(REPO)) for line in readme["settings"]]
-        script = "; ".join([*settings, "exec " + command]).replace("node1", "127.0.0.1").replace("8786", str(port))
-        return ["bash", "-c", script]
-    with Cluster(tmp_path, scheduler=lambda port: shell(readme["scheduler"], port), env=env) as cluster:
+        return readme_shell(readme, command, {**here, "PORT": str(port)})
+    with Cluster(tmp_path, scheduler=lambda port: shell("scheduler", port), env=env) as cluster:
         for _ in range(2):
-            cluster.start("worker", shell(readme["worker"], cluster.port), env)
+            cluster.start("worker", shell("worker", cluster.port), env)
         cluster.wait_for_workers(2)
-        checked = subprocess.run(shell(readme["check"], cluster.port), env=env, capture_output=True, text=True,
+        checked = subprocess.run(shell("check", cluster.port), env=env, capture_output=True, text=True,
                                  timeout=120)
         assert checked.returncode == 0 and checked.stdout.splitlines()[-1] == \
             f"2 of 2 workers run Pushbroom {pushbroom.__version__}", checked.stdout + checked.stderr
