@@ -103,7 +103,7 @@ bench-peers: setup $(CARS_VENV)/.done
 # The plugin zip for "Install from ZIP" in QGIS (tests and development files left out).
 package:
 	@rm -rf build/package && mkdir -p build/package/pushbroom dist
-	@cp -r metadata.txt __init__.py resource_files.py LICENSE README.md algorithms plugin ui resources docs build/package/pushbroom/
+	@cp -r metadata.txt __init__.py version.py resource_files.py LICENSE README.md algorithms plugin ui resources docs build/package/pushbroom/
 	@find build/package -name __pycache__ -prune -exec rm -rf {} + ; find build/package -name '*.nb[ic]' -delete
 	@rm -f dist/pushbroom-$(VERSION).zip && cd build/package && zip -qr ../../dist/pushbroom-$(VERSION).zip pushbroom
 	@echo "dist/pushbroom-$(VERSION).zip"

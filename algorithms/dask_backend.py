@@ -47,6 +47,7 @@ import uuid
 import warnings
 from typing import Callable
 
+from ..version import VERSION
 from . import progress, worker_report
 from .errors import ExecutionError
 from .task_runtime import GRACE, POLL, Execution, in_worker, starting_workers, use_python_for_workers
@@ -220,7 +221,6 @@ class DaskBackend:
     def _check(self, addresses: list, present: dict):
         """ExecutionError where a worker of `addresses` (among the scheduler's `present` workers) cannot run
         Pushbroom's tasks (module docstring); the others are checked for good."""
-        from .. import __version__
         try:
             reports = _reports(self.client, addresses)
         except Exception as exc:            # the scheduler died, or a worker does not answer within ANSWER s
@@ -230,7 +230,7 @@ class DaskBackend:
         for address, seen in sorted(reports.items()):
             if isinstance(seen, BaseException) and address not in present:
                 continue                    # a worker that left before it answered
-            said = worker_report.problems(seen, __version__, platform.python_version())
+            said = worker_report.problems(seen, VERSION, platform.python_version())
             if said:
                 failing.append(f"{worker_report.describe(address, seen)}: {'; '.join(said)}")
                 continue

@@ -1,10 +1,12 @@
 """The terrain height range a step works in: the user's heights where given, else the block's; and the
 heights terrain on Earth can have (PLAUSIBLE_HEIGHTS), which every height a user gives is checked against.
 
-A height range is a tuple (h_min, h_max) of ellipsoidal heights (m), a single height, or None (nothing
-known). Matching searches along the rays between h_min and h_max; steps that need one starting height
-(intersection, tie point display, RPC fitting checks) take its middle."""
+A height range as given is a tuple (h_min, h_max) of ellipsoidal heights (m), a single height, or None (nothing
+known). Matching resolves it once, to a HeightRange, and searches along the rays between its low and high ends;
+steps that need one starting height (intersection, tie point display, RPC fitting checks) take its middle."""
 import math
+from dataclasses import dataclass
+from typing import Union
 
 import numpy as np
 
@@ -14,6 +16,53 @@ from .errors import InputError
 #: -430 m, Everest at 8849 m, and the geoid departs from the ellipsoid by -106 .. +85 m, so that both kinds of
 #: height of any terrain lie within
 PLAUSIBLE_HEIGHTS = (-500.0, 9000.0)
+
+
+#: a height range as a user or a block gives it: (h_min, h_max), one height, or None
+GivenHeights = Union[tuple[float, float], float, None]
+#: m searched either side of a single height given as the range
+SINGLE_HEIGHT_SPAN = 500.0
+
+
+@dataclass(frozen=True)
+class HeightRange:
+    """The ellipsoidal heights (m) that matching searches along the rays, low <= high, both finite."""
+
+    low: float
+    high: float
+
+    @classmethod
+    def resolve(cls, given: Union["HeightRange", GivenHeights], model: object = None) -> "HeightRange":
+        """The range of `given`: a HeightRange as it is; (h_min, h_max); one height h (h +- SINGLE_HEIGHT_SPAN);
+        None: the reference sensor `model`'s own `height_range` (an RPC's validity domain). InputError where none
+        is known, or the ends are not finite or swapped."""
+        if isinstance(given, HeightRange):
+            return given
+        if given is None:
+            given = getattr(model, "height_range", None)
+            if given is None:
+                raise InputError("the height range of the scene is unknown: give height_range=(h_min, h_max) "
+                                 "or a mean ellipsoidal height (then +-500 m are searched)")
+        if np.ndim(given) == 0:
+            h = float(given)  # type: ignore[arg-type]
+            given = (h - SINGLE_HEIGHT_SPAN, h + SINGLE_HEIGHT_SPAN)
+        lo, hi = (float(v) for v in given)  # type: ignore[union-attr]
+        if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo:
+            raise InputError(f"height_range must be (h_min, h_max) with h_min <= h_max, got {given}")
+        return cls(lo, hi)
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        """(low, high)."""
+        return (self.low, self.high)
+
+    @property
+    def mean(self) -> float:
+        """The middle of the range."""
+        return 0.5 * (self.low + self.high)
+
+    def __str__(self) -> str:
+        return f"{self.low:g} to {self.high:g} m"
 
 
 def outside_plausible(heights):
@@ -64,8 +113,8 @@ def height_range(h_min, h_max, block_range):
     return block_range
 
 
-def mean_height(height_range):
-    """The middle of a height range (0 where nothing is known)."""
+def mean_height(height_range: GivenHeights) -> float:
+    """The middle of a height range as given (0 where nothing is known)."""
     if height_range is None:
         return 0.0
     if isinstance(height_range, tuple):

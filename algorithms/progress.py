@@ -1,7 +1,19 @@
 """Progress reporting and cancelling without QGIS: any object with the methods of
 QgsProcessingFeedback (setProgress, isCanceled, pushInfo; pushWarning where it has it) can be
 passed as `feedback`."""
+from typing import Protocol
+
 from .errors import CancelledError
+
+
+class Feedback(Protocol):
+    """What the engine calls on a feedback: QgsProcessingFeedback's methods of that name."""
+
+    def setProgress(self, percent: float) -> None: ...
+
+    def isCanceled(self) -> bool: ...
+
+    def pushInfo(self, text: str) -> None: ...
 
 
 class NullFeedback:

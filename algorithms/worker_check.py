@@ -9,7 +9,7 @@ import platform
 import sys
 from typing import Optional
 
-from .. import __version__
+from ..version import VERSION
 from .dask_backend import worker_reports
 from .errors import PushbroomError
 from .worker_report import dense_missing, describe, problems
@@ -34,13 +34,13 @@ def main(argv: Optional[list] = None) -> int:
         return 2
     failing = 0
     for address, seen in sorted(reports.items()):
-        said = problems(seen, __version__, platform.python_version())
+        said = problems(seen, VERSION, platform.python_version())
         failing += bool(said)
         dense = dense_missing(seen)
         status = "FAILS: " + "; ".join(said) if said else "ok" + (
             f" (not for dense matching: {'; '.join(dense)})" if dense else "")
         print(f"{describe(address, seen)}: {status}")
-    print(f"{len(reports) - failing} of {len(reports)} workers run Pushbroom {__version__}")
+    print(f"{len(reports) - failing} of {len(reports)} workers run Pushbroom {VERSION}")
     return 1 if failing else 0
 
 

@@ -19,7 +19,7 @@ from scipy.interpolate import griddata
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dem_store import read_dem
-from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
+from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene

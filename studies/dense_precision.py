@@ -20,7 +20,7 @@ from scipy.optimize import nnls
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.dense import precision
-from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
+from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree

@@ -97,7 +97,7 @@ def small_scene_matched(small_scene):
     HRG, HRS1, HRS2 (supplied models, the DSM's height range +- 100 m, 4 workers): each (GrowParams,
     refine) matched once per run and shared read-only."""
     from pushbroom.algorithms import sensors
-    from pushbroom.algorithms.matching.combinations import match_block
+    from pushbroom.algorithms.matching.region_growing_strategy import match_block
     names = ("HRG", "HRS1", "HRS2")
     lo, hi = read_dem(small_scene["dsm"]).height_range
     done = {}
@@ -107,7 +107,7 @@ def small_scene_matched(small_scene):
         if key not in done:
             done[key] = match_block([small_scene["images"][n]["imagery"] for n in names],
                                     [sensors.load(small_scene["images"][n]["metadata"]) for n in names],
-                                    params=params, height_range=(lo - 100.0, hi + 100.0), workers=4, refine=refine)
+                                    params=params, height_range=(lo - 100.0, hi + 100.0), workers=4, mpgc=refine)
         return done[key]
     return get
 

@@ -5,6 +5,8 @@
 - The engine packages import each other without cycles. A node is a subpackage of `algorithms/`
   (`algorithms.matching`) or a top-level engine module (`algorithms.atomic`); imports inside a node
   do not count.
+- No module of the package imports itself back through others: no cycle between modules, inside a
+  subpackage too.
 
 Imports are read with `ast`, those inside functions included, relative imports resolved.
 """
@@ -88,7 +90,7 @@ def find_cycle(graph):
 def layering_violations(root, package=PACKAGE):
     """Messages for every broken layering rule in the package rooted at `root`."""
     modules = package_modules(root, package)
-    problems, graph = [], {}
+    problems, graph, module_graph = [], {}, {}
     for module, path in modules.items():
         layer = module.split(".")[1] if "." in module else None
         where = path.relative_to(root)
@@ -102,8 +104,12 @@ def layering_violations(root, package=PACKAGE):
             source, target = engine_node(module, package), engine_node(imported, package)
             if source and target and source != target:
                 graph.setdefault(source, set()).add(target)
+            if imported in modules and imported != module:
+                module_graph.setdefault(module, set()).add(imported)
     if cycle := find_cycle(graph):
         problems.append("import cycle between engine packages: " + " -> ".join(cycle))
+    if cycle := find_cycle(module_graph):
+        problems.append("import cycle between modules: " + " -> ".join(cycle))
     return problems
 
 
@@ -138,12 +144,25 @@ def test_checker_reports_a_cycle_with_its_path(tmp_path):
                              "def kernel():\n    from .ortho import resampling\n"})
     assert layering_violations(tmp_path) == [
         "import cycle between engine packages: "
-        "algorithms.interpolation -> algorithms.ortho -> algorithms.interpolation"]
+        "algorithms.interpolation -> algorithms.ortho -> algorithms.interpolation",
+        "import cycle between modules: pushbroom.algorithms.interpolation -> pushbroom.algorithms.ortho.resampling -> "
+        "pushbroom.algorithms.interpolation"]
+
+
+def test_checker_reports_a_cycle_inside_a_package_through_a_function_level_import(tmp_path):
+    # matching.lsm imports matching.ncc, whose function imports lsm back
+    write_package(tmp_path, {**SOUND, "algorithms/matching/lsm.py": "from .ncc import score\n",
+                             "algorithms/matching/ncc.py": "def score():\n    from .lsm import bilinear\n"})
+    assert layering_violations(tmp_path) == [
+        "import cycle between modules: pushbroom.algorithms.matching.lsm -> pushbroom.algorithms.matching.ncc -> "
+        "pushbroom.algorithms.matching.lsm"]
 
 
 def test_checker_reports_ui_importing_plugin(tmp_path):
     write_package(tmp_path, {**SOUND, "ui/view.py": "from ..plugin.plugin import resource_path\n"})
-    assert layering_violations(tmp_path) == ["ui/view.py:1: ui imports the Processing glue pushbroom.plugin.plugin"]
+    assert layering_violations(tmp_path) == [
+        "ui/view.py:1: ui imports the Processing glue pushbroom.plugin.plugin",
+        "import cycle between modules: pushbroom.plugin.plugin -> pushbroom.ui.view -> pushbroom.plugin.plugin"]
 
 
 def test_checker_reports_the_engine_importing_qt_or_glue(tmp_path):

@@ -9,16 +9,16 @@ from .sgm import SgmParams
 class DenseParams:
     """tile: image-1 tile size (px), each tile one task; step: lattice step of the points (image-1 px, 1:
     every pixel); grid_step: epipolar grid node spacing (epipolar px); max_spread: the largest spread (px)
-    of the four disparities a lattice node is interpolated from; sgm: census and SGM settings; refine: LSM
+    of the four disparities a lattice node is interpolated from; sgm: census and SGM settings; lsm: LSM
     refinement in the original images (refine.py) with a `template` px window, kept within `max_shift` px
     of the dense position, with LSM's robust weighting where `robust`; mpgc: a triplet's three-ray points
-    refined again by MPGC in both search images at once (block_tiles.py)."""
+    refined again by MPGC in both search images at once (dense_strategy.py)."""
     tile: int = 512
     step: int = 1
     grid_step: int = 16
     max_spread: float = 1.0
     sgm: SgmParams = field(default_factory=SgmParams)
-    refine: bool = True
+    lsm: bool = True
     template: int = 19
     max_shift: float = 0.5
     robust: bool = True

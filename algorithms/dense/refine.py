@@ -32,8 +32,9 @@ the robust weights and the isolation test: docs/validation.md#dense-robust-lsm."
 import numpy as np
 from scipy import ndimage
 
+from ..height_range import HeightRange
 from ..matching.imagery import as_image, touches_masked
-from ..matching.pair_geometry import local_affine, resolve_height_range
+from ..matching.pair_geometry import local_affine
 from ..matching.params import GrowParams
 from ..matching.region_growing import match_windows
 from ..matching.resolution import adapt_resolution
@@ -69,7 +70,7 @@ def refine_positions(image1, image2, model1, model2, x1: np.ndarray, y1: np.ndar
     affine = np.column_stack(local_affine(model1, model2, cx, cy, h_m)[2:])[cell.ravel()]
     params = GrowParams(template=int(template), max_shift=float(max_shift), robust=bool(robust)).check()
     image1, image2 = adapt_resolution(as_image(image1, saturation=True), as_image(image2, saturation=True), model1,
-                                      model2, params, resolve_height_range(model1, height_range))
+                                      model2, params, HeightRange.resolve(height_range, model1).bounds)
     half = params.template // 2
     reach = half * np.abs(affine).reshape(-1, 2, 2).sum(axis=2) + TEMPLATE_SUPPORT + params.max_shift
     masked = touches_masked(image1, x1[idx], y1[idx], half + TEMPLATE_SUPPORT, half + TEMPLATE_SUPPORT) \

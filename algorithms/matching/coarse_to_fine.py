@@ -1,10 +1,11 @@
 """Coarse-to-fine multi-primitive matching with MPGC, the second dense-matching strategy (Zhang &
 Gruen): the orchestration. The work of one pyramid level is in coarse_to_fine_level.py.
 
-0. Tiles: a reference image larger than `tile` px is cut into tiles (tiling.tile_grid), each
-   matched with TILE_MARGIN px of context in windows of the adapted images (the search windows:
-   pair_geometry.search_box), each keeping the points of its core; the orientation bias is
-   estimated per tile. Memory is bounded by the tile size (MAX_PIXELS).
+0. Tiles: a reference image larger than `tile` px is cut into tiles (tiling.tile_grid), each a task
+   of the two rounds of tiled_rounds.py on the chosen execution, matched with TILE_MARGIN px of context
+   in windows of the adapted images (the search windows: pair_geometry.search_box), each keeping the
+   points of its core; the orientation bias is estimated per tile. Memory is bounded by the tile size
+   (MAX_PIXELS) and the number of workers.
 1. Preprocessing (preprocess.py): the reference (nadir) is low-passed to the search images'
    footprint (resolution.adapt_resolution), every image Wallis-filtered and reduced to a
    factor-3 pyramid; the number of levels brings the parallax range of the block's height range
@@ -24,26 +25,39 @@ Gruen): the orchestration. The work of one pyramid level is in coarse_to_fine_le
    1 / 2 observed (+ NCC_ONLY, EDGE), stats with provenance "coarse_to_fine" and the timings per
    level.
 
-Failure modes: InputError for other than 2 or 3 images, a level with fewer than 3 points, a search
-window over MAX_PIXELS or no tile with points; CancelledError when cancelled. Why `edge_points` is
+Failure modes: InputError for other than 2 or 3 images, or where no tile gives points (a level with
+fewer than 3 points, a search window over MAX_PIXELS, no tile inside the search images: the first
+reason is given); CancelledError when cancelled. Why `edge_points` is
 off by default: docs/validation.md."""
+from __future__ import annotations
+
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .. import progress
 from ..errors import InputError
+from ..execution import Execution
+from ..height_range import GivenHeights
+from ..progress import Feedback
+from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from . import preprocess
 from .coarse_to_fine_level import FACTOR, ShiftedModel, TinGuide, edge_breaklines, match_level, match_level_edges
 from .edges import canny, link
 from .imagery import Window
+from .match_stats import MatchStats
 from .mpgc import MpgcParams, accepted, match_points
-from .pair_geometry import predict, resolve_height_range, search_box
+from .pair_geometry import predict, search_box
 from .points import COMB_A, COMB_B, EDGE, NCC_ONLY, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .resolution import adapted_images
+from .stereo_set import StereoSet
+from .strategy import MatchingStrategy, Rounds, TilePlan, register
+from .tiled_rounds import match_in_memory, save_work
 
 #: reliability of a point that failed MPGC: this factor x its smallest NCC rho
 NCC_RELIABILITY = 0.25
@@ -136,31 +150,6 @@ def _pyramids(adapted, models, hr, params):
     return pyr, levels, parallax
 
 
-def match_coarse_to_fine(images, models, names=None, image_ids=None, params=None, height_range=None, feedback=None):
-    """Coarse-to-fine multi-primitive matching with MPGC of 2 or 3 images (reference/nadir first,
-    then the search images; paths, arrays or Images) with their sensor models. A reference image
-    larger than `params.tile` px is matched tile by tile (tiling.tile_grid). Returns MultiPoints
-    (module docstring, step 5). Raises InputError on unusable input, CancelledError when cancelled."""
-    params = (params or CoarseToFineParams()).check()
-    n = len(images)
-    if n not in (2, 3) or len(models) != n:
-        raise InputError(f"the coarse-to-fine matcher takes 2 or 3 images (reference, search[, search]), got {n}")
-    names = list(names or [f"image {k + 1}" for k in range(n)])
-    image_ids = list(image_ids or range(1, n + 1))
-    hr = resolve_height_range(models[0], height_range)
-    progress.step(feedback, 0, "coarse-to-fine matching: preprocessing (resolution adaptation, Wallis, pyramids)")
-    adapted = adapted_images(images, models, hr)
-    boxes = tile_grid(models[0].size, params.tile)
-    if len(boxes) == 1:
-        out, stats = _match(adapted, models, params, hr, feedback)
-    else:
-        out, stats = _match_tiles(adapted, models, params, hr, boxes, feedback)
-    points = to_multipoints(out, image_ids, stats)
-    progress.step(feedback, 100.0, f"coarse-to-fine matching of {', '.join(names)}: {len(points)} points, "
-                  f"{int(np.count_nonzero(~out['mpgc_ok']))} of them not accepted by MPGC (low reliability)")
-    return points
-
-
 def _tile_windows(adapted, models, core, hr, grid):
     """Windows (imagery.Window) and window models (ShiftedModel) of one tile: the reference core
     plus TILE_MARGIN (its corner on a multiple of `grid`, so level 0's grid points are the whole
@@ -183,48 +172,6 @@ def _tile_windows(adapted, models, core, hr, grid):
     windows = [Window(image, b[0], b[1], b[2] - b[0], b[3] - b[1]) for image, b in zip(adapted, boxes)]
     wmodels = [ShiftedModel(mk, -b[0], -b[1], (b[2] - b[0], b[3] - b[1])) for mk, b in zip(models, boxes)]
     return windows, wmodels, boxes
-
-
-def _match_tiles(adapted, models, params, hr, cores, feedback):
-    """`_match` per tile (`_tile_windows`); each tile keeps the points of its core, in image
-    coordinates. A tile where too few points match is left empty with a message."""
-    log = progress.ensure(feedback)
-    parts, tiles, failures = [], [], []
-    for k, core in enumerate(cores):
-        sub = progress.scaled(feedback, 100.0 * k / len(cores), 100.0 * (k + 1) / len(cores))
-        progress.step(sub, 0.0, f"coarse-to-fine matching: tile {k + 1} of {len(cores)} {core}")
-        tile = _tile_windows(adapted, models, core, hr, int(params.grid))
-        if tile is None:
-            log.pushInfo(f"tile {k + 1} {core}: outside the search images, skipped")
-            continue
-        windows, wmodels, boxes = tile
-        try:
-            out, stats = _match(windows, wmodels, params, hr, sub)
-        except InputError as exc:
-            log.pushInfo(f"tile {k + 1} {core}: no points ({exc})")
-            failures.append(str(exc))
-            continue
-        out["x0"] += boxes[0][0]
-        out["y0"] += boxes[0][1]
-        for j, b in enumerate(boxes[1:]):
-            out["sx"][:, j] += b[0]
-            out["sy"][:, j] += b[1]
-        mine = (out["x0"] >= core[0]) & (out["x0"] < core[2]) & (out["y0"] >= core[1]) & (out["y0"] < core[3])
-        parts.append({key: v[mine] for key, v in out.items()})
-        tiles.append({"core": [int(v) for v in core], "points": int(mine.sum()), **stats})
-    if not parts:
-        raise InputError("no tile of the reference image gave points" + (f" ({failures[0]})" if failures else
-                                                                         " (none lies inside the search images)"))
-    out = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
-    seconds = {}
-    for t in tiles:
-        for key, v in t["seconds"].items():
-            seconds[key] = round(seconds.get(key, 0.0) + v, 3)
-    stats = {"provenance": "coarse_to_fine", "tiles": len(cores), "tiles_matched": len(tiles), "seconds": seconds,
-             "mpgc_failed": int(np.count_nonzero(~out["mpgc_ok"])), "edge_points": int(np.count_nonzero(out["edge"])),
-             "per_tile": [{key: t[key] for key in ("core", "points", "levels", "search_image_shifts_px")}
-                          for t in tiles]}
-    return out, stats
 
 
 def _match(adapted, models, params, hr, feedback):
@@ -349,3 +296,125 @@ def to_multipoints(out, image_ids, stats):
     stats = {**stats, "images": [int(i) for i in image_ids], "group3": int(np.count_nonzero(points["group"] == 3)),
              "group1": int(np.count_nonzero(points["group"] == 1))}
     return MultiPoints(points, observations, stats)
+
+
+class TileJob(NamedTuple):
+    """What every tile shares: the resolution-adapted images, the set (models, ids), the settings and the
+    height range (h_min, h_max) searched; `whole`: one tile, matched in the whole images."""
+
+    adapted: list[Any]
+    stereo: StereoSet
+    params: CoarseToFineParams
+    hr: tuple[float, float]
+    whole: bool
+
+
+@register
+class CoarseToFine(MatchingStrategy):
+    """Zhang & Gruen's coarse-to-fine multi-primitive matching with MPGC (module docstring)."""
+
+    name = "coarse_to_fine"
+    label = "Coarse-to-fine multi-primitive with MPGC (Zhang & Gruen)"
+    settings_type = CoarseToFineParams
+    first_round = "coarse-to-fine matching"
+
+    @classmethod
+    def spacing(cls, settings: CoarseToFineParams) -> float:
+        return float(settings.grid)
+
+    @classmethod
+    def plan(cls, stereo: StereoSet, settings: CoarseToFineParams, feedback: Feedback | None) -> TilePlan:
+        s = stereo.without_loader()
+        progress.step(feedback, 0, "coarse-to-fine matching: preprocessing (resolution adaptation, Wallis, pyramids)")
+        adapted = adapted_images(list(s.images), list(s.models), s.heights.bounds)
+        boxes = tile_grid(s.models[0].size, settings.tile)
+        job = TileJob(adapted, s, settings, s.heights.bounds, len(boxes) == 1)
+        return TilePlan(job, boxes, [0] * len(boxes))
+
+    @staticmethod
+    def match_tile(job: TileJob, index: int, box: Any, out: str, quota: int) -> dict[str, Any]:
+        """Round 1: the tile's points (those of its core) to the work file `out`; its stats, or why it has
+        none."""
+        core = [int(v) for v in box]
+        check_cancel()
+        if job.whole:
+            windows, wmodels, boxes = job.adapted, list(job.stereo.models), None
+        else:
+            tile = _tile_windows(job.adapted, list(job.stereo.models), box, job.hr, int(job.params.grid))
+            if tile is None:
+                save_work(out, MultiPoints())
+                return {"points": 0, "core": core, "failure": None}
+            windows, wmodels, boxes = tile
+        try:
+            found, stats = _match(windows, wmodels, job.params, job.hr, None)
+        except InputError as exc:
+            save_work(out, MultiPoints())
+            return {"points": 0, "core": core, "failure": str(exc)}
+        if boxes is not None:
+            found["x0"] += boxes[0][0]
+            found["y0"] += boxes[0][1]
+            for j, b in enumerate(boxes[1:]):
+                found["sx"][:, j] += b[0]
+                found["sy"][:, j] += b[1]
+            mine = (found["x0"] >= box[0]) & (found["x0"] < box[2]) & (found["y0"] >= box[1]) & \
+                (found["y0"] < box[3])
+            found = {key: v[mine] for key, v in found.items()}
+        points = to_multipoints(found, job.stereo.ids, {})
+        save_work(out, points)
+        return {**stats, "points": len(points), "core": core, "failure": None,
+                "mpgc_failed": int((~found["mpgc_ok"]).sum()), "edge_points": int(found["edge"].sum()),
+                "edge_points_mpgc": int((found["edge"] & found["mpgc_ok"]).sum()),
+                **{f"group{g}": int((points.points["group"] == g).sum()) for g in (1, 3)}}
+
+    @classmethod
+    def between(cls, job: TileJob, first: list[dict[str, Any]], outs: list[str], rounds: Rounds,
+                feedback: Feedback | None) -> tuple[TileJob, list[int]]:
+        """Each tile's outcome in the log; InputError where no tile gave points."""
+        log = progress.ensure(feedback)
+        for k, t in enumerate(first):
+            if t["points"] == 0 and not job.whole:
+                log.pushInfo(f"tile {k + 1} {tuple(t['core'])}: " + (f"no points ({t['failure']})" if t["failure"]
+                                                                     else "outside the search images, skipped"))
+            elif t["points"]:
+                log.pushInfo(f"tile {k + 1} {tuple(t['core'])}: {t['points']} points, {t['levels']} pyramid levels, "
+                             "points per level " + ", ".join(f"{v}" for v in t["points_per_level"].values()))
+        if not any(t["points"] for t in first):
+            failures = [t["failure"] for t in first if t["failure"]]
+            raise InputError("no tile of the reference image gave points" + (
+                f" ({failures[0]})" if failures else " (none lies inside the search images)"))
+        return job, [int(t["points"]) for t in first]
+
+    @classmethod
+    def stats(cls, job: TileJob, first: list[dict[str, Any]], refined: list[dict[str, Any]], counts: list[int],
+              feedback: Feedback | None) -> MatchStats:
+        s = job.stereo
+        matched = [t for t in first if t["points"]]
+        seconds: dict[str, float] = {}
+        per_level: dict[str, int] = {}
+        for t in matched:
+            for key, v in t["seconds"].items():
+                seconds[key] = round(seconds.get(key, 0.0) + v, 3)
+            for key, n in t["points_per_level"].items():
+                per_level[key] = per_level.get(key, 0) + n
+        added = {key: int(sum(t[key] for t in matched))
+                 for key in ("mpgc_failed", "edge_points", "edge_points_mpgc", "group1", "group3")}
+        failed = added["mpgc_failed"]
+        details = {"provenance": "coarse_to_fine", "tiles": len(first), "tiles_matched": len(matched),
+                   "levels": max(t["levels"] for t in matched), "points_per_level": per_level, "seconds": seconds,
+                   **added, "per_tile": [{key: t[key] for key in ("core", "points", "levels", "search_image_shifts_px")}
+                                         for t in matched]}
+        stats = MatchStats(cls.name, list(s.ids), int(sum(counts)), details=details)
+        progress.ensure(feedback).pushInfo(f"coarse-to-fine matching of {', '.join(s.names)}: {stats.points} "
+                                           f"points, {failed} of them not accepted by MPGC (low reliability)")
+        return stats
+
+
+def match_coarse_to_fine(images: Sequence[Any], models: Sequence[Any], names: Sequence[str] | None = None,
+                         params: CoarseToFineParams | None = None, height_range: GivenHeights = None,
+                         execution: Execution | None = None, feedback: Feedback | None = None) -> MultiPoints:
+    """Coarse-to-fine multi-primitive matching with MPGC of 2 or 3 images (reference/nadir first, then the search
+    images; paths, arrays or Images; block ids 1 ... n) with their sensor models, tile by tile on `execution`
+    (threads by default), gathered in memory (tiled_rounds.match_in_memory). Returns MultiPoints (module
+    docstring, step 5). Raises InputError on unusable input, CancelledError when cancelled."""
+    return match_in_memory(CoarseToFine, StereoSet.of(images, models, names, heights=height_range), params,
+                           execution, feedback)

@@ -23,7 +23,8 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from .pair_geometry import local_affine, resolve_height_range
+from ..height_range import HeightRange
+from .pair_geometry import local_affine
 from .params import GrowParams
 from .records import PAIR_DTYPE
 from .region_growing import transfer_points
@@ -83,7 +84,7 @@ def forward_backward(image1, image2, model1, model2, records, params=None, heigh
                             & np.isfinite(records["x2"]) & np.isfinite(records["y2"]))
     if len(usable):
         rec = records[usable]
-        hr = resolve_height_range(model1, height_range)
+        hr = HeightRange.resolve(height_range, model1).bounds
         guide = back_guide(rec, model1, model2, 0.5 * (hr[0] + hr[1]))
         guide["x2"] += float(start_offset[0])
         guide["y2"] += float(start_offset[1])

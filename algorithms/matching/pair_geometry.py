@@ -1,6 +1,6 @@
 """The geometry of an image pair that both matchers share: where the sensor models put an image-1
-point in image 2 at a height (`predict`), the local affine between the two images (`local_affine`), the
-height range the search spans (`resolve_height_range`) and the search window a box of image 1 needs in
+point in image 2 at a height (`predict`), the local affine between the two images (`local_affine`)
+and the search window a box of image 1 needs in
 image 2 (`search_box`).
 
 Heights are ellipsoidal (m); image positions are GDAL's (pixel centres at half-integers). A position
@@ -12,29 +12,8 @@ lowest, middle and highest height of the range, widened by a margin: the models 
 quadrilateral per height, whose corners and edges the grid samples, and the middle height covers a
 parallax that is not linear in height (curved rays, refraction). The margin covers what the prediction
 cannot: the matching template, the search across the path, orientation errors."""
-import math
 
 import numpy as np
-
-from ..errors import InputError
-
-
-def resolve_height_range(model1, height_range):
-    """(h_min, h_max) from a pair, a scalar mean height (-> +-500 m) or the model's own
-    `height_range` (RPC validity domain); raises InputError when none is known."""
-    if height_range is None:
-        hr = getattr(model1, "height_range", None)
-        if hr is None:
-            raise InputError("the height range of the scene is unknown: give height_range=(h_min, h_max) "
-                             "or a mean ellipsoidal height (then +-500 m are searched)")
-        height_range = hr
-    if np.ndim(height_range) == 0:
-        h = float(height_range)
-        height_range = (h - 500.0, h + 500.0)
-    lo, hi = (float(v) for v in height_range)
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo:
-        raise InputError(f"height_range must be (h_min, h_max) with h_min <= h_max, got {height_range}")
-    return lo, hi
 
 
 def predict(model1, model2, x1, y1, h):

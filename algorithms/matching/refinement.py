@@ -29,9 +29,9 @@ from dataclasses import fields
 import numpy as np
 
 from .. import progress
+from ..height_range import HeightRange
 from .mpgc import MpgcParams, accepted, match_points
 from .orientation_bias import affine_bias, intersect_corrected
-from .pair_geometry import resolve_height_range
 from .params import GrowParams, LsmParams
 from .points import REFINED
 from .resolution import adapted_images
@@ -71,7 +71,7 @@ def refine_three_ray(points, images, models, image_ids, height_range, grow=None,
     params = MpgcParams(**lsm, **support, **({"sigma_geometry": max(SIGMA_GEOMETRY, 2.0 * systematic)}
                                              if np.isfinite(systematic) else {})).check()
     ok = np.isfinite(inter.h)
-    adapted = adapted_images(images, models, resolve_height_range(models[0], height_range), grow)
+    adapted = adapted_images(images, models, HeightRange.resolve(height_range, models[0]).bounds, grow)
     rec = match_points(adapted[0], adapted[1:], corrected, cols[0, ok], rows[0, ok], inter.lon[ok], inter.lat[ok],
                        inter.h[ok], params, progress.scaled(feedback, 5, 100))
     good = accepted(rec, params)

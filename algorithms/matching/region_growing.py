@@ -31,12 +31,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..execution import Execution, run_tasks
+from ..height_range import HeightRange
 from ..progress import ensure, step as progress_step
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .imagery import as_image
 from .lsm import LSM_OUT, match_accepted, to_records
-from .pair_geometry import local_affine, predict, resolve_height_range
+from .pair_geometry import local_affine, predict
 from .params import GrowParams
 from .records import PAIR_DTYPE
 from .region_growing_kernels import grow_kernel
@@ -222,7 +223,7 @@ def grow_job(image1, image2, model1, model2, params=None, height_range=None, see
     _grow_tile tasks. Every pair with the same image 1 and params has the same tiles."""
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)
-    hr = resolve_height_range(model1, height_range)
+    hr = HeightRange.resolve(height_range, model1).bounds
     _check_inputs(image1, image2, model1, model2, params, hr)
     image1, image2 = adapt_resolution(image1, image2, model1, model2, params, hr)
     lattice = Lattice(image1.size, params)
@@ -283,7 +284,7 @@ def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_
     y1 = np.atleast_1d(np.asarray(y1, float)).ravel()
     if x1.shape != y1.shape:
         raise InputError("x1 and y1 must have the same length")
-    hr = resolve_height_range(model1, height_range)
+    hr = HeightRange.resolve(height_range, model1).bounds
     image1, image2 = adapt_resolution(image1, image2, model1, model2, params, hr)
     if guide is None or len(guide) == 0:
         return seeds_from_points(image1, image2, model1, model2, x1, y1, params, hr, x2=x2, y2=y2)

@@ -14,11 +14,12 @@ import math
 import numpy as np
 
 from ..errors import InputError
+from ..height_range import HeightRange
 from .imagery import as_image
 from .interest import best_per_cell, foerstner
 from .lsm import match_accepted
 from .ncc import ncc_path
-from .pair_geometry import local_affine, predict, resolve_height_range, search_box
+from .pair_geometry import local_affine, predict, search_box
 from .params import GrowParams
 from .records import PAIR_DTYPE
 
@@ -130,7 +131,7 @@ def automatic_seeds(image1, image2, model1, model2, params=None, height_range=No
     `operator`: seed_operator of win1, if already computed."""
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)
-    hr = resolve_height_range(model1, height_range)
+    hr = HeightRange.resolve(height_range, model1).bounds
     cols, rows = image1.size
     half = params.template // 2
     if box is None:
@@ -163,7 +164,7 @@ def seeds_from_points(image1, image2, model1, model2, x1, y1, params=None, heigh
     records for all points, ok mask of those passing the acceptance criteria)."""
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)
-    hr = resolve_height_range(model1, height_range)
+    hr = HeightRange.resolve(height_range, model1).bounds
     x1 = np.atleast_1d(np.asarray(x1, float))
     y1 = np.atleast_1d(np.asarray(y1, float))
     if x1.shape != y1.shape:

@@ -19,8 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..height_range import HeightRange
 from ..matching.imagery import as_image
-from ..matching.pair_geometry import predict, resolve_height_range
+from ..matching.pair_geometry import predict
 from ..matching.params import GrowParams
 from ..matching.resolution import adapt_resolution
 from ..matching.seeds import NCC_MARGIN, NCC_MIN, seeds_from_points
@@ -85,7 +86,7 @@ def transfer(images, models, source_id, col, row, targets=None, height=None, par
     if height is None and getattr(models[source_id], "height_range", None) is None:
         raise InputError("the terrain height is unknown: give the point's height, or the block's height range "
                          "(h_min, h_max)")
-    hr = (float(height),) * 2 if fixed else resolve_height_range(models[source_id], height)
+    hr = (float(height),) * 2 if fixed else HeightRange.resolve(height, models[source_id]).bounds
     out = {}
     for target_id in targets:
         model1, model2 = models[source_id], models[target_id]

@@ -15,6 +15,8 @@ from ...algorithms.dense.params import DenseParams
 from ...algorithms.dense.sgm import SgmParams
 from ...algorithms.matching.coarse_to_fine import CoarseToFineParams
 from ...algorithms.matching.params import GrowParams
+from ...algorithms.matching.region_growing_strategy import RegionGrowingSettings
+from ...algorithms.matching_strategies import registered
 from ...algorithms.steps.block_matching import MatchParams, match_block_points
 from ..styles import load_styled
 from .base import PushbroomAlgorithm, execution_choice, execution_parameters, replace_fewer_parameter
@@ -24,10 +26,12 @@ Number = QgsProcessingParameterNumber
 SEED_SOURCES = (("automatic", "Automatic: interest points matched along the path predicted by the sensor models"),
                 ("tie_points", "The block's tie points (pushbroom:selecttiepoints)"),
                 ("both", "Both: the block's tie points and automatic seeds"))
+#: the STRATEGY enum's first entries, in the order saved models hold their indices; other registered strategies
+#: follow, with their default settings
+FIRST_STRATEGIES = ("region_growing", "coarse_to_fine", "dense")
 #: matching strategies: (engine key, label)
-STRATEGIES = (("region_growing", "Region growing (Otto & Chau; Kornus et al. 2006)"),
-              ("coarse_to_fine", "Coarse-to-fine multi-primitive with MPGC (Zhang & Gruen)"),
-              ("dense", "Dense: semi-global matching on epipolar tiles, refined by LSM"))
+STRATEGIES = tuple((name, registered()[name].label) for name in sorted(
+    registered(), key=lambda n: FIRST_STRATEGIES.index(n) if n in FIRST_STRATEGIES else len(FIRST_STRATEGIES)))
 
 
 class MatchPoints(PushbroomAlgorithm):
@@ -42,7 +46,8 @@ class MatchPoints(PushbroomAlgorithm):
             "SUMMARY POINTS POINTS_FILE")
 
     def initAlgorithm(self, config=None):
-        d, c, m, e = GrowParams(), CoarseToFineParams(), MatchParams(), DenseParams()
+        d, c, m, e = GrowParams(), CoarseToFineParams(), RegionGrowingSettings(), DenseParams()
+        execution = MatchParams().execution
         tr = self.tr
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
         self.addParameter(QgsProcessingParameterEnum(self.STRATEGY, tr("Matching strategy"),
@@ -75,10 +80,10 @@ class MatchPoints(PushbroomAlgorithm):
             QgsProcessingParameterBoolean(self.GROW_SECOND, tr("Also grow combination (b) where (a) found no points"),
                                           m.grow_second),
             QgsProcessingParameterBoolean(self.MPGC_REFINE, tr("Refine the group 3 points by MPGC (three images)"),
-                                          m.refine),
+                                          m.mpgc),
             QgsProcessingParameterBoolean(self.MPGC_SUPPORT, tr("MPGC refinement with support weights (heights of the "
                                           "template centre's surface; for DEMs)"), d.support_weights),
-            *execution_parameters(self, m.execution.workers),
+            *execution_parameters(self, execution.workers),
             Number(self.COARSE_TO_FINE_GRID, tr("Coarse-to-fine: grid point spacing at full resolution (px)"),
                    Number.Integer, c.grid, minValue=2),
             Number(self.COARSE_TO_FINE_RHO_MIN, tr("Coarse-to-fine: minimum correlation coefficient at full "
@@ -92,7 +97,7 @@ class MatchPoints(PushbroomAlgorithm):
             Number(self.DENSE_STEP, tr("Dense: a point every ... px of the reference image"), Number.Integer, e.step,
                    minValue=1),
             QgsProcessingParameterBoolean(self.DENSE_REFINE, tr("Dense: refine the positions by LSM in the original "
-                                                                "images (TEMPLATE px)"), e.refine),
+                                                                "images (TEMPLATE px)"), e.lsm),
             QgsProcessingParameterBoolean(self.DENSE_MPGC, tr("Dense: refine a triplet's three-ray points by MPGC "
                                                               "(more and better points, matching about 4x slower)"),
                                           e.mpgc),
@@ -109,30 +114,42 @@ class MatchPoints(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputFile(self.POINTS_FILE, tr("Mass point folder (index and parts)")))
 
     def match_params(self, parameters, context):
-        """MatchParams of the parameters."""
+        """MatchParams of the parameters: the chosen strategy's settings of its parameters."""
+        values = self.parameterValues(parameters, context, images=self.IMAGES, min_height=self.MIN_HEIGHT,
+                                      max_height=self.MAX_HEIGHT, strategy=self.STRATEGY,
+                                      replace_fewer=self.REPLACE_FEWER)
+        strategy = STRATEGIES[values.pop("strategy")][0]
+        settings = {"region_growing": self.region_growing_settings, "coarse_to_fine": self.coarse_to_fine_settings,
+                    "dense": self.dense_settings}.get(strategy)
+        return MatchParams(strategy=strategy, settings=settings(parameters, context) if settings else None,
+                           execution=execution_choice(self, parameters, context), **values)
+
+    def region_growing_settings(self, parameters, context):
         grow = GrowParams(**self.parameterValues(
             parameters, context, template=self.TEMPLATE, wide_template=self.WIDE_TEMPLATE, step=self.STEP,
             rho_min=self.RHO_MIN, max_ellipse=self.MAX_ELLIPSE, max_shift=self.MAX_SHIFT,
             max_iterations=self.MAX_ITERATIONS, tile=self.TILE, support_weights=self.MPGC_SUPPORT))
-        coarse_to_fine = CoarseToFineParams(**self.parameterValues(
+        values = self.parameterValues(parameters, context, seeds=self.SEEDS, sigma_factor=self.SIGMA_FACTOR,
+                                      grow_second=self.GROW_SECOND, mpgc=self.MPGC_REFINE)
+        values.update(seeds=SEED_SOURCES[values["seeds"]][0])
+        return RegionGrowingSettings(grow=grow, **values)
+
+    def coarse_to_fine_settings(self, parameters, context):
+        return CoarseToFineParams(**self.parameterValues(
             parameters, context, grid=self.COARSE_TO_FINE_GRID, rho_min=self.COARSE_TO_FINE_RHO_MIN,
             tile=self.COARSE_TO_FINE_TILE, edge_points=self.COARSE_TO_FINE_EDGE_POINTS))
+
+    def dense_settings(self, parameters, context):
         dense = self.parameterValues(parameters, context, tile=self.DENSE_TILE, step=self.DENSE_STEP,
-                                     refine=self.DENSE_REFINE, mpgc=self.DENSE_MPGC, template=self.TEMPLATE)
+                                     lsm=self.DENSE_REFINE, mpgc=self.DENSE_MPGC, template=self.TEMPLATE)
         sgm = SgmParams(**self.parameterValues(parameters, context, p1=self.DENSE_P1, p2=self.DENSE_P2))
-        values = self.parameterValues(
-            parameters, context, images=self.IMAGES, min_height=self.MIN_HEIGHT, max_height=self.MAX_HEIGHT,
-            strategy=self.STRATEGY, seeds=self.SEEDS, sigma_factor=self.SIGMA_FACTOR, grow_second=self.GROW_SECOND,
-            refine=self.MPGC_REFINE, replace_fewer=self.REPLACE_FEWER)
-        values.update(strategy=STRATEGIES[values["strategy"]][0], seeds=SEED_SOURCES[values["seeds"]][0])
-        return MatchParams(grow=grow, coarse_to_fine=coarse_to_fine, dense=DenseParams(sgm=sgm, **dense),
-                           execution=execution_choice(self, parameters, context), **values)
+        return DenseParams(sgm=sgm, **dense)
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, self.BLOCK, context)
         result = match_block_points(path, self.match_params(parameters, context),
                                     self.parameterAsFileOutput(parameters, self.SUMMARY, context) or None, feedback)
-        out = {self.BLOCK: path, self.POINTS: result.layer, self.POINTS_FILE: result.sidecar}
+        out = {self.BLOCK: path, self.POINTS: result.layer, self.POINTS_FILE: result.folder}
         if result.summary_csv:
             out[self.SUMMARY] = result.summary_csv
         load_styled(context, result.layer, self.tr("Mass points"), self.POINTS, "points_by_group.qml")

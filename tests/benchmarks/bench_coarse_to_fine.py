@@ -14,9 +14,9 @@ import time
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.coarse_to_fine import match_coarse_to_fine
-from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing_strategy import match_block
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from tests.benchmarks.bench_region_growing import HEIGHT_RANGE, scene
 

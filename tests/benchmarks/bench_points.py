@@ -9,8 +9,8 @@ import numpy as np
 
 from pushbroom.algorithms.block import Block, points as points_store
 from pushbroom.algorithms.block.schema import create_schema
-from pushbroom.algorithms.matching.combinations import combine
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
+from pushbroom.algorithms.matching.three_combinations import combine
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from tests.benchmarks.benchutil import best_time
 from tests.helpers.points_synthetic import FlatModel, synthetic

@@ -31,9 +31,11 @@ from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.dem_store import read_dem, store_dem
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
-from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing_strategy import RegionGrowing, RegionGrowingSettings
+from pushbroom.algorithms.matching.stereo_set import StereoSet
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
+from pushbroom.algorithms.matching.tiled_rounds import match_in_memory
 from pushbroom.algorithms.ortho import OutputGrid, orthorectify
 from pushbroom.algorithms.quality.assessment import assess
 from pushbroom.algorithms.quality.classes import ClassRaster
@@ -140,9 +142,11 @@ def run_chain(paths, folder, workers=2):
     out = {"paths": paths, "times": times, "classes": classes, "interior": interior}
     for label, names in RUNS.items():
         supplied = [sensors.load(paths["images"][n]["metadata"]) for n in names]
-        mass = match_block([paths["images"][n]["imagery"] for n in names], supplied, names=names,
-                           image_ids=[IDS[n] for n in names], params=GrowParams(step=STEP, support_weights=True),
-                           height_range=(lo - 100.0, hi + 100.0), workers=workers)
+        stereo = StereoSet.of([paths["images"][n]["imagery"] for n in names], supplied, names, [IDS[n] for n in names],
+                              (lo - 100.0, hi + 100.0))
+        mass = match_in_memory(RegionGrowing, stereo,
+                               RegionGrowingSettings(grow=GrowParams(step=STEP, support_weights=True)),
+                               Execution("threads", workers))
         lap(f"match {label}")
         models, selection, check = adjust(paths, names, mass, h0)
         lap(f"adjust {label}")

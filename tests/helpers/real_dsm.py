@@ -13,7 +13,7 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.adjustment.bundle import adjust
 from pushbroom.algorithms.adjustment.observations import tie_observations
 from pushbroom.algorithms.crs import reproject, transform, wgs84
-from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
+from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.matching.imagery import Image, as_image

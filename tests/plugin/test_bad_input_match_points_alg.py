@@ -9,7 +9,7 @@ from qgis.core import QgsProcessingContext, QgsProcessingException
 
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.matching.combinations import combination_order
+from pushbroom.algorithms.matching.image_order import combination_order
 
 ONE_IMAGE = ("matching needs two or three images of the same ground, and the block has one image (HRG): create a "
              "block with the stereo pair or triplet (pushbroom:createblock with all its images) and match that")

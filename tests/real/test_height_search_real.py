@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.height_search import search_heights
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing_strategy import match_block
 from pushbroom.algorithms.quality.statistics import summarize
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from tests.helpers.pleiades_scene import NAMES, in_order

@@ -27,6 +27,7 @@ import pytest
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import GeometryError, InputError
 from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing_strategy import RegionGrowingSettings
 from pushbroom.algorithms.steps.adjust_block import AdjustParams, adjust_block
 from pushbroom.algorithms.steps.block_matching import MatchParams, match_block_points
 from pushbroom.algorithms.steps.block_tie_points import TieParams, select_block_tie_points
@@ -46,7 +47,8 @@ def matched(small_scene_block, tmp_path_factory):
     assert [r["id"] for r in rows] == POINTS
     folder = tmp_path_factory.mktemp("default_adjustment")
     shutil.copy(template, folder / "block.gpkg")
-    match_block_points(str(folder / "block.gpkg"), MatchParams(grow=GrowParams(step=10)))
+    settings = RegionGrowingSettings(grow=GrowParams(step=10))
+    match_block_points(str(folder / "block.gpkg"), MatchParams(settings=settings))
     select_block_tie_points(str(folder / "block.gpkg"), TieParams(cell=100.0))
     return folder
 

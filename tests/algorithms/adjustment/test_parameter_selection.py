@@ -15,8 +15,8 @@ from pushbroom.algorithms.adjustment.observations import Observations, tie_obser
 from pushbroom.algorithms.adjustment.parameters import OrientationParameters
 from pushbroom.algorithms.adjustment.selection import select_parameters
 from pushbroom.algorithms.dem_store import read_dem
-from pushbroom.algorithms.matching.combinations import match_block
 from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing_strategy import match_block
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from pushbroom.algorithms.simulation import SceneConfig
 from tests.helpers.adjustment_scene import (

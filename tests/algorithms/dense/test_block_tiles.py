@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dense.block_tiles import match_dense_tiles
+from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.pair_tile import lattice, match_pair_tile, sample_disparity
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.dense.refine import AFFINE_CELL, isolated, refine_positions

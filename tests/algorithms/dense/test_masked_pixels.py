@@ -10,9 +10,10 @@ from scipy import ndimage
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem_store import read_dem
-from pushbroom.algorithms.dense.block_tiles import DenseJob, tile_points
+from pushbroom.algorithms.dense.dense_strategy import DenseJob, tile_points
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.matching.pair_geometry import local_affine
+from pushbroom.algorithms.matching.stereo_set import StereoSet
 from pushbroom.algorithms.surface import intersection
 
 NAMES = ("HRG", "HRS1")
@@ -51,7 +52,7 @@ def matched(small_scene, tmp_path_factory):
     models = [sensors.load(small_scene["images"][n]["metadata"]) for n in NAMES]
     dsm = read_dem(small_scene["dsm"])
     lo, hi = dsm.height_range
-    job = DenseJob(paths, models, [1, 2], DenseParams(step=3), (lo - 100.0, hi + 100.0), None)
+    job = DenseJob(StereoSet.of(paths, models, heights=(lo - 100.0, hi + 100.0)), DenseParams(step=3))
     multi, _ = tile_points(job, BOX)
     obs = multi.observations
     truth = {k + 1: sensors.load(small_scene["truth_metadata"][n]) for k, n in enumerate(NAMES)}

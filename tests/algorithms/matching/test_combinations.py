@@ -5,12 +5,13 @@ import pytest
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.matching.combinations import combine, format_summary, new_cells, robust_sigma, summary_rows
+from pushbroom.algorithms.matching.group_summary import format_summary, summary_rows
 from pushbroom.algorithms.matching.pair_geometry import local_affine
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.points import COMB_A, COMB_B, COMB_C, REFINED
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIMILARITY
+from pushbroom.algorithms.matching.three_combinations import combine, new_cells, robust_sigma
 from tests.helpers.matching_scene import DISCONTINUOUS, SINGLE_SURFACE
 
 SHIFT1 = np.array([10.25, 5.5])    # image 0 -> forward image 1
@@ -154,7 +155,7 @@ def test_helpers():
 
 
 def test_guide_for_combination_c_composes_the_affines():
-    from pushbroom.algorithms.matching.combinations import compose_guide
+    from pushbroom.algorithms.matching.three_combinations import compose_guide
     a, b, b_src, _, _ = scene()
     a["a1"], a["a2"], a["a4"], a["a5"] = 1.2, 0.1, 0.0, 1.0       # image 0 -> 1
     b["a1"], b["a2"], b["a4"], b["a5"] = 0.8, 0.0, 0.05, 1.0      # image 0 -> 2

@@ -440,8 +440,9 @@ def test_pair_seeds_rematch_stored_points(scene, grown):
     """Tie points (MultiPoints with block image ids) become pair seeds re-matched on the images the
     growth uses: their image-2 positions agree with the region-grown ones they were taken from,
     also when the stored positions are 1.5 px off (docs/validation.md#region-growing-resolution-adaptation)."""
-    from pushbroom.algorithms.matching.combinations import pair_seeds
     from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
+    from pushbroom.algorithms.matching.region_growing_strategy import pair_seeds
+    from pushbroom.algorithms.matching.stereo_set import StereoSet
     records = grown[0][::25]
     n = len(records)
     pts = np.zeros(n, POINT_DTYPE)
@@ -451,8 +452,9 @@ def test_pair_seeds_rematch_stored_points(scene, grown):
     obs["image_id"] = np.tile([7, 9], n)
     obs["col"][0::2], obs["row"][0::2] = records["x1"], records["y1"]
     obs["col"][1::2], obs["row"][1::2] = records["x2"] + 1.5, records["y2"] - 1.5
-    seeds = pair_seeds(scene.image1, scene.image2, scene.model1, scene.model2, MultiPoints(pts, obs), 7, 9,
-                       GrowParams(), scene.height_range)
+    stereo = StereoSet.of([scene.image1, scene.image2], [scene.model1, scene.model2], ids=[7, 9],
+                          heights=scene.height_range)
+    seeds = pair_seeds(stereo, 1, MultiPoints(pts, obs), GrowParams())
     assert len(seeds) > 0.35 * n
     np.testing.assert_array_equal(np.isin(seeds["x1"], records["x1"]), True)
     k = np.searchsorted(records["x1"] + 1e5 * records["y1"], seeds["x1"] + 1e5 * seeds["y1"],

@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms.errors import InputError
+from pushbroom.algorithms.height_range import HeightRange
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.interest import interest_points
-from pushbroom.algorithms.matching.pair_geometry import resolve_height_range
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.seeds import automatic_seeds, seeds_from_points
 
@@ -43,12 +43,12 @@ def test_interest_points_on_texture_not_on_flat():
 
 
 def test_height_range():
-    assert resolve_height_range(None, 300.0) == (-200.0, 800.0)
-    assert resolve_height_range(None, (1, 2)) == (1.0, 2.0)
+    assert HeightRange.resolve(300.0, None).bounds == (-200.0, 800.0)
+    assert HeightRange.resolve((1, 2)).bounds == (1.0, 2.0)
     with pytest.raises(InputError):
-        resolve_height_range(object(), None)
+        HeightRange.resolve(None, object())
     with pytest.raises(InputError):
-        resolve_height_range(None, (5, 1))
+        HeightRange.resolve((5, 1))
 
 
 @pytest.fixture(scope="module")

@@ -7,6 +7,7 @@ from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.height_range import height_range
 from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams
 from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing_strategy import RegionGrowingSettings
 from pushbroom.algorithms.steps.block_intersection import IntersectParams
 from pushbroom.algorithms.steps.block_matching import MatchParams
 from pushbroom.algorithms.steps.orthoimage import OrthoParams
@@ -19,8 +20,10 @@ def test_defaults_are_valid(params):
 
 
 @pytest.mark.parametrize("params", [
-    MatchParams(strategy="hierarchy"), MatchParams(seeds="none"), MatchParams(execution=Execution("threads", 0)),
-    MatchParams(grow=GrowParams(template=8)),
+    MatchParams(strategy="hierarchy"), MatchParams(settings=RegionGrowingSettings(seeds="none")),
+    MatchParams(execution=Execution("threads", 0)),
+    MatchParams(settings=RegionGrowingSettings(grow=GrowParams(template=8))),
+    MatchParams(strategy="dense", settings=RegionGrowingSettings()),     # another strategy's settings
     IntersectParams(kind="control_points"), IntersectParams(sigma=0.0),
     DemParams(cell=0.0), DemParams(datum="navd88"), DemParams(iterations=0),
     OrthoParams(resampling="nearest"), OrthoParams(dem_heights="egm2008"), OrthoParams(max_error=0.0),
@@ -30,11 +33,10 @@ def test_unusable_settings_are_input_errors(params):
         params.check()
 
 
-def test_coarse_to_fine_settings_are_checked_only_for_that_strategy():
-    bad = CoarseToFineParams(tile=10)
-    assert MatchParams(coarse_to_fine=bad).check()      # region growing does not use them
-    with pytest.raises(InputError):
-        bad.check()
+def test_the_strategy_checks_its_own_settings():
+    with pytest.raises(InputError, match="tiles must be at least 512 px"):
+        MatchParams(strategy="coarse_to_fine", settings=CoarseToFineParams(tile=10)).check()
+    assert isinstance(MatchParams(strategy="coarse_to_fine").check().settings, CoarseToFineParams)   # the defaults
 
 
 @pytest.mark.parametrize("params, message", [

@@ -27,10 +27,12 @@ from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.errors import ExecutionError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing_strategy import RegionGrowingSettings
 from pushbroom.algorithms.steps.block_matching import MatchParams, match_block_points
 if __name__ == "__main__":
-    params = MatchParams(strategy=sys.argv[2], grow=GrowParams(step=4, tile=64), dense=DenseParams(tile=64),
-                         execution=Execution("processes", 2))
+    settings = {"region_growing": RegionGrowingSettings(grow=GrowParams(step=4, tile=64)),
+                "dense": DenseParams(tile=64)}[sys.argv[2]]
+    params = MatchParams(strategy=sys.argv[2], settings=settings, execution=Execution("processes", 2))
     try:
         match_block_points(sys.argv[1], params)
     except ExecutionError as exc:

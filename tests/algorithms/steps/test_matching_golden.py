@@ -18,6 +18,7 @@ from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.matching.coarse_to_fine import CoarseToFineParams
 from pushbroom.algorithms.matching.params import GrowParams
+from pushbroom.algorithms.matching.region_growing_strategy import RegionGrowingSettings
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.steps.block_matching import MatchParams, match_block_points
 
@@ -25,9 +26,10 @@ RECORD = os.path.join(os.path.dirname(__file__), "..", "..", "golden", "matching
 NAMES = {"triplet": ("HRG", "HRS1", "HRS2"), "pair": ("HRG", "HRS1")}
 #: each strategy's settings: small tiles, so that every case runs several of them
 CASES = {
-    "region_growing": dict(strategy="region_growing", grow=GrowParams(step=6, tile=256)),
-    "dense": dict(strategy="dense", dense=DenseParams(step=3, tile=256, mpgc=True)),
-    "coarse_to_fine": dict(strategy="coarse_to_fine", coarse_to_fine=CoarseToFineParams(tile=512, grid=8)),
+    "region_growing": dict(strategy="region_growing",
+                           settings=RegionGrowingSettings(grow=GrowParams(step=6, tile=256))),
+    "dense": dict(strategy="dense", settings=DenseParams(step=3, tile=256, mpgc=True)),
+    "coarse_to_fine": dict(strategy="coarse_to_fine", settings=CoarseToFineParams(tile=512, grid=8)),
 }
 
 

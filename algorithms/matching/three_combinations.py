@@ -19,11 +19,9 @@ floored at `min_sigma` px so that perfectly consistent data keep all their point
 points failing the test are dropped (inconsistent: one of the two image-1 matches is wrong, and
 which one is unknown); their count is kept in `stats` for the summary (Kornus et al. 2006, Table 1). Points
 matched only in (c) do not exist: (c) runs on transfer points only. A two-image block gives
-combination (a) and group 1 only. match_block then refines the group 3 points by MPGC in both
-search images at once (refinement.py; `refine`, on by default). match_block runs tile by tile
-(block_tiles.py), with the test's sigmas and MPGC's orientation of the whole scene."""
-import os
-
+combination (a) and group 1 only. Region growing (region_growing_strategy.py) combines each tile without
+the test, applies it with the sigmas of the whole scene, and refines the group 3 points by MPGC in both
+search images at once (refinement.py)."""
 import numpy as np
 
 from ..errors import InputError
@@ -31,34 +29,6 @@ from ..stats import NMAD_SCALE
 from .consistency import invert_affine
 from .points import COMB_A, COMB_B, COMB_C, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .records import PAIR_DTYPE
-
-
-def combination_order(rows, text):
-    """The block's image rows in combination order: `text` is a comma-separated list of names
-    (reference, forward[, backward]); empty or 'all' orders the block's 2 or 3 images itself
-    (HRG, HRS1, HRS2 when so named, else block order). InputError for a block of fewer than 2 images,
-    whatever `text` names."""
-    if len(rows) < 2:
-        has = f"one image ({rows[0]['name']})" if rows else "no image"
-        raise InputError(f"matching needs two or three images of the same ground, and the block has {has}: create a "
-                         "block with the stereo pair or triplet (pushbroom:createblock with all its images) and match "
-                         "that")
-    by_name = {r["name"]: r for r in rows}
-    names = [n.strip() for n in (text or "").split(",") if n.strip()]
-    if names and names != ["all"]:
-        missing = [n for n in names if n not in by_name]
-        if missing:
-            raise InputError(f"image(s) {', '.join(missing)} not in the block; it has {', '.join(by_name)}")
-        if len(names) not in (2, 3) or len(set(names)) != len(names):
-            raise InputError(f"give 2 or 3 different images (reference, forward[, backward]), got {names}")
-        return [by_name[n] for n in names]
-    if len(rows) not in (2, 3):
-        raise InputError(f"the block has {len(rows)} images: name the 2 or 3 to match in the Images parameter "
-                         "(reference, forward[, backward])")
-    upper = {r["name"].upper(): r for r in rows}
-    if len(rows) == 3 and all(any(k.startswith(p) for k in upper) for p in ("HRG", "HRS1", "HRS2")):
-        return [next(r for k, r in upper.items() if k.startswith(p)) for p in ("HRG", "HRS1", "HRS2")]
-    return list(rows)
 
 
 def robust_sigma(d, min_sigma=0.0):
@@ -208,90 +178,3 @@ def compose_guide(a, b, b_src):
     guide["r0"], guide["r1"] = 0.0, 1.0
     guide["seed"] = j
     return guide[np.isfinite(c).all(axis=1)]
-
-
-def pair_seeds(image1, image2, model1, model2, seed_points, id1, id2, params=None, height_range=None):
-    """PAIR_DTYPE seeds from the points of `seed_points` (MultiPoints) observed in both images
-    `id1` and `id2`: each is re-matched from its stored image-2 position on the images the growth
-    uses (region_growing.transfer_points) and kept if it passes the acceptance criteria."""
-    from .region_growing import transfer_points
-    x1, y1 = seed_points.coordinates(id1)
-    x2, y2 = seed_points.coordinates(id2)
-    both = np.isfinite(x1) & np.isfinite(y1) & np.isfinite(x2) & np.isfinite(y2)
-    if not both.any():
-        return np.zeros(0, PAIR_DTYPE)
-    recs, ok = transfer_points(image1, image2, model1, model2, x1[both], y1[both], params, height_range,
-                               x2=x2[both], y2=y2[both])
-    return recs[ok]
-
-
-def match_block(images, models, names=None, image_ids=None, params=None, height_range=None, seed_points=None,
-                automatic=True, feedback=None, workers=1, grow_second=True, sigma_factor=3.0, refine=True):
-    """Match 2 or 3 images in combination order (reference/nadir, forward, backward) and return
-    the MultiPoints of `combine`. `images` are whatever region_growing.match_pair takes (arrays),
-    `image_ids` the block ids (default 1, 2, 3), `names` only label the log. Seeds: the points
-    of `seed_points` (MultiPoints with block image ids: tie or control points) seen in the
-    reference and the other image of a region-grown pair, re-matched there (pair_seeds), and/or
-    `automatic` ones in every tile. With `grow_second`, combination (b) is also region-grown for
-    points where (a) found none; with `refine`, MPGC refines the group 3 points
-    (refinement.refine_three_ray). The tiles run on `workers` (threads, or an execution.Execution
-    whose workers see this machine's temporary folder) by block_tiles.match_tiles, and the points
-    are gathered here: for a whole scene, the matching step writes them part by part instead."""
-    import tempfile
-
-    from ..execution import Execution
-    from .block_tiles import match_tiles
-    execution = workers if isinstance(workers, Execution) else Execution("threads", max(int(workers), 1))
-    parts, stats = match_tiles(images, models, os.path.join(tempfile.gettempdir(), "pushbroom-matching"),
-                               names=names, image_ids=image_ids, params=params, height_range=height_range,
-                               seed_points=seed_points, automatic=automatic, feedback=feedback, execution=execution,
-                               grow_second=grow_second, sigma_factor=sigma_factor, refine=refine)
-    if not parts:
-        return MultiPoints(stats=stats)
-    return MultiPoints(np.concatenate([p.points for p in parts]), np.concatenate([p.observations for p in parts]),
-                       stats)
-
-
-def summary_rows(points, rho_dem=0.7, stats=None):
-    """Counts per group like Kornus et al. 2006, Table 1: a list of (label, value). `points` is a
-    MultiPoints, or a list of parts (MultiPoints, or functions returning one, taken one at a time) with
-    the run's `stats`."""
-    parts = [points] if isinstance(points, MultiPoints) else points
-    stats = points.stats if isinstance(points, MultiPoints) else dict(stats or {})
-    counts = np.zeros(7, np.int64)
-    for part in parts:
-        p = (part if isinstance(part, MultiPoints) else part()).points
-        g1, g2, g3 = (p["group"] == 1), (p["group"] == 2), (p["group"] == 3)
-        high = p["rho_min"] > rho_dem
-        counts += [g1.sum(), (g1 & high).sum(), g2.sum(), (g2 & high).sum(), g3.sum(), ((g2 | g3) & high).sum(),
-                   len(p)]
-    n1, n1_high, n2, n2_high, n3, n23_high, total = (int(c) for c in counts)
-    rows = [("Two-ray points (group 1)", n1),
-            (f"Two-ray points with rho > {rho_dem:g}", n1_high),
-            ("Three-ray points matched in 2 combinations (group 2)", n2),
-            (f"Three-ray points in 2 combinations with rho > {rho_dem:g}", n2_high),
-            ("Points matched in 3 combinations", int(stats.get("matched_3", n3))),
-            (f"Points in 3 combinations with |d| < {stats.get('sigma_factor', 3.0):g} sigma (group 3)", n3),
-            (f"Three-ray points selected for DEM generation (rho > {rho_dem:g})", n23_high),
-            ("All points", total)]
-    for key, label in [("sigma_dx", "sigma of dx (px, robust)"), ("sigma_dy", "sigma of dy (px, robust)")]:
-        if stats.get(key) is not None:
-            rows.append((label, round(float(stats[key]), 4)))
-    if "refined_mpgc" in stats:
-        rows.append(("Group 3 points refined by MPGC", int(stats["refined_mpgc"])))
-    return rows
-
-
-def format_summary(rows):
-    """The summary rows as aligned text for the log."""
-    width = max(len(label) for label, _ in rows)
-    return "\n".join(f"{label:<{width}}  {value:>12}" if isinstance(value, int) else f"{label:<{width}}  {value:>12g}"
-                     for label, value in rows)
-
-
-def write_summary_csv(path, rows):
-    """Write the summary rows as CSV (item,value) atomically."""
-    from ..atomic import write_text
-    lines = ["item,value"] + [f"\"{label}\",{value}" for label, value in rows]
-    write_text(path, "\n".join(lines) + "\n")
-    return path
