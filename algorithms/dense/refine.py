@@ -40,7 +40,7 @@ from ..matching.region_growing import match_windows
 from ..matching.resolution import adapt_resolution
 
 #: px of image 1: the cells of LSM's initial affine (the models' local affine: only LSM's starting shape, which
-#: LSM estimates; how little it changes across a cell: tests/algorithms/dense/test_block_tiles.py)
+#: LSM estimates; how little it changes across a cell: tests/algorithms/dense/test_dense_strategy.py)
 AFFINE_CELL = 32
 #: lattice nodes (Chebyshev) around a refined node, and the fewest of them refined too (module docstring)
 REACH, LEAST_REFINED = 2, 3

@@ -6,7 +6,7 @@ A `MultiPoints` holds two numpy structured arrays:
   combinations, 3 three-ray from all three combinations; paper K 3.3), `flags` (the combinations
   that matched it: COMB_A nadir-forward, COMB_B nadir-backward, COMB_C backward-forward; and
   REFINED where MPGC refined its search positions, refinement.py; the coarse-to-fine strategy's
-  NCC_ONLY and EDGE: coarse_to_fine.py; DENSE: dense matching, dense/block_tiles.py),
+  NCC_ONLY and EDGE: coarse_to_fine.py; DENSE: dense matching, dense/dense_strategy.py),
   rho_min (the smallest correlation coefficient of its combinations), rho_a/rho_b/rho_c (NaN
   where that combination did not match it) and dx/dy, the deviation of the doubly determined
   coordinates of group 3 points from their average (px of the forward image; NaN otherwise);
@@ -31,7 +31,7 @@ NCC_ONLY = 8
 EDGE = 16
 #: region growing: a three-ray point whose search positions MPGC refined (refinement.py)
 REFINED = 32
-#: dense matching: a point of the semi-global matcher (dense/block_tiles.py)
+#: dense matching: a point of the semi-global matcher (dense/dense_strategy.py)
 DENSE = 64
 
 POINT_DTYPE = np.dtype([

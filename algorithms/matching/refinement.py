@@ -13,7 +13,7 @@ rays (orientation_bias.py) and the geometric observations weighted by sigma_geom
 max(SIGMA_GEOMETRY, 2 x the corrected orientation's inconsistency), or MPGC's default
 (MpgcParams, 0.2 px) where no tile holds enough points to measure it. Fewer than MIN_POINTS
 group 3 points (6 bias parameters per search image) are left as they are. A tiled run
-(block_tiles.py) fits the biases once to a sample of the scene's points and refines each tile with
+(tiled_rounds.py) fits the biases once to a sample of the scene's points and refines each tile with
 them. Template, thresholds
 and iterations are region growing's (GrowParams), and so is the resolution adaptation.
 
@@ -48,10 +48,10 @@ SUPPORT_CENTRE, SUPPORT_SIMILARITY = 5.0, 1.0
 
 def refine_three_ray(points, images, models, image_ids, height_range, grow=None, feedback=None, bias=None, group=3):
     """MPGC refinement of the `group` points (three rays: region growing's 3, dense matching's 2) of `points`
-    (MultiPoints of combinations.combine or dense/block_tiles.py;
+    (MultiPoints of three_combinations.combine or dense/dense_strategy.py;
     images and models in combination order, `image_ids` their block ids, `grow` the GrowParams of
     the matching). `bias`: (corrected models, systematic px) of orientation_bias.affine_bias fitted to
-    the points of the whole scene (block_tiles.py: the points of one tile are refined with it), else
+    the points of the whole scene (tiled_rounds.scene_bias: the points of one tile are refined with it), else
     fitted here to `points`. Returns the number of points refined; `points` is changed in place
     (module docstring)."""
     grow = grow or GrowParams()

@@ -1,7 +1,7 @@
 """MPGC refinement's orientation correction (algorithms/matching/refinement.py): the affine
 image bias against injected biases on the simulated triplet's truth models, and the affine
 ShiftedModel against finite differences. Its effect on the group 3 points is asserted in
-test_combinations.py."""
+test_three_combinations.py."""
 import numpy as np
 import pytest
 

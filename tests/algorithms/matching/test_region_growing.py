@@ -273,7 +273,7 @@ def test_adapt_resolution_low_passes_the_finer_image(scene):
 def test_region_growing_accuracy_against_truth(grown, figures):
     """Pairwise region growing HRG -> HRS1 (combination (a) alone). The issue's targets, RMS < 0.15
     px and < 0.5 % errors > 1 px on textured classes, are for the group-3 points, which the MPGC
-    refinement brings below it (test_combinations.py). Forest and city are dominated by height steps inside
+    refinement brings below it (test_three_combinations.py). Forest and city are dominated by height steps inside
     the template and are held to the template-area truth instead (docs/validation.md#region-growing-accuracy)."""
     records, error, area_error, cls, seconds, feedback = grown
     single = np.isin(cls, SINGLE_SURFACE)
