@@ -6,7 +6,7 @@ APT_PACKAGES := qgis python3-qgis qgis-providers python3-gdal gdal-bin python3-s
                 python3-dask python3-distributed python3-rasterio python3-xarray python3-skimage
 # the test and lint pins equal pyproject.toml's extras (tests/test_packaging.py checks it)
 PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest-qgis==2.1.0 \
-            hypothesis==6.112.2 pytest-xdist==3.6.1 laspy==2.5.4 lazrs==0.8.2 libsgm==0.5.2 ruff==0.17.6
+            hypothesis==6.112.2 pytest-xdist==3.6.1 laspy==2.5.4 lazrs==0.8.2 libsgm==0.5.2 ruff==0.17.6 mypy==1.13.0
 # CNES pandora, the dense matcher's reference in one test (tests/algorithms/dense/test_sgm_pandora.py), in its own
 # folder that only that test puts on sys.path: json-checker's and pandora-plugin-libsgm's wheels install a top-level
 # `tests` package, which in the venv would shadow ours in QGIS's processes. Without its dependencies, which come
@@ -65,9 +65,16 @@ $(PROFILE)/.enabled: .venv/.setup-done metadata.txt | $(RUNTIME)
 	@$(PY) -c "import numpy, numba, qgis.core, osgeo.gdal, distributed, c_libsgm, lazrs; assert numpy.__version__.startswith('1.'), numpy.__version__"
 	@touch $@
 
-# ruff (configured in pyproject.toml); CI runs it before the tests.
-lint: .venv/.setup-done
+# The packages mypy checks, every function annotated (pyproject.toml, [tool.mypy]); more as they are touched.
+MYPY_PACKAGES := algorithms.sensors algorithms.block algorithms.steps algorithms.execution algorithms.task_runtime \
+                 algorithms.dask_backend algorithms.height_range algorithms.matching.strategy \
+                 algorithms.matching.tiled_rounds algorithms.matching.stereo_set algorithms.matching.match_stats
+
+# ruff's linter and formatter, and mypy (configured in pyproject.toml); CI runs them before the tests.
+lint: setup
 	.venv/bin/ruff check .
+	.venv/bin/ruff format --check .
+	MYPYPATH=$(PROFILE)/profiles/default/python/plugins .venv/bin/mypy $(addprefix -p pushbroom.,$(MYPY_PACKAGES))
 
 # The whole suite, slow end-to-end tests included (CI runs this), on two pytest-xdist workers: a file's tests in
 # one, the real-data tests together (tests/conftest.py); pytest-xdist hands out the largest groups first. A worker

@@ -1,4 +1,5 @@
 """Files shipped under resources/ (icons, QML styles, Processing models), shared by plugin/ and ui/."""
+
 import os
 
 

@@ -1,6 +1,7 @@
 """The plugin's version: the version line of metadata.txt, its one source (QGIS reads it there, pip through
 pushbroom.__version__, Dask workers are compared by it). A module of its own, so that the engine reads it without
 importing the plugin's entry point."""
+
 import os
 import re
 

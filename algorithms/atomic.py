@@ -27,6 +27,7 @@ another machine of a cluster cannot be asked). A live writer's name is never tou
 lists them with their owner and whether they are stale. A folder replaced by `atomic_dir` is swapped
 in two renames; a kill between them leaves the old folder as `.<name>.<host>-<pid>.<hex>.old/x`, which
 the clean-up puts back."""
+
 import contextlib
 import errno
 import os
@@ -46,8 +47,10 @@ from .gdal_errors import HeldMessages
 STALE_SECONDS = 24 * 3600.0
 #: this host's name as it appears in temporary names
 HOST = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname().split(".")[0]) or "host"
-_NAME = re.compile(r"^\.?(?P<name>.+)\.(?P<host>[A-Za-z0-9_]+)-(?P<pid>\d+)\.(?P<tag>[0-9a-f]{8})"
-                   r"\.(?P<kind>part|old)(?P<rest>.*)$")
+_NAME = re.compile(
+    r"^\.?(?P<name>.+)\.(?P<host>[A-Za-z0-9_]+)-(?P<pid>\d+)\.(?P<tag>[0-9a-f]{8})"
+    r"\.(?P<kind>part|old)(?P<rest>.*)$"
+)
 #: what to do, per errno of a failed write
 ADVICE = {
     errno.ENOSPC: "the disk is full: free space there or choose a folder on another disk",
@@ -61,12 +64,18 @@ ADVICE = {
     errno.ENAMETOOLONG: "the path is too long: choose a shorter one",
 }
 #: GDAL/SQLite error texts of a failed write and the errno they stand for
-_GDAL_TEXTS = (("no space left", errno.ENOSPC), ("disk is full", errno.ENOSPC), ("disk full", errno.ENOSPC),
-               ("quota", errno.EDQUOT), ("permission denied", errno.EACCES),
-               # SQLite's "attempt to write a readonly database": a file or folder this user may not write, far more
-               # often than a read-only file system (whose own text, "read-only", maps below)
-               ("readonly database", errno.EACCES),
-               ("read-only", errno.EROFS), ("unable to open database file", errno.EACCES))
+_GDAL_TEXTS = (
+    ("no space left", errno.ENOSPC),
+    ("disk is full", errno.ENOSPC),
+    ("disk full", errno.ENOSPC),
+    ("quota", errno.EDQUOT),
+    ("permission denied", errno.EACCES),
+    # SQLite's "attempt to write a readonly database": a file or folder this user may not write, far more
+    # often than a read-only file system (whose own text, "read-only", maps below)
+    ("readonly database", errno.EACCES),
+    ("read-only", errno.EROFS),
+    ("unable to open database file", errno.EACCES),
+)
 #: texts that can only come from a failed write
 _WRITE_TEXTS = ("no space left", "disk is full", "disk full", "quota", "read-only file system", "write error")
 #: the files a format writes beside the one named (lower-case extensions), renamed with it by atomic_path
@@ -97,8 +106,9 @@ def _io_failure(exc, tmp):
         return exc.filename is not None and os.fspath(exc.filename).startswith(tmp)
     low = str(exc).lower()
     if isinstance(exc, RuntimeError):
-        return (any(key in low for key in _WRITE_TEXTS)
-                or (os.path.basename(tmp).lower() in low and any(key in low for key, _ in _GDAL_TEXTS)))
+        return any(key in low for key in _WRITE_TEXTS) or (
+            os.path.basename(tmp).lower() in low and any(key in low for key, _ in _GDAL_TEXTS)
+        )
     return False
 
 
@@ -134,10 +144,17 @@ def leftovers(folder):
             age = now - entry.stat(follow_symlinks=False).st_mtime
         except OSError:
             continue
-        found.append({"path": entry.path, "target": os.path.join(folder, match["name"] + match["rest"]),
-                      "kind": match["kind"],
-                      "host": match["host"], "pid": int(match["pid"]), "age": age,
-                      "stale": owner_gone(match["host"], match["pid"], age)})
+        found.append(
+            {
+                "path": entry.path,
+                "target": os.path.join(folder, match["name"] + match["rest"]),
+                "kind": match["kind"],
+                "host": match["host"],
+                "pid": int(match["pid"]),
+                "age": age,
+                "stale": owner_gone(match["host"], match["pid"], age),
+            }
+        )
     return found
 
 
@@ -183,7 +200,7 @@ def _folder(path, what):
     folder = os.path.dirname(os.path.abspath(os.fspath(path)))
     try:
         os.makedirs(folder, exist_ok=True)
-    except FileExistsError:             # a part of the path is a file
+    except FileExistsError:  # a part of the path is a file
         raise storage_error(OSError(errno.ENOTDIR, "Not a directory"), path, what) from None
     except OSError as exc:
         raise storage_error(exc, path, what) from None
@@ -203,8 +220,12 @@ def node_kind(path) -> Optional[str]:
         mode = os.stat(path).st_mode
     except OSError:
         return None
-    for test, kind in ((stat.S_ISREG, None), (stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
-                       (stat.S_ISSOCK, "a socket")):
+    for test, kind in (
+        (stat.S_ISREG, None),
+        (stat.S_ISDIR, "a folder"),
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISSOCK, "a socket"),
+    ):
         if test(mode):
             return kind
     return "a device"
@@ -217,17 +238,21 @@ def refuse_non_file(path, what: str = "the output") -> None:
     if kind == "a folder":
         raise storage_error(OSError(errno.EISDIR, "a folder has that name"), path, what)
     if kind is not None:
-        raise StorageError(f"cannot write {what} {os.fspath(path)}: it is {kind}, not a regular file, and is never "
-                           "replaced: give the path of a file (nothing was written)")
+        raise StorageError(
+            f"cannot write {what} {os.fspath(path)}: it is {kind}, not a regular file, and is never "
+            "replaced: give the path of a file (nothing was written)"
+        )
 
 
 def refuse_non_folder(path, what: str = "the output folder") -> None:
     """StorageError where `path` exists and is not a folder: only a folder is replaced by a folder, and a
     folder is written into only where it is one."""
     if os.path.exists(path) and not os.path.isdir(path):
-        raise StorageError(f"cannot write {what} {os.fspath(path)}: {node_kind(path) or 'a file'} has that name, and "
-                           "only a folder is replaced by the folder written there: choose another name (nothing was "
-                           "written)")
+        raise StorageError(
+            f"cannot write {what} {os.fspath(path)}: {node_kind(path) or 'a file'} has that name, and "
+            "only a folder is replaced by the folder written there: choose another name (nothing was "
+            "written)"
+        )
 
 
 def check_destination(path, what="the output"):
@@ -256,7 +281,7 @@ def close_dataset(ds):
     dataset must not be used afterwards."""
     if ds is None:
         return
-    if hasattr(ds, "Destroy"):          # ogr.DataSource
+    if hasattr(ds, "Destroy"):  # ogr.DataSource
         ds.Destroy()
         return
     try:
@@ -329,19 +354,26 @@ def atomic_path(path, what="the output", hidden=True):
     try:
         with _guarded(path, what, tmp):
             yield tmp
-        refuse_non_file(path, what)     # again: something may have taken the name meanwhile
+        refuse_non_file(path, what)  # again: something may have taken the name meanwhile
         try:
             for made, target in zip(companions(tmp), companions(path)):
                 if os.path.exists(made):
                     os.replace(made, target)
-                elif os.path.lexists(target):       # the old file's, which would describe the new one wrongly
+                elif os.path.lexists(target):  # the old file's, which would describe the new one wrongly
                     os.unlink(target)
             os.replace(tmp, path)
         except OSError as exc:
             raise storage_error(exc, path, what) from exc
     finally:
-        for leftover in (tmp, tmp + ".aux.xml", tmp + ".ovr", tmp + "-journal", tmp + "-wal", tmp + "-shm",
-                         *companions(tmp)):
+        for leftover in (
+            tmp,
+            tmp + ".aux.xml",
+            tmp + ".ovr",
+            tmp + "-journal",
+            tmp + "-wal",
+            tmp + "-shm",
+            *companions(tmp),
+        ):
             with contextlib.suppress(OSError):
                 os.unlink(leftover)
 
@@ -364,6 +396,7 @@ class _Writer:
 def save_array(path, array, what="an intermediate file"):
     """numpy.save of `array` to `path` (.npy) atomically; a failed write is the StorageError of `what`."""
     import numpy as np
+
     with atomic_path(path, what) as tmp, open(tmp, "wb") as f:
         np.save(_Writer(f), array)
     return path

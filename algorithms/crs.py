@@ -1,5 +1,6 @@
 """Coordinate reference systems through OSR/PROJ (all datum, CRS and geoid work goes
 through PROJ): parsing a user's CRS, WGS 84, strict transformations and EGM96 undulations."""
+
 import numpy as np
 from osgeo import osr
 
@@ -60,12 +61,18 @@ def transform(source, target, xyz, what):
     except RuntimeError:
         ct = None
     if ct is None:
-        raise InputError(f"cannot transform {what} from {source.GetName()} to {target.GetName()}: PROJ knows no "
-                         "transformation between them here (one of them is a local or undefined CRS, or the datum "
-                         "shift grid it needs is not installed: install PROJ's grids with projsync or the proj-data "
-                         "package), so give the data in another CRS")
-    return np.concatenate([np.array(ct.TransformPoints(xyz[a:a + TRANSFORM_CHUNK].tolist()), float)
-                           for a in range(0, len(xyz), TRANSFORM_CHUNK)]).reshape(len(xyz), -1)
+        raise InputError(
+            f"cannot transform {what} from {source.GetName()} to {target.GetName()}: PROJ knows no "
+            "transformation between them here (one of them is a local or undefined CRS, or the datum "
+            "shift grid it needs is not installed: install PROJ's grids with projsync or the proj-data "
+            "package), so give the data in another CRS"
+        )
+    return np.concatenate(
+        [
+            np.array(ct.TransformPoints(xyz[a : a + TRANSFORM_CHUNK].tolist()), float)
+            for a in range(0, len(xyz), TRANSFORM_CHUNK)
+        ]
+    ).reshape(len(xyz), -1)
 
 
 def reproject(x, y, source, target, what="the points"):
@@ -85,12 +92,16 @@ def egm96_undulation(lon, lat):
     try:
         out = transform(srs(GEOID_CRS), srs(4979), points, "EGM96 heights")
     except InputError as exc:
-        raise InputError(f"EGM96 heights need PROJ's EGM96 geoid grid (us_nga_egm96_15.tif or egm96_15.gtx), "
-                         f"which is not available ({exc}): install it in a PROJ data folder "
-                         f"({', '.join(osr.GetPROJSearchPaths() or [])}) or give ellipsoidal heights") from exc
+        raise InputError(
+            f"EGM96 heights need PROJ's EGM96 geoid grid (us_nga_egm96_15.tif or egm96_15.gtx), "
+            f"which is not available ({exc}): install it in a PROJ data folder "
+            f"({', '.join(osr.GetPROJSearchPaths() or [])}) or give ellipsoidal heights"
+        ) from exc
     if not np.isfinite(out[:, 2]).all():
-        raise InputError("the EGM96 geoid undulation could not be computed for every point: check the "
-                         "coordinates and that PROJ's EGM96 grid (us_nga_egm96_15.tif) is installed")
+        raise InputError(
+            "the EGM96 geoid undulation could not be computed for every point: check the "
+            "coordinates and that PROJ's EGM96 grid (us_nga_egm96_15.tif) is installed"
+        )
     return out[:, 2].reshape(lon.shape)
 
 
@@ -102,8 +113,10 @@ AREA_MARGIN = 10.0
 def area_of_use(target):
     """'longitude w .. e, latitude s .. n' of the area of use of the osr.SpatialReference `target`."""
     area = target.GetAreaOfUse()
-    return (f"longitude {area.west_lon_degree:g} .. {area.east_lon_degree:g}, latitude {area.south_lat_degree:g} .. "
-            f"{area.north_lat_degree:g}")
+    return (
+        f"longitude {area.west_lon_degree:g} .. {area.east_lon_degree:g}, latitude {area.south_lat_degree:g} .. "
+        f"{area.north_lat_degree:g}"
+    )
 
 
 def within_area_of_use(target, lon, lat):
@@ -115,11 +128,10 @@ def within_area_of_use(target, lon, lat):
         return True
     if not (np.isfinite(lon) and np.isfinite(lat)):
         return False
-    span = (area.east_lon_degree - area.west_lon_degree) % 360.0 or 360.0    # an area across the antimeridian too
-    beyond = (lon - area.west_lon_degree) % 360.0 - span                    # > 0: east of the area, by this much
+    span = (area.east_lon_degree - area.west_lon_degree) % 360.0 or 360.0  # an area across the antimeridian too
+    beyond = (lon - area.west_lon_degree) % 360.0 - span  # > 0: east of the area, by this much
     outside = 0.0 if beyond <= 0.0 else min(beyond, 360.0 - span - beyond)
-    return outside <= AREA_MARGIN and \
-        area.south_lat_degree - AREA_MARGIN <= lat <= area.north_lat_degree + AREA_MARGIN
+    return outside <= AREA_MARGIN and area.south_lat_degree - AREA_MARGIN <= lat <= area.north_lat_degree + AREA_MARGIN
 
 
 def check_output_crs(target, lon, lat, what):
@@ -127,15 +139,17 @@ def check_output_crs(target, lon, lat, what):
     cloud"), whose centre is at (lon, lat) degrees (within_area_of_use): a projection far from its area of use
     mirrors or tears the data (a UTM zone 200 degrees away puts a scene at a northing of 15 000 km)."""
     if not within_area_of_use(target, float(lon), float(lat)):
-        raise InputError(f"the output CRS {target.GetName()} is used at {area_of_use(target)}, far from {what} "
-                         f"(longitude {lon:.4f}, latitude {lat:.4f}): choose an output CRS used there, or leave it "
-                         "empty for the UTM zone there")
+        raise InputError(
+            f"the output CRS {target.GetName()} is used at {area_of_use(target)}, far from {what} "
+            f"(longitude {lon:.4f}, latitude {lat:.4f}): choose an output CRS used there, or leave it "
+            "empty for the UTM zone there"
+        )
 
 
 #: cells a grid has at least along each axis: fewer is no raster of the data (one cell, one value)
 MIN_CELLS = 2
 #: cells a grid has at most (GDAL's and the tiles' 32-bit counts): more is a cell size in the wrong unit
-MAX_CELLS = 2 ** 31
+MAX_CELLS = 2**31
 
 
 def unit_name(target):
@@ -150,8 +164,10 @@ def cell_unit_hint(cell, target):
     """A sentence where the cell size `cell` looks given in another unit than the CRS `target`'s (a cell of
     metres in a degree CRS: over 0.1 degree, 11 km; a cell of degrees in a metre CRS: under 1 cm), else ''."""
     if target.IsGeographic() and cell > 0.1:
-        return (" The CRS's unit is the degree: is the cell size in metres? (10 m is about 0.00009 degrees, a "
-                "projected CRS such as the UTM zone takes metres)")
+        return (
+            " The CRS's unit is the degree: is the cell size in metres? (10 m is about 0.00009 degrees, a "
+            "projected CRS such as the UTM zone takes metres)"
+        )
     if target.IsProjected() and cell * target.GetLinearUnits() < 0.01:
         return f" The CRS's unit is {unit_name(target)}: is the cell size in degrees?"
     return ""
@@ -163,13 +179,19 @@ def check_grid_cells(cols, rows, cell, target, extent, what):
     ("the orthoimage")."""
     unit = unit_name(target)
     if cols * rows > MAX_CELLS:
-        raise InputError(f"a cell size of {cell:g} {unit} makes {what} a grid of {cols} x {rows} cells, too many: give "
-                         f"a larger cell size.{cell_unit_hint(cell, target)}")
+        raise InputError(
+            f"a cell size of {cell:g} {unit} makes {what} a grid of {cols} x {rows} cells, too many: give "
+            f"a larger cell size.{cell_unit_hint(cell, target)}"
+        )
     if min(cols, rows) >= MIN_CELLS:
         return
     if min(extent) <= 0:
-        raise InputError(f"the data span {extent[0]:.4g} x {extent[1]:.4g} {unit} ({target.GetName()}), no area: "
-                         f"{what} needs data spread over at least {MIN_CELLS} x {MIN_CELLS} cells")
-    raise InputError(f"a cell size of {cell:g} {unit} makes {what} a grid of {cols} x {rows} cells over "
-                     f"{extent[0]:.4g} x {extent[1]:.4g} {unit} ({target.GetName()}): give a cell size of at most "
-                     f"{min(extent) / MIN_CELLS:.4g} {unit}.{cell_unit_hint(cell, target)}")
+        raise InputError(
+            f"the data span {extent[0]:.4g} x {extent[1]:.4g} {unit} ({target.GetName()}), no area: "
+            f"{what} needs data spread over at least {MIN_CELLS} x {MIN_CELLS} cells"
+        )
+    raise InputError(
+        f"a cell size of {cell:g} {unit} makes {what} a grid of {cols} x {rows} cells over "
+        f"{extent[0]:.4g} x {extent[1]:.4g} {unit} ({target.GetName()}): give a cell size of at most "
+        f"{min(extent) / MIN_CELLS:.4g} {unit}.{cell_unit_hint(cell, target)}"
+    )

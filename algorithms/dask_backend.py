@@ -35,6 +35,7 @@ s; no worker; every worker lost; a worker that cannot run Pushbroom; Dask distri
 are asked for at most every DASK_CHECK s. Reference: distributed's documentation,
 "Data Locality", "Active Memory Manager" and "Resilience" (a lost key is recomputed from its task; scattered data
 is not)."""
+
 from __future__ import annotations
 
 import collections
@@ -55,8 +56,10 @@ from .task_runtime import GRACE, POLL, Execution, in_worker, starting_workers, u
 #: s a task on Dask waits between two looks at the cancel token (each asks the scheduler)
 DASK_CHECK = 1.0
 #: warnings a Dask local cluster or client gives on every start (the start of the message, the category)
-DASK_NOISE = (("make_current is deprecated", DeprecationWarning),
-              ("Creating scratch directories is taking a surprisingly long time", UserWarning))
+DASK_NOISE = (
+    ("make_current is deprecated", DeprecationWarning),
+    ("Creating scratch directories is taking a surprisingly long time", UserWarning),
+)
 #: s the scheduler (and a worker, for its check) has to answer a question before it counts as gone
 ANSWER = 30.0
 #: what nothing stored means to the user, in every message of a failed round
@@ -82,7 +85,8 @@ class _DaskFlag:
     def is_set(self) -> bool:
         if not self.seen and time.monotonic() - self.at >= DASK_CHECK:
             import distributed
-            with contextlib.suppress(Exception):        # no answer: not cancelled (the task runs to its end)
+
+            with contextlib.suppress(Exception):  # no answer: not cancelled (the task runs to its end)
                 self.seen = bool(distributed.Event(self.name).is_set())
             self.at = time.monotonic()
         return self.seen
@@ -96,27 +100,34 @@ def _held(value):
 def _in_dask_worker(function: Callable, args: tuple, token: _DaskFlag):
     """(the worker's address, in_worker(function, args, token)): the task wrapper on Dask."""
     import distributed
+
     return distributed.get_worker().address, in_worker(function, args, token)
 
 
 def _connect(address: str, timeout: float):
     """A distributed Client of the scheduler at `address` (ExecutionError where none answers within `timeout` s)."""
     import distributed
+
     try:
         return distributed.Client(address, timeout=f"{timeout}s", set_as_default=False)
     except (OSError, TimeoutError) as exc:
-        raise ExecutionError(f"no Dask scheduler answers at {address} within {timeout:g} s ({exc}): start one "
-                             "(`dask scheduler`) and its workers (`dask worker <address>`), or leave the address "
-                             "empty for a local cluster") from None
-    except Exception as exc:        # e.g. tls:// without Dask's TLS configuration
-        raise ExecutionError(f"cannot connect to the Dask scheduler at {address} ({exc}): check the address, and "
-                             "for tls:// Dask's TLS configuration (distributed.comm.tls)") from None
+        raise ExecutionError(
+            f"no Dask scheduler answers at {address} within {timeout:g} s ({exc}): start one "
+            "(`dask scheduler`) and its workers (`dask worker <address>`), or leave the address "
+            "empty for a local cluster"
+        ) from None
+    except Exception as exc:  # e.g. tls:// without Dask's TLS configuration
+        raise ExecutionError(
+            f"cannot connect to the Dask scheduler at {address} ({exc}): check the address, and "
+            "for tls:// Dask's TLS configuration (distributed.comm.tls)"
+        ) from None
 
 
 def _reports(client, addresses: list) -> dict:
     """{address: worker_report.report() of that worker, or the exception that kept it from answering}."""
     import cloudpickle
-    cloudpickle.register_pickle_by_value(worker_report)      # a worker without pushbroom must still unpickle it
+
+    cloudpickle.register_pickle_by_value(worker_report)  # a worker without pushbroom must still unpickle it
     return client.run(worker_report.report, workers=addresses, on_error="return", callback_timeout=ANSWER)
 
 
@@ -138,19 +149,21 @@ class DaskBackend:
         try:
             import distributed
         except ImportError as exc:
-            raise ExecutionError("the dask execution needs Dask distributed (python3-distributed), which is not "
-                                 "installed: run `make setup`, or choose threads or processes") from exc
+            raise ExecutionError(
+                "the dask execution needs Dask distributed (python3-distributed), which is not "
+                "installed: run `make setup`, or choose threads or processes"
+            ) from exc
         _quiet()
         self.execution, self.note, self.cluster = execution, execution.capped(), None
         self.where = f"the Dask cluster at {execution.address}" if execution.address else "the Dask local cluster"
         self.token, self.what, self.feedback = _DaskFlag(""), "the tiles", None
-        self.workers: dict = {}                     # address -> host, as last seen
-        self.checked: set = set()                   # addresses whose check passed
-        self.named = False                          # the workers were named in the log
+        self.workers: dict = {}  # address -> host, as last seen
+        self.checked: set = set()  # addresses whose check passed
+        self.named = False  # the workers were named in the log
         self.tally: collections.Counter = collections.Counter()
         self.total = self.finished = 0
-        self.alone_since: float | None = None    # when the scheduler was last seen with no worker
-        self.looked = -float("inf")                 # when the scheduler was last asked for its workers
+        self.alone_since: float | None = None  # when the scheduler was last seen with no worker
+        self.looked = -float("inf")  # when the scheduler was last asked for its workers
         if execution.address:
             self.client = _connect(execution.address, execution.connect_timeout)
             return
@@ -159,10 +172,14 @@ class DaskBackend:
         with starting_workers({"PYTHONWARNINGS": quiet}):
             # no dashboard; the scheduler's HTTP server (health, metrics) on a free local port, not on 8787, which
             # another cluster may hold ("Port 8787 is already in use")
-            self.cluster = distributed.LocalCluster(n_workers=execution.used_workers(), threads_per_worker=1,
-                                                    processes=True, dashboard_address=None,
-                                                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-                                                    silence_logs=40)        # logging.ERROR
+            self.cluster = distributed.LocalCluster(
+                n_workers=execution.used_workers(),
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                silence_logs=40,
+            )  # logging.ERROR
             try:
                 self.client = distributed.Client(self.cluster, set_as_default=False)
             except BaseException:
@@ -177,8 +194,9 @@ class DaskBackend:
         try:
             return self.client.sync(call, callback_timeout=ANSWER, **kwargs)
         except Exception as exc:
-            raise self._failure(f"the Dask scheduler of {self.where} stopped answering ({type(exc).__name__}: {exc})"
-                                ) from None
+            raise self._failure(
+                f"the Dask scheduler of {self.where} stopped answering ({type(exc).__name__}: {exc})"
+            ) from None
 
     def _present(self) -> dict:
         """{address: host} of the scheduler's workers, as the scheduler answers now."""
@@ -191,9 +209,11 @@ class DaskBackend:
         return f"{address} ({host})" if host and host not in address else address
 
     def _start_one(self) -> str:
-        return (f"start one on a host that sees the same files, `python3 -m distributed.cli.dask_worker "
-                f"{self.execution.address or '<address>'} --nthreads 1` (README, Scaling out), or raise the wait "
-                "(DASK_WAIT)")
+        return (
+            f"start one on a host that sees the same files, `python3 -m distributed.cli.dask_worker "
+            f"{self.execution.address or '<address>'} --nthreads 1` (README, Scaling out), or raise the wait "
+            "(DASK_WAIT)"
+        )
 
     def _wait_for_workers(self) -> dict:
         """The scheduler's workers (_present) once it has one; ExecutionError after `worker_wait` s without one."""
@@ -202,8 +222,9 @@ class DaskBackend:
         told = False
         while not (present := self._present()):
             if time.monotonic() >= deadline:
-                raise self._failure(f"no worker joined {self.where} within {wait:g} s (0 workers connected): "
-                                    f"{self._start_one()}")
+                raise self._failure(
+                    f"no worker joined {self.where} within {wait:g} s (0 workers connected): {self._start_one()}"
+                )
             if not told:
                 progress.warn(self.feedback, f"{self.where} has no worker: waiting up to {wait:g} s for one")
                 told = True
@@ -223,13 +244,14 @@ class DaskBackend:
         Pushbroom's tasks (module docstring); the others are checked for good."""
         try:
             reports = _reports(self.client, addresses)
-        except Exception as exc:            # the scheduler died, or a worker does not answer within ANSWER s
-            raise self._failure(f"the workers of {self.where} could not be checked ({type(exc).__name__}: {exc})"
-                                ) from None
+        except Exception as exc:  # the scheduler died, or a worker does not answer within ANSWER s
+            raise self._failure(
+                f"the workers of {self.where} could not be checked ({type(exc).__name__}: {exc})"
+            ) from None
         failing, dense = [], []
         for address, seen in sorted(reports.items()):
             if isinstance(seen, BaseException) and address not in present:
-                continue                    # a worker that left before it answered
+                continue  # a worker that left before it answered
             said = worker_report.problems(seen, VERSION, platform.python_version())
             if said:
                 failing.append(f"{worker_report.describe(address, seen)}: {'; '.join(said)}")
@@ -238,21 +260,29 @@ class DaskBackend:
                 dense.append(f"{address} on {seen['host']}")
             self.checked.add(address)
         if failing:
-            raise self._failure(f"{len(failing)} of {len(present)} workers of {self.where} cannot run Pushbroom's "
-                                f"tasks: {'; '.join(failing)}. `python3 -m pushbroom.algorithms.worker_check "
-                                f"{self.execution.address or '<address>'}` checks every worker")
+            raise self._failure(
+                f"{len(failing)} of {len(present)} workers of {self.where} cannot run Pushbroom's "
+                f"tasks: {'; '.join(failing)}. `python3 -m pushbroom.algorithms.worker_check "
+                f"{self.execution.address or '<address>'}` checks every worker"
+            )
         if dense:
-            progress.warn(self.feedback, f"{len(dense)} worker{'s' * (len(dense) != 1)} of {self.where} lack CNES "
-                                         f"libsgm (c_libsgm): {', '.join(dense)}; dense matching's tiles fail there "
-                                         "(install the plugin's wheel with its `dense` extra)")
+            progress.warn(
+                self.feedback,
+                f"{len(dense)} worker{'s' * (len(dense) != 1)} of {self.where} lack CNES "
+                f"libsgm (c_libsgm): {', '.join(dense)}; dense matching's tiles fail there "
+                "(install the plugin's wheel with its `dense` extra)",
+            )
 
     def _changes(self, present: dict) -> list:
         """Log the workers that left or joined since the last look; the joined ones."""
         log = progress.ensure(self.feedback)
         n = len(present)
         for address in sorted(self.workers.keys() - present.keys()):
-            after = (f"its running tiles run again on another ({n} worker{'s' * (n != 1)} left)" if n else
-                     "no worker is left")
+            after = (
+                f"its running tiles run again on another ({n} worker{'s' * (n != 1)} left)"
+                if n
+                else "no worker is left"
+            )
             log.pushInfo(f"{self.what}: worker {self._label(address)} left {self.where}; {after}")
         joined = sorted(present.keys() - self.workers.keys())
         self.workers = present
@@ -275,16 +305,21 @@ class DaskBackend:
         wait = float(self.execution.worker_wait)
         if self.alone_since is None:
             self.alone_since = time.monotonic()
-            progress.warn(self.feedback, f"{self.what}: every worker of {self.where} is lost: waiting up to {wait:g} "
-                                         "s for one to come back")
+            progress.warn(
+                self.feedback,
+                f"{self.what}: every worker of {self.where} is lost: waiting up to {wait:g} s for one to come back",
+            )
         elif time.monotonic() - self.alone_since > wait:
-            raise self._failure(f"every worker of {self.where} was lost, and none came back within {wait:g} s (0 "
-                                f"workers connected): {self._start_one()}")
+            raise self._failure(
+                f"every worker of {self.where} was lost, and none came back within {wait:g} s (0 "
+                f"workers connected): {self._start_one()}"
+            )
 
     def _failure(self, text: str) -> ExecutionError:
         """The round's failure: `text`, the tasks finished, and that nothing was stored."""
-        return ExecutionError(f"{self.what}: {text}; {self.finished} of {self.total} task{'s' * (self.total != 1)} "
-                              f"finished, {UNCHANGED}")
+        return ExecutionError(
+            f"{self.what}: {text}; {self.finished} of {self.total} task{'s' * (self.total != 1)} finished, {UNCHANGED}"
+        )
 
     # ---- run_tasks' backend
 
@@ -297,7 +332,8 @@ class DaskBackend:
             self.named, self.workers = True, present
             progress.ensure(feedback).pushInfo(
                 f"{self.where}: {len(present)} worker{'s' * (len(present) != 1)} "
-                f"({', '.join(self._label(a) for a in sorted(present))})")
+                f"({', '.join(self._label(a) for a in sorted(present))})"
+            )
         else:
             self._changes(present)
         unchecked = [a for a in present if a not in self.checked]
@@ -315,10 +351,11 @@ class DaskBackend:
                 if isinstance(value, (str, bytes, int, float, bool, type(None))):
                     continue
                 if all(len(t) > i and t[i] is value for t in tasks):
-                    with warnings.catch_warnings():     # Dask's advice to scatter it instead (module docstring)
+                    with warnings.catch_warnings():  # Dask's advice to scatter it instead (module docstring)
                         warnings.filterwarnings("ignore", message="Large object of size", category=UserWarning)
-                        shared[i] = self.client.submit(_held, value, pure=False,
-                                                       key=f"pushbroom-job-{uuid.uuid4().hex}")
+                        shared[i] = self.client.submit(
+                            _held, value, pure=False, key=f"pushbroom-job-{uuid.uuid4().hex}"
+                        )
         return [tuple(shared.get(i, a) for i, a in enumerate(t)) for t in tasks] if shared else tasks
 
     def submit(self, function: Callable, args: tuple):
@@ -337,6 +374,7 @@ class DaskBackend:
         cluster lost or refused it (module docstring). A result whose worker died before it was fetched is
         computed again: waited for with the cluster watched and the cancel button asked."""
         import distributed
+
         while True:
             try:
                 address, value = future.result(timeout=DASK_CHECK)
@@ -344,20 +382,24 @@ class DaskBackend:
             except Exception as exc:
                 if future.status == "error":
                     if isinstance(exc, distributed.KilledWorker):
-                        raise self._failure(f"a task's workers died while running it, one after another ({exc}): it "
-                                            "may need more memory than a worker has; run again with smaller tiles"
-                                            ) from None
+                        raise self._failure(
+                            f"a task's workers died while running it, one after another ({exc}): it "
+                            "may need more memory than a worker has; run again with smaller tiles"
+                        ) from None
                     if isinstance(exc, ImportError):
-                        raise self._failure(f"a worker of {self.where} cannot import what a task needs ({exc}): "
-                                            "install the plugin's wheel with its extras there (README, Scaling out)"
-                                            ) from None
+                        raise self._failure(
+                            f"a worker of {self.where} cannot import what a task needs ({exc}): "
+                            "install the plugin's wheel with its extras there (README, Scaling out)"
+                        ) from None
                     raise
                 if future.status == "cancelled":
-                    raise self._failure(f"{self.where} cancelled a task (the scheduler lost its data, or restarted)"
-                                        ) from None
+                    raise self._failure(
+                        f"{self.where} cancelled a task (the scheduler lost its data, or restarted)"
+                    ) from None
                 if not isinstance(exc, TimeoutError):
-                    raise self._failure(f"the result of a task could not be fetched from {self.where} "
-                                        f"({type(exc).__name__}: {exc})") from None
+                    raise self._failure(
+                        f"the result of a task could not be fetched from {self.where} ({type(exc).__name__}: {exc})"
+                    ) from None
                 self._watch()
                 self._idle()
         self.tally[address] += 1
@@ -369,14 +411,15 @@ class DaskBackend:
         next round checks a new one) and its line for the log: the tasks each worker ran."""
         self._changes(self._present())
         return f"{self.what}: tasks per worker: " + ", ".join(
-            f"{self._label(a)} {n}" for a, n in sorted(self.tally.items()))
+            f"{self._label(a)} {n}" for a, n in sorted(self.tally.items())
+        )
 
     def cancel(self, futures):
         """Set the round's Event (it stays on the scheduler, a name) and wait until the round's `futures` are
         done, GRACE s at most (closing a local cluster would kill the tasks wherever they are). The futures are let go
         with the round: the scheduler then drops the tasks that have not started, with no call that a dead
         scheduler could hold up."""
-        if not self.token.name or not self.workers:     # no round began, or nothing runs: nothing to wait for
+        if not self.token.name or not self.workers:  # no round began, or nothing runs: nothing to wait for
             return
         with contextlib.suppress(Exception):
             self.client.sync(self.client.scheduler.event_set, name=self.token.name, callback_timeout=GRACE)
@@ -391,4 +434,4 @@ class DaskBackend:
             with contextlib.suppress(Exception):
                 self.cluster.close()
             self.cluster = None
-            gc.collect()            # the nannies' queues, with their semaphores
+            gc.collect()  # the nannies' queues, with their semaphores

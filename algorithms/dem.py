@@ -7,6 +7,7 @@ outside the grid or next to nodata cells.
 Heights outside PLAUSIBLE_HEIGHTS (height_range.py) are no terrain on Earth: voids the file does not flag as nodata
 (SRTM's -32768), or another unit. They are used as given, with a warning (implausible_heights) that
 says how to declare their value as nodata."""
+
 import math
 
 import numpy as np
@@ -31,8 +32,9 @@ def bilinear_scalar(grid, lon0, dlon, lat0, dlat, lon, lat):
     fx = x - j
     i1 = min(i + 1, rows - 1)
     j1 = min(j + 1, cols - 1)
-    return ((grid[i, j] * (1.0 - fx) + grid[i, j1] * fx) * (1.0 - fy)
-            + (grid[i1, j] * (1.0 - fx) + grid[i1, j1] * fx) * fy)
+    return (grid[i, j] * (1.0 - fx) + grid[i, j1] * fx) * (1.0 - fy) + (
+        grid[i1, j] * (1.0 - fx) + grid[i1, j1] * fx
+    ) * fy
 
 
 @njit(cache=True, nogil=True)
@@ -63,16 +65,25 @@ def implausible_warning(values, counts, what="the DEM", left_out=None):
         return None
     low, high = PLAUSIBLE_HEIGHTS
     total, value = int(np.sum(counts)), float(values[np.argmax(counts)])
-    found = (f"{total} cells at {value:g} m" if len(values) == 1 else
-             f"{total} cells from {values[0]:g} to {values[-1]:g} m ({max(counts)} of them at {value:g} m)")
-    start = (f"{what} has {found}, outside the heights of terrain on Earth ({low:g} .. {high:g} m): voids that are "
-             f"not flagged as nodata, or heights in another unit. ")
+    found = (
+        f"{total} cells at {value:g} m"
+        if len(values) == 1
+        else f"{total} cells from {values[0]:g} to {values[-1]:g} m ({max(counts)} of them at {value:g} m)"
+    )
+    start = (
+        f"{what} has {found}, outside the heights of terrain on Earth ({low:g} .. {high:g} m): voids that are "
+        f"not flagged as nodata, or heights in another unit. "
+    )
     if left_out:
-        return start + (f"They are left out as voids; declare {value:g} as its nodata value (the {left_out} "
-                        f"parameter, or gdal_edit.py -a_nodata {value:g} on the file) to say so, or convert the "
-                        "file to metres if they are heights")
-    return start + (f"They are used as heights as they are; if they are voids, declare {value:g} as the DEM's nodata "
-                    f"value (the DEM nodata parameter, or gdal_edit.py -a_nodata {value:g} on the file) and run again")
+        return start + (
+            f"They are left out as voids; declare {value:g} as its nodata value (the {left_out} "
+            f"parameter, or gdal_edit.py -a_nodata {value:g} on the file) to say so, or convert the "
+            "file to metres if they are heights"
+        )
+    return start + (
+        f"They are used as heights as they are; if they are voids, declare {value:g} as the DEM's nodata "
+        f"value (the DEM nodata parameter, or gdal_edit.py -a_nodata {value:g} on the file) and run again"
+    )
 
 
 class ImplausibleTally:
@@ -170,8 +181,9 @@ class Dem:
     def constant(cls, h, bounds):
         """A flat DEM at height `h` over bounds (lon_min, lat_min, lon_max, lat_max)."""
         lon_min, lat_min, lon_max, lat_max = bounds
-        return cls(np.full((2, 2), float(h)),
-                   (lon_min, (lon_max - lon_min) / 2, 0.0, lat_max, 0.0, -(lat_max - lat_min) / 2))
+        return cls(
+            np.full((2, 2), float(h)), (lon_min, (lon_max - lon_min) / 2, 0.0, lat_max, 0.0, -(lat_max - lat_min) / 2)
+        )
 
 
 def dem_window(heights, geotransform, height_range, bounds):

@@ -19,6 +19,7 @@ and the height range of a box of cells.
 
 Failure modes: InputError (a file that cannot be opened or has no CRS, a grid that is not north-up or
 holds no height, unknown vertical), StorageError (the work folder's disk)."""
+
 import contextlib
 import math
 import os
@@ -52,8 +53,8 @@ class StoredDem:
     path: str
     geotransform: tuple
     shape: tuple
-    height_range: tuple             # (min, max) of the valid heights
-    implausible: str = None         # dem.implausible_heights' warning of the heights as read
+    height_range: tuple  # (min, max) of the valid heights
+    implausible: str = None  # dem.implausible_heights' warning of the heights as read
 
     @property
     def bounds(self):
@@ -74,7 +75,7 @@ class StoredDem:
         """Bilinear height at (lon, lat) (arrays or scalars), as dem.Dem.height: the points of each block
         of BLOCK x BLOCK cells from a window of that block's cells."""
         (lon, lat), shape, scalar = flat_points(lon, lat)
-        out = np.full(lon.size, np.nan)                               # off the grid: no height
+        out = np.full(lon.size, np.nan)  # off the grid: no height
         lon0, dlon, _, lat0, _, dlat = self.geotransform
         for sel in cell_blocks((lon - lon0) / dlon, (lat - lat0) / dlat, self.shape, BLOCK):
             window = self.window((lon[sel].min(), lat[sel].min(), lon[sel].max(), lat[sel].max()))
@@ -92,18 +93,21 @@ class StoredDem:
         for k in range(c.size):
             lons, lats = (ends[0][0][k], ends[1][0][k]), (ends[0][1][k], ends[1][1][k])
             if not np.isfinite(lons + lats).all():
-                raise GeometryError(f"the line of sight of image point ({c[k]:.1f}, {r[k]:.1f}) has no ground "
-                                    "position: is the orientation complete for the whole image?")
+                raise GeometryError(
+                    f"the line of sight of image point ({c[k]:.1f}, {r[k]:.1f}) has no ground "
+                    "position: is the orientation complete for the whole image?"
+                )
             window = self.window((min(lons), min(lats), max(lons), max(lats)))
-            lon[k], lat[k], h[k] = (float(np.asarray(v).ravel()[0]) for v in model.image_to_dem(c[k:k + 1],
-                                                                                                r[k:k + 1], window))
+            lon[k], lat[k], h[k] = (
+                float(np.asarray(v).ravel()[0]) for v in model.image_to_dem(c[k : k + 1], r[k : k + 1], window)
+            )
         return lon.reshape(shape), lat.reshape(shape), h.reshape(shape)
 
     def cells_range(self, rows, cols):
         """(min, max) of the valid heights of the cells rows[0]:rows[1], cols[0]:cols[1] (NaN, NaN where none)."""
         array, low, high = DiskArray.existing(self.path), np.inf, -np.inf
         for r0 in range(rows[0], rows[1], ROWS):
-            band = array[r0:min(r0 + ROWS, rows[1]), cols[0]:cols[1]]
+            band = array[r0 : min(r0 + ROWS, rows[1]), cols[0] : cols[1]]
             if np.isfinite(band).any():
                 low, high = min(low, float(np.nanmin(band))), max(high, float(np.nanmax(band)))
         return (low, high) if low <= high else (math.nan, math.nan)
@@ -111,6 +115,7 @@ class StoredDem:
 
 def _open(path):
     from osgeo import gdal
+
     gdal.UseExceptions()
     try:
         ds = gdal.Open(str(path))
@@ -119,9 +124,11 @@ def _open(path):
             raise InputError(f"cannot open DEM {path}: the file does not exist; check the path") from None
         raise InputError(f"cannot open DEM {path}: GDAL does not read it as a raster ({exc})") from exc
     if ds.GetSpatialRef() is None:
-        raise InputError(f"the DEM {path} has no coordinate reference system, so where its cells lie is unknown: "
-                         f"assign the CRS of its coordinates, e.g. 'gdal_edit.py -a_srs EPSG:4326 {path}' for "
-                         "longitude/latitude in degrees (or the EPSG code of its map projection), and run again")
+        raise InputError(
+            f"the DEM {path} has no coordinate reference system, so where its cells lie is unknown: "
+            f"assign the CRS of its coordinates, e.g. 'gdal_edit.py -a_srs EPSG:4326 {path}' for "
+            "longitude/latitude in degrees (or the EPSG code of its map projection), and run again"
+        )
     return ds
 
 
@@ -136,18 +143,30 @@ def _warped(ds, nodata, work, tally):
     """`ds` (not in EPSG:4326) with its nodata as NaN, copied to the work folder and warped bilinearly to
     EPSG:4326 by GDAL; returns the path of the warped GeoTIFF. StorageError where a write fails."""
     from osgeo import gdal
+
     source, target = os.path.join(work, "dem-source.tif"), os.path.join(work, "dem-wgs84.tif")
     options = ["TILED=YES", "BIGTIFF=IF_SAFER"]
     try:
-        with closing(gdal.GetDriverByName("GTiff").Create(source, ds.RasterXSize, ds.RasterYSize, 1,
-                                                          gdal.GDT_Float64, options)) as copy:
+        with closing(
+            gdal.GetDriverByName("GTiff").Create(source, ds.RasterXSize, ds.RasterYSize, 1, gdal.GDT_Float64, options)
+        ) as copy:
             copy.SetGeoTransform(ds.GetGeoTransform())
             copy.SetSpatialRef(ds.GetSpatialRef())
             copy.GetRasterBand(1).SetNoDataValue(float("nan"))
             for r0, heights in _bands(ds, ds.GetRasterBand(1).GetNoDataValue(), nodata):
                 copy.GetRasterBand(1).WriteArray(tally.add(heights), 0, r0)
-        close_dataset(gdal.Warp(target, source, format="GTiff", dstSRS="EPSG:4326", resampleAlg="bilinear",
-                                outputType=gdal.GDT_Float64, dstNodata=float("nan"), creationOptions=options))
+        close_dataset(
+            gdal.Warp(
+                target,
+                source,
+                format="GTiff",
+                dstSRS="EPSG:4326",
+                resampleAlg="bilinear",
+                outputType=gdal.GDT_Float64,
+                dstNodata=float("nan"),
+                creationOptions=options,
+            )
+        )
     except (RuntimeError, OSError) as exc:
         raise storage_error(exc, target, "the stored DEM") from None
     finally:
@@ -163,12 +182,14 @@ def _undulation(shape, geotransform):
     lon0, dlon, _, lat0, _, dlat = geotransform
     r = np.unique(np.linspace(0, rows - 1, min(rows, UNDULATION_NODES)).round())
     c = np.unique(np.linspace(0, cols - 1, min(cols, UNDULATION_NODES)).round())
-    lattice = RegularGridInterpolator((r, c), egm96_undulation(*np.meshgrid(lon0 + (c + 0.5) * dlon,
-                                                                            lat0 + (r + 0.5) * dlat)))
+    lattice = RegularGridInterpolator(
+        (r, c), egm96_undulation(*np.meshgrid(lon0 + (c + 0.5) * dlon, lat0 + (r + 0.5) * dlat))
+    )
 
     def at(first, count):
-        rr, cc = np.mgrid[first:first + count, 0:cols]
+        rr, cc = np.mgrid[first : first + count, 0:cols]
         return lattice(np.column_stack([rr.ravel(), cc.ravel()])).reshape(count, cols)
+
     return at
 
 
@@ -182,6 +203,7 @@ def store_dem(path, work, nodata=None, vertical="ellipsoidal"):
         grid, bands = ds, ((r0, tally.add(h)) for r0, h in _bands(ds, ds.GetRasterBand(1).GetNoDataValue(), nodata))
     else:
         from osgeo import gdal
+
         warped = _warped(ds, nodata, work, tally)
         grid = gdal.Open(warped)
         bands = _bands(grid)
@@ -193,7 +215,7 @@ def store_dem(path, work, nodata=None, vertical="ellipsoidal"):
     for r0, heights in bands:
         if undulation is not None:
             heights += undulation(r0, len(heights))
-        out[r0:r0 + len(heights)] = heights
+        out[r0 : r0 + len(heights)] = heights
         if np.isfinite(heights).any():
             low, high = min(low, float(np.nanmin(heights))), max(high, float(np.nanmax(heights)))
     grid = bands = None
@@ -201,8 +223,7 @@ def store_dem(path, work, nodata=None, vertical="ellipsoidal"):
         os.remove(warped)
     if not low <= high:
         raise InputError("the DEM holds no valid height (all cells are nodata)")
-    return StoredDem(out.path, geotransform, shape, (low, high),
-                     tally.warning(f"the DEM {path}"))
+    return StoredDem(out.path, geotransform, shape, (low, high), tally.warning(f"the DEM {path}"))
 
 
 def read_dem(path, nodata=None):
@@ -211,6 +232,7 @@ def read_dem(path, nodata=None):
     `implausible` set), by way of a temporary folder of the system (a StorageError where it is full).
     InputError where the file cannot be opened or has no CRS. For a large raster, use store_dem's windows."""
     import tempfile
+
     with tempfile.TemporaryDirectory(prefix="pushbroom-dem-") as work:
         return store_dem(path, work, nodata).whole()
 
@@ -224,5 +246,5 @@ def stored_copy(dem, work):
     """A StoredDem of the Dem `dem` (in memory) in the folder `work`."""
     out = DiskArray(os.path.join(work, "dem.npy"), dem.shape, np.float64, "a copy of the DEM")
     for r0 in range(0, dem.shape[0], ROWS):
-        out[r0:r0 + ROWS] = dem.heights[r0:r0 + ROWS]
+        out[r0 : r0 + ROWS] = dem.heights[r0 : r0 + ROWS]
     return StoredDem(out.path, dem.geotransform, dem.shape, dem.height_range, dem.implausible)

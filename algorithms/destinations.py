@@ -22,6 +22,7 @@ A destination's companions (a shapefile's .shx, .dbf, .prj: atomic.companions) c
 What is not refused: a destination folder that files are written into (INTO) may hold inputs, and a file
 destination may lie beside inputs; only the files written count.
 """
+
 import contextlib
 import os
 from collections.abc import Sequence
@@ -44,6 +45,7 @@ RASTER_EXTENSIONS = ("tif", "tiff")
 class Input:
     """A file or folder a step reads; `label` names its parameter in messages ("BLOCK (Block)"), `part` what
     the file is to it where it is not the file the parameter names ("the image HRG", "a point folder")."""
+
     path: str
     label: str
     part: str = ""
@@ -54,6 +56,7 @@ class Destination:
     """A file or folder a step writes: `kind` FILE, FOLDER or INTO (module docstring); `extensions` the
     extensions its writer honours (lower case, without the dot; empty: any); `mark` of a FOLDER, the file
     (relative to it) that marks a folder the step made; `label` names it in messages."""
+
     path: str
     label: str
     kind: str = FILE
@@ -70,11 +73,12 @@ def files_of(path) -> list:
     if not os.path.isfile(path):
         return found
     from osgeo import gdal
+
     gdal.PushErrorHandler("CPLQuietErrorHandler")
     try:
         ds = gdal.OpenEx(path, gdal.OF_READONLY)
         found += (ds.GetFileList() or []) if ds is not None else []
-    except RuntimeError:                    # no format GDAL knows (a LAS file, a CSV of another layout)
+    except RuntimeError:  # no format GDAL knows (a LAS file, a CSV of another layout)
         pass
     finally:
         ds = None
@@ -111,31 +115,41 @@ def _check_inputs(destination: Destination, inputs: Sequence[Input]) -> None:
             source = FileIdentity.of(item.path)
             name = f"{item.label}, {item.part}" if item.part else item.label
             if target.same(source):
-                _refuse(f"the output {destination.label} would overwrite the input {name}: "
-                        f"{_how(path, item.path, target, source)}. Choose another output path")
+                _refuse(
+                    f"the output {destination.label} would overwrite the input {name}: "
+                    f"{_how(path, item.path, target, source)}. Choose another output path"
+                )
             if os.path.isdir(source.real) and target.inside(source):
-                _refuse(f"the output {destination.label} {path} lies inside the input {name} {item.path}, a "
-                        "folder replaced or removed as a whole. Choose a path outside it")
+                _refuse(
+                    f"the output {destination.label} {path} lies inside the input {name} {item.path}, a "
+                    "folder replaced or removed as a whole. Choose a path outside it"
+                )
             if destination.kind == FOLDER and source.inside(target):
-                _refuse(f"the output folder {destination.label} {path} is replaced as a whole, and it holds the "
-                        f"input {name} {item.path}. Choose another folder")
+                _refuse(
+                    f"the output folder {destination.label} {path} is replaced as a whole, and it holds the "
+                    f"input {name} {item.path}. Choose another folder"
+                )
 
 
 def _check_each_other(destinations: list) -> None:
     """Refuse two destinations that are the same file, or one inside a folder replaced as a whole."""
     for k, a in enumerate(destinations):
-        for b in destinations[k + 1:]:
-            for pa in ([a.path] if a.kind != FILE else _destination_files(a)):
-                for pb in ([b.path] if b.kind != FILE else _destination_files(b)):
+        for b in destinations[k + 1 :]:
+            for pa in [a.path] if a.kind != FILE else _destination_files(a):
+                for pb in [b.path] if b.kind != FILE else _destination_files(b):
                     ia, ib = FileIdentity.of(pa), FileIdentity.of(pb)
                     if ia.same(ib):
-                        _refuse(f"the outputs {a.label} and {b.label} are the same file: {_how(pa, pb, ia, ib)}. "
-                                "Give each its own path")
+                        _refuse(
+                            f"the outputs {a.label} and {b.label} are the same file: {_how(pa, pb, ia, ib)}. "
+                            "Give each its own path"
+                        )
                     for outer, inner, i_outer, i_inner in ((a, b, ia, ib), (b, a, ib, ia)):
                         if outer.kind == FOLDER and i_inner.inside(i_outer):
-                            _refuse(f"the output {inner.label} {inner.path} lies inside the output folder "
-                                    f"{outer.label} {outer.path}, which is replaced as a whole. Choose a path "
-                                    "outside it")
+                            _refuse(
+                                f"the output {inner.label} {inner.path} lies inside the output folder "
+                                f"{outer.label} {outer.path}, which is replaced as a whole. Choose a path "
+                                "outside it"
+                            )
 
 
 def _check_extension(destination: Destination) -> None:
@@ -147,8 +161,10 @@ def _check_extension(destination: Destination) -> None:
         *others, last = [f".{e}" for e in destination.extensions]
         names = f"{', '.join(others)} or {last}" if others else last
         given = f"ends in '.{ext}'" if ext else "has no extension"
-        _refuse(f"the output {destination.label} {destination.path} is written as {names} only, and its name {given}: "
-                f"a file is never written in one format under another's name. Give a name ending in {names}")
+        _refuse(
+            f"the output {destination.label} {destination.path} is written as {names} only, and its name {given}: "
+            f"a file is never written in one format under another's name. Give a name ending in {names}"
+        )
 
 
 def _check_kind(destination: Destination) -> None:
@@ -160,11 +176,16 @@ def _check_kind(destination: Destination) -> None:
             atomic.refuse_non_file(file, what)
     elif not os.path.isdir(destination.path):
         atomic.refuse_non_folder(destination.path, f"the output folder {destination.label}")
-    elif (destination.kind == FOLDER and os.listdir(destination.path)
-          and not os.path.isfile(os.path.join(destination.path, destination.mark))):
-        _refuse(f"the output folder {destination.label} {destination.path} is replaced as a whole, and it holds "
-                f"files this step did not make (it has no {destination.mark}). Give a new or empty folder, or one "
-                "this step made")
+    elif (
+        destination.kind == FOLDER
+        and os.listdir(destination.path)
+        and not os.path.isfile(os.path.join(destination.path, destination.mark))
+    ):
+        _refuse(
+            f"the output folder {destination.label} {destination.path} is replaced as a whole, and it holds "
+            f"files this step did not make (it has no {destination.mark}). Give a new or empty folder, or one "
+            "this step made"
+        )
 
 
 def _check_writable(destination: Destination) -> None:
@@ -172,11 +193,11 @@ def _check_writable(destination: Destination) -> None:
     what = f"the output {destination.label}"
     path = destination.path
     if destination.kind == FILE:
-        atomic.check_destination(path, what)        # its companions lie in its folder (_check_kind saw them)
+        atomic.check_destination(path, what)  # its companions lie in its folder (_check_kind saw them)
     elif destination.kind == INTO and os.path.isdir(path):
-        atomic.check_destination(os.path.join(path, "probe"), f"into {what}")   # written into
+        atomic.check_destination(os.path.join(path, "probe"), f"into {what}")  # written into
     else:
-        atomic.check_destination(path.rstrip(os.sep) + ".probe", what)         # made in its parent folder
+        atomic.check_destination(path.rstrip(os.sep) + ".probe", what)  # made in its parent folder
 
 
 def check(inputs: Sequence[Input], destinations: Sequence[Destination]) -> None:

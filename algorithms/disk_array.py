@@ -5,6 +5,7 @@ The file is opened as a memory map only for the one slice read or written, then 
 the grid do not stay mapped into the process between slices. It is allocated in full when it is made,
 so a full disk is a StorageError then, not a fault (SIGBUS) when a page of a sparse file is first
 written through the map."""
+
 import os
 
 import numpy as np

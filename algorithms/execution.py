@@ -50,6 +50,7 @@ errors, with the worker's traceback as a note); CancelledError when cancelled. T
 abstraction of CNES CARS (create tasks, start them, iterate over the futures as they complete).
 
 The local pool has no semaphore (pipes and one byte of shared memory)."""
+
 import collections
 import concurrent.futures as cf
 import contextlib
@@ -82,7 +83,7 @@ class _SharedFlag:
     """The cancel token of local worker processes: one byte of shared memory (set: 1)."""
 
     def __init__(self, value):
-        self.value = value          # multiprocessing RawValue("b")
+        self.value = value  # multiprocessing RawValue("b")
 
     def is_set(self):
         return self.value.value != 0
@@ -92,6 +93,7 @@ class _SharedFlag:
 # done(futures) -> the finished, result(future), end() -> a line for the log or None, cancel(futures): set the
 # token and give the running tasks GRACE s to stop, close(cancel); `note`: the warning run_tasks gives once
 # (Execution.capped). dask_backend.DaskBackend is the dask one.
+
 
 class _Local:
     """What the backends of this machine share: tasks submitted as they are, results as the futures hold them."""
@@ -127,7 +129,7 @@ class _Threads(_Local):
         return cf.wait(futures, timeout=POLL, return_when=cf.FIRST_COMPLETED)[0]
 
     def cancel(self, futures):
-        self.token.set()                # close waits for the running ones (a thread cannot be stopped)
+        self.token.set()  # close waits for the running ones (a thread cannot be stopped)
         for future in futures:
             future.cancel()
 
@@ -144,9 +146,15 @@ def _serve(conn, flag):
         try:
             try:
                 data = ForkingPickler.dumps(reply)
-            except Exception as exc:            # a result that cannot be pickled
-                data = ForkingPickler.dumps((False, ExecutionError(
-                    f"the result of a task could not be sent back from worker process {os.getpid()}: {exc}")))
+            except Exception as exc:  # a result that cannot be pickled
+                data = ForkingPickler.dumps(
+                    (
+                        False,
+                        ExecutionError(
+                            f"the result of a task could not be sent back from worker process {os.getpid()}: {exc}"
+                        ),
+                    )
+                )
             conn.send_bytes(data)
             message = conn.recv_bytes()
         except (EOFError, OSError):
@@ -156,7 +164,7 @@ def _serve(conn, flag):
             if task is None:
                 return
             reply = (True, in_worker(*task, token))
-        except BaseException as exc:            # SIGINT is ignored: a task's exception, or SystemExit
+        except BaseException as exc:  # SIGINT is ignored: a task's exception, or SystemExit
             reply = (False, _portable(exc))
 
 
@@ -183,7 +191,7 @@ class _Worker:
         self.process = context.Process(target=_serve, args=(child, flag), name="pushbroom worker", daemon=True)
         with starting_workers(WORKER_ENVIRONMENT):
             self.process.start()
-        child.close()               # its end is the worker's alone: its death closes the pipe
+        child.close()  # its end is the worker's alone: its death closes the pipe
         self.conn, self.task, self.waits = conn, None, False
 
 
@@ -221,7 +229,7 @@ class _Processes(_Local):
         self.queue.clear()
         deadline = time.monotonic() + GRACE
         while any(w.task is not None for w in self.workers) and time.monotonic() < deadline:
-            with contextlib.suppress(ExecutionError):           # a worker that dies meanwhile has stopped
+            with contextlib.suppress(ExecutionError):  # a worker that dies meanwhile has stopped
                 self._receive(min(POLL, max(deadline - time.monotonic(), 0.0)))
 
     def _dispatch(self):
@@ -237,10 +245,10 @@ class _Processes(_Local):
             worker = waiting.pop()
             worker.task, worker.waits = future, False
             try:
-                worker.conn.send(task)          # it reads as it waits: returns once the worker has it all
+                worker.conn.send(task)  # it reads as it waits: returns once the worker has it all
             except (EOFError, OSError):
                 raise self._lost(worker) from None
-            except Exception as exc:            # the task's arguments cannot be pickled (before a byte is sent)
+            except Exception as exc:  # the task's arguments cannot be pickled (before a byte is sent)
                 future.set_exception(exc)
                 worker.task, worker.waits = None, True
                 waiting.append(worker)
@@ -250,15 +258,16 @@ class _Processes(_Local):
         if not self.workers:
             time.sleep(timeout)
             return
-        ready = multiprocessing.connection.wait([w.conn for w in self.workers] +
-                                                [w.process.sentinel for w in self.workers], timeout)
+        ready = multiprocessing.connection.wait(
+            [w.conn for w in self.workers] + [w.process.sentinel for w in self.workers], timeout
+        )
         for worker in [w for w in self.workers if w.conn in ready or w.process.sentinel in ready]:
             try:
                 while worker.conn.poll():
                     message = worker.conn.recv()
                     future, worker.task, worker.waits = worker.task, None, True
                     if future is None:
-                        continue                # the worker's first message: it waits
+                        continue  # the worker's first message: it waits
                     ok, value = message
                     if ok:
                         future.set_result(value)
@@ -280,9 +289,11 @@ class _Processes(_Local):
         else:
             name = signal.Signals(-code).name if -code in signal.valid_signals() else f"signal {-code}"
             cause = f"killed by {name}" + (": out of memory, or killed by hand" if -code == signal.SIGKILL else "")
-        return ExecutionError(f"{self.what}: worker process {worker.process.pid} died ({cause}) "
-                              f"{'with a task' if worker.task else 'between tasks'}: "
-                              "run again with fewer workers or smaller tiles, or choose the threads execution")
+        return ExecutionError(
+            f"{self.what}: worker process {worker.process.pid} died ({cause}) "
+            f"{'with a task' if worker.task else 'between tasks'}: "
+            "run again with fewer workers or smaller tiles, or choose the threads execution"
+        )
 
     def close(self, cancel):
         """Stop the workers: the waiting ones are told to end, the busy ones (their task did not stop within
@@ -305,11 +316,12 @@ class _Processes(_Local):
 def _backend(execution):
     if execution.backend == "dask":
         from .dask_backend import DaskBackend
+
         return DaskBackend(execution)
     return {"threads": _Threads, "processes": _Processes}[execution.backend](execution)
 
 
-_sessions = {}          # (thread, Execution) -> the backend a `session` keeps
+_sessions = {}  # (thread, Execution) -> the backend a `session` keeps
 
 
 @contextlib.contextmanager
@@ -329,7 +341,7 @@ def session(execution=None):
         failed = False
     finally:
         del _sessions[key]
-        backend.close(cancel=failed)        # run_tasks has cancelled a failed round's tasks
+        backend.close(cancel=failed)  # run_tasks has cancelled a failed round's tasks
 
 
 def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
@@ -344,13 +356,13 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
         return results
     kept = _sessions.get((threading.get_ident(), execution))
     backend = kept or _backend(execution)
-    progress.warn(feedback, backend.note)           # once per backend
+    progress.warn(feedback, backend.note)  # once per backend
     backend.note = None
     progress.ensure(feedback).pushInfo(f"{what}: {len(tasks)} task{'s' * (len(tasks) != 1)} on {execution.describe()}")
     futures, failed = {}, True
     try:
         backend.begin(what, feedback, len(tasks))
-        submitted = backend.prepare(tasks)      # held to the round's end: on Dask it holds the shared job's future
+        submitted = backend.prepare(tasks)  # held to the round's end: on Dask it holds the shared job's future
         for k, args in enumerate(submitted):
             futures[backend.submit(function, args)] = k
         pending = set(futures)
@@ -370,7 +382,7 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
             progress.ensure(feedback).pushInfo(line)
     finally:
         if failed:
-            backend.cancel(futures)         # the pending ones are dropped, the running ones stop at the token
+            backend.cancel(futures)  # the pending ones are dropped, the running ones stop at the token
         if kept is None:
             backend.close(failed)
     return results

@@ -1,5 +1,6 @@
 """Which file a path names, whatever the name: its real path (symbolic links resolved) and, where it exists,
 its (device, inode), which a hard link shares. Two paths name one file where either agrees."""
+
 import os
 from dataclasses import dataclass
 from typing import Optional
@@ -8,6 +9,7 @@ from typing import Optional
 @dataclass(frozen=True)
 class FileIdentity:
     """A path resolved: its real path and, where it exists, its (device, inode)."""
+
     real: str
     inode: Optional[tuple]
 

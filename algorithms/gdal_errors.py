@@ -8,6 +8,7 @@ bad application_id") is printed by any handler. `reported_here` holds GDAL's mes
 opens a file whose failures it reports in its own words: dropped if the block raises; if it ends normally,
 its warnings are passed on to the thread's handler (a failure the engine caught and handled is not one).
 atomic.py's writes hold them the same way (HeldMessages), reporting GDAL's failures as a StorageError."""
+
 from osgeo import gdal
 
 

@@ -4,6 +4,7 @@ Longitude/latitude in degrees, ellipsoidal height in metres (EPSG:4979); ECEF in
 (EPSG:4978). Tested against PROJ to the millimetre (tests/algorithms/test_geodesy.py).
 ECEF -> geodetic uses Bowring's start value and Newton-refined latitude (Heikkinen-type closed
 forms lose precision near the poles; this form is exact to < 1e-9 m for |h| < 1e5 km)."""
+
 import math
 
 import numpy as np
@@ -90,8 +91,12 @@ def flat_points(*values):
         shape = np.broadcast_shapes(*(a.shape for a in arrays))
     except (TypeError, ValueError) as exc:
         raise InputError(f"point coordinates must be real numbers or arrays of one shape ({exc})") from None
-    flat = [a.ravel() if a.shape == shape and a.flags.c_contiguous and a.flags.writeable
-            else np.broadcast_to(a, shape).flatten() for a in arrays]
+    flat = [
+        a.ravel()
+        if a.shape == shape and a.flags.c_contiguous and a.flags.writeable
+        else np.broadcast_to(a, shape).flatten()
+        for a in arrays
+    ]
     return flat, shape, len(shape) == 0
 
 
@@ -118,7 +123,7 @@ def radii(lat):
     N = a / w, M = a (1 - e^2) / w^3, w = sqrt(1 - e^2 sin^2(lat))."""
     s = np.sin(np.radians(lat))
     w = np.sqrt(1.0 - E2 * s * s)
-    return A / w, A * (1.0 - E2) / w ** 3
+    return A / w, A * (1.0 - E2) / w**3
 
 
 def metres_per_degree(lat, h=0.0):

@@ -4,11 +4,13 @@ heights terrain on Earth can have (PLAUSIBLE_HEIGHTS), which every height a user
 A height range as given is a tuple (h_min, h_max) of ellipsoidal heights (m), a single height, or None (nothing
 known). Matching resolves it once, to a HeightRange, and searches along the rays between its low and high ends;
 steps that need one starting height (intersection, tie point display, RPC fitting checks) take its middle."""
+
 import math
 from dataclasses import dataclass
 from typing import Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import InputError
 
@@ -41,12 +43,14 @@ class HeightRange:
         if given is None:
             given = getattr(model, "height_range", None)
             if given is None:
-                raise InputError("the height range of the scene is unknown: give height_range=(h_min, h_max) "
-                                 "or a mean ellipsoidal height (then +-500 m are searched)")
+                raise InputError(
+                    "the height range of the scene is unknown: give height_range=(h_min, h_max) "
+                    "or a mean ellipsoidal height (then +-500 m are searched)"
+                )
         if np.ndim(given) == 0:
-            h = float(given)  # type: ignore[arg-type]
+            h = float(given)
             given = (h - SINGLE_HEIGHT_SPAN, h + SINGLE_HEIGHT_SPAN)
-        lo, hi = (float(v) for v in given)  # type: ignore[union-attr]
+        lo, hi = (float(v) for v in given)
         if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo:
             raise InputError(f"height_range must be (h_min, h_max) with h_min <= h_max, got {given}")
         return cls(lo, hi)
@@ -65,14 +69,14 @@ class HeightRange:
         return f"{self.low:g} to {self.high:g} m"
 
 
-def outside_plausible(heights):
+def outside_plausible(heights: ArrayLike) -> np.ndarray:
     """Bool array: where the finite `heights` lie outside PLAUSIBLE_HEIGHTS (NaN: False)."""
     heights = np.asarray(heights, dtype=np.float64)
     with np.errstate(invalid="ignore"):
         return (heights < PLAUSIBLE_HEIGHTS[0]) | (heights > PLAUSIBLE_HEIGHTS[1])
 
 
-def check_height(value, what):
+def check_height(value: float | None, what: str) -> float | None:
     """`value` (m) as a float; InputError naming `what` ("the mean height HEIGHT") where it is not finite or
     lies outside PLAUSIBLE_HEIGHTS. None passes as None (not given)."""
     if value is None:
@@ -82,25 +86,30 @@ def check_height(value, what):
     if not math.isfinite(value):
         raise InputError(f"{what} must be a number of metres within {low:g} .. {high:g} m, not {value}")
     if outside_plausible(value):
-        raise InputError(f"{what} of {value:g} m lies outside the heights of terrain on Earth ({low:g} .. {high:g} m, "
-                         "ellipsoidal or above sea level): give the terrain's height in metres (not feet, not "
-                         "a flying height)")
+        raise InputError(
+            f"{what} of {value:g} m lies outside the heights of terrain on Earth ({low:g} .. {high:g} m, "
+            "ellipsoidal or above sea level): give the terrain's height in metres (not feet, not "
+            "a flying height)"
+        )
     return value
 
 
-def check_heights(h_min, h_max, lowest, highest):
+def check_heights(
+    h_min: float | None, h_max: float | None, lowest: str, highest: str
+) -> tuple[float | None, float | None]:
     """(h_min, h_max), each checked by check_height (None: not given); InputError also where both are given and
     the lowest is above the highest. `lowest`, `highest` name them ("the lowest terrain height"); their
     parameters are MIN_HEIGHT and MAX_HEIGHT."""
     h_min = check_height(h_min, f"{lowest} (MIN_HEIGHT)")
     h_max = check_height(h_max, f"{highest} (MAX_HEIGHT)")
     if h_min is not None and h_max is not None and h_min > h_max:
-        raise InputError(f"{lowest} ({h_min:g} m) is above the highest ({h_max:g} m): give the lowest height first "
-                         "(swapped?)")
+        raise InputError(
+            f"{lowest} ({h_min:g} m) is above the highest ({h_max:g} m): give the lowest height first (swapped?)"
+        )
     return h_min, h_max
 
 
-def height_range(h_min, h_max, block_range):
+def height_range(h_min: float | None, h_max: float | None, block_range: tuple[float, float] | None) -> GivenHeights:
     """(h_min, h_max) when both are given; one given: that height (the matcher searches it +- 500 m);
     neither: `block_range`, the range recorded in the block at its creation (DEM heights under the
     footprints, or the mean height +- 500 m). InputError where a given height is not a number, lies outside
@@ -108,8 +117,10 @@ def height_range(h_min, h_max, block_range):
     h_min, h_max = check_heights(h_min, h_max, "the lowest terrain height", "the highest terrain height")
     if h_min is not None and h_max is not None:
         return (h_min, h_max)
-    if h_min is not None or h_max is not None:
-        return float(h_min if h_min is not None else h_max)
+    if h_min is not None:
+        return h_min
+    if h_max is not None:
+        return h_max
     return block_range
 
 

@@ -7,6 +7,7 @@ histograms is exact and independent of the order, so a statistic taken from the 
 the tiles equals the one taken from the histogram of all values at once, whatever the tiling.
 Medians and quantiles are of the bins' representative values (the caller's), so they are exact to
 within a bin."""
+
 import numpy as np
 
 EMPTY = (np.zeros(0, np.int64), np.zeros(0, np.int64))

@@ -6,6 +6,7 @@ Coordinates are GDAL's: array pixel (i, j) has its centre at (x, y) = (j + 0.5, 
   digital image processing", IEEE Trans. ASSP 29(6), 1981), which interpolates the pixel values,
   with the variance factor of white noise resampled by it.
 """
+
 import math
 
 import numpy as np
@@ -26,7 +27,7 @@ def bilinear(img, x, y):
         j0 = ncols - 2
     if i0 > nrows - 2:
         i0 = nrows - 2
-    if j0 < 0:      # single-column / single-row images
+    if j0 < 0:  # single-column / single-row images
         j0 = 0
     if i0 < 0:
         i0 = 0
@@ -63,12 +64,14 @@ def cubic(img, x, y):
     i0 = int(math.floor(r))
     wx0, wx1, wx2, wx3 = keys_weights(c - j0)
     wy0, wy1, wy2, wy3 = keys_weights(r - i0)
-    g = (wy0 * (wx0 * img[i0 - 1, j0 - 1] + wx1 * img[i0 - 1, j0] + wx2 * img[i0 - 1, j0 + 1]
-                + wx3 * img[i0 - 1, j0 + 2])
-         + wy1 * (wx0 * img[i0, j0 - 1] + wx1 * img[i0, j0] + wx2 * img[i0, j0 + 1] + wx3 * img[i0, j0 + 2])
-         + wy2 * (wx0 * img[i0 + 1, j0 - 1] + wx1 * img[i0 + 1, j0] + wx2 * img[i0 + 1, j0 + 1]
-                  + wx3 * img[i0 + 1, j0 + 2])
-         + wy3 * (wx0 * img[i0 + 2, j0 - 1] + wx1 * img[i0 + 2, j0] + wx2 * img[i0 + 2, j0 + 1]
-                  + wx3 * img[i0 + 2, j0 + 2]))
+    g = (
+        wy0
+        * (wx0 * img[i0 - 1, j0 - 1] + wx1 * img[i0 - 1, j0] + wx2 * img[i0 - 1, j0 + 1] + wx3 * img[i0 - 1, j0 + 2])
+        + wy1 * (wx0 * img[i0, j0 - 1] + wx1 * img[i0, j0] + wx2 * img[i0, j0 + 1] + wx3 * img[i0, j0 + 2])
+        + wy2
+        * (wx0 * img[i0 + 1, j0 - 1] + wx1 * img[i0 + 1, j0] + wx2 * img[i0 + 1, j0 + 1] + wx3 * img[i0 + 1, j0 + 2])
+        + wy3
+        * (wx0 * img[i0 + 2, j0 - 1] + wx1 * img[i0 + 2, j0] + wx2 * img[i0 + 2, j0 + 1] + wx3 * img[i0 + 2, j0 + 2])
+    )
     kappa = (wx0 * wx0 + wx1 * wx1 + wx2 * wx2 + wx3 * wx3) * (wy0 * wy0 + wy1 * wy1 + wy2 * wy2 + wy3 * wy3)
     return g, kappa

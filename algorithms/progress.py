@@ -1,6 +1,7 @@
 """Progress reporting and cancelling without QGIS: any object with the methods of
 QgsProcessingFeedback (setProgress, isCanceled, pushInfo; pushWarning where it has it) can be
 passed as `feedback`."""
+
 from typing import Protocol
 
 from .errors import CancelledError
@@ -106,6 +107,7 @@ def quiet(feedback):
 def gdal_callback(feedback):
     """A GDAL progress callback reporting to `feedback` (None: nothing); it stops GDAL when the user cancels,
     which the caller then raises as CancelledError (GDAL returns no dataset or an error)."""
+
     def callback(fraction, *_):
         if feedback is None:
             return 1
@@ -113,4 +115,5 @@ def gdal_callback(feedback):
             return 0
         feedback.setProgress(100.0 * fraction)
         return 1
+
     return callback

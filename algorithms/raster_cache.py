@@ -5,13 +5,14 @@ GDAL keeps the blocks it reads and writes in one cache per process, by default u
 once, so a large cache does not make them faster; but it fills as far as the rasters reach, so a
 step's memory would follow the scene up to that bound. While a step runs, the cache of its process
 (`bounded`) and of its worker processes (`hold_in_worker`, before each task) is held to STEP_CACHE."""
+
 import contextlib
 import threading
 
 from osgeo import gdal
 
 #: GDAL's block cache (bytes) while a step runs
-STEP_CACHE = 64 * 2 ** 20
+STEP_CACHE = 64 * 2**20
 
 _lock = threading.Lock()
 _held = {"depth": 0, "previous": None}

@@ -14,6 +14,7 @@ step's process cancels them (execution.py).
 
 A task asks its round's cancel token between its stages (`cancelled`, `check_cancel`): a threading.Event for
 threads, one byte of shared memory for local processes, a Dask Event on Dask (execution.py, dask_backend.py)."""
+
 import contextlib
 import multiprocessing
 import os
@@ -39,8 +40,10 @@ POLL = 0.1
 #: s the running tasks of a failed or cancelled round are given to stop before their worker processes are killed
 GRACE = 10.0
 #: the scheduler addresses Pushbroom connects to: [tcp:// or tls://]host:port (host a name, IPv4 or [IPv6])
-_ADDRESS = re.compile(r"(?:(?P<scheme>[A-Za-z][A-Za-z0-9+.-]*)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)"
-                      r":(?P<port>[0-9]{1,5})")
+_ADDRESS = re.compile(
+    r"(?:(?P<scheme>[A-Za-z][A-Za-z0-9+.-]*)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)"
+    r":(?P<port>[0-9]{1,5})"
+)
 
 
 def worker_limit() -> int:
@@ -53,14 +56,18 @@ def check_address(address: str) -> str:
     a local cluster); InputError saying the expected form otherwise."""
     if not address:
         return address
-    form = ("give the scheduler's address as tcp://host:port (e.g. tcp://10.0.0.5:8786, what `dask scheduler` "
-            "prints) or tls://host:port, or leave it empty for a local cluster")
+    form = (
+        "give the scheduler's address as tcp://host:port (e.g. tcp://10.0.0.5:8786, what `dask scheduler` "
+        "prints) or tls://host:port, or leave it empty for a local cluster"
+    )
     found = _ADDRESS.fullmatch(address)
     if found is None:
         raise InputError(f"the Dask scheduler address {address!r} is not of the form protocol://host:port: {form}")
     if found["scheme"] and found["scheme"].lower() not in ("tcp", "tls"):
-        raise InputError(f"the Dask scheduler address {address!r} uses the protocol {found['scheme']}://, which "
-                         f"Pushbroom does not connect with: {form}")
+        raise InputError(
+            f"the Dask scheduler address {address!r} uses the protocol {found['scheme']}://, which "
+            f"Pushbroom does not connect with: {form}"
+        )
     if not 0 < int(found["port"]) < 65536:
         raise InputError(f"the Dask scheduler address {address!r} has no valid port (1 to 65535): {form}")
     return address
@@ -71,10 +78,10 @@ class Execution:
     """Where tile tasks run (module docstring); each is an advanced Processing parameter, but host_events."""
 
     backend: str = "threads"
-    workers: int = 2                    # threads, processes, or the LocalCluster's worker processes
-    address: str = ""                   # Dask scheduler address; empty: a LocalCluster of `workers`
-    connect_timeout: float = 30.0       # s to wait for the scheduler at `address`
-    worker_wait: float = 60.0           # s a round on Dask waits for a worker where the cluster has none or lost all
+    workers: int = 2  # threads, processes, or the LocalCluster's worker processes
+    address: str = ""  # Dask scheduler address; empty: a LocalCluster of `workers`
+    connect_timeout: float = 30.0  # s to wait for the scheduler at `address`
+    worker_wait: float = 60.0  # s a round on Dask waits for a worker where the cluster has none or lost all
     # called while run_tasks waits for tasks: the host program's event loop (module docstring)
     host_events: Optional[Callable[[], None]] = field(default=None, compare=False, repr=False)
 
@@ -86,9 +93,11 @@ class Execution:
         """The warning that fewer workers are used than asked for, or None."""
         if self.address or self.used_workers() == int(self.workers):
             return None
-        return (f"{int(self.workers)} workers asked for, {self.used_workers()} used: at most {WORKERS_PER_CORE} per "
-                f"core of this machine ({os.cpu_count() or 1} cores); more would only share the cores and multiply "
-                "the memory")
+        return (
+            f"{int(self.workers)} workers asked for, {self.used_workers()} used: at most {WORKERS_PER_CORE} per "
+            f"core of this machine ({os.cpu_count() or 1} cores); more would only share the cores and multiply "
+            "the memory"
+        )
 
     def describe(self) -> str:
         """Where the tasks run, in words ("2 threads", "a Dask local cluster of 2 worker processes")."""
@@ -108,8 +117,10 @@ class Execution:
         if int(self.workers) < 1:
             raise InputError(f"at least one worker is needed, not {self.workers}")
         if self.address and self.backend != "dask":
-            raise InputError(f"a scheduler address is for the dask execution, not {self.backend}: choose dask "
-                             "or leave the address empty")
+            raise InputError(
+                f"a scheduler address is for the dask execution, not {self.backend}: choose dask "
+                "or leave the address empty"
+            )
         check_address(self.address)
         return self
 
@@ -123,14 +134,19 @@ def python_executable():
     if os.path.basename(exe).lower().startswith("python") and exe.startswith(os.path.abspath(sys.prefix) + os.sep):
         return exe
     version = f"{sys.version_info.major}.{sys.version_info.minor}"
-    candidates = [os.path.join(prefix, "bin", name) for prefix in (sys.exec_prefix, sys.base_exec_prefix)
-                  for name in (f"python{version}", "python3")]          # a venv's first: it has the packages
+    candidates = [
+        os.path.join(prefix, "bin", name)
+        for prefix in (sys.exec_prefix, sys.base_exec_prefix)
+        for name in (f"python{version}", "python3")
+    ]  # a venv's first: it has the packages
     candidates += [os.path.join(sys.base_exec_prefix, "python.exe")]
     for candidate in candidates:
         if os.path.isfile(candidate) and os.access(candidate, os.X_OK):
             return candidate
-    raise ExecutionError(f"no Python {version} interpreter found under {sys.base_exec_prefix} to start worker "
-                         f"processes (this program runs as {sys.executable}): choose the threads execution")
+    raise ExecutionError(
+        f"no Python {version} interpreter found under {sys.base_exec_prefix} to start worker "
+        f"processes (this program runs as {sys.executable}): choose the threads execution"
+    )
 
 
 def use_python_for_workers():
@@ -168,7 +184,7 @@ def starting_workers(environment):
 
 # ---- the cancel token, as a task sees it
 
-_task = threading.local()           # .token: the cancel token of the task this thread runs (is_set())
+_task = threading.local()  # .token: the cancel token of the task this thread runs (is_set())
 
 
 def cancelled() -> bool:

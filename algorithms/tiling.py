@@ -9,6 +9,7 @@ scene is processed, and a tile can be named, retried or sent elsewhere by its in
 Boxes are (x0, y0, x1, y1) in pixels, GDAL's convention (pixel (i, j) has its centre at (x0 + j + 0.5,
 y0 + i + 0.5)), ordered row by row. Failure mode: InputError for a tile size below 1 px. `cell_blocks` groups points by
 the same blocks of a grid."""
+
 import numpy as np
 
 from .errors import InputError
@@ -20,8 +21,11 @@ def tile_grid(size, tile):
     tile = int(tile)
     if tile < 1:
         raise InputError(f"the tile size must be at least 1 px, got {tile}")
-    return [(x0, y0, min(x0 + tile, cols), min(y0 + tile, rows))
-            for y0 in range(0, rows, tile) for x0 in range(0, cols, tile)]
+    return [
+        (x0, y0, min(x0 + tile, cols), min(y0 + tile, rows))
+        for y0 in range(0, rows, tile)
+        for x0 in range(0, cols, tile)
+    ]
 
 
 def cell_blocks(col, row, shape, block):

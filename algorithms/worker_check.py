@@ -5,6 +5,7 @@
 prints a line per worker (its address, host, Python, and Pushbroom's version or what it misses: worker_report.py)
 and a count; exits with 1 where a worker cannot run Pushbroom's tasks, 2 where no scheduler answers or it has no
 worker."""
+
 import platform
 import sys
 from typing import Optional
@@ -18,9 +19,11 @@ from .worker_report import dense_missing, describe, problems
 def main(argv: Optional[list] = None) -> int:
     """The command line (module docstring)."""
     import argparse
-    parser = argparse.ArgumentParser(prog="python3 -m pushbroom.algorithms.worker_check",
-                                     description="Check that every worker of a Dask cluster can run Pushbroom's "
-                                                 "tasks.")
+
+    parser = argparse.ArgumentParser(
+        prog="python3 -m pushbroom.algorithms.worker_check",
+        description="Check that every worker of a Dask cluster can run Pushbroom's tasks.",
+    )
     parser.add_argument("address", help="the scheduler's address, tcp://host:port")
     parser.add_argument("--timeout", type=float, default=30.0, help="s to wait for the scheduler (30)")
     args = parser.parse_args(argv)
@@ -37,8 +40,11 @@ def main(argv: Optional[list] = None) -> int:
         said = problems(seen, VERSION, platform.python_version())
         failing += bool(said)
         dense = dense_missing(seen)
-        status = "FAILS: " + "; ".join(said) if said else "ok" + (
-            f" (not for dense matching: {'; '.join(dense)})" if dense else "")
+        status = (
+            "FAILS: " + "; ".join(said)
+            if said
+            else "ok" + (f" (not for dense matching: {'; '.join(dense)})" if dense else "")
+        )
         print(f"{describe(address, seen)}: {status}")
     print(f"{len(reports) - failing} of {len(reports)} workers run Pushbroom {VERSION}")
     return 1 if failing else 0

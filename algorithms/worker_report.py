@@ -6,12 +6,15 @@ with what it misses; they therefore use the standard library only, and this modu
 A worker needs the modules of NEEDED, the same Pushbroom version and the same Python minor version as the step's
 process (tasks are pickled: another Python or Pushbroom may read them differently); dense matching's tiles also
 need DENSE (CNES libsgm, the `dense` extra). worker_check.py is the command that checks every worker."""
+
 import sys
 
 #: module -> how to provide it, for the message
-NEEDED = {"pushbroom": "install the plugin's wheel, or start the worker from the plugin's venv (README, Scaling out)",
-          "numba": "install numba, a dependency of the plugin's wheel",
-          "osgeo.gdal": "install Debian's python3-gdal"}
+NEEDED = {
+    "pushbroom": "install the plugin's wheel, or start the worker from the plugin's venv (README, Scaling out)",
+    "numba": "install numba, a dependency of the plugin's wheel",
+    "osgeo.gdal": "install Debian's python3-gdal",
+}
 DENSE = {"c_libsgm": "install CNES libsgm, the wheel's `dense` extra"}
 
 
@@ -21,21 +24,30 @@ def report() -> dict:
     import importlib
     import platform
     import socket
+
     found, missing = {}, {}
     for name in [*NEEDED, *DENSE]:
         try:
             module = importlib.import_module(name)
             found[name] = str(getattr(module, "__version__", ""))
-        except Exception as exc:            # ImportError, or a module that fails as it loads
+        except Exception as exc:  # ImportError, or a module that fails as it loads
             missing[name] = f"{type(exc).__name__}: {exc}"
-    return {"host": socket.gethostname(), "python": platform.python_version(), "executable": sys.executable,
-            "found": found, "missing": missing}
+    return {
+        "host": socket.gethostname(),
+        "python": platform.python_version(),
+        "executable": sys.executable,
+        "found": found,
+        "missing": missing,
+    }
 
 
 def _missing(seen: dict, modules: dict) -> list:
     """A phrase for each module of `modules` the worker of report `seen` lacks."""
-    return [f"no {name} ({seen['missing'][name]}: {provider})" for name, provider in modules.items()
-            if name in seen["missing"]]
+    return [
+        f"no {name} ({seen['missing'][name]}: {provider})"
+        for name, provider in modules.items()
+        if name in seen["missing"]
+    ]
 
 
 def problems(seen, version: str, python: str) -> list:
@@ -64,5 +76,6 @@ def describe(address: str, seen) -> str:
     if isinstance(seen, BaseException):
         return address
     pushbroom = seen["found"].get("pushbroom")
-    return (f"{address} on {seen['host']}: Python {seen['python']} ({seen['executable']}), "
-            + (f"Pushbroom {pushbroom}" if pushbroom is not None else "no Pushbroom"))
+    return f"{address} on {seen['host']}: Python {seen['python']} ({seen['executable']}), " + (
+        f"Pushbroom {pushbroom}" if pushbroom is not None else "no Pushbroom"
+    )

@@ -6,17 +6,18 @@ log minutes late, all at once at its end. `line_buffered_stdout` makes C's stdou
 leaves as it is written; once per process (the stream keeps its mode). glibc's setvbuf with no buffer of ours
 only sets the stream's mode (a call after output is safe there); where the program's symbols have no C `stdout`
 nothing changes."""
+
 import ctypes
 import functools
 
-_IOLBF = 1          # glibc's <stdio.h>
+_IOLBF = 1  # glibc's <stdio.h>
 
 
 @functools.cache
 def line_buffered_stdout() -> bool:
     """Make C's stdout line-buffered (module docstring); whether it was done."""
     try:
-        libc = ctypes.CDLL(None)            # the program's own symbols: its C library's stdout
+        libc = ctypes.CDLL(None)  # the program's own symbols: its C library's stdout
         return libc.setvbuf(ctypes.c_void_p.in_dll(libc, "stdout"), None, _IOLBF, 0) == 0
     except (OSError, ValueError, AttributeError, TypeError):
         return False

@@ -2,6 +2,7 @@
 styled with resources/styles/control_points.qml: role by colour and shape (control: red triangle, check: blue
 circle), the RMS image residual r (px) of the last adjustment (field `residual_px`) by a ring of diameter
 min(4 + 3 r, 16) mm and in the label; no ring before an adjustment (NULL or no field)."""
+
 import os
 
 from qgis.core import QgsProject, QgsProviderRegistry, QgsVectorLayer

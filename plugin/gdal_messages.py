@@ -19,6 +19,7 @@ GDAL's default handler does, except:
 
 and a Qt message handler that drops QGIS's "Logged warning: Creating Warped VRT." and prints every other Qt
 message as Qt's default handler does (qgis_process installs none of its own)."""
+
 import sys
 
 from osgeo import gdal
@@ -40,8 +41,8 @@ def raised_by_bindings(level):
     if level < gdal.CE_Failure:
         return False
     try:
-        frame = sys._getframe(2)   # 0: this function, 1: the handler, 2: the code that called into GDAL
-    except ValueError:             # the handler called from C++ with no Python caller: not the bindings
+        frame = sys._getframe(2)  # 0: this function, 1: the handler, 2: the code that called into GDAL
+    except ValueError:  # the handler called from C++ with no Python caller: not the bindings
         return False
     module = sys.modules.get(frame.f_globals.get("__name__", ""))
     if module is None or module.__name__ not in _BINDINGS:

@@ -2,6 +2,7 @@
 window (ui/measurement_window.py) for the block of the active layer, or for a block GeoPackage the user picks
 (the last one is remembered), one window per block, and shows the block's control points on the map. The engine
 and the window are imported when the action runs, so that loading the plugin stays fast."""
+
 import os
 
 from qgis.core import Qgis, QgsProviderRegistry, QgsSettings
@@ -21,6 +22,7 @@ def layer_block(layer):
     """Path of the block GeoPackage `layer` is read from, or None (no layer, not a GeoPackage, not a block)."""
     from ..algorithms.block import Block
     from ..algorithms.errors import InputError
+
     if layer is None or layer.providerType() != "ogr":
         return None
     path = QgsProviderRegistry.instance().decodeUri("ogr", layer.source()).get("path", "")
@@ -43,8 +45,10 @@ class MeasureAction:
         main = iface.mainWindow()
         self.action = QAction(QIcon(resource_path("icons", "measure.svg")), "Measure control points...", main)
         self.action.setObjectName(ACTION_NAME)
-        self.action.setToolTip("Measure control and check points in the images of a Pushbroom block (the block "
-                               "of the selected layer, or one you pick)")
+        self.action.setToolTip(
+            "Measure control and check points in the images of a Pushbroom block (the block "
+            "of the selected layer, or one you pick)"
+        )
         self.action.triggered.connect(self.run)
         self.toolbar = iface.addToolBar("Pushbroom")
         self.toolbar.setObjectName(TOOLBAR_NAME)
@@ -64,8 +68,12 @@ class MeasureAction:
 
     def ask_block(self):
         """A block GeoPackage from a file dialog that starts at the last one, or None."""
-        path, _ = QFileDialog.getOpenFileName(self.iface.mainWindow(), "Measure control points: open a block",
-                                              QgsSettings().value(LAST_BLOCK, ""), "Pushbroom blocks (*.gpkg)")
+        path, _ = QFileDialog.getOpenFileName(
+            self.iface.mainWindow(),
+            "Measure control points: open a block",
+            QgsSettings().value(LAST_BLOCK, ""),
+            "Pushbroom blocks (*.gpkg)",
+        )
         return path or None
 
     def open(self, block_path):
@@ -74,6 +82,7 @@ class MeasureAction:
         from ..algorithms.errors import PushbroomError
         from ..ui.measurement_window import MeasurementWindow
         from .control_layer import show_control_points
+
         key = os.path.normcase(os.path.realpath(block_path))
         window = self.windows.get(key)
         try:

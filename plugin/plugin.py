@@ -1,4 +1,5 @@
 """The plugin object QGIS creates through classFactory."""
+
 from qgis.core import QgsApplication
 
 PIP_HINT = "python3 -m pip install numba"
@@ -35,8 +36,10 @@ class PushbroomPlugin:
 
     def initProcessing(self):
         from .provider import PushbroomProvider
+
         if QgsApplication.instance() is not None and QgsApplication.instance().platform() == "qgis_process":
             from .gdal_messages import install_console_filter
+
             install_console_filter()
         self.provider = PushbroomProvider()
         QgsApplication.processingRegistry().addProvider(self.provider)
@@ -45,6 +48,7 @@ class PushbroomPlugin:
         self.initProcessing()
         if self.iface is not None:
             from .measure_action import MeasureAction
+
             self.measure = MeasureAction(self.iface)
 
     def unload(self):
@@ -65,12 +69,15 @@ class MissingDependencyPlugin:
 
     def message(self):
         packages = ", ".join(self.missing)
-        return (f"Pushbroom needs the Python package(s) {packages}, which QGIS's Python cannot import. "
-                f"Install them for the Python that runs QGIS: on Debian/Ubuntu `{APT_HINT}`, "
-                f"elsewhere (Windows OSGeo4W shell, macOS) `{PIP_HINT}`; then restart QGIS.")
+        return (
+            f"Pushbroom needs the Python package(s) {packages}, which QGIS's Python cannot import. "
+            f"Install them for the Python that runs QGIS: on Debian/Ubuntu `{APT_HINT}`, "
+            f"elsewhere (Windows OSGeo4W shell, macOS) `{PIP_HINT}`; then restart QGIS."
+        )
 
     def initGui(self):
         from qgis.core import Qgis, QgsMessageLog
+
         QgsMessageLog.logMessage(self.message(), "Pushbroom", Qgis.Critical)
         if self.iface is not None and hasattr(self.iface, "messageBar"):
             self.iface.messageBar().pushMessage("Pushbroom", self.message(), level=Qgis.Critical, duration=0)

@@ -1,4 +1,5 @@
 """The Processing provider `pushbroom` ("Pushbroom photogrammetry")."""
+
 from qgis.core import QgsProcessingProvider
 from qgis.PyQt.QtGui import QIcon
 
@@ -24,14 +25,17 @@ class PushbroomProvider(QgsProcessingProvider):
         """Every raster a step writes is a GeoTIFF: the toolbox's file dialogs offer only that, and a raster
         output named otherwise is refused before the step runs (algorithms/destinations.py)."""
         from ..algorithms.destinations import RASTER_EXTENSIONS
+
         return list(RASTER_EXTENSIONS)
 
     def supportedOutputVectorLayerExtensions(self) -> list:
         """The formats of the one vector output (bundleadjust's residual vectors), likewise."""
         from ..algorithms.adjustment.residual_vectors import FORMATS
+
         return list(FORMATS)
 
     def loadAlgorithms(self):
         from .algorithms import algorithm_classes
+
         for cls in algorithm_classes():
             self.addAlgorithm(cls())

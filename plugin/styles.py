@@ -1,4 +1,5 @@
 """Styling of the layers Processing loads on completion (QML files in resources/styles)."""
+
 from qgis.core import QgsProcessingContext, QgsProcessingLayerPostProcessorInterface
 
 from ..resource_files import resource_path
@@ -44,4 +45,5 @@ def resolve_application_font(app):
     for every label without a font of its own (the plugin's styles name none), and the desktop then opens
     the project with a warning bar about a missing font."""
     from qgis.PyQt.QtGui import QFont, QFontInfo
+
     app.setFont(QFont(QFontInfo(app.font()).family(), app.font().pointSize()))

@@ -26,6 +26,7 @@ covers, its coverage, and the RMS over the cells all of them cover), and the cov
 
     .venv/bin/python -m scripts.bench_peers
 """
+
 import json
 import os
 import pathlib
@@ -49,7 +50,7 @@ from tests.helpers.qgis_process_profile import QGIS_PROCESS, REPO, qgis_process_
 from tests.helpers.real_dsm import footprint_mask
 
 DATA = SHARED_DATA / "pleiades_triplet"
-IMAGES = [DATA / f"img_0{k}.tif" for k in (2, 1, 3)]       # the reference first, as both tools pair them
+IMAGES = [DATA / f"img_0{k}.tif" for k in (2, 1, 3)]  # the reference first, as both tools pair them
 CARS = REPO / "build" / "peers" / "cars" / "bin" / "cars"
 WORKERS = 2
 
@@ -80,12 +81,27 @@ def chain(out, images, strategy, cell, surface, orientation=(), label="Pushbroom
     block, cloud = out / "block.gpkg", out / "points.las"
     tiled = ["EXECUTION=0", f"WORKERS={WORKERS}"]
     kind = "dense" if strategy == 2 else "region growing"
-    steps = [("createblock", ["pushbroom:createblock", "--", *(f"IMAGES={p}" for p in images),
-                              *(f"ORIENTATION={p}" for p in orientation), *tiled, f"OUTPUT={block}"]),
-             (f"matchpoints ({kind}{''.join(' ' + a for a in match)})",
-              ["pushbroom:matchpoints", "--", f"BLOCK={block}", f"STRATEGY={strategy}", *match, *tiled]),
-             ("intersectpoints", ["pushbroom:intersectpoints", "--", f"BLOCK={block}", "POINTS=0", *tiled,
-                                  f"OUTPUT={cloud}"])]
+    steps = [
+        (
+            "createblock",
+            [
+                "pushbroom:createblock",
+                "--",
+                *(f"IMAGES={p}" for p in images),
+                *(f"ORIENTATION={p}" for p in orientation),
+                *tiled,
+                f"OUTPUT={block}",
+            ],
+        ),
+        (
+            f"matchpoints ({kind}{''.join(' ' + a for a in match)})",
+            ["pushbroom:matchpoints", "--", f"BLOCK={block}", f"STRATEGY={strategy}", *match, *tiled],
+        ),
+        (
+            "intersectpoints",
+            ["pushbroom:intersectpoints", "--", f"BLOCK={block}", "POINTS=0", *tiled, f"OUTPUT={cloud}"],
+        ),
+    ]
     out.mkdir(parents=True, exist_ok=True)
     rows = qgis_steps(steps, qgis_process_env(out / "profile"), label)
     more, dem, mask = surface_step(out, cloud, cell, surface, label)
@@ -97,10 +113,26 @@ def surface_step(out, cloud, cell, surface, label):
     name = "-".join(a.replace("=", "").lower() for a in surface)
     dem, mask = out / f"dem-{name}.tif", out / f"mask-{name}.tif"
     cells = "METHOD=1" in surface
-    rows = qgis_steps([(f"interpolatedem ({' '.join(surface)}, {cell:g} m)",
-                        ["pushbroom:interpolatedem", "--", f"INPUT={cloud}", f"CELL={cell}", *surface, "EXECUTION=0",
-                         f"WORKERS={WORKERS}", f"OUTPUT={dem}", *([f"MASK={mask}"] if cells else [])])],
-                      qgis_process_env(out / f"profile-{name}"), label)
+    rows = qgis_steps(
+        [
+            (
+                f"interpolatedem ({' '.join(surface)}, {cell:g} m)",
+                [
+                    "pushbroom:interpolatedem",
+                    "--",
+                    f"INPUT={cloud}",
+                    f"CELL={cell}",
+                    *surface,
+                    "EXECUTION=0",
+                    f"WORKERS={WORKERS}",
+                    f"OUTPUT={dem}",
+                    *([f"MASK={mask}"] if cells else []),
+                ],
+            )
+        ],
+        qgis_process_env(out / f"profile-{name}"),
+        label,
+    )
     return rows, dem, mask if cells else None
 
 
@@ -108,9 +140,17 @@ def cars(out, images, pairs, resolution, label="CARS 1.3.0"):
     """(rows, DSM path) of CARS on `images` {name: path} (RPCs in their GeoTIFFs or _RPC.TXT files)."""
     conf = out / "cars.json"
     out.mkdir(parents=True, exist_ok=True)
-    conf.write_text(json.dumps({
-        "input": {"sensors": {n: {"image": str(p)} for n, p in images.items()}, "pairing": [list(p) for p in pairs]},
-        "output": {"directory": str(out / "cars"), "resolution": resolution, "geoid": False}}))
+    conf.write_text(
+        json.dumps(
+            {
+                "input": {
+                    "sensors": {n: {"image": str(p)} for n, p in images.items()},
+                    "pairing": [list(p) for p in pairs],
+                },
+                "output": {"directory": str(out / "cars"), "resolution": resolution, "geoid": False},
+            }
+        )
+    )
     seconds, peak, _, output = measured([str(CARS), "--logtype", "plain", str(conf)], dict(os.environ))
     dsm = out / "cars" / "dsm" / "dsm.tif"
     if not dsm.exists():
@@ -130,19 +170,37 @@ def compare(dem, mask, dsm, label, cars_row=True):
     inside = footprint_mask(Grid(gt[0], gt[3], gt[1], cols, rows), grid.srs, models, float(np.nanmedian(ours)))
     both = inside & np.isfinite(ours) & np.isfinite(theirs)
     share = {k: 100 * (source == v)[inside].mean() for k, v in (("own", 0), ("around", 2), ("filled", 1))}
-    rows = [{"tool": f"Pushbroom, {label}", "step": "coverage of the common footprint",
-             "value": f"{100 * np.isfinite(ours[inside]).mean():.1f} % (own points {share['own']:.1f} %, the cells "
-                      f"around {share['around']:.1f} %, filled {share['filled']:.1f} %)"}]
+    rows = [
+        {
+            "tool": f"Pushbroom, {label}",
+            "step": "coverage of the common footprint",
+            "value": f"{100 * np.isfinite(ours[inside]).mean():.1f} % (own points {share['own']:.1f} %, the cells "
+            f"around {share['around']:.1f} %, filled {share['filled']:.1f} %)",
+        }
+    ]
     if cars_row:
-        rows.append({"tool": "CARS 1.3.0", "step": "coverage of the common footprint",
-                     "value": f"{100 * np.isfinite(theirs[inside]).mean():.1f} %"})
-    for what, cells in (("all", both), ("own points", both & (source == 0)), ("the cells around", both & (source == 2)),
-                        ("filled", both & (source == 1))):
+        rows.append(
+            {
+                "tool": "CARS 1.3.0",
+                "step": "coverage of the common footprint",
+                "value": f"{100 * np.isfinite(theirs[inside]).mean():.1f} %",
+            }
+        )
+    for what, cells in (
+        ("all", both),
+        ("own points", both & (source == 0)),
+        ("the cells around", both & (source == 2)),
+        ("filled", both & (source == 1)),
+    ):
         if cells.any():
             diff = summarize((ours - theirs)[cells])
-            rows.append({"tool": f"Pushbroom, {label} - CARS", "step": f"DSM differences, {what}",
-                         "value": f"N {diff.n}, median {diff.median:+.3f} m, NMAD {diff.nmad:.3f} m, "
-                                  f"RMS {diff.rms:.3f} m"})
+            rows.append(
+                {
+                    "tool": f"Pushbroom, {label} - CARS",
+                    "step": f"DSM differences, {what}",
+                    "value": f"N {diff.n}, median {diff.median:+.3f} m, NMAD {diff.nmad:.3f} m, RMS {diff.rms:.3f} m",
+                }
+            )
     return rows
 
 
@@ -156,14 +214,18 @@ def pleiades(tmp):
     total = sum(r["seconds"] for r in ours)
     rows = ours + [{"tool": "Pushbroom", "step": "total", "seconds": total}] + theirs
     rows.append({"tool": "CARS / Pushbroom", "step": "time ratio", "value": f"{theirs[0]['seconds'] / total:.2f}"})
-    mpgc, mpgc_dem, mpgc_mask, _ = chain(tmp / "mpgc", IMAGES, 2, 0.5, DENSE_MODEL, label="Pushbroom MPGC",
-                                         match=MPGC)
+    mpgc, mpgc_dem, mpgc_mask, _ = chain(tmp / "mpgc", IMAGES, 2, 0.5, DENSE_MODEL, label="Pushbroom MPGC", match=MPGC)
     mpgc_total = sum(r["seconds"] for r in mpgc)
-    rows += mpgc + [{"tool": "Pushbroom MPGC", "step": "total", "seconds": mpgc_total},
-                    {"tool": "CARS / Pushbroom MPGC", "step": "time ratio",
-                     "value": f"{theirs[0]['seconds'] / mpgc_total:.2f}"}]
-    return (rows + compare(dem, mask, dsm, "refined, filled") + compare(every, every_mask, dsm, "every point", False)
-            + compare(mpgc_dem, mpgc_mask, dsm, "MPGC, refined, filled", False))
+    rows += mpgc + [
+        {"tool": "Pushbroom MPGC", "step": "total", "seconds": mpgc_total},
+        {"tool": "CARS / Pushbroom MPGC", "step": "time ratio", "value": f"{theirs[0]['seconds'] / mpgc_total:.2f}"},
+    ]
+    return (
+        rows
+        + compare(dem, mask, dsm, "refined, filled")
+        + compare(every, every_mask, dsm, "every point", False)
+        + compare(mpgc_dem, mpgc_mask, dsm, "MPGC, refined, filled", False)
+    )
 
 
 def sample(path, truth):
@@ -186,15 +248,23 @@ def simulated(tmp):
     images = [paths["images"][n]["imagery"] for n in NAMES]
     orientation = [paths["truth_metadata"][n] for n in NAMES]
     rows, dems = [], {}
-    for label, strategy, surface, match in (("dense", 2, DENSE_MODEL, ()), ("dense MPGC", 2, DENSE_MODEL, MPGC),
-                                            ("region growing", 0, TIN, ())):
-        steps, dems[label], _, block = chain(tmp / label.replace(" ", "-"), images, strategy, CELL, surface,
-                                             orientation, f"Pushbroom {label}", match)
+    for label, strategy, surface, match in (
+        ("dense", 2, DENSE_MODEL, ()),
+        ("dense MPGC", 2, DENSE_MODEL, MPGC),
+        ("region growing", 0, TIN, ()),
+    ):
+        steps, dems[label], _, block = chain(
+            tmp / label.replace(" ", "-"), images, strategy, CELL, surface, orientation, f"Pushbroom {label}", match
+        )
         rows += steps + [{"tool": f"Pushbroom {label}", "step": "total", "seconds": sum(r["seconds"] for r in steps)}]
-    _, dems["dense, every point"], _ = surface_step(tmp / "dense", tmp / "dense" / "points.las", CELL, EVERY_POINT,
-                                                    "Pushbroom dense (untimed)")
-    rows += qgis_steps([("fitrpc", ["pushbroom:fitrpc", "--", f"BLOCK={block}", "OVERWRITE=true"])],
-                       qgis_process_env(tmp / "rpc-profile"), "Pushbroom (for CARS)")
+    _, dems["dense, every point"], _ = surface_step(
+        tmp / "dense", tmp / "dense" / "points.las", CELL, EVERY_POINT, "Pushbroom dense (untimed)"
+    )
+    rows += qgis_steps(
+        [("fitrpc", ["pushbroom:fitrpc", "--", f"BLOCK={block}", "OVERWRITE=true"])],
+        qgis_process_env(tmp / "rpc-profile"),
+        "Pushbroom (for CARS)",
+    )
     steps, dems["CARS"] = cars(tmp / "cars", dict(zip(NAMES, images)), [("HRG", "HRS1"), ("HRG", "HRS2")], CELL)
     rows += steps
     truth = Truth(paths)
@@ -203,13 +273,24 @@ def simulated(tmp):
         common = np.all([np.isfinite(d) for d in dh.values()], axis=0)
         tables = {label: truth.table(d, common) for label, d in dh.items()}
         for zone in tables["dense"]:
-            rows.append({"tool": f"10 m DSM - true {reference}: RMS (coverage; RMS on the cells all cover)",
-                         "step": zone, "value": ", ".join(
-                             f"{label} {t[zone][2]:.2f} m ({100 * t[zone][1]:.0f} %; {t[zone][5]:.2f})"
-                             for label, t in tables.items())})
+            rows.append(
+                {
+                    "tool": f"10 m DSM - true {reference}: RMS (coverage; RMS on the cells all cover)",
+                    "step": zone,
+                    "value": ", ".join(
+                        f"{label} {t[zone][2]:.2f} m ({100 * t[zone][1]:.0f} %; {t[zone][5]:.2f})"
+                        for label, t in tables.items()
+                    ),
+                }
+            )
     for label, d in dh.items():
-        rows.append({"tool": label, "step": "coverage of the non-water cells",
-                     "value": f"{100 * np.isfinite(d[~truth.water]).mean():.1f} %"})
+        rows.append(
+            {
+                "tool": label,
+                "step": "coverage of the non-water cells",
+                "value": f"{100 * np.isfinite(d[~truth.water]).mean():.1f} %",
+            }
+        )
     return rows
 
 

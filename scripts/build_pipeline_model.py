@@ -42,11 +42,12 @@ around it (RADIUS 1, the default), the gaps within FILL 10 cells filled and flag
 DEM: studies/dense_fusion.py, docs/validation.md#dense-peers); its STEP and MAX_EDGE inputs do not apply and are
 left out.
 """
+
 import os
 import pathlib
 import sys
 
-os.environ["QT_HASH_SEED"] = "0"    # before Qt starts: a reproducible XML attribute order (docstring)
+os.environ["QT_HASH_SEED"] = "0"  # before Qt starts: a reproducible XML attribute order (docstring)
 
 from qgis.core import (
     QgsApplication,
@@ -78,77 +79,173 @@ Number = QgsProcessingParameterNumber
 
 #: model inputs: (parameter, position in the modeler)
 INPUTS = [
-    QgsProcessingParameterMultipleLayers("IMAGES", "Images (with their orientation beside them)",
-                                         QgsProcessing.TypeRaster),
-    QgsProcessingParameterRasterLayer("APPROX_DEM", "Approximate DEM (footprints, matching height range; "
-                                      "ellipsoidal heights)", optional=True),
-    Number("HEIGHT", "Mean ellipsoidal terrain height when no approximate DEM is given (m; empty: found by "
-           "matching the images)", Number.Double, None, optional=True),
+    QgsProcessingParameterMultipleLayers(
+        "IMAGES", "Images (with their orientation beside them)", QgsProcessing.TypeRaster
+    ),
+    QgsProcessingParameterRasterLayer(
+        "APPROX_DEM", "Approximate DEM (footprints, matching height range; ellipsoidal heights)", optional=True
+    ),
+    Number(
+        "HEIGHT",
+        "Mean ellipsoidal terrain height when no approximate DEM is given (m; empty: found by matching the images)",
+        Number.Double,
+        None,
+        optional=True,
+    ),
     QgsProcessingParameterBoolean("OVERWRITE", "Overwrite an existing block", False),
-    QgsProcessingParameterFile("POINTS", "Control and check points (CSV)",
-                               fileFilter="CSV files (*.csv *.txt);;All files (*.*)"),
+    QgsProcessingParameterFile(
+        "POINTS", "Control and check points (CSV)", fileFilter="CSV files (*.csv *.txt);;All files (*.*)"
+    ),
     QgsProcessingParameterString("CHECK_IDS", "Check point ids (comma-separated)", "", optional=True),
-    QgsProcessingParameterString("MEAS_SUFFIX", "Measurement column suffix ('_meas' for the simulator's "
-                                 "points.csv)", "", optional=True),
-    QgsProcessingParameterRasterLayer("REFERENCE", "Reference DEM (tie point heights, accuracy assessment; "
-                                      "ellipsoidal heights)"),
+    QgsProcessingParameterString(
+        "MEAS_SUFFIX", "Measurement column suffix ('_meas' for the simulator's points.csv)", "", optional=True
+    ),
+    QgsProcessingParameterRasterLayer(
+        "REFERENCE", "Reference DEM (tie point heights, accuracy assessment; ellipsoidal heights)"
+    ),
     QgsProcessingParameterRasterLayer("CLASS_RASTER", "Class raster for the assessment", optional=True),
     Number("STEP", "Matching: distance of the region-growing neighbours (px)", Number.Integer, 5, minValue=1),
     Number("CELL", "DEM cell size (m)", Number.Double, 10.0, minValue=1e-6),
-    Number("MAX_EDGE", "DEM: maximum triangle edge (m; empty: 3 cells or 2.5 point spacings); longer triangles "
-           "are gaps", Number.Double, None, optional=True, minValue=0.0),
+    Number(
+        "MAX_EDGE",
+        "DEM: maximum triangle edge (m; empty: 3 cells or 2.5 point spacings); longer triangles are gaps",
+        Number.Double,
+        None,
+        optional=True,
+        minValue=0.0,
+    ),
     QgsProcessingParameterString("IMAGE_NAME", "Image to orthorectify (name in the block)", "HRG"),
-    Number("THREADS", "Workers of the tiled steps (height search, matching, intersection, DEM, orthoimage): threads, "
-           "processes or local Dask workers", Number.Integer, 1, minValue=1),
-    QgsProcessingParameterEnum("EXECUTION", "Execution of the tiled steps", [EXECUTION_LABELS[b] for b in BACKENDS],
-                               defaultValue=0),
-    QgsProcessingParameterString("DASK_ADDRESS", "Dask scheduler address of the tiled steps (tcp://host:8786; empty: "
-                                 "a local cluster)", "", optional=True),
+    Number(
+        "THREADS",
+        "Workers of the tiled steps (height search, matching, intersection, DEM, orthoimage): threads, "
+        "processes or local Dask workers",
+        Number.Integer,
+        1,
+        minValue=1,
+    ),
+    QgsProcessingParameterEnum(
+        "EXECUTION", "Execution of the tiled steps", [EXECUTION_LABELS[b] for b in BACKENDS], defaultValue=0
+    ),
+    QgsProcessingParameterString(
+        "DASK_ADDRESS",
+        "Dask scheduler address of the tiled steps (tcp://host:8786; empty: a local cluster)",
+        "",
+        optional=True,
+    ),
 ]
-TILED = {"EXECUTION": ("model", "EXECUTION"), "DASK_ADDRESS": ("model", "DASK_ADDRESS"),
-         "WORKERS": ("model", "THREADS")}
+TILED = {
+    "EXECUTION": ("model", "EXECUTION"),
+    "DASK_ADDRESS": ("model", "DASK_ADDRESS"),
+    "WORKERS": ("model", "THREADS"),
+}
 
 #: child steps: (child id, algorithm id, {parameter: source}, {model output name: (description, child output)}),
 #: a source is ("model", name), ("child", child id, output) or ("static", value)
 #: cell (m) of the orthoimage that checks IMAGE_NAME before the matching (docstring): a few hundred cells a side
 CHECK_CELL = 100.0
 STEPS = [
-    ("createblock", "pushbroom:createblock",
-     {"IMAGES": ("model", "IMAGES"), "DEM": ("model", "APPROX_DEM"), "HEIGHT": ("model", "HEIGHT"),
-      "OVERWRITE": ("model", "OVERWRITE"), **TILED},
-     {"block": ("Block", "OUTPUT")}),
-    ("importpoints", "pushbroom:importpoints",
-     {"BLOCK": ("child", "createblock", "OUTPUT"), "INPUT": ("model", "POINTS"),
-      "CHECK_IDS": ("model", "CHECK_IDS"), "MEAS_SUFFIX": ("model", "MEAS_SUFFIX")}, {}),
-    ("checkimage", "pushbroom:orthorectify",
-     {"BLOCK": ("child", "importpoints", "BLOCK"), "IMAGE_NAME": ("model", "IMAGE_NAME"),
-      "DEM": ("model", "REFERENCE"), "CELL_SIZE": ("static", CHECK_CELL)}, {}),
-    ("matchpoints", "pushbroom:matchpoints",
-     {"BLOCK": ("child", "importpoints", "BLOCK"), **TILED,
-      "STEP": ("model", "STEP"), "MPGC_SUPPORT": ("static", True)},
-     {"groups": ("Mass points per group (CSV)", "SUMMARY")}),
+    (
+        "createblock",
+        "pushbroom:createblock",
+        {
+            "IMAGES": ("model", "IMAGES"),
+            "DEM": ("model", "APPROX_DEM"),
+            "HEIGHT": ("model", "HEIGHT"),
+            "OVERWRITE": ("model", "OVERWRITE"),
+            **TILED,
+        },
+        {"block": ("Block", "OUTPUT")},
+    ),
+    (
+        "importpoints",
+        "pushbroom:importpoints",
+        {
+            "BLOCK": ("child", "createblock", "OUTPUT"),
+            "INPUT": ("model", "POINTS"),
+            "CHECK_IDS": ("model", "CHECK_IDS"),
+            "MEAS_SUFFIX": ("model", "MEAS_SUFFIX"),
+        },
+        {},
+    ),
+    (
+        "checkimage",
+        "pushbroom:orthorectify",
+        {
+            "BLOCK": ("child", "importpoints", "BLOCK"),
+            "IMAGE_NAME": ("model", "IMAGE_NAME"),
+            "DEM": ("model", "REFERENCE"),
+            "CELL_SIZE": ("static", CHECK_CELL),
+        },
+        {},
+    ),
+    (
+        "matchpoints",
+        "pushbroom:matchpoints",
+        {
+            "BLOCK": ("child", "importpoints", "BLOCK"),
+            **TILED,
+            "STEP": ("model", "STEP"),
+            "MPGC_SUPPORT": ("static", True),
+        },
+        {"groups": ("Mass points per group (CSV)", "SUMMARY")},
+    ),
     ("selecttiepoints", "pushbroom:selecttiepoints", {"BLOCK": ("child", "matchpoints", "BLOCK")}, {}),
-    ("bundleadjust", "pushbroom:bundleadjust",
-     {"BLOCK": ("child", "selecttiepoints", "BLOCK"), "FREE": ("static", "auto"),
-      "REFERENCE_DEM": ("model", "REFERENCE")},
-     {"report": ("Adjustment report", "REPORT"),
-      "residuals": ("Residual vectors of the control and check points", "RESIDUALS")}),
-    ("intersectpoints", "pushbroom:intersectpoints",
-     {"BLOCK": ("child", "bundleadjust", "BLOCK"), "POINTS": ("static", 0), **TILED},
-     {"pointcloud": ("Point cloud", "OUTPUT")}),
-    ("interpolatedem", "pushbroom:interpolatedem",
-     {"INPUT": ("child", "intersectpoints", "OUTPUT"), "CELL": ("model", "CELL"),
-      "MAX_EDGE": ("model", "MAX_EDGE"), **TILED},
-     {"dem": ("DEM", "OUTPUT")}),
-    ("orthorectify", "pushbroom:orthorectify",
-     {"BLOCK": ("child", "bundleadjust", "BLOCK"), "IMAGE_NAME": ("model", "IMAGE_NAME"),
-      "DEM": ("child", "interpolatedem", "OUTPUT"), **TILED},
-     {"orthoimage": ("Orthoimage", "OUTPUT")}),
-    ("assessaccuracy", "pushbroom:assessaccuracy",
-     {"REFERENCE": ("model", "REFERENCE"), "POINTS": ("child", "intersectpoints", "OUTPUT"),
-      "DEM": ("child", "interpolatedem", "OUTPUT"), "CLASS_RASTER": ("model", "CLASS_RASTER")},
-     {"report": ("Accuracy report", "REPORT"), "table": ("Accuracy statistics (CSV)", "TABLE"),
-      "dh": ("dh raster of the DEM", "DH")}),
+    (
+        "bundleadjust",
+        "pushbroom:bundleadjust",
+        {
+            "BLOCK": ("child", "selecttiepoints", "BLOCK"),
+            "FREE": ("static", "auto"),
+            "REFERENCE_DEM": ("model", "REFERENCE"),
+        },
+        {
+            "report": ("Adjustment report", "REPORT"),
+            "residuals": ("Residual vectors of the control and check points", "RESIDUALS"),
+        },
+    ),
+    (
+        "intersectpoints",
+        "pushbroom:intersectpoints",
+        {"BLOCK": ("child", "bundleadjust", "BLOCK"), "POINTS": ("static", 0), **TILED},
+        {"pointcloud": ("Point cloud", "OUTPUT")},
+    ),
+    (
+        "interpolatedem",
+        "pushbroom:interpolatedem",
+        {
+            "INPUT": ("child", "intersectpoints", "OUTPUT"),
+            "CELL": ("model", "CELL"),
+            "MAX_EDGE": ("model", "MAX_EDGE"),
+            **TILED,
+        },
+        {"dem": ("DEM", "OUTPUT")},
+    ),
+    (
+        "orthorectify",
+        "pushbroom:orthorectify",
+        {
+            "BLOCK": ("child", "bundleadjust", "BLOCK"),
+            "IMAGE_NAME": ("model", "IMAGE_NAME"),
+            "DEM": ("child", "interpolatedem", "OUTPUT"),
+            **TILED,
+        },
+        {"orthoimage": ("Orthoimage", "OUTPUT")},
+    ),
+    (
+        "assessaccuracy",
+        "pushbroom:assessaccuracy",
+        {
+            "REFERENCE": ("model", "REFERENCE"),
+            "POINTS": ("child", "intersectpoints", "OUTPUT"),
+            "DEM": ("child", "interpolatedem", "OUTPUT"),
+            "CLASS_RASTER": ("model", "CLASS_RASTER"),
+        },
+        {
+            "report": ("Accuracy report", "REPORT"),
+            "table": ("Accuracy statistics (CSV)", "TABLE"),
+            "dh": ("dh raster of the DEM", "DH"),
+        },
+    ),
 ]
 
 
@@ -167,7 +264,8 @@ def source(spec, child_default=None):
         default = next(p.defaultValue() for p in INPUTS if p.name() == args[0])
         if default is not None and default != child_default:
             return QgsProcessingModelChildParameterSource.fromExpression(
-                f"coalesce(@{args[0]}, {QgsExpression.quotedValue(default)})")
+                f"coalesce(@{args[0]}, {QgsExpression.quotedValue(default)})"
+            )
         return QgsProcessingModelChildParameterSource.fromModelParameter(args[0])
     if kind == "child":
         return QgsProcessingModelChildParameterSource.fromChildOutput(*args)
@@ -175,9 +273,15 @@ def source(spec, child_default=None):
 
 
 #: the dense variant's changes: {child id: {parameter: source}}, and the model inputs it leaves out
-DENSE = {"matchpoints": {"STRATEGY": ("static", 2), "STEP": None, "MPGC_SUPPORT": None},
-         "interpolatedem": {"METHOD": ("static", 1), "FALLBACK": ("static", False), "FILL": ("static", 10.0),
-                            "MAX_EDGE": None}}
+DENSE = {
+    "matchpoints": {"STRATEGY": ("static", 2), "STEP": None, "MPGC_SUPPORT": None},
+    "interpolatedem": {
+        "METHOD": ("static", 1),
+        "FALLBACK": ("static", False),
+        "FILL": ("static", 10.0),
+        "MAX_EDGE": None,
+    },
+}
 DENSE_UNUSED = {"STEP", "MAX_EDGE"}
 
 
@@ -197,20 +301,28 @@ def build(dense=False):
     the children's algorithms and their outputs resolve)."""
     inputs, steps = variant(dense)
     model = QgsProcessingModelAlgorithm("Pushbroom pipeline (dense)" if dense else "Pushbroom pipeline", "Pushbroom")
-    matching = ("semi-global matching on epipolar tiles refined by least squares, a point every pixel" if dense
-                else "region-growing matching")
+    matching = (
+        "semi-global matching on epipolar tiles refined by least squares, a point every pixel"
+        if dense
+        else "region-growing matching"
+    )
     dem = "DEM (per-cell medians of the refined points)" if dense else "DEM (TIN, gaps at long triangles)"
-    model.setHelpContent({"ALG_DESC": (
-        "The whole Pushbroom chain: block from the images and their orientation, control/check point import, "
-        f"{matching}, tie point selection, bundle adjustment (automatic parameter selection), "
-        f"intersection of the mass points, {dem}, orthoimage of one image on the "
-        "adjusted model and the produced DEM, and accuracy assessment of the point cloud and the DEM against a "
-        "reference."),
-        "ALG_CREATOR": "Pushbroom (scripts/build_pipeline_model.py)"})
+    model.setHelpContent(
+        {
+            "ALG_DESC": (
+                "The whole Pushbroom chain: block from the images and their orientation, control/check point import, "
+                f"{matching}, tie point selection, bundle adjustment (automatic parameter selection), "
+                f"intersection of the mass points, {dem}, orthoimage of one image on the "
+                "adjusted model and the produced DEM, and accuracy assessment of the point cloud and the DEM against a "
+                "reference."
+            ),
+            "ALG_CREATOR": "Pushbroom (scripts/build_pipeline_model.py)",
+        }
+    )
     for k, parameter in enumerate(inputs):
         component = QgsProcessingModelParameter(parameter.name())
         component.setPosition(QPointF(120, 60 + 70 * k))
-        parameter = state_range(parameter.clone())             # the model owns it: one copy per model
+        parameter = state_range(parameter.clone())  # the model owns it: one copy per model
         model.addModelParameter(parameter, component)
     for k, (child_id, algorithm_id, sources, outputs) in enumerate(steps):
         child = QgsProcessingModelChildAlgorithm(algorithm_id)
@@ -240,6 +352,7 @@ def build(dense=False):
 def main():
     import pushbroom
     from pushbroom.algorithms.atomic import atomic_path
+
     app = QgsApplication([], False)
     app.initQgis()
     plugin = pushbroom.classFactory(None)
@@ -253,8 +366,12 @@ def main():
         with atomic_path(path) as tmp:
             if not model.toFile(str(tmp)):
                 sys.exit(f"cannot write {path}")
-        print(f"{path}: {len(STEPS)} steps; inputs " + ", ".join(p.name() for p in variant(dense)[0])
-              + "; outputs " + ", ".join(d.name() for d in model.destinationParameterDefinitions()))
+        print(
+            f"{path}: {len(STEPS)} steps; inputs "
+            + ", ".join(p.name() for p in variant(dense)[0])
+            + "; outputs "
+            + ", ".join(d.name() for d in model.destinationParameterDefinitions())
+        )
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ the files, the mass points per group, the accuracy of the group-3 image points a
 per land-cover class, and from the log of the pipeline model (pipeline.log): the bundle
 adjustment's tables (Kornus et al. 2006, Tables 2-4, check points) and the accuracy of the object points per point
 group and of the DEM against the true DSM (pushbroom:assessaccuracy)."""
+
 import csv
 import json
 import os
@@ -83,8 +84,11 @@ def group3_accuracy(out, step=10.0, margin=20.0):
         for name in ("HRS1", "HRS2"):
             e, valid = errors[name]
             sel = valid & np.isin(cls, codes)
-            row += [int(sel.sum()), float(np.sqrt(np.mean(e[sel] ** 2))) if sel.any() else float("nan"),
-                    100.0 * float(np.mean(e[sel] > 1.0)) if sel.any() else float("nan")]
+            row += [
+                int(sel.sum()),
+                float(np.sqrt(np.mean(e[sel] ** 2))) if sel.any() else float("nan"),
+                100.0 * float(np.mean(e[sel] > 1.0)) if sel.any() else float("nan"),
+            ]
         nodes = np.isin(node_cls, codes)
         row.append(100.0 * float(occupied[nodes].mean()) if nodes.any() else float("nan"))
         table.append(row)
@@ -92,8 +96,12 @@ def group3_accuracy(out, step=10.0, margin=20.0):
 
 
 #: titles of the log sections printed: the adjustment's, then the assessment's (algorithms/quality/report.py)
-ADJUSTMENT_SECTIONS = ("Adjustment", "Free orientation parameters", "Check points (Kornus et al. 2006, Table 3)",
-                       "Tie point heights against the reference")
+ADJUSTMENT_SECTIONS = (
+    "Adjustment",
+    "Free orientation parameters",
+    "Check points (Kornus et al. 2006, Table 3)",
+    "Tie point heights against the reference",
+)
 ACCURACY_SECTIONS = ("of the object points - reference: per point group", "of the DEM cells")
 
 
@@ -121,29 +129,37 @@ def main(out):
     h = float(np.mean([float(p["h"]) for p in points])) if points else 0.0
     blk = os.path.join(out, "block.gpkg")
     print(f"\nDemo output in {out}")
-    print(f"{'image':6} {'cols x rows':>13}  orientation vs truth on the ground (h = {h:.0f} m): supplied, "
-          "block (after the adjustment)")
+    print(
+        f"{'image':6} {'cols x rows':>13}  orientation vs truth on the ground (h = {h:.0f} m): supplied, "
+        "block (after the adjustment)"
+    )
     for row in Block(blk).images():
         exact = sensors.load(os.path.join(scene, "truth", row["name"], "METADATA.DIM"))
-        errors = [orientation_error_m(model, exact, h) for model in
-                  (sensors.load(os.path.join(scene, row["name"], "METADATA.DIM")), Block(blk).model(row["id"]))]
-        print(f"{row['name']:6} {row['cols']:>6} x {row['rows']:<6} "
-              + "; ".join(f"RMS {rms:5.1f} m, max {worst:5.1f} m" for rms, worst in errors))
+        errors = [
+            orientation_error_m(model, exact, h)
+            for model in (sensors.load(os.path.join(scene, row["name"], "METADATA.DIM")), Block(blk).model(row["id"]))
+        ]
+        print(
+            f"{row['name']:6} {row['cols']:>6} x {row['rows']:<6} "
+            + "; ".join(f"RMS {rms:5.1f} m, max {worst:5.1f} m" for rms, worst in errors)
+        )
     print("base-to-height ratios: " + ", ".join(f"{k} {v:.2f}" for k, v in truth["base_to_height"].items()))
     print(f"{len(points)} control/check point candidates in points.csv")
     for name in ("dsm.tif", "dtm.tif", "classes.tif", "orthoimage.tif", "points.csv", "truth/truth.json"):
         print(f"  {os.path.join(scene, name)}")
     print(f"  {blk} (images, sensor models, footprints, mass and tie point layers, control/check points)")
-    for name, what in (("pipeline.log", "log of the pipeline model run (qgis_process)"),
-                       ("adjustment.html", "bundle adjustment report"),
-                       ("residuals.gpkg", "residual vectors of the control and check points"),
-                       ("points.las", "mass points intersected with the adjusted models"),
-                       ("dem.tif", "DEM interpolated from the point cloud"),
-                       ("orthoimage_HRG.tif", "orthoimage of HRG on the adjusted model and the DEM"),
-                       ("report.html", "accuracy of the point cloud and the DEM against the true DSM"),
-                       ("accuracy.csv", "the accuracy statistics as a table"),
-                       ("dh.tif", "dh of the DEM against the true DSM"),
-                       ("pushbroom_demo.qgz", "QGIS project with all layers styled")):
+    for name, what in (
+        ("pipeline.log", "log of the pipeline model run (qgis_process)"),
+        ("adjustment.html", "bundle adjustment report"),
+        ("residuals.gpkg", "residual vectors of the control and check points"),
+        ("points.las", "mass points intersected with the adjusted models"),
+        ("dem.tif", "DEM interpolated from the point cloud"),
+        ("orthoimage_HRG.tif", "orthoimage of HRG on the adjusted model and the DEM"),
+        ("report.html", "accuracy of the point cloud and the DEM against the true DSM"),
+        ("accuracy.csv", "the accuracy statistics as a table"),
+        ("dh.tif", "dh of the DEM against the true DSM"),
+        ("pushbroom_demo.qgz", "QGIS project with all layers styled"),
+    ):
         if os.path.exists(os.path.join(out, name)):
             print(f"  {os.path.join(out, name)} ({what})")
     table = os.path.join(out, "point_groups.csv")
@@ -154,16 +170,19 @@ def main(out):
         print("\nMass points per group (as Table 1 of Kornus et al. 2006):")
         for label, value in rows:
             print(f"  {label:<{width}}  {value:>10}")
-        print("\nGroup-3 points against the truth (truth HRG ray on the true DSM, projected with the truth "
-              "models):")
-        print(f"  {'class':22} {'N':>7} {'HRS1 RMS px':>12} {'> 1 px':>7} {'HRS2 RMS px':>12} {'> 1 px':>7} "
-              f"{'coverage':>9}")
+        print("\nGroup-3 points against the truth (truth HRG ray on the true DSM, projected with the truth models):")
+        print(
+            f"  {'class':22} {'N':>7} {'HRS1 RMS px':>12} {'> 1 px':>7} {'HRS2 RMS px':>12} {'> 1 px':>7} "
+            f"{'coverage':>9}"
+        )
         for label, n1, rms1, big1, _, rms2, big2, cover in group3_accuracy(out):
             print(f"  {label:22} {n1:>7} {rms1:>12.3f} {big1:>6.2f}% {rms2:>12.3f} {big2:>6.2f}% {cover:>8.1f}%")
     log = os.path.join(out, "pipeline.log")
     if os.path.exists(log):
-        print("\nBundle adjustment (automatic parameter selection; check points: simulated reference coordinates; "
-              "tie point heights: the true DSM):")
+        print(
+            "\nBundle adjustment (automatic parameter selection; check points: simulated reference coordinates; "
+            "tie point heights: the true DSM):"
+        )
         for section in report_tables(log, ADJUSTMENT_SECTIONS):
             print("\n" + "\n".join(section))
         print("\nAccuracy of the point cloud and the DEM against the true DSM (pushbroom:assessaccuracy; report.html):")

@@ -5,6 +5,7 @@ vectors. The LAS point cloud is added where this QGIS reads point clouds (PDAL p
 
     QT_QPA_PLATFORM=offscreen .venv/bin/python scripts/make_demo_project.py demo-output
 """
+
 import os
 import sys
 
@@ -81,8 +82,10 @@ def main(out):
     with atomic_path(target, "the demo project", hidden=False) as tmp:
         if not project.write(tmp):
             sys.exit(f"cannot write {target}: {project.error()}")
-    print(f"{target}: {len(added)} layers ({', '.join(added)})"
-          + (f"; not added (missing or unreadable here): {', '.join(skipped)}" if skipped else ""))
+    print(
+        f"{target}: {len(added)} layers ({', '.join(added)})"
+        + (f"; not added (missing or unreadable here): {', '.join(skipped)}" if skipped else "")
+    )
     app.exitQgis()
 
 

@@ -4,6 +4,7 @@ both images) at scale 2:1 along rows as HRG -> HRS, with the template raw and lo
 resolution.adapt_resolution does to HRG (imagery.Smoothed, 0.79 / 0.855 px: the 3 km triplet's
 HRG -> HRS1); image 2 shows the texture through the same low-pass. lsm_point scales sigma0 for equal
 white noise in both images, which the low-passed template does not carry."""
+
 import numpy as np
 
 from pushbroom.algorithms.matching import lsm
@@ -27,8 +28,9 @@ def ratio(blur, n=300, noise=4.0, size=41, seed=14):
             img1 = Smoothed(img1, *blur).read(0, 0, size, size)[0]
         truth = c + rng.uniform(-0.5, 0.5, 2)
         t = np.array([c, c]) - SCALE @ truth
-        img2 = (100 + 30 * tex(jj + t[0], 2 * ii + t[1], blur or (0.0, 0.0))
-                + rng.normal(0, noise, jj.shape)).astype(np.float32)
+        img2 = (100 + 30 * tex(jj + t[0], 2 * ii + t[1], blur or (0.0, 0.0)) + rng.normal(0, noise, jj.shape)).astype(
+            np.float32
+        )
         init = truth + rng.uniform(-1, 1, 2)
         rec, status = lsm.match_points(img1, img2, [c], [c], [init[0]], [init[1]], affine=(1.0, 0.0, 0.0, 0.5))
         if status[0] == lsm.OK:

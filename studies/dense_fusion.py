@@ -9,6 +9,7 @@ of the refined cells; and on the cells so filled, the fill against the unrefined
 product's way (surface/dem_tiles.py, method "cells"): the cloud as a LAS with its rho, per-cell medians of
 each cell's best tier, with and without the unrefined fallback, the gaps filled within FILL cells by GDAL
 (gap_fill.py)."""
+
 import tempfile
 import time
 
@@ -33,7 +34,7 @@ from pushbroom.algorithms.surface.tin_grid import Grid
 NAMES = ("HRG", "HRS1", "HRS2")
 CLASSES = {2: "bare", 3: "crops", 4: "forest", 5: "city"}
 CELL = 10.0
-FILL = 10.0            # cells: the gap filling's reach
+FILL = 10.0  # cells: the gap filling's reach
 
 
 def rms(v):
@@ -60,15 +61,18 @@ def study(paths):
     dsm = read_dem(paths["dsm"])
     lo, hi = dsm.height_range
     t = time.perf_counter()
-    parts, stats = match_dense_tiles(images, models, tempfile.mkdtemp() + "/dense",
-                                     params=DenseParams(tile=256),
-                                     height_range=(lo - 100.0, hi + 100.0), execution=Execution("threads", 2))
-    print(f"{stats['points']} points, {stats['refined']} image positions refined, "
-          f"{time.perf_counter() - t:.0f} s")
+    parts, stats = match_dense_tiles(
+        images,
+        models,
+        tempfile.mkdtemp() + "/dense",
+        params=DenseParams(tile=256),
+        height_range=(lo - 100.0, hi + 100.0),
+        execution=Execution("threads", 2),
+    )
+    print(f"{stats['points']} points, {stats['refined']} image positions refined, {time.perf_counter() - t:.0f} s")
     pts = np.concatenate([p.points for p in parts])
     obs = np.concatenate([p.observations for p in parts])
-    res = intersection.intersect(truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"],
-                                 h0=0.5 * (lo + hi))
+    res = intersection.intersect(truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"], h0=0.5 * (lo + hi))
     ok = res.ok
     lon, lat, z = res.lon[ok], res.lat[ok], res.h[ok]
     refined = np.isfinite(pts["rho_min"][np.searchsorted(pts["id"], res.point[ok])])
@@ -76,8 +80,10 @@ def study(paths):
     cls = class_at(classes, lon, lat)
     dh = z - dsm.height(lon, lat)
     for k, name in CLASSES.items():
-        print(f"  points on {name:6}: refined {np.mean(refined[cls == k]):5.1%}, RMS refined "
-              f"{rms(dh[(cls == k) & refined]):5.2f} m, unrefined {rms(dh[(cls == k) & ~refined]):5.2f} m")
+        print(
+            f"  points on {name:6}: refined {np.mean(refined[cls == k]):5.1%}, RMS refined "
+            f"{rms(dh[(cls == k) & refined]):5.2f} m, unrefined {rms(dh[(cls == k) & ~refined]):5.2f} m"
+        )
     srs = output_srs(None, lon, lat)
     x, y = reproject(lon, lat, wgs84(), srs)
     x0, y0 = np.floor(x.min() / CELL) * CELL, np.ceil(y.max() / CELL) * CELL
@@ -105,19 +111,28 @@ def study(paths):
     folder = tempfile.mkdtemp()
     rho = pts["rho_min"][np.searchsorted(pts["id"], res.point[ok])]
     write_las(folder + "/dense.las", x, y, z, {"rho": rho.astype(np.float32)}, srs)
-    for label, fallback, fill in (("interpolatedem: best tier", True, 0.0),
-                                  ("interpolatedem: refined only", False, 0.0),
-                                  (f"interpolatedem: refined, filled within {FILL:g}", False, FILL)):
+    for label, fallback, fill in (
+        ("interpolatedem: best tier", True, 0.0),
+        ("interpolatedem: refined only", False, 0.0),
+        (f"interpolatedem: refined, filled within {FILL:g}", False, FILL),
+    ):
         out = f"{folder}/dem-{fallback}-{fill:g}.tif"
-        dem = dem_from_point_cloud(folder + "/dense.las", out, DemParams(cell=CELL, method="cells", fallback=fallback,
-                                                                         fill=fill))
+        dem = dem_from_point_cloud(
+            folder + "/dense.las", out, DemParams(cell=CELL, method="cells", fallback=fallback, fill=fill)
+        )
         ds = gdal.Open(out)
         heights = ds.ReadAsArray().astype(float)
         heights[heights == ds.GetRasterBand(1).GetNoDataValue()] = np.nan
         dx, dy = dem.grid.centres()
         dlon, dlat = reproject(dx.ravel(), dy.ravel(), srs, wgs84())
-        print(row(label, heights, dsm.height(dlon, dlat).reshape(dem.grid.shape),
-                  class_at(classes, dlon, dlat).reshape(dem.grid.shape)))
+        print(
+            row(
+                label,
+                heights,
+                dsm.height(dlon, dlat).reshape(dem.grid.shape),
+                class_at(classes, dlon, dlat).reshape(dem.grid.shape),
+            )
+        )
 
 
 def main():

@@ -10,6 +10,7 @@ product's constants, and with F = 1 and no spread term.
 
 Scenes: SceneConfig.small() (seed 1, the calibration) and, to check that the constants carry over, another
 seed and centre (seed 2, 4 km west: small fields among forest)."""
+
 import tempfile
 
 import numpy as np
@@ -30,9 +31,11 @@ from pushbroom.algorithms.surface.local_spread import local_metres, local_spread
 from studies.dense_fusion import NAMES
 
 OPEN = {2: "bare", 3: "crops"}
-INTERIOR = 50.0     # m from forest, city or water
-SCENES = {"seed 1 (calibration)": SceneConfig.small(),
-          "seed 2, 4 km west": SceneConfig.small(seed=2, centre_lon=-84.235)}
+INTERIOR = 50.0  # m from forest, city or water
+SCENES = {
+    "seed 1 (calibration)": SceneConfig.small(),
+    "seed 2, 4 km west": SceneConfig.small(seed=2, centre_lon=-84.235),
+}
 
 
 def scene_errors(config):
@@ -44,15 +47,22 @@ def scene_errors(config):
     truth = {k: sensors.load(paths["truth_metadata"][n]) for k, n in enumerate(NAMES, start=1)}
     dsm = read_dem(paths["dsm"])
     lo, hi = dsm.height_range
-    parts, _ = match_dense_tiles(images, models, tempfile.mkdtemp() + "/dense", params=DenseParams(tile=256),
-                                 height_range=(lo - 100.0, hi + 100.0), execution=Execution("threads", 2))
+    parts, _ = match_dense_tiles(
+        images,
+        models,
+        tempfile.mkdtemp() + "/dense",
+        params=DenseParams(tile=256),
+        height_range=(lo - 100.0, hi + 100.0),
+        execution=Execution("threads", 2),
+    )
     points = np.concatenate([p.points for p in parts])
     obs = np.concatenate([p.observations for p in parts])
     keep = points["id"][precision.refined_dense(points)]
     points, obs = points[np.isin(points["id"], keep)], obs[np.isin(obs["point_id"], keep)]
     sigma = precision.image_sigmas(points, obs, np.nan, {2: 1.0, 3: 1.0})
-    res = intersection.intersect(truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma=sigma,
-                                 h0=0.5 * (lo + hi))
+    res = intersection.intersect(
+        truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma=sigma, h0=0.5 * (lo + hi)
+    )
     ok = res.ok
     lon, lat, h = res.lon[ok], res.lat[ok], res.h[ok]
     centre = (float(np.mean(lon)), float(np.mean(lat)))
@@ -64,9 +74,15 @@ def scene_errors(config):
     distance = ndimage.distance_transform_edt(np.isin(values, list(OPEN))) * abs(gt[1]) * metres_per_lon(gt)
     i = np.clip(((lat - gt[3]) / gt[5]).astype(int), 0, values.shape[0] - 1)
     j = np.clip(((lon - gt[0]) / gt[1]).astype(int), 0, values.shape[1] - 1)
-    return {"dh": h - dsm.height(lon, lat), "sh": res.sigma[ok, 2], "rays": res.rays[ok],
-            "spread": local_spread(x, y, h, x, y, radius), "cls": values[i, j], "distance": distance[i, j],
-            "radius": radius}
+    return {
+        "dh": h - dsm.height(lon, lat),
+        "sh": res.sigma[ok, 2],
+        "rays": res.rays[ok],
+        "spread": local_spread(x, y, h, x, y, radius),
+        "cls": values[i, j],
+        "distance": distance[i, j],
+        "radius": radius,
+    }
 
 
 def metres_per_lon(gt):
@@ -82,15 +98,20 @@ def sigma_h(e, calibration, factor):
 def fit(e):
     """(F_2, F_3, C) by non-negative least squares of dh^2 over the open classes."""
     m = np.isin(e["cls"], list(OPEN)) & np.isfinite(e["spread"])
-    a = np.c_[np.where(e["rays"][m] == 2, e["sh"][m] ** 2, 0.0), np.where(e["rays"][m] == 3, e["sh"][m] ** 2, 0.0),
-              e["spread"][m] ** 2]
+    a = np.c_[
+        np.where(e["rays"][m] == 2, e["sh"][m] ** 2, 0.0),
+        np.where(e["rays"][m] == 3, e["sh"][m] ** 2, 0.0),
+        e["spread"][m] ** 2,
+    ]
     return np.sqrt(nnls(a, e["dh"][m] ** 2)[0])
 
 
 def ratios(e, s, m):
     z = e["dh"][m] / s[m]
-    return (f"{np.sqrt(np.mean(e['dh'][m] ** 2) / np.mean(s[m] ** 2)):.2f} / "
-            f"{1.4826 * np.median(np.abs(z - np.median(z))):.2f}")
+    return (
+        f"{np.sqrt(np.mean(e['dh'][m] ** 2) / np.mean(s[m] ** 2)):.2f} / "
+        f"{1.4826 * np.median(np.abs(z - np.median(z))):.2f}"
+    )
 
 
 def main():
@@ -99,18 +120,24 @@ def main():
         f2, f3, c = fit(e)
         product = sigma_h(e, precision.CALIBRATION, precision.SPREAD_FACTOR)
         raw = sigma_h(e, {2: 1.0, 3: 1.0}, 0.0)
-        print(f"\n{label}: R {e['radius']:.1f} m; fitted here F_2 {f2:.2f}, F_3 {f3:.2f}, C {c:.2f}; the product's "
-              f"F {precision.CALIBRATION}, C {precision.SPREAD_FACTOR}")
+        print(
+            f"\n{label}: R {e['radius']:.1f} m; fitted here F_2 {f2:.2f}, F_3 {f3:.2f}, C {c:.2f}; the product's "
+            f"F {precision.CALIBRATION}, C {precision.SPREAD_FACTOR}"
+        )
         fitted = sigma_h(e, {2: f2, 3: f3}, c)
-        print("| rays, class | points (interior) | product: all; interior | fitted here: all; interior | F = 1, no "
-              "spread: all; interior |\n|---|---|---|---|---|")
+        print(
+            "| rays, class | points (interior) | product: all; interior | fitted here: all; interior | F = 1, no "
+            "spread: all; interior |\n|---|---|---|---|---|"
+        )
         for rays in (2, 3):
             for k, name in OPEN.items():
                 m = (e["cls"] == k) & (e["rays"] == rays)
                 inner = m & (e["distance"] >= INTERIOR)
-                print(f"| {rays}, {name} | {m.sum()} ({inner.sum()}) | {ratios(e, product, m)}; "
-                      f"{ratios(e, product, inner)} | {ratios(e, fitted, m)}; {ratios(e, fitted, inner)} | "
-                      f"{ratios(e, raw, m)}; {ratios(e, raw, inner)} |")
+                print(
+                    f"| {rays}, {name} | {m.sum()} ({inner.sum()}) | {ratios(e, product, m)}; "
+                    f"{ratios(e, product, inner)} | {ratios(e, fitted, m)}; {ratios(e, fitted, inner)} | "
+                    f"{ratios(e, raw, m)}; {ratios(e, raw, inner)} |"
+                )
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ TRUE models (the matching's error alone), and the dense pipeline model's 10 m DS
 refined points only, RADIUS 1, gaps filled within 10 cells) against the true DSM at the evaluation cells of
 tests/helpers/dsm_comparison.py, RMS by class (region growing's and CARS's are in docs/validation.md#dense-peers).
 Also the share of the points refined in all their positions, by class."""
+
 import tempfile
 import time
 
@@ -37,21 +38,30 @@ def dsm_errors(paths, truth, robust, isolation, folder):
     least = refine.LEAST_REFINED
     refine.LEAST_REFINED = least if isolation else 0
     try:
-        parts, _ = match_dense_tiles(images, models, f"{folder}/dense", params=DenseParams(robust=robust),
-                                     height_range=(lo - 100.0, hi + 100.0), execution=Execution("threads", 2))
+        parts, _ = match_dense_tiles(
+            images,
+            models,
+            f"{folder}/dense",
+            params=DenseParams(robust=robust),
+            height_range=(lo - 100.0, hi + 100.0),
+            execution=Execution("threads", 2),
+        )
     finally:
         refine.LEAST_REFINED = least
     pts = np.concatenate([p.points for p in parts])
     obs = np.concatenate([p.observations for p in parts])
-    res = intersection.intersect(truth.models, obs["image_id"], obs["point_id"], obs["col"], obs["row"],
-                                 h0=0.5 * (lo + hi))
+    res = intersection.intersect(
+        truth.models, obs["image_id"], obs["point_id"], obs["col"], obs["row"], h0=0.5 * (lo + hi)
+    )
     ok = res.ok
     rho = pts["rho_min"][np.searchsorted(pts["id"], res.point[ok])].astype(np.float32)
     x, y = reproject(res.lon[ok], res.lat[ok], wgs84(), truth.srs)
-    write_las(f"{folder}/dense.las", x, y, res.h[ok], {"rho": rho, "rays": res.rays[ok].astype(np.uint8)},
-              truth.srs)
-    dem_from_point_cloud(f"{folder}/dense.las", f"{folder}/dem.tif",
-                         DemParams(cell=CELL, method="cells", fallback=False, fill=10.0, radius=1))
+    write_las(f"{folder}/dense.las", x, y, res.h[ok], {"rho": rho, "rays": res.rays[ok].astype(np.uint8)}, truth.srs)
+    dem_from_point_cloud(
+        f"{folder}/dense.las",
+        f"{folder}/dem.tif",
+        DemParams(cell=CELL, method="cells", fallback=False, fill=10.0, radius=1),
+    )
     return sample(f"{folder}/dem.tif", truth) - truth.h, float(np.isfinite(pts["rho_min"]).mean())
 
 
@@ -64,10 +74,13 @@ def main():
         t = time.perf_counter()
         dh, refined = dsm_errors(paths, truth, robust, isolation, tempfile.mkdtemp())
         table = truth.table(dh, np.isfinite(dh))
-        print(f"| {'robust' if robust else 'plain'} | {'dense position' if isolation else 'kept'} | "
-              f"{100 * refined:.1f} % | " + " | ".join(f"{table[z][2]:.2f} m" for z in ZONES)
-              + f" | {100 * np.isfinite(dh[~truth.water]).mean():.1f} % | ({time.perf_counter() - t:.0f} s)",
-              flush=True)
+        print(
+            f"| {'robust' if robust else 'plain'} | {'dense position' if isolation else 'kept'} | "
+            f"{100 * refined:.1f} % | "
+            + " | ".join(f"{table[z][2]:.2f} m" for z in ZONES)
+            + f" | {100 * np.isfinite(dh[~truth.water]).mean():.1f} % | ({time.perf_counter() - t:.0f} s)",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

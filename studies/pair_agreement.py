@@ -21,6 +21,7 @@ moves their heights in opposite directions and adds up in their difference.
 
 (Pushbroom at each LSM template size given in px, default 19.)
 """
+
 import pathlib
 import sys
 import tempfile
@@ -48,8 +49,14 @@ CELL = 0.5
 
 def pushbroom_pair(models, a, b, folder, template):
     """(lon, lat, h) of the refined dense points of the pair (a, b), LSM's template `template` px."""
-    points, _ = refined_dense_points([PATHS[a], PATHS[b]], [models[a], models[b]], [NAMES[a], NAMES[b]], folder,
-                                     models[a].height_range, DenseParams(template=template))
+    points, _ = refined_dense_points(
+        [PATHS[a], PATHS[b]],
+        [models[a], models[b]],
+        [NAMES[a], NAMES[b]],
+        folder,
+        models[a].height_range,
+        DenseParams(template=template),
+    )
     result = cut({1: models[a], 2: models[b]}, points.observations)
     ok = result.ok
     return result.lon[ok], result.lat[ok], result.h[ok]
@@ -61,8 +68,12 @@ def metres_per_px(models, a, b):
     cols, rows = models[0].size
     h = float(np.mean(models[0].height_range))
     lon, lat = models[0].image_to_ground(np.array([cols / 2]), np.array([rows / 2]), np.array([h]))
-    motion = [np.subtract(models[k].ground_to_image(lon, lat, np.array([h + 1.0])),
-                          models[k].ground_to_image(lon, lat, np.array([h]))).ravel() for k in (a, b)]
+    motion = [
+        np.subtract(
+            models[k].ground_to_image(lon, lat, np.array([h + 1.0])), models[k].ground_to_image(lon, lat, np.array([h]))
+        ).ravel()
+        for k in (a, b)
+    ]
     return 1.0 / float(np.hypot(*(motion[1] - motion[0])))
 
 
@@ -79,8 +90,10 @@ def run(templates=(19,)):
     models = [sensors.load(p) for p in PATHS]
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
-        clouds = {t: {pair: pushbroom_pair(models, *pair, tmp / f"dense-{t}-{pair[0]}{pair[1]}", t) for pair in PAIRS}
-                  for t in templates}
+        clouds = {
+            t: {pair: pushbroom_pair(models, *pair, tmp / f"dense-{t}-{pair[0]}{pair[1]}", t) for pair in PAIRS}
+            for t in templates
+        }
         first = clouds[templates[0]]
         lon, lat, h = (np.concatenate([c[k] for c in first.values()]) for k in range(3))
         srs = output_srs(None, lon, lat)
@@ -91,29 +104,41 @@ def run(templates=(19,)):
         for t in templates:
             for pair, (plon, plat, ph) in clouds[t].items():
                 px, py = reproject(plon, plat, wgs84(), srs)
-                dsms[f"Pushbroom, {t} px template"][pair] = cells_on_grid(px, py, ph, None, grid,
-                                                                          radius=1).heights.astype(float)
+                dsms[f"Pushbroom, {t} px template"][pair] = cells_on_grid(
+                    px, py, ph, None, grid, radius=1
+                ).heights.astype(float)
         dsms["CARS 1.3.0"] = {}
         for pair in PAIRS:
-            _, dsm = cars(tmp / f"cars-{pair[0]}{pair[1]}", {NAMES[k]: PATHS[k] for k in pair},
-                          [(NAMES[pair[0]], NAMES[pair[1]])], CELL)
-            dsms["CARS 1.3.0"][pair] = warp_to(open_raster(dsm, "CARS's DSM"), rasters.Grid(
-                np.zeros((grid.rows, grid.cols)), grid.geotransform, srs), "bilinear")
+            _, dsm = cars(
+                tmp / f"cars-{pair[0]}{pair[1]}",
+                {NAMES[k]: PATHS[k] for k in pair},
+                [(NAMES[pair[0]], NAMES[pair[1]])],
+                CELL,
+            )
+            dsms["CARS 1.3.0"][pair] = warp_to(
+                open_raster(dsm, "CARS's DSM"),
+                rasters.Grid(np.zeros((grid.rows, grid.cols)), grid.geotransform, srs),
+                "bilinear",
+            )
     scale = {p: metres_per_px(models, *p) for p in PAIRS}
     for p, m in scale.items():
         print(f"{NAMES[p[0]]}-{NAMES[p[1]]}: {m:.2f} m of height per px of parallax")
     for tool, pairs in dsms.items():
         nmads = []
         for i, p in enumerate(PAIRS):
-            for q in PAIRS[i + 1:]:
+            for q in PAIRS[i + 1 :]:
                 s = summarize((pairs[p] - pairs[q])[inside])
                 nmads.append(s.nmad)
-                px = s.nmad / np.hypot(scale[p], scale[q])     # each pair's parallax NMAD, were they independent
-                print(f"{tool}: {NAMES[p[0]]}-{NAMES[p[1]]} minus {NAMES[q[0]]}-{NAMES[q[1]]}: N {s.n}, median "
-                      f"{s.median:+.3f} m, NMAD {s.nmad:.3f} m: {px:.3f} px of parallax per pair (0.25 m needs "
-                      f"{0.25 / np.hypot(scale[p], scale[q]):.3f} px)")
-        print(f"{tool}: implied s^2 of the pairs were their errors independent: "
-              + ", ".join(f"{NAMES[p[0]]}-{NAMES[p[1]]} {v:+.4f} m^2" for p, v in zip(PAIRS, implied_sigmas(nmads))))
+                px = s.nmad / np.hypot(scale[p], scale[q])  # each pair's parallax NMAD, were they independent
+                print(
+                    f"{tool}: {NAMES[p[0]]}-{NAMES[p[1]]} minus {NAMES[q[0]]}-{NAMES[q[1]]}: N {s.n}, median "
+                    f"{s.median:+.3f} m, NMAD {s.nmad:.3f} m: {px:.3f} px of parallax per pair (0.25 m needs "
+                    f"{0.25 / np.hypot(scale[p], scale[q]):.3f} px)"
+                )
+        print(
+            f"{tool}: implied s^2 of the pairs were their errors independent: "
+            + ", ".join(f"{NAMES[p[0]]}-{NAMES[p[1]]} {v:+.4f} m^2" for p, v in zip(PAIRS, implied_sigmas(nmads)))
+        )
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@
 the points intersected with the supplied RPCs and gridded at 1, 2 and 5 m, each DSM against the SRTM
 tile (EGM96 -> ellipsoidal) with the real-data tests' code (tests.helpers.real_dsm). Needs the real
 data sets of the tests (tests/conftest.py, SHARED_DATA)."""
+
 import pathlib
 import sys
 import tempfile
@@ -23,8 +24,9 @@ def main(grids):
     paths = [DATA / "left_image.tif", DATA / "right_image.tif"]
     models = [sensors.load(p) for p in paths]
     for grid in grids:
-        points = match_coarse_to_fine([Image(p) for p in paths], models, names=[p.stem for p in paths],
-                                    params=CoarseToFineParams(grid=grid))
+        points = match_coarse_to_fine(
+            [Image(p) for p in paths], models, names=[p.stem for p in paths], params=CoarseToFineParams(grid=grid)
+        )
         result = cut({1: models[0], 2: models[1]}, points.observations)
         with tempfile.TemporaryDirectory() as tmp:
             c = srtm_comparison(result, str(DATA / "N44E005.hgt"), CELLS, 2.0, pathlib.Path(tmp))

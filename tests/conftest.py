@@ -2,6 +2,7 @@
 simulated scenes (each configuration simulated once per run), the small SPOT 5 triplet most
 engine and plugin tests use and its marked variant of the measurement tests, and `figures`, through
 which tests report what they measured."""
+
 import os
 import pathlib
 import sys
@@ -22,8 +23,9 @@ def shared_file(*parts):
     """Path of a file in SHARED_DATA, or skip the test with the reason it is missing."""
     path = SHARED_DATA.joinpath(*parts)
     if not path.exists():
-        pytest.skip(f"real test data not available: {path} "
-                    f"(set PUSHBROOM_SHARED_DATA or put the data in {SHARED_DATA})")
+        pytest.skip(
+            f"real test data not available: {path} (set PUSHBROOM_SHARED_DATA or put the data in {SHARED_DATA})"
+        )
     return path
 
 
@@ -66,6 +68,7 @@ def simulated(tmp_path_factory):
     (tests write their blocks and outputs into their own folders). Tests of simulate_scene itself
     call it directly."""
     from pushbroom.algorithms.simulation import simulate_scene
+
     done = {}
 
     def get(config):
@@ -73,6 +76,7 @@ def simulated(tmp_path_factory):
         if key not in done:
             done[key] = simulate_scene(config, tmp_path_factory.mktemp("scene") / "scene")
         return done[key]
+
     return get
 
 
@@ -80,6 +84,7 @@ def simulated(tmp_path_factory):
 def small_scene(simulated):
     """simulate_scene paths of the default 3 km SPOT 5 triplet (SceneConfig.small())."""
     from pushbroom.algorithms.simulation import SceneConfig
+
     return simulated(SceneConfig.small())
 
 
@@ -88,6 +93,7 @@ def small_matching_scene(small_scene):
     """matching_scene.Scene of the small scene (HRG -> HRS1: models, truth models, DSM, classes, ground
     texture), built once per run and shared read-only."""
     from tests.helpers.matching_scene import Scene
+
     return Scene(small_scene)
 
 
@@ -98,6 +104,7 @@ def small_scene_matched(small_scene):
     refine) matched once per run and shared read-only."""
     from pushbroom.algorithms import sensors
     from pushbroom.algorithms.matching.region_growing_strategy import match_block
+
     names = ("HRG", "HRS1", "HRS2")
     lo, hi = read_dem(small_scene["dsm"]).height_range
     done = {}
@@ -105,10 +112,16 @@ def small_scene_matched(small_scene):
     def get(params, refine=True):
         key = (repr(params), refine)
         if key not in done:
-            done[key] = match_block([small_scene["images"][n]["imagery"] for n in names],
-                                    [sensors.load(small_scene["images"][n]["metadata"]) for n in names],
-                                    params=params, height_range=(lo - 100.0, hi + 100.0), workers=4, mpgc=refine)
+            done[key] = match_block(
+                [small_scene["images"][n]["imagery"] for n in names],
+                [sensors.load(small_scene["images"][n]["metadata"]) for n in names],
+                params=params,
+                height_range=(lo - 100.0, hi + 100.0),
+                workers=4,
+                mpgc=refine,
+            )
         return done[key]
+
     return get
 
 
@@ -121,6 +134,7 @@ def small_scene_block(small_scene, tmp_path_factory):
     import numpy as np
 
     from pushbroom.algorithms.block import Block
+
     with open(small_scene["points"], newline="") as f:
         rows = list(csv.DictReader(f))
     path = tmp_path_factory.mktemp("small_scene_block") / "template.gpkg"
@@ -129,13 +143,13 @@ def small_scene_block(small_scene, tmp_path_factory):
     return path, rows
 
 
-
 @pytest.fixture(scope="session")
 def marked_scene(simulated):
     """simulate_scene paths of SceneConfig.small(markers=True): the small triplet with markers painted
     at its points (signalised control points; the unmarked scene's points lie in uniform fields where
     matching has nothing to hold on to), shared read-only."""
     from pushbroom.algorithms.simulation import SceneConfig
+
     return simulated(SceneConfig.small(markers=True))
 
 
@@ -148,6 +162,7 @@ def marked_block(marked_scene, tmp_path_factory):
     import numpy as np
 
     from pushbroom.algorithms.block import Block
+
     with open(marked_scene["points"], newline="") as f:
         height = float(np.mean([float(r["h"]) for r in csv.DictReader(f)]))
     path = tmp_path_factory.mktemp("marked_block") / "template.gpkg"
@@ -160,6 +175,7 @@ def marked_block(marked_scene, tmp_path_factory):
 def block_path(marked_block, tmp_path):
     """A copy of the marked block this test may change: its path."""
     import shutil
+
     path = tmp_path / "block.gpkg"
     shutil.copy(marked_block, path)
     return str(path)
@@ -170,6 +186,7 @@ def marked_points(marked_scene):
     """The marked scene's points: {id: row} (true lon/lat/h, true image positions <image>_col/_row and
     the simulated measurements <image>_col_meas/_row_meas)."""
     import csv
+
     with open(marked_scene["points"], newline="") as f:
         return {r["id"]: {k: (v if k == "id" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)}
 
@@ -197,7 +214,7 @@ def xdist_group(nodeid):
     return "real data" if path.startswith("tests/real/") else path
 
 
-@pytest.hookimpl(tryfirst=True)        # before pytest-xdist's worker reads the groups into the node ids
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist's worker reads the groups into the node ids
 def pytest_collection_modifyitems(config, items):
     """In a pytest-xdist worker (`make test`: two, --dist loadgroup, which hands out the largest groups first),
     each test in its xdist_group."""
@@ -232,6 +249,7 @@ def pushbroom_provider(qgis_processing, qgis_iface):
     from qgis.core import QgsApplication
 
     import pushbroom
+
     plugin = pushbroom.classFactory(qgis_iface)
     plugin.initProcessing()
     yield QgsApplication.processingRegistry().providerById("pushbroom")
@@ -241,7 +259,7 @@ def pushbroom_provider(qgis_processing, qgis_iface):
 @pytest.hookimpl(optionalhook=True)
 def pytest_testnodedown(node, error):
     """A pytest-xdist worker's figures, into the session's."""
-    node.config.stash[_FIGURES].merge(getattr(node, "workeroutput", {}).get("figures", {}))    # none if it crashed
+    node.config.stash[_FIGURES].merge(getattr(node, "workeroutput", {}).get("figures", {}))  # none if it crashed
 
 
 def pytest_sessionfinish(session, exitstatus):
@@ -252,6 +270,7 @@ def pytest_sessionfinish(session, exitstatus):
         return
     if figures:
         from pushbroom.algorithms.atomic import write_text
+
         FIGURES_PATH.parent.mkdir(exist_ok=True)
         write_text(FIGURES_PATH, figures.markdown(), what="the tests' figures")
 

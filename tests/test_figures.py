@@ -1,5 +1,6 @@
 """The tests' figures cross from a pytest-xdist worker to the controller (`make test` runs two workers): a
 worker's entries pass execnet's serializer, which takes no numpy scalar, and merged they read as the worker's."""
+
 import execnet
 import numpy as np
 

@@ -10,6 +10,7 @@
 
 Imports are read with `ast`, those inside functions included, relative imports resolved.
 """
+
 import ast
 import pathlib
 import subprocess
@@ -74,7 +75,7 @@ def find_cycle(graph):
         stack.append(node)
         for nxt in sorted(graph.get(node, ())):
             if state.get(nxt) == "open":
-                return stack[stack.index(nxt):] + [nxt]
+                return stack[stack.index(nxt) :] + [nxt]
             if nxt not in state and (cycle := visit(nxt)):
                 return cycle
         stack.pop()
@@ -140,38 +141,56 @@ def test_checker_passes_a_sound_package(tmp_path):
 
 def test_checker_reports_a_cycle_with_its_path(tmp_path):
     # a function-level import closes matching -> interpolation -> ortho -> matching
-    write_package(tmp_path, {**SOUND, "algorithms/interpolation.py":
-                             "def kernel():\n    from .ortho import resampling\n"})
+    write_package(
+        tmp_path, {**SOUND, "algorithms/interpolation.py": "def kernel():\n    from .ortho import resampling\n"}
+    )
     assert layering_violations(tmp_path) == [
         "import cycle between engine packages: "
         "algorithms.interpolation -> algorithms.ortho -> algorithms.interpolation",
         "import cycle between modules: pushbroom.algorithms.interpolation -> pushbroom.algorithms.ortho.resampling -> "
-        "pushbroom.algorithms.interpolation"]
+        "pushbroom.algorithms.interpolation",
+    ]
 
 
 def test_checker_reports_a_cycle_inside_a_package_through_a_function_level_import(tmp_path):
     # matching.lsm imports matching.ncc, whose function imports lsm back
-    write_package(tmp_path, {**SOUND, "algorithms/matching/lsm.py": "from .ncc import score\n",
-                             "algorithms/matching/ncc.py": "def score():\n    from .lsm import bilinear\n"})
+    write_package(
+        tmp_path,
+        {
+            **SOUND,
+            "algorithms/matching/lsm.py": "from .ncc import score\n",
+            "algorithms/matching/ncc.py": "def score():\n    from .lsm import bilinear\n",
+        },
+    )
     assert layering_violations(tmp_path) == [
         "import cycle between modules: pushbroom.algorithms.matching.lsm -> pushbroom.algorithms.matching.ncc -> "
-        "pushbroom.algorithms.matching.lsm"]
+        "pushbroom.algorithms.matching.lsm"
+    ]
 
 
 def test_checker_reports_ui_importing_plugin(tmp_path):
     write_package(tmp_path, {**SOUND, "ui/view.py": "from ..plugin.plugin import resource_path\n"})
     assert layering_violations(tmp_path) == [
         "ui/view.py:1: ui imports the Processing glue pushbroom.plugin.plugin",
-        "import cycle between modules: pushbroom.plugin.plugin -> pushbroom.ui.view -> pushbroom.plugin.plugin"]
+        "import cycle between modules: pushbroom.plugin.plugin -> pushbroom.ui.view -> pushbroom.plugin.plugin",
+    ]
 
 
 def test_checker_reports_the_engine_importing_qt_or_glue(tmp_path):
-    write_package(tmp_path, {**SOUND, "algorithms/ortho/resampling.py":
-                             "import PyQt5.QtCore\nfrom ... import plugin\nfrom pushbroom.ui import view\n"})
+    write_package(
+        tmp_path,
+        {
+            **SOUND,
+            "algorithms/ortho/resampling.py": (
+                "import PyQt5.QtCore\nfrom ... import plugin\nfrom pushbroom.ui import view\n"
+            ),
+        },
+    )
     assert layering_violations(tmp_path) == [
         "algorithms/ortho/resampling.py:1: the engine imports PyQt5.QtCore",
         "algorithms/ortho/resampling.py:2: the engine imports pushbroom.plugin",
-        "algorithms/ortho/resampling.py:3: the engine imports pushbroom.ui.view"]
+        "algorithms/ortho/resampling.py:3: the engine imports pushbroom.ui.view",
+    ]
 
 
 def test_the_package_keeps_its_layers():
@@ -181,9 +200,11 @@ def test_the_package_keeps_its_layers():
 
 def test_importing_every_engine_module_loads_no_qgis():
     modules = [m for m in package_modules(ROOT, PACKAGE) if m.startswith(f"{PACKAGE}.algorithms")]
-    code = ("import importlib, sys\n"
-            f"for m in {modules!r}: importlib.import_module(m)\n"
-            f"bad = sorted(m for m in sys.modules if m.split('.')[0] in {QT_OR_QGIS!r})\n"
-            "sys.stdout.write(str(bad)); sys.exit(1 if bad else 0)")
+    code = (
+        "import importlib, sys\n"
+        f"for m in {modules!r}: importlib.import_module(m)\n"
+        f"bad = sorted(m for m in sys.modules if m.split('.')[0] in {QT_OR_QGIS!r})\n"
+        "sys.stdout.write(str(bad)); sys.exit(1 if bad else 0)"
+    )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert run.returncode == 0, run.stdout + run.stderr

@@ -1,5 +1,6 @@
 """Packaging: pyproject.toml lists every package, its extras equal the Makefile's pins, the version has
 one source (metadata.txt), and the wheel installs and imports."""
+
 import pathlib
 import re
 import subprocess
@@ -24,9 +25,11 @@ def makefile_pins():
 
 
 def test_every_package_is_listed():
-    folders = {".".join(("pushbroom",) + p.parent.relative_to(ROOT).parts)
-               for p in ROOT.rglob("__init__.py")
-               if not ({p.relative_to(ROOT).parts[0]} & NOT_PACKAGED) and ".venv" not in p.parts}
+    folders = {
+        ".".join(("pushbroom",) + p.parent.relative_to(ROOT).parts)
+        for p in ROOT.rglob("__init__.py")
+        if not ({p.relative_to(ROOT).parts[0]} & NOT_PACKAGED) and ".venv" not in p.parts
+    }
     assert set(PYPROJECT["tool"]["setuptools"]["packages"]) == {f.rstrip(".") for f in folders}
 
 
@@ -42,7 +45,7 @@ def test_makefile_pins_satisfy_the_declared_ranges():
     declared += [Requirement(r) for extra in PYPROJECT["project"]["optional-dependencies"].values() for r in extra]
     by_name = {r.name: r for r in declared}
     for name, pin in makefile_pins().items():
-        if name in by_name:              # llvmlite comes with numba
+        if name in by_name:  # llvmlite comes with numba
             assert by_name[name].specifier.contains(next(iter(pin.specifier)).version), name
 
 
@@ -62,10 +65,13 @@ def test_the_wheel_installs_and_imports(tmp_path):
     run(sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "--no-build-isolation", "-q", "-w", "wheels")
     run("/usr/bin/python3", "-m", "venv", "--system-site-packages", "venv")
     run("venv/bin/python", "-m", "pip", "install", "-q", "--no-deps", *map(str, (tmp_path / "wheels").glob("*.whl")))
-    out = run("venv/bin/python", "-c",
-              "import os, sys, pushbroom, pushbroom.algorithms.matching, pushbroom.plugin.algorithms\n"
-              "from pushbroom.resource_files import resource_path\n"
-              "sys.stdout.write(' '.join(map(str, (pushbroom.__file__, pushbroom.__version__, "
-              "os.path.isfile(resource_path('styles', 'dem.qml'))))))")
+    out = run(
+        "venv/bin/python",
+        "-c",
+        "import os, sys, pushbroom, pushbroom.algorithms.matching, pushbroom.plugin.algorithms\n"
+        "from pushbroom.resource_files import resource_path\n"
+        "sys.stdout.write(' '.join(map(str, (pushbroom.__file__, pushbroom.__version__, "
+        "os.path.isfile(resource_path('styles', 'dem.qml'))))))",
+    )
     location, version, styles = out.split()
     assert location.startswith(str(tmp_path / "venv")) and version == pushbroom.__version__ and styles == "True"

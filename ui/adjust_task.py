@@ -5,6 +5,7 @@ The algorithm is taken from QGIS's Processing registry, where the Pushbroom prov
 when the plugin is loaded; without the provider the adjustment fails with a message saying so. The
 engine's errors (InputError: too few control points, no points at all...) arrive as the algorithm's
 reported error text, never as a traceback."""
+
 import functools
 
 from qgis.core import (
@@ -40,8 +41,10 @@ def bundle_adjust_algorithm():
     """The registered pushbroom:bundleadjust; PushbroomError when the Pushbroom provider is not loaded."""
     algorithm = QgsApplication.processingRegistry().algorithmById(ALGORITHM)
     if algorithm is None:
-        raise PushbroomError(f"the Processing algorithm {ALGORITHM} is not registered: enable the Pushbroom "
-                             "plugin (Plugins > Manage and Install Plugins) so that its provider is loaded")
+        raise PushbroomError(
+            f"the Processing algorithm {ALGORITHM} is not registered: enable the Pushbroom "
+            "plugin (Plugins > Manage and Install Plugins) so that its provider is loaded"
+        )
     return algorithm
 
 
@@ -80,8 +83,7 @@ class AdjustRunner(QObject):
         self.context.setProject(QgsProject.instance())
         self.feedback = ErrorFeedback()
         self.feedback.progressChanged.connect(self.progressChanged)
-        self.task = QgsProcessingAlgRunnerTask(algorithm, parameters(self.block_path), self.context,
-                                               self.feedback)
+        self.task = QgsProcessingAlgRunnerTask(algorithm, parameters(self.block_path), self.context, self.feedback)
         self.task.executed.connect(self._executed)
         key = id(self.task)
         _RUNNING[key] = (self.task, self.context, self.feedback)

@@ -2,6 +2,7 @@
 (algorithms/measurement/edits.py), pushed once the session has done it, so QUndoStack.push's own
 redo() is skipped once. Later redo()/undo() calls come from Qt and must not raise: the messages of
 failed store calls go to `report` and the command is made obsolete."""
+
 from qgis.PyQt.QtWidgets import QUndoCommand
 
 

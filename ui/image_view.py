@@ -5,6 +5,7 @@ residual vectors, the crosshair of the selected point).
 Coordinates are GDAL's: (col, row) = (0, 0) is the top-left corner of the first pixel, its centre (0.5,
 0.5). On screen a column is `zoom` pixels wide and a row `zoom * aspect` pixels high. Tiles not yet cached
 are read synchronously in paintEvent (256 x 256 from the overview that matches the zoom: a few ms each)."""
+
 import math
 from typing import NamedTuple
 
@@ -16,16 +17,17 @@ from ..algorithms.errors import InputError
 from .raster_tiles import CACHE_BYTES, ByteLru, Stretch, TileReader
 
 #: default byte bound of the stretched (display) tile images, on top of the reader's tile cache
-DISPLAY_CACHE_BYTES = 64 * 2 ** 20
-ZOOM_STEP = 1.25      # per wheel notch or +/- key
-MAX_ZOOM = 32.0       # screen pixels per image column
-DRAG_PX = 4           # a press and release closer than this (Manhattan, screen px) is a click
+DISPLAY_CACHE_BYTES = 64 * 2**20
+ZOOM_STEP = 1.25  # per wheel notch or +/- key
+MAX_ZOOM = 32.0  # screen pixels per image column
+DRAG_PX = 4  # a press and release closer than this (Manhattan, screen px) is a click
 KEEP_VISIBLE_PX = 32  # panning keeps at least this much of the image in the view
 BACKGROUND = QColor(32, 32, 32)
 
 
 class Marker(NamedTuple):
     """A mark at image position (col, row); kind: "prediction", "measurement", "transfer" or "selected"."""
+
     col: float
     row: float
     kind: str
@@ -34,6 +36,7 @@ class Marker(NamedTuple):
 
 class Vector(NamedTuple):
     """A residual (dx, dy) in image pixels at (col, row); flagged ones (rejected, blunders) are drawn red."""
+
     col: float
     row: float
     dx: float
@@ -73,7 +76,7 @@ class ImageView(QWidget):
         self._markers, self._vectors = [], []
         self._vector_scale = 100.0
         self._title = ""
-        self._press = None   # (button, pos, centre, image point) of a left/middle press until its release
+        self._press = None  # (button, pos, centre, image point) of a left/middle press until its release
         self._dragging = False
         self.setFocusPolicy(Qt.StrongFocus)
         self.setMinimumSize(160, 120)
@@ -167,17 +170,21 @@ class ImageView(QWidget):
 
     def image_to_widget(self, col, row):
         """Widget position (x, y) of image position (col, row)."""
-        return (self.width() / 2.0 + (col - self._centre[0]) * self._zoom,
-                self.height() / 2.0 + (row - self._centre[1]) * self._zoom * self.aspect)
+        return (
+            self.width() / 2.0 + (col - self._centre[0]) * self._zoom,
+            self.height() / 2.0 + (row - self._centre[1]) * self._zoom * self.aspect,
+        )
 
     def widget_to_image(self, x, y):
         """Image position (col, row) of widget position (x, y)."""
-        return (self._centre[0] + (x - self.width() / 2.0) / self._zoom,
-                self._centre[1] + (y - self.height() / 2.0) / (self._zoom * self.aspect))
+        return (
+            self._centre[0] + (x - self.width() / 2.0) / self._zoom,
+            self._centre[1] + (y - self.height() / 2.0) / (self._zoom * self.aspect),
+        )
 
     def _fit_zoom(self):
         cols, rows = self.reader.size
-        return max(min(self.width() / cols, self.height() / (rows * self.aspect)), 1e-6)   # > 0 in a 0-px widget
+        return max(min(self.width() / cols, self.height() / (rows * self.aspect)), 1e-6)  # > 0 in a 0-px widget
 
     def _zoom_limits(self):
         low = 1.0 / 64 if self.reader is None else min(self._fit_zoom() / 2.0, 1.0)
@@ -217,14 +224,20 @@ class ImageView(QWidget):
         low, high = self._zoom_limits()
         zoom = min(max(float(zoom), low), high)
         self._fitted = False
-        self._set_view((col - (anchor[0] - self.width() / 2.0) / zoom,
-                        row - (anchor[1] - self.height() / 2.0) / (zoom * self.aspect)), zoom)
+        self._set_view(
+            (
+                col - (anchor[0] - self.width() / 2.0) / zoom,
+                row - (anchor[1] - self.height() / 2.0) / (zoom * self.aspect),
+            ),
+            zoom,
+        )
 
     def _pan(self, dx, dy):
         """Move the image by (dx, dy) screen pixels."""
         self._fitted = False
-        self._set_view((self._centre[0] - dx / self._zoom, self._centre[1] - dy / (self._zoom * self.aspect)),
-                       self._zoom)
+        self._set_view(
+            (self._centre[0] - dx / self._zoom, self._centre[1] - dy / (self._zoom * self.aspect)), self._zoom
+        )
 
     # --- events ------------------------------------------------------------------------------------
     def _event_point(self, event):
@@ -237,7 +250,7 @@ class ImageView(QWidget):
         notches = event.angleDelta().y() / 120.0
         if notches and self.reader is not None:
             p = event.position()
-            self.set_zoom(self._zoom * ZOOM_STEP ** notches, (p.x(), p.y()))
+            self.set_zoom(self._zoom * ZOOM_STEP**notches, (p.x(), p.y()))
         event.accept()
 
     def mousePressEvent(self, event):
@@ -256,8 +269,9 @@ class ImageView(QWidget):
             self.setCursor(Qt.ClosedHandCursor)
         if self._dragging:
             self._fitted = False
-            self._set_view((centre[0] - delta.x() / self._zoom, centre[1] - delta.y() / (self._zoom * self.aspect)),
-                           self._zoom)
+            self._set_view(
+                (centre[0] - delta.x() / self._zoom, centre[1] - delta.y() / (self._zoom * self.aspect)), self._zoom
+            )
 
     def mouseReleaseEvent(self, event):
         if self._press is None:
@@ -303,7 +317,7 @@ class ImageView(QWidget):
             h, w = data.shape[:2]
             fmt = QImage.Format_Grayscale8 if data.ndim == 2 else QImage.Format_RGB888
             image = QImage(data.data, w, h, data.strides[0], fmt)
-            image.ndarray = data          # the QImage does not own its buffer
+            image.ndarray = data  # the QImage does not own its buffer
             self._display.put(key, image, data.nbytes)
         return image
 
@@ -323,7 +337,7 @@ class ImageView(QWidget):
         level = self.reader.level_for(self._zoom, self.aspect)
         lv = self.reader.levels[level]
         minified = min(lv.scale_x * self._zoom, lv.scale_y * self._zoom * self.aspect) < 1.0 - 1e-9
-        painter.setRenderHint(QPainter.SmoothPixmapTransform, minified)    # else whole pixels as blocks
+        painter.setRenderHint(QPainter.SmoothPixmapTransform, minified)  # else whole pixels as blocks
         col0, row0 = self.widget_to_image(0.0, 0.0)
         col1, row1 = self.widget_to_image(float(self.width()), float(self.height()))
         tx0, ty0, tx1, ty1 = self.reader.tile_range(level, col0, row0, col1, row1)
@@ -333,8 +347,7 @@ class ImageView(QWidget):
                 x0, y0 = self.image_to_widget(c0, r0)
                 x1, y1 = self.image_to_widget(c1, r1)
                 image = self._display_tile(level, tx, ty)
-                painter.drawImage(QRectF(x0, y0, x1 - x0, y1 - y0), image,
-                                  QRectF(0, 0, image.width(), image.height()))
+                painter.drawImage(QRectF(x0, y0, x1 - x0, y1 - y0), image, QRectF(0, 0, image.width(), image.height()))
 
     def _paint_vectors(self, painter):
         s = self._vector_scale
@@ -394,8 +407,9 @@ class ImageView(QWidget):
             captions.append((4, 4, self._title))
         if self.reader is not None:
             text = f"{self._zoom * 100:.3g} %"
-            captions.append((self.width() - metrics.horizontalAdvance(text) - 12, self.height() - metrics.height() - 12,
-                             text))
+            captions.append(
+                (self.width() - metrics.horizontalAdvance(text) - 12, self.height() - metrics.height() - 12, text)
+            )
         for x, y, text in captions:
             box = QRectF(x, y, metrics.horizontalAdvance(text) + 8, metrics.height() + 4)
             painter.fillRect(box, QColor(0, 0, 0, 160))

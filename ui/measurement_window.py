@@ -18,6 +18,7 @@ presents it, turns clicks and keys into its calls and pushes each of its edits o
 (ui/commands.py). Every edit is written to the block when it is done, so closing, a crash or a killed
 QGIS loses nothing. 'Adjust now' runs pushbroom:bundleadjust in a QgsTask and then reloads the models
 and the residuals."""
+
 import math
 import os
 import weakref
@@ -87,7 +88,7 @@ class ImagePane(QFrame):
         self.view = ImageView(self)
         self.view.title(name)
         self.status = QLabel(name, self)
-        self.status.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Preferred)   # long texts never resize the view
+        self.status.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Preferred)  # long texts never resize the view
         self.accept = QToolButton(self)
         self.accept.setText("\u2713")
         self.accept.setToolTip(f"Accept the LSM transfer into {name} (Return: all images)")
@@ -164,16 +165,19 @@ class MeasurementWindow(QMainWindow):
         for image_id, name in session.image_names.items():
             pane = ImagePane(image_id, name, images)
             try:
-                pane.view.open(session.image_paths[image_id],
-                               display_aspect(session.models[image_id], session.default_height))
-            except PushbroomError as exc:      # a moved or deleted raster: the other images stay usable
+                pane.view.open(
+                    session.image_paths[image_id], display_aspect(session.models[image_id], session.default_height)
+                )
+            except PushbroomError as exc:  # a moved or deleted raster: the other images stay usable
                 pane.view.title(f"{name}: {exc}")
             pane.view.set_vector_scale(VECTOR_SCALE)
             pane.clicked.connect(self._view_clicked)
             pane.acceptRequested.connect(self._accept_clicked)
             pane.rejectRequested.connect(self._reject_clicked)
-            pane.view.setToolTip(f"{name}: click to measure the point here (the other images get LSM transfers); "
-                                 "wheel zoom, drag pan, +/- zoom")
+            pane.view.setToolTip(
+                f"{name}: click to measure the point here (the other images get LSM transfers); "
+                "wheel zoom, drag pan, +/- zoom"
+            )
             grid.addWidget(pane, 1)
             self.panes[image_id], self.image_views[image_id] = pane, pane.view
         layers = reference_layers
@@ -224,8 +228,9 @@ class MeasurementWindow(QMainWindow):
 
     @staticmethod
     def _project_rasters():
-        return [layer for layer in QgsProject.instance().layerTreeRoot().layerOrder()
-                if isinstance(layer, QgsRasterLayer)]
+        return [
+            layer for layer in QgsProject.instance().layerTreeRoot().layerOrder() if isinstance(layer, QgsRasterLayer)
+        ]
 
     def _action(self, text, slot, shortcuts=(), tip="", work_area=True, menu=None, toolbar=None):
         """A QAction calling `slot` (errors to the status bar); shortcuts shown in the menu and tooltip.
@@ -255,12 +260,22 @@ class MeasurementWindow(QMainWindow):
         tools.setToolButtonStyle(Qt.ToolButtonTextOnly)
         tools.setMovable(False)
         files = bar.addMenu("&File")
-        self._action("Import points CSV...", self._ask_import_csv, work_area=False, menu=files,
-                     tip="Merge the points of a CSV file (pushbroom:importpoints format) into the block")
+        self._action(
+            "Import points CSV...",
+            self._ask_import_csv,
+            work_area=False,
+            menu=files,
+            tip="Merge the points of a CSV file (pushbroom:importpoints format) into the block",
+        )
         self._action("Export points CSV...", self._ask_export_csv, work_area=False, menu=files)
         files.addSeparator()
-        self._action("Import Georeferencer .points...", self._ask_import_points, work_area=False, menu=files,
-                     tip="Merge the 2-D reference points of a QGIS Georeferencer .points file, measured in one image")
+        self._action(
+            "Import Georeferencer .points...",
+            self._ask_import_points,
+            work_area=False,
+            menu=files,
+            tip="Merge the 2-D reference points of a QGIS Georeferencer .points file, measured in one image",
+        )
         self._action("Export Georeferencer .points...", self._ask_export_points, work_area=False, menu=files)
         files.addSeparator()
         self._action("Close", self.close, ["Ctrl+W"], work_area=False, menu=files)
@@ -273,30 +288,68 @@ class MeasurementWindow(QMainWindow):
             action.setToolTip(f"{action.text()} ({action.shortcut().toString(QKeySequence.NativeText)})")
             edit.addAction(action)
         point = bar.addMenu("&Point")
-        self._action("New point", self.new_point, ["Ctrl+N"], work_area=False, menu=point, toolbar=tools,
-                     tip="Start a new control point (click it on the reference or in an image)")
+        self._action(
+            "New point",
+            self.new_point,
+            ["Ctrl+N"],
+            work_area=False,
+            menu=point,
+            toolbar=tools,
+            tip="Start a new control point (click it on the reference or in an image)",
+        )
         self._action("Previous point", self.previous_point, ["PgUp"], menu=point, toolbar=tools)
         self._action("Next point", self.next_point, ["PgDown"], menu=point, toolbar=tools)
         point.addSeparator()
-        self._action("Accept transfers", self.accept_pending, ["Return", "Enter"], menu=point, toolbar=tools,
-                     tip="Accept the pending LSM transfers of the current point")
-        self._action("Reject transfers", self.reject_pending, ["Delete", "Backspace"], menu=point, toolbar=tools,
-                     tip="Reject the pending LSM transfers of the current point")
+        self._action(
+            "Accept transfers",
+            self.accept_pending,
+            ["Return", "Enter"],
+            menu=point,
+            toolbar=tools,
+            tip="Accept the pending LSM transfers of the current point",
+        )
+        self._action(
+            "Reject transfers",
+            self.reject_pending,
+            ["Delete", "Backspace"],
+            menu=point,
+            toolbar=tools,
+            tip="Reject the pending LSM transfers of the current point",
+        )
         self._action("Delete measurement in current image", self.delete_measurement, ["Shift+Delete"], menu=point)
         point.addSeparator()
-        self._action("Delete point", lambda: self.delete_point(self.session.current), ["Ctrl+Delete"], work_area=False,
-                     menu=point, tip="Delete the current point and its measurements")
+        self._action(
+            "Delete point",
+            lambda: self.delete_point(self.session.current),
+            ["Ctrl+Delete"],
+            work_area=False,
+            menu=point,
+            tip="Delete the current point and its measurements",
+        )
         view = bar.addMenu("&View")
-        self._action("Zoom to prediction", self.zoom_to_prediction, ["Z"], menu=view, toolbar=tools,
-                     tip="Centre every image on the current point's measurement or prediction, zoomed in")
+        self._action(
+            "Zoom to prediction",
+            self.zoom_to_prediction,
+            ["Z"],
+            menu=view,
+            toolbar=tools,
+            tip="Centre every image on the current point's measurement or prediction, zoomed in",
+        )
         self._action("Next image", lambda: self.next_image(1), ["Tab", "Ctrl+Tab"], menu=view)
         self._action("Previous image", lambda: self.next_image(-1), ["Shift+Tab", "Ctrl+Shift+Tab"], menu=view)
         self._action("Fit images", self.fit_images, ["F"], menu=view)
         self._action("Zoom reference to block", self.reference.zoom_to_block, menu=view, work_area=False)
         block_menu = bar.addMenu("&Block")
         tools.addSeparator()
-        self._action("Adjust now", self.adjust_now, ["F5"], work_area=False, menu=block_menu, toolbar=tools,
-                     tip="Run the bundle adjustment (pushbroom:bundleadjust) in the background and show its residuals")
+        self._action(
+            "Adjust now",
+            self.adjust_now,
+            ["F5"],
+            work_area=False,
+            menu=block_menu,
+            toolbar=tools,
+            tip="Run the bundle adjustment (pushbroom:bundleadjust) in the background and show its residuals",
+        )
 
     # --- messages ------------------------------------------------------------------------------------------
     def show_message(self, text, level=Qgis.Info, timeout=8000):
@@ -383,8 +436,9 @@ class MeasurementWindow(QMainWindow):
         self.reference.set_points(session.observations.points, current, residual_px=session.residual_px())
         self._show_editor()
         n, m = len(session.observations.points), len(session.observations.measurements)
-        self.point_label.setText(f"{n} point{'s' if n != 1 else ''}, {m} measurements"
-                                 + (f" | current: {current}" if current else ""))
+        self.point_label.setText(
+            f"{n} point{'s' if n != 1 else ''}, {m} measurements" + (f" | current: {current}" if current else "")
+        )
 
     def _pane_text(self, image_id, predicted):
         session = self.session
@@ -457,12 +511,19 @@ class MeasurementWindow(QMainWindow):
         """The editor's Apply: name, role, sigmas, and the typed coordinates when they changed."""
         if self.session.current is None:
             self.new_point(values["name"] or None, values["role"])
-        self.edit_point(self.session.current, new_name=values["name"] or None, role=values["role"],
-                        **{k: values[k] for k in SIGMA_KEYS})
+        self.edit_point(
+            self.session.current,
+            new_name=values["name"] or None,
+            role=values["role"],
+            **{k: values[k] for k in SIGMA_KEYS},
+        )
         shown = self.editor.shown
         typed = [values[k] for k in ("x", "y", "h")]
-        if values["x"] is not None and values["y"] is not None and (
-                typed != [shown.get(k) for k in ("x", "y", "h")] or values["system"] != shown.get("system")):
+        if (
+            values["x"] is not None
+            and values["y"] is not None
+            and (typed != [shown.get(k) for k in ("x", "y", "h")] or values["system"] != shown.get("system"))
+        ):
             crs = "EPSG:4326" if values["system"] == "wgs84" else None
             self.set_ground(values["x"], values["y"], crs=crs, h=values["h"])
 
@@ -591,10 +652,12 @@ class MeasurementWindow(QMainWindow):
     def import_points_file(self, path, image_id):
         """Merge a QGIS Georeferencer .points file measured in image `image_id` (heights from the DEM,
         else the block's mean height; map coordinates without a #CRS line in the canvas CRS; undoable)."""
-        read = self.session.import_points_file(path, image_id, map_crs=self.reference.crs().toWkt(),
-                                               dem=self.reference.dem)
-        self.show_message(f"imported {len(read.points)} points of {path} measured in "
-                          f"{self.session.image_names[int(image_id)]}")
+        read = self.session.import_points_file(
+            path, image_id, map_crs=self.reference.crs().toWkt(), dem=self.reference.dem
+        )
+        self.show_message(
+            f"imported {len(read.points)} points of {path} measured in {self.session.image_names[int(image_id)]}"
+        )
 
     def export_points_file(self, path, image_id):
         """Write the points measured in image `image_id` as a QGIS Georeferencer .points file."""
@@ -609,8 +672,9 @@ class MeasurementWindow(QMainWindow):
     def _ask_image(self, title):
         names = self.session.image_names
         current = list(names).index(self.current_image) if self.current_image in names else 0
-        name, ok = QInputDialog.getItem(self, title, "Image of the pixel coordinates", list(names.values()), current,
-                                        False)
+        name, ok = QInputDialog.getItem(
+            self, title, "Image of the pixel coordinates", list(names.values()), current, False
+        )
         return self.session.image_id(name) if ok else None
 
     def _ask_import_csv(self):

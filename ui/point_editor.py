@@ -1,6 +1,7 @@
 """The point editor of the measurement window: name, role, a priori sigmas E/N/H (m) and typed
 ground coordinates, either WGS 84 lon/lat (degrees) or X/Y in the reference canvas CRS, with the
 height (ellipsoidal, m; empty: from the DEM). Apply (or Return in a field) emits applied(dict)."""
+
 import math
 
 from qgis.PyQt.QtCore import pyqtSignal
@@ -85,14 +86,22 @@ class PointEditor(QGroupBox):
 
     def values(self):
         """{name, role, sigma_e, sigma_n, sigma_h, system, x, y, h}: coordinates as typed (None where empty)."""
+
         def number(field):
             try:
                 return float(field.text().replace(",", "."))
             except ValueError:
                 return None
-        return {"name": self.name.text().strip(), "role": self.role.currentText(),
-                **{f"sigma_{axis}": box.value() for axis, box in zip("enh", self.sigmas)},
-                "system": self.system.currentData(), "x": number(self.x), "y": number(self.y), "h": number(self.h)}
+
+        return {
+            "name": self.name.text().strip(),
+            "role": self.role.currentText(),
+            **{f"sigma_{axis}": box.value() for axis, box in zip("enh", self.sigmas)},
+            "system": self.system.currentData(),
+            "x": number(self.x),
+            "y": number(self.y),
+            "h": number(self.h),
+        }
 
     def apply(self):
         self.applied.emit(self.values())

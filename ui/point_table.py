@@ -2,6 +2,7 @@
 number of images it is measured in, the image residuals |v| (px) and normalised residuals w of the
 last adjustment per image, and its ground residuals dE, dN, dH (m); cells coloured by |w| (green
 below 2, orange below the critical value 3.29, red above), sortable on every column."""
+
 import math
 
 from qgis.PyQt.QtCore import (
@@ -64,8 +65,10 @@ class PointTableModel(QAbstractTableModel):
         if orientation == Qt.Horizontal and role == Qt.DisplayRole:
             return self.columns()[section]
         if orientation == Qt.Horizontal and role == Qt.ToolTipRole:
-            return ("|v|: image residual (px) and |w|: largest normalised residual of the last adjustment; "
-                    f"green |w| < {WARNING}, orange < {CRITICAL}, red above; dE/dN/dH: ground residuals (m)")
+            return (
+                "|v|: image residual (px) and |w|: largest normalised residual of the last adjustment; "
+                f"green |w| < {WARNING}, orange < {CRITICAL}, red above; dE/dN/dH: ground residuals (m)"
+            )
         return None
 
     def cell(self, row, column):
@@ -87,8 +90,11 @@ class PointTableModel(QAbstractTableModel):
             if res is None:
                 return ("-" if image_id in r["measured"] else ""), math.inf, None
             value = res[column % 2]
-            return (_number(value, 2 if column % 2 == 0 else 1), _sort_key(value),
-                    grade(res[1]) if math.isfinite(res[1]) else None)
+            return (
+                _number(value, 2 if column % 2 == 0 else 1),
+                _sort_key(value),
+                grade(res[1]) if math.isfinite(res[1]) else None,
+            )
         column -= 2 * n_images
         value = r["ground"][column] if r["ground"] is not None else None
         return _number(value, 2), _sort_key(value), None

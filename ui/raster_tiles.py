@@ -8,6 +8,7 @@ bounded by the screen, but a first zoomed-out view (and the automatic stretch) r
 image once; build_overviews() writes an external .ovr that makes those reads cheap (the user's choice).
 
 Coordinates are GDAL's: (0, 0) is the top-left corner of the first pixel, its centre (0.5, 0.5)."""
+
 import collections
 import math
 import os
@@ -22,9 +23,9 @@ from ..algorithms.surface.geotiff import overview_levels
 
 TILE = 256
 #: default byte bound of the tile cache
-CACHE_BYTES = 256 * 2 ** 20
+CACHE_BYTES = 256 * 2**20
 #: GDAL's own block cache is emptied of this raster's blocks when GDAL holds more than this
-GDAL_CACHE_BYTES = 32 * 2 ** 20
+GDAL_CACHE_BYTES = 32 * 2**20
 #: the level of the automatic stretch is the coarsest one at least this large (or the full resolution)
 STRETCH_SIZE = 1024
 
@@ -32,6 +33,7 @@ STRETCH_SIZE = 1024
 class Level(NamedTuple):
     """One resolution: `cols` x `rows` pixels, each `scale_x` x `scale_y` full-resolution pixels; read from
     `source` (0: full resolution, k: GDAL overview k - 1) decimated by `decimation` (1: a real level)."""
+
     cols: int
     rows: int
     scale_x: float
@@ -88,6 +90,7 @@ class TileReader:
 
     def __init__(self, path, cache_bytes=CACHE_BYTES, gdal_cache_bytes=GDAL_CACHE_BYTES):
         from osgeo import gdal
+
         gdal.UseExceptions()
         self.path = os.fspath(path)
         try:
@@ -129,8 +132,10 @@ class TileReader:
 
     def _make_levels(self):
         width, height = self.size
-        levels = [Level(s[0].XSize, s[0].YSize, width / s[0].XSize, height / s[0].YSize, k, 1)
-                  for k, s in enumerate(self._sources)]
+        levels = [
+            Level(s[0].XSize, s[0].YSize, width / s[0].XSize, height / s[0].YSize, k, 1)
+            for k, s in enumerate(self._sources)
+        ]
         last = levels[-1]
         d = 2
         while max(last.cols, last.rows) / (d // 2) > TILE:
@@ -152,10 +157,12 @@ class TileReader:
         """(tx0, ty0, tx1, ty1), tiles tx0 <= tx < tx1, ty0 <= ty < ty1 of `level` that cover the
         full-resolution image rectangle [col0, col1) x [row0, row1) (clipped to the image)."""
         lv = self.levels[level]
+
         def span(a, b, scale, n):
             lo = min(max(int(math.floor(a / scale)) // TILE, 0), (n - 1) // TILE + 1)
             hi = min(max(int(math.ceil(b / scale)) + TILE - 1, 0) // TILE, (n - 1) // TILE + 1)
             return lo, max(hi, lo)
+
         tx0, tx1 = span(col0, col1, lv.scale_x, lv.cols)
         ty0, ty1 = span(row0, row1, lv.scale_y, lv.rows)
         return tx0, ty0, tx1, ty1
@@ -194,6 +201,7 @@ class TileReader:
         regular grid, the last chunk squeezed to the window's end); GDAL's block cache is emptied of this
         raster's blocks whenever it holds more than gdal_cache_bytes in all."""
         from osgeo import gdal
+
         step = max(1, TILE // d)
         parts = []
         for i0 in range(0, h, step):
@@ -223,8 +231,11 @@ class TileReader:
         valid pixels (nodata and NaN left out) of stretch_level(), read through the tile cache."""
         k = self.stretch_level()
         lv = self.levels[k]
-        tiles = [self.tile(k, tx, ty).reshape(-1, self.bands) for ty in range((lv.rows - 1) // TILE + 1)
-                 for tx in range((lv.cols - 1) // TILE + 1)]
+        tiles = [
+            self.tile(k, tx, ty).reshape(-1, self.bands)
+            for ty in range((lv.rows - 1) // TILE + 1)
+            for tx in range((lv.cols - 1) // TILE + 1)
+        ]
         values = np.concatenate(tiles)
         lows, highs = [], []
         for b in range(self.bands):
@@ -290,6 +301,7 @@ def build_overviews(path, feedback=None, factors=None, resampling="AVERAGE"):
     raster, atomically: they are built for a temporary VRT of the raster beside it, then renamed. Returns
     the .ovr path. GDAL uses the file the next time the raster is opened."""
     from osgeo import gdal
+
     gdal.UseExceptions()
     path = os.fspath(path)
     try:
@@ -308,7 +320,7 @@ def build_overviews(path, feedback=None, factors=None, resampling="AVERAGE"):
         return 0 if feedback.isCanceled() else 1
 
     with atomic_path(target) as tmp:
-        vrt = tmp[:-len(".ovr")]
+        vrt = tmp[: -len(".ovr")]
         try:
             gdal.Translate(vrt, source, format="VRT")
             with closing(gdal.Open(vrt, gdal.GA_ReadOnly)) as ds:

@@ -6,6 +6,7 @@ A left click without dragging emits clicked(x, y) in the canvas CRS; dragging pa
 Heights come from the chosen DEM raster (algorithms.dem.Dem: bilinear, read once; heights taken as
 ellipsoidal unless 'EGM96' is ticked, then h = H + N with the EGM96 undulation N), or, without a DEM,
 the block's mean terrain height."""
+
 import math
 import os
 
@@ -90,18 +91,24 @@ class ReferenceView(QWidget):
         self.layers = list(layers)
         self.default_height = float(default_height)
         self.dem = None
-        self.own_layers = []     # raster layers this view opened (DEM files): kept alive here
+        self.own_layers = []  # raster layers this view opened (DEM files): kept alive here
         self.canvas = QgsMapCanvas(self)
         self.canvas.setCanvasColor(QColor(250, 250, 250))
-        self.canvas.setToolTip("Reference: click to set the point's ground position (X, Y from the map, Z from "
-                               "the DEM); drag to pan, wheel to zoom")
+        self.canvas.setToolTip(
+            "Reference: click to set the point's ground position (X, Y from the map, Z from "
+            "the DEM); drag to pan, wheel to zoom"
+        )
         self.tool = ClickPanTool(self.canvas)
         self.tool.clicked.connect(self._tool_clicked)
         self.canvas.setMapTool(self.tool)
-        self.points_layer = memory_layer("PointZ?crs=EPSG:4326&field=name:string(32)&field=role:string(8)"
-                                         "&field=residual_px:double", "control points", "control_points.qml")
-        self.footprints_layer = memory_layer("Polygon?crs=EPSG:4326&field=image_id:integer&field=name:string",
-                                             "footprints", "footprints.qml")
+        self.points_layer = memory_layer(
+            "PointZ?crs=EPSG:4326&field=name:string(32)&field=role:string(8)&field=residual_px:double",
+            "control points",
+            "control_points.qml",
+        )
+        self.footprints_layer = memory_layer(
+            "Polygon?crs=EPSG:4326&field=image_id:integer&field=name:string", "footprints", "footprints.qml"
+        )
         self._fill_footprints()
         self.marker = QgsVertexMarker(self.canvas)
         self.marker.setIconType(QgsVertexMarker.ICON_BOX)
@@ -109,15 +116,19 @@ class ReferenceView(QWidget):
         self.marker.setIconSize(18)
         self.marker.setPenWidth(3)
         self.marker.hide()
-        crs = self.layers[0].crs() if self.layers else QgsCoordinateReferenceSystem(
-            Block(self.block_path).info().get("default_crs", WGS84))
+        crs = (
+            self.layers[0].crs()
+            if self.layers
+            else QgsCoordinateReferenceSystem(Block(self.block_path).info().get("default_crs", WGS84))
+        )
         self.canvas.setDestinationCrs(crs)
         self.canvas.setLayers([self.points_layer, self.footprints_layer] + self.layers)
         self.dem_box = QgsMapLayerComboBox(self)
         self.dem_box.setFilters(QgsMapLayerProxyModel.RasterLayer)
         self.dem_box.setAllowEmptyLayer(True)
-        self.dem_box.setToolTip("DEM for the heights of clicked points (empty: the block's mean height "
-                                f"{self.default_height:.0f} m)")
+        self.dem_box.setToolTip(
+            f"DEM for the heights of clicked points (empty: the block's mean height {self.default_height:.0f} m)"
+        )
         self.geoid = QCheckBox("EGM96", self)
         self.geoid.setToolTip("The DEM holds orthometric (EGM96) heights, e.g. SRTM: add the geoid undulation")
         browse = QToolButton(self)
@@ -160,8 +171,10 @@ class ReferenceView(QWidget):
         try:
             p = self._transform(source, target).transform(QgsPointXY(float(x), float(y)))
         except QgsCsException as exc:
-            raise InputError(f"cannot transform ({x}, {y}) from {source.authid() or source.description()} to "
-                             f"{target.authid()}: {exc}") from exc
+            raise InputError(
+                f"cannot transform ({x}, {y}) from {source.authid() or source.description()} to "
+                f"{target.authid()}: {exc}"
+            ) from exc
         return p.x(), p.y()
 
     def to_wgs84(self, x, y, crs=None):
@@ -195,8 +208,9 @@ class ReferenceView(QWidget):
         self._dem_layer_changed(layer)
 
     def _browse_dem(self):
-        path, _ = QFileDialog.getOpenFileName(self, "DEM raster", "", "Rasters (*.tif *.tiff *.vrt *.img *.dem);;"
-                                              "All files (*)")
+        path, _ = QFileDialog.getOpenFileName(
+            self, "DEM raster", "", "Rasters (*.tif *.tiff *.vrt *.img *.dem);;All files (*)"
+        )
         if path:
             self.set_dem(path)
 

@@ -31,6 +31,7 @@ do not determine; a non-finite update. Control points without an image measureme
 `converged` False and says so in its log; the caller decides (adjust_block stores nothing).
 
 The kernels run on the calling thread for small blocks (normals.kernel_threads)."""
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -57,28 +58,28 @@ DEFECT_MEMBER = 1e-3
 class Adjustment:
     """Result of `adjust` (all arrays over the adjusted points / measurements)."""
 
-    parameters: object                  # OrientationParameters (models now carry the solution)
-    values: np.ndarray                  # all orientation unknowns (fixed ones 0)
-    sigmas: np.ndarray                  # their standard deviations (NaN: fixed)
-    covariance: np.ndarray              # (nfree, nfree) of the free unknowns, sigma_0^2 Q_oo
+    parameters: object  # OrientationParameters (models now carry the solution)
+    values: np.ndarray  # all orientation unknowns (fixed ones 0)
+    sigmas: np.ndarray  # their standard deviations (NaN: fixed)
+    covariance: np.ndarray  # (nfree, nfree) of the free unknowns, sigma_0^2 Q_oo
     sigma0: float
-    redundancy: int                     # observations - unknowns
-    observations: Observations          # the points and measurements that were adjusted
+    redundancy: int  # observations - unknowns
+    observations: Observations  # the points and measurements that were adjusted
     lon: np.ndarray
     lat: np.ndarray
     h: np.ndarray
-    point_sigmas: np.ndarray            # (P, 3) sigma E, N, H (m)
-    residuals: np.ndarray               # (M, 2) image residuals v = computed - measured (px)
-    redundancy_numbers: np.ndarray      # (M, 2)
-    normalised: np.ndarray              # (M, 2) w = v / (sigma sqrt(r))
-    ground_residuals: np.ndarray        # (P, 3) E, N, H of computed - observed (control points; NaN else)
+    point_sigmas: np.ndarray  # (P, 3) sigma E, N, H (m)
+    residuals: np.ndarray  # (M, 2) image residuals v = computed - measured (px)
+    redundancy_numbers: np.ndarray  # (M, 2)
+    normalised: np.ndarray  # (M, 2) w = v / (sigma sqrt(r))
+    ground_residuals: np.ndarray  # (P, 3) E, N, H of computed - observed (control points; NaN else)
     iterations: int
-    converged: bool                     # the last point update was below the tolerance
-    last_update: float                  # the last iteration's largest point update (m)
-    effects: np.ndarray                 # largest image effect (px) of each free unknown (NaN: fixed)
-    removed: list = field(default_factory=list)   # (point name, image id, w) of removed blunders
+    converged: bool  # the last point update was below the tolerance
+    last_update: float  # the last iteration's largest point update (m)
+    effects: np.ndarray  # largest image effect (px) of each free unknown (NaN: fixed)
+    removed: list = field(default_factory=list)  # (point name, image id, w) of removed blunders
     log: list = field(default_factory=list)
-    notes: list = field(default_factory=list)     # what the report must say: points left out, not converged
+    notes: list = field(default_factory=list)  # what the report must say: points left out, not converged
 
     def flagged(self, critical=CRITICAL_W):
         """Indices of measurements with |w| > critical in col or row."""
@@ -105,21 +106,21 @@ class _Geometry:
         free_index = np.full(len(params), -1, np.int64)
         free_index[params.free] = np.arange(params.free.sum())
         self.nfree = int(params.free.sum())
-        used = [np.flatnonzero(np.any(params.jacobian_map(i) != 0.0, axis=0) & (free_index >= 0))
-                for i in self.images]
+        used = [np.flatnonzero(np.any(params.jacobian_map(i) != 0.0, axis=0) & (free_index >= 0)) for i in self.images]
         width = max([u.size for u in used], default=0)
         self.col = np.full((len(self.images), width), -1, np.int64)
         self.map_entries = []
         for s, i in enumerate(self.images):
             tmap = params.jacobian_map(i)
-            self.col[s, :used[s].size] = free_index[used[s]]
+            self.col[s, : used[s].size] = free_index[used[s]]
             compact = np.zeros((tmap.shape[0], width))
-            compact[:, :used[s].size] = tmap[:, used[s]]
+            compact[:, : used[s].size] = tmap[:, used[s]]
             coef, cols = np.nonzero(compact)
             self.map_entries.append((coef, cols, compact[coef, cols]))
         # the exterior orientation's partials are needed where one of its coefficients is free
-        self.exterior = [bool((e[0] < params.models[i].EXTERIOR_COEFFICIENTS).any())
-                         for e, i in zip(self.map_entries, self.images)]
+        self.exterior = [
+            bool((e[0] < params.models[i].EXTERIOR_COEFFICIENTS).any()) for e, i in zip(self.map_entries, self.images)
+        ]
 
     def point_orientation_blocks(self, a, b):
         """sum_j A_j' W B_j per point, (P, 3, nfree): the coupling of each point with the free
@@ -175,8 +176,9 @@ def start_points(models, obs, height):
     usable = p["role"] == "control"
     rest = np.isin(m["point"], np.flatnonzero(~usable))
     if rest.any():
-        ids, lon_r, lat_r, h_r, ok = closest_points(models, m["image_id"][rest], m["point"][rest], m["col"][rest],
-                                                    m["row"][rest], h0=height)
+        ids, lon_r, lat_r, h_r, ok = closest_points(
+            models, m["image_id"][rest], m["point"][rest], m["col"][rest], m["row"][rest], h0=height
+        )
         lon[ids], lat[ids], h[ids] = lon_r, lat_r, h_r
         usable[ids] = ok
     return lon, lat, h, usable
@@ -237,11 +239,17 @@ def find_defects(normal, labels, threshold=DEFECT_EIGENVALUE, prior=None):
     if not groups:
         return None
     unused = np.diag(normal) <= 0
-    parts = [f"{g[0]} (no measurement depends on it)" if len(g) == 1 and unused[labels.index(g[0])]
-             else " with ".join(g[:4]) for g in groups]
-    return DefectError("these orientation parameters cannot be determined from these points: " + "; ".join(parts)
-                       + ". Add control points (or spread them wider), fix these parameters or give them "
-                       "prior sigmas", groups)
+    parts = [
+        f"{g[0]} (no measurement depends on it)" if len(g) == 1 and unused[labels.index(g[0])] else " with ".join(g[:4])
+        for g in groups
+    ]
+    return DefectError(
+        "these orientation parameters cannot be determined from these points: "
+        + "; ".join(parts)
+        + ". Add control points (or spread them wider), fix these parameters or give them "
+        "prior sigmas",
+        groups,
+    )
 
 
 def prior_sigmas(params, priors):
@@ -255,9 +263,24 @@ def prior_sigmas(params, priors):
     return sigma
 
 
-def adjust(models, observations, free, names=None, height=0.0, max_iterations=15, tolerance=1e-4,
-           remove_blunders=False, critical=CRITICAL_W, max_removals=50, priors=None, model="polynomial",
-           orientation_images=4, defect_eigenvalue=DEFECT_EIGENVALUE, effects=True, feedback=None):
+def adjust(
+    models,
+    observations,
+    free,
+    names=None,
+    height=0.0,
+    max_iterations=15,
+    tolerance=1e-4,
+    remove_blunders=False,
+    critical=CRITICAL_W,
+    max_removals=50,
+    priors=None,
+    model="polynomial",
+    orientation_images=4,
+    defect_eigenvalue=DEFECT_EIGENVALUE,
+    effects=True,
+    feedback=None,
+):
     """Bundle adjustment (module docstring). models {image_id: model} (edited in place: they carry
     the solution); observations: Observations (check points are ignored here); free: bool mask or
     a list of names/patterns for parameters.OrientationParameters.select; height: mean terrain
@@ -294,8 +317,10 @@ def adjust(models, observations, free, names=None, height=0.0, max_iterations=15
         name = result.observations.points["name"][mw["point"]]
         wmax = float(np.nanmax(np.abs(result.normalised[worst])))
         removed.append((str(name), int(mw["image_id"]), wmax))
-        progress.ensure(feedback).pushInfo(f"data snooping: removed the measurement of {name} in "
-                                           f"{params.names[int(mw['image_id'])]} (|w| = {wmax:.1f}); re-adjusting")
+        progress.ensure(feedback).pushInfo(
+            f"data snooping: removed the measurement of {name} in "
+            f"{params.names[int(mw['image_id'])]} (|w| = {wmax:.1f}); re-adjusting"
+        )
         keep = np.ones(len(used.measurements), bool)
         keep[_measurement_index(used, result.observations, worst)] = False
         used = Observations(used.points, used.measurements[keep])
@@ -317,8 +342,10 @@ def _measured(obs, notes):
     if not unmeasured.any():
         return obs
     names = obs.points["name"][unmeasured]
-    notes.append(f"{names.size} control point(s) without an image measurement take no part: {_named(names, 10)} "
-                 "(measure them in at least one image to use them)")
+    notes.append(
+        f"{names.size} control point(s) without an image measurement take no part: {_named(names, 10)} "
+        "(measure them in at least one image to use them)"
+    )
     return obs.subset(~unmeasured)
 
 
@@ -328,8 +355,10 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, ef
     obs = _measured(obs, notes)
     lon, lat, h, usable = start_points(params.models, obs, height)
     if not usable.all():
-        notes.append(f"{(~usable).sum()} point(s) left out: they cannot be intersected (fewer than two rays, "
-                     f"outside an image or no convergence): {_named(obs.points['name'][~usable])}")
+        notes.append(
+            f"{(~usable).sum()} point(s) left out: they cannot be intersected (fewer than two rays, "
+            f"outside an image or no convergence): {_named(obs.points['name'][~usable])}"
+        )
         obs = obs.subset(usable)
         lon, lat, h = lon[usable], lat[usable], h[usable]
     pts = obs.points
@@ -357,15 +386,19 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, ef
                 raise defects
             n_obs, redundancy = _redundancy(geo, pts, ok, prior)
             if redundancy <= 0:
-                raise InputError(f"too few observations: {n_obs} for {n_obs - redundancy} unknowns ({nfree} "
-                                 f"orientation, 3 per point): measure more points, in more images, or fix "
-                                 "parameters")
+                raise InputError(
+                    f"too few observations: {n_obs} for {n_obs - redundancy} unknowns ({nfree} "
+                    f"orientation, 3 per point): measure more points, in more images, or fix "
+                    "parameters"
+                )
         do = _solve_scaled(normal, rhs, labels, prior)
         normals.back_substitute(start, a, b, geo.w, geo.img, col, ninv, bp, ok, do, dx)
         step = float(np.max(np.abs(dx))) if n_pts else 0.0
         if not (np.isfinite(step) and np.isfinite(do).all()):
-            raise GeometryError(f"the adjustment's update in iteration {iteration} is not finite: the normal "
-                                "equations are numerically singular. " + _DIVERGED)
+            raise GeometryError(
+                f"the adjustment's update in iteration {iteration} is not finite: the normal "
+                "equations are numerically singular. " + _DIVERGED
+            )
         x[params.free] += do
         params.apply(x)
         lon, lat, h = offset_enu(lon, lat, h, dx)
@@ -375,9 +408,11 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, ef
             converged = True
             break
     else:
-        notes.append(f"NOT CONVERGED in {max_iterations} iteration(s): the last point update was {step:.3g} m "
-                     f"(tolerance {tolerance:g} m); the solution and its statistics are not those of the least "
-                     "squares adjustment")
+        notes.append(
+            f"NOT CONVERGED in {max_iterations} iteration(s): the last point update was {step:.3g} m "
+            f"(tolerance {tolerance:g} m); the solution and its statistics are not those of the least "
+            "squares adjustment"
+        )
         log.append(notes[-1])
     # statistics at the solution
     if converged:
@@ -399,7 +434,7 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, ef
     control = pts["role"] == "control"
     redundancy = _redundancy(geo, pts, ok, prior)[1]
     vpv = float(np.sum(v * v * geo.w) + np.sum(vg * vg * wg)) + vpv_prior
-    sigma0 = s0 = float(np.sqrt(vpv / redundancy))          # redundancy > 0: checked in the first iteration
+    sigma0 = s0 = float(np.sqrt(vpv / redundancy))  # redundancy > 0: checked in the first iteration
     sigmas = np.full(len(params), np.nan)
     sigmas[params.free] = s0 * np.sqrt(np.diag(qoo))
     sig_l = 1.0 / np.sqrt(geo.w)
@@ -408,22 +443,42 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, ef
     ground_res[control] = vg[control]
     back = np.empty_like(geo.order)
     back[geo.order] = np.arange(len(geo.order))
-    log.append(f"sigma_0 {sigma0:.4f} (a priori 1), redundancy {redundancy}, {nfree} orientation unknowns, "
-               f"{n_pts} points, {len(geo.meas)} image measurements")
+    log.append(
+        f"sigma_0 {sigma0:.4f} (a priori 1), redundancy {redundancy}, {nfree} orientation unknowns, "
+        f"{n_pts} points, {len(geo.meas)} image measurements"
+    )
     for line in log:
         fb.pushInfo(line)
-    return Adjustment(parameters=params, values=x.copy(), sigmas=sigmas, covariance=s0 ** 2 * qoo, sigma0=sigma0,
-                      redundancy=redundancy, observations=obs, lon=lon, lat=lat, h=h,
-                      point_sigmas=s0 * np.sqrt(np.abs(np.diagonal(qpp, axis1=1, axis2=2))),
-                      residuals=v[back], redundancy_numbers=red[back], normalised=normalised[back],
-                      ground_residuals=ground_res, iterations=iteration, converged=converged, last_update=step,
-                      effects=params.max_effects(x, height) if effects else np.full(len(params), np.nan),
-                      log=log, notes=notes)
+    return Adjustment(
+        parameters=params,
+        values=x.copy(),
+        sigmas=sigmas,
+        covariance=s0**2 * qoo,
+        sigma0=sigma0,
+        redundancy=redundancy,
+        observations=obs,
+        lon=lon,
+        lat=lat,
+        h=h,
+        point_sigmas=s0 * np.sqrt(np.abs(np.diagonal(qpp, axis1=1, axis2=2))),
+        residuals=v[back],
+        redundancy_numbers=red[back],
+        normalised=normalised[back],
+        ground_residuals=ground_res,
+        iterations=iteration,
+        converged=converged,
+        last_update=step,
+        effects=params.max_effects(x, height) if effects else np.full(len(params), np.nan),
+        log=log,
+        notes=notes,
+    )
 
 
 #: what to do when the adjustment diverges
-_DIVERGED = ("Free fewer parameters (e.g. FREE look:0), give them prior sigmas, add control points or check "
-             "them and their measurements for gross errors")
+_DIVERGED = (
+    "Free fewer parameters (e.g. FREE look:0), give them prior sigmas, add control points or check "
+    "them and their measurements for gross errors"
+)
 
 
 def _named(names, limit=5):
@@ -445,28 +500,41 @@ def _check_linearisation(geo, pts, position, arrays, ok, iteration):
         lon, lat, h = (float(c[p]) for c in position)
         where = f"point {pts['name'][p]} at lon {lon:.6f}, lat {lat:.6f}, h {h:.1f} m"
         if iteration == 1:
-            cause = ("where these points start, the sensor models give no image position: they lie outside the "
-                     "models' valid domain (check their coordinates and measurements, or leave them out)")
+            cause = (
+                "where these points start, the sensor models give no image position: they lie outside the "
+                "models' valid domain (check their coordinates and measurements, or leave them out)"
+            )
         else:
-            cause = (f"the adjustment diverged: its update in iteration {iteration - 1} moved the orientation or "
-                     f"the points where the sensor models are not valid. {_DIVERGED}")
-        raise GeometryError(f"{int(bad.sum())} image measurement(s) have no finite image position or derivatives "
-                            f"(points {_named(points)}; images {_named(images)}; first: {where}): {cause}")
+            cause = (
+                f"the adjustment diverged: its update in iteration {iteration - 1} moved the orientation or "
+                f"the points where the sensor models are not valid. {_DIVERGED}"
+            )
+        raise GeometryError(
+            f"{int(bad.sum())} image measurement(s) have no finite image position or derivatives "
+            f"(points {_named(points)}; images {_named(images)}; first: {where}): {cause}"
+        )
     if not ok.all():
-        raise GeometryError(f"the image rays of point(s) {_named(pts['name'][~ok])} do not determine them in "
-                            f"iteration {iteration} (parallel rays): leave them out or measure them in an image "
-                            f"that sees them from another direction")
+        raise GeometryError(
+            f"the image rays of point(s) {_named(pts['name'][~ok])} do not determine them in "
+            f"iteration {iteration} (parallel rays): leave them out or measure them in an image "
+            f"that sees them from another direction"
+        )
     if not (np.isfinite(normal).all() and np.isfinite(rhs).all()):
-        raise GeometryError(f"the normal equations of iteration {iteration} overflow (not finite) although every "
-                            "image position and derivative is finite: check the sigmas of the measurements and "
-                            "control points (none may be near 0) and the priors")
+        raise GeometryError(
+            f"the normal equations of iteration {iteration} overflow (not finite) although every "
+            "image position and derivative is finite: check the sigmas of the measurements and "
+            "control points (none may be near 0) and the priors"
+        )
 
 
 def _redundancy(geo, pts, ok, prior):
     """(observations, redundancy = observations - unknowns) of the usable points `ok`: 2 per image
     measurement, 3 per control point and 1 per prior, against 3 per point and the free unknowns."""
-    n_obs = 2 * int(ok[geo.point_of].sum()) + 3 * int(((pts["role"] == "control") & ok).sum()) + \
-        int(np.count_nonzero(prior))
+    n_obs = (
+        2 * int(ok[geo.point_of].sum())
+        + 3 * int(((pts["role"] == "control") & ok).sum())
+        + int(np.count_nonzero(prior))
+    )
     return n_obs, n_obs - 3 * int(ok.sum()) - geo.nfree
 
 
@@ -478,8 +546,9 @@ def _linearise(geo, pts, lon, lat, h, prior, xfree, ninv, bp, ok):
     a, b, l = geo.linearise(lon, lat, h)
     wg, lg = _ground_weights(pts, lon, lat, h)
     normal, rhs = np.zeros((geo.nfree, geo.nfree)), np.zeros(geo.nfree)
-    cost = normals.reduce_normals(geo.start, a, b, l, geo.w, geo.img, geo.col, wg, lg, geo.nfree, normal, rhs,
-                                  ninv, bp, ok)
+    cost = normals.reduce_normals(
+        geo.start, a, b, l, geo.w, geo.img, geo.col, wg, lg, geo.nfree, normal, rhs, ninv, bp, ok
+    )
     cost += _add_priors(normal, rhs, prior, xfree)
     return a, b, l, wg, normal, rhs, cost
 
@@ -515,9 +584,13 @@ def _solve_jacobi(normal, rhs, labels=None, prior=None):
         vec = np.linalg.eigh(scaled)[1][:, 0]
         order = np.argsort(-np.abs(vec))
         group = [labels[q] for q in order[np.abs(vec[order]) > DEFECT_MEMBER]]
-        error = DefectError("the normal equations became singular during the iteration, in the combination of "
-                            + " with ".join(group[:4]) + ". Fix some of these parameters or give them prior "
-                            "sigmas", [group])
+        error = DefectError(
+            "the normal equations became singular during the iteration, in the combination of "
+            + " with ".join(group[:4])
+            + ". Fix some of these parameters or give them prior "
+            "sigmas",
+            [group],
+        )
     raise error
 
 
@@ -551,8 +624,14 @@ def _check_points(adjustment, observations, height):
     chk = observations.subset(observations.points["role"] == "check")
     m = chk.measurements
     if not len(m):
-        return {"names": chk.points["name"][:0], "dE": np.zeros(0), "dN": np.zeros(0), "dH": np.zeros(0),
-                "sigma": np.zeros((0, 3)), "left_out": list(chk.points["name"])}
+        return {
+            "names": chk.points["name"][:0],
+            "dE": np.zeros(0),
+            "dN": np.zeros(0),
+            "dH": np.zeros(0),
+            "sigma": np.zeros((0, 3)),
+            "left_out": list(chk.points["name"]),
+        }
     cut = intersect(params.models, m["image_id"], m["point"], m["col"], m["row"], m["sigma"], h0=height)
     left_out = list(chk.points["name"][~np.isin(np.arange(len(chk.points)), cut.point[cut.ok])])
     chk = chk.subset(np.isin(np.arange(len(chk.points)), cut.point[cut.ok]))
@@ -561,12 +640,17 @@ def _check_points(adjustment, observations, height):
     geo = _Geometry(params, chk)
     a, b, _ = geo.linearise(lon, lat, h)
     g = -ninv @ geo.point_orientation_blocks(a, b)
-    cov = adjustment.sigma0 ** 2 * ninv + g @ adjustment.covariance @ np.swapaxes(g, 1, 2)
+    cov = adjustment.sigma0**2 * ninv + g @ adjustment.covariance @ np.swapaxes(g, 1, 2)
     e_deg, n_deg = metres_per_degree(pts["lat"], pts["h"])
     ground = np.column_stack([pts["sigma_e"], pts["sigma_n"], pts["sigma_h"]])
-    return {"names": pts["name"], "dE": (lon - pts["lon"]) * e_deg, "dN": (lat - pts["lat"]) * n_deg,
-            "dH": h - pts["h"], "sigma": np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + np.nan_to_num(ground) ** 2),
-            "left_out": left_out}
+    return {
+        "names": pts["name"],
+        "dE": (lon - pts["lon"]) * e_deg,
+        "dN": (lat - pts["lat"]) * n_deg,
+        "dH": h - pts["h"],
+        "sigma": np.sqrt(np.diagonal(cov, axis1=1, axis2=2) + np.nan_to_num(ground) ** 2),
+        "left_out": left_out,
+    }
 
 
 class Restart:
@@ -584,5 +668,11 @@ class Restart:
     def __call__(self, free, observations=None, **overrides):
         self.base.apply(np.zeros(len(self.base)))
         self.count += 1
-        return adjust(self.models, self.observations if observations is None else observations, list(free),
-                      names=self.names, feedback=progress.quiet(self.feedback), **{**self.kwargs, **overrides})
+        return adjust(
+            self.models,
+            self.observations if observations is None else observations,
+            list(free),
+            names=self.names,
+            feedback=progress.quiet(self.feedback),
+            **{**self.kwargs, **overrides},
+        )

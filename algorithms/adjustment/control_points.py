@@ -24,6 +24,7 @@ Other columns are ignored with a warning. Errors name the line and column.
 
 Storage in the block: block/control_points.py (through block.Block).
 """
+
 import codecs
 import csv
 import io
@@ -40,7 +41,7 @@ from ..sigmas import IMAGE_SIGMA
 from . import point_plausibility
 from .observations import MEAS_DTYPE, POINT_DTYPE, Observations
 
-DEFAULT_SIGMAS = (2.5, 2.5, 2.2)    # ground east, north, height (m), Kornus et al. 2006
+DEFAULT_SIGMAS = (2.5, 2.5, 2.2)  # ground east, north, height (m), Kornus et al. 2006
 HEIGHT_TYPES = ("ellipsoidal", "orthometric")
 ROLES = ("control", "check")
 ALIASES = {"name": "id", "height": "h", "z": "h"}
@@ -63,8 +64,13 @@ def to_wgs84(x, y, definition):
 
 
 #: byte order marks and the encodings they announce (UTF-32 before UTF-16, whose mark begins UTF-32 LE's)
-BOMS = ((codecs.BOM_UTF8, "utf-8-sig"), (codecs.BOM_UTF32_LE, "utf-32"), (codecs.BOM_UTF32_BE, "utf-32"),
-        (codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16"))
+BOMS = (
+    (codecs.BOM_UTF8, "utf-8-sig"),
+    (codecs.BOM_UTF32_LE, "utf-32"),
+    (codecs.BOM_UTF32_BE, "utf-32"),
+    (codecs.BOM_UTF16_LE, "utf-16"),
+    (codecs.BOM_UTF16_BE, "utf-16"),
+)
 
 
 def decode(data, path):
@@ -79,11 +85,13 @@ def decode(data, path):
     try:
         return data.decode(encoding or "utf-8")
     except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
+        line = data[: exc.start].count(b"\n") + 1
         given = f"{encoding.upper()} (as its start tells)" if encoding else "UTF-8"
-        raise InputError(f"the point file {path} is not {given} text: byte {exc.start} (line {line}, "
-                         f"{data[exc.start:exc.start + 1]!r}) is not valid there. Save it as UTF-8 (in a spreadsheet: "
-                         "CSV UTF-8), or as Unicode text (UTF-16)") from None
+        raise InputError(
+            f"the point file {path} is not {given} text: byte {exc.start} (line {line}, "
+            f"{data[exc.start : exc.start + 1]!r}) is not valid there. Save it as UTF-8 (in a spreadsheet: "
+            "CSV UTF-8), or as Unicode text (UTF-16)"
+        ) from None
 
 
 class _Table:
@@ -104,7 +112,7 @@ class _Table:
         reader = csv.reader(io.StringIO(text), delimiter=delimiter)
         try:
             header = next(reader, None)
-        except csv.Error as exc:        # e.g. a lone carriage return inside the header line
+        except csv.Error as exc:  # e.g. a lone carriage return inside the header line
             raise InputError(f"{self.path} line 1: {exc}") from exc
         if not header or not any(h.strip() for h in header):
             raise InputError(f"{self.path} is empty: the first line must name the columns")
@@ -114,8 +122,10 @@ class _Table:
             for cells in reader:
                 if any(c.strip() for c in cells):
                     if len(cells) > len(self.header):
-                        raise InputError(f"{self.path} line {reader.line_num}: {len(cells)} fields, the header "
-                                         f"has {len(self.header)}")
+                        raise InputError(
+                            f"{self.path} line {reader.line_num}: {len(cells)} fields, the header "
+                            f"has {len(self.header)}"
+                        )
                     cells = [c.strip() for c in cells]
                     self.rows.append((reader.line_num, cells + [""] * (len(self.header) - len(cells))))
         except csv.Error as exc:
@@ -133,16 +143,23 @@ class _Table:
             key = ALIASES.get(low, low)
             if key in BASE_COLUMNS:
                 if key in self.base:
-                    raise InputError(f"{self.path}: columns {self.header[self.base[key]]!r} and {title!r} both "
-                                     f"give {key}")
+                    raise InputError(
+                        f"{self.path}: columns {self.header[self.base[key]]!r} and {title!r} both give {key}"
+                    )
                 self.base[key] = index
                 continue
-            ending = next((k for k in ("col", "row", "sigma") if low.endswith(f"_{k}{suffix}".lower())
-                           and len(low) > len(f"_{k}{suffix}")), None)
+            ending = next(
+                (
+                    k
+                    for k in ("col", "row", "sigma")
+                    if low.endswith(f"_{k}{suffix}".lower()) and len(low) > len(f"_{k}{suffix}")
+                ),
+                None,
+            )
             if ending is None:
                 self.ignored.append(title)
                 continue
-            prefix = title[:len(title) - len(f"_{ending}{suffix}")]
+            prefix = title[: len(title) - len(f"_{ending}{suffix}")]
             matches = [prefix] if prefix in image_names else by_lower.get(prefix.lower(), [])
             image = matches[0] if len(matches) == 1 else None
             if image is None:
@@ -153,8 +170,10 @@ class _Table:
                 raise InputError(f"{self.path}: two {ending} columns for image {image}")
             columns[ending] = index
         if unknown:
-            raise InputError(f"{self.path}: column(s) {', '.join(unknown)} name images that are not in the block; "
-                             f"the block's images are {', '.join(image_names)}")
+            raise InputError(
+                f"{self.path}: column(s) {', '.join(unknown)} name images that are not in the block; "
+                f"the block's images are {', '.join(image_names)}"
+            )
         for image, columns in self.images.items():
             for need in ("col", "row"):
                 if need not in columns:
@@ -167,8 +186,9 @@ class _Table:
         pair = ("lon", "lat") if has_geo or not has_xy else ("x", "y")
         for need in pair + ("h",):
             if need not in self.base:
-                raise InputError(f"{self.path}: no column '{need}'"
-                                 + (" (or x/y with a CRS)" if need in ("lon", "lat") else ""))
+                raise InputError(
+                    f"{self.path}: no column '{need}'" + (" (or x/y with a CRS)" if need in ("lon", "lat") else "")
+                )
         self.horizontal = pair
 
     def cell(self, cells, key):
@@ -183,20 +203,31 @@ class _Table:
         except ValueError:
             value = math.nan
         if not math.isfinite(value) or (positive and value <= 0):
-            raise InputError(f"{self.path} line {line}, column {self.header[index]}: {text!r} is not a "
-                             f"{'positive' if positive else 'finite'} number")
+            raise InputError(
+                f"{self.path} line {line}, column {self.header[index]}: {text!r} is not a "
+                f"{'positive' if positive else 'finite'} number"
+            )
         return value
 
 
-def read_csv(path, image_names, crs=None, heights="ellipsoidal", default_role="control", check_ids=(),
-             sigmas=DEFAULT_SIGMAS, image_sigma=IMAGE_SIGMA, suffix="", feedback=None):
+def read_csv(
+    path,
+    image_names,
+    crs=None,
+    heights="ellipsoidal",
+    default_role="control",
+    check_ids=(),
+    sigmas=DEFAULT_SIGMAS,
+    image_sigma=IMAGE_SIGMA,
+    suffix="",
+    feedback=None,
+):
     """Observations (control/check points and their image measurements) from the CSV `path`
     (format in the module docstring). `image_names` maps the block's image names to their ids
     ({name: id}); `crs` is the CRS of x/y columns (default WGS 84); `check_ids` names points that
     are check points whatever their role column says. Measurements are ordered by point, then
     image id."""
-    return _read_csv(path, image_names, crs, heights, default_role, check_ids, sigmas, image_sigma, suffix,
-                     feedback)[0]
+    return _read_csv(path, image_names, crs, heights, default_role, check_ids, sigmas, image_sigma, suffix, feedback)[0]
 
 
 def _read_csv(path, image_names, crs, heights, default_role, check_ids, sigmas, image_sigma, suffix, feedback):
@@ -219,34 +250,50 @@ def _read_csv(path, image_names, crs, heights, default_role, check_ids, sigmas, 
     for k, (line, cells) in enumerate(table.rows):
         name = table.cell(cells, "id")
         if not name or len(name) > NAME_LENGTH:
-            raise InputError(f"{table.path} line {line}: the point id must have 1 to {NAME_LENGTH} characters, "
-                             f"got {name!r}")
+            raise InputError(
+                f"{table.path} line {line}: the point id must have 1 to {NAME_LENGTH} characters, got {name!r}"
+            )
         if name in seen:
             raise InputError(f"{table.path} line {line}: point id {name!r} is used again (first on line {seen[name]})")
         seen[name] = line
         role = table.cell(cells, "role").lower() or default_role
         if role not in ROLES:
-            raise InputError(f"{table.path} line {line}, column {table.header[table.base['role']]}: role "
-                             f"{role!r} is not one of {', '.join(ROLES)}")
+            raise InputError(
+                f"{table.path} line {line}, column {table.header[table.base['role']]}: role "
+                f"{role!r} is not one of {', '.join(ROLES)}"
+            )
         points[k]["name"], points[k]["role"] = name, role
         horizontal = [table.number(line, cells, table.base[key]) for key in table.horizontal]
         points[k]["lon"], points[k]["lat"] = horizontal
         points[k]["h"] = table.number(line, cells, table.base["h"])
         for key, default in zip(("sigma_e", "sigma_n", "sigma_h"), sigmas):
-            points[k][key] = (table.number(line, cells, table.base[key], positive=True)
-                              if table.cell(cells, key) else default)
+            points[k][key] = (
+                table.number(line, cells, table.base[key], positive=True) if table.cell(cells, key) else default
+            )
         for image_id, columns in image_ids:
             given = [bool(cells[columns[key]]) for key in ("col", "row")]
             if not any(given):
                 continue
             if not all(given):
                 missing = columns["row" if given[0] else "col"]
-                raise InputError(f"{table.path} line {line}, column {table.header[missing]}: empty, but the "
-                                 "other image coordinate is given (give both or neither)")
-            sigma = (table.number(line, cells, columns["sigma"], positive=True)
-                     if "sigma" in columns and cells[columns["sigma"]] else image_sigma)
-            meas.append((k, image_id, table.number(line, cells, columns["col"]),
-                         table.number(line, cells, columns["row"]), sigma))
+                raise InputError(
+                    f"{table.path} line {line}, column {table.header[missing]}: empty, but the "
+                    "other image coordinate is given (give both or neither)"
+                )
+            sigma = (
+                table.number(line, cells, columns["sigma"], positive=True)
+                if "sigma" in columns and cells[columns["sigma"]]
+                else image_sigma
+            )
+            meas.append(
+                (
+                    k,
+                    image_id,
+                    table.number(line, cells, columns["col"]),
+                    table.number(line, cells, columns["row"]),
+                    sigma,
+                )
+            )
     if not len(points):
         raise InputError(f"{table.path} has no points (only a header)")
     check_ids = [c.strip() for c in (check_ids or []) if c.strip()]
@@ -268,13 +315,19 @@ def _ground_to_wgs84(points, table, crs, heights, lines):
         if crs is not None and parse_crs(crs).IsProjected():
             degrees = (np.abs(points["lon"]) <= 180.0) & (np.abs(points["lat"]) <= 90.0)
         points["lon"], points["lat"] = to_wgs84(points["lon"], points["lat"], 4326 if crs is None else crs)
-    bad = ~(np.isfinite(points["lon"]) & np.isfinite(points["lat"]) & (np.abs(points["lat"]) <= 90.0)
-            & (np.abs(points["lon"]) <= 360.0))
+    bad = ~(
+        np.isfinite(points["lon"])
+        & np.isfinite(points["lat"])
+        & (np.abs(points["lat"]) <= 90.0)
+        & (np.abs(points["lon"]) <= 360.0)
+    )
     if bad.any():
         p = points[bad][0]
-        raise InputError(f"{table.path} line {lines[p['name']]}: point {p['name']} gives lon {p['lon']}, lat "
-                         f"{p['lat']}, not WGS 84 degrees: are lon/lat swapped, or are these projected "
-                         "coordinates (name the columns x, y and give their CRS)?")
+        raise InputError(
+            f"{table.path} line {lines[p['name']]}: point {p['name']} gives lon {p['lon']}, lat "
+            f"{p['lat']}, not WGS 84 degrees: are lon/lat swapped, or are these projected "
+            "coordinates (name the columns x, y and give their CRS)?"
+        )
     if heights == "orthometric":
         points["h"] = orthometric_to_ellipsoidal(points["lon"], points["lat"], points["h"])
     return degrees
@@ -293,15 +346,22 @@ def write_csv(path, observations, image_names):
     cells = np.full((len(points), 3 * len(columns)), "", dtype=object)
     for m in meas:
         c = 3 * columns[int(m["image_id"])]
-        cells[m["point"], c:c + 3] = [repr(float(m[key])) for key in ("col", "row", "sigma")]
+        cells[m["point"], c : c + 3] = [repr(float(m[key])) for key in ("col", "row", "sigma")]
     text = io.StringIO()
     writer = csv.writer(text, lineterminator="\n")
-    writer.writerow(["id", "role", "lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h"]
-                    + [f"{name}_{key}" for name in image_names for key in ("col", "row", "sigma")])
+    writer.writerow(
+        ["id", "role", "lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h"]
+        + [f"{name}_{key}" for name in image_names for key in ("col", "row", "sigma")]
+    )
     for p, extra in zip(points, cells):
-        writer.writerow([p["name"], p["role"]] + ["" if math.isnan(p[key]) else repr(float(p[key]))
-                                                  for key in ("lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h")]
-                        + list(extra))
+        writer.writerow(
+            [p["name"], p["role"]]
+            + [
+                "" if math.isnan(p[key]) else repr(float(p[key]))
+                for key in ("lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h")
+            ]
+            + list(extra)
+        )
     write_text(path, text.getvalue())
     return path
 
@@ -324,9 +384,11 @@ def check_extent(observations, images):
     for m in observations.measurements:
         cols, rows = sizes[int(m["image_id"])]
         if not (0.0 <= m["col"] <= cols and 0.0 <= m["row"] <= rows):
-            raise InputError(f"point {observations.points['name'][m['point']]}: measurement ({m['col']}, {m['row']}) "
-                             f"lies outside image {names[int(m['image_id'])]} ({cols} x {rows} px): are col and "
-                             "row swapped or the image columns mixed up?")
+            raise InputError(
+                f"point {observations.points['name'][m['point']]}: measurement ({m['col']}, {m['row']}) "
+                f"lies outside image {names[int(m['image_id'])]} ({cols} x {rows} px): are col and "
+                "row swapped or the image columns mixed up?"
+            )
 
 
 def check_plausible(blk, observations, degrees_as_projected=None, keep=False, feedback=None):
@@ -341,15 +403,25 @@ def check_plausible(blk, observations, degrees_as_projected=None, keep=False, fe
         return []
     shown = "; ".join(lines[:10]) + (f"; and {len(lines) - 10} more" if len(lines) > 10 else "")
     if not keep:
-        raise InputError(f"{len(lines)} point(s) do not lie where the block's images are, nothing was imported: "
-                         f"{shown}. Correct them, or import them anyway with the option to keep such points")
-    progress.ensure(feedback).pushInfo(f"warning: kept {len(lines)} point(s) that do not lie where the block's "
-                                       f"images are: {shown}")
+        raise InputError(
+            f"{len(lines)} point(s) do not lie where the block's images are, nothing was imported: "
+            f"{shown}. Correct them, or import them anyway with the option to keep such points"
+        )
+    progress.ensure(feedback).pushInfo(
+        f"warning: kept {len(lines)} point(s) that do not lie where the block's images are: {shown}"
+    )
     return lines
 
 
-def import_csv(blk, csv_path: str, mode: str = "replace", feedback=None, keep_implausible: bool = False,
-               replace_fewer: bool = False, **options) -> Observations:
+def import_csv(
+    blk,
+    csv_path: str,
+    mode: str = "replace",
+    feedback=None,
+    keep_implausible: bool = False,
+    replace_fewer: bool = False,
+    **options,
+) -> Observations:
     """Read `csv_path` (`read_csv` with `options`) against the images of the block `blk` (block.Block),
     check the measurements lie inside their images and the points where the images are (`check_plausible`;
     refused unless `keep_implausible`) and store the points (Block.save_control_points, `mode` replace or
@@ -357,8 +429,15 @@ def import_csv(blk, csv_path: str, mode: str = "replace", feedback=None, keep_im
     points now in the block."""
     images = blk.images()
     names = {r["name"]: r["id"] for r in images}
-    defaults = {"crs": None, "heights": "ellipsoidal", "default_role": "control", "check_ids": (),
-                "sigmas": DEFAULT_SIGMAS, "image_sigma": IMAGE_SIGMA, "suffix": ""}
+    defaults = {
+        "crs": None,
+        "heights": "ellipsoidal",
+        "default_role": "control",
+        "check_ids": (),
+        "sigmas": DEFAULT_SIGMAS,
+        "image_sigma": IMAGE_SIGMA,
+        "suffix": "",
+    }
     unknown = set(options) - set(defaults)
     if unknown:
         raise TypeError(f"unknown option(s) {sorted(unknown)}")
@@ -366,8 +445,7 @@ def import_csv(blk, csv_path: str, mode: str = "replace", feedback=None, keep_im
     observations, degrees = _read_csv(csv_path, names, feedback=feedback, **defaults)
     check_extent(observations, images)
     check_plausible(blk, observations, degrees, keep_implausible, feedback)
-    return blk.save_control_points(observations, mode=mode, feedback=feedback, names=names,
-                                   replace_fewer=replace_fewer)
+    return blk.save_control_points(observations, mode=mode, feedback=feedback, names=names, replace_fewer=replace_fewer)
 
 
 def export_csv(blk, csv_path):
@@ -375,8 +453,6 @@ def export_csv(blk, csv_path):
     returns them."""
     observations = blk.control_points()
     if not len(observations.points):
-        raise InputError(f"block {blk.path} has no control or check points: import some first "
-                         "(pushbroom:importpoints)")
+        raise InputError(f"block {blk.path} has no control or check points: import some first (pushbroom:importpoints)")
     write_csv(csv_path, observations, blk.image_ids())
     return observations
-

@@ -9,6 +9,7 @@ set holds the (n-1)-point one): four corners and the centre on an even spread, t
 Candidates not chosen take no part (neither control nor check). The check points are intersected
 with the adjusted models (bundle.check_points); a row gives the RMS of their dE, dN, dH, the RMS
 of their theoretical sigmas and sigma_0."""
+
 import copy
 from dataclasses import dataclass
 
@@ -25,9 +26,9 @@ from .bundle import adjust, check_points
 class SeriesRow:
     """One adjustment of the series."""
 
-    control: tuple           # names of its control points
-    check: int               # check points intersected
-    rms: np.ndarray          # (3,) RMS of dE, dN, dH (m)
+    control: tuple  # names of its control points
+    check: int  # check points intersected
+    rms: np.ndarray  # (3,) RMS of dE, dN, dH (m)
     theoretical: np.ndarray  # (3,) RMS of their theoretical sigmas E, N, H (m)
     sigma0: float
     redundancy: int
@@ -49,8 +50,7 @@ def farthest_points(lon, lat, count):
     return np.array(chosen)
 
 
-def control_point_series(models, observations, counts, free, names=None, height=0.0, feedback=None,
-                         **adjust_kwargs):
+def control_point_series(models, observations, counts, free, names=None, height=0.0, feedback=None, **adjust_kwargs):
     """SeriesRows for each control point count in `counts` (module docstring). models: {image_id:
     model} (not edited: each row adjusts a copy); observations: the candidates as control points,
     the check and tie points; free, names, height and `adjust_kwargs` (model, priors, ...) as
@@ -71,14 +71,26 @@ def control_point_series(models, observations, counts, free, names=None, height=
         keep = roles != "control"
         keep[order[:n]] = True
         used = obs.subset(keep)
-        result = adjust(copy.deepcopy(models), used, free, names=names, height=height,
-                        feedback=progress.scaled(feedback, 100.0 * k / len(counts), 100.0 * (k + 1) / len(counts)),
-                        **adjust_kwargs)
+        result = adjust(
+            copy.deepcopy(models),
+            used,
+            free,
+            names=names,
+            height=height,
+            feedback=progress.scaled(feedback, 100.0 * k / len(counts), 100.0 * (k + 1) / len(counts)),
+            **adjust_kwargs,
+        )
         check = check_points(result, used, height)
         table = statistics_table({key: check[key] for key in ("dE", "dN", "dH")})
-        rows.append(SeriesRow(control=tuple(str(s) for s in obs.points["name"][order[:n]]), check=len(check["dE"]),
-                              rms=np.array([table[key][4] for key in ("dE", "dN", "dH")]),
-                              theoretical=np.sqrt(np.mean(check["sigma"] ** 2, axis=0)),
-                              sigma0=result.sigma0, redundancy=result.redundancy))
+        rows.append(
+            SeriesRow(
+                control=tuple(str(s) for s in obs.points["name"][order[:n]]),
+                check=len(check["dE"]),
+                rms=np.array([table[key][4] for key in ("dE", "dN", "dH")]),
+                theoretical=np.sqrt(np.mean(check["sigma"] ** 2, axis=0)),
+                sigma0=result.sigma0,
+                redundancy=result.redundancy,
+            )
+        )
     progress.step(feedback, 100.0)
     return rows

@@ -18,6 +18,7 @@ times on small arrays (the automatic selection runs dozens of adjustments of a f
 there, starting a parallel region and the idle threads' spinning cost more than the work, so
 `kernel_threads` runs them on the calling thread below SERIAL_MEASUREMENTS image measurements. The
 results do not depend on it: the points are reduced in CHUNKS chunks whatever the threads."""
+
 import contextlib
 import math
 from collections.abc import Iterator
@@ -106,12 +107,12 @@ def cholesky_solve(m, rhs, out):
                 t -= low[i, k] * low[j, k]
             low[i, j] = t / low[j, j]
     for c in range(rhs.shape[1]):
-        for i in range(n):                  # L y = rhs
+        for i in range(n):  # L y = rhs
             t = rhs[i, c]
             for k in range(i):
                 t -= low[i, k] * out[k, c]
             out[i, c] = t / low[i, i]
-        for i in range(n - 1, -1, -1):      # L' x = y
+        for i in range(n - 1, -1, -1):  # L' x = y
             t = out[i, c]
             for k in range(i + 1, n):
                 t -= low[k, i] * out[k, c]
@@ -139,8 +140,9 @@ def reduce_normals(start, a, b, l, w, img, col, wg, lg, nfree, normal, rhs, ninv
         c = np.zeros((3, nfree))
         used = np.zeros(nfree, np.bool_)
         for p in range(k * npts // chunks, (k + 1) * npts // chunks):
-            costs[k] += _reduce_point(p, start, a, b, l, w, img, col, wg, lg, nfree, normals[k], rhss[k], ninv, bp,
-                                      ok, npp, c, used)
+            costs[k] += _reduce_point(
+                p, start, a, b, l, w, img, col, wg, lg, nfree, normals[k], rhss[k], ninv, bp, ok, npp, c, used
+            )
     for k in range(chunks):
         normal += normals[k]
         rhs += rhss[k]

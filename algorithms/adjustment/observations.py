@@ -9,6 +9,7 @@ of the ground coordinates east/north/up in metres (NaN where not observed).
 `Measurements` (MEAS_DTYPE), one row per image measurement: index of its point in the points
 array, block image id, col/row (GDAL convention) and the a priori standard deviation (px, the
 same for col and row)."""
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,8 +18,18 @@ from ..errors import InputError
 from ..sigmas import IMAGE_SIGMA
 
 ROLES = ("control", "check", "tie")
-POINT_DTYPE = np.dtype([("name", "U32"), ("role", "U7"), ("lon", "f8"), ("lat", "f8"), ("h", "f8"),
-                        ("sigma_e", "f8"), ("sigma_n", "f8"), ("sigma_h", "f8")])
+POINT_DTYPE = np.dtype(
+    [
+        ("name", "U32"),
+        ("role", "U7"),
+        ("lon", "f8"),
+        ("lat", "f8"),
+        ("h", "f8"),
+        ("sigma_e", "f8"),
+        ("sigma_n", "f8"),
+        ("sigma_h", "f8"),
+    ]
+)
 MEAS_DTYPE = np.dtype([("point", "i8"), ("image_id", "i8"), ("col", "f8"), ("row", "f8"), ("sigma", "f8")])
 
 
@@ -38,8 +49,9 @@ class Observations:
         p, m = self.points, self.measurements
         bad_role = ~np.isin(p["role"], ROLES)
         if bad_role.any():
-            raise InputError(f"point {p['name'][bad_role][0]!r} has role {p['role'][bad_role][0]!r}; "
-                             f"roles are {', '.join(ROLES)}")
+            raise InputError(
+                f"point {p['name'][bad_role][0]!r} has role {p['role'][bad_role][0]!r}; roles are {', '.join(ROLES)}"
+            )
         ground = p["role"] != "tie"
         missing = ground & ~(np.isfinite(p["lon"]) & np.isfinite(p["lat"]) & np.isfinite(p["h"]))
         if missing.any():
@@ -54,8 +66,10 @@ class Observations:
             raise InputError("every image measurement needs a positive sigma")
         blank = ~(np.isfinite(m["col"]) & np.isfinite(m["row"]))
         if blank.any():
-            raise InputError(f"the measurement of point {p['name'][m['point'][blank][0]]!r} in image id "
-                             f"{m['image_id'][blank][0]} has no image coordinates (col, row must be numbers)")
+            raise InputError(
+                f"the measurement of point {p['name'][m['point'][blank][0]]!r} in image id "
+                f"{m['image_id'][blank][0]} has no image coordinates (col, row must be numbers)"
+            )
         names, counts = np.unique(p["name"], return_counts=True)
         if (counts > 1).any():
             raise InputError(f"point name {names[counts > 1][0]!r} is used twice")
@@ -78,8 +92,7 @@ class Observations:
         """These observations followed by `other`'s (their point indices shifted)."""
         m = other.measurements.copy()
         m["point"] += len(self.points)
-        return Observations(np.concatenate([self.points, other.points]),
-                            np.concatenate([self.measurements, m]))
+        return Observations(np.concatenate([self.points, other.points]), np.concatenate([self.measurements, m]))
 
 
 def tie_observations(multipoints, sigma=IMAGE_SIGMA, prefix="T"):

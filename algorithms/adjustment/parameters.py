@@ -31,6 +31,7 @@ col += A0 + A1 u + A2 v, row += B0 + B1 u + B2 v, u, v = image coordinates / 100
 
 The unknowns are increments to the supplied corrections, so a block adjusted twice continues from
 the first adjustment's result."""
+
 from dataclasses import dataclass
 from math import comb
 
@@ -44,8 +45,7 @@ EXTERIOR = ("X", "Y", "Z", "yaw", "pitch", "roll")
 OFFSETS = ("offset_X", "offset_Y", "offset_Z")
 MODELS = ("polynomial", "lagrange")
 #: select patterns lagrange:<set> of the Lagrange model
-LAGRANGE_SETS = {"attitude": EXTERIOR[3:], "position": EXTERIOR[:3], "offset": OFFSETS,
-                 "all": EXTERIOR + OFFSETS}
+LAGRANGE_SETS = {"attitude": EXTERIOR[3:], "position": EXTERIOR[:3], "offset": OFFSETS, "all": EXTERIOR + OFFSETS}
 #: orientation images per trajectory (Heipke et al. 1992, section 3: four, about 2000 lines apart); at most 4
 #: (module docstring)
 ORIENTATION_IMAGES = 4
@@ -58,9 +58,19 @@ BIAS_SETS = {"shift": ("A0", "B0"), "drift": ("A0", "A2", "B0", "B2"), "affine":
 #: a trajectory: one mission, image centre times within this many seconds
 PASS_SECONDS = 600.0
 #: display units of the parameters (value multiplied by the factor)
-UNITS = {"X": ("m", 1.0), "Y": ("m", 1.0), "Z": ("m", 1.0), "yaw": ("urad", 1e6), "pitch": ("urad", 1e6),
-         "roll": ("urad", 1e6), "psi_x": ("urad", 1e6), "psi_y": ("urad", 1e6),
-         "offset_X": ("m", 1.0), "offset_Y": ("m", 1.0), "offset_Z": ("m", 1.0)}
+UNITS = {
+    "X": ("m", 1.0),
+    "Y": ("m", 1.0),
+    "Z": ("m", 1.0),
+    "yaw": ("urad", 1e6),
+    "pitch": ("urad", 1e6),
+    "roll": ("urad", 1e6),
+    "psi_x": ("urad", 1e6),
+    "psi_y": ("urad", 1e6),
+    "offset_X": ("m", 1.0),
+    "offset_Y": ("m", 1.0),
+    "offset_Z": ("m", 1.0),
+}
 
 
 def shift_matrix(d):
@@ -84,11 +94,11 @@ def lagrange_matrix(node_times, centre_time, time_scale):
 
 @dataclass
 class Parameter:
-    name: str          # e.g. "pass 1 pitch_1", "HRS2 psi_y_0", "pass 1 roll@2"
-    owner: str         # trajectory or image label
-    kind: str          # X .. roll, psi_x, psi_y, A0 .. B2, offset_X .. offset_Z
-    degree: int        # polynomial degree (0 for bias, offset and orientation-image terms)
-    node: int = -1     # orientation image of the Lagrange model (-1: none)
+    name: str  # e.g. "pass 1 pitch_1", "HRS2 psi_y_0", "pass 1 roll@2"
+    owner: str  # trajectory or image label
+    kind: str  # X .. roll, psi_x, psi_y, A0 .. B2, offset_X .. offset_Z
+    degree: int  # polynomial degree (0 for bias, offset and orientation-image terms)
+    node: int = -1  # orientation image of the Lagrange model (-1: none)
 
 
 def _epoch_seconds(orientation):
@@ -123,9 +133,11 @@ class OrientationParameters:
         if model not in MODELS:
             raise InputError(f"the orientation model must be one of {', '.join(MODELS)}, not {model!r}")
         if model == "lagrange" and orientation_images not in (2, 3, 4):
-            raise InputError(f"{orientation_images} orientation images per trajectory: the Lagrange model takes 2 "
-                             "to 4 (more would need a piecewise polynomial that the correction polynomials of the "
-                             "sensor model cannot hold); use 4, one cubic over the whole trajectory")
+            raise InputError(
+                f"{orientation_images} orientation images per trajectory: the Lagrange model takes 2 "
+                "to 4 (more would need a piecewise polynomial that the correction polynomials of the "
+                "sensor model cannot hold); use 4, one cubic over the whole trajectory"
+            )
         self.model = model
         self.models = dict(models)
         self.names = {i: (names or {}).get(i, f"image {i}") for i in self.models}
@@ -134,19 +146,24 @@ class OrientationParameters:
         spot = {i: m for i, m in self.models.items() if isinstance(m, SpotModel)}
         other = [i for i, m in self.models.items() if not isinstance(m, (SpotModel, RpcModel))]
         if other:
-            raise InputError(f"{self.names[other[0]]}: its model {self.models[other[0]]!r} has no adjustable "
-                             "orientation (SPOT rigorous and RPC models are supported)")
+            raise InputError(
+                f"{self.names[other[0]]}: its model {self.models[other[0]]!r} has no adjustable "
+                "orientation (SPOT rigorous and RPC models are supported)"
+            )
         self.trajectories = self._trajectories(spot)
         lagrange = model == "lagrange"
         #: per trajectory, the times of its orientation images (Lagrange model; s, as _absolute_time)
-        self.node_times = [node_times([spot[i] for i in members], orientation_images) if lagrange else None
-                           for members in self.trajectories]
+        self.node_times = [
+            node_times([spot[i] for i in members], orientation_images) if lagrange else None
+            for members in self.trajectories
+        ]
         cols = {}
         for t, members in enumerate(self.trajectories):
             label = "pass " + "+".join(self.names[i] for i in members)
             if lagrange:
-                cols[("traj", t)] = self._add(label, [(k, j) for k in EXTERIOR for j in range(orientation_images)],
-                                              nodes=True)
+                cols[("traj", t)] = self._add(
+                    label, [(k, j) for k in EXTERIOR for j in range(orientation_images)], nodes=True
+                )
                 self._add(label, [(k, 0) for k in OFFSETS])
             else:
                 cols[("traj", t)] = self._add(label, [(k, j) for k in EXTERIOR for j in range(4)])
@@ -166,23 +183,23 @@ class OrientationParameters:
                     w = lagrange_matrix(self.node_times[t], _absolute_time(spot[i]), c.time_scale)
                     nn = orientation_images
                     for k in range(6):
-                        tmap[4 * k:4 * k + 4, base + nn * k:base + nn * k + nn] = w
-                    for k in range(3):       # the offset is a constant: degree 0 of X, Y, Z
+                        tmap[4 * k : 4 * k + 4, base + nn * k : base + nn * k + nn] = w
+                    for k in range(3):  # the offset is a constant: degree 0 of X, Y, Z
                         tmap[4 * k, base + 6 * nn + k] = 1.0
                 else:
                     m = shift_matrix((_absolute_time(spot[i]) - t_ref) / c.time_scale)
                     for k in range(6):
-                        tmap[4 * k:4 * k + 4, base + 4 * k:base + 4 * k + 4] = m
-                tmap[24:32, cols[("look", i)]:cols[("look", i)] + 8] = np.eye(8)
+                        tmap[4 * k : 4 * k + 4, base + 4 * k : base + 4 * k + 4] = m
+                tmap[24:32, cols[("look", i)] : cols[("look", i)] + 8] = np.eye(8)
                 self._maps[i] = tmap
         for i, m in self.models.items():
             if isinstance(m, RpcModel):
                 tmap = np.zeros((6, n))
-                tmap[:, cols[("bias", i)]:cols[("bias", i)] + 6] = np.eye(6)
+                tmap[:, cols[("bias", i)] : cols[("bias", i)] + 6] = np.eye(6)
                 self._maps[i] = tmap
         self.initial = {i: self._coefficients(m).copy() for i, m in self.models.items()}
         self.free = np.zeros(n, bool)
-        self.prior_weights = np.zeros(n)       # 1 / sigma^2 of prior observations x = 0 (bundle.prior_sigmas)
+        self.prior_weights = np.zeros(n)  # 1 / sigma^2 of prior observations x = 0 (bundle.prior_sigmas)
 
     def _add(self, owner, terms, nodes=False):
         """Append parameters (kind, degree), or with `nodes` (kind, orientation image); returns the first's index."""
@@ -206,8 +223,11 @@ class OrientationParameters:
         for i in sorted(spot, key=lambda i: (spot[i].orientation.mission, _absolute_time(spot[i]))):
             o, t = spot[i].orientation, _absolute_time(spot[i])
             last = groups[-1] if groups else None
-            if last and spot[last[-1]].orientation.mission == o.mission and \
-                    abs(t - _absolute_time(spot[last[-1]])) < PASS_SECONDS:
+            if (
+                last
+                and spot[last[-1]].orientation.mission == o.mission
+                and abs(t - _absolute_time(spot[last[-1]])) < PASS_SECONDS
+            ):
                 last.append(i)
             else:
                 groups.append([i])
@@ -252,11 +272,16 @@ class OrientationParameters:
                 continue
             hit = self._match(item)
             if not hit.any():
-                lagrange = ("lagrange:attitude|position|offset|all, <kind>@<nodes>, offset_X|Y|Z"
-                            if self.model == "lagrange" else "exterior:<degree>, <kind>_<degrees>")
-                raise InputError(f"no orientation parameter matches {item!r}; parameters are named like "
-                                 f"{self.parameters[0].name!r}; patterns: look:<degree>, bias:shift|drift|affine, "
-                                 f"{lagrange}")
+                lagrange = (
+                    "lagrange:attitude|position|offset|all, <kind>@<nodes>, offset_X|Y|Z"
+                    if self.model == "lagrange"
+                    else "exterior:<degree>, <kind>_<degrees>"
+                )
+                raise InputError(
+                    f"no orientation parameter matches {item!r}; parameters are named like "
+                    f"{self.parameters[0].name!r}; patterns: look:<degree>, bias:shift|drift|affine, "
+                    f"{lagrange}"
+                )
             mask |= hit
         return mask
 
@@ -306,8 +331,10 @@ class OrientationParameters:
             y = x.copy()
             y[q] = 0.0
             self.apply(y)
-            effects[q] = max(float(np.max(np.hypot(*(np.subtract(self.models[i].ground_to_image(lon, lat, height),
-                                                                     (c, r))))))
-                             for i, (c, r, lon, lat) in grid.items() if self._maps[i][:, q].any())
+            effects[q] = max(
+                float(np.max(np.hypot(*(np.subtract(self.models[i].ground_to_image(lon, lat, height), (c, r))))))
+                for i, (c, r, lon, lat) in grid.items()
+                if self._maps[i][:, q].any()
+            )
         self.apply(x)
         return effects

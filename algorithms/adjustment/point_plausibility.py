@@ -35,6 +35,7 @@ when the rays meet among themselves) or which ray misses the others (a measureme
 how far its measurement lies from where the coordinates project. For a point off the footprints, `diagnose` says
 what its numbers look like: lon/lat swapped (the swapped position is inside a footprint), degrees given as
 projected x/y (x, y within +-180, +-90 in a projected CRS), or just how far it lies from the images."""
+
 import numpy as np
 from scipy.special import chdtri
 
@@ -64,16 +65,18 @@ def distance_to_polygon(x, y, ring):
     """Distance (same units) of points (x, y) from the closed polygon `ring` (n, 2): 0 inside."""
     x, y = np.atleast_1d(np.asarray(x, float)), np.atleast_1d(np.asarray(y, float))
     a, b = ring[:-1], ring[1:]
-    crosses = ((a[:, 1][:, None] > y) != (b[:, 1][:, None] > y))
+    crosses = (a[:, 1][:, None] > y) != (b[:, 1][:, None] > y)
     with np.errstate(divide="ignore", invalid="ignore"):
         at = a[:, 0][:, None] + (y - a[:, 1][:, None]) * (b[:, 0] - a[:, 0])[:, None] / (b[:, 1] - a[:, 1])[:, None]
     inside = np.logical_xor.reduce(crosses & (x < at), axis=0)
     d = b - a
-    length2 = np.maximum((d ** 2).sum(axis=1), 1e-300)[:, None]
-    t = np.clip(((x - a[:, 0][:, None]) * d[:, 0][:, None] + (y - a[:, 1][:, None]) * d[:, 1][:, None]) / length2,
-                0.0, 1.0)
-    dist = np.hypot(a[:, 0][:, None] + t * d[:, 0][:, None] - x,
-                    a[:, 1][:, None] + t * d[:, 1][:, None] - y).min(axis=0)
+    length2 = np.maximum((d**2).sum(axis=1), 1e-300)[:, None]
+    t = np.clip(
+        ((x - a[:, 0][:, None]) * d[:, 0][:, None] + (y - a[:, 1][:, None]) * d[:, 1][:, None]) / length2, 0.0, 1.0
+    )
+    dist = np.hypot(a[:, 0][:, None] + t * d[:, 0][:, None] - x, a[:, 1][:, None] + t * d[:, 1][:, None] - y).min(
+        axis=0
+    )
     return np.where(inside, 0.0, dist)
 
 
@@ -89,8 +92,9 @@ class Footprints:
         rings = {i: [m.footprint(h=h) for h in self.heights] for i, m in models.items()}
         everything = np.vstack([r for rs in rings.values() for r in rs])
         self.lon0, self.lat0 = float(everything[:, 0].mean()), float(everything[:, 1].mean())
-        self.rings = {i: [np.column_stack(_local(r[:, 0], r[:, 1], self.lon0, self.lat0)) for r in rs]
-                      for i, rs in rings.items()}
+        self.rings = {
+            i: [np.column_stack(_local(r[:, 0], r[:, 1], self.lon0, self.lat0)) for r in rs] for i, rs in rings.items()
+        }
         self.gsd = {}
         for i, m in models.items():
             x, y = self.rings[i][0][:-1].T
@@ -123,8 +127,14 @@ class Footprints:
             for step in (0.0, -RAY_STEP, RAY_STEP):
                 with np.errstate(all="ignore"):
                     lon, lat = model.image_to_ground_or_nan(m["col"][k], m["row"][k], pts["h"] + step)
-                ground.append(np.column_stack([((np.asarray(lon) - pts["lon"] + 180.0) % 360.0 - 180.0) * east,
-                                               (np.asarray(lat) - pts["lat"]) * north]))
+                ground.append(
+                    np.column_stack(
+                        [
+                            ((np.asarray(lon) - pts["lon"] + 180.0) % 360.0 - 180.0) * east,
+                            (np.asarray(lat) - pts["lat"]) * north,
+                        ]
+                    )
+                )
             offset[k], drift[k] = ground[0], (ground[2] - ground[1]) / (2.0 * RAY_STEP)
             sigma[k] = np.hypot(model.location_sigma, m["sigma"][k] * self.gsd[i])
         return offset, drift, sigma
@@ -135,15 +145,15 @@ def inconsistency(name, point, rows, rays, observations, names):
     POINT_DTYPE row named `name`) disagree with its coordinates, None where they agree (the consistency test and
     its diagnosis, module docstring). `rays`: Footprints.rays of `observations`; `names`: {image id: name}."""
     offset, drift, sigma = (v[rows] for v in rays)
-    w = 1.0 / sigma ** 2
-    if np.sum(w * (offset ** 2).sum(axis=1)) <= chdtri(2 * len(rows), FALSE_ALARM):
+    w = 1.0 / sigma**2
+    if np.sum(w * (offset**2).sum(axis=1)) <= chdtri(2 * len(rows), FALSE_ALARM):
         return None
     m = observations.measurements[rows]
 
     def where(j):
         return f"in {names[int(m['image_id'][j])]} at ({m['col'][j]:.1f}, {m['row'][j]:.1f})"
 
-    if len(rows) >= 2:      # the rays' intersection: o_j = s - d_j dh, in least squares
+    if len(rows) >= 2:  # the rays' intersection: o_j = s - d_j dh, in least squares
         a = np.zeros((2 * len(rows), 3))
         a[0::2, 0], a[1::2, 1], a[:, 2] = 1.0, 1.0, -drift.ravel()
         wv = np.repeat(w, 2)
@@ -151,40 +161,52 @@ def inconsistency(name, point, rows, rays, observations, names):
         if np.linalg.cond(normal) < MAX_CONDITION:
             x = np.linalg.solve(normal, a.T @ (wv * offset.ravel()))
             residual = (offset.ravel() - a @ x).reshape(-1, 2)
-            misses = w * (residual ** 2).sum(axis=1)
+            misses = w * (residual**2).sum(axis=1)
             if misses.sum() > chdtri(2 * len(rows) - 3, FALSE_ALARM):
                 if len(rows) == 2:
-                    return (f"{name}: its rays do not meet: those of its measurements {where(0)} and {where(1)} pass "
-                            f"{np.hypot(*(residual[0] - residual[1])):.0f} m apart, where the orientation's accuracy "
-                            f"allows about {SIGMAS_2D * np.hypot(*sigma):.0f} m: a measurement of another point, or in "
-                            "another image")
+                    return (
+                        f"{name}: its rays do not meet: those of its measurements {where(0)} and {where(1)} pass "
+                        f"{np.hypot(*(residual[0] - residual[1])):.0f} m apart, where the orientation's accuracy "
+                        f"allows about {SIGMAS_2D * np.hypot(*sigma):.0f} m: a measurement of another point, or in "
+                        "another image"
+                    )
                 j = int(np.argmax(misses))
-                return (f"{name}: its rays do not meet: the one of its measurement {where(j)} passes "
-                        f"{np.hypot(*residual[j]):.0f} m from where the others meet, where the orientation's accuracy "
-                        f"allows about {SIGMAS_2D * sigma[j]:.0f} m: a measurement of another point, or in another "
-                        "image")
+                return (
+                    f"{name}: its rays do not meet: the one of its measurement {where(j)} passes "
+                    f"{np.hypot(*residual[j]):.0f} m from where the others meet, where the orientation's accuracy "
+                    f"allows about {SIGMAS_2D * sigma[j]:.0f} m: a measurement of another point, or in another "
+                    "image"
+                )
             covariance = np.linalg.inv(normal)
             dh, across = float(x[2]), float(np.hypot(x[0], x[1]))
-            return (f"{name}: its measurements meet {abs(dh):.0f} m {'above' if dh > 0 else 'below'} its height "
-                    f"{point['h']:.1f} m and {across:.0f} m beside its position, where the orientation's accuracy "
-                    f"allows about {SIGMAS_1D * np.sqrt(covariance[2, 2]):.0f} m in height and "
-                    f"{SIGMAS_2D * np.sqrt(max(covariance[0, 0], covariance[1, 1])):.0f} m beside: its coordinates "
-                    "are wrong (a typo, another height datum or unit, another point's coordinates)")
-    j = int(np.argmax(w * (offset ** 2).sum(axis=1)))
-    return (f"{name}: measured {where(j)}, {np.hypot(*offset[j]) / 1000:.1f} km from where its coordinates project, "
-            f"where the orientation's accuracy allows about {SIGMAS_2D * sigma[j]:.0f} m: another point's measurement, "
-            "or coordinates in another CRS")
+            return (
+                f"{name}: its measurements meet {abs(dh):.0f} m {'above' if dh > 0 else 'below'} its height "
+                f"{point['h']:.1f} m and {across:.0f} m beside its position, where the orientation's accuracy "
+                f"allows about {SIGMAS_1D * np.sqrt(covariance[2, 2]):.0f} m in height and "
+                f"{SIGMAS_2D * np.sqrt(max(covariance[0, 0], covariance[1, 1])):.0f} m beside: its coordinates "
+                "are wrong (a typo, another height datum or unit, another point's coordinates)"
+            )
+    j = int(np.argmax(w * (offset**2).sum(axis=1)))
+    return (
+        f"{name}: measured {where(j)}, {np.hypot(*offset[j]) / 1000:.1f} km from where its coordinates project, "
+        f"where the orientation's accuracy allows about {SIGMAS_2D * sigma[j]:.0f} m: another point's measurement, "
+        "or coordinates in another CRS"
+    )
 
 
 def diagnose(name, lon, lat, distance, footprints, degrees_as_projected=False):
     """One line on why the point `name` is implausible and what its numbers look like."""
     if degrees_as_projected:
-        return (f"{name}: its x/y look like degrees, not coordinates of the projected CRS given (lies "
-                f"{distance / 1000:.0f} km from the images): name the columns lon, lat, or give the geographic CRS")
+        return (
+            f"{name}: its x/y look like degrees, not coordinates of the projected CRS given (lies "
+            f"{distance / 1000:.0f} km from the images): name the columns lon, lat, or give the geographic CRS"
+        )
     if abs(lon) <= 90.0 and footprints.distance(np.array([lat]), np.array([lon]))[0] <= MARGIN_M:
         return f"{name}: lon {lon:.6f} and lat {lat:.6f} look swapped (swapped, it lies on the images)"
-    return (f"{name}: lies {distance / 1000:.1f} km outside every image footprint (lon {lon:.6f}, lat {lat:.6f}): "
-            "check its coordinates and their CRS")
+    return (
+        f"{name}: lies {distance / 1000:.1f} km outside every image footprint (lon {lon:.6f}, lat {lat:.6f}): "
+        "check its coordinates and their CRS"
+    )
 
 
 def implausible_points(observations, footprints, degrees_as_projected=None):
@@ -192,13 +214,17 @@ def implausible_points(observations, footprints, degrees_as_projected=None):
     `degrees_as_projected`: bool per point, its x/y were within +-180, +-90 in a projected CRS."""
     p, m = observations.points, observations.measurements
     low, high = PLAUSIBLE_HEIGHTS
-    lines = [f"{p['name'][k]}: its height {p['h'][k]:g} m lies outside the heights of terrain on Earth ({low:g} .. "
-             f"{high:g} m): a height in another unit, or from another column"
-             for k in np.flatnonzero(outside_plausible(p["h"]))]
+    lines = [
+        f"{p['name'][k]}: its height {p['h'][k]:g} m lies outside the heights of terrain on Earth ({low:g} .. "
+        f"{high:g} m): a height in another unit, or from another column"
+        for k in np.flatnonzero(outside_plausible(p["h"]))
+    ]
     far = footprints.distance(p["lon"], p["lat"])
     flags = np.zeros(len(p), bool) if degrees_as_projected is None else np.asarray(degrees_as_projected, bool)
-    lines += [diagnose(p["name"][k], p["lon"][k], p["lat"][k], far[k], footprints, flags[k])
-              for k in np.flatnonzero((far > MARGIN_M) & ~outside_plausible(p["h"]))]
+    lines += [
+        diagnose(p["name"][k], p["lon"][k], p["lat"][k], far[k], footprints, flags[k])
+        for k in np.flatnonzero((far > MARGIN_M) & ~outside_plausible(p["h"]))
+    ]
     rays = footprints.rays(observations)
     usable = np.isfinite(rays[0]).all(axis=1) & np.isfinite(rays[1]).all(axis=1) & np.isfinite(rays[2])
     for k in np.flatnonzero((far <= MARGIN_M) & ~outside_plausible(p["h"])):

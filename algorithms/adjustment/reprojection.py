@@ -11,6 +11,7 @@ For the measurements of the points of the given roles in image i, with v = compu
     rms = sqrt(mean(v_col^2 + v_row^2))                 (RMS length of the residual vectors)
 
 and the same over all images (image_id ALL)."""
+
 import numpy as np
 
 from ..errors import InputError
@@ -18,8 +19,17 @@ from .observations import ROLES
 
 #: image_id of the row over all images
 ALL = -1
-RMS_DTYPE = np.dtype([("image_id", "i8"), ("n", "i8"), ("mean_col", "f8"), ("mean_row", "f8"),
-                      ("rms_col", "f8"), ("rms_row", "f8"), ("rms", "f8")])
+RMS_DTYPE = np.dtype(
+    [
+        ("image_id", "i8"),
+        ("n", "i8"),
+        ("mean_col", "f8"),
+        ("mean_row", "f8"),
+        ("rms_col", "f8"),
+        ("rms_row", "f8"),
+        ("rms", "f8"),
+    ]
+)
 
 
 def _row(image_id, v):

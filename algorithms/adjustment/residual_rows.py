@@ -10,6 +10,7 @@
   RMS of the point's 2k image residual coordinates (residual_vectors.per_point).
 
 Measurements the adjustment removed as blunders, points it left out and tie points have no rows."""
+
 import numpy as np
 
 from ..geodesy import offset_enu
@@ -46,10 +47,14 @@ def residual_rows(adjustment, check, observations):
     m = obs.measurements
     rms, _ = per_point(m["point"], len(obs.points), adjustment.residuals, adjustment.normalised)
     keep = roles[m["point"]] == "control"
-    meas_rows = [(str(obs.points["name"][k["point"]]), int(k["image_id"]), "control", *v, *w)
-                 for k, v, w in zip(m[keep], adjustment.residuals[keep], adjustment.normalised[keep])]
-    point_rows = [(str(obs.points["name"][p]), "control", *adjustment.ground_residuals[p], rms[p])
-                  for p in np.flatnonzero(roles == "control")]
+    meas_rows = [
+        (str(obs.points["name"][k["point"]]), int(k["image_id"]), "control", *v, *w)
+        for k, v, w in zip(m[keep], adjustment.residuals[keep], adjustment.normalised[keep])
+    ]
+    point_rows = [
+        (str(obs.points["name"][p]), "control", *adjustment.ground_residuals[p], rms[p])
+        for p in np.flatnonzero(roles == "control")
+    ]
     names, meas, v, w, rms = check_residuals(adjustment.parameters.models, check, observations)
     meas_rows += [(str(names[k["point"]]), int(k["image_id"]), "check", *vk, *wk) for k, vk, wk in zip(meas, v, w)]
     d = {str(n): (e, nn, h) for n, e, nn, h in zip(check["names"], check["dE"], check["dN"], check["dH"])}

@@ -14,6 +14,7 @@ residual|:
   over a point's k rays) and w = v / (sigma sqrt(r)).
 
 A point is flagged where any of its measurements has |w| > critical (Baarda's data snooping)."""
+
 import os
 
 import numpy as np
@@ -28,9 +29,25 @@ from .bundle import CRITICAL_W
 #: default exaggeration of the planimetric residuals on the map: a 1 m residual shows as a 1 km arrow,
 #: a few per cent of a SPOT scene's width
 DEFAULT_SCALE = 1000.0
-VECTOR_DTYPE = np.dtype([("name", "U32"), ("role", "U7"), ("x0", "f8"), ("y0", "f8"), ("x1", "f8"), ("y1", "f8"),
-                         ("dE", "f8"), ("dN", "f8"), ("dH", "f8"), ("sigma_e", "f8"), ("sigma_n", "f8"),
-                         ("sigma_h", "f8"), ("rms_px", "f8"), ("max_w", "f8"), ("flagged", "?")])
+VECTOR_DTYPE = np.dtype(
+    [
+        ("name", "U32"),
+        ("role", "U7"),
+        ("x0", "f8"),
+        ("y0", "f8"),
+        ("x1", "f8"),
+        ("y1", "f8"),
+        ("dE", "f8"),
+        ("dN", "f8"),
+        ("dH", "f8"),
+        ("sigma_e", "f8"),
+        ("sigma_n", "f8"),
+        ("sigma_h", "f8"),
+        ("rms_px", "f8"),
+        ("max_w", "f8"),
+        ("flagged", "?"),
+    ]
+)
 #: the attributes of a residual vector (VECTOR_DTYPE without the line's end points)
 ATTRIBUTES = tuple(n for n in VECTOR_DTYPE.names if n not in ("x0", "y0", "x1", "y1"))
 
@@ -109,8 +126,12 @@ def residual_vectors(result, check, observations, scale=DEFAULT_SCALE, crs=None,
     if crs is None:
         crs = f"EPSG:{utm_epsg(float(np.mean(ref[0])), float(np.mean(ref[1])))}" if len(out) else "EPSG:4326"
     end = offset_enu(*ref, np.column_stack([scale * out["dE"], scale * out["dN"], np.zeros(len(out))]))
-    xy = transform(wgs84(), srs(crs), np.column_stack([np.concatenate([ref[0], end[0]]),
-                                                      np.concatenate([ref[1], end[1]])]), "the residual vectors")
+    xy = transform(
+        wgs84(),
+        srs(crs),
+        np.column_stack([np.concatenate([ref[0], end[0]]), np.concatenate([ref[1], end[1]])]),
+        "the residual vectors",
+    )
     n = len(out)
     out["x0"], out["y0"], out["x1"], out["y1"] = xy[:n, 0], xy[:n, 1], xy[n:, 0], xy[n:, 1]
     return out, crs
@@ -130,8 +151,10 @@ def write_residual_vectors(path, vectors, crs, scale):
     if driver is None:
         raise InputError(f"write the residual vectors to a {', '.join(_DRIVERS)} file, not {path}")
     ogr.UseExceptions()
-    with atomic_path(path, "the residual vectors") as tmp, \
-            closing(ogr.GetDriverByName(driver).CreateDataSource(tmp)) as ds:
+    with (
+        atomic_path(path, "the residual vectors") as tmp,
+        closing(ogr.GetDriverByName(driver).CreateDataSource(tmp)) as ds,
+    ):
         layer = ds.CreateLayer("residual_vectors", srs(crs), ogr.wkbLineString)
         for name in ATTRIBUTES:
             field = ogr.FieldDefn(name, getattr(ogr, _OGR_TYPES[VECTOR_DTYPE[name].kind]))
@@ -139,7 +162,7 @@ def write_residual_vectors(path, vectors, crs, scale):
                 field.SetSubType(ogr.OFSTBoolean)
             layer.CreateField(field)
         layer.CreateField(ogr.FieldDefn("scale", ogr.OFTReal))
-        transaction = ds.TestCapability(ogr.ODsCTransactions)     # GeoPackage, not a shapefile
+        transaction = ds.TestCapability(ogr.ODsCTransactions)  # GeoPackage, not a shapefile
         if transaction:
             ds.StartTransaction()
         for v in vectors:

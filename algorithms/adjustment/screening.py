@@ -21,6 +21,7 @@ parameter set fits it. A point off in some images only has wrong measurements th
 and its ground coordinates hold it, and the adjustment's data snooping flags them (bundle.py), as it
 does everything smaller than SCREEN_THRESHOLD s. The offsets are given in pixels and in metres on the
 ground (the image's pixel size at the point)."""
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,19 +41,19 @@ SCREEN_THRESHOLD = 2.0 * CRITICAL_W
 class Suspect:
     """A control measurement the screen finds grossly off."""
 
-    point: int              # index in the observations' points
+    point: int  # index in the observations' points
     image_id: int
-    offset_px: float        # |e| (px)
-    offset_m: float         # e on the ground (m)
-    ratio: float            # the larger of |e_col| / s_col and |e_row| / s_row
+    offset_px: float  # |e| (px)
+    offset_m: float  # e on the ground (m)
+    ratio: float  # the larger of |e_col| / s_col and |e_row| / s_row
 
 
 @dataclass
 class Screening:
     """Result of `screen_control_points`."""
 
-    suspects: list = field(default_factory=list)      # Suspects
-    screened: dict = field(default_factory=dict)      # {point index: images its measurements were screened in}
+    suspects: list = field(default_factory=list)  # Suspects
+    screened: dict = field(default_factory=dict)  # {point index: images its measurements were screened in}
 
     def ground_points(self) -> set:
         """Indices of the points suspect in every image they were screened in, two at least: their ground
@@ -104,8 +105,9 @@ def screen_control_points(models: dict, observations: Observations) -> Screening
         scale = np.maximum(floor[:, None], 1.4826 * np.median(np.abs(e), axis=0)[None, :])
         ratio = np.max(np.abs(e) / scale, axis=1)
         for j in np.flatnonzero(ratio > SCREEN_THRESHOLD):
-            out.suspects.append(Suspect(int(pt[j]), int(i), float(np.hypot(*e[j])), float(np.hypot(*(e[j] * size[j]))),
-                               float(ratio[j])))
+            out.suspects.append(
+                Suspect(int(pt[j]), int(i), float(np.hypot(*e[j])), float(np.hypot(*(e[j] * size[j]))), float(ratio[j]))
+            )
     return out
 
 
@@ -117,10 +119,14 @@ def describe(screening: Screening, observations: Observations, names: dict, poin
     parts = []
     for point in dict.fromkeys(s.point for s in screening.suspects if points is None or s.point in points):
         mine = [s for s in screening.suspects if s.point == point]
-        offsets = ", ".join(f"{names.get(s.image_id, s.image_id)} {s.offset_px:.1f} px ({s.offset_m:.0f} m)"
-                            for s in mine)
-        what = "its ground coordinates (or all its measurements) look wrong" if point in ground \
+        offsets = ", ".join(
+            f"{names.get(s.image_id, s.image_id)} {s.offset_px:.1f} px ({s.offset_m:.0f} m)" for s in mine
+        )
+        what = (
+            "its ground coordinates (or all its measurements) look wrong"
+            if point in ground
             else "its measurement(s) there look wrong"
+        )
         parts.append(f"{p['name'][point]}: {offsets} away from where the other control points put it; {what}")
     return "; ".join(parts)
 

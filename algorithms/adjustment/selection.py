@@ -41,6 +41,7 @@ stood in for an attitude drift in step 1 is no longer significant.
 
 Unknowns the points cannot determine at all in step 1 are fixed in the same way (highest degree
 first). Every step is logged; the user overrides the result by giving the free set explicitly."""
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -66,9 +67,9 @@ class Selection:
     set; the models carry its solution) and the log of every decision."""
 
     result: object
-    free: list                         # names of the chosen free unknowns
-    observations: object               # the observations adjusted (sigmas from variance components)
-    components: list                   # variance.Component of each group ([] without variance components)
+    free: list  # names of the chosen free unknowns
+    observations: object  # the observations adjusted (sigmas from variance components)
+    components: list  # variance.Component of each group ([] without variance components)
     log: list = field(default_factory=list)
 
 
@@ -80,10 +81,10 @@ class _ControlState:
     image_rms: dict
     image_t: dict
     ground_rms: np.ndarray
-    image_sigma: dict             # a priori sigma (RMS) of the control image measurements per image
-    ground_sigma: np.ndarray      # and of the control ground coordinates, E/N/H
-    image_count: dict             # control measurements per image
-    ground_count: int             # control points
+    image_sigma: dict  # a priori sigma (RMS) of the control image measurements per image
+    ground_sigma: np.ndarray  # and of the control ground coordinates, E/N/H
+    image_count: dict  # control measurements per image
+    ground_count: int  # control points
 
     @classmethod
     def of(cls, result):
@@ -108,23 +109,29 @@ class _ControlState:
 
     def worse(self, new, max_increase, systematic, significance, names):
         """Reason why `new` (after fixing) is worse than self, or "" when it is not (module docstring)."""
+
         def grown(old, now, sigma, m):
             return now > old * (1.0 + max_increase) and m * (now * now - old * old) > (significance * sigma) ** 2
 
         for i, rms in self.image_rms.items():
             if grown(rms, new.image_rms.get(i, rms), self.image_sigma[i], 2 * self.image_count[i]):
-                return (f"the control residuals in {names.get(i, i)} grow from {rms:.3f} to "
-                        f"{new.image_rms[i]:.3f} px RMS")
+                return (
+                    f"the control residuals in {names.get(i, i)} grow from {rms:.3f} to {new.image_rms[i]:.3f} px RMS"
+                )
             threshold = t_threshold(systematic, self.image_count[i])
             for k, axis in enumerate(("col", "row")):
                 tn = new.image_t.get(i, self.image_t[i])[k]
                 if tn > threshold >= self.image_t[i][k]:
-                    return (f"the control residuals in {names.get(i, i)} become systematic in {axis} "
-                            f"(mean / its sigma {tn:.1f})")
+                    return (
+                        f"the control residuals in {names.get(i, i)} become systematic in {axis} "
+                        f"(mean / its sigma {tn:.1f})"
+                    )
         for k, axis in enumerate("ENH"):
             if grown(self.ground_rms[k], new.ground_rms[k], self.ground_sigma[k], self.ground_count):
-                return f"the control ground residuals in {axis} grow from {self.ground_rms[k]:.3f} to " \
-                       f"{new.ground_rms[k]:.3f} m RMS"
+                return (
+                    f"the control ground residuals in {axis} grow from {self.ground_rms[k]:.3f} to "
+                    f"{new.ground_rms[k]:.3f} m RMS"
+                )
         return ""
 
 
@@ -210,9 +217,21 @@ def _eliminate(run, result, free, fixable, significance, max_increase, systemati
         result, free, state = candidate, reduced, new_state
 
 
-def select_parameters(models, observations, names=None, height=0.0, look_degree=3, exterior_degree=3,
-                      significance=3.0, max_increase=0.10, systematic=3.0, test_exterior=True,
-                      variance_components=True, feedback=None, **adjust_kwargs):
+def select_parameters(
+    models,
+    observations,
+    names=None,
+    height=0.0,
+    look_degree=3,
+    exterior_degree=3,
+    significance=3.0,
+    max_increase=0.10,
+    systematic=3.0,
+    test_exterior=True,
+    variance_components=True,
+    feedback=None,
+    **adjust_kwargs,
+):
     """Automatic parameter selection (module docstring). models {image_id: model} (edited in
     place: they carry the final solution); observations, names, height and `adjust_kwargs`
     (priors, max_iterations, ...) as bundle.adjust. With `variance_components`, the sigmas of the
@@ -221,9 +240,11 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
     raises what adjust raises (a DefectError when even the look-angle constants cannot be
     determined)."""
     if adjust_kwargs.get("model", "polynomial") != "polynomial":
-        raise InputError("automatic parameter selection (Kornus et al. 2006, section 3.4.3) is for the correction "
-                         "polynomial model; with the Lagrange model give the free set (e.g. lagrange:attitude, "
-                         "lagrange:offset)")
+        raise InputError(
+            "automatic parameter selection (Kornus et al. 2006, section 3.4.3) is for the correction "
+            "polynomial model; with the Lagrange model give the free set (e.g. lagrange:attitude, "
+            "lagrange:offset)"
+        )
     fb = progress.ensure(feedback)
     lines = []
 
@@ -231,27 +252,45 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
         lines.append(text)
         fb.pushInfo(text)
 
-    run = Restart(models, observations, names, feedback, height=height, effects=False,
-                  defect_eigenvalue=SELECTION_DEFECT_EIGENVALUE, **adjust_kwargs)
+    run = Restart(
+        models,
+        observations,
+        names,
+        feedback,
+        height=height,
+        effects=False,
+        defect_eigenvalue=SELECTION_DEFECT_EIGENVALUE,
+        **adjust_kwargs,
+    )
 
     def phase(start, stop):
         """report(fraction) of a phase spanning start..stop % (cancelling checked there too)."""
         return lambda fraction: progress.step(feedback, start + (stop - start) * fraction)
+
     params = run.base
-    look = [p.name for p in params.parameters
-            if (p.kind in LOOK and p.degree <= look_degree) or p.kind not in LOOK + EXTERIOR]
-    log(f"parameter selection, step 1: {len(look)} look-angle/bias coefficients free, exterior ones fixed; "
-        f"significance threshold x/sigma {significance:g}")
+    look = [
+        p.name
+        for p in params.parameters
+        if (p.kind in LOOK and p.degree <= look_degree) or p.kind not in LOOK + EXTERIOR
+    ]
+    log(
+        f"parameter selection, step 1: {len(look)} look-angle/bias coefficients free, exterior ones fixed; "
+        f"significance threshold x/sigma {significance:g}"
+    )
     result, free = _solvable(run, look, set(look), log, "step 1")
     components = []
     if variance_components:
-        result, run.observations, components = estimate(lambda o: run(free, o), run.observations, log=log,
-                                                        report=phase(0, 10))
-        log("a posteriori sigmas used from here on: " + ", ".join(f"{c.group} {c.sigma:.3g}" for c in components
-                                                                  if np.isfinite(c.sigma)))
+        result, run.observations, components = estimate(
+            lambda o: run(free, o), run.observations, log=log, report=phase(0, 10)
+        )
+        log(
+            "a posteriori sigmas used from here on: "
+            + ", ".join(f"{c.group} {c.sigma:.3g}" for c in components if np.isfinite(c.sigma))
+        )
     progress.step(feedback, 10)
-    result, free = _eliminate(run, result, free, set(look), significance, max_increase, systematic, log, "step 1",
-                              phase(10, 40))
+    result, free = _eliminate(
+        run, result, free, set(look), significance, max_increase, systematic, log, "step 1", phase(10, 40)
+    )
     log(f"step 1: {len(free)} coefficient(s) free: {', '.join(free) or 'none'}")
     exterior = [p.name for p in params.parameters if p.kind in EXTERIOR and p.degree <= exterior_degree]
     if test_exterior and exterior:
@@ -265,15 +304,26 @@ def select_parameters(models, observations, names=None, height=0.0, look_degree=
             except DefectError as error:
                 log(f"step 2 ({part}): not tested, the block cannot be solved with them: {error}")
                 continue
-            result, free = _eliminate(run, result, free, set(candidates), significance, max_increase, systematic,
-                                      log, f"step 2 ({part})", phase(pct, end))
+            result, free = _eliminate(
+                run,
+                result,
+                free,
+                set(candidates),
+                significance,
+                max_increase,
+                systematic,
+                log,
+                f"step 2 ({part})",
+                phase(pct, end),
+            )
         added = [n for n in free if n not in chosen]
         log(f"step 2: {len(added)} exterior coefficient(s) significant: {', '.join(added) or 'none'}")
         if added:
             progress.step(feedback, 90)
-            result, free = _eliminate(run, result, free, set(chosen), significance, max_increase, systematic, log,
-                                      "step 3", phase(90, 99))
-    result = run(free, effects=True)    # the models carry the last trial's solution: adjust the chosen set again
+            result, free = _eliminate(
+                run, result, free, set(chosen), significance, max_increase, systematic, log, "step 3", phase(90, 99)
+            )
+    result = run(free, effects=True)  # the models carry the last trial's solution: adjust the chosen set again
     progress.step(feedback, 100)
     log(f"selected {len(free)} free coefficient(s) in {run.count} adjustments: {', '.join(free) or 'none'}")
     return Selection(result, free, run.observations, components, lines)

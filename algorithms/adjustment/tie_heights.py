@@ -2,6 +2,7 @@
 dh = adjusted ellipsoidal height - reference height, the reference interpolated bilinearly at the
 point's lon/lat (dem.Dem.height). A reference in EGM96 orthometric heights H (SRTM) becomes
 ellipsoidal at the point, h = H + N (control_points.orthometric_to_ellipsoidal)."""
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,9 +13,9 @@ from .control_points import HEIGHT_TYPES, orthometric_to_ellipsoidal
 
 @dataclass
 class TieHeights:
-    names: np.ndarray     # tie points inside the DEM
-    dh: np.ndarray        # adjusted - reference (m)
-    outside: int          # tie points where the DEM has no height (outside it or next to nodata)
+    names: np.ndarray  # tie points inside the DEM
+    dh: np.ndarray  # adjusted - reference (m)
+    outside: int  # tie points where the DEM has no height (outside it or next to nodata)
 
 
 def tie_height_differences(result, dem, heights="ellipsoidal"):
@@ -28,5 +29,6 @@ def tie_height_differences(result, dem, heights="ellipsoidal"):
     inside = np.isfinite(reference) & np.isfinite(h)
     if heights == "orthometric" and inside.any():
         reference[inside] = orthometric_to_ellipsoidal(lon[inside], lat[inside], reference[inside])
-    return TieHeights(result.observations.points["name"][tie][inside], h[inside] - reference[inside],
-                      int((~inside).sum()))
+    return TieHeights(
+        result.observations.points["name"][tie][inside], h[inside] - reference[inside], int((~inside).sum())
+    )

@@ -10,6 +10,7 @@ and its a priori sigmas are multiplied by s_g; repeated until every s_g is withi
 give it infinite weight), keeps its sigmas. Matched tie points are often far more precise than the
 0.5 px a priori (0.1-0.2 px), so without this sigma_0 mixes the groups and the control-determined
 unknowns get sigmas (and significances) off by the ratio of the groups' factors."""
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,10 +27,10 @@ MIN_REDUNDANCY = 5.0
 @dataclass
 class Component:
     group: str
-    count: int              # observations (coordinates) in the group
-    redundancy: float       # sum of the group's redundancy numbers
-    factor: float           # s_g of the last adjustment (NaN: not estimated)
-    sigma: float            # the group's resulting a priori sigma (RMS over the group; px or m)
+    count: int  # observations (coordinates) in the group
+    redundancy: float  # sum of the group's redundancy numbers
+    factor: float  # s_g of the last adjustment (NaN: not estimated)
+    sigma: float  # the group's resulting a priori sigma (RMS over the group; px or m)
 
 
 def group_factors(result):
@@ -44,9 +45,9 @@ def group_factors(result):
     control = obs.points["role"] == "control"
     sig = np.column_stack([obs.points["sigma_e"], obs.points["sigma_n"], obs.points["sigma_h"]])[control]
     qpp = (result.point_sigmas[control] / result.sigma0) ** 2 if result.sigma0 > 0 else np.zeros((control.sum(), 3))
-    red = 1.0 - qpp / sig ** 2
+    red = 1.0 - qpp / sig**2
     v = result.ground_residuals[control]
-    out["control ground"] = _factor(v.size, float(np.sum(red)), float(np.sum(v * v / sig ** 2)))
+    out["control ground"] = _factor(v.size, float(np.sum(red)), float(np.sum(v * v / sig**2)))
     return out
 
 
@@ -102,8 +103,12 @@ def adjust_with_components(models, observations, free, names=None, feedback=None
     current orientation (so priors and fixed parameters keep their meaning). Returns (Adjustment,
     the rescaled observations, [Component]); the models carry the last solution."""
     run = Restart(models, observations, names, feedback, **kwargs)
-    return estimate(lambda obs: run(free, obs), observations, log=progress.ensure(feedback).pushInfo,
-                    report=lambda fraction: progress.step(feedback, 100.0 * fraction))
+    return estimate(
+        lambda obs: run(free, obs),
+        observations,
+        log=progress.ensure(feedback).pushInfo,
+        report=lambda fraction: progress.step(feedback, 100.0 * fraction),
+    )
 
 
 def _group_sigma(obs, group):

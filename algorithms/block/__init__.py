@@ -6,6 +6,7 @@ versioned sidecar folders of point parts and their display layers), control_poin
 measurements), measurements.py (single edits of those, for the measurement window), residuals.py (the
 last adjustment's residuals) and replacement.py (a new result far fewer than the stored one is refused).
 Code outside this package goes through `Block`."""
+
 import contextlib
 import os
 
@@ -64,8 +65,9 @@ class Block:
         """Create the block `path` from `image_list` (`open_images`), footprints on `dem` or at `height`, with
         the terrain `height_range` where known; refuses to replace an existing block unless `overwrite`
         (images.create_block). Returns the Block."""
-        return cls(images.create_block(schema.real_path(path), image_list, height, dem, overwrite, feedback,
-                                       height_range))
+        return cls(
+            images.create_block(schema.real_path(path), image_list, height, dem, overwrite, feedback, height_range)
+        )
 
     # -- block information, generations, transactions ---------------------------------------------
 
@@ -111,8 +113,12 @@ class Block:
             for key, part in (("image_path", "the image"), ("orientation_path", "the orientation file of image")):
                 if row[key]:
                     referred.setdefault(os.path.realpath(row[key]), f"{part} {row['name']}")
-        return {self.path: "", **{p: "its SQLite journal" for p in schema.journals(self.path)},
-                **{p: "its point folder" for p in points.sidecars(self.path)}, **referred}
+        return {
+            self.path: "",
+            **{p: "its SQLite journal" for p in schema.journals(self.path)},
+            **{p: "its point folder" for p in points.sidecars(self.path)},
+            **referred,
+        }
 
     def layer_source(self, layer_name):
         """The OGR source string of the block's layer `layer_name`."""
@@ -156,8 +162,9 @@ class Block:
         (points.load_arrays); points.py has the layout."""
         return points.point_parts(points.sidecar_path(self.path, kind), points.MAKERS.get(kind, "the step"))
 
-    def save_points(self, multi, kind: str = "mass_points", display=None, feedback=None,
-                    replace_fewer: bool = False) -> str:
+    def save_points(
+        self, multi, kind: str = "mass_points", display=None, feedback=None, replace_fewer: bool = False
+    ) -> str:
         """Store `multi` (MultiPoints) as the block's points of `kind` and, given `display` = (sensor model,
         image id, mean height), as its point layer `kind`; far fewer than the stored ones only with
         `replace_fewer` (replacement.py). Returns the sidecar path (points.save_points)."""
@@ -183,8 +190,9 @@ class Block:
         """The stored control/check points and their image measurements (Observations; empty before any)."""
         return control_points.load_control_points(self.path)
 
-    def save_control_points(self, observations, mode: str = "replace", feedback=None, names=None,
-                            replace_fewer: bool = False):
+    def save_control_points(
+        self, observations, mode: str = "replace", feedback=None, names=None, replace_fewer: bool = False
+    ):
         """Store control/check points, replacing or merging into the stored ones (IMPORT_MODES), in one
         transaction; far fewer points or measurements than the stored ones only with `replace_fewer`
         (replacement.py). Returns what is stored (control_points.save_control_points)."""

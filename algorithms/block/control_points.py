@@ -7,6 +7,7 @@ merges both in one SQLite transaction, so an import either lands whole or leaves
 one that leaves far fewer points, measured points or measurements than the block holds is refused
 (replacement.py) unless asked for. measurements.py edits single points and measurements. The CSV format and its parsing:
 adjustment/control_points.py."""
+
 from typing import Optional
 
 import numpy as np
@@ -24,9 +25,15 @@ from .replacement import Tally, check_replacement
 MODES = ("replace", "merge")
 LAYER, TABLE = "control_points", "image_measurements"
 POINT_FIELDS = [("name", ogr.OFTString), ("role", ogr.OFTString)] + [
-    (key, ogr.OFTReal) for key in ("lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h")]
-MEAS_FIELDS = [("point_name", ogr.OFTString), ("image_id", ogr.OFTInteger), ("col", ogr.OFTReal),
-               ("row", ogr.OFTReal), ("sigma", ogr.OFTReal)]
+    (key, ogr.OFTReal) for key in ("lon", "lat", "h", "sigma_e", "sigma_n", "sigma_h")
+]
+MEAS_FIELDS = [
+    ("point_name", ogr.OFTString),
+    ("image_id", ogr.OFTInteger),
+    ("col", ogr.OFTReal),
+    ("row", ogr.OFTReal),
+    ("sigma", ogr.OFTReal),
+]
 
 
 def merge(old, new):
@@ -37,7 +44,7 @@ def merge(old, new):
     names = list(old.points["name"]) + [n for n in new.points["name"] if n not in known]
     index = {n: i for i, n in enumerate(names)}
     points = np.zeros(len(names), POINT_DTYPE)
-    points[:len(old.points)] = old.points
+    points[: len(old.points)] = old.points
     points[[index[n] for n in new.points["name"]]] = new.points
     by_key = {}
     for obs in (old, new):
@@ -89,8 +96,10 @@ def read_stored(ds, block_path):
     meas = []
     for feat in table if table is not None else []:
         if feat["point_name"] not in index:
-            raise InputError(f"block {block_path}: image measurement of unknown point {feat['point_name']!r}; "
-                             "import the points again")
+            raise InputError(
+                f"block {block_path}: image measurement of unknown point {feat['point_name']!r}; "
+                "import the points again"
+            )
         meas.append((index[feat["point_name"]], feat["image_id"], feat["col"], feat["row"], feat["sigma"]))
     meas = np.array(meas, MEAS_DTYPE)
     return Observations(points, meas).sorted()
@@ -99,10 +108,16 @@ def read_stored(ds, block_path):
 def tallies(stored: Observations, new: Observations) -> list[Tally]:
     """The counts `save_control_points` compares (replacement.py) of the Observations `stored` and `new`:
     points, points measured in at least one image, image measurements."""
+
     def counts(obs):
         return (len(obs.points), len(set(obs.measurements["point"].tolist())), len(obs.measurements))
-    return [Tally(name, a, b) for name, a, b in zip(("control and check points", "measured points",
-                                                     "image measurements"), counts(stored), counts(new))]
+
+    return [
+        Tally(name, a, b)
+        for name, a, b in zip(
+            ("control and check points", "measured points", "image measurements"), counts(stored), counts(new)
+        )
+    ]
 
 
 def load_control_points(block_path):
@@ -112,8 +127,14 @@ def load_control_points(block_path):
     return read_stored(ds, block_path)
 
 
-def save_control_points(block_path: str, observations: Observations, mode: str = "replace", feedback=None,
-                        names: Optional[dict] = None, replace_fewer: bool = False) -> Observations:
+def save_control_points(
+    block_path: str,
+    observations: Observations,
+    mode: str = "replace",
+    feedback=None,
+    names: Optional[dict] = None,
+    replace_fewer: bool = False,
+) -> Observations:
     """Store `observations` (control/check points only) in the block, replacing its points
     (mode "replace") or updating them (mode "merge", see `merge`), in one SQLite transaction:
     on any error or a cancel the block keeps its earlier points. What would leave far fewer points,
@@ -136,9 +157,14 @@ def save_control_points(block_path: str, observations: Observations, mode: str =
         stored = read_stored(ds, block_path)
         if mode == "merge":
             observations = merge(stored, observations)
-        check_replacement(tallies(stored, observations), replace_fewer, "control and check points",
-                          "pushbroom:importpoints", "To add the file's points to the block's, import them with "
-                          "MODE merge.", feedback)
+        check_replacement(
+            tallies(stored, observations),
+            replace_fewer,
+            "control and check points",
+            "pushbroom:importpoints",
+            "To add the file's points to the block's, import them with MODE merge.",
+            feedback,
+        )
         points_layer, table = layers(ds)
         ds.ExecuteSQL(f"DELETE FROM {TABLE}")
         ds.ExecuteSQL(f"DELETE FROM {LAYER}")
@@ -150,9 +176,15 @@ def save_control_points(block_path: str, observations: Observations, mode: str =
         progress.step(feedback, 90.0)
         ds.ExecuteSQL(f"RECOMPUTE EXTENT ON {LAYER}")
         roles = observations.points["role"]
-        schema.write_info(ds, {"control_points": int((roles == "control").sum()),
-                               "check_points": int((roles == "check").sum()),
-                               "image_measurements": len(observations.measurements)},
-                          step="importpoints", message=f"{mode}: " + summary(observations, names))
+        schema.write_info(
+            ds,
+            {
+                "control_points": int((roles == "control").sum()),
+                "check_points": int((roles == "check").sum()),
+                "image_measurements": len(observations.measurements),
+            },
+            step="importpoints",
+            message=f"{mode}: " + summary(observations, names),
+        )
     progress.ensure(feedback).setProgress(100.0)
     return observations

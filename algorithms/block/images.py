@@ -6,6 +6,7 @@ model (`supplied_model`, the orientation the block was created with), from which
 starts, so that adjusting again gives the result of the first adjustment, not a correction of it. The
 `footprints` layer holds the image borders projected on a DEM or a mean height. A block is written under
 a temporary name and renamed, so a failed or cancelled creation leaves any existing block untouched."""
+
 import datetime
 import json
 import os
@@ -75,11 +76,18 @@ def create_block(path, images, height=0.0, dem=None, overwrite=False, feedback=N
     with atomic_path(path) as tmp:
         with closing(create_schema(tmp)) as ds:
             _write_images(ds, images, rings)
-        update_info(tmp, {"created": datetime.datetime.now(datetime.timezone.utc).isoformat(),
-                          "default_crs": f"EPSG:{utm_epsg(*centre)}",
-                          "footprint_height": "dem" if dem is not None else repr(float(height)),
-                          "height_min": repr(h_min), "height_max": repr(h_max)},
-                    step="createblock", message=f"block created with {len(images)} image(s): {', '.join(names)}")
+        update_info(
+            tmp,
+            {
+                "created": datetime.datetime.now(datetime.timezone.utc).isoformat(),
+                "default_crs": f"EPSG:{utm_epsg(*centre)}",
+                "footprint_height": "dem" if dem is not None else repr(float(height)),
+                "height_min": repr(h_min),
+                "height_max": repr(h_max),
+            },
+            step="createblock",
+            message=f"block created with {len(images)} image(s): {', '.join(names)}",
+        )
         progress.step(feedback, 100.0)
     return path
 
@@ -92,11 +100,17 @@ def _write_images(ds, images, rings):
         feat = ogr.Feature(table.GetLayerDefn())
         feat.SetFID(k)
         cols, rows = model.size
-        for key, value in [("name", name), ("image_path", os.path.abspath(image) if image else ""),
-                           ("orientation_path", os.path.abspath(orientation)), ("model_kind", kind),
-                           ("sensor", sensor), ("cols", int(cols)), ("rows", int(rows)),
-                           ("model", json.dumps(model_to_dict(model))),
-                           (SUPPLIED, json.dumps(model_to_dict(model)))]:
+        for key, value in [
+            ("name", name),
+            ("image_path", os.path.abspath(image) if image else ""),
+            ("orientation_path", os.path.abspath(orientation)),
+            ("model_kind", kind),
+            ("sensor", sensor),
+            ("cols", int(cols)),
+            ("rows", int(rows)),
+            ("model", json.dumps(model_to_dict(model))),
+            (SUPPLIED, json.dumps(model_to_dict(model))),
+        ]:
             feat[key] = value
         table.CreateFeature(feat)
         poly = ogr.Geometry(ogr.wkbPolygon)
@@ -142,8 +156,9 @@ def load_models(path, image_ids=None, supplied=False):
         if feat is None:
             raise InputError(f"block {path} has no image with id {image_id}")
         key = SUPPLIED if supplied and keeps_supplied and feat[SUPPLIED] else "model"
-        models[image_id] = model_from_dict(json.loads(feat[key]),
-                                           f"{key.replace('_', ' ')} of image {image_id} in {path}")
+        models[image_id] = model_from_dict(
+            json.loads(feat[key]), f"{key.replace('_', ' ')} of image {image_id} in {path}"
+        )
     return models
 
 
@@ -189,8 +204,7 @@ def check_distinct(paths, what, why):
         if key in first:
             j = first[key]
             same = "the same path" if os.path.abspath(paths[j]) == os.path.abspath(path) else "one file"
-            raise InputError(f"{what} {j + 1} and {k + 1} ({paths[j]} and {path}) are {same}: {why}; "
-                             "remove one")
+            raise InputError(f"{what} {j + 1} and {k + 1} ({paths[j]} and {path}) are {same}: {why}; remove one")
         first[key] = k
 
 
@@ -199,16 +213,25 @@ def open_images(image_paths, orientation_paths=None):
     unless given (same order). InputError where an image, or an orientation, comes twice (check_distinct:
     a DIMAP product given by its folder and by its raster has one METADATA.DIM)."""
     from .. import sensors
+
     image_paths = [os.fspath(p) for p in image_paths]
     orientation_paths = [os.fspath(p) for p in orientation_paths or []]
     if orientation_paths and len(orientation_paths) != len(image_paths):
-        raise InputError(f"{len(orientation_paths)} orientation files for {len(image_paths)} images: "
-                         "give one per image, in the same order, or none")
-    check_distinct(image_paths, "images", "a block holds each image once (an image matched with itself gives "
-                                          "points without parallax)")
+        raise InputError(
+            f"{len(orientation_paths)} orientation files for {len(image_paths)} images: "
+            "give one per image, in the same order, or none"
+        )
+    check_distinct(
+        image_paths,
+        "images",
+        "a block holds each image once (an image matched with itself gives points without parallax)",
+    )
     orientation_paths = orientation_paths or [sensors.orientation_source(image) for image in image_paths]
-    check_distinct(orientation_paths, "the orientations of images", "each image has an orientation of its own (one "
-                                                                    "image given twice, or a wrong orientation file)")
+    check_distinct(
+        orientation_paths,
+        "the orientations of images",
+        "each image has an orientation of its own (one image given twice, or a wrong orientation file)",
+    )
     result, seen = [], set()
     for image, orientation in zip(image_paths, orientation_paths):
         model = sensors.load(orientation, image=image)

@@ -11,6 +11,7 @@ check_points and image_measurements in the same transaction, without a run_log r
 
 Records handed back for undo: points as POINT_DTYPE records; measurements as MEAS_DTYPE records
 whose `point` is 0 (they belong to the one point the call is about)."""
+
 import contextlib
 import math
 import os
@@ -48,14 +49,16 @@ def point_record(name, role, lon, lat, h, sigma_e, sigma_n, sigma_h):
     try:
         values = [float(v) for v in (lon, lat, h, sigma_e, sigma_n, sigma_h)]
     except (TypeError, ValueError):
-        raise InputError(f"point {name}: coordinates and sigmas must be numbers, got "
-                         f"{[lon, lat, h, sigma_e, sigma_n, sigma_h]}") from None
+        raise InputError(
+            f"point {name}: coordinates and sigmas must be numbers, got {[lon, lat, h, sigma_e, sigma_n, sigma_h]}"
+        ) from None
     lon, lat, h = values[:3]
     if not all(math.isfinite(v) for v in values[:3]):
         raise InputError(f"point {name}: lon {lon}, lat {lat}, h {h} must all be finite numbers")
     if abs(lat) > 90.0 or abs(lon) > 360.0:
-        raise InputError(f"point {name}: lon {lon}, lat {lat} are not WGS 84 degrees (are they swapped, or "
-                         "projected coordinates?)")
+        raise InputError(
+            f"point {name}: lon {lon}, lat {lat} are not WGS 84 degrees (are they swapped, or projected coordinates?)"
+        )
     if not all(math.isfinite(s) and s > 0 for s in values[3:]):
         raise InputError(f"point {name}: the sigmas east, north, height must be positive, got {values[3:]} m")
     record = np.zeros((), POINT_DTYPE)
@@ -202,16 +205,23 @@ class MeasurementStore:
         try:
             image_id, col, row, sigma = int(image_id), float(col), float(row), float(sigma)
         except (TypeError, ValueError):
-            raise InputError(f"point {name}: image id, col, row and sigma must be numbers, got "
-                             f"{[image_id, col, row, sigma]}") from None
+            raise InputError(
+                f"point {name}: image id, col, row and sigma must be numbers, got {[image_id, col, row, sigma]}"
+            ) from None
         if image_id not in self.images:
-            raise InputError(f"point {name}: the block has no image with id {image_id} (its images: "
-                             + ", ".join(f"{i} {r['name']}" for i, r in self.images.items()) + ")")
+            raise InputError(
+                f"point {name}: the block has no image with id {image_id} (its images: "
+                + ", ".join(f"{i} {r['name']}" for i, r in self.images.items())
+                + ")"
+            )
         image = self.images[image_id]
-        if not (math.isfinite(col) and math.isfinite(row) and 0.0 <= col <= image["cols"]
-                and 0.0 <= row <= image["rows"]):
-            raise InputError(f"point {name}: ({col}, {row}) lies outside image {image['name']} "
-                             f"({image['cols']} x {image['rows']} px)")
+        if not (
+            math.isfinite(col) and math.isfinite(row) and 0.0 <= col <= image["cols"] and 0.0 <= row <= image["rows"]
+        ):
+            raise InputError(
+                f"point {name}: ({col}, {row}) lies outside image {image['name']} "
+                f"({image['cols']} x {image['rows']} px)"
+            )
         if not (math.isfinite(sigma) and sigma > 0):
             raise InputError(f"point {name}: the measurement sigma must be positive, got {sigma} px")
         return image_id, col, row, sigma

@@ -35,6 +35,7 @@ at the new run's spacing: replacement.py) is refused before the layer is built, 
 unless `replace_fewer`. The spacing is the stats' SPACING key of the kind (the matching's grid in the
 reference image, the tie point cell): a sidecar without it is compared by its count alone.
 """
+
 import contextlib
 import functools
 import json
@@ -65,8 +66,18 @@ INDEX = "index.json"
 PART_POINTS = 262_144
 # a GeoPackage point geometry: header (magic, version, flags = little endian without envelope,
 # srs id) and the WKB point
-GPKG_POINT_DTYPE = np.dtype([("magic", "S2"), ("version", "u1"), ("flags", "u1"), ("srs_id", "<i4"),
-                             ("order", "u1"), ("type", "<u4"), ("x", "<f8"), ("y", "<f8")])
+GPKG_POINT_DTYPE = np.dtype(
+    [
+        ("magic", "S2"),
+        ("version", "u1"),
+        ("flags", "u1"),
+        ("srs_id", "<i4"),
+        ("order", "u1"),
+        ("type", "<u4"),
+        ("x", "<f8"),
+        ("y", "<f8"),
+    ]
+)
 KINDS = ("mass_points", "tie_points")
 #: the most points a display layer shows (module docstring)
 DISPLAY_POINTS = 250_000
@@ -90,8 +101,10 @@ def _sidecar_name(block_path, kind: str) -> re.Pattern:
     """The names of the point folders (and the one-file sidecars of earlier versions) of `kind` beside the
     block: a versioned folder or .npz file (groups: writer host, pid), or the unversioned .npz of the first
     versions."""
-    return re.compile(rf"^{re.escape(_stem(block_path))}\.{kind}(?:\.([A-Za-z0-9_]+)-(\d+)-[0-9a-f]{{8}}(?:\.npz)?"
-                      r"|\.npz)$")
+    return re.compile(
+        rf"^{re.escape(_stem(block_path))}\.{kind}(?:\.([A-Za-z0-9_]+)-(\d+)-[0-9a-f]{{8}}(?:\.npz)?"
+        r"|\.npz)$"
+    )
 
 
 def sidecars(block_path) -> list:
@@ -110,14 +123,18 @@ def save_arrays(path, points):
     """Write `points` (MultiPoints) to the .npz `path` atomically (one part of a sidecar)."""
     with atomic_path(path, "the point file") as tmp:
         with open(tmp, "wb") as f:
-            np.savez(f, format=np.array(FILE_FORMAT), points=points.points, observations=points.observations,
-                     stats=np.array(json.dumps(points.stats)))
+            np.savez(
+                f,
+                format=np.array(FILE_FORMAT),
+                points=points.points,
+                observations=points.observations,
+                stats=np.array(json.dumps(points.stats)),
+            )
     return path
 
 
 def _damaged(path, step, exc):
-    return StorageError(f"the point file {path} is damaged ({exc}): it was cut short or overwritten; run {step} "
-                        "again")
+    return StorageError(f"the point file {path} is damaged ({exc}): it was cut short or overwritten; run {step} again")
 
 
 def _read_part(path, step):
@@ -166,28 +183,41 @@ def load_arrays(path, step="the matching step"):
     if index is None:
         return _read_part(path, step)
     parts = [_read_part(p, step) for p in point_parts(path, step)]
-    return MultiPoints(np.concatenate([p.points for p in parts]) if parts else None,
-                       np.concatenate([p.observations for p in parts]) if parts else None, index["stats"])
+    return MultiPoints(
+        np.concatenate([p.points for p in parts]) if parts else None,
+        np.concatenate([p.observations for p in parts]) if parts else None,
+        index["stats"],
+    )
 
 
 def save_part(folder, k, points):
     """Write `points` (MultiPoints, ids ascending, with their observations) as the k-th part of the sidecar
     folder being written at `folder`; returns its index entry. What a tile task writes (store_points)."""
     name = f"part-{k:05d}.npz"
-    if len(points):         # an empty part is left out of the folder and its index
+    if len(points):  # an empty part is left out of the folder and its index
         save_arrays(os.path.join(folder, name), points)
     ids = points.points["id"]
-    return {"file": name, "points": len(points), "observations": len(points.observations),
-            "first_id": int(ids[0]) if len(ids) else None, "last_id": int(ids[-1]) if len(ids) else None,
-            "groups": {str(g): n for g, n in points.group_counts().items()}}
+    return {
+        "file": name,
+        "points": len(points),
+        "observations": len(points.observations),
+        "first_id": int(ids[0]) if len(ids) else None,
+        "last_id": int(ids[-1]) if len(ids) else None,
+        "groups": {str(g): n for g, n in points.group_counts().items()},
+    }
 
 
 def write_index(folder, entries, stats):
     """Write the index of the sidecar folder at `folder` from its parts' entries (save_part) and `stats`."""
     entries = [e for e in entries if e["points"]]
-    atomic.write_text(os.path.join(folder, INDEX), json.dumps(
-        {"format": INDEX_FORMAT, "points": sum(e["points"] for e in entries), "stats": stats, "parts": entries},
-        indent=1), "the point index")
+    atomic.write_text(
+        os.path.join(folder, INDEX),
+        json.dumps(
+            {"format": INDEX_FORMAT, "points": sum(e["points"] for e in entries), "stats": stats, "parts": entries},
+            indent=1,
+        ),
+        "the point index",
+    )
 
 
 def split_parts(folder, points, part_points=None):
@@ -199,8 +229,10 @@ def split_parts(folder, points, part_points=None):
     obs = points.observations[np.lexsort((points.observations["image_id"], points.observations["point_id"]))]
     starts = np.arange(0, len(pts), part_points)
     bounds = np.searchsorted(obs["point_id"], [pts["id"][s] for s in starts] + [np.iinfo(np.int64).max])
-    return [save_part(folder, k, MultiPoints(pts[a:a + part_points], obs[bounds[k]:bounds[k + 1]]))
-            for k, a in enumerate(starts)]
+    return [
+        save_part(folder, k, MultiPoints(pts[a : a + part_points], obs[bounds[k] : bounds[k + 1]]))
+        for k, a in enumerate(starts)
+    ]
 
 
 def _remove_orphan_sidecars(block_path, kind, keep):
@@ -209,8 +241,11 @@ def _remove_orphan_sidecars(block_path, kind, keep):
     pattern = _sidecar_name(block_path, kind)
     for name in os.listdir(folder):
         match = pattern.match(name)
-        if match and name != keep and (match.group(1) is None
-                                       or atomic.owner_gone(match.group(1), int(match.group(2)), 0.0)):
+        if (
+            match
+            and name != keep
+            and (match.group(1) is None or atomic.owner_gone(match.group(1), int(match.group(2)), 0.0))
+        ):
             _remove_sidecar(os.path.join(folder, name))
 
 
@@ -237,8 +272,10 @@ def _drop_orphan_layers(block_path, layer_name):
     ds = schema.open_block(block_path)
     names = [ds.GetLayer(k).GetName() for k in range(ds.GetLayerCount())]
     ds = None
-    _drop_layers(block_path, [n for n in names if (m := pattern.match(n))
-                              and atomic.owner_gone(m.group(1), int(m.group(2)), 0.0)])
+    _drop_layers(
+        block_path,
+        [n for n in names if (m := pattern.match(n)) and atomic.owner_gone(m.group(1), int(m.group(2)), 0.0)],
+    )
 
 
 @contextlib.contextmanager
@@ -269,14 +306,21 @@ def _switch(ds, staged, layer_name):
     ds.GetLayerByName(staged).Rename(layer_name)
 
 
-def save_points(block_path: str, points: MultiPoints, kind: str = "mass_points", display: Optional[tuple] = None,
-                feedback=None, replace_fewer: bool = False) -> str:
+def save_points(
+    block_path: str,
+    points: MultiPoints,
+    kind: str = "mass_points",
+    display: Optional[tuple] = None,
+    feedback=None,
+    replace_fewer: bool = False,
+) -> str:
     """Store `points` (MultiPoints) beside the block as a new sidecar of `kind` and, given `display` = (sensor
     model, image id, mean height), as the block's point layer `kind` (`write_point_layer`), switched in one
     transaction (module docstring). Far fewer points than the block holds are refused (InputError, the block
     unchanged) unless `replace_fewer`. Returns the sidecar path."""
-    return store_points(block_path, kind, lambda folder: (split_parts(folder, points), points.stats), display,
-                        feedback, replace_fewer)
+    return store_points(
+        block_path, kind, lambda folder: (split_parts(folder, points), points.stats), display, feedback, replace_fewer
+    )
 
 
 def _spacing(stats: Optional[dict], kind: str) -> Optional[float]:
@@ -293,17 +337,23 @@ def _tally(block_path: str, kind: str, stored_name: Optional[str], index: dict) 
         return Tally(name, 0, index["points"])
     try:
         stored = read_index(os.path.join(_folder(block_path), stored_name))
-    except (InputError, StorageError):      # missing or damaged: nothing to keep
+    except (InputError, StorageError):  # missing or damaged: nothing to keep
         return Tally(name, 0, index["points"])
-    if stored is None:                      # a one-file sidecar of earlier versions: its count is in block_info
+    if stored is None:  # a one-file sidecar of earlier versions: its count is in block_info
         return Tally(name, int(schema.read_info(block_path).get(f"{kind}_count") or 0), index["points"])
     old, new = _spacing(stored["stats"], kind), _spacing(index["stats"], kind)
     expected = stored["points"] * (old / new) ** 2 if old and new else None
     return Tally(name, stored["points"], index["points"], expected)
 
 
-def store_points(block_path: str, kind: str, fill: Callable[[str], tuple], display: Optional[tuple] = None,
-                 feedback=None, replace_fewer: bool = False) -> str:
+def store_points(
+    block_path: str,
+    kind: str,
+    fill: Callable[[str], tuple],
+    display: Optional[tuple] = None,
+    feedback=None,
+    replace_fewer: bool = False,
+) -> str:
     """`save_points` of points that `fill(folder)` writes into the new sidecar folder (save_part: e.g. the
     tasks of a tiled step, each writing its parts, in the order of their ids) and returns as (index
     entries, stats). The layer is built part by part: memory follows the part. Far fewer points than the
@@ -322,8 +372,13 @@ def store_points(block_path: str, kind: str, fill: Callable[[str], tuple], displ
             write_index(tmp, entries, stats)
         progress.step(feedback, 5)
         index = read_index(path)
-        check_replacement([_tally(block_path, kind, old, index)], replace_fewer, kind.replace("_", " "),
-                          MAKERS[kind], feedback=feedback)
+        check_replacement(
+            [_tally(block_path, kind, old, index)],
+            replace_fewer,
+            kind.replace("_", " "),
+            MAKERS[kind],
+            feedback=feedback,
+        )
         groups = {1: 0, 2: 0, 3: 0}
         for entry in index["parts"]:
             for g, n in entry["groups"].items():
@@ -331,9 +386,16 @@ def store_points(block_path: str, kind: str, fill: Callable[[str], tuple], displ
         with _staged_layer(block_path, kind, path, display, progress.scaled(feedback, 5, 95)) as staged:
             with schema.transaction(block_path, what) as ds:
                 _switch(ds, staged, kind)
-                schema.write_info(ds, {kind: name, f"{kind}_count": index["points"],
-                                      **{f"{kind}_group{g}": n for g, n in sorted(groups.items())}},
-                                 step=f"store {kind}", message=f"{index['points']} points in {name}")
+                schema.write_info(
+                    ds,
+                    {
+                        kind: name,
+                        f"{kind}_count": index["points"],
+                        **{f"{kind}_group{g}": n for g, n in sorted(groups.items())},
+                    },
+                    step=f"store {kind}",
+                    message=f"{index['points']} points in {name}",
+                )
                 schema.bump(ds, kind)
     except BaseException:
         _remove_sidecar(path)
@@ -349,8 +411,9 @@ def sidecar_path(block_path, kind="mass_points"):
     """The sidecar of the points of `kind` stored with the schema (InputError where there is none)."""
     info = schema.read_info(block_path)
     if kind not in info:
-        raise InputError(f"block {block_path} has no {kind.replace('_', ' ')}: run {MAKERS.get(kind, 'the step')} "
-                         "first")
+        raise InputError(
+            f"block {block_path} has no {kind.replace('_', ' ')}: run {MAKERS.get(kind, 'the step')} first"
+        )
     return os.path.join(_folder(block_path), info[kind])
 
 
@@ -376,8 +439,9 @@ def write_point_layer(block_path, layer_name, points, model, image_id, height, f
     if not layer_name.isidentifier():
         raise InputError(f"a point layer name must be an identifier, not {layer_name!r}")
     schema.check_writable(block_path, f"the layer {layer_name}")
-    with _staged_layer(block_path, layer_name, points, (model, image_id, height),
-                       progress.scaled(feedback, 0, 95)) as staged:
+    with _staged_layer(
+        block_path, layer_name, points, (model, image_id, height), progress.scaled(feedback, 0, 95)
+    ) as staged:
         with schema.transaction(block_path, f"the layer {layer_name}") as ds:
             _switch(ds, staged, layer_name)
     progress.step(feedback, 100)
@@ -399,20 +463,23 @@ def _write_layer(block_path, layer_name, points, model, image_id, height, feedba
     with schema.transaction(block_path, what) as ds:
         if ds.GetLayerByName(layer_name) is not None:
             ds.DeleteLayer(layer_name)
-        layer = ds.CreateLayer(layer_name, wgs84(), ogr.wkbPoint,
-                               options=["FID=fid", "GEOMETRY_NAME=geom", "SPATIAL_INDEX=NO"])
+        layer = ds.CreateLayer(
+            layer_name, wgs84(), ogr.wkbPoint, options=["FID=fid", "GEOMETRY_NAME=geom", "SPATIAL_INDEX=NO"]
+        )
         for name, kind in [("id", ogr.OFTInteger64), ("group", ogr.OFTInteger), ("rho", ogr.OFTReal)]:
             layer.CreateField(ogr.FieldDefn(name, kind))
     progress.step(feedback, 10)
     parts = _parts_of(points)
     index = None if isinstance(points, MultiPoints) else read_index(points)
     if index is None and not isinstance(parts[0], MultiPoints):
-        parts = [parts[0]()]            # a one-file sidecar: its one part, read once
+        parts = [parts[0]()]  # a one-file sidecar: its one part, read once
     total = index["points"] if index is not None else len(parts[0])
     share = min(1.0, DISPLAY_POINTS / max(total, 1))
     if share < 1.0:
-        progress.ensure(feedback).pushInfo(f"the layer {layer_name} shows a uniform {100 * share:.1f} % of the "
-                                           f"{total} points (at most {DISPLAY_POINTS}: display only; all are stored)")
+        progress.ensure(feedback).pushInfo(
+            f"the layer {layer_name} shows a uniform {100 * share:.1f} % of the "
+            f"{total} points (at most {DISPLAY_POINTS}: display only; all are stored)"
+        )
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     try:
         with contextlib.closing(sqlite3.connect(os.fspath(block_path), timeout=schema.BUSY_TIMEOUT_MS / 1000)) as db:
@@ -425,12 +492,16 @@ def _write_layer(block_path, layer_name, points, model, image_id, height, feedba
                         hi = np.maximum(hi, [lon.max(), lat.max()])
                     progress.step(feedback, 10 + 70 * (k + 1) / len(parts))
                 if np.isfinite(lo).all():
-                    db.execute("UPDATE gpkg_contents SET min_x = ?, min_y = ?, max_x = ?, max_y = ? "
-                               "WHERE table_name = ?", (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]),
-                                                        layer_name))
+                    db.execute(
+                        "UPDATE gpkg_contents SET min_x = ?, min_y = ?, max_x = ?, max_y = ? WHERE table_name = ?",
+                        (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]), layer_name),
+                    )
     except sqlite3.OperationalError as exc:
-        raise (schema.locked_error(block_path, what) if "locked" in str(exc)
-               else atomic.storage_error(exc, block_path, what)) from None
+        raise (
+            schema.locked_error(block_path, what)
+            if "locked" in str(exc)
+            else atomic.storage_error(exc, block_path, what)
+        ) from None
     progress.step(feedback, 80)
     with schema.transaction(block_path, what) as ds:
         ds.ExecuteSQL(f"SELECT CreateSpatialIndex('{layer_name}', 'geom')")
@@ -442,7 +513,7 @@ def _insert_rows(db, layer_name, points, model, image_id, height, share=1.0):
     those whose hashed id falls below it (module docstring); returns their (lon, lat)."""
     ids, col, row = points.observations_of(image_id)
     if share < 1.0:
-        shown = (ids.astype(np.uint64) * np.uint64(2654435761)) % np.uint64(2 ** 32) < np.uint64(share * 2 ** 32)
+        shown = (ids.astype(np.uint64) * np.uint64(2654435761)) % np.uint64(2**32) < np.uint64(share * 2**32)
         ids, col, row = ids[shown], col[shown], row[shown]
     # rows in a spatially coherent order (strips of 64 px): the R-tree builds several times faster
     order = np.lexsort((col, np.floor(row / 64.0)))

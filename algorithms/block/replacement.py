@@ -15,6 +15,7 @@ Such a result is refused with an InputError: the block keeps its stored result, 
 nothing new is left behind. An error, not a warning: a script or a graphical model stops there instead of
 running the next steps on nothing. With `replace_fewer` (the steps' REPLACE_FEWER) it is stored, with a
 warning. Where nothing (or nothing readable) is stored, any result is stored."""
+
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Optional
@@ -30,10 +31,10 @@ FAR_FEWER = 0.5
 class Tally:
     """One count of the stored result and of the new one that would replace it."""
 
-    name: str                           # what is counted, plural ("mass points")
+    name: str  # what is counted, plural ("mass points")
     stored: int
     new: int
-    expected: Optional[float] = None    # the stored result's count under the new settings (None: `stored`)
+    expected: Optional[float] = None  # the stored result's count under the new settings (None: `stored`)
 
     @property
     def reference(self) -> float:
@@ -51,8 +52,9 @@ class Tally:
         return text
 
 
-def check_replacement(tallies: Sequence[Tally], replace_fewer: bool, what: str, step: str, hint: str = "",
-                      feedback=None) -> None:
+def check_replacement(
+    tallies: Sequence[Tally], replace_fewer: bool, what: str, step: str, hint: str = "", feedback=None
+) -> None:
     """Refuse (InputError) a new result of which a count is far fewer than the stored one's (module docstring),
     unless `replace_fewer`: then warn through `feedback`. `what`: the stored result ("mass points"); `step`: the
     step that makes it, named in the message; `hint`: another way out, one sentence."""
@@ -61,11 +63,15 @@ def check_replacement(tallies: Sequence[Tally], replace_fewer: bool, what: str, 
         return
     found = "; ".join(map(str, fewer))
     if replace_fewer:
-        progress.warn(feedback, f"the new {what} are far fewer than the block's ({found}): they replace them, as "
-                                "REPLACE_FEWER asks")
+        progress.warn(
+            feedback,
+            f"the new {what} are far fewer than the block's ({found}): they replace them, as REPLACE_FEWER asks",
+        )
         return
     kept = ", ".join(f"{t.stored} {t.name}" for t in tallies if t.stored)
-    raise InputError(f"the new {what} are far fewer than the block's ({found}; far fewer: below {FAR_FEWER:.0%}): "
-                     f"nothing was stored, and the block keeps its {kept}. Check the parameters and the messages "
-                     f"above. {hint + ' ' if hint else ''}To replace them anyway, run {step} again with REPLACE_FEWER "
-                     "set (an advanced parameter)")
+    raise InputError(
+        f"the new {what} are far fewer than the block's ({found}; far fewer: below {FAR_FEWER:.0%}): "
+        f"nothing was stored, and the block keeps its {kept}. Check the parameters and the messages "
+        f"above. {hint + ' ' if hint else ''}To replace them anyway, run {step} again with REPLACE_FEWER "
+        "set (an advanced parameter)"
+    )

@@ -14,6 +14,7 @@ are adjustment/residual_rows.py's:
 `load_residuals` returns the residuals of the points the block holds now: those of points removed
 or renamed since are absent (a point created later under an old name shows the old residuals
 until the next adjustment)."""
+
 import numpy as np
 from osgeo import ogr
 
@@ -21,9 +22,11 @@ from . import control_points as cp, schema
 
 MEASUREMENT_TABLE, POINT_TABLE, FIELD = "measurement_residuals", "point_residuals", "residual_px"
 MEASUREMENT_FIELDS = [("point_name", ogr.OFTString), ("image_id", ogr.OFTInteger), ("role", ogr.OFTString)] + [
-    (key, ogr.OFTReal) for key in ("vx", "vy", "wx", "wy")]
+    (key, ogr.OFTReal) for key in ("vx", "vy", "wx", "wy")
+]
 POINT_FIELDS = [("point_name", ogr.OFTString), ("role", ogr.OFTString)] + [
-    (key, ogr.OFTReal) for key in ("dE", "dN", "dH", "image_rms_px")]
+    (key, ogr.OFTReal) for key in ("dE", "dN", "dH", "image_rms_px")
+]
 
 
 def _table(ds, name, fields):
@@ -78,8 +81,12 @@ def load_residuals(block_path):
     def values(feat, keys):
         return tuple(np.nan if feat[k] is None else float(feat[k]) for k in keys)
 
-    image = {(f["point_name"], f["image_id"]): values(f, ("vx", "vy", "wx", "wy"))
-             for f in tables[0] if f["point_name"] in names}
-    ground = {f["point_name"]: values(f, ("dE", "dN", "dH", "image_rms_px")) for f in tables[1]
-              if f["point_name"] in names}
+    image = {
+        (f["point_name"], f["image_id"]): values(f, ("vx", "vy", "wx", "wy"))
+        for f in tables[0]
+        if f["point_name"] in names
+    }
+    ground = {
+        f["point_name"]: values(f, ("dE", "dN", "dH", "image_rms_px")) for f in tables[1] if f["point_name"] in names
+    }
     return image, ground

@@ -25,6 +25,7 @@ result computed from a control set that an import or an edit replaced meanwhile 
 beside the new set. The point files and the models bump theirs in their own transactions; the control
 points' counter is bumped by SQLite triggers on the `control_points` layer and the `image_measurements`
 table (`control_point_triggers`), so edits made in QGIS's own attribute table count too."""
+
 import contextlib
 import datetime
 import json
@@ -40,10 +41,16 @@ from ..errors import InputError, StorageError
 from ..gdal_errors import reported_here
 
 FORMAT_VERSION = "1"
-IMAGE_FIELDS = [("name", ogr.OFTString), ("image_path", ogr.OFTString),
-                ("orientation_path", ogr.OFTString), ("model_kind", ogr.OFTString),
-                ("sensor", ogr.OFTString), ("cols", ogr.OFTInteger), ("rows", ogr.OFTInteger),
-                ("model", ogr.OFTString)]
+IMAGE_FIELDS = [
+    ("name", ogr.OFTString),
+    ("image_path", ogr.OFTString),
+    ("orientation_path", ogr.OFTString),
+    ("model_kind", ogr.OFTString),
+    ("sensor", ogr.OFTString),
+    ("cols", ogr.OFTInteger),
+    ("rows", ogr.OFTInteger),
+    ("model", ogr.OFTString),
+]
 #: the images table's field of the supplied models (missing in blocks of format 1 made before it)
 SUPPLIED = "supplied_model"
 
@@ -81,8 +88,13 @@ def create_schema(path):
     info.CreateFeature(feat)
     create_layer(ds, "images", ogr.wkbNone, None, IMAGE_FIELDS + [(SUPPLIED, ogr.OFTString)])
     create_layer(ds, "footprints", ogr.wkbPolygon, wgs84(), [("image_id", ogr.OFTInteger), ("name", ogr.OFTString)])
-    create_layer(ds, "run_log", ogr.wkbNone, None, [("time", ogr.OFTString), ("step", ogr.OFTString),
-                                                      ("parameters", ogr.OFTString), ("message", ogr.OFTString)])
+    create_layer(
+        ds,
+        "run_log",
+        ogr.wkbNone,
+        None,
+        [("time", ogr.OFTString), ("step", ogr.OFTString), ("parameters", ogr.OFTString), ("message", ogr.OFTString)],
+    )
     return ds
 
 
@@ -111,7 +123,7 @@ def lock_holder(path):
         return "another program"
     device = f"{os.major(info.st_dev):02x}:{os.minor(info.st_dev):02x}:{info.st_ino}"
     holders = []
-    for line in lines:       # "1: POSIX  ADVISORY  WRITE 1234 fe:00:5678 1073741824 1073742335"; "->": waiting
+    for line in lines:  # "1: POSIX  ADVISORY  WRITE 1234 fe:00:5678 1073741824 1073742335"; "->": waiting
         fields = line.split()
         if "->" not in fields and len(fields) >= 6 and fields[5] == device and fields[4].isdigit():
             holders.append((fields[3] != "WRITE", int(fields[4])))
@@ -131,13 +143,17 @@ def locked_error(block_path, what, reading=False):
     (an exclusive one) keeps this step from even reading the block."""
     who = lock_holder(block_path)
     if reading:
-        return StorageError(f"cannot read the block {block_path}: {who} holds an exclusive lock on it (waited "
-                            f"{BUSY_TIMEOUT_MS / 1000:g} s), so nothing can read or write it meanwhile. Let that "
-                            "program finish or close it (an SQLite tool with an unfinished transaction, another "
-                            "Pushbroom step), then run this step again; nothing was changed")
-    return StorageError(f"cannot store {what} in the block {block_path}: {who} keeps it locked (waited "
-                        f"{BUSY_TIMEOUT_MS / 1000:g} s). Save or stop the edits of its layers in QGIS, or wait for the "
-                        "other Pushbroom step to finish, then run this one again; nothing was stored")
+        return StorageError(
+            f"cannot read the block {block_path}: {who} holds an exclusive lock on it (waited "
+            f"{BUSY_TIMEOUT_MS / 1000:g} s), so nothing can read or write it meanwhile. Let that "
+            "program finish or close it (an SQLite tool with an unfinished transaction, another "
+            "Pushbroom step), then run this step again; nothing was changed"
+        )
+    return StorageError(
+        f"cannot store {what} in the block {block_path}: {who} keeps it locked (waited "
+        f"{BUSY_TIMEOUT_MS / 1000:g} s). Save or stop the edits of its layers in QGIS, or wait for the "
+        "other Pushbroom step to finish, then run this one again; nothing was stored"
+    )
 
 
 def _is_locked(exc):
@@ -175,16 +191,22 @@ def write_access_error(block_path, what):
         except OSError:
             read_only = False
         if read_only:
-            return StorageError(f"{start}: the {kind} is on a read-only file system. Copy the block with its point "
-                                "folders to a writable disk; nothing was stored")
+            return StorageError(
+                f"{start}: the {kind} is on a read-only file system. Copy the block with its point "
+                "folders to a writable disk; nothing was stored"
+            )
         if kind == "file":
-            return StorageError(f"{start}: the block file is not writable by you (user {me}; {_owner(target)}). "
-                                "Have its owner give you write permission (chmod, chown), or work on a copy of the "
-                                "block, with its point folders beside it, in a folder of yours; nothing was stored")
-        return StorageError(f"{start}: its folder {folder} is not writable by you (user {me}; {_owner(target)}), and "
-                            f"SQLite must create a journal there ({os.path.basename(path)}-journal) to change the "
-                            "block. Have the folder's owner give you write permission, or move the block with its "
-                            "point folders to a folder you can write; nothing was stored")
+            return StorageError(
+                f"{start}: the block file is not writable by you (user {me}; {_owner(target)}). "
+                "Have its owner give you write permission (chmod, chown), or work on a copy of the "
+                "block, with its point folders beside it, in a folder of yours; nothing was stored"
+            )
+        return StorageError(
+            f"{start}: its folder {folder} is not writable by you (user {me}; {_owner(target)}), and "
+            f"SQLite must create a journal there ({os.path.basename(path)}-journal) to change the "
+            "block. Have the folder's owner give you write permission, or move the block with its "
+            "point folders to a folder you can write; nothing was stored"
+        )
     return None
 
 
@@ -211,7 +233,7 @@ def damage(path):
     page = int.from_bytes(head[16:18], "big")
     page = 65536 if page == 1 else page
     pages = int.from_bytes(head[28:32], "big")
-    counted = head[92:96] == head[24:28]        # the header's page count is valid (SQLite's file format, 1.3.7)
+    counted = head[92:96] == head[24:28]  # the header's page count is valid (SQLite's file format, 1.3.7)
     if counted and size < pages * page:
         return f"the file holds {size} bytes, its header records {pages} pages of {page} bytes ({pages * page})"
     if page < 512 or size % page:
@@ -222,9 +244,11 @@ def damage(path):
 def damaged_error(path, cause=""):
     """InputError: the file `path` is a damaged block (`damage`, else SQLite's `cause`)."""
     why = damage(path) or (f"SQLite: {cause}" if cause else "")
-    return InputError(f"the block {path} is damaged{f' ({why})' if why else ''}: it was cut short or overwritten (an "
-                      "interrupted copy or download, a full disk, another program writing into it). Restore it from a "
-                      "copy, or make the block again with pushbroom:createblock")
+    return InputError(
+        f"the block {path} is damaged{f' ({why})' if why else ''}: it was cut short or overwritten (an "
+        "interrupted copy or download, a full disk, another program writing into it). Restore it from a "
+        "copy, or make the block again with pushbroom:createblock"
+    )
 
 
 def _not_a_block(path, why):
@@ -239,7 +263,7 @@ def open_block(path, update=False):
     if not os.path.exists(path):
         raise InputError(f"no block at {path}")
     ogr.UseExceptions()
-    with reported_here():           # GDAL's own lines of a file refused here ("bad application_id") are not printed
+    with reported_here():  # GDAL's own lines of a file refused here ("bad application_id") are not printed
         ds = _open(path, update)
         if ds is None:
             raise damaged_error(path) if damage(path) else _not_a_block(path, "not a GeoPackage")
@@ -248,16 +272,19 @@ def open_block(path, update=False):
         if ds.GetLayerByName("block_info") is None:
             if damage(path):
                 raise damaged_error(path)
-            raise _not_a_block(path, "a GeoPackage without Pushbroom's block_info table, perhaps made by another "
-                                     "program")
+            raise _not_a_block(
+                path, "a GeoPackage without Pushbroom's block_info table, perhaps made by another program"
+            )
     _execute(ds, f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
     images = ds.GetLayerByName("images")
     defn = images.GetLayerDefn() if images is not None else None
     fields = {defn.GetFieldDefn(k).GetName() for k in range(defn.GetFieldCount())} if defn is not None else set()
     missing = [name for name, _ in IMAGE_FIELDS if name not in fields]
     if missing:
-        raise InputError(f"{path} is not a Pushbroom block: its images table lacks {', '.join(missing)} "
-                         "(a GeoPackage of another program, or of an incompatible version)")
+        raise InputError(
+            f"{path} is not a Pushbroom block: its images table lacks {', '.join(missing)} "
+            "(a GeoPackage of another program, or of an incompatible version)"
+        )
     return ds
 
 
@@ -339,14 +366,14 @@ def transaction(block_path, what="the edit", expect=None):
         except BaseException as exc:
             with contextlib.suppress(RuntimeError):
                 ds.RollbackTransaction()
-            if isinstance(exc, RuntimeError):   # OGR/SQLite: locked, read-only, disk full
+            if isinstance(exc, RuntimeError):  # OGR/SQLite: locked, read-only, disk full
                 raise _failed(exc, block_path, what) from exc
             raise
     finally:
         try:
             _close(ds, block_path, what)
         except StorageError:
-            if not failed:      # a failure already on its way is the one to report
+            if not failed:  # a failure already on its way is the one to report
                 raise
 
 
@@ -379,9 +406,11 @@ def _check_generations(ds, block_path, what, expect):
     now = _generation_values({f["key"]: f["value"] for f in ds.GetLayerByName("block_info")})
     changed = [part.replace("_", " ") for part, value in expect.items() if now.get(part) != value]
     if changed:
-        raise StorageError(f"cannot store {what} in {block_path}: the block's {' and '.join(changed)} changed while "
-                           "this step computed (an import, an edit in the measurement window or in QGIS, or another "
-                           "step), so its results belong to the old state; nothing was stored. Run it again")
+        raise StorageError(
+            f"cannot store {what} in {block_path}: the block's {' and '.join(changed)} changed while "
+            "this step computed (an import, an edit in the measurement window or in QGIS, or another "
+            "step), so its results belong to the old state; nothing was stored. Run it again"
+        )
 
 
 def bump(ds, part):
@@ -398,8 +427,10 @@ def control_point_triggers(ds, layer, table):
     info = {f["key"] for f in ds.GetLayerByName("block_info")}
     if "generation_control_points" not in info:
         write_info(ds, {"generation_control_points": 0})
-    columns = {layer: "name, role, lon, lat, h, sigma_e, sigma_n, sigma_h, geom",
-               table: "point_name, image_id, col, row, sigma"}
+    columns = {
+        layer: "name, role, lon, lat, h, sigma_e, sigma_n, sigma_h, geom",
+        table: "point_name, image_id, col, row, sigma",
+    }
     for name, cols in columns.items():
         for event in ("INSERT", "DELETE", f"UPDATE OF {cols}"):
             trigger = f"pushbroom_generation_{name}_{event.split()[0].lower()}"
@@ -452,5 +483,6 @@ def update_info(path, values, step=None, message=""):
 def read_run_log(path):
     """The run_log table (time, step, parameters, message) as a list of dicts, oldest first."""
     ds = open_block(path)
-    return [{key: feat[key] for key in ("time", "step", "parameters", "message")}
-            for feat in ds.GetLayerByName("run_log")]
+    return [
+        {key: feat[key] for key in ("time", "step", "parameters", "message")} for feat in ds.GetLayerByName("run_log")
+    ]

@@ -23,6 +23,7 @@ The images are opened once, masking their nodata (the band's value and GDAL mask
 or whose candidate conjugates do, yields no point (pair_tile.py, refine.py).
 
 The result does not depend on the execution or the number of workers: a tile's points depend only on its box."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -69,16 +70,29 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
     positions, quality, infos = [], [], []
     p = job.params
     for k in range(1, n):
-        check_cancel()                  # between the stages (execution: a cancel reaches a running tile)
-        x1, y1, x2, y2, info = match_pair_tile(s.images[0], s.images[k], s.models[0], s.models[k], box,
-                                               s.heights.bounds, p)
+        check_cancel()  # between the stages (execution: a cancel reaches a running tile)
+        x1, y1, x2, y2, info = match_pair_tile(
+            s.images[0], s.images[k], s.models[0], s.models[k], box, s.heights.bounds, p
+        )
         nan = np.full(x2.size, np.nan, np.float32)
         q = (nan, nan, nan)
         if p.lsm:
             check_cancel()
-            rx, ry, *q = refine_positions(s.images[0], s.images[k], s.models[0], s.models[k], x1, y1, x2,
-                                          y2, info["grid"].heights[::2], p.template, p.max_shift, p.robust)
-            lone = isolated(x1, y1, np.isfinite(q[0]), p.step)      # they keep their dense positions
+            rx, ry, *q = refine_positions(
+                s.images[0],
+                s.images[k],
+                s.models[0],
+                s.models[k],
+                x1,
+                y1,
+                x2,
+                y2,
+                info["grid"].heights[::2],
+                p.template,
+                p.max_shift,
+                p.robust,
+            )
+            lone = isolated(x1, y1, np.isfinite(q[0]), p.step)  # they keep their dense positions
             rx[lone], ry[lone] = x2[lone], y2[lone]
             for v in q:
                 v[lone] = np.nan
@@ -92,7 +106,7 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
     count = int(keep.sum())
     points = np.zeros(count, POINT_DTYPE)
     points["id"] = np.arange(1, count + 1)
-    both = matched[:, keep].all(axis=0) & (n == 3)      # a pair's points are two-ray (group 1)
+    both = matched[:, keep].all(axis=0) & (n == 3)  # a pair's points are two-ray (group 1)
     points["group"] = np.where(both, 2, 1)
     flags = np.zeros(count, np.uint8)
     for k, bit in zip(range(n - 1), (COMB_A, COMB_B)):
@@ -136,12 +150,14 @@ class Dense(MatchingStrategy):
 
     @classmethod
     def plan(cls, stereo: StereoSet, settings: DenseParams, feedback: Feedback | None) -> TilePlan:
-        s = dataclasses.replace(stereo.without_loader(),
-                                images=tuple(as_image(image, saturation=True) for image in stereo.images))
+        s = dataclasses.replace(
+            stereo.without_loader(), images=tuple(as_image(image, saturation=True) for image in stereo.images)
+        )
         tiles = tile_grid(s.models[0].size, settings.tile)
         progress.ensure(feedback).pushInfo(
             f"dense matching: {len(tiles)} tile(s) of {settings.tile} px, a point every {settings.step} px of "
-            f"{s.names[0]}; pairs " + ", ".join(f"{s.names[0]} - {s.names[k]}" for k in range(1, len(s))))
+            f"{s.names[0]}; pairs " + ", ".join(f"{s.names[0]} - {s.names[k]}" for k in range(1, len(s)))
+        )
         mpgc = settings.mpgc and s.triplet
         quotas = sample_quotas([(b[1] - b[0]) * (b[3] - b[2]) for b in tiles]) if mpgc else [0] * len(tiles)
         return TilePlan(DenseJob(s, settings), tiles, quotas)
@@ -153,14 +169,19 @@ class Dense(MatchingStrategy):
         multi, infos = tile_points(job, box)
         save_work(out, multi)
         three = np.flatnonzero((multi.points["group"] == 2) & np.isfinite(multi.points["rho_min"]))
-        return {"points": len(multi), "group_2": int((multi.points["group"] == 2).sum()),
-                "seeds": [i["seeds"] for i in infos], "row_offset": [i["row_offset"] for i in infos],
-                "refined": sum(i["refined"] for i in infos),
-                "sample": positions(multi, job.stereo.ids, evenly(three, quota))}
+        return {
+            "points": len(multi),
+            "group_2": int((multi.points["group"] == 2).sum()),
+            "seeds": [i["seeds"] for i in infos],
+            "row_offset": [i["row_offset"] for i in infos],
+            "refined": sum(i["refined"] for i in infos),
+            "sample": positions(multi, job.stereo.ids, evenly(three, quota)),
+        }
 
     @classmethod
-    def between(cls, job: DenseJob, first: list[dict[str, Any]], outs: list[str], rounds: Rounds,
-                feedback: Feedback | None) -> tuple[DenseJob, list[int]]:
+    def between(
+        cls, job: DenseJob, first: list[dict[str, Any]], outs: list[str], rounds: Rounds, feedback: Feedback | None
+    ) -> tuple[DenseJob, list[int]]:
         """The scene's orientation bias where MPGC refines (None and a warning for too few points)."""
         counts = [int(t["points"]) for t in first]
         if not (job.params.mpgc and job.stereo.triplet):
@@ -168,9 +189,12 @@ class Dense(MatchingStrategy):
         cols, rows = (np.concatenate([t["sample"][i] for t in first], axis=-1) for i in range(2))
         bias = scene_bias(job.stereo.models, cols, rows)
         if bias is None:
-            progress.warn(feedback, f"MPGC needs at least {MIN_POINTS} refined three-ray points to fit the "
-                                    f"orientation's bias; the dense matching has {cols.shape[-1]}: the points keep "
-                                    "their pairwise LSM positions")
+            progress.warn(
+                feedback,
+                f"MPGC needs at least {MIN_POINTS} refined three-ray points to fit the "
+                f"orientation's bias; the dense matching has {cols.shape[-1]}: the points keep "
+                "their pairwise LSM positions",
+            )
         return job._replace(bias=bias), counts
 
     @staticmethod
@@ -179,25 +203,42 @@ class Dense(MatchingStrategy):
         return {"refined_mpgc": _mpgc(job, points)} if job.bias is not None else {}
 
     @classmethod
-    def stats(cls, job: DenseJob, first: list[dict[str, Any]], refined: list[dict[str, Any]], counts: list[int],
-              feedback: Feedback | None) -> MatchStats:
+    def stats(
+        cls,
+        job: DenseJob,
+        first: list[dict[str, Any]],
+        refined: list[dict[str, Any]],
+        counts: list[int],
+        feedback: Feedback | None,
+    ) -> MatchStats:
         s, p = job.stereo, job.params
         empty = [k for k, t in enumerate(first) if t["points"] == 0]
         if empty:
-            progress.warn(feedback, f"{len(empty)} of {len(first)} tile(s) gave no point (no texture, no overlap, "
-                                    f"or nodata or saturated pixels only): tiles {', '.join(map(str, empty[:20]))}"
-                                    f"{' ...' if len(empty) > 20 else ''}")
-        stats = MatchStats(cls.name, list(s.ids), int(sum(counts)), details={
-            "group_2": int(sum(t["group_2"] for t in first)), "seeds": int(sum(sum(t["seeds"]) for t in first)),
-            "refined": int(sum(t["refined"] for t in first))})
+            progress.warn(
+                feedback,
+                f"{len(empty)} of {len(first)} tile(s) gave no point (no texture, no overlap, "
+                f"or nodata or saturated pixels only): tiles {', '.join(map(str, empty[:20]))}"
+                f"{' ...' if len(empty) > 20 else ''}",
+            )
+        stats = MatchStats(
+            cls.name,
+            list(s.ids),
+            int(sum(counts)),
+            details={
+                "group_2": int(sum(t["group_2"] for t in first)),
+                "seeds": int(sum(sum(t["seeds"]) for t in first)),
+                "refined": int(sum(t["refined"] for t in first)),
+            },
+        )
         if job.bias is not None:
             stats.refined_mpgc = int(sum(r.get("refined_mpgc", 0) for r in refined))
         d = stats.details
         progress.ensure(feedback).pushInfo(
-            f"dense matching: {stats.points} points" + (f", {d['group_2']} of them in three images" if s.triplet
-                                                        else "")
+            f"dense matching: {stats.points} points"
+            + (f", {d['group_2']} of them in three images" if s.triplet else "")
             + (f"; {d['refined']} image positions refined by LSM" if p.lsm else "")
-            + (f"; {stats.refined_mpgc} three-ray points refined by MPGC" if job.bias is not None else ""))
+            + (f"; {stats.refined_mpgc} three-ray points refined by MPGC" if job.bias is not None else "")
+        )
         return stats
 
 
@@ -208,8 +249,9 @@ def _mpgc(job: DenseJob, multi: MultiPoints) -> int:
     counts as refined even where the pairwise LSM had left a semi-global position). Returns the count."""
     p, s = job.params, job.stereo
     grow = GrowParams(template=p.template, max_shift=p.max_shift)
-    count = refine_three_ray(multi, list(s.images), list(s.models), list(s.ids), s.heights.bounds, grow, bias=job.bias,
-                             group=2)
+    count = refine_three_ray(
+        multi, list(s.images), list(s.models), list(s.ids), s.heights.bounds, grow, bias=job.bias, group=2
+    )
     done = np.flatnonzero(multi.points["flags"] & REFINED)
     if done.size:
         obs = multi.observations
@@ -224,14 +266,21 @@ def _mpgc(job: DenseJob, multi: MultiPoints) -> int:
     return count
 
 
-def match_dense_tiles(images: Sequence[Any], models: Sequence[Any], folder: str, params: DenseParams | None = None,
-                      height_range: GivenHeights = None, execution: Execution | None = None,
-                      names: Sequence[str] | None = None,
-                      feedback: Feedback | None = None) -> tuple[list[MultiPoints], dict[str, Any]]:
+def match_dense_tiles(
+    images: Sequence[Any],
+    models: Sequence[Any],
+    folder: str,
+    params: DenseParams | None = None,
+    height_range: GivenHeights = None,
+    execution: Execution | None = None,
+    names: Sequence[str] | None = None,
+    feedback: Feedback | None = None,
+) -> tuple[list[MultiPoints], dict[str, Any]]:
     """Dense matching (module docstring) of 2 or 3 `images` (paths or arrays, opened masking their saturated pixels
     too; or Image-likes) with their sensor models, block ids 1 ... n, its work folder beside `folder`: (the tiles'
     MultiPoints in id order, the stats as a dict). Raises InputError for other than 2 or 3 images, or where a
     pair has no epipolar geometry."""
-    parts, stats = match_in_tiles(Dense, StereoSet.of(images, models, names, heights=height_range), params, folder,
-                                  None, execution, feedback)
+    parts, stats = match_in_tiles(
+        Dense, StereoSet.of(images, models, names, heights=height_range), params, folder, None, execution, feedback
+    )
     return parts, stats.as_dict()

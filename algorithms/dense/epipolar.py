@@ -38,6 +38,7 @@ base, no epipolar geometry).
 Reference: M. Kim, "A note on the epipolar geometry of linear pushbroom imagery", PE&RS 66(8), 2000;
 the grid idea follows CNES shareloc's stereo-rectification grids (traced along local epipolar
 directions), here per tile and with the pairing error measured."""
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,8 +47,8 @@ from ..errors import InputError
 from ..geodesy import geodetic_to_ecef
 from ..matching.pair_geometry import predict
 
-MIN_PARALLAX_PX = 0.05      # image-1 px over 2 dh below which the rays count as parallel
-MIN_HALF_RANGE_M = 100.0    # dh: at least this, so that a flat tile still has a direction
+MIN_PARALLAX_PX = 0.05  # image-1 px over 2 dh below which the rays count as parallel
+MIN_HALF_RANGE_M = 100.0  # dh: at least this, so that a flat tile still has a direction
 
 
 def _unit(v):
@@ -75,6 +76,7 @@ class EpipolarGrid:
     p, q: (rows, cols, 2) image-1 and image-2 positions (x, y) of the nodes; u0, v0: epipolar
     coordinates of node (0, 0); step: epipolar px between nodes; heights: (h_lo, h_m, h_hi);
     gsd: the epipolar pixel's ground size (m); row_error, interpolation_error: see the module."""
+
     p: np.ndarray
     q: np.ndarray
     u0: float
@@ -95,7 +97,7 @@ class EpipolarGrid:
         (extrapolated by the border cells outside the grid)."""
         fb = (np.asarray(u, float) - self.u0) / self.step
         fa = (np.asarray(v, float) - self.v0) / self.step
-        with np.errstate(invalid="ignore"):     # NaN (u, v) give NaN, through tb, ta
+        with np.errstate(invalid="ignore"):  # NaN (u, v) give NaN, through tb, ta
             b = np.clip(np.nan_to_num(np.floor(fb)), 0, nodes.shape[1] - 2).astype(int)
             a = np.clip(np.nan_to_num(np.floor(fa)), 0, nodes.shape[0] - 2).astype(int)
         tb, ta = (fb - b)[..., None], (fa - a)[..., None]
@@ -130,8 +132,7 @@ class EpipolarGrid:
         good = np.isfinite(nodes).all(axis=-1)
         vv, uu = np.nonzero(good)
         a = np.column_stack([nodes[good], np.ones(good.sum())])
-        coef = np.linalg.lstsq(a, np.column_stack([self.u0 + uu * self.step, self.v0 + vv * self.step]),
-                               rcond=None)[0]
+        coef = np.linalg.lstsq(a, np.column_stack([self.u0 + uu * self.step, self.v0 + vv * self.step]), rcond=None)[0]
         uv = np.concatenate([target, np.ones(target.shape[:-1] + (1,))], axis=-1) @ coef
         u, v = uv[..., 0], uv[..., 1]
         for _ in range(iterations):
@@ -162,9 +163,11 @@ def _direction(model1, model2, p, h_m, dh):
 def _trace(model1, model2, starts, e_ref, n_steps, length, h_m, dh):
     """Rows (len(starts), n_steps + 1, 2) traced from `starts` along e1 in steps of `length` image-1 px
     (negative: backwards) by the midpoint rule; e1 is oriented like e_ref."""
+
     def field(p):
         e = _direction(model1, model2, p, h_m, dh)[0]
         return np.where((e @ e_ref)[:, None] < 0, -e, e)
+
     out = np.empty((len(starts), n_steps + 1, 2))
     out[:, 0] = starts
     p = starts
@@ -188,20 +191,24 @@ def epipolar_grid(model1, model2, box1, height_range, step=16, margin=8):
     pc = np.array([[0.5 * (x0 + x1), 0.5 * (y0 + y1)]])
     qc = np.column_stack(predict(model1, model2, pc[:, 0], pc[:, 1], np.array([h_m])))
     if not np.isfinite(qc).all():
-        raise InputError(f"the tile ({x0:.0f}, {y0:.0f}, {x1:.0f}, {y1:.0f}) of image 1 has no position in image 2 "
-                         f"at {h_m:.0f} m: the images do not overlap there")
+        raise InputError(
+            f"the tile ({x0:.0f}, {y0:.0f}, {x1:.0f}, {y1:.0f}) of image 1 has no position in image 2 "
+            f"at {h_m:.0f} m: the images do not overlap there"
+        )
     e, parallax = _direction(model1, model2, pc, h_m, dh)
     if not parallax[0] >= MIN_PARALLAX_PX:
-        raise InputError(f"the rays of the two images are parallel at the tile ({parallax[0]:.3g} px of parallax "
-                         f"over {2 * dh:.0f} m): no stereo base, no epipolar geometry; match a pair taken from "
-                         "different directions")
+        raise InputError(
+            f"the rays of the two images are parallel at the tile ({parallax[0]:.3g} px of parallax "
+            f"over {2 * dh:.0f} m): no stereo base, no epipolar geometry; match a pair taken from "
+            "different directions"
+        )
     e = e[0]
     n = np.array([-e[1], e[0]])
     g1u, g1v, gsd1 = pixel_gsd(model1, pc[0, 0], pc[0, 1], h_m, e, n)
     t2 = np.column_stack(predict(model1, model2, pc[:, 0] + e[0], pc[:, 1] + e[1], np.array([h_m])))[0] - qc[0]
     gsd2 = pixel_gsd(model2, qc[0, 0], qc[0, 1], h_m, t2, np.array([-t2[1], t2[0]]))[2]
     gsd = max(gsd1, gsd2)
-    su, sv = gsd / g1u, gsd / g1v                  # image-1 px per epipolar px along e1, n1
+    su, sv = gsd / g1u, gsd / g1v  # image-1 px per epipolar px along e1, n1
     # disparity range at the centre, in epipolar px: image-2 parallax over the range / image-2 px per u
     q_lo, q_hi = (np.column_stack(predict(model1, model2, pc[:, 0], pc[:, 1], np.array([h])))[0] for h in (lo, hi))
     per_u = np.hypot(*t2) * su
@@ -218,8 +225,15 @@ def epipolar_grid(model1, model2, box1, height_range, step=16, margin=8):
     backward = _trace(model1, model2, starts, e, int(-u_a), -step * su, h_m, dh)
     p = np.concatenate([backward[:, :0:-1], forward], axis=1)
     x2, y2 = predict(model1, model2, p[..., 0], p[..., 1], np.full(p.shape[:2], h_m))
-    grid = EpipolarGrid(p=p, q=np.stack([x2, y2], axis=-1), u0=float(u_a * step), v0=float(v_a * step),
-                        step=int(step), heights=(lo, h_m, hi), gsd=gsd)
+    grid = EpipolarGrid(
+        p=p,
+        q=np.stack([x2, y2], axis=-1),
+        u0=float(u_a * step),
+        v0=float(v_a * step),
+        step=int(step),
+        heights=(lo, h_m, hi),
+        gsd=gsd,
+    )
     grid.row_error, grid.interpolation_error = grid_errors(model1, model2, grid)
     return grid
 
@@ -227,8 +241,11 @@ def epipolar_grid(model1, model2, box1, height_range, step=16, margin=8):
 def grid_errors(model1, model2, grid):
     """(row_error, interpolation_error) of a grid at its cells' centres (see the module)."""
     rows, cols = grid.p.shape[:2]
-    v, u = np.meshgrid(grid.v0 + (np.arange(rows - 1) + 0.5) * grid.step,
-                       grid.u0 + (np.arange(cols - 1) + 0.5) * grid.step, indexing="ij")
+    v, u = np.meshgrid(
+        grid.v0 + (np.arange(rows - 1) + 0.5) * grid.step,
+        grid.u0 + (np.arange(cols - 1) + 0.5) * grid.step,
+        indexing="ij",
+    )
     u, v = u.ravel(), v.ravel()
     x1, y1 = grid.image1(u, v)
     row, interp = [], np.nan

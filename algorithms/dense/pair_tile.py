@@ -19,6 +19,7 @@ candidate without a code (sgm.py, scored candidates). A node yields no point whe
 
 Image positions are GDAL's. A node without a disparity is NaN. The epipolar images and the cost volume are
 the tile's: memory follows the tile and its disparity range."""
+
 import math
 
 import numpy as np
@@ -31,10 +32,10 @@ from .epipolar import disparity_range, epipolar_grid
 from .resample import epipolar_image
 from .sgm import disparity
 
-DISPARITY_MARGIN = 2.0      # px beyond the height range's disparities (the V fit needs a neighbour)
-MIN_SEEDS = 5               # seeds a tile needs to correct its rows and narrow its disparity range
-SEED_MARGIN = 0.25          # the seeds' disparity span widened by this fraction of it on each side ...
-SEED_MARGIN_PX = 10.0       # ... and by at least this many px
+DISPARITY_MARGIN = 2.0  # px beyond the height range's disparities (the V fit needs a neighbour)
+MIN_SEEDS = 5  # seeds a tile needs to correct its rows and narrow its disparity range
+SEED_MARGIN = 0.25  # the seeds' disparity span widened by this fraction of it on each side ...
+SEED_MARGIN_PX = 10.0  # ... and by at least this many px
 
 
 def lattice(box, step):
@@ -56,7 +57,7 @@ def sample_disparity(disp, u, v, max_spread):
     j, i = np.where(inside, j, 0), np.where(inside, i, 0)
     d = np.stack([disp[i, j], disp[i, j + 1], disp[i + 1, j], disp[i + 1, j + 1]])
     tu, tv = u - j, v - i
-    out = ((1 - tv) * ((1 - tu) * d[0] + tu * d[1]) + tv * ((1 - tu) * d[2] + tu * d[3]))
+    out = (1 - tv) * ((1 - tu) * d[0] + tu * d[1]) + tv * ((1 - tu) * d[2] + tu * d[3])
     with np.errstate(invalid="ignore"):
         ok = inside & np.isfinite(d).all(axis=0) & (d.max(axis=0) - d.min(axis=0) <= max_spread)
     return np.where(ok, out, np.nan)
@@ -79,8 +80,7 @@ def match_pair_tile(image1, image2, model1, model2, box, height_range, params):
     x1, y1 = lattice(box, params.step)
     image1, image2 = as_image(image1, saturation=True), as_image(image2, saturation=True)
     a1, a2 = adapt_resolution(image1, image2, model1, model2, GrowParams(), height_range)
-    grid = epipolar_grid(model1, model2, box, height_range, step=params.grid_step,
-                         margin=params.sgm.census_radius + 2)
+    grid = epipolar_grid(model1, model2, box, height_range, step=params.grid_step, margin=params.sgm.census_radius + 2)
     span = disparity_range(model1, model2, grid, height_range)
     su1, sv1, su2, sv2 = tile_seeds(image1, image2, model1, model2, box, height_range, grid)
     info = {"grid": grid, "seeds": len(su1), "row_offset": 0.0, "d_range": None}
@@ -111,6 +111,7 @@ def shifted_rows(grid, offset):
     if offset == 0.0:
         return grid.q
     rows, cols = grid.q.shape[:2]
-    v, u = np.meshgrid(grid.v0 + np.arange(rows) * grid.step + offset, grid.u0 + np.arange(cols) * grid.step,
-                       indexing="ij")
+    v, u = np.meshgrid(
+        grid.v0 + np.arange(rows) * grid.step + offset, grid.u0 + np.arange(cols) * grid.step, indexing="ij"
+    )
     return np.stack(grid.image2(u, v), axis=-1)

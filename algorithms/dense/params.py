@@ -1,4 +1,5 @@
 """Settings of dense matching (the "dense" strategy of pushbroom:matchpoints)."""
+
 from dataclasses import dataclass, field
 
 from ..errors import InputError
@@ -13,6 +14,7 @@ class DenseParams:
     refinement in the original images (refine.py) with a `template` px window, kept within `max_shift` px
     of the dense position, with LSM's robust weighting where `robust`; mpgc: a triplet's three-ray points
     refined again by MPGC in both search images at once (dense_strategy.py)."""
+
     tile: int = 512
     step: int = 1
     grid_step: int = 16
@@ -35,8 +37,10 @@ class DenseParams:
         if not self.max_spread > 0:
             raise InputError("the disparity spread of a lattice node must be positive")
         if not 1 <= int(self.sgm.census_radius) <= 3:
-            raise InputError(f"the census radius must be 1 to 3 px (a 3 x 3 to 7 x 7 window: 64 bits at most), "
-                             f"got {self.sgm.census_radius}")
+            raise InputError(
+                f"the census radius must be 1 to 3 px (a 3 x 3 to 7 x 7 window: 64 bits at most), "
+                f"got {self.sgm.census_radius}"
+            )
         if self.template < 5 or self.template % 2 == 0:
             raise InputError(f"the refinement template must be an odd number of at least 5 px, got {self.template}")
         if not self.max_shift > 0:

@@ -27,6 +27,7 @@ studies/README.md#dense_precision). They hold for LSM's default template (19 px)
 
 Every other point (unrefined dense points, region growing's, coarse-to-fine's, tie points) keeps the one a
 priori image sigma given, and no spread term."""
+
 import numpy as np
 
 from ..matching.points import DENSE

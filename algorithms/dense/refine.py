@@ -29,6 +29,7 @@ fewer nodes around it (a corner 8), so there it is a little stricter.
 Measured on the simulated triplet (docs/validation.md#dense-matching, with the plain LSM): LSM halves the dense
 position's error on open ground where it is accepted, and makes it worse within a template of a height step;
 the robust weights and the isolation test: docs/validation.md#dense-robust-lsm."""
+
 import numpy as np
 from scipy import ndimage
 
@@ -49,9 +50,20 @@ REACH, LEAST_REFINED = 2, 3
 TEMPLATE_SUPPORT = 2
 
 
-def refine_positions(image1, image2, model1, model2, x1: np.ndarray, y1: np.ndarray, x2: np.ndarray,
-                     y2: np.ndarray, height_range: tuple, template: int = 19, max_shift: float = 0.5,
-                     robust: bool = True) -> tuple:
+def refine_positions(
+    image1,
+    image2,
+    model1,
+    model2,
+    x1: np.ndarray,
+    y1: np.ndarray,
+    x2: np.ndarray,
+    y2: np.ndarray,
+    height_range: tuple,
+    template: int = 19,
+    max_shift: float = 0.5,
+    robust: bool = True,
+) -> tuple:
     """(x2, y2, rho, semi_major, semi_minor): the refined image-2 positions of points (x1, y1) matched at
     (x2, y2) (NaN: unmatched, left as they are; and NaN where LSM's window touches a masked pixel: no point),
     with LSM's quality where refined (NaN elsewhere); LSM with `template`, `max_shift` and, where `robust`, the
@@ -69,12 +81,19 @@ def refine_positions(image1, image2, model1, model2, x1: np.ndarray, y1: np.ndar
     cx, cy = (np.clip((c + 0.5) * AFFINE_CELL, v[idx].min(), v[idx].max()) for c, v in zip(cells.T, (x1, y1)))
     affine = np.column_stack(local_affine(model1, model2, cx, cy, h_m)[2:])[cell.ravel()]
     params = GrowParams(template=int(template), max_shift=float(max_shift), robust=bool(robust)).check()
-    image1, image2 = adapt_resolution(as_image(image1, saturation=True), as_image(image2, saturation=True), model1,
-                                      model2, params, HeightRange.resolve(height_range, model1).bounds)
+    image1, image2 = adapt_resolution(
+        as_image(image1, saturation=True),
+        as_image(image2, saturation=True),
+        model1,
+        model2,
+        params,
+        HeightRange.resolve(height_range, model1).bounds,
+    )
     half = params.template // 2
     reach = half * np.abs(affine).reshape(-1, 2, 2).sum(axis=2) + TEMPLATE_SUPPORT + params.max_shift
-    masked = touches_masked(image1, x1[idx], y1[idx], half + TEMPLATE_SUPPORT, half + TEMPLATE_SUPPORT) \
-        | touches_masked(image2, x2[idx], y2[idx], reach[:, 0], reach[:, 1])
+    masked = touches_masked(
+        image1, x1[idx], y1[idx], half + TEMPLATE_SUPPORT, half + TEMPLATE_SUPPORT
+    ) | touches_masked(image2, x2[idx], y2[idx], reach[:, 0], reach[:, 1])
     x2[idx[masked]], y2[idx[masked]] = np.nan, np.nan
     idx, affine = idx[~masked], affine[~masked]
     records, accepted = match_windows(image1, image2, x1[idx], y1[idx], x2[idx], y2[idx], affine, params)

@@ -5,6 +5,7 @@ the grid's bilinear position of (u, v) = (u0 + j, v0 + i), read from one window 
 holds every node: memory follows the tile. NaN where the position has no 4 x 4 neighbourhood inside
 the image, where a node is NaN (outside a model's domain) and where the image is nodata (NaN spreads
 over the cubic's support)."""
+
 import math
 
 import numpy as np
@@ -27,10 +28,18 @@ def resample_kernel(img, x0, y0, nodes, step, out):
             b = min(j // step, nb - 2)
             tb = (j - b * step) / step
             w00, w01, w10, w11 = (1 - ta) * (1 - tb), (1 - ta) * tb, ta * (1 - tb), ta * tb
-            x = (w00 * nodes[a, b, 0] + w01 * nodes[a, b + 1, 0] + w10 * nodes[a + 1, b, 0]
-                 + w11 * nodes[a + 1, b + 1, 0]) - x0
-            y = (w00 * nodes[a, b, 1] + w01 * nodes[a, b + 1, 1] + w10 * nodes[a + 1, b, 1]
-                 + w11 * nodes[a + 1, b + 1, 1]) - y0
+            x = (
+                w00 * nodes[a, b, 0]
+                + w01 * nodes[a, b + 1, 0]
+                + w10 * nodes[a + 1, b, 0]
+                + w11 * nodes[a + 1, b + 1, 0]
+            ) - x0
+            y = (
+                w00 * nodes[a, b, 1]
+                + w01 * nodes[a, b + 1, 1]
+                + w10 * nodes[a + 1, b, 1]
+                + w11 * nodes[a + 1, b + 1, 1]
+            ) - y0
             if not (x == x and y == y):
                 out[i, j] = np.nan
                 continue

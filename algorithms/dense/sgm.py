@@ -41,6 +41,7 @@ aggregated volume): the tile and its disparity range set it.
 Reference: H. Hirschmuller, "Stereo processing by semiglobal matching and mutual information", IEEE
 PAMI 30(2), 2008; R. Zabih, J. Woodfill, "Non-parametric local transforms for computing visual
 correspondence", ECCV 1994."""
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,6 +59,7 @@ class SgmParams:
     """census_radius: r of the (2 r + 1)^2 census window; p1, p2: SGM penalties for a disparity change of
     1 and of more; lr_tolerance: px of left-right disagreement kept; min_contrast: grey values a census
     window must span (more than) to give a code."""
+
     census_radius: int = 2
     p1: float = 8.0
     p2: float = 32.0
@@ -239,6 +241,7 @@ def disparity(epi1, epi2, d_range, params=SgmParams()):
     """The dense disparity (float32, epi1's shape, u2 - u1 in epipolar px, NaN where unmatched or
     inconsistent) of epipolar images epi1, epi2 (same rows) over the integer range d_range = (d_min, d_max)."""
     import c_libsgm
+
     if epi1.shape[0] != epi2.shape[0]:
         raise ValueError(f"epipolar images must have the same rows, got {epi1.shape} and {epi2.shape}")
     d_min, d_max = int(np.floor(d_range[0])), int(np.ceil(d_range[1]))
@@ -253,8 +256,9 @@ def disparity(epi1, epi2, d_range, params=SgmParams()):
     shape = epi1.shape + (len(DIRECTIONS),)
     p1 = np.full(shape, params.p1, np.float32)
     p2 = np.full(shape, params.p2, np.float32)
-    s = c_libsgm.sgm_api(cv, p1, p2, DIRECTIONS, np.float32(invalid), np.ones(epi1.shape, np.float32),
-                         False, False)["cv"]
+    s = c_libsgm.sgm_api(cv, p1, p2, DIRECTIONS, np.float32(invalid), np.ones(epi1.shape, np.float32), False, False)[
+        "cv"
+    ]
     del cv, p1, p2
     # a valid path never sums to more than 8 (C_max + P2) (libsgm's bound, per direction)
     limit = np.float32(len(DIRECTIONS) * (c_max + params.p2))

@@ -2,6 +2,7 @@
 Gruen): for every point at once (prange), NCC of its template along its sampled
 quasi-epipolar path (ncc.ncc_path), the across-maximum profile, its local maxima and their
 parabola refinement in height and across the path."""
+
 import math
 
 import numpy as np
@@ -91,8 +92,9 @@ def _point(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def path_candidates(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out_h, out_rho, out_x, out_y,
-                    second):
+def path_candidates(
+    img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out_h, out_rho, out_x, out_y, second
+):
     """Candidates of all points (coarse_to_fine_level.candidates): x, y, half, a1..a5, rho_min (n,), cx, cy
     (n, k, na), heights (n, k); out_* (n, C) NaN-filled, second (n,) NaN-filled. Points with a
     non-finite affine or path position (cx) are skipped."""
@@ -101,5 +103,22 @@ def path_candidates(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho
             continue
         if not np.isfinite(cx[i]).all():
             continue
-        second[i] = _point(img1, img2, x[i], y[i], half[i], cx[i], cy[i], a1[i], a2[i], a4[i], a5[i], heights[i],
-                           rho_min[i], out_h[i], out_rho[i], out_x[i], out_y[i])
+        second[i] = _point(
+            img1,
+            img2,
+            x[i],
+            y[i],
+            half[i],
+            cx[i],
+            cy[i],
+            a1[i],
+            a2[i],
+            a4[i],
+            a5[i],
+            heights[i],
+            rho_min[i],
+            out_h[i],
+            out_rho[i],
+            out_x[i],
+            out_y[i],
+        )

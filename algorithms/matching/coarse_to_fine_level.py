@@ -36,6 +36,7 @@ affine) is correlated at every sample (ncc.ncc_path), all points in one numba ke
 across-maximum profile above rho_min are candidates (at most `max_candidates`, best first),
 refined by a parabola in height and across the path; each carries its height, rho and image
 position. `second` is the best local maximum besides the first (for the peak ratio)."""
+
 import math
 
 import numpy as np
@@ -95,7 +96,7 @@ class ShiftedModel:
     def partials(self, lon, lat, h):
         part = dict(self.model.partials(lon, lat, h))
         part["col"], part["row"] = self._moved(np.asarray(part["col"], float), np.asarray(part["row"], float))
-        for key in [k for k in part if k.startswith("d_")]:     # d(col, row)/d(...): (..., 2, k), times M
+        for key in [k for k in part if k.startswith("d_")]:  # d(col, row)/d(...): (..., 2, k), times M
             part[key] = np.einsum("ij,...jk->...ik", self.linear, np.asarray(part[key], float))
         return part
 
@@ -150,9 +151,9 @@ def window_halves(img, x, y, sizes, noise, target, rate=None):
         j0, j1 = np.clip(j - h, 0, cols), np.clip(j + h + 1, 0, cols)
         energy = c[i1, j1] - c[i0, j1] - c[i1, j0] + c[i0, j0]
         k = np.arange(-h, h + 1.0)
-        spread = np.hypot(k[:, None], k[None, :]).mean()                  # mean |xi|
+        spread = np.hypot(k[:, None], k[None, :]).mean()  # mean |xi|
         with np.errstate(divide="ignore"):
-            error = np.sqrt(noise ** 2 * 2.0 / energy + rate * spread)
+            error = np.sqrt(noise**2 * 2.0 / energy + rate * spread)
         take = ~done & ((error <= target) | (error <= best))
         half[take] = h
         best = np.where(take, error, best)
@@ -218,10 +219,23 @@ def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_m
         part = {key: np.full((sel.size, cmax), np.nan) for key in ("h", "rho", "x", "y")}
         part["second"] = np.full(sel.size, np.nan)
         vec = [np.ascontiguousarray(v[sel], float) for v in (x, y, a1, a2, a4, a5)]
-        path_candidates(img1, img2, vec[0], vec[1], np.ascontiguousarray(half[sel]), np.ascontiguousarray(cx),
-                        np.ascontiguousarray(cy), *vec[2:], np.ascontiguousarray(heights),
-                        np.ascontiguousarray(rho_min[sel]), part["h"], part["rho"], part["x"], part["y"],
-                        part["second"])
+        path_candidates(
+            img1,
+            img2,
+            vec[0],
+            vec[1],
+            np.ascontiguousarray(half[sel]),
+            np.ascontiguousarray(cx),
+            np.ascontiguousarray(cy),
+            *vec[2:],
+            np.ascontiguousarray(heights),
+            np.ascontiguousarray(rho_min[sel]),
+            part["h"],
+            part["rho"],
+            part["x"],
+            part["y"],
+            part["second"],
+        )
         for key, value in part.items():
             out[key][sel] = value
     return out
@@ -261,8 +275,9 @@ class TinGuide:
         tin = delaunay(x, y)
         rough = np.empty(len(h))
         indptr, indices = tin.vertex_neighbor_vertices
-        neighbour_residuals(indptr, indices, *(np.ascontiguousarray(v, float) for v in (x, y, h)),
-                            np.ones(len(h), bool), rough)
+        neighbour_residuals(
+            indptr, indices, *(np.ascontiguousarray(v, float) for v in (x, y, h)), np.ones(len(h), bool), rough
+        )
         rough = np.nan_to_num(np.abs(rough))
         self.cell = float(cell)
         grid = Grid(0.0, 0.0, self.cell, int(math.ceil(shape[1] / cell)) + 1, int(math.ceil(shape[0] / cell)) + 1)
@@ -318,7 +333,7 @@ def primitives(img, level, params, border):
     """Foerstner points and grid points of a reference level image: (x, y) level px."""
     rows, cols = img.shape
     px, py, _ = interest_points(img, patch=params.patch, window=5, border=border)
-    if level == 0:    # region growing's lattice (half template 9): comparable nodes
+    if level == 0:  # region growing's lattice (half template 9): comparable nodes
         gx = np.arange(9.5, cols - border, params.grid)
         gy = np.arange(9.5, rows - border, params.grid)
     else:
@@ -327,7 +342,7 @@ def primitives(img, level, params, border):
     gx, gy = (v.ravel() for v in np.meshgrid(gx, gy))
     inside = (gx >= border) & (gy >= border)
     x, y = np.concatenate([px, gx[inside]]), np.concatenate([py, gy[inside]])
-    first = np.sort(np.unique(np.column_stack([x, y]), axis=0, return_index=True)[1])   # a Foerstner point on a node
+    first = np.sort(np.unique(np.column_stack([x, y]), axis=0, return_index=True)[1])  # a Foerstner point on a node
     return x[first], y[first]
 
 
@@ -344,13 +359,22 @@ def match_level(ref, ref_raw, searches, models, level, params, hr, guide, edge_m
     # the previous level's TIN roughness in px of parallax, less (in quadrature) its median, the
     # matching noise that the roughness of plane residuals includes
     rough_px = np.zeros(n) if guide is None else guide.at(x * s, y * s)[1] * sens
-    rough_px = np.sqrt(np.maximum(rough_px ** 2 - np.median(rough_px) ** 2, 0.0)) if n else rough_px
-    halves = window_halves(ref_raw, x, y, params.windows, noise_sigma(ref_raw), params.precision,
-                           rough_px ** 2 / (params.coarse_grid * FACTOR))
+    rough_px = np.sqrt(np.maximum(rough_px**2 - np.median(rough_px) ** 2, 0.0)) if n else rough_px
+    halves = window_halves(
+        ref_raw,
+        x,
+        y,
+        params.windows,
+        noise_sigma(ref_raw),
+        params.precision,
+        rough_px**2 / (params.coarse_grid * FACTOR),
+    )
     rho_min = rho_thresholds(rho_min, params.rho_drop, rough_px)
     across = max(1, int(math.ceil(params.across / s)))
-    cands = [candidates(ref, searches[k], lm[0], lm[k + 1], x, y, h_lo, h_hi, halves, across, rho_min,
-                        params.max_candidates) for k in range(m)]
+    cands = [
+        candidates(ref, searches[k], lm[0], lm[k + 1], x, y, h_lo, h_hi, halves, across, rho_min, params.max_candidates)
+        for k in range(m)
+    ]
     agree = params.agree_px / sens
     shifts, heights = estimate_shift(lm, x, y, cands, rho_min, params.peak_ratio)
     for c, hk in zip(cands, heights):
@@ -358,21 +382,28 @@ def match_level(ref, ref_raw, searches, models, level, params, hr, guide, edge_m
     h, score, i1, i2 = hypotheses(cands, agree)
     choice = unique_choice(h, score, i1, i2, cands, params.peak_ratio, params.margin)
     spacing = params.grid if level == 0 else params.coarse_grid
-    choice = relax(x, y, h, score, choice, np.maximum(agree, 1e-3), params.relax_radius * spacing,
-                   edge_mask=edge_mask)
+    choice = relax(x, y, h, score, choice, np.maximum(agree, 1e-3), params.relax_radius * spacing, edge_mask=edge_mask)
     rows = np.arange(n)
     c = np.maximum(choice, 0)
-    out = {"x": x, "y": y, "h": np.where(choice >= 0, h[rows, c], np.nan),
-           "sx": np.full((n, m), np.nan), "sy": np.full((n, m), np.nan), "rho": np.full((n, m), np.nan),
-           "candidates": int(np.isfinite(h).any(axis=1).sum()), "shifts": shifts * s}
+    out = {
+        "x": x,
+        "y": y,
+        "h": np.where(choice >= 0, h[rows, c], np.nan),
+        "sx": np.full((n, m), np.nan),
+        "sy": np.full((n, m), np.nan),
+        "rho": np.full((n, m), np.nan),
+        "candidates": int(np.isfinite(h).any(axis=1).sum()),
+        "shifts": shifts * s,
+    }
     for k, idx in enumerate((i1, i2)[:m]):
         j = np.where(choice >= 0, idx[rows, c], -1)
         has = j >= 0
         sel = np.flatnonzero(has)
         cx = cands[k]["x"][sel, j[sel]]
         cy = cands[k]["y"][sel, j[sel]]
-        d = back_match(ref, searches[k], lm[0], lm[k + 1], x[sel], y[sel], cx, cy, h_lo[sel], h_hi[sel],
-                       halves[sel], across)
+        d = back_match(
+            ref, searches[k], lm[0], lm[k + 1], x[sel], y[sel], cx, cy, h_lo[sel], h_hi[sel], halves[sel], across
+        )
         ok = d <= params.back_px
         sel = sel[ok]
         out["sx"][sel, k], out["sy"][sel, k] = cx[ok], cy[ok]
@@ -408,8 +439,19 @@ def match_level_edges(ref, searches, models, level, params, hr, guide, chains):
     pts = np.concatenate(chains) if chains else np.zeros((0, 2))
     lo, hi, _ = height_interval(lm, pts[:, 0], pts[:, 1], params, hr, guide)
     rho_min = params.rho_min if level == 0 else params.rho_min_coarse
-    recs = [match_edges(ref, searches[k], chains, lambda c, r, h, k=k: predict(lm[0], lm[k + 1], c, r, h), (lo, hi),
-                        window=params.edge_window, step=params.edge_step, rho_min=rho_min) for k in range(m)]
+    recs = [
+        match_edges(
+            ref,
+            searches[k],
+            chains,
+            lambda c, r, h, k=k: predict(lm[0], lm[k + 1], c, r, h),
+            (lo, hi),
+            window=params.edge_window,
+            step=params.edge_step,
+            rho_min=rho_min,
+        )
+        for k in range(m)
+    ]
     x, y = recs[0]["col"], recs[0]["row"]
     ok = np.logical_and.reduce([r["ok"] for r in recs])
     rho = np.column_stack([r["rho"] for r in recs]).astype(float)
@@ -419,9 +461,17 @@ def match_level_edges(ref, searches, models, level, params, hr, guide, chains):
         _, _, sens = height_interval(lm, x[ok], y[ok], params, hr, guide)
         idx = np.flatnonzero(ok)
         ok[idx] = np.abs(hk[idx, 0] - hk[idx, 1]) <= params.agree_px / sens
-    return {"x": x[ok], "y": y[ok], "h": h[ok], "rho": rho[ok],
-            "sx": np.column_stack([r["col2"] for r in recs])[ok], "sy": np.column_stack([r["row2"] for r in recs])[ok],
-            "chain": recs[0]["chain"][ok], "index": recs[0]["index"][ok], "edgels": len(x)}
+    return {
+        "x": x[ok],
+        "y": y[ok],
+        "h": h[ok],
+        "rho": rho[ok],
+        "sx": np.column_stack([r["col2"] for r in recs])[ok],
+        "sy": np.column_stack([r["row2"] for r in recs])[ok],
+        "chain": recs[0]["chain"][ok],
+        "index": recs[0]["index"][ok],
+        "edgels": len(x),
+    }
 
 
 def edge_breaklines(edge, scale, step):

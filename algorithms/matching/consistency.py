@@ -17,6 +17,7 @@ NOT applied to it, so that large differences are reported rather than censored (
 the initial value IS the difference when starting from the original position). Records without a
 usable affine (NaN or singular) start from the sensor models' local affine of image 2 -> image 1.
 """
+
 import dataclasses
 import math
 
@@ -65,8 +66,17 @@ def back_guide(records, model1=None, model2=None, height=None):
     return guide
 
 
-def forward_backward(image1, image2, model1, model2, records, params=None, height_range=None,
-                     start_offset=(0.0, 0.0), return_records=False):
+def forward_backward(
+    image1,
+    image2,
+    model1,
+    model2,
+    records,
+    params=None,
+    height_range=None,
+    start_offset=(0.0, 0.0),
+    return_records=False,
+):
     """Forward-backward differences (px of image 1) of pair records matched image 1 -> image 2.
 
     The image-2 template at each record's (x2, y2) is least-squares matched back into image 1 from
@@ -80,8 +90,12 @@ def forward_backward(image1, image2, model1, model2, records, params=None, heigh
     diff = np.full(n, np.nan)
     back = np.zeros(n, PAIR_DTYPE)
     back["x2"] = back["y2"] = np.nan
-    usable = np.flatnonzero(np.isfinite(records["x1"]) & np.isfinite(records["y1"])
-                            & np.isfinite(records["x2"]) & np.isfinite(records["y2"]))
+    usable = np.flatnonzero(
+        np.isfinite(records["x1"])
+        & np.isfinite(records["y1"])
+        & np.isfinite(records["x2"])
+        & np.isfinite(records["y2"])
+    )
     if len(usable):
         rec = records[usable]
         hr = HeightRange.resolve(height_range, model1).bounds
@@ -92,7 +106,7 @@ def forward_backward(image1, image2, model1, model2, records, params=None, heigh
         wide = dataclasses.replace(params, max_shift=max(params.max_shift, SEARCH + math.hypot(*start_offset)))
         out, _ = transfer_points(image2, image1, model2, model1, rec["x2"], rec["y2"], wide, hr, guide=guide)
         out = np.asarray(out, PAIR_DTYPE)
-        good = (np.isfinite(out["x2"]) & np.isfinite(out["y2"]) & (out["iterations"] < params.max_iterations))
+        good = np.isfinite(out["x2"]) & np.isfinite(out["y2"]) & (out["iterations"] < params.max_iterations)
         d = np.hypot(out["x2"] - rec["x1"], out["y2"] - rec["y1"])
         diff[usable] = np.where(good, d, np.nan)
         back[usable] = out
@@ -106,9 +120,13 @@ def fb_summary(diff, threshold=1.0):
     ok = diff[np.isfinite(diff)]
     s = {"points": int(diff.size), "back_matched": int(ok.size), "failed": int(diff.size - ok.size)}
     if ok.size:
-        s.update(rms=float(np.sqrt(np.mean(ok ** 2))), median=float(np.median(ok)),
-                 p95=float(np.percentile(ok, 95)), max=float(ok.max()),
-                 over=float(np.mean(ok > threshold)))
+        s.update(
+            rms=float(np.sqrt(np.mean(ok**2))),
+            median=float(np.median(ok)),
+            p95=float(np.percentile(ok, 95)),
+            max=float(ok.max()),
+            over=float(np.mean(ok > threshold)),
+        )
     else:
         s.update(rms=math.nan, median=math.nan, p95=math.nan, max=math.nan, over=math.nan)
     s["threshold"] = float(threshold)
@@ -117,9 +135,11 @@ def fb_summary(diff, threshold=1.0):
 
 def format_fb(label, s):
     """One log line of an fb_summary."""
-    return (f"{label}: {s['back_matched']} of {s['points']} back-matched, RMS {s['rms']:.3f} px, "
-            f"median {s['median']:.3f}, p95 {s['p95']:.3f}, max {s['max']:.2f}, "
-            f"{100 * s['over']:.2f} % > {s['threshold']:g} px")
+    return (
+        f"{label}: {s['back_matched']} of {s['points']} back-matched, RMS {s['rms']:.3f} px, "
+        f"median {s['median']:.3f}, p95 {s['p95']:.3f}, max {s['max']:.2f}, "
+        f"{100 * s['over']:.2f} % > {s['threshold']:g} px"
+    )
 
 
 def observation_pairs(points, image_id1, image_id2, which=None):

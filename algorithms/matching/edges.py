@@ -16,6 +16,7 @@ matched edgel by edgel along quasi-epipolar segments with the figural continuity
   may be skipped at a cost) replaces Zhang and Gruen's relaxation (figural continuity). An edgel is ok
   when its chosen rho >= rho_min and it agrees within 1 px with a chosen neighbour on its chain.
 Positions are GDAL image coordinates (pixel (i, j) has its centre at (j + 0.5, i + 0.5))."""
+
 import math
 
 import numpy as np
@@ -24,30 +25,39 @@ from scipy import ndimage
 from ..errors import InputError
 from . import edges_kernels as kernels
 
-HIGH_PERCENTILE = 90.0   # default high threshold: this percentile of the gradient magnitude
-LOW_RATIO = 0.4          # default low threshold / high threshold
-NOISE_HIGH = 5.0         # thresholds at least these multiples of the noise's gradient-component std
+HIGH_PERCENTILE = 90.0  # default high threshold: this percentile of the gradient magnitude
+LOW_RATIO = 0.4  # default low threshold / high threshold
+NOISE_HIGH = 5.0  # thresholds at least these multiples of the noise's gradient-component std
 NOISE_LOW = 2.5
 
-GRADIENT_SIGMA = 1.0     # px, smoothing of the gradients compared in match_edges
-CANDIDATES = 5           # candidates per edgel (Z: up to 5)
-RHO_FLOOR = 0.5          # candidates need this correlation (Z step b)
-MAX_ANGLE = 40.0         # degrees between predicted and found gradient directions (Z step a)
-MIN_CROSSING = 30.0      # degrees: edges closer than this to parallel to the quasi-epipolar line are not matched
-DIR_WEIGHT = 0.5         # unary cost = (1 - rho) + DIR_WEIGHT (1 - cos(angle))
-PATH_STEP = 0.5          # px between NCC samples along the quasi-epipolar path
-NODES = 17               # heights at which predict is called per edgel; positions in between linear
-JUMP_COST = 0.5          # cost per px of disparity jump between consecutive matched edgels ...
-JUMP_TOL = 0.5           # ... beyond this many px per `step` along the chain
-SKIP_COST = 0.5          # cost of leaving out an edgel that has candidates
-MAX_SKIP = 3             # edgels left out in a row inside a chain's path
-CONTINUITY_TOL = 1.0     # px per step: an ok edgel agrees this well with a chosen neighbour
-BLOCK = 8192             # edgels per block of candidate search (bounds the path arrays)
+GRADIENT_SIGMA = 1.0  # px, smoothing of the gradients compared in match_edges
+CANDIDATES = 5  # candidates per edgel (Z: up to 5)
+RHO_FLOOR = 0.5  # candidates need this correlation (Z step b)
+MAX_ANGLE = 40.0  # degrees between predicted and found gradient directions (Z step a)
+MIN_CROSSING = 30.0  # degrees: edges closer than this to parallel to the quasi-epipolar line are not matched
+DIR_WEIGHT = 0.5  # unary cost = (1 - rho) + DIR_WEIGHT (1 - cos(angle))
+PATH_STEP = 0.5  # px between NCC samples along the quasi-epipolar path
+NODES = 17  # heights at which predict is called per edgel; positions in between linear
+JUMP_COST = 0.5  # cost per px of disparity jump between consecutive matched edgels ...
+JUMP_TOL = 0.5  # ... beyond this many px per `step` along the chain
+SKIP_COST = 0.5  # cost of leaving out an edgel that has candidates
+MAX_SKIP = 3  # edgels left out in a row inside a chain's path
+CONTINUITY_TOL = 1.0  # px per step: an ok edgel agrees this well with a chosen neighbour
+BLOCK = 8192  # edgels per block of candidate search (bounds the path arrays)
 
-EDGEL_DTYPE = np.dtype([
-    ("chain", "i4"), ("index", "i4"), ("col", "f8"), ("row", "f8"), ("col2", "f8"), ("row2", "f8"),
-    ("h", "f8"), ("rho", "f4"), ("ok", "?"),
-])
+EDGEL_DTYPE = np.dtype(
+    [
+        ("chain", "i4"),
+        ("index", "i4"),
+        ("col", "f8"),
+        ("row", "f8"),
+        ("col2", "f8"),
+        ("row2", "f8"),
+        ("h", "f8"),
+        ("rho", "f4"),
+        ("ok", "?"),
+    ]
+)
 
 
 def _image(img, name):
@@ -100,7 +110,7 @@ def _gradient_gain(sigma):
     delta = np.zeros((2 * r + 1, 2 * r + 1))
     delta[r, r] = 1.0
     gx, _, _ = gradients(delta, sigma)
-    return float(np.sqrt((gx ** 2).sum()))
+    return float(np.sqrt((gx**2).sum()))
 
 
 def thresholds(img, sigma=1.0, low=None, high=None, mag=None, ok=None):
@@ -150,8 +160,11 @@ def link(edge_mask, min_length=10):
         return []
     kernels.thin_corners(mask)
     rows, cols, starts = kernels.trace(mask)
-    return [np.column_stack([cols[a:b] + 0.5, rows[a:b] + 0.5]).astype(np.float64)
-            for a, b in zip(starts[:-1], starts[1:]) if b - a >= max(int(min_length), 1)]
+    return [
+        np.column_stack([cols[a:b] + 0.5, rows[a:b] + 0.5]).astype(np.float64)
+        for a, b in zip(starts[:-1], starts[1:])
+        if b - a >= max(int(min_length), 1)
+    ]
 
 
 def _sample(chains, step, height_range):
@@ -168,8 +181,10 @@ def _sample(chains, step, height_range):
     try:
         lo, hi = (np.broadcast_to(np.asarray(v, np.float64), (total,)) for v in height_range)
     except (TypeError, ValueError):
-        raise InputError("height_range must be (h_min, h_max): two numbers or two arrays with one value per "
-                         f"chain point ({total} in all)") from None
+        raise InputError(
+            "height_range must be (h_min, h_max): two numbers or two arrays with one value per "
+            f"chain point ({total} in all)"
+        ) from None
     if np.any(~(hi > lo)):
         raise InputError("height_range must have h_max > h_min (finite) everywhere")
     chain_id, index = [], []
@@ -212,8 +227,16 @@ def _affine(predict, x1, y1, h, d=1.0):
     qx, qy = predict(xs, ys, np.tile(h, 4))
     qx, qy = np.asarray(qx, np.float64), np.asarray(qy, np.float64)
     px_, mx, py_, my = (slice(k * n, (k + 1) * n) for k in range(4))
-    return np.ascontiguousarray(np.column_stack([(qx[px_] - qx[mx]) / (2 * d), (qx[py_] - qx[my]) / (2 * d),
-                                                 (qy[px_] - qy[mx]) / (2 * d), (qy[py_] - qy[my]) / (2 * d)]))
+    return np.ascontiguousarray(
+        np.column_stack(
+            [
+                (qx[px_] - qx[mx]) / (2 * d),
+                (qx[py_] - qx[my]) / (2 * d),
+                (qy[px_] - qy[mx]) / (2 * d),
+                (qy[py_] - qy[my]) / (2 * d),
+            ]
+        )
+    )
 
 
 def match_edges(ref_img, search_img, chains, predict, height_range, window=7, step=2, rho_min=0.7, figural=True):
@@ -251,9 +274,28 @@ def match_edges(ref_img, search_img, chains, predict, height_range, window=7, st
         k = s.stop - s.start
         t, rho, cost = (np.full((k, CANDIDATES), np.nan) for _ in range(3))
         nc = np.zeros(k, np.int64)
-        kernels.edgel_candidates(ref, search, g1x, g1y, g2x, g2y, x1[s], y1[s], px, py, aff, window // 2,
-                                 RHO_FLOOR, math.cos(math.radians(MAX_ANGLE)), DIR_WEIGHT,
-                                 math.sin(math.radians(MIN_CROSSING)), t, rho, cost, nc)
+        kernels.edgel_candidates(
+            ref,
+            search,
+            g1x,
+            g1y,
+            g2x,
+            g2y,
+            x1[s],
+            y1[s],
+            px,
+            py,
+            aff,
+            window // 2,
+            RHO_FLOOR,
+            math.cos(math.radians(MAX_ANGLE)),
+            DIR_WEIGHT,
+            math.sin(math.radians(MIN_CROSSING)),
+            t,
+            rho,
+            cost,
+            nc,
+        )
         m = px.shape[1]
         valid = np.arange(CANDIDATES)[None, :] < nc[:, None]
         tt = np.where(valid, t, 0.0)
@@ -272,8 +314,19 @@ def match_edges(ref_img, search_img, chains, predict, height_range, window=7, st
     starts = np.flatnonzero(np.r_[True, chain_id[1:] != chain_id[:-1], True]).astype(np.int64)
     choice = np.full(n, -1, np.int64)
     if figural:
-        kernels.figural_dp(starts, index.astype(np.int64), float(step), ncand, cand_d, cand["cost"],
-                           JUMP_COST, JUMP_TOL, SKIP_COST, MAX_SKIP, choice)
+        kernels.figural_dp(
+            starts,
+            index.astype(np.int64),
+            float(step),
+            ncand,
+            cand_d,
+            cand["cost"],
+            JUMP_COST,
+            JUMP_TOL,
+            SKIP_COST,
+            MAX_SKIP,
+            choice,
+        )
     else:
         choice[ncand > 0] = 0
     shown = np.where(choice >= 0, choice, 0)

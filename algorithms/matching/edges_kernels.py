@@ -1,6 +1,7 @@
 """numba kernels of edges.py: Canny non-maximum suppression and hysteresis, edge-pixel thinning and
 chain tracing, edgel candidates along quasi-epipolar paths, and the figural-continuity dynamic
 programme. Array indices are (row, col); positions handed to bilinear/ncc_path are GDAL's."""
+
 import math
 
 import numpy as np
@@ -16,6 +17,7 @@ DC = np.array([1, 1, 0, -1, -1, -1, 0, 1])
 
 # --------------------------------------------------------------------------------------------
 # Canny
+
 
 @njit(cache=True, nogil=True)
 def nms(gx, gy, mag, allowed, out):
@@ -71,6 +73,7 @@ def hysteresis(weak, strong, out):
 
 # --------------------------------------------------------------------------------------------
 # linking
+
 
 @njit(cache=True, nogil=True)
 def _on(mask, i, j):
@@ -182,9 +185,30 @@ def trace(mask):
 # --------------------------------------------------------------------------------------------
 # edgel matching
 
+
 @njit(cache=True, nogil=True, parallel=True)
-def edgel_candidates(ref, search, g1x, g1y, g2x, g2y, x1, y1, px, py, aff, half, rho_floor, cos_min, dir_weight,
-                     cross_min, cand_t, cand_rho, cand_cost, ncand):
+def edgel_candidates(
+    ref,
+    search,
+    g1x,
+    g1y,
+    g2x,
+    g2y,
+    x1,
+    y1,
+    px,
+    py,
+    aff,
+    half,
+    rho_floor,
+    cos_min,
+    dir_weight,
+    cross_min,
+    cand_t,
+    cand_rho,
+    cand_cost,
+    ncand,
+):
     """Candidates of edgel i = the local NCC maxima along its path (px[i], py[i]) (end samples
     excluded) with rho >= rho_floor whose search-image gradient direction is within acos(cos_min)
     of the reference gradient mapped by the inverse transposed affine A^-T g1 (a dark-to-bright
@@ -203,7 +227,7 @@ def edgel_candidates(ref, search, g1x, g1y, g2x, g2y, x1, y1, px, py, aff, half,
         det = a1 * a5 - a2 * a4
         if not (math.isfinite(gx) and math.isfinite(gy) and math.isfinite(det)) or det == 0.0:
             continue
-        ex = (a5 * gx - a4 * gy) / det           # A^-T g1
+        ex = (a5 * gx - a4 * gy) / det  # A^-T g1
         ey = (-a2 * gx + a1 * gy) / det
         en = math.hypot(ex, ey)
         ux, uy = px[i, m - 1] - px[i, 0], py[i, m - 1] - py[i, 0]
@@ -238,7 +262,7 @@ def edgel_candidates(ref, search, g1x, g1y, g2x, g2y, x1, y1, px, py, aff, half,
                 k = kmax - 1
             else:
                 ncand[i] += 1
-            while k > 0 and cand_cost[i, k - 1] > cost:      # insertion by cost
+            while k > 0 and cand_cost[i, k - 1] > cost:  # insertion by cost
                 cand_t[i, k], cand_rho[i, k] = cand_t[i, k - 1], cand_rho[i, k - 1]
                 cand_cost[i, k] = cand_cost[i, k - 1]
                 k -= 1
@@ -271,7 +295,7 @@ def figural_dp(starts, index, step, ncand, cand_d, cand_cost, jump_cost, jump_to
         for a in range(nl):
             ea = live[a]
             for k in range(ncand[ea]):
-                best = skip_cost * a                       # start here, skipping all before
+                best = skip_cost * a  # start here, skipping all before
                 be, bk = -1, -1
                 for b in range(max(0, a - 1 - max_skip), a):
                     eb = live[b]
@@ -287,7 +311,7 @@ def figural_dp(starts, index, step, ncand, cand_d, cand_cost, jump_cost, jump_to
         ba, bk = -1, -1
         for a in range(nl):
             for k in range(ncand[live[a]]):
-                v = acc[a, k] + skip_cost * (nl - 1 - a)   # end here, skipping all after
+                v = acc[a, k] + skip_cost * (nl - 1 - a)  # end here, skipping all after
                 if v < best:
                     best, ba, bk = v, a, k
         while ba >= 0:

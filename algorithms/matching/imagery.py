@@ -11,6 +11,7 @@ GDAL mask band (an internal or .msk mask, an alpha band) marks invalid, and, whe
 ground, and the edge of a saturated patch is a texture of the sensor, not of the scene). The mask is applied
 here, once, where a window is read: everything derived from an Image (Smoothed, Window, epipolar images)
 inherits it, and `touches_masked` tells which matching windows reach a masked pixel."""
+
 import math
 import os
 import threading
@@ -40,13 +41,18 @@ class Image:
     IMAGE_STRUCTURE metadata gives NBITS (12-bit imagery stored as UInt16). `saturation` holds the value
     (None: not masked)."""
 
-    def __init__(self, source: "str | os.PathLike | np.ndarray", band: int = 1, nodata: "float | None" = None,
-                 saturation: "bool | float | None" = None):
+    def __init__(
+        self,
+        source: "str | os.PathLike | np.ndarray",
+        band: int = 1,
+        nodata: "float | None" = None,
+        saturation: "bool | float | None" = None,
+    ):
         self._array = None
         self._dataset = None
-        self._mask_band = False         # the band has a GDAL mask of its own (not all-valid, not nodata)
+        self._mask_band = False  # the band has a GDAL mask of its own (not all-valid, not nodata)
         self.band = int(band)
-        self._lock = threading.Lock()   # a GDAL dataset is not thread-safe
+        self._lock = threading.Lock()  # a GDAL dataset is not thread-safe
         if isinstance(source, np.ndarray):
             if source.ndim != 2 or source.size == 0:
                 raise InputError(f"an image array must be 2-D and non-empty, got shape {source.shape}")
@@ -57,6 +63,7 @@ class Image:
             self.size = (int(source.shape[1]), int(source.shape[0]))
             return
         from osgeo import gdal, gdal_array
+
         self.path = os.fspath(source)
         try:
             gdal.UseExceptions()
@@ -119,7 +126,7 @@ def _saturation(saturation: "bool | float | None", dtype: np.dtype, bits: "int |
     if saturation is not True:
         return float(saturation)
     if bits:
-        return float(2 ** bits - 1)
+        return float(2**bits - 1)
     return float(np.iinfo(dtype).max) if np.issubdtype(dtype, np.integer) else None
 
 
@@ -153,7 +160,7 @@ class Smoothed:
     def __init__(self, image, sigma_x, sigma_y):
         self.image = as_image(image)
         self.size = self.image.size
-        self.sigma = (float(sigma_y), float(sigma_x))      # array axes (rows, cols)
+        self.sigma = (float(sigma_y), float(sigma_x))  # array axes (rows, cols)
         self.pad = int(math.ceil(4.0 * max(self.sigma))) + 1
 
     def __repr__(self):
@@ -162,6 +169,7 @@ class Smoothed:
     def read(self, x0, y0, cols, rows):
         """As Image.read, of the low-passed image."""
         from scipy import ndimage
+
         p = self.pad
         data, xa, ya = self.image.read(int(x0) - p, int(y0) - p, int(cols) + 2 * p, int(rows) + 2 * p)
         if data.size == 0:
@@ -170,7 +178,7 @@ class Smoothed:
         xs, ys, xb, yb = clipped(self.size, x0, y0, cols, rows)
         if xb <= xs or yb <= ys:
             return np.zeros((0, 0), np.float32), xs, ys
-        return np.ascontiguousarray(data[ys - ya:yb - ya, xs - xa:xb - xa]), xs, ys
+        return np.ascontiguousarray(data[ys - ya : yb - ya, xs - xa : xb - xa]), xs, ys
 
 
 def as_image(source, saturation: "bool | float | None" = None):
@@ -179,8 +187,9 @@ def as_image(source, saturation: "bool | float | None" = None):
     return source if isinstance(source, (Image, Smoothed, Window)) else Image(source, saturation=saturation)
 
 
-def touches_masked(image, x: np.ndarray, y: np.ndarray, reach_x: "float | np.ndarray",
-                   reach_y: "float | np.ndarray") -> np.ndarray:
+def touches_masked(
+    image, x: np.ndarray, y: np.ndarray, reach_x: "float | np.ndarray", reach_y: "float | np.ndarray"
+) -> np.ndarray:
     """Mask of the points (x, y) whose window holds a masked pixel (NaN) of the Image-like `image`: the
     window of a point is the pixels whose centres lie within reach_x px across and reach_y px down of it
     (numbers, or arrays like x). The parts of a window outside the image do not count (the matchers test

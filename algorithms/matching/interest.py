@@ -2,6 +2,7 @@
 weight w = det / trace and roundness q = 4 det / trace^2; one point per P x P patch (the pixel of
 largest w with q > q_min and w > w_factor * median w of the image). Plain numpy (vectorised).
 NaN pixels (nodata) are never chosen, nor are pixels whose window or gradients reach one."""
+
 import numpy as np
 
 from ..errors import InputError
@@ -12,7 +13,7 @@ def _box(a, win):
     h = win // 2
     c = np.pad(np.cumsum(np.cumsum(a, 0), 1), ((1, 0), (1, 0)))
     out = np.zeros_like(a)
-    out[h:a.shape[0] - h, h:a.shape[1] - h] = (c[win:, win:] - c[:-win, win:] - c[win:, :-win] + c[:-win, :-win])
+    out[h : a.shape[0] - h, h : a.shape[1] - h] = c[win:, win:] - c[:-win, win:] - c[win:, :-win] + c[:-win, :-win]
     return out
 
 
@@ -33,13 +34,13 @@ def foerstner(img, window=5):
     tr = nxx + nyy
     with np.errstate(invalid="ignore", divide="ignore"):
         w = np.where(tr > 0, det / tr, 0.0)
-        q = np.where(tr > 0, 4 * det / tr ** 2, 0.0)
+        q = np.where(tr > 0, 4 * det / tr**2, 0.0)
     bad = ~np.isfinite(w) | ~np.isfinite(q)
-    if not valid.all():   # the gradients reach one pixel beyond the window
+    if not valid.all():  # the gradients reach one pixel beyond the window
         bad |= _box((~valid).astype(np.float64), window + 2) > 0
     w[bad] = 0.0
     q[bad] = 0.0
-    edge = window // 2 + 1          # no full window there
+    edge = window // 2 + 1  # no full window there
     for a in (w, q):
         a[:edge] = a[-edge:] = 0.0
         a[:, :edge] = a[:, -edge:] = 0.0
@@ -66,9 +67,9 @@ def best_per_cell(w, q, patch=32, q_min=0.5, w_factor=1.0, border=0):
         return np.empty(0), np.empty(0), np.empty(0)
     threshold = w_factor * np.median(positive)
     score = np.where((q > q_min) & (w > threshold), w, 0.0)
-    nr, nc = (-(-s // patch) for s in score.shape)   # partial cells at the right and bottom count too
+    nr, nc = (-(-s // patch) for s in score.shape)  # partial cells at the right and bottom count too
     padded = np.zeros((nr * patch, nc * patch))
-    padded[:score.shape[0], :score.shape[1]] = score
+    padded[: score.shape[0], : score.shape[1]] = score
     cells = padded.reshape(nr, patch, nc, patch).transpose(0, 2, 1, 3).reshape(nr, nc, -1)
     best = cells.argmax(-1)
     value = np.take_along_axis(cells, best[..., None], -1)[..., 0]

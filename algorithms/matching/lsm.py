@@ -28,6 +28,7 @@ Precision: sigma0^2 = v'Pv / (sum w - 8) a posteriori (sum w = n unweighted), co
 sigma0^2 times the (x2, y2) block of N^-1; `semi_major` / `semi_minor` are the square roots of its
 eigenvalues (1-sigma error ellipse, px of image 2).
 """
+
 import math
 from dataclasses import replace
 
@@ -40,8 +41,7 @@ from .params import LsmParams
 from .records import PAIR_DTYPE
 
 #: field order of the `out` vector that lsm_point fills
-LSM_FIELDS = ("x2", "y2", "rho", "semi_major", "semi_minor", "shift", "iterations",
-              "a1", "a2", "a4", "a5", "r0", "r1")
+LSM_FIELDS = ("x2", "y2", "rho", "semi_major", "semi_minor", "shift", "iterations", "a1", "a2", "a4", "a5", "r0", "r1")
 LSM_OUT = len(LSM_FIELDS)
 
 #: lsm_point status codes
@@ -174,8 +174,7 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
     sw = float(nsamp)
     cs = 0.0
     while it < max_iter:
-        if not (math.isfinite(x2) and math.isfinite(y2)) or \
-                not _window_inside(nr2, nc2, x2, y2, a1, a2, a4, a5, half):
+        if not (math.isfinite(x2) and math.isfinite(y2)) or not _window_inside(nr2, nc2, x2, y2, a1, a2, a4, a5, half):
             out[6] = it
             return OUTSIDE
         det = a1 * a5 - a2 * a4
@@ -383,8 +382,23 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
 @njit(cache=True, nogil=True, parallel=True)
 def _match_kernel(img1, img2, x1, y1, x2, y2, aff, half, max_iter, conv, tukey, out, status):
     for p in prange(x1.shape[0]):
-        status[p] = lsm_point(img1, img2, x1[p], y1[p], x2[p], y2[p], aff[p, 0], aff[p, 1], aff[p, 2],
-                              aff[p, 3], half, max_iter, conv, out[p], tukey)
+        status[p] = lsm_point(
+            img1,
+            img2,
+            x1[p],
+            y1[p],
+            x2[p],
+            y2[p],
+            aff[p, 0],
+            aff[p, 1],
+            aff[p, 2],
+            aff[p, 3],
+            half,
+            max_iter,
+            conv,
+            out[p],
+            tukey,
+        )
 
 
 def _as_image(img, name):
@@ -429,8 +443,9 @@ def match_points(img1, img2, x1, y1, x2, y2, affine=None, params=None):
     half = params.template // 2
     out = np.empty((n, LSM_OUT))
     status = np.empty(n, dtype=np.int8)
-    _match_kernel(img1, img2, x1, y1, x2, y2, aff, half, params.max_iterations, params.convergence, params.tukey, out,
-                  status)
+    _match_kernel(
+        img1, img2, x1, y1, x2, y2, aff, half, params.max_iterations, params.convergence, params.tukey, out, status
+    )
     return to_records(x1, y1, out), status
 
 
@@ -451,9 +466,13 @@ def accepted(records, status, params=None):
     iterations < max_iterations."""
     params = params or LsmParams()
     with np.errstate(invalid="ignore"):
-        return ((np.asarray(status) == OK) & (records["rho"] > params.rho_min)
-                & (records["semi_major"] < params.max_ellipse) & (records["shift"] < params.max_shift)
-                & (records["iterations"] < params.max_iterations))
+        return (
+            (np.asarray(status) == OK)
+            & (records["rho"] > params.rho_min)
+            & (records["semi_major"] < params.max_ellipse)
+            & (records["shift"] < params.max_shift)
+            & (records["iterations"] < params.max_iterations)
+        )
 
 
 def match_accepted(img1, img2, x1, y1, x2, y2, affine=None, params=None):
@@ -465,10 +484,11 @@ def match_accepted(img1, img2, x1, y1, x2, y2, affine=None, params=None):
     ok = accepted(rec, status, params)
     again = np.flatnonzero(~ok & (status != OUTSIDE))
     if params.widest > params.template and again.size:
-        wide = replace(params, template=params.widest, wide_template=0)   # only GrowParams has a wider one
+        wide = replace(params, template=params.widest, wide_template=0)  # only GrowParams has a wider one
         x2, y2 = (np.broadcast_to(np.asarray(v, float), rec.shape)[again] for v in (x2, y2))
-        rec_w, status_w = match_points(img1, img2, rec["x1"][again], rec["y1"][again], x2, y2,
-                                       _affine_array(affine, len(rec))[again], wide)
+        rec_w, status_w = match_points(
+            img1, img2, rec["x1"][again], rec["y1"][again], x2, y2, _affine_array(affine, len(rec))[again], wide
+        )
         good = accepted(rec_w, status_w, wide)
         rec[again[good]] = rec_w[good]
         ok[again[good]] = True

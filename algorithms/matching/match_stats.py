@@ -3,6 +3,7 @@ the sidecar's index) and reads them back for the points-per-group summary (group
 
 The fields every strategy fills are typed; what only one strategy reports (region growing's LSM attempts,
 coarse-to-fine's pyramid levels, dense matching's refined positions) lies in `details`, stored as it is."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields

@@ -30,6 +30,7 @@ not meet (a wrong match or orientation); support weights make it smaller (docs/v
 Reliability in [0, 1]: 0 where the match failed or moved more than max_shift px; else min_i rho_i *
 min(1, max_ellipse / largest semi-major axis) * min(1, max_geo_test / t). Failed points keep their
 approximate values with reliability 0."""
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,19 +51,31 @@ LINEARISATION_TOLERANCE = 1e-3
 #: re-linearisations of the sensor models (the first included)
 PASSES = 3
 
-__all__ = ["MpgcParams", "mpgc_dtype", "geometry", "initial_state", "match_points", "accepted", "STATUS_NAMES",
-           "OK", "OUTSIDE", "SINGULAR", "NOT_CONVERGED", "NO_GEOMETRY"]
+__all__ = [
+    "MpgcParams",
+    "mpgc_dtype",
+    "geometry",
+    "initial_state",
+    "match_points",
+    "accepted",
+    "STATUS_NAMES",
+    "OK",
+    "OUTSIDE",
+    "SINGULAR",
+    "NOT_CONVERGED",
+    "NO_GEOMETRY",
+]
 
 
 @dataclass
 class MpgcParams(LsmParams):
     """LSM's window and acceptance criteria plus the geometric constraint."""
 
-    sigma_geometry: float = 0.2   # px: a priori sigma of the geometric observations (orientation)
-    max_geo_test: float = 4.0     # geometric test t above which a point is rejected (chi^2_3 / 3 > 4: 0.7 %)
-    tile: int = 512               # px of the reference image per tile of windows read at once
-    centre_sigma: float = 0.0     # px: the support weights' Gaussian of the distance from the centre (0 = off)
-    similarity: float = 0.0       # the support weights' grey-level scale, times the template's std (0 = off)
+    sigma_geometry: float = 0.2  # px: a priori sigma of the geometric observations (orientation)
+    max_geo_test: float = 4.0  # geometric test t above which a point is rejected (chi^2_3 / 3 > 4: 0.7 %)
+    tile: int = 512  # px of the reference image per tile of windows read at once
+    centre_sigma: float = 0.0  # px: the support weights' Gaussian of the distance from the centre (0 = off)
+    similarity: float = 0.0  # the support weights' grey-level scale, times the template's std (0 = off)
 
     def check(self):
         super().check()
@@ -71,8 +84,10 @@ class MpgcParams(LsmParams):
         if not self.max_geo_test > 0 or self.tile < 4 * self.template:
             raise InputError("max_geo_test must be positive and the tile at least 4 templates wide")
         if not (self.centre_sigma >= 0 and self.similarity >= 0):
-            raise InputError(f"the support weights' centre_sigma and similarity must be 0 (off) or positive, got "
-                             f"{self.centre_sigma} and {self.similarity}")
+            raise InputError(
+                f"the support weights' centre_sigma and similarity must be 0 (off) or positive, got "
+                f"{self.centre_sigma} and {self.similarity}"
+            )
         return self
 
 
@@ -82,14 +97,31 @@ def mpgc_dtype(n):
     rho, error-ellipse semi-axes (px), final affine (a1, a2, a4, a5) and radiometry (r0, r1);
     sigma0 (DN), geometric residual RMS (px), test t and redundancy; shift (px, largest move from
     the approximation), iterations, status, reliability (module docstring)."""
-    return np.dtype([
-        ("x0", "f8"), ("y0", "f8"), ("x", "f8", (n,)), ("y", "f8", (n,)),
-        ("lon", "f8"), ("lat", "f8"), ("h", "f8"), ("sigma", "f4", (3,)),
-        ("rho", "f4", (n,)), ("semi_major", "f4", (n,)), ("semi_minor", "f4", (n,)),
-        ("affine", "f4", (n, 4)), ("radiometry", "f4", (n, 2)),
-        ("sigma0", "f4"), ("geo_rms", "f4"), ("geo_test", "f4"), ("geo_redundancy", "f4"),
-        ("shift", "f4"), ("iterations", "i2"), ("status", "i1"), ("reliability", "f4"),
-    ])
+    return np.dtype(
+        [
+            ("x0", "f8"),
+            ("y0", "f8"),
+            ("x", "f8", (n,)),
+            ("y", "f8", (n,)),
+            ("lon", "f8"),
+            ("lat", "f8"),
+            ("h", "f8"),
+            ("sigma", "f4", (3,)),
+            ("rho", "f4", (n,)),
+            ("semi_major", "f4", (n,)),
+            ("semi_minor", "f4", (n,)),
+            ("affine", "f4", (n, 4)),
+            ("radiometry", "f4", (n, 2)),
+            ("sigma0", "f4"),
+            ("geo_rms", "f4"),
+            ("geo_test", "f4"),
+            ("geo_redundancy", "f4"),
+            ("shift", "f4"),
+            ("iterations", "i2"),
+            ("status", "i1"),
+            ("reliability", "f4"),
+        ]
+    )
 
 
 def geometry(models, lon, lat, h):
@@ -120,8 +152,10 @@ def initial_state(cen, jac):
     j = jac[:, 0, :, :2]
     with np.errstate(all="ignore"):
         det = j[:, 0, 0] * j[:, 1, 1] - j[:, 0, 1] * j[:, 1, 0]
-        inv0 = np.stack([j[:, 1, 1], -j[:, 0, 1], -j[:, 1, 0], j[:, 0, 0]], axis=1).reshape(-1, 1, 2, 2) / \
-            det[:, None, None, None]
+        inv0 = (
+            np.stack([j[:, 1, 1], -j[:, 0, 1], -j[:, 1, 0], j[:, 0, 0]], axis=1).reshape(-1, 1, 2, 2)
+            / det[:, None, None, None]
+        )
         aff = jac[:, 1:, :, :2] @ inv0
     state[..., 0] = cen[:, 1:, 0]
     state[..., 3] = cen[:, 1:, 1]
@@ -133,8 +167,9 @@ def initial_state(cen, jac):
 
 def _points(x0, y0, lon, lat, h):
     try:
-        arrays = np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, dtype=np.float64)).ravel()
-                                       for v in (x0, y0, lon, lat, h)))
+        arrays = np.broadcast_arrays(
+            *(np.atleast_1d(np.asarray(v, dtype=np.float64)).ravel() for v in (x0, y0, lon, lat, h))
+        )
     except ValueError as exc:
         raise InputError(f"x0, y0, lon, lat, h must have one length ({exc})") from None
     x0, y0, lon, lat, h = (np.ascontiguousarray(a) for a in arrays)
@@ -159,8 +194,9 @@ def match_points(reference, searches, models, x0, y0, lon, lat, h, params=None, 
     if not searches:
         raise InputError("MPGC needs at least one search image")
     if len(models) != len(searches) + 1:
-        raise InputError(f"give one sensor model per image, the reference first: {len(searches) + 1} expected, "
-                         f"{len(models)} given")
+        raise InputError(
+            f"give one sensor model per image, the reference first: {len(searches) + 1} expected, {len(models)} given"
+        )
     images = [as_image(reference)] + [as_image(s) for s in searches]
     x0, y0, lon, lat, h = _points(x0, y0, lon, lat, h)
     n = len(searches)
@@ -177,8 +213,12 @@ def match_points(reference, searches, models, x0, y0, lon, lat, h, params=None, 
 
 
 def _read(image, xlo, ylo, xhi, yhi):
-    data, xa, ya = image.read(int(np.floor(xlo)), int(np.floor(ylo)), int(np.ceil(xhi - np.floor(xlo))) + 1,
-                              int(np.ceil(yhi - np.floor(ylo))) + 1)
+    data, xa, ya = image.read(
+        int(np.floor(xlo)),
+        int(np.floor(ylo)),
+        int(np.ceil(xhi - np.floor(xlo))) + 1,
+        int(np.ceil(yhi - np.floor(ylo))) + 1,
+    )
     return np.ascontiguousarray(data, dtype=np.float32), float(xa), float(ya)
 
 
@@ -191,13 +231,15 @@ def _windows(images, x0, y0, state, good, half, params):
         if not good.any():
             data, xa, ya = np.zeros((0, 0), np.float32), 0.0, 0.0
         elif i == 0:
-            data, xa, ya = _read(image, x0[good].min() - pad, y0[good].min() - pad, x0[good].max() + pad,
-                                 y0[good].max() + pad)
+            data, xa, ya = _read(
+                image, x0[good].min() - pad, y0[good].min() - pad, x0[good].max() + pad, y0[good].max() + pad
+            )
         else:
             s = state[good, i - 1]
             reach = pad * np.abs(s[:, [1, 2, 4, 5]]).max() + params.max_shift + 3.0
-            data, xa, ya = _read(image, s[:, 0].min() - reach, s[:, 3].min() - reach, s[:, 0].max() + reach,
-                                 s[:, 3].max() + reach)
+            data, xa, ya = _read(
+                image, s[:, 0].min() - reach, s[:, 3].min() - reach, s[:, 0].max() + reach, s[:, 3].max() + reach
+            )
         parts.append(data)
         offs[i] = xa, ya
     meta = np.zeros((len(images), 3), np.int64)
@@ -212,8 +254,14 @@ def _match_tile(images, models, x0, y0, lon, lat, h, params):
     half = params.template // 2
     cen, jac = geometry(models, lon, lat, h)
     state = initial_state(cen, jac)
-    good = np.isfinite(cen).all(axis=(1, 2)) & np.isfinite(jac).all(axis=(1, 2, 3)) & \
-        np.isfinite(state).all(axis=(1, 2)) & np.isfinite(lon) & np.isfinite(lat) & np.isfinite(h)
+    good = (
+        np.isfinite(cen).all(axis=(1, 2))
+        & np.isfinite(jac).all(axis=(1, 2, 3))
+        & np.isfinite(state).all(axis=(1, 2))
+        & np.isfinite(lon)
+        & np.isfinite(lat)
+        & np.isfinite(h)
+    )
     start = state.copy()
     buf, meta, offs = _windows(images, x0, y0, state, good, half, params)
     dx = np.zeros((m, 3))
@@ -223,9 +271,27 @@ def _match_tile(images, models, x0, y0, lon, lat, h, params):
     base = [lon.copy(), lat.copy(), h.copy()]
     active = good.copy()
     for _ in range(PASSES):
-        mpgc_batch(buf, meta, offs, x0, y0, cen, jac, state, dx, active, half, params.max_iterations,
-                   params.convergence, params.sigma_geometry, params.centre_sigma, params.similarity, out, status,
-                   iterations)
+        mpgc_batch(
+            buf,
+            meta,
+            offs,
+            x0,
+            y0,
+            cen,
+            jac,
+            state,
+            dx,
+            active,
+            half,
+            params.max_iterations,
+            params.convergence,
+            params.sigma_geometry,
+            params.centre_sigma,
+            params.similarity,
+            out,
+            status,
+            iterations,
+        )
         moved = np.flatnonzero(active & (status == OK))
         point = offset_enu(base[0][moved], base[1][moved], base[2][moved], dx[moved])
         cen_new, jac_new = geometry(models, *point)
@@ -240,7 +306,7 @@ def _match_tile(images, models, x0, y0, lon, lat, h, params):
         active[moved[lin_error > LINEARISATION_TOLERANCE]] = True
         if not active.any():
             break
-    status[active] = NOT_CONVERGED      # the linearisation still moved after the last pass
+    status[active] = NOT_CONVERGED  # the linearisation still moved after the last pass
     return _records(n, x0, y0, lon, lat, h, start, state, base, out, status, iterations, params)
 
 
@@ -258,9 +324,9 @@ def _records(n, x0, y0, lon, lat, h, start, state, base, out, status, iterations
     rec["status"] = status
     rec["iterations"] = np.minimum(iterations, np.iinfo(np.int16).max)
     q = np.where(ok[:, None], out, np.nan)
-    rec["rho"] = q[:, 0:3 * n:3]
-    rec["semi_major"] = q[:, 1:3 * n:3]
-    rec["semi_minor"] = q[:, 2:3 * n:3]
+    rec["rho"] = q[:, 0 : 3 * n : 3]
+    rec["semi_major"] = q[:, 1 : 3 * n : 3]
+    rec["semi_minor"] = q[:, 2 : 3 * n : 3]
     t = 3 * n
     with np.errstate(invalid="ignore", divide="ignore"):
         rec["sigma"] = np.sqrt(q[:, [t + COV, t + COV + 3, t + COV + 5]])
@@ -269,11 +335,14 @@ def _records(n, x0, y0, lon, lat, h, start, state, base, out, status, iterations
         red = q[:, t + GEO_RED]
         rec["geo_redundancy"] = red
         rec["geo_test"] = np.where(red > 1e-6, q[:, t + GEO_VTPV] / np.where(red > 1e-6, red, 1.0), np.nan)
-        rec["shift"] = np.where(ok, np.hypot(final[..., 0] - start[..., 0], final[..., 3] - start[..., 3]).max(axis=1),
-                                np.nan)
-        rel = (np.clip(q[:, 0:t:3].min(axis=1), 0.0, 1.0)
-               * np.minimum(1.0, params.max_ellipse / q[:, 1:t:3].max(axis=1))
-               * np.minimum(1.0, params.max_geo_test / rec["geo_test"]))
+        rec["shift"] = np.where(
+            ok, np.hypot(final[..., 0] - start[..., 0], final[..., 3] - start[..., 3]).max(axis=1), np.nan
+        )
+        rel = (
+            np.clip(q[:, 0:t:3].min(axis=1), 0.0, 1.0)
+            * np.minimum(1.0, params.max_ellipse / q[:, 1:t:3].max(axis=1))
+            * np.minimum(1.0, params.max_geo_test / rec["geo_test"])
+        )
         rec["reliability"] = np.where(ok & (rec["shift"] <= params.max_shift) & np.isfinite(rel), rel, 0.0)
     return rec
 
@@ -284,6 +353,10 @@ def accepted(records, params=None):
     params = params or MpgcParams()
     r = records
     with np.errstate(invalid="ignore"):
-        return ((r["status"] == OK) & (r["rho"] > params.rho_min).all(axis=1)
-                & (r["semi_major"] < params.max_ellipse).all(axis=1) & (r["shift"] < params.max_shift)
-                & (r["geo_test"] < params.max_geo_test))
+        return (
+            (r["status"] == OK)
+            & (r["rho"] > params.rho_min).all(axis=1)
+            & (r["semi_major"] < params.max_ellipse).all(axis=1)
+            & (r["shift"] < params.max_shift)
+            & (r["geo_test"] < params.max_geo_test)
+        )

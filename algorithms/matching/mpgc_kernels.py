@@ -12,6 +12,7 @@ point in metres (E, N, U) from the linearisation point, at which cen (n + 1, 2) 
 out (out_size(n)): per search image (rho, semi-major, semi-minor of the error ellipse), then the
 covariance of (E, N, U) (ee, en, eu, nn, nu, uu; m^2; both the sandwich N^-1 M N^-1), sigma0 (DN),
 v'Pv and redundancy of the geometric observations, RMS of the geometric residuals (px)."""
+
 import math
 
 import numpy as np
@@ -42,7 +43,7 @@ def out_size(n):
 def window(buf, meta, i):
     """Window i of the packed images as a 2-D array."""
     s = meta[i, 0]
-    return buf[s:s + meta[i, 1] * meta[i, 2]].reshape((meta[i, 1], meta[i, 2]))
+    return buf[s : s + meta[i, 1] * meta[i, 2]].reshape((meta[i, 1], meta[i, 2]))
 
 
 @njit(cache=True, nogil=True)
@@ -63,7 +64,7 @@ def support_weights(f, half, centre, gamma, cw):
     times the template's standard deviation); a factor is 1 where its parameter is 0."""
     nside = 2 * half + 1
     hb = SUPPORT_BOX // 2
-    if gamma > 0.0:      # box means first (cw), then the weights in place
+    if gamma > 0.0:  # box means first (cw), then the weights in place
         for r in range(nside):
             for c in range(nside):
                 acc = 0.0
@@ -154,7 +155,7 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
     sfg = np.empty(n)
     svv = np.empty(n)
     sw = np.empty(n)
-    cs = np.zeros(n)        # per search image Tukey's c times its residual scale
+    cs = np.zeros(n)  # per search image Tukey's c times its residual scale
     wbuf = np.empty((ns, n))
     for idx in range(ns):
         for i in range(n):
@@ -171,8 +172,12 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
             xs = state[i, 0] - offs[i + 1, 0]
             ys = state[i, 3] - offs[i + 1, 1]
             a1, a2, a4, a5 = state[i, 1], state[i, 2], state[i, 4], state[i, 5]
-            if not (math.isfinite(xs) and math.isfinite(ys)) or img.shape[0] < 4 or img.shape[1] < 4 or \
-                    not _window_inside(img.shape[0], img.shape[1], xs, ys, a1, a2, a4, a5, half):
+            if (
+                not (math.isfinite(xs) and math.isfinite(ys))
+                or img.shape[0] < 4
+                or img.shape[1] < 4
+                or not _window_inside(img.shape[0], img.shape[1], xs, ys, a1, a2, a4, a5, half)
+            ):
                 return OUTSIDE, it
             det = a1 * a5 - a2 * a4
             if not abs(det) > 1e-6:
@@ -218,7 +223,7 @@ def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, con
                     arow[i, 6] = 1.0
                     arow[i, 7] = g
                     obs[i] = o
-                    if 0 < it <= REWEIGHTINGS:        # Tukey's biweight (mpgc.py)
+                    if 0 < it <= REWEIGHTINGS:  # Tukey's biweight (mpgc.py)
                         u = o / cs[i] if cs[i] > 0.0 else 0.0
                         wbuf[idx, i] = cw[idx] * (1.0 - u * u) ** 2 if abs(u) < 1.0 else 0.0
                     w = wbuf[idx, i]
@@ -333,8 +338,8 @@ def _precision(lower, mmat, n, npar, x0, y0, cen, jac, state, dx, wg, out):
     for i in range(n):
         cols[NPX + 2 * i] = NPX + NPI * i
         cols[NPX + 2 * i + 1] = NPX + NPI * i + 3
-    q = np.empty((ncol, npar))       # rows: columns `cols` of N^-1
-    cv = np.empty((ncol, npar))      # rows: columns `cols` of N^-1 M N^-1
+    q = np.empty((ncol, npar))  # rows: columns `cols` of N^-1
+    cv = np.empty((ncol, npar))  # rows: columns `cols` of N^-1 M N^-1
     e = np.zeros(npar)
     mz = np.empty(npar)
     for c in range(ncol):
@@ -373,7 +378,7 @@ def _precision(lower, mmat, n, npar, x0, y0, cen, jac, state, dx, wg, out):
                 for r in range(NPX):
                     aqa += coef[p] * coef[r] * q[p, r]
             if col >= 0:
-                qc = NPX + 2 * (i - 1) + c     # row of q holding column `col` of Q
+                qc = NPX + 2 * (i - 1) + c  # row of q holding column `col` of Q
                 for p in range(NPX):
                     aqa += 2.0 * coef[p] * q[p, col]
                 aqa += q[qc, col]
@@ -386,12 +391,47 @@ def _precision(lower, mmat, n, npar, x0, y0, cen, jac, state, dx, wg, out):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def mpgc_batch(buf, meta, offs, x0, y0, cen, jac, state, dx, active, half, max_iter, conv, sigma_g, centre,
-               similarity, out, status, iterations):
+def mpgc_batch(
+    buf,
+    meta,
+    offs,
+    x0,
+    y0,
+    cen,
+    jac,
+    state,
+    dx,
+    active,
+    half,
+    max_iter,
+    conv,
+    sigma_g,
+    centre,
+    similarity,
+    out,
+    status,
+    iterations,
+):
     """mpgc_point over the points with active[p] (parallel); iterations[p] accumulates."""
     for p in prange(x0.shape[0]):
         if active[p]:
-            st, it = mpgc_point(buf, meta, offs, x0[p], y0[p], cen[p], jac[p], state[p], dx[p], half, max_iter, conv,
-                                sigma_g, centre, similarity, out[p])
+            st, it = mpgc_point(
+                buf,
+                meta,
+                offs,
+                x0[p],
+                y0[p],
+                cen[p],
+                jac[p],
+                state[p],
+                dx[p],
+                half,
+                max_iter,
+                conv,
+                sigma_g,
+                centre,
+                similarity,
+                out[p],
+            )
             status[p] = st
             iterations[p] += it

@@ -1,6 +1,7 @@
 """Normalised cross-correlation along a search path (quasi-epipolar segment) with an affine
 window shape, so that rotations and 2:1 scale differences correlate. Coordinates are GDAL's
 (pixel (i, j) has its centre at (j + 0.5, i + 0.5)); all samples are bilinear."""
+
 import math
 
 import numpy as np

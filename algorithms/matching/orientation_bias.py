@@ -14,6 +14,7 @@ coarse_to_fine_level.ShiftedModels; `systematic`, the RMS of the residuals' medi
 points' extent in the reference image (the worst image coordinate), measures the orientation's
 consistency after the correction (refinement.py weights MPGC's geometric observations by it, so that
 an orientation the affine maps do not fit loosens the constraint instead of biasing the matches)."""
+
 import numpy as np
 
 from ..surface.intersection import intersect_measured
@@ -60,8 +61,12 @@ def affine_bias(models, cols, rows, iterations=BIAS_ITERATIONS):
             maps[i] = _fit_affine(np.array([cols[i], rows[i]]) - r0, f[i], 0.5 * np.array(models[i].size, float))
     inter = intersect_measured(models, *_unbiased(maps, cols, rows))
     corrected = [models[0]] + [ShiftedModel(m, *maps[i][1], linear=maps[i][0]) for i, m in enumerate(models) if i]
-    residuals = np.concatenate([np.array([cols[i], rows[i]]) - np.array(corrected[i].ground_to_image(
-        inter.lon, inter.lat, inter.h), float) for i in range(k)])
+    residuals = np.concatenate(
+        [
+            np.array([cols[i], rows[i]]) - np.array(corrected[i].ground_to_image(inter.lon, inter.lat, inter.h), float)
+            for i in range(k)
+        ]
+    )
     key = _tile(cols[0]) * CONSISTENCY_GRID + _tile(rows[0])
     medians = [np.nanmedian(residuals[:, key == t], axis=1) for t in np.unique(key) if np.sum(key == t) >= TILE_POINTS]
     if not medians:
@@ -87,6 +92,7 @@ def _unbiased(maps, cols, rows):
 def intersect_corrected(models, corrected, cols, rows):
     """The Intersection of positions cols, rows (k, m) with the biases of `corrected` (affine_bias's
     corrected models of `models`) taken out, as affine_bias intersects its own points."""
-    maps = [(np.eye(2), np.zeros(2))] + [(np.asarray(c.linear, float), np.array([c.dx, c.dy], float))
-                                         for c in corrected[1:]]
+    maps = [(np.eye(2), np.zeros(2))] + [
+        (np.asarray(c.linear, float), np.array([c.dx, c.dy], float)) for c in corrected[1:]
+    ]
     return intersect_measured(models, *_unbiased(maps, cols, rows))

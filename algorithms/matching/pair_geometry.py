@@ -35,8 +35,14 @@ def local_affine(model1, model2, x1, y1, h, d=5.0):
     x2, y2 = predict(model1, model2, xs, ys, np.concatenate([h] * 5))
     n = x1.size
     c, px, mx, py, my = (slice(k * n, (k + 1) * n) for k in range(5))
-    return (x2[c], y2[c], (x2[px] - x2[mx]) / (2 * d), (x2[py] - x2[my]) / (2 * d),
-            (y2[px] - y2[mx]) / (2 * d), (y2[py] - y2[my]) / (2 * d))
+    return (
+        x2[c],
+        y2[c],
+        (x2[px] - x2[mx]) / (2 * d),
+        (x2[py] - x2[my]) / (2 * d),
+        (y2[px] - y2[mx]) / (2 * d),
+        (y2[py] - y2[my]) / (2 * d),
+    )
 
 
 def search_box(model1, model2, box1, hr, margin):

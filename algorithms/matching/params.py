@@ -1,5 +1,6 @@
 """Matching parameters with the papers' defaults (Heipke et al. 1992, section 2,
 Kornus et al. 2006, section 3.3)."""
+
 from dataclasses import dataclass
 
 from ..errors import InputError
@@ -12,14 +13,14 @@ TUKEY_C = 4.685
 class LsmParams:
     """Least-squares matching: window and the acceptance criteria of a matched point."""
 
-    template: int = 19          # window size, px (odd)
-    max_iterations: int = 10    # iterations < maximum
-    convergence: float = 0.01   # px: stop when the position update is smaller
-    rho_min: float = 0.6        # correlation coefficient > rho_min (0.7 in Kornus et al. 2006 for DEM points)
+    template: int = 19  # window size, px (odd)
+    max_iterations: int = 10  # iterations < maximum
+    convergence: float = 0.01  # px: stop when the position update is smaller
+    rho_min: float = 0.6  # correlation coefficient > rho_min (0.7 in Kornus et al. 2006 for DEM points)
     # px: semi-major axis of the error ellipse < threshold (Heipke et al. 1992; Kornus et al. 2006);
     # why not wider: docs/validation.md#lsm-error-ellipse-threshold
     max_ellipse: float = 0.1
-    max_shift: float = 2.5      # px: shift from the initial values < threshold
+    max_shift: float = 2.5  # px: shift from the initial values < threshold
 
     @property
     def widest(self):
@@ -46,8 +47,8 @@ class LsmParams:
 class GrowParams(LsmParams):
     """Region growing: neighbour distance STEP and the tiling of the reference image."""
 
-    step: int = 10              # px between a point and its four neighbours (10-15 in Heipke et al. 1992)
-    tile: int = 1024            # px, square tiles of the reference image, grown independently
+    step: int = 10  # px between a point and its four neighbours (10-15 in Heipke et al. 1992)
+    tile: int = 1024  # px, square tiles of the reference image, grown independently
     # neighbours' initial affine shape: the sensor models' local affine of the tile (True), or the popped
     # point's estimate as in Heipke et al. 1992 (False); docs/validation.md#region-growing-model-affine
     model_affine: bool = True
@@ -86,8 +87,10 @@ class GrowParams(LsmParams):
         if not 0.0 <= self.psf_sigma <= 5.0:
             raise InputError(f"psf_sigma must lie between 0 (off) and 5 px, got {self.psf_sigma}")
         if self.wide_template and (self.wide_template % 2 == 0 or self.wide_template <= self.template):
-            raise InputError(f"the wide template must be 0 (off) or an odd size larger than the template "
-                             f"({self.template} px), got {self.wide_template}")
+            raise InputError(
+                f"the wide template must be 0 (off) or an odd size larger than the template "
+                f"({self.template} px), got {self.wide_template}"
+            )
         if self.reseed_cell and self.reseed_cell < 3:
             raise InputError(f"the reseed cell must be 0 (off) or at least 3 pixels, got {self.reseed_cell}")
         if self.psf not in ("sensor", "pixel", "off"):

@@ -21,6 +21,7 @@ test and the robust sigmas), kept with the points.
 
 Storage beside the block: block/points.py.
 """
+
 import numpy as np
 
 # flag bits of POINT_DTYPE["flags"], one place for both matching strategies
@@ -34,14 +35,30 @@ REFINED = 32
 #: dense matching: a point of the semi-global matcher (dense/dense_strategy.py)
 DENSE = 64
 
-POINT_DTYPE = np.dtype([
-    ("id", "i8"), ("group", "i1"), ("flags", "u1"), ("rho_min", "f4"),
-    ("rho_a", "f4"), ("rho_b", "f4"), ("rho_c", "f4"), ("dx", "f4"), ("dy", "f4"),
-])
-OBS_DTYPE = np.dtype([
-    ("point_id", "i8"), ("image_id", "i4"), ("col", "f8"), ("row", "f8"),
-    ("rho", "f4"), ("semi_major", "f4"), ("semi_minor", "f4"),
-])
+POINT_DTYPE = np.dtype(
+    [
+        ("id", "i8"),
+        ("group", "i1"),
+        ("flags", "u1"),
+        ("rho_min", "f4"),
+        ("rho_a", "f4"),
+        ("rho_b", "f4"),
+        ("rho_c", "f4"),
+        ("dx", "f4"),
+        ("dy", "f4"),
+    ]
+)
+OBS_DTYPE = np.dtype(
+    [
+        ("point_id", "i8"),
+        ("image_id", "i4"),
+        ("col", "f8"),
+        ("row", "f8"),
+        ("rho", "f4"),
+        ("semi_major", "f4"),
+        ("semi_minor", "f4"),
+    ]
+)
 
 
 class MultiPoints:
@@ -49,8 +66,7 @@ class MultiPoints:
 
     def __init__(self, points=None, observations=None, stats=None):
         self.points = np.zeros(0, POINT_DTYPE) if points is None else np.asarray(points, POINT_DTYPE)
-        self.observations = (np.zeros(0, OBS_DTYPE) if observations is None
-                             else np.asarray(observations, OBS_DTYPE))
+        self.observations = np.zeros(0, OBS_DTYPE) if observations is None else np.asarray(observations, OBS_DTYPE)
         self.stats = dict(stats or {})
 
     def __len__(self):

@@ -10,6 +10,7 @@ covers full-resolution columns [factor^L j, factor^L (j + 1)) and rows [factor^L
 a point (x, y) at full resolution lies at (x, y) / factor^L in level L (to_level / from_level). The
 last block of a row or column may be partial (level sizes are ceil(size / factor)): its mean is
 over the pixels inside the image."""
+
 import math
 
 import numpy as np
@@ -73,7 +74,7 @@ def _wallis_band(img, out, first, last, h, shift, mf, sf, c, b):
             if math.isnan(g):
                 out[i, j] = np.nan
                 continue
-            m = a1 / an                                 # local mean - shift (an >= 1: g itself)
+            m = a1 / an  # local mean - shift (an >= 1: g itself)
             sw = math.sqrt(max(a2 / an - m * m, 0.0))
             den = c * sw + (1.0 - c) * sf
             r1 = c * sf / den if den > 0 else 0.0
@@ -101,14 +102,17 @@ def wallis(img, window=21, target_mean=127.0, target_std=50.0, contrast=0.8, bri
     if window < 3 or window % 2 == 0:
         raise InputError(f"the Wallis window must be an odd number of pixels >= 3, got {window}")
     if not 0.0 < contrast <= 1.0 or not 0.0 <= brightness <= 1.0 or not target_std > 0:
-        raise InputError(f"Wallis parameters out of range: contrast {contrast} (0 < c <= 1), brightness "
-                         f"{brightness} (0 <= b <= 1), target std {target_std} (> 0)")
+        raise InputError(
+            f"Wallis parameters out of range: contrast {contrast} (0 < c <= 1), brightness "
+            f"{brightness} (0 <= b <= 1), target std {target_std} (> 0)"
+        )
     out = np.empty_like(a)
     sample = a[::8, ::8]
     sample = sample[np.isfinite(sample)]
-    shift = float(np.floor(sample.mean())) if sample.size else 0.0   # near the mean; integers stay exact
-    _wallis_kernel(a, out, window // 2, shift, float(target_mean), float(target_std), float(contrast),
-                   float(brightness))
+    shift = float(np.floor(sample.mean())) if sample.size else 0.0  # near the mean; integers stay exact
+    _wallis_kernel(
+        a, out, window // 2, shift, float(target_mean), float(target_std), float(contrast), float(brightness)
+    )
     return out
 
 
@@ -186,8 +190,8 @@ def saint_marc(img, k=None, iterations=5):
         g2 = np.empty_like(a)
         _gradient_squared(a, g2)
         sample = g2[::2, ::2]
-        sample = sample[sample > 0]                     # NaN compares false
-        if sample.size == 0:                            # constant image: nothing to smooth
+        sample = sample[sample > 0]  # NaN compares false
+        if sample.size == 0:  # constant image: nothing to smooth
             return a
         k = math.sqrt(float(np.median(sample)))
         del g2, sample
@@ -256,8 +260,10 @@ def levels_for(height_range_px, search_px_at_top=4.0, factor=3):
     pixels at the top level: the smallest n >= 1 with height_range_px / factor^(n - 1) <= search."""
     _check_factor(factor)
     if not math.isfinite(height_range_px) or height_range_px < 0 or not search_px_at_top > 0:
-        raise InputError(f"need a finite parallax range >= 0 and a search range > 0 (px), got "
-                         f"{height_range_px} and {search_px_at_top}")
+        raise InputError(
+            f"need a finite parallax range >= 0 and a search range > 0 (px), got "
+            f"{height_range_px} and {search_px_at_top}"
+        )
     n, r = 1, float(height_range_px)
     while r > search_px_at_top:
         r /= factor

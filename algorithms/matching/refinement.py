@@ -24,6 +24,7 @@ With GrowParams.support_weights (off by default; on in the DEM pipeline model) M
 weights (SUPPORT_CENTRE, SUPPORT_SIMILARITY) make each match measure the surface around its
 template centre rather than average in the forest, city or water beside a field.
 Figures: docs/validation.md#group3-accuracy, docs/validation.md#mpgc-support-weights."""
+
 from dataclasses import fields
 
 import numpy as np
@@ -68,16 +69,29 @@ def refine_three_ray(points, images, models, image_ids, height_range, grow=None,
         inter = intersect_corrected(models, corrected, cols, rows)
     lsm = {f.name: getattr(grow, f.name) for f in fields(LsmParams)}
     support = {"centre_sigma": SUPPORT_CENTRE, "similarity": SUPPORT_SIMILARITY} if grow.support_weights else {}
-    params = MpgcParams(**lsm, **support, **({"sigma_geometry": max(SIGMA_GEOMETRY, 2.0 * systematic)}
-                                             if np.isfinite(systematic) else {})).check()
+    params = MpgcParams(
+        **lsm,
+        **support,
+        **({"sigma_geometry": max(SIGMA_GEOMETRY, 2.0 * systematic)} if np.isfinite(systematic) else {}),
+    ).check()
     ok = np.isfinite(inter.h)
     adapted = adapted_images(images, models, HeightRange.resolve(height_range, models[0]).bounds, grow)
-    rec = match_points(adapted[0], adapted[1:], corrected, cols[0, ok], rows[0, ok], inter.lon[ok], inter.lat[ok],
-                       inter.h[ok], params, progress.scaled(feedback, 5, 100))
+    rec = match_points(
+        adapted[0],
+        adapted[1:],
+        corrected,
+        cols[0, ok],
+        rows[0, ok],
+        inter.lon[ok],
+        inter.lat[ok],
+        inter.h[ok],
+        params,
+        progress.scaled(feedback, 5, 100),
+    )
     good = accepted(rec, params)
     which = g3[ok][good]
     obs = points.observations
-    first = np.searchsorted(obs["point_id"], points.points["id"][which])    # a point's 3 rows, by image id
+    first = np.searchsorted(obs["point_id"], points.points["id"][which])  # a point's 3 rows, by image id
     rows3 = first[:, None] + np.arange(3)
     for c, image_id in enumerate(image_ids[1:]):
         pos = rows3[np.arange(which.size), np.argmax(obs["image_id"][rows3] == image_id, axis=1)]
@@ -86,6 +100,11 @@ def refine_three_ray(points, images, models, image_ids, height_range, grow=None,
         obs["semi_major"][pos], obs["semi_minor"][pos] = rec["semi_major"][good, c], rec["semi_minor"][good, c]
     points.points["flags"][which] |= REFINED
     bias = [np.r_[m.dx, m.dy, m.linear.ravel() - np.eye(2).ravel()].round(4).tolist() for m in corrected[1:]]
-    points.stats.update({"refined_mpgc": int(which.size), "refine_sigma_geometry_px": round(params.sigma_geometry, 4),
-                         "refine_bias_px": bias})
+    points.stats.update(
+        {
+            "refined_mpgc": int(which.size),
+            "refine_sigma_geometry_px": round(params.sigma_geometry, 4),
+            "refine_bias_px": bias,
+        }
+    )
     return int(which.size)

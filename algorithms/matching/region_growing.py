@@ -24,6 +24,7 @@ memory is bounded by the tile size and tiles run independently (execution.run_ta
 the nogil kernel, local processes or Dask). Results are merged by lattice index, so they do
 not depend on the number of workers.
 """
+
 import math
 from typing import NamedTuple
 
@@ -83,8 +84,10 @@ def _check_inputs(image1, image2, model1, model2, params, hr):
     t = params.template
     for name, image in (("image 1", image1), ("image 2", image2)):
         if image.size[0] < t + 2 or image.size[1] < t + 2:
-            raise InputError(f"{name} ({image.size[0]} x {image.size[1]} px) is smaller than the matching "
-                             f"template ({t} x {t} px) plus a border; use a larger image or a smaller template")
+            raise InputError(
+                f"{name} ({image.size[0]} x {image.size[1]} px) is smaller than the matching "
+                f"template ({t} x {t} px) plus a border; use a larger image or a smaller template"
+            )
     cols, rows = image1.size
     gx, gy = np.meshgrid(np.linspace(0, cols, 9), np.linspace(0, rows, 9))
     c2, r2 = image2.size
@@ -94,8 +97,10 @@ def _check_inputs(image1, image2, model1, model2, params, hr):
             inside = (x2 > 0) & (x2 < c2) & (y2 > 0) & (y2 < r2)
         if inside.any():
             return
-    raise InputError("the two images do not overlap according to their sensor models (no image-1 point projects "
-                     f"into image 2 at heights {hr[0]:.0f}..{hr[1]:.0f} m); check the image pair and the models")
+    raise InputError(
+        "the two images do not overlap according to their sensor models (no image-1 point projects "
+        f"into image 2 at heights {hr[0]:.0f}..{hr[1]:.0f} m); check the image pair and the models"
+    )
 
 
 def _as_seed_records(seeds):
@@ -117,8 +122,18 @@ def _seed_rows(seeds, lattice, n_a, n_b, m_a, m_b, ids):
     dk = xn - seeds["x1"]
     dl = yn - seeds["y1"]
     a1, a2, a4, a5 = (seeds[k].astype(float) for k in ("a1", "a2", "a4", "a5"))
-    rows = np.column_stack([(m - m_a) * nx + (n - n_a), seeds["x2"] + a1 * dk + a2 * dl,
-                            seeds["y2"] + a4 * dk + a5 * dl, a1, a2, a4, a5, ids])
+    rows = np.column_stack(
+        [
+            (m - m_a) * nx + (n - n_a),
+            seeds["x2"] + a1 * dk + a2 * dl,
+            seeds["y2"] + a4 * dk + a5 * dl,
+            a1,
+            a2,
+            a4,
+            a5,
+            ids,
+        ]
+    )
     order = np.lexsort((ids, -seeds["rho"].astype(float)))
     return np.ascontiguousarray(rows[order])
 
@@ -156,8 +171,12 @@ def _grow_tile(job, index, box):
     gx0, gy0 = lattice.position(m_a, n_a)
     nx, ny = n_b - n_a, m_b - m_a
     x_last, y_last = lattice.position(m_b - 1, n_b - 1)
-    box1 = (int(math.floor(gx0 - pad)), int(math.floor(gy0 - pad)),
-            int(math.ceil(x_last + pad + 1)), int(math.ceil(y_last + pad + 1)))
+    box1 = (
+        int(math.floor(gx0 - pad)),
+        int(math.floor(gy0 - pad)),
+        int(math.ceil(x_last + pad + 1)),
+        int(math.ceil(y_last + pad + 1)),
+    )
     margin = search_margin(model1, model2, params, hr, 0.5 * (gx0 + x_last), 0.5 * (gy0 + y_last)) + step
     windows = window_pair(image1, image2, model1, model2, box1, hr, margin)
     win1, ox1, oy1, win2, ox2, oy2 = windows
@@ -168,19 +187,22 @@ def _grow_tile(job, index, box):
     if seeds is not None:
         n = np.rint((seeds["x1"] - lattice.l0) / step)
         m = np.rint((seeds["y1"] - lattice.l0) / step)
-        mine = ((n >= n_a) | (n_a == 0)) & ((n < n_b) | (n_b == lattice.ncols)) & \
-               ((m >= m_a) | (m_a == 0)) & ((m < m_b) | (m_b == lattice.nrows))
+        mine = (
+            ((n >= n_a) | (n_a == 0))
+            & ((n < n_b) | (n_b == lattice.ncols))
+            & ((m >= m_a) | (m_a == 0))
+            & ((m < m_b) | (m_b == lattice.nrows))
+        )
         parts.append(seeds[mine])
         ids.append(np.flatnonzero(mine))
     first_id = (0 if seeds is None else len(seeds)) + index * seed_stride(params)
     own = (gx0 - 0.5 * step, gy0 - 0.5 * step, x_last + 0.5 * step, y_last + 0.5 * step)
     operator = seed_operator(win1, params) if automatic else None
     if automatic:
-        found = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows,
-                                operator=operator)
+        found = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows, operator=operator)
         parts.append(found)
         ids.append(first_id + np.arange(len(found)))
-    tile_seeds, ids = np.concatenate(parts), np.concatenate(ids)     # match_pair ensures one source
+    tile_seeds, ids = np.concatenate(parts), np.concatenate(ids)  # match_pair ensures one source
     _, _, *aff = local_affine(model1, model2, 0.5 * (gx0 + x_last), 0.5 * (gy0 + y_last), 0.5 * (hr[0] + hr[1]))
     prior = np.array([float(v[0]) for v in aff]) if params.model_affine else np.zeros(0)
     if not np.all(np.isfinite(prior)):
@@ -191,10 +213,32 @@ def _grow_tile(job, index, box):
 
     def grow(tile_seeds, seed_ids):
         rows = _seed_rows(tile_seeds, lattice, n_a, n_b, m_a, m_b, seed_ids)
-        return grow_kernel(win1, win2, float(ox1), float(oy1), float(ox2), float(oy2), float(gx0), float(gy0),
-                           float(step), nx, ny, rows, half, params.widest // 2, params.max_iterations,
-                           params.convergence, params.tukey, params.rho_min, params.max_ellipse, params.max_shift,
-                           results, state, origin, prior)
+        return grow_kernel(
+            win1,
+            win2,
+            float(ox1),
+            float(oy1),
+            float(ox2),
+            float(oy2),
+            float(gx0),
+            float(gy0),
+            float(step),
+            nx,
+            ny,
+            rows,
+            half,
+            params.widest // 2,
+            params.max_iterations,
+            params.convergence,
+            params.tukey,
+            params.rho_min,
+            params.max_ellipse,
+            params.max_shift,
+            results,
+            state,
+            origin,
+            prior,
+        )
 
     def untried(x1, y1):
         n = np.clip(np.rint((x1 - lattice.l0) / step), n_a, n_b - 1).astype(np.int64) - n_a
@@ -203,10 +247,21 @@ def _grow_tile(job, index, box):
 
     nseeds = len(tile_seeds)
     tries = grow(tile_seeds, ids) if nseeds else 0
-    if automatic and params.reseed_cell:   # second round: denser interest points where growth has not been
-        check_cancel()                      # between the rounds (execution: a cancel reaches a running tile)
-        again = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows,
-                                cell=params.reseed_cell, keep=untried, operator=operator)
+    if automatic and params.reseed_cell:  # second round: denser interest points where growth has not been
+        check_cancel()  # between the rounds (execution: a cancel reaches a running tile)
+        again = automatic_seeds(
+            image1,
+            image2,
+            model1,
+            model2,
+            params,
+            hr,
+            box=own,
+            windows=windows,
+            cell=params.reseed_cell,
+            keep=untried,
+            operator=operator,
+        )
         if len(again):
             tries += grow(again, first_id + len(found) + np.arange(len(again)))
             nseeds += len(again)
@@ -232,12 +287,14 @@ def grow_job(image1, image2, model1, model2, params=None, height_range=None, see
     automatic = seeds is None if automatic is None else bool(automatic)
     if seeds is None and not automatic:
         raise InputError("region growing needs seeds: give seed points or allow automatic seeds")
-    return GrowJob(image1, image2, model1, model2, params, hr, lattice, seeds, automatic), \
-        lattice.tiles(int(params.tile))
+    return GrowJob(image1, image2, model1, model2, params, hr, lattice, seeds, automatic), lattice.tiles(
+        int(params.tile)
+    )
 
 
-def match_pair(image1, image2, model1, model2, params=None, height_range=None, seeds=None, feedback=None,
-               workers=1, automatic=None):
+def match_pair(
+    image1, image2, model1, model2, params=None, height_range=None, seeds=None, feedback=None, workers=1, automatic=None
+):
     """Region-growing LSM of image 1 (reference) into image 2.
 
     image1, image2: Image or raster path; model1, model2: their sensor models; params: GrowParams;
@@ -260,17 +317,22 @@ def match_pair(image1, image2, model1, model2, params=None, height_range=None, s
     tries = sum(p[1] for p in parts)
     nseeds = sum(p[2] for p in parts)
     if len(records) == 0:
-        fb.pushInfo("Warning: region growing found no matched point: no seed passed the acceptance criteria "
-                    f"({nseeds} seed(s) in {len(tiles)} tile(s)); check the image pair, the height range and "
-                    "the texture, or give seeds")
+        fb.pushInfo(
+            "Warning: region growing found no matched point: no seed passed the acceptance criteria "
+            f"({nseeds} seed(s) in {len(tiles)} tile(s)); check the image pair, the height range and "
+            "the texture, or give seeds"
+        )
     else:
-        fb.pushInfo(f"region growing: {len(records)} points accepted of {tries} LSM attempts from {nseeds} seed(s) "
-                    f"in {len(tiles)} tile(s)")
+        fb.pushInfo(
+            f"region growing: {len(records)} points accepted of {tries} LSM attempts from {nseeds} seed(s) "
+            f"in {len(tiles)} tile(s)"
+        )
     return records
 
 
-def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_range=None, guide=None,
-                    x2=None, y2=None):
+def transfer_points(
+    image1, image2, model1, model2, x1, y1, params=None, height_range=None, guide=None, x2=None, y2=None
+):
     """LSM of GIVEN image-1 points into image 2 (only image-2 coordinates are matched; transfer
     points of the three-image combinations), on the resolution-adapted images. Initial values: from
     `guide` (PAIR_DTYPE points of this pair already matched: the nearest one's position and affine
@@ -292,6 +354,7 @@ def transfer_points(image1, image2, model1, model2, x1, y1, params=None, height_
     if len(guide) == 0:
         raise InputError("the guide points have no matched image-2 positions")
     from scipy.spatial import cKDTree
+
     _, nearest = cKDTree(np.column_stack([guide["x1"], guide["y1"]])).query(np.column_stack([x1, y1]))
     g = guide[nearest]
     a = np.column_stack([g[k].astype(float) for k in ("a1", "a2", "a4", "a5")])
@@ -316,25 +379,28 @@ def match_windows(image1, image2, x1, y1, x2, y2, a, params):
     ok = np.zeros(len(x1), bool)
     half = params.widest // 2
     tile = int(params.tile)
-    key = (np.floor(y1 / tile) * (image1.size[0] // tile + 1) + np.floor(x1 / tile))
+    key = np.floor(y1 / tile) * (image1.size[0] // tile + 1) + np.floor(x1 / tile)
     for k in np.unique(key[np.isfinite(key)]):
         idx = np.flatnonzero(key == k)
         pad = half + 3
         xa, ya = int(np.floor(x1[idx].min())) - pad, int(np.floor(y1[idx].min())) - pad
-        win1, ox1, oy1 = image1.read(xa, ya, int(np.ceil(x1[idx].max())) + pad + 1 - xa,
-                                     int(np.ceil(y1[idx].max())) + pad + 1 - ya)
+        win1, ox1, oy1 = image1.read(
+            xa, ya, int(np.ceil(x1[idx].max())) + pad + 1 - xa, int(np.ceil(y1[idx].max())) + pad + 1 - ya
+        )
         scale = np.nanmax(np.abs(a[idx])) if np.isfinite(a[idx]).any() else 1.0
         m = (half + 3) * scale + params.max_shift + 3
         fin = np.isfinite(x2[idx]) & np.isfinite(y2[idx])
         if not fin.any() or win1.shape[0] < 4 or win1.shape[1] < 4:
             continue
         xb, yb = int(np.floor(x2[idx][fin].min() - m)), int(np.floor(y2[idx][fin].min() - m))
-        win2, ox2, oy2 = image2.read(xb, yb, int(np.ceil(x2[idx][fin].max() + m)) + 1 - xb,
-                                     int(np.ceil(y2[idx][fin].max() + m)) + 1 - yb)
+        win2, ox2, oy2 = image2.read(
+            xb, yb, int(np.ceil(x2[idx][fin].max() + m)) + 1 - xb, int(np.ceil(y2[idx][fin].max() + m)) + 1 - yb
+        )
         if win2.shape[0] < 4 or win2.shape[1] < 4:
             continue
-        rec, good = match_accepted(win1, win2, x1[idx] - ox1, y1[idx] - oy1, x2[idx] - ox2, y2[idx] - oy2,
-                                   affine=a[idx], params=params)
+        rec, good = match_accepted(
+            win1, win2, x1[idx] - ox1, y1[idx] - oy1, x2[idx] - ox2, y2[idx] - oy2, affine=a[idx], params=params
+        )
         rec["x1"] += ox1
         rec["y1"] += oy1
         rec["x2"] += ox2

@@ -11,6 +11,7 @@ growth is deterministic. A node is matched by LSM (lsm.lsm_point) and accepted w
 Growth pops the best node and matches its four neighbours at distance STEP (_DC, _DR: left, right,
 up, down) from its position transported by the affine (a1, a2, a4, a5): its own, or the models'
 prior for the tile. All kernels are nogil, so tiles run on threads."""
+
 import math
 
 import numpy as np
@@ -77,13 +78,40 @@ def _pop(key, node, size):
 @njit(cache=True, nogil=True)
 def _passes(status, out, rho_min, max_ellipse, max_shift, max_iter):
     """The acceptance criteria."""
-    return (status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift
-            and out[6] < max_iter)
+    return status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift and out[6] < max_iter
 
 
 @njit(cache=True, nogil=True)
-def _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, x2, y2, a1, a2, a4, a5,
-             half, whalf, max_iter, conv, tukey, rho_min, max_ellipse, max_shift, out, results, state):
+def _attempt(
+    img1,
+    img2,
+    ox1,
+    oy1,
+    ox2,
+    oy2,
+    gx0,
+    gy0,
+    step,
+    nx,
+    node,
+    x2,
+    y2,
+    a1,
+    a2,
+    a4,
+    a5,
+    half,
+    whalf,
+    max_iter,
+    conv,
+    tukey,
+    rho_min,
+    max_ellipse,
+    max_shift,
+    out,
+    results,
+    state,
+):
     """LSM at lattice node `node` from initial values in image coordinates, again with the wide
     window (half-size whalf > half) where the match failed inside the image; stores the result
     (image coordinates) and the state (1 accepted, 2 rejected); returns whether accepted."""
@@ -92,8 +120,7 @@ def _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, x2, y2, a
     status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out, tukey)
     ok = _passes(status, out, rho_min, max_ellipse, max_shift, max_iter)
     if not ok and status != OUTSIDE and whalf > half:
-        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out,
-                           tukey)
+        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out, tukey)
         ok = _passes(status, out, rho_min, max_ellipse, max_shift, max_iter)
     for f in range(out.shape[0]):
         results[node, f] = out[f]
@@ -104,8 +131,32 @@ def _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, x2, y2, a
 
 
 @njit(cache=True, nogil=True)
-def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, whalf, max_iter, conv, tukey,
-                rho_min, max_ellipse, max_shift, results, state, origin, prior):
+def grow_kernel(
+    img1,
+    img2,
+    ox1,
+    oy1,
+    ox2,
+    oy2,
+    gx0,
+    gy0,
+    step,
+    nx,
+    ny,
+    seeds,
+    half,
+    whalf,
+    max_iter,
+    conv,
+    tukey,
+    rho_min,
+    max_ellipse,
+    max_shift,
+    results,
+    state,
+    origin,
+    prior,
+):
     """Region growing on the nx x ny lattice of a tile (node = row * nx + col at image-1 position
     (gx0 + col step, gy0 + row step)). img1/img2 are windows whose top-left corners lie at image
     positions (ox1, oy1), (ox2, oy2). seeds: (ns, 8) rows (node, x2, y2, a1, a2, a4, a5, seed id)
@@ -124,9 +175,36 @@ def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, h
         if node < 0 or node >= n or state[node] != 0:
             continue
         tries += 1
-        if _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, node, seeds[s, 1], seeds[s, 2],
-                    seeds[s, 3], seeds[s, 4], seeds[s, 5], seeds[s, 6], half, whalf, max_iter, conv, tukey, rho_min,
-                    max_ellipse, max_shift, out, results, state):
+        if _attempt(
+            img1,
+            img2,
+            ox1,
+            oy1,
+            ox2,
+            oy2,
+            gx0,
+            gy0,
+            step,
+            nx,
+            node,
+            seeds[s, 1],
+            seeds[s, 2],
+            seeds[s, 3],
+            seeds[s, 4],
+            seeds[s, 5],
+            seeds[s, 6],
+            half,
+            whalf,
+            max_iter,
+            conv,
+            tukey,
+            rho_min,
+            max_ellipse,
+            max_shift,
+            out,
+            results,
+            state,
+        ):
             origin[node] = int(seeds[s, 7])
             size = _push(key, hnode, size, _quantise(results[node, 2]), node)
     while size > 0:
@@ -148,16 +226,42 @@ def grow_kernel(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, h
             a2 = results[node, 8]
             a4 = results[node, 9]
             a5 = results[node, 10]
-            if prior.shape[0] == 4:   # the models' affine: no drift along long growth paths
+            if prior.shape[0] == 4:  # the models' affine: no drift along long growth paths
                 a1 = prior[0]
                 a2 = prior[1]
                 a4 = prior[2]
                 a5 = prior[3]
             tries += 1
-            if _attempt(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, nb,
-                        results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl,
-                        a1, a2, a4, a5, half, whalf, max_iter, conv, tukey, rho_min, max_ellipse, max_shift, out,
-                        results, state):
+            if _attempt(
+                img1,
+                img2,
+                ox1,
+                oy1,
+                ox2,
+                oy2,
+                gx0,
+                gy0,
+                step,
+                nx,
+                nb,
+                results[node, 0] + a1 * dk + a2 * dl,
+                results[node, 1] + a4 * dk + a5 * dl,
+                a1,
+                a2,
+                a4,
+                a5,
+                half,
+                whalf,
+                max_iter,
+                conv,
+                tukey,
+                rho_min,
+                max_ellipse,
+                max_shift,
+                out,
+                results,
+                state,
+            ):
                 origin[nb] = origin[node]
                 size = _push(key, hnode, size, _quantise(results[nb, 2]), nb)
     return tries

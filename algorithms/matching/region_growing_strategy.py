@@ -25,6 +25,7 @@ a region-grown pair, re-matched there (`pair_seeds`).
 What differs from matching the scene at once: a transfer point takes its initial values from its own tile's
 points, and MPGC's biases come from a sample of the points. The result does not depend on the execution or the
 number of workers."""
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -89,12 +90,12 @@ class TileJob(NamedTuple):
 
     stereo: StereoSet
     settings: RegionGrowingSettings
-    grow_a: GrowJob                     # of (a)
-    grow_b: GrowJob | None           # of (b), or None where (b) is not grown
-    mpgc: bool                          # round 2: MPGC with the scene's orientation `bias`
-    limits: tuple[float, float] = (np.inf, np.inf)      # the consistency test's |dx|, |dy| limits (px)
+    grow_a: GrowJob  # of (a)
+    grow_b: GrowJob | None  # of (b), or None where (b) is not grown
+    mpgc: bool  # round 2: MPGC with the scene's orientation `bias`
+    limits: tuple[float, float] = (np.inf, np.inf)  # the consistency test's |dx|, |dy| limits (px)
     sigmas: tuple[float, float] = (MIN_SIGMA, MIN_SIGMA)
-    bias: tuple[Any, float] | None = None            # tiled_rounds.scene_bias, or None
+    bias: tuple[Any, float] | None = None  # tiled_rounds.scene_bias, or None
 
 
 def pair_seeds(stereo: StereoSet, k: int, seed_points: MultiPoints, params: GrowParams) -> np.ndarray:
@@ -106,20 +107,39 @@ def pair_seeds(stereo: StereoSet, k: int, seed_points: MultiPoints, params: Grow
     both = np.isfinite(x1) & np.isfinite(y1) & np.isfinite(x2) & np.isfinite(y2)
     if not both.any():
         return np.zeros(0, PAIR_DTYPE)
-    recs, ok = transfer_points(stereo.images[0], stereo.images[k], stereo.models[0], stereo.models[k], x1[both],
-                               y1[both], params, stereo.heights.bounds, x2=x2[both], y2=y2[both])
+    recs, ok = transfer_points(
+        stereo.images[0],
+        stereo.images[k],
+        stereo.models[0],
+        stereo.models[k],
+        x1[both],
+        y1[both],
+        params,
+        stereo.heights.bounds,
+        x2=x2[both],
+        y2=y2[both],
+    )
     return recs[ok]
 
 
-def _transfer(job: TileJob, pair: tuple[int, int], x1: np.ndarray, y1: np.ndarray,
-              guide: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+def _transfer(
+    job: TileJob, pair: tuple[int, int], x1: np.ndarray, y1: np.ndarray, guide: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
     """region_growing.transfer_points of the image pair `pair` (indices into the set), for no points too."""
     if len(x1) == 0:
         return np.zeros(0, PAIR_DTYPE), np.zeros(0, bool)
     s, (i, j) = job.stereo, pair
-    return transfer_points(s.images[i], s.images[j], s.models[i], s.models[j], x1, y1, job.settings.grow,
-                           s.heights.bounds,
-                           guide=guide if guide is not None and len(guide) else None)
+    return transfer_points(
+        s.images[i],
+        s.images[j],
+        s.models[i],
+        s.models[j],
+        x1,
+        y1,
+        job.settings.grow,
+        s.heights.bounds,
+        guide=guide if guide is not None and len(guide) else None,
+    )
 
 
 def _passes(dx: np.ndarray, dy: np.ndarray, limits: tuple[float, float]) -> np.ndarray:
@@ -167,15 +187,23 @@ class RegionGrowing(MatchingStrategy):
             log.pushInfo(f"{s.names[0]} - {s.names[k]}: {len(found)} seeds from the given points")
             return found
 
-        grow_a, tiles = grow_job(s.images[0], s.images[1], s.models[0], s.models[1], params, s.heights.bounds, seeds(1),
-                                 automatic)
+        grow_a, tiles = grow_job(
+            s.images[0], s.images[1], s.models[0], s.models[1], params, s.heights.bounds, seeds(1), automatic
+        )
         grow_b = None
         if s.triplet and settings.grow_second:
-            grow_b = grow_job(s.images[0], s.images[2], s.models[0], s.models[2], params, s.heights.bounds, seeds(2),
-                              automatic)[0]
+            grow_b = grow_job(
+                s.images[0], s.images[2], s.models[0], s.models[2], params, s.heights.bounds, seeds(2), automatic
+            )[0]
         n = s.names
-        log.pushInfo(f"{len(tiles)} tile(s) of {params.tile} px: " + (
-            f"(a) {n[0]} - {n[1]}, (b) {n[0]} - {n[2]}, (c) {n[2]} - {n[1]}" if s.triplet else f"(a) {n[0]} - {n[1]}"))
+        log.pushInfo(
+            f"{len(tiles)} tile(s) of {params.tile} px: "
+            + (
+                f"(a) {n[0]} - {n[1]}, (b) {n[0]} - {n[2]}, (c) {n[2]} - {n[1]}"
+                if s.triplet
+                else f"(a) {n[0]} - {n[1]}"
+            )
+        )
         job = TileJob(s.without_loader(), settings, grow_a, grow_b, settings.mpgc and s.triplet)
         return TilePlan(job, tiles, sample_quotas([(n_b - n_a) * (m_b - m_a) for n_a, n_b, m_a, m_b in tiles]))
 
@@ -184,7 +212,7 @@ class RegionGrowing(MatchingStrategy):
         """Round 1 (module docstring): the tile combined without the consistency test."""
         ids = job.stereo.ids
         a, tries, seeds = _grow_tile(job.grow_a, index, box)
-        check_cancel()                  # between the combinations (execution: a cancel reaches a running tile)
+        check_cancel()  # between the combinations (execution: a cancel reaches a running tile)
         if not job.stereo.triplet:
             multi = combine(a, image_ids=ids)
             dx = dy = np.full(len(multi), np.nan)
@@ -193,7 +221,7 @@ class RegionGrowing(MatchingStrategy):
             check_cancel()
             bt, ok = _transfer(job, (0, 2), a["x1"], a["y1"], grown)
             b, b_src = bt[ok], np.flatnonzero(ok)
-            b["x1"], b["y1"] = a["x1"][b_src], a["y1"][b_src]        # transfer points keep image 0 exactly
+            b["x1"], b["y1"] = a["x1"][b_src], a["y1"][b_src]  # transfer points keep image 0 exactly
             if grown is not None:
                 fresh = grown[new_cells(grown["x1"], grown["y1"], a["x1"], a["y1"], job.settings.grow.step)]
                 b = np.concatenate([b, fresh])
@@ -208,14 +236,19 @@ class RegionGrowing(MatchingStrategy):
         both = np.flatnonzero(np.isfinite(dx))
         take = evenly(both, quota)
         cols, rows = positions(multi, ids, take)
-        return {"points": len(multi), **{k: histogram.count(np.round(np.abs(d[both]) / DEVIATION_STEP))
-                                         for k, d in (("dx", dx), ("dy", dy))},
-                "sample": (cols, rows, dx[take], dy[take]),
-                "tries": tries, "seeds": seeds, **{k: multi.stats.get(k, 0) for k in ADDED}}
+        return {
+            "points": len(multi),
+            **{k: histogram.count(np.round(np.abs(d[both]) / DEVIATION_STEP)) for k, d in (("dx", dx), ("dy", dy))},
+            "sample": (cols, rows, dx[take], dy[take]),
+            "tries": tries,
+            "seeds": seeds,
+            **{k: multi.stats.get(k, 0) for k in ADDED},
+        }
 
     @classmethod
-    def between(cls, job: TileJob, first: list[dict[str, Any]], outs: list[str], rounds: Rounds,
-                feedback: Feedback | None) -> tuple[TileJob, list[int]]:
+    def between(
+        cls, job: TileJob, first: list[dict[str, Any]], outs: list[str], rounds: Rounds, feedback: Feedback | None
+    ) -> tuple[TileJob, list[int]]:
         """The consistency test's limits, each tile's points that pass, and the scene's MPGC orientation."""
         sigmas = (_robust_sigma(t["dx"] for t in first), _robust_sigma(t["dy"] for t in first))
         factor = job.settings.sigma_factor
@@ -238,46 +271,75 @@ class RegionGrowing(MatchingStrategy):
             return {}
         check_cancel()
         s = job.stereo
-        refine_three_ray(points, list(s.images), list(s.models), list(s.ids), s.heights.bounds, job.settings.grow,
-                         bias=job.bias)
+        refine_three_ray(
+            points, list(s.images), list(s.models), list(s.ids), s.heights.bounds, job.settings.grow, bias=job.bias
+        )
         return points.stats
 
     @classmethod
-    def stats(cls, job: TileJob, first: list[dict[str, Any]], refined: list[dict[str, Any]], counts: list[int],
-              feedback: Feedback | None) -> MatchStats:
+    def stats(
+        cls,
+        job: TileJob,
+        first: list[dict[str, Any]],
+        refined: list[dict[str, Any]],
+        counts: list[int],
+        feedback: Feedback | None,
+    ) -> MatchStats:
         s = job.stereo
         added = {k: int(sum(t[k] for t in first)) for k in ADDED}
         candidates = int(sum(t["dx"][1].sum() for t in first))
         details: dict[str, Any] = {k: v for k, v in added.items() if k != "matched_3"}
         details["rejected_3sigma"] = int(sum(t["points"] for t in first) - sum(counts))
-        stats = MatchStats(cls.name, list(s.ids if s.triplet else s.ids[:2]), int(sum(counts)),
-                           matched_3=added["matched_3"], sigma_factor=float(job.settings.sigma_factor),
-                           sigma_dx=job.sigmas[0] if candidates else None,
-                           sigma_dy=job.sigmas[1] if candidates else None, details=details)
+        stats = MatchStats(
+            cls.name,
+            list(s.ids if s.triplet else s.ids[:2]),
+            int(sum(counts)),
+            matched_3=added["matched_3"],
+            sigma_factor=float(job.settings.sigma_factor),
+            sigma_dx=job.sigmas[0] if candidates else None,
+            sigma_dy=job.sigmas[1] if candidates else None,
+            details=details,
+        )
         if job.bias is not None:
             done = [r for r in refined if "refined_mpgc" in r]
             stats.refined_mpgc = int(sum(r["refined_mpgc"] for r in done))
-            if done:         # the scene's orientation: the same in every tile
+            if done:  # the scene's orientation: the same in every tile
                 details.update({k: done[0][k] for k in ("refine_sigma_geometry_px", "refine_bias_px")})
         tries, nseeds = sum(t["tries"] for t in first), sum(t["seeds"] for t in first)
         if added["matched_a"] == 0:
-            progress.warn(feedback, "region growing found no matched point: no seed passed the acceptance criteria "
-                                    f"({nseeds} seed(s) in {len(first)} tile(s)); check the image pair, the height "
-                                    "range and the texture, or give seeds")
+            progress.warn(
+                feedback,
+                "region growing found no matched point: no seed passed the acceptance criteria "
+                f"({nseeds} seed(s) in {len(first)} tile(s)); check the image pair, the height "
+                "range and the texture, or give seeds",
+            )
         progress.ensure(feedback).pushInfo(
             f"region growing (a): {added['matched_a']} points of {tries} LSM attempts from {nseeds} seed(s); "
-            f"{stats.points} points kept" + (f", {details['rejected_3sigma']} failed the consistency test"
-                                             if s.triplet else ""))
+            f"{stats.points} points kept"
+            + (f", {details['rejected_3sigma']} failed the consistency test" if s.triplet else "")
+        )
         return stats
 
 
-def match_block(images: Sequence[Any], models: Sequence[Any], params: GrowParams | None = None,
-                height_range: GivenHeights = None, workers: int | Execution = 1, names: Sequence[str] | None = None,
-                mpgc: bool = True, feedback: Feedback | None = None) -> MultiPoints:
+def match_block(
+    images: Sequence[Any],
+    models: Sequence[Any],
+    params: GrowParams | None = None,
+    height_range: GivenHeights = None,
+    workers: int | Execution = 1,
+    names: Sequence[str] | None = None,
+    mpgc: bool = True,
+    feedback: Feedback | None = None,
+) -> MultiPoints:
     """Region growing of 2 or 3 images in combination order (reference/nadir, forward, backward; block ids 1, 2,
     3) with automatic seeds and the GrowParams `params`, MPGC refinement of the group 3 points where `mpgc`, on
     `workers` threads (or an execution.Execution whose workers see this machine's temporary folder), gathered in
     memory (tiled_rounds.match_in_memory): for scenes that fit, studies and tests."""
     execution = workers if isinstance(workers, Execution) else Execution("threads", max(int(workers), 1))
-    return match_in_memory(RegionGrowing, StereoSet.of(images, models, names, heights=height_range),
-                           RegionGrowingSettings(grow=params or GrowParams(), mpgc=mpgc), execution, feedback)
+    return match_in_memory(
+        RegionGrowing,
+        StereoSet.of(images, models, names, heights=height_range),
+        RegionGrowingSettings(grow=params or GrowParams(), mpgc=mpgc),
+        execution,
+        feedback,
+    )

@@ -12,6 +12,7 @@ Relaxation (local smoothness): the other points take, in `rounds` passes, the hy
 best fits the inverse-distance weighted mean height of their resolved neighbours within `radius`
 px (neighbours across an edge of `edge_mask` are left out), score - |h - h_nb| / tol, accepted
 when |h - h_nb| <= 2 tol; a point without resolved neighbours stays unresolved."""
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -116,10 +117,10 @@ def crosses_edge(edge_mask, x, y, pairs, step=0.5, chunk=20_000):
     t = np.linspace(0.0, 1.0, k)[1:-1]
     out = np.zeros(len(pairs), bool)
     for a in range(0, len(pairs), chunk):
-        p = pairs[a:a + chunk]
+        p = pairs[a : a + chunk]
         sx = x[p[:, 0], None] + t * (x[p[:, 1]] - x[p[:, 0]])[:, None]
         sy = y[p[:, 0], None] + t * (y[p[:, 1]] - y[p[:, 0]])[:, None]
         i = np.clip(np.floor(sy).astype(np.int64), 0, rows - 1)
         j = np.clip(np.floor(sx).astype(np.int64), 0, cols - 1)
-        out[a:a + chunk] = edge_mask[i, j].any(axis=1)
+        out[a : a + chunk] = edge_mask[i, j].any(axis=1)
     return out

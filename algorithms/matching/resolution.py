@@ -8,6 +8,7 @@ the instrument (SENSOR_PSF: detector box, detector lines, motion smear, optics) 
 instrument is unknown (RPC), a Gaussian of GrowParams.psf_sigma detectors with square detectors on
 the ground. The models' local affine carries one image's PSF into the other's pixels; each image gets
 the positive part of the difference."""
+
 import math
 
 import numpy as np
@@ -23,8 +24,12 @@ def _psf_aspect(model, cols, rows, h):
     an image sampled finer along track than across (SPOT 5 HRS: 10 m detectors, 5 m lines) has a
     PSF that many lines long; 1 where the models cannot tell."""
     try:
-        lon, lat = (np.asarray(v, float) for v in model.image_to_ground(
-            np.array([cols, cols + 1.0, cols]), np.array([rows, rows, rows + 1.0]), np.full(3, h))[:2])
+        lon, lat = (
+            np.asarray(v, float)
+            for v in model.image_to_ground(
+                np.array([cols, cols + 1.0, cols]), np.array([rows, rows, rows + 1.0]), np.full(3, h)
+            )[:2]
+        )
     except Exception:
         return 1.0
     c = math.cos(math.radians(float(lat[0])))
@@ -60,8 +65,8 @@ def sensor_psf(model):
     if desc is None:
         return None
     width, lines, smear, sigma = desc
-    across = width ** 2 / 12.0 + sigma ** 2
-    along = lines ** 2 / 12.0 + smear ** 2 / 12.0 + (sigma * lines) ** 2
+    across = width**2 / 12.0 + sigma**2
+    along = lines**2 / 12.0 + smear**2 / 12.0 + (sigma * lines) ** 2
     return np.diag([across, along])
 
 

@@ -9,6 +9,7 @@ best candidate is refined by least-squares matching and kept if it passes the ac
 
 `seeds_from_points` does the same for given image-1 points (control or tie points), optionally with
 image-2 approximations (then the search is a small square around them)."""
+
 import math
 
 import numpy as np
@@ -23,14 +24,13 @@ from .pair_geometry import local_affine, predict, search_box
 from .params import GrowParams
 from .records import PAIR_DTYPE
 
-NCC_MIN = 0.7        # correlation a seed's NCC peak must reach before LSM
-NCC_MARGIN = 0.05    # the peak must beat the best candidate > 2 px away by this much (uniqueness)
-ACROSS = 3           # px of image 2 searched on each side of the predicted path
-CELL = 48            # px of image 1: at most one automatic seed per CELL x CELL cell
+NCC_MIN = 0.7  # correlation a seed's NCC peak must reach before LSM
+NCC_MARGIN = 0.05  # the peak must beat the best candidate > 2 px away by this much (uniqueness)
+ACROSS = 3  # px of image 2 searched on each side of the predicted path
+CELL = 48  # px of image 1: at most one automatic seed per CELL x CELL cell
 
 
-def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr, params,
-                     x2=None, y2=None, radius=3.0):
+def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr, params, x2=None, y2=None, radius=3.0):
     """NCC along the predicted path (or around given approximations x2, y2 within `radius` px),
     then LSM, for image-1 points (x1, y1) (image coordinates) inside window win1 (offset ox1, oy1),
     searched in win2 (offset ox2, oy2). Returns (records, ok mask)."""
@@ -64,8 +64,7 @@ def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr,
             cx = (x2[i] + off[None, :] + 0 * off[:, None]).ravel()
             cy = (y2[i] + off[:, None] + 0 * off[None, :]).ravel()
         scores = np.empty(cx.size)
-        ncc_path(win1, win2, x1[i] - ox1, y1[i] - oy1, half, cx - ox2, cy - oy2, a1[i], a2[i], a4[i], a5[i],
-                 scores)
+        ncc_path(win1, win2, x1[i] - ox1, y1[i] - oy1, half, cx - ox2, cy - oy2, a1[i], a2[i], a4[i], a5[i], scores)
         if not np.isfinite(scores).any():
             continue
         best = int(np.nanargmax(scores))
@@ -76,11 +75,12 @@ def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr,
         if scores[best] - rival < NCC_MARGIN:
             continue
         bx[i], by[i] = cx[best], cy[best]
-    if min(win1.shape) < 4 or min(win2.shape) < 4:   # an image sliver: nothing can match (match_points needs 4 x 4)
+    if min(win1.shape) < 4 or min(win2.shape) < 4:  # an image sliver: nothing can match (match_points needs 4 x 4)
         bx[:] = np.nan
         win1 = win2 = np.zeros((4, 4), np.float32)
-    rec, ok = match_accepted(win1, win2, x1 - ox1, y1 - oy1, bx - ox2, by - oy2,
-                             affine=np.column_stack([a1, a2, a4, a5]), params=params)
+    rec, ok = match_accepted(
+        win1, win2, x1 - ox1, y1 - oy1, bx - ox2, by - oy2, affine=np.column_stack([a1, a2, a4, a5]), params=params
+    )
     rec["x1"], rec["y1"] = x1, y1
     rec["x2"] += ox2
     rec["y2"] += oy2
@@ -105,8 +105,9 @@ def window_pair(image1, image2, model1, model2, box1, hr, margin2):
 def search_margin(model1, model2, params, hr, x1, y1):
     """Image-2 margin (px) around a predicted footprint: the template through the affine, the
     across-path search, the allowed shift and a safety of 4 px."""
-    _, _, a1, a2, a4, a5 = local_affine(model1, model2, np.atleast_1d(float(x1)), np.atleast_1d(float(y1)),
-                                        0.5 * (hr[0] + hr[1]))
+    _, _, a1, a2, a4, a5 = local_affine(
+        model1, model2, np.atleast_1d(float(x1)), np.atleast_1d(float(y1)), 0.5 * (hr[0] + hr[1])
+    )
     scale = np.nanmax(np.abs([a1, a2, a4, a5])) * 2 if np.all(np.isfinite([a1, a2, a4, a5])) else 2.0
     return (params.widest // 2 + 2) * scale + ACROSS + params.max_shift + 4
 
@@ -121,8 +122,19 @@ def seed_operator(win1, params):
     return foerstner(win1, seed_window(params))
 
 
-def automatic_seeds(image1, image2, model1, model2, params=None, height_range=None, box=None, windows=None,
-                    cell=CELL, keep=None, operator=None):
+def automatic_seeds(
+    image1,
+    image2,
+    model1,
+    model2,
+    params=None,
+    height_range=None,
+    box=None,
+    windows=None,
+    cell=CELL,
+    keep=None,
+    operator=None,
+):
     """Automatic seeds in image 1's `box` (x0, y0, x1, y1; default the whole image): Foerstner
     points (one per `cell` x `cell` px, interest.py), NCC along the predicted path, LSM; returns
     the accepted PAIR_DTYPE records (seed = -1).
@@ -138,10 +150,11 @@ def automatic_seeds(image1, image2, model1, model2, params=None, height_range=No
         box = (0, 0, cols, rows)
     if windows is None:
         cx, cy = 0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])
-        windows = window_pair(image1, image2, model1, model2, box, hr,
-                              search_margin(model1, model2, params, hr, cx, cy))
+        windows = window_pair(
+            image1, image2, model1, model2, box, hr, search_margin(model1, model2, params, hr, cx, cy)
+        )
     win1, ox1, oy1, win2, ox2, oy2 = windows
-    if win1.size == 0 or win2.size == 0 or min(win1.shape) < seed_window(params) + 2:    # a sliver: no operator
+    if win1.size == 0 or win2.size == 0 or min(win1.shape) < seed_window(params) + 2:  # a sliver: no operator
         return np.zeros(0, PAIR_DTYPE)
     w, q = seed_operator(win1, params) if operator is None else operator
     px, py, _ = best_per_cell(w, q, patch=cell, border=half + 2)
@@ -157,8 +170,9 @@ def automatic_seeds(image1, image2, model1, model2, params=None, height_range=No
     return rec[ok]
 
 
-def seeds_from_points(image1, image2, model1, model2, x1, y1, params=None, height_range=None,
-                      x2=None, y2=None, radius=3.0):
+def seeds_from_points(
+    image1, image2, model1, model2, x1, y1, params=None, height_range=None, x2=None, y2=None, radius=3.0
+):
     """Seeds at given image-1 points (control or tie points): NCC along the predicted path (or
     within `radius` px of given image-2 approximations x2, y2), then LSM. Returns (PAIR_DTYPE
     records for all points, ok mask of those passing the acceptance criteria)."""
@@ -175,21 +189,38 @@ def seeds_from_points(image1, image2, model1, model2, x1, y1, params=None, heigh
     recs["seed"] = -1
     ok = np.zeros(len(x1), bool)
     pad = params.widest // 2 + 3
-    for i in range(len(x1)):   # one small window pair per point: memory stays bounded
+    for i in range(len(x1)):  # one small window pair per point: memory stays bounded
         box = (int(x1[i]) - pad, int(y1[i]) - pad, int(x1[i]) + pad + 1, int(y1[i]) + pad + 1)
         margin = search_margin(model1, model2, params, hr, x1[i], y1[i]) + (radius if x2 is not None else 0)
         if x2 is not None:
             win1, ox1, oy1 = image1.read(*box[:2], box[2] - box[0], box[3] - box[1])
             m = int(math.ceil(margin))
-            win2, ox2, oy2 = image2.read(int(x2[i]) - m, int(y2[i]) - m, 2 * m + 1, 2 * m + 1) \
-                if np.isfinite(x2[i]) and np.isfinite(y2[i]) else (np.zeros((0, 0), np.float32), 0, 0)
+            win2, ox2, oy2 = (
+                image2.read(int(x2[i]) - m, int(y2[i]) - m, 2 * m + 1, 2 * m + 1)
+                if np.isfinite(x2[i]) and np.isfinite(y2[i])
+                else (np.zeros((0, 0), np.float32), 0, 0)
+            )
         else:
             win1, ox1, oy1, win2, ox2, oy2 = window_pair(image1, image2, model1, model2, box, hr, margin)
         if win1.size == 0 or win2.size == 0:
             continue
-        r, k = match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1[i:i + 1], y1[i:i + 1], hr,
-                                params, None if x2 is None else np.asarray(x2, float)[i:i + 1],
-                                None if y2 is None else np.asarray(y2, float)[i:i + 1], radius)
+        r, k = match_candidates(
+            win1,
+            ox1,
+            oy1,
+            win2,
+            ox2,
+            oy2,
+            model1,
+            model2,
+            x1[i : i + 1],
+            y1[i : i + 1],
+            hr,
+            params,
+            None if x2 is None else np.asarray(x2, float)[i : i + 1],
+            None if y2 is None else np.asarray(y2, float)[i : i + 1],
+            radius,
+        )
         recs[i] = r[0]
         ok[i] = k[0]
     return recs, ok

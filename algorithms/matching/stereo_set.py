@@ -1,5 +1,6 @@
 """The images a matching strategy matches: a stereo pair or triplet in combination order (reference, forward[,
 backward]) with their sensor models, block ids, names and the height range searched."""
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -25,18 +26,31 @@ class StereoSet:
     tie_points: Callable[[], MultiPoints] | None = None
 
     @classmethod
-    def of(cls, images: Sequence[Any], models: Sequence[Any], names: Sequence[str] | None = None,
-           ids: Sequence[int] | None = None, heights: GivenHeights | HeightRange = None,
-           tie_points: Callable[[], MultiPoints] | None = None) -> StereoSet:
+    def of(
+        cls,
+        images: Sequence[Any],
+        models: Sequence[Any],
+        names: Sequence[str] | None = None,
+        ids: Sequence[int] | None = None,
+        heights: GivenHeights | HeightRange = None,
+        tie_points: Callable[[], MultiPoints] | None = None,
+    ) -> StereoSet:
         """The set of 2 or 3 `images` with a model each (InputError otherwise); names default to "image k", ids
         to 1 ... n; `heights` as given, resolved once with the reference model (HeightRange.resolve)."""
         n = len(images)
         if n not in (2, 3) or len(models) != n:
-            raise InputError(f"matching takes 2 or 3 images (reference, forward[, backward]) with a sensor model "
-                             f"each, got {n} image(s) and {len(models)} model(s)")
-        return cls(tuple(images), tuple(models), tuple(int(i) for i in (ids or range(1, n + 1))),
-                   tuple(names or [f"image {k + 1}" for k in range(n)]), HeightRange.resolve(heights, models[0]),
-                   tie_points)
+            raise InputError(
+                f"matching takes 2 or 3 images (reference, forward[, backward]) with a sensor model "
+                f"each, got {n} image(s) and {len(models)} model(s)"
+            )
+        return cls(
+            tuple(images),
+            tuple(models),
+            tuple(int(i) for i in (ids or range(1, n + 1))),
+            tuple(names or [f"image {k + 1}" for k in range(n)]),
+            HeightRange.resolve(heights, models[0]),
+            tie_points,
+        )
 
     @property
     def triplet(self) -> bool:

@@ -17,6 +17,7 @@ tiled_rounds.match_in_tiles:
 The tasks are static methods and the job a picklable value: they run in threads, local processes or on a Dask
 cluster (execution.py). A fourth strategy is a module with a MatchingStrategy subclass decorated by `register`,
 and one import line in algorithms/matching_strategies.py (docs/architecture.md, "A matching strategy")."""
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
@@ -52,7 +53,7 @@ class MatchingStrategy(ABC):
 
     name: ClassVar[str]
     label: ClassVar[str]
-    settings_type: ClassVar[type]
+    settings_type: ClassVar[type[Any]]
     first_round: ClassVar[str] = "matching"
     second_round: ClassVar[str] = "numbering the points"
     #: the share (%) of the step's progress that round 1 takes
@@ -63,8 +64,9 @@ class MatchingStrategy(ABC):
         """`settings` checked (None: the defaults); InputError for another strategy's settings."""
         settings = cls.settings_type() if settings is None else settings
         if not isinstance(settings, cls.settings_type):
-            raise InputError(f"the {cls.name} strategy takes {cls.settings_type.__name__}, got "
-                             f"{type(settings).__name__}")
+            raise InputError(
+                f"the {cls.name} strategy takes {cls.settings_type.__name__}, got {type(settings).__name__}"
+            )
         return settings.check()
 
     @classmethod
@@ -83,8 +85,9 @@ class MatchingStrategy(ABC):
         """Task, round 1 (module docstring)."""
 
     @classmethod
-    def between(cls, job: Any, first: list[dict[str, Any]], outs: list[str], rounds: Rounds,
-                feedback: Feedback | None) -> tuple[Any, list[int]]:
+    def between(
+        cls, job: Any, first: list[dict[str, Any]], outs: list[str], rounds: Rounds, feedback: Feedback | None
+    ) -> tuple[Any, list[int]]:
         """Between the rounds (module docstring); by default the job as it is and every point kept."""
         return job, [int(t["points"]) for t in first]
 
@@ -100,8 +103,14 @@ class MatchingStrategy(ABC):
 
     @classmethod
     @abstractmethod
-    def stats(cls, job: Any, first: list[dict[str, Any]], refined: list[dict[str, Any]], counts: list[int],
-              feedback: Feedback | None) -> MatchStats:
+    def stats(
+        cls,
+        job: Any,
+        first: list[dict[str, Any]],
+        refined: list[dict[str, Any]],
+        counts: list[int],
+        feedback: Feedback | None,
+    ) -> MatchStats:
         """The run's statistics (and its closing log line)."""
 
 

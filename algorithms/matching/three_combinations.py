@@ -22,6 +22,7 @@ matched only in (c) do not exist: (c) runs on transfer points only. A two-image 
 combination (a) and group 1 only. Region growing (region_growing_strategy.py) combines each tile without
 the test, applies it with the sigmas of the whole scene, and refines the group 3 points by MPGC in both
 search images at once (refinement.py)."""
+
 import numpy as np
 
 from ..errors import InputError
@@ -52,8 +53,9 @@ def _link(src, n_target):
     return link
 
 
-def combine(a, b=None, b_src=None, c=None, c_src=None, image_ids=(1, 2, 3), sigma_factor=3.0,
-            min_sigma=0.01, deviations=False):
+def combine(
+    a, b=None, b_src=None, c=None, c_src=None, image_ids=(1, 2, 3), sigma_factor=3.0, min_sigma=0.01, deviations=False
+):
     """Merge the PAIR_DTYPE results of combinations (a), (b), (c) into a MultiPoints.
 
     `b_src[j]` is the index in `a` of the transfer point that b[j] was matched from, or -1 for a
@@ -74,9 +76,9 @@ def combine(a, b=None, b_src=None, c=None, c_src=None, image_ids=(1, 2, 3), sigm
         raise InputError("combination (c) needs combination (b)")
     id0, id1, id2 = (list(image_ids) + [0, 0, 0])[:3]
 
-    a_to_b = _link(b_src, len(a))           # index in b of each a point, -1
-    b_to_c = _link(c_src, len(b))           # index in c of each b point, -1
-    own_b = np.flatnonzero(b_src < 0)       # points grown in (b) itself
+    a_to_b = _link(b_src, len(a))  # index in b of each a point, -1
+    b_to_c = _link(c_src, len(b))  # index in c of each b point, -1
+    own_b = np.flatnonzero(b_src < 0)  # points grown in (b) itself
     n_a, n = len(a), len(a) + len(own_b)
     # per point: index into a, b, c (-1 where not matched there)
     ia = np.concatenate([np.arange(n_a), np.full(len(own_b), -1)])
@@ -126,9 +128,10 @@ def combine(a, b=None, b_src=None, c=None, c_src=None, image_ids=(1, 2, 3), sigm
 
     blocks = []
     for image_id, present, col, row, rho, major, minor in [
-            (id0, np.ones(n, bool), x0, y0, np.full(n, np.nan), 0.0, 0.0),
-            (id1, has1, x1, y1, rho1, maj1, min1),
-            (id2, ib >= 0, x2, y2, rho_b, take(b, ib, "semi_major", 0.0), take(b, ib, "semi_minor", 0.0))]:
+        (id0, np.ones(n, bool), x0, y0, np.full(n, np.nan), 0.0, 0.0),
+        (id1, has1, x1, y1, rho1, maj1, min1),
+        (id2, ib >= 0, x2, y2, rho_b, take(b, ib, "semi_major", 0.0), take(b, ib, "semi_minor", 0.0)),
+    ]:
         obs = np.zeros(n, OBS_DTYPE)
         obs["point_id"], obs["image_id"] = points["id"], image_id
         obs["col"], obs["row"], obs["rho"] = col, row, rho
@@ -142,12 +145,19 @@ def combine(a, b=None, b_src=None, c=None, c_src=None, image_ids=(1, 2, 3), sigm
     points["id"] = new_id[points["id"]]
     observations["point_id"] = new_id[observations["point_id"]]
     observations = observations[np.lexsort((observations["image_id"], observations["point_id"]))]
-    stats = {"images": [int(i) for i in (image_ids if three else list(image_ids)[:2])],
-             "matched_a": int(len(a)), "matched_b": int(len(b)), "matched_c": int(len(c)),
-             "transfer_b": int(np.count_nonzero(b_src >= 0)), "own_b": int(len(own_b)),
-             "matched_3": int(np.count_nonzero(both)), "rejected_3sigma": int(np.count_nonzero(~keep)),
-             "sigma_dx": sigma_x if both.any() else None, "sigma_dy": sigma_y if both.any() else None,
-             "sigma_factor": float(sigma_factor)}
+    stats = {
+        "images": [int(i) for i in (image_ids if three else list(image_ids)[:2])],
+        "matched_a": int(len(a)),
+        "matched_b": int(len(b)),
+        "matched_c": int(len(c)),
+        "transfer_b": int(np.count_nonzero(b_src >= 0)),
+        "own_b": int(len(own_b)),
+        "matched_3": int(np.count_nonzero(both)),
+        "rejected_3sigma": int(np.count_nonzero(~keep)),
+        "sigma_dx": sigma_x if both.any() else None,
+        "sigma_dy": sigma_y if both.any() else None,
+        "sigma_factor": float(sigma_factor),
+    }
     multi = MultiPoints(points, observations, stats)
     return (multi, dx[keep], dy[keep]) if deviations else multi
 
@@ -155,8 +165,10 @@ def combine(a, b=None, b_src=None, c=None, c_src=None, image_ids=(1, 2, 3), sigm
 def new_cells(x_new, y_new, x_old, y_old, cell):
     """Mask of the (x_new, y_new) that fall in a `cell` x `cell` px cell holding none of the old
     points (used to add (b)'s own points where (a) has none)."""
+
     def keys(x, y):
         return (np.floor(np.asarray(y) / cell).astype(np.int64) << 32) + np.floor(np.asarray(x) / cell).astype(np.int64)
+
     return ~np.isin(keys(x_new, y_new), keys(x_old, y_old))
 
 

@@ -1,6 +1,7 @@
 """Tie point selection (Kornus et al. 2006, section 3.3): one point per regular grid cell of the reference image
 (default 100 x 100 px), the one with the highest rho among the most reliable group present in
 that cell (group 3 before 2 before 1; rho = the point's smallest correlation coefficient)."""
+
 import math
 
 import numpy as np

@@ -14,6 +14,7 @@ The scene-wide orientation bias that MPGC refines with (region growing, dense ma
 the tiles' points: BIAS_SAMPLE points over the scene, each tile's quota in proportion to its area
 (sample_quotas), as the scene matched at once would be fitted to all its points (orientation_bias.affine_bias;
 refinement.MIN_POINTS at least)."""
+
 from __future__ import annotations
 
 import os
@@ -71,8 +72,8 @@ def first_ids(counts: Sequence[int]) -> list[int]:
 
 def sample_quotas(areas: Sequence[float]) -> list[int]:
     """Each tile's share of BIAS_SAMPLE, in proportion to its area (`areas`, any unit)."""
-    areas = np.asarray(areas, float)
-    return [int(q) for q in np.ceil(BIAS_SAMPLE * areas / max(areas.sum(), 1.0)).astype(int)]
+    area = np.asarray(areas, float)
+    return [int(q) for q in np.ceil(BIAS_SAMPLE * area / max(area.sum(), 1.0)).astype(int)]
 
 
 def evenly(candidates: np.ndarray, quota: int) -> np.ndarray:
@@ -101,16 +102,29 @@ def _first(strategy: type[MatchingStrategy], job: Any, index: int, box: Any, out
     return strategy.match_tile(job, index, box, out, quota)
 
 
-def _second(strategy: type[MatchingStrategy], job: Any, out: str, first_id: int, k: int, folder: str,
-            write_part: WritePart | None) -> tuple[Any, dict]:
+def _second(
+    strategy: type[MatchingStrategy],
+    job: Any,
+    out: str,
+    first_id: int,
+    k: int,
+    folder: str,
+    write_part: WritePart | None,
+) -> tuple[Any, dict]:
     points = renumber(load_work(out), strategy.keep(job, out), first_id)
     progress_made = strategy.refine(job, points)
     return (points if write_part is None else write_part(folder, k, points)), progress_made
 
 
-def match_in_tiles(strategy: type[MatchingStrategy], stereo: StereoSet, settings: Any, folder: str,
-                   write_part: WritePart | None = None, execution: Execution | None = None,
-                   feedback: Feedback | None = None) -> tuple[list[Any], MatchStats]:
+def match_in_tiles(
+    strategy: type[MatchingStrategy],
+    stereo: StereoSet,
+    settings: Any,
+    folder: str,
+    write_part: WritePart | None = None,
+    execution: Execution | None = None,
+    feedback: Feedback | None = None,
+) -> tuple[list[Any], MatchStats]:
     """Match `stereo` with `strategy` and its `settings` tile by tile (module docstring): each tile's points handed
     to `write_part(folder, k, points)` (a module-level function: block/points.save_part), or, without it,
     returned. Returns (the index entries or MultiPoints of the tiles, in id order; the run's MatchStats). The
@@ -120,19 +134,33 @@ def match_in_tiles(strategy: type[MatchingStrategy], stereo: StereoSet, settings
     execution = execution or Execution("threads", 1)
     plan = strategy.plan(stereo, settings, feedback)
     share = strategy.first_share
-    with work_dir(folder, "the matched tiles") as work, session(execution):     # the rounds share workers
+    with work_dir(folder, "the matched tiles") as work, session(execution):  # the rounds share workers
         pre = [os.path.join(work, f"tile-{k:05d}") for k in range(len(plan.boxes))]
-        first = run_tasks(_first, [(strategy, plan.job, k, box, out, int(q)) for k, (box, out, q)
-                                   in enumerate(zip(plan.boxes, pre, plan.quotas))],
-                          execution, progress.scaled(feedback, 0, share), strategy.first_round)
+        first = run_tasks(
+            _first,
+            [
+                (strategy, plan.job, k, box, out, int(q))
+                for k, (box, out, q) in enumerate(zip(plan.boxes, pre, plan.quotas))
+            ],
+            execution,
+            progress.scaled(feedback, 0, share),
+            strategy.first_round,
+        )
 
         def rounds(function: Callable[..., Any], arguments: Sequence[tuple], what: str) -> list[Any]:
             return run_tasks(function, list(arguments), execution, progress.scaled(feedback, share, share), what)
 
         job, counts = strategy.between(plan.job, first, pre, rounds, feedback)
-        second = run_tasks(_second, [(strategy, job, out, first_id, k, folder, write_part)
-                                     for k, (out, first_id) in enumerate(zip(pre, first_ids(counts)))],
-                           execution, progress.scaled(feedback, share, 100), strategy.second_round)
+        second = run_tasks(
+            _second,
+            [
+                (strategy, job, out, first_id, k, folder, write_part)
+                for k, (out, first_id) in enumerate(zip(pre, first_ids(counts)))
+            ],
+            execution,
+            progress.scaled(feedback, share, 100),
+            strategy.second_round,
+        )
     stats = strategy.stats(job, first, [s for _, s in second], counts, feedback)
     return [part for part, _ in second], stats
 
@@ -141,15 +169,27 @@ def gather(parts: Sequence[MultiPoints], stats: MatchStats) -> MultiPoints:
     """One MultiPoints of the tiles' parts (in id order), with the run's stats as a dict."""
     if not parts:
         return MultiPoints(stats=stats.as_dict())
-    return MultiPoints(np.concatenate([p.points for p in parts]), np.concatenate([p.observations for p in parts]),
-                       stats.as_dict())
+    return MultiPoints(
+        np.concatenate([p.points for p in parts]), np.concatenate([p.observations for p in parts]), stats.as_dict()
+    )
 
 
-def match_in_memory(strategy: type[MatchingStrategy], stereo: StereoSet, settings: Any = None,
-                    execution: Execution | None = None, feedback: Feedback | None = None) -> MultiPoints:
+def match_in_memory(
+    strategy: type[MatchingStrategy],
+    stereo: StereoSet,
+    settings: Any = None,
+    execution: Execution | None = None,
+    feedback: Feedback | None = None,
+) -> MultiPoints:
     """match_in_tiles with the points gathered in memory (the work folder in this machine's temporary folder): for
     scenes that fit, studies and tests. A whole scene goes through the matching step, which writes part by part."""
-    parts, stats = match_in_tiles(strategy, stereo, settings,
-                                  os.path.join(tempfile.gettempdir(), f"pushbroom-{strategy.name}"), None, execution,
-                                  feedback)
+    parts, stats = match_in_tiles(
+        strategy,
+        stereo,
+        settings,
+        os.path.join(tempfile.gettempdir(), f"pushbroom-{strategy.name}"),
+        None,
+        execution,
+        feedback,
+    )
     return gather(parts, stats)

@@ -7,6 +7,7 @@ Each call is one committed SQLite transaction, so the block on disk always holds
 last do or undo. An `Edit` groups the commands of one user action (e.g. storing a provisional point
 and its first measurement) into one undo step: `redo()` does them in order, `undo()` undoes them in
 reverse order."""
+
 from ..errors import PushbroomError
 
 #: the keyword arguments of store.put_point

@@ -14,6 +14,7 @@ top-left corner of the first pixel); a georeferenced source is written as column
 positive), which `read_points` also accepts (all rows of a file use one sign). dX, dY and residual
 are the Georeferencer's residuals of its own transformation: written as 0, ignored on reading. The
 format has no point names: points read are named prefix + row number."""
+
 import math
 import os
 
@@ -41,15 +42,19 @@ def write_points(path, observations, image_id, crs=None):
     points = observations.points[meas["point"]]
     missing = ~(np.isfinite(points["lon"]) & np.isfinite(points["lat"]))
     if missing.any():
-        raise InputError(f"point {points['name'][missing][0]} has no ground coordinates: a .points file needs "
-                         "map coordinates for every point")
+        raise InputError(
+            f"point {points['name'][missing][0]} has no ground coordinates: a .points file needs "
+            "map coordinates for every point"
+        )
     if crs is None:
         crs = f"EPSG:{utm_epsg(float(points['lon'].mean()), float(points['lat'].mean()))}"
     target = srs(crs)
     x, y = reproject(points["lon"], points["lat"], wgs84(), target, "the points")
     lines = [f"{CRS_PREFIX} {target.ExportToWkt(['FORMAT=WKT2_2019', 'MULTILINE=NO'])}", HEADER]
-    lines += [f"{xk!r},{yk!r},{float(m['col'])!r},{-float(m['row'])!r},1,0,0,0"
-              for xk, yk, m in zip(x.tolist(), y.tolist(), meas)]
+    lines += [
+        f"{xk!r},{yk!r},{float(m['col'])!r},{-float(m['row'])!r},1,0,0,0"
+        for xk, yk, m in zip(x.tolist(), y.tolist(), meas)
+    ]
     write_text(path, "\n".join(lines) + "\n")
     return path
 
@@ -63,8 +68,10 @@ def _map_crs(path, text, crs, default=None):
         except InputError as exc:
             raise InputError(f"{path} line 1: the #CRS line is no CRS PROJ can read ({exc})") from None
         if given is not None and not stated.IsSame(given):
-            raise InputError(f"{path} states its CRS as {stated.GetName()!r}, not the {given.GetName()!r} given: "
-                             "leave the CRS out or correct the file")
+            raise InputError(
+                f"{path} states its CRS as {stated.GetName()!r}, not the {given.GetName()!r} given: "
+                "leave the CRS out or correct the file"
+            )
         return stated
     if given is None and default is not None:
         given = srs(default)
@@ -83,12 +90,13 @@ def _rows(path):
     numbered = [(k, line.strip()) for k, line in enumerate(lines, start=1) if line.strip()]
     crs_text = ""
     if numbered and numbered[0][1].startswith(CRS_PREFIX):
-        crs_text = numbered.pop(0)[1][len(CRS_PREFIX):].strip()
+        crs_text = numbered.pop(0)[1][len(CRS_PREFIX) :].strip()
     if not numbered or not numbered[0][1].lower().startswith("mapx"):
         line = numbered[0][0] if numbered else len(lines) + 1
         raise InputError(f"{path} line {line}: expected the header {HEADER!r} (a QGIS Georeferencer .points file)")
-    return crs_text, [(k, [c.strip() for c in (text.split(",") if "," in text else text.split("\t"))])
-                      for k, text in numbered[1:]]
+    return crs_text, [
+        (k, [c.strip() for c in (text.split(",") if "," in text else text.split("\t"))]) for k, text in numbered[1:]
+    ]
 
 
 def read_points(path, image_id, dem=None, height=None, crs=None, role="control", prefix="GEO", default_crs=None):
@@ -122,15 +130,19 @@ def read_points(path, image_id, dem=None, height=None, crs=None, role="control",
     number, x, y, px, py = (np.array(v) for v in zip(*values))
     if (py > 0).any() and (py < 0).any():
         k = int(np.flatnonzero(py > 0)[0])
-        raise InputError(f"{path} line {lines[k]}: pixelY {py[k]} is positive where other rows are negative "
-                         "(-row, a raw image): rows must all use one convention")
+        raise InputError(
+            f"{path} line {lines[k]}: pixelY {py[k]} is positive where other rows are negative "
+            "(-row, a raw image): rows must all use one convention"
+        )
     lon, lat = reproject(x, y, _map_crs(path, crs_text, crs, default_crs), wgs84(), f"the points of {path}")
     h = dem.height(lon, lat) if dem is not None else np.full(len(lon), np.nan)
     h = np.where(np.isfinite(h), h, np.nan if height is None else float(height))
     if not np.isfinite(h).all():
         k = int(np.flatnonzero(~np.isfinite(h))[0])
-        raise InputError(f"{path} line {lines[k]}: the DEM has no height at ({lon[k]:.6f}, {lat[k]:.6f}); give a "
-                         "DEM covering the points or a height")
+        raise InputError(
+            f"{path} line {lines[k]}: the DEM has no height at ({lon[k]:.6f}, {lat[k]:.6f}); give a "
+            "DEM covering the points or a height"
+        )
     points = np.zeros(len(lon), POINT_DTYPE)
     points["name"] = [f"{prefix}{n}" for n in number]
     points["role"] = role

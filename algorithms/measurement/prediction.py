@@ -1,6 +1,7 @@
 """Where a ground point appears in the block's images, and which ground point a click in an image
 shows: the sensor models' ground_to_image, and image_to_ground at a height or image_to_dem (the
 first intersection of the line of sight with a DEM, sensors/base.py)."""
+
 import math
 
 import numpy as np
@@ -35,6 +36,7 @@ def ground_from_click(model, col, row, dem=None, height=0.0):
     except GeometryError as exc:
         raise InputError(f"no ground point for image position ({col:.2f}, {row:.2f}): {exc}") from exc
     if not all(math.isfinite(v) for v in (lon, lat, h)):
-        raise InputError(f"no ground point for image position ({col:.2f}, {row:.2f}): it lies outside the "
-                         "sensor model's domain")
+        raise InputError(
+            f"no ground point for image position ({col:.2f}, {row:.2f}): it lies outside the sensor model's domain"
+        )
     return lon, lat, h

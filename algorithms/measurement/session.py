@@ -28,6 +28,7 @@ once done; `undo(edit)` and `redo(edit)` replay it. An edit that fails midway ra
 the part that was done, so the block and the undo history agree.
 
 Image coordinates are GDAL's: (0, 0) is the top-left corner of the first pixel."""
+
 import contextlib
 import math
 import os
@@ -115,8 +116,7 @@ class MeasurementSession:
         for image_id, image_name in self.image_names.items():
             if image_name == name:
                 return image_id
-        raise InputError(f"no image {name!r} in the block; its images are "
-                         f"{', '.join(self.image_names.values())}")
+        raise InputError(f"no image {name!r} in the block; its images are {', '.join(self.image_names.values())}")
 
     def check_image(self, image_id):
         """`image_id` as an int, or InputError when the block has no such image."""
@@ -209,8 +209,17 @@ class MeasurementSession:
             for image_id in self.image_names:
                 res = image_res.get((name, image_id)) if image_id in measured else None
                 per_image[image_id] = residual_magnitudes(res) if res is not None else None
-            rows.append({"name": name, "role": str(p["role"]), "h": float(p["h"]), "count": len(measured),
-                         "measured": measured, "images": per_image, "ground": ground.get(name)})
+            rows.append(
+                {
+                    "name": name,
+                    "role": str(p["role"]),
+                    "h": float(p["h"]),
+                    "count": len(measured),
+                    "measured": measured,
+                    "images": per_image,
+                    "ground": ground.get(name),
+                }
+            )
         return rows
 
     def free_name(self):
@@ -249,8 +258,16 @@ class MeasurementSession:
         if role not in ROLES:
             raise InputError(f"role {role!r} is not one of {', '.join(ROLES)}")
         sigma_e, sigma_n, sigma_h = DEFAULT_SIGMAS
-        self.draft = {"name": name, "role": role, "lon": math.nan, "lat": math.nan, "h": math.nan,
-                      "sigma_e": sigma_e, "sigma_n": sigma_n, "sigma_h": sigma_h}
+        self.draft = {
+            "name": name,
+            "role": role,
+            "lon": math.nan,
+            "lat": math.nan,
+            "h": math.nan,
+            "sigma_e": sigma_e,
+            "sigma_n": sigma_n,
+            "sigma_h": sigma_h,
+        }
         self.select(name)
         return name
 
@@ -291,8 +308,11 @@ class MeasurementSession:
         """Change the role and sigmas of point `name` and rename it (one edit; the draft changes in
         memory). Returns whether anything changed."""
         values = self.values(name)
-        changes = {k: v for k, v in (("role", role), ("sigma_e", sigma_e), ("sigma_n", sigma_n),
-                                     ("sigma_h", sigma_h)) if v is not None and v != values[k]}
+        changes = {
+            k: v
+            for k, v in (("role", role), ("sigma_e", sigma_e), ("sigma_n", sigma_n), ("sigma_h", sigma_h))
+            if v is not None and v != values[k]
+        }
         stored = self.point(name) is not None
         rename = bool(new_name) and new_name != name
         if rename and self.point(new_name) is not None:
@@ -341,15 +361,15 @@ class MeasurementSession:
         draft = None
         if self.point(name) is None:
             draft = self.values(name)
-            lon, lat, h = prediction.ground_from_click(self.models[image_id], col, row, dem=dem,
-                                                       height=self.default_height)
+            lon, lat, h = prediction.ground_from_click(
+                self.models[image_id], col, row, dem=dem, height=self.default_height
+            )
             self.intended[name] = tuple(draft[k] for k in SIGMA_KEYS)
             draft.update(lon=lon, lat=lat, h=h, **dict.fromkeys(SIGMA_KEYS, PROVISIONAL_SIGMA))
         with self._edit(f"Measure {name} in {self.image_names[image_id]}") as edit:
             if draft is not None:
                 self._put_point(edit, draft)
-            edit.add(PutMeasurement(self.store, name, image_id, col, row, IMAGE_SIGMA, old,
-                                    self.image_names[image_id]))
+            edit.add(PutMeasurement(self.store, name, image_id, col, row, IMAGE_SIGMA, old, self.image_names[image_id]))
         self.pending.pop(image_id, None)
         self.transfer_notes.pop(image_id, None)
 
@@ -380,8 +400,18 @@ class MeasurementSession:
         with self._edit(f"Accept transfers of {name}") as edit:
             for i in ids:
                 t = self.pending[i]
-                edit.add(PutMeasurement(self.store, name, i, t.col, t.row, IMAGE_SIGMA,
-                                        self.measurements(name).get(i), self.image_names[i]))
+                edit.add(
+                    PutMeasurement(
+                        self.store,
+                        name,
+                        i,
+                        t.col,
+                        t.row,
+                        IMAGE_SIGMA,
+                        self.measurements(name).get(i),
+                        self.image_names[i],
+                    )
+                )
                 del self.pending[i]
 
     def reject_pending(self, image_id=None):
@@ -438,8 +468,9 @@ class MeasurementSession:
         heights from `dem`, else the block's mean height. Returns the points read (Observations)."""
         before = self.store.load()
         prefix = os.path.splitext(os.path.basename(path))[0][:24] + "_"
-        read = georeferencer.read_points(path, int(image_id), dem=dem, height=self.default_height,
-                                         default_crs=map_crs, prefix=prefix)
+        read = georeferencer.read_points(
+            path, int(image_id), dem=dem, height=self.default_height, default_crs=map_crs, prefix=prefix
+        )
         after = self.block.save_control_points(read, mode="merge")
         self._replace_points(f"Import {os.path.basename(path)}", before, after)
         return read

@@ -13,6 +13,7 @@ rho > rho_min, error-ellipse semi-major axis < max_ellipse, shift < max_shift, c
 
 Only windows around the point are read (matching/imagery.py: GDAL windowed reads), never a whole
 image."""
+
 import math
 from dataclasses import dataclass
 
@@ -47,8 +48,10 @@ class Transfer:
 def _reason(rec, params):
     """Why the match `rec` (PAIR_DTYPE) fails the acceptance criteria."""
     if not (np.isfinite(rec["x2"]) and np.isfinite(rec["rho"])):
-        return (f"no distinct correlation peak near the prediction (NCC below {NCC_MIN}, or a rival peak within "
-                f"{NCC_MARGIN}: too little or repetitive texture), or the template reaches beyond an image border")
+        return (
+            f"no distinct correlation peak near the prediction (NCC below {NCC_MIN}, or a rival peak within "
+            f"{NCC_MARGIN}: too little or repetitive texture), or the template reaches beyond an image border"
+        )
     if not rec["rho"] > params.rho_min:
         return f"correlation rho {rec['rho']:.2f} is not above {params.rho_min}"
     if not rec["semi_major"] < params.max_ellipse:
@@ -75,8 +78,9 @@ def transfer(images, models, source_id, col, row, targets=None, height=None, par
     targets = [t for t in images if t != source_id] if targets is None else list(targets)
     for key in [source_id] + targets:
         if key not in images or key not in models:
-            raise InputError(f"image {key} is not among the images with a raster and a model "
-                             f"({sorted(set(images) & set(models))})")
+            raise InputError(
+                f"image {key} is not among the images with a raster and a model ({sorted(set(images) & set(models))})"
+            )
     source = as_image(images[source_id])
     cols, rows = source.size
     col, row = float(col), float(row)
@@ -84,8 +88,9 @@ def transfer(images, models, source_id, col, row, targets=None, height=None, par
         raise InputError(f"({col:.1f}, {row:.1f}) lies outside image {source_id} ({cols} x {rows} px)")
     fixed = height is not None and np.ndim(height) == 0
     if height is None and getattr(models[source_id], "height_range", None) is None:
-        raise InputError("the terrain height is unknown: give the point's height, or the block's height range "
-                         "(h_min, h_max)")
+        raise InputError(
+            "the terrain height is unknown: give the point's height, or the block's height range (h_min, h_max)"
+        )
     hr = (float(height),) * 2 if fixed else HeightRange.resolve(height, models[source_id]).bounds
     out = {}
     for target_id in targets:
@@ -95,14 +100,25 @@ def transfer(images, models, source_id, col, row, targets=None, height=None, par
         if fixed:
             x2, y2 = (np.atleast_1d(v) for v in predict(model1, model2, col, row, hr[0]))
             c2, r2 = target.size
-            if not (np.isfinite(x2[0]) and np.isfinite(y2[0]) and -radius <= x2[0] <= c2 + radius
-                    and -radius <= y2[0] <= r2 + radius):
+            if not (
+                np.isfinite(x2[0])
+                and np.isfinite(y2[0])
+                and -radius <= x2[0] <= c2 + radius
+                and -radius <= y2[0] <= r2 + radius
+            ):
                 out[target_id] = _failed(f"the sensor models place the point outside image {target_id}")
                 continue
         image1, image2 = adapt_resolution(source, target, model1, model2, params, hr)
-        rec, ok = seeds_from_points(image1, image2, model1, model2, [col], [row], params, hr, x2=x2, y2=y2,
-                                    radius=radius)
+        rec, ok = seeds_from_points(
+            image1, image2, model1, model2, [col], [row], params, hr, x2=x2, y2=y2, radius=radius
+        )
         r = rec[0]
-        out[target_id] = Transfer(float(r["x2"]), float(r["y2"]), float(r["rho"]), float(r["semi_major"]),
-                                  bool(ok[0]), "" if ok[0] else _reason(r, params))
+        out[target_id] = Transfer(
+            float(r["x2"]),
+            float(r["y2"]),
+            float(r["rho"]),
+            float(r["semi_major"]),
+            bool(ok[0]),
+            "" if ok[0] else _reason(r, params),
+        )
     return out

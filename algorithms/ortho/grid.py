@@ -5,6 +5,7 @@ with the image's ground sampling distance, over the footprint where the DEM cove
 A CRS used far from the image (crs.check_output_crs: a UTM zone 200 degrees away mirrors the image) and a
 cell size that leaves fewer than crs.MIN_CELLS cells along an axis (crs.check_grid_cells: metres given for a
 degree CRS) are InputErrors; `dem_coverage` measures how much of the image the DEM covers."""
+
 import math
 from dataclasses import dataclass
 
@@ -57,10 +58,14 @@ def _ring(bounds, n=16):
     """Closed ring of (lon, lat) along the border of (lon_min, lat_min, lon_max, lat_max)."""
     x0, y0, x1, y1 = bounds
     t = np.linspace(0.0, 1.0, n + 1)
-    return np.concatenate([np.column_stack([x0 + t * (x1 - x0), np.full(n + 1, y0)]),
-                           np.column_stack([np.full(n + 1, x1), y0 + t * (y1 - y0)]),
-                           np.column_stack([x1 - t * (x1 - x0), np.full(n + 1, y1)]),
-                           np.column_stack([np.full(n + 1, x0), y1 - t * (y1 - y0)])])
+    return np.concatenate(
+        [
+            np.column_stack([x0 + t * (x1 - x0), np.full(n + 1, y0)]),
+            np.column_stack([np.full(n + 1, x1), y0 + t * (y1 - y0)]),
+            np.column_stack([x1 - t * (x1 - x0), np.full(n + 1, y1)]),
+            np.column_stack([np.full(n + 1, x0), y1 - t * (y1 - y0)]),
+        ]
+    )
 
 
 def default_grid(model, dem, crs=None, cell_size=None):

@@ -28,6 +28,7 @@ PROJ costs ~0.6 us a point and the rigorous model iterates, so per tile of the o
    cell is computed exactly (bound 0). The bound is achieved, not assumed: each tile reports its own.
 
 Cells where the DEM has no height, or a node has no image point (outside the model's domain), are NaN."""
+
 import math
 from dataclasses import dataclass
 
@@ -52,8 +53,9 @@ def bilinear_nodes(nodes, u, v, out):
         fa = u[p] - a
         fb = v[p] - b
         for k in range(nodes.shape[0]):
-            out[k, p] = ((nodes[k, a, b] * (1.0 - fb) + nodes[k, a, b + 1] * fb) * (1.0 - fa)
-                         + (nodes[k, a + 1, b] * (1.0 - fb) + nodes[k, a + 1, b + 1] * fb) * fa)
+            out[k, p] = (nodes[k, a, b] * (1.0 - fb) + nodes[k, a, b + 1] * fb) * (1.0 - fa) + (
+                nodes[k, a + 1, b] * (1.0 - fb) + nodes[k, a + 1, b + 1] * fb
+            ) * fa
 
 
 @dataclass
@@ -83,7 +85,7 @@ class TileMapper:
 
     def exact(self, row0, col0, rows, cols):
         """TileMap of the exact chain for every cell of the window (the reference; bound 0)."""
-        i, j = np.mgrid[row0:row0 + rows, col0:col0 + cols]
+        i, j = np.mgrid[row0 : row0 + rows, col0 : col0 + cols]
         lon, lat = self.grid.to_lonlat(*self.grid.centres(i, j))
         h = self.dem.height(lon, lat)
         col, row = self._image(lon, lat, h)
@@ -129,8 +131,11 @@ class TileMapper:
         """TileMap of the window (row0, col0, rows, cols) by the coarse-grid scheme of the module docstring."""
         step = self.start_step
         n_u, n_v = max(-(-(rows - 1) // step), 1) + 1, max(-(-(cols - 1) // step), 1) + 1
-        lon, lat = self.grid.to_lonlat(*self.grid.centres(row0 + np.array([0, 0, (n_u - 1) * step, (n_u - 1) * step]),
-                                                          col0 + np.array([0, (n_v - 1) * step] * 2)))
+        lon, lat = self.grid.to_lonlat(
+            *self.grid.centres(
+                row0 + np.array([0, 0, (n_u - 1) * step, (n_u - 1) * step]), col0 + np.array([0, (n_v - 1) * step] * 2)
+            )
+        )
         found = self._height_range(lon, lat)
         if found is None:
             nan = np.full((rows, cols), np.nan)
@@ -150,9 +155,10 @@ class TileMapper:
     def _bound(self, row0, col0, n_u, n_v, step, nodes, h0, h1, slope):
         """Error bound (px) of interpolating from the nodes of `step`, from the exact lattice of step / 2."""
         lon, lat, image = nodes
-        fine_lon, fine_lat, exact = self._lattice(row0, col0, 2 * n_u - 1, 2 * n_v - 1, step // 2,
-                                                  (h0, h1, 0.5 * (h0 + h1)))
-        u, v = (a.ravel() * 0.5 for a in np.mgrid[0:2 * n_u - 1, 0:2 * n_v - 1])
+        fine_lon, fine_lat, exact = self._lattice(
+            row0, col0, 2 * n_u - 1, 2 * n_v - 1, step // 2, (h0, h1, 0.5 * (h0 + h1))
+        )
+        u, v = (a.ravel() * 0.5 for a in np.mgrid[0 : 2 * n_u - 1, 0 : 2 * n_v - 1])
         values = np.ascontiguousarray(np.concatenate([lon[None], lat[None], image.reshape(4, n_u, n_v)]))
         out = np.empty((6, u.size))
         bilinear_nodes(values, u, v, out)
@@ -172,8 +178,10 @@ class TileMapper:
         out = []
         for axis in (0, 1):
             px = np.hypot(np.diff(image[0], axis=axis), np.diff(image[1], axis=axis))
-            metres = np.hypot(np.diff(lon, axis=axis) * me[:lon.shape[0] - 1 + axis, :lon.shape[1] - axis],
-                              np.diff(lat, axis=axis) * mn[:lon.shape[0] - 1 + axis, :lon.shape[1] - axis])
+            metres = np.hypot(
+                np.diff(lon, axis=axis) * me[: lon.shape[0] - 1 + axis, : lon.shape[1] - axis],
+                np.diff(lat, axis=axis) * mn[: lon.shape[0] - 1 + axis, : lon.shape[1] - axis],
+            )
             ratio = px / metres
             out.append(float(np.nanmax(ratio)) if np.isfinite(ratio).any() else 0.0)
         return out
@@ -190,5 +198,12 @@ class TileMapper:
         col = out[2] + t * (out[4] - out[2])
         row = out[3] + t * (out[5] - out[3])
         shape = (rows, cols)
-        return TileMap(col.reshape(shape), row.reshape(shape), out[0].reshape(shape), out[1].reshape(shape),
-                       h.reshape(shape), step, bound)
+        return TileMap(
+            col.reshape(shape),
+            row.reshape(shape),
+            out[0].reshape(shape),
+            out[1].reshape(shape),
+            h.reshape(shape),
+            step,
+            bound,
+        )

@@ -8,6 +8,7 @@ the cell is occluded if the DEM at the ray's ground position rises above the ray
 before the ray passes the DEM's highest height. Positions outside the DEM do not block. This is the
 definition itself (no image-space z-buffer, hence no false occlusions of foreshortened slopes that fall
 into one image pixel); its cost per cell is (h_max - h) / step DEM look-ups."""
+
 import math
 
 import numpy as np
@@ -59,6 +60,15 @@ def occluded(dem, lon, lat, h, direction):
     h_low, h_top = dem.height_range
     h_step = 0.25 / cells_per_m if cells_per_m > 0 else h_top - h_low + 1.0
     out = np.zeros(lon.size, np.bool_)
-    occlusion_kernel(dem.heights, gt, *(np.ascontiguousarray(a, np.float64).ravel() for a in (lon, lat, h)),
-                     float(dlon_dh), float(dlat_dh), float(h_step), float(h_top), TOLERANCE, out)
+    occlusion_kernel(
+        dem.heights,
+        gt,
+        *(np.ascontiguousarray(a, np.float64).ravel() for a in (lon, lat, h)),
+        float(dlon_dh),
+        float(dlat_dh),
+        float(h_step),
+        float(h_top),
+        TOLERANCE,
+        out,
+    )
     return out.reshape(np.shape(lon))

@@ -13,6 +13,7 @@ memory follows the tile and the number of workers, and the result does not depen
 Each task writes its tile as a GeoTIFF; GDAL assembles them (a VRT translated into a tiled,
 DEFLATE-compressed GeoTIFF of the image's data type with nodata set and overviews,
 geotiff.assemble_tiles) under a temporary name renamed at the end (a cancel leaves no file)."""
+
 import math
 import os
 import time
@@ -54,9 +55,11 @@ class OrthoResult:
 
     def summary(self):
         steps = ", ".join(f"{n} x step {s}" for s, n in sorted(self.steps.items(), reverse=True))
-        return (f"{self.grid.cols} x {self.grid.rows} cells, {self.cells} with image values, {self.occluded} "
-                f"occluded; coarse-grid tiles: {steps}; achieved interpolation bound {self.bound:.2g} px; "
-                f"{self.seconds:.1f} s")
+        return (
+            f"{self.grid.cols} x {self.grid.rows} cells, {self.cells} with image values, {self.occluded} "
+            f"occluded; coarse-grid tiles: {steps}; achieved interpolation bound {self.bound:.2g} px; "
+            f"{self.seconds:.1f} s"
+        )
 
 
 def _nodata(band, dtype):
@@ -99,8 +102,9 @@ class _TileWorker:
         try:
             ds = gdal.Open(self.image)
         except RuntimeError as exc:
-            raise InputError(f"cannot open the image {self.image} ({exc}): every worker must see it under this "
-                             "path") from None
+            raise InputError(
+                f"cannot open the image {self.image} ({exc}): every worker must see it under this path"
+            ) from None
         values, valid = resampling.resample(ds, col, row, self.method)
         out = _to_dtype(values, self.dtype, self.nodata)
         out[:, ~valid] = self.nodata
@@ -120,8 +124,10 @@ def _reach(model, dem):
     times the largest slope of the lines of sight at the image's corners and centre, with 20 % to spare."""
     low, high = dem.height_range
     cols, rows = model.size
-    slopes = [occlusion.ray_direction(model, c, r, low, high + 1.0)
-              for c, r in ((0, 0), (cols, 0), (0, rows), (cols, rows), (cols / 2, rows / 2))]
+    slopes = [
+        occlusion.ray_direction(model, c, r, low, high + 1.0)
+        for c, r in ((0, 0), (cols, 0), (0, rows), (cols, rows), (cols / 2, rows / 2))
+    ]
     slopes = np.array([s for s in slopes if s is not None] or [(0.0, 0.0)])
     return tuple(1.2 * (high - low + 1.0) * np.abs(slopes).max(axis=0))
 
@@ -142,14 +148,36 @@ def _footprint(grid, window, reach, step):
 def _ortho_tile(job, window, out):
     """Task: the output tile `window` (row0, col0, rows, cols) of the orthoimage of `job`, written to the
     GeoTIFF `out`; returns (valid cells, occluded cells, coarse step, achieved bound)."""
-    (image, model, stored, grid_wkt, grid_geotransform, size, method, occlusion_on,
-     dtype, nodata, max_error, start_step, reach, gdal_type) = job
+    (
+        image,
+        model,
+        stored,
+        grid_wkt,
+        grid_geotransform,
+        size,
+        method,
+        occlusion_on,
+        dtype,
+        nodata,
+        max_error,
+        start_step,
+        reach,
+        gdal_type,
+    ) = job
     gdal.UseExceptions()
     grid = OutputGrid(parse_crs(grid_wkt), grid_geotransform, *size)
     dem = stored.window(_footprint(grid, window, reach, start_step))
-    worker = _TileWorker(image, model, dem, TileMapper(model, dem, grid, max_error, start_step), method, occlusion_on,
-                         np.dtype(dtype), nodata)
-    check_cancel()                      # between the stages (execution: a cancel reaches a running tile)
+    worker = _TileWorker(
+        image,
+        model,
+        dem,
+        TileMapper(model, dem, grid, max_error, start_step),
+        method,
+        occlusion_on,
+        np.dtype(dtype),
+        nodata,
+    )
+    check_cancel()  # between the stages (execution: a cancel reaches a running tile)
     values, n, hidden, step, bound = worker(window)
     check_cancel()
     row0, col0, rows, cols = window
@@ -164,9 +192,23 @@ def _ortho_tile(job, window, out):
     return n, hidden, step, bound
 
 
-def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None, resampling_method="bilinear",
-                 occlusion_mask=False, max_error=0.01, start_step=START_STEP, tile=TILE, execution=None, overviews=True,
-                 feedback=None):
+def orthorectify(
+    image,
+    model,
+    dem,
+    output,
+    grid=None,
+    crs=None,
+    cell_size=None,
+    resampling_method="bilinear",
+    occlusion_mask=False,
+    max_error=0.01,
+    start_step=START_STEP,
+    tile=TILE,
+    execution=None,
+    overviews=True,
+    feedback=None,
+):
     """Orthoimage of raster `image` (path) with sensor `model` on `dem` (ellipsoidal heights: a dem.Dem, or a
     dem_store.StoredDem), written to GeoTIFF `output`. The grid is `grid` (OutputGrid) or default_grid(model, dem, crs,
     cell_size); resampling 'bilinear' or 'bicubic'; occlusion_mask sets occluded cells to nodata;
@@ -182,31 +224,70 @@ def orthorectify(image, model, dem, output, grid=None, crs=None, cell_size=None,
     except RuntimeError as exc:
         raise InputError(f"cannot open the image {image}: {exc}") from exc
     if (ds.RasterXSize, ds.RasterYSize) != tuple(model.size):
-        raise InputError(f"the image {image} has {ds.RasterXSize} x {ds.RasterYSize} pixels but its sensor model "
-                         f"describes {model.size[0]} x {model.size[1]}: give the model of this image")
+        raise InputError(
+            f"the image {image} has {ds.RasterXSize} x {ds.RasterYSize} pixels but its sensor model "
+            f"describes {model.size[0]} x {model.size[1]}: give the model of this image"
+        )
     band = ds.GetRasterBand(1)
     np_type = np.dtype(gdal_array.GDALTypeCodeToNumericTypeCode(band.DataType))
     nodata = _nodata(band, np_type)
     grid = grid or default_grid(model, dem, crs, cell_size)
-    progress.step(feedback, 0, f"orthoimage grid {grid.cols} x {grid.rows} cells of {grid.geotransform[1]:g} "
-                               f"({grid.srs.GetName()}), {resampling_method} resampling")
+    progress.step(
+        feedback,
+        0,
+        f"orthoimage grid {grid.cols} x {grid.rows} cells of {grid.geotransform[1]:g} "
+        f"({grid.srs.GetName()}), {resampling_method} resampling",
+    )
     windows = [(y0, x0, y1 - y0, x1 - x0) for x0, y0, x1, y1 in tile_grid((grid.cols, grid.rows), tile)]
     reach = _reach(model, dem) if occlusion_mask else (0.0, 0.0)
     with work_dir(output, "the orthoimage tiles") as work:
         dem = as_stored(dem, work)
-        job = (str(image), model, dem, grid.srs.ExportToWkt(),
-               tuple(grid.geotransform), (grid.cols, grid.rows), resampling_method, occlusion_mask, np_type.str,
-               nodata, max_error, start_step, reach, band.DataType)
+        job = (
+            str(image),
+            model,
+            dem,
+            grid.srs.ExportToWkt(),
+            tuple(grid.geotransform),
+            (grid.cols, grid.rows),
+            resampling_method,
+            occlusion_mask,
+            np_type.str,
+            nodata,
+            max_error,
+            start_step,
+            reach,
+            band.DataType,
+        )
         tiles = [os.path.join(work, f"tile-{k:05d}.tif") for k in range(len(windows))]
-        done = run_tasks(_ortho_tile, [(job, w, t) for w, t in zip(windows, tiles)], execution,
-                         progress.scaled(feedback, 0, 90), "the orthoimage tiles")
+        done = run_tasks(
+            _ortho_tile,
+            [(job, w, t) for w, t in zip(windows, tiles)],
+            execution,
+            progress.scaled(feedback, 0, 90),
+            "the orthoimage tiles",
+        )
         steps = {}
         for _, _, step, _ in done:
             steps[step] = steps.get(step, 0) + 1
         with atomic_path(output) as tmp:
-            assemble_tiles(tiles, tmp, grid.geotransform, (grid.cols, grid.rows), grid.srs, CREATION_OPTIONS,
-                           overviews=overviews, feedback=progress.scaled(feedback, 90, 100))
-    result = OrthoResult(str(output), grid, max((d[3] for d in done), default=0.0), steps, sum(d[0] for d in done),
-                         sum(d[1] for d in done), time.perf_counter() - start)
+            assemble_tiles(
+                tiles,
+                tmp,
+                grid.geotransform,
+                (grid.cols, grid.rows),
+                grid.srs,
+                CREATION_OPTIONS,
+                overviews=overviews,
+                feedback=progress.scaled(feedback, 90, 100),
+            )
+    result = OrthoResult(
+        str(output),
+        grid,
+        max((d[3] for d in done), default=0.0),
+        steps,
+        sum(d[0] for d in done),
+        sum(d[1] for d in done),
+        time.perf_counter() - start,
+    )
     progress.step(feedback, 100, result.summary())
     return result

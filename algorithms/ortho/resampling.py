@@ -5,6 +5,7 @@ The image is read by windows: `padded_window` reads the pixels a tile needs plus
 and replicates the border pixels where the margin passes the image edge, so both kernels run without
 bounds tests. A cell whose image point lies outside the image (col not in [0, cols] or row not in
 [0, rows]) or is NaN gets nodata."""
+
 import math
 
 import numpy as np
@@ -45,8 +46,12 @@ def window_bounds(col, row, size):
     if not inside.any():
         return None
     c, r = col[inside], row[inside]
-    return (math.floor(c.min()) - PAD, math.floor(r.min()) - PAD,
-            math.floor(c.max()) + PAD + 1, math.floor(r.max()) + PAD + 1)
+    return (
+        math.floor(c.min()) - PAD,
+        math.floor(r.min()) - PAD,
+        math.floor(c.max()) + PAD + 1,
+        math.floor(r.max()) + PAD + 1,
+    )
 
 
 def padded_window(dataset, bounds):
@@ -72,6 +77,16 @@ def resample(dataset, col, row, method):
     if bounds is None:
         return out, valid
     window = padded_window(dataset, bounds)
-    resample_kernel(window, float(bounds[0]), float(bounds[1]), float(dataset.RasterXSize),
-                    float(dataset.RasterYSize), col, row, METHODS[method], out, valid)
+    resample_kernel(
+        window,
+        float(bounds[0]),
+        float(bounds[1]),
+        float(dataset.RasterXSize),
+        float(dataset.RasterYSize),
+        col,
+        row,
+        METHODS[method],
+        out,
+        valid,
+    )
     return out, valid

@@ -3,6 +3,7 @@ a DEM against a reference DTM/DSM (assessment.assess_by_parts: in chunks and win
 them; Kornus et al. 2006 sections 3.6-3.7, Zhang and Gruen 2004 section 4), written as an HTML report with
 figures, optionally a CSV table of the statistics and, for a DEM, a dh raster (its windows written as
 tiles in a work folder beside it, assembled by GDAL)."""
+
 import contextlib
 from dataclasses import dataclass, field
 from typing import Optional
@@ -21,20 +22,20 @@ class AssessParams:
     """The assessment's settings; each is a pushbroom:assessaccuracy parameter. Datums are one of
     control_points.HEIGHT_TYPES."""
 
-    reference: str = ""                         # reference DTM/DSM raster
-    report: str = ""                            # HTML report path
-    points: Optional[str] = None                # point cloud (LAS/LAZ, GeoPackage)
-    dem: Optional[str] = None                   # DEM raster
+    reference: str = ""  # reference DTM/DSM raster
+    report: str = ""  # HTML report path
+    points: Optional[str] = None  # point cloud (LAS/LAZ, GeoPackage)
+    dem: Optional[str] = None  # DEM raster
     reference_heights: str = "ellipsoidal"
     points_heights: str = "ellipsoidal"
     dem_heights: str = "ellipsoidal"
-    class_raster: Optional[str] = None          # class raster, or
-    class_polygons: Optional[PolygonClasses] = None     # class polygons,
-    class_polygons_source: str = ""             # and their description in the report
-    slope_threshold: float = SLOPE_THRESHOLD    # degrees: mountainous terrain above
-    reference_nodata: Optional[float] = None    # void value of the reference its file does not flag
-    table: Optional[str] = None                 # CSV statistics table path
-    dh: Optional[str] = None                    # dh raster path (DEM input)
+    class_raster: Optional[str] = None  # class raster, or
+    class_polygons: Optional[PolygonClasses] = None  # class polygons,
+    class_polygons_source: str = ""  # and their description in the report
+    slope_threshold: float = SLOPE_THRESHOLD  # degrees: mountainous terrain above
+    reference_nodata: Optional[float] = None  # void value of the reference its file does not flag
+    table: Optional[str] = None  # CSV statistics table path
+    dh: Optional[str] = None  # dh raster path (DEM input)
 
     def check(self):
         """Raise InputError for settings the assessment cannot use."""
@@ -55,7 +56,7 @@ class AssessResult:
     report: str
     table: Optional[str] = None
     dh: Optional[str] = None
-    used: list = field(default_factory=list)    # (what, description) of the inputs, as in the report
+    used: list = field(default_factory=list)  # (what, description) of the inputs, as in the report
 
 
 def assess_accuracy(params, feedback=None):
@@ -67,12 +68,20 @@ def assess_accuracy(params, feedback=None):
         classes, class_source = ClassRaster(params.class_raster), params.class_raster
     elif params.class_polygons is not None:
         classes, class_source = params.class_polygons, params.class_polygons_source
-    with (work_dir(params.dh, "the dh tiles") if params.dh else contextlib.nullcontext()) as tiles:
-        assessed = assess_by_parts(params.reference, points=params.points, dem=params.dem,
-                                   reference_datum=params.reference_heights, points_datum=params.points_heights,
-                                   dem_datum=params.dem_heights, classes=classes,
-                                   slope_threshold=params.slope_threshold, feedback=progress.scaled(feedback, 0, 70),
-                                   reference_nodata=params.reference_nodata, tiles=tiles)
+    with work_dir(params.dh, "the dh tiles") if params.dh else contextlib.nullcontext() as tiles:
+        assessed = assess_by_parts(
+            params.reference,
+            points=params.points,
+            dem=params.dem,
+            reference_datum=params.reference_heights,
+            points_datum=params.points_heights,
+            dem_datum=params.dem_heights,
+            classes=classes,
+            slope_threshold=params.slope_threshold,
+            feedback=progress.scaled(feedback, 0, 70),
+            reference_nodata=params.reference_nodata,
+            tiles=tiles,
+        )
         return _write(params, assessed, class_source, feedback)
 
 
@@ -85,6 +94,7 @@ def _write(params, assessed, class_source, feedback):
         used.append(("DEM", f"{params.dem} ({params.dem_heights} heights; reference resampled onto its grid)"))
     used += [("classes", class_source), ("slope threshold", f"{params.slope_threshold:g} deg")]
     from . import report  # matplotlib: loaded on use, not with the plugin
+
     progress.ensure(feedback).pushInfo(report.text(assessed, used))
     progress.step(feedback, 75, "drawing the figures")
     out = AssessResult(report.write_report(params.report, "Accuracy assessment", assessed, used), used=used)
@@ -94,8 +104,14 @@ def _write(params, assessed, class_source, feedback):
     if params.dh:
         dem = next(a for a in assessed if a.tiles is not None)
         with atomic_path(params.dh) as tmp:
-            assemble_tiles(dem.tiles, tmp, dem.geotransform, dem.size, dem.srs,
-                           description="dh = DEM - reference (m, ellipsoidal)",
-                           feedback=progress.scaled(feedback, 95, 100))
+            assemble_tiles(
+                dem.tiles,
+                tmp,
+                dem.geotransform,
+                dem.size,
+                dem.srs,
+                description="dh = DEM - reference (m, ellipsoidal)",
+                feedback=progress.scaled(feedback, 95, 100),
+            )
         out.dh = str(params.dh)
     return out

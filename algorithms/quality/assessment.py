@@ -11,6 +11,7 @@ at most MAP_POINTS points thinned evenly from the cloud) and dropped, so that me
 not the data. The DEM's dh windows are written as GeoTIFF tiles where a folder is given. The statistics
 of the parts are those of the whole: the reference, its slope and the classes of a part are the whole
 data's there (height_differences)."""
+
 import math
 import os
 from dataclasses import dataclass, field
@@ -27,7 +28,7 @@ from .height_differences import Differences, ReferenceReach, dem_differences, po
 from .rasters import Grid, open_raster, raster_srs
 from .statistics import DhSummary, labelled, merge_labelled
 
-SLOPE_THRESHOLD = 10.0   # degrees
+SLOPE_THRESHOLD = 10.0  # degrees
 #: points per chunk and DEM cells per window side of assess_by_parts
 CHUNK = 1_000_000
 TILE = 1024
@@ -39,9 +40,9 @@ MAP_POINTS = 200_000
 @dataclass
 class Assessed:
     differences: Differences
-    classes: np.ndarray = None      # (n,) class of each dh (classes.NO_CLASS: none)
+    classes: np.ndarray = None  # (n,) class of each dh (classes.NO_CLASS: none)
     class_names: dict = None
-    terrain: np.ndarray = None      # (n,) classes.FLAT / MOUNTAINOUS
+    terrain: np.ndarray = None  # (n,) classes.FLAT / MOUNTAINOUS
     terrain_names: dict = None
 
 
@@ -66,10 +67,10 @@ class Summary:
     map_grid: Grid = None
     map_points: tuple = None
     map_step: int = 1
-    seen: int = 0                   # points with a dh so far (the thinning's position)
-    tiles: list = None              # a DEM's dh tiles written by assess_by_parts
-    size: tuple = None              # a DEM's (cols, rows)
-    geotransform: tuple = None      # and geotransform
+    seen: int = 0  # points with a dh so far (the thinning's position)
+    tiles: list = None  # a DEM's dh tiles written by assess_by_parts
+    size: tuple = None  # a DEM's (cols, rows)
+    geotransform: tuple = None  # and geotransform
 
     def add(self, assessed):
         """Add the part `assessed` (an Assessed); returns self."""
@@ -96,11 +97,11 @@ class Summary:
         step = self.map_step
         c0 = int(round((tile.geotransform[0] - x0) / (dx / step)))
         r0 = int(round((tile.geotransform[3] - y0) / (dy / step)))
-        centre = step // 2                  # each map cell shows the centre cell of its block
+        centre = step // 2  # each map cell shows the centre cell of its block
         first_r, first_c = (centre - r0) % step, (centre - c0) % step
         part = tile.values[first_r::step, first_c::step]
         i, j = (r0 + first_r) // step, (c0 + first_c) // step
-        self.map_grid.values[i:i + part.shape[0], j:j + part.shape[1]] = part
+        self.map_grid.values[i : i + part.shape[0], j : j + part.shape[1]] = part
 
     def _map_points(self, d):
         """Keep every map_step-th point of the stream; past MAP_POINTS, every other one of those kept."""
@@ -154,9 +155,18 @@ def _check(points, dem, slope_threshold):
         raise InputError(f"the slope threshold must be a positive angle in degrees, not {slope_threshold}")
 
 
-def assess(reference, points=None, dem=None, reference_datum="ellipsoidal", points_datum="ellipsoidal",
-           dem_datum="ellipsoidal", classes=None, slope_threshold=SLOPE_THRESHOLD, feedback=None,
-           reference_nodata=None):
+def assess(
+    reference,
+    points=None,
+    dem=None,
+    reference_datum="ellipsoidal",
+    points_datum="ellipsoidal",
+    dem_datum="ellipsoidal",
+    classes=None,
+    slope_threshold=SLOPE_THRESHOLD,
+    feedback=None,
+    reference_nodata=None,
+):
     """[Assessed] of the point cloud `points` and the DEM raster `dem` (either or both) against the
     `reference` raster, every difference held; `classes` a classes.ClassRaster or classes.PolygonClasses (or
     None); `reference_nodata` a void value of the reference that its file does not flag as nodata.
@@ -167,8 +177,14 @@ def assess(reference, points=None, dem=None, reference_datum="ellipsoidal", poin
     out = []
     for k, (compute, path, datum) in enumerate(jobs):
         span = 100.0 / len(jobs)
-        d = compute(path, reference, reference_datum, datum, progress.scaled(feedback, k * span, (k + 0.8) * span),
-                    reference_nodata=reference_nodata)
+        d = compute(
+            path,
+            reference,
+            reference_datum,
+            datum,
+            progress.scaled(feedback, k * span, (k + 0.8) * span),
+            reference_nodata=reference_nodata,
+        )
         if not d.dh.size:
             raise InputError(f"no {d.what} of {path} has a reference height: check that the reference covers it")
         out.append(_assessed(d, classes, slope_threshold))
@@ -176,9 +192,19 @@ def assess(reference, points=None, dem=None, reference_datum="ellipsoidal", poin
     return out
 
 
-def assess_by_parts(reference, points=None, dem=None, reference_datum="ellipsoidal", points_datum="ellipsoidal",
-                    dem_datum="ellipsoidal", classes=None, slope_threshold=SLOPE_THRESHOLD, feedback=None,
-                    reference_nodata=None, tiles=None):
+def assess_by_parts(
+    reference,
+    points=None,
+    dem=None,
+    reference_datum="ellipsoidal",
+    points_datum="ellipsoidal",
+    dem_datum="ellipsoidal",
+    classes=None,
+    slope_threshold=SLOPE_THRESHOLD,
+    feedback=None,
+    reference_nodata=None,
+    tiles=None,
+):
     """[Summary] of the point cloud `points` and the DEM raster `dem` (either or both) against the
     `reference` raster (as assess), read in parts (module docstring). `tiles`: a folder where the DEM's dh
     windows are written as GeoTIFF tiles (listed in the Summary's `tiles`), or None."""
@@ -186,11 +212,32 @@ def assess_by_parts(reference, points=None, dem=None, reference_datum="ellipsoid
     span = 100.0 / ((points is not None) + (dem is not None))
     out = []
     if points is not None:
-        out.append(_points_by_chunks(reference, points, reference_datum, points_datum, classes, slope_threshold,
-                                     progress.scaled(feedback, 0, span), reference_nodata))
+        out.append(
+            _points_by_chunks(
+                reference,
+                points,
+                reference_datum,
+                points_datum,
+                classes,
+                slope_threshold,
+                progress.scaled(feedback, 0, span),
+                reference_nodata,
+            )
+        )
     if dem is not None:
-        out.append(_dem_by_windows(reference, dem, reference_datum, dem_datum, classes, slope_threshold,
-                                   progress.scaled(feedback, 100 - span, 100), reference_nodata, tiles))
+        out.append(
+            _dem_by_windows(
+                reference,
+                dem,
+                reference_datum,
+                dem_datum,
+                classes,
+                slope_threshold,
+                progress.scaled(feedback, 100 - span, 100),
+                reference_nodata,
+                tiles,
+            )
+        )
     return out
 
 
@@ -200,12 +247,14 @@ def _points_by_chunks(reference, path, reference_datum, datum, classes, slope_th
         progress.step(feedback, 100.0 * min(k * CHUNK, total) / total)
         if not len(chunk):
             raise InputError(f"the point cloud {path} holds no point")
-        d = point_differences(path, reference, reference_datum, datum, reference_nodata=nodata, points=chunk,
-                              reach=reach, required=False)
+        d = point_differences(
+            path, reference, reference_datum, datum, reference_nodata=nodata, points=chunk, reach=reach, required=False
+        )
         summary = summary or Summary(d.what, str(path), d.srs)
         summary.add(_assessed(d, classes, slope_threshold))
-        progress.ensure(feedback).pushInfo(f"object points: chunk {k + 1}, {summary.all.n} with a reference "
-                                           "height so far")
+        progress.ensure(feedback).pushInfo(
+            f"object points: chunk {k + 1}, {summary.all.n} with a reference height so far"
+        )
     progress.warn(feedback, reach.warning())
     if not summary.all.n:
         raise reach.no_heights("the assessed points")
@@ -222,17 +271,21 @@ def _dem_by_windows(reference, path, reference_datum, datum, classes, slope_thre
     reach, boxes = ReferenceReach(reference, nodata), tile_grid(size, TILE)
     for k, box in enumerate(boxes):
         progress.step(feedback, 100.0 * k / len(boxes))
-        d = dem_differences(path, reference, reference_datum, datum, reference_nodata=nodata, window=box,
-                            reach=reach)
+        d = dem_differences(path, reference, reference_datum, datum, reference_nodata=nodata, window=box, reach=reach)
         summary.add(_assessed(d, classes, slope_threshold))
         if folder is not None:
-            summary.tiles.append(write_float_raster(os.path.join(folder, f"dh-{k:05d}.tif"), d.grid.values,
-                                                    d.grid.geotransform, srs, overviews=False))
+            summary.tiles.append(
+                write_float_raster(
+                    os.path.join(folder, f"dh-{k:05d}.tif"), d.grid.values, d.grid.geotransform, srs, overviews=False
+                )
+            )
     progress.warn(feedback, reach.warning())
     if summary.excluded.get("DEM nodata", 0) == size[0] * size[1]:
         raise InputError(f"the DEM {path} holds no valid height (all cells are nodata)")
     if not summary.all.n:
-        raise InputError(f"the reference DEM {reference} does not overlap the DEM {path} (or holds only nodata "
-                         "there): choose a reference that covers it")
+        raise InputError(
+            f"the reference DEM {reference} does not overlap the DEM {path} (or holds only nodata "
+            "there): choose a reference that covers it"
+        )
     summary.size, summary.geotransform = size, geotransform
     return summary

@@ -5,6 +5,7 @@ slope of the reference. Class 0 (and the raster's nodata) means "no class".
 
 A class raster holds class codes: whole numbers (an integer data type, or floats that are all whole), at most
 MAX_CLASSES of them. Anything else (a DSM given as classes: every height a "class") is an InputError."""
+
 import numpy as np
 from matplotlib.path import Path
 from osgeo import gdal, ogr
@@ -25,8 +26,10 @@ def slope_classes(slope, threshold):
     """FLAT where slope < threshold (degrees), MOUNTAINOUS where >=, NO_CLASS where NaN; and the names."""
     slope = np.asarray(slope, float)
     labels = np.where(slope < threshold, FLAT, np.where(slope >= threshold, MOUNTAINOUS, NO_CLASS))
-    return labels, {FLAT: f"flat/moderate (slope < {threshold:g} deg)",
-                    MOUNTAINOUS: f"mountainous (>= {threshold:g} deg)"}
+    return labels, {
+        FLAT: f"flat/moderate (slope < {threshold:g} deg)",
+        MOUNTAINOUS: f"mountainous (>= {threshold:g} deg)",
+    }
 
 
 class ClassRaster:
@@ -39,9 +42,14 @@ class ClassRaster:
         band = ds.GetRasterBand(1)
         self.nodata = band.GetNoDataValue()
         meta = ds.GetMetadata() or {}
-        values = np.unique(np.concatenate([np.unique(band.ReadAsArray(0, r0, ds.RasterXSize,
-                                                                      min(BAND_ROWS, ds.RasterYSize - r0)))
-                                           for r0 in range(0, ds.RasterYSize, BAND_ROWS)]))
+        values = np.unique(
+            np.concatenate(
+                [
+                    np.unique(band.ReadAsArray(0, r0, ds.RasterXSize, min(BAND_ROWS, ds.RasterYSize - r0)))
+                    for r0 in range(0, ds.RasterYSize, BAND_ROWS)
+                ]
+            )
+        )
         values = values[np.isfinite(values) & (values != NO_CLASS)]
         if self.nodata is not None:
             values = values[values != self.nodata]
@@ -59,10 +67,12 @@ class ClassRaster:
         fractional = values[values != np.round(values)]
         if fractional.size or values.size > MAX_CLASSES:
             example = f"such as {fractional[0]:g}" if fractional.size else f"{values[0]:g} .. {values[-1]:g}"
-            raise InputError(f"the class raster {self.path} holds {values.size} distinct values ({kind}, {example}), "
-                             f"not class codes: a class raster holds whole numbers, at most {MAX_CLASSES} classes "
-                             "(a land-cover map such as the simulator's classes.tif). Is it a height raster? Give "
-                             "the classes, or leave the class raster empty")
+            raise InputError(
+                f"the class raster {self.path} holds {values.size} distinct values ({kind}, {example}), "
+                f"not class codes: a class raster holds whole numbers, at most {MAX_CLASSES} classes "
+                "(a land-cover map such as the simulator's classes.tif). Is it a height raster? Give "
+                "the classes, or leave the class raster empty"
+            )
 
     def _open(self):
         return open_raster(self.path, "class raster")
@@ -81,8 +91,9 @@ class ClassRaster:
             if not index.size:
                 continue
             ci, ri = c[index].astype(int), r[index].astype(int)
-            window = ds.GetRasterBand(1).ReadAsArray(int(ci.min()), int(ri.min()), int(ci.max() - ci.min() + 1),
-                                                     int(ri.max() - ri.min() + 1))
+            window = ds.GetRasterBand(1).ReadAsArray(
+                int(ci.min()), int(ri.min()), int(ci.max() - ci.min() + 1), int(ri.max() - ri.min() + 1)
+            )
             out[index] = window[ri - ri.min(), ci - ci.min()]
         return self._clean(out)
 
@@ -107,8 +118,9 @@ class PolygonClasses:
 
     def __init__(self, geometries, values, crs):
         self.srs = parse_crs(crs)
-        self.geometries = [g if isinstance(g, ogr.Geometry) else ogr.CreateGeometryFromWkb(bytes(g))
-                           for g in geometries]
+        self.geometries = [
+            g if isinstance(g, ogr.Geometry) else ogr.CreateGeometryFromWkb(bytes(g)) for g in geometries
+        ]
         values = [str(v) for v in values]
         if len(values) != len(self.geometries):
             raise InputError("the class polygons need one class value each")

@@ -2,6 +2,7 @@
 pyplot state): histograms of dh per group or class (Kornus et al. 2006, Figs. 4, 7) and a colour-coded dh map
 (Kornus et al. 2006, Fig. 5) with a diverging colormap centred on 0 and symmetric limits +-Q95(|dh|), drawn
 from an assessment.Summary (statistics.DhSummary histograms, its map grid or thinned points)."""
+
 import io
 
 import numpy as np
@@ -44,8 +45,14 @@ def histogram(series, title):
         edges = np.linspace(lo, hi, BINS + 1) if hi > lo else np.linspace(lo - 1, lo + 1, BINS + 1)
         for label, summary in series:
             values, counts = summary.values()
-            ax.hist(values, edges, weights=100.0 * counts / summary.n, histtype="step", linewidth=1.5,
-                    label=f"{label} (N = {summary.n})")
+            ax.hist(
+                values,
+                edges,
+                weights=100.0 * counts / summary.n,
+                histtype="step",
+                linewidth=1.5,
+                label=f"{label} (N = {summary.n})",
+            )
         ax.legend(fontsize=8)
     ax.axvline(0.0, color="0.5", linewidth=0.8)
     ax.set_xlabel("dh [m]")
@@ -65,11 +72,16 @@ def dh_map(summary, title):
     if summary.map_grid is not None:
         x0, dx, _, y0, _, dy = summary.map_grid.geotransform
         rows, cols = summary.map_grid.shape
-        image = ax.imshow(summary.map_grid.values, cmap=CMAP, norm=norm, interpolation="nearest",
-                          extent=(x0, x0 + cols * dx, y0 + rows * dy, y0))
+        image = ax.imshow(
+            summary.map_grid.values,
+            cmap=CMAP,
+            norm=norm,
+            interpolation="nearest",
+            extent=(x0, x0 + cols * dx, y0 + rows * dy, y0),
+        )
     else:
         x, y, dh = summary.map_points
-        order = np.argsort(np.abs(dh))      # large |dh| drawn last, on top
+        order = np.argsort(np.abs(dh))  # large |dh| drawn last, on top
         image = ax.scatter(x[order], y[order], c=dh[order], cmap=CMAP, norm=norm, s=2, linewidths=0)
         ax.set_aspect("equal")
     ax.set_facecolor("0.15")

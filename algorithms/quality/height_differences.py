@@ -18,6 +18,7 @@ a height error of kilometres in the statistics. They are counted once over the c
 and reported as a warning (progress.warn) naming their value and the REFERENCE_NODATA parameter. A point
 cloud can be given in chunks and a DEM in windows (assessment.assess_by_parts), so that memory follows the
 chunk and the window."""
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,17 +49,17 @@ from .rasters import (
 class Differences:
     """dh of the assessed points or cells that have a reference height, with where they are."""
 
-    what: str                   # "object points" or "DEM cells"
-    source: str                 # the assessed file
-    dh: np.ndarray              # (n,) m
-    x: np.ndarray               # (n,) position in `srs` (the assessed data's CRS)
+    what: str  # "object points" or "DEM cells"
+    source: str  # the assessed file
+    dh: np.ndarray  # (n,) m
+    x: np.ndarray  # (n,) position in `srs` (the assessed data's CRS)
     y: np.ndarray
     srs: object
-    slope: np.ndarray           # (n,) degrees, of the reference
-    group: np.ndarray = None    # (n,) point group 1/2/3 where the point cloud has one
-    grid: Grid = None           # DEM input: the dh grid (NaN where undefined)
-    valid: np.ndarray = None    # DEM input: the grid cells in dh
-    excluded: dict = field(default_factory=dict)   # {reason: count} of left-out points or cells
+    slope: np.ndarray  # (n,) degrees, of the reference
+    group: np.ndarray = None  # (n,) point group 1/2/3 where the point cloud has one
+    grid: Grid = None  # DEM input: the dh grid (NaN where undefined)
+    valid: np.ndarray = None  # DEM input: the grid cells in dh
+    excluded: dict = field(default_factory=dict)  # {reason: count} of left-out points or cells
 
 
 class ReferenceReach:
@@ -94,10 +95,13 @@ class ReferenceReach:
     def no_heights(self, what):
         """The InputError of a reference without a height under the assessed `what`."""
         if self.box is not None and not self.heights:
-            return InputError(f"the reference DEM {self.reference} has only nodata where the assessed data are: "
-                              "choose a reference that covers them")
-        return InputError(f"the reference DEM {self.reference} does not overlap {what}: choose a reference that "
-                          "covers them")
+            return InputError(
+                f"the reference DEM {self.reference} has only nodata where the assessed data are: "
+                "choose a reference that covers them"
+            )
+        return InputError(
+            f"the reference DEM {self.reference} does not overlap {what}: choose a reference that covers them"
+        )
 
 
 #: the assessment's parameter declaring the reference's void value, named in the warning of its implausible heights
@@ -127,8 +131,9 @@ def _ellipsoidal(h, x, y, srs, datum):
     return h
 
 
-def reference_at_points(reference, x, y, srs, datum="ellipsoidal", nodata=None, feedback=None, reach=None,
-                        required=True):
+def reference_at_points(
+    reference, x, y, srs, datum="ellipsoidal", nodata=None, feedback=None, reach=None, required=True
+):
     """(ellipsoidal reference height, reference slope in degrees) at points (x, y in `srs`): bilinear in
     the reference's CRS, the reference read by the window of each block of its cells that holds points
     (rasters.by_blocks); NaN outside it and next to its nodata (and cells equal to `nodata`, a declared
@@ -144,7 +149,7 @@ def reference_at_points(reference, x, y, srs, datum="ellipsoidal", nodata=None, 
         progress.check(feedback)
         try:
             window = read_reference(ds, xr[index], yr[index], nodata)
-        except InputError:                  # a block of points beyond the raster's last cells
+        except InputError:  # a block of points beyond the raster's last cells
             continue
         counted.add(ds, window)
         if np.isnan(window.values).all():
@@ -158,8 +163,17 @@ def reference_at_points(reference, x, y, srs, datum="ellipsoidal", nodata=None, 
     return _ellipsoidal(href, x, y, srs, datum), slope
 
 
-def point_differences(path, reference, reference_datum="ellipsoidal", points_datum="ellipsoidal", feedback=None,
-                      reference_nodata=None, points=None, reach=None, required=True):
+def point_differences(
+    path,
+    reference,
+    reference_datum="ellipsoidal",
+    points_datum="ellipsoidal",
+    feedback=None,
+    reference_nodata=None,
+    points=None,
+    reach=None,
+    required=True,
+):
     """Differences of the object points of a point cloud (surface.point_input.read_points; or `points`, a
     PointSet of it such as a chunk) against the reference raster (`reference_nodata`: a declared void
     value; the cells read noted in `reach` where given, and the overlap `required`, as
@@ -170,19 +184,36 @@ def point_differences(path, reference, reference_datum="ellipsoidal", points_dat
     if not len(x):
         raise InputError(f"the point cloud {path} holds no point")
     progress.step(feedback, 10, f"{len(x)} points read from {path}")
-    href, slope = reference_at_points(reference, x, y, srs, reference_datum, reference_nodata, feedback, reach,
-                                      required)
+    href, slope = reference_at_points(
+        reference, x, y, srs, reference_datum, reference_nodata, feedback, reach, required
+    )
     progress.step(feedback, 60)
     h = _ellipsoidal(z, x, y, srs, points_datum)
     ok = np.isfinite(h) & np.isfinite(href)
     group = fields.get("group")
-    return Differences("object points", str(path), (h - href)[ok], x[ok], y[ok], srs, slope[ok],
-                       None if group is None else np.asarray(group)[ok].astype(np.int64),
-                       excluded={"outside the reference or next to its nodata": int((~ok).sum())})
+    return Differences(
+        "object points",
+        str(path),
+        (h - href)[ok],
+        x[ok],
+        y[ok],
+        srs,
+        slope[ok],
+        None if group is None else np.asarray(group)[ok].astype(np.int64),
+        excluded={"outside the reference or next to its nodata": int((~ok).sum())},
+    )
 
 
-def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="ellipsoidal", feedback=None,
-                    reference_nodata=None, window=None, reach=None):
+def dem_differences(
+    path,
+    reference,
+    reference_datum="ellipsoidal",
+    dem_datum="ellipsoidal",
+    feedback=None,
+    reference_nodata=None,
+    window=None,
+    reach=None,
+):
     """Differences of the cells of a DEM raster against the reference raster (`reference_nodata`: a
     declared void value) resampled onto its grid: the reference's window under the DEM, warped. With
     `window` (c0, r0, c1, r1: cells of the DEM), those cells only, the reference's slope taken with one
@@ -193,7 +224,7 @@ def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="e
     _check_datum(reference_datum, "reference")
     source = open_raster(path, "DEM")
     c0, r0, c1, r1 = window or (0, 0, source.RasterXSize, source.RasterYSize)
-    g0, h0 = max(c0 - 1, 0), max(r0 - 1, 0)                                 # one cell around for the slope
+    g0, h0 = max(c0 - 1, 0), max(r0 - 1, 0)  # one cell around for the slope
     g1, h1 = min(c1 + 1, source.RasterXSize), min(r1 + 1, source.RasterYSize)
     wide = read_grid(source, window=(g0, h0, g1, h1))
     inner = (slice(r0 - h0, r0 - h0 + r1 - r0), slice(c0 - g0, c0 - g0 + c1 - c0))
@@ -201,20 +232,25 @@ def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="e
     defined = np.isfinite(dem.values)
     if window is None and not defined.any():
         raise InputError(f"the DEM {path} holds no valid height (all cells are nodata)")
-    progress.step(feedback, 10, f"DEM {path}: {dem.shape[1]} x {dem.shape[0]} cells, {int(defined.sum())} "
-                                "with a height")
+    progress.step(
+        feedback, 10, f"DEM {path}: {dem.shape[1]} x {dem.shape[0]} cells, {int(defined.sum())} with a height"
+    )
     ds = open_raster(reference, "reference DEM")
-    no_overlap = InputError(f"the reference DEM {reference} does not overlap the DEM {path} (or holds only nodata "
-                            "there): choose a reference that covers it")
+    no_overlap = InputError(
+        f"the reference DEM {reference} does not overlap the DEM {path} (or holds only nodata "
+        "there): choose a reference that covers it"
+    )
     counted = reach or ReferenceReach(reference, reference_nodata)
     ref, method = np.full(wide.shape, np.nan), None
     if defined.any():
-        finer = (np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize))     # the whole DEM's
-                 < np.prod(cell_metres(source.GetGeoTransform(), wide.srs, source.RasterYSize)))
+        finer = (
+            np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize))  # the whole DEM's
+            < np.prod(cell_metres(source.GetGeoTransform(), wide.srs, source.RasterYSize))
+        )
         method = "average" if finer else "bilinear"
         try:
             under = read_reference(ds, *reproject(*outline(wide), wide.srs, raster_srs(ds)), reference_nodata)
-        except InputError:                  # the reference lies elsewhere
+        except InputError:  # the reference lies elsewhere
             under = None
         if under is not None:
             counted.add(ds, under)
@@ -232,10 +268,21 @@ def dem_differences(path, reference, reference_datum="ellipsoidal", dem_datum="e
     href = _ellipsoidal(ref[valid], x, y, dem.srs, reference_datum)
     dh = np.full(dem.shape, np.nan)
     dh[valid] = h - href
-    return Differences("DEM cells", str(path), dh[valid], x, y, dem.srs, slope[valid],
-                       grid=Grid(dh, dem.geotransform, dem.srs), valid=valid,
-                       excluded={"DEM nodata": int((~defined).sum()),
-                                 "outside the reference or on its nodata": int((defined & ~valid).sum())})
+    return Differences(
+        "DEM cells",
+        str(path),
+        dh[valid],
+        x,
+        y,
+        dem.srs,
+        slope[valid],
+        grid=Grid(dh, dem.geotransform, dem.srs),
+        valid=valid,
+        excluded={
+            "DEM nodata": int((~defined).sum()),
+            "outside the reference or on its nodata": int((defined & ~valid).sum()),
+        },
+    )
 
 
 def _shifted(geotransform, cols, rows):

@@ -4,6 +4,7 @@ large raster (never a whole SRTM tile for a 3 km scene, nor a whole 60 km DSM at
 onto another raster's grid with gdalwarp (the reference onto the tested DEM: bilinear, or the average of
 the reference cells inside a DEM cell when the reference is finer).
 Grids are north-up (GDAL geotransform, pixel-is-area)."""
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,8 +59,10 @@ def open_raster(path, what):
         raise InputError(f"cannot open the {what} {path}: {exc}") from exc
     gt = ds.GetGeoTransform()
     if ds.GetSpatialRef() is None:
-        raise InputError(f"the {what} {path} has no coordinate reference system: assign one (e.g. with gdal_edit.py "
-                         "-a_srs) and run again")
+        raise InputError(
+            f"the {what} {path} has no coordinate reference system: assign one (e.g. with gdal_edit.py "
+            "-a_srs) and run again"
+        )
     if gt[2] != 0.0 or gt[4] != 0.0 or gt[5] >= 0.0:
         raise InputError(f"the {what} {path} is not a north-up grid: warp it (gdalwarp) first")
     return ds
@@ -75,8 +78,11 @@ def read_grid(ds, nodata=None, window=None):
     band = ds.GetRasterBand(1)
     c0, r0, c1, r1 = window or (0, 0, ds.RasterXSize, ds.RasterYSize)
     x0, dx, _, y0, _, dy = ds.GetGeoTransform()
-    return Grid(nodata_as_nan(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue(), nodata),
-                (x0 + c0 * dx, dx, 0.0, y0 + r0 * dy, 0.0, dy), raster_srs(ds))
+    return Grid(
+        nodata_as_nan(band.ReadAsArray(c0, r0, c1 - c0, r1 - r0), band.GetNoDataValue(), nodata),
+        (x0 + c0 * dx, dx, 0.0, y0 + r0 * dy, 0.0, dy),
+        raster_srs(ds),
+    )
 
 
 def read_window(ds, x, y, what, margin=2, nodata=None):
@@ -114,8 +120,10 @@ def outline(grid, n=64):
     rows, cols = grid.shape
     t = np.linspace(0.0, 1.0, n)
     x1, y1 = x0 + cols * dx, y0 + rows * dy
-    return (np.concatenate([x0 + t * (x1 - x0), x0 + t * (x1 - x0), np.full(n, x0), np.full(n, x1)]),
-            np.concatenate([np.full(n, y0), np.full(n, y1), y0 + t * (y1 - y0), y0 + t * (y1 - y0)]))
+    return (
+        np.concatenate([x0 + t * (x1 - x0), x0 + t * (x1 - x0), np.full(n, x0), np.full(n, x1)]),
+        np.concatenate([np.full(n, y0), np.full(n, y1), y0 + t * (y1 - y0), y0 + t * (y1 - y0)]),
+    )
 
 
 def memory_dataset(grid):
@@ -138,10 +146,21 @@ def warp_to(ds, grid, resampling):
     x0, dx, _, y0, _, dy = grid.geotransform
     band = ds.GetRasterBand(1)
     nodata = band.GetNoDataValue()
-    out = gdal.Warp("", ds, format="MEM", dstSRS=grid.srs.ExportToWkt(), width=cols, height=rows,
-                    outputBounds=(x0, y0 + rows * dy, x0 + cols * dx, y0), resampleAlg=resampling,
-                    outputType=gdal.GDT_Float64, srcNodata=nodata, dstNodata=float("nan"), errorThreshold=0,
-                    overviewLevel="NONE")
+    out = gdal.Warp(
+        "",
+        ds,
+        format="MEM",
+        dstSRS=grid.srs.ExportToWkt(),
+        width=cols,
+        height=rows,
+        outputBounds=(x0, y0 + rows * dy, x0 + cols * dx, y0),
+        resampleAlg=resampling,
+        outputType=gdal.GDT_Float64,
+        srcNodata=nodata,
+        dstNodata=float("nan"),
+        errorThreshold=0,
+        overviewLevel="NONE",
+    )
     return out.GetRasterBand(1).ReadAsArray()
 
 

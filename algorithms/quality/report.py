@@ -5,6 +5,7 @@ as Table 6, groups 3, 2, 1), with the robust extras NMAD and Q95(|dh|) (statisti
 columns, and Zhang and Gruen 2004, Tables 2-3 (area, number of compared points, mean, RMSE, % of |dh| < 2 m, 2-5 m,
 > 5 m) over nested class sets (statistics.cumulative). The HTML page embeds its figures as base64
 PNG (figures.py): it references no other file."""
+
 import base64
 import csv
 import html
@@ -15,13 +16,30 @@ from ..atomic import write_text
 from . import figures
 from .statistics import by_label, cumulative
 
-GROUP_NAMES = {3: "Point group 3: three-ray points from 3 matching runs",
-               2: "Point group 2: three-ray points from 2 matching runs",
-               1: "Point group 1: two-ray points"}
+GROUP_NAMES = {
+    3: "Point group 3: three-ray points from 3 matching runs",
+    2: "Point group 2: three-ray points from 2 matching runs",
+    1: "Point group 1: two-ray points",
+}
 K_HEADER = ("", "N", "Min", "Mean", "Max", "RMS", "sigma", "NMAD", "Q95 |dh|")
 Z_HEADER = ("Area", "No. of compared points", "Mean (m)", "RMSE (m)", "< 2.0 m", "2.0-5.0 m", "> 5.0 m")
-CSV_HEADER = ("data", "table", "label", "n", "min", "mean", "max", "rms", "sigma", "median", "nmad", "q95_abs",
-              "pct_below_2m", "pct_2_to_5m", "pct_above_5m")
+CSV_HEADER = (
+    "data",
+    "table",
+    "label",
+    "n",
+    "min",
+    "mean",
+    "max",
+    "rms",
+    "sigma",
+    "median",
+    "nmad",
+    "q95_abs",
+    "pct_below_2m",
+    "pct_2_to_5m",
+    "pct_above_5m",
+)
 
 
 def _k_row(label, s):
@@ -39,10 +57,16 @@ def tables(summary):
         out.append(("per point group (Kornus et al. 2006, Tables 6, 7)", by_label(summary.groups, GROUP_NAMES), "K"))
     if summary.classes is not None:
         out.append(("per class", by_label(summary.classes, summary.class_names), "K"))
-        out.append(("nested classes (Zhang and Gruen 2004, Tables 2-3)",
-                    cumulative(summary.classes, summary.class_names), "Z"))
-    out.append(("flat/moderate vs mountainous (Kornus et al. 2006, section 3.7)",
-                by_label(summary.terrain, summary.terrain_names), "K"))
+        out.append(
+            ("nested classes (Zhang and Gruen 2004, Tables 2-3)", cumulative(summary.classes, summary.class_names), "Z")
+        )
+    out.append(
+        (
+            "flat/moderate vs mountainous (Kornus et al. 2006, section 3.7)",
+            by_label(summary.terrain, summary.terrain_names),
+            "K",
+        )
+    )
     return out
 
 
@@ -53,10 +77,13 @@ def sections(summaries, parameters=()):
     for a in summaries:
         for name, rows, form in tables(a):
             header, cell = (K_HEADER, _k_row) if form == "K" else (Z_HEADER, _z_row)
-            parts.append(Section(f"dh [m] of the {a.what} - reference: {name}", header,
-                                 [cell(label, s) for label, s in rows]))
-        parts[-1].notes.append(f"{a.what} of {a.source}: {a.all.n} compared; left out: "
-                               + ", ".join(f"{reason} {n}" for reason, n in a.excluded.items()))
+            parts.append(
+                Section(f"dh [m] of the {a.what} - reference: {name}", header, [cell(label, s) for label, s in rows])
+            )
+        parts[-1].notes.append(
+            f"{a.what} of {a.source}: {a.all.n} compared; left out: "
+            + ", ".join(f"{reason} {n}" for reason, n in a.excluded.items())
+        )
     return parts
 
 
@@ -73,8 +100,18 @@ def write_csv(path, summaries):
     for a in summaries:
         for name, rows, _ in tables(a):
             for label, s in rows:
-                writer.writerow([a.what, name, label, s.n, *(f"{v:.4f}" for v in (
-                    s.min, s.mean, s.max, s.rms, s.sigma, s.median, s.nmad, s.q95, *s.shares))])
+                writer.writerow(
+                    [
+                        a.what,
+                        name,
+                        label,
+                        s.n,
+                        *(
+                            f"{v:.4f}"
+                            for v in (s.min, s.mean, s.max, s.rms, s.sigma, s.median, s.nmad, s.q95, *s.shares)
+                        ),
+                    ]
+                )
     write_text(path, buffer.getvalue())
     return str(path)
 
@@ -83,30 +120,53 @@ def figure_list(summaries):
     """[(caption, PNG bytes)]: per input the dh map and histograms per point group, class and terrain."""
     out = []
     for a in summaries:
-        every = (f"; every {a.map_step}th {'cell of each row and column' if a.map_grid is not None else 'point'}"
-                 if a.map_step > 1 else "")
-        out.append((f"dh of the {a.what} (colour limits +-Q95 |dh| = {figures.map_limit(a.all):.2f} m{every})",
-                    figures.dh_map(a, f"dh of the {a.what}")))
-        splits = [("point group", a.groups, GROUP_NAMES), ("class", a.classes, a.class_names),
-                  ("terrain", a.terrain, a.terrain_names)]
+        every = (
+            f"; every {a.map_step}th {'cell of each row and column' if a.map_grid is not None else 'point'}"
+            if a.map_step > 1
+            else ""
+        )
+        out.append(
+            (
+                f"dh of the {a.what} (colour limits +-Q95 |dh| = {figures.map_limit(a.all):.2f} m{every})",
+                figures.dh_map(a, f"dh of the {a.what}"),
+            )
+        )
+        splits = [
+            ("point group", a.groups, GROUP_NAMES),
+            ("class", a.classes, a.class_names),
+            ("terrain", a.terrain, a.terrain_names),
+        ]
         for kind, labelled, names in splits:
             if labelled is not None:
-                series = [(name, labelled[value]) for value, name in names.items()
-                          if value in labelled and labelled[value].n]
-                out.append((f"Histogram of dh of the {a.what} per {kind}",
-                            figures.histogram(series, f"dh of the {a.what} per {kind}")))
+                series = [
+                    (name, labelled[value]) for value, name in names.items() if value in labelled and labelled[value].n
+                ]
+                out.append(
+                    (
+                        f"Histogram of dh of the {a.what} per {kind}",
+                        figures.histogram(series, f"dh of the {a.what} per {kind}"),
+                    )
+                )
     return out
 
 
 def write_report(path, title, summaries, parameters=()):
     """One self-contained HTML page: the Sections' tables and the figures as embedded PNGs."""
-    style = ("body{font-family:sans-serif}table{border-collapse:collapse}th,td{border:1px solid #bbb;"
-             "padding:2px 8px;text-align:right}th:first-child,td:first-child{text-align:left}")
-    images = "\n".join(f"<figure><img alt='{html.escape(caption)}' src='data:image/png;base64,"
-                       f"{base64.b64encode(png).decode('ascii')}'><figcaption>{html.escape(caption)}</figcaption>"
-                       "</figure>" for caption, png in figure_list(summaries))
-    write_text(path, f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-                     f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>\n"
-                     f"{html_sections(sections(summaries, parameters))}\n<h2>Figures</h2>\n{images}\n"
-                     "</body></html>\n")
+    style = (
+        "body{font-family:sans-serif}table{border-collapse:collapse}th,td{border:1px solid #bbb;"
+        "padding:2px 8px;text-align:right}th:first-child,td:first-child{text-align:left}"
+    )
+    images = "\n".join(
+        f"<figure><img alt='{html.escape(caption)}' src='data:image/png;base64,"
+        f"{base64.b64encode(png).decode('ascii')}'><figcaption>{html.escape(caption)}</figcaption>"
+        "</figure>"
+        for caption, png in figure_list(summaries)
+    )
+    write_text(
+        path,
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+        f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>\n"
+        f"{html_sections(sections(summaries, parameters))}\n<h2>Figures</h2>\n{images}\n"
+        "</body></html>\n",
+    )
     return str(path)

@@ -7,6 +7,7 @@ The statistics come from a DhSummary, which the parts of an assessment (chunks o
 up: exact counts, sums (N, mean, RMS, sigma, min, max, shares) and a sparse histogram of dh in STEP bins
 (histogram.py) for the median, NMAD and quantile, which are therefore those of dh rounded to STEP (within
 STEP / 2 of the exact ones for the median and quantile, within STEP for NMAD)."""
+
 import math
 from dataclasses import dataclass, field
 
@@ -31,8 +32,8 @@ class Stats:
     sigma: float
     median: float
     nmad: float
-    q95: float          # 95 % quantile of |dh|
-    shares: tuple       # % of |dh| < 2, 2-5, > 5 m
+    q95: float  # 95 % quantile of |dh|
+    shares: tuple  # % of |dh| < 2, 2-5, > 5 m
 
 
 @dataclass
@@ -58,15 +59,27 @@ class DhSummary:
         a = np.abs(dh)
         small, large = SHARE_LIMITS
         shares = tuple(int(np.count_nonzero(m)) for m in (a < small, (a >= small) & (a <= large), a > large))
-        return cls(int(dh.size), float(dh.sum()), float(np.dot(dh, dh)), float(dh.min()), float(dh.max()), shares,
-                   histogram.count(np.round(dh / STEP)))
+        return cls(
+            int(dh.size),
+            float(dh.sum()),
+            float(np.dot(dh, dh)),
+            float(dh.min()),
+            float(dh.max()),
+            shares,
+            histogram.count(np.round(dh / STEP)),
+        )
 
     def merge(self, other):
         """The summary of both sets."""
-        return DhSummary(self.n + other.n, self.total + other.total, self.squares + other.squares,
-                         min(self.low, other.low), max(self.high, other.high),
-                         tuple(a + b for a, b in zip(self.share_counts, other.share_counts)),
-                         histogram.add(self.hist, other.hist))
+        return DhSummary(
+            self.n + other.n,
+            self.total + other.total,
+            self.squares + other.squares,
+            min(self.low, other.low),
+            max(self.high, other.high),
+            tuple(a + b for a, b in zip(self.share_counts, other.share_counts)),
+            histogram.add(self.hist, other.hist),
+        )
 
     def values(self):
         """(dh of each bin, count)."""
@@ -81,10 +94,18 @@ class DhSummary:
         sigma = math.sqrt(max(self.squares - n * mean * mean, 0.0) / (n - 1)) if n > 1 else nan
         values, counts = self.values()
         median = histogram.median(values, counts)
-        return Stats(n, self.low, mean, self.high, math.sqrt(self.squares / n), sigma, median,
-                     NMAD_SCALE * histogram.median(np.abs(values - median), counts),
-                     histogram.quantile(np.abs(values), counts, QUANTILE),
-                     tuple(100.0 * c / n for c in self.share_counts))
+        return Stats(
+            n,
+            self.low,
+            mean,
+            self.high,
+            math.sqrt(self.squares / n),
+            sigma,
+            median,
+            NMAD_SCALE * histogram.median(np.abs(values - median), counts),
+            histogram.quantile(np.abs(values), counts, QUANTILE),
+            tuple(100.0 * c / n for c in self.share_counts),
+        )
 
 
 def summarize(dh):
@@ -109,8 +130,9 @@ def merge_labelled(a, b):
 def by_label(summaries, names):
     """[(name, Stats)] per label value in `names` ({value: name}, in its order) that has values, from the
     labelled summaries {value: DhSummary}."""
-    return [(name, summaries[value].stats()) for value, name in names.items()
-            if value in summaries and summaries[value].n]
+    return [
+        (name, summaries[value].stats()) for value, name in names.items() if value in summaries and summaries[value].n
+    ]
 
 
 def cumulative(summaries, names):

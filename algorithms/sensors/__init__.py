@@ -6,6 +6,7 @@ supported orientation source:
 - an RPC file (_RPC.TXT, .RPB) or an OSSIM/OTB .geom keyword list,
 - the project's own model file (*.pbmodel.json), as written by `save`.
 """
+
 import os
 
 from ..errors import InputError, MetadataError
@@ -54,9 +55,11 @@ def missing_file_error(path):
     folder = os.path.dirname(os.path.abspath(path))
     dim = os.path.join(folder, "METADATA.DIM")
     if not path.lower().endswith(ORIENTATION_SUFFIXES) and _is_dimap(dim):
-        return InputError(f"{path} does not exist: the SPOT DIMAP product {folder} has its metadata {dim} but "
-                          "not this raster; copy the product's raster (as delivered: IMAGERY.TIF) back beside its "
-                          "METADATA.DIM, or give an image that exists")
+        return InputError(
+            f"{path} does not exist: the SPOT DIMAP product {folder} has its metadata {dim} but "
+            "not this raster; copy the product's raster (as delivered: IMAGERY.TIF) back beside its "
+            "METADATA.DIM, or give an image that exists"
+        )
     return InputError(f"{path} does not exist: check the path (a file moved, renamed or deleted?)")
 
 
@@ -69,11 +72,14 @@ def check_image(path):
     dim = os.path.join(path, "METADATA.DIM") if os.path.isdir(path) else path
     if _is_dimap(dim):
         from .dimap import product_raster
+
         raster = product_raster(dim)
         if not os.path.isfile(raster):
-            raise InputError(f"{path} is a SPOT DIMAP product without its raster: {raster}, which its metadata "
-                             "names, does not exist; copy the product's raster back beside its METADATA.DIM, or "
-                             "give an image that exists")
+            raise InputError(
+                f"{path} is a SPOT DIMAP product without its raster: {raster}, which its metadata "
+                "names, does not exist; copy the product's raster back beside its METADATA.DIM, or "
+                "give an image that exists"
+            )
 
 
 def load(path, image=None):
@@ -93,11 +99,14 @@ def load(path, image=None):
     lower = path.lower()
     if lower.endswith(MODEL_FILE_SUFFIX):
         from .model_file import load_model_file
+
         return load_model_file(path)
     if lower.endswith(".dim") or _is_dimap(path):
         from .spot import SpotModel
+
         return SpotModel.from_dimap(path, image=image)
     from .rpc import RpcModel
+
     if lower.endswith(".geom"):
         return RpcModel.from_geom(path, image=image)
     if lower.endswith((".rpb", "_rpc.txt")):
@@ -108,8 +117,16 @@ def load(path, image=None):
 def save(model, path):
     """Write `model` (with its corrections) to the project's own model file format."""
     from .model_file import save_model_file
+
     save_model_file(model, path)
 
 
-__all__ = ["SensorModel", "load", "save", "orientation_source", "check_image", "missing_file_error",
-           "MODEL_FILE_SUFFIX"]
+__all__ = [
+    "SensorModel",
+    "load",
+    "save",
+    "orientation_source",
+    "check_image",
+    "missing_file_error",
+    "MODEL_FILE_SUFFIX",
+]

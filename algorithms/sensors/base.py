@@ -7,6 +7,7 @@ metres.
 Failures: a point outside a model's domain (a line beyond the ephemeris, a ground point behind the
 horizon) comes back as NaN, so a batch keeps its other points; an iteration that fails inside the
 domain raises GeometryError. Callers that need every point (footprints, DEM rays) raise on NaN."""
+
 import numpy as np
 
 from ..errors import GeometryError
@@ -89,7 +90,8 @@ class SensorModel:
             bad = np.flatnonzero(~found)[0]
             raise GeometryError(
                 f"the line of sight of image point ({c[bad]:.1f}, {r[bad]:.1f}) does not meet the DEM; "
-                "is the DEM covering the whole image footprint?")
+                "is the DEM covering the whole image footprint?"
+            )
         for _ in range(60):
             denom = fhi - flo
             h = np.where(denom != 0, hi - fhi * (hi - lo) / np.where(denom != 0, denom, 1.0), 0.5 * (hi + lo))
@@ -119,6 +121,8 @@ class SensorModel:
             lon, lat, _ = dem.ground(self, c, r)
         ring = np.column_stack([lon, lat])
         if not np.all(np.isfinite(ring)):
-            raise GeometryError(f"the image border has no ground position at {np.isnan(ring[:, 0]).sum()} of "
-                                f"{len(ring)} points: is the orientation complete for the whole image?")
+            raise GeometryError(
+                f"the image border has no ground position at {np.isnan(ring[:, 0]).sum()} of "
+                f"{len(ring)} points: is the orientation complete for the whole image?"
+            )
         return np.vstack([ring, ring[:1]])

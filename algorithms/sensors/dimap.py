@@ -14,6 +14,7 @@ the angles already include the mirror pointing, STEP_COUNT is kept for informati
 scene-centre time/line. Samples flagged OUT_OF_RANGE = Y are dropped. Multispectral products: the
 look angles of the first Instrument_Look_Angles (band 1) are used.
 """
+
 import os
 import xml.etree.ElementTree as ET
 
@@ -31,13 +32,16 @@ class _Doc:
         try:
             self.root = ET.parse(path).getroot()
         except ET.ParseError as exc:
-            raise MetadataError(f"{path}: not well-formed XML ({exc}); the file is truncated or "
-                                "damaged, copy it again from the delivered product") from exc
+            raise MetadataError(
+                f"{path}: not well-formed XML ({exc}); the file is truncated or "
+                "damaged, copy it again from the delivered product"
+            ) from exc
         except OSError as exc:
             raise MetadataError(f"{path}: cannot read ({exc})") from exc
         if self.root.tag != "Dimap_Document":
-            raise MetadataError(f"{path}: root element is <{self.root.tag}>, not <Dimap_Document>; "
-                                "not a SPOT DIMAP METADATA.DIM")
+            raise MetadataError(
+                f"{path}: root element is <{self.root.tag}>, not <Dimap_Document>; not a SPOT DIMAP METADATA.DIM"
+            )
 
     def fail(self, what):
         raise MetadataError(f"{self.path}: {what}; is this a complete SPOT level-1A METADATA.DIM?")
@@ -122,8 +126,10 @@ def _look_angles(doc, mission, ncols):
     if mission <= 4 and ids.size >= 2 and ids[0] == 1 and ids[-1] == ncols:
         detectors = np.arange(1, ncols + 1)
         return np.interp(detectors, ids, psi[:, 0]), np.interp(detectors, ids, psi[:, 1])
-    doc.fail(f"Look_Angles_List gives {ids.size} detectors (ids {ids[0]}..{ids[-1]}) for NCOLS = {ncols}; "
-             + ("SPOT 5 needs one per detector" if mission == 5 else "SPOT 1-4 need at least the first and last"))
+    doc.fail(
+        f"Look_Angles_List gives {ids.size} detectors (ids {ids[0]}..{ids[-1]}) for NCOLS = {ncols}; "
+        + ("SPOT 5 needs one per detector" if mission == 5 else "SPOT 1-4 need at least the first and last")
+    )
 
 
 def dim_path(path):
@@ -140,15 +146,18 @@ def read_dimap(path, image=None):
     path = dim_path(path)
     doc = _Doc(path)
     if doc.root.find("Metadata_Identification") is not None:  # DIMAP v2: Pleiades, SPOT 6/7
-        raise MetadataError(f"{path}: a DIMAP v2 document (Pleiades, SPOT 6/7), not a SPOT 1-5 METADATA.DIM; "
-                            "its geometry is an RPC: open the image (GDAL reads its RPC) or its RPC file")
+        raise MetadataError(
+            f"{path}: a DIMAP v2 document (Pleiades, SPOT 6/7), not a SPOT 1-5 METADATA.DIM; "
+            "its geometry is an RPC: open the image (GDAL reads its RPC) or its RPC file"
+        )
     src = doc.node("Dataset_Sources/Source_Information/Scene_Source")
     if doc.text("MISSION", src).upper() != "SPOT":
         doc.fail(f"MISSION is {doc.text('MISSION', src)!r}, not SPOT")
     mission = doc.integer("MISSION_INDEX", src)
     if mission not in (1, 2, 3, 4, 5):
-        doc.fail(f"MISSION_INDEX {mission} is not SPOT 1 to 5 (SPOT 6/7 use DIMAP v2 with RPCs: "
-                 "open their RPC instead)")
+        doc.fail(
+            f"MISSION_INDEX {mission} is not SPOT 1 to 5 (SPOT 6/7 use DIMAP v2 with RPCs: open their RPC instead)"
+        )
     ncols = doc.integer("Raster_Dimensions/NCOLS")
     nrows = doc.integer("Raster_Dimensions/NROWS")
     if not (2 <= ncols <= MAX_SIZE and 1 <= nrows <= MAX_SIZE):
@@ -165,8 +174,9 @@ def read_dimap(path, image=None):
     attitudes = doc.node("Data_Strip/Satellite_Attitudes")
     speed_t = speed_ypr = None
     if mission == 5:
-        att_t, att_ypr = _angle_series(doc, doc.nodes("Corrected_Attitudes/Corrected_Attitude/Angles", attitudes),
-                                       epoch)
+        att_t, att_ypr = _angle_series(
+            doc, doc.nodes("Corrected_Attitudes/Corrected_Attitude/Angles", attitudes), epoch
+        )
     else:
         aocs = doc.node("Raw_Attitudes/Aocs_Attitude", attitudes)
         att_t, att_ypr = _angle_series(doc, doc.nodes("Angles_List/Angles", aocs), epoch)
@@ -176,16 +186,31 @@ def read_dimap(path, image=None):
     psi_x, psi_y = _look_angles(doc, mission, ncols)
     mirror = doc.root.find("Data_Strip/Sensor_Configuration/Mirror_Position/STEP_COUNT")
     orientation = SpotOrientation(
-        mission=mission, instrument=doc.text("INSTRUMENT", src).upper(),
-        instrument_index=doc.integer("INSTRUMENT_INDEX", src), ncols=ncols, nrows=nrows, epoch=epoch,
-        eph_t=eph_t, eph_pos=eph_pos, eph_vel=eph_vel, att_t=att_t, att_ypr=att_ypr,
-        psi_x=psi_x, psi_y=psi_y, line_period=doc.number("LINE_PERIOD", stamp),
-        centre_time=float(_seconds(centre, epoch)), centre_row=doc.number("SCENE_CENTER_LINE", stamp) - 0.5,
-        speed_t=speed_t, speed_ypr=speed_ypr,
+        mission=mission,
+        instrument=doc.text("INSTRUMENT", src).upper(),
+        instrument_index=doc.integer("INSTRUMENT_INDEX", src),
+        ncols=ncols,
+        nrows=nrows,
+        epoch=epoch,
+        eph_t=eph_t,
+        eph_pos=eph_pos,
+        eph_vel=eph_vel,
+        att_t=att_t,
+        att_ypr=att_ypr,
+        psi_x=psi_x,
+        psi_y=psi_y,
+        line_period=doc.number("LINE_PERIOD", stamp),
+        centre_time=float(_seconds(centre, epoch)),
+        centre_row=doc.number("SCENE_CENTER_LINE", stamp) - 0.5,
+        speed_t=speed_t,
+        speed_ypr=speed_ypr,
         sensor_code=(src.findtext("SENSOR_CODE") or "").strip(),
-        mirror_step=None if mirror is None else doc.integer("Data_Strip/Sensor_Configuration/Mirror_Position/"
-                                                            "STEP_COUNT"),
-        corrections=Corrections(), name=(doc.root.findtext("Dataset_Id/DATASET_NAME") or path).strip())
+        mirror_step=None
+        if mirror is None
+        else doc.integer("Data_Strip/Sensor_Configuration/Mirror_Position/STEP_COUNT"),
+        corrections=Corrections(),
+        name=(doc.root.findtext("Dataset_Id/DATASET_NAME") or path).strip(),
+    )
     try:
         orientation.validate()
     except MetadataError as exc:
@@ -217,6 +242,7 @@ def product_raster(path):
 def check_image_size(orientation, image, path=""):
     """Raise MetadataError unless the raster `image` has NCOLS x NROWS pixels."""
     from osgeo import gdal
+
     gdal.UseExceptions()
     try:
         ds = gdal.Open(os.fspath(image))
@@ -227,4 +253,5 @@ def check_image_size(orientation, image, path=""):
         raise MetadataError(
             f"{path or orientation.name}: NCOLS x NROWS = {orientation.ncols} x {orientation.nrows} but the image "
             f"{image} has {size[0]} x {size[1]} pixels; the metadata belong to another product (or the image "
-            "was cropped): use the METADATA.DIM delivered with this image")
+            "was cropped): use the METADATA.DIM delivered with this image"
+        )

@@ -3,6 +3,7 @@
 Same conventions as the reader (`dimap.py`): DIMAP lines and detectors count from 1 on pixel centres,
 times are ISO UTC strings. The frame corners come from the rigorous model (`spot.SpotModel`).
 """
+
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -62,8 +63,12 @@ def _frame(root, model, o):
     frame = _sub(root, "Dataset_Frame")
     for i, (row, col) in enumerate(corners + [centre]):
         v = _sub(frame, "Vertex" if i < 4 else "Scene_Center")
-        for tag, value in (("FRAME_LON", _num(lon[i])), ("FRAME_LAT", _num(lat[i])),
-                           ("FRAME_ROW", row), ("FRAME_COL", col)):
+        for tag, value in (
+            ("FRAME_LON", _num(lon[i])),
+            ("FRAME_LAT", _num(lat[i])),
+            ("FRAME_ROW", row),
+            ("FRAME_COL", col),
+        ):
             _sub(v, tag, value)
     # SCENE_ORIENTATION: angle (degrees, clockwise) from east to the direction of the lines
     east = 0.5 * (lon[1] - lon[0] + lon[2] - lon[3]) * np.cos(np.radians(lat[4]))
@@ -81,8 +86,13 @@ def _frame(root, model, o):
     ties = _sub(_sub(root, "Geoposition"), "Geoposition_Points")
     for i, (row, col) in enumerate(corners):
         tp = _sub(ties, "Tie_Point")
-        for tag, value in (("TIE_POINT_CRS_X", lon[i]), ("TIE_POINT_CRS_Y", lat[i]), ("TIE_POINT_CRS_Z", 0.0),
-                           ("TIE_POINT_DATA_X", col), ("TIE_POINT_DATA_Y", row)):
+        for tag, value in (
+            ("TIE_POINT_CRS_X", lon[i]),
+            ("TIE_POINT_CRS_Y", lat[i]),
+            ("TIE_POINT_CRS_Z", 0.0),
+            ("TIE_POINT_DATA_X", col),
+            ("TIE_POINT_DATA_Y", row),
+        ):
             _sub(tp, tag, _num(value))
 
 
@@ -93,10 +103,16 @@ def _source(root, o, sun):
     _sub(sources, "SOURCE_TYPE", "SCENE")
     _sub(sources, "SOURCE_DESCRIPTION", f"SCENE {o.instrument}{o.instrument_index} {o.sensor_code}".strip())
     scene = _sub(sources, "Scene_Source")
-    for tag, value in (("IMAGING_DATE", day), ("IMAGING_TIME", clock), ("MISSION", "SPOT"),
-                       ("MISSION_INDEX", o.mission), ("INSTRUMENT", o.instrument),
-                       ("INSTRUMENT_INDEX", o.instrument_index), ("SENSOR_CODE", o.sensor_code),
-                       ("SCENE_PROCESSING_LEVEL", "1A")):
+    for tag, value in (
+        ("IMAGING_DATE", day),
+        ("IMAGING_TIME", clock),
+        ("MISSION", "SPOT"),
+        ("MISSION_INDEX", o.mission),
+        ("INSTRUMENT", o.instrument),
+        ("INSTRUMENT_INDEX", o.instrument_index),
+        ("SENSOR_CODE", o.sensor_code),
+        ("SCENE_PROCESSING_LEVEL", "1A"),
+    ):
         _sub(scene, tag, value)
     if sun is not None:
         _sub(scene, "SUN_AZIMUTH", _num(sun[0]))
@@ -108,8 +124,7 @@ def _raster(root, o, nbits, nbands, data_file):
     for tag, value in (("NCOLS", o.ncols), ("NROWS", o.nrows), ("NBANDS", nbands)):
         _sub(dims, tag, value)
     enc = _sub(root, "Raster_Encoding")
-    for tag, value in (("NBITS", nbits), ("BYTEORDER", "I"), ("COMPRESSION_NAME", "NONE"),
-                       ("DATA_TYPE", "UNSIGNED")):
+    for tag, value in (("NBITS", nbits), ("BYTEORDER", "I"), ("COMPRESSION_NAME", "NONE"), ("DATA_TYPE", "UNSIGNED")):
         _sub(enc, tag, value)
     access = _sub(root, "Data_Access")
     _sub(access, "DATA_FILE_ORGANISATION", "BAND_COMPOSITE")
@@ -174,8 +189,10 @@ def write_dimap(path, orientation, sun=None, nbits=8, nbands=1, data_file="IMAGE
     o = orientation
     c = o.corrections
     if any(np.any(np.asarray(a) != 0) for a in (c.position, c.attitude, c.look)):
-        raise InputError("DIMAP cannot hold correction polynomials; save the adjusted model with "
-                         "sensors.save (the project's model file) instead")
+        raise InputError(
+            "DIMAP cannot hold correction polynomials; save the adjusted model with "
+            "sensors.save (the project's model file) instead"
+        )
     model = SpotModel(o)  # validates the orientation
     root = ET.Element("Dimap_Document", {"name": "METADATA.DIM"})
     meta = _sub(root, "Metadata_Id")
@@ -188,6 +205,5 @@ def write_dimap(path, orientation, sun=None, nbits=8, nbands=1, data_file="IMAGE
     _raster(root, o, nbits, nbands, data_file)
     _data_strip(root, o)
     ET.indent(root)
-    text = ('<?xml version="1.0" encoding="UTF-8"?>\n'
-            + ET.tostring(root, encoding="unicode") + "\n")
+    text = '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
     write_text(dim_path(path), text)

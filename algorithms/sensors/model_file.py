@@ -7,6 +7,7 @@ round-trips exactly). Adjusted models are stored this way.
   as an ISO string, "corrections" as a dict of the Corrections fields);
 - rpc: "fields" (GDAL RPC metadata names, offsets already on the model's own raster), "size",
   "source", and "bias" (the adjustment's six image-space bias terms, rpc.py) where nonzero."""
+
 import dataclasses
 import json
 
@@ -36,12 +37,24 @@ def model_to_dict(model):
     """The model-file document of a SpotModel or RpcModel."""
     from .rpc import RpcModel
     from .spot import SpotModel
+
     if isinstance(model, SpotModel):
-        return {"format": FORMAT, "version": VERSION, "kind": "spot", "drift": model.drift,
-                "orientation": _plain(model.orientation)}
+        return {
+            "format": FORMAT,
+            "version": VERSION,
+            "kind": "spot",
+            "drift": model.drift,
+            "orientation": _plain(model.orientation),
+        }
     if isinstance(model, RpcModel):
-        doc = {"format": FORMAT, "version": VERSION, "kind": "rpc", "fields": model.to_fields(),
-               "size": list(model.size), "source": model.source}
+        doc = {
+            "format": FORMAT,
+            "version": VERSION,
+            "kind": "rpc",
+            "fields": model.to_fields(),
+            "size": list(model.size),
+            "source": model.source,
+        }
         if model.bias.any():
             doc["bias"] = [float(v) for v in model.bias]
         return doc
@@ -50,6 +63,7 @@ def model_to_dict(model):
 
 def _orientation(doc):
     from .spot_orientation import Corrections, SpotOrientation
+
     fields = {k: np.asarray(v, dtype=np.float64) if isinstance(v, list) else v for k, v in doc.items()}
     fields["epoch"] = np.datetime64(fields["epoch"], "ns")
     corrections = dict(fields.get("corrections") or {})
@@ -64,11 +78,14 @@ def model_from_dict(doc, source="model file"):
     """The SpotModel or RpcModel of a model-file document; MetadataError if it is not one."""
     from .rpc import RpcCoefficients, RpcModel
     from .spot import SpotModel
+
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise MetadataError(f"{source} is not a Pushbroom sensor-model file")
     if doc.get("version") != VERSION:
-        raise MetadataError(f"{source} has model-file version {doc.get('version')!r}; this Pushbroom "
-                            f"reads version {VERSION}: update the plugin")
+        raise MetadataError(
+            f"{source} has model-file version {doc.get('version')!r}; this Pushbroom "
+            f"reads version {VERSION}: update the plugin"
+        )
     try:
         if doc.get("kind") == "spot":
             return SpotModel(_orientation(doc["orientation"]), drift=bool(doc["drift"]))
@@ -84,8 +101,9 @@ def model_from_dict(doc, source="model file"):
     except MetadataError:
         raise
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
-        raise MetadataError(f"{source} is damaged ({type(exc).__name__}: {exc}); re-create it from the "
-                            "original metadata or the block") from exc
+        raise MetadataError(
+            f"{source} is damaged ({type(exc).__name__}: {exc}); re-create it from the original metadata or the block"
+        ) from exc
     raise MetadataError(f"{source}: unknown model kind {doc.get('kind')!r} (expected 'spot' or 'rpc')")
 
 

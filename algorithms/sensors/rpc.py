@@ -41,6 +41,7 @@ a pixel whose ground footprint (metres, from the rational functions' derivatives
 MAX_PIXEL_ELONGATION times longer than wide (`_check_geometry` with `pixel_shape`): sensors look at the ground with
 near-square pixels (SPOT 5 HRS: 10 x 5 m), while LAT_OFF and LONG_OFF swapped move the image to another
 latitude, where the same degrees of longitude span other metres."""
+
 import math
 from dataclasses import dataclass
 
@@ -69,9 +70,30 @@ MAX_ITER = 50
 def rpc_terms(x, y, z):
     """(n, 20) RPC00B terms of normalised x = L, y = P, z = H (arrays), in `_poly`'s order: the design
     matrix of the cubic, so that rpc_terms(x, y, z) @ c == _poly(c, x, y, z)."""
-    return np.column_stack([np.ones_like(x), x, y, z, x * y, x * z, y * z, x * x, y * y, z * z,
-                            x * y * z, x ** 3, x * y * y, x * z * z, x * x * y, y ** 3, y * z * z,
-                            x * x * z, y * y * z, z ** 3])
+    return np.column_stack(
+        [
+            np.ones_like(x),
+            x,
+            y,
+            z,
+            x * y,
+            x * z,
+            y * z,
+            x * x,
+            y * y,
+            z * z,
+            x * y * z,
+            x**3,
+            x * y * y,
+            x * z * z,
+            x * x * y,
+            y**3,
+            y * z * z,
+            x * x * z,
+            y * y * z,
+            z**3,
+        ]
+    )
 
 
 def domain_grid():
@@ -90,24 +112,73 @@ def keeps_sign(values):
 # numba kernels
 # ---------------------------------------------------------------------------------------------
 
+
 @njit(cache=True, nogil=True)
 def _poly(c, x, y, z):
     """RPC00B cubic with x = L (longitude), y = P (latitude), z = H (height), all normalised."""
-    return (c[0] + c[1] * x + c[2] * y + c[3] * z + c[4] * x * y + c[5] * x * z + c[6] * y * z
-            + c[7] * x * x + c[8] * y * y + c[9] * z * z + c[10] * x * y * z + c[11] * x * x * x
-            + c[12] * x * y * y + c[13] * x * z * z + c[14] * x * x * y + c[15] * y * y * y
-            + c[16] * y * z * z + c[17] * x * x * z + c[18] * y * y * z + c[19] * z * z * z)
+    return (
+        c[0]
+        + c[1] * x
+        + c[2] * y
+        + c[3] * z
+        + c[4] * x * y
+        + c[5] * x * z
+        + c[6] * y * z
+        + c[7] * x * x
+        + c[8] * y * y
+        + c[9] * z * z
+        + c[10] * x * y * z
+        + c[11] * x * x * x
+        + c[12] * x * y * y
+        + c[13] * x * z * z
+        + c[14] * x * x * y
+        + c[15] * y * y * y
+        + c[16] * y * z * z
+        + c[17] * x * x * z
+        + c[18] * y * y * z
+        + c[19] * z * z * z
+    )
 
 
 @njit(cache=True, nogil=True)
 def _poly_grad(c, x, y, z):
     """(d/dx, d/dy, d/dz) of `_poly`."""
-    dx = (c[1] + c[4] * y + c[5] * z + 2.0 * c[7] * x + c[10] * y * z + 3.0 * c[11] * x * x
-          + c[12] * y * y + c[13] * z * z + 2.0 * c[14] * x * y + 2.0 * c[17] * x * z)
-    dy = (c[2] + c[4] * x + c[6] * z + 2.0 * c[8] * y + c[10] * x * z + 2.0 * c[12] * x * y
-          + c[14] * x * x + 3.0 * c[15] * y * y + c[16] * z * z + 2.0 * c[18] * y * z)
-    dz = (c[3] + c[5] * x + c[6] * y + 2.0 * c[9] * z + c[10] * x * y + 2.0 * c[13] * x * z
-          + 2.0 * c[16] * y * z + c[17] * x * x + c[18] * y * y + 3.0 * c[19] * z * z)
+    dx = (
+        c[1]
+        + c[4] * y
+        + c[5] * z
+        + 2.0 * c[7] * x
+        + c[10] * y * z
+        + 3.0 * c[11] * x * x
+        + c[12] * y * y
+        + c[13] * z * z
+        + 2.0 * c[14] * x * y
+        + 2.0 * c[17] * x * z
+    )
+    dy = (
+        c[2]
+        + c[4] * x
+        + c[6] * z
+        + 2.0 * c[8] * y
+        + c[10] * x * z
+        + 2.0 * c[12] * x * y
+        + c[14] * x * x
+        + 3.0 * c[15] * y * y
+        + c[16] * z * z
+        + 2.0 * c[18] * y * z
+    )
+    dz = (
+        c[3]
+        + c[5] * x
+        + c[6] * y
+        + 2.0 * c[9] * z
+        + c[10] * x * y
+        + 2.0 * c[13] * x * z
+        + 2.0 * c[16] * y * z
+        + c[17] * x * x
+        + c[18] * y * y
+        + 3.0 * c[19] * z * z
+    )
     return dx, dy, dz
 
 
@@ -204,17 +275,19 @@ def _image_to_ground_kernel(col, row, h, coef, nrm, px_tol, deg_tol, max_iter, l
             lat[i] = math.nan
             status[i] = 0
         else:
-            lon[i], lat[i], status[i] = _image_to_ground_one(coef, nrm, col[i], row[i], h[i],
-                                                             px_tol, deg_tol, max_iter)
+            lon[i], lat[i], status[i] = _image_to_ground_one(coef, nrm, col[i], row[i], h[i], px_tol, deg_tol, max_iter)
 
 
 # ---------------------------------------------------------------------------------------------
 # coefficients and model
 # ---------------------------------------------------------------------------------------------
 
+
 def _metadata_error(source, what):
-    return MetadataError(f"{source}: {what}. The RPC cannot be used; check the file or export the "
-                         "RPC again from the product's original metadata.")
+    return MetadataError(
+        f"{source}: {what}. The RPC cannot be used; check the file or export the "
+        "RPC again from the product's original metadata."
+    )
 
 
 def _number(text, key, source):
@@ -244,17 +317,27 @@ def _check_domain(arrays, values, source):
     x, y, z = domain_grid()
     t = rpc_terms(x, y, z)
     with np.errstate(all="ignore"):
-        ground = (values["long_off"] + x * values["long_scale"], values["lat_off"] + y * values["lat_scale"],
-                  values["height_off"] + z * values["height_scale"])
+        ground = (
+            values["long_off"] + x * values["long_scale"],
+            values["lat_off"] + y * values["lat_scale"],
+            values["height_off"] + z * values["height_scale"],
+        )
 
     def where(i):
         return f"lon {ground[0][i]:.6f}, lat {ground[1][i]:.6f}, h {ground[2][i]:.0f} m"
 
-    lon, lat, h = (np.sort([a - abs(s), a + abs(s)]) for a, s in (
-        (values["long_off"], values["long_scale"]), (values["lat_off"], values["lat_scale"]),
-        (values["height_off"], values["height_scale"])))
-    domain = (f"the RPC's validity domain (lon {lon[0]:.6f} .. {lon[1]:.6f}, lat {lat[0]:.6f} .. {lat[1]:.6f}, "
-              f"h {h[0]:.0f} .. {h[1]:.0f} m)")
+    lon, lat, h = (
+        np.sort([a - abs(s), a + abs(s)])
+        for a, s in (
+            (values["long_off"], values["long_scale"]),
+            (values["lat_off"], values["lat_scale"]),
+            (values["height_off"], values["height_scale"]),
+        )
+    )
+    domain = (
+        f"the RPC's validity domain (lon {lon[0]:.6f} .. {lon[1]:.6f}, lat {lat[0]:.6f} .. {lat[1]:.6f}, "
+        f"h {h[0]:.0f} .. {h[1]:.0f} m)"
+    )
     centre = x.size // 2
     for name, coordinate in (("line", "row"), ("samp", "column")):
         with np.errstate(all="ignore"):
@@ -265,14 +348,19 @@ def _check_domain(arrays, values, source):
             i = np.flatnonzero(other)[np.argmin((x * x + y * y + z * z)[other])]
             pole = "there" if den[i] == 0.0 else "in between"
             raise _metadata_error(
-                source, f"{name.upper()}_DEN_COEFF, the denominator of the image {coordinate}, changes sign within "
-                        f"{domain}: it is {den[centre]:+.3g} at the centre ({where(centre)}) and {den[i]:+.3g} at "
-                        f"{where(i)}, so the {coordinate} has a pole {pole} and image positions near it are wrong "
-                        "by any amount")
+                source,
+                f"{name.upper()}_DEN_COEFF, the denominator of the image {coordinate}, changes sign within "
+                f"{domain}: it is {den[centre]:+.3g} at the centre ({where(centre)}) and {den[i]:+.3g} at "
+                f"{where(i)}, so the {coordinate} has a pole {pole} and image positions near it are wrong "
+                "by any amount",
+            )
         if not np.all(np.isfinite(image)):
             i = np.flatnonzero(~np.isfinite(image))[0]
-            raise _metadata_error(source, f"the image {coordinate} is not a finite number at {where(i)}, within "
-                                          f"{domain}: coefficients, offsets or scales out of range")
+            raise _metadata_error(
+                source,
+                f"the image {coordinate} is not a finite number at {where(i)}, within "
+                f"{domain}: coefficients, offsets or scales out of range",
+            )
 
 
 def _check_geometry(arrays, values, source, pixel_shape=False):
@@ -281,32 +369,43 @@ def _check_geometry(arrays, values, source, pixel_shape=False):
     fault."""
     for key in SCALE_KEYS:
         if not values[key.lower()] > 0.0:
-            raise _metadata_error(source, f"{key} is {values[key.lower()]:g}: a scale is the positive half-range of "
-                                          "its coordinate")
+            raise _metadata_error(
+                source, f"{key} is {values[key.lower()]:g}: a scale is the positive half-range of its coordinate"
+            )
     lat, lon = values["lat_off"], values["long_off"]
     swapped = " (LAT_OFF and LONG_OFF swapped?)" if abs(lon) <= 90.0 else ""
     if abs(lat) > 90.0 or abs(lat) + values["lat_scale"] > 90.0:
-        raise _metadata_error(source, f"LAT_OFF {lat:g} +- LAT_SCALE {values['lat_scale']:g} is no latitude range "
-                                      f"(-90 .. 90 degrees){swapped}")
+        raise _metadata_error(
+            source,
+            f"LAT_OFF {lat:g} +- LAT_SCALE {values['lat_scale']:g} is no latitude range (-90 .. 90 degrees){swapped}",
+        )
     if not -180.0 <= lon <= 360.0:
         raise _metadata_error(source, f"LONG_OFF {lon:g} is no longitude (-180 .. 360 degrees)")
     for name, coordinate in (("line", "row"), ("samp", "column")):
         if not arrays[f"{name}_num"].any():
-            raise _metadata_error(source, f"{name.upper()}_NUM_COEFF is all zeros: every ground point would have the "
-                                          f"same image {coordinate}")
+            raise _metadata_error(
+                source,
+                f"{name.upper()}_NUM_COEFF is all zeros: every ground point would have the same image {coordinate}",
+            )
     if arrays["samp_den"][0] == 0.0 or arrays["line_den"][0] == 0.0:
-        return                                  # from_fields names a denominator vanishing at the centre
+        return  # from_fields names a denominator vanishing at the centre
     sides = _pixel_sides(arrays, values)
     if sides is None:
-        return                                  # _check_domain names image coordinates that overflow
-    if not sides[1] > 1e-6 * sides[0]:            # a footprint a million times longer than wide: a line
-        raise _metadata_error(source, "the image column and row change along one ground direction only: the "
-                                      "numerators (SAMP_NUM_COEFF, LINE_NUM_COEFF) describe no image of the ground")
+        return  # _check_domain names image coordinates that overflow
+    if not sides[1] > 1e-6 * sides[0]:  # a footprint a million times longer than wide: a line
+        raise _metadata_error(
+            source,
+            "the image column and row change along one ground direction only: the "
+            "numerators (SAMP_NUM_COEFF, LINE_NUM_COEFF) describe no image of the ground",
+        )
     if pixel_shape and sides[0] / sides[1] > MAX_PIXEL_ELONGATION:
-        raise _metadata_error(source, f"its pixels would cover {1 / sides[1]:.3g} x {1 / sides[0]:.3g} m on the "
-                                      f"ground at its centre, {sides[0] / sides[1]:.1f} times longer than wide: the "
-                                      "ground offsets and scales do not belong to its coefficients (LAT_OFF and "
-                                      "LONG_OFF swapped, or LAT_SCALE and LONG_SCALE?)")
+        raise _metadata_error(
+            source,
+            f"its pixels would cover {1 / sides[1]:.3g} x {1 / sides[0]:.3g} m on the "
+            f"ground at its centre, {sides[0] / sides[1]:.1f} times longer than wide: the "
+            "ground offsets and scales do not belong to its coefficients (LAT_OFF and "
+            "LONG_OFF swapped, or LAT_SCALE and LONG_SCALE?)",
+        )
 
 
 def _pixel_sides(arrays, values):
@@ -314,9 +413,20 @@ def _pixel_sides(arrays, values):
     values of d(col, row)/d(east, north), _partials_kernel's derivatives (px/deg) over the metres per degree
     there; None where they are no finite numbers (coefficients near the float range's end)."""
     coef = np.array([arrays["line_num"], arrays["line_den"], arrays["samp_num"], arrays["samp_den"]])
-    nrm = np.array([values["long_off"], values["long_scale"], values["lat_off"], values["lat_scale"],
-                    values["height_off"], values["height_scale"], 0.0, values["samp_scale"], 0.0,
-                    values["line_scale"]])
+    nrm = np.array(
+        [
+            values["long_off"],
+            values["long_scale"],
+            values["lat_off"],
+            values["lat_scale"],
+            values["height_off"],
+            values["height_scale"],
+            0.0,
+            values["samp_scale"],
+            0.0,
+            values["line_scale"],
+        ]
+    )
     centre = [np.array([values[k]]) for k in ("long_off", "lat_off", "height_off")]
     derivatives = np.empty((1, 2, 3))
     _partials_kernel(*centre, coef, nrm, derivatives)
@@ -363,8 +473,9 @@ class RpcCoefficients:
         _check_geometry(arrays, values, source, pixel_shape)
         for key in ("line_den", "samp_den"):
             if arrays[key][0] == 0.0:
-                raise _metadata_error(source, f"{key.upper()}_COEFF vanishes at the normalisation "
-                                              "centre (its first coefficient is 0)")
+                raise _metadata_error(
+                    source, f"{key.upper()}_COEFF vanishes at the normalisation centre (its first coefficient is 0)"
+                )
         _check_domain(arrays, values, source)
         for a in arrays.values():
             a.setflags(write=False)
@@ -374,11 +485,17 @@ class RpcCoefficients:
         """GDAL 'RPC' metadata (name -> text, exact float repr), LINE_OFF/SAMP_OFF shifted to a
         crop whose top-left corner is at (col0, row0) of the image the RPC describes."""
         fields = {
-            "LINE_OFF": self.line_off - row0, "SAMP_OFF": self.samp_off - col0,
-            "LAT_OFF": self.lat_off, "LONG_OFF": self.long_off, "HEIGHT_OFF": self.height_off,
-            "LINE_SCALE": self.line_scale, "SAMP_SCALE": self.samp_scale,
-            "LAT_SCALE": self.lat_scale, "LONG_SCALE": self.long_scale,
-            "HEIGHT_SCALE": self.height_scale}
+            "LINE_OFF": self.line_off - row0,
+            "SAMP_OFF": self.samp_off - col0,
+            "LAT_OFF": self.lat_off,
+            "LONG_OFF": self.long_off,
+            "HEIGHT_OFF": self.height_off,
+            "LINE_SCALE": self.line_scale,
+            "SAMP_SCALE": self.samp_scale,
+            "LAT_SCALE": self.lat_scale,
+            "LONG_SCALE": self.long_scale,
+            "HEIGHT_SCALE": self.height_scale,
+        }
         fields = {k: repr(float(v)) for k, v in fields.items()}
         for key, array in zip(COEFF_KEYS, (self.line_num, self.line_den, self.samp_num, self.samp_den)):
             fields[key] = " ".join(repr(float(v)) for v in array)
@@ -408,15 +525,30 @@ class RpcModel(SensorModel):
         c = coefficients
         col0, row0 = self.offset
         self._coef = np.array([c.line_num, c.line_den, c.samp_num, c.samp_den])
-        self._nrm = np.array([c.long_off, c.long_scale, c.lat_off, c.lat_scale, c.height_off,
-                              c.height_scale, c.samp_off + 0.5 - col0, c.samp_scale,
-                              c.line_off + 0.5 - row0, c.line_scale])
+        self._nrm = np.array(
+            [
+                c.long_off,
+                c.long_scale,
+                c.lat_off,
+                c.lat_scale,
+                c.height_off,
+                c.height_scale,
+                c.samp_off + 0.5 - col0,
+                c.samp_scale,
+                c.line_off + 0.5 - row0,
+                c.line_scale,
+            ]
+        )
         if size is None:
-            size = (math.ceil(c.samp_off + 0.5 + abs(c.samp_scale) - col0),
-                    math.ceil(c.line_off + 0.5 + abs(c.line_scale) - row0))
+            size = (
+                math.ceil(c.samp_off + 0.5 + abs(c.samp_scale) - col0),
+                math.ceil(c.line_off + 0.5 + abs(c.line_scale) - row0),
+            )
             if min(size) < 1:
-                raise _metadata_error(self.source, f"SAMP_OFF + SAMP_SCALE, LINE_OFF + LINE_SCALE describe an image "
-                                                   f"of {size[0]} x {size[1]} pixels")
+                raise _metadata_error(
+                    self.source,
+                    f"SAMP_OFF + SAMP_SCALE, LINE_OFF + LINE_SCALE describe an image of {size[0]} x {size[1]} pixels",
+                )
         self.size = (int(size[0]), int(size[1]))
 
     def __repr__(self):
@@ -497,8 +629,7 @@ class RpcModel(SensorModel):
         lon = np.empty(col.size)
         lat = np.empty(col.size)
         status = np.empty(col.size, dtype=np.int8)
-        _image_to_ground_kernel(col, row, h, self._coef, self._nrm, PX_TOL, DEG_TOL, MAX_ITER,
-                                lon, lat, status)
+        _image_to_ground_kernel(col, row, h, self._coef, self._nrm, PX_TOL, DEG_TOL, MAX_ITER, lon, lat, status)
         return col, row, h, lon, lat, status, shape, scalar
 
     def image_to_ground(self, col, row, h):
@@ -514,7 +645,8 @@ class RpcModel(SensorModel):
                 f"e.g. ({col[i]:.2f}, {row[i]:.2f}) at height {h[i]:.1f} m: the iteration "
                 f"{'did not converge' if status[i] == 1 else 'met a singular Jacobian'}. Is the point "
                 f"inside the image ({self.size[0]} x {self.size[1]} px) and the height within the "
-                f"RPC's range {self.height_range[0]:.0f} .. {self.height_range[1]:.0f} m?")
+                f"RPC's range {self.height_range[0]:.0f} .. {self.height_range[1]:.0f} m?"
+            )
         return shaped_points((lon, lat), shape, scalar)
 
     def image_to_ground_or_nan(self, col, row, h):
@@ -542,5 +674,9 @@ class RpcModel(SensorModel):
         if self.bias.any():
             col, row = self._biased(col, row)
             d_ground = np.einsum("ij,njk->nik", self._bias_matrix()[0], d_ground)
-        return {"col": col.reshape(shape), "row": row.reshape(shape), "d_ground": d_ground.reshape(shape + (2, 3)),
-                "d_corrections": d_bias.reshape(shape + (2, 6))}
+        return {
+            "col": col.reshape(shape),
+            "row": row.reshape(shape),
+            "d_ground": d_ground.reshape(shape + (2, 3)),
+            "d_corrections": d_bias.reshape(shape + (2, 6)),
+        }

@@ -28,6 +28,7 @@ there too is rejected), so their errors are independent.
 
 surface.intersection.height_differences compares object points intersected with the RPCs and with
 the rigorous models (Kornus et al. 2006, Table 5)."""
+
 import math
 import os
 from dataclasses import dataclass, fields
@@ -57,6 +58,7 @@ MIN_HEIGHT_MARGIN = 100.0
 @dataclass(frozen=True)
 class AxisErrors:
     """RMS and maximum |error| (px) of one image coordinate."""
+
     rms: float
     max: float
 
@@ -68,6 +70,7 @@ class AxisErrors:
 @dataclass(frozen=True)
 class AxisFit:
     """How one image coordinate was fitted, and its errors (px) on the cube and validation points."""
+
     cube: AxisErrors
     validation: AxisErrors
     #: None for the cubic polynomial, else the damping factor r of the rational fit kept
@@ -85,13 +88,17 @@ class AxisFit:
     def describe(self):
         if not self.polynomial:
             return f"rational 3/3 (r = {self.regularisation:.0e}, {self.iterations} reweightings)"
-        return (f"cubic polynomial ({self.near_pole} of {self.rational_fits} rational fits had a denominator "
-                "near zero)" if self.near_pole else "cubic polynomial (fits best)")
+        return (
+            f"cubic polynomial ({self.near_pole} of {self.rational_fits} rational fits had a denominator near zero)"
+            if self.near_pole
+            else "cubic polynomial (fits best)"
+        )
 
 
 @dataclass(frozen=True)
 class RpcFitReport:
     """Fit (cube) and validation errors of a fitted RPC against the model it was fitted to."""
+
     cube_points: int
     validation_points: int
     height_range: tuple
@@ -110,11 +117,15 @@ class RpcFitReport:
 
     def summary(self):
         """One line: per coordinate the kind of fit and its RMS / max errors on both point sets."""
-        parts = [f"{name}: {a.describe()}, cube RMS {a.cube.rms:.2e} max {a.cube.max:.2e} px, validation RMS "
-                 f"{a.validation.rms:.2e} max {a.validation.max:.2e} px"
-                 for name, a in (("col", self.col), ("row", self.row))]
-        return (f"{self.cube_points} cube / {self.validation_points} validation points, heights "
-                f"{self.height_range[0]:.0f} .. {self.height_range[1]:.0f} m; " + "; ".join(parts))
+        parts = [
+            f"{name}: {a.describe()}, cube RMS {a.cube.rms:.2e} max {a.cube.max:.2e} px, validation RMS "
+            f"{a.validation.rms:.2e} max {a.validation.max:.2e} px"
+            for name, a in (("col", self.col), ("row", self.row))
+        ]
+        return (
+            f"{self.cube_points} cube / {self.validation_points} validation points, heights "
+            f"{self.height_range[0]:.0f} .. {self.height_range[1]:.0f} m; " + "; ".join(parts)
+        )
 
 
 def _grid(lo, hi, n, kind):
@@ -129,22 +140,28 @@ def _grid(lo, hi, n, kind):
 def _points(model, height_range, grid, kind):
     """Image points (col, row), heights and ground (lon, lat) of a point set (see _grid)."""
     cols, rows = model.size
-    axes = [_grid(0.0, cols, grid[0], kind), _grid(0.0, rows, grid[1], kind),
-            _grid(height_range[0], height_range[1], grid[2], kind)]
+    axes = [
+        _grid(0.0, cols, grid[0], kind),
+        _grid(0.0, rows, grid[1], kind),
+        _grid(height_range[0], height_range[1], grid[2], kind),
+    ]
     col, row, h = (a.ravel() for a in np.meshgrid(*axes, indexing="ij"))
     try:
         lon, lat = model.image_to_ground(col, row, h)
     except GeometryError as exc:
-        raise InputError(f"cannot fit an RPC: the sensor model has no ground position over the whole image and "
-                         f"height range ({exc})") from exc
+        raise InputError(
+            f"cannot fit an RPC: the sensor model has no ground position over the whole image and height range ({exc})"
+        ) from exc
     lon, lat = np.asarray(lon, float), np.asarray(lat, float)
     bad = ~(np.isfinite(lon) & np.isfinite(lat))
     if bad.any():
         i = np.flatnonzero(bad)[0]
-        raise InputError(f"cannot fit an RPC: the sensor model gives no ground position for {bad.sum()} of "
-                         f"{bad.size} image points, e.g. ({col[i]:.1f}, {row[i]:.1f}) at {h[i]:.1f} m; is its "
-                         f"orientation complete for the whole image ({cols} x {rows} px) and the height range "
-                         f"{height_range[0]:.0f} .. {height_range[1]:.0f} m plausible?")
+        raise InputError(
+            f"cannot fit an RPC: the sensor model gives no ground position for {bad.sum()} of "
+            f"{bad.size} image points, e.g. ({col[i]:.1f}, {row[i]:.1f}) at {h[i]:.1f} m; is its "
+            f"orientation complete for the whole image ({cols} x {rows} px) and the height range "
+            f"{height_range[0]:.0f} .. {height_range[1]:.0f} m plausible?"
+        )
     return col, row, h, lon, lat
 
 
@@ -169,8 +186,9 @@ def _fit_rational(t, v, r, checks):
     for iteration in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (the count is returned)
         aw = a / den[:, None]
         lam = r * float(np.sum(aw * aw)) / aw.shape[1]
-        x = np.linalg.lstsq(np.vstack([aw, math.sqrt(lam) * damping]),
-                            np.concatenate([v / den, np.zeros(NUM_TERMS - 1)]), rcond=None)[0]
+        x = np.linalg.lstsq(
+            np.vstack([aw, math.sqrt(lam) * damping]), np.concatenate([v / den, np.zeros(NUM_TERMS - 1)]), rcond=None
+        )[0]
         coef = np.concatenate([[1.0], x[NUM_TERMS:]])
         if any(_near_pole(c @ coef) for c in (t,) + checks) or not keeps_sign(domain @ coef):
             return None
@@ -210,41 +228,63 @@ def fit_rpc(model, height_range, grid=DEFAULT_GRID, regularisation=None, feedbac
     model.ground_to_image in GDAL's pixel convention."""
     lo, hi = (float(v) for v in height_range)
     if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise InputError(f"cannot fit an RPC over the heights {lo} .. {hi} m: give two numbers of metres (e.g. the "
-                         "terrain's range plus a margin)")
+        raise InputError(
+            f"cannot fit an RPC over the heights {lo} .. {hi} m: give two numbers of metres (e.g. the "
+            "terrain's range plus a margin)"
+        )
     if hi <= lo:
-        raise InputError(f"cannot fit an RPC: the lowest height of its cube ({lo:g} m) is "
-                         f"{'above' if lo > hi else 'the same as'} the highest ({hi:g} m); give the lowest first, "
-                         "below the highest (e.g. the terrain's range plus a margin)")
+        raise InputError(
+            f"cannot fit an RPC: the lowest height of its cube ({lo:g} m) is "
+            f"{'above' if lo > hi else 'the same as'} the highest ({hi:g} m); give the lowest first, "
+            "below the highest (e.g. the terrain's range plus a margin)"
+        )
     grid = tuple(int(g) for g in grid)
     if len(grid) != 3 or min(grid) < 4:
-        raise InputError(f"the RPC cube grid {grid} needs 3 sizes (columns, rows, heights) of at least 4 each: "
-                         "a cubic needs 4 values per axis")
+        raise InputError(
+            f"the RPC cube grid {grid} needs 3 sizes (columns, rows, heights) of at least 4 each: "
+            "a cubic needs 4 values per axis"
+        )
     if min(model.size) <= 0:
         raise InputError(f"cannot fit an RPC to an image of size {model.size}")
     regularisations = REGULARISATIONS if regularisation is None else (float(regularisation),)
-    progress.step(feedback, 0.0, f"RPC cube of {grid[0]} x {grid[1]} x {grid[2]} points, heights {lo:.0f} .. "
-                                 f"{hi:.0f} m")
+    progress.step(
+        feedback, 0.0, f"RPC cube of {grid[0]} x {grid[1]} x {grid[2]} points, heights {lo:.0f} .. {hi:.0f} m"
+    )
     sets = {kind: _points(model, (lo, hi), grid, kind) for kind in ("cube", "selection", "validation")}
     col, row, h, lon, lat = sets["cube"]
     (long_off, long_scale), (lat_off, lat_scale), (h_off, h_scale), (samp_off, samp_scale), (line_off, line_scale) = (
-        _mid_half(v) for v in (lon, lat, h, col - 0.5, row - 0.5))
+        _mid_half(v) for v in (lon, lat, h, col - 0.5, row - 0.5)
+    )
     if min(long_scale, lat_scale) <= 0.0:
         raise InputError("cannot fit an RPC: the sensor model maps the whole image to one ground point")
-    t = {k: rpc_terms((p[3] - long_off) / long_scale, (p[4] - lat_off) / lat_scale, (p[2] - h_off) / h_scale)
-         for k, p in sets.items()}
+    t = {
+        k: rpc_terms((p[3] - long_off) / long_scale, (p[4] - lat_off) / lat_scale, (p[2] - h_off) / h_scale)
+        for k, p in sets.items()
+    }
     fitted = {}
     for k, (name, offset, scale) in enumerate((("samp", samp_off, samp_scale), ("line", line_off, line_scale))):
         progress.step(feedback, 20.0 + 35.0 * k)
         v = {kind: (p[k] - 0.5 - offset) / scale for kind, p in sets.items()}
-        fitted[name] = _fit_axis(t["cube"], v["cube"], t["selection"], v["selection"], t["validation"],
-                                 regularisations)
-    coefficients = RpcCoefficients.from_fields({
-        "LINE_NUM_COEFF": fitted["line"][0], "LINE_DEN_COEFF": fitted["line"][1],
-        "SAMP_NUM_COEFF": fitted["samp"][0], "SAMP_DEN_COEFF": fitted["samp"][1], "LINE_OFF": line_off,
-        "SAMP_OFF": samp_off, "LAT_OFF": lat_off, "LONG_OFF": long_off, "HEIGHT_OFF": h_off,
-        "LINE_SCALE": line_scale, "SAMP_SCALE": samp_scale, "LAT_SCALE": lat_scale, "LONG_SCALE": long_scale,
-        "HEIGHT_SCALE": h_scale}, "fitted RPC")
+        fitted[name] = _fit_axis(t["cube"], v["cube"], t["selection"], v["selection"], t["validation"], regularisations)
+    coefficients = RpcCoefficients.from_fields(
+        {
+            "LINE_NUM_COEFF": fitted["line"][0],
+            "LINE_DEN_COEFF": fitted["line"][1],
+            "SAMP_NUM_COEFF": fitted["samp"][0],
+            "SAMP_DEN_COEFF": fitted["samp"][1],
+            "LINE_OFF": line_off,
+            "SAMP_OFF": samp_off,
+            "LAT_OFF": lat_off,
+            "LONG_OFF": long_off,
+            "HEIGHT_OFF": h_off,
+            "LINE_SCALE": line_scale,
+            "SAMP_SCALE": samp_scale,
+            "LAT_SCALE": lat_scale,
+            "LONG_SCALE": long_scale,
+            "HEIGHT_SCALE": h_scale,
+        },
+        "fitted RPC",
+    )
     rpc = RpcModel(coefficients, size=model.size, source="fitted RPC")
     progress.step(feedback, 90.0)
     errors = {}
@@ -252,8 +292,10 @@ def fit_rpc(model, height_range, grid=DEFAULT_GRID, regularisation=None, feedbac
         c, r, hh, x, y = sets[kind]
         fc, fr = rpc.ground_to_image(x, y, hh)
         errors[kind] = (AxisErrors.of(fc - c), AxisErrors.of(fr - r))
-    axes = [AxisFit(errors["cube"][k], errors["validation"][k], *fitted[name][2:])
-            for k, name in enumerate(("samp", "line"))]
+    axes = [
+        AxisFit(errors["cube"][k], errors["validation"][k], *fitted[name][2:])
+        for k, name in enumerate(("samp", "line"))
+    ]
     report = RpcFitReport(col.size, sets["validation"][0].size, (lo, hi), *axes)
     progress.step(feedback, 100.0, report.summary())
     return rpc, report
@@ -279,8 +321,10 @@ def rpc_txt_path(image_path, folder=None, name=None):
 def check_destination(path, overwrite=False):
     """Refuse an existing file, such as the RPC an image came with, unless `overwrite` is true."""
     if os.path.exists(path) and not overwrite:
-        raise InputError(f"{path} exists already (the RPC the image came with, or an earlier fit); set the "
-                         "overwrite option to replace it, or write the fitted RPCs to an output folder")
+        raise InputError(
+            f"{path} exists already (the RPC the image came with, or an earlier fit); set the "
+            "overwrite option to replace it, or write the fitted RPCs to an output folder"
+        )
 
 
 def write_fitted_rpc(rpc, path, overwrite=False):
@@ -290,8 +334,9 @@ def write_fitted_rpc(rpc, path, overwrite=False):
     try:
         rpc_io.write_rpc_txt(rpc, path)
     except OSError as exc:
-        raise InputError(f"cannot write {path} ({exc.strerror}); write the fitted RPCs to an output folder "
-                         "you may write to") from exc
+        raise InputError(
+            f"cannot write {path} ({exc.strerror}); write the fitted RPCs to an output folder you may write to"
+        ) from exc
     return path
 
 
@@ -303,8 +348,7 @@ def raster_reads(raster, rpc):
     except PushbroomError:
         return False
     mine = rpc.coefficients
-    return all(np.allclose(getattr(found, f.name), getattr(mine, f.name), rtol=1e-12, atol=0.0)
-               for f in fields(mine))
+    return all(np.allclose(getattr(found, f.name), getattr(mine, f.name), rtol=1e-12, atol=0.0) for f in fields(mine))
 
 
 def raster_rpc_source(raster):
@@ -312,6 +356,7 @@ def raster_rpc_source(raster):
     (these come before the raster's metadata), else "the metadata of <raster>" (GeoTIFF RPC tags, a NITF
     segment, an .aux.xml); None where it finds none or cannot open the raster."""
     from osgeo import gdal
+
     gdal.UseExceptions()
     try:
         ds = gdal.Open(os.fspath(raster))
@@ -328,9 +373,14 @@ def report_text(entries):
     lines = [f"{'image':12} {'coord':5} {'cube RMS':>9} {'cube max':>9} {'valid RMS':>9} {'valid max':>9}  fit"]
     for name, _path, r in entries:
         for axis, a in (("col", r.col), ("row", r.row)):
-            lines.append(f"{name:12} {axis:5} {a.cube.rms:9.2e} {a.cube.max:9.2e} {a.validation.rms:9.2e} "
-                         f"{a.validation.max:9.2e}  {a.describe()}")
+            lines.append(
+                f"{name:12} {axis:5} {a.cube.rms:9.2e} {a.cube.max:9.2e} {a.validation.rms:9.2e} "
+                f"{a.validation.max:9.2e}  {a.describe()}"
+            )
     lines.append("")
-    lines += [f"{name}: {r.cube_points} cube points, {r.validation_points} validation points, heights "
-              f"{r.height_range[0]:.0f} .. {r.height_range[1]:.0f} m -> {path}" for name, path, r in entries]
+    lines += [
+        f"{name}: {r.cube_points} cube points, {r.validation_points} validation points, heights "
+        f"{r.height_range[0]:.0f} .. {r.height_range[1]:.0f} m -> {path}"
+        for name, path, r in entries
+    ]
     return "\n".join(lines)

@@ -2,6 +2,7 @@
 keyword lists into RpcRecords (RPC00B-named fields as texts, the raster size and crop offset), and
 writing _RPC.TXT / .RPB files that GDAL reads back beside a raster. Number parsing and checking
 is RpcCoefficients.from_fields's job (rpc.py)."""
+
 import os
 import re
 from typing import NamedTuple, Optional
@@ -18,12 +19,22 @@ COEFF_KEYS = ("LINE_NUM_COEFF", "LINE_DEN_COEFF", "SAMP_NUM_COEFF", "SAMP_DEN_CO
 _SCALARS = OFFSET_KEYS + SCALE_KEYS
 
 #: .RPB names of the RPC00B values
-_RPB_NAMES = {"lineOffset": "LINE_OFF", "sampOffset": "SAMP_OFF", "latOffset": "LAT_OFF",
-              "longOffset": "LONG_OFF", "heightOffset": "HEIGHT_OFF", "lineScale": "LINE_SCALE",
-              "sampScale": "SAMP_SCALE", "latScale": "LAT_SCALE", "longScale": "LONG_SCALE",
-              "heightScale": "HEIGHT_SCALE", "lineNumCoef": "LINE_NUM_COEFF",
-              "lineDenCoef": "LINE_DEN_COEFF", "sampNumCoef": "SAMP_NUM_COEFF",
-              "sampDenCoef": "SAMP_DEN_COEFF"}
+_RPB_NAMES = {
+    "lineOffset": "LINE_OFF",
+    "sampOffset": "SAMP_OFF",
+    "latOffset": "LAT_OFF",
+    "longOffset": "LONG_OFF",
+    "heightOffset": "HEIGHT_OFF",
+    "lineScale": "LINE_SCALE",
+    "sampScale": "SAMP_SCALE",
+    "latScale": "LAT_SCALE",
+    "longScale": "LONG_SCALE",
+    "heightScale": "HEIGHT_SCALE",
+    "lineNumCoef": "LINE_NUM_COEFF",
+    "lineDenCoef": "LINE_DEN_COEFF",
+    "sampNumCoef": "SAMP_NUM_COEFF",
+    "sampDenCoef": "SAMP_DEN_COEFF",
+}
 
 #: OSSIM polynomial_format A (RPC00A) term k is RPC00B term _A_TO_B[k]; A's order is
 #: 1 L P H LP LH PH LPH L^2 P^2 H^2 L^3 L^2P L^2H LP^2 P^3 P^2H LH^2 PH^2 H^3 (ossimRpcModel)
@@ -32,6 +43,7 @@ _A_TO_B = (0, 1, 2, 3, 4, 5, 6, 10, 7, 8, 9, 11, 14, 17, 12, 15, 18, 13, 16, 19)
 
 class RpcRecord(NamedTuple):
     """What a reader found: RPC00B fields (texts), (cols, rows) or None, crop offset, file name."""
+
     fields: dict
     size: Optional[tuple[int, int]]
     offset: tuple[float, float]
@@ -52,6 +64,7 @@ def _read_text(path):
 
 def _open_raster(path):
     from osgeo import gdal
+
     gdal.UseExceptions()
     try:
         return gdal.Open(os.fspath(path))
@@ -81,9 +94,12 @@ def _crop_offset(ds, path):
         return 0.0, 0.0
     if ds.GetSpatialRef() is None and tuple(gt[1:3]) == (1.0, 0.0) and tuple(gt[4:6]) == (0.0, 1.0):
         return float(gt[0]), float(gt[3])
-    raise _error(path, f"its geotransform {tuple(gt)} is not a pixel offset into the sensor image, "
-                       "so the crop offset for the .geom's RPC is unknown; use the raster the RPC "
-                       "was delivered with, or a crop written by OTB/GDAL without georeferencing")
+    raise _error(
+        path,
+        f"its geotransform {tuple(gt)} is not a pixel offset into the sensor image, "
+        "so the crop offset for the .geom's RPC is unknown; use the raster the RPC "
+        "was delivered with, or a crop written by OTB/GDAL without georeferencing",
+    )
 
 
 def rpc_sidecar(ds):
@@ -102,9 +118,12 @@ def read_raster(path):
         beside = rpc_sidecar(ds)
         source = f"{path} (its RPC in {beside})" if beside else path
         return RpcRecord(fields, _raster_size(ds), (0.0, 0.0), source)
-    raise _error(path, "the raster carries no RPC (GDAL finds none in its metadata, GeoTIFF RPC "
-                       "tags, or in a _RPC.TXT / .RPB beside it) and no .geom of the same name "
-                       "lies beside it; put the image's RPC file beside it or load the RPC file")
+    raise _error(
+        path,
+        "the raster carries no RPC (GDAL finds none in its metadata, GeoTIFF RPC "
+        "tags, or in a _RPC.TXT / .RPB beside it) and no .geom of the same name "
+        "lies beside it; put the image's RPC file beside it or load the RPC file",
+    )
 
 
 def read_rpc_file(path):
@@ -113,9 +132,9 @@ def read_rpc_file(path):
     path = os.fspath(path)
     lower = path.lower()
     if lower.endswith("_rpc.txt"):
-        fields, stem = _parse_rpc_txt(_read_text(path), path), path[:-len("_rpc.txt")]
+        fields, stem = _parse_rpc_txt(_read_text(path), path), path[: -len("_rpc.txt")]
     elif lower.endswith(".rpb"):
-        fields, stem = _parse_rpb(_read_text(path), path), path[:-len(".rpb")]
+        fields, stem = _parse_rpb(_read_text(path), path), path[: -len(".rpb")]
     else:
         raise _error(path, "not an RPC file name (expected *_RPC.TXT or *.RPB)")
     image = _sibling_image(stem)
@@ -136,8 +155,9 @@ def _parse_rpc_txt(text, path):
         names = [f"{key}_{j}" for j in range(1, 21)]
         missing = [n for n in names if n not in values]
         if missing:
-            raise _error(path, f"missing {', '.join(missing)}; a _RPC.TXT needs {key}_1 .. {key}_20 "
-                               "(is the file truncated?)")
+            raise _error(
+                path, f"missing {', '.join(missing)}; a _RPC.TXT needs {key}_1 .. {key}_20 (is the file truncated?)"
+            )
         fields[key] = [values[n] for n in names]
     return fields
 
@@ -167,8 +187,7 @@ def read_geom(path, image=None):
     kwl = _key_values(_read_text(path), ":")
     fmt = kwl.get("polynomial_format")
     if fmt not in ("A", "B"):
-        raise _error(path, f"polynomial_format is {fmt!r}, expected A or B (not an OSSIM RPC "
-                           "keyword list?)")
+        raise _error(path, f"polynomial_format is {fmt!r}, expected A or B (not an OSSIM RPC keyword list?)")
     fields = {k: kwl[k.lower()] for k in _SCALARS if k.lower() in kwl}
     for key in COEFF_KEYS:
         names = [f"{key.lower()[:8]}_coeff_{j:02d}" for j in range(20)]
@@ -196,8 +215,11 @@ def _geom_size(kwl, path):
     try:
         size = int(kwl["number_samples"]), int(kwl["number_lines"])
     except (KeyError, ValueError):
-        raise _error(path, "number_samples / number_lines must both be whole numbers: "
-                           f"{kwl.get('number_samples')!r}, {kwl.get('number_lines')!r}") from None
+        raise _error(
+            path,
+            "number_samples / number_lines must both be whole numbers: "
+            f"{kwl.get('number_samples')!r}, {kwl.get('number_lines')!r}",
+        ) from None
     if min(size) <= 0:
         raise _error(path, f"the image size {size} is not positive")
     return size
@@ -205,8 +227,10 @@ def _geom_size(kwl, path):
 
 def _refuse_bias(model, path):
     if any(getattr(model, "bias", ())):
-        raise InputError(f"cannot write {path}: the model carries an adjusted bias correction that an RPC file "
-                         "cannot hold; fit new RPCs to the adjusted model (pushbroom:fitrpc) and write those")
+        raise InputError(
+            f"cannot write {path}: the model carries an adjusted bias correction that an RPC file "
+            "cannot hold; fit new RPCs to the adjusted model (pushbroom:fitrpc) and write those"
+        )
 
 
 def write_rpc_txt(model, path):
@@ -225,8 +249,14 @@ def write_rpb(model, path):
     _refuse_bias(model, path)
     fields = model.to_fields()
     names = {v: k for k, v in _RPB_NAMES.items()}
-    lines = ['satId = "UNKNOWN";', 'bandId = "P";', 'SpecId = "RPC00B";', "BEGIN_GROUP = IMAGE",
-             "\terrBias = 0.0;", "\terrRand = 0.0;"]
+    lines = [
+        'satId = "UNKNOWN";',
+        'bandId = "P";',
+        'SpecId = "RPC00B";',
+        "BEGIN_GROUP = IMAGE",
+        "\terrBias = 0.0;",
+        "\terrRand = 0.0;",
+    ]
     lines += [f"\t{names[k]} = {fields[k]};" for k in _SCALARS]
     for key in COEFF_KEYS:
         values = fields[key].split()

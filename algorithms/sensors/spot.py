@@ -25,6 +25,7 @@ u1 = (-tan psi_y, tan psi_x, -1) (frames in spot_frames.py, kernels in spot_kern
   calibrated look angles absorb both, so adding them here would be wrong.
 - Corrections (orientation.corrections) are applied inside the kernels, read at each call.
 """
+
 import numpy as np
 
 from ..errors import GeometryError, InputError
@@ -36,8 +37,9 @@ from .dimap import read_dimap
 LAGRANGE_POINTS = 8
 
 #: names of the 32 correction coefficients, in the order of `partials` (degree j of each row)
-PARAMETER_NAMES = [f"{name}_{j}" for name in ("X", "Y", "Z", "yaw", "pitch", "roll", "psi_x", "psi_y")
-                   for j in range(4)]
+PARAMETER_NAMES = [
+    f"{name}_{j}" for name in ("X", "Y", "Z", "yaw", "pitch", "roll", "psi_x", "psi_y") for j in range(4)
+]
 
 
 def lagrange_window(t, pos, vel, t_centre, n=LAGRANGE_POINTS):
@@ -93,8 +95,9 @@ class SpotModel(SensorModel):
         """Starting values of ground_to_image: row as a quadratic polynomial of ECEF, fitted to
         7 x 7 image points at heights -500, 3000, 9000 m (see spot_kernels.guess_row)."""
         cols, rows = self.size
-        c, r, h = (v.ravel() for v in np.meshgrid(np.linspace(0, cols, 7), np.linspace(0, rows, 7),
-                                                   [-500.0, 3000.0, 9000.0]))
+        c, r, h = (
+            v.ravel() for v in np.meshgrid(np.linspace(0, cols, 7), np.linspace(0, rows, 7), [-500.0, 3000.0, 9000.0])
+        )
         xyz = geodetic_to_ecef(*self.image_to_ground(c, r, h), h)
         ok = np.all(np.isfinite(xyz), axis=1)
         if ok.sum() < 20:  # degenerate geometry: start every search at the scene centre
@@ -132,8 +135,9 @@ class SpotModel(SensorModel):
         prm = np.array([o.centre_time, o.centre_row, o.line_period, c.time_scale, o.ncols / 2.0])
         corr = np.ascontiguousarray(np.vstack([c.position, c.attitude, c.look]), dtype=np.float64)
         if corr.shape != (8, 4) or not np.all(np.isfinite(corr)) or not c.time_scale > 0:
-            raise InputError("corrections must be finite (3, 4), (3, 4), (2, 4) coefficient arrays and a "
-                             "positive time scale")
+            raise InputError(
+                "corrections must be finite (3, 4), (3, 4), (2, 4) coefficient arrays and a positive time scale"
+            )
         return self._eph, self._att_t, self._att_v, self._look, prm, corr
 
     def image_to_ground(self, col, row, h):
@@ -148,8 +152,9 @@ class SpotModel(SensorModel):
         """(col, row) of ground point (lon, lat, h); converged to 1e-7 row, NaN where no solution."""
         (lo, la, hh), shape, scalar = flat_points(lon, lat, h)
         col, row = np.empty(lo.size), np.empty(lo.size)
-        k.ground_to_image_kernel(*self._packed(), self._guess, lo, la, hh, self.TOLERANCE, self.MAX_ITERATIONS,
-                                 col, row)
+        k.ground_to_image_kernel(
+            *self._packed(), self._guess, lo, la, hh, self.TOLERANCE, self.MAX_ITERATIONS, col, row
+        )
         return shaped_points((col, row), shape, scalar)
 
     def line_of_sight(self, col, row):
@@ -178,8 +183,7 @@ class SpotModel(SensorModel):
         (lo, la, hh), _, _ = flat_points(lon, lat, h)
         col, row = self.ground_to_image(lo, la, hh)
         d_corr, d_xyz, d_ground = np.empty((lo.size, 2, 32)), np.empty((lo.size, 2, 3)), np.empty((lo.size, 2, 3))
-        k.partials_kernel(*self._packed(), lo, la, hh, col, row, self.POSITION_STEP, exterior, d_corr, d_xyz,
-                          d_ground)
+        k.partials_kernel(*self._packed(), lo, la, hh, col, row, self.POSITION_STEP, exterior, d_corr, d_xyz, d_ground)
         return {"col": col, "row": row, "d_corrections": d_corr, "d_ecef": d_xyz, "d_ground": d_ground}
 
     def image_to_dem(self, col, row, dem, samples=64, tol=1e-3):
@@ -192,19 +196,32 @@ class SpotModel(SensorModel):
         (c, r), shape, scalar = flat_points(col, row)
         hmin, hmax = dem.height_range
         out = np.empty((c.size, 3))
-        k.image_to_dem_kernel(*self._packed(), c, r, dem.heights, np.asarray(dem.geotransform, dtype=np.float64),
-                              hmin - 1.0, hmax + 1.0, int(samples), float(tol), out)
+        k.image_to_dem_kernel(
+            *self._packed(),
+            c,
+            r,
+            dem.heights,
+            np.asarray(dem.geotransform, dtype=np.float64),
+            hmin - 1.0,
+            hmax + 1.0,
+            int(samples),
+            float(tol),
+            out,
+        )
         bad = np.flatnonzero(np.isnan(out[:, 0]))
         if bad.size:
             raise GeometryError(
                 f"the line of sight of image point ({c[bad[0]]:.1f}, {r[bad[0]]:.1f}) does not meet the DEM "
-                f"({bad.size} of {c.size} points); is the DEM covering the whole image footprint?")
+                f"({bad.size} of {c.size} points); is the DEM covering the whole image footprint?"
+            )
         return shaped_points((out[:, 0], out[:, 1], out[:, 2]), shape, scalar)
 
     def __repr__(self):
         o = self._orientation
-        return (f"SpotModel(SPOT {o.mission} {o.instrument}{o.instrument_index} {o.sensor_code}, "
-                f"{o.ncols} x {o.nrows}, drift={self.drift})")
+        return (
+            f"SpotModel(SPOT {o.mission} {o.instrument}{o.instrument_index} {o.sensor_code}, "
+            f"{o.ncols} x {o.nrows}, drift={self.drift})"
+        )
 
 
 __all__ = ["SpotModel", "PARAMETER_NAMES", "lagrange_window", "integrated_attitude"]

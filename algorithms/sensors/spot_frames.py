@@ -22,6 +22,7 @@ Rotations are returned as row-major 9-tuples (no allocation inside numba kernels
 `r32` give numpy 3 x 3 arrays for Python callers (the simulator, tests). Kernels use numba's
 "numpy" error model: degenerate input gives inf/NaN, never a ZeroDivisionError.
 """
+
 import math
 
 import numpy as np
@@ -54,9 +55,17 @@ def attitude_rotation(yaw, pitch, roll):
     a10, a11, a12 = sz, cz, 0.0
     a20, a21, a22 = -sy * cz, sy * sz, cy
     # Rx (Ry Rz)
-    return (a00, a01, a02,
-            cx * a10 - sx * a20, cx * a11 - sx * a21, cx * a12 - sx * a22,
-            sx * a10 + cx * a20, sx * a11 + cx * a21, sx * a12 + cx * a22)
+    return (
+        a00,
+        a01,
+        a02,
+        cx * a10 - sx * a20,
+        cx * a11 - sx * a21,
+        cx * a12 - sx * a22,
+        sx * a10 + cx * a20,
+        sx * a11 + cx * a21,
+        sx * a12 + cx * a22,
+    )
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -69,36 +78,35 @@ def orbital_rotation(px, py, pz, vx, vy, vz):
     n = math.sqrt(xx * xx + xy * xy + xz * xz)
     xx, xy, xz = xx / n, xy / n, xz / n
     yx, yy, yz = zy * xz - zz * xy, zz * xx - zx * xz, zx * xy - zy * xx
-    return (xx, yx, zx,
-            xy, yy, zy,
-            xz, yz, zz)
+    return (xx, yx, zx, xy, yy, zy, xz, yz, zz)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def mat_vec(m, x, y, z):
     """m (row-major 9-tuple) times (x, y, z)."""
-    return (m[0] * x + m[1] * y + m[2] * z,
-            m[3] * x + m[4] * y + m[5] * z,
-            m[6] * x + m[7] * y + m[8] * z)
+    return (m[0] * x + m[1] * y + m[2] * z, m[3] * x + m[4] * y + m[5] * z, m[6] * x + m[7] * y + m[8] * z)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def mat_t_vec(m, x, y, z):
     """Transpose of m (row-major 9-tuple) times (x, y, z): the inverse rotation."""
-    return (m[0] * x + m[3] * y + m[6] * z,
-            m[1] * x + m[4] * y + m[7] * z,
-            m[2] * x + m[5] * y + m[8] * z)
+    return (m[0] * x + m[3] * y + m[6] * z, m[1] * x + m[4] * y + m[7] * z, m[2] * x + m[5] * y + m[8] * z)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def mat_mul(a, b):
     """Product a b of two row-major 9-tuples."""
-    return (a[0] * b[0] + a[1] * b[3] + a[2] * b[6], a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
-            a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
-            a[3] * b[0] + a[4] * b[3] + a[5] * b[6], a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
-            a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
-            a[6] * b[0] + a[7] * b[3] + a[8] * b[6], a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
-            a[6] * b[2] + a[7] * b[5] + a[8] * b[8])
+    return (
+        a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
+        a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
+        a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+        a[3] * b[0] + a[4] * b[3] + a[5] * b[6],
+        a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
+        a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+        a[6] * b[0] + a[7] * b[3] + a[8] * b[6],
+        a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
+        a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
+    )
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -12,6 +12,7 @@ Packed inputs:
 Line time t = t_c + (row - r_c) T; corrections are evaluated at tau = (t - t_c) / time_scale and
 q = (col - p_c) / 1000. Ground point X = P + mu R32 R21 u1 (spot_frames).
 """
+
 import math
 
 import numpy as np
@@ -69,9 +70,11 @@ def attitude(att_t, att_v, t):
         return att_v[m - 1, 0], att_v[m - 1, 1], att_v[m - 1, 2]
     k = np.searchsorted(att_t, t) - 1
     f = (t - att_t[k]) / (att_t[k + 1] - att_t[k])
-    return (att_v[k, 0] + f * (att_v[k + 1, 0] - att_v[k, 0]),
-            att_v[k, 1] + f * (att_v[k + 1, 1] - att_v[k, 1]),
-            att_v[k, 2] + f * (att_v[k + 1, 2] - att_v[k, 2]))
+    return (
+        att_v[k, 0] + f * (att_v[k + 1, 0] - att_v[k, 0]),
+        att_v[k, 1] + f * (att_v[k + 1, 1] - att_v[k, 1]),
+        att_v[k, 2] + f * (att_v[k + 1, 2] - att_v[k, 2]),
+    )
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -87,8 +90,18 @@ def corrected_state(eph, att_t, att_v, prm, corr, t):
     vy += poly3_slope(corr, 1, tau) / prm[3]
     vz += poly3_slope(corr, 2, tau) / prm[3]
     yaw, pitch, roll = attitude(att_t, att_v, t)
-    return (px, py, pz, vx, vy, vz, yaw + poly3(corr, 3, tau), pitch + poly3(corr, 4, tau),
-            roll + poly3(corr, 5, tau), tau)
+    return (
+        px,
+        py,
+        pz,
+        vx,
+        vy,
+        vz,
+        yaw + poly3(corr, 3, tau),
+        pitch + poly3(corr, 4, tau),
+        roll + poly3(corr, 5, tau),
+        tau,
+    )
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -114,8 +127,10 @@ def detector_angles(look, prm, corr, col):
     look-angle corrections in q = (col - p_c) / 1000."""
     k, f = _segment(look, col)
     q = (col - prm[4]) * 1e-3
-    return (look[k, 0] + f * (look[k + 1, 0] - look[k, 0]) + poly3(corr, 6, q),
-            look[k, 1] + f * (look[k + 1, 1] - look[k, 1]) + poly3(corr, 7, q))
+    return (
+        look[k, 0] + f * (look[k + 1, 0] - look[k, 0]) + poly3(corr, 6, q),
+        look[k, 1] + f * (look[k + 1, 1] - look[k, 1]) + poly3(corr, 7, q),
+    )
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -224,8 +239,18 @@ def guess_row(guess, x, y, z):
     """Starting row from the quadratic fit `guess` (14,): centre (3), scale, then the coefficients of
     1, u, v, w, u^2, v^2, w^2, uv, uw, vw for (u, v, w) = (X - centre) / scale."""
     u, v, w = (x - guess[0]) / guess[3], (y - guess[1]) / guess[3], (z - guess[2]) / guess[3]
-    return (guess[4] + guess[5] * u + guess[6] * v + guess[7] * w + guess[8] * u * u + guess[9] * v * v
-            + guess[10] * w * w + guess[11] * u * v + guess[12] * u * w + guess[13] * v * w)
+    return (
+        guess[4]
+        + guess[5] * u
+        + guess[6] * v
+        + guess[7] * w
+        + guess[8] * u * u
+        + guess[9] * v * v
+        + guess[10] * w * w
+        + guess[11] * u * v
+        + guess[12] * u * w
+        + guess[13] * v * w
+    )
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -271,8 +296,9 @@ def ground_to_image_kernel(eph, att_t, att_v, look, prm, corr, guess, lon, lat, 
 def line_of_sight_kernel(eph, att_t, att_v, look, prm, corr, col, row, pos, direction):
     """line_of_sight over arrays (pos, direction: (n, 3) outputs)."""
     for i in prange(col.size):
-        (pos[i, 0], pos[i, 1], pos[i, 2], direction[i, 0], direction[i, 1],
-         direction[i, 2]) = line_of_sight(eph, att_t, att_v, look, prm, corr, col[i], row[i])
+        (pos[i, 0], pos[i, 1], pos[i, 2], direction[i, 0], direction[i, 1], direction[i, 2]) = line_of_sight(
+            eph, att_t, att_v, look, prm, corr, col[i], row[i]
+        )
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -307,14 +333,13 @@ def _geodetic_columns(lon, lat, h):
     w2 = 1.0 - E2 * sp * sp
     east = (A / math.sqrt(w2) + h) * cp * math.pi / 180.0
     north = (A * (1.0 - E2) / (w2 * math.sqrt(w2)) + h) * math.pi / 180.0
-    return (-east * sl, -north * sp * cl, cp * cl,
-            east * cl, -north * sp * sl, cp * sl,
-            0.0, north * cp, sp)
+    return (-east * sl, -north * sp * cl, cp * cl, east * cl, -north * sp * sl, cp * sl, 0.0, north * cp, sp)
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def partials_kernel(eph, att_t, att_v, look, prm, corr, lon, lat, h, col, row, step_m, exterior, d_corr, d_xyz,
-                    d_ground):
+def partials_kernel(
+    eph, att_t, att_v, look, prm, corr, lon, lat, h, col, row, step_m, exterior, d_corr, d_xyz, d_ground
+):
     """d(col, row)/d(correction coefficients) (n, 2, 32), d(col, row)/d(ECEF) (n, 2, 3) and
     d(col, row)/d(lon, lat, h) (n, 2, 3; px/degree, px/degree, px/m) at the image points (col, row)
     of ground points (lon, lat, h), by the implicit function theorem on the residual
@@ -361,25 +386,27 @@ def partials_kernel(eph, att_t, att_v, look, prm, corr, lon, lat, h, col, row, s
         if not exterior:
             d_corr[i, :, :24] = 0.0
         sy, cy = math.sin(yaw), math.cos(yaw)
-        attitude_slopes = (_angle_slopes(nx, ny, nz, ny, -nx, 0.0),
-                           _angle_slopes(nx, ny, nz, r21[1] * nz - r21[2] * ny, r21[2] * nx - r21[0] * nz,
-                                         r21[0] * ny - r21[1] * nx),
-                           _angle_slopes(nx, ny, nz, cy * nz, -sy * nz, sy * ny - cy * nx))
+        attitude_slopes = (
+            _angle_slopes(nx, ny, nz, ny, -nx, 0.0),
+            _angle_slopes(nx, ny, nz, r21[1] * nz - r21[2] * ny, r21[2] * nx - r21[0] * nz, r21[0] * ny - r21[1] * nx),
+            _angle_slopes(nx, ny, nz, cy * nz, -sy * nz, sy * ny - cy * nx),
+        )
         for k in range(3 if exterior else 0):
             # position and velocity of axis k, then attitude angle k
             e0, e1, e2 = (1.0 if k == 0 else 0.0), (1.0 if k == 1 else 0.0), (1.0 if k == 2 else 0.0)
             dx, dy, dz = e0 * step_m, e1 * step_m, e2 * step_m
             a0, a1, a2 = _moved_frame(px + dx, py + dy, pz + dz, vx, vy, vz, r21, x, y, z)
             b0, b1, b2 = _moved_frame(px - dx, py - dy, pz - dz, vx, vy, vz, r21, x, y, z)
-            fp0, fp1 = _angle_slopes(nx, ny, nz, (a0 - b0) / (2 * step_m), (a1 - b1) / (2 * step_m),
-                                     (a2 - b2) / (2 * step_m))
+            fp0, fp1 = _angle_slopes(
+                nx, ny, nz, (a0 - b0) / (2 * step_m), (a1 - b1) / (2 * step_m), (a2 - b2) / (2 * step_m)
+            )
             dx, dy, dz = e0 * sv, e1 * sv, e2 * sv
             a0, a1, a2 = _moved_frame(px, py, pz, vx + dx, vy + dy, vz + dz, r21, x, y, z)
             b0, b1, b2 = _moved_frame(px, py, pz, vx - dx, vy - dy, vz - dz, r21, x, y, z)
-            dv = 2.0 * sv * prm[3]      # dF/dV / time_scale
+            dv = 2.0 * sv * prm[3]  # dF/dV / time_scale
             fv0, fv1 = _angle_slopes(nx, ny, nz, (a0 - b0) / dv, (a1 - b1) / dv, (a2 - b2) / dv)
             fa0, fa1 = attitude_slopes[k]
-            power, below = 1.0, 0.0      # tau^j, j tau^(j-1)
+            power, below = 1.0, 0.0  # tau^j, j tau^(j-1)
             for j in range(4):
                 f0, f1 = fp0 * power + fv0 * below, fp1 * power + fv1 * below
                 d_corr[i, 0, 4 * k + j] = (j01 * f1 - j11 * f0) / det

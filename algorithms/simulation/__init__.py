@@ -10,6 +10,7 @@ sampling into a SpotOrientation), terrain (Jacksboro DEM, land cover, surface ob
 in windows of a DSM too large to hold), tiles (ground grids in memory or in files, tile by tile),
 points (control/check point candidates), perturbation (known orientation errors), outputs (writers),
 sun, noise, grid."""
+
 from .scene import SceneConfig, simulate_scene
 
 __all__ = ["SceneConfig", "simulate_scene"]

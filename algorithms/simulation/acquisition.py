@@ -5,6 +5,7 @@ Per pass, the orbit is solved so that the reference image's centre detector (mir
 angle `roll`) sees the scene centre at 10:45 local mean solar time (SPOT's descending node is at
 10:30); the other images of the pass get the time and across-track angle (psi_y) at which their
 centre detector sees it (SPOT 5 HRS1/HRS2 about 45 s before/after the HRG)."""
+
 import dataclasses
 import math
 
@@ -16,7 +17,7 @@ from .orbit import Attitude, orbit_through, time_and_roll
 from .truth import ImageTruth
 
 LOCAL_TIME_HOURS = 10.75
-SPOT5_CURVATURE = 2e-6     # rad, psi_x smile at the ends of a SPOT 5 array (no table given)
+SPOT5_CURVATURE = 2e-6  # rad, psi_x smile at the ends of a SPOT 5 array (no table given)
 
 
 def plan(configuration, centre, size_m, dates, roll_deg, rng, look_table=None):
@@ -48,9 +49,19 @@ def plan(configuration, centre, size_m, dates, roll_deg, rng, look_table=None):
             ground_speed = np.linalg.norm(vel) * np.linalg.norm(target) / np.linalg.norm(pos)
             nrows = max(2, int(round(size_m / (ground_speed * spec.line_period))))
             centre_row = nrows // 2 + 0.5
-            images.append(ImageTruth(spec, orbit, attitude, look.with_centre(psi_y - psi_y0), ncols, nrows,
-                                     t_mid + (centre_row - 0.5 * nrows) * spec.line_period, centre_row,
-                                     np.datetime64(date, "ns")))
+            images.append(
+                ImageTruth(
+                    spec,
+                    orbit,
+                    attitude,
+                    look.with_centre(psi_y - psi_y0),
+                    ncols,
+                    nrows,
+                    t_mid + (centre_row - 0.5 * nrows) * spec.line_period,
+                    centre_row,
+                    np.datetime64(date, "ns"),
+                )
+            )
     return images
 
 

@@ -3,6 +3,7 @@ ellipsoidal) with GDAL's pixel-is-area geotransform, shared by the DTM, DSM, lan
 radiance. Kernels address it in *vertex* coordinates x = (lon - lon0)/dlon - 0.5,
 y = (lat - lat0)/dlat - 0.5, so the cell (i, j) centre is the vertex (x=j, y=i) and bilinear
 interpolation runs between centres (as in algorithms/dem.py)."""
+
 import math
 from dataclasses import dataclass
 
@@ -20,7 +21,7 @@ class Grid:
     lon0: float
     dlon: float
     lat0: float
-    dlat: float   # negative (north-up)
+    dlat: float  # negative (north-up)
     cols: int
     rows: int
 
@@ -65,8 +66,7 @@ class Grid:
 
     def vertex(self, lon, lat):
         """Vertex coordinates (x, y) of (lon, lat)."""
-        return ((np.asarray(lon) - self.lon0) / self.dlon - 0.5,
-                (np.asarray(lat) - self.lat0) / self.dlat - 0.5)
+        return ((np.asarray(lon) - self.lon0) / self.dlon - 0.5, (np.asarray(lat) - self.lat0) / self.dlat - 0.5)
 
     def lonlat(self, x, y):
         """(lon, lat) of vertex coordinates (x, y)."""

@@ -13,6 +13,7 @@ psi_x(p) = psi_x0 + dx(p), psi_y(p) = psi_y0 + ifov (p - p_c) + dy(p), where dx,
 non-linear residuals of a real look-angle table (see `table_residuals`) or, by default, a gentle
 array curvature for SPOT 5 (the SPOT 1-4 DIMAP format keeps only the first and last detector,
 so those arrays stay linear)."""
+
 import math
 from dataclasses import dataclass
 
@@ -20,26 +21,26 @@ import numpy as np
 
 from ..errors import InputError
 
-NOMINAL_ALTITUDE = 830e3   # m, for the detector angular size ifov = gsd cos(psi_x) / altitude
+NOMINAL_ALTITUDE = 830e3  # m, for the detector angular size ifov = gsd cos(psi_x) / altitude
 
 
 @dataclass(frozen=True)
 class Instrument:
     """One image's instrument: DIMAP identity, viewing geometry and sampling."""
 
-    name: str                 # image folder name
+    name: str  # image folder name
     mission: int
     instrument: str
     instrument_index: int
     sensor_code: str
-    psi_x: float              # along-track look angle of the array, rad
-    gsd: float                # across-track ground sampling at the array centre, m
-    line_period: float        # s
-    pass_index: int           # which pass (orbit/date) of the configuration
-    reference: bool           # the pass's orbit is solved for this image's centre detector
-    ephemeris_step: float     # s between ephemeris samples
-    detector_lines: float = 1.0   # along-track size of a detector's footprint, in lines (HRS: 10 m
-                                  # detectors sampled every 5 m along track, i.e. 2 lines)
+    psi_x: float  # along-track look angle of the array, rad
+    gsd: float  # across-track ground sampling at the array centre, m
+    line_period: float  # s
+    pass_index: int  # which pass (orbit/date) of the configuration
+    reference: bool  # the pass's orbit is solved for this image's centre detector
+    ephemeris_step: float  # s between ephemeris samples
+    detector_lines: float = 1.0  # along-track size of a detector's footprint, in lines (HRS: 10 m
+    # detectors sampled every 5 m along track, i.e. 2 lines)
 
     @property
     def ifov(self):
@@ -56,12 +57,16 @@ def instruments(configuration):
     """The images of `configuration` (see the module docstring)."""
     if configuration == "spot5_triplet":
         twenty = math.radians(20.0)
-        return [Instrument("HRG", 5, "HRG", 1, "A", 0.0, 5.0, 7.52e-4, 0, True, 30.0),
-                Instrument("HRS1", 5, "HRS", 1, "P", twenty, 10.0, 7.52e-4, 0, False, 30.0, 2.0),
-                Instrument("HRS2", 5, "HRS", 2, "P", -twenty, 10.0, 7.52e-4, 0, False, 30.0, 2.0)]
+        return [
+            Instrument("HRG", 5, "HRG", 1, "A", 0.0, 5.0, 7.52e-4, 0, True, 30.0),
+            Instrument("HRS1", 5, "HRS", 1, "P", twenty, 10.0, 7.52e-4, 0, False, 30.0, 2.0),
+            Instrument("HRS2", 5, "HRS", 2, "P", -twenty, 10.0, 7.52e-4, 0, False, 30.0, 2.0),
+        ]
     if configuration == "spot14_pair":
-        return [Instrument("HRV1_A", 2, "HRV", 1, "P", 0.0, 10.0, 1.504e-3, 0, True, 60.0),
-                Instrument("HRV2_B", 2, "HRV", 2, "P", 0.0, 10.0, 1.504e-3, 1, True, 60.0)]
+        return [
+            Instrument("HRV1_A", 2, "HRV", 1, "P", 0.0, 10.0, 1.504e-3, 0, True, 60.0),
+            Instrument("HRV2_B", 2, "HRV", 2, "P", 0.0, 10.0, 1.504e-3, 1, True, 60.0),
+        ]
     raise InputError(f"unknown configuration {configuration!r}; choose one of {', '.join(CONFIGURATIONS)}")
 
 
@@ -84,10 +89,10 @@ class LookAngles:
 
     psi_x0: float
     psi_y0: float
-    ifov: float               # signed: dpsi_y / dp
+    ifov: float  # signed: dpsi_y / dp
     ncols: int
-    table: tuple = None       # (s, dx, dy_pixels) from `table_residuals`, or None
-    curvature: float = 0.0    # rad at the array ends, default smile of psi_x
+    table: tuple = None  # (s, dx, dy_pixels) from `table_residuals`, or None
+    curvature: float = 0.0  # rad at the array ends, default smile of psi_x
 
     def __call__(self, p):
         """(psi_x, psi_y) at column coordinates p (detector j has p = j + 0.5)."""

@@ -4,6 +4,7 @@ fractional Brownian motion and jittered-grid cellular (Worley) noise.
 Everything is a pure function of the coordinates and an integer seed (no global state), so a
 kernel evaluated in parallel gives the same bytes whatever the thread schedule. Coordinates are in
 "noise units": the lattice spacing is 1 (scale metres by the wanted feature size)."""
+
 import math
 
 import numpy as np

@@ -9,6 +9,7 @@ dlambda/dt = dOmega/dt - omega_earth, so with argument of latitude u(t) = u0 + n
 
     P(t) = a R3(lambda(t)) R1(i) (cos u, sin u, 0),   V(t) = dP/dt (analytic).
 """
+
 import math
 from dataclasses import dataclass
 
@@ -18,15 +19,15 @@ from ..errors import GeometryError
 from ..geodesy import OMEGA_EARTH, A
 from ..sensors import spot_frames
 
-GM = 3.986004418e14               # m^3/s^2, WGS 84
+GM = 3.986004418e14  # m^3/s^2, WGS 84
 J2 = 1.08262668e-3
 SUN_RATE = 2.0 * math.pi / (365.2422 * 86400.0)  # rad/s, mean motion of the sun
-SPOT_SEMI_MAJOR_AXIS = 7200.5e3   # m (Orbital_Bulletin ELLIPSE_AXIS of SPOT 2 and 5)
+SPOT_SEMI_MAJOR_AXIS = 7200.5e3  # m (Orbital_Bulletin ELLIPSE_AXIS of SPOT 2 and 5)
 
 
 def sun_synchronous_inclination(a):
     """Inclination (rad) at which the J2 node precession equals the sun's mean motion."""
-    n = math.sqrt(GM / a ** 3)
+    n = math.sqrt(GM / a**3)
     return math.acos(-SUN_RATE / (1.5 * n * J2 * (A / a) ** 2))
 
 
@@ -46,7 +47,7 @@ class CircularOrbit:
 
     @property
     def mean_motion(self):
-        return math.sqrt(GM / self.a ** 3)
+        return math.sqrt(GM / self.a**3)
 
     def state(self, t):
         """ECEF position (m) and velocity (m/s), arrays (..., 3), at times t (s)."""
@@ -77,8 +78,13 @@ class Attitude:
     def random(cls, rng, t0, bias_sigma=5e-4, drift=2e-5, terms=2):
         """Biases ~ N(0, bias_sigma) (real SPOT 5 corrected attitudes are 1e-4..1e-3 rad),
         `terms` drift sinusoids per axis of amplitude drift/2..drift and period 20-120 s."""
-        return cls(rng.normal(0.0, bias_sigma, 3), rng.uniform(0.5 * drift, drift, (3, terms)),
-                   rng.uniform(20.0, 120.0, (3, terms)), rng.uniform(0.0, 2 * math.pi, (3, terms)), float(t0))
+        return cls(
+            rng.normal(0.0, bias_sigma, 3),
+            rng.uniform(0.5 * drift, drift, (3, terms)),
+            rng.uniform(20.0, 120.0, (3, terms)),
+            rng.uniform(0.0, 2 * math.pi, (3, terms)),
+            float(t0),
+        )
 
     def angles(self, t):
         """(..., 3) yaw, pitch, roll at times t."""
@@ -130,16 +136,23 @@ def orbit_through(target, t0, attitude, psi_x, psi_y):
     def residual(p):
         return look_residual(CircularOrbit(p[0], p[1], t0, a), attitude, t0, target, psi_x, psi_y)
 
-    node, u = newton(residual, np.array([node, u]), np.array([1e-7, 1e-7]), np.array([1e-13, 1e-13]),
-                     "orbit over the scene")
+    node, u = newton(
+        residual, np.array([node, u]), np.array([1e-7, 1e-7]), np.array([1e-13, 1e-13]), "orbit over the scene"
+    )
     return CircularOrbit(float(node), float(u), float(t0), a)
 
 
 def time_and_roll(orbit, attitude, target, psi_x, t_guess):
     """(t, psi_y) at which a detector of along-track angle psi_x sees `target` (psi_y from 0)."""
+
     def residual(p):
         return look_residual(orbit, attitude, p[0], target, psi_x, p[1])
 
-    t, psi_y = newton(residual, np.array([t_guess, 0.0]), np.array([1e-3, 1e-7]),
-                      np.array([1e-9, 1e-13]), "acquisition time of the scene centre")
+    t, psi_y = newton(
+        residual,
+        np.array([t_guess, 0.0]),
+        np.array([1e-3, 1e-7]),
+        np.array([1e-9, 1e-13]),
+        "acquisition time of the scene centre",
+    )
     return float(t), float(psi_y)

@@ -1,6 +1,7 @@
 """Writers of the simulator's products (all called inside one atomic folder, see scene.py):
 geographic GeoTIFFs (EPSG:4326, heights ellipsoidal WGS 84), raw level-1A imagery, the point
 candidates CSV and the truth JSON. Byte-for-byte reproducible (no timestamps)."""
+
 import contextlib
 import csv
 import json
@@ -12,7 +13,7 @@ from ..atomic import closing
 GEOTIFF_OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "ZLEVEL=1"]
 
 
-ROWS = 256       # raster rows written at a time
+ROWS = 256  # raster rows written at a time
 
 
 def write_raster(path, array, grid, dtype, nodata=None, description="", metadata=None, convert=None):
@@ -22,12 +23,16 @@ def write_raster(path, array, grid, dtype, nodata=None, description="", metadata
     from osgeo import gdal
 
     from ..crs import wgs84
+
     gdal.UseExceptions()
     dtype = np.dtype(dtype)
     types = {np.dtype(np.uint8): gdal.GDT_Byte, np.dtype(np.float32): gdal.GDT_Float32}
     predictor = "PREDICTOR=3" if dtype == np.float32 else "PREDICTOR=2"
-    with closing(gdal.GetDriverByName("GTiff").Create(str(path), grid.cols, grid.rows, 1, types[dtype],
-                                                      GEOTIFF_OPTIONS + [predictor])) as ds:
+    with closing(
+        gdal.GetDriverByName("GTiff").Create(
+            str(path), grid.cols, grid.rows, 1, types[dtype], GEOTIFF_OPTIONS + [predictor]
+        )
+    ) as ds:
         ds.SetGeoTransform(grid.geotransform)
         ds.SetProjection(wgs84().ExportToWkt())
         band = ds.GetRasterBand(1)
@@ -35,7 +40,7 @@ def write_raster(path, array, grid, dtype, nodata=None, description="", metadata
             band.SetNoDataValue(nodata)
         band.SetDescription(description)
         for a in range(0, grid.rows, ROWS):
-            block = np.asarray(array[a:min(a + ROWS, grid.rows)])
+            block = np.asarray(array[a : min(a + ROWS, grid.rows)])
             band.WriteArray(np.asarray(convert(block) if convert else block, dtype=dtype), 0, a)
         band = None
         if metadata:
@@ -48,6 +53,7 @@ def imagery_writer(path, ncols, nrows, bits):
     """Level-1A IMAGERY.TIF written block of lines by block: raw DN (uint8 for 8 bit, else uint16),
     no georeferencing (the geometry is in METADATA.DIM). Yields write(dn, first_row)."""
     from osgeo import gdal
+
     gdal.UseExceptions()
     dtype = gdal.GDT_Byte if bits == 8 else gdal.GDT_UInt16
     with closing(gdal.GetDriverByName("GTiff").Create(str(path), ncols, nrows, 1, dtype)) as ds:

@@ -11,6 +11,7 @@ estimate exactly these coefficients.
   N(0, 20 urad) (yaw), and attitude drifts N(0, 1 urad per 10 s). Re-expanded per image about
   its own centre time: a0 = bias + drift (t_c,image - t_ref) / time_scale, a1 = drift.
 Together they displace the ground by about 30 m, the accuracy K found for the supplied data."""
+
 import numpy as np
 
 from ..sensors.spot_orientation import Corrections
@@ -21,9 +22,9 @@ TABLE2 = {
     "HRS1": {"psi_x": (1.5e-5, 0.0, -4.2e-7, -6.9e-8), "psi_y": (-4.9e-6, 0.0, 0.0, 0.0)},
     "HRS2": {"psi_x": (0.0, 0.0, -4.6e-7, -7.4e-8), "psi_y": (0.0, 0.0, 0.0, 0.0)},
 }
-POSITION_BIAS = 8.0                      # m
-ATTITUDE_BIAS = np.array([20e-6, 15e-6, 15e-6])   # rad, yaw, pitch, roll (1 sigma)
-ATTITUDE_DRIFT = 1e-6                    # rad per time_scale (1 sigma)
+POSITION_BIAS = 8.0  # m
+ATTITUDE_BIAS = np.array([20e-6, 15e-6, 15e-6])  # rad, yaw, pitch, roll (1 sigma)
+ATTITUDE_DRIFT = 1e-6  # rad per time_scale (1 sigma)
 
 
 def _table_row(instrument):
@@ -40,10 +41,12 @@ def inject(images, rng, scale=1.0):
         key = image.instrument.pass_index
         if key not in passes:
             direction = rng.normal(size=3)
-            passes[key] = {"t_ref": image.centre_time,
-                           "position_bias": scale * POSITION_BIAS * direction / np.linalg.norm(direction),
-                           "attitude_bias": scale * rng.normal(0.0, ATTITUDE_BIAS),
-                           "attitude_drift": scale * rng.normal(0.0, ATTITUDE_DRIFT, 3)}
+            passes[key] = {
+                "t_ref": image.centre_time,
+                "position_bias": scale * POSITION_BIAS * direction / np.linalg.norm(direction),
+                "attitude_bias": scale * rng.normal(0.0, ATTITUDE_BIAS),
+                "attitude_drift": scale * rng.normal(0.0, ATTITUDE_DRIFT, 3),
+            }
         p = passes[key]
         row = _table_row(image.instrument)
         look = np.array([row["psi_x"], row["psi_y"]]) * rng.choice([-1.0, 1.0], (2, 4)) * scale
@@ -54,6 +57,5 @@ def inject(images, rng, scale=1.0):
         attitude = np.zeros((3, 4))
         attitude[:, 0] = p["attitude_bias"] + p["attitude_drift"] * (image.centre_time - p["t_ref"]) / time_scale
         attitude[:, 1] = p["attitude_drift"]
-        corrections[image.name] = Corrections(position=position, attitude=attitude, look=look,
-                                              time_scale=time_scale)
+        corrections[image.name] = Corrections(position=position, attitude=attitude, look=look, time_scale=time_scale)
     return corrections, passes

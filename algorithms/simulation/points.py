@@ -1,6 +1,7 @@
 """Control/check point candidates: open, flat ground points seen by every image, with their true
 image coordinates (from the continuous truth) and simulated measurements (Gaussian noise of
 `sigma` px, optional blunders of 5-20 px in a random direction, flagged)."""
+
 import math
 from dataclasses import dataclass
 
@@ -11,9 +12,9 @@ from ..geodesy import geodetic_to_ecef
 from .terrain import BARE, CROPS
 from .tiles import TILE, cut, grid_array, grown, release, windows
 
-EDGE_PX = 10.0          # candidates keep this distance from every image border
-VISIBLE_M = 0.5         # a candidate is visible if the ray of its true pixel lands this close
-SLOPE_MAX = 0.15        # rise per metre (8.5 deg) allowed across a candidate's neighbourhood
+EDGE_PX = 10.0  # candidates keep this distance from every image border
+VISIBLE_M = 0.5  # a candidate is visible if the ray of its true pixel lands this close
+SLOPE_MAX = 0.15  # rise per metre (8.5 deg) allowed across a candidate's neighbourhood
 
 
 @dataclass
@@ -23,9 +24,9 @@ class Candidates:
     lon: np.ndarray
     lat: np.ndarray
     h: np.ndarray
-    true: dict        # name -> (n, 2) col, row
-    measured: dict    # name -> (n, 2)
-    blunder: dict     # name -> (n,) bool
+    true: dict  # name -> (n, 2) col, row
+    measured: dict  # name -> (n, 2)
+    blunder: dict  # name -> (n,) bool
 
     def __len__(self):
         return len(self.lon)
@@ -56,8 +57,10 @@ def select_sites(terrain, images, count, clearance_m, rng, tries=20, folder=None
     for stratum in rng.permutation(k * k):
         si, sj = divmod(int(stratum), k)
         if len(sites) < count:
-            cells = EligibleCells(eligible, (si * grid.rows // k, (si + 1) * grid.rows // k,
-                                             sj * grid.cols // k, (sj + 1) * grid.cols // k))
+            cells = EligibleCells(
+                eligible,
+                (si * grid.rows // k, (si + 1) * grid.rows // k, sj * grid.cols // k, (sj + 1) * grid.cols // k),
+            )
             if cells.size:
                 take(cells)
     if len(sites) < count:
@@ -85,16 +88,23 @@ def shortfall(asked, sites, candidates, blunders, spacing_m, clearance_m):
     lines = []
     n = len(candidates)
     if n < asked:
-        hidden = (f", and {sites - n} of them {'is' if sites - n == 1 else 'are'} hidden from an image by trees or "
-                  "buildings" if sites > n else "")
-        lines.append(f"{n} control/check point candidates made of the {asked} asked: the scene holds {sites} sites "
-                     f"of open, flat ground (bare soil or crops {clearance_m:.0f} m around, inside every image) at "
-                     f"least {spacing_m:.0f} m apart{hidden}; a larger scene (SIZE_KM) holds more")
+        hidden = (
+            f", and {sites - n} of them {'is' if sites - n == 1 else 'are'} hidden from an image by trees or buildings"
+            if sites > n
+            else ""
+        )
+        lines.append(
+            f"{n} control/check point candidates made of the {asked} asked: the scene holds {sites} sites "
+            f"of open, flat ground (bare soil or crops {clearance_m:.0f} m around, inside every image) at "
+            f"least {spacing_m:.0f} m apart{hidden}; a larger scene (SIZE_KM) holds more"
+        )
     measurements = n * len(candidates.measured)
     made = int(sum(int(b.sum()) for b in candidates.blunder.values()))
     if made < blunders:
-        lines.append(f"{made} blunders made of the {blunders} asked: the {n} candidates have {measurements} image "
-                     "measurements, and a measurement takes one blunder at most")
+        lines.append(
+            f"{made} blunders made of the {blunders} asked: the {n} candidates have {measurements} image "
+            "measurements, and a measurement takes one blunder at most"
+        )
     return "; ".join(lines) or None
 
 
@@ -107,8 +117,9 @@ class EligibleCells:
     def __init__(self, mask, window):
         self.mask, self.window = mask, window
         i0, i1, j0, j1 = window
-        counts = [np.count_nonzero(cut(mask, (a, min(a + self.BAND, i1), j0, j1)), axis=1)
-                  for a in range(i0, i1, self.BAND)]
+        counts = [
+            np.count_nonzero(cut(mask, (a, min(a + self.BAND, i1), j0, j1)), axis=1) for a in range(i0, i1, self.BAND)
+        ]
         self.ends = np.cumsum(np.concatenate(counts)) if counts else np.zeros(0, np.int64)
         self.size = int(self.ends[-1]) if self.ends.size else 0
 
@@ -126,6 +137,7 @@ def eligible_cells(terrain, clearance_m, folder=None, tile=TILE):
     within +-SLOPE_MAX x clearance of its middle (open, flat ground: no occlusion, symmetric
     markers): a bool grid array, made tile by tile with the neighbourhood as margin."""
     from scipy import ndimage
+
     grid = terrain.grid
     de, dn = grid.cell_metres
     ri, rj = int(math.ceil(clearance_m / dn)), int(math.ceil(clearance_m / de))
@@ -145,8 +157,12 @@ def eligible_cells(terrain, clearance_m, folder=None, tile=TILE):
 def ground_heights(array, grid, lon, lat):
     """dem.Dem.height of the grid array `array` at each (lon, lat), read from the few cells around the
     point (dem.dem_window)."""
-    return np.array([dem_window(array, grid.geotransform, (np.nan, np.nan), (x, y, x, y)).height(x, y)
-                     for x, y in zip(np.atleast_1d(lon), np.atleast_1d(lat))])
+    return np.array(
+        [
+            dem_window(array, grid.geotransform, (np.nan, np.nan), (x, y, x, y)).height(x, y)
+            for x, y in zip(np.atleast_1d(lon), np.atleast_1d(lat))
+        ]
+    )
 
 
 def _inside(image, xyz):
@@ -165,7 +181,7 @@ def level_pads(terrain, lon, lat, radius_m):
     x, y = grid.vertex(lon, lat)
     for xc, yc in zip(np.atleast_1d(x), np.atleast_1d(y)):
         i0, j0 = int(round(yc)) - ri, int(round(xc)) - rj
-        ii, jj = np.mgrid[i0:i0 + 2 * ri + 1, j0:j0 + 2 * rj + 1]
+        ii, jj = np.mgrid[i0 : i0 + 2 * ri + 1, j0 : j0 + 2 * rj + 1]
         e, n = (jj - xc) * de, (yc - ii) * dn
         d = np.hypot(e, n)
         inner = d <= radius_m
@@ -196,11 +212,10 @@ def image_coordinates(sites_lonlat, heights, images, surface, sigma, blunders, r
     measured = {name: v + rng.normal(0.0, sigma, v.shape) for name, v in true.items()}
     blunder = {name: np.zeros(n, bool) for name in true}
     names = list(true)
-    pairs = rng.permutation(n * len(names))[:min(blunders, n * len(names))]
+    pairs = rng.permutation(n * len(names))[: min(blunders, n * len(names))]
     for flat in pairs:
         name, k = names[flat % len(names)], flat // len(names)
         angle = rng.uniform(0, 2 * math.pi)
         measured[name][k] += rng.uniform(5.0, 20.0) * np.array([math.cos(angle), math.sin(angle)])
         blunder[name][k] = True
     return Candidates(lon[keep], lat[keep], heights[keep], true, measured, blunder)
-

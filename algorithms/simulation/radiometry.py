@@ -26,6 +26,7 @@ deterministic misfit of the matcher (docs/validation.md#simulator-psf).
 Then DN = gain L + offset (path radiance; gain and offset differ between sensors), additive Gaussian
 noise, rounding to `bits` (DN 0 is kept for nodata, as in DIMAP). The true orthoimage product is
 the ground radiance L with the nominal gain and offset."""
+
 import math
 
 import numpy as np
@@ -38,10 +39,10 @@ from .terrain import BARE, CITY, CROPS, FOREST, WATER, gradient_en
 
 E_DIRECT = 0.85
 E_SKY = 0.15
-NOMINAL_GAIN = 450.0     # DN (8 bit) per unit radiance
-NOMINAL_OFFSET = 12.0    # DN (8 bit) of path radiance
-OPTICS_SIGMA = 0.4       # detectors: Gaussian optics PSF (with the detector box, MTF(Nyquist) 0.29)
-SUPERSAMPLE = 3          # quadrature rays per pixel and axis for the PSF integral (odd)
+NOMINAL_GAIN = 450.0  # DN (8 bit) per unit radiance
+NOMINAL_OFFSET = 12.0  # DN (8 bit) of path radiance
+OPTICS_SIGMA = 0.4  # detectors: Gaussian optics PSF (with the detector box, MTF(Nyquist) 0.29)
+SUPERSAMPLE = 3  # quadrature rays per pixel and axis for the PSF integral (odd)
 
 
 def psf_kernel(width, smear, sigma, k):
@@ -54,14 +55,14 @@ def psf_kernel(width, smear, sigma, k):
     psf = np.exp(-0.5 * (u / sigma) ** 2)
     for w in (width, smear):
         if w > 0:
-            n = 2 * int(round(0.5 * w / d)) + 1     # odd: centred
+            n = 2 * int(round(0.5 * w / d)) + 1  # odd: centred
             psf = np.convolve(psf, np.ones(n) / n, mode="same")
     m_max = int(np.ceil(half * k))
     out = np.array([psf[np.abs(u - m / k) <= 0.5 / k + 1e-12].sum() for m in range(-m_max, m_max + 1)])
     out /= out.sum()
     keep = np.flatnonzero(out > 1e-6 * out.max())
     r = max(m_max - keep[0], keep[-1] - m_max)
-    out = out[m_max - r:m_max + r + 1]
+    out = out[m_max - r : m_max + r + 1]
     return out / out.sum()
 
 
@@ -82,18 +83,30 @@ def reflectance(classes, feature, objects, e0, de, n0, dn, seed):
                 theta = math.pi * uniform(f, 0, seed + 2)
                 period = 6.0 + 9.0 * uniform(f, 1, seed + 2)
                 furrow = math.sin(2 * math.pi * (e * math.cos(theta) + n * math.sin(theta)) / period)
-                r = (0.20 + 0.15 * uniform(f, 2, seed + 2) + 0.035 * fbm(e / 12.0, n / 12.0, seed + 3, 3, 0.5)
-                     + 0.015 * furrow)
+                r = (
+                    0.20
+                    + 0.15 * uniform(f, 2, seed + 2)
+                    + 0.035 * fbm(e / 12.0, n / 12.0, seed + 3, 3, 0.5)
+                    + 0.015 * furrow
+                )
             elif c == CROPS:
                 theta = math.pi * uniform(f, 0, seed + 4)
                 period = 8.0 + 12.0 * uniform(f, 1, seed + 4)
                 rows_amp = 0.025 * max(0.0, 2.0 * uniform(f, 3, seed + 4) - 1.0)
                 stripe = math.sin(2 * math.pi * (e * math.cos(theta) + n * math.sin(theta)) / period)
-                r = (0.07 + 0.10 * uniform(f, 2, seed + 4) + rows_amp * stripe
-                     + 0.008 * fbm(e / 15.0, n / 15.0, seed + 5, 2, 0.5))
+                r = (
+                    0.07
+                    + 0.10 * uniform(f, 2, seed + 4)
+                    + rows_amp * stripe
+                    + 0.008 * fbm(e / 15.0, n / 15.0, seed + 5, 2, 0.5)
+                )
             elif c == FOREST:
-                r = (0.035 + 0.0015 * objects[i, j] + 0.015 * uniform(f, 0, seed + 6)
-                     + 0.012 * fbm(e / 10.0, n / 10.0, seed + 7, 2, 0.5))
+                r = (
+                    0.035
+                    + 0.0015 * objects[i, j]
+                    + 0.015 * uniform(f, 0, seed + 6)
+                    + 0.012 * fbm(e / 10.0, n / 10.0, seed + 7, 2, 0.5)
+                )
             elif c == CITY:
                 if f == 0:
                     r = 0.10 + 0.01 * fbm(e / 8.0, n / 8.0, seed + 8, 2, 0.5)
@@ -114,7 +127,7 @@ def illumination(z, bmax, de, dn, sun_az, sun_el, hmax, i0, i1, j0, j1):
     climbs to `hmax` (the highest DSM height, of the whole grid where z is a window: the window must
     reach that far towards the sun, see sun_margins)."""
     se, sn, su = math.sin(sun_az) * math.cos(sun_el), math.cos(sun_az) * math.cos(sun_el), math.sin(sun_el)
-    gx, gy = math.sin(sun_az) / de, -math.cos(sun_az) / dn     # grid cells per metre towards the sun
+    gx, gy = math.sin(sun_az) / de, -math.cos(sun_az) / dn  # grid cells per metre towards the sun
     slope = math.tan(sun_el)
     out = np.empty((i1 - i0, j1 - j0), np.float32)
     for i in prange(i0, i1):
@@ -127,8 +140,9 @@ def illumination(z, bmax, de, dn, sun_az, sun_el, hmax, i0, i1, j0, j1):
             if cos_i > 0.0:
                 z0 = z[i, j] + 0.05
                 length = (hmax - z0) / slope + 1.0
-                s = first_hit(float(j), float(i), z0, j + gx * length, i + gy * length, z0 + slope * length,
-                              z, bmax, BLOCK)
+                s = first_hit(
+                    float(j), float(i), z0, j + gx * length, i + gy * length, z0 + slope * length, z, bmax, BLOCK
+                )
                 lit = 1.0 if s < 0.0 else 0.0
             out[i - i0, j - j0] = E_DIRECT * max(cos_i, 0.0) * lit + E_SKY * sky
     return out
@@ -158,11 +172,11 @@ def paint_markers(rho, grid, lon, lat, sigma_m, pad=0.03, peak=0.85, origin=(0, 
         i, j = int(math.floor(yc)), int(math.floor(xc))
         i0, i1, j0, j1 = max(i - ri, 0), min(i + ri + 2, rows), max(j - rj, 0), min(j + rj + 2, cols)
         if i1 <= i0 or j1 <= j0:
-            continue        # off this tile
+            continue  # off this tile
         ii, jj = np.mgrid[i0:i1, j0:j1]
         d2 = ((jj - xc) * de) ** 2 + ((ii - yc) * dn) ** 2
         inside = d2 <= radius * radius
-        rho[ii[inside], jj[inside]] = pad + peak * np.exp(-0.5 * d2[inside] / sigma_m ** 2)
+        rho[ii[inside], jj[inside]] = pad + peak * np.exp(-0.5 * d2[inside] / sigma_m**2)
 
 
 def sensor_image(radiance, gain, offset, noise, bits, rng):
@@ -174,7 +188,7 @@ def sensor_image(radiance, gain, offset, noise, bits, rng):
     dn = scale * (gain * filled + offset)
     if noise > 0:
         dn += rng.normal(0.0, noise * scale, dn.shape)
-    out = np.clip(np.rint(dn), 1, 2 ** bits - 1).astype(np.uint8 if bits == 8 else np.uint16)
+    out = np.clip(np.rint(dn), 1, 2**bits - 1).astype(np.uint8 if bits == 8 else np.uint16)
     out[missing] = 0
     return out
 
@@ -193,6 +207,7 @@ class OrthoimageReflectance:
 
     def __init__(self, path, grid):
         from osgeo import gdal
+
         gdal.UseExceptions()
         self.path, self.grid = str(path), grid
         try:
@@ -207,16 +222,28 @@ class OrthoimageReflectance:
 
     def _warp(self, bounds, width, height):
         from osgeo import gdal
+
         try:
-            warped = gdal.Warp("", self.src, format="MEM", dstSRS="EPSG:4326", outputBounds=bounds, width=width,
-                               height=height, resampleAlg="bilinear", outputType=gdal.GDT_Float32,
-                               dstNodata=float("nan"))
+            warped = gdal.Warp(
+                "",
+                self.src,
+                format="MEM",
+                dstSRS="EPSG:4326",
+                outputBounds=bounds,
+                width=width,
+                height=height,
+                resampleAlg="bilinear",
+                outputType=gdal.GDT_Float32,
+                dstNodata=float("nan"),
+            )
         except RuntimeError as exc:
             raise InputError(f"cannot read the orthoimage {self.path}: {exc}") from exc
         values = warped.GetRasterBand(1).ReadAsArray().astype(np.float32)
         if not np.all(np.isfinite(values)):
-            raise InputError(f"the orthoimage {self.path} does not cover the scene's ground "
-                             f"(lon/lat {', '.join(f'{b:.4f}' for b in self.grid.bounds)}); give one that does")
+            raise InputError(
+                f"the orthoimage {self.path} does not cover the scene's ground "
+                f"(lon/lat {', '.join(f'{b:.4f}' for b in self.grid.bounds)}); give one that does"
+            )
         return values
 
     def __call__(self, window):

@@ -15,6 +15,7 @@ coordinates a segment is walked cell by cell (DDA), skipping blocks of `BLOCK` x
 whose maximum lies below it; in each cell the bilinear surface along the segment is a quadratic
 in the ray parameter, whose first root is the exact first intersection. The same walk, upwards
 towards the sun, gives cast shadows."""
+
 import math
 
 import numpy as np
@@ -121,8 +122,10 @@ def first_hit(xa, ya, za, xb, yb, zb, z, bmax, bs):
         i = _cell_index(y, dy, rows - 1)
         bi = i // bs
         bj = j // bs
-        exit_block = min(_axis_exit(x, dx, bj * bs, min((bj + 1) * bs, cols - 1)),
-                         _axis_exit(y, dy, bi * bs, min((bi + 1) * bs, rows - 1)))
+        exit_block = min(
+            _axis_exit(x, dx, bj * bs, min((bj + 1) * bs, cols - 1)),
+            _axis_exit(y, dy, bi * bs, min((bi + 1) * bs, rows - 1)),
+        )
         s_block = min(s + exit_block, s1)
         if min(za + dz * s, za + dz * s_block) > bmax[bi, bj]:
             s = max(s_block, s + 1e-13)
@@ -202,8 +205,9 @@ def bilinear(v, x, y):
     i = min(int(y), rows - 2)
     fx = x - j
     fy = y - i
-    return ((v[i, j] * (1.0 - fx) + v[i, j + 1] * fx) * (1.0 - fy)
-            + (v[i + 1, j] * (1.0 - fx) + v[i + 1, j + 1] * fx) * fy)
+    return (v[i, j] * (1.0 - fx) + v[i, j + 1] * fx) * (1.0 - fy) + (
+        v[i + 1, j] * (1.0 - fx) + v[i + 1, j + 1] * fx
+    ) * fy
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -247,9 +251,21 @@ def trace(pos, mat, look, z, bmax, bs, gt, sphere, hmin, hmax):
     for k in prange(n):
         m = mat[k]
         ux, uy, uz = look[k, 0], look[k, 1], look[k, 2]
-        x, y, h = ray_ground(pos[k, 0], pos[k, 1], pos[k, 2],
-                             m[0] * ux + m[1] * uy + m[2] * uz, m[3] * ux + m[4] * uy + m[5] * uz,
-                             m[6] * ux + m[7] * uy + m[8] * uz, z, bmax, bs, gt, sphere, hmin, hmax)
+        x, y, h = ray_ground(
+            pos[k, 0],
+            pos[k, 1],
+            pos[k, 2],
+            m[0] * ux + m[1] * uy + m[2] * uz,
+            m[3] * ux + m[4] * uy + m[5] * uz,
+            m[6] * ux + m[7] * uy + m[8] * uz,
+            z,
+            bmax,
+            bs,
+            gt,
+            sphere,
+            hmin,
+            hmax,
+        )
         out[k, 0] = gt[0] + (x + 0.5) * gt[1]
         out[k, 1] = gt[2] + (y + 0.5) * gt[3]
         out[k, 2] = h
@@ -285,8 +301,11 @@ class Surface:
         self.bmax = block_max(self.z, BLOCK)
         self.sphere = grid_sphere(grid) if sphere is None else sphere
         self.gt = np.array([grid.lon0, grid.dlon, grid.lat0, grid.dlat])
-        self.hmin, self.hmax = ((float(self.z.min()), float(self.z.max())) if height_range is None
-                                else (float(height_range[0]), float(height_range[1])))
+        self.hmin, self.hmax = (
+            (float(self.z.min()), float(self.z.max()))
+            if height_range is None
+            else (float(height_range[0]), float(height_range[1]))
+        )
 
     def _args(self):
         return self.z, self.bmax, BLOCK, self.gt, self.sphere, self.hmin, self.hmax

@@ -18,6 +18,7 @@ being built (tiles.py), the terrain, radiance and PSF filter run per ground tile
 rendered in bands of BAND lines, cast in windows (tiled_surface.py) and written band by band. A
 full-size SPOT 5 triplet (60 km: HRG 12 000 x 12 000 px) thus fits a small machine.
 """
+
 import dataclasses
 import math
 import os
@@ -48,38 +49,38 @@ from .tiles import TILE, cut, grid_array, grown, value_range, windows
 
 #: the truth file, relative to the scene folder: it marks a folder simulate_scene made (and may replace)
 TRUTH = os.path.join("truth", "truth.json")
-TERRAIN_MARGIN_M = 400.0    # ground beyond the images' footprints (shadows, pads)
-OBJECT_MAX_M = 60.0         # highest surface object, for the footprint bounds
-MARKER_SIGMA_M = 10.0       # Gaussian marker sigma: 1 px of the coarsest (10 m) images
-CLEARANCE_M = 40.0          # open ground around a point candidate without markers
-BITS = (8, 12)              # radiometric resolutions of the simulated imagery
-SIZE_KM = (1.0, 60.0)       # scene sizes: up to a full SPOT scene (60 km swath)
-BAND = 256                  # image lines rendered, noised and written at a time
+TERRAIN_MARGIN_M = 400.0  # ground beyond the images' footprints (shadows, pads)
+OBJECT_MAX_M = 60.0  # highest surface object, for the footprint bounds
+MARKER_SIGMA_M = 10.0  # Gaussian marker sigma: 1 px of the coarsest (10 m) images
+CLEARANCE_M = 40.0  # open ground around a point candidate without markers
+BITS = (8, 12)  # radiometric resolutions of the simulated imagery
+SIZE_KM = (1.0, 60.0)  # scene sizes: up to a full SPOT scene (60 km swath)
+BAND = 256  # image lines rendered, noised and written at a time
 
 
 @dataclass
 class SceneConfig:
     """Simulation parameters (each maps to a parameter of pushbroom:simulatescene)."""
 
-    configuration: str = "spot5_triplet"   # 'spot5_triplet' | 'spot14_pair' (instruments.py)
-    size_km: float = 20.0                  # scene width and height
-    seed: int = 1                          # same seed, same bytes
-    bits: int = 8                          # 8 or 12 bit imagery
-    noise: float = 1.0                     # image noise sigma, DN at 8 bit (scaled for 12 bit)
-    fractal: float = 1.0                   # fractal terrain detail (x 4 m; 0 = off)
-    surface_objects: bool = True           # forest canopy and buildings in the DSM
-    points: int = 30                       # control/check point candidates wanted
-    blunders: int = 0                      # gross errors among the simulated measurements
-    measurement_sigma: float = 0.3         # px, noise of the simulated measurements
-    markers: bool = False                  # bright targets painted at the point candidates
-    look_table: str = ""                   # METADATA.DIM whose look-angle table and line period to use
-    orthoimage: str = ""                   # raster to use as ground reflectance (procedural if empty)
-    error_scale: float = 1.0               # scale of the injected orientation errors (0: supplied = truth)
-    grid_m: float = 5.0                    # ground grid (DTM, DSM, radiance) cell, m
-    centre_lon: Optional[float] = None     # scene centre (default: the DEM's centre)
+    configuration: str = "spot5_triplet"  # 'spot5_triplet' | 'spot14_pair' (instruments.py)
+    size_km: float = 20.0  # scene width and height
+    seed: int = 1  # same seed, same bytes
+    bits: int = 8  # 8 or 12 bit imagery
+    noise: float = 1.0  # image noise sigma, DN at 8 bit (scaled for 12 bit)
+    fractal: float = 1.0  # fractal terrain detail (x 4 m; 0 = off)
+    surface_objects: bool = True  # forest canopy and buildings in the DSM
+    points: int = 30  # control/check point candidates wanted
+    blunders: int = 0  # gross errors among the simulated measurements
+    measurement_sigma: float = 0.3  # px, noise of the simulated measurements
+    markers: bool = False  # bright targets painted at the point candidates
+    look_table: str = ""  # METADATA.DIM whose look-angle table and line period to use
+    orthoimage: str = ""  # raster to use as ground reflectance (procedural if empty)
+    error_scale: float = 1.0  # scale of the injected orientation errors (0: supplied = truth)
+    grid_m: float = 5.0  # ground grid (DTM, DSM, radiance) cell, m
+    centre_lon: Optional[float] = None  # scene centre (default: the DEM's centre)
     centre_lat: Optional[float] = None
-    roll_deg: tuple = ()                   # per pass, across-track viewing angle (default per configuration)
-    dates: tuple = ()                      # per pass, ISO dates (default per configuration)
+    roll_deg: tuple = ()  # per pass, across-track viewing angle (default per configuration)
+    dates: tuple = ()  # per pass, ISO dates (default per configuration)
 
     @classmethod
     def small(cls, **overrides):
@@ -93,13 +94,16 @@ class SceneConfig:
         if self.configuration not in CONFIGURATIONS:
             raise InputError(f"configuration must be one of {', '.join(CONFIGURATIONS)}, not {self.configuration!r}")
         if isinstance(self.roll_deg, str) or isinstance(self.dates, str):
-            return dataclasses.replace(self, roll_deg=_split(self.roll_deg, float, "roll angle"),
-                                       dates=_split(self.dates, str, "date")).resolved()
+            return dataclasses.replace(
+                self, roll_deg=_split(self.roll_deg, float, "roll angle"), dates=_split(self.dates, str, "date")
+            ).resolved()
         passes = len(DEFAULT_DATES[self.configuration])
         checks = [
-            (int(self.seed) == self.seed and 0 <= self.seed < 2 ** 31, f"seed {self.seed} is not an integer 0..2^31-1"),
-            (SIZE_KM[0] <= self.size_km <= SIZE_KM[1],
-             f"scene size {self.size_km} km is outside {SIZE_KM[0]:g}..{SIZE_KM[1]:g} km (a full SPOT scene)"),
+            (int(self.seed) == self.seed and 0 <= self.seed < 2**31, f"seed {self.seed} is not an integer 0..2^31-1"),
+            (
+                SIZE_KM[0] <= self.size_km <= SIZE_KM[1],
+                f"scene size {self.size_km} km is outside {SIZE_KM[0]:g}..{SIZE_KM[1]:g} km (a full SPOT scene)",
+            ),
             (self.bits in BITS, f"bits must be 8 or 12, not {self.bits}"),
             (0.0 <= self.noise <= 50.0, f"noise {self.noise} DN is outside 0..50"),
             (0.0 <= self.fractal <= 5.0, f"fractal detail {self.fractal} is outside 0..5"),
@@ -108,15 +112,20 @@ class SceneConfig:
             (0.0 <= self.measurement_sigma <= 5.0, f"measurement sigma {self.measurement_sigma} px is outside 0..5"),
             (0.0 <= self.error_scale <= 10.0, f"error scale {self.error_scale} is outside 0..10"),
             (1.0 <= self.grid_m <= 20.0, f"ground grid {self.grid_m} m is outside 1..20 m"),
-            ((self.centre_lon is None) == (self.centre_lat is None),
-             "give both centre_lon and centre_lat, or neither"),
-            (len(self.roll_deg) in (0, passes),
-             f"{self.configuration} needs {passes} roll angle(s), got {len(self.roll_deg)}"),
+            ((self.centre_lon is None) == (self.centre_lat is None), "give both centre_lon and centre_lat, or neither"),
+            (
+                len(self.roll_deg) in (0, passes),
+                f"{self.configuration} needs {passes} roll angle(s), got {len(self.roll_deg)}",
+            ),
             (len(self.dates) in (0, passes), f"{self.configuration} needs {passes} date(s), got {len(self.dates)}"),
-            (all(abs(r) <= 27.0 for r in self.roll_deg),
-             "roll angles must lie within +-27 degrees (the SPOT mirror range)"),
-            (not self.look_table or os.path.isfile(self.look_table),
-             f"look-angle table {self.look_table!r} is not a file"),
+            (
+                all(abs(r) <= 27.0 for r in self.roll_deg),
+                "roll angles must lie within +-27 degrees (the SPOT mirror range)",
+            ),
+            (
+                not self.look_table or os.path.isfile(self.look_table),
+                f"look-angle table {self.look_table!r} is not a file",
+            ),
             (not self.orthoimage or os.path.isfile(self.orthoimage), f"orthoimage {self.orthoimage!r} is not a file"),
         ]
         for ok, message in checks:
@@ -129,8 +138,9 @@ class SceneConfig:
             except ValueError:
                 raise InputError(f"date {date!r} is not an ISO date (YYYY-MM-DD)") from None
         roll = self.roll_deg or DEFAULT_ROLL_DEG[self.configuration]
-        return dataclasses.replace(self, seed=int(self.seed), dates=tuple(str(d) for d in dates),
-                                   roll_deg=tuple(float(r) for r in roll))
+        return dataclasses.replace(
+            self, seed=int(self.seed), dates=tuple(str(d) for d in dates), roll_deg=tuple(float(r) for r in roll)
+        )
 
 
 def _split(value, kind, what):
@@ -153,8 +163,10 @@ def _look_table(config):
         raise InputError(f"cannot use {config.look_table} as look-angle table: {exc}") from exc
     wanted = instruments(config.configuration)[0].mission
     if (o.mission == 5) != (wanted == 5):
-        raise InputError(f"{config.look_table} is a SPOT {o.mission} scene; {config.configuration} needs a "
-                         f"{'SPOT 5' if wanted == 5 else 'SPOT 1-4'} look-angle table")
+        raise InputError(
+            f"{config.look_table} is a SPOT {o.mission} scene; {config.configuration} needs a "
+            f"{'SPOT 5' if wanted == 5 else 'SPOT 1-4'} look-angle table"
+        )
     return o.psi_x, o.psi_y, o.line_period
 
 
@@ -183,14 +195,28 @@ def simulate_scene(config, out_dir, feedback=None, tile=TILE):
             start, span = 40 + 45 * k / len(images), 45 / len(images)
             step(feedback, start, f"rendering {image.name} ({image.ncols} x {image.nrows})")
             filtered = grid_array(work, "filtered", grid.shape, np.float32)
-            ground_psf_filter(image, grid, 0.5 * (surface.hmin + surface.hmax), radiance[image.instrument.pass_index],
-                              filtered, tile)
-            radiometric[image.name] = _render(config, image, surface, filtered, k,
-                                              paths["images"][image.name]["imagery"], feedback, (start, span))
+            ground_psf_filter(
+                image, grid, 0.5 * (surface.hmin + surface.hmax), radiance[image.instrument.pass_index], filtered, tile
+            )
+            radiometric[image.name] = _render(
+                config, image, surface, filtered, k, paths["images"][image.name]["imagery"], feedback, (start, span)
+            )
             footprints[image.name] = _footprint(image, surface)
         step(feedback, 85, "writing the products")
-        _write(paths, config, images, terrain, radiance[0], candidates, corrections, trajectory, suns, radiometric,
-               footprints, geodetic_to_ecef(*centre))
+        _write(
+            paths,
+            config,
+            images,
+            terrain,
+            radiance[0],
+            candidates,
+            corrections,
+            trajectory,
+            suns,
+            radiometric,
+            footprints,
+            geodetic_to_ecef(*centre),
+        )
         shutil.rmtree(work)
     step(feedback, 100)
     return _rebase(paths, tmp, os.path.abspath(os.fspath(out_dir)))
@@ -202,17 +228,30 @@ def _plan(config, source):
     lon_c, lat_c = source.centre if config.centre_lon is None else (config.centre_lon, config.centre_lat)
     lon_min, lat_min, lon_max, lat_max = source.bounds
     if not (lon_min < lon_c < lon_max and lat_min < lat_c < lat_max):
-        raise InputError(f"the scene centre ({lon_c:.4f}, {lat_c:.4f}) lies outside the source DEM "
-                         f"(lon {lon_min:.4f}..{lon_max:.4f}, lat {lat_min:.4f}..{lat_max:.4f})")
+        raise InputError(
+            f"the scene centre ({lon_c:.4f}, {lat_c:.4f}) lies outside the source DEM "
+            f"(lon {lon_min:.4f}..{lon_max:.4f}, lat {lat_min:.4f}..{lat_max:.4f})"
+        )
     source_dem = Dem(source.heights + source.geoid, source.geotransform)
     centre = (lon_c, lat_c, source_dem.height(lon_c, lat_c))
-    images = plan(config.configuration, centre, config.size_km * 1000.0, config.dates, config.roll_deg,
-                  np.random.default_rng([config.seed, 1]), _look_table(config))
+    images = plan(
+        config.configuration,
+        centre,
+        config.size_km * 1000.0,
+        config.dates,
+        config.roll_deg,
+        np.random.default_rng([config.seed, 1]),
+        _look_table(config),
+    )
     low, high = source.planning_range
     bounds = footprint_bounds(images, (low - 10.0, high + OBJECT_MAX_M))
     me, mn = metres_per_degree(lat_c)
-    bounds = (bounds[0] - TERRAIN_MARGIN_M / me, bounds[1] - TERRAIN_MARGIN_M / mn,
-              bounds[2] + TERRAIN_MARGIN_M / me, bounds[3] + TERRAIN_MARGIN_M / mn)
+    bounds = (
+        bounds[0] - TERRAIN_MARGIN_M / me,
+        bounds[1] - TERRAIN_MARGIN_M / mn,
+        bounds[2] + TERRAIN_MARGIN_M / me,
+        bounds[3] + TERRAIN_MARGIN_M / mn,
+    )
     check_coverage(source, bounds)
     return images, Grid.covering(bounds, config.grid_m), centre
 
@@ -250,7 +289,7 @@ def _radiance(config, terrain, surface, images, candidates, centre, folder=None,
     sun_rad = {key: (math.radians(azimuth), math.radians(elevation)) for key, (azimuth, elevation) in suns.items()}
     relief = surface.hmax - surface.hmin + 0.05
     margins = [radiometry.sun_margins(de, dn, az, el, relief) for az, el in sun_rad.values()]
-    margins = [max(m[side] for m in margins) for side in range(4)]     # one DSM window serves every sun
+    margins = [max(m[side] for m in margins) for side in range(4)]  # one DSM window serves every sun
     for window in windows(grid.shape, tile):
         i0, i1, j0, j1 = window
         outer, inner = grown(window, grid.shape, *margins)
@@ -258,15 +297,23 @@ def _radiance(config, terrain, surface, images, candidates, centre, folder=None,
         if user:
             rho = user(window)
         else:
-            rho = radiometry.reflectance(cut(terrain.classes, window), cut(terrain.feature, window),
-                                         z[inner] - cut(terrain.dtm, window), e0 + j0 * de, de, n0 - i0 * dn, dn,
-                                         config.seed)
+            rho = radiometry.reflectance(
+                cut(terrain.classes, window),
+                cut(terrain.feature, window),
+                z[inner] - cut(terrain.dtm, window),
+                e0 + j0 * de,
+                de,
+                n0 - i0 * dn,
+                dn,
+                config.seed,
+            )
         if config.markers:
             radiometry.paint_markers(rho, grid, candidates.lon, candidates.lat, MARKER_SIGMA_M, origin=(i0, j0))
         bmax = block_max(z, BLOCK)
         for key, (az, el) in sun_rad.items():
-            light = radiometry.illumination(z, bmax, de, dn, az, el, surface.hmax,
-                                            inner[0].start, inner[0].stop, inner[1].start, inner[1].stop)
+            light = radiometry.illumination(
+                z, bmax, de, dn, az, el, surface.hmax, inner[0].start, inner[0].stop, inner[1].start, inner[1].stop
+            )
             radiance[key][i0:i1, j0:j1] = rho * light
     return radiance, suns
 
@@ -284,8 +331,9 @@ def _render(config, image, surface, filtered, index, path, feedback=None, progre
             b = min(a + BAND, image.nrows)
             sample = surface.render(*image.line_geometry(np.arange(a, b) + 0.5), look, filtered)
             if np.isnan(sample).any():
-                raise GeometryError(f"{np.isnan(sample).sum()} rays of {image.name} (lines {a}..{b - 1}) miss the "
-                                    "simulated terrain")
+                raise GeometryError(
+                    f"{np.isnan(sample).sum()} rays of {image.name} (lines {a}..{b - 1}) miss the simulated terrain"
+                )
             write(radiometry.sensor_image(sample, gain, offset, config.noise, config.bits, rng), a)
     return {"gain": gain, "offset": offset}
 
@@ -322,9 +370,12 @@ def ground_psf_filter(image, grid, height, radiance, out=None, tile=TILE, pad=64
         outer, _ = grown(window, grid.shape, pad)
         a0, a1, b0, b1 = outer
         i0, i1, j0, j1 = window
-        data = np.pad(cut(radiance, outer).astype(np.float32),
-                      ((pad - (i0 - a0), pad - (a1 - i1)), (pad - (j0 - b0), pad - (b1 - j1))), mode="reflect")
-        out[i0:i1, j0:j1] = _psf_filtered(data, jac, image.instrument)[pad:pad + i1 - i0, pad:pad + j1 - j0]
+        data = np.pad(
+            cut(radiance, outer).astype(np.float32),
+            ((pad - (i0 - a0), pad - (a1 - i1)), (pad - (j0 - b0), pad - (b1 - j1))),
+            mode="reflect",
+        )
+        out[i0:i1, j0:j1] = _psf_filtered(data, jac, image.instrument)[pad : pad + i1 - i0, pad : pad + j1 - j0]
     return out
 
 
@@ -332,20 +383,26 @@ def _psf_filtered(data, jac, ins):
     """`data` convolved with the PSF of instrument `ins` under the pixel -> grid Jacobian `jac`
     (ground_psf_filter), by FFT."""
     from scipy import fft
+
     shape = [fft.next_fast_len(n, real=True) for n in data.shape]
     ky = fft.fftfreq(shape[0])[:, None]
     kx = fft.rfftfreq(shape[1])[None, :]
     u = jac[0, 0] * kx + jac[1, 0] * ky
     v = jac[0, 1] * kx + jac[1, 1] * ky
     s, n = radiometry.OPTICS_SIGMA, ins.detector_lines
-    two_pi2 = 2.0 * math.pi ** 2
-    tf = (np.sinc(u) * np.exp(-two_pi2 * s * s * u * u)
-          * np.sinc(n * v) * np.sinc(v) * np.exp(-two_pi2 * (s * n) ** 2 * v * v)).astype(np.float32)
+    two_pi2 = 2.0 * math.pi**2
+    tf = (
+        np.sinc(u)
+        * np.exp(-two_pi2 * s * s * u * u)
+        * np.sinc(n * v)
+        * np.sinc(v)
+        * np.exp(-two_pi2 * (s * n) ** 2 * v * v)
+    ).astype(np.float32)
     del u, v
     spec = fft.rfft2(data, s=shape, workers=-1)
     spec *= tf
     del tf
-    return fft.irfft2(spec, s=shape, workers=-1)[:data.shape[0], :data.shape[1]].astype(np.float32)
+    return fft.irfft2(spec, s=shape, workers=-1)[: data.shape[0], : data.shape[1]].astype(np.float32)
 
 
 def _integrate(image, surface, radiance, k=radiometry.SUPERSAMPLE, block=128):
@@ -372,9 +429,9 @@ def _integrate(image, surface, radiance, k=radiometry.SUPERSAMPLE, block=128):
 def _correlate_valid(a, w, axis):
     """sum_m w[m] a[i + m] along `axis` over the positions where the kernel fits."""
     n = a.shape[axis] - len(w) + 1
-    out = np.zeros(a.shape[:axis] + (n,) + a.shape[axis + 1:])
+    out = np.zeros(a.shape[:axis] + (n,) + a.shape[axis + 1 :])
     for m, wm in enumerate(w):
-        out += wm * (a[:, m:m + n] if axis == 1 else a[m:m + n])
+        out += wm * (a[:, m : m + n] if axis == 1 else a[m : m + n])
     return out
 
 
@@ -394,20 +451,27 @@ def _products(folder, images):
     for image in images:
         os.makedirs(join(folder, image.name))
         os.makedirs(join(folder, "truth", image.name))
-        paths["images"][image.name] = {"imagery": join(folder, image.name, "IMAGERY.TIF"),
-                                       "metadata": join(folder, image.name, "METADATA.DIM")}
+        paths["images"][image.name] = {
+            "imagery": join(folder, image.name, "IMAGERY.TIF"),
+            "metadata": join(folder, image.name, "METADATA.DIM"),
+        }
         paths["truth_metadata"][image.name] = join(folder, "truth", image.name, "METADATA.DIM")
     return paths
 
 
-def _write(paths, config, images, terrain, radiance, candidates, corrections, trajectory, suns, radiometric,
-           footprints, centre):
+def _write(
+    paths, config, images, terrain, radiance, candidates, corrections, trajectory, suns, radiometric, footprints, centre
+):
     """Everything but the imagery into the folder of `paths` (its entries added)."""
     join, folder = os.path.join, paths["folder"]
     for image in images:
         sun = suns[image.instrument.pass_index]
-        write_dimap(paths["images"][image.name]["metadata"], image.orientation(corrections[image.name]), sun=sun,
-                    nbits=config.bits)
+        write_dimap(
+            paths["images"][image.name]["metadata"],
+            image.orientation(corrections[image.name]),
+            sun=sun,
+            nbits=config.bits,
+        )
         write_dimap(paths["truth_metadata"][image.name], image.orientation(), sun=sun, nbits=config.bits)
     grid = terrain.grid
     heights = {"HEIGHTS": "ellipsoidal, WGS 84 (EPSG:4979), metres"}
@@ -415,16 +479,25 @@ def _write(paths, config, images, terrain, radiance, candidates, corrections, tr
         paths[name] = join(folder, f"{name}.tif")
         outputs.write_raster(paths[name], array, grid, np.float32, description=description, metadata=heights)
     paths["classes"] = join(folder, "classes.tif")
-    outputs.write_raster(paths["classes"], terrain.classes, grid, np.uint8, nodata=0, description="land cover",
-                         metadata={f"CLASS_{k}": v for k, v in CLASSES.items() if k})
+    outputs.write_raster(
+        paths["classes"],
+        terrain.classes,
+        grid,
+        np.uint8,
+        nodata=0,
+        description="land cover",
+        metadata={f"CLASS_{k}": v for k, v in CLASSES.items() if k},
+    )
     paths["orthoimage"] = join(folder, "orthoimage.tif")
-    outputs.write_raster(paths["orthoimage"], radiance, grid, np.uint8, description="ground radiance",
-                         convert=radiometry.orthoimage)
+    outputs.write_raster(
+        paths["orthoimage"], radiance, grid, np.uint8, description="ground radiance", convert=radiometry.orthoimage
+    )
     paths["points"] = join(folder, "points.csv")
     outputs.write_points(paths["points"], candidates)
     paths["truth"] = join(folder, TRUTH)
-    outputs.write_json(paths["truth"], _truth(config, images, corrections, trajectory, suns, radiometric, footprints,
-                                              terrain, centre))
+    outputs.write_json(
+        paths["truth"], _truth(config, images, corrections, trajectory, suns, radiometric, footprints, terrain, centre)
+    )
     return paths
 
 
@@ -434,14 +507,19 @@ def _truth(config, images, corrections, trajectory, suns, radiometric, footprint
     for image in images:
         c = corrections[image.name]
         per_image[image.name] = {
-            "mission": image.instrument.mission, "instrument": image.instrument.instrument,
-            "instrument_index": image.instrument.instrument_index, "pass": image.instrument.pass_index,
-            "size": [image.ncols, image.nrows], "epoch": str(image.epoch), "centre_time": image.centre_time,
-            "centre_row": image.centre_row, "line_period": image.instrument.line_period,
+            "mission": image.instrument.mission,
+            "instrument": image.instrument.instrument,
+            "instrument_index": image.instrument.instrument_index,
+            "pass": image.instrument.pass_index,
+            "size": [image.ncols, image.nrows],
+            "epoch": str(image.epoch),
+            "centre_time": image.centre_time,
+            "centre_row": image.centre_row,
+            "line_period": image.instrument.line_period,
             "sun_azimuth_elevation": suns[image.instrument.pass_index],
-            "corrections": {"position": c.position, "attitude": c.attitude, "look": c.look,
-                            "time_scale": c.time_scale},
-            "radiometry": radiometric[image.name], "footprint": footprints[image.name],
+            "corrections": {"position": c.position, "attitude": c.attitude, "look": c.look, "time_scale": c.time_scale},
+            "radiometry": radiometric[image.name],
+            "footprint": footprints[image.name],
         }
     return {
         "config": config_dict,
@@ -451,11 +529,14 @@ def _truth(config, images, corrections, trajectory, suns, radiometric, footprint
         "classes": {str(k): v for k, v in CLASSES.items()},
         "towns": terrain.towns,
         "forest_fraction": _fraction(terrain.classes, terrain.grid.shape, FOREST),
-        "grid": {"geotransform": terrain.grid.geotransform, "size": [terrain.grid.cols, terrain.grid.rows],
-                 "crs": "EPSG:4326, heights ellipsoidal (WGS 84)"},
+        "grid": {
+            "geotransform": terrain.grid.geotransform,
+            "size": [terrain.grid.cols, terrain.grid.rows],
+            "crs": "EPSG:4326, heights ellipsoidal (WGS 84)",
+        },
         "conventions": "image (col, row): GDAL, (0, 0) top-left corner of the first pixel; truth = supplied "
-                       "+ corrections (spot_orientation.Corrections, tau about each image's centre_time); "
-                       "look[0] psi_x, look[1] psi_y",
+        "+ corrections (spot_orientation.Corrections, tau about each image's centre_time); "
+        "look[0] psi_x, look[1] psi_y",
     }
 
 
@@ -469,7 +550,7 @@ def _base_to_height(images, centre):
     satellites above the scene centre G, P at the time each image sees G."""
     out = {}
     for i, a in enumerate(images):
-        for b in images[i + 1:]:
+        for b in images[i + 1 :]:
             pa, _ = a.orbit.state(a.centre_time)
             pb, _ = b.orbit.state(b.centre_time)
             height = 0.5 * (np.linalg.norm(pa) + np.linalg.norm(pb)) - np.linalg.norm(centre)
@@ -481,4 +562,4 @@ def _rebase(value, old, new):
     """`value` with the temporary folder prefix `old` replaced by `new`."""
     if isinstance(value, dict):
         return {k: _rebase(v, old, new) for k, v in value.items()}
-    return new + value[len(old):] if isinstance(value, str) and value.startswith(old) else value
+    return new + value[len(old) :] if isinstance(value, str) and value.startswith(old) else value

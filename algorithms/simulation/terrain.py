@@ -26,6 +26,7 @@ classes: forest canopy (class FOREST) and buildings (class CITY); elsewhere DSM 
 Every grid is built tile by tile (tiles.py), with the margins each kernel's neighbourhood needs, so
 the result does not depend on the tiling: in files of a work folder (simulate_scene), or in memory
 where no folder is given (tests)."""
+
 import math
 from dataclasses import dataclass
 
@@ -42,29 +43,35 @@ from .render import bilinear
 from .tiles import TILE, cut, grid_array, grown, release, windows
 
 WATER, BARE, CROPS, FOREST, CITY = 1, 2, 3, 4, 5
-CLASSES = {0: "nodata", WATER: "water", BARE: "bare fields", CROPS: "grass/crops",
-           FOREST: "forest", CITY: "city/buildings"}
-LAKE_LEVEL = 305.0          # Norris Lake water surface in the source DEM, m (orthometric)
-LAKE_MIN_CELLS = 200        # source-DEM components at or below LAKE_LEVEL that count as the lake
-FRACTAL_AMPLITUDE = 4.0     # m, largest fractal octave at fractal = 1
+CLASSES = {
+    0: "nodata",
+    WATER: "water",
+    BARE: "bare fields",
+    CROPS: "grass/crops",
+    FOREST: "forest",
+    CITY: "city/buildings",
+}
+LAKE_LEVEL = 305.0  # Norris Lake water surface in the source DEM, m (orthometric)
+LAKE_MIN_CELLS = 200  # source-DEM components at or below LAKE_LEVEL that count as the lake
+FRACTAL_AMPLITUDE = 4.0  # m, largest fractal octave at fractal = 1
 FRACTAL_WAVELENGTH = 180.0  # m: the source DEM resolves ~2 x 90 m; detail is added below that
-FRACTAL_PERSISTENCE = 2.0 ** -0.8  # amplitude ratio per octave (fBm with Hurst exponent 0.8)
-CONTINUATION_AMPLITUDE = 60.0      # m, relief that tells the mirrored copies of the source apart
-CONTINUATION_WAVELENGTH = 6000.0   # m, its largest octave (4 octaves)
-CONTINUATION_RAMP = 3000.0         # m beyond the source's edge to its full strength
-CONTINUATION_SEED = 977            # fixed: the extended source is the same for every scene seed
-CITY_REACH_M = 60.0                # a city cell reads the DTM at its lot's centre, at most this far
+FRACTAL_PERSISTENCE = 2.0**-0.8  # amplitude ratio per octave (fBm with Hurst exponent 0.8)
+CONTINUATION_AMPLITUDE = 60.0  # m, relief that tells the mirrored copies of the source apart
+CONTINUATION_WAVELENGTH = 6000.0  # m, its largest octave (4 octaves)
+CONTINUATION_RAMP = 3000.0  # m beyond the source's edge to its full strength
+CONTINUATION_SEED = 977  # fixed: the extended source is the same for every scene seed
+CITY_REACH_M = 60.0  # a city cell reads the DTM at its lot's centre, at most this far
 
 
 @dataclass
 class SourceDem:
     """The source DEM on its own north-up grid: orthometric heights, geoid undulation, lake mask."""
 
-    heights: np.ndarray   # (rows, cols) float64, m above the geoid
-    geoid: np.ndarray     # (rows, cols) float64, EGM96 undulation N, m
-    lake: np.ndarray      # (rows, cols) bool, Norris Lake zone
+    heights: np.ndarray  # (rows, cols) float64, m above the geoid
+    geoid: np.ndarray  # (rows, cols) float64, EGM96 undulation N, m
+    lake: np.ndarray  # (rows, cols) bool, Norris Lake zone
     geotransform: tuple
-    planning_range: tuple = None   # (low, high) ellipsoidal heights the acquisition is planned for
+    planning_range: tuple = None  # (low, high) ellipsoidal heights the acquisition is planned for
 
     def __post_init__(self):
         if self.planning_range is None:
@@ -85,6 +92,7 @@ def jacksboro_dem():
     """The Jacksboro sample DEM, north-up (see the module docstring for the orientation check)."""
     from matplotlib import cbook
     from scipy import ndimage
+
     data = np.load(cbook.get_sample_data("jacksboro_fault_dem.npz", asfileobj=False))
     heights = data["elevation"].astype(np.float64)
     lat_north = float(max(data["ymin"], data["ymax"]))
@@ -111,8 +119,7 @@ def extended_dem(source):
     heights = np.pad(source.heights, pad, mode="symmetric")
     _add_continuation(heights, rows, cols, de, dn)
     lake = np.pad(source.lake, pad, mode="symmetric")
-    return SourceDem(heights, _geoid_undulation(heights.shape, geotransform), lake, geotransform,
-                     source.planning_range)
+    return SourceDem(heights, _geoid_undulation(heights.shape, geotransform), lake, geotransform, source.planning_range)
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -125,8 +132,13 @@ def _add_continuation(heights, rows, cols, de, dn):
             dx = max(cols - j - 0.5, j + 0.5 - 2 * cols, 0.0) * de
             w = min(math.hypot(dx, dy) / CONTINUATION_RAMP, 1.0)
             if w > 0.0:
-                heights[i, j] += w * CONTINUATION_AMPLITUDE * fbm(
-                    j * de / CONTINUATION_WAVELENGTH, -i * dn / CONTINUATION_WAVELENGTH, CONTINUATION_SEED, 4, 0.5)
+                heights[i, j] += (
+                    w
+                    * CONTINUATION_AMPLITUDE
+                    * fbm(
+                        j * de / CONTINUATION_WAVELENGTH, -i * dn / CONTINUATION_WAVELENGTH, CONTINUATION_SEED, 4, 0.5
+                    )
+                )
 
 
 def _geoid_undulation(shape, geotransform):
@@ -277,8 +289,7 @@ def _canopy(e, n, seed):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _land_cover(dtm, slope, water, e0, de, n0, dn, towns, seed, objects_on,
-                classes, objects, feature):
+def _land_cover(dtm, slope, water, e0, de, n0, dn, towns, seed, objects_on, classes, objects, feature):
     """Per cell: WATER where `water`; CITY inside a town's noisy disc (slope < 15 deg);
     FOREST where slope + 14 fbm(1.5 km) > 13 (steep slopes and noisy patches); otherwise a field
     parcel (Worley cells of ~220 m): BARE for 35 % of the parcels, CROPS for the rest."""
@@ -297,7 +308,8 @@ def _land_cover(dtm, slope, water, e0, de, n0, dn, towns, seed, objects_on,
             for k in range(towns.shape[0]):
                 r = math.hypot(e - towns[k, 0], n - towns[k, 1])
                 if r < 1.3 * towns[k, 2] and r < towns[k, 2] * (
-                        1.0 + 0.3 * gradient_noise(e / 250.0, n / 250.0, seed + 13 + k)):
+                    1.0 + 0.3 * gradient_noise(e / 250.0, n / 250.0, seed + 13 + k)
+                ):
                     town = k
                     break
             if town >= 0 and slope[i, j] < 15.0:
@@ -327,9 +339,9 @@ class Terrain:
     grid: Grid
     dtm: object
     dsm: object
-    classes: object       # uint8, CLASSES codes
-    feature: object       # int64: parcel / tree / building id (see _land_cover)
-    towns: np.ndarray     # (k, 5): east, north, radius, angle, block size (local metres)
+    classes: object  # uint8, CLASSES codes
+    feature: object  # int64: parcel / tree / building id (see _land_cover)
+    towns: np.ndarray  # (k, 5): east, north, radius, angle, block size (local metres)
 
 
 def check_coverage(source, bounds):
@@ -338,12 +350,17 @@ def check_coverage(source, bounds):
     s_lon_min, s_lat_min, s_lon_max, s_lat_max = source.bounds
     margin_lon, margin_lat = 2 * dlon, -2 * dlat
     lon_min, lat_min, lon_max, lat_max = bounds
-    if (lon_min < s_lon_min + margin_lon or lon_max > s_lon_max - margin_lon
-            or lat_min < s_lat_min + margin_lat or lat_max > s_lat_max - margin_lat):
+    if (
+        lon_min < s_lon_min + margin_lon
+        or lon_max > s_lon_max - margin_lon
+        or lat_min < s_lat_min + margin_lat
+        or lat_max > s_lat_max - margin_lat
+    ):
         raise InputError(
             f"the images need terrain over lon {lon_min:.4f}..{lon_max:.4f}, lat {lat_min:.4f}..{lat_max:.4f}, "
             f"but the source DEM covers lon {s_lon_min:.4f}..{s_lon_max:.4f}, lat {s_lat_min:.4f}..{s_lat_max:.4f}; "
-            "make the scene smaller or move its centre")
+            "make the scene smaller or move its centre"
+        )
 
 
 def build_terrain(source, grid, seed, fractal=1.0, surface_objects=True, folder=None, tile=TILE):
@@ -370,8 +387,18 @@ def build_terrain(source, grid, seed, fractal=1.0, surface_objects=True, folder=
         i0, i1, j0, j1 = window
         dtm = resample(source.heights, window)
         if fractal > 0:
-            _add_fractal(dtm, e0 + j0 * de, de, n0 - i0 * dn, dn, FRACTAL_WAVELENGTH, octaves,
-                         fractal * FRACTAL_AMPLITUDE, FRACTAL_PERSISTENCE, seed + 3)
+            _add_fractal(
+                dtm,
+                e0 + j0 * de,
+                de,
+                n0 - i0 * dn,
+                dn,
+                FRACTAL_WAVELENGTH,
+                octaves,
+                fractal * FRACTAL_AMPLITUDE,
+                FRACTAL_PERSISTENCE,
+                seed + 3,
+            )
         wet = (resample(lake, window, _nearest) > 0) & (dtm <= LAKE_LEVEL)
         dtm[wet] = LAKE_LEVEL
         orthometric[i0:i1, j0:j1] = dtm
@@ -394,8 +421,21 @@ def build_terrain(source, grid, seed, fractal=1.0, surface_objects=True, folder=
         c = np.empty(z.shape, np.uint8)
         objects = np.empty(z.shape, np.float64)
         f = np.empty(z.shape, np.int64)
-        _land_cover(z, cut(slope, outer), cut(water, outer), e0 + outer[2] * de, de, n0 - outer[0] * dn, dn,
-                    towns, seed, bool(surface_objects), c, objects, f)
+        _land_cover(
+            z,
+            cut(slope, outer),
+            cut(water, outer),
+            e0 + outer[2] * de,
+            de,
+            n0 - outer[0] * dn,
+            dn,
+            towns,
+            seed,
+            bool(surface_objects),
+            c,
+            objects,
+            f,
+        )
         ground = z[inner] + resample(source.geoid, window)
         dtm[i0:i1, j0:j1] = ground
         dsm[i0:i1, j0:j1] = ground + objects[inner]
@@ -430,10 +470,10 @@ def _place_towns(slope, water, grid, seed):
     rows, cols = (grid.rows // k) * k, (grid.cols // k) * k
     coarse = np.empty((rows // k, cols // k), np.float32)
     wet = np.empty((rows // k, cols // k), bool)
-    for b in range(rows // k):     # one band of blocks at a time (the grids may be files)
-        coarse[b] = slope[b * k:(b + 1) * k, :cols].reshape(k, cols // k, k).mean(axis=(0, 2))
-        wet[b] = water[b * k:(b + 1) * k, :cols].reshape(k, cols // k, k).any(axis=(0, 2))
-    ci, cj = np.mgrid[0:coarse.shape[0], 0:coarse.shape[1]]
+    for b in range(rows // k):  # one band of blocks at a time (the grids may be files)
+        coarse[b] = slope[b * k : (b + 1) * k, :cols].reshape(k, cols // k, k).mean(axis=(0, 2))
+        wet[b] = water[b * k : (b + 1) * k, :cols].reshape(k, cols // k, k).any(axis=(0, 2))
+    ci, cj = np.mgrid[0 : coarse.shape[0], 0 : coarse.shape[1]]
     yc, xc = (ci + 0.5) * k, (cj + 0.5) * k
     inner = (np.abs(yc / grid.rows - 0.5) < 0.3) & (np.abs(xc / grid.cols - 0.5) < 0.3)
     score = np.where(inner & ~wet, coarse + rng.uniform(0.0, 1.0, coarse.shape), np.inf)

@@ -7,6 +7,7 @@ render.ray_ground cuts it (plus REFINE_M of refinement). Their ground points at 
 The window's Surface keeps the whole grid's height range and osculating sphere, so every hit equals
 the whole grid's (up to the rounding of the window's origin, 1e-15 degrees). Rays whose window
 reaches the grid's edge may leave the grid, as they would on the whole grid."""
+
 import math
 
 import numpy as np
@@ -16,9 +17,9 @@ from .acquisition import ray_at_height
 from .render import REFINE_M, Surface, grid_sphere
 from .tiles import cut
 
-WINDOW_MARGIN = 3     # cells around the rays' ground points at the cutting heights
-CHUNK = 1024          # detectors per ray-casting chunk of a band of lines
-EDGE_STEP = 128       # px between the border rays that bound a chunk's window
+WINDOW_MARGIN = 3  # cells around the rays' ground points at the cutting heights
+CHUNK = 1024  # detectors per ray-casting chunk of a band of lines
+EDGE_STEP = 128  # px between the border rays that bound a chunk's window
 
 
 class TiledSurface:
@@ -56,8 +57,9 @@ class TiledSurface:
         out = np.empty((len(pos), 3))
         for k in range(len(pos)):
             direction = mat[k].reshape(3, 3) @ look[k]
-            out[k] = self.surface(self.window(pos[k:k + 1], direction[None])).trace(pos[k:k + 1], mat[k:k + 1],
-                                                                                    look[k:k + 1])[0]
+            out[k] = self.surface(self.window(pos[k : k + 1], direction[None])).trace(
+                pos[k : k + 1], mat[k : k + 1], look[k : k + 1]
+            )[0]
         return out
 
     def render(self, pos, mat, look, radiance):
@@ -68,8 +70,12 @@ class TiledSurface:
         for c0 in range(0, len(look), CHUNK):
             c1 = min(c0 + CHUNK, len(look))
             dets = np.unique(np.r_[np.arange(c0, c1, EDGE_STEP), c1 - 1])
-            border = [(lines, np.full(lines.size, c0)), (lines, np.full(lines.size, c1 - 1)),
-                      (np.zeros(dets.size, int), dets), (np.full(dets.size, len(pos) - 1), dets)]
+            border = [
+                (lines, np.full(lines.size, c0)),
+                (lines, np.full(lines.size, c1 - 1)),
+                (np.zeros(dets.size, int), dets),
+                (np.full(dets.size, len(pos) - 1), dets),
+            ]
             r = np.concatenate([b[0] for b in border])
             c = np.concatenate([b[1] for b in border])
             direction = np.einsum("nij,nj->ni", mat[r].reshape(-1, 3, 3), look[c])

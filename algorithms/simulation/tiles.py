@@ -4,6 +4,7 @@ given (tests), and
 every kernel runs on a tile of at most TILE x TILE cells plus the margin its neighbourhood needs.
 So a full-size scene (60 km at 5 m: about 14 000 x 14 000 cells per grid) keeps a few windows in
 memory, never a grid (disk_array.DiskArray: mapped only for the slice read or written)."""
+
 import os
 
 import numpy as np
@@ -11,7 +12,7 @@ import numpy as np
 from ..disk_array import DiskArray
 from ..tiling import tile_grid
 
-TILE = 2048     # ground tile side, cells
+TILE = 2048  # ground tile side, cells
 
 
 def windows(shape, tile=TILE):

@@ -4,6 +4,7 @@ Rays come from the analytic orbit and attitude at the exact line time and from t
 look angles, never from sampled ephemeris, so a sensor model that interpolates the sampled
 orientation is checked independently. Line time of GDAL row coordinate r:
 t = t_c + (r - r_c) T; pixel (col j, row k) is the ray of detector p = j + 0.5 at row k + 0.5."""
+
 import math
 from dataclasses import dataclass
 
@@ -14,8 +15,8 @@ from .instruments import Instrument, LookAngles
 from .orbit import Attitude, CircularOrbit, look_residual, newton
 from .render import line_matrices
 
-ATTITUDE_RATE = 8.0          # Hz, attitude samples (SPOT 5 corrected attitudes, SPOT 1-4 speeds)
-ATTITUDE_MARGIN = 2.0        # s of attitude samples before the first and after the last line
+ATTITUDE_RATE = 8.0  # Hz, attitude samples (SPOT 5 corrected attitudes, SPOT 1-4 speeds)
+ATTITUDE_MARGIN = 2.0  # s of attitude samples before the first and after the last line
 EPHEMERIS_MARGIN_POINTS = 4  # ephemeris samples at least this many each side of the scene
 
 
@@ -29,7 +30,7 @@ class ImageTruth:
     look: LookAngles
     ncols: int
     nrows: int
-    centre_time: float       # s since epoch, time of row coordinate centre_row
+    centre_time: float  # s since epoch, time of row coordinate centre_row
     centre_row: float
     epoch: np.datetime64
 
@@ -46,8 +47,9 @@ class ImageTruth:
         rows = np.arange(self.nrows) + 0.5 if rows is None else np.asarray(rows, dtype=np.float64)
         t = self.row_time(rows)
         pos, vel = self.orbit.state(t)
-        return np.ascontiguousarray(pos), line_matrices(np.ascontiguousarray(pos), np.ascontiguousarray(vel),
-                                                        np.ascontiguousarray(self.attitude.angles(t)))
+        return np.ascontiguousarray(pos), line_matrices(
+            np.ascontiguousarray(pos), np.ascontiguousarray(vel), np.ascontiguousarray(self.attitude.angles(t))
+        )
 
     def look_vectors(self, cols=None):
         """Navigation-frame look vectors u1 (n, 3) of column coordinates `cols` (default: the
@@ -62,10 +64,17 @@ class ImageTruth:
         xyz = np.atleast_2d(np.asarray(xyz, dtype=np.float64))
         out = np.empty((len(xyz), 2))
         for k, target in enumerate(xyz):
+
             def residual(v):
                 return look_residual(self.orbit, self.attitude, v[0], target, *self.look(v[1]))
-            t, p = newton(residual, np.array([self.centre_time, 0.5 * self.ncols]), np.array([1e-4, 1e-3]),
-                           np.array([1e-9, 1e-7]), "image position of a ground point")
+
+            t, p = newton(
+                residual,
+                np.array([self.centre_time, 0.5 * self.ncols]),
+                np.array([1e-4, 1e-3]),
+                np.array([1e-9, 1e-7]),
+                "image position of a ground point",
+            )
             out[k] = p, self.centre_row + (t - self.centre_time) / self.instrument.line_period
         return out[:, 0], out[:, 1]
 
@@ -83,8 +92,9 @@ class ImageTruth:
         c = corrections or Corrections()
         first, last = self.time_span()
         step = ins.ephemeris_step
-        k = np.arange(math.floor(first / step) - EPHEMERIS_MARGIN_POINTS + 1,
-                      math.ceil(last / step) + EPHEMERIS_MARGIN_POINTS)
+        k = np.arange(
+            math.floor(first / step) - EPHEMERIS_MARGIN_POINTS + 1, math.ceil(last / step) + EPHEMERIS_MARGIN_POINTS
+        )
         eph_t = k * step
         pos, vel = self.orbit.state(eph_t)
         tau = (eph_t - self.centre_time) / c.time_scale
@@ -104,14 +114,30 @@ class ImageTruth:
         q = (p - 0.5 * self.ncols) / 1000.0
         psi_x = psi_x - _poly(c.look[:1], q)[:, 0]
         psi_y = psi_y - _poly(c.look[1:], q)[:, 0]
-        if ins.mission < 5:   # SPOT 1-4 DIMAP: first and last detector, linear between (bit-exact)
+        if ins.mission < 5:  # SPOT 1-4 DIMAP: first and last detector, linear between (bit-exact)
             psi_x, psi_y = (np.interp(p, p[[0, -1]], v[[0, -1]]) for v in (psi_x, psi_y))
         return SpotOrientation(
-            mission=ins.mission, instrument=ins.instrument, instrument_index=ins.instrument_index,
-            ncols=self.ncols, nrows=self.nrows, epoch=self.epoch, eph_t=eph_t, eph_pos=pos, eph_vel=vel,
-            att_t=att_t, att_ypr=att_ypr, psi_x=psi_x, psi_y=psi_y, line_period=ins.line_period,
-            centre_time=self.centre_time, centre_row=self.centre_row, speed_t=speed_t, speed_ypr=speed_ypr,
-            sensor_code=ins.sensor_code, name=f"simulated {ins.name}")
+            mission=ins.mission,
+            instrument=ins.instrument,
+            instrument_index=ins.instrument_index,
+            ncols=self.ncols,
+            nrows=self.nrows,
+            epoch=self.epoch,
+            eph_t=eph_t,
+            eph_pos=pos,
+            eph_vel=vel,
+            att_t=att_t,
+            att_ypr=att_ypr,
+            psi_x=psi_x,
+            psi_y=psi_y,
+            line_period=ins.line_period,
+            centre_time=self.centre_time,
+            centre_row=self.centre_row,
+            speed_t=speed_t,
+            speed_ypr=speed_ypr,
+            sensor_code=ins.sensor_code,
+            name=f"simulated {ins.name}",
+        )
 
 
 def _poly(coef, tau):

@@ -25,6 +25,7 @@ written with an alert section saying so, then a GeometryError says it, with the 
 
 A block without control points can only be adjusted with named free parameters and priors that fix
 the datum (InputError otherwise)."""
+
 import contextlib
 from dataclasses import dataclass
 from typing import Optional
@@ -81,24 +82,24 @@ def parse_counts(text):
 class AdjustParams:
     """The bundle adjustment's settings; each is a pushbroom:bundleadjust parameter."""
 
-    free: str = "auto"                  # "auto" or comma-separated parameter names/patterns
-    model: str = "polynomial"           # one of parameters.MODELS
+    free: str = "auto"  # "auto" or comma-separated parameter names/patterns
+    model: str = "polynomial"  # one of parameters.MODELS
     use_tie_points: bool = True
-    remove_blunders: bool = False       # remove flagged measurements one by one
-    reference_dem: Optional[str] = None         # DTM for the tie point height table
+    remove_blunders: bool = False  # remove flagged measurements one by one
+    reference_dem: Optional[str] = None  # DTM for the tie point height table
     reference_dem_nodata: Optional[float] = None
-    reference_heights: str = "ellipsoidal"      # one of control_points.HEIGHT_TYPES
-    sigma_tie: float = IMAGE_SIGMA      # px, tie point measurements
-    critical: float = CRITICAL_W        # critical normalised residual (data snooping)
+    reference_heights: str = "ellipsoidal"  # one of control_points.HEIGHT_TYPES
+    sigma_tie: float = IMAGE_SIGMA  # px, tie point measurements
+    critical: float = CRITICAL_W  # critical normalised residual (data snooping)
     max_iterations: int = 15
     variance_components: bool = True
-    significance: float = 3.0           # automatic selection: x/sigma threshold
-    control_series: str = ""            # control point counts, e.g. "4,6,10"
-    orientation_images: int = 4         # Lagrange model: orientation images per trajectory
+    significance: float = 3.0  # automatic selection: x/sigma threshold
+    control_series: str = ""  # control point counts, e.g. "4,6,10"
+    orientation_images: int = 4  # Lagrange model: orientation images per trajectory
     vector_scale: float = DEFAULT_SCALE
-    priors: str = ""                    # "pattern=sigma, ..."
-    report: Optional[str] = None        # HTML report path
-    residual_vectors: Optional[str] = None      # residual vector file (GeoPackage, shapefile, GeoJSON)
+    priors: str = ""  # "pattern=sigma, ..."
+    report: Optional[str] = None  # HTML report path
+    residual_vectors: Optional[str] = None  # residual vector file (GeoPackage, shapefile, GeoJSON)
 
     @property
     def free_list(self):
@@ -114,11 +115,14 @@ class AdjustParams:
         if self.model not in MODELS:
             raise InputError(f"the orientation model must be one of {', '.join(MODELS)}, not {self.model!r}")
         if self.reference_heights not in HEIGHT_TYPES:
-            raise InputError(f"the reference DTM heights must be one of {', '.join(HEIGHT_TYPES)}, "
-                             f"not {self.reference_heights!r}")
+            raise InputError(
+                f"the reference DTM heights must be one of {', '.join(HEIGHT_TYPES)}, not {self.reference_heights!r}"
+            )
         if self.residual_vectors and self.residual_vectors.startswith("memory:"):
-            raise InputError("write the residual vectors to a file (GeoPackage, shapefile or GeoJSON), not to a "
-                             "temporary memory layer")
+            raise InputError(
+                "write the residual vectors to a file (GeoPackage, shapefile or GeoJSON), not to a "
+                "temporary memory layer"
+            )
         parse_priors(self.priors)
         parse_counts(self.control_series)
         return self
@@ -129,7 +133,7 @@ class AdjustResult:
     """What adjust_block stored and wrote."""
 
     sigma0: float
-    report: Optional[str] = None            # the HTML report written, if asked
+    report: Optional[str] = None  # the HTML report written, if asked
     residual_vectors: Optional[str] = None  # the residual vector file written, if asked
 
 
@@ -140,18 +144,25 @@ def _solve(models, obs, names, params, options, feedback):
         options.update(model=params.model, orientation_images=params.orientation_images)
         if auto:
             free, auto = LAGRANGE_AUTO, False
-            progress.ensure(feedback).pushInfo(f"Lagrange model: free {', '.join(free)} (header positions as "
-                                               "priors: 1 m relative, offsets 1000 m)")
+            progress.ensure(feedback).pushInfo(
+                f"Lagrange model: free {', '.join(free)} (header positions as priors: 1 m relative, offsets 1000 m)"
+            )
     if auto:
-        selection = select_parameters(models, obs, names=names, variance_components=params.variance_components,
-                                      significance=params.significance, feedback=feedback, **options)
+        selection = select_parameters(
+            models,
+            obs,
+            names=names,
+            variance_components=params.variance_components,
+            significance=params.significance,
+            feedback=feedback,
+            **options,
+        )
         extra.append(report.Section("Parameter selection (Kornus et al. 2006, section 3.4.3)", notes=selection.log))
         if selection.components:
             extra.append(report.variance_section(selection.components))
         return selection.result, selection.observations, selection.free, extra
     if params.variance_components:
-        result, obs, components = adjust_with_components(models, obs, free, names=names, feedback=feedback,
-                                                         **options)
+        result, obs, components = adjust_with_components(models, obs, free, names=names, feedback=feedback, **options)
         return result, obs, free, [report.variance_section(components)]
     return adjust(models, obs, free, names=names, feedback=feedback, **options), obs, free, extra
 
@@ -166,10 +177,12 @@ def _screened(models, obs, names, remove, feedback):
         return obs, []
     wrong = screening.ground_points()
     if wrong and not remove:
-        raise InputError(f"control point(s) grossly off: {describe(screening, obs, names, wrong)}. Check their "
-                         "coordinates and measurements (the measurement window), make them check points "
-                         "(importpoints CHECK_IDS) to see their error after the adjustment, or set REMOVE_BLUNDERS "
-                         "to leave them out")
+        raise InputError(
+            f"control point(s) grossly off: {describe(screening, obs, names, wrong)}. Check their "
+            "coordinates and measurements (the measurement window), make them check points "
+            "(importpoints CHECK_IDS) to see their error after the adjustment, or set REMOVE_BLUNDERS "
+            "to leave them out"
+        )
     notes = []
     if wrong:
         notes.append(f"left out before the adjustment, grossly off: {describe(screening, obs, names, wrong)}")
@@ -179,14 +192,26 @@ def _screened(models, obs, names, remove, feedback):
         notes.append(f"far off, left to data snooping: {describe(screening, obs, names, single)}")
         progress.ensure(feedback).pushInfo(notes[-1])
     points = obs.points["name"]
-    section = report.Section("Control point screening (gross errors)",
-                             ("point", "image", "offset px", "offset m", "|e| / s", "action"),
-                             [(str(points[c.point]), names.get(c.image_id, str(c.image_id)), f"{c.offset_px:.1f}",
-                               f"{c.offset_m:.0f}", f"{c.ratio:.1f}",
-                               "point left out" if c.point in wrong else "data snooping")
-                              for c in screening.suspects],
-                             notes + ["offset: from where the other control points put the point in that image, "
-                                      "with the supplied orientation (screening.py)"])
+    section = report.Section(
+        "Control point screening (gross errors)",
+        ("point", "image", "offset px", "offset m", "|e| / s", "action"),
+        [
+            (
+                str(points[c.point]),
+                names.get(c.image_id, str(c.image_id)),
+                f"{c.offset_px:.1f}",
+                f"{c.offset_m:.0f}",
+                f"{c.ratio:.1f}",
+                "point left out" if c.point in wrong else "data snooping",
+            )
+            for c in screening.suspects
+        ],
+        notes
+        + [
+            "offset: from where the other control points put the point in that image, "
+            "with the supplied orientation (screening.py)"
+        ],
+    )
     return without(obs, wrong), [section]
 
 
@@ -208,51 +233,78 @@ def adjust_block(block_path, params, feedback=None):
     if params.use_tie_points:
         obs = obs.concatenate(tie_observations(blk.points("tie_points"), params.sigma_tie))
     if not (obs.points["role"] == "control").any() and (params.auto or not priors):
-        raise InputError("the block has no control points: import them (pushbroom:importpoints), or adjust "
-                         "with tie points alone by naming the free parameters and priors that fix the "
-                         "datum (e.g. FREE bias:shift, PRIORS bias:shift=10 for RPC images)")
+        raise InputError(
+            "the block has no control points: import them (pushbroom:importpoints), or adjust "
+            "with tie points alone by naming the free parameters and priors that fix the "
+            "datum (e.g. FREE bias:shift, PRIORS bias:shift=10 for RPC images)"
+        )
     obs, screened = _screened(models, obs, names, params.remove_blunders, feedback)
     height = mean_height(blk.height_range())
-    with contextlib.ExitStack() as stack:     # the reference DEM's work folder, where there is one
+    with contextlib.ExitStack() as stack:  # the reference DEM's work folder, where there is one
         dem = None
         if params.reference_dem:
-            dem = store_dem(params.reference_dem, stack.enter_context(work_dir(block_path, "the stored reference DEM")),
-                            params.reference_dem_nodata)
+            dem = store_dem(
+                params.reference_dem,
+                stack.enter_context(work_dir(block_path, "the stored reference DEM")),
+                params.reference_dem_nodata,
+            )
             progress.warn(feedback, dem.implausible)
-        options = {"height": height, "critical": params.critical, "priors": priors,
-                   "max_iterations": params.max_iterations, "remove_blunders": params.remove_blunders}
+        options = {
+            "height": height,
+            "critical": params.critical,
+            "priors": priors,
+            "max_iterations": params.max_iterations,
+            "remove_blunders": params.remove_blunders,
+        }
         result, obs, free, extra = _solve(models, obs, names, params, options, feedback)
         extra[:0] = screened
         counts = parse_counts(params.control_series)
         if counts:
-            series = control_point_series(blk.models(supplied=True),            # _solve adjusted `models`
-                                          obs, counts, free, names=names, feedback=feedback,
-                                          **{k: v for k, v in options.items() if k != "remove_blunders"})
+            series = control_point_series(
+                blk.models(supplied=True),  # _solve adjusted `models`
+                obs,
+                counts,
+                free,
+                names=names,
+                feedback=feedback,
+                **{k: v for k, v in options.items() if k != "remove_blunders"},
+            )
             extra.append(report.series_section(series))
         check = check_points(result, obs, height)
         table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")}) if len(check["dE"]) else None
         heights = None
         if dem is not None:
             datum = params.reference_heights
-            heights = (tie_height_differences(result, dem, datum),
-                       f"{params.reference_dem}, {'EGM96 ' if datum == 'orthometric' else ''}{datum} heights")
+            heights = (
+                tie_height_differences(result, dem, datum),
+                f"{params.reference_dem}, {'EGM96 ' if datum == 'orthometric' else ''}{datum} heights",
+            )
             if not len(heights[0].dh):
-                progress.warn(feedback, "no adjusted tie point lies on the reference DTM: the tie point height table "
-                              "is empty (use the block's tie points and a DTM that covers the block)")
-    vectors, crs = residual_vectors(result, check, obs, params.vector_scale,
-                                    blk.info().get("default_crs"), params.critical)
+                progress.warn(
+                    feedback,
+                    "no adjusted tie point lies on the reference DTM: the tie point height table "
+                    "is empty (use the block's tie points and a DTM that covers the block)",
+                )
+    vectors, crs = residual_vectors(
+        result, check, obs, params.vector_scale, blk.info().get("default_crs"), params.critical
+    )
     parts = report.sections(result, check, table, params.critical, heights, vectors)
-    at = next(k for k, part in enumerate(parts) if not part.alert) + 1       # after the "Adjustment" section
+    at = next(k for k, part in enumerate(parts) if not part.alert) + 1  # after the "Adjustment" section
     parts[at:at] = extra
     progress.ensure(feedback).pushInfo(report.render_text(parts))
     if not result.converged:
-        written = report.write_html(params.report, f"Bundle adjustment of {block_path} (not converged)",
-                                    parts=parts) if params.report else None
-        raise GeometryError(f"the adjustment did not converge in {result.iterations} iteration(s) (the last point "
-                            f"update was {result.last_update:.3g} m): nothing was stored, the block keeps its models"
-                            + (f"; the report {written} shows the last iteration" if written else "")
-                            + ". Raise MAX_ITERATIONS; if it still does not converge, free fewer parameters "
-                            "(e.g. FREE look:0) or check the control points")
+        written = (
+            report.write_html(params.report, f"Bundle adjustment of {block_path} (not converged)", parts=parts)
+            if params.report
+            else None
+        )
+        raise GeometryError(
+            f"the adjustment did not converge in {result.iterations} iteration(s) (the last point "
+            f"update was {result.last_update:.3g} m): nothing was stored, the block keeps its models"
+            + (f"; the report {written} shows the last iteration" if written else "")
+            + ". Raise MAX_ITERATIONS; if it still does not converge, free fewer parameters "
+            "(e.g. FREE look:0) or check the control points"
+        )
     residuals = residual_rows(result, check, obs)
     # storage: the adjusted models and the residuals in one transaction, if the block is unchanged
     with blk.transaction("the adjusted models and residuals", expect=generations) as tx:

@@ -12,6 +12,7 @@ The terrain height range comes from the DEM; else from the mean height given (+-
 more images, it is found by matching (matching/height_search.py: sparse points over the orientation's whole
 valid height range, intersected; the footprints at their median height); a single image without either
 takes its orientation's mean height (an RPC's HEIGHT_OFF; 0 m for a SPOT model), with a warning."""
+
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -29,12 +30,12 @@ from ..matching.height_search import search_heights, validity_range
 class CreateParams:
     """The creation's settings; each is a pushbroom:createblock parameter."""
 
-    orientation: list = field(default_factory=list)   # orientation files, one per image; empty: beside them
-    dem: Optional[str] = None           # DEM for the footprints (ellipsoidal heights)
+    orientation: list = field(default_factory=list)  # orientation files, one per image; empty: beside them
+    dem: Optional[str] = None  # DEM for the footprints (ellipsoidal heights)
     dem_nodata: Optional[float] = None  # void value of the DEM its file does not flag
-    height: Optional[float] = None      # mean ellipsoidal height without a DEM (m); None: found by matching
-    overwrite: bool = False             # replace an existing block
-    execution: Execution = field(default_factory=lambda: Execution("threads", 1))   # where the height search runs
+    height: Optional[float] = None  # mean ellipsoidal height without a DEM (m); None: found by matching
+    overwrite: bool = False  # replace an existing block
+    execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the height search runs
 
 
 @dataclass
@@ -42,8 +43,8 @@ class CreateResult:
     """The block created."""
 
     path: str
-    footprints: str     # OGR source of its footprint layer
-    images: list        # (name, columns, rows) per image, in block order
+    footprints: str  # OGR source of its footprint layer
+    images: list  # (name, columns, rows) per image, in block order
 
 
 def create_block(output, images, params, feedback=None):
@@ -62,15 +63,28 @@ def create_block(output, images, params, feedback=None):
         if dem is None and height is None:
             height, heights, found = _terrain_heights(opened, params.execution, feedback)
         # storage: the new block
-        blk = Block.create(output, opened, height=height, dem=dem, overwrite=params.overwrite,
-                           feedback=progress.scaled(feedback, 80, 100) if found else feedback, height_range=heights)
+        blk = Block.create(
+            output,
+            opened,
+            height=height,
+            dem=dem,
+            overwrite=params.overwrite,
+            feedback=progress.scaled(feedback, 80, 100) if found else feedback,
+            height_range=heights,
+        )
         if found:
-            blk.update_info({"height_search": f"{found.points} points matched over {found.searched[0]:.0f} to "
-                                              f"{found.searched[1]:.0f} m, {found.rejected} rejected"})
-    progress.ensure(feedback).pushInfo(f"block {output}: " + ", ".join(
-        f"{name} ({model.size[0]} x {model.size[1]})" for name, _, _, model in opened))
-    return CreateResult(output, blk.layer_source("footprints"),
-                        [(name, model.size[0], model.size[1]) for name, _, _, model in opened])
+            blk.update_info(
+                {
+                    "height_search": f"{found.points} points matched over {found.searched[0]:.0f} to "
+                    f"{found.searched[1]:.0f} m, {found.rejected} rejected"
+                }
+            )
+    progress.ensure(feedback).pushInfo(
+        f"block {output}: " + ", ".join(f"{name} ({model.size[0]} x {model.size[1]})" for name, _, _, model in opened)
+    )
+    return CreateResult(
+        output, blk.layer_source("footprints"), [(name, model.size[0], model.size[1]) for name, _, _, model in opened]
+    )
 
 
 def _terrain_heights(opened, execution, feedback):
@@ -81,16 +95,25 @@ def _terrain_heights(opened, execution, feedback):
     if len(opened) < 2:
         height = getattr(models[0], "height_range", None)
         height = 0.5 * (height[0] + height[1]) if height else 0.0
-        progress.warn(feedback, f"no DEM and no height given: the footprint of {names[0]} is at its orientation's "
-                                f"mean height {height:.0f} m +- 500 m; give a DEM or a mean height for a better one")
+        progress.warn(
+            feedback,
+            f"no DEM and no height given: the footprint of {names[0]} is at its orientation's "
+            f"mean height {height:.0f} m +- 500 m; give a DEM or a mean height for a better one",
+        )
         return height, None, None
     if not all(paths):
-        raise InputError("no DEM and no height given, and the terrain height cannot be found without the images' "
-                         "pixels: give a DEM or a mean height")
+        raise InputError(
+            "no DEM and no height given, and the terrain height cannot be found without the images' "
+            "pixels: give a DEM or a mean height"
+        )
     lo, hi = validity_range(models)
-    log.pushInfo(f"no DEM and no height given: finding the terrain height by matching {names[0]} with "
-                 f"{', '.join(names[1:])} over the orientation's valid heights {lo:.0f} to {hi:.0f} m")
+    log.pushInfo(
+        f"no DEM and no height given: finding the terrain height by matching {names[0]} with "
+        f"{', '.join(names[1:])} over the orientation's valid heights {lo:.0f} to {hi:.0f} m"
+    )
     found = search_heights(paths, models, names, progress.scaled(feedback, 0, 80), execution)
-    log.pushInfo(f"terrain heights {found.height_range[0]:.0f} to {found.height_range[1]:.0f} m (median "
-                 f"{found.median:.0f} m) from {found.points} matched points ({found.rejected} rejected as mismatches)")
+    log.pushInfo(
+        f"terrain heights {found.height_range[0]:.0f} to {found.height_range[1]:.0f} m (median "
+        f"{found.median:.0f} m) from {found.points} matched points ({found.rejected} rejected as mismatches)"
+    )
     return found.median, found.height_range, found

@@ -18,6 +18,7 @@ the parts beside it (cloud_neighbourhood.py).
 Points that cannot be intersected are left out and counted in the log, which also gives per point group the
 count and the median sigmas (intersection.Summary; sigma_h before the surface term). Storage: the points are
 read from the block (Block.point_parts) and the step is recorded in its block_info (Block.update_info)."""
+
 import os
 from dataclasses import dataclass, field
 
@@ -46,12 +47,12 @@ KINDS = ("mass_points", "tie_points")
 class IntersectParams:
     """The intersection step's settings; each is a pushbroom:intersectpoints parameter."""
 
-    kind: str = "mass_points"       # one of KINDS
-    crs: str = None                 # output CRS (authority id or WKT); None: the block's UTM zone
-    sigma: float = IMAGE_SIGMA      # px: a priori sigma of the image coordinates
-    max_iterations: int = 10        # per point
-    outlier_neighbours: int = 0     # k of the statistical outlier removal (surface/outlier_filter.py); 0: off
-    outlier_factor: float = outlier_filter.FACTOR   # its n: d > mu + n s is an outlier
+    kind: str = "mass_points"  # one of KINDS
+    crs: str = None  # output CRS (authority id or WKT); None: the block's UTM zone
+    sigma: float = IMAGE_SIGMA  # px: a priori sigma of the image coordinates
+    max_iterations: int = 10  # per point
+    outlier_neighbours: int = 0  # k of the statistical outlier removal (surface/outlier_filter.py); 0: off
+    outlier_factor: float = outlier_filter.FACTOR  # its n: d > mu + n s is an outlier
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the parts run
 
     def check(self):
@@ -61,8 +62,10 @@ class IntersectParams:
         if self.sigma <= 0 or self.max_iterations < 1:
             raise InputError("the image sigma must be positive and the iterations at least 1")
         if not (0 <= self.outlier_neighbours <= MAX_NEIGHBOURS and self.outlier_factor > 0):
-            raise InputError(f"the outlier removal needs 0 (off) to {MAX_NEIGHBOURS} neighbours and a positive factor, "
-                             f"got {self.outlier_neighbours} and {self.outlier_factor}")
+            raise InputError(
+                f"the outlier removal needs 0 (off) to {MAX_NEIGHBOURS} neighbours and a positive factor, "
+                f"got {self.outlier_neighbours} and {self.outlier_factor}"
+            )
         self.execution.check()
         return self
 
@@ -71,10 +74,10 @@ class IntersectParams:
 class IntersectResult:
     """What intersect_block_points wrote."""
 
-    path: str           # the point cloud
-    format: str         # "las", "laz" or "gpkg" (pointcloud.write_point_cloud)
-    count: int          # points written
-    layer: str = None   # OGR source of the point layer (GeoPackage output)
+    path: str  # the point cloud
+    format: str  # "las", "laz" or "gpkg" (pointcloud.write_point_cloud)
+    count: int  # points written
+    layer: str = None  # OGR source of the point layer (GeoPackage output)
 
 
 def _intersect_part(job, part, out):
@@ -88,14 +91,30 @@ def _intersect_part(job, part, out):
     multi = load_arrays(part)
     obs = multi.observations
     if len(obs) == 0:
-        return {"points": 0, "written": 0, "status": {}, "summary": intersection.Summary(), "lonlat": (0, 0, 0),
-                "refined": 0}
+        return {
+            "points": 0,
+            "written": 0,
+            "status": {},
+            "summary": intersection.Summary(),
+            "lonlat": (0, 0, 0),
+            "refined": 0,
+        }
     unknown = set(np.unique(obs["image_id"]).tolist()) - set(models)
     if unknown:
-        raise InputError(f"the {what} refer to image ids {sorted(unknown)} which the block does not have: "
-                         "run the matching step again")
-    result = intersection.intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"],
-                                    sigma=precision.image_sigmas(multi.points, obs, sigma), h0=h0, max_iter=max_iter)
+        raise InputError(
+            f"the {what} refer to image ids {sorted(unknown)} which the block does not have: "
+            "run the matching step again"
+        )
+    result = intersection.intersect(
+        models,
+        obs["image_id"],
+        obs["point_id"],
+        obs["col"],
+        obs["row"],
+        sigma=precision.image_sigmas(multi.points, obs, sigma),
+        h0=h0,
+        max_iter=max_iter,
+    )
     pos = np.searchsorted(multi.points["id"], result.point).clip(max=max(len(multi) - 1, 0))
     if len(multi) == 0 or np.any(multi.points["id"][pos] != result.point):
         raise InputError(f"the stored {what} have observations of unknown points: run the matching step again")
@@ -103,12 +122,17 @@ def _intersect_part(job, part, out):
     ok = result.ok
     fields = pointcloud.cloud_fields(result, group=group, rho=multi.points["rho_min"][pos])
     lon, lat, h = result.lon[ok], result.lat[ok], result.h[ok]
-    check_cancel()                      # before the write (execution: a cancel reaches a running part)
+    check_cancel()  # before the write (execution: a cancel reaches a running part)
     pointcloud.save_part(out, lon, lat, h, fields)
     refined = precision.refined_dense(multi.points)[pos][ok]
-    done = {"points": len(result), "written": int(ok.sum()), "status": result.status_counts(),
-            "summary": intersection.Summary().add(result, group),
-            "lonlat": (float(lon.sum()), float(lat.sum()), float(h.sum())), "refined": int(refined.sum())}
+    done = {
+        "points": len(result),
+        "written": int(ok.sum()),
+        "status": result.status_counts(),
+        "summary": intersection.Summary().add(result, group),
+        "lonlat": (float(lon.sum()), float(lat.sum()), float(h.sum())),
+        "refined": int(refined.sum()),
+    }
     if ok.any():
         done["box"] = (float(lon.min()), float(lon.max()), float(lat.min()), float(lat.max()))
     if refined.any():
@@ -136,8 +160,13 @@ def intersect_block_points(block_path, output, params=None, feedback=None):
     job = (models, None if heights is None else mean_height(heights), params.sigma, params.max_iterations, what)
     with work_dir(output, "the intersected parts") as work:
         files = [os.path.join(work, f"part-{k:05d}.npz") for k in range(len(parts))]
-        done = run_tasks(_intersect_part, [(job, part, out) for part, out in zip(parts, files)], params.execution,
-                         progress.scaled(feedback, 0, 70), "the intersection")
+        done = run_tasks(
+            _intersect_part,
+            [(job, part, out) for part, out in zip(parts, files)],
+            params.execution,
+            progress.scaled(feedback, 0, 70),
+            "the intersection",
+        )
         points = sum(d["points"] for d in done)
         if points == 0 or all(not d["status"] for d in done):
             raise InputError(f"the block's {what} have no image measurements")
@@ -147,21 +176,42 @@ def intersect_block_points(block_path, output, params=None, feedback=None):
             for name, n in d["status"].items():
                 status[name] = status.get(name, 0) + n
         written = sum(d["written"] for d in done)
-        log.pushInfo(f"{points} {what} in {len(parts)} part(s): "
-                     + ", ".join(f"{name} {n}" for name, n in status.items()))
-        log.pushInfo("per point group (a priori sigmas in m from the image sigma; sigma0 a posteriori):\n"
-                     + intersection.format_summary(summary.rows()))
+        log.pushInfo(
+            f"{points} {what} in {len(parts)} part(s): " + ", ".join(f"{name} {n}" for name, n in status.items())
+        )
+        log.pushInfo(
+            "per point group (a priori sigmas in m from the image sigma; sigma0 a posteriori):\n"
+            + intersection.format_summary(summary.rows())
+        )
         if written == 0:
-            raise InputError(f"none of the {points} points could be intersected ({status}): check the block's sensor "
-                             "models and the points")
-        centre, mean_h = (tuple(sum(d["lonlat"][i] for d in done) / written for i in range(2)),
-                          sum(d["lonlat"][2] for d in done) / written)
-        loaders, written = second_round(files, done, models, centre, mean_h, params.outlier_neighbours,
-                                        params.outlier_factor, params.execution, progress.scaled(feedback, 70, 80),
-                                        log)
+            raise InputError(
+                f"none of the {points} points could be intersected ({status}): check the block's sensor "
+                "models and the points"
+            )
+        centre, mean_h = (
+            tuple(sum(d["lonlat"][i] for d in done) / written for i in range(2)),
+            sum(d["lonlat"][2] for d in done) / written,
+        )
+        loaders, written = second_round(
+            files,
+            done,
+            models,
+            centre,
+            mean_h,
+            params.outlier_neighbours,
+            params.outlier_factor,
+            params.execution,
+            progress.scaled(feedback, 70, 80),
+            log,
+        )
         out, srs, fmt = pointcloud.write_point_cloud_parts(
-            output, [load for load, d in zip(loaders, done) if d["written"]], written, centre=centre,
-            crs=params.crs or blk.info().get("default_crs"), feedback=progress.scaled(feedback, 80, 100))
+            output,
+            [load for load, d in zip(loaders, done) if d["written"]],
+            written,
+            centre=centre,
+            crs=params.crs or blk.info().get("default_crs"),
+            feedback=progress.scaled(feedback, 80, 100),
+        )
     message = f"{written} points written to {out} ({srs.GetName()}; z ellipsoidal height)"
     log.pushInfo(message)
     # storage: the step in the block's info

@@ -18,6 +18,7 @@ fewer points than the block holds at that spacing (none, or below half: block/re
 A height range given that misses the block's terrain heights (check_height_range) is said before matching:
 entirely, an error where the block measured them (its DEM, or the height search at its creation), since the
 rays would be searched where the terrain is not; mostly, a warning."""
+
 import functools
 from dataclasses import dataclass, field
 from typing import Any, Optional
@@ -45,13 +46,13 @@ class MatchParams:
     """The matching step's settings; each is a pushbroom:matchpoints parameter. `settings`: the strategy's
     settings object (its settings_type; None: its defaults)."""
 
-    images: str = ""                    # names in combination order (reference, forward[, backward]); "": all
+    images: str = ""  # names in combination order (reference, forward[, backward]); "": all
     min_height: Optional[float] = None  # m ellipsoidal; None: the block's terrain height range
     max_height: Optional[float] = None  # m ellipsoidal; None: the block's terrain height range
-    strategy: str = "region_growing"    # a registered strategy's name (matching/strategy.py)
+    strategy: str = "region_growing"  # a registered strategy's name (matching/strategy.py)
     settings: Any = None
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))
-    replace_fewer: bool = False         # replace the block's mass points even by far fewer (block/replacement.py)
+    replace_fewer: bool = False  # replace the block's mass points even by far fewer (block/replacement.py)
 
     def check(self) -> "MatchParams":
         """Raise InputError for settings no matching can use; fills in the strategy's default settings."""
@@ -64,15 +65,19 @@ class MatchParams:
 class MatchResult:
     """What match_block_points stored."""
 
-    count: int                  # the points matched
-    folder: str                 # the point folder (block/points.py)
-    layer: str                  # OGR source of the block's 'mass_points' layer
-    summary: Rows               # points per group (group_summary.summary_rows)
-    summary_csv: Optional[str] = None   # the summary CSV, where one was asked for
+    count: int  # the points matched
+    folder: str  # the point folder (block/points.py)
+    layer: str  # OGR source of the block's 'mass_points' layer
+    summary: Rows  # points per group (group_summary.summary_rows)
+    summary_csv: Optional[str] = None  # the summary CSV, where one was asked for
 
 
-def match_block_points(block_path: str, params: Optional[MatchParams] = None, summary_csv: Optional[str] = None,
-                       feedback: Optional[Feedback] = None) -> MatchResult:
+def match_block_points(
+    block_path: str,
+    params: Optional[MatchParams] = None,
+    summary_csv: Optional[str] = None,
+    feedback: Optional[Feedback] = None,
+) -> MatchResult:
     """Match the images of the block at `block_path` with MatchParams `params` and store the mass points;
     `summary_csv`: where to write the points per group (None: nowhere). Returns a MatchResult. Raises
     InputError (settings, images not in the block, no tie points where asked for, a height range beside the
@@ -82,30 +87,43 @@ def match_block_points(block_path: str, params: Optional[MatchParams] = None, su
     strategy = strategy_named(params.strategy)
     log = progress.ensure(feedback)
     blk = Block(block_path)
-    blk.check_writable("the matched points")        # before the matching, not after it
+    blk.check_writable("the matched points")  # before the matching, not after it
     rows = combination_order(blk.images(), params.images)
     ids = [r["id"] for r in rows]
     models = list(blk.models(ids).values())
     terrain = blk.height_range()
-    stereo = StereoSet.of([r["image_path"] for r in rows], models, [r["name"] for r in rows], ids,
-                          height_range(params.min_height, params.max_height, terrain),
-                          functools.partial(blk.points, "tie_points"))
+    stereo = StereoSet.of(
+        [r["image_path"] for r in rows],
+        models,
+        [r["name"] for r in rows],
+        ids,
+        height_range(params.min_height, params.max_height, terrain),
+        functools.partial(blk.points, "tie_points"),
+    )
     if terrain is not None and (params.min_height is not None or params.max_height is not None):
         check_height_range(stereo.heights.bounds, terrain, terrain_source(blk.info()), feedback)
     log.pushInfo("combination order: " + ", ".join(stereo.names) + f"; height range {stereo.heights.bounds}")
     spacing = strategy.spacing(params.settings)
 
     def fill(folder: str) -> tuple[list, dict]:
-        entries, stats = match_in_tiles(strategy, stereo, params.settings, folder, save_part, params.execution,
-                                        progress.scaled(feedback, 0, 90))
-        stats.spacing_px = spacing              # block/points.SPACING: the store compares at it
+        entries, stats = match_in_tiles(
+            strategy, stereo, params.settings, folder, save_part, params.execution, progress.scaled(feedback, 0, 90)
+        )
+        stats.spacing_px = spacing  # block/points.SPACING: the store compares at it
         return entries, stats.as_dict()
 
-    folder = blk.store_points("mass_points", fill, display=(models[0], ids[0], stereo.heights.mean),
-                              feedback=progress.scaled(feedback, 90, 100), replace_fewer=params.replace_fewer)
+    folder = blk.store_points(
+        "mass_points",
+        fill,
+        display=(models[0], ids[0], stereo.heights.mean),
+        feedback=progress.scaled(feedback, 90, 100),
+        replace_fewer=params.replace_fewer,
+    )
     layer = blk.layer_source("mass_points")
-    summary = summary_rows([functools.partial(load_arrays, p) for p in blk.point_parts("mass_points")],
-                           stats=MatchStats.from_dict(blk.point_stats("mass_points")))
+    summary = summary_rows(
+        [functools.partial(load_arrays, p) for p in blk.point_parts("mass_points")],
+        stats=MatchStats.from_dict(blk.point_stats("mass_points")),
+    )
     log.pushInfo("points per group (Kornus et al. 2006, Table 1):\n" + format_summary(summary))
     csv = write_summary_csv(summary_csv, summary) if summary_csv else None
     return MatchResult(dict(summary)["All points"], folder, layer, summary, csv)
@@ -120,23 +138,29 @@ def terrain_source(info: dict) -> tuple[str, bool]:
     return "the mean height it was created at, +- 500 m", False
 
 
-def check_height_range(searched: tuple[float, float], terrain: tuple[float, float], source: tuple[str, bool],
-                       feedback=None) -> None:
+def check_height_range(
+    searched: tuple[float, float], terrain: tuple[float, float], source: tuple[str, bool], feedback=None
+) -> None:
     """Say where the height range `searched` (h_min, h_max; m) misses the block's terrain heights `terrain`
     (h_min, h_max) from `source` (terrain_source): entirely (no overlap), an InputError where the block
     measured its heights, else a warning; mostly (the overlap is less than MOSTLY_MISSED of the terrain's
     range), a warning. Matching finds points only at heights it searches."""
     (lo, hi), (t_lo, t_hi), (where, measured) = searched, terrain, source
-    text = (f"the heights searched, {lo:.0f} to {hi:.0f} m (from MIN_HEIGHT, MAX_HEIGHT), {{}} the block's "
-            f"terrain heights, {t_lo:.0f} to {t_hi:.0f} m (from {where})")
+    text = (
+        f"the heights searched, {lo:.0f} to {hi:.0f} m (from MIN_HEIGHT, MAX_HEIGHT), {{}} the block's "
+        f"terrain heights, {t_lo:.0f} to {t_hi:.0f} m (from {where})"
+    )
     if hi < t_lo or lo > t_hi:
-        message = (text.format("miss") + ": matching would find no point there, or wrong ones. Give a range that "
-                   "overlaps the terrain, or leave MIN_HEIGHT and MAX_HEIGHT empty to use the block's")
+        message = (
+            text.format("miss") + ": matching would find no point there, or wrong ones. Give a range that "
+            "overlaps the terrain, or leave MIN_HEIGHT and MAX_HEIGHT empty to use the block's"
+        )
         if measured:
             raise InputError(message)
         progress.warn(feedback, message)
         return
     share = (min(hi, t_hi) - max(lo, t_lo)) / (t_hi - t_lo) if t_hi > t_lo else 1.0
     if share < MOSTLY_MISSED:
-        progress.warn(feedback, text.format(f"cover only {share:.0%} of") + ": points at the other heights are "
-                                "not found")
+        progress.warn(
+            feedback, text.format(f"cover only {share:.0%} of") + ": points at the other heights are not found"
+        )

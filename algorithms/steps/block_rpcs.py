@@ -16,6 +16,7 @@ metadata (GeoTIFF tags) and after a .RPB beside it. So where GDAL finds an RPC o
 image's supplied orientation for every GDAL program and for any block made from it later: refused unless
 `overwrite`, and then a warning says which RPC GDAL reads. A raster without an RPC (a SPOT DIMAP product's)
 gets its fitted RPC beside it by default, so that GDAL programs use the block's orientation."""
+
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -34,20 +35,22 @@ from ..surface.intersection import height_differences
 class RpcParams:
     """The RPC fit's settings; each is a pushbroom:fitrpc parameter."""
 
-    image: str = ""                     # image name; empty: every image of the block
+    image: str = ""  # image name; empty: every image of the block
     min_height: Optional[float] = None  # cube heights (m, ellipsoidal); both or neither
     max_height: Optional[float] = None
-    overwrite: bool = False             # replace existing _RPC.TXT files, shadow a raster's own RPC
-    grid: int = rpc_fit.DEFAULT_GRID[0]             # image grid points along columns and rows
+    overwrite: bool = False  # replace existing _RPC.TXT files, shadow a raster's own RPC
+    grid: int = rpc_fit.DEFAULT_GRID[0]  # image grid points along columns and rows
     height_levels: int = rpc_fit.DEFAULT_GRID[2]
-    folder: Optional[str] = None        # output folder; None: beside each image raster
-    report: Optional[str] = None        # HTML report path
+    folder: Optional[str] = None  # output folder; None: beside each image raster
+    report: Optional[str] = None  # HTML report path
 
     def check(self):
         """Raise InputError for settings the fit cannot use."""
         if self.grid < 4 or self.height_levels < 4:
-            raise InputError(f"the RPC cube needs at least 4 grid points and 4 height levels, not {self.grid} and "
-                             f"{self.height_levels}")
+            raise InputError(
+                f"the RPC cube needs at least 4 grid points and 4 height levels, not {self.grid} and "
+                f"{self.height_levels}"
+            )
         return self
 
 
@@ -55,7 +58,7 @@ class RpcParams:
 class RpcResult:
     """The files fit_block_rpcs wrote."""
 
-    files: list = field(default_factory=list)   # the _RPC.TXT files, in the order of the images
+    files: list = field(default_factory=list)  # the _RPC.TXT files, in the order of the images
     report: Optional[str] = None
 
 
@@ -73,17 +76,21 @@ def selected_images(rows, name):
 def cube_heights(blk, h_min, h_max):
     """(min, max) heights of the cube: both given (height_range.check_heights), or the Block
     `blk`'s terrain height range widened by a margin (rpc_fit.default_height_range)."""
-    h_min, h_max = check_heights(h_min, h_max, "the lowest height of the RPC cube",
-                                 "the highest height of the RPC cube")
+    h_min, h_max = check_heights(
+        h_min, h_max, "the lowest height of the RPC cube", "the highest height of the RPC cube"
+    )
     if h_min is not None and h_max is not None:
         return h_min, h_max
     if h_min is not None or h_max is not None:
-        raise InputError("give both the lowest and the highest height of the RPC cube, or neither (then the "
-                         "block's terrain height range is used, widened by a margin)")
+        raise InputError(
+            "give both the lowest and the highest height of the RPC cube, or neither (then the "
+            "block's terrain height range is used, widened by a margin)"
+        )
     terrain = blk.height_range()
     if terrain is None:
-        raise InputError(f"block {blk.path} records no terrain height range: give the lowest and highest "
-                         "heights of the RPC cube")
+        raise InputError(
+            f"block {blk.path} records no terrain height range: give the lowest and highest heights of the RPC cube"
+        )
     return rpc_fit.default_height_range(terrain)
 
 
@@ -92,9 +99,11 @@ def cube_warning(heights, terrain):
     (None: none recorded, or the cube holds it)."""
     if terrain is None or (heights[0] <= terrain[0] and heights[1] >= terrain[1]):
         return None
-    return (f"the RPC cube's heights {heights[0]:g} .. {heights[1]:g} m leave out some of the block's terrain "
-            f"({terrain[0]:.0f} .. {terrain[1]:.0f} m): the RPCs extrapolate there; leave MIN_HEIGHT and MAX_HEIGHT "
-            "empty for the terrain's range and a margin")
+    return (
+        f"the RPC cube's heights {heights[0]:g} .. {heights[1]:g} m leave out some of the block's terrain "
+        f"({terrain[0]:.0f} .. {terrain[1]:.0f} m): the RPCs extrapolate there; leave MIN_HEIGHT and MAX_HEIGHT "
+        "empty for the terrain's range and a margin"
+    )
 
 
 def rpc_height_check(blk, rpcs):
@@ -107,8 +116,15 @@ def rpc_height_check(blk, rpcs):
     if not images or not images <= set(rpcs):
         return ""
     rigorous = blk.models(sorted(images))
-    return height_differences(rigorous, {i: rpcs[i] for i in images}, obs["image_id"], obs["point_id"],
-                              obs["col"], obs["row"], h0=mean_height(blk.height_range())).summary()
+    return height_differences(
+        rigorous,
+        {i: rpcs[i] for i in images},
+        obs["image_id"],
+        obs["point_id"],
+        obs["col"],
+        obs["row"],
+        h0=mean_height(blk.height_range()),
+    ).summary()
 
 
 def _destinations(rows, params):
@@ -123,10 +139,12 @@ def _destinations(rows, params):
             own = rpc_fit.raster_rpc_source(row["image_path"])
         destination = rpc_fit.rpc_txt_path(row["image_path"], params.folder, row["name"])
         if own and own != destination and not params.overwrite:
-            raise InputError(f"image {row['name']} carries its own RPC ({own}), which GDAL reads with "
-                             f"{row['image_path']}: a fitted {destination} beside it would replace it for every GDAL "
-                             "program and any block made from the image later. Give an output folder "
-                             "(OUTPUT_FOLDER), or set OVERWRITE to write beside the image all the same")
+            raise InputError(
+                f"image {row['name']} carries its own RPC ({own}), which GDAL reads with "
+                f"{row['image_path']}: a fitted {destination} beside it would replace it for every GDAL "
+                "program and any block made from the image later. Give an output folder "
+                "(OUTPUT_FOLDER), or set OVERWRITE to write beside the image all the same"
+            )
         rpc_fit.check_destination(destination, params.overwrite)
         destinations.append((destination, None if own == destination else own))
     return destinations
@@ -136,12 +154,18 @@ def _gdal_reads(row, written, own, rpc, feedback):
     """Warn which RPC GDAL reads with the image raster of `row` after `written` was put beside it: not the
     fitted one (a .RPB comes first), or the fitted one instead of the raster's `own`."""
     if not rpc_fit.raster_reads(row["image_path"], rpc):
-        progress.warn(feedback, f"GDAL does not read {written} with {row['image_path']} (the raster carries other RPC "
-                                "metadata it prefers, or cannot be opened): load the _RPC.TXT itself")
+        progress.warn(
+            feedback,
+            f"GDAL does not read {written} with {row['image_path']} (the raster carries other RPC "
+            "metadata it prefers, or cannot be opened): load the _RPC.TXT itself",
+        )
     elif own:
-        progress.warn(feedback, f"GDAL now reads {written} with {row['image_path']} instead of the image's own RPC "
-                                f"({own}): every GDAL program, and any block made from the image, uses the fitted "
-                                f"RPC; delete {written} to return to the image's own")
+        progress.warn(
+            feedback,
+            f"GDAL now reads {written} with {row['image_path']} instead of the image's own RPC "
+            f"({own}): every GDAL program, and any block made from the image, uses the fitted "
+            f"RPC; delete {written} to return to the image's own",
+        )
 
 
 def fit_block_rpcs(block_path, params, feedback=None):
@@ -159,9 +183,14 @@ def fit_block_rpcs(block_path, params, feedback=None):
     fitted = []
     for k, row in enumerate(rows):
         progress.step(feedback, 95.0 * k / len(rows), f"fitting the RPC of {row['name']}")
-        fitted.append(rpc_fit.fit_rpc(blk.model(row["id"]), heights, grid,
-                                      feedback=progress.scaled(feedback, 95.0 * k / len(rows),
-                                                               95.0 * (k + 1) / len(rows))))
+        fitted.append(
+            rpc_fit.fit_rpc(
+                blk.model(row["id"]),
+                heights,
+                grid,
+                feedback=progress.scaled(feedback, 95.0 * k / len(rows), 95.0 * (k + 1) / len(rows)),
+            )
+        )
     progress.step(feedback, 95.0)
     entries = []
     for row, (rpc, fit), (destination, own) in zip(rows, fitted, destinations):
@@ -172,12 +201,13 @@ def fit_block_rpcs(block_path, params, feedback=None):
     text = rpc_fit.report_text(entries)
     comparison = rpc_height_check(blk, {row["id"]: rpc for row, (rpc, _) in zip(rows, fitted)})
     if comparison:
-        text += "\n\nRPC minus rigorous object points of the block's tie points (Kornus et al. 2006, Table 5): " \
-                + comparison
+        text += (
+            "\n\nRPC minus rigorous object points of the block's tie points (Kornus et al. 2006, Table 5): "
+            + comparison
+        )
     progress.ensure(feedback).pushInfo(text)
     # storage: the step in the block's history
-    blk.update_info({}, step="fitrpc",
-                    message="; ".join(f"{name}: {written}" for name, written, _ in entries))
+    blk.update_info({}, step="fitrpc", message="; ".join(f"{name}: {written}" for name, written, _ in entries))
     out = RpcResult([written for _, written, _ in entries])
     if params.report:
         out.report = report.write_html(params.report, f"RPC fit for {block_path}", text)

@@ -7,6 +7,7 @@ stored with the block: the sidecar folder <block>.tie_points.<id> referenced in 
 Empty mass points, or none of the lowest group accepted, are refused before anything is stored; a selection
 far fewer than the block's tie points (block/replacement.py: none, or below half of what the stored ones
 give at the new CELL) keeps them unless `replace_fewer`."""
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,18 +25,18 @@ from ..matching.tiepoints import select_tie_points
 class TieParams:
     """The selection's settings; each is a pushbroom:selecttiepoints parameter."""
 
-    cell: float = 100.0     # grid cell size, px of the reference image
-    min_group: int = 1      # lowest point group accepted (1, 2 or 3)
-    replace_fewer: bool = False     # replace the block's tie points even by far fewer (block/replacement.py)
+    cell: float = 100.0  # grid cell size, px of the reference image
+    min_group: int = 1  # lowest point group accepted (1, 2 or 3)
+    replace_fewer: bool = False  # replace the block's tie points even by far fewer (block/replacement.py)
 
 
 @dataclass
 class TieResult:
     """What select_block_tie_points stored."""
 
-    count: int      # tie points selected
-    sidecar: str    # the tie point folder (block/points.py)
-    layer: str      # OGR source of the block's 'tie_points' layer
+    count: int  # tie points selected
+    sidecar: str  # the tie point folder (block/points.py)
+    layer: str  # OGR source of the block's 'tie_points' layer
 
 
 def select_block_tie_points(block_path: str, params: TieParams, feedback=None) -> TieResult:
@@ -59,19 +60,29 @@ def select_block_tie_points(block_path: str, params: TieParams, feedback=None) -
         if reference is None and len(part.observations):
             reference = int(part.image_ids().min())
         if reference is not None:
-            candidates.append(select_tie_points(part, cell=params.cell, reference_image_id=reference,
-                                                min_group=params.min_group))
+            candidates.append(
+                select_tie_points(part, cell=params.cell, reference_image_id=reference, min_group=params.min_group)
+            )
     check_groups(groups, params.min_group)
-    merged = MultiPoints(np.concatenate([c.points for c in candidates]) if candidates else None,
-                         np.concatenate([c.observations for c in candidates]) if candidates else None, stats)
+    merged = MultiPoints(
+        np.concatenate([c.points for c in candidates]) if candidates else None,
+        np.concatenate([c.observations for c in candidates]) if candidates else None,
+        stats,
+    )
     tie = select_tie_points(merged, cell=params.cell, reference_image_id=reference, min_group=params.min_group)
     reference = tie.stats.get("tie_reference", reference or 1)
-    progress.ensure(feedback).pushInfo(f"{len(tie)} tie points from {count} mass points: "
-                                       + ", ".join(f"group {g}: {n}" for g, n in tie.group_counts().items()))
+    progress.ensure(feedback).pushInfo(
+        f"{len(tie)} tie points from {count} mass points: "
+        + ", ".join(f"group {g}: {n}" for g, n in tie.group_counts().items())
+    )
     # storage: the sidecar and the point layer
-    sidecar = blk.save_points(tie, "tie_points", display=(blk.model(reference), reference,
-                                                          mean_height(blk.height_range())),
-                              feedback=feedback, replace_fewer=params.replace_fewer)
+    sidecar = blk.save_points(
+        tie,
+        "tie_points",
+        display=(blk.model(reference), reference, mean_height(blk.height_range())),
+        feedback=feedback,
+        replace_fewer=params.replace_fewer,
+    )
     return TieResult(len(tie), sidecar, blk.layer_source("tie_points"))
 
 
@@ -80,11 +91,15 @@ def check_groups(groups: dict, min_group: int) -> None:
     `min_group` or higher: there would be no tie point."""
     counts = ", ".join(f"group {g}: {n}" for g, n in groups.items())
     if not sum(groups.values()):
-        raise InputError(f"the block's mass points are empty ({MAKERS['mass_points']} found none): nothing to select "
-                         "tie points from; match the block again with other settings")
+        raise InputError(
+            f"the block's mass points are empty ({MAKERS['mass_points']} found none): nothing to select "
+            "tie points from; match the block again with other settings"
+        )
     if not sum(n for g, n in groups.items() if g >= min_group):
         highest = max(g for g, n in groups.items() if n)
-        raise InputError(f"the block's mass points have no point of group {min_group} or higher ({counts}; group 1 "
-                         "are two-ray points, groups 2 and 3 three-ray points of a triplet): there are no tie points "
-                         f"to select. Set MIN_GROUP to {highest} or lower, or match three images "
-                         f"({MAKERS['mass_points']})")
+        raise InputError(
+            f"the block's mass points have no point of group {min_group} or higher ({counts}; group 1 "
+            "are two-ray points, groups 2 and 3 three-ray points of a triplet): there are no tie points "
+            f"to select. Set MIN_GROUP to {highest} or lower, or match three images "
+            f"({MAKERS['mass_points']})"
+        )

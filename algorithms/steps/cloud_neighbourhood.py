@@ -12,6 +12,7 @@ and its bounding box. A part's context is the points of every part whose box lie
 (the larger of the spread's reach and the outlier filter's margin), cut to that margin: the results do not
 depend on the execution, and memory follows a part and its neighbours. Each task writes the part again with the
 new sigma_h, and its distances to `.distance.npy`."""
+
 import functools
 import os
 from dataclasses import dataclass
@@ -30,12 +31,12 @@ from ..surface.local_spread import local_metres, local_spread, reach_m
 class Neighbourhood:
     """What every task of the round shares."""
 
-    files: list             # the parts' point files (round 1)
-    boxes: list             # per part (lon0, lon1, lat0, lat1) of its points, or None (no point)
-    centre: tuple           # (lon, lat) of the cloud: the local frame
-    radius: float           # m: R of the spread (0: no refined dense point)
-    margin: tuple           # (dlon, dlat) degrees around a part's box
-    neighbours: int         # k of the outlier filter (0: off)
+    files: list  # the parts' point files (round 1)
+    boxes: list  # per part (lon0, lon1, lat0, lat1) of its points, or None (no point)
+    centre: tuple  # (lon, lat) of the cloud: the local frame
+    radius: float  # m: R of the spread (0: no refined dense point)
+    margin: tuple  # (dlon, dlat) degrees around a part's box
+    neighbours: int  # k of the outlier filter (0: off)
 
 
 def _refined(path, count):
@@ -69,7 +70,7 @@ def _part(job, k):
         save_array(job.files[k] + ".distance.npy", d, "the intersected parts")
         f = d[np.isfinite(d)]
         sums = (int(f.size), float(f.sum()), float(np.square(f).sum()))
-    out = pointcloud.save_part(job.files[k][:-len(".npz")] + "-2.npz", lon, lat, h, fields)
+    out = pointcloud.save_part(job.files[k][: -len(".npz")] + "-2.npz", lon, lat, h, fields)
     return out, sums
 
 
@@ -102,9 +103,10 @@ def second_round(files, done, models, centre, mean_h, neighbours, factor, execut
         boxes = [d["box"] for d in done if d["written"]]
         area = sum(max((b[1] - b[0]) * east * (b[3] - b[2]) * north, 1.0) for b in boxes)
         reach = max(reach, outlier_filter.margin(written, area, neighbours))
-    margin = 1.01 * reach            # and 1 % for the local frame's approximation of the ellipsoid
-    job = Neighbourhood(files, [d.get("box") for d in done], centre, radius, (margin / east, margin / north),
-                        int(neighbours))
+    margin = 1.01 * reach  # and 1 % for the local frame's approximation of the ellipsoid
+    job = Neighbourhood(
+        files, [d.get("box") for d in done], centre, radius, (margin / east, margin / north), int(neighbours)
+    )
     todo = [k for k, d in enumerate(done) if d["written"] and (d["refined"] or neighbours)]
     results = run_tasks(_part, [(job, k) for k in todo], execution, feedback, "the points' neighbourhoods")
     for k, (path, _) in zip(todo, results):
@@ -120,7 +122,9 @@ def second_round(files, done, models, centre, mean_h, neighbours, factor, execut
         distances = files[k] + ".distance.npy"
         kept += int((~(np.load(distances) > limit)).sum())
         loaders[k] = functools.partial(load_kept, path, distances, limit)
-    log.pushInfo(f"statistical outlier removal (k {neighbours}, n {factor:g}): mean distance to the neighbours "
-                 f"{total / count:.3f} m, threshold {limit:.3f} m; {written - kept} of {written} points removed "
-                 f"({100.0 * (written - kept) / written:.2f} %)")
+    log.pushInfo(
+        f"statistical outlier removal (k {neighbours}, n {factor:g}): mean distance to the neighbours "
+        f"{total / count:.3f} m, threshold {limit:.3f} m; {written - kept} of {written} points removed "
+        f"({100.0 * (written - kept) / written:.2f} %)"
+    )
     return loaders, kept

@@ -3,6 +3,7 @@ its own orientation, on a DEM, by ortho.orthorectify (the indirect method, Heipk
 
 The orthoimage covers the image only where the DEM has heights: a DEM that leaves part of the image out
 (ortho.grid.dem_coverage below FULL_COVERAGE) is a warning with the share it covers."""
+
 from dataclasses import dataclass, field
 
 from .. import progress, sensors
@@ -23,20 +24,21 @@ FULL_COVERAGE = 0.98
 class OrthoParams:
     """The orthorectification step's settings (pushbroom:orthorectify); see orthorectify and dem_store.store_dem."""
 
-    dem_heights: str = "ellipsoidal"    # one of VERTICAL
-    dem_nodata: float = None            # a void value of the DEM declared as nodata
-    crs: str = None                     # output CRS (authority id or WKT); None: the UTM zone of the footprint
-    cell_size: float = None             # CRS units; None: the image's ground sampling distance
-    resampling: str = "bilinear"        # one of resampling.METHODS
-    occlusion: bool = False             # occluded cells as nodata
-    max_error: float = 0.01             # px: bound of the coarse-grid interpolation error
+    dem_heights: str = "ellipsoidal"  # one of VERTICAL
+    dem_nodata: float = None  # a void value of the DEM declared as nodata
+    crs: str = None  # output CRS (authority id or WKT); None: the UTM zone of the footprint
+    cell_size: float = None  # CRS units; None: the image's ground sampling distance
+    resampling: str = "bilinear"  # one of resampling.METHODS
+    occlusion: bool = False  # occluded cells as nodata
+    max_error: float = 0.01  # px: bound of the coarse-grid interpolation error
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the tiles run
 
     def check(self):
         """Raise InputError for settings no orthorectification can use."""
         if self.dem_heights not in VERTICAL or self.resampling not in METHODS:
-            raise InputError(f"the DEM heights must be one of {', '.join(VERTICAL)} and the resampling one of "
-                             f"{', '.join(METHODS)}")
+            raise InputError(
+                f"the DEM heights must be one of {', '.join(VERTICAL)} and the resampling one of {', '.join(METHODS)}"
+            )
         if not self.max_error > 0 or (self.cell_size is not None and self.cell_size < 0):
             raise InputError("the error bound must be positive and the cell size not negative")
         self.execution.check()
@@ -53,17 +55,20 @@ def image_and_model(block_path=None, image_name="", image=None, orientation=None
         rows = blk.images()
         chosen = [r for r in rows if r["name"] == (image_name or "").strip()]
         if not chosen:
-            raise InputError(f"the block has no image {(image_name or '').strip()!r}: give the name of one of its "
-                             f"images ({', '.join(r['name'] for r in rows)})")
-        sensors.check_image(chosen[0]["image_path"])        # moved or deleted since the block was made
+            raise InputError(
+                f"the block has no image {(image_name or '').strip()!r}: give the name of one of its "
+                f"images ({', '.join(r['name'] for r in rows)})"
+            )
+        sensors.check_image(chosen[0]["image_path"])  # moved or deleted since the block was made
         return chosen[0]["image_path"], blk.model(chosen[0]["id"])
     if not image:
         raise InputError("give a block and an image name, or an image")
     return image, sensors.load(orientation or image, image=image if orientation else None)
 
 
-def orthorectify_image(output, dem, params=None, block_path=None, image_name="", image=None, orientation=None,
-                       feedback=None):
+def orthorectify_image(
+    output, dem, params=None, block_path=None, image_name="", image=None, orientation=None, feedback=None
+):
     """The orthorectification step: the image chosen as in image_and_model on the raster DEM `dem`
     (dem_store.store_dem with the params' heights and nodata, in a work folder beside the output; implausible
     heights are reported), written to the
@@ -75,9 +80,22 @@ def orthorectify_image(output, dem, params=None, block_path=None, image_name="",
         progress.warn(feedback, heights.implausible)
         covered = dem_coverage(model, heights)
         if covered < FULL_COVERAGE:
-            progress.warn(feedback, f"the DEM {dem} has heights under {covered:.0%} of the image {path} only: the "
-                                    "orthoimage covers that part (the rest lies outside the DEM or on its nodata); "
-                                    "give a DEM that covers the whole image for a whole orthoimage")
-        return orthorectify(path, model, heights, output, crs=params.crs, cell_size=params.cell_size,
-                            resampling_method=params.resampling, occlusion_mask=params.occlusion,
-                            max_error=params.max_error, execution=params.execution, feedback=feedback)
+            progress.warn(
+                feedback,
+                f"the DEM {dem} has heights under {covered:.0%} of the image {path} only: the "
+                "orthoimage covers that part (the rest lies outside the DEM or on its nodata); "
+                "give a DEM that covers the whole image for a whole orthoimage",
+            )
+        return orthorectify(
+            path,
+            model,
+            heights,
+            output,
+            crs=params.crs,
+            cell_size=params.cell_size,
+            resampling_method=params.resampling,
+            occlusion_mask=params.occlusion,
+            max_error=params.max_error,
+            execution=params.execution,
+            feedback=feedback,
+        )

@@ -32,6 +32,7 @@ per cell, whose median resists mismatches and follows height steps within a cell
 
 Reference: P. J. Rousseeuw, C. Croux, "Alternatives to the median absolute deviation", JASA 88(424), 1993
 (1.4826 MAD); the standard error of the median, sqrt(pi / 2) s / sqrt(n), for normal errors."""
+
 from typing import NamedTuple
 
 import numpy as np
@@ -57,11 +58,11 @@ def _group_medians(key, values):
 class Cells(NamedTuple):
     """A per-cell DSM (module docstring) on a grid's (rows, cols)."""
 
-    heights: np.ndarray     # float32, NaN: a gap
-    count: np.ndarray       # int32, the points the cell's height used
-    precision: np.ndarray   # float32, m
-    removed: int            # points the per-cell outlier test dropped from their own cell
-    ring: np.ndarray        # uint8: 0 the cell's own points, r those of the cells r away, NO_RING a gap
+    heights: np.ndarray  # float32, NaN: a gap
+    count: np.ndarray  # int32, the points the cell's height used
+    precision: np.ndarray  # float32, m
+    removed: int  # points the per-cell outlier test dropped from their own cell
+    ring: np.ndarray  # uint8: 0 the cell's own points, r those of the cells r away, NO_RING a gap
 
 
 def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=True, radius=0):
@@ -87,8 +88,9 @@ def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=Tru
     best = np.full(grid.rows * grid.cols, np.iinfo(np.int64).max)
     keys, picks, ranks, rings = [], [], [], []
     for ring in range(radius + 1):
-        for dr, dc in ((a, b) for a in range(-ring, ring + 1) for b in range(-ring, ring + 1)
-                       if max(abs(a), abs(b)) == ring):
+        for dr, dc in (
+            (a, b) for a in range(-ring, ring + 1) for b in range(-ring, ring + 1) if max(abs(a), abs(b)) == ring
+        ):
             r, c = row[index] + dr, col[index] + dc
             ok = (r >= 0) & (c >= 0) & (r < grid.rows) & (c < grid.cols)
             if ring == 0:
@@ -97,7 +99,7 @@ def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=Tru
             rank = t[pick] * (radius + 1) + ring
             better = rank <= best[key]
             key, pick, rank = key[better], pick[better], rank[better]
-            for value in np.unique(rank):       # a tier or two: plain assignments, not the slow ufunc.at
+            for value in np.unique(rank):  # a tier or two: plain assignments, not the slow ufunc.at
                 at = key[rank == value]
                 best[at] = np.minimum(best[at], value)
             keys.append(key)
@@ -136,5 +138,5 @@ def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=Tru
     heights[r, c] = median
     count[r, c] = n
     precision[r, c] = MEDIAN_SE * spread / np.sqrt(n)
-    source.flat[key] = ring         # a cell's points share their rank, so their ring
+    source.flat[key] = ring  # a cell's points share their rank, so their ring
     return Cells(heights, count, precision, removed, source)

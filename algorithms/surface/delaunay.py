@@ -12,6 +12,7 @@ terms (cocircular grids keep their first diagonal). A point that sees no hull ed
 or of an earlier point at the same distance, left out as qhull does (or lost). `triangulate` checks the result (no
 lost point, every triangle counter-clockwise, twins consistent, convex hull, Euler count T = 2 n - 2 - h, every edge
 locally Delaunay) and returns None where it fails, for the caller to fall back to qhull."""
+
 from functools import cached_property
 
 import numpy as np
@@ -59,8 +60,7 @@ def in_circle(ax, ay, bx, by, cx, cy, px, py, eps):
     det = ap * (ex * fy - ey * fx) + bp * (fx * dy - fy * dx) + cp * (dx * ey - dy * ex)
     if det <= 0.0:
         return False
-    terms = (ap * (abs(ex * fy) + abs(ey * fx)) + bp * (abs(fx * dy) + abs(fy * dx))
-             + cp * (abs(dx * ey) + abs(dy * ex)))
+    terms = ap * (abs(ex * fy) + abs(ey * fx)) + bp * (abs(fx * dy) + abs(fy * dx)) + cp * (abs(dx * ey) + abs(dy * ex))
     return det > eps * terms
 
 
@@ -137,8 +137,9 @@ def legalize(a, x, y, tri, halfedges, hull_start, hull_prev, hull_tri, stack):
         ar, al = a0 + (a + 2) % 3, a0 + (a + 1) % 3
         b0 = b - b % 3
         bl, br = b0 + (b + 2) % 3, b0 + (b + 1) % 3
-        if b == -1 or not in_circle(x[tri[ar]], y[tri[ar]], x[tri[a]], y[tri[a]], x[tri[al]], y[tri[al]],
-                                    x[tri[bl]], y[tri[bl]], INCIRCLE_EPS):
+        if b == -1 or not in_circle(
+            x[tri[ar]], y[tri[ar]], x[tri[a]], y[tri[a]], x[tri[al]], y[tri[al]], x[tri[bl]], y[tri[bl]], INCIRCLE_EPS
+        ):
             if top == 0:
                 return ar
             top -= 1
@@ -147,7 +148,7 @@ def legalize(a, x, y, tri, halfedges, hull_start, hull_prev, hull_tri, stack):
         # (p0, pr, pl) + (pl, pr, p1) -> (p0, p1, pl) + (p0, pr, p1)
         tri[a], tri[b] = tri[bl], tri[ar]
         hbl = halfedges[bl]
-        if hbl == -1:       # the edge p1 -> pl lies on the hull: its half-edge moved from bl to a
+        if hbl == -1:  # the edge p1 -> pl lies on the hull: its half-edge moved from bl to a
             e = hull_start
             while True:
                 if hull_tri[e] == bl:
@@ -170,7 +171,7 @@ def sweep(x, y, dist, i0, i1, i2, cx, cy, tri, halfedges, hull_next, hull_prev, 
     n = x.size
     size = max(int(np.ceil(np.sqrt(n))), 1)
     hull_hash = np.full(size, -1, np.int64)
-    stack = np.empty(2 * n + 8, np.int32)      # a flip adds a triangle at the new point: at most 2 n
+    stack = np.empty(2 * n + 8, np.int32)  # a flip adds a triangle at the new point: at most 2 n
     hull_next[i0], hull_next[i1], hull_next[i2] = i1, i2, i0
     hull_prev[i0], hull_prev[i1], hull_prev[i2] = i2, i0, i1
     hull_tri[i0], hull_tri[i1], hull_tri[i2] = 0, 1, 2
@@ -195,7 +196,7 @@ def sweep(x, y, dist, i0, i1, i2, cx, cy, tri, halfedges, hull_next, hull_prev, 
             if e == start:
                 e = -1
                 break
-        if e == -1:     # inside the hull: an exact duplicate of a seed or an earlier point at the same distance
+        if e == -1:  # inside the hull: an exact duplicate of a seed or an earlier point at the same distance
             duplicate = (x[i0] == px and y[i0] == py) or (x[i1] == px and y[i1] == py) or (x[i2] == px and y[i2] == py)
             j = i - 1
             while not duplicate and j >= 0 and dist[j] == dist[i]:
@@ -250,8 +251,17 @@ def defects(x, y, tri, halfedges):
         b1, b2 = b - b % 3 + (b + 1) % 3, b - b % 3 + (b + 2) % 3
         if halfedges[b] != a or tri[a] != tri[b1] or tri[b] != tri[a1]:
             bad += 1
-        elif a < b and in_circle(x[tri[a2]], y[tri[a2]], x[tri[a]], y[tri[a]], x[tri[a1]], y[tri[a1]],
-                                 x[tri[b2]], y[tri[b2]], 10 * INCIRCLE_EPS):
+        elif a < b and in_circle(
+            x[tri[a2]],
+            y[tri[a2]],
+            x[tri[a]],
+            y[tri[a]],
+            x[tri[a1]],
+            y[tri[a1]],
+            x[tri[b2]],
+            y[tri[b2]],
+            10 * INCIRCLE_EPS,
+        ):
             bad += 1
     return bad, outer
 
@@ -342,13 +352,14 @@ def triangulate(x, y):
         return None
     cx, cy = circumcentre(x[i0], y[i0], x[i1], y[i1], x[i2], y[i2])
     dist = (x - cx) ** 2 + (y - cy) ** 2
-    order = distance_order(dist)      # the sweep numbers the points in this order (locality)
+    order = distance_order(dist)  # the sweep numbers the points in this order (locality)
     x, y, dist = x[order], y[order], dist[order]
     i0, i1, i2 = (int(np.argmax(order == i)) for i in (i0, i1, i2))
     tri, halfedges = np.empty(6 * n, np.int32), np.empty(6 * n, np.int32)
     hull_next, hull_prev, hull_tri = (np.empty(n, np.int32) for _ in range(3))
-    used, hull_start, duplicates, lost = sweep(x, y, dist, i0, i1, i2, cx, cy, tri, halfedges,
-                                               hull_next, hull_prev, hull_tri)
+    used, hull_start, duplicates, lost = sweep(
+        x, y, dist, i0, i1, i2, cx, cy, tri, halfedges, hull_next, hull_prev, hull_tri
+    )
     tri, halfedges = tri[:used], halfedges[:used]
     if lost or not check(x, y, tri, halfedges, hull_next, hull_start, n - duplicates):
         return None

@@ -40,6 +40,7 @@ Failure modes: tin_dem's InputErrors (settings, no CRS, points outside the outpu
 from them, no defined cell), a cell size that leaves the DEM fewer than 2 cells along an axis
 (crs.check_grid_cells), ExecutionError from the execution, CancelledError; nothing is left under an output name
 (atomic.atomic_path) and the work folder is removed (atomic.work_dir)."""
+
 import contextlib
 import math
 import os
@@ -82,31 +83,39 @@ class TiledDem:
     srs: object
     datum: str
     tiles: int
-    points: int = 0                 # in the TINs of the tiles' own cells (breakline vertices included)
-    removed: list = field(default_factory=list)     # blunders per filter iteration, summed over tiles
+    points: int = 0  # in the TINs of the tiles' own cells (breakline vertices included)
+    removed: list = field(default_factory=list)  # blunders per filter iteration, summed over tiles
     dropped_near_breaklines: int = 0
     breakline_vertices: int = 0
-    defined: float = 0.0            # fraction of the cells with a height
+    defined: float = 0.0  # fraction of the cells with a height
     max_edge: float = 0.0
     precision_path: str = None
     count_path: str = None
     method: str = "tin"
-    filled: int = 0                 # gap cells filled (method "cells" with DemParams.fill)
-    mask_path: str = None           # the mask raster (method "cells": own points, neighbours', filled, gap)
-    own: float = 0.0                # method "cells": fraction of the cells with points of their own
+    filled: int = 0  # gap cells filled (method "cells" with DemParams.fill)
+    mask_path: str = None  # the mask raster (method "cells": own points, neighbours', filled, gap)
+    own: float = 0.0  # method "cells": fraction of the cells with points of their own
 
     def summary(self):
         if self.method == "cells":
-            fill = (f"; {self.filled} gap cells filled ({self.filled / (self.grid.rows * self.grid.cols):.1%}), "
-                    f"flagged in {self.mask_path}" if self.mask_path else "")
-            return (f"{self.points} points in per-cell medians ({sum(self.removed)} outliers removed), "
-                    f"{self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g} in {self.tiles} tile(s), "
-                    f"{self.defined:.1%} measured ({self.own:.1%} from points of their own, the others from "
-                    f"the cells around), {self.datum} heights{fill}")
-        return (f"{self.points} points ({sum(self.removed)} blunders removed: {self.removed} per iteration; "
-                f"{self.dropped_near_breaklines} next to breaklines dropped; {self.breakline_vertices} breakline "
-                f"vertices), {self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g} in {self.tiles} "
-                f"tile(s), {self.defined:.1%} defined, maximum edge {self.max_edge:.4g}, {self.datum} heights")
+            fill = (
+                f"; {self.filled} gap cells filled ({self.filled / (self.grid.rows * self.grid.cols):.1%}), "
+                f"flagged in {self.mask_path}"
+                if self.mask_path
+                else ""
+            )
+            return (
+                f"{self.points} points in per-cell medians ({sum(self.removed)} outliers removed), "
+                f"{self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g} in {self.tiles} tile(s), "
+                f"{self.defined:.1%} measured ({self.own:.1%} from points of their own, the others from "
+                f"the cells around), {self.datum} heights{fill}"
+            )
+        return (
+            f"{self.points} points ({sum(self.removed)} blunders removed: {self.removed} per iteration; "
+            f"{self.dropped_near_breaklines} next to breaklines dropped; {self.breakline_vertices} breakline "
+            f"vertices), {self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g} in {self.tiles} "
+            f"tile(s), {self.defined:.1%} defined, maximum edge {self.max_edge:.4g}, {self.datum} heights"
+        )
 
 
 def _centre(path, crs, feedback):
@@ -114,7 +123,7 @@ def _centre(path, crs, feedback):
     its own CRS."""
     count, sx, sy, srs, sigma = 0, 0.0, 0.0, None, False
     for points in point_chunks(path, crs, CHUNK):
-        progress.step(feedback, 0)          # the cancel button
+        progress.step(feedback, 0)  # the cancel button
         srs = points.srs
         sigma = sigma or (points.sigma_h is not None and bool(np.isfinite(points.sigma_h).any()))
         finite = np.isfinite(points.x) & np.isfinite(points.y) & np.isfinite(points.z)
@@ -122,8 +131,10 @@ def _centre(path, crs, feedback):
         sx += float(points.x[finite].sum())
         sy += float(points.y[finite].sum())
     if count < 3:
-        raise InputError(f"a DEM needs at least 3 points with finite coordinates, the point cloud has {count}: "
-                         "check the input point cloud")
+        raise InputError(
+            f"a DEM needs at least 3 points with finite coordinates, the point cloud has {count}: "
+            "check the input point cloud"
+        )
     return count, sx / count, sy / count, srs, sigma
 
 
@@ -150,9 +161,11 @@ def _to_work_chunks(path, crs, target, count, work, feedback):
         pts = points.to(target)
         lost = finite & ~(np.isfinite(pts.x) & np.isfinite(pts.y))
         if lost.any():
-            raise InputError(f"{int(lost.sum())} points cannot be expressed in the output CRS {target.GetName()} "
-                             "(outside the area its projection covers): choose an output CRS for where the point "
-                             "cloud lies, or leave it empty for the points' UTM zone")
+            raise InputError(
+                f"{int(lost.sum())} points cannot be expressed in the output CRS {target.GetName()} "
+                "(outside the area its projection covers): choose an output CRS for where the point "
+                "cloud lies, or leave it empty for the points' UTM zone"
+            )
         rows = np.zeros(int(finite.sum()), POINT)
         rows["x"], rows["y"], rows["z"] = pts.x[finite], pts.y[finite], pts.z[finite]
         rows["sigma"] = pts.sigma_h[finite] if pts.sigma_h is not None else np.nan
@@ -171,8 +184,8 @@ def _bucket(chunks, grid, tile, margin, work, name, feedback):
     """Append each point of the work chunks to the file of every `tile` x `tile` cell tile (tiling.tile_grid)
     whose box widened by `margin` (CRS units) holds it; returns the files (None for a tile without points)."""
     across, down = math.ceil(grid.cols / tile), math.ceil(grid.rows / tile)
-    reach = margin / grid.cell / tile                   # the margin in tiles
-    span = int(math.ceil(2 * reach)) + 1                # tiles a widened point can touch per axis
+    reach = margin / grid.cell / tile  # the margin in tiles
+    span = int(math.ceil(2 * reach)) + 1  # tiles a widened point can touch per axis
     files = [None] * (across * down)
     for k, chunk in enumerate(chunks):
         progress.step(feedback, 100.0 * k / len(chunks))
@@ -204,6 +217,7 @@ def _owner(grid, box):
         col = np.clip(np.floor((np.asarray(x) - grid.x0) / grid.cell), 0, grid.cols - 1)
         row = np.clip(np.floor((grid.y0 - np.asarray(y)) / grid.cell), 0, grid.rows - 1)
         return (col >= c0) & (col < c1) & (row >= r0) & (row < r1)
+
     return own
 
 
@@ -228,12 +242,13 @@ def _residual_tile(job, box, points_file, spreads):
     grid, _, _, max_edge, k, _, breaklines, margin, _ = job
     rows = np.fromfile(points_file, POINT)
     sub = _tile_grid(grid, box)
-    x, y, z, _, fixed, inside, _ = tin_vertices(rows["x"], rows["y"], rows["z"], None, grid.cell, max_edge,
-                                                _near(breaklines, sub, margin), _owner(grid, box))
+    x, y, z, _, fixed, inside, _ = tin_vertices(
+        rows["x"], rows["y"], rows["z"], None, grid.cell, max_edge, _near(breaklines, sub, margin), _owner(grid, box)
+    )
     if len(x) < 3 or flat_points(x, y):
         return histogram.EMPTY
     tin = delaunay(x, y)
-    check_cancel()                      # between the stages (execution: a cancel reaches a running tile)
+    check_cancel()  # between the stages (execution: a cancel reaches a running tile)
     keep, _ = filter_blunders(tin, x, y, z, k=k, fixed=fixed, spreads=spreads)
     return residual_histogram(tin, x, y, z, keep, fixed, inside)
 
@@ -246,9 +261,13 @@ def _spreads(job, used, execution, feedback):
     if k <= 0:
         return spreads
     for i in range(iterations):
-        hists = run_tasks(_residual_tile, [(job, box, f, list(spreads)) for box, f, _ in used], execution,
-                          progress.scaled(feedback, 100.0 * i / iterations, 100.0 * (i + 1) / iterations),
-                          f"the blunder filter's iteration {i + 1}")
+        hists = run_tasks(
+            _residual_tile,
+            [(job, box, f, list(spreads)) for box, f, _ in used],
+            execution,
+            progress.scaled(feedback, 100.0 * i / iterations, 100.0 * (i + 1) / iterations),
+            f"the blunder filter's iteration {i + 1}",
+        )
         given = spread(histogram.total(hists), k)
         if given is None or given[2] == 0:
             break
@@ -263,17 +282,36 @@ def _dem_tile(job, box, points_file, spreads, out, precision_out):
     srs = parse_crs(wkt)
     rows = np.fromfile(points_file, POINT)
     sub = _tile_grid(grid, box)
-    result = surface_on_grid(rows["x"], rows["y"], rows["z"], rows["sigma"] if sigma else None, sub, srs, max_edge,
-                             datum=datum, k=k, iterations=iterations, breaklines=_near(breaklines, sub, margin),
-                             precision=precision_out is not None, own=_owner(grid, box), spreads=spreads)
-    check_cancel()                      # before the writes (execution: a cancel reaches a running tile)
+    result = surface_on_grid(
+        rows["x"],
+        rows["y"],
+        rows["z"],
+        rows["sigma"] if sigma else None,
+        sub,
+        srs,
+        max_edge,
+        datum=datum,
+        k=k,
+        iterations=iterations,
+        breaklines=_near(breaklines, sub, margin),
+        precision=precision_out is not None,
+        own=_owner(grid, box),
+        spreads=spreads,
+    )
+    check_cancel()  # before the writes (execution: a cancel reaches a running tile)
     write_float_raster(out, result.heights, sub.geotransform, srs, overviews=False)
     if precision_out is not None:
         write_float_raster(precision_out, result.precision, sub.geotransform, srs, overviews=False)
     flat = flat_points(rows["x"], rows["y"]) if len(rows) >= 3 else "are fewer than 3"
-    return {"flat": flat, "points": result.points, "removed": result.removed, "dropped": result.dropped_near_breaklines,
-            "vertices": result.breakline_vertices, "defined": int(np.isfinite(result.heights).sum()),
-            "precision_kind": result.precision_kind}
+    return {
+        "flat": flat,
+        "points": result.points,
+        "removed": result.removed,
+        "dropped": result.dropped_near_breaklines,
+        "vertices": result.breakline_vertices,
+        "defined": int(np.isfinite(result.heights).sum()),
+        "precision_kind": result.precision_kind,
+    }
 
 
 def _cell_tile(job, box, points_file, out, precision_out, count_out, ring_out):
@@ -283,16 +321,30 @@ def _cell_tile(job, box, points_file, out, precision_out, count_out, ring_out):
     srs = parse_crs(wkt)
     rows = np.fromfile(points_file, POINT)
     sub = _tile_grid(grid, box)
-    cells = cells_on_grid(rows["x"], rows["y"], rows["z"], rows["sigma"] if sigma else None, sub, k=k,
-                          own=_owner(grid, box), tier=rows["tier"], fallback=fallback, radius=radius)
-    check_cancel()                      # before the writes (execution: a cancel reaches a running tile)
+    cells = cells_on_grid(
+        rows["x"],
+        rows["y"],
+        rows["z"],
+        rows["sigma"] if sigma else None,
+        sub,
+        k=k,
+        own=_owner(grid, box),
+        tier=rows["tier"],
+        fallback=fallback,
+        radius=radius,
+    )
+    check_cancel()  # before the writes (execution: a cancel reaches a running tile)
     write_float_raster(out, cells.heights, sub.geotransform, srs, overviews=False)
     for path, values in ((precision_out, cells.precision), (count_out, cells.count), (ring_out, cells.ring)):
         if path is not None:
             write_float_raster(path, values, sub.geotransform, srs, overviews=False)
     own = cells.ring == 0
-    return {"points": int(cells.count[own].sum()), "removed": cells.removed,
-            "defined": int(np.isfinite(cells.heights).sum()), "own": int(own.sum())}
+    return {
+        "points": int(cells.count[own].sum()),
+        "removed": cells.removed,
+        "defined": int(np.isfinite(cells.heights).sum()),
+        "own": int(own.sum()),
+    }
 
 
 def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, feedback):
@@ -300,55 +352,113 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
     count, mx, my, cloud_srs, has_sigma = _centre(cloud, params.input_crs, progress.scaled(feedback, 0, 3))
     target = output_crs(cloud_srs, mx, my, params.crs)
     with work_dir(output, "the DEM tiles") as work:
-        chunks, (x0, y0, x1, y1) = _to_work_chunks(cloud, params.input_crs, target, count, work,
-                                                   progress.scaled(feedback, 3, 10))
+        chunks, (x0, y0, x1, y1) = _to_work_chunks(
+            cloud, params.input_crs, target, count, work, progress.scaled(feedback, 3, 10)
+        )
         grid = Grid.covering(np.array([x0, x1]), np.array([y0, y1]), params.cell)
         check_grid_cells(grid.cols, grid.rows, params.cell, target, (x1 - x0, y1 - y0), "the DEM")
         boxes = tile_grid((grid.cols, grid.rows), int(params.tile))
-        files = _bucket(chunks, grid, int(params.tile), (int(params.radius) + 0.5) * params.cell, work, "tile",
-                        progress.scaled(feedback, 10, 20))
+        files = _bucket(
+            chunks,
+            grid,
+            int(params.tile),
+            (int(params.radius) + 0.5) * params.cell,
+            work,
+            "tile",
+            progress.scaled(feedback, 10, 20),
+        )
         for chunk in chunks:
             os.unlink(chunk)
         job = (grid, target.ExportToWkt(), params.k, has_sigma, params.fallback, int(params.radius))
         used = [(box, f, k) for k, (box, f) in enumerate(zip(boxes, files)) if f is not None]
-        names = {kind: [os.path.join(work, f"{kind}-{k:05d}.tif") if wanted else None for _, _, k in used]
-                 for kind, wanted in (("dem", True), ("precision", precision_path), ("count", count_path),
-                                      ("ring", mask_path))}
+        names = {
+            kind: [os.path.join(work, f"{kind}-{k:05d}.tif") if wanted else None for _, _, k in used]
+            for kind, wanted in (
+                ("dem", True),
+                ("precision", precision_path),
+                ("count", count_path),
+                ("ring", mask_path),
+            )
+        }
         with session(params.execution):
-            done = run_tasks(_cell_tile, [(job, box, f, *outs) for (box, f, _), *outs
-                                          in zip(used, names["dem"], names["precision"], names["count"],
-                                                 names["ring"])],
-                             params.execution, progress.scaled(feedback, 20, 80), "the DEM tiles")
+            done = run_tasks(
+                _cell_tile,
+                [
+                    (job, box, f, *outs)
+                    for (box, f, _), *outs in zip(used, names["dem"], names["precision"], names["count"], names["ring"])
+                ],
+                params.execution,
+                progress.scaled(feedback, 20, 80),
+                "the DEM tiles",
+            )
         defined = sum(d["defined"] for d in done)
         removed = sum(d["removed"] for d in done)
         own = sum(d["own"] for d in done)
-        result = TiledDem(output, grid, target, params.datum, len(boxes), points=sum(d["points"] for d in done),
-                          removed=[removed], defined=defined / (grid.rows * grid.cols),
-                          precision_path=precision_path or None, count_path=count_path or None, method="cells",
-                          mask_path=mask_path or None, own=own / (grid.rows * grid.cols))
+        result = TiledDem(
+            output,
+            grid,
+            target,
+            params.datum,
+            len(boxes),
+            points=sum(d["points"] for d in done),
+            removed=[removed],
+            defined=defined / (grid.rows * grid.cols),
+            precision_path=precision_path or None,
+            count_path=count_path or None,
+            method="cells",
+            mask_path=mask_path or None,
+            own=own / (grid.rows * grid.cols),
+        )
         datum = "WGS 84 ellipsoidal height" if params.datum == "ellipsoidal" else "EGM96 height (h - N)"
-        extra = [(path, names[kind], description) for kind, path, description in (
-            ("precision", precision_path, "standard error of the cell's median height (m)"),
-            ("count", count_path, "points in the cell"))]
-        with contextlib.ExitStack() as stack:        # every output is renamed at the end, or none
+        extra = [
+            (path, names[kind], description)
+            for kind, path, description in (
+                ("precision", precision_path, "standard error of the cell's median height (m)"),
+                ("count", count_path, "points in the cell"),
+            )
+        ]
+        with contextlib.ExitStack() as stack:  # every output is renamed at the end, or none
             tmp = stack.enter_context(atomic_path(output))
             temps = [stack.enter_context(atomic_path(path)) if path else None for path, _, _ in extra]
-            assemble_tiles(names["dem"], tmp, grid.geotransform, (grid.cols, grid.rows), target,
-                           description=f"height ({datum}, m)",
-                           metadata={"HEIGHT_DATUM": datum, "POINTS": result.points, "OUTLIERS_REMOVED": removed,
-                                     "METHOD": "per-cell median", "RADIUS_CELLS": int(params.radius),
-                                     "GAPS_FILLED_WITHIN_CELLS": params.fill},
-                           overviews=not mask_path, feedback=progress.scaled(feedback, 80, 90))
+            assemble_tiles(
+                names["dem"],
+                tmp,
+                grid.geotransform,
+                (grid.cols, grid.rows),
+                target,
+                description=f"height ({datum}, m)",
+                metadata={
+                    "HEIGHT_DATUM": datum,
+                    "POINTS": result.points,
+                    "OUTLIERS_REMOVED": removed,
+                    "METHOD": "per-cell median",
+                    "RADIUS_CELLS": int(params.radius),
+                    "GAPS_FILLED_WITHIN_CELLS": params.fill,
+                },
+                overviews=not mask_path,
+                feedback=progress.scaled(feedback, 80, 90),
+            )
             if mask_path:
                 rings = os.path.join(work, "rings.tif")
-                assemble_tiles(names["ring"], rings, grid.geotransform, (grid.cols, grid.rows), target,
-                               overviews=False)
-                result.filled = fill_gaps(tmp, stack.enter_context(atomic_path(mask_path)), params.fill,
-                                          progress.scaled(feedback, 90, 94), rings=rings)
+                assemble_tiles(names["ring"], rings, grid.geotransform, (grid.cols, grid.rows), target, overviews=False)
+                result.filled = fill_gaps(
+                    tmp,
+                    stack.enter_context(atomic_path(mask_path)),
+                    params.fill,
+                    progress.scaled(feedback, 90, 94),
+                    rings=rings,
+                )
             for (path, tiles, description), tmp_extra in zip(extra, temps):
                 if path:
-                    assemble_tiles(tiles, tmp_extra, grid.geotransform, (grid.cols, grid.rows), target,
-                                   description=description, feedback=progress.scaled(feedback, 94, 100))
+                    assemble_tiles(
+                        tiles,
+                        tmp_extra,
+                        grid.geotransform,
+                        (grid.cols, grid.rows),
+                        target,
+                        description=description,
+                        feedback=progress.scaled(feedback, 94, 100),
+                    )
     if result.points == 0:
         raise InputError("no point of the point cloud lies in a cell of the grid: check the point cloud")
     return result
@@ -362,8 +472,9 @@ def mask_output(output, params, mask_path=None):
     return os.path.splitext(os.fspath(output))[0] + "_filled.tif"
 
 
-def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_path=None, feedback=None,
-                         count_path=None, mask_path=None):
+def dem_from_point_cloud(
+    cloud, output, params=None, breaklines=None, precision_path=None, feedback=None, count_path=None, mask_path=None
+):
     """The DEM step: the point cloud file `cloud` (point_input.point_chunks) interpolated with DemParams
     `params` tile by tile (module docstring) and written to the GeoTIFF `output` (and the precision raster
     to `precision_path`, with method "cells" the count of points per cell to `count_path`, where given, and
@@ -375,89 +486,142 @@ def dem_from_point_cloud(cloud, output, params=None, breaklines=None, precision_
     log = progress.ensure(feedback)
     if params.method == "cells":
         if breaklines:
-            raise InputError("breaklines shape a TIN: the per-cell DEM does not use them; choose the TIN method or "
-                             "leave the breaklines out")
-        result = _cells_dem(cloud, output, params, precision_path, count_path, mask_output(output, params, mask_path),
-                            feedback)
+            raise InputError(
+                "breaklines shape a TIN: the per-cell DEM does not use them; choose the TIN method or "
+                "leave the breaklines out"
+            )
+        result = _cells_dem(
+            cloud, output, params, precision_path, count_path, mask_output(output, params, mask_path), feedback
+        )
         log.pushInfo(result.summary())
         return result
     if count_path:
         raise InputError("the count of points per cell is an output of the per-cell method, not of the TIN")
     if params.fill:
-        raise InputError("gap filling is for the per-cell DEM: the TIN interpolates between its points already, and "
-                         "leaves gaps only under triangles longer than the maximum edge (raise it to fill more)")
+        raise InputError(
+            "gap filling is for the per-cell DEM: the TIN interpolates between its points already, and "
+            "leaves gaps only under triangles longer than the maximum edge (raise it to fill more)"
+        )
     lines, lines_srs = read_breaklines(*breaklines) if breaklines else ([], None)
     count, mx, my, cloud_srs, has_sigma = _centre(cloud, params.input_crs, progress.scaled(feedback, 0, 3))
     target = output_crs(cloud_srs, mx, my, params.crs)
-    lines = [np.column_stack([transform(lines_srs, target, b[:, :2], "the breaklines")[:, :2], b[:, 2]])
-             for b in lines]
+    lines = [np.column_stack([transform(lines_srs, target, b[:, :2], "the breaklines")[:, :2], b[:, 2]]) for b in lines]
     with work_dir(output, "the DEM tiles") as work:
-        chunks, (x0, y0, x1, y1) = _to_work_chunks(cloud, params.input_crs, target, count, work,
-                                                   progress.scaled(feedback, 3, 8))
+        chunks, (x0, y0, x1, y1) = _to_work_chunks(
+            cloud, params.input_crs, target, count, work, progress.scaled(feedback, 3, 8)
+        )
         grid = Grid.covering(np.array([x0, x1]), np.array([y0, y1]), params.cell)
-        if min(x1 - x0, y1 - y0) > 0:       # else the TIN names the points at one position (tin.flat_points)
+        if min(x1 - x0, y1 - y0) > 0:  # else the TIN names the points at one position (tin.flat_points)
             check_grid_cells(grid.cols, grid.rows, params.cell, target, (x1 - x0, y1 - y0), "the DEM")
         tile = int(params.tile)
         boxes = tile_grid((grid.cols, grid.rows), tile)
-        spacing = math.sqrt(max((x1 - x0) * (y1 - y0), params.cell ** 2) / count)   # >= the median NN distance
+        spacing = math.sqrt(max((x1 - x0) * (y1 - y0), params.cell**2) / count)  # >= the median NN distance
         edge = params.max_edge if params.max_edge is not None else max(3 * params.cell, EDGE_SPACINGS * spacing)
         margin = MARGIN_EDGES * edge
         files = _bucket(chunks, grid, tile, margin, work, "tile", progress.scaled(feedback, 8, 10))
-        with session(params.execution):           # the rounds of tasks share the workers
+        with session(params.execution):  # the rounds of tasks share the workers
             max_edge = params.max_edge
             if max_edge is None:
                 tasks = [(grid, box, f) for box, f in zip(boxes, files) if f is not None]
-                distances = np.concatenate(run_tasks(_spacings, tasks, params.execution,
-                                                     progress.scaled(feedback, 10, 20), "the point spacing")
-                                           + [np.zeros(0)])
+                distances = np.concatenate(
+                    run_tasks(
+                        _spacings, tasks, params.execution, progress.scaled(feedback, 10, 20), "the point spacing"
+                    )
+                    + [np.zeros(0)]
+                )
                 median = float(np.median(distances)) if len(distances) else 0.0
                 max_edge = max(3.0 * params.cell, EDGE_SPACINGS * median)
                 if max_edge > edge:
                     margin = MARGIN_EDGES * max_edge
-                    log.pushInfo(f"the maximum edge {max_edge:.4g} exceeds the density's bound {edge:.4g}: the tiles' "
-                                 f"margin is widened to {margin:.4g}")
+                    log.pushInfo(
+                        f"the maximum edge {max_edge:.4g} exceeds the density's bound {edge:.4g}: the tiles' "
+                        f"margin is widened to {margin:.4g}"
+                    )
                     for f in files:
                         if f is not None:
                             os.unlink(f)
                     files = _bucket(chunks, grid, tile, margin, work, "wide", progress.scaled(feedback, 20, 22))
             for chunk in chunks:
                 os.unlink(chunk)
-            job = (grid, target.ExportToWkt(), params.datum, max_edge, params.k, params.iterations,
-                   _near(lines, grid, margin), margin, has_sigma)
+            job = (
+                grid,
+                target.ExportToWkt(),
+                params.datum,
+                max_edge,
+                params.k,
+                params.iterations,
+                _near(lines, grid, margin),
+                margin,
+                has_sigma,
+            )
             used = [(box, f, k) for k, (box, f) in enumerate(zip(boxes, files)) if f is not None]
             outs = [os.path.join(work, f"dem-{k:05d}.tif") for _, _, k in used]
             precisions = [os.path.join(work, f"precision-{k:05d}.tif") if precision_path else None for _, _, k in used]
             spreads = _spreads(job, used, params.execution, progress.scaled(feedback, 20, 50))
-            done = run_tasks(_dem_tile, [(job, box, f, spreads, out, p)
-                                         for (box, f, _), out, p in zip(used, outs, precisions)],
-                             params.execution, progress.scaled(feedback, 50, 80), "the DEM tiles")
+            done = run_tasks(
+                _dem_tile,
+                [(job, box, f, spreads, out, p) for (box, f, _), out, p in zip(used, outs, precisions)],
+                params.execution,
+                progress.scaled(feedback, 50, 80),
+                "the DEM tiles",
+            )
         defined = sum(d["defined"] for d in done)
         if all(d["flat"] for d in done):
             where = f" {done[0]['flat']}" if len(done) == 1 else ", in every tile, span no area:"
-            raise InputError(f"the {count} points of the point cloud{where}: a TIN needs at least 3 points that "
-                             "are not on one line; check the point cloud (duplicated points, or coordinates lost or "
-                             "rounded in an export?)")
+            raise InputError(
+                f"the {count} points of the point cloud{where}: a TIN needs at least 3 points that "
+                "are not on one line; check the point cloud (duplicated points, or coordinates lost or "
+                "rounded in an export?)"
+            )
         if defined == 0:
-            raise InputError(f"no grid cell lies in a triangle with edges up to {max_edge:g}: raise the maximum edge "
-                             f"length or the cell size ({params.cell:g})")
-        removed = [sum(d["removed"][i] for d in done if len(d["removed"]) > i)
-                   for i in range(max((len(d["removed"]) for d in done), default=0))]
-        result = TiledDem(output, grid, target, params.datum, len(boxes), points=sum(d["points"] for d in done),
-                          removed=removed, dropped_near_breaklines=sum(d["dropped"] for d in done),
-                          breakline_vertices=sum(d["vertices"] for d in done),
-                          defined=defined / (grid.rows * grid.cols),
-                          max_edge=max_edge, precision_path=precision_path or None)
+            raise InputError(
+                f"no grid cell lies in a triangle with edges up to {max_edge:g}: raise the maximum edge "
+                f"length or the cell size ({params.cell:g})"
+            )
+        removed = [
+            sum(d["removed"][i] for d in done if len(d["removed"]) > i)
+            for i in range(max((len(d["removed"]) for d in done), default=0))
+        ]
+        result = TiledDem(
+            output,
+            grid,
+            target,
+            params.datum,
+            len(boxes),
+            points=sum(d["points"] for d in done),
+            removed=removed,
+            dropped_near_breaklines=sum(d["dropped"] for d in done),
+            breakline_vertices=sum(d["vertices"] for d in done),
+            defined=defined / (grid.rows * grid.cols),
+            max_edge=max_edge,
+            precision_path=precision_path or None,
+        )
         datum = "WGS 84 ellipsoidal height" if params.datum == "ellipsoidal" else "EGM96 height (h - N)"
         # both outputs are renamed at the end, or neither
-        with atomic_path(output) as tmp, (atomic_path(precision_path) if precision_path
-                                          else contextlib.nullcontext()) as tmp_precision:
-            assemble_tiles(outs, tmp, grid.geotransform, (grid.cols, grid.rows), target,
-                           description=f"height ({datum}, m)",
-                           metadata={"HEIGHT_DATUM": datum, "POINTS": result.points, "BLUNDERS_REMOVED": sum(removed)},
-                           feedback=progress.scaled(feedback, 80, 95 if precision_path else 100))
+        with (
+            atomic_path(output) as tmp,
+            atomic_path(precision_path) if precision_path else contextlib.nullcontext() as tmp_precision,
+        ):
+            assemble_tiles(
+                outs,
+                tmp,
+                grid.geotransform,
+                (grid.cols, grid.rows),
+                target,
+                description=f"height ({datum}, m)",
+                metadata={"HEIGHT_DATUM": datum, "POINTS": result.points, "BLUNDERS_REMOVED": sum(removed)},
+                feedback=progress.scaled(feedback, 80, 95 if precision_path else 100),
+            )
             if precision_path:
-                assemble_tiles(precisions, tmp_precision, grid.geotransform, (grid.cols, grid.rows), target,
-                               description=done[0]["precision_kind"], feedback=progress.scaled(feedback, 95, 100))
+                assemble_tiles(
+                    precisions,
+                    tmp_precision,
+                    grid.geotransform,
+                    (grid.cols, grid.rows),
+                    target,
+                    description=done[0]["precision_kind"],
+                    feedback=progress.scaled(feedback, 95, 100),
+                )
     log.pushInfo(result.summary())
     return result
 
@@ -466,5 +630,6 @@ def _near(lines, grid, margin):
     """The breaklines whose bounding box comes within `margin` of the grid (the others do not reach it)."""
     x0, y1 = grid.x0 - margin, grid.y0 + margin
     x1, y0 = grid.x0 + grid.cols * grid.cell + margin, grid.y0 - grid.rows * grid.cell - margin
-    return [b for b in lines if b[:, 0].max() >= x0 and b[:, 0].min() <= x1 and b[:, 1].max() >= y0
-            and b[:, 1].min() <= y1]
+    return [
+        b for b in lines if b[:, 0].max() >= x0 and b[:, 0].min() <= x1 and b[:, 1].max() >= y0 and b[:, 1].min() <= y1
+    ]

@@ -17,6 +17,7 @@ studies/dense_fusion.py measures interpolation against the dense points a cell w
 Failure modes: CancelledError through the feedback (the caller's atomic outputs then leave nothing).
 
 Reference: GDAL, gdal_fillnodata (alg/rasterfill.cpp)."""
+
 import numpy as np
 from scipy import ndimage
 
@@ -26,7 +27,7 @@ from ..errors import CancelledError
 from .geotiff import overview_levels
 
 MEASURED, FILLED, NEIGHBOURS, GAP = 0, 1, 2, 255
-STRIP = 512         # rows read at a time
+STRIP = 512  # rows read at a time
 
 
 def _strips(rows):
@@ -42,9 +43,10 @@ def _enclosed(mask_band, row, count, reach):
     flags = mask_band.ReadAsArray(0, top, cols, bottom - top)
     measured = ((flags == MEASURED) | (flags == NEIGHBOURS)).astype(np.uint8)
     size = 2 * reach + 1
-    closed = ndimage.minimum_filter(ndimage.maximum_filter(measured, size, mode="constant", cval=0), size,
-                                    mode="nearest")
-    return closed[row - top:row - top + count] > 0
+    closed = ndimage.minimum_filter(
+        ndimage.maximum_filter(measured, size, mode="constant", cval=0), size, mode="nearest"
+    )
+    return closed[row - top : row - top + count] > 0
 
 
 def fill_gaps(path, mask_path, max_distance, feedback=None, rings=None):
@@ -52,13 +54,15 @@ def fill_gaps(path, mask_path, max_distance, feedback=None, rings=None):
     write the mask raster `mask_path` (module docstring); `rings`: the GeoTIFF of cell_dem's rings on the same
     grid, or None. Returns the number of cells filled."""
     from osgeo import gdal
+
     gdal.UseExceptions()
     with closing(gdal.Open(str(path), gdal.GA_Update)) as ds:
         band = ds.GetRasterBand(1)
         cols, rows = ds.RasterXSize, ds.RasterYSize
         driver = gdal.GetDriverByName("GTiff")
-        with closing(driver.Create(str(mask_path), cols, rows, 1, gdal.GDT_Byte,
-                                   ["TILED=YES", "COMPRESS=DEFLATE"])) as mask:
+        with closing(
+            driver.Create(str(mask_path), cols, rows, 1, gdal.GDT_Byte, ["TILED=YES", "COMPRESS=DEFLATE"])
+        ) as mask:
             mask.SetGeoTransform(ds.GetGeoTransform())
             mask.SetProjection(ds.GetProjection())
             out = mask.GetRasterBand(1)
@@ -74,8 +78,13 @@ def fill_gaps(path, mask_path, max_distance, feedback=None, rings=None):
             filled = 0
             if max_distance:
                 try:
-                    gdal.FillNodata(band, None, float(max_distance), 0,
-                                    callback=progress.gdal_callback(progress.scaled(feedback, 10, 80)))
+                    gdal.FillNodata(
+                        band,
+                        None,
+                        float(max_distance),
+                        0,
+                        callback=progress.gdal_callback(progress.scaled(feedback, 10, 80)),
+                    )
                 except RuntimeError:
                     if feedback is not None and feedback.isCanceled():
                         raise CancelledError("cancelled by the user") from None

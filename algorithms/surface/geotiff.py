@@ -1,5 +1,6 @@
 """Writing rasters in a projected or geographic CRS: tiled, DEFLATE-compressed GeoTIFF with internal
 overviews and nodata, written atomically (a cancel or a crash leaves nothing under the final name)."""
+
 import numpy as np
 
 from .. import progress
@@ -24,11 +25,13 @@ def write_float_raster(path, array, geotransform, srs, description="", metadata=
     """One Float32 band (NaN -> NODATA) with `geotransform` (GDAL's) and `srs` (osr.SpatialReference);
     without `overviews` for a tile that assemble_tiles joins to others."""
     from osgeo import gdal
+
     gdal.UseExceptions()
     array = np.where(np.isfinite(array), array, NODATA).astype(np.float32)
     with atomic_path(path) as tmp:
-        with closing(gdal.GetDriverByName("GTiff").Create(tmp, array.shape[1], array.shape[0], 1, gdal.GDT_Float32,
-                                                          OPTIONS)) as ds:
+        with closing(
+            gdal.GetDriverByName("GTiff").Create(tmp, array.shape[1], array.shape[0], 1, gdal.GDT_Float32, OPTIONS)
+        ) as ds:
             ds.SetGeoTransform(tuple(geotransform))
             ds.SetProjection(srs.ExportToWkt())
             if metadata:
@@ -45,8 +48,18 @@ def write_float_raster(path, array, geotransform, srs, description="", metadata=
     return path
 
 
-def assemble_tiles(tiles, path, geotransform, size, srs, options=OPTIONS, description=None, metadata=None,
-                   overviews=True, feedback=None):
+def assemble_tiles(
+    tiles,
+    path,
+    geotransform,
+    size,
+    srs,
+    options=OPTIONS,
+    description=None,
+    metadata=None,
+    overviews=True,
+    feedback=None,
+):
     """Write the GeoTIFF `tiles` (one data type, bands and nodata; together they cover parts of the raster
     of `size` (cols, rows) with `geotransform` in `srs`) as one GeoTIFF at `path` (a temporary name: the
     caller renames it) with creation `options` and AVERAGE overviews (overview_levels; none without
@@ -54,6 +67,7 @@ def assemble_tiles(tiles, path, geotransform, size, srs, options=OPTIONS, descri
     and its overviews built by GDAL in blocks, so memory follows GDAL's cache, not the raster. Cells no
     tile covers are the tiles' nodata. CancelledError when `feedback` cancels."""
     from osgeo import gdal
+
     gdal.UseExceptions()
     x0, dx, _, y0, _, dy = geotransform
     bounds = (x0, y0 + size[1] * dy, x0 + size[0] * dx, y0)
@@ -62,14 +76,22 @@ def assemble_tiles(tiles, path, geotransform, size, srs, options=OPTIONS, descri
         vrt.SetProjection(srs.ExportToWkt())
         if metadata:
             vrt.SetMetadata({k: str(v) for k, v in metadata.items()})
-        with closing(gdal.Translate(path, vrt, format="GTiff", creationOptions=list(options),
-                                    callback=progress.gdal_callback(progress.scaled(feedback, 0, 60)))) as ds:
+        with closing(
+            gdal.Translate(
+                path,
+                vrt,
+                format="GTiff",
+                creationOptions=list(options),
+                callback=progress.gdal_callback(progress.scaled(feedback, 0, 60)),
+            )
+        ) as ds:
             if description is not None:
                 ds.GetRasterBand(1).SetDescription(description)
             levels = overview_levels((size[1], size[0])) if overviews else []
             if levels:
-                ds.BuildOverviews("AVERAGE", levels,
-                                  callback=progress.gdal_callback(progress.scaled(feedback, 60, 100)))
+                ds.BuildOverviews(
+                    "AVERAGE", levels, callback=progress.gdal_callback(progress.scaled(feedback, 60, 100))
+                )
     except RuntimeError:
         if feedback is not None and feedback.isCanceled():
             raise CancelledError("cancelled by the user") from None

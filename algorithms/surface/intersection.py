@@ -19,6 +19,7 @@ at heights h0 -+ 500 m from `image_to_ground`). Per point the result carries the
 (A' P A)^-1 in m^2 (E, N, U, from the given image sigma), the a posteriori sigma0 =
 sqrt(v' P v / (2k - 3)) (unitless: about 1 when the image sigma is right; a posteriori sigmas =
 sigma0 x a priori sigmas), the RMS of the 2k image residuals (px), the iterations and a status."""
+
 import math
 from dataclasses import dataclass
 
@@ -30,8 +31,14 @@ from ..errors import InputError
 from ..geodesy import ecef_to_geodetic, metres_per_degree, offset_enu
 from ..sigmas import IMAGE_SIGMA
 
-STATUS_NAMES = ("converged", "not converged", "diverged", "outside a model's domain", "fewer than 2 rays",
-                "singular geometry")
+STATUS_NAMES = (
+    "converged",
+    "not converged",
+    "diverged",
+    "outside a model's domain",
+    "fewer than 2 rays",
+    "singular geometry",
+)
 CONVERGED, NOT_CONVERGED, DIVERGED, OUTSIDE, TOO_FEW_RAYS, SINGULAR = range(len(STATUS_NAMES))
 
 #: convergence: largest coordinate change (m) of the last step
@@ -52,16 +59,16 @@ class Intersection:
     """Per point (sorted by `point`): the ground point and its precision (module docstring).
     Only points with status CONVERGED have coordinates and statistics; the others are NaN."""
 
-    point: np.ndarray        # the point indices given, sorted, unique
+    point: np.ndarray  # the point indices given, sorted, unique
     lon: np.ndarray
     lat: np.ndarray
-    h: np.ndarray            # ellipsoidal height, m
-    rays: np.ndarray         # number of image measurements
-    status: np.ndarray       # index into STATUS_NAMES
+    h: np.ndarray  # ellipsoidal height, m
+    rays: np.ndarray  # number of image measurements
+    status: np.ndarray  # index into STATUS_NAMES
     iterations: np.ndarray
-    sigma0: np.ndarray       # a posteriori standard deviation of unit weight
-    rms: np.ndarray          # RMS of the image residuals, px
-    covariance: np.ndarray   # (n, 3, 3) a priori covariance of (E, N, U), m^2
+    sigma0: np.ndarray  # a posteriori standard deviation of unit weight
+    rms: np.ndarray  # RMS of the image residuals, px
+    covariance: np.ndarray  # (n, 3, 3) a priori covariance of (E, N, U), m^2
 
     def __len__(self):
         return len(self.point)
@@ -147,12 +154,18 @@ def closest_to_lines(p0, p1, bounds, singular_ratio, xyz, ok):
         c02 = n[1, 0] * n[2, 1] - n[1, 1] * n[2, 0]
         det = n[0, 0] * c00 + n[0, 1] * c01 + n[0, 2] * c02
         ok[g] = usable >= 2 and det > singular_ratio * n[0, 0] * n[1, 1] * n[2, 2]
-        if ok[g]:         # N is symmetric: X = adj(N) b / det
+        if ok[g]:  # N is symmetric: X = adj(N) b / det
             xyz[g, 0] = (c00 * b[0] + c01 * b[1] + c02 * b[2]) / det
-            xyz[g, 1] = (c01 * b[0] + (n[0, 0] * n[2, 2] - n[0, 2] * n[2, 0]) * b[1]
-                         + (n[0, 1] * n[2, 0] - n[0, 0] * n[2, 1]) * b[2]) / det
-            xyz[g, 2] = (c02 * b[0] + (n[0, 1] * n[2, 0] - n[0, 0] * n[2, 1]) * b[1]
-                         + (n[0, 0] * n[1, 1] - n[0, 1] * n[1, 0]) * b[2]) / det
+            xyz[g, 1] = (
+                c01 * b[0]
+                + (n[0, 0] * n[2, 2] - n[0, 2] * n[2, 0]) * b[1]
+                + (n[0, 1] * n[2, 0] - n[0, 0] * n[2, 1]) * b[2]
+            ) / det
+            xyz[g, 2] = (
+                c02 * b[0]
+                + (n[0, 1] * n[2, 0] - n[0, 0] * n[2, 1]) * b[1]
+                + (n[0, 0] * n[1, 1] - n[0, 1] * n[1, 0]) * b[2]
+            ) / det
         else:
             for r in range(3):
                 xyz[g, r] = 0.5 * (p0[first, r] + p1[first, r]) if first >= 0 else np.nan
@@ -160,16 +173,22 @@ def closest_to_lines(p0, p1, bounds, singular_ratio, xyz, ok):
 
 def _check_inputs(models, image, point, col, row, sigma):
     try:
-        arrays = np.broadcast_arrays(np.asarray(image).ravel(), np.asarray(point).ravel(),
-                                     np.asarray(col, float).ravel(), np.asarray(row, float).ravel(),
-                                     np.asarray(sigma, float).ravel())
+        arrays = np.broadcast_arrays(
+            np.asarray(image).ravel(),
+            np.asarray(point).ravel(),
+            np.asarray(col, float).ravel(),
+            np.asarray(row, float).ravel(),
+            np.asarray(sigma, float).ravel(),
+        )
     except ValueError as exc:
         raise InputError(f"image ids, point indices, col, row and sigma must have one length ({exc})") from None
     image, point, col, row, sigma = (np.ascontiguousarray(a) for a in arrays)
     missing = sorted({str(k) for k in np.unique(image)} - {str(k) for k in models})
     if missing:
-        raise InputError(f"no sensor model for image(s) {', '.join(missing)}; models are given for "
-                         f"{', '.join(str(k) for k in models) or 'none'}")
+        raise InputError(
+            f"no sensor model for image(s) {', '.join(missing)}; models are given for "
+            f"{', '.join(str(k) for k in models) or 'none'}"
+        )
     if not (np.isfinite(col).all() and np.isfinite(row).all()):
         raise InputError("image coordinates must be finite numbers")
     if not (np.isfinite(sigma).all() and (sigma > 0).all()):
@@ -183,8 +202,9 @@ def _default_height(models):
     return float(np.mean(ranges)) if ranges else 0.0
 
 
-def intersect(models, image_ids, point_index, col, row, sigma=IMAGE_SIGMA, h0=None, max_iter=10, tol=TOLERANCE,
-              feedback=None):
+def intersect(
+    models, image_ids, point_index, col, row, sigma=IMAGE_SIGMA, h0=None, max_iter=10, tol=TOLERANCE, feedback=None
+):
     """Intersect the object points of image measurements (module docstring).
 
     `models`: dict image id -> sensor model with `partials`, `ground_to_image`, `image_to_ground`
@@ -201,16 +221,33 @@ def intersect(models, image_ids, point_index, col, row, sigma=IMAGE_SIGMA, h0=No
     inverse, image, col, row, sigma = inverse[order], image[order], col[order], row[order], sigma[order]
     n = ids.size
     rays = np.bincount(inverse, minlength=n)
-    fields = [np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan), np.full(n, NOT_CONVERGED, np.int8),
-              np.zeros(n, np.int32), np.full(n, np.nan), np.full(n, np.nan), np.full((n, 3, 3), np.nan)]
+    fields = [
+        np.full(n, np.nan),
+        np.full(n, np.nan),
+        np.full(n, np.nan),
+        np.full(n, NOT_CONVERGED, np.int8),
+        np.zeros(n, np.int32),
+        np.full(n, np.nan),
+        np.full(n, np.nan),
+        np.full((n, 3, 3), np.nan),
+    ]
     chunks = np.arange(0, n + CHUNK, CHUNK).clip(max=n)
     bounds = np.searchsorted(inverse, chunks)
     for k in range(len(chunks) - 1):
         a, b, lo, hi = chunks[k], chunks[k + 1], bounds[k], bounds[k + 1]
-        values = _intersect_chunk(models, image[lo:hi], inverse[lo:hi] - a, col[lo:hi], row[lo:hi], sigma[lo:hi],
-                                  rays[a:b], h0, max_iter, tol,
-                                  progress.scaled(feedback, 100.0 * k / (len(chunks) - 1),
-                                                  100.0 * (k + 1) / (len(chunks) - 1)))
+        values = _intersect_chunk(
+            models,
+            image[lo:hi],
+            inverse[lo:hi] - a,
+            col[lo:hi],
+            row[lo:hi],
+            sigma[lo:hi],
+            rays[a:b],
+            h0,
+            max_iter,
+            tol,
+            progress.scaled(feedback, 100.0 * k / (len(chunks) - 1), 100.0 * (k + 1) / (len(chunks) - 1)),
+        )
         for array, value in zip(fields, values):
             array[a:b] = value
     lon, lat, h, status, iterations, sigma0, rms, covariance = fields
@@ -225,8 +262,14 @@ def intersect_measured(models, cols, rows, h0=None):
     (k, m) arrays (row i: image i's positions); the points are 0 ... m - 1, the images 0 ... k - 1."""
     cols, rows = np.asarray(cols, float), np.asarray(rows, float)
     k, m = cols.shape
-    return intersect(dict(enumerate(models)), np.tile(np.arange(k), m), np.repeat(np.arange(m), k),
-                     cols.T.ravel(), rows.T.ravel(), h0=h0)
+    return intersect(
+        dict(enumerate(models)),
+        np.tile(np.arange(k), m),
+        np.repeat(np.arange(m), k),
+        cols.T.ravel(),
+        rows.T.ravel(),
+        h0=h0,
+    )
 
 
 def _initial_status(models, image, point, col, row, rays):
@@ -271,7 +314,7 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
     lon[go], lat[go], h[go] = ecef_to_geodetic(_start(models, image, col, row, point, go, h0)[0])
     status[go[~np.isfinite(h[go])]] = OUTSIDE
     observed = np.column_stack([col, row])
-    weight = 1.0 / sigma ** 2
+    weight = 1.0 / sigma**2
     for iteration in range(1, max_iter + 1):
         progress.step(feedback, 100.0 * (iteration - 1) / max_iter)
         sel = np.flatnonzero(status[point] == NOT_CONVERGED)
@@ -287,7 +330,7 @@ def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, 
             d = models[key].partials(lon[p[s]], lat[p[s]], h[p[s]])
             c, r, d = d["col"], d["row"], d["d_ground"]
             computed[s, 0], computed[s, 1], jac[s] = c, r, d
-        scale = np.column_stack([*metres_per_degree(lat[q], h[q]), np.ones(q.size)])   # m per (deg, deg, m)
+        scale = np.column_stack([*metres_per_degree(lat[q], h[q]), np.ones(q.size)])  # m per (deg, deg, m)
         jac /= scale[owner][:, None, :]
         misclosure = observed[sel] - computed
         weighted = jac * weight[sel][:, None, None]
@@ -343,7 +386,7 @@ class Summary:
     part's Summary (both in any order: the sums are the same)."""
 
     def __init__(self):
-        self.groups = {}    # group -> [points, converged, 4 sparse histograms (bins, counts)]
+        self.groups = {}  # group -> [points, converged, 4 sparse histograms (bins, counts)]
 
     def _group(self, g):
         return self.groups.setdefault(int(g), [0, 0, [histogram.EMPTY] * 4])
@@ -360,7 +403,7 @@ class Summary:
             entry[1] += int(ok.sum())
             with np.errstate(divide="ignore", invalid="ignore"):
                 bins = np.floor((np.log10(values[ok]) - SUMMARY_DECADES[0]) / SUMMARY_BIN)
-            finite = np.isfinite(values[ok])            # a NaN sigma is no value; 0 and inf go to the end bins
+            finite = np.isfinite(values[ok])  # a NaN sigma is no value; 0 and inf go to the end bins
             bins = np.nan_to_num(bins, nan=0.0, neginf=0.0, posinf=_SUMMARY_LAST).clip(0, _SUMMARY_LAST)
             for q in range(4):
                 entry[2][q] = histogram.add(entry[2][q], histogram.count(bins[finite[:, q], q]))
@@ -381,8 +424,17 @@ class Summary:
         for g in sorted(self.groups):
             points, converged, hists = self.groups[g]
             medians = [_histogram_median(*h) for h in hists]
-            rows.append({"group": g, "points": points, "converged": converged, "sigma_e": medians[0],
-                         "sigma_n": medians[1], "sigma_h": medians[2], "sigma0": medians[3]})
+            rows.append(
+                {
+                    "group": g,
+                    "points": points,
+                    "converged": converged,
+                    "sigma_e": medians[0],
+                    "sigma_n": medians[1],
+                    "sigma_h": medians[2],
+                    "sigma0": medians[3],
+                }
+            )
         return rows
 
 
@@ -399,14 +451,18 @@ def summary_rows(result, group=None):
 def format_summary(rows):
     """The summary rows as a text table."""
     lines = [f"{'group':>5} {'points':>9} {'converged':>9} {'sigma_E':>8} {'sigma_N':>8} {'sigma_H':>8} {'sigma0':>7}"]
-    lines += [f"{r['group']:>5} {r['points']:>9} {r['converged']:>9} {r['sigma_e']:>8.3f} {r['sigma_n']:>8.3f} "
-              f"{r['sigma_h']:>8.3f} {r['sigma0']:>7.3f}" for r in rows]
+    lines += [
+        f"{r['group']:>5} {r['points']:>9} {r['converged']:>9} {r['sigma_e']:>8.3f} {r['sigma_n']:>8.3f} "
+        f"{r['sigma_h']:>8.3f} {r['sigma0']:>7.3f}"
+        for r in rows
+    ]
     return "\n".join(lines)
 
 
 @dataclass(frozen=True)
 class HeightDifferences:
     """RPC minus rigorous object points (m, local east / north / up) of the points both intersect."""
+
     point: np.ndarray
     de: np.ndarray
     dn: np.ndarray
@@ -419,9 +475,11 @@ class HeightDifferences:
         if not self.point.size:
             return f"no point intersected by both the rigorous models and the RPCs ({self.missing} tried)"
         rms = {k: float(np.sqrt(np.mean(getattr(self, k) ** 2))) for k in ("de", "dn", "dh")}
-        return (f"{self.point.size} points ({self.missing} not intersected by both): dh mean {np.mean(self.dh):.4f} m, "
-                f"RMS {rms['dh']:.4f} m, max |dh| {np.max(np.abs(self.dh)):.4f} m; RMS dE {rms['de']:.4f} m, "
-                f"dN {rms['dn']:.4f} m")
+        return (
+            f"{self.point.size} points ({self.missing} not intersected by both): dh mean {np.mean(self.dh):.4f} m, "
+            f"RMS {rms['dh']:.4f} m, max |dh| {np.max(np.abs(self.dh)):.4f} m; RMS dE {rms['de']:.4f} m, "
+            f"dN {rms['dn']:.4f} m"
+        )
 
 
 def height_differences(models_rigorous, models_rpc, image_ids, point_index, col, row, h0=None):
@@ -429,11 +487,18 @@ def height_differences(models_rigorous, models_rpc, image_ids, point_index, col,
     measurement: image id, point index, col, row) intersected once with the rigorous models
     and once with their RPCs (dicts image id -> model with the same ids), and the differences."""
     if set(models_rigorous) != set(models_rpc):
-        raise InputError(f"the rigorous models (images {sorted(models_rigorous)}) and the RPCs (images "
-                         f"{sorted(models_rpc)}) must describe the same images")
+        raise InputError(
+            f"the rigorous models (images {sorted(models_rigorous)}) and the RPCs (images "
+            f"{sorted(models_rpc)}) must describe the same images"
+        )
     a = intersect(models_rigorous, image_ids, point_index, col, row, h0=h0)
     b = intersect(models_rpc, image_ids, point_index, col, row, h0=h0)
     ok = a.ok & b.ok
     east, north = metres_per_degree(a.lat[ok])
-    return HeightDifferences(a.point[ok], (b.lon - a.lon)[ok] * east, (b.lat - a.lat)[ok] * north,
-                             (b.h - a.h)[ok], int(np.count_nonzero(~ok)))
+    return HeightDifferences(
+        a.point[ok],
+        (b.lon - a.lon)[ok] * east,
+        (b.lat - a.lat)[ok] * north,
+        (b.h - a.h)[ok],
+        int(np.count_nonzero(~ok)),
+    )

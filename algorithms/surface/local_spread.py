@@ -13,6 +13,7 @@ square), which is part of what a matching template sees.
 
 Used by the dense points' precision (dense/precision.py): a template straddling two surfaces measures a mixture
 of them, an error that grows with their height difference and that LSM's error ellipse does not see."""
+
 import numpy as np
 
 from ..geodesy import metres_per_degree
@@ -55,8 +56,10 @@ def local_spread(x, y, h, qx, qy, radius):
     shape = (int(iy.max() - y0 + REACH + 1), int(ix.max() - x0 + REACH + 1))
     flat = (iy - y0) * shape[1] + (ix - x0)
     dz = h - np.median(h)
-    sums = [np.bincount(flat, weights=w, minlength=shape[0] * shape[1]).reshape(shape)
-            for w in (np.ones_like(dz), dz, dz * dz)]
+    sums = [
+        np.bincount(flat, weights=w, minlength=shape[0] * shape[1]).reshape(shape)
+        for w in (np.ones_like(dz), dz, dz * dz)
+    ]
     n, s, ss = (_box_sum(a, REACH) for a in sums)
     qi, qj = np.floor(qy / g).astype(np.int64) - y0, np.floor(qx / g).astype(np.int64) - x0
     inside = (qi >= 0) & (qi < shape[0]) & (qj >= 0) & (qj < shape[1])

@@ -15,6 +15,7 @@ more densely in one place than another (two strategies' points merged), mu and s
 
 Reference: R. B. Rusu, Z. C. Marton, N. Blodow, M. Dolha, M. Beetz, "Towards 3D point cloud based object maps for
 household environments", Robotics and Autonomous Systems 56(11), 2008."""
+
 import numpy as np
 from scipy.spatial import cKDTree
 

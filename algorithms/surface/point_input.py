@@ -8,6 +8,7 @@ its end) or whose points do not decode (`damaged_error`); no CRS, or an undefine
 CRS VLR in a LAS, a GeoPackage layer without SRS); coordinates that cannot be in their CRS
 (check_coordinates: degrees labelled with a projected CRS, metres with a geographic one, points far outside
 the CRS's area of use)."""
+
 import os
 import struct
 from dataclasses import dataclass, field
@@ -56,18 +57,24 @@ class PointSet:
 def no_crs_error(path, what, why, vector):
     """InputError: the `what` ('point cloud' or 'breaklines') `path` has no usable CRS (`why`): how to
     give one (a point cloud's CRS can also be given with the points: read_points(path, crs))."""
-    assign = (f"ogr2ogr -a_srs EPSG:<code> out.gpkg {path}, or QGIS's 'Assign projection'" if vector else
-              f"pdal translate {path} out.las --writers.las.a_srs=EPSG:<code>")
+    assign = (
+        f"ogr2ogr -a_srs EPSG:<code> out.gpkg {path}, or QGIS's 'Assign projection'"
+        if vector
+        else f"pdal translate {path} out.las --writers.las.a_srs=EPSG:<code>"
+    )
     give = "give the CRS its x, y are in (the point cloud CRS parameter), or " if what == "point cloud" else ""
-    return InputError(f"the {what} {path} has no coordinate reference system ({why}), so where it lies is unknown: "
-                      f"{give}assign the CRS to the file (e.g. {assign})")
+    return InputError(
+        f"the {what} {path} has no coordinate reference system ({why}), so where it lies is unknown: "
+        f"{give}assign the CRS to the file (e.g. {assign})"
+    )
 
 
 def _defined(srs, path, what, vector):
     """`srs` (osr.SpatialReference) unless it places nothing on Earth (crs.is_undefined)."""
     if is_undefined(srs):
-        raise no_crs_error(path, what, f"its CRS '{srs.GetName()}' is a local or undefined one, not placed on "
-                                       "Earth", vector)
+        raise no_crs_error(
+            path, what, f"its CRS '{srs.GetName()}' is a local or undefined one, not placed on Earth", vector
+        )
     return srs
 
 
@@ -90,8 +97,10 @@ def _las_srs(las, path):
 
 def damaged_error(path, why):
     """InputError: the LAS/LAZ file `path` is damaged (`why`), with what to do."""
-    return InputError(f"the point cloud {path} is damaged: {why}. It was cut short or overwritten (an interrupted "
-                      "copy or download, a full disk): copy it again, or make it again (pushbroom:intersectpoints)")
+    return InputError(
+        f"the point cloud {path} is damaged: {why}. It was cut short or overwritten (an interrupted "
+        "copy or download, a full disk): copy it again, or make it again (pushbroom:intersectpoints)"
+    )
 
 
 def _cut_short(path, header):
@@ -102,14 +111,20 @@ def _cut_short(path, header):
     start, count = int(header.offset_to_point_data), int(header.point_count)
     if not header.are_points_compressed:
         need = start + count * int(header.point_format.size)
-        return (f"its header announces {count} points, {need} bytes with the header, but the file holds {size} "
-                "bytes" if size < need else "")
+        return (
+            f"its header announces {count} points, {need} bytes with the header, but the file holds {size} bytes"
+            if size < need
+            else ""
+        )
     with open(path, "rb") as f:
         f.seek(start)
         table = f.read(8)
     offset = struct.unpack("<q", table)[0] if len(table) == 8 else size
-    return (f"its compressed points end at byte {size}, before their chunk table at byte {offset}"
-            if offset > size - 8 else "")
+    return (
+        f"its compressed points end at byte {size}, before their chunk table at byte {offset}"
+        if offset > size - 8
+        else ""
+    )
 
 
 #: bytes of the smallest LAS public header block (LAS 1.0 - 1.2; 1.3 and 1.4 have more)
@@ -122,8 +137,10 @@ def _open_las(path):
     if not os.path.exists(path):
         raise InputError(f"cannot read the point cloud {path}: the file does not exist; check the path")
     if os.fspath(path).lower().endswith(".laz") and not laspy.LazBackend.detect_available():
-        raise InputError(f"cannot read the point cloud {path}: reading LAZ needs the lazrs or laszip Python "
-                         "package (pip install lazrs), or convert the file to LAS")
+        raise InputError(
+            f"cannot read the point cloud {path}: reading LAZ needs the lazrs or laszip Python "
+            "package (pip install lazrs), or convert the file to LAS"
+        )
     with open(path, "rb") as f:
         head = f.read(LAS_HEADER_BYTES)
     if head.startswith(b"LASF") and len(head) < LAS_HEADER_BYTES:
@@ -149,8 +166,13 @@ def _las_chunks(path, crs, chunk=None):
         try:
             for _ in range(0, max(total, 1), step):
                 records = reader.read_points(step)
-                yield PointSet(np.asarray(records.x, float), np.asarray(records.y, float),
-                               np.asarray(records.z, float), srs, {name: np.asarray(records[name]) for name in names})
+                yield PointSet(
+                    np.asarray(records.x, float),
+                    np.asarray(records.y, float),
+                    np.asarray(records.z, float),
+                    srs,
+                    {name: np.asarray(records[name]) for name in names},
+                )
         except InputError:
             raise
         except Exception as exc:  # laspy and lazrs raise their own and OS errors
@@ -217,11 +239,15 @@ def read_ogr_points(path, layer_name=None, crs=None):
     """PointSet of an OGR layer of 3-D points (fields: its numeric attribute fields)."""
     ds, layer = _open_layer(path, layer_name, "points")
     if ogr.GT_Flatten(layer.GetGeomType()) not in (ogr.wkbPoint, ogr.wkbUnknown) or not ogr.GT_HasZ(
-            layer.GetGeomType()):
+        layer.GetGeomType()
+    ):
         raise InputError(f"{path} is not a layer of 3-D points: a point cloud needs points with z")
     defn = layer.GetLayerDefn()
-    numeric = [defn.GetFieldDefn(k).GetName() for k in range(defn.GetFieldCount())
-               if defn.GetFieldDefn(k).GetType() in (ogr.OFTInteger, ogr.OFTInteger64, ogr.OFTReal)]
+    numeric = [
+        defn.GetFieldDefn(k).GetName()
+        for k in range(defn.GetFieldCount())
+        if defn.GetFieldDefn(k).GetType() in (ogr.OFTInteger, ogr.OFTInteger64, ogr.OFTReal)
+    ]
     xyz, values = [], {name: [] for name in numeric}
     for feature in layer:
         geometry = feature.GetGeometryRef()
@@ -248,22 +274,32 @@ def check_coordinates(points, path):
     name = points.srs.GetName()
     degrees = x.min() >= -180.0 and x.max() <= 360.0 and y.min() >= -90.0 and y.max() <= 90.0
     if points.srs.IsGeographic() and not degrees:
-        raise InputError(f"the point cloud {path} has coordinates {box}, which are not longitude/latitude degrees, "
-                         f"but its CRS {name} is geographic: are they projected metres? Give the point cloud the CRS "
-                         "its coordinates are in")
+        raise InputError(
+            f"the point cloud {path} has coordinates {box}, which are not longitude/latitude degrees, "
+            f"but its CRS {name} is geographic: are they projected metres? Give the point cloud the CRS "
+            "its coordinates are in"
+        )
     span = max(np.ptp(x), np.ptp(y)) * points.srs.GetLinearUnits()
     if points.srs.IsProjected() and 0.0 < span < MIN_SPAN and degrees:
-        raise InputError(f"the point cloud {path} spans only {span:.3g} m in its CRS {name} ({box}): these look like "
-                         "longitude/latitude degrees labelled with a projected CRS. Give the point cloud the CRS its "
-                         "coordinates are in (EPSG:4326 for degrees)")
-    lon, lat = reproject(np.array([np.mean(x)]), np.array([np.mean(y)]), points.srs, wgs84(),
-                         "the point cloud's centre")
+        raise InputError(
+            f"the point cloud {path} spans only {span:.3g} m in its CRS {name} ({box}): these look like "
+            "longitude/latitude degrees labelled with a projected CRS. Give the point cloud the CRS its "
+            "coordinates are in (EPSG:4326 for degrees)"
+        )
+    lon, lat = reproject(
+        np.array([np.mean(x)]), np.array([np.mean(y)]), points.srs, wgs84(), "the point cloud's centre"
+    )
     if not within_area_of_use(points.srs, float(lon[0]), float(lat[0])):
-        where = (f"at longitude {lon[0]:.4f}, latitude {lat[0]:.4f}" if np.isfinite(lon[0]) and np.isfinite(lat[0])
-                 else "nowhere on Earth (outside what the CRS's projection covers)")
-        raise InputError(f"the point cloud {path} ({box}) lies {where} according to its CRS {name}, far from where "
-                         f"that CRS is used ({area_of_use(points.srs)}): the file's CRS is not the one of its "
-                         "coordinates (x and y swapped?). Give the point cloud the CRS its coordinates are in")
+        where = (
+            f"at longitude {lon[0]:.4f}, latitude {lat[0]:.4f}"
+            if np.isfinite(lon[0]) and np.isfinite(lat[0])
+            else "nowhere on Earth (outside what the CRS's projection covers)"
+        )
+        raise InputError(
+            f"the point cloud {path} ({box}) lies {where} according to its CRS {name}, far from where "
+            f"that CRS is used ({area_of_use(points.srs)}): the file's CRS is not the one of its "
+            "coordinates (x and y swapped?). Give the point cloud the CRS its coordinates are in"
+        )
 
 
 def read_points(path, crs=None):
@@ -289,8 +325,11 @@ def read_breaklines(path, layer_name=None):
             continue
         if not geometry.Is3D():
             raise InputError(f"the breaklines of {path} have no z: breaklines need 3-D lines (heights)")
-        parts = [geometry.GetGeometryRef(k) for k in range(geometry.GetGeometryCount())] \
-            if geometry.GetGeometryCount() else [geometry]
+        parts = (
+            [geometry.GetGeometryRef(k) for k in range(geometry.GetGeometryCount())]
+            if geometry.GetGeometryCount()
+            else [geometry]
+        )
         for part in parts:
             xyz = np.asarray(part.GetPoints() or [], float).reshape(-1, 3)
             if len(xyz) >= 2:

@@ -9,6 +9,7 @@ for a geographic CRS). A GeoPackage holds 3-D points (wkbPoint25D); it is chosen
 clouds), or always with fmt="gpkg". The WKT is OGC WKT 1 of the horizontal CRS, as LAS 1.4 asks; that
 z is the ellipsoidal height is said in the LAS header's generating software and in this docstring.
 Every write is atomic."""
+
 import os
 import warnings
 
@@ -39,8 +40,10 @@ def output_format(path, count, fmt=None):
     if ext not in FORMATS:
         raise InputError(f"a point cloud is written as .las, .laz or .gpkg, not {os.fspath(path)}")
     if ext == "gpkg" and count > GPKG_MAX_POINTS:
-        raise InputError(f"{count} points are too many for a GeoPackage (at most {GPKG_MAX_POINTS}): write a "
-                         ".laz or .las file, which QGIS shows as a point cloud")
+        raise InputError(
+            f"{count} points are too many for a GeoPackage (at most {GPKG_MAX_POINTS}): write a "
+            ".laz or .las file, which QGIS shows as a point cloud"
+        )
     return ext
 
 
@@ -124,8 +127,14 @@ def write_point_cloud_parts(path, parts, count, centre=None, crs=None, fmt=None,
     if fmt == "gpkg":
         loaded = [load() for load in parts]
         fields = {name: np.concatenate([p[3][name] for p in loaded]) for name in (loaded[0][3] if loaded else {})}
-        return write_point_cloud(path, *(np.concatenate([p[i] for p in loaded]) for i in range(3)), fields,
-                                 crs=srs, fmt=fmt, feedback=feedback)
+        return write_point_cloud(
+            path,
+            *(np.concatenate([p[i] for p in loaded]) for i in range(3)),
+            fields,
+            crs=srs,
+            fmt=fmt,
+            feedback=feedback,
+        )
 
     def projected():
         for k, load in enumerate(parts):
@@ -159,8 +168,9 @@ def write_las_parts(path, parts, srs, compress=False):
     so the cloud may reach 2 147 km beyond them."""
     laspy = laspy_module()
     if compress and not laspy.LazBackend.detect_available():
-        raise InputError("writing LAZ needs the lazrs or laszip Python package (pip install lazrs); "
-                         "write a .las file instead")
+        raise InputError(
+            "writing LAZ needs the lazrs or laszip Python package (pip install lazrs); write a .las file instead"
+        )
     with atomic_path(path) as tmp:
         writer = None
         try:
@@ -173,8 +183,9 @@ def write_las_parts(path, parts, srs, compress=False):
                     step = 1e-8 if srs.IsGeographic() else 1e-3
                     header.scales = np.array([step, step, 1e-3])
                     header.offsets = np.array([np.floor(v.min()) if v.size else 0.0 for v in (x, y, z)])
-                    header.add_extra_dims([laspy.ExtraBytesParams(name=name, type=values.dtype)
-                                           for name, values in fields.items()])
+                    header.add_extra_dims(
+                        [laspy.ExtraBytesParams(name=name, type=values.dtype) for name, values in fields.items()]
+                    )
                     writer = laspy.open(tmp, mode="w", header=header, do_compress=compress)
                 records = laspy.ScaleAwarePointRecord.zeros(len(x), header=writer.header)
                 records.x, records.y, records.z = x, y, z

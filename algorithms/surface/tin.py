@@ -12,6 +12,7 @@ sub-segment is split until its diametral circle holds no other point (conforming
 with an empty diametral circle is a Gabriel edge, hence an edge of every Delaunay triangulation of
 the points, so no triangle crosses the line). Mass points closer than `min_length` / 2 to a
 breakline, which would force endless splits, give way to the line and are dropped (counted)."""
+
 import numpy as np
 from numba import njit
 from scipy.spatial import Delaunay, QhullError, cKDTree
@@ -34,8 +35,10 @@ def flat_points(x, y):
         return f"are all at one position (x {x[0]:.3f}, y {y[0]:.3f})"
     if seed(x - np.mean(x), y - np.mean(y))[2] < 0:
         ends = np.argmin(x + y), np.argmax(x + y)
-        return (f"all lie on one line (from x {x[ends[0]]:.3f}, y {y[ends[0]]:.3f} to x {x[ends[1]]:.3f}, "
-                f"y {y[ends[1]]:.3f})")
+        return (
+            f"all lie on one line (from x {x[ends[0]]:.3f}, y {y[ends[0]]:.3f} to x {x[ends[1]]:.3f}, "
+            f"y {y[ends[1]]:.3f})"
+        )
     return None
 
 
@@ -45,25 +48,33 @@ def delaunay(x, y):
     points at one position or on one line (flat_points), or points qhull cannot triangulate either. Both
     results have `simplices` and `vertex_neighbor_vertices`."""
     if len(x) < 3:
-        raise InputError(f"a TIN needs at least 3 points, the point cloud has {len(x)}: check the input "
-                         "(an empty or almost empty point cloud, or every point filtered out)")
+        raise InputError(
+            f"a TIN needs at least 3 points, the point cloud has {len(x)}: check the input "
+            "(an empty or almost empty point cloud, or every point filtered out)"
+        )
     if not (np.isfinite(x).all() and np.isfinite(y).all()):
-        raise InputError(f"{np.sum(~(np.isfinite(x) & np.isfinite(y)))} of the {len(x)} points of the TIN are not "
-                         "finite: leave them out")
+        raise InputError(
+            f"{np.sum(~(np.isfinite(x) & np.isfinite(y)))} of the {len(x)} points of the TIN are not "
+            "finite: leave them out"
+        )
     tin = triangulate(x - np.mean(x), y - np.mean(y))
     if tin is not None:
         return tin
     flat = flat_points(x, y)
     if flat is not None:
-        raise InputError(f"the {len(x)} points of the point cloud {flat}: a TIN needs at least 3 points that are "
-                         "not on one line; check the point cloud (duplicated points, or coordinates lost or "
-                         "rounded in an export?)")
+        raise InputError(
+            f"the {len(x)} points of the point cloud {flat}: a TIN needs at least 3 points that are "
+            "not on one line; check the point cloud (duplicated points, or coordinates lost or "
+            "rounded in an export?)"
+        )
     x, y = x - np.mean(x), y - np.mean(y)
     try:
         return Delaunay(np.column_stack([x, y]))
     except (QhullError, ValueError) as exc:
-        raise InputError(f"the {len(x)} points cannot be triangulated, not even by qhull: they are nearly all at "
-                         "one position or on one line; check the point cloud") from exc
+        raise InputError(
+            f"the {len(x)} points cannot be triangulated, not even by qhull: they are nearly all at "
+            "one position or on one line; check the point cloud"
+        ) from exc
 
 
 def longest_edge(x, y, triangles):
@@ -113,8 +124,9 @@ def conform_breaklines(lines, x, y, spacing, min_length, max_rounds=30):
             break
         new = len(vertices) + np.arange(split.sum())
         vertices = np.concatenate([vertices, (a[split] + b[split]) / 2])
-        segments = np.concatenate([segments[~split], np.column_stack([segments[split, 0], new]),
-                                   np.column_stack([new, segments[split, 1]])])
+        segments = np.concatenate(
+            [segments[~split], np.column_stack([segments[split, 0], new]), np.column_stack([new, segments[split, 1]])]
+        )
     return vertices, segments, keep
 
 

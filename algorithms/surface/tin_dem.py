@@ -6,6 +6,7 @@ unmatched water or forest), heights ellipsoidal or EGM96 (PROJ), an optional pre
 The precision raster is the points' a priori sigma_h interpolated on the same TIN where the cloud has
 it (pushbroom:intersectpoints writes it; a breakline vertex takes that of the nearest point),
 otherwise the distance (CRS units) from each cell centre to the nearest point of the TIN."""
+
 import math
 from dataclasses import dataclass, field
 
@@ -46,10 +47,12 @@ class DemResult:
 
     def summary(self):
         defined = np.isfinite(self.heights)
-        return (f"{self.points} points ({sum(self.removed)} blunders removed: {self.removed} per iteration; "
-                f"{self.dropped_near_breaklines} next to breaklines dropped; {self.breakline_vertices} "
-                f"breakline vertices), {self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g}, "
-                f"{defined.mean():.1%} defined, {self.datum} heights")
+        return (
+            f"{self.points} points ({sum(self.removed)} blunders removed: {self.removed} per iteration; "
+            f"{self.dropped_near_breaklines} next to breaklines dropped; {self.breakline_vertices} "
+            f"breakline vertices), {self.grid.cols} x {self.grid.rows} cells of {self.grid.cell:g}, "
+            f"{defined.mean():.1%} defined, {self.datum} heights"
+        )
 
 
 #: default maximum triangle edge in point spacings: bridges one missing point of a matching lattice
@@ -75,8 +78,19 @@ def output_crs(srs, x, y, crs=None):
     return output_srs(crs, ll[:, 0], ll[:, 1], "the point cloud")
 
 
-def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=None, k=4.0, iterations=3,
-                    breaklines=(), breakline_srs=None, precision=False, feedback=None):
+def interpolate_dem(
+    points,
+    cell=10.0,
+    crs=None,
+    datum="ellipsoidal",
+    max_edge=None,
+    k=4.0,
+    iterations=3,
+    breaklines=(),
+    breakline_srs=None,
+    precision=False,
+    feedback=None,
+):
     """DemResult of a PointSet (point_input.py; z ellipsoidal). `crs`: output CRS (default: the UTM
     zone of the points); `max_edge`: triangles with a longer edge are gaps (default `default_max_edge`);
     `k`: blunder threshold in robust sigmas (0: no filter), `iterations` of the filter; `breaklines`:
@@ -86,30 +100,51 @@ def interpolate_dem(points, cell=10.0, crs=None, datum="ellipsoidal", max_edge=N
         raise InputError(f"the height datum must be one of {', '.join(DATUMS)}, not {datum!r}")
     finite = np.isfinite(points.x) & np.isfinite(points.y) & np.isfinite(points.z)
     if len(points) < 3 or finite.sum() < 3:
-        raise InputError(f"a DEM needs at least 3 points with finite coordinates, the point cloud has "
-                         f"{int(finite.sum())}: check the input point cloud")
+        raise InputError(
+            f"a DEM needs at least 3 points with finite coordinates, the point cloud has "
+            f"{int(finite.sum())}: check the input point cloud"
+        )
     progress.step(feedback, 0, f"{len(points)} points ({len(points) - int(finite.sum())} not finite, left out)")
     target = output_crs(points.srs, np.mean(points.x[finite]), np.mean(points.y[finite]), crs)
     pts = points.to(target)
     lost = finite & ~(np.isfinite(pts.x) & np.isfinite(pts.y))
     if lost.any():
-        raise InputError(f"{int(lost.sum())} of the {len(points)} points cannot be expressed in the output CRS "
-                         f"{target.GetName()} (outside the area its projection covers): choose an output CRS for "
-                         "where the point cloud lies, or leave it empty for the points' UTM zone")
+        raise InputError(
+            f"{int(lost.sum())} of the {len(points)} points cannot be expressed in the output CRS "
+            f"{target.GetName()} (outside the area its projection covers): choose an output CRS for "
+            "where the point cloud lies, or leave it empty for the points' UTM zone"
+        )
     x, y, z = pts.x[finite], pts.y[finite], pts.z[finite]
     sigma = pts.sigma_h[finite] if pts.sigma_h is not None else None
     max_edge = default_max_edge(x, y, cell) if max_edge is None else float(max_edge)
     grid = Grid.covering(x, y, cell)
     if breakline_srs is not None:
-        breaklines = [np.column_stack([transform(breakline_srs, target, b[:, :2], "the breaklines")[:, :2],
-                                       b[:, 2]]) for b in breaklines]
+        breaklines = [
+            np.column_stack([transform(breakline_srs, target, b[:, :2], "the breaklines")[:, :2], b[:, 2]])
+            for b in breaklines
+        ]
     if len(x) >= 3 and flat_points(x, y):
-        delaunay(x, y)          # the clear InputError of points that span no area
-    result = surface_on_grid(x, y, z, sigma, grid, target, max_edge, datum=datum, k=k, iterations=iterations,
-                             breaklines=breaklines, precision=precision, feedback=feedback)
+        delaunay(x, y)  # the clear InputError of points that span no area
+    result = surface_on_grid(
+        x,
+        y,
+        z,
+        sigma,
+        grid,
+        target,
+        max_edge,
+        datum=datum,
+        k=k,
+        iterations=iterations,
+        breaklines=breaklines,
+        precision=precision,
+        feedback=feedback,
+    )
     if not np.isfinite(result.heights).any():
-        raise InputError(f"no grid cell lies in a triangle with edges up to {max_edge:g}: raise the maximum edge "
-                         f"length or the cell size ({cell:g})")
+        raise InputError(
+            f"no grid cell lies in a triangle with edges up to {max_edge:g}: raise the maximum edge "
+            f"length or the cell size ({cell:g})"
+        )
     progress.step(feedback, 100, result.summary())
     return result
 
@@ -121,21 +156,37 @@ def tin_vertices(x, y, z, sigma, cell, max_edge, breaklines=(), own=None):
     `own(x, y)` is True (default all), points dropped where `own` holds them)."""
     own = own or (lambda px, py: np.ones(len(px), bool))
     inside = own(x, y)
-    vertices, _, near = conform_breaklines(list(breaklines), x, y, spacing=min(cell, max_edge) / 2,
-                                           min_length=cell / 20)
+    vertices, _, near = conform_breaklines(
+        list(breaklines), x, y, spacing=min(cell, max_edge) / 2, min_length=cell / 20
+    )
     dropped = int((inside & ~near).sum())
     x, y, z = (np.concatenate([v[near], vertices[:, i]]) for i, v in enumerate((x, y, z)))
     fixed = np.arange(len(x)) >= int(near.sum())
     inside = np.concatenate([inside[near], own(vertices[:, 0], vertices[:, 1])])
-    if sigma is not None:   # a breakline vertex takes the sigma_h of the nearest point
+    if sigma is not None:  # a breakline vertex takes the sigma_h of the nearest point
         sigma = sigma[near]
-        nearest = cKDTree(np.column_stack([x[:len(sigma)], y[:len(sigma)]])).query(vertices[:, :2])[1]
+        nearest = cKDTree(np.column_stack([x[: len(sigma)], y[: len(sigma)]])).query(vertices[:, :2])[1]
         sigma = np.concatenate([sigma, sigma[nearest]])
     return x, y, z, sigma, fixed, inside, dropped
 
 
-def surface_on_grid(x, y, z, sigma, grid, srs, max_edge, datum="ellipsoidal", k=4.0, iterations=3, breaklines=(),
-                    precision=False, own=None, spreads=None, feedback=None):
+def surface_on_grid(
+    x,
+    y,
+    z,
+    sigma,
+    grid,
+    srs,
+    max_edge,
+    datum="ellipsoidal",
+    k=4.0,
+    iterations=3,
+    breaklines=(),
+    precision=False,
+    own=None,
+    spreads=None,
+    feedback=None,
+):
     """The DemResult of points x, y (in `srs`, the grid's CRS), z (ellipsoidal) and their sigma_h (or
     None) on `grid`: breakline vertices added (tin_vertices), Delaunay TIN, blunder filter (`k` robust
     sigmas, `iterations`; with `spreads`, those given per iteration: tin.filter_blunders), linear
@@ -146,21 +197,34 @@ def surface_on_grid(x, y, z, sigma, grid, srs, max_edge, datum="ellipsoidal", k=
     counts leave out its margin."""
     cell = grid.cell
     x, y, z, sigma, fixed, inside, dropped = tin_vertices(x, y, z, sigma, cell, max_edge, breaklines, own)
-    result = DemResult(np.full(grid.shape, np.nan), grid, srs, datum, points=int(inside.sum()),
-                       dropped_near_breaklines=dropped, breakline_vertices=int((fixed & inside).sum()))
+    result = DemResult(
+        np.full(grid.shape, np.nan),
+        grid,
+        srs,
+        datum,
+        points=int(inside.sum()),
+        dropped_near_breaklines=dropped,
+        breakline_vertices=int((fixed & inside).sum()),
+    )
     if precision:
         result.precision = np.full(grid.shape, np.nan)
-        result.precision_kind = ("interpolated point sigma_h (m)" if sigma is not None
-                                 else "distance to the nearest point (CRS units)")
+        result.precision_kind = (
+            "interpolated point sigma_h (m)" if sigma is not None else "distance to the nearest point (CRS units)"
+        )
     if len(x) < 3 or flat_points(x, y):
         return result
     progress.step(feedback, 10, "Delaunay triangulation")
     tin = delaunay(x, y)
     if k > 0:
-        keep, result.removed = filter_blunders(tin, x, y, z, k=k, iterations=iterations, fixed=fixed, counted=inside,
-                                               spreads=spreads)
-        progress.step(feedback, 40, f"blunder filter (k = {k:g} robust sigmas): {sum(result.removed)} points removed "
-                                    f"({result.removed} per iteration)")
+        keep, result.removed = filter_blunders(
+            tin, x, y, z, k=k, iterations=iterations, fixed=fixed, counted=inside, spreads=spreads
+        )
+        progress.step(
+            feedback,
+            40,
+            f"blunder filter (k = {k:g} robust sigmas): {sum(result.removed)} points removed "
+            f"({result.removed} per iteration)",
+        )
         result.points -= sum(result.removed)
         if not keep.all():
             x, y, z, fixed = x[keep], y[keep], z[keep], fixed[keep]
@@ -182,7 +246,8 @@ def surface_on_grid(x, y, z, sigma, grid, srs, max_edge, datum="ellipsoidal", k=
         elif defined.any():
             cx, cy = grid.centres()
             result.precision[defined] = cKDTree(np.column_stack([x, y])).query(
-                np.column_stack([cx[defined], cy[defined]]), workers=-1)[0]
+                np.column_stack([cx[defined], cy[defined]]), workers=-1
+            )[0]
     if datum == "egm96" and defined.any():
         progress.step(feedback, 85, "EGM96 heights")
         cx, cy = grid.centres()
@@ -194,48 +259,67 @@ def write_dem(result, path, precision_path=None, feedback=None):
     """Write the heights (and the precision raster where given a path) as tiled GeoTIFFs."""
     datum = "WGS 84 ellipsoidal height" if result.datum == "ellipsoidal" else "EGM96 height (h - N)"
     metadata = {"HEIGHT_DATUM": datum, "POINTS": result.points, "BLUNDERS_REMOVED": sum(result.removed)}
-    write_float_raster(path, result.heights, result.grid.geotransform, result.srs, f"height ({datum}, m)",
-                       metadata, feedback=progress.scaled(feedback, 0, 80 if precision_path else 100))
+    write_float_raster(
+        path,
+        result.heights,
+        result.grid.geotransform,
+        result.srs,
+        f"height ({datum}, m)",
+        metadata,
+        feedback=progress.scaled(feedback, 0, 80 if precision_path else 100),
+    )
     if precision_path:
         if result.precision is None:
             raise InputError("this DEM was interpolated without a precision raster (precision=True)")
-        write_float_raster(precision_path, result.precision, result.grid.geotransform, result.srs,
-                           result.precision_kind, feedback=progress.scaled(feedback, 80, 100))
+        write_float_raster(
+            precision_path,
+            result.precision,
+            result.grid.geotransform,
+            result.srs,
+            result.precision_kind,
+            feedback=progress.scaled(feedback, 80, 100),
+        )
 
 
 @dataclass
 class DemParams:
     """The DEM step's settings (pushbroom:interpolatedem); see interpolate_dem."""
 
-    cell: float = 10.0              # output CRS units
-    crs: str = None                 # output CRS (authority id or WKT); None: the UTM zone of the points
-    input_crs: str = None           # the point cloud's CRS; None: the file's own
-    datum: str = "ellipsoidal"      # one of DATUMS
-    max_edge: float = None          # longer triangles are gaps; None: default_max_edge
-    k: float = 4.0                  # blunder threshold in robust sigmas (0: no filter)
-    iterations: int = 3             # of the blunder filter
-    tile: int = 1024                # cells per tile side (dem_tiles.py)
-    method: str = "tin"             # one of METHODS
-    fallback: bool = True           # "cells": the unrefined dense points where a cell has no refined one
-    fill: float = 0.0               # gaps filled from the cells within this many cells (gap_fill.py; 0: none)
-    radius: int = 1                 # "cells": an empty cell takes the points within this many cells (cell_dem.py)
-    execution: Execution = field(default_factory=lambda: Execution("threads", 1))   # where the tiles run
+    cell: float = 10.0  # output CRS units
+    crs: str = None  # output CRS (authority id or WKT); None: the UTM zone of the points
+    input_crs: str = None  # the point cloud's CRS; None: the file's own
+    datum: str = "ellipsoidal"  # one of DATUMS
+    max_edge: float = None  # longer triangles are gaps; None: default_max_edge
+    k: float = 4.0  # blunder threshold in robust sigmas (0: no filter)
+    iterations: int = 3  # of the blunder filter
+    tile: int = 1024  # cells per tile side (dem_tiles.py)
+    method: str = "tin"  # one of METHODS
+    fallback: bool = True  # "cells": the unrefined dense points where a cell has no refined one
+    fill: float = 0.0  # gaps filled from the cells within this many cells (gap_fill.py; 0: none)
+    radius: int = 1  # "cells": an empty cell takes the points within this many cells (cell_dem.py)
+    execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the tiles run
 
     def check(self):
         """Raise InputError for settings no interpolation can use."""
         if self.method not in METHODS:
             raise InputError(f"the DEM's method must be one of {', '.join(METHODS)}, got {self.method!r}")
-        broken = [text for ok, text in (
-            (0 < self.cell < math.inf, f"the cell size must be a positive number, got {self.cell}"),
-            (self.datum in DATUMS, f"the datum must be one of {', '.join(DATUMS)}, got {self.datum!r}"),
-            (0 <= self.k < math.inf, f"the blunder threshold must be 0 or more, got {self.k}"),
-            (self.iterations >= 1, f"the blunder filter's iterations must be at least 1, got {self.iterations}"),
-            (self.max_edge is None or 0 <= self.max_edge <= math.inf,
-             f"the maximum edge must be 0 or more, got {self.max_edge}"),
-            (int(self.tile) >= 16, f"the tiles must be at least 16 cells, got {self.tile}"),
-            (0 <= self.fill < math.inf, f"the fill distance must be 0 or more cells, got {self.fill}"),
-            (0 <= int(self.radius) <= MAX_RADIUS, f"the radius must be 0 to {MAX_RADIUS} cells, got {self.radius}"))
-            if not ok]
+        broken = [
+            text
+            for ok, text in (
+                (0 < self.cell < math.inf, f"the cell size must be a positive number, got {self.cell}"),
+                (self.datum in DATUMS, f"the datum must be one of {', '.join(DATUMS)}, got {self.datum!r}"),
+                (0 <= self.k < math.inf, f"the blunder threshold must be 0 or more, got {self.k}"),
+                (self.iterations >= 1, f"the blunder filter's iterations must be at least 1, got {self.iterations}"),
+                (
+                    self.max_edge is None or 0 <= self.max_edge <= math.inf,
+                    f"the maximum edge must be 0 or more, got {self.max_edge}",
+                ),
+                (int(self.tile) >= 16, f"the tiles must be at least 16 cells, got {self.tile}"),
+                (0 <= self.fill < math.inf, f"the fill distance must be 0 or more cells, got {self.fill}"),
+                (0 <= int(self.radius) <= MAX_RADIUS, f"the radius must be 0 to {MAX_RADIUS} cells, got {self.radius}"),
+            )
+            if not ok
+        ]
         if broken:
             raise InputError("; ".join(broken))
         self.execution.check()

@@ -6,6 +6,7 @@ vertex e. Edge functions are evaluated in one canonical direction per edge (lowe
 first), so the two triangles of an edge see exactly opposite values: a cell centre on a shared edge
 belongs to exactly one of them (the one on the edge's positive side), and no cell between them is
 lost to rounding."""
+
 import math
 from dataclasses import dataclass
 
@@ -36,8 +37,9 @@ class Grid:
 
     def centres(self):
         """(x, y) of the cell centres, arrays of shape (rows, cols)."""
-        return np.meshgrid(self.x0 + (np.arange(self.cols) + 0.5) * self.cell,
-                           self.y0 - (np.arange(self.rows) + 0.5) * self.cell)
+        return np.meshgrid(
+            self.x0 + (np.arange(self.cols) + 0.5) * self.cell, self.y0 - (np.arange(self.rows) + 0.5) * self.cell
+        )
 
     def to_cells(self, x, y):
         """Grid coordinates (u, v) with the centre of cell (row i, col j) at (j, i)."""
@@ -51,7 +53,7 @@ class Grid:
         x0, x1 = math.floor(np.min(x) / cell) * cell, math.ceil(np.max(x) / cell) * cell
         y0, y1 = math.floor(np.min(y) / cell) * cell, math.ceil(np.max(y) / cell) * cell
         cols, rows = max(round((x1 - x0) / cell), 1), max(round((y1 - y0) / cell), 1)
-        if cols * rows > MAX_CELLS:     # before any array; the steps' crs.check_grid_cells names the unit
+        if cols * rows > MAX_CELLS:  # before any array; the steps' crs.check_grid_cells names the unit
             raise InputError(f"a {cols} x {rows} grid is too large: choose a larger cell size than {cell}")
         return cls(float(x0), float(y1), float(cell), int(cols), int(rows))
 
@@ -106,8 +108,9 @@ def rasterize_kernel(u, v, values, triangles, use, out):
                     continue
                 total = w[0] + w[1] + w[2]
                 for k in range(bands):
-                    out[k, i, j] = (w[0] * values[opposite[0], k] + w[1] * values[opposite[1], k]
-                                    + w[2] * values[opposite[2], k]) / total
+                    out[k, i, j] = (
+                        w[0] * values[opposite[0], k] + w[1] * values[opposite[1], k] + w[2] * values[opposite[2], k]
+                    ) / total
 
 
 def rasterize(x, y, values, triangles, grid, use=None):

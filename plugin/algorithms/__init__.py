@@ -14,5 +14,18 @@ def algorithm_classes():
     from .orthorectify import Orthorectify
     from .select_tie_points import SelectTiePoints
     from .simulate_scene import SimulateScene
-    return [SimulateScene, CreateBlock, MatchPoints, SelectTiePoints, ImportPoints, ExportPoints,
-            BundleAdjust, IntersectPoints, InterpolateDem, Orthorectify, AssessAccuracy, FitRpc]
+
+    return [
+        SimulateScene,
+        CreateBlock,
+        MatchPoints,
+        SelectTiePoints,
+        ImportPoints,
+        ExportPoints,
+        BundleAdjust,
+        IntersectPoints,
+        InterpolateDem,
+        Orthorectify,
+        AssessAccuracy,
+        FitRpc,
+    ]

@@ -1,6 +1,7 @@
 """pushbroom:assessaccuracy — the Processing face of quality.assess_accuracy.assess_accuracy: height
 differences of a point cloud and/or a DEM against a reference DTM/DSM, with statistics, figures and an
 HTML report."""
+
 from qgis.core import (
     QgsProcessing,
     QgsProcessingParameterField,
@@ -25,35 +26,66 @@ class AssessAccuracy(PushbroomAlgorithm):
     DISPLAY_NAME = "Assess accuracy (dh against a reference DEM)"
     GROUP_ID = "surface"
 
-    KEYS = ("REFERENCE REFERENCE_HEIGHTS POINTS DEM DEM_HEIGHTS CLASS_RASTER CLASS_POLYGONS CLASS_FIELD "
-            "SLOPE_THRESHOLD POINTS_HEIGHTS REFERENCE_NODATA REPORT DH TABLE")
+    KEYS = (
+        "REFERENCE REFERENCE_HEIGHTS POINTS DEM DEM_HEIGHTS CLASS_RASTER CLASS_POLYGONS CLASS_FIELD "
+        "SLOPE_THRESHOLD POINTS_HEIGHTS REFERENCE_NODATA REPORT DH TABLE"
+    )
 
     def initAlgorithm(self, config=None):
         d, tr = AssessParams(), self.tr
         self.addParameter(QgsProcessingParameterRasterLayer(self.REFERENCE, tr("Reference DTM/DSM")))
         self.addParameter(heights_parameter(self.REFERENCE_HEIGHTS, tr("Reference heights")))
-        self.addParameter(QgsProcessingParameterFile(
-            self.POINTS, tr("Point cloud (object points)"), optional=True,
-            fileFilter=tr("Point clouds (*.las *.laz *.gpkg);;All files (*.*)")))
+        self.addParameter(
+            QgsProcessingParameterFile(
+                self.POINTS,
+                tr("Point cloud (object points)"),
+                optional=True,
+                fileFilter=tr("Point clouds (*.las *.laz *.gpkg);;All files (*.*)"),
+            )
+        )
         self.addParameter(QgsProcessingParameterRasterLayer(self.DEM, tr("DEM"), optional=True))
         self.addParameter(heights_parameter(self.DEM_HEIGHTS, tr("DEM heights")))
         self.addParameter(QgsProcessingParameterRasterLayer(self.CLASS_RASTER, tr("Class raster"), optional=True))
-        self.addParameter(QgsProcessingParameterVectorLayer(self.CLASS_POLYGONS, tr("Class polygons"), optional=True,
-                                                            types=[QgsProcessing.TypeVectorPolygon]))
-        self.addParameter(QgsProcessingParameterField(self.CLASS_FIELD, tr("Class field of the polygons"),
-                                                      optional=True, parentLayerParameterName=self.CLASS_POLYGONS))
-        self.addParameter(QgsProcessingParameterNumber(
-            self.SLOPE_THRESHOLD, tr("Slope of mountainous terrain (degrees, of the reference)"),
-            QgsProcessingParameterNumber.Double, d.slope_threshold, minValue=0.01, maxValue=89.9))
-        self.addAdvancedParameters([
-            heights_parameter(self.POINTS_HEIGHTS, tr("Point cloud heights")),
-            nodata_parameter(self.REFERENCE_NODATA, "reference DTM/DSM")])
+        self.addParameter(
+            QgsProcessingParameterVectorLayer(
+                self.CLASS_POLYGONS, tr("Class polygons"), optional=True, types=[QgsProcessing.TypeVectorPolygon]
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterField(
+                self.CLASS_FIELD,
+                tr("Class field of the polygons"),
+                optional=True,
+                parentLayerParameterName=self.CLASS_POLYGONS,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterNumber(
+                self.SLOPE_THRESHOLD,
+                tr("Slope of mountainous terrain (degrees, of the reference)"),
+                QgsProcessingParameterNumber.Double,
+                d.slope_threshold,
+                minValue=0.01,
+                maxValue=89.9,
+            )
+        )
+        self.addAdvancedParameters(
+            [
+                heights_parameter(self.POINTS_HEIGHTS, tr("Point cloud heights")),
+                nodata_parameter(self.REFERENCE_NODATA, "reference DTM/DSM"),
+            ]
+        )
         self.addParameter(QgsProcessingParameterFileDestination(self.REPORT, tr("Report"), tr("HTML files (*.html)")))
-        self.addParameter(QgsProcessingParameterRasterDestination(self.DH, tr("dh raster (DEM input)"), optional=True,
-                                                                  createByDefault=False))
-        self.addParameter(QgsProcessingParameterFileDestination(self.TABLE, tr("Statistics table"),
-                                                                tr("CSV files (*.csv)"), optional=True,
-                                                                createByDefault=False))
+        self.addParameter(
+            QgsProcessingParameterRasterDestination(
+                self.DH, tr("dh raster (DEM input)"), optional=True, createByDefault=False
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterFileDestination(
+                self.TABLE, tr("Statistics table"), tr("CSV files (*.csv)"), optional=True, createByDefault=False
+            )
+        )
 
     def _class_polygons(self, parameters, context):
         """(PolygonClasses, description) of the class polygons and their class field, or (None, "")."""
@@ -75,18 +107,30 @@ class AssessAccuracy(PushbroomAlgorithm):
             layer = self.parameterAsRasterLayer(parameters, key, context)
             return layer.source() if layer is not None else None
 
-        heights = {name: heights_choice(self, parameters, key, context) for name, key in [
-            ("reference_heights", self.REFERENCE_HEIGHTS), ("points_heights", self.POINTS_HEIGHTS),
-            ("dem_heights", self.DEM_HEIGHTS)]}
+        heights = {
+            name: heights_choice(self, parameters, key, context)
+            for name, key in [
+                ("reference_heights", self.REFERENCE_HEIGHTS),
+                ("points_heights", self.POINTS_HEIGHTS),
+                ("dem_heights", self.DEM_HEIGHTS),
+            ]
+        }
         polygons, polygons_source = self._class_polygons(parameters, context)
         params = AssessParams(
-            reference=source(self.REFERENCE), dem=source(self.DEM), class_raster=source(self.CLASS_RASTER),
-            points=self.parameterAsFile(parameters, self.POINTS, context) or None, class_polygons=polygons,
-            class_polygons_source=polygons_source, report=self.parameterAsFileOutput(parameters, self.REPORT, context),
+            reference=source(self.REFERENCE),
+            dem=source(self.DEM),
+            class_raster=source(self.CLASS_RASTER),
+            points=self.parameterAsFile(parameters, self.POINTS, context) or None,
+            class_polygons=polygons,
+            class_polygons_source=polygons_source,
+            report=self.parameterAsFileOutput(parameters, self.REPORT, context),
             table=self.parameterAsFileOutput(parameters, self.TABLE, context) or None,
-            dh=self.parameterAsOutputLayer(parameters, self.DH, context) or None, **heights,
-            **self.parameterValues(parameters, context, slope_threshold=self.SLOPE_THRESHOLD,
-                                   reference_nodata=self.REFERENCE_NODATA))
+            dh=self.parameterAsOutputLayer(parameters, self.DH, context) or None,
+            **heights,
+            **self.parameterValues(
+                parameters, context, slope_threshold=self.SLOPE_THRESHOLD, reference_nodata=self.REFERENCE_NODATA
+            ),
+        )
         result = assess_accuracy(params, feedback)
         out = {self.REPORT: result.report}
         if result.table:

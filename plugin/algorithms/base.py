@@ -11,6 +11,7 @@ way around its engine call:
 - a number parameter states its range in its help (which `qgis_process help` prints); a value out of it, or
   not a number (NaN passes QGIS's own check), is refused in Pushbroom's words with that range, and a raster
   QGIS cannot load is named with why: missing, a DIMAP product without its raster (`checkParameterValues`)."""
+
 import math
 import os
 import re
@@ -68,8 +69,13 @@ def _single_error():
 
 
 #: the toolbox groups: GROUP_ID -> display name
-GROUPS = {"simulation": "Simulation", "block": "Block", "matching": "Matching", "adjustment": "Adjustment",
-          "surface": "Surface"}
+GROUPS = {
+    "simulation": "Simulation",
+    "block": "Block",
+    "matching": "Matching",
+    "adjustment": "Adjustment",
+    "surface": "Surface",
+}
 
 
 def help_page(name):
@@ -159,8 +165,10 @@ def raster_problem(definition, value):
         sensors.check_image(path)
     except PushbroomError as exc:
         return f"{definition.name()}: {exc}"
-    return (f"{definition.name()}: {path} is not a raster GDAL reads (a damaged or unsupported file?); give an "
-            "image or DEM file")
+    return (
+        f"{definition.name()}: {path} is not a raster GDAL reads (a damaged or unsupported file?); give an "
+        "image or DEM file"
+    )
 
 
 class _CheckFailedError(Exception):
@@ -232,11 +240,12 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         try:
             with reported_here():
                 ok, message = super().checkParameterValues(parameters, context)
-                if not ok:      # QGIS loads the rasters again here: GDAL's lines held back too
+                if not ok:  # QGIS loads the rasters again here: GDAL's lines held back too
                     for definition in self.parameterDefinitions():
                         value = parameters.get(definition.name())
-                        if isinstance(definition, QgsProcessingParameterRasterLayer) \
-                                and not definition.checkValueIsAcceptable(value, context):
+                        if isinstance(
+                            definition, QgsProcessingParameterRasterLayer
+                        ) and not definition.checkValueIsAcceptable(value, context):
                             message = raster_problem(definition, value) or message
                             break
                     raise _CheckFailedError(message)
@@ -264,9 +273,11 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         given = parameters.get(key)
         if isinstance(given, str) and given.strip():
             definition = self.parameterDefinition(key)
-            raise InputError(f"{definition.description() if definition else key}: {given.strip()[:200]!r} is not a "
-                             "coordinate reference system QGIS knows; give an EPSG code such as EPSG:32632, or WKT, "
-                             "or leave it empty for the default")
+            raise InputError(
+                f"{definition.description() if definition else key}: {given.strip()[:200]!r} is not a "
+                "coordinate reference system QGIS knows; give an EPSG code such as EPSG:32632, or WKT, "
+                "or leave it empty for the default"
+            )
         return None
 
     def icon(self):
@@ -361,10 +372,10 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
             destinations.check(self.inputs(parameters, context), outputs)
 
     def processAlgorithm(self, parameters, context, feedback):
-        line_buffered_stdout()                      # qgis_process's lines leave as they are written
+        line_buffered_stdout()  # qgis_process's lines leave as they are written
         try:
             self.check_destinations(parameters, context)
-            with raster_cache.bounded():            # GDAL's block cache while the step runs
+            with raster_cache.bounded():  # GDAL's block cache while the step runs
                 return self.execute(parameters, context, feedback)
         except PushbroomError as exc:
             _single_error()
@@ -399,8 +410,10 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
 
 #: labels of the height datums control_points.HEIGHT_TYPES
-HEIGHT_LABELS = {"ellipsoidal": "Ellipsoidal (WGS 84)",
-                 "orthometric": "Orthometric (EGM96 geoid; needs PROJ's us_nga_egm96_15.tif grid)"}
+HEIGHT_LABELS = {
+    "ellipsoidal": "Ellipsoidal (WGS 84)",
+    "orthometric": "Orthometric (EGM96 geoid; needs PROJ's us_nga_egm96_15.tif grid)",
+}
 
 
 def heights_parameter(key, description):
@@ -416,9 +429,11 @@ def heights_choice(algorithm, parameters, key, context):
 
 
 #: labels of the execution backends task_runtime.BACKENDS
-EXECUTION_LABELS = {"threads": "Threads in this process",
-                    "processes": "Local worker processes",
-                    "dask": "Dask distributed: a local cluster, or the scheduler at the address below"}
+EXECUTION_LABELS = {
+    "threads": "Threads in this process",
+    "processes": "Local worker processes",
+    "dask": "Dask distributed: a local cluster, or the scheduler at the address below",
+}
 
 
 def execution_parameters(algorithm, workers):
@@ -426,20 +441,41 @@ def execution_parameters(algorithm, workers):
     whose tiles run on execution.run_tasks (its KEYS name the four); read them with execution_choice. DASK_WAIT is
     optional, so that the models saved before it still validate."""
     tr = algorithm.tr
-    return [QgsProcessingParameterEnum(algorithm.EXECUTION, tr("Execution of the tiles"),
-                                       [tr(EXECUTION_LABELS[b]) for b in BACKENDS], defaultValue=0),
-            QgsProcessingParameterString(algorithm.DASK_ADDRESS, tr("Dask scheduler address (tcp://host:port or "
-                                                                    "tls://host:port; empty: a local cluster of the "
-                                                                    "workers below)"),
-                                         "", optional=True),
-            QgsProcessingParameterNumber(algorithm.DASK_WAIT, tr("Wait for a Dask worker where the cluster has "
-                                                                 "none, or has lost every one (s)"),
-                                         QgsProcessingParameterNumber.Double, Execution.worker_wait, optional=True,
-                                         minValue=0.0),
-            QgsProcessingParameterNumber(algorithm.WORKERS,
-                                         tr("Workers (threads, processes or local Dask workers; at most {} per core "
-                                            "are used)").format(WORKERS_PER_CORE),
-                                         QgsProcessingParameterNumber.Integer, workers, minValue=1)]
+    return [
+        QgsProcessingParameterEnum(
+            algorithm.EXECUTION,
+            tr("Execution of the tiles"),
+            [tr(EXECUTION_LABELS[b]) for b in BACKENDS],
+            defaultValue=0,
+        ),
+        QgsProcessingParameterString(
+            algorithm.DASK_ADDRESS,
+            tr(
+                "Dask scheduler address (tcp://host:port or "
+                "tls://host:port; empty: a local cluster of the "
+                "workers below)"
+            ),
+            "",
+            optional=True,
+        ),
+        QgsProcessingParameterNumber(
+            algorithm.DASK_WAIT,
+            tr("Wait for a Dask worker where the cluster has none, or has lost every one (s)"),
+            QgsProcessingParameterNumber.Double,
+            Execution.worker_wait,
+            optional=True,
+            minValue=0.0,
+        ),
+        QgsProcessingParameterNumber(
+            algorithm.WORKERS,
+            tr("Workers (threads, processes or local Dask workers; at most {} per core are used)").format(
+                WORKERS_PER_CORE
+            ),
+            QgsProcessingParameterNumber.Integer,
+            workers,
+            minValue=1,
+        ),
+    ]
 
 
 def execution_choice(algorithm, parameters, context):
@@ -447,9 +483,14 @@ def execution_choice(algorithm, parameters, context):
     malformed scheduler address). Its host_events run Qt's event loop while the tiles run, where the algorithm
     runs on the application's main thread (qgis_process): qgis_process cancels the feedback on Ctrl+C only from
     its event loop."""
-    values = algorithm.parameterValues(parameters, context, backend=algorithm.EXECUTION,
-                                       address=algorithm.DASK_ADDRESS, workers=algorithm.WORKERS,
-                                       worker_wait=algorithm.DASK_WAIT)
+    values = algorithm.parameterValues(
+        parameters,
+        context,
+        backend=algorithm.EXECUTION,
+        address=algorithm.DASK_ADDRESS,
+        workers=algorithm.WORKERS,
+        worker_wait=algorithm.DASK_WAIT,
+    )
     if values["worker_wait"] is None:
         del values["worker_wait"]
     values["backend"] = BACKENDS[values["backend"]]
@@ -467,5 +508,9 @@ def replace_fewer_parameter(algorithm: QgsProcessingAlgorithm, what: str) -> Qgs
     """The boolean REPLACE_FEWER (off; put it among the advanced parameters): store the new `what` even where they
     are far fewer than the block holds, which the engine otherwise refuses (algorithms/block/replacement.py).
     Optional, so that the models saved before it still validate."""
-    return QgsProcessingParameterBoolean(algorithm.REPLACE_FEWER, algorithm.tr("Replace the block's {} even by far "
-                                         "fewer (none, or below half)").format(what), False, optional=True)
+    return QgsProcessingParameterBoolean(
+        algorithm.REPLACE_FEWER,
+        algorithm.tr("Replace the block's {} even by far fewer (none, or below half)").format(what),
+        False,
+        optional=True,
+    )

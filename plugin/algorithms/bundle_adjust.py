@@ -1,5 +1,6 @@
 """pushbroom:bundleadjust — the Processing face of steps.adjust_block.adjust_block: reads the
 parameters, adjusts the block, loads the residual vectors."""
+
 from qgis.core import (
     QgsProcessing,
     QgsProcessingOutputFile,
@@ -22,8 +23,10 @@ from .dem_nodata import nodata_parameter
 
 Number = QgsProcessingParameterNumber
 #: labels of the MODEL choices (parameters.MODELS)
-MODEL_LABELS = {"polynomial": "Correction polynomials with autocalibration (Kornus et al. 2006)",
-                "lagrange": "Lagrange polynomials on orientation images (Heipke et al. 1992)"}
+MODEL_LABELS = {
+    "polynomial": "Correction polynomials with autocalibration (Kornus et al. 2006)",
+    "lagrange": "Lagrange polynomials on orientation images (Heipke et al. 1992)",
+}
 
 
 class BundleAdjust(PushbroomAlgorithm):
@@ -31,52 +34,116 @@ class BundleAdjust(PushbroomAlgorithm):
     DISPLAY_NAME = "Bundle adjustment"
     GROUP_ID = "adjustment"
 
-    KEYS = ("BLOCK FREE MODEL USE_TIE_POINTS REMOVE_BLUNDERS REFERENCE_DEM REFERENCE_HEIGHTS SIGMA_TIE CRITICAL "
-            "MAX_ITERATIONS VARIANCE_COMPONENTS SIGNIFICANCE CONTROL_SERIES ORIENTATION_IMAGES VECTOR_SCALE "
-            "PRIORS REFERENCE_DEM_NODATA REPORT RESIDUALS SIGMA0")
+    KEYS = (
+        "BLOCK FREE MODEL USE_TIE_POINTS REMOVE_BLUNDERS REFERENCE_DEM REFERENCE_HEIGHTS SIGMA_TIE CRITICAL "
+        "MAX_ITERATIONS VARIANCE_COMPONENTS SIGNIFICANCE CONTROL_SERIES ORIENTATION_IMAGES VECTOR_SCALE "
+        "PRIORS REFERENCE_DEM_NODATA REPORT RESIDUALS SIGMA0"
+    )
 
     def initAlgorithm(self, config=None):
         d, tr = AdjustParams(), self.tr
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
-        self.addParameter(QgsProcessingParameterString(self.FREE, tr("Free parameters ('auto' or comma-separated "
-                                                                     "patterns)"), d.free))
-        self.addParameter(QgsProcessingParameterEnum(self.MODEL, tr("Exterior orientation model of SPOT images"),
-                                                     [tr(MODEL_LABELS[m]) for m in MODELS],
-                                                     defaultValue=MODELS.index(d.model)))
-        self.addParameter(QgsProcessingParameterBoolean(self.USE_TIE_POINTS, tr("Use the block's tie points"),
-                                                        d.use_tie_points))
-        self.addParameter(QgsProcessingParameterBoolean(self.REMOVE_BLUNDERS, tr("Remove flagged measurements "
-                                                                                 "iteratively"), d.remove_blunders))
-        self.addParameter(QgsProcessingParameterRasterLayer(
-            self.REFERENCE_DEM, tr("Reference DTM for the tie point heights (Kornus et al. 2006, Table 4)"),
-            optional=True))
+        self.addParameter(
+            QgsProcessingParameterString(self.FREE, tr("Free parameters ('auto' or comma-separated patterns)"), d.free)
+        )
+        self.addParameter(
+            QgsProcessingParameterEnum(
+                self.MODEL,
+                tr("Exterior orientation model of SPOT images"),
+                [tr(MODEL_LABELS[m]) for m in MODELS],
+                defaultValue=MODELS.index(d.model),
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterBoolean(self.USE_TIE_POINTS, tr("Use the block's tie points"), d.use_tie_points)
+        )
+        self.addParameter(
+            QgsProcessingParameterBoolean(
+                self.REMOVE_BLUNDERS, tr("Remove flagged measurements iteratively"), d.remove_blunders
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterRasterLayer(
+                self.REFERENCE_DEM,
+                tr("Reference DTM for the tie point heights (Kornus et al. 2006, Table 4)"),
+                optional=True,
+            )
+        )
         self.addParameter(heights_parameter(self.REFERENCE_HEIGHTS, tr("Heights of the reference DTM")))
-        self.addAdvancedParameters([
-            Number(self.SIGMA_TIE, tr("Sigma of tie point image measurements (px)"), Number.Double, d.sigma_tie,
-                   minValue=1e-4),
-            Number(self.CRITICAL, tr("Critical normalised residual (data snooping)"), Number.Double, d.critical,
-                   minValue=1.0),
-            Number(self.MAX_ITERATIONS, tr("Maximum iterations"), Number.Integer, d.max_iterations, minValue=1),
-            QgsProcessingParameterBoolean(self.VARIANCE_COMPONENTS, tr("Estimate variance components (tie, "
-                                          "control image, control ground)"), d.variance_components),
-            Number(self.SIGNIFICANCE, tr("Automatic selection: significance threshold x/sigma"), Number.Double,
-                   d.significance, minValue=0.0),
-            QgsProcessingParameterString(self.CONTROL_SERIES, tr("Check point accuracy vs number of control "
-                                         "points (Heipke et al. 1992, Table 1): counts, e.g. 4,6,10"),
-                                         d.control_series, optional=True),
-            Number(self.ORIENTATION_IMAGES, tr("Lagrange model: orientation images per trajectory"), Number.Integer,
-                   d.orientation_images, minValue=2, maxValue=4),
-            Number(self.VECTOR_SCALE, tr("Scale of the residual vectors on the map"), Number.Double, d.vector_scale,
-                   minValue=1e-3),
-            QgsProcessingParameterString(self.PRIORS, tr("Prior sigmas of orientation unknowns: pattern=sigma, ... "
-                                         "(m, rad, px; e.g. bias:shift=10)"), d.priors, optional=True),
-            nodata_parameter(self.REFERENCE_DEM_NODATA, "reference DTM"),
-        ])
-        self.addParameter(QgsProcessingParameterFileDestination(self.REPORT, tr("Report"), tr("HTML files (*.html)"),
-                                                                optional=True))
-        self.addParameter(QgsProcessingParameterVectorDestination(
-            self.RESIDUALS, tr("Residual vectors of control and check points"), QgsProcessing.TypeVectorLine,
-            optional=True, createByDefault=False))
+        self.addAdvancedParameters(
+            [
+                Number(
+                    self.SIGMA_TIE,
+                    tr("Sigma of tie point image measurements (px)"),
+                    Number.Double,
+                    d.sigma_tie,
+                    minValue=1e-4,
+                ),
+                Number(
+                    self.CRITICAL,
+                    tr("Critical normalised residual (data snooping)"),
+                    Number.Double,
+                    d.critical,
+                    minValue=1.0,
+                ),
+                Number(self.MAX_ITERATIONS, tr("Maximum iterations"), Number.Integer, d.max_iterations, minValue=1),
+                QgsProcessingParameterBoolean(
+                    self.VARIANCE_COMPONENTS,
+                    tr("Estimate variance components (tie, control image, control ground)"),
+                    d.variance_components,
+                ),
+                Number(
+                    self.SIGNIFICANCE,
+                    tr("Automatic selection: significance threshold x/sigma"),
+                    Number.Double,
+                    d.significance,
+                    minValue=0.0,
+                ),
+                QgsProcessingParameterString(
+                    self.CONTROL_SERIES,
+                    tr(
+                        "Check point accuracy vs number of control "
+                        "points (Heipke et al. 1992, Table 1): counts, e.g. 4,6,10"
+                    ),
+                    d.control_series,
+                    optional=True,
+                ),
+                Number(
+                    self.ORIENTATION_IMAGES,
+                    tr("Lagrange model: orientation images per trajectory"),
+                    Number.Integer,
+                    d.orientation_images,
+                    minValue=2,
+                    maxValue=4,
+                ),
+                Number(
+                    self.VECTOR_SCALE,
+                    tr("Scale of the residual vectors on the map"),
+                    Number.Double,
+                    d.vector_scale,
+                    minValue=1e-3,
+                ),
+                QgsProcessingParameterString(
+                    self.PRIORS,
+                    tr("Prior sigmas of orientation unknowns: pattern=sigma, ... (m, rad, px; e.g. bias:shift=10)"),
+                    d.priors,
+                    optional=True,
+                ),
+                nodata_parameter(self.REFERENCE_DEM_NODATA, "reference DTM"),
+            ]
+        )
+        self.addParameter(
+            QgsProcessingParameterFileDestination(self.REPORT, tr("Report"), tr("HTML files (*.html)"), optional=True)
+        )
+        self.addParameter(
+            QgsProcessingParameterVectorDestination(
+                self.RESIDUALS,
+                tr("Residual vectors of control and check points"),
+                QgsProcessing.TypeVectorLine,
+                optional=True,
+                createByDefault=False,
+            )
+        )
         self.addOutput(QgsProcessingOutputNumber(self.SIGMA0, tr("sigma_0")))
         self.addOutput(QgsProcessingOutputFile(self.BLOCK, tr("Block (updated; chains the next step in a model)")))
 
@@ -90,14 +157,31 @@ class BundleAdjust(PushbroomAlgorithm):
             report=self.parameterAsFileOutput(parameters, self.REPORT, context) or None,
             residual_vectors=self.parameterAsOutputLayer(parameters, self.RESIDUALS, context) or None,
             **self.parameterValues(
-                parameters, context, free=self.FREE, use_tie_points=self.USE_TIE_POINTS,
-                remove_blunders=self.REMOVE_BLUNDERS, reference_dem_nodata=self.REFERENCE_DEM_NODATA,
-                sigma_tie=self.SIGMA_TIE, critical=self.CRITICAL, max_iterations=self.MAX_ITERATIONS,
-                variance_components=self.VARIANCE_COMPONENTS, significance=self.SIGNIFICANCE,
-                control_series=self.CONTROL_SERIES, orientation_images=self.ORIENTATION_IMAGES,
-                vector_scale=self.VECTOR_SCALE, priors=self.PRIORS))
+                parameters,
+                context,
+                free=self.FREE,
+                use_tie_points=self.USE_TIE_POINTS,
+                remove_blunders=self.REMOVE_BLUNDERS,
+                reference_dem_nodata=self.REFERENCE_DEM_NODATA,
+                sigma_tie=self.SIGMA_TIE,
+                critical=self.CRITICAL,
+                max_iterations=self.MAX_ITERATIONS,
+                variance_components=self.VARIANCE_COMPONENTS,
+                significance=self.SIGNIFICANCE,
+                control_series=self.CONTROL_SERIES,
+                orientation_images=self.ORIENTATION_IMAGES,
+                vector_scale=self.VECTOR_SCALE,
+                priors=self.PRIORS,
+            ),
+        )
         result = adjust_block(path, params, feedback)
         if result.residual_vectors:
             load_styled(context, params.residual_vectors, "Residual vectors", self.RESIDUALS, "residual_vectors.qml")
-        return self.given({self.BLOCK: path, self.SIGMA0: result.sigma0, self.REPORT: result.report,
-                           self.RESIDUALS: result.residual_vectors})
+        return self.given(
+            {
+                self.BLOCK: path,
+                self.SIGMA0: result.sigma0,
+                self.REPORT: result.report,
+                self.RESIDUALS: result.residual_vectors,
+            }
+        )

@@ -1,5 +1,6 @@
 """pushbroom:createblock — the Processing face of block_creation.create_block: images and their
 orientation into a block GeoPackage."""
+
 from qgis.core import (
     QgsProcessing,
     QgsProcessingOutputVectorLayer,
@@ -25,28 +26,46 @@ class CreateBlock(PushbroomAlgorithm):
     DISPLAY_NAME = "Create block"
     GROUP_ID = "block"
 
-    KEYS = ("IMAGES ORIENTATION DEM HEIGHT OVERWRITE DEM_NODATA EXECUTION DASK_ADDRESS DASK_WAIT WORKERS OUTPUT "
-            "FOOTPRINTS")
+    KEYS = (
+        "IMAGES ORIENTATION DEM HEIGHT OVERWRITE DEM_NODATA EXECUTION DASK_ADDRESS DASK_WAIT WORKERS OUTPUT FOOTPRINTS"
+    )
 
     def initAlgorithm(self, config=None):
         d, tr = CreateParams(), self.tr
         self.addParameter(QgsProcessingParameterMultipleLayers(self.IMAGES, tr("Images"), QgsProcessing.TypeRaster))
-        self.addParameter(QgsProcessingParameterMultipleLayers(
-            self.ORIENTATION, tr("Orientation files (one per image, same order; found beside the images if empty)"),
-            QgsProcessing.TypeFile, optional=True))
-        self.addParameter(QgsProcessingParameterRasterLayer(
-            self.DEM, tr("DEM for the footprints (ellipsoidal heights)"), optional=True))
-        self.addParameter(QgsProcessingParameterNumber(
-            self.HEIGHT, tr("Mean ellipsoidal height when no DEM is given (m, {:g} .. {:g}; empty: found by matching "
-                            "the images)").format(*PLAUSIBLE_HEIGHTS),
-            QgsProcessingParameterNumber.Double, d.height, optional=True))
-        self.addParameter(QgsProcessingParameterBoolean(self.OVERWRITE, tr("Overwrite an existing block"),
-                                                        d.overwrite))
-        self.addAdvancedParameters([nodata_parameter(self.DEM_NODATA),
-                                    *execution_parameters(self, d.execution.workers)])   # the height search
+        self.addParameter(
+            QgsProcessingParameterMultipleLayers(
+                self.ORIENTATION,
+                tr("Orientation files (one per image, same order; found beside the images if empty)"),
+                QgsProcessing.TypeFile,
+                optional=True,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterRasterLayer(
+                self.DEM, tr("DEM for the footprints (ellipsoidal heights)"), optional=True
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterNumber(
+                self.HEIGHT,
+                tr(
+                    "Mean ellipsoidal height when no DEM is given (m, {:g} .. {:g}; empty: found by matching "
+                    "the images)"
+                ).format(*PLAUSIBLE_HEIGHTS),
+                QgsProcessingParameterNumber.Double,
+                d.height,
+                optional=True,
+            )
+        )
+        self.addParameter(QgsProcessingParameterBoolean(self.OVERWRITE, tr("Overwrite an existing block"), d.overwrite))
+        self.addAdvancedParameters(
+            [nodata_parameter(self.DEM_NODATA), *execution_parameters(self, d.execution.workers)]
+        )  # the height search
         self.addParameter(QgsProcessingParameterFileDestination(self.OUTPUT, tr("Block"), tr("GeoPackage (*.gpkg)")))
-        self.addOutput(QgsProcessingOutputVectorLayer(self.FOOTPRINTS, tr("Footprints"),
-                                                      QgsProcessing.TypeVectorPolygon))
+        self.addOutput(
+            QgsProcessingOutputVectorLayer(self.FOOTPRINTS, tr("Footprints"), QgsProcessing.TypeVectorPolygon)
+        )
 
     def checkParameterValues(self, parameters, context):
         """QGIS's check; where it refuses the images, the engine's reason for a file path that is no
@@ -68,9 +87,11 @@ class CreateBlock(PushbroomAlgorithm):
         params = CreateParams(
             orientation=self.parameterAsFileList(parameters, self.ORIENTATION, context),
             dem=dem.source() if dem is not None else None,
-            **self.parameterValues(parameters, context, dem_nodata=self.DEM_NODATA, height=self.HEIGHT,
-                                   overwrite=self.OVERWRITE),
-            execution=execution_choice(self, parameters, context))
+            **self.parameterValues(
+                parameters, context, dem_nodata=self.DEM_NODATA, height=self.HEIGHT, overwrite=self.OVERWRITE
+            ),
+            execution=execution_choice(self, parameters, context),
+        )
         images = [layer.source() for layer in self.parameterAsLayerList(parameters, self.IMAGES, context)]
         result = create_block(self.parameterAsFileOutput(parameters, self.OUTPUT, context), images, params, feedback)
         load_styled(context, result.footprints, "Footprints", self.FOOTPRINTS, "footprints.qml")

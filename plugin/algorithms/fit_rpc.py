@@ -1,5 +1,6 @@
 """pushbroom:fitrpc — the Processing face of steps.block_rpcs.fit_block_rpcs: RPC00B fitted to the
 block's sensor models, written as _RPC.TXT files GDAL reads."""
+
 from qgis.core import (
     QgsProcessingOutputFile,
     QgsProcessingOutputMultipleLayers,
@@ -28,27 +29,62 @@ class FitRpc(PushbroomAlgorithm):
     def initAlgorithm(self, config=None):
         d, tr = RpcParams(), self.tr
         self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
-        self.addParameter(QgsProcessingParameterString(self.IMAGE, tr("Image name (empty: every image of the "
-                                                                      "block)"), d.image, optional=True))
-        self.addParameter(Number(self.MIN_HEIGHT, tr("Lowest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: "
-                                 "the block's terrain height range and a margin)").format(*PLAUSIBLE_HEIGHTS),
-                                 Number.Double, None, optional=True))
-        self.addParameter(Number(self.MAX_HEIGHT, tr("Highest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: "
-                                 "the block's terrain height range and a margin)").format(*PLAUSIBLE_HEIGHTS),
-                                 Number.Double, None, optional=True))
-        self.addParameter(QgsProcessingParameterBoolean(
-            self.OVERWRITE, tr("Overwrite existing _RPC.TXT files; write beside an image that carries its own RPC "
-                               "(GDAL then reads the fitted one)"), d.overwrite))
-        self.addAdvancedParameters([
-            Number(self.GRID, tr("Image grid points along columns and rows"), Number.Integer, d.grid, minValue=4),
-            Number(self.HEIGHT_LEVELS, tr("Height levels"), Number.Integer, d.height_levels, minValue=4),
-        ])
-        self.addParameter(QgsProcessingParameterFolderDestination(
-            self.OUTPUT_FOLDER, tr("Output folder (empty: beside each image raster, where it carries no RPC of its "
-                                   "own)"), optional=True,
-            createByDefault=False))
-        self.addParameter(QgsProcessingParameterFileDestination(self.REPORT, tr("Report"), tr("HTML files (*.html)"),
-                                                                optional=True))
+        self.addParameter(
+            QgsProcessingParameterString(
+                self.IMAGE, tr("Image name (empty: every image of the block)"), d.image, optional=True
+            )
+        )
+        self.addParameter(
+            Number(
+                self.MIN_HEIGHT,
+                tr(
+                    "Lowest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: "
+                    "the block's terrain height range and a margin)"
+                ).format(*PLAUSIBLE_HEIGHTS),
+                Number.Double,
+                None,
+                optional=True,
+            )
+        )
+        self.addParameter(
+            Number(
+                self.MAX_HEIGHT,
+                tr(
+                    "Highest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: "
+                    "the block's terrain height range and a margin)"
+                ).format(*PLAUSIBLE_HEIGHTS),
+                Number.Double,
+                None,
+                optional=True,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterBoolean(
+                self.OVERWRITE,
+                tr(
+                    "Overwrite existing _RPC.TXT files; write beside an image that carries its own RPC "
+                    "(GDAL then reads the fitted one)"
+                ),
+                d.overwrite,
+            )
+        )
+        self.addAdvancedParameters(
+            [
+                Number(self.GRID, tr("Image grid points along columns and rows"), Number.Integer, d.grid, minValue=4),
+                Number(self.HEIGHT_LEVELS, tr("Height levels"), Number.Integer, d.height_levels, minValue=4),
+            ]
+        )
+        self.addParameter(
+            QgsProcessingParameterFolderDestination(
+                self.OUTPUT_FOLDER,
+                tr("Output folder (empty: beside each image raster, where it carries no RPC of its own)"),
+                optional=True,
+                createByDefault=False,
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterFileDestination(self.REPORT, tr("Report"), tr("HTML files (*.html)"), optional=True)
+        )
         self.addOutput(QgsProcessingOutputMultipleLayers(self.FILES, tr("RPC files (_RPC.TXT)")))
         self.addOutput(QgsProcessingOutputFile(self.BLOCK, tr("Block (updated; chains the next step in a model)")))
 
@@ -57,9 +93,18 @@ class FitRpc(PushbroomAlgorithm):
         params = RpcParams(
             folder=self.parameterAsString(parameters, self.OUTPUT_FOLDER, context) or None,
             report=self.parameterAsFileOutput(parameters, self.REPORT, context) or None,
-            **self.parameterValues(parameters, context, image=self.IMAGE, min_height=self.MIN_HEIGHT,
-                                   max_height=self.MAX_HEIGHT, overwrite=self.OVERWRITE, grid=self.GRID,
-                                   height_levels=self.HEIGHT_LEVELS))
+            **self.parameterValues(
+                parameters,
+                context,
+                image=self.IMAGE,
+                min_height=self.MIN_HEIGHT,
+                max_height=self.MAX_HEIGHT,
+                overwrite=self.OVERWRITE,
+                grid=self.GRID,
+                height_levels=self.HEIGHT_LEVELS,
+            ),
+        )
         result = fit_block_rpcs(path, params, feedback)
-        return self.given({self.BLOCK: path, self.FILES: result.files, self.OUTPUT_FOLDER: params.folder,
-                           self.REPORT: result.report})
+        return self.given(
+            {self.BLOCK: path, self.FILES: result.files, self.OUTPUT_FOLDER: params.folder, self.REPORT: result.report}
+        )

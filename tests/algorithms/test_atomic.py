@@ -1,6 +1,7 @@
 """atomic.py, the one place that makes a write safe: a full disk (a real tiny tmpfs where mounting is
 allowed, else skipped with the reason; a fake ENOSPC always), GDAL's failures on close, permissions and
 paths, and the leftovers of killed writers."""
+
 import errno
 import os
 import subprocess
@@ -27,7 +28,7 @@ def tiny_disk(tmp_path):
     if mounted.returncode != 0:
         pytest.skip(f"cannot mount a tmpfs here (needs root): {mounted.stderr.decode().strip()}")
     yield folder
-    subprocess.run(["umount", "-l", str(folder)], check=True)   # lazy: a failed test may leave a file open
+    subprocess.run(["umount", "-l", str(folder)], check=True)  # lazy: a failed test may leave a file open
 
 
 def noise(shape, seed=0):
@@ -39,28 +40,32 @@ def test_geotiff_on_a_full_disk_fails_clearly_and_leaves_nothing(tiny_disk):
     # 2000 x 2000 Float32 noise does not compress: 16 MB on a 3 MB disk
     with pytest.raises(StorageError, match=r"cannot write the output .*dem\.tif: .*No space left.*the disk is full"):
         write_float_raster(target, noise((2000, 2000)), (0, 1, 0, 0, 0, -1), srs(32616))
-    assert os.listdir(tiny_disk) == []              # neither the target nor a temporary file
+    assert os.listdir(tiny_disk) == []  # neither the target nor a temporary file
 
 
 def test_gdal_failure_on_close_fails_the_write(tiny_disk):
     """The last tiles and the overviews are written when the dataset closes: their failure must count."""
     from osgeo import gdal
+
     gdal.UseExceptions()
     target = tiny_disk / "x.tif"
     with pytest.raises(StorageError, match="No space left"):
         with atomic.atomic_path(target) as tmp:
-            with atomic.closing(gdal.GetDriverByName("GTiff").Create(tmp, 1500, 1500, 1, gdal.GDT_Float64,
-                                                                     ["TILED=YES"])) as ds:
-                ds.GetRasterBand(1).WriteArray(noise((1500, 1500)))   # cached: written on close
+            with atomic.closing(
+                gdal.GetDriverByName("GTiff").Create(tmp, 1500, 1500, 1, gdal.GDT_Float64, ["TILED=YES"])
+            ) as ds:
+                ds.GetRasterBand(1).WriteArray(noise((1500, 1500)))  # cached: written on close
     assert not target.exists()
 
 
 def test_a_fake_enospc_is_a_storage_error(tmp_path, monkeypatch):
     def full(*_args, **_kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
+
     monkeypatch.setattr(np, "savez", full)
-    with pytest.raises(StorageError,
-                       match=r"cannot write the point file .*p\.npz: No space left on device \(the disk is full"):
+    with pytest.raises(
+        StorageError, match=r"cannot write the point file .*p\.npz: No space left on device \(the disk is full"
+    ):
         save_arrays(tmp_path / "p.npz", MultiPoints())
     assert os.listdir(tmp_path) == []
 
@@ -72,6 +77,7 @@ def test_a_late_enospc_at_fsync_keeps_the_old_file(tmp_path, monkeypatch):
 
     def late(_fd):
         raise OSError(errno.EDQUOT, "Disk quota exceeded")
+
     monkeypatch.setattr(os, "fsync", late)
     with pytest.raises(StorageError, match="quota"):
         atomic.write_text(target, "new")
@@ -92,16 +98,18 @@ def test_check_destination_names_the_problem(tmp_path):
     with pytest.raises(StorageError, match="a folder of that name is in the way"):
         atomic.check_destination(tmp_path)
     assert atomic.check_destination(tmp_path / "new" / "out.tif") == str(tmp_path / "new")
-    assert os.listdir(tmp_path / "new") == []        # the probe is gone
-
+    assert os.listdir(tmp_path / "new") == []  # the probe is gone
 
 
 def test_a_file_is_never_written_over_what_is_not_a_regular_file(tmp_path):
     """A device node (/dev/full, which root could replace), a FIFO or a folder: refused before the body runs."""
     fifo = tmp_path / "fifo.csv"
     os.mkfifo(fifo)
-    for path, match in [(fifo, "it is a FIFO, not a regular file"), ("/dev/full", "it is a device, not a regular file"),
-                        (tmp_path, "a folder of that name is in the way")]:
+    for path, match in [
+        (fifo, "it is a FIFO, not a regular file"),
+        ("/dev/full", "it is a device, not a regular file"),
+        (tmp_path, "a folder of that name is in the way"),
+    ]:
         ran = []
         with pytest.raises(StorageError, match=match):
             with atomic.atomic_path(path) as tmp:
@@ -126,6 +134,7 @@ def test_a_shapefile_is_written_with_its_companions(tmp_path):
     from osgeo import ogr
 
     from pushbroom.algorithms.adjustment.residual_vectors import VECTOR_DTYPE, write_residual_vectors
+
     vectors = np.zeros(3, VECTOR_DTYPE)
     vectors["x1"], vectors["name"] = [1.0, 2.0, 3.0], ["a", "b", "c"]
     (tmp_path / "r.cpg").write_text("LATIN1")
@@ -136,8 +145,11 @@ def test_a_shapefile_is_written_with_its_companions(tmp_path):
     assert layer.GetFeatureCount() == 3 and layer.GetSpatialRef().GetAuthorityCode(None) == "32632"
     assert sorted(f["name"] for f in layer) == ["a", "b", "c"]
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders (tests/plugin/test_faults_alg.py "
-                                              "checks permissions as another user)")
+
+@pytest.mark.skipif(
+    os.geteuid() == 0,
+    reason="root writes into read-only folders (tests/plugin/test_faults_alg.py checks permissions as another user)",
+)
 def test_check_destination_of_a_read_only_folder(tmp_path):
     folder = tmp_path / "ro"
     folder.mkdir(mode=0o555)
@@ -179,9 +191,11 @@ def test_a_folder_swapped_out_by_a_killed_writer_is_put_back(tmp_path):
 def test_a_killed_simulation_leaves_a_part_folder_the_next_write_removes(tmp_path):
     """kill -9 of a simulation while it writes its products: the hidden .part folder is listed as stale
     and removed by the next write into that folder."""
-    code = ("import sys\n"
-            "from pushbroom.algorithms.simulation import SceneConfig, simulate_scene\n"
-            "simulate_scene(SceneConfig.small(), sys.argv[1])\n")
+    code = (
+        "import sys\n"
+        "from pushbroom.algorithms.simulation import SceneConfig, simulate_scene\n"
+        "simulate_scene(SceneConfig.small(), sys.argv[1])\n"
+    )
     proc = subprocess.Popen([sys.executable, "-c", code, str(tmp_path / "scene")])
     deadline = time.time() + 600
     while not any(".part" in name for name in os.listdir(tmp_path)):
@@ -191,6 +205,6 @@ def test_a_killed_simulation_leaves_a_part_folder_the_next_write_removes(tmp_pat
     proc.wait()
     left = atomic.leftovers(tmp_path)
     assert len(left) == 1 and left[0]["stale"] and left[0]["pid"] == proc.pid
-    assert not (tmp_path / "scene").exists()         # nothing under the final name
+    assert not (tmp_path / "scene").exists()  # nothing under the final name
     atomic.write_text(tmp_path / "note.txt", "next run")
     assert os.listdir(tmp_path) == ["note.txt"]

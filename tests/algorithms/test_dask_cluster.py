@@ -3,6 +3,7 @@ by the test as separate processes (`dask scheduler`, `dask worker`), as a user's
 threads' result or a clear ExecutionError, within a bounded time: the last busy worker killed after the other has
 idled (the shared job then has its only copy there), every worker killed mid-step, a scheduler without workers, a
 worker without pushbroom, a worker added during a step."""
+
 import os
 import re
 import subprocess
@@ -70,12 +71,18 @@ def test_the_last_busy_worker_killed_after_the_other_idled_gives_the_threads_res
         if (folder / "done-0").exists():
             idle_since.setdefault("t", time.monotonic())
         return "t" in idle_since and time.monotonic() - idle_since["t"] >= 5.0 and _pid_of(folder, 1) is not None
+
     killer = when(ready, kill_the_busy_one)
-    out = run_tasks(tasks.long_first_time, _tasks(job, folder, [0.5, 60.0]),
-                    Execution("dask", address=cluster.address, worker_wait=WAIT), log, what="the test")
+    out = run_tasks(
+        tasks.long_first_time,
+        _tasks(job, folder, [0.5, 60.0]),
+        Execution("dask", address=cluster.address, worker_wait=WAIT),
+        log,
+        what="the test",
+    )
     killer.join(1)
-    assert sum(w.poll() is not None for w in workers) == 1            # the busy worker did die, mid-task
-    assert out == _threads_result(job, 2)                             # and the run completed with every result
+    assert sum(w.poll() is not None for w in workers) == 1  # the busy worker did die, mid-task
+    assert out == _threads_result(job, 2)  # and the run completed with every result
     left = [m for m in log.messages if " left the Dask cluster" in m]
     assert len(left) == 1 and "its running tiles run again on another (1 worker left)" in left[0]
     assert re.fullmatch(r"the test: tasks per worker: tcp://127\.0\.0\.1:\d+ 2", log.messages[-1])
@@ -89,21 +96,31 @@ def test_every_worker_killed_mid_step_is_a_clear_error_within_the_wait(cluster, 
     folder.mkdir()
     log = Feedback()
     running = min(n, 2)
-    when(lambda: sum(_pid_of(folder, k) is not None for k in range(n)) >= running,
-          lambda: [Cluster.kill(w) for w in workers])
+    when(
+        lambda: sum(_pid_of(folder, k) is not None for k in range(n)) >= running,
+        lambda: [Cluster.kill(w) for w in workers],
+    )
     start = time.monotonic()
     with pytest.raises(ExecutionError) as failed:
-        run_tasks(tasks.long_first_time, _tasks(_job(), folder, [60.0] * n),
-                  Execution("dask", address=cluster.address, worker_wait=WAIT), log, what="dense matching's tiles")
-    assert time.monotonic() - start < BOUND                 # an error, not a wait for workers that never come
+        run_tasks(
+            tasks.long_first_time,
+            _tasks(_job(), folder, [60.0] * n),
+            Execution("dask", address=cluster.address, worker_wait=WAIT),
+            log,
+            what="dense matching's tiles",
+        )
+    assert time.monotonic() - start < BOUND  # an error, not a wait for workers that never come
     assert str(failed.value) == (
         f"dense matching's tiles: every worker of the Dask cluster at {cluster.address} was lost, and none came back "
         f"within {WAIT:g} s (0 workers connected): start one on a host that sees the same files, `python3 -m "
         f"distributed.cli.dask_worker {cluster.address} --nthreads 1` (README, Scaling out), or raise the wait "
         f"(DASK_WAIT); 0 of {n} task{'s' * (n != 1)} finished, nothing was stored: the block and the outputs are as "
-        "they were")
-    assert f"dense matching's tiles: every worker of the Dask cluster at {cluster.address} is lost: waiting up to " \
-           f"{WAIT:g} s for one to come back" in log.messages
+        "they were"
+    )
+    assert (
+        f"dense matching's tiles: every worker of the Dask cluster at {cluster.address} is lost: waiting up to "
+        f"{WAIT:g} s for one to come back" in log.messages
+    )
     assert not list(folder.glob("done-*"))
 
 
@@ -112,17 +129,26 @@ def test_a_scheduler_without_workers_is_a_clear_error_after_the_wait(cluster, tm
     log = Feedback()
     start = time.monotonic()
     with pytest.raises(ExecutionError) as failed:
-        run_tasks(tasks.long_first_time, _tasks(_job(), tmp_path, [0.0] * n),
-                  Execution("dask", address=cluster.address, worker_wait=WAIT), log, what="the DEM's tiles")
+        run_tasks(
+            tasks.long_first_time,
+            _tasks(_job(), tmp_path, [0.0] * n),
+            Execution("dask", address=cluster.address, worker_wait=WAIT),
+            log,
+            what="the DEM's tiles",
+        )
     assert WAIT <= time.monotonic() - start < BOUND
     assert str(failed.value).startswith(
         f"the DEM's tiles: no worker joined the Dask cluster at {cluster.address} within {WAIT:g} s (0 workers "
         f"connected): start one on a host that sees the same files, `python3 -m distributed.cli.dask_worker "
-        f"{cluster.address} --nthreads 1`")
-    assert str(failed.value).endswith(f"(DASK_WAIT); 0 of {n} task{'s' * (n != 1)} finished, nothing was stored: the "
-                                      "block and the outputs are as they were")
-    assert log.messages[1:] == [f"the Dask cluster at {cluster.address} has no worker: waiting up to {WAIT:g} s for "
-                                "one"]
+        f"{cluster.address} --nthreads 1`"
+    )
+    assert str(failed.value).endswith(
+        f"(DASK_WAIT); 0 of {n} task{'s' * (n != 1)} finished, nothing was stored: the "
+        "block and the outputs are as they were"
+    )
+    assert log.messages[1:] == [
+        f"the Dask cluster at {cluster.address} has no worker: waiting up to {WAIT:g} s for one"
+    ]
     assert not list(tmp_path.glob("pid-*"))
 
 
@@ -133,33 +159,47 @@ def test_a_worker_without_pushbroom_is_named_before_any_task_runs(cluster, tmp_p
     cluster.add_worker(python="/usr/bin/python3", env=bare)
     cluster.wait_for_workers(2)
     with pytest.raises(ExecutionError) as failed:
-        run_tasks(tasks.long_first_time, _tasks(_job(), tmp_path, [0.0] * 4),
-                  Execution("dask", address=cluster.address, worker_wait=WAIT), what="the test")
+        run_tasks(
+            tasks.long_first_time,
+            _tasks(_job(), tmp_path, [0.0] * 4),
+            Execution("dask", address=cluster.address, worker_wait=WAIT),
+            what="the test",
+        )
     message = str(failed.value)
-    assert message.startswith(f"the test: 1 of 2 workers of the Dask cluster at {cluster.address} cannot run "
-                              "Pushbroom's tasks: tcp://127.0.0.1:")
+    assert message.startswith(
+        f"the test: 1 of 2 workers of the Dask cluster at {cluster.address} cannot run "
+        "Pushbroom's tasks: tcp://127.0.0.1:"
+    )
     assert "no pushbroom (ModuleNotFoundError: No module named 'pushbroom': install the plugin's wheel" in message
     assert "no numba (ModuleNotFoundError: No module named 'numba'" in message
     assert len(re.findall(r"tcp://127\.0\.0\.1:\d+ on [^:]+: Python [^)]+\), no Pushbroom: no pushbroom", message)) == 1
     assert message.endswith("0 of 4 tasks finished, nothing was stored: the block and the outputs are as they were")
-    assert not list(tmp_path.glob("pid-*"))                          # no task ran, not even on the good worker
+    assert not list(tmp_path.glob("pid-*"))  # no task ran, not even on the good worker
     # the README's one command for checking the workers says the same
-    checked = subprocess.run([sys.executable, "-m", "pushbroom.algorithms.worker_check", cluster.address],
-                             capture_output=True, text=True, timeout=120)
+    checked = subprocess.run(
+        [sys.executable, "-m", "pushbroom.algorithms.worker_check", cluster.address],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     lines = checked.stdout.splitlines()
     assert checked.returncode == 1 and lines[-1] == "1 of 2 workers run Pushbroom " + _version()
     assert sum(", no Pushbroom: FAILS: no pushbroom" in line for line in lines) == 1
-    assert sum(line.endswith(f": Python {_python()} ({sys.executable}), Pushbroom {_version()}: ok") for line in
-               lines) == 1
+    assert (
+        sum(line.endswith(f": Python {_python()} ({sys.executable}), Pushbroom {_version()}: ok") for line in lines)
+        == 1
+    )
 
 
 def _version():
     from pushbroom import __version__
+
     return __version__
 
 
 def _python():
     import platform
+
     return platform.python_version()
 
 
@@ -176,14 +216,21 @@ def test_a_worker_added_during_a_step_takes_tasks_and_gives_the_threads_result(c
         cluster.add_worker()
         cluster.wait_for_workers(2)
         (folder / "go").touch()
+
     when(lambda: any(folder.glob("started-*")), add_a_worker)
-    out = run_tasks(tasks.after_gate, _tasks(job, folder, [1.0] * 8),
-                    Execution("dask", address=cluster.address, worker_wait=WAIT), log, what="the test")
+    out = run_tasks(
+        tasks.after_gate,
+        _tasks(job, folder, [1.0] * 8),
+        Execution("dask", address=cluster.address, worker_wait=WAIT),
+        log,
+        what="the test",
+    )
     assert out == _threads_result(job, 8)
-    joined = [re.fullmatch(r"the test: worker (\S+) joined the Dask cluster at \S+ \(2 workers\)", m) for m in
-              log.messages]
+    joined = [
+        re.fullmatch(r"the test: worker (\S+) joined the Dask cluster at \S+ \(2 workers\)", m) for m in log.messages
+    ]
     assert sum(map(bool, joined)) == 1
     new = next(j for j in joined if j)[1]
     assert log.messages[-1].startswith("the test: tasks per worker: ")
     ran = dict(re.findall(r"(tcp://\S+) (\d+)", log.messages[-1]))
-    assert sum(map(int, ran.values())) == 8 and int(ran.get(new, 0)) >= 1, log.messages       # the new one ran some
+    assert sum(map(int, ran.values())) == 8 and int(ran.get(new, 0)) >= 1, log.messages  # the new one ran some

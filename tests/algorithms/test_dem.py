@@ -1,4 +1,5 @@
 """dem.py: the bilinear kernel against scipy, the grid conventions, bad grids and file reading."""
+
 import numpy as np
 import pytest
 from osgeo import gdal, osr
@@ -40,15 +41,18 @@ def test_nan_outside_the_centres_and_next_to_nodata():
     assert dem.height_range == (0.0, 53.0) and dem.bounds == (10.0, 47.0, 12.25, 50.0)
 
 
-@pytest.mark.parametrize("heights, gt, message", [
-    (np.zeros(4), GT, "2-D grid"),
-    (np.zeros((1, 5)), GT, "at least 2 x 2"),
-    (np.zeros((3, 3)), (0.0, 1.0, 0.0), "6 finite numbers"),
-    (np.zeros((3, 3)), (0.0, 1.0, 0.0, 0.0, 0.0, float("nan")), "6 finite numbers"),
-    (np.zeros((3, 3)), (0.0, 1.0, 0.0, 0.0, 0.0, 1.0), "north-up"),
-    (np.zeros((3, 3)), (0.0, 1.0, 0.1, 0.0, 0.0, -1.0), "north-up"),
-    (np.full((3, 3), np.nan), GT, "no valid height"),
-])
+@pytest.mark.parametrize(
+    "heights, gt, message",
+    [
+        (np.zeros(4), GT, "2-D grid"),
+        (np.zeros((1, 5)), GT, "at least 2 x 2"),
+        (np.zeros((3, 3)), (0.0, 1.0, 0.0), "6 finite numbers"),
+        (np.zeros((3, 3)), (0.0, 1.0, 0.0, 0.0, 0.0, float("nan")), "6 finite numbers"),
+        (np.zeros((3, 3)), (0.0, 1.0, 0.0, 0.0, 0.0, 1.0), "north-up"),
+        (np.zeros((3, 3)), (0.0, 1.0, 0.1, 0.0, 0.0, -1.0), "north-up"),
+        (np.full((3, 3), np.nan), GT, "no valid height"),
+    ],
+)
 def test_unusable_grids_raise_input_error(heights, gt, message):
     with pytest.raises(InputError, match=message):
         Dem(heights, gt)

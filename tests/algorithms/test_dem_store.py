@@ -1,5 +1,6 @@
 """dem_store.py: a DEM read by bands and windows gives what the whole grid in memory gives (GDAL's own
 in-memory warp, dem.Dem's bilinear and image_to_dem), on the small scene's DSM and a UTM copy of it."""
+
 import numpy as np
 import pytest
 from osgeo import gdal
@@ -11,8 +12,9 @@ from pushbroom.algorithms.dem_store import read_dem
 @pytest.fixture(scope="module")
 def utm_dsm(small_scene, tmp_path_factory):
     path = str(tmp_path_factory.mktemp("dem") / "dsm_utm.tif")
-    gdal.Warp(path, small_scene["dsm"], dstSRS="EPSG:32616", xRes=5.0, yRes=5.0, resampleAlg="bilinear",
-              dstNodata=-9999)
+    gdal.Warp(
+        path, small_scene["dsm"], dstSRS="EPSG:32616", xRes=5.0, yRes=5.0, resampleAlg="bilinear", dstNodata=-9999
+    )
     return path
 
 
@@ -26,16 +28,24 @@ def small_bands(monkeypatch):
 def test_a_warped_dem_is_gdals_in_memory_warp(utm_dsm, tmp_path, small_bands):
     stored = dem_store.store_dem(utm_dsm, tmp_path)
     # the plain way: the whole raster warped in memory by GDAL
-    reference = gdal.Warp("", utm_dsm, format="MEM", dstSRS="EPSG:4326", resampleAlg="bilinear",
-                          outputType=gdal.GDT_Float64, srcNodata=-9999, dstNodata=float("nan"))
+    reference = gdal.Warp(
+        "",
+        utm_dsm,
+        format="MEM",
+        dstSRS="EPSG:4326",
+        resampleAlg="bilinear",
+        outputType=gdal.GDT_Float64,
+        srcNodata=-9999,
+        dstNodata=float("nan"),
+    )
     expected = reference.GetRasterBand(1).ReadAsArray()
     assert stored.geotransform == pytest.approx(reference.GetGeoTransform(), abs=1e-12)
     got = stored.whole().heights
     assert (np.isnan(got) == np.isnan(expected)).mean() > 0.999
     both = np.isfinite(got) & np.isfinite(expected)
-    assert np.abs(got - expected)[both].max() < 1e-6          # GDAL's chunks of the same bilinear warp
+    assert np.abs(got - expected)[both].max() < 1e-6  # GDAL's chunks of the same bilinear warp
     assert stored.height_range == (np.nanmin(got), np.nanmax(got))
-    assert not any(name.startswith("dem-") for name in (p.name for p in tmp_path.iterdir()))   # intermediates go
+    assert not any(name.startswith("dem-") for name in (p.name for p in tmp_path.iterdir()))  # intermediates go
 
 
 def test_heights_and_ranges_by_blocks_are_the_whole_grids(small_scene, tmp_path, small_bands):
@@ -44,12 +54,12 @@ def test_heights_and_ranges_by_blocks_are_the_whole_grids(small_scene, tmp_path,
     np.testing.assert_array_equal(stored.whole().heights, whole.heights)
     west, south, east, north = whole.bounds
     rng = np.random.default_rng(5)
-    lon = rng.uniform(west - 0.01, east + 0.01, 20000)          # some outside: NaN as the whole grid's
+    lon = rng.uniform(west - 0.01, east + 0.01, 20000)  # some outside: NaN as the whole grid's
     lat = rng.uniform(south - 0.01, north + 0.01, 20000)
     # a window's origin is the grid's plus whole cells: the same bilinear to rounding
     np.testing.assert_allclose(stored.height(lon, lat), whole.height(lon, lat), rtol=0, atol=1e-8)
     rows, cols = (40, 333), (7, 250)
-    window = whole.heights[rows[0]:rows[1], cols[0]:cols[1]]
+    window = whole.heights[rows[0] : rows[1], cols[0] : cols[1]]
     assert stored.cells_range(rows, cols) == (np.nanmin(window), np.nanmax(window))
 
 

@@ -2,6 +2,7 @@
 and no output in a format its name does not say (issue 36). The Processing steps' cases are in
 tests/plugin/test_output_paths_alg.py, the property over every algorithm's outputs in
 tests/plugin/test_output_paths_property.py."""
+
 import os
 import socket
 
@@ -44,8 +45,11 @@ def test_an_output_that_is_an_input_by_any_name_is_refused(world, tmp_path):
     relative = os.path.relpath(block)
     refused(world, Destination(relative, "OUTPUT (Point file)"), "would overwrite the input BLOCK")
     refused(world, Destination(str(tmp_path / "link.csv"), "OUTPUT (Point file)"), "through a symbolic link")
-    refused(world, Destination(str(tmp_path / "linked-folder" / "block.gpkg"), "OUTPUT (Point file)"),
-            "through a symbolic link")
+    refused(
+        world,
+        Destination(str(tmp_path / "linked-folder" / "block.gpkg"), "OUTPUT (Point file)"),
+        "through a symbolic link",
+    )
     refused(world, Destination(str(tmp_path / "hard.csv"), "OUTPUT (Point file)"), "is a hard link of")
     # a shapefile's companion is written too: x.dbf beside x.shp
     os.link(block, tmp_path / "x.dbf")
@@ -53,24 +57,36 @@ def test_an_output_that_is_an_input_by_any_name_is_refused(world, tmp_path):
 
 
 def test_an_output_inside_an_input_folder_is_refused(world):
-    refused(world, Destination(os.path.join(world["folder"], "p.csv"), "OUTPUT (Point file)"),
-            "lies inside the input BLOCK .*its point folder")
+    refused(
+        world,
+        Destination(os.path.join(world["folder"], "p.csv"), "OUTPUT (Point file)"),
+        "lies inside the input BLOCK .*its point folder",
+    )
     refused(world, Destination(world["folder"], "OUTPUT_FOLDER (Output folder)", INTO), "would overwrite the input")
-    refused(world, Destination(os.path.join(world["folder"], "rpc"), "OUTPUT_FOLDER (Output folder)", INTO),
-            "lies inside the input")
+    refused(
+        world,
+        Destination(os.path.join(world["folder"], "rpc"), "OUTPUT_FOLDER (Output folder)", INTO),
+        "lies inside the input",
+    )
 
 
 def test_a_folder_replaced_as_a_whole_holds_neither_an_input_nor_foreign_files(world, tmp_path):
     data = os.path.dirname(world["block"])
-    refused(world, Destination(data, "OUTPUT (Output folder)", FOLDER, mark="truth.json"),
-            "replaced as a whole, and it holds the input BLOCK")
+    refused(
+        world,
+        Destination(data, "OUTPUT (Output folder)", FOLDER, mark="truth.json"),
+        "replaced as a whole, and it holds the input BLOCK",
+    )
     own = tmp_path / "own"
     own.mkdir()
     (own / "notes.txt").write_text("the user's")
-    refused(world, Destination(str(own), "OUTPUT (Output folder)", FOLDER, mark="truth.json"),
-            "holds files this step did not make")
+    refused(
+        world,
+        Destination(str(own), "OUTPUT (Output folder)", FOLDER, mark="truth.json"),
+        "holds files this step did not make",
+    )
     assert (own / "notes.txt").read_text() == "the user's"
-    (own / "truth.json").write_text("{}")          # a folder the step made: it may replace it
+    (own / "truth.json").write_text("{}")  # a folder the step made: it may replace it
     destinations.check(world["inputs"], [Destination(str(own), "OUTPUT (Output folder)", FOLDER, mark="truth.json")])
     destinations.check(world["inputs"], [Destination(str(tmp_path / "new"), "OUTPUT", FOLDER, mark="truth.json")])
 
@@ -81,8 +97,10 @@ def test_two_outputs_that_are_one_file_are_refused(world, tmp_path):
         with pytest.raises(InputError, match="the outputs OUTPUT .DEM. and PRECISION .Precision raster. are the same"):
             destinations.check(world["inputs"], [a, Destination(other, "PRECISION (Precision raster)")])
     with pytest.raises(InputError, match="lies inside the output folder OUTPUT"):
-        destinations.check([], [Destination(str(tmp_path / "s"), "OUTPUT", FOLDER), Destination(
-            str(tmp_path / "s" / "r.html"), "REPORT")])
+        destinations.check(
+            [],
+            [Destination(str(tmp_path / "s"), "OUTPUT", FOLDER), Destination(str(tmp_path / "s" / "r.html"), "REPORT")],
+        )
     assert not (tmp_path / "dem.tif").exists()
 
 
@@ -107,22 +125,30 @@ def test_what_is_not_a_regular_file_is_never_replaced(world, tmp_path):
 
 def test_an_extension_the_writer_cannot_honour_is_refused(world, tmp_path):
     for name in ("e.shp", "e.xlsx", "e.gpkg", "e"):
-        text = refused(world, Destination(str(tmp_path / name), "OUTPUT (Point file)", FILE, ("csv",)),
-                       "is written as .csv only")
+        text = refused(
+            world, Destination(str(tmp_path / name), "OUTPUT (Point file)", FILE, ("csv",)), "is written as .csv only"
+        )
         assert "Give a name ending in .csv" in text
         assert not (tmp_path / name).exists()
-    refused(world, Destination(str(tmp_path / "d.las"), "OUTPUT (DEM)", FILE, ("tif", "tiff")),
-            r"written as \.tif or \.tiff only, and its name ends in '\.las'")
+    refused(
+        world,
+        Destination(str(tmp_path / "d.las"), "OUTPUT (DEM)", FILE, ("tif", "tiff")),
+        r"written as \.tif or \.tiff only, and its name ends in '\.las'",
+    )
     destinations.check(world["inputs"], [Destination(str(tmp_path / "E.CSV"), "OUTPUT", FILE, ("csv",))])
 
 
 def test_outputs_beside_inputs_and_a_folder_written_into_that_holds_them_pass(world, tmp_path):
     data = os.path.dirname(world["block"])
-    destinations.check(world["inputs"], [
-        Destination(os.path.join(data, "points.csv"), "OUTPUT (Point file)", FILE, ("csv",)),
-        Destination(data, "OUTPUT_FOLDER (Output folder)", INTO),       # fitrpc's files beside the block
-        Destination(str(tmp_path / "new" / "report.html"), "REPORT (Report)", FILE, ("html",))])
-    assert sorted(os.listdir(data)) == ["block.gpkg", "block.mass_points.h-1-0123abcd"]   # the probes are gone
+    destinations.check(
+        world["inputs"],
+        [
+            Destination(os.path.join(data, "points.csv"), "OUTPUT (Point file)", FILE, ("csv",)),
+            Destination(data, "OUTPUT_FOLDER (Output folder)", INTO),  # fitrpc's files beside the block
+            Destination(str(tmp_path / "new" / "report.html"), "REPORT (Report)", FILE, ("html",)),
+        ],
+    )
+    assert sorted(os.listdir(data)) == ["block.gpkg", "block.mass_points.h-1-0123abcd"]  # the probes are gone
 
 
 def test_the_files_of_a_dimap_image_include_its_metadata(small_scene):

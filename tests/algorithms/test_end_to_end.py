@@ -12,6 +12,7 @@ ground the error is the matched surface, not the orientation: the templates reac
 water beside the fields, and at this spacing the TIN's ramps between field and canopy points alone exceed
 the DEM target; in the fields' interior it is the matcher's along-track error through the HRS1-HRS2
 base. Figures and their breakdown: docs/validation.md#end-to-end."""
+
 import numpy as np
 import pytest
 from osgeo import gdal
@@ -46,12 +47,12 @@ from tests.helpers.ortho_oracle import geometric_error
 pytestmark = pytest.mark.slow
 
 CONFIG = SceneConfig(size_km=12.0, points=30, centre_lon=-84.2011, centre_lat=36.5543)
-POINT_TARGET = 0.7        # m, RMS of 3-ray points vs the true DSM on textured open classes
-POINT_BOUND = (2.4, 1.25)     # m, textured open / interior: target not met (docs/validation.md#end-to-end)
-DEM_TARGET = 1.0          # m, RMS of the 10 m DEM there
-DEM_BOUND = (2.9, 1.4)        # m, textured open / interior: target not met (docs/validation.md#end-to-end)
-ORTHO_TARGET = 0.3        # px, geometric error of the HRG orthoimage on open classes
-BLUNDER = 5.0             # m: |dh| beyond this is a blunder
+POINT_TARGET = 0.7  # m, RMS of 3-ray points vs the true DSM on textured open classes
+POINT_BOUND = (2.4, 1.25)  # m, textured open / interior: target not met (docs/validation.md#end-to-end)
+DEM_TARGET = 1.0  # m, RMS of the 10 m DEM there
+DEM_BOUND = (2.9, 1.4)  # m, textured open / interior: target not met (docs/validation.md#end-to-end)
+ORTHO_TARGET = 0.3  # px, geometric error of the HRG orthoimage on open classes
+BLUNDER = 5.0  # m: |dh| beyond this is a blunder
 OPEN, INNER = "textured open", "  interior"
 
 
@@ -73,9 +74,23 @@ def rows(chain, assessed, select=None):
 
 def report_table(figures, title, table):
     """Report a {label: Stats} table; returns it."""
-    figures.table(title, [{"class": label.strip(), "N": s.n, "mean": s.mean, "RMS": s.rms, "sigma": s.sigma,
-                           "NMAD": s.nmad, "<2 m %": s.shares[0], "2-5 m %": s.shares[1], ">5 m %": s.shares[2]}
-                          for label, s in table.items()])
+    figures.table(
+        title,
+        [
+            {
+                "class": label.strip(),
+                "N": s.n,
+                "mean": s.mean,
+                "RMS": s.rms,
+                "sigma": s.sigma,
+                "NMAD": s.nmad,
+                "<2 m %": s.shares[0],
+                "2-5 m %": s.shares[1],
+                ">5 m %": s.shares[2],
+            }
+            for label, s in table.items()
+        ],
+    )
     return table
 
 
@@ -84,13 +99,20 @@ def point_tables(chain, run, reference, figures):
     (three images), all two-ray points (HRS only)."""
     points = chain[run][reference][0]
     groups = ((3, "3 (3 rays)"), (2, ">= 2")) if run == "three images" else ((1, "1 (2 rays)"),)
-    return {g: report_table(figures, f"{run}: object points of group {text} vs the true {reference.upper()} (m)",
-                            rows(chain, points, points.differences.group >= g)) for g, text in groups}
+    return {
+        g: report_table(
+            figures,
+            f"{run}: object points of group {text} vs the true {reference.upper()} (m)",
+            rows(chain, points, points.differences.group >= g),
+        )
+        for g, text in groups
+    }
 
 
 def dem_table(chain, run, reference, figures):
-    return report_table(figures, f"{run}: 10 m DEM vs the true {reference.upper()} (m)",
-                        rows(chain, chain[run][reference][1]))
+    return report_table(
+        figures, f"{run}: 10 m DEM vs the true {reference.upper()} (m)", rows(chain, chain[run][reference][1])
+    )
 
 
 def group3_open(assessed):
@@ -140,8 +162,9 @@ def test_object_points_against_the_true_dsm_and_dtm(chain, figures):
     cls, inner = (gdal.Open(str(chain[k])).ReadAsArray() for k in ("classes", "interior"))
     assert cls.shape == inner.shape == z.shape
     floor = [float(np.sqrt(np.mean(rough[m] ** 2))) for m in (np.isin(cls, TEXTURED_OPEN), inner == INTERIOR)]
-    figures.report(f"relief inside a uniform {TEMPLATE_CELLS}-cell window (DSM minus its window mean), {OPEN}: RMS",
-                   floor[0], "m")
+    figures.report(
+        f"relief inside a uniform {TEMPLATE_CELLS}-cell window (DSM minus its window mean), {OPEN}: RMS", floor[0], "m"
+    )
     figures.report(f"relief inside a uniform {TEMPLATE_CELLS}-cell window, interior: RMS", floor[1], "m")
     # where the squared error is: by the points' distance from forest, city and water
     assessed = chain["three images"]["dsm"][0]
@@ -152,9 +175,17 @@ def test_object_points_against_the_true_dsm_and_dtm(chain, figures):
     share, by_distance = {}, []
     for lo, hi in ((0, 10), (10, 20), (20, 50), (50, 100), (100, np.inf)):
         m = (edge >= lo) & (edge < hi)
-        share[lo] = np.sum(dh[m] ** 2) / np.sum(dh ** 2)
-        by_distance.append({"m": f"{lo:g}-{hi:g}", "N": m.sum(), "share %": 100 * m.mean(), "mean": dh[m].mean(),
-                            "RMS": np.sqrt(np.mean(dh[m] ** 2)), "of dh^2 %": 100 * share[lo]})
+        share[lo] = np.sum(dh[m] ** 2) / np.sum(dh**2)
+        by_distance.append(
+            {
+                "m": f"{lo:g}-{hi:g}",
+                "N": m.sum(),
+                "share %": 100 * m.mean(),
+                "mean": dh[m].mean(),
+                "RMS": np.sqrt(np.mean(dh[m] ** 2)),
+                "of dh^2 %": 100 * share[lo],
+            }
+        )
     figures.table(f"group 3, {OPEN}, by distance from forest, city, water (m)", by_distance)
     assert share[0] > 0.5 and share[50] + share[100] < 0.1
 
@@ -178,37 +209,52 @@ def test_group3_height_error_is_the_matched_surface_not_the_orientation(chain, f
         assert np.array_equal(o["point_id"], ids)
         matched[image] = (o["col"], o["row"])
     lon, lat, h = truth[IDS["HRG"]].image_to_dem(*matched[IDS["HRG"]], dsm)
-    exact = {image: matched[image] if image == IDS["HRG"] else truth[image].ground_to_image(lon, lat, h)
-             for image in truth}
+    exact = {
+        image: matched[image] if image == IDS["HRG"] else truth[image].ground_to_image(lon, lat, h) for image in truth
+    }
     classes, interior = (ClassRaster(chain[k]).at_points(lon, lat, wgs84()) for k in ("classes", "interior"))
     where = {OPEN: np.isin(classes, TEXTURED_OPEN), INNER: interior == INTERIOR}
 
     def dh(models_, positions):
         image = np.repeat(list(positions), len(ids))
         col, row = (np.concatenate([positions[k][c] for k in positions]) for c in (0, 1))
-        r = intersection.intersect(models_, image, np.tile(ids, len(positions)), col, row,
-                                   h0=float(np.mean(h)))
+        r = intersection.intersect(models_, image, np.tile(ids, len(positions)), col, row, h0=float(np.mean(h)))
         out = np.full(len(ids), np.nan)
         pos = np.searchsorted(ids, r.point[r.ok])
         out[pos] = r.h[r.ok] - dsm.height(r.lon[r.ok], r.lat[r.ok])
         return out
 
-    parts = {"adjusted models, matched": dh(models, matched), "truth models, matched (matching)": dh(truth, matched),
-             "adjusted models, exact (orientation)": dh(models, exact), "truth models, exact": dh(truth, exact)}
+    parts = {
+        "adjusted models, matched": dh(models, matched),
+        "truth models, matched (matching)": dh(truth, matched),
+        "adjusted models, exact (orientation)": dh(models, exact),
+        "truth models, exact": dh(truth, exact),
+    }
     stats = {}
     for label, values in parts.items():
         stats[label] = {k: summarize(values[m & np.isfinite(values)]) for k, m in where.items()}
-    figures.table("group 3 height error vs the true DSM (m)", [
-        {"": label, **{f"{k.strip()} {q}": getattr(s, q.lower()) for k, s in by_class.items() for q in ("RMS", "mean")}}
-        for label, by_class in stats.items()])
+    figures.table(
+        "group 3 height error vs the true DSM (m)",
+        [
+            {
+                "": label,
+                **{f"{k.strip()} {q}": getattr(s, q.lower()) for k, s in by_class.items() for q in ("RMS", "mean")},
+            }
+            for label, by_class in stats.items()
+        ],
+    )
     for k, m in where.items():
-        figures.report(f"{k.strip()}: along-track (row) matching error RMS HRS1, HRS2",
-                       [np.sqrt(np.mean((matched[IDS[n]][1] - exact[IDS[n]][1])[m] ** 2)) for n in ("HRS1", "HRS2")],
-                       "px")
+        figures.report(
+            f"{k.strip()}: along-track (row) matching error RMS HRS1, HRS2",
+            [np.sqrt(np.mean((matched[IDS[n]][1] - exact[IDS[n]][1])[m] ** 2)) for n in ("HRS1", "HRS2")],
+            "px",
+        )
     assert stats["truth models, exact"][INNER].rms < 0.01 and stats["truth models, exact"][OPEN].rms < 0.01
-    assessed = chain["three images"]["dsm"][0]         # the same points, classed where they were intersected
-    assert abs(stats["adjusted models, matched"][OPEN].rms
-               - summarize(assessed.differences.dh[group3_open(assessed)]).rms) < 0.05
+    assessed = chain["three images"]["dsm"][0]  # the same points, classed where they were intersected
+    assert (
+        abs(stats["adjusted models, matched"][OPEN].rms - summarize(assessed.differences.dh[group3_open(assessed)]).rms)
+        < 0.05
+    )
     matching, orientation = stats["truth models, matched (matching)"], stats["adjusted models, exact (orientation)"]
     assert orientation[INNER].rms < 0.5 and matching[INNER].rms > 2.0 * orientation[INNER].rms
     assert orientation[OPEN].rms < 0.5 and matching[OPEN].rms > 4.0 * orientation[OPEN].rms
@@ -228,8 +274,10 @@ def test_dem_against_the_true_dsm_and_dtm(chain, tmp_path, figures):
     lon, lat = reproject(cloud.x, cloud.y, cloud.srs, wgs84())
     exact = PointSet(cloud.x, cloud.y, read_dem(chain["paths"]["dsm"]).height(lon, lat), cloud.srs)
     write_dem(interpolate_dem(exact, cell=DEM_CELL), tmp_path / "exact_heights_dem.tif")
-    floor = rows(chain, assess(chain["paths"]["dsm"], dem=tmp_path / "exact_heights_dem.tif",
-                               classes=ClassRaster(chain["classes"]))[0])
+    floor = rows(
+        chain,
+        assess(chain["paths"]["dsm"], dem=tmp_path / "exact_heights_dem.tif", classes=ClassRaster(chain["classes"]))[0],
+    )
     figures.report(f"DEM of the same points with their true heights, {OPEN}: RMS", floor[OPEN].rms, "m")
     figures.report("DEM of the same points with their true heights, interior: RMS", floor[INNER].rms, "m")
     assert dsm[OPEN].n > 10000 and floor[OPEN].n > 0.9 * dsm[OPEN].n
@@ -259,15 +307,23 @@ def test_low_texture_areas_are_gaps_not_blunders(chain, figures):
         cover = np.mean(np.isfinite(d.grid.values[area]))
         blunders = [np.mean(np.abs(a.differences.dh[a.classes == c]) > BLUNDER) for a in (points, dem)]
         found[c] = (density, cover, blunders[0], cover * blunders[1])
-        table.append({"class": name, "km2": area.sum() * cell_km2, "points/km2": density, "DEM cover %": 100 * cover,
-                      "points |dh|>5m %": 100 * blunders[0], "DEM |dh|>5m %": 100 * blunders[1],
-                      "area w/ DEM blunder %": 100 * cover * blunders[1]})
+        table.append(
+            {
+                "class": name,
+                "km2": area.sum() * cell_km2,
+                "points/km2": density,
+                "DEM cover %": 100 * cover,
+                "points |dh|>5m %": 100 * blunders[0],
+                "DEM |dh|>5m %": 100 * blunders[1],
+                "area w/ DEM blunder %": 100 * cover * blunders[1],
+            }
+        )
     figures.table("per class", table)
     open_density, open_cover, open_blunders, _ = np.mean([found[c] for c in TEXTURED_OPEN], axis=0)
     for c in (WATER, LOW_TEXTURE):
         density, cover, point_blunders, blunder_area = found[c]
-        assert density < 0.2 * open_density and cover < 0.2 * open_cover          # gaps
-        assert point_blunders < 1.2 * open_blunders and blunder_area < 0.01        # not blunders
+        assert density < 0.2 * open_density and cover < 0.2 * open_cover  # gaps
+        assert point_blunders < 1.2 * open_blunders and blunder_area < 0.01  # not blunders
 
 
 def test_hrs_only_against_three_images(chain, figures):
@@ -281,15 +337,29 @@ def test_hrs_only_against_three_images(chain, figures):
     tables = {}
     for reference in ("dtm", "dsm"):
         for run in ("three images", "HRS only"):
-            tables[run, reference] = (point_tables(chain, run, reference, figures),
-                                      dem_table(chain, run, reference, figures))
+            tables[run, reference] = (
+                point_tables(chain, run, reference, figures),
+                dem_table(chain, run, reference, figures),
+            )
     three, hrs = tables["three images", "dtm"], tables["HRS only", "dtm"]
-    pairs = {f"points, {OPEN} (group 3 / 2 rays)": (three[0][3][OPEN], hrs[0][1][OPEN]),
-             "points, interior": (three[0][3][INNER], hrs[0][1][INNER]),
-             f"DEM, {OPEN}": (three[1][OPEN], hrs[1][OPEN]), "DEM, interior": (three[1][INNER], hrs[1][INNER])}
-    figures.table("vs the true DTM, RMS (m)", [{"": label, "three images": a.rms, "HRS only": b.rms,
-                                                "HRS only - three images %": 100 * (b.rms / a.rms - 1)}
-                                               for label, (a, b) in pairs.items()])
+    pairs = {
+        f"points, {OPEN} (group 3 / 2 rays)": (three[0][3][OPEN], hrs[0][1][OPEN]),
+        "points, interior": (three[0][3][INNER], hrs[0][1][INNER]),
+        f"DEM, {OPEN}": (three[1][OPEN], hrs[1][OPEN]),
+        "DEM, interior": (three[1][INNER], hrs[1][INNER]),
+    }
+    figures.table(
+        "vs the true DTM, RMS (m)",
+        [
+            {
+                "": label,
+                "three images": a.rms,
+                "HRS only": b.rms,
+                "HRS only - three images %": 100 * (b.rms / a.rms - 1),
+            }
+            for label, (a, b) in pairs.items()
+        ],
+    )
     assert pairs["points, interior"][1].rms > pairs["points, interior"][0].rms
     assert pairs["DEM, interior"][1].rms > pairs["DEM, interior"][0].rms
 
@@ -299,7 +369,7 @@ def test_orthoimage_geometric_error(chain, figures):
     """Issue target: HRG orthoimage on the adjusted model and the produced DEM, geometric error vs the
     true orthoimage below 0.3 px on open classes."""
     shifts = geometric_error(chain["paths"], chain["ortho"].path, (BARE, CROPS))
-    rms = float(np.sqrt(np.mean(np.sum(shifts ** 2, axis=1))))
+    rms = float(np.sqrt(np.mean(np.sum(shifts**2, axis=1))))
     mean = shifts.mean(axis=0)
     figures.report("patches in the open classes", len(shifts))
     figures.report("shift against the true orthoimage, RMS", rms, "px", f"target < {ORTHO_TARGET} px")

@@ -1,4 +1,5 @@
 """geodesy.py's ECEF <-> geodetic conversions agree with PROJ (EPSG:4979 <-> EPSG:4978) to 1 mm."""
+
 import numpy as np
 import pytest
 from osgeo import osr
@@ -32,8 +33,7 @@ def angular_metres(lon, lat, lon2, lat2):
     metres = np.radians(1) * 6.4e6
     dlon = (lon2 - lon + 180) % 360 - 180
     away_from_poles = np.abs(lat) < 90
-    return (np.abs(dlon * np.cos(np.radians(lat)))[away_from_poles].max() * metres,
-            np.abs(lat2 - lat).max() * metres)
+    return (np.abs(dlon * np.cos(np.radians(lat)))[away_from_poles].max() * metres, np.abs(lat2 - lat).max() * metres)
 
 
 def test_ecef_to_geodetic_matches_proj_up_to_100_km():
@@ -70,6 +70,7 @@ def test_offset_enu_moves_points_by_the_given_local_metres():
     """The ECEF displacement of 10 m offsets, rotated into the local east/north/up frame, is the
     offset asked for, to 0.1 mm (first order in d / R)."""
     from pushbroom.algorithms.geodesy import geodetic_to_ecef, offset_enu
+
     lon, lat, h = np.array([-84.2, 5.3]), np.array([36.6, -45.0]), np.array([300.0, 10.0])
     d = np.array([[10.0, -7.0, 2.0], [-6.0, 9.0, -1.0]])
     moved = offset_enu(lon, lat, h, d)

@@ -1,4 +1,5 @@
 """Image interpolation kernels against scipy and plain numpy."""
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -17,8 +18,8 @@ def test_bilinear_against_scipy():
     for x, y in rng.uniform(0.5, [10.5, 8.5], (50, 2)):
         ref = ndimage.map_coordinates(img.astype(float), [[y - 0.5], [x - 0.5]], order=1)[0]
         assert interpolation.bilinear(img, x, y) == pytest.approx(ref, abs=1e-5)
-    assert interpolation.bilinear(img, 3.5, 4.5) == img[4, 3]          # pixel centre: exact value
-    assert np.isnan(interpolation.bilinear(img, 0.2, 4.0))             # outside the pixel-centre hull
+    assert interpolation.bilinear(img, 3.5, 4.5) == img[4, 3]  # pixel centre: exact value
+    assert np.isnan(interpolation.bilinear(img, 0.2, 4.0))  # outside the pixel-centre hull
 
 
 def test_cubic_against_numpy():

@@ -1,4 +1,5 @@
 """The one tiling (algorithms/tiling.py) against a plain numpy labelling of every pixel."""
+
 import numpy as np
 import pytest
 
@@ -14,7 +15,7 @@ def test_the_tiles_cover_every_pixel_once_row_by_row(size, tile):
     for k, (x0, y0, x1, y1) in enumerate(tile_grid(size, tile)):
         count[y0:y1, x0:x1] += 1
         label[y0:y1, x0:x1] = k
-    assert (count == 1).all()                                    # a partition of the raster
+    assert (count == 1).all()  # a partition of the raster
     # numpy reference: pixel (i, j) lies in tile (i // tile) * ceil(cols / tile) + j // tile
     ii, jj = np.mgrid[0:rows, 0:cols]
     assert (label == (ii // tile) * -(-cols // tile) + jj // tile).all()

@@ -10,6 +10,7 @@ starting values, residuals from the models' ground_to_image, the analytic sparse
 their `partials`, method="trf" with tr_solver="lsmr", timed from the start points to the solution
 (no statistics). Both: best of REPEAT runs (one run for the largest N). Differences: orientation
 unknowns over `adjust`'s sigmas and in microrad, points in metres."""
+
 import os
 import pathlib
 import tempfile
@@ -103,20 +104,31 @@ def run():
     with tempfile.TemporaryDirectory() as folder:
         paths = simulate_scene(SceneConfig.small(size_km=10.0, points=30, error_scale=0.0), pathlib.Path(folder) / "s")
         warm_up = problem(paths, 200)
-        height = float(np.nanmean(warm_up.points["h"]))     # of the control points: the tie points' start
-        adjust(supplied_models(paths), warm_up, FREE, names=LABELS, height=height)     # numba cache load
+        height = float(np.nanmean(warm_up.points["h"]))  # of the control points: the tie points' start
+        adjust(supplied_models(paths), warm_up, FREE, names=LABELS, height=height)  # numba cache load
         for n in SIZES:
             obs = problem(paths, n)
             repeat = REPEAT if n < max(SIZES) else 1
             seconds, ours = time_adjust(paths, obs, height, repeat)
             peer, x, lon, lat, h, result = time_scipy(paths, obs, height, repeat)
             rel, urad, metres = differences(ours, x, lon, lat, h)
-            rows.append({"tie points": n, "measurements": len(ours.observations.measurements),
-                         "iterations": ours.iterations, "sigma_0": ours.sigma0, "adjust s": seconds,
-                         "s per 1000 points": 1000.0 * seconds / n, "scipy s": peer, "scipy / adjust": peer / seconds,
-                         "scipy f, J evaluations": f"{result.nfev}, {result.njev}", "max d orientation / sigma": rel,
-                         "max d orientation urad": urad, "max d point m": metres,
-                         "load average": os.getloadavg()[0]})
+            rows.append(
+                {
+                    "tie points": n,
+                    "measurements": len(ours.observations.measurements),
+                    "iterations": ours.iterations,
+                    "sigma_0": ours.sigma0,
+                    "adjust s": seconds,
+                    "s per 1000 points": 1000.0 * seconds / n,
+                    "scipy s": peer,
+                    "scipy / adjust": peer / seconds,
+                    "scipy f, J evaluations": f"{result.nfev}, {result.njev}",
+                    "max d orientation / sigma": rel,
+                    "max d orientation urad": urad,
+                    "max d point m": metres,
+                    "load average": os.getloadavg()[0],
+                }
+            )
             print(rows[-1], flush=True)
     return rows
 

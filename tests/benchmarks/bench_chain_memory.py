@@ -27,6 +27,7 @@ every execution on the three scenes, then `workers` and `dense` with threads.
 
     python -m tests.benchmarks.bench_chain_memory [SIZE_KM ...] [threads|processes|dask ...] [raster|workers|dense]
 """
+
 import contextlib
 import csv
 import pathlib
@@ -49,8 +50,8 @@ from tests.helpers.qgis_process_profile import QGIS_PROCESS, qgis_process_env
 SIZES = (15.0, 30.0, 60.0)
 WORKERS = 2
 SAMPLE_S = 0.1
-CONTROL = 19          # the first 19 points control, the rest check (as make demo)
-TILED = ("matchpoints", "intersectpoints", "interpolatedem", "orthorectify")   # the surface chain's tiled steps
+CONTROL = 19  # the first 19 points control, the rest check (as make demo)
+TILED = ("matchpoints", "intersectpoints", "interpolatedem", "orthorectify")  # the surface chain's tiled steps
 CLASSES = ("bare fields", "grass/crops", "forest", "city/buildings", "water")
 
 
@@ -96,34 +97,97 @@ def chain(folder, out, execution, env, step=5, cell=10, workers=WORKERS):
     with open(folder / "points.csv", newline="") as f:
         check = ",".join(r["id"] for r in list(csv.DictReader(f))[CONTROL:])
     images = [f"IMAGES={folder / n / 'IMAGERY.TIF'}" for n in ("HRG", "HRS1", "HRS2")]
-    steps = [("createblock", ["pushbroom:createblock", "--", *images, f"DEM={dsm}", f"OUTPUT={block}"]),
-             ("matchpoints", ["pushbroom:matchpoints", "--", f"BLOCK={block}", f"STEP={step}", "MPGC_SUPPORT=true",
-                              *workers]),
-             ("selecttiepoints", ["pushbroom:selecttiepoints", "--", f"BLOCK={block}"]),
-             ("importpoints", ["pushbroom:importpoints", "--", f"BLOCK={block}", f"INPUT={folder / 'points.csv'}",
-                               f"CHECK_IDS={check}", "MEAS_SUFFIX=_meas"]),
-             ("bundleadjust", ["pushbroom:bundleadjust", "--", f"BLOCK={block}", "FREE=auto", f"REFERENCE_DEM={dsm}",
-                               f"REPORT={out / 'adjustment.html'}"]),
-             ("intersectpoints", ["pushbroom:intersectpoints", "--", f"BLOCK={block}", "POINTS=0", *workers,
-                                  f"OUTPUT={out / 'points.las'}"]),
-             ("interpolatedem", ["pushbroom:interpolatedem", "--", f"INPUT={out / 'points.las'}", f"CELL={cell}",
-                                 *workers, f"OUTPUT={out / 'dem.tif'}"]),
-             ("orthorectify", ["pushbroom:orthorectify", "--", f"BLOCK={block}", "IMAGE_NAME=HRG",
-                               f"DEM={out / 'dem.tif'}", *workers, f"OUTPUT={out / 'ortho.tif'}"]),
-             ("assessaccuracy", ["pushbroom:assessaccuracy", "--", f"REFERENCE={dsm}", f"POINTS={out / 'points.las'}",
-                                 f"DEM={out / 'dem.tif'}", f"CLASS_RASTER={folder / 'classes.tif'}",
-                                 f"REPORT={out / 'report.html'}", f"TABLE={out / 'accuracy.csv'}",
-                                 f"DH={out / 'dh.tif'}"])]
+    steps = [
+        ("createblock", ["pushbroom:createblock", "--", *images, f"DEM={dsm}", f"OUTPUT={block}"]),
+        (
+            "matchpoints",
+            ["pushbroom:matchpoints", "--", f"BLOCK={block}", f"STEP={step}", "MPGC_SUPPORT=true", *workers],
+        ),
+        ("selecttiepoints", ["pushbroom:selecttiepoints", "--", f"BLOCK={block}"]),
+        (
+            "importpoints",
+            [
+                "pushbroom:importpoints",
+                "--",
+                f"BLOCK={block}",
+                f"INPUT={folder / 'points.csv'}",
+                f"CHECK_IDS={check}",
+                "MEAS_SUFFIX=_meas",
+            ],
+        ),
+        (
+            "bundleadjust",
+            [
+                "pushbroom:bundleadjust",
+                "--",
+                f"BLOCK={block}",
+                "FREE=auto",
+                f"REFERENCE_DEM={dsm}",
+                f"REPORT={out / 'adjustment.html'}",
+            ],
+        ),
+        (
+            "intersectpoints",
+            ["pushbroom:intersectpoints", "--", f"BLOCK={block}", "POINTS=0", *workers, f"OUTPUT={out / 'points.las'}"],
+        ),
+        (
+            "interpolatedem",
+            [
+                "pushbroom:interpolatedem",
+                "--",
+                f"INPUT={out / 'points.las'}",
+                f"CELL={cell}",
+                *workers,
+                f"OUTPUT={out / 'dem.tif'}",
+            ],
+        ),
+        (
+            "orthorectify",
+            [
+                "pushbroom:orthorectify",
+                "--",
+                f"BLOCK={block}",
+                "IMAGE_NAME=HRG",
+                f"DEM={out / 'dem.tif'}",
+                *workers,
+                f"OUTPUT={out / 'ortho.tif'}",
+            ],
+        ),
+        (
+            "assessaccuracy",
+            [
+                "pushbroom:assessaccuracy",
+                "--",
+                f"REFERENCE={dsm}",
+                f"POINTS={out / 'points.las'}",
+                f"DEM={out / 'dem.tif'}",
+                f"CLASS_RASTER={folder / 'classes.tif'}",
+                f"REPORT={out / 'report.html'}",
+                f"TABLE={out / 'accuracy.csv'}",
+                f"DH={out / 'dh.tif'}",
+            ],
+        ),
+    ]
     rows = []
     for name, args in steps:
         seconds, peak, processes, output = measured(run + args, env)
         print(f"  {name}: {seconds:.1f} s, {peak:.0f} MB", flush=True)
         count = [line.split()[-1] for line in output.splitlines() if line.startswith("COUNT:")]
-        rows.append({"step": name, "points": count[0] if count else "", "seconds": seconds, "peak MB": peak,
-                     "processes": processes})
+        rows.append(
+            {
+                "step": name,
+                "points": count[0] if count else "",
+                "seconds": seconds,
+                "peak MB": peak,
+                "processes": processes,
+            }
+        )
     with open(out / "accuracy.csv", newline="") as f:
-        accuracy = {r["label"]: (float(r["rms"]), float(r["nmad"])) for r in csv.DictReader(f)
-                    if r["data"] == "DEM cells" and r["table"] == "per class"}
+        accuracy = {
+            r["label"]: (float(r["rms"]), float(r["nmad"]))
+            for r in csv.DictReader(f)
+            if r["data"] == "DEM cells" and r["table"] == "per class"
+        }
     return rows, accuracy
 
 
@@ -135,25 +199,48 @@ def dem_agreement(points, dem, execution, env, out, tile=1024):
     runs = [(other, f"TILE={tile}") for other in BACKENDS if other != execution] + [(execution, "TILE=100000")]
     for other, tiling in runs:
         path = out / f"dem-{other}-{tiling.lower().replace('=', '')}.tif"
-        seconds, peak, processes, _ = measured([QGIS_PROCESS, "run", "pushbroom:interpolatedem", "--",
-                                                f"INPUT={points}", "CELL=10", f"EXECUTION={BACKENDS.index(other)}",
-                                                f"WORKERS={WORKERS}", tiling, f"OUTPUT={path}"], env)
+        seconds, peak, processes, _ = measured(
+            [
+                QGIS_PROCESS,
+                "run",
+                "pushbroom:interpolatedem",
+                "--",
+                f"INPUT={points}",
+                "CELL=10",
+                f"EXECUTION={BACKENDS.index(other)}",
+                f"WORKERS={WORKERS}",
+                tiling,
+                f"OUTPUT={path}",
+            ],
+            env,
+        )
         values = read_raster(path)[0]
         both = np.isfinite(values) & np.isfinite(reference)
         dh = np.abs(values - reference)[both]
         changed = float(np.mean(np.isfinite(values) != np.isfinite(reference)))
         if tiling == f"TILE={tile}":
-            text = (f"{other} vs {execution}: cells defined differ {100 * changed:.4f} %, largest |dh| "
-                    f"{dh.max():.3g} m")
+            text = f"{other} vs {execution}: cells defined differ {100 * changed:.4f} %, largest |dh| {dh.max():.3g} m"
         else:
             index = np.indices(values.shape)
-            near = ((np.minimum(index[0] % tile, tile - 1 - index[0] % tile) < 3)
-                    | (np.minimum(index[1] % tile, tile - 1 - index[1] % tile) < 3))[both]
-            text = (f"1 tile vs tiles of {tile}: cells defined differ {100 * changed:.4f} %, median |dh| "
-                    f"{np.median(dh):.3g} m, p99 |dh| along the tile borders {np.percentile(dh[near], 99):.3g} m, "
-                    f"away from them {np.percentile(dh[~near], 99):.3g} m")
-        rows.append({"execution": other, "step": f"interpolatedem, {tiling}", "points": text, "seconds": seconds,
-                     "peak MB": peak, "processes": processes})
+            near = (
+                (np.minimum(index[0] % tile, tile - 1 - index[0] % tile) < 3)
+                | (np.minimum(index[1] % tile, tile - 1 - index[1] % tile) < 3)
+            )[both]
+            text = (
+                f"1 tile vs tiles of {tile}: cells defined differ {100 * changed:.4f} %, median |dh| "
+                f"{np.median(dh):.3g} m, p99 |dh| along the tile borders {np.percentile(dh[near], 99):.3g} m, "
+                f"away from them {np.percentile(dh[~near], 99):.3g} m"
+            )
+        rows.append(
+            {
+                "execution": other,
+                "step": f"interpolatedem, {tiling}",
+                "points": text,
+                "seconds": seconds,
+                "peak MB": peak,
+                "processes": processes,
+            }
+        )
     return rows
 
 
@@ -169,27 +256,64 @@ def raster_steps(sizes=SIZES, execution="threads"):
             with open(folder / "points.csv", newline="") as f:
                 check = ",".join(r["id"] for r in list(csv.DictReader(f))[CONTROL:])
             images = [f"IMAGES={folder / n / 'IMAGERY.TIF'}" for n in ("HRG", "HRS1", "HRS2")]
-            steps = [("createblock", ["pushbroom:createblock", "--", *images, f"DEM={dsm}", f"OUTPUT={block}"]),
-                     ("importpoints", ["pushbroom:importpoints", "--", f"BLOCK={block}",
-                                       f"INPUT={folder / 'points.csv'}", f"CHECK_IDS={check}", "MEAS_SUFFIX=_meas"]),
-                     ("bundleadjust, control points", ["pushbroom:bundleadjust", "--", f"BLOCK={block}",
-                                                       "USE_TIE_POINTS=false", f"REFERENCE_DEM={dsm}"]),
-                     ("orthorectify on the true DSM", ["pushbroom:orthorectify", "--", f"BLOCK={block}",
-                                                       "IMAGE_NAME=HRG", f"DEM={dsm}",
-                                                       f"EXECUTION={BACKENDS.index(execution)}", f"WORKERS={WORKERS}",
-                                                       f"OUTPUT={out / f'ortho-{size:g}.tif'}"])]
+            steps = [
+                ("createblock", ["pushbroom:createblock", "--", *images, f"DEM={dsm}", f"OUTPUT={block}"]),
+                (
+                    "importpoints",
+                    [
+                        "pushbroom:importpoints",
+                        "--",
+                        f"BLOCK={block}",
+                        f"INPUT={folder / 'points.csv'}",
+                        f"CHECK_IDS={check}",
+                        "MEAS_SUFFIX=_meas",
+                    ],
+                ),
+                (
+                    "bundleadjust, control points",
+                    ["pushbroom:bundleadjust", "--", f"BLOCK={block}", "USE_TIE_POINTS=false", f"REFERENCE_DEM={dsm}"],
+                ),
+                (
+                    "orthorectify on the true DSM",
+                    [
+                        "pushbroom:orthorectify",
+                        "--",
+                        f"BLOCK={block}",
+                        "IMAGE_NAME=HRG",
+                        f"DEM={dsm}",
+                        f"EXECUTION={BACKENDS.index(execution)}",
+                        f"WORKERS={WORKERS}",
+                        f"OUTPUT={out / f'ortho-{size:g}.tif'}",
+                    ],
+                ),
+            ]
             for name, args in steps:
                 seconds, peak, processes, _ = measured(run + args, env)
                 print(f"  {size:g} km {name}: {seconds:.1f} s, {peak:.0f} MB", flush=True)
-                rows.append({"scene km": size, "execution": execution, "step": name, "seconds": seconds,
-                             "peak MB": peak, "processes": processes})
+                rows.append(
+                    {
+                        "scene km": size,
+                        "execution": execution,
+                        "step": name,
+                        "seconds": seconds,
+                        "peak MB": peak,
+                        "processes": processes,
+                    }
+                )
     for name in dict.fromkeys(r["step"] for r in rows):
         peaks = [r["peak MB"] for r in rows if r["step"] == name]
-        rows.append({"scene km": " -> ".join(f"{s:g}" for s in sizes), "execution": execution,
-                     "step": f"{name}: peak MB", "peak MB": " / ".join(f"{p:.0f}" for p in peaks),
-                     "seconds": f"growth {100.0 * (peaks[-1] / peaks[0] - 1.0):.1f} %"})
-    return [{k: r.get(k, "") for k in ("scene km", "execution", "step", "seconds", "peak MB", "processes")}
-            for r in rows]
+        rows.append(
+            {
+                "scene km": " -> ".join(f"{s:g}" for s in sizes),
+                "execution": execution,
+                "step": f"{name}: peak MB",
+                "peak MB": " / ".join(f"{p:.0f}" for p in peaks),
+                "seconds": f"growth {100.0 * (peaks[-1] / peaks[0] - 1.0):.1f} %",
+            }
+        )
+    return [
+        {k: r.get(k, "") for k in ("scene km", "execution", "step", "seconds", "peak MB", "processes")} for r in rows
+    ]
 
 
 def _chain_rows(size, execution, env, label="", agreement=False, **settings):
@@ -204,14 +328,28 @@ def _chain_rows(size, execution, env, label="", agreement=False, **settings):
     print(f"{size:g} km, {name}:", flush=True)
     steps, accuracy = chain(folder, out, execution, env, **settings)
     rows = [{"scene km": size, "HRG px": f"{cols} x {cols}", "execution": name, **row} for row in steps]
-    rows.append({"scene km": size, "execution": name, "step": "total", "seconds": sum(r["seconds"] for r in steps),
-                 "peak MB": max(r["peak MB"] for r in steps)})
-    rows.append({"scene km": size, "execution": name, "step": "DEM - true DSM, RMS / NMAD (m)",
-                 "points": "; ".join(f"{c} {accuracy[c][0]:.2f} / {accuracy[c][1]:.2f}" for c in CLASSES
-                                     if c in accuracy)})
+    rows.append(
+        {
+            "scene km": size,
+            "execution": name,
+            "step": "total",
+            "seconds": sum(r["seconds"] for r in steps),
+            "peak MB": max(r["peak MB"] for r in steps),
+        }
+    )
+    rows.append(
+        {
+            "scene km": size,
+            "execution": name,
+            "step": "DEM - true DSM, RMS / NMAD (m)",
+            "points": "; ".join(f"{c} {accuracy[c][0]:.2f} / {accuracy[c][1]:.2f}" for c in CLASSES if c in accuracy),
+        }
+    )
     if agreement:
-        rows += [{"scene km": size, "check": True, **row}
-                 for row in dem_agreement(out / "points.las", out / "dem.tif", execution, env, out)]
+        rows += [
+            {"scene km": size, "check": True, **row}
+            for row in dem_agreement(out / "points.las", out / "dem.tif", execution, env, out)
+        ]
     shutil.rmtree(out)
     return rows
 
@@ -221,9 +359,16 @@ def workers_speed(size=15.0, execution="threads"):
     speed-up."""
     with profile_env() as env:
         rows = {n: _chain_rows(size, execution, env, f"{n} worker{'s' * (n > 1)}", workers=n) for n in (1, 2)}
-    speed = [{"scene km": size, "execution": execution, "step": f"{a['step']}: 1 / 2 workers",
-              "seconds": f"x {a['seconds'] / b['seconds']:.2f}"}
-             for a, b in zip(rows[1], rows[2]) if isinstance(a.get("seconds"), float)]
+    speed = [
+        {
+            "scene km": size,
+            "execution": execution,
+            "step": f"{a['step']}: 1 / 2 workers",
+            "seconds": f"x {a['seconds'] / b['seconds']:.2f}",
+        }
+        for a, b in zip(rows[1], rows[2])
+        if isinstance(a.get("seconds"), float)
+    ]
     return _columns(rows[1] + rows[2] + speed)
 
 
@@ -235,8 +380,13 @@ def dense_window(size=20.0, execution="threads"):
 
 
 def _columns(rows):
-    return [{k: r.get(k, "") for k in ("scene km", "HRG px", "execution", "step", "points", "seconds", "peak MB",
-                                        "processes")} for r in rows]
+    return [
+        {
+            k: r.get(k, "")
+            for k in ("scene km", "HRG px", "execution", "step", "points", "seconds", "peak MB", "processes")
+        }
+        for r in rows
+    ]
 
 
 def run(sizes=SIZES, executions=BACKENDS):
@@ -252,18 +402,33 @@ def _run(sizes, executions, env):
             rows += _chain_rows(size, execution, env, agreement=size == max(sizes) and execution == executions[0])
     for execution in executions:
         for label, names in (("tiled steps", TILED), ("all steps", None)):
-            peaks = [max(r["peak MB"] for r in rows if r["scene km"] == size and r["execution"] == execution
-                         and isinstance(r.get("peak MB"), float) and not r.get("check")
-                         and (names is None or r["step"] in names))
-                     for size in sizes]
-            rows.append({"scene km": " -> ".join(f"{s:g}" for s in sizes), "execution": execution,
-                         "step": f"largest peak MB, {label}", "peak MB": " / ".join(f"{p:.0f}" for p in peaks),
-                         "seconds": f"growth {100.0 * (peaks[-1] / peaks[0] - 1.0):.1f} %"})
+            peaks = [
+                max(
+                    r["peak MB"]
+                    for r in rows
+                    if r["scene km"] == size
+                    and r["execution"] == execution
+                    and isinstance(r.get("peak MB"), float)
+                    and not r.get("check")
+                    and (names is None or r["step"] in names)
+                )
+                for size in sizes
+            ]
+            rows.append(
+                {
+                    "scene km": " -> ".join(f"{s:g}" for s in sizes),
+                    "execution": execution,
+                    "step": f"largest peak MB, {label}",
+                    "peak MB": " / ".join(f"{p:.0f}" for p in peaks),
+                    "seconds": f"growth {100.0 * (peaks[-1] / peaks[0] - 1.0):.1f} %",
+                }
+            )
     return _columns(rows)
 
 
 if __name__ == "__main__":
     from tests.benchmarks.run_all import markdown_table
+
     modes = {"raster", "workers", "dense"}
     sizes = tuple(float(a) for a in sys.argv[1:] if a not in BACKENDS and a not in modes)
     executions = tuple(a for a in sys.argv[1:] if a in BACKENDS) or BACKENDS

@@ -6,6 +6,7 @@ and without) on the same images in the same run. Scene: the 10 km triplet
 Supplied models, bench_region_growing's height range; after a warm-up of both matchers on the 3 km scene (JIT).
 Then tiles: the 20 km demo scene whole (one 4000 px tile) and in tiles of TILES px, each run in its own
 process: points, seconds and peak resident memory (memory bounded by the tile, not the scene)."""
+
 import json
 import subprocess
 import sys
@@ -23,7 +24,7 @@ from tests.benchmarks.bench_region_growing import HEIGHT_RANGE, scene
 NAMES = ("HRG", "HRS1", "HRS2")
 SIZE_KM = 10.0
 WORKERS = 2
-TILES = (4096, 2048, 1024)     # 4096: the 20 km scene's 4000 px images whole
+TILES = (4096, 2048, 1024)  # 4096: the 20 km scene's 4000 px images whole
 CHILD = f"""
 import json, sys, time
 from pushbroom.algorithms import sensors
@@ -43,15 +44,18 @@ print(json.dumps({{"points": len(points), "three": points.stats["group3"], "seco
 
 def both(images, models, height_range):
     """{matcher: (MultiPoints, seconds)} of the matchers on the same images."""
+
     def region_growing(refine):
-        return lambda: match_block(images, models, names=NAMES, params=GrowParams(), height_range=height_range,
-                                   workers=WORKERS, refine=refine)
+        return lambda: match_block(
+            images, models, names=NAMES, params=GrowParams(), height_range=height_range, workers=WORKERS, refine=refine
+        )
 
     out = {}
-    for label, match in (("coarse-to-fine", lambda: match_coarse_to_fine(images, models, names=NAMES,
-                                                                       height_range=height_range)),
-                         ("region growing + MPGC refinement", region_growing(True)),
-                         ("region growing", region_growing(False))):
+    for label, match in (
+        ("coarse-to-fine", lambda: match_coarse_to_fine(images, models, names=NAMES, height_range=height_range)),
+        ("region growing + MPGC refinement", region_growing(True)),
+        ("region growing", region_growing(False)),
+    ):
         start = time.perf_counter()
         points = match()
         out[label] = points, time.perf_counter() - start
@@ -60,13 +64,21 @@ def both(images, models, height_range):
 
 def inputs(folder):
     """Images and supplied models of a simulated triplet's folder."""
-    return [Image(f"{folder}/{n}/IMAGERY.TIF") for n in NAMES], [sensors.load(f"{folder}/{n}/METADATA.DIM")
-                                                                  for n in NAMES]
+    return [Image(f"{folder}/{n}/IMAGERY.TIF") for n in NAMES], [
+        sensors.load(f"{folder}/{n}/METADATA.DIM") for n in NAMES
+    ]
 
 
 def row(matcher, step, points, seconds, three="", peak=""):
-    return {"matcher": matcher, "step": step, "points": points, "three-ray points": three, "seconds": seconds,
-            "points/s": points / seconds if points else "", "peak MiB": peak}
+    return {
+        "matcher": matcher,
+        "step": step,
+        "points": points,
+        "three-ray points": three,
+        "seconds": seconds,
+        "points/s": points / seconds if points else "",
+        "peak MiB": peak,
+    }
 
 
 def run():
@@ -94,11 +106,20 @@ def run():
         if proc.returncode != 0:
             raise RuntimeError(proc.stderr[-2000:])
         r = json.loads(proc.stdout.strip().splitlines()[-1])
-        rows.append(row(f"coarse-to-fine, 20 km scene, tile {tile} px ({r['tiles']} tiles)", "total", r["points"],
-                        r["seconds"], r["three"], r["peak_mib"]))
+        rows.append(
+            row(
+                f"coarse-to-fine, 20 km scene, tile {tile} px ({r['tiles']} tiles)",
+                "total",
+                r["points"],
+                r["seconds"],
+                r["three"],
+                r["peak_mib"],
+            )
+        )
     return rows
 
 
 if __name__ == "__main__":
     from tests.benchmarks.run_all import markdown_table
+
     print(markdown_table(run()))

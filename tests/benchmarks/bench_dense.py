@@ -5,6 +5,7 @@ disparity range the tile's seeds narrow it to, as pair_tile.match_pair_tile does
 matched pixel (per node tried), triangulation (per point) and the per-cell rasterization at 0.5 m with the DEM
 step's default radius (per point).
 Best of three after a warm-up."""
+
 import numpy as np
 
 from pushbroom.algorithms import sensors
@@ -45,44 +46,97 @@ def run():
         def resample():
             grid = epipolar_grid(models[0], models[1], BOX, HEIGHTS, step=params.grid_step, margin=margin)
             return grid, epipolar_image(a1, grid.p, grid.step), epipolar_image(a2, grid.q, grid.step)
+
         grid, epi1, epi2 = resample()
         pixels = epi1.size
-        rows.append({"stage": "epipolar resampling (grid, 2 images)", "items": pixels,
-                     "per second": pixels / best_time(resample), "unit": "epipolar px"})
+        rows.append(
+            {
+                "stage": "epipolar resampling (grid, 2 images)",
+                "items": pixels,
+                "per second": pixels / best_time(resample),
+                "unit": "epipolar px",
+            }
+        )
         x1, y1, x2, y2, info = match_pair_tile(images[0], images[1], models[0], models[1], BOX, HEIGHTS, params)
         d_range = info["d_range"]
         seconds = best_time(lambda: disparity(epi1, epi2, d_range, params.sgm))
-        rows.append({"stage": f"census + SGM + WTA + LR check ({d_range[1] - d_range[0] + 1} disparities)",
-                     "items": pixels, "per second": pixels / seconds, "unit": "epipolar px"})
+        rows.append(
+            {
+                "stage": f"census + SGM + WTA + LR check ({d_range[1] - d_range[0] + 1} disparities)",
+                "items": pixels,
+                "per second": pixels / seconds,
+                "unit": "epipolar px",
+            }
+        )
         ok = np.isfinite(x2)
         x1, y1, x2, y2 = x1[ok], y1[ok], x2[ok], y2[ok]
-        refined = refine_positions(images[0], images[1], models[0], models[1], x1, y1, x2, y2,
-                                   info["grid"].heights[::2], params.template, params.max_shift, params.robust)
-        seconds = best_time(lambda: refine_positions(images[0], images[1], models[0], models[1], x1, y1, x2, y2,
-                                                     info["grid"].heights[::2], params.template, params.max_shift,
-                                                     params.robust))
+        refined = refine_positions(
+            images[0],
+            images[1],
+            models[0],
+            models[1],
+            x1,
+            y1,
+            x2,
+            y2,
+            info["grid"].heights[::2],
+            params.template,
+            params.max_shift,
+            params.robust,
+        )
+        seconds = best_time(
+            lambda: refine_positions(
+                images[0],
+                images[1],
+                models[0],
+                models[1],
+                x1,
+                y1,
+                x2,
+                y2,
+                info["grid"].heights[::2],
+                params.template,
+                params.max_shift,
+                params.robust,
+            )
+        )
         kind = "robust" if params.robust else "plain"
-        rows.append({"stage": f"LSM refinement, {kind} ({100 * np.isfinite(refined[2]).mean():.0f} % accepted)",
-                     "items": x1.size, "per second": x1.size / seconds, "unit": "nodes"})
+        rows.append(
+            {
+                "stage": f"LSM refinement, {kind} ({100 * np.isfinite(refined[2]).mean():.0f} % accepted)",
+                "items": x1.size,
+                "per second": x1.size / seconds,
+                "unit": "nodes",
+            }
+        )
         n = x1.size
         rx, ry = refined[0], refined[1]
 
         def triangulate():
             return intersection.intersect_measured(models[:2], [x1, rx], [y1, ry])
+
         result = triangulate()
-        rows.append({"stage": "triangulation (2 rays)", "items": n, "per second": n / best_time(triangulate),
-                     "unit": "points"})
+        rows.append(
+            {"stage": "triangulation (2 rays)", "items": n, "per second": n / best_time(triangulate), "unit": "points"}
+        )
         good = result.ok
         srs = output_srs(None, result.lon[good], result.lat[good])
         x, y = reproject(result.lon[good], result.lat[good], wgs84(), srs)
         grid = Grid.covering(x, y, 0.5)
         radius = DemParams().radius
         seconds = best_time(lambda: cells_on_grid(x, y, result.h[good], None, grid, radius=radius))
-        rows.append({"stage": f"per-cell rasterization (0.5 m, radius {radius})", "items": int(good.sum()),
-                     "per second": good.sum() / seconds, "unit": "points"})
+        rows.append(
+            {
+                "stage": f"per-cell rasterization (0.5 m, radius {radius})",
+                "items": int(good.sum()),
+                "per second": good.sum() / seconds,
+                "unit": "points",
+            }
+        )
     return rows
 
 
 if __name__ == "__main__":
     from tests.benchmarks.run_all import markdown_table
+
     print(markdown_table(run()))

@@ -1,6 +1,7 @@
 """ImageView (issue 6) on a 20000 x 20000 8-bit tiled DEFLATE image at 1280 x 800, offscreen: redraw times
 (repaint + processEvents after each step) and the process's peak memory (VmHWM, bound 1 GB = 954 MiB), first
 without overviews (GDAL decimated reads), then with external AVERAGE overviews 2-64 from build_overviews."""
+
 import pathlib
 import tempfile
 import time

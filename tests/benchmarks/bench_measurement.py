@@ -4,6 +4,7 @@ Single edits of a block holding 500 control/check points with 1500 image measure
 (MeasurementStore; each edit one committed SQLite transaction), loading them, and the least-squares
 transfer of one click into the other two images of the simulated SPOT 5 triplet with markers (per
 click; median over its points after a warm-up click)."""
+
 import csv
 import pathlib
 import tempfile
@@ -30,8 +31,9 @@ def _median_ms(function, repeat=REPEAT):
 
 def _store_rows(store):
     edits = {
-        "put_point (edit an existing point)": lambda k: store.put_point("B250", "control", -84.19, 36.61, 300.0 + k,
-                                                                       2.5, 2.5, 2.2),
+        "put_point (edit an existing point)": lambda k: store.put_point(
+            "B250", "control", -84.19, 36.61, 300.0 + k, 2.5, 2.5, 2.2
+        ),
         "put_point (new point)": lambda k: store.put_point(f"N{k}", "check", -84.19, 36.61, 300.0, 2.5, 2.5, 2.2),
         "put_measurement (move)": lambda k: store.put_measurement("B250", 2, 120.0 + 0.01 * k, 200.0),
         "put_measurement (new)": lambda k: store.put_measurement(f"N{k}", 1, 100.0, 200.0),
@@ -45,8 +47,14 @@ def _store_rows(store):
         rows.append({"step": name, "points": POINTS, "median ms": median, "max ms": worst})
     start = time.perf_counter()
     obs = store.load()
-    rows.append({"step": f"load() ({len(obs.measurements)} measurements)", "points": len(obs.points),
-                 "median ms": 1000.0 * (time.perf_counter() - start), "max ms": float("nan")})
+    rows.append(
+        {
+            "step": f"load() ({len(obs.measurements)} measurements)",
+            "points": len(obs.points),
+            "median ms": 1000.0 * (time.perf_counter() - start),
+            "max ms": float("nan"),
+        }
+    )
     return rows
 
 
@@ -69,15 +77,22 @@ def run():
         with open(paths["points"], newline="") as f:
             points = list(csv.DictReader(f))
         for source, how in (("HRG", "point height"), ("HRS1", "point height"), ("HRG", "height range +-500 m")):
+
             def click(k):
                 r = points[k % len(points)]
                 h = float(r["h"]) if how == "point height" else (float(r["h"]) - 500.0, float(r["h"]) + 500.0)
-                return transfer(images, models, source, float(r[f"{source}_col"]), float(r[f"{source}_row"]),
-                                height=h)
+                return transfer(images, models, source, float(r[f"{source}_col"]), float(r[f"{source}_row"]), height=h)
+
             click(0)
             median, worst = _median_ms(click, len(points))
-            rows.append({"step": f"transfer {source} -> other two images ({how})", "points": len(points),
-                         "median ms": median, "max ms": worst})
+            rows.append(
+                {
+                    "step": f"transfer {source} -> other two images ({how})",
+                    "points": len(points),
+                    "median ms": median,
+                    "max ms": worst,
+                }
+            )
     return rows
 
 

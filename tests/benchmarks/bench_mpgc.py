@@ -2,6 +2,7 @@
 triplet with the truth models, HRG template centres on a 10 px lattice, approximations 10-20 m off
 along the HRG ray; points/s with 1 and 2 threads (numba.set_num_threads), against pairwise LSM into
 both HRS images from the same approximations. Best of three after JIT warm-up."""
+
 import tempfile
 
 import numpy as np
@@ -31,8 +32,16 @@ def run():
         h = h + rng.choice([-1, 1], x0.size) * rng.uniform(10.0, 20.0, x0.size)
         lon, lat = models[0].image_to_ground(x0, y0, h)
         cen, jac = mpgc.geometry(models, lon, lat, h)
-        inside = np.all([(cen[:, i, 0] > 30) & (cen[:, i, 0] < m.size[0] - 30) & (cen[:, i, 1] > 30)
-                         & (cen[:, i, 1] < m.size[1] - 30) for i, m in enumerate(models)], axis=0)
+        inside = np.all(
+            [
+                (cen[:, i, 0] > 30)
+                & (cen[:, i, 0] < m.size[0] - 30)
+                & (cen[:, i, 1] > 30)
+                & (cen[:, i, 1] < m.size[1] - 30)
+                for i, m in enumerate(models)
+            ],
+            axis=0,
+        )
         x0, y0, lon, lat, h = (v[inside] for v in (x0, y0, lon, lat, h))
         start = mpgc.initial_state(*mpgc.geometry(models, lon, lat, h))
         images = [Image(paths["images"][name]["imagery"]) for name in NAMES]
@@ -45,15 +54,34 @@ def run():
             return mpgc.match_points(images[0], images[1:], models, x0, y0, lon, lat, h, params)
 
         def pairwise():
-            return [lsm.match_points(arrays[0], arrays[i + 1], x0, y0, start[:, i, 0], start[:, i, 3],
-                                     affine=start[:, i, [1, 2, 4, 5]], params=LsmParams()) for i in range(2)]
+            return [
+                lsm.match_points(
+                    arrays[0],
+                    arrays[i + 1],
+                    x0,
+                    y0,
+                    start[:, i, 0],
+                    start[:, i, 3],
+                    affine=start[:, i, [1, 2, 4, 5]],
+                    params=LsmParams(),
+                )
+                for i in range(2)
+            ]
+
         rows = []
         for threads in thread_counts():
             for name, call in (("mpgc 3 images", multi), ("pairwise lsm x 2", pairwise)):
                 seconds = best_time(call)
-                rows.append({"operation": name, "threads": threads, "points": int(x0.size),
-                             "seconds": seconds, "points/s": x0.size / seconds,
-                             "points/s/core": x0.size / seconds / threads})
+                rows.append(
+                    {
+                        "operation": name,
+                        "threads": threads,
+                        "points": int(x0.size),
+                        "seconds": seconds,
+                        "points/s": x0.size / seconds,
+                        "points/s/core": x0.size / seconds / threads,
+                    }
+                )
         images.clear()
         del ref
         return rows

@@ -7,6 +7,7 @@ tiled DEFLATE GeoTIFF without overviews, 1 and 2 threads (gdalwarp -multi -wo NU
 with its default approximate transformer (-et 0.125 px); ours with its default bound of 0.01 px. Agreement:
 our per-cell image points against GDAL's exact RPC transformer (RPC_DEM, bilinear DEM) on the same cells, and
 the DN difference of the two outputs where both have values. Best of 3 after a warm-up."""
+
 import os
 import shutil
 import tempfile
@@ -43,10 +44,22 @@ def prepare(folder):
 
 def gdal_warp(image, dsm, grid, output, threads):
     x0, dx, _, y0, _, dy = grid.geotransform
-    return gdal.Warp(output, image, format="GTiff", outputBounds=(x0, y0 + grid.rows * dy, x0 + grid.cols * dx, y0),
-                     width=grid.cols, height=grid.rows, dstSRS=grid.srs.ExportToWkt(), resampleAlg="bilinear",
-                     rpc=True, transformerOptions=[f"RPC_DEM={dsm}"], multithread=threads > 1,
-                     warpOptions=[f"NUM_THREADS={threads}"], dstNodata=0, creationOptions=list(CREATION_OPTIONS))
+    return gdal.Warp(
+        output,
+        image,
+        format="GTiff",
+        outputBounds=(x0, y0 + grid.rows * dy, x0 + grid.cols * dx, y0),
+        width=grid.cols,
+        height=grid.rows,
+        dstSRS=grid.srs.ExportToWkt(),
+        resampleAlg="bilinear",
+        rpc=True,
+        transformerOptions=[f"RPC_DEM={dsm}"],
+        multithread=threads > 1,
+        warpOptions=[f"NUM_THREADS={threads}"],
+        dstNodata=0,
+        creationOptions=list(CREATION_OPTIONS),
+    )
 
 
 def image_point_agreement(image, model, dsm, dem, grid, window=(800, 800, 512, 512)):
@@ -57,12 +70,12 @@ def image_point_agreement(image, model, dsm, dem, grid, window=(800, 800, 512, 5
     target.SetGeoTransform(grid.geotransform)
     target.SetSpatialRef(grid.srs)
     transformer = gdal.Transformer(gdal.Open(image), target, ["METHOD=RPC", f"RPC_DEM={dsm}"])
-    i, j = np.mgrid[row0:row0 + rows, col0:col0 + cols]
+    i, j = np.mgrid[row0 : row0 + rows, col0 : col0 + cols]
     pts, ok = transformer.TransformPoints(1, np.column_stack([j.ravel() + 0.5, i.ravel() + 0.5]))
     pts = np.asarray(pts)
     d = np.hypot(tile.col.ravel() - pts[:, 0], tile.row.ravel() - pts[:, 1])[np.asarray(ok, bool)]
     d = d[np.isfinite(d)]
-    return float(d.max()), float(np.sqrt(np.mean(d ** 2))), tile.bound
+    return float(d.max()), float(np.sqrt(np.mean(d**2))), tile.bound
 
 
 def run():
@@ -74,17 +87,29 @@ def run():
         worst, rms, bound = image_point_agreement(image, model, dsm, dem, grid)
         rows = []
         for threads in (1, 2):
-            t_ours = best_time(lambda: orthorectify(image, model, dem, ours_path, grid=grid, overviews=False,
-                                                     execution=Execution("threads", threads)))
+            t_ours = best_time(
+                lambda: orthorectify(
+                    image, model, dem, ours_path, grid=grid, overviews=False, execution=Execution("threads", threads)
+                )
+            )
             t_gdal = best_time(lambda: gdal_warp(image, dsm, grid, gdal_path, threads))
             a = gdal.Open(ours_path).ReadAsArray().astype(float)
             b = gdal.Open(gdal_path).ReadAsArray().astype(float)
             both = (a > 0) & (b > 0)
-            rows.append({"threads": threads, "cells": f"{grid.cols} x {grid.rows}", "pushbroom s": t_ours,
-                         "gdalwarp s": t_gdal, "gdalwarp / pushbroom": t_gdal / t_ours,
-                         "our bound px": bound, "max |ours - GDAL RPC| px": worst, "RMS px": rms,
-                         "mean |dDN|": float(np.abs(a - b)[both].mean()), "valid cells ours / GDAL":
-                         float(np.count_nonzero(a > 0) / max(np.count_nonzero(b > 0), 1))})
+            rows.append(
+                {
+                    "threads": threads,
+                    "cells": f"{grid.cols} x {grid.rows}",
+                    "pushbroom s": t_ours,
+                    "gdalwarp s": t_gdal,
+                    "gdalwarp / pushbroom": t_gdal / t_ours,
+                    "our bound px": bound,
+                    "max |ours - GDAL RPC| px": worst,
+                    "RMS px": rms,
+                    "mean |dDN|": float(np.abs(a - b)[both].mean()),
+                    "valid cells ours / GDAL": float(np.count_nonzero(a > 0) / max(np.count_nonzero(b > 0), 1)),
+                }
+            )
         return rows
     finally:
         shutil.rmtree(folder, ignore_errors=True)

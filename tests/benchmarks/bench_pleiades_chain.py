@@ -12,6 +12,7 @@ times to the earlier one's. Issue 22 measured the chain without orthorectify at 
 
     python -m tests.benchmarks.bench_pleiades_chain
 """
+
 import pathlib
 import subprocess
 import tempfile
@@ -21,7 +22,7 @@ from tests.benchmarks.benchutil import SHARED_DATA
 from tests.helpers.qgis_process_profile import QGIS_PROCESS, REPO, qgis_process_env
 
 DATA = SHARED_DATA / "pleiades_triplet"
-BASELINE = "cdd5892b6c38048d548363c9713d8c4cf0d4bba0"    # main before the execution layer (2c637c4)
+BASELINE = "cdd5892b6c38048d548363c9713d8c4cf0d4bba0"  # main before the execution layer (2c637c4)
 WORKERS = 2
 
 
@@ -29,8 +30,11 @@ def baseline_tree():
     """The BASELINE checkout under build/ (made once)."""
     tree = REPO / "build" / f"baseline-{BASELINE[:7]}"
     if not tree.exists():
-        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(tree), BASELINE], check=True,
-                       capture_output=True)
+        subprocess.run(
+            ["git", "-C", str(REPO), "worktree", "add", "--detach", str(tree), BASELINE],
+            check=True,
+            capture_output=True,
+        )
     return tree
 
 
@@ -39,17 +43,48 @@ def steps(out, tiled):
     (EXECUTION, WORKERS) rather than the baseline's (WORKERS, THREADS)."""
     block = out / "block.gpkg"
     workers = ["EXECUTION=0", f"WORKERS={WORKERS}"] if tiled else []
-    return [("createblock", ["pushbroom:createblock", "--", *(f"IMAGES={DATA / f'img_0{i}.tif'}" for i in (1, 2, 3)),
-                             f"OUTPUT={block}"]),
-            ("matchpoints", ["pushbroom:matchpoints", "--", f"BLOCK={block}", "STEP=1",
-                             *(workers or [f"WORKERS={WORKERS}"])]),
-            ("intersectpoints", ["pushbroom:intersectpoints", "--", f"BLOCK={block}", "POINTS=0", *workers,
-                                 f"OUTPUT={out / 'points.las'}"]),
-            ("interpolatedem", ["pushbroom:interpolatedem", "--", f"INPUT={out / 'points.las'}", "CELL=0.5",
-                                *workers, f"OUTPUT={out / 'dem.tif'}"]),
-            ("orthorectify", ["pushbroom:orthorectify", "--", f"BLOCK={block}", "IMAGE_NAME=img_02",
-                              f"DEM={out / 'dem.tif'}", *(workers or [f"THREADS={WORKERS}"]),
-                              f"OUTPUT={out / 'ortho.tif'}"])]
+    return [
+        (
+            "createblock",
+            [
+                "pushbroom:createblock",
+                "--",
+                *(f"IMAGES={DATA / f'img_0{i}.tif'}" for i in (1, 2, 3)),
+                f"OUTPUT={block}",
+            ],
+        ),
+        (
+            "matchpoints",
+            ["pushbroom:matchpoints", "--", f"BLOCK={block}", "STEP=1", *(workers or [f"WORKERS={WORKERS}"])],
+        ),
+        (
+            "intersectpoints",
+            ["pushbroom:intersectpoints", "--", f"BLOCK={block}", "POINTS=0", *workers, f"OUTPUT={out / 'points.las'}"],
+        ),
+        (
+            "interpolatedem",
+            [
+                "pushbroom:interpolatedem",
+                "--",
+                f"INPUT={out / 'points.las'}",
+                "CELL=0.5",
+                *workers,
+                f"OUTPUT={out / 'dem.tif'}",
+            ],
+        ),
+        (
+            "orthorectify",
+            [
+                "pushbroom:orthorectify",
+                "--",
+                f"BLOCK={block}",
+                "IMAGE_NAME=img_02",
+                f"DEM={out / 'dem.tif'}",
+                *(workers or [f"THREADS={WORKERS}"]),
+                f"OUTPUT={out / 'ortho.tif'}",
+            ],
+        ),
+    ]
 
 
 def chain(plugin, label, tiled):
@@ -62,13 +97,21 @@ def chain(plugin, label, tiled):
             seconds, peak, processes, output = measured([QGIS_PROCESS, "run"] + args, env)
             print(f"  {label} {name}: {seconds:.1f} s, {peak:.0f} MB", flush=True)
             count = [line.split()[-1] for line in output.splitlines() if line.startswith("COUNT:")]
-            rows.append({"version": label, "step": name, "points": count[0] if count else "", "seconds": seconds,
-                         "peak MB": peak, "processes": processes})
+            rows.append(
+                {
+                    "version": label,
+                    "step": name,
+                    "points": count[0] if count else "",
+                    "seconds": seconds,
+                    "peak MB": peak,
+                    "processes": processes,
+                }
+            )
     seconds = [r["seconds"] for r in rows]
-    return rows + [{"version": label, "step": "total", "seconds": sum(seconds),
-                    "peak MB": max(r["peak MB"] for r in rows)},
-                   {"version": label, "step": "total without orthorectify (issue 22's chain)",
-                    "seconds": sum(seconds[:-1])}]
+    return rows + [
+        {"version": label, "step": "total", "seconds": sum(seconds), "peak MB": max(r["peak MB"] for r in rows)},
+        {"version": label, "step": "total without orthorectify (issue 22's chain)", "seconds": sum(seconds[:-1])},
+    ]
 
 
 def run():
@@ -76,11 +119,14 @@ def run():
         return [{"version": "", "step": f"skipped: {DATA} is absent"}]
     before = chain(baseline_tree(), f"before ({BASELINE[:7]})", tiled=False)
     after = chain(REPO, "this version", tiled=True)
-    ratios = [{"version": "this / before", "step": a["step"], "seconds": f"x {a['seconds'] / b['seconds']:.3f}"}
-              for a, b in zip(after, before)]
+    ratios = [
+        {"version": "this / before", "step": a["step"], "seconds": f"x {a['seconds'] / b['seconds']:.3f}"}
+        for a, b in zip(after, before)
+    ]
     return before + after + ratios
 
 
 if __name__ == "__main__":
     from tests.benchmarks.run_all import markdown_table
+
     print(markdown_table(run()))

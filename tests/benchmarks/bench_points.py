@@ -1,6 +1,7 @@
 """Multi-image point storage: save/load of 2 million points (6 million observations) as the
 block's .npz sidecar, the combination of three matching runs, tie point selection, and writing
 the display point layer into the GeoPackage."""
+
 import pathlib
 import tempfile
 import time
@@ -37,28 +38,41 @@ def run():
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         block = _block(folder)
-        sidecars = []     # each store writes a new, versioned sidecar
+        sidecars = []  # each store writes a new, versioned sidecar
         save = best_time(lambda: sidecars.append(Block(block).save_points(mp)), repeat=2)
         load = best_time(lambda: Block(block).points(), repeat=2)
         size = pathlib.Path(sidecars[-1]).stat().st_size / 1e6
-        rows.append({"step": f"save {N} points, {len(mp.observations)} observations (.npz, {size:.0f} MB)",
-                     "seconds": save})
+        rows.append(
+            {"step": f"save {N} points, {len(mp.observations)} observations (.npz, {size:.0f} MB)", "seconds": save}
+        )
         rows.append({"step": "load them", "seconds": load})
         rng = np.random.default_rng(0)
         a = _pairs(N, rng)
         b = _pairs(N, rng)
         c = _pairs(N, rng)
         src = np.arange(N)
-        rows.append({"step": f"combine (a), (b), (c) of {N} points each",
-                     "seconds": best_time(lambda: combine(a, b, src, c, src), repeat=1)})
-        rows.append({"step": "select tie points (100 px cells)",
-                     "seconds": best_time(lambda: select_tie_points(mp, 100.0), repeat=1)})
+        rows.append(
+            {
+                "step": f"combine (a), (b), (c) of {N} points each",
+                "seconds": best_time(lambda: combine(a, b, src, c, src), repeat=1),
+            }
+        )
+        rows.append(
+            {
+                "step": "select tie points (100 px cells)",
+                "seconds": best_time(lambda: select_tie_points(mp, 100.0), repeat=1),
+            }
+        )
         small = mp.subset(np.arange(1, 2_000_001))
         start = time.perf_counter()
         Block(block).write_point_layer("mass_points", small, FlatModel(), 1, 0.0)
-        rows.append({"step": "write the display layer of 2000000 points (GeoPackage: sqlite3 rows + OGR R-tree; a "
-                             f"uniform {points_store.DISPLAY_POINTS} of them shown)",
-                     "seconds": time.perf_counter() - start})
+        rows.append(
+            {
+                "step": "write the display layer of 2000000 points (GeoPackage: sqlite3 rows + OGR R-tree; a "
+                f"uniform {points_store.DISPLAY_POINTS} of them shown)",
+                "seconds": time.perf_counter() - start,
+            }
+        )
     return rows
 
 

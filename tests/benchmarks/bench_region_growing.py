@@ -2,6 +2,7 @@
 peak memory for the 20 km demo scene and a 10 km scene of a quarter of its area (each run in its
 own process, so its peak resident memory is its own); on 2 threads also with one round of
 automatic seeds (GrowParams.reseed_cell 0), the cost of the second."""
+
 import json
 import pathlib
 import subprocess
@@ -37,6 +38,7 @@ print(json.dumps({{"points": int(len(records)), "seconds": time.perf_counter() -
 def scene(size_km):
     """A simulated triplet of `size_km`, made once and kept under bench-output/scenes."""
     from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
+
     folder = SCENES / f"triplet_{size_km:g}km"
     if not (folder / "truth" / "truth.json").exists():
         simulate_scene(SceneConfig(size_km=size_km), folder)
@@ -47,8 +49,9 @@ def run_child(folder, workers, reseed=None):
     """Points, seconds and peak resident memory (MiB) of one region-growing run in a fresh process
     (reseed: GrowParams.reseed_cell, default its default)."""
     reseed = GrowParams().reseed_cell if reseed is None else reseed
-    proc = subprocess.run([sys.executable, "-c", CHILD, str(folder), str(workers), str(reseed)], capture_output=True,
-                          text=True)
+    proc = subprocess.run(
+        [sys.executable, "-c", CHILD, str(folder), str(workers), str(reseed)], capture_output=True, text=True
+    )
     if proc.returncode != 0:
         raise RuntimeError(proc.stderr[-2000:])
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -62,14 +65,21 @@ def run():
         for workers, reseed in ((1, None), (2, None), (2, 0)):
             result = run_child(folder, workers, reseed)
             rounds = "one seed round" if reseed == 0 else "two seed rounds"
-            rows.append({"scene": f"triplet {size:g} km, HRG -> HRS1, {rounds}", "threads": workers,
-                         "points": result["points"], "seconds": result["seconds"],
-                         "points/s": result["points"] / result["seconds"],
-                         "points/s per core": result["points"] / result["seconds"] / workers,
-                         "peak memory MiB": result["peak_mib"]})
+            rows.append(
+                {
+                    "scene": f"triplet {size:g} km, HRG -> HRS1, {rounds}",
+                    "threads": workers,
+                    "points": result["points"],
+                    "seconds": result["seconds"],
+                    "points/s": result["points"] / result["seconds"],
+                    "points/s per core": result["points"] / result["seconds"] / workers,
+                    "peak memory MiB": result["peak_mib"],
+                }
+            )
     return rows
 
 
 if __name__ == "__main__":
     from tests.benchmarks.run_all import markdown_table
+
     print(markdown_table(run()))

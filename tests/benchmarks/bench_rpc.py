@@ -4,6 +4,7 @@ On the Pleiades triplet image img_01.tif of the real test data (benchutil.SHARED
 the image and the RPC's height range; best of 3 runs after a warm-up (numba compiled or loaded from its cache).
 GDAL's image -> ground runs with RPC_PIXEL_ERROR_THRESHOLD=1e-9 px, comparable to RpcModel's
 1e-8 px (GDAL's default, 0.1 px, is faster and coarser)."""
+
 import numpy as np
 from osgeo import gdal
 
@@ -18,8 +19,7 @@ N_GDAL = 100_000
 def sample_points(model, n, seed=0):
     """n image points (col, row, h) spread over the raster and the RPC's height range."""
     rng = np.random.default_rng(seed)
-    return (rng.uniform(0, model.size[0], n), rng.uniform(0, model.size[1], n),
-            rng.uniform(*model.height_range, n))
+    return (rng.uniform(0, model.size[0], n), rng.uniform(0, model.size[1], n), rng.uniform(*model.height_range, n))
 
 
 def run():
@@ -34,17 +34,29 @@ def run():
     image_pts = np.column_stack([col, row, h])[:N_GDAL]
     ground_pts = np.column_stack([lon, lat, h])[:N_GDAL]
     cases = [
-        ("ground -> image", lambda: model.ground_to_image(lon, lat, h),
-         lambda: transformer.TransformPoints(1, ground_pts)),
-        ("image -> ground", lambda: model.image_to_ground(col, row, h),
-         lambda: transformer.TransformPoints(0, image_pts)),
+        (
+            "ground -> image",
+            lambda: model.ground_to_image(lon, lat, h),
+            lambda: transformer.TransformPoints(1, ground_pts),
+        ),
+        (
+            "image -> ground",
+            lambda: model.image_to_ground(col, row, h),
+            lambda: transformer.TransformPoints(0, image_pts),
+        ),
     ]
     rows = []
     for direction, ours, theirs in cases:
         ours_rate = N_OURS / best_time(ours)
         gdal_rate = N_GDAL / best_time(theirs)
-        rows.append({"direction": direction, "pushbroom points/s": ours_rate,
-                     "GDAL points/s": gdal_rate, "pushbroom / GDAL": ours_rate / gdal_rate})
+        rows.append(
+            {
+                "direction": direction,
+                "pushbroom points/s": ours_rate,
+                "GDAL points/s": gdal_rate,
+                "pushbroom / GDAL": ours_rate / gdal_rate,
+            }
+        )
     return rows
 
 

@@ -2,6 +2,7 @@
 
 Runs on the real SPOT 5 scene (benchutil.SHARED_DATA) when present, else on a synthetic 12000-detector
 scene; times are the best of three after JIT warm-up."""
+
 import os
 import pathlib
 
@@ -20,6 +21,7 @@ def scene_model():
     if SPOT5.exists():
         return SpotModel.from_dimap(SPOT5), "SPOT 5 HRG (real metadata)"
     from tests.helpers.spot_synthetic import synthetic_orientation
+
     return SpotModel(synthetic_orientation(ncols=12000, nrows=12000)), "synthetic 12000 x 12000"
 
 
@@ -47,22 +49,47 @@ def run():
     grid_ground = model.image_to_ground(grid_c, grid_r, grid_h)
     dem = terrain(model)
     cases = [
-        ("image_to_ground", f"one line ({cols} detectors)", line_c.size,
-         lambda: model.image_to_ground(line_c, line_r, line_h)),
+        (
+            "image_to_ground",
+            f"one line ({cols} detectors)",
+            line_c.size,
+            lambda: model.image_to_ground(line_c, line_r, line_h),
+        ),
         ("image_to_ground", "1000 x 1000 grid", grid_c.size, lambda: model.image_to_ground(grid_c, grid_r, grid_h)),
-        ("ground_to_image", f"one line ({cols} points)", line_c.size,
-         lambda: model.ground_to_image(*line_ground, line_h)),
+        (
+            "ground_to_image",
+            f"one line ({cols} points)",
+            line_c.size,
+            lambda: model.ground_to_image(*line_ground, line_h),
+        ),
         ("ground_to_image", "1000 x 1000 grid", grid_c.size, lambda: model.ground_to_image(*grid_ground, grid_h)),
-        ("image_to_dem", "1000 x 1000 grid, 2000 x 2000 DEM", grid_c.size,
-         lambda: model.image_to_dem(grid_c, grid_r, dem)),
-        ("partials", "10000 points (32 coefficients + ground)", 10000,
-         lambda: model.partials(grid_ground[0][:10000], grid_ground[1][:10000], grid_h[:10000])),
+        (
+            "image_to_dem",
+            "1000 x 1000 grid, 2000 x 2000 DEM",
+            grid_c.size,
+            lambda: model.image_to_dem(grid_c, grid_r, dem),
+        ),
+        (
+            "partials",
+            "10000 points (32 coefficients + ground)",
+            10000,
+            lambda: model.partials(grid_ground[0][:10000], grid_ground[1][:10000], grid_h[:10000]),
+        ),
     ]
     rows_out = []
     for operation, data, n, function in cases:
         seconds = best_time(function)
-        rows_out.append({"operation": operation, "data": data, "points": n, "seconds": seconds,
-                         "points/s": n / seconds, "scene": label, "cores": os.cpu_count()})
+        rows_out.append(
+            {
+                "operation": operation,
+                "data": data,
+                "points": n,
+                "seconds": seconds,
+                "points/s": n / seconds,
+                "scene": label,
+                "cores": os.cpu_count(),
+            }
+        )
     return rows_out
 
 

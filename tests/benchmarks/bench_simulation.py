@@ -1,5 +1,6 @@
 """Scene simulator: time per stage of the default 20 x 20 km demo scenes (target: rendering under
 60 s on 2 cores). Usage: bench_simulation.py [configuration ...]"""
+
 import os
 import sys
 import tempfile
@@ -38,8 +39,9 @@ def run(configurations=("spot5_triplet", "spot14_pair")):
         for (t0, text), (t1, _) in zip(marks, marks[1:]):
             rows.append({"scene": f"{configuration} {config.size_km:g} km", "stage": text, "seconds": t1 - t0})
             render += (t1 - t0) if text.startswith("rendering") else 0.0
-        rows.append({"scene": f"{configuration} {config.size_km:g} km", "stage": "rendering, all images",
-                     "seconds": render})
+        rows.append(
+            {"scene": f"{configuration} {config.size_km:g} km", "stage": "rendering, all images", "seconds": render}
+        )
         rows.append({"scene": f"{configuration} {config.size_km:g} km", "stage": "total", "seconds": end - start})
     return rows
 

@@ -1,4 +1,5 @@
 """Helpers shared by the bench_*.py modules."""
+
 import os
 import pathlib
 import time
@@ -6,8 +7,9 @@ import time
 import numba
 
 #: the real test data ($PUSHBROOM_SHARED_DATA, by default the data folder of the shared folder beside the repository)
-SHARED_DATA = pathlib.Path(os.environ.get("PUSHBROOM_SHARED_DATA",
-                                          pathlib.Path(__file__).resolve().parents[3] / "shared" / "data"))
+SHARED_DATA = pathlib.Path(
+    os.environ.get("PUSHBROOM_SHARED_DATA", pathlib.Path(__file__).resolve().parents[3] / "shared" / "data")
+)
 
 
 def best_time(function, repeat=3):

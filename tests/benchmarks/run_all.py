@@ -2,6 +2,7 @@
 markdown file with a table per benchmark. Usage, from the repository root (the benchmarks import the
 test helpers as the `tests` package): python -m tests.benchmarks.run_all OUTPUT.md [name ...]; one
 benchmark alone: python -m tests.benchmarks.bench_<name>."""
+
 import importlib
 import os
 import pathlib
@@ -24,8 +25,10 @@ def markdown_table(rows):
 
 
 def main(output, names):
-    sections = [f"# Pushbroom benchmarks\n\n{platform.node()}: {os.cpu_count()} cores, Python "
-                f"{platform.python_version()}, {time.strftime('%Y-%m-%d %H:%M')}\n"]
+    sections = [
+        f"# Pushbroom benchmarks\n\n{platform.node()}: {os.cpu_count()} cores, Python "
+        f"{platform.python_version()}, {time.strftime('%Y-%m-%d %H:%M')}\n"
+    ]
     for path in sorted(HERE.glob("bench_*.py")):
         if names and path.stem not in names:
             continue
@@ -34,7 +37,7 @@ def main(output, names):
         rows = module.run()
         title = (module.__doc__ or path.stem).strip().splitlines()[0]
         sections.append(f"## {path.stem}: {title}\n\n{markdown_table(rows)}\n")
-        write_text(output, "\n".join(sections))      # what ran so far survives a later failure
+        write_text(output, "\n".join(sections))  # what ran so far survives a later failure
     print("\n".join(sections))
 
 

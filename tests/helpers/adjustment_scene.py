@@ -1,5 +1,6 @@
 """Shared fixture data for the adjustment tests: a simulated SPOT scene with its control/check
 point candidates as Observations, the supplied and the truth models, and synthetic check points."""
+
 import csv
 
 import numpy as np
@@ -18,8 +19,14 @@ def point_observations(csv_path, image_ids, n_control, sigma_px=0.3, sigma_groun
     points = np.zeros(len(rows), POINT_DTYPE)
     meas = []
     for k, r in enumerate(rows):
-        points[k] = (r["id"], "control" if k < n_control else "check", float(r["lon"]), float(r["lat"]),
-                     float(r["h"]), *sigma_ground)
+        points[k] = (
+            r["id"],
+            "control" if k < n_control else "check",
+            float(r["lon"]),
+            float(r["lat"]),
+            float(r["h"]),
+            *sigma_ground,
+        )
         for name, i in image_ids.items():
             if r.get(f"{name}_col_meas"):
                 meas.append((k, i, float(r[f"{name}_col_meas"]), float(r[f"{name}_row_meas"]), sigma_px))
@@ -30,8 +37,9 @@ def scene_models(paths, names, truth=False):
     """{block image id: sensor model} of the simulated scene `paths` (simulate_scene) images `names`, ids
     1, 2, ... in that order; with `truth`, the models the images were simulated with."""
     key = "truth_metadata" if truth else None
-    return {k + 1: sensors.load(paths[key][n] if truth else paths["images"][n]["metadata"])
-            for k, n in enumerate(names)}
+    return {
+        k + 1: sensors.load(paths[key][n] if truth else paths["images"][n]["metadata"]) for k, n in enumerate(names)
+    }
 
 
 def synthetic_points(scene, image_ids, n, sigma_px, seed):
@@ -61,8 +69,10 @@ def check_rms(result, observations, height, figures, label="check points"):
     table = statistics_table({k: check[k] for k in ("dE", "dN", "dH")})
     rms = np.array([table[k][4] for k in ("dE", "dN", "dH")])
     theoretical = np.sqrt(np.mean(check["sigma"] ** 2, axis=0))
-    figures.table(f"{label} (m)", [{"": key, "RMS": rms[k], "theoretical": theoretical[k]}
-                                   for k, key in enumerate(("dE", "dN", "dH"))])
+    figures.table(
+        f"{label} (m)",
+        [{"": key, "RMS": rms[k], "theoretical": theoretical[k]} for k, key in enumerate(("dE", "dN", "dH"))],
+    )
     return rms, theoretical
 
 

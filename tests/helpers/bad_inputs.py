@@ -1,6 +1,7 @@
 """Bad inputs the bad-input tests share (tests/algorithms/test_bad_input_*.py and their Processing
 counterparts in tests/plugin): DEMs without a CRS or with unflagged voids, a DIMAP product without its raster,
 LAS files with any CRS or none, and the message of a refused Processing run."""
+
 import shutil
 from pathlib import Path
 
@@ -39,9 +40,10 @@ def product_without_raster(scene, folder):
 def las(path, x, y, z, wkt=None):
     """A LAS 1.4 file of the points with `wkt` in a WKT VLR (None: no CRS VLR at all)."""
     from pushbroom.algorithms.surface.pointcloud import laspy_module
+
     laspy = laspy_module()
     header = laspy.LasHeader(point_format=6, version="1.4")
-    step = 1e-8 if np.abs(x).max() <= 360 else 1e-3      # degrees or metres
+    step = 1e-8 if np.abs(x).max() <= 360 else 1e-3  # degrees or metres
     header.scales, header.offsets = np.array([step, step, 1e-3]), np.floor([x.min(), y.min(), z.min()])
     if wkt is not None:
         header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(wkt))
@@ -56,6 +58,7 @@ def processing_error(algorithm, parameters):
     holding QGIS objects crashes the interpreter's last garbage collection after QGIS exits)."""
     from qgis import processing
     from qgis.core import QgsProcessingContext, QgsProcessingException
+
     try:
         processing.run(algorithm, parameters, context=QgsProcessingContext())
     except QgsProcessingException as exc:

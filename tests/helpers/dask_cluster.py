@@ -1,5 +1,6 @@
 """A Dask cluster of separate processes, as a user starts one (`dask scheduler`, `dask worker`), on this machine:
 for the tests of the dask execution against a cluster that misbehaves (tests/algorithms/test_dask_cluster.py)."""
+
 from __future__ import annotations
 
 import os
@@ -34,9 +35,20 @@ class Cluster:
         self.folder, self.port = Path(folder), free_port()
         self.address = f"tcp://127.0.0.1:{self.port}"
         self.processes: list[subprocess.Popen] = []
-        command = scheduler(self.port) if scheduler else [sys.executable, "-m", "distributed.cli.dask_scheduler",
-                                                          "--host", "127.0.0.1", "--port", str(self.port),
-                                                          "--no-dashboard"]
+        command = (
+            scheduler(self.port)
+            if scheduler
+            else [
+                sys.executable,
+                "-m",
+                "distributed.cli.dask_scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(self.port),
+                "--no-dashboard",
+            ]
+        )
         self.scheduler = self.start("scheduler", command, env)
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
@@ -50,24 +62,42 @@ class Cluster:
         """Start `command` (its output in <folder>/<name>-<k>.log) in a process group of its own."""
         log = open(self.folder / f"{name}-{len(self.processes)}.log", "wb")
         environment = {**os.environ, "PYTHONPATH": str(REPO)} if env is None else env
-        process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=environment,
-                                   start_new_session=True, cwd=self.folder)
+        process = subprocess.Popen(
+            command, stdout=log, stderr=subprocess.STDOUT, env=environment, start_new_session=True, cwd=self.folder
+        )
         log.close()
         self.processes.append(process)
         return process
 
-    def add_worker(self, python: str = sys.executable, env: dict | None = None, nanny: bool = False
-                   ) -> subprocess.Popen:
+    def add_worker(
+        self, python: str = sys.executable, env: dict | None = None, nanny: bool = False
+    ) -> subprocess.Popen:
         """A single-threaded worker (`dask worker <address> --nworkers 1 --nthreads 1`; without a nanny, a killed
         worker stays dead)."""
-        return self.start("worker", [python, "-m", "distributed.cli.dask_worker", self.address, "--nworkers", "1",
-                                      "--nthreads", "1", "--nanny" if nanny else "--no-nanny", "--no-dashboard",
-                                      "--local-directory", str(self.folder)], env)
+        return self.start(
+            "worker",
+            [
+                python,
+                "-m",
+                "distributed.cli.dask_worker",
+                self.address,
+                "--nworkers",
+                "1",
+                "--nthreads",
+                "1",
+                "--nanny" if nanny else "--no-nanny",
+                "--no-dashboard",
+                "--local-directory",
+                str(self.folder),
+            ],
+            env,
+        )
 
     def wait_for_workers(self, n: int, timeout: float = 60.0):
         """Return once the scheduler has `n` workers."""
         import distributed
-        with warnings.catch_warnings():         # tornado's deprecation of make_current, on every client's start
+
+        with warnings.catch_warnings():  # tornado's deprecation of make_current, on every client's start
             warnings.simplefilter("ignore", DeprecationWarning)
             with distributed.Client(self.address, set_as_default=False) as client:
                 client.wait_for_workers(n, timeout=timeout)
@@ -104,9 +134,9 @@ def readme_commands(readme: Path) -> dict:
     """The README's two-host example ("Two hosts, worked through"): {"settings": {name: value} of its NAME=value
     lines, "scheduler", "worker", "check": its commands}, each as written."""
     text = readme.read_text(encoding="utf-8")
-    block = text[text.index("**Two hosts, worked through.**"):]
-    block = block[block.index("```bash") + len("```bash"):]
-    lines = [line.split("  #")[0].strip() for line in block[:block.index("```")].splitlines()]
+    block = text[text.index("**Two hosts, worked through.**") :]
+    block = block[block.index("```bash") + len("```bash") :]
+    lines = [line.split("  #")[0].strip() for line in block[: block.index("```")].splitlines()]
     lines = [line for line in lines if line and not line.startswith("#")]
     found: dict = {"settings": dict(line.split("=", 1) for line in lines if "=" in line.split()[0])}
     for key, mark in (("scheduler", "dask_scheduler"), ("worker", "dask_worker"), ("check", "worker_check")):

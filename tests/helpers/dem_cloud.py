@@ -1,13 +1,14 @@
 """A point cloud as matching gives it, for the tiled DEM's tests: about 62 000 points on a jittered 12 m
 lattice over 3 x 3 km of an analytic surface in UTM 31N, with 300 blunders of 30-80 m, a hole of 250 m
 radius (a gap in the DEM) and a sigma_h per point."""
+
 import numpy as np
 
 from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.surface import pointcloud
 
 UTM31 = 32631
-SIZE = 3000.0       # m: 300 x 300 cells of 10 m
+SIZE = 3000.0  # m: 300 x 300 cells of 10 m
 
 
 def surface(x, y):
@@ -34,6 +35,7 @@ def write_cloud(path):
 def read_raster(path):
     """(values with nodata as NaN, geotransform, overview count) of band 1 of a raster."""
     from osgeo import gdal
+
     ds = gdal.Open(str(path))
     band = ds.GetRasterBand(1)
     values = band.ReadAsArray().astype(float)

@@ -6,6 +6,7 @@ workers); then the result file is written and QGIS quits.
 The job is the JSON file named by the environment variable PUSHBROOM_SESSION: {"cloud": path, "result":
 path, "runs": {execution name: [execution index, output path]}}. The result: {"errors": [...],
 "host": sys.executable, "workers": {execution name: [executables]}, "outputs": {execution name: path}}."""
+
 import json
 import os
 import sys
@@ -45,9 +46,18 @@ def session():
         watcher = threading.Thread(target=watch, args=(found, stop))
         watcher.start()
         try:
-            result = processing.run("pushbroom:interpolatedem", {
-                "INPUT": JOB["cloud"], "CELL": 10.0, "TILE": 75, "EXECUTION": execution, "WORKERS": 2,
-                "OUTPUT": output}, feedback=QgsProcessingFeedback())
+            result = processing.run(
+                "pushbroom:interpolatedem",
+                {
+                    "INPUT": JOB["cloud"],
+                    "CELL": 10.0,
+                    "TILE": 75,
+                    "EXECUTION": execution,
+                    "WORKERS": 2,
+                    "OUTPUT": output,
+                },
+                feedback=QgsProcessingFeedback(),
+            )
         finally:
             stop.set()
             watcher.join()

@@ -1,6 +1,7 @@
 """The end of a scripted QGIS desktop session (the `--code` scripts in this folder, which find this module
 through PYTHONPATH): run the session's step, keep its traceback, write its result, and quit QGIS without a
 question (no project to save, no layers in a temporary folder to keep)."""
+
 import traceback
 
 import qgis.utils

@@ -14,6 +14,7 @@ end_to_end_chain.py does (ground std over a 95 m window < LOW_CONTRAST_DN: LOW_T
 building-edge zone: cells within EDGE_M (2 HRG pixels, 10 m) of a building outline; a building is a
 connected set of city cells whose DSM stands more than BUILDING_M above the DTM; and the open cells (bare,
 crops, low texture) within EDGE_M of forest, city or water, where a matching window straddles two surfaces."""
+
 import numpy as np
 from osgeo import gdal
 from scipy import ndimage
@@ -33,9 +34,9 @@ NAMES = ("HRG", "HRS1", "HRS2")
 CELL = 10.0
 LOW_TEXTURE = 6
 CLASSES = {BARE: "bare", CROPS: "crops", LOW_TEXTURE: "low-tex", FOREST: "forest", CITY: "city"}
-EDGE = 100                   # pseudo class: building-edge zone
+EDGE = 100  # pseudo class: building-edge zone
 NEAR = "open near forest/city/water"
-EDGE_M = 10.0                # 2 HRG pixels
+EDGE_M = 10.0  # 2 HRG pixels
 BUILDING_M = 2.0
 MARGIN_PX = 12.0
 MAX_EDGE_M = 125.0
@@ -82,8 +83,9 @@ class Truth:
         j = np.clip(((lon - gt[0]) / gt[1]).astype(int), 0, land.shape[1] - 1)
         self.cls = land[i, j]
         self.edge = dist[i, j] <= EDGE_M
-        other = ndimage.distance_transform_edt(~np.isin(land, (FOREST, CITY, WATER)),
-                                               sampling=(abs(gt[5]) * mn, gt[1] * me))
+        other = ndimage.distance_transform_edt(
+            ~np.isin(land, (FOREST, CITY, WATER)), sampling=(abs(gt[5]) * mn, gt[1] * me)
+        )
         self.near = np.isin(self.cls, (BARE, CROPS, LOW_TEXTURE)) & (other[i, j] <= EDGE_M)
         self.water = self.cls == WATER
         self.buildings = int(ndimage.label(building)[1])
@@ -91,11 +93,13 @@ class Truth:
     def dem(self, mp):
         """The 10 m DEM of MultiPoints `mp` (module docstring) sampled at the evaluation cells (NaN: gap)."""
         obs = mp.observations
-        res = intersection.intersect(self.models, obs["image_id"], obs["point_id"], obs["col"], obs["row"],
-                                     h0=float(np.mean(self.h)))
+        res = intersection.intersect(
+            self.models, obs["image_id"], obs["point_id"], obs["col"], obs["row"], h0=float(np.mean(self.h))
+        )
         ok = res.ok
-        dem = interpolate_dem(PointSet(res.lon[ok], res.lat[ok], res.h[ok], wgs84()), cell=CELL, crs=self.srs,
-                             max_edge=MAX_EDGE_M)
+        dem = interpolate_dem(
+            PointSet(res.lon[ok], res.lat[ok], res.h[ok], wgs84()), cell=CELL, crs=self.srs, max_edge=MAX_EDGE_M
+        )
         u, v = dem.grid.to_cells(self.x, self.y)
         i, j = np.round(v).astype(int), np.round(u).astype(int)
         inside = (i >= 0) & (i < dem.grid.rows) & (j >= 0) & (j < dem.grid.cols)
@@ -113,11 +117,14 @@ class Truth:
         for name, k in zones.items():
             d = dh[k][np.isfinite(dh[k])]
             med = np.median(d) if d.size else np.nan
-            rows[name] = (int(k.sum()), float(np.isfinite(dh[k]).mean()) if k.any() else np.nan,
-                          float(np.sqrt(np.mean(d ** 2))) if d.size else np.nan,
-                          float(1.4826 * np.median(np.abs(d - med))) if d.size else np.nan,
-                          float(np.mean(np.abs(d))) if d.size else np.nan,
-                          float(np.sqrt(np.mean(dh[k & common] ** 2))) if (k & common).any() else np.nan)
+            rows[name] = (
+                int(k.sum()),
+                float(np.isfinite(dh[k]).mean()) if k.any() else np.nan,
+                float(np.sqrt(np.mean(d**2))) if d.size else np.nan,
+                float(1.4826 * np.median(np.abs(d - med))) if d.size else np.nan,
+                float(np.mean(np.abs(d))) if d.size else np.nan,
+                float(np.sqrt(np.mean(dh[k & common] ** 2))) if (k & common).any() else np.nan,
+            )
         return rows
 
 
@@ -135,7 +142,8 @@ def format_tables(tables):
     lines = [head]
     for name in tables[labels[0]]:
         n = tables[labels[0]][name][0]
-        cols = " ".join(f"{' ':>14} {100 * t[name][1]:3.0f}% " + " ".join(f"{v:6.2f}" for v in t[name][2:])
-                        for t in tables.values())
+        cols = " ".join(
+            f"{' ':>14} {100 * t[name][1]:3.0f}% " + " ".join(f"{v:6.2f}" for v in t[name][2:]) for t in tables.values()
+        )
         lines.append(f"{name:10} {n:6d} {cols}")
     return "\n".join(lines)

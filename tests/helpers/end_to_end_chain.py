@@ -16,6 +16,7 @@ covers tree crowns, roofs or the lake, and the matched height is no longer that 
 The result holds the class rasters' paths, not ClassRaster objects: a gdal.Dataset still alive when
 pytest-qgis's session fixture calls QgsApplication.exitQgis() segfaults when it is freed (a module
 fixture's value outlives the last test's teardown when this module runs last)."""
+
 import time
 
 import numpy as np
@@ -55,13 +56,19 @@ DEM_CELL = 10.0
 #: 3.85 / 1.76, 5 2.75 / 1.29, 3 2.53 / 1.19 (test_end_to_end.py; the last with a prototype of the
 #: support weights whose grey-level scale was a fixed 30 DN); about 5 x and 10 x the matching time of STEP 10
 STEP = 5
-LOW_TEXTURE = 6          # class code of the open classes' low-texture cells
-TEXTURE_CLASSES = {WATER: "water", BARE: "bare fields", CROPS: "grass/crops", LOW_TEXTURE: "low-texture fields",
-                   FOREST: "forest", CITY: "city/buildings"}
+LOW_TEXTURE = 6  # class code of the open classes' low-texture cells
+TEXTURE_CLASSES = {
+    WATER: "water",
+    BARE: "bare fields",
+    CROPS: "grass/crops",
+    LOW_TEXTURE: "low-texture fields",
+    FOREST: "forest",
+    CITY: "city/buildings",
+}
 TEXTURED_OPEN = (BARE, CROPS)
-TEMPLATE_CELLS = 19      # 95 m: a 19 px HRG template on the 5 m ground grid
-EDGE_M = 50.0            # half an HRG template (47.5 m), rounded up
-INTERIOR = 1             # class code of the interior raster
+TEMPLATE_CELLS = 19  # 95 m: a 19 px HRG template on the 5 m ground grid
+EDGE_M = 50.0  # half an HRG template (47.5 m), rounded up
+INTERIOR = 1  # class code of the interior raster
 
 
 def _write_classes(like, out, values, names):
@@ -80,8 +87,9 @@ def field_edge_distance(land, geotransform):
     nearest cell of forest, city or water (0 on those)."""
     _, dlon, _, lat0, _, dlat = geotransform
     me, mn = metres_per_degree(lat0 + 0.5 * land.shape[0] * dlat)
-    return ndimage.distance_transform_edt(np.isin(land, TEXTURED_OPEN + (LOW_TEXTURE,)),
-                                          sampling=(abs(dlat) * mn, dlon * me))
+    return ndimage.distance_transform_edt(
+        np.isin(land, TEXTURED_OPEN + (LOW_TEXTURE,)), sampling=(abs(dlat) * mn, dlon * me)
+    )
 
 
 def class_rasters(paths, folder):
@@ -93,9 +101,15 @@ def class_rasters(paths, folder):
     flat = np.sqrt(np.maximum(m2 - m1 * m1, 0.0)) < LOW_CONTRAST_DN
     land = np.where(np.isin(land, TEXTURED_OPEN) & flat, LOW_TEXTURE, land)
     interior = np.isin(land, TEXTURED_OPEN) & (field_edge_distance(land, ds.GetGeoTransform()) >= EDGE_M)
-    return (_write_classes(ds, folder / "classes.tif", land, TEXTURE_CLASSES),
-            _write_classes(ds, folder / "interior.tif", interior * INTERIOR,
-                           {INTERIOR: f"textured open, >= {EDGE_M:g} m from forest, city, water"}))
+    return (
+        _write_classes(ds, folder / "classes.tif", land, TEXTURE_CLASSES),
+        _write_classes(
+            ds,
+            folder / "interior.tif",
+            interior * INTERIOR,
+            {INTERIOR: f"textured open, >= {EDGE_M:g} m from forest, city, water"},
+        ),
+    )
 
 
 def surface(models, mass, h0, folder, name):
@@ -106,8 +120,9 @@ def surface(models, mass, h0, folder, name):
     pos = np.searchsorted(mass.points["id"], result.point)
     ok = result.ok
     fields = pointcloud.cloud_fields(result, group=mass.points["group"][pos], rho=mass.points["rho_min"][pos])
-    las, _, _ = pointcloud.write_point_cloud(folder / f"{name}.las", result.lon[ok], result.lat[ok], result.h[ok],
-                                             fields)
+    las, _, _ = pointcloud.write_point_cloud(
+        folder / f"{name}.las", result.lon[ok], result.lat[ok], result.h[ok], fields
+    )
     dem = interpolate_dem(read_points(las), cell=DEM_CELL)
     dem_path = folder / f"{name}_dem.tif"
     write_dem(dem, dem_path)
@@ -119,8 +134,9 @@ def adjust(paths, names, mass, h0):
     those images and the tie points selected from `mass`; (models, Selection, check_points)."""
     models = {IDS[n]: sensors.load(paths["images"][n]["metadata"]) for n in names}
     control = point_observations(paths["points"], IDS, N_CONTROL)
-    control = Observations(control.points, control.measurements[np.isin(control.measurements["image_id"],
-                                                                        list(models))])
+    control = Observations(
+        control.points, control.measurements[np.isin(control.measurements["image_id"], list(models))]
+    )
     obs = control.concatenate(tie_observations(select_tie_points(mass, cell=100.0)))
     selection = select_parameters(models, obs, names=LABELS, height=h0)
     return models, selection, check_points(selection.result, obs, height=h0)
@@ -142,26 +158,49 @@ def run_chain(paths, folder, workers=2):
     out = {"paths": paths, "times": times, "classes": classes, "interior": interior}
     for label, names in RUNS.items():
         supplied = [sensors.load(paths["images"][n]["metadata"]) for n in names]
-        stereo = StereoSet.of([paths["images"][n]["imagery"] for n in names], supplied, names, [IDS[n] for n in names],
-                              (lo - 100.0, hi + 100.0))
-        mass = match_in_memory(RegionGrowing, stereo,
-                               RegionGrowingSettings(grow=GrowParams(step=STEP, support_weights=True)),
-                               Execution("threads", workers))
+        stereo = StereoSet.of(
+            [paths["images"][n]["imagery"] for n in names],
+            supplied,
+            names,
+            [IDS[n] for n in names],
+            (lo - 100.0, hi + 100.0),
+        )
+        mass = match_in_memory(
+            RegionGrowing,
+            stereo,
+            RegionGrowingSettings(grow=GrowParams(step=STEP, support_weights=True)),
+            Execution("threads", workers),
+        )
         lap(f"match {label}")
         models, selection, check = adjust(paths, names, mass, h0)
         lap(f"adjust {label}")
         result, las, dem_path, dem = surface(models, mass, h0, folder, label.replace(" ", "_"))
         lap(f"intersect + DEM {label}")
-        out[label] = {"mass": mass, "models": models, "selection": selection, "check": check, "intersection": result,
-                      "las": las, "dem_path": dem_path, "dem": dem,
-                      **{ref: assess(paths[ref], points=las, dem=dem_path, classes=ClassRaster(classes))
-                         for ref in ("dsm", "dtm")}}
+        out[label] = {
+            "mass": mass,
+            "models": models,
+            "selection": selection,
+            "check": check,
+            "intersection": result,
+            "las": las,
+            "dem_path": dem_path,
+            "dem": dem,
+            **{
+                ref: assess(paths[ref], points=las, dem=dem_path, classes=ClassRaster(classes))
+                for ref in ("dsm", "dtm")
+            },
+        }
         lap(f"assess {label}")
     truth = gdal.Open(str(paths["orthoimage"]))
     grid = OutputGrid(srs(4326), truth.GetGeoTransform(), truth.RasterXSize, truth.RasterYSize)
     with work_dir(folder / "hrg_ortho.tif", "the stored DEM") as stored:
-        out["ortho"] = orthorectify(paths["images"]["HRG"]["imagery"], out["three images"]["models"][IDS["HRG"]],
-                                    store_dem(out["three images"]["dem_path"], stored), folder / "hrg_ortho.tif",
-                                    grid=grid, execution=Execution("threads", workers))
+        out["ortho"] = orthorectify(
+            paths["images"]["HRG"]["imagery"],
+            out["three images"]["models"][IDS["HRG"]],
+            store_dem(out["three images"]["dem_path"], stored),
+            folder / "hrg_ortho.tif",
+            grid=grid,
+            execution=Execution("threads", workers),
+        )
     lap("orthorectify")
     return out

@@ -1,4 +1,5 @@
 """Module-level tile tasks for tests/algorithms/test_execution.py (worker processes import them)."""
+
 import os
 import time
 
@@ -42,6 +43,7 @@ def die_once(folder, k):
 def gdal_cache(k):
     """(k, the GDAL block cache limit of the process running the task, in bytes)."""
     from osgeo import gdal
+
     return k, gdal.GetCacheMax()
 
 
@@ -74,6 +76,7 @@ def warning_action(message, category):
     action of the first filter that matches it ("ignore", "default", ...)."""
     import builtins
     import warnings
+
     kind = getattr(builtins, category)
     for action, text, of, _, _ in warnings.filters:
         if (text is None or text.match(message)) and issubclass(kind, of):

@@ -2,6 +2,7 @@
 count. Tests report them through the `figures` fixture (tests/conftest.py) beside the asserts that bound them,
 and so do the module and session fixtures that measure what several tests share; the session collects them by
 the test that was running, writes them to build/test-figures.md and shows them in pytest's terminal summary."""
+
 import numbers
 
 import numpy as np
@@ -10,7 +11,7 @@ import numpy as np
 def format_value(value):
     """A figure as text: reals with 4 significant digits, sequences and mappings element by element."""
     if isinstance(value, str):
-        return str(value)                   # a numpy str_ as a str
+        return str(value)  # a numpy str_ as a str
     if isinstance(value, (bool, np.bool_)):
         return str(bool(value))
     if isinstance(value, numbers.Integral):
@@ -76,8 +77,9 @@ class Figures:
                     _, name, columns, rows = entry
                     widths = [max(len(str(c)), *(len(r[k]) for r in rows)) for k, c in enumerate(columns)]
                     out.append(f"    {name}:")
-                    out += ["      " + "  ".join(str(v).rjust(w) for v, w in zip(row, widths))
-                            for row in [columns] + rows]
+                    out += [
+                        "      " + "  ".join(str(v).rjust(w) for v, w in zip(row, widths)) for row in [columns] + rows
+                    ]
         return out
 
     def markdown(self):
@@ -92,8 +94,12 @@ class Figures:
                 out += [f"| {' | '.join(cell(v) for v in e[1:])} |" for e in single]
                 out.append("")
             for _, name, columns, rows in (e for e in entries if e[0] == "table"):
-                out += [f"{cell(name)}:", "", "| " + " | ".join(cell(c) for c in columns) + " |",
-                        "|" + "---|" * len(columns)]
+                out += [
+                    f"{cell(name)}:",
+                    "",
+                    "| " + " | ".join(cell(c) for c in columns) + " |",
+                    "|" + "---|" * len(columns),
+                ]
                 out += ["| " + " | ".join(cell(v) for v in row) + " |" for row in rows]
                 out.append("")
         return "\n".join(out)

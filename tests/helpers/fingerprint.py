@@ -1,4 +1,5 @@
 """What a folder holds, byte for byte: to assert that a step left its inputs or a block as they were."""
+
 import hashlib
 import os
 

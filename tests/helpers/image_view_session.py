@@ -4,6 +4,7 @@ test_image_view_memory.py and benchmarks/bench_image_view.py.
 
 Run as a script: image_view_session.py RASTER RESULT_JSON [--pans N] [--jumps N] writes one JSON object to
 RESULT_JSON: {"rows": [...], "peak_mb": ..., "cache_mb": ..., "levels": ...}."""
+
 import argparse
 import json
 import os
@@ -21,6 +22,7 @@ def write_textured_raster(path, cols, rows, seed=0):
     """8-bit tiled DEFLATE GeoTIFF (no overviews) written one row of 256 x 256 blocks at a time: a smooth
     wave, a pattern of 97 x 61 px fields and uniform noise (every block different)."""
     from osgeo import gdal
+
     gdal.UseExceptions()
     rng = np.random.default_rng(seed)
     ds = gdal.GetDriverByName("GTiff").Create(os.fspath(path), cols, rows, 1, gdal.GDT_Byte, CREATION)
@@ -54,6 +56,7 @@ def session(path, pans=62, jumps=200):
     from qgis.PyQt.QtWidgets import QApplication
 
     from pushbroom.ui.image_view import ImageView
+
     app = QApplication.instance() or QApplication([])
     view = ImageView()
     view.resize(WIDTH, HEIGHT)
@@ -69,8 +72,15 @@ def session(path, pans=62, jumps=200):
             view.repaint()
             app.processEvents()
             times.append(1000.0 * (time.perf_counter() - start))
-        rows.append({"operation": name, "redraws": len(times), "median ms": statistics.median(times),
-                     "max ms": max(times), "peak MB": peak_mb()})
+        rows.append(
+            {
+                "operation": name,
+                "redraws": len(times),
+                "median ms": statistics.median(times),
+                "max ms": max(times),
+                "peak MB": peak_mb(),
+            }
+        )
 
     timed("open (auto stretch) + first redraw at fit", [lambda: view.open(path)])
     cols, rows_ = view.image_size
@@ -87,6 +97,7 @@ def session(path, pans=62, jumps=200):
     def pans_at(zoom, sign, n):
         def go():
             view.center_on(view.view_center[0] + sign * quarter / zoom, view.view_center[1], zoom)
+
         return [go] * n
 
     view.center_on(0.0, rows_ / 2.0, 4.0)
@@ -98,8 +109,12 @@ def session(path, pans=62, jumps=200):
     spots = rng.uniform(0.0, 1.0, (jumps, 2)) * (cols, rows_)
     timed("jump to a random place at 1:1", [lambda p=p: view.center_on(p[0], p[1], 1.0) for p in spots])
     timed("zoom out x1.25, 1:1 -> fit", zoom_steps(fit, 1 / 1.25))
-    result = {"rows": rows, "peak_mb": peak_mb(), "cache_mb": view.reader.cache.nbytes / 2 ** 20,
-              "levels": len(view.reader.levels)}
+    result = {
+        "rows": rows,
+        "peak_mb": peak_mb(),
+        "cache_mb": view.reader.cache.nbytes / 2**20,
+        "levels": len(view.reader.levels),
+    }
     view.clear()
     return result
 
@@ -108,14 +123,29 @@ def run_in_subprocess(path, pans=62, jumps=200):
     """session() in a fresh Python process (offscreen Qt); returns its JSON result."""
     import subprocess
     import tempfile
+
     env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
     with tempfile.TemporaryDirectory() as folder:
         result = os.path.join(folder, "session.json")
-        proc = subprocess.run([sys.executable, os.path.abspath(__file__), os.fspath(path), result, "--pans", str(pans),
-                               "--jumps", str(jumps)], env=env, capture_output=True, text=True)
+        proc = subprocess.run(
+            [
+                sys.executable,
+                os.path.abspath(__file__),
+                os.fspath(path),
+                result,
+                "--pans",
+                str(pans),
+                "--jumps",
+                str(jumps),
+            ],
+            env=env,
+            capture_output=True,
+            text=True,
+        )
         if proc.returncode != 0:
-            raise RuntimeError(f"the ImageView session failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n"
-                               f"{proc.stderr[-3000:]}")
+            raise RuntimeError(
+                f"the ImageView session failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+            )
         with open(result, encoding="utf-8") as f:
             return json.load(f)
 
@@ -128,4 +158,5 @@ if __name__ == "__main__":
     parser.add_argument("--jumps", type=int, default=200)
     args = parser.parse_args()
     from pushbroom.algorithms.atomic import write_text
+
     write_text(args.result, json.dumps(session(args.raster, args.pans, args.jumps)))

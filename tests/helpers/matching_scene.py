@@ -15,6 +15,7 @@ sigma 9.5 / 6 / 4.75 / 3.5 px -> 0.206 / 0.207 / 0.212 / 0.237 px vs 0.208 unwei
 `area_truth` can weight the samples as MPGC's support weights do (mpgc.py; support_reference, a
 numpy implementation of mpgc_kernels.support_weights), computed on the
 template without the resolution adaptation's low-pass (the 5 x 5 box means hardly differ)."""
+
 import numpy as np
 from osgeo import gdal
 from scipy import ndimage
@@ -29,9 +30,9 @@ from pushbroom.algorithms.matching.region_growing import Lattice
 from pushbroom.algorithms.matching.resolution import adapt_resolution
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST
 
-SINGLE_SURFACE = (BARE, CROPS)      # DSM = DTM: one (rough) surface inside a template
-DISCONTINUOUS = (FOREST, CITY)      # crowns on an 8 m lattice, buildings: height steps inside a template
-LOW_CONTRAST_DN = 5.0               # ground DN std over the template footprint below which a node is low texture
+SINGLE_SURFACE = (BARE, CROPS)  # DSM = DTM: one (rough) surface inside a template
+DISCONTINUOUS = (FOREST, CITY)  # crowns on an 8 m lattice, buildings: height steps inside a template
+LOW_CONTRAST_DN = 5.0  # ground DN std over the template footprint below which a node is low texture
 
 
 def support_reference(f, half, centre, similarity):
@@ -41,9 +42,9 @@ def support_reference(f, half, centre, similarity):
     side = 2 * half + 1
     img = f.reshape(side, side)
     box = np.ones((SUPPORT_BOX, SUPPORT_BOX))
-    mean = (ndimage.convolve(img, box, mode="constant") / ndimage.convolve(np.ones_like(img), box, mode="constant"))
+    mean = ndimage.convolve(img, box, mode="constant") / ndimage.convolve(np.ones_like(img), box, mode="constant")
     k, l = np.meshgrid(np.arange(-half, half + 1), np.arange(-half, half + 1))
-    w = np.exp(-0.5 * (k ** 2 + l ** 2) / centre ** 2) if centre > 0 else np.ones_like(img)
+    w = np.exp(-0.5 * (k**2 + l**2) / centre**2) if centre > 0 else np.ones_like(img)
     if similarity > 0 and img.std() > 0:
         w = w * np.exp(-0.5 * ((mean - mean[half, half]) / (similarity * img.std())) ** 2)
     return w.ravel()
@@ -87,7 +88,7 @@ class Scene:
         self.class_gt = ds.GetGeoTransform()
         ortho = gdal.Open(str(paths["orthoimage"])).ReadAsArray().astype(float)
         m1, m2 = ndimage.uniform_filter(ortho, 19), ndimage.uniform_filter(ortho * ortho, 19)
-        self.ground_std = np.sqrt(np.maximum(m2 - m1 * m1, 0.0))   # 95 m: a 19 px HRG template
+        self.ground_std = np.sqrt(np.maximum(m2 - m1 * m1, 0.0))  # 95 m: a 19 px HRG template
 
     def _cell(self, lon, lat):
         gt = self.class_gt
@@ -135,8 +136,13 @@ class Scene:
         the smoothed noise is correlated over the template); image 2's, repeated on the 1 / |det A|
         template samples inside one coarser pixel, M2 = sigma^2 rep J'J."""
         params = params or GrowParams()
-        pair = adapt_resolution(*(Image(noise_free["images"][name]["imagery"]) for name in self.names),
-                                self.model1, self.model2, params, self.height_range)
+        pair = adapt_resolution(
+            *(Image(noise_free["images"][name]["imagery"]) for name in self.names),
+            self.model1,
+            self.model2,
+            params,
+            self.height_range,
+        )
         assert not isinstance(pair[1], Smoothed), "image 2 finer than image 1: not modelled"
         sigma = pair[0].sigma if isinstance(pair[0], Smoothed) else (0.0, 0.0)
         half = params.template // 2
@@ -144,14 +150,14 @@ class Scene:
         grads = TemplateGradients(pair[0].read(0, 0, *pair[0].size)[0], half)
         x1, y1 = np.asarray(x1, float), np.asarray(y1, float)
         _, _, a1, a2, a4, a5 = local_affine(self.model1, self.model2, x1, y1, 0.5 * sum(self.height_range))
-        sigma2 = noise_dn ** 2 + 1.0 / 12.0
+        sigma2 = noise_dn**2 + 1.0 / 12.0
         out = np.empty(len(x1))
         for p in range(len(x1)):
             a = np.array([[a1[p], a2[p]], [a4[p], a5[p]]])
             k, l, gx, gy, grey = grads.at(x1[p], y1[p], a)
             jac = np.column_stack([gx, gx * k, gx * l, gy, gy * k, gy * l, np.ones_like(gx), grey])
             padded = np.zeros((8, side + 2 * pad, side + 2 * pad))
-            padded[:, pad:pad + side, pad:pad + side] = jac.T.reshape(8, side, side)
+            padded[:, pad : pad + side, pad : pad + side] = jac.T.reshape(8, side, side)
             hj = ndimage.gaussian_filter(padded, (0.0, *sigma), mode="constant", truncate=4.0).reshape(8, -1)
             q = np.linalg.inv(jac.T @ jac)
             rep = max(1.0, 1.0 / abs(np.linalg.det(a)))

@@ -5,6 +5,7 @@ measurement_crash_session.py BLOCK DEM POINTS_CSV RESULT_JSON: opens the window 
 its scripting methods (two points set on the reference and measured, one with LSM transfers accepted,
 a third created, deleted and restored by undo, the second deleted, the first made a check point),
 writes the state the window shows to RESULT_JSON and kills itself without closing anything."""
+
 import csv
 import json
 import os
@@ -14,10 +15,12 @@ import sys
 
 def main(block_path, dem_path, points_csv, result_path):
     from qgis.core import QgsApplication
+
     app = QgsApplication([], True)
     app.initQgis()
     from pushbroom.algorithms.atomic import write_text
     from pushbroom.ui.measurement_window import MeasurementWindow
+
     with open(points_csv, newline="") as f:
         truth = {r["id"]: {k: float(v) for k, v in r.items() if k != "id"} for r in csv.DictReader(f)}
     window = MeasurementWindow(block_path, reference_layers=[], dem_path=dem_path)
@@ -40,11 +43,14 @@ def main(block_path, dem_path, points_csv, result_path):
     window.edit_point("K1", role="check", sigma_e=1.25)
     app.processEvents()
     obs = window.session.observations
-    state = {"points": {str(p["name"]): [p[k].item() for k in ("role", "lon", "lat", "h", "sigma_e")]
-                        for p in obs.points},
-             "measurements": sorted([str(obs.points["name"][m["point"]]), int(m["image_id"]), float(m["col"]),
-                                     float(m["row"])] for m in obs.measurements),
-             "undo_steps": window.undo_stack.count()}
+    state = {
+        "points": {str(p["name"]): [p[k].item() for k in ("role", "lon", "lat", "h", "sigma_e")] for p in obs.points},
+        "measurements": sorted(
+            [str(obs.points["name"][m["point"]]), int(m["image_id"]), float(m["col"]), float(m["row"])]
+            for m in obs.measurements
+        ),
+        "undo_steps": window.undo_stack.count(),
+    }
     write_text(result_path, json.dumps(state))
     os.kill(os.getpid(), signal.SIGKILL)
 

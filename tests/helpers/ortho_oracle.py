@@ -1,5 +1,6 @@
 """Geometric error of an orthoimage against the simulator's true orthoimage (same grid), by least-squares
 matching: shared by the orthorectification and the end-to-end tests."""
+
 import numpy as np
 from osgeo import gdal
 from scipy import ndimage
@@ -17,7 +18,7 @@ def geometric_error(paths, ortho_path, classes=(BARE, CROPS)):
     ours = gdal.Open(str(ortho_path)).ReadAsArray().astype(np.float32)
     land = gdal.Open(str(paths["classes"])).ReadAsArray()
     full = ndimage.binary_erosion(ours > 0, np.ones((LsmParams.template + 4,) * 2))
-    i, j = (a.ravel() for a in np.mgrid[20:truth.shape[0] - 20:15, 20:truth.shape[1] - 20:15])
+    i, j = (a.ravel() for a in np.mgrid[20 : truth.shape[0] - 20 : 15, 20 : truth.shape[1] - 20 : 15])
     keep = full[i, j] & np.isin(land[i, j], classes)
     x, y = j[keep] + 0.5, i[keep] + 0.5
     records, status = lsm.match_points(truth, ours, x, y, x, y)

@@ -1,4 +1,5 @@
 """Independent oracles through OSR for tests (point by point, not the engine's array transforms)."""
+
 import numpy as np
 from osgeo import osr
 

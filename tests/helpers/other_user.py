@@ -1,5 +1,6 @@
 """A process run as another user: where the tests run as root (who may write anywhere), the process that must
 meet a permission refusal runs as the unprivileged user `nobody`, on files in a folder every user may read."""
+
 import contextlib
 import os
 import pathlib
@@ -21,14 +22,15 @@ def public_folder(prefix: str) -> Iterator[pathlib.Path]:
         yield pathlib.Path(folder)
     finally:
         for root, names, _ in os.walk(folder):
-            for name in names:          # a test's read-only folder, which a user other than root cannot empty
+            for name in names:  # a test's read-only folder, which a user other than root cannot empty
                 with contextlib.suppress(OSError):
                     os.chmod(os.path.join(root, name), 0o755)
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def as_other_user(command: list[str], public: pathlib.Path,
-                  env: dict[str, str] | None = None) -> tuple[list[str], dict[str, str]]:
+def as_other_user(
+    command: list[str], public: pathlib.Path, env: dict[str, str] | None = None
+) -> tuple[list[str], dict[str, str]]:
     """(command, environment) that run `command` as `USER`, without groups, where the tests run as root (as
     it is where they do not: their user meets the refusals already). The environment is `env` (by default this
     process's, with PYTHONPATH = sys.path: a Python that imports what the tests import) with NUMBA_CACHE_DIR

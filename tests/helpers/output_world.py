@@ -3,6 +3,7 @@ may try to overwrite it: a block (its control points, mass and tie point folders
 a DSM and a DTM, a point cloud; each raster as QGIS leaves it once loaded (with the .aux.xml of statistics it
 writes), so that what the tests' runs find does not change as they load them. Used by the output-path tests
 (tests/plugin/test_output_paths_*.py)."""
+
 import csv
 import os
 import pathlib
@@ -37,6 +38,12 @@ def build(folder, scene):
     lon, lat, h = (np.array([float(r[k]) for r in rows]) for k in ("lon", "lat", "h"))
     write_point_cloud(folder / "cloud.las", lon, lat, h)
     for raster in [*images, folder / "dsm.tif", folder / "dtm.tif"]:
-        QgsRasterLayer(str(raster), "", "gdal")     # writes the GDAL side file of statistics QGIS keeps of a raster
-    return {"folder": str(folder), "block": str(block), "images": images, "dsm": str(folder / "dsm.tif"),
-            "dtm": str(folder / "dtm.tif"), "las": str(folder / "cloud.las")}
+        QgsRasterLayer(str(raster), "", "gdal")  # writes the GDAL side file of statistics QGIS keeps of a raster
+    return {
+        "folder": str(folder),
+        "block": str(block),
+        "images": images,
+        "dsm": str(folder / "dsm.tif"),
+        "dtm": str(folder / "dtm.tif"),
+        "las": str(folder / "cloud.las"),
+    }

@@ -2,11 +2,12 @@
 combination order (reference, forward, backward) = (img_02, img_01, img_03), block image ids 1, 2,
 3 (test_matching_pleiades.test_reference_is_the_most_nadir gives the reasons), matched by
 match_block from automatic seeds in every tile over the RPCs' own height range."""
+
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.region_growing_strategy import match_block
 
-ORDER = (2, 1, 3)              # img_02 reference (nadir), img_01 forward, img_03 backward
+ORDER = (2, 1, 3)  # img_02 reference (nadir), img_01 forward, img_03 backward
 NAMES = [f"img_0{k}" for k in ORDER]
 #: block image id -> name (match_block's default ids 1, 2, 3 in combination order)
 LABELS = {k + 1: name for k, name in enumerate(NAMES)}

@@ -1,5 +1,6 @@
 """Synthetic multi-image points (MultiPoints) and a flat stand-in sensor model, shared by the point
 storage tests and benchmarks/bench_points.py."""
+
 import numpy as np
 
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
@@ -25,6 +26,7 @@ def synthetic(n, seed=0, images=(1, 2, 3)):
 
 class FlatModel:
     """lon/lat linear in col/row (a stand-in for a sensor model)."""
+
     size = (1000, 1000)
 
     def image_to_ground(self, col, row, h):

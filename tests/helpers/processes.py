@@ -1,5 +1,6 @@
 """The processes of this machine as /proc shows them (Linux): a test's worker processes, to kill one; the pid a
 task leaves in a file, and a thread that acts once a condition holds."""
+
 import os
 import threading
 import time
@@ -79,6 +80,7 @@ def pid_in(path) -> int | None:
 
 def when(condition, then, timeout: float = 120.0) -> threading.Thread:
     """A thread that runs `then()` once `condition()` holds, looking every 0.05 s for `timeout` s at most."""
+
     def watch():
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
@@ -86,6 +88,7 @@ def when(condition, then, timeout: float = 120.0) -> threading.Thread:
                 then()
                 return
             time.sleep(0.05)
+
     thread = threading.Thread(target=watch, daemon=True)
     thread.start()
     return thread

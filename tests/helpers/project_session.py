@@ -4,6 +4,7 @@ PUSHBROOM_PROJECT as a user would (File > Open), let it render, then write to th
 PUSHBROOM_RESULT the message bar's items (QGIS shows a missing font, an unreadable layer or a bad style
 there), the layers and whether they are valid, and a screenshot of the main window to
 PUSHBROOM_SCREENSHOT; then quit."""
+
 import json
 import os
 import traceback

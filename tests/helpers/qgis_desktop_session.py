@@ -7,6 +7,7 @@ any dialog still open after WATCHDOG_MS (a modal one would block QGIS) and ends 
 
 The job is the JSON file named by the environment variable PUSHBROOM_SESSION: {"block": path, "result": path,
 "points": [{"name", "lon", "lat", "h", "image": {image id (str): [col, row]}}]}."""
+
 import json
 import os
 import sys
@@ -37,6 +38,7 @@ def record_exception(kind, value, tb):
 def control_layers():
     """[name, feature count, renderer type] of the project's layers of the block's control points."""
     from pushbroom.plugin.control_layer import find_control_layer
+
     layer = find_control_layer(JOB["block"])
     return [] if layer is None else [[layer.name(), layer.featureCount(), layer.renderer().type()]]
 
@@ -64,8 +66,9 @@ def session():
     main = iface.mainWindow()
     action = main.findChild(QAction, "pushbroom_measure")
     RESULT["action"] = action is not None
-    RESULT["toolbars"] = [t.windowTitle() for t in main.findChildren(QToolBar)
-                          if action in t.actions() and t.isVisible()]
+    RESULT["toolbars"] = [
+        t.windowTitle() for t in main.findChildren(QToolBar) if action in t.actions() and t.isVisible()
+    ]
     footprints = QgsVectorLayer(f"{JOB['block']}|layername=footprints", "footprints", "ogr")
     QgsProject.instance().addMapLayer(footprints)
     iface.setActiveLayer(footprints)
@@ -77,8 +80,10 @@ def session():
     RESULT["transferred"] = {p["name"]: measure(window, p) for p in JOB["points"]}
     action.trigger()  # a second trigger shows the same window
     RESULT["windows_after_second_trigger"] = len(
-        [w for w in QApplication.topLevelWidgets() if type(w).__name__ == "MeasurementWindow"])
+        [w for w in QApplication.topLevelWidgets() if type(w).__name__ == "MeasurementWindow"]
+    )
     from pushbroom.plugin.control_layer import show_control_points
+
     show_control_points(JOB["block"])
     RESULT["layers_at_end"] = control_layers()
     window.close()
@@ -90,8 +95,11 @@ def run_and_quit():
 
 def watchdog():
     """Runs inside a modal dialog's event loop too: name the open dialogs and end QGIS."""
-    dialogs = [f"{type(w).__name__} {w.windowTitle()!r}" + (f": {w.text()}" if isinstance(w, QMessageBox) else "")
-               for w in QApplication.topLevelWidgets() if w.isVisible() and w is not qgis.utils.iface.mainWindow()]
+    dialogs = [
+        f"{type(w).__name__} {w.windowTitle()!r}" + (f": {w.text()}" if isinstance(w, QMessageBox) else "")
+        for w in QApplication.topLevelWidgets()
+        if w.isVisible() and w is not qgis.utils.iface.mainWindow()
+    ]
     RESULT["errors"].append(f"QGIS still running after {WATCHDOG_MS} ms; open windows: {dialogs}")
     write_result()
     os._exit(3)

@@ -1,4 +1,5 @@
 """Plain numpy reference for raster lookups in tests (independent of algorithms/dem.py)."""
+
 import numpy as np
 from osgeo import gdal
 
@@ -10,5 +11,9 @@ def bilinear(path, lon, lat):
     x, y = (lon - x0) / dx - 0.5, (lat - y0) / dy - 0.5
     j, i = np.floor(x).astype(int), np.floor(y).astype(int)
     fx, fy = x - j, y - i
-    return (z[i, j] * (1 - fx) * (1 - fy) + z[i, j + 1] * fx * (1 - fy) + z[i + 1, j] * (1 - fx) * fy
-            + z[i + 1, j + 1] * fx * fy)
+    return (
+        z[i, j] * (1 - fx) * (1 - fy)
+        + z[i, j + 1] * fx * (1 - fy)
+        + z[i + 1, j] * (1 - fx) * fy
+        + z[i + 1, j + 1] * fx * fy
+    )

@@ -5,6 +5,7 @@ Ventoux pair, the common footprint of the triplet, the pairs' differences on one
 triplet DSMs of one matcher with the supplied and the bias-adjusted RPCs (pleiades_scene's image
 order), and the points dense matching refined. test_dsm_real.py's docstring gives the reasons for the
 choices."""
+
 import time
 
 import numpy as np
@@ -44,9 +45,15 @@ def refined_dense_points(images, models, names, folder, heights, params=None):
     (DenseParams `params`, default the defaults; 2 threads) of `images` (paths or Image) with `models` over
     `heights` (h_min, h_max) in the work `folder`."""
     t = time.perf_counter()
-    parts, _ = match_dense_tiles([as_image(p) for p in images], models, folder,
-                                 names=names, params=params or DenseParams(), height_range=tuple(heights),
-                                 execution=Execution("threads", 2))
+    parts, _ = match_dense_tiles(
+        [as_image(p) for p in images],
+        models,
+        folder,
+        names=names,
+        params=params or DenseParams(),
+        height_range=tuple(heights),
+        execution=Execution("threads", 2),
+    )
     seconds = time.perf_counter() - t
     points = np.concatenate([p.points for p in parts])
     observations = np.concatenate([p.observations for p in parts])
@@ -76,7 +83,7 @@ def on_grid(dem, grid):
     rows, cols = dem.grid.shape
     i0, i1, j0, j1 = max(di, 0), min(di + rows, grid.rows), max(dj, 0), min(dj + cols, grid.cols)
     out = np.full(grid.shape, np.nan)
-    out[i0:i1, j0:j1] = dem.heights[i0 - di:i1 - di, j0 - dj:j1 - dj]
+    out[i0:i1, j0:j1] = dem.heights[i0 - di : i1 - di, j0 - dj : j1 - dj]
     return out
 
 
@@ -110,9 +117,11 @@ def srtm_comparison(result, srtm, cells, cell, folder):
 
 def report_srtm_comparison(comparison, figures):
     """Report an srtm_comparison: DSM - SRTM per cell size, the plane of dh and dh without it."""
-    figures.table("DSM - SRTM (EGM96 -> ellipsoidal) (m)",
-                  [stats_row(f"{c:g} m DSM", s) for c, s in comparison["stats"].items()]
-                  + [stats_row("without the plane", comparison["detrended"])])
+    figures.table(
+        "DSM - SRTM (EGM96 -> ellipsoidal) (m)",
+        [stats_row(f"{c:g} m DSM", s) for c, s in comparison["stats"].items()]
+        + [stats_row("without the plane", comparison["detrended"])],
+    )
     figures.report("plane of dh, east and north", comparison["plane"][1:], "m/m")
 
 
@@ -130,7 +139,7 @@ def footprint_mask(grid, srs, models, height):
 def pair_differences(dems, grid, inside):
     """{(pair, pair): Stats of their DSMs' differences over `inside` cells of `grid`}."""
     on = {p: on_grid(dems[p], grid) for p in PAIRS}
-    return {(p, q): summarize((on[p] - on[q])[inside]) for i, p in enumerate(PAIRS) for q in PAIRS[i + 1:]}
+    return {(p, q): summarize((on[p] - on[q])[inside]) for i, p in enumerate(PAIRS) for q in PAIRS[i + 1 :]}
 
 
 def pair_name(pair):
@@ -157,21 +166,37 @@ def build_triplet_dsms(triplet, match, cell, max_edge, folder, log):
     first = cut(supplied, points.observations, three)
     srs = output_srs(None, first.lon[first.ok], first.lat[first.ok])
     height = float(np.nanmedian(first.h))
-    adjusted = adjust(triplet_models(triplet), tie_observations(select_tie_points(points)), OTHERS, names=LABELS,
-                      height=height, priors=PRIORS)
-    out = {"points": points, "srs": srs, "height": height, "models": models, "seconds": t_match,
-           "sigma0": adjusted.sigma0}
+    adjusted = adjust(
+        triplet_models(triplet),
+        tie_observations(select_tie_points(points)),
+        OTHERS,
+        names=LABELS,
+        height=height,
+        priors=PRIORS,
+    )
+    out = {
+        "points": points,
+        "srs": srs,
+        "height": height,
+        "models": models,
+        "seconds": t_match,
+        "sigma0": adjusted.sigma0,
+    }
     for label, block in (("before", supplied), ("after", adjusted.parameters.models)):
-        out[label] = {(a, b): dsm(cut({1: block[a + 1], 2: block[b + 1]}, pairs[a, b].observations), srs, cell,
-                                  max_edge) for a, b in PAIRS}
+        out[label] = {
+            (a, b): dsm(cut({1: block[a + 1], 2: block[b + 1]}, pairs[a, b].observations), srs, cell, max_edge)
+            for a, b in PAIRS
+        }
     out["three"] = cut(adjusted.parameters.models, points.observations, three)
     out["triplet"] = dsm(out["three"], srs, cell, max_edge)
     out["path"] = folder / "dsm.tif"
     write_dem(out["triplet"], out["path"])
-    log.messages += [f"triplet: {len(points)} points {points.group_counts()}; pairs: "
-                     + ", ".join(f"{NAMES[a]}-{NAMES[b]} {len(p)}" for (a, b), p in pairs.items())
-                     + f"; matching {t_match:.1f} s, all {time.perf_counter() - t0:.1f} s; adjustment sigma_0 "
-                     f"{adjusted.sigma0:.3f}"]
+    log.messages += [
+        f"triplet: {len(points)} points {points.group_counts()}; pairs: "
+        + ", ".join(f"{NAMES[a]}-{NAMES[b]} {len(p)}" for (a, b), p in pairs.items())
+        + f"; matching {t_match:.1f} s, all {time.perf_counter() - t0:.1f} s; adjustment sigma_0 "
+        f"{adjusted.sigma0:.3f}"
+    ]
     return out
 
 
@@ -186,10 +211,15 @@ def check_pair_consistency(dsms, title, max_median, max_nmad, figures):
     for label in ("before", "after"):
         stats[label] = pair_differences(dsms[label], grid, inside)
         covered = {p: np.isfinite(on_grid(dsms[label][p], grid))[inside].mean() for p in PAIRS}
-        figures.report(f"{title} pair DSMs {label} the bias adjustment, coverage of the footprint",
-                       {pair_name(p): 100 * c for p, c in covered.items()}, "%")
-        figures.table(f"{title} pair DSMs {label} the bias adjustment, differences (m)",
-                      [stats_row(f"({pair_name(p)}) - ({pair_name(q)})", s) for (p, q), s in stats[label].items()])
+        figures.report(
+            f"{title} pair DSMs {label} the bias adjustment, coverage of the footprint",
+            {pair_name(p): 100 * c for p, c in covered.items()},
+            "%",
+        )
+        figures.table(
+            f"{title} pair DSMs {label} the bias adjustment, differences (m)",
+            [stats_row(f"({pair_name(p)}) - ({pair_name(q)})", s) for (p, q), s in stats[label].items()],
+        )
     before = max(abs(s.median) for s in stats["before"].values())
     for key, s in stats["after"].items():
         assert s.n > 0.5 * inside.sum(), (key, s)

@@ -11,6 +11,7 @@ Starting values as `adjust`: orientation 0, points from bundle.start_points (con
 observations, the others intersected). Jacobian analytic from the models' `partials` (d_corrections
 mapped by the parameters' jacobian_map, d_ground over e0, n0), a scipy.sparse CSR matrix; solved by
 method="trf" with tr_solver="lsmr"."""
+
 import numpy as np
 from scipy import sparse
 from scipy.optimize import least_squares
@@ -35,12 +36,15 @@ class ScipyBundle:
         p, m = self.obs.points, self.obs.measurements
         self.control = np.flatnonzero(p["role"] == "control")
         self.ground_sigma = np.column_stack([p["sigma_e"], p["sigma_n"], p["sigma_h"]])[self.control]
-        self.ground_observed = np.column_stack([(p["lon"] - self.lon0) * self.e0, (p["lat"] - self.lat0) * self.n0,
-                                                p["h"] - self.h0])[self.control]
+        self.ground_observed = np.column_stack(
+            [(p["lon"] - self.lon0) * self.e0, (p["lat"] - self.lat0) * self.n0, p["h"] - self.h0]
+        )[self.control]
         self.by_image = {i: np.flatnonzero(m["image_id"] == i) for i in np.unique(m["image_id"])}
         self.free_maps = {i: self.params.jacobian_map(i)[:, self.params.free] for i in self.by_image}
         # as adjust: the exterior orientation's partials only where one of its coefficients is free
-        self.exterior = {i: bool(np.any(f[:models[i].EXTERIOR_COEFFICIENTS] != 0.0)) for i, f in self.free_maps.items()}
+        self.exterior = {
+            i: bool(np.any(f[: models[i].EXTERIOR_COEFFICIENTS] != 0.0)) for i, f in self.free_maps.items()
+        }
 
     @property
     def size(self):
@@ -48,12 +52,12 @@ class ScipyBundle:
 
     def points(self, z):
         """lon, lat, h of the points at z."""
-        d = z[self.nfree:].reshape(-1, 3)
+        d = z[self.nfree :].reshape(-1, 3)
         return self.lon0 + d[:, 0] / self.e0, self.lat0 + d[:, 1] / self.n0, self.h0 + d[:, 2]
 
     def _apply(self, z):
         x = np.zeros(len(self.params))
-        x[self.params.free] = z[:self.nfree]
+        x[self.params.free] = z[: self.nfree]
         self.params.apply(x)
 
     def residuals(self, z):
@@ -67,7 +71,7 @@ class ScipyBundle:
             p = m["point"][k]
             image[k] = np.column_stack(self.params.models[i].ground_to_image(lon[p], lat[p], h[p]))
         image = (image - np.column_stack([m["col"], m["row"]])) / m["sigma"][:, None]
-        ground = (z[self.nfree:].reshape(-1, 3)[self.control] - self.ground_observed) / self.ground_sigma
+        ground = (z[self.nfree :].reshape(-1, 3)[self.control] - self.ground_observed) / self.ground_sigma
         return np.concatenate([image.ravel(), ground.ravel()])
 
     def jacobian(self, z, *_):
@@ -80,7 +84,7 @@ class ScipyBundle:
             p = m["point"][k]
             d = self.params.models[i].partials(lon[p], lat[p], h[p], exterior=self.exterior[i])
             weight = 1.0 / m["sigma"][k]
-            row = 2 * k[:, None] + np.arange(2)                                         # (n, 2)
+            row = 2 * k[:, None] + np.arange(2)  # (n, 2)
             orientation = d["d_corrections"] @ self.free_maps[i] * weight[:, None, None]  # (n, 2, nfree)
             used = np.flatnonzero(np.any(self.free_maps[i] != 0.0, axis=0))
             rows.append(np.repeat(row[:, :, None], used.size, axis=2).ravel())
@@ -100,8 +104,17 @@ class ScipyBundle:
     def solve(self, tolerance=1e-12):
         """least_squares from the starting values; returns (orientation unknowns, lon, lat, h,
         scipy's OptimizeResult). The models are left with the solution."""
-        result = least_squares(self.residuals, np.zeros(self.size), jac=self.jacobian, method="trf",
-                               tr_solver="lsmr", x_scale="jac", ftol=tolerance, xtol=tolerance, gtol=tolerance,
-                               tr_options={"atol": tolerance, "btol": tolerance})
+        result = least_squares(
+            self.residuals,
+            np.zeros(self.size),
+            jac=self.jacobian,
+            method="trf",
+            tr_solver="lsmr",
+            x_scale="jac",
+            ftol=tolerance,
+            xtol=tolerance,
+            gtol=tolerance,
+            tr_options={"atol": tolerance, "btol": tolerance},
+        )
         self._apply(result.x)
-        return (result.x[:self.nfree].copy(), *self.points(result.x), result)
+        return (result.x[: self.nfree].copy(), *self.points(result.x), result)

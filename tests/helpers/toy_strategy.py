@@ -4,6 +4,7 @@
 "toy_grid" does not match: it places a point on every `step`-th pixel of the reference image and takes its
 positions in the other images from the sensor models at the middle of the height range. On error-free models
 over flat terrain at that height, those are the true conjugates."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -22,8 +23,8 @@ from pushbroom.algorithms.tiling import tile_grid
 
 @dataclass
 class ToySettings:
-    step: int = 20          # px between the points in the reference image
-    tile: int = 256         # px: square tiles of the reference image
+    step: int = 20  # px between the points in the reference image
+    tile: int = 256  # px: square tiles of the reference image
 
     def check(self) -> ToySettings:
         if self.step < 1 or self.tile < self.step:
@@ -52,7 +53,7 @@ class ToyGrid(MatchingStrategy):
     def match_tile(job: Any, index: int, box: Any, out: str, quota: int) -> dict[str, Any]:
         stereo, settings = job
         x0, y0, x1, y1 = box
-        gy, gx = np.mgrid[y0 + 0.5:y1:settings.step, x0 + 0.5:x1:settings.step]
+        gy, gx = np.mgrid[y0 + 0.5 : y1 : settings.step, x0 + 0.5 : x1 : settings.step]
         x, y = gx.ravel(), gy.ravel()
         n, m = len(x), len(stereo)
         points = np.zeros(n, POINT_DTYPE)

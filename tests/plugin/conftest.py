@@ -1,5 +1,6 @@
 """Fixtures of the Processing algorithm tests: a recording feedback, and a private QGIS profile for
 running qgis_process as a user would (the provider fixture is in tests/conftest.py)."""
+
 import json
 import subprocess
 
@@ -44,7 +45,10 @@ def qgis_process(tmp_path_factory):
     def run(*args):
         proc = subprocess.run([QGIS_PROCESS, "--json", *args], env=env, capture_output=True, text=True)
         if proc.returncode != 0:
-            raise RuntimeError(f"qgis_process {' '.join(args)} failed ({proc.returncode}):\n"
-                               f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
-        return json.loads(proc.stdout[proc.stdout.index("{"):])
+            raise RuntimeError(
+                f"qgis_process {' '.join(args)} failed ({proc.returncode}):\n"
+                f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+            )
+        return json.loads(proc.stdout[proc.stdout.index("{") :])
+
     return run

@@ -1,6 +1,7 @@
 """docs/architecture.md's step table is the provider's list of algorithms: every Processing algorithm has
 one row (id, plugin file, engine entry point, test) and every row names things that exist; each
 algorithm's `execute` is thin (reads its parameters, calls its entry point, loads the outputs)."""
+
 import ast
 import importlib
 import pathlib
@@ -37,7 +38,7 @@ def test_every_row_names_a_plugin_file_an_entry_point_and_a_test_that_exist():
         module, _, function = entry.rpartition(".")
         target = getattr(importlib.import_module(f"pushbroom.{module}"), function)
         assert callable(target), entry
-        assert re.search(rf"\b{function}\b", source), (step, entry)             # the algorithm calls its entry point
+        assert re.search(rf"\b{function}\b", source), (step, entry)  # the algorithm calls its entry point
         for path in test.split(", "):
             assert (REPO / path.split("::")[0]).is_file(), (step, path)
 

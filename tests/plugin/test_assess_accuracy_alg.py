@@ -1,6 +1,7 @@
 """pushbroom:assessaccuracy on the simulated scene: a point cloud on the true DSM and a UTM DEM of the
 DSM against the true DTM, with the simulator's classes; outputs (HTML report, CSV table, dh raster
 styled with dh.qml) checked against the engine's statistics and GDAL."""
+
 import csv
 import pathlib
 import re
@@ -33,8 +34,9 @@ def inputs(small_scene, tmp_path_factory):
     cloud = folder / "points.las"
     write_point_cloud(cloud, lon, lat, dsm.height(lon, lat), {"group": rng.integers(1, 4, 3000).astype(np.uint8)})
     dem = folder / "dem.tif"
-    gdal.Warp(str(dem), small_scene["dsm"], dstSRS="EPSG:32616", xRes=10, yRes=10, resampleAlg="average",
-              dstNodata=-9999)
+    gdal.Warp(
+        str(dem), small_scene["dsm"], dstSRS="EPSG:32616", xRes=10, yRes=10, resampleAlg="average", dstNodata=-9999
+    )
     return {"folder": folder, "points": str(cloud), "dem": str(dem), "lon": lon, "lat": lat}
 
 
@@ -42,16 +44,26 @@ def test_report_table_and_dh_raster(pushbroom_provider, small_scene, inputs, log
     out = inputs["folder"] / "run"
     context = QgsProcessingContext()
     context.setProject(QgsProject.instance())
-    result = processing.run(ALG, {
-        "REFERENCE": small_scene["dtm"], "POINTS": inputs["points"], "DEM": inputs["dem"],
-        "CLASS_RASTER": small_scene["classes"], "SLOPE_THRESHOLD": 12.0,
-        "REPORT": str(out / "report.html"), "TABLE": str(out / "stats.csv"), "DH": str(out / "dh.tif")},
-        context=context, feedback=log)
+    result = processing.run(
+        ALG,
+        {
+            "REFERENCE": small_scene["dtm"],
+            "POINTS": inputs["points"],
+            "DEM": inputs["dem"],
+            "CLASS_RASTER": small_scene["classes"],
+            "SLOPE_THRESHOLD": 12.0,
+            "REPORT": str(out / "report.html"),
+            "TABLE": str(out / "stats.csv"),
+            "DH": str(out / "dh.tif"),
+        },
+        context=context,
+        feedback=log,
+    )
     text = open(result["REPORT"], encoding="utf-8").read()
     assert not re.search(r"(src|href)\s*=\s*['\"](?!data:)", text)
     assert text.count("data:image/png;base64,") == 7 and "Zhang and Gruen 2004, Tables 2-3" in text
     assert CLASSES[FOREST] in text
-    assert "slope &lt; 12 deg" in text and inputs["dem"] in text     # html-escaped "<"
+    assert "slope &lt; 12 deg" in text and inputs["dem"] in text  # html-escaped "<"
     rows = list(csv.DictReader(open(result["TABLE"])))
     ds = gdal.Open(result["DH"])
     band = ds.GetRasterBand(1)
@@ -62,10 +74,10 @@ def test_report_table_and_dh_raster(pushbroom_provider, small_scene, inputs, log
     s = summarize(dh)
     figures.table("DEM (DSM averaged to 10 m) vs DTM (m)", [{"N": s.n, "mean": s.mean, "RMS": s.rms, "NMAD": s.nmad}])
     assert int(dem_all["n"]) == s.n
-    np.testing.assert_allclose([float(dem_all[k]) for k in ("mean", "rms", "nmad")], [s.mean, s.rms, s.nmad],
-                               atol=1e-3)
-    forest = next(r for r in rows if r["data"] == "object points" and r["table"] == "per class"
-                  and r["label"] == CLASSES[FOREST])
+    np.testing.assert_allclose([float(dem_all[k]) for k in ("mean", "rms", "nmad")], [s.mean, s.rms, s.nmad], atol=1e-3)
+    forest = next(
+        r for r in rows if r["data"] == "object points" and r["table"] == "per class" and r["label"] == CLASSES[FOREST]
+    )
     assert float(forest["mean"]) > 5.0
     assert any("per point group" in m and "Point group 3" in m for m in log.messages)
     layer = QgsRasterLayer(result["DH"], "dh")
@@ -77,6 +89,7 @@ def test_report_table_and_dh_raster(pushbroom_provider, small_scene, inputs, log
     assert renderer.classificationMin() == -renderer.classificationMax() and values == [-v for v in values[::-1]]
     assert 0.0 in values
 
+
 def test_bad_input_is_a_processing_error(pushbroom_provider, small_scene, inputs, tmp_path):
     with pytest.raises(QgsProcessingException, match="point cloud, a DEM or both"):
         processing.run(ALG, {"REFERENCE": small_scene["dtm"], "REPORT": str(tmp_path / "r.html")})
@@ -87,8 +100,9 @@ def test_bad_input_is_a_processing_error(pushbroom_provider, small_scene, inputs
     far.SetGeoTransform(gt)
     far = None
     with pytest.raises(QgsProcessingException, match="does not overlap"):
-        processing.run(ALG, {"REFERENCE": str(tmp_path / "far.tif"), "DEM": inputs["dem"],
-                             "REPORT": str(tmp_path / "r.html")})
+        processing.run(
+            ALG, {"REFERENCE": str(tmp_path / "far.tif"), "DEM": inputs["dem"], "REPORT": str(tmp_path / "r.html")}
+        )
     assert not (tmp_path / "r.html").exists()
 
 
@@ -110,9 +124,17 @@ def test_class_polygons(pushbroom_provider, small_scene, inputs, tmp_path):
         feature.SetGeometry(ogr.CreateGeometryFromWkt(f"POLYGON (({ring}))"))
         layer.CreateFeature(feature)
     ds = None
-    result = processing.run(ALG, {
-        "REFERENCE": small_scene["dtm"], "POINTS": inputs["points"], "CLASS_POLYGONS": path,
-        "CLASS_FIELD": "landuse", "REPORT": str(tmp_path / "r.html"), "TABLE": str(tmp_path / "s.csv")})
+    result = processing.run(
+        ALG,
+        {
+            "REFERENCE": small_scene["dtm"],
+            "POINTS": inputs["points"],
+            "CLASS_POLYGONS": path,
+            "CLASS_FIELD": "landuse",
+            "REPORT": str(tmp_path / "r.html"),
+            "TABLE": str(tmp_path / "s.csv"),
+        },
+    )
     rows = {r["label"]: int(r["n"]) for r in csv.DictReader(open(result["TABLE"])) if r["table"] == "per class"}
     for name, (x0, y0, x1, y1) in squares.items():
         assert rows[name] == int(np.sum((x > x0) & (x < x1) & (y > y0) & (y < y1)))

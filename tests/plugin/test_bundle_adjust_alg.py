@@ -3,6 +3,7 @@ the adjusted models land in the block and reproduce the true image positions of 
 residual-vector layer of control/check points (against the simulator's points and OSR) with its
 style; the tie point heights against the true DTM (Kornus et al. 2006, Table 4) against a forward intersection with
 the adjusted models and a numpy interpolation, for an ellipsoidal and an EGM96 reference."""
+
 import csv
 import re
 import shutil
@@ -49,9 +50,9 @@ def make_block(paths, path):
     Block.create(path, images, height=300.0)
     ids = {r["name"]: r["id"] for r in Block(path).images()}
     models = {i: Block(path).model(i) for i in ids.values()}
-    for i, model in models.items():                   # inject 20 urad look-angle errors
+    for i, model in models.items():  # inject 20 urad look-angle errors
         model.orientation.corrections.look[:, 0] = (2e-5, -2e-5 if i % 2 else 2e-5)
-    Block(path).save_models(models, supplied=True)     # the supplied orientation, with its errors
+    Block(path).save_models(models, supplied=True)  # the supplied orientation, with its errors
     check = [r["id"] for r in csv.DictReader(open(paths["points"]))][N_CONTROL:]
     import_csv(Block(path), paths["points"], suffix="_meas", check_ids=check)
     return ids
@@ -82,8 +83,9 @@ def make_tie_block(scene, path):
     rng = np.random.default_rng(5)
     truth = {i: sensors.load(scene["truth_metadata"][n]) for n, i in ids.items()}
     cols, rows = truth[ids["HRG"]].size
-    lon, lat, h = truth[ids["HRG"]].image_to_dem(rng.uniform(30, cols - 30, N_TIE), rng.uniform(30, rows - 30, N_TIE),
-                                                 read_dem(scene["dsm"]))
+    lon, lat, h = truth[ids["HRG"]].image_to_dem(
+        rng.uniform(30, cols - 30, N_TIE), rng.uniform(30, rows - 30, N_TIE), read_dem(scene["dsm"])
+    )
     pts = np.zeros(N_TIE, POINT_DTYPE)
     pts["id"], pts["group"] = np.arange(N_TIE), 3
     obs = np.zeros(3 * N_TIE, OBS_DTYPE)
@@ -104,13 +106,21 @@ def tie_block(scene, tmp_path_factory):
 
 def test_adjusts_and_stores_models(pushbroom_provider, adjusted_block, tmp_path):
     path, paths, ids = adjusted_block
-    result = processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "USE_TIE_POINTS": False,
-                                                      "CONTROL_SERIES": "4,8,19", "REPORT": str(tmp_path / "r.html")})
+    result = processing.run(
+        "pushbroom:bundleadjust",
+        {
+            "BLOCK": path,
+            "FREE": "look:0",
+            "USE_TIE_POINTS": False,
+            "CONTROL_SERIES": "4,8,19",
+            "REPORT": str(tmp_path / "r.html"),
+        },
+    )
     assert 0.3 < result["SIGMA0"] < 3.0
     text = open(result["REPORT"]).read()
     assert "HRS2 psi_y_0" in text and "<td>dH</td>" in text and "Kornus et al. 2006, Table 4" not in text
     series = re.findall(r"<tr><td>(\d+)</td><td>(\d+)</td><td>([\d.]+)</td><td>([\d.]+)</td><td>([\d.]+)</td>", text)
-    assert [int(r[0]) for r in series] == [4, 8, 19] and len({r[1] for r in series}) == 1   # same check points
+    assert [int(r[0]) for r in series] == [4, 8, 19] and len({r[1] for r in series}) == 1  # same check points
     assert float(series[0][4]) < 3.0 * float(series[-1][4])
     for i in ids.values():
         assert Block(path).model(i).orientation.corrections.look[0, 0] == pytest.approx(0.0, abs=3e-6)
@@ -126,9 +136,18 @@ def test_residual_vector_layer(pushbroom_provider, adjusted_block, tmp_path, log
     context = QgsProcessingContext()
     context.setProject(QgsProject.instance())
     out = str(tmp_path / "residuals.gpkg")
-    result = processing.run("pushbroom:bundleadjust", {
-        "BLOCK": path, "FREE": "look:0", "USE_TIE_POINTS": False, "VECTOR_SCALE": 250.0,
-        "RESIDUALS": QgsProcessingOutputLayerDefinition(out, QgsProject.instance())}, context=context, feedback=log)
+    result = processing.run(
+        "pushbroom:bundleadjust",
+        {
+            "BLOCK": path,
+            "FREE": "look:0",
+            "USE_TIE_POINTS": False,
+            "VECTOR_SCALE": 250.0,
+            "RESIDUALS": QgsProcessingOutputLayerDefinition(out, QgsProject.instance()),
+        },
+        context=context,
+        feedback=log,
+    )
     layer = QgsVectorLayer(result["RESIDUALS"], "residuals", "ogr")
     epsg = int(Block(path).info()["default_crs"].split(":")[1])
     assert layer.isValid() and layer.crs().authid() == f"EPSG:{epsg}"
@@ -170,9 +189,17 @@ def test_tie_heights_against_the_reference_dtm(pushbroom_provider, tie_block, tm
     tables = {}
     for key, datum in (("ellipsoidal", 0), ("egm96", 1)):
         report = tmp_path / f"{key}.html"
-        processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "USE_TIE_POINTS": True,
-                                                  "REFERENCE_DEM": paths["dtm"], "REFERENCE_HEIGHTS": datum,
-                                                  "REPORT": str(report)})
+        processing.run(
+            "pushbroom:bundleadjust",
+            {
+                "BLOCK": path,
+                "FREE": "look:0",
+                "USE_TIE_POINTS": True,
+                "REFERENCE_DEM": paths["dtm"],
+                "REFERENCE_HEIGHTS": datum,
+                "REPORT": str(report),
+            },
+        )
         page = report.read_text()
         assert "Kornus et al. 2006, Table 4" in page
         tables[key] = _table_row(page, "dh")
@@ -180,12 +207,12 @@ def test_tie_heights_against_the_reference_dtm(pushbroom_provider, tie_block, tm
     cut = intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"], 0.5, h0=300.0)
     assert cut.ok.all()
     dh = cut.h - bilinear(paths["dtm"], cut.lon, cut.lat)
-    want = [dh.size, dh.min(), dh.mean(), dh.max(), np.sqrt(np.mean(dh ** 2)), np.std(dh, ddof=1)]
+    want = [dh.size, dh.min(), dh.mean(), dh.max(), np.sqrt(np.mean(dh**2)), np.std(dh, ddof=1)]
     figures.table("tie heights - DTM (m)", [dict(zip(("n", "min", "mean", "max", "RMS", "sigma"), want))])
     np.testing.assert_allclose(tables["ellipsoidal"], want, atol=2e-3)
     undulation = egm96_undulation(cut.lon, cut.lat)
     assert tables["egm96"][2] == pytest.approx(np.mean(dh - undulation), abs=2e-3)
-    assert tables["egm96"][2] - tables["ellipsoidal"][2] > 25.0           # N is about -31 m here
+    assert tables["egm96"][2] - tables["ellipsoidal"][2] > 25.0  # N is about -31 m here
 
 
 def test_clear_errors(pushbroom_provider, adjusted_block):
@@ -203,8 +230,10 @@ def test_an_unconverged_adjustment_fails_and_stores_nothing(pushbroom_provider, 
     before = Block(path).generations()
     report = tmp_path / "r.html"
     with pytest.raises(QgsProcessingException, match=r"did not converge in 1 iteration.*nothing was stored"):
-        processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "USE_TIE_POINTS": False,
-                                                  "MAX_ITERATIONS": 1, "REPORT": str(report)})
+        processing.run(
+            "pushbroom:bundleadjust",
+            {"BLOCK": path, "FREE": "look:0", "USE_TIE_POINTS": False, "MAX_ITERATIONS": 1, "REPORT": str(report)},
+        )
     assert Block(path).generations() == before
     assert report.read_text().index("class='alert'") < report.read_text().index("<h2>Adjustment</h2>")
 
@@ -216,16 +245,18 @@ def test_automatic_selection_and_variance_components(pushbroom_provider, scene, 
     instead of the a priori 0.5 px."""
     path, paths = str(tmp_path / "auto.gpkg"), scene
     ids, _ = make_tie_block(paths, path)
-    result = processing.run("pushbroom:bundleadjust", {"BLOCK": path, "REPORT": str(tmp_path / "auto.html")},
-                            feedback=log)
+    result = processing.run(
+        "pushbroom:bundleadjust", {"BLOCK": path, "REPORT": str(tmp_path / "auto.html")}, feedback=log
+    )
     text = open(result["REPORT"]).read()
     assert "Parameter selection (Kornus et al. 2006, section 3.4.3)" in text and "Variance components" in text
     assert any(m.startswith("step 1: fixed") for m in log.messages)
     assert 0.8 < result["SIGMA0"] < 1.2
     tie_sigma = re.search(r"<td>tie image</td><td>\d+</td><td>[\d.]+</td><td>[\d.]+</td><td>([\d.]+)</td>", text)
     assert tie_sigma and 0.15 < float(tie_sigma.group(1)) < 0.25
-    selected = re.findall(r"^selected \d+ free coefficient\(s\) in \d+ adjustments: (.*)$", "\n".join(log.messages),
-                          re.MULTILINE)
+    selected = re.findall(
+        r"^selected \d+ free coefficient\(s\) in \d+ adjustments: (.*)$", "\n".join(log.messages), re.MULTILINE
+    )
     chosen = set(selected[-1].split(", "))
     assert {f"{n} {k}_0" for n in ids for k in ("psi_x", "psi_y")} <= chosen
     assert max(truth_rms(path, paths, ids).values()) < 0.3
@@ -235,13 +266,15 @@ def test_automatic_selection_and_variance_components(pushbroom_provider, scene, 
     again, progress = type(log)(), []
     again.progressChanged.connect(progress.append)
     processing.run("pushbroom:bundleadjust", {"BLOCK": path}, feedback=again)
-    assert [m for m in again.messages if m.startswith("selected ")] == [m for m in log.messages
-                                                                        if m.startswith("selected ")]
+    assert [m for m in again.messages if m.startswith("selected ")] == [
+        m for m in log.messages if m.startswith("selected ")
+    ]
     for i, look in zip(ids.values(), first):
         np.testing.assert_allclose(Block(path).model(i).orientation.corrections.look, look, rtol=0, atol=1e-12)
     # progress moves with every adjustment of the selection: no stretch of adjustments without a report
-    count = int(re.search(r"in (\d+) adjustments", next(m for m in again.messages if m.startswith("selected ")))
-                .group(1))
+    count = int(
+        re.search(r"in (\d+) adjustments", next(m for m in again.messages if m.startswith("selected "))).group(1)
+    )
     assert len(set(progress)) >= count // 2 and progress == sorted(progress)
 
 
@@ -252,9 +285,18 @@ def test_lagrange_model(pushbroom_provider, adjusted_block, tmp_path, log):
     source, paths, ids = adjusted_block
     path = str(tmp_path / "lagrange.gpkg")
     shutil.copy(source, path)
-    result = processing.run("pushbroom:bundleadjust", {"BLOCK": path, "MODEL": 1, "ORIENTATION_IMAGES": 2,
-                                                      "FREE": "lagrange:attitude", "USE_TIE_POINTS": False,
-                                                      "REPORT": str(tmp_path / "l.html")}, feedback=log)
+    result = processing.run(
+        "pushbroom:bundleadjust",
+        {
+            "BLOCK": path,
+            "MODEL": 1,
+            "ORIENTATION_IMAGES": 2,
+            "FREE": "lagrange:attitude",
+            "USE_TIE_POINTS": False,
+            "REPORT": str(tmp_path / "l.html"),
+        },
+        feedback=log,
+    )
     assert "roll@1" in open(result["REPORT"]).read()
     assert max(truth_rms(path, paths, ids).values()) < 0.5
 
@@ -273,9 +315,12 @@ def test_tie_points_alone_with_priors(pushbroom_provider, scene, tmp_path, log, 
     with pytest.raises(QgsProcessingException, match="pattern=sigma"):
         processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "PRIORS": "look:0"})
     before = {i: Block(path).model(i).orientation.corrections.look[1, 0] for i in ids.values()}
-    result = processing.run("pushbroom:bundleadjust", {"BLOCK": path, "FREE": "look:0", "PRIORS": "look:0=1e-4",
-                                                      "VARIANCE_COMPONENTS": False}, feedback=log)
-    assert 0.25 < result["SIGMA0"] < 0.6                     # 0.2 px noise against the a priori 0.5 px
+    result = processing.run(
+        "pushbroom:bundleadjust",
+        {"BLOCK": path, "FREE": "look:0", "PRIORS": "look:0=1e-4", "VARIANCE_COMPONENTS": False},
+        feedback=log,
+    )
+    assert 0.25 < result["SIGMA0"] < 0.6  # 0.2 px noise against the a priori 0.5 px
     after = {i: Block(path).model(i).orientation.corrections.look[1, 0] for i in ids.values()}
     figures.report("psi_y constants by image id, before", before, "rad")
     figures.report("psi_y constants by image id, after", after, "rad")

@@ -1,4 +1,5 @@
 """pushbroom:createblock through Processing and through qgis_process."""
+
 import shutil
 
 import pytest
@@ -13,8 +14,9 @@ def product(spot5_dim, tmp_path):
     folder = tmp_path / "HRG1"
     folder.mkdir()
     shutil.copy(spot5_dim, folder / "METADATA.DIM")
-    gdal.GetDriverByName("GTiff").Create(str(folder / "IMAGERY.TIF"), 12000, 12000, 1, gdal.GDT_Byte,
-                                         ["SPARSE_OK=TRUE", "TILED=YES"])
+    gdal.GetDriverByName("GTiff").Create(
+        str(folder / "IMAGERY.TIF"), 12000, 12000, 1, gdal.GDT_Byte, ["SPARSE_OK=TRUE", "TILED=YES"]
+    )
     return folder / "IMAGERY.TIF"
 
 
@@ -32,10 +34,15 @@ def test_createblock_in_processing(pushbroom_provider, product, tmp_path):
 @pytest.mark.parametrize("height", [60000.0, -20000.0])
 def test_a_mean_height_off_the_earth_is_refused(pushbroom_provider, product, tmp_path, height):
     # issue 36: a block made at 60 km (a flying height? feet?) put its footprints and height range there
-    with pytest.raises(QgsProcessingException, match=rf"the mean terrain height \(HEIGHT\) of {height:g} m lies "
-                                                     r"outside the heights of terrain on Earth \(-500 \.\. 9000 m"):
-        processing.run("pushbroom:createblock", {"IMAGES": [str(product)], "HEIGHT": height,
-                                                 "OUTPUT": str(tmp_path / "block.gpkg")})
+    with pytest.raises(
+        QgsProcessingException,
+        match=rf"the mean terrain height \(HEIGHT\) of {height:g} m lies "
+        r"outside the heights of terrain on Earth \(-500 \.\. 9000 m",
+    ):
+        processing.run(
+            "pushbroom:createblock",
+            {"IMAGES": [str(product)], "HEIGHT": height, "OUTPUT": str(tmp_path / "block.gpkg")},
+        )
     assert not (tmp_path / "block.gpkg").exists()
 
 
@@ -43,8 +50,9 @@ def test_the_same_image_twice_is_refused(pushbroom_provider, product, tmp_path):
     link = tmp_path / "link.tif"
     link.symlink_to(product)
     with pytest.raises(QgsProcessingException, match=r"images 1 and 2 .* are one file: a block holds each image once"):
-        processing.run("pushbroom:createblock", {"IMAGES": [str(product), str(link)],
-                                                 "OUTPUT": str(tmp_path / "block.gpkg")})
+        processing.run(
+            "pushbroom:createblock", {"IMAGES": [str(product), str(link)], "OUTPUT": str(tmp_path / "block.gpkg")}
+        )
     assert not (tmp_path / "block.gpkg").exists()
 
 
@@ -61,9 +69,11 @@ def test_createblock_with_qgis_process(qgis_process, product, tmp_path):
 
 def test_createblock_without_dem_and_height_finds_the_terrain(pushbroom_provider, ventoux_pair, tmp_path):
     from pushbroom.algorithms.block import Block
+
     given = tmp_path / "given.gpkg"
-    processing.run("pushbroom:createblock", {"IMAGES": [str(p) for p in ventoux_pair], "HEIGHT": 0.0,
-                                             "OUTPUT": str(given)})
+    processing.run(
+        "pushbroom:createblock", {"IMAGES": [str(p) for p in ventoux_pair], "HEIGHT": 0.0, "OUTPUT": str(given)}
+    )
     assert Block(str(given)).height_range() == (-500.0, 500.0)
     found = tmp_path / "found.gpkg"
     processing.run("pushbroom:createblock", {"IMAGES": [str(p) for p in ventoux_pair], "OUTPUT": str(found)})

@@ -2,6 +2,7 @@
 that cannot be written, an unknown CRS, a foreign or damaged file, a block locked or changed by another
 program. Each ends with exit status 1 and ONE clear message (no traceback, not printed three times), and
 leaves nothing half-written under a final name and the block as it was."""
+
 import os
 import shutil
 import sqlite3
@@ -34,7 +35,7 @@ def public():
 def runner(public):
     """Run qgis_process (`run(*args, user=None)` -> CompletedProcess) with a profile that has the plugin;
     `user="other"` runs it as an unprivileged user where the tests run as root (root may write anywhere)."""
-    world = public / "world"            # a profile and a home the other user can write
+    world = public / "world"  # a profile and a home the other user can write
     env = dict(qgis_process_env(world / "profile"), HOME=str(world))
     if os.geteuid() == 0:
         subprocess.run(["chown", "-R", USER, str(world)], check=True)
@@ -44,6 +45,7 @@ def runner(public):
         if user == "other":
             command, run_env = as_other_user(command, public, env)
         return subprocess.run(command, env=run_env, capture_output=True, text=True, timeout=600)
+
     return run
 
 
@@ -59,8 +61,9 @@ def failed_once(result, fragment):
 def tiny_disk(tmp_path):
     folder = tmp_path / "tiny"
     folder.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=3m,mode=1777", "tmpfs", str(folder)],
-                             capture_output=True)
+    mounted = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=3m,mode=1777", "tmpfs", str(folder)], capture_output=True
+    )
     if mounted.returncode != 0:
         pytest.skip(f"cannot mount a tmpfs here (needs root): {mounted.stderr.decode().strip()}")
     yield folder
@@ -85,8 +88,9 @@ def public_scene(small_scene, public):
     shutil.copytree(os.path.dirname(small_scene["images"]["HRG"]["imagery"]), image)
     shutil.copy(small_scene["dsm"], folder / "dsm.tif")
     path = str(folder / "block.gpkg")
-    Block.create(path, Block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")]),
-                       height=300.0)
+    Block.create(
+        path, Block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")]), height=300.0
+    )
     cp.import_csv(Block(path), small_scene["points"], suffix="_meas")
     ids = [r["id"] for r in Block(path).images()]
     pts = np.zeros(50, POINT_DTYPE)
@@ -97,17 +101,27 @@ def public_scene(small_scene, public):
     Block(path).save_points(MultiPoints(pts, obs), "mass_points")
     for name in ("HRS1", "HRS2"):
         shutil.copytree(os.path.dirname(small_scene["images"][name]["imagery"]), folder / name)
-    return {"image": str(image / "IMAGERY.TIF"), "dsm": str(folder / "dsm.tif"), "block": path,
-            "images": [str(folder / n / "IMAGERY.TIF") for n in ("HRG", "HRS1", "HRS2")]}
+    return {
+        "image": str(image / "IMAGERY.TIF"),
+        "dsm": str(folder / "dsm.tif"),
+        "block": path,
+        "images": [str(folder / n / "IMAGERY.TIF") for n in ("HRG", "HRS1", "HRS2")],
+    }
 
 
 def test_orthorectify_onto_a_full_disk(runner, public_scene, tiny_disk):
     # 0.5 m cells: 6000 x 6000 bytes of image, twice what the 3 MB disk holds
-    result = runner("pushbroom:orthorectify", "--", f"IMAGE={public_scene['image']}", f"DEM={public_scene['dsm']}",
-                    "CELL_SIZE=0.5", f"OUTPUT={tiny_disk / 'ortho.tif'}")
+    result = runner(
+        "pushbroom:orthorectify",
+        "--",
+        f"IMAGE={public_scene['image']}",
+        f"DEM={public_scene['dsm']}",
+        "CELL_SIZE=0.5",
+        f"OUTPUT={tiny_disk / 'ortho.tif'}",
+    )
     failed_once(result, "No space left on device")
     assert "the disk is full" in result.stderr
-    assert os.listdir(tiny_disk) == []                  # no corrupt file under the final name, no leftover
+    assert os.listdir(tiny_disk) == []  # no corrupt file under the final name, no leftover
 
 
 def test_interpolatedem_onto_a_full_disk(runner, tiny_disk, tmp_path):
@@ -123,14 +137,27 @@ def test_interpolatedem_onto_a_full_disk(runner, tiny_disk, tmp_path):
 
 
 ALGORITHMS = {
-    "createblock": lambda s, out: ["pushbroom:createblock", "--", *[f"IMAGES={i}" for i in s["images"]],
-                                   f"OUTPUT={out / 'block.gpkg'}"],
+    "createblock": lambda s, out: [
+        "pushbroom:createblock",
+        "--",
+        *[f"IMAGES={i}" for i in s["images"]],
+        f"OUTPUT={out / 'block.gpkg'}",
+    ],
     "simulatescene": lambda s, out: ["pushbroom:simulatescene", "--", "SIZE_KM=3", f"OUTPUT={out / 'scene'}"],
-    "orthorectify": lambda s, out: ["pushbroom:orthorectify", "--", f"IMAGE={s['image']}", f"DEM={s['dsm']}",
-                                    f"OUTPUT={out / 'ortho.tif'}"],
+    "orthorectify": lambda s, out: [
+        "pushbroom:orthorectify",
+        "--",
+        f"IMAGE={s['image']}",
+        f"DEM={s['dsm']}",
+        f"OUTPUT={out / 'ortho.tif'}",
+    ],
     "exportpoints": lambda s, out: ["pushbroom:exportpoints", "--", f"BLOCK={s['block']}", f"OUTPUT={out / 'p.csv'}"],
-    "intersectpoints": lambda s, out: ["pushbroom:intersectpoints", "--", f"BLOCK={s['block']}",
-                                       f"OUTPUT={out / 'cloud.las'}"],
+    "intersectpoints": lambda s, out: [
+        "pushbroom:intersectpoints",
+        "--",
+        f"BLOCK={s['block']}",
+        f"OUTPUT={out / 'cloud.las'}",
+    ],
 }
 
 
@@ -144,11 +171,23 @@ def test_an_output_folder_that_cannot_be_written(runner, public_scene, unwritabl
 @pytest.mark.parametrize("crs", ["EPSG:999999", "GEOGCS[nonsense"])
 def test_an_unknown_crs_is_an_error_not_the_default(runner, public_scene, small_scene, tmp_path, crs):
     path = copy_block(public_scene["block"], tmp_path)
-    result = runner("pushbroom:importpoints", "--", f"BLOCK={path}", f"INPUT={small_scene['points']}",
-                    "MEAS_SUFFIX=_meas", f"CRS={crs}")
+    result = runner(
+        "pushbroom:importpoints",
+        "--",
+        f"BLOCK={path}",
+        f"INPUT={small_scene['points']}",
+        "MEAS_SUFFIX=_meas",
+        f"CRS={crs}",
+    )
     failed_once(result, "is not a coordinate reference system QGIS knows")
-    result = runner("pushbroom:orthorectify", "--", f"IMAGE={public_scene['image']}", f"DEM={public_scene['dsm']}",
-                    f"CRS={crs}", f"OUTPUT={tmp_path / 'o.tif'}")
+    result = runner(
+        "pushbroom:orthorectify",
+        "--",
+        f"IMAGE={public_scene['image']}",
+        f"DEM={public_scene['dsm']}",
+        f"CRS={crs}",
+        f"OUTPUT={tmp_path / 'o.tif'}",
+    )
     failed_once(result, "is not a coordinate reference system QGIS knows")
     assert not (tmp_path / "o.tif").exists()
 
@@ -167,7 +206,7 @@ def test_a_truncated_point_file_is_named(runner, public_scene, tmp_path):
     part = Block(path).point_parts()[0]
     data = open(part, "rb").read()
     with open(part, "wb") as f:
-        f.write(data[:len(data) // 2])
+        f.write(data[: len(data) // 2])
     result = runner("pushbroom:intersectpoints", "--", f"BLOCK={path}", f"OUTPUT={tmp_path / 'c.las'}")
     failed_once(result, f"the point file {part} is damaged")
     assert not (tmp_path / "c.las").exists()
@@ -176,7 +215,7 @@ def test_a_truncated_point_file_is_named(runner, public_scene, tmp_path):
 def copy_block(source, folder):
     """A copy of the block `source` and its point folders in `folder`."""
     for name in os.listdir(os.path.dirname(source)):
-        if name.startswith(os.path.basename(source)[:-len(".gpkg")] + "."):
+        if name.startswith(os.path.basename(source)[: -len(".gpkg")] + "."):
             copy = shutil.copytree if os.path.isdir(os.path.join(os.path.dirname(source), name)) else shutil.copy
             copy(os.path.join(os.path.dirname(source), name), folder / name)
     return str(folder / os.path.basename(source))
@@ -195,24 +234,25 @@ def stored_models(path):
 def test_bundleadjust_on_a_block_another_program_keeps_locked(runner, control_block):
     before = stored_models(control_block)
     holder = sqlite3.connect(control_block, isolation_level=None)
-    holder.execute("BEGIN IMMEDIATE")                   # another program's write transaction
+    holder.execute("BEGIN IMMEDIATE")  # another program's write transaction
     try:
-        result = runner("pushbroom:bundleadjust", "--", f"BLOCK={control_block}", "FREE=look:0",
-                        "USE_TIE_POINTS=false")
+        result = runner("pushbroom:bundleadjust", "--", f"BLOCK={control_block}", "FREE=look:0", "USE_TIE_POINTS=false")
     finally:
         holder.execute("ROLLBACK")
         holder.close()
-    text = failed_once(result, f"process {os.getpid()}) keeps it locked")    # the program holding the lock, named
+    text = failed_once(result, f"process {os.getpid()}) keeps it locked")  # the program holding the lock, named
     assert "another program (" in text and "nothing was stored" in text
-    assert "Adjustment:" not in result.stdout            # refused before it computed
+    assert "Adjustment:" not in result.stdout  # refused before it computed
     assert stored_models(control_block) == before
 
 
-def test_bundleadjust_refuses_results_of_a_control_set_replaced_meanwhile(pushbroom_provider, control_block,
-                                                                          small_scene, monkeypatch):
+def test_bundleadjust_refuses_results_of_a_control_set_replaced_meanwhile(
+    pushbroom_provider, control_block, small_scene, monkeypatch
+):
     """importpoints replaces the control set while the adjustment computes: nothing of the old set's
     adjustment is stored (the measurement window's "Adjust now" runs the same algorithm)."""
     from pushbroom.algorithms.steps import adjust_block as bundle_adjust
+
     before = stored_models(control_block)
     real = bundle_adjust.adjust_with_components
 
@@ -220,6 +260,7 @@ def test_bundleadjust_refuses_results_of_a_control_set_replaced_meanwhile(pushbr
         result = real(*args, **kwargs)
         cp.import_csv(Block(control_block), small_scene["points"], suffix="_meas", check_ids=["P001", "P002"])
         return result
+
     monkeypatch.setattr(bundle_adjust, "adjust_with_components", import_meanwhile)
     with pytest.raises(QgsProcessingException, match="control points changed while this step computed"):
         processing.run("pushbroom:bundleadjust", {"BLOCK": control_block, "FREE": "look:0", "USE_TIE_POINTS": False})

@@ -1,6 +1,7 @@
 """pushbroom:fitrpc on a block made from a small simulated SPOT 5 triplet: _RPC.TXT files beside the
 image rasters (read by GDAL, matching the block's models) or in a folder, the overwrite rule, and
 clear errors."""
+
 import shutil
 
 import numpy as np
@@ -24,6 +25,7 @@ NAMES = ("HRG", "HRS1", "HRS2")
 def scene(small_scene):
     """(folder, paths, mean DSM height) of the small scene (tests copy the folder before writing)."""
     import pathlib
+
     height = float(np.nanmean(read_dem(small_scene["dsm"]).heights))
     return pathlib.Path(small_scene["folder"]), small_scene, height
 
@@ -43,8 +45,9 @@ def run_log_steps(path):
     return [f["step"] for f in ds.GetLayerByName("run_log")]
 
 
-def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(pushbroom_provider, triplet_block, tmp_path,
-                                                                     figures):
+def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(
+    pushbroom_provider, triplet_block, tmp_path, figures
+):
     path, scene_copy = triplet_block
     result = processing.run("pushbroom:fitrpc", {"BLOCK": path, "REPORT": str(tmp_path / "fit.html")})
     expected = [str(scene_copy / n / "IMAGERY_RPC.TXT") for n in NAMES]
@@ -58,7 +61,7 @@ def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(pushbroom_pr
         fields = ds.GetMetadata("RPC")
         assert fields, f"GDAL reads no RPC for {raster}"
         h_off, h_scale = float(fields["HEIGHT_OFF"]), float(fields["HEIGHT_SCALE"])
-        assert h_off - h_scale < terrain[0] and h_off + h_scale > terrain[1]   # the terrain range and a margin
+        assert h_off - h_scale < terrain[0] and h_off + h_scale > terrain[1]  # the terrain range and a margin
         model = Block(path).model(rows[name]["id"])
         col, row = rng.uniform(0, model.size[0], 200), rng.uniform(0, model.size[1], 200)
         h = rng.uniform(*terrain, 200)
@@ -78,8 +81,9 @@ def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(pushbroom_pr
     with pytest.raises(QgsProcessingException, match="exists already.*overwrite"):
         processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 0.0, "MAX_HEIGHT": 3000.0})
     assert (scene_copy / "HRG" / "IMAGERY_RPC.TXT").read_text() == before
-    processing.run("pushbroom:fitrpc", {"BLOCK": path, "IMAGE": "HRG", "MIN_HEIGHT": 0.0, "MAX_HEIGHT": 3000.0,
-                                        "OVERWRITE": True})
+    processing.run(
+        "pushbroom:fitrpc", {"BLOCK": path, "IMAGE": "HRG", "MIN_HEIGHT": 0.0, "MAX_HEIGHT": 3000.0, "OVERWRITE": True}
+    )
     fields = gdal.Open(str(scene_copy / "HRG" / "IMAGERY.TIF")).GetMetadata("RPC")
     assert (float(fields["HEIGHT_OFF"]), float(fields["HEIGHT_SCALE"])) == (1500.0, 1500.0)
 
@@ -87,14 +91,23 @@ def test_fitrpc_writes_rpc_txt_beside_each_raster_and_gdal_reads_it(pushbroom_pr
 def test_fitrpc_one_image_into_a_folder(pushbroom_provider, triplet_block, tmp_path):
     path, scene_copy = triplet_block
     out = tmp_path / "rpc"
-    result = processing.run("pushbroom:fitrpc", {"BLOCK": path, "IMAGE": "HRS1", "OUTPUT_FOLDER": str(out),
-                                                 "GRID": 6, "HEIGHT_LEVELS": 5, "MIN_HEIGHT": 100.0,
-                                                 "MAX_HEIGHT": 900.0})
+    result = processing.run(
+        "pushbroom:fitrpc",
+        {
+            "BLOCK": path,
+            "IMAGE": "HRS1",
+            "OUTPUT_FOLDER": str(out),
+            "GRID": 6,
+            "HEIGHT_LEVELS": 5,
+            "MIN_HEIGHT": 100.0,
+            "MAX_HEIGHT": 900.0,
+        },
+    )
     assert result["FILES"] == [str(out / "HRS1_RPC.TXT")] and [p.name for p in out.iterdir()] == ["HRS1_RPC.TXT"]
     assert not (scene_copy / "HRS1" / "IMAGERY_RPC.TXT").exists()
     rpc = sensors.load(out / "HRS1_RPC.TXT")
     model = Block(path).model(next(r["id"] for r in Block(path).images() if r["name"] == "HRS1"))
-    assert isinstance(rpc, RpcModel) and rpc.size == model.size   # the normalisation spans the whole image
+    assert isinstance(rpc, RpcModel) and rpc.size == model.size  # the normalisation spans the whole image
     assert rpc.height_range == pytest.approx((100.0, 900.0))
     col, row = np.meshgrid(np.linspace(0, model.size[0], 7), np.linspace(0, model.size[1], 7))
     lon, lat = model.image_to_ground(col.ravel(), row.ravel(), 500.0)
@@ -134,21 +147,32 @@ def test_an_image_with_its_own_rpc_is_not_shadowed_without_overwrite(pushbroom_p
     any fit, nothing written; with OVERWRITE written, and the warning says GDAL now reads the fitted RPC."""
     raster, supplied, height = rpc_image
     path = rpc_block(raster, height)
-    with pytest.raises(QgsProcessingException, match=rf"image img carries its own RPC \(the metadata of {raster}\).*"
-                                                     r"Give an output folder \(OUTPUT_FOLDER\), or set OVERWRITE"):
+    with pytest.raises(
+        QgsProcessingException,
+        match=rf"image img carries its own RPC \(the metadata of {raster}\).*"
+        r"Give an output folder \(OUTPUT_FOLDER\), or set OVERWRITE",
+    ):
         processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 0.0, "MAX_HEIGHT": 3000.0})
     assert not raster.with_name("img_RPC.TXT").exists() and "fitrpc" not in run_log_steps(path)
     assert gdal_height_offset(raster) == pytest.approx(supplied.coefficients.height_off)
-    processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 0.0, "MAX_HEIGHT": 3000.0, "OVERWRITE": True,
-                                        "GRID": 4, "HEIGHT_LEVELS": 4}, feedback=log)
+    processing.run(
+        "pushbroom:fitrpc",
+        {"BLOCK": path, "MIN_HEIGHT": 0.0, "MAX_HEIGHT": 3000.0, "OVERWRITE": True, "GRID": 4, "HEIGHT_LEVELS": 4},
+        feedback=log,
+    )
     # GDAL reads the fitted cube's heights now, and the user was told so
     assert gdal_height_offset(raster) == 1500.0
-    assert [w for w in log.warnings if w.startswith(f"GDAL now reads {raster.with_name('img_RPC.TXT')} with {raster} "
-                                                    f"instead of the image's own RPC (the metadata of {raster})")]
+    assert [
+        w
+        for w in log.warnings
+        if w.startswith(
+            f"GDAL now reads {raster.with_name('img_RPC.TXT')} with {raster} "
+            f"instead of the image's own RPC (the metadata of {raster})"
+        )
+    ]
 
 
-def test_an_rpc_image_delivered_with_an_rpb_is_refitted_on_overwrite_with_a_warning(pushbroom_provider, rpc_image,
-                                                                                     log):
+def test_an_rpc_image_delivered_with_an_rpb_is_refitted_on_overwrite_with_a_warning(pushbroom_provider, rpc_image, log):
     """An RPC image whose RPC came as .RPB (GDAL prefers it to a _RPC.TXT): refused by default; with OVERWRITE
     the fit of the block's RPC is written, and the user is told that GDAL still reads the .RPB."""
     raster, supplied, height = rpc_image
@@ -164,17 +188,19 @@ def test_an_rpc_image_delivered_with_an_rpb_is_refitted_on_overwrite_with_a_warn
     assert len(log.warnings) == 1 and "GDAL does not read" in log.warnings[0]
     refit = sensors.load(raster.with_name("img_RPC.TXT"))
     lon, lat = supplied.image_to_ground(np.array([1.0, 150.0, 299.0]), np.array([2.0, 300.0, 598.0]), height)
-    assert np.allclose(refit.ground_to_image(lon, lat, height), supplied.ground_to_image(lon, lat, height),
-                       rtol=0, atol=0.01)
+    assert np.allclose(
+        refit.ground_to_image(lon, lat, height), supplied.ground_to_image(lon, lat, height), rtol=0, atol=0.01
+    )
 
 
 def test_an_rpc_image_into_an_output_folder_leaves_the_image_alone(pushbroom_provider, rpc_image, tmp_path):
     raster, supplied, height = rpc_image
     path = rpc_block(raster, height)
-    result = processing.run("pushbroom:fitrpc", {"BLOCK": path, "OUTPUT_FOLDER": str(tmp_path / "rpc"), "GRID": 4,
-                                                 "HEIGHT_LEVELS": 4})
+    result = processing.run(
+        "pushbroom:fitrpc", {"BLOCK": path, "OUTPUT_FOLDER": str(tmp_path / "rpc"), "GRID": 4, "HEIGHT_LEVELS": 4}
+    )
     assert result["FILES"] == [str(tmp_path / "rpc" / "img_RPC.TXT")]
-    assert gdal.Open(str(raster)).GetFileList() == [str(raster)]      # GDAL still reads the image's own RPC
+    assert gdal.Open(str(raster)).GetFileList() == [str(raster)]  # GDAL still reads the image's own RPC
     assert gdal_height_offset(raster) == pytest.approx(supplied.coefficients.height_off)
 
 
@@ -187,8 +213,11 @@ def test_fitrpc_errors(pushbroom_provider, triplet_block):
     with pytest.raises(QgsProcessingException, match=r"lowest height of its cube \(500 m\) is the same as the highest"):
         processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 500.0, "MAX_HEIGHT": 500.0})
     # a cube in the stratosphere: no terrain on Earth lies there (issue 36: fitted and written without a word)
-    with pytest.raises(QgsProcessingException, match=r"the lowest height of the RPC cube \(MIN_HEIGHT\) of 20000 m "
-                                                     r"lies outside the heights of terrain on Earth \(-500 \.\. 9000"):
+    with pytest.raises(
+        QgsProcessingException,
+        match=r"the lowest height of the RPC cube \(MIN_HEIGHT\) of 20000 m "
+        r"lies outside the heights of terrain on Earth \(-500 \.\. 9000",
+    ):
         processing.run("pushbroom:fitrpc", {"BLOCK": path, "MIN_HEIGHT": 20000.0, "MAX_HEIGHT": 30000.0})
     assert "fitrpc" not in run_log_steps(path)
 
@@ -202,21 +231,24 @@ def test_cancel_writes_nothing(pushbroom_provider, triplet_block):
     assert not list(scene_copy.glob("*/*_RPC.TXT")) and "fitrpc" not in run_log_steps(path)
 
 
-def test_report_compares_rpc_and_rigorous_object_points_of_the_tie_points(pushbroom_provider, triplet_block,
-                                                                           tmp_path, figures):
+def test_report_compares_rpc_and_rigorous_object_points_of_the_tie_points(
+    pushbroom_provider, triplet_block, tmp_path, figures
+):
     """With tie points in the block (here: 200 ground points projected into the three images), the
     report gives the RPC minus rigorous differences of Kornus et al. (2006, Table 5); the fit is good to well
     below 1 cm."""
     import re
 
     from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
+
     path, _ = triplet_block
     rows = Block(path).images()
     models = {r["id"]: Block(path).model(r["id"]) for r in rows}
     first = models[rows[0]["id"]]
     rng = np.random.default_rng(2)
-    lon, lat = first.image_to_ground(rng.uniform(50, first.size[0] - 50, 200),
-                                     rng.uniform(50, first.size[1] - 50, 200), np.full(200, 300.0))
+    lon, lat = first.image_to_ground(
+        rng.uniform(50, first.size[0] - 50, 200), rng.uniform(50, first.size[1] - 50, 200), np.full(200, 300.0)
+    )
     pts = np.zeros(200, POINT_DTYPE)
     pts["id"], pts["group"] = np.arange(200), 3
     obs = np.zeros(600, OBS_DTYPE)

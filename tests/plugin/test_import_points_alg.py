@@ -1,4 +1,5 @@
 """pushbroom:importpoints and pushbroom:exportpoints on a small simulated SPOT-5 triplet."""
+
 import csv
 import shutil
 
@@ -44,15 +45,20 @@ def test_import_simulator_points_and_export(algorithms, scene, blk, tmp_path, lo
     rows = scene["rows"]
     context, log = QgsProcessingContext(), log
     context.setProject(QgsProject.instance())
-    result = processing.run("pushbroom:importpoints", {
-        "BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas", "CHECK_IDS": "P002, P005"},
-        context=context, feedback=log)
+    result = processing.run(
+        "pushbroom:importpoints",
+        {"BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas", "CHECK_IDS": "P002, P005"},
+        context=context,
+        feedback=log,
+    )
     n = len(rows)
     assert (result["CONTROL"], result["CHECK"], result["MEASUREMENTS"]) == (n - 2, 2, 3 * n)
-    assert any(m.startswith(f"points in the block: control {n - 2}, check 2; HRG: {n - 2} control, 2 check")
-               for m in log.messages), log.messages
+    assert any(
+        m.startswith(f"points in the block: control {n - 2}, check 2; HRG: {n - 2} control, 2 check")
+        for m in log.messages
+    ), log.messages
     assert any("ignored column" in m for m in log.messages)
-    assert not any("CRS applies" in m for m in log.messages)           # the CRS defaults to WGS 84
+    assert not any("CRS applies" in m for m in log.messages)  # the CRS defaults to WGS 84
     layer = QgsVectorLayer(result["POINTS"], "points", "ogr")
     assert layer.isValid() and layer.featureCount() == n and layer.crs().authid() == "EPSG:4326"
     by_name = {f["name"]: f for f in layer.getFeatures()}
@@ -86,8 +92,9 @@ def test_import_projected_coordinates_and_merge(algorithms, scene, blk, tmp_path
         for r, (x, y) in zip(rows, xy):
             writer.writerow([r["id"], "check", repr(x), repr(y), r["h"], r["HRS1_col_meas"], r["HRS1_row_meas"]])
     processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": scene["points"], "MEAS_SUFFIX": "_meas"})
-    result = processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(path), "CRS": f"EPSG:{epsg}",
-                                                       "MODE": 1})
+    result = processing.run(
+        "pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(path), "CRS": f"EPSG:{epsg}", "MODE": 1}
+    )
     assert (result["CONTROL"], result["CHECK"], result["MEASUREMENTS"]) == (0, len(rows), 3 * len(rows))
     stored = Block(blk).control_points()
     assert np.abs(stored.points["lon"] - lon).max() < 1e-8 and np.abs(stored.points["lat"] - lat).max() < 1e-8
@@ -107,8 +114,9 @@ def test_a_file_without_measurements_keeps_the_measured_points(algorithms, scene
     after = Block(blk).control_points()
     assert after.points.tobytes() == before.points.tobytes()
     assert after.measurements.tobytes() == before.measurements.tobytes()
-    result = processing.run("pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(bare), "REPLACE_FEWER": True},
-                            feedback=log)
+    result = processing.run(
+        "pushbroom:importpoints", {"BLOCK": blk, "INPUT": str(bare), "REPLACE_FEWER": True}, feedback=log
+    )
     assert (result["CONTROL"], result["CHECK"], result["MEASUREMENTS"]) == (1, 0, 0)
     assert any("far fewer" in w for w in log.warnings)
 

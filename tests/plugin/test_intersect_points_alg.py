@@ -1,6 +1,7 @@
 """pushbroom:intersectpoints on a block of the simulated SPOT 5 triplet whose mass and tie points are
 made from ground points on the true DSM (projected with the block's models: the intersection must
 give them back)."""
+
 import numpy as np
 import pytest
 from osgeo import ogr
@@ -18,8 +19,12 @@ from tests.helpers.osr_oracle import utm
 def triplet(small_scene, tmp_path_factory):
     images = Block.open_images([small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")])
     dsm = read_dem(small_scene["dsm"])
-    return {"images": images, "dsm": dsm, "folder": tmp_path_factory.mktemp("intersect"),
-            "height": float(np.nanmean(dsm.heights))}
+    return {
+        "images": images,
+        "dsm": dsm,
+        "folder": tmp_path_factory.mktemp("intersect"),
+        "height": float(np.nanmean(dsm.heights)),
+    }
 
 
 def make_block(triplet, name, kinds=("mass_points",)):
@@ -31,8 +36,9 @@ def make_block(triplet, name, kinds=("mass_points",)):
     models = {n: Block(path).model(i) for n, i in ids.items()}
     rng = np.random.default_rng(1)
     cols, rows = models["HRG"].size
-    lon, lat, h = models["HRG"].image_to_dem(rng.uniform(150, cols - 150, 300), rng.uniform(100, rows - 100, 300),
-                                             triplet["dsm"])
+    lon, lat, h = models["HRG"].image_to_dem(
+        rng.uniform(150, cols - 150, 300), rng.uniform(100, rows - 100, 300), triplet["dsm"]
+    )
     obs = []
     for name in ("HRG", "HRS1", "HRS2"):
         col, row = models[name].ground_to_image(lon, lat, h)
@@ -60,8 +66,12 @@ class CancelOnProgress(QgsProcessingFeedback):
 
 
 def run(parameters, context=None, feedback=None):
-    return processing.run("pushbroom:intersectpoints", parameters, context=context or QgsProcessingContext(),
-                          feedback=feedback or QgsProcessingFeedback())
+    return processing.run(
+        "pushbroom:intersectpoints",
+        parameters,
+        context=context or QgsProcessingContext(),
+        feedback=feedback or QgsProcessingFeedback(),
+    )
 
 
 def test_las_in_the_blocks_utm_zone(pushbroom_provider, triplet, tmp_path, log):
@@ -75,13 +85,13 @@ def test_las_in_the_blocks_utm_zone(pushbroom_provider, triplet, tmp_path, log):
     assert Block(path).info()["default_crs"] == "EPSG:32616" and "UTM zone 16N" in wkt[0]
     order = np.argsort(np.asarray(las["point_id"]))
     x, y = utm(lon, lat, 32616)
-    np.testing.assert_allclose(np.asarray(las.x)[order], x, atol=0.0011)   # 1 mm resolution + intersection
+    np.testing.assert_allclose(np.asarray(las.x)[order], x, atol=0.0011)  # 1 mm resolution + intersection
     np.testing.assert_allclose(np.asarray(las.y)[order], y, atol=0.0011)
     np.testing.assert_allclose(np.asarray(las.z)[order], h, atol=0.0011)
     group, rays, sigma_h = (np.asarray(las[k])[order] for k in ("group", "rays", "sigma_h"))
     np.testing.assert_array_equal(group, np.where(np.arange(300) < 200, 3, 1))
     np.testing.assert_array_equal(rays, np.where(np.arange(300) < 200, 3, 2))
-    assert np.median(sigma_h[:200]) < np.median(sigma_h[200:])          # three rays give better heights
+    assert np.median(sigma_h[:200]) < np.median(sigma_h[200:])  # three rays give better heights
     log = "\n".join(feedback.messages)
     assert "converged 300" in log and "sigma_H" in log
     summary = [line.split() for line in log.splitlines() if line.split()[:1] in (["1"], ["3"])]

@@ -1,5 +1,6 @@
 """The "Measure control points..." action (plugin/measure_action.py) in the pytest-qgis main window and the
 control points layer on the map (plugin/control_layer.py, resources/styles/control_points.qml)."""
+
 import sys
 import types
 
@@ -39,8 +40,13 @@ def points_block(tmp_path):
     """An image-less block with one control and one check point."""
     path = tmp_path / "block.gpkg"
     create_schema(path)
-    points = np.array([("C1", "control", 7.0, 45.0, 100.0, 2.5, 2.5, 2.2),
-                       ("K1", "check", 7.01, 45.01, 120.0, np.nan, np.nan, np.nan)], POINT_DTYPE)
+    points = np.array(
+        [
+            ("C1", "control", 7.0, 45.0, 100.0, 2.5, 2.5, 2.2),
+            ("K1", "check", 7.01, 45.01, 120.0, np.nan, np.nan, np.nan),
+        ],
+        POINT_DTYPE,
+    )
     Block(path).save_control_points(Observations(points), names={})
     return path
 
@@ -132,14 +138,16 @@ def test_a_block_without_points_gets_an_empty_layer_on_request(tmp_path, project
     assert show_control_points(path, project) is None and not project.mapLayers()
     layer = show_control_points(path, project, create=True)
     assert layer.isValid() and layer.featureCount() == 0 and list(project.mapLayers().values()) == [layer]
-    Block(path).save_control_points(Observations(np.array([("C1", "control", 7.0, 45.0, 100.0, 2.5, 2.5, 2.2)],
-                                                    POINT_DTYPE)), names={})
+    Block(path).save_control_points(
+        Observations(np.array([("C1", "control", 7.0, 45.0, 100.0, 2.5, 2.5, 2.2)], POINT_DTYPE)), names={}
+    )
     assert show_control_points(path, project) is layer and layer.featureCount() == 1
 
 
 class FakeWindow(QMainWindow):
     """Stands in for ui.measurement_window.MeasurementWindow: records how it was created; its undo stack
     and `adjusted` signal are what the plugin follows."""
+
     created = []
     adjusted = pyqtSignal(bool, str)
 
@@ -180,6 +188,7 @@ def plugin_with(qgis_iface, monkeypatch):
         plugin.initGui()
         loaded.append(plugin)
         return plugin
+
     yield load
     for plugin in loaded:
         plugin.unload()
@@ -204,7 +213,7 @@ def test_action_opens_one_window_per_block_for_the_active_layer(qgis_iface, plug
     layer = find_control_layer(points_block, project)
     count = layer.featureCount()
     window.undo_stack.push(AddPoint(str(points_block), "NEW1"))
-    assert layer.featureCount() == count + 1                  # the map follows an edit at once
+    assert layer.featureCount() == count + 1  # the map follows an edit at once
     plugin.unload()
     flush_deletes()
     assert sip.isdeleted(window)

@@ -1,5 +1,6 @@
 """pushbroom:orthorectify on the small simulated scene: the image's own orientation and a block's model,
 a DEM in another CRS, the output file (type, nodata, CRS, overviews) equal to the engine's, errors, cancel."""
+
 import numpy as np
 import pytest
 from osgeo import gdal
@@ -17,13 +18,16 @@ def inputs(small_scene, tmp_path_factory):
     folder = tmp_path_factory.mktemp("ortho_alg")
     utm_dem = str(folder / "dsm_utm.tif")
     gdal.Warp(utm_dem, small_scene["dsm"], dstSRS="EPSG:32616", xRes=5.0, yRes=5.0, resampleAlg="bilinear")
-    return {"scene": small_scene, "dem": utm_dem, "folder": folder,
-            "image": small_scene["images"]["HRG"]["imagery"]}
+    return {"scene": small_scene, "dem": utm_dem, "folder": folder, "image": small_scene["images"]["HRG"]["imagery"]}
 
 
 def run(parameters, feedback=None):
-    return processing.run("pushbroom:orthorectify", parameters, context=QgsProcessingContext(),
-                          feedback=feedback or QgsProcessingFeedback())
+    return processing.run(
+        "pushbroom:orthorectify",
+        parameters,
+        context=QgsProcessingContext(),
+        feedback=feedback or QgsProcessingFeedback(),
+    )
 
 
 def test_image_with_its_own_orientation_equals_the_engine(pushbroom_provider, inputs, tmp_path, log):
@@ -35,9 +39,14 @@ def test_image_with_its_own_orientation_equals_the_engine(pushbroom_provider, in
     assert ds.GetSpatialRef().GetAuthorityCode(None) == "32616"
     band = ds.GetRasterBand(1)
     assert band.DataType == gdal.GDT_Byte and band.GetNoDataValue() == 0 and band.GetOverviewCount() >= 1
-    assert abs(ds.GetGeoTransform()[1] - 5.0) < 0.1    # HRG's 5 m ground sampling distance
-    engine = orthorectify(inputs["image"], sensors.load(inputs["image"]), read_dem(inputs["dem"]),
-                          tmp_path / "engine.tif", resampling_method="bicubic")
+    assert abs(ds.GetGeoTransform()[1] - 5.0) < 0.1  # HRG's 5 m ground sampling distance
+    engine = orthorectify(
+        inputs["image"],
+        sensors.load(inputs["image"]),
+        read_dem(inputs["dem"]),
+        tmp_path / "engine.tif",
+        resampling_method="bicubic",
+    )
     assert engine.cells == result["CELLS"] > 300000
     np.testing.assert_array_equal(band.ReadAsArray(), gdal.Open(str(tmp_path / "engine.tif")).ReadAsArray())
 
@@ -46,13 +55,25 @@ def test_block_model_crs_and_cell_size(pushbroom_provider, inputs, tmp_path):
     path = str(tmp_path / "block.gpkg")
     Block.create(path, Block.open_images([inputs["image"]]), height=400.0)
     out = str(tmp_path / "ortho_block.tif")
-    result = run({"BLOCK": path, "IMAGE_NAME": "HRG", "DEM": inputs["scene"]["dsm"], "CRS": "EPSG:32617",
-                  "CELL_SIZE": 10.0, "OCCLUSION": True, "OUTPUT": out})
+    result = run(
+        {
+            "BLOCK": path,
+            "IMAGE_NAME": "HRG",
+            "DEM": inputs["scene"]["dsm"],
+            "CRS": "EPSG:32617",
+            "CELL_SIZE": 10.0,
+            "OCCLUSION": True,
+            "OUTPUT": out,
+        }
+    )
     ds = gdal.Open(out)
     assert ds.GetSpatialRef().GetAuthorityCode(None) == "32617" and ds.GetGeoTransform()[1] == 10.0
     assert result["CELLS"] > 80000
-    with pytest.raises(QgsProcessingException, match=r"the block has no image 'HRS9': give the name of one of its "
-                                                     r"images \(HRG\)"):
+    with pytest.raises(
+        QgsProcessingException,
+        match=r"the block has no image 'HRS9': give the name of one of its "
+        r"images \(HRG\)",
+    ):
         run({"BLOCK": path, "IMAGE_NAME": "HRS9", "DEM": inputs["dem"], "OUTPUT": str(tmp_path / "x.tif")})
 
 

@@ -4,6 +4,7 @@ FIFO, a folder, a device node), the check before the work refuses exactly where 
 input or lies inside an input folder, resolves to another output, or is not what its writer replaces: computed
 here on its own, with os.stat. A drawn run refused leaves every input byte-identical, and so does a drawn run of
 exportpoints it accepts."""
+
 import itertools
 import os
 
@@ -66,15 +67,20 @@ def input_files(world, parameters):
     """Every file the inputs consist of, by this test's knowledge of the formats: a block's GeoPackage, its
     SQLite journals, its point folders, its images; a DIMAP image's raster, its GDAL side file and METADATA.DIM;
     a raster and its GDAL side file."""
+
     def image(raster):
         return [raster, os.path.join(os.path.dirname(raster), "METADATA.DIM"), raster + ".aux.xml"]
+
     files = []
     for key, value in parameters.items():
         if key == "BLOCK":
             folder = os.path.dirname(value)
             files += [value + s for s in ("", "-journal", "-wal", "-shm")]
-            files += [os.path.join(folder, n) for n in os.listdir(folder) if n.startswith(("block.mass_points.",
-                                                                                           "block.tie_points."))]
+            files += [
+                os.path.join(folder, n)
+                for n in os.listdir(folder)
+                if n.startswith(("block.mass_points.", "block.tie_points."))
+            ]
             files += [f for i in world["images"] for f in image(i)]
         elif key == "IMAGES":
             files += [f for i in value for f in image(i)]
@@ -105,11 +111,14 @@ def expected_refusal(outputs, inputs):
     for path, kind, mark in outputs.values():
         if identity(path) in same or os.path.realpath(path) in same or any(below(path, f) for f in folders):
             return True
-        if kind == "whole" and (any(below(p, path) for p in inputs) or (
-                os.path.isdir(path) and os.listdir(path) and not os.path.isfile(os.path.join(path, mark)))):
+        if kind == "whole" and (
+            any(below(p, path) for p in inputs)
+            or (os.path.isdir(path) and os.listdir(path) and not os.path.isfile(os.path.join(path, mark)))
+        ):
             return True
-        if os.path.exists(path) and (os.path.isdir(path) != (kind != "file") or not (
-                os.path.isdir(path) or os.path.isfile(path))):
+        if os.path.exists(path) and (
+            os.path.isdir(path) != (kind != "file") or not (os.path.isdir(path) or os.path.isfile(path))
+        ):
             return True
     for (a, ka, _), (b, kb, _) in itertools.combinations(outputs.values(), 2):
         if identity(a) == identity(b) or os.path.realpath(a) == os.path.realpath(b):
@@ -136,23 +145,30 @@ def draw_output(data, world, inputs, case, name, definition, kind):
         ext = extension(definition)
         hazards = ["input", "symlink", "hardlink", *in_points, "shared", "fifo", "folder", "device"]
         choice = data.draw(st.sampled_from(hazards + ["fresh", *unset] * 6), label=name)
-        path = {"point folder": points and points[0],
-                "in point folder": points and os.path.join(points[0], f"{name}.{ext}"),
-                "shared": os.path.join(case, f"shared.{ext}"),       # another output may choose it too
-                "fifo": os.path.join(case, f"fifo-{name}.{ext}"), "folder": os.path.join(case, f"folder-{name}.{ext}"),
-                "device": "/dev/null"}.get(choice, os.path.join(case, f"{choice}-{name}.{ext}"))
+        path = {
+            "point folder": points and points[0],
+            "in point folder": points and os.path.join(points[0], f"{name}.{ext}"),
+            "shared": os.path.join(case, f"shared.{ext}"),  # another output may choose it too
+            "fifo": os.path.join(case, f"fifo-{name}.{ext}"),
+            "folder": os.path.join(case, f"folder-{name}.{ext}"),
+            "device": "/dev/null",
+        }.get(choice, os.path.join(case, f"{choice}-{name}.{ext}"))
     else:
         hazards = ["input", "symlink", *in_points[:1], "linked world", "foreign", "fifo"]
         choice = data.draw(st.sampled_from(hazards + ["fresh", *unset, "empty", "made", "world"] * 2), label=name)
         path = {"point folder": points and points[0], "world": world["folder"]}.get(
-            choice, os.path.join(case, f"{choice.replace(' ', '-')}-{name}"))
-    source = data.draw(st.sampled_from(inputs), label=f"{name} input") if choice in ("input", "symlink",
-                                                                                     "hardlink") else None
+            choice, os.path.join(case, f"{choice.replace(' ', '-')}-{name}")
+        )
+    source = (
+        data.draw(st.sampled_from(inputs), label=f"{name} input")
+        if choice in ("input", "symlink", "hardlink")
+        else None
+    )
     if choice == "unset":
         return None
     if choice == "input":
         return source
-    if choice == "symlink" or (choice == "hardlink" and not os.path.isfile(source)):     # no hard link of those
+    if choice == "symlink" or (choice == "hardlink" and not os.path.isfile(source)):  # no hard link of those
         os.symlink(source, path)
     elif choice == "hardlink":
         os.link(source, path)
@@ -164,8 +180,9 @@ def draw_output(data, world, inputs, case, name, definition, kind):
         os.symlink(world["folder"], path)
     elif choice in ("foreign", "made"):
         os.makedirs(os.path.join(path, "truth"))
-        with open(os.path.join(path, "truth", "truth.json") if choice == "made" else os.path.join(path, "notes.txt"),
-                  "w") as f:
+        with open(
+            os.path.join(path, "truth", "truth.json") if choice == "made" else os.path.join(path, "notes.txt"), "w"
+        ) as f:
             f.write("{}")
     return path
 
@@ -176,8 +193,7 @@ EXAMPLES = itertools.count()
 @pytest.mark.parametrize("name", sorted(n for n in INPUTS if n not in ("selecttiepoints", "importpoints")))
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
-def test_outputs_are_refused_exactly_where_they_would_damage_something(pushbroom_provider, world, tmp_path, name,
-                                                                        data):
+def test_outputs_are_refused_exactly_where_they_would_damage_something(pushbroom_provider, world, tmp_path, name, data):
     alg = algorithm(name)
     parameters = INPUTS[name](world)
     inputs = input_files(world, parameters)
@@ -186,8 +202,11 @@ def test_outputs_are_refused_exactly_where_they_would_damage_something(pushbroom
     outputs = {}
     for definition in alg.destinationParameterDefinitions():
         key = definition.name()
-        kind = ("whole" if (name, key) in WHOLE else "into") if isinstance(
-            definition, QgsProcessingParameterFolderDestination) else "file"
+        kind = (
+            ("whole" if (name, key) in WHOLE else "into")
+            if isinstance(definition, QgsProcessingParameterFolderDestination)
+            else "file"
+        )
         path = draw_output(data, world, inputs, case, key, definition, kind)
         if path is not None:
             parameters[key] = path

@@ -2,6 +2,7 @@
 a value out of it, or NaN, is refused naming the parameter and the range (before: QGIS's "Incorrect
 parameter value for CELL", and NaN ran); a raster QGIS cannot load is named with why. Under qgis_process no
 GDAL line comes before Pushbroom's message and loading a raw RPC image prints no "Creating Warped VRT"."""
+
 import math
 import shutil
 import subprocess
@@ -31,24 +32,33 @@ def test_every_range_is_stated_in_the_help(pushbroom_provider):
     for name, definition in number_parameters(pushbroom_provider):
         low, high = definition.minimum(), definition.maximum()
         for bound in (low, high):
-            if math.isfinite(bound) and abs(bound) < 1e300:    # QGIS's "no bound" is +-DBL_MAX
+            if math.isfinite(bound) and abs(bound) < 1e300:  # QGIS's "no bound" is +-DBL_MAX
                 assert f"{bound:g}" in definition.help(), (name, definition.name(), definition.help())
                 bounded += 1
-    assert bounded > 40         # the steps have some 60 bounded number parameters: the check saw them
+    assert bounded > 40  # the steps have some 60 bounded number parameters: the check saw them
 
 
 def test_a_number_out_of_range_or_nan_is_refused_with_the_range(pushbroom_provider, tmp_path):
     cell = pushbroom_provider.algorithm("selecttiepoints").parameterDefinition("CELL")
-    for value, shown in ((0.0, "0 is out of range"), (float("nan"), "nan is not a number"),
-                         ("nan", "nan is not a number"), ("ten", "'ten' is not a number")):
+    for value, shown in (
+        (0.0, "0 is out of range"),
+        (float("nan"), "nan is not a number"),
+        ("nan", "nan is not a number"),
+        ("ten", "'ten' is not a number"),
+    ):
         with pytest.raises(QgsProcessingException) as err:
             processing.run("pushbroom:selecttiepoints", {"BLOCK": str(tmp_path / "b.gpkg"), "CELL": value})
         assert f"CELL: {shown}: give a number of at least {cell.minimum():g}" in str(err.value)
     radius = pushbroom_provider.algorithm("interpolatedem").parameterDefinition("RADIUS")
-    with pytest.raises(QgsProcessingException, match=rf"RADIUS: 9 is out of range: give a whole number from 0 to "
-                                                     rf"{radius.maximum():g}"):
-        processing.run("pushbroom:interpolatedem", {"INPUT": str(tmp_path / "c.las"), "RADIUS": 9, "METHOD": 1,
-                                                    "OUTPUT": str(tmp_path / "d.tif")})
+    with pytest.raises(
+        QgsProcessingException,
+        match=rf"RADIUS: 9 is out of range: give a whole number from 0 to "
+        rf"{radius.maximum():g}",
+    ):
+        processing.run(
+            "pushbroom:interpolatedem",
+            {"INPUT": str(tmp_path / "c.las"), "RADIUS": 9, "METHOD": 1, "OUTPUT": str(tmp_path / "d.tif")},
+        )
 
 
 def test_a_dimap_product_without_its_raster_is_named(pushbroom_provider, small_scene, tmp_path):
@@ -56,10 +66,14 @@ def test_a_dimap_product_without_its_raster_is_named(pushbroom_provider, small_s
     product = tmp_path / "HRG"
     shutil.copy(small_scene["images"]["HRG"]["metadata"], product.mkdir() or product / "METADATA.DIM")
     with pytest.raises(QgsProcessingException) as err:
-        processing.run("pushbroom:orthorectify", {"IMAGE": str(product / "METADATA.DIM"), "DEM": small_scene["dsm"],
-                                                  "OUTPUT": str(tmp_path / "o.tif")})
-    assert (f"IMAGE: {product / 'METADATA.DIM'} is a SPOT DIMAP product without its raster: "
-            f"{product / 'IMAGERY.TIF'}, which its metadata names, does not exist") in str(err.value)
+        processing.run(
+            "pushbroom:orthorectify",
+            {"IMAGE": str(product / "METADATA.DIM"), "DEM": small_scene["dsm"], "OUTPUT": str(tmp_path / "o.tif")},
+        )
+    assert (
+        f"IMAGE: {product / 'METADATA.DIM'} is a SPOT DIMAP product without its raster: "
+        f"{product / 'IMAGERY.TIF'}, which its metadata names, does not exist"
+    ) in str(err.value)
 
 
 def test_gdal_failures_raised_as_exceptions_are_not_printed(capsys, tmp_path):
@@ -73,7 +87,7 @@ def test_gdal_failures_raised_as_exceptions_are_not_printed(capsys, tmp_path):
     try:
         with pytest.raises(RuntimeError, match="not recognized"):
             gdal.Open(str(garbage))
-        assert capsys.readouterr().err == ""                 # raised, not printed
+        assert capsys.readouterr().err == ""  # raised, not printed
         gdal_messages._console(gdal.CE_Failure, 4, "a failure met in QGIS")
         gdal_messages._console(gdal.CE_Failure, 1, gdal_messages.NO_GEOREFERENCING + " (level-1A)")
         gdal.Error(gdal.CE_Warning, 1, "a warning")
@@ -86,8 +100,9 @@ def test_gdal_failures_raised_as_exceptions_are_not_printed(capsys, tmp_path):
 def console(tmp_path_factory):
     """Run qgis_process with the plugin; returns the CompletedProcess (text)."""
     env = qgis_process_env(tmp_path_factory.mktemp("qgis-profile"))
-    return lambda *args: subprocess.run([QGIS_PROCESS, "run", *args], env=env, capture_output=True, text=True,
-                                        timeout=600)
+    return lambda *args: subprocess.run(
+        [QGIS_PROCESS, "run", *args], env=env, capture_output=True, text=True, timeout=600
+    )
 
 
 def test_a_raw_rpc_image_loads_without_noise(console, tmp_path):
@@ -98,10 +113,16 @@ def test_a_raw_rpc_image_loads_without_noise(console, tmp_path):
     dem.SetProjection("EPSG:4326")
     dem.GetRasterBand(1).WriteArray(np.full((20, 20), 500.0, np.float32))
     dem = None
-    result = console("pushbroom:orthorectify", "--", f"IMAGE={image}", f"DEM={tmp_path / 'dem.tif'}",
-                     "CRS=EPSG:999999", f"OUTPUT={tmp_path / 'o.tif'}")
+    result = console(
+        "pushbroom:orthorectify",
+        "--",
+        f"IMAGE={image}",
+        f"DEM={tmp_path / 'dem.tif'}",
+        "CRS=EPSG:999999",
+        f"OUTPUT={tmp_path / 'o.tif'}",
+    )
     assert result.returncode == 1
-    assert "Warped VRT" not in result.stderr + result.stdout              # the raster loaded: no note of it
+    assert "Warped VRT" not in result.stderr + result.stdout  # the raster loaded: no note of it
     assert result.stderr.count("'EPSG:999999' is not a coordinate reference system QGIS knows") == 1
 
 
@@ -112,8 +133,14 @@ def test_no_gdal_line_before_pushbroom_message(console, small_scene, tmp_path):
     image = tmp_path / "HRG" / "IMAGERY.TIF"
     Block.create(str(tmp_path / "b.gpkg"), Block.open_images([str(image)]), height=300.0)
     image.write_text("no longer an image")
-    result = console("pushbroom:orthorectify", "--", f"BLOCK={tmp_path / 'b.gpkg'}", "IMAGE_NAME=HRG",
-                     f"DEM={small_scene['dsm']}", f"OUTPUT={tmp_path / 'o.tif'}")
+    result = console(
+        "pushbroom:orthorectify",
+        "--",
+        f"BLOCK={tmp_path / 'b.gpkg'}",
+        "IMAGE_NAME=HRG",
+        f"DEM={small_scene['dsm']}",
+        f"OUTPUT={tmp_path / 'o.tif'}",
+    )
     assert result.returncode == 1
     assert result.stderr.count(f"cannot open the image {image}") == 1
-    assert "ERROR 4" not in result.stderr                   # GDAL's own line of the same failure
+    assert "ERROR 4" not in result.stderr  # GDAL's own line of the same failure

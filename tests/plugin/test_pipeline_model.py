@@ -2,6 +2,7 @@
 scripts/build_pipeline_model.py builds, and it runs end to end through qgis_process, its tiled steps
 on a Dask LocalCluster of 2 worker processes, on the small simulated triplet (5 control, 2 check
 points) with its results checked against the simulator's truth through GDAL."""
+
 import csv
 import importlib.util
 import json
@@ -21,13 +22,33 @@ REPO = pathlib.Path(pushbroom.__file__).resolve().parent
 MODEL = REPO / "resources" / "models" / "pushbroom_pipeline.model3"
 DENSE_MODEL = REPO / "resources" / "models" / "pushbroom_pipeline_dense.model3"
 #: child id -> algorithm: one child per step, and `checkimage`, the orthoimage that checks IMAGE_NAME early
-STEPS = {**{k: k for k in ("createblock", "matchpoints", "selecttiepoints", "importpoints", "bundleadjust",
-                           "intersectpoints", "interpolatedem", "orthorectify", "assessaccuracy")},
-         "checkimage": "orthorectify"}
-OUTPUTS = {"createblock:block": "block.gpkg", "bundleadjust:report": "adjustment.html",
-           "intersectpoints:pointcloud": "points.las", "interpolatedem:dem": "dem.tif",
-           "orthorectify:orthoimage": "ortho.tif", "assessaccuracy:report": "report.html",
-           "assessaccuracy:table": "accuracy.csv", "assessaccuracy:dh": "dh.tif"}
+STEPS = {
+    **{
+        k: k
+        for k in (
+            "createblock",
+            "matchpoints",
+            "selecttiepoints",
+            "importpoints",
+            "bundleadjust",
+            "intersectpoints",
+            "interpolatedem",
+            "orthorectify",
+            "assessaccuracy",
+        )
+    },
+    "checkimage": "orthorectify",
+}
+OUTPUTS = {
+    "createblock:block": "block.gpkg",
+    "bundleadjust:report": "adjustment.html",
+    "intersectpoints:pointcloud": "points.las",
+    "interpolatedem:dem": "dem.tif",
+    "orthorectify:orthoimage": "ortho.tif",
+    "assessaccuracy:report": "report.html",
+    "assessaccuracy:table": "accuracy.csv",
+    "assessaccuracy:dh": "dh.tif",
+}
 
 
 def builder():
@@ -72,25 +93,40 @@ def test_cheap_inputs_are_checked_before_the_matching(pushbroom_provider, small_
     for path in (MODEL, DENSE_MODEL):
         assert {"importpoints", "checkimage"} <= set(load(path).dependsOnChildAlgorithms("matchpoints"))
     block = tmp_path / "block.gpkg"
-    parameters = {"IMAGES": [small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")], "HEIGHT": 300,
-                  "POINTS": small_scene["points"], "MEAS_SUFFIX": "_meas", "REFERENCE": small_scene["dsm"],
-                  "IMAGE_NAME": "SPOT", "createblock:block": str(block),
-                  **{key: str(tmp_path / name) for key, name in OUTPUTS.items() if key != "createblock:block"}}
+    parameters = {
+        "IMAGES": [small_scene["images"][n]["imagery"] for n in ("HRG", "HRS1", "HRS2")],
+        "HEIGHT": 300,
+        "POINTS": small_scene["points"],
+        "MEAS_SUFFIX": "_meas",
+        "REFERENCE": small_scene["dsm"],
+        "IMAGE_NAME": "SPOT",
+        "createblock:block": str(block),
+        **{key: str(tmp_path / name) for key, name in OUTPUTS.items() if key != "createblock:block"},
+    }
     with pytest.raises(QgsProcessingException):
         processing.run(load(MODEL), parameters, feedback=log)
-    assert any("the block has no image 'SPOT'" in m for m in log.errors)      # the reason, named
+    assert any("the block has no image 'SPOT'" in m for m in log.errors)  # the reason, named
     info = Block(block).info()
-    assert "mass_points" not in info                     # refused before the matching ran
-    assert len(Block(block).control_points().points)    # the points were imported first
+    assert "mass_points" not in info  # refused before the matching ran
+    assert len(Block(block).control_points().points)  # the points were imported first
 
 
 def warped(path, like, resampling="bilinear"):
     """`path` resampled by GDAL onto the grid of the raster `like` (nodata NaN)."""
     ds = gdal.Open(str(like))
     gt, cols, rows = ds.GetGeoTransform(), ds.RasterXSize, ds.RasterYSize
-    out = gdal.Warp("", str(path), format="MEM", dstSRS=ds.GetProjection(), outputType=gdal.GDT_Float32,
-                    outputBounds=(gt[0], gt[3] + rows * gt[5], gt[0] + cols * gt[1], gt[3]), width=cols, height=rows,
-                    resampleAlg=resampling, dstNodata=np.nan)
+    out = gdal.Warp(
+        "",
+        str(path),
+        format="MEM",
+        dstSRS=ds.GetProjection(),
+        outputType=gdal.GDT_Float32,
+        outputBounds=(gt[0], gt[3] + rows * gt[5], gt[0] + cols * gt[1], gt[3]),
+        width=cols,
+        height=rows,
+        resampleAlg=resampling,
+        dstNodata=np.nan,
+    )
     return out.ReadAsArray()
 
 
@@ -110,10 +146,21 @@ def pipeline(small_scene, qgis_process, tmp_path_factory):
     with open(small_scene["points"], newline="") as f:
         ids = [r["id"] for r in csv.DictReader(f)]
     images = [f"IMAGES={small_scene['images'][n]['imagery']}" for n in ("HRG", "HRS1", "HRS2")]
-    result = qgis_process("run", str(MODEL), "--", *images, "HEIGHT=300", f"POINTS={small_scene['points']}",
-                          f"CHECK_IDS={','.join(ids[5:])}", "MEAS_SUFFIX=_meas", f"REFERENCE={small_scene['dsm']}",
-                          f"CLASS_RASTER={small_scene['classes']}", "EXECUTION=2", "THREADS=2",
-                          *(f"{k}={out / v}" for k, v in OUTPUTS.items()))
+    result = qgis_process(
+        "run",
+        str(MODEL),
+        "--",
+        *images,
+        "HEIGHT=300",
+        f"POINTS={small_scene['points']}",
+        f"CHECK_IDS={','.join(ids[5:])}",
+        "MEAS_SUFFIX=_meas",
+        f"REFERENCE={small_scene['dsm']}",
+        f"CLASS_RASTER={small_scene['classes']}",
+        "EXECUTION=2",
+        "THREADS=2",
+        *(f"{k}={out / v}" for k, v in OUTPUTS.items()),
+    )
     assert "on a Dask local cluster of 2 worker processes" in json.dumps(result["log"])
     return result["results"], out
 
@@ -170,8 +217,11 @@ def test_pipeline_reports_hold_the_tables(pipeline):
     adjustment = (out / "adjustment.html").read_text()
     assert "Check points (Kornus et al. 2006, Table 3)" in adjustment and "P006" in adjustment and "P007" in adjustment
     report = (out / "report.html").read_text()
-    for title in ("dh [m] of the object points - reference: per point group", "dh [m] of the DEM cells - reference: "
-                  "per class", "nested classes (Zhang and Gruen 2004, Tables 2-3)"):
+    for title in (
+        "dh [m] of the object points - reference: per point group",
+        "dh [m] of the DEM cells - reference: per class",
+        "nested classes (Zhang and Gruen 2004, Tables 2-3)",
+    ):
         assert title in report, title
     with open(out / "accuracy.csv", newline="") as f:
         rows = list(csv.DictReader(f))
@@ -185,8 +235,11 @@ def test_pipeline_reports_hold_the_tables(pipeline):
 def dem_per_class(out):
     """{class: (n, RMS)} of the DEM cells in assessaccuracy's table."""
     with open(out / "accuracy.csv", newline="") as f:
-        return {r["label"]: (int(r["n"]), float(r["rms"])) for r in csv.DictReader(f)
-                if r["data"] == "DEM cells" and r["table"] == "per class"}
+        return {
+            r["label"]: (int(r["n"]), float(r["rms"]))
+            for r in csv.DictReader(f)
+            if r["data"] == "DEM cells" and r["table"] == "per class"
+        }
 
 
 @pytest.mark.slow
@@ -196,33 +249,61 @@ def test_dense_pipeline_without_a_height(pipeline, small_scene, qgis_process, tm
     with open(small_scene["points"], newline="") as f:
         ids = [r["id"] for r in csv.DictReader(f)]
     images = [f"IMAGES={small_scene['images'][n]['imagery']}" for n in ("HRG", "HRS1", "HRS2")]
-    result = qgis_process("run", str(DENSE_MODEL), "--", *images, f"POINTS={small_scene['points']}",
-                          f"CHECK_IDS={','.join(ids[5:])}", "MEAS_SUFFIX=_meas", f"REFERENCE={small_scene['dsm']}",
-                          f"CLASS_RASTER={small_scene['classes']}", "THREADS=2",
-                          *(f"{k}={tmp_path / v}" for k, v in OUTPUTS.items()))
+    result = qgis_process(
+        "run",
+        str(DENSE_MODEL),
+        "--",
+        *images,
+        f"POINTS={small_scene['points']}",
+        f"CHECK_IDS={','.join(ids[5:])}",
+        "MEAS_SUFFIX=_meas",
+        f"REFERENCE={small_scene['dsm']}",
+        f"CLASS_RASTER={small_scene['classes']}",
+        "THREADS=2",
+        *(f"{k}={tmp_path / v}" for k, v in OUTPUTS.items()),
+    )
     log = json.dumps(result["log"])
     assert "finding the terrain height by matching" in log and "dense matching:" in log
     dense, region_growing = dem_per_class(tmp_path), dem_per_class(pipeline[1])
-    figures.table("10 m DEM against the true DSM per class: the dense model, no height / the region-growing model",
-                  [{"class": k, "dense cells": dense[k][0], "dense RMS m": dense[k][1],
-                    "region growing cells": region_growing[k][0], "region growing RMS m": region_growing[k][1]}
-                   for k in dense if k in region_growing])
+    figures.table(
+        "10 m DEM against the true DSM per class: the dense model, no height / the region-growing model",
+        [
+            {
+                "class": k,
+                "dense cells": dense[k][0],
+                "dense RMS m": dense[k][1],
+                "region growing cells": region_growing[k][0],
+                "region growing RMS m": region_growing[k][1],
+            }
+            for k in dense
+            if k in region_growing
+        ],
+    )
     dem = band(tmp_path / "dem.tif")
     dh = dem - warped(small_scene["dsm"], tmp_path / "dem.tif")
-    figures.report("dense model: DEM cells defined, median |dh|", [100 * np.isfinite(dh).mean(),
-                                                                    np.median(np.abs(dh[np.isfinite(dh)]))], "%, m")
-    assert np.isfinite(dh).mean() > 0.6 and np.median(np.abs(dh[np.isfinite(dh)])) < 4.0     # filled within 10 cells
+    figures.report(
+        "dense model: DEM cells defined, median |dh|",
+        [100 * np.isfinite(dh).mean(), np.median(np.abs(dh[np.isfinite(dh)]))],
+        "%, m",
+    )
+    assert np.isfinite(dh).mean() > 0.6 and np.median(np.abs(dh[np.isfinite(dh)])) < 4.0  # filled within 10 cells
     # region growing measures only the cells it matches best (a third of dense's grass): the two are compared on
     # the cells both DEMs hold, by class of the true land cover
-    dh_region_growing = warped(pipeline[1] / "dem.tif", tmp_path / "dem.tif") - warped(small_scene["dsm"],
-                                                                                           tmp_path / "dem.tif")
+    dh_region_growing = warped(pipeline[1] / "dem.tif", tmp_path / "dem.tif") - warped(
+        small_scene["dsm"], tmp_path / "dem.tif"
+    )
     classes = warped(small_scene["classes"], tmp_path / "dem.tif", "near")
     both = np.isfinite(dh) & np.isfinite(dh_region_growing)
-    rms = {name: [float(np.sqrt(np.mean(d[both & (classes == code)] ** 2))) for d in (dh, dh_region_growing)]
-           for code, name in CLASSES.items() if name in ("bare fields", "grass/crops", "forest")}
-    figures.table("10 m DEM RMS on the cells both models hold: dense (no height) / region growing",
-                  [{"class": k, "dense RMS m": v[0], "region growing RMS m": v[1]} for k, v in rms.items()])
-    assert all(dense[k][0] > region_growing[k][0] for k in rms), dense              # more cells measured
+    rms = {
+        name: [float(np.sqrt(np.mean(d[both & (classes == code)] ** 2))) for d in (dh, dh_region_growing)]
+        for code, name in CLASSES.items()
+        if name in ("bare fields", "grass/crops", "forest")
+    }
+    figures.table(
+        "10 m DEM RMS on the cells both models hold: dense (no height) / region growing",
+        [{"class": k, "dense RMS m": v[0], "region growing RMS m": v[1]} for k, v in rms.items()],
+    )
+    assert all(dense[k][0] > region_growing[k][0] for k in rms), dense  # more cells measured
     # where both measure, dense is about as good: its LSM refinement is region growing's, its DEM the per-cell
     # median of single-pixel points where region growing's TIN averages over its STEP (the bound of before)
     assert all(v[0] < 1.25 * v[1] for v in rms.values()), rms

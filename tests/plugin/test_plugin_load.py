@@ -1,4 +1,5 @@
 """The plugin loads in QGIS (offscreen), registers the provider and removes it on unload."""
+
 import configparser
 import pathlib
 import sys
@@ -19,8 +20,19 @@ def test_metadata_has_required_fields():
     meta = configparser.ConfigParser()
     meta.read(REPO / "metadata.txt")
     general = meta["general"]
-    for key in ("name", "qgisMinimumVersion", "description", "about", "version", "author", "email",
-                "repository", "tags", "category", "icon"):
+    for key in (
+        "name",
+        "qgisMinimumVersion",
+        "description",
+        "about",
+        "version",
+        "author",
+        "email",
+        "repository",
+        "tags",
+        "category",
+        "icon",
+    ):
         assert general.get(key, "").strip(), key
     assert general["qgisMinimumVersion"] == "3.22"
     assert general["hasProcessingProvider"] == "yes"

@@ -2,6 +2,7 @@
 on the Ventoux pair (test_dsm_real, test_coarse_to_fine_real, test_dense_real, test_height_search_real),
 region growing's triplet DSMs (the same and test_matching_pleiades), the triplet's terrain heights found by
 matching and dense matching's triplet DSMs over them (test_dense_real, test_height_search_real)."""
+
 import itertools
 
 import pytest
@@ -31,22 +32,35 @@ def ventoux_region_growing(ventoux_pair, tmp_path_factory):
     """Region growing on the Ventoux pair, nodes every VENTOUX_STEP px: (MultiPoints, their Intersection
     with the supplied RPCs, real_dsm.srtm_comparison of its 1, VENTOUX_CELL and 5 m DSMs)."""
     models = [sensors.load(p) for p in ventoux_pair]
-    points = match_block([Image(p) for p in ventoux_pair], models, names=[p.stem for p in ventoux_pair],
-                         params=GrowParams(step=VENTOUX_STEP), workers=2)
+    points = match_block(
+        [Image(p) for p in ventoux_pair],
+        models,
+        names=[p.stem for p in ventoux_pair],
+        params=GrowParams(step=VENTOUX_STEP),
+        workers=2,
+    )
     result = cut({1: models[0], 2: models[1]}, points.observations)
     srtm = str(ventoux_pair[0].with_name("N44E005.hgt"))
-    return points, result, srtm_comparison(result, srtm, (1.0, VENTOUX_CELL, 5.0), VENTOUX_CELL,
-                                           tmp_path_factory.mktemp("ventoux_region_growing"))
+    return (
+        points,
+        result,
+        srtm_comparison(
+            result, srtm, (1.0, VENTOUX_CELL, 5.0), VENTOUX_CELL, tmp_path_factory.mktemp("ventoux_region_growing")
+        ),
+    )
 
 
 @pytest.fixture(scope="session")
 def region_growing_triplet_dsms(pleiades_triplet, tmp_path_factory):
     """real_dsm.build_triplet_dsms of region growing (nodes every TRIPLET_STEP px, CELL m cells, gaps
     beyond RG_MAX_EDGE m)."""
+
     def match(images, models, names):
         return match_block(images, models, names=names, params=GrowParams(step=TRIPLET_STEP), workers=2)
-    return build_triplet_dsms(pleiades_triplet, match, CELL, RG_MAX_EDGE, tmp_path_factory.mktemp("rg_triplet_dsm"),
-                              Feedback())
+
+    return build_triplet_dsms(
+        pleiades_triplet, match, CELL, RG_MAX_EDGE, tmp_path_factory.mktemp("rg_triplet_dsm"), Feedback()
+    )
 
 
 @pytest.fixture(scope="session")
@@ -65,6 +79,8 @@ def dense_triplet_dsms(pleiades_triplet, triplet_heights_found, tmp_path_factory
     folder, runs, log = tmp_path_factory.mktemp("dense_triplet_dsm"), itertools.count(), Feedback()
 
     def match(images, models, names):
-        return refined_dense_points(images, models, names, folder / f"dense-{next(runs)}",
-                                    triplet_heights_found.height_range)[0]
+        return refined_dense_points(
+            images, models, names, folder / f"dense-{next(runs)}", triplet_heights_found.height_range
+        )[0]
+
     return {**build_triplet_dsms(pleiades_triplet, match, CELL, RG_MAX_EDGE, folder, log), "log": log.messages}

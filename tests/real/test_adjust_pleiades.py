@@ -23,6 +23,7 @@ defect (bundle.defect_groups does not report a combination the user's priors det
 weak; without priors it is named. The residuals do not depend on this choice
 (test_residuals_do_not_depend_on_the_datum), and a drift or affine bias adds nothing on these
 0.5 km crops (1024 px of 0.5 m; test_shift_is_enough)."""
+
 import time
 
 import numpy as np
@@ -40,17 +41,26 @@ from tests.helpers.pleiades_scene import LABELS, match_triplet, triplet_models
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
 PARAMS = GrowParams(step=10)
-REFERENCE = 1                                   # block id of img_02
+REFERENCE = 1  # block id of img_02
 OTHERS = [f"{LABELS[i]} {k}" for i in (2, 3) for k in ("A0", "B0")]
-PRIORS = {"bias:shift": 10.0}                   # px
+PRIORS = {"bias:shift": 10.0}  # px
 MAX_RMS = 0.3
 
 
 def rms_rows(rows):
     """reprojection_rms rows as a figures table (px)."""
-    return [{"image": LABELS.get(int(r["image_id"]), "all"), "n": r["n"], "mean col": r["mean_col"],
-             "mean row": r["mean_row"], "RMS col": r["rms_col"], "RMS row": r["rms_row"], "RMS": r["rms"]}
-            for r in rows]
+    return [
+        {
+            "image": LABELS.get(int(r["image_id"]), "all"),
+            "n": r["n"],
+            "mean col": r["mean_col"],
+            "mean row": r["mean_row"],
+            "RMS col": r["rms_col"],
+            "RMS row": r["rms_row"],
+            "RMS": r["rms"],
+        }
+        for r in rows
+    ]
 
 
 def by_image(rows):
@@ -65,8 +75,10 @@ def block(pleiades_triplet):
     _, models, points = match_triplet(pleiades_triplet, PARAMS, feedback=log)
     tie = select_tie_points(points)
     obs = tie_observations(tie)
-    log.messages.append(f"matching STEP {PARAMS.step}: {len(points)} points {points.group_counts()}, "
-                     f"{time.perf_counter() - t0:.1f} s; {len(tie)} tie points {tie.group_counts()}")
+    log.messages.append(
+        f"matching STEP {PARAMS.step}: {len(points)} points {points.group_counts()}, "
+        f"{time.perf_counter() - t0:.1f} s; {len(tie)} tie points {tie.group_counts()}"
+    )
     return obs, float(np.mean(models[0].height_range)), log
 
 
@@ -75,26 +87,38 @@ def adjusted(pleiades_triplet, block, figures):
     obs, height, log = block
     t0 = time.perf_counter()
     before = adjust(triplet_models(pleiades_triplet), obs, [], names=LABELS, height=height)
-    after = adjust(triplet_models(pleiades_triplet), obs, OTHERS, names=LABELS, height=float(np.mean(before.h)),
-                   priors=PRIORS, remove_blunders=True)
+    after = adjust(
+        triplet_models(pleiades_triplet),
+        obs,
+        OTHERS,
+        names=LABELS,
+        height=float(np.mean(before.h)),
+        priors=PRIORS,
+        remove_blunders=True,
+    )
     free = np.flatnonzero(after.parameters.free)
     w = np.nanmax(np.abs(after.normalised), axis=1)
     seconds = time.perf_counter() - t0
     for message in log.messages:
         figures.report("matching", message)
     figures.table("tie point reprojection before adjustment (px)", rms_rows(reprojection_rms(before)))
-    figures.table("tie point reprojection after (shifts of img_01, img_03; img_02 fixed; priors 10 px) (px)",
-                  rms_rows(reprojection_rms(after)))
+    figures.table(
+        "tie point reprojection after (shifts of img_01, img_03; img_02 fixed; priors 10 px) (px)",
+        rms_rows(reprojection_rms(after)),
+    )
     figures.report("sigma_0", after.sigma0, note=f"{0.5 * after.sigma0:.3f} px with the a priori 0.5 px")
     figures.report("redundancy", after.redundancy)
     figures.report("iterations", after.iterations)
     figures.report("adjustments", seconds, "s")
-    figures.table("free parameters (px)", [{"parameter": after.parameters.label(q), "value": after.values[q],
-                                            "sigma": after.sigmas[q]} for q in free])
+    figures.table(
+        "free parameters (px)",
+        [{"parameter": after.parameters.label(q), "value": after.values[q], "sigma": after.sigmas[q]} for q in free],
+    )
     figures.report("data snooping: measurements removed", len(after.removed))
     figures.report("max |w|", w.max(), note=f"critical {CRITICAL_W}")
-    figures.report("measurements above the critical |w| with the a posteriori sigma",
-                   int(np.sum(w / after.sigma0 > CRITICAL_W)))
+    figures.report(
+        "measurements above the critical |w| with the a posteriori sigma", int(np.sum(w / after.sigma0 > CRITICAL_W))
+    )
     figures.report("max |w| with the a posteriori sigma", w.max() / after.sigma0)
     figures.report("largest |v|", np.abs(after.residuals).max(), "px")
     figures.report("mean tie point height before", np.mean(before.h), "m")
@@ -133,8 +157,9 @@ def test_biases_are_the_shifts_the_residuals_showed(pleiades_triplet, adjusted):
     original = triplet_models(pleiades_triplet)[REFERENCE]
     c, r = np.meshgrid(np.linspace(0, 1024, 5), np.linspace(0, 1024, 5))
     h = np.full(c.size, 200.0)
-    assert np.array_equal(models[REFERENCE].image_to_ground(c.ravel(), r.ravel(), h),
-                          original.image_to_ground(c.ravel(), r.ravel(), h))
+    assert np.array_equal(
+        models[REFERENCE].image_to_ground(c.ravel(), r.ravel(), h), original.image_to_ground(c.ravel(), r.ravel(), h)
+    )
     v = by_image(reprojection_rms(before))
     free = np.flatnonzero(after.parameters.free)
     value = {after.parameters.label(q): (after.values[q], after.sigmas[q]) for q in free}
@@ -142,7 +167,7 @@ def test_biases_are_the_shifts_the_residuals_showed(pleiades_triplet, adjusted):
         a0, s_a0 = value[f"{LABELS[i]} A0"]
         assert a0 == pytest.approx(-(v[i]["mean_col"] - v[REFERENCE]["mean_col"]), abs=0.1)
         assert abs(a0) > 10 * s_a0 and abs(a0) < 2.0
-        assert value[f"{LABELS[i]} B0"][1] > 10 * s_a0          # the height defect, held by the prior
+        assert value[f"{LABELS[i]} B0"][1] > 10 * s_a0  # the height defect, held by the prior
     b0_sum = value[f"{LABELS[2]} B0"][0] + value[f"{LABELS[3]} B0"][0]
     assert b0_sum == pytest.approx(-(v[2]["mean_row"] + v[3]["mean_row"] - 2 * v[REFERENCE]["mean_row"]), abs=0.1)
     # least-norm row shifts keep the height datum of the RPCs (measured 0.3 m, 0.06 px of parallax)
@@ -158,7 +183,7 @@ def test_defects_are_named_without_priors(pleiades_triplet, block):
     assert ";" not in str(error.value) and set(named[:2]) == {"img_01 B0", "img_03 B0"}, named
     with pytest.raises(InputError, match="cannot be determined") as error:
         adjust(triplet_models(pleiades_triplet), obs, ["bias:shift"], names=LABELS, height=height)
-    assert str(error.value).count(";") == 2         # three defects: the translation of the ground
+    assert str(error.value).count(";") == 2  # three defects: the translation of the ground
     assert all(f"{name} A0" in str(error.value) for name in LABELS.values())
 
 
@@ -167,8 +192,14 @@ def test_residuals_do_not_depend_on_the_datum(pleiades_triplet, block, adjusted)
     fixed reference): the same residuals, and the same bias differences to the reference."""
     obs, _, _ = block
     _, after = adjusted
-    free = adjust(triplet_models(pleiades_triplet), obs, ["bias:shift"], names=LABELS, height=float(np.mean(after.h)),
-                  priors=PRIORS)
+    free = adjust(
+        triplet_models(pleiades_triplet),
+        obs,
+        ["bias:shift"],
+        names=LABELS,
+        height=float(np.mean(after.h)),
+        priors=PRIORS,
+    )
     assert np.abs(free.residuals - after.residuals).max() < 0.01
     fixed, loose = after.parameters.models, free.parameters.models
     for i in (2, 3):
@@ -182,8 +213,14 @@ def test_shift_is_enough(pleiades_triplet, block, adjusted, figures):
     for kind in ("drift", "affine"):
         terms = [t for t in ("A0", "A1", "A2", "B0", "B1", "B2") if kind == "affine" or t[1] in "02"]
         free = [f"{LABELS[i]} {t}" for i in (2, 3) for t in terms]
-        richer = adjust(triplet_models(pleiades_triplet), obs, free, names=LABELS, height=float(np.mean(after.h)),
-                        priors={f"bias:{kind}": 10.0})
+        richer = adjust(
+            triplet_models(pleiades_triplet),
+            obs,
+            free,
+            names=LABELS,
+            height=float(np.mean(after.h)),
+            priors={f"bias:{kind}": 10.0},
+        )
         figures.report(f"{kind}: sigma_0", richer.sigma0, note=f"shift: {after.sigma0:.4f}")
         figures.report(f"{kind}: tie point RMS", reprojection_rms(richer)[-1]["rms"], "px")
         assert richer.sigma0 > 0.95 * after.sigma0

@@ -28,6 +28,7 @@ matching) as in test_dsm_real; test_side_by_side_with_region_growing compares th
 Measured (2 cores): coverage 79 % (region growing 69 % at 3 m, 94 % at 10 m), pairs after adjustment
 medians <= 0.01 m and NMAD 0.28-0.41 m (region growing 0.05-0.11 m, 0.23-0.41 m), matching the triplet and
 its pairs 25 s (region growing 39 s); this DSM - region growing's: median -0.02 m, NMAD 0.15 m."""
+
 import numpy as np
 import pytest
 from osgeo import gdal
@@ -52,18 +53,20 @@ from tests.helpers.real_dsm import (
 
 pytestmark = [pytest.mark.slow, pytest.mark.real, pytest.mark.ratchet]
 
-MAX_MEDIAN, MAX_NMAD, MAX_DETRENDED_NMAD = 5.0, 12.0, 5.0     # m, against SRTM
-MAX_MATCHER_MEDIAN, MAX_MATCHER_NMAD = 0.5, 1.0                # m, Ventoux: this DSM - region growing's
-MAX_EDGE = 10.0                                                # m, two of the default grid's 5 m spacings
+MAX_MEDIAN, MAX_NMAD, MAX_DETRENDED_NMAD = 5.0, 12.0, 5.0  # m, against SRTM
+MAX_MATCHER_MEDIAN, MAX_MATCHER_NMAD = 0.5, 1.0  # m, Ventoux: this DSM - region growing's
+MAX_EDGE = 10.0  # m, two of the default grid's 5 m spacings
 MIN_COVERAGE = 0.7
-MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6                     # m, after the bias adjustment
-MAX_TRIPLET_MEDIAN, MAX_TRIPLET_NMAD = 0.25, 0.6               # m, this 0.5 m DSM - region growing's
+MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6  # m, after the bias adjustment
+MAX_TRIPLET_MEDIAN, MAX_TRIPLET_NMAD = 0.25, 0.6  # m, this 0.5 m DSM - region growing's
 
 
 def coarse_to_fine_matcher(params=None):
     """match(images, models, names) -> MultiPoints of match_coarse_to_fine, for build_triplet_dsms."""
+
     def match(images, models, names):
         return match_coarse_to_fine(images, models, names=names, params=params)
+
     return match
 
 
@@ -75,15 +78,18 @@ def groups(points):
 def test_ventoux_dsm_against_srtm(ventoux_pair, ventoux_region_growing, tmp_path, figures):
     srtm = str(ventoux_pair[0].with_name("N44E005.hgt"))
     models = [sensors.load(p) for p in ventoux_pair]
-    points = coarse_to_fine_matcher(CoarseToFineParams(grid=VENTOUX_STEP))([Image(p) for p in ventoux_pair], models,
-                                                         [p.stem for p in ventoux_pair])
+    points = coarse_to_fine_matcher(CoarseToFineParams(grid=VENTOUX_STEP))(
+        [Image(p) for p in ventoux_pair], models, [p.stem for p in ventoux_pair]
+    )
     result = cut({1: models[0], 2: models[1]}, points.observations)
     c = srtm_comparison(result, srtm, (1.0, VENTOUX_CELL, 5.0), VENTOUX_CELL, tmp_path)
     report_srtm_comparison(c, figures)
     rg = ventoux_region_growing[2]["dems"][VENTOUX_CELL]
     between = summarize((on_grid(c["dems"][VENTOUX_CELL], rg.grid) - rg.heights).ravel())
-    assert groups(points) == {1} and result.ok.all() and len(points) > 5000, (points.group_counts(),
-                                                                            result.status_counts())
+    assert groups(points) == {1} and result.ok.all() and len(points) > 5000, (
+        points.group_counts(),
+        result.status_counts(),
+    )
     assert 48.0 < c["geoid"].mean() < 52.0 and np.ptp(c["geoid"]) < 0.1
     s = c["stats"][VENTOUX_CELL]
     assert s.n > 2000 and abs(s.median) < MAX_MEDIAN and s.nmad < MAX_NMAD, s
@@ -94,8 +100,14 @@ def test_ventoux_dsm_against_srtm(ventoux_pair, ventoux_region_growing, tmp_path
 @pytest.fixture(scope="module")
 def coarse_to_fine_dsms(pleiades_triplet, tmp_path_factory):
     """build_triplet_dsms of match_coarse_to_fine (default parameters), cells 0.5 m, MAX_EDGE."""
-    return build_triplet_dsms(pleiades_triplet, coarse_to_fine_matcher(), CELL, MAX_EDGE,
-                              tmp_path_factory.mktemp("coarse_to_fine_dsm"), Feedback())
+    return build_triplet_dsms(
+        pleiades_triplet,
+        coarse_to_fine_matcher(),
+        CELL,
+        MAX_EDGE,
+        tmp_path_factory.mktemp("coarse_to_fine_dsm"),
+        Feedback(),
+    )
 
 
 def coverage(dem, dsms):

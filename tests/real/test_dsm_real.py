@@ -21,6 +21,7 @@ matched on its own, intersected and gridded on the same 0.5 m lattice; median an
 differences over the common footprint, with the supplied RPCs and after the RPC bias adjustment of
 test_adjust_pleiades. The NMAD bound 0.6 m is the height precision of a difference of two B/H 0.11
 pair DSMs at 0.1 px matching precision (sqrt(2) x 0.1 x 0.5 m / 0.11 = 0.64 m)."""
+
 import numpy as np
 import pytest
 from osgeo import gdal
@@ -33,7 +34,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.real, pytest.mark.ratchet]
 #: (docs/validation.md#ventoux-dsm); the matcher's own error is held by the NMAD without the ramp (< 5 m)
 MAX_MEDIAN, MAX_NMAD = 5.0, 10.0
 MIN_COVERAGE = 0.6
-MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6          # m, after the bias adjustment
+MAX_PAIR_MEDIAN, MAX_PAIR_NMAD = 0.25, 0.6  # m, after the bias adjustment
 
 
 def test_ventoux_dsm_against_srtm(ventoux_region_growing, figures):

@@ -8,6 +8,7 @@ their difference must be the matching's noise (median and NMAD of a few cm). Lik
 (algorithms/dense) on the Ventoux pair: the DSMs of its LSM-refined points with the range found and with the
 height given. On the triplet, dense matching over the range found is test_dense_real's (the session's
 dense_triplet_dsms)."""
+
 import numpy as np
 import pytest
 
@@ -39,10 +40,14 @@ MAX_MEDIAN, MAX_NMAD = 0.05, 0.10
 
 def matched(paths, models, names, step, heights):
     """Intersection (supplied RPCs) of the points region growing matched in all images over `heights`."""
-    points = match_block([Image(p) for p in paths], models, names=names, params=GrowParams(step=step),
-                         height_range=heights, workers=2)
-    return cut({k + 1: m for k, m in enumerate(models)}, points.observations,
-               points.points["id"][points.points["group"] >= len(paths) - 1])
+    points = match_block(
+        [Image(p) for p in paths], models, names=names, params=GrowParams(step=step), height_range=heights, workers=2
+    )
+    return cut(
+        {k + 1: m for k, m in enumerate(models)},
+        points.observations,
+        points.points["id"][points.points["group"] >= len(paths) - 1],
+    )
 
 
 def dense_matched(paths, models, names, heights, folder):
@@ -68,17 +73,29 @@ def found_and_given(paths, names, step, reference, folder=None):
     found = search_heights(paths, models, names)
     given = given_height(reference)
     if folder is not None:
-        return found, given, {k: dense_matched(paths, models, names, h, folder / k)
-                              for k, h in (("found", found.height_range), ("given", given))}
-    return found, given, {k: matched(paths, models, names, step, h)
-                          for k, h in (("found", found.height_range), ("given", given))}
+        return (
+            found,
+            given,
+            {
+                k: dense_matched(paths, models, names, h, folder / k)
+                for k, h in (("found", found.height_range), ("given", given))
+            },
+        )
+    return (
+        found,
+        given,
+        {k: matched(paths, models, names, step, h) for k, h in (("found", found.height_range), ("given", given))},
+    )
 
 
 def check_range(found, reference, figures, title):
     h = reference.h[reference.ok]
     lo, hi = np.percentile(h, (0.5, 99.5))
-    figures.report(f"{title}: heights found (range, median, points, rejected)",
-                   [*found.height_range, found.median, found.points, found.rejected], "m")
+    figures.report(
+        f"{title}: heights found (range, median, points, rejected)",
+        [*found.height_range, found.median, found.points, found.rejected],
+        "m",
+    )
     figures.report(f"{title}: terrain (0.5 / 99.5 % of the points over the RPC's {found.searched} m)", [lo, hi], "m")
     assert found.height_range[0] <= lo and hi <= found.height_range[1], (found, lo, hi)
     span = found.searched[1] - found.searched[0]
@@ -88,50 +105,66 @@ def check_range(found, reference, figures, title):
 def compare_dsms(a, b, figures, title):
     grid = a.grid
     diff = summarize((on_grid(b, grid) - a.heights).ravel())
-    figures.table(f"{title}: DSM with the height found minus DSM with the height given (m)",
-                  [stats_row("found - given", diff)])
+    figures.table(
+        f"{title}: DSM with the height found minus DSM with the height given (m)", [stats_row("found - given", diff)]
+    )
     assert diff.n > 1000 and abs(diff.median) < MAX_MEDIAN and diff.nmad < MAX_NMAD, diff
 
 
 @pytest.mark.slow
-def test_triplet_height_found_gives_the_dsm_of_the_height(pleiades_triplet, region_growing_triplet_dsms,
-                                                          triplet_heights_found, figures):
+def test_triplet_height_found_gives_the_dsm_of_the_height(
+    pleiades_triplet, region_growing_triplet_dsms, triplet_heights_found, figures
+):
     """Region growing; dense matching over the range found is test_dense_real's triplet (the session's
     dense_triplet_dsms), and its found-against-given comparison the Ventoux pair's below."""
     paths, models = in_order(pleiades_triplet), region_growing_triplet_dsms["models"]
     points = region_growing_triplet_dsms["points"]
-    reference = cut({k + 1: m for k, m in enumerate(models)}, points.observations,
-                    points.points["id"][points.points["group"] >= 2])
+    reference = cut(
+        {k + 1: m for k, m in enumerate(models)}, points.observations, points.points["id"][points.points["group"] >= 2]
+    )
     found, given = triplet_heights_found, given_height(reference)
-    out = {k: matched(paths, models, list(NAMES), TRIPLET_STEP, h)
-           for k, h in (("found", found.height_range), ("given", given))}
+    out = {
+        k: matched(paths, models, list(NAMES), TRIPLET_STEP, h)
+        for k, h in (("found", found.height_range), ("given", given))
+    }
     title = "Pleiades triplet, region growing"
     check_range(found, reference, figures, title)
     figures.report(f"{title}: the height given", given, "m")
     srs = output_srs(None, out["given"].lon[out["given"].ok], out["given"].lat[out["given"].ok])
     dems = {k: dsm(out[k], srs, CELL, RG_MAX_EDGE) for k in ("given", "found")}
     for k, dem in dems.items():
-        figures.report(f"{title}, 0.5 m DSM of the points, height {k}: cells, median height",
-                       [int(np.isfinite(dem.heights).sum()), float(np.nanmedian(dem.heights))], "m")
+        figures.report(
+            f"{title}, 0.5 m DSM of the points, height {k}: cells, median height",
+            [int(np.isfinite(dem.heights).sum()), float(np.nanmedian(dem.heights))],
+            "m",
+        )
     compare_dsms(dems["given"], dems["found"], figures, title)
 
 
 @pytest.mark.parametrize("matcher", ["region growing", "dense"])
-def test_ventoux_height_found_gives_the_dsm_of_the_height(ventoux_pair, ventoux_region_growing, figures, tmp_path,
-                                                          matcher):
+def test_ventoux_height_found_gives_the_dsm_of_the_height(
+    ventoux_pair, ventoux_region_growing, figures, tmp_path, matcher
+):
     (tmp_path / "given").mkdir()
     (tmp_path / "found").mkdir()
     reference = ventoux_region_growing[1]
-    found, given, out = found_and_given(ventoux_pair, [p.stem for p in ventoux_pair], VENTOUX_STEP, reference,
-                                        tmp_path / "dense" if matcher == "dense" else None)
+    found, given, out = found_and_given(
+        ventoux_pair,
+        [p.stem for p in ventoux_pair],
+        VENTOUX_STEP,
+        reference,
+        tmp_path / "dense" if matcher == "dense" else None,
+    )
     title = f"Ventoux pair, {matcher}"
     check_range(found, reference, figures, title)
     figures.report(f"{title}: the height given", given, "m")
     srtm = str(ventoux_pair[0].with_name("N44E005.hgt"))
-    comparisons = {k: srtm_comparison(out[k], srtm, (VENTOUX_CELL,), VENTOUX_CELL, tmp_path / k)
-                   for k in ("given", "found")}
-    figures.table(f"{title}, 2 m DSM - SRTM (EGM96 -> ellipsoidal) (m)",
-                  [stats_row(f"height {k}", c["stats"][VENTOUX_CELL]) for k, c in comparisons.items()]
-                  + [stats_row(f"height {k}, without the plane", c["detrended"]) for k, c in comparisons.items()])
-    compare_dsms(comparisons["given"]["dems"][VENTOUX_CELL], comparisons["found"]["dems"][VENTOUX_CELL], figures,
-                 title)
+    comparisons = {
+        k: srtm_comparison(out[k], srtm, (VENTOUX_CELL,), VENTOUX_CELL, tmp_path / k) for k in ("given", "found")
+    }
+    figures.table(
+        f"{title}, 2 m DSM - SRTM (EGM96 -> ellipsoidal) (m)",
+        [stats_row(f"height {k}", c["stats"][VENTOUX_CELL]) for k, c in comparisons.items()]
+        + [stats_row(f"height {k}, without the plane", c["detrended"]) for k, c in comparisons.items()],
+    )
+    compare_dsms(comparisons["given"]["dems"][VENTOUX_CELL], comparisons["found"]["dems"][VENTOUX_CELL], figures, title)

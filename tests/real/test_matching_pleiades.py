@@ -18,6 +18,7 @@ STEP 4 gives 63 000 nodes and ~43 500 group 3 points, short of 50 000), automati
 tile, and the RPCs' own height range (40 .. 1090 m ellipsoidal, which holds Marseille's relief).
 Forward-backward differences are measured on the final observations of the group 3 points, for
 each combination's image pair (consistency.observation_pairs + forward_backward)."""
+
 import numpy as np
 import pytest
 
@@ -52,7 +53,7 @@ def off_nadir(model):
 def test_reference_is_the_most_nadir(pleiades_triplet):
     models = [sensors.load(p) for p in pleiades_triplet]
     tangents = [off_nadir(m)[0] for m in models]
-    assert int(np.argmin(tangents)) == 1, tangents                 # img_02
+    assert int(np.argmin(tangents)) == 1, tangents  # img_02
     # img_02 lies between img_01 and img_03 along track: opposite row parallax
     ref = models[1]
     c, r = np.array([512.0]), np.array([512.0])
@@ -71,9 +72,19 @@ def matched(pleiades_triplet, region_growing_triplet_dsms):
     points, models = region_growing_triplet_dsms["points"], region_growing_triplet_dsms["models"]
     images = [Image(p) for p in in_order(pleiades_triplet)]
     group3 = points.points["group"] == 3
-    fb = {label: fb_summary(forward_backward(images[i], images[j], models[i], models[j],
-                                             observation_pairs(points, i + 1, j + 1, which=group3), PARAMS))
-          for label, (i, j) in COMBINATIONS.items()}
+    fb = {
+        label: fb_summary(
+            forward_backward(
+                images[i],
+                images[j],
+                models[i],
+                models[j],
+                observation_pairs(points, i + 1, j + 1, which=group3),
+                PARAMS,
+            )
+        )
+        for label, (i, j) in COMBINATIONS.items()
+    }
     return points, fb
 
 

@@ -2,6 +2,7 @@
 triplet's GeoTIFF RPC tags, and the Ventoux crops whose RPC comes from an OSSIM .geom describing
 the full image. GDAL's reference for Ventoux gets the .geom's values, parsed here and shifted by
 the crop's geotransform origin, in a MEM dataset (GDAL does not read .geom)."""
+
 import numpy as np
 import pytest
 from osgeo import gdal
@@ -14,8 +15,18 @@ pytestmark = pytest.mark.real
 
 #: GDAL's image -> ground iteration stops at 0.1 px by default
 GDAL_OPTIONS = ["METHOD=RPC", "RPC_PIXEL_ERROR_THRESHOLD=1e-9"]
-KEYS = ("LINE_OFF", "SAMP_OFF", "LAT_OFF", "LONG_OFF", "HEIGHT_OFF",
-        "LINE_SCALE", "SAMP_SCALE", "LAT_SCALE", "LONG_SCALE", "HEIGHT_SCALE")
+KEYS = (
+    "LINE_OFF",
+    "SAMP_OFF",
+    "LAT_OFF",
+    "LONG_OFF",
+    "HEIGHT_OFF",
+    "LINE_SCALE",
+    "SAMP_SCALE",
+    "LAT_SCALE",
+    "LONG_SCALE",
+    "HEIGHT_SCALE",
+)
 
 
 def geom_reference(image):
@@ -38,8 +49,9 @@ def geom_reference(image):
 
 def dense_grid(model, n=41):
     """(col, row, h) over the raster, corners included, at 5 heights of the RPC's range."""
-    c, r, h = np.meshgrid(np.linspace(0, model.size[0], n), np.linspace(0, model.size[1], n),
-                          np.linspace(*model.height_range, 5))
+    c, r, h = np.meshgrid(
+        np.linspace(0, model.size[0], n), np.linspace(0, model.size[1], n), np.linspace(*model.height_range, 5)
+    )
     return c.ravel(), r.ravel(), h.ravel()
 
 

@@ -1,4 +1,5 @@
 """The rigorous SPOT model and the DIMAP reader/writer on the real SPOT 5 and SPOT 2 metadata."""
+
 import dataclasses
 import xml.etree.ElementTree as ET
 
@@ -18,8 +19,12 @@ pytestmark = pytest.mark.real
 def producer_corners(path):
     """(col, row, lon, lat) of the Dataset_Frame vertices, DIMAP 1-based centres -> GDAL."""
     root = ET.parse(path).getroot()
-    return np.array([[float(v.findtext(k)) for k in ("FRAME_COL", "FRAME_ROW", "FRAME_LON", "FRAME_LAT")]
-                     for v in root.findall("Dataset_Frame/Vertex")]) - [0.5, 0.5, 0, 0]
+    return np.array(
+        [
+            [float(v.findtext(k)) for k in ("FRAME_COL", "FRAME_ROW", "FRAME_LON", "FRAME_LAT")]
+            for v in root.findall("Dataset_Frame/Vertex")
+        ]
+    ) - [0.5, 0.5, 0, 0]
 
 
 def corner_errors(model, path):
@@ -47,8 +52,9 @@ def test_spot2_drift_is_the_default_and_bends_the_scene(spot2_dim):
     with_drift, without = SpotModel.from_dimap(spot2_dim), SpotModel.from_dimap(spot2_dim, drift=False)
     assert with_drift.drift
     rows = np.linspace(0, 6000, 61)
-    shift = (geodetic_to_ecef(*with_drift.image_to_ground(3000.0, rows, 0.0), 0.0)
-             - geodetic_to_ecef(*without.image_to_ground(3000.0, rows, 0.0), 0.0))
+    shift = geodetic_to_ecef(*with_drift.image_to_ground(3000.0, rows, 0.0), 0.0) - geodetic_to_ecef(
+        *without.image_to_ground(3000.0, rows, 0.0), 0.0
+    )
     trend = np.column_stack([np.ones_like(rows), rows])
     bend = shift - trend @ np.linalg.lstsq(trend, shift, rcond=None)[0]
     # the gyro pitch spans 14 microrad inside the scene: 5-10 m that no linear drift can represent
@@ -99,8 +105,9 @@ def test_write_read_round_trip_and_gdal_opens_the_product(fixture, request, tmp_
         elif f.name != "corrections":
             assert a == b, f.name
     gdal.UseExceptions()
-    gdal.GetDriverByName("GTiff").Create(str(tmp_path / "IMAGERY.TIF"), original.ncols, original.nrows, 1,
-                                         gdal.GDT_Byte, ["SPARSE_OK=YES"])
+    gdal.GetDriverByName("GTiff").Create(
+        str(tmp_path / "IMAGERY.TIF"), original.ncols, original.nrows, 1, gdal.GDT_Byte, ["SPARSE_OK=YES"]
+    )
     ds = gdal.Open(str(tmp_path))
     assert ds.GetDriver().ShortName == "DIMAP"
     assert (ds.RasterXSize, ds.RasterYSize) == (original.ncols, original.nrows)
@@ -112,8 +119,7 @@ def test_write_read_round_trip_and_gdal_opens_the_product(fixture, request, tmp_
 
 def test_image_must_match_the_metadata(spot2_dim, tmp_path):
     gdal.UseExceptions()
-    gdal.GetDriverByName("GTiff").Create(str(tmp_path / "small.tif"), 6000, 5999, 1, gdal.GDT_Byte,
-                                         ["SPARSE_OK=YES"])
+    gdal.GetDriverByName("GTiff").Create(str(tmp_path / "small.tif"), 6000, 5999, 1, gdal.GDT_Byte, ["SPARSE_OK=YES"])
     with pytest.raises(sensors.MetadataError, match="6000 x 5999"):
         SpotModel.from_dimap(spot2_dim, image=tmp_path / "small.tif")
 
@@ -138,6 +144,7 @@ CONVENTIONS = {  # R21 from (yaw, pitch, roll); the first is the handbook's (spo
 def test_frame_convention_is_the_one_the_producer_used(spot5_dim):
     """Alternative attitude conventions put the SPOT 5 corners 0.3 m to 1 km off; ours 0.05 m."""
     from pushbroom.algorithms.sensors import spot_frames, spot_kernels
+
     model = SpotModel.from_dimap(spot5_dim)
     o = model.orientation
     corners = producer_corners(spot5_dim)

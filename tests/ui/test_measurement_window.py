@@ -5,6 +5,7 @@ in an image with its pending transfers marked and rejected, the panes' texts, un
 as messages, the table (contents, colours, sorting, selection), keyboard shortcuts, 'adjust now' in a
 QgsTask with its residuals and the File menu. The session's state and edits themselves are tested
 without Qt in tests/algorithms/measurement/test_measurement_session.py."""
+
 import math
 import shutil
 
@@ -44,6 +45,7 @@ def open_window(qtbot, marked_scene):
         qtbot.waitExposed(window)
         windows.append(window)
         return window
+
     yield make
     for window in windows:
         for view in window.image_views.values():
@@ -82,7 +84,7 @@ def test_layout_views_and_aspect(open_window, block_path):
     names = {r["id"]: r["name"] for r in Block(block_path).images()}
     assert window.session.image_names == names and set(window.image_views) == set(names)
     h = np.mean(Block(block_path).height_range())
-    for image_id, view in window.image_views.items():   # ground size of a row / of a column, through OSR's UTM
+    for image_id, view in window.image_views.items():  # ground size of a row / of a column, through OSR's UTM
         model = Block(block_path).model(image_id)
         c, r = 0.5 * np.array(model.size)
         lon, lat = model.image_to_ground(np.array([c, c + 1, c]), np.array([r, r, r + 1]), np.full(3, h))
@@ -123,7 +125,7 @@ def test_reference_click_sets_ground_and_predictions(qtbot, open_window, block_p
         predictions = [m for m in view._markers if m.kind == "prediction"]
         assert len(predictions) == 1
         assert (predictions[0].col, predictions[0].row) == pytest.approx((float(col), float(row)), abs=1e-9)
-        assert view.view_center == pytest.approx((float(col), float(row)), abs=1e-6)   # the view jumped there
+        assert view.view_center == pytest.approx((float(col), float(row)), abs=1e-6)  # the view jumped there
     assert window.session.current == name
 
 
@@ -189,7 +191,7 @@ def test_reject_and_image_click(qtbot, open_window, block_path, marked_points):
     view = window.image_views[ids["HRG"]]
     view.center_on(p["HRG_col"], p["HRG_row"], 4.0)
     x, y = view.image_to_widget(p["HRG_col"], p["HRG_row"])
-    col, row = view.widget_to_image(int(x) + 0.5, int(y) + 0.5)     # the centre of the clicked screen pixel
+    col, row = view.widget_to_image(int(x) + 0.5, int(y) + 0.5)  # the centre of the clicked screen pixel
     qtbot.mouseClick(view, Qt.LeftButton, pos=QPoint(int(x), int(y)))
     meas = stored(block_path)["P002"][1]
     assert meas == {ids["HRG"]: pytest.approx((col, row), abs=1e-9)}
@@ -278,10 +280,10 @@ def test_table_contents_sorting_and_selection(qtbot, open_window, block_path, ma
     ids = ids_by_name(window)
     p = marked_points[name]
     assert window.image_views[ids["HRG"]].view_center == pytest.approx((p["HRG_col_meas"], p["HRG_row_meas"]))
-    window.next_point()                       # PgDown order = the table's sorted order
+    window.next_point()  # PgDown order = the table's sorted order
     assert window.session.current == table.names()[3]
     undo_steps = window.undo_stack.count()
-    window.undo_stack.undo()                  # the import
+    window.undo_stack.undo()  # the import
     assert stored(block_path) == {} and proxy.rowCount() == 0
     window.undo_stack.redo()
     assert len(stored(block_path)) == len(marked_points) and window.undo_stack.count() == undo_steps
@@ -324,7 +326,7 @@ def test_keyboard_shortcuts(qtbot, open_window, block_path, marked_scene, marked
     window.click_image(ids["HRG"], p["HRG_col"], p["HRG_row"])
     window.editor.name.setFocus()
     qtbot.waitUntil(window.editor.name.hasFocus)
-    for key in (Qt.Key_Return, Qt.Key_Delete, Qt.Key_Z):    # the editor's fields keep their keys
+    for key in (Qt.Key_Return, Qt.Key_Delete, Qt.Key_Z):  # the editor's fields keep their keys
         qtbot.keyClick(window.editor.name, key)
     assert len(window.session.pending) == 2 and window.editor.name.text() == name + "z"
     window.editor.name.setText(name)
@@ -335,14 +337,23 @@ def test_keyboard_shortcuts(qtbot, open_window, block_path, marked_scene, marked
     assert len(stored(block_path)[name][1]) == 1
     qtbot.keyClick(view, Qt.Key_Z, Qt.ControlModifier | Qt.ShiftModifier)
     assert len(stored(block_path)[name][1]) == 3
-    texts = {a.text(): a.toolTip() for menu in window.menuBar().findChildren(type(window.menuBar().actions()[0].menu()))
-             for a in menu.actions()}
-    assert "PgDown" in texts["Next point"] and "Return" in texts["Accept transfers"] and "Z" in texts[
-        "Zoom to prediction"] and "Ctrl+N" in texts["New point"] and "Tab" in texts["Next image"]
+    texts = {
+        a.text(): a.toolTip()
+        for menu in window.menuBar().findChildren(type(window.menuBar().actions()[0].menu()))
+        for a in menu.actions()
+    }
+    assert (
+        "PgDown" in texts["Next point"]
+        and "Return" in texts["Accept transfers"]
+        and "Z" in texts["Zoom to prediction"]
+        and "Ctrl+N" in texts["New point"]
+        and "Tab" in texts["Next image"]
+    )
 
 
-def test_adjust_now_refreshes_residuals(qtbot, pushbroom_provider, open_window, block_path, marked_scene,
-                                        marked_points):
+def test_adjust_now_refreshes_residuals(
+    qtbot, pushbroom_provider, open_window, block_path, marked_scene, marked_points
+):
     """'Adjust now' on the imported simulator points runs in a QgsTask (the window keeps processing
     events), then the table shows each point's image residuals and w colours, the views draw residual
     vectors from the measurements, and the predictions come from the adjusted models."""
@@ -362,7 +373,7 @@ def test_adjust_now_refreshes_residuals(qtbot, pushbroom_provider, open_window, 
         window.adjust_now()
     ok, message = signal.args
     assert ok, message
-    assert len(ticks) > 1                     # the event loop ran while the task adjusted
+    assert len(ticks) > 1  # the event loop ran while the task adjusted
     models = {i: Block(block_path).model(i) for i in window.session.image_names}
     p = marked_points["P001"]
     after = window.session.predictions("P001")
@@ -386,21 +397,27 @@ def test_adjust_now_refreshes_residuals(qtbot, pushbroom_provider, open_window, 
     for image_id, view in window.image_views.items():
         name = window.session.image_names[image_id]
         assert len(view._vectors) == len(marked_points)
-        v = next(v for v in view._vectors if (v.col, v.row) == (marked_points["P002"][f"{name}_col_meas"],
-                                                               marked_points["P002"][f"{name}_row_meas"]))
+        v = next(
+            v
+            for v in view._vectors
+            if (v.col, v.row) == (marked_points["P002"][f"{name}_col_meas"], marked_points["P002"][f"{name}_row_meas"])
+        )
         assert (v.dx, v.dy) == pytest.approx(image_res[("P002", image_id)][:2])
         by_position = {(m.col, m.row): m.label for m in view._markers}
-        for v in view._vectors:               # flagged (red) exactly where |w| exceeds the critical value
+        for v in view._vectors:  # flagged (red) exactly where |w| exceeds the critical value
             vx, vy, wx, wy = image_res[(by_position[(v.col, v.row)], image_id)]
             assert (v.dx, v.dy) == (vx, vy) and v.flagged == (max(abs(wx), abs(wy)) > 3.29)
-    flagged = [v for v in window.image_views[ids["HRS2"]]._vectors if v.flagged]   # the 20 px blunder
+    flagged = [v for v in window.image_views[ids["HRS2"]]._vectors if v.flagged]  # the 20 px blunder
     assert (blunder["HRS2_col_meas"] + 20.0, blunder["HRS2_row_meas"]) in [(v.col, v.row) for v in flagged]
-    assert proxy.index(window.table.names().index("P006"), headers.index("HRS2 |w|")).data(
-        Qt.BackgroundRole).color() == COLOURS["bad"]
+    assert (
+        proxy.index(window.table.names().index("P006"), headers.index("HRS2 |w|")).data(Qt.BackgroundRole).color()
+        == COLOURS["bad"]
+    )
 
 
-def test_adjust_through_the_processing_registry(qtbot, qgis_processing, qgis_iface, open_window, block_path,
-                                               marked_scene):
+def test_adjust_through_the_processing_registry(
+    qtbot, qgis_processing, qgis_iface, open_window, block_path, marked_scene
+):
     """'Adjust now' runs the registry's pushbroom:bundleadjust, which the plugin's provider registers;
     without the provider it fails with a message that says to enable the plugin."""
     window = open_window(block_path)
@@ -465,7 +482,7 @@ def test_file_menu_actions(open_window, block_path, marked_scene, marked_block, 
     assert len(second.table.names()) == len(window.table.names())
     answers["open"] = str(tmp_path / "all.csv")
     second_actions["Import points CSV..."].trigger()
-    assert len(stored(second.block_path)) == 2 * len(window.table.names())   # hrs2_1.. and P001..
+    assert len(stored(second.block_path)) == 2 * len(window.table.names())  # hrs2_1.. and P001..
     answers["open"] = str(tmp_path / "missing.points")
     second_actions["Import Georeferencer .points..."].trigger()
     assert "cannot read" in second.statusBar().currentMessage()

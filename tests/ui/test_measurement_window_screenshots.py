@@ -2,6 +2,7 @@
 new point set on the reference, then, after 'adjust now' on the simulator's points, a measured point
 with its pending LSM transfers and the residual vectors. The PNGs have the window's size and every
 view keeps a usable size."""
+
 import pathlib
 import shutil
 
@@ -33,8 +34,9 @@ def grab(qtbot, window, name):
 def test_screenshots(qtbot, pushbroom_provider, marked_block, marked_scene, tmp_path):
     path = tmp_path / "block.gpkg"
     shutil.copy(marked_block, path)
-    window = MeasurementWindow(str(path), reference_layers=[QgsRasterLayer(marked_scene["orthoimage"], "ortho")],
-                               dem_path=marked_scene["dsm"])
+    window = MeasurementWindow(
+        str(path), reference_layers=[QgsRasterLayer(marked_scene["orthoimage"], "ortho")], dem_path=marked_scene["dsm"]
+    )
     qtbot.addWidget(window)
     try:
         window.resize(*SIZE)

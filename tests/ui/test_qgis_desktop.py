@@ -4,6 +4,7 @@ window from the toolbar action and measures 3 points of the simulated block; the
 QGIS has quit. tests/helpers/desktop_execution_session.py runs the tiled DEM through Processing on local
 worker processes and on a Dask local cluster: the workers must be Python interpreters, not QGIS, and the
 DEMs those of threads."""
+
 import json
 import os
 import pathlib
@@ -39,10 +40,25 @@ def make_profile(root):
 def run_qgis(profiles, job_path, log_path, session=SESSION):
     """Run QGIS under Xvfb with the session script; returns its exit status (fails the test on a timeout)."""
     site = [p for p in sys.path if p.endswith("site-packages") and ".venv" in p]
-    env = dict(os.environ, QT_QPA_PLATFORM="xcb", PUSHBROOM_SESSION=str(job_path),
-               PYTHONPATH=os.pathsep.join(site + [str(REPO), os.environ.get("PYTHONPATH", "")]))
-    command = ["xvfb-run", "-a", QGIS, "--profiles-path", str(profiles), "--profile", "test", "--nologo",
-               "--noversioncheck", "--code", str(session)]
+    env = dict(
+        os.environ,
+        QT_QPA_PLATFORM="xcb",
+        PUSHBROOM_SESSION=str(job_path),
+        PYTHONPATH=os.pathsep.join(site + [str(REPO), os.environ.get("PYTHONPATH", "")]),
+    )
+    command = [
+        "xvfb-run",
+        "-a",
+        QGIS,
+        "--profiles-path",
+        str(profiles),
+        "--profile",
+        "test",
+        "--nologo",
+        "--noversioncheck",
+        "--code",
+        str(session),
+    ]
     with open(log_path, "w") as log:
         proc = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         try:
@@ -59,9 +75,15 @@ def job_points(rows, images):
     for row in rows:
         if any(int(row[f"{name}_blunder"]) for name in images):
             continue
-        points.append({"name": row["id"], "lon": float(row["lon"]), "lat": float(row["lat"]), "h": float(row["h"]),
-                       "image": {str(i): [float(row[f"{name}_col"]), float(row[f"{name}_row"])]
-                                 for name, i in images.items()}})
+        points.append(
+            {
+                "name": row["id"],
+                "lon": float(row["lon"]),
+                "lat": float(row["lat"]),
+                "h": float(row["h"]),
+                "image": {str(i): [float(row[f"{name}_col"]), float(row[f"{name}_row"])] for name, i in images.items()},
+            }
+        )
     return points[:POINTS]
 
 
@@ -96,8 +118,9 @@ def test_measure_three_points_in_qgis_desktop(small_scene_block, tmp_path):
         k = list(obs.points["name"]).index(point["name"])
         stored = obs.points[k]
         assert stored["role"] == "control"
-        assert np.allclose([stored["lon"], stored["lat"], stored["h"]], [point["lon"], point["lat"], point["h"]],
-                           rtol=0, atol=1e-9)
+        assert np.allclose(
+            [stored["lon"], stored["lat"], stored["h"]], [point["lon"], point["lat"], point["h"]], rtol=0, atol=1e-9
+        )
         meas = {int(m["image_id"]): (m["col"], m["row"]) for m in obs.measurements if m["point"] == k}
         assert sorted(meas) == sorted(images.values())
         for image_id, truth in point["image"].items():
@@ -114,13 +137,15 @@ def test_worker_processes_and_dask_from_qgis_desktop(tmp_path):
     from pushbroom.algorithms.surface.tin_dem import DemParams
     from pushbroom.algorithms.task_runtime import BACKENDS
     from tests.helpers.dem_cloud import read_raster, write_cloud
+
     cloud = write_cloud(tmp_path / "cloud.las")
     dem_from_point_cloud(str(cloud), str(tmp_path / "threads.tif"), DemParams(cell=10.0, tile=75))
     runs = {name: [BACKENDS.index(name), str(tmp_path / f"{name}.tif")] for name in ("processes", "dask")}
     job, result_path, log_path = tmp_path / "job.json", tmp_path / "result.json", tmp_path / "qgis.log"
     job.write_text(json.dumps({"cloud": str(cloud), "result": str(result_path), "runs": runs}))
-    status = run_qgis(make_profile(tmp_path / "qgis"), job, log_path,
-                      REPO / "tests" / "helpers" / "desktop_execution_session.py")
+    status = run_qgis(
+        make_profile(tmp_path / "qgis"), job, log_path, REPO / "tests" / "helpers" / "desktop_execution_session.py"
+    )
     log = log_path.read_text()
     assert result_path.exists(), f"the session script wrote no result (QGIS exit {status}); log:\n{log[-5000:]}"
     result = json.loads(result_path.read_text())

@@ -4,6 +4,7 @@ never reaches the normal equations or the update (an error names the point or th
 unmeasured control point takes no part; an unconverged solution says so; the control point screen names a
 control point 1 km off and a measurement 40 px off, and nothing on clean points; the selection's t-test
 threshold has the alpha of its normal quantile; the kernels' thread count does not change a result."""
+
 import warnings
 
 import numpy as np
@@ -29,7 +30,7 @@ def test_an_exact_defect_with_a_negative_eigenvalue_is_named():
     """Rounding can leave an exact defect's eigenvalue slightly negative (-1.7e-16 in the issue's block);
     without priors it is a defect, never "held by the priors"."""
     normal = np.array([[1.0, 1.0 + 1e-15], [1.0 + 1e-15, 1.0]])
-    assert np.linalg.eigvalsh(normal)[0] < 0.0          # the case: indefinite by rounding
+    assert np.linalg.eigvalsh(normal)[0] < 0.0  # the case: indefinite by rounding
     assert [sorted(g) for g in defect_groups(normal, ["a", "b"])] == [["a", "b"]]
 
 
@@ -45,7 +46,7 @@ def test_a_defect_names_the_unknown_whose_scaled_part_is_small():
     labels = ["psi_y HRG", "psi_y HRS1", "psi_y HRS2", "roll", "other"]
     d = 1.0 / np.sqrt(np.diag(normal))
     vec = np.linalg.eigh(normal * d[:, None] * d[None, :])[1][:, 0]
-    assert DEFECT_MEMBER < abs(vec[3]) < 0.05          # small, though not 0: 0.05 was the old membership bound
+    assert DEFECT_MEMBER < abs(vec[3]) < 0.05  # small, though not 0: 0.05 was the old membership bound
     groups = defect_groups(normal, labels)
     assert len(groups) == 1 and set(groups[0]) == set(labels[:4])
 
@@ -78,8 +79,7 @@ def test_an_unmeasured_control_point_takes_no_part(scene):
     name = obs.points["name"][5]
     blank = Observations(obs.points, obs.measurements[obs.measurements["point"] != 5])
     result = adjust(perturbed(scene), blank, ["look:0"], names=LABELS, height=300.0)
-    reference = adjust(perturbed(scene), obs.subset(obs.points["name"] != name), ["look:0"], names=LABELS,
-                       height=300.0)
+    reference = adjust(perturbed(scene), obs.subset(obs.points["name"] != name), ["look:0"], names=LABELS, height=300.0)
     assert any(name in n and "take no part" in n for n in result.notes)
     assert name not in result.observations.points["name"]
     free = result.parameters.free
@@ -117,7 +117,7 @@ def test_the_screen_names_a_control_point_1_km_off_and_nothing_on_clean_points(s
     far.points["lat"][2] += 1000.0 / 111_000.0
     screening = screen_control_points(models, far)
     assert {s.point for s in screening.suspects} == {2} and {s.image_id for s in screening.suspects} == {1, 2, 3}
-    assert all(abs(s.offset_m - 1000.0) < 20.0 for s in screening.suspects)      # 1 km to within 2 %
+    assert all(abs(s.offset_m - 1000.0) < 20.0 for s in screening.suspects)  # 1 km to within 2 %
     assert screening.ground_points() == {2} and "ground coordinates" in describe(screening, far, LABELS)
     kept = without(far, screening.ground_points())
     assert obs.points["name"][2] not in kept.points["name"] and len(kept.points) == len(obs.points) - 1
@@ -146,15 +146,15 @@ def test_the_t_threshold_has_the_alpha_of_its_normal_quantile():
     x = rng.normal(size=(400_000, 5))
     t = np.abs(x.mean(axis=1)) / (x.std(axis=1, ddof=1) / np.sqrt(5))
     rate = np.mean(t > t_threshold(3.0, 5))
-    assert abs(rate - 0.0027) < 4 * np.sqrt(0.0027 / 400_000)      # 4 binomial sigmas
-    assert t_threshold(3.0, 10 ** 6) == pytest.approx(3.0, abs=1e-4)
+    assert abs(rate - 0.0027) < 4 * np.sqrt(0.0027 / 400_000)  # 4 binomial sigmas
+    assert t_threshold(3.0, 10**6) == pytest.approx(3.0, abs=1e-4)
     assert t_threshold(3.0, 1) == np.inf
 
 
 def test_results_do_not_depend_on_the_kernel_threads(scene, monkeypatch):
     """The same adjustment with the kernels on the calling thread and on all threads: bit for bit."""
     obs = point_observations(scene["points"], IDS, 19)
-    monkeypatch.setattr(normals, "SERIAL_MEASUREMENTS", 10 ** 9)
+    monkeypatch.setattr(normals, "SERIAL_MEASUREMENTS", 10**9)
     serial = adjust(perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0)
     monkeypatch.setattr(normals, "SERIAL_MEASUREMENTS", 0)
     parallel = adjust(perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0)

@@ -3,6 +3,7 @@ errors and measurement blunders: residual vectors of control/check points (again
 Adjustment's numbers, a numpy forward-intersection reference and OSR), tie point heights against
 the true DSM/DTM (against a plain numpy bilinear interpolation; EGM96 references), and the report's
 Kornus et al. 2006, Table 3/4 rows."""
+
 import csv
 
 import numpy as np
@@ -34,8 +35,9 @@ def dsm_tie_points(scene, n, seed):
     rng = np.random.default_rng(seed)
     truth = scene_models(scene, NAMES, truth=True)
     cols, rows = truth[1].size
-    lon, lat, h = truth[1].image_to_dem(rng.uniform(30, cols - 30, n), rng.uniform(30, rows - 30, n),
-                                        read_dem(scene["dsm"]))
+    lon, lat, h = truth[1].image_to_dem(
+        rng.uniform(30, cols - 30, n), rng.uniform(30, rows - 30, n), read_dem(scene["dsm"])
+    )
     meas = []
     for i, model in truth.items():
         c, r = model.ground_to_image(lon, lat, h)
@@ -56,7 +58,8 @@ def adjusted(simulated):
     for i, model in models.items():
         model.orientation.corrections.look[:, 0] = (2e-5, -2e-5 if i % 2 else 2e-5)
     obs = point_observations(scene["points"], IDS, N_CONTROL, sigma_px=SIGMA_PX).concatenate(
-        dsm_tie_points(scene, 300, 3))
+        dsm_tie_points(scene, 300, 3)
+    )
     result = adjust(models, obs, ["look:0"], names=LABELS, height=300.0, remove_blunders=True)
     check = check_points(result, obs, height=300.0)
     rows = list(csv.DictReader(open(scene["points"])))
@@ -71,10 +74,12 @@ def test_control_vectors_carry_the_adjustments_numbers(adjusted, figures):
     control = np.flatnonzero(pts["role"] == "control")
     ctrl = vectors[vectors["role"] == "control"]
     assert list(ctrl["name"]) == list(pts["name"][control])
-    np.testing.assert_array_equal(np.column_stack([ctrl["dE"], ctrl["dN"], ctrl["dH"]]),
-                                  result.ground_residuals[control])
-    np.testing.assert_array_equal(np.column_stack([ctrl["sigma_e"], ctrl["sigma_n"], ctrl["sigma_h"]]),
-                                  result.point_sigmas[control])
+    np.testing.assert_array_equal(
+        np.column_stack([ctrl["dE"], ctrl["dN"], ctrl["dH"]]), result.ground_residuals[control]
+    )
+    np.testing.assert_array_equal(
+        np.column_stack([ctrl["sigma_e"], ctrl["sigma_n"], ctrl["sigma_h"]]), result.point_sigmas[control]
+    )
     for row, p in zip(ctrl, control):
         mine = meas["point"] == p
         assert row["rms_px"] == pytest.approx(np.sqrt(np.mean(result.residuals[mine] ** 2)), rel=1e-12)
@@ -96,8 +101,9 @@ def test_check_vectors_hold_their_intersection_residuals(adjusted, figures):
     vectors, _ = residual_vectors(result, check, obs)
     chk = vectors[vectors["role"] == "check"]
     assert list(chk["name"]) == list(check["names"])
-    np.testing.assert_array_equal(np.column_stack([chk["dE"], chk["dN"], chk["dH"]]),
-                                  np.column_stack([check["dE"], check["dN"], check["dH"]]))
+    np.testing.assert_array_equal(
+        np.column_stack([chk["dE"], chk["dN"], chk["dH"]]), np.column_stack([check["dE"], check["dN"], check["dH"]])
+    )
     np.testing.assert_array_equal(np.column_stack([chk["sigma_e"], chk["sigma_n"], chk["sigma_h"]]), check["sigma"])
     models = result.parameters.models
     for row in chk:
@@ -109,19 +115,24 @@ def test_check_vectors_hold_their_intersection_residuals(adjusted, figures):
 
         def project(g):
             return np.array([models[int(i)].ground_to_image(*g) for i in m["image_id"]], float).ravel()
+
         steps = np.array([1.0 / e_deg, 1.0 / n_deg, 1.0])
-        a = np.column_stack([(project(ground + s * np.eye(3)[j]) - project(ground - s * np.eye(3)[j])) / 2.0
-                             for j, s in enumerate(steps)])                       # px per m E, N, U
+        a = np.column_stack(
+            [
+                (project(ground + s * np.eye(3)[j]) - project(ground - s * np.eye(3)[j])) / 2.0
+                for j, s in enumerate(steps)
+            ]
+        )  # px per m E, N, U
         v = project(ground) - np.column_stack([m["col"], m["row"]]).ravel()
         sigma = np.repeat(m["sigma"], 2)
-        r = 1.0 - np.diag(a @ np.linalg.inv(a.T @ (a / sigma[:, None] ** 2)) @ a.T) / sigma ** 2
+        r = 1.0 - np.diag(a @ np.linalg.inv(a.T @ (a / sigma[:, None] ** 2)) @ a.T) / sigma**2
         mine = m.copy()
         mine["point"] = 0
         got_v, got_r = intersection_residuals(models, ground[:1], ground[1:2], ground[2:], mine)
         np.testing.assert_allclose(got_v, v.reshape(-1, 2), atol=1e-6)
         np.testing.assert_allclose(got_r, r.reshape(-1, 2), atol=1e-5)
         assert got_r.sum() == pytest.approx(2 * len(m) - 3)
-        assert row["rms_px"] == pytest.approx(np.sqrt(np.mean(v ** 2)), abs=1e-6)
+        assert row["rms_px"] == pytest.approx(np.sqrt(np.mean(v**2)), abs=1e-6)
         assert row["max_w"] == pytest.approx(np.max(np.abs(v / (sigma * np.sqrt(r)))), rel=1e-4)
     figures.table("check points", [{"name": r["name"], "max |w|": r["max_w"]} for r in chk])
     assert set(chk["name"][chk["flagged"]]) == blunders & set(chk["name"])
@@ -133,7 +144,7 @@ def test_vector_geometry_against_osr(adjusted, figures):
     _, obs, result, check, _ = adjusted
     scale = 100.0
     vectors, crs = residual_vectors(result, check, obs, scale=scale, crs="EPSG:32617")
-    assert crs == "EPSG:32617"                       # a neighbouring zone: large meridian convergence
+    assert crs == "EPSG:32617"  # a neighbouring zone: large meridian convergence
     ref = obs.points[[np.flatnonzero(obs.points["name"] == n)[0] for n in vectors["name"]]]
     x0, y0 = utm(ref["lon"], ref["lat"], 32617)
     np.testing.assert_allclose(vectors["x0"], x0, atol=1e-3)
@@ -162,8 +173,9 @@ def test_tie_heights_against_numpy_and_the_true_surface(adjusted, figures):
         expected = result.h[tie] - bilinear(scene[key], result.lon[tie], result.lat[tie])
         np.testing.assert_allclose(got.dh, expected, atol=1e-6)
         tables[key] = statistics_table({"dh": got.dh})["dh"]
-        figures.table(f"tie heights - {key} (m)",
-                      [{"n": tables[key][0], "mean": tables[key][2], "RMS": tables[key][4]}])
+        figures.table(
+            f"tie heights - {key} (m)", [{"n": tables[key][0], "mean": tables[key][2], "RMS": tables[key][4]}]
+        )
     theoretical = np.sqrt(np.mean(result.point_sigmas[tie, 2] ** 2))
     figures.report("RMS of the adjusted tie points' sigma H", theoretical, "m")
     assert abs(tables["dsm"][2]) < 0.5 * theoretical and 0.7 < tables["dsm"][4] / theoretical < 1.4
@@ -204,13 +216,15 @@ def test_report_tables(adjusted, tmp_path, figures):
     for part in parts:
         figures.table(part.title, section_rows(part))
     dh = tie.dh
-    want = [str(dh.size)] + [f"{v:.3f}" for v in (dh.min(), dh.mean(), dh.max(), np.sqrt(np.mean(dh ** 2)),
-                                                   np.std(dh, ddof=1))]
+    want = [str(dh.size)] + [
+        f"{v:.3f}" for v in (dh.min(), dh.mean(), dh.max(), np.sqrt(np.mean(dh**2)), np.std(dh, ddof=1))
+    ]
     assert [line.split()[1:] for line in text.splitlines() if line.split()[:1] == ["dh"]] == [want]
     de = check["dE"]
     assert [line.split()[1:7] for line in text.splitlines() if line.split()[:1] == ["dE"]] == [
-        [str(de.size)] + [f"{v:.3f}" for v in (de.min(), de.mean(), de.max(), np.sqrt(np.mean(de ** 2)),
-                                               np.std(de, ddof=1))]]
+        [str(de.size)]
+        + [f"{v:.3f}" for v in (de.min(), de.mean(), de.max(), np.sqrt(np.mean(de**2)), np.std(de, ddof=1))]
+    ]
     assert text == report.text_report(result, check, table, heights=(tie, "dtm.tif"), vectors=vectors)
     page = open(report.write_html(tmp_path / "r.html", "Bundle adjustment", parts=parts)).read()
     assert page.count("<table>") == 5 and "Kornus et al. 2006, Table 4" in page

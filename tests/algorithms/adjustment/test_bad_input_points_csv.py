@@ -2,6 +2,7 @@
 (lines dropped, doubled or cut, cells emptied or replaced by text, NaN, huge numbers or garbage, delimiters
 changed, bytes that are not UTF-8) gives the engine's error naming the file, or valid observations; never
 another exception."""
+
 import math
 
 import numpy as np
@@ -12,12 +13,35 @@ from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.errors import PushbroomError
 
 IMAGES = {"HRG": 1, "HRS1": 2}
-VALID = ("id,role,lon,lat,h,sigma_e,HRG_col,HRG_row,HRS1_col,HRS1_row,HRS1_sigma\n"
-         "P1,control,-84.20,36.60,300.5,2.0,100.5,200.25,50.0,60.0,0.3\n"
-         "P2,check,-84.21,36.61,310.0,,110.0,210.0,,,\n"
-         "P3,,-84.22,36.62,320.0,1.5,120.0,220.0,70.5,80.5,\n")
-CELLS = st.sampled_from(["", "nan", "inf", "-inf", "1e308", "-1e400", "abc", "0", "-0.0", "1,5", '"x"', "\x00",
-                         " 12 ", "control", "check", "tie", "P1", "é", "999999999999999999999"])
+VALID = (
+    "id,role,lon,lat,h,sigma_e,HRG_col,HRG_row,HRS1_col,HRS1_row,HRS1_sigma\n"
+    "P1,control,-84.20,36.60,300.5,2.0,100.5,200.25,50.0,60.0,0.3\n"
+    "P2,check,-84.21,36.61,310.0,,110.0,210.0,,,\n"
+    "P3,,-84.22,36.62,320.0,1.5,120.0,220.0,70.5,80.5,\n"
+)
+CELLS = st.sampled_from(
+    [
+        "",
+        "nan",
+        "inf",
+        "-inf",
+        "1e308",
+        "-1e400",
+        "abc",
+        "0",
+        "-0.0",
+        "1,5",
+        '"x"',
+        "\x00",
+        " 12 ",
+        "control",
+        "check",
+        "tie",
+        "P1",
+        "é",
+        "999999999999999999999",
+    ]
+)
 
 
 @st.composite
@@ -31,7 +55,7 @@ def mutated(draw):
         elif action == "double":
             lines.insert(k, lines[k])
         elif action == "cut":
-            lines[k] = lines[k][:draw(st.integers(0, max(len(lines[k]) - 1, 0)))]
+            lines[k] = lines[k][: draw(st.integers(0, max(len(lines[k]) - 1, 0)))]
         elif action == "cell":
             cells = lines[k].split(",")
             cells[draw(st.integers(0, len(cells) - 1))] = draw(CELLS)
@@ -56,7 +80,7 @@ def test_mutated_point_files_give_observations_or_the_engines_error(tmp_path, da
     try:
         obs = cp.read_csv(path, IMAGES, crs=crs)
     except PushbroomError as exc:
-        assert str(path) in str(exc) or "point" in str(exc)         # the message says which file or point
+        assert str(path) in str(exc) or "point" in str(exc)  # the message says which file or point
         return
     p, m = obs.points, obs.measurements
     # what comes back is usable: named, finite WGS 84 positions, positive sigmas, measurements of known images
@@ -78,14 +102,17 @@ def test_unicode_text_of_spreadsheets_is_read_like_utf8(tmp_path):
         path.write_bytes(VALID.replace("\n", "\r\n").encode(encoding))
         obs = cp.read_csv(path, IMAGES)
         assert list(obs.points["name"]) == list(expected.points["name"]) == ["P1", "P2", "P3"]
-        assert np.array_equal(obs.points["h"], expected.points["h"])         # the same numbers, exactly
+        assert np.array_equal(obs.points["h"], expected.points["h"])  # the same numbers, exactly
         assert np.array_equal(obs.measurements["col"], expected.measurements["col"])
 
 
 def test_a_file_in_another_encoding_is_named_with_the_byte_and_line(tmp_path):
     path = tmp_path / "latin1.csv"
     path.write_bytes(VALID.replace("P2", "Pé").encode("latin-1"))
-    at = VALID.index("P2") + 1      # the byte of é, on the third line
-    with pytest.raises(PushbroomError, match=rf"the point file {path} is not UTF-8 text: byte {at} \(line 3, "
-                                             r"b'\\xe9'\) is not valid there. Save it as UTF-8"):
+    at = VALID.index("P2") + 1  # the byte of é, on the third line
+    with pytest.raises(
+        PushbroomError,
+        match=rf"the point file {path} is not UTF-8 text: byte {at} \(line 3, "
+        r"b'\\xe9'\) is not valid there. Save it as UTF-8",
+    ):
         cp.read_csv(path, IMAGES)

@@ -1,6 +1,7 @@
 """Bundle adjustment (algorithms/adjustment): the Schur-reduced normal equations against a dense
 numpy reference, recovery of injected look-angle errors, check points against their theoretical
 precision, data snooping, and named datum defects; on a small simulated SPOT 5 triplet."""
+
 import numpy as np
 import pytest
 
@@ -37,7 +38,7 @@ def dense_reference(start, a, b, l, w, img, col, wg, lg, nfree):
         for j in range(start[p], start[p + 1]):
             for e in range(2):
                 row = np.zeros(n)
-                row[3 * p:3 * p + 3] = a[j, e]
+                row[3 * p : 3 * p + 3] = a[j, e]
                 for k in range(b.shape[2]):
                     if col[img[j], k] >= 0:
                         row[3 * npts + col[img[j], k]] += b[j, e, k]
@@ -50,10 +51,17 @@ def dense_reference(start, a, b, l, w, img, col, wg, lg, nfree):
     design, rhs, weights = np.array(rows), np.array(rhs), np.array(weights)
     full = design.T @ (weights[:, None] * design)
     f = design.T @ (weights * rhs)
-    npp, npo, noo = full[:3 * npts, :3 * npts], full[:3 * npts, 3 * npts:], full[3 * npts:, 3 * npts:]
+    npp, npo, noo = full[: 3 * npts, : 3 * npts], full[: 3 * npts, 3 * npts :], full[3 * npts :, 3 * npts :]
     inv = np.linalg.inv(npp)
-    return noo - npo.T @ inv @ npo, f[3 * npts:] - npo.T @ inv @ f[:3 * npts], full, f, design, weights, \
-        np.array(image_row)
+    return (
+        noo - npo.T @ inv @ npo,
+        f[3 * npts :] - npo.T @ inv @ f[: 3 * npts],
+        full,
+        f,
+        design,
+        weights,
+        np.array(image_row),
+    )
 
 
 def test_reduced_normals_and_redundancy_against_dense_reference():
@@ -65,7 +73,7 @@ def test_reduced_normals_and_redundancy_against_dense_reference():
     l, w = rng.normal(size=(m, 2)), rng.uniform(0.5, 2.0, (m, 2))
     img = np.tile(np.arange(per), npts)
     col = np.full((per, 32), -1)
-    col[0, :3], col[1, :2], col[2, [0, 5]] = [0, 1, 2], [3, 4], [2, 4]     # shared and fixed columns
+    col[0, :3], col[1, :2], col[2, [0, 5]] = [0, 1, 2], [3, 4], [2, 4]  # shared and fixed columns
     wg, lg = np.zeros((npts, 3)), np.zeros((npts, 3))
     wg[0], lg[0] = (4.0, 4.0, 1.0), (0.3, -0.2, 0.5)
     normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
@@ -82,10 +90,10 @@ def test_reduced_normals_and_redundancy_against_dense_reference():
     qpp, red = np.zeros((npts, 3, 3)), np.zeros((m, 2))
     normals.point_statistics(start, a, b, w, img, col, ninv, ok, qoo, qpp, red)
     q = np.linalg.inv(full)
-    np.testing.assert_allclose(qpp, np.array([q[3 * p:3 * p + 3, 3 * p:3 * p + 3] for p in range(npts)]), rtol=1e-9)
+    np.testing.assert_allclose(qpp, np.array([q[3 * p : 3 * p + 3, 3 * p : 3 * p + 3] for p in range(npts)]), rtol=1e-9)
     dense_r = 1.0 - np.einsum("ij,jk,ik->i", design, q, design) * weights
     np.testing.assert_allclose(red.ravel(), dense_r[image_rows], rtol=1e-9, atol=1e-12)
-    assert dense_r.sum() == pytest.approx(len(weights) - 3 * npts - nfree)    # sum of r_i = redundancy
+    assert dense_r.sum() == pytest.approx(len(weights) - 3 * npts - nfree)  # sum of r_i = redundancy
 
 
 def test_scatter_partials_against_numpy():
@@ -111,6 +119,7 @@ def test_cholesky_solve_and_the_regularity_bound_against_numpy():
     where numpy's smallest eigenvalue is above the defect threshold, and does not say it for a
     nearly singular matrix."""
     from pushbroom.algorithms.adjustment.bundle import DEFECT_EIGENVALUE, _clearly_regular, _inverse_scaled
+
     rng = np.random.default_rng(3)
     a = rng.normal(size=(40, 12))
     scale = np.logspace(-6, 6, 12)
@@ -144,7 +153,7 @@ def test_recovers_injected_look_angles_and_check_points_match_their_precision(sc
             q = result.parameters.select([f"{LABELS[i]} {kind}"]).argmax()
             assert abs(result.values[q] + value) < 2.0 * result.sigmas[q], (kind, result.values[q], result.sigmas[q])
             assert result.sigmas[q] < 2e-6
-    assert 0.7 < result.sigma0 < 1.3          # 0.3 px noise against a priori 0.3 px
+    assert 0.7 < result.sigma0 < 1.3  # 0.3 px noise against a priori 0.3 px
     assert result.redundancy == 2 * len(result.observations.measurements) + 3 * 19 - 3 * 19 - 6
     rms, theoretical = check_rms(result, synthetic_points(scene, IDS, 300, 0.3, 7), 300.0, figures)
     assert np.all((0.8 < rms / theoretical) & (rms / theoretical < 1.25))
@@ -223,8 +232,12 @@ def test_rpc_bias_correction_recovers_an_injected_affine_bias(scene):
     sigma (18 terms: all within 2 sigma only with probability 0.4, within 3 sigma 0.95)."""
     from pushbroom.algorithms.sensors.rpc import RpcModel
     from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
-    injected = {1: [2.0, 0.5, -1.0, -3.0, 0.2, 1.0], 2: [-2.5, -0.4, 0.8, 2.0, 0.6, -0.7],
-                3: [1.0, 0.3, 0.5, 2.5, -0.5, 0.9]}
+
+    injected = {
+        1: [2.0, 0.5, -1.0, -3.0, 0.2, 1.0],
+        2: [-2.5, -0.4, 0.8, 2.0, 0.6, -0.7],
+        3: [1.0, 0.3, 0.5, 2.5, -0.5, 0.9],
+    }
     models = {}
     for i, truth in scene_models(scene, NAMES, truth=True).items():
         rpc = fit_rpc(truth, (150.0, 750.0))[0]
@@ -242,8 +255,10 @@ def test_report_gives_each_coefficient_its_maximum_effect(scene):
     """Kornus et al. 2006, Table 2: a look-angle offset of d rad moves HRG (near nadir, 5 m lines at ~830 km) by
     about d * 830 km / 5 m lines; every free unknown has a finite effect, fixed ones none."""
     from pushbroom.algorithms.adjustment.report import text_report
-    result = adjust(perturbed(scene), point_observations(scene["points"], IDS, 19), ["look:0"], names=LABELS,
-                    height=300.0)
+
+    result = adjust(
+        perturbed(scene), point_observations(scene["points"], IDS, 19), ["look:0"], names=LABELS, height=300.0
+    )
     q = [k for k in range(len(result.parameters)) if result.parameters.label(k) == "HRG psi_x_0"][0]
     assert result.effects[q] == pytest.approx(abs(result.values[q]) * 830e3 / 5.0, rel=0.15)
     assert np.all(np.isfinite(result.effects[result.parameters.free]))
@@ -256,16 +271,19 @@ def test_variance_components_recover_the_groups_noise(scene, figures):
     given: the estimated sigmas come back to the simulated noise, and the groups' redundancies add
     up to the block's."""
     from pushbroom.algorithms.adjustment import variance
+
     obs = point_observations(scene["points"], IDS, 19)
     tie = synthetic_points(scene, IDS, 400, 0.1, 11)
     tie.points["role"] = "tie"
     tie.measurements["sigma"] = 0.5
     both = obs.concatenate(tie)
     result, rescaled, components = variance.estimate(
-        lambda o: adjust(perturbed(scene), o, ["look:0"], names=LABELS, height=300.0), both)
+        lambda o: adjust(perturbed(scene), o, ["look:0"], names=LABELS, height=300.0), both
+    )
     by_group = {c.group: c for c in components}
-    figures.table("variance components", [{"group": g, "sigma": c.sigma, "redundancy": c.redundancy}
-                                          for g, c in by_group.items()])
+    figures.table(
+        "variance components", [{"group": g, "sigma": c.sigma, "redundancy": c.redundancy} for g, c in by_group.items()]
+    )
     assert by_group["tie image"].sigma == pytest.approx(0.1, rel=0.1)
     assert by_group["control image"].sigma == pytest.approx(0.3, rel=0.3)
     assert sum(c.redundancy for c in components) == pytest.approx(result.redundancy, abs=1e-6)
@@ -280,6 +298,7 @@ def test_automatic_selection_on_a_small_block(scene, figures):
     look-angle constants are chosen (at most 2 others), every decision is logged, and the models carry the
     solution."""
     from pushbroom.algorithms.adjustment.selection import select_parameters
+
     tie = synthetic_points(scene, IDS, 300, 0.2, 5)
     tie.points["role"] = "tie"
     obs = point_observations(scene["points"], IDS, 19).concatenate(tie)

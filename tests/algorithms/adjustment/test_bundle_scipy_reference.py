@@ -2,6 +2,7 @@
 scipy.optimize.least_squares (tests/helpers/scipy_bundle.py, the benchmark's peer): the small
 simulated SPOT 5 triplet, truth models with injected look-angle errors, 6 control points and 60
 tie points, look:1 free (12 unknowns)."""
+
 import numpy as np
 import pytest
 
@@ -10,7 +11,7 @@ from pushbroom.algorithms.geodesy import B, metres_per_degree
 from tests.benchmarks.bench_adjustment import FREE, INJECTED, LABELS, SCIPY_TOLERANCE, problem, supplied_models
 from tests.helpers.scipy_bundle import ScipyBundle
 
-ADJUST_TOLERANCE = 1e-4     # m, adjust's default stop: the largest point update
+ADJUST_TOLERANCE = 1e-4  # m, adjust's default stop: the largest point update
 
 
 @pytest.fixture(scope="module")
@@ -28,8 +29,9 @@ def test_scipy_jacobian_matches_finite_differences_of_its_residuals(tiny):
     z = np.concatenate([rng.normal(0, 2e-6, peer.nfree), rng.normal(0, 3.0, peer.size - peer.nfree)])
     jac = peer.jacobian(z).toarray()
     steps = np.where(np.arange(peer.size) < peer.nfree, 1e-7, 0.01)
-    fd = np.column_stack([(peer.residuals(z + e) - peer.residuals(z - e)) / (2 * s)
-                          for e, s in zip(np.diag(steps), steps)])
+    fd = np.column_stack(
+        [(peer.residuals(z + e) - peer.residuals(z - e)) / (2 * s) for e, s in zip(np.diag(steps), steps)]
+    )
     np.testing.assert_allclose(jac, fd, rtol=1e-4, atol=1e-5 * np.abs(jac).max())
 
 
@@ -59,8 +61,8 @@ def test_adjust_and_scipy_least_squares_reach_the_same_solution(tiny):
     east, north = metres_per_degree(ours.lat, ours.h)
     points = np.abs(np.column_stack([(lon - ours.lon) * east, (lat - ours.lat) * north, h - ours.h]))
     assert len(lon) == len(ours.lon) == 66
-    r, vpv = ours.redundancy, ours.sigma0 ** 2 * ours.redundancy
-    ground = ours.ground_residuals          # control points: observed - adjusted E, N, U (m)
+    r, vpv = ours.redundancy, ours.sigma0**2 * ours.redundancy
+    ground = ours.ground_residuals  # control points: observed - adjusted E, N, U (m)
     sigma_en = np.column_stack([ours.observations.points["sigma_e"], ours.observations.points["sigma_n"]])
     vpv_ground = np.nansum((ground[:, :2] / sigma_en) ** 2)
     per_degree = (1.0 + np.tan(np.radians(np.abs(ours.lat).max()))) * np.nanmax(np.abs(ground)) / B
@@ -73,7 +75,7 @@ def test_adjust_and_scipy_least_squares_reach_the_same_solution(tiny):
     assert points.max() < ADJUST_TOLERANCE + solvers * ours.point_sigmas.max()
     # the same minimum: v'Pv of adjust = 2 x scipy's cost (its residuals are already weighted), to the
     # first-order change of the ground misclosures' squares plus a solution `bound` off (bound^2 / r): 1.4e-9 here
-    assert vpv == pytest.approx(2.0 * result.cost, rel=2.0 * per_degree * vpv_ground / vpv + bound ** 2 / r)
+    assert vpv == pytest.approx(2.0 * result.cost, rel=2.0 * per_degree * vpv_ground / vpv + bound**2 / r)
     # not a trivial problem: the injected errors are found
     for i, (dx, dy) in INJECTED.items():
         for kind, value in (("psi_x_0", dx), ("psi_y_0", dy)):

@@ -1,4 +1,5 @@
 """Control/check point CSV import and export and their storage in the block GeoPackage."""
+
 import csv
 import os
 import shutil
@@ -62,8 +63,12 @@ def test_simulator_points_import(scene, blk, tmp_path):
     log = Feedback()
     obs = cp.import_csv(Block(blk), path, suffix="_meas", feedback=log)
     assert any("ignored column" in m and "HRG_blunder" in m and "HRS1_col," in m for m in log.messages)
-    cells = [(k, ids[n], float(r[f"{n}_col_meas"]), float(r[f"{n}_row_meas"]))
-             for k, r in enumerate(rows) for n in NAMES if r[f"{n}_col_meas"]]
+    cells = [
+        (k, ids[n], float(r[f"{n}_col_meas"]), float(r[f"{n}_row_meas"]))
+        for k, r in enumerate(rows)
+        for n in NAMES
+        if r[f"{n}_col_meas"]
+    ]
     assert len(obs.points) == len(rows) >= 5
     assert len(obs.measurements) == len(cells) == 3 * len(rows) - 3
     assert obs.points["name"].tolist() == [r["id"] for r in rows]
@@ -108,9 +113,18 @@ def test_projected_input(scene, blk, tmp_path, figures):
     lon, lat = np.array([float(r["lon"]) for r in rows]), np.array([float(r["lat"]) for r in rows])
     epsg = utm_epsg(lon.mean(), lat.mean())
     xy = utm(lon, lat, epsg).T
-    assert 1e5 < xy[:, 0].min() and xy[:, 1].min() > 4e6            # really projected metres
-    projected = [{"ID": r["id"], "X": repr(x), "Y": repr(y), "H": r["h"], "HRG_col": r["HRG_col_meas"],
-                  "HRG_row": r["HRG_row_meas"]} for r, (x, y) in zip(rows, xy)]
+    assert 1e5 < xy[:, 0].min() and xy[:, 1].min() > 4e6  # really projected metres
+    projected = [
+        {
+            "ID": r["id"],
+            "X": repr(x),
+            "Y": repr(y),
+            "H": r["h"],
+            "HRG_col": r["HRG_col_meas"],
+            "HRG_row": r["HRG_row_meas"],
+        }
+        for r, (x, y) in zip(rows, xy)
+    ]
     path = write_rows(tmp_path / "utm.csv", projected)
     wkt = osr.SpatialReference()
     wkt.ImportFromEPSG(epsg)
@@ -120,7 +134,7 @@ def test_projected_input(scene, blk, tmp_path, figures):
         assert err < 1e-8, err
     figures.report(f"UTM {epsg} -> WGS 84, largest difference", err, "deg")
     with pytest.raises(InputError, match="swapped|projected"):
-        cp.read_csv(path, Block(blk).image_ids())                          # metres read as degrees
+        cp.read_csv(path, Block(blk).image_ids())  # metres read as degrees
     with pytest.raises(InputError, match="unknown coordinate reference system"):
         cp.read_csv(path, Block(blk).image_ids(), crs="EPSG:999999")
 
@@ -146,8 +160,9 @@ def test_orthometric_heights_add_the_egm96_undulation(scene, blk, tmp_path, figu
     x, y = (np.mod(lon - gt[0], 360.0)) / gt[1] - 0.5, (lat - gt[3]) / gt[5] - 0.5
     j, i = np.floor(x).astype(int), np.floor(y).astype(int)
     fx, fy = x - j, y - i
-    n = ((1 - fy) * ((1 - fx) * undulation[i, j] + fx * undulation[i, j + 1])
-         + fy * ((1 - fx) * undulation[i + 1, j] + fx * undulation[i + 1, j + 1]))
+    n = (1 - fy) * ((1 - fx) * undulation[i, j] + fx * undulation[i, j + 1]) + fy * (
+        (1 - fx) * undulation[i + 1, j] + fx * undulation[i + 1, j + 1]
+    )
     diff = ortho.points["h"] - ell.points["h"]
     assert np.abs(diff - n).max() < 1e-3, (diff, n)
     figures.report("EGM96 undulation at the scene, h - H", diff.mean(), "m", f"grid {n.mean():.3f} m")
@@ -155,28 +170,43 @@ def test_orthometric_heights_add_the_egm96_undulation(scene, blk, tmp_path, figu
 
 def test_missing_geoid_grid_is_a_clear_error(tmp_path):
     """Without the grid (PROJ data folder holding only proj.db) orthometric heights are refused."""
-    proj_db = next((os.path.join(f, "proj.db") for f in osr.GetPROJSearchPaths() or []
-                    if os.path.exists(os.path.join(f, "proj.db"))), None)
+    proj_db = next(
+        (
+            os.path.join(f, "proj.db")
+            for f in osr.GetPROJSearchPaths() or []
+            if os.path.exists(os.path.join(f, "proj.db"))
+        ),
+        None,
+    )
     if proj_db is None:
         pytest.skip("proj.db not found")
     data = tmp_path / "proj"
     data.mkdir()
     shutil.copy(proj_db, data)
-    code = ("from pushbroom.algorithms.adjustment.control_points import orthometric_to_ellipsoidal\n"
-            "from pushbroom.algorithms.errors import InputError\n"
-            "import sys\n"
-            "try:\n    sys.stdout.write(repr(orthometric_to_ellipsoidal(-84.2, 36.6, 300.0)))\n"
-            "except InputError as exc:\n    sys.stdout.write(f'InputError: {exc}')\n")
-    env = dict(os.environ, PROJ_DATA=str(data), PROJ_LIB=str(data), PROJ_NETWORK="OFF", HOME=str(tmp_path),
-               XDG_DATA_HOME=str(tmp_path))
+    code = (
+        "from pushbroom.algorithms.adjustment.control_points import orthometric_to_ellipsoidal\n"
+        "from pushbroom.algorithms.errors import InputError\n"
+        "import sys\n"
+        "try:\n    sys.stdout.write(repr(orthometric_to_ellipsoidal(-84.2, 36.6, 300.0)))\n"
+        "except InputError as exc:\n    sys.stdout.write(f'InputError: {exc}')\n"
+    )
+    env = dict(
+        os.environ,
+        PROJ_DATA=str(data),
+        PROJ_LIB=str(data),
+        PROJ_NETWORK="OFF",
+        HOME=str(tmp_path),
+        XDG_DATA_HOME=str(tmp_path),
+    )
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert out.stdout.startswith("InputError:"), out.stdout + out.stderr
     assert "EGM96 geoid grid" in out.stdout and "us_nga_egm96_15.tif" in out.stdout
 
 
 def test_export_import_round_trip(scene, blk, tmp_path):
-    cp.import_csv(Block(blk), write_rows(tmp_path / "points.csv", blanked(scene["rows"])), suffix="_meas",
-                  check_ids=["P002"])
+    cp.import_csv(
+        Block(blk), write_rows(tmp_path / "points.csv", blanked(scene["rows"])), suffix="_meas", check_ids=["P002"]
+    )
     stored = Block(blk).control_points()
     out = tmp_path / "export.csv"
     assert same(cp.export_csv(Block(blk), out), stored)
@@ -209,12 +239,28 @@ def test_merge_updates_and_replace_replaces(scene, blk, tmp_path):
     ids = Block(blk).image_ids()
     cp.import_csv(Block(blk), write_rows(tmp_path / "first.csv", rows[:4]), suffix="_meas")
     before = Block(blk).control_points()
-    update = [dict(rows[2], h="1000.5", HRG_col_meas="10.25", HRG_row_meas="20.5", HRS1_col_meas="",
-                   HRS1_row_meas="", HRS2_col_meas="", HRS2_row_meas="", role="check"),
-              dict(rows[5], id="NEW", role="")]
+    update = [
+        dict(
+            rows[2],
+            h="1000.5",
+            HRG_col_meas="10.25",
+            HRG_row_meas="20.5",
+            HRS1_col_meas="",
+            HRS1_row_meas="",
+            HRS2_col_meas="",
+            HRS2_row_meas="",
+            role="check",
+        ),
+        dict(rows[5], id="NEW", role=""),
+    ]
     # P003's made-up HRG measurement lies 1 km from where its coordinates project: kept (this is about merging)
-    merged = cp.import_csv(Block(blk), write_rows(tmp_path / "update.csv", update, list(rows[0]) + ["role"]),
-                           suffix="_meas", mode="merge", keep_implausible=True)
+    merged = cp.import_csv(
+        Block(blk),
+        write_rows(tmp_path / "update.csv", update, list(rows[0]) + ["role"]),
+        suffix="_meas",
+        mode="merge",
+        keep_implausible=True,
+    )
     assert same(Block(blk).control_points(), merged)
     assert merged.points["name"].tolist() == ["P001", "P002", "P003", "P004", "NEW"]
     keep = [0, 1, 3]
@@ -224,29 +270,48 @@ def test_merge_updates_and_replace_replaces(scene, blk, tmp_path):
     p3 = m[m["point"] == 2]
     assert p3[["image_id", "col", "row"]].tolist()[0] == (ids["HRG"], 10.25, 20.5)
     old3 = before.measurements[before.measurements["point"] == 2]
-    assert p3[1:].tobytes() == old3[1:].tobytes()                      # HRS1, HRS2 kept
+    assert p3[1:].tobytes() == old3[1:].tobytes()  # HRS1, HRS2 kept
     assert (m["point"] == 4).sum() == 3 and len(m) == len(before.measurements) + 3
     # 2 points for 5: far fewer, replaced only when asked (block/replacement.py)
-    replaced = cp.import_csv(Block(blk), tmp_path / "update.csv", suffix="_meas", replace_fewer=True,
-                             keep_implausible=True)
+    replaced = cp.import_csv(
+        Block(blk), tmp_path / "update.csv", suffix="_meas", replace_fewer=True, keep_implausible=True
+    )
     assert replaced.points["name"].tolist() == ["P003", "NEW"] and len(replaced.measurements) == 4
     assert same(Block(blk).control_points(), replaced)
 
 
 BAD = [
     ("missing column", lambda r: [{k: v for k, v in x.items() if k != "h"} for x in r], "no column 'h'"),
-    ("unknown image", lambda r: [dict(x, SPOT4_col_meas="1", SPOT4_row_meas="2") for x in r],
-     "SPOT4_col_meas, SPOT4_row_meas name images that are not in the block; the block's images are HRG, HRS1, HRS2"),
-    ("not a number", lambda r: [dict(x, lat="36.6x" if k == 1 else x["lat"]) for k, x in enumerate(r)],
-     r"line 3, column lat: '36.6x' is not a finite number"),
-    ("bad measurement", lambda r: [dict(x, HRS1_row_meas="nan" if k == 3 else x["HRS1_row_meas"])
-                                   for k, x in enumerate(r)], r"line 5, column HRS1_row_meas: 'nan'"),
-    ("duplicate id", lambda r: [dict(x, id="P001" if k == 2 else x["id"]) for k, x in enumerate(r)],
-     "line 4: point id 'P001' is used again \\(first on line 2\\)"),
-    ("half a measurement", lambda r: [dict(x, HRG_row_meas="" if k == 0 else x["HRG_row_meas"])
-                                      for k, x in enumerate(r)], "line 2, column HRG_row_meas: empty"),
-    ("outside the image", lambda r: [dict(x, HRG_col_meas="1e5" if k == 0 else x["HRG_col_meas"])
-                                     for k, x in enumerate(r)], "outside image HRG"),
+    (
+        "unknown image",
+        lambda r: [dict(x, SPOT4_col_meas="1", SPOT4_row_meas="2") for x in r],
+        "SPOT4_col_meas, SPOT4_row_meas name images that are not in the block; the block's images are HRG, HRS1, HRS2",
+    ),
+    (
+        "not a number",
+        lambda r: [dict(x, lat="36.6x" if k == 1 else x["lat"]) for k, x in enumerate(r)],
+        r"line 3, column lat: '36.6x' is not a finite number",
+    ),
+    (
+        "bad measurement",
+        lambda r: [dict(x, HRS1_row_meas="nan" if k == 3 else x["HRS1_row_meas"]) for k, x in enumerate(r)],
+        r"line 5, column HRS1_row_meas: 'nan'",
+    ),
+    (
+        "duplicate id",
+        lambda r: [dict(x, id="P001" if k == 2 else x["id"]) for k, x in enumerate(r)],
+        "line 4: point id 'P001' is used again \\(first on line 2\\)",
+    ),
+    (
+        "half a measurement",
+        lambda r: [dict(x, HRG_row_meas="" if k == 0 else x["HRG_row_meas"]) for k, x in enumerate(r)],
+        "line 2, column HRG_row_meas: empty",
+    ),
+    (
+        "outside the image",
+        lambda r: [dict(x, HRG_col_meas="1e5" if k == 0 else x["HRG_col_meas"]) for k, x in enumerate(r)],
+        "outside image HRG",
+    ),
     ("bad role", lambda r: [dict(x, role="gcp") for x in r], "line 2, column role: role 'gcp'"),
     ("bad sigma", lambda r: [dict(x, sigma_h="-1") for x in r], "line 2, column sigma_h: '-1' is not a positive"),
 ]
@@ -268,7 +333,7 @@ def test_cancelled_save_rolls_back(scene, blk, tmp_path):
     path = write_rows(tmp_path / "points.csv", scene["rows"])
     ids = Block(blk).image_ids()
     obs = cp.read_csv(path, ids, suffix="_meas")
-    with pytest.raises(CancelledError):                             # the first import: nothing lands
+    with pytest.raises(CancelledError):  # the first import: nothing lands
         Block(blk).save_control_points(obs, feedback=Feedback(cancel_after=3))
     assert len(Block(blk).control_points().points) == 0
     ds = ogr.Open(blk)
@@ -287,16 +352,23 @@ def test_cancelled_save_rolls_back(scene, blk, tmp_path):
 
 def test_delimiters_aliases_and_case(blk, tmp_path):
     ids = Block(blk).image_ids()
-    text = ("\ufeffName;LON;Lat;Height;Sigma_H;hrg_COL;HRG_Row;HRG_sigma;HRS2_col;HRS2_row\n"
-            "A;-84.2;36.6;300.5;0.75;10.5;20.5;0.25;;\n\n"
-            "B;-84.19;36.61;310;;11;21;;30.5;40.5\n")
+    text = (
+        "\ufeffName;LON;Lat;Height;Sigma_H;hrg_COL;HRG_Row;HRG_sigma;HRS2_col;HRS2_row\n"
+        "A;-84.2;36.6;300.5;0.75;10.5;20.5;0.25;;\n\n"
+        "B;-84.19;36.61;310;;11;21;;30.5;40.5\n"
+    )
     path = tmp_path / "semicolon.csv"
     path.write_text(text, encoding="utf-8")
     obs = cp.read_csv(path, ids)
-    assert obs.points[["name", "lon", "lat", "h", "sigma_h"]].tolist() == [("A", -84.2, 36.6, 300.5, 0.75),
-                                                                          ("B", -84.19, 36.61, 310.0, 2.2)]
-    assert obs.measurements.tolist() == [(0, ids["HRG"], 10.5, 20.5, 0.25), (1, ids["HRG"], 11.0, 21.0, 0.5),
-                                         (1, ids["HRS2"], 30.5, 40.5, 0.5)]
+    assert obs.points[["name", "lon", "lat", "h", "sigma_h"]].tolist() == [
+        ("A", -84.2, 36.6, 300.5, 0.75),
+        ("B", -84.19, 36.61, 310.0, 2.2),
+    ]
+    assert obs.measurements.tolist() == [
+        (0, ids["HRG"], 10.5, 20.5, 0.25),
+        (1, ids["HRG"], 11.0, 21.0, 0.5),
+        (1, ids["HRS2"], 30.5, 40.5, 0.5),
+    ]
     extra = tmp_path / "extra.csv"
     extra.write_text("id,lon,lat,h\nA,-84.2,36.6,300\nB,-84.2,36.6,300,7\n")
     with pytest.raises(InputError, match="line 3: 5 fields, the header has 4"):

@@ -1,6 +1,7 @@
 """Control point series (adjustment/control_series.py, Heipke et al. 1992, Table 1): the farthest-point choice on a
 regular grid, each row against a direct adjustment with the same control points, fixed check
 points, untouched input models, progress, cancelling and refusals; on the small SPOT 5 triplet."""
+
 import numpy as np
 import pytest
 
@@ -53,8 +54,9 @@ def test_series_rows_equal_direct_adjustments(small_scene):
     table = render_text([series_section(rows)]).splitlines()
     assert len(table) == 5 and table[2].split()[:2] == ["3", str(rows[0].check)]
     with pytest.raises(CancelledError):
-        control_point_series(models, obs, [3, 5], ["look:0"], names=LABELS, height=300.0,
-                             feedback=Feedback(cancel_after=3))
+        control_point_series(
+            models, obs, [3, 5], ["look:0"], names=LABELS, height=300.0, feedback=Feedback(cancel_after=3)
+        )
     with pytest.raises(InputError, match="within 1..5"):
         control_point_series(models, obs, [6], ["look:0"], names=LABELS)
     no_check = point_observations(small_scene["points"], IDS, 1000)

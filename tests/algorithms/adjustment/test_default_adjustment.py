@@ -17,6 +17,7 @@ Accuracy bound (independent of the adjustment's own sigmas): the simulator measu
 component of an intersected check point with the orientation's error from five such control points, so
 5 m is 3.5 sigma; the HRS pair's base-to-height ratio 0.83 turns 0.3 px of 5 m rows into a 2.6 m height
 sigma (2.4 m with the HRG), so 10 m is 4 sigma."""
+
 import csv
 import itertools
 import shutil
@@ -66,9 +67,11 @@ def block_with_points(matched, small_scene, tmp_path, check, edit=None, keep_imp
         writer = csv.DictWriter(f, rows[0].keys())
         writer.writeheader()
         writer.writerows(rows)
-    import_points(str(folder / "block.gpkg"), str(tmp_path / "points.csv"),
-                  ImportParams(check_ids=",".join(check), suffix="_meas",
-                               keep_implausible=keep_implausible))
+    import_points(
+        str(folder / "block.gpkg"),
+        str(tmp_path / "points.csv"),
+        ImportParams(check_ids=",".join(check), suffix="_meas", keep_implausible=keep_implausible),
+    )
     return str(folder / "block.gpkg")
 
 
@@ -94,17 +97,21 @@ def test_the_defaults_converge_and_check_points_meet_the_truth(matched, small_sc
     result = adjusted(path, log)
     assert any(", converged" in m for m in log.messages) and 0.5 < result.sigma0 < 2.0
     ground = Block(path).residuals()[1]
-    figures.report(f"default adjustment, check points {'+'.join(check)}: dE, dN, dH (m)",
-                   [tuple(round(v, 2) for v in ground[n][:3]) for n in check])
+    figures.report(
+        f"default adjustment, check points {'+'.join(check)}: dE, dN, dH (m)",
+        [tuple(round(v, 2) for v in ground[n][:3]) for n in check],
+    )
     assert_check_points_near_the_truth(path, check)
 
 
 def test_an_unmeasured_control_point_takes_no_part(matched, small_scene, tmp_path):
     """P001 imported without measurements: a note names it, the other four control the block."""
+
     def blank(rows):
         for key in rows["P001"]:
             if key.endswith("_meas"):
                 rows["P001"][key] = ""
+
     path = block_with_points(matched, small_scene, tmp_path, ("P002", "P006"), blank)
     log = Feedback()
     adjusted(path, log)
@@ -117,28 +124,32 @@ def test_a_control_point_1_km_off_is_named_or_left_out(matched, small_scene, tmp
     adjustment by default raises an InputError naming it with its offset and stores nothing; with
     REMOVE_BLUNDERS it is left out with a warning and a report section, and the four others control the
     block."""
+
     def move(rows):
         rows["P003"]["lat"] = str(float(rows["P003"]["lat"]) + 1000.0 / 111_000.0)
+
     with pytest.raises(InputError, match=r"P003: its measurements meet .* and (99\d|10\d\d) m beside its position"):
         block_with_points(matched, small_scene, tmp_path / "refused", ("P002", "P006"), move)
     path = block_with_points(matched, small_scene, tmp_path, ("P002", "P006"), move, keep_implausible=True)
     before = Block(path).generations()
-    named = r"P003: HRG [\d.]+ px \((99\d|100\d) m\).*ground coordinates.*REMOVE_BLUNDERS"     # 1 km within 1 %
+    named = r"P003: HRG [\d.]+ px \((99\d|100\d) m\).*ground coordinates.*REMOVE_BLUNDERS"  # 1 km within 1 %
     with pytest.raises(InputError, match=named):
         adjusted(path, Feedback())
     assert Block(path).generations() == before
     log = Feedback()
     result = adjusted(path, log, remove_blunders=True, report=str(tmp_path / "r.html"))
     assert any(m.startswith("left out before the adjustment, grossly off: P003") for m in log.messages)
-    assert "<td>P003</td><td>HRS1</td>" in open(result.report).read()       # the screening's section
+    assert "<td>P003</td><td>HRS1</td>" in open(result.report).read()  # the screening's section
     assert_check_points_near_the_truth(path, ("P002", "P006"))
 
 
 def test_a_measurement_30_px_off_is_left_to_data_snooping(matched, small_scene, tmp_path):
     """P004's HRS2 column 30 px off: the screen notes it, the adjustment runs, and data snooping flags that
     measurement (its stored normalised residual above the critical value 3.29)."""
+
     def slip(rows):
         rows["P004"]["HRS2_col_meas"] = str(float(rows["P004"]["HRS2_col_meas"]) + 30.0)
+
     path = block_with_points(matched, small_scene, tmp_path, ("P002", "P006"), slip)
     log = Feedback()
     adjusted(path, log)

@@ -2,6 +2,7 @@
 et al. 1992, Table 1 series (adjustment/control_series.py): the map from orientation-image values to each image's
 correction polynomials against numpy's Lagrange interpolation, injected orientation-image errors
 recovered by the adjustment, and the acceptance on a simulated SPOT 1-4 across-track pair."""
+
 import copy
 import csv
 import dataclasses
@@ -48,8 +49,11 @@ def lagrange_reference(node_t, values, t):
 def synthetic_block():
     """Two overlapping SPOT 5 images of one pass (one trajectory) and a SPOT 2 image (another)."""
     spot5 = synthetic_orientation(5, ncols=300, nrows=200)
-    return {1: SpotModel(spot5), 2: SpotModel(dataclasses.replace(spot5, centre_time=-0.75)),
-            3: SpotModel(synthetic_orientation(2, ncols=300, nrows=200))}
+    return {
+        1: SpotModel(spot5),
+        2: SpotModel(dataclasses.replace(spot5, centre_time=-0.75)),
+        3: SpotModel(synthetic_orientation(2, ncols=300, nrows=200)),
+    }
 
 
 @pytest.mark.parametrize("count", [2, 3, 4])
@@ -72,7 +76,7 @@ def test_node_values_map_to_the_lagrange_interpolant(count):
         for i in members:
             coefficients = params.jacobian_map(i) @ x
             corrections = coefficients[:24].reshape(6, 4)
-            assert np.array_equal(coefficients[24:], x[index[f"{params.names[i]} psi_x_0"]:][:8])
+            assert np.array_equal(coefficients[24:], x[index[f"{params.names[i]} psi_x_0"] :][:8])
             rows = rng.uniform(0, models[i].size[1], 50)
             t_abs = line_time(models[i], rows)
             o = models[i].orientation
@@ -91,10 +95,27 @@ def test_lagrange_names_patterns_and_refusals():
     params = OrientationParameters(synthetic_block(), {1: "A", 2: "B", 3: "C"}, model="lagrange")
     names = [p.name for p in params.parameters]
     assert "pass B+A X@2" in names and "pass B+A offset_X" in names and "pass C roll@3" in names
-    count = {s: int(params.select([s]).sum()) for s in ("lagrange:attitude", "lagrange:position", "lagrange:offset",
-                                                        "lagrange:all", "pitch@03", "offset_Y", "look:1")}
-    assert count == {"lagrange:attitude": 24, "lagrange:position": 24, "lagrange:offset": 6, "lagrange:all": 54,
-                     "pitch@03": 4, "offset_Y": 2, "look:1": 12}
+    count = {
+        s: int(params.select([s]).sum())
+        for s in (
+            "lagrange:attitude",
+            "lagrange:position",
+            "lagrange:offset",
+            "lagrange:all",
+            "pitch@03",
+            "offset_Y",
+            "look:1",
+        )
+    }
+    assert count == {
+        "lagrange:attitude": 24,
+        "lagrange:position": 24,
+        "lagrange:offset": 6,
+        "lagrange:all": 54,
+        "pitch@03": 4,
+        "offset_Y": 2,
+        "look:1": 12,
+    }
     assert params.default_priors == {"lagrange:position": 1.0, "lagrange:offset": 1000.0}
     assert OrientationParameters(synthetic_block()).default_priors == {}
     with pytest.raises(InputError, match="no orientation parameter matches 'exterior:3'"):
@@ -143,8 +164,16 @@ def redrawn_points(csv_path, n_control, rng):
     points = np.zeros(len(rows), POINT_DTYPE)
     meas = []
     for k, r in enumerate(rows):
-        points[k] = (r["id"], "control" if k < n_control else "check", float(r["lon"]), float(r["lat"]),
-                     float(r["h"]), 0.5, 0.5, 0.5)
+        points[k] = (
+            r["id"],
+            "control" if k < n_control else "check",
+            float(r["lon"]),
+            float(r["lat"]),
+            float(r["h"]),
+            0.5,
+            0.5,
+            0.5,
+        )
         for name, i in IDS.items():
             if r.get(f"{name}_col"):
                 col, row = float(r[f"{name}_col"]), float(r[f"{name}_row"])
@@ -185,8 +214,15 @@ def test_injected_orientation_image_errors_are_recovered(pair, figures):
     params.apply(injected)
     perturbed = copy.deepcopy(models)
     obs = point_observations(pair["points"], IDS, 60, sigma_px=SIGMA_PX).concatenate(tie_points(pair, 8, rng))
-    result = adjust(models, obs, ["lagrange:attitude"], names=LABELS, height=500.0, model="lagrange",
-                    priors={"lagrange:offset": 100.0})
+    result = adjust(
+        models,
+        obs,
+        ["lagrange:attitude"],
+        names=LABELS,
+        height=500.0,
+        model="lagrange",
+        priors={"lagrange:offset": 100.0},
+    )
     error = (result.values + injected)[free]
     distance = float(error @ np.linalg.solve(result.covariance, error))
     figures.report("orientation-image attitudes recovered", free.sum())
@@ -231,15 +267,25 @@ def test_control_point_series_on_a_spot14_pair(pair, figures):
     for draw in range(12):
         rng = np.random.default_rng(100 + draw)
         obs = redrawn_points(pair["points"], 30, rng).concatenate(tie_points(pair, 8, rng))
-        runs.append(control_point_series(models, obs, counts, FREE, names=LABELS, height=500.0, model="lagrange",
-                                         orientation_images=2))
-    pooled = [dataclasses.replace(rows[0], check=sum(r.check for r in rows),
-                                  rms=np.sqrt(np.mean([r.rms ** 2 for r in rows], axis=0)),
-                                  theoretical=np.sqrt(np.mean([r.theoretical ** 2 for r in rows], axis=0)),
-                                  sigma0=float(np.sqrt(np.mean([r.sigma0 ** 2 for r in rows]))))
-              for rows in zip(*runs)]
-    figures.table("H Table 1 on the simulated SPOT 2 pair, 2 orientation images, check points pooled over 12 noise "
-                  "draws (m)", section_rows(series_section(pooled)))
+        runs.append(
+            control_point_series(
+                models, obs, counts, FREE, names=LABELS, height=500.0, model="lagrange", orientation_images=2
+            )
+        )
+    pooled = [
+        dataclasses.replace(
+            rows[0],
+            check=sum(r.check for r in rows),
+            rms=np.sqrt(np.mean([r.rms**2 for r in rows], axis=0)),
+            theoretical=np.sqrt(np.mean([r.theoretical**2 for r in rows], axis=0)),
+            sigma0=float(np.sqrt(np.mean([r.sigma0**2 for r in rows]))),
+        )
+        for rows in zip(*runs)
+    ]
+    figures.table(
+        "H Table 1 on the simulated SPOT 2 pair, 2 orientation images, check points pooled over 12 noise draws (m)",
+        section_rows(series_section(pooled)),
+    )
     rms = np.array([r.rms for r in pooled])
     theory = np.array([r.theoretical for r in pooled])
     figures.report("RMS E, N, H with 5 and 6 control points relative to 15", rms[:2] / rms[-1])
@@ -248,12 +294,15 @@ def test_control_point_series_on_a_spot14_pair(pair, figures):
     assert np.all(rms < 1.5 * theory)
 
     obs = point_observations(pair["points"], IDS, 30, sigma_px=SIGMA_PX).concatenate(
-        tie_points(pair, 8, np.random.default_rng(5)))
+        tie_points(pair, 8, np.random.default_rng(5))
+    )
     # 4 nodes over 2000 lines: yaw and pitch at a node are nearly one unknown in these oblique views
     # (bundle.find_defects names them); let the adjustment run anyway to show what that costs
-    cubic = control_point_series(models, obs, counts, FREE, names=LABELS, height=500.0, model="lagrange",
-                                 defect_eigenvalue=1e-10)
-    figures.table("4 orientation images (one draw, the simulator's measurements) (m)",
-                  section_rows(series_section(cubic)))
+    cubic = control_point_series(
+        models, obs, counts, FREE, names=LABELS, height=500.0, model="lagrange", defect_eigenvalue=1e-10
+    )
+    figures.table(
+        "4 orientation images (one draw, the simulator's measurements) (m)", section_rows(series_section(cubic))
+    )
     assert cubic[0].theoretical[1] > 3.0 * cubic[-1].theoretical[1]
     assert cubic[-1].rms[1] < 1.5 * rms[-1][1]

@@ -3,6 +3,7 @@ against Adjustment.residuals / .normalised / .ground_residuals, the check points
 independent forward intersection (surface.intersection) reprojected with the adjusted models, the
 residual_px field on the control_points layer (with load/save of the points still working), and
 points removed or renamed since being absent on load."""
+
 import shutil
 
 import numpy as np
@@ -78,14 +79,16 @@ def test_residuals_are_stored_and_loaded(adjusted, figures):
     for k, name in enumerate(check["names"]):
         p = chk.points["name"].tolist().index(name)
         v = np.array([image[(name, i)][:2] for i in m["image_id"][m["point"] == p]])
-        assert ground[name] == pytest.approx((check["dE"][k], check["dN"][k], check["dH"][k],
-                                              np.sqrt(np.mean(v * v))), abs=1e-9)
+        assert ground[name] == pytest.approx(
+            (check["dE"][k], check["dN"][k], check["dH"][k], np.sqrt(np.mean(v * v))), abs=1e-9
+        )
     assert len(image) == len(ao.measurements) + len(m)
     # the layer field: each point's image RMS
     values = layer_values(path)
     assert values == pytest.approx({n: ground[n][3] for n in names.tolist() + CHECK}, abs=1e-12)
-    figures.report("check point image residuals against the reprojection of an independent intersection, max",
-                   worst, "px")
+    figures.report(
+        "check point image residuals against the reprojection of an independent intersection, max", worst, "px"
+    )
     figures.report("residual_px of the point layer", values, "px")
 
 

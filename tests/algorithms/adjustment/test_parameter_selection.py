@@ -7,6 +7,7 @@ and an attitude (roll) drift common to the pass. They are chosen to be identifia
 attitude or position error of the pass moves each image like its own look-angle constants do, so
 no adjustment can tell those apart (the simulator's default perturbation contains such errors;
 test_bundle.py covers it), whereas a drift also shows inside each image."""
+
 import numpy as np
 import pytest
 
@@ -31,10 +32,16 @@ from tests.helpers.adjustment_scene import (
 
 pytestmark = pytest.mark.slow
 
-PASS = "pass HRS1+HRG+HRS2"          # the trajectory, its images in time order
+PASS = "pass HRS1+HRG+HRS2"  # the trajectory, its images in time order
 #: injected corrections (rad; roll drift in rad per time_scale = 10 s): supplied = truth - these
-INJECTED = {"HRG psi_x_0": 2.8e-5, "HRG psi_y_0": -1.2e-5, "HRG psi_y_1": 8e-6, "HRS1 psi_x_0": 1.5e-5,
-            "HRS2 psi_y_0": 1.0e-5, f"{PASS} roll_1": 1.0e-5}
+INJECTED = {
+    "HRG psi_x_0": 2.8e-5,
+    "HRG psi_y_0": -1.2e-5,
+    "HRG psi_y_1": 8e-6,
+    "HRS1 psi_x_0": 1.5e-5,
+    "HRS2 psi_y_0": 1.0e-5,
+    f"{PASS} roll_1": 1.0e-5,
+}
 
 
 @pytest.fixture(scope="module")
@@ -44,8 +51,13 @@ def block(simulated):
     paths = simulated(SceneConfig(size_km=20.0, points=30, error_scale=0.0))
     models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
     lo, hi = read_dem(paths["dsm"]).height_range
-    matched = match_block([paths["images"][n]["imagery"] for n in NAMES], models, params=GrowParams(step=18),
-                          height_range=(lo - 100.0, hi + 100.0), workers=2)
+    matched = match_block(
+        [paths["images"][n]["imagery"] for n in NAMES],
+        models,
+        params=GrowParams(step=18),
+        height_range=(lo - 100.0, hi + 100.0),
+        workers=2,
+    )
     tie = tie_observations(select_tie_points(matched, cell=100.0))
     return paths, point_observations(paths["points"], IDS, 19).concatenate(tie)
 
@@ -88,6 +100,7 @@ def test_hrs_only_solves_with_a_larger_planimetric_error(block, figures):
         sub = Observations(obs.points, obs.measurements[np.isin(obs.measurements["image_id"], list(ids.values()))])
         selection = select_parameters(perturbed(paths, names), sub, names=LABELS, height=300.0)
         figures.report(f"{label}: selected free coefficients", selection.free)
-        results[label], _ = check_rms(selection.result, synthetic_points(paths, ids, 300, 0.3, 7), 300.0, figures,
-                                      f"{label} check points")
+        results[label], _ = check_rms(
+            selection.result, synthetic_points(paths, ids, 300, 0.3, 7), 300.0, figures, f"{label} check points"
+        )
     assert np.hypot(*results["HRS only"][:2]) > np.hypot(*results["HRG+HRS"][:2])

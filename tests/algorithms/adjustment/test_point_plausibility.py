@@ -1,5 +1,6 @@
 """Control points checked against the block's image footprints at import (point_plausibility.py): the
 mistakes a user makes with coordinates are named and refused, true points pass."""
+
 import csv
 import re
 import shutil
@@ -56,7 +57,7 @@ def test_swapped_lon_lat_is_named_and_refused(blk, rows, tmp_path):
     before = Block(blk).control_points()
     with pytest.raises(InputError, match=rf"{rows[3]['id']}: lon .* and lat .* look swapped"):
         cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas")
-    assert len(Block(blk).control_points().points) == len(before.points) == 0      # nothing imported
+    assert len(Block(blk).control_points().points) == len(before.points) == 0  # nothing imported
 
 
 def test_a_point_ten_degrees_off_is_named(blk, rows, tmp_path):
@@ -74,12 +75,19 @@ def test_degrees_given_as_utm_x_y_are_named(blk, rows, tmp_path):
 
 def test_a_measurement_of_another_point_is_named(blk, rows, tmp_path):
     # P001's HRG measurement replaced by the farthest point's: its HRG ray misses where its HRS rays meet
-    far = max(range(1, len(rows)),
-              key=lambda k: np.hypot(float(rows[k]["HRG_col_meas"]) - float(rows[0]["HRG_col_meas"]),
-                                     float(rows[k]["HRG_row_meas"]) - float(rows[0]["HRG_row_meas"])))
+    far = max(
+        range(1, len(rows)),
+        key=lambda k: np.hypot(
+            float(rows[k]["HRG_col_meas"]) - float(rows[0]["HRG_col_meas"]),
+            float(rows[k]["HRG_row_meas"]) - float(rows[0]["HRG_row_meas"]),
+        ),
+    )
     rows[0]["HRG_col_meas"], rows[0]["HRG_row_meas"] = rows[far]["HRG_col_meas"], rows[far]["HRG_row_meas"]
-    with pytest.raises(InputError, match=rf"{rows[0]['id']}: its rays do not meet: the one of its measurement in HRG "
-                                         r"at .* passes \d+ m from where the others meet"):
+    with pytest.raises(
+        InputError,
+        match=rf"{rows[0]['id']}: its rays do not meet: the one of its measurement in HRG "
+        r"at .* passes \d+ m from where the others meet",
+    ):
         cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas")
 
 
@@ -101,7 +109,7 @@ def test_a_point_3000_m_too_high_is_refused_with_where_its_rays_meet(blk, rows, 
     # the rays meet 3000 m below, to within the supplied orientation's errors (about 30 m on the ground,
     # perturbation.py; a few times that in height at the triplet's B/H)
     assert abs(dh + 3000.0) < 200.0 and across < 100.0
-    assert Block(blk).control_points().points.size == 0     # nothing imported
+    assert Block(blk).control_points().points.size == 0  # nothing imported
 
 
 def test_a_point_one_km_off_is_refused(blk, rows, tmp_path):
@@ -110,7 +118,7 @@ def test_a_point_one_km_off_is_refused(blk, rows, tmp_path):
     with pytest.raises(InputError, match=rf"{rows[2]['id']}: its measurements meet") as err:
         cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas")
     dh, across = where_rays_meet(str(err.value))
-    assert abs(across - 1000.0) < 100.0 and abs(dh) < 200.0     # the 1 km, to within the supplied errors
+    assert abs(across - 1000.0) < 100.0 and abs(dh) < 200.0  # the 1 km, to within the supplied errors
 
 
 def test_a_point_measured_in_one_image_far_from_its_projection_is_named(blk, rows, tmp_path):
@@ -118,15 +126,21 @@ def test_a_point_measured_in_one_image_far_from_its_projection_is_named(blk, row
     for image in ("HRS1", "HRS2"):
         rows[3][f"{image}_col_meas"] = rows[3][f"{image}_row_meas"] = ""
     rows[3]["lon"] = str(float(rows[3]["lon"]) + 800.0 / metres_per_degree(float(rows[3]["lat"]))[0])
-    with pytest.raises(InputError, match=rf"{rows[3]['id']}: measured in HRG at .*, 0\.[78] km from where its "
-                                         "coordinates project"):
+    with pytest.raises(
+        InputError,
+        match=rf"{rows[3]['id']}: measured in HRG at .*, 0\.[78] km from where its "
+        "coordinates project",
+    ):
         cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas")
 
 
 def test_a_height_off_the_earth_is_named(blk, rows, tmp_path):
     rows[4]["h"] = "60000"
-    with pytest.raises(InputError, match=rf"^1 point\(s\).*{rows[4]['id']}: its height 60000 m lies outside the "
-                                         r"heights of terrain on Earth \(-500 \.\. 9000 m\)"):
+    with pytest.raises(
+        InputError,
+        match=rf"^1 point\(s\).*{rows[4]['id']}: its height 60000 m lies outside the "
+        r"heights of terrain on Earth \(-500 \.\. 9000 m\)",
+    ):
         cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas")
 
 
@@ -134,22 +148,23 @@ def test_the_simulated_points_agree_with_their_measurements_far_within_the_bound
     # the consistency statistic of the true points (supplied orientation off by about 30 m, perturbation.py)
     # against its chi-square bound: at SPOT 5's stated 50 m they use a small part of it
     blk = Block(small_scene_block[0])
-    obs = cp.read_csv(write_rows(tmp_path / "p.csv", rows), {r["name"]: r["id"] for r in blk.images()},
-                      suffix="_meas")
-    footprints = point_plausibility.Footprints(blk.models(), {r["id"]: r["name"] for r in blk.images()},
-                                               list(blk.height_range()))
+    obs = cp.read_csv(write_rows(tmp_path / "p.csv", rows), {r["name"]: r["id"] for r in blk.images()}, suffix="_meas")
+    footprints = point_plausibility.Footprints(
+        blk.models(), {r["id"]: r["name"] for r in blk.images()}, list(blk.height_range())
+    )
     offset, _, sigma = footprints.rays(obs)
-    per_point = np.bincount(obs.measurements["point"], (offset ** 2).sum(axis=1) / sigma ** 2)
-    bound = chi2.isf(point_plausibility.FALSE_ALARM, 6)     # three rays each (scipy.stats: the module uses chdtri)
-    assert np.all(sigma == pytest.approx(50.0, abs=2.0))      # SPOT 5's 50 m and 0.5 px of 5-10 m
+    per_point = np.bincount(obs.measurements["point"], (offset**2).sum(axis=1) / sigma**2)
+    bound = chi2.isf(point_plausibility.FALSE_ALARM, 6)  # three rays each (scipy.stats: the module uses chdtri)
+    assert np.all(sigma == pytest.approx(50.0, abs=2.0))  # SPOT 5's 50 m and 0.5 px of 5-10 m
     assert per_point.max() < 0.25 * bound
 
 
 def test_kept_on_request_with_a_warning(blk, rows, tmp_path):
     rows[2]["lat"] = str(float(rows[2]["lat"]) - 10.0)
     log = Feedback()
-    obs = cp.import_csv(Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas", keep_implausible=True,
-                        feedback=log)
+    obs = cp.import_csv(
+        Block(blk), write_rows(tmp_path / "p.csv", rows), suffix="_meas", keep_implausible=True, feedback=log
+    )
     assert len(obs.points) == len(rows)
     assert any(m.startswith("warning: kept 1 point(s)") and rows[2]["id"] in m for m in log.messages)
     assert Block(blk).info()["control_points"] == str(len(rows))

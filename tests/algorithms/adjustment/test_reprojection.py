@@ -1,5 +1,6 @@
 """Per-image reprojection statistics (algorithms/adjustment/reprojection.py) on residuals whose
 means and RMS are known by construction, and against a per-measurement loop on random ones."""
+
 from types import SimpleNamespace
 
 import numpy as np
@@ -22,8 +23,9 @@ def result_of(roles, meas, residuals):
 
 def test_shift_and_symmetric_residuals():
     # image 3: a pure shift (3, 4) px; image 1: +-1 px in col; the control point's measurement (9 px) is not a tie
-    r = result_of(["tie", "tie", "control"], [(0, 3), (0, 1), (1, 3), (1, 1), (2, 1)],
-                  [(3, 4), (1, 0), (3, 4), (-1, 0), (9, 9)])
+    r = result_of(
+        ["tie", "tie", "control"], [(0, 3), (0, 1), (1, 3), (1, 1), (2, 1)], [(3, 4), (1, 0), (3, 4), (-1, 0), (9, 9)]
+    )
     rows = reprojection_rms(r)
     assert rows["image_id"].tolist() == [1, 3, ALL] and rows["n"].tolist() == [2, 2, 4]
     one, three, total = rows

@@ -1,4 +1,5 @@
 """The block GeoPackage: contents, footprints, overwrite protection and cancel safety."""
+
 import shutil
 import xml.etree.ElementTree as ET
 
@@ -24,8 +25,10 @@ def spot5_product(spot5_dim, tmp_path):
 
 def producer_corners(dim):
     root = ET.parse(dim).getroot()
-    return [(float(v.findtext("FRAME_LON")), float(v.findtext("FRAME_LAT")))
-            for v in root.find("Dataset_Frame").findall("Vertex")]
+    return [
+        (float(v.findtext("FRAME_LON")), float(v.findtext("FRAME_LAT")))
+        for v in root.find("Dataset_Frame").findall("Vertex")
+    ]
 
 
 def test_block_holds_images_and_footprints(spot5_product, tmp_path):
@@ -65,7 +68,7 @@ def test_existing_block_needs_overwrite(spot5_product, tmp_path):
 
 
 def test_cancel_leaves_existing_block_and_no_partial_file(spot5_product, tmp_path):
-    other = shutil.copytree(spot5_product.parent, tmp_path / "other" / "HRG1")     # a second product, same name
+    other = shutil.copytree(spot5_product.parent, tmp_path / "other" / "HRG1")  # a second product, same name
     images = Block.open_images([str(spot5_product), str(other / "METADATA.DIM")])
     assert [n for n, *_ in images] == ["HRG1", "HRG1_2"]
     path = Block.create(tmp_path / "b.gpkg", images[:1]).path
@@ -81,14 +84,23 @@ def test_an_image_given_twice_is_refused(spot5_product, tmp_path):
     (tmp_path / "links").mkdir()
     (tmp_path / "links" / "symbolic.DIM").symlink_to(spot5_product)
     (tmp_path / "links" / "hard.DIM").hardlink_to(spot5_product)
-    for second in (spot5_product, tmp_path / "links" / "symbolic.DIM", tmp_path / "links" / "hard.DIM",
-                   tmp_path / "HRG1" / ".." / "HRG1" / "METADATA.DIM"):
-        with pytest.raises(InputError, match=rf"images 1 and 2 \({spot5_product} and {second}\) are (the same path|one "
-                                             "file): a block holds each image once"):
+    for second in (
+        spot5_product,
+        tmp_path / "links" / "symbolic.DIM",
+        tmp_path / "links" / "hard.DIM",
+        tmp_path / "HRG1" / ".." / "HRG1" / "METADATA.DIM",
+    ):
+        with pytest.raises(
+            InputError,
+            match=rf"images 1 and 2 \({spot5_product} and {second}\) are (the same path|one "
+            "file): a block holds each image once",
+        ):
             Block.open_images([str(spot5_product), str(second)])
     # the product by its folder and by its metadata: one METADATA.DIM, one image
-    with pytest.raises(InputError, match="orientations of images 1 and 2 .* are the same path: each image has an "
-                                         "orientation of its own"):
+    with pytest.raises(
+        InputError,
+        match="orientations of images 1 and 2 .* are the same path: each image has an orientation of its own",
+    ):
         Block.open_images([str(spot5_product.parent), str(spot5_product)])
 
 
@@ -114,12 +126,13 @@ def test_model_loaded_from_product_folder_equals_metadata(spot5_product):
 def test_block_records_terrain_height_range_and_logs_steps(spot5_product, tmp_path):
     from pushbroom.algorithms.dem import Dem
     from pushbroom.algorithms.dem_store import stored_copy
+
     images = Block.open_images([str(spot5_product)])
     path = Block.create(tmp_path / "b.gpkg", images, height=250.0).path
     assert Block(path).height_range() == (-250.0, 750.0)
     heights = np.full((50, 50), 300.0)
     heights[10:20, 10:20] = 1200.0  # a mountain inside the footprint's box
-    heights[0, 0] = 5000.0          # a peak outside it
+    heights[0, 0] = 5000.0  # a peak outside it
     dem = stored_copy(Dem(heights, (87.0, 0.04, 0.0, 51.0, 0.0, -0.04)), tmp_path)
     path2 = Block.create(tmp_path / "d.gpkg", images, dem=dem).path
     assert Block(path2).height_range() == (300.0, 1200.0)

@@ -1,6 +1,7 @@
 """The block stays consistent when a store is killed (kill -9 of a subprocess) or meets another writer: the
 point layer, the point file and the counts are the old ones or the new ones, never a mix; generations
 count every change of the control points, also one made with plain SQL as QGIS's attribute table would."""
+
 import csv
 import pathlib
 import shutil
@@ -55,7 +56,7 @@ def test_a_store_killed_while_it_builds_the_layer_leaves_the_old_points(blk, tmp
     proc = subprocess.Popen([sys.executable, "-c", STORE, blk, "1500000"], stdout=subprocess.PIPE, text=True, cwd=REPO)
     assert proc.stdout.readline().strip() == "storing"
     deadline = time.time() + 300
-    while not any(t.startswith("mass_points__staged_") for t in tables(blk)):   # the new layer is being built
+    while not any(t.startswith("mass_points__staged_") for t in tables(blk)):  # the new layer is being built
         assert proc.poll() is None and time.time() < deadline, "the store ended before it built its layer"
         time.sleep(0.02)
     time.sleep(0.5)
@@ -65,7 +66,7 @@ def test_a_store_killed_while_it_builds_the_layer_leaves_the_old_points(blk, tmp
     assert Block(blk).info()["mass_points_count"] == "1000"
     assert len(Block(blk).points()) == 1000 == layer_rows(blk)
     leftovers = sorted(f.name for f in tmp_path.glob("b.mass_points.*"))
-    assert len(leftovers) == 2                          # the killed store's folder, not referenced
+    assert len(leftovers) == 2  # the killed store's folder, not referenced
     # the next store removes what the killed one left and switches to its own points
     Block(blk).save_points(two_ray_points(7), display=(FlatModel(), 1, 0.0), replace_fewer=True)
     assert not any(t.startswith("mass_points__staged_") for t in tables(blk))
@@ -94,12 +95,12 @@ def test_generations_count_every_change(small_scene_block, tmp_path):
     after_import = Block(path).generations()
     assert after_import["control_points"] > start["control_points"]
     assert after_import["models"] == start["models"] and after_import["mass_points"] == start["mass_points"]
-    ds = ogr.Open(path, 1)                              # an edit in QGIS's attribute table, through OGR
+    ds = ogr.Open(path, 1)  # an edit in QGIS's attribute table, through OGR
     ds.ExecuteSQL("UPDATE control_points SET h = h + 1 WHERE name = 'P001'")
     ds = None
     assert Block(path).generations()["control_points"] > after_import["control_points"]
     edited = Block(path).generations()
-    ds = ogr.Open(path, 1)                              # the adjustment's residual field is not a change of the set
+    ds = ogr.Open(path, 1)  # the adjustment's residual field is not a change of the set
     ds.GetLayerByName("control_points").CreateField(ogr.FieldDefn("residual_px", ogr.OFTReal))
     ds.ExecuteSQL("UPDATE control_points SET residual_px = 0.5")
     ds = None

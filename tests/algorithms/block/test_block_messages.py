@@ -1,6 +1,7 @@
 """SQLite's failures said in Pushbroom's words, with the right advice (issue 36): an exclusive lock names the
 program that holds it; a file that is no whole block (an SQLite database, a file cut short) says so; a block
 file or folder the user may not write is refused before any work, saying by whom it may be written."""
+
 import json
 import os
 import re
@@ -35,8 +36,9 @@ sys.stdin.read()
 
 def test_an_exclusive_lock_names_the_program_that_holds_it(block, monkeypatch):
     monkeypatch.setattr(schema, "BUSY_TIMEOUT_MS", 300)
-    holder = subprocess.Popen([sys.executable, "-c", HOLD, block], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                              text=True)
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLD, block], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
     try:
         assert holder.stdout.readline().strip() == "locked"
         with pytest.raises(StorageError) as err:
@@ -48,17 +50,20 @@ def test_an_exclusive_lock_names_the_program_that_holds_it(block, monkeypatch):
     # the lock, the program and its process (Linux's /proc/locks), what to do; not SQLite's "check the free space"
     assert re.search(rf"another program \([^,]+, process {holder.pid}\) holds an exclusive lock on it", message)
     assert "run this step again" in message and "free space" not in message
-    assert Block(block).info()["format_version"] == "1"     # readable again once the program has let go
+    assert Block(block).info()["format_version"] == "1"  # readable again once the program has let go
 
 
 def test_files_that_are_no_whole_block_are_named(block, tmp_path, capfd):
     plain = tmp_path / "plain.gpkg"
     with sqlite3.connect(plain) as db:
         db.execute("CREATE TABLE t (a)")
-    with pytest.raises(InputError, match=r"plain.gpkg is not a Pushbroom block \(an SQLite database, but not a "
-                                         r"GeoPackage\)"):
+    with pytest.raises(
+        InputError,
+        match=r"plain.gpkg is not a Pushbroom block \(an SQLite database, but not a "
+        r"GeoPackage\)",
+    ):
         Block(plain).info()
-    assert "bad application_id" not in capfd.readouterr().err     # GDAL's own warning of it is not printed
+    assert "bad application_id" not in capfd.readouterr().err  # GDAL's own warning of it is not printed
     data = open(block, "rb").read()
     half = rf"the file holds {len(data) // 2} bytes, its header records .* \({len(data)}\)"
     for size, fact in ((len(data) // 2, half), (50, "the file holds 50 bytes, less than the 100 of an SQLite header")):
@@ -112,4 +117,4 @@ def test_a_block_the_user_may_not_write_is_refused_before_any_work(block):
         assert f"its folder {os.path.dirname(paths[1])} is not writable by you" in folder_message
         assert "SQLite must create a journal there (b.gpkg-journal)" in folder_message
         assert all("nothing was stored" in m for m in (file_message, folder_message))
-    assert "GDAL" not in result.stderr and "Warning" not in result.stderr      # no GDAL line before them
+    assert "GDAL" not in result.stderr and "Warning" not in result.stderr  # no GDAL line before them

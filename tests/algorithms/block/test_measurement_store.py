@@ -1,6 +1,7 @@
 """MeasurementStore: single edits of a block's control/check points and measurements, each one
 committed SQLite transaction (read back with OGR and control_points.load_control_points), refused
 edits and failures that leave the block as it was, and edits surviving a killed process."""
+
 import shutil
 import subprocess
 import sys
@@ -35,8 +36,10 @@ def stored(path):
     points = {}
     for f in ds.GetLayerByName("control_points"):
         points[f["name"]] = (f["role"], *f.GetGeometryRef().GetPoint(), f["sigma_e"], f["sigma_n"], f["sigma_h"])
-    meas = {(f["point_name"], f["image_id"]): (f["col"], f["row"], f["sigma"])
-            for f in ds.GetLayerByName("image_measurements")}
+    meas = {
+        (f["point_name"], f["image_id"]): (f["col"], f["row"], f["sigma"])
+        for f in ds.GetLayerByName("image_measurements")
+    }
     return points, meas
 
 
@@ -105,27 +108,30 @@ def test_snapshot_restores_an_edited_point(blk):
     assert store.snapshot("nobody") is None
 
 
-@pytest.mark.parametrize("call, message", [
-    (lambda s: s.put_point(**dict(POINT, name="")), "1 to 32 characters"),
-    (lambda s: s.put_point(**dict(POINT, name="x" * 33)), "1 to 32 characters"),
-    (lambda s: s.put_point(**dict(POINT, name=" N1")), "spaces"),
-    (lambda s: s.put_point(**dict(POINT, role="tie")), "role must be one of control, check"),
-    (lambda s: s.put_point(**dict(POINT, lon=float("nan"))), "finite"),
-    (lambda s: s.put_point(**dict(POINT, h=float("inf"))), "finite"),
-    (lambda s: s.put_point(**dict(POINT, lat=91.0)), "not WGS 84 degrees"),
-    (lambda s: s.put_point(**dict(POINT, sigma_n=0.0)), "sigmas east, north, height must be positive"),
-    (lambda s: s.put_point(**dict(POINT, sigma_h=-1.0)), "must be positive"),
-    (lambda s: s.rename_point("P001", "P002"), "P002 exists already"),
-    (lambda s: s.rename_point("nobody", "P099"), "no point 'nobody'"),
-    (lambda s: s.rename_point("P001", ""), "1 to 32 characters"),
-    (lambda s: s.delete_point("nobody"), "no point 'nobody'"),
-    (lambda s: s.put_measurement("nobody", 1, 10.0, 10.0), "no point 'nobody'"),
-    (lambda s: s.put_measurement("P001", 9, 10.0, 10.0), "no image with id 9"),
-    (lambda s: s.put_measurement("P001", 2, 301.0, 10.0), r"outside image HRS1 \(300 x 599 px\)"),
-    (lambda s: s.put_measurement("P001", 1, 10.0, -0.5), "outside image HRG"),
-    (lambda s: s.put_measurement("P001", 1, float("nan"), 1.0), "outside image HRG"),
-    (lambda s: s.put_measurement("P001", 1, 10.0, 10.0, sigma=0.0), "sigma must be positive"),
-])
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda s: s.put_point(**dict(POINT, name="")), "1 to 32 characters"),
+        (lambda s: s.put_point(**dict(POINT, name="x" * 33)), "1 to 32 characters"),
+        (lambda s: s.put_point(**dict(POINT, name=" N1")), "spaces"),
+        (lambda s: s.put_point(**dict(POINT, role="tie")), "role must be one of control, check"),
+        (lambda s: s.put_point(**dict(POINT, lon=float("nan"))), "finite"),
+        (lambda s: s.put_point(**dict(POINT, h=float("inf"))), "finite"),
+        (lambda s: s.put_point(**dict(POINT, lat=91.0)), "not WGS 84 degrees"),
+        (lambda s: s.put_point(**dict(POINT, sigma_n=0.0)), "sigmas east, north, height must be positive"),
+        (lambda s: s.put_point(**dict(POINT, sigma_h=-1.0)), "must be positive"),
+        (lambda s: s.rename_point("P001", "P002"), "P002 exists already"),
+        (lambda s: s.rename_point("nobody", "P099"), "no point 'nobody'"),
+        (lambda s: s.rename_point("P001", ""), "1 to 32 characters"),
+        (lambda s: s.delete_point("nobody"), "no point 'nobody'"),
+        (lambda s: s.put_measurement("nobody", 1, 10.0, 10.0), "no point 'nobody'"),
+        (lambda s: s.put_measurement("P001", 9, 10.0, 10.0), "no image with id 9"),
+        (lambda s: s.put_measurement("P001", 2, 301.0, 10.0), r"outside image HRS1 \(300 x 599 px\)"),
+        (lambda s: s.put_measurement("P001", 1, 10.0, -0.5), "outside image HRG"),
+        (lambda s: s.put_measurement("P001", 1, float("nan"), 1.0), "outside image HRG"),
+        (lambda s: s.put_measurement("P001", 1, 10.0, 10.0, sigma=0.0), "sigma must be positive"),
+    ],
+)
 def test_refused_edits_leave_the_block_unchanged(blk, call, message):
     store = Block(blk).measurement_store()
     before, files = store.load(), stored(blk)
@@ -156,16 +162,18 @@ def test_a_failure_inside_the_transaction_rolls_back(blk, monkeypatch):
 
 def test_edits_survive_a_killed_process(blk):
     """A process that edits and is then killed (SIGKILL, no clean-up) leaves every returned edit in the block."""
-    code = ("import os, signal, sys\n"
-            "from pushbroom.algorithms.block import Block\n"
-            "s = Block(sys.argv[1]).measurement_store()\n"
-            "s.put_point('K1', 'control', -84.19, 36.615, 300.0, 2.5, 2.5, 2.2)\n"
-            "s.put_measurement('K1', 2, 150.5, 200.25)\n"
-            "s.delete_measurement('P001', 1)\n"
-            "s.rename_point('P002', 'R2')\n"
-            "sys.stdout.write('edited\\n')\n"
-            "sys.stdout.flush()\n"
-            "os.kill(os.getpid(), signal.SIGKILL)\n")
+    code = (
+        "import os, signal, sys\n"
+        "from pushbroom.algorithms.block import Block\n"
+        "s = Block(sys.argv[1]).measurement_store()\n"
+        "s.put_point('K1', 'control', -84.19, 36.615, 300.0, 2.5, 2.5, 2.2)\n"
+        "s.put_measurement('K1', 2, 150.5, 200.25)\n"
+        "s.delete_measurement('P001', 1)\n"
+        "s.rename_point('P002', 'R2')\n"
+        "sys.stdout.write('edited\\n')\n"
+        "sys.stdout.flush()\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
     run = subprocess.run([sys.executable, "-c", code, blk], capture_output=True, text=True, timeout=120)
     assert run.returncode == -9 and "edited" in run.stdout
     points, meas = stored(blk)
@@ -178,16 +186,18 @@ def test_edits_survive_a_killed_process(blk):
 def test_an_edit_waits_for_another_writer(blk):
     """Another connection holds a write transaction (QGIS saving the layer, an adjustment storing its
     models): the edit waits for its commit instead of failing."""
-    code = ("import sys, time\n"
-            "from osgeo import ogr\n"
-            "ogr.UseExceptions()\n"
-            "ds = ogr.Open(sys.argv[1], 1)\n"
-            "ds.StartTransaction()\n"
-            "ds.ExecuteSQL(\"UPDATE block_info SET value = 'held' WHERE key = 'default_crs'\")\n"
-            "sys.stdout.write('holding\\n')\n"
-            "sys.stdout.flush()\n"
-            "time.sleep(1.0)\n"
-            "ds.CommitTransaction()\n")
+    code = (
+        "import sys, time\n"
+        "from osgeo import ogr\n"
+        "ogr.UseExceptions()\n"
+        "ds = ogr.Open(sys.argv[1], 1)\n"
+        "ds.StartTransaction()\n"
+        "ds.ExecuteSQL(\"UPDATE block_info SET value = 'held' WHERE key = 'default_crs'\")\n"
+        "sys.stdout.write('holding\\n')\n"
+        "sys.stdout.flush()\n"
+        "time.sleep(1.0)\n"
+        "ds.CommitTransaction()\n"
+    )
     holder = subprocess.Popen([sys.executable, "-c", code, blk], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "holding"

@@ -1,4 +1,5 @@
 """MultiPoints storage beside a block, the point layer, and tie point selection."""
+
 import os
 
 import numpy as np
@@ -65,8 +66,12 @@ def test_parts_hold_the_points_in_id_order(block, tmp_path, monkeypatch):
         assert set(part.observations["point_id"]) == set(part.points["id"])
     assert_same(Block(block).points(), mp)
     index = points_store.read_index(os.path.dirname(parts[0]))
-    assert [(p["first_id"], p["last_id"]) for p in index["parts"]] == [(1, 1000), (1001, 2000), (2001, 3000),
-                                                                      (3001, 3500)]
+    assert [(p["first_id"], p["last_id"]) for p in index["parts"]] == [
+        (1, 1000),
+        (1001, 2000),
+        (2001, 3000),
+        (3001, 3500),
+    ]
 
 
 def test_a_sidecar_of_one_file_is_read_as_one_part(block, tmp_path):
@@ -137,8 +142,8 @@ def test_tie_points_one_per_cell_best_group_then_rho():
 def test_tie_points_keep_observations_and_ids():
     mp = synthetic(5000)
     tie = select_tie_points(mp, cell=100)
-    assert 90 <= len(tie) <= 100                            # 10 x 10 cells, all occupied
-    assert np.all(tie.points["group"] == 3)                 # group 3 exists in every cell
+    assert 90 <= len(tie) <= 100  # 10 x 10 cells, all occupied
+    assert np.all(tie.points["group"] == 3)  # group 3 exists in every cell
     col, row = tie.coordinates(1)
     cells = np.floor(row / 100) * 10 + np.floor(col / 100)
     assert len(np.unique(cells)) == len(tie)

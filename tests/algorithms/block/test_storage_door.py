@@ -1,5 +1,6 @@
 """One storage door: only algorithms/block/ writes the block's GeoPackage and its point files. The test reads the
 source of algorithms/, plugin/ and ui/ and names the file and line of every GeoPackage/SQLite write elsewhere."""
+
 import ast
 import pathlib
 import re
@@ -14,11 +15,27 @@ ALLOWED = {
     "algorithms/surface/gap_fill.py": "pushbroom:interpolatedem's DEM (a GeoTIFF, temporary name) filled in place",
 }
 #: OGR calls that change a data source
-WRITE_METHODS = {"CreateDataSource", "CreateLayer", "DeleteLayer", "CreateField", "DeleteField", "AlterFieldDefn",
-                 "CreateFeature", "SetFeature", "UpsertFeature", "DeleteFeature", "StartTransaction",
-                 "CommitTransaction", "savez", "savez_compressed", "executemany", "executescript"}
-WRITE_SQL = re.compile(r"\s*(INSERT|UPDATE|DELETE|REPLACE|CREATE|DROP|ALTER|RECOMPUTE|VACUUM|PRAGMA\s+\w+\s*=)",
-                       re.IGNORECASE)
+WRITE_METHODS = {
+    "CreateDataSource",
+    "CreateLayer",
+    "DeleteLayer",
+    "CreateField",
+    "DeleteField",
+    "AlterFieldDefn",
+    "CreateFeature",
+    "SetFeature",
+    "UpsertFeature",
+    "DeleteFeature",
+    "StartTransaction",
+    "CommitTransaction",
+    "savez",
+    "savez_compressed",
+    "executemany",
+    "executescript",
+}
+WRITE_SQL = re.compile(
+    r"\s*(INSERT|UPDATE|DELETE|REPLACE|CREATE|DROP|ALTER|RECOMPUTE|VACUUM|PRAGMA\s+\w+\s*=)", re.IGNORECASE
+)
 
 
 def _literal_prefix(node):
@@ -64,16 +81,18 @@ def storage_writes(source):
 
 
 def test_scanner_catches_writes():
-    source = ("import sqlite3\n"
-              "ds = ogr.Open(path, 1)\n"
-              "ds.ExecuteSQL(f'DELETE FROM {table}')\n"
-              "ds.ExecuteSQL('SELECT 1')\n"
-              "layer.CreateFeature(feat)\n"
-              "np.savez(f, points=p)\n"
-              "gdal.OpenEx(path, gdal.OF_VECTOR | gdal.OF_UPDATE)\n"
-              "ogr.Open(path, update=0)\n"
-              "gdal.Open(path, gdal.GA_ReadOnly)\n"
-              "gdal.Open(path, gdal.GA_Update)\n")
+    source = (
+        "import sqlite3\n"
+        "ds = ogr.Open(path, 1)\n"
+        "ds.ExecuteSQL(f'DELETE FROM {table}')\n"
+        "ds.ExecuteSQL('SELECT 1')\n"
+        "layer.CreateFeature(feat)\n"
+        "np.savez(f, points=p)\n"
+        "gdal.OpenEx(path, gdal.OF_VECTOR | gdal.OF_UPDATE)\n"
+        "ogr.Open(path, update=0)\n"
+        "gdal.Open(path, gdal.GA_ReadOnly)\n"
+        "gdal.Open(path, gdal.GA_Update)\n"
+    )
     assert [line for line, _ in storage_writes(source)] == [1, 2, 3, 5, 6, 7, 10]
 
 

@@ -1,6 +1,7 @@
 """Dense matching of the simulated SPOT 5 triplet against its truth: the image-2 positions of the lattice, the
 rows corrected for the supplied orientation's error, the same points on any number of workers, and a
 textureless pair that gives no point and a warning."""
+
 import numpy as np
 import pytest
 
@@ -27,10 +28,10 @@ def test_lattice_and_disparity_sampling_against_numpy():
     d = sample_disparity(disp, u, v, 1.0)
     expect0 = 0.5 * (0.75 * 1.0 + 0.25 * 2.0) + 0.5 * (0.75 * 1.5 + 0.25 * 1.9)
     assert d[0] == pytest.approx(expect0, abs=1e-6)
-    assert np.isnan(d[1])             # a NaN among the four
-    assert np.isnan(d[2])             # 1.0 ... 5.0: two surfaces
+    assert np.isnan(d[1])  # a NaN among the four
+    assert np.isnan(d[2])  # 1.0 ... 5.0: two surfaces
     assert d[3] == pytest.approx(1.0)
-    assert np.isnan(d[4])             # off the last column
+    assert np.isnan(d[4])  # off the last column
 
 
 @pytest.fixture(scope="module")
@@ -39,36 +40,50 @@ def scene(small_scene):
 
 
 def test_dense_positions_against_the_truth(scene, figures):
-    x1, y1, x2, y2, info = match_pair_tile(scene.image1, scene.image2, scene.model1, scene.model2,
-                                           (44, 44, 556, 556), scene.height_range, DenseParams())
+    x1, y1, x2, y2, info = match_pair_tile(
+        scene.image1, scene.image2, scene.model1, scene.model2, (44, 44, 556, 556), scene.height_range, DenseParams()
+    )
     tx, ty, cls = scene.truth(x1, y1)
     # the supplied orientation is off by about 30 m: image 2 lies 0.7 epipolar rows off the models' rows,
     # which the tile's seeds measure
     truth_offset = np.median(info["grid"].epipolar2(tx, ty)[1] - info["grid"].epipolar1(x1, y1)[1])
-    figures.report("dense HRG-HRS1 tile, image 2 off the models' epipolar rows", info["row_offset"], "px",
-                   f"from {info['seeds']} seeds; truth {truth_offset:.3f} px")
+    figures.report(
+        "dense HRG-HRS1 tile, image 2 off the models' epipolar rows",
+        info["row_offset"],
+        "px",
+        f"from {info['seeds']} seeds; truth {truth_offset:.3f} px",
+    )
     assert abs(info["row_offset"] - truth_offset) < 0.05 and abs(truth_offset) > 0.5
     err = np.hypot(x2 - tx, y2 - ty)
     for c in np.unique(cls):
         m = cls == c
-        figures.report(f"dense HRG-HRS1 on {CLASSES[c]}, matched", np.isfinite(x2[m]).mean() * 100, "%",
-                       f"median |error| {np.nanmedian(err[m]):.3f} px of HRS1")
+        figures.report(
+            f"dense HRG-HRS1 on {CLASSES[c]}, matched",
+            np.isfinite(x2[m]).mean() * 100,
+            "%",
+            f"median |error| {np.nanmedian(err[m]):.3f} px of HRS1",
+        )
     bare = cls == BARE
     assert np.isfinite(x2[bare]).mean() > 0.85 and np.nanmedian(err[bare]) < 0.3
     assert np.nanpercentile(err[bare], 90) < 1.0
     # LSM in the original images, on every 3rd lattice node
     k = np.arange(0, x1.size, 3)
-    rx, ry, rho, major, _ = refine_positions(scene.image1, scene.image2, scene.model1, scene.model2, x1[k], y1[k],
-                                             x2[k], y2[k], scene.height_range)
+    rx, ry, rho, major, _ = refine_positions(
+        scene.image1, scene.image2, scene.model1, scene.model2, x1[k], y1[k], x2[k], y2[k], scene.height_range
+    )
     done = np.isfinite(rho)
     moved = np.hypot(rx - x2[k], ry - y2[k])
     assert (moved[~done & np.isfinite(x2[k])] == 0).all() and (moved[done] < 0.5).all()
     assert np.isfinite(major[done]).all() and (rho[done] > 0.6).all()
     refined_err = np.hypot(rx - tx[k], ry - ty[k])
     open_ground = done & (bare[k] | (cls[k] == CROPS))
-    figures.report("dense HRG-HRS1 refined by LSM on open ground", open_ground.sum() / np.isfinite(x2[k]).sum() * 100,
-                   "% of the matched", f"median |error| {np.median(refined_err[open_ground]):.3f} px of HRS1, "
-                   f"{np.median(err[k][open_ground]):.3f} px before")
+    figures.report(
+        "dense HRG-HRS1 refined by LSM on open ground",
+        open_ground.sum() / np.isfinite(x2[k]).sum() * 100,
+        "% of the matched",
+        f"median |error| {np.median(refined_err[open_ground]):.3f} px of HRS1, "
+        f"{np.median(err[k][open_ground]):.3f} px before",
+    )
     assert np.median(refined_err[open_ground]) < 0.75 * np.median(err[k][open_ground])
 
 
@@ -76,8 +91,17 @@ def test_the_points_do_not_depend_on_the_workers(small_scene, tmp_path):
     images = [small_scene["images"][n]["imagery"] for n in NAMES]
     models = [sensors.load(small_scene["images"][n]["metadata"]) for n in NAMES]
     hr = Scene(small_scene).height_range
-    runs = [match_dense_tiles(images, models, tmp_path / f"run{w}", params=DenseParams(tile=256, step=4),
-                              height_range=hr, execution=Execution("threads", w)) for w in (1, 2)]
+    runs = [
+        match_dense_tiles(
+            images,
+            models,
+            tmp_path / f"run{w}",
+            params=DenseParams(tile=256, step=4),
+            height_range=hr,
+            execution=Execution("threads", w),
+        )
+        for w in (1, 2)
+    ]
     (one, stats), (two, _) = runs
     assert len(one) == 9 and stats["points"] > 0.6 * (600 // 4) * (599 // 4) and stats["group_2"] > 0
     for a, b in zip(one, two):
@@ -103,8 +127,14 @@ def test_a_textureless_pair_gives_no_point_and_a_warning(small_scene, tmp_path):
     models = [sensors.load(small_scene["images"][n]["metadata"]) for n in NAMES[:2]]
     images = [np.full((m.size[1], m.size[0]), 90.0, np.float32) for m in models]
     feedback = Feedback()
-    parts, stats = match_dense_tiles(images, models, tmp_path / "flat", params=DenseParams(tile=300, step=3),
-                                     height_range=Scene(small_scene).height_range, feedback=feedback)
+    parts, stats = match_dense_tiles(
+        images,
+        models,
+        tmp_path / "flat",
+        params=DenseParams(tile=300, step=3),
+        height_range=Scene(small_scene).height_range,
+        feedback=feedback,
+    )
     assert stats["points"] == 0 and all(len(p) == 0 for p in parts)
     assert any("gave no point" in m for m in feedback.messages)
 
@@ -119,8 +149,14 @@ def test_mpgc_refines_more_three_ray_points_and_better(small_scene, tmp_path, fi
     truth = {k: scene.truth_model(n) for k, n in enumerate(NAMES, start=1)}
     rows = {}
     for mpgc in (False, True):
-        parts, stats = match_dense_tiles(images, models, tmp_path / f"mpgc{mpgc}", params=DenseParams(
-            tile=256, step=4, mpgc=mpgc), height_range=scene.height_range, execution=Execution("threads", 2))
+        parts, stats = match_dense_tiles(
+            images,
+            models,
+            tmp_path / f"mpgc{mpgc}",
+            params=DenseParams(tile=256, step=4, mpgc=mpgc),
+            height_range=scene.height_range,
+            execution=Execution("threads", 2),
+        )
         points = np.concatenate([p.points for p in parts])
         obs = np.concatenate([p.observations for p in parts])
         res = intersection.intersect(truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"])
@@ -130,9 +166,13 @@ def test_mpgc_refines_more_three_ray_points_and_better(small_scene, tmp_path, fi
         open_ground = np.isin(scene.classes[scene._cell(lon, lat)], (BARE, CROPS))
         m = open_ground & (res.rays[ok] == 3) & np.isfinite(points["rho_min"][slot])
         dh = h[m] - scene.dsm.height(lon[m], lat[m])
-        rows[mpgc] = (int(m.sum()), float(np.sqrt(np.mean(dh ** 2))), stats.get("refined_mpgc", 0))
-        figures.report(f"dense three-ray points on open ground, {'MPGC' if mpgc else 'pairwise LSM'}: height RMS",
-                       rows[mpgc][1], "m", f"{rows[mpgc][0]} refined points, every 4th pixel")
+        rows[mpgc] = (int(m.sum()), float(np.sqrt(np.mean(dh**2))), stats.get("refined_mpgc", 0))
+        figures.report(
+            f"dense three-ray points on open ground, {'MPGC' if mpgc else 'pairwise LSM'}: height RMS",
+            rows[mpgc][1],
+            "m",
+            f"{rows[mpgc][0]} refined points, every 4th pixel",
+        )
     assert rows[False][2] == 0 and rows[True][2] > 0.5 * rows[False][0]
     # the robust pairwise LSM narrowed the gap (1.79 against 1.72 m; 1.93 with the plain one): MPGC's gain is
     # mostly the count
@@ -144,10 +184,10 @@ def test_isolated_refinements_on_the_lattice():
     step = 2
     x, y = lattice((0, 0, 40, 30), step)
     nodes = np.zeros((15, 20), bool)
-    nodes[2:6, 2:6] = True                  # a block: each node has at least 3 refined around it
-    nodes[10, 14] = True                    # alone
-    nodes[10, 3] = nodes[11, 4] = True      # a pair: one neighbour each
-    nodes[12, 10] = nodes[12, 11] = nodes[13, 12] = nodes[14, 10] = True    # four within reach of each other
+    nodes[2:6, 2:6] = True  # a block: each node has at least 3 refined around it
+    nodes[10, 14] = True  # alone
+    nodes[10, 3] = nodes[11, 4] = True  # a pair: one neighbour each
+    nodes[12, 10] = nodes[12, 11] = nodes[13, 12] = nodes[14, 10] = True  # four within reach of each other
     lone = isolated(x, y, nodes.ravel(), step).reshape(nodes.shape)
     assert set(zip(*np.nonzero(lone))) == {(10, 14), (10, 3), (11, 4)}
     assert not isolated(x, y, np.zeros(x.size, bool), step).any()
@@ -162,6 +202,7 @@ def test_the_initial_affine_once_per_cell(scene, figures):
     cx, cy = ((np.floor(v / AFFINE_CELL) + 0.5) * AFFINE_CELL for v in (x, y))
     at_cell = np.column_stack(local_affine(scene.model1, scene.model2, cx, cy, h)[2:])
     worst = float(np.abs(at_pixel - at_cell).max())
-    figures.report("largest difference of the affine within a cell", worst, "",
-                   f"{worst * 9:.1e} px at a 19 px template's edge")
+    figures.report(
+        "largest difference of the affine within a cell", worst, "", f"{worst * 9:.1e} px at a 19 px template's edge"
+    )
     assert worst < 2e-4

@@ -1,6 +1,7 @@
 """Epipolar grids against the sensor models they come from: conjugate points on one row over the height
 range (real Pleiades RPCs, simulated SPOT 5 HRG/HRS), the disparity's sign and range, the epipolar
 pixel's ground size against PROJ, and the pairs that have no epipolar geometry."""
+
 import numpy as np
 import pytest
 from osgeo import osr
@@ -11,7 +12,7 @@ from pushbroom.algorithms.dense.epipolar import disparity_range, epipolar_grid
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.pair_geometry import predict
 
-ROW_TOLERANCE = 0.05    # epipolar px: issue 22's bound
+ROW_TOLERANCE = 0.05  # epipolar px: issue 22's bound
 
 
 def spot_pair(small_scene, first, second):
@@ -54,10 +55,14 @@ def test_conjugate_points_lie_on_one_row_over_the_height_range(case, figures):
         d.append(u2 - u1)
         dv.append(np.abs(v2 - v1))
     d, dv = np.array(d), np.array(dv)
-    figures.report(f"epipolar row error, {type(model1).__name__} tile {box} over {hr[1] - hr[0]:.0f} m, max",
-                   dv.max(), "px", f"stated {grid.row_error:.4f} px; disparity {d.min():.1f} .. {d.max():.1f} px")
+    figures.report(
+        f"epipolar row error, {type(model1).__name__} tile {box} over {hr[1] - hr[0]:.0f} m, max",
+        dv.max(),
+        "px",
+        f"stated {grid.row_error:.4f} px; disparity {d.min():.1f} .. {d.max():.1f} px",
+    )
     assert dv.max() < ROW_TOLERANCE and grid.row_error < ROW_TOLERANCE
-    assert (np.diff(d, axis=0) > 0).all()               # the disparity grows with the height
+    assert (np.diff(d, axis=0) > 0).all()  # the disparity grows with the height
     d_lo, d_hi = disparity_range(model1, model2, grid, hr)
     assert d_lo - 0.5 <= d.min() and d.max() <= d_hi + 0.5
     # the grid's positions are the model's: image 2 at the middle height, to the stated error
@@ -80,8 +85,9 @@ def pixel_area(model, x, y, h):
     """Ground area (m^2) of the pixel centred at (x, y) at height h, from its corners through PROJ."""
     xs, ys = np.array([x - 0.5, x + 0.5, x + 0.5, x - 0.5]), np.array([y - 0.5, y - 0.5, y + 0.5, y + 0.5])
     p = ecef(*model.image_to_ground(xs, ys, np.full(4, h)), np.full(4, h))
-    return 0.5 * (np.linalg.norm(np.cross(p[1] - p[0], p[3] - p[0]))
-                  + np.linalg.norm(np.cross(p[1] - p[2], p[3] - p[2])))
+    return 0.5 * (
+        np.linalg.norm(np.cross(p[1] - p[0], p[3] - p[0])) + np.linalg.norm(np.cross(p[1] - p[2], p[3] - p[2]))
+    )
 
 
 @pytest.mark.parametrize("first, second", [("HRG", "HRS1"), ("HRS1", "HRG")])
@@ -102,6 +108,7 @@ def test_the_epipolar_pixel_is_the_coarser_image_s_ground_sample(small_scene, fi
 
 class Elsewhere:
     """A model whose every ground point lies outside its image (NaN): a pair that does not overlap."""
+
     size = (100, 100)
 
     def ground_to_image(self, lon, lat, h):
@@ -114,6 +121,6 @@ class Elsewhere:
 def test_a_pair_without_epipolar_geometry_is_a_clear_error(small_scene):
     (m1, _), hr = spot_pair(small_scene, "HRG", "HRS1")
     with pytest.raises(InputError, match="parallel"):
-        epipolar_grid(m1, m1, (0, 0, 200, 200), hr)          # one image twice: no stereo base
+        epipolar_grid(m1, m1, (0, 0, 200, 200), hr)  # one image twice: no stereo base
     with pytest.raises(InputError, match="do not overlap"):
         epipolar_grid(m1, Elsewhere(), (0, 0, 200, 200), hr)

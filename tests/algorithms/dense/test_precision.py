@@ -1,4 +1,5 @@
 """The dense points' image sigmas and surface term (dense/precision.py), against the formulas written out."""
+
 import numpy as np
 import pytest
 
@@ -16,25 +17,44 @@ def table(rows, dtype):
 
 def test_sigmas_of_refined_dense_points_and_the_default_elsewhere():
     nan = np.nan
-    points = table([{"id": 1, "flags": DENSE, "rho_min": 0.9},          # refined, three rays
-                    {"id": 2, "flags": DENSE, "rho_min": 0.8},          # refined, two rays
-                    {"id": 3, "flags": DENSE, "rho_min": nan},          # a semi-global position left
-                    {"id": 4, "flags": REFINED, "rho_min": 0.9}], POINT_DTYPE)   # region growing
-    obs = table([{"point_id": 1, "image_id": 1, "rho": nan},
-                 {"point_id": 1, "image_id": 2, "rho": 0.9, "semi_major": 0.06},
-                 {"point_id": 1, "image_id": 3, "rho": 0.95, "semi_major": 0.04},
-                 {"point_id": 2, "image_id": 1, "rho": nan},
-                 {"point_id": 2, "image_id": 2, "rho": 0.8, "semi_major": 0.1},
-                 {"point_id": 3, "image_id": 1, "rho": nan},
-                 {"point_id": 3, "image_id": 2, "rho": 0.9, "semi_major": 0.05},
-                 {"point_id": 3, "image_id": 3, "rho": nan, "semi_major": nan},
-                 {"point_id": 4, "image_id": 1, "rho": nan},
-                 {"point_id": 4, "image_id": 2, "rho": 0.9, "semi_major": 0.05}], OBS_DTYPE)
+    points = table(
+        [
+            {"id": 1, "flags": DENSE, "rho_min": 0.9},  # refined, three rays
+            {"id": 2, "flags": DENSE, "rho_min": 0.8},  # refined, two rays
+            {"id": 3, "flags": DENSE, "rho_min": nan},  # a semi-global position left
+            {"id": 4, "flags": REFINED, "rho_min": 0.9},
+        ],
+        POINT_DTYPE,
+    )  # region growing
+    obs = table(
+        [
+            {"point_id": 1, "image_id": 1, "rho": nan},
+            {"point_id": 1, "image_id": 2, "rho": 0.9, "semi_major": 0.06},
+            {"point_id": 1, "image_id": 3, "rho": 0.95, "semi_major": 0.04},
+            {"point_id": 2, "image_id": 1, "rho": nan},
+            {"point_id": 2, "image_id": 2, "rho": 0.8, "semi_major": 0.1},
+            {"point_id": 3, "image_id": 1, "rho": nan},
+            {"point_id": 3, "image_id": 2, "rho": 0.9, "semi_major": 0.05},
+            {"point_id": 3, "image_id": 3, "rho": nan, "semi_major": nan},
+            {"point_id": 4, "image_id": 1, "rho": nan},
+            {"point_id": 4, "image_id": 2, "rho": 0.9, "semi_major": 0.05},
+        ],
+        OBS_DTYPE,
+    )
     got = image_sigmas(points, obs, 0.5)
     f2, f3, r2 = CALIBRATION[2], CALIBRATION[3], np.sqrt(2.0)
-    want = [f3 * 0.04 / r2, f3 * 0.06 / r2, f3 * 0.04 / r2,     # the reference: the smaller of its pairs
-            f2 * 0.1 / r2, f2 * 0.1 / r2,
-            0.5, 0.5, 0.5, 0.5, 0.5]
+    want = [
+        f3 * 0.04 / r2,
+        f3 * 0.06 / r2,
+        f3 * 0.04 / r2,  # the reference: the smaller of its pairs
+        f2 * 0.1 / r2,
+        f2 * 0.1 / r2,
+        0.5,
+        0.5,
+        0.5,
+        0.5,
+        0.5,
+    ]
     assert got == pytest.approx(want, rel=1e-6)
     assert image_sigmas(points, obs, 0.5, {2: 1.0, 3: 1.0})[1] == pytest.approx(0.06 / r2, rel=1e-6)
 

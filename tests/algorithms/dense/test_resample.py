@@ -1,6 +1,7 @@
 """Epipolar images against the positions their grid gives: Keys' cubic reproduces a quadratic exactly,
 so each sample must equal the quadratic at its grid position; NaN exactly where the support leaves the
 image."""
+
 import numpy as np
 
 from pushbroom.algorithms import sensors
@@ -20,12 +21,14 @@ def test_epipolar_image_samples_the_image_at_the_grid_positions(pleiades_triplet
     grid = epipolar_grid(m1, m2, (700, 700, 1000, 1000), (2000.0, 2600.0), step=16)
     epi = epipolar_image(img, grid.p, grid.step)
     assert epi.shape == grid.shape and epi.dtype == np.float32
-    v, u = np.mgrid[0:epi.shape[0], 0:epi.shape[1]]
+    v, u = np.mgrid[0 : epi.shape[0], 0 : epi.shape[1]]
     x, y = grid.image1(grid.u0 + u, grid.v0 + v)
     inside = (x >= 2.5) & (y >= 2.5) & (x < cols - 2.5) & (y < rows - 2.5)
-    assert inside.any() and (~inside).any()            # the tile's grid reaches past the image's edge
-    assert np.isfinite(epi[inside]).all() and np.isnan(epi[~inside & ((x < 1) | (y < 1) | (x > cols - 1)
-                                                                      | (y > rows - 1))]).all()
+    assert inside.any() and (~inside).any()  # the tile's grid reaches past the image's edge
+    assert (
+        np.isfinite(epi[inside]).all()
+        and np.isnan(epi[~inside & ((x < 1) | (y < 1) | (x > cols - 1) | (y > rows - 1))]).all()
+    )
     assert np.abs(epi[inside] - quadratic(x[inside], y[inside])).max() < 2e-3
 
 

@@ -2,6 +2,7 @@
 known disparity field; an image without texture gives no disparity; where image 2 is masked, no disparity
 whose conjugate may be a candidate without a code (the scored candidates' rule, against a loop and on a
 hand-made case)."""
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -17,11 +18,11 @@ def texture(rows, cols, seed=1):
 def test_census_against_numpy():
     img = texture(12, 15).astype(np.float32)
     img[6, 9] = np.nan
-    img[:5, :5] = 50.0                          # a flat window: no code at (2, 2)
+    img[:5, :5] = 50.0  # a flat window: no code at (2, 2)
     codes, valid = sgm.census(img, 2)
     for i in range(12):
         for j in range(15):
-            win = img[max(i - 2, 0):i + 3, max(j - 2, 0):j + 3]
+            win = img[max(i - 2, 0) : i + 3, max(j - 2, 0) : j + 3]
             expect_valid = 2 <= i < 10 and 2 <= j < 13 and np.isfinite(win).all() and np.ptp(win) > 0
             assert valid[i, j] == expect_valid
             if expect_valid:
@@ -31,8 +32,8 @@ def test_census_against_numpy():
 
 def test_cost_winner_and_lr_against_numpy():
     rng = np.random.default_rng(2)
-    c1 = rng.integers(0, 2 ** 24, (6, 20)).astype(np.uint64)
-    c2 = rng.integers(0, 2 ** 24, (6, 25)).astype(np.uint64)
+    c1 = rng.integers(0, 2**24, (6, 20)).astype(np.uint64)
+    c2 = rng.integers(0, 2**24, (6, 25)).astype(np.uint64)
     v1, v2 = rng.random((6, 20)) > 0.1, rng.random((6, 25)) > 0.1
     cv = np.empty((6, 20, 7), np.float32)
     sgm.cost_kernel(c1, v1, c2, v2, -2, np.float32(57.0), cv)
@@ -41,8 +42,8 @@ def test_cost_winner_and_lr_against_numpy():
         ok = v1[i, j] and 0 <= j2 < 25 and v2[i, j2]
         assert cv[i, j, k] == (bin(int(c1[i, j]) ^ int(c2[i, j2])).count("1") if ok else 57.0)
     s = (rng.random((6, 20, 7)) * 50).astype(np.float32)
-    s[0, 0] = 1000.0                                          # no valid cost
-    s[0, 1] = 5.0                                             # flat: nothing to choose
+    s[0, 0] = 1000.0  # no valid cost
+    s[0, 1] = 5.0  # flat: nothing to choose
     disp, cost = np.empty((6, 20), np.float32), np.empty((6, 20), np.float32)
     sgm.winner_kernel(s, -2, np.float32(500.0), disp, cost)
     k = s.argmin(axis=2)
@@ -61,7 +62,7 @@ def test_cost_winner_and_lr_against_numpy():
     sgm.right_kernel(s, -2, np.float32(500.0), 25, disp2)
     for i, j2 in np.ndindex(disp2.shape):
         cands = [(s[i, j2 - d, d + 2], d) for d in range(-2, 5) if 0 <= j2 - d < 20 and s[i, j2 - d, d + 2] < 500]
-        assert (np.isnan(disp2[i, j2]) if not cands else disp2[i, j2] == min(cands)[1])
+        assert np.isnan(disp2[i, j2]) if not cands else disp2[i, j2] == min(cands)[1]
     checked = disp.copy()
     sgm.lr_check_kernel(checked, disp2, np.float32(1.0))
     for i, j in np.ndindex(disp.shape):
@@ -87,8 +88,12 @@ def test_disparity_of_a_known_field(figures):
     img1, img2, truth = shifted_pair()
     disp = sgm.disparity(img1, img2, (-5, 20))
     err = np.abs(disp - truth)
-    figures.report("SGM on a known disparity field, valid", np.isfinite(disp).mean() * 100, "%",
-                   f"median |error| {np.nanmedian(err):.3f} px, 99th percentile {np.nanpercentile(err, 99):.3f} px")
+    figures.report(
+        "SGM on a known disparity field, valid",
+        np.isfinite(disp).mean() * 100,
+        "%",
+        f"median |error| {np.nanmedian(err):.3f} px, 99th percentile {np.nanpercentile(err, 99):.3f} px",
+    )
     assert np.isfinite(disp[3:-3, 3:-3]).mean() > 0.95
     assert np.nanmedian(err) < 0.2 and np.nanpercentile(err, 99) < 0.6
 
@@ -155,5 +160,5 @@ def test_masked_image_2_gives_no_wrong_disparity():
     conjugate = np.rint(np.arange(240) + truth[0]).astype(int)
     clear = ~ndimage.binary_dilation(masked[:, conjugate], np.ones((5, 2 * (int(sgm.LOCAL_SLACK) + 2) + 1), bool))
     clear[:3] = clear[-3:] = False
-    clear[:, :8] = clear[:, -3:] = False            # image 1's edge, and candidates before image 2's
+    clear[:, :8] = clear[:, -3:] = False  # image 1's edge, and candidates before image 2's
     assert kept[clear].mean() > 0.95

@@ -2,6 +2,7 @@
 V fit, accurate cross-checking) on one epipolar pair of the real Pleiades triplet: the same disparities
 where both keep a pixel, and nearly the same pixels kept (the left-right checks differ: pandora matches
 image 2 against image 1 again, we read image 2's disparity off the same aggregated volume)."""
+
 import json
 import pathlib
 import sys
@@ -18,7 +19,7 @@ from pushbroom.algorithms.dense.sgm import SgmParams, disparity
 #: where `make setup` installs pandora, out of the venv (Makefile, PANDORA_DIR)
 PANDORA_DIR = pathlib.Path(__file__).resolve().parents[3] / "build" / "pandora"
 if PANDORA_DIR.is_dir() and str(PANDORA_DIR) not in sys.path:
-    sys.path.append(str(PANDORA_DIR))              # after ours: its wheels bring a `tests` package of their own
+    sys.path.append(str(PANDORA_DIR))  # after ours: its wheels bring a `tests` package of their own
 pandora = pytest.importorskip("pandora", reason=f"pandora is installed into {PANDORA_DIR} by `make setup`")
 NODATA = -9999
 
@@ -31,6 +32,7 @@ def write(path, array):
 
 def test_disparities_agree_with_pandora(pleiades_triplet, tmp_path, figures):
     from pandora.constants import Criteria
+
     m1, m2 = sensors.load(pleiades_triplet[1]), sensors.load(pleiades_triplet[0])
     hr = (0.0, 800.0)
     grid = epipolar_grid(m1, m2, (300, 20, 700, 400), hr)
@@ -43,17 +45,28 @@ def test_disparities_agree_with_pandora(pleiades_triplet, tmp_path, figures):
     write(tmp_path / "left.tif", epi1)
     write(tmp_path / "right.tif", epi2)
     config = {
-        "input": {"left": {"img": str(tmp_path / "left.tif"), "disp": d_range, "nodata": NODATA},
-                  "right": {"img": str(tmp_path / "right.tif"), "nodata": NODATA}},
+        "input": {
+            "left": {"img": str(tmp_path / "left.tif"), "disp": d_range, "nodata": NODATA},
+            "right": {"img": str(tmp_path / "right.tif"), "nodata": NODATA},
+        },
         "pipeline": {
-            "matching_cost": {"matching_cost_method": "census", "window_size": 2 * params.census_radius + 1,
-                              "subpix": 1},
-            "optimization": {"optimization_method": "sgm",
-                             "penalty": {"penalty_method": "sgm_penalty", "P1": params.p1, "P2": params.p2}},
+            "matching_cost": {
+                "matching_cost_method": "census",
+                "window_size": 2 * params.census_radius + 1,
+                "subpix": 1,
+            },
+            "optimization": {
+                "optimization_method": "sgm",
+                "penalty": {"penalty_method": "sgm_penalty", "P1": params.p1, "P2": params.p2},
+            },
             "disparity": {"disparity_method": "wta", "invalid_disparity": "NaN"},
             "refinement": {"refinement_method": "vfit"},
-            "validation": {"validation_method": "cross_checking_accurate",
-                           "cross_checking_threshold": params.lr_tolerance}}}
+            "validation": {
+                "validation_method": "cross_checking_accurate",
+                "cross_checking_threshold": params.lr_tolerance,
+            },
+        },
+    }
     (tmp_path / "config.json").write_text(json.dumps(config))
     pandora.main(str(tmp_path / "config.json"), str(tmp_path / "out"), False)
     theirs = gdal.Open(str(tmp_path / "out" / "left_disparity.tif")).ReadAsArray()
@@ -62,9 +75,13 @@ def test_disparities_agree_with_pandora(pleiades_triplet, tmp_path, figures):
     both = kept & np.isfinite(ours)
     diff = np.abs(ours - theirs)[both]
     one = (kept ^ np.isfinite(ours)).mean()
-    figures.report("dense disparity vs pandora, pixels kept by both", both.mean() * 100, "%",
-                   f"ours {np.isfinite(ours).mean() * 100:.1f} %, pandora {kept.mean() * 100:.1f} %, by one only "
-                   f"{one * 100:.1f} %; |d - d_pandora| 99.9th percentile {np.percentile(diff, 99.9):.4f} px")
+    figures.report(
+        "dense disparity vs pandora, pixels kept by both",
+        both.mean() * 100,
+        "%",
+        f"ours {np.isfinite(ours).mean() * 100:.1f} %, pandora {kept.mean() * 100:.1f} %, by one only "
+        f"{one * 100:.1f} %; |d - d_pandora| 99.9th percentile {np.percentile(diff, 99.9):.4f} px",
+    )
     assert both.mean() > 0.7
     assert np.percentile(diff, 99.9) < 0.01
     assert one < 0.05

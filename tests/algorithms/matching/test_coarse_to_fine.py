@@ -1,6 +1,7 @@
 """Coarse-to-fine multi-primitive matching with MPGC (algorithms/matching/coarse_to_fine.py, issue 7):
 pieces against independent references, and the simulated 3 km SPOT 5 triplet against its truth,
 side by side with region growing (combinations.match_block) by class."""
+
 import numpy as np
 import pytest
 
@@ -28,6 +29,7 @@ NAMES = ("HRG", "HRS1", "HRS2")
 # ------------------------------------------------------------------------------------------
 # pieces
 
+
 def test_window_choice_follows_texture():
     """Strong texture takes the smallest window, weak texture a larger one, flat the largest."""
     rng = np.random.default_rng(1)
@@ -51,11 +53,15 @@ def test_window_choice_follows_tin_roughness():
     gx = np.zeros_like(img)
     gx[:, 1:-1] = (0.5 * (img[:, 2:] - img[:, :-2])) ** 2
     gx[1:-1] += (0.5 * (img[2:] - img[:-2])) ** 2
-    energy = np.array([gx[30 - w // 2:31 + w // 2, 30 - w // 2:31 + w // 2].sum() for w in sizes])
-    spread = np.array([np.mean([np.hypot(i, j) for i in range(-(w // 2), w // 2 + 1)
-                                for j in range(-(w // 2), w // 2 + 1)]) for w in sizes])
-    error = np.sqrt(noise ** 2 * 2 / energy[None] + rate[:, None] * spread[None])
-    assert (error > 0.05).all()                            # no size reaches the target: the smallest error
+    energy = np.array([gx[30 - w // 2 : 31 + w // 2, 30 - w // 2 : 31 + w // 2].sum() for w in sizes])
+    spread = np.array(
+        [
+            np.mean([np.hypot(i, j) for i in range(-(w // 2), w // 2 + 1) for j in range(-(w // 2), w // 2 + 1)])
+            for w in sizes
+        ]
+    )
+    error = np.sqrt(noise**2 * 2 / energy[None] + rate[:, None] * spread[None])
+    assert (error > 0.05).all()  # no size reaches the target: the smallest error
     expected = np.array(sizes)[np.argmin(error, axis=1)] // 2
     halves = window_halves(img, x, y, sizes, noise, 0.05, rate)
     assert list(halves) == list(expected) and halves[0] == 10 and halves[-1] == 4
@@ -70,36 +76,48 @@ def test_hypotheses_agreement_and_relaxation():
     def cand(h, rho, second):
         h, rho = np.array(h, float), np.array(rho, float)
         return {"h": h, "rho": rho, "x": h * 0, "y": h * 0, "second": np.array(second, float)}
-    c1 = cand([[100, 140], [100, nan], [200, 150], [300, nan]], [[.9, .8], [.9, nan], [.8, .79], [.9, nan]],
-              [.8, .3, .79, .5])
-    c2 = cand([[141, 101], [150, nan], [nan, nan], [nan, nan]], [[.9, .7], [.8, nan], [nan, nan], [nan, nan]],
-              [.7, .2, nan, nan])
+
+    c1 = cand(
+        [[100, 140], [100, nan], [200, 150], [300, nan]],
+        [[0.9, 0.8], [0.9, nan], [0.8, 0.79], [0.9, nan]],
+        [0.8, 0.3, 0.79, 0.5],
+    )
+    c2 = cand(
+        [[141, 101], [150, nan], [nan, nan], [nan, nan]],
+        [[0.9, 0.7], [0.8, nan], [nan, nan], [nan, nan]],
+        [0.7, 0.2, nan, nan],
+    )
     h, score, i1, i2 = hypotheses([c1, c2], np.full(4, 2.0))
-    assert np.isfinite(h[0]).sum() == 2                      # two agreeing pairs, no single hypotheses
-    assert np.isfinite(h[1]).sum() == 2                      # no agreement: 100 (image 1) and 150 (image 2)
+    assert np.isfinite(h[0]).sum() == 2  # two agreeing pairs, no single hypotheses
+    assert np.isfinite(h[1]).sum() == 2  # no agreement: 100 (image 1) and 150 (image 2)
     choice = unique_choice(h, score, i1, i2, [c1, c2], peak_ratio=0.9, margin=0.05)
     assert choice[0] >= 0 and h[0, choice[0]] == pytest.approx((0.8 * 140 + 0.9 * 141) / 1.7)
-    assert choice[1] >= 0 and h[1, choice[1]] == 100         # 0.9 vs 0.8 by the margin
-    assert choice[2] < 0 and choice[3] >= 0                  # 0.79 / 0.8: ambiguous; unique
+    assert choice[1] >= 0 and h[1, choice[1]] == 100  # 0.9 vs 0.8 by the margin
+    assert choice[2] < 0 and choice[3] >= 0  # 0.79 / 0.8: ambiguous; unique
     # point 2 (candidates 200 and 150) among neighbours at ~150 m
     x = np.array([0.0, 10.0, 5.0, 30.0])
     y = np.zeros(4)
     hh = np.array([[150.0, nan], [152.0, nan], [200.0, 150.0], [300.0, nan]])
-    ss = np.array([[.9, nan], [.9, nan], [.8, .79], [.9, nan]])
+    ss = np.array([[0.9, nan], [0.9, nan], [0.8, 0.79], [0.9, nan]])
     out = relax(x, y, hh, ss, np.array([0, 0, -1, 0]), np.full(4, 5.0), radius=12.0)
     assert out[2] == 1
     mask = np.zeros((5, 40), bool)
-    mask[:, 7] = True                                        # an edge between x = 5 and 10
+    mask[:, 7] = True  # an edge between x = 5 and 10
     out = relax(x, y, hh, ss, np.array([0, 0, -1, 0]), np.full(4, 5.0), radius=12.0, edge_mask=mask)
-    assert out[2] == 1                                       # still the left neighbour (x = 0)
+    assert out[2] == 1  # still the left neighbour (x = 0)
     assert crosses_edge(mask, x, y, np.array([[2, 1], [0, 2]])).tolist() == [True, False]
 
 
 def test_edge_breaklines():
     """Runs of consecutive matched edgels of one chain become breaklines (full px, height); gaps and
     chain changes cut them, single edgels are no line."""
-    edge = {"x": np.array([1.0, 2.0, 3.0, 5.0, 7.0, 1.0]), "y": np.zeros(6), "h": np.arange(6.0),
-            "chain": np.array([0, 0, 0, 0, 0, 1]), "index": np.array([0, 2, 4, 8, 10, 0])}
+    edge = {
+        "x": np.array([1.0, 2.0, 3.0, 5.0, 7.0, 1.0]),
+        "y": np.zeros(6),
+        "h": np.arange(6.0),
+        "chain": np.array([0, 0, 0, 0, 0, 1]),
+        "index": np.array([0, 2, 4, 8, 10, 0]),
+    }
     lines = edge_breaklines(edge, 3.0, 2)
     assert [line[:, 0].tolist() for line in lines] == [[3.0, 6.0, 9.0], [15.0, 21.0]]
     assert lines[1][:, 2].tolist() == [3.0, 4.0]
@@ -137,12 +155,13 @@ def test_bad_input(small_scene, monkeypatch):
 # ------------------------------------------------------------------------------------------
 # the simulated triplet, side by side with region growing
 
+
 @pytest.fixture(scope="module")
 def both(small_matching_scene, small_scene_matched):
     scene = small_matching_scene
     images = [scene.paths["images"][k]["imagery"] for k in NAMES]
     models = [sensors.load(scene.paths["images"][k]["metadata"]) for k in NAMES]
-    rg = small_scene_matched(GrowParams(), refine=False)   # paper K's, without the MPGC refinement of its group 3
+    rg = small_scene_matched(GrowParams(), refine=False)  # paper K's, without the MPGC refinement of its group 3
     hi = match_coarse_to_fine(images, models, params=CoarseToFineParams(), height_range=scene.height_range)
     return scene, rg, hi, images, models
 
@@ -151,8 +170,9 @@ def both(small_matching_scene, small_scene_matched):
 def with_edge_points(both):
     """The coarse-to-fine matcher with edge points at level 1 and breaklines (off by default)."""
     scene, _, _, images, models = both
-    return match_coarse_to_fine(images, models, params=CoarseToFineParams(edge_points=True),
-                                   height_range=scene.height_range)
+    return match_coarse_to_fine(
+        images, models, params=CoarseToFineParams(edge_points=True), height_range=scene.height_range
+    )
 
 
 def errors(scene, mp):
@@ -192,9 +212,9 @@ def test_triplet_side_by_side_with_region_growing(both):
     cls, err, flags, hit, low = table["coarse_to_fine"]
     hit_rg = table["region growing"][3]
     mpgc_ok = (flags & NCC_ONLY) == 0
-    assert hit[low].mean() > hit_rg[low].mean()                 # acceptance: low texture covered more
+    assert hit[low].mean() > hit_rg[low].mean()  # acceptance: low texture covered more
     open_ok = mpgc_ok & np.isin(cls, SINGLE_SURFACE)
-    assert np.mean(err[open_ok] > 1.0) < 0.02                   # MPGC-accepted on open ground: few blunders
+    assert np.mean(err[open_ok] > 1.0) < 0.02  # MPGC-accepted on open ground: few blunders
     assert np.all((flags & (COMB_A | COMB_B)) == COMB_A | COMB_B)
     assert set(hi.stats["seconds"]) >= {"preprocessing", "level 0", "mpgc"}
 
@@ -221,16 +241,17 @@ def test_triplet_dsm_by_class_against_region_growing(both, with_edge_points, sma
     scene, rg, hi, _, _ = both
     truth = Truth(scene.paths)
     refined = small_scene_matched(GrowParams())
-    tables = compare(truth, {"region growing": rg, "coarse_to_fine": hi, "edge points": with_edge_points,
-                             "RG + MPGC": refined})
+    tables = compare(
+        truth, {"region growing": rg, "coarse_to_fine": hi, "edge points": with_edge_points, "RG + MPGC": refined}
+    )
     r, h, m = tables["region growing"], tables["coarse_to_fine"], tables["RG + MPGC"]
     for name in ("bare", "crops"):
         # refinement: more accurate; coarse-to-fine: more cells
         assert m[name][2] < r[name][2] and h[name][1] > m[name][1]
-    for name in ("bare", "crops"):                           # (cells, coverage, RMS, NMAD, MAE, RMS common)
+    for name in ("bare", "crops"):  # (cells, coverage, RMS, NMAD, MAE, RMS common)
         assert h[name][1] >= r[name][1]
-        assert h[name][2] <= r[name][2]                      # RMS on its own, larger, set of cells
-        assert h[name][5] <= r[name][5]                      # RMS on the common cells
+        assert h[name][2] <= r[name][2]  # RMS on its own, larger, set of cells
+        assert h[name][5] <= r[name][5]  # RMS on the common cells
     assert h["low-tex"][1] > r["low-tex"][1] + 0.2
     assert h["bldg edge"][1] >= r["bldg edge"][1] - 0.03
     assert h["bldg edge"][4] < r["bldg edge"][4]
@@ -244,11 +265,12 @@ def test_tiles_give_the_whole_image_result(both, monkeypatch, figures):
     scene, _, hi, images, models = both
     monkeypatch.setattr(coarse_to_fine, "TILE_MARGIN", 64)
     log = Feedback()
-    tiled = match_coarse_to_fine(images, models, params=CoarseToFineParams(tile=300), height_range=scene.height_range,
-                                    feedback=log)
+    tiled = match_coarse_to_fine(
+        images, models, params=CoarseToFineParams(tile=300), height_range=scene.height_range, feedback=log
+    )
     assert tiled.stats["tiles"] == tiled.stats["tiles_matched"] == 4
     assert sum(t["points"] for t in tiled.stats["per_tile"]) == len(tiled)
-    assert any(m.startswith("tile 4 (") and "points" in m for m in log.messages)      # each tile in the log
+    assert any(m.startswith("tile 4 (") and "points" in m for m in log.messages)  # each tile in the log
     x, y = tiled.coordinates(1)
     assert len(np.unique(np.round(x * 8) + 1e5 * np.round(y * 8))) == len(x)
     shifts = np.array([t["search_image_shifts_px"] for t in tiled.stats["per_tile"]])
@@ -256,17 +278,22 @@ def test_tiles_give_the_whole_image_result(both, monkeypatch, figures):
     assert abs(len(tiled) / len(hi) - 1) < 0.05
     assert abs(tiled.group_counts()[3] / hi.group_counts()[3] - 1) < 0.05
     tables = compare(Truth(scene.paths), {"untiled": hi, "tiled": tiled})
-    figures.table("10 m DSM coverage % / RMS m", [{"run": run, **{name: f"{100 * t[name][1]:.0f} / {t[name][2]:.2f}"
-                                                                  for name in ("bare", "crops")}}
-                                                   for run, t in tables.items()])
+    figures.table(
+        "10 m DSM coverage % / RMS m",
+        [
+            {"run": run, **{name: f"{100 * t[name][1]:.0f} / {t[name][2]:.2f}" for name in ("bare", "crops")}}
+            for run, t in tables.items()
+        ],
+    )
     for name in ("bare", "crops"):
         assert abs(tables["tiled"][name][1] - tables["untiled"][name][1]) < 0.05
         assert abs(tables["tiled"][name][2] - tables["untiled"][name][2]) < 0.1
     stop = Feedback(cancel_at=50.0)
     with pytest.raises(CancelledError):
-        match_coarse_to_fine(images, models, params=CoarseToFineParams(tile=300), height_range=scene.height_range,
-                                feedback=stop)
-    assert max(stop.progress) < 75.0          # stopped in the third of four tiles
+        match_coarse_to_fine(
+            images, models, params=CoarseToFineParams(tile=300), height_range=scene.height_range, feedback=stop
+        )
+    assert max(stop.progress) < 75.0  # stopped in the third of four tiles
 
 
 @pytest.mark.slow
@@ -276,8 +303,9 @@ def test_triplet_edge_points(both):
     both search images, flagged EDGE, most of them MPGC-accepted, and accurate against the point
     truth on open ground (measured: 0.19 px RMS, none > 1 px; the other points 0.3 - 0.45 px)."""
     scene, _, _, images, models = both
-    mp = match_coarse_to_fine(images, models, params=CoarseToFineParams(edge_points=True, edge_min_level=0),
-                                 height_range=scene.height_range)
+    mp = match_coarse_to_fine(
+        images, models, params=CoarseToFineParams(edge_points=True, edge_min_level=0), height_range=scene.height_range
+    )
     cls, err, flags = errors(scene, mp)
     edge = (flags & EDGE) != 0
     assert mp.stats["edge_points"] == int(np.count_nonzero((mp.points["flags"] & EDGE) != 0)) > 1000

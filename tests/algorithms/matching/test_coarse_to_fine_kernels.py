@@ -1,5 +1,6 @@
 """Candidates of all points in one kernel (coarse_to_fine_kernels.path_candidates) against the known
 shift of a synthetic pair and against ncc.ncc_path per point."""
+
 import numpy as np
 from scipy import ndimage
 
@@ -12,12 +13,12 @@ def test_path_candidates_find_the_shift():
     lies at the shift, its rho is ncc_path's best score, and a point without texture has none."""
     rng = np.random.default_rng(4)
     img1 = 100 + 30 * ndimage.gaussian_filter(rng.normal(size=(90, 90)), 2.0) / 0.14
-    img1[:, 70:] = 100.0                                          # blank strip
+    img1[:, 70:] = 100.0  # blank strip
     img2 = ndimage.shift(img1, (0.0, 3.3), order=3, mode="nearest")
     x = np.array([30.5, 45.5, 80.5])
     y = np.array([40.5, 50.5, 40.5])
     k, off = 41, np.arange(-2.0, 3.0)
-    t = np.linspace(0.0, 8.0, k)                                   # path x offsets = "heights"
+    t = np.linspace(0.0, 8.0, k)  # path x offsets = "heights"
     cx = x[:, None, None] + t[None, :, None] + 0.0 * off
     cy = y[:, None, None] + 0.0 * t[None, :, None] + off
     heights = np.tile(t, (3, 1))
@@ -33,5 +34,5 @@ def test_path_candidates_find_the_shift():
         scores = np.empty(k * len(off))
         ncc.ncc_path(img1, img2, x[i], y[i], 5, cx[i].ravel(), cy[i].ravel(), 1.0, 0.0, 0.0, 1.0, scores)
         assert rho[i, 0] == np.nanmax(scores) and rho[i, 0] > 0.99
-        assert not rho[i, 1] > rho[i, 0]                           # best first
+        assert not rho[i, 1] > rho[i, 0]  # best first
     assert np.isnan(h[2]).all() and np.isnan(second[2])

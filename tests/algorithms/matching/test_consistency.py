@@ -1,6 +1,7 @@
 """Forward-backward consistency (algorithms/matching/consistency.py) on a synthetic pair: image 2
 is image 1 under a known affine map, so correct records come back to within a few hundredths of a
 pixel and blundered ones by the size of their error."""
+
 import numpy as np
 import pytest
 
@@ -17,7 +18,7 @@ from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 
-A = np.array([[1.04, 0.03], [-0.02, 0.97]])   # image 1 -> image 2 (GDAL px), plus T
+A = np.array([[1.04, 0.03], [-0.02, 0.97]])  # image 1 -> image 2 (GDAL px), plus T
 T = np.array([3.3, -2.6])
 SIZE = 140
 PARAMS = GrowParams(template=15)
@@ -46,6 +47,7 @@ class AffineModel:
 @pytest.fixture(scope="module")
 def pair():
     from scipy.ndimage import gaussian_filter, map_coordinates
+
     rng = np.random.default_rng(5)
     img1 = 100 + 400 * gaussian_filter(rng.standard_normal((SIZE, SIZE)), 1.5)
     # image 2 at GDAL position p2 shows image 1 at A^-1 (p2 - T)
@@ -70,7 +72,7 @@ def true_records(with_affine=True):
 def test_invert_affine_and_guide():
     b = invert_affine(*A.ravel())
     np.testing.assert_allclose(np.array(b).reshape(2, 2), np.linalg.inv(A))
-    assert np.all(np.isnan(invert_affine(1.0, 2.0, 0.5, 1.0)))          # singular
+    assert np.all(np.isnan(invert_affine(1.0, 2.0, 0.5, 1.0)))  # singular
     rec = true_records()
     guide = back_guide(rec)
     assert np.array_equal(guide["x1"], rec["x2"]) and np.array_equal(guide["x2"], rec["x1"])
@@ -79,8 +81,11 @@ def test_invert_affine_and_guide():
     with pytest.raises(InputError):
         back_guide(true_records(with_affine=False))
     guide = back_guide(true_records(with_affine=False), AffineModel(np.eye(2), (0, 0)), AffineModel(A, T), 0.0)
-    np.testing.assert_allclose(np.column_stack([guide[k] for k in ("a1", "a2", "a4", "a5")]),
-                               np.broadcast_to(np.linalg.inv(A).ravel(), (len(guide), 4)), atol=1e-5)
+    np.testing.assert_allclose(
+        np.column_stack([guide[k] for k in ("a1", "a2", "a4", "a5")]),
+        np.broadcast_to(np.linalg.inv(A).ravel(), (len(guide), 4)),
+        atol=1e-5,
+    )
 
 
 @pytest.mark.parametrize("with_affine", [True, False], ids=["record-affine", "model-affine"])
@@ -107,7 +112,7 @@ def test_blunders_show_their_size(pair):
     np.testing.assert_allclose(d[bad], expected, atol=0.05)
     good = np.setdiff1d(np.arange(len(rec)), bad)
     assert np.nanmax(d[good]) < 0.05
-    np.testing.assert_allclose(back["x1"], rec["x2"])                  # image-2 templates
+    np.testing.assert_allclose(back["x1"], rec["x2"])  # image-2 templates
     s = fb_summary(d, threshold=1.0)
     assert s["over"] == pytest.approx(len(bad) / len(rec)) and s["rms"] > 0.4
     assert "back-matched" in format_fb("test", s)
@@ -116,8 +121,8 @@ def test_blunders_show_their_size(pair):
 def test_unusable_records_give_nan(pair):
     img1, img2, m1, m2 = pair
     rec = true_records()
-    rec["x2"][3] = np.nan                      # no image-2 position
-    rec["x2"][5] = SIZE + 50.0                 # template outside image 2
+    rec["x2"][3] = np.nan  # no image-2 position
+    rec["x2"][5] = SIZE + 50.0  # template outside image 2
     d = forward_backward(img1, img2, m1, m2, rec, PARAMS, HR)
     assert np.isnan(d[3]) and np.isnan(d[5]) and np.isfinite(np.delete(d, [3, 5])).all()
     s = fb_summary(d)

@@ -2,6 +2,7 @@
 edges.py): kernels against numpy/scipy references, edges of synthetic shapes against their analytic
 outlines, and edge matching on a synthetic stereo pair with a known height field (a sloping plane
 with a raised flat roof) and injected look-alike repeats."""
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -16,7 +17,7 @@ from pushbroom.algorithms.matching import edges, edges_kernels as kernels
 def nms_reference(gx, gy, mag, allowed):
     """Interpolated non-maximum suppression, vectorised (same rule as kernels.nms)."""
     nr, nc = mag.shape
-    i, j = np.mgrid[1:nr - 1, 1:nc - 1]
+    i, j = np.mgrid[1 : nr - 1, 1 : nc - 1]
     gxi, gyi, m = gx[i, j], gy[i, j], mag[i, j]
     ax, ay = np.abs(gxi), np.abs(gyi)
     sx = np.where(gxi >= 0, 1, -1)
@@ -61,8 +62,8 @@ def disc_image(size=200, centre=(100.0, 90.0), radius=50.0, contrast=80.0, sub=4
     acc = np.zeros((size, size))
     for dy in o:
         for dx in o:
-            acc += (x + dx - centre[0]) ** 2 + (y + dy - centre[1]) ** 2 < radius ** 2
-    return contrast * acc / sub ** 2
+            acc += (x + dx - centre[0]) ** 2 + (y + dy - centre[1]) ** 2 < radius**2
+    return contrast * acc / sub**2
 
 
 # --------------------------------------------------------------------------------------------
@@ -101,11 +102,11 @@ def test_noise_std_is_recovered_next_to_edges():
 
 
 def test_canny_finds_a_noisy_step_within_one_pixel():
-    img = noisy(step_image(col=60), 3.0, 0)       # the step is at x = 60.0
+    img = noisy(step_image(col=60), 3.0, 0)  # the step is at x = 60.0
     e = edges.canny(img)
     r, c = np.nonzero(e)
     assert np.all(np.abs(c + 0.5 - 60.0) <= 1.0), "no edge pixel away from the step"
-    assert np.unique(r).size >= 96                  # rows 1..98 (the border is never an edge)
+    assert np.unique(r).size >= 96  # rows 1..98 (the border is never an edge)
 
 
 def test_canny_finds_a_noisy_disc_within_one_pixel():
@@ -115,12 +116,12 @@ def test_canny_finds_a_noisy_disc_within_one_pixel():
     dist = np.hypot(c + 0.5 - 100.0, r + 0.5 - 90.0) - 50.0
     assert np.abs(dist).max() <= 1.0
     angle = np.degrees(np.arctan2(r + 0.5 - 90.0, c + 0.5 - 100.0))
-    assert np.unique(np.floor(angle / 2.0)).size == 180      # every 2 degrees of the outline is found
+    assert np.unique(np.floor(angle / 2.0)).size == 180  # every 2 degrees of the outline is found
 
 
 def test_canny_with_nodata_and_explicit_thresholds():
     img = noisy(step_image(col=60), 1.0, 4)
-    img[:, :30] = np.nan                              # nodata: no edge along its border
+    img[:, :30] = np.nan  # nodata: no edge along its border
     img[40:45, 58:62] = np.nan
     e = edges.canny(img, low=5.0, high=10.0)
     r, c = np.nonzero(e)
@@ -144,7 +145,7 @@ def test_link_one_chain_along_the_step():
     assert c.dtype == np.float64 and c.shape[1] == 2 and len(c) >= 96
     assert np.all(np.abs(c[:, 0] - 60.0) <= 1.0)
     steps = np.abs(np.diff(c, axis=0))
-    assert np.all(steps.max(axis=1) == 1.0)            # 8-connected, ordered
+    assert np.all(steps.max(axis=1) == 1.0)  # 8-connected, ordered
     assert np.ptp(c[:, 1]) >= 95
 
 
@@ -154,16 +155,16 @@ def test_link_one_closed_chain_around_the_disc():
     c = chains[0]
     assert np.all(np.abs(np.hypot(c[:, 0] - 100.0, c[:, 1] - 90.0) - 50.0) <= 1.0)
     steps = np.abs(np.diff(np.vstack([c, c[:1]]), axis=0))
-    assert np.all(steps.max(axis=1) == 1.0)            # closed: the last point neighbours the first
+    assert np.all(steps.max(axis=1) == 1.0)  # closed: the last point neighbours the first
     assert 2 * np.pi * 50 / 1.42 < len(c) < 2 * np.pi * 50
 
 
 def test_link_splits_junctions_and_drops_short_chains():
     m = np.zeros((60, 60), bool)
-    m[30, 5:55] = True              # a horizontal line ...
-    m[5:30, 20] = True              # ... with a branch from above (T junction at (30, 20))
-    m[45:50, 40] = True             # a short isolated piece (5 px)
-    for k in range(12):             # a staircase diagonal (redundant corners), no junction
+    m[30, 5:55] = True  # a horizontal line ...
+    m[5:30, 20] = True  # ... with a branch from above (T junction at (30, 20))
+    m[45:50, 40] = True  # a short isolated piece (5 px)
+    for k in range(12):  # a staircase diagonal (redundant corners), no junction
         m[40 + k // 2, 5 + k] = True
     chains = edges.link(m, min_length=6)
     lengths = sorted(len(c) for c in chains)
@@ -171,7 +172,7 @@ def test_link_splits_junctions_and_drops_short_chains():
     # 15 and 34 pixels, each + the junction; the diagonal (two pixels per step) has no junction
     assert lengths == [12, 16, 25, 35], lengths
     ends = [tuple(c[0]) for c in chains] + [tuple(c[-1]) for c in chains]
-    assert ends.count((20.5, 29.5)) == 3        # the three arms meet on the junction pixel
+    assert ends.count((20.5, 29.5)) == 3  # the three arms meet on the junction pixel
     assert len(edges.link(m, min_length=5)) == 5 and edges.link(np.zeros((5, 5))) == []
 
 
@@ -193,7 +194,7 @@ def path_cost(choice, index, step, ncand, d, cost, jump_cost, jump_tol, skip_cos
 
 def test_figural_dp_finds_the_least_cost_sequence():
     rng = np.random.default_rng(11)
-    args = (0.5, 0.5, 0.4, 2)          # jump_cost, jump_tol, skip_cost, max_skip
+    args = (0.5, 0.5, 0.4, 2)  # jump_cost, jump_tol, skip_cost, max_skip
     for trial in range(40):
         n, kmax = 6, 3
         ncand = rng.integers(0, kmax + 1, n)
@@ -203,8 +204,10 @@ def test_figural_dp_finds_the_least_cost_sequence():
         choice = np.empty(n, np.int64)
         kernels.figural_dp(np.array([0, n]), index, 2.0, ncand, d, cost, *args, choice)
         options = [range(-1, k) for k in ncand]
-        best = min(path_cost(np.array(c), index, 2.0, ncand, d, cost, *args) for c in np.array(np.meshgrid(
-            *options, indexing="ij")).reshape(n, -1).T)
+        best = min(
+            path_cost(np.array(c), index, 2.0, ncand, d, cost, *args)
+            for c in np.array(np.meshgrid(*options, indexing="ij")).reshape(n, -1).T
+        )
         got = path_cost(choice, index, 2.0, ncand, d, cost, *args)
         assert (choice < ncand).all()
         if np.isinf(best):
@@ -216,13 +219,13 @@ def test_figural_dp_finds_the_least_cost_sequence():
 # --------------------------------------------------------------------------------------------
 # edge matching: a synthetic stereo pair
 
-K_COL, K_ROW = 0.05, 0.0025     # px of parallax per metre of height (search = ref + K h)
+K_COL, K_ROW = 0.05, 0.0025  # px of parallax per metre of height (search = ref + K h)
 H_RANGE = (-50.0, 450.0)
-ROOF = (60.0, 120.0, 40.0, 110.0)       # x0, x1, y0, y1 of a flat roof, ROOF_H above the plane
+ROOF = (60.0, 120.0, 40.0, 110.0)  # x0, x1, y0, y1 of a flat roof, ROOF_H above the plane
 ROOF_H = 100.0
-ROAD = (180.0, 184.0)                    # a dark vertical road at these x
-REPEAT_ROWS = (60, 110)                  # search-image rows where a look-alike copy of the road is pasted ...
-REPEAT_SHIFT = (20, 1)                   # ... shifted by these (cols, rows): the height 400 m
+ROAD = (180.0, 184.0)  # a dark vertical road at these x
+REPEAT_ROWS = (60, 110)  # search-image rows where a look-alike copy of the road is pasted ...
+REPEAT_SHIFT = (20, 1)  # ... shifted by these (cols, rows): the height 400 m
 
 
 def predict(col, row, h):
@@ -253,15 +256,15 @@ def scene_pair(shape=(150, 230), seed=7, noise=2.0, sub=3):
 
     def albedo(x, y):
         g = 100.0 + ndimage.map_coordinates(tex, [y - 0.5 + pad, x - 0.5 + pad], order=1, mode="nearest")
-        g += 50.0 * ((x - 170.0) ** 2 + (y - 40.0) ** 2 < 18.0 ** 2)         # a bright disc on the ground
+        g += 50.0 * ((x - 170.0) ** 2 + (y - 40.0) ** 2 < 18.0**2)  # a bright disc on the ground
         g -= 45.0 * ((x >= ROAD[0]) & (x < ROAD[1]))
         return np.where(in_roof(x, y), 160.0 + 0.5 * (g - 100.0), g)
 
     o = (np.arange(sub) + 0.5) / sub
-    yy, xx = np.mgrid[:shape[0], :shape[1]].astype(float)
+    yy, xx = np.mgrid[: shape[0], : shape[1]].astype(float)
     ref = np.zeros(shape)
     search = np.zeros(shape)
-    m = np.array([[1 + K_COL * 0.2, K_COL * 0.1], [K_ROW * 0.2, 1 + K_ROW * 0.1]])   # (x, y) -> (x2, y2) linear part
+    m = np.array([[1 + K_COL * 0.2, K_COL * 0.1], [K_ROW * 0.2, 1 + K_ROW * 0.1]])  # (x, y) -> (x2, y2) linear part
     minv = np.linalg.inv(m)
     h0 = 120.0 - 0.2 * 110.0 - 0.1 * 80.0
     for dy in o:
@@ -276,7 +279,7 @@ def scene_pair(shape=(150, 230), seed=7, noise=2.0, sub=3):
             roof = in_roof(rx, ry)
             wall = ~roof & in_roof(gx, gy)
             search += np.where(roof, albedo(rx, ry), np.where(wall, 70.0, albedo(gx, gy)))
-    ref, search = ref / sub ** 2, search / sub ** 2
+    ref, search = ref / sub**2, search / sub**2
     clean_ref = ref.copy()
     ref = noisy(ref, noise, seed + 1)
     search = noisy(search, noise, seed + 2)
@@ -317,7 +320,7 @@ def test_match_edges_recovers_the_disparity(pair, figures):
     gx, gy, _ = edges.gradients(ref)
     i, j = rec["row"].astype(int), rec["col"].astype(int)
     crossing = np.abs(gx[i, j] * K_COL + gy[i, j] * K_ROW) / (np.hypot(gx[i, j], gy[i, j]) * np.hypot(K_COL, K_ROW))
-    matchable = crossing > np.sin(np.radians(35.0))      # edges >= 35 degrees from parallel to the epipolar line
+    matchable = crossing > np.sin(np.radians(35.0))  # edges >= 35 degrees from parallel to the epipolar line
     roof = ok & (np.abs(true_height(rec["col"], rec["row"]) - plane(rec["col"], rec["row"])) > 1)
     roof_within = np.mean(errors_px(rec[roof]) <= 0.5)
     figures.report("edgels", rec.size)
@@ -332,7 +335,7 @@ def test_match_edges_recovers_the_disparity(pair, figures):
     assert ok[matchable].mean() > 0.8 and within > 0.9 and np.mean(err > 2) < 0.02
     assert roof.sum() > 50 and roof_within > 0.9
     h = rec["h"][ok]
-    assert np.median(np.abs(h - true_height(rec["col"][ok], rec["row"][ok]))) < 3.0     # m (0.15 px)
+    assert np.median(np.abs(h - true_height(rec["col"][ok], rec["row"][ok]))) < 3.0  # m (0.15 px)
 
 
 def test_figural_continuity_removes_injected_repeats(pair, figures):
@@ -342,7 +345,7 @@ def test_figural_continuity_removes_injected_repeats(pair, figures):
     r0, r1 = REPEAT_ROWS
     sx, sy = REPEAT_SHIFT
     c0, c1 = int(ROAD[0]) - 6, int(ROAD[1]) + 6
-    fake[r0 + sy:r1 + sy, c0 + sx:c1 + sx] = ref[r0:r1, c0:c1]
+    fake[r0 + sy : r1 + sy, c0 + sx : c1 + sx] = ref[r0:r1, c0:c1]
     plain = edges.match_edges(ref, fake, chains, predict, H_RANGE, figural=False)
     figural = edges.match_edges(ref, fake, chains, predict, H_RANGE)
     road = (np.abs(plain["col"] - ROAD[0]) < 1.5) | (np.abs(plain["col"] - ROAD[1]) < 1.5)
@@ -353,8 +356,9 @@ def test_figural_continuity_removes_injected_repeats(pair, figures):
     kept = np.mean(figural["ok"][inside])
     figures.report("road edgels among the repeats", inside.sum())
     figures.report("wrong (> 1 px), plain best NCC", 100 * wrong_plain, "%", f"of {np.sum(inside & plain['ok'])} ok")
-    figures.report("wrong (> 1 px), figural continuity", 100 * wrong_figural, "%",
-                   f"of {np.sum(inside & figural['ok'])} ok")
+    figures.report(
+        "wrong (> 1 px), figural continuity", 100 * wrong_figural, "%", f"of {np.sum(inside & figural['ok'])} ok"
+    )
     assert wrong_plain > 0.5 and wrong_figural < 0.05 and kept > 0.8
 
 
@@ -366,12 +370,12 @@ def test_match_edges_input_errors(pair):
         edges.match_edges(ref, search, chains, predict, H_RANGE, window=6)
     with pytest.raises(InputError, match=r"\(n, 2\)"):
         edges.match_edges(ref, search, [np.zeros(5)], predict, H_RANGE)
-    per_point = [np.full(sum(map(len, chains)), v) for v in H_RANGE]     # one range per chain point
+    per_point = [np.full(sum(map(len, chains)), v) for v in H_RANGE]  # one range per chain point
     a = edges.match_edges(ref, search, chains[:5], predict, H_RANGE)
-    b = edges.match_edges(ref, search, chains[:5], predict, [p[:sum(map(len, chains[:5]))] for p in per_point])
+    b = edges.match_edges(ref, search, chains[:5], predict, [p[: sum(map(len, chains[:5]))] for p in per_point])
     assert a["ok"].any()
     for name in a.dtype.names:
-        np.testing.assert_array_equal(a[name], b[name])     # NaN == NaN here
+        np.testing.assert_array_equal(a[name], b[name])  # NaN == NaN here
     with pytest.raises(InputError, match="one value per"):
         edges.match_edges(ref, search, chains, predict, [p[:10] for p in per_point])
     empty = edges.match_edges(ref, search, [], predict, H_RANGE)

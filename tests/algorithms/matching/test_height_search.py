@@ -1,5 +1,6 @@
 """The terrain height range found by matching (algorithms/matching/height_search.py) and the block made
 without a DEM and without a height (steps/block_creation.py)."""
+
 import numpy as np
 import pytest
 
@@ -36,13 +37,13 @@ def test_windows_cover_a_small_image_and_spread_over_a_large_one():
     area = sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in boxes)
     assert area == 1028 * 1040 and all(min(x1 - x0, y1 - y0) > 300 for x0, y0, x1, y1 in boxes)
     boxes = hs.windows((24000, 12000))
-    assert len(boxes) == hs.WINDOWS ** 2 and all(x1 - x0 == hs.WINDOW == y1 - y0 for x0, y0, x1, y1 in boxes)
+    assert len(boxes) == hs.WINDOWS**2 and all(x1 - x0 == hs.WINDOW == y1 - y0 for x0, y0, x1, y1 in boxes)
     assert boxes[0][:2] == (0, 0) and boxes[-1][2:] == (24000, 12000)
 
 
 def test_validity_range_of_rpcs_and_of_spot(pleiades_triplet, small_scene):
     rpcs = [sensors.load(p) for p in pleiades_triplet]
-    assert hs.validity_range(rpcs) == (40.0, 1090.0)       # HEIGHT_OFF 565 +- HEIGHT_SCALE 525 in the RPC00B tags
+    assert hs.validity_range(rpcs) == (40.0, 1090.0)  # HEIGHT_OFF 565 +- HEIGHT_SCALE 525 in the RPC00B tags
     spot = sensors.load(small_scene["images"]["HRG"]["metadata"])
     assert hs.validity_range([spot, rpcs[0]]) == (40.0, 1090.0)
     assert hs.validity_range([spot]) == hs.EARTH_HEIGHTS
@@ -60,13 +61,15 @@ def test_a_spot_block_without_height_finds_the_terrain(small_scene, small_scene_
         heights.append(result.h[result.ok & (result.rays == 2)])
     heights = np.concatenate(heights)
     log = Feedback()
-    create_block(str(tmp_path / "b.gpkg"), [small_scene["images"][n]["imagery"] for n in NAMES], CreateParams(),
-                 log)
+    create_block(str(tmp_path / "b.gpkg"), [small_scene["images"][n]["imagery"] for n in NAMES], CreateParams(), log)
     blk = Block(str(tmp_path / "b.gpkg"))
     h_min, h_max = blk.height_range()
     inside = ((heights >= h_min) & (heights <= h_max)).mean()
-    figures.report("simulated 3 km triplet, no height: range found; region growing's pair heights (min, max)",
-                   [h_min, h_max, heights.min(), heights.max()], "m")
+    figures.report(
+        "simulated 3 km triplet, no height: range found; region growing's pair heights (min, max)",
+        [h_min, h_max, heights.min(), heights.max()],
+        "m",
+    )
     figures.report("simulated 3 km triplet, no height: region growing's pair heights inside the range", inside)
     assert inside > 0.99 and h_max - h_min < 3.0 * np.ptp(heights), (h_min, h_max, heights.min(), heights.max())
     assert "points matched over -550 to 8900 m" in blk.info()["height_search"]
@@ -75,6 +78,7 @@ def test_a_spot_block_without_height_finds_the_terrain(small_scene, small_scene_
 
 def test_textureless_images_ask_for_a_height(small_scene, tmp_path):
     from osgeo import gdal
+
     paths = []
     for n in NAMES[:2]:
         src = gdal.Open(small_scene["images"][n]["imagery"])

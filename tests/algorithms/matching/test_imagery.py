@@ -1,5 +1,6 @@
 """The pixels an Image masks (nodata value, GDAL mask band, saturation) against a plain numpy reference, and
 touches_masked against a pixel-by-pixel loop."""
+
 import pickle
 
 import numpy as np
@@ -42,11 +43,11 @@ def masked_reference(data, nodata=None, valid=None, saturation=None):
 def pixels():
     rng = np.random.default_rng(5)
     data = rng.integers(0, 4096, (40, 50)).astype(np.uint16)
-    data[3:6, 4:9] = 9                   # nodata
-    data[20:23, 30:33] = 4095            # saturated at 12 bits
-    data[30, 10] = 65535                 # saturated at 16 bits
+    data[3:6, 4:9] = 9  # nodata
+    data[20:23, 30:33] = 4095  # saturated at 12 bits
+    data[30, 10] = 65535  # saturated at 16 bits
     valid = np.full(data.shape, 255, np.uint8)
-    valid[10:14, 40:47] = 0              # the mask band's invalid pixels
+    valid[10:14, 40:47] = 0  # the mask band's invalid pixels
     return data, valid
 
 
@@ -54,12 +55,14 @@ def test_nodata_mask_band_and_saturation_against_numpy(pixels, tmp_path):
     data, valid = pixels
     plain = write(tmp_path / "plain.tif", data, gdal.GDT_UInt16, nodata=9, valid=valid)
     twelve = write(tmp_path / "twelve.tif", data & 4095, gdal.GDT_UInt16, nodata=9, nbits=12)
-    cases = [(Image(plain), masked_reference(data, 9, valid)),
-             (Image(plain, saturation=True), masked_reference(data, 9, valid, 65535)),
-             (Image(plain, saturation=1000), masked_reference(data, 9, valid, 1000)),
-             (Image(twelve, saturation=True), masked_reference(data & 4095, 9, None, 4095))]
+    cases = [
+        (Image(plain), masked_reference(data, 9, valid)),
+        (Image(plain, saturation=True), masked_reference(data, 9, valid, 65535)),
+        (Image(plain, saturation=1000), masked_reference(data, 9, valid, 1000)),
+        (Image(twelve, saturation=True), masked_reference(data & 4095, 9, None, 4095)),
+    ]
     for image, expect in cases:
-        got, x0, y0 = image.read(-2, 1, 60, 35)         # clipped to the image
+        got, x0, y0 = image.read(-2, 1, 60, 35)  # clipped to the image
         assert (x0, y0) == (0, 1)
         assert np.array_equal(got, expect[1:36, :], equal_nan=True)
     # saturation values: the data type's largest, or 2^NBITS - 1
@@ -72,9 +75,9 @@ def test_saturation_of_arrays_and_after_pickling(pixels):
     bytes_ = (data % 256).astype(np.uint8)
     image = Image(bytes_, saturation=True)
     assert image.saturation == 255
-    again = pickle.loads(pickle.dumps(image))           # a worker reopens it with the same mask
+    again = pickle.loads(pickle.dumps(image))  # a worker reopens it with the same mask
     assert np.array_equal(again.read(0, 0, 50, 40)[0], masked_reference(bytes_, saturation=255), equal_nan=True)
-    assert Image(data.astype(np.float32), saturation=True).saturation is None     # floating point: no saturation
+    assert Image(data.astype(np.float32), saturation=True).saturation is None  # floating point: no saturation
     assert Image(data.astype(np.int16), saturation=True).saturation == 32767
 
 
@@ -85,7 +88,7 @@ def test_touches_masked_against_a_loop():
     img[30:33, 5:8] = np.nan
     image = Image(img)
     x, y = rng.uniform(-5, 75, 400), rng.uniform(-5, 65, 400)
-    x[:3], y[:3] = [6.5, 6.5, np.nan], [25.5, 25.4, 10.0]      # a window's edge just reaching the block, just not
+    x[:3], y[:3] = [6.5, 6.5, np.nan], [25.5, 25.4, 10.0]  # a window's edge just reaching the block, just not
     rx, ry = rng.uniform(0, 6, 400), rng.uniform(0, 6, 400)
     rx[:2], ry[:2] = 1.0, 5.0
     got = touches_masked(image, x, y, rx, ry)

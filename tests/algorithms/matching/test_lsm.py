@@ -1,5 +1,6 @@
 """Least-squares matching: kernels against plain numpy, precision calibration on simulated
 band-limited texture, bad input."""
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -80,8 +81,11 @@ def simulate(n, m, gain, offset, noise, seed, size=33, init_scale=True, params=N
 ROT = np.radians(10.0)
 CASES = {
     "shift": (np.eye(2), 1.0, 0.0),
-    "rotation 10 deg, gain 1.2, offset 10": (np.array([[np.cos(ROT), -np.sin(ROT)], [np.sin(ROT), np.cos(ROT)]]),
-                                             1.2, 10.0),
+    "rotation 10 deg, gain 1.2, offset 10": (
+        np.array([[np.cos(ROT), -np.sin(ROT)], [np.sin(ROT), np.cos(ROT)]]),
+        1.2,
+        10.0,
+    ),
     "scale 2:1 along rows, gain 0.8, offset -5": (np.diag([1.0, 2.0]), 0.8, -5.0),
 }
 
@@ -93,7 +97,7 @@ def test_precision_is_calibrated(case, figures):
     ok = status == 0
     assert ok.mean() > 0.95
     err = np.column_stack([rec["x2"] - truth[:, 0], rec["y2"] - truth[:, 1]])[ok]
-    rms = np.sqrt((err ** 2).sum(1).mean())
+    rms = np.sqrt((err**2).sum(1).mean())
     predicted = np.sqrt((rec["semi_major"][ok].astype(float) ** 2 + rec["semi_minor"][ok] ** 2).mean())
     ratio = rms / predicted
     figures.report("RMS error", rms, "px")
@@ -143,6 +147,7 @@ def test_bad_input_statuses():
 
 def test_match_points_input_errors():
     from pushbroom.algorithms.errors import InputError
+
     img = np.zeros((30, 30), np.float32)
     with pytest.raises(InputError):
         lsm.match_points(img, img, [1.0, 2.0], [1.0], [1.0], [1.0])
@@ -160,15 +165,16 @@ def other_surface(n, share, seed, params, size=41):
     jj, ii = np.meshgrid(np.arange(size) + 0.5, np.arange(size) + 0.5)
     c = size / 2.0
     half = params.template // 2
-    edge = c + half + 0.5 - share * params.template      # image-2 columns right of it show the other surface
+    edge = c + half + 0.5 - share * params.template  # image-2 columns right of it show the other surface
     recs, stats, truth = [], [], np.empty((n, 2))
     for p in range(n):
         tex = texture(rng)
         img1 = (100 + 30 * tex(jj, ii) + rng.normal(0, 2.0, jj.shape)).astype(np.float32)
         truth[p] = c + rng.uniform(-0.5, 0.5, 2)
         shift = np.where(jj > edge + truth[p, 0] - c, 3.0, 0.0)
-        img2 = (100 + 30 * tex(jj - (truth[p, 0] - c) - shift, ii - (truth[p, 1] - c))
-                + rng.normal(0, 2.0, jj.shape)).astype(np.float32)
+        img2 = (
+            100 + 30 * tex(jj - (truth[p, 0] - c) - shift, ii - (truth[p, 1] - c)) + rng.normal(0, 2.0, jj.shape)
+        ).astype(np.float32)
         init = truth[p] + rng.uniform(-0.5, 0.5, 2)
         rec, st = lsm.match_points(img1, img2, [c], [c], [init[0]], [init[1]], params=params)
         recs.append(rec[0])
@@ -187,7 +193,7 @@ def test_robust_weighting_resists_another_surface(figures):
         assert ok.mean() > 0.9
         errors[robust] = np.abs(rec["x2"] - truth[:, 0])[ok]
         figures.report(f"median |column error|, {'robust' if robust else 'plain'}", np.median(errors[robust]), "px")
-    assert np.median(errors[False]) > 0.4                  # pulled towards the other surface
+    assert np.median(errors[False]) > 0.4  # pulled towards the other surface
     assert np.median(errors[True]) < 0.3 * np.median(errors[False])
 
 
@@ -205,11 +211,11 @@ def test_robust_step_against_numpy():
     status = lsm.lsm_point(img1, img2, 20.5, 20.5, p[0], p[3], p[1], p[2], p[4], p[5], 7, 2, 1e-9, out, TUKEY_C)
     assert status == lsm.NOT_CONVERGED
     first, _, v0 = gn_step_reference(img1, img2, 20.5, 20.5, p, 7)
-    scale = TUKEY_C * np.sqrt(np.mean(v0 ** 2))
+    scale = TUKEY_C * np.sqrt(np.mean(v0**2))
     _, _, v1 = gn_step_reference(img1, img2, 20.5, 20.5, first, 7)
     u = v1 / scale
-    weights = np.where(np.abs(u) < 1.0, (1.0 - u ** 2) ** 2, 0.0)
-    assert weights.min() < 0.5 < 0.9 < weights.max()          # a weighting that matters
+    weights = np.where(np.abs(u) < 1.0, (1.0 - u**2) ** 2, 0.0)
+    assert weights.min() < 0.5 < 0.9 < weights.max()  # a weighting that matters
     ref, _, _ = gn_step_reference(img1, img2, 20.5, 20.5, first, 7, weights)
     got = dict(zip(lsm.LSM_FIELDS, out))
     for name, value in zip(("x2", "a1", "a2", "y2", "a4", "a5", "r0", "r1"), ref):
@@ -223,7 +229,8 @@ def test_robust_precision_is_calibrated(figures):
     ok = status == lsm.OK
     assert ok.mean() > 0.95
     err = np.column_stack([rec["x2"] - truth[:, 0], rec["y2"] - truth[:, 1]])[ok]
-    ratio = np.sqrt((err ** 2).sum(1).mean()) / np.sqrt((rec["semi_major"][ok].astype(float) ** 2
-                                                         + rec["semi_minor"][ok] ** 2).mean())
+    ratio = np.sqrt((err**2).sum(1).mean()) / np.sqrt(
+        (rec["semi_major"][ok].astype(float) ** 2 + rec["semi_minor"][ok] ** 2).mean()
+    )
     figures.report("RMS error / predicted, robust", ratio)
     assert 0.8 < ratio < 1.25

@@ -1,6 +1,7 @@
 """Multi-photo geometrically constrained LSM (algorithms/matching/mpgc.py): kernels against plain
 numpy, precision and its calibration on a synthetic planar scene whose images follow analytic
 cameras exactly (against pairwise LSM), the simulated SPOT 5 triplet against its truth, failures."""
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -52,6 +53,7 @@ class AffineCamera:
 # --------------------------------------------------------------------------------------------
 # kernels against numpy
 
+
 def test_template_against_numpy():
     rng = np.random.default_rng(0)
     img = rng.normal(size=(30, 40)).astype(np.float32)
@@ -63,11 +65,12 @@ def test_template_against_numpy():
     np.testing.assert_allclose(f, t[1:-1, 1:-1].ravel(), atol=1e-6)
     np.testing.assert_allclose(fk, 0.5 * (t[1:-1, 2:] - t[1:-1, :-2]).ravel(), atol=1e-6)
     np.testing.assert_allclose(fl, 0.5 * (t[2:, 1:-1] - t[:-2, 1:-1]).ravel(), atol=1e-6)
-    assert lsm.template(img, 12.3, 9.7, half, f, fk, fl)       # between pixels: bilinear
-    ref = ndimage.map_coordinates(img.astype(float), [9.7 - 0.5 + l[1:-1, 1:-1].ravel(),
-                                                      12.3 - 0.5 + k[1:-1, 1:-1].ravel()], order=1)
+    assert lsm.template(img, 12.3, 9.7, half, f, fk, fl)  # between pixels: bilinear
+    ref = ndimage.map_coordinates(
+        img.astype(float), [9.7 - 0.5 + l[1:-1, 1:-1].ravel(), 12.3 - 0.5 + k[1:-1, 1:-1].ravel()], order=1
+    )
     np.testing.assert_allclose(f, ref, atol=1e-5)
-    assert not lsm.template(img, 3.5, 15.5, half, f, fk, fl)   # leaves the image
+    assert not lsm.template(img, 3.5, 15.5, half, f, fk, fl)  # leaves the image
 
 
 def test_noise_weights_against_numpy():
@@ -76,7 +79,7 @@ def test_noise_weights_against_numpy():
     kern.grey_weights(rep, pw)
     np.testing.assert_allclose(pw, 1 / (1 + rep), rtol=1e-15)
     kern.noise_covariance(pw, r1, rep, c)
-    np.testing.assert_allclose(c, np.diag(pw) @ (np.ones((3, 3)) + np.diag(r1 ** 2 * rep)) @ np.diag(pw), rtol=1e-14)
+    np.testing.assert_allclose(c, np.diag(pw) @ (np.ones((3, 3)) + np.diag(r1**2 * rep)) @ np.diag(pw), rtol=1e-14)
 
 
 def pack(images, offsets):
@@ -116,8 +119,9 @@ def gn_step_reference(images, offs, x0, y0, cen, jac, state, dx, half, sigma_g, 
     n = len(state)
     npar = 3 + 8 * n
     k, l = np.meshgrid(np.arange(-half - 1, half + 2), np.arange(-half - 1, half + 2))
-    t = ndimage.map_coordinates(images[0].astype(float), [y0 - offs[0, 1] + l - 0.5, x0 - offs[0, 0] + k - 0.5],
-                                order=1)
+    t = ndimage.map_coordinates(
+        images[0].astype(float), [y0 - offs[0, 1] + l - 0.5, x0 - offs[0, 0] + k - 0.5], order=1
+    )
     f = t[1:-1, 1:-1].ravel()
     fk = (0.5 * (t[1:-1, 2:] - t[1:-1, :-2])).ravel()
     fl = (0.5 * (t[2:, 1:-1] - t[:-2, 1:-1])).ravel()
@@ -132,20 +136,21 @@ def gn_step_reference(images, offs, x0, y0, cen, jac, state, dx, half, sigma_g, 
         g, kap[i] = gk[:, 0], gk[:, 1].mean()
         gs.append(g)
         rgx, rgy = np.linalg.inv(np.array([[a1, a2], [a4, a5]])).T @ np.vstack([fk, fl])
-        design[:, i, 3 + 8 * i:11 + 8 * i] = np.column_stack([rgx, rgx * k, rgx * l, rgy, rgy * k, rgy * l,
-                                                              np.ones(ns), g])
+        design[:, i, 3 + 8 * i : 11 + 8 * i] = np.column_stack(
+            [rgx, rgx * k, rgx * l, rgy, rgy * k, rgy * l, np.ones(ns), g]
+        )
         resid[:, i] = f - (r0 + r1i * g)
         det = abs(a1 * a5 - a2 * a4)
         rep[i] = 1 / det if det < 1 else 1.0
     prior = support_reference(f, half, *support)[:, None]
     if cs is not None:
         u = resid / np.asarray(cs)
-        w = prior * np.where(np.abs(u) < 1, (1 - u ** 2) ** 2, 0.0)
+        w = prior * np.where(np.abs(u) < 1, (1 - u**2) ** 2, 0.0)
     elif w is None:
         w = prior * np.ones_like(resid)
-    s2 = ((w * resid ** 2).sum(axis=0) / (1 + r1 ** 2 * kap)).sum() / np.maximum(w.sum(axis=0) - 8, 1).sum()
+    s2 = ((w * resid**2).sum(axis=0) / (1 + r1**2 * kap)).sum() / np.maximum(w.sum(axis=0) - 8, 1).sum()
     weight = np.diag((w / (1 + rep)).ravel()) / s2
-    noise = s2 * np.kron(np.eye(ns), np.ones((n, n)) + np.diag(r1 ** 2 * rep))
+    noise = s2 * np.kron(np.eye(ns), np.ones((n, n)) + np.diag(r1**2 * rep))
     rows, res = [], []
     for i in range(n + 1):
         for c in range(2):
@@ -160,7 +165,7 @@ def gn_step_reference(images, offs, x0, y0, cen, jac, state, dx, half, sigma_g, 
                 res.append(proj - state[i - 1, 3 * c])
             rows.append(a)
     geo = np.array(rows)
-    wg = 1 / sigma_g ** 2
+    wg = 1 / sigma_g**2
     big = design.reshape(ns * n, npar)
     nmat = big.T @ weight @ big + wg * geo.T @ geo
     step = np.linalg.solve(nmat, big.T @ weight @ resid.ravel() + wg * geo.T @ np.array(res))
@@ -173,14 +178,27 @@ def gn_step_reference(images, offs, x0, y0, cen, jac, state, dx, half, sigma_g, 
         j = [3 + 8 * i, 6 + 8 * i]
         ev = np.linalg.eigvalsh(cov[np.ix_(j, j)])
         axes.append(np.sqrt(ev[::-1]))
-    v = np.array([(x0, y0)[c] - cen[0, c] - jac[0, c] @ new_dx for c in range(2)]
-                 + [cen[i, c] + jac[i, c] @ new_dx - new_state[i - 1, 3 * c]
-                    for i in range(1, n + 1) for c in range(2)])
+    v = np.array(
+        [(x0, y0)[c] - cen[0, c] - jac[0, c] @ new_dx for c in range(2)]
+        + [cen[i, c] + jac[i, c] @ new_dx - new_state[i - 1, 3 * c] for i in range(1, n + 1) for c in range(2)]
+    )
     red = (1 - wg * np.einsum("ij,jk,ik->i", geo, q, geo)).sum()
     rho = [np.corrcoef(f, g)[0, 1] for g in gs]
-    return new_state, new_dx, dict(axes=np.array(axes), cov=cov[:3, :3], s0=np.sqrt(s2), vtpv=wg * (v ** 2).sum(),
-                                   red=red, rms=np.sqrt((v ** 2).mean()), rho=np.array(rho),
-                                   cs=kern.TUKEY_C * np.sqrt((w * resid ** 2).sum(axis=0) / w.sum(axis=0)), w=w)
+    return (
+        new_state,
+        new_dx,
+        dict(
+            axes=np.array(axes),
+            cov=cov[:3, :3],
+            s0=np.sqrt(s2),
+            vtpv=wg * (v**2).sum(),
+            red=red,
+            rms=np.sqrt((v**2).mean()),
+            rho=np.array(rho),
+            cs=kern.TUKEY_C * np.sqrt((w * resid**2).sum(axis=0) / w.sum(axis=0)),
+            w=w,
+        ),
+    )
 
 
 @pytest.mark.parametrize("support", [(0.0, 0.0), (5.0, 1.0), (3.0, 0.0), (0.0, 0.5)])
@@ -195,22 +213,44 @@ def test_gauss_newton_steps_against_numpy(steps, support):
     tex = texture(rng)
     jj, ii = np.meshgrid(np.arange(44) + 0.5, np.arange(40) + 0.5)
     img0 = (100 + 30 * tex(jj, ii)).astype(np.float32)
-    img1 = (5 + 1.1 * (100 + 30 * tex(0.98 * jj + 0.1 * ii - 0.4, 1.02 * ii + 0.7)) + rng.normal(0, 2, jj.shape))
-    img2 = (-3 + 0.9 * (100 + 30 * tex(1.9 * jj - 0.05 * ii + 0.3, 0.97 * ii - 0.2)) + rng.normal(0, 2, jj.shape))
+    img1 = 5 + 1.1 * (100 + 30 * tex(0.98 * jj + 0.1 * ii - 0.4, 1.02 * ii + 0.7)) + rng.normal(0, 2, jj.shape)
+    img2 = -3 + 0.9 * (100 + 30 * tex(1.9 * jj - 0.05 * ii + 0.3, 0.97 * ii - 0.2)) + rng.normal(0, 2, jj.shape)
     images = [img0, img1.astype(np.float32), img2.astype(np.float32)]
-    offs = np.array([[100.0, 50.0], [200.0, 300.0], [-10.0, 20.0]])     # windows of larger images
+    offs = np.array([[100.0, 50.0], [200.0, 300.0], [-10.0, 20.0]])  # windows of larger images
     x0, y0 = 100 + 21.5, 50 + 20.5
     cen = np.array([[x0 + 0.2, y0 - 0.1], [200 + 21.3, 300 + 20.4], [-10 + 11.6, 20 + 20.9]])
-    jac = np.array([[[0.2, 0.01, 0.0], [0.0, -0.2, 0.01]], [[0.2, 0.02, 0.01], [0.01, -0.2, 0.09]],
-                    [[0.1, 0.0, -0.01], [0.0, -0.21, -0.08]]])
-    state = np.array([[200 + 21.4, 1.01, -0.1, 300 + 20.2, -0.02, 0.97, 0.0, 1.0],
-                      [-10 + 11.4, 0.52, 0.02, 20 + 21.1, 0.0, 1.02, 0.0, 1.0]])
+    jac = np.array(
+        [
+            [[0.2, 0.01, 0.0], [0.0, -0.2, 0.01]],
+            [[0.2, 0.02, 0.01], [0.01, -0.2, 0.09]],
+            [[0.1, 0.0, -0.01], [0.0, -0.21, -0.08]],
+        ]
+    )
+    state = np.array(
+        [
+            [200 + 21.4, 1.01, -0.1, 300 + 20.2, -0.02, 0.97, 0.0, 1.0],
+            [-10 + 11.4, 0.52, 0.02, 20 + 21.1, 0.0, 1.02, 0.0, 1.0],
+        ]
+    )
     dx = np.array([0.5, -0.3, 1.0])
     ref_state, ref_dx, ref = state, dx, dict(cs=None, w=None)
     for it in range(steps):
         reweight = 0 < it <= kern.REWEIGHTINGS
-        ref_state, ref_dx, ref = gn_step_reference(images, offs, x0, y0, cen, jac, ref_state, ref_dx, 7, 0.3,
-                                                   ref["cs"] if reweight else None, ref["w"], support)
+        ref_state, ref_dx, ref = gn_step_reference(
+            images,
+            offs,
+            x0,
+            y0,
+            cen,
+            jac,
+            ref_state,
+            ref_dx,
+            7,
+            0.3,
+            ref["cs"] if reweight else None,
+            ref["w"],
+            support,
+        )
     buf, meta, offs_k = pack(images, offs)
     st, dxk = state.copy(), dx.copy()
     out = np.empty(kern.out_size(2))
@@ -223,7 +263,7 @@ def test_gauss_newton_steps_against_numpy(steps, support):
     np.testing.assert_allclose(out[1:t:3], ref["axes"][:, 0], rtol=1e-6)
     np.testing.assert_allclose(out[2:t:3], ref["axes"][:, 1], rtol=1e-6)
     cov = ref["cov"]
-    np.testing.assert_allclose(out[t + kern.COV:t + kern.COV + 6], cov[np.triu_indices(3)], rtol=1e-6)
+    np.testing.assert_allclose(out[t + kern.COV : t + kern.COV + 6], cov[np.triu_indices(3)], rtol=1e-6)
     assert out[t + kern.SIGMA0] == pytest.approx(ref["s0"], rel=1e-9)
     assert out[t + kern.GEO_VTPV] == pytest.approx(ref["vtpv"], rel=1e-6)
     assert out[t + kern.GEO_RED] == pytest.approx(ref["red"], rel=1e-6)
@@ -231,8 +271,26 @@ def test_gauss_newton_steps_against_numpy(steps, support):
     # the parallel batch kernel gives the per-point result
     st2, dx2 = state[None].copy(), dx[None].copy()
     outb, statb, itb = np.empty((1, kern.out_size(2))), np.zeros(1, np.int8), np.zeros(1, np.int64)
-    kern.mpgc_batch(buf, meta, offs_k, np.array([x0]), np.array([y0]), cen[None], jac[None], st2, dx2,
-                    np.ones(1, bool), 7, steps, 1e-12, 0.3, *support, outb, statb, itb)
+    kern.mpgc_batch(
+        buf,
+        meta,
+        offs_k,
+        np.array([x0]),
+        np.array([y0]),
+        cen[None],
+        jac[None],
+        st2,
+        dx2,
+        np.ones(1, bool),
+        7,
+        steps,
+        1e-12,
+        0.3,
+        *support,
+        outb,
+        statb,
+        itb,
+    )
     np.testing.assert_array_equal(st2[0], st)
     np.testing.assert_array_equal(outb[0], out)
     assert statb[0] == status and itb[0] == steps
@@ -241,10 +299,10 @@ def test_gauss_newton_steps_against_numpy(steps, support):
 # --------------------------------------------------------------------------------------------
 # synthetic planar scene, exact analytic cameras
 
-PLANE = (0.08, -0.05, 120.0)        # U = a E + b N + c (metres)
+PLANE = (0.08, -0.05, 120.0)  # U = a E + b N + c (metres)
 CAMERAS = [
-    [[1.0, 0.0, 0.0, 200.0], [0.0, -1.0, 0.0, 200.0]],                                  # nadir reference
-    [[0.97, 0.06, 0.02, 200.0 - 0.02 * 120], [0.04, -1.03, 0.45, 200.0 - 0.45 * 120]],   # forward, B/H 0.45
+    [[1.0, 0.0, 0.0, 200.0], [0.0, -1.0, 0.0, 200.0]],  # nadir reference
+    [[0.97, 0.06, 0.02, 200.0 - 0.02 * 120], [0.04, -1.03, 0.45, 200.0 - 0.45 * 120]],  # forward, B/H 0.45
     [[1.02, -0.05, -0.03, 200.0 + 0.03 * 120], [-0.03, -0.98, -0.42, 200.0 + 0.42 * 120]],  # backward
 ]
 GAINS = [(1.0, 0.0), (1.15, 8.0), (0.9, -5.0)]
@@ -283,8 +341,9 @@ def planar():
     images = [render(cam, tex, g, o, 3.0, rng) for cam, (g, o) in zip(cameras, GAINS)]
     x0, y0 = (v.ravel() for v in np.meshgrid(np.arange(40.5, 360, 18.0), np.arange(40.5, 360, 18.0)))
     enu, pos = plane_truth(cameras, x0, y0)
-    approx = enu + np.column_stack([rng.normal(0, 0.3, (x0.size, 2)),
-                                    rng.choice([-1, 1], x0.size) * rng.uniform(2.5, 3.75, x0.size)])
+    approx = enu + np.column_stack(
+        [rng.normal(0, 0.3, (x0.size, 2)), rng.choice([-1, 1], x0.size) * rng.uniform(2.5, 3.75, x0.size)]
+    )
     lon, lat = cameras[0].lonlat(approx[:, 0], approx[:, 1])
     return cameras, images, x0, y0, enu, pos, (lon, lat, approx[:, 2])
 
@@ -305,18 +364,19 @@ def calibrated(planar, params, figures):
     figures.report("iterations, median", np.median(rec["iterations"][ok]))
     assert ok.mean() > 0.99
     assert mpgc.accepted(rec, params).mean() > 0.9
-    err = np.stack([rec["x"] - pos[..., 0], rec["y"] - pos[..., 1]], axis=-1)[ok]     # (m, 2 images, 2)
+    err = np.stack([rec["x"] - pos[..., 0], rec["y"] - pos[..., 1]], axis=-1)[ok]  # (m, 2 images, 2)
     for i in range(2):
         rms = np.sqrt((err[:, i] ** 2).sum(-1).mean())
         pred = np.sqrt((rec["semi_major"][ok, i].astype(float) ** 2 + rec["semi_minor"][ok, i] ** 2).mean())
         figures.table(f"search image {i + 1}", [{"RMS px": rms, "predicted px": pred, "ratio": rms / pred}])
         assert 0.8 < rms / pred < 1.25
     d = enu_error(cameras, rec, enu)[ok]
-    rms_x = np.sqrt((d ** 2).sum(1).mean())
+    rms_x = np.sqrt((d**2).sum(1).mean())
     pred_x = np.sqrt((rec["sigma"][ok].astype(float) ** 2).sum(1).mean())
-    e, n, u = np.sqrt((d ** 2).mean(0))
-    figures.table("object point (m)", [{"RMS": rms_x, "E": e, "N": n, "U": u, "predicted": pred_x,
-                                        "ratio": rms_x / pred_x}])
+    e, n, u = np.sqrt((d**2).mean(0))
+    figures.table(
+        "object point (m)", [{"RMS": rms_x, "E": e, "N": n, "U": u, "predicted": pred_x, "ratio": rms_x / pred_x}]
+    )
     assert 0.8 < rms_x / pred_x < 1.25
     t = rec["geo_test"][ok]
     figures.report("geometric test t, mean", t.mean())
@@ -340,15 +400,16 @@ def test_planar_precision_calibrated_and_better_than_pairwise(planar, figures):
     perr, pok = [], np.ones(len(x0), bool)
     for i in range(2):
         s = start[:, i]
-        prec, pst = lsm.match_points(images[0], images[i + 1], x0, y0, s[:, 0], s[:, 3], affine=s[:, [1, 2, 4, 5]],
-                                     params=LsmParams())
+        prec, pst = lsm.match_points(
+            images[0], images[i + 1], x0, y0, s[:, 0], s[:, 3], affine=s[:, [1, 2, 4, 5]], params=LsmParams()
+        )
         pok &= pst == lsm.OK
         perr.append(np.column_stack([prec["x2"] - pos[:, i, 0], prec["y2"] - pos[:, i, 1]]))
     both = ok & pok
     perr = np.stack(perr, axis=1)[both]
     merr = np.stack([rec["x"] - pos[..., 0], rec["y"] - pos[..., 1]], axis=-1)[both]
-    rms_pair = np.sqrt((perr ** 2).sum(-1).mean())
-    rms_mpgc = np.sqrt((merr ** 2).sum(-1).mean())
+    rms_pair = np.sqrt((perr**2).sum(-1).mean())
+    rms_mpgc = np.sqrt((merr**2).sum(-1).mean())
     figures.report("points converged in both", both.sum())
     figures.report("pairwise LSM RMS", rms_pair, "px")
     figures.report("MPGC RMS", rms_mpgc, "px")
@@ -360,8 +421,11 @@ def test_planar_precision_calibrated_with_support_weights(planar, figures):
     """With the refinement's support weights (refinement.py) the sandwich covariance stays
     calibrated (0.8-1.25); the geometric test t, whose redundancy assumes weights inverse to the
     variances, comes out smaller (mpgc.py; docs/validation.md#mpgc-precision)."""
-    _, _, t = calibrated(planar, mpgc.MpgcParams(sigma_geometry=0.001, centre_sigma=SUPPORT_CENTRE,
-                                                 similarity=SUPPORT_SIMILARITY), figures)
+    _, _, t = calibrated(
+        planar,
+        mpgc.MpgcParams(sigma_geometry=0.001, centre_sigma=SUPPORT_CENTRE, similarity=SUPPORT_SIMILARITY),
+        figures,
+    )
     assert 0.3 < t.mean() < 0.8
 
 
@@ -371,16 +435,43 @@ def test_linearisation_and_loose_constraint(planar):
     the ray) gives the same solution: the models are re-linearised at the estimate."""
     cameras, images, x0, y0, enu, pos, (lon, lat, h) = planar
     sel = slice(0, 60)
-    a = mpgc.match_points(images[0], images[1:], cameras, x0[sel], y0[sel], lon[sel], lat[sel], h[sel],
-                          mpgc.MpgcParams(sigma_geometry=0.2))
+    a = mpgc.match_points(
+        images[0],
+        images[1:],
+        cameras,
+        x0[sel],
+        y0[sel],
+        lon[sel],
+        lat[sel],
+        h[sel],
+        mpgc.MpgcParams(sigma_geometry=0.2),
+    )
     ok = a["status"] == mpgc.OK
     assert ok.mean() > 0.95
     err = np.hypot(a["x"] - pos[sel, :, 0], a["y"] - pos[sel, :, 1])[ok]
-    assert np.sqrt((err ** 2).mean()) < 0.1
-    hard = mpgc.match_points(images[0], images[1:], cameras, x0[sel], y0[sel], lon[sel], lat[sel], h[sel] + 0.5,
-                             mpgc.MpgcParams(sigma_geometry=0.01))
-    ref = mpgc.match_points(images[0], images[1:], cameras, x0[sel], y0[sel], lon[sel], lat[sel], h[sel],
-                            mpgc.MpgcParams(sigma_geometry=0.01))
+    assert np.sqrt((err**2).mean()) < 0.1
+    hard = mpgc.match_points(
+        images[0],
+        images[1:],
+        cameras,
+        x0[sel],
+        y0[sel],
+        lon[sel],
+        lat[sel],
+        h[sel] + 0.5,
+        mpgc.MpgcParams(sigma_geometry=0.01),
+    )
+    ref = mpgc.match_points(
+        images[0],
+        images[1:],
+        cameras,
+        x0[sel],
+        y0[sel],
+        lon[sel],
+        lat[sel],
+        h[sel],
+        mpgc.MpgcParams(sigma_geometry=0.01),
+    )
     both = (hard["status"] == 0) & (ref["status"] == 0)
     assert both.mean() > 0.95
     np.testing.assert_allclose(hard["x"][both], ref["x"][both], atol=0.01)
@@ -402,12 +493,13 @@ def test_tiles_and_one_search_image(planar):
     assert ok.mean() > 0.95 and one.dtype == mpgc.mpgc_dtype(1)
     d1 = enu_error(cameras, one, enu[sel])[ok, 2]
     d2 = enu_error(cameras, big, enu[sel])[ok, 2]
-    assert np.sqrt((d1 ** 2).mean()) > 1.2 * np.sqrt((d2 ** 2).mean())
+    assert np.sqrt((d1**2).mean()) > 1.2 * np.sqrt((d2**2).mean())
     assert np.median(one["sigma"][ok, 2]) > 1.2 * np.median(big["sigma"][ok, 2])
 
 
 # --------------------------------------------------------------------------------------------
 # failures
+
 
 def test_failures_give_status_not_exceptions(planar, figures):
     """Blank patch, template off the reference, window off a search image, approximation far off
@@ -415,16 +507,19 @@ def test_failures_give_status_not_exceptions(planar, figures):
     kept; the good point of the same batch is unaffected."""
     cameras, images, x0, y0, enu, pos, (lon, lat, h) = planar
     ref = images[0].copy()
-    ref[150:190, 150:190] = 100.0                       # blank patch around (170, 170)
+    ref[150:190, 150:190] = 100.0  # blank patch around (170, 170)
     blank = np.flatnonzero((x0 == 166.5) & (y0 == 166.5))[0]
     good = np.flatnonzero((x0 == 58.5) & (y0 == 58.5))[0]
     xs = np.array([x0[good], x0[blank], 3.5, x0[good], x0[good], x0[good]])
     ys = np.array([y0[good], y0[blank], 30.5, y0[good], y0[good], y0[good]])
-    lo, la, hh = lon[[good, blank, good, good, good, good]], lat[[good, blank, good, good, good, good]], \
-        h[[good, blank, good, good, good, good]].copy()
+    lo, la, hh = (
+        lon[[good, blank, good, good, good, good]],
+        lat[[good, blank, good, good, good, good]],
+        h[[good, blank, good, good, good, good]].copy(),
+    )
     lo[2], la[2] = cameras[0].lonlat(3.5 - 200.0, 200.0 - 30.5)
-    hh[3] = enu[good, 2] + 60.0                         # 27 px of parallax: far off
-    hh[4] = enu[good, 2] + 500.0                        # projects outside the search images
+    hh[3] = enu[good, 2] + 60.0  # 27 px of parallax: far off
+    hh[4] = enu[good, 2] + 500.0  # projects outside the search images
     lo[5] = np.nan
     rec = mpgc.match_points(ref, images[1:], cameras, xs, ys, lo, la, hh)
     status = list(rec["status"])
@@ -468,6 +563,7 @@ def test_input_errors(planar):
 # --------------------------------------------------------------------------------------------
 # simulated SPOT 5 triplet
 
+
 @pytest.fixture(scope="module")
 def spot(small_matching_scene):
     return spot_points(small_matching_scene)
@@ -479,6 +575,7 @@ def spot_images(paths, models, height_range):
     from pushbroom.algorithms.matching.imagery import Image
     from pushbroom.algorithms.matching.params import GrowParams
     from pushbroom.algorithms.matching.resolution import adapt_resolution
+
     ref, hrs1 = adapt_resolution(Image(paths[0]), Image(paths[1]), models[0], models[1], GrowParams(), height_range)
     return [ref, hrs1, Image(paths[2])]
 
@@ -490,6 +587,7 @@ def spot_points(scene):
     object points moved 10-20 m along the HRG ray; image paths and the height range. `scene`: the
     small scene's matching_scene.Scene."""
     from tests.helpers.matching_scene import LOW_CONTRAST_DN, SINGLE_SURFACE
+
     names = ("HRG", "HRS1", "HRS2")
     models = [scene.truth_model(name) for name in names]
     cols, rows = models[0].size
@@ -531,8 +629,9 @@ def test_spot_triplet_against_truth_and_pairwise(spot, figures):
     perr, ppred, pok = [], [], np.ones(len(x0), bool)
     for i in range(2):
         s = start[:, i]
-        prec, pst = lsm.match_points(arrays[0], arrays[i + 1], x0, y0, s[:, 0], s[:, 3], affine=s[:, [1, 2, 4, 5]],
-                                     params=LsmParams())
+        prec, pst = lsm.match_points(
+            arrays[0], arrays[i + 1], x0, y0, s[:, 0], s[:, 3], affine=s[:, [1, 2, 4, 5]], params=LsmParams()
+        )
         pok &= pst == lsm.OK
         perr.append(np.hypot(prec["x2"] - pos[:, i, 0], prec["y2"] - pos[:, i, 1]))
         ppred.append(np.hypot(prec["semi_major"].astype(float), prec["semi_minor"]))
@@ -540,15 +639,24 @@ def test_spot_triplet_against_truth_and_pairwise(spot, figures):
     both = ok & pok
 
     def rms(v):
-        return float(np.sqrt(np.mean(v ** 2)))
+        return float(np.sqrt(np.mean(v**2)))
+
     figures.report("textured field points", len(x0))
     figures.report("MPGC converged", 100 * ok.mean(), "%")
     figures.report("MPGC accepted", 100 * acc.mean(), "%")
     figures.report("pairwise LSM converged in both", 100 * pok.mean(), "%")
-    figures.table(f"over the {both.sum()} points converged in both (px)", [
-        {"": "MPGC", "RMS": rms(err[both]), "reported": rms(pred[both]), "ratio": rms(err[both]) / rms(pred[both])},
-        {"": "pairwise", "RMS": rms(perr[both]), "reported": rms(ppred[both]),
-         "ratio": rms(perr[both]) / rms(ppred[both])}])
+    figures.table(
+        f"over the {both.sum()} points converged in both (px)",
+        [
+            {"": "MPGC", "RMS": rms(err[both]), "reported": rms(pred[both]), "ratio": rms(err[both]) / rms(pred[both])},
+            {
+                "": "pairwise",
+                "RMS": rms(perr[both]),
+                "reported": rms(ppred[both]),
+                "ratio": rms(perr[both]) / rms(ppred[both]),
+            },
+        ],
+    )
     figures.report("pairwise / MPGC", rms(perr[both]) / rms(err[both]))
     figures.report("MPGC accepted, RMS", rms(err[acc]), "px")
     figures.report("MPGC accepted, > 1 px", 100 * np.mean(err[acc] > 1), "%")

@@ -1,4 +1,5 @@
 """NCC along a path against numpy; peak, second peak, sub-pixel refinement, bad input."""
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -23,15 +24,15 @@ def test_ncc_path_against_numpy():
         xs, ys = px[c] + k + 0.1 * l, py[c] - 0.05 * k + 0.5 * l
         g = ndimage.map_coordinates(img2.astype(float), [ys.ravel() - 0.5, xs.ravel() - 0.5], order=1)
         assert rho[c] == pytest.approx(np.corrcoef(f, g)[0, 1], abs=1e-6)
-    assert np.isnan(rho[3])                    # window leaves image 2
+    assert np.isnan(rho[3])  # window leaves image 2
     ncc.ncc_path(img1, img1, 35.5, 36.5, 4, np.array([35.5]), np.array([36.5]), 1.0, 0.0, 0.0, 1.0, rho[:1])
-    assert rho[0] == pytest.approx(1.0)        # the template itself
+    assert rho[0] == pytest.approx(1.0)  # the template itself
 
 
 def test_ncc_path_peaks_at_the_shift_with_scale_two_to_one():
     rng = np.random.default_rng(3)
     base = ndimage.gaussian_filter(rng.normal(size=(120, 120)), 3.0).astype(np.float32)
-    img2 = np.ascontiguousarray(base[::2, :])      # half the resolution along rows
+    img2 = np.ascontiguousarray(base[::2, :])  # half the resolution along rows
     path_y = 30.0 + np.arange(-5, 6) * 0.5
     rho = np.empty(path_y.size)
     ncc.ncc_path(base, img2, 60.5, 60.5, 7, np.full(path_y.size, 60.5), path_y, 1.0, 0.0, 0.0, 0.5, rho)
@@ -42,9 +43,11 @@ def test_ncc_path_peaks_at_the_shift_with_scale_two_to_one():
 def test_ncc_path_is_nan_on_blank_windows():
     blank = np.full((50, 50), 3.0, np.float32)
     rho = np.empty(2)
-    ncc.ncc_path(blank, textured(0, 50), 25.5, 25.5, 4, np.array([25.5, 26.5]), np.array([25.5, 25.5]),
-                 1.0, 0.0, 0.0, 1.0, rho)
+    ncc.ncc_path(
+        blank, textured(0, 50), 25.5, 25.5, 4, np.array([25.5, 26.5]), np.array([25.5, 25.5]), 1.0, 0.0, 0.0, 1.0, rho
+    )
     assert np.isnan(rho).all()
-    ncc.ncc_path(textured(0, 50), blank, 25.5, 25.5, 4, np.array([25.5, 26.5]), np.array([25.5, 25.5]),
-                 1.0, 0.0, 0.0, 1.0, rho)
+    ncc.ncc_path(
+        textured(0, 50), blank, 25.5, 25.5, 4, np.array([25.5, 26.5]), np.array([25.5, 25.5]), 1.0, 0.0, 0.0, 1.0, rho
+    )
     assert np.isnan(rho).all()

@@ -1,5 +1,6 @@
 """The search window both matchers read (pair_geometry.search_box) against a dense brute-force
 projection of the image-1 box over the height range, on the real Pleiades triplet's RPCs."""
+
 import numpy as np
 import pytest
 
@@ -26,7 +27,7 @@ def test_the_search_box_holds_every_projection_of_the_box(pair, box):
     predicted = np.array(search_box(*pair, box, hr, 0.0))
     # the extremes of the dense projection lie on the grid's samples (box corners, end heights)
     assert np.abs(predicted - dense).max() < 1e-6
-    wide = np.array(search_box(*pair, box, hr, 1.0))    # a margin holds every projection
+    wide = np.array(search_box(*pair, box, hr, 1.0))  # a margin holds every projection
     assert (wide[:2] <= dense[:2]).all() and (wide[2:] >= dense[2:]).all()
 
 

@@ -2,6 +2,7 @@
 image bias against injected biases on the simulated triplet's truth models, and the affine
 ShiftedModel against finite differences. Its effect on the group 3 points is asserted in
 test_three_combinations.py."""
+
 import numpy as np
 import pytest
 
@@ -22,7 +23,7 @@ def rays(small_scene):
     cols, rows = truths[0].size
     x0, y0 = rng.uniform(100, cols - 100, 2000), rng.uniform(100, rows - 100, 2000)
     lon, lat, h = truths[0].image_to_dem(x0, y0, dsm)
-    pos = np.array([np.array(m.ground_to_image(lon, lat, h), float) for m in truths])     # (3, 2, m)
+    pos = np.array([np.array(m.ground_to_image(lon, lat, h), float) for m in truths])  # (3, 2, m)
     return truths, pos
 
 
@@ -57,8 +58,10 @@ def biased(pos, noise, reference=False, seed=7):
     rng = np.random.default_rng(seed)
     m = pos.shape[2]
     observed = pos.copy()
-    maps = [([[1 + 2e-4, -1e-4], [1.5e-4, 1 - 1e-4]], [4.2, -3.1]),
-            ([[1 - 1e-4, 2e-4], [-1e-4, 1 + 2e-4]], [-2.5, 5.0])]
+    maps = [
+        ([[1 + 2e-4, -1e-4], [1.5e-4, 1 - 1e-4]], [4.2, -3.1]),
+        ([[1 - 1e-4, 2e-4], [-1e-4, 1 + 2e-4]], [-2.5, 5.0]),
+    ]
     for i, (lin, d) in enumerate(maps, start=1):
         observed[i] = np.asarray(lin) @ pos[i] + np.asarray(d)[:, None]
     if reference:
@@ -72,8 +75,23 @@ def biased(pos, noise, reference=False, seed=7):
 def ray_rms(corrected, inter, observed, clean):
     """RMS (px) per image of the clean points' positions against the corrected models' projections
     of their intersections."""
-    return [float(np.sqrt(np.mean(np.square(np.hypot(*(observed[i][:, clean] - np.array(
-        corrected[i].ground_to_image(inter.lon, inter.lat, inter.h))[:, clean])))))) for i in range(3)]
+    return [
+        float(
+            np.sqrt(
+                np.mean(
+                    np.square(
+                        np.hypot(
+                            *(
+                                observed[i][:, clean]
+                                - np.array(corrected[i].ground_to_image(inter.lon, inter.lat, inter.h))[:, clean]
+                            )
+                        )
+                    )
+                )
+            )
+        )
+        for i in range(3)
+    ]
 
 
 @pytest.mark.parametrize("noise", [0.0, 0.1])

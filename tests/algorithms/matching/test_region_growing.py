@@ -1,6 +1,7 @@
 """Region-growing LSM (algorithms/matching/region_growing.py): numba core against a plain-Python
 reference, accuracy/coverage on a simulated SPOT 5 scene against the truth, determinism over
 workers and tiles, and bad input."""
+
 import heapq
 import time
 
@@ -18,8 +19,32 @@ from tests.helpers.feedback import Feedback
 from tests.helpers.matching_scene import DISCONTINUOUS, LOW_CONTRAST_DN, SINGLE_SURFACE
 
 
-def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds, half, whalf, max_iter, conv, tukey,
-                   rho_min, max_ellipse, max_shift, results, state, origin, prior):
+def grow_reference(
+    img1,
+    img2,
+    ox1,
+    oy1,
+    ox2,
+    oy2,
+    gx0,
+    gy0,
+    step,
+    nx,
+    ny,
+    seeds,
+    half,
+    whalf,
+    max_iter,
+    conv,
+    tukey,
+    rho_min,
+    max_ellipse,
+    max_shift,
+    results,
+    state,
+    origin,
+    prior,
+):
     """Plain-Python reference of region_growing_kernels.grow_kernel (heapq; same arguments and outputs)."""
     heap = []
     out = np.empty(results.shape[1])
@@ -28,15 +53,18 @@ def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds
     def attempt(node, x2, y2, a1, a2, a4, a5):
         x1 = gx0 + (node % nx) * step - ox1
         y1 = gy0 + (node // nx) * step - oy1
+
         def criteria(status):
-            return bool(status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift
-                        and out[6] < max_iter)
+            return bool(
+                status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift and out[6] < max_iter
+            )
 
         status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out, tukey)
         ok = criteria(status)
-        if not ok and status != 1 and whalf > half:     # failed inside the images: the wide window
-            status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out,
-                               tukey)
+        if not ok and status != 1 and whalf > half:  # failed inside the images: the wide window
+            status = lsm_point(
+                img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out, tukey
+            )
             ok = criteria(status)
         results[node] = out
         results[node, 0] += ox2
@@ -64,8 +92,7 @@ def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds
             a1, a2, a4, a5 = results[node, 7:11] if len(prior) != 4 else prior
             dk, dl = dc * step, dr * step
             tries += 1
-            if attempt(nb, results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl,
-                       a1, a2, a4, a5):
+            if attempt(nb, results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl, a1, a2, a4, a5):
                 origin[nb] = origin[node]
                 heapq.heappush(heap, (-_quantise(results[nb, 2]), nb))
     return tries
@@ -74,9 +101,11 @@ def grow_reference(img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny, seeds
 # --------------------------------------------------------------------------------------------
 # lattice and tiles
 
+
 def texture(shape, seed):
     """Smooth random texture (sum of blurred noise), float32."""
     from scipy.ndimage import gaussian_filter
+
     rng = np.random.default_rng(seed)
     return (100 + 400 * gaussian_filter(rng.standard_normal(shape), 1.5)).astype(np.float32)
 
@@ -86,6 +115,7 @@ def kernel_case(prior, whalf, contrast=1.0, noise=0.0):
     growth must stop; `contrast` < 1 weakens the texture of the left half against the `noise` (DN),
     so that some 9 x 9 windows fail the error ellipse. Runs the numba core and the heapq reference."""
     from scipy.ndimage import shift as nd_shift
+
     img1 = texture((90, 90), 3)
     img1[:, :45] = 100 + contrast * (img1[:, :45] - 100)
     img2 = nd_shift(img1.astype(float), (-1.6, 2.3), order=3, mode="nearest").astype(np.float32)
@@ -94,15 +124,44 @@ def kernel_case(prior, whalf, contrast=1.0, noise=0.0):
     img1 = img1 + rng.normal(0.0, noise, img1.shape).astype(np.float32)
     img2 = img2 + rng.normal(0.0, noise, img2.shape).astype(np.float32)
     half, step, nx, ny = 4, 5, 14, 14
-    seeds = np.array([[0 * nx + 0, 7.5 + 2.3 + 0.4, 7.5 - 1.6 - 0.3, 1, 0, 0, 1, 7],
-                      [3 * nx + 9, 52.5 + 2.3, 22.5 - 1.6, 1, 0, 0, 1, 8]], float)
+    seeds = np.array(
+        [
+            [0 * nx + 0, 7.5 + 2.3 + 0.4, 7.5 - 1.6 - 0.3, 1, 0, 0, 1, 7],
+            [3 * nx + 9, 52.5 + 2.3, 22.5 - 1.6, 1, 0, 0, 1, 8],
+        ],
+        float,
+    )
     outs = []
     for fn in (grow_kernel, grow_reference):
         results = np.full((nx * ny, LSM_OUT), np.nan)
         state = np.zeros(nx * ny, np.int8)
         origin = np.full(nx * ny, -1, np.int64)
-        tries = fn(img1, img2, 0.0, 0.0, 0.0, 0.0, 7.5, 7.5, float(step), nx, ny, seeds, half, whalf, 10, 0.01,
-                   0.0, 0.6, 0.1, 2.5, results, state, origin, prior)
+        tries = fn(
+            img1,
+            img2,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            7.5,
+            7.5,
+            float(step),
+            nx,
+            ny,
+            seeds,
+            half,
+            whalf,
+            10,
+            0.01,
+            0.0,
+            0.6,
+            0.1,
+            2.5,
+            results,
+            state,
+            origin,
+            prior,
+        )
         outs.append((results, state, origin, tries))
     return outs, nx, step
 
@@ -118,7 +177,7 @@ def test_kernel_matches_python_reference(prior):
     np.testing.assert_array_equal(o1, o2)
     np.testing.assert_allclose(r1, r2, rtol=1e-9, atol=1e-9, equal_nan=True)
     ok = s1 == 1
-    assert 100 < ok.sum() < nx * nx          # grew over the texture, stopped at the flat patch
+    assert 100 < ok.sum() < nx * nx  # grew over the texture, stopped at the flat patch
     np.testing.assert_allclose(r1[ok, 0] - (7.5 + step * (np.flatnonzero(ok) % nx)), 2.3, atol=0.05)
     np.testing.assert_allclose(r1[ok, 1] - (7.5 + step * (np.flatnonzero(ok) // nx)), -1.6, atol=0.05)
     assert set(o1[ok]) <= {7, 8}
@@ -137,8 +196,9 @@ def test_wide_window_where_the_narrow_one_fails(figures):
     np.testing.assert_allclose(r1, r2, rtol=1e-9, atol=1e-9, equal_nan=True)
     before, after = narrow[0][1] == 1, s1 == 1
     nodes = np.flatnonzero(after)
-    error = np.hypot(r1[after, 0] - (7.5 + step * (nodes % nx)) - 2.3,
-                     r1[after, 1] - (7.5 + step * (nodes // nx)) + 1.6)
+    error = np.hypot(
+        r1[after, 0] - (7.5 + step * (nodes % nx)) - 2.3, r1[after, 1] - (7.5 + step * (nodes // nx)) + 1.6
+    )
     figures.report("accepted nodes with the 9 x 9 window alone", before.sum())
     figures.report("accepted nodes with the 15 x 15 second window", after.sum())
     figures.report("error RMS", rms(error), "px")
@@ -162,6 +222,7 @@ def test_lattice_is_global_and_tiles_partition_it():
 # ------------------------------------------------------------------------------------------
 # simulated scene
 
+
 @pytest.fixture(scope="module")
 def scene(small_matching_scene):
     return small_matching_scene
@@ -169,12 +230,14 @@ def scene(small_matching_scene):
 
 @pytest.fixture(scope="module")
 def grown(scene):
-    match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(tile=256),
-               scene.height_range)   # compile outside the timing
+    match_pair(
+        scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(tile=256), scene.height_range
+    )  # compile outside the timing
     feedback = Feedback()
     start = time.perf_counter()
-    records = match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(),
-                         scene.height_range, feedback=feedback)
+    records = match_pair(
+        scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range, feedback=feedback
+    )
     seconds = time.perf_counter() - start
     x2, y2, cls = scene.truth(records["x1"], records["y1"])
     error = np.hypot(records["x2"] - x2, records["y2"] - y2)
@@ -189,18 +252,20 @@ def nodes(scene, simulated):
     precision LSM can reach there (Scene.matchable_precision, from the same scene simulated
     without noise)."""
     from pushbroom.algorithms.simulation import SceneConfig
+
     quiet = simulated(SceneConfig.small(noise=0.0))
     x1, y1, cls = scene.lattice_nodes()
     return x1, y1, cls, scene.texture(x1, y1), scene.matchable_precision(x1, y1, quiet)
 
 
 def rms(e):
-    return float(np.sqrt(np.mean(e ** 2))) if e.size else float("nan")
+    return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
 
 
 def test_smoothed_window_equals_whole_image_filter():
     """A Smoothed window is the crop of the whole filtered image (borders included)."""
     from scipy.ndimage import gaussian_filter
+
     img = texture((70, 90), 5)
     full = gaussian_filter(img, (0.3, 0.8), mode="nearest", truncate=4.0)
     view = Smoothed(Image(img), 0.8, 0.3)
@@ -234,6 +299,7 @@ def test_adapt_resolution_low_passes_the_finer_image(scene):
     0.5 px): 0.81 / 0.8 px. psf "off" or "pixel" with psf_sigma 0 turns it off; a model without an
     instrument (RPC) falls back to "pixel"."""
     from pushbroom.algorithms.matching.resolution import sensor_psf
+
     args = (Image(str(scene.image1)), Image(str(scene.image2)))
     hr = scene.height_range
     assert np.allclose(np.diag(sensor_psf(scene.model2)), [1 / 12 + 0.16, 5 / 12 + 0.64])
@@ -247,7 +313,7 @@ def test_adapt_resolution_low_passes_the_finer_image(scene):
     assert isinstance(k2, Image)
     assert k1.sigma[1] == pytest.approx(0.81, abs=0.03) and k1.sigma[0] == pytest.approx(0.81, abs=0.05)
 
-    class NoInstrument:     # as an RPC model: no orientation
+    class NoInstrument:  # as an RPC model: no orientation
         size = scene.model2.size
 
         def __init__(self, model):
@@ -281,12 +347,22 @@ def test_region_growing_accuracy_against_truth(grown, figures):
     names = {2: "bare", 3: "crops", 4: "forest", 5: "city"}
     figures.report("points", len(records))
     figures.report("matching", seconds, "s", f"{len(records) / seconds:.0f} points/s")
-    figures.table("per class (px)", [{"class": name, "n": (cls == c).sum(), "RMS": rms(error[cls == c]),
-                                      "RMS vs the template-area truth": rms(area_error[cls == c]),
-                                      "> 1 px %": 100 * np.mean(error[cls == c] > 1)} for c, name in names.items()])
+    figures.table(
+        "per class (px)",
+        [
+            {
+                "class": name,
+                "n": (cls == c).sum(),
+                "RMS": rms(error[cls == c]),
+                "RMS vs the template-area truth": rms(area_error[cls == c]),
+                "> 1 px %": 100 * np.mean(error[cls == c] > 1),
+            }
+            for c, name in names.items()
+        ],
+    )
     assert len(records) > 1000
-    assert rms(error[single]) < 0.21                 # docs/validation.md#region-growing-accuracy
-    assert np.mean(error[single] > 1.0) < 0.005      # target met
+    assert rms(error[single]) < 0.21  # docs/validation.md#region-growing-accuracy
+    assert np.mean(error[single] > 1.0) < 0.005  # target met
     assert rms(area_error[steps]) < 0.15 and np.mean(area_error[steps] > 1.0) < 0.005
     assert np.all(records["rho"] > 0.6) and np.all(records["semi_major"] < 0.1)
     assert any("points accepted" in m for m in feedback.messages)
@@ -310,24 +386,38 @@ def coverage(records, error, nodes, figures, label):
     low = (cls == 3) & ~textured
     on_low = error[np.isin(rkey, key[low])]
     matchable = bound < GrowParams().max_ellipse
-    figures.table(f"{label}: nodes covered per class (%)", [
-        {"class": name, "textured nodes": ((cls == c) & textured).sum(),
-         "covered": 100 * hit[(cls == c) & textured].mean(),
-         "matchable covered": 100 * hit[matchable & (cls == c)].mean()}
-        for c, name in {2: "bare", 3: "crops", 4: "forest", 5: "city"}.items()])
+    figures.table(
+        f"{label}: nodes covered per class (%)",
+        [
+            {
+                "class": name,
+                "textured nodes": ((cls == c) & textured).sum(),
+                "covered": 100 * hit[(cls == c) & textured].mean(),
+                "matchable covered": 100 * hit[matchable & (cls == c)].mean(),
+            }
+            for c, name in {2: "bare", 3: "crops", 4: "forest", 5: "city"}.items()
+        ],
+    )
     figures.report(f"{label}: textured nodes covered", 100 * hit[textured].mean(), "%")
     figures.report(f"{label}: uniform grass parcel nodes covered", 100 * hit[low].mean(), "%")
-    figures.report(f"{label}: points on uniform grass parcels, RMS", rms(on_low), "px",
-                   f"> 1 px {100 * np.mean(on_low > 1):.2f} %")
-    figures.report(f"{label}: matchable nodes (noise-only precision < {GrowParams().max_ellipse} px)", matchable.sum(),
-                   note=f"{100 * matchable[textured].mean():.1f} % of the textured ones; "
-                        f"{(textured & ~matchable).sum()} textured ones not")
+    figures.report(
+        f"{label}: points on uniform grass parcels, RMS", rms(on_low), "px", f"> 1 px {100 * np.mean(on_low > 1):.2f} %"
+    )
+    figures.report(
+        f"{label}: matchable nodes (noise-only precision < {GrowParams().max_ellipse} px)",
+        matchable.sum(),
+        note=f"{100 * matchable[textured].mean():.1f} % of the textured ones; "
+        f"{(textured & ~matchable).sum()} textured ones not",
+    )
     figures.report(f"{label}: matchable nodes covered", 100 * hit[matchable].mean(), "%")
     on_fields = np.isin(rkey, key[np.isin(cls, SINGLE_SURFACE)])
     on_matchable = np.isin(rkey, key[matchable])
     effective = bound < EFFECTIVE_ELLIPSE
-    figures.report(f"{label}: nodes with noise-only precision < {EFFECTIVE_ELLIPSE} px", effective.sum(),
-                   note=f"covered {100 * hit[effective].mean():.1f} %")
+    figures.report(
+        f"{label}: nodes with noise-only precision < {EFFECTIVE_ELLIPSE} px",
+        effective.sum(),
+        note=f"covered {100 * hit[effective].mean():.1f} %",
+    )
     figures.report(f"{label}: field points on matchable nodes, RMS", rms(error[on_fields & on_matchable]), "px")
     figures.report(f"{label}: field points on the other nodes, RMS", rms(error[on_fields & ~on_matchable]), "px")
     return hit[textured].mean(), hit[low].mean(), on_low, hit[matchable].mean()
@@ -343,9 +433,9 @@ def test_region_growing_coverage(grown, nodes, figures):
     (LSM's noise-only precision from the noise-free images, Scene.matchable_precision), so coverage is
     also measured on the nodes where it can (docs/validation.md#region-growing-coverage)."""
     textured, low, _, matchable = coverage(grown[0], grown[1], nodes, figures, "default")
-    assert textured > 0.68      # 70.8 % measured: 43 % of these nodes cannot reach the 0.1 px ellipse
-    assert matchable > 0.93     # 95.6 % measured
-    assert low < 0.06           # low texture stays mostly empty (3.3 % measured)
+    assert textured > 0.68  # 70.8 % measured: 43 % of these nodes cannot reach the 0.1 px ellipse
+    assert matchable > 0.93  # 95.6 % measured
+    assert low < 0.06  # low texture stays mostly empty (3.3 % measured)
 
 
 @pytest.mark.slow
@@ -353,8 +443,9 @@ def test_second_seed_round(scene, grown, nodes, figures):
     """GrowParams.reseed_cell: the second round of automatic seeds only adds points, at nodes the
     first round did not reach; every first-round point is the same
     (docs/validation.md#region-growing-second-seed-round)."""
-    one = match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(reseed_cell=0),
-                     scene.height_range)
+    one = match_pair(
+        scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(reseed_cell=0), scene.height_range
+    )
     two = grown[0]
     key = lambda r: r["x1"] + 1e5 * r["y1"]
     kept = np.isin(key(two), key(one))
@@ -363,8 +454,9 @@ def test_second_seed_round(scene, grown, nodes, figures):
     np.testing.assert_array_equal(two[kept], one)
     assert (~kept).sum() > 40
     x2, y2, _ = scene.truth(one["x1"], one["y1"])
-    _, low_one, _, matchable_one = coverage(one, np.hypot(one["x2"] - x2, one["y2"] - y2), nodes, figures,
-                                            "one seed round")
+    _, low_one, _, matchable_one = coverage(
+        one, np.hypot(one["x2"] - x2, one["y2"] - y2), nodes, figures, "one seed round"
+    )
     _, low_two, _, matchable_two = coverage(two, grown[1], nodes, figures, "two seed rounds")
     assert matchable_two > matchable_one + 0.015 and low_two <= low_one + 0.005
     with pytest.raises(InputError, match="reseed cell"):
@@ -377,8 +469,9 @@ def test_wide_template_option(scene, grown, nodes, figures):
     """GrowParams.wide_template 27 (off by default): more textured nodes covered, none beyond 1 px; the
     nodes of the default run are kept up to a few the growth order changes
     (docs/validation.md#region-growing-wide-template)."""
-    records = match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(wide_template=27),
-                         scene.height_range)
+    records = match_pair(
+        scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(wide_template=27), scene.height_range
+    )
     x2, y2, cls = scene.truth(records["x1"], records["y1"])
     error = np.hypot(records["x2"] - x2, records["y2"] - y2)
     single = np.isin(cls, SINGLE_SURFACE)
@@ -419,15 +512,16 @@ def test_given_seeds_alone_and_with_automatic_ones(scene, grown):
     both have a node; with automatic seeds too, tiles without a given seed fill as well and the
     automatic seed ids start after the given ones."""
     records = grown[0]
-    far = records[np.argsort(records["rho"])[::-1][:3]]          # three strong points as seeds
+    far = records[np.argsort(records["rho"])[::-1][:3]]  # three strong points as seeds
     args = (scene.image1, scene.image2, scene.model1, scene.model2)
     alone = match_pair(*args, GrowParams(), scene.height_range, seeds=far, automatic=False)
     assert len(alone) > 100 and set(alone["seed"]) <= {0, 1, 2}
     key = {(x, y): i for i, (x, y) in enumerate(zip(records["x1"], records["y1"]))}
     pairs = np.array([(key[(x, y)], j) for j, (x, y) in enumerate(zip(alone["x1"], alone["y1"])) if (x, y) in key])
     assert len(pairs) > 0.95 * len(alone)
-    d = np.hypot(records["x2"][pairs[:, 0]] - alone["x2"][pairs[:, 1]],
-                 records["y2"][pairs[:, 0]] - alone["y2"][pairs[:, 1]])
+    d = np.hypot(
+        records["x2"][pairs[:, 0]] - alone["x2"][pairs[:, 1]], records["y2"][pairs[:, 0]] - alone["y2"][pairs[:, 1]]
+    )
     assert np.percentile(d, 99) < 0.05
     both = match_pair(*args, GrowParams(), scene.height_range, seeds=far, automatic=True)
     assert len(both) >= 0.99 * len(records) and (both["seed"] >= 3).any()
@@ -443,6 +537,7 @@ def test_pair_seeds_rematch_stored_points(scene, grown):
     from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
     from pushbroom.algorithms.matching.region_growing_strategy import pair_seeds
     from pushbroom.algorithms.matching.stereo_set import StereoSet
+
     records = grown[0][::25]
     n = len(records)
     pts = np.zeros(n, POINT_DTYPE)
@@ -452,13 +547,17 @@ def test_pair_seeds_rematch_stored_points(scene, grown):
     obs["image_id"] = np.tile([7, 9], n)
     obs["col"][0::2], obs["row"][0::2] = records["x1"], records["y1"]
     obs["col"][1::2], obs["row"][1::2] = records["x2"] + 1.5, records["y2"] - 1.5
-    stereo = StereoSet.of([scene.image1, scene.image2], [scene.model1, scene.model2], ids=[7, 9],
-                          heights=scene.height_range)
+    stereo = StereoSet.of(
+        [scene.image1, scene.image2], [scene.model1, scene.model2], ids=[7, 9], heights=scene.height_range
+    )
     seeds = pair_seeds(stereo, 1, MultiPoints(pts, obs), GrowParams())
     assert len(seeds) > 0.35 * n
     np.testing.assert_array_equal(np.isin(seeds["x1"], records["x1"]), True)
-    k = np.searchsorted(records["x1"] + 1e5 * records["y1"], seeds["x1"] + 1e5 * seeds["y1"],
-                        sorter=np.argsort(records["x1"] + 1e5 * records["y1"]))
+    k = np.searchsorted(
+        records["x1"] + 1e5 * records["y1"],
+        seeds["x1"] + 1e5 * seeds["y1"],
+        sorter=np.argsort(records["x1"] + 1e5 * records["y1"]),
+    )
     ref = records[np.argsort(records["x1"] + 1e5 * records["y1"])[k]]
     assert np.percentile(np.hypot(seeds["x2"] - ref["x2"], seeds["y2"] - ref["y2"]), 95) < 0.05
 
@@ -469,8 +568,9 @@ def test_transfer_points_with_guide(scene, grown):
     guide = records[::2]
     x1 = records["x1"][1::2] + 3.0
     y1 = records["y1"][1::2] - 2.0
-    out, ok = transfer_points(scene.image1, scene.image2, scene.model1, scene.model2, x1, y1, GrowParams(),
-                              scene.height_range, guide=guide)
+    out, ok = transfer_points(
+        scene.image1, scene.image2, scene.model1, scene.model2, x1, y1, GrowParams(), scene.height_range, guide=guide
+    )
     assert len(out) == len(x1) and ok.mean() > 0.6
     x2, y2, cls = scene.truth(x1[ok], y1[ok])
     error = np.hypot(out["x2"][ok] - x2, out["y2"][ok] - y2)
@@ -481,12 +581,22 @@ def test_transfer_points_with_guide(scene, grown):
 @pytest.mark.slow
 def test_given_seeds(scene, grown):
     from pushbroom.algorithms.matching.seeds import automatic_seeds, seeds_from_points
+
     auto = automatic_seeds(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range)
-    seeds, ok = seeds_from_points(scene.image1, scene.image2, scene.model1, scene.model2, auto["x1"][:3],
-                                  auto["y1"][:3], GrowParams(), scene.height_range)
+    seeds, ok = seeds_from_points(
+        scene.image1,
+        scene.image2,
+        scene.model1,
+        scene.model2,
+        auto["x1"][:3],
+        auto["y1"][:3],
+        GrowParams(),
+        scene.height_range,
+    )
     assert ok.any()
-    records = match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(),
-                         scene.height_range, seeds=seeds[ok])
+    records = match_pair(
+        scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range, seeds=seeds[ok]
+    )
     assert len(records) > 200 and set(np.unique(records["seed"])) <= set(np.flatnonzero(ok))
 
 
@@ -505,16 +615,18 @@ def test_no_overlap_is_an_input_error(scene):
 def test_blank_image_gives_empty_result_and_warning(scene):
     blank = Image(np.full((599, 300), 80.0, np.float32))
     feedback = Feedback()
-    records = match_pair(scene.image1, blank, scene.model1, scene.model2, GrowParams(), scene.height_range,
-                         feedback=feedback)
+    records = match_pair(
+        scene.image1, blank, scene.model1, scene.model2, GrowParams(), scene.height_range, feedback=feedback
+    )
     assert len(records) == 0
     assert any("Warning" in m and "no matched point" in m for m in feedback.messages)
 
 
 def test_image_smaller_than_template(scene):
     with pytest.raises(InputError, match="smaller than the matching template"):
-        match_pair(Image(texture((12, 12), 1)), scene.image2, scene.model1, scene.model2, GrowParams(),
-                   scene.height_range)
+        match_pair(
+            Image(texture((12, 12), 1)), scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range
+        )
 
 
 def test_height_range_required_for_spot(scene):
@@ -524,5 +636,12 @@ def test_height_range_required_for_spot(scene):
 
 def test_cancel(scene):
     with pytest.raises(CancelledError):
-        match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range,
-                   feedback=Feedback(cancel_after=0))
+        match_pair(
+            scene.image1,
+            scene.image2,
+            scene.model1,
+            scene.model2,
+            GrowParams(),
+            scene.height_range,
+            feedback=Feedback(cancel_after=0),
+        )

@@ -1,4 +1,5 @@
 """Seeds (algorithms/matching/seeds.py) and windowed imagery (imagery.py)."""
+
 import numpy as np
 import pytest
 
@@ -12,6 +13,7 @@ from pushbroom.algorithms.matching.seeds import automatic_seeds, seeds_from_poin
 
 def test_image_window_clipping_and_nodata(tmp_path):
     from osgeo import gdal
+
     data = np.arange(20 * 30, dtype=np.uint16).reshape(20, 30)
     data[5, 7] = 9999
     path = str(tmp_path / "img.tif")
@@ -33,11 +35,12 @@ def test_image_window_clipping_and_nodata(tmp_path):
 def test_interest_points_on_texture_not_on_flat():
     rng = np.random.default_rng(0)
     from scipy.ndimage import gaussian_filter
+
     img = gaussian_filter(rng.standard_normal((100, 100)), 1.5).astype(np.float32)
     img[:, 50:] = 0.0
-    img[40:45, 10:15] = np.nan                      # nodata: no point within reach of it
+    img[40:45, 10:15] = np.nan  # nodata: no point within reach of it
     x, y, w = interest_points(img, patch=25, window=5, border=6)
-    assert len(x) > 3 and np.all(x < 52)            # texture and its edge only
+    assert len(x) > 3 and np.all(x < 52)  # texture and its edge only
     assert np.all((x > 6) & (y > 6) & (x < 94) & (y < 94)) and np.all(np.diff(w) <= 0)
     assert not np.any((x > 7) & (x < 18) & (y > 37) & (y < 48))
 
@@ -71,23 +74,52 @@ def test_automatic_seeds_are_correct(scene, figures):
 
 def test_a_sliver_box_has_no_seed(scene):
     cols, rows = scene.model1.size
-    for box in ((cols - 4, 0, cols, rows), (0, rows - 6, cols, rows)):     # the last tile of a 1028 px image ...
-        assert len(automatic_seeds(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(),
-                                   scene.height_range, box=box)) == 0
-    assert len(automatic_seeds(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(),
-                               scene.height_range, box=(0, 0, 200, 200))) > 0
+    for box in ((cols - 4, 0, cols, rows), (0, rows - 6, cols, rows)):  # the last tile of a 1028 px image ...
+        assert (
+            len(
+                automatic_seeds(
+                    scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range, box=box
+                )
+            )
+            == 0
+        )
+    assert (
+        len(
+            automatic_seeds(
+                scene.image1,
+                scene.image2,
+                scene.model1,
+                scene.model2,
+                GrowParams(),
+                scene.height_range,
+                box=(0, 0, 200, 200),
+            )
+        )
+        > 0
+    )
 
 
 @pytest.mark.slow
 def test_seeds_from_points_with_and_without_approximations(scene):
     x1 = np.array([150.5, 300.5, 450.5, 200.5])
     y1 = np.array([150.5, 300.5, 450.5, 420.5])
-    recs, ok = seeds_from_points(scene.image1, scene.image2, scene.model1, scene.model2, x1, y1, GrowParams(),
-                                 scene.height_range)
+    recs, ok = seeds_from_points(
+        scene.image1, scene.image2, scene.model1, scene.model2, x1, y1, GrowParams(), scene.height_range
+    )
     x2, y2, _ = scene.truth(x1, y1)
     assert ok.sum() >= 1
     assert np.all(np.hypot(recs["x2"][ok] - x2[ok], recs["y2"][ok] - y2[ok]) < 1.0)
-    recs2, ok2 = seeds_from_points(scene.image1, scene.image2, scene.model1, scene.model2, x1, y1, GrowParams(),
-                                   scene.height_range, x2=x2 + 1.5, y2=y2 - 1.0)
+    recs2, ok2 = seeds_from_points(
+        scene.image1,
+        scene.image2,
+        scene.model1,
+        scene.model2,
+        x1,
+        y1,
+        GrowParams(),
+        scene.height_range,
+        x2=x2 + 1.5,
+        y2=y2 - 1.0,
+    )
     assert ok2.sum() >= 1
     assert np.all(np.hypot(recs2["x2"][ok2] - x2[ok2], recs2["y2"][ok2] - y2[ok2]) < 1.0)

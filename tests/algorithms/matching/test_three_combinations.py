@@ -1,5 +1,6 @@
 """Three-image combinations and point groups (Kornus et al. 2006, section 3.3) on synthetic PAIR_DTYPE records,
 and the issue's group-3 accuracy target on the simulated 3 km SPOT 5 triplet."""
+
 import numpy as np
 import pytest
 
@@ -14,8 +15,8 @@ from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIM
 from pushbroom.algorithms.matching.three_combinations import combine, new_cells, robust_sigma
 from tests.helpers.matching_scene import DISCONTINUOUS, SINGLE_SURFACE
 
-SHIFT1 = np.array([10.25, 5.5])    # image 0 -> forward image 1
-SHIFT2 = np.array([-7.125, 3.0])   # image 0 -> backward image 2
+SHIFT1 = np.array([10.25, 5.5])  # image 0 -> forward image 1
+SHIFT2 = np.array([-7.125, 3.0])  # image 0 -> backward image 2
 
 
 def records(x1, y1, x2, y2, rho=0.9):
@@ -31,20 +32,31 @@ def scene(n=400, seed=0, noise=0.02):
     rng = np.random.default_rng(seed)
     x0 = rng.uniform(0, 1000, n).round(1) + 0.5
     y0 = rng.uniform(0, 1000, n).round(1) + 0.5
-    a = records(x0, y0, x0 + SHIFT1[0] + rng.normal(0, noise, n), y0 + SHIFT1[1] + rng.normal(0, noise, n),
-                rho=rng.uniform(0.6, 1.0, n))
+    a = records(
+        x0,
+        y0,
+        x0 + SHIFT1[0] + rng.normal(0, noise, n),
+        y0 + SHIFT1[1] + rng.normal(0, noise, n),
+        rho=rng.uniform(0.6, 1.0, n),
+    )
     src = np.arange(300)
-    matched = src[np.arange(300) % 15 != 0]             # 280 matched of 300
-    bt = records(a["x1"][matched] + 1e-9, a["y1"][matched], a["x1"][matched] + SHIFT2[0],
-                 a["y1"][matched] + SHIFT2[1], rho=0.8)  # matcher's x1 slightly off: combine must keep a's
+    matched = src[np.arange(300) % 15 != 0]  # 280 matched of 300
+    bt = records(
+        a["x1"][matched] + 1e-9, a["y1"][matched], a["x1"][matched] + SHIFT2[0], a["y1"][matched] + SHIFT2[1], rho=0.8
+    )  # matcher's x1 slightly off: combine must keep a's
     xo, yo = rng.uniform(2000, 3000, 50), rng.uniform(0, 1000, 50)
     bo = records(xo, yo, xo + SHIFT2[0], yo + SHIFT2[1], rho=0.75)
     b = np.concatenate([bt, bo])
     b_src = np.concatenate([matched, np.full(50, -1)])
     c_src = np.concatenate([np.arange(250), 280 + np.arange(20)])
     x2, y2 = b["x2"][c_src], b["y2"][c_src]
-    c = records(x2, y2, x2 - SHIFT2[0] + SHIFT1[0] + rng.normal(0, noise, len(c_src)),
-                y2 - SHIFT2[1] + SHIFT1[1] + rng.normal(0, noise, len(c_src)), rho=0.85)
+    c = records(
+        x2,
+        y2,
+        x2 - SHIFT2[0] + SHIFT1[0] + rng.normal(0, noise, len(c_src)),
+        y2 - SHIFT2[1] + SHIFT1[1] + rng.normal(0, noise, len(c_src)),
+        rho=0.85,
+    )
     return a, b, b_src, c, c_src
 
 
@@ -56,7 +68,7 @@ def test_counts_per_group():
     counts = mp.group_counts()
     assert counts[1] == 150 and counts[2] == 50
     assert counts[3] == 250 - mp.stats["rejected_3sigma"]
-    assert mp.stats["rejected_3sigma"] < 10          # Gaussian noise: a few beyond 3 sigma at most
+    assert mp.stats["rejected_3sigma"] < 10  # Gaussian noise: a few beyond 3 sigma at most
     p = mp.points
     assert np.array_equal(p["id"], np.arange(1, len(p) + 1))
     assert set(p["flags"][p["group"] == 3]) == {COMB_A | COMB_B | COMB_C}
@@ -99,28 +111,30 @@ def test_transfer_points_keep_first_image_coordinates_exactly():
 
 def test_three_sigma_test_removes_inconsistent_points():
     a, b, b_src, c, c_src = scene(noise=0.05)
-    bad = np.array([3, 40, 77, 150, 201])                  # c records of group 3 points
+    bad = np.array([3, 40, 77, 150, 201])  # c records of group 3 points
     c["x2"][bad[:3]] += 2.0
     c["y2"][bad[3:]] -= 1.5
     mp = combine(a, b, b_src, c, c_src)
     sigma = mp.stats["sigma_dx"]
-    assert 0.03 < sigma < 0.08                              # robust: blunders do not inflate it
+    assert 0.03 < sigma < 0.08  # robust: blunders do not inflate it
     assert mp.stats["rejected_3sigma"] >= 5
-    assert mp.stats["rejected_3sigma"] <= 5 + 5             # few good ones beyond 3 sigma
+    assert mp.stats["rejected_3sigma"] <= 5 + 5  # few good ones beyond 3 sigma
     # the blundered points are gone: every kept group 3 point is consistent
     g3 = mp.points[mp.points["group"] == 3]
     assert np.all(np.abs(g3["dx"]) < 3 * mp.stats["sigma_dx"])
     assert np.all(np.abs(g3["dy"]) < 3 * mp.stats["sigma_dy"])
     assert len(mp) == 400 + 50 - mp.stats["rejected_3sigma"]
     kept_a_x1 = mp.coordinates(1)[0][(mp.points["flags"] & COMB_A) > 0]
-    for k in bad:                                           # c[k] came from b[k], from a[matched[k]]
+    for k in bad:  # c[k] came from b[k], from a[matched[k]]
         assert a["x1"][b_src[c_src[k]]] not in kept_a_x1
 
 
 def test_perfect_data_keep_all_group_3_points():
     a, b, b_src, c, c_src = scene(noise=0.0)
-    c["x2"], c["y2"] = a["x2"][b_src[c_src[:250]]].tolist() + c["x2"][250:].tolist(), \
-        a["y2"][b_src[c_src[:250]]].tolist() + c["y2"][250:].tolist()
+    c["x2"], c["y2"] = (
+        a["x2"][b_src[c_src[:250]]].tolist() + c["x2"][250:].tolist(),
+        a["y2"][b_src[c_src[:250]]].tolist() + c["y2"][250:].tolist(),
+    )
     mp = combine(a, b, b_src, c, c_src)
     assert mp.stats["rejected_3sigma"] == 0 and mp.group_counts()[3] == 250
 
@@ -156,10 +170,11 @@ def test_helpers():
 
 def test_guide_for_combination_c_composes_the_affines():
     from pushbroom.algorithms.matching.three_combinations import compose_guide
+
     a, b, b_src, _, _ = scene()
-    a["a1"], a["a2"], a["a4"], a["a5"] = 1.2, 0.1, 0.0, 1.0       # image 0 -> 1
-    b["a1"], b["a2"], b["a4"], b["a5"] = 0.8, 0.0, 0.05, 1.0      # image 0 -> 2
-    b["a1"][0] = b["a2"][0] = 0.0                                 # singular: left out
+    a["a1"], a["a2"], a["a4"], a["a5"] = 1.2, 0.1, 0.0, 1.0  # image 0 -> 1
+    b["a1"], b["a2"], b["a4"], b["a5"] = 0.8, 0.0, 0.05, 1.0  # image 0 -> 2
+    b["a1"][0] = b["a2"][0] = 0.0  # singular: left out
     g = compose_guide(a, b, b_src)
     assert len(g) == 279
     src = b_src[1:280]
@@ -170,6 +185,7 @@ def test_guide_for_combination_c_composes_the_affines():
 
 # ------------------------------------------------------------------------------------------
 # the issue's target on the simulated triplet: GROUP-3 points of match_block (HRG, HRS1, HRS2)
+
 
 @pytest.fixture(scope="module")
 def triplet(small_matching_scene, small_scene_matched):
@@ -213,15 +229,24 @@ def test_group3_accuracy_on_the_simulated_triplet(triplet, figures):
     (refinement.py, the default) is what meets the target (docs/validation.md#group3-accuracy)."""
     cls = triplet["class"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
-    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))
+    rms = lambda e: float(np.sqrt(np.mean(e**2)))
     figures.report("group-3 points", triplet["n"])
     figures.report("matching statistics", triplet["stats"])
     for name in ("HRS1", "HRS2"):
         point, area = triplet[name]
-        figures.table(f"{name} per class (px)", [
-            {"class": label, "n": (cls == c).sum(), "RMS": rms(point[cls == c]),
-             "RMS vs the area truth": rms(area[cls == c]), "> 1 px %": 100 * np.mean(point[cls == c] > 1)}
-            for c, label in {2: "bare", 3: "crops", 4: "forest", 5: "city"}.items()])
+        figures.table(
+            f"{name} per class (px)",
+            [
+                {
+                    "class": label,
+                    "n": (cls == c).sum(),
+                    "RMS": rms(point[cls == c]),
+                    "RMS vs the area truth": rms(area[cls == c]),
+                    "> 1 px %": 100 * np.mean(point[cls == c] > 1),
+                }
+                for c, label in {2: "bare", 3: "crops", 4: "forest", 5: "city"}.items()
+            ],
+        )
         figures.report(f"{name} fields RMS", rms(point[single]), "px")
         figures.report(f"{name} fields RMS vs the area truth", rms(area[single]), "px")
         figures.report(f"{name} fields RMS without the refinement", rms(triplet[name + " plain"][single]), "px")
@@ -243,7 +268,7 @@ def test_group3_with_support_weights(triplet, figures):
     (docs/validation.md#group3-accuracy)."""
     cls = triplet["class support"]
     single, steps = np.isin(cls, SINGLE_SURFACE), np.isin(cls, DISCONTINUOUS)
-    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))
+    rms = lambda e: float(np.sqrt(np.mean(e**2)))
     assert triplet["n support"] > 800 and triplet["stats support"]["refined_mpgc"] > 0.95 * triplet["n support"]
     uniform_fields = np.isin(triplet["class"], SINGLE_SURFACE)
     for name in ("HRS1", "HRS2"):
@@ -278,8 +303,9 @@ def test_refinement_keeps_the_reference_and_the_other_points(triplet):
         moved |= ~same
     assert moved[refined].mean() > 0.99
     bias = np.array(triplet["stats"]["refine_bias_px"])
-    assert bias.shape == (2, 6) and np.all(np.abs(bias[:, 2:]) < 1e-3)    # the 3 km scene: a shift
+    assert bias.shape == (2, 6) and np.all(np.abs(bias[:, 2:]) < 1e-3)  # the 3 km scene: a shift
     assert triplet["stats"]["refine_sigma_geometry_px"] == 0.05
     rows = dict(summary_rows(mp))
     assert rows["Group 3 points refined by MPGC"] == refined.sum() and "Group 3 points refined by MPGC" not in dict(
-        summary_rows(plain))
+        summary_rows(plain)
+    )

@@ -1,6 +1,7 @@
 """QGIS Georeferencer .points files (measurement/georeferencer.py): the file written for one image
 (QGIS 3.22 layout, UTM map coordinates against OSR point by point, pixelY = -row), read back as
 2-D reference points (XY from the map, Z from the DTM or a height), and the reader's errors."""
+
 import shutil
 
 import numpy as np
@@ -34,7 +35,7 @@ def test_write_and_read_back(observations, small_scene, tmp_path, figures):
     epsg = utm_epsg(obs.points["lon"].mean(), obs.points["lat"].mean())
     assert lines[0].startswith("#CRS: ") and lines[1] == HEADER and len(lines) == 2 + len(obs.points)
     stated = osr.SpatialReference()
-    stated.SetFromUserInput(lines[0][len("#CRS: "):])
+    stated.SetFromUserInput(lines[0][len("#CRS: ") :])
     expected = osr.SpatialReference()
     expected.ImportFromEPSG(epsg)
     assert stated.IsSame(expected)
@@ -51,7 +52,7 @@ def test_write_and_read_back(observations, small_scene, tmp_path, figures):
     assert (back.points["role"] == "check").all()
     assert np.abs(back.points["lon"] - obs.points["lon"]).max() < 1e-9
     assert np.abs(back.points["lat"] - obs.points["lat"]).max() < 1e-9
-    assert np.abs(back.points["h"] - obs.points["h"]).max() < 0.05          # the simulator's sites lie on its DTM
+    assert np.abs(back.points["h"] - obs.points["h"]).max() < 0.05  # the simulator's sites lie on its DTM
     assert back.points[["sigma_e", "sigma_n", "sigma_h"]].tolist() == [cp.DEFAULT_SIGMAS] * len(m)
     bm = back.measurements
     assert bm["col"].tolist() == m["col"].tolist() and bm["row"].tolist() == m["row"].tolist()
@@ -74,7 +75,7 @@ def test_reader_conventions_and_errors(tmp_path):
     with pytest.raises(InputError, match="no '#CRS:' line"):
         read_points(plain, 2, height=100.0)
     obs = read_points(plain, 2, height=100.0, crs="EPSG:32616")
-    assert obs.points["name"].tolist() == ["GEO1", "GEO3"]                       # the disabled row is skipped
+    assert obs.points["name"].tolist() == ["GEO1", "GEO3"]  # the disabled row is skipped
     assert obs.measurements["col"].tolist() == [10.5, 50.0] and obs.measurements["row"].tolist() == [20.25, 60.0]
     x, y = utm(obs.points["lon"], obs.points["lat"], 32616)
     assert np.abs(x - [500000, 500200]).max() < 1e-6 and np.abs(y - [4000000, 4000200]).max() < 1e-6
@@ -95,12 +96,14 @@ def test_reader_conventions_and_errors(tmp_path):
         read_points(plain, 2, dem=nowhere, crs=32616)
     with pytest.raises(InputError, match="give a DEM or a height"):
         read_points(plain, 2, crs=32616)
-    bad = [("x.points", f"{HEADER}\n500000,4000000,1\n", "line 2: 3 field"),
-           ("y.points", f"{HEADER}\n500000,4000000,1,-2,1\n5000a0,4000000,1,-2,1\n", "line 3: .* is not numbers"),
-           ("z.points", "500000,4000000,1,-2,1\n", "line 1: expected the header"),
-           ("m.points", f"{HEADER}\n500000,4000000,1,-2\n500000,4000000,1,2\n", "line 3: pixelY 2.0 is positive"),
-           ("e.points", f"{HEADER}\n500000,4000000,1,-2,0\n", "no enabled point"),
-           ("n.points", f"{HEADER}\n500000,4000000,1,nan\n", "line 2: coordinates must be finite")]
+    bad = [
+        ("x.points", f"{HEADER}\n500000,4000000,1\n", "line 2: 3 field"),
+        ("y.points", f"{HEADER}\n500000,4000000,1,-2,1\n5000a0,4000000,1,-2,1\n", "line 3: .* is not numbers"),
+        ("z.points", "500000,4000000,1,-2,1\n", "line 1: expected the header"),
+        ("m.points", f"{HEADER}\n500000,4000000,1,-2\n500000,4000000,1,2\n", "line 3: pixelY 2.0 is positive"),
+        ("e.points", f"{HEADER}\n500000,4000000,1,-2,0\n", "no enabled point"),
+        ("n.points", f"{HEADER}\n500000,4000000,1,nan\n", "line 2: coordinates must be finite"),
+    ]
     for name, text, message in bad:
         with pytest.raises(InputError, match=message):
             read_points(write(tmp_path / name, text), 2, height=0.0, crs=32616)

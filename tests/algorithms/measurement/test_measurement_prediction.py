@@ -2,6 +2,7 @@
 simulator's truth: with the TRUE sensor models the points.csv ground points land on their true image
 positions, and a click on a true image position comes back to the point's ground coordinates on the
 true DSM (first ray/DSM intersection) or at its height."""
+
 import csv
 
 import numpy as np

@@ -3,6 +3,7 @@ on a block of the marked SPOT 5 triplet: drafts and free names, ground positions
 of the block's models, provisional points, LSM transfers against the simulator's true positions with
 accept/reject, edits with undo and redo through the block, refused edits, imports and exports, and
 the residual summaries of the point table. What is on disk is read by a second, fresh session."""
+
 import math
 import shutil
 
@@ -29,7 +30,7 @@ class History:
         self.edits, self.index = [], 0
 
     def record(self, edit):
-        del self.edits[self.index:]
+        del self.edits[self.index :]
         self.edits.append(edit)
         self.index += 1
 
@@ -42,7 +43,7 @@ class History:
         return session.redo(self.edits[self.index - 1])
 
     def texts(self):
-        return [edit.text for edit in self.edits[:self.index]]
+        return [edit.text for edit in self.edits[: self.index]]
 
 
 @pytest.fixture
@@ -59,8 +60,10 @@ def open_session(path):
 def on_disk(path):
     """{name: (put_point values, {image id: (col, row)})} as a fresh session reads the block."""
     fresh = MeasurementSession(path)
-    return {str(name): (fresh.values(str(name)), {i: m[:2] for i, m in fresh.measurements(str(name)).items()})
-            for name in fresh.observations.points["name"]}
+    return {
+        str(name): (fresh.values(str(name)), {i: m[:2] for i, m in fresh.measurements(str(name)).items()})
+        for name in fresh.observations.points["name"]
+    }
 
 
 def ids_by_name(session):
@@ -73,14 +76,14 @@ def test_a_new_point_is_a_draft_until_stored(block_path, marked_points):
     assert name == "P001" and session.current == name and session.point(name) is None
     values = session.values(name)
     assert math.isnan(values["lon"]) and [values[k] for k in SIGMA_KEYS] == list(DEFAULT_SIGMAS)
-    assert on_disk(block_path) == {} and history.edits == []       # nothing stored yet
+    assert on_disk(block_path) == {} and history.edits == []  # nothing stored yet
     with pytest.raises(InputError, match="no point"):
-        session.select_point(name)                                  # a draft is not in the block
+        session.select_point(name)  # a draft is not in the block
     with pytest.raises(InputError, match="role"):
         session.new_point("X", role="tie")
     assert session.edit_point(name, new_name="D1", role="check") and session.current == "D1"
-    assert session.values("D1")["role"] == "check" and history.edits == []   # drafts change in memory
-    assert session.delete_point("D1") is False                       # discarded, not deleted
+    assert session.values("D1")["role"] == "check" and history.edits == []  # drafts change in memory
+    assert session.delete_point("D1") is False  # discarded, not deleted
     assert session.current is None and session.draft is None
     p = marked_points["P001"]
     session.new_point()
@@ -98,8 +101,16 @@ def test_ground_position_and_predictions(block_path, marked_points):
     session.new_point("G1")
     session.set_ground(p["lon"], p["lat"], p["h"])
     values, meas = on_disk(block_path)["G1"]
-    assert values == {"name": "G1", "role": "control", "lon": p["lon"], "lat": p["lat"], "h": p["h"],
-                      "sigma_e": DEFAULT_SIGMAS[0], "sigma_n": DEFAULT_SIGMAS[1], "sigma_h": DEFAULT_SIGMAS[2]}
+    assert values == {
+        "name": "G1",
+        "role": "control",
+        "lon": p["lon"],
+        "lat": p["lat"],
+        "h": p["h"],
+        "sigma_e": DEFAULT_SIGMAS[0],
+        "sigma_n": DEFAULT_SIGMAS[1],
+        "sigma_h": DEFAULT_SIGMAS[2],
+    }
     assert meas == {} and history.texts() == ["New point G1"]
     assert session.ground("G1") == (p["lon"], p["lat"], p["h"], False)
     predicted = session.predictions("G1")
@@ -128,9 +139,11 @@ def test_transfer_lands_on_the_truth(block_path, marked_points, dem):
             assert error < TRANSFER_TOLERANCE, (point, name, error)
             assert 0.7 < t.rho <= 1.0
         pending = dict(session.pending)
-        assert on_disk(block_path)[point][1] == {ids["HRG"]: (p["HRG_col"], p["HRG_row"])}   # not yet accepted
-        assert session.current_positions() == {ids["HRG"]: (p["HRG_col"], p["HRG_row"]),
-                                               **{i: (t.col, t.row) for i, t in pending.items()}}
+        assert on_disk(block_path)[point][1] == {ids["HRG"]: (p["HRG_col"], p["HRG_row"])}  # not yet accepted
+        assert session.current_positions() == {
+            ids["HRG"]: (p["HRG_col"], p["HRG_row"]),
+            **{i: (t.col, t.row) for i, t in pending.items()},
+        }
         if point == "P001":
             session.accept_pending(ids["HRS1"])
             assert set(session.pending) == {ids["HRS2"]}
@@ -143,16 +156,24 @@ def test_transfer_lands_on_the_truth(block_path, marked_points, dem):
             assert set(session.pending) == {ids["HRS1"]}
             session.reject_pending()
             assert set(on_disk(block_path)[point][1]) == {ids["HRG"]}
-            predicted = session.predictions(point)                  # no transfer: the views go to the predictions
-            assert session.current_positions() == {ids["HRG"]: (p["HRG_col"], p["HRG_row"]),
-                                                   ids["HRS1"]: predicted[ids["HRS1"]],
-                                                   ids["HRS2"]: predicted[ids["HRS2"]]}
+            predicted = session.predictions(point)  # no transfer: the views go to the predictions
+            assert session.current_positions() == {
+                ids["HRG"]: (p["HRG_col"], p["HRG_row"]),
+                ids["HRS1"]: predicted[ids["HRS1"]],
+                ids["HRS2"]: predicted[ids["HRS2"]],
+            }
         assert session.pending == {}
-    assert history.texts() == ["New point P001", "Measure P001 in HRG", "Accept transfers of P001",
-                               "Accept transfers of P001", "New point P004", "Measure P004 in HRG"]
+    assert history.texts() == [
+        "New point P001",
+        "Measure P001 in HRG",
+        "Accept transfers of P001",
+        "Accept transfers of P001",
+        "New point P004",
+        "Measure P004 in HRG",
+    ]
     assert session.delete_measurement(ids["HRG"]) and not session.delete_measurement(ids["HRG"])
     assert on_disk(block_path)["P004"][1] == {}
-    session.select_point("P001")                 # another point: its pending transfers are dropped
+    session.select_point("P001")  # another point: its pending transfers are dropped
     assert session.pending == {} and session.transfer_notes == {}
 
 
@@ -173,14 +194,14 @@ def test_image_first_point_is_provisional(block_path, marked_points, dem):
     assert (values["lon"], values["lat"], values["h"]) == pytest.approx((float(lon), float(lat), float(h)), abs=1e-9)
     assert [values[k] for k in SIGMA_KEYS] == [PROVISIONAL_SIGMA] * 3 and session.ground(name)[3]
     assert meas == {ids["HRG"]: (p["HRG_col"], p["HRG_row"])}
-    assert history.texts() == [f"Measure {name} in HRG"]    # the point and its measurement: one undo step
+    assert history.texts() == [f"Measure {name} in HRG"]  # the point and its measurement: one undo step
     session.edit_point(name, new_name="R1")
     session.set_ground(p["lon"], p["lat"], p["h"])
     values, meas = on_disk(block_path)["R1"]
     assert (values["lon"], values["lat"], values["h"]) == (p["lon"], p["lat"], p["h"])
     assert [values[k] for k in SIGMA_KEYS] == [1.5, DEFAULT_SIGMAS[1], DEFAULT_SIGMAS[2]]
     assert meas == {ids["HRG"]: (p["HRG_col"], p["HRG_row"])}
-    session.new_point("M1")                              # no DEM: the block's mean height
+    session.new_point("M1")  # no DEM: the block's mean height
     session.measure(ids["HRG"], p["HRG_col"], p["HRG_row"])
     lon, lat = model.image_to_ground(p["HRG_col"], p["HRG_row"], session.default_height)
     assert session.ground("M1") == pytest.approx((float(lon), float(lat), session.default_height, True), abs=1e-9)
@@ -209,21 +230,21 @@ def test_edit_rename_delete_undo_redo(block_path, marked_points):
     assert on_disk(block_path) == {} and session.current is None
     states.append(on_disk(block_path))
     assert history.texts()[-3:] == ["Edit point A", "Edit point A", "Delete point B"]
-    for k in range(3):                       # undo the delete, the rename, the edit
+    for k in range(3):  # undo the delete, the rename, the edit
         assert history.undo(session) == []
         assert on_disk(block_path) == states[-2 - k]
-    history.undo(session)                    # the HRS1 measurement
+    history.undo(session)  # the HRS1 measurement
     assert set(on_disk(block_path)["A"][1]) == {ids["HRG"]}
     history.redo(session)
-    for k in range(3):                       # redo the edit, the rename, the delete
+    for k in range(3):  # redo the edit, the rename, the delete
         assert history.redo(session) == []
         assert on_disk(block_path) == states[1 + k]
-    history.undo(session)                    # the delete again: the point is back with its measurements
+    history.undo(session)  # the delete again: the point is back with its measurements
     assert on_disk(block_path)["B"][1] == meas
     session.select_point("B")
-    history.undo(session)                    # the rename: the current point is A again
+    history.undo(session)  # the rename: the current point is A again
     assert session.current == "A" and set(on_disk(block_path)) == {"A"}
-    for _ in range(4):                       # the edit, both measurements, the point's creation
+    for _ in range(4):  # the edit, both measurements, the point's creation
         history.undo(session)
     assert on_disk(block_path) == {} and session.current is None
 
@@ -246,7 +267,7 @@ def test_refused_edits_change_nothing(block_path, marked_points):
         session.measure(99, 1.0, 1.0)
     assert on_disk(block_path) == before and len(history.edits) == steps
     with pytest.raises(InputError, match="characters"):
-        session.edit_point("B", new_name="N" * 33, role="check")     # the role is stored, the rename refused
+        session.edit_point("B", new_name="N" * 33, role="check")  # the role is stored, the rename refused
     assert on_disk(block_path)["B"][0]["role"] == "check" and history.texts()[-1] == "Edit point B"
     assert len(history.edits[-1].commands) == 1
     history.undo(session)
@@ -277,7 +298,7 @@ def test_csv_and_georeferencer_round_trips(block_path, marked_scene, marked_bloc
         q = by_pixel[meas[ids["HRS1"]]]
         assert (q["lon"], q["lat"]) == pytest.approx((values["lon"], values["lat"]), abs=1e-8)
         assert q["h"] == pytest.approx(dem.height(q["lon"], q["lat"]), abs=1e-6)
-    history.undo(second)                                     # the .points import
+    history.undo(second)  # the .points import
     assert on_disk(other) == {}
     with pytest.raises(InputError, match="cannot read"):
         second.import_points_file(tmp_path / "missing.points", ids["HRS1"], dem=dem)
@@ -296,7 +317,7 @@ def test_point_summaries_and_residuals(block_path, marked_scene, marked_points):
         role = "check" if r["name"] in CHECK else "control"
         assert (r["role"], r["count"], r["measured"]) == (role, 3, set(ids.values()))
         assert r["h"] == pytest.approx(marked_points[r["name"]]["h"], abs=1e-9)
-        assert r["images"] == dict.fromkeys(ids.values()) and r["ground"] is None    # not adjusted yet
+        assert r["images"] == dict.fromkeys(ids.values()) and r["ground"] is None  # not adjusted yet
     hrg = sorted(session.measured_in(ids["HRG"]))
     assert hrg == sorted((n, p["HRG_col_meas"], p["HRG_row_meas"]) for n, p in marked_points.items())
     models = {i: Block(block_path).model(i) for i in session.image_names}

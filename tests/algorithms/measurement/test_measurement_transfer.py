@@ -8,6 +8,7 @@ supplied (perturbed, unadjusted) sensor models for the initial values:
 - the small scene without markers (points in uniform fields, some by a field edge or corner): the
   accepted transfers HRG -> HRS1/HRS2 within 0.3 px, the others refused with a reason;
 - only windows around the point are read."""
+
 import csv
 
 import numpy as np
@@ -45,8 +46,20 @@ def errors(result, row):
 
 def table_rows(ids, lines):
     """The transfers' errors (errors() of each point) as rows for Figures.table."""
-    return [{"point": point, "target": k, "error px": v[2], "d col": v[0], "d row": v[1], "rho": v[3], "sigma px": v[4],
-             "refused": "" if v[5] else v[6]} for point, line in zip(ids, lines) for k, v in line.items()]
+    return [
+        {
+            "point": point,
+            "target": k,
+            "error px": v[2],
+            "d col": v[0],
+            "d row": v[1],
+            "rho": v[3],
+            "sigma px": v[4],
+            "refused": "" if v[5] else v[6],
+        }
+        for point, line in zip(ids, lines)
+        for k, v in line.items()
+    ]
 
 
 @pytest.mark.parametrize("source", ["HRG", "HRS1"])

@@ -2,6 +2,7 @@
 truth model on the true DSM against the simulator's true orthoimage (geometry by least-squares matching),
 the coarse-grid bound against the exact per-cell chain, the RPC path, DEMs in another CRS and in EGM96,
 nodata, occlusions against the model's own ray casting, the resampling kernels against plain numpy."""
+
 import numpy as np
 import pytest
 from osgeo import gdal
@@ -27,21 +28,23 @@ from tests.helpers.ortho_oracle import geometric_error
 @pytest.fixture(scope="module")
 def scene(small_scene):
     truth = gdal.Open(small_scene["orthoimage"])
-    return {"paths": small_scene, "dsm": read_dem(small_scene["dsm"]),
-            "hrg": sensors.load(small_scene["truth_metadata"]["HRG"]),
-            "image": small_scene["images"]["HRG"]["imagery"],
-            # the true orthoimage's own grid (EPSG:4326, 5 m cells)
-            "grid": OutputGrid(srs(4326), truth.GetGeoTransform(), truth.RasterXSize, truth.RasterYSize)}
+    return {
+        "paths": small_scene,
+        "dsm": read_dem(small_scene["dsm"]),
+        "hrg": sensors.load(small_scene["truth_metadata"]["HRG"]),
+        "image": small_scene["images"]["HRG"]["imagery"],
+        # the true orthoimage's own grid (EPSG:4326, 5 m cells)
+        "grid": OutputGrid(srs(4326), truth.GetGeoTransform(), truth.RasterXSize, truth.RasterYSize),
+    }
 
 
 @pytest.mark.parametrize("method", ["bilinear", "bicubic"])
 @pytest.mark.ratchet
 def test_hrg_on_the_true_dsm_matches_the_true_orthoimage(scene, tmp_path, method, figures):
     out = tmp_path / "hrg.tif"
-    result = orthorectify(scene["image"], scene["hrg"], scene["dsm"], out, grid=scene["grid"],
-                          resampling_method=method)
+    result = orthorectify(scene["image"], scene["hrg"], scene["dsm"], out, grid=scene["grid"], resampling_method=method)
     shifts = geometric_error(scene["paths"], str(out))
-    rms = float(np.sqrt(np.mean(np.sum(shifts ** 2, axis=1))))
+    rms = float(np.sqrt(np.mean(np.sum(shifts**2, axis=1))))
     mean = shifts.mean(axis=0)
     figures.report("patches in the open classes", len(shifts))
     figures.report("shift against the true orthoimage, RMS", rms, "px")
@@ -60,11 +63,13 @@ def test_the_coarse_grid_bound_holds_against_the_exact_chain(scene, figures):
         tile = mapper.tile(100, 200, 300, 256)
         exact = mapper.exact(100, 200, 300, 256)
         error = np.hypot(tile.col - exact.col, tile.row - exact.row)
-        figures.table(f"bound {max_error:g} px from step {start}", [{"step": tile.step, "achieved bound px": tile.bound,
-                                                                    "largest true error px": np.nanmax(error)}])
+        figures.table(
+            f"bound {max_error:g} px from step {start}",
+            [{"step": tile.step, "achieved bound px": tile.bound, "largest true error px": np.nanmax(error)}],
+        )
         assert np.array_equal(np.isnan(tile.col), np.isnan(exact.col))
         assert tile.bound <= max_error and np.nanmax(error) <= tile.bound
-    assert tile.step < 128    # the tight bound forced a refinement
+    assert tile.step < 128  # the tight bound forced a refinement
 
 
 def test_rpc_and_rigorous_orthoimages_agree(scene, tmp_path, figures):
@@ -80,7 +85,7 @@ def test_rpc_and_rigorous_orthoimages_agree(scene, tmp_path, figures):
     assert np.nanmax(diff) < report.max_error + 0.02
     orthorectify(scene["image"], rpc, scene["dsm"], tmp_path / "rpc.tif", grid=grid)
     shifts = geometric_error(scene["paths"], str(tmp_path / "rpc.tif"))
-    assert np.sqrt(np.mean(np.sum(shifts ** 2, axis=1))) < 0.25
+    assert np.sqrt(np.mean(np.sum(shifts**2, axis=1))) < 0.25
 
 
 def test_a_dem_in_another_crs_and_in_egm96_heights(scene, tmp_path, figures):
@@ -94,13 +99,14 @@ def test_a_dem_in_another_crs_and_in_egm96_heights(scene, tmp_path, figures):
     dh = np.abs(a.h - b.h)
     figures.report("DEM warped to UTM and back, median |dh|", np.nanmedian(dh), "m")
     figures.report("median image-point change", np.nanmedian(np.hypot(a.col - b.col, a.row - b.row)), "px")
-    assert np.nanmedian(dh) < 0.5    # two bilinear resamplings of a 5 m DSM with 1-4 m texture
+    assert np.nanmedian(dh) < 0.5  # two bilinear resamplings of a 5 m DSM with 1-4 m texture
     # the same DSM as EGM96 orthometric heights H = h - N, converted back by store_dem
     ds = gdal.Open(scene["paths"]["dsm"])
     heights = ds.ReadAsArray().astype(np.float64)
     lon0, dlon, _, lat0, _, dlat = ds.GetGeoTransform()
-    lon, lat = np.meshgrid(lon0 + (np.arange(ds.RasterXSize) + 0.5) * dlon,
-                           lat0 + (np.arange(ds.RasterYSize) + 0.5) * dlat)
+    lon, lat = np.meshgrid(
+        lon0 + (np.arange(ds.RasterXSize) + 0.5) * dlon, lat0 + (np.arange(ds.RasterYSize) + 0.5) * dlat
+    )
     orthometric = heights - egm96_undulation(lon, lat)
     geoid_dem = tmp_path / "dsm_egm96.tif"
     out = gdal.GetDriverByName("GTiff").Create(str(geoid_dem), ds.RasterXSize, ds.RasterYSize, 1, gdal.GDT_Float64)
@@ -143,8 +149,13 @@ def test_occlusions_agree_with_the_models_ray_casting(scene, figures):
     grid = default_grid(model, dsm)
     tile = TileMapper(model, dsm, grid).tile(100, 100, 400, 400)
     centre = np.ravel_multi_index((200, 200), tile.col.shape)
-    mask = occluded(dsm, tile.lon, tile.lat, tile.h, ray_direction(model, tile.col.flat[centre],
-                                                                   tile.row.flat[centre], *dsm.height_range))
+    mask = occluded(
+        dsm,
+        tile.lon,
+        tile.lat,
+        tile.h,
+        ray_direction(model, tile.col.flat[centre], tile.row.flat[centre], *dsm.height_range),
+    )
     rng = np.random.default_rng(5)
     pick = rng.choice(np.flatnonzero(np.isfinite(tile.col.ravel())), 12000, replace=False)
     lon, lat, _ = model.image_to_dem(tile.col.ravel()[pick], tile.row.ravel()[pick], dsm)
@@ -167,19 +178,21 @@ def test_a_tiles_dem_window_holds_its_occluders(scene):
     model = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
     dsm = scene["dsm"]
     grid = default_grid(model, dsm)
-    window = (100, 100, 250, 250)             # the coarse lattice reaches 6 cells beyond
+    window = (100, 100, 250, 250)  # the coarse lattice reaches 6 cells beyond
     tile = TileMapper(model, dsm, grid).tile(*window)
-    part = dem_window(dsm.heights, dsm.geotransform, dsm.height_range,
-                      _footprint(grid, window, _reach(model, dsm), START_STEP))
+    part = dem_window(
+        dsm.heights, dsm.geotransform, dsm.height_range, _footprint(grid, window, _reach(model, dsm), START_STEP)
+    )
     assert part.heights.size < dsm.heights.size / 4 and part.height_range == dsm.height_range
     np.testing.assert_allclose(part.height(tile.lon, tile.lat), tile.h, atol=1e-9)
-    windowed = TileMapper(model, part, grid).tile(*window)          # the same coarse lattice and bound
+    windowed = TileMapper(model, part, grid).tile(*window)  # the same coarse lattice and bound
     assert (windowed.step, windowed.bound) == pytest.approx((tile.step, tile.bound), rel=1e-6)
     np.testing.assert_allclose(windowed.col, tile.col, atol=1e-6)
-    direction = ray_direction(model, tile.col.flat[tile.col.size // 2], tile.row.flat[tile.col.size // 2],
-                              *dsm.height_range)
+    direction = ray_direction(
+        model, tile.col.flat[tile.col.size // 2], tile.row.flat[tile.col.size // 2], *dsm.height_range
+    )
     whole = occluded(dsm, tile.lon, tile.lat, tile.h, direction)
-    assert whole.sum() > 100                  # occluded cells to check
+    assert whole.sum() > 100  # occluded cells to check
     assert np.mean(occluded(part, tile.lon, tile.lat, tile.h, direction) == whole) > 0.9999
 
 
@@ -189,8 +202,16 @@ def test_every_execution_gives_the_same_orthoimage(scene, tmp_path):
     grid = default_grid(model, scene["dsm"])
     images = {}
     for backend, workers in (("threads", 1), ("processes", 2), ("dask", 2)):
-        orthorectify(scene["paths"]["images"]["HRS1"]["imagery"], model, scene["dsm"], tmp_path / f"{backend}.tif",
-                     grid=grid, occlusion_mask=True, tile=256, execution=Execution(backend, workers))
+        orthorectify(
+            scene["paths"]["images"]["HRS1"]["imagery"],
+            model,
+            scene["dsm"],
+            tmp_path / f"{backend}.tif",
+            grid=grid,
+            occlusion_mask=True,
+            tile=256,
+            execution=Execution(backend, workers),
+        )
         images[backend] = gdal.Open(str(tmp_path / f"{backend}.tif")).ReadAsArray()
     assert (images["threads"] > 0).mean() > 0.5
     for backend in ("processes", "dask"):
@@ -200,8 +221,7 @@ def test_every_execution_gives_the_same_orthoimage(scene, tmp_path):
 def keys(t):
     """Keys (a = -0.5) weights at the 4 nodes -1, 0, 1, 2 for fraction t (plain numpy)."""
     d = np.abs(np.array([-1.0, 0.0, 1.0, 2.0]) - t)
-    return np.where(d <= 1, 1.5 * d ** 3 - 2.5 * d ** 2 + 1,
-                    np.where(d < 2, -0.5 * d ** 3 + 2.5 * d ** 2 - 4 * d + 2, 0))
+    return np.where(d <= 1, 1.5 * d**3 - 2.5 * d**2 + 1, np.where(d < 2, -0.5 * d**3 + 2.5 * d**2 - 4 * d + 2, 0))
 
 
 def test_resampling_kernels_against_numpy():
@@ -221,15 +241,24 @@ def test_resampling_kernels_against_numpy():
             if method == BILINEAR:
                 expected = ndimage.map_coordinates(window[b].astype(np.float64), [y, x], order=1)
             else:
-                expected = [keys(yy % 1) @ window[b, int(yy) - 1:int(yy) + 3, int(xx) - 1:int(xx) + 3] @ keys(xx % 1)
-                            for xx, yy in zip(x, y)]
+                expected = [
+                    keys(yy % 1) @ window[b, int(yy) - 1 : int(yy) + 3, int(xx) - 1 : int(xx) + 3] @ keys(xx % 1)
+                    for xx, yy in zip(x, y)
+                ]
             np.testing.assert_allclose(out[b, inside], expected, rtol=1e-5, atol=1e-3)
 
 
 def test_cancel_leaves_nothing(scene, tmp_path):
     with pytest.raises(CancelledError):
-        orthorectify(scene["image"], scene["hrg"], scene["dsm"], tmp_path / "cancelled.tif", grid=scene["grid"],
-                     tile=256, feedback=Feedback(cancel_after=3))
+        orthorectify(
+            scene["image"],
+            scene["hrg"],
+            scene["dsm"],
+            tmp_path / "cancelled.tif",
+            grid=scene["grid"],
+            tile=256,
+            feedback=Feedback(cancel_after=3),
+        )
     assert list(tmp_path.iterdir()) == []
 
 

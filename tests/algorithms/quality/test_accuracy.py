@@ -2,6 +2,7 @@
 at points (numpy bilinear) and onto a DEM grid (numpy block means, an exact plane), EGM96 handling,
 references in another CRS, no overlap, nodata, classes of the simulator's classes.tif and of
 polygons (OGR point-in-polygon), the dh raster and the self-contained HTML report."""
+
 import base64
 import csv
 import os
@@ -63,8 +64,9 @@ def numpy_bilinear(values, gt, x, y):
     ok = (c >= 0) & (r >= 0) & (c <= values.shape[1] - 1) & (r <= values.shape[0] - 1)
     i, j = np.minimum(r[ok].astype(int), values.shape[0] - 2), np.minimum(c[ok].astype(int), values.shape[1] - 2)
     fr, fc = r[ok] - i, c[ok] - j
-    out[ok] = ((values[i, j] * (1 - fc) + values[i, j + 1] * fc) * (1 - fr)
-               + (values[i + 1, j] * (1 - fc) + values[i + 1, j + 1] * fc) * fr)
+    out[ok] = (values[i, j] * (1 - fc) + values[i, j + 1] * fc) * (1 - fr) + (
+        values[i + 1, j] * (1 - fc) + values[i + 1, j + 1] * fc
+    ) * fr
     return out
 
 
@@ -72,20 +74,31 @@ def random_lonlat(path, n, seed=0, margin=10):
     values, gt = read(path)
     rng = np.random.default_rng(seed)
     rows, cols = values.shape
-    return (gt[0] + rng.uniform(margin, cols - margin, n) * gt[1],
-            gt[3] + rng.uniform(margin, rows - margin, n) * gt[5])
+    return (
+        gt[0] + rng.uniform(margin, cols - margin, n) * gt[1],
+        gt[3] + rng.uniform(margin, rows - margin, n) * gt[5],
+    )
 
 
 @pytest.fixture(scope="module")
 def utm_dem(small_scene, tmp_path_factory):
     """The simulator's DTM warped to a 10 m UTM 16N grid (the DEM under test)."""
     path = tmp_path_factory.mktemp("accuracy") / "dem_utm.tif"
-    gdal.Warp(str(path), small_scene["dtm"], dstSRS=f"EPSG:{UTM16}", xRes=10, yRes=10, resampleAlg="bilinear",
-              outputType=gdal.GDT_Float64, dstNodata=-9999)
+    gdal.Warp(
+        str(path),
+        small_scene["dtm"],
+        dstSRS=f"EPSG:{UTM16}",
+        xRes=10,
+        yRes=10,
+        resampleAlg="bilinear",
+        outputType=gdal.GDT_Float64,
+        dstNodata=-9999,
+    )
     return str(path)
 
 
 # --- statistics -------------------------------------------------------------------------------------
+
 
 def test_statistics_against_numpy():
     rng = np.random.default_rng(3)
@@ -94,20 +107,24 @@ def test_statistics_against_numpy():
     v = dh[np.isfinite(dh)]
     a = np.abs(v)
     assert s.n == v.size
-    np.testing.assert_allclose([s.min, s.mean, s.max, s.rms, s.sigma],
-                               [v.min(), v.mean(), v.max(), np.sqrt(np.mean(v ** 2)), np.std(v, ddof=1)], rtol=1e-9)
+    np.testing.assert_allclose(
+        [s.min, s.mean, s.max, s.rms, s.sigma],
+        [v.min(), v.mean(), v.max(), np.sqrt(np.mean(v**2)), np.std(v, ddof=1)],
+        rtol=1e-9,
+    )
     # the robust statistics are those of dh counted in 1 mm bins (mergeable over the parts of a run)
     assert abs(s.median - np.median(v)) <= STEP / 2
     assert abs(s.nmad - 1.4826 * np.median(np.abs(v - np.median(v)))) <= 1.4826 * STEP
     assert abs(s.q95 - np.percentile(a, 95)) <= STEP / 2
-    np.testing.assert_allclose(s.shares, [100 * np.mean(a < 2), 100 * np.mean((a >= 2) & (a <= 5)),
-                                          100 * np.mean(a > 5)], rtol=1e-12)
-    assert s.nmad < s.sigma     # the outliers inflate sigma, not NMAD
+    np.testing.assert_allclose(
+        s.shares, [100 * np.mean(a < 2), 100 * np.mean((a >= 2) & (a <= 5)), 100 * np.mean(a > 5)], rtol=1e-12
+    )
+    assert s.nmad < s.sigma  # the outliers inflate sigma, not NMAD
 
 
 def test_shares_and_nmad_on_a_known_array():
     s = summarize([-6.0, -3.0, -1.0, 0.0, 1.0, 2.0, 5.0, 5.5])
-    assert s.shares == (37.5, 37.5, 25.0)     # |dh| < 2: 3 of 8; 2..5: 3; > 5: 2
+    assert s.shares == (37.5, 37.5, 25.0)  # |dh| < 2: 3 of 8; 2..5: 3; > 5: 2
     assert s.median == 0.5
     assert s.nmad == pytest.approx(1.4826 * np.median(np.abs(np.array([-6, -3, -1, 0, 1, 2, 5, 5.5]) - 0.5)))
     assert summarize([]).n == 0
@@ -124,6 +141,7 @@ def test_nested_classes_drop_the_worst_class_first():
 
 
 # --- the reference at points ------------------------------------------------------------------------
+
 
 def test_reference_at_points_is_bilinear_on_the_simulated_dsm(small_scene, figures):
     lon, lat = random_lonlat(small_scene["dsm"], 2000)
@@ -164,13 +182,15 @@ def test_point_clouds_read_back(tmp_path):
         write_point_cloud(tmp_path / name, lon, lat, h, {"group": group}, crs=UTM16)
         cloud = read_points(tmp_path / name)
         ex, ey = utm(lon, lat, UTM16)
-        np.testing.assert_allclose(np.column_stack([cloud.x, cloud.y, cloud.z]), np.column_stack([ex, ey, h]),
-                                   atol=1e-3)
+        np.testing.assert_allclose(
+            np.column_stack([cloud.x, cloud.y, cloud.z]), np.column_stack([ex, ey, h]), atol=1e-3
+        )
         assert cloud.srs.GetAuthorityCode(None) == str(UTM16)
         np.testing.assert_array_equal(cloud.fields["group"], group)
 
 
 # --- the reference on a DEM grid ----------------------------------------------------------------------
+
 
 def test_finer_reference_is_averaged_onto_the_dem_grid(small_scene, tmp_path, figures):
     """A DEM of 2 x 2 block means of the simulated DTM (numpy) against the DTM itself: the reference
@@ -193,7 +213,7 @@ def test_coarser_reference_is_bilinear_on_the_dem_grid(tmp_path):
     e, n = np.meshgrid(e0 + 10 * (np.arange(200) + 0.5), n0 + 2000 - 10 * (np.arange(200) + 0.5))
     dem = write_raster(tmp_path / "dem.tif", plane(e, n) + 1.5, (e0, 10, 0, n0 + 2000, 0, -10), UTM16)
     d = dem_differences(dem, reference)
-    inner = d.grid.values[4:-4, 4:-4]     # GDAL extrapolates within half a reference cell of the edge
+    inner = d.grid.values[4:-4, 4:-4]  # GDAL extrapolates within half a reference cell of the edge
     assert np.isfinite(inner).all()
     np.testing.assert_allclose(inner, 1.5, atol=1e-6)
 
@@ -203,14 +223,16 @@ def test_dem_in_utm_against_the_geographic_dsm(small_scene, utm_dem, figures):
     the canopy and buildings, positive, in forest and city."""
     same = dem_differences(utm_dem, small_scene["dtm"])
     s = summarize(same.dh)
-    figures.table("UTM 10 m DEM (bilinear from the DTM) vs the DTM averaged onto it (m)",
-                  [{"mean": s.mean, "RMS": s.rms}])
+    figures.table(
+        "UTM 10 m DEM (bilinear from the DTM) vs the DTM averaged onto it (m)", [{"mean": s.mean, "RMS": s.rms}]
+    )
     assert abs(s.mean) < 0.1 and s.rms < 1.0
     dsm = dem_differences(utm_dem, small_scene["dsm"])
-    assert summarize(dsm.dh).mean < -1.0        # DEM = DTM lies below the DSM's canopy
+    assert summarize(dsm.dh).mean < -1.0  # DEM = DTM lies below the DSM's canopy
 
 
 # --- datum, overlap, nodata ---------------------------------------------------------------------------
+
 
 def test_egm96_reference(small_scene, tmp_path, figures):
     values, gt = read(small_scene["dsm"])
@@ -258,7 +280,7 @@ def test_nodata_is_left_out(small_scene, utm_dem, tmp_path):
     west = (lon - gt[0]) / gt[1] < values.shape[1] // 2 + 0.5
     assert d.dh.size == int((~west).sum())
     assert d.excluded["outside the reference or next to its nodata"] == int(west.sum())
-    assert np.max(np.abs(d.dh)) < 1e-6     # no nodata value leaks into a difference
+    assert np.max(np.abs(d.dh)) < 1e-6  # no nodata value leaks into a difference
     on_dem = dem_differences(utm_dem, reference)
     assert on_dem.dh.size and np.all(np.abs(on_dem.dh) < 100)
     empty = write_raster(tmp_path / "empty.tif", np.full_like(values, -32768.0), gt, 4326, nodata=-32768.0)
@@ -269,6 +291,7 @@ def test_nodata_is_left_out(small_scene, utm_dem, tmp_path):
 
 
 # --- classes ------------------------------------------------------------------------------------------
+
 
 def test_per_class_tables_on_the_simulated_classes(small_scene, tmp_path, figures):
     """Points on the true DSM against the true DTM: dh = 0 on fields, the canopy height in forest."""
@@ -290,7 +313,7 @@ def test_per_class_tables_on_the_simulated_classes(small_scene, tmp_path, figure
             assert rows[name].n == int(np.sum(expected == value))
             np.testing.assert_allclose(rows[name].rms, np.sqrt(np.mean(d.dh[expected == value] ** 2)))
     figures.report("points on the DSM vs the DTM, median per class", {n: s.median for n, s in rows.items()}, "m")
-    assert abs(rows[CLASSES[BARE]].median) < 1e-3 and abs(rows[CLASSES[CROPS]].median) < 1e-3   # LAS: 1 mm z
+    assert abs(rows[CLASSES[BARE]].median) < 1e-3 and abs(rows[CLASSES[CROPS]].median) < 1e-3  # LAS: 1 mm z
     assert rows[CLASSES[FOREST]].median > 5.0
     assert set(np.unique(a.terrain)) <= {FLAT, MOUNTAINOUS}
 
@@ -299,6 +322,7 @@ def test_a_raster_of_heights_is_no_class_raster(small_scene, tmp_path):
     """Issue 36: the float DSM given as the class raster made hundreds of 'classes'. A class raster holds whole
     numbers, few of them, in any data type: a float copy of classes.tif is one, the DSM is not, nor the DSM
     rounded to whole metres in Int16 (an SRTM tile)."""
+
     def copy(source, name, kind):
         ds = gdal.Translate(str(tmp_path / name), source, outputType=kind)
         ds.FlushCache()
@@ -306,25 +330,32 @@ def test_a_raster_of_heights_is_no_class_raster(small_scene, tmp_path):
 
     classes = ClassRaster(copy(small_scene["classes"], "classes_float.tif", gdal.GDT_Float32))
     assert classes.names == ClassRaster(small_scene["classes"]).names
-    with pytest.raises(InputError, match=rf"the class raster {small_scene['dsm']} holds \d+ distinct values "
-                                         r"\(Float32, such as [-0-9.]+\), not class codes: .*Is it a height raster\?"):
+    with pytest.raises(
+        InputError,
+        match=rf"the class raster {small_scene['dsm']} holds \d+ distinct values "
+        r"\(Float32, such as [-0-9.]+\), not class codes: .*Is it a height raster\?",
+    ):
         ClassRaster(small_scene["dsm"])
     whole = copy(small_scene["dsm"], "dsm_int16.tif", gdal.GDT_Int16)
-    with pytest.raises(InputError, match=r"holds \d{3,} distinct values \(Int16, \d+ \.\. \d+\), not class codes: a "
-                                         r"class raster holds whole numbers, at most 100 classes"):
+    with pytest.raises(
+        InputError,
+        match=r"holds \d{3,} distinct values \(Int16, \d+ \.\. \d+\), not class codes: a "
+        r"class raster holds whole numbers, at most 100 classes",
+    ):
         ClassRaster(whole)
 
 
 def test_classes_on_a_dem_grid(small_scene, utm_dem):
     [a] = assess(small_scene["dsm"], dem=utm_dem, classes=ClassRaster(small_scene["classes"]))
     rows = dict(next(r for name, r, _ in report.tables(summarized(a)) if name == "per class"))
-    assert rows[CLASSES[FOREST]].mean < -5.0 < rows[CLASSES[BARE]].mean    # DTM below the canopy
+    assert rows[CLASSES[FOREST]].mean < -5.0 < rows[CLASSES[BARE]].mean  # DTM below the canopy
     assert sum(s.n for s in rows.values()) + int(np.sum(a.classes == NO_CLASS)) == a.differences.dh.size
 
 
 def test_polygon_classes_against_ogr(tmp_path):
-    square = ogr.CreateGeometryFromWkt("POLYGON ((0 0, 100 0, 100 100, 0 100, 0 0), "
-                                       "(40 40, 60 40, 60 60, 40 60, 40 40))")
+    square = ogr.CreateGeometryFromWkt(
+        "POLYGON ((0 0, 100 0, 100 100, 0 100, 0 0), (40 40, 60 40, 60 60, 40 60, 40 40))"
+    )
     triangle = ogr.CreateGeometryFromWkt("MULTIPOLYGON (((150 0, 250 0, 200 90, 150 0)))")
     source = PolygonClasses([square.ExportToWkb(), triangle], ["open", "city"], UTM16)
     assert source.names == {1: "city", 2: "open"}
@@ -340,8 +371,19 @@ def test_polygon_classes_against_ogr(tmp_path):
 
 # --- outputs ------------------------------------------------------------------------------------------
 
-CSV_STATS = ("min", "mean", "max", "rms", "sigma", "median", "nmad", "q95_abs", "pct_below_2m", "pct_2_to_5m",
-             "pct_above_5m")
+CSV_STATS = (
+    "min",
+    "mean",
+    "max",
+    "rms",
+    "sigma",
+    "median",
+    "nmad",
+    "q95_abs",
+    "pct_below_2m",
+    "pct_2_to_5m",
+    "pct_above_5m",
+)
 
 
 def test_parts_give_the_wholes_statistics_and_dh_raster(small_scene, utm_dem, tmp_path, monkeypatch):
@@ -350,17 +392,30 @@ def test_parts_give_the_wholes_statistics_and_dh_raster(small_scene, utm_dem, tm
     lon, lat = random_lonlat(small_scene["dsm"], 3000, seed=13)
     values, gt = read(small_scene["dsm"])
     cloud = tmp_path / "p.las"
-    write_point_cloud(cloud, lon, lat, numpy_bilinear(values, gt, lon, lat) + np.linspace(-3, 3, 3000),
-                      {"group": np.random.default_rng(2).integers(1, 4, 3000).astype(np.uint8)})
-    monkeypatch.setattr(assessment, "CHUNK", 700)      # 5 chunks
-    monkeypatch.setattr(assessment, "TILE", 64)        # 3 x 3 windows of the 10 m UTM DEM
-    monkeypatch.setattr(assessment, "MAP_CELLS", 50)   # a map of every 4th cell
-    params = AssessParams(small_scene["dtm"], str(tmp_path / "report.html"), points=str(cloud), dem=utm_dem,
-                          class_raster=small_scene["classes"], table=str(tmp_path / "parts.csv"),
-                          dh=str(tmp_path / "dh.tif"))
+    write_point_cloud(
+        cloud,
+        lon,
+        lat,
+        numpy_bilinear(values, gt, lon, lat) + np.linspace(-3, 3, 3000),
+        {"group": np.random.default_rng(2).integers(1, 4, 3000).astype(np.uint8)},
+    )
+    monkeypatch.setattr(assessment, "CHUNK", 700)  # 5 chunks
+    monkeypatch.setattr(assessment, "TILE", 64)  # 3 x 3 windows of the 10 m UTM DEM
+    monkeypatch.setattr(assessment, "MAP_CELLS", 50)  # a map of every 4th cell
+    params = AssessParams(
+        small_scene["dtm"],
+        str(tmp_path / "report.html"),
+        points=str(cloud),
+        dem=utm_dem,
+        class_raster=small_scene["classes"],
+        table=str(tmp_path / "parts.csv"),
+        dh=str(tmp_path / "dh.tif"),
+    )
     assess_accuracy(params)
-    whole = [summarized(a) for a in assess(small_scene["dtm"], points=cloud, dem=utm_dem,
-                                           classes=ClassRaster(small_scene["classes"]))]
+    whole = [
+        summarized(a)
+        for a in assess(small_scene["dtm"], points=cloud, dem=utm_dem, classes=ClassRaster(small_scene["classes"]))
+    ]
     report.write_csv(tmp_path / "whole.csv", whole)
     parts, once = (list(csv.DictReader(open(tmp_path / name))) for name in ("parts.csv", "whole.csv"))
     assert len(parts) == len(once) > 20
@@ -370,8 +425,7 @@ def test_parts_give_the_wholes_statistics_and_dh_raster(small_scene, utm_dem, tm
             # along the reference's (and the class raster's) last row, gdalwarp of a window leaves a few cells
             # without a value that the whole grid's warp gives one: their slope or class (5 of 174 749 here)
             assert abs(int(a["n"]) - int(b["n"])) <= 1e-4 * int(b["n"])
-            np.testing.assert_allclose([float(a[k]) for k in CSV_STATS], [float(b[k]) for k in CSV_STATS],
-                                       atol=0.02)
+            np.testing.assert_allclose([float(a[k]) for k in CSV_STATS], [float(b[k]) for k in CSV_STATS], atol=0.02)
             continue
         assert a["n"] == b["n"], (a["table"], a["label"])
         np.testing.assert_allclose([float(a[k]) for k in CSV_STATS], [float(b[k]) for k in CSV_STATS], atol=1e-3)
@@ -391,18 +445,31 @@ def test_html_report_is_self_contained(small_scene, utm_dem, tmp_path):
     lon, lat = random_lonlat(small_scene["dsm"], 3000, seed=12)
     values, gt = read(small_scene["dsm"])
     cloud = tmp_path / "p.las"
-    write_point_cloud(cloud, lon, lat, numpy_bilinear(values, gt, lon, lat),
-                      {"group": np.random.default_rng(1).integers(1, 4, 3000).astype(np.uint8)})
+    write_point_cloud(
+        cloud,
+        lon,
+        lat,
+        numpy_bilinear(values, gt, lon, lat),
+        {"group": np.random.default_rng(1).integers(1, 4, 3000).astype(np.uint8)},
+    )
     assessed = assess(small_scene["dtm"], points=cloud, dem=utm_dem, classes=ClassRaster(small_scene["classes"]))
     summaries = [summarized(a) for a in assessed]
     page = report.write_report(tmp_path / "report.html", "Accuracy", summaries, [("reference", small_scene["dtm"])])
     text = open(page, encoding="utf-8").read()
     assert not re.search(r"(src|href)\s*=\s*['\"](?!data:)", text) and "<link" not in text and "<script" not in text
     images = re.findall(r"src='data:image/png;base64,([A-Za-z0-9+/=]+)'", text)
-    assert len(images) == 2 + 3 + 2    # per input a map; histograms per group, class, terrain (no groups for the DEM)
+    assert len(images) == 2 + 3 + 2  # per input a map; histograms per group, class, terrain (no groups for the DEM)
     assert all(base64.b64decode(i).startswith(b"\x89PNG") for i in images)
-    for needle in ("Kornus et al. 2006, Tables 6, 7", "Zhang and Gruen 2004, Tables 2-3", "Point group 3", "RMSE (m)",
-                   "NMAD", CLASSES[FOREST], small_scene["dtm"], "mountainous"):
+    for needle in (
+        "Kornus et al. 2006, Tables 6, 7",
+        "Zhang and Gruen 2004, Tables 2-3",
+        "Point group 3",
+        "RMSE (m)",
+        "NMAD",
+        CLASSES[FOREST],
+        small_scene["dtm"],
+        "mountainous",
+    ):
         assert needle in text
     table = report.write_csv(tmp_path / "stats.csv", summaries)
     rows = list(csv.DictReader(open(table)))

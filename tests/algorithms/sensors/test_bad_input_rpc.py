@@ -1,6 +1,7 @@
 """Bad RPC input (issue 19): an RPC whose denominator changes sign over its validity domain is refused
 by every reader with the file and the place named, real and fitted RPCs pass; mutated _RPC.TXT, .RPB
 and OSSIM .geom files (hypothesis) load as a usable model or raise the engine's own error."""
+
 import re
 import tempfile
 from pathlib import Path
@@ -40,17 +41,31 @@ def write_poled(kind, folder):
     path = folder / ("poled_RPC.TXT" if kind == "_RPC.TXT" else "poled.RPB")
     lines = [f"{k}: {v}" for k, v in values.items() if not k.endswith("COEFF")]
     if kind == "_RPC.TXT":
-        lines += [f"{k}_{j}: {c}" for k, v in values.items() if k.endswith("COEFF")
-                  for j, c in enumerate(v.split(), start=1)]
+        lines += [
+            f"{k}_{j}: {c}" for k, v in values.items() if k.endswith("COEFF") for j, c in enumerate(v.split(), start=1)
+        ]
         path.write_text("\n".join(lines) + "\n")
     else:
-        names = {"LINE_OFF": "lineOffset", "SAMP_OFF": "sampOffset", "LAT_OFF": "latOffset",
-                 "LONG_OFF": "longOffset", "HEIGHT_OFF": "heightOffset", "LINE_SCALE": "lineScale",
-                 "SAMP_SCALE": "sampScale", "LAT_SCALE": "latScale", "LONG_SCALE": "longScale",
-                 "HEIGHT_SCALE": "heightScale", "LINE_NUM_COEFF": "lineNumCoef", "LINE_DEN_COEFF": "lineDenCoef",
-                 "SAMP_NUM_COEFF": "sampNumCoef", "SAMP_DEN_COEFF": "sampDenCoef"}
-        body = [f"\t{names[k]} = ({', '.join(v.split())});" if k.endswith("COEFF") else f"\t{names[k]} = {v};"
-                for k, v in values.items()]
+        names = {
+            "LINE_OFF": "lineOffset",
+            "SAMP_OFF": "sampOffset",
+            "LAT_OFF": "latOffset",
+            "LONG_OFF": "longOffset",
+            "HEIGHT_OFF": "heightOffset",
+            "LINE_SCALE": "lineScale",
+            "SAMP_SCALE": "sampScale",
+            "LAT_SCALE": "latScale",
+            "LONG_SCALE": "longScale",
+            "HEIGHT_SCALE": "heightScale",
+            "LINE_NUM_COEFF": "lineNumCoef",
+            "LINE_DEN_COEFF": "lineDenCoef",
+            "SAMP_NUM_COEFF": "sampNumCoef",
+            "SAMP_DEN_COEFF": "sampDenCoef",
+        }
+        body = [
+            f"\t{names[k]} = ({', '.join(v.split())});" if k.endswith("COEFF") else f"\t{names[k]} = {v};"
+            for k, v in values.items()
+        ]
         path.write_text("BEGIN_GROUP = IMAGE\n" + "\n".join(body) + "\nEND_GROUP = IMAGE\nEND;\n")
     return path
 
@@ -61,41 +76,44 @@ def test_a_denominator_changing_sign_is_refused_by_every_reader(tmp_path, kind):
     with pytest.raises(MetadataError) as err:
         sensors.load(path)
     text = str(err.value)
-    assert text.startswith(f"{path}: LINE_DEN_COEFF")                   # the file and the culprit first
-    assert "changes sign within the RPC's validity domain" in text and "pole" in text     # what is wrong
+    assert text.startswith(f"{path}: LINE_DEN_COEFF")  # the file and the culprit first
+    assert "changes sign within the RPC's validity domain" in text and "pole" in text  # what is wrong
     lat = float(re.search(r"\+1 at the centre \(lon [\d.]+, lat ([\d.]+)", text).group(1))
     where = float(re.search(r"-[\d.e+-]+ at lon [\d.]+, lat ([\d.]+)", text).group(1))
     fields = synthetic_fields()
     # the place named lies south of the pole (P < -2/3), one grid step (0.1 P) from it at most
     assert fields["LAT_OFF"] + (POLE_P - 0.1) * fields["LAT_SCALE"] - 1e-6 <= where
-    assert where < fields["LAT_OFF"] + POLE_P * fields["LAT_SCALE"] < lat      # the pole lies between the two
+    assert where < fields["LAT_OFF"] + POLE_P * fields["LAT_SCALE"] < lat  # the pole lies between the two
 
 
 def test_a_denominator_reaching_zero_on_the_grid_is_refused():
     fields = synthetic_fields()
-    fields["SAMP_DEN_COEFF"] = [1.0, 1.0] + [0.0] * 18     # 1 + L: zero on the domain's western edge
-    with pytest.raises(MetadataError, match=r"SAMP_DEN_COEFF, the denominator of the image column, changes sign.*"
-                                            r"\+0 at lon"):
+    fields["SAMP_DEN_COEFF"] = [1.0, 1.0] + [0.0] * 18  # 1 + L: zero on the domain's western edge
+    with pytest.raises(
+        MetadataError,
+        match=r"SAMP_DEN_COEFF, the denominator of the image column, changes sign.*"
+        r"\+0 at lon",
+    ):
         RpcCoefficients.from_fields(fields, "edge_RPC.TXT")
 
 
 def test_a_pole_just_outside_the_domain_is_accepted():
     fields = synthetic_fields()
-    fields["LINE_DEN_COEFF"] = [1.0, 0.0, 0.99] + [0.0] * 17    # 1 + 0.99 P > 0 on [-1, 1]
-    assert RpcCoefficients.from_fields(fields, "near_RPC.TXT").line_den[2] == 0.99    # read, not refused
+    fields["LINE_DEN_COEFF"] = [1.0, 0.0, 0.99] + [0.0] * 17  # 1 + 0.99 P > 0 on [-1, 1]
+    assert RpcCoefficients.from_fields(fields, "near_RPC.TXT").line_den[2] == 0.99  # read, not refused
 
 
 def test_image_coordinates_that_overflow_are_refused():
     fields = synthetic_fields()
     fields["LINE_NUM_COEFF"] = list(fields["LINE_NUM_COEFF"])
-    fields["LINE_NUM_COEFF"][11] = 1e308     # L^3: the row overflows away from the central meridian
+    fields["LINE_NUM_COEFF"][11] = 1e308  # L^3: the row overflows away from the central meridian
     with pytest.raises(MetadataError, match="image row is not a finite number at lon"):
         RpcCoefficients.from_fields(fields, "huge_RPC.TXT")
 
 
 def test_an_rpc_describing_no_image_is_refused():
     fields = synthetic_fields()
-    fields["SAMP_OFF"] = -1e6        # the image would end 980 000 px left of its first column
+    fields["SAMP_OFF"] = -1e6  # the image would end 980 000 px left of its first column
     with pytest.raises(MetadataError, match="describe an image of -980000 x 42038 pixels"):
         RpcModel(RpcCoefficients.from_fields(fields, "neg_RPC.TXT"), source="neg_RPC.TXT")
 
@@ -107,7 +125,7 @@ def denominators_on_domain(model):
 
 def assert_near_one(model):
     for den in denominators_on_domain(model):
-        assert 0.99 < den.min() and den.max() < 1.01     # Pleiades denominators stay within 1 % of 1
+        assert 0.99 < den.min() and den.max() < 1.01  # Pleiades denominators stay within 1 % of 1
 
 
 def test_real_triplet_rpcs_pass(triplet_image):
@@ -121,19 +139,42 @@ def test_real_ventoux_rpcs_pass(ventoux_image):
 
 def test_a_fitted_rpc_keeps_its_denominators_sign_on_the_domain(tmp_path):
     from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
+
     truth = RpcModel(synthetic_coefficients(), size=(2000, 2000))
     fitted, _ = fit_rpc(truth, truth.height_range, grid=(5, 5, 5))
     write_rpc_txt(fitted, tmp_path / "fitted_RPC.TXT")
     for den in denominators_on_domain(sensors.load(tmp_path / "fitted_RPC.TXT")):
-        assert den.min() > 0     # den = 1 at the centre and positive throughout: no pole
+        assert den.min() > 0  # den = 1 at the centre and positive throughout: no pole
 
 
 # -- mutated RPC files ---------------------------------------------------------------------------
 
 NUMBER = re.compile(rb"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
-TEXT_VALUES = st.sampled_from([b"", b"nan", b"NaN", b"inf", b"-inf", b"Infinity", b"1e999", b"-1e999", b"abc",
-                               b"--1", b"1,2", b"(", b")", b";", b":", b"=", b"\x00", b"1 2 3", b"0x10",
-                               b"1_000", "\u00e9".encode()])
+TEXT_VALUES = st.sampled_from(
+    [
+        b"",
+        b"nan",
+        b"NaN",
+        b"inf",
+        b"-inf",
+        b"Infinity",
+        b"1e999",
+        b"-1e999",
+        b"abc",
+        b"--1",
+        b"1,2",
+        b"(",
+        b")",
+        b";",
+        b":",
+        b"=",
+        b"\x00",
+        b"1 2 3",
+        b"0x10",
+        b"1_000",
+        "\u00e9".encode(),
+    ]
+)
 FACTORS = st.sampled_from([0.0, -1.0, 1e-300, 1e300, 10.0, 0.1, 1.0 + 1e-9, 2.0, -1e308])
 
 
@@ -148,7 +189,7 @@ def change_number(data, line):
         value = repr(float(m.group()) * data.draw(FACTORS)).encode()
     else:
         value = data.draw(TEXT_VALUES)
-    return line[:m.start()] + value + line[m.end():]
+    return line[: m.start()] + value + line[m.end() :]
 
 
 def mutate(data, text):
@@ -174,7 +215,7 @@ def mutate(data, text):
             at = data.draw(st.integers(0, len(lines[i])))
             lines[i] = lines[i][:at] + data.draw(st.binary(min_size=1, max_size=8)) + lines[i][at:]
         else:
-            lines = [text[:data.draw(st.integers(0, len(text)))]]
+            lines = [text[: data.draw(st.integers(0, len(text)))]]
         text = b"".join(lines)
     return text
 
@@ -195,12 +236,13 @@ VALID = valid_files()
 def assert_usable(model):
     """A model the engine can work with: a positive size and finite image positions of ground points
     over its validity domain."""
-    assert isinstance(model, SensorModel) and min(model.size) >= 1     # an image of at least one pixel
+    assert isinstance(model, SensorModel) and min(model.size) >= 1  # an image of at least one pixel
     c = model.coefficients
     x, y, z = (v[::97] for v in domain_grid())
-    col, row = model.ground_to_image(c.long_off + x * c.long_scale, c.lat_off + y * c.lat_scale,
-                                     c.height_off + z * c.height_scale)
-    assert np.isfinite(col).all() and np.isfinite(row).all()     # no pole or overflow over the domain
+    col, row = model.ground_to_image(
+        c.long_off + x * c.long_scale, c.lat_off + y * c.lat_scale, c.height_off + z * c.height_scale
+    )
+    assert np.isfinite(col).all() and np.isfinite(row).all()  # no pole or overflow over the domain
 
 
 @pytest.mark.parametrize("name", sorted(VALID))
@@ -214,6 +256,6 @@ def test_mutated_rpc_files_give_a_usable_model_or_the_engines_error(name, data):
         try:
             model = sensors.load(path)
         except PushbroomError as exc:
-            assert str(exc).startswith(str(path))      # the message names the file
+            assert str(exc).startswith(str(path))  # the message names the file
             return
         assert_usable(model)

@@ -1,5 +1,6 @@
 """Bad DIMAP input raises MetadataError with a message that says what is wrong, never a bare
 KeyError/ValueError/IndexError; mutated documents give MetadataError or a usable model."""
+
 import copy
 import re
 import tempfile
@@ -59,38 +60,56 @@ def test_missing_file(tmp_path):
         read_dimap(tmp_path / "nothing" / "METADATA.DIM")
 
 
-@pytest.mark.parametrize("mission, edit, message", [
-    (5, lambda t: re.sub(r"<Points>.*</Points>", "", t, flags=re.S), "Ephemeris/Points/Point"),
-    (5, lambda t: re.sub(r"(<Point>.*?</Point>\s*){8}", "", t, count=1, flags=re.S), "3 ephemeris samples"),
-    (5, lambda t: replace_first(t, "SCENE_CENTER_TIME", "2005-03-13T05:31:00.250000"),
-     "do not cover the acquisition"),
-    (5, lambda t: re.sub(r"<Look_Angles>\s*<DETECTOR_ID>40</DETECTOR_ID>.*?</Look_Angles>", "", t, flags=re.S),
-     "39 detectors .* NCOLS = 40; SPOT 5 needs one per detector"),
-    (2, lambda t: replace_first(t, "DETECTOR_ID", "2"), "at least the first and last"),
-    (5, lambda t: t.replace("<Metadata_Id>", "<Metadata_Identification><METADATA_FORMAT version='2.0'>DIMAP"
-                            "</METADATA_FORMAT></Metadata_Identification><Metadata_Id>"),
-     "DIMAP v2 document .* open the image .* or its RPC file"),
-], ids=["no ephemeris", "3 ephemeris points", "ephemeris too short", "39 look angles", "spot2 look table",
-        "dimap v2"])
+@pytest.mark.parametrize(
+    "mission, edit, message",
+    [
+        (5, lambda t: re.sub(r"<Points>.*</Points>", "", t, flags=re.S), "Ephemeris/Points/Point"),
+        (5, lambda t: re.sub(r"(<Point>.*?</Point>\s*){8}", "", t, count=1, flags=re.S), "3 ephemeris samples"),
+        (
+            5,
+            lambda t: replace_first(t, "SCENE_CENTER_TIME", "2005-03-13T05:31:00.250000"),
+            "do not cover the acquisition",
+        ),
+        (
+            5,
+            lambda t: re.sub(r"<Look_Angles>\s*<DETECTOR_ID>40</DETECTOR_ID>.*?</Look_Angles>", "", t, flags=re.S),
+            "39 detectors .* NCOLS = 40; SPOT 5 needs one per detector",
+        ),
+        (2, lambda t: replace_first(t, "DETECTOR_ID", "2"), "at least the first and last"),
+        (
+            5,
+            lambda t: t.replace(
+                "<Metadata_Id>",
+                "<Metadata_Identification><METADATA_FORMAT version='2.0'>DIMAP"
+                "</METADATA_FORMAT></Metadata_Identification><Metadata_Id>",
+            ),
+            "DIMAP v2 document .* open the image .* or its RPC file",
+        ),
+    ],
+    ids=["no ephemeris", "3 ephemeris points", "ephemeris too short", "39 look angles", "spot2 look table", "dimap v2"],
+)
 def test_document_edits(mission, edit, message, tmp_path):
     with pytest.raises(MetadataError, match=message):
         read_text(edit(TEXTS[mission]), tmp_path)
 
 
-@pytest.mark.parametrize("tag, value, message", [
-    ("MISSION_INDEX", "7", "MISSION_INDEX 7 is not SPOT 1 to 5"),
-    ("MISSION", "LANDSAT", "not SPOT"),
-    ("INSTRUMENT", "XYZ", "instrument 'XYZ' does not fly on SPOT 5"),
-    ("PSI_Y", "nan", "PSI_Y.*'nan' is not a finite number"),
-    ("X", "NaN", "X.*is not a finite number"),
-    ("YAW", "1.5e-3x", "YAW.*is not a finite number"),
-    ("TIME", "yesterday", "TIME.*not an ISO UTC date-time"),
-    ("NCOLS", "0", "is not the size of a SPOT scene"),
-    ("NROWS", "12.5", "not an integer"),
-    ("LINE_PERIOD", "-1e-3", "LINE_PERIOD"),
-    ("PITCH", "3.0", "degrees instead of radians"),
-    ("SCENE_CENTER_TIME", "", "SCENE_CENTER_TIME> is empty"),
-])
+@pytest.mark.parametrize(
+    "tag, value, message",
+    [
+        ("MISSION_INDEX", "7", "MISSION_INDEX 7 is not SPOT 1 to 5"),
+        ("MISSION", "LANDSAT", "not SPOT"),
+        ("INSTRUMENT", "XYZ", "instrument 'XYZ' does not fly on SPOT 5"),
+        ("PSI_Y", "nan", "PSI_Y.*'nan' is not a finite number"),
+        ("X", "NaN", "X.*is not a finite number"),
+        ("YAW", "1.5e-3x", "YAW.*is not a finite number"),
+        ("TIME", "yesterday", "TIME.*not an ISO UTC date-time"),
+        ("NCOLS", "0", "is not the size of a SPOT scene"),
+        ("NROWS", "12.5", "not an integer"),
+        ("LINE_PERIOD", "-1e-3", "LINE_PERIOD"),
+        ("PITCH", "3.0", "degrees instead of radians"),
+        ("SCENE_CENTER_TIME", "", "SCENE_CENTER_TIME> is empty"),
+    ],
+)
 def test_bad_values(tag, value, message, tmp_path):
     with pytest.raises(MetadataError, match=message):
         read_text(replace_first(TEXTS[5], tag, value), tmp_path)
@@ -111,8 +130,26 @@ def test_image_size_must_match(tmp_path):
         read_text(TEXTS[5], tmp_path, image=tmp_path / "missing.tif")
 
 
-GARBAGE = st.sampled_from(["nan", "inf", "-inf", "", "x", "1e999", "-1", "0", "1e30", "3000000", "2005-03-13",
-                           "1.5.2", "+", "  7 ", "0x10", "2005-03-13T05:21:00.5"])
+GARBAGE = st.sampled_from(
+    [
+        "nan",
+        "inf",
+        "-inf",
+        "",
+        "x",
+        "1e999",
+        "-1",
+        "0",
+        "1e30",
+        "3000000",
+        "2005-03-13",
+        "1.5.2",
+        "+",
+        "  7 ",
+        "0x10",
+        "2005-03-13T05:21:00.5",
+    ]
+)
 TREES = {mission: ET.fromstring(text) for mission, text in TEXTS.items()}
 
 
@@ -137,7 +174,7 @@ def mutated(draw):
             other = pick()
             element.tag, other.tag = other.tag, element.tag
     text = ET.tostring(root, encoding="unicode")
-    return text[:draw(st.integers(0, len(text)))] if draw(st.integers(0, 9)) == 0 else text
+    return text[: draw(st.integers(0, len(text)))] if draw(st.integers(0, 9)) == 0 else text
 
 
 @settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])

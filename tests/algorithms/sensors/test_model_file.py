@@ -1,4 +1,5 @@
 """The project's own sensor-model file: exact round trip through sensors.save / sensors.load."""
+
 import json
 
 import numpy as np
@@ -38,12 +39,15 @@ def test_spot_model_with_corrections_round_trips_exactly(spot5_dim, tmp_path):
     assert_same_model(model, again, 250.0)
     # the corrections matter: the same model without them maps elsewhere
     plain = sensors.load(spot5_dim)
-    assert np.max(np.abs(np.subtract(plain.image_to_ground(10.0, 10.0, 0.0),
-                                     again.image_to_ground(10.0, 10.0, 0.0)))) > 1e-5
+    assert (
+        np.max(np.abs(np.subtract(plain.image_to_ground(10.0, 10.0, 0.0), again.image_to_ground(10.0, 10.0, 0.0))))
+        > 1e-5
+    )
 
 
 def test_spot2_with_drift_off_round_trips(spot2_dim, tmp_path):
     from pushbroom.algorithms.sensors.spot import SpotModel
+
     model = SpotModel.from_dimap(spot2_dim, drift=False)
     sensors.save(model, tmp_path / "a.pbmodel.json")
     again = sensors.load(tmp_path / "a.pbmodel.json")
@@ -59,13 +63,19 @@ def test_rpc_model_with_crop_round_trips_exactly(ventoux_image, tmp_path):
     assert_same_model(model, again, 1000.0)
 
 
-@pytest.mark.parametrize("text, message", [
-    ("{not json", "cannot read"),
-    ('{"format": "something-else"}', "not a Pushbroom"),
-    ('{"format": "pushbroom-sensor-model", "version": 99, "kind": "spot"}', "version"),
-    ('{"format": "pushbroom-sensor-model", "version": 1, "kind": "lidar"}', "unknown model kind"),
-    ('{"format": "pushbroom-sensor-model", "version": 1, "kind": "spot", "drift": true, "orientation": {}}', "damaged"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("{not json", "cannot read"),
+        ('{"format": "something-else"}', "not a Pushbroom"),
+        ('{"format": "pushbroom-sensor-model", "version": 99, "kind": "spot"}', "version"),
+        ('{"format": "pushbroom-sensor-model", "version": 1, "kind": "lidar"}', "unknown model kind"),
+        (
+            '{"format": "pushbroom-sensor-model", "version": 1, "kind": "spot", "drift": true, "orientation": {}}',
+            "damaged",
+        ),
+    ],
+)
 def test_damaged_model_files_raise_metadata_error(tmp_path, text, message):
     path = tmp_path / "x.pbmodel.json"
     path.write_text(text)
@@ -87,6 +97,7 @@ def test_truncated_model_file_raises_metadata_error(spot5_dim, tmp_path):
 def test_rpc_model_file_with_a_bad_size_raises_metadata_error(tmp_path, size):
     from pushbroom.algorithms.sensors.rpc import RpcModel
     from tests.helpers.rpc_synthetic import synthetic_coefficients
+
     path = tmp_path / "r.pbmodel.json"
     sensors.save(RpcModel(synthetic_coefficients()), path)
     doc = json.loads(path.read_text())

@@ -1,6 +1,7 @@
 """RpcModel on a synthetic RPC00B: kernels against a plain numpy reference, analytic partials
 against finite differences, the iterative inverse, GDAL's pixel convention, crop offsets, and the
 readers and writers (GeoTIFF tags, _RPC.TXT, .RPB, OSSIM .geom in formats A and B)."""
+
 import math
 
 import numpy as np
@@ -40,14 +41,18 @@ def ground_points(n=400, seed=1):
     """Random ground points over the RPC's whole normalisation domain."""
     rng = np.random.default_rng(seed)
     u = rng.uniform(-1.0, 1.0, (3, n))
-    return (SCALARS["LONG_OFF"] + u[0] * SCALARS["LONG_SCALE"], SCALARS["LAT_OFF"] + u[1] * SCALARS["LAT_SCALE"],
-            SCALARS["HEIGHT_OFF"] + u[2] * SCALARS["HEIGHT_SCALE"])
+    return (
+        SCALARS["LONG_OFF"] + u[0] * SCALARS["LONG_SCALE"],
+        SCALARS["LAT_OFF"] + u[1] * SCALARS["LAT_SCALE"],
+        SCALARS["HEIGHT_OFF"] + u[2] * SCALARS["HEIGHT_SCALE"],
+    )
 
 
 def image_grid(model, n=11):
     """(col, row, h) of an n x n grid over the model's raster, borders included, at 3 heights."""
-    return np.meshgrid(np.linspace(0, model.size[0], n), np.linspace(0, model.size[1], n),
-                       np.linspace(*model.height_range, 3))
+    return np.meshgrid(
+        np.linspace(0, model.size[0], n), np.linspace(0, model.size[1], n), np.linspace(*model.height_range, 3)
+    )
 
 
 def test_ground_to_image_matches_numpy_reference(model, fields):
@@ -110,7 +115,7 @@ def test_a_degenerate_rpc_is_refused_where_read(fields):
 def test_an_image_point_without_a_ground_point_raises_geometry_error(fields):
     model = RpcModel(RpcCoefficients.from_fields(fields, "synthetic"))
     with pytest.raises(GeometryError, match="no ground point found for 1 of 1"):
-        model.image_to_ground(1e9, 1e9, 1000.0)         # far beyond the image: the cubics have no answer there
+        model.image_to_ground(1e9, 1e9, 1000.0)  # far beyond the image: the cubics have no answer there
 
 
 @pytest.mark.parametrize("crop", [(0.0, 0.0), CROP])
@@ -141,8 +146,10 @@ def test_crop_offset_shifts_image_coordinates_only(model):
 def test_size_without_raster_is_the_normalisation_range():
     c = synthetic_coefficients()
     assert RpcModel(c).size == (math.ceil(c.samp_off + 0.5 + c.samp_scale), math.ceil(c.line_off + 0.5 + c.line_scale))
-    assert RpcModel(c, offset=CROP).size == (math.ceil(c.samp_off + 0.5 + c.samp_scale - CROP[0]),
-                                             math.ceil(c.line_off + 0.5 + c.line_scale - CROP[1]))
+    assert RpcModel(c, offset=CROP).size == (
+        math.ceil(c.samp_off + 0.5 + c.samp_scale - CROP[0]),
+        math.ceil(c.line_off + 0.5 + c.line_scale - CROP[1]),
+    )
 
 
 def test_coefficients_are_exposed_read_only(model, fields):
@@ -206,8 +213,11 @@ def test_geotiff_rpc_tags(tmp_path, fields):
 def test_geom_beside_a_crop_takes_its_offset_and_size(tmp_path, fields, model):
     (tmp_path / "left.geom").write_text(geom_text(fields))
     raster = write_raster(tmp_path / "left.tif", SIZE, geotransform=(CROP[0], 1, 0, CROP[1], 0, 1))
-    for loaded in (sensors.load(tmp_path / "left.geom"), sensors.load(raster),
-                   RpcModel.from_geom(tmp_path / "left.geom", image=raster)):
+    for loaded in (
+        sensors.load(tmp_path / "left.geom"),
+        sensors.load(raster),
+        RpcModel.from_geom(tmp_path / "left.geom", image=raster),
+    ):
         assert loaded.size == SIZE and loaded.offset == CROP
         assert_same_mapping(loaded, model, 1e-9)
 
@@ -217,6 +227,7 @@ def test_orientation_files_are_not_redirected_to_a_metadata_dim_beside_them(tmp_
     or found beside its raster) is the crop's orientation; the folder itself is the SPOT product."""
     from pushbroom.algorithms.sensors.dimap_writer import write_dimap
     from tests.helpers.spot_synthetic import synthetic_orientation
+
     write_dimap(tmp_path / "METADATA.DIM", synthetic_orientation(ncols=40))
     (tmp_path / "left.geom").write_text(geom_text(fields))
     raster = write_raster(tmp_path / "left.tif", SIZE, geotransform=(CROP[0], 1, 0, CROP[1], 0, 1))
@@ -250,7 +261,7 @@ def test_written_crop_rpc_gives_gdal_the_crop_mapping(tmp_path, model):
     assert float(fields["LINE_OFF"]) == SCALARS["LINE_OFF"] - CROP[1]
 
 
-BIAS = np.array([1.5, 0.8, -0.4, -2.0, 0.3, 1.1])   # px, px per 1000 px
+BIAS = np.array([1.5, 0.8, -0.4, -2.0, 0.3, 1.1])  # px, px per 1000 px
 
 
 def test_bias_is_an_affine_image_correction_with_exact_partials(model, tmp_path):
@@ -259,6 +270,7 @@ def test_bias_is_an_affine_image_correction_with_exact_partials(model, tmp_path)
     agree with central differences; the model file keeps it and RPC writers refuse it."""
     from pushbroom.algorithms.errors import InputError
     from pushbroom.algorithms.sensors.model_file import save_model_file
+
     biased = RpcModel(model.coefficients, model.size, model.offset, "biased", bias=BIAS)
     lon, lat, h = ground_points(60)
     col, row = model.ground_to_image(lon, lat, h)
@@ -278,10 +290,12 @@ def test_bias_is_an_affine_image_correction_with_exact_partials(model, tmp_path)
     for k in range(6):
         e = np.zeros(6)
         e[k] = 1e-3
-        plus = np.array(RpcModel(model.coefficients, model.size, model.offset,
-                                 bias=BIAS + e).ground_to_image(lon, lat, h))
-        minus = np.array(RpcModel(model.coefficients, model.size, model.offset,
-                                  bias=BIAS - e).ground_to_image(lon, lat, h))
+        plus = np.array(
+            RpcModel(model.coefficients, model.size, model.offset, bias=BIAS + e).ground_to_image(lon, lat, h)
+        )
+        minus = np.array(
+            RpcModel(model.coefficients, model.size, model.offset, bias=BIAS - e).ground_to_image(lon, lat, h)
+        )
         np.testing.assert_allclose(p["d_corrections"][:, :, k], ((plus - minus) / 2e-3).T, atol=1e-9)
     path = tmp_path / "m.pbmodel.json"
     save_model_file(biased, path)

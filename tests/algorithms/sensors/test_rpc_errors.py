@@ -1,5 +1,6 @@
 """Bad RPC input raises MetadataError saying what is wrong and where; never a bare KeyError,
 ValueError or IndexError. Mutated files (hypothesis) either load or raise MetadataError."""
+
 import re
 import tempfile
 from pathlib import Path
@@ -23,6 +24,7 @@ def _set_coefficient(key, index, value):
     def change(f):
         f[key] = list(f[key])
         f[key][index] = value
+
     return change
 
 
@@ -34,8 +36,10 @@ BAD_FIELDS = [
     (_set("LONG_OFF", "-inf"), "LONG_OFF is not finite"),
     (_set("HEIGHT_SCALE", "0"), "HEIGHT_SCALE is 0: a scale is the positive half-range"),
     (_set("LINE_SCALE", ""), "LINE_SCALE is not a number"),
-    (lambda f: f.__setitem__("LINE_NUM_COEFF", f["LINE_NUM_COEFF"][:19]),
-     "LINE_NUM_COEFF has 19 values; RPC00B needs 20"),
+    (
+        lambda f: f.__setitem__("LINE_NUM_COEFF", f["LINE_NUM_COEFF"][:19]),
+        "LINE_NUM_COEFF has 19 values; RPC00B needs 20",
+    ),
     (lambda f: f.__setitem__("SAMP_DEN_COEFF", " ".join(["1"] * 21)), "SAMP_DEN_COEFF has 21 values"),
     (_set_coefficient("SAMP_DEN_COEFF", 5, "NaN"), r"SAMP_DEN_COEFF\[6\] is not finite"),
     (_set_coefficient("LINE_NUM_COEFF", 19, "1.2.3"), r"LINE_NUM_COEFF\[20\] is not a number"),
@@ -43,13 +47,20 @@ BAD_FIELDS = [
     # values that describe no image of a place on Earth (before: "singular Jacobian ... Is the point inside the
     # image" when the first image point was projected)
     (_set("LAT_SCALE", -0.099), "LAT_SCALE is -0.099: a scale is the positive half-range"),
-    (_set("LAT_OFF", 120.0), r"LAT_OFF 120 \+- LAT_SCALE 0.099 is no latitude range \(-90 .. 90 degrees\) "
-                             r"\(LAT_OFF and LONG_OFF swapped\?\)"),
+    (
+        _set("LAT_OFF", 120.0),
+        r"LAT_OFF 120 \+- LAT_SCALE 0.099 is no latitude range \(-90 .. 90 degrees\) "
+        r"\(LAT_OFF and LONG_OFF swapped\?\)",
+    ),
     (_set("LONG_OFF", 400.0), r"LONG_OFF 400 is no longitude"),
-    (_set("LINE_NUM_COEFF", [0.0] * 20), "LINE_NUM_COEFF is all zeros: every ground point would have the same image "
-                                         "row"),
-    (_set("SAMP_NUM_COEFF", [0.0, 0.0204, -1.032] + [0.0] * 17), "the image column and row change along one ground "
-                                                                "direction only"),
+    (
+        _set("LINE_NUM_COEFF", [0.0] * 20),
+        "LINE_NUM_COEFF is all zeros: every ground point would have the same image row",
+    ),
+    (
+        _set("SAMP_NUM_COEFF", [0.0, 0.0204, -1.032] + [0.0] * 17),
+        "the image column and row change along one ground direction only",
+    ),
     # hypothesis's example (test_bad_input_rpc): a coefficient at the float range's end overflowed with a warning
     (_set_coefficient("SAMP_NUM_COEFF", 1, -1e308), "the image column is not a finite number at lon"),
 ]
@@ -70,13 +81,16 @@ def test_lat_off_and_long_off_swapped_are_named(tmp_path):
     degree of longitude spans a tenth of the metres, so its pixels would be 8 times longer than wide."""
     fields = dict(synthetic_fields(), LONG_OFF=-84.2, LAT_OFF=36.6)
     write_rpc_txt(RpcModel(RpcCoefficients.from_fields(fields)), tmp_path / "moved_RPC.TXT")
-    sensors.load(tmp_path / "moved_RPC.TXT")                                  # a valid RPC at its new place
+    sensors.load(tmp_path / "moved_RPC.TXT")  # a valid RPC at its new place
     fields["LONG_OFF"], fields["LAT_OFF"] = fields["LAT_OFF"], fields["LONG_OFF"]
     path = tmp_path / "swapped_RPC.TXT"
     write_rpc_txt(RpcModel(RpcCoefficients.from_fields(fields)), path)
-    with pytest.raises(MetadataError, match=re.escape(str(path)) + r": its pixels would cover .* m on the ground at "
-                                            r"its centre, (\d+\.\d) times longer than wide: .*\(LAT_OFF and "
-                                            r"LONG_OFF swapped") as err:
+    with pytest.raises(
+        MetadataError,
+        match=re.escape(str(path)) + r": its pixels would cover .* m on the ground at "
+        r"its centre, (\d+\.\d) times longer than wide: .*\(LAT_OFF and "
+        r"LONG_OFF swapped",
+    ) as err:
         sensors.load(path)
     # the pixel's elongation: cos(36.6 deg) / cos(84.2 deg) = 7.9 times the moved RPC's own (1.2 at most)
     assert 6.0 < float(re.search(r"(\d+\.\d) times", str(err.value)).group(1)) < 10.0
@@ -138,14 +152,17 @@ def test_file_that_is_not_a_raster(tmp_path):
         sensors.load(tmp_path / "fake.tif")
 
 
-@pytest.mark.parametrize("edit, message", [
-    (lambda t: t.replace("polynomial_format:  B\n", ""), "polynomial_format is None, expected A or B"),
-    (lambda t: t.replace("polynomial_format:  B", "polynomial_format:  C"), "polynomial_format is 'C'"),
-    (lambda t: re.sub(r"samp_num_coeff_13:.*\n", "", t), "missing samp_num_coeff_13"),
-    (lambda t: re.sub(r"number_lines:.*", "number_lines:  many", t), "number_samples / number_lines must both"),
-    (lambda t: re.sub(r"number_samples:.*", "number_samples:  0", t), "image size .* is not positive"),
-    (lambda t: re.sub(r"lat_scale:.*", "lat_scale:  0.0", t), "LAT_SCALE is 0: a scale is the positive"),
-])
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda t: t.replace("polynomial_format:  B\n", ""), "polynomial_format is None, expected A or B"),
+        (lambda t: t.replace("polynomial_format:  B", "polynomial_format:  C"), "polynomial_format is 'C'"),
+        (lambda t: re.sub(r"samp_num_coeff_13:.*\n", "", t), "missing samp_num_coeff_13"),
+        (lambda t: re.sub(r"number_lines:.*", "number_lines:  many", t), "number_samples / number_lines must both"),
+        (lambda t: re.sub(r"number_samples:.*", "number_samples:  0", t), "image size .* is not positive"),
+        (lambda t: re.sub(r"lat_scale:.*", "lat_scale:  0.0", t), "LAT_SCALE is 0: a scale is the positive"),
+    ],
+)
 def test_bad_geom(tmp_path, edit, message):
     path = tmp_path / "bad.geom"
     path.write_text(edit(geom_text(synthetic_fields())))
@@ -163,8 +180,29 @@ def test_geom_beside_a_georeferenced_raster(tmp_path):
 # -- mutation testing ---------------------------------------------------------------------------
 
 NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
-GARBAGE = st.sampled_from(["", "nan", "NaN", "inf", "-inf", "0", "0.0", "abc", "1e999", "--1", "1,2",
-                           "(", ")", ";", ":", "  ", "\x00", "1 2 3", "\u00e9"])
+GARBAGE = st.sampled_from(
+    [
+        "",
+        "nan",
+        "NaN",
+        "inf",
+        "-inf",
+        "0",
+        "0.0",
+        "abc",
+        "1e999",
+        "--1",
+        "1,2",
+        "(",
+        ")",
+        ";",
+        ":",
+        "  ",
+        "\x00",
+        "1 2 3",
+        "\u00e9",
+    ]
+)
 
 
 def mutate(data, text):
@@ -182,7 +220,7 @@ def mutate(data, text):
             numbers = list(NUMBER.finditer(lines[i], separator.end() if separator else 0))
             if numbers:
                 m = data.draw(st.sampled_from(numbers))
-                lines[i] = lines[i][:m.start()] + data.draw(GARBAGE) + lines[i][m.end():]
+                lines[i] = lines[i][: m.start()] + data.draw(GARBAGE) + lines[i][m.end() :]
         else:
             cut = data.draw(st.integers(0, len(text)))
             lines = [text[:cut]]

@@ -2,6 +2,7 @@
 checked against the rigorous model at independent points, through GDAL's RPC transformer on the
 written _RPC.TXT, exact recovery of a known rational RPC, the polynomial fallback near a pole, and
 clear errors on degenerate input."""
+
 import pathlib
 import shutil
 
@@ -30,7 +31,7 @@ from pushbroom.algorithms.surface.intersection import height_differences
 gdal.UseExceptions()
 
 SCENES = {"spot5_triplet": ("HRG", "HRS1", "HRS2"), "spot14_pair": ("HRV1_A", "HRV2_B")}
-TOLERANCE_PX = 0.01      # fitted RPC vs rigorous model
+TOLERANCE_PX = 0.01  # fitted RPC vs rigorous model
 GDAL_TOLERANCE_PX = 0.02  # GDAL's RPC transformer on the written file vs rigorous model
 
 
@@ -43,8 +44,11 @@ def scenes(simulated):
 def scene_model(scenes, configuration, name):
     """(supplied sensor model, cube height range = DSM range widened, paths) of one simulated image."""
     paths = scenes[configuration]
-    return (sensors.load(paths["images"][name]["metadata"]),
-            default_height_range(read_dem(paths["dsm"]).height_range), paths)
+    return (
+        sensors.load(paths["images"][name]["metadata"]),
+        default_height_range(read_dem(paths["dsm"]).height_range),
+        paths,
+    )
 
 
 def random_image_points(model, height_range, n=500, seed=3):
@@ -62,7 +66,7 @@ def test_fitted_rpc_reproduces_the_rigorous_model(scenes, configuration, name, f
     rpc, report = fit_rpc(model, height_range)
     figures.report("fit", report.summary())
     assert isinstance(rpc, RpcModel) and rpc.size == model.size
-    assert report.cube_points == 11 ** 3 and report.validation_points == 20 ** 3
+    assert report.cube_points == 11**3 and report.validation_points == 20**3
     assert report.max_error < TOLERANCE_PX
     # independent random points: rigorous image -> ground, fitted RPC ground -> image
     col, row, h = random_image_points(model, height_range)
@@ -113,16 +117,29 @@ def test_gdal_reads_the_written_rpc_txt_beside_the_raster(scenes, configuration,
 def known_rpc(samp_den, size=None):
     """A known RPC00B as the 'rigorous' model: col = (L + 0.05 H + 0.02 L P) / samp_den . t and
     row = (P - 0.03 H) / (1 + 0.01 L) over 0.2 x 0.2 degrees and 0 .. 2000 m."""
+
     def coef(**terms):
         c = np.zeros(20)
         for k, v in terms.items():
             c[int(k[1:])] = v
         return c
-    fields = {"LINE_OFF": 4999.5, "SAMP_OFF": 4999.5, "LAT_OFF": 44.0, "LONG_OFF": 5.0, "HEIGHT_OFF": 1000.0,
-              "LINE_SCALE": 5000.0, "SAMP_SCALE": 5000.0, "LAT_SCALE": 0.1, "LONG_SCALE": 0.1,
-              "HEIGHT_SCALE": 1000.0, "SAMP_NUM_COEFF": coef(t1=1.0, t3=0.05, t4=0.02),
-              "SAMP_DEN_COEFF": np.asarray(samp_den, float), "LINE_NUM_COEFF": coef(t2=1.0, t3=-0.03),
-              "LINE_DEN_COEFF": coef(t0=1.0, t1=0.01)}
+
+    fields = {
+        "LINE_OFF": 4999.5,
+        "SAMP_OFF": 4999.5,
+        "LAT_OFF": 44.0,
+        "LONG_OFF": 5.0,
+        "HEIGHT_OFF": 1000.0,
+        "LINE_SCALE": 5000.0,
+        "SAMP_SCALE": 5000.0,
+        "LAT_SCALE": 0.1,
+        "LONG_SCALE": 0.1,
+        "HEIGHT_SCALE": 1000.0,
+        "SAMP_NUM_COEFF": coef(t1=1.0, t3=0.05, t4=0.02),
+        "SAMP_DEN_COEFF": np.asarray(samp_den, float),
+        "LINE_NUM_COEFF": coef(t2=1.0, t3=-0.03),
+        "LINE_DEN_COEFF": coef(t0=1.0, t1=0.01),
+    }
     return RpcModel(RpcCoefficients.from_fields(fields, "known"), size=size)
 
 
@@ -136,7 +153,7 @@ def test_a_rational_rpc_is_recovered_exactly(monkeypatch, figures):
     col, row, _ = random_image_points(model, (0.0, 2000.0))
     lon, lat = model.image_to_ground(col, row, 1234.0)
     assert np.allclose(rpc.ground_to_image(lon, lat, 1234.0), (col, row), rtol=0, atol=1e-6)
-    monkeypatch.setattr(rpc_fit, "MIN_DEN_RATIO", 1.0)   # every non-constant denominator is "near a pole"
+    monkeypatch.setattr(rpc_fit, "MIN_DEN_RATIO", 1.0)  # every non-constant denominator is "near a pole"
     polynomial, forced = fit_rpc(model, (0.0, 2000.0))
     figures.report("known rational RPC, polynomial forced", forced.summary())
     assert forced.polynomial == ("col", "row") and forced.col.near_pole == len(rpc_fit.REGULARISATIONS)
@@ -164,9 +181,14 @@ def test_a_denominator_near_zero_is_rejected(figures):
     col, row, h = random_image_points(model, (0.0, 2000.0), 2000)
     lon, lat = model.image_to_ground(col, row, h)
     c = damped.coefficients
-    den = np.array([_poly(c.samp_den, x, y, z) for x, y, z in zip((lon - c.long_off) / c.long_scale,
-                                                                  (lat - c.lat_off) / c.lat_scale,
-                                                                  (h - c.height_off) / c.height_scale)])
+    den = np.array(
+        [
+            _poly(c.samp_den, x, y, z)
+            for x, y, z in zip(
+                (lon - c.long_off) / c.long_scale, (lat - c.lat_off) / c.lat_scale, (h - c.height_off) / c.height_scale
+            )
+        ]
+    )
     assert den.min() > rpc_fit.MIN_DEN_RATIO * den.max()
 
 
@@ -190,12 +212,20 @@ def test_height_differences_rpc_vs_rigorous_intersection(scenes, figures):
     col, row, h = random_image_points(rigorous[0], default_height_range((250.0, 650.0)), 300)
     lon, lat = rigorous[0].image_to_ground(col, row, h)
     projected = [rigorous[k].ground_to_image(lon, lat, h) for k in rigorous]
-    inside = np.all([(c > 0) & (c < rigorous[k].size[0]) & (r > 0) & (r < rigorous[k].size[1])
-                     for k, (c, r) in enumerate(projected)], axis=0)       # three-ray points
+    inside = np.all(
+        [
+            (c > 0) & (c < rigorous[k].size[0]) & (r > 0) & (r < rigorous[k].size[1])
+            for k, (c, r) in enumerate(projected)
+        ],
+        axis=0,
+    )  # three-ray points
     n = int(inside.sum())
-    image_ids, points, cols, rows = (np.repeat(np.arange(3), n), np.tile(np.flatnonzero(inside), 3),
-                                     np.concatenate([c[inside] for c, _ in projected]),
-                                     np.concatenate([r[inside] for _, r in projected]))
+    image_ids, points, cols, rows = (
+        np.repeat(np.arange(3), n),
+        np.tile(np.flatnonzero(inside), 3),
+        np.concatenate([c[inside] for c, _ in projected]),
+        np.concatenate([r[inside] for _, r in projected]),
+    )
     diff = height_differences(rigorous, rpcs, image_ids, points, cols, rows)
     figures.report("RPC - rigorous intersection", diff.summary())
     assert n > 200 and diff.point.size == n and diff.missing == 0
@@ -206,6 +236,7 @@ def test_height_differences_rpc_vs_rigorous_intersection(scenes, figures):
 
 class NanModel(SensorModel):
     """A model without ground positions in the right half of its image."""
+
     size = (100, 80)
 
     def image_to_ground(self, col, row, h):
@@ -213,10 +244,14 @@ class NanModel(SensorModel):
         return np.where(col > 50, np.nan, 5.0 + 1e-4 * col), 44.0 - 1e-4 * row + 0.0 * np.asarray(h)
 
 
-@pytest.mark.parametrize("height_range, match", [
-    ((500.0, 500.0), r"the lowest height of its cube \(500 m\) is the same as the highest \(500 m\)"),
-    ((800.0, 100.0), r"the lowest height of its cube \(800 m\) is above the highest \(100 m\)"),
-    ((0.0, np.nan), r"the heights 0.0 .. nan m: give two numbers of metres")])
+@pytest.mark.parametrize(
+    "height_range, match",
+    [
+        ((500.0, 500.0), r"the lowest height of its cube \(500 m\) is the same as the highest \(500 m\)"),
+        ((800.0, 100.0), r"the lowest height of its cube \(800 m\) is above the highest \(100 m\)"),
+        ((0.0, np.nan), r"the heights 0.0 .. nan m: give two numbers of metres"),
+    ],
+)
 def test_degenerate_height_ranges_are_input_errors(height_range, match):
     with pytest.raises(InputError, match=match):
         fit_rpc(known_rpc([1.0] + [0.0] * 19), height_range)
@@ -258,15 +293,16 @@ def test_files_and_report(tmp_path):
     path = write_fitted_rpc(rpc, tmp_path / "scene_RPC.TXT")
     with pytest.raises(InputError, match="exists already"):
         write_fitted_rpc(rpc, path)
-    assert not raster_reads(raster, rpc)   # no raster there
+    assert not raster_reads(raster, rpc)  # no raster there
     gdal.GetDriverByName("GTiff").Create(str(raster), 10, 10, 1)
     assert raster_reads(raster, rpc)
     write_rpb(RpcModel(rpc.coefficients, offset=(1.0, 0.0)), tmp_path / "scene.RPB")
-    assert not raster_reads(raster, rpc)   # GDAL prefers an .RPB to a _RPC.TXT
+    assert not raster_reads(raster, rpc)  # GDAL prefers an .RPB to a _RPC.TXT
     text = report_text([("A", path, report)]).splitlines()
-    assert text[1].split()[:6] == ["A", "col"] + [f"{e:.2e}" for e in (report.col.cube.rms, report.col.cube.max,
-                                                                        report.col.validation.rms,
-                                                                        report.col.validation.max)]
+    assert text[1].split()[:6] == ["A", "col"] + [
+        f"{e:.2e}"
+        for e in (report.col.cube.rms, report.col.cube.max, report.col.validation.rms, report.col.validation.max)
+    ]
     assert text[2].startswith("A            row") and text[-1].endswith(f"-> {path}")
 
 

@@ -1,4 +1,5 @@
 """Every SPOT kernel against a plain numpy reference on small synthetic data."""
+
 import numpy as np
 import pytest
 from osgeo import osr
@@ -18,7 +19,7 @@ RNG = np.random.default_rng(7)
 #: to 4 ulp (libm to 1): a few ulp per factor, 32 ulp of 1 in all
 ROUNDING = 32 * np.finfo(float).eps
 #: PROJ's ECEF -> geodetic is one Bowring step, whose height error grows as h^2: 6 mm at 830 km (test_geodesy)
-PROJ_DRIFT_PER_M2 = 6e-3 / 830e3 ** 2
+PROJ_DRIFT_PER_M2 = 6e-3 / 830e3**2
 
 
 def rx(a):
@@ -41,11 +42,13 @@ def orbital(p, v):
 
 
 def some_corrections():
-    return Corrections(position=RNG.normal(0, 5, (3, 4)), attitude=RNG.normal(0, 1e-5, (3, 4)),
-                       look=RNG.normal(0, 1e-5, (2, 4)))
+    return Corrections(
+        position=RNG.normal(0, 5, (3, 4)), attitude=RNG.normal(0, 1e-5, (3, 4)), look=RNG.normal(0, 1e-5, (2, 4))
+    )
 
 
 # -- frames -------------------------------------------------------------------------------------
+
 
 def test_frames_against_numpy():
     for yaw, pitch, roll in RNG.normal(0, 0.3, (5, 3)):
@@ -55,8 +58,9 @@ def test_frames_against_numpy():
     np.testing.assert_allclose(m, orbital(p, v), atol=ROUNDING)
     np.testing.assert_allclose(m.T @ m, np.eye(3), atol=ROUNDING)
     a, b = frames.r21(0.1, 0.2, 0.3), frames.r32(*p, *v)
-    np.testing.assert_allclose(np.reshape(frames.mat_mul(tuple(b.ravel()), tuple(a.ravel())), (3, 3)), b @ a,
-                               atol=ROUNDING)
+    np.testing.assert_allclose(
+        np.reshape(frames.mat_mul(tuple(b.ravel()), tuple(a.ravel())), (3, 3)), b @ a, atol=ROUNDING
+    )
 
 
 def test_look_vector_and_angles_are_inverse():
@@ -66,12 +70,14 @@ def test_look_vector_and_angles_are_inverse():
     assert frames.look_angles(*(3.7 * u)) == pytest.approx((psi_x, psi_y), abs=1e-15)
     p, v = np.array([1e6, -2e6, 6.8e6]), np.array([7e3, 1e3, 900.0])
     d = frames.look_direction_ecef(psi_x, psi_y, 1e-3, -2e-3, 3e-3, *p, *v)
-    np.testing.assert_allclose(d, orbital(p, v) @ rx(2e-3) @ ry(-3e-3) @ rz(1e-3) @ u / np.linalg.norm(u),
-                               atol=ROUNDING)
+    np.testing.assert_allclose(
+        d, orbital(p, v) @ rx(2e-3) @ ry(-3e-3) @ rz(1e-3) @ u / np.linalg.norm(u), atol=ROUNDING
+    )
     assert frames.ecef_to_look_angles(*d, 1e-3, -2e-3, 3e-3, *p, *v) == pytest.approx((psi_x, psi_y), abs=1e-14)
 
 
 # -- interpolation ------------------------------------------------------------------------------
+
 
 def lagrange_reference(ts, ys, t):
     out = 0.0
@@ -130,9 +136,11 @@ def test_detector_angles_and_their_inverse():
 
 # -- geodesy along rays ------------------------------------------------------------------------
 
+
 def test_bowring_matches_proj_near_the_surface():
-    lon, lat, h = (v.ravel() for v in np.meshgrid([-170.0, 3.0, 100.0], np.linspace(-89.0, 89.0, 19),
-                                                  [-1000.0, 0.0, 9000.0, 1e5]))
+    lon, lat, h = (
+        v.ravel() for v in np.meshgrid([-170.0, 3.0, 100.0], np.linspace(-89.0, 89.0, 19), [-1000.0, 0.0, 9000.0, 1e5])
+    )
     xyz = geodetic_to_ecef(lon, lat, h)
     srs = [osr.SpatialReference(), osr.SpatialReference()]
     srs[0].ImportFromEPSG(4978)
@@ -142,7 +150,7 @@ def test_bowring_matches_proj_near_the_surface():
     reference = np.array(osr.CoordinateTransformation(*srs).TransformPoints(xyz))
     for (x, y, z), (_, lat_ref, h_ref), h_in in zip(xyz, reference, h):
         cl, sl, hh = k.bowring(np.hypot(x, y), z)
-        tolerance = 1e-6 + 10 * PROJ_DRIFT_PER_M2 * h_in ** 2   # rounding, and ten times PROJ's one-step drift
+        tolerance = 1e-6 + 10 * PROJ_DRIFT_PER_M2 * h_in**2  # rounding, and ten times PROJ's one-step drift
         assert hh == pytest.approx(h_ref, abs=tolerance)
         assert np.degrees(np.arctan2(sl, cl)) == pytest.approx(lat_ref, abs=tolerance / 1.1e5)
 
@@ -167,16 +175,17 @@ def test_ray_height_lands_at_the_height_on_the_ray(h):
 
 # -- the model against a numpy implementation of the handbook equations ------------------------
 
+
 def reference_image_to_ecef(o, c, col, row, h):
     """X = P + mu R32 R21 u1 in plain numpy (8-point Lagrange, np.interp, brentq on the height)."""
     t = o.centre_time + (row - o.centre_row) * o.line_period
     idx = np.sort(np.argsort(np.abs(o.eph_t - o.centre_time))[:8])
     tau = (t - o.centre_time) / c.time_scale
     p = lagrange_reference(o.eph_t[idx], o.eph_pos[idx], t) + [np.polyval(r[::-1], tau) for r in c.position]
-    v = lagrange_reference(o.eph_t[idx], o.eph_vel[idx], t) + [np.polyval(np.polyder(r[::-1]), tau) / c.time_scale
-                                                              for r in c.position]
-    yaw, pitch, roll = [np.interp(t, o.att_t, o.att_ypr[:, i]) + np.polyval(c.attitude[i][::-1], tau)
-                        for i in range(3)]
+    v = lagrange_reference(o.eph_t[idx], o.eph_vel[idx], t) + [
+        np.polyval(np.polyder(r[::-1]), tau) / c.time_scale for r in c.position
+    ]
+    yaw, pitch, roll = [np.interp(t, o.att_t, o.att_ypr[:, i]) + np.polyval(c.attitude[i][::-1], tau) for i in range(3)]
     q = (col - o.ncols / 2) / 1000
     psi_x = np.interp(col - 0.5, np.arange(o.ncols), o.psi_x) + np.polyval(c.look[0][::-1], q)
     psi_y = np.interp(col - 0.5, np.arange(o.ncols), o.psi_y) + np.polyval(c.look[1][::-1], q)
@@ -258,6 +267,7 @@ def test_drift_switch_for_spot_1_to_4():
 
 # -- partial derivatives ------------------------------------------------------------------------
 
+
 def test_partials_match_plain_finite_differences():
     o = synthetic_orientation()
     o.corrections = some_corrections()
@@ -278,8 +288,13 @@ def test_partials_match_plain_finite_differences():
         array[i, j] = saved - step
         minus = np.array(model.ground_to_image(lon, lat, h))
         array[i, j] = saved
-        np.testing.assert_allclose(got["d_corrections"][:, :, index], ((plus - minus) / (2 * step)).T,
-                                   rtol=1e-4, atol=1e-4 / step, err_msg=f"coefficient {index}")
+        np.testing.assert_allclose(
+            got["d_corrections"][:, :, index],
+            ((plus - minus) / (2 * step)).T,
+            rtol=1e-4,
+            atol=1e-4 / step,
+            err_msg=f"coefficient {index}",
+        )
     for i, step in enumerate((1e-5, 1e-5, 10.0)):
         args = [lon, lat, h]
         args[i] = args[i] + step
@@ -297,6 +312,7 @@ def test_partials_match_plain_finite_differences():
 
 
 # -- DEM intersection ---------------------------------------------------------------------------
+
 
 def rugged_dem():
     """0-3000 m of ridges and a 1 km cliff over the synthetic footprint (0.005 degree cells)."""

@@ -1,6 +1,7 @@
 """Scene simulator, part by part: numba kernels against plain numpy references on tiny data, the
 orbit, the truth geometry against the SPOT model of its sampled orientation, the source DEM's
 orientation and the injected errors."""
+
 import math
 
 import numpy as np
@@ -17,6 +18,7 @@ RNG = np.random.default_rng(42)
 
 
 # ----------------------------------------------------------------------------- numpy references
+
 
 def bilinear_np(z, x, y):
     """Bilinear interpolation of z at vertex coordinates, NaN outside."""
@@ -39,11 +41,12 @@ def first_hit_np(a, b, z, samples=100001):
 
 def rough_surface(rows=40, cols=50):
     z = RNG.normal(0, 3, (rows, cols)).cumsum(0).cumsum(1) * 0.1
-    z[10:14, 20:25] += 30.0   # a building
+    z[10:14, 20:25] += 30.0  # a building
     return z
 
 
 # ----------------------------------------------------------------------------- render kernels
+
 
 def test_block_max_matches_numpy():
     z = rough_surface()
@@ -64,7 +67,7 @@ def test_first_hit_matches_dense_sampling(upwards):
     for _ in range(150):
         a = np.array([RNG.uniform(-5, 55), RNG.uniform(-5, 45), 0.0])
         b = a + np.array([RNG.normal(0, 15), RNG.normal(0, 15), 0.0])
-        if upwards:   # shadow rays: start just above the surface, climb
+        if upwards:  # shadow rays: start just above the surface, climb
             a[:2] = RNG.uniform(1, 38), RNG.uniform(1, 38)
             a[2] = bilinear_np(z, a[:1], a[1:2])[0] + 0.05
             b[2] = a[2] + RNG.uniform(0, 40)
@@ -73,7 +76,7 @@ def test_first_hit_matches_dense_sampling(upwards):
         got = render.first_hit(*a, *b, z, bmax, 4)
         want = first_hit_np(a, b, z)
         assert (got < 0) == (want < 0)
-        assert abs(got - want) < 1.5e-5   # the reference's sampling step is 1e-5
+        assert abs(got - want) < 1.5e-5  # the reference's sampling step is 1e-5
 
 
 def test_near_surface_geodetic_matches_geodesy():
@@ -91,7 +94,7 @@ def test_line_matrices_match_frames():
     got = render.line_matrices(pos, vel, ypr).reshape(-1, 3, 3)
     for k in range(5):
         want = spot_frames.r32(*pos[k], *vel[k]) @ spot_frames.r21(*ypr[k])
-        np.testing.assert_allclose(got[k], want, atol=8 * np.finfo(float).eps)   # a few ulp of a unit 3 x 3 product
+        np.testing.assert_allclose(got[k], want, atol=8 * np.finfo(float).eps)  # a few ulp of a unit 3 x 3 product
 
 
 def _small_grid_surface(height_fn, lon=-84.2, lat=36.6, half_m=1500.0, cell=10.0):
@@ -106,8 +109,10 @@ def test_trace_matches_numpy_ray_intersection(tilted):
     """Rays from 830 km, up to 25 deg off nadir, against a flat or a tilted planar DSM: the kernel's
     ground point (bracketing sphere, linearised ray, DDA) equals a numpy fixed-point iteration of
     the exact ray-height intersection to a centimetre."""
+
     def plane(lon, lat):
         return 400.0 + (2000.0 * (lon + 84.2) - 1500.0 * (lat - 36.6) if tilted else 0.0 * lon)
+
     grid, surface = _small_grid_surface(plane)
     target = geodetic_to_ecef(RNG.uniform(-84.21, -84.19, 20), RNG.uniform(36.59, 36.61, 20), np.full(20, 400.0))
     up = target / np.linalg.norm(target, axis=1, keepdims=True)
@@ -129,18 +134,19 @@ def test_trace_matches_numpy_ray_intersection(tilted):
 
 def test_render_samples_radiance_where_the_ray_lands():
     grid, surface = _small_grid_surface(lambda lon, lat: 300.0 + 0.0 * lon)
-    ramp = np.tile(np.arange(grid.cols, dtype=np.float32), (grid.rows, 1))   # radiance = vertex x
+    ramp = np.tile(np.arange(grid.cols, dtype=np.float32), (grid.rows, 1))  # radiance = vertex x
     target = geodetic_to_ecef(np.linspace(-84.205, -84.195, 6), np.full(6, 36.6), np.full(6, 300.0))
     direction = -target / np.linalg.norm(target, axis=1, keepdims=True)
     pos = target - 830e3 * direction
     eye = np.tile(np.eye(3).ravel(), (6, 1))
-    image = surface.render(pos, eye, direction, ramp)   # 6 lines x 6 detectors
+    image = surface.render(pos, eye, direction, ramp)  # 6 lines x 6 detectors
     ground = surface.trace(pos, eye, direction)
     x, _ = grid.vertex(ground[:, 0], ground[:, 1])
     np.testing.assert_allclose(np.diag(image), x, atol=1e-3)
 
 
 # ----------------------------------------------------------------------------- terrain kernels
+
 
 def keys_np(t):
     t = np.abs(t)
@@ -157,8 +163,9 @@ def test_cubic_resample_matches_numpy():
     for m in range(-1, 3):
         for n in range(-1, 3):
             yi, xi = np.floor(y) + m, np.floor(x) + n
-            want += (keys_np(y - yi) * keys_np(x - xi)
-                     * src[np.clip(yi, 0, 5).astype(int), np.clip(xi, 0, 6).astype(int)])
+            want += (
+                keys_np(y - yi) * keys_np(x - xi) * src[np.clip(yi, 0, 5).astype(int), np.clip(xi, 0, 6).astype(int)]
+            )
     np.testing.assert_allclose(got, want, atol=1e-12)
 
 
@@ -176,8 +183,9 @@ def test_fractal_detail_matches_numpy_sum_of_octaves():
     for i in range(5):
         for j in range(6):
             e, n = -10.0 + 5.0 * j, 12.0 - 4.0 * i
-            want[i, j] = sum(2.0 * 0.5 ** k * noise.gradient_noise(e * 2 ** k / 180.0, n * 2 ** k / 180.0, 9 + 101 * k)
-                             for k in range(3))
+            want[i, j] = sum(
+                2.0 * 0.5**k * noise.gradient_noise(e * 2**k / 180.0, n * 2**k / 180.0, 9 + 101 * k) for k in range(3)
+            )
     np.testing.assert_allclose(dtm, want, atol=1e-12)
 
 
@@ -195,10 +203,18 @@ def test_worley_matches_brute_force():
     for _ in range(200):
         x, y = RNG.uniform(-50, 50, 2)
         d, cx, cy, _ = noise.worley(x, y, 7, 0.9)
-        best = min((math.hypot(x - (i + 0.5 + 0.9 * (noise.uniform(i, j, 7) - 0.5)),
-                               y - (j + 0.5 + 0.9 * (noise.uniform(i, j, 8) - 0.5))), i, j)
-                   for i in range(int(math.floor(x)) - 2, int(math.floor(x)) + 3)
-                   for j in range(int(math.floor(y)) - 2, int(math.floor(y)) + 3))
+        best = min(
+            (
+                math.hypot(
+                    x - (i + 0.5 + 0.9 * (noise.uniform(i, j, 7) - 0.5)),
+                    y - (j + 0.5 + 0.9 * (noise.uniform(i, j, 8) - 0.5)),
+                ),
+                i,
+                j,
+            )
+            for i in range(int(math.floor(x)) - 2, int(math.floor(x)) + 3)
+            for j in range(int(math.floor(y)) - 2, int(math.floor(y)) + 3)
+        )
         assert (d, cx, cy) == pytest.approx(best)
 
 
@@ -213,11 +229,12 @@ def test_gradient_noise_is_deterministic_bounded_and_zero_on_the_lattice():
 
 # ----------------------------------------------------------------------------- radiometry kernels
 
+
 def test_illumination_of_an_open_tilted_plane_is_lambertian():
     rows, cols, de, dn = 12, 14, 5.0, 6.0
     ii, jj = np.mgrid[0:rows, 0:cols]
-    z = 100.0 + 0.2 * jj * de + 0.1 * (-ii * dn)   # dz/de = 0.2, dz/dnorth = 0.1 (rows run south)
-    az, el = math.radians(250.0), math.radians(50.0)   # the slope faces west-south-west: lit
+    z = 100.0 + 0.2 * jj * de + 0.1 * (-ii * dn)  # dz/de = 0.2, dz/dnorth = 0.1 (rows run south)
+    az, el = math.radians(250.0), math.radians(50.0)  # the slope faces west-south-west: lit
     got = radiometry.illumination(z, render.block_max(z, render.BLOCK), de, dn, az, el, z.max(), 0, rows, 0, cols)
     normal = np.array([-0.2, -0.1, 1.0]) / math.sqrt(1.05)
     sun = np.array([math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)])
@@ -229,7 +246,7 @@ def test_cast_shadow_of_a_block_matches_numpy_ray_march():
     z = np.zeros((40, 40))
     z[18:22, 18:22] = 20.0
     de = dn = 2.0
-    az, el = math.radians(135.0), math.radians(40.0)   # sun in the south-east: shadow north-west
+    az, el = math.radians(135.0), math.radians(40.0)  # sun in the south-east: shadow north-west
     bmax = render.block_max(z, render.BLOCK)
     lit = radiometry.illumination(z, bmax, de, dn, az, el, z.max(), 0, 40, 0, 40) > radiometry.E_SKY + 1e-6
     gx, gy = math.sin(az) / de, -math.cos(az) / dn
@@ -239,9 +256,9 @@ def test_cast_shadow_of_a_block_matches_numpy_ray_march():
             a = np.array([j, i, z[i, j] + 0.05])
             b = a + length * np.array([gx, gy, math.tan(el)])
             shadow = first_hit_np(a, b, z, 4001) >= 0
-            if (i, j) not in {(r, c) for r in range(17, 23) for c in range(17, 23)}:   # block walls
+            if (i, j) not in {(r, c) for r in range(17, 23) for c in range(17, 23)}:  # block walls
                 assert lit[i, j] == (not shadow), (i, j)
-    assert not lit[14, 14] and lit[25, 25]   # north-west of the block shaded, south-east lit
+    assert not lit[14, 14] and lit[25, 25]  # north-west of the block shaded, south-east lit
 
 
 def test_reflectance_classes_and_textures():
@@ -251,10 +268,11 @@ def test_reflectance_classes_and_textures():
     out = {}
     for c in (terrain.WATER, terrain.BARE, terrain.CROPS, terrain.FOREST, terrain.CITY):
         classes = np.full((rows, cols), c, np.uint8)
-        out[c] = radiometry.reflectance(classes, feature if c != terrain.CITY else feature + 2, objects,
-                                        0.0, 5.0, 0.0, 5.0, 1)
+        out[c] = radiometry.reflectance(
+            classes, feature if c != terrain.CITY else feature + 2, objects, 0.0, 5.0, 0.0, 5.0, 1
+        )
         assert np.all((out[c] > 0) & (out[c] < 1))
-    assert out[terrain.WATER].mean() < 0.05 and out[terrain.WATER].std() < 0.003   # low texture
+    assert out[terrain.WATER].mean() < 0.05 and out[terrain.WATER].std() < 0.003  # low texture
     assert out[terrain.BARE].std() > 3 * out[terrain.WATER].std()
 
 
@@ -269,6 +287,7 @@ def test_sensor_image_quantisation_and_nodata():
 
 
 # ----------------------------------------------------------------------------- orbit and truth
+
 
 def test_orbit_is_sun_synchronous_circular_and_consistent():
     o = orbit.CircularOrbit(node_lon=-1.0, u0=2.0, t0=100.0)
@@ -287,8 +306,8 @@ def test_orbit_is_sun_synchronous_circular_and_consistent():
 
 def test_sun_position_matches_spot5_metadata():
     az, el = sun_position(np.datetime64("2005-03-13T05:21:07"), 87.921433, 49.953937)
-    assert az == pytest.approx(162.435, abs=0.1)    # SUN_AZIMUTH of the real spot5_hrg1_2005 scene
-    assert el == pytest.approx(35.25, abs=0.6)      # SUN_ELEVATION (SPOT's own definition differs slightly)
+    assert az == pytest.approx(162.435, abs=0.1)  # SUN_AZIMUTH of the real spot5_hrg1_2005 scene
+    assert el == pytest.approx(35.25, abs=0.6)  # SUN_ELEVATION (SPOT's own definition differs slightly)
 
 
 @pytest.fixture(scope="module")
@@ -296,9 +315,10 @@ def source():
     return terrain.jacksboro_dem()
 
 
-@pytest.mark.parametrize("configuration,dates,roll", [
-    ("spot5_triplet", ("2005-05-17",), (0.0,)),
-    ("spot14_pair", ("1999-07-10", "1999-07-13"), (12.0, -12.0))])
+@pytest.mark.parametrize(
+    "configuration,dates,roll",
+    [("spot5_triplet", ("2005-05-17",), (0.0,)), ("spot14_pair", ("1999-07-10", "1999-07-13"), (12.0, -12.0))],
+)
 def test_truth_matches_spot_model_of_sampled_orientation(source, configuration, dates, roll):
     """The continuous truth and the rigorous model of its sampled orientation agree to 1e-3 px,
     the ephemeris has >= 4 samples beyond each end, the attitude 8 Hz samples."""
@@ -322,12 +342,13 @@ def test_truth_matches_spot_model_of_sampled_orientation(source, configuration, 
 
 def test_acquisition_geometry(source):
     lon, lat = source.centre
-    images = acquisition.plan("spot5_triplet", (lon, lat, 400.0), 5000.0, ("2005-05-17",), (0.0,),
-                              np.random.default_rng(3))
+    images = acquisition.plan(
+        "spot5_triplet", (lon, lat, 400.0), 5000.0, ("2005-05-17",), (0.0,), np.random.default_rng(3)
+    )
     hrg, hrs1, hrs2 = images
     assert 35 < hrg.centre_time - hrs1.centre_time < 55 and 35 < hrs2.centre_time - hrg.centre_time < 55
     centre = geodetic_to_ecef(lon, lat, 400.0)
-    for image in images:   # the scene centre is imaged at the image centre
+    for image in images:  # the scene centre is imaged at the image centre
         col, row = image.ground_to_image(centre)
         assert abs(col[0] - image.ncols / 2) < 1e-3 and abs(row[0] - image.nrows / 2) < 1e-3
     p1, p2 = hrs1.orbit.state(hrs1.centre_time)[0], hrs2.orbit.state(hrs2.centre_time)[0]
@@ -337,18 +358,19 @@ def test_acquisition_geometry(source):
 
 # ----------------------------------------------------------------------------- source DEM and terrain
 
+
 def test_jacksboro_dem_is_north_up(source):
     """USGS facts: Norris Lake (the flat 305 m reservoir, the tile's lowest ground) lies in the
     south-east, and the Cumberland Mountains (the highest ground) rise west of it."""
     lon0, dlon, _, lat0, _, dlat = source.geotransform
-    assert dlat < 0 and lat0 == pytest.approx(36.7329, abs=1e-4)   # row 0 is the north edge
+    assert dlat < 0 and lat0 == pytest.approx(36.7329, abs=1e-4)  # row 0 is the north edge
     rows, cols = np.nonzero(source.lake)
     lake_lon, lake_lat = lon0 + (cols.mean() + 0.5) * dlon, lat0 + (rows.mean() + 0.5) * dlat
     centre_lon, centre_lat = source.centre
     assert lake_lat < centre_lat and lake_lon > centre_lon
     top = np.argwhere(source.heights >= np.percentile(source.heights, 99.5))
     assert lon0 + (top[:, 1].mean() + 0.5) * dlon < lake_lon - 0.05
-    assert source.geoid.mean() == pytest.approx(-30.8, abs=1.0)   # EGM96 in eastern Tennessee
+    assert source.geoid.mean() == pytest.approx(-30.8, abs=1.0)  # EGM96 in eastern Tennessee
 
 
 def test_terrain_classes_objects_and_water(source):
@@ -371,10 +393,12 @@ def test_terrain_classes_objects_and_water(source):
 
 # ----------------------------------------------------------------------------- injected errors
 
+
 def test_injected_errors_follow_table2_and_are_common_to_the_trajectory(source):
     lon, lat = source.centre
-    images = acquisition.plan("spot5_triplet", (lon, lat, 400.0), 5000.0, ("2005-05-17",), (0.0,),
-                              np.random.default_rng(3))
+    images = acquisition.plan(
+        "spot5_triplet", (lon, lat, 400.0), 5000.0, ("2005-05-17",), (0.0,), np.random.default_rng(3)
+    )
     corrections, passes = perturbation.inject(images, np.random.default_rng(4))
     hrg, hrs1, hrs2 = (corrections[i.name] for i in images)
     assert np.abs(hrg.look) == pytest.approx(np.array([[2.8e-5, 0, 0, 0], [5.3e-6, 1.0e-6, 0, 0]]))
@@ -382,8 +406,9 @@ def test_injected_errors_follow_table2_and_are_common_to_the_trajectory(source):
     assert np.array_equal(hrg.position, hrs1.position) and np.linalg.norm(hrg.position[:, 0]) == pytest.approx(8.0)
     # attitude polynomials of the three images are one trajectory polynomial
     t = images[1].centre_time + 3.0
-    value = [np.polynomial.polynomial.polyval((t - i.centre_time) / 10.0, corrections[i.name].attitude.T)
-             for i in images]
+    value = [
+        np.polynomial.polynomial.polyval((t - i.centre_time) / 10.0, corrections[i.name].attitude.T) for i in images
+    ]
     np.testing.assert_allclose(value[0], value[1], atol=1e-15)
     np.testing.assert_allclose(value[0], value[2], atol=1e-15)
 
@@ -395,6 +420,7 @@ def test_ground_psf_filter_matches_the_pixel_psf_integral():
     (image signal about 34 DN; the quadrature itself is good to a few tenths of a DN)."""
     from pushbroom.algorithms.simulation import scene
     from pushbroom.algorithms.simulation.render import Surface
+
     config = scene.SceneConfig.small().resolved()
     source = terrain.jacksboro_dem()
     images, grid, centre = scene._plan(config, source)
@@ -407,8 +433,9 @@ def test_ground_psf_filter_matches_the_pixel_psf_integral():
     for image in images:
         rad = radiance[image.instrument.pass_index]
         for surf in (flat, bare):
-            fast = surf.render(*image.line_geometry(), image.look_vectors(),
-                               scene.ground_psf_filter(image, grid, height, rad))
+            fast = surf.render(
+                *image.line_geometry(), image.look_vectors(), scene.ground_psf_filter(image, grid, height, rad)
+            )
             slow = scene._integrate(image, surf, rad)
             d = radiometry.NOMINAL_GAIN * (fast - slow)
             assert np.sqrt(np.mean(d * d)) < 1.0, image.name
@@ -417,14 +444,25 @@ def test_ground_psf_filter_matches_the_pixel_psf_integral():
 
 def test_the_shortfall_of_candidates_and_blunders_is_told_with_its_numbers():
     from pushbroom.algorithms.simulation.points import Candidates, shortfall
+
     three = np.zeros(3)
-    made = Candidates(three, three, three, {}, {"A": np.zeros((3, 2)), "B": np.zeros((3, 2))},
-                      {"A": np.array([True, True, False]), "B": np.array([True, True, True])})
-    assert shortfall(3, 3, made, 5, 400.0, 40.0) is None        # all asked for were made
+    made = Candidates(
+        three,
+        three,
+        three,
+        {},
+        {"A": np.zeros((3, 2)), "B": np.zeros((3, 2))},
+        {"A": np.array([True, True, False]), "B": np.array([True, True, True])},
+    )
+    assert shortfall(3, 3, made, 5, 400.0, 40.0) is None  # all asked for were made
     text = shortfall(9, 4, made, 8, 400.0, 40.0)
     # 9 asked, 4 sites found, one hidden from an image; 8 blunders asked, 6 measurements to take them
-    assert text.startswith("3 control/check point candidates made of the 9 asked: the scene holds 4 sites of open, "
-                           "flat ground (bare soil or crops 40 m around, inside every image) at least 400 m apart, "
-                           "and 1 of them is hidden from an image")
-    assert text.endswith("5 blunders made of the 8 asked: the 3 candidates have 6 image measurements, and a "
-                         "measurement takes one blunder at most")
+    assert text.startswith(
+        "3 control/check point candidates made of the 9 asked: the scene holds 4 sites of open, "
+        "flat ground (bare soil or crops 40 m around, inside every image) at least 400 m apart, "
+        "and 1 of them is hidden from an image"
+    )
+    assert text.endswith(
+        "5 blunders made of the 8 asked: the 3 candidates have 6 image measurements, and a "
+        "measurement takes one blunder at most"
+    )

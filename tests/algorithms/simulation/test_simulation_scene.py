@@ -1,5 +1,6 @@
 """Scene simulator end to end, on small (3 x 3 km) scenes: the simulated products are checked
 against the truth model (SpotModel of truth/<image>/METADATA.DIM) that every later test relies on."""
+
 import csv
 import json
 import os
@@ -39,8 +40,10 @@ def read(path):
 def centroid(image, col, row, scale_col, scale_row):
     """Intensity-weighted centroid of a marker around (col, row) (pixel centres at k + 0.5),
     background = median of the dark pad ring; scale = marker sigma in pixels."""
-    jj, ii = np.meshgrid(np.arange(int(col - 6 * scale_col), int(col + 6 * scale_col) + 1),
-                         np.arange(int(row - 6 * scale_row), int(row + 6 * scale_row) + 1))
+    jj, ii = np.meshgrid(
+        np.arange(int(col - 6 * scale_col), int(col + 6 * scale_col) + 1),
+        np.arange(int(row - 6 * scale_row), int(row + 6 * scale_row) + 1),
+    )
     x, y = jj + 0.5, ii + 0.5
     d = np.hypot((x - col) / scale_col, (y - row) / scale_row)
     values = image[ii, jj].astype(float)
@@ -86,19 +89,21 @@ def test_round_trip_on_simulated_products(scene):
 def test_measurements_noise_and_blunders(scene):
     config, paths, truth, points = scene
     names = list(truth["images"])
-    noise = 5 * config.measurement_sigma * np.sqrt(2)   # px: the measurement noise's to 5 sigma per coordinate
+    noise = 5 * config.measurement_sigma * np.sqrt(2)  # px: the measurement noise's to 5 sigma per coordinate
     dev, flagged = [], 0
     for p in points:
         for name in names:
-            d = np.hypot(float(p[f"{name}_col_meas"]) - float(p[f"{name}_col"]),
-                         float(p[f"{name}_row_meas"]) - float(p[f"{name}_row"]))
+            d = np.hypot(
+                float(p[f"{name}_col_meas"]) - float(p[f"{name}_col"]),
+                float(p[f"{name}_row_meas"]) - float(p[f"{name}_row"]),
+            )
             if p[f"{name}_blunder"] == "1":
                 flagged += 1
-                assert 5.0 - noise <= d <= 20.0 + noise     # the simulator's 5-20 px blunder on top of the noise
+                assert 5.0 - noise <= d <= 20.0 + noise  # the simulator's 5-20 px blunder on top of the noise
             else:
                 dev.append(d)
     assert flagged == config.blunders
-    assert 0.1 < np.sqrt(np.mean(np.square(dev)) / 2) < 0.6   # sigma 0.3 px per coordinate
+    assert 0.1 < np.sqrt(np.mean(np.square(dev)) / 2) < 0.6  # sigma 0.3 px per coordinate
 
 
 def test_footprint_rays_meet_the_dsm_where_the_truth_model_puts_them(scene):
@@ -110,7 +115,7 @@ def test_footprint_rays_meet_the_dsm_where_the_truth_model_puts_them(scene):
         col, row = np.array([f["col"] for f in fp]), np.array([f["row"] for f in fp])
         lon, lat, h = model.image_to_dem(col, row, dsm, samples=400)
         ray = geodetic_to_ecef(*np.array([[f["lon"], f["lat"], f["h"]] for f in fp]).T)
-        assert np.max(np.linalg.norm(geodetic_to_ecef(lon, lat, h) - ray, axis=1)) < 0.05   # m
+        assert np.max(np.linalg.norm(geodetic_to_ecef(lon, lat, h) - ray, axis=1)) < 0.05  # m
         c, r = model.ground_to_image(*np.array([[f["lon"], f["lat"], f["h"]] for f in fp]).T)
         assert np.max(np.hypot(c - col, r - row)) < 0.01
 
@@ -131,8 +136,9 @@ def test_supplied_orientation_is_off_by_about_30_m(scene):
         assert 8.0 < d.mean() < 60.0
         errors.append(d.mean())
         k = info["corrections"]
-        supplied.orientation.corrections = Corrections(np.array(k["position"]), np.array(k["attitude"]),
-                                                       np.array(k["look"]), k["time_scale"])
+        supplied.orientation.corrections = Corrections(
+            np.array(k["position"]), np.array(k["attitude"]), np.array(k["look"]), k["time_scale"]
+        )
         corrected = geodetic_to_ecef(*supplied.image_to_ground(c, r, h), h)
         assert np.max(np.linalg.norm(corrected - truth_xyz, axis=1)) < 1e-3
     assert 15.0 < np.mean(errors) < 50.0
@@ -159,7 +165,7 @@ def test_products_open_with_gdal_dimap_driver(scene):
         pixels = ds.ReadAsArray()
         assert np.array_equal(pixels, read(product["imagery"]))
         assert pixels.dtype == (np.uint8 if config.bits == 8 else np.uint16) and pixels.min() > 0
-        assert pixels.max() < 2 ** config.bits
+        assert pixels.max() < 2**config.bits
     pairs = truth["base_to_height"]
     if config.configuration == "spot5_triplet":
         assert pairs["HRS1-HRS2"] == pytest.approx(0.8, abs=0.05)
@@ -173,12 +179,14 @@ def test_same_seed_same_bytes(tmp_path):
     second = simulate_scene(config, tmp_path / "b")["folder"]
     other = simulate_scene(SceneConfig.small(size_km=1.5, points=4, seed=2), tmp_path / "c")["folder"]
     files = sorted(os.path.relpath(os.path.join(d, f), first) for d, _, fs in os.walk(first) for f in fs)
-    assert len(files) == 3 * 3 + 6   # 3 x (IMAGERY.TIF, METADATA.DIM, truth METADATA.DIM), truth.json, 5 rasters/CSV
+    assert len(files) == 3 * 3 + 6  # 3 x (IMAGERY.TIF, METADATA.DIM, truth METADATA.DIM), truth.json, 5 rasters/CSV
     for rel in files:
         with open(os.path.join(first, rel), "rb") as a, open(os.path.join(second, rel), "rb") as b:
             assert a.read() == b.read(), rel
-    with open(os.path.join(first, "HRG", "IMAGERY.TIF"), "rb") as a, \
-            open(os.path.join(other, "HRG", "IMAGERY.TIF"), "rb") as c:
+    with (
+        open(os.path.join(first, "HRG", "IMAGERY.TIF"), "rb") as a,
+        open(os.path.join(other, "HRG", "IMAGERY.TIF"), "rb") as c,
+    ):
         assert a.read() != c.read()
 
 
@@ -188,18 +196,21 @@ def test_cancel_leaves_nothing(tmp_path):
     assert os.listdir(tmp_path) == []
 
 
-@pytest.mark.parametrize("overrides,message", [
-    ({"configuration": "spot7"}, "configuration"),
-    ({"size_km": 80.0}, "scene size"),
-    ({"bits": 10}, "bits"),
-    ({"roll_deg": (30.0,)}, "27"),
-    ({"dates": ("2005-13-01",)}, "ISO date"),
-    ({"centre_lon": -84.2, "centre_lat": None}, "centre_lat"),
-    ({"centre_lon": -80.0, "centre_lat": 36.6}, "outside the source DEM"),
-    ({"look_table": "/nonexistent/METADATA.DIM"}, "not a file"),
-    ({"configuration": "spot14_pair", "roll_deg": "12"}, "needs 2 roll angle"),
-    ({"configuration": "spot14_pair", "roll_deg": "12;-12"}, "comma-separated"),
-])
+@pytest.mark.parametrize(
+    "overrides,message",
+    [
+        ({"configuration": "spot7"}, "configuration"),
+        ({"size_km": 80.0}, "scene size"),
+        ({"bits": 10}, "bits"),
+        ({"roll_deg": (30.0,)}, "27"),
+        ({"dates": ("2005-13-01",)}, "ISO date"),
+        ({"centre_lon": -84.2, "centre_lat": None}, "centre_lat"),
+        ({"centre_lon": -80.0, "centre_lat": 36.6}, "outside the source DEM"),
+        ({"look_table": "/nonexistent/METADATA.DIM"}, "not a file"),
+        ({"configuration": "spot14_pair", "roll_deg": "12"}, "needs 2 roll angle"),
+        ({"configuration": "spot14_pair", "roll_deg": "12;-12"}, "comma-separated"),
+    ],
+)
 def test_bad_parameters_raise_input_error(tmp_path, overrides, message):
     with pytest.raises(InputError, match=message):
         simulate_scene(SceneConfig.small(**overrides), tmp_path / "out")
@@ -235,11 +246,18 @@ def test_user_orthoimage_becomes_the_ground_reflectance(tmp_path):
     ds.SetProjection("EPSG:4326")
     ds.GetRasterBand(1).WriteArray(texture)
     ds = None
-    paths = simulate_scene(SceneConfig.small(size_km=1.5, points=0, orthoimage=path, surface_objects=False),
-                           tmp_path / "s")
+    paths = simulate_scene(
+        SceneConfig.small(size_km=1.5, points=0, orthoimage=path, surface_objects=False), tmp_path / "s"
+    )
     ortho = gdal.Open(paths["orthoimage"])
     gt = ortho.GetGeoTransform()
-    warped = gdal.Warp("", path, format="MEM", outputBounds=(gt[0], gt[3] + ortho.RasterYSize * gt[5],
-                                                             gt[0] + ortho.RasterXSize * gt[1], gt[3]),
-                       width=ortho.RasterXSize, height=ortho.RasterYSize, resampleAlg="bilinear").ReadAsArray()
+    warped = gdal.Warp(
+        "",
+        path,
+        format="MEM",
+        outputBounds=(gt[0], gt[3] + ortho.RasterYSize * gt[5], gt[0] + ortho.RasterXSize * gt[1], gt[3]),
+        width=ortho.RasterXSize,
+        height=ortho.RasterYSize,
+        resampleAlg="bilinear",
+    ).ReadAsArray()
     assert np.corrcoef(warped.ravel(), ortho.ReadAsArray().ravel())[0, 1] > 0.8

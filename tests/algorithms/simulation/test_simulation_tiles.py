@@ -1,6 +1,7 @@
 """The simulator tile by tile and beyond its source DEM: a scene made in many ground tiles equals
 the scene made in one, grids kept in files equal grids kept in memory, the extended DEM keeps the
 source and continues it, and a full-size SPOT 5 scene (60 km) is planned inside it."""
+
 import os
 
 import numpy as np
@@ -45,10 +46,12 @@ def test_ground_tiles_do_not_change_the_scene(tmp_path):
     assert ortho.mean() < 1e-4
     for name, product in whole["images"].items():
         d = np.abs(_read(product["imagery"]).astype(int) - _read(tiled["images"][name]["imagery"]).astype(int))
-        print(f"{name}: {100 * np.mean(d > 0):.3f} % of the pixels differ, {np.sum(d > 1)} by more than 1 DN "
-              f"(at most {d.max()} DN)")
+        print(
+            f"{name}: {100 * np.mean(d > 0):.3f} % of the pixels differ, {np.sum(d > 1)} by more than 1 DN "
+            f"(at most {d.max()} DN)"
+        )
         assert np.mean(d > 0) < 0.01 and np.mean(d > 1) < 1e-4 and d.max() <= 10
-    assert sorted(os.listdir(tiled["folder"])) == sorted(os.listdir(whole["folder"]))   # no work files left
+    assert sorted(os.listdir(tiled["folder"])) == sorted(os.listdir(whole["folder"]))  # no work files left
 
 
 def test_terrain_in_files_and_tiles_equals_terrain_in_memory(tmp_path, source):
@@ -81,28 +84,33 @@ def test_extended_dem_keeps_the_source_and_continues_it(source):
     ext = terrain.extended_dem(source)
     r, c = source.heights.shape
     assert ext.heights.shape == (3 * r, 3 * c)
-    assert np.array_equal(ext.heights[r:2 * r, c:2 * c], source.heights)
-    assert np.array_equal(ext.lake[r:2 * r, c:2 * c], source.lake)
-    np.testing.assert_allclose(ext.geoid[r:2 * r, c:2 * c], source.geoid, atol=1e-9)
+    assert np.array_equal(ext.heights[r : 2 * r, c : 2 * c], source.heights)
+    assert np.array_equal(ext.lake[r : 2 * r, c : 2 * c], source.lake)
+    np.testing.assert_allclose(ext.geoid[r : 2 * r, c : 2 * c], source.geoid, atol=1e-9)
     assert ext.planning_range == source.planning_range
     # continuous across the mirror lines: a jump of at most the continuation's first half cell
-    jumps = np.concatenate([ext.heights[r - 1, c:2 * c] - ext.heights[r, c:2 * c],
-                            ext.heights[2 * r, c:2 * c] - ext.heights[2 * r - 1, c:2 * c],
-                            ext.heights[r:2 * r, c - 1] - ext.heights[r:2 * r, c],
-                            ext.heights[r:2 * r, 2 * c] - ext.heights[r:2 * r, 2 * c - 1]])
+    jumps = np.concatenate(
+        [
+            ext.heights[r - 1, c : 2 * c] - ext.heights[r, c : 2 * c],
+            ext.heights[2 * r, c : 2 * c] - ext.heights[2 * r - 1, c : 2 * c],
+            ext.heights[r : 2 * r, c - 1] - ext.heights[r : 2 * r, c],
+            ext.heights[r : 2 * r, 2 * c] - ext.heights[r : 2 * r, 2 * c - 1],
+        ]
+    )
     assert np.abs(jumps).max() < 1.0
     # far from the source the copies are not plain mirrors (the fine detail, land cover and objects of a scene
     # differ anyway: they are procedural in the scene's coordinates)
     mirrored = np.pad(source.heights, ((r, r), (c, c)), mode="symmetric")
     far = (ext.heights - mirrored)[: r // 2, : c // 2]
-    rms = float(np.sqrt(np.mean(far ** 2)))
+    rms = float(np.sqrt(np.mean(far**2)))
     print(f"continuation far from the source: RMS {rms:.1f} m, max {np.abs(far).max():.1f} m")
     assert 3.0 < rms and np.abs(far).max() <= terrain.CONTINUATION_AMPLITUDE
     # the geoid is PROJ's EGM96 at the cells' own positions, not mirrored
     lon0, dlon, _, lat0, _, dlat = ext.geotransform
     ii, jj = np.array([0, 5, 3 * r - 1]), np.array([3 * c - 1, 7, 0])
-    np.testing.assert_allclose(ext.geoid[ii, jj], egm96_undulation(lon0 + (jj + 0.5) * dlon, lat0 + (ii + 0.5) * dlat),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        ext.geoid[ii, jj], egm96_undulation(lon0 + (jj + 0.5) * dlon, lat0 + (ii + 0.5) * dlat), atol=1e-9
+    )
 
 
 def test_a_full_spot5_scene_is_planned_inside_the_extended_dem(source):

@@ -3,6 +3,7 @@ ever, its main thread blocked in a pipe write): region growing and dense matchin
 in a process of their own as under qgis_process, fail rather than hang, naming the worker, and the block keeps
 what it held, byte for byte. Small tiles give each round many tasks, so the kill falls inside a round whatever
 the machine's speed."""
+
 import json
 import os
 import shutil
@@ -61,15 +62,16 @@ def test_a_worker_killed_during_matchpoints_fails_it_and_keeps_the_block(small_s
     script = tmp_path / "step.py"
     script.write_text(STEP)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
-    with subprocess.Popen([sys.executable, str(script), path, strategy], stdout=subprocess.PIPE, text=True,
-                          env=env) as step:
+    with subprocess.Popen(
+        [sys.executable, str(script), path, strategy], stdout=subprocess.PIPE, text=True, env=env
+    ) as step:
         try:
             killed = kill_a_busy_worker(step)
             # a hang (the issue) fails here: the step stops within the pool's GRACE (10 s) of the kill
             out, _ = step.communicate(timeout=120)
         finally:
-            step.kill()                                 # a hung step is not left behind (a no-op once it ended)
+            step.kill()  # a hung step is not left behind (a no-op once it ended)
     assert killed, "no worker was killed: the step ended first"
     assert f"worker process {killed} died (killed by SIGKILL" in json.loads(out)
     script.unlink()
-    assert fingerprint(tmp_path) == before              # the block as it was: no points, no layer, no folder
+    assert fingerprint(tmp_path) == before  # the block as it was: no points, no layer, no folder

@@ -6,6 +6,7 @@ as they were; a change of the science must rewrite the record on purpose, saying
 
 The record holds the SHA-256 of each stored points and observations array and their counts (to say how far a
 failing case is off)."""
+
 import hashlib
 import json
 import os
@@ -26,8 +27,9 @@ RECORD = os.path.join(os.path.dirname(__file__), "..", "..", "golden", "matching
 NAMES = {"triplet": ("HRG", "HRS1", "HRS2"), "pair": ("HRG", "HRS1")}
 #: each strategy's settings: small tiles, so that every case runs several of them
 CASES = {
-    "region_growing": dict(strategy="region_growing",
-                           settings=RegionGrowingSettings(grow=GrowParams(step=6, tile=256))),
+    "region_growing": dict(
+        strategy="region_growing", settings=RegionGrowingSettings(grow=GrowParams(step=6, tile=256))
+    ),
     "dense": dict(strategy="dense", settings=DenseParams(step=3, tile=256, mpgc=True)),
     "coarse_to_fine": dict(strategy="coarse_to_fine", settings=CoarseToFineParams(tile=512, grid=8)),
 }
@@ -42,16 +44,19 @@ def blocks(simulated, tmp_path_factory):
     made = {}
     for kind, names in NAMES.items():
         made[kind] = str(folder / f"{kind}.gpkg")
-        Block.create(made[kind], Block.open_images([paths["images"][n]["imagery"] for n in names]),
-                     height=(lo + hi) / 2)
+        Block.create(
+            made[kind], Block.open_images([paths["images"][n]["imagery"] for n in names]), height=(lo + hi) / 2
+        )
     return made, (lo - 30.0, hi + 30.0)
 
 
 def digest(block):
     """{'points' | 'observations': (SHA-256 of the stored array's bytes, its length)} of the block's mass points."""
     mass = Block(block).points()
-    return {k: [hashlib.sha256(a.tobytes()).hexdigest(), len(a)]
-            for k, a in (("points", mass.points), ("observations", mass.observations))}
+    return {
+        k: [hashlib.sha256(a.tobytes()).hexdigest(), len(a)]
+        for k, a in (("points", mass.points), ("observations", mass.observations))
+    }
 
 
 @pytest.mark.slow

@@ -1,5 +1,6 @@
 """The settings rules of the step entry points (adjust_block, fit_block_rpcs, assess_accuracy): text
 parameters parsed, contradictory settings refused with InputError before any work."""
+
 import pytest
 
 from pushbroom.algorithms.block import Block
@@ -36,32 +37,39 @@ def test_adjust_params_free_and_auto():
     assert LAGRANGE_AUTO == ["lagrange:attitude", "lagrange:offset"]
 
 
-@pytest.mark.parametrize("settings, message", [
-    ({"model": "spline"}, "orientation model"),
-    ({"reference_heights": "geoid"}, "reference DTM heights"),
-    ({"residual_vectors": "memory:vectors"}, "not to a temporary memory layer"),
-    ({"priors": "bias"}, "pattern=sigma"),
-    ({"control_series": "a,b"}, "whole numbers"),
-])
+@pytest.mark.parametrize(
+    "settings, message",
+    [
+        ({"model": "spline"}, "orientation model"),
+        ({"reference_heights": "geoid"}, "reference DTM heights"),
+        ({"residual_vectors": "memory:vectors"}, "not to a temporary memory layer"),
+        ({"priors": "bias"}, "pattern=sigma"),
+        ({"control_series": "a,b"}, "whole numbers"),
+    ],
+)
 def test_adjust_params_check_refuses(settings, message):
     with pytest.raises(InputError, match=message):
         AdjustParams(**settings).check()
 
 
 def test_rpc_cube_heights_both_or_neither():
-    assert cube_heights(Block("unused.gpkg"), 100.0, 900.0) == (100.0, 900.0)   # given: the block is not read
+    assert cube_heights(Block("unused.gpkg"), 100.0, 900.0) == (100.0, 900.0)  # given: the block is not read
     with pytest.raises(InputError, match="both the lowest and the highest"):
         cube_heights(Block("unused.gpkg"), 100.0, None)
     # issue 36: a cube at 20-30 km was fitted and written without a word
-    with pytest.raises(InputError, match=r"the highest height of the RPC cube \(MAX_HEIGHT\) of 30000 m lies outside "
-                                         r"the heights of terrain on Earth \(-500 \.\. 9000 m"):
+    with pytest.raises(
+        InputError,
+        match=r"the highest height of the RPC cube \(MAX_HEIGHT\) of 30000 m lies outside "
+        r"the heights of terrain on Earth \(-500 \.\. 9000 m",
+    ):
         cube_heights(Block("unused.gpkg"), 100.0, 30000.0)
     # swapped: refused before the fit, not warned about as a cube that leaves out terrain
     with pytest.raises(InputError, match=r"the lowest height of the RPC cube \(900 m\) is above the highest \(100 m\)"):
         cube_heights(Block("unused.gpkg"), 900.0, 100.0)
     # a cube that leaves out part of the terrain (280 .. 970 m) is fitted, with a warning
-    assert cube_warning((0.0, 500.0), (280.0, 970.0)).startswith("the RPC cube's heights 0 .. 500 m leave out some "
-                                                                 "of the block's terrain (280 .. 970 m)")
+    assert cube_warning((0.0, 500.0), (280.0, 970.0)).startswith(
+        "the RPC cube's heights 0 .. 500 m leave out some of the block's terrain (280 .. 970 m)"
+    )
     assert cube_warning((200.0, 1100.0), (280.0, 970.0)) is None and cube_warning((0.0, 1.0), None) is None
     with pytest.raises(InputError, match="at least 4"):
         RpcParams(grid=3).check()
@@ -75,11 +83,14 @@ def test_rpc_selected_images():
         selected_images(rows, "HRS2")
 
 
-@pytest.mark.parametrize("settings, message", [
-    ({"dh": "dh.tif"}, "the dh raster needs a DEM input"),
-    ({"class_raster": "classes.tif", "class_polygons": object()}, "not both"),
-    ({"points_heights": "geoid"}, "heights must be one of"),
-])
+@pytest.mark.parametrize(
+    "settings, message",
+    [
+        ({"dh": "dh.tif"}, "the dh raster needs a DEM input"),
+        ({"class_raster": "classes.tif", "class_polygons": object()}, "not both"),
+        ({"points_heights": "geoid"}, "heights must be one of"),
+    ],
+)
 def test_assess_params_check_refuses(settings, message):
     with pytest.raises(InputError, match=message):
         AssessParams(reference="ref.tif", report="r.html", **settings).check()

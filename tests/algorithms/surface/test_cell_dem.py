@@ -1,6 +1,7 @@
 """The per-cell DEM of dense points against a plain numpy loop over the cells, and through the tiled DEM
 step: tiles and executions leave the same rasters, the counts add up, the wrong combinations are clear
 errors."""
+
 import numpy as np
 import pytest
 
@@ -19,7 +20,7 @@ def dense_points(seed=3, n=20000, outliers=200):
     rng = np.random.default_rng(seed)
     x = rng.uniform(0.0, 200.0, n)
     y = rng.uniform(0.0, 150.0, n)
-    z = 100.0 + 0.1 * x + np.where(x > 120.0, 15.0, 0.0) + rng.normal(0.0, 0.4, n)    # a 15 m step at x = 120
+    z = 100.0 + 0.1 * x + np.where(x > 120.0, 15.0, 0.0) + rng.normal(0.0, 0.4, n)  # a 15 m step at x = 120
     z[rng.choice(n, outliers, replace=False)] += rng.uniform(10.0, 40.0, outliers)
     return x, y, z, rng.uniform(0.3, 1.0, n)
 
@@ -27,8 +28,11 @@ def dense_points(seed=3, n=20000, outliers=200):
 def reference(x, y, z, sigma, grid, k, radius=0):
     """Per cell: the median, MAD test, median, count and precision of the module's docstring, by a loop, from
     the points of the nearest ring of cells (up to `radius`) that has some; and the outliers of own cells."""
-    out = np.full((grid.rows, grid.cols), np.nan), np.zeros((grid.rows, grid.cols)), \
-        np.full((grid.rows, grid.cols), np.nan)
+    out = (
+        np.full((grid.rows, grid.cols), np.nan),
+        np.zeros((grid.rows, grid.cols)),
+        np.full((grid.rows, grid.cols), np.nan),
+    )
     col = np.floor((x - grid.x0) / grid.cell).astype(int)
     row = np.floor((grid.y0 - y) / grid.cell).astype(int)
     removed = 0
@@ -63,15 +67,15 @@ def test_cells_against_a_loop(with_sigma):
     np.testing.assert_allclose(heights, h_ref, rtol=0, atol=1e-4)
     np.testing.assert_array_equal(count, n_ref)
     np.testing.assert_allclose(precision, p_ref, rtol=1e-5)
-    assert removed == removed_ref and removed >= 190           # the outliers, and hardly anything else
+    assert removed == removed_ref and removed >= 190  # the outliers, and hardly anything else
     assert (ring == 0).all()
     assert np.nanmax(np.abs(heights[:, :12] - (100.0 + 0.1 * (np.arange(12) * 10 + 5)))) < 1.0
 
 
 @pytest.mark.parametrize("radius", [1, 2])
 def test_empty_cells_take_the_nearest_ring_of_points(radius):
-    x, y, z, _ = dense_points(n=900, outliers=30)                  # 0.3 points per 2 m cell: most cells empty
-    x, y, z = (v[(np.hypot(x - 100.0, y - 75.0) > 12.0)] for v in (x, y, z))     # and a hole of 6 cells
+    x, y, z, _ = dense_points(n=900, outliers=30)  # 0.3 points per 2 m cell: most cells empty
+    x, y, z = (v[(np.hypot(x - 100.0, y - 75.0) > 12.0)] for v in (x, y, z))  # and a hole of 6 cells
     grid = Grid(0.0, 150.0, 2.0, 100, 75)
     cells = cells_on_grid(x, y, z, None, grid, k=3.0, radius=radius)
     (h_ref, n_ref, p_ref), removed_ref = reference(x, y, z, None, grid, 3.0, radius)
@@ -82,7 +86,7 @@ def test_empty_cells_take_the_nearest_ring_of_points(radius):
     own = cells_on_grid(x, y, z, None, grid, k=3.0)
     assert (cells.ring == 0).sum() == np.isfinite(own.heights).sum() < 0.3 * grid.rows * grid.cols
     np.testing.assert_array_equal(cells.heights[cells.ring == 0], own.heights[cells.ring == 0])
-    assert set(np.unique(cells.ring)) == set(range(radius + 1)) | {255}       # the hole's middle stays a gap
+    assert set(np.unique(cells.ring)) == set(range(radius + 1)) | {255}  # the hole's middle stays a gap
     assert np.isnan(cells.heights[cells.ring == 255]).all() and np.isfinite(cells.heights[cells.ring < 255]).all()
 
 
@@ -96,15 +100,24 @@ def test_tiles_and_executions_leave_the_same_rasters(tmp_path):
     x, y, z, sigma = dense_points(n=60000)
     cloud = write(tmp_path / "dense.las", x, y, z, sigma)
     runs = {}
-    for name, tile, execution in (("one", 1024, Execution()), ("tiles", 16, Execution("threads", 2)),
-                                  ("processes", 16, Execution("processes", 2))):
+    for name, tile, execution in (
+        ("one", 1024, Execution()),
+        ("tiles", 16, Execution("threads", 2)),
+        ("processes", 16, Execution("processes", 2)),
+    ):
         out = tmp_path / f"{name}.tif"
-        result = dem_from_point_cloud(cloud, out, DemParams(cell=2.0, method="cells", tile=tile, k=3.0,
-                                                            execution=execution),
-                                      precision_path=tmp_path / f"{name}_p.tif", count_path=tmp_path / f"{name}_n.tif",
-                                      mask_path=tmp_path / f"{name}_m.tif")
-        runs[name] = [read_raster(p)[0] for p in (out, tmp_path / f"{name}_p.tif", tmp_path / f"{name}_n.tif",
-                                                  tmp_path / f"{name}_m.tif")]
+        result = dem_from_point_cloud(
+            cloud,
+            out,
+            DemParams(cell=2.0, method="cells", tile=tile, k=3.0, execution=execution),
+            precision_path=tmp_path / f"{name}_p.tif",
+            count_path=tmp_path / f"{name}_n.tif",
+            mask_path=tmp_path / f"{name}_m.tif",
+        )
+        runs[name] = [
+            read_raster(p)[0]
+            for p in (out, tmp_path / f"{name}_p.tif", tmp_path / f"{name}_n.tif", tmp_path / f"{name}_m.tif")
+        ]
         assert result.points + result.removed[0] == len(x)
         mask = runs[name][3]
         # the points count once, in their own cells; the few empty cells take their neighbours' (radius 1)
@@ -122,8 +135,9 @@ def test_wrong_combinations_are_clear_errors(tmp_path):
     with pytest.raises(InputError, match="per-cell method"):
         dem_from_point_cloud(cloud, tmp_path / "a.tif", DemParams(cell=5.0), count_path=tmp_path / "n.tif")
     with pytest.raises(InputError, match="breaklines"):
-        dem_from_point_cloud(cloud, tmp_path / "b.tif", DemParams(cell=5.0, method="cells"),
-                             breaklines=(tmp_path / "lines.gpkg", None))
+        dem_from_point_cloud(
+            cloud, tmp_path / "b.tif", DemParams(cell=5.0, method="cells"), breaklines=(tmp_path / "lines.gpkg", None)
+        )
     with pytest.raises(InputError, match="method"):
         DemParams(method="kriging").check()
     assert not list(tmp_path.glob("*.tif"))
@@ -132,10 +146,10 @@ def test_wrong_combinations_are_clear_errors(tmp_path):
 def test_a_cell_uses_its_best_tier_of_points():
     x, y, z, _ = dense_points(outliers=0)
     rng = np.random.default_rng(5)
-    tier = np.digitize(rng.uniform(size=x.size), [0.4, 0.7]).astype(np.uint8)     # 40 % three rays, 30 % two
-    tier[(x < 50.0) & (y < 50.0) & (tier == THREE_RAYS)] = TWO_RAYS               # a corner without three rays
-    tier[(x > 150.0) & (y > 100.0)] = UNREFINED                                    # and one with no refined point
-    z = z + np.array([0.0, 2.0, 5.0])[tier]                                        # each tier its own offset
+    tier = np.digitize(rng.uniform(size=x.size), [0.4, 0.7]).astype(np.uint8)  # 40 % three rays, 30 % two
+    tier[(x < 50.0) & (y < 50.0) & (tier == THREE_RAYS)] = TWO_RAYS  # a corner without three rays
+    tier[(x > 150.0) & (y > 100.0)] = UNREFINED  # and one with no refined point
+    z = z + np.array([0.0, 2.0, 5.0])[tier]  # each tier its own offset
     grid = Grid(0.0, 150.0, 10.0, 20, 15)
 
     def first_finite(*layers):
@@ -163,17 +177,19 @@ def test_a_cell_uses_its_best_tier_of_points():
 
 def test_gaps_filled_and_flagged(tmp_path):
     from osgeo import gdal
+
     x, y, z, _ = dense_points(n=60000, outliers=0)
-    strip = (x > 130.0) & (x < 190.0)                               # 30 cells wide: its middle beyond reach
-    hole = (np.hypot(x - 60.0, y - 75.0) < 15.0) | strip            # and a round hole
+    strip = (x > 130.0) & (x < 190.0)  # 30 cells wide: its middle beyond reach
+    hole = (np.hypot(x - 60.0, y - 75.0) < 15.0) | strip  # and a round hole
     rho = np.where(rng_mask := np.random.default_rng(1).uniform(size=x.size) < 0.3, np.nan, 0.9)
-    keep = ~hole | (~np.isfinite(rho) & ~strip)                      # the hole has unrefined points only
+    keep = ~hole | (~np.isfinite(rho) & ~strip)  # the hole has unrefined points only
     fields = {"rho": rho[keep].astype(np.float32)}
     cloud = tmp_path / "dense.las"
     pointcloud.write_las(cloud, 500000.0 + x[keep], 4800000.0 + y[keep], z[keep], fields, srs(UTM31))
     plain = dem_from_point_cloud(cloud, tmp_path / "plain.tif", DemParams(cell=2.0, method="cells", k=0.0))
-    result = dem_from_point_cloud(cloud, tmp_path / "dem.tif", DemParams(cell=2.0, method="cells", k=0.0,
-                                                                          fallback=False, fill=10.0, tile=32))
+    result = dem_from_point_cloud(
+        cloud, tmp_path / "dem.tif", DemParams(cell=2.0, method="cells", k=0.0, fallback=False, fill=10.0, tile=32)
+    )
     assert rng_mask.any() and plain.mask_path is None and result.mask_path == str(tmp_path / "dem_filled.tif")
     dem, _, _ = read_raster(tmp_path / "dem.tif")
     before, _, _ = read_raster(tmp_path / "plain.tif")
@@ -182,7 +198,7 @@ def test_gaps_filled_and_flagged(tmp_path):
     assert result.filled == (mask == 1).sum() > 80
     assert np.isfinite(dem[mask == 1]).all() and (mask[np.isfinite(before) & ~np.isfinite(dem)] == 255).all()
     gx, gy = result.grid.centres()
-    in_hole = np.hypot(gx - 500060.0, gy - 4800075.0) < 11.0       # its cells more than a cell (radius 1) inside
+    in_hole = np.hypot(gx - 500060.0, gy - 4800075.0) < 11.0  # its cells more than a cell (radius 1) inside
     assert (mask[in_hole] == 1).all() and np.abs(dem[in_hole] - (100.0 + 0.1 * (gx[in_hole] - 500000.0))).max() < 1.5
     # the middle of the strip lies beyond 10 cells of any measured cell: still a gap, flagged 255; and the strip,
     # 30 cells wide, is no gap the measured cells enclose (their closing by 21 cells): none of it is filled
@@ -190,6 +206,6 @@ def test_gaps_filled_and_flagged(tmp_path):
     assert (mask[middle] == 255).all() and np.isnan(dem[middle]).all()
     in_strip = np.abs(gx - 500160.0) < 28.0
     assert not (mask[in_strip] == 1).any() and (mask[in_strip] == 255).mean() > 0.9
-    assert ((mask != 255) == np.isfinite(dem)).all() and (mask == 2).sum() > 50   # the holes' rims: radius 1
+    assert ((mask != 255) == np.isfinite(dem)).all() and (mask == 2).sum() > 50  # the holes' rims: radius 1
     with pytest.raises(InputError, match="gap filling is for the per-cell DEM"):
         dem_from_point_cloud(cloud, tmp_path / "tin.tif", DemParams(cell=2.0, fill=5.0))

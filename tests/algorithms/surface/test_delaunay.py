@@ -1,5 +1,6 @@
 """The numba sweep-hull Delaunay triangulation (algorithms/surface/delaunay.py) against qhull (scipy.spatial) and
 plain numpy in-circle tests, and tin.delaunay's use of it (qhull as the fallback, InputError where nothing works)."""
+
 import numpy as np
 import pytest
 from scipy.spatial import ConvexHull, Delaunay
@@ -24,16 +25,22 @@ def in_circle(ax, ay, bx, by, cx, cy, px, py):
     """The in-circle determinant of p against the counter-clockwise (a, b, c) (> 0 inside) and the sum of its
     absolute terms, in coordinates relative to p."""
     d = np.stack([np.stack([ax - px, ay - py]), np.stack([bx - px, by - py]), np.stack([cx - px, cy - py])])
-    lift = (d ** 2).sum(axis=1)
-    minors = [d[1, 0] * d[2, 1] - d[1, 1] * d[2, 0], d[2, 0] * d[0, 1] - d[2, 1] * d[0, 0],
-              d[0, 0] * d[1, 1] - d[0, 1] * d[1, 0]]
+    lift = (d**2).sum(axis=1)
+    minors = [
+        d[1, 0] * d[2, 1] - d[1, 1] * d[2, 0],
+        d[2, 0] * d[0, 1] - d[2, 1] * d[0, 0],
+        d[0, 0] * d[1, 1] - d[0, 1] * d[1, 0],
+    ]
     return sum(lift[k] * minors[k] for k in range(3)), sum(lift[k] * np.abs(minors[k]) for k in range(3))
 
 
 def empty_circumcircles(x, y, s):
     """Largest in-circle determinant of any point (not a vertex) against any triangle (all pairs)."""
-    det, _ = in_circle(*(v[:, None] for v in (x[s[:, 0]], y[s[:, 0]], x[s[:, 1]], y[s[:, 1]], x[s[:, 2]], y[s[:, 2]])),
-                       x[None, :], y[None, :])
+    det, _ = in_circle(
+        *(v[:, None] for v in (x[s[:, 0]], y[s[:, 0]], x[s[:, 1]], y[s[:, 1]], x[s[:, 2]], y[s[:, 2]])),
+        x[None, :],
+        y[None, :],
+    )
     det[np.arange(len(s))[:, None], s] = -np.inf
     return det.max()
 
@@ -69,13 +76,17 @@ def test_neighbour_lists_are_qhulls():
     ref_ptr, ref_ind = Delaunay(np.column_stack([x, y])).vertex_neighbor_vertices
     np.testing.assert_array_equal(np.diff(indptr), np.diff(ref_ptr))
     for k in range(len(x)):
-        assert sorted(indices[indptr[k]:indptr[k + 1]]) == sorted(ref_ind[ref_ptr[k]:ref_ptr[k + 1]])
+        assert sorted(indices[indptr[k] : indptr[k + 1]]) == sorted(ref_ind[ref_ptr[k] : ref_ptr[k + 1]])
 
 
 def test_distance_order_sorts_like_numpy():
     rng = np.random.default_rng(7)
-    for dist in (rng.uniform(0, 1, 10_000), rng.exponential(1, 10_000) ** 4,       # skewed: large buckets
-                 np.round(rng.uniform(0, 50, 10_000)), np.zeros(100)):           # ties; all equal
+    for dist in (
+        rng.uniform(0, 1, 10_000),
+        rng.exponential(1, 10_000) ** 4,  # skewed: large buckets
+        np.round(rng.uniform(0, 50, 10_000)),
+        np.zeros(100),
+    ):  # ties; all equal
         order = delaunay.distance_order(dist)
         np.testing.assert_array_equal(np.sort(order), np.arange(len(dist)))
         np.testing.assert_array_equal(dist[order], np.sort(dist))
@@ -119,7 +130,7 @@ def test_duplicates_are_left_out_like_qhull_does():
     xy = np.column_stack([x, y])
     assert triples(t.simplices, xy) == triples(Delaunay(xy).simplices, xy)
     used = np.unique(t.simplices)
-    assert len(used) == len(np.unique(xy, axis=0))                     # one of each set of duplicates
+    assert len(used) == len(np.unique(xy, axis=0))  # one of each set of duplicates
     indptr, _ = t.vertex_neighbor_vertices
     assert (np.diff(indptr)[np.setdiff1d(np.arange(len(x)), used)] == 0).all()
 
@@ -131,7 +142,7 @@ def test_quantised_coordinates_with_many_duplicates():
     t = delaunay.triangulate(x, y)
     assert t is not None
     assert len(np.unique(t.simplices)) == len(np.unique(np.column_stack([x, y]), axis=0))
-    assert locally_delaunay(x, y, t) <= 0.0                                       # integers: exact
+    assert locally_delaunay(x, y, t) <= 0.0  # integers: exact
     assert len(t.simplices) == len(Delaunay(np.column_stack([x, y])).simplices)
 
 
@@ -160,7 +171,7 @@ def test_collinear_points():
     assert delaunay.triangulate(x, 2 * x) is None
     with pytest.raises(InputError, match="one line"):
         tin.delaunay(x, 2 * x)
-    x, y = np.append(x, 3.0), np.append(2 * x, 0.0)                       # one point off the line: a fan
+    x, y = np.append(x, 3.0), np.append(2 * x, 0.0)  # one point off the line: a fan
     t = delaunay.triangulate(x, y)
     assert triples(t.simplices) == triples(Delaunay(np.column_stack([x, y])).simplices) and len(t.simplices) == 9
 
@@ -198,7 +209,7 @@ def test_check_accepts_only_a_delaunay_triangulation():
         return delaunay.check(x, y, np.array(tri, np.int32), np.array(halfedges, np.int32), hull_next, 0, points)
 
     assert check([0, 1, 3, 1, 2, 3], [-1, 5, -1, -1, -1, 1])
-    assert not check([0, 1, 2, 0, 2, 3], [-1, -1, 3, 2, -1, -1])          # not locally Delaunay
-    assert not check([0, 1, 3, 1, 2, 3], [-1, 5, -1, -1, -1, 2])          # twins inconsistent
+    assert not check([0, 1, 2, 0, 2, 3], [-1, -1, 3, 2, -1, -1])  # not locally Delaunay
+    assert not check([0, 1, 3, 1, 2, 3], [-1, 5, -1, -1, -1, 2])  # twins inconsistent
     assert not check([0, 1, 3, 1, 2, 3], [-1, 5, -1, -1, -1, 1], points=5)  # Euler: a point left out
-    assert not check([0, 3, 1, 1, 3, 2], [-1, 3, -1, 1, -1, -1])          # clockwise triangles
+    assert not check([0, 3, 1, 1, 3, 2], [-1, 3, -1, 1, -1, -1])  # clockwise triangles

@@ -1,5 +1,6 @@
 """The tiled DEM (algorithms/surface/dem_tiles.py) against the whole cloud's (tin_dem.interpolate_dem),
 between tilings, and between executions, on tests/helpers/dem_cloud.py's cloud gridded at 10 m."""
+
 import glob
 import os
 import signal
@@ -29,8 +30,9 @@ read = read_raster
 
 
 def run(cloud, path, tile, execution=Execution("threads", 1), **kwargs):
-    return dem_tiles.dem_from_point_cloud(str(cloud), str(path), DemParams(cell=10.0, tile=tile, execution=execution,
-                                                                           **kwargs))
+    return dem_tiles.dem_from_point_cloud(
+        str(cloud), str(path), DemParams(cell=10.0, tile=tile, execution=execution, **kwargs)
+    )
 
 
 def test_one_tile_is_the_whole_clouds_dem(cloud, tmp_path):
@@ -43,7 +45,7 @@ def test_one_tile_is_the_whole_clouds_dem(cloud, tmp_path):
     np.testing.assert_array_equal(heights, expected)
     assert result.removed == whole.removed and result.points == whole.points
     assert sum(result.removed) > 0 and result.points + sum(result.removed) == len(read_points(str(cloud)).x)
-    assert 0.9 < result.defined < 1.0                                   # the hole is a gap
+    assert 0.9 < result.defined < 1.0  # the hole is a gap
 
 
 def test_sixteen_tiles_leave_no_seam(cloud, tmp_path):
@@ -67,30 +69,39 @@ def test_sixteen_tiles_leave_no_seam(cloud, tmp_path):
     near = lambda index: np.minimum(index % 75, 74 - index % 75) < 3
     border = (near(rows) | near(cols))[both]
     p99_border, p99_inside = np.percentile(dh[border], 99), np.percentile(dh[~border], 99)
-    print(f"1 vs 16 tiles: median |dh| {np.median(dh):.2e} m, p99 along the tile borders {p99_border:.2e} m, "
-          f"away from them {p99_inside:.2e} m")
+    print(
+        f"1 vs 16 tiles: median |dh| {np.median(dh):.2e} m, p99 along the tile borders {p99_border:.2e} m, "
+        f"away from them {p99_inside:.2e} m"
+    )
     assert np.median(dh) <= 0.01
     assert p99_border <= max(p99_inside, 1e-6)
 
 
 def test_a_strip_narrower_than_a_tile(cloud, tmp_path):
     points = read_points(str(cloud))
-    strip = points.x < 500000.0 + 500.0                     # 50 x 300 cells in tiles of 75: 1 x 4 tiles
+    strip = points.x < 500000.0 + 500.0  # 50 x 300 cells in tiles of 75: 1 x 4 tiles
     path = tmp_path / "strip.las"
-    pointcloud.write_las(path, points.x[strip], points.y[strip], points.z[strip],
-                         {"sigma_h": points.fields["sigma_h"][strip]}, points.srs)
+    pointcloud.write_las(
+        path,
+        points.x[strip],
+        points.y[strip],
+        points.z[strip],
+        {"sigma_h": points.fields["sigma_h"][strip]},
+        points.srs,
+    )
     result = run(path, tmp_path / "strip.tif", 75, k=0)
     assert result.tiles == 4
     whole = interpolate_dem(read_points(str(path)), cell=10.0, k=0)
     heights, transform, _ = read(tmp_path / "strip.tif")
     assert transform == whole.grid.geotransform
-    np.testing.assert_array_equal(heights, np.where(np.isfinite(whole.heights), whole.heights.astype(np.float32),
-                                                    np.nan))
+    np.testing.assert_array_equal(
+        heights, np.where(np.isfinite(whole.heights), whole.heights.astype(np.float32), np.nan)
+    )
 
 
 def test_a_tile_whose_points_span_no_area_is_a_gap(tmp_path):
     x, y = np.meshgrid(np.arange(0.0, 1000.0, 12.0), np.arange(0.0, 1000.0, 12.0))
-    x, y = 500000.0 + np.append(x.ravel(), 5000.0), 4800000.0 + np.append(y.ravel(), 0.0)   # one point far east
+    x, y = 500000.0 + np.append(x.ravel(), 5000.0), 4800000.0 + np.append(y.ravel(), 0.0)  # one point far east
     z = surface(x, y)
     pointcloud.write_las(tmp_path / "c.las", x, y, z, {}, srs(UTM31))
     result = run(tmp_path / "c.las", tmp_path / "dem.tif", 100)
@@ -138,8 +149,9 @@ def test_a_killed_dask_worker_leaves_the_same_dem(cloud, tmp_path):
 
 def test_the_precision_raster_is_tiled_too(cloud, tmp_path):
     params = DemParams(cell=10.0, tile=75)
-    dem_tiles.dem_from_point_cloud(str(cloud), str(tmp_path / "dem.tif"), params,
-                                   precision_path=str(tmp_path / "precision.tif"))
+    dem_tiles.dem_from_point_cloud(
+        str(cloud), str(tmp_path / "dem.tif"), params, precision_path=str(tmp_path / "precision.tif")
+    )
     whole = interpolate_dem(read_points(str(cloud)), cell=10.0, precision=True)
     precision, _, _ = read(tmp_path / "precision.tif")
     defined = np.isfinite(precision) & np.isfinite(whole.precision)
@@ -150,6 +162,7 @@ def test_the_precision_raster_is_tiled_too(cloud, tmp_path):
 
 def test_a_cancel_leaves_no_dem_and_no_work_files(cloud, tmp_path):
     with pytest.raises(CancelledError):
-        dem_tiles.dem_from_point_cloud(str(cloud), str(tmp_path / "dem.tif"), DemParams(cell=10.0, tile=75),
-                                       feedback=Feedback(cancel_at=50))
+        dem_tiles.dem_from_point_cloud(
+            str(cloud), str(tmp_path / "dem.tif"), DemParams(cell=10.0, tile=75), feedback=Feedback(cancel_at=50)
+        )
     assert list(tmp_path.iterdir()) == []

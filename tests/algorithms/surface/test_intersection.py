@@ -1,6 +1,7 @@
 """Forward intersection (algorithms/surface/intersection.py) on the simulated SPOT 5 triplet with its
 truth models: ground points on the true DSM, projected into the images with the truth models, with
 and without Gaussian image noise; RPC models fitted to the truth models; the Pleiades triplet."""
+
 import dataclasses
 import time
 
@@ -67,12 +68,15 @@ def test_closest_to_lines_kernel_against_numpy():
     bounds = np.r_[0, np.cumsum(counts)]
     p0, p1 = rng.normal(0, 1e3, (bounds[-1], 3)), rng.normal(0, 1e3, (bounds[-1], 3))
     p0[5] = np.nan
-    p1[bounds[7]:bounds[8]] = p0[bounds[7]:bounds[8]] + [1.0, 2.0, 3.0]          # parallel lines
+    p1[bounds[7] : bounds[8]] = p0[bounds[7] : bounds[8]] + [1.0, 2.0, 3.0]  # parallel lines
     xyz, ok = np.empty((counts.size, 3)), np.zeros(counts.size, bool)
     ix.closest_to_lines(p0, p1, bounds, ix.SINGULAR_RATIO, xyz, ok)
     for g in range(counts.size):
-        lines = [(a, b) for a, b in zip(p0[bounds[g]:bounds[g + 1]], p1[bounds[g]:bounds[g + 1]])
-                 if np.isfinite(a).all() and np.isfinite(b).all()]
+        lines = [
+            (a, b)
+            for a, b in zip(p0[bounds[g] : bounds[g + 1]], p1[bounds[g] : bounds[g + 1]])
+            if np.isfinite(a).all() and np.isfinite(b).all()
+        ]
         u = [(b - a) / np.linalg.norm(b - a) for a, b in lines]
         normal = sum((np.eye(3) - np.outer(v, v) for v in u), np.zeros((3, 3)))
         want_ok = len(lines) >= 2 and np.linalg.det(normal) > ix.SINGULAR_RATIO * np.prod(np.diag(normal))
@@ -103,14 +107,15 @@ def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_
     assert np.array_equal(ids, 5 * np.arange(N_POINTS)) and ok.all()
     exact = np.abs(error(lon, lat, h)).max()
     noise = np.random.default_rng(2).normal(0.0, 0.3, (2, col.size))
-    noisy = np.sqrt(np.mean(error(*ix.closest_points(models, image, point, col + noise[0], row + noise[1])[1:4]) ** 2,
-                            axis=0))
+    noisy = np.sqrt(
+        np.mean(error(*ix.closest_points(models, image, point, col + noise[0], row + noise[1])[1:4]) ** 2, axis=0)
+    )
     figures.report("closest points of exact lines of sight, largest error", exact, "m")
     figures.report("closest points with 0.3 px noise, RMS E, N, H", noisy, "m")
     assert exact < 1e-3
     assert noisy.max() < 5.0
 
-    class TwoHeights(sensors.SensorModel):      # SensorModel.ray_points: rays through two ground points
+    class TwoHeights(sensors.SensorModel):  # SensorModel.ray_points: rays through two ground points
         def __init__(self, model):
             self.image_to_ground_or_nan, self.size = model.image_to_ground_or_nan, model.size
 
@@ -144,7 +149,7 @@ def test_noisy_measurements_agree_with_the_predicted_sigmas(scene, figures):
         result = ix.intersect(models, *measure(models, names, *truth, noise=noise, seed=len(names)), sigma=noise)
         assert result.status_counts() == {"converged": N_POINTS}
         ratio = np.sqrt(np.mean((errors_enu(result, *truth) / result.sigma) ** 2, axis=0))
-        mean_var = np.mean(result.sigma0 ** 2)
+        mean_var = np.mean(result.sigma0**2)
         figures.report(f"{'-'.join(names)}: RMS(error / sigma) E, N, H", ratio)
         figures.report(f"{'-'.join(names)}: mean sigma0^2", mean_var)
         figures.report(f"{'-'.join(names)}: median sigma E, N, H", np.median(result.sigma, axis=0), "m")
@@ -152,7 +157,7 @@ def test_noisy_measurements_agree_with_the_predicted_sigmas(scene, figures):
         assert 0.9 < mean_var < 1.1
         # image residual RMS: E[v'v] = r sigma^2 over the 2k coordinates
         expected = noise * np.sqrt((2 * len(names) - 3) / (2 * len(names)))
-        assert abs(np.sqrt(np.mean(result.rms ** 2)) / expected - 1) < 0.1
+        assert abs(np.sqrt(np.mean(result.rms**2)) / expected - 1) < 0.1
         sigma_h[len(names)] = result.sigma[:, 2]
     assert np.all(sigma_h[3] < sigma_h[2])
 
@@ -165,8 +170,9 @@ def reference_intersection(models, names, cols, rows, start, iterations=6, step=
 
     def residuals(x):
         ground = ecef_to_geodetic(x)
-        return np.concatenate([np.subtract(models[n].ground_to_image(*ground), (c, r))
-                               for n, c, r in zip(names, cols, rows)])
+        return np.concatenate(
+            [np.subtract(models[n].ground_to_image(*ground), (c, r)) for n, c, r in zip(names, cols, rows)]
+        )
 
     for _ in range(iterations):
         jac = np.column_stack([(residuals(xyz + e) - residuals(xyz - e)) / (2 * step) for e in np.eye(3) * step])
@@ -207,10 +213,12 @@ def test_agrees_with_an_independent_solution(scene, pair, rpcs, case, tolerance,
     worst = 0.0
     for p in range(6):
         sel = point == p
-        ref = reference_intersection(models, image[sel], col[sel], row[sel],
-                                     (truth[0][p] + 2e-5, truth[1][p] - 3e-5, truth[2][p] + 4.0))
-        worst = max(worst, np.abs([(result.lon[p] - ref[0]) * me, (result.lat[p] - ref[1]) * mn,
-                                   result.h[p] - ref[2]]).max())
+        ref = reference_intersection(
+            models, image[sel], col[sel], row[sel], (truth[0][p] + 2e-5, truth[1][p] - 3e-5, truth[2][p] + 4.0)
+        )
+        worst = max(
+            worst, np.abs([(result.lon[p] - ref[0]) * me, (result.lat[p] - ref[1]) * mn, result.h[p] - ref[2]]).max()
+        )
     figures.report("largest difference to the independent solution", worst, "m")
     assert worst < tolerance
 
@@ -261,7 +269,7 @@ def test_rpc_models(scene, rpcs, figures):
     obs = measure(rigorous, NAMES, *truth, noise=0.3)
     a, b = ix.intersect(rigorous, *obs, sigma=0.3), ix.intersect(rpcs, *obs, sigma=0.3)
     dh = a.h - b.h
-    figures.report("RPC - rigorous heights, RMS", np.sqrt(np.mean(dh ** 2)), "m")
+    figures.report("RPC - rigorous heights, RMS", np.sqrt(np.mean(dh**2)), "m")
     figures.report("RPC - rigorous heights, max", np.abs(dh).max(), "m")
     assert np.abs(errors_enu(a, b.lon, b.lat, b.h)).max() < 0.05
     np.testing.assert_allclose(b.sigma, a.sigma, rtol=0.01)
@@ -295,8 +303,8 @@ def test_bad_points_get_a_status(scene):
     truth = scene["lon"][:4], scene["lat"][:4], scene["h"][:4]
     image, point, col, row = measure(models, ("HRG", "HRS1"), *truth)
     single = (point == 1) & (image == "HRS1")
-    col[(point == 2) & (image == "HRS1")] = -50.0                 # outside the image
-    row[(point == 3) & (image == "HRG")] = 1e7                      # far beyond the ephemeris
+    col[(point == 2) & (image == "HRS1")] = -50.0  # outside the image
+    row[(point == 3) & (image == "HRG")] = 1e7  # far beyond the ephemeris
     keep = ~single
     image, point, col, row = image[keep], point[keep], col[keep], row[keep]
     # point 4: a ray measured twice in the same image (parallel rays)
@@ -305,8 +313,12 @@ def test_bad_points_get_a_status(scene):
     result = ix.intersect(models, image, point, col, row)
     assert list(result.status) == [ix.CONVERGED, ix.TOO_FEW_RAYS, ix.OUTSIDE, ix.OUTSIDE, ix.SINGULAR]
     assert np.isfinite(result.h[0]) and np.isnan(result.h[1:]).all() and np.isnan(result.covariance[1:]).all()
-    assert result.status_counts() == {"converged": 1, "outside a model's domain": 2, "fewer than 2 rays": 1,
-                                      "singular geometry": 1}
+    assert result.status_counts() == {
+        "converged": 1,
+        "outside a model's domain": 2,
+        "fewer than 2 rays": 1,
+        "singular geometry": 1,
+    }
 
 
 class Patchy(sensors.SensorModel):
@@ -381,15 +393,16 @@ def test_bad_input_raises_clear_errors(scene):
 def test_cancel(scene):
     models = scene["models"]
     with pytest.raises(CancelledError):
-        ix.intersect(models, *measure(models, NAMES, scene["lon"], scene["lat"], scene["h"]),
-                     feedback=Feedback(cancel_after=0))
+        ix.intersect(
+            models, *measure(models, NAMES, scene["lon"], scene["lat"], scene["h"]), feedback=Feedback(cancel_after=0)
+        )
 
 
 def test_summary_rows(scene):
     models = scene["models"]
     truth = scene["lon"][:100], scene["lat"][:100], scene["h"][:100]
     image, point, col, row = measure(models, NAMES, *truth, noise=0.1)
-    keep = ~((point >= 60) & (image == "HRS2"))                     # points 60..99: two rays
+    keep = ~((point >= 60) & (image == "HRS2"))  # points 60..99: two rays
     result = ix.intersect(models, image[keep], point[keep], col[keep], row[keep], sigma=0.1)
     group = np.where(result.rays == 3, 3, 1)
     rows = ix.summary_rows(result, group)

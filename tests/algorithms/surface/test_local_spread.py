@@ -1,5 +1,6 @@
 """The local height spread (surface/local_spread.py) against a plain numpy loop, and the same spread from any
 subset of the cloud that holds the square around the query."""
+
 import numpy as np
 import pytest
 
@@ -11,8 +12,9 @@ def reference(x, y, h, qx, qy, radius):
     g = 2.0 * radius / (2 * REACH + 1)
     out = np.full(qx.size, np.nan)
     for k in range(qx.size):
-        m = ((np.abs(np.floor(x / g) - np.floor(qx[k] / g)) <= REACH)
-             & (np.abs(np.floor(y / g) - np.floor(qy[k] / g)) <= REACH))
+        m = (np.abs(np.floor(x / g) - np.floor(qx[k] / g)) <= REACH) & (
+            np.abs(np.floor(y / g) - np.floor(qy[k] / g)) <= REACH
+        )
         if m.sum() >= MIN_POINTS:
             out[k] = np.std(h[m])
     return out
@@ -39,7 +41,7 @@ def test_a_tile_with_its_neighbourhood_gives_the_cloud_s_spread():
     h = rng.normal(100, 3, x.size)
     tile = (x < 200) & (y < 200)
     margin = reach_m(20.0)
-    assert margin == pytest.approx(24.0)        # 3 cells of 8 m
+    assert margin == pytest.approx(24.0)  # 3 cells of 8 m
     near = (x < 200 + margin) & (y < 200 + margin)
     whole = local_spread(x, y, h, x[tile], y[tile], 20.0)
     part = local_spread(x[near], y[near], h[near], x[tile], y[tile], 20.0)

@@ -1,5 +1,6 @@
 """Point cloud output (algorithms/surface/pointcloud.py): LAS/LAZ read back with laspy, GeoPackage
 read back with OGR, coordinates checked against OSR transforms of the input points."""
+
 import os
 
 import numpy as np
@@ -19,9 +20,13 @@ def points():
     """Points around Jacksboro, Tennessee (UTM zone 16 N) with their fields."""
     rng = np.random.default_rng(0)
     lon, lat, h = rng.uniform(-84.21, -84.17, N), rng.uniform(36.60, 36.63, N), rng.uniform(250, 650, N)
-    fields = {"point_id": np.arange(N, dtype=np.int64) * 7, "group": rng.integers(1, 4, N).astype(np.uint8),
-              "rho": rng.uniform(0.6, 1.0, N).astype(np.float32), "rays": rng.integers(2, 4, N).astype(np.uint8),
-              "sigma_h": rng.uniform(0.5, 2.0, N).astype(np.float32)}
+    fields = {
+        "point_id": np.arange(N, dtype=np.int64) * 7,
+        "group": rng.integers(1, 4, N).astype(np.uint8),
+        "rho": rng.uniform(0.6, 1.0, N).astype(np.float32),
+        "rays": rng.integers(2, 4, N).astype(np.uint8),
+        "sigma_h": rng.uniform(0.5, 2.0, N).astype(np.float32),
+    }
     return lon, lat, h, fields
 
 
@@ -49,7 +54,7 @@ def test_las_has_the_utm_crs_coordinates_and_fields(points, tmp_path):
     for name, values in fields.items():
         np.testing.assert_array_equal(np.asarray(las[name]), values)
         assert np.asarray(las[name]).dtype == values.dtype
-    assert not [f for f in os.listdir(tmp_path) if f.startswith(".")]   # no temporary left
+    assert not [f for f in os.listdir(tmp_path) if f.startswith(".")]  # no temporary left
 
 
 def test_las_in_a_given_crs(points, tmp_path):
@@ -67,7 +72,7 @@ def test_las_in_a_given_crs(points, tmp_path):
 
 def test_laz(points, tmp_path):
     lon, lat, h, fields = points
-    path, _, _ = pc.write_point_cloud(tmp_path / "cloud.laz", lon, lat, h, fields)      # lazrs: make setup
+    path, _, _ = pc.write_point_cloud(tmp_path / "cloud.laz", lon, lat, h, fields)  # lazrs: make setup
     las, wkt = read_las(path)
     assert "UTM zone 16N" in wkt[0].string and las.header.point_format.id == 6
     np.testing.assert_allclose(las.z, h, atol=0.0006)
@@ -92,8 +97,19 @@ def test_geopackage(points, tmp_path):
     assert layer.GetFeatureCount() == N and layer.GetGeomType() == ogr.wkbPoint25D
     assert layer.GetSpatialRef().GetAuthorityCode(None) == "32616"
     x, y = utm(lon, lat, 32616)
-    got = np.array([(f.GetGeometryRef().GetX(), f.GetGeometryRef().GetY(), f.GetGeometryRef().GetZ(), f["group"],
-                     f["rho"], f["point_id"]) for f in layer])
+    got = np.array(
+        [
+            (
+                f.GetGeometryRef().GetX(),
+                f.GetGeometryRef().GetY(),
+                f.GetGeometryRef().GetZ(),
+                f["group"],
+                f["rho"],
+                f["point_id"],
+            )
+            for f in layer
+        ]
+    )
     np.testing.assert_allclose(got[:, 0], x, atol=1e-6)
     np.testing.assert_allclose(got[:, 1], y, atol=1e-6)
     np.testing.assert_allclose(got[:, 2], h, atol=1e-9)
@@ -105,7 +121,7 @@ def test_geopackage(points, tmp_path):
 def test_format_choice_and_bad_input(points, tmp_path, monkeypatch):
     lon, lat, h, fields = points
     assert pc.output_format("a.LAZ", 10) == "laz" and pc.output_format("a.gpkg", 10) == "gpkg"
-    assert pc.output_format("a.gpkg", 10 ** 7, fmt="gpkg") == "gpkg"
+    assert pc.output_format("a.gpkg", 10**7, fmt="gpkg") == "gpkg"
     with pytest.raises(InputError, match=r"\.las, \.laz or \.gpkg"):
         pc.output_format("a.txt", 10)
     monkeypatch.setattr(pc, "GPKG_MAX_POINTS", N - 1)
@@ -138,9 +154,18 @@ def test_an_existing_file_survives_a_failed_write(points, tmp_path, monkeypatch)
 def test_cloud_fields_keep_the_converged_points():
     n = 4
     cov = np.tile(np.diag([0.04, 0.09, 4.0]), (n, 1, 1))
-    result = Intersection(np.array([3, 5, 8, 9]), np.zeros(n), np.zeros(n), np.zeros(n), np.array([2, 3, 3, 1]),
-                          np.array([CONVERGED, CONVERGED, OUTSIDE, CONVERGED], np.int8), np.ones(n, np.int32),
-                          np.array([0.5, 1.0, np.nan, 2.0]), np.zeros(n), cov)
+    result = Intersection(
+        np.array([3, 5, 8, 9]),
+        np.zeros(n),
+        np.zeros(n),
+        np.zeros(n),
+        np.array([2, 3, 3, 1]),
+        np.array([CONVERGED, CONVERGED, OUTSIDE, CONVERGED], np.int8),
+        np.ones(n, np.int32),
+        np.array([0.5, 1.0, np.nan, 2.0]),
+        np.zeros(n),
+        cov,
+    )
     fields = pc.cloud_fields(result, group=np.array([1, 3, 3, 2]), rho=np.array([0.7, 0.8, 0.9, 0.95]))
     np.testing.assert_array_equal(fields["point_id"], [3, 5, 9])
     np.testing.assert_array_equal(fields["group"], [1, 3, 2])

@@ -1,5 +1,6 @@
 """DEM from a point cloud (algorithms/surface/tin_dem.py, tin.py, tin_grid.py): the numba rasteriser
 against scipy's LinearNDInterpolator, gaps, breaklines, the blunder filter, datum and CRS, writing."""
+
 import numpy as np
 import pytest
 from osgeo import gdal, osr
@@ -14,7 +15,7 @@ from tests.helpers.feedback import Feedback
 from tests.helpers.osr_oracle import utm
 
 UTM31 = 32631
-X0, Y0 = 640_000.0, 4_890_000.0   # near Mont Ventoux, UTM 31N
+X0, Y0 = 640_000.0, 4_890_000.0  # near Mont Ventoux, UTM 31N
 
 
 def cloud(n, seed=0, size=2000.0, noise=0.0):
@@ -68,8 +69,8 @@ def test_no_cell_on_a_shared_edge_is_lost():
 
 
 def test_long_triangles_are_gaps():
-    x, y, z = cloud(20000, seed=4)                                      # ~14 m point spacing
-    hole = np.hypot(x - X0 - 1000, y - Y0 - 1000) < 300                   # a lake with no points
+    x, y, z = cloud(20000, seed=4)  # ~14 m point spacing
+    hole = np.hypot(x - X0 - 1000, y - Y0 - 1000) < 300  # a lake with no points
     x, y, z = x[~hole], y[~hole], z[~hole]
     points = point_input.PointSet(x, y, z, srs(UTM31))
     result = tin_dem.interpolate_dem(points, cell=10.0, k=0, max_edge=60.0)
@@ -96,7 +97,7 @@ def test_blunder_filter_removes_injected_spikes(figures):
     assert false < 0.002 * len(x)
     assert sum(removed) == (~keep).sum()
     fixed = np.zeros(len(x), bool)
-    fixed[spikes[:50]] = True                                            # breakline vertices are never removed
+    fixed[spikes[:50]] = True  # breakline vertices are never removed
     keep, _ = tin.filter_blunders(tin.delaunay(x, y), x, y, z, fixed=fixed)
     assert keep[spikes[:50]].all() and not keep[spikes[50:]].any()
 
@@ -110,8 +111,7 @@ def test_breaklines_keep_triangles_off_a_ridge():
     points = point_input.PointSet(x, y, roof(x), srs(UTM31))
     ridge = np.array([[X0 + 500, Y0 - 10, 100.0], [X0 + 500, Y0 + 1010, 100.0]])
     plain = tin_dem.interpolate_dem(points, cell=5.0, k=0, max_edge=100.0)
-    lined = tin_dem.interpolate_dem(points, cell=5.0, k=0, max_edge=100.0, breaklines=[ridge],
-                                    breakline_srs=srs(UTM31))
+    lined = tin_dem.interpolate_dem(points, cell=5.0, k=0, max_edge=100.0, breaklines=[ridge], breakline_srs=srs(UTM31))
     cx, _ = lined.grid.centres()
     ok = np.isfinite(lined.heights)
     assert ok.mean() > 0.95 and lined.breakline_vertices > 200
@@ -119,26 +119,29 @@ def test_breaklines_keep_triangles_off_a_ridge():
     assert np.nanmax(np.abs(plain.heights - roof(cx))) > 0.05
     vertices, segments, keep = tin.conform_breaklines([ridge], x, y, spacing=2.5, min_length=0.25)
     all_x, all_y = np.concatenate([x[keep], vertices[:, 0]]), np.concatenate([y[keep], vertices[:, 1]])
-    edges = {tuple(sorted(e)) for s in Delaunay(np.column_stack([all_x - X0, all_y - Y0])).simplices
-             for e in ((s[0], s[1]), (s[1], s[2]), (s[0], s[2]))}
+    edges = {
+        tuple(sorted(e))
+        for s in Delaunay(np.column_stack([all_x - X0, all_y - Y0])).simplices
+        for e in ((s[0], s[1]), (s[1], s[2]), (s[0], s[2]))
+    }
     offset = int(keep.sum())
-    assert all(tuple(sorted(offset + s)) in edges for s in segments)   # every sub-segment is a TIN edge
+    assert all(tuple(sorted(offset + s)) in edges for s in segments)  # every sub-segment is a TIN edge
 
 
 def test_egm96_datum_and_output_crs():
     x, y, z = cloud(3000, seed=8)
     points = point_input.PointSet(x, y, z, srs(UTM31))
     ellipsoidal = tin_dem.interpolate_dem(points, cell=20.0, k=0)
-    assert ellipsoidal.srs.GetAuthorityCode(None) == str(UTM31)      # default: the points' UTM zone
+    assert ellipsoidal.srs.GetAuthorityCode(None) == str(UTM31)  # default: the points' UTM zone
     geoid = tin_dem.interpolate_dem(points, cell=20.0, k=0, datum="egm96")
     ok = np.isfinite(ellipsoidal.heights)
     cx, cy = ellipsoidal.grid.centres()
     t = osr.CoordinateTransformation(srs(UTM31), srs(4326))
     lonlat = np.array([t.TransformPoint(float(a), float(b))[:2] for a, b in zip(cx[ok][::50], cy[ok][::50])])
     n = egm96_undulation(lonlat[:, 0], lonlat[:, 1])
-    assert 45 < n.mean() < 55                                             # EGM96 in southern France
+    assert 45 < n.mean() < 55  # EGM96 in southern France
     np.testing.assert_allclose((ellipsoidal.heights - geoid.heights)[ok][::50], n, atol=1e-6)
-    other = tin_dem.interpolate_dem(points, cell=20.0, k=0, crs="EPSG:2154")   # Lambert-93
+    other = tin_dem.interpolate_dem(points, cell=20.0, k=0, crs="EPSG:2154")  # Lambert-93
     assert other.srs.GetAuthorityCode(None) == "2154"
     # a point of the cloud lands at its Lambert-93 position
     lx, ly = osr.CoordinateTransformation(srs(UTM31), srs(2154)).TransformPoint(float(x[0]), float(y[0]))[:2]
@@ -218,6 +221,7 @@ def test_default_maximum_edge_follows_the_point_spacing():
     """A 50 m matching lattice with one point missing: the default bridges that hole (edges up to
     2.24 spacings) but not a hole of two; at 10 m cells the spacing rules, at 100 m the 3 cells."""
     from pushbroom.algorithms.surface.tin_dem import default_max_edge
+
     gx, gy = (v.ravel().astype(float) for v in np.meshgrid(np.arange(20) * 50.0, np.arange(20) * 50.0))
     assert default_max_edge(gx, gy, 10.0) == pytest.approx(125.0)
     assert default_max_edge(gx, gy, 100.0) == pytest.approx(300.0)
