@@ -4,11 +4,40 @@ quasi-epipolar path (ncc.ncc_path), the across-maximum profile, its local maxima
 parabola refinement in height and across the path."""
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from .ncc import ncc_path
+
+
+class Paths(NamedTuple):
+    """Sampled quasi-epipolar paths: image-2 positions cx, cy ((k, na) per point: k heights, na samples across)
+    and the heights (k,) per point; arrays over the points, or one point's."""
+
+    cx: np.ndarray
+    cy: np.ndarray
+    heights: np.ndarray
+
+
+class Affines(NamedTuple):
+    """The templates' affine image 1 -> image 2 (a1, a2, a4, a5): arrays over the points, or one point's floats."""
+
+    a1: np.ndarray
+    a2: np.ndarray
+    a4: np.ndarray
+    a5: np.ndarray
+
+
+class Found(NamedTuple):
+    """The candidates, best first, NaN-padded: heights h, NCC rho and image-2 positions x, y ((C,) per point, or
+    (n, C) over the points)."""
+
+    h: np.ndarray
+    rho: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
 
 
 @njit(cache=True, nogil=True)
@@ -29,9 +58,13 @@ def _bilinear_at(arr, lo, w, qlo, qhi, wa):
 
 
 @njit(cache=True, nogil=True)
-def _point(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out_h, out_rho, out_x, out_y):
-    """Candidates of one point (coarse_to_fine_level.candidates): cx, cy (k, na) its path samples,
-    heights (k,); fills out_* (C,) best first and returns `second` (NaN if none)."""
+def _point(img1, img2, x, y, half, path, affine, rho_min, found):
+    """Candidates of one point (coarse_to_fine_level.candidates): its Paths `path` (cx, cy (k, na), heights (k,)),
+    its Affines `affine` (floats); fills `found` (Found of (C,) arrays) best first and returns `second` (NaN if
+    none)."""
+    cx, cy, heights = path
+    a1, a2, a4, a5 = affine
+    out_h, out_rho, out_x, out_y = found
     k, na = cx.shape
     scores = np.empty(k * na)
     ncc_path(img1, img2, x, y, half, cx.ravel(), cy.ravel(), a1, a2, a4, a5, scores)
@@ -92,33 +125,16 @@ def _point(img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def path_candidates(
-    img1, img2, x, y, half, cx, cy, a1, a2, a4, a5, heights, rho_min, out_h, out_rho, out_x, out_y, second
-):
-    """Candidates of all points (coarse_to_fine_level.candidates): x, y, half, a1..a5, rho_min (n,), cx, cy
-    (n, k, na), heights (n, k); out_* (n, C) NaN-filled, second (n,) NaN-filled. Points with a
-    non-finite affine or path position (cx) are skipped."""
+def path_candidates(img1, img2, x, y, half, paths, affines, rho_min, found, second):
+    """Candidates of all points (coarse_to_fine_level.candidates): x, y, half, rho_min (n,), `paths` (Paths: cx,
+    cy (n, k, na), heights (n, k)), `affines` (Affines of (n,) arrays); `found` (Found of (n, C) arrays) and second
+    (n,) NaN-filled. Points with a non-finite affine or path position (cx) are skipped."""
+    a1, a2, a4, a5 = affines
     for i in prange(x.shape[0]):
         if not (math.isfinite(a1[i]) and math.isfinite(a2[i]) and math.isfinite(a4[i]) and math.isfinite(a5[i])):
             continue
-        if not np.isfinite(cx[i]).all():
+        if not np.isfinite(paths.cx[i]).all():
             continue
-        second[i] = _point(
-            img1,
-            img2,
-            x[i],
-            y[i],
-            half[i],
-            cx[i],
-            cy[i],
-            a1[i],
-            a2[i],
-            a4[i],
-            a5[i],
-            heights[i],
-            rho_min[i],
-            out_h[i],
-            out_rho[i],
-            out_x[i],
-            out_y[i],
-        )
+        path = Paths(paths.cx[i], paths.cy[i], paths.heights[i])
+        mine = Found(found.h[i], found.rho[i], found.x[i], found.y[i])
+        second[i] = _point(img1, img2, x[i], y[i], half[i], path, Affines(a1[i], a2[i], a4[i], a5[i]), rho_min[i], mine)

@@ -45,7 +45,7 @@ from scipy import ndimage
 from ..stats import NMAD_SCALE
 from ..surface.tin import conform_breaklines, delaunay, filter_blunders, neighbour_residuals
 from ..surface.tin_grid import Grid, rasterize
-from .coarse_to_fine_kernels import path_candidates
+from .coarse_to_fine_kernels import Affines, Found, Paths, path_candidates
 from .edges import match_edges
 from .interest import interest_points
 from .pair_geometry import local_affine, predict
@@ -219,21 +219,18 @@ def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_m
         part = {key: np.full((sel.size, cmax), np.nan) for key in ("h", "rho", "x", "y")}
         part["second"] = np.full(sel.size, np.nan)
         vec = [np.ascontiguousarray(v[sel], float) for v in (x, y, a1, a2, a4, a5)]
+        paths = Paths(*(np.ascontiguousarray(v) for v in (cx, cy, heights)))
+        found = Found(part["h"], part["rho"], part["x"], part["y"])
         path_candidates(
             img1,
             img2,
             vec[0],
             vec[1],
             np.ascontiguousarray(half[sel]),
-            np.ascontiguousarray(cx),
-            np.ascontiguousarray(cy),
-            *vec[2:],
-            np.ascontiguousarray(heights),
+            paths,
+            Affines(*vec[2:]),
             np.ascontiguousarray(rho_min[sel]),
-            part["h"],
-            part["rho"],
-            part["x"],
-            part["y"],
+            found,
             part["second"],
         )
         for key, value in part.items():

@@ -263,7 +263,14 @@ def match_edges(ref_img, search_img, chains, predict, height_range, window=7, st
         return out
     g1x, g1y, _ = gradients(ref, GRADIENT_SIGMA)
     g2x, g2y, _ = gradients(search, GRADIENT_SIGMA)
-    g1x, g1y, g2x, g2y = (np.ascontiguousarray(g, np.float32) for g in (g1x, g1y, g2x, g2y))
+    grads = kernels.Gradients(*(np.ascontiguousarray(g, np.float32) for g in (g1x, g1y, g2x, g2y)))
+    criteria = kernels.EdgelCriteria(
+        window // 2,
+        RHO_FLOOR,
+        math.cos(math.radians(MAX_ANGLE)),
+        DIR_WEIGHT,
+        math.sin(math.radians(MIN_CROSSING)),
+    )
     cand_d = np.full((n, CANDIDATES), np.nan)
     cand = {k: np.full((n, CANDIDATES), np.nan) for k in ("col2", "row2", "h", "rho", "cost")}
     ncand = np.zeros(n, np.int64)
@@ -275,26 +282,7 @@ def match_edges(ref_img, search_img, chains, predict, height_range, window=7, st
         t, rho, cost = (np.full((k, CANDIDATES), np.nan) for _ in range(3))
         nc = np.zeros(k, np.int64)
         kernels.edgel_candidates(
-            ref,
-            search,
-            g1x,
-            g1y,
-            g2x,
-            g2y,
-            x1[s],
-            y1[s],
-            px,
-            py,
-            aff,
-            window // 2,
-            RHO_FLOOR,
-            math.cos(math.radians(MAX_ANGLE)),
-            DIR_WEIGHT,
-            math.sin(math.radians(MIN_CROSSING)),
-            t,
-            rho,
-            cost,
-            nc,
+            ref, search, grads, x1[s], y1[s], px, py, aff, criteria, kernels.Ranked(t, rho, cost, nc)
         )
         m = px.shape[1]
         valid = np.arange(CANDIDATES)[None, :] < nc[:, None]

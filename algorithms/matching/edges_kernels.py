@@ -3,6 +3,7 @@ chain tracing, edgel candidates along quasi-epipolar paths, and the figural-cont
 programme. Array indices are (row, col); positions handed to bilinear/ncc_path are GDAL's."""
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -186,36 +187,49 @@ def trace(mask):
 # edgel matching
 
 
+class Gradients(NamedTuple):
+    """The reference's (g1x, g1y) and the search image's (g2x, g2y) gradient images."""
+
+    g1x: np.ndarray
+    g1y: np.ndarray
+    g2x: np.ndarray
+    g2y: np.ndarray
+
+
+class EdgelCriteria(NamedTuple):
+    """An edgel candidate's criteria: NCC template half-size (px), the lowest rho, the cosine of the largest angle
+    between the mapped and the search gradient, the weight of the direction in the cost, and the sine of the
+    smallest angle between the mapped gradient's edge and the path."""
+
+    half: int
+    rho_floor: float
+    cos_min: float
+    dir_weight: float
+    cross_min: float
+
+
+class Ranked(NamedTuple):
+    """The candidates of each edgel (n, K), least cost first: path parameter t (samples), rho, cost; and their
+    count (n,)."""
+
+    t: np.ndarray
+    rho: np.ndarray
+    cost: np.ndarray
+    count: np.ndarray
+
+
 @njit(cache=True, nogil=True, parallel=True)
-def edgel_candidates(
-    ref,
-    search,
-    g1x,
-    g1y,
-    g2x,
-    g2y,
-    x1,
-    y1,
-    px,
-    py,
-    aff,
-    half,
-    rho_floor,
-    cos_min,
-    dir_weight,
-    cross_min,
-    cand_t,
-    cand_rho,
-    cand_cost,
-    ncand,
-):
+def edgel_candidates(ref, search, grads, x1, y1, px, py, aff, criteria, ranked):
     """Candidates of edgel i = the local NCC maxima along its path (px[i], py[i]) (end samples
     excluded) with rho >= rho_floor whose search-image gradient direction is within acos(cos_min)
     of the reference gradient mapped by the inverse transposed affine A^-T g1 (a dark-to-bright
     edge stays dark-to-bright). None where the mapped gradient is closer than acos(cross_min) to
     perpendicular to the path (the edge too close to parallel to the quasi-epipolar line to fix a
     disparity). Sub-pixel path parameter t (samples) and rho by a parabola; kept are the
-    K = cand_t.shape[1] of least cost (1 - rho) + dir_weight (1 - cos), ordered by cost."""
+    K = cand_t.shape[1] of least cost (1 - rho) + dir_weight (1 - cos), ordered by cost: `ranked` (Ranked)."""
+    g1x, g1y, g2x, g2y = grads
+    half, rho_floor, cos_min, dir_weight, cross_min = criteria
+    cand_t, cand_rho, cand_cost, ncand = ranked
     n, m = px.shape
     kmax = cand_t.shape[1]
     for i in prange(n):

@@ -31,6 +31,7 @@ eigenvalues (1-sigma error ellipse, px of image 2).
 
 import math
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -136,12 +137,42 @@ def template(img, x, y, half, f, fk, fl):
     return True
 
 
+class Start(NamedTuple):
+    """LSM's initial values in image 2: the position (x2, y2) and the affine (a1, a2, a4, a5) (module docstring)."""
+
+    x2: float
+    y2: float
+    a1: float
+    a2: float
+    a4: float
+    a5: float
+
+
+class Solver(NamedTuple):
+    """LSM's solution settings: template half-size (px), largest number of iterations, convergence (px: the
+    position update below which it stops) and Tukey's constant of the robust weighting (0: off)."""
+
+    half: int
+    max_iter: int
+    conv: float
+    tukey: float = 0.0
+
+
+def solver(params: LsmParams, half: int | None = None) -> Solver:
+    """The Solver of `params` (its template; `half`: another half-size, the wide template's)."""
+    return Solver(
+        params.template // 2 if half is None else half, params.max_iterations, params.convergence, params.tukey
+    )
+
+
 @njit(cache=True, nogil=True)
-def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, out, tukey=0.0):
-    """Match one point; see the module docstring (`tukey`: Tukey's constant of the robust weighting, 0:
-    off). Fills out (float64, LSM_OUT, order LSM_FIELDS) and returns the status: 0 ok, 1 window leaves
-    image 1 or 2, 2 singular normal equations (flat texture), 3 not converged within max_iter (out holds the
-    last state)."""
+def lsm_point(img1, img2, x1, y1, start, solve, out):
+    """Match the template of image 1 at (x1, y1) in image 2 from the Start `start` with the Solver `solve`; see
+    the module docstring. Fills out (float64, LSM_OUT, order LSM_FIELDS) and returns the status: 0 ok, 1 window
+    leaves image 1 or 2, 2 singular normal equations (flat texture), 3 not converged within max_iter (out holds
+    the last state)."""
+    x2, y2, a1, a2, a4, a5 = start
+    half, max_iter, conv, tukey = solve
     for i in range(out.shape[0]):
         out[i] = np.nan
     out[6] = 0.0
@@ -380,25 +411,10 @@ def lsm_point(img1, img2, x1, y1, x2, y2, a1, a2, a4, a5, half, max_iter, conv, 
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _match_kernel(img1, img2, x1, y1, x2, y2, aff, half, max_iter, conv, tukey, out, status):
+def _match_kernel(img1, img2, x1, y1, x2, y2, aff, solve, out, status):
     for p in prange(x1.shape[0]):
-        status[p] = lsm_point(
-            img1,
-            img2,
-            x1[p],
-            y1[p],
-            x2[p],
-            y2[p],
-            aff[p, 0],
-            aff[p, 1],
-            aff[p, 2],
-            aff[p, 3],
-            half,
-            max_iter,
-            conv,
-            out[p],
-            tukey,
-        )
+        start = Start(x2[p], y2[p], aff[p, 0], aff[p, 1], aff[p, 2], aff[p, 3])
+        status[p] = lsm_point(img1, img2, x1[p], y1[p], start, solve, out[p])
 
 
 def _as_image(img, name):
@@ -440,12 +456,9 @@ def match_points(img1, img2, x1, y1, x2, y2, affine=None, params=None):
     if not (y1.size == x2.size == y2.size == n):
         raise InputError("x1, y1, x2, y2 must have the same length")
     aff = _affine_array(affine, n)
-    half = params.template // 2
     out = np.empty((n, LSM_OUT))
     status = np.empty(n, dtype=np.int8)
-    _match_kernel(
-        img1, img2, x1, y1, x2, y2, aff, half, params.max_iterations, params.convergence, params.tukey, out, status
-    )
+    _match_kernel(img1, img2, x1, y1, x2, y2, aff, solver(params), out, status)
     return to_records(x1, y1, out), status
 
 

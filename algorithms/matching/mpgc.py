@@ -40,7 +40,7 @@ from ..geodesy import metres_per_degree, offset_enu
 from ..progress import step as progress_step
 from .imagery import as_image
 from .lsm import NOT_CONVERGED, OK, OUTSIDE, SINGULAR
-from .mpgc_kernels import COV, GEO_RED, GEO_RMS, GEO_VTPV, NPI, SIGMA0, mpgc_batch, out_size
+from .mpgc_kernels import COV, GEO_RED, GEO_RMS, GEO_VTPV, NPI, SIGMA0, Solve, Stack, mpgc_batch, out_size
 from .params import LsmParams
 
 #: status codes: lsm.py's and a point a sensor model cannot project
@@ -264,6 +264,9 @@ def _match_tile(images, models, x0, y0, lon, lat, h, params):
     )
     start = state.copy()
     buf, meta, offs = _windows(images, x0, y0, state, good, half, params)
+    solve = Solve(
+        half, params.max_iterations, params.convergence, params.sigma_geometry, params.centre_sigma, params.similarity
+    )
     dx = np.zeros((m, 3))
     out = np.full((m, out_size(n)), np.nan)
     status = np.where(good, NOT_CONVERGED, NO_GEOMETRY).astype(np.int8)
@@ -271,27 +274,7 @@ def _match_tile(images, models, x0, y0, lon, lat, h, params):
     base = [lon.copy(), lat.copy(), h.copy()]
     active = good.copy()
     for _ in range(PASSES):
-        mpgc_batch(
-            buf,
-            meta,
-            offs,
-            x0,
-            y0,
-            cen,
-            jac,
-            state,
-            dx,
-            active,
-            half,
-            params.max_iterations,
-            params.convergence,
-            params.sigma_geometry,
-            params.centre_sigma,
-            params.similarity,
-            out,
-            status,
-            iterations,
-        )
+        mpgc_batch(Stack(buf, meta, offs), x0, y0, cen, jac, state, dx, active, solve, out, status, iterations)
         moved = np.flatnonzero(active & (status == OK))
         point = offset_enu(base[0][moved], base[1][moved], base[2][moved], dx[moved])
         cen_new, jac_new = geometry(models, *point)

@@ -14,6 +14,7 @@ covariance of (E, N, U) (ee, en, eu, nn, nu, uu; m^2; both the sandwich N^-1 M N
 v'Pv and redundancy of the geometric observations, RMS of the geometric residuals (px)."""
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -115,12 +116,36 @@ def _geo_row(i, c, x0, y0, cen, jac, state, dx, coef):
     return col, proj - state[i - 1, 3 * c]
 
 
+class Stack(NamedTuple):
+    """The images' windows of a batch of points, packed: `buf` the pixels, `meta` each window's place in it
+    (`window`), `offs` each window's top-left image position."""
+
+    buf: np.ndarray
+    meta: np.ndarray
+    offs: np.ndarray
+
+
+class Solve(NamedTuple):
+    """MPGC's solution settings: template half-size (px), largest number of iterations, convergence (px), the a
+    priori sigma of the geometric observations (px), and the support weights' centre sigma and similarity (0:
+    off; support_weights)."""
+
+    half: int
+    max_iter: int
+    conv: float
+    sigma_g: float
+    centre: float
+    similarity: float
+
+
 @njit(cache=True, nogil=True)
-def mpgc_point(buf, meta, offs, x0, y0, cen, jac, state, dx, half, max_iter, conv, sigma_g, centre, similarity, out):
-    """Gauss-Newton MPGC of one point from the given state (updated in place); fills out.
-    Returns (status, iterations): 0 ok, 1 a window leaves its image, 2 singular normal equations
-    (flat texture, degenerate affine), 3 not converged within max_iter (state and out hold the
-    last iteration)."""
+def mpgc_point(stack, x0, y0, cen, jac, state, dx, solve, out):
+    """Gauss-Newton MPGC of one point from the given state (updated in place) in the windows `stack` (Stack) with
+    the settings `solve` (Solve); fills out. Returns (status, iterations): 0 ok, 1 a window leaves its image, 2
+    singular normal equations (flat texture, degenerate affine), 3 not converged within max_iter (state and out
+    hold the last iteration)."""
+    buf, meta, offs = stack
+    half, max_iter, conv, sigma_g, centre, similarity = solve
     for i in range(out.shape[0]):
         out[i] = np.nan
     n = state.shape[0]
@@ -391,47 +416,10 @@ def _precision(lower, mmat, n, npar, x0, y0, cen, jac, state, dx, wg, out):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def mpgc_batch(
-    buf,
-    meta,
-    offs,
-    x0,
-    y0,
-    cen,
-    jac,
-    state,
-    dx,
-    active,
-    half,
-    max_iter,
-    conv,
-    sigma_g,
-    centre,
-    similarity,
-    out,
-    status,
-    iterations,
-):
+def mpgc_batch(stack, x0, y0, cen, jac, state, dx, active, solve, out, status, iterations):
     """mpgc_point over the points with active[p] (parallel); iterations[p] accumulates."""
     for p in prange(x0.shape[0]):
         if active[p]:
-            st, it = mpgc_point(
-                buf,
-                meta,
-                offs,
-                x0[p],
-                y0[p],
-                cen[p],
-                jac[p],
-                state[p],
-                dx[p],
-                half,
-                max_iter,
-                conv,
-                sigma_g,
-                centre,
-                similarity,
-                out[p],
-            )
+            st, it = mpgc_point(stack, x0[p], y0[p], cen[p], jac[p], state[p], dx[p], solve, out[p])
             status[p] = st
             iterations[p] += it

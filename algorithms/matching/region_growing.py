@@ -37,11 +37,11 @@ from ..progress import ensure, step as progress_step
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .imagery import as_image
-from .lsm import LSM_OUT, match_accepted, to_records
+from .lsm import LSM_OUT, match_accepted, solver, to_records
 from .pair_geometry import local_affine, predict
 from .params import GrowParams
 from .records import PAIR_DTYPE
-from .region_growing_kernels import grow_kernel
+from .region_growing_kernels import Accept, Tile, grow_kernel
 from .resolution import adapt_resolution
 from .seeds import CELL, automatic_seeds, search_margin, seed_operator, seeds_from_points, window_pair
 
@@ -213,31 +213,12 @@ def _grow_tile(job, index, box):
 
     def grow(tile_seeds, seed_ids):
         rows = _seed_rows(tile_seeds, lattice, n_a, n_b, m_a, m_b, seed_ids)
+        tile = Tile(
+            win1, win2, float(ox1), float(oy1), float(ox2), float(oy2), float(gx0), float(gy0), float(step), nx, ny
+        )
+        accept = Accept(params.rho_min, params.max_ellipse, params.max_shift, params.max_iterations)
         return grow_kernel(
-            win1,
-            win2,
-            float(ox1),
-            float(oy1),
-            float(ox2),
-            float(oy2),
-            float(gx0),
-            float(gy0),
-            float(step),
-            nx,
-            ny,
-            rows,
-            half,
-            params.widest // 2,
-            params.max_iterations,
-            params.convergence,
-            params.tukey,
-            params.rho_min,
-            params.max_ellipse,
-            params.max_shift,
-            results,
-            state,
-            origin,
-            prior,
+            tile, rows, solver(params, half), solver(params, params.widest // 2), accept, results, state, origin, prior
         )
 
     def untried(x1, y1):

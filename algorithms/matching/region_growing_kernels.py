@@ -13,11 +13,41 @@ up, down) from its position transported by the affine (a1, a2, a4, a5): its own,
 prior for the tile. All kernels are nogil, so tiles run on threads."""
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from .lsm import OUTSIDE, lsm_point
+from .lsm import OUTSIDE, Start, lsm_point
+
+
+class Tile(NamedTuple):
+    """A tile's windows and lattice: img1, img2 are windows whose top-left corners lie at image positions (ox1,
+    oy1), (ox2, oy2); the nx x ny lattice nodes (node = row * nx + col) lie at image-1 positions (gx0 + col step,
+    gy0 + row step)."""
+
+    img1: np.ndarray
+    img2: np.ndarray
+    ox1: float
+    oy1: float
+    ox2: float
+    oy2: float
+    gx0: float
+    gy0: float
+    step: float
+    nx: int
+    ny: int
+
+
+class Accept(NamedTuple):
+    """The acceptance criteria: rho > rho_min, semi-major axis < max_ellipse (px), shift < max_shift (px),
+    iterations < max_iter."""
+
+    rho_min: float
+    max_ellipse: float
+    max_shift: float
+    max_iter: int
+
 
 _DC = np.array([-1, 1, 0, 0], np.int64)
 _DR = np.array([0, 0, -1, 1], np.int64)
@@ -76,95 +106,48 @@ def _pop(key, node, size):
 
 
 @njit(cache=True, nogil=True)
-def _passes(status, out, rho_min, max_ellipse, max_shift, max_iter):
+def _passes(status, out, accept):
     """The acceptance criteria."""
-    return status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift and out[6] < max_iter
+    return (
+        status == 0
+        and out[2] > accept.rho_min
+        and out[3] < accept.max_ellipse
+        and out[5] < accept.max_shift
+        and out[6] < accept.max_iter
+    )
 
 
 @njit(cache=True, nogil=True)
-def _attempt(
-    img1,
-    img2,
-    ox1,
-    oy1,
-    ox2,
-    oy2,
-    gx0,
-    gy0,
-    step,
-    nx,
-    node,
-    x2,
-    y2,
-    a1,
-    a2,
-    a4,
-    a5,
-    half,
-    whalf,
-    max_iter,
-    conv,
-    tukey,
-    rho_min,
-    max_ellipse,
-    max_shift,
-    out,
-    results,
-    state,
-):
-    """LSM at lattice node `node` from initial values in image coordinates, again with the wide
-    window (half-size whalf > half) where the match failed inside the image; stores the result
-    (image coordinates) and the state (1 accepted, 2 rejected); returns whether accepted."""
-    x1 = gx0 + (node % nx) * step - ox1
-    y1 = gy0 + (node // nx) * step - oy1
-    status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out, tukey)
-    ok = _passes(status, out, rho_min, max_ellipse, max_shift, max_iter)
-    if not ok and status != OUTSIDE and whalf > half:
-        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out, tukey)
-        ok = _passes(status, out, rho_min, max_ellipse, max_shift, max_iter)
+def _attempt(tile, node, start, solve, wide, accept, out, results, state):
+    """LSM at lattice node `node` of the Tile `tile` from the Start `start` (image coordinates) with the Solver
+    `solve`, again with the Solver `wide` (a larger half-size) where the match failed inside the image; stores
+    the result (image coordinates) and the state (1 accepted, 2 rejected); returns whether accepted."""
+    x1 = tile.gx0 + (node % tile.nx) * tile.step - tile.ox1
+    y1 = tile.gy0 + (node // tile.nx) * tile.step - tile.oy1
+    local = Start(start.x2 - tile.ox2, start.y2 - tile.oy2, start.a1, start.a2, start.a4, start.a5)
+    status = lsm_point(tile.img1, tile.img2, x1, y1, local, solve, out)
+    ok = _passes(status, out, accept)
+    if not ok and status != OUTSIDE and wide.half > solve.half:
+        status = lsm_point(tile.img1, tile.img2, x1, y1, local, wide, out)
+        ok = _passes(status, out, accept)
     for f in range(out.shape[0]):
         results[node, f] = out[f]
-    results[node, 0] += ox2
-    results[node, 1] += oy2
+    results[node, 0] += tile.ox2
+    results[node, 1] += tile.oy2
     state[node] = 1 if ok else 2
     return ok
 
 
 @njit(cache=True, nogil=True)
-def grow_kernel(
-    img1,
-    img2,
-    ox1,
-    oy1,
-    ox2,
-    oy2,
-    gx0,
-    gy0,
-    step,
-    nx,
-    ny,
-    seeds,
-    half,
-    whalf,
-    max_iter,
-    conv,
-    tukey,
-    rho_min,
-    max_ellipse,
-    max_shift,
-    results,
-    state,
-    origin,
-    prior,
-):
-    """Region growing on the nx x ny lattice of a tile (node = row * nx + col at image-1 position
-    (gx0 + col step, gy0 + row step)). img1/img2 are windows whose top-left corners lie at image
-    positions (ox1, oy1), (ox2, oy2). seeds: (ns, 8) rows (node, x2, y2, a1, a2, a4, a5, seed id)
-    of initial values in image coordinates, tried in order. Fills results (nodes, LSM_OUT; image
-    coordinates), state (0 untried, 1 accepted, 2 rejected) and origin (seed id per node).
-    prior: the models' (a1, a2, a4, a5) for the tile, the initial affine of every neighbour (the
-    popped point's own affine when prior is empty: as in Hofmann et al.); returns the number of LSM attempts."""
-    n = nx * ny
+def grow_kernel(tile, seeds, solve, wide, accept, results, state, origin, prior):
+    """Region growing on the lattice of the Tile `tile`. seeds: (ns, 8) rows (node, x2, y2, a1, a2, a4, a5, seed
+    id) of initial values in image coordinates, tried in order; LSM with the Solver `solve` (and `wide` where it
+    fails inside the images, when wide.half > solve.half), the Accept criteria `accept`. Fills results (nodes,
+    LSM_OUT; image coordinates), state (0 untried, 1 accepted, 2 rejected) and origin (seed id per node).
+    prior: the models' (a1, a2, a4, a5) for the tile, the initial affine of every neighbour (the popped point's
+    own affine when prior is empty: as in Hofmann et al.); returns the number of LSM attempts."""
+    nx = tile.nx
+    n = nx * tile.ny
     key = np.empty(n)
     hnode = np.empty(n, np.int64)
     size = 0
@@ -175,36 +158,8 @@ def grow_kernel(
         if node < 0 or node >= n or state[node] != 0:
             continue
         tries += 1
-        if _attempt(
-            img1,
-            img2,
-            ox1,
-            oy1,
-            ox2,
-            oy2,
-            gx0,
-            gy0,
-            step,
-            nx,
-            node,
-            seeds[s, 1],
-            seeds[s, 2],
-            seeds[s, 3],
-            seeds[s, 4],
-            seeds[s, 5],
-            seeds[s, 6],
-            half,
-            whalf,
-            max_iter,
-            conv,
-            tukey,
-            rho_min,
-            max_ellipse,
-            max_shift,
-            out,
-            results,
-            state,
-        ):
+        start = Start(seeds[s, 1], seeds[s, 2], seeds[s, 3], seeds[s, 4], seeds[s, 5], seeds[s, 6])
+        if _attempt(tile, node, start, solve, wide, accept, out, results, state):
             origin[node] = int(seeds[s, 7])
             size = _push(key, hnode, size, _quantise(results[node, 2]), node)
     while size > 0:
@@ -215,13 +170,13 @@ def grow_kernel(
         for d in range(4):
             cc = c + _DC[d]
             rr = r + _DR[d]
-            if cc < 0 or cc >= nx or rr < 0 or rr >= ny:
+            if cc < 0 or cc >= nx or rr < 0 or rr >= tile.ny:
                 continue
             nb = rr * nx + cc
             if state[nb] != 0:
                 continue
-            dk = _DC[d] * step
-            dl = _DR[d] * step
+            dk = _DC[d] * tile.step
+            dl = _DR[d] * tile.step
             a1 = results[node, 7]
             a2 = results[node, 8]
             a4 = results[node, 9]
@@ -232,36 +187,8 @@ def grow_kernel(
                 a4 = prior[2]
                 a5 = prior[3]
             tries += 1
-            if _attempt(
-                img1,
-                img2,
-                ox1,
-                oy1,
-                ox2,
-                oy2,
-                gx0,
-                gy0,
-                step,
-                nx,
-                nb,
-                results[node, 0] + a1 * dk + a2 * dl,
-                results[node, 1] + a4 * dk + a5 * dl,
-                a1,
-                a2,
-                a4,
-                a5,
-                half,
-                whalf,
-                max_iter,
-                conv,
-                tukey,
-                rho_min,
-                max_ellipse,
-                max_shift,
-                out,
-                results,
-                state,
-            ):
+            start = Start(results[node, 0] + a1 * dk + a2 * dl, results[node, 1] + a4 * dk + a5 * dl, a1, a2, a4, a5)
+            if _attempt(tile, nb, start, solve, wide, accept, out, results, state):
                 origin[nb] = origin[node]
                 size = _push(key, hnode, size, _quantise(results[nb, 2]), nb)
     return tries

@@ -5,7 +5,7 @@ import numpy as np
 from scipy import ndimage
 
 from pushbroom.algorithms.matching import ncc
-from pushbroom.algorithms.matching.coarse_to_fine_kernels import path_candidates
+from pushbroom.algorithms.matching.coarse_to_fine_kernels import Affines, Found, Paths, path_candidates
 
 
 def test_path_candidates_find_the_shift():
@@ -26,7 +26,18 @@ def test_path_candidates_find_the_shift():
     one = np.ones(3)
     out = [np.full((3, 2), np.nan) for _ in range(4)]
     second = np.full(3, np.nan)
-    path_candidates(img1, img2, x, y, half, cx, cy, one, 0 * one, 0 * one, one, heights, np.full(3, 0.7), *out, second)
+    path_candidates(
+        img1,
+        img2,
+        x,
+        y,
+        half,
+        Paths(cx, cy, heights),
+        Affines(one, 0 * one, 0 * one, one),
+        np.full(3, 0.7),
+        Found(*out),
+        second,
+    )
     h, rho, px, py = out
     assert np.allclose(h[:2, 0], 3.3, atol=0.05)
     assert np.allclose(px[:2, 0], x[:2] + h[:2, 0]) and np.allclose(py[:2, 0], y[:2], atol=0.05)

@@ -10,7 +10,7 @@ from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching import height_search as hs
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.steps.block_creation import CreateParams, create_block
-from pushbroom.algorithms.surface.intersection import intersect
+from pushbroom.algorithms.surface.intersection import Measurements, intersect
 from tests.helpers.feedback import Feedback
 
 NAMES = ("HRG", "HRS1", "HRS2")
@@ -57,7 +57,7 @@ def test_a_spot_block_without_height_finds_the_terrain(small_scene, small_scene_
     heights = []
     for other in (2, 3):
         obs = points.observations[np.isin(points.observations["image_id"], (1, other))]
-        result = intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"])
+        result = intersect(models, Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"]))
         heights.append(result.h[result.ok & (result.rays == 2)])
     heights = np.concatenate(heights)
     log = Feedback()

@@ -42,7 +42,9 @@ def test_one_gauss_newton_step_against_numpy():
     img2 = (5 + 1.1 * (100 + 30 * tex(0.98 * jj + 0.1 * ii - 0.4, ii * 1.02 + 0.7))).astype(np.float32)
     p = (20.2, 1.01, -0.05, 19.6, 0.02, 0.97, 0.0, 1.0)
     out = np.empty(lsm.LSM_OUT)
-    status = lsm.lsm_point(img1, img2, 20.5, 20.5, p[0], p[3], p[1], p[2], p[4], p[5], 7, 1, 1e-9, out)
+    status = lsm.lsm_point(
+        img1, img2, 20.5, 20.5, lsm.Start(p[0], p[3], p[1], p[2], p[4], p[5]), lsm.Solver(7, 1, 1e-9), out
+    )
     assert status == lsm.NOT_CONVERGED
     ref, rho, _ = gn_step_reference(img1, img2, 20.5, 20.5, p, 7)
     got = dict(zip(lsm.LSM_FIELDS, out))
@@ -125,17 +127,38 @@ def test_bad_input_statuses():
     img = (100 + 30 * ndimage.gaussian_filter(rng.normal(size=(40, 40)), 1.5)).astype(np.float32)
     out = np.empty(lsm.LSM_OUT)
     # window outside image 2 / image 1
-    assert lsm.lsm_point(img, img, 20.5, 20.5, 5.0, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.OUTSIDE
-    assert lsm.lsm_point(img, img, 5.5, 20.5, 20.5, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.OUTSIDE
-    assert lsm.lsm_point(img, img, 20.5, 20.5, np.nan, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.OUTSIDE
+    assert (
+        lsm.lsm_point(img, img, 20.5, 20.5, lsm.Start(5.0, 20.5, 1.0, 0.0, 0.0, 1.0), lsm.Solver(9, 10, 0.01), out)
+        == lsm.OUTSIDE
+    )
+    assert (
+        lsm.lsm_point(img, img, 5.5, 20.5, lsm.Start(20.5, 20.5, 1.0, 0.0, 0.0, 1.0), lsm.Solver(9, 10, 0.01), out)
+        == lsm.OUTSIDE
+    )
+    assert (
+        lsm.lsm_point(img, img, 20.5, 20.5, lsm.Start(np.nan, 20.5, 1.0, 0.0, 0.0, 1.0), lsm.Solver(9, 10, 0.01), out)
+        == lsm.OUTSIDE
+    )
     # blank search image, blank template, NaN-filled image: singular, never an exception or a hang
     blank = np.full((40, 40), 7.0, np.float32)
-    assert lsm.lsm_point(img, blank, 20.5, 20.5, 20.5, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.SINGULAR
-    assert lsm.lsm_point(blank, img, 20.5, 20.5, 20.5, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.SINGULAR
+    assert (
+        lsm.lsm_point(img, blank, 20.5, 20.5, lsm.Start(20.5, 20.5, 1.0, 0.0, 0.0, 1.0), lsm.Solver(9, 10, 0.01), out)
+        == lsm.SINGULAR
+    )
+    assert (
+        lsm.lsm_point(blank, img, 20.5, 20.5, lsm.Start(20.5, 20.5, 1.0, 0.0, 0.0, 1.0), lsm.Solver(9, 10, 0.01), out)
+        == lsm.SINGULAR
+    )
     nan = np.full((40, 40), np.nan, np.float32)
-    assert lsm.lsm_point(nan, nan, 20.5, 20.5, 20.5, 20.5, 1.0, 0.0, 0.0, 1.0, 9, 10, 0.01, out) == lsm.SINGULAR
+    assert (
+        lsm.lsm_point(nan, nan, 20.5, 20.5, lsm.Start(20.5, 20.5, 1.0, 0.0, 0.0, 1.0), lsm.Solver(9, 10, 0.01), out)
+        == lsm.SINGULAR
+    )
     # degenerate affine
-    assert lsm.lsm_point(img, img, 20.5, 20.5, 20.5, 20.5, 0.0, 0.0, 0.0, 0.0, 9, 10, 0.01, out) == lsm.SINGULAR
+    assert (
+        lsm.lsm_point(img, img, 20.5, 20.5, lsm.Start(20.5, 20.5, 0.0, 0.0, 0.0, 0.0), lsm.Solver(9, 10, 0.01), out)
+        == lsm.SINGULAR
+    )
     # the vectorised front end, with acceptance
     rec, status = lsm.match_points(img, blank, [20.5, 20.5], [20.5, 20.5], [20.5, 2.0], [20.5, 20.5])
     assert list(status) == [lsm.SINGULAR, lsm.OUTSIDE]
@@ -208,7 +231,9 @@ def test_robust_step_against_numpy():
     img2 = (100 + 30 * tex(jj - 0.3 - np.where(jj > 24.5, 3.0, 0.0), ii + 0.2)).astype(np.float32)
     p = (20.7, 1.0, 0.0, 20.4, 0.0, 1.0, 0.0, 1.0)
     out = np.empty(lsm.LSM_OUT)
-    status = lsm.lsm_point(img1, img2, 20.5, 20.5, p[0], p[3], p[1], p[2], p[4], p[5], 7, 2, 1e-9, out, TUKEY_C)
+    status = lsm.lsm_point(
+        img1, img2, 20.5, 20.5, lsm.Start(p[0], p[3], p[1], p[2], p[4], p[5]), lsm.Solver(7, 2, 1e-9, TUKEY_C), out
+    )
     assert status == lsm.NOT_CONVERGED
     first, _, v0 = gn_step_reference(img1, img2, 20.5, 20.5, p, 7)
     scale = TUKEY_C * np.sqrt(np.mean(v0**2))

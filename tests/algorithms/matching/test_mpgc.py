@@ -254,7 +254,8 @@ def test_gauss_newton_steps_against_numpy(steps, support):
     buf, meta, offs_k = pack(images, offs)
     st, dxk = state.copy(), dx.copy()
     out = np.empty(kern.out_size(2))
-    status, it = kern.mpgc_point(buf, meta, offs_k, x0, y0, cen, jac, st, dxk, 7, steps, 1e-12, 0.3, *support, out)
+    stack, solve = kern.Stack(buf, meta, offs_k), kern.Solve(7, steps, 1e-12, 0.3, *support)
+    status, it = kern.mpgc_point(stack, x0, y0, cen, jac, st, dxk, solve, out)
     assert (status, it) == (lsm.NOT_CONVERGED, steps)
     np.testing.assert_allclose(st, ref_state, rtol=1e-7, atol=1e-7)
     np.testing.assert_allclose(dxk, ref_dx, rtol=1e-7, atol=1e-7)
@@ -272,24 +273,7 @@ def test_gauss_newton_steps_against_numpy(steps, support):
     st2, dx2 = state[None].copy(), dx[None].copy()
     outb, statb, itb = np.empty((1, kern.out_size(2))), np.zeros(1, np.int8), np.zeros(1, np.int64)
     kern.mpgc_batch(
-        buf,
-        meta,
-        offs_k,
-        np.array([x0]),
-        np.array([y0]),
-        cen[None],
-        jac[None],
-        st2,
-        dx2,
-        np.ones(1, bool),
-        7,
-        steps,
-        1e-12,
-        0.3,
-        *support,
-        outb,
-        statb,
-        itb,
+        stack, np.array([x0]), np.array([y0]), cen[None], jac[None], st2, dx2, np.ones(1, bool), solve, outb, statb, itb
     )
     np.testing.assert_array_equal(st2[0], st)
     np.testing.assert_array_equal(outb[0], out)

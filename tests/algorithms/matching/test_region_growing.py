@@ -10,45 +10,22 @@ import pytest
 
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.matching.imagery import Image, Smoothed, Window
-from pushbroom.algorithms.matching.lsm import LSM_OUT, lsm_point
+from pushbroom.algorithms.matching.lsm import LSM_OUT, Solver, Start, lsm_point
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import Lattice, match_pair, transfer_points
-from pushbroom.algorithms.matching.region_growing_kernels import _DC, _DR, _quantise, grow_kernel
+from pushbroom.algorithms.matching.region_growing_kernels import _DC, _DR, Accept, Tile, _quantise, grow_kernel
 from pushbroom.algorithms.matching.resolution import adapt_resolution
 from tests.helpers.feedback import Feedback
 from tests.helpers.matching_scene import DISCONTINUOUS, LOW_CONTRAST_DN, SINGLE_SURFACE
 
 
-def grow_reference(
-    img1,
-    img2,
-    ox1,
-    oy1,
-    ox2,
-    oy2,
-    gx0,
-    gy0,
-    step,
-    nx,
-    ny,
-    seeds,
-    half,
-    whalf,
-    max_iter,
-    conv,
-    tukey,
-    rho_min,
-    max_ellipse,
-    max_shift,
-    results,
-    state,
-    origin,
-    prior,
-):
+def grow_reference(tile, seeds, solve, wide, accept, results, state, origin, prior):
     """Plain-Python reference of region_growing_kernels.grow_kernel (heapq; same arguments and outputs)."""
     heap = []
     out = np.empty(results.shape[1])
     tries = 0
+
+    img1, img2, ox1, oy1, ox2, oy2, gx0, gy0, step, nx, ny = tile
 
     def attempt(node, x2, y2, a1, a2, a4, a5):
         x1 = gx0 + (node % nx) * step - ox1
@@ -56,15 +33,18 @@ def grow_reference(
 
         def criteria(status):
             return bool(
-                status == 0 and out[2] > rho_min and out[3] < max_ellipse and out[5] < max_shift and out[6] < max_iter
+                status == 0
+                and out[2] > accept.rho_min
+                and out[3] < accept.max_ellipse
+                and out[5] < accept.max_shift
+                and out[6] < accept.max_iter
             )
 
-        status = lsm_point(img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, half, max_iter, conv, out, tukey)
+        start = Start(x2 - ox2, y2 - oy2, a1, a2, a4, a5)
+        status = lsm_point(img1, img2, x1, y1, start, solve, out)
         ok = criteria(status)
-        if not ok and status != 1 and whalf > half:  # failed inside the images: the wide window
-            status = lsm_point(
-                img1, img2, x1, y1, x2 - ox2, y2 - oy2, a1, a2, a4, a5, whalf, max_iter, conv, out, tukey
-            )
+        if not ok and status != 1 and wide.half > solve.half:  # failed inside the images: the wide window
+            status = lsm_point(img1, img2, x1, y1, start, wide, out)
             ok = criteria(status)
         results[node] = out
         results[node, 0] += ox2
@@ -136,32 +116,9 @@ def kernel_case(prior, whalf, contrast=1.0, noise=0.0):
         results = np.full((nx * ny, LSM_OUT), np.nan)
         state = np.zeros(nx * ny, np.int8)
         origin = np.full(nx * ny, -1, np.int64)
-        tries = fn(
-            img1,
-            img2,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            7.5,
-            7.5,
-            float(step),
-            nx,
-            ny,
-            seeds,
-            half,
-            whalf,
-            10,
-            0.01,
-            0.0,
-            0.6,
-            0.1,
-            2.5,
-            results,
-            state,
-            origin,
-            prior,
-        )
+        tile = Tile(img1, img2, 0.0, 0.0, 0.0, 0.0, 7.5, 7.5, float(step), nx, ny)
+        solve, wide = Solver(half, 10, 0.01, 0.0), Solver(whalf, 10, 0.01, 0.0)
+        tries = fn(tile, seeds, solve, wide, Accept(0.6, 0.1, 2.5, 10), results, state, origin, prior)
         outs.append((results, state, origin, tries))
     return outs, nx, step
 
