@@ -8,7 +8,9 @@ one that leaves far fewer points, measured points or measurements than the block
 (replacement.py) unless asked for. measurements.py edits single points and measurements. The CSV format and its parsing:
 adjustment/control_points.py."""
 
-from typing import Optional
+from __future__ import annotations
+
+from collections.abc import Mapping
 
 import numpy as np
 from osgeo import ogr
@@ -18,6 +20,7 @@ from ..adjustment.control_points import ROLES, summary
 from ..adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from ..crs import wgs84
 from ..errors import InputError
+from ..progress import Feedback
 from . import schema
 from .images import image_ids
 from .replacement import Tally, check_replacement
@@ -36,7 +39,7 @@ MEAS_FIELDS = [
 ]
 
 
-def merge(old, new):
+def merge(old: Observations, new: Observations) -> Observations:
     """`old` updated by `new`: a point of `new` replaces the point of the same name (role,
     coordinates, sigmas; in old's order) or is appended; its measurements replace old's in the
     same images, old's measurements in other images are kept."""
@@ -46,7 +49,7 @@ def merge(old, new):
     points = np.zeros(len(names), POINT_DTYPE)
     points[: len(old.points)] = old.points
     points[[index[n] for n in new.points["name"]]] = new.points
-    by_key = {}
+    by_key: dict[tuple[int, int], tuple[int, int, float, float, float]] = {}
     for obs in (old, new):
         for m in obs.measurements:
             key = (index[obs.points["name"][m["point"]]], int(m["image_id"]))
@@ -54,7 +57,7 @@ def merge(old, new):
     return Observations(points, np.array(list(by_key.values()), MEAS_DTYPE)).sorted().check()
 
 
-def layers(ds):
+def layers(ds: ogr.DataSource) -> tuple[ogr.Layer, ogr.Layer]:
     """The control_points layer and image_measurements table of an open block (created if missing, with the
     triggers that count their changes: schema.control_point_triggers)."""
     points = ds.GetLayerByName(LAYER) or schema.create_layer(ds, LAYER, ogr.wkbPoint25D, wgs84(), POINT_FIELDS)
@@ -63,11 +66,12 @@ def layers(ds):
     return points, table
 
 
-def write_point(layer, p, feat=None):
+def write_point(layer: ogr.Layer, p: np.void, feat: ogr.Feature | None = None) -> None:
     """Store point record `p` (POINT_DTYPE) in the control_points layer: as a new feature, or into
     `feat` (an existing feature of the layer; its other fields, such as residual_px, kept)."""
     new = feat is None
-    feat = ogr.Feature(layer.GetLayerDefn()) if new else feat
+    if feat is None:
+        feat = ogr.Feature(layer.GetLayerDefn())
     for name, _ in POINT_FIELDS:
         feat[name] = p[name].item()
     geom = ogr.Geometry(ogr.wkbPoint25D)
@@ -76,7 +80,7 @@ def write_point(layer, p, feat=None):
     (layer.CreateFeature if new else layer.SetFeature)(feat)
 
 
-def write_measurement(table, name, m):
+def write_measurement(table: ogr.Layer, name: str, m: np.void) -> None:
     """A new row of the image_measurements table: measurement `m` (MEAS_DTYPE) of point `name`."""
     feat = ogr.Feature(table.GetLayerDefn())
     feat["point_name"] = name
@@ -85,7 +89,7 @@ def write_measurement(table, name, m):
     table.CreateFeature(feat)
 
 
-def read_stored(ds, block_path):
+def read_stored(ds: ogr.DataSource, block_path: str) -> Observations:
     """The Observations stored in the open block `ds` (see load_control_points)."""
     points_layer, table = ds.GetLayerByName(LAYER), ds.GetLayerByName(TABLE)
     if points_layer is None:
@@ -101,15 +105,14 @@ def read_stored(ds, block_path):
                 "import the points again"
             )
         meas.append((index[feat["point_name"]], feat["image_id"], feat["col"], feat["row"], feat["sigma"]))
-    meas = np.array(meas, MEAS_DTYPE)
-    return Observations(points, meas).sorted()
+    return Observations(points, np.array(meas, MEAS_DTYPE)).sorted()
 
 
 def tallies(stored: Observations, new: Observations) -> list[Tally]:
     """The counts `save_control_points` compares (replacement.py) of the Observations `stored` and `new`:
     points, points measured in at least one image, image measurements."""
 
-    def counts(obs):
+    def counts(obs: Observations) -> tuple[int, int, int]:
         return (len(obs.points), len(set(obs.measurements["point"].tolist())), len(obs.measurements))
 
     return [
@@ -120,7 +123,7 @@ def tallies(stored: Observations, new: Observations) -> list[Tally]:
     ]
 
 
-def load_control_points(block_path):
+def load_control_points(block_path: str) -> Observations:
     """The control/check points stored in the block and their measurements (image ids = block
     image ids); empty Observations when none were imported."""
     ds = schema.open_block(block_path)
@@ -131,8 +134,8 @@ def save_control_points(
     block_path: str,
     observations: Observations,
     mode: str = "replace",
-    feedback=None,
-    names: Optional[dict] = None,
+    feedback: Feedback | None = None,
+    names: Mapping[str, int] | None = None,
     replace_fewer: bool = False,
 ) -> Observations:
     """Store `observations` (control/check points only) in the block, replacing its points
@@ -175,12 +178,12 @@ def save_control_points(
             write_measurement(table, observations.points["name"][m["point"]].item(), m)
         progress.step(feedback, 90.0)
         ds.ExecuteSQL(f"RECOMPUTE EXTENT ON {LAYER}")
-        roles = observations.points["role"]
+        point_roles = observations.points["role"]
         schema.write_info(
             ds,
             {
-                "control_points": int((roles == "control").sum()),
-                "check_points": int((roles == "check").sum()),
+                "control_points": int((point_roles == "control").sum()),
+                "check_points": int((point_roles == "check").sum()),
                 "image_measurements": len(observations.measurements),
             },
             step="importpoints",

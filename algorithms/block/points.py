@@ -36,6 +36,8 @@ unless `replace_fewer`. The spacing is the stats' SPACING key of the kind (the m
 reference image, the tie point cell): a sidecar without it is compared by its count alone.
 """
 
+from __future__ import annotations
+
 import contextlib
 import functools
 import json
@@ -45,8 +47,8 @@ import secrets
 import shutil
 import sqlite3
 import zipfile
-from collections.abc import Callable
-from typing import Optional
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from osgeo import ogr
@@ -56,6 +58,8 @@ from ..atomic import atomic_path
 from ..crs import wgs84
 from ..errors import InputError, StorageError
 from ..matching.points import MultiPoints
+from ..progress import Feedback
+from ..sensors.base import SensorModel
 from . import schema
 from .replacement import Tally, check_replacement
 
@@ -86,18 +90,26 @@ MAKERS = {"mass_points": "pushbroom:matchpoints", "tie_points": "pushbroom:selec
 #: the stats key of each kind's spacing in the reference image (px; module docstring)
 SPACING = {"mass_points": "spacing_px", "tie_points": "tie_cell"}
 
+#: what a point layer is drawn with: (sensor model, image id, mean ellipsoidal height) of the image whose
+#: observations are projected (write_point_layer)
+Display = tuple[SensorModel, int, float]
+#: a part's entry in a sidecar's index (save_part): file, points, observations, first_id, last_id, groups
+PartEntry = dict[str, Any]
+#: writes the parts of a new sidecar into the folder it is given; returns (their index entries, the run's stats)
+Fill = Callable[[str], tuple[list[PartEntry], dict[str, Any]]]
 
-def _folder(block_path) -> str:
+
+def _folder(block_path: str | os.PathLike[str]) -> str:
     """The folder of the block's point folders: the real block file's (schema.real_path)."""
     return os.path.dirname(schema.real_path(block_path))
 
 
-def _stem(block_path) -> str:
+def _stem(block_path: str | os.PathLike[str]) -> str:
     """The name stem of the block's point folders: the real block file's (schema.real_path)."""
     return os.path.splitext(os.path.basename(schema.real_path(block_path)))[0]
 
 
-def _sidecar_name(block_path, kind: str) -> re.Pattern:
+def _sidecar_name(block_path: str | os.PathLike[str], kind: str) -> re.Pattern[str]:
     """The names of the point folders (and the one-file sidecars of earlier versions) of `kind` beside the
     block: a versioned folder or .npz file (groups: writer host, pid), or the unversioned .npz of the first
     versions."""
@@ -107,7 +119,7 @@ def _sidecar_name(block_path, kind: str) -> re.Pattern:
     )
 
 
-def sidecars(block_path) -> list:
+def sidecars(block_path: str | os.PathLike[str]) -> list[str]:
     """The paths of every point folder (or one-file sidecar) of the block beside it, of every kind: the
     referenced ones and those a killed store left."""
     folder = _folder(block_path)
@@ -119,7 +131,7 @@ def sidecars(block_path) -> list:
     return [os.path.join(folder, name) for name in names if any(p.match(name) for p in patterns)]
 
 
-def save_arrays(path, points):
+def save_arrays(path: str, points: MultiPoints) -> str:
     """Write `points` (MultiPoints) to the .npz `path` atomically (one part of a sidecar)."""
     with atomic_path(path, "the point file") as tmp:
         with open(tmp, "wb") as f:
@@ -133,11 +145,11 @@ def save_arrays(path, points):
     return path
 
 
-def _damaged(path, step, exc):
+def _damaged(path: str, step: str, exc: BaseException) -> StorageError:
     return StorageError(f"the point file {path} is damaged ({exc}): it was cut short or overwritten; run {step} again")
 
 
-def _read_part(path, step):
+def _read_part(path: str, step: str) -> MultiPoints:
     try:
         with np.load(path, allow_pickle=False) as data:
             if "format" not in data.files or str(data["format"]) != FILE_FORMAT:
@@ -147,12 +159,17 @@ def _read_part(path, step):
         raise _damaged(path, step, exc) from None
 
 
-def read_index(path, step="the matching step"):
+def read_index(path: str, step: str = "the matching step") -> dict[str, Any] | None:
     """The index of the sidecar folder `path` (module docstring), or None for a one-file sidecar."""
     if not os.path.exists(path):
         raise InputError(f"point file {path} is missing: run {step} again")
     if not os.path.isdir(path):
         return None
+    return _folder_index(path, step)
+
+
+def _folder_index(path: str, step: str) -> dict[str, Any]:
+    """The index of the sidecar folder `path` (read_index, for a path known to be a folder)."""
     try:
         with open(os.path.join(path, INDEX), encoding="utf-8") as f:
             index = json.load(f)
@@ -163,19 +180,19 @@ def read_index(path, step="the matching step"):
     return index
 
 
-def read_stats(path, step="the matching step"):
+def read_stats(path: str, step: str = "the matching step") -> dict[str, Any]:
     """The stats of the points of the sidecar `path` (a folder, or one .npz file)."""
     index = read_index(path, step)
     return index["stats"] if index is not None else _read_part(path, step).stats
 
 
-def point_parts(path, step="the matching step"):
+def point_parts(path: str, step: str = "the matching step") -> list[str]:
     """The part files of the sidecar `path` (a folder, or one .npz file), in point id order."""
     index = read_index(path, step)
     return [os.fspath(path)] if index is None else [os.path.join(path, p["file"]) for p in index["parts"]]
 
 
-def load_arrays(path, step="the matching step"):
+def load_arrays(path: str, step: str = "the matching step") -> MultiPoints:
     """Read the MultiPoints of a sidecar folder written by `store_points` (all parts), or of one part or
     .npz file written by `save_arrays`; a damaged file (cut short, overwritten) is a StorageError that
     names it."""
@@ -190,7 +207,7 @@ def load_arrays(path, step="the matching step"):
     )
 
 
-def save_part(folder, k, points):
+def save_part(folder: str, k: int, points: MultiPoints) -> PartEntry:
     """Write `points` (MultiPoints, ids ascending, with their observations) as the k-th part of the sidecar
     folder being written at `folder`; returns its index entry. What a tile task writes (store_points)."""
     name = f"part-{k:05d}.npz"
@@ -207,7 +224,7 @@ def save_part(folder, k, points):
     }
 
 
-def write_index(folder, entries, stats):
+def write_index(folder: str, entries: Iterable[PartEntry], stats: Mapping[str, Any]) -> None:
     """Write the index of the sidecar folder at `folder` from its parts' entries (save_part) and `stats`."""
     entries = [e for e in entries if e["points"]]
     atomic.write_text(
@@ -220,7 +237,7 @@ def write_index(folder, entries, stats):
     )
 
 
-def split_parts(folder, points, part_points=None):
+def split_parts(folder: str, points: MultiPoints, part_points: int | None = None) -> list[PartEntry]:
     """Write `points` (MultiPoints) into the sidecar folder at `folder` as parts of `part_points` (default
     PART_POINTS) points in id order; returns their index entries."""
     part_points = int(part_points or PART_POINTS)
@@ -235,7 +252,7 @@ def split_parts(folder, points, part_points=None):
     ]
 
 
-def _remove_orphan_sidecars(block_path, kind, keep):
+def _remove_orphan_sidecars(block_path: str, kind: str, keep: str) -> None:
     """Remove the sidecars of `kind` other than `keep` whose writer has gone (unversioned ones: always)."""
     folder = _folder(block_path)
     pattern = _sidecar_name(block_path, kind)
@@ -249,7 +266,7 @@ def _remove_orphan_sidecars(block_path, kind, keep):
             _remove_sidecar(os.path.join(folder, name))
 
 
-def _remove_sidecar(path):
+def _remove_sidecar(path: str) -> None:
     """Remove a sidecar: a folder or, of earlier versions, one file."""
     if os.path.isdir(path):
         shutil.rmtree(path, ignore_errors=True)
@@ -258,7 +275,7 @@ def _remove_sidecar(path):
             os.unlink(path)
 
 
-def _drop_layers(block_path, names):
+def _drop_layers(block_path: str, names: Sequence[str]) -> None:
     if names:
         with schema.transaction(block_path, "the clean-up of an interrupted store") as ds:
             for name in names:
@@ -266,7 +283,7 @@ def _drop_layers(block_path, names):
                     ds.DeleteLayer(name)
 
 
-def _drop_orphan_layers(block_path, layer_name):
+def _drop_orphan_layers(block_path: str, layer_name: str) -> None:
     """Drop the staged layers of `layer_name` whose writer has gone (a killed store's)."""
     pattern = re.compile(rf"^{re.escape(layer_name)}__staged_([A-Za-z0-9_]+)_(\d+)$")
     ds = schema.open_block(block_path)
@@ -279,7 +296,9 @@ def _drop_orphan_layers(block_path, layer_name):
 
 
 @contextlib.contextmanager
-def _staged_layer(block_path, layer_name, points, display, feedback):
+def _staged_layer(
+    block_path: str, layer_name: str, points: MultiPoints | str, display: Display | None, feedback: Feedback | None
+) -> Iterator[str | None]:
     """Build the point layer of `points` (a MultiPoints or a sidecar folder; display = (model, image id,
     height)) under a staged name and
     yield that name (None without `display`); dropped again where the switch did not happen."""
@@ -297,7 +316,7 @@ def _staged_layer(block_path, layer_name, points, display, feedback):
         raise
 
 
-def _switch(ds, staged, layer_name):
+def _switch(ds: ogr.DataSource, staged: str | None, layer_name: str) -> None:
     """Inside the caller's transaction: the staged layer replaces `layer_name`."""
     if staged is None:
         return
@@ -310,8 +329,8 @@ def save_points(
     block_path: str,
     points: MultiPoints,
     kind: str = "mass_points",
-    display: Optional[tuple] = None,
-    feedback=None,
+    display: Display | None = None,
+    feedback: Feedback | None = None,
     replace_fewer: bool = False,
 ) -> str:
     """Store `points` (MultiPoints) beside the block as a new sidecar of `kind` and, given `display` = (sensor
@@ -323,13 +342,13 @@ def save_points(
     )
 
 
-def _spacing(stats: Optional[dict], kind: str) -> Optional[float]:
+def _spacing(stats: Mapping[str, Any] | None, kind: str) -> float | None:
     """The spacing (px) of the points of `kind` with run stats `stats`, or None where not recorded."""
     value = (stats or {}).get(SPACING[kind])
     return float(value) if isinstance(value, (int, float)) and value > 0 else None
 
 
-def _tally(block_path: str, kind: str, stored_name: Optional[str], index: dict) -> Tally:
+def _tally(block_path: str, kind: str, stored_name: str | None, index: Mapping[str, Any]) -> Tally:
     """The Tally of the points of `kind` in the new sidecar's `index` against the stored sidecar `stored_name`
     (None: none); a stored sidecar that is missing or damaged counts as none, so that it can be replaced."""
     name = kind.replace("_", " ")
@@ -349,9 +368,9 @@ def _tally(block_path: str, kind: str, stored_name: Optional[str], index: dict) 
 def store_points(
     block_path: str,
     kind: str,
-    fill: Callable[[str], tuple],
-    display: Optional[tuple] = None,
-    feedback=None,
+    fill: Fill,
+    display: Display | None = None,
+    feedback: Feedback | None = None,
     replace_fewer: bool = False,
 ) -> str:
     """`save_points` of points that `fill(folder)` writes into the new sidecar folder (save_part: e.g. the
@@ -371,7 +390,7 @@ def store_points(
             entries, stats = fill(tmp)
             write_index(tmp, entries, stats)
         progress.step(feedback, 5)
-        index = read_index(path)
+        index = _folder_index(path, "the matching step")  # atomic_dir wrote a folder
         check_replacement(
             [_tally(block_path, kind, old, index)],
             replace_fewer,
@@ -407,7 +426,7 @@ def store_points(
     return path
 
 
-def sidecar_path(block_path, kind="mass_points"):
+def sidecar_path(block_path: str, kind: str = "mass_points") -> str:
     """The sidecar of the points of `kind` stored with the schema (InputError where there is none)."""
     info = schema.read_info(block_path)
     if kind not in info:
@@ -417,17 +436,25 @@ def sidecar_path(block_path, kind="mass_points"):
     return os.path.join(_folder(block_path), info[kind])
 
 
-def load_points(block_path, kind="mass_points"):
+def load_points(block_path: str, kind: str = "mass_points") -> MultiPoints:
     """The MultiPoints of `kind` stored with the schema, all parts at once."""
     return load_arrays(sidecar_path(block_path, kind), MAKERS.get(kind, "the step"))
 
 
-def layer_source(block_path, layer_name):
+def layer_source(block_path: str | os.PathLike[str], layer_name: str) -> str:
     """The OGR source string of a point layer of the schema."""
     return f"{os.fspath(block_path)}|layername={layer_name}"
 
 
-def write_point_layer(block_path, layer_name, points, model, image_id, height, feedback=None):
+def write_point_layer(
+    block_path: str,
+    layer_name: str,
+    points: MultiPoints,
+    model: SensorModel,
+    image_id: int,
+    height: float,
+    feedback: Feedback | None = None,
+) -> str:
     """Write `points` (MultiPoints) as the point layer `layer_name` (EPSG:4326; fields id, group, rho =
     rho_min) of the block, replacing an existing one in one switch (built under a staged name first, as
     `save_points` does). Display only: it can be rebuilt from the stored points at any time.
@@ -448,7 +475,7 @@ def write_point_layer(block_path, layer_name, points, model, image_id, height, f
     return layer_source(block_path, layer_name)
 
 
-def _parts_of(points):
+def _parts_of(points: MultiPoints | str) -> list[MultiPoints | Callable[[], MultiPoints]]:
     """The parts to display: a MultiPoints as one part, or the part files of a sidecar folder (read one at a
     time)."""
     if isinstance(points, MultiPoints):
@@ -456,7 +483,15 @@ def _parts_of(points):
     return [functools.partial(load_arrays, p) for p in point_parts(points)]
 
 
-def _write_layer(block_path, layer_name, points, model, image_id, height, feedback=None):
+def _write_layer(
+    block_path: str,
+    layer_name: str,
+    points: MultiPoints | str,
+    model: SensorModel,
+    image_id: int,
+    height: float,
+    feedback: Feedback | None = None,
+) -> None:
     """Create the point layer `layer_name` of `points` (a MultiPoints, or a sidecar folder read part by
     part) in the block (write_point_layer's content)."""
     what = f"the layer {layer_name}"
@@ -471,9 +506,11 @@ def _write_layer(block_path, layer_name, points, model, image_id, height, feedba
     progress.step(feedback, 10)
     parts = _parts_of(points)
     index = None if isinstance(points, MultiPoints) else read_index(points)
-    if index is None and not isinstance(parts[0], MultiPoints):
-        parts = [parts[0]()]  # a one-file sidecar: its one part, read once
-    total = index["points"] if index is not None else len(parts[0])
+    if index is not None:
+        total = index["points"]
+    else:  # a MultiPoints, or a one-file sidecar: its one part, read once
+        first = parts[0] if isinstance(parts[0], MultiPoints) else parts[0]()
+        parts, total = [first], len(first)
     share = min(1.0, DISPLAY_POINTS / max(total, 1))
     if share < 1.0:
         progress.ensure(feedback).pushInfo(
@@ -508,7 +545,15 @@ def _write_layer(block_path, layer_name, points, model, image_id, height, feedba
     progress.step(feedback, 100)
 
 
-def _insert_rows(db, layer_name, points, model, image_id, height, share=1.0):
+def _insert_rows(
+    db: sqlite3.Connection,
+    layer_name: str,
+    points: MultiPoints,
+    model: SensorModel,
+    image_id: int,
+    height: float,
+    share: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
     """Insert the rows of `points` seen in image `image_id` into the layer through `db`, of a `share` < 1
     those whose hashed id falls below it (module docstring); returns their (lon, lat)."""
     ids, col, row = points.observations_of(image_id)

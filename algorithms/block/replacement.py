@@ -16,12 +16,14 @@ nothing new is left behind. An error, not a warning: a script or a graphical mod
 running the next steps on nothing. With `replace_fewer` (the steps' REPLACE_FEWER) it is stored, with a
 warning. Where nothing (or nothing readable) is stored, any result is stored."""
 
+from __future__ import annotations
+
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Optional
 
 from .. import progress
 from ..errors import InputError
+from ..progress import Feedback
 
 #: a new count below this share of the stored one (scaled by `Tally.expected`) is far fewer
 FAR_FEWER = 0.5
@@ -34,7 +36,7 @@ class Tally:
     name: str  # what is counted, plural ("mass points")
     stored: int
     new: int
-    expected: Optional[float] = None  # the stored result's count under the new settings (None: `stored`)
+    expected: float | None = None  # the stored result's count under the new settings (None: `stored`)
 
     @property
     def reference(self) -> float:
@@ -53,7 +55,12 @@ class Tally:
 
 
 def check_replacement(
-    tallies: Sequence[Tally], replace_fewer: bool, what: str, step: str, hint: str = "", feedback=None
+    tallies: Sequence[Tally],
+    replace_fewer: bool,
+    what: str,
+    step: str,
+    hint: str = "",
+    feedback: Feedback | None = None,
 ) -> None:
     """Refuse (InputError) a new result of which a count is far fewer than the stored one's (module docstring),
     unless `replace_fewer`: then warn through `feedback`. `what`: the stored result ("mass points"); `step`: the

@@ -15,6 +15,11 @@ are adjustment/residual_rows.py's:
 or renamed since are absent (a point created later under an old name shows the old residuals
 until the next adjustment)."""
 
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
 import numpy as np
 from osgeo import ogr
 
@@ -29,7 +34,7 @@ POINT_FIELDS = [("point_name", ogr.OFTString), ("role", ogr.OFTString)] + [
 ]
 
 
-def _table(ds, name, fields):
+def _table(ds: ogr.DataSource, name: str, fields: Sequence[tuple[str, int]]) -> ogr.Layer:
     """The (emptied) residual table `name` of an open block, created if missing."""
     layer = ds.GetLayerByName(name)
     if layer is None:
@@ -38,7 +43,7 @@ def _table(ds, name, fields):
     return layer
 
 
-def _write(layer, fields, rows):
+def _write(layer: ogr.Layer, fields: Sequence[tuple[str, int]], rows: Iterable[Sequence[Any]]) -> None:
     for row in rows:
         feat = ogr.Feature(layer.GetLayerDefn())
         for (key, kind), value in zip(fields, row):
@@ -49,7 +54,9 @@ def _write(layer, fields, rows):
         layer.CreateFeature(feat)
 
 
-def write_residuals(ds, meas_rows, point_rows):
+def write_residuals(
+    ds: ogr.DataSource, meas_rows: Sequence[Sequence[Any]], point_rows: Sequence[Sequence[Any]]
+) -> None:
     """Replace the residual tables and the control_points layer's residual_px of the open block `ds` by
     `residual_rows`' rows, inside the caller's transaction."""
     rms = {name: row[-1] for name, *row in point_rows}
@@ -67,7 +74,7 @@ def write_residuals(ds, meas_rows, point_rows):
         points.SetFeature(feat)
 
 
-def load_residuals(block_path):
+def load_residuals(block_path: str) -> tuple[dict[tuple[str, int], tuple[float, ...]], dict[str, tuple[float, ...]]]:
     """({(point name, image id): (vx, vy, wx, wy)}, {point name: (dE, dN, dH, image_rms_px)}) of the
     last adjustment, for the points the block holds now (NaN where a value is undefined); two empty
     dicts before any adjustment."""
@@ -78,7 +85,7 @@ def load_residuals(block_path):
         return {}, {}
     names = {feat["name"] for feat in points}
 
-    def values(feat, keys):
+    def values(feat: ogr.Feature, keys: Sequence[str]) -> tuple[float, ...]:
         return tuple(np.nan if feat[k] is None else float(feat[k]) for k in keys)
 
     image = {

@@ -26,14 +26,17 @@ beside the new set. The point files and the models bump theirs in their own tran
 points' counter is bumped by SQLite triggers on the `control_points` layer and the `image_measurements`
 table (`control_point_triggers`), so edits made in QGIS's own attribute table count too."""
 
+from __future__ import annotations
+
 import contextlib
 import datetime
 import json
 import os
 import pwd
 import stat
+from collections.abc import Iterator, Mapping, Sequence
 
-from osgeo import gdal, ogr
+from osgeo import gdal, ogr, osr
 
 from ..atomic import storage_error
 from ..crs import wgs84
@@ -55,7 +58,7 @@ IMAGE_FIELDS = [
 SUPPLIED = "supplied_model"
 
 
-def real_path(path) -> str:
+def real_path(path: str | os.PathLike[str]) -> str:
     """The block's one identity: the real path of `path` (symbolic links resolved), where its point folders
     live beside it and under whose name they are recorded."""
     return os.path.realpath(os.fspath(path))
@@ -65,12 +68,14 @@ def real_path(path) -> str:
 JOURNAL_SUFFIXES = ("-journal", "-wal", "-shm")
 
 
-def journals(path) -> list:
+def journals(path: str | os.PathLike[str]) -> list[str]:
     """The SQLite journal files of the block `path` (which exist only while a connection writes)."""
     return [os.fspath(path) + suffix for suffix in JOURNAL_SUFFIXES]
 
 
-def create_layer(ds, name, geom_type, srs, fields):
+def create_layer(
+    ds: ogr.DataSource, name: str, geom_type: int, srs: osr.SpatialReference | None, fields: Sequence[tuple[str, int]]
+) -> ogr.Layer:
     """A new layer (or table, geom_type wkbNone) with an integer fid and the given (name, OFT type) fields."""
     layer = ds.CreateLayer(name, srs, geom_type, options=["FID=fid"])
     for field_name, field_type in fields:
@@ -78,7 +83,7 @@ def create_layer(ds, name, geom_type, srs, fields):
     return layer
 
 
-def create_schema(path):
+def create_schema(path: str | os.PathLike[str]) -> ogr.DataSource:
     """A new, empty block GeoPackage at `path` (its tables, format version); returns the data source."""
     ogr.UseExceptions()
     ds = ogr.GetDriverByName("GPKG").CreateDataSource(os.fspath(path))
@@ -105,13 +110,13 @@ BUSY_TIMEOUT_MS = 10000
 GENERATIONS = ("control_points", "tie_points", "mass_points", "models")
 
 
-def _execute(ds, sql):
+def _execute(ds: ogr.DataSource, sql: str) -> None:
     result = ds.ExecuteSQL(sql)
     if result is not None:
         ds.ReleaseResultSet(result)
 
 
-def lock_holder(path):
+def lock_holder(path: str) -> str:
     """'another program (<name>, process <pid>)' holding a write lock on the file `path` (else any lock; Linux's
     /proc/locks), 'this program (<name>, process <pid>)' where it is this process (another connection: QGIS
     editing the block's layers), or 'another program' where unknown."""
@@ -138,7 +143,7 @@ def lock_holder(path):
     return f"{'this' if pid == os.getpid() else 'another'} program ({program}, process {pid})"
 
 
-def locked_error(block_path, what, reading=False):
+def locked_error(block_path: str, what: str, reading: bool = False) -> StorageError:
     """StorageError for a block another connection keeps locked beyond BUSY_TIMEOUT_MS; `reading`: the lock
     (an exclusive one) keeps this step from even reading the block."""
     who = lock_holder(block_path)
@@ -156,24 +161,24 @@ def locked_error(block_path, what, reading=False):
     )
 
 
-def _is_locked(exc):
+def _is_locked(exc: BaseException) -> bool:
     text = str(exc).lower()
     return "locked" in text or "busy" in text
 
 
-def _user(uid):
+def _user(uid: int) -> str:
     try:
         return pwd.getpwuid(uid).pw_name
     except KeyError:
         return f"uid {uid}"
 
 
-def _owner(path):
+def _owner(path: str) -> str:
     info = os.stat(path)
     return f"it belongs to {_user(info.st_uid)}, permissions {stat.filemode(info.st_mode)}"
 
 
-def write_access_error(block_path, what):
+def write_access_error(block_path: str, what: str) -> StorageError | None:
     """StorageError where this user may not change the block (module docstring): the file not writable, or
     its folder, where SQLite creates the journal of every change; None where both are writable, or where there
     is no block (open_block says so)."""
@@ -214,7 +219,7 @@ def write_access_error(block_path, what):
 SQLITE_HEADER = b"SQLite format 3\x00"
 
 
-def damage(path):
+def damage(path: str) -> str:
     """How the SQLite file `path` is cut short, or '': less than a header, no whole number of its pages, or
     fewer pages than its header records (told only where no journal beside it may hold the rest). Only for a
     file that failed to open: closing a file releases the POSIX locks this process's SQLite holds on it."""
@@ -241,7 +246,7 @@ def damage(path):
     return ""
 
 
-def damaged_error(path, cause=""):
+def damaged_error(path: str, cause: str = "") -> InputError:
     """InputError: the file `path` is a damaged block (`damage`, else SQLite's `cause`)."""
     why = damage(path) or (f"SQLite: {cause}" if cause else "")
     return InputError(
@@ -251,11 +256,11 @@ def damaged_error(path, cause=""):
     )
 
 
-def _not_a_block(path, why):
+def _not_a_block(path: str, why: str) -> InputError:
     return InputError(f"{path} is not a Pushbroom block ({why}): give the .gpkg that pushbroom:createblock made")
 
 
-def open_block(path, update=False):
+def open_block(path: str | os.PathLike[str], update: bool = False) -> ogr.DataSource:
     """The block's OGR data source, waiting up to BUSY_TIMEOUT_MS for other connections' locks; InputError
     if `path` is no Pushbroom block (no file, not a GeoPackage, a GeoPackage of another program, a damaged
     file), StorageError if it cannot be opened (locked, no permission; module docstring)."""
@@ -289,7 +294,7 @@ def open_block(path, update=False):
 
 
 @contextlib.contextmanager
-def _busy_timeout():
+def _busy_timeout() -> Iterator[None]:
     """GDAL's wait for a lock while it opens a GeoPackage (its own default: 5 s) set to BUSY_TIMEOUT_MS."""
     previous = gdal.GetThreadLocalConfigOption("SQLITE_BUSY_TIMEOUT", None)
     gdal.SetThreadLocalConfigOption("SQLITE_BUSY_TIMEOUT", str(BUSY_TIMEOUT_MS))
@@ -299,7 +304,7 @@ def _busy_timeout():
         gdal.SetThreadLocalConfigOption("SQLITE_BUSY_TIMEOUT", previous)
 
 
-def _open(path, update):
+def _open(path: str, update: bool) -> ogr.DataSource | None:
     """ogr.Open of the block, with its failures in Pushbroom's words (open_block)."""
     try:
         with _busy_timeout():
@@ -324,7 +329,7 @@ def _open(path, update):
         raise storage_error(exc, path, "the block", action=f"read the block {path}") from None
 
 
-def _failed(exc, block_path, what):
+def _failed(exc: RuntimeError, block_path: str, what: str) -> StorageError | InputError:
     """StorageError for an OGR/SQLite failure while storing `what` in the block."""
     if _is_locked(exc):
         return locked_error(block_path, what)
@@ -339,7 +344,9 @@ def _failed(exc, block_path, what):
 
 
 @contextlib.contextmanager
-def transaction(block_path, what="the edit", expect=None):
+def transaction(
+    block_path: str, what: str = "the edit", expect: Mapping[str, int] | None = None
+) -> Iterator[ogr.DataSource]:
     """The block's data source (update mode) inside one SQLite transaction that already holds the write
     lock (taken first, waiting up to BUSY_TIMEOUT_MS, so a concurrent writer fails this one before anything
     is written), committed when the block ends, rolled back on any error. `expect`: {part: generation} read
@@ -377,7 +384,7 @@ def transaction(block_path, what="the edit", expect=None):
                 raise
 
 
-def _close(ds, block_path, what):
+def _close(ds: ogr.DataSource, block_path: str, what: str) -> None:
     """Close `ds` now (OGR finishes deferred work, such as feature count triggers, on close)."""
     try:
         ds.Destroy()
@@ -385,7 +392,7 @@ def _close(ds, block_path, what):
         raise _failed(exc, block_path, what) from None
 
 
-def check_writable(block_path, what="the results"):
+def check_writable(block_path: str, what: str = "the results") -> None:
     """Fail now (StorageError) where the block cannot be written: locked by another program beyond
     BUSY_TIMEOUT_MS, a file or folder this user may not write (write_access_error), damaged. A long step calls it
     before it computes."""
@@ -393,16 +400,16 @@ def check_writable(block_path, what="the results"):
         pass
 
 
-def _generation_values(info):
+def _generation_values(info: Mapping[str, str]) -> dict[str, int]:
     return {part: int(info.get(f"generation_{part}", 0) or 0) for part in GENERATIONS}
 
 
-def generations(block_path):
+def generations(block_path: str) -> dict[str, int]:
     """{part: generation} of the block now (module docstring)."""
     return _generation_values(read_info(block_path))
 
 
-def _check_generations(ds, block_path, what, expect):
+def _check_generations(ds: ogr.DataSource, block_path: str, what: str, expect: Mapping[str, int]) -> None:
     now = _generation_values({f["key"]: f["value"] for f in ds.GetLayerByName("block_info")})
     changed = [part.replace("_", " ") for part, value in expect.items() if now.get(part) != value]
     if changed:
@@ -413,13 +420,13 @@ def _check_generations(ds, block_path, what, expect):
         )
 
 
-def bump(ds, part):
+def bump(ds: ogr.DataSource, part: str) -> None:
     """Increment the generation of `part` in the open block `ds` (inside the caller's transaction)."""
     info = {f["key"]: f["value"] for f in ds.GetLayerByName("block_info")}
     write_info(ds, {f"generation_{part}": _generation_values(info)[part] + 1})
 
 
-def control_point_triggers(ds, layer, table):
+def control_point_triggers(ds: ogr.DataSource, layer: str, table: str) -> None:
     """Create (where missing) the triggers that bump generation_control_points on any change of the control
     points' names, roles, coordinates and sigmas (not of residual_px, which the adjustment writes) and of
     their image measurements, in the open block `ds`."""
@@ -437,13 +444,13 @@ def control_point_triggers(ds, layer, table):
             _execute(ds, f'CREATE TRIGGER IF NOT EXISTS "{trigger}" AFTER {event} ON "{name}" BEGIN {bump_sql}; END')
 
 
-def read_info(path):
+def read_info(path: str | os.PathLike[str]) -> dict[str, str]:
     """The block_info table as a dict."""
     ds = open_block(path)  # keep the data source alive while its layer is read
     return {feat["key"]: feat["value"] for feat in ds.GetLayerByName("block_info")}
 
 
-def height_range(path):
+def height_range(path: str | os.PathLike[str]) -> tuple[float, float] | None:
     """The terrain height range (min, max) recorded at the block's creation, or None."""
     info = read_info(path)
     try:
@@ -452,7 +459,7 @@ def height_range(path):
         return None
 
 
-def write_info(ds, values, step=None, message=""):
+def write_info(ds: ogr.DataSource, values: Mapping[str, object], step: str | None = None, message: str = "") -> None:
     """update_info on an open block data source, inside the caller's transaction."""
     layer = ds.GetLayerByName("block_info")
     for key, value in values.items():
@@ -474,13 +481,13 @@ def write_info(ds, values, step=None, message=""):
         log.CreateFeature(feat)
 
 
-def update_info(path, values, step=None, message=""):
+def update_info(path: str, values: Mapping[str, object], step: str | None = None, message: str = "") -> None:
     """Set block_info keys (a dict) and, with `step`, append a run_log row, in one transaction."""
     with transaction(path, "the block information") as ds:
         write_info(ds, values, step, message)
 
 
-def read_run_log(path):
+def read_run_log(path: str | os.PathLike[str]) -> list[dict[str, str]]:
     """The run_log table (time, step, parameters, message) as a list of dicts, oldest first."""
     ds = open_block(path)
     return [
