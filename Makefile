@@ -3,7 +3,7 @@ SHELL := /bin/bash
 PY := .venv/bin/python
 APT_PACKAGES := qgis python3-qgis qgis-providers python3-gdal gdal-bin python3-scipy \
                 python3-matplotlib python3-numpy python3-venv python3-pip xvfb zip \
-                python3-dask python3-distributed python3-rasterio python3-xarray python3-skimage
+                python3-dask python3-distributed python3-rasterio python3-xarray python3-skimage pyqt5-dev-tools
 # the test and lint pins equal pyproject.toml's extras (tests/test_packaging.py checks it)
 PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest-qgis==2.1.0 \
             hypothesis==6.112.2 pytest-xdist==3.6.1 laspy==2.5.4 lazrs==0.8.2 libsgm==0.5.2 ruff==0.17.6 mypy==1.13.0
@@ -33,9 +33,19 @@ RUNTIME := $(CURDIR)/build/xdg-runtime
 export XDG_RUNTIME_DIR ?= $(RUNTIME)
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
+# The texts to translate, extracted by pylupdate5 (Debian's pyqt5-dev-tools) from `translate("Pushbroom", "...")` and
+# QT_TRANSLATE_NOOP("Pushbroom", "...") in the Processing glue; tests/plugin/test_translations.py checks that every
+# label the dialogs show is in it. Translators copy it to i18n/pushbroom_<locale>.ts; `lrelease` makes the .qm that
+# the plugin loads for QGIS's locale (plugin/plugin.py).
+TS_FILE := i18n/pushbroom.ts
+TRANSLATED := $(sort $(wildcard plugin/*.py plugin/algorithms/*.py))
+
 .PHONY: setup lint test test-fast demo bench bench-peers package clean
 
-setup: $(RUNTIME) .venv/.setup-done $(PROFILE)/.enabled $(PANDORA_DIR)/.done
+setup: $(RUNTIME) .venv/.setup-done $(PROFILE)/.enabled $(PANDORA_DIR)/.done $(TS_FILE)
+
+$(TS_FILE): $(TRANSLATED) .venv/.setup-done
+	@mkdir -p i18n && PYTHONWARNINGS=ignore pylupdate5 -noobsolete $(TRANSLATED) -ts $@
 
 $(RUNTIME):
 	@mkdir -p -m 700 $@
@@ -110,7 +120,7 @@ bench-peers: setup $(CARS_VENV)/.done
 # The plugin zip for "Install from ZIP" in QGIS (tests and development files left out).
 package:
 	@rm -rf build/package && mkdir -p build/package/pushbroom dist
-	@cp -r metadata.txt __init__.py version.py resource_files.py LICENSE README.md algorithms plugin ui resources docs build/package/pushbroom/
+	@cp -r metadata.txt __init__.py version.py resource_files.py LICENSE README.md algorithms plugin ui resources docs i18n build/package/pushbroom/
 	@find build/package -name __pycache__ -prune -exec rm -rf {} + ; find build/package -name '*.nb[ic]' -delete
 	@rm -f dist/pushbroom-$(VERSION).zip && cd build/package && zip -qr ../../dist/pushbroom-$(VERSION).zip pushbroom
 	@echo "dist/pushbroom-$(VERSION).zip"

@@ -46,12 +46,20 @@ import re
 import time
 import uuid
 import warnings
-from typing import Callable
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from ..version import VERSION
 from . import progress, worker_report
 from .errors import ExecutionError
 from .task_runtime import GRACE, POLL, Execution, in_worker, starting_workers, use_python_for_workers
+
+if TYPE_CHECKING:
+    from distributed import Client, Future, LocalCluster
+
+    from .progress import Feedback
+
+T = TypeVar("T")
 
 #: s a task on Dask waits between two looks at the cancel token (each asks the scheduler)
 DASK_CHECK = 1.0
@@ -66,7 +74,7 @@ ANSWER = 30.0
 UNCHANGED = "nothing was stored: the block and the outputs are as they were"
 
 
-def _quiet():
+def _quiet() -> None:
     """DASK_NOISE filtered in this process from now on (the client's event loop thread may warn at any time)."""
     for message, category in DASK_NOISE:
         warnings.filterwarnings("ignore", message=re.escape(message), category=category)
@@ -79,7 +87,7 @@ class _DaskFlag:
     def __init__(self, name: str):
         self.name, self.seen, self.at = name, False, -float("inf")
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[type[_DaskFlag], tuple[str]]:
         return _DaskFlag, (self.name,)
 
     def is_set(self) -> bool:
@@ -92,19 +100,19 @@ class _DaskFlag:
         return self.seen
 
 
-def _held(value):
+def _held(value: T) -> T:
     """A round's shared value, as the result of a task (module docstring)."""
     return value
 
 
-def _in_dask_worker(function: Callable, args: tuple, token: _DaskFlag):
+def _in_dask_worker(function: Callable[..., T], args: Sequence[Any], token: _DaskFlag) -> tuple[str, T]:
     """(the worker's address, in_worker(function, args, token)): the task wrapper on Dask."""
     import distributed
 
     return distributed.get_worker().address, in_worker(function, args, token)
 
 
-def _connect(address: str, timeout: float):
+def _connect(address: str, timeout: float) -> Client:
     """A distributed Client of the scheduler at `address` (ExecutionError where none answers within `timeout` s)."""
     import distributed
 
@@ -123,7 +131,7 @@ def _connect(address: str, timeout: float):
         ) from None
 
 
-def _reports(client, addresses: list) -> dict:
+def _reports(client: Client, addresses: list[str]) -> dict[str, Any]:
     """{address: worker_report.report() of that worker, or the exception that kept it from answering}."""
     import cloudpickle
 
@@ -131,7 +139,7 @@ def _reports(client, addresses: list) -> dict:
     return client.run(worker_report.report, workers=addresses, on_error="return", callback_timeout=ANSWER)
 
 
-def worker_reports(address: str, timeout: float = 30.0) -> dict:
+def worker_reports(address: str, timeout: float = 30.0) -> dict[str, Any]:
     """{worker address: worker_report.report(), or the exception it answered with} of every worker of the cluster
     at `address` (worker_check.py, the command line)."""
     _quiet()
@@ -154,13 +162,15 @@ class DaskBackend:
                 "installed: run `make setup`, or choose threads or processes"
             ) from exc
         _quiet()
-        self.execution, self.note, self.cluster = execution, execution.capped(), None
+        self.execution, self.note = execution, execution.capped()
+        self.cluster: LocalCluster | None = None
         self.where = f"the Dask cluster at {execution.address}" if execution.address else "the Dask local cluster"
-        self.token, self.what, self.feedback = _DaskFlag(""), "the tiles", None
-        self.workers: dict = {}  # address -> host, as last seen
-        self.checked: set = set()  # addresses whose check passed
+        self.token, self.what = _DaskFlag(""), "the tiles"
+        self.feedback: Feedback | None = None
+        self.workers: dict[str, str] = {}  # address -> host, as last seen
+        self.checked: set[str] = set()  # addresses whose check passed
         self.named = False  # the workers were named in the log
-        self.tally: collections.Counter = collections.Counter()
+        self.tally: collections.Counter[str] = collections.Counter()
         self.total = self.finished = 0
         self.alone_since: float | None = None  # when the scheduler was last seen with no worker
         self.looked = -float("inf")  # when the scheduler was last asked for its workers
@@ -188,7 +198,7 @@ class DaskBackend:
 
     # ---- the workers
 
-    def _ask(self, call: Callable, **kwargs):
+    def _ask(self, call: Callable[..., Any], **kwargs: Any) -> Any:
         """`call(**kwargs)` on the client's loop, answered within ANSWER s; ExecutionError where the scheduler does
         not answer (it died, or the network is gone)."""
         try:
@@ -198,9 +208,10 @@ class DaskBackend:
                 f"the Dask scheduler of {self.where} stopped answering ({type(exc).__name__}: {exc})"
             ) from None
 
-    def _present(self) -> dict:
+    def _present(self) -> dict[str, str]:
         """{address: host} of the scheduler's workers, as the scheduler answers now."""
-        info = self._ask(self.client.scheduler.identity)
+        # distributed types Client.scheduler as optional: it is None only before the client has connected
+        info = self._ask(self.client.scheduler.identity)  # type: ignore[union-attr]
         self.looked = time.monotonic()
         return {a: str(w.get("host", "")) or a for a, w in info["workers"].items()}
 
@@ -215,7 +226,7 @@ class DaskBackend:
             "(DASK_WAIT)"
         )
 
-    def _wait_for_workers(self) -> dict:
+    def _wait_for_workers(self) -> dict[str, str]:
         """The scheduler's workers (_present) once it has one; ExecutionError after `worker_wait` s without one."""
         wait = float(self.execution.worker_wait)
         deadline = time.monotonic() + wait
@@ -233,13 +244,13 @@ class DaskBackend:
         self.alone_since = None
         return present
 
-    def _idle(self):
+    def _idle(self) -> None:
         if self.execution.host_events is not None:
             self.execution.host_events()
         progress.check(self.feedback)
         time.sleep(POLL)
 
-    def _check(self, addresses: list, present: dict):
+    def _check(self, addresses: list[str], present: dict[str, str]) -> None:
         """ExecutionError where a worker of `addresses` (among the scheduler's `present` workers) cannot run
         Pushbroom's tasks (module docstring); the others are checked for good."""
         try:
@@ -248,7 +259,8 @@ class DaskBackend:
             raise self._failure(
                 f"the workers of {self.where} could not be checked ({type(exc).__name__}: {exc})"
             ) from None
-        failing, dense = [], []
+        failing: list[str] = []
+        dense: list[str] = []
         for address, seen in sorted(reports.items()):
             if isinstance(seen, BaseException) and address not in present:
                 continue  # a worker that left before it answered
@@ -273,7 +285,7 @@ class DaskBackend:
                 "(install the plugin's wheel with its `dense` extra)",
             )
 
-    def _changes(self, present: dict) -> list:
+    def _changes(self, present: dict[str, str]) -> list[str]:
         """Log the workers that left or joined since the last look; the joined ones."""
         log = progress.ensure(self.feedback)
         n = len(present)
@@ -290,7 +302,7 @@ class DaskBackend:
             log.pushInfo(f"{self.what}: worker {self._label(address)} joined {self.where} ({n} workers)")
         return joined
 
-    def _watch(self):
+    def _watch(self) -> None:
         """At most every DASK_CHECK s: log the workers that left or joined, check the new ones; ExecutionError once
         the scheduler has had no worker for `worker_wait` s."""
         if time.monotonic() - self.looked < DASK_CHECK:
@@ -323,7 +335,7 @@ class DaskBackend:
 
     # ---- run_tasks' backend
 
-    def begin(self, what: str, feedback, total: int):
+    def begin(self, what: str, feedback: Feedback | None, total: int) -> None:
         self.what, self.feedback, self.total, self.finished = what, feedback, total, 0
         self.tally = collections.Counter()
         self.token = _DaskFlag(f"pushbroom-cancel-{uuid.uuid4().hex}")
@@ -340,12 +352,12 @@ class DaskBackend:
         if unchecked:
             self._check(unchecked, present)
 
-    def prepare(self, tasks: list) -> list:
+    def prepare(self, tasks: list[Sequence[Any]]) -> list[Sequence[Any]]:
         """The tasks as submitted: each object that every task passes at the same place (a step's job: its
         models, images and parameters) made the result of a task of its own and passed as its future, which the
         workers resolve: the scheduler holds it once, not once per task, and computes it again where it is lost
         (module docstring)."""
-        shared = {}
+        shared: dict[int, Future] = {}
         if len(tasks) > 1:
             for i, value in enumerate(tasks[0]):
                 if isinstance(value, (str, bytes, int, float, bool, type(None))):
@@ -358,18 +370,18 @@ class DaskBackend:
                         )
         return [tuple(shared.get(i, a) for i, a in enumerate(t)) for t in tasks] if shared else tasks
 
-    def submit(self, function: Callable, args: tuple):
+    def submit(self, function: Callable[..., Any], args: Sequence[Any]) -> Future:
         # pure=False: a task is run, not looked up (two runs of the same tile may write different files)
         return self.client.submit(_in_dask_worker, function, args, self.token, pure=False)
 
-    def done(self, futures: set) -> set:
+    def done(self, futures: set[Future]) -> set[Future]:
         self._watch()
         done = {f for f in futures if f.done()}
         if not done:
             time.sleep(POLL)
         return done
 
-    def result(self, future):
+    def result(self, future: Future) -> Any:
         """The task's result; the task's own exception as it raised it; ExecutionError in our words where the
         cluster lost or refused it (module docstring). A result whose worker died before it was fetched is
         computed again: waited for with the cluster watched and the cancel button asked."""
@@ -414,7 +426,7 @@ class DaskBackend:
             f"{self._label(a)} {n}" for a, n in sorted(self.tally.items())
         )
 
-    def cancel(self, futures):
+    def cancel(self, futures: Iterable[Future]) -> None:
         """Set the round's Event (it stays on the scheduler, a name) and wait until the round's `futures` are
         done, GRACE s at most (closing a local cluster would kill the tasks wherever they are). The futures are let go
         with the round: the scheduler then drops the tasks that have not started, with no call that a dead
@@ -422,12 +434,16 @@ class DaskBackend:
         if not self.token.name or not self.workers:  # no round began, or nothing runs: nothing to wait for
             return
         with contextlib.suppress(Exception):
-            self.client.sync(self.client.scheduler.event_set, name=self.token.name, callback_timeout=GRACE)
+            self.client.sync(
+                self.client.scheduler.event_set,  # type: ignore[union-attr]  # as in _present
+                name=self.token.name,
+                callback_timeout=GRACE,
+            )
         deadline = time.monotonic() + GRACE
         while not all(f.done() for f in futures) and time.monotonic() < deadline:
             time.sleep(POLL)
 
-    def close(self, cancel: bool):
+    def close(self, cancel: bool) -> None:
         with contextlib.suppress(Exception):
             self.client.close()
         if self.cluster is not None:

@@ -51,6 +51,8 @@ abstraction of CNES CARS (create tasks, start them, iterate over the futures as 
 
 The local pool has no semaphore (pipes and one byte of shared memory)."""
 
+from __future__ import annotations
+
 import collections
 import concurrent.futures as cf
 import contextlib
@@ -62,8 +64,9 @@ import signal
 import threading
 import time
 import traceback
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from multiprocessing.reduction import ForkingPickler
-from typing import Optional
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 from . import progress
 from .errors import CancelledError, ExecutionError, PushbroomError
@@ -78,14 +81,25 @@ from .task_runtime import (
     use_python_for_workers,
 )
 
+if TYPE_CHECKING:
+    import ctypes
+    from multiprocessing.connection import Connection
+    from multiprocessing.context import SpawnContext
+
+    from .progress import Feedback
+
+T = TypeVar("T")
+#: a task as a worker process receives it: the function and its arguments
+_Task = tuple[Callable[..., Any], Sequence[Any]]
+
 
 class _SharedFlag:
     """The cancel token of local worker processes: one byte of shared memory (set: 1)."""
 
-    def __init__(self, value):
+    def __init__(self, value: ctypes.c_byte):
         self.value = value  # multiprocessing RawValue("b")
 
-    def is_set(self):
+    def is_set(self) -> bool:
         return self.value.value != 0
 
 
@@ -95,49 +109,71 @@ class _SharedFlag:
 # (Execution.capped). dask_backend.DaskBackend is the dask one.
 
 
+class Backend(Protocol):
+    """What run_tasks asks of a backend (above); a future is the backend's own (concurrent.futures' or Dask's)."""
+
+    note: str | None
+
+    def begin(self, what: str, feedback: Feedback | None, total: int) -> None: ...
+
+    def prepare(self, tasks: list[Sequence[Any]]) -> list[Sequence[Any]]: ...
+
+    def submit(self, function: Callable[..., Any], args: Sequence[Any]) -> Any: ...
+
+    def done(self, futures: set[Any]) -> set[Any]: ...
+
+    def result(self, future: Any) -> Any: ...
+
+    def end(self) -> str | None: ...
+
+    def cancel(self, futures: Iterable[Any]) -> None: ...
+
+    def close(self, cancel: bool) -> None: ...
+
+
 class _Local:
     """What the backends of this machine share: tasks submitted as they are, results as the futures hold them."""
 
-    note: Optional[str] = None
+    note: str | None = None
 
-    def prepare(self, tasks):
+    def prepare(self, tasks: list[Sequence[Any]]) -> list[Sequence[Any]]:
         """The tasks as they are submitted (pickled per task for worker processes)."""
         return tasks
 
-    def result(self, future):
+    def result(self, future: cf.Future[T]) -> T:
         return future.result()
 
-    def end(self) -> Optional[str]:
+    def end(self) -> str | None:
         return None
 
 
 class _Threads(_Local):
     """threads: concurrent.futures' thread pool; a threading.Event per round as the cancel token."""
 
-    def __init__(self, execution):
+    def __init__(self, execution: Execution):
         self.note = execution.capped()
         self.pool = cf.ThreadPoolExecutor(execution.used_workers())
         self.token = threading.Event()
 
-    def begin(self, what, feedback, total):
+    def begin(self, what: str, feedback: Feedback | None, total: int) -> None:
         self.token = threading.Event()
 
-    def submit(self, function, args):
+    def submit(self, function: Callable[..., T], args: Sequence[Any]) -> cf.Future[T]:
         return self.pool.submit(run_with_token, function, args, self.token)
 
-    def done(self, futures):
+    def done(self, futures: set[cf.Future[Any]]) -> set[cf.Future[Any]]:
         return cf.wait(futures, timeout=POLL, return_when=cf.FIRST_COMPLETED)[0]
 
-    def cancel(self, futures):
+    def cancel(self, futures: Iterable[cf.Future[Any]]) -> None:
         self.token.set()  # close waits for the running ones (a thread cannot be stopped)
         for future in futures:
             future.cancel()
 
-    def close(self, cancel):
+    def close(self, cancel: bool) -> None:
         self.pool.shutdown(wait=True, cancel_futures=cancel)
 
 
-def _serve(conn, flag):
+def _serve(conn: Connection, flag: ctypes.c_byte) -> None:
     """A local worker process (_Processes): say it waits (None), run each task it is sent and send back
     (True, result) or (False, exception); end at None, or when the step's process has gone (EOF)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -160,7 +196,7 @@ def _serve(conn, flag):
         except (EOFError, OSError):
             return
         try:
-            task = pickle.loads(message)
+            task: _Task | None = pickle.loads(message)
             if task is None:
                 return
             reply = (True, in_worker(*task, token))
@@ -168,7 +204,7 @@ def _serve(conn, flag):
             reply = (False, _portable(exc))
 
 
-def _portable(exc):
+def _portable(exc: BaseException) -> Exception:
     """A task's exception as the step's process can receive it: itself (with the worker's traceback as a note,
     other than the engine's own errors), or an ExecutionError with its text where it cannot be pickled."""
     if not isinstance(exc, Exception):
@@ -186,42 +222,46 @@ class _Worker:
     """A local worker process, the step's end of its pipe, the future of its task (None: no task) and whether
     it waits for one."""
 
-    def __init__(self, context, flag):
+    def __init__(self, context: SpawnContext, flag: ctypes.c_byte):
         conn, child = context.Pipe()
         self.process = context.Process(target=_serve, args=(child, flag), name="pushbroom worker", daemon=True)
         with starting_workers(WORKER_ENVIRONMENT):
             self.process.start()
         child.close()  # its end is the worker's alone: its death closes the pipe
-        self.conn, self.task, self.waits = conn, None, False
+        self.conn: Connection = conn
+        self.task: cf.Future[Any] | None = None
+        self.waits = False
 
 
 class _Processes(_Local):
     """processes: local worker processes over pipes (module docstring); started as the tasks need them."""
 
-    def __init__(self, execution):
+    def __init__(self, execution: Execution):
         use_python_for_workers()
         self.note = execution.capped()
         self.size = execution.used_workers()
         self.context = multiprocessing.get_context("spawn")
         self.flag = self.context.RawValue("b", 0)
-        self.workers, self.queue, self.what = [], collections.deque(), "the tiles"
+        self.workers: list[_Worker] = []
+        self.queue: collections.deque[tuple[cf.Future[Any], _Task]] = collections.deque()
+        self.what = "the tiles"
 
-    def begin(self, what, feedback, total):
+    def begin(self, what: str, feedback: Feedback | None, total: int) -> None:
         self.what = what
         self.flag.value = 0
 
-    def submit(self, function, args):
-        future = cf.Future()
+    def submit(self, function: Callable[..., T], args: Sequence[Any]) -> cf.Future[T]:
+        future: cf.Future[T] = cf.Future()
         self.queue.append((future, (function, args)))
         return future
 
-    def done(self, futures):
+    def done(self, futures: set[cf.Future[Any]]) -> set[cf.Future[Any]]:
         self._dispatch()
         self._receive(POLL)
         self._dispatch()
         return {f for f in futures if f.done()}
 
-    def cancel(self, futures):
+    def cancel(self, futures: Iterable[cf.Future[Any]]) -> None:
         """Set the token; wait until the busy workers have stopped (or died), GRACE s at most."""
         self.flag.value = 1
         for future, _ in self.queue:
@@ -232,7 +272,7 @@ class _Processes(_Local):
             with contextlib.suppress(ExecutionError):  # a worker that dies meanwhile has stopped
                 self._receive(min(POLL, max(deadline - time.monotonic(), 0.0)))
 
-    def _dispatch(self):
+    def _dispatch(self) -> None:
         """Send queued tasks to the waiting workers; start workers (up to `size`) for the others."""
         waiting = [w for w in self.workers if w.waits]
         starting = sum(1 for w in self.workers if not w.waits and w.task is None)
@@ -253,7 +293,7 @@ class _Processes(_Local):
                 worker.task, worker.waits = None, True
                 waiting.append(worker)
 
-    def _receive(self, timeout):
+    def _receive(self, timeout: float) -> None:
         """Wait up to `timeout` s for a worker's message or death, and take what came (ExecutionError for a death)."""
         if not self.workers:
             time.sleep(timeout)
@@ -278,7 +318,7 @@ class _Processes(_Local):
             if worker.process.sentinel in ready:
                 raise self._lost(worker)
 
-    def _lost(self, worker):
+    def _lost(self, worker: _Worker) -> ExecutionError:
         """ExecutionError for a worker process that died; it leaves the pool."""
         worker.process.join(1.0)
         self.workers.remove(worker)
@@ -295,7 +335,7 @@ class _Processes(_Local):
             "run again with fewer workers or smaller tiles, or choose the threads execution"
         )
 
-    def close(self, cancel):
+    def close(self, cancel: bool) -> None:
         """Stop the workers: the waiting ones are told to end, the busy ones (their task did not stop within
         `cancel`'s GRACE s) killed; no wait outlives a worker."""
         for worker in self.workers:
@@ -313,19 +353,20 @@ class _Processes(_Local):
         self.workers = []
 
 
-def _backend(execution):
+def _backend(execution: Execution) -> Backend:
     if execution.backend == "dask":
         from .dask_backend import DaskBackend
 
         return DaskBackend(execution)
-    return {"threads": _Threads, "processes": _Processes}[execution.backend](execution)
+    local: dict[str, Callable[[Execution], Backend]] = {"threads": _Threads, "processes": _Processes}
+    return local[execution.backend](execution)
 
 
-_sessions = {}  # (thread, Execution) -> the backend a `session` keeps
+_sessions: dict[tuple[int, Execution], Backend] = {}  # (thread, Execution) -> the backend a `session` keeps
 
 
 @contextlib.contextmanager
-def session(execution=None):
+def session(execution: Execution | None = None) -> Iterator[None]:
     """Keep the workers (the thread pool, the worker processes, or the Dask LocalCluster or client) of
     `execution` for every run_tasks of it on this thread inside the block, so that a step that runs several rounds
     of tasks starts its workers once; they are closed when the block ends."""
@@ -344,14 +385,20 @@ def session(execution=None):
         backend.close(cancel=failed)  # run_tasks has cancelled a failed round's tasks
 
 
-def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
+def run_tasks(
+    function: Callable[..., T],
+    tasks: Iterable[Sequence[Any]],
+    execution: Execution | None = None,
+    feedback: Feedback | None = None,
+    what: str = "the tiles",
+) -> list[T]:
     """Run `function(*args)` for each `args` of the list `tasks` on `execution` (Execution; default
     threads) and return the results in the order of `tasks`. Progress runs 0-100 % over the tasks;
     a cancel stops the pending tasks, asks the running ones to stop (`check_cancel`) and raises CancelledError;
     the first task to fail does the same to the others and its exception is raised (module docstring)."""
     execution = (execution or Execution()).check()
     tasks = list(tasks)
-    results = [None] * len(tasks)
+    results: list[Any] = [None] * len(tasks)
     if not tasks:
         return results
     kept = _sessions.get((threading.get_ident(), execution))
@@ -359,7 +406,8 @@ def run_tasks(function, tasks, execution=None, feedback=None, what="the tiles"):
     progress.warn(feedback, backend.note)  # once per backend
     backend.note = None
     progress.ensure(feedback).pushInfo(f"{what}: {len(tasks)} task{'s' * (len(tasks) != 1)} on {execution.describe()}")
-    futures, failed = {}, True
+    futures: dict[Any, int] = {}
+    failed = True
     try:
         backend.begin(what, feedback, len(tasks))
         submitted = backend.prepare(tasks)  # held to the round's end: on Dask it holds the shared job's future

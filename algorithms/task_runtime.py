@@ -15,6 +15,8 @@ step's process cancels them (execution.py).
 A task asks its round's cancel token between its stages (`cancelled`, `check_cancel`): a threading.Event for
 threads, one byte of shared memory for local processes, a Dask Event on Dask (execution.py, dask_backend.py)."""
 
+from __future__ import annotations
+
 import contextlib
 import multiprocessing
 import os
@@ -22,9 +24,10 @@ import re
 import signal
 import sys
 import threading
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from multiprocessing import resource_tracker
-from typing import Callable, Optional
+from typing import Any, Protocol, TypeVar
 
 from . import raster_cache
 from .errors import CancelledError, ExecutionError, InputError
@@ -83,13 +86,13 @@ class Execution:
     connect_timeout: float = 30.0  # s to wait for the scheduler at `address`
     worker_wait: float = 60.0  # s a round on Dask waits for a worker where the cluster has none or lost all
     # called while run_tasks waits for tasks: the host program's event loop (module docstring)
-    host_events: Optional[Callable[[], None]] = field(default=None, compare=False, repr=False)
+    host_events: Callable[[], None] | None = field(default=None, compare=False, repr=False)
 
     def used_workers(self) -> int:
         """The workers started: `workers`, at most worker_limit() (a remote cluster has its own)."""
         return min(int(self.workers), worker_limit())
 
-    def capped(self) -> Optional[str]:
+    def capped(self) -> str | None:
         """The warning that fewer workers are used than asked for, or None."""
         if self.address or self.used_workers() == int(self.workers):
             return None
@@ -110,7 +113,7 @@ class Execution:
             return f"the Dask cluster at {self.address}"
         return f"a Dask local cluster of {n} worker process{'es' * (n != 1)}"
 
-    def check(self) -> "Execution":
+    def check(self) -> Execution:
         """Raise InputError for settings no backend can use."""
         if self.backend not in BACKENDS:
             raise InputError(f"the execution must be one of {', '.join(BACKENDS)}, not {self.backend!r}")
@@ -125,7 +128,7 @@ class Execution:
         return self
 
 
-def python_executable():
+def python_executable() -> str:
     """The Python interpreter worker processes start: sys.executable where it is this Python's (inside
     sys.prefix: the system's or the venv's), else the interpreter of this Python's installation. Inside
     QGIS sys.executable is the QGIS binary, or whatever `python3` comes first on PATH (embedded Python
@@ -149,7 +152,7 @@ def python_executable():
     )
 
 
-def use_python_for_workers():
+def use_python_for_workers() -> None:
     """multiprocessing starts python_executable() (module docstring)."""
     exe = python_executable()
     if exe != sys.executable:
@@ -160,7 +163,7 @@ _environ_lock = threading.Lock()
 
 
 @contextlib.contextmanager
-def starting_workers(environment):
+def starting_workers(environment: Mapping[str, str]) -> Iterator[None]:
     """Inside: os.environ with `environment` added (where not set already; PYTHONWARNINGS extended) and SIGINT
     blocked in this thread, for the worker processes (and threads) started inside, which inherit both; afterwards
     os.environ as it was (distributed's nannies add their pre-spawn environment to it for good). multiprocessing's
@@ -184,6 +187,16 @@ def starting_workers(environment):
 
 # ---- the cancel token, as a task sees it
 
+T = TypeVar("T")
+
+
+class CancelToken(Protocol):
+    """A round's cancel token as a task asks it: threading.Event (threads), execution._SharedFlag (local
+    processes), dask_backend._DaskFlag (Dask)."""
+
+    def is_set(self) -> bool: ...
+
+
 _task = threading.local()  # .token: the cancel token of the task this thread runs (is_set())
 
 
@@ -194,13 +207,13 @@ def cancelled() -> bool:
     return token is not None and token.is_set()
 
 
-def check_cancel():
+def check_cancel() -> None:
     """Raise CancelledError where `cancelled()`: a task calls it between its stages (module docstring)."""
     if cancelled():
         raise CancelledError("cancelled by the user")
 
 
-def run_with_token(function, args, token):
+def run_with_token(function: Callable[..., T], args: Sequence[Any], token: CancelToken | None) -> T:
     """`function(*args)` with `token` as this thread's cancel token (not started where it is set already)."""
     outer, _task.token = getattr(_task, "token", None), token
     try:
@@ -210,7 +223,7 @@ def run_with_token(function, args, token):
         _task.token = outer
 
 
-def in_worker(function, args, token=None):
+def in_worker(function: Callable[..., T], args: Sequence[Any], token: CancelToken | None = None) -> T:
     """Task wrapper of a worker process (local processes and Dask): `function(*args)` with the worker's GDAL cache
     held to the steps' bound (raster_cache.hold_in_worker) and `token` as its cancel token."""
     raster_cache.hold_in_worker()

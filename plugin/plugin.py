@@ -1,6 +1,9 @@
 """The plugin object QGIS creates through classFactory."""
 
-from qgis.core import QgsApplication
+import os
+
+from qgis.core import QgsApplication, QgsSettings
+from qgis.PyQt.QtCore import QCoreApplication, QLocale, QTranslator
 
 PIP_HINT = "python3 -m pip install numba"
 APT_HINT = "sudo apt-get install python3-numba python3-scipy python3-gdal"
@@ -15,6 +18,18 @@ def missing_dependencies():
         except ImportError:
             missing.append(name)
     return missing
+
+
+def install_translator(locale=None):
+    """The QTranslator of i18n/pushbroom_<language>.qm for QGIS's user locale (`locale`: another one), installed; None
+    where there is no such file (English, the source texts, is shown)."""
+    locale = locale or QgsSettings().value("locale/userLocale", "") or QLocale.system().name()
+    path = os.path.join(os.path.dirname(__file__), os.pardir, "i18n", f"pushbroom_{str(locale)[:2]}.qm")
+    translator = QTranslator()
+    if not os.path.isfile(path) or not translator.load(path):
+        return None
+    QCoreApplication.installTranslator(translator)
+    return translator
 
 
 def create_plugin(iface):
@@ -33,6 +48,7 @@ class PushbroomPlugin:
         self.iface = iface
         self.provider = None
         self.measure = None
+        self.translator = install_translator()
 
     def initProcessing(self):
         from .provider import PushbroomProvider
@@ -58,6 +74,9 @@ class PushbroomPlugin:
         if self.provider is not None:
             QgsApplication.processingRegistry().removeProvider(self.provider)
             self.provider = None
+        if self.translator is not None:
+            QCoreApplication.removeTranslator(self.translator)
+            self.translator = None
 
 
 class MissingDependencyPlugin:

@@ -72,7 +72,9 @@ def study(paths):
     print(f"{stats['points']} points, {stats['refined']} image positions refined, {time.perf_counter() - t:.0f} s")
     pts = np.concatenate([p.points for p in parts])
     obs = np.concatenate([p.observations for p in parts])
-    res = intersection.intersect(truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"], h0=0.5 * (lo + hi))
+    res = intersection.intersect(
+        truth, intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"]), h0=0.5 * (lo + hi)
+    )
     ok = res.ok
     lon, lat, z = res.lon[ok], res.lat[ok], res.h[ok]
     refined = np.isfinite(pts["rho_min"][np.searchsorted(pts["id"], res.point[ok])])

@@ -61,7 +61,9 @@ def scene_errors(config):
     points, obs = points[np.isin(points["id"], keep)], obs[np.isin(obs["point_id"], keep)]
     sigma = precision.image_sigmas(points, obs, np.nan, {2: 1.0, 3: 1.0})
     res = intersection.intersect(
-        truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma=sigma, h0=0.5 * (lo + hi)
+        truth,
+        intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma),
+        h0=0.5 * (lo + hi),
     )
     ok = res.ok
     lon, lat, h = res.lon[ok], res.lat[ok], res.h[ok]

@@ -15,7 +15,8 @@ import numpy as np
 
 from pushbroom.algorithms.dense.pair_tile import match_pair_tile
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.refine import refine_positions
+from pushbroom.algorithms.dense.refine import Conjugates, refine_positions
+from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.simulation.terrain import BARE, CROPS
 from tests.helpers.matching_scene import Scene
@@ -59,14 +60,8 @@ def main():
         on = matched & (((y1 - BOX[1] - 0.5) % step == 0) & ((x1 - BOX[0] - 0.5) % step == 0))
         t = time.perf_counter()
         rx, ry, rho, *_ = refine_positions(
-            scene.image1,
-            scene.image2,
-            scene.model1,
-            scene.model2,
-            x1[on],
-            y1[on],
-            x2[on],
-            y2[on],
+            ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
+            Conjugates(x1[on], y1[on], x2[on], y2[on]),
             info["grid"].heights[::2],
             params.template,
             params.max_shift,
@@ -91,14 +86,8 @@ def main():
     left = matched & ~first
     t = time.perf_counter()
     wx, wy, wrho, *_ = refine_positions(
-        scene.image1,
-        scene.image2,
-        scene.model1,
-        scene.model2,
-        x1[left],
-        y1[left],
-        x2[left],
-        y2[left],
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
+        Conjugates(x1[left], y1[left], x2[left], y2[left]),
         info["grid"].heights[::2],
         WIDE,
         params.max_shift,

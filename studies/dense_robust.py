@@ -51,7 +51,9 @@ def dsm_errors(paths, truth, robust, isolation, folder):
     pts = np.concatenate([p.points for p in parts])
     obs = np.concatenate([p.observations for p in parts])
     res = intersection.intersect(
-        truth.models, obs["image_id"], obs["point_id"], obs["col"], obs["row"], h0=0.5 * (lo + hi)
+        truth.models,
+        intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"]),
+        h0=0.5 * (lo + hi),
     )
     ok = res.ok
     rho = pts["rho_min"][np.searchsorted(pts["id"], res.point[ok])].astype(np.float32)

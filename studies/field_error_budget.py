@@ -11,6 +11,7 @@ import tempfile
 import numpy as np
 from scipy import ndimage
 
+from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import match_pair, transfer_points
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
@@ -26,7 +27,7 @@ def rms(v):
 
 def budget(paths, oracle):
     scene = Scene(paths)
-    r = match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range)
+    r = match_pair(ImagePair(scene.image1, scene.image2, scene.model1, scene.model2), GrowParams(), scene.height_range)
     tx, ty, cls = scene.truth(r["x1"], r["y1"])
     ax, ay = scene.area_truth(r)
     field = np.isin(cls, SINGLE_SURFACE)
@@ -46,10 +47,7 @@ def budget(paths, oracle):
         best = np.full(len(r), np.inf)
         for t in WINDOWS:
             rec, ok = transfer_points(
-                scene.image1,
-                scene.image2,
-                scene.model1,
-                scene.model2,
+                ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
                 r["x1"],
                 r["y1"],
                 GrowParams(template=t, max_ellipse=1.0),

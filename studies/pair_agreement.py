@@ -34,7 +34,7 @@ from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.quality import rasters
 from pushbroom.algorithms.quality.rasters import open_raster, warp_to
 from pushbroom.algorithms.quality.statistics import summarize
-from pushbroom.algorithms.surface.cell_dem import cells_on_grid
+from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_grid import Grid
 from scripts.bench_peers import CARS, DATA, cars
@@ -105,7 +105,7 @@ def run(templates=(19,)):
             for pair, (plon, plat, ph) in clouds[t].items():
                 px, py = reproject(plon, plat, wgs84(), srs)
                 dsms[f"Pushbroom, {t} px template"][pair] = cells_on_grid(
-                    px, py, ph, None, grid, radius=1
+                    px, py, ph, None, grid, CellSettings(radius=1)
                 ).heights.astype(float)
         dsms["CARS 1.3.0"] = {}
         for pair in PAIRS:

@@ -8,7 +8,8 @@
 - No module of the package imports itself back through others: no cycle between modules, inside a
   subpackage too.
 
-Imports are read with `ast`, those inside functions included, relative imports resolved.
+Imports are read with `ast`, those inside functions included, relative imports resolved. Imports under
+`if TYPE_CHECKING:` are for the type checker only, never run, and do not count.
 """
 
 import ast
@@ -42,7 +43,7 @@ def imports_of(module, path, modules):
     """
     is_package = path.name == "__init__.py"
     found = []
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in _runtime_nodes(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
             found += [(node.lineno, alias.name) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -55,7 +56,27 @@ def imports_of(module, path, modules):
             for alias in node.names:
                 sub = f"{target}.{alias.name}"
                 found.append((node.lineno, sub if sub in modules else target))
-    return found
+    return sorted(found)
+
+
+def _type_checking(node):
+    """Whether `node` is an `if TYPE_CHECKING:` (or `typing.TYPE_CHECKING`) block."""
+    test = node.test if isinstance(node, ast.If) else None
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def _runtime_nodes(tree):
+    """The nodes of `tree` outside `if TYPE_CHECKING:` bodies (their `else` branches run)."""
+    stack = [tree]
+    while stack:
+        node = stack.pop()
+        yield node
+        if _type_checking(node):
+            stack.extend(node.orelse)
+        else:
+            stack.extend(ast.iter_child_nodes(node))
 
 
 def engine_node(module, package):
@@ -166,6 +187,15 @@ def test_checker_reports_a_cycle_inside_a_package_through_a_function_level_impor
         "import cycle between modules: pushbroom.algorithms.matching.lsm -> pushbroom.algorithms.matching.ncc -> "
         "pushbroom.algorithms.matching.lsm"
     ]
+
+
+def test_checker_ignores_imports_for_the_type_checker_only(tmp_path):
+    source = "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .lsm import bilinear\n"
+    write_package(
+        tmp_path,
+        {**SOUND, "algorithms/matching/ncc.py": source, "algorithms/matching/lsm.py": "from .ncc import score\n"},
+    )
+    assert layering_violations(tmp_path) == []
 
 
 def test_checker_reports_ui_importing_plugin(tmp_path):

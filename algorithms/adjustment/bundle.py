@@ -32,14 +32,18 @@ do not determine; a non-finite update. Control points without an image measureme
 
 The kernels run on the calling thread for small blocks (normals.kernel_threads)."""
 
+from __future__ import annotations
+
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from .. import progress
 from ..errors import CancelledError, GeometryError, InputError
 from ..geodesy import metres_per_degree, offset_enu
-from ..surface.intersection import closest_points, intersect
+from ..progress import Feedback
+from ..surface.intersection import Measurements, closest_points, intersect
 from . import normals
 from .observations import Observations
 from .parameters import OrientationParameters
@@ -55,10 +59,34 @@ DEFECT_MEMBER = 1e-3
 
 
 @dataclass
+class AdjustmentSettings:
+    """How `adjust` solves. At most `max_iterations` Gauss-Newton iterations, converged when the largest
+    point update is below `tolerance` (m). With `remove_blunders`, the worst measurement whose |w| exceeds
+    `critical` is removed and the block adjusted again, at most `max_removals` times. `priors`: {name or
+    pattern: sigma} prior observations x = 0 of orientation unknowns (see `prior_sigmas`), merged over the
+    model's own (OrientationParameters.default_priors; a user sigma of inf drops one). `model`,
+    `orientation_images`: the exterior orientation model (parameters.py: "polynomial" or "lagrange").
+    `defect_eigenvalue`: see find_defects (selection.py tests weaker parameters on their significance).
+    `effects`: compute each free unknown's largest image effect for the report (parameters.max_effects;
+    NaN without: the selection's trials do not need them)."""
+
+    max_iterations: int = 15
+    tolerance: float = 1e-4
+    remove_blunders: bool = False
+    critical: float = CRITICAL_W
+    max_removals: int = 50
+    priors: dict[str, float] | None = None
+    model: str = "polynomial"
+    orientation_images: int = 4
+    defect_eigenvalue: float = DEFECT_EIGENVALUE
+    effects: bool = True
+
+
+@dataclass
 class Adjustment:
     """Result of `adjust` (all arrays over the adjusted points / measurements)."""
 
-    parameters: object  # OrientationParameters (models now carry the solution)
+    parameters: OrientationParameters  # the models now carry the solution
     values: np.ndarray  # all orientation unknowns (fixed ones 0)
     sigmas: np.ndarray  # their standard deviations (NaN: fixed)
     covariance: np.ndarray  # (nfree, nfree) of the free unknowns, sigma_0^2 Q_oo
@@ -149,6 +177,10 @@ class _Geometry:
             l[k, 0] -= d["col"]
             l[k, 1] -= d["row"]
         return a, b, l
+
+    def design(self, a: np.ndarray, b: np.ndarray) -> normals.Design:
+        """The kernels' view (normals.Design) of the measurements with the partials a, b of `linearise`."""
+        return normals.Design(self.start, a, b, self.w, self.img, self.col)
 
 
 def _ground_weights(points, lon, lat, h):
@@ -264,53 +296,39 @@ def prior_sigmas(params, priors):
 
 
 def adjust(
-    models,
-    observations,
-    free,
-    names=None,
-    height=0.0,
-    max_iterations=15,
-    tolerance=1e-4,
-    remove_blunders=False,
-    critical=CRITICAL_W,
-    max_removals=50,
-    priors=None,
-    model="polynomial",
-    orientation_images=4,
-    defect_eigenvalue=DEFECT_EIGENVALUE,
-    effects=True,
-    feedback=None,
-):
+    models: dict[int, Any],
+    observations: Observations,
+    free: np.ndarray | list[str],
+    names: dict[int, str] | None = None,
+    height: float = 0.0,
+    settings: AdjustmentSettings | None = None,
+    feedback: Feedback | None = None,
+) -> Adjustment:
     """Bundle adjustment (module docstring). models {image_id: model} (edited in place: they carry
     the solution); observations: Observations (check points are ignored here); free: bool mask or
     a list of names/patterns for parameters.OrientationParameters.select; height: mean terrain
-    height for the tie points' starting values; priors: {name or pattern: sigma} prior
-    observations x = 0 of orientation unknowns (see `prior_sigmas`), merged over the model's own
-    (OrientationParameters.default_priors; a user sigma of inf drops one); model, orientation_images:
-    the exterior orientation model (parameters.py: "polynomial" or "lagrange"); defect_eigenvalue:
-    see find_defects (selection.py tests weaker parameters on their significance); effects: compute
-    each free unknown's largest image effect for the report (parameters.max_effects; NaN without:
-    the selection's trials do not need them). Returns an
-    Adjustment; raises InputError on too few observations or undeterminable parameters (named),
-    CancelledError when cancelled."""
+    height for the tie points' starting values; settings: AdjustmentSettings (default: its defaults).
+    Returns an Adjustment; raises InputError on too few observations or undeterminable parameters
+    (named), CancelledError when cancelled."""
+    settings = settings or AdjustmentSettings()
     obs = observations.check()
-    params = OrientationParameters(models, names, model, orientation_images)
+    params = OrientationParameters(models, names, settings.model, settings.orientation_images)
     mask = np.asarray(free, bool) if np.asarray(free).dtype == bool else params.select(free)
     if mask.shape != (len(params),):
         raise InputError(f"the free-parameter mask has {mask.size} entries for {len(params)} parameters")
     params.free = mask
-    params.prior_weights = 1.0 / prior_sigmas(params, {**params.default_priors, **(priors or {})}) ** 2
+    params.prior_weights = 1.0 / prior_sigmas(params, {**params.default_priors, **(settings.priors or {})}) ** 2
     unknown = set(np.unique(obs.measurements["image_id"])) - set(models)
     if unknown:
         raise InputError(f"measurements in image id(s) {sorted(unknown)} that the block has no model for")
     used = obs.subset(obs.points["role"] != "check")
-    removed = []
+    removed: list[tuple[str, int, float]] = []
     while True:
         with normals.kernel_threads(len(used.measurements)):
-            result = _solve(params, used, height, max_iterations, tolerance, defect_eigenvalue, effects, feedback)
+            result = _solve(params, used, height, settings, feedback)
         result.removed = removed
-        bad = result.flagged(critical)
-        if not remove_blunders or not bad.size or len(removed) >= max_removals:
+        bad = result.flagged(settings.critical)
+        if not settings.remove_blunders or not bad.size or len(removed) >= settings.max_removals:
             return result
         worst = bad[np.argmax(np.nanmax(np.abs(result.normalised[bad]), axis=1))]
         mw = result.observations.measurements[worst]
@@ -349,8 +367,16 @@ def _measured(obs, notes):
     return obs.subset(~unmeasured)
 
 
-def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, effects, feedback):
-    notes = []
+def _solve(
+    params: OrientationParameters,
+    obs: Observations,
+    height: float,
+    settings: AdjustmentSettings,
+    feedback: Feedback | None,
+) -> Adjustment:
+    """One adjustment of `obs` (no data snooping): the body of `adjust`."""
+    max_iterations, tolerance = settings.max_iterations, settings.tolerance
+    notes: list[str] = []
     fb = progress.ensure(feedback)
     obs = _measured(obs, notes)
     lon, lat, h, usable = start_points(params.models, obs, height)
@@ -366,22 +392,23 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, ef
         raise InputError("no point can be intersected from its image measurements: nothing to adjust")
     log = list(notes)
     geo = _Geometry(params, obs)
-    start, col, nfree = geo.start, geo.col, geo.nfree
+    col, nfree = geo.col, geo.nfree
     labels = [params.label(q) for q in np.flatnonzero(params.free)]
     prior = params.prior_weights[params.free]
     x = np.zeros(len(params))
     n_pts = len(pts)
-    ninv, bp, ok = np.zeros((n_pts, 3, 3)), np.zeros((n_pts, 3)), np.zeros(n_pts, bool)
+    blocks = normals.PointBlocks(np.zeros((n_pts, 3, 3)), np.zeros((n_pts, 3)), np.zeros(n_pts, bool))
+    ok = blocks.ok
     dx = np.zeros((n_pts, 3))
     params.apply(x)
     iteration, converged = 0, False
     for iteration in range(1, max_iterations + 1):
         if fb.isCanceled():
             raise CancelledError("bundle adjustment cancelled")
-        a, b, l, wg, normal, rhs, cost = _linearise(geo, pts, lon, lat, h, prior, x[params.free], ninv, bp, ok)
+        a, b, l, wg, normal, rhs, cost = _linearise(geo, pts, (lon, lat, h), prior, x[params.free], blocks)
         _check_linearisation(geo, pts, (lon, lat, h), (a, b, l, normal, rhs), ok, iteration)
         if iteration == 1:
-            defects = find_defects(normal, labels, defect_eigenvalue, prior)
+            defects = find_defects(normal, labels, settings.defect_eigenvalue, prior)
             if defects:
                 raise defects
             n_obs, redundancy = _redundancy(geo, pts, ok, prior)
@@ -392,7 +419,7 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, ef
                     "parameters"
                 )
         do = _solve_scaled(normal, rhs, labels, prior)
-        normals.back_substitute(start, a, b, geo.w, geo.img, col, ninv, bp, ok, do, dx)
+        normals.back_substitute(geo.design(a, b), blocks, do, dx)
         step = float(np.max(np.abs(dx))) if n_pts else 0.0
         if not (np.isfinite(step) and np.isfinite(do).all()):
             raise GeometryError(
@@ -421,14 +448,14 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, ef
         dof = np.where(col >= 0, np.r_[do, 0.0][col], 0.0)
         l = l - np.einsum("jer,jr->je", a, dx[geo.point_of]) - np.einsum("jek,jk->je", b, dof[geo.img])
     else:
-        a, b, l, wg, normal, rhs, _ = _linearise(geo, pts, lon, lat, h, prior, x[params.free], ninv, bp, ok)
+        a, b, l, wg, normal, rhs, _ = _linearise(geo, pts, (lon, lat, h), prior, x[params.free], blocks)
         _check_linearisation(geo, pts, (lon, lat, h), (a, b, l, normal, rhs), ok, iteration + 1)
     lg = _ground_weights(pts, lon, lat, h)[1]
     vpv_prior = float(np.sum(prior * x[params.free] ** 2))
     qoo = _inverse_scaled(normal, labels, prior)
     qpp = np.zeros((n_pts, 3, 3))
     red = np.zeros((len(geo.meas), 2))
-    normals.point_statistics(start, a, b, geo.w, geo.img, col, ninv, ok, qoo, qpp, red)
+    normals.point_statistics(geo.design(a, b), blocks, qoo, qpp, red)
     v = -l
     vg = -lg
     control = pts["role"] == "control"
@@ -468,7 +495,7 @@ def _solve(params, obs, height, max_iterations, tolerance, defect_eigenvalue, ef
         iterations=iteration,
         converged=converged,
         last_update=step,
-        effects=params.max_effects(x, height) if effects else np.full(len(params), np.nan),
+        effects=params.max_effects(x, height) if settings.effects else np.full(len(params), np.nan),
         log=log,
         notes=notes,
     )
@@ -538,17 +565,22 @@ def _redundancy(geo, pts, ok, prior):
     return n_obs, n_obs - 3 * int(ok.sum()) - geo.nfree
 
 
-def _linearise(geo, pts, lon, lat, h, prior, xfree, ninv, bp, ok):
-    """Linearise at (lon, lat, h) and the models' orientation, and reduce the normal equations by the
-    points (normals.reduce_normals fills ninv, bp, ok), with the priors of the free unknowns
-    `xfree`. Returns a, b, l (_Geometry.linearise), the ground weights, N, b and the weighted
-    misclosure."""
+def _linearise(
+    geo: _Geometry,
+    pts: np.ndarray,
+    position: tuple[np.ndarray, np.ndarray, np.ndarray],
+    prior: np.ndarray,
+    xfree: np.ndarray,
+    blocks: normals.PointBlocks,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """Linearise at `position` (lon, lat, h) and the models' orientation, and reduce the normal equations
+    by the points (normals.reduce_normals fills `blocks`), with the priors of the free unknowns `xfree`.
+    Returns a, b, l (_Geometry.linearise), the ground weights, N, b and the weighted misclosure."""
+    lon, lat, h = position
     a, b, l = geo.linearise(lon, lat, h)
     wg, lg = _ground_weights(pts, lon, lat, h)
     normal, rhs = np.zeros((geo.nfree, geo.nfree)), np.zeros(geo.nfree)
-    cost = normals.reduce_normals(
-        geo.start, a, b, l, geo.w, geo.img, geo.col, wg, lg, geo.nfree, normal, rhs, ninv, bp, ok
-    )
+    cost = normals.reduce_normals(geo.design(a, b), l, normals.Ground(wg, lg), geo.nfree, normal, rhs, blocks)
     cost += _add_priors(normal, rhs, prior, xfree)
     return a, b, l, wg, normal, rhs, cost
 
@@ -608,7 +640,7 @@ def _inverse_scaled(normal, labels=None, prior=None):
     return _solve_jacobi(normal, np.eye(len(normal)), labels, prior)
 
 
-def check_points(adjustment, observations, height=0.0):
+def check_points(adjustment: Adjustment, observations: Observations, height: float = 0.0) -> dict[str, Any]:
     """Intersect the check points of `observations` with the adjusted models and compare with
     their ground coordinates. Returns a dict: names, dE, dN, dH (m, computed - reference) and
     the theoretical sigma E/N/H of each: the intersection's own (image sigmas scaled by sigma_0)
@@ -619,7 +651,7 @@ def check_points(adjustment, observations, height=0.0):
         return _check_points(adjustment, observations, height)
 
 
-def _check_points(adjustment, observations, height):
+def _check_points(adjustment: Adjustment, observations: Observations, height: float) -> dict[str, Any]:
     params = adjustment.parameters
     chk = observations.subset(observations.points["role"] == "check")
     m = chk.measurements
@@ -632,7 +664,7 @@ def _check_points(adjustment, observations, height):
             "sigma": np.zeros((0, 3)),
             "left_out": list(chk.points["name"]),
         }
-    cut = intersect(params.models, m["image_id"], m["point"], m["col"], m["row"], m["sigma"], h0=height)
+    cut = intersect(params.models, Measurements(m["image_id"], m["point"], m["col"], m["row"], m["sigma"]), h0=height)
     left_out = list(chk.points["name"][~np.isin(np.arange(len(chk.points)), cut.point[cut.ok])])
     chk = chk.subset(np.isin(np.arange(len(chk.points)), cut.point[cut.ok]))
     pts = chk.points
@@ -656,16 +688,26 @@ def _check_points(adjustment, observations, height):
 class Restart:
     """Repeated adjustments of one block, each from the orientation the models had when this was
     made (the supplied one), so fixed parameters and priors keep their meaning: the variance
-    components and the parameter selection. `observations` is the default set; `count` the runs;
-    `overrides` of a call replace adjust_kwargs for that run."""
+    components and the parameter selection. `observations` is the default set, `height` and `settings`
+    those of every run (adjust); `count` the runs; the `settings` of a call replace them for that run."""
 
-    def __init__(self, models, observations, names=None, feedback=None, **adjust_kwargs):
+    def __init__(
+        self,
+        models: dict[int, Any],
+        observations: Observations,
+        names: dict[int, str] | None = None,
+        feedback: Feedback | None = None,
+        height: float = 0.0,
+        settings: AdjustmentSettings | None = None,
+    ) -> None:
         self.base = OrientationParameters(models, names)
         self.models, self.observations, self.names = models, observations, names
-        self.feedback, self.kwargs = feedback, adjust_kwargs
+        self.feedback, self.height, self.settings = feedback, height, settings or AdjustmentSettings()
         self.count = 0
 
-    def __call__(self, free, observations=None, **overrides):
+    def __call__(
+        self, free: list[str], observations: Observations | None = None, settings: AdjustmentSettings | None = None
+    ) -> Adjustment:
         self.base.apply(np.zeros(len(self.base)))
         self.count += 1
         return adjust(
@@ -673,6 +715,7 @@ class Restart:
             self.observations if observations is None else observations,
             list(free),
             names=self.names,
+            height=self.height,
+            settings=self.settings if settings is None else settings,
             feedback=progress.quiet(self.feedback),
-            **{**self.kwargs, **overrides},
         )

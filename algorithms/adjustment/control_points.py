@@ -25,11 +25,17 @@ Other columns are ignored with a warning. Errors name the line and column.
 Storage in the block: block/control_points.py (through block.Block).
 """
 
+from __future__ import annotations
+
 import codecs
 import csv
+import dataclasses
 import io
 import math
 import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -37,6 +43,7 @@ from .. import progress
 from ..atomic import write_text
 from ..crs import egm96_undulation, reproject, srs as parse_crs, wgs84
 from ..errors import InputError
+from ..progress import Feedback
 from ..sigmas import IMAGE_SIGMA
 from . import point_plausibility
 from .observations import MEAS_DTYPE, POINT_DTYPE, Observations
@@ -210,42 +217,56 @@ class _Table:
         return value
 
 
+@dataclass(frozen=True)
+class CsvOptions:
+    """How to read a point file (module docstring): `crs` the CRS of x/y columns (EPSG code or WKT; default
+    WGS 84); `heights` one of HEIGHT_TYPES; `default_role` the role of a point without one; `check_ids` names
+    points that are check points whatever their role column says; `sigmas` the default ground sigmas (m, E,
+    N, H) and `image_sigma` the default measurement sigma (px); `suffix` that of the measurement columns."""
+
+    crs: str | int | None = None
+    heights: str = "ellipsoidal"
+    default_role: str = "control"
+    check_ids: Sequence[str] = ()
+    sigmas: Sequence[float] = DEFAULT_SIGMAS
+    image_sigma: float = IMAGE_SIGMA
+    suffix: str = ""
+
+
 def read_csv(
-    path,
-    image_names,
-    crs=None,
-    heights="ellipsoidal",
-    default_role="control",
-    check_ids=(),
-    sigmas=DEFAULT_SIGMAS,
-    image_sigma=IMAGE_SIGMA,
-    suffix="",
-    feedback=None,
-):
+    path: str | os.PathLike[str],
+    image_names: dict[str, int],
+    options: CsvOptions | None = None,
+    feedback: Feedback | None = None,
+) -> Observations:
     """Observations (control/check points and their image measurements) from the CSV `path`
-    (format in the module docstring). `image_names` maps the block's image names to their ids
-    ({name: id}); `crs` is the CRS of x/y columns (default WGS 84); `check_ids` names points that
-    are check points whatever their role column says. Measurements are ordered by point, then
+    (format in the module docstring), read with CsvOptions `options` (default: its defaults). `image_names`
+    maps the block's image names to their ids ({name: id}). Measurements are ordered by point, then
     image id."""
-    return _read_csv(path, image_names, crs, heights, default_role, check_ids, sigmas, image_sigma, suffix, feedback)[0]
+    return _read_csv(path, image_names, options or CsvOptions(), feedback)[0]
 
 
-def _read_csv(path, image_names, crs, heights, default_role, check_ids, sigmas, image_sigma, suffix, feedback):
+def _read_csv(
+    path: str | os.PathLike[str], image_names: dict[str, int], options: CsvOptions, feedback: Feedback | None
+) -> tuple[Observations, np.ndarray]:
     """read_csv's Observations and, per point, whether its x/y looked like degrees in a projected CRS."""
+    crs, heights, default_role, check_ids = options.crs, options.heights, options.default_role, options.check_ids
+    sigmas, image_sigma, suffix = options.sigmas, options.image_sigma, options.suffix
     if heights not in HEIGHT_TYPES:
         raise InputError(f"heights must be one of {', '.join(HEIGHT_TYPES)}, not {heights!r}")
     if default_role not in ROLES:
         raise InputError(f"the default role must be one of {', '.join(ROLES)}, not {default_role!r}")
     if not all(s > 0 for s in list(sigmas) + [image_sigma]):
         raise InputError(f"default sigmas must be positive, got {list(sigmas)} m and {image_sigma} px")
-    feedback = progress.ensure(feedback)
+    log = progress.ensure(feedback)
     table = _Table(path, image_names, suffix)
     if table.ignored:
-        feedback.pushInfo(f"warning: ignored column(s) of {table.path}: {', '.join(table.ignored)}")
+        log.pushInfo(f"warning: ignored column(s) of {table.path}: {', '.join(table.ignored)}")
     if table.horizontal == ("lon", "lat") and crs is not None and not parse_crs(crs).IsSame(wgs84()):
-        feedback.pushInfo("warning: lon/lat columns are WGS 84 degrees; the CRS applies to x/y columns only")
+        log.pushInfo("warning: lon/lat columns are WGS 84 degrees; the CRS applies to x/y columns only")
     points = np.zeros(len(table.rows), POINT_DTYPE)
-    meas, seen = [], {}
+    meas: list[tuple[int, int, float, float, float]] = []
+    seen: dict[str, int] = {}
     image_ids = [(image_names[name], table.images[name]) for name in image_names if name in table.images]
     for k, (line, cells) in enumerate(table.rows):
         name = table.cell(cells, "id")
@@ -302,8 +323,7 @@ def _read_csv(path, image_names, crs, heights, default_role, check_ids, sigmas, 
         raise InputError(f"check point id(s) {', '.join(unknown)} are not in {table.path}")
     points["role"][np.isin(points["name"], check_ids)] = "check"
     degrees = _ground_to_wgs84(points, table, crs, heights, seen)
-    meas = np.array(meas, MEAS_DTYPE)
-    return Observations(points, meas).sorted().check(), degrees
+    return Observations(points, np.array(meas, MEAS_DTYPE)).sorted().check(), degrees
 
 
 def _ground_to_wgs84(points, table, crs, heights, lines):
@@ -414,35 +434,25 @@ def check_plausible(blk, observations, degrees_as_projected=None, keep=False, fe
 
 
 def import_csv(
-    blk,
+    blk: Any,  # block.Block (the block package imports this module)
     csv_path: str,
     mode: str = "replace",
-    feedback=None,
+    feedback: Feedback | None = None,
     keep_implausible: bool = False,
     replace_fewer: bool = False,
-    **options,
+    **options: Any,
 ) -> Observations:
-    """Read `csv_path` (`read_csv` with `options`) against the images of the block `blk` (block.Block),
+    """Read `csv_path` (`read_csv` with the CsvOptions `options`) against the images of the block `blk` (block.Block),
     check the measurements lie inside their images and the points where the images are (`check_plausible`;
     refused unless `keep_implausible`) and store the points (Block.save_control_points, `mode` replace or
     merge; far fewer points or measurements than the block holds only with `replace_fewer`). Returns the
     points now in the block."""
     images = blk.images()
     names = {r["name"]: r["id"] for r in images}
-    defaults = {
-        "crs": None,
-        "heights": "ellipsoidal",
-        "default_role": "control",
-        "check_ids": (),
-        "sigmas": DEFAULT_SIGMAS,
-        "image_sigma": IMAGE_SIGMA,
-        "suffix": "",
-    }
-    unknown = set(options) - set(defaults)
+    unknown = set(options) - {f.name for f in dataclasses.fields(CsvOptions)}
     if unknown:
         raise TypeError(f"unknown option(s) {sorted(unknown)}")
-    defaults.update(options)
-    observations, degrees = _read_csv(csv_path, names, feedback=feedback, **defaults)
+    observations, degrees = _read_csv(csv_path, names, CsvOptions(**options), feedback)
     check_extent(observations, images)
     check_plausible(blk, observations, degrees, keep_implausible, feedback)
     return blk.save_control_points(observations, mode=mode, feedback=feedback, names=names, replace_fewer=replace_fewer)

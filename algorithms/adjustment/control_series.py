@@ -10,16 +10,22 @@ Candidates not chosen take no part (neither control nor check). The check points
 with the adjusted models (bundle.check_points); a row gives the RMS of their dE, dN, dH, the RMS
 of their theoretical sigmas and sigma_0."""
 
+from __future__ import annotations
+
 import copy
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .. import progress
 from ..errors import InputError
 from ..geodesy import metres_per_degree
+from ..progress import Feedback
 from ..stats import statistics_table
-from .bundle import adjust, check_points
+from .bundle import AdjustmentSettings, adjust, check_points
+from .observations import Observations
 
 
 @dataclass
@@ -50,11 +56,20 @@ def farthest_points(lon, lat, count):
     return np.array(chosen)
 
 
-def control_point_series(models, observations, counts, free, names=None, height=0.0, feedback=None, **adjust_kwargs):
+def control_point_series(
+    models: dict[int, Any],
+    observations: Observations,
+    counts: Iterable[int],
+    free: list[str],
+    names: dict[int, str] | None = None,
+    height: float = 0.0,
+    settings: AdjustmentSettings | None = None,
+    feedback: Feedback | None = None,
+) -> list[SeriesRow]:
     """SeriesRows for each control point count in `counts` (module docstring). models: {image_id:
     model} (not edited: each row adjusts a copy); observations: the candidates as control points,
-    the check and tie points; free, names, height and `adjust_kwargs` (model, priors, ...) as
-    bundle.adjust. Raises InputError (a count above the candidates, no check point) and what
+    the check and tie points; free, names, height and `settings` (AdjustmentSettings: model, priors, ...)
+    as bundle.adjust. Raises InputError (a count above the candidates, no check point) and what
     adjust raises; CancelledError when cancelled."""
     obs = observations.check()
     roles = obs.points["role"]
@@ -77,8 +92,8 @@ def control_point_series(models, observations, counts, free, names=None, height=
             free,
             names=names,
             height=height,
+            settings=settings,
             feedback=progress.scaled(feedback, 100.0 * k / len(counts), 100.0 * (k + 1) / len(counts)),
-            **adjust_kwargs,
         )
         check = check_points(result, used, height)
         table = statistics_table({key: check[key] for key in ("dE", "dN", "dH")})

@@ -17,11 +17,17 @@ The kernels here and the sensor models' are parallel over points. A block adjust
 times on small arrays (the automatic selection runs dozens of adjustments of a few hundred points):
 there, starting a parallel region and the idle threads' spinning cost more than the work, so
 `kernel_threads` runs them on the calling thread below SERIAL_MEASUREMENTS image measurements. The
-results do not depend on it: the points are reduced in CHUNKS chunks whatever the threads."""
+results do not depend on it: the points are reduced in CHUNKS chunks whatever the threads.
+
+The kernels take the image observations as one `Design` and the per-point results as one `PointBlocks`
+(NamedTuples of arrays, which numba compiles)."""
+
+from __future__ import annotations
 
 import contextlib
 import math
 from collections.abc import Iterator
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -124,13 +130,52 @@ def cholesky_solve(m, rhs, out):
 CHUNKS = 16
 
 
+class Design(NamedTuple):
+    """The image observations sorted by point (module docstring): measurements start[p]:start[p + 1] are
+    point p's; a (M, 2, 3) px per metre east/north/up, b (M, 2, K) px per orientation unknown, w (M, 2)
+    weights, img (M,) the image of each measurement, col (n_images, K) its unknowns' free columns (-1:
+    fixed)."""
+
+    start: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    w: np.ndarray
+    img: np.ndarray
+    col: np.ndarray
+
+
+class Ground(NamedTuple):
+    """The ground observations of the points: weights w (P, 3, diagonal: 0 but for control points) and
+    misclosures l (P, 3, m east/north/up)."""
+
+    w: np.ndarray
+    l: np.ndarray
+
+
+class PointBlocks(NamedTuple):
+    """Per point: ninv (P, 3, 3) N_pp^-1, bp (P, 3) b_p, ok (P,) False where N_pp is singular."""
+
+    ninv: np.ndarray
+    bp: np.ndarray
+    ok: np.ndarray
+
+
 @njit(cache=True, nogil=True, parallel=True)
-def reduce_normals(start, a, b, l, w, img, col, wg, lg, nfree, normal, rhs, ninv, bp, ok):
-    """Accumulate the reduced normal equations (module docstring) into normal (nfree, nfree) and
-    rhs (nfree,); store N_pp^-1 in ninv (P, 3, 3) and b_p in bp (P, 3); ok[p] = False where N_pp
-    is singular (the point is left out). Returns sum of l' W l (the weighted squared misclosures).
-    The points run in CHUNKS chunks in parallel, each summing into its own copy of N and b."""
-    npts = start.size - 1
+def reduce_normals(
+    design: Design,
+    l: np.ndarray,
+    ground: Ground,
+    nfree: int,
+    normal: np.ndarray,
+    rhs: np.ndarray,
+    points: PointBlocks,
+) -> float:
+    """Accumulate the reduced normal equations (module docstring) of the image observations `design` with
+    misclosures l (M, 2) and the `ground` observations into normal (nfree, nfree) and rhs (nfree,); store
+    N_pp^-1, b_p and whether N_pp is regular in `points` (a singular point is left out). Returns sum of
+    l' W l (the weighted squared misclosures). The points run in CHUNKS chunks in parallel, each summing
+    into its own copy of N and b."""
+    npts = design.start.size - 1
     chunks = max(1, min(CHUNKS, npts))
     normals = np.zeros((chunks, nfree, nfree))
     rhss = np.zeros((chunks, nfree))
@@ -140,9 +185,7 @@ def reduce_normals(start, a, b, l, w, img, col, wg, lg, nfree, normal, rhs, ninv
         c = np.zeros((3, nfree))
         used = np.zeros(nfree, np.bool_)
         for p in range(k * npts // chunks, (k + 1) * npts // chunks):
-            costs[k] += _reduce_point(
-                p, start, a, b, l, w, img, col, wg, lg, nfree, normals[k], rhss[k], ninv, bp, ok, npp, c, used
-            )
+            costs[k] += _reduce_point(p, design, l, ground, nfree, normals[k], rhss[k], points, npp, c, used)
     for k in range(chunks):
         normal += normals[k]
         rhs += rhss[k]
@@ -150,9 +193,24 @@ def reduce_normals(start, a, b, l, w, img, col, wg, lg, nfree, normal, rhs, ninv
 
 
 @njit(cache=True, nogil=True)
-def _reduce_point(p, start, a, b, l, w, img, col, wg, lg, nfree, normal, rhs, ninv, bp, ok, npp, c, used):
+def _reduce_point(
+    p: int,
+    design: Design,
+    l: np.ndarray,
+    ground: Ground,
+    nfree: int,
+    normal: np.ndarray,
+    rhs: np.ndarray,
+    points: PointBlocks,
+    npp: np.ndarray,
+    c: np.ndarray,
+    used: np.ndarray,
+) -> float:
     """Point p's part of reduce_normals (npp, c, used: work arrays, c and used left cleared);
     returns its weighted squared misclosures."""
+    start, a, b, w, img, col = design
+    wg, lg = ground
+    ninv, bp, ok = points
     kk = b.shape[2]
     cost = 0.0
     npp[:, :] = 0.0
@@ -207,8 +265,11 @@ def _reduce_point(p, start, a, b, l, w, img, col, wg, lg, nfree, normal, rhs, ni
 
 
 @njit(cache=True, nogil=True)
-def back_substitute(start, a, b, w, img, col, ninv, bp, ok, do, dx):
-    """dx[p] = N_pp^-1 (b_p - sum_j C_j do) (module docstring); NaN where not ok."""
+def back_substitute(design: Design, points: PointBlocks, do: np.ndarray, dx: np.ndarray) -> None:
+    """dx[p] = N_pp^-1 (b_p - sum_j C_j do) (module docstring) of the `points` reduce_normals filled; NaN
+    where not ok."""
+    start, a, b, w, img, col = design
+    ninv, bp, ok = points
     kk = b.shape[2]
     g = np.empty(3)
     for p in range(start.size - 1):
@@ -230,12 +291,17 @@ def back_substitute(start, a, b, w, img, col, ninv, bp, ok, do, dx):
 
 
 @njit(cache=True, nogil=True)
-def point_statistics(start, a, b, w, img, col, ninv, ok, qoo, qpp, redundancy):
-    """Cofactors of the points and redundancy numbers of the image observations.
+def point_statistics(
+    design: Design, points: PointBlocks, qoo: np.ndarray, qpp: np.ndarray, redundancy: np.ndarray
+) -> None:
+    """Cofactors qpp (P, 3, 3) of the points and redundancy numbers (M, 2) of the image observations, from
+    the cofactors qoo of the orientation unknowns and the `points` reduce_normals filled.
 
     G_p = -N_pp^-1 sum_j C_j;  Q_pp = N_pp^-1 + G_p Q_oo G_p';  Q_po = G_p Q_oo;
     for an observation row (a, b) of point p: q = a Q_pp a' + 2 a Q_po b' + b Q_oo b', and its
     redundancy number is r = 1 - q w."""
+    start, a, b, w, img, col = design
+    ninv, _, ok = points
     kk = b.shape[2]
     nfree = qoo.shape[0]
     c = np.zeros((3, nfree))

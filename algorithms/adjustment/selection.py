@@ -42,16 +42,22 @@ stood in for an attitude drift in step 1 is no longer significant.
 Unknowns the points cannot determine at all in step 1 are fixed in the same way (highest degree
 first). Every step is logged; the user overrides the result by giving the free set explicitly."""
 
-from dataclasses import dataclass, field
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy.special import ndtr, stdtrit
 
 from .. import progress
 from ..errors import InputError
-from .bundle import DefectError, Restart
+from ..progress import Feedback
+from .bundle import Adjustment, AdjustmentSettings, DefectError, Restart
+from .observations import Observations
 from .parameters import EXTERIOR, LOOK
-from .variance import estimate
+from .variance import Component, estimate
 
 #: eigenvalue threshold of the defect test while selecting (bundle.find_defects): only numerically
 #: singular combinations are fixed before solving; weakly determined ones are left to the significance test
@@ -61,16 +67,33 @@ SELECTION_DEFECT_EIGENVALUE = 1e-10
 FIX_ORDER = ("X", "Y", "Z", "yaw", "pitch", "roll", "psi_x", "psi_y")
 
 
+@dataclass(frozen=True)
+class SelectionSettings:
+    """The selection's settings (module docstring): the look-angle coefficients up to degree `look_degree`
+    and the exterior ones up to `exterior_degree` are candidates; a coefficient is insignificant below
+    |x| / sigma_x = `significance`; fixing it may raise a control RMS by `max_increase` (a fraction), and
+    `systematic` is the t-test's threshold as a normal quantile; `test_exterior`: run steps 2 and 3;
+    `variance_components`: estimate the groups' sigmas first (variance.estimate)."""
+
+    look_degree: int = 3
+    exterior_degree: int = 3
+    significance: float = 3.0
+    max_increase: float = 0.10
+    systematic: float = 3.0
+    test_exterior: bool = True
+    variance_components: bool = True
+
+
 @dataclass
 class Selection:
     """Result of `select_parameters`: the final adjustment (its `parameters.free` is the chosen
     set; the models carry its solution) and the log of every decision."""
 
-    result: object
-    free: list  # names of the chosen free unknowns
-    observations: object  # the observations adjusted (sigmas from variance components)
-    components: list  # variance.Component of each group ([] without variance components)
-    log: list = field(default_factory=list)
+    result: Adjustment
+    free: list[str]  # names of the chosen free unknowns
+    observations: Observations  # the observations adjusted (sigmas from variance components)
+    components: list[Component]  # variance.Component of each group ([] without variance components)
+    log: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -184,10 +207,20 @@ def _solvable(run, free, fixable, log, what):
                 log(f"{what}: fixed {name}: the points cannot determine it together with the other free unknowns")
 
 
-def _eliminate(run, result, free, fixable, significance, max_increase, systematic, log, what, report):
-    """Backward elimination of insignificant members of `fixable` (module docstring); report(fraction)
-    after each trial (at most one trial per member)."""
-    kept = set()
+def _eliminate(
+    run: Restart,
+    result: Adjustment,
+    free: list[str],
+    fixable: set[str],
+    settings: SelectionSettings,
+    log: Callable[[str], None],
+    what: str,
+    report: Callable[[float], Any],
+) -> tuple[Adjustment, list[str]]:
+    """Backward elimination of insignificant members of `fixable` (module docstring, with the thresholds of
+    `settings`); report(fraction) after each trial (at most one trial per member)."""
+    significance = settings.significance
+    kept: set[str] = set()
     state = _ControlState.of(result)
     trials = 0
     while True:
@@ -208,7 +241,7 @@ def _eliminate(run, result, free, fixable, significance, max_increase, systemati
             log(f"{what}: kept {name} (x/sigma {ratio:.1f}): the block cannot be solved without it")
             continue
         new_state = _ControlState.of(candidate)
-        reason = state.worse(new_state, max_increase, systematic, significance, run.names or {})
+        reason = state.worse(new_state, settings.max_increase, settings.systematic, significance, run.names or {})
         if reason:
             kept.add(name)
             log(f"{what}: kept {name} (x/sigma {ratio:.1f}): fixing it, {reason}")
@@ -218,37 +251,34 @@ def _eliminate(run, result, free, fixable, significance, max_increase, systemati
 
 
 def select_parameters(
-    models,
-    observations,
-    names=None,
-    height=0.0,
-    look_degree=3,
-    exterior_degree=3,
-    significance=3.0,
-    max_increase=0.10,
-    systematic=3.0,
-    test_exterior=True,
-    variance_components=True,
-    feedback=None,
-    **adjust_kwargs,
-):
-    """Automatic parameter selection (module docstring). models {image_id: model} (edited in
-    place: they carry the final solution); observations, names, height and `adjust_kwargs`
-    (priors, max_iterations, ...) as bundle.adjust. With `variance_components`, the sigmas of the
-    tie point, control image and control ground observations are first estimated
-    (variance.estimate) with all step-1 candidates free and used throughout. Returns a Selection;
-    raises what adjust raises (a DefectError when even the look-angle constants cannot be
-    determined)."""
-    if adjust_kwargs.get("model", "polynomial") != "polynomial":
+    models: dict[int, Any],
+    observations: Observations,
+    names: dict[int, str] | None = None,
+    height: float = 0.0,
+    selection: SelectionSettings | None = None,
+    adjustment: AdjustmentSettings | None = None,
+    feedback: Feedback | None = None,
+) -> Selection:
+    """Automatic parameter selection (module docstring) with SelectionSettings `selection`. models
+    {image_id: model} (edited in place: they carry the final solution); observations, names, height and
+    the AdjustmentSettings `adjustment` (priors, max_iterations, ...) as bundle.adjust (the trials leave
+    out the image effects and test defects with SELECTION_DEFECT_EIGENVALUE). With
+    `selection.variance_components`, the sigmas of the tie point, control image and control ground
+    observations are first estimated (variance.estimate) with all step-1 candidates free and used
+    throughout. Returns a Selection; raises what adjust raises (a DefectError when even the look-angle
+    constants cannot be determined)."""
+    settings = selection or SelectionSettings()
+    adjustment = adjustment or AdjustmentSettings()
+    if adjustment.model != "polynomial":
         raise InputError(
             "automatic parameter selection (Kornus et al. 2006, section 3.4.3) is for the correction "
             "polynomial model; with the Lagrange model give the free set (e.g. lagrange:attitude, "
             "lagrange:offset)"
         )
     fb = progress.ensure(feedback)
-    lines = []
+    lines: list[str] = []
 
-    def log(text):
+    def log(text: str) -> None:
         lines.append(text)
         fb.pushInfo(text)
 
@@ -258,12 +288,10 @@ def select_parameters(
         names,
         feedback,
         height=height,
-        effects=False,
-        defect_eigenvalue=SELECTION_DEFECT_EIGENVALUE,
-        **adjust_kwargs,
+        settings=replace(adjustment, effects=False, defect_eigenvalue=SELECTION_DEFECT_EIGENVALUE),
     )
 
-    def phase(start, stop):
+    def phase(start: float, stop: float) -> Callable[[float], Any]:
         """report(fraction) of a phase spanning start..stop % (cancelling checked there too)."""
         return lambda fraction: progress.step(feedback, start + (stop - start) * fraction)
 
@@ -271,15 +299,15 @@ def select_parameters(
     look = [
         p.name
         for p in params.parameters
-        if (p.kind in LOOK and p.degree <= look_degree) or p.kind not in LOOK + EXTERIOR
+        if (p.kind in LOOK and p.degree <= settings.look_degree) or p.kind not in LOOK + EXTERIOR
     ]
     log(
         f"parameter selection, step 1: {len(look)} look-angle/bias coefficients free, exterior ones fixed; "
-        f"significance threshold x/sigma {significance:g}"
+        f"significance threshold x/sigma {settings.significance:g}"
     )
     result, free = _solvable(run, look, set(look), log, "step 1")
     components = []
-    if variance_components:
+    if settings.variance_components:
         result, run.observations, components = estimate(
             lambda o: run(free, o), run.observations, log=log, report=phase(0, 10)
         )
@@ -288,12 +316,10 @@ def select_parameters(
             + ", ".join(f"{c.group} {c.sigma:.3g}" for c in components if np.isfinite(c.sigma))
         )
     progress.step(feedback, 10)
-    result, free = _eliminate(
-        run, result, free, set(look), significance, max_increase, systematic, log, "step 1", phase(10, 40)
-    )
+    result, free = _eliminate(run, result, free, set(look), settings, log, "step 1", phase(10, 40))
     log(f"step 1: {len(free)} coefficient(s) free: {', '.join(free) or 'none'}")
-    exterior = [p.name for p in params.parameters if p.kind in EXTERIOR and p.degree <= exterior_degree]
-    if test_exterior and exterior:
+    exterior = [p.name for p in params.parameters if p.kind in EXTERIOR and p.degree <= settings.exterior_degree]
+    if settings.test_exterior and exterior:
         chosen = list(free)
         for part, kinds, pct, end in (("attitude", EXTERIOR[3:], 40, 70), ("position", EXTERIOR[:3], 70, 90)):
             candidates = [n for n in exterior if _kind(params, n) in kinds]
@@ -305,25 +331,15 @@ def select_parameters(
                 log(f"step 2 ({part}): not tested, the block cannot be solved with them: {error}")
                 continue
             result, free = _eliminate(
-                run,
-                result,
-                free,
-                set(candidates),
-                significance,
-                max_increase,
-                systematic,
-                log,
-                f"step 2 ({part})",
-                phase(pct, end),
+                run, result, free, set(candidates), settings, log, f"step 2 ({part})", phase(pct, end)
             )
         added = [n for n in free if n not in chosen]
         log(f"step 2: {len(added)} exterior coefficient(s) significant: {', '.join(added) or 'none'}")
         if added:
             progress.step(feedback, 90)
-            result, free = _eliminate(
-                run, result, free, set(chosen), significance, max_increase, systematic, log, "step 3", phase(90, 99)
-            )
-    result = run(free, effects=True)  # the models carry the last trial's solution: adjust the chosen set again
+            result, free = _eliminate(run, result, free, set(chosen), settings, log, "step 3", phase(90, 99))
+    # the models carry the last trial's solution: adjust the chosen set again
+    result = run(free, settings=replace(run.settings, effects=True))
     progress.step(feedback, 100)
     log(f"selected {len(free)} free coefficient(s) in {run.count} adjustments: {', '.join(free) or 'none'}")
     return Selection(result, free, run.observations, components, lines)

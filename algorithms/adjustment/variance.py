@@ -11,12 +11,16 @@ give it infinite weight), keeps its sigmas. Matched tie points are often far mor
 0.5 px a priori (0.1-0.2 px), so without this sigma_0 mixes the groups and the control-determined
 unknowns get sigmas (and significances) off by the ratio of the groups' factors."""
 
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .. import progress
-from .bundle import Restart
+from ..progress import Feedback
+from .bundle import Adjustment, AdjustmentSettings, Restart
 from .observations import Observations
 
 GROUPS = ("tie image", "control image", "control ground")
@@ -98,11 +102,19 @@ def estimate(run, observations, max_rounds=6, tolerance=0.05, log=None, report=N
     return result, obs, components
 
 
-def adjust_with_components(models, observations, free, names=None, feedback=None, **kwargs):
-    """bundle.adjust with variance component estimation: each round starts again from the models'
-    current orientation (so priors and fixed parameters keep their meaning). Returns (Adjustment,
-    the rescaled observations, [Component]); the models carry the last solution."""
-    run = Restart(models, observations, names, feedback, **kwargs)
+def adjust_with_components(
+    models: dict[int, Any],
+    observations: Observations,
+    free: list[str],
+    names: dict[int, str] | None = None,
+    height: float = 0.0,
+    settings: AdjustmentSettings | None = None,
+    feedback: Feedback | None = None,
+) -> tuple[Adjustment, Observations, list[Component]]:
+    """bundle.adjust (with `height` and `settings`) with variance component estimation: each round starts
+    again from the models' current orientation (so priors and fixed parameters keep their meaning). Returns
+    (Adjustment, the rescaled observations, [Component]); the models carry the last solution."""
+    run = Restart(models, observations, names, feedback, height, settings)
     return estimate(
         lambda obs: run(free, obs),
         observations,

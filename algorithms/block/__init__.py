@@ -2,7 +2,7 @@
 
 The submodules hold the implementation by concern: schema.py (tables, opening, transactions, generation
 counters, block_info), images.py (creation, images table, sensor models), points.py (mass and tie points:
-versioned sidecar folders of point parts and their display layers), control_points.py (control/check points and image
+versioned point folders of point parts and their display layers), control_points.py (control/check points and image
 measurements), measurements.py (single edits of those, for the measurement window), residuals.py (the
 last adjustment's residuals) and replacement.py (a new result far fewer than the stored one is refused).
 Code outside this package goes through `Block`."""
@@ -133,7 +133,7 @@ class Block:
 
     def files(self) -> dict[str, str]:
         """{path: what it is to the block} of every file and folder of the block and every file it refers to, by
-        real path: the GeoPackage, its SQLite journals (schema.journals), its point folders (points.sidecars:
+        real path: the GeoPackage, its SQLite journals (schema.journals), its point folders (points.point_folders:
         referenced or left by a killed store) and its images' rasters and orientation files. No step writes
         over one of them (algorithms/destinations.py)."""
         referred: dict[str, str] = {}
@@ -144,7 +144,7 @@ class Block:
         return {
             self.path: "",
             **{p: "its SQLite journal" for p in schema.journals(self.path)},
-            **{p: "its point folder" for p in points.sidecars(self.path)},
+            **{p: "its point folder" for p in points.point_folders(self.path)},
             **referred,
         }
 
@@ -190,9 +190,9 @@ class Block:
     def point_parts(self, kind: str = "mass_points") -> list[str]:
         """The part files of the points of `kind` stored with the block, to be read one at a time
         (points.load_arrays); points.py has the layout."""
-        return points.point_parts(points.sidecar_path(self.path, kind), points.MAKERS.get(kind, "the step"))
+        return points.point_parts(points.point_folder(self.path, kind), points.MAKERS.get(kind, "the step"))
 
-    def save_points(
+    def store_points(
         self,
         multi: MultiPoints,
         kind: str = "mass_points",
@@ -202,14 +202,14 @@ class Block:
     ) -> str:
         """Store `multi` (MultiPoints) as the block's points of `kind` and, given `display` = (sensor model,
         image id, mean height), as its point layer `kind`; far fewer than the stored ones only with
-        `replace_fewer` (replacement.py). Returns the sidecar path (points.save_points)."""
-        return points.save_points(self.path, multi, kind, display, feedback, replace_fewer)
+        `replace_fewer` (replacement.py). Returns the point folder path (points.store_points)."""
+        return points.store_points(self.path, multi, kind, display, feedback, replace_fewer)
 
     def point_stats(self, kind: str = "mass_points") -> dict[str, Any]:
         """The run-level stats of the points of `kind` stored with the block (without reading the points)."""
-        return points.read_stats(points.sidecar_path(self.path, kind), points.MAKERS.get(kind, "the step"))
+        return points.read_stats(points.point_folder(self.path, kind), points.MAKERS.get(kind, "the step"))
 
-    def store_points(
+    def store_point_parts(
         self,
         kind: str,
         fill: Fill,
@@ -217,10 +217,10 @@ class Block:
         feedback: Feedback | None = None,
         replace_fewer: bool = False,
     ) -> str:
-        """Store the points that `fill(folder)` writes as parts into the new sidecar folder (points.store_points:
-        a tiled step's tasks; far fewer than the stored ones only with `replace_fewer`); returns the sidecar
+        """Store the points that `fill(folder)` writes as parts into the new point folder (points.store_point_parts:
+        a tiled step's tasks; far fewer than the stored ones only with `replace_fewer`); returns the point folder
         path."""
-        return points.store_points(self.path, kind, fill, display, feedback, replace_fewer)
+        return points.store_point_parts(self.path, kind, fill, display, feedback, replace_fewer)
 
     def write_point_layer(
         self,

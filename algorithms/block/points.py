@@ -1,39 +1,39 @@
 """Storage of multi-image points (matching/points.py's MultiPoints) beside a block.
 
-Storage choice: a sidecar folder `<block stem>.<kind>.<host>-<pid>-<8 hex>` next to the GeoPackage,
+Storage choice: a point folder `<block stem>.<kind>.<host>-<pid>-<8 hex>` next to the GeoPackage,
 referenced from the block's `block_info` table (key = kind, value = the folder name relative to the
 block). It holds the points in parts (`part-<k>.npz`: an uncompressed numpy archive of the part's two
-tables, point ids ascending; save_points cuts a MultiPoints into parts of PART_POINTS points, a tiled
+tables, point ids ascending; store_points cuts a MultiPoints into parts of PART_POINTS points, a tiled
 step writes one part per tile) and `index.json` (the format, the stats, and per part its file, point,
 observation and group counts and id range). A step reads one part at a
 time (`point_parts`, `load_arrays`), so its memory follows the part, not the scene; `load_points`
 gives all of them at once, for the steps whose points are few (tie points) or small scenes. A
-sidecar of earlier versions (one `.npz` file) is read as one part.
+point folder of earlier versions (one `.npz` file) is read as one part.
 
 Why not BLOB or attribute tables in the GeoPackage: millions of rows written through OGR feature by
 feature take tens of seconds, a single BLOB hits SQLite's 1 GB value limit near 10 million points and
 rewrites the whole database page chain, while an .npz of the structured arrays is written and read at
 disk speed (tests/benchmarks/bench_points.py) and loads straight into the arrays the adjustment and the
 surface steps use. For display, the points are also written as a point layer into the block
-(`write_point_layer`), which can be rebuilt from the sidecar at any time (most of that time is SQLite
+(`write_point_layer`), which can be rebuilt from the point folder at any time (most of that time is SQLite
 building the R-tree spatial index, about 10 s per million points). A set of more than DISPLAY_POINTS points
 is shown by a uniform subsample of about that many (a point is shown where its id, hashed by Knuth's
 multiplicative hash, falls below the share): dense matching gives about one point per pixel, hundreds of
 millions over a scene, which no display needs and whose layer would take longer to build than the matching.
 The stored points are always all of them.
 
-Versioned storage: a store never overwrites what the block references. The new sidecar gets a new name
+Versioned storage: a store never overwrites what the block references. The new point folder gets a new name
 (and is written as a whole: atomic.atomic_dir); the new point layer is built under a staged name
 (`<layer>__staged_<host>_<pid>`); then ONE transaction replaces the layer by the staged one, points
-block_info at the new sidecar with its counts and bumps the kind's generation (schema.GENERATIONS); only
-then is the old sidecar removed. A kill at any moment leaves the old points, layer and counts, or the new
-ones, never a mix; the staged layer and the sidecar a killed store leaves behind are removed by the next
+block_info at the new point folder with its counts and bumps the kind's generation (schema.GENERATIONS); only
+then is the old point folder removed. A kill at any moment leaves the old points, layer and counts, or the new
+ones, never a mix; the staged layer and the point folder a killed store leaves behind are removed by the next
 store once their writer has gone (atomic.owner_gone).
 
 A store that finds far fewer points than the block holds (none, or below half of what the stored points give
-at the new run's spacing: replacement.py) is refused before the layer is built, its new sidecar removed,
+at the new run's spacing: replacement.py) is refused before the layer is built, its new point folder removed,
 unless `replace_fewer`. The spacing is the stats' SPACING key of the kind (the matching's grid in the
-reference image, the tie point cell): a sidecar without it is compared by its count alone.
+reference image, the tie point cell): a point folder without it is compared by its count alone.
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ from .replacement import Tally, check_replacement
 FILE_FORMAT = "pushbroom-multipoints-1"
 INDEX_FORMAT = "pushbroom-multipoints-parts-1"
 INDEX = "index.json"
-#: points per part of a sidecar: about 50 MB of a three-image part in memory
+#: points per part of a point folder: about 50 MB of a three-image part in memory
 PART_POINTS = 262_144
 # a GeoPackage point geometry: header (magic, version, flags = little endian without envelope,
 # srs id) and the WKB point
@@ -93,9 +93,9 @@ SPACING = {"mass_points": "spacing_px", "tie_points": "tie_cell"}
 #: what a point layer is drawn with: (sensor model, image id, mean ellipsoidal height) of the image whose
 #: observations are projected (write_point_layer)
 Display = tuple[SensorModel, int, float]
-#: a part's entry in a sidecar's index (save_part): file, points, observations, first_id, last_id, groups
+#: a part's entry in a point folder's index (write_part): file, points, observations, first_id, last_id, groups
 PartEntry = dict[str, Any]
-#: writes the parts of a new sidecar into the folder it is given; returns (their index entries, the run's stats)
+#: writes the parts of a new point folder into the folder it is given; returns (their index entries, the run's stats)
 Fill = Callable[[str], tuple[list[PartEntry], dict[str, Any]]]
 
 
@@ -109,8 +109,8 @@ def _stem(block_path: str | os.PathLike[str]) -> str:
     return os.path.splitext(os.path.basename(schema.real_path(block_path)))[0]
 
 
-def _sidecar_name(block_path: str | os.PathLike[str], kind: str) -> re.Pattern[str]:
-    """The names of the point folders (and the one-file sidecars of earlier versions) of `kind` beside the
+def _point_folder_name(block_path: str | os.PathLike[str], kind: str) -> re.Pattern[str]:
+    """The names of the point folders (and the one-file point stores of earlier versions) of `kind` beside the
     block: a versioned folder or .npz file (groups: writer host, pid), or the unversioned .npz of the first
     versions."""
     return re.compile(
@@ -119,11 +119,11 @@ def _sidecar_name(block_path: str | os.PathLike[str], kind: str) -> re.Pattern[s
     )
 
 
-def sidecars(block_path: str | os.PathLike[str]) -> list[str]:
-    """The paths of every point folder (or one-file sidecar) of the block beside it, of every kind: the
+def point_folders(block_path: str | os.PathLike[str]) -> list[str]:
+    """The paths of every point folder (or one-file point store) of the block beside it, of every kind: the
     referenced ones and those a killed store left."""
     folder = _folder(block_path)
-    patterns = [_sidecar_name(block_path, kind) for kind in KINDS]
+    patterns = [_point_folder_name(block_path, kind) for kind in KINDS]
     try:
         names = sorted(os.listdir(folder))
     except OSError:
@@ -132,7 +132,7 @@ def sidecars(block_path: str | os.PathLike[str]) -> list[str]:
 
 
 def save_arrays(path: str, points: MultiPoints) -> str:
-    """Write `points` (MultiPoints) to the .npz `path` atomically (one part of a sidecar)."""
+    """Write `points` (MultiPoints) to the .npz `path` atomically (one part of a point folder)."""
     with atomic_path(path, "the point file") as tmp:
         with open(tmp, "wb") as f:
             np.savez(
@@ -160,7 +160,7 @@ def _read_part(path: str, step: str) -> MultiPoints:
 
 
 def read_index(path: str, step: str = "the matching step") -> dict[str, Any] | None:
-    """The index of the sidecar folder `path` (module docstring), or None for a one-file sidecar."""
+    """The index of the point folder `path` (module docstring), or None for a one-file point store."""
     if not os.path.exists(path):
         raise InputError(f"point file {path} is missing: run {step} again")
     if not os.path.isdir(path):
@@ -169,7 +169,7 @@ def read_index(path: str, step: str = "the matching step") -> dict[str, Any] | N
 
 
 def _folder_index(path: str, step: str) -> dict[str, Any]:
-    """The index of the sidecar folder `path` (read_index, for a path known to be a folder)."""
+    """The index of the point folder `path` (read_index, for a path known to be a folder)."""
     try:
         with open(os.path.join(path, INDEX), encoding="utf-8") as f:
             index = json.load(f)
@@ -181,19 +181,19 @@ def _folder_index(path: str, step: str) -> dict[str, Any]:
 
 
 def read_stats(path: str, step: str = "the matching step") -> dict[str, Any]:
-    """The stats of the points of the sidecar `path` (a folder, or one .npz file)."""
+    """The stats of the points of the point folder `path` (a folder, or one .npz file)."""
     index = read_index(path, step)
     return index["stats"] if index is not None else _read_part(path, step).stats
 
 
 def point_parts(path: str, step: str = "the matching step") -> list[str]:
-    """The part files of the sidecar `path` (a folder, or one .npz file), in point id order."""
+    """The part files of the point folder `path` (a folder, or one .npz file), in point id order."""
     index = read_index(path, step)
     return [os.fspath(path)] if index is None else [os.path.join(path, p["file"]) for p in index["parts"]]
 
 
 def load_arrays(path: str, step: str = "the matching step") -> MultiPoints:
-    """Read the MultiPoints of a sidecar folder written by `store_points` (all parts), or of one part or
+    """Read the MultiPoints of a point folder written by `store_point_parts` (all parts), or of one part or
     .npz file written by `save_arrays`; a damaged file (cut short, overwritten) is a StorageError that
     names it."""
     index = read_index(path, step)
@@ -207,9 +207,9 @@ def load_arrays(path: str, step: str = "the matching step") -> MultiPoints:
     )
 
 
-def save_part(folder: str, k: int, points: MultiPoints) -> PartEntry:
-    """Write `points` (MultiPoints, ids ascending, with their observations) as the k-th part of the sidecar
-    folder being written at `folder`; returns its index entry. What a tile task writes (store_points)."""
+def write_part(folder: str, k: int, points: MultiPoints) -> PartEntry:
+    """Write `points` (MultiPoints, ids ascending, with their observations) as the k-th part of the point folder
+    folder being written at `folder`; returns its index entry. What a tile task writes (store_point_parts)."""
     name = f"part-{k:05d}.npz"
     if len(points):  # an empty part is left out of the folder and its index
         save_arrays(os.path.join(folder, name), points)
@@ -225,7 +225,7 @@ def save_part(folder: str, k: int, points: MultiPoints) -> PartEntry:
 
 
 def write_index(folder: str, entries: Iterable[PartEntry], stats: Mapping[str, Any]) -> None:
-    """Write the index of the sidecar folder at `folder` from its parts' entries (save_part) and `stats`."""
+    """Write the index of the point folder at `folder` from its parts' entries (write_part) and `stats`."""
     entries = [e for e in entries if e["points"]]
     atomic.write_text(
         os.path.join(folder, INDEX),
@@ -238,7 +238,7 @@ def write_index(folder: str, entries: Iterable[PartEntry], stats: Mapping[str, A
 
 
 def split_parts(folder: str, points: MultiPoints, part_points: int | None = None) -> list[PartEntry]:
-    """Write `points` (MultiPoints) into the sidecar folder at `folder` as parts of `part_points` (default
+    """Write `points` (MultiPoints) into the point folder at `folder` as parts of `part_points` (default
     PART_POINTS) points in id order; returns their index entries."""
     part_points = int(part_points or PART_POINTS)
     order = np.argsort(points.points["id"], kind="stable")
@@ -247,15 +247,15 @@ def split_parts(folder: str, points: MultiPoints, part_points: int | None = None
     starts = np.arange(0, len(pts), part_points)
     bounds = np.searchsorted(obs["point_id"], [pts["id"][s] for s in starts] + [np.iinfo(np.int64).max])
     return [
-        save_part(folder, k, MultiPoints(pts[a : a + part_points], obs[bounds[k] : bounds[k + 1]]))
+        write_part(folder, k, MultiPoints(pts[a : a + part_points], obs[bounds[k] : bounds[k + 1]]))
         for k, a in enumerate(starts)
     ]
 
 
-def _remove_orphan_sidecars(block_path: str, kind: str, keep: str) -> None:
-    """Remove the sidecars of `kind` other than `keep` whose writer has gone (unversioned ones: always)."""
+def _remove_orphan_point_folders(block_path: str, kind: str, keep: str) -> None:
+    """Remove the point folders of `kind` other than `keep` whose writer has gone (unversioned ones: always)."""
     folder = _folder(block_path)
-    pattern = _sidecar_name(block_path, kind)
+    pattern = _point_folder_name(block_path, kind)
     for name in os.listdir(folder):
         match = pattern.match(name)
         if (
@@ -263,11 +263,11 @@ def _remove_orphan_sidecars(block_path: str, kind: str, keep: str) -> None:
             and name != keep
             and (match.group(1) is None or atomic.owner_gone(match.group(1), int(match.group(2)), 0.0))
         ):
-            _remove_sidecar(os.path.join(folder, name))
+            _remove_point_folder(os.path.join(folder, name))
 
 
-def _remove_sidecar(path: str) -> None:
-    """Remove a sidecar: a folder or, of earlier versions, one file."""
+def _remove_point_folder(path: str) -> None:
+    """Remove a point folder: a folder or, of earlier versions, one file."""
     if os.path.isdir(path):
         shutil.rmtree(path, ignore_errors=True)
     else:
@@ -299,7 +299,7 @@ def _drop_orphan_layers(block_path: str, layer_name: str) -> None:
 def _staged_layer(
     block_path: str, layer_name: str, points: MultiPoints | str, display: Display | None, feedback: Feedback | None
 ) -> Iterator[str | None]:
-    """Build the point layer of `points` (a MultiPoints or a sidecar folder; display = (model, image id,
+    """Build the point layer of `points` (a MultiPoints or a point folder; display = (model, image id,
     height)) under a staged name and
     yield that name (None without `display`); dropped again where the switch did not happen."""
     if display is None:
@@ -325,7 +325,7 @@ def _switch(ds: ogr.DataSource, staged: str | None, layer_name: str) -> None:
     ds.GetLayerByName(staged).Rename(layer_name)
 
 
-def save_points(
+def store_points(
     block_path: str,
     points: MultiPoints,
     kind: str = "mass_points",
@@ -333,11 +333,11 @@ def save_points(
     feedback: Feedback | None = None,
     replace_fewer: bool = False,
 ) -> str:
-    """Store `points` (MultiPoints) beside the block as a new sidecar of `kind` and, given `display` = (sensor
+    """Store `points` (MultiPoints) beside the block as a new point folder of `kind` and, given `display` = (sensor
     model, image id, mean height), as the block's point layer `kind` (`write_point_layer`), switched in one
     transaction (module docstring). Far fewer points than the block holds are refused (InputError, the block
-    unchanged) unless `replace_fewer`. Returns the sidecar path."""
-    return store_points(
+    unchanged) unless `replace_fewer`. Returns the point folder path."""
+    return store_point_parts(
         block_path, kind, lambda folder: (split_parts(folder, points), points.stats), display, feedback, replace_fewer
     )
 
@@ -349,8 +349,8 @@ def _spacing(stats: Mapping[str, Any] | None, kind: str) -> float | None:
 
 
 def _tally(block_path: str, kind: str, stored_name: str | None, index: Mapping[str, Any]) -> Tally:
-    """The Tally of the points of `kind` in the new sidecar's `index` against the stored sidecar `stored_name`
-    (None: none); a stored sidecar that is missing or damaged counts as none, so that it can be replaced."""
+    """The Tally of the points of `kind` in the new point folder's `index` against the stored point folder `stored_name`
+    (None: none); a stored point folder that is missing or damaged counts as none, so that it can be replaced."""
     name = kind.replace("_", " ")
     if not stored_name:
         return Tally(name, 0, index["points"])
@@ -358,14 +358,14 @@ def _tally(block_path: str, kind: str, stored_name: str | None, index: Mapping[s
         stored = read_index(os.path.join(_folder(block_path), stored_name))
     except (InputError, StorageError):  # missing or damaged: nothing to keep
         return Tally(name, 0, index["points"])
-    if stored is None:  # a one-file sidecar of earlier versions: its count is in block_info
+    if stored is None:  # a one-file point store of earlier versions: its count is in block_info
         return Tally(name, int(schema.read_info(block_path).get(f"{kind}_count") or 0), index["points"])
     old, new = _spacing(stored["stats"], kind), _spacing(index["stats"], kind)
     expected = stored["points"] * (old / new) ** 2 if old and new else None
     return Tally(name, stored["points"], index["points"], expected)
 
 
-def store_points(
+def store_point_parts(
     block_path: str,
     kind: str,
     fill: Fill,
@@ -373,11 +373,11 @@ def store_points(
     feedback: Feedback | None = None,
     replace_fewer: bool = False,
 ) -> str:
-    """`save_points` of points that `fill(folder)` writes into the new sidecar folder (save_part: e.g. the
+    """`store_points` of points that `fill(folder)` writes into the new point folder (write_part: e.g. the
     tasks of a tiled step, each writing its parts, in the order of their ids) and returns as (index
     entries, stats). The layer is built part by part: memory follows the part. Far fewer points than the
     block holds are refused (InputError: the block keeps its points, layer and counts, the new folder is
-    removed) unless `replace_fewer` (module docstring). Returns the sidecar path."""
+    removed) unless `replace_fewer` (module docstring). Returns the point folder path."""
     if kind not in KINDS:
         raise InputError(f"point kind must be one of {KINDS}, not {kind!r}")
     what = f"the {kind.replace('_', ' ')}"
@@ -417,17 +417,17 @@ def store_points(
                 )
                 schema.bump(ds, kind)
     except BaseException:
-        _remove_sidecar(path)
+        _remove_point_folder(path)
         raise
     if old and old != name:
-        _remove_sidecar(os.path.join(_folder(block_path), old))
-    _remove_orphan_sidecars(block_path, kind, keep=name)
+        _remove_point_folder(os.path.join(_folder(block_path), old))
+    _remove_orphan_point_folders(block_path, kind, keep=name)
     progress.step(feedback, 100)
     return path
 
 
-def sidecar_path(block_path: str, kind: str = "mass_points") -> str:
-    """The sidecar of the points of `kind` stored with the schema (InputError where there is none)."""
+def point_folder(block_path: str, kind: str = "mass_points") -> str:
+    """The point folder of the points of `kind` stored with the schema (InputError where there is none)."""
     info = schema.read_info(block_path)
     if kind not in info:
         raise InputError(
@@ -438,7 +438,7 @@ def sidecar_path(block_path: str, kind: str = "mass_points") -> str:
 
 def load_points(block_path: str, kind: str = "mass_points") -> MultiPoints:
     """The MultiPoints of `kind` stored with the schema, all parts at once."""
-    return load_arrays(sidecar_path(block_path, kind), MAKERS.get(kind, "the step"))
+    return load_arrays(point_folder(block_path, kind), MAKERS.get(kind, "the step"))
 
 
 def layer_source(block_path: str | os.PathLike[str], layer_name: str) -> str:
@@ -457,7 +457,7 @@ def write_point_layer(
 ) -> str:
     """Write `points` (MultiPoints) as the point layer `layer_name` (EPSG:4326; fields id, group, rho =
     rho_min) of the block, replacing an existing one in one switch (built under a staged name first, as
-    `save_points` does). Display only: it can be rebuilt from the stored points at any time.
+    `store_points` does). Display only: it can be rebuilt from the stored points at any time.
 
     Positions are the observations in image `image_id` projected with its sensor `model` at the
     ellipsoidal `height` (a mean height; no ray intersection, so the positions are off by the
@@ -476,7 +476,7 @@ def write_point_layer(
 
 
 def _parts_of(points: MultiPoints | str) -> list[MultiPoints | Callable[[], MultiPoints]]:
-    """The parts to display: a MultiPoints as one part, or the part files of a sidecar folder (read one at a
+    """The parts to display: a MultiPoints as one part, or the part files of a point folder (read one at a
     time)."""
     if isinstance(points, MultiPoints):
         return [points]
@@ -492,7 +492,7 @@ def _write_layer(
     height: float,
     feedback: Feedback | None = None,
 ) -> None:
-    """Create the point layer `layer_name` of `points` (a MultiPoints, or a sidecar folder read part by
+    """Create the point layer `layer_name` of `points` (a MultiPoints, or a point folder read part by
     part) in the block (write_point_layer's content)."""
     what = f"the layer {layer_name}"
     with schema.transaction(block_path, what) as ds:
@@ -508,7 +508,7 @@ def _write_layer(
     index = None if isinstance(points, MultiPoints) else read_index(points)
     if index is not None:
         total = index["points"]
-    else:  # a MultiPoints, or a one-file sidecar: its one part, read once
+    else:  # a MultiPoints, or a one-file point store: its one part, read once
         first = parts[0] if isinstance(parts[0], MultiPoints) else parts[0]()
         parts, total = [first], len(first)
     share = min(1.0, DISPLAY_POINTS / max(total, 1))

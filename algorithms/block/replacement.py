@@ -1,5 +1,5 @@
 """Whether a step's new result may replace what the block holds: a step that finds nothing, or far fewer than
-before, never replaces good results silently. points.store_points (mass and tie points) and
+before, never replaces good results silently. points.store_point_parts (mass and tie points) and
 control_points.save_control_points (control/check points and their measurements) ask `check_replacement`
 before they switch to the new result.
 

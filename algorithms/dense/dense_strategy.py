@@ -1,6 +1,6 @@
 """Dense matching, the third matching strategy: a pair or a triplet tile by tile in the two rounds of
 matching/tiled_rounds.py, into the same point parts as region growing (matching/points.py's MultiPoints,
-block/points.save_part), so that the rest of the chain reads them unchanged.
+block/points.write_part), so that the rest of the chain reads them unchanged.
 
 The tiles are the reference image's (tiling.tile_grid of DenseParams.tile px).
 1. `match_tile`: for each pair (reference, forward) and, for a triplet, (reference, backward), the lattice
@@ -37,18 +37,19 @@ from ..execution import Execution
 from ..height_range import GivenHeights
 from ..matching.imagery import as_image
 from ..matching.match_stats import MatchStats
+from ..matching.pair_geometry import ImagePair
 from ..matching.params import GrowParams
 from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, REFINED, MultiPoints
 from ..matching.refinement import MIN_POINTS, refine_three_ray
 from ..matching.stereo_set import StereoSet
-from ..matching.strategy import MatchingStrategy, Rounds, TilePlan, register
+from ..matching.strategy import MatchingStrategy, RoundResults, Rounds, TilePlan, register
 from ..matching.tiled_rounds import evenly, match_in_tiles, positions, sample_quotas, save_work, scene_bias
 from ..progress import Feedback
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .pair_tile import match_pair_tile
 from .params import DenseParams
-from .refine import isolated, refine_positions
+from .refine import Conjugates, isolated, refine_positions
 
 #: a tile of the reference image: (x0, y0, x1, y1) px, tiling.tile_grid's
 Box = tuple[int, int, int, int]
@@ -79,14 +80,8 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
         if p.lsm:
             check_cancel()
             rx, ry, *q = refine_positions(
-                s.images[0],
-                s.images[k],
-                s.models[0],
-                s.models[k],
-                x1,
-                y1,
-                x2,
-                y2,
+                ImagePair(s.images[0], s.images[k], s.models[0], s.models[k]),
+                Conjugates(x1, y1, x2, y2),
                 info["grid"].heights[::2],
                 p.template,
                 p.max_shift,
@@ -142,11 +137,8 @@ class Dense(MatchingStrategy):
     name = "dense"
     label = "Dense: semi-global matching on epipolar tiles, refined by LSM"
     settings_type = DenseParams
+    spacing_setting = "step"
     first_round = "dense matching"
-
-    @classmethod
-    def spacing(cls, settings: DenseParams) -> float:
-        return float(settings.step)
 
     @classmethod
     def plan(cls, stereo: StereoSet, settings: DenseParams, feedback: Feedback | None) -> TilePlan:
@@ -203,14 +195,8 @@ class Dense(MatchingStrategy):
         return {"refined_mpgc": _mpgc(job, points)} if job.bias is not None else {}
 
     @classmethod
-    def stats(
-        cls,
-        job: DenseJob,
-        first: list[dict[str, Any]],
-        refined: list[dict[str, Any]],
-        counts: list[int],
-        feedback: Feedback | None,
-    ) -> MatchStats:
+    def stats(cls, job: DenseJob, rounds: RoundResults, feedback: Feedback | None) -> MatchStats:
+        first, refined, counts = rounds
         s, p = job.stereo, job.params
         empty = [k for k, t in enumerate(first) if t["points"] == 0]
         if empty:
@@ -249,9 +235,7 @@ def _mpgc(job: DenseJob, multi: MultiPoints) -> int:
     counts as refined even where the pairwise LSM had left a semi-global position). Returns the count."""
     p, s = job.params, job.stereo
     grow = GrowParams(template=p.template, max_shift=p.max_shift)
-    count = refine_three_ray(
-        multi, list(s.images), list(s.models), list(s.ids), s.heights.bounds, grow, bias=job.bias, group=2
-    )
+    count = refine_three_ray(multi, s, grow, bias=job.bias, group=2)
     done = np.flatnonzero(multi.points["flags"] & REFINED)
     if done.size:
         obs = multi.observations

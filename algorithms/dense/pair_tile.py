@@ -25,6 +25,7 @@ import math
 import numpy as np
 
 from ..matching.imagery import as_image
+from ..matching.pair_geometry import ImagePair
 from ..matching.params import GrowParams
 from ..matching.resolution import adapt_resolution
 from ..matching.seeds import automatic_seeds
@@ -66,7 +67,7 @@ def sample_disparity(disp, u, v, max_spread):
 def tile_seeds(image1, image2, model1, model2, box, height_range, grid):
     """The tile's sparse matches (seeds.automatic_seeds over the whole height range: Foerstner points, NCC
     along the predicted path +- 3 px across, LSM) in epipolar coordinates: (u1, v1, u2, v2) arrays."""
-    seeds = automatic_seeds(image1, image2, model1, model2, GrowParams(), height_range, box=box)
+    seeds = automatic_seeds(ImagePair(image1, image2, model1, model2), GrowParams(), height_range, box=box)
     u1, v1 = grid.epipolar1(seeds["x1"], seeds["y1"])
     u2, v2 = grid.epipolar2(seeds["x2"], seeds["y2"])
     good = np.isfinite(u1) & np.isfinite(v1) & np.isfinite(u2) & np.isfinite(v2)

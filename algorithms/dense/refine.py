@@ -30,12 +30,14 @@ Measured on the simulated triplet (docs/validation.md#dense-matching, with the p
 position's error on open ground where it is accepted, and makes it worse within a template of a height step;
 the robust weights and the isolation test: docs/validation.md#dense-robust-lsm."""
 
+from typing import NamedTuple
+
 import numpy as np
 from scipy import ndimage
 
 from ..height_range import HeightRange
 from ..matching.imagery import as_image, touches_masked
-from ..matching.pair_geometry import local_affine
+from ..matching.pair_geometry import ImagePair, local_affine
 from ..matching.params import GrowParams
 from ..matching.region_growing import match_windows
 from ..matching.resolution import adapt_resolution
@@ -50,15 +52,18 @@ REACH, LEAST_REFINED = 2, 3
 TEMPLATE_SUPPORT = 2
 
 
+class Conjugates(NamedTuple):
+    """Points (x1, y1) of image 1 and their positions (x2, y2) in image 2 (px; NaN: unmatched)."""
+
+    x1: np.ndarray
+    y1: np.ndarray
+    x2: np.ndarray
+    y2: np.ndarray
+
+
 def refine_positions(
-    image1,
-    image2,
-    model1,
-    model2,
-    x1: np.ndarray,
-    y1: np.ndarray,
-    x2: np.ndarray,
-    y2: np.ndarray,
+    pair: ImagePair,
+    points: Conjugates,
     height_range: tuple,
     template: int = 19,
     max_shift: float = 0.5,
@@ -69,6 +74,8 @@ def refine_positions(
     with LSM's quality where refined (NaN elsewhere); LSM with `template`, `max_shift` and, where `robust`, the
     robust weights. Images given as paths or arrays mask their saturated pixels too. The isolation test
     (`isolated`) is the caller's, on its lattice."""
+    x1, y1, x2, y2 = points
+    image1, image2, model1, model2 = pair
     x2, y2 = np.array(x2, float), np.array(y2, float)
     rho, major, minor = (np.full(x2.size, np.nan, np.float32) for _ in range(3))
     idx = np.flatnonzero(np.isfinite(x2) & np.isfinite(y2))

@@ -48,7 +48,15 @@ from ..progress import Feedback
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from . import preprocess
-from .coarse_to_fine_level import FACTOR, ShiftedModel, TinGuide, edge_breaklines, match_level, match_level_edges
+from .coarse_to_fine_level import (
+    FACTOR,
+    LevelImages,
+    ShiftedModel,
+    TinGuide,
+    edge_breaklines,
+    match_level,
+    match_level_edges,
+)
 from .edges import canny, link
 from .imagery import Window
 from .match_stats import MatchStats
@@ -57,7 +65,7 @@ from .pair_geometry import predict, search_box
 from .points import COMB_A, COMB_B, EDGE, NCC_ONLY, OBS_DTYPE, POINT_DTYPE, MultiPoints
 from .resolution import adapted_images
 from .stereo_set import StereoSet
-from .strategy import MatchingStrategy, Rounds, TilePlan, register
+from .strategy import MatchingStrategy, RoundResults, Rounds, TilePlan, register
 from .tiled_rounds import match_in_memory, save_work
 
 #: reliability of a point that failed MPGC: this factor x its smallest NCC rho
@@ -224,7 +232,13 @@ def _match(adapted, models, params, hr, feedback):
             mask = canny(pyr[0][1][level])
             chains = link(mask, params.edge_min_length)
         result = match_level(
-            ref, pyr[0][1][level], searches, current, level, params, hr, guide, edge_mask=mask if params.edges else None
+            LevelImages(ref, pyr[0][1][level], searches),
+            current,
+            level,
+            params,
+            hr,
+            guide,
+            edge_mask=mask if params.edges else None,
         )
         shifts = shifts + result["shifts"]
         s = float(FACTOR) ** level
@@ -314,9 +328,7 @@ def _final(adapted, models, result, params):
             [models[0]] + [models[k + 1] for k in combo],
             x0[idx],
             y0[idx],
-            lon[idx],
-            lat[idx],
-            h[idx],
+            (lon[idx], lat[idx], h[idx]),
             params.final,
         )
         good = accepted(rec, params.final)
@@ -399,11 +411,8 @@ class CoarseToFine(MatchingStrategy):
     name = "coarse_to_fine"
     label = "Coarse-to-fine multi-primitive with MPGC (Zhang & Gruen)"
     settings_type = CoarseToFineParams
+    spacing_setting = "grid"
     first_round = "coarse-to-fine matching"
-
-    @classmethod
-    def spacing(cls, settings: CoarseToFineParams) -> float:
-        return float(settings.grid)
 
     @classmethod
     def plan(cls, stereo: StereoSet, settings: CoarseToFineParams, feedback: Feedback | None) -> TilePlan:
@@ -480,14 +489,8 @@ class CoarseToFine(MatchingStrategy):
         return job, [int(t["points"]) for t in first]
 
     @classmethod
-    def stats(
-        cls,
-        job: TileJob,
-        first: list[dict[str, Any]],
-        refined: list[dict[str, Any]],
-        counts: list[int],
-        feedback: Feedback | None,
-    ) -> MatchStats:
+    def stats(cls, job: TileJob, rounds: RoundResults, feedback: Feedback | None) -> MatchStats:
+        first, refined, counts = rounds
         s = job.stereo
         matched = [t for t in first if t["points"]]
         seconds: dict[str, float] = {}

@@ -38,6 +38,7 @@ refined by a parabola in height and across the path; each carries its height, rh
 position. `second` is the best local maximum besides the first (for the peak ratio)."""
 
 import math
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy import ndimage
@@ -46,9 +47,9 @@ from ..stats import NMAD_SCALE
 from ..surface.tin import conform_breaklines, delaunay, filter_blunders, neighbour_residuals
 from ..surface.tin_grid import Grid, rasterize
 from .coarse_to_fine_kernels import Affines, Found, Paths, path_candidates
-from .edges import match_edges
+from .edges import EdgeMatching, match_edges
 from .interest import interest_points
-from .pair_geometry import local_affine, predict
+from .pair_geometry import ImagePair, local_affine, predict
 from .relaxation import hypotheses, relax, unique_choice
 
 #: pyramid reduction factor between levels
@@ -198,11 +199,13 @@ def sample_counts(model1, model2, x, y, h_lo, h_hi, step=PATH_STEP, bucket=COUNT
     return (np.ceil(counts / bucket) * bucket).astype(np.int64)
 
 
-def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_min, max_candidates):
+def candidates(pair: ImagePair, x, y, heights: tuple[np.ndarray, np.ndarray], half, across, rho_min, max_candidates):
     """Candidates of points (x, y) of img1 in img2 (module docstring); level models and px. Each
     point's path is sampled at its own spacing (sample_counts), in batches of equal count.
     rho_min: (n,) NCC thresholds.
     Returns dict of (n, C) arrays h, rho, x, y (NaN padded, best first) and (n,) `second`."""
+    h_lo, h_hi = heights
+    img1, img2, model1, model2 = pair
     n, cmax = len(x), int(max_candidates)
     out = {key: np.full((n, cmax), np.nan) for key in ("h", "rho", "x", "y")}
     out["second"] = np.full(n, np.nan)
@@ -238,11 +241,15 @@ def candidates(img1, img2, model1, model2, x, y, h_lo, h_hi, half, across, rho_m
     return out
 
 
-def back_match(img1, img2, model1, model2, x, y, x2, y2, h_lo, h_hi, half, across):
+def back_match(pair: ImagePair, x, y, x2, y2, heights: tuple[np.ndarray, np.ndarray], half, across):
     """Back-matching: the template of img2 at (x2, y2) searched in img1 along its own path over
     the same heights; returns the distance (level px) of the best img1 position from (x, y)
     (inf where nothing correlates)."""
-    back = candidates(img2, img1, model2, model1, x2, y2, h_lo, h_hi, half, across, np.full(len(x2), -1.0), 1)
+    h_lo, h_hi = heights
+    img1, img2, model1, model2 = pair
+    back = candidates(
+        ImagePair(img2, img1, model2, model1), x2, y2, (h_lo, h_hi), half, across, np.full(len(x2), -1.0), 1
+    )
     with np.errstate(invalid="ignore"):
         d = np.hypot(back["x"][:, 0] - x, back["y"][:, 0] - y)
     return np.where(np.isfinite(d), d, np.inf)
@@ -343,9 +350,19 @@ def primitives(img, level, params, border):
     return x[first], y[first]
 
 
-def match_level(ref, ref_raw, searches, models, level, params, hr, guide, edge_mask=None):
+class LevelImages(NamedTuple):
+    """A pyramid level's images: the reference for NCC (Wallis-filtered), the reference's raw grey values (edges)
+    and the search images."""
+
+    ref: np.ndarray
+    raw: np.ndarray
+    searches: list[Any]
+
+
+def match_level(images: LevelImages, models, level, params, hr, guide, edge_mask=None):
     """One level (module docstring, step 2): dict with x, y (level px), h, per search image x/y/rho
     arrays (n, m) (NaN where not matched)."""
+    ref, ref_raw, searches = images
     s = float(FACTOR) ** level
     lm = [LevelModel(m, s) for m in models]
     rho_min = params.rho_min if level == 0 else params.rho_min_coarse
@@ -369,7 +386,16 @@ def match_level(ref, ref_raw, searches, models, level, params, hr, guide, edge_m
     rho_min = rho_thresholds(rho_min, params.rho_drop, rough_px)
     across = max(1, int(math.ceil(params.across / s)))
     cands = [
-        candidates(ref, searches[k], lm[0], lm[k + 1], x, y, h_lo, h_hi, halves, across, rho_min, params.max_candidates)
+        candidates(
+            ImagePair(ref, searches[k], lm[0], lm[k + 1]),
+            x,
+            y,
+            (h_lo, h_hi),
+            halves,
+            across,
+            rho_min,
+            params.max_candidates,
+        )
         for k in range(m)
     ]
     agree = params.agree_px / sens
@@ -379,7 +405,9 @@ def match_level(ref, ref_raw, searches, models, level, params, hr, guide, edge_m
     h, score, i1, i2 = hypotheses(cands, agree)
     choice = unique_choice(h, score, i1, i2, cands, params.peak_ratio, params.margin)
     spacing = params.grid if level == 0 else params.coarse_grid
-    choice = relax(x, y, h, score, choice, np.maximum(agree, 1e-3), params.relax_radius * spacing, edge_mask=edge_mask)
+    choice = relax(
+        x, y, (h, score), choice, np.maximum(agree, 1e-3), params.relax_radius * spacing, edge_mask=edge_mask
+    )
     rows = np.arange(n)
     c = np.maximum(choice, 0)
     out = {
@@ -399,7 +427,14 @@ def match_level(ref, ref_raw, searches, models, level, params, hr, guide, edge_m
         cx = cands[k]["x"][sel, j[sel]]
         cy = cands[k]["y"][sel, j[sel]]
         d = back_match(
-            ref, searches[k], lm[0], lm[k + 1], x[sel], y[sel], cx, cy, h_lo[sel], h_hi[sel], halves[sel], across
+            ImagePair(ref, searches[k], lm[0], lm[k + 1]),
+            x[sel],
+            y[sel],
+            cx,
+            cy,
+            (h_lo[sel], h_hi[sel]),
+            halves[sel],
+            across,
         )
         ok = d <= params.back_px
         sel = sel[ok]
@@ -443,9 +478,7 @@ def match_level_edges(ref, searches, models, level, params, hr, guide, chains):
             chains,
             lambda c, r, h, k=k: predict(lm[0], lm[k + 1], c, r, h),
             (lo, hi),
-            window=params.edge_window,
-            step=params.edge_step,
-            rho_min=rho_min,
+            EdgeMatching(params.edge_window, params.edge_step, rho_min),
         )
         for k in range(m)
     ]

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..height_range import HeightRange
-from .pair_geometry import local_affine
+from .pair_geometry import ImagePair, local_affine
 from .params import GrowParams
 from .records import PAIR_DTYPE
 from .region_growing import transfer_points
@@ -67,10 +67,7 @@ def back_guide(records, model1=None, model2=None, height=None):
 
 
 def forward_backward(
-    image1,
-    image2,
-    model1,
-    model2,
+    pair: ImagePair,
     records,
     params=None,
     height_range=None,
@@ -84,6 +81,7 @@ def forward_backward(
     of the back-matched position from (x1, y1). NaN where the back-match failed (window leaves an
     image, singular, not converged) or the record has no image-2 position. With `return_records`,
     also the back-match PAIR_DTYPE records (x1, y1 = the image-2 template, x2, y2 = image 1)."""
+    image1, image2, model1, model2 = pair
     params = (params or GrowParams()).check()
     records = np.asarray(records, PAIR_DTYPE).ravel()
     n = len(records)
@@ -104,7 +102,7 @@ def forward_backward(
         guide["y2"] += float(start_offset[1])
         # max_shift only sizes the image-1 window here (acceptance is not applied, see module doc)
         wide = dataclasses.replace(params, max_shift=max(params.max_shift, SEARCH + math.hypot(*start_offset)))
-        out, _ = transfer_points(image2, image1, model2, model1, rec["x2"], rec["y2"], wide, hr, guide=guide)
+        out, _ = transfer_points(ImagePair(image2, image1, model2, model1), rec["x2"], rec["y2"], wide, hr, guide=guide)
         out = np.asarray(out, PAIR_DTYPE)
         good = np.isfinite(out["x2"]) & np.isfinite(out["y2"]) & (out["iterations"] < params.max_iterations)
         d = np.hypot(out["x2"] - rec["x1"], out["y2"] - rec["y1"])

@@ -18,6 +18,7 @@ matched edgel by edgel along quasi-epipolar segments with the figural continuity
 Positions are GDAL image coordinates (pixel (i, j) has its centre at (j + 0.5, i + 0.5))."""
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from scipy import ndimage
@@ -239,8 +240,19 @@ def _affine(predict, x1, y1, h, d=1.0):
     )
 
 
-def match_edges(ref_img, search_img, chains, predict, height_range, window=7, step=2, rho_min=0.7, figural=True):
-    """Matches every `step`-th edgel of each chain (from `link` on ref_img) into search_img.
+class EdgeMatching(NamedTuple):
+    """window: odd NCC template size (px); step: every step-th edgel of a chain is matched; rho_min: the lowest
+    rho of a matched edgel; figural: figural continuity along the chain (False: each edgel's best candidate)."""
+
+    window: int = 7
+    step: int = 2
+    rho_min: float = 0.7
+    figural: bool = True
+
+
+def match_edges(ref_img, search_img, chains, predict, height_range, settings=EdgeMatching()):
+    """Matches every `step`-th edgel of each chain (from `link` on ref_img) into search_img (EdgeMatching
+    `settings`).
 
     predict(col, row, h) -> (col2, row2) maps reference positions at height h into the search
     image (vectorised: arrays of one shape, NaN outside); height_range = (h_min, h_max), numbers or
@@ -249,6 +261,7 @@ def match_edges(ref_img, search_img, chains, predict, height_range, window=7, st
     ok = rho >= rho_min). Returns an EDGEL_DTYPE array, one record per sampled edgel in chain order:
     chain, index (point of the chain), col, row; col2, row2, h, rho of the chosen candidate (the
     best one where the continuity left the edgel out, NaN where it had none); ok."""
+    window, step, rho_min, figural = settings
     ref = _image(ref_img, "the reference image").astype(np.float32)
     search = _image(search_img, "the search image").astype(np.float32)
     if window < 3 or window % 2 == 0:

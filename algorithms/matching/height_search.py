@@ -31,6 +31,7 @@ from ..errors import InputError
 from ..execution import run_tasks
 from ..surface import intersection
 from .imagery import as_image
+from .pair_geometry import ImagePair
 from .params import GrowParams
 from .seeds import automatic_seeds
 
@@ -110,7 +111,7 @@ def robust_range(heights, searched):
 
 def _window_heights(image1, image2, model1, model2, searched, box):
     """Task: the heights of the points of window `box` of image 1 matched in image 2 (steps 2 and 3)."""
-    seeds = automatic_seeds(image1, image2, model1, model2, GrowParams(), searched, box=box, cell=CELL)
+    seeds = automatic_seeds(ImagePair(image1, image2, model1, model2), GrowParams(), searched, box=box, cell=CELL)
     if not len(seeds):
         return np.zeros(0)
     result = intersection.intersect_measured(

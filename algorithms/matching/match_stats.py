@@ -1,5 +1,5 @@
 """The statistics of a matching run, as the matching step stores them beside the points (block/points.py,
-the sidecar's index) and reads them back for the points-per-group summary (group_summary.py).
+the point folder's index) and reads them back for the points-per-group summary (group_summary.py).
 
 The fields every strategy fills are typed; what only one strategy reports (region growing's LSM attempts,
 coarse-to-fine's pyramid levels, dense matching's refined positions) lies in `details`, stored as it is."""
@@ -36,7 +36,7 @@ class MatchStats:
 
     @classmethod
     def from_dict(cls, stored: dict[str, Any] | None) -> MatchStats:
-        """The MatchStats of a stored dict (as_dict's, or an older sidecar's: missing fields are None)."""
+        """The MatchStats of a stored dict (as_dict's, or an older point folder's: missing fields are None)."""
         stored = dict(stored or {})
         names = {f.name for f in fields(cls)} - {"details"}
         typed = {k: stored.pop(k) for k in list(stored) if k in names}

@@ -178,9 +178,11 @@ def _points(x0, y0, lon, lat, h):
     return x0, y0, lon, lat, h
 
 
-def match_points(reference, searches, models, x0, y0, lon, lat, h, params=None, feedback=None):
+def match_points(
+    reference, searches, models, x0, y0, ground: tuple[np.ndarray, np.ndarray, np.ndarray], params=None, feedback=None
+):
     """MPGC of template centres (x0, y0) of `reference` into the `searches` images, from the
-    approximate object points (lon, lat, h) (module docstring).
+    approximate object points `ground` (lon, lat, h) (module docstring).
 
     reference, searches: Image, Smoothed, raster path or 2-D array (resolution adaptation, e.g.
     resolution.adapt_resolution, is the caller's); models: the n + 1 sensor models (reference
@@ -188,6 +190,7 @@ def match_points(reference, searches, models, x0, y0, lon, lat, h, params=None, 
     image (windows read once per tile, the kernel parallel over points). Returns mpgc_dtype(n)
     records in the order given; raises InputError on unusable input, CancelledError when
     cancelled."""
+    lon, lat, h = ground
     params = (params or MpgcParams()).check()
     searches = list(searches)
     models = list(models)
@@ -290,10 +293,16 @@ def _match_tile(images, models, x0, y0, lon, lat, h, params):
         if not active.any():
             break
     status[active] = NOT_CONVERGED  # the linearisation still moved after the last pass
-    return _records(n, x0, y0, lon, lat, h, start, state, base, out, status, iterations, params)
+    return _records(x0, y0, (lon, lat, h), start, state, base, (out, status, iterations), params)
 
 
-def _records(n, x0, y0, lon, lat, h, start, state, base, out, status, iterations, params):
+def _records(x0, y0, ground, start, state, base, solved, params):
+    """The records of the points at (x0, y0) from the approximate object points `ground` (lon, lat, h), the
+    initial and final states (points, images, 8), the last object points `base` and the kernel's `solved` (out,
+    status, iterations)."""
+    lon, lat, h = ground
+    out, status, iterations = solved
+    n = state.shape[1]
     rec = np.zeros(x0.size, mpgc_dtype(n))
     ok = status == OK
     final = np.where(ok[:, None, None], state, start)

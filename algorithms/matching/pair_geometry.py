@@ -1,7 +1,6 @@
 """The geometry of an image pair that both matchers share: where the sensor models put an image-1
 point in image 2 at a height (`predict`), the local affine between the two images (`local_affine`)
-and the search window a box of image 1 needs in
-image 2 (`search_box`).
+and the search window a box of image 1 needs in image 2 (`search_box`), for an ImagePair.
 
 Heights are ellipsoidal (m); image positions are GDAL's (pixel centres at half-integers). A position
 outside a model's domain is NaN, never an error; a box none of whose predictions is finite has no
@@ -13,7 +12,18 @@ quadrilateral per height, whose corners and edges the grid samples, and the midd
 parallax that is not linear in height (curved rays, refraction). The margin covers what the prediction
 cannot: the matching template, the search across the path, orientation errors."""
 
+from typing import Any, NamedTuple
+
 import numpy as np
+
+
+class ImagePair(NamedTuple):
+    """Two images (paths, arrays or Image-likes) and their sensor models: image 1 is matched into image 2."""
+
+    image1: Any
+    image2: Any
+    model1: Any
+    model2: Any
 
 
 def predict(model1, model2, x1, y1, h):

@@ -30,7 +30,6 @@ from dataclasses import fields
 import numpy as np
 
 from .. import progress
-from ..height_range import HeightRange
 from .mpgc import MpgcParams, accepted, match_points
 from .orientation_bias import affine_bias, intersect_corrected
 from .params import GrowParams, LsmParams
@@ -47,14 +46,14 @@ MIN_POINTS = 50
 SUPPORT_CENTRE, SUPPORT_SIMILARITY = 5.0, 1.0
 
 
-def refine_three_ray(points, images, models, image_ids, height_range, grow=None, feedback=None, bias=None, group=3):
+def refine_three_ray(points, stereo, grow=None, feedback=None, bias=None, group=3):
     """MPGC refinement of the `group` points (three rays: region growing's 3, dense matching's 2) of `points`
-    (MultiPoints of three_combinations.combine or dense/dense_strategy.py;
-    images and models in combination order, `image_ids` their block ids, `grow` the GrowParams of
-    the matching). `bias`: (corrected models, systematic px) of orientation_bias.affine_bias fitted to
-    the points of the whole scene (tiled_rounds.scene_bias: the points of one tile are refined with it), else
-    fitted here to `points`. Returns the number of points refined; `points` is changed in place
-    (module docstring)."""
+    (MultiPoints of three_combinations.combine or dense/dense_strategy.py; `stereo` the StereoSet: images and
+    models in combination order, their block ids, the height range; `grow` the GrowParams of the matching).
+    `bias`: (corrected models, systematic px) of orientation_bias.affine_bias fitted to the points of the whole
+    scene (tiled_rounds.scene_bias: the points of one tile are refined with it), else fitted here to `points`.
+    Returns the number of points refined; `points` is changed in place (module docstring)."""
+    images, models, image_ids = list(stereo.images), list(stereo.models), list(stereo.ids)
     grow = grow or GrowParams()
     g3 = np.flatnonzero(points.points["group"] == group)
     if g3.size < (MIN_POINTS if bias is None else 1):
@@ -75,16 +74,14 @@ def refine_three_ray(points, images, models, image_ids, height_range, grow=None,
         **({"sigma_geometry": max(SIGMA_GEOMETRY, 2.0 * systematic)} if np.isfinite(systematic) else {}),
     ).check()
     ok = np.isfinite(inter.h)
-    adapted = adapted_images(images, models, HeightRange.resolve(height_range, models[0]).bounds, grow)
+    adapted = adapted_images(images, models, stereo.heights.bounds, grow)
     rec = match_points(
         adapted[0],
         adapted[1:],
         corrected,
         cols[0, ok],
         rows[0, ok],
-        inter.lon[ok],
-        inter.lat[ok],
-        inter.h[ok],
+        (inter.lon[ok], inter.lat[ok], inter.h[ok]),
         params,
         progress.scaled(feedback, 5, 100),
     )

@@ -38,7 +38,7 @@ from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .imagery import as_image
 from .lsm import LSM_OUT, match_accepted, solver, to_records
-from .pair_geometry import local_affine, predict
+from .pair_geometry import ImagePair, local_affine, predict
 from .params import GrowParams
 from .records import PAIR_DTYPE
 from .region_growing_kernels import Accept, Tile, grow_kernel
@@ -199,7 +199,9 @@ def _grow_tile(job, index, box):
     own = (gx0 - 0.5 * step, gy0 - 0.5 * step, x_last + 0.5 * step, y_last + 0.5 * step)
     operator = seed_operator(win1, params) if automatic else None
     if automatic:
-        found = automatic_seeds(image1, image2, model1, model2, params, hr, box=own, windows=windows, operator=operator)
+        found = automatic_seeds(
+            ImagePair(image1, image2, model1, model2), params, hr, box=own, windows=windows, operator=operator
+        )
         parts.append(found)
         ids.append(first_id + np.arange(len(found)))
     tile_seeds, ids = np.concatenate(parts), np.concatenate(ids)  # match_pair ensures one source
@@ -231,10 +233,7 @@ def _grow_tile(job, index, box):
     if automatic and params.reseed_cell:  # second round: denser interest points where growth has not been
         check_cancel()  # between the rounds (execution: a cancel reaches a running tile)
         again = automatic_seeds(
-            image1,
-            image2,
-            model1,
-            model2,
+            ImagePair(image1, image2, model1, model2),
             params,
             hr,
             box=own,
@@ -254,9 +253,10 @@ def _grow_tile(job, index, box):
     return rec, tries, nseeds
 
 
-def grow_job(image1, image2, model1, model2, params=None, height_range=None, seeds=None, automatic=None):
+def grow_job(pair: ImagePair, params=None, height_range=None, seeds=None, automatic=None):
     """(GrowJob, tiles: Lattice.tiles) of a match_pair run (its arguments; InputError as it raises), for
     _grow_tile tasks. Every pair with the same image 1 and params has the same tiles."""
+    image1, image2, model1, model2 = pair
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)
     hr = HeightRange.resolve(height_range, model1).bounds
@@ -273,9 +273,7 @@ def grow_job(image1, image2, model1, model2, params=None, height_range=None, see
     )
 
 
-def match_pair(
-    image1, image2, model1, model2, params=None, height_range=None, seeds=None, feedback=None, workers=1, automatic=None
-):
+def match_pair(pair: ImagePair, params=None, height_range=None, seeds=None, feedback=None, workers=1, automatic=None):
     """Region-growing LSM of image 1 (reference) into image 2.
 
     image1, image2: Image or raster path; model1, model2: their sensor models; params: GrowParams;
@@ -288,7 +286,8 @@ def match_pair(
     seed each point grew from (index into `seeds`, or len(seeds) + tile * seed_stride(params) + k
     for automatic ones). Raises InputError for images smaller than the template or without overlap, CancelledError
     when cancelled; no accepted seed gives an empty array and a message via feedback."""
-    job, tiles = grow_job(image1, image2, model1, model2, params, height_range, seeds, automatic)
+    image1, image2, model1, model2 = pair
+    job, tiles = grow_job(ImagePair(image1, image2, model1, model2), params, height_range, seeds, automatic)
     fb = ensure(feedback)
     progress_step(feedback, 0.0)
     where = workers if isinstance(workers, Execution) else Execution("threads", max(int(workers), 1))
@@ -311,9 +310,7 @@ def match_pair(
     return records
 
 
-def transfer_points(
-    image1, image2, model1, model2, x1, y1, params=None, height_range=None, guide=None, x2=None, y2=None
-):
+def transfer_points(pair: ImagePair, x1, y1, params=None, height_range=None, guide=None, x2=None, y2=None):
     """LSM of GIVEN image-1 points into image 2 (only image-2 coordinates are matched; transfer
     points of the three-image combinations), on the resolution-adapted images. Initial values: from
     `guide` (PAIR_DTYPE points of this pair already matched: the nearest one's position and affine
@@ -321,6 +318,7 @@ def transfer_points(
     (NCC near them or along the predicted path over the height range, then LSM, as
     seeds_from_points). Returns (PAIR_DTYPE records in the order of x1, ok mask of the
     accepted ones)."""
+    image1, image2, model1, model2 = pair
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)
     x1 = np.atleast_1d(np.asarray(x1, float)).ravel()
@@ -330,7 +328,7 @@ def transfer_points(
     hr = HeightRange.resolve(height_range, model1).bounds
     image1, image2 = adapt_resolution(image1, image2, model1, model2, params, hr)
     if guide is None or len(guide) == 0:
-        return seeds_from_points(image1, image2, model1, model2, x1, y1, params, hr, x2=x2, y2=y2)
+        return seeds_from_points(ImagePair(image1, image2, model1, model2), x1, y1, params, hr, x2=x2, y2=y2)
     guide = _as_seed_records(guide)
     if len(guide) == 0:
         raise InputError("the guide points have no matched image-2 positions")

@@ -43,14 +43,15 @@ from ..progress import Feedback
 from ..stats import NMAD_SCALE
 from ..task_runtime import check_cancel
 from .match_stats import MatchStats
+from .pair_geometry import ImagePair
 from .params import GrowParams
 from .points import MultiPoints
 from .records import PAIR_DTYPE
 from .refinement import refine_three_ray
 from .region_growing import GrowJob, _grow_tile, grow_job, transfer_points
 from .stereo_set import StereoSet
-from .strategy import MatchingStrategy, Rounds, TilePlan, register
-from .three_combinations import combine, compose_guide, new_cells
+from .strategy import MatchingStrategy, RoundResults, Rounds, TilePlan, register
+from .three_combinations import Transfer, combine, compose_guide, new_cells
 from .tiled_rounds import evenly, match_in_memory, positions, sample_quotas, save_work, scene_bias
 
 #: seed sources: key -> (use the block's tie points, seek automatic seeds)
@@ -108,10 +109,7 @@ def pair_seeds(stereo: StereoSet, k: int, seed_points: MultiPoints, params: Grow
     if not both.any():
         return np.zeros(0, PAIR_DTYPE)
     recs, ok = transfer_points(
-        stereo.images[0],
-        stereo.images[k],
-        stereo.models[0],
-        stereo.models[k],
+        ImagePair(stereo.images[0], stereo.images[k], stereo.models[0], stereo.models[k]),
         x1[both],
         y1[both],
         params,
@@ -130,10 +128,7 @@ def _transfer(
         return np.zeros(0, PAIR_DTYPE), np.zeros(0, bool)
     s, (i, j) = job.stereo, pair
     return transfer_points(
-        s.images[i],
-        s.images[j],
-        s.models[i],
-        s.models[j],
+        ImagePair(s.images[i], s.images[j], s.models[i], s.models[j]),
         x1,
         y1,
         job.settings.grow,
@@ -165,12 +160,9 @@ class RegionGrowing(MatchingStrategy):
     name = "region_growing"
     label = "Region growing (Otto & Chau; Kornus et al. 2006)"
     settings_type = RegionGrowingSettings
+    spacing_setting = "grow.step"
     second_round = "the consistency test and MPGC"
     first_share = 75.0
-
-    @classmethod
-    def spacing(cls, settings: RegionGrowingSettings) -> float:
-        return float(settings.grow.step)
 
     @classmethod
     def plan(cls, stereo: StereoSet, settings: RegionGrowingSettings, feedback: Feedback | None) -> TilePlan:
@@ -188,12 +180,16 @@ class RegionGrowing(MatchingStrategy):
             return found
 
         grow_a, tiles = grow_job(
-            s.images[0], s.images[1], s.models[0], s.models[1], params, s.heights.bounds, seeds(1), automatic
+            ImagePair(s.images[0], s.images[1], s.models[0], s.models[1]), params, s.heights.bounds, seeds(1), automatic
         )
         grow_b = None
         if s.triplet and settings.grow_second:
             grow_b = grow_job(
-                s.images[0], s.images[2], s.models[0], s.models[2], params, s.heights.bounds, seeds(2), automatic
+                ImagePair(s.images[0], s.images[2], s.models[0], s.models[2]),
+                params,
+                s.heights.bounds,
+                seeds(2),
+                automatic,
             )[0]
         n = s.names
         log.pushInfo(
@@ -230,7 +226,9 @@ class RegionGrowing(MatchingStrategy):
             ct, ok = _transfer(job, (2, 1), b["x2"], b["y2"], compose_guide(a, b, b_src))
             c, c_src = ct[ok], np.flatnonzero(ok)
             c["x1"], c["y1"] = b["x2"][c_src], b["y2"][c_src]
-            multi, dx, dy = combine(a, b, b_src, c, c_src, image_ids=ids, sigma_factor=np.inf, deviations=True)
+            multi, dx, dy = combine(
+                a, Transfer(b, b_src), Transfer(c, c_src), image_ids=ids, sigma_factor=np.inf, deviations=True
+            )
         save_work(out, multi)
         save_array(out + ".deviations.npy", np.column_stack([dx, dy]), "the matched tiles")
         both = np.flatnonzero(np.isfinite(dx))
@@ -271,20 +269,12 @@ class RegionGrowing(MatchingStrategy):
             return {}
         check_cancel()
         s = job.stereo
-        refine_three_ray(
-            points, list(s.images), list(s.models), list(s.ids), s.heights.bounds, job.settings.grow, bias=job.bias
-        )
+        refine_three_ray(points, s, job.settings.grow, bias=job.bias)
         return points.stats
 
     @classmethod
-    def stats(
-        cls,
-        job: TileJob,
-        first: list[dict[str, Any]],
-        refined: list[dict[str, Any]],
-        counts: list[int],
-        feedback: Feedback | None,
-    ) -> MatchStats:
+    def stats(cls, job: TileJob, rounds: RoundResults, feedback: Feedback | None) -> MatchStats:
+        first, refined, counts = rounds
         s = job.stereo
         added = {k: int(sum(t[k] for t in first)) for k in ADDED}
         candidates = int(sum(t["dx"][1].sum() for t in first))

@@ -70,10 +70,11 @@ def unique_choice(h, score, i1, i2, cands, peak_ratio, margin):
     return np.where(ok, best, -1)
 
 
-def relax(x, y, h, score, choice, tol, radius, rounds=3, edge_mask=None):
+def relax(x, y, scored: tuple[np.ndarray, np.ndarray], choice, tol, radius, rounds=3, edge_mask=None):
     """Choices for the unresolved points (choice -1) by local smoothness (module docstring).
-    x, y: point positions (px of the image of `edge_mask`); h, score: (n, H) hypotheses; tol: (n,)
+    x, y: point positions (px of the image of `edge_mask`); scored = (h, score): (n, H) hypotheses; tol: (n,)
     height tolerance (m). Returns the updated choice."""
+    h, score = scored
     choice = choice.copy()
     n = len(x)
     if n == 0:

@@ -20,7 +20,7 @@ from .imagery import as_image
 from .interest import best_per_cell, foerstner
 from .lsm import match_accepted
 from .ncc import ncc_path
-from .pair_geometry import local_affine, predict, search_box
+from .pair_geometry import ImagePair, local_affine, predict, search_box
 from .params import GrowParams
 from .records import PAIR_DTYPE
 
@@ -30,10 +30,14 @@ ACROSS = 3  # px of image 2 searched on each side of the predicted path
 CELL = 48  # px of image 1: at most one automatic seed per CELL x CELL cell
 
 
-def match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr, params, x2=None, y2=None, radius=3.0):
-    """NCC along the predicted path (or around given approximations x2, y2 within `radius` px),
-    then LSM, for image-1 points (x1, y1) (image coordinates) inside window win1 (offset ox1, oy1),
-    searched in win2 (offset ox2, oy2). Returns (records, ok mask)."""
+def match_candidates(windows, models, x1, y1, hr, params, near=None, radius=3.0):
+    """NCC along the predicted path (or around given approximations `near` = (x2, y2) within `radius` px), then
+    LSM, for image-1 points (x1, y1) (image coordinates) inside window win1 (offset ox1, oy1), searched in win2
+    (offset ox2, oy2): `windows` = (win1, ox1, oy1, win2, ox2, oy2) (region_growing.window_pair), `models` =
+    (model1, model2). Returns (records, ok mask)."""
+    win1, ox1, oy1, win2, ox2, oy2 = windows
+    model1, model2 = models
+    x2, y2 = (None, None) if near is None else near
     n = len(x1)
     half = params.template // 2
     hmid = 0.5 * (hr[0] + hr[1])
@@ -123,10 +127,7 @@ def seed_operator(win1, params):
 
 
 def automatic_seeds(
-    image1,
-    image2,
-    model1,
-    model2,
+    pair: ImagePair,
     params=None,
     height_range=None,
     box=None,
@@ -141,6 +142,7 @@ def automatic_seeds(
     `windows`: the (win1, ox1, oy1, win2, ox2, oy2) already read for the box (region growing);
     `keep`: a function of image-1 positions (x1, y1) -> mask of the points worth matching;
     `operator`: seed_operator of win1, if already computed."""
+    image1, image2, model1, model2 = pair
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)
     hr = HeightRange.resolve(height_range, model1).bounds
@@ -166,16 +168,15 @@ def automatic_seeds(
     if keep is not None:
         inside &= keep(x1, y1)
     x1, y1 = x1[inside], y1[inside]
-    rec, ok = match_candidates(win1, ox1, oy1, win2, ox2, oy2, model1, model2, x1, y1, hr, params)
+    rec, ok = match_candidates(windows, (model1, model2), x1, y1, hr, params)
     return rec[ok]
 
 
-def seeds_from_points(
-    image1, image2, model1, model2, x1, y1, params=None, height_range=None, x2=None, y2=None, radius=3.0
-):
+def seeds_from_points(pair: ImagePair, x1, y1, params=None, height_range=None, x2=None, y2=None, radius=3.0):
     """Seeds at given image-1 points (control or tie points): NCC along the predicted path (or
     within `radius` px of given image-2 approximations x2, y2), then LSM. Returns (PAIR_DTYPE
     records for all points, ok mask of those passing the acceptance criteria)."""
+    image1, image2, model1, model2 = pair
     params = (params or GrowParams()).check()
     image1, image2 = as_image(image1), as_image(image2)
     hr = HeightRange.resolve(height_range, model1).bounds
@@ -204,23 +205,9 @@ def seeds_from_points(
             win1, ox1, oy1, win2, ox2, oy2 = window_pair(image1, image2, model1, model2, box, hr, margin)
         if win1.size == 0 or win2.size == 0:
             continue
-        r, k = match_candidates(
-            win1,
-            ox1,
-            oy1,
-            win2,
-            ox2,
-            oy2,
-            model1,
-            model2,
-            x1[i : i + 1],
-            y1[i : i + 1],
-            hr,
-            params,
-            None if x2 is None else np.asarray(x2, float)[i : i + 1],
-            None if y2 is None else np.asarray(y2, float)[i : i + 1],
-            radius,
-        )
+        near = None if x2 is None else (np.asarray(x2, float)[i : i + 1], np.asarray(y2, float)[i : i + 1])
+        windows = (win1, ox1, oy1, win2, ox2, oy2)
+        r, k = match_candidates(windows, (model1, model2), x1[i : i + 1], y1[i : i + 1], hr, params, near, radius)
         recs[i] = r[0]
         ok[i] = k[0]
     return recs, ok

@@ -12,7 +12,7 @@ tiled_rounds.match_in_tiles:
    `rounds` over the work files `outs`); returns the job of round 2 and each tile's point count after `keep`.
 3. Per tile again: `keep(job, out)` selects the points kept (None: all), the driver numbers them on from the tiles
    before, `refine(job, points)` may change them in place (MPGC) and returns its counts, and the part is written.
-4. `stats(job, first, refined, counts, feedback)`: the run's MatchStats.
+4. `stats(job, rounds, feedback)`: the run's MatchStats from the RoundResults `rounds`.
 
 The tasks are static methods and the job a picklable value: they run in threads, local processes or on a Dask
 cluster (execution.py). A fourth strategy is a module with a MatchingStrategy subclass decorated by `register`,
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
+from operator import attrgetter
 from typing import Any, Callable, ClassVar, NamedTuple, TypeVar
 
 import numpy as np
@@ -42,6 +43,15 @@ class TilePlan(NamedTuple):
     quotas: list[int]
 
 
+class RoundResults(NamedTuple):
+    """What the rounds of a run gave: each tile's round-1 result (`first`), round-2 refinement counts (`refined`,
+    `refine`'s) and kept points (`counts`), in tile order."""
+
+    first: list[dict[str, Any]]
+    refined: list[dict[str, Any]]
+    counts: list[int]
+
+
 #: runs one more round of tasks on the step's workers: rounds(function, [arguments per task], what) -> results
 Rounds = Callable[[Callable[..., Any], Sequence[tuple], str], list[Any]]
 
@@ -49,13 +59,15 @@ Rounds = Callable[[Callable[..., Any], Sequence[tuple], str], list[Any]]
 class MatchingStrategy(ABC):
     """One way of matching a stereo set (module docstring). Subclasses set `name` (the key of the registry and
     of pushbroom:matchpoints' STRATEGY), `label` (its text in the dialog), `settings_type` (a dataclass with a
-    check() that raises InputError and returns the settings) and the labels of the two rounds."""
+    check() that raises InputError and returns the settings), `spacing_setting` and the labels of the rounds."""
 
     name: ClassVar[str]
     label: ClassVar[str]
     settings_type: ClassVar[type[Any]]
     first_round: ClassVar[str] = "matching"
     second_round: ClassVar[str] = "numbering the points"
+    #: the setting that is the points' spacing in the reference image (px), a dotted path into the settings
+    spacing_setting: ClassVar[str]
     #: the share (%) of the step's progress that round 1 takes
     first_share: ClassVar[float] = 90.0
 
@@ -70,9 +82,9 @@ class MatchingStrategy(ABC):
         return settings.check()
 
     @classmethod
-    @abstractmethod
     def spacing(cls, settings: Any) -> float:
-        """The spacing of the points in the reference image (px)."""
+        """The spacing of the points in the reference image (px): the setting `spacing_setting` names."""
+        return float(attrgetter(cls.spacing_setting)(settings))
 
     @classmethod
     @abstractmethod
@@ -103,14 +115,7 @@ class MatchingStrategy(ABC):
 
     @classmethod
     @abstractmethod
-    def stats(
-        cls,
-        job: Any,
-        first: list[dict[str, Any]],
-        refined: list[dict[str, Any]],
-        counts: list[int],
-        feedback: Feedback | None,
-    ) -> MatchStats:
+    def stats(cls, job: Any, rounds: RoundResults, feedback: Feedback | None) -> MatchStats:
         """The run's statistics (and its closing log line)."""
 
 

@@ -23,6 +23,8 @@ combination (a) and group 1 only. Region growing (region_growing_strategy.py) co
 the test, applies it with the sigmas of the whole scene, and refines the group 3 points by MPGC in both
 search images at once (refinement.py)."""
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..errors import InputError
@@ -53,17 +55,25 @@ def _link(src, n_target):
     return link
 
 
-def combine(
-    a, b=None, b_src=None, c=None, c_src=None, image_ids=(1, 2, 3), sigma_factor=3.0, min_sigma=0.01, deviations=False
-):
-    """Merge the PAIR_DTYPE results of combinations (a), (b), (c) into a MultiPoints.
+class Transfer(NamedTuple):
+    """The PAIR_DTYPE records of a combination matched from transfer points, and for each the index of its
+    transfer point in the combination before (-1: a point grown in the combination itself)."""
 
-    `b_src[j]` is the index in `a` of the transfer point that b[j] was matched from, or -1 for a
-    point grown in (b) itself; `c_src[k]` the index in `b` of the transfer point of c[k] (records
+    records: np.ndarray
+    src: np.ndarray
+
+
+def combine(a, b=None, c=None, image_ids=(1, 2, 3), sigma_factor=3.0, min_sigma=0.01, deviations=False):
+    """Merge the PAIR_DTYPE results of combinations (a), (b), (c) into a MultiPoints; `b`, `c`: Transfer, or None.
+
+    `b.src[j]` is the index in `a` of the transfer point that b[j] was matched from, or -1 for a
+    point grown in (b) itself; `c.src[k]` the index in `b` of the transfer point of c[k] (records
     with -1 are ignored). `image_ids` are the block ids of images 0, 1, 2. Image-0 coordinates
     come from (a) (or from (b) for its own points), image-2 coordinates from (b), so transfer
     points keep their first-image coordinates exactly. With `deviations`, returns (MultiPoints, dx,
     dy): the deviations per point as float64 (POINT_DTYPE keeps them as float32), NaN where not both."""
+    b, b_src = (None, None) if b is None else b
+    c, c_src = (None, None) if c is None else c
     a = np.asarray(a, PAIR_DTYPE)
     three = b is not None
     b = np.asarray(b if three else np.zeros(0), PAIR_DTYPE)

@@ -6,7 +6,7 @@ Round 1 runs the strategy's `match_tile` per tile; each writes its points to a w
 work folder beside the output folder (atomic.work_dir), where every worker sees them. `between` runs in the
 step's process on what the tiles returned. Round 2 numbers each tile's kept points on from the tiles before it
 (ids 1 ... N in tile order), lets the strategy refine them, and hands them to `write_part(folder, k, points)`
-(the step passes block/points.save_part, which writes them as the k-th part of the new sidecar folder), or
+(the step passes block/points.write_part, which writes them as the k-th part of the new point folder), or
 returns them. The rounds share one session of workers. The result does not depend on the execution or the
 number of workers: a tile's points depend only on its box and on what `between` derives from all tiles.
 
@@ -33,7 +33,7 @@ from .orientation_bias import affine_bias
 from .points import MultiPoints
 from .refinement import MIN_POINTS
 from .stereo_set import StereoSet
-from .strategy import MatchingStrategy
+from .strategy import MatchingStrategy, RoundResults
 
 #: points of the scene that the orientation bias is fitted to
 BIAS_SAMPLE = 50_000
@@ -126,7 +126,7 @@ def match_in_tiles(
     feedback: Feedback | None = None,
 ) -> tuple[list[Any], MatchStats]:
     """Match `stereo` with `strategy` and its `settings` tile by tile (module docstring): each tile's points handed
-    to `write_part(folder, k, points)` (a module-level function: block/points.save_part), or, without it,
+    to `write_part(folder, k, points)` (a module-level function: block/points.write_part), or, without it,
     returned. Returns (the index entries or MultiPoints of the tiles, in id order; the run's MatchStats). The
     work folder lies beside `folder`. Raises InputError (the strategy's, for its settings and inputs),
     CancelledError when cancelled, ExecutionError where the workers fail."""
@@ -161,7 +161,7 @@ def match_in_tiles(
             progress.scaled(feedback, share, 100),
             strategy.second_round,
         )
-    stats = strategy.stats(job, first, [s for _, s in second], counts, feedback)
+    stats = strategy.stats(job, RoundResults(first, [s for _, s in second], counts), feedback)
     return [part for part, _ in second], stats
 
 

@@ -373,7 +373,7 @@ class MeasurementSession:
         self.pending.pop(image_id, None)
         self.transfer_notes.pop(image_id, None)
 
-    def transfer(self, image_id, col, row):
+    def transfer(self, image_id: int, col: float, row: float) -> "dict[int, transfer.Transfer]":
         """LSM transfers of the current point's position (col, row) in image `image_id` into the images
         where it is not measured yet, at its ground height (transfer.transfer): the accepted ones
         become `pending`, the reasons of the others `transfer_notes`. Returns {image id: Transfer}."""
@@ -383,7 +383,9 @@ class MeasurementSession:
         if not targets:
             return {}
         height = self.ground(name)[2]
-        results = transfer.transfer(self.image_paths, self.models, image_id, col, row, targets=targets, height=height)
+        results = transfer.transfer(
+            self.image_paths, self.models, transfer.Click(image_id, col, row), targets=targets, height=height
+        )
         for target, t in results.items():
             if t.ok:
                 self.pending[target] = t

@@ -14,21 +14,33 @@ rho > rho_min, error-ellipse semi-major axis < max_ellipse, shift < max_shift, c
 Only windows around the point are read (matching/imagery.py: GDAL windowed reads), never a whole
 image."""
 
+from __future__ import annotations
+
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 
 from ..errors import InputError
 from ..height_range import HeightRange
 from ..matching.imagery import as_image
-from ..matching.pair_geometry import predict
+from ..matching.pair_geometry import ImagePair, predict
 from ..matching.params import GrowParams
 from ..matching.resolution import adapt_resolution
 from ..matching.seeds import NCC_MARGIN, NCC_MIN, seeds_from_points
 
 #: px of the target searched around the prediction when a height is given
 DEFAULT_RADIUS = 10.0
+
+
+class Click(NamedTuple):
+    """A position (col, row: px, GDAL convention) clicked in the image `image_id`."""
+
+    image_id: Any
+    col: float
+    row: float
 
 
 @dataclass(frozen=True)
@@ -67,13 +79,22 @@ def _failed(reason):
     return Transfer(math.nan, math.nan, math.nan, math.nan, False, reason)
 
 
-def transfer(images, models, source_id, col, row, targets=None, height=None, params=None, radius=DEFAULT_RADIUS):
-    """Match image position (col, row) of image `source_id` into the `targets` (default: every
+def transfer(
+    images: dict[Any, Any],
+    models: dict[Any, Any],
+    click: Click,
+    targets: Iterable[Any] | None = None,
+    height: float | tuple[float, float] | None = None,
+    params: GrowParams | None = None,
+    radius: float = DEFAULT_RADIUS,
+) -> dict[Any, Transfer]:
+    """Match the image position `click` (Click: image id, col, row) into the `targets` (default: every
     other image of `images`). images: {image id: raster path (or matching.imagery.Image)}; models:
     {image id: sensor model}; height: ellipsoidal height (m) of the point, or (h_min, h_max) to
     search over (default: the source model's own height range, RPC); params: GrowParams (template,
     acceptance criteria, resolution adaptation); radius: px searched around the prediction with a
     height. Returns {target id: Transfer}."""
+    source_id, col, row = click
     params = (params or GrowParams()).check()
     targets = [t for t in images if t != source_id] if targets is None else list(targets)
     for key in [source_id] + targets:
@@ -91,7 +112,7 @@ def transfer(images, models, source_id, col, row, targets=None, height=None, par
         raise InputError(
             "the terrain height is unknown: give the point's height, or the block's height range (h_min, h_max)"
         )
-    hr = (float(height),) * 2 if fixed else HeightRange.resolve(height, models[source_id]).bounds
+    hr = (float(cast(float, height)),) * 2 if fixed else HeightRange.resolve(height, models[source_id]).bounds
     out = {}
     for target_id in targets:
         model1, model2 = models[source_id], models[target_id]
@@ -110,7 +131,7 @@ def transfer(images, models, source_id, col, row, targets=None, height=None, par
                 continue
         image1, image2 = adapt_resolution(source, target, model1, model2, params, hr)
         rec, ok = seeds_from_points(
-            image1, image2, model1, model2, [col], [row], params, hr, x2=x2, y2=y2, radius=radius
+            ImagePair(image1, image2, model1, model2), [col], [row], params, hr, x2=x2, y2=y2, radius=radius
         )
         r = rec[0]
         out[target_id] = Transfer(

@@ -29,8 +29,11 @@ PROJ costs ~0.6 us a point and the rigorous model iterates, so per tile of the o
 
 Cells where the DEM has no height, or a node has no image point (outside the model's domain), are NaN."""
 
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -70,6 +73,14 @@ class TileMap:
     h: np.ndarray
     step: int
     bound: float
+
+
+class Relief(NamedTuple):
+    """The DEM under a tile: the heights h0 < h1 the nodes are mapped at and the steepest slope (m/m)."""
+
+    h0: float
+    h1: float
+    slope: float
 
 
 class TileMapper:
@@ -142,9 +153,10 @@ class TileMapper:
             return TileMap(nan, nan.copy(), nan.copy(), nan.copy(), nan.copy(), step, 0.0)
         h0, h1, slope = found
         h1 = max(h1, h0 + 1.0)
+        relief = Relief(h0, h1, slope)
         nodes = self._lattice(row0, col0, n_u, n_v, step, (h0, h1))
         while step > 1:
-            bound = self._bound(row0, col0, n_u, n_v, step, nodes, h0, h1, slope)
+            bound = self._bound(row0, col0, n_u, n_v, step, nodes, relief)
             if bound <= self.max_error:
                 return self._interpolate(rows, cols, step, nodes, h0, h1, bound)
             step //= 2
@@ -152,8 +164,19 @@ class TileMapper:
             nodes = self._lattice(row0, col0, n_u, n_v, step, (h0, h1))
         return self.exact(row0, col0, rows, cols)
 
-    def _bound(self, row0, col0, n_u, n_v, step, nodes, h0, h1, slope):
-        """Error bound (px) of interpolating from the nodes of `step`, from the exact lattice of step / 2."""
+    def _bound(
+        self,
+        row0: int,
+        col0: int,
+        n_u: int,
+        n_v: int,
+        step: int,
+        nodes: tuple[np.ndarray, np.ndarray, np.ndarray],
+        relief: Relief,
+    ) -> float:
+        """Error bound (px) of interpolating from the nodes (lon, lat, image points at h0 and h1) of `step`,
+        from the exact lattice of step / 2, at the heights and slope of `relief`."""
+        h0, h1, slope = relief
         lon, lat, image = nodes
         fine_lon, fine_lat, exact = self._lattice(
             row0, col0, 2 * n_u - 1, 2 * n_v - 1, step // 2, (h0, h1, 0.5 * (h0 + h1))

@@ -14,10 +14,13 @@ Each task writes its tile as a GeoTIFF; GDAL assembles them (a VRT translated in
 DEFLATE-compressed GeoTIFF of the image's data type with nodata set and overviews,
 geotiff.assemble_tiles) under a temporary name renamed at the end (a cancel leaves no file)."""
 
+from __future__ import annotations
+
 import math
 import os
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from osgeo import gdal, gdal_array
@@ -27,8 +30,9 @@ from ..atomic import atomic_path, closing, work_dir
 from ..crs import srs as parse_crs
 from ..dem_store import as_stored
 from ..errors import InputError
-from ..execution import run_tasks
-from ..surface.geotiff import assemble_tiles
+from ..execution import Execution, run_tasks
+from ..progress import Feedback
+from ..surface.geotiff import Frame, assemble_tiles
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from . import occlusion, resampling
@@ -37,6 +41,23 @@ from .mapping import START_STEP, TileMapper
 
 TILE = 512
 CREATION_OPTIONS = ("TILED=YES", "BLOCKXSIZE=256", "BLOCKYSIZE=256", "COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER")
+
+
+@dataclass(frozen=True)
+class OrthoSettings:
+    """How `orthorectify` makes the orthoimage: the output grid's CRS `crs` and `cell_size` (where no grid
+    is given: default_grid), `resampling_method` 'bilinear' or 'bicubic', `occlusion_mask` (occluded cells
+    as nodata), `max_error` (px: the bound of the coarse-grid interpolation, mapping.py) from the coarse
+    step `start_step`, output tiles of `tile` cells a side, internal `overviews`."""
+
+    crs: str | None = None
+    cell_size: float | None = None
+    resampling_method: str = "bilinear"
+    occlusion_mask: bool = False
+    max_error: float = 0.01
+    start_step: int = START_STEP
+    tile: int = TILE
+    overviews: bool = True
 
 
 @dataclass
@@ -193,28 +214,22 @@ def _ortho_tile(job, window, out):
 
 
 def orthorectify(
-    image,
-    model,
-    dem,
-    output,
-    grid=None,
-    crs=None,
-    cell_size=None,
-    resampling_method="bilinear",
-    occlusion_mask=False,
-    max_error=0.01,
-    start_step=START_STEP,
-    tile=TILE,
-    execution=None,
-    overviews=True,
-    feedback=None,
-):
+    image: str | os.PathLike[str],
+    model: Any,
+    dem: Any,
+    output: str | os.PathLike[str],
+    grid: OutputGrid | None = None,
+    settings: OrthoSettings | None = None,
+    execution: Execution | None = None,
+    feedback: Feedback | None = None,
+) -> OrthoResult:
     """Orthoimage of raster `image` (path) with sensor `model` on `dem` (ellipsoidal heights: a dem.Dem, or a
-    dem_store.StoredDem), written to GeoTIFF `output`. The grid is `grid` (OutputGrid) or default_grid(model, dem, crs,
-    cell_size); resampling 'bilinear' or 'bicubic'; occlusion_mask sets occluded cells to nodata;
-    max_error (px) bounds the coarse-grid interpolation (mapping.py); the tiles run on `execution`
-    (execution.Execution; default one thread). Returns an OrthoResult; raises CancelledError (nothing
-    written) when feedback cancels, ExecutionError (execution.py's)."""
+    dem_store.StoredDem), written to GeoTIFF `output` with OrthoSettings `settings` (default: its defaults).
+    The grid is `grid` (OutputGrid) or default_grid(model, dem, settings.crs, settings.cell_size); the tiles
+    run on `execution` (execution.Execution; default one thread). Returns an OrthoResult; raises
+    CancelledError (nothing written) when feedback cancels, ExecutionError (execution.py's)."""
+    settings = settings or OrthoSettings()
+    resampling_method, occlusion_mask = settings.resampling_method, settings.occlusion_mask
     start = time.perf_counter()
     if resampling_method not in resampling.METHODS:
         raise InputError(f"resampling is one of {', '.join(resampling.METHODS)}, not {resampling_method!r}")
@@ -231,14 +246,14 @@ def orthorectify(
     band = ds.GetRasterBand(1)
     np_type = np.dtype(gdal_array.GDALTypeCodeToNumericTypeCode(band.DataType))
     nodata = _nodata(band, np_type)
-    grid = grid or default_grid(model, dem, crs, cell_size)
+    grid = grid or default_grid(model, dem, settings.crs, settings.cell_size)
     progress.step(
         feedback,
         0,
         f"orthoimage grid {grid.cols} x {grid.rows} cells of {grid.geotransform[1]:g} "
         f"({grid.srs.GetName()}), {resampling_method} resampling",
     )
-    windows = [(y0, x0, y1 - y0, x1 - x0) for x0, y0, x1, y1 in tile_grid((grid.cols, grid.rows), tile)]
+    windows = [(y0, x0, y1 - y0, x1 - x0) for x0, y0, x1, y1 in tile_grid((grid.cols, grid.rows), settings.tile)]
     reach = _reach(model, dem) if occlusion_mask else (0.0, 0.0)
     with work_dir(output, "the orthoimage tiles") as work:
         dem = as_stored(dem, work)
@@ -253,8 +268,8 @@ def orthorectify(
             occlusion_mask,
             np_type.str,
             nodata,
-            max_error,
-            start_step,
+            settings.max_error,
+            settings.start_step,
             reach,
             band.DataType,
         )
@@ -266,18 +281,16 @@ def orthorectify(
             progress.scaled(feedback, 0, 90),
             "the orthoimage tiles",
         )
-        steps = {}
+        steps: dict[int, int] = {}
         for _, _, step, _ in done:
             steps[step] = steps.get(step, 0) + 1
         with atomic_path(output) as tmp:
             assemble_tiles(
                 tiles,
                 tmp,
-                grid.geotransform,
-                (grid.cols, grid.rows),
-                grid.srs,
+                Frame(grid.geotransform, (grid.cols, grid.rows), grid.srs),
                 CREATION_OPTIONS,
-                overviews=overviews,
+                overviews=settings.overviews,
                 feedback=progress.scaled(feedback, 90, 100),
             )
     result = OrthoResult(

@@ -12,9 +12,11 @@ from .. import progress
 from ..adjustment.control_points import HEIGHT_TYPES
 from ..atomic import atomic_path, work_dir
 from ..errors import InputError
-from ..surface.geotiff import assemble_tiles
-from .assessment import SLOPE_THRESHOLD, assess_by_parts
+from ..progress import Feedback
+from ..surface.geotiff import Frame, assemble_tiles
+from .assessment import SLOPE_THRESHOLD, Labelling, assess_by_parts
 from .classes import ClassRaster, PolygonClasses
+from .height_differences import Reference
 
 
 @dataclass
@@ -59,27 +61,25 @@ class AssessResult:
     used: list = field(default_factory=list)  # (what, description) of the inputs, as in the report
 
 
-def assess_accuracy(params, feedback=None):
+def assess_accuracy(params: AssessParams, feedback: Feedback | None = None) -> AssessResult:
     """Assess with AssessParams `params` and write the outputs; returns an AssessResult. Raises
     InputError (settings, inputs the reference does not cover) and the readers' errors."""
     params.check()
-    classes, class_source = None, "none"
+    classes: ClassRaster | PolygonClasses | None = None
+    class_source = "none"
     if params.class_raster:
         classes, class_source = ClassRaster(params.class_raster), params.class_raster
     elif params.class_polygons is not None:
         classes, class_source = params.class_polygons, params.class_polygons_source
     with work_dir(params.dh, "the dh tiles") if params.dh else contextlib.nullcontext() as tiles:
         assessed = assess_by_parts(
-            params.reference,
+            Reference(params.reference, params.reference_heights, params.reference_nodata),
             points=params.points,
             dem=params.dem,
-            reference_datum=params.reference_heights,
             points_datum=params.points_heights,
             dem_datum=params.dem_heights,
-            classes=classes,
-            slope_threshold=params.slope_threshold,
+            labelling=Labelling(classes, params.slope_threshold),
             feedback=progress.scaled(feedback, 0, 70),
-            reference_nodata=params.reference_nodata,
             tiles=tiles,
         )
         return _write(params, assessed, class_source, feedback)
@@ -107,9 +107,7 @@ def _write(params, assessed, class_source, feedback):
             assemble_tiles(
                 dem.tiles,
                 tmp,
-                dem.geotransform,
-                dem.size,
-                dem.srs,
+                Frame(dem.geotransform, dem.size, dem.srs),
                 description="dh = DEM - reference (m, ellipsoidal)",
                 feedback=progress.scaled(feedback, 95, 100),
             )

@@ -12,19 +12,24 @@ not the data. The DEM's dh windows are written as GeoTIFF tiles where a folder i
 of the parts are those of the whole: the reference, its slope and the classes of a part are the whole
 data's there (height_differences)."""
 
+from __future__ import annotations
+
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .. import progress
 from ..errors import InputError
+from ..progress import Feedback
 from ..surface.geotiff import write_float_raster
 from ..surface.point_input import point_chunks, point_count
 from ..tiling import tile_grid
 from .classes import slope_classes
-from .height_differences import Differences, ReferenceReach, dem_differences, point_differences
+from .height_differences import Differences, Reference, ReferenceReach, dem_differences, point_differences
 from .rasters import Grid, open_raster, raster_srs
 from .statistics import DhSummary, labelled, merge_labelled
 
@@ -35,6 +40,15 @@ TILE = 1024
 #: the dh map figure: at most MAP_CELLS cells a side of a DEM, at most MAP_POINTS points
 MAP_CELLS = 1000
 MAP_POINTS = 200_000
+
+
+class Labelling(NamedTuple):
+    """How each dh is labelled: its class from `classes` (a classes.ClassRaster or classes.PolygonClasses;
+    None: no classes) and its terrain by the reference's slope, mountainous above `slope_threshold`
+    (degrees)."""
+
+    classes: Any = None
+    slope_threshold: float = SLOPE_THRESHOLD
 
 
 @dataclass
@@ -139,8 +153,10 @@ def labels(source, differences):
     return source.at_points(differences.x, differences.y, differences.srs)
 
 
-def _assessed(d, classes, slope_threshold):
-    """The Assessed of the Differences `d`: terrain classes by slope, classes from `classes` where given."""
+def _assessed(d: Differences, labelling: Labelling) -> Assessed:
+    """The Assessed of the Differences `d`: terrain classes by slope, classes from `classes` where given
+    (`labelling`)."""
+    classes, slope_threshold = labelling
     terrain, terrain_names = slope_classes(d.slope, slope_threshold)
     assessed = Assessed(d, terrain=terrain, terrain_names=terrain_names)
     if classes is not None:
@@ -148,7 +164,7 @@ def _assessed(d, classes, slope_threshold):
     return assessed
 
 
-def _check(points, dem, slope_threshold):
+def _check(points: Any, dem: Any, slope_threshold: float) -> None:
     if points is None and dem is None:
         raise InputError("give a point cloud, a DEM or both to assess")
     if not slope_threshold > 0:
@@ -156,102 +172,76 @@ def _check(points, dem, slope_threshold):
 
 
 def assess(
-    reference,
-    points=None,
-    dem=None,
-    reference_datum="ellipsoidal",
-    points_datum="ellipsoidal",
-    dem_datum="ellipsoidal",
-    classes=None,
-    slope_threshold=SLOPE_THRESHOLD,
-    feedback=None,
-    reference_nodata=None,
-):
+    reference: Reference,
+    points: str | os.PathLike[str] | None = None,
+    dem: str | os.PathLike[str] | None = None,
+    points_datum: str = "ellipsoidal",
+    dem_datum: str = "ellipsoidal",
+    labelling: Labelling = Labelling(),
+    feedback: Feedback | None = None,
+) -> list[Assessed]:
     """[Assessed] of the point cloud `points` and the DEM raster `dem` (either or both) against the
-    `reference` raster, every difference held; `classes` a classes.ClassRaster or classes.PolygonClasses (or
-    None); `reference_nodata` a void value of the reference that its file does not flag as nodata.
-    Implausible reference heights are reported as a warning (height_differences)."""
-    _check(points, dem, slope_threshold)
-    jobs = [(point_differences, points, points_datum), (dem_differences, dem, dem_datum)]
+    Reference `reference` (its raster, datum and declared void value), every difference held, each
+    labelled as `labelling` says. Implausible reference heights are reported as a warning
+    (height_differences)."""
+    _check(points, dem, labelling.slope_threshold)
+    jobs: list[tuple[Callable[..., Differences], str | os.PathLike[str] | None, str]] = [
+        (point_differences, points, points_datum),
+        (dem_differences, dem, dem_datum),
+    ]
     jobs = [job for job in jobs if job[1] is not None]
     out = []
     for k, (compute, path, datum) in enumerate(jobs):
         span = 100.0 / len(jobs)
-        d = compute(
-            path,
-            reference,
-            reference_datum,
-            datum,
-            progress.scaled(feedback, k * span, (k + 0.8) * span),
-            reference_nodata=reference_nodata,
-        )
+        d = compute(path, reference, datum, progress.scaled(feedback, k * span, (k + 0.8) * span))
         if not d.dh.size:
             raise InputError(f"no {d.what} of {path} has a reference height: check that the reference covers it")
-        out.append(_assessed(d, classes, slope_threshold))
+        out.append(_assessed(d, labelling))
         progress.step(feedback, (k + 1) * span, f"{d.what}: {d.dh.size} height differences")
     return out
 
 
 def assess_by_parts(
-    reference,
-    points=None,
-    dem=None,
-    reference_datum="ellipsoidal",
-    points_datum="ellipsoidal",
-    dem_datum="ellipsoidal",
-    classes=None,
-    slope_threshold=SLOPE_THRESHOLD,
-    feedback=None,
-    reference_nodata=None,
-    tiles=None,
-):
+    reference: Reference,
+    points: str | os.PathLike[str] | None = None,
+    dem: str | os.PathLike[str] | None = None,
+    points_datum: str = "ellipsoidal",
+    dem_datum: str = "ellipsoidal",
+    labelling: Labelling = Labelling(),
+    feedback: Feedback | None = None,
+    tiles: str | None = None,
+) -> list[Summary]:
     """[Summary] of the point cloud `points` and the DEM raster `dem` (either or both) against the
-    `reference` raster (as assess), read in parts (module docstring). `tiles`: a folder where the DEM's dh
+    Reference `reference` (as assess), read in parts (module docstring). `tiles`: a folder where the DEM's dh
     windows are written as GeoTIFF tiles (listed in the Summary's `tiles`), or None."""
-    _check(points, dem, slope_threshold)
+    _check(points, dem, labelling.slope_threshold)
     span = 100.0 / ((points is not None) + (dem is not None))
     out = []
     if points is not None:
-        out.append(
-            _points_by_chunks(
-                reference,
-                points,
-                reference_datum,
-                points_datum,
-                classes,
-                slope_threshold,
-                progress.scaled(feedback, 0, span),
-                reference_nodata,
-            )
-        )
+        out.append(_points_by_chunks(reference, points, points_datum, labelling, progress.scaled(feedback, 0, span)))
     if dem is not None:
         out.append(
-            _dem_by_windows(
-                reference,
-                dem,
-                reference_datum,
-                dem_datum,
-                classes,
-                slope_threshold,
-                progress.scaled(feedback, 100 - span, 100),
-                reference_nodata,
-                tiles,
-            )
+            _dem_by_windows(reference, dem, dem_datum, labelling, progress.scaled(feedback, 100 - span, 100), tiles)
         )
     return out
 
 
-def _points_by_chunks(reference, path, reference_datum, datum, classes, slope_threshold, feedback, nodata):
-    reach, summary, total = ReferenceReach(reference, nodata), None, max(point_count(path), 1)
+def _points_by_chunks(
+    reference: Reference,
+    path: str | os.PathLike[str],
+    datum: str,
+    labelling: Labelling,
+    feedback: Feedback | None,
+) -> Summary:
+    """The Summary of the point cloud at `path` (heights in `datum`), read in chunks of CHUNK points."""
+    reach, summary, total = ReferenceReach(reference.path, reference.nodata), None, max(point_count(path), 1)
     for k, chunk in enumerate(point_chunks(path, None, CHUNK)):
         progress.step(feedback, 100.0 * min(k * CHUNK, total) / total)
         if not len(chunk):
             raise InputError(f"the point cloud {path} holds no point")
-        d = point_differences(
-            path, reference, reference_datum, datum, reference_nodata=nodata, points=chunk, reach=reach, required=False
-        )
+        d = point_differences(path, reference, datum, points=chunk, reach=reach, required=False)
         summary = summary or Summary(d.what, str(path), d.srs)
-        summary.add(_assessed(d, classes, slope_threshold))
+        summary.add(_assessed(d, labelling))
         progress.ensure(feedback).pushInfo(
             f"object points: chunk {k + 1}, {summary.all.n} with a reference height so far"
         )
@@ -261,18 +251,27 @@ def _points_by_chunks(reference, path, reference_datum, datum, classes, slope_th
     return summary
 
 
-def _dem_by_windows(reference, path, reference_datum, datum, classes, slope_threshold, feedback, nodata, folder):
+def _dem_by_windows(
+    reference: Reference,
+    path: str | os.PathLike[str],
+    datum: str,
+    labelling: Labelling,
+    feedback: Feedback | None,
+    folder: str | None,
+) -> Summary:
+    """The Summary of the DEM raster at `path` (heights in `datum`), read in windows of TILE x TILE cells;
+    the dh windows written as GeoTIFF tiles in `folder` where given."""
     ds = open_raster(path, "DEM")
     size, geotransform, srs = (ds.RasterXSize, ds.RasterYSize), ds.GetGeoTransform(), raster_srs(ds)
     ds = None
     summary = Summary("DEM cells", str(path), srs)
     summary.map_grid, summary.map_step = _map_grid((size[1], size[0]), geotransform, srs)
     summary.tiles = []
-    reach, boxes = ReferenceReach(reference, nodata), tile_grid(size, TILE)
+    reach, boxes = ReferenceReach(reference.path, reference.nodata), tile_grid(size, TILE)
     for k, box in enumerate(boxes):
         progress.step(feedback, 100.0 * k / len(boxes))
-        d = dem_differences(path, reference, reference_datum, datum, reference_nodata=nodata, window=box, reach=reach)
-        summary.add(_assessed(d, classes, slope_threshold))
+        d = dem_differences(path, reference, datum, window=box, reach=reach)
+        summary.add(_assessed(d, labelling))
         if folder is not None:
             summary.tiles.append(
                 write_float_raster(
@@ -284,7 +283,7 @@ def _dem_by_windows(reference, path, reference_datum, datum, classes, slope_thre
         raise InputError(f"the DEM {path} holds no valid height (all cells are nodata)")
     if not summary.all.n:
         raise InputError(
-            f"the reference DEM {reference} does not overlap the DEM {path} (or holds only nodata "
+            f"the reference DEM {reference.path} does not overlap the DEM {path} (or holds only nodata "
             "there): choose a reference that covers it"
         )
     summary.size, summary.geotransform = size, geotransform

@@ -19,7 +19,11 @@ and reported as a warning (progress.warn) naming their value and the REFERENCE_N
 cloud can be given in chunks and a DEM in windows (assessment.assess_by_parts), so that memory follows the
 chunk and the window."""
 
+from __future__ import annotations
+
+import os
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -29,7 +33,8 @@ from ..crs import reproject, wgs84
 from ..dem import Dem, ImplausibleTally
 from ..errors import InputError
 from ..height_range import outside_plausible
-from ..surface.point_input import read_points
+from ..progress import Feedback
+from ..surface.point_input import PointSet, read_points
 from .rasters import (
     Grid,
     by_blocks,
@@ -43,6 +48,16 @@ from .rasters import (
     slope_degrees,
     warp_to,
 )
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The reference DTM/DSM raster: its `path`, the `datum` of its heights (control_points.HEIGHT_TYPES) and
+    `nodata`, a void value its file does not flag as nodata (None: none)."""
+
+    path: str | os.PathLike[str]
+    datum: str = "ellipsoidal"
+    nodata: float | None = None
 
 
 @dataclass
@@ -132,18 +147,25 @@ def _ellipsoidal(h, x, y, srs, datum):
 
 
 def reference_at_points(
-    reference, x, y, srs, datum="ellipsoidal", nodata=None, feedback=None, reach=None, required=True
-):
-    """(ellipsoidal reference height, reference slope in degrees) at points (x, y in `srs`): bilinear in
-    the reference's CRS, the reference read by the window of each block of its cells that holds points
-    (rasters.by_blocks); NaN outside it and next to its nodata (and cells equal to `nodata`, a declared
-    void value). InputError when it does not overlap (unless not `required`: a chunk of a cloud). The cells
-    read are noted in `reach` (ReferenceReach: a cloud's over all its chunks) where given, else their
-    implausible heights are reported as a warning (`feedback`)."""
+    reference: Reference,
+    x: np.ndarray,
+    y: np.ndarray,
+    srs: Any,
+    feedback: Feedback | None = None,
+    reach: ReferenceReach | None = None,
+    required: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(ellipsoidal reference height, reference slope in degrees) of the Reference `reference` at points
+    (x, y in `srs`, an osr.SpatialReference): bilinear in the reference's CRS, the reference read by the
+    window of each block of its cells that holds points (rasters.by_blocks); NaN outside it and next to its
+    nodata (and cells equal to its declared void value). InputError when it does not overlap (unless not
+    `required`: a chunk of a cloud). The cells read are noted in `reach` (ReferenceReach: a cloud's over all
+    its chunks) where given, else their implausible heights are reported as a warning (`feedback`)."""
+    path, datum, nodata = reference.path, reference.datum, reference.nodata
     _check_datum(datum, "reference")
-    ds = open_raster(reference, "reference DEM")
+    ds = open_raster(path, "reference DEM")
     xr, yr = reproject(x, y, srs, raster_srs(ds))
-    counted = reach or ReferenceReach(reference, nodata)
+    counted = reach or ReferenceReach(path, nodata)
     href, slope = np.full(len(xr), np.nan), np.full(len(xr), np.nan)
     for index in by_blocks(ds, xr, yr):
         progress.check(feedback)
@@ -164,29 +186,25 @@ def reference_at_points(
 
 
 def point_differences(
-    path,
-    reference,
-    reference_datum="ellipsoidal",
-    points_datum="ellipsoidal",
-    feedback=None,
-    reference_nodata=None,
-    points=None,
-    reach=None,
-    required=True,
-):
+    path: str | os.PathLike[str],
+    reference: Reference,
+    points_datum: str = "ellipsoidal",
+    feedback: Feedback | None = None,
+    points: PointSet | None = None,
+    reach: ReferenceReach | None = None,
+    required: bool = True,
+) -> Differences:
     """Differences of the object points of a point cloud (surface.point_input.read_points; or `points`, a
-    PointSet of it such as a chunk) against the reference raster (`reference_nodata`: a declared void
-    value; the cells read noted in `reach` where given, and the overlap `required`, as
-    reference_at_points); its `group` field, where present, is kept."""
+    PointSet of it such as a chunk) against the Reference `reference` (the cells read noted in `reach` where
+    given, and the overlap `required`, as reference_at_points); its `group` field, where present, is
+    kept."""
     _check_datum(points_datum, "points")
     cloud = read_points(path) if points is None else points
     x, y, z, srs, fields = cloud.x, cloud.y, cloud.z, cloud.srs, cloud.fields
     if not len(x):
         raise InputError(f"the point cloud {path} holds no point")
     progress.step(feedback, 10, f"{len(x)} points read from {path}")
-    href, slope = reference_at_points(
-        reference, x, y, srs, reference_datum, reference_nodata, feedback, reach, required
-    )
+    href, slope = reference_at_points(reference, x, y, srs, feedback, reach, required)
     progress.step(feedback, 60)
     h = _ellipsoidal(z, x, y, srs, points_datum)
     ok = np.isfinite(h) & np.isfinite(href)
@@ -205,21 +223,19 @@ def point_differences(
 
 
 def dem_differences(
-    path,
-    reference,
-    reference_datum="ellipsoidal",
-    dem_datum="ellipsoidal",
-    feedback=None,
-    reference_nodata=None,
-    window=None,
-    reach=None,
-):
-    """Differences of the cells of a DEM raster against the reference raster (`reference_nodata`: a
-    declared void value) resampled onto its grid: the reference's window under the DEM, warped. With
-    `window` (c0, r0, c1, r1: cells of the DEM), those cells only, the reference's slope taken with one
-    more cell around as on the whole grid; a window that the reference does not cover gives no differences
-    instead of an InputError. The reference's cells read are noted in `reach` where given (ReferenceReach),
-    else its implausible heights are a warning."""
+    path: str | os.PathLike[str],
+    reference: Reference,
+    dem_datum: str = "ellipsoidal",
+    feedback: Feedback | None = None,
+    window: tuple[int, int, int, int] | None = None,
+    reach: ReferenceReach | None = None,
+) -> Differences:
+    """Differences of the cells of a DEM raster against the Reference `reference` resampled onto its grid:
+    the reference's window under the DEM, warped. With `window` (c0, r0, c1, r1: cells of the DEM), those
+    cells only, the reference's slope taken with one more cell around as on the whole grid; a window that
+    the reference does not cover gives no differences instead of an InputError. The reference's cells read
+    are noted in `reach` where given (ReferenceReach), else its implausible heights are a warning."""
+    reference_datum, reference_nodata = reference.datum, reference.nodata
     _check_datum(dem_datum, "DEM")
     _check_datum(reference_datum, "reference")
     source = open_raster(path, "DEM")
@@ -235,12 +251,12 @@ def dem_differences(
     progress.step(
         feedback, 10, f"DEM {path}: {dem.shape[1]} x {dem.shape[0]} cells, {int(defined.sum())} with a height"
     )
-    ds = open_raster(reference, "reference DEM")
+    ds = open_raster(reference.path, "reference DEM")
     no_overlap = InputError(
-        f"the reference DEM {reference} does not overlap the DEM {path} (or holds only nodata "
+        f"the reference DEM {reference.path} does not overlap the DEM {path} (or holds only nodata "
         "there): choose a reference that covers it"
     )
-    counted = reach or ReferenceReach(reference, reference_nodata)
+    counted = reach or ReferenceReach(reference.path, reference_nodata)
     ref, method = np.full(wide.shape, np.nan), None
     if defined.any():
         finer = (
@@ -249,7 +265,9 @@ def dem_differences(
         )
         method = "average" if finer else "bilinear"
         try:
-            under = read_reference(ds, *reproject(*outline(wide), wide.srs, raster_srs(ds)), reference_nodata)
+            ox, oy = outline(wide)
+            xr, yr = reproject(ox, oy, wide.srs, raster_srs(ds))
+            under = read_reference(ds, xr, yr, reference_nodata)
         except InputError:  # the reference lies elsewhere
             under = None
         if under is not None:

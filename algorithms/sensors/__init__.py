@@ -7,15 +7,22 @@ supported orientation source:
 - the project's own model file (*.pbmodel.json), as written by `save`.
 """
 
+from __future__ import annotations
+
 import os
+from typing import TYPE_CHECKING
 
 from ..errors import InputError, MetadataError
 from .base import SensorModel
 
+if TYPE_CHECKING:
+    from .rpc import RpcModel
+    from .spot import SpotModel
+
 MODEL_FILE_SUFFIX = ".pbmodel.json"
 
 
-def _is_dimap(path):
+def _is_dimap(path: str | os.PathLike[str]) -> bool:
     try:
         with open(path, "rb") as f:
             head = f.read(4096)
@@ -28,7 +35,7 @@ def _is_dimap(path):
 ORIENTATION_SUFFIXES = (".dim", ".geom", ".rpb", "_rpc.txt", MODEL_FILE_SUFFIX)
 
 
-def orientation_source(path):
+def orientation_source(path: str | os.PathLike[str]) -> str:
     """The file holding the orientation of image (or folder) `path`: an orientation file itself;
     for a raster, an OSSIM .geom of the same stem, else a DIMAP METADATA.DIM in its folder, else the
     raster itself (GDAL reads RPCs from its tags or from an _RPC.TXT / .RPB beside it)."""
@@ -49,7 +56,7 @@ def orientation_source(path):
     return path
 
 
-def missing_file_error(path):
+def missing_file_error(path: str) -> InputError:
     """InputError for `path`, which does not exist: the raster of a SPOT DIMAP product whose
     METADATA.DIM lies where the raster should be, or any other file."""
     folder = os.path.dirname(os.path.abspath(path))
@@ -63,7 +70,7 @@ def missing_file_error(path):
     return InputError(f"{path} does not exist: check the path (a file moved, renamed or deleted?)")
 
 
-def check_image(path):
+def check_image(path: str | os.PathLike[str]) -> None:
     """InputError unless the image `path` exists (missing_file_error) and, where it is a SPOT DIMAP
     METADATA.DIM or product folder, the product's raster (dimap.product_raster) exists beside it."""
     path = os.fspath(path)
@@ -82,7 +89,7 @@ def check_image(path):
             )
 
 
-def load(path, image=None):
+def load(path: str | os.PathLike[str], image: str | os.PathLike[str] | None = None) -> SpotModel | RpcModel:
     """Open the orientation at `path` and return its SensorModel (see module docstring).
 
     `image` is the raster the model describes when `path` is a separate orientation file: its size
@@ -114,7 +121,7 @@ def load(path, image=None):
     return RpcModel.from_raster(path)
 
 
-def save(model, path):
+def save(model: SensorModel, path: str | os.PathLike[str]) -> None:
     """Write `model` (with its corrections) to the project's own model file format."""
     from .model_file import save_model_file
 

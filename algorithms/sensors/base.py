@@ -8,13 +8,38 @@ Failures: a point outside a model's domain (a line beyond the ephemeris, a groun
 horizon) comes back as NaN, so a batch keeps its other points; an iteration that fails inside the
 domain raises GeometryError. Callers that need every point (footprints, DEM rays) raise on NaN."""
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, overload
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import GeometryError
 from ..geodesy import flat_points, geodetic_to_ecef
 
+if TYPE_CHECKING:
+    from ..dem import Dem
+    from ..dem_store import StoredDem
 
-def shaped_points(values, shape, scalar):
+#: one coordinate of the points a model returns: a float where every input was a scalar, else an array of the
+#: inputs' broadcast shape (shaped_points)
+Coordinate = float | np.ndarray
+
+
+@overload
+def shaped_points(
+    values: tuple[np.ndarray, np.ndarray], shape: tuple[int, ...], scalar: bool
+) -> tuple[Coordinate, Coordinate]: ...
+
+
+@overload
+def shaped_points(
+    values: tuple[np.ndarray, np.ndarray, np.ndarray], shape: tuple[int, ...], scalar: bool
+) -> tuple[Coordinate, Coordinate, Coordinate]: ...
+
+
+def shaped_points(values: tuple[np.ndarray, ...], shape: tuple[int, ...], scalar: bool) -> tuple[Coordinate, ...]:
     """Kernel outputs back to the callers' shape: floats for scalar input, arrays otherwise."""
     return tuple(float(v[0]) if scalar else v.reshape(shape) for v in values)
 
@@ -22,27 +47,36 @@ def shaped_points(values, shape, scalar):
 class SensorModel:
     """Abstract base: subclasses implement `size`, `image_to_ground` and `ground_to_image`."""
 
-    #: (cols, rows) of the image the model describes
-    size = (0, 0)
-    #: a priori location accuracy of the orientation as supplied, without control points: the standard deviation
-    #: (m) of a ground position along each horizontal axis; None where unknown
-    location_sigma = None
+    if TYPE_CHECKING:  # read-only for callers: a model defines them as attributes or as properties
 
-    def image_to_ground(self, col, row, h):
+        @property
+        def size(self) -> tuple[int, int]:
+            """(cols, rows) of the image the model describes."""
+
+        @property
+        def location_sigma(self) -> float | None:
+            """A priori location accuracy of the orientation as supplied, without control points: the standard
+            deviation (m) of a ground position along each horizontal axis; None where unknown."""
+
+    else:  # the defaults: no image, accuracy unknown
+        size = (0, 0)
+        location_sigma = None
+
+    def image_to_ground(self, col: ArrayLike, row: ArrayLike, h: ArrayLike) -> tuple[Coordinate, Coordinate]:
         """Ground (lon, lat) of image point (col, row) at ellipsoidal height h."""
         raise NotImplementedError
 
-    def ground_to_image(self, lon, lat, h):
+    def ground_to_image(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> tuple[Coordinate, Coordinate]:
         """Image (col, row) of ground point (lon, lat, h)."""
         raise NotImplementedError
 
-    def image_to_ground_or_nan(self, col, row, h):
+    def image_to_ground_or_nan(self, col: ArrayLike, row: ArrayLike, h: ArrayLike) -> tuple[Coordinate, Coordinate]:
         """image_to_ground with NaN, not an error, where a point has no ground point (for batch
         work such as intersection starting values). Models whose image_to_ground already returns
         NaN there use this default."""
         return self.image_to_ground(col, row, h)
 
-    def ray_points(self, col, row, h, half):
+    def ray_points(self, col: np.ndarray, row: np.ndarray, h: float, half: float) -> tuple[np.ndarray, np.ndarray]:
         """Two ECEF points (n, 3) on the line of sight of each image point (arrays col, row), about
         its ground point at height h, NaN where it has none: here its ground points at heights
         h -+ half (image_to_ground_or_nan). Models with straight rays may do it in one pass."""
@@ -52,7 +86,9 @@ class SensorModel:
             ends.append(geodetic_to_ecef(lon, lat, height))
         return ends[0], ends[1]
 
-    def image_to_dem(self, col, row, dem, samples=64, tol=1e-3):
+    def image_to_dem(
+        self, col: ArrayLike, row: ArrayLike, dem: Dem, samples: int = 64, tol: float = 1e-3
+    ) -> tuple[Coordinate, Coordinate, Coordinate]:
         """Ground (lon, lat, h) where the ray of (col, row) first meets the DEM surface.
 
         Bracket and refine along the line of sight: heights from the DEM's maximum down to its
@@ -66,7 +102,7 @@ class SensorModel:
         hmin, hmax = hmin - 1.0, hmax + 1.0
         n = c.size
         top, bottom = self.image_to_ground(c, r, np.full(n, hmax)), self.image_to_ground(c, r, np.full(n, hmin))
-        shift = np.subtract(top, bottom)
+        shift = np.subtract(np.array(top), np.array(bottom))
         shift[0] = (shift[0] + 180.0) % 360.0 - 180.0  # across the antimeridian
         cells = np.abs(shift) / np.abs([[dem.geotransform[1]], [dem.geotransform[5]]])
         cells = np.nanmax(cells) if n and np.isfinite(cells).any() else 0.0
@@ -106,9 +142,9 @@ class SensorModel:
             flo = np.where(upper, flo, f)
             if np.all(np.abs(f) < tol) or np.all(hi - lo < tol):
                 break
-        return lon.reshape(shape), lat.reshape(shape), h.reshape(shape)
+        return np.reshape(lon, shape), np.reshape(lat, shape), h.reshape(shape)
 
-    def footprint(self, h=0.0, dem=None, per_side=16):
+    def footprint(self, h: float = 0.0, dem: StoredDem | None = None, per_side: int = 16) -> np.ndarray:
         """Closed ring (N, 2) of (lon, lat) along the image border, at height h or on the DEM `dem`
         (dem_store.StoredDem: its `ground` points of the border's rays)."""
         cols, rows = self.size

@@ -15,8 +15,12 @@ scene-centre time/line. Samples flagged OUT_OF_RANGE = Y are dropped. Multispect
 look angles of the first Instrument_Look_Angles (band 1) are used.
 """
 
+from __future__ import annotations
+
 import os
 import xml.etree.ElementTree as ET
+from collections.abc import Iterable, Sequence
+from typing import NoReturn
 
 import numpy as np
 
@@ -27,7 +31,7 @@ from .spot_orientation import MAX_SIZE, Corrections, SpotOrientation
 class _Doc:
     """A parsed METADATA.DIM whose accessors raise MetadataError naming the file and element."""
 
-    def __init__(self, path):
+    def __init__(self, path: str) -> None:
         self.path = path
         try:
             self.root = ET.parse(path).getroot()
@@ -43,28 +47,28 @@ class _Doc:
                 f"{path}: root element is <{self.root.tag}>, not <Dimap_Document>; not a SPOT DIMAP METADATA.DIM"
             )
 
-    def fail(self, what):
+    def fail(self, what: str) -> NoReturn:
         raise MetadataError(f"{self.path}: {what}; is this a complete SPOT level-1A METADATA.DIM?")
 
-    def node(self, xpath, base=None):
+    def node(self, xpath: str, base: ET.Element | None = None) -> ET.Element:
         found = (self.root if base is None else base).find(xpath)
         if found is None:
             self.fail(f"missing <{xpath}>")
         return found
 
-    def nodes(self, xpath, base=None):
+    def nodes(self, xpath: str, base: ET.Element | None = None) -> list[ET.Element]:
         found = (self.root if base is None else base).findall(xpath)
         if not found:
             self.fail(f"no <{xpath}> element")
         return found
 
-    def text(self, xpath, base=None):
+    def text(self, xpath: str, base: ET.Element | None = None) -> str:
         value = (self.node(xpath, base).text or "").strip()
         if not value:
             self.fail(f"<{xpath}> is empty")
         return value
 
-    def number(self, xpath, base=None):
+    def number(self, xpath: str, base: ET.Element | None = None) -> float:
         text = self.text(xpath, base)
         try:
             value = float(text)
@@ -74,13 +78,13 @@ class _Doc:
             self.fail(f"<{xpath}> = {text!r} is not a finite number")
         return value
 
-    def integer(self, xpath, base=None):
+    def integer(self, xpath: str, base: ET.Element | None = None) -> int:
         value = self.number(xpath, base)
         if value != int(value):
             self.fail(f"<{xpath}> = {value} is not an integer")
         return int(value)
 
-    def time(self, xpath, base=None):
+    def time(self, xpath: str, base: ET.Element | None = None) -> np.datetime64:
         text = self.text(xpath, base).rstrip("Z")
         try:
             value = np.datetime64(text, "ns")
@@ -90,20 +94,20 @@ class _Doc:
             self.fail(f"<{xpath}> = {text!r} is not an ISO UTC date-time")
         return value
 
-    def valid(self, items):
+    def valid(self, items: Iterable[ET.Element]) -> list[ET.Element]:
         """Items whose OUT_OF_RANGE flag is not Y."""
         return [e for e in items if (e.findtext("OUT_OF_RANGE") or "N").strip() != "Y"]
 
 
-def _seconds(times, epoch):
+def _seconds(times: Sequence[np.datetime64], epoch: np.datetime64) -> np.ndarray:
     return (np.asarray(times, dtype="datetime64[ns]") - epoch) / np.timedelta64(1, "ns") * 1e-9
 
 
-def _xyz(doc, base, name):
+def _xyz(doc: _Doc, base: ET.Element, name: str) -> list[float]:
     return [doc.number(f"{name}/{axis}", base) for axis in "XYZ"]
 
 
-def _angle_series(doc, items, epoch):
+def _angle_series(doc: _Doc, items: list[ET.Element], epoch: np.datetime64) -> tuple[np.ndarray, np.ndarray]:
     """(t, (n, 3) yaw/pitch/roll) of <Angles> or <Angular_Speeds> elements."""
     items = doc.valid(items)
     t = _seconds([doc.time("TIME", e) for e in items], epoch)
@@ -111,7 +115,7 @@ def _angle_series(doc, items, epoch):
     return t, ypr
 
 
-def _look_angles(doc, mission, ncols):
+def _look_angles(doc: _Doc, mission: int, ncols: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-detector (psi_x, psi_y); SPOT 1-4 tables of the end detectors interpolated linearly."""
     table = doc.node("Data_Strip/Sensor_Configuration/Instrument_Look_Angles_List/Instrument_Look_Angles")
     rows = doc.nodes("Look_Angles_List/Look_Angles", table)
@@ -132,13 +136,13 @@ def _look_angles(doc, mission, ncols):
     )
 
 
-def dim_path(path):
+def dim_path(path: str | os.PathLike[str]) -> str:
     """The METADATA.DIM file of `path` (the file itself, or the one inside the folder `path`)."""
     path = os.fspath(path)
     return os.path.join(path, "METADATA.DIM") if os.path.isdir(path) else path
 
 
-def read_dimap(path, image=None):
+def read_dimap(path: str | os.PathLike[str], image: str | os.PathLike[str] | None = None) -> SpotOrientation:
     """SpotOrientation of a SPOT 1-5 level-1A METADATA.DIM (or its product folder).
 
     `image`, when given, is the raster the metadata describes: its size must equal NCOLS x NROWS
@@ -172,7 +176,8 @@ def read_dimap(path, image=None):
     eph_vel = np.array([_xyz(doc, p, "Velocity") for p in points])
 
     attitudes = doc.node("Data_Strip/Satellite_Attitudes")
-    speed_t = speed_ypr = None
+    speed_t: np.ndarray | None = None
+    speed_ypr: np.ndarray | None = None
     if mission == 5:
         att_t, att_ypr = _angle_series(
             doc, doc.nodes("Corrected_Attitudes/Corrected_Attitude/Angles", attitudes), epoch
@@ -200,7 +205,7 @@ def read_dimap(path, image=None):
         psi_x=psi_x,
         psi_y=psi_y,
         line_period=doc.number("LINE_PERIOD", stamp),
-        centre_time=float(_seconds(centre, epoch)),
+        centre_time=float(_seconds([centre], epoch)[0]),
         centre_row=doc.number("SCENE_CENTER_LINE", stamp) - 0.5,
         speed_t=speed_t,
         speed_ypr=speed_ypr,
@@ -222,14 +227,14 @@ def read_dimap(path, image=None):
     return orientation
 
 
-def _own_raster(doc, path):
+def _own_raster(doc: _Doc, path: str) -> str | None:
     """The product's own raster (Data_Access DATA_FILE_PATH beside the metadata), if it exists."""
     href = doc.root.find("Data_Access/Data_File/DATA_FILE_PATH")
     raster = os.path.join(os.path.dirname(path), href.get("href", "")) if href is not None else ""
     return raster if os.path.isfile(raster) else None
 
 
-def product_raster(path):
+def product_raster(path: str | os.PathLike[str]) -> str:
     """Path of the raster of the SPOT DIMAP product whose METADATA.DIM (or folder) is `path`: its
     Data_Access DATA_FILE_PATH beside the metadata, IMAGERY.TIF where it names none (whether it exists
     or not). MetadataError where the metadata cannot be read."""
@@ -239,7 +244,7 @@ def product_raster(path):
     return os.path.join(os.path.dirname(path), name)
 
 
-def check_image_size(orientation, image, path=""):
+def check_image_size(orientation: SpotOrientation, image: str | os.PathLike[str], path: str = "") -> None:
     """Raise MetadataError unless the raster `image` has NCOLS x NROWS pixels."""
     from osgeo import gdal
 

@@ -4,7 +4,12 @@ Same conventions as the reader (`dimap.py`): DIMAP lines and detectors count fro
 times are ISO UTC strings. The frame corners come from the rigorous model (`spot.SpotModel`).
 """
 
+from __future__ import annotations
+
+import os
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from typing import SupportsFloat
 
 import numpy as np
 
@@ -12,29 +17,30 @@ from ..atomic import write_text
 from ..errors import InputError
 from .dimap import dim_path
 from .spot import SpotModel
+from .spot_orientation import SpotOrientation
 
 
-def _num(value):
+def _num(value: SupportsFloat) -> str:
     """Shortest text that reads back to the same float (integral values without '.0')."""
     value = float(value)
     return str(int(value)) if value.is_integer() and abs(value) < 1e15 else repr(value)
 
 
-def _iso(epoch, seconds):
+def _iso(epoch: np.datetime64, seconds: SupportsFloat) -> str:
     """ISO UTC text of epoch + seconds: microseconds as in SPOT products, nanoseconds when needed."""
     ns = int(round(float(seconds) * 1e9))
     text = str(epoch + np.timedelta64(ns, "ns"))
     return text[:-3] if text.endswith("000") else text
 
 
-def _sub(parent, tag, text=None, **attrib):
+def _sub(parent: ET.Element, tag: str, text: object = None, **attrib: str) -> ET.Element:
     e = ET.SubElement(parent, tag, attrib)
     if text is not None:
         e.text = str(text)
     return e
 
 
-def _angles(parent, tag, epoch, t, ypr):
+def _angles(parent: ET.Element, tag: str, epoch: np.datetime64, t: np.ndarray, ypr: np.ndarray) -> None:
     for ti, (y, p, r) in zip(t, ypr):
         e = _sub(parent, tag)
         _sub(e, "TIME", _iso(epoch, ti))
@@ -43,7 +49,7 @@ def _angles(parent, tag, epoch, t, ypr):
         _sub(e, "OUT_OF_RANGE", "N")
 
 
-def _look_table(o):
+def _look_table(o: SpotOrientation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Detector ids and angles to write: SPOT 1-4 tables that are linear keep only the end detectors."""
     ids = np.arange(1, o.ncols + 1)
     if o.mission <= 4:
@@ -53,13 +59,13 @@ def _look_table(o):
     return ids, o.psi_x, o.psi_y
 
 
-def _frame(root, model, o):
+def _frame(root: ET.Element, model: SpotModel, o: SpotOrientation) -> None:
     """Dataset_Frame, CRS, raster CS and Geoposition tie points: the corners at height 0."""
     corners = [(1, 1), (1, o.ncols), (o.nrows, o.ncols), (o.nrows, 1)]
     centre = (int(round(o.centre_row + 0.5)), o.ncols // 2 + 1)
     rows = np.array([c[0] for c in corners + [centre]], float) - 0.5
     cols = np.array([c[1] for c in corners + [centre]], float) - 0.5
-    lon, lat = model.image_to_ground(cols, rows, np.zeros(rows.size))
+    lon, lat = (np.asarray(v) for v in model.image_to_ground(cols, rows, np.zeros(rows.size)))  # arrays: cols, rows are
     frame = _sub(root, "Dataset_Frame")
     for i, (row, col) in enumerate(corners + [centre]):
         v = _sub(frame, "Vertex" if i < 4 else "Scene_Center")
@@ -86,17 +92,17 @@ def _frame(root, model, o):
     ties = _sub(_sub(root, "Geoposition"), "Geoposition_Points")
     for i, (row, col) in enumerate(corners):
         tp = _sub(ties, "Tie_Point")
-        for tag, value in (
+        for tag, number in (
             ("TIE_POINT_CRS_X", lon[i]),
             ("TIE_POINT_CRS_Y", lat[i]),
             ("TIE_POINT_CRS_Z", 0.0),
             ("TIE_POINT_DATA_X", col),
             ("TIE_POINT_DATA_Y", row),
         ):
-            _sub(tp, tag, _num(value))
+            _sub(tp, tag, _num(number))
 
 
-def _source(root, o, sun):
+def _source(root: ET.Element, o: SpotOrientation, sun: Sequence[float] | None) -> None:
     centre = o.epoch + np.timedelta64(int(round(o.centre_time * 1e9)), "ns")
     day, clock = str(centre.astype("datetime64[s]")).split("T")
     sources = _sub(_sub(root, "Dataset_Sources"), "Source_Information")
@@ -119,13 +125,13 @@ def _source(root, o, sun):
         _sub(scene, "SUN_ELEVATION", _num(sun[1]))
 
 
-def _raster(root, o, nbits, nbands, data_file):
+def _raster(root: ET.Element, o: SpotOrientation, nbits: int, nbands: int, data_file: str) -> None:
     dims = _sub(root, "Raster_Dimensions")
     for tag, value in (("NCOLS", o.ncols), ("NROWS", o.nrows), ("NBANDS", nbands)):
         _sub(dims, tag, value)
     enc = _sub(root, "Raster_Encoding")
-    for tag, value in (("NBITS", nbits), ("BYTEORDER", "I"), ("COMPRESSION_NAME", "NONE"), ("DATA_TYPE", "UNSIGNED")):
-        _sub(enc, tag, value)
+    for tag, text in (("NBITS", nbits), ("BYTEORDER", "I"), ("COMPRESSION_NAME", "NONE"), ("DATA_TYPE", "UNSIGNED")):
+        _sub(enc, tag, text)
     access = _sub(root, "Data_Access")
     _sub(access, "DATA_FILE_ORGANISATION", "BAND_COMPOSITE")
     _sub(access, "DATA_FILE_FORMAT", "GEOTIFF", version="1.0")
@@ -140,7 +146,7 @@ def _raster(root, o, nbits, nbands, data_file):
         _sub(info, "BAND_DESCRIPTION", "PAN" if nbands == 1 else f"XS{band}")
 
 
-def _data_strip(root, o):
+def _data_strip(root: ET.Element, o: SpotOrientation) -> None:
     strip = _sub(root, "Data_Strip")
     eph = _sub(strip, "Ephemeris")
     points = _sub(eph, "Points")
@@ -159,7 +165,7 @@ def _data_strip(root, o):
     else:
         aocs = _sub(_sub(att, "Raw_Attitudes"), "Aocs_Attitude")
         _angles(_sub(aocs, "Angles_List"), "Angles", o.epoch, o.att_t, o.att_ypr)
-        if o.speed_t is not None:
+        if o.speed_t is not None and o.speed_ypr is not None:  # validate() checked the rates of these times
             _angles(_sub(aocs, "Angular_Speeds_List"), "Angular_Speeds", o.epoch, o.speed_t, o.speed_ypr)
     sensor = _sub(strip, "Sensor_Configuration")
     stamp = _sub(sensor, "Time_Stamp")
@@ -179,7 +185,14 @@ def _data_strip(root, o):
         _sub(_sub(sensor, "Mirror_Position"), "STEP_COUNT", int(o.mirror_step))
 
 
-def write_dimap(path, orientation, sun=None, nbits=8, nbands=1, data_file="IMAGERY.TIF"):
+def write_dimap(
+    path: str | os.PathLike[str],
+    orientation: SpotOrientation,
+    sun: Sequence[float] | None = None,
+    nbits: int = 8,
+    nbands: int = 1,
+    data_file: str = "IMAGERY.TIF",
+) -> None:
     """Write `orientation` as a SPOT level-1A METADATA.DIM (atomically) that `read_dimap` reads
     back unchanged and GDAL's DIMAP driver opens with its `data_file`.
 

@@ -8,19 +8,30 @@ round-trips exactly). Adjusted models are stored this way.
 - rpc: "fields" (GDAL RPC metadata names, offsets already on the model's own raster), "size",
   "source", and "bias" (the adjustment's six image-space bias terms, rpc.py) where nonzero."""
 
+from __future__ import annotations
+
 import dataclasses
 import json
+import os
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..atomic import write_text
 from ..errors import MetadataError
 
+if TYPE_CHECKING:
+    from .base import SensorModel
+    from .rpc import RpcModel
+    from .spot import SpotModel
+    from .spot_orientation import SpotOrientation
+
 FORMAT = "pushbroom-sensor-model"
 VERSION = 1
 
 
-def _plain(value):
+def _plain(value: object) -> object:
     """JSON-ready copy of a dataclass field value."""
     if isinstance(value, np.ndarray):
         return value.tolist()
@@ -33,7 +44,7 @@ def _plain(value):
     return value
 
 
-def model_to_dict(model):
+def model_to_dict(model: SensorModel) -> dict[str, object]:
     """The model-file document of a SpotModel or RpcModel."""
     from .rpc import RpcModel
     from .spot import SpotModel
@@ -47,7 +58,7 @@ def model_to_dict(model):
             "orientation": _plain(model.orientation),
         }
     if isinstance(model, RpcModel):
-        doc = {
+        doc: dict[str, object] = {
             "format": FORMAT,
             "version": VERSION,
             "kind": "rpc",
@@ -61,10 +72,10 @@ def model_to_dict(model):
     raise MetadataError(f"cannot save a model of type {type(model).__name__}")
 
 
-def _orientation(doc):
+def _orientation(doc: Mapping[str, Any]) -> SpotOrientation:
     from .spot_orientation import Corrections, SpotOrientation
 
-    fields = {k: np.asarray(v, dtype=np.float64) if isinstance(v, list) else v for k, v in doc.items()}
+    fields: dict[str, Any] = {k: np.asarray(v, dtype=np.float64) if isinstance(v, list) else v for k, v in doc.items()}
     fields["epoch"] = np.datetime64(fields["epoch"], "ns")
     corrections = dict(fields.get("corrections") or {})
     for name in ("position", "attitude", "look"):
@@ -74,7 +85,7 @@ def _orientation(doc):
     return SpotOrientation(**fields)
 
 
-def model_from_dict(doc, source="model file"):
+def model_from_dict(doc: object, source: str = "model file") -> SpotModel | RpcModel:
     """The SpotModel or RpcModel of a model-file document; MetadataError if it is not one."""
     from .rpc import RpcCoefficients, RpcModel
     from .spot import SpotModel
@@ -107,12 +118,12 @@ def model_from_dict(doc, source="model file"):
     raise MetadataError(f"{source}: unknown model kind {doc.get('kind')!r} (expected 'spot' or 'rpc')")
 
 
-def save_model_file(model, path):
+def save_model_file(model: SensorModel, path: str | os.PathLike[str]) -> None:
     """Write `model` to `path` atomically."""
     write_text(path, json.dumps(model_to_dict(model), indent=1))
 
 
-def load_model_file(path):
+def load_model_file(path: str | os.PathLike[str]) -> SpotModel | RpcModel:
     """Read a model written by save_model_file."""
     try:
         with open(path, encoding="utf-8") as f:

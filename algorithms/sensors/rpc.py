@@ -42,16 +42,22 @@ MAX_PIXEL_ELONGATION times longer than wide (`_check_geometry` with `pixel_shape
 near-square pixels (SPOT 5 HRS: 10 x 5 m), while LAT_OFF and LONG_OFF swapped move the image to another
 latitude, where the same degrees of longitude span other metres."""
 
+from __future__ import annotations
+
 import math
+import os
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from ..errors import GeometryError, MetadataError
 from ..geodesy import flat_points, metres_per_degree
 from . import rpc_io
-from .base import SensorModel, shaped_points
+from .base import Coordinate, SensorModel, shaped_points
 from .rpc_io import COEFF_KEYS, OFFSET_KEYS, SCALE_KEYS
 
 NUM_TERMS = 20
@@ -67,7 +73,7 @@ DEG_TOL = 1e-10
 MAX_ITER = 50
 
 
-def rpc_terms(x, y, z):
+def rpc_terms(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
     """(n, 20) RPC00B terms of normalised x = L, y = P, z = H (arrays), in `_poly`'s order: the design
     matrix of the cubic, so that rpc_terms(x, y, z) @ c == _poly(c, x, y, z)."""
     return np.column_stack(
@@ -96,14 +102,15 @@ def rpc_terms(x, y, z):
     )
 
 
-def domain_grid():
+def domain_grid() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(L, P, H) of the DOMAIN_NODES^3 grid points of the validity domain [-1, 1]^3, flat arrays, the
     centre (0, 0, 0) among them."""
     axis = np.linspace(-1.0, 1.0, DOMAIN_NODES)
-    return tuple(a.ravel() for a in np.meshgrid(axis, axis, axis, indexing="ij"))
+    x, y, z = np.meshgrid(axis, axis, axis, indexing="ij")
+    return x.ravel(), y.ravel(), z.ravel()
 
 
-def keeps_sign(values):
+def keeps_sign(values: np.ndarray) -> bool:
     """Whether a denominator's values are all finite and all > 0 or all < 0 (no pole among them)."""
     return bool(np.all(np.isfinite(values)) and (np.all(values > 0.0) or np.all(values < 0.0)))
 
@@ -114,7 +121,7 @@ def keeps_sign(values):
 
 
 @njit(cache=True, nogil=True)
-def _poly(c, x, y, z):
+def _poly(c: np.ndarray, x: float, y: float, z: float) -> float:
     """RPC00B cubic with x = L (longitude), y = P (latitude), z = H (height), all normalised."""
     return (
         c[0]
@@ -141,7 +148,7 @@ def _poly(c, x, y, z):
 
 
 @njit(cache=True, nogil=True)
-def _poly_grad(c, x, y, z):
+def _poly_grad(c: np.ndarray, x: float, y: float, z: float) -> tuple[float, float, float]:
     """(d/dx, d/dy, d/dz) of `_poly`."""
     dx = (
         c[1]
@@ -183,7 +190,7 @@ def _poly_grad(c, x, y, z):
 
 
 @njit(cache=True, nogil=True)
-def _rational_grad(num, den, x, y, z):
+def _rational_grad(num: np.ndarray, den: np.ndarray, x: float, y: float, z: float) -> tuple[float, float, float, float]:
     """q = num / den and its gradient by the quotient rule: dq = (dnum - q dden) / den."""
     d = _poly(den, x, y, z)
     q = _poly(num, x, y, z) / d
@@ -193,7 +200,15 @@ def _rational_grad(num, den, x, y, z):
 
 
 @njit(cache=True, nogil=True)
-def _ground_to_image_kernel(lon, lat, h, coef, nrm, col, row):
+def _ground_to_image_kernel(
+    lon: np.ndarray,
+    lat: np.ndarray,
+    h: np.ndarray,
+    coef: np.ndarray,
+    nrm: np.ndarray,
+    col: np.ndarray,
+    row: np.ndarray,
+) -> None:
     """col, row of (lon, lat, h); coef rows: LINE_NUM, LINE_DEN, SAMP_NUM, SAMP_DEN; nrm: see
     RpcModel._nrm."""
     for i in range(lon.size):
@@ -205,7 +220,9 @@ def _ground_to_image_kernel(lon, lat, h, coef, nrm, col, row):
 
 
 @njit(cache=True, nogil=True)
-def _partials_kernel(lon, lat, h, coef, nrm, out):
+def _partials_kernel(
+    lon: np.ndarray, lat: np.ndarray, h: np.ndarray, coef: np.ndarray, nrm: np.ndarray, out: np.ndarray
+) -> None:
     """out[i] = d(col, row) / d(lon, lat, h) as a 2 x 3 matrix (px/deg, px/deg, px/m)."""
     for i in range(lon.size):
         x = (lon[i] - nrm[0]) / nrm[1]
@@ -222,7 +239,9 @@ def _partials_kernel(lon, lat, h, coef, nrm, out):
 
 
 @njit(cache=True, nogil=True)
-def _residual(coef, nrm, x, y, z, s_goal, l_goal):
+def _residual(
+    coef: np.ndarray, nrm: np.ndarray, x: float, y: float, z: float, s_goal: float, l_goal: float
+) -> tuple[float, float, float, float, float, float]:
     """Image residual (pixels) of normalised ground (x, y, z) and its Jacobian in normalised units."""
     s, sx, sy, _ = _rational_grad(coef[2], coef[3], x, y, z)
     ln, lx, ly, _ = _rational_grad(coef[0], coef[1], x, y, z)
@@ -230,7 +249,16 @@ def _residual(coef, nrm, x, y, z, s_goal, l_goal):
 
 
 @njit(cache=True, nogil=True)
-def _image_to_ground_one(coef, nrm, col, row, h, px_tol, deg_tol, max_iter):
+def _image_to_ground_one(
+    coef: np.ndarray,
+    nrm: np.ndarray,
+    col: float,
+    row: float,
+    h: float,
+    px_tol: float,
+    deg_tol: float,
+    max_iter: int,
+) -> tuple[float, float, int]:
     """Newton's method with step halving on (L, P) for fixed H, started at the ground offsets.
 
     Returns (lon, lat, status): status 0 converged, 1 not converged, 2 singular or non-finite."""
@@ -267,7 +295,19 @@ def _image_to_ground_one(coef, nrm, col, row, h, px_tol, deg_tol, max_iter):
 
 
 @njit(cache=True, nogil=True)
-def _image_to_ground_kernel(col, row, h, coef, nrm, px_tol, deg_tol, max_iter, lon, lat, status):
+def _image_to_ground_kernel(
+    col: np.ndarray,
+    row: np.ndarray,
+    h: np.ndarray,
+    coef: np.ndarray,
+    nrm: np.ndarray,
+    px_tol: float,
+    deg_tol: float,
+    max_iter: int,
+    lon: np.ndarray,
+    lat: np.ndarray,
+    status: np.ndarray,
+) -> None:
     """(lon, lat) of image points (col, row) at heights h; NaN in, NaN out (status 0)."""
     for i in range(col.size):
         if math.isnan(col[i]) or math.isnan(row[i]) or math.isnan(h[i]):
@@ -283,14 +323,14 @@ def _image_to_ground_kernel(col, row, h, coef, nrm, px_tol, deg_tol, max_iter, l
 # ---------------------------------------------------------------------------------------------
 
 
-def _metadata_error(source, what):
+def _metadata_error(source: str, what: str) -> MetadataError:
     return MetadataError(
         f"{source}: {what}. The RPC cannot be used; check the file or export the "
         "RPC again from the product's original metadata."
     )
 
 
-def _number(text, key, source):
+def _number(text: str | float, key: str, source: str) -> float:
     """A finite float from a number or a text whose first token is one ('+018339.50 pixels')."""
     token = text.split()[0] if isinstance(text, str) and text.split() else text
     try:
@@ -302,7 +342,7 @@ def _number(text, key, source):
     return value
 
 
-def _coefficient_list(value, key, source):
+def _coefficient_list(value: str | ArrayLike, key: str, source: str) -> np.ndarray:
     """20 finite floats from a text of numbers separated by blanks or commas, or a sequence."""
     items = value.replace(",", " ").split() if isinstance(value, str) else list(np.atleast_1d(value))
     if len(items) != NUM_TERMS:
@@ -310,7 +350,7 @@ def _coefficient_list(value, key, source):
     return np.array([_number(v, f"{key}[{i + 1}]", source) for i, v in enumerate(items)])
 
 
-def _check_domain(arrays, values, source):
+def _check_domain(arrays: Mapping[str, np.ndarray], values: Mapping[str, float], source: str) -> None:
     """MetadataError unless, on the domain_grid, both denominators keep one sign and the image
     coordinates are finite (module docstring); the message names the first grid point (nearest the
     centre) where the sign differs from the centre's."""
@@ -323,7 +363,7 @@ def _check_domain(arrays, values, source):
             values["height_off"] + z * values["height_scale"],
         )
 
-    def where(i):
+    def where(i: int) -> str:
         return f"lon {ground[0][i]:.6f}, lat {ground[1][i]:.6f}, h {ground[2][i]:.0f} m"
 
     lon, lat, h = (
@@ -363,7 +403,9 @@ def _check_domain(arrays, values, source):
             )
 
 
-def _check_geometry(arrays, values, source, pixel_shape=False):
+def _check_geometry(
+    arrays: Mapping[str, np.ndarray], values: Mapping[str, float], source: str, pixel_shape: bool = False
+) -> None:
     """MetadataError unless the RPC's values describe an image of a place on Earth (module docstring), and with
     `pixel_shape` (an RPC read from a file) near-square pixels at its centre; the message names the value at
     fault."""
@@ -408,7 +450,7 @@ def _check_geometry(arrays, values, source, pixel_shape=False):
         )
 
 
-def _pixel_sides(arrays, values):
+def _pixel_sides(arrays: Mapping[str, np.ndarray], values: Mapping[str, float]) -> np.ndarray | None:
     """(longest, shortest) of 1 / the pixel footprint's sides at the ground centre, px per metre: the singular
     values of d(col, row)/d(east, north), _partials_kernel's derivatives (px/deg) over the metres per degree
     there; None where they are no finite numbers (coefficients near the float range's end)."""
@@ -457,7 +499,7 @@ class RpcCoefficients:
     height_scale: float
 
     @classmethod
-    def from_fields(cls, fields, source="RPC", pixel_shape=False):
+    def from_fields(cls, fields: Mapping[str, Any], source: str = "RPC", pixel_shape: bool = False) -> RpcCoefficients:
         """Parse and check a mapping with the RPC00B (GDAL metadata) names: LINE_OFF ... as numbers
         or texts, LINE_NUM_COEFF ... as 20 numbers (text or sequence). `source` names the origin
         in error messages. Raises MetadataError on missing, non-numeric, non-finite,
@@ -479,12 +521,13 @@ class RpcCoefficients:
         _check_domain(arrays, values, source)
         for a in arrays.values():
             a.setflags(write=False)
-        return cls(**arrays, **values)
+        parts: dict[str, Any] = {**arrays, **values}  # arrays and floats: mypy checks ** values against every field
+        return cls(**parts)
 
-    def to_fields(self, col0=0.0, row0=0.0):
+    def to_fields(self, col0: float = 0.0, row0: float = 0.0) -> dict[str, str]:
         """GDAL 'RPC' metadata (name -> text, exact float repr), LINE_OFF/SAMP_OFF shifted to a
         crop whose top-left corner is at (col0, row0) of the image the RPC describes."""
-        fields = {
+        values = {
             "LINE_OFF": self.line_off - row0,
             "SAMP_OFF": self.samp_off - col0,
             "LAT_OFF": self.lat_off,
@@ -496,7 +539,7 @@ class RpcCoefficients:
             "LONG_SCALE": self.long_scale,
             "HEIGHT_SCALE": self.height_scale,
         }
-        fields = {k: repr(float(v)) for k, v in fields.items()}
+        fields = {k: repr(float(v)) for k, v in values.items()}
         for key, array in zip(COEFF_KEYS, (self.line_num, self.line_den, self.samp_num, self.samp_den)):
             fields[key] = " ".join(repr(float(v)) for v in array)
         return fields
@@ -516,8 +559,16 @@ class RpcModel(SensorModel):
     #: accuracy of the RPC products this model reads (Pleiades 8.5 m CE90, WorldView under 5 m CE90): 25 m per axis,
     #: about 54 m CE90
     location_sigma = 25.0
+    size: tuple[int, int]
 
-    def __init__(self, coefficients, size=None, offset=(0.0, 0.0), source="RPC", bias=None):
+    def __init__(
+        self,
+        coefficients: RpcCoefficients,
+        size: Sequence[int] | None = None,
+        offset: Sequence[float] = (0.0, 0.0),
+        source: str = "RPC",
+        bias: ArrayLike | None = None,
+    ) -> None:
         self.coefficients = coefficients
         self.bias = np.zeros(6) if bias is None else np.asarray(bias, float).reshape(6)
         self.offset = (float(offset[0]), float(offset[1]))
@@ -551,31 +602,31 @@ class RpcModel(SensorModel):
                 )
         self.size = (int(size[0]), int(size[1]))
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"RpcModel({self.source!r}, size={self.size}, offset={self.offset})"
 
     # -- readers (formats in rpc_io) ------------------------------------------------------------
 
     @classmethod
-    def _from_record(cls, record):
+    def _from_record(cls, record: rpc_io.RpcRecord) -> RpcModel:
         coefficients = RpcCoefficients.from_fields(record.fields, record.source, pixel_shape=True)
         return cls(coefficients, record.size, record.offset, record.source)
 
     @classmethod
-    def from_raster(cls, path):
+    def from_raster(cls, path: str | os.PathLike[str]) -> RpcModel:
         """RPC of a raster as GDAL reads it (metadata domain 'RPC': GeoTIFF RPC tags, or _RPC.TXT /
         .RPB beside it). A same-stem OSSIM .geom beside a raster is found by sensors.load through
         sensors.orientation_source and read by from_geom."""
         return cls._from_record(rpc_io.read_raster(path))
 
     @classmethod
-    def from_rpc_file(cls, path):
+    def from_rpc_file(cls, path: str | os.PathLike[str]) -> RpcModel:
         """RPC of a _RPC.TXT or .RPB file, parsed directly; the size is that of a same-stem raster
         beside it, if there is one."""
         return cls._from_record(rpc_io.read_rpc_file(path))
 
     @classmethod
-    def from_geom(cls, path, image=None):
+    def from_geom(cls, path: str | os.PathLike[str], image: str | os.PathLike[str] | None = None) -> RpcModel:
         """RPC of an OSSIM/OTB .geom keyword list (OSSIM's image coordinates are RPC00B's: first
         pixel centre at (0, 0); polynomial_format A is reordered to RPC00B). `image` (default: a
         same-stem raster beside it, if any) is the raster the model refers to; its geotransform
@@ -583,29 +634,29 @@ class RpcModel(SensorModel):
         row0). Without a raster the model describes the full image (number_samples, number_lines)."""
         return cls._from_record(rpc_io.read_geom(path, image))
 
-    def to_fields(self):
+    def to_fields(self) -> dict[str, str]:
         """GDAL 'RPC' metadata of this model on its own raster (offsets shifted by the crop)."""
         return self.coefficients.to_fields(*self.offset)
 
     # -- geometry -----------------------------------------------------------------------------------
 
     @property
-    def height_range(self):
+    def height_range(self) -> tuple[float, float]:
         """(min, max) ellipsoidal height of the RPC's validity domain: HEIGHT_OFF -+ HEIGHT_SCALE."""
         c = self.coefficients
         return c.height_off - abs(c.height_scale), c.height_off + abs(c.height_scale)
 
-    def ground_to_image(self, lon, lat, h):
+    def ground_to_image(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> tuple[Coordinate, Coordinate]:
         """(col, row) of ground points (lon, lat, h): direct evaluation of the rational functions."""
-        (lon, lat, h), shape, scalar = flat_points(lon, lat, h)
-        col = np.empty(lon.size)
-        row = np.empty(lon.size)
-        _ground_to_image_kernel(lon, lat, h, self._coef, self._nrm, col, row)
+        (lo, la, hh), shape, scalar = flat_points(lon, lat, h)
+        col = np.empty(lo.size)
+        row = np.empty(lo.size)
+        _ground_to_image_kernel(lo, la, hh, self._coef, self._nrm, col, row)
         if self.bias.any():
             col, row = self._biased(col, row)
         return shaped_points((col, row), shape, scalar)
 
-    def _bias_matrix(self):
+    def _bias_matrix(self) -> tuple[np.ndarray, np.ndarray]:
         """(J, t): biased = J @ (col, row) + t, the bias as an affine map of the image coordinates."""
         a0, a1, a2, b0, b1, b2 = self.bias
         cc, rc = 0.5 * self.size[0], 0.5 * self.size[1]
@@ -613,62 +664,64 @@ class RpcModel(SensorModel):
         t = np.array([a0, b0]) - (jac - np.eye(2)) @ np.array([cc, rc])
         return jac, t
 
-    def _biased(self, col, row):
+    def _biased(self, col: np.ndarray, row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         jac, t = self._bias_matrix()
         return jac[0, 0] * col + jac[0, 1] * row + t[0], jac[1, 0] * col + jac[1, 1] * row + t[1]
 
-    def _image_to_ground(self, col, row, h):
+    def _image_to_ground(
+        self, col: ArrayLike, row: ArrayLike, h: ArrayLike
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[int, ...], bool]:
         """(col, row of the unbiased RPC, h, lon, lat, status, shape, scalar) of image points (flat
         arrays; shape and scalar as flat_points); status 0 = converged, 1 = not converged,
         2 = singular Jacobian (lon/lat then undefined)."""
-        (col, row, h), shape, scalar = flat_points(col, row, h)
+        (c, r, hh), shape, scalar = flat_points(col, row, h)
         if self.bias.any():
             jac, t = self._bias_matrix()
-            col, row = np.linalg.solve(jac, np.vstack([col - t[0], row - t[1]]))
-            col, row = np.ascontiguousarray(col), np.ascontiguousarray(row)
-        lon = np.empty(col.size)
-        lat = np.empty(col.size)
-        status = np.empty(col.size, dtype=np.int8)
-        _image_to_ground_kernel(col, row, h, self._coef, self._nrm, PX_TOL, DEG_TOL, MAX_ITER, lon, lat, status)
-        return col, row, h, lon, lat, status, shape, scalar
+            c, r = np.linalg.solve(jac, np.vstack([c - t[0], r - t[1]]))
+            c, r = np.ascontiguousarray(c), np.ascontiguousarray(r)
+        lon = np.empty(c.size)
+        lat = np.empty(c.size)
+        status = np.empty(c.size, dtype=np.int8)
+        _image_to_ground_kernel(c, r, hh, self._coef, self._nrm, PX_TOL, DEG_TOL, MAX_ITER, lon, lat, status)
+        return c, r, hh, lon, lat, status, shape, scalar
 
-    def image_to_ground(self, col, row, h):
+    def image_to_ground(self, col: ArrayLike, row: ArrayLike, h: ArrayLike) -> tuple[Coordinate, Coordinate]:
         """(lon, lat) of image points at ellipsoidal heights h, by Newton's method on the rational
         functions (analytic Jacobian, step halving), started at (LONG_OFF, LAT_OFF) and iterated to
         below 1e-8 px and 1e-10 deg. Raises GeometryError where it does not converge."""
-        col, row, h, lon, lat, status, shape, scalar = self._image_to_ground(col, row, h)
+        c, r, hh, lon, lat, status, shape, scalar = self._image_to_ground(col, row, h)
         bad = np.flatnonzero(status)
         if bad.size:
             i = bad[0]
             raise GeometryError(
-                f"{self.source}: no ground point found for {bad.size} of {col.size} image points, "
-                f"e.g. ({col[i]:.2f}, {row[i]:.2f}) at height {h[i]:.1f} m: the iteration "
+                f"{self.source}: no ground point found for {bad.size} of {c.size} image points, "
+                f"e.g. ({c[i]:.2f}, {r[i]:.2f}) at height {hh[i]:.1f} m: the iteration "
                 f"{'did not converge' if status[i] == 1 else 'met a singular Jacobian'}. Is the point "
                 f"inside the image ({self.size[0]} x {self.size[1]} px) and the height within the "
                 f"RPC's range {self.height_range[0]:.0f} .. {self.height_range[1]:.0f} m?"
             )
         return shaped_points((lon, lat), shape, scalar)
 
-    def image_to_ground_or_nan(self, col, row, h):
+    def image_to_ground_or_nan(self, col: ArrayLike, row: ArrayLike, h: ArrayLike) -> tuple[Coordinate, Coordinate]:
         """image_to_ground with NaN where the iteration fails."""
         _, _, _, lon, lat, status, shape, scalar = self._image_to_ground(col, row, h)
         lon[status != 0] = np.nan
         lat[status != 0] = np.nan
         return shaped_points((lon, lat), shape, scalar)
 
-    def partials(self, lon, lat, h, exterior=True):
+    def partials(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike, exterior: bool = True) -> dict[str, np.ndarray]:
         """Image coordinates of ground points and their partial derivatives, as SpotModel.partials
         (`exterior` is accepted for the common interface: an RPC model has no exterior orientation):
         a dict of col, row (...); d_ground (..., 2, 3) = d(col, row)/d(lon, lat, h) in px/deg,
         px/deg, px/m (quotient rule on the rational functions, through the bias); d_corrections
         (..., 2, 6) = d(col, row)/d(bias) (A0, A1, A2, B0, B1, B2; module docstring)."""
-        (lon, lat, h), shape, _ = flat_points(lon, lat, h)
-        col, row = np.empty(lon.size), np.empty(lon.size)
-        _ground_to_image_kernel(lon, lat, h, self._coef, self._nrm, col, row)
-        d_ground = np.empty((lon.size, 2, 3))
-        _partials_kernel(lon, lat, h, self._coef, self._nrm, d_ground)
+        (lo, la, hh), shape, _ = flat_points(lon, lat, h)
+        col, row = np.empty(lo.size), np.empty(lo.size)
+        _ground_to_image_kernel(lo, la, hh, self._coef, self._nrm, col, row)
+        d_ground = np.empty((lo.size, 2, 3))
+        _partials_kernel(lo, la, hh, self._coef, self._nrm, d_ground)
         u, v = (col - 0.5 * self.size[0]) / 1000.0, (row - 0.5 * self.size[1]) / 1000.0
-        d_bias = np.zeros((lon.size, 2, 6))
+        d_bias = np.zeros((lo.size, 2, 6))
         d_bias[:, 0, 0], d_bias[:, 0, 1], d_bias[:, 0, 2] = 1.0, u, v
         d_bias[:, 1, 3], d_bias[:, 1, 4], d_bias[:, 1, 5] = 1.0, u, v
         if self.bias.any():

@@ -29,16 +29,25 @@ there too is rejected), so their errors are independent.
 surface.intersection.height_differences compares object points intersected with the RPCs and with
 the rigorous models (Kornus et al. 2006, Table 5)."""
 
+from __future__ import annotations
+
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
 
 from .. import progress
 from ..errors import GeometryError, InputError, PushbroomError
+from ..progress import Feedback
 from . import rpc_io
+from .base import SensorModel
 from .rpc import NUM_TERMS, RpcCoefficients, RpcModel, domain_grid, keeps_sign, rpc_terms
+
+#: a fitted coordinate: numerator and denominator coefficients, the damping factor (None: the cubic polynomial)
+#: and the reweighting iterations
+Candidate = tuple[np.ndarray, np.ndarray, float | None, int]
 
 #: default cube: image grid columns x rows x height levels
 DEFAULT_GRID = (11, 11, 11)
@@ -63,7 +72,7 @@ class AxisErrors:
     max: float
 
     @classmethod
-    def of(cls, diff):
+    def of(cls, diff: np.ndarray) -> AxisErrors:
         return cls(float(np.sqrt(np.mean(diff * diff))), float(np.max(np.abs(diff))))
 
 
@@ -74,7 +83,7 @@ class AxisFit:
     cube: AxisErrors
     validation: AxisErrors
     #: None for the cubic polynomial, else the damping factor r of the rational fit kept
-    regularisation: object
+    regularisation: float | None
     #: rational candidates tried, and rejected for a denominator near zero
     rational_fits: int
     near_pole: int
@@ -82,10 +91,10 @@ class AxisFit:
     iterations: int
 
     @property
-    def polynomial(self):
+    def polynomial(self) -> bool:
         return self.regularisation is None
 
-    def describe(self):
+    def describe(self) -> str:
         if not self.polynomial:
             return f"rational 3/3 (r = {self.regularisation:.0e}, {self.iterations} reweightings)"
         return (
@@ -101,21 +110,21 @@ class RpcFitReport:
 
     cube_points: int
     validation_points: int
-    height_range: tuple
+    height_range: tuple[float, float]
     col: AxisFit
     row: AxisFit
 
     @property
-    def polynomial(self):
+    def polynomial(self) -> tuple[str, ...]:
         """The image coordinates ("col", "row") fitted as plain cubic polynomials."""
         return tuple(name for name in ("col", "row") if getattr(self, name).polynomial)
 
     @property
-    def max_error(self):
+    def max_error(self) -> float:
         """Largest |error| (px) of either coordinate on the cube and the validation points."""
         return max(e.max for a in (self.col, self.row) for e in (a.cube, a.validation))
 
-    def summary(self):
+    def summary(self) -> str:
         """One line: per coordinate the kind of fit and its RMS / max errors on both point sets."""
         parts = [
             f"{name}: {a.describe()}, cube RMS {a.cube.rms:.2e} max {a.cube.max:.2e} px, validation RMS "
@@ -128,7 +137,7 @@ class RpcFitReport:
         )
 
 
-def _grid(lo, hi, n, kind):
+def _grid(lo: float, hi: float, n: int, kind: str) -> np.ndarray:
     """n values from lo to hi ('cube'), the n - 1 cell centres ('selection'), or 2 (n - 1) values
     in the middles of a grid twice as dense ('validation')."""
     if kind == "cube":
@@ -137,7 +146,9 @@ def _grid(lo, hi, n, kind):
     return lo + (np.arange(k) + 0.5) * (hi - lo) / k
 
 
-def _points(model, height_range, grid, kind):
+def _points(
+    model: SensorModel, height_range: tuple[float, float], grid: Sequence[int], kind: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Image points (col, row), heights and ground (lon, lat) of a point set (see _grid)."""
     cols, rows = model.size
     axes = [
@@ -165,17 +176,19 @@ def _points(model, height_range, grid, kind):
     return col, row, h, lon, lat
 
 
-def _mid_half(values):
+def _mid_half(values: np.ndarray) -> tuple[float, float]:
     lo, hi = float(np.min(values)), float(np.max(values))
     return 0.5 * (lo + hi), 0.5 * (hi - lo)
 
 
-def _near_pole(den):
+def _near_pole(den: np.ndarray) -> bool:
     """Whether a denominator (its values over the points) changes sign or comes near zero."""
     return not np.all(np.isfinite(den)) or np.min(den) <= 0.0 or np.min(den) < MIN_DEN_RATIO * np.max(den)
 
 
-def _fit_rational(t, v, r, checks):
+def _fit_rational(
+    t: np.ndarray, v: np.ndarray, r: float, checks: tuple[np.ndarray, ...]
+) -> tuple[np.ndarray, np.ndarray, int] | None:
     """(num, den, iterations) of v = num.t / den.t by reweighted, denominator-damped least squares
     (module docstring); None where the denominator comes near zero on t or any of `checks`, or changes
     sign on the validity domain's grid."""
@@ -198,12 +211,19 @@ def _fit_rational(t, v, r, checks):
     return x[:NUM_TERMS], coef, iteration
 
 
-def _fit_axis(t, v, t_select, v_select, t_validation, regularisations):
+def _fit_axis(
+    t: np.ndarray,
+    v: np.ndarray,
+    t_select: np.ndarray,
+    v_select: np.ndarray,
+    t_validation: np.ndarray,
+    regularisations: Sequence[float],
+) -> tuple[np.ndarray, np.ndarray, float | None, int, int, int]:
     """(num, den, regularisation or None, rational fits tried, near-pole count, iterations) of one
     normalised image coordinate: the candidate with the smallest RMS at the selection points."""
     unit = np.zeros(NUM_TERMS)
     unit[0] = 1.0
-    candidates = [(np.linalg.lstsq(t, v, rcond=None)[0], unit, None, 0)]
+    candidates: list[Candidate] = [(np.linalg.lstsq(t, v, rcond=None)[0], unit, None, 0)]
     near_pole = 0
     for r in regularisations:
         fit = _fit_rational(t, v, r, (t_select, t_validation))
@@ -212,15 +232,21 @@ def _fit_axis(t, v, t_select, v_select, t_validation, regularisations):
         else:
             candidates.append((fit[0], fit[1], r, fit[2]))
 
-    def mean_square(candidate):
+    def mean_square(candidate: Candidate) -> float:
         num, den = candidate[:2]
         return float(np.mean((t_select @ num / (t_select @ den) - v_select) ** 2))
 
-    num, den, r, iterations = min(candidates, key=mean_square)
-    return num, den, r, len(regularisations), near_pole, iterations
+    num, den, kept, iterations = min(candidates, key=mean_square)
+    return num, den, kept, len(regularisations), near_pole, iterations
 
 
-def fit_rpc(model, height_range, grid=DEFAULT_GRID, regularisation=None, feedback=None):
+def fit_rpc(
+    model: SensorModel,
+    height_range: Sequence[float],
+    grid: Sequence[int] = DEFAULT_GRID,
+    regularisation: float | None = None,
+    feedback: Feedback | None = None,
+) -> tuple[RpcModel, RpcFitReport]:
     """(RpcModel, RpcFitReport): an RPC00B (degree 3/3) fitted to `model` over its whole image and
     `height_range` (min, max ellipsoidal heights, m) on a cube of grid = (columns, rows, heights)
     points (module docstring); `regularisation` fixes the denominator damping factor r (default:
@@ -261,7 +287,7 @@ def fit_rpc(model, height_range, grid=DEFAULT_GRID, regularisation=None, feedbac
         k: rpc_terms((p[3] - long_off) / long_scale, (p[4] - lat_off) / lat_scale, (p[2] - h_off) / h_scale)
         for k, p in sets.items()
     }
-    fitted = {}
+    fitted: dict[str, tuple[np.ndarray, np.ndarray, float | None, int, int, int]] = {}
     for k, (name, offset, scale) in enumerate((("samp", samp_off, samp_scale), ("line", line_off, line_scale))):
         progress.step(feedback, 20.0 + 35.0 * k)
         v = {kind: (p[k] - 0.5 - offset) / scale for kind, p in sets.items()}
@@ -287,7 +313,7 @@ def fit_rpc(model, height_range, grid=DEFAULT_GRID, regularisation=None, feedbac
     )
     rpc = RpcModel(coefficients, size=model.size, source="fitted RPC")
     progress.step(feedback, 90.0)
-    errors = {}
+    errors: dict[str, tuple[AxisErrors, AxisErrors]] = {}
     for kind in ("cube", "validation"):
         c, r, hh, x, y = sets[kind]
         fc, fr = rpc.ground_to_image(x, y, hh)
@@ -301,7 +327,7 @@ def fit_rpc(model, height_range, grid=DEFAULT_GRID, regularisation=None, feedbac
     return rpc, report
 
 
-def default_height_range(terrain_range):
+def default_height_range(terrain_range: Sequence[float]) -> tuple[float, float]:
     """(min, max) heights for the cube: the terrain height range widened by HEIGHT_MARGIN of its span,
     at least MIN_HEIGHT_MARGIN m, on either side."""
     lo, hi = (float(v) for v in terrain_range)
@@ -309,7 +335,9 @@ def default_height_range(terrain_range):
     return lo - margin, hi + margin
 
 
-def rpc_txt_path(image_path, folder=None, name=None):
+def rpc_txt_path(
+    image_path: str | os.PathLike[str], folder: str | os.PathLike[str] | None = None, name: str | None = None
+) -> str:
     """Where an image's fitted RPC goes: beside the raster as <stem>_RPC.TXT, GDAL's own naming, so
     GDAL reads it with the raster; or in `folder` as <name (default: the raster's stem)>_RPC.TXT."""
     if folder is None:
@@ -318,7 +346,7 @@ def rpc_txt_path(image_path, folder=None, name=None):
     return os.path.join(os.fspath(folder), f"{name or os.path.splitext(os.path.basename(image_path))[0]}_RPC.TXT")
 
 
-def check_destination(path, overwrite=False):
+def check_destination(path: str | os.PathLike[str], overwrite: bool = False) -> None:
     """Refuse an existing file, such as the RPC an image came with, unless `overwrite` is true."""
     if os.path.exists(path) and not overwrite:
         raise InputError(
@@ -327,7 +355,7 @@ def check_destination(path, overwrite=False):
         )
 
 
-def write_fitted_rpc(rpc, path, overwrite=False):
+def write_fitted_rpc(rpc: RpcModel, path: str | os.PathLike[str], overwrite: bool = False) -> str:
     """Write `rpc` as a _RPC.TXT (rpc_io.write_rpc_txt, atomic) after check_destination; returns the path."""
     path = os.fspath(path)
     check_destination(path, overwrite)
@@ -340,7 +368,7 @@ def write_fitted_rpc(rpc, path, overwrite=False):
     return path
 
 
-def raster_reads(raster, rpc):
+def raster_reads(raster: str | os.PathLike[str], rpc: RpcModel) -> bool:
     """Whether GDAL, opening `raster`, finds the RPC of `rpc` (coefficients and offsets to 1e-12
     relative); a raster may carry other RPC that GDAL prefers, or none."""
     try:
@@ -351,7 +379,7 @@ def raster_reads(raster, rpc):
     return all(np.allclose(getattr(found, f.name), getattr(mine, f.name), rtol=1e-12, atol=0.0) for f in fields(mine))
 
 
-def raster_rpc_source(raster):
+def raster_rpc_source(raster: str | os.PathLike[str]) -> str | None:
     """Where GDAL, opening `raster`, finds an RPC of its own: the .RPB or _RPC.TXT beside it that it reads
     (these come before the raster's metadata), else "the metadata of <raster>" (GeoTIFF RPC tags, a NITF
     segment, an .aux.xml); None where it finds none or cannot open the raster."""
@@ -367,7 +395,7 @@ def raster_rpc_source(raster):
     return rpc_io.rpc_sidecar(ds) or f"the metadata of {raster}"
 
 
-def report_text(entries):
+def report_text(entries: Sequence[tuple[str, str, RpcFitReport]]) -> str:
     """A text table of fit and validation errors (px), one row per image coordinate: `entries` are
     (image name, RPC file written, RpcFitReport)."""
     lines = [f"{'image':12} {'coord':5} {'cube RMS':>9} {'cube max':>9} {'valid RMS':>9} {'valid max':>9}  fit"]

@@ -3,12 +3,23 @@ keyword lists into RpcRecords (RPC00B-named fields as texts, the raster size and
 writing _RPC.TXT / .RPB files that GDAL reads back beside a raster. Number parsing and checking
 is RpcCoefficients.from_fields's job (rpc.py)."""
 
+from __future__ import annotations
+
 import os
 import re
-from typing import NamedTuple, Optional
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, NamedTuple
 
 from ..atomic import write_text
 from ..errors import InputError, MetadataError
+
+if TYPE_CHECKING:
+    from osgeo import gdal
+
+    from .rpc import RpcModel
+
+#: a path as the readers and writers take it
+Path = str | os.PathLike[str]
 
 IMAGE_EXTENSIONS = (".tif", ".tiff", ".jp2", ".ntf", ".img", ".vrt")
 
@@ -44,17 +55,17 @@ _A_TO_B = (0, 1, 2, 3, 4, 5, 6, 10, 7, 8, 9, 11, 14, 17, 12, 15, 18, 13, 16, 19)
 class RpcRecord(NamedTuple):
     """What a reader found: RPC00B fields (texts), (cols, rows) or None, crop offset, file name."""
 
-    fields: dict
-    size: Optional[tuple[int, int]]
+    fields: Mapping[str, str | list[str]]
+    size: tuple[int, int] | None
     offset: tuple[float, float]
     source: str
 
 
-def _error(path, what):
+def _error(path: Path, what: str) -> MetadataError:
     return MetadataError(f"{path}: {what}")
 
 
-def _read_text(path):
+def _read_text(path: str) -> str:
     try:
         with open(path, encoding="utf-8", errors="replace") as f:
             return f.read()
@@ -62,7 +73,7 @@ def _read_text(path):
         raise _error(path, f"cannot read the RPC file ({exc.strerror})") from exc
 
 
-def _open_raster(path):
+def _open_raster(path: Path) -> gdal.Dataset:
     from osgeo import gdal
 
     gdal.UseExceptions()
@@ -72,11 +83,11 @@ def _open_raster(path):
         raise _error(path, f"GDAL cannot open it as a raster ({exc})") from exc
 
 
-def _raster_size(ds):
+def _raster_size(ds: gdal.Dataset) -> tuple[int, int]:
     return ds.RasterXSize, ds.RasterYSize
 
 
-def _sibling_image(stem):
+def _sibling_image(stem: str) -> str | None:
     """The raster `stem` + one of IMAGE_EXTENSIONS (either case) that exists, or None."""
     for ext in IMAGE_EXTENSIONS:
         for candidate in (stem + ext, stem + ext.upper()):
@@ -85,7 +96,7 @@ def _sibling_image(stem):
     return None
 
 
-def _crop_offset(ds, path):
+def _crop_offset(ds: gdal.Dataset, path: str) -> tuple[float, float]:
     """(col0, row0) of a raster cut from a sensor image: its geotransform must be a pure pixel
     translation (origin (col0, row0), pixel size (1, 1), no CRS), as OTB writes for an extract
     (OTB's origin is the first pixel's centre, GDAL's geotransform its corner); none means (0, 0)."""
@@ -102,13 +113,13 @@ def _crop_offset(ds, path):
     )
 
 
-def rpc_sidecar(ds):
+def rpc_sidecar(ds: gdal.Dataset) -> str | None:
     """The _RPC.TXT or .RPB beside the raster of the open GDAL dataset `ds` that GDAL reads its RPC from (these
     come before the raster's own metadata), or None."""
     return next((f for f in ds.GetFileList() or [] if f.lower().endswith(("_rpc.txt", ".rpb"))), None)
 
 
-def read_raster(path):
+def read_raster(path: Path) -> RpcRecord:
     """RPC of a raster as GDAL reads it (a same-stem .geom beside it is chosen earlier, by
     sensors.orientation_source); its source names the _RPC.TXT or .RPB GDAL read it from, where it did."""
     path = os.fspath(path)
@@ -126,11 +137,12 @@ def read_raster(path):
     )
 
 
-def read_rpc_file(path):
+def read_rpc_file(path: Path) -> RpcRecord:
     """RPC of a _RPC.TXT (KEY: value, coefficients KEY_1 .. KEY_20) or .RPB (key = value;) file;
     size of the same-stem raster beside it, if any."""
     path = os.fspath(path)
     lower = path.lower()
+    fields: Mapping[str, str | list[str]]
     if lower.endswith("_rpc.txt"):
         fields, stem = _parse_rpc_txt(_read_text(path), path), path[: -len("_rpc.txt")]
     elif lower.endswith(".rpb"):
@@ -142,15 +154,15 @@ def read_rpc_file(path):
     return RpcRecord(fields, size, (0.0, 0.0), path)
 
 
-def _key_values(text, separator):
+def _key_values(text: str, separator: str) -> dict[str, str]:
     """{key: value} of the lines 'key<separator>value' (first separator; other lines ignored)."""
     pairs = (line.split(separator, 1) for line in text.splitlines() if separator in line)
     return {k.strip(): v.strip() for k, v in pairs}
 
 
-def _parse_rpc_txt(text, path):
+def _parse_rpc_txt(text: str, path: str) -> dict[str, str | list[str]]:
     values = {k.upper(): v for k, v in _key_values(text, ":").items()}
-    fields = {k: values[k] for k in _SCALARS if k in values}
+    fields: dict[str, str | list[str]] = {k: values[k] for k in _SCALARS if k in values}
     for key in COEFF_KEYS:
         names = [f"{key}_{j}" for j in range(1, 21)]
         missing = [n for n in names if n not in values]
@@ -162,7 +174,7 @@ def _parse_rpc_txt(text, path):
     return fields
 
 
-def _parse_rpb(text, path):
+def _parse_rpb(text: str, path: str) -> dict[str, str]:
     """The 'name = value;' statements of an .RPB (CPLKeywordParser's syntax, groups ignored);
     lists '( a, b, ... )' become texts of comma-separated numbers (RpcCoefficients reads them)."""
     fields = {}
@@ -175,7 +187,7 @@ def _parse_rpb(text, path):
     return fields
 
 
-def read_geom(path, image=None):
+def read_geom(path: Path, image: Path | None = None) -> RpcRecord:
     """RPC of an OSSIM/OTB .geom keyword list ('key: value' lines).
 
     OSSIM's image coordinates put the first pixel's centre at (0, 0) like RPC00B (its Pleiades
@@ -188,7 +200,7 @@ def read_geom(path, image=None):
     fmt = kwl.get("polynomial_format")
     if fmt not in ("A", "B"):
         raise _error(path, f"polynomial_format is {fmt!r}, expected A or B (not an OSSIM RPC keyword list?)")
-    fields = {k: kwl[k.lower()] for k in _SCALARS if k.lower() in kwl}
+    fields: dict[str, str | list[str]] = {k: kwl[k.lower()] for k in _SCALARS if k.lower() in kwl}
     for key in COEFF_KEYS:
         names = [f"{key.lower()[:8]}_coeff_{j:02d}" for j in range(20)]
         missing = [n for n in names if n not in kwl]
@@ -196,7 +208,7 @@ def read_geom(path, image=None):
             raise _error(path, f"missing {', '.join(missing)} (not a complete OSSIM RPC keyword list)")
         terms = [kwl[n] for n in names]
         if fmt == "A":
-            reordered = [None] * 20
+            reordered = [""] * 20  # every term is set: _A_TO_B is a permutation
             for k, j in enumerate(_A_TO_B):
                 reordered[j] = terms[k]
             terms = reordered
@@ -208,7 +220,7 @@ def read_geom(path, image=None):
     return RpcRecord(fields, _geom_size(kwl, path), (0.0, 0.0), path)
 
 
-def _geom_size(kwl, path):
+def _geom_size(kwl: Mapping[str, str], path: str) -> tuple[int, int] | None:
     """(number_samples, number_lines) of a .geom, or None when absent."""
     if "number_samples" not in kwl and "number_lines" not in kwl:
         return None
@@ -225,7 +237,7 @@ def _geom_size(kwl, path):
     return size
 
 
-def _refuse_bias(model, path):
+def _refuse_bias(model: RpcModel, path: Path) -> None:
     if any(getattr(model, "bias", ())):
         raise InputError(
             f"cannot write {path}: the model carries an adjusted bias correction that an RPC file "
@@ -233,7 +245,7 @@ def _refuse_bias(model, path):
         )
 
 
-def write_rpc_txt(model, path):
+def write_rpc_txt(model: RpcModel, path: Path) -> None:
     """Write `model`'s RPC as a _RPC.TXT (GDAL reads it beside '<stem>.tif' when named
     '<stem>_RPC.TXT'); offsets refer to the model's own raster, crop offset applied. Atomic."""
     _refuse_bias(model, path)
@@ -244,7 +256,7 @@ def write_rpc_txt(model, path):
     write_text(path, "\n".join(lines) + "\n")
 
 
-def write_rpb(model, path):
+def write_rpb(model: RpcModel, path: Path) -> None:
     """Write `model`'s RPC as a .RPB (GDAL's layout; '<stem>.RPB' beside '<stem>.tif'). Atomic."""
     _refuse_bias(model, path)
     fields = model.to_fields()

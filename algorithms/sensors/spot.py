@@ -26,13 +26,23 @@ u1 = (-tan psi_y, tan psi_x, -1) (frames in spot_frames.py, kernels in spot_kern
 - Corrections (orientation.corrections) are applied inside the kernels, read at each call.
 """
 
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import GeometryError, InputError
 from ..geodesy import flat_points, geodetic_to_ecef
 from . import spot_kernels as k
-from .base import SensorModel, shaped_points
+from .base import Coordinate, SensorModel, shaped_points
 from .dimap import read_dimap
+from .spot_orientation import SpotOrientation
+
+if TYPE_CHECKING:
+    from ..dem import Dem
 
 LAGRANGE_POINTS = 8
 
@@ -42,7 +52,9 @@ PARAMETER_NAMES = [
 ]
 
 
-def lagrange_window(t, pos, vel, t_centre, n=LAGRANGE_POINTS):
+def lagrange_window(
+    t: np.ndarray, pos: np.ndarray, vel: np.ndarray, t_centre: float, n: int = LAGRANGE_POINTS
+) -> np.ndarray:
     """Packed Lagrange window (n, 8) [t, w, X, Y, Z, VX, VY, VZ] of the n samples nearest t_centre;
     w_j = 1 / prod_k!=j (t_j - t_k) (barycentric weights)."""
     idx = np.sort(np.argsort(np.abs(t - t_centre), kind="stable")[:n])
@@ -51,7 +63,9 @@ def lagrange_window(t, pos, vel, t_centre, n=LAGRANGE_POINTS):
     return np.column_stack([tw, w, pos[idx], vel[idx]])
 
 
-def integrated_attitude(angle_t, angles, speed_t, speeds):
+def integrated_attitude(
+    angle_t: np.ndarray, angles: np.ndarray, speed_t: np.ndarray, speeds: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """SPOT 1-4 attitude samples from angular speeds: a(t) = a0 + integral of the rates (trapezoid
     over the rate samples, constant rates beyond them), evaluated at the union of the sample times;
     a0 is fitted (mean) to the absolute angle samples."""
@@ -74,7 +88,7 @@ class SpotModel(SensorModel):
     #: central-difference step of `partials` in the position (m; velocity: m per time scale)
     POSITION_STEP = 1.0
 
-    def __init__(self, orientation, drift=True):
+    def __init__(self, orientation: SpotOrientation, drift: bool = True) -> None:
         orientation.validate()
         self._orientation = orientation
         self.drift = bool(drift)
@@ -82,7 +96,7 @@ class SpotModel(SensorModel):
         self._eph = lagrange_window(o.eph_t, o.eph_pos, o.eph_vel, o.centre_time)
         if o.mission == 5:
             att_t, att_v = o.att_t, o.att_ypr
-        elif self.drift and o.speed_t is not None and len(o.speed_t):
+        elif self.drift and o.speed_t is not None and o.speed_ypr is not None and len(o.speed_t):
             att_t, att_v = integrated_attitude(o.att_t, o.att_ypr, o.speed_t, o.speed_ypr)
         else:
             att_t, att_v = np.zeros(1), np.zeros((1, 3))
@@ -91,7 +105,7 @@ class SpotModel(SensorModel):
         self._look = np.ascontiguousarray(np.column_stack([o.psi_x, o.psi_y]), dtype=np.float64)
         self._guess = self._row_guess()
 
-    def _row_guess(self):
+    def _row_guess(self) -> np.ndarray:
         """Starting values of ground_to_image: row as a quadratic polynomial of ECEF, fitted to
         7 x 7 image points at heights -500, 3000, 9000 m (see spot_kernels.guess_row)."""
         cols, rows = self.size
@@ -109,26 +123,28 @@ class SpotModel(SensorModel):
         return np.concatenate([centre, [1e5], coef])
 
     @classmethod
-    def from_dimap(cls, path, image=None, drift=True):
+    def from_dimap(
+        cls, path: str | os.PathLike[str], image: str | os.PathLike[str] | None = None, drift: bool = True
+    ) -> SpotModel:
         """Model of a METADATA.DIM (or product folder); `image` (optional raster) must match its size."""
         return cls(read_dimap(path, image=image), drift=drift)
 
     @property
-    def orientation(self):
+    def orientation(self) -> SpotOrientation:
         return self._orientation
 
     @property
-    def location_sigma(self):
+    def location_sigma(self) -> float:
         """SensorModel.location_sigma: SPOT 5 (DORIS orbits, star tracker attitude) 50 m rms, SPOT Image's
         specification of its level 1A products without control; SPOT 1-4 1000 m, the absolute accuracy of their
         header positions (Heipke et al. 1992, section 4.1.1; adjustment.parameters.LAGRANGE_PRIORS)."""
         return 50.0 if self._orientation.mission == 5 else 1000.0
 
     @property
-    def size(self):
+    def size(self) -> tuple[int, int]:
         return self._orientation.ncols, self._orientation.nrows
 
-    def _packed(self):
+    def _packed(self) -> k.PackedModel:
         """Kernel inputs with the current corrections (read at each call: the adjustment edits them)."""
         o = self._orientation
         c = o.corrections
@@ -138,33 +154,31 @@ class SpotModel(SensorModel):
             raise InputError(
                 "corrections must be finite (3, 4), (3, 4), (2, 4) coefficient arrays and a positive time scale"
             )
-        return self._eph, self._att_t, self._att_v, self._look, prm, corr
+        return k.PackedModel(self._eph, self._att_t, self._att_v, self._look, prm, corr)
 
-    def image_to_ground(self, col, row, h):
+    def image_to_ground(self, col: ArrayLike, row: ArrayLike, h: ArrayLike) -> tuple[Coordinate, Coordinate]:
         """(lon, lat) in degrees of image point (col, row) at ellipsoidal height h; NaN if the ray
         misses that height or the line's time lies outside the ephemeris window (no extrapolation)."""
         (c, r, hh), shape, scalar = flat_points(col, row, h)
         lon, lat = np.empty(c.size), np.empty(c.size)
-        k.image_to_ground_kernel(*self._packed(), c, r, hh, lon, lat)
+        k.image_to_ground_kernel(self._packed(), c, r, hh, lon, lat)
         return shaped_points((lon, lat), shape, scalar)
 
-    def ground_to_image(self, lon, lat, h):
+    def ground_to_image(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike) -> tuple[Coordinate, Coordinate]:
         """(col, row) of ground point (lon, lat, h); converged to 1e-7 row, NaN where no solution."""
         (lo, la, hh), shape, scalar = flat_points(lon, lat, h)
         col, row = np.empty(lo.size), np.empty(lo.size)
-        k.ground_to_image_kernel(
-            *self._packed(), self._guess, lo, la, hh, self.TOLERANCE, self.MAX_ITERATIONS, col, row
-        )
+        k.ground_to_image_kernel(self._packed(), self._guess, lo, la, hh, self.TOLERANCE, self.MAX_ITERATIONS, col, row)
         return shaped_points((col, row), shape, scalar)
 
-    def line_of_sight(self, col, row):
+    def line_of_sight(self, col: ArrayLike, row: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Satellite ECEF position (..., 3) and unit ECEF look direction (..., 3) of image points."""
         (c, r), shape, _ = flat_points(col, row)
         pos, direction = np.empty((c.size, 3)), np.empty((c.size, 3))
-        k.line_of_sight_kernel(*self._packed(), c, r, pos, direction)
+        k.line_of_sight_kernel(self._packed(), c, r, pos, direction)
         return pos.reshape(shape + (3,)), direction.reshape(shape + (3,))
 
-    def ray_points(self, col, row, h, half):
+    def ray_points(self, col: np.ndarray, row: np.ndarray, h: float, half: float) -> tuple[np.ndarray, np.ndarray]:
         """As SensorModel.ray_points, on the straight line of sight: the ground point at height h
         -+ `half` metres along the ray (one ground intersection instead of two)."""
         lon, lat = self.image_to_ground_or_nan(col, row, np.full(np.size(col), h))
@@ -172,7 +186,7 @@ class SpotModel(SensorModel):
         direction = self.line_of_sight(col, row)[1]
         return mid - half * direction, mid + half * direction
 
-    def partials(self, lon, lat, h, exterior=True):
+    def partials(self, lon: ArrayLike, lat: ArrayLike, h: ArrayLike, exterior: bool = True) -> dict[str, np.ndarray]:
         """Image coordinates of ground points and their partial derivatives.
 
         Returns a dict: col, row (n,); d_corrections (n, 2, 32) = d(col, row)/d(coefficient), the
@@ -181,12 +195,14 @@ class SpotModel(SensorModel):
         d(col, row)/d(lon, lat, h) in px/degree, px/degree, px/m. `exterior` False: the position
         and attitude coefficients' columns (the first EXTERIOR_COEFFICIENTS) are 0, not computed."""
         (lo, la, hh), _, _ = flat_points(lon, lat, h)
-        col, row = self.ground_to_image(lo, la, hh)
+        col, row = (np.asarray(v) for v in self.ground_to_image(lo, la, hh))  # arrays: lo, la, hh are
         d_corr, d_xyz, d_ground = np.empty((lo.size, 2, 32)), np.empty((lo.size, 2, 3)), np.empty((lo.size, 2, 3))
-        k.partials_kernel(*self._packed(), lo, la, hh, col, row, self.POSITION_STEP, exterior, d_corr, d_xyz, d_ground)
+        k.partials_kernel(self._packed(), lo, la, hh, col, row, self.POSITION_STEP, exterior, d_corr, d_xyz, d_ground)
         return {"col": col, "row": row, "d_corrections": d_corr, "d_ecef": d_xyz, "d_ground": d_ground}
 
-    def image_to_dem(self, col, row, dem, samples=64, tol=1e-3):
+    def image_to_dem(
+        self, col: ArrayLike, row: ArrayLike, dem: Dem, samples: int = 64, tol: float = 1e-3
+    ) -> tuple[Coordinate, Coordinate, Coordinate]:
         """Ground (lon, lat, h) where the ray of (col, row) first meets the DEM surface.
 
         Same semantics as SensorModel.image_to_dem (scan from the DEM's maximum down to its minimum
@@ -197,7 +213,7 @@ class SpotModel(SensorModel):
         hmin, hmax = dem.height_range
         out = np.empty((c.size, 3))
         k.image_to_dem_kernel(
-            *self._packed(),
+            self._packed(),
             c,
             r,
             dem.heights,
@@ -216,7 +232,7 @@ class SpotModel(SensorModel):
             )
         return shaped_points((out[:, 0], out[:, 1], out[:, 2]), shape, scalar)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         o = self._orientation
         return (
             f"SpotModel(SPOT {o.mission} {o.instrument}{o.instrument_index} {o.sensor_code}, "

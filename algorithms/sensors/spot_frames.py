@@ -23,27 +23,34 @@ Rotations are returned as row-major 9-tuples (no allocation inside numba kernels
 "numpy" error model: degenerate input gives inf/NaN, never a ZeroDivisionError.
 """
 
+from __future__ import annotations
+
 import math
 
 import numpy as np
 from numba import njit
 
+#: a 3 x 3 rotation as a row-major 9-tuple
+Rotation = tuple[float, float, float, float, float, float, float, float, float]
+#: a vector (x, y, z)
+Vector = tuple[float, float, float]
+
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def look_vector(psi_x, psi_y):
+def look_vector(psi_x: float, psi_y: float) -> Vector:
     """Navigation-frame look direction u1 = (-tan psi_y, tan psi_x, -1) (not normalised)."""
     return -math.tan(psi_y), math.tan(psi_x), -1.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def look_angles(x, y, z):
+def look_angles(x: float, y: float, z: float) -> tuple[float, float]:
     """Inverse of `look_vector` for a navigation-frame direction (x, y, z) with z < 0:
     psi_x = atan(-y / z), psi_y = atan(x / z)."""
     return math.atan(-y / z), math.atan(x / z)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def attitude_rotation(yaw, pitch, roll):
+def attitude_rotation(yaw: float, pitch: float, roll: float) -> Rotation:
     """R21 (navigation -> local orbital frame) = Rx(-pitch) Ry(-roll) Rz(yaw), row-major 9-tuple.
 
     Angles in radians as given in DIMAP (Corrected_Attitudes or integrated Raw_Attitudes)."""
@@ -69,7 +76,7 @@ def attitude_rotation(yaw, pitch, roll):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def orbital_rotation(px, py, pz, vx, vy, vz):
+def orbital_rotation(px: float, py: float, pz: float, vx: float, vy: float, vz: float) -> Rotation:
     """R32 (local orbital frame -> ECEF), row-major 9-tuple whose columns are
     X2 = (V x P)/|V x P|, Y2 = Z2 x X2, Z2 = P/|P|."""
     n = math.sqrt(px * px + py * py + pz * pz)
@@ -82,19 +89,19 @@ def orbital_rotation(px, py, pz, vx, vy, vz):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def mat_vec(m, x, y, z):
+def mat_vec(m: Rotation, x: float, y: float, z: float) -> Vector:
     """m (row-major 9-tuple) times (x, y, z)."""
     return (m[0] * x + m[1] * y + m[2] * z, m[3] * x + m[4] * y + m[5] * z, m[6] * x + m[7] * y + m[8] * z)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def mat_t_vec(m, x, y, z):
+def mat_t_vec(m: Rotation, x: float, y: float, z: float) -> Vector:
     """Transpose of m (row-major 9-tuple) times (x, y, z): the inverse rotation."""
     return (m[0] * x + m[3] * y + m[6] * z, m[1] * x + m[4] * y + m[7] * z, m[2] * x + m[5] * y + m[8] * z)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def mat_mul(a, b):
+def mat_mul(a: Rotation, b: Rotation) -> Rotation:
     """Product a b of two row-major 9-tuples."""
     return (
         a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
@@ -110,7 +117,19 @@ def mat_mul(a, b):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def look_direction_ecef(psi_x, psi_y, yaw, pitch, roll, px, py, pz, vx, vy, vz):
+def look_direction_ecef(
+    psi_x: float,
+    psi_y: float,
+    yaw: float,
+    pitch: float,
+    roll: float,
+    px: float,
+    py: float,
+    pz: float,
+    vx: float,
+    vy: float,
+    vz: float,
+) -> Vector:
     """Unit ECEF look direction R32 R21 u1 of a detector with look angles (psi_x, psi_y)."""
     ux, uy, uz = look_vector(psi_x, psi_y)
     ux, uy, uz = mat_vec(attitude_rotation(yaw, pitch, roll), ux, uy, uz)
@@ -120,7 +139,20 @@ def look_direction_ecef(psi_x, psi_y, yaw, pitch, roll, px, py, pz, vx, vy, vz):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def ecef_to_look_angles(dx, dy, dz, yaw, pitch, roll, px, py, pz, vx, vy, vz):
+def ecef_to_look_angles(
+    dx: float,
+    dy: float,
+    dz: float,
+    yaw: float,
+    pitch: float,
+    roll: float,
+    px: float,
+    py: float,
+    pz: float,
+    vx: float,
+    vy: float,
+    vz: float,
+) -> tuple[float, float]:
     """Look angles (psi_x, psi_y) of the ECEF direction (dx, dy, dz) seen from the satellite:
     u1 ~ R21^T R32^T d (inverse of `look_direction_ecef`)."""
     x, y, z = mat_t_vec(orbital_rotation(px, py, pz, vx, vy, vz), dx, dy, dz)
@@ -129,7 +161,7 @@ def ecef_to_look_angles(dx, dy, dz, yaw, pitch, roll, px, py, pz, vx, vy, vz):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _as_array(m):
+def _as_array(m: Rotation) -> np.ndarray:
     out = np.empty((3, 3))
     for i in range(9):
         out[i // 3, i % 3] = m[i]
@@ -137,12 +169,12 @@ def _as_array(m):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def r21(yaw, pitch, roll):
+def r21(yaw: float, pitch: float, roll: float) -> np.ndarray:
     """R21 as a 3 x 3 array (see `attitude_rotation`)."""
     return _as_array(attitude_rotation(yaw, pitch, roll))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def r32(px, py, pz, vx, vy, vz):
+def r32(px: float, py: float, pz: float, vx: float, vy: float, vz: float) -> np.ndarray:
     """R32 as a 3 x 3 array (see `orbital_rotation`)."""
     return _as_array(orbital_rotation(px, py, pz, vx, vy, vz))

@@ -1,6 +1,6 @@
 """numba kernels of the rigorous SPOT model (spot.SpotModel builds their packed inputs).
 
-Packed inputs:
+Packed inputs (the kernels over arrays take them as one PackedModel):
     eph    (n, 8)     Lagrange window, rows [t, w, X, Y, Z, VX, VY, VZ]; w_j = 1 / prod_k!=j (t_j - t_k)
     att_t  (m,)       attitude sample times; att_v (m, 3) yaw, pitch, roll (rad), linear in time,
                       held constant outside the samples
@@ -13,20 +13,45 @@ Line time t = t_c + (row - r_c) T; corrections are evaluated at tau = (t - t_c) 
 q = (col - p_c) / 1000. Ground point X = P + mu R32 R21 u1 (spot_frames).
 """
 
+from __future__ import annotations
+
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from ..dem import bilinear_scalar
 from ..geodesy import E2, A, B, bowring, ecef_to_geodetic_scalar, geodetic_to_ecef_scalar
-from .spot_frames import attitude_rotation, look_angles, look_vector, mat_mul, mat_t_vec, mat_vec, orbital_rotation
+from .spot_frames import (
+    Rotation,
+    Vector,
+    attitude_rotation,
+    look_angles,
+    look_vector,
+    mat_mul,
+    mat_t_vec,
+    mat_vec,
+    orbital_rotation,
+)
 
 NAN = math.nan
 
 
+class PackedModel(NamedTuple):
+    """The packed inputs of one model (module docstring): one argument of the kernels over arrays, which
+    numba compiles as a tuple of arrays. spot.SpotModel builds it at each call, with the current corrections."""
+
+    eph: np.ndarray
+    att_t: np.ndarray
+    att_v: np.ndarray
+    look: np.ndarray
+    prm: np.ndarray
+    corr: np.ndarray
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def lagrange(eph, t):
+def lagrange(eph: np.ndarray, t: float) -> tuple[float, float, float, float, float, float]:
     """Position and velocity at t: Lagrange polynomial through the window's samples (barycentric form
     sum_j w_j/(t - t_j) y_j / sum_j w_j/(t - t_j)); NaNs outside the window (the orbit is never
     extrapolated, so image points far beyond the scene give NaN, not a made-up position)."""
@@ -49,19 +74,19 @@ def lagrange(eph, t):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def poly3(corr, i, x):
+def poly3(corr: np.ndarray, i: int, x: float) -> float:
     """sum_j corr[i, j] x^j."""
     return ((corr[i, 3] * x + corr[i, 2]) * x + corr[i, 1]) * x + corr[i, 0]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def poly3_slope(corr, i, x):
+def poly3_slope(corr: np.ndarray, i: int, x: float) -> float:
     """d/dx of poly3(corr, i, x)."""
     return (3.0 * corr[i, 3] * x + 2.0 * corr[i, 2]) * x + corr[i, 1]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def attitude(att_t, att_v, t):
+def attitude(att_t: np.ndarray, att_v: np.ndarray, t: float) -> Vector:
     """Yaw, pitch, roll at t: linear between samples, constant outside."""
     m = att_t.size
     if m == 1 or t <= att_t[0]:
@@ -78,7 +103,9 @@ def attitude(att_t, att_v, t):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def corrected_state(eph, att_t, att_v, prm, corr, t):
+def corrected_state(
+    eph: np.ndarray, att_t: np.ndarray, att_v: np.ndarray, prm: np.ndarray, corr: np.ndarray, t: float
+) -> tuple[float, float, float, float, float, float, float, float, float, float]:
     """Corrected position P + dP, velocity V + d(dP)/dt and attitude angles (yaw, pitch, roll) at
     time t, and the correction time tau: a 10-tuple."""
     px, py, pz, vx, vy, vz = lagrange(eph, t)
@@ -105,7 +132,9 @@ def corrected_state(eph, att_t, att_v, prm, corr, t):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def line_state(eph, att_t, att_v, prm, corr, t):
+def line_state(
+    eph: np.ndarray, att_t: np.ndarray, att_v: np.ndarray, prm: np.ndarray, corr: np.ndarray, t: float
+) -> tuple[float, float, float, Rotation]:
     """Corrected position P and rotation M = R32 R21 (navigation -> ECEF) at time t.
 
     The orbital frame is built from the corrected trajectory (P + dP, V + d(dP)/dt)."""
@@ -114,7 +143,7 @@ def line_state(eph, att_t, att_v, prm, corr, t):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _segment(look, col):
+def _segment(look: np.ndarray, col: float) -> tuple[int, float]:
     """Table segment k (0..n-2) and fraction f of column coordinate col (extrapolates at the ends)."""
     x = col - 0.5
     k = min(max(int(math.floor(x)), 0), look.shape[0] - 2)
@@ -122,7 +151,7 @@ def _segment(look, col):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def detector_angles(look, prm, corr, col):
+def detector_angles(look: np.ndarray, prm: np.ndarray, corr: np.ndarray, col: float) -> tuple[float, float]:
     """(psi_x, psi_y) at column coordinate col: the table, linear between detector centres, plus the
     look-angle corrections in q = (col - p_c) / 1000."""
     k, f = _segment(look, col)
@@ -134,7 +163,7 @@ def detector_angles(look, prm, corr, col):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def column_of(look, prm, corr, psi_y):
+def column_of(look: np.ndarray, prm: np.ndarray, corr: np.ndarray, psi_y: float) -> float:
     """Column coordinate whose (corrected) psi_y equals `psi_y`: bisection in the monotone table,
     then Newton steps for the correction polynomial."""
     n = look.shape[0]
@@ -159,7 +188,9 @@ def column_of(look, prm, corr, psi_y):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def ray_height(px, py, pz, ux, uy, uz, h):
+def ray_height(
+    px: float, py: float, pz: float, ux: float, uy: float, uz: float, h: float
+) -> tuple[float, float, float, float, float]:
     """First point of the ray P + mu u (mu > 0) at ellipsoidal height h: (X, Y, Z, lon, lat), NaNs
     if none.
 
@@ -192,7 +223,16 @@ def ray_height(px, py, pz, ux, uy, uz, h):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def line_of_sight(eph, att_t, att_v, look, prm, corr, col, row):
+def line_of_sight(
+    eph: np.ndarray,
+    att_t: np.ndarray,
+    att_v: np.ndarray,
+    look: np.ndarray,
+    prm: np.ndarray,
+    corr: np.ndarray,
+    col: float,
+    row: float,
+) -> tuple[float, float, float, float, float, float]:
     """Satellite position P and unit ECEF look direction u of image point (col, row)."""
     px, py, pz, m = line_state(eph, att_t, att_v, prm, corr, prm[0] + (row - prm[1]) * prm[2])
     psi_x, psi_y = detector_angles(look, prm, corr, col)
@@ -203,14 +243,24 @@ def line_of_sight(eph, att_t, att_v, look, prm, corr, col, row):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def image_to_ecef(eph, att_t, att_v, look, prm, corr, col, row, h):
+def image_to_ecef(
+    eph: np.ndarray,
+    att_t: np.ndarray,
+    att_v: np.ndarray,
+    look: np.ndarray,
+    prm: np.ndarray,
+    corr: np.ndarray,
+    col: float,
+    row: float,
+    h: float,
+) -> tuple[float, float, float, float, float]:
     """(X, Y, Z, lon, lat) of image point (col, row) at ellipsoidal height h (NaNs if the ray misses)."""
     px, py, pz, ux, uy, uz = line_of_sight(eph, att_t, att_v, look, prm, corr, col, row)
     return ray_height(px, py, pz, ux, uy, uz, h)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def view_angles(px, py, pz, m, x, y, z):
+def view_angles(px: float, py: float, pz: float, m: Rotation, x: float, y: float, z: float) -> tuple[float, float]:
     """Look angles (psi_x, psi_y) of ground point X seen from P in the navigation frame M' (X - P)
     (M = R32 R21); NaNs if X is not below the satellite (n_z >= 0)."""
     nx, ny, nz = mat_t_vec(m, x - px, y - py, z - pz)
@@ -220,7 +270,18 @@ def view_angles(px, py, pz, m, x, y, z):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _along_track(eph, att_t, att_v, look, prm, corr, x, y, z, t):
+def _along_track(
+    eph: np.ndarray,
+    att_t: np.ndarray,
+    att_v: np.ndarray,
+    look: np.ndarray,
+    prm: np.ndarray,
+    corr: np.ndarray,
+    x: float,
+    y: float,
+    z: float,
+    t: float,
+) -> tuple[float, float]:
     """Along-track misfit psi_x(X) - psi_x(detector) at time t, and the detector column whose psi_y
     matches X (the view-plane condition is misfit = 0); NaNs if X is below the satellite's horizon."""
     px, py, pz, m = line_state(eph, att_t, att_v, prm, corr, t)
@@ -235,7 +296,7 @@ def _along_track(eph, att_t, att_v, look, prm, corr, x, y, z, t):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def guess_row(guess, x, y, z):
+def guess_row(guess: np.ndarray, x: float, y: float, z: float) -> float:
     """Starting row from the quadratic fit `guess` (14,): centre (3), scale, then the coefficients of
     1, u, v, w, u^2, v^2, w^2, uv, uw, vw for (u, v, w) = (X - centre) / scale."""
     u, v, w = (x - guess[0]) / guess[3], (y - guess[1]) / guess[3], (z - guess[2]) / guess[3]
@@ -254,7 +315,20 @@ def guess_row(guess, x, y, z):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def ecef_to_image(eph, att_t, att_v, look, prm, corr, guess, x, y, z, tol, max_iter):
+def ecef_to_image(
+    eph: np.ndarray,
+    att_t: np.ndarray,
+    att_v: np.ndarray,
+    look: np.ndarray,
+    prm: np.ndarray,
+    corr: np.ndarray,
+    guess: np.ndarray,
+    x: float,
+    y: float,
+    z: float,
+    tol: float,
+    max_iter: int,
+) -> tuple[float, float]:
     """(col, row) imaging ECEF point (x, y, z): secant iteration on the line time for the view-plane
     condition from the row given by `guess` (or the scene centre), the detector by inverting the
     psi_y table; stops when the row moves < tol. NaNs when it does not converge, when the point is
@@ -278,23 +352,40 @@ def ecef_to_image(eph, att_t, att_v, look, prm, corr, guess, x, y, z, tol, max_i
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def image_to_ground_kernel(eph, att_t, att_v, look, prm, corr, col, row, h, lon, lat):
-    """image_to_ecef over arrays (lon, lat: outputs, degrees)."""
+def image_to_ground_kernel(
+    model: PackedModel, col: np.ndarray, row: np.ndarray, h: np.ndarray, lon: np.ndarray, lat: np.ndarray
+) -> None:
+    """image_to_ecef of `model` (PackedModel) over arrays (lon, lat: outputs, degrees)."""
+    eph, att_t, att_v, look, prm, corr = model
     for i in prange(col.size):
         lon[i], lat[i] = image_to_ecef(eph, att_t, att_v, look, prm, corr, col[i], row[i], h[i])[3:]
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def ground_to_image_kernel(eph, att_t, att_v, look, prm, corr, guess, lon, lat, h, tol, max_iter, col, row):
-    """ecef_to_image over arrays of geodetic points (col, row: outputs)."""
+def ground_to_image_kernel(
+    model: PackedModel,
+    guess: np.ndarray,
+    lon: np.ndarray,
+    lat: np.ndarray,
+    h: np.ndarray,
+    tol: float,
+    max_iter: int,
+    col: np.ndarray,
+    row: np.ndarray,
+) -> None:
+    """ecef_to_image of `model` (PackedModel) over arrays of geodetic points (col, row: outputs)."""
+    eph, att_t, att_v, look, prm, corr = model
     for i in prange(lon.size):
         x, y, z = geodetic_to_ecef_scalar(lon[i], lat[i], h[i])
         col[i], row[i] = ecef_to_image(eph, att_t, att_v, look, prm, corr, guess, x, y, z, tol, max_iter)
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def line_of_sight_kernel(eph, att_t, att_v, look, prm, corr, col, row, pos, direction):
-    """line_of_sight over arrays (pos, direction: (n, 3) outputs)."""
+def line_of_sight_kernel(
+    model: PackedModel, col: np.ndarray, row: np.ndarray, pos: np.ndarray, direction: np.ndarray
+) -> None:
+    """line_of_sight of `model` (PackedModel) over arrays (pos, direction: (n, 3) outputs)."""
+    eph, att_t, att_v, look, prm, corr = model
     for i in prange(col.size):
         (pos[i, 0], pos[i, 1], pos[i, 2], direction[i, 0], direction[i, 1], direction[i, 2]) = line_of_sight(
             eph, att_t, att_v, look, prm, corr, col[i], row[i]
@@ -302,7 +393,9 @@ def line_of_sight_kernel(eph, att_t, att_v, look, prm, corr, col, row, pos, dire
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _moved_frame(px, py, pz, vx, vy, vz, r21, x, y, z):
+def _moved_frame(
+    px: float, py: float, pz: float, vx: float, vy: float, vz: float, r21: Rotation, x: float, y: float, z: float
+) -> Vector:
     """n = R21' R32' (X - P): ground point X in the navigation frame of position P and velocity V
     (orbital frame R32 rebuilt) with attitude R21."""
     wx, wy, wz = mat_t_vec(orbital_rotation(px, py, pz, vx, vy, vz), x - px, y - py, z - pz)
@@ -310,21 +403,33 @@ def _moved_frame(px, py, pz, vx, vy, vz, r21, x, y, z):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _line_view(eph, att_t, att_v, prm, corr, t, x, y, z):
+def _line_view(
+    eph: np.ndarray,
+    att_t: np.ndarray,
+    att_v: np.ndarray,
+    prm: np.ndarray,
+    corr: np.ndarray,
+    t: float,
+    x: float,
+    y: float,
+    z: float,
+) -> tuple[float, float]:
     """view_angles of X from the corrected state at time t."""
     px, py, pz, m = line_state(eph, att_t, att_v, prm, corr, t)
     return view_angles(px, py, pz, m, x, y, z)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _angle_slopes(nx, ny, nz, dx, dy, dz):
+def _angle_slopes(nx: float, ny: float, nz: float, dx: float, dy: float, dz: float) -> tuple[float, float]:
     """Change of look_angles(n) along dn: psi_x = atan(-ny / nz), psi_y = atan(nx / nz) give
     dpsi_x = (ny dnz - nz dny) / (ny^2 + nz^2), dpsi_y = (nz dnx - nx dnz) / (nx^2 + nz^2)."""
     return (ny * dz - nz * dy) / (ny * ny + nz * nz), (nz * dx - nx * dz) / (nx * nx + nz * nz)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _geodetic_columns(lon, lat, h):
+def _geodetic_columns(
+    lon: float, lat: float, h: float
+) -> tuple[float, float, float, float, float, float, float, float, float]:
     """d(X, Y, Z)/d(lon, lat, h) (row-major 9-tuple; m/degree, m/degree, m/m); with N, M the radii of
     curvature: d/dlon = (N + h) cos(lat) (-sin lon, cos lon, 0), d/dlat = (M + h) (-sin lat cos lon,
     -sin lat sin lon, cos lat), d/dh = (cos lat cos lon, cos lat sin lon, sin lat)."""
@@ -338,11 +443,21 @@ def _geodetic_columns(lon, lat, h):
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def partials_kernel(
-    eph, att_t, att_v, look, prm, corr, lon, lat, h, col, row, step_m, exterior, d_corr, d_xyz, d_ground
-):
+    model: PackedModel,
+    lon: np.ndarray,
+    lat: np.ndarray,
+    h: np.ndarray,
+    col: np.ndarray,
+    row: np.ndarray,
+    step_m: float,
+    exterior: bool,
+    d_corr: np.ndarray,
+    d_xyz: np.ndarray,
+    d_ground: np.ndarray,
+) -> None:
     """d(col, row)/d(correction coefficients) (n, 2, 32), d(col, row)/d(ECEF) (n, 2, 3) and
-    d(col, row)/d(lon, lat, h) (n, 2, 3; px/degree, px/degree, px/m) at the image points (col, row)
-    of ground points (lon, lat, h), by the implicit function theorem on the residual
+    d(col, row)/d(lon, lat, h) (n, 2, 3; px/degree, px/degree, px/m) of `model` (PackedModel) at the
+    image points (col, row) of ground points (lon, lat, h), by the implicit function theorem on the residual
     F(col, row; X, c) = g(n) - d(col; c), n = M' (X - P) (g: look_angles, d: detector_angles,
     M = R32 R21 at t(row)): d(col, row)/dp = -[dF/d(col, row)]^-1 dF/dp.
 
@@ -357,6 +472,7 @@ def partials_kernel(
     position or velocity. dg/dn: `_angle_slopes`. d_ground = d_xyz d(X, Y, Z)/d(lon, lat, h)
     (`_geodetic_columns`). Without `exterior` the position and attitude columns (0-23) are 0, not
     computed (most of the cost)."""
+    eph, att_t, att_v, look, prm, corr = model
     sv = step_m / prm[3]
     for i in prange(col.size):
         x, y, z = geodetic_to_ecef_scalar(lon[i], lat[i], h[i])
@@ -426,7 +542,7 @@ def partials_kernel(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _geodetic_along(px, py, pz, ux, uy, uz, mu):
+def _geodetic_along(px: float, py: float, pz: float, ux: float, uy: float, uz: float, mu: float) -> Vector:
     """(lon, lat, h) of the ray point P + mu u (near the Earth's surface, see `bowring`)."""
     x, y, z = px + mu * ux, py + mu * uy, pz + mu * uz
     cl, sl, h = bowring(math.hypot(x, y), z)
@@ -434,14 +550,26 @@ def _geodetic_along(px, py, pz, ux, uy, uz, mu):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _quadratic(f0, f1, f2, s):
+def _quadratic(f0: float, f1: float, f2: float, s: float) -> float:
     """Value at s in [0, 1] of the parabola through (0, f0), (0.5, f1), (1, f2)."""
     return f0 + s * (-3.0 * f0 + 4.0 * f1 - f2) + 2.0 * s * s * (f0 - 2.0 * f1 + f2)
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def image_to_dem_kernel(eph, att_t, att_v, look, prm, corr, col, row, grid, gt, hmin, hmax, samples, tol, out):
-    """First intersection of each line of sight with the DEM (out: (n, 3) lon, lat, h; NaNs where none).
+def image_to_dem_kernel(
+    model: PackedModel,
+    col: np.ndarray,
+    row: np.ndarray,
+    grid: np.ndarray,
+    gt: np.ndarray,
+    hmin: float,
+    hmax: float,
+    samples: int,
+    tol: float,
+    out: np.ndarray,
+) -> None:
+    """First intersection of each line of sight of `model` (PackedModel) with the DEM `grid` of
+    geotransform `gt` (out: (n, 3) lon, lat, h; NaNs where none).
 
     The ray segment between heights hmax and hmin is scanned from the top in equal steps of mu, at
     least `samples` of them and at most a quarter of a DEM cell apart horizontally (so a cliff, a
@@ -449,6 +577,7 @@ def image_to_dem_kernel(eph, att_t, att_v, look, prm, corr, col, row, grid, gt, 
     come from a parabola through three exact conversions (error of the order of mm over 10 km of
     ray), so the scan costs a DEM lookup per sample. The first sample pair where h - dem goes from
     >= 0 to <= 0 is refined by regula falsi (Illinois) with exact conversions to `tol` metres."""
+    eph, att_t, att_v, look, prm, corr = model
     lon0, dlon, lat0, dlat = gt[0], gt[1], gt[3], gt[5]
     for i in prange(col.size):
         out[i, 0] = out[i, 1] = out[i, 2] = NAN

@@ -7,10 +7,14 @@ converted at the reader: DIMAP line L (1-based, centre) is GDAL row L - 0.5, det
 looks through column centre D - 0.5.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import NoReturn
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import MetadataError
 
@@ -57,18 +61,18 @@ class SpotOrientation:
     line_period: float  # s per line
     centre_time: float  # s since epoch of the scene-centre line
     centre_row: float  # GDAL row coordinate of that line's centre
-    speed_t: Optional[np.ndarray] = None  # (k,) angular-speed sample times (SPOT 1-4), s
-    speed_ypr: Optional[np.ndarray] = None  # (k, 3) yaw/pitch/roll rates, rad/s
+    speed_t: np.ndarray | None = None  # (k,) angular-speed sample times (SPOT 1-4), s
+    speed_ypr: np.ndarray | None = None  # (k, 3) yaw/pitch/roll rates, rad/s
     sensor_code: str = ""  # 'P', 'M', 'A', 'J', ...
-    mirror_step: Optional[int] = None  # SPOT 1-4 / HRG mirror STEP_COUNT, for information
+    mirror_step: int | None = None  # SPOT 1-4 / HRG mirror STEP_COUNT, for information
     corrections: Corrections = field(default_factory=Corrections)
     name: str = ""  # dataset name, for messages
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise MetadataError unless the orientation is complete and physically plausible."""
         where = f"{self.name or 'SPOT scene'}: "
 
-        def fail(what, todo="check the METADATA.DIM against the delivered product"):
+        def fail(what: str, todo: str = "check the METADATA.DIM against the delivered product") -> NoReturn:
             raise MetadataError(f"{where}{what}; {todo}")
 
         if self.mission not in INSTRUMENTS:
@@ -96,7 +100,7 @@ class SpotOrientation:
             )
         if self.speed_t is not None:
             _check_series(fail, "angular speed", self.speed_t, {"yaw/pitch/roll rates": self.speed_ypr}, 1)
-            if np.any(np.abs(self.speed_ypr) > 0.01):
+            if np.any(np.abs(np.asarray(self.speed_ypr)) > 0.01):  # an array: _check_series refuses None
                 fail("angular speeds exceed 0.01 rad/s: are they degrees/s instead of rad/s?")
         for label, psi in (("PSI_X", self.psi_x), ("PSI_Y", self.psi_y)):
             psi = np.asarray(psi)
@@ -117,7 +121,7 @@ class SpotOrientation:
             fail(f"LINE_PERIOD {self.line_period!r} s is not a line period")
         if not (np.isfinite(self.centre_time) and np.isfinite(self.centre_row)):
             fail("the scene-centre time or line is not a number")
-        first, last = self.row_time(0.0), self.row_time(float(self.nrows))
+        first, last = float(self.row_time(0.0)), float(self.row_time(float(self.nrows)))
         lo, hi = min(first, last), max(first, last)
         if lo < self.eph_t[0] or hi > self.eph_t[-1]:
             fail(
@@ -126,12 +130,19 @@ class SpotOrientation:
                 "the orbit must not be extrapolated; use the complete product",
             )
 
-    def row_time(self, row):
-        """Acquisition time (s since epoch) of GDAL row coordinate `row`: t = t_c + (row - row_c) T."""
+    def row_time(self, row: ArrayLike) -> np.floating | np.ndarray:
+        """Acquisition time (s since epoch) of GDAL row coordinate `row`: t = t_c + (row - row_c) T (a numpy
+        float for a scalar `row`)."""
         return self.centre_time + (np.asarray(row, dtype=np.float64) - self.centre_row) * self.line_period
 
 
-def _check_series(fail, label, t, values, minimum):
+def _check_series(
+    fail: Callable[..., NoReturn],
+    label: str,
+    t: ArrayLike,
+    values: Mapping[str, np.ndarray | None],
+    minimum: int,
+) -> None:
     """Times strictly increasing and finite, value arrays (n, 3) finite, at least `minimum` samples."""
     t = np.asarray(t, dtype=np.float64)
     if t.ndim != 1 or t.size < minimum:

@@ -16,7 +16,10 @@ whose maximum lies below it; in each cell the bilinear surface along the segment
 in the ray parameter, whose first root is the exact first intersection. The same walk, upwards
 towards the sun, gives cast shadows."""
 
+from __future__ import annotations
+
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -173,15 +176,32 @@ def _segment_hit(px, py, pz, dx, dy, dz, mu_a, mu_b, z, bmax, bs, gt):
     return s, xa + (xb - xa) * s, ya + (yb - ya) * s, za + (zb - za) * s
 
 
+class RaySurface(NamedTuple):
+    """The DSM as the ray-casting kernels take it: heights z (rows, cols) on grid vertices, the maxima
+    bmax of its blocks of bs x bs cells (block_max), gt = (lon0, dlon, lat0, dlat) of the vertices, the
+    osculating sphere = (cx, cy, cz, radius) and the height range (hmin, hmax) the rays are cut at."""
+
+    z: np.ndarray
+    bmax: np.ndarray
+    bs: int
+    gt: np.ndarray
+    sphere: np.ndarray
+    hmin: float
+    hmax: float
+
+
 @njit(cache=True, nogil=True)
-def ray_ground(px, py, pz, dx, dy, dz, z, bmax, bs, gt, sphere, hmin, hmax):
-    """(x, y, h) grid vertex coordinates and height where the ray P + mu d first meets the DSM z
-    (NaNs if it misses). gt = (lon0, dlon, lat0, dlat); sphere = (cx, cy, cz, radius).
+def ray_ground(
+    px: float, py: float, pz: float, dx: float, dy: float, dz: float, surface: RaySurface
+) -> tuple[float, float, float]:
+    """(x, y, h) grid vertex coordinates and height where the ray P + mu d first meets the DSM of `surface`
+    (NaNs if it misses).
 
     The hit on the segment from hmax + 5 m to hmin - 5 m is refined on a +-REFINE_M segment around
     it (linearisation error (2 REFINE_M)^2 / 8R, micrometres); a refined hit at the very start of
     that segment (a ray grazing an edge within the coarse segment's centimetres) keeps the coarse
     one."""
+    z, bmax, bs, gt, sphere, hmin, hmax = surface
     mu_top = _sphere_mu(px, py, pz, dx, dy, dz, sphere[0], sphere[1], sphere[2], sphere[3] + hmax + 5.0)
     mu_bot = _sphere_mu(px, py, pz, dx, dy, dz, sphere[0], sphere[1], sphere[2], sphere[3] + hmin - 5.0)
     if not (mu_top > 0.0 and mu_bot > mu_top):
@@ -225,9 +245,9 @@ def line_matrices(pos, vel, ypr):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def render(pos, mat, look, z, bmax, bs, gt, sphere, hmin, hmax, radiance):
+def render(pos: np.ndarray, mat: np.ndarray, look: np.ndarray, surface: RaySurface, radiance: np.ndarray) -> np.ndarray:
     """Image (rows = lines of pos/mat, cols = detectors of look) of `radiance` sampled where each
-    pixel's ray meets the DSM; NaN where it misses."""
+    pixel's ray meets the DSM of `surface`; NaN where it misses."""
     rows = pos.shape[0]
     cols = look.shape[0]
     out = np.empty((rows, cols), np.float32)
@@ -238,14 +258,16 @@ def render(pos, mat, look, z, bmax, bs, gt, sphere, hmin, hmax, radiance):
             dx = m[0] * ux + m[1] * uy + m[2] * uz
             dy = m[3] * ux + m[4] * uy + m[5] * uz
             dz = m[6] * ux + m[7] * uy + m[8] * uz
-            x, y, h = ray_ground(pos[r, 0], pos[r, 1], pos[r, 2], dx, dy, dz, z, bmax, bs, gt, sphere, hmin, hmax)
+            x, y, h = ray_ground(pos[r, 0], pos[r, 1], pos[r, 2], dx, dy, dz, surface)
             out[r, c] = np.nan if math.isnan(x) else bilinear(radiance, x, y)
     return out
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def trace(pos, mat, look, z, bmax, bs, gt, sphere, hmin, hmax):
-    """(n, 3) ground (lon, lat, h) of n rays given one by one (pos[k], mat[k], look[k])."""
+def trace(pos: np.ndarray, mat: np.ndarray, look: np.ndarray, surface: RaySurface) -> np.ndarray:
+    """(n, 3) ground (lon, lat, h) of n rays given one by one (pos[k], mat[k], look[k]) on the DSM of
+    `surface`."""
+    gt = surface.gt
     n = pos.shape[0]
     out = np.empty((n, 3))
     for k in prange(n):
@@ -258,13 +280,7 @@ def trace(pos, mat, look, z, bmax, bs, gt, sphere, hmin, hmax):
             m[0] * ux + m[1] * uy + m[2] * uz,
             m[3] * ux + m[4] * uy + m[5] * uz,
             m[6] * ux + m[7] * uy + m[8] * uz,
-            z,
-            bmax,
-            bs,
-            gt,
-            sphere,
-            hmin,
-            hmax,
+            surface,
         )
         out[k, 0] = gt[0] + (x + 0.5) * gt[1]
         out[k, 1] = gt[2] + (y + 0.5) * gt[3]
@@ -307,11 +323,13 @@ class Surface:
             else (float(height_range[0]), float(height_range[1]))
         )
 
-    def _args(self):
-        return self.z, self.bmax, BLOCK, self.gt, self.sphere, self.hmin, self.hmax
+    def _kernel_surface(self) -> RaySurface:
+        return RaySurface(self.z, self.bmax, BLOCK, self.gt, self.sphere, self.hmin, self.hmax)
 
-    def render(self, pos, mat, look, radiance):
-        return render(pos, mat, look, *self._args(), np.ascontiguousarray(radiance))
+    def render(self, pos: np.ndarray, mat: np.ndarray, look: np.ndarray, radiance: np.ndarray) -> np.ndarray:
+        return render(pos, mat, look, self._kernel_surface(), np.ascontiguousarray(radiance))
 
-    def trace(self, pos, mat, look):
-        return trace(np.ascontiguousarray(pos), np.ascontiguousarray(mat), np.ascontiguousarray(look), *self._args())
+    def trace(self, pos: np.ndarray, mat: np.ndarray, look: np.ndarray) -> np.ndarray:
+        return trace(
+            np.ascontiguousarray(pos), np.ascontiguousarray(mat), np.ascontiguousarray(look), self._kernel_surface()
+        )

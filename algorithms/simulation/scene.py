@@ -19,12 +19,14 @@ rendered in bands of BAND lines, cast in windows (tiled_surface.py) and written 
 full-size SPOT 5 triplet (60 km: HRG 12 000 x 12 000 px) thus fits a small machine.
 """
 
+from __future__ import annotations
+
 import dataclasses
 import math
 import os
 import shutil
 from dataclasses import dataclass
-from typing import Optional
+from typing import Any
 
 import numpy as np
 
@@ -35,17 +37,19 @@ from ..geodesy import geodetic_to_ecef, metres_per_degree
 from ..progress import step, warn
 from ..sensors.dimap import read_dimap
 from ..sensors.dimap_writer import write_dimap
+from ..sensors.spot_orientation import Corrections
 from . import outputs, radiometry
 from .acquisition import footprint_bounds, plan, ray_at_height
 from .grid import Grid
 from .instruments import CONFIGURATIONS, DEFAULT_DATES, DEFAULT_ROLL_DEG, instruments
 from .perturbation import inject
-from .points import ground_heights, image_coordinates, level_pads, select_sites, shortfall, site_spacing
+from .points import Candidates, ground_heights, image_coordinates, level_pads, select_sites, shortfall, site_spacing
 from .render import BLOCK, block_max
 from .sun import sun_position
-from .terrain import CLASSES, FOREST, build_terrain, check_coverage, extended_dem, jacksboro_dem
+from .terrain import CLASSES, FOREST, Terrain, build_terrain, check_coverage, extended_dem, jacksboro_dem
 from .tiled_surface import TiledSurface
 from .tiles import TILE, cut, grid_array, grown, value_range, windows
+from .truth import ImageTruth
 
 #: the truth file, relative to the scene folder: it marks a folder simulate_scene made (and may replace)
 TRUTH = os.path.join("truth", "truth.json")
@@ -77,8 +81,8 @@ class SceneConfig:
     orthoimage: str = ""  # raster to use as ground reflectance (procedural if empty)
     error_scale: float = 1.0  # scale of the injected orientation errors (0: supplied = truth)
     grid_m: float = 5.0  # ground grid (DTM, DSM, radiance) cell, m
-    centre_lon: Optional[float] = None  # scene centre (default: the DEM's centre)
-    centre_lat: Optional[float] = None
+    centre_lon: float | None = None  # scene centre (default: the DEM's centre)
+    centre_lat: float | None = None
     roll_deg: tuple = ()  # per pass, across-track viewing angle (default per configuration)
     dates: tuple = ()  # per pass, ISO dates (default per configuration)
 
@@ -205,17 +209,19 @@ def simulate_scene(config, out_dir, feedback=None, tile=TILE):
         step(feedback, 85, "writing the products")
         _write(
             paths,
-            config,
-            images,
-            terrain,
-            radiance[0],
-            candidates,
-            corrections,
-            trajectory,
-            suns,
-            radiometric,
-            footprints,
-            geodetic_to_ecef(*centre),
+            _Simulated(
+                config,
+                images,
+                terrain,
+                radiance[0],
+                candidates,
+                corrections,
+                trajectory,
+                suns,
+                radiometric,
+                footprints,
+                geodetic_to_ecef(*centre),
+            ),
         )
         shutil.rmtree(work)
     step(feedback, 100)
@@ -459,10 +465,31 @@ def _products(folder, images):
     return paths
 
 
-def _write(
-    paths, config, images, terrain, radiance, candidates, corrections, trajectory, suns, radiometric, footprints, centre
-):
-    """Everything but the imagery into the folder of `paths` (its entries added)."""
+@dataclass
+class _Simulated:
+    """What simulate_scene computed that the products besides the imagery (_write) and the truth file
+    (_truth) hold: the scene's images, terrain, the first pass's ground radiance (a grid array), the point
+    candidates, the injected corrections (per image name) and trajectory errors (per pass), the suns (per
+    pass: azimuth, elevation in degrees), each image's gain and offset and footprint rays, and the ECEF
+    position of the scene centre."""
+
+    config: SceneConfig
+    images: list[ImageTruth]
+    terrain: Terrain
+    radiance: Any
+    candidates: Candidates
+    corrections: dict[str, Corrections]
+    trajectory: dict[int, dict[str, Any]]
+    suns: dict[int, tuple[float, float]]
+    radiometric: dict[str, dict[str, float]]
+    footprints: dict[str, list[dict[str, float]]]
+    centre: np.ndarray
+
+
+def _write(paths: dict[str, Any], simulated: _Simulated) -> dict[str, Any]:
+    """Everything `simulated` but the imagery into the folder of `paths` (its entries added)."""
+    config, images, terrain, suns = simulated.config, simulated.images, simulated.terrain, simulated.suns
+    corrections, candidates, radiance = simulated.corrections, simulated.candidates, simulated.radiance
     join, folder = os.path.join, paths["folder"]
     for image in images:
         sun = suns[image.instrument.pass_index]
@@ -495,13 +522,14 @@ def _write(
     paths["points"] = join(folder, "points.csv")
     outputs.write_points(paths["points"], candidates)
     paths["truth"] = join(folder, TRUTH)
-    outputs.write_json(
-        paths["truth"], _truth(config, images, corrections, trajectory, suns, radiometric, footprints, terrain, centre)
-    )
+    outputs.write_json(paths["truth"], _truth(simulated))
     return paths
 
 
-def _truth(config, images, corrections, trajectory, suns, radiometric, footprints, terrain, centre):
+def _truth(simulated: _Simulated) -> dict[str, Any]:
+    """The content of the truth file (module docstring) of `simulated`."""
+    config, images, corrections, suns = simulated.config, simulated.images, simulated.corrections, simulated.suns
+    radiometric, footprints, terrain = simulated.radiometric, simulated.footprints, simulated.terrain
     config_dict = dataclasses.asdict(config)
     per_image = {}
     for image in images:
@@ -524,8 +552,8 @@ def _truth(config, images, corrections, trajectory, suns, radiometric, footprint
     return {
         "config": config_dict,
         "images": per_image,
-        "trajectory_errors": trajectory,
-        "base_to_height": _base_to_height(images, centre),
+        "trajectory_errors": simulated.trajectory,
+        "base_to_height": _base_to_height(images, simulated.centre),
         "classes": {str(k): v for k, v in CLASSES.items()},
         "towns": terrain.towns,
         "forest_fraction": _fraction(terrain.classes, terrain.grid.shape, FOREST),

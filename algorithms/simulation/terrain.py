@@ -27,8 +27,11 @@ Every grid is built tile by tile (tiles.py), with the margins each kernel's neig
 the result does not depend on the tiling: in files of a work folder (simulate_scene), or in memory
 where no folder is given (tests)."""
 
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -288,11 +291,35 @@ def _canopy(e, n, seed):
     return max(top - 0.5 * top * (1.0 - math.sqrt(1.0 - q * q)), 0.4 * stand), tree
 
 
+class LandCover(NamedTuple):
+    """What _land_cover writes per cell of a window: `classes` (uint8, CLASSES codes), the height of the
+    surface `objects` above the ground (m) and the `feature` id (int64: parcel, tree or building)."""
+
+    classes: np.ndarray
+    objects: np.ndarray
+    feature: np.ndarray
+
+
 @njit(cache=True, nogil=True, parallel=True)
-def _land_cover(dtm, slope, water, e0, de, n0, dn, towns, seed, objects_on, classes, objects, feature):
-    """Per cell: WATER where `water`; CITY inside a town's noisy disc (slope < 15 deg);
-    FOREST where slope + 14 fbm(1.5 km) > 13 (steep slopes and noisy patches); otherwise a field
-    parcel (Worley cells of ~220 m): BARE for 35 % of the parcels, CROPS for the rest."""
+def _land_cover(
+    dtm: np.ndarray,
+    slope: np.ndarray,
+    water: np.ndarray,
+    e0: float,
+    de: float,
+    n0: float,
+    dn: float,
+    towns: np.ndarray,
+    seed: int,
+    objects_on: bool,
+    out: LandCover,
+) -> None:
+    """Per cell of `out`, from the window's orthometric `dtm`, `slope` and `water` with the local metres of
+    its first cell (e0, n0) and its spacing (de, dn): WATER where `water`; CITY inside a town's noisy disc
+    (slope < 15 deg); FOREST where slope + 14 fbm(1.5 km) > 13 (steep slopes and noisy patches); otherwise a
+    field parcel (Worley cells of ~220 m): BARE for 35 % of the parcels, CROPS for the rest. Surface objects
+    (buildings, trees) only with `objects_on`."""
+    classes, objects, feature = out
     rows, cols = dtm.shape
     for i in prange(rows):
         n = n0 - i * dn
@@ -340,7 +367,7 @@ class Terrain:
     dtm: object
     dsm: object
     classes: object  # uint8, CLASSES codes
-    feature: object  # int64: parcel / tree / building id (see _land_cover)
+    feature: object  # int64: parcel / tree / building id (see LandCover)
     towns: np.ndarray  # (k, 5): east, north, radius, angle, block size (local metres)
 
 
@@ -432,9 +459,7 @@ def build_terrain(source, grid, seed, fractal=1.0, surface_objects=True, folder=
             towns,
             seed,
             bool(surface_objects),
-            c,
-            objects,
-            f,
+            LandCover(c, objects, f),
         )
         ground = z[inner] + resample(source.geoid, window)
         dtm[i0:i1, j0:j1] = ground

@@ -26,13 +26,15 @@ written with an alert section saying so, then a GeometryError says it, with the 
 A block without control points can only be adjusted with named free parameters and priors that fix
 the datum (InputError otherwise)."""
 
+from __future__ import annotations
+
 import contextlib
-from dataclasses import dataclass
-from typing import Optional
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 from .. import progress
 from ..adjustment import report
-from ..adjustment.bundle import CRITICAL_W, adjust, check_points
+from ..adjustment.bundle import CRITICAL_W, AdjustmentSettings, adjust, check_points
 from ..adjustment.control_points import HEIGHT_TYPES
 from ..adjustment.control_series import control_point_series
 from ..adjustment.observations import tie_observations
@@ -40,7 +42,7 @@ from ..adjustment.parameters import MODELS
 from ..adjustment.residual_rows import residual_rows
 from ..adjustment.residual_vectors import DEFAULT_SCALE, residual_vectors, write_residual_vectors
 from ..adjustment.screening import describe, screen_control_points, without
-from ..adjustment.selection import select_parameters
+from ..adjustment.selection import SelectionSettings, select_parameters
 from ..adjustment.tie_heights import tie_height_differences
 from ..adjustment.variance import adjust_with_components
 from ..atomic import work_dir
@@ -51,14 +53,20 @@ from ..height_range import mean_height
 from ..sigmas import IMAGE_SIGMA
 from ..stats import statistics_table
 
+if TYPE_CHECKING:
+    from ..adjustment.bundle import Adjustment
+    from ..adjustment.observations import Observations
+    from ..progress import Feedback
+    from ..sensors.base import SensorModel
+
 #: the free parameters "auto" stands for with the Lagrange model: attitude and offsets (the header
 #: positions enter as priors)
 LAGRANGE_AUTO = ["lagrange:attitude", "lagrange:offset"]
 
 
-def parse_priors(text):
+def parse_priors(text: str | None) -> dict[str, float]:
     """{pattern: sigma} of the text "pattern=sigma, ..." (commas or semicolons; empty text: none)."""
-    priors = {}
+    priors: dict[str, float] = {}
     for item in (text or "").replace(";", ",").split(","):
         if not item.strip():
             continue
@@ -70,7 +78,7 @@ def parse_priors(text):
     return priors
 
 
-def parse_counts(text):
+def parse_counts(text: str | None) -> list[int]:
     """The control point counts of the text "4,6,10" (commas or semicolons; empty text: none)."""
     try:
         return [int(c) for c in (text or "").replace(";", ",").split(",") if c.strip()]
@@ -86,8 +94,8 @@ class AdjustParams:
     model: str = "polynomial"  # one of parameters.MODELS
     use_tie_points: bool = True
     remove_blunders: bool = False  # remove flagged measurements one by one
-    reference_dem: Optional[str] = None  # DTM for the tie point height table
-    reference_dem_nodata: Optional[float] = None
+    reference_dem: str | None = None  # DTM for the tie point height table
+    reference_dem_nodata: float | None = None
     reference_heights: str = "ellipsoidal"  # one of control_points.HEIGHT_TYPES
     sigma_tie: float = IMAGE_SIGMA  # px, tie point measurements
     critical: float = CRITICAL_W  # critical normalised residual (data snooping)
@@ -98,19 +106,19 @@ class AdjustParams:
     orientation_images: int = 4  # Lagrange model: orientation images per trajectory
     vector_scale: float = DEFAULT_SCALE
     priors: str = ""  # "pattern=sigma, ..."
-    report: Optional[str] = None  # HTML report path
-    residual_vectors: Optional[str] = None  # residual vector file (GeoPackage, shapefile, GeoJSON)
+    report: str | None = None  # HTML report path
+    residual_vectors: str | None = None  # residual vector file (GeoPackage, shapefile, GeoJSON)
 
     @property
-    def free_list(self):
+    def free_list(self) -> list[str]:
         """The FREE text as a list of names/patterns."""
         return [f for f in (self.free or "").split(",") if f.strip()]
 
     @property
-    def auto(self):
+    def auto(self) -> bool:
         return [f.strip().lower() for f in self.free_list] == ["auto"]
 
-    def check(self):
+    def check(self) -> AdjustParams:
         """Raise InputError for settings the adjustment cannot use."""
         if self.model not in MODELS:
             raise InputError(f"the orientation model must be one of {', '.join(MODELS)}, not {self.model!r}")
@@ -133,15 +141,25 @@ class AdjustResult:
     """What adjust_block stored and wrote."""
 
     sigma0: float
-    report: Optional[str] = None  # the HTML report written, if asked
-    residual_vectors: Optional[str] = None  # the residual vector file written, if asked
+    report: str | None = None  # the HTML report written, if asked
+    residual_vectors: str | None = None  # the residual vector file written, if asked
 
 
-def _solve(models, obs, names, params, options, feedback):
-    """(result, observations, free, extra report sections) of the solver the settings choose."""
-    free, auto, extra = params.free_list, params.auto, []
+def _solve(
+    models: dict[int, SensorModel],
+    obs: Observations,
+    names: dict[int, str],
+    params: AdjustParams,
+    height: float,
+    options: AdjustmentSettings,
+    feedback: Feedback | None,
+) -> tuple[Adjustment, Observations, list[str], list[report.Section]]:
+    """(result, observations, free, extra report sections) of the solver the settings choose (the Lagrange
+    model set in `options`, which the control point series then uses too)."""
+    free, auto = params.free_list, params.auto
+    extra: list[report.Section] = []
     if params.model == "lagrange":
-        options.update(model=params.model, orientation_images=params.orientation_images)
+        options.model, options.orientation_images = params.model, params.orientation_images
         if auto:
             free, auto = LAGRANGE_AUTO, False
             progress.ensure(feedback).pushInfo(
@@ -152,22 +170,29 @@ def _solve(models, obs, names, params, options, feedback):
             models,
             obs,
             names=names,
-            variance_components=params.variance_components,
-            significance=params.significance,
+            height=height,
+            selection=SelectionSettings(
+                significance=params.significance, variance_components=params.variance_components
+            ),
+            adjustment=options,
             feedback=feedback,
-            **options,
         )
         extra.append(report.Section("Parameter selection (Kornus et al. 2006, section 3.4.3)", notes=selection.log))
         if selection.components:
             extra.append(report.variance_section(selection.components))
         return selection.result, selection.observations, selection.free, extra
     if params.variance_components:
-        result, obs, components = adjust_with_components(models, obs, free, names=names, feedback=feedback, **options)
+        result, obs, components = adjust_with_components(
+            models, obs, free, names=names, height=height, settings=options, feedback=feedback
+        )
         return result, obs, free, [report.variance_section(components)]
-    return adjust(models, obs, free, names=names, feedback=feedback, **options), obs, free, extra
+    result = adjust(models, obs, free, names=names, height=height, settings=options, feedback=feedback)
+    return result, obs, free, extra
 
 
-def _screened(models, obs, names, remove, feedback):
+def _screened(
+    models: dict[int, SensorModel], obs: Observations, names: dict[int, str], remove: bool, feedback: Feedback | None
+) -> tuple[Observations, list[report.Section]]:
     """(observations, report sections) after screening the control points for gross errors
     (screening.py): control points whose ground coordinates are grossly off are an InputError naming
     them, or with `remove` left out with a warning; measurements grossly off in some images only are
@@ -215,7 +240,7 @@ def _screened(models, obs, names, remove, feedback):
     return without(obs, wrong), [section]
 
 
-def adjust_block(block_path, params, feedback=None):
+def adjust_block(block_path: str, params: AdjustParams, feedback: Feedback | None = None) -> AdjustResult:
     """Adjust the block at `block_path` with AdjustParams `params` (module docstring); returns an
     AdjustResult. Raises InputError (settings, no control points, control points grossly off), the
     solvers' errors, GeometryError when the solution did not converge (nothing stored), and
@@ -249,14 +274,13 @@ def adjust_block(block_path, params, feedback=None):
                 params.reference_dem_nodata,
             )
             progress.warn(feedback, dem.implausible)
-        options = {
-            "height": height,
-            "critical": params.critical,
-            "priors": priors,
-            "max_iterations": params.max_iterations,
-            "remove_blunders": params.remove_blunders,
-        }
-        result, obs, free, extra = _solve(models, obs, names, params, options, feedback)
+        options = AdjustmentSettings(
+            critical=params.critical,
+            priors=priors,
+            max_iterations=params.max_iterations,
+            remove_blunders=params.remove_blunders,
+        )
+        result, obs, free, extra = _solve(models, obs, names, params, height, options, feedback)
         extra[:0] = screened
         counts = parse_counts(params.control_series)
         if counts:
@@ -266,8 +290,9 @@ def adjust_block(block_path, params, feedback=None):
                 counts,
                 free,
                 names=names,
+                height=height,
+                settings=replace(options, remove_blunders=False),
                 feedback=feedback,
-                **{k: v for k, v in options.items() if k != "remove_blunders"},
             )
             extra.append(report.series_section(series))
         check = check_points(result, obs, height)

@@ -13,8 +13,11 @@ more images, it is found by matching (matching/height_search.py: sparse points o
 valid height range, intersected; the footprints at their median height); a single image without either
 takes its orientation's mean height (an RPC's HEIGHT_OFF; 0 m for a SPOT model), with a warning."""
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import TYPE_CHECKING
 
 from .. import progress
 from ..atomic import work_dir
@@ -23,17 +26,21 @@ from ..dem_store import store_dem
 from ..errors import InputError
 from ..execution import Execution
 from ..height_range import check_height
-from ..matching.height_search import search_heights, validity_range
+from ..matching.height_search import HeightSearch, search_heights, validity_range
+
+if TYPE_CHECKING:
+    from ..block.images import ImageEntry
+    from ..progress import Feedback
 
 
 @dataclass
 class CreateParams:
     """The creation's settings; each is a pushbroom:createblock parameter."""
 
-    orientation: list = field(default_factory=list)  # orientation files, one per image; empty: beside them
-    dem: Optional[str] = None  # DEM for the footprints (ellipsoidal heights)
-    dem_nodata: Optional[float] = None  # void value of the DEM its file does not flag
-    height: Optional[float] = None  # mean ellipsoidal height without a DEM (m); None: found by matching
+    orientation: list[str] = field(default_factory=list)  # orientation files, one per image; empty: beside them
+    dem: str | None = None  # DEM for the footprints (ellipsoidal heights)
+    dem_nodata: float | None = None  # void value of the DEM its file does not flag
+    height: float | None = None  # mean ellipsoidal height without a DEM (m); None: found by matching
     overwrite: bool = False  # replace an existing block
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the height search runs
 
@@ -44,10 +51,12 @@ class CreateResult:
 
     path: str
     footprints: str  # OGR source of its footprint layer
-    images: list  # (name, columns, rows) per image, in block order
+    images: list[tuple[str, int, int]]  # (name, columns, rows) per image, in block order
 
 
-def create_block(output, images, params, feedback=None):
+def create_block(
+    output: str, images: Sequence[str], params: CreateParams, feedback: Feedback | None = None
+) -> CreateResult:
     """Create the block `output` (.gpkg) from the image rasters `images` with CreateParams `params`;
     returns a CreateResult. Raises InputError (no or duplicate images, orientation files that do not
     match, a mean height outside height_range.PLAUSIBLE_HEIGHTS, an existing block without overwrite, a
@@ -59,7 +68,9 @@ def create_block(output, images, params, feedback=None):
         if params.dem:
             dem = store_dem(params.dem, work, params.dem_nodata)
             progress.warn(feedback, dem.implausible)
-        height, heights, found = params.height, None, None
+        height = params.height
+        heights: tuple[float, float] | None = None
+        found: HeightSearch | None = None
         if dem is None and height is None:
             height, heights, found = _terrain_heights(opened, params.execution, feedback)
         # storage: the new block
@@ -87,7 +98,9 @@ def create_block(output, images, params, feedback=None):
     )
 
 
-def _terrain_heights(opened, execution, feedback):
+def _terrain_heights(
+    opened: Sequence[ImageEntry], execution: Execution, feedback: Feedback | None
+) -> tuple[float, tuple[float, float] | None, HeightSearch | None]:
     """(footprint height, terrain height range or None, HeightSearch or None) of a block made without a DEM
     and without a height (module docstring)."""
     names, paths, models = [o[0] for o in opened], [o[1] for o in opened], [o[3] for o in opened]

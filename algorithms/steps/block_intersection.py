@@ -19,8 +19,11 @@ Points that cannot be intersected are left out and counted in the log, which als
 count and the median sigmas (intersection.Summary; sigma_h before the surface term). Storage: the points are
 read from the block (Block.point_parts) and the step is recorded in its block_info (Block.update_info)."""
 
+from __future__ import annotations
+
 import os
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -32,10 +35,14 @@ from ..dense import precision
 from ..errors import InputError
 from ..execution import Execution, run_tasks
 from ..height_range import mean_height
+from ..sensors.base import SensorModel
 from ..sigmas import IMAGE_SIGMA
 from ..surface import intersection, outlier_filter, pointcloud
 from ..task_runtime import check_cancel
-from .cloud_neighbourhood import second_round
+from .cloud_neighbourhood import FirstRound, OutlierRemoval, second_round
+
+if TYPE_CHECKING:
+    from ..progress import Feedback
 
 #: the most neighbours the outlier removal takes
 MAX_NEIGHBOURS = 100
@@ -48,14 +55,14 @@ class IntersectParams:
     """The intersection step's settings; each is a pushbroom:intersectpoints parameter."""
 
     kind: str = "mass_points"  # one of KINDS
-    crs: str = None  # output CRS (authority id or WKT); None: the block's UTM zone
+    crs: str | None = None  # output CRS (authority id or WKT); None: the block's UTM zone
     sigma: float = IMAGE_SIGMA  # px: a priori sigma of the image coordinates
     max_iterations: int = 10  # per point
     outlier_neighbours: int = 0  # k of the statistical outlier removal (surface/outlier_filter.py); 0: off
     outlier_factor: float = outlier_filter.FACTOR  # its n: d > mu + n s is an outlier
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the parts run
 
-    def check(self):
+    def check(self) -> IntersectParams:
         """Raise InputError for settings no intersection can use."""
         if self.kind not in KINDS:
             raise InputError(f"the points must be one of {', '.join(KINDS)}, got {self.kind!r}")
@@ -77,10 +84,14 @@ class IntersectResult:
     path: str  # the point cloud
     format: str  # "las", "laz" or "gpkg" (pointcloud.write_point_cloud)
     count: int  # points written
-    layer: str = None  # OGR source of the point layer (GeoPackage output)
+    layer: str | None = None  # OGR source of the point layer (GeoPackage output)
 
 
-def _intersect_part(job, part, out):
+#: what every task of the first round shares: (models, h0, sigma, max_iter, what), as _intersect_part takes it
+_Job = tuple[dict[int, SensorModel], float | None, float, int, str]
+
+
+def _intersect_part(job: _Job, part: str, out: str) -> dict[str, Any]:
     """Task: intersect the points of the part file `part` (block/points.py) with `job` = (models, h0,
     sigma, max_iter, what) and write the converged ones (lon, lat, h and the cloud fields) to `out`.
     Returns a small summary: points, written, status counts, intersection.Summary, sums of lon, lat and h; and
@@ -107,11 +118,9 @@ def _intersect_part(job, part, out):
         )
     result = intersection.intersect(
         models,
-        obs["image_id"],
-        obs["point_id"],
-        obs["col"],
-        obs["row"],
-        sigma=precision.image_sigmas(multi.points, obs, sigma),
+        intersection.Measurements(
+            obs["image_id"], obs["point_id"], obs["col"], obs["row"], precision.image_sigmas(multi.points, obs, sigma)
+        ),
         h0=h0,
         max_iter=max_iter,
     )
@@ -125,7 +134,7 @@ def _intersect_part(job, part, out):
     check_cancel()  # before the write (execution: a cancel reaches a running part)
     pointcloud.save_part(out, lon, lat, h, fields)
     refined = precision.refined_dense(multi.points)[pos][ok]
-    done = {
+    done: dict[str, Any] = {
         "points": len(result),
         "written": int(ok.sum()),
         "status": result.status_counts(),
@@ -142,7 +151,9 @@ def _intersect_part(job, part, out):
     return done
 
 
-def intersect_block_points(block_path, output, params=None, feedback=None):
+def intersect_block_points(
+    block_path: str, output: str, params: IntersectParams | None = None, feedback: Feedback | None = None
+) -> IntersectResult:
     """Intersect the block's points (IntersectParams `params`) and write them to the point cloud `output`;
     returns an IntersectResult. Raises InputError (no points or measurements, unknown images or points,
     none intersected), ExecutionError (module execution's), CancelledError when cancelled."""
@@ -157,7 +168,7 @@ def intersect_block_points(block_path, output, params=None, feedback=None):
         raise InputError("the block has no images")
     models = blk.models(images)
     heights = blk.height_range()
-    job = (models, None if heights is None else mean_height(heights), params.sigma, params.max_iterations, what)
+    job: _Job = (models, None if heights is None else mean_height(heights), params.sigma, params.max_iterations, what)
     with work_dir(output, "the intersected parts") as work:
         files = [os.path.join(work, f"part-{k:05d}.npz") for k in range(len(parts))]
         done = run_tasks(
@@ -170,7 +181,8 @@ def intersect_block_points(block_path, output, params=None, feedback=None):
         points = sum(d["points"] for d in done)
         if points == 0 or all(not d["status"] for d in done):
             raise InputError(f"the block's {what} have no image measurements")
-        status, summary = {}, intersection.Summary()
+        status: dict[str, int] = {}
+        summary = intersection.Summary()
         for d in done:
             summary.merge(d["summary"])
             for name, n in d["status"].items():
@@ -193,13 +205,9 @@ def intersect_block_points(block_path, output, params=None, feedback=None):
             sum(d["lonlat"][2] for d in done) / written,
         )
         loaders, written = second_round(
-            files,
-            done,
+            FirstRound(files, done, centre, mean_h),
             models,
-            centre,
-            mean_h,
-            params.outlier_neighbours,
-            params.outlier_factor,
+            OutlierRemoval(params.outlier_neighbours, params.outlier_factor),
             params.execution,
             progress.scaled(feedback, 70, 80),
             log,

@@ -8,7 +8,7 @@ the built-in ones: matching_strategies.py), with its settings; every strategy ru
 execution (matching/tiled_rounds.py: memory follows the tile), its tiles writing the parts of the new point
 folder.
 
-Storage: the points go to the point folder <block>.mass_points.<id> (block/points.py, Block.store_points) and
+Storage: the points go to the point folder <block>.mass_points.<id> (block/points.py, Block.store_point_parts) and
 the block's 'mass_points' layer, placed through the reference image's model at the middle of the height range;
 the points per group (Kornus et al. 2006, Table 1) are counted part by part, logged and, when asked, written as
 CSV (group_summary.py). The stats record the strategy's spacing in the reference image: a run that finds far
@@ -25,7 +25,7 @@ from typing import Any, Optional
 
 from .. import progress
 from ..block import Block
-from ..block.points import load_arrays, save_part
+from ..block.points import load_arrays, write_part
 from ..errors import InputError
 from ..execution import Execution
 from ..height_range import height_range
@@ -107,12 +107,12 @@ def match_block_points(
 
     def fill(folder: str) -> tuple[list, dict]:
         entries, stats = match_in_tiles(
-            strategy, stereo, params.settings, folder, save_part, params.execution, progress.scaled(feedback, 0, 90)
+            strategy, stereo, params.settings, folder, write_part, params.execution, progress.scaled(feedback, 0, 90)
         )
         stats.spacing_px = spacing  # block/points.SPACING: the store compares at it
         return entries, stats.as_dict()
 
-    folder = blk.store_points(
+    folder = blk.store_point_parts(
         "mass_points",
         fill,
         display=(models[0], ids[0], stereo.heights.mean),
@@ -126,7 +126,7 @@ def match_block_points(
     )
     log.pushInfo("points per group (Kornus et al. 2006, Table 1):\n" + format_summary(summary))
     csv = write_summary_csv(summary_csv, summary) if summary_csv else None
-    return MatchResult(dict(summary)["All points"], folder, layer, summary, csv)
+    return MatchResult(int(dict(summary)["All points"]), folder, layer, summary, csv)
 
 
 def terrain_source(info: dict) -> tuple[str, bool]:
@@ -139,7 +139,10 @@ def terrain_source(info: dict) -> tuple[str, bool]:
 
 
 def check_height_range(
-    searched: tuple[float, float], terrain: tuple[float, float], source: tuple[str, bool], feedback=None
+    searched: tuple[float, float],
+    terrain: tuple[float, float],
+    source: tuple[str, bool],
+    feedback: Feedback | None = None,
 ) -> None:
     """Say where the height range `searched` (h_min, h_max; m) misses the block's terrain heights `terrain`
     (h_min, h_max) from `source` (terrain_source): entirely (no overlap), an InputError where the block

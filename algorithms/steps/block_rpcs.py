@@ -17,8 +17,11 @@ image's supplied orientation for every GDAL program and for any block made from 
 `overwrite`, and then a warning says which RPC GDAL reads. A raster without an RPC (a SPOT DIMAP product's)
 gets its fitted RPC beside it by default, so that GDAL programs use the block's orientation."""
 
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,21 +33,25 @@ from ..height_range import check_heights, mean_height
 from ..sensors import rpc_fit
 from ..surface.intersection import height_differences
 
+if TYPE_CHECKING:
+    from ..progress import Feedback
+    from ..sensors.rpc import RpcModel
+
 
 @dataclass
 class RpcParams:
     """The RPC fit's settings; each is a pushbroom:fitrpc parameter."""
 
     image: str = ""  # image name; empty: every image of the block
-    min_height: Optional[float] = None  # cube heights (m, ellipsoidal); both or neither
-    max_height: Optional[float] = None
+    min_height: float | None = None  # cube heights (m, ellipsoidal); both or neither
+    max_height: float | None = None
     overwrite: bool = False  # replace existing _RPC.TXT files, shadow a raster's own RPC
     grid: int = rpc_fit.DEFAULT_GRID[0]  # image grid points along columns and rows
     height_levels: int = rpc_fit.DEFAULT_GRID[2]
-    folder: Optional[str] = None  # output folder; None: beside each image raster
-    report: Optional[str] = None  # HTML report path
+    folder: str | None = None  # output folder; None: beside each image raster
+    report: str | None = None  # HTML report path
 
-    def check(self):
+    def check(self) -> RpcParams:
         """Raise InputError for settings the fit cannot use."""
         if self.grid < 4 or self.height_levels < 4:
             raise InputError(
@@ -58,11 +65,11 @@ class RpcParams:
 class RpcResult:
     """The files fit_block_rpcs wrote."""
 
-    files: list = field(default_factory=list)  # the _RPC.TXT files, in the order of the images
-    report: Optional[str] = None
+    files: list[str] = field(default_factory=list)  # the _RPC.TXT files, in the order of the images
+    report: str | None = None
 
 
-def selected_images(rows, name):
+def selected_images(rows: Sequence[dict[str, Any]], name: str | None) -> list[dict[str, Any]]:
     """The block's image rows, or the one called `name` (empty: all)."""
     name = (name or "").strip()
     if not name:
@@ -73,7 +80,7 @@ def selected_images(rows, name):
     return chosen
 
 
-def cube_heights(blk, h_min, h_max):
+def cube_heights(blk: Block, h_min: float | None, h_max: float | None) -> tuple[float, float]:
     """(min, max) heights of the cube: both given (height_range.check_heights), or the Block
     `blk`'s terrain height range widened by a margin (rpc_fit.default_height_range)."""
     h_min, h_max = check_heights(
@@ -94,7 +101,7 @@ def cube_heights(blk, h_min, h_max):
     return rpc_fit.default_height_range(terrain)
 
 
-def cube_warning(heights, terrain):
+def cube_warning(heights: tuple[float, float], terrain: tuple[float, float] | None) -> str | None:
     """The warning where the cube's `heights` (min, max) leave out some of the block's `terrain` height range
     (None: none recorded, or the cube holds it)."""
     if terrain is None or (heights[0] <= terrain[0] and heights[1] >= terrain[1]):
@@ -106,7 +113,7 @@ def cube_warning(heights, terrain):
     )
 
 
-def rpc_height_check(blk, rpcs):
+def rpc_height_check(blk: Block, rpcs: Mapping[int, RpcModel]) -> str:
     """The summary of surface.intersection.height_differences on the Block `blk`'s tie points, when
     it has tie points and RPCs were fitted for all their images ("" otherwise)."""
     if "tie_points" not in blk.info():
@@ -127,7 +134,7 @@ def rpc_height_check(blk, rpcs):
     ).summary()
 
 
-def _destinations(rows, params):
+def _destinations(rows: Sequence[dict[str, Any]], params: RpcParams) -> list[tuple[str, str | None]]:
     """(the _RPC.TXT path, the raster's own RPC or None) of each image row, checked writable, absent and, beside
     the rasters, not shadowing a raster's own RPC, unless overwriting (module docstring)."""
     destinations = []
@@ -150,7 +157,7 @@ def _destinations(rows, params):
     return destinations
 
 
-def _gdal_reads(row, written, own, rpc, feedback):
+def _gdal_reads(row: dict[str, Any], written: str, own: str | None, rpc: RpcModel, feedback: Feedback | None) -> None:
     """Warn which RPC GDAL reads with the image raster of `row` after `written` was put beside it: not the
     fitted one (a .RPB comes first), or the fitted one instead of the raster's `own`."""
     if not rpc_fit.raster_reads(row["image_path"], rpc):
@@ -168,7 +175,7 @@ def _gdal_reads(row, written, own, rpc, feedback):
         )
 
 
-def fit_block_rpcs(block_path, params, feedback=None):
+def fit_block_rpcs(block_path: str, params: RpcParams, feedback: Feedback | None = None) -> RpcResult:
     """Fit and write the RPCs of the block at `block_path` with RpcParams `params` (module docstring);
     returns an RpcResult. Raises InputError (an unknown image, no height range or an implausible one, a
     destination that exists or cannot be written, a raster's own RPC in the way without `overwrite`),

@@ -1,14 +1,17 @@
 """The tie point selection step (pushbroom:selecttiepoints): tie points for the bundle adjustment
 chosen from the block's mass points (tiepoints.select_tie_points; Kornus et al. 2006 section 3.3), read
 part by part (the best point of a cell is the best of each part's best), and
-stored with the block: the sidecar folder <block>.tie_points.<id> referenced in block_info, and the point layer
+stored with the block: the point folder <block>.tie_points.<id> referenced in block_info, and the point layer
 'tie_points' placed through the reference image's model at the block's mean terrain height.
 
 Empty mass points, or none of the lowest group accepted, are refused before anything is stored; a selection
 far fewer than the block's tie points (block/replacement.py: none, or below half of what the stored ones
 give at the new CELL) keeps them unless `replace_fewer`."""
 
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,6 +22,9 @@ from ..errors import InputError
 from ..height_range import mean_height
 from ..matching.points import MultiPoints
 from ..matching.tiepoints import select_tie_points
+
+if TYPE_CHECKING:
+    from ..progress import Feedback
 
 
 @dataclass
@@ -35,11 +41,11 @@ class TieResult:
     """What select_block_tie_points stored."""
 
     count: int  # tie points selected
-    sidecar: str  # the tie point folder (block/points.py)
+    folder: str  # the tie point folder (block/points.py)
     layer: str  # OGR source of the block's 'tie_points' layer
 
 
-def select_block_tie_points(block_path: str, params: TieParams, feedback=None) -> TieResult:
+def select_block_tie_points(block_path: str, params: TieParams, feedback: Feedback | None = None) -> TieResult:
     """Select and store the tie points of the block at `block_path` with TieParams `params`; returns a
     TieResult. Raises InputError (a cell size that is not positive, no or empty mass points, none of group
     `min_group` or higher, far fewer tie points than the block holds)."""
@@ -70,20 +76,20 @@ def select_block_tie_points(block_path: str, params: TieParams, feedback=None) -
         stats,
     )
     tie = select_tie_points(merged, cell=params.cell, reference_image_id=reference, min_group=params.min_group)
-    reference = tie.stats.get("tie_reference", reference or 1)
+    shown: int = tie.stats.get("tie_reference", reference or 1)  # the image the layer is placed through
     progress.ensure(feedback).pushInfo(
         f"{len(tie)} tie points from {count} mass points: "
         + ", ".join(f"group {g}: {n}" for g, n in tie.group_counts().items())
     )
-    # storage: the sidecar and the point layer
-    sidecar = blk.save_points(
+    # storage: the point folder and the point layer
+    folder = blk.store_points(
         tie,
         "tie_points",
-        display=(blk.model(reference), reference, mean_height(blk.height_range())),
+        display=(blk.model(shown), shown, mean_height(blk.height_range())),
         feedback=feedback,
         replace_fewer=params.replace_fewer,
     )
-    return TieResult(len(tie), sidecar, blk.layer_source("tie_points"))
+    return TieResult(len(tie), folder, blk.layer_source("tie_points"))
 
 
 def check_groups(groups: dict, min_group: int) -> None:

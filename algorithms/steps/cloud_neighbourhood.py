@@ -13,9 +13,13 @@ and its bounding box. A part's context is the points of every part whose box lie
 depend on the execution, and memory follows a part and its neighbours. Each task writes the part again with the
 new sigma_h, and its distances to `.distance.npy`."""
 
+from __future__ import annotations
+
 import functools
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -26,25 +30,50 @@ from ..geodesy import metres_per_degree
 from ..surface import outlier_filter, pointcloud
 from ..surface.local_spread import local_metres, local_spread, reach_m
 
+if TYPE_CHECKING:
+    from ..execution import Execution
+    from ..progress import Feedback
+    from ..sensors.base import SensorModel
+
+#: a part of the cloud as pointcloud.load_part gives it: (lon, lat, h, fields)
+Part = tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]
+
+
+class FirstRound(NamedTuple):
+    """What round 1 (block_intersection.py) left: per part its point file and its summary (box, refined,
+    reference, written), and the cloud's mean position."""
+
+    files: list[str]  # the parts' point files
+    done: list[dict[str, Any]]  # the parts' summaries, in the order of `files`
+    centre: tuple[float, float]  # (lon, lat) of the cloud: the local frame
+    mean_h: float  # m: the cloud's mean ellipsoidal height
+
+
+class OutlierRemoval(NamedTuple):
+    """The statistical outlier removal's settings (surface/outlier_filter.py)."""
+
+    neighbours: int  # k, the nearest points a point's mean distance is taken to (0: off)
+    factor: float  # n: a point whose mean distance d > mu + n s is an outlier
+
 
 @dataclass
 class Neighbourhood:
     """What every task of the round shares."""
 
-    files: list  # the parts' point files (round 1)
+    files: list[str]  # the parts' point files (round 1)
     boxes: list  # per part (lon0, lon1, lat0, lat1) of its points, or None (no point)
-    centre: tuple  # (lon, lat) of the cloud: the local frame
+    centre: tuple[float, float]  # (lon, lat) of the cloud: the local frame
     radius: float  # m: R of the spread (0: no refined dense point)
-    margin: tuple  # (dlon, dlat) degrees around a part's box
+    margin: tuple[float, float]  # (dlon, dlat) degrees around a part's box
     neighbours: int  # k of the outlier filter (0: off)
 
 
-def _refined(path, count):
+def _refined(path: str, count: int) -> np.ndarray:
     name = path + ".refined.npy"
     return np.load(name) if os.path.exists(name) else np.zeros(count, bool)
 
 
-def _part(job, k):
+def _part(job: Neighbourhood, k: int) -> tuple[str, tuple[int, float, float]]:
     """Task: part k with its refined points' sigma_h and (with the filter) its points' mean distances; returns
     (its new file, (count, sum, sum of squares) of its finite distances)."""
     lon, lat, h, fields = pointcloud.load_part(job.files[k])
@@ -74,7 +103,7 @@ def _part(job, k):
     return out, sums
 
 
-def load_kept(path, distances, limit):
+def load_kept(path: str, distances: str, limit: float) -> Part:
     """(lon, lat, h, fields) of the part file `path` without the points whose distance (`distances` .npy)
     exceeds `limit` (NaN distances are kept)."""
     lon, lat, h, fields = pointcloud.load_part(path)
@@ -82,12 +111,21 @@ def load_kept(path, distances, limit):
     return lon[keep], lat[keep], h[keep], {name: v[keep] for name, v in fields.items()}
 
 
-def second_round(files, done, models, centre, mean_h, neighbours, factor, execution, feedback, log):
-    """Run the round (module docstring) over the parts of `files` (round 1's summaries `done`: box, refined,
-    reference, written), `models` the block's; returns (per part a function giving its points, as
-    pointcloud.write_point_cloud_parts takes them; the points kept). Without refined dense points or the filter,
-    the parts as they are."""
-    loaders = [functools.partial(pointcloud.load_part, f) for f in files]
+def second_round(
+    first: FirstRound,
+    models: dict[int, SensorModel],
+    outliers: OutlierRemoval,
+    execution: Execution,
+    feedback: Feedback | None,
+    log: Feedback,
+) -> tuple[list[Callable[[], Part]], int]:
+    """Run the round (module docstring) over the parts round 1 left (`first`), `models` the block's, with the
+    outlier removal `outliers` (neighbours 0: off), the tasks on `execution` with progress to `feedback` and the
+    filter's line to `log`; returns (per part a function giving its points, as pointcloud.write_point_cloud_parts
+    takes them; the points kept). Without refined dense points or the filter, the parts as they are."""
+    files, done, centre, mean_h = first
+    neighbours, factor = outliers
+    loaders: list[Callable[[], Part]] = [functools.partial(pointcloud.load_part, f) for f in files]
     written = sum(d["written"] for d in done)
     refined = [d for d in done if d["refined"]]
     if not refined and not neighbours:
@@ -97,7 +135,8 @@ def second_round(files, done, models, centre, mean_h, neighbours, factor, execut
     if refined:
         reference = models[int(np.bincount([d["reference"] for d in refined]).argmax())]
         col, row = reference.ground_to_image(np.array([centre[0]]), np.array([centre[1]]), np.array([mean_h]))
-        radius = precision.spread_radius(reference, col[0], row[0], mean_h)
+        # arrays in, arrays out: np.asarray only tells the type checker so (it returns the same arrays)
+        radius = precision.spread_radius(reference, np.asarray(col)[0], np.asarray(row)[0], mean_h)
         reach = reach_m(radius)
     if neighbours:
         boxes = [d["box"] for d in done if d["written"]]

@@ -4,7 +4,10 @@ its own orientation, on a DEM, by ortho.orthorectify (the indirect method, Heipk
 The orthoimage covers the image only where the DEM has heights: a DEM that leaves part of the image out
 (ortho.grid.dem_coverage below FULL_COVERAGE) is a warning with the share it covers."""
 
+from __future__ import annotations
+
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from .. import progress, sensors
 from ..atomic import work_dir
@@ -13,8 +16,13 @@ from ..dem_store import VERTICAL, store_dem
 from ..errors import InputError
 from ..execution import Execution
 from ..ortho.grid import dem_coverage
-from ..ortho.orthorectify import orthorectify
+from ..ortho.orthorectify import OrthoSettings, orthorectify
 from ..ortho.resampling import METHODS
+
+if TYPE_CHECKING:
+    from ..ortho.orthorectify import OrthoResult
+    from ..progress import Feedback
+    from ..sensors.base import SensorModel
 
 #: the share of the image under DEM heights below which the step warns that the orthoimage is partial
 FULL_COVERAGE = 0.98
@@ -25,15 +33,15 @@ class OrthoParams:
     """The orthorectification step's settings (pushbroom:orthorectify); see orthorectify and dem_store.store_dem."""
 
     dem_heights: str = "ellipsoidal"  # one of VERTICAL
-    dem_nodata: float = None  # a void value of the DEM declared as nodata
-    crs: str = None  # output CRS (authority id or WKT); None: the UTM zone of the footprint
-    cell_size: float = None  # CRS units; None: the image's ground sampling distance
+    dem_nodata: float | None = None  # a void value of the DEM declared as nodata
+    crs: str | None = None  # output CRS (authority id or WKT); None: the UTM zone of the footprint
+    cell_size: float | None = None  # CRS units; None: the image's ground sampling distance
     resampling: str = "bilinear"  # one of resampling.METHODS
     occlusion: bool = False  # occluded cells as nodata
     max_error: float = 0.01  # px: bound of the coarse-grid interpolation error
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the tiles run
 
-    def check(self):
+    def check(self) -> OrthoParams:
         """Raise InputError for settings no orthorectification can use."""
         if self.dem_heights not in VERTICAL or self.resampling not in METHODS:
             raise InputError(
@@ -45,7 +53,9 @@ class OrthoParams:
         return self
 
 
-def image_and_model(block_path=None, image_name="", image=None, orientation=None):
+def image_and_model(
+    block_path: str | None = None, image_name: str | None = "", image: str | None = None, orientation: str | None = None
+) -> tuple[str, SensorModel]:
     """(image path, sensor model): the block's (adjusted) model of the image named `image_name`, or,
     without a block, raster `image` with its own orientation (sensors.load: `orientation`, else the
     metadata found beside the image). InputError where neither is given, the name is not the block's or the
@@ -67,8 +77,15 @@ def image_and_model(block_path=None, image_name="", image=None, orientation=None
 
 
 def orthorectify_image(
-    output, dem, params=None, block_path=None, image_name="", image=None, orientation=None, feedback=None
-):
+    output: str,
+    dem: str,
+    params: OrthoParams | None = None,
+    block_path: str | None = None,
+    image_name: str | None = "",
+    image: str | None = None,
+    orientation: str | None = None,
+    feedback: Feedback | None = None,
+) -> OrthoResult:
     """The orthorectification step: the image chosen as in image_and_model on the raster DEM `dem`
     (dem_store.store_dem with the params' heights and nodata, in a work folder beside the output; implausible
     heights are reported), written to the
@@ -91,11 +108,13 @@ def orthorectify_image(
             model,
             heights,
             output,
-            crs=params.crs,
-            cell_size=params.cell_size,
-            resampling_method=params.resampling,
-            occlusion_mask=params.occlusion,
-            max_error=params.max_error,
+            settings=OrthoSettings(
+                crs=params.crs,
+                cell_size=params.cell_size,
+                resampling_method=params.resampling,
+                occlusion_mask=params.occlusion,
+                max_error=params.max_error,
+            ),
             execution=params.execution,
             feedback=feedback,
         )

@@ -4,13 +4,18 @@ the checks). An import is one transaction: a bad file leaves the block as it was
 leave far fewer points, measured points or image measurements than the block holds (block/replacement.py),
 unless `replace_fewer`."""
 
+from __future__ import annotations
+
 from dataclasses import dataclass
-from typing import Optional
+from typing import TYPE_CHECKING
 
 from .. import progress
 from ..adjustment import control_points as cp
 from ..block import Block
 from ..sigmas import IMAGE_SIGMA
+
+if TYPE_CHECKING:
+    from ..progress import Feedback
 
 
 @dataclass
@@ -18,7 +23,7 @@ class ImportParams:
     """The import's settings; each is a pushbroom:importpoints parameter."""
 
     mode: str = "replace"  # one of Block.IMPORT_MODES
-    crs: Optional[str] = None  # CRS of x/y columns (authority id or WKT); None: WGS 84
+    crs: str | None = None  # CRS of x/y columns (authority id or WKT); None: WGS 84
     heights: str = "ellipsoidal"  # one of control_points.HEIGHT_TYPES
     default_role: str = "control"  # role of points without one (control_points.ROLES)
     check_ids: str = ""  # comma-separated ids made check points
@@ -41,7 +46,9 @@ class ImportResult:
     layer: str  # OGR source of the block's control point layer
 
 
-def import_points(block_path: str, csv_path: str, params: ImportParams, feedback=None) -> ImportResult:
+def import_points(
+    block_path: str, csv_path: str, params: ImportParams, feedback: Feedback | None = None
+) -> ImportResult:
     """Import the CSV file `csv_path` into the block at `block_path` with ImportParams `params`; returns
     an ImportResult. Raises StorageError where the block cannot be written, and control_points.import_csv's
     InputErrors (format, CRS, implausible points, far fewer points or measurements than the block holds)."""
@@ -73,7 +80,7 @@ def import_points(block_path: str, csv_path: str, params: ImportParams, feedback
     )
 
 
-def export_points(block_path, csv_path, feedback=None):
+def export_points(block_path: str, csv_path: str, feedback: Feedback | None = None) -> str:
     """Write the block's control and check points to `csv_path` in the format import_points reads;
     returns `csv_path`. Raises InputError when the block has no points."""
     blk = Block(block_path)

@@ -33,9 +33,14 @@ per cell, whose median resists mismatches and follows height steps within a cell
 Reference: P. J. Rousseeuw, C. Croux, "Alternatives to the median absolute deviation", JASA 88(424), 1993
 (1.4826 MAD); the standard error of the median, sqrt(pi / 2) s / sqrt(n), for normal errors."""
 
+from __future__ import annotations
+
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
+
+from .tin_grid import Grid
 
 #: m: the spread below which the outlier test does not tighten (quantised or identical heights)
 MIN_SPREAD = 0.05
@@ -65,13 +70,32 @@ class Cells(NamedTuple):
     ring: np.ndarray  # uint8: 0 the cell's own points, r those of the cells r away, NO_RING a gap
 
 
-def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=True, radius=0):
+class CellSettings(NamedTuple):
+    """How a cell fuses its points (module docstring): outliers beyond `k` robust spreads dropped (0: none);
+    with `fallback` off, no UNREFINED point is used; a cell without points of its own takes those of the
+    nearest ring of cells within `radius` cells."""
+
+    k: float = 3.0
+    fallback: bool = True
+    radius: int = 0
+
+
+def cells_on_grid(
+    x: np.ndarray,
+    y: np.ndarray,
+    z: np.ndarray,
+    sigma: np.ndarray | None,
+    grid: Grid,
+    settings: CellSettings = CellSettings(),
+    own: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    tier: np.ndarray | None = None,
+) -> Cells:
     """Cells on `grid` (tin_grid.Grid) from points x, y, z (and sigma_h, or None; and their `tier`, or None:
-    all 0) in its CRS (module docstring); `own(x, y)`: the points whose cell this grid owns (a tile's),
-    default all; `radius`: a cell without points of its own takes those of the nearest ring of cells within
-    that many cells."""
+    all 0) in its CRS (module docstring) with CellSettings `settings`; `own(x, y)`: the points whose cell
+    this grid owns (a tile's), default all."""
+    k, fallback = settings.k, settings.fallback
     x, y, z = (np.asarray(v, float) for v in (x, y, z))
-    radius = int(radius)
+    radius = int(settings.radius)
     col = np.floor((x - grid.x0) / grid.cell).astype(np.int64)
     row = np.floor((grid.y0 - y) / grid.cell).astype(np.int64)
     owned = np.ones(x.size, bool) if own is None else np.asarray(own(x, y), bool)
@@ -87,16 +111,19 @@ def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=Tru
     # an offer to a cell that already has a better rank is dropped at once
     best = np.full(grid.rows * grid.cols, np.iinfo(np.int64).max)
     keys, picks, ranks, rings = [], [], [], []
-    for ring in range(radius + 1):
+    for distance in range(radius + 1):
         for dr, dc in (
-            (a, b) for a in range(-ring, ring + 1) for b in range(-ring, ring + 1) if max(abs(a), abs(b)) == ring
+            (a, b)
+            for a in range(-distance, distance + 1)
+            for b in range(-distance, distance + 1)
+            if max(abs(a), abs(b)) == distance
         ):
             r, c = row[index] + dr, col[index] + dc
             ok = (r >= 0) & (c >= 0) & (r < grid.rows) & (c < grid.cols)
-            if ring == 0:
+            if distance == 0:
                 ok &= owned[index]
             key, pick = (r * grid.cols + c)[ok], index[ok]
-            rank = t[pick] * (radius + 1) + ring
+            rank = t[pick] * (radius + 1) + distance
             better = rank <= best[key]
             key, pick, rank = key[better], pick[better], rank[better]
             for value in np.unique(rank):  # a tier or two: plain assignments, not the slow ufunc.at
@@ -105,7 +132,7 @@ def cells_on_grid(x, y, z, sigma, grid, k=3.0, own=None, tier=None, fallback=Tru
             keys.append(key)
             picks.append(pick)
             ranks.append(rank)
-            rings.append(np.full(key.size, ring, np.uint8))
+            rings.append(np.full(key.size, distance, np.uint8))
     key, pick, rank, ring = (np.concatenate(v) for v in (keys, picks, ranks, rings))
     heights = np.full((grid.rows, grid.cols), np.nan, np.float32)
     count = np.zeros((grid.rows, grid.cols), np.int32)

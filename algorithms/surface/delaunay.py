@@ -13,7 +13,10 @@ or of an earlier point at the same distance, left out as qhull does (or lost). `
 lost point, every triangle counter-clockwise, twins consistent, convex hull, Euler count T = 2 n - 2 - h, every edge
 locally Delaunay) and returns None where it fails, for the caller to fall back to qhull."""
 
+from __future__ import annotations
+
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -164,10 +167,33 @@ def legalize(a, x, y, tri, halfedges, hull_start, hull_prev, hull_tri, stack):
         top += 1
 
 
+class Hull(NamedTuple):
+    """The convex hull as the sweep builds it, per point (int32 arrays of n): `next` and `prev` its
+    neighbours along the hull (next[k] == k: no longer on it), `tri` the half-edge of its outgoing hull edge."""
+
+    next: np.ndarray
+    prev: np.ndarray
+    tri: np.ndarray
+
+
 @njit(cache=True, nogil=True)
-def sweep(x, y, dist, i0, i1, i2, cx, cy, tri, halfedges, hull_next, hull_prev, hull_tri):
-    """Insert the points, sorted by `dist` from the seed circumcentre (cx, cy), around the seed triangle.
-    Returns (half-edges used, hull start, exact duplicates left out, points that found no visible hull edge)."""
+def sweep(
+    x: np.ndarray,
+    y: np.ndarray,
+    dist: np.ndarray,
+    i0: int,
+    i1: int,
+    i2: int,
+    cx: float,
+    cy: float,
+    tri: np.ndarray,
+    halfedges: np.ndarray,
+    hull: Hull,
+) -> tuple[int, int, int, int]:
+    """Insert the points, sorted by `dist` from the seed circumcentre (cx, cy), around the seed triangle
+    (i0, i1, i2), into the half-edges (tri, halfedges) and the `hull`. Returns (half-edges used, hull start,
+    exact duplicates left out, points that found no visible hull edge)."""
+    hull_next, hull_prev, hull_tri = hull
     n = x.size
     size = max(int(np.ceil(np.sqrt(n))), 1)
     hull_hash = np.full(size, -1, np.int64)
@@ -356,11 +382,9 @@ def triangulate(x, y):
     x, y, dist = x[order], y[order], dist[order]
     i0, i1, i2 = (int(np.argmax(order == i)) for i in (i0, i1, i2))
     tri, halfedges = np.empty(6 * n, np.int32), np.empty(6 * n, np.int32)
-    hull_next, hull_prev, hull_tri = (np.empty(n, np.int32) for _ in range(3))
-    used, hull_start, duplicates, lost = sweep(
-        x, y, dist, i0, i1, i2, cx, cy, tri, halfedges, hull_next, hull_prev, hull_tri
-    )
+    hull = Hull(*(np.empty(n, np.int32) for _ in range(3)))
+    used, hull_start, duplicates, lost = sweep(x, y, dist, i0, i1, i2, cx, cy, tri, halfedges, hull)
     tri, halfedges = tri[:used], halfedges[:used]
-    if lost or not check(x, y, tri, halfedges, hull_next, hull_start, n - duplicates):
+    if lost or not check(x, y, tri, halfedges, hull.next, hull_start, n - duplicates):
         return None
     return Triangulation(order[tri].reshape(-1, 3), halfedges, n)

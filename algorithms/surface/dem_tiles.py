@@ -56,12 +56,20 @@ from ..errors import CancelledError, InputError
 from ..execution import run_tasks, session
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
-from .cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, cells_on_grid
+from .cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, CellSettings, cells_on_grid
 from .gap_fill import fill_gaps
-from .geotiff import assemble_tiles, write_float_raster
-from .point_input import point_chunks, read_breaklines
-from .tin import delaunay, filter_blunders, flat_points, residual_histogram, spread
-from .tin_dem import EDGE_SPACINGS, SPACING_SAMPLE, DemParams, output_crs, surface_on_grid, tin_vertices
+from .geotiff import Frame, assemble_tiles, write_float_raster
+from .point_input import PointSet, point_chunks, read_breaklines
+from .tin import TileShare, delaunay, filter_blunders, flat_points, residual_histogram, spread
+from .tin_dem import (
+    EDGE_SPACINGS,
+    SPACING_SAMPLE,
+    DemParams,
+    SurfaceSettings,
+    output_crs,
+    surface_on_grid,
+    tin_vertices,
+)
 from .tin_grid import Grid
 
 #: the margin of a tile in maximum triangle edges
@@ -249,7 +257,7 @@ def _residual_tile(job, box, points_file, spreads):
         return histogram.EMPTY
     tin = delaunay(x, y)
     check_cancel()  # between the stages (execution: a cancel reaches a running tile)
-    keep, _ = filter_blunders(tin, x, y, z, k=k, fixed=fixed, spreads=spreads)
+    keep, _ = filter_blunders(tin, x, y, z, k=k, fixed=fixed, tile=TileShare(spreads))
     return residual_histogram(tin, x, y, z, keep, fixed, inside)
 
 
@@ -283,18 +291,10 @@ def _dem_tile(job, box, points_file, spreads, out, precision_out):
     rows = np.fromfile(points_file, POINT)
     sub = _tile_grid(grid, box)
     result = surface_on_grid(
-        rows["x"],
-        rows["y"],
-        rows["z"],
-        rows["sigma"] if sigma else None,
+        PointSet(rows["x"], rows["y"], rows["z"], srs, {"sigma_h": rows["sigma"]} if sigma else {}),
         sub,
-        srs,
-        max_edge,
-        datum=datum,
-        k=k,
-        iterations=iterations,
+        SurfaceSettings(max_edge, datum, k, iterations, precision_out is not None),
         breaklines=_near(breaklines, sub, margin),
-        precision=precision_out is not None,
         own=_owner(grid, box),
         spreads=spreads,
     )
@@ -327,11 +327,9 @@ def _cell_tile(job, box, points_file, out, precision_out, count_out, ring_out):
         rows["z"],
         rows["sigma"] if sigma else None,
         sub,
-        k=k,
+        CellSettings(k=k, fallback=fallback, radius=radius),
         own=_owner(grid, box),
         tier=rows["tier"],
-        fallback=fallback,
-        radius=radius,
     )
     check_cancel()  # before the writes (execution: a cancel reaches a running tile)
     write_float_raster(out, cells.heights, sub.geotransform, srs, overviews=False)
@@ -423,9 +421,7 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
             assemble_tiles(
                 names["dem"],
                 tmp,
-                grid.geotransform,
-                (grid.cols, grid.rows),
-                target,
+                Frame(grid.geotransform, (grid.cols, grid.rows), target),
                 description=f"height ({datum}, m)",
                 metadata={
                     "HEIGHT_DATUM": datum,
@@ -440,7 +436,9 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
             )
             if mask_path:
                 rings = os.path.join(work, "rings.tif")
-                assemble_tiles(names["ring"], rings, grid.geotransform, (grid.cols, grid.rows), target, overviews=False)
+                assemble_tiles(
+                    names["ring"], rings, Frame(grid.geotransform, (grid.cols, grid.rows), target), overviews=False
+                )
                 result.filled = fill_gaps(
                     tmp,
                     stack.enter_context(atomic_path(mask_path)),
@@ -453,9 +451,7 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
                     assemble_tiles(
                         tiles,
                         tmp_extra,
-                        grid.geotransform,
-                        (grid.cols, grid.rows),
-                        target,
+                        Frame(grid.geotransform, (grid.cols, grid.rows), target),
                         description=description,
                         feedback=progress.scaled(feedback, 94, 100),
                     )
@@ -605,9 +601,7 @@ def dem_from_point_cloud(
             assemble_tiles(
                 outs,
                 tmp,
-                grid.geotransform,
-                (grid.cols, grid.rows),
-                target,
+                Frame(grid.geotransform, (grid.cols, grid.rows), target),
                 description=f"height ({datum}, m)",
                 metadata={"HEIGHT_DATUM": datum, "POINTS": result.points, "BLUNDERS_REMOVED": sum(removed)},
                 feedback=progress.scaled(feedback, 80, 95 if precision_path else 100),
@@ -616,9 +610,7 @@ def dem_from_point_cloud(
                 assemble_tiles(
                     precisions,
                     tmp_precision,
-                    grid.geotransform,
-                    (grid.cols, grid.rows),
-                    target,
+                    Frame(grid.geotransform, (grid.cols, grid.rows), target),
                     description=done[0]["precision_kind"],
                     feedback=progress.scaled(feedback, 95, 100),
                 )

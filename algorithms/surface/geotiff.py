@@ -1,11 +1,17 @@
 """Writing rasters in a projected or geographic CRS: tiled, DEFLATE-compressed GeoTIFF with internal
 overviews and nodata, written atomically (a cancel or a crash leaves nothing under the final name)."""
 
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any, NamedTuple
+
 import numpy as np
 
 from .. import progress
 from ..atomic import atomic_path, closing
 from ..errors import CancelledError
+from ..progress import Feedback
 
 #: nodata of the Float32 height and precision rasters
 NODATA = -32767.0
@@ -48,27 +54,33 @@ def write_float_raster(path, array, geotransform, srs, description="", metadata=
     return path
 
 
+class Frame(NamedTuple):
+    """Where a raster lies: its GDAL `geotransform`, `size` (cols, rows) and `srs` (osr.SpatialReference)."""
+
+    geotransform: Sequence[float]
+    size: tuple[int, int]
+    srs: Any
+
+
 def assemble_tiles(
-    tiles,
-    path,
-    geotransform,
-    size,
-    srs,
-    options=OPTIONS,
-    description=None,
-    metadata=None,
-    overviews=True,
-    feedback=None,
-):
+    tiles: Iterable[str],
+    path: str,
+    frame: Frame,
+    options: Sequence[str] = OPTIONS,
+    description: str | None = None,
+    metadata: dict[str, Any] | None = None,
+    overviews: bool = True,
+    feedback: Feedback | None = None,
+) -> str:
     """Write the GeoTIFF `tiles` (one data type, bands and nodata; together they cover parts of the raster
-    of `size` (cols, rows) with `geotransform` in `srs`) as one GeoTIFF at `path` (a temporary name: the
-    caller renames it) with creation `options` and AVERAGE overviews (overview_levels; none without
-    `overviews`): a VRT translated
-    and its overviews built by GDAL in blocks, so memory follows GDAL's cache, not the raster. Cells no
-    tile covers are the tiles' nodata. CancelledError when `feedback` cancels."""
+    of `frame`) as one GeoTIFF at `path` (a temporary name: the caller renames it) with creation `options`
+    and AVERAGE overviews (overview_levels; none without `overviews`): a VRT translated and its overviews
+    built by GDAL in blocks, so memory follows GDAL's cache, not the raster. Cells no tile covers are the
+    tiles' nodata. CancelledError when `feedback` cancels."""
     from osgeo import gdal
 
     gdal.UseExceptions()
+    geotransform, size, srs = frame
     x0, dx, _, y0, _, dy = geotransform
     bounds = (x0, y0 + size[1] * dy, x0 + size[0] * dx, y0)
     vrt = gdal.BuildVRT("", list(tiles), outputBounds=bounds, xRes=dx, yRes=-dy)

@@ -20,15 +20,20 @@ at heights h0 -+ 500 m from `image_to_ground`). Per point the result carries the
 sqrt(v' P v / (2k - 3)) (unitless: about 1 when the image sigma is right; a posteriori sigmas =
 sigma0 x a priori sigmas), the RMS of the 2k image residuals (px), the iterations and a status."""
 
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from .. import histogram, progress
 from ..errors import InputError
 from ..geodesy import ecef_to_geodetic, metres_per_degree, offset_enu
+from ..progress import Feedback
 from ..sigmas import IMAGE_SIGMA
 
 STATUS_NAMES = (
@@ -52,6 +57,17 @@ START_HALF_HEIGHT = 500.0
 SINGULAR_RATIO = 1e-12
 #: points per chunk (memory and progress)
 CHUNK = 200_000
+
+
+class Measurements(NamedTuple):
+    """Image measurements of object points, one row per measurement: the image id, the point it belongs
+    to (any integers), col, row (GDAL convention) and sigma (px, a number or one per measurement)."""
+
+    image: ArrayLike
+    point: ArrayLike
+    col: ArrayLike
+    row: ArrayLike
+    sigma: ArrayLike = IMAGE_SIGMA
 
 
 @dataclass
@@ -171,7 +187,14 @@ def closest_to_lines(p0, p1, bounds, singular_ratio, xyz, ok):
                 xyz[g, r] = 0.5 * (p0[first, r] + p1[first, r]) if first >= 0 else np.nan
 
 
-def _check_inputs(models, image, point, col, row, sigma):
+#: the arrays of Measurements, one row per measurement: image, point, col, row, sigma
+_Rows = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _check_inputs(models: dict[Any, Any], measurements: Measurements) -> _Rows:
+    """The measurements as contiguous 1-D arrays of one length (the sigma broadcast); InputError where they
+    cannot be (lengths, an image without a model, non-finite coordinates, a sigma not positive)."""
+    image, point, col, row, sigma = measurements
     try:
         arrays = np.broadcast_arrays(
             np.asarray(image).ravel(),
@@ -203,18 +226,22 @@ def _default_height(models):
 
 
 def intersect(
-    models, image_ids, point_index, col, row, sigma=IMAGE_SIGMA, h0=None, max_iter=10, tol=TOLERANCE, feedback=None
-):
+    models: dict[Any, Any],
+    measurements: Measurements,
+    h0: float | None = None,
+    max_iter: int = 10,
+    tol: float = TOLERANCE,
+    feedback: Feedback | None = None,
+) -> Intersection:
     """Intersect the object points of image measurements (module docstring).
 
     `models`: dict image id -> sensor model with `partials`, `ground_to_image`, `image_to_ground`
-    (SpotModel, RpcModel); one row per measurement: `image_ids`, `point_index` (any integers: the
-    point each measurement belongs to), `col`, `row` (GDAL convention) and `sigma` (px, a number or
-    one per measurement). `h0`: height (m) of the start (default: the models' mean height range, or
-    0 m). Returns an Intersection. Raises InputError on unusable input; points that cannot be
-    intersected get a status (fewer than 2 rays, a measurement outside its image or a ray outside a
-    model's domain, parallel rays, no convergence in `max_iter` steps of < `tol` m)."""
-    image, point, col, row, sigma = _check_inputs(models, image_ids, point_index, col, row, sigma)
+    (SpotModel, RpcModel); `measurements`: Measurements (image ids, the points they belong to, col, row,
+    sigma). `h0`: height (m) of the start (default: the models' mean height range, or 0 m). Returns an
+    Intersection. Raises InputError on unusable input; points that cannot be intersected get a status
+    (fewer than 2 rays, a measurement outside its image or a ray outside a model's domain, parallel rays,
+    no convergence in `max_iter` steps of < `tol` m)."""
+    image, point, col, row, sigma = _check_inputs(models, measurements)
     h0 = _default_height(models) if h0 is None else float(h0)
     ids, inverse = np.unique(point, return_inverse=True)
     order = np.lexsort((image, inverse))
@@ -237,37 +264,29 @@ def intersect(
         a, b, lo, hi = chunks[k], chunks[k + 1], bounds[k], bounds[k + 1]
         values = _intersect_chunk(
             models,
-            image[lo:hi],
-            inverse[lo:hi] - a,
-            col[lo:hi],
-            row[lo:hi],
-            sigma[lo:hi],
+            (image[lo:hi], inverse[lo:hi] - a, col[lo:hi], row[lo:hi], sigma[lo:hi]),
             rays[a:b],
             h0,
-            max_iter,
-            tol,
+            (max_iter, tol),
             progress.scaled(feedback, 100.0 * k / (len(chunks) - 1), 100.0 * (k + 1) / (len(chunks) - 1)),
         )
         for array, value in zip(fields, values):
             array[a:b] = value
     lon, lat, h, status, iterations, sigma0, rms, covariance = fields
     bad = status != CONVERGED
-    for values in (lon, lat, h, sigma0, rms, covariance):
-        values[bad] = np.nan
+    for array in (lon, lat, h, sigma0, rms, covariance):
+        array[bad] = np.nan
     return Intersection(ids, lon, lat, h, rays, status, iterations, sigma0, rms, covariance)
 
 
-def intersect_measured(models, cols, rows, h0=None):
+def intersect_measured(models: list[Any], cols: ArrayLike, rows: ArrayLike, h0: float | None = None) -> Intersection:
     """`intersect` of m points measured in each of k images: `models` a list of k models, `cols` and `rows`
     (k, m) arrays (row i: image i's positions); the points are 0 ... m - 1, the images 0 ... k - 1."""
     cols, rows = np.asarray(cols, float), np.asarray(rows, float)
     k, m = cols.shape
     return intersect(
         dict(enumerate(models)),
-        np.tile(np.arange(k), m),
-        np.repeat(np.arange(m), k),
-        cols.T.ravel(),
-        rows.T.ravel(),
+        Measurements(np.tile(np.arange(k), m), np.repeat(np.arange(m), k), cols.T.ravel(), rows.T.ravel()),
         h0=h0,
     )
 
@@ -283,11 +302,18 @@ def _initial_status(models, image, point, col, row, rays):
     return status
 
 
-def closest_points(models, image_ids, point_index, col, row, h0=None):
+def closest_points(
+    models: dict[Any, Any],
+    image_ids: ArrayLike,
+    point_index: ArrayLike,
+    col: ArrayLike,
+    row: ArrayLike,
+    h0: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The start of `intersect` alone, without its adjustment: per point the point closest in least
     squares to the lines of sight of its measurements (`_start`). Returns (the point indices given,
     sorted and unique; lon, lat, h; ok: at least two non-parallel lines inside the images)."""
-    image, point, col, row, _ = _check_inputs(models, image_ids, point_index, col, row, 1.0)
+    image, point, col, row, _ = _check_inputs(models, Measurements(image_ids, point_index, col, row, 1.0))
     h0 = _default_height(models) if h0 is None else float(h0)
     ids, inverse = np.unique(point, return_inverse=True)
     order = np.lexsort((image, inverse))
@@ -302,9 +328,19 @@ def closest_points(models, image_ids, point_index, col, row, h0=None):
     return ids, lon, lat, h, good
 
 
-def _intersect_chunk(models, image, point, col, row, sigma, rays, h0, max_iter, tol, feedback):
-    """Intersect the points 0 .. len(rays) - 1 of one chunk from their measurements (sorted by
-    `point`). Returns lon, lat, h, status, iterations, sigma0, rms, covariance."""
+def _intersect_chunk(
+    models: dict[Any, Any],
+    measurements: _Rows,
+    rays: np.ndarray,
+    h0: float,
+    convergence: tuple[int, float],
+    feedback: Feedback | None,
+) -> tuple[np.ndarray, ...]:
+    """Intersect the points 0 .. len(rays) - 1 of one chunk from their `measurements` (the arrays of
+    Measurements, sorted by point), in at most max_iter steps down to tol m (`convergence`). Returns lon,
+    lat, h, status, iterations, sigma0, rms, covariance."""
+    image, point, col, row, sigma = measurements
+    max_iter, tol = convergence
     n = rays.size
     status = _initial_status(models, image, point, col, row, rays)
     lon, lat, h = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
@@ -482,7 +518,15 @@ class HeightDifferences:
         )
 
 
-def height_differences(models_rigorous, models_rpc, image_ids, point_index, col, row, h0=None):
+def height_differences(
+    models_rigorous: dict[Any, Any],
+    models_rpc: dict[Any, Any],
+    image_ids: ArrayLike,
+    point_index: ArrayLike,
+    col: ArrayLike,
+    row: ArrayLike,
+    h0: float | None = None,
+) -> HeightDifferences:
     """Kornus et al. 2006, section 3.5.2, Table 5: the object points of image measurements (one row per
     measurement: image id, point index, col, row) intersected once with the rigorous models
     and once with their RPCs (dicts image id -> model with the same ids), and the differences."""
@@ -491,8 +535,9 @@ def height_differences(models_rigorous, models_rpc, image_ids, point_index, col,
             f"the rigorous models (images {sorted(models_rigorous)}) and the RPCs (images "
             f"{sorted(models_rpc)}) must describe the same images"
         )
-    a = intersect(models_rigorous, image_ids, point_index, col, row, h0=h0)
-    b = intersect(models_rpc, image_ids, point_index, col, row, h0=h0)
+    measured = Measurements(image_ids, point_index, col, row)
+    a = intersect(models_rigorous, measured, h0=h0)
+    b = intersect(models_rpc, measured, h0=h0)
     ok = a.ok & b.ok
     east, north = metres_per_degree(a.lat[ok])
     return HeightDifferences(

@@ -13,6 +13,11 @@ with an empty diametral circle is a Gabriel edge, hence an edge of every Delauna
 the points, so no triangle crosses the line). Mass points closer than `min_length` / 2 to a
 breakline, which would force endless splits, give way to the line and are dropped (counted)."""
 
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
 import numpy as np
 from numba import njit
 from scipy.spatial import Delaunay, QhullError, cKDTree
@@ -185,7 +190,25 @@ def local_maxima(indptr, indices, score, candidate, out):
 RESIDUAL_STEP = 1e-3
 
 
-def filter_blunders(tin, x, y, z, k=4.0, iterations=3, fixed=None, counted=None, spreads=None):
+class TileShare(NamedTuple):
+    """A tile's share of a tiled run of the blunder filter: `spreads` the (centre, sigma) of each iteration
+    given from outside (None: those of the tile's points), and `counted` the points the tile counts as its
+    own (None: all)."""
+
+    spreads: Sequence[tuple[float, float]] | None = None
+    counted: np.ndarray | None = None
+
+
+def filter_blunders(
+    tin: Any,
+    x: np.ndarray,
+    y: np.ndarray,
+    z: np.ndarray,
+    k: float = 4.0,
+    iterations: int = 3,
+    fixed: np.ndarray | None = None,
+    tile: TileShare | None = None,
+) -> tuple[np.ndarray, list[int]]:
     """Points of `tin` (`delaunay(x, y)`) whose height departs from the plane fitted to their TIN
     neighbours by more than k robust sigmas: |r - centre| > k * sigma, r = neighbour_residuals rounded to
     RESIDUAL_STEP, with (centre, sigma) = spread of the tested points' r. Of neighbouring candidates only
@@ -193,14 +216,16 @@ def filter_blunders(tin, x, y, z, k=4.0, iterations=3, fixed=None, counted=None,
     already removed (on the same TIN), until no point is beyond k sigmas. Points where `fixed` is True
     (breakline vertices) are neighbours but never removed.
 
-    `spreads`: the (centre, sigma) of each iteration given from outside, one iteration per entry, instead
-    of those of these points: a tiled run takes them from the residual_histogram of all tiles, so that its
-    decisions do not depend on the tiling. Returns (keep mask, removed per iteration: of the points where
-    `counted` is True, default all)."""
+    `tile` (TileShare): its `spreads` are the (centre, sigma) of each iteration given from outside, one
+    iteration per entry, instead of those of these points: a tiled run takes them from the
+    residual_histogram of all tiles, so that its decisions do not depend on the tiling. Returns (keep mask,
+    removed per iteration: of the points the tile's `counted` marks, default all)."""
+    spreads, counted = tile or TileShare()
     x, y, z = (np.ascontiguousarray(v, float) for v in (x, y, z))
     keep = np.ones(len(z), bool)
     tested = np.ones(len(z), bool) if fixed is None else ~np.asarray(fixed, bool)
-    removed, bad = [], np.empty(len(z), bool)
+    removed: list[int] = []
+    bad = np.empty(len(z), bool)
     for i in range(iterations if spreads is None else len(spreads)):
         r = _residual_steps(tin, x, y, z, keep)
         ok = np.isfinite(r) & tested

@@ -7,8 +7,12 @@ The precision raster is the points' a priori sigma_h interpolated on the same TI
 it (pushbroom:intersectpoints writes it; a breakline vertex takes that of the nearest point),
 otherwise the distance (CRS units) from each cell centre to the nearest point of the TIN."""
 
+from __future__ import annotations
+
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -17,9 +21,11 @@ from .. import progress
 from ..crs import egm96_undulation, reproject, transform, wgs84
 from ..errors import InputError
 from ..execution import Execution
+from ..progress import Feedback
 from .geotiff import write_float_raster
+from .point_input import PointSet
 from .pointcloud import output_srs
-from .tin import conform_breaklines, delaunay, filter_blunders, flat_points, longest_edge
+from .tin import TileShare, conform_breaklines, delaunay, filter_blunders, flat_points, longest_edge
 from .tin_grid import Grid, rasterize
 
 DATUMS = ("ellipsoidal", "egm96")
@@ -78,24 +84,35 @@ def output_crs(srs, x, y, crs=None):
     return output_srs(crs, ll[:, 0], ll[:, 1], "the point cloud")
 
 
+@dataclass(frozen=True)
+class SurfaceSettings:
+    """How surface_on_grid makes a TIN surface: triangles with an edge longer than `max_edge` are gaps;
+    the blunder filter removes points beyond `k` robust sigmas (0: no filter) in `iterations`; `datum`
+    'ellipsoidal' or 'egm96' (H = h - N); `precision`: the precision raster too."""
+
+    max_edge: float
+    datum: str = "ellipsoidal"
+    k: float = 4.0
+    iterations: int = 3
+    precision: bool = False
+
+
 def interpolate_dem(
-    points,
-    cell=10.0,
-    crs=None,
-    datum="ellipsoidal",
-    max_edge=None,
-    k=4.0,
-    iterations=3,
-    breaklines=(),
-    breakline_srs=None,
-    precision=False,
-    feedback=None,
-):
-    """DemResult of a PointSet (point_input.py; z ellipsoidal). `crs`: output CRS (default: the UTM
-    zone of the points); `max_edge`: triangles with a longer edge are gaps (default `default_max_edge`);
-    `k`: blunder threshold in robust sigmas (0: no filter), `iterations` of the filter; `breaklines`:
-    (n, 3) arrays (x, y in `breakline_srs`, default the output CRS; z as the points');
-    `datum`: 'ellipsoidal' or 'egm96' (H = h - N)."""
+    points: PointSet,
+    params: DemParams | None = None,
+    breaklines: Sequence[np.ndarray] = (),
+    breakline_srs: Any = None,
+    precision: bool = False,
+    feedback: Feedback | None = None,
+) -> DemResult:
+    """DemResult of a PointSet (point_input.py; z ellipsoidal) with the DemParams `params` (default: its
+    defaults) of a TIN: its `cell`; `crs` the output CRS (default: the UTM zone of the points); `max_edge`:
+    triangles with a longer edge are gaps (default `default_max_edge`); `k`: blunder threshold in robust
+    sigmas (0: no filter), `iterations` of the filter; `datum`: 'ellipsoidal' or 'egm96' (H = h - N).
+    `breaklines`: (n, 3) arrays (x, y in `breakline_srs`, an osr.SpatialReference, default the output CRS;
+    z as the points'); `precision`: the precision raster too."""
+    params = params or DemParams()
+    cell, datum, max_edge = params.cell, params.datum, params.max_edge
     if datum not in DATUMS:
         raise InputError(f"the height datum must be one of {', '.join(DATUMS)}, not {datum!r}")
     finite = np.isfinite(points.x) & np.isfinite(points.y) & np.isfinite(points.z)
@@ -105,7 +122,7 @@ def interpolate_dem(
             f"{int(finite.sum())}: check the input point cloud"
         )
     progress.step(feedback, 0, f"{len(points)} points ({len(points) - int(finite.sum())} not finite, left out)")
-    target = output_crs(points.srs, np.mean(points.x[finite]), np.mean(points.y[finite]), crs)
+    target = output_crs(points.srs, np.mean(points.x[finite]), np.mean(points.y[finite]), params.crs)
     pts = points.to(target)
     lost = finite & ~(np.isfinite(pts.x) & np.isfinite(pts.y))
     if lost.any():
@@ -126,18 +143,10 @@ def interpolate_dem(
     if len(x) >= 3 and flat_points(x, y):
         delaunay(x, y)  # the clear InputError of points that span no area
     result = surface_on_grid(
-        x,
-        y,
-        z,
-        sigma,
+        PointSet(x, y, z, target, {} if sigma is None else {"sigma_h": sigma}),
         grid,
-        target,
-        max_edge,
-        datum=datum,
-        k=k,
-        iterations=iterations,
+        SurfaceSettings(max_edge, datum, params.k, params.iterations, precision),
         breaklines=breaklines,
-        precision=precision,
         feedback=feedback,
     )
     if not np.isfinite(result.heights).any():
@@ -171,32 +180,27 @@ def tin_vertices(x, y, z, sigma, cell, max_edge, breaklines=(), own=None):
 
 
 def surface_on_grid(
-    x,
-    y,
-    z,
-    sigma,
-    grid,
-    srs,
-    max_edge,
-    datum="ellipsoidal",
-    k=4.0,
-    iterations=3,
-    breaklines=(),
-    precision=False,
-    own=None,
-    spreads=None,
-    feedback=None,
-):
-    """The DemResult of points x, y (in `srs`, the grid's CRS), z (ellipsoidal) and their sigma_h (or
-    None) on `grid`: breakline vertices added (tin_vertices), Delaunay TIN, blunder filter (`k` robust
-    sigmas, `iterations`; with `spreads`, those given per iteration: tin.filter_blunders), linear
-    interpolation in the triangles with edges up to `max_edge`, the precision raster where asked, EGM96
-    heights for that `datum`. Cells outside every used triangle are NaN: all of them where the points span
-    no area (tin.flat_points). The counts (points and vertices left in the TIN, blunders removed, points
-    dropped) are of the points and vertices where `own(x, y)` is True (default: all), so that a tile's
-    counts leave out its margin."""
+    points: PointSet,
+    grid: Grid,
+    settings: SurfaceSettings,
+    breaklines: Sequence[np.ndarray] = (),
+    own: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    spreads: Sequence[tuple[float, float]] | None = None,
+    feedback: Feedback | None = None,
+) -> DemResult:
+    """The DemResult of `points` (x, y in their srs, the grid's CRS; z ellipsoidal; their sigma_h where
+    they have it) on `grid` with SurfaceSettings `settings`: breakline vertices added (tin_vertices),
+    Delaunay TIN, blunder filter (`k` robust sigmas, `iterations`; with `spreads`, those given per
+    iteration: tin.filter_blunders), linear interpolation in the triangles with edges up to `max_edge`,
+    the precision raster where asked, EGM96 heights for that `datum`. Cells outside every used triangle
+    are NaN: all of them where the points span no area (tin.flat_points). The counts (points and vertices
+    left in the TIN, blunders removed, points dropped) are of the points and vertices where `own(x, y)` is
+    True (default: all), so that a tile's counts leave out its margin."""
+    srs, max_edge, datum, k, precision = points.srs, settings.max_edge, settings.datum, settings.k, settings.precision
     cell = grid.cell
-    x, y, z, sigma, fixed, inside, dropped = tin_vertices(x, y, z, sigma, cell, max_edge, breaklines, own)
+    x, y, z, sigma, fixed, inside, dropped = tin_vertices(
+        points.x, points.y, points.z, points.sigma_h, cell, max_edge, breaklines, own
+    )
     result = DemResult(
         np.full(grid.shape, np.nan),
         grid,
@@ -217,7 +221,7 @@ def surface_on_grid(
     tin = delaunay(x, y)
     if k > 0:
         keep, result.removed = filter_blunders(
-            tin, x, y, z, k=k, iterations=iterations, fixed=fixed, counted=inside, spreads=spreads
+            tin, x, y, z, k=k, iterations=settings.iterations, fixed=fixed, tile=TileShare(spreads, inside)
         )
         progress.step(
             feedback,
@@ -286,10 +290,10 @@ class DemParams:
     """The DEM step's settings (pushbroom:interpolatedem); see interpolate_dem."""
 
     cell: float = 10.0  # output CRS units
-    crs: str = None  # output CRS (authority id or WKT); None: the UTM zone of the points
-    input_crs: str = None  # the point cloud's CRS; None: the file's own
+    crs: str | None = None  # output CRS (authority id or WKT); None: the UTM zone of the points
+    input_crs: str | None = None  # the point cloud's CRS; None: the file's own
     datum: str = "ellipsoidal"  # one of DATUMS
-    max_edge: float = None  # longer triangles are gaps; None: default_max_edge
+    max_edge: float | None = None  # longer triangles are gaps; None: default_max_edge
     k: float = 4.0  # blunder threshold in robust sigmas (0: no filter)
     iterations: int = 3  # of the blunder filter
     tile: int = 1024  # cells per tile side (dem_tiles.py)

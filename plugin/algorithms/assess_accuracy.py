@@ -12,49 +12,68 @@ from qgis.core import (
     QgsProcessingParameterRasterLayer,
     QgsProcessingParameterVectorLayer,
 )
+from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
 from ...algorithms.errors import InputError
 from ...algorithms.quality.assess_accuracy import AssessParams, assess_accuracy
 from ...algorithms.quality.classes import PolygonClasses
 from ..styles import style_on_completion
-from .base import PushbroomAlgorithm, heights_choice, heights_parameter
+from .base import PushbroomAlgorithm, heights_choice, heights_parameter, translate
 from .dem_nodata import nodata_parameter
 
 
 class AssessAccuracy(PushbroomAlgorithm):
     NAME = "assessaccuracy"
-    DISPLAY_NAME = "Assess accuracy (dh against a reference DEM)"
+    DISPLAY_NAME = QT_TRANSLATE_NOOP("Pushbroom", "Assess accuracy (dh against a reference DEM)")
     GROUP_ID = "surface"
 
-    KEYS = (
-        "REFERENCE REFERENCE_HEIGHTS POINTS DEM DEM_HEIGHTS CLASS_RASTER CLASS_POLYGONS CLASS_FIELD "
-        "SLOPE_THRESHOLD POINTS_HEIGHTS REFERENCE_NODATA REPORT DH TABLE"
-    )
+    # parameter and output keys: the names Processing, models and qgis_process use
+    REFERENCE = "REFERENCE"
+    REFERENCE_HEIGHTS = "REFERENCE_HEIGHTS"
+    POINTS = "POINTS"
+    DEM = "DEM"
+    DEM_HEIGHTS = "DEM_HEIGHTS"
+    CLASS_RASTER = "CLASS_RASTER"
+    CLASS_POLYGONS = "CLASS_POLYGONS"
+    CLASS_FIELD = "CLASS_FIELD"
+    SLOPE_THRESHOLD = "SLOPE_THRESHOLD"
+    POINTS_HEIGHTS = "POINTS_HEIGHTS"
+    REFERENCE_NODATA = "REFERENCE_NODATA"
+    REPORT = "REPORT"
+    DH = "DH"
+    TABLE = "TABLE"
 
     def initAlgorithm(self, config=None):
-        d, tr = AssessParams(), self.tr
-        self.addParameter(QgsProcessingParameterRasterLayer(self.REFERENCE, tr("Reference DTM/DSM")))
-        self.addParameter(heights_parameter(self.REFERENCE_HEIGHTS, tr("Reference heights")))
+        d = AssessParams()
+        self.addParameter(
+            QgsProcessingParameterRasterLayer(self.REFERENCE, translate("Pushbroom", "Reference DTM/DSM"))
+        )
+        self.addParameter(heights_parameter(self.REFERENCE_HEIGHTS, translate("Pushbroom", "Reference heights")))
         self.addParameter(
             QgsProcessingParameterFile(
                 self.POINTS,
-                tr("Point cloud (object points)"),
+                translate("Pushbroom", "Point cloud (object points)"),
                 optional=True,
-                fileFilter=tr("Point clouds (*.las *.laz *.gpkg);;All files (*.*)"),
+                fileFilter=translate("Pushbroom", "Point clouds (*.las *.laz *.gpkg);;All files (*.*)"),
             )
         )
-        self.addParameter(QgsProcessingParameterRasterLayer(self.DEM, tr("DEM"), optional=True))
-        self.addParameter(heights_parameter(self.DEM_HEIGHTS, tr("DEM heights")))
-        self.addParameter(QgsProcessingParameterRasterLayer(self.CLASS_RASTER, tr("Class raster"), optional=True))
+        self.addParameter(QgsProcessingParameterRasterLayer(self.DEM, translate("Pushbroom", "DEM"), optional=True))
+        self.addParameter(heights_parameter(self.DEM_HEIGHTS, translate("Pushbroom", "DEM heights")))
+        self.addParameter(
+            QgsProcessingParameterRasterLayer(self.CLASS_RASTER, translate("Pushbroom", "Class raster"), optional=True)
+        )
         self.addParameter(
             QgsProcessingParameterVectorLayer(
-                self.CLASS_POLYGONS, tr("Class polygons"), optional=True, types=[QgsProcessing.TypeVectorPolygon]
+                self.CLASS_POLYGONS,
+                translate("Pushbroom", "Class polygons"),
+                optional=True,
+                types=[QgsProcessing.TypeVectorPolygon],
             )
         )
         self.addParameter(
             QgsProcessingParameterField(
                 self.CLASS_FIELD,
-                tr("Class field of the polygons"),
+                translate("Pushbroom", "Class field of the polygons"),
                 optional=True,
                 parentLayerParameterName=self.CLASS_POLYGONS,
             )
@@ -62,7 +81,7 @@ class AssessAccuracy(PushbroomAlgorithm):
         self.addParameter(
             QgsProcessingParameterNumber(
                 self.SLOPE_THRESHOLD,
-                tr("Slope of mountainous terrain (degrees, of the reference)"),
+                translate("Pushbroom", "Slope of mountainous terrain (degrees, of the reference)"),
                 QgsProcessingParameterNumber.Double,
                 d.slope_threshold,
                 minValue=0.01,
@@ -71,19 +90,27 @@ class AssessAccuracy(PushbroomAlgorithm):
         )
         self.addAdvancedParameters(
             [
-                heights_parameter(self.POINTS_HEIGHTS, tr("Point cloud heights")),
-                nodata_parameter(self.REFERENCE_NODATA, "reference DTM/DSM"),
+                heights_parameter(self.POINTS_HEIGHTS, translate("Pushbroom", "Point cloud heights")),
+                nodata_parameter(self.REFERENCE_NODATA, translate("Pushbroom", "reference DTM/DSM")),
             ]
         )
-        self.addParameter(QgsProcessingParameterFileDestination(self.REPORT, tr("Report"), tr("HTML files (*.html)")))
+        self.addParameter(
+            QgsProcessingParameterFileDestination(
+                self.REPORT, translate("Pushbroom", "Report"), translate("Pushbroom", "HTML files (*.html)")
+            )
+        )
         self.addParameter(
             QgsProcessingParameterRasterDestination(
-                self.DH, tr("dh raster (DEM input)"), optional=True, createByDefault=False
+                self.DH, translate("Pushbroom", "dh raster (DEM input)"), optional=True, createByDefault=False
             )
         )
         self.addParameter(
             QgsProcessingParameterFileDestination(
-                self.TABLE, tr("Statistics table"), tr("CSV files (*.csv)"), optional=True, createByDefault=False
+                self.TABLE,
+                translate("Pushbroom", "Statistics table"),
+                translate("Pushbroom", "CSV files (*.csv)"),
+                optional=True,
+                createByDefault=False,
             )
         )
 

@@ -12,6 +12,7 @@ way around its engine call:
   not a number (NaN passes QGIS's own check), is refused in Pushbroom's words with that range, and a raster
   QGIS cannot load is named with why: missing, a DIMAP product without its raster (`checkParameterValues`)."""
 
+import functools
 import math
 import os
 import re
@@ -39,7 +40,7 @@ from qgis.core import (
     QgsProperty,
     QgsProviderRegistry,
 )
-from qgis.PyQt.QtCore import QCoreApplication, QEventLoop, QThread, QUrl
+from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP, QCoreApplication, QEventLoop, QThread, QUrl
 from qgis.PyQt.QtGui import QIcon
 
 from ...algorithms import destinations, raster_cache, sensors
@@ -68,19 +69,50 @@ def _single_error():
         log.messageReceived.connect(lambda *_: log.blockSignals(True))
 
 
+#: the context of the texts that are not an algorithm's own: labels of choices and groups, marked for pylupdate5 by
+#: QT_TRANSLATE_NOOP(CONTEXT, "...") where they are defined and shown through `translated`
+CONTEXT = "Pushbroom"
+translate = QCoreApplication.translate
+
+
+def translated(text: str) -> str:
+    """`text`, marked by QT_TRANSLATE_NOOP("Pushbroom", ...) where it is defined, in the user's language."""
+    return QCoreApplication.translate(CONTEXT, text)
+
+
 #: the toolbox groups: GROUP_ID -> display name
 GROUPS = {
-    "simulation": "Simulation",
-    "block": "Block",
-    "matching": "Matching",
-    "adjustment": "Adjustment",
-    "surface": "Surface",
+    "simulation": QT_TRANSLATE_NOOP("Pushbroom", "Simulation"),
+    "block": QT_TRANSLATE_NOOP("Pushbroom", "Block"),
+    "matching": QT_TRANSLATE_NOOP("Pushbroom", "Matching"),
+    "adjustment": QT_TRANSLATE_NOOP("Pushbroom", "Adjustment"),
+    "surface": QT_TRANSLATE_NOOP("Pushbroom", "Surface"),
 }
 
 
 def help_page(name):
     """Path of algorithm `name`'s documentation page, docs/steps/<name>.md."""
     return os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "docs", "steps", f"{name}.md")
+
+
+@functools.cache
+def parameter_help(name: str) -> dict:
+    """{key: meaning} of the Parameters table of algorithm `name`'s page: a row's first cell names one or more
+    keys in backticks, the column headed "Meaning" gives the help (Markdown's backticks dropped). The dialog
+    shows it as the parameter's tooltip, `qgis_process help` under its description."""
+    with open(help_page(name), encoding="utf-8") as f:
+        text = f.read()
+    table = text.split("## Parameters", 1)[1].split("\n## ", 1)[0] if "## Parameters" in text else ""
+    found, meaning = {}, None
+    for line in table.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if cells and cells[0] == "Key":  # the header says which column is the meaning
+            meaning = cells.index("Meaning") if "Meaning" in cells else None
+        if meaning is None or len(cells) <= meaning or not cells[0].startswith("`"):
+            continue
+        for key in re.findall(r"`([A-Z0-9_]+)`", cells[0]):
+            found[key] = cells[meaning].replace("`", "")
+    return found
 
 
 def short_help(name):
@@ -176,55 +208,51 @@ class _CheckFailedError(Exception):
 
 
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
-    """Subclasses set NAME, DISPLAY_NAME, GROUP_ID (a key of GROUPS), KEYS and implement `execute`: read
+    """Subclasses set NAME, DISPLAY_NAME, GROUP_ID (a key of GROUPS), a class constant per parameter and output
+    key (`BLOCK = "BLOCK"`, as QGIS's script template does) and implement `execute`: read
     the parameters, call the step's one engine entry point, load its outputs. The help is the step's page,
     docs/steps/<NAME>.md: its first paragraph is the short help, helpUrl opens the whole page."""
 
     NAME = ""
     DISPLAY_NAME = ""
     GROUP_ID = ""
-    #: the parameter and output keys, separated by spaces; each becomes a class constant holding its own name
-    #: (`self.BLOCK == "BLOCK"`), the names Processing, models and qgis_process use
-    KEYS = ""
     #: the file parameter that names a block: its files and images are inputs (Block.files)
     BLOCK_PARAMETER = "BLOCK"
     #: {folder output: the file that marks a folder the step made} of the folder outputs the step replaces as a
     #: whole (destinations.FOLDER); the other folder outputs are written into
     WHOLE_FOLDERS = {}
 
-    def __init_subclass__(cls, **kwargs):
-        super().__init_subclass__(**kwargs)
-        for key in cls.KEYS.split():
-            setattr(cls, key, key)
-
     def createInstance(self):
         return type(self)()
 
     def tr(self, text):
-        """`text` translated in the Processing context (QGIS's ScriptTemplate convention)."""
-        return QCoreApplication.translate("Processing", text)
+        """`text` in the user's language (`translated`). Literal texts are written `translate("Pushbroom", "...")`,
+        which pylupdate5 extracts (`make`: i18n/pushbroom.ts)."""
+        return translated(text)
 
     def name(self):
         return self.NAME
 
     def displayName(self):
-        return self.tr(self.DISPLAY_NAME)
+        return translated(self.DISPLAY_NAME)
 
     def group(self):
-        return self.tr(GROUPS[self.GROUP_ID])
+        return translated(GROUPS[self.GROUP_ID])
 
     def groupId(self):
         return self.GROUP_ID
 
     def shortHelpString(self):
-        return self.tr(short_help(self.NAME))
+        return short_help(self.NAME)
 
     def helpUrl(self):
         """The step's page in the repository's docs (docs/steps/<name>.md), shipped with the plugin."""
         return QUrl.fromLocalFile(help_page(self.NAME)).toString()
 
     def addParameter(self, parameter, createOutput=True):
-        """QgsProcessingAlgorithm.addParameter, with state_range."""
+        """QgsProcessingAlgorithm.addParameter, with the parameter's help from the step's page (parameter_help) and
+        its range (state_range)."""
+        parameter.setHelp(parameter_help(self.NAME).get(parameter.name(), ""))
         return super().addParameter(state_range(parameter), createOutput)
 
     def checkParameterValues(self, parameters, context):
@@ -411,15 +439,15 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
 #: labels of the height datums control_points.HEIGHT_TYPES
 HEIGHT_LABELS = {
-    "ellipsoidal": "Ellipsoidal (WGS 84)",
-    "orthometric": "Orthometric (EGM96 geoid; needs PROJ's us_nga_egm96_15.tif grid)",
+    "ellipsoidal": QT_TRANSLATE_NOOP("Pushbroom", "Ellipsoidal (WGS 84)"),
+    "orthometric": QT_TRANSLATE_NOOP("Pushbroom", "Orthometric (EGM96 geoid; needs PROJ's EGM96 grid)"),
 }
 
 
 def heights_parameter(key, description):
     """An enum parameter choosing one of control_points.HEIGHT_TYPES (default: ellipsoidal); read it with
     heights_choice."""
-    labels = [QCoreApplication.translate("Processing", HEIGHT_LABELS[h]) for h in HEIGHT_TYPES]
+    labels = [translated(HEIGHT_LABELS[h]) for h in HEIGHT_TYPES]
     return QgsProcessingParameterEnum(key, description, labels, defaultValue=0)
 
 
@@ -430,37 +458,32 @@ def heights_choice(algorithm, parameters, key, context):
 
 #: labels of the execution backends task_runtime.BACKENDS
 EXECUTION_LABELS = {
-    "threads": "Threads in this process",
-    "processes": "Local worker processes",
-    "dask": "Dask distributed: a local cluster, or the scheduler at the address below",
+    "threads": QT_TRANSLATE_NOOP("Pushbroom", "Threads in this process"),
+    "processes": QT_TRANSLATE_NOOP("Pushbroom", "Local worker processes"),
+    "dask": QT_TRANSLATE_NOOP("Pushbroom", "Dask distributed: a local cluster, or the scheduler at the address below"),
 }
 
 
 def execution_parameters(algorithm, workers):
     """The advanced parameters EXECUTION, DASK_ADDRESS, DASK_WAIT and WORKERS (default `workers`) of an algorithm
-    whose tiles run on execution.run_tasks (its KEYS name the four); read them with execution_choice. DASK_WAIT is
-    optional, so that the models saved before it still validate."""
-    tr = algorithm.tr
+    whose tiles run on execution.run_tasks (its class constants name the four); read them with execution_choice.
+    DASK_WAIT is optional, so that the models saved before it still validate."""
     return [
         QgsProcessingParameterEnum(
             algorithm.EXECUTION,
-            tr("Execution of the tiles"),
-            [tr(EXECUTION_LABELS[b]) for b in BACKENDS],
+            translate("Pushbroom", "Execution of the tiles"),
+            [translated(EXECUTION_LABELS[b]) for b in BACKENDS],
             defaultValue=0,
         ),
         QgsProcessingParameterString(
             algorithm.DASK_ADDRESS,
-            tr(
-                "Dask scheduler address (tcp://host:port or "
-                "tls://host:port; empty: a local cluster of the "
-                "workers below)"
-            ),
+            translate("Pushbroom", "Dask scheduler address (tcp:// or tls://host:port; empty: a local cluster)"),
             "",
             optional=True,
         ),
         QgsProcessingParameterNumber(
             algorithm.DASK_WAIT,
-            tr("Wait for a Dask worker where the cluster has none, or has lost every one (s)"),
+            translate("Pushbroom", "Wait for a Dask worker where the cluster has none, or has lost every one (s)"),
             QgsProcessingParameterNumber.Double,
             Execution.worker_wait,
             optional=True,
@@ -468,9 +491,9 @@ def execution_parameters(algorithm, workers):
         ),
         QgsProcessingParameterNumber(
             algorithm.WORKERS,
-            tr("Workers (threads, processes or local Dask workers; at most {} per core are used)").format(
-                WORKERS_PER_CORE
-            ),
+            translate(
+                "Pushbroom", "Workers (threads, processes or local Dask workers; at most {} per core are used)"
+            ).format(WORKERS_PER_CORE),
             QgsProcessingParameterNumber.Integer,
             workers,
             minValue=1,
@@ -510,7 +533,7 @@ def replace_fewer_parameter(algorithm: QgsProcessingAlgorithm, what: str) -> Qgs
     Optional, so that the models saved before it still validate."""
     return QgsProcessingParameterBoolean(
         algorithm.REPLACE_FEWER,
-        algorithm.tr("Replace the block's {} even by far fewer (none, or below half)").format(what),
+        translate("Pushbroom", "Replace the block's {} even by far fewer (none, or below half)").format(what),
         False,
         optional=True,
     )

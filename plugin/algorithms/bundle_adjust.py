@@ -14,103 +14,133 @@ from qgis.core import (
     QgsProcessingParameterString,
     QgsProcessingParameterVectorDestination,
 )
+from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
 from ...algorithms.adjustment.parameters import MODELS
 from ...algorithms.steps.adjust_block import AdjustParams, adjust_block
 from ..styles import load_styled
-from .base import PushbroomAlgorithm, heights_choice, heights_parameter
+from .base import PushbroomAlgorithm, heights_choice, heights_parameter, translate, translated
 from .dem_nodata import nodata_parameter
 
 Number = QgsProcessingParameterNumber
 #: labels of the MODEL choices (parameters.MODELS)
 MODEL_LABELS = {
-    "polynomial": "Correction polynomials with autocalibration (Kornus et al. 2006)",
-    "lagrange": "Lagrange polynomials on orientation images (Heipke et al. 1992)",
+    "polynomial": QT_TRANSLATE_NOOP("Pushbroom", "Correction polynomials with autocalibration (Kornus et al. 2006)"),
+    "lagrange": QT_TRANSLATE_NOOP("Pushbroom", "Lagrange polynomials on orientation images (Heipke et al. 1992)"),
 }
 
 
 class BundleAdjust(PushbroomAlgorithm):
     NAME = "bundleadjust"
-    DISPLAY_NAME = "Bundle adjustment"
+    DISPLAY_NAME = QT_TRANSLATE_NOOP("Pushbroom", "Bundle adjustment")
     GROUP_ID = "adjustment"
 
-    KEYS = (
-        "BLOCK FREE MODEL USE_TIE_POINTS REMOVE_BLUNDERS REFERENCE_DEM REFERENCE_HEIGHTS SIGMA_TIE CRITICAL "
-        "MAX_ITERATIONS VARIANCE_COMPONENTS SIGNIFICANCE CONTROL_SERIES ORIENTATION_IMAGES VECTOR_SCALE "
-        "PRIORS REFERENCE_DEM_NODATA REPORT RESIDUALS SIGMA0"
-    )
+    # parameter and output keys: the names Processing, models and qgis_process use
+    BLOCK = "BLOCK"
+    FREE = "FREE"
+    MODEL = "MODEL"
+    USE_TIE_POINTS = "USE_TIE_POINTS"
+    REMOVE_BLUNDERS = "REMOVE_BLUNDERS"
+    REFERENCE_DEM = "REFERENCE_DEM"
+    REFERENCE_HEIGHTS = "REFERENCE_HEIGHTS"
+    SIGMA_TIE = "SIGMA_TIE"
+    CRITICAL = "CRITICAL"
+    MAX_ITERATIONS = "MAX_ITERATIONS"
+    VARIANCE_COMPONENTS = "VARIANCE_COMPONENTS"
+    SIGNIFICANCE = "SIGNIFICANCE"
+    CONTROL_SERIES = "CONTROL_SERIES"
+    ORIENTATION_IMAGES = "ORIENTATION_IMAGES"
+    VECTOR_SCALE = "VECTOR_SCALE"
+    PRIORS = "PRIORS"
+    REFERENCE_DEM_NODATA = "REFERENCE_DEM_NODATA"
+    REPORT = "REPORT"
+    RESIDUALS = "RESIDUALS"
+    SIGMA0 = "SIGMA0"
 
     def initAlgorithm(self, config=None):
-        d, tr = AdjustParams(), self.tr
-        self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
+        d = AdjustParams()
+        self.addParameter(QgsProcessingParameterFile(self.BLOCK, translate("Pushbroom", "Block"), extension="gpkg"))
         self.addParameter(
-            QgsProcessingParameterString(self.FREE, tr("Free parameters ('auto' or comma-separated patterns)"), d.free)
+            QgsProcessingParameterString(
+                self.FREE, translate("Pushbroom", "Free parameters ('auto' or comma-separated patterns)"), d.free
+            )
         )
         self.addParameter(
             QgsProcessingParameterEnum(
                 self.MODEL,
-                tr("Exterior orientation model of SPOT images"),
-                [tr(MODEL_LABELS[m]) for m in MODELS],
+                translate("Pushbroom", "Exterior orientation model of SPOT images"),
+                [translated(MODEL_LABELS[m]) for m in MODELS],
                 defaultValue=MODELS.index(d.model),
             )
         )
         self.addParameter(
-            QgsProcessingParameterBoolean(self.USE_TIE_POINTS, tr("Use the block's tie points"), d.use_tie_points)
+            QgsProcessingParameterBoolean(
+                self.USE_TIE_POINTS, translate("Pushbroom", "Use the block's tie points"), d.use_tie_points
+            )
         )
         self.addParameter(
             QgsProcessingParameterBoolean(
-                self.REMOVE_BLUNDERS, tr("Remove flagged measurements iteratively"), d.remove_blunders
+                self.REMOVE_BLUNDERS,
+                translate("Pushbroom", "Remove flagged measurements iteratively"),
+                d.remove_blunders,
             )
         )
         self.addParameter(
             QgsProcessingParameterRasterLayer(
                 self.REFERENCE_DEM,
-                tr("Reference DTM for the tie point heights (Kornus et al. 2006, Table 4)"),
+                translate("Pushbroom", "Reference DTM for the tie point heights (Kornus et al. 2006, Table 4)"),
                 optional=True,
             )
         )
-        self.addParameter(heights_parameter(self.REFERENCE_HEIGHTS, tr("Heights of the reference DTM")))
+        self.addParameter(
+            heights_parameter(self.REFERENCE_HEIGHTS, translate("Pushbroom", "Heights of the reference DTM"))
+        )
         self.addAdvancedParameters(
             [
                 Number(
                     self.SIGMA_TIE,
-                    tr("Sigma of tie point image measurements (px)"),
+                    translate("Pushbroom", "Sigma of tie point image measurements (px)"),
                     Number.Double,
                     d.sigma_tie,
                     minValue=1e-4,
                 ),
                 Number(
                     self.CRITICAL,
-                    tr("Critical normalised residual (data snooping)"),
+                    translate("Pushbroom", "Critical normalised residual (data snooping)"),
                     Number.Double,
                     d.critical,
                     minValue=1.0,
                 ),
-                Number(self.MAX_ITERATIONS, tr("Maximum iterations"), Number.Integer, d.max_iterations, minValue=1),
+                Number(
+                    self.MAX_ITERATIONS,
+                    translate("Pushbroom", "Maximum iterations"),
+                    Number.Integer,
+                    d.max_iterations,
+                    minValue=1,
+                ),
                 QgsProcessingParameterBoolean(
                     self.VARIANCE_COMPONENTS,
-                    tr("Estimate variance components (tie, control image, control ground)"),
+                    translate("Pushbroom", "Estimate variance components (tie, control image, control ground)"),
                     d.variance_components,
                 ),
                 Number(
                     self.SIGNIFICANCE,
-                    tr("Automatic selection: significance threshold x/sigma"),
+                    translate("Pushbroom", "Automatic selection: significance threshold x/sigma"),
                     Number.Double,
                     d.significance,
                     minValue=0.0,
                 ),
                 QgsProcessingParameterString(
                     self.CONTROL_SERIES,
-                    tr(
-                        "Check point accuracy vs number of control "
-                        "points (Heipke et al. 1992, Table 1): counts, e.g. 4,6,10"
+                    translate(
+                        "Pushbroom", "Control point counts of the accuracy table (Heipke et al. 1992), e.g. 4,6,10"
                     ),
                     d.control_series,
                     optional=True,
                 ),
                 Number(
                     self.ORIENTATION_IMAGES,
-                    tr("Lagrange model: orientation images per trajectory"),
+                    translate("Pushbroom", "Lagrange model: orientation images per trajectory"),
                     Number.Integer,
                     d.orientation_images,
                     minValue=2,
@@ -118,34 +148,45 @@ class BundleAdjust(PushbroomAlgorithm):
                 ),
                 Number(
                     self.VECTOR_SCALE,
-                    tr("Scale of the residual vectors on the map"),
+                    translate("Pushbroom", "Scale of the residual vectors on the map"),
                     Number.Double,
                     d.vector_scale,
                     minValue=1e-3,
                 ),
                 QgsProcessingParameterString(
                     self.PRIORS,
-                    tr("Prior sigmas of orientation unknowns: pattern=sigma, ... (m, rad, px; e.g. bias:shift=10)"),
+                    translate(
+                        "Pushbroom", "Prior sigmas of orientation unknowns (pattern=sigma, ...; e.g. bias:shift=10)"
+                    ),
                     d.priors,
                     optional=True,
                 ),
-                nodata_parameter(self.REFERENCE_DEM_NODATA, "reference DTM"),
+                nodata_parameter(self.REFERENCE_DEM_NODATA, translate("Pushbroom", "reference DTM")),
             ]
         )
         self.addParameter(
-            QgsProcessingParameterFileDestination(self.REPORT, tr("Report"), tr("HTML files (*.html)"), optional=True)
+            QgsProcessingParameterFileDestination(
+                self.REPORT,
+                translate("Pushbroom", "Report"),
+                translate("Pushbroom", "HTML files (*.html)"),
+                optional=True,
+            )
         )
         self.addParameter(
             QgsProcessingParameterVectorDestination(
                 self.RESIDUALS,
-                tr("Residual vectors of control and check points"),
+                translate("Pushbroom", "Residual vectors of control and check points"),
                 QgsProcessing.TypeVectorLine,
                 optional=True,
                 createByDefault=False,
             )
         )
-        self.addOutput(QgsProcessingOutputNumber(self.SIGMA0, tr("sigma_0")))
-        self.addOutput(QgsProcessingOutputFile(self.BLOCK, tr("Block (updated; chains the next step in a model)")))
+        self.addOutput(QgsProcessingOutputNumber(self.SIGMA0, translate("Pushbroom", "sigma_0")))
+        self.addOutput(
+            QgsProcessingOutputFile(
+                self.BLOCK, translate("Pushbroom", "Block (updated; chains the next step in a model)")
+            )
+        )
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, self.BLOCK, context)

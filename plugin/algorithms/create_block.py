@@ -11,60 +11,86 @@ from qgis.core import (
     QgsProcessingParameterRasterLayer,
     QgsProcessingUtils,
 )
+from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
 from ...algorithms import sensors
 from ...algorithms.errors import PushbroomError
 from ...algorithms.height_range import PLAUSIBLE_HEIGHTS
 from ...algorithms.steps.block_creation import CreateParams, create_block
 from ..styles import load_styled
-from .base import PushbroomAlgorithm, execution_choice, execution_parameters
+from .base import PushbroomAlgorithm, execution_choice, execution_parameters, translate
 from .dem_nodata import nodata_parameter
 
 
 class CreateBlock(PushbroomAlgorithm):
     NAME = "createblock"
-    DISPLAY_NAME = "Create block"
+    DISPLAY_NAME = QT_TRANSLATE_NOOP("Pushbroom", "Create block")
     GROUP_ID = "block"
 
-    KEYS = (
-        "IMAGES ORIENTATION DEM HEIGHT OVERWRITE DEM_NODATA EXECUTION DASK_ADDRESS DASK_WAIT WORKERS OUTPUT FOOTPRINTS"
-    )
+    # parameter and output keys: the names Processing, models and qgis_process use
+    IMAGES = "IMAGES"
+    ORIENTATION = "ORIENTATION"
+    DEM = "DEM"
+    HEIGHT = "HEIGHT"
+    OVERWRITE = "OVERWRITE"
+    DEM_NODATA = "DEM_NODATA"
+    EXECUTION = "EXECUTION"
+    DASK_ADDRESS = "DASK_ADDRESS"
+    DASK_WAIT = "DASK_WAIT"
+    WORKERS = "WORKERS"
+    OUTPUT = "OUTPUT"
+    FOOTPRINTS = "FOOTPRINTS"
 
     def initAlgorithm(self, config=None):
-        d, tr = CreateParams(), self.tr
-        self.addParameter(QgsProcessingParameterMultipleLayers(self.IMAGES, tr("Images"), QgsProcessing.TypeRaster))
+        d = CreateParams()
+        self.addParameter(
+            QgsProcessingParameterMultipleLayers(
+                self.IMAGES, translate("Pushbroom", "Images"), QgsProcessing.TypeRaster
+            )
+        )
         self.addParameter(
             QgsProcessingParameterMultipleLayers(
                 self.ORIENTATION,
-                tr("Orientation files (one per image, same order; found beside the images if empty)"),
+                translate(
+                    "Pushbroom", "Orientation files (one per image, same order; found beside the images if empty)"
+                ),
                 QgsProcessing.TypeFile,
                 optional=True,
             )
         )
         self.addParameter(
             QgsProcessingParameterRasterLayer(
-                self.DEM, tr("DEM for the footprints (ellipsoidal heights)"), optional=True
+                self.DEM, translate("Pushbroom", "DEM for the footprints (ellipsoidal heights)"), optional=True
             )
         )
         self.addParameter(
             QgsProcessingParameterNumber(
                 self.HEIGHT,
-                tr(
-                    "Mean ellipsoidal height when no DEM is given (m, {:g} .. {:g}; empty: found by matching "
-                    "the images)"
+                translate(
+                    "Pushbroom", "Mean ellipsoidal height without a DEM (m, {:g} .. {:g}; empty: matched)"
                 ).format(*PLAUSIBLE_HEIGHTS),
                 QgsProcessingParameterNumber.Double,
                 d.height,
                 optional=True,
             )
         )
-        self.addParameter(QgsProcessingParameterBoolean(self.OVERWRITE, tr("Overwrite an existing block"), d.overwrite))
+        self.addParameter(
+            QgsProcessingParameterBoolean(
+                self.OVERWRITE, translate("Pushbroom", "Overwrite an existing block"), d.overwrite
+            )
+        )
         self.addAdvancedParameters(
             [nodata_parameter(self.DEM_NODATA), *execution_parameters(self, d.execution.workers)]
         )  # the height search
-        self.addParameter(QgsProcessingParameterFileDestination(self.OUTPUT, tr("Block"), tr("GeoPackage (*.gpkg)")))
+        self.addParameter(
+            QgsProcessingParameterFileDestination(
+                self.OUTPUT, translate("Pushbroom", "Block"), translate("Pushbroom", "GeoPackage (*.gpkg)")
+            )
+        )
         self.addOutput(
-            QgsProcessingOutputVectorLayer(self.FOOTPRINTS, tr("Footprints"), QgsProcessing.TypeVectorPolygon)
+            QgsProcessingOutputVectorLayer(
+                self.FOOTPRINTS, translate("Pushbroom", "Footprints"), QgsProcessing.TypeVectorPolygon
+            )
         )
 
     def checkParameterValues(self, parameters, context):

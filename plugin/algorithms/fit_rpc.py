@@ -11,35 +11,48 @@ from qgis.core import (
     QgsProcessingParameterNumber,
     QgsProcessingParameterString,
 )
+from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
 from ...algorithms.height_range import PLAUSIBLE_HEIGHTS
 from ...algorithms.steps.block_rpcs import RpcParams, fit_block_rpcs
-from .base import PushbroomAlgorithm
+from .base import PushbroomAlgorithm, translate
 
 Number = QgsProcessingParameterNumber
 
 
 class FitRpc(PushbroomAlgorithm):
     NAME = "fitrpc"
-    DISPLAY_NAME = "Fit RPC"
+    DISPLAY_NAME = QT_TRANSLATE_NOOP("Pushbroom", "Fit RPC")
     GROUP_ID = "adjustment"
 
-    KEYS = "BLOCK IMAGE MIN_HEIGHT MAX_HEIGHT OVERWRITE GRID HEIGHT_LEVELS OUTPUT_FOLDER REPORT FILES"
+    # parameter and output keys: the names Processing, models and qgis_process use
+    BLOCK = "BLOCK"
+    IMAGE = "IMAGE"
+    MIN_HEIGHT = "MIN_HEIGHT"
+    MAX_HEIGHT = "MAX_HEIGHT"
+    OVERWRITE = "OVERWRITE"
+    GRID = "GRID"
+    HEIGHT_LEVELS = "HEIGHT_LEVELS"
+    OUTPUT_FOLDER = "OUTPUT_FOLDER"
+    REPORT = "REPORT"
+    FILES = "FILES"
 
     def initAlgorithm(self, config=None):
-        d, tr = RpcParams(), self.tr
-        self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
+        d = RpcParams()
+        self.addParameter(QgsProcessingParameterFile(self.BLOCK, translate("Pushbroom", "Block"), extension="gpkg"))
         self.addParameter(
             QgsProcessingParameterString(
-                self.IMAGE, tr("Image name (empty: every image of the block)"), d.image, optional=True
+                self.IMAGE,
+                translate("Pushbroom", "Image name (empty: every image of the block)"),
+                d.image,
+                optional=True,
             )
         )
         self.addParameter(
             Number(
                 self.MIN_HEIGHT,
-                tr(
-                    "Lowest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: "
-                    "the block's terrain height range and a margin)"
+                translate(
+                    "Pushbroom", "Lowest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: the block's)"
                 ).format(*PLAUSIBLE_HEIGHTS),
                 Number.Double,
                 None,
@@ -49,9 +62,8 @@ class FitRpc(PushbroomAlgorithm):
         self.addParameter(
             Number(
                 self.MAX_HEIGHT,
-                tr(
-                    "Highest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: "
-                    "the block's terrain height range and a margin)"
+                translate(
+                    "Pushbroom", "Highest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: the block's)"
                 ).format(*PLAUSIBLE_HEIGHTS),
                 Number.Double,
                 None,
@@ -61,32 +73,52 @@ class FitRpc(PushbroomAlgorithm):
         self.addParameter(
             QgsProcessingParameterBoolean(
                 self.OVERWRITE,
-                tr(
-                    "Overwrite existing _RPC.TXT files; write beside an image that carries its own RPC "
-                    "(GDAL then reads the fitted one)"
-                ),
+                translate("Pushbroom", "Overwrite existing _RPC.TXT files, also beside an image with its own RPC"),
                 d.overwrite,
             )
         )
         self.addAdvancedParameters(
             [
-                Number(self.GRID, tr("Image grid points along columns and rows"), Number.Integer, d.grid, minValue=4),
-                Number(self.HEIGHT_LEVELS, tr("Height levels"), Number.Integer, d.height_levels, minValue=4),
+                Number(
+                    self.GRID,
+                    translate("Pushbroom", "Image grid points along columns and rows"),
+                    Number.Integer,
+                    d.grid,
+                    minValue=4,
+                ),
+                Number(
+                    self.HEIGHT_LEVELS,
+                    translate("Pushbroom", "Height levels"),
+                    Number.Integer,
+                    d.height_levels,
+                    minValue=4,
+                ),
             ]
         )
         self.addParameter(
             QgsProcessingParameterFolderDestination(
                 self.OUTPUT_FOLDER,
-                tr("Output folder (empty: beside each image raster, where it carries no RPC of its own)"),
+                translate(
+                    "Pushbroom", "Output folder (empty: beside each image raster, where it carries no RPC of its own)"
+                ),
                 optional=True,
                 createByDefault=False,
             )
         )
         self.addParameter(
-            QgsProcessingParameterFileDestination(self.REPORT, tr("Report"), tr("HTML files (*.html)"), optional=True)
+            QgsProcessingParameterFileDestination(
+                self.REPORT,
+                translate("Pushbroom", "Report"),
+                translate("Pushbroom", "HTML files (*.html)"),
+                optional=True,
+            )
         )
-        self.addOutput(QgsProcessingOutputMultipleLayers(self.FILES, tr("RPC files (_RPC.TXT)")))
-        self.addOutput(QgsProcessingOutputFile(self.BLOCK, tr("Block (updated; chains the next step in a model)")))
+        self.addOutput(QgsProcessingOutputMultipleLayers(self.FILES, translate("Pushbroom", "RPC files (_RPC.TXT)")))
+        self.addOutput(
+            QgsProcessingOutputFile(
+                self.BLOCK, translate("Pushbroom", "Block (updated; chains the next step in a model)")
+            )
+        )
 
     def execute(self, parameters, context, feedback):
         path = self.parameterAsFile(parameters, self.BLOCK, context)

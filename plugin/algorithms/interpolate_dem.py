@@ -12,67 +12,107 @@ from qgis.core import (
     QgsProcessingParameterNumber,
     QgsProcessingParameterRasterDestination,
 )
+from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
 from ...algorithms import destinations
 from ...algorithms.surface.dem_tiles import dem_from_point_cloud, mask_output
 from ...algorithms.surface.tin_dem import MAX_RADIUS, DemParams
 from ..styles import style_on_completion
-from .base import PushbroomAlgorithm, execution_choice, execution_parameters
+from .base import PushbroomAlgorithm, execution_choice, execution_parameters, translate, translated
 
 Number = QgsProcessingParameterNumber
 #: height datums: (engine key, label)
-DATUMS = (("ellipsoidal", "WGS 84 ellipsoidal height"), ("egm96", "EGM96 (orthometric) height"))
+DATUMS = (
+    ("ellipsoidal", QT_TRANSLATE_NOOP("Pushbroom", "WGS 84 ellipsoidal height")),
+    ("egm96", QT_TRANSLATE_NOOP("Pushbroom", "EGM96 (orthometric) height")),
+)
 #: interpolation methods: (engine key, label)
 METHODS = (
-    ("tin", "TIN of the points (sparse points: region growing, coarse-to-fine)"),
-    ("cells", "Per-cell median (dense points: the dense matching strategy)"),
+    ("tin", QT_TRANSLATE_NOOP("Pushbroom", "TIN of the points (sparse points: region growing, coarse-to-fine)")),
+    ("cells", QT_TRANSLATE_NOOP("Pushbroom", "Per-cell median (dense points: the dense matching strategy)")),
 )
 
 
 class InterpolateDem(PushbroomAlgorithm):
     NAME = "interpolatedem"
-    DISPLAY_NAME = "Interpolate DEM"
+    DISPLAY_NAME = QT_TRANSLATE_NOOP("Pushbroom", "Interpolate DEM")
     GROUP_ID = "surface"
 
-    KEYS = (
-        "INPUT BREAKLINES CRS CELL METHOD DATUM INPUT_CRS MAX_EDGE BLUNDER_K ITERATIONS TILE EXECUTION "
-        "DASK_ADDRESS DASK_WAIT WORKERS FALLBACK RADIUS FILL OUTPUT PRECISION COUNT MASK POINTS REMOVED FILLED"
-    )
+    # parameter and output keys: the names Processing, models and qgis_process use
+    INPUT = "INPUT"
+    BREAKLINES = "BREAKLINES"
+    CRS = "CRS"
+    CELL = "CELL"
+    METHOD = "METHOD"
+    DATUM = "DATUM"
+    INPUT_CRS = "INPUT_CRS"
+    MAX_EDGE = "MAX_EDGE"
+    BLUNDER_K = "BLUNDER_K"
+    ITERATIONS = "ITERATIONS"
+    TILE = "TILE"
+    EXECUTION = "EXECUTION"
+    DASK_ADDRESS = "DASK_ADDRESS"
+    DASK_WAIT = "DASK_WAIT"
+    WORKERS = "WORKERS"
+    FALLBACK = "FALLBACK"
+    RADIUS = "RADIUS"
+    FILL = "FILL"
+    OUTPUT = "OUTPUT"
+    PRECISION = "PRECISION"
+    COUNT = "COUNT"
+    MASK = "MASK"
+    POINTS = "POINTS"
+    REMOVED = "REMOVED"
+    FILLED = "FILLED"
 
     def initAlgorithm(self, config=None):
-        d, tr = DemParams(), self.tr
+        d = DemParams()
         self.addParameter(
             QgsProcessingParameterFile(
                 self.INPUT,
-                tr("Point cloud"),
-                fileFilter=tr("Point clouds (*.las *.laz *.gpkg *.shp *.geojson);;All files (*)"),
+                translate("Pushbroom", "Point cloud"),
+                fileFilter=translate("Pushbroom", "Point clouds (*.las *.laz *.gpkg *.shp *.geojson);;All files (*)"),
             )
         )
         self.addParameter(
             QgsProcessingParameterFeatureSource(
-                self.BREAKLINES, tr("Breaklines (3-D lines)"), [QgsProcessing.TypeVectorLine], optional=True
+                self.BREAKLINES,
+                translate("Pushbroom", "Breaklines (3-D lines)"),
+                [QgsProcessing.TypeVectorLine],
+                optional=True,
             )
         )
         self.addParameter(
             QgsProcessingParameterCrs(
-                self.CRS, tr("Output CRS (empty: the UTM zone of the points)"), None, optional=True
+                self.CRS, translate("Pushbroom", "Output CRS (empty: the UTM zone of the points)"), None, optional=True
             )
         )
-        self.addParameter(Number(self.CELL, tr("Cell size (output CRS units)"), Number.Double, d.cell, minValue=1e-6))
         self.addParameter(
-            QgsProcessingParameterEnum(self.METHOD, tr("Method"), [tr(t) for _, t in METHODS], defaultValue=0)
+            Number(
+                self.CELL, translate("Pushbroom", "Cell size (output CRS units)"), Number.Double, d.cell, minValue=1e-6
+            )
         )
         self.addParameter(
-            QgsProcessingParameterEnum(self.DATUM, tr("Height datum"), [tr(t) for _, t in DATUMS], defaultValue=0)
+            QgsProcessingParameterEnum(
+                self.METHOD, translate("Pushbroom", "Method"), [translated(t) for _, t in METHODS], defaultValue=0
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterEnum(
+                self.DATUM, translate("Pushbroom", "Height datum"), [translated(t) for _, t in DATUMS], defaultValue=0
+            )
         )
         self.addAdvancedParameters(
             [
                 QgsProcessingParameterCrs(
-                    self.INPUT_CRS, tr("Point cloud CRS (empty: the file's own)"), None, optional=True
+                    self.INPUT_CRS,
+                    translate("Pushbroom", "Point cloud CRS (empty: the file's own)"),
+                    None,
+                    optional=True,
                 ),
                 Number(
                     self.MAX_EDGE,
-                    tr("Maximum triangle edge (empty: 3 cells or 2.5 point spacings); longer triangles are gaps"),
+                    translate("Pushbroom", "Maximum triangle edge (empty: 3 cells or 2.5 point spacings)"),
                     Number.Double,
                     None,
                     optional=True,
@@ -80,24 +120,27 @@ class InterpolateDem(PushbroomAlgorithm):
                 ),
                 Number(
                     self.BLUNDER_K,
-                    tr("Blunder threshold k (robust sigmas; 0: no filter); per cell with the per-cell method"),
+                    translate("Pushbroom", "Blunder threshold k (robust sigmas; 0: no filter)"),
                     Number.Double,
                     d.k,
                     minValue=0.0,
                 ),
-                Number(self.ITERATIONS, tr("Blunder filter iterations"), Number.Integer, d.iterations, minValue=1),
-                Number(self.TILE, tr("Tile size (cells)"), Number.Integer, d.tile, minValue=16),
+                Number(
+                    self.ITERATIONS,
+                    translate("Pushbroom", "Blunder filter iterations"),
+                    Number.Integer,
+                    d.iterations,
+                    minValue=1,
+                ),
+                Number(self.TILE, translate("Pushbroom", "Tile size (cells)"), Number.Integer, d.tile, minValue=16),
                 QgsProcessingParameterBoolean(
                     self.FALLBACK,
-                    tr("Per-cell method: a cell without a refined dense point takes the unrefined (semi-global) ones"),
+                    translate("Pushbroom", "Per-cell method: unrefined points where a cell has no refined one"),
                     d.fallback,
                 ),
                 Number(
                     self.RADIUS,
-                    tr(
-                        "Per-cell method: a cell without points takes those within this many cells "
-                        "(0: none; flagged 2 in the mask raster)"
-                    ),
+                    translate("Pushbroom", "Per-cell method: borrow points within this many cells (0: none)"),
                     Number.Integer,
                     d.radius,
                     minValue=0,
@@ -105,10 +148,7 @@ class InterpolateDem(PushbroomAlgorithm):
                 ),
                 Number(
                     self.FILL,
-                    tr(
-                        "Per-cell method: fill the gaps within this many cells (0: none; the filled "
-                        "cells are flagged in the mask raster)"
-                    ),
+                    translate("Pushbroom", "Per-cell method: fill gaps within this many cells (0: none)"),
                     Number.Double,
                     d.fill,
                     minValue=0.0,
@@ -116,31 +156,31 @@ class InterpolateDem(PushbroomAlgorithm):
                 *execution_parameters(self, d.execution.workers),
             ]
         )
-        self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("DEM")))
+        self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, translate("Pushbroom", "DEM")))
         self.addParameter(
             QgsProcessingParameterRasterDestination(
-                self.PRECISION, tr("Precision raster"), optional=True, createByDefault=False
+                self.PRECISION, translate("Pushbroom", "Precision raster"), optional=True, createByDefault=False
             )
         )
         self.addParameter(
             QgsProcessingParameterRasterDestination(
-                self.COUNT, tr("Points per cell (per-cell method)"), optional=True, createByDefault=False
+                self.COUNT,
+                translate("Pushbroom", "Points per cell (per-cell method)"),
+                optional=True,
+                createByDefault=False,
             )
         )
         self.addParameter(
             QgsProcessingParameterRasterDestination(
                 self.MASK,
-                tr(
-                    "Cell mask (per-cell method: 0 own points, 2 points of the cells around, 1 filled, 255 gap; "
-                    "empty: beside the DEM when filling)"
-                ),
+                translate("Pushbroom", "Cell mask (per-cell method: 0 own points, 2 borrowed, 1 filled, 255 gap)"),
                 optional=True,
                 createByDefault=False,
             )
         )
-        self.addOutput(QgsProcessingOutputNumber(self.POINTS, tr("Points in the DEM")))
-        self.addOutput(QgsProcessingOutputNumber(self.FILLED, tr("Gap cells filled")))
-        self.addOutput(QgsProcessingOutputNumber(self.REMOVED, tr("Blunders (outliers) removed")))
+        self.addOutput(QgsProcessingOutputNumber(self.POINTS, translate("Pushbroom", "Points in the DEM")))
+        self.addOutput(QgsProcessingOutputNumber(self.FILLED, translate("Pushbroom", "Gap cells filled")))
+        self.addOutput(QgsProcessingOutputNumber(self.REMOVED, translate("Pushbroom", "Blunders (outliers) removed")))
 
     def extra_destinations(self, parameters, context) -> list:
         """The cell mask the per-cell method writes beside the DEM when it fills gaps and MASK is not given."""

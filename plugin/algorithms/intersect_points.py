@@ -11,51 +11,73 @@ from qgis.core import (
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterNumber,
 )
+from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
 from ...algorithms.steps.block_intersection import MAX_NEIGHBOURS, IntersectParams, intersect_block_points
 from ..styles import load_styled
-from .base import PushbroomAlgorithm, execution_choice, execution_parameters
+from .base import PushbroomAlgorithm, execution_choice, execution_parameters, translate, translated
 
 Number = QgsProcessingParameterNumber
 #: the point sets: (engine key, label)
 KINDS = (
-    ("mass_points", "Mass points (pushbroom:matchpoints)"),
-    ("tie_points", "Tie points (pushbroom:selecttiepoints)"),
+    ("mass_points", QT_TRANSLATE_NOOP("Pushbroom", "Mass points (pushbroom:matchpoints)")),
+    ("tie_points", QT_TRANSLATE_NOOP("Pushbroom", "Tie points (pushbroom:selecttiepoints)")),
 )
 
 
 class IntersectPoints(PushbroomAlgorithm):
     NAME = "intersectpoints"
-    DISPLAY_NAME = "Intersect points (point cloud)"
+    DISPLAY_NAME = QT_TRANSLATE_NOOP("Pushbroom", "Intersect points (point cloud)")
     GROUP_ID = "surface"
 
-    KEYS = (
-        "BLOCK POINTS CRS SIGMA MAX_ITERATIONS OUTLIER_NEIGHBOURS OUTLIER_FACTOR EXECUTION DASK_ADDRESS DASK_WAIT "
-        "WORKERS OUTPUT LAYER COUNT"
-    )
+    # parameter and output keys: the names Processing, models and qgis_process use
+    BLOCK = "BLOCK"
+    POINTS = "POINTS"
+    CRS = "CRS"
+    SIGMA = "SIGMA"
+    MAX_ITERATIONS = "MAX_ITERATIONS"
+    OUTLIER_NEIGHBOURS = "OUTLIER_NEIGHBOURS"
+    OUTLIER_FACTOR = "OUTLIER_FACTOR"
+    EXECUTION = "EXECUTION"
+    DASK_ADDRESS = "DASK_ADDRESS"
+    DASK_WAIT = "DASK_WAIT"
+    WORKERS = "WORKERS"
+    OUTPUT = "OUTPUT"
+    LAYER = "LAYER"
+    COUNT = "COUNT"
 
     def initAlgorithm(self, config=None):
-        d, tr = IntersectParams(), self.tr
-        self.addParameter(QgsProcessingParameterFile(self.BLOCK, tr("Block"), extension="gpkg"))
+        d = IntersectParams()
+        self.addParameter(QgsProcessingParameterFile(self.BLOCK, translate("Pushbroom", "Block"), extension="gpkg"))
         self.addParameter(
-            QgsProcessingParameterEnum(self.POINTS, tr("Points"), [tr(text) for _, text in KINDS], defaultValue=0)
+            QgsProcessingParameterEnum(
+                self.POINTS, translate("Pushbroom", "Points"), [translated(text) for _, text in KINDS], defaultValue=0
+            )
         )
         self.addParameter(
-            QgsProcessingParameterCrs(self.CRS, tr("Output CRS (empty: the block's UTM zone)"), None, optional=True)
+            QgsProcessingParameterCrs(
+                self.CRS, translate("Pushbroom", "Output CRS (empty: the block's UTM zone)"), None, optional=True
+            )
         )
         self.addAdvancedParameters(
             [
-                Number(self.SIGMA, tr("Sigma of the image coordinates (px)"), Number.Double, d.sigma, minValue=1e-6),
+                Number(
+                    self.SIGMA,
+                    translate("Pushbroom", "Sigma of the image coordinates (px)"),
+                    Number.Double,
+                    d.sigma,
+                    minValue=1e-6,
+                ),
                 Number(
                     self.MAX_ITERATIONS,
-                    tr("Maximum iterations per point"),
+                    translate("Pushbroom", "Maximum iterations per point"),
                     Number.Integer,
                     d.max_iterations,
                     minValue=1,
                 ),
                 Number(
                     self.OUTLIER_NEIGHBOURS,
-                    tr("Statistical outlier removal: neighbours k (0: off)"),
+                    translate("Pushbroom", "Statistical outlier removal: neighbours k (0: off)"),
                     Number.Integer,
                     d.outlier_neighbours,
                     minValue=0,
@@ -63,7 +85,7 @@ class IntersectPoints(PushbroomAlgorithm):
                 ),
                 Number(
                     self.OUTLIER_FACTOR,
-                    tr("Statistical outlier removal: factor n (mean distance > mu + n sigma)"),
+                    translate("Pushbroom", "Statistical outlier removal: factor n (mean distance > mu + n sigma)"),
                     Number.Double,
                     d.outlier_factor,
                     minValue=0.1,
@@ -73,15 +95,17 @@ class IntersectPoints(PushbroomAlgorithm):
         )
         self.addParameter(
             QgsProcessingParameterFileDestination(
-                self.OUTPUT, tr("Point cloud"), tr("LAS files (*.las);;LAZ files (*.laz);;GeoPackage (*.gpkg)")
+                self.OUTPUT,
+                translate("Pushbroom", "Point cloud"),
+                translate("Pushbroom", "LAS files (*.las);;LAZ files (*.laz);;GeoPackage (*.gpkg)"),
             )
         )
         self.addOutput(
             QgsProcessingOutputVectorLayer(
-                self.LAYER, tr("Point layer (GeoPackage output)"), QgsProcessing.TypeVectorPoint
+                self.LAYER, translate("Pushbroom", "Point layer (GeoPackage output)"), QgsProcessing.TypeVectorPoint
             )
         )
-        self.addOutput(QgsProcessingOutputNumber(self.COUNT, tr("Points written")))
+        self.addOutput(QgsProcessingOutputNumber(self.COUNT, translate("Pushbroom", "Points written")))
 
     def execute(self, parameters, context, feedback):
         values = self.parameterValues(
@@ -106,5 +130,7 @@ class IntersectPoints(PushbroomAlgorithm):
             feedback,
         )
         if result.layer:
-            load_styled(context, result.layer, self.tr("Object points"), self.LAYER, "points_by_group.qml")
+            load_styled(
+                context, result.layer, translate("Pushbroom", "Object points"), self.LAYER, "points_by_group.qml"
+            )
         return self.given({self.OUTPUT: result.path, self.COUNT: result.count, self.LAYER: result.layer})

@@ -11,58 +11,96 @@ from qgis.core import (
     QgsProcessingParameterRasterLayer,
     QgsProcessingParameterString,
 )
+from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
 from ...algorithms.dem_store import VERTICAL
 from ...algorithms.ortho.resampling import METHODS
 from ...algorithms.steps.orthoimage import OrthoParams, orthorectify_image
-from .base import PushbroomAlgorithm, execution_choice, execution_parameters
+from .base import PushbroomAlgorithm, execution_choice, execution_parameters, translate, translated
 from .dem_nodata import nodata_parameter
 
 Number = QgsProcessingParameterNumber
+#: the resampling methods (ortho.resampling.METHODS) and their labels
 RESAMPLING = tuple(METHODS)
+RESAMPLING_LABELS = {
+    "bilinear": QT_TRANSLATE_NOOP("Pushbroom", "Bilinear"),
+    "bicubic": QT_TRANSLATE_NOOP("Pushbroom", "Bicubic"),
+}
 #: labels of the DEM's vertical references (algorithms/dem_store.py VERTICAL, in that order)
-DEM_HEIGHTS = ("ellipsoidal (WGS 84)", "EGM96")
+DEM_HEIGHTS = (QT_TRANSLATE_NOOP("Pushbroom", "ellipsoidal (WGS 84)"), QT_TRANSLATE_NOOP("Pushbroom", "EGM96"))
 
 
 class Orthorectify(PushbroomAlgorithm):
     NAME = "orthorectify"
-    DISPLAY_NAME = "Orthorectify image"
+    DISPLAY_NAME = QT_TRANSLATE_NOOP("Pushbroom", "Orthorectify image")
     GROUP_ID = "surface"
 
-    KEYS = (
-        "BLOCK IMAGE_NAME IMAGE ORIENTATION DEM DEM_HEIGHTS CRS CELL_SIZE RESAMPLING OCCLUSION MAX_ERROR "
-        "EXECUTION DASK_ADDRESS DASK_WAIT WORKERS DEM_NODATA OUTPUT BOUND CELLS"
-    )
+    # parameter and output keys: the names Processing, models and qgis_process use
+    BLOCK = "BLOCK"
+    IMAGE_NAME = "IMAGE_NAME"
+    IMAGE = "IMAGE"
+    ORIENTATION = "ORIENTATION"
+    DEM = "DEM"
+    DEM_HEIGHTS = "DEM_HEIGHTS"
+    CRS = "CRS"
+    CELL_SIZE = "CELL_SIZE"
+    RESAMPLING = "RESAMPLING"
+    OCCLUSION = "OCCLUSION"
+    MAX_ERROR = "MAX_ERROR"
+    EXECUTION = "EXECUTION"
+    DASK_ADDRESS = "DASK_ADDRESS"
+    DASK_WAIT = "DASK_WAIT"
+    WORKERS = "WORKERS"
+    DEM_NODATA = "DEM_NODATA"
+    OUTPUT = "OUTPUT"
+    BOUND = "BOUND"
+    CELLS = "CELLS"
 
     def initAlgorithm(self, config=None):
-        d, tr = OrthoParams(), self.tr
+        d = OrthoParams()
         self.addParameter(
             QgsProcessingParameterFile(
-                self.BLOCK, tr("Block (empty: the image's own orientation)"), extension="gpkg", optional=True
+                self.BLOCK,
+                translate("Pushbroom", "Block (empty: the image's own orientation)"),
+                extension="gpkg",
+                optional=True,
             )
         )
-        self.addParameter(QgsProcessingParameterString(self.IMAGE_NAME, tr("Image name in the block"), optional=True))
-        self.addParameter(QgsProcessingParameterRasterLayer(self.IMAGE, tr("Image (without a block)"), optional=True))
+        self.addParameter(
+            QgsProcessingParameterString(
+                self.IMAGE_NAME, translate("Pushbroom", "Image name in the block"), optional=True
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterRasterLayer(
+                self.IMAGE, translate("Pushbroom", "Image (without a block)"), optional=True
+            )
+        )
         self.addParameter(
             QgsProcessingParameterFile(
-                self.ORIENTATION, tr("Orientation file (empty: found beside the image)"), optional=True
+                self.ORIENTATION,
+                translate("Pushbroom", "Orientation file (empty: found beside the image)"),
+                optional=True,
             )
         )
-        self.addParameter(QgsProcessingParameterRasterLayer(self.DEM, tr("DEM")))
+        self.addParameter(QgsProcessingParameterRasterLayer(self.DEM, translate("Pushbroom", "DEM")))
         self.addParameter(
             QgsProcessingParameterEnum(
-                self.DEM_HEIGHTS, tr("DEM heights"), [tr(label) for label in DEM_HEIGHTS], defaultValue=0
+                self.DEM_HEIGHTS,
+                translate("Pushbroom", "DEM heights"),
+                [translated(label) for label in DEM_HEIGHTS],
+                defaultValue=0,
             )
         )
         self.addParameter(
             QgsProcessingParameterCrs(
-                self.CRS, tr("Output CRS (empty: UTM zone of the footprint)"), None, optional=True
+                self.CRS, translate("Pushbroom", "Output CRS (empty: UTM zone of the footprint)"), None, optional=True
             )
         )
         self.addParameter(
             Number(
                 self.CELL_SIZE,
-                tr("Cell size in CRS units (empty: ground sampling distance)"),
+                translate("Pushbroom", "Cell size in CRS units (empty: ground sampling distance)"),
                 Number.Double,
                 None,
                 optional=True,
@@ -70,14 +108,23 @@ class Orthorectify(PushbroomAlgorithm):
             )
         )
         self.addParameter(
-            QgsProcessingParameterEnum(self.RESAMPLING, tr("Resampling"), list(RESAMPLING), defaultValue=0)
+            QgsProcessingParameterEnum(
+                self.RESAMPLING,
+                translate("Pushbroom", "Resampling"),
+                [translated(RESAMPLING_LABELS.get(m, m)) for m in RESAMPLING],
+                defaultValue=0,
+            )
         )
-        self.addParameter(QgsProcessingParameterBoolean(self.OCCLUSION, tr("Occluded cells as nodata"), d.occlusion))
+        self.addParameter(
+            QgsProcessingParameterBoolean(
+                self.OCCLUSION, translate("Pushbroom", "Occluded cells as nodata"), d.occlusion
+            )
+        )
         self.addAdvancedParameters(
             [
                 Number(
                     self.MAX_ERROR,
-                    tr("Bound of the coarse-grid interpolation error (px)"),
+                    translate("Pushbroom", "Bound of the coarse-grid interpolation error (px)"),
                     Number.Double,
                     d.max_error,
                     minValue=1e-6,
@@ -86,9 +133,11 @@ class Orthorectify(PushbroomAlgorithm):
                 nodata_parameter(self.DEM_NODATA),
             ]
         )
-        self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Orthoimage")))
-        self.addOutput(QgsProcessingOutputNumber(self.BOUND, tr("Achieved interpolation error bound (px)")))
-        self.addOutput(QgsProcessingOutputNumber(self.CELLS, tr("Cells with image values")))
+        self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, translate("Pushbroom", "Orthoimage")))
+        self.addOutput(
+            QgsProcessingOutputNumber(self.BOUND, translate("Pushbroom", "Achieved interpolation error bound (px)"))
+        )
+        self.addOutput(QgsProcessingOutputNumber(self.CELLS, translate("Pushbroom", "Cells with image values")))
 
     def execute(self, parameters, context, feedback):
         values = self.parameterValues(

@@ -13,7 +13,7 @@ from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.dem import implausible_heights
 from pushbroom.algorithms.dem_store import read_dem, store_dem
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.quality.height_differences import dem_differences, reference_at_points
+from pushbroom.algorithms.quality.height_differences import Reference, dem_differences, reference_at_points
 from tests.helpers.bad_inputs import VOID, VOID_CELLS, copy_dem
 from tests.helpers.feedback import Feedback
 
@@ -96,7 +96,7 @@ def test_the_reference_of_the_assessment_warns_and_takes_a_nodata_value(dems):
     inside = ((rows >= 401) & (rows < 499) & (cols >= 301) & (cols < 399)).ravel()  # bilinear: void cells only
     ring = ((rows < 399) | (rows >= 501) | (cols < 299) | (cols >= 401)).ravel()
     log = Feedback()
-    href, _ = reference_at_points(dems["voids"], lon, lat, srs(4326), feedback=log)
+    href, _ = reference_at_points(Reference(dems["voids"]), lon, lat, srs(4326), feedback=log)
     # issue 36: used as heights they made a 'mean dh' of 11 km; now voids, left out as declared ones would be ...
     assert np.isnan(href[inside]).all() and np.isfinite(href[ring]).all()
     # ... with the warning (pushInfo: this feedback has no pushWarning) naming the parameter that declares them
@@ -108,18 +108,18 @@ def test_the_reference_of_the_assessment_warns_and_takes_a_nodata_value(dems):
         and "They are left out as voids; declare -32767 as its nodata value (the REFERENCE_NODATA" in m
     ]
     log = Feedback()
-    href, _ = reference_at_points(dems["voids"], lon, lat, srs(4326), nodata=-32767, feedback=log)
+    href, _ = reference_at_points(Reference(dems["voids"], nodata=-32767), lon, lat, srs(4326), feedback=log)
     assert np.isnan(href[inside]).all() and np.isfinite(href[ring]).all()  # the voids left out, the rest kept
     assert not any("-32767" in m for m in log.messages)  # declared: no warning
 
 
 def test_a_dem_against_a_reference_with_declared_voids(dems):
     log = Feedback()
-    d = dem_differences(dems["dsm"], dems["voids"], feedback=log, reference_nodata=-32767)
+    d = dem_differences(dems["dsm"], Reference(dems["voids"], nodata=-32767), feedback=log)
     # the DSM against itself: dh = 0 wherever the reference has a height, the void cells left out
     assert d.excluded["outside the reference or on its nodata"] >= VOID_CELLS and np.abs(d.dh).max() < 1e-3
     assert not any("-32767" in m for m in log.messages)  # declared: no warning
     log = Feedback()
-    undeclared = dem_differences(dems["dsm"], dems["voids"], feedback=log)
+    undeclared = dem_differences(dems["dsm"], Reference(dems["voids"]), feedback=log)
     # undeclared: the same differences (the voids left out as implausible heights), and a warning
     assert np.array_equal(undeclared.dh, d.dh) and any("cells at -32767 m" in m for m in log.messages)

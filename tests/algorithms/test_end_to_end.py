@@ -23,14 +23,15 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dem import Dem
 from pushbroom.algorithms.dem_store import read_dem
-from pushbroom.algorithms.quality.assessment import assess, labels
+from pushbroom.algorithms.quality.assessment import Labelling, assess, labels
 from pushbroom.algorithms.quality.classes import ClassRaster
+from pushbroom.algorithms.quality.height_differences import Reference
 from pushbroom.algorithms.quality.statistics import summarize
 from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.simulation.terrain import BARE, CROPS, WATER
 from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.point_input import PointSet, read_points
-from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
+from pushbroom.algorithms.surface.tin_dem import DemParams, interpolate_dem, write_dem
 from tests.helpers.adjustment_scene import IDS
 from tests.helpers.end_to_end_chain import (
     DEM_CELL,
@@ -218,7 +219,9 @@ def test_group3_height_error_is_the_matched_surface_not_the_orientation(chain, f
     def dh(models_, positions):
         image = np.repeat(list(positions), len(ids))
         col, row = (np.concatenate([positions[k][c] for k in positions]) for c in (0, 1))
-        r = intersection.intersect(models_, image, np.tile(ids, len(positions)), col, row, h0=float(np.mean(h)))
+        r = intersection.intersect(
+            models_, intersection.Measurements(image, np.tile(ids, len(positions)), col, row), h0=float(np.mean(h))
+        )
         out = np.full(len(ids), np.nan)
         pos = np.searchsorted(ids, r.point[r.ok])
         out[pos] = r.h[r.ok] - dsm.height(r.lon[r.ok], r.lat[r.ok])
@@ -273,10 +276,14 @@ def test_dem_against_the_true_dsm_and_dtm(chain, tmp_path, figures):
     cloud = read_points(chain["three images"]["las"])
     lon, lat = reproject(cloud.x, cloud.y, cloud.srs, wgs84())
     exact = PointSet(cloud.x, cloud.y, read_dem(chain["paths"]["dsm"]).height(lon, lat), cloud.srs)
-    write_dem(interpolate_dem(exact, cell=DEM_CELL), tmp_path / "exact_heights_dem.tif")
+    write_dem(interpolate_dem(exact, DemParams(cell=DEM_CELL)), tmp_path / "exact_heights_dem.tif")
     floor = rows(
         chain,
-        assess(chain["paths"]["dsm"], dem=tmp_path / "exact_heights_dem.tif", classes=ClassRaster(chain["classes"]))[0],
+        assess(
+            Reference(chain["paths"]["dsm"]),
+            dem=tmp_path / "exact_heights_dem.tif",
+            labelling=Labelling(classes=ClassRaster(chain["classes"])),
+        )[0],
     )
     figures.report(f"DEM of the same points with their true heights, {OPEN}: RMS", floor[OPEN].rms, "m")
     figures.report("DEM of the same points with their true heights, interior: RMS", floor[INNER].rms, "m")

@@ -13,14 +13,15 @@ from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dense.epipolar import epipolar_grid
 from pushbroom.algorithms.dense.pair_tile import match_pair_tile
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.refine import refine_positions
+from pushbroom.algorithms.dense.refine import Conjugates, refine_positions
 from pushbroom.algorithms.dense.resample import epipolar_image
 from pushbroom.algorithms.dense.sgm import disparity
 from pushbroom.algorithms.matching.imagery import Image
+from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.resolution import adapt_resolution
 from pushbroom.algorithms.surface import intersection
-from pushbroom.algorithms.surface.cell_dem import cells_on_grid
+from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_dem import DemParams
 from pushbroom.algorithms.surface.tin_grid import Grid
@@ -71,14 +72,8 @@ def run():
         ok = np.isfinite(x2)
         x1, y1, x2, y2 = x1[ok], y1[ok], x2[ok], y2[ok]
         refined = refine_positions(
-            images[0],
-            images[1],
-            models[0],
-            models[1],
-            x1,
-            y1,
-            x2,
-            y2,
+            ImagePair(images[0], images[1], models[0], models[1]),
+            Conjugates(x1, y1, x2, y2),
             info["grid"].heights[::2],
             params.template,
             params.max_shift,
@@ -86,14 +81,8 @@ def run():
         )
         seconds = best_time(
             lambda: refine_positions(
-                images[0],
-                images[1],
-                models[0],
-                models[1],
-                x1,
-                y1,
-                x2,
-                y2,
+                ImagePair(images[0], images[1], models[0], models[1]),
+                Conjugates(x1, y1, x2, y2),
                 info["grid"].heights[::2],
                 params.template,
                 params.max_shift,
@@ -124,7 +113,7 @@ def run():
         x, y = reproject(result.lon[good], result.lat[good], wgs84(), srs)
         grid = Grid.covering(x, y, 0.5)
         radius = DemParams().radius
-        seconds = best_time(lambda: cells_on_grid(x, y, result.h[good], None, grid, radius=radius))
+        seconds = best_time(lambda: cells_on_grid(x, y, result.h[good], None, grid, CellSettings(radius=radius)))
         rows.append(
             {
                 "stage": f"per-cell rasterization (0.5 m, radius {radius})",

@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 from pushbroom.algorithms.block import Block
-from pushbroom.algorithms.measurement.transfer import transfer
+from pushbroom.algorithms.measurement.transfer import Click, transfer
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 
 POINTS = 500
@@ -81,7 +81,9 @@ def run():
             def click(k):
                 r = points[k % len(points)]
                 h = float(r["h"]) if how == "point height" else (float(r["h"]) - 500.0, float(r["h"]) + 500.0)
-                return transfer(images, models, source, float(r[f"{source}_col"]), float(r[f"{source}_row"]), height=h)
+                return transfer(
+                    images, models, Click(source, float(r[f"{source}_col"]), float(r[f"{source}_row"])), height=h
+                )
 
             click(0)
             median, worst = _median_ms(click, len(points))

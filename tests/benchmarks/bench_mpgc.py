@@ -51,7 +51,7 @@ def run():
         params = mpgc.MpgcParams(sigma_geometry=0.05)
 
         def multi():
-            return mpgc.match_points(images[0], images[1:], models, x0, y0, lon, lat, h, params)
+            return mpgc.match_points(images[0], images[1:], models, x0, y0, (lon, lat, h), params)
 
         def pairwise():
             return [

@@ -18,7 +18,7 @@ from osgeo import gdal
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.execution import Execution
-from pushbroom.algorithms.ortho import default_grid, orthorectify
+from pushbroom.algorithms.ortho import OrthoSettings, default_grid, orthorectify
 from pushbroom.algorithms.ortho.mapping import TileMapper
 from pushbroom.algorithms.ortho.orthorectify import CREATION_OPTIONS
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc, rpc_txt_path, write_fitted_rpc
@@ -89,7 +89,13 @@ def run():
         for threads in (1, 2):
             t_ours = best_time(
                 lambda: orthorectify(
-                    image, model, dem, ours_path, grid=grid, overviews=False, execution=Execution("threads", threads)
+                    image,
+                    model,
+                    dem,
+                    ours_path,
+                    grid=grid,
+                    settings=OrthoSettings(overviews=False),
+                    execution=Execution("threads", threads),
                 )
             )
             t_gdal = best_time(lambda: gdal_warp(image, dsm, grid, gdal_path, threads))

@@ -1,5 +1,5 @@
 """Multi-image point storage: save/load of 2 million points (6 million observations) as the
-block's .npz sidecar, the combination of three matching runs, tie point selection, and writing
+block's .npz point store, the combination of three matching runs, tie point selection, and writing
 the display point layer into the GeoPackage."""
 
 import pathlib
@@ -11,7 +11,7 @@ import numpy as np
 from pushbroom.algorithms.block import Block, points as points_store
 from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
-from pushbroom.algorithms.matching.three_combinations import combine
+from pushbroom.algorithms.matching.three_combinations import Transfer, combine
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from tests.benchmarks.benchutil import best_time
 from tests.helpers.points_synthetic import FlatModel, synthetic
@@ -38,10 +38,10 @@ def run():
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         block = _block(folder)
-        sidecars = []  # each store writes a new, versioned sidecar
-        save = best_time(lambda: sidecars.append(Block(block).save_points(mp)), repeat=2)
+        folders = []  # each store writes a new, versioned point folder
+        save = best_time(lambda: folders.append(Block(block).store_points(mp)), repeat=2)
         load = best_time(lambda: Block(block).points(), repeat=2)
-        size = pathlib.Path(sidecars[-1]).stat().st_size / 1e6
+        size = pathlib.Path(folders[-1]).stat().st_size / 1e6
         rows.append(
             {"step": f"save {N} points, {len(mp.observations)} observations (.npz, {size:.0f} MB)", "seconds": save}
         )
@@ -54,7 +54,7 @@ def run():
         rows.append(
             {
                 "step": f"combine (a), (b), (c) of {N} points each",
-                "seconds": best_time(lambda: combine(a, b, src, c, src), repeat=1),
+                "seconds": best_time(lambda: combine(a, Transfer(b, src), Transfer(c, src)), repeat=1),
             }
         )
         rows.append(

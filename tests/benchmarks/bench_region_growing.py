@@ -19,6 +19,7 @@ import json, sys, time, numba
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import match_pair
+from pushbroom.algorithms.matching.pair_geometry import ImagePair
 def peak_mib():
     # VmHWM: this process's own peak resident memory (ru_maxrss would carry the parent's across exec)
     for line in open("/proc/self/status"):

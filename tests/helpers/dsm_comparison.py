@@ -27,7 +27,7 @@ from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST, W
 from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.point_input import PointSet
 from pushbroom.algorithms.surface.pointcloud import output_srs
-from pushbroom.algorithms.surface.tin_dem import interpolate_dem
+from pushbroom.algorithms.surface.tin_dem import DemParams, interpolate_dem
 from tests.helpers.matching_scene import LOW_CONTRAST_DN
 
 NAMES = ("HRG", "HRS1", "HRS2")
@@ -94,11 +94,14 @@ class Truth:
         """The 10 m DEM of MultiPoints `mp` (module docstring) sampled at the evaluation cells (NaN: gap)."""
         obs = mp.observations
         res = intersection.intersect(
-            self.models, obs["image_id"], obs["point_id"], obs["col"], obs["row"], h0=float(np.mean(self.h))
+            self.models,
+            intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"]),
+            h0=float(np.mean(self.h)),
         )
         ok = res.ok
         dem = interpolate_dem(
-            PointSet(res.lon[ok], res.lat[ok], res.h[ok], wgs84()), cell=CELL, crs=self.srs, max_edge=MAX_EDGE_M
+            PointSet(res.lon[ok], res.lat[ok], res.h[ok], wgs84()),
+            DemParams(cell=CELL, crs=self.srs, max_edge=MAX_EDGE_M),
         )
         u, v = dem.grid.to_cells(self.x, self.y)
         i, j = np.round(v).astype(int), np.round(u).astype(int)

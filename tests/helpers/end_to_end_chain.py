@@ -38,12 +38,13 @@ from pushbroom.algorithms.matching.stereo_set import StereoSet
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from pushbroom.algorithms.matching.tiled_rounds import match_in_memory
 from pushbroom.algorithms.ortho import OutputGrid, orthorectify
-from pushbroom.algorithms.quality.assessment import assess
+from pushbroom.algorithms.quality.assessment import Labelling, assess
 from pushbroom.algorithms.quality.classes import ClassRaster
+from pushbroom.algorithms.quality.height_differences import Reference
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CROPS, FOREST, WATER
 from pushbroom.algorithms.surface import intersection, pointcloud
 from pushbroom.algorithms.surface.point_input import read_points
-from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
+from pushbroom.algorithms.surface.tin_dem import DemParams, interpolate_dem, write_dem
 from tests.helpers.adjustment_scene import IDS, LABELS, NAMES, point_observations
 from tests.helpers.matching_scene import LOW_CONTRAST_DN
 
@@ -116,14 +117,16 @@ def surface(models, mass, h0, folder, name):
     """Intersect the mass points with `models`; write the point cloud (LAS, UTM; field group as
     matched) and the 10 m DEM. Returns (Intersection, LAS path, DEM path, DemResult)."""
     obs = mass.observations
-    result = intersection.intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"], h0=h0)
+    result = intersection.intersect(
+        models, intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"]), h0=h0
+    )
     pos = np.searchsorted(mass.points["id"], result.point)
     ok = result.ok
     fields = pointcloud.cloud_fields(result, group=mass.points["group"][pos], rho=mass.points["rho_min"][pos])
     las, _, _ = pointcloud.write_point_cloud(
         folder / f"{name}.las", result.lon[ok], result.lat[ok], result.h[ok], fields
     )
-    dem = interpolate_dem(read_points(las), cell=DEM_CELL)
+    dem = interpolate_dem(read_points(las), DemParams(cell=DEM_CELL))
     dem_path = folder / f"{name}_dem.tif"
     write_dem(dem, dem_path)
     return result, las, dem_path, dem
@@ -186,7 +189,9 @@ def run_chain(paths, folder, workers=2):
             "dem_path": dem_path,
             "dem": dem,
             **{
-                ref: assess(paths[ref], points=las, dem=dem_path, classes=ClassRaster(classes))
+                ref: assess(
+                    Reference(paths[ref]), points=las, dem=dem_path, labelling=Labelling(classes=ClassRaster(classes))
+                )
                 for ref in ("dsm", "dtm")
             },
         }

@@ -31,8 +31,8 @@ def build(folder, scene):
     Block.create(block, Block.open_images(images), height=300.0)
     cp.import_csv(Block(block), scene["points"], suffix="_meas")
     ids = list(Block(block).image_ids().values())
-    Block(block).save_points(synthetic(60, images=ids))
-    Block(block).save_points(synthetic(20, seed=1, images=ids), "tie_points")
+    Block(block).store_points(synthetic(60, images=ids))
+    Block(block).store_points(synthetic(20, seed=1, images=ids), "tie_points")
     with open(scene["points"], newline="") as f:
         rows = list(csv.DictReader(f))
     lon, lat, h = (np.array([float(r[k]) for r in rows]) for k in ("lon", "lat", "h"))

@@ -11,7 +11,7 @@ import time
 import numpy as np
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.adjustment.bundle import adjust
+from pushbroom.algorithms.adjustment.bundle import AdjustmentSettings, adjust
 from pushbroom.algorithms.adjustment.observations import tie_observations
 from pushbroom.algorithms.crs import reproject, transform, wgs84
 from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
@@ -20,12 +20,12 @@ from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.matching.imagery import Image, as_image
 from pushbroom.algorithms.matching.points import MultiPoints
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
-from pushbroom.algorithms.quality.height_differences import dem_differences
+from pushbroom.algorithms.quality.height_differences import Reference, dem_differences
 from pushbroom.algorithms.quality.statistics import summarize
-from pushbroom.algorithms.surface.intersection import intersect
+from pushbroom.algorithms.surface.intersection import Measurements, intersect
 from pushbroom.algorithms.surface.point_input import PointSet
 from pushbroom.algorithms.surface.pointcloud import output_srs
-from pushbroom.algorithms.surface.tin_dem import interpolate_dem, write_dem
+from pushbroom.algorithms.surface.tin_dem import DemParams, interpolate_dem, write_dem
 from tests.helpers.pleiades_scene import LABELS, NAMES, in_order, triplet_models
 
 #: region growing on the Ventoux pair: nodes every VENTOUX_STEP px (1 m), the DSM asserted at VENTOUX_CELL m
@@ -65,14 +65,14 @@ def cut(models, observations, which=None):
     """Intersection of the observations (OBS_DTYPE) of the points `which` (ids; default all) with
     `models` {block image id: model}."""
     obs = observations if which is None else observations[np.isin(observations["point_id"], which)]
-    return intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"])
+    return intersect(models, Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"]))
 
 
 def dsm(result, srs, cell, max_edge=None):
     """DemResult of the converged points of an Intersection, in `srs`, ellipsoidal heights."""
     ok = result.ok
     x, y = reproject(result.lon[ok], result.lat[ok], wgs84(), srs)
-    return interpolate_dem(PointSet(x, y, result.h[ok], srs), cell=cell, crs=srs, max_edge=max_edge)
+    return interpolate_dem(PointSet(x, y, result.h[ok], srs), DemParams(cell=cell, crs=srs, max_edge=max_edge))
 
 
 def on_grid(dem, grid):
@@ -104,11 +104,11 @@ def srtm_comparison(result, srtm, cells, cell, folder):
         dem = out["dems"][c] = dsm(result, srs, c)
         path = folder / f"dsm_{c:g}m.tif"
         write_dem(dem, path)
-        diff = dem_differences(path, srtm, reference_datum="orthometric")
+        diff = dem_differences(path, Reference(srtm, "orthometric"))
         out["stats"][c] = summarize(diff.dh)
         if c == cell:
             out["diff"] = d = diff
-            out["geoid"] = dem_differences(path, srtm, reference_datum="ellipsoidal").dh - d.dh
+            out["geoid"] = dem_differences(path, Reference(srtm, "ellipsoidal")).dh - d.dh
     a = np.column_stack([np.ones_like(d.x), d.x - d.x.mean(), d.y - d.y.mean()])
     out["plane"], *_ = np.linalg.lstsq(a, d.dh, rcond=None)
     out["detrended"] = summarize(d.dh - a @ out["plane"])
@@ -172,7 +172,7 @@ def build_triplet_dsms(triplet, match, cell, max_edge, folder, log):
         OTHERS,
         names=LABELS,
         height=height,
-        priors=PRIORS,
+        settings=AdjustmentSettings(priors=PRIORS),
     )
     out = {
         "points": points,

@@ -39,10 +39,7 @@ class ToyGrid(MatchingStrategy):
     name = "toy_grid"
     label = "Toy: the sensor models' predictions on a grid"
     settings_type = ToySettings
-
-    @classmethod
-    def spacing(cls, settings: ToySettings) -> float:
-        return float(settings.step)
+    spacing_setting = "step"
 
     @classmethod
     def plan(cls, stereo, settings, feedback) -> TilePlan:
@@ -74,5 +71,5 @@ class ToyGrid(MatchingStrategy):
         return {"points": n}
 
     @classmethod
-    def stats(cls, job, first, refined, counts, feedback) -> MatchStats:
-        return MatchStats(cls.name, list(job[0].ids), int(sum(counts)))
+    def stats(cls, job, rounds, feedback) -> MatchStats:
+        return MatchStats(cls.name, list(job[0].ids), int(sum(rounds.counts)))

@@ -30,7 +30,7 @@ from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.simulation import SceneConfig
-from pushbroom.algorithms.surface.intersection import intersect
+from pushbroom.algorithms.surface.intersection import Measurements, intersect
 from tests.helpers.osr_oracle import utm
 from tests.helpers.raster_oracle import bilinear
 
@@ -94,7 +94,7 @@ def make_tie_block(scene, path):
         obs["image_id"][k::3] = i
         c, r = truth[i].ground_to_image(lon, lat, h)
         obs["col"][k::3], obs["row"][k::3] = c + rng.normal(0, 0.2, N_TIE), r + rng.normal(0, 0.2, N_TIE)
-    Block(path).save_points(MultiPoints(pts, obs), "tie_points")
+    Block(path).store_points(MultiPoints(pts, obs), "tie_points")
     return ids, obs
 
 
@@ -204,7 +204,7 @@ def test_tie_heights_against_the_reference_dtm(pushbroom_provider, tie_block, tm
         assert "Kornus et al. 2006, Table 4" in page
         tables[key] = _table_row(page, "dh")
     models = {i: Block(path).model(i) for i in ids.values()}
-    cut = intersect(models, obs["image_id"], obs["point_id"], obs["col"], obs["row"], 0.5, h0=300.0)
+    cut = intersect(models, Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"], 0.5), h0=300.0)
     assert cut.ok.all()
     dh = cut.h - bilinear(paths["dtm"], cut.lon, cut.lat)
     want = [dh.size, dh.min(), dh.mean(), dh.max(), np.sqrt(np.mean(dh**2)), np.std(dh, ddof=1)]

@@ -98,7 +98,7 @@ def public_scene(small_scene, public):
     obs = np.zeros(150, OBS_DTYPE)
     obs["point_id"], obs["image_id"] = np.repeat(np.arange(50), 3), np.tile(ids, 50)
     obs["col"], obs["row"] = 100.0 + np.repeat(np.arange(50), 3), 200.0
-    Block(path).save_points(MultiPoints(pts, obs), "mass_points")
+    Block(path).store_points(MultiPoints(pts, obs), "mass_points")
     for name in ("HRS1", "HRS2"):
         shutil.copytree(os.path.dirname(small_scene["images"][name]["imagery"]), folder / name)
     return {

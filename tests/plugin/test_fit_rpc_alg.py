@@ -256,7 +256,7 @@ def test_report_compares_rpc_and_rigorous_object_points_of_the_tie_points(
     for k, (i, model) in enumerate(models.items()):
         obs["image_id"][k::3] = i
         obs["col"][k::3], obs["row"][k::3] = model.ground_to_image(lon, lat, 300.0)
-    Block(path).save_points(MultiPoints(pts, obs), "tie_points")
+    Block(path).store_points(MultiPoints(pts, obs), "tie_points")
     processing.run("pushbroom:fitrpc", {"BLOCK": path, "REPORT": str(tmp_path / "fit.html")})
     page = (tmp_path / "fit.html").read_text()
     found = re.search(r"Table 5\): 200 points .* max \|dh\| ([0-9.]+) m", page)

@@ -53,7 +53,7 @@ def make_block(triplet, name, kinds=("mass_points",)):
     pts["group"] = np.where(pts["id"] < 200, 3, 1)
     pts["rho_min"] = rng.uniform(0.7, 1.0, 300)
     for kind in kinds:
-        Block(path).save_points(MultiPoints(pts, obs), kind)
+        Block(path).store_points(MultiPoints(pts, obs), kind)
     return path, lon, lat, h
 
 

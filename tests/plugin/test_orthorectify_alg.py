@@ -10,7 +10,7 @@ from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessin
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem_store import read_dem
-from pushbroom.algorithms.ortho import orthorectify
+from pushbroom.algorithms.ortho import OrthoSettings, orthorectify
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +45,7 @@ def test_image_with_its_own_orientation_equals_the_engine(pushbroom_provider, in
         sensors.load(inputs["image"]),
         read_dem(inputs["dem"]),
         tmp_path / "engine.tif",
-        resampling_method="bicubic",
+        settings=OrthoSettings(resampling_method="bicubic"),
     )
     assert engine.cells == result["CELLS"] > 300000
     np.testing.assert_array_equal(band.ReadAsArray(), gdal.Open(str(tmp_path / "engine.tif")).ReadAsArray())

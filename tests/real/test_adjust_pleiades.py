@@ -29,7 +29,7 @@ import time
 import numpy as np
 import pytest
 
-from pushbroom.algorithms.adjustment.bundle import CRITICAL_W, adjust
+from pushbroom.algorithms.adjustment.bundle import CRITICAL_W, AdjustmentSettings, adjust
 from pushbroom.algorithms.adjustment.observations import tie_observations
 from pushbroom.algorithms.adjustment.reprojection import ALL, reprojection_rms
 from pushbroom.algorithms.errors import InputError
@@ -93,8 +93,7 @@ def adjusted(pleiades_triplet, block, figures):
         OTHERS,
         names=LABELS,
         height=float(np.mean(before.h)),
-        priors=PRIORS,
-        remove_blunders=True,
+        settings=AdjustmentSettings(priors=PRIORS, remove_blunders=True),
     )
     free = np.flatnonzero(after.parameters.free)
     w = np.nanmax(np.abs(after.normalised), axis=1)
@@ -198,7 +197,7 @@ def test_residuals_do_not_depend_on_the_datum(pleiades_triplet, block, adjusted)
         ["bias:shift"],
         names=LABELS,
         height=float(np.mean(after.h)),
-        priors=PRIORS,
+        settings=AdjustmentSettings(priors=PRIORS),
     )
     assert np.abs(free.residuals - after.residuals).max() < 0.01
     fixed, loose = after.parameters.models, free.parameters.models
@@ -219,7 +218,7 @@ def test_shift_is_enough(pleiades_triplet, block, adjusted, figures):
             free,
             names=LABELS,
             height=float(np.mean(after.h)),
-            priors={f"bias:{kind}": 10.0},
+            settings=AdjustmentSettings(priors={f"bias:{kind}": 10.0}),
         )
         figures.report(f"{kind}: sigma_0", richer.sigma0, note=f"shift: {after.sigma0:.4f}")
         figures.report(f"{kind}: tie point RMS", reprojection_rms(richer)[-1]["rms"], "px")

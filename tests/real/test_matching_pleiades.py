@@ -25,7 +25,7 @@ import pytest
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.matching.consistency import fb_summary, forward_backward, observation_pairs
 from pushbroom.algorithms.matching.imagery import Image
-from pushbroom.algorithms.matching.pair_geometry import predict
+from pushbroom.algorithms.matching.pair_geometry import ImagePair, predict
 from pushbroom.algorithms.matching.params import GrowParams
 from tests.helpers.pleiades_scene import in_order
 from tests.helpers.real_dsm import TRIPLET_STEP
@@ -75,10 +75,7 @@ def matched(pleiades_triplet, region_growing_triplet_dsms):
     fb = {
         label: fb_summary(
             forward_backward(
-                images[i],
-                images[j],
-                models[i],
-                models[j],
+                ImagePair(images[i], images[j], models[i], models[j]),
                 observation_pairs(points, i + 1, j + 1, which=group3),
                 PARAMS,
             )

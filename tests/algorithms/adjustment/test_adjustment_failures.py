@@ -11,7 +11,14 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms.adjustment import normals
-from pushbroom.algorithms.adjustment.bundle import DEFECT_MEMBER, DefectError, _solve_jacobi, adjust, defect_groups
+from pushbroom.algorithms.adjustment.bundle import (
+    DEFECT_MEMBER,
+    AdjustmentSettings,
+    DefectError,
+    _solve_jacobi,
+    adjust,
+    defect_groups,
+)
 from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.adjustment.screening import describe, screen_control_points, without
 from pushbroom.algorithms.adjustment.selection import t_threshold
@@ -90,7 +97,9 @@ def test_an_unconverged_solution_says_so(scene):
     """One Gauss-Newton iteration from 20 urad look-angle errors: the points still move by metres, so the
     result is flagged, with its last update; the same block converges with the default 15."""
     obs = point_observations(scene["points"], IDS, 19)
-    one = adjust(perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0, max_iterations=1)
+    one = adjust(
+        perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0, settings=AdjustmentSettings(max_iterations=1)
+    )
     assert not one.converged and one.iterations == 1 and one.last_update > 1e-4
     assert any(n.startswith("NOT CONVERGED in 1 iteration") for n in one.notes)
     full = adjust(perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0)

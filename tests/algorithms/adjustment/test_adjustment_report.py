@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms.adjustment import report
-from pushbroom.algorithms.adjustment.bundle import adjust, check_points
+from pushbroom.algorithms.adjustment.bundle import AdjustmentSettings, adjust, check_points
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.adjustment.residual_vectors import intersection_residuals, residual_vectors
 from pushbroom.algorithms.adjustment.tie_heights import tie_height_differences
@@ -60,7 +60,9 @@ def adjusted(simulated):
     obs = point_observations(scene["points"], IDS, N_CONTROL, sigma_px=SIGMA_PX).concatenate(
         dsm_tie_points(scene, 300, 3)
     )
-    result = adjust(models, obs, ["look:0"], names=LABELS, height=300.0, remove_blunders=True)
+    result = adjust(
+        models, obs, ["look:0"], names=LABELS, height=300.0, settings=AdjustmentSettings(remove_blunders=True)
+    )
     check = check_points(result, obs, height=300.0)
     rows = list(csv.DictReader(open(scene["points"])))
     blunders = {r["id"] for r in rows if any(r[f"{n}_blunder"] == "1" for n in NAMES)}

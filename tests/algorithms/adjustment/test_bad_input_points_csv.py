@@ -78,7 +78,7 @@ def test_mutated_point_files_give_observations_or_the_engines_error(tmp_path, da
     path = tmp_path / "points.csv"
     path.write_bytes(data)
     try:
-        obs = cp.read_csv(path, IMAGES, crs=crs)
+        obs = cp.read_csv(path, IMAGES, cp.CsvOptions(crs=crs))
     except PushbroomError as exc:
         assert str(path) in str(exc) or "point" in str(exc)  # the message says which file or point
         return

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pushbroom.algorithms.adjustment import normals
-from pushbroom.algorithms.adjustment.bundle import adjust, check_points
+from pushbroom.algorithms.adjustment.bundle import AdjustmentSettings, adjust, check_points
 from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.simulation import SceneConfig
@@ -78,20 +78,21 @@ def test_reduced_normals_and_redundancy_against_dense_reference():
     wg[0], lg[0] = (4.0, 4.0, 1.0), (0.3, -0.2, 0.5)
     normal, rhs = np.zeros((nfree, nfree)), np.zeros(nfree)
     ninv, bp, ok = np.zeros((npts, 3, 3)), np.zeros((npts, 3)), np.zeros(npts, bool)
-    normals.reduce_normals(start, a, b, l, w, img, col, wg, lg, nfree, normal, rhs, ninv, bp, ok)
-    ref_n, ref_b, full, f, design, weights, image_rows = dense_reference(start, a, b, l, w, img, col, wg, lg, nfree)
+    design, points = normals.Design(start, a, b, w, img, col), normals.PointBlocks(ninv, bp, ok)
+    normals.reduce_normals(design, l, normals.Ground(wg, lg), nfree, normal, rhs, points)
+    ref_n, ref_b, full, f, dense, weights, image_rows = dense_reference(start, a, b, l, w, img, col, wg, lg, nfree)
     np.testing.assert_allclose(normal, ref_n, rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(rhs, ref_b, rtol=1e-10, atol=1e-10)
     do = np.linalg.solve(normal, rhs)
     dx = np.zeros((npts, 3))
-    normals.back_substitute(start, a, b, w, img, col, ninv, bp, ok, do, dx)
+    normals.back_substitute(design, points, do, dx)
     np.testing.assert_allclose(np.concatenate([dx.ravel(), do]), np.linalg.solve(full, f), rtol=1e-9, atol=1e-9)
     qoo = np.linalg.inv(normal)
     qpp, red = np.zeros((npts, 3, 3)), np.zeros((m, 2))
-    normals.point_statistics(start, a, b, w, img, col, ninv, ok, qoo, qpp, red)
+    normals.point_statistics(design, points, qoo, qpp, red)
     q = np.linalg.inv(full)
     np.testing.assert_allclose(qpp, np.array([q[3 * p : 3 * p + 3, 3 * p : 3 * p + 3] for p in range(npts)]), rtol=1e-9)
-    dense_r = 1.0 - np.einsum("ij,jk,ik->i", design, q, design) * weights
+    dense_r = 1.0 - np.einsum("ij,jk,ik->i", dense, q, dense) * weights
     np.testing.assert_allclose(red.ravel(), dense_r[image_rows], rtol=1e-9, atol=1e-12)
     assert dense_r.sum() == pytest.approx(len(weights) - 3 * npts - nfree)  # sum of r_i = redundancy
 
@@ -174,7 +175,14 @@ def test_data_snooping_flags_and_removes_blunders(scene):
     assert worst in result.flagged()
     thirty = Observations(obs.points, obs.measurements.copy())
     thirty.measurements["row"][target] += 30.0
-    fixed = adjust(perturbed(scene), thirty, ["look:0"], names=LABELS, height=300.0, remove_blunders=True)
+    fixed = adjust(
+        perturbed(scene),
+        thirty,
+        ["look:0"],
+        names=LABELS,
+        height=300.0,
+        settings=AdjustmentSettings(remove_blunders=True),
+    )
     assert fixed.removed and fixed.removed[0][:2] == (name, 2)
     free = fixed.parameters.free
     assert np.all(np.abs(fixed.values[free] - clean.values[free]) < 2.0 * clean.sigmas[free])
@@ -210,20 +218,41 @@ def test_priors_pin_loosen_and_cure_defects(scene):
     obs = point_observations(scene["points"], IDS, 19)
     free = adjust(perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0)
     q = free.parameters.select(["HRG psi_x_0"])
-    pinned = adjust(perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0, priors={"HRG psi_x_0": 1e-10})
+    pinned = adjust(
+        perturbed(scene),
+        obs,
+        ["look:0"],
+        names=LABELS,
+        height=300.0,
+        settings=AdjustmentSettings(priors={"HRG psi_x_0": 1e-10}),
+    )
     assert abs(pinned.values[q][0]) < 1e-9 and pinned.redundancy == free.redundancy + 1
     assert abs(free.values[q][0]) > 10 * free.sigmas[q][0]
-    loose = adjust(perturbed(scene), obs, ["look:0"], names=LABELS, height=300.0, priors={"look:0": 1.0})
+    loose = adjust(
+        perturbed(scene),
+        obs,
+        ["look:0"],
+        names=LABELS,
+        height=300.0,
+        settings=AdjustmentSettings(priors={"look:0": 1.0}),
+    )
     m = free.parameters.free
     assert np.all(np.abs(loose.values[m] - free.values[m]) < 1e-3 * free.sigmas[m])
     two = point_observations(scene["points"], IDS, 2)
     two.points["role"][two.points["role"] == "check"] = "tie"
     higher = ["psi_x_12", "psi_y_12"]
-    cured = adjust(perturbed(scene), two, ["look:2"], names=LABELS, height=300.0, priors={p: 1e-5 for p in higher})
+    cured = adjust(
+        perturbed(scene),
+        two,
+        ["look:2"],
+        names=LABELS,
+        height=300.0,
+        settings=AdjustmentSettings(priors={p: 1e-5 for p in higher}),
+    )
     held = cured.parameters.select(higher)
     assert np.isfinite(cured.sigma0) and np.all(cured.sigmas[held] <= 1e-5 * max(1.0, cured.sigma0))
     with pytest.raises(InputError, match="must be positive"):
-        adjust(perturbed(scene), obs, ["look:0"], names=LABELS, priors={"look:0": 0.0})
+        adjust(perturbed(scene), obs, ["look:0"], names=LABELS, settings=AdjustmentSettings(priors={"look:0": 0.0}))
 
 
 def test_rpc_bias_correction_recovers_an_injected_affine_bias(scene):

@@ -6,7 +6,7 @@ tie points, look:1 free (12 unknowns)."""
 import numpy as np
 import pytest
 
-from pushbroom.algorithms.adjustment.bundle import adjust
+from pushbroom.algorithms.adjustment.bundle import AdjustmentSettings, adjust
 from pushbroom.algorithms.geodesy import B, metres_per_degree
 from tests.benchmarks.bench_adjustment import FREE, INJECTED, LABELS, SCIPY_TOLERANCE, problem, supplied_models
 from tests.helpers.scipy_bundle import ScipyBundle
@@ -52,7 +52,14 @@ def test_adjust_and_scipy_least_squares_reach_the_same_solution(tiny):
     outside: one iteration short, 1 % on one image's sigmas or twice the control heights' sigma miss
     the points' and v'Pv's bounds by 50 x or more, the orientation's by 1.9 x or more."""
     paths, obs, height = tiny
-    ours = adjust(supplied_models(paths), obs, FREE, names=LABELS, height=height, tolerance=ADJUST_TOLERANCE)
+    ours = adjust(
+        supplied_models(paths),
+        obs,
+        FREE,
+        names=LABELS,
+        height=height,
+        settings=AdjustmentSettings(tolerance=ADJUST_TOLERANCE),
+    )
     bundle = ScipyBundle(supplied_models(paths), obs, FREE, names=LABELS, height=height)
     x, lon, lat, h, result = bundle.solve(SCIPY_TOLERANCE)
     assert result.success

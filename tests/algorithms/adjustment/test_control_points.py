@@ -97,13 +97,13 @@ def test_roles_and_check_ids(scene, blk, tmp_path):
     rows = [dict(r, role="check" if k == 0 else "") for k, r in enumerate(scene["rows"])]
     path = write_rows(tmp_path / "roles.csv", rows)
     ids = Block(blk).image_ids()
-    obs = cp.read_csv(path, ids, suffix="_meas", check_ids=["P003"])
+    obs = cp.read_csv(path, ids, cp.CsvOptions(suffix="_meas", check_ids=["P003"]))
     assert obs.points["role"].tolist() == ["check", "control", "check"] + ["control"] * (len(rows) - 3)
-    obs = cp.read_csv(path, ids, suffix="_meas", default_role="check")
+    obs = cp.read_csv(path, ids, cp.CsvOptions(suffix="_meas", default_role="check"))
     assert (obs.points["role"] == "check").all()
     with pytest.raises(InputError, match="P999"):
-        cp.read_csv(path, ids, suffix="_meas", check_ids=["P001", "P999"])
-    text = cp.summary(cp.read_csv(path, ids, suffix="_meas", check_ids=["P002"]), ids)
+        cp.read_csv(path, ids, cp.CsvOptions(suffix="_meas", check_ids=["P001", "P999"]))
+    text = cp.summary(cp.read_csv(path, ids, cp.CsvOptions(suffix="_meas", check_ids=["P002"])), ids)
     assert text.startswith(f"control {len(rows) - 2}, check 2; HRG: {len(rows) - 2} control, 2 check;")
 
 
@@ -129,14 +129,14 @@ def test_projected_input(scene, blk, tmp_path, figures):
     wkt = osr.SpatialReference()
     wkt.ImportFromEPSG(epsg)
     for crs in (f"EPSG:{epsg}", wkt.ExportToWkt(), epsg):
-        obs = cp.read_csv(path, Block(blk).image_ids(), crs=crs)
+        obs = cp.read_csv(path, Block(blk).image_ids(), cp.CsvOptions(crs=crs))
         err = max(np.abs(obs.points["lon"] - lon).max(), np.abs(obs.points["lat"] - lat).max())
         assert err < 1e-8, err
     figures.report(f"UTM {epsg} -> WGS 84, largest difference", err, "deg")
     with pytest.raises(InputError, match="swapped|projected"):
         cp.read_csv(path, Block(blk).image_ids())  # metres read as degrees
     with pytest.raises(InputError, match="unknown coordinate reference system"):
-        cp.read_csv(path, Block(blk).image_ids(), crs="EPSG:999999")
+        cp.read_csv(path, Block(blk).image_ids(), cp.CsvOptions(crs="EPSG:999999"))
 
 
 def egm96_grid():
@@ -153,8 +153,8 @@ def test_orthometric_heights_add_the_egm96_undulation(scene, blk, tmp_path, figu
     gt, undulation = grid.GetGeoTransform(), grid.ReadAsArray().astype(float)
     rows = scene["rows"]
     path = write_rows(tmp_path / "ortho.csv", rows)
-    ell = cp.read_csv(path, Block(blk).image_ids(), suffix="_meas")
-    ortho = cp.read_csv(path, Block(blk).image_ids(), suffix="_meas", heights="orthometric")
+    ell = cp.read_csv(path, Block(blk).image_ids(), cp.CsvOptions(suffix="_meas"))
+    ortho = cp.read_csv(path, Block(blk).image_ids(), cp.CsvOptions(suffix="_meas", heights="orthometric"))
     assert ortho.points[["lon", "lat"]].tolist() == ell.points[["lon", "lat"]].tolist()
     lon, lat = ell.points["lon"], ell.points["lat"]
     x, y = (np.mod(lon - gt[0], 360.0)) / gt[1] - 0.5, (lat - gt[3]) / gt[5] - 0.5
@@ -332,7 +332,7 @@ def test_bad_file_leaves_the_block_unchanged(scene, blk, tmp_path, case, edit, m
 def test_cancelled_save_rolls_back(scene, blk, tmp_path):
     path = write_rows(tmp_path / "points.csv", scene["rows"])
     ids = Block(blk).image_ids()
-    obs = cp.read_csv(path, ids, suffix="_meas")
+    obs = cp.read_csv(path, ids, cp.CsvOptions(suffix="_meas"))
     with pytest.raises(CancelledError):  # the first import: nothing lands
         Block(blk).save_control_points(obs, feedback=Feedback(cancel_after=3))
     assert len(Block(blk).control_points().points) == 0

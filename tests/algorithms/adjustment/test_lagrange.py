@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from pushbroom.algorithms.adjustment.bundle import adjust
+from pushbroom.algorithms.adjustment.bundle import AdjustmentSettings, adjust
 from pushbroom.algorithms.adjustment.control_series import control_point_series
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.adjustment.parameters import EXTERIOR, OrientationParameters, line_time
@@ -220,8 +220,7 @@ def test_injected_orientation_image_errors_are_recovered(pair, figures):
         ["lagrange:attitude"],
         names=LABELS,
         height=500.0,
-        model="lagrange",
-        priors={"lagrange:offset": 100.0},
+        settings=AdjustmentSettings(model="lagrange", priors={"lagrange:offset": 100.0}),
     )
     error = (result.values + injected)[free]
     distance = float(error @ np.linalg.solve(result.covariance, error))
@@ -269,7 +268,13 @@ def test_control_point_series_on_a_spot14_pair(pair, figures):
         obs = redrawn_points(pair["points"], 30, rng).concatenate(tie_points(pair, 8, rng))
         runs.append(
             control_point_series(
-                models, obs, counts, FREE, names=LABELS, height=500.0, model="lagrange", orientation_images=2
+                models,
+                obs,
+                counts,
+                FREE,
+                names=LABELS,
+                height=500.0,
+                settings=AdjustmentSettings(model="lagrange", orientation_images=2),
             )
         )
     pooled = [
@@ -299,7 +304,13 @@ def test_control_point_series_on_a_spot14_pair(pair, figures):
     # 4 nodes over 2000 lines: yaw and pitch at a node are nearly one unknown in these oblique views
     # (bundle.find_defects names them); let the adjustment run anyway to show what that costs
     cubic = control_point_series(
-        models, obs, counts, FREE, names=LABELS, height=500.0, model="lagrange", defect_eigenvalue=1e-10
+        models,
+        obs,
+        counts,
+        FREE,
+        names=LABELS,
+        height=500.0,
+        settings=AdjustmentSettings(model="lagrange", defect_eigenvalue=1e-10),
     )
     figures.table(
         "4 orientation images (one draw, the simulator's measurements) (m)", section_rows(series_section(cubic))

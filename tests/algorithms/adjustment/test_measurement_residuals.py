@@ -14,7 +14,7 @@ from pushbroom.algorithms.adjustment import control_points as cp
 from pushbroom.algorithms.adjustment.bundle import adjust, check_points
 from pushbroom.algorithms.adjustment.residual_rows import residual_rows
 from pushbroom.algorithms.block import Block
-from pushbroom.algorithms.surface.intersection import intersect
+from pushbroom.algorithms.surface.intersection import Measurements, intersect
 
 CHECK = ["P002", "P005"]
 
@@ -65,7 +65,7 @@ def test_residuals_are_stored_and_loaded(adjusted, figures):
     chk = obs.subset(np.isin(obs.points["name"], CHECK))
     m = chk.measurements
     models = result.parameters.models
-    cut = intersect(models, m["image_id"], m["point"], m["col"], m["row"], m["sigma"], h0=300.0)
+    cut = intersect(models, Measurements(m["image_id"], m["point"], m["col"], m["row"], m["sigma"]), h0=300.0)
     assert cut.ok.all()
     worst = 0.0
     for mk in m:

@@ -148,7 +148,9 @@ def test_the_simulated_points_agree_with_their_measurements_far_within_the_bound
     # the consistency statistic of the true points (supplied orientation off by about 30 m, perturbation.py)
     # against its chi-square bound: at SPOT 5's stated 50 m they use a small part of it
     blk = Block(small_scene_block[0])
-    obs = cp.read_csv(write_rows(tmp_path / "p.csv", rows), {r["name"]: r["id"] for r in blk.images()}, suffix="_meas")
+    obs = cp.read_csv(
+        write_rows(tmp_path / "p.csv", rows), {r["name"]: r["id"] for r in blk.images()}, cp.CsvOptions(suffix="_meas")
+    )
     footprints = point_plausibility.Footprints(
         blk.models(), {r["id"]: r["name"] for r in blk.images()}, list(blk.height_range())
     )

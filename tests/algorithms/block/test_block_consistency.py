@@ -28,7 +28,7 @@ from tests.helpers.points_synthetic import FlatModel, two_ray_points
 sys.stdout.write("storing\\n")
 sys.stdout.flush()
 points = two_ray_points(int(sys.argv[2]), np.random.default_rng(0))
-Block(sys.argv[1]).save_points(points, display=(FlatModel(), 1, 0.0))
+Block(sys.argv[1]).store_points(points, display=(FlatModel(), 1, 0.0))
 sys.stdout.write("stored\\n")
 sys.stdout.flush()
 """
@@ -48,7 +48,7 @@ def layer_rows(path, name="mass_points"):
 def blk(tmp_path):
     path = tmp_path / "b.gpkg"
     create_schema(path)
-    Block(path).save_points(two_ray_points(1000), display=(FlatModel(), 1, 0.0))
+    Block(path).store_points(two_ray_points(1000), display=(FlatModel(), 1, 0.0))
     return str(path)
 
 
@@ -68,7 +68,7 @@ def test_a_store_killed_while_it_builds_the_layer_leaves_the_old_points(blk, tmp
     leftovers = sorted(f.name for f in tmp_path.glob("b.mass_points.*"))
     assert len(leftovers) == 2  # the killed store's folder, not referenced
     # the next store removes what the killed one left and switches to its own points
-    Block(blk).save_points(two_ray_points(7), display=(FlatModel(), 1, 0.0), replace_fewer=True)
+    Block(blk).store_points(two_ray_points(7), display=(FlatModel(), 1, 0.0), replace_fewer=True)
     assert not any(t.startswith("mass_points__staged_") for t in tables(blk))
     assert [f.name for f in tmp_path.glob("b.mass_points.*")] == [Block(blk).info()["mass_points"]]
     assert len(Block(blk).points()) == 7 == layer_rows(blk)
@@ -80,7 +80,7 @@ def test_a_store_waits_for_another_writer_then_says_so(blk, monkeypatch):
     holder.execute("BEGIN IMMEDIATE")
     try:
         with pytest.raises(StorageError, match="program.* keeps it locked .* nothing was stored"):
-            Block(blk).save_points(two_ray_points(5), display=(FlatModel(), 1, 0.0), replace_fewer=True)
+            Block(blk).store_points(two_ray_points(5), display=(FlatModel(), 1, 0.0), replace_fewer=True)
     finally:
         holder.execute("ROLLBACK")
         holder.close()

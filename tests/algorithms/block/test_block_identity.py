@@ -21,15 +21,15 @@ def test_points_stored_through_a_link_are_seen_through_both_paths(tmp_path):
     link = tmp_path / "sl" / "link.gpkg"
     link.symlink_to(real)
     mass, tie = synthetic(500), synthetic(40)
-    folder = Block(link).save_points(mass)  # matchpoints BLOCK=sl/link.gpkg
-    Block(real).save_points(tie, "tie_points")  # selecttiepoints by the real path
+    folder = Block(link).store_points(mass)  # matchpoints BLOCK=sl/link.gpkg
+    Block(real).store_points(tie, "tie_points")  # selecttiepoints by the real path
     assert os.path.dirname(folder) == str(tmp_path / "data") and os.path.basename(folder).startswith("b.mass_points.")
     assert os.listdir(tmp_path / "sl") == ["link.gpkg"]  # nothing beside the link
     for path in (real, link):
         assert same_points(Block(path).points(), mass) and same_points(Block(path).points("tie_points"), tie)
     assert Block(link).path == Block(real).path == str(real)
     # a second store through the link replaces the first: one point folder per kind, beside the real file
-    Block(link).save_points(mass.subset([1, 2, 3]), replace_fewer=True)  # far fewer: on purpose
+    Block(link).store_points(mass.subset([1, 2, 3]), replace_fewer=True)  # far fewer: on purpose
     assert len(Block(real).points()) == 3
     assert sorted(name.split(".")[1] for name in os.listdir(tmp_path / "data") if name != "b.gpkg") == [
         "mass_points",
@@ -40,7 +40,7 @@ def test_points_stored_through_a_link_are_seen_through_both_paths(tmp_path):
 def test_block_files_are_its_geopackage_journals_point_folders_and_images(tmp_path, small_scene_block):
     real = tmp_path / "b.gpkg"
     real.write_bytes(small_scene_block[0].read_bytes())
-    Block(real).save_points(synthetic(10))
+    Block(real).store_points(synthetic(10))
     files = Block(real).files()
     images = Block(real).images()
     folders = [p for p in files if os.path.isdir(p)]

@@ -31,15 +31,15 @@ def assert_same(a, b):
 
 def test_save_and_load_beside_the_block(block, tmp_path):
     mp = synthetic(3000)
-    path = Block(block).save_points(mp)
+    path = Block(block).store_points(mp)
     info = Block(block).info()
     assert info["mass_points"] == os.path.basename(path) and info["mass_points_count"] == "3000"
     assert os.path.basename(path).startswith("b.mass_points.") and os.path.isdir(path)
     assert_same(Block(block).points(), mp)
     # saving again replaces (no duplicate keys, the old file removed; far fewer points only when asked),
     # other kinds are separate
-    Block(block).save_points(mp.subset([1, 2, 3]), replace_fewer=True)
-    Block(block).save_points(mp.subset([5]), kind="tie_points")
+    Block(block).store_points(mp.subset([1, 2, 3]), replace_fewer=True)
+    Block(block).store_points(mp.subset([5]), kind="tie_points")
     assert len(Block(block).points()) == 3 and len(Block(block).points("tie_points")) == 1
     assert Block(block).info()["mass_points_count"] == "3"
     assert sorted(f.name.split(".")[1] for f in tmp_path.glob("b.*_points.*")) == ["mass_points", "tie_points"]
@@ -56,7 +56,7 @@ def test_parts_hold_the_points_in_id_order(block, tmp_path, monkeypatch):
     monkeypatch.setattr(points_store, "PART_POINTS", 1000)
     mp = synthetic(3500)
     shuffled = MultiPoints(mp.points[::-1], mp.observations[::-1], mp.stats)
-    Block(block).save_points(shuffled)
+    Block(block).store_points(shuffled)
     parts = Block(block).point_parts()
     assert [os.path.basename(p) for p in parts] == [f"part-{k:05d}.npz" for k in range(4)]
     loaded = [load_arrays(p) for p in parts]
@@ -74,7 +74,7 @@ def test_parts_hold_the_points_in_id_order(block, tmp_path, monkeypatch):
     ]
 
 
-def test_a_sidecar_of_one_file_is_read_as_one_part(block, tmp_path):
+def test_a_point_file_of_earlier_versions_is_read_as_one_part(block, tmp_path):
     mp = synthetic(50)
     path = save_arrays(tmp_path / "b.mass_points.npz", mp)
     Block(block).update_info({"mass_points": "b.mass_points.npz"})
@@ -88,7 +88,7 @@ def test_missing_points_give_clear_errors(block, tmp_path):
     with pytest.raises(InputError, match="missing"):
         load_arrays(tmp_path / "nothing.npz")
     with pytest.raises(InputError, match="no block"):
-        Block(tmp_path / "none.gpkg").save_points(synthetic(3))
+        Block(tmp_path / "none.gpkg").store_points(synthetic(3))
     (tmp_path / "x.npz").write_bytes(b"not a zip")
     with pytest.raises(StorageError, match="x.npz is damaged"):
         load_arrays(tmp_path / "x.npz")
@@ -164,7 +164,7 @@ def test_a_large_point_set_is_shown_by_a_uniform_subsample(block, monkeypatch):
     monkeypatch.setattr(points_store, "DISPLAY_POINTS", 2500)
     mp = synthetic(10_000)
     log = Feedback()
-    Block(block).save_points(mp, display=(FlatModel(), 1, 500.0), feedback=log)
+    Block(block).store_points(mp, display=(FlatModel(), 1, 500.0), feedback=log)
     assert len(Block(block).points()) == 10_000
     ds = ogr.Open(str(block))
     ids = np.array([f["id"] for f in ds.GetLayerByName("mass_points")])

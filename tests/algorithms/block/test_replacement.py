@@ -1,6 +1,6 @@
 """A step that finds nothing, or far fewer than before, never replaces good results silently
 (algorithms/block/replacement.py): the store of points and of control points refuses far fewer than the block
-holds, leaves the block and its sidecar as they were, and replaces them only when asked."""
+holds, leaves the block and its point folder as they were, and replaces them only when asked."""
 
 import os
 
@@ -9,7 +9,7 @@ import pytest
 
 from pushbroom.algorithms.adjustment.observations import MEAS_DTYPE, POINT_DTYPE, Observations
 from pushbroom.algorithms.block import Block
-from pushbroom.algorithms.block.points import save_part
+from pushbroom.algorithms.block.points import write_part
 from pushbroom.algorithms.block.replacement import Tally, check_replacement
 from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import InputError
@@ -58,46 +58,46 @@ def test_far_fewer_is_below_half_of_what_the_stored_result_gives_at_the_new_spac
 
 
 def test_a_store_of_no_points_keeps_the_block_as_it_was(block, tmp_path):
-    Block(block).save_points(with_spacing(synthetic(3000), 10), display=DISPLAY)
+    Block(block).store_points(with_spacing(synthetic(3000), 10), display=DISPLAY)
     before = snapshot(block)
 
     def nothing(folder):  # a fill that finds no point (a matching beside the terrain)
-        return [save_part(folder, 0, MultiPoints())], {"spacing_px": 10}
+        return [write_part(folder, 0, MultiPoints())], {"spacing_px": 10}
 
     with pytest.raises(
         InputError,
         match=r"0 mass points against 3000.*keeps its 3000 mass points.*"
         r"pushbroom:matchpoints again with REPLACE_FEWER",
     ):
-        Block(block).store_points("mass_points", nothing, display=DISPLAY)
-    assert snapshot(block) == before  # the same counts, layer rows and sidecar, byte for byte; no new folder
+        Block(block).store_point_parts("mass_points", nothing, display=DISPLAY)
+    assert snapshot(block) == before  # the same counts, layer rows and point folder, byte for byte; no new folder
     log = Feedback()
-    Block(block).store_points("mass_points", nothing, display=DISPLAY, feedback=log, replace_fewer=True)
+    Block(block).store_point_parts("mass_points", nothing, display=DISPLAY, feedback=log, replace_fewer=True)
     assert Block(block).info()["mass_points_count"] == "0" and len(Block(block).points()) == 0
     assert any("far fewer" in m and "REPLACE_FEWER" in m for m in log.messages)
     assert len(list(tmp_path.glob("b.mass_points.*"))) == 1  # the old folder removed after the switch
 
 
 def test_far_fewer_points_are_judged_at_the_new_spacing(block):
-    Block(block).save_points(with_spacing(synthetic(3000), 10))
+    Block(block).store_points(with_spacing(synthetic(3000), 10))
     # STEP 20 expects about 750 points: 300 is a failed run, 500 a coarser one
     with pytest.raises(InputError, match=r"300 mass points against 3000, about 750 at the new, coarser spacing"):
-        Block(block).save_points(with_spacing(synthetic(300), 20))
-    Block(block).save_points(with_spacing(synthetic(500), 20))
+        Block(block).store_points(with_spacing(synthetic(300), 20))
+    Block(block).store_points(with_spacing(synthetic(500), 20))
     assert Block(block).info()["mass_points_count"] == "500"
-    # tie points: their CELL; a sidecar of earlier versions without a spacing is compared by its count
-    Block(block).save_points(synthetic(400), "tie_points")
+    # tie points: their CELL; a point folder of earlier versions without a spacing is compared by its count
+    Block(block).store_points(synthetic(400), "tie_points")
     with pytest.raises(InputError, match="pushbroom:selecttiepoints again"):
-        Block(block).save_points(
+        Block(block).store_points(
             MultiPoints(synthetic(100).points, synthetic(100).observations, {"tie_cell": 100}), "tie_points"
         )
 
 
-def test_a_damaged_stored_sidecar_is_replaced_without_asking(block, tmp_path):
-    Block(block).save_points(synthetic(3000))
+def test_a_damaged_stored_point_folder_is_replaced_without_asking(block, tmp_path):
+    Block(block).store_points(synthetic(3000))
     stored = tmp_path / Block(block).info()["mass_points"]
     (stored / "index.json").write_text("{cut short")
-    Block(block).save_points(synthetic(10))  # "run the step again" must work on a damaged file
+    Block(block).store_points(synthetic(10))  # "run the step again" must work on a damaged file
     assert len(Block(block).points()) == 10
 
 

@@ -105,6 +105,6 @@ def test_only_the_block_package_writes_the_block():
             if relative.startswith(DOOR) or relative in ALLOWED:
                 continue
             offenders += [f"{relative}:{line}: {what}" for line, what in storage_writes(path.read_text("utf-8"))]
-    # a write outside algorithms/block/ bypasses its transactions, generations and versioned sidecars:
+    # a write outside algorithms/block/ bypasses its transactions, generations and versioned point folders:
     # go through block.Block instead (or, for a step's own output file, add it to ALLOWED with the reason)
     assert not offenders, "writes outside algorithms/block/:\n" + "\n".join(offenders)

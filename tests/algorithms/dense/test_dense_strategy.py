@@ -9,9 +9,9 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.pair_tile import lattice, match_pair_tile, sample_disparity
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.refine import AFFINE_CELL, isolated, refine_positions
+from pushbroom.algorithms.dense.refine import AFFINE_CELL, Conjugates, isolated, refine_positions
 from pushbroom.algorithms.execution import Execution
-from pushbroom.algorithms.matching.pair_geometry import local_affine
+from pushbroom.algorithms.matching.pair_geometry import ImagePair, local_affine
 from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS
 from pushbroom.algorithms.surface import intersection
 from tests.helpers.feedback import Feedback
@@ -69,7 +69,9 @@ def test_dense_positions_against_the_truth(scene, figures):
     # LSM in the original images, on every 3rd lattice node
     k = np.arange(0, x1.size, 3)
     rx, ry, rho, major, _ = refine_positions(
-        scene.image1, scene.image2, scene.model1, scene.model2, x1[k], y1[k], x2[k], y2[k], scene.height_range
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
+        Conjugates(x1[k], y1[k], x2[k], y2[k]),
+        scene.height_range,
     )
     done = np.isfinite(rho)
     moved = np.hypot(rx - x2[k], ry - y2[k])
@@ -159,7 +161,9 @@ def test_mpgc_refines_more_three_ray_points_and_better(small_scene, tmp_path, fi
         )
         points = np.concatenate([p.points for p in parts])
         obs = np.concatenate([p.observations for p in parts])
-        res = intersection.intersect(truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"])
+        res = intersection.intersect(
+            truth, intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"])
+        )
         ok = res.ok
         lon, lat, h = res.lon[ok], res.lat[ok], res.h[ok]
         slot = np.searchsorted(points["id"], res.point[ok])

@@ -57,7 +57,9 @@ def matched(small_scene, tmp_path_factory):
     multi, _ = tile_points(job, BOX)
     obs = multi.observations
     truth = {k + 1: sensors.load(small_scene["truth_metadata"][n]) for k, n in enumerate(NAMES)}
-    res = intersection.intersect(truth, obs["image_id"], obs["point_id"], obs["col"], obs["row"])
+    res = intersection.intersect(
+        truth, intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"])
+    )
     assert np.array_equal(res.point, multi.points["id"]) and res.ok.all()
     error = np.abs(res.h - dsm.height(res.lon, res.lat))
     xy = [(obs["col"][obs["image_id"] == k], obs["row"][obs["image_id"] == k]) for k in (1, 2)]

@@ -99,11 +99,11 @@ def test_hypotheses_agreement_and_relaxation():
     y = np.zeros(4)
     hh = np.array([[150.0, nan], [152.0, nan], [200.0, 150.0], [300.0, nan]])
     ss = np.array([[0.9, nan], [0.9, nan], [0.8, 0.79], [0.9, nan]])
-    out = relax(x, y, hh, ss, np.array([0, 0, -1, 0]), np.full(4, 5.0), radius=12.0)
+    out = relax(x, y, (hh, ss), np.array([0, 0, -1, 0]), np.full(4, 5.0), radius=12.0)
     assert out[2] == 1
     mask = np.zeros((5, 40), bool)
     mask[:, 7] = True  # an edge between x = 5 and 10
-    out = relax(x, y, hh, ss, np.array([0, 0, -1, 0]), np.full(4, 5.0), radius=12.0, edge_mask=mask)
+    out = relax(x, y, (hh, ss), np.array([0, 0, -1, 0]), np.full(4, 5.0), radius=12.0, edge_mask=mask)
     assert out[2] == 1  # still the left neighbour (x = 0)
     assert crosses_edge(mask, x, y, np.array([[2, 1], [0, 2]])).tolist() == [True, False]
 

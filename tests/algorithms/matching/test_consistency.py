@@ -14,6 +14,7 @@ from pushbroom.algorithms.matching.consistency import (
     invert_affine,
     observation_pairs,
 )
+from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
@@ -93,7 +94,7 @@ def test_invert_affine_and_guide():
 def test_correct_matches_come_back(pair, with_affine, offset):
     img1, img2, m1, m2 = pair
     rec = true_records(with_affine)
-    d = forward_backward(img1, img2, m1, m2, rec, PARAMS, HR, start_offset=offset)
+    d = forward_backward(ImagePair(img1, img2, m1, m2), rec, PARAMS, HR, start_offset=offset)
     assert np.all(np.isfinite(d))
     s = fb_summary(d)
     assert s["rms"] < 0.03 and s["over"] == 0 and s["failed"] == 0, s
@@ -106,7 +107,7 @@ def test_blunders_show_their_size(pair):
     err = np.array([1.2, -0.8])
     rec["x2"][bad] += err[0]
     rec["y2"][bad] += err[1]
-    d, back = forward_backward(img1, img2, m1, m2, rec, PARAMS, HR, return_records=True)
+    d, back = forward_backward(ImagePair(img1, img2, m1, m2), rec, PARAMS, HR, return_records=True)
     # the image-2 template at x2 + e shows image 1 at x1 + A^-1 e
     expected = np.hypot(*(np.linalg.inv(A) @ err))
     np.testing.assert_allclose(d[bad], expected, atol=0.05)
@@ -123,11 +124,11 @@ def test_unusable_records_give_nan(pair):
     rec = true_records()
     rec["x2"][3] = np.nan  # no image-2 position
     rec["x2"][5] = SIZE + 50.0  # template outside image 2
-    d = forward_backward(img1, img2, m1, m2, rec, PARAMS, HR)
+    d = forward_backward(ImagePair(img1, img2, m1, m2), rec, PARAMS, HR)
     assert np.isnan(d[3]) and np.isnan(d[5]) and np.isfinite(np.delete(d, [3, 5])).all()
     s = fb_summary(d)
     assert s["failed"] == 2 and s["back_matched"] == len(rec) - 2
-    empty = forward_backward(img1, img2, m1, m2, np.zeros(0, PAIR_DTYPE), PARAMS, HR)
+    empty = forward_backward(ImagePair(img1, img2, m1, m2), np.zeros(0, PAIR_DTYPE), PARAMS, HR)
     assert empty.shape == (0,) and np.isnan(fb_summary(empty)["rms"])
 
 

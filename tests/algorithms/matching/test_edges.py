@@ -346,7 +346,7 @@ def test_figural_continuity_removes_injected_repeats(pair, figures):
     sx, sy = REPEAT_SHIFT
     c0, c1 = int(ROAD[0]) - 6, int(ROAD[1]) + 6
     fake[r0 + sy : r1 + sy, c0 + sx : c1 + sx] = ref[r0:r1, c0:c1]
-    plain = edges.match_edges(ref, fake, chains, predict, H_RANGE, figural=False)
+    plain = edges.match_edges(ref, fake, chains, predict, H_RANGE, edges.EdgeMatching(figural=False))
     figural = edges.match_edges(ref, fake, chains, predict, H_RANGE)
     road = (np.abs(plain["col"] - ROAD[0]) < 1.5) | (np.abs(plain["col"] - ROAD[1]) < 1.5)
     inside = road & (plain["row"] >= r0 + 4) & (plain["row"] < r1 - 4)
@@ -367,7 +367,7 @@ def test_match_edges_input_errors(pair):
     with pytest.raises(InputError, match="h_max > h_min"):
         edges.match_edges(ref, search, chains, predict, (10.0, 10.0))
     with pytest.raises(InputError, match="odd"):
-        edges.match_edges(ref, search, chains, predict, H_RANGE, window=6)
+        edges.match_edges(ref, search, chains, predict, H_RANGE, edges.EdgeMatching(window=6))
     with pytest.raises(InputError, match=r"\(n, 2\)"):
         edges.match_edges(ref, search, [np.zeros(5)], predict, H_RANGE)
     per_point = [np.full(sum(map(len, chains)), v) for v in H_RANGE]  # one range per chain point

@@ -342,7 +342,7 @@ def calibrated(planar, params, figures):
     reported sigma within 0.8-1.25 (positions in both search images, object points), reports the
     figures; returns the records, the converged ones and their geometric test t."""
     cameras, images, x0, y0, enu, pos, (lon, lat, h) = planar
-    rec = mpgc.match_points(images[0], images[1:], cameras, x0, y0, lon, lat, h, params)
+    rec = mpgc.match_points(images[0], images[1:], cameras, x0, y0, (lon, lat, h), params)
     ok = rec["status"] == mpgc.OK
     figures.report("converged", ok.sum(), note=f"of {len(rec)}")
     figures.report("iterations, median", np.median(rec["iterations"][ok]))
@@ -425,9 +425,7 @@ def test_linearisation_and_loose_constraint(planar):
         cameras,
         x0[sel],
         y0[sel],
-        lon[sel],
-        lat[sel],
-        h[sel],
+        (lon[sel], lat[sel], h[sel]),
         mpgc.MpgcParams(sigma_geometry=0.2),
     )
     ok = a["status"] == mpgc.OK
@@ -440,9 +438,7 @@ def test_linearisation_and_loose_constraint(planar):
         cameras,
         x0[sel],
         y0[sel],
-        lon[sel],
-        lat[sel],
-        h[sel] + 0.5,
+        (lon[sel], lat[sel], h[sel] + 0.5),
         mpgc.MpgcParams(sigma_geometry=0.01),
     )
     ref = mpgc.match_points(
@@ -451,9 +447,7 @@ def test_linearisation_and_loose_constraint(planar):
         cameras,
         x0[sel],
         y0[sel],
-        lon[sel],
-        lat[sel],
-        h[sel],
+        (lon[sel], lat[sel], h[sel]),
         mpgc.MpgcParams(sigma_geometry=0.01),
     )
     both = (hard["status"] == 0) & (ref["status"] == 0)
@@ -467,7 +461,7 @@ def test_tiles_and_one_search_image(planar):
     (LSM along the epipolar line), less precise than two."""
     cameras, images, x0, y0, enu, pos, (lon, lat, h) = planar
     sel = slice(0, 90)
-    args = (cameras, x0[sel], y0[sel], lon[sel], lat[sel], h[sel])
+    args = (cameras, x0[sel], y0[sel], (lon[sel], lat[sel], h[sel]))
     big = mpgc.match_points(images[0], images[1:], *args, mpgc.MpgcParams(sigma_geometry=0.001))
     small = mpgc.match_points(images[0], images[1:], *args, mpgc.MpgcParams(sigma_geometry=0.001, tile=76))
     for name in ("x", "y", "h", "sigma", "rho", "status", "iterations"):
@@ -505,7 +499,7 @@ def test_failures_give_status_not_exceptions(planar, figures):
     hh[3] = enu[good, 2] + 60.0  # 27 px of parallax: far off
     hh[4] = enu[good, 2] + 500.0  # projects outside the search images
     lo[5] = np.nan
-    rec = mpgc.match_points(ref, images[1:], cameras, xs, ys, lo, la, hh)
+    rec = mpgc.match_points(ref, images[1:], cameras, xs, ys, (lo, la, hh))
     status = list(rec["status"])
     figures.report("statuses", [mpgc.STATUS_NAMES[s] for s in status])
     figures.report("reliability", rec["reliability"])
@@ -521,7 +515,7 @@ def test_failures_give_status_not_exceptions(planar, figures):
         assert rec["h"][p] == hh[p] and (rec["lon"][p] == lo[p] or np.isnan(lo[p]))
     start = mpgc.initial_state(*mpgc.geometry(cameras, lo[:2], la[:2], hh[:2]))
     assert rec["x"][1] == pytest.approx(start[1, :, 0]) and rec["y"][1] == pytest.approx(start[1, :, 3])
-    alone = mpgc.match_points(ref, images[1:], cameras, xs[:1], ys[:1], lo[:1], la[:1], hh[:1])
+    alone = mpgc.match_points(ref, images[1:], cameras, xs[:1], ys[:1], (lo[:1], la[:1], hh[:1]))
     for name in ("x", "y", "lon", "lat", "h", "sigma", "rho", "reliability", "iterations", "status"):
         np.testing.assert_allclose(alone[name][0], rec[name][0], rtol=1e-9, atol=1e-9, err_msg=name)
 
@@ -529,18 +523,18 @@ def test_failures_give_status_not_exceptions(planar, figures):
 def test_input_errors(planar):
     cameras, images, x0, y0, enu, pos, (lon, lat, h) = planar
     with pytest.raises(InputError, match="one sensor model per image"):
-        mpgc.match_points(images[0], images[1:], cameras[:2], x0, y0, lon, lat, h)
+        mpgc.match_points(images[0], images[1:], cameras[:2], x0, y0, (lon, lat, h))
     with pytest.raises(InputError, match="at least one search image"):
-        mpgc.match_points(images[0], [], cameras[:1], x0, y0, lon, lat, h)
+        mpgc.match_points(images[0], [], cameras[:1], x0, y0, (lon, lat, h))
     with pytest.raises(InputError, match="one length"):
-        mpgc.match_points(images[0], images[1:], cameras, x0[:3], y0[:2], lon[:3], lat[:3], h[:3])
+        mpgc.match_points(images[0], images[1:], cameras, x0[:3], y0[:2], (lon[:3], lat[:3], h[:3]))
     with pytest.raises(InputError, match="sigma_geometry"):
         mpgc.MpgcParams(sigma_geometry=0.0).check()
     with pytest.raises(InputError, match="support weights"):
         mpgc.MpgcParams(centre_sigma=-1.0).check()
     with pytest.raises(InputError, match="template"):
-        mpgc.match_points(images[0], images[1:], cameras, x0, y0, lon, lat, h, mpgc.MpgcParams(template=4))
-    empty = mpgc.match_points(images[0], images[1:], cameras, [], [], [], [], [])
+        mpgc.match_points(images[0], images[1:], cameras, x0, y0, (lon, lat, h), mpgc.MpgcParams(template=4))
+    empty = mpgc.match_points(images[0], images[1:], cameras, [], [], ([], [], []))
     assert empty.shape == (0,) and empty.dtype == mpgc.mpgc_dtype(2)
 
 
@@ -603,7 +597,7 @@ def test_spot_triplet_against_truth_and_pairwise(spot, figures):
     (paths, height_range), models, x0, y0, pos, (lon, lat, h) = spot
     images = spot_images(paths, models, height_range)
     params = mpgc.MpgcParams(sigma_geometry=0.05)
-    rec = mpgc.match_points(images[0], images[1:], models, x0, y0, lon, lat, h, params)
+    rec = mpgc.match_points(images[0], images[1:], models, x0, y0, (lon, lat, h), params)
     ok = rec["status"] == mpgc.OK
     acc = mpgc.accepted(rec, params)
     err = np.hypot(rec["x"] - pos[..., 0], rec["y"] - pos[..., 1])

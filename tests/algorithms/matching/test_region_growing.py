@@ -11,6 +11,7 @@ import pytest
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.matching.imagery import Image, Smoothed, Window
 from pushbroom.algorithms.matching.lsm import LSM_OUT, Solver, Start, lsm_point
+from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.region_growing import Lattice, match_pair, transfer_points
 from pushbroom.algorithms.matching.region_growing_kernels import _DC, _DR, Accept, Tile, _quantise, grow_kernel
@@ -188,12 +189,15 @@ def scene(small_matching_scene):
 @pytest.fixture(scope="module")
 def grown(scene):
     match_pair(
-        scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(tile=256), scene.height_range
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2), GrowParams(tile=256), scene.height_range
     )  # compile outside the timing
     feedback = Feedback()
     start = time.perf_counter()
     records = match_pair(
-        scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range, feedback=feedback
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
+        GrowParams(),
+        scene.height_range,
+        feedback=feedback,
     )
     seconds = time.perf_counter() - start
     x2, y2, cls = scene.truth(records["x1"], records["y1"])
@@ -401,7 +405,7 @@ def test_second_seed_round(scene, grown, nodes, figures):
     first round did not reach; every first-round point is the same
     (docs/validation.md#region-growing-second-seed-round)."""
     one = match_pair(
-        scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(reseed_cell=0), scene.height_range
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2), GrowParams(reseed_cell=0), scene.height_range
     )
     two = grown[0]
     key = lambda r: r["x1"] + 1e5 * r["y1"]
@@ -427,7 +431,9 @@ def test_wide_template_option(scene, grown, nodes, figures):
     nodes of the default run are kept up to a few the growth order changes
     (docs/validation.md#region-growing-wide-template)."""
     records = match_pair(
-        scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(wide_template=27), scene.height_range
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
+        GrowParams(wide_template=27),
+        scene.height_range,
     )
     x2, y2, cls = scene.truth(records["x1"], records["y1"])
     error = np.hypot(records["x2"] - x2, records["y2"] - y2)
@@ -451,10 +457,10 @@ def test_wide_template_option(scene, grown, nodes, figures):
 def test_determinism_workers_and_tiles(scene):
     params = GrowParams(tile=256)
     args = (scene.image1, scene.image2, scene.model1, scene.model2)
-    a = match_pair(*args, params, scene.height_range, workers=1)
-    b = match_pair(*args, params, scene.height_range, workers=2)
+    a = match_pair(ImagePair(*args), params, scene.height_range, workers=1)
+    b = match_pair(ImagePair(*args), params, scene.height_range, workers=2)
     np.testing.assert_array_equal(a, b)
-    c = match_pair(*args, GrowParams(tile=320), scene.height_range, workers=2)
+    c = match_pair(ImagePair(*args), GrowParams(tile=320), scene.height_range, workers=2)
     key_a = {(x, y): i for i, (x, y) in enumerate(zip(a["x1"], a["y1"]))}
     pairs = np.array([(key_a[(x, y)], j) for j, (x, y) in enumerate(zip(c["x1"], c["y1"])) if (x, y) in key_a])
     assert len(pairs) > 0.85 * max(len(a), len(c))
@@ -471,7 +477,7 @@ def test_given_seeds_alone_and_with_automatic_ones(scene, grown):
     records = grown[0]
     far = records[np.argsort(records["rho"])[::-1][:3]]  # three strong points as seeds
     args = (scene.image1, scene.image2, scene.model1, scene.model2)
-    alone = match_pair(*args, GrowParams(), scene.height_range, seeds=far, automatic=False)
+    alone = match_pair(ImagePair(*args), GrowParams(), scene.height_range, seeds=far, automatic=False)
     assert len(alone) > 100 and set(alone["seed"]) <= {0, 1, 2}
     key = {(x, y): i for i, (x, y) in enumerate(zip(records["x1"], records["y1"]))}
     pairs = np.array([(key[(x, y)], j) for j, (x, y) in enumerate(zip(alone["x1"], alone["y1"])) if (x, y) in key])
@@ -480,10 +486,10 @@ def test_given_seeds_alone_and_with_automatic_ones(scene, grown):
         records["x2"][pairs[:, 0]] - alone["x2"][pairs[:, 1]], records["y2"][pairs[:, 0]] - alone["y2"][pairs[:, 1]]
     )
     assert np.percentile(d, 99) < 0.05
-    both = match_pair(*args, GrowParams(), scene.height_range, seeds=far, automatic=True)
+    both = match_pair(ImagePair(*args), GrowParams(), scene.height_range, seeds=far, automatic=True)
     assert len(both) >= 0.99 * len(records) and (both["seed"] >= 3).any()
     with pytest.raises(InputError, match="needs seeds"):
-        match_pair(*args, GrowParams(), scene.height_range, automatic=False)
+        match_pair(ImagePair(*args), GrowParams(), scene.height_range, automatic=False)
 
 
 @pytest.mark.slow
@@ -526,7 +532,12 @@ def test_transfer_points_with_guide(scene, grown):
     x1 = records["x1"][1::2] + 3.0
     y1 = records["y1"][1::2] - 2.0
     out, ok = transfer_points(
-        scene.image1, scene.image2, scene.model1, scene.model2, x1, y1, GrowParams(), scene.height_range, guide=guide
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
+        x1,
+        y1,
+        GrowParams(),
+        scene.height_range,
+        guide=guide,
     )
     assert len(out) == len(x1) and ok.mean() > 0.6
     x2, y2, cls = scene.truth(x1[ok], y1[ok])
@@ -539,12 +550,11 @@ def test_transfer_points_with_guide(scene, grown):
 def test_given_seeds(scene, grown):
     from pushbroom.algorithms.matching.seeds import automatic_seeds, seeds_from_points
 
-    auto = automatic_seeds(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range)
+    auto = automatic_seeds(
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2), GrowParams(), scene.height_range
+    )
     seeds, ok = seeds_from_points(
-        scene.image1,
-        scene.image2,
-        scene.model1,
-        scene.model2,
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
         auto["x1"][:3],
         auto["y1"][:3],
         GrowParams(),
@@ -552,7 +562,10 @@ def test_given_seeds(scene, grown):
     )
     assert ok.any()
     records = match_pair(
-        scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range, seeds=seeds[ok]
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
+        GrowParams(),
+        scene.height_range,
+        seeds=seeds[ok],
     )
     assert len(records) > 200 and set(np.unique(records["seed"])) <= set(np.flatnonzero(ok))
 
@@ -566,14 +579,14 @@ def test_no_overlap_is_an_input_error(scene):
             return np.asarray(x) + 50000.0, y
 
     with pytest.raises(InputError, match="do not overlap"):
-        match_pair(scene.image1, scene.image2, scene.model1, Far(), GrowParams(), scene.height_range)
+        match_pair(ImagePair(scene.image1, scene.image2, scene.model1, Far()), GrowParams(), scene.height_range)
 
 
 def test_blank_image_gives_empty_result_and_warning(scene):
     blank = Image(np.full((599, 300), 80.0, np.float32))
     feedback = Feedback()
     records = match_pair(
-        scene.image1, blank, scene.model1, scene.model2, GrowParams(), scene.height_range, feedback=feedback
+        ImagePair(scene.image1, blank, scene.model1, scene.model2), GrowParams(), scene.height_range, feedback=feedback
     )
     assert len(records) == 0
     assert any("Warning" in m and "no matched point" in m for m in feedback.messages)
@@ -582,22 +595,21 @@ def test_blank_image_gives_empty_result_and_warning(scene):
 def test_image_smaller_than_template(scene):
     with pytest.raises(InputError, match="smaller than the matching template"):
         match_pair(
-            Image(texture((12, 12), 1)), scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range
+            ImagePair(Image(texture((12, 12), 1)), scene.image2, scene.model1, scene.model2),
+            GrowParams(),
+            scene.height_range,
         )
 
 
 def test_height_range_required_for_spot(scene):
     with pytest.raises(InputError, match="height range"):
-        match_pair(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams())
+        match_pair(ImagePair(scene.image1, scene.image2, scene.model1, scene.model2), GrowParams())
 
 
 def test_cancel(scene):
     with pytest.raises(CancelledError):
         match_pair(
-            scene.image1,
-            scene.image2,
-            scene.model1,
-            scene.model2,
+            ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
             GrowParams(),
             scene.height_range,
             feedback=Feedback(cancel_after=0),

@@ -7,6 +7,7 @@ from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.height_range import HeightRange
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.interest import interest_points
+from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.seeds import automatic_seeds, seeds_from_points
 
@@ -62,7 +63,9 @@ def scene(small_matching_scene):
 @pytest.mark.slow
 @pytest.mark.ratchet
 def test_automatic_seeds_are_correct(scene, figures):
-    seeds = automatic_seeds(scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range)
+    seeds = automatic_seeds(
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2), GrowParams(), scene.height_range
+    )
     x2, y2, _ = scene.truth(seeds["x1"], seeds["y1"])
     error = np.hypot(seeds["x2"] - x2, seeds["y2"] - y2)
     figures.report("automatic seeds", len(seeds))
@@ -78,7 +81,10 @@ def test_a_sliver_box_has_no_seed(scene):
         assert (
             len(
                 automatic_seeds(
-                    scene.image1, scene.image2, scene.model1, scene.model2, GrowParams(), scene.height_range, box=box
+                    ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
+                    GrowParams(),
+                    scene.height_range,
+                    box=box,
                 )
             )
             == 0
@@ -86,10 +92,7 @@ def test_a_sliver_box_has_no_seed(scene):
     assert (
         len(
             automatic_seeds(
-                scene.image1,
-                scene.image2,
-                scene.model1,
-                scene.model2,
+                ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
                 GrowParams(),
                 scene.height_range,
                 box=(0, 0, 200, 200),
@@ -104,16 +107,13 @@ def test_seeds_from_points_with_and_without_approximations(scene):
     x1 = np.array([150.5, 300.5, 450.5, 200.5])
     y1 = np.array([150.5, 300.5, 450.5, 420.5])
     recs, ok = seeds_from_points(
-        scene.image1, scene.image2, scene.model1, scene.model2, x1, y1, GrowParams(), scene.height_range
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2), x1, y1, GrowParams(), scene.height_range
     )
     x2, y2, _ = scene.truth(x1, y1)
     assert ok.sum() >= 1
     assert np.all(np.hypot(recs["x2"][ok] - x2[ok], recs["y2"][ok] - y2[ok]) < 1.0)
     recs2, ok2 = seeds_from_points(
-        scene.image1,
-        scene.image2,
-        scene.model1,
-        scene.model2,
+        ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
         x1,
         y1,
         GrowParams(),

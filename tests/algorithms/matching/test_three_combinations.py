@@ -12,7 +12,7 @@ from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.points import COMB_A, COMB_B, COMB_C, REFINED
 from pushbroom.algorithms.matching.records import PAIR_DTYPE
 from pushbroom.algorithms.matching.refinement import SUPPORT_CENTRE, SUPPORT_SIMILARITY
-from pushbroom.algorithms.matching.three_combinations import combine, new_cells, robust_sigma
+from pushbroom.algorithms.matching.three_combinations import Transfer, combine, new_cells, robust_sigma
 from tests.helpers.matching_scene import DISCONTINUOUS, SINGLE_SURFACE
 
 SHIFT1 = np.array([10.25, 5.5])  # image 0 -> forward image 1
@@ -62,7 +62,7 @@ def scene(n=400, seed=0, noise=0.02):
 
 def test_counts_per_group():
     a, b, b_src, c, c_src = scene()
-    mp = combine(a, b, b_src, c, c_src, image_ids=(11, 12, 13))
+    mp = combine(a, Transfer(b, b_src), Transfer(c, c_src), image_ids=(11, 12, 13))
     # group 3: 250 (a, b, c); group 2: 30 (a, b) + 20 (b own, c); group 1: 120 (a only) + 30 (b own only)
     assert mp.stats["matched_3"] == 250
     counts = mp.group_counts()
@@ -91,7 +91,7 @@ def test_counts_per_group():
 
 def test_transfer_points_keep_first_image_coordinates_exactly():
     a, b, b_src, c, c_src = scene()
-    mp = combine(a, b, b_src, c, c_src, image_ids=(1, 2, 3), sigma_factor=1e9)
+    mp = combine(a, Transfer(b, b_src), Transfer(c, c_src), image_ids=(1, 2, 3), sigma_factor=1e9)
     p = mp.points
     col0, row0 = mp.coordinates(1)
     col2, row2 = mp.coordinates(3)
@@ -114,7 +114,7 @@ def test_three_sigma_test_removes_inconsistent_points():
     bad = np.array([3, 40, 77, 150, 201])  # c records of group 3 points
     c["x2"][bad[:3]] += 2.0
     c["y2"][bad[3:]] -= 1.5
-    mp = combine(a, b, b_src, c, c_src)
+    mp = combine(a, Transfer(b, b_src), Transfer(c, c_src))
     sigma = mp.stats["sigma_dx"]
     assert 0.03 < sigma < 0.08  # robust: blunders do not inflate it
     assert mp.stats["rejected_3sigma"] >= 5
@@ -135,7 +135,7 @@ def test_perfect_data_keep_all_group_3_points():
         a["x2"][b_src[c_src[:250]]].tolist() + c["x2"][250:].tolist(),
         a["y2"][b_src[c_src[:250]]].tolist() + c["y2"][250:].tolist(),
     )
-    mp = combine(a, b, b_src, c, c_src)
+    mp = combine(a, Transfer(b, b_src), Transfer(c, c_src))
     assert mp.stats["rejected_3sigma"] == 0 and mp.group_counts()[3] == 250
 
 
@@ -152,13 +152,13 @@ def test_two_images_give_group_1_only():
 
 
 def test_empty_and_bad_links():
-    mp = combine(np.zeros(0, PAIR_DTYPE), np.zeros(0, PAIR_DTYPE), [], np.zeros(0, PAIR_DTYPE), [])
+    mp = combine(np.zeros(0, PAIR_DTYPE), Transfer(np.zeros(0, PAIR_DTYPE), []), Transfer(np.zeros(0, PAIR_DTYPE), []))
     assert len(mp) == 0 and len(mp.observations) == 0
     a = scene()[0][:10]
     with pytest.raises(InputError):
-        combine(a, a[:2], [0, 99])
+        combine(a, Transfer(a[:2], [0, 99]))
     with pytest.raises(InputError):
-        combine(a, a[:2], [0])
+        combine(a, Transfer(a[:2], [0]))
 
 
 def test_helpers():

@@ -17,7 +17,7 @@ import pytest
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching import imagery
-from pushbroom.algorithms.measurement.transfer import transfer
+from pushbroom.algorithms.measurement.transfer import Click, transfer
 
 NAMES = ("HRG", "HRS1", "HRS2")
 
@@ -70,7 +70,7 @@ def test_marked_points_land_on_the_truth(marked, source, height, figures):
     worst, lines = 0.0, []
     for r in rows:
         h = float(r["h"]) if height == "point" else (float(r["h"]) - 500.0, float(r["h"]) + 500.0)
-        result = transfer(images, models, source, float(r[f"{source}_col"]), float(r[f"{source}_row"]), height=h)
+        result = transfer(images, models, Click(source, float(r[f"{source}_col"]), float(r[f"{source}_row"])), height=h)
         assert sorted(result) == sorted(set(NAMES) - {source})
         e = errors(result, r)
         lines.append(e)
@@ -88,7 +88,7 @@ def test_unmarked_points(small_scene):
     images, models, rows = setup(small_scene)
     accepted = 0
     for r in rows:
-        result = transfer(images, models, "HRG", float(r["HRG_col"]), float(r["HRG_row"]), height=float(r["h"]))
+        result = transfer(images, models, Click("HRG", float(r["HRG_col"]), float(r["HRG_row"])), height=float(r["h"]))
         for v in errors(result, r).values():
             # accepted: 0.3 px, three times the acceptance's 0.1 px error ellipse
             assert (v[5] and v[6] == "" and v[2] < 0.3) or (not v[5] and v[6])
@@ -109,8 +109,8 @@ def test_only_windows_are_read(marked, monkeypatch, figures):
 
     monkeypatch.setattr(imagery.Image, "read", recording)
     r = rows[0]
-    transfer(images, models, "HRG", float(r["HRG_col"]), float(r["HRG_row"]), height=(-200.0, 800.0))
-    transfer(images, models, "HRS1", float(r["HRS1_col"]), float(r["HRS1_row"]), height=float(r["h"]))
+    transfer(images, models, Click("HRG", float(r["HRG_col"]), float(r["HRG_row"])), height=(-200.0, 800.0))
+    transfer(images, models, Click("HRS1", float(r["HRS1_col"]), float(r["HRS1_row"])), height=float(r["h"]))
     figures.report("windows read (cols x rows)", [f"{c} x {r}" for c, r in sizes])
     assert sizes and max(c * w for c, w in sizes) < 200 * 200
 
@@ -120,13 +120,13 @@ def test_refusals(marked):
     r = rows[0]
     col, row = float(r["HRG_col"]), float(r["HRG_row"])
     with pytest.raises(InputError, match="image XS is not among"):
-        transfer(images, models, "XS", col, row, height=300.0)
+        transfer(images, models, Click("XS", col, row), height=300.0)
     with pytest.raises(InputError, match="image HRS3 is not among"):
-        transfer(images, models, "HRG", col, row, targets=["HRS3"], height=300.0)
+        transfer(images, models, Click("HRG", col, row), targets=["HRS3"], height=300.0)
     with pytest.raises(InputError, match="outside image HRG"):
-        transfer(images, models, "HRG", 601.0, row, height=300.0)
+        transfer(images, models, Click("HRG", 601.0, row), height=300.0)
     with pytest.raises(InputError, match="give the point's height"):
-        transfer(images, models, "HRG", col, row)
-    far = transfer(images, models, "HRG", col, row, height=60000.0)
+        transfer(images, models, Click("HRG", col, row))
+    far = transfer(images, models, Click("HRG", col, row), height=60000.0)
     assert not any(t.ok for t in far.values())
     assert all("outside image" in t.reason for t in far.values()), far

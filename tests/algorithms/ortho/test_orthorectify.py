@@ -15,7 +15,7 @@ from pushbroom.algorithms.dem_store import read_dem, store_dem
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
-from pushbroom.algorithms.ortho import OutputGrid, default_grid, orthorectify
+from pushbroom.algorithms.ortho import OrthoSettings, OutputGrid, default_grid, orthorectify
 from pushbroom.algorithms.ortho.mapping import START_STEP, TileMapper
 from pushbroom.algorithms.ortho.occlusion import occluded, ray_direction
 from pushbroom.algorithms.ortho.orthorectify import _footprint, _reach
@@ -42,7 +42,14 @@ def scene(small_scene):
 @pytest.mark.ratchet
 def test_hrg_on_the_true_dsm_matches_the_true_orthoimage(scene, tmp_path, method, figures):
     out = tmp_path / "hrg.tif"
-    result = orthorectify(scene["image"], scene["hrg"], scene["dsm"], out, grid=scene["grid"], resampling_method=method)
+    result = orthorectify(
+        scene["image"],
+        scene["hrg"],
+        scene["dsm"],
+        out,
+        grid=scene["grid"],
+        settings=OrthoSettings(resampling_method=method),
+    )
     shifts = geometric_error(scene["paths"], str(out))
     rms = float(np.sqrt(np.mean(np.sum(shifts**2, axis=1))))
     mean = shifts.mean(axis=0)
@@ -208,8 +215,7 @@ def test_every_execution_gives_the_same_orthoimage(scene, tmp_path):
             scene["dsm"],
             tmp_path / f"{backend}.tif",
             grid=grid,
-            occlusion_mask=True,
-            tile=256,
+            settings=OrthoSettings(occlusion_mask=True, tile=256),
             execution=Execution(backend, workers),
         )
         images[backend] = gdal.Open(str(tmp_path / f"{backend}.tif")).ReadAsArray()
@@ -256,7 +262,7 @@ def test_cancel_leaves_nothing(scene, tmp_path):
             scene["dsm"],
             tmp_path / "cancelled.tif",
             grid=scene["grid"],
-            tile=256,
+            settings=OrthoSettings(tile=256),
             feedback=Feedback(cancel_after=3),
         )
     assert list(tmp_path.iterdir()) == []
@@ -270,5 +276,11 @@ def test_bad_input(scene, tmp_path):
     with pytest.raises(InputError, match="pixels but its sensor model"):
         orthorectify(scene["image"], hrs, scene["dsm"], tmp_path / "x.tif", grid=scene["grid"])
     with pytest.raises(InputError, match="resampling"):
-        orthorectify(scene["image"], scene["hrg"], scene["dsm"], tmp_path / "x.tif", resampling_method="nearest")
+        orthorectify(
+            scene["image"],
+            scene["hrg"],
+            scene["dsm"],
+            tmp_path / "x.tif",
+            settings=OrthoSettings(resampling_method="nearest"),
+        )
     assert not (tmp_path / "x.tif").exists()

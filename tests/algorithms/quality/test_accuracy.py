@@ -16,9 +16,10 @@ from pushbroom.algorithms.crs import egm96_undulation
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.quality import assessment, report
 from pushbroom.algorithms.quality.assess_accuracy import AssessParams, assess_accuracy
-from pushbroom.algorithms.quality.assessment import assess, summarized
+from pushbroom.algorithms.quality.assessment import Labelling, assess, summarized
 from pushbroom.algorithms.quality.classes import FLAT, MOUNTAINOUS, NO_CLASS, ClassRaster, PolygonClasses
 from pushbroom.algorithms.quality.height_differences import (
+    Reference,
     dem_differences,
     point_differences,
     reference_at_points,
@@ -145,7 +146,7 @@ def test_nested_classes_drop_the_worst_class_first():
 
 def test_reference_at_points_is_bilinear_on_the_simulated_dsm(small_scene, figures):
     lon, lat = random_lonlat(small_scene["dsm"], 2000)
-    href, slope = reference_at_points(small_scene["dsm"], lon, lat, srs_of(4326))
+    href, slope = reference_at_points(Reference(small_scene["dsm"]), lon, lat, srs_of(4326))
     values, gt = read(small_scene["dsm"])
     expected = numpy_bilinear(values, gt, lon, lat)
     assert np.isfinite(href).all()
@@ -167,7 +168,7 @@ def test_reference_in_another_crs_is_reprojected_not_refused(tmp_path, figures):
     reference = write_raster(tmp_path / "plane.tif", plane(e, n), (e0, 10, 0, n1, 0, -10), UTM16)
     cloud = tmp_path / "points.gpkg"
     write_point_cloud(cloud, lon, lat, plane(x, y), {"group": np.full(500, 3, np.uint8)}, crs=4326)
-    d = point_differences(cloud, reference)
+    d = point_differences(cloud, Reference(reference))
     assert d.dh.size == 500
     figures.report("points in EPSG:4326 vs a UTM plane, max |dh|", np.max(np.abs(d.dh)), "m")
     assert np.max(np.abs(d.dh)) < 1e-6
@@ -199,7 +200,7 @@ def test_finer_reference_is_averaged_onto_the_dem_grid(small_scene, tmp_path, fi
     rows, cols = (s // 2 * 2 for s in values.shape)
     means = values[:rows, :cols].reshape(rows // 2, 2, cols // 2, 2).mean(axis=(1, 3))
     dem = write_raster(tmp_path / "mean.tif", means, (gt[0], 2 * gt[1], 0, gt[3], 0, 2 * gt[5]), 4326)
-    d = dem_differences(dem, small_scene["dtm"])
+    d = dem_differences(dem, Reference(small_scene["dtm"]))
     assert d.dh.size == means.size
     figures.report("2x2 block means vs the averaged reference, max |dh|", np.max(np.abs(d.dh)), "m")
     assert np.max(np.abs(d.dh)) < 1e-6
@@ -212,7 +213,7 @@ def test_coarser_reference_is_bilinear_on_the_dem_grid(tmp_path):
     reference = write_raster(tmp_path / "coarse.tif", plane(e, n), (e0, 40, 0, n0 + 2000, 0, -40), UTM16)
     e, n = np.meshgrid(e0 + 10 * (np.arange(200) + 0.5), n0 + 2000 - 10 * (np.arange(200) + 0.5))
     dem = write_raster(tmp_path / "dem.tif", plane(e, n) + 1.5, (e0, 10, 0, n0 + 2000, 0, -10), UTM16)
-    d = dem_differences(dem, reference)
+    d = dem_differences(dem, Reference(reference))
     inner = d.grid.values[4:-4, 4:-4]  # GDAL extrapolates within half a reference cell of the edge
     assert np.isfinite(inner).all()
     np.testing.assert_allclose(inner, 1.5, atol=1e-6)
@@ -221,13 +222,13 @@ def test_coarser_reference_is_bilinear_on_the_dem_grid(tmp_path):
 def test_dem_in_utm_against_the_geographic_dsm(small_scene, utm_dem, figures):
     """The UTM DEM made from the DTM against the DTM: only resampling differences; against the DSM:
     the canopy and buildings, positive, in forest and city."""
-    same = dem_differences(utm_dem, small_scene["dtm"])
+    same = dem_differences(utm_dem, Reference(small_scene["dtm"]))
     s = summarize(same.dh)
     figures.table(
         "UTM 10 m DEM (bilinear from the DTM) vs the DTM averaged onto it (m)", [{"mean": s.mean, "RMS": s.rms}]
     )
     assert abs(s.mean) < 0.1 and s.rms < 1.0
-    dsm = dem_differences(utm_dem, small_scene["dsm"])
+    dsm = dem_differences(utm_dem, Reference(small_scene["dsm"]))
     assert summarize(dsm.dh).mean < -1.0  # DEM = DTM lies below the DSM's canopy
 
 
@@ -244,15 +245,15 @@ def test_egm96_reference(small_scene, tmp_path, figures):
     h = numpy_bilinear(values, gt, plon, plat)
     cloud = tmp_path / "on_dsm.gpkg"
     write_point_cloud(cloud, plon, plat, h, crs=4326)
-    right = point_differences(cloud, geoid, reference_datum="orthometric")
-    wrong = point_differences(cloud, geoid, reference_datum="ellipsoidal")
+    right = point_differences(cloud, Reference(geoid, "orthometric"))
+    wrong = point_differences(cloud, Reference(geoid, "ellipsoidal"))
     n = egm96_undulation(plon, plat)
     figures.report("EGM96 N, mean", n.mean(), "m")
     figures.report("dh with the geoid handled, max |dh|", np.max(np.abs(right.dh)), "m")
     assert np.max(np.abs(right.dh)) < 1e-3
     np.testing.assert_allclose(wrong.dh, n, atol=1e-3)
     dem = write_raster(tmp_path / "dem_egm96.tif", values - undulation, gt, 4326)
-    d = dem_differences(dem, small_scene["dsm"], dem_datum="orthometric")
+    d = dem_differences(dem, Reference(small_scene["dsm"]), dem_datum="orthometric")
     assert np.max(np.abs(d.dh)) < 1e-3
 
 
@@ -263,9 +264,9 @@ def test_no_overlap_is_a_clear_error(small_scene, utm_dem, tmp_path):
     cloud = tmp_path / "p.gpkg"
     write_point_cloud(cloud, lon, lat, np.full(100, 300.0))
     with pytest.raises(InputError, match="does not overlap"):
-        point_differences(cloud, far)
+        point_differences(cloud, Reference(far))
     with pytest.raises(InputError, match="does not overlap"):
-        dem_differences(utm_dem, far)
+        dem_differences(utm_dem, Reference(far))
 
 
 def test_nodata_is_left_out(small_scene, utm_dem, tmp_path):
@@ -276,18 +277,18 @@ def test_nodata_is_left_out(small_scene, utm_dem, tmp_path):
     lon, lat = random_lonlat(small_scene["dsm"], 1000, seed=9)
     cloud = tmp_path / "p.gpkg"
     write_point_cloud(cloud, lon, lat, numpy_bilinear(values, gt, lon, lat))
-    d = point_differences(cloud, reference)
+    d = point_differences(cloud, Reference(reference))
     west = (lon - gt[0]) / gt[1] < values.shape[1] // 2 + 0.5
     assert d.dh.size == int((~west).sum())
     assert d.excluded["outside the reference or next to its nodata"] == int(west.sum())
     assert np.max(np.abs(d.dh)) < 1e-6  # no nodata value leaks into a difference
-    on_dem = dem_differences(utm_dem, reference)
+    on_dem = dem_differences(utm_dem, Reference(reference))
     assert on_dem.dh.size and np.all(np.abs(on_dem.dh) < 100)
     empty = write_raster(tmp_path / "empty.tif", np.full_like(values, -32768.0), gt, 4326, nodata=-32768.0)
     with pytest.raises(InputError, match="nodata"):
-        dem_differences(empty, small_scene["dsm"])
+        dem_differences(empty, Reference(small_scene["dsm"]))
     with pytest.raises(InputError, match="nodata"):
-        point_differences(cloud, empty)
+        point_differences(cloud, Reference(empty))
 
 
 # --- classes ------------------------------------------------------------------------------------------
@@ -302,7 +303,7 @@ def test_per_class_tables_on_the_simulated_classes(small_scene, tmp_path, figure
     write_point_cloud(cloud, lon, lat, numpy_bilinear(values, gt, lon, lat), {"group": np.full(5000, 3, np.uint8)})
     source = ClassRaster(small_scene["classes"])
     assert source.names == {k: v for k, v in CLASSES.items() if k and np.any(classes == k)}
-    [a] = assess(small_scene["dtm"], points=cloud, classes=source)
+    [a] = assess(Reference(small_scene["dtm"]), points=cloud, labelling=Labelling(classes=source))
     d = a.differences
     assert d.dh.size == 5000
     expected = classes[((lat - cgt[3]) / cgt[5]).astype(int), ((lon - cgt[0]) / cgt[1]).astype(int)]
@@ -346,7 +347,9 @@ def test_a_raster_of_heights_is_no_class_raster(small_scene, tmp_path):
 
 
 def test_classes_on_a_dem_grid(small_scene, utm_dem):
-    [a] = assess(small_scene["dsm"], dem=utm_dem, classes=ClassRaster(small_scene["classes"]))
+    [a] = assess(
+        Reference(small_scene["dsm"]), dem=utm_dem, labelling=Labelling(classes=ClassRaster(small_scene["classes"]))
+    )
     rows = dict(next(r for name, r, _ in report.tables(summarized(a)) if name == "per class"))
     assert rows[CLASSES[FOREST]].mean < -5.0 < rows[CLASSES[BARE]].mean  # DTM below the canopy
     assert sum(s.n for s in rows.values()) + int(np.sum(a.classes == NO_CLASS)) == a.differences.dh.size
@@ -414,7 +417,12 @@ def test_parts_give_the_wholes_statistics_and_dh_raster(small_scene, utm_dem, tm
     assess_accuracy(params)
     whole = [
         summarized(a)
-        for a in assess(small_scene["dtm"], points=cloud, dem=utm_dem, classes=ClassRaster(small_scene["classes"]))
+        for a in assess(
+            Reference(small_scene["dtm"]),
+            points=cloud,
+            dem=utm_dem,
+            labelling=Labelling(classes=ClassRaster(small_scene["classes"])),
+        )
     ]
     report.write_csv(tmp_path / "whole.csv", whole)
     parts, once = (list(csv.DictReader(open(tmp_path / name))) for name in ("parts.csv", "whole.csv"))
@@ -430,7 +438,7 @@ def test_parts_give_the_wholes_statistics_and_dh_raster(small_scene, utm_dem, tm
         assert a["n"] == b["n"], (a["table"], a["label"])
         np.testing.assert_allclose([float(a[k]) for k in CSV_STATS], [float(b[k]) for k in CSV_STATS], atol=1e-3)
     assert sorted(os.listdir(tmp_path)) == ["dh.tif", "p.las", "parts.csv", "report.html", "whole.csv"]
-    d = dem_differences(utm_dem, small_scene["dtm"])
+    d = dem_differences(utm_dem, Reference(small_scene["dtm"]))
     ds = gdal.Open(str(tmp_path / "dh.tif"))
     band = ds.GetRasterBand(1)
     assert band.GetNoDataValue() == NODATA and band.GetOverviewCount() > 0
@@ -452,7 +460,12 @@ def test_html_report_is_self_contained(small_scene, utm_dem, tmp_path):
         numpy_bilinear(values, gt, lon, lat),
         {"group": np.random.default_rng(1).integers(1, 4, 3000).astype(np.uint8)},
     )
-    assessed = assess(small_scene["dtm"], points=cloud, dem=utm_dem, classes=ClassRaster(small_scene["classes"]))
+    assessed = assess(
+        Reference(small_scene["dtm"]),
+        points=cloud,
+        dem=utm_dem,
+        labelling=Labelling(classes=ClassRaster(small_scene["classes"])),
+    )
     summaries = [summarized(a) for a in assessed]
     page = report.write_report(tmp_path / "report.html", "Accuracy", summaries, [("reference", small_scene["dtm"])])
     text = open(page, encoding="utf-8").read()
@@ -480,16 +493,16 @@ def test_html_report_is_self_contained(small_scene, utm_dem, tmp_path):
 
 def test_cancel_and_bad_input(small_scene, utm_dem, tmp_path):
     with pytest.raises(CancelledError):
-        assess(small_scene["dtm"], dem=utm_dem, feedback=Feedback(cancel_after=0))
+        assess(Reference(small_scene["dtm"]), dem=utm_dem, feedback=Feedback(cancel_after=0))
     with pytest.raises(InputError, match="point cloud, a DEM or both"):
-        assess(small_scene["dtm"])
+        assess(Reference(small_scene["dtm"]))
     with pytest.raises(InputError, match="orthometric"):
-        dem_differences(utm_dem, small_scene["dtm"], dem_datum="egm2008")
+        dem_differences(utm_dem, Reference(small_scene["dtm"]), dem_datum="egm2008")
     empty = tmp_path / "empty.gpkg"
     write_point_cloud(empty, [], [], [], crs=4326)
     with pytest.raises(InputError, match="no point"):
-        point_differences(empty, small_scene["dtm"])
+        point_differences(empty, Reference(small_scene["dtm"]))
     two = tmp_path / "two.gpkg"
     lon, lat = random_lonlat(small_scene["dsm"], 2)
     write_point_cloud(two, lon, lat, [300.0, 310.0], crs=4326)
-    assert point_differences(two, small_scene["dtm"]).dh.size == 2
+    assert point_differences(two, Reference(small_scene["dtm"])).dh.size == 2

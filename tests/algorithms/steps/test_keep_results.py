@@ -28,7 +28,7 @@ BESIDE = {"min_height": 6000.0, "max_height": 6500.0}
 
 
 def files(block):
-    """What the folder of `block` holds, byte for byte (its sidecar folders too)."""
+    """What the folder of `block` holds, byte for byte (its point folders too)."""
     return fingerprint(os.path.dirname(block))
 
 
@@ -38,8 +38,8 @@ def matched(small_scene_block, tmp_path):
     stored two-ray mass points and 20 tie points."""
     path = str(tmp_path / "block.gpkg")
     shutil.copy(small_scene_block[0], path)
-    Block(path).save_points(two_ray_points(500, np.random.default_rng(0)))
-    Block(path).save_points(two_ray_points(20, np.random.default_rng(1)), "tie_points")
+    Block(path).store_points(two_ray_points(500, np.random.default_rng(0)))
+    Block(path).store_points(two_ray_points(20, np.random.default_rng(1)), "tie_points")
     return path
 
 
@@ -112,7 +112,7 @@ def test_tie_points_from_nothing_or_from_no_point_of_the_group_are_refused(match
         r".*Set MIN_GROUP to 1 or lower, or match three images",
     ):
         select_block_tie_points(matched, TieParams(min_group=3))
-    Block(matched).save_points(two_ray_points(0), replace_fewer=True)  # a matching that found nothing
+    Block(matched).store_points(two_ray_points(0), replace_fewer=True)  # a matching that found nothing
     after_empty = files(matched)
     with pytest.raises(InputError, match=r"mass points are empty \(pushbroom:matchpoints found none\)"):
         select_block_tie_points(matched, TieParams())

@@ -140,8 +140,10 @@ def test_an_output_crs_far_from_the_points():
         match=r"the output CRS NAD83 / UTM zone 10N is used at longitude -126 .. -119.99, "
         r".*far from the point cloud \(longitude 4\.\d+, latitude 44\.\d+\)",
     ):
-        tin_dem.interpolate_dem(points, crs="EPSG:26910")
-    assert tin_dem.interpolate_dem(points, crs="EPSG:2154", cell=50.0, k=0).points == 500  # Lambert-93 covers it
+        tin_dem.interpolate_dem(points, tin_dem.DemParams(crs="EPSG:26910"))
+    assert (
+        tin_dem.interpolate_dem(points, tin_dem.DemParams(crs="EPSG:2154", cell=50.0, k=0)).points == 500
+    )  # Lambert-93 covers it
 
 
 def test_missing_and_unreadable_files(tmp_path):

@@ -9,7 +9,15 @@ from pushbroom.algorithms.crs import srs
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.surface import pointcloud
-from pushbroom.algorithms.surface.cell_dem import MEDIAN_SE, MIN_SPREAD, THREE_RAYS, TWO_RAYS, UNREFINED, cells_on_grid
+from pushbroom.algorithms.surface.cell_dem import (
+    MEDIAN_SE,
+    MIN_SPREAD,
+    THREE_RAYS,
+    TWO_RAYS,
+    UNREFINED,
+    CellSettings,
+    cells_on_grid,
+)
 from pushbroom.algorithms.surface.dem_tiles import dem_from_point_cloud
 from pushbroom.algorithms.surface.tin_dem import DemParams
 from pushbroom.algorithms.surface.tin_grid import Grid
@@ -62,7 +70,9 @@ def reference(x, y, z, sigma, grid, k, radius=0):
 def test_cells_against_a_loop(with_sigma):
     x, y, z, sigma = dense_points()
     grid = Grid(0.0, 150.0, 10.0, 20, 15)
-    heights, count, precision, removed, ring = cells_on_grid(x, y, z, sigma if with_sigma else None, grid, k=3.0)
+    heights, count, precision, removed, ring = cells_on_grid(
+        x, y, z, sigma if with_sigma else None, grid, CellSettings(k=3.0)
+    )
     (h_ref, n_ref, p_ref), removed_ref = reference(x, y, z, sigma if with_sigma else None, grid, 3.0)
     np.testing.assert_allclose(heights, h_ref, rtol=0, atol=1e-4)
     np.testing.assert_array_equal(count, n_ref)
@@ -77,13 +87,13 @@ def test_empty_cells_take_the_nearest_ring_of_points(radius):
     x, y, z, _ = dense_points(n=900, outliers=30)  # 0.3 points per 2 m cell: most cells empty
     x, y, z = (v[(np.hypot(x - 100.0, y - 75.0) > 12.0)] for v in (x, y, z))  # and a hole of 6 cells
     grid = Grid(0.0, 150.0, 2.0, 100, 75)
-    cells = cells_on_grid(x, y, z, None, grid, k=3.0, radius=radius)
+    cells = cells_on_grid(x, y, z, None, grid, CellSettings(k=3.0, radius=radius))
     (h_ref, n_ref, p_ref), removed_ref = reference(x, y, z, None, grid, 3.0, radius)
     np.testing.assert_allclose(cells.heights, h_ref, rtol=0, atol=1e-4)
     np.testing.assert_array_equal(cells.count, n_ref)
     np.testing.assert_allclose(cells.precision, p_ref, rtol=1e-5)
     assert cells.removed == removed_ref
-    own = cells_on_grid(x, y, z, None, grid, k=3.0)
+    own = cells_on_grid(x, y, z, None, grid, CellSettings(k=3.0))
     assert (cells.ring == 0).sum() == np.isfinite(own.heights).sum() < 0.3 * grid.rows * grid.cols
     np.testing.assert_array_equal(cells.heights[cells.ring == 0], own.heights[cells.ring == 0])
     assert set(np.unique(cells.ring)) == set(range(radius + 1)) | {255}  # the hole's middle stays a gap
@@ -160,17 +170,17 @@ def test_a_cell_uses_its_best_tier_of_points():
 
     def alone(t, radius=0):
         m = tier == t
-        return cells_on_grid(x[m], y[m], z[m], None, grid, k=0.0, radius=radius).heights
+        return cells_on_grid(x[m], y[m], z[m], None, grid, CellSettings(k=0.0, radius=radius)).heights
 
-    heights, count, *_ = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier)
+    heights, count, *_ = cells_on_grid(x, y, z, None, grid, CellSettings(k=0.0), tier=tier)
     np.testing.assert_array_equal(heights, first_finite(alone(0), alone(1), alone(2)))
     assert np.isnan(alone(0)[10:, :5]).all() and np.isfinite(alone(1)[10:, :5]).all()
     assert np.isnan(alone(1)[:5, 15:]).all() and np.isfinite(heights[:5, 15:]).all()
-    strict = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier, fallback=False).heights
+    strict = cells_on_grid(x, y, z, None, grid, CellSettings(k=0.0, fallback=False), tier=tier).heights
     np.testing.assert_array_equal(strict, first_finite(alone(0), alone(1)))
     assert np.isnan(strict[:5, 15:]).all()
     # with a radius, a better tier a cell away comes before a cell's own worse one
-    near = cells_on_grid(x, y, z, None, grid, k=0.0, tier=tier, radius=1)
+    near = cells_on_grid(x, y, z, None, grid, CellSettings(k=0.0, radius=1), tier=tier)
     np.testing.assert_array_equal(near.heights, first_finite(alone(0, 1), alone(1, 1), alone(2, 1)))
     assert (near.ring[10, :5] == 1).all() and (near.ring[11:, 4] == 1).all() and (near.ring[11:, :4] == 0).all()
 

@@ -38,7 +38,7 @@ def run(cloud, path, tile, execution=Execution("threads", 1), **kwargs):
 def test_one_tile_is_the_whole_clouds_dem(cloud, tmp_path):
     result = run(cloud, tmp_path / "one.tif", 4096)
     assert result.tiles == 1
-    whole = interpolate_dem(read_points(str(cloud)), cell=10.0)
+    whole = interpolate_dem(read_points(str(cloud)), DemParams(cell=10.0))
     heights, transform, overviews = read(tmp_path / "one.tif")
     assert transform == whole.grid.geotransform and overviews == 1
     expected = np.where(np.isfinite(whole.heights), whole.heights.astype(np.float32), np.nan)
@@ -91,7 +91,7 @@ def test_a_strip_narrower_than_a_tile(cloud, tmp_path):
     )
     result = run(path, tmp_path / "strip.tif", 75, k=0)
     assert result.tiles == 4
-    whole = interpolate_dem(read_points(str(path)), cell=10.0, k=0)
+    whole = interpolate_dem(read_points(str(path)), DemParams(cell=10.0, k=0))
     heights, transform, _ = read(tmp_path / "strip.tif")
     assert transform == whole.grid.geotransform
     np.testing.assert_array_equal(
@@ -152,7 +152,7 @@ def test_the_precision_raster_is_tiled_too(cloud, tmp_path):
     dem_tiles.dem_from_point_cloud(
         str(cloud), str(tmp_path / "dem.tif"), params, precision_path=str(tmp_path / "precision.tif")
     )
-    whole = interpolate_dem(read_points(str(cloud)), cell=10.0, precision=True)
+    whole = interpolate_dem(read_points(str(cloud)), DemParams(cell=10.0), precision=True)
     precision, _, _ = read(tmp_path / "precision.tif")
     defined = np.isfinite(precision) & np.isfinite(whole.precision)
     assert defined.mean() > 0.9

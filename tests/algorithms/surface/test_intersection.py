@@ -130,7 +130,9 @@ def test_closest_points_of_exact_lines_of_sight_are_the_truth_and_refuse_single_
 @pytest.mark.parametrize("names", [NAMES, ("HRG", "HRS1"), ("HRS1", "HRS2")])
 def test_exact_measurements_give_the_truth(scene, names, figures):
     models = scene["models"]
-    result = ix.intersect(models, *measure(models, names, scene["lon"], scene["lat"], scene["h"]), sigma=0.5)
+    result = ix.intersect(
+        models, ix.Measurements(*measure(models, names, scene["lon"], scene["lat"], scene["h"]), sigma=0.5)
+    )
     assert result.status_counts() == {"converged": N_POINTS}
     assert np.all(result.rays == len(names))
     err = errors_enu(result, scene["lon"], scene["lat"], scene["h"])
@@ -146,7 +148,9 @@ def test_noisy_measurements_agree_with_the_predicted_sigmas(scene, figures):
     noise = 0.1
     sigma_h = {}
     for names in (NAMES, ("HRG", "HRS1")):
-        result = ix.intersect(models, *measure(models, names, *truth, noise=noise, seed=len(names)), sigma=noise)
+        result = ix.intersect(
+            models, ix.Measurements(*measure(models, names, *truth, noise=noise, seed=len(names)), sigma=noise)
+        )
         assert result.status_counts() == {"converged": N_POINTS}
         ratio = np.sqrt(np.mean((errors_enu(result, *truth) / result.sigma) ** 2, axis=0))
         mean_var = np.mean(result.sigma0**2)
@@ -207,7 +211,7 @@ def test_agrees_with_an_independent_solution(scene, pair, rpcs, case, tolerance,
         models = scene["models"] if case == "spot5" else rpcs
         truth = scene["lon"][:6], scene["lat"][:6], scene["h"][:6]
     image, point, col, row = measure(models, tuple(models), *truth, noise=0.3, seed=7)
-    result = ix.intersect(models, image, point, col, row, sigma=0.3)
+    result = ix.intersect(models, ix.Measurements(image, point, col, row, 0.3))
     assert result.status_counts() == {"converged": 6}
     me, mn = metres_per_degree(float(truth[1][0]))
     worst = 0.0
@@ -228,10 +232,12 @@ def test_any_point_ids_and_order_and_chunks(scene, monkeypatch):
     models = scene["models"]
     truth = scene["lon"][:50], scene["lat"][:50], scene["h"][:50]
     image, point, col, row = measure(models, NAMES, *truth, noise=0.2)
-    plain = ix.intersect(models, image, point, col, row, sigma=0.2)
+    plain = ix.intersect(models, ix.Measurements(image, point, col, row, 0.2))
     shuffle = np.random.default_rng(1).permutation(image.size)
     monkeypatch.setattr(ix, "CHUNK", 7)
-    other = ix.intersect(models, image[shuffle], 1000 - 3 * point[shuffle], col[shuffle], row[shuffle], sigma=0.2)
+    other = ix.intersect(
+        models, ix.Measurements(image[shuffle], 1000 - 3 * point[shuffle], col[shuffle], row[shuffle], 0.2)
+    )
     order = np.argsort(1000 - 3 * np.arange(50))
     np.testing.assert_array_equal(other.point, (1000 - 3 * np.arange(50))[order])
     for name in ("lon", "lat", "h", "sigma0", "rms"):
@@ -245,9 +251,9 @@ def test_per_measurement_sigma_weights_the_rays(scene):
     truth = scene["lon"][:20], scene["lat"][:20], scene["h"][:20]
     image, point, col, row = measure(models, NAMES, *truth, noise=0.3, seed=5)
     sigma = np.where(image == "HRS2", 30.0, 0.3)
-    weighted = ix.intersect(models, image, point, col, row, sigma=sigma)
+    weighted = ix.intersect(models, ix.Measurements(image, point, col, row, sigma))
     keep = image != "HRS2"
-    two = ix.intersect(models, image[keep], point[keep], col[keep], row[keep], sigma=0.3)
+    two = ix.intersect(models, ix.Measurements(image[keep], point[keep], col[keep], row[keep], 0.3))
     assert np.abs(errors_enu(weighted, two.lon, two.lat, two.h)).max() < 0.01
     assert np.all(weighted.sigma[:, 2] < two.sigma[:, 2])
 
@@ -263,11 +269,14 @@ def test_rpc_models(scene, rpcs, figures):
     the fit error of the rigorous result on the same measurements (Kornus et al. 2006, Table 5)."""
     rigorous = scene["models"]
     truth = scene["lon"], scene["lat"], scene["h"]
-    result = ix.intersect(rpcs, *measure(rpcs, NAMES, *truth), sigma=0.5)
+    result = ix.intersect(rpcs, ix.Measurements(*measure(rpcs, NAMES, *truth), sigma=0.5))
     assert result.status_counts() == {"converged": N_POINTS}
     assert np.abs(errors_enu(result, *truth)).max() < 1e-3
     obs = measure(rigorous, NAMES, *truth, noise=0.3)
-    a, b = ix.intersect(rigorous, *obs, sigma=0.3), ix.intersect(rpcs, *obs, sigma=0.3)
+    a, b = (
+        ix.intersect(rigorous, ix.Measurements(*obs, sigma=0.3)),
+        ix.intersect(rpcs, ix.Measurements(*obs, sigma=0.3)),
+    )
     dh = a.h - b.h
     figures.report("RPC - rigorous heights, RMS", np.sqrt(np.mean(dh**2)), "m")
     figures.report("RPC - rigorous heights, max", np.abs(dh).max(), "m")
@@ -285,7 +294,7 @@ def test_pleiades_triplet_rpcs(pleiades_triplet, figures):
     c, r, h = rng.uniform(100, cols - 100, 500), rng.uniform(100, rows - 100, 500), rng.uniform(lo + 50, lo + 400, 500)
     lon, lat = models[2].image_to_ground(c, r, h)
     image, point, col, row = measure(models, (1, 2, 3), lon, lat, h)
-    result = ix.intersect(models, image, point, col, row, sigma=0.5)
+    result = ix.intersect(models, ix.Measurements(image, point, col, row, 0.5))
     inside = np.ones(500, bool)
     for k, model in models.items():
         sel = image == k
@@ -310,7 +319,7 @@ def test_bad_points_get_a_status(scene):
     # point 4: a ray measured twice in the same image (parallel rays)
     image = np.concatenate([image, ["HRG", "HRG"]])
     point, col, row = np.r_[point, 4, 4], np.r_[col, 100.0, 100.0], np.r_[row, 200.0, 200.0]
-    result = ix.intersect(models, image, point, col, row)
+    result = ix.intersect(models, ix.Measurements(image, point, col, row))
     assert list(result.status) == [ix.CONVERGED, ix.TOO_FEW_RAYS, ix.OUTSIDE, ix.OUTSIDE, ix.SINGULAR]
     assert np.isfinite(result.h[0]) and np.isnan(result.h[1:]).all() and np.isnan(result.covariance[1:]).all()
     assert result.status_counts() == {
@@ -355,9 +364,9 @@ def test_rays_outside_a_model_domain(scene, where):
     row = models["HRS1"].ground_to_image(*truth)[1]
     row_max = float(np.median(row))
     obs = measure(models, NAMES, *truth, noise=0.2)
-    result = ix.intersect(dict(models, HRS1=Patchy(models["HRS1"], row_max, where)), *obs, sigma=0.2)
+    result = ix.intersect(dict(models, HRS1=Patchy(models["HRS1"], row_max, where)), ix.Measurements(*obs, sigma=0.2))
     if where == "image_to_ground":
-        plain = ix.intersect(models, *obs, sigma=0.2)
+        plain = ix.intersect(models, ix.Measurements(*obs, sigma=0.2))
         assert result.status_counts() == {"converged": 40}
         assert np.abs(errors_enu(result, plain.lon, plain.lat, plain.h)).max() < 1e-6
     else:
@@ -372,21 +381,21 @@ def test_rpc_rays_meeting_beyond_the_height_range(scene, rpcs):
     image, point, col, row = measure(rpcs, ("HRG", "HRS1"), *truth)
     moved = (point == 1) & (image == "HRS1")
     row[moved] += np.where(row[moved] < rpcs["HRS1"].size[1] / 2, 250.0, -250.0)
-    result = ix.intersect(rpcs, image, point, col, row)
+    result = ix.intersect(rpcs, ix.Measurements(image, point, col, row))
     assert list(result.status) == [ix.CONVERGED, ix.OUTSIDE]
 
 
 def test_bad_input_raises_clear_errors(scene):
     models = scene["models"]
     with pytest.raises(InputError, match="no sensor model for image.*XS"):
-        ix.intersect(models, ["HRG", "XS"], [0, 0], [1.0, 2.0], [1.0, 2.0])
+        ix.intersect(models, ix.Measurements(["HRG", "XS"], [0, 0], [1.0, 2.0], [1.0, 2.0]))
     with pytest.raises(InputError, match="one length"):
-        ix.intersect(models, ["HRG", "HRS1"], [0, 0, 1], [1.0, 2.0], [1.0, 2.0])
+        ix.intersect(models, ix.Measurements(["HRG", "HRS1"], [0, 0, 1], [1.0, 2.0], [1.0, 2.0]))
     with pytest.raises(InputError, match="sigma"):
-        ix.intersect(models, ["HRG", "HRS1"], [0, 0], [1.0, 2.0], [1.0, 2.0], sigma=0.0)
+        ix.intersect(models, ix.Measurements(["HRG", "HRS1"], [0, 0], [1.0, 2.0], [1.0, 2.0], 0.0))
     with pytest.raises(InputError, match="finite"):
-        ix.intersect(models, ["HRG", "HRS1"], [0, 0], [1.0, np.nan], [1.0, 2.0])
-    empty = ix.intersect(models, [], [], [], [])
+        ix.intersect(models, ix.Measurements(["HRG", "HRS1"], [0, 0], [1.0, np.nan], [1.0, 2.0]))
+    empty = ix.intersect(models, ix.Measurements([], [], [], []))
     assert len(empty) == 0 and empty.status_counts() == {}
 
 
@@ -394,7 +403,9 @@ def test_cancel(scene):
     models = scene["models"]
     with pytest.raises(CancelledError):
         ix.intersect(
-            models, *measure(models, NAMES, scene["lon"], scene["lat"], scene["h"]), feedback=Feedback(cancel_after=0)
+            models,
+            ix.Measurements(*measure(models, NAMES, scene["lon"], scene["lat"], scene["h"])),
+            feedback=Feedback(cancel_after=0),
         )
 
 
@@ -403,7 +414,7 @@ def test_summary_rows(scene):
     truth = scene["lon"][:100], scene["lat"][:100], scene["h"][:100]
     image, point, col, row = measure(models, NAMES, *truth, noise=0.1)
     keep = ~((point >= 60) & (image == "HRS2"))  # points 60..99: two rays
-    result = ix.intersect(models, image[keep], point[keep], col[keep], row[keep], sigma=0.1)
+    result = ix.intersect(models, ix.Measurements(image[keep], point[keep], col[keep], row[keep], 0.1))
     group = np.where(result.rays == 3, 3, 1)
     rows = ix.summary_rows(result, group)
     assert [(r["group"], r["points"], r["converged"]) for r in rows] == [(1, 40, 40), (3, 60, 60)]
@@ -440,7 +451,7 @@ def test_throughput(scene, figures):
     lon, lat = models["HRG"].image_to_ground(rng.uniform(60, cols - 60, n), rng.uniform(60, rows - 60, n), h)
     obs = measure(models, NAMES, lon, lat, h, noise=0.1)
     start = time.perf_counter()
-    result = ix.intersect(models, *obs, sigma=0.1)
+    result = ix.intersect(models, ix.Measurements(*obs, sigma=0.1))
     seconds = time.perf_counter() - start
     figures.report("three-ray points", n)
     figures.report("throughput", n / seconds, "points/s")

@@ -73,13 +73,15 @@ def test_long_triangles_are_gaps():
     hole = np.hypot(x - X0 - 1000, y - Y0 - 1000) < 300  # a lake with no points
     x, y, z = x[~hole], y[~hole], z[~hole]
     points = point_input.PointSet(x, y, z, srs(UTM31))
-    result = tin_dem.interpolate_dem(points, cell=10.0, k=0, max_edge=60.0)
+    result = tin_dem.interpolate_dem(points, tin_dem.DemParams(cell=10.0, k=0, max_edge=60.0))
     cx, cy = result.grid.centres()
     r = np.hypot(cx - X0 - 1000, cy - Y0 - 1000)
     assert np.isnan(result.heights[r < 250]).all()
     ring = (r > 400) & (r < 800)
     assert np.isfinite(result.heights[ring]).mean() > 0.97
-    filled = tin_dem.interpolate_dem(points, cell=10.0, k=0, max_edge=1e4)  # no gap rule: surface over the lake
+    filled = tin_dem.interpolate_dem(
+        points, tin_dem.DemParams(cell=10.0, k=0, max_edge=1e4)
+    )  # no gap rule: surface over the lake
     assert np.isfinite(filled.heights[r < 250]).all()
 
 
@@ -110,8 +112,10 @@ def test_breaklines_keep_triangles_off_a_ridge():
     roof = lambda px: 100 - 0.5 * np.abs(px - X0 - 500)
     points = point_input.PointSet(x, y, roof(x), srs(UTM31))
     ridge = np.array([[X0 + 500, Y0 - 10, 100.0], [X0 + 500, Y0 + 1010, 100.0]])
-    plain = tin_dem.interpolate_dem(points, cell=5.0, k=0, max_edge=100.0)
-    lined = tin_dem.interpolate_dem(points, cell=5.0, k=0, max_edge=100.0, breaklines=[ridge], breakline_srs=srs(UTM31))
+    plain = tin_dem.interpolate_dem(points, tin_dem.DemParams(cell=5.0, k=0, max_edge=100.0))
+    lined = tin_dem.interpolate_dem(
+        points, tin_dem.DemParams(cell=5.0, k=0, max_edge=100.0), breaklines=[ridge], breakline_srs=srs(UTM31)
+    )
     cx, _ = lined.grid.centres()
     ok = np.isfinite(lined.heights)
     assert ok.mean() > 0.95 and lined.breakline_vertices > 200
@@ -131,9 +135,9 @@ def test_breaklines_keep_triangles_off_a_ridge():
 def test_egm96_datum_and_output_crs():
     x, y, z = cloud(3000, seed=8)
     points = point_input.PointSet(x, y, z, srs(UTM31))
-    ellipsoidal = tin_dem.interpolate_dem(points, cell=20.0, k=0)
+    ellipsoidal = tin_dem.interpolate_dem(points, tin_dem.DemParams(cell=20.0, k=0))
     assert ellipsoidal.srs.GetAuthorityCode(None) == str(UTM31)  # default: the points' UTM zone
-    geoid = tin_dem.interpolate_dem(points, cell=20.0, k=0, datum="egm96")
+    geoid = tin_dem.interpolate_dem(points, tin_dem.DemParams(cell=20.0, k=0, datum="egm96"))
     ok = np.isfinite(ellipsoidal.heights)
     cx, cy = ellipsoidal.grid.centres()
     t = osr.CoordinateTransformation(srs(UTM31), srs(4326))
@@ -141,7 +145,7 @@ def test_egm96_datum_and_output_crs():
     n = egm96_undulation(lonlat[:, 0], lonlat[:, 1])
     assert 45 < n.mean() < 55  # EGM96 in southern France
     np.testing.assert_allclose((ellipsoidal.heights - geoid.heights)[ok][::50], n, atol=1e-6)
-    other = tin_dem.interpolate_dem(points, cell=20.0, k=0, crs="EPSG:2154")  # Lambert-93
+    other = tin_dem.interpolate_dem(points, tin_dem.DemParams(cell=20.0, k=0, crs="EPSG:2154"))  # Lambert-93
     assert other.srs.GetAuthorityCode(None) == "2154"
     # a point of the cloud lands at its Lambert-93 position
     lx, ly = osr.CoordinateTransformation(srs(UTM31), srs(2154)).TransformPoint(float(x[0]), float(y[0]))[:2]
@@ -162,7 +166,7 @@ def test_reads_las_and_geopackage_clouds_with_sigma(tmp_path):
         np.testing.assert_allclose(points.z[order], h[truth], atol=1e-3)
         np.testing.assert_allclose(points.sigma_h[order], fields["sigma_h"][truth], atol=1e-6)
         assert points.srs.GetAuthorityCode(None) == "32632"
-    result = tin_dem.interpolate_dem(points, cell=50.0, k=0, precision=True)
+    result = tin_dem.interpolate_dem(points, tin_dem.DemParams(cell=50.0, k=0), precision=True)
     ok = np.isfinite(result.heights)
     assert "sigma_h" in result.precision_kind and np.isfinite(result.precision[ok]).all()
     assert 0.2 <= np.nanmin(result.precision) and np.nanmax(result.precision) <= 0.9
@@ -170,7 +174,9 @@ def test_reads_las_and_geopackage_clouds_with_sigma(tmp_path):
 
 def test_precision_is_the_distance_to_the_nearest_point_without_sigma():
     x, y, z = cloud(500, seed=10, size=300.0)
-    result = tin_dem.interpolate_dem(point_input.PointSet(x, y, z, srs(UTM31)), cell=5.0, k=0, precision=True)
+    result = tin_dem.interpolate_dem(
+        point_input.PointSet(x, y, z, srs(UTM31)), tin_dem.DemParams(cell=5.0, k=0), precision=True
+    )
     cx, cy = result.grid.centres()
     ok = np.isfinite(result.heights)
     d = np.hypot(cx[ok][:, None] - x[None], cy[ok][:, None] - y[None]).min(axis=1)
@@ -180,7 +186,9 @@ def test_precision_is_the_distance_to_the_nearest_point_without_sigma():
 
 def test_written_geotiff_is_tiled_with_overviews_and_nodata(tmp_path):
     x, y, z = cloud(20000, seed=11, size=6000.0)
-    result = tin_dem.interpolate_dem(point_input.PointSet(x, y, z, srs(UTM31)), cell=10.0, k=0, precision=True)
+    result = tin_dem.interpolate_dem(
+        point_input.PointSet(x, y, z, srs(UTM31)), tin_dem.DemParams(cell=10.0, k=0), precision=True
+    )
     tin_dem.write_dem(result, tmp_path / "dem.tif", tmp_path / "precision.tif")
     ds = gdal.Open(str(tmp_path / "dem.tif"))
     band = ds.GetRasterBand(1)
@@ -205,13 +213,13 @@ def test_bad_input_and_cancel(tmp_path):
     with pytest.raises(InputError, match="one line"):
         tin_dem.interpolate_dem(point_input.PointSet(x[:10], x[:10] * 2, z[:10], utm31))
     with pytest.raises(InputError, match="datum"):
-        tin_dem.interpolate_dem(point_input.PointSet(x, y, z, utm31), datum="navd88")
+        tin_dem.interpolate_dem(point_input.PointSet(x, y, z, utm31), tin_dem.DemParams(datum="navd88"))
     with pytest.raises(InputError, match="maximum edge"):
-        tin_dem.interpolate_dem(point_input.PointSet(x, y, z, utm31), max_edge=1.0)
+        tin_dem.interpolate_dem(point_input.PointSet(x, y, z, utm31), tin_dem.DemParams(max_edge=1.0))
     with pytest.raises(InputError, match="cannot open"):
         point_input.read_points(tmp_path / "missing.gpkg")
 
-    result = tin_dem.interpolate_dem(point_input.PointSet(x, y, z, utm31), cell=50.0, k=0)
+    result = tin_dem.interpolate_dem(point_input.PointSet(x, y, z, utm31), tin_dem.DemParams(cell=50.0, k=0))
     with pytest.raises(CancelledError):
         tin_dem.write_dem(result, tmp_path / "dem.tif", feedback=Feedback(cancel_at=40))
     assert not list(tmp_path.iterdir())

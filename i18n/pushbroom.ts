@@ -1,0 +1,1132 @@
+<?xml version="1.0" encoding="utf-8"?>
+<!DOCTYPE TS>
+<TS version="2.1">
+<context>
+    <name>Pushbroom</name>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="27"/>
+        <source>Assess accuracy (dh against a reference DEM)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="48"/>
+        <source>Reference DTM/DSM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="51"/>
+        <source>Reference heights</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="52"/>
+        <source>Point cloud (object points)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="52"/>
+        <source>Point clouds (*.las *.laz *.gpkg);;All files (*.*)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="86"/>
+        <source>DEM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="87"/>
+        <source>DEM heights</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="62"/>
+        <source>Class raster</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="65"/>
+        <source>Class polygons</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="73"/>
+        <source>Class field of the polygons</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="81"/>
+        <source>Slope of mountainous terrain (degrees, of the reference)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="91"/>
+        <source>Point cloud heights</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="108"/>
+        <source>Report</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="108"/>
+        <source>HTML files (*.html)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="102"/>
+        <source>dh raster (DEM input)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="107"/>
+        <source>Statistics table</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="139"/>
+        <source>CSV files (*.csv)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="85"/>
+        <source>Simulation</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/select_tie_points.py" line="35"/>
+        <source>Block</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="87"/>
+        <source>Matching</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="88"/>
+        <source>Adjustment</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="89"/>
+        <source>Surface</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="461"/>
+        <source>Threads in this process</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="462"/>
+        <source>Local worker processes</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="463"/>
+        <source>Dask distributed: a local cluster, or the scheduler at the address below</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="472"/>
+        <source>Execution of the tiles</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="478"/>
+        <source>Dask scheduler address (tcp:// or tls://host:port; empty: a local cluster)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="484"/>
+        <source>Wait for a Dask worker where the cluster has none, or has lost every one (s)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="492"/>
+        <source>Workers (threads, processes or local Dask workers; at most {} per core are used)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="534"/>
+        <source>Replace the block&apos;s {} even by far fewer (none, or below half)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="28"/>
+        <source>Correction polynomials with autocalibration (Kornus et al. 2006)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="29"/>
+        <source>Lagrange polynomials on orientation images (Heipke et al. 1992)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="35"/>
+        <source>Bundle adjustment</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="63"/>
+        <source>Free parameters (&apos;auto&apos; or comma-separated patterns)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="68"/>
+        <source>Exterior orientation model of SPOT images</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="76"/>
+        <source>Use the block&apos;s tie points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="81"/>
+        <source>Remove flagged measurements iteratively</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="88"/>
+        <source>Reference DTM for the tie point heights (Kornus et al. 2006, Table 4)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="95"/>
+        <source>Heights of the reference DTM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="98"/>
+        <source>Sigma of tie point image measurements (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="98"/>
+        <source>Critical normalised residual (data snooping)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="98"/>
+        <source>Maximum iterations</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="98"/>
+        <source>Estimate variance components (tie, control image, control ground)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="98"/>
+        <source>Automatic selection: significance threshold x/sigma</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="98"/>
+        <source>Control point counts of the accuracy table (Heipke et al. 1992), e.g. 4,6,10</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="98"/>
+        <source>Lagrange model: orientation images per trajectory</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="98"/>
+        <source>Scale of the residual vectors on the map</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="98"/>
+        <source>Prior sigmas of orientation unknowns (pattern=sigma, ...; e.g. bias:shift=10)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="175"/>
+        <source>Residual vectors of control and check points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="184"/>
+        <source>sigma_0</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/select_tie_points.py" line="61"/>
+        <source>Block (updated; chains the next step in a model)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/create_block.py" line="27"/>
+        <source>Create block</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/create_block.py" line="46"/>
+        <source>Images</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/create_block.py" line="51"/>
+        <source>Orientation files (one per image, same order; found beside the images if empty)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/create_block.py" line="61"/>
+        <source>DEM for the footprints (ellipsoidal heights)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/create_block.py" line="66"/>
+        <source>Mean ellipsoidal height without a DEM (m, {:g} .. {:g}; empty: matched)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/create_block.py" line="77"/>
+        <source>Overwrite an existing block</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/create_block.py" line="85"/>
+        <source>GeoPackage (*.gpkg)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/create_block.py" line="90"/>
+        <source>Footprints</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="25"/>
+        <source>Fit RPC</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="43"/>
+        <source>Image name (empty: every image of the block)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="51"/>
+        <source>Lowest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: the block&apos;s)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="62"/>
+        <source>Highest ellipsoidal height of the cube (m, {:g} .. {:g}; empty: the block&apos;s)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="73"/>
+        <source>Overwrite existing _RPC.TXT files, also beside an image with its own RPC</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="80"/>
+        <source>Image grid points along columns and rows</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="80"/>
+        <source>Height levels</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="98"/>
+        <source>Output folder (empty: beside each image raster, where it carries no RPC of its own)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/fit_rpc.py" line="116"/>
+        <source>RPC files (_RPC.TXT)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="34"/>
+        <source>Replace the block&apos;s points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="35"/>
+        <source>Merge: update points with the same id, add the others</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="41"/>
+        <source>Import control and check points (CSV)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="67"/>
+        <source>Point file (CSV)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="67"/>
+        <source>CSV files (*.csv *.txt);;All files (*.*)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="74"/>
+        <source>CRS of x/y columns (lon/lat columns are WGS 84)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="82"/>
+        <source>Heights</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="83"/>
+        <source>Role of points without one in the file</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="91"/>
+        <source>Check point ids (comma-separated)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="97"/>
+        <source>Import mode</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="105"/>
+        <source>Default sigma east (m)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="105"/>
+        <source>Default sigma north (m)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="105"/>
+        <source>Default sigma height (m)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="105"/>
+        <source>Default sigma of the image measurements (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="105"/>
+        <source>Measurement column suffix (&apos;_meas&apos; for the simulator&apos;s points.csv)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="105"/>
+        <source>Keep points the block&apos;s images and measurements disagree with (a warning)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="105"/>
+        <source>points and measurements</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="149"/>
+        <source>Control and check points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="155"/>
+        <source>Control points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="156"/>
+        <source>Check points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="157"/>
+        <source>Image measurements</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="199"/>
+        <source>Export control and check points (CSV)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="208"/>
+        <source>Point file</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="25"/>
+        <source>WGS 84 ellipsoidal height</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="25"/>
+        <source>EGM96 (orthometric) height</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="30"/>
+        <source>TIN of the points (sparse points: region growing, coarse-to-fine)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="30"/>
+        <source>Per-cell median (dense points: the dense matching strategy)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="38"/>
+        <source>Interpolate DEM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="96"/>
+        <source>Point cloud</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="70"/>
+        <source>Point clouds (*.las *.laz *.gpkg *.shp *.geojson);;All files (*)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="77"/>
+        <source>Breaklines (3-D lines)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="85"/>
+        <source>Output CRS (empty: the UTM zone of the points)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="90"/>
+        <source>Cell size (output CRS units)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="95"/>
+        <source>Method</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="100"/>
+        <source>Height datum</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <source>Point cloud CRS (empty: the file&apos;s own)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <source>Maximum triangle edge (empty: 3 cells or 2.5 point spacings)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <source>Blunder threshold k (robust sigmas; 0: no filter)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <source>Blunder filter iterations</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <source>Tile size (cells)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <source>Per-cell method: unrefined points where a cell has no refined one</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <source>Per-cell method: borrow points within this many cells (0: none)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <source>Per-cell method: fill gaps within this many cells (0: none)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="160"/>
+        <source>Precision raster</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="165"/>
+        <source>Points per cell (per-cell method)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="173"/>
+        <source>Cell mask (per-cell method: 0 own points, 2 borrowed, 1 filled, 255 gap)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="181"/>
+        <source>Points in the DEM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="182"/>
+        <source>Gap cells filled</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="183"/>
+        <source>Blunders (outliers) removed</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="22"/>
+        <source>Mass points (pushbroom:matchpoints)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="22"/>
+        <source>Tie points (pushbroom:selecttiepoints)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="30"/>
+        <source>Intersect points (point cloud)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="52"/>
+        <source>Points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="57"/>
+        <source>Output CRS (empty: the block&apos;s UTM zone)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="62"/>
+        <source>Sigma of the image coordinates (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="62"/>
+        <source>Maximum iterations per point</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="62"/>
+        <source>Statistical outlier removal: neighbours k (0: off)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="62"/>
+        <source>Statistical outlier removal: factor n (mean distance &gt; mu + n sigma)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="96"/>
+        <source>LAS files (*.las);;LAZ files (*.laz);;GeoPackage (*.gpkg)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="103"/>
+        <source>Point layer (GeoPackage output)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="108"/>
+        <source>Points written</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="133"/>
+        <source>Object points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="35"/>
+        <source>Automatic: interest points matched along the path predicted by the sensor models</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="35"/>
+        <source>The block&apos;s tie points (pushbroom:selecttiepoints)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="35"/>
+        <source>Both: the block&apos;s tie points and automatic seeds</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="48"/>
+        <source>Region growing (Otto &amp; Chau; Kornus et al. 2006)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="49"/>
+        <source>Coarse-to-fine multi-primitive with MPGC (Zhang &amp; Gruen)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="50"/>
+        <source>Dense: semi-global matching on epipolar tiles, refined by LSM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="61"/>
+        <source>Match points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="106"/>
+        <source>Matching strategy</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="259"/>
+        <source>Coarse-to-fine: grid point spacing at full resolution (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="266"/>
+        <source>Coarse-to-fine: minimum correlation coefficient at full resolution</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="274"/>
+        <source>Coarse-to-fine: tile size of the reference image (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="281"/>
+        <source>Coarse-to-fine: matched edges as extra points and breaklines</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="292"/>
+        <source>Dense: tile size of the reference image (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="300"/>
+        <source>Dense: a point every ... px of the reference image</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="307"/>
+        <source>Dense: refine the positions by LSM in the original images (TEMPLATE px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="312"/>
+        <source>Dense: refine a triplet&apos;s three-ray points by MPGC (about 4x slower)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="317"/>
+        <source>Dense: SGM penalty P1 (a disparity change of 1 px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="324"/>
+        <source>Dense: SGM penalty P2 (a larger change)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="130"/>
+        <source>mass points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="139"/>
+        <source>Summary per point group (CSV)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="420"/>
+        <source>Mass points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="157"/>
+        <source>Mass point folder (index and parts)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="30"/>
+        <source>ellipsoidal (WGS 84)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="30"/>
+        <source>EGM96</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="35"/>
+        <source>Orthorectify image</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="61"/>
+        <source>Block (empty: the image&apos;s own orientation)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="69"/>
+        <source>Image name in the block</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="74"/>
+        <source>Image (without a block)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="79"/>
+        <source>Orientation file (empty: found beside the image)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="95"/>
+        <source>Output CRS (empty: UTM zone of the footprint)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="100"/>
+        <source>Cell size in CRS units (empty: ground sampling distance)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="110"/>
+        <source>Resampling</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="118"/>
+        <source>Occluded cells as nodata</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="123"/>
+        <source>Bound of the coarse-grid interpolation error (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="136"/>
+        <source>Orthoimage</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="137"/>
+        <source>Achieved interpolation error bound (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="140"/>
+        <source>Cells with image values</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/select_tie_points.py" line="22"/>
+        <source>Select tie points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/select_tie_points.py" line="36"/>
+        <source>Grid cell size (px of the reference image)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/select_tie_points.py" line="45"/>
+        <source>Lowest point group accepted (1, 2 or 3)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/select_tie_points.py" line="55"/>
+        <source>tie points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/select_tie_points.py" line="56"/>
+        <source>Tie points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/select_tie_points.py" line="66"/>
+        <source>Tie point folder (index and parts)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="25"/>
+        <source>SPOT-5 along-track triplet (HRS1 +20 deg, HRG nadir, HRS2 -20 deg)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="28"/>
+        <source>SPOT 1-4 across-track pair (two passes, B/H about 0.5)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="35"/>
+        <source>Simulate scene</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="65"/>
+        <source>Configuration</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="73"/>
+        <source>Scene size (km)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="83"/>
+        <source>Random seed</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="84"/>
+        <source>Radiometric resolution (bits)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="92"/>
+        <source>Control/check point candidates</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="101"/>
+        <source>Blunders among the point measurements</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <source>Image noise sigma (DN at 8 bit)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <source>Fractal terrain detail (x 4 m, 0 = off)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <source>Forest and buildings in the DSM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <source>Point measurement noise (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <source>Paint bright markers at the point candidates</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <source>Scale of the injected orientation errors (0: supplied = truth)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <source>Ground grid cell (m)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <source>Look angles and line period from this METADATA.DIM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <source>Ground reflectance from this orthoimage</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="165"/>
+        <source>Output folder</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="166"/>
+        <source>Images (IMAGERY.TIF)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="168"/>
+        <source>True DSM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="169"/>
+        <source>True DTM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="170"/>
+        <source>Land-cover classes</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="171"/>
+        <source>True orthoimage</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="174"/>
+        <source>Control/check point candidates (CSV)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="177"/>
+        <source>Truth file (JSON)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="178"/>
+        <source>Scene folder</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="91"/>
+        <source>reference DTM/DSM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="442"/>
+        <source>Ellipsoidal (WGS 84)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="443"/>
+        <source>Orthometric (EGM96 geoid; needs PROJ&apos;s EGM96 grid)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/bundle_adjust.py" line="98"/>
+        <source>reference DTM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/dem_nodata.py" line="16"/>
+        <source>Nodata value of the {} (voids its file does not flag, e.g. -32768)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="29"/>
+        <source>Control point</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/import_points.py" line="30"/>
+        <source>Check point</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="26"/>
+        <source>Bilinear</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="27"/>
+        <source>Bicubic</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="114"/>
+        <source>Images: reference (nadir), forward[, backward]; empty: all</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="122"/>
+        <source>Lowest ellipsoidal terrain height (m; empty: the block&apos;s)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="122"/>
+        <source>Highest ellipsoidal terrain height (m; empty: the block&apos;s)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="165"/>
+        <source>Region growing: seeds</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="171"/>
+        <source>LSM template size (px, odd; region growing, dense)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="178"/>
+        <source>Region growing: STEP, the distance of the neighbours (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="187"/>
+        <source>Region growing: a wider template where the first fails (px; 0: off)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="194"/>
+        <source>Region growing: minimum correlation coefficient</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="202"/>
+        <source>Region growing: largest semi-major axis of the error ellipse (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="209"/>
+        <source>Region growing: largest shift from the initial values (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="216"/>
+        <source>Region growing: largest number of LSM iterations</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="223"/>
+        <source>Region growing: tile size of the reference image (px)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="230"/>
+        <source>Region growing: group 3 consistency test, k robust sigma</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="237"/>
+        <source>Region growing: grow combination (b) where (a) found no points</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="242"/>
+        <source>Region growing: refine the group 3 points by MPGC</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="247"/>
+        <source>Region growing: MPGC with support weights (for DEMs)</source>
+        <translation type="unfinished"></translation>
+    </message>
+</context>
+</TS>
