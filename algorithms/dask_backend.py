@@ -371,8 +371,11 @@ class DaskBackend:
         return [tuple(shared.get(i, a) for i, a in enumerate(t)) for t in tasks] if shared else tasks
 
     def submit(self, function: Callable[..., Any], args: Sequence[Any]) -> Future:
-        # pure=False: a task is run, not looked up (two runs of the same tile may write different files)
-        return self.client.submit(_in_dask_worker, function, args, self.token, pure=False)
+        # pure=False: a task is run, not looked up (two runs of the same tile may write different files). The
+        # arguments go as a list: Dask takes a tuple whose first item is callable for a task of its own, and would
+        # call it (a matching strategy's class first, `RegionGrowing(job, ...)`); in a list it finds the shared
+        # job's future all the same (prepare)
+        return self.client.submit(_in_dask_worker, function, list(args), self.token, pure=False)
 
     def done(self, futures: set[Future]) -> set[Future]:
         self._watch()

@@ -449,12 +449,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/import_points.py" line="199"/>
+        <location filename="../plugin/algorithms/import_points.py" line="203"/>
         <source>Export control and check points (CSV)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/import_points.py" line="208"/>
+        <location filename="../plugin/algorithms/import_points.py" line="212"/>
         <source>Point file</source>
         <translation type="unfinished"></translation>
     </message>
@@ -649,7 +649,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="133"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="137"/>
         <source>Object points</source>
         <translation type="unfinished"></translation>
     </message>

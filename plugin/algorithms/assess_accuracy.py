@@ -129,7 +129,9 @@ class AssessAccuracy(PushbroomAlgorithm):
                 values.append(feature[fields[0]])
         return PolygonClasses(geometries, values, polygons.crs().toWkt()), f"{polygons.source()} ({fields[0]})"
 
-    def execute(self, parameters, context, feedback):
+    def assess_params(self, parameters, context):
+        """AssessParams of the parameters."""
+
         def source(key):
             layer = self.parameterAsRasterLayer(parameters, key, context)
             return layer.source() if layer is not None else None
@@ -143,7 +145,7 @@ class AssessAccuracy(PushbroomAlgorithm):
             ]
         }
         polygons, polygons_source = self._class_polygons(parameters, context)
-        params = AssessParams(
+        return AssessParams(
             reference=source(self.REFERENCE),
             dem=source(self.DEM),
             class_raster=source(self.CLASS_RASTER),
@@ -158,6 +160,9 @@ class AssessAccuracy(PushbroomAlgorithm):
                 parameters, context, slope_threshold=self.SLOPE_THRESHOLD, reference_nodata=self.REFERENCE_NODATA
             ),
         )
+
+    def execute(self, parameters, context, feedback):
+        params = self.assess_params(parameters, context)
         result = assess_accuracy(params, feedback)
         out = {self.REPORT: result.report}
         if result.table:

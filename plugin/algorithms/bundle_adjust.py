@@ -188,10 +188,10 @@ class BundleAdjust(PushbroomAlgorithm):
             )
         )
 
-    def execute(self, parameters, context, feedback):
-        path = self.parameterAsFile(parameters, self.BLOCK, context)
+    def adjust_params(self, parameters, context):
+        """AdjustParams of the parameters."""
         dem = self.parameterAsRasterLayer(parameters, self.REFERENCE_DEM, context)
-        params = AdjustParams(
+        return AdjustParams(
             model=MODELS[self.parameterAsEnum(parameters, self.MODEL, context)],
             reference_dem=dem.source() if dem is not None else None,
             reference_heights=heights_choice(self, parameters, self.REFERENCE_HEIGHTS, context),
@@ -215,6 +215,10 @@ class BundleAdjust(PushbroomAlgorithm):
                 priors=self.PRIORS,
             ),
         )
+
+    def execute(self, parameters, context, feedback):
+        path = self.parameterAsFile(parameters, self.BLOCK, context)
+        params = self.adjust_params(parameters, context)
         result = adjust_block(path, params, feedback)
         if result.residual_vectors:
             load_styled(context, params.residual_vectors, "Residual vectors", self.RESIDUALS, "residual_vectors.qml")

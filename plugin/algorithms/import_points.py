@@ -163,9 +163,9 @@ class ImportPoints(PushbroomAlgorithm):
             )
         )
 
-    def execute(self, parameters, context, feedback):
-        path = self.parameterAsFile(parameters, self.BLOCK, context)
-        params = ImportParams(
+    def import_params(self, parameters, context):
+        """ImportParams of the parameters."""
+        return ImportParams(
             mode=Block.IMPORT_MODES[self.parameterAsEnum(parameters, self.MODE, context)],
             crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
             heights=heights_choice(self, parameters, self.HEIGHTS, context),
@@ -183,6 +183,10 @@ class ImportPoints(PushbroomAlgorithm):
                 replace_fewer=self.REPLACE_FEWER,
             ),
         )
+
+    def execute(self, parameters, context, feedback):
+        path = self.parameterAsFile(parameters, self.BLOCK, context)
+        params = self.import_params(parameters, context)
         result = import_points(path, self.parameterAsFile(parameters, self.INPUT, context), params, feedback)
         load_styled(context, result.layer, "Control and check points", self.POINTS, "control_points.qml")
         return {

@@ -196,7 +196,8 @@ class InterpolateDem(PushbroomAlgorithm):
             return []
         return [destinations.Destination(beside, f"{self.MASK} (cell mask, beside the DEM)")]
 
-    def execute(self, parameters, context, feedback):
+    def dem_params(self, parameters, context):
+        """DemParams of the parameters."""
         values = self.parameterValues(
             parameters,
             context,
@@ -212,24 +213,32 @@ class InterpolateDem(PushbroomAlgorithm):
             fill=self.FILL,
         )
         values.update(datum=DATUMS[values["datum"]][0], method=METHODS[values["method"]][0])
-        params = DemParams(
+        return DemParams(
             crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
             input_crs=self.parameterAsCrsDefinition(parameters, self.INPUT_CRS, context),
             execution=execution_choice(self, parameters, context),
             **values,
         )
-        breaklines = None
-        if parameters.get(self.BREAKLINES):
-            path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
-                parameters, self.BREAKLINES, context, ["gpkg", "shp"], "gpkg", feedback
-            )
-            breaklines = (path, layer or None)
-        out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
-        precision = self.parameterAsOutputLayer(parameters, self.PRECISION, context)
-        count = self.parameterAsOutputLayer(parameters, self.COUNT, context)
-        mask = self.parameterAsOutputLayer(parameters, self.MASK, context)
+
+    def breaklines(self, parameters, context, feedback):
+        """(path, layer name or None) of the BREAKLINES layer as a file OGR reads, or None where none is given."""
+        if not parameters.get(self.BREAKLINES):
+            return None
+        path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
+            parameters, self.BREAKLINES, context, ["gpkg", "shp"], "gpkg", feedback
+        )
+        return (path, layer or None)
+
+    def execute(self, parameters, context, feedback):
+        params = self.dem_params(parameters, context)
+        breaklines = self.breaklines(parameters, context, feedback)
+        out, precision, count, mask = (
+            self.parameterAsOutputLayer(parameters, key, context)
+            for key in (self.OUTPUT, self.PRECISION, self.COUNT, self.MASK)
+        )
+        source = self.parameterAsFile(parameters, self.INPUT, context)
         result = dem_from_point_cloud(
-            self.parameterAsFile(parameters, self.INPUT, context),
+            source,
             out,
             params,
             breaklines,
@@ -239,14 +248,16 @@ class InterpolateDem(PushbroomAlgorithm):
             mask_path=mask or None,
         )
         style_on_completion(context, out, "dem.qml")
-        return self.given(
-            {
-                self.OUTPUT: out,
-                self.POINTS: result.points,
-                self.REMOVED: sum(result.removed),
-                self.PRECISION: precision,
-                self.COUNT: count,
-                self.MASK: result.mask_path,
-                self.FILLED: result.filled,
-            }
-        )
+        return self.given(self.outputs(result, out, precision, count))
+
+    def outputs(self, result, out, precision, count):
+        """The algorithm's outputs of the engine's DemResult `result` and the rasters written."""
+        return {
+            self.OUTPUT: out,
+            self.POINTS: result.points,
+            self.REMOVED: sum(result.removed),
+            self.PRECISION: precision,
+            self.COUNT: count,
+            self.MASK: result.mask_path,
+            self.FILLED: result.filled,
+        }

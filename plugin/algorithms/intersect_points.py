@@ -107,7 +107,8 @@ class IntersectPoints(PushbroomAlgorithm):
         )
         self.addOutput(QgsProcessingOutputNumber(self.COUNT, translate("Pushbroom", "Points written")))
 
-    def execute(self, parameters, context, feedback):
+    def intersect_params(self, parameters, context):
+        """IntersectParams of the parameters."""
         values = self.parameterValues(
             parameters,
             context,
@@ -118,11 +119,14 @@ class IntersectPoints(PushbroomAlgorithm):
             outlier_factor=self.OUTLIER_FACTOR,
         )
         values["kind"] = KINDS[values["kind"]][0]
-        params = IntersectParams(
+        return IntersectParams(
             crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
             execution=execution_choice(self, parameters, context),
             **values,
         )
+
+    def execute(self, parameters, context, feedback):
+        params = self.intersect_params(parameters, context)
         result = intersect_block_points(
             self.parameterAsFile(parameters, self.BLOCK, context),
             self.parameterAsFileOutput(parameters, self.OUTPUT, context),

@@ -139,7 +139,8 @@ class Orthorectify(PushbroomAlgorithm):
         )
         self.addOutput(QgsProcessingOutputNumber(self.CELLS, translate("Pushbroom", "Cells with image values")))
 
-    def execute(self, parameters, context, feedback):
+    def ortho_params(self, parameters, context):
+        """OrthoParams of the parameters."""
         values = self.parameterValues(
             parameters,
             context,
@@ -151,11 +152,14 @@ class Orthorectify(PushbroomAlgorithm):
             max_error=self.MAX_ERROR,
         )
         values.update(dem_heights=VERTICAL[values["dem_heights"]], resampling=RESAMPLING[values["resampling"]])
-        params = OrthoParams(
+        return OrthoParams(
             crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
             execution=execution_choice(self, parameters, context),
             **values,
         )
+
+    def execute(self, parameters, context, feedback):
+        params = self.ortho_params(parameters, context)
         image = self.parameterAsRasterLayer(parameters, self.IMAGE, context)
         output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
         result = orthorectify_image(

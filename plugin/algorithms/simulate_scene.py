@@ -177,9 +177,10 @@ class SimulateScene(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputFile(self.TRUTH, translate("Pushbroom", "Truth file (JSON)")))
         self.addOutput(QgsProcessingOutputFolder(self.FOLDER, translate("Pushbroom", "Scene folder")))
 
-    def execute(self, parameters, context, feedback):
+    def scene_config(self, parameters, context):
+        """SceneConfig of the parameters."""
         ortho = self.parameterAsRasterLayer(parameters, self.ORTHOIMAGE, context)
-        config = SceneConfig(
+        return SceneConfig(
             configuration=CONFIGURATIONS[self.parameterAsEnum(parameters, self.CONFIGURATION, context)],
             bits=scene.BITS[self.parameterAsEnum(parameters, self.BITS, context)],
             look_table=self.parameterAsFile(parameters, self.LOOK_TABLE, context) or "",
@@ -200,6 +201,9 @@ class SimulateScene(PushbroomAlgorithm):
                 grid_m=self.GRID_M,
             ),
         )
+
+    def execute(self, parameters, context, feedback):
+        config = self.scene_config(parameters, context)
         paths = simulate_scene(config, self.parameterAsString(parameters, self.OUTPUT, context), feedback=feedback)
         images = [paths["images"][name]["imagery"] for name in paths["images"]]
         feedback.pushInfo(f"simulated {len(images)} images into {paths['folder']}: " + ", ".join(paths["images"]))

@@ -10,6 +10,7 @@ import re
 import signal
 import sys
 import time
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -22,6 +23,15 @@ from tests.helpers.feedback import Feedback
 from tests.helpers.processes import pid_in, when, worker_processes
 
 BACKENDS = [Execution("threads", 2), Execution("processes", 2), Execution("dask", 2)]
+
+
+def test_a_class_as_a_task_s_first_argument_is_passed_not_called():
+    """Dask took an argument tuple that begins with a callable for a task of its own, and called it: the
+    matching strategies' tasks on a cluster failed with 'RegionGrowing() takes no arguments' where a scene had
+    one tile (several share the class through a future: DaskBackend.prepare)."""
+    for count in (1, 3):
+        out = run_tasks(tasks.name_of, [(Fraction, k) for k in range(count)], BACKENDS[2])
+        assert out == [f"Fraction-{k}" for k in range(count)]
 
 
 @pytest.mark.parametrize("where", BACKENDS, ids=lambda e: e.backend)

@@ -121,3 +121,8 @@ def after_gate(job, folder, k, seconds):
     with open(os.path.join(folder, f"done-{k}"), "w"):
         pass
     return k * float(job["values"].sum())
+
+
+def name_of(kind, k):
+    """`kind`'s name and `k`: a task whose first argument is a class (a matching strategy's tasks are)."""
+    return f"{kind.__name__}-{k}"
