@@ -1,8 +1,9 @@
 """Graphical models saved before the matching room was rebuilt (issue 38) still run: the pipeline models as they
-were at c00380d (tests/data/models_c00380d). Every parameter id they set still exists (both), and the dense one,
-whose DENSE_REFINE now sets DenseParams.lsm, runs end to end through qgis_process on the small simulated triplet,
-its DEM checked against the simulator's true DSM. (The region-growing one sets the keys of the current pipeline
-model, which tests/plugin/test_pipeline_model.py runs.)"""
+were at c00380d (tests/data/models_c00380d). Every parameter id they set still exists (both), and the
+region-growing one, whose MPGC_REFINE now sets RegionGrowingSettings.mpgc and its other matchpoints keys the
+settings of the region-growing strategy, runs end to end through qgis_process on the small simulated triplet, its
+DEM checked against the simulator's true DSM. (The dense one's DENSE_REFINE, now DenseParams.lsm, is run by the
+current dense model in tests/plugin/test_pipeline_model.py, which sets the same keys.)"""
 
 import csv
 import json
@@ -34,7 +35,7 @@ def test_every_parameter_an_old_model_sets_still_exists(pushbroom_provider, name
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["pushbroom_pipeline_dense"])
+@pytest.mark.parametrize("name", ["pushbroom_pipeline"])
 def test_an_old_model_runs_end_to_end(name, small_scene, qgis_process, tmp_path):
     with open(small_scene["points"], newline="") as f:
         ids = [r["id"] for r in csv.DictReader(f)]
