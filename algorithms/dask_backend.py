@@ -360,8 +360,8 @@ class DaskBackend:
         shared: dict[int, Future] = {}
         if len(tasks) > 1:
             for i, value in enumerate(tasks[0]):
-                if isinstance(value, (str, bytes, int, float, bool, type(None))):
-                    continue
+                if isinstance(value, (str, bytes, int, float, bool, type(None))) or callable(value):
+                    continue  # small, or sent by reference (a strategy's class, write_part)
                 if all(len(t) > i and t[i] is value for t in tasks):
                     with warnings.catch_warnings():  # Dask's advice to scatter it instead (module docstring)
                         warnings.filterwarnings("ignore", message="Large object of size", category=UserWarning)

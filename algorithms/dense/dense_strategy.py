@@ -135,7 +135,6 @@ class Dense(MatchingStrategy):
     """Semi-global matching of every pixel (or every DenseParams.step px) on epipolar tiles, refined by LSM."""
 
     name = "dense"
-    label = "Dense: semi-global matching on epipolar tiles, refined by LSM"
     settings_type = DenseParams
     spacing_setting = "step"
     first_round = "dense matching"

@@ -409,7 +409,6 @@ class CoarseToFine(MatchingStrategy):
     """Zhang & Gruen's coarse-to-fine multi-primitive matching with MPGC (module docstring)."""
 
     name = "coarse_to_fine"
-    label = "Coarse-to-fine multi-primitive with MPGC (Zhang & Gruen)"
     settings_type = CoarseToFineParams
     spacing_setting = "grid"
     first_round = "coarse-to-fine matching"

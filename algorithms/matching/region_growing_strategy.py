@@ -158,7 +158,6 @@ class RegionGrowing(MatchingStrategy):
     """Region-growing least-squares matching (Otto & Chau 1989; Heipke et al. 1992; Kornus et al. 2006)."""
 
     name = "region_growing"
-    label = "Region growing (Otto & Chau; Kornus et al. 2006)"
     settings_type = RegionGrowingSettings
     spacing_setting = "grow.step"
     second_round = "the consistency test and MPGC"

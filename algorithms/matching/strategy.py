@@ -58,11 +58,10 @@ Rounds = Callable[[Callable[..., Any], Sequence[tuple], str], list[Any]]
 
 class MatchingStrategy(ABC):
     """One way of matching a stereo set (module docstring). Subclasses set `name` (the key of the registry and
-    of pushbroom:matchpoints' STRATEGY), `label` (its text in the dialog), `settings_type` (a dataclass with a
+    of pushbroom:matchpoints' STRATEGY; the dialog's labels are the plugin's), `settings_type` (a dataclass with a
     check() that raises InputError and returns the settings), `spacing_setting` and the labels of the rounds."""
 
     name: ClassVar[str]
-    label: ClassVar[str]
     settings_type: ClassVar[type[Any]]
     first_round: ClassVar[str] = "matching"
     second_round: ClassVar[str] = "numbering the points"

@@ -112,8 +112,8 @@ def _second(
     write_part: WritePart | None,
 ) -> tuple[Any, dict]:
     points = renumber(load_work(out), strategy.keep(job, out), first_id)
-    progress_made = strategy.refine(job, points)
-    return (points if write_part is None else write_part(folder, k, points)), progress_made
+    refined = strategy.refine(job, points)
+    return (points if write_part is None else write_part(folder, k, points)), refined
 
 
 def match_in_tiles(

@@ -43,7 +43,7 @@ SEED_SOURCES = (
     ("both", QT_TRANSLATE_NOOP("Pushbroom", "Both: the block's tie points and automatic seeds")),
 )
 #: the STRATEGY enum's first entries, in the order saved models hold their indices, with their labels; other
-#: registered strategies follow, with their own label and default settings
+#: registered strategies follow under their name, with their default settings
 FIRST_STRATEGIES = {
     "region_growing": QT_TRANSLATE_NOOP("Pushbroom", "Region growing (Otto & Chau; Kornus et al. 2006)"),
     "coarse_to_fine": QT_TRANSLATE_NOOP("Pushbroom", "Coarse-to-fine multi-primitive with MPGC (Zhang & Gruen)"),
@@ -51,7 +51,7 @@ FIRST_STRATEGIES = {
 }
 #: matching strategies: (engine key, label)
 STRATEGIES = tuple(
-    (name, FIRST_STRATEGIES.get(name, registered()[name].label))
+    (name, FIRST_STRATEGIES.get(name, name.replace("_", " ")))
     for name in sorted(registered(), key=lambda n: list(FIRST_STRATEGIES).index(n) if n in FIRST_STRATEGIES else 3)
 )
 

@@ -37,7 +37,6 @@ class ToyGrid(MatchingStrategy):
     """The models' predictions on a grid of the reference image (module docstring)."""
 
     name = "toy_grid"
-    label = "Toy: the sensor models' predictions on a grid"
     settings_type = ToySettings
     spacing_setting = "step"
 
