@@ -150,7 +150,7 @@ class Dense(MatchingStrategy):
             f"{s.names[0]}; pairs " + ", ".join(f"{s.names[0]} - {s.names[k]}" for k in range(1, len(s)))
         )
         mpgc = settings.mpgc and s.triplet
-        quotas = sample_quotas([(b[1] - b[0]) * (b[3] - b[2]) for b in tiles]) if mpgc else [0] * len(tiles)
+        quotas = sample_quotas([(x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in tiles]) if mpgc else [0] * len(tiles)
         return TilePlan(DenseJob(s, settings), tiles, quotas)
 
     @staticmethod

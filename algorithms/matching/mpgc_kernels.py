@@ -173,7 +173,9 @@ def mpgc_point(stack, x0, y0, cen, jac, state, dx, solve, out):
     ia = np.empty((n, 4))
     rep = np.empty(n)
     r1 = np.empty(n)
-    arow = np.empty((n, NPI))
+    arow = np.empty((ns, n, NPI))  # the iteration's design rows, kept for M (_middle)
+    geo = np.empty((2 * (n + 1), NPX))  # the iteration's geometric rows' coefficients ...
+    gcol = np.empty(2 * (n + 1), np.int64)  # ... and shift columns
     obs = np.empty(n)
     sg = np.empty(n)
     sgg = np.empty(n)
@@ -217,7 +219,6 @@ def mpgc_point(stack, x0, y0, cen, jac, state, dx, solve, out):
         grey_weights(rep, pw)
         noise_covariance(pw, r1, rep, cn)
         nmat[:, :] = 0.0
-        mmat[:, :] = 0.0
         b[:] = 0.0
         sg[:] = 0.0
         sgg[:] = 0.0
@@ -239,14 +240,15 @@ def mpgc_point(stack, x0, y0, cen, jac, state, dx, solve, out):
                     # (r1 gx, r1 gy) = A^-T (fk, fl): template gradients through the affine (lsm.py)
                     gx = ia[i, 0] * fk[idx] + ia[i, 2] * fl[idx]
                     gy = ia[i, 1] * fk[idx] + ia[i, 3] * fl[idx]
-                    arow[i, 0] = gx
-                    arow[i, 1] = gx * fk_
-                    arow[i, 2] = gx * fl_
-                    arow[i, 3] = gy
-                    arow[i, 4] = gy * fk_
-                    arow[i, 5] = gy * fl_
-                    arow[i, 6] = 1.0
-                    arow[i, 7] = g
+                    a = arow[idx, i]
+                    a[0] = gx
+                    a[1] = gx * fk_
+                    a[2] = gx * fl_
+                    a[3] = gy
+                    a[4] = gy * fk_
+                    a[5] = gy * fl_
+                    a[6] = 1.0
+                    a[7] = g
                     obs[i] = o
                     if 0 < it <= REWEIGHTINGS:  # Tukey's biweight (mpgc.py)
                         u = o / cs[i] if cs[i] > 0.0 else 0.0
@@ -258,24 +260,15 @@ def mpgc_point(stack, x0, y0, cen, jac, state, dx, solve, out):
                     sfg[i] += fv * g
                     svv[i] += w * o * o
                     skap[i] += kap
-                # N: pw_i w_i a_i a_i'; M (the sandwich's middle, shared template noise): w_i w_j cn_ij a_i a_j'
+                # N: pw_i w_i a_i a_i' (M, the sandwich's middle, from the last iteration's rows: _middle)
                 for i in range(n):
                     bi = NPX + NPI * i
                     wi = pw[i] * wbuf[idx, i]
-                    wm = wbuf[idx, i] * wbuf[idx, i] * cn[i, i]
                     for p in range(NPI):
-                        t = arow[i, p]
+                        t = arow[idx, i, p]
                         b[bi + p] += wi * t * obs[i]
                         for q in range(p, NPI):
-                            nmat[bi + p, bi + q] += wi * t * arow[i, q]
-                            mmat[bi + p, bi + q] += wm * t * arow[i, q]
-                    for j in range(i + 1, n):
-                        bj = NPX + NPI * j
-                        wm = wbuf[idx, i] * wbuf[idx, j] * cn[i, j]
-                        for p in range(NPI):
-                            t = wm * arow[i, p]
-                            for q in range(NPI):
-                                mmat[bi + p, bj + q] += t * arow[j, q]
+                            nmat[bi + p, bi + q] += wi * t * arow[idx, i, q]
                 idx += 1
         # noise variance of one image (DN^2) from the residuals: image i's residual variance is
         # s2 (1 + r1_i^2 kappa_i) (template noise plus resampled image-i noise)
@@ -290,22 +283,20 @@ def mpgc_point(stack, x0, y0, cen, jac, state, dx, solve, out):
             b[p] /= s2
             for q in range(p, npar):
                 nmat[p, q] /= s2
-                mmat[p, q] /= s2
         for i in range(n + 1):
             for c in range(2):
                 col, r = _geo_row(i, c, x0, y0, cen, jac, state, dx, coef)
+                geo[2 * i + c] = coef
+                gcol[2 * i + c] = col
                 for p in range(NPX):
                     b[p] += wg * coef[p] * r
                     for q in range(p, NPX):
                         nmat[p, q] += wg * coef[p] * coef[q]
-                        mmat[p, q] += wg * coef[p] * coef[q]
                     if col >= 0:
                         nmat[p, col] += wg * coef[p]
-                        mmat[p, col] += wg * coef[p]
                 if col >= 0:
                     b[col] += wg * r
                     nmat[col, col] += wg
-                    mmat[col, col] += wg
         if not _cholesky(nmat, npar):
             return SINGULAR, it
         _chol_solve(nmat, b, d, npar)
@@ -339,6 +330,7 @@ def mpgc_point(stack, x0, y0, cen, jac, state, dx, solve, out):
             break
     if it == 0:
         return NOT_CONVERGED, 0
+    _middle(Rows(arow, wbuf, cn, geo, gcol), s2, wg, mmat)
     _precision(nmat, mmat, n, npar, x0, y0, cen, jac, state, dx, wg, out)
     nf = float(ns)
     vf = sff - sf * sf / nf
@@ -348,6 +340,57 @@ def mpgc_point(stack, x0, y0, cen, jac, state, dx, solve, out):
         out[3 * i] = cfg / math.sqrt(vf * vg) if vf > 0.0 and vg > 0.0 else 0.0
     out[3 * n + SIGMA0] = math.sqrt(s2)
     return (OK if converged else NOT_CONVERGED), it
+
+
+class Rows(NamedTuple):
+    """One iteration's design: the grey-level rows `arow` (sample, search image, unknown), their robust weights
+    `wbuf` (sample, search image), the noise covariance `cn` of one sample's equations (noise_covariance), and
+    the geometric rows' coefficients `geo` on (dE, dN, dU) with their shift columns `gcol` (_geo_row)."""
+
+    arow: np.ndarray
+    wbuf: np.ndarray
+    cn: np.ndarray
+    geo: np.ndarray
+    gcol: np.ndarray
+
+
+@njit(cache=True, nogil=True)
+def _middle(rows, s2, wg, mmat):
+    """The sandwich's middle M (upper triangle) of one iteration's design `rows` (Rows), the grey-level part
+    in units of s2 (DN^2): sum over samples of w_i w_j cn_ij a_i a_j' / s2, plus the geometric rows' wg g g'.
+    Built once, for the last iteration, the only one the covariance reads (in the order the normal equations
+    are built, so it equals the M built alongside N)."""
+    arow, wbuf, cn, geo, gcol = rows
+    ns, n = wbuf.shape
+    npar = mmat.shape[0]
+    mmat[:, :] = 0.0
+    for idx in range(ns):
+        for i in range(n):
+            bi = NPX + NPI * i
+            wm = wbuf[idx, i] * wbuf[idx, i] * cn[i, i]
+            for p in range(NPI):
+                t = arow[idx, i, p]
+                for q in range(p, NPI):
+                    mmat[bi + p, bi + q] += wm * t * arow[idx, i, q]
+            for j in range(i + 1, n):
+                bj = NPX + NPI * j
+                wm = wbuf[idx, i] * wbuf[idx, j] * cn[i, j]
+                for p in range(NPI):
+                    t = wm * arow[idx, i, p]
+                    for q in range(NPI):
+                        mmat[bi + p, bj + q] += t * arow[idx, j, q]
+    for p in range(NPX, npar):
+        for q in range(p, npar):
+            mmat[p, q] /= s2
+    for r in range(geo.shape[0]):
+        coef, col = geo[r], gcol[r]
+        for p in range(NPX):
+            for q in range(p, NPX):
+                mmat[p, q] += wg * coef[p] * coef[q]
+            if col >= 0:
+                mmat[p, col] += wg * coef[p]
+        if col >= 0:
+            mmat[col, col] += wg
 
 
 @njit(cache=True, nogil=True)

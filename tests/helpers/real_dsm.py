@@ -40,10 +40,10 @@ OTHERS = [f"{LABELS[i]} {k}" for i in (2, 3) for k in ("A0", "B0")]
 PRIORS = {"bias:shift": 10.0}
 
 
-def refined_dense_points(images, models, names, folder, heights, params=None):
-    """(MultiPoints of the dense points LSM refined in every position, seconds of the matching): dense matching
-    (DenseParams `params`, default the defaults; 2 threads) of `images` (paths or Image) with `models` over
-    `heights` (h_min, h_max) in the work `folder`."""
+def dense_points(images, models, names, folder, heights, params=None):
+    """(MultiPoints of every dense point, seconds of the matching): dense matching (DenseParams `params`, default
+    the defaults; 2 threads) of `images` (paths or Image) with `models` over `heights` (h_min, h_max) in the work
+    `folder`."""
     t = time.perf_counter()
     parts, _ = match_dense_tiles(
         [as_image(p) for p in images],
@@ -55,10 +55,39 @@ def refined_dense_points(images, models, names, folder, heights, params=None):
         execution=Execution("threads", 2),
     )
     seconds = time.perf_counter() - t
-    points = np.concatenate([p.points for p in parts])
-    observations = np.concatenate([p.observations for p in parts])
-    keep = points[np.isfinite(points["rho_min"])]
-    return MultiPoints(keep, observations[np.isin(observations["point_id"], keep["id"])]), seconds
+    return (
+        MultiPoints(np.concatenate([p.points for p in parts]), np.concatenate([p.observations for p in parts])),
+        seconds,
+    )
+
+
+def refined(points):
+    """The points of dense MultiPoints that LSM refined in every position."""
+    keep = points.points[np.isfinite(points.points["rho_min"])]
+    return MultiPoints(keep, points.observations[np.isin(points.observations["point_id"], keep["id"])])
+
+
+def refined_dense_points(images, models, names, folder, heights, params=None):
+    """(MultiPoints of the dense points LSM refined in every position, seconds of the matching): `dense_points`,
+    `refined`."""
+    points, seconds = dense_points(images, models, names, folder, heights, params)
+    return refined(points), seconds
+
+
+def dense_pair_of_triplet(points, k):
+    """The dense MultiPoints of the pair (reference, image k + 1), k = 1 or 2, from a triplet's (block ids 1, 2,
+    3): the points that pair matched, with its two observations (image k + 1's as image 2). Dense matching
+    matches each pair of a triplet as it matches the pair alone (dense_strategy.tile_points; tested in
+    tests/algorithms/dense/test_dense_strategy.py), so these are the pair's own points, numbered otherwise."""
+    obs = points.observations
+    mine = obs[obs["image_id"] == k + 1]
+    keep = points.points[np.isin(points.points["id"], mine["point_id"])].copy()
+    pair = obs[np.isin(obs["point_id"], keep["id"]) & np.isin(obs["image_id"], (1, k + 1))].copy()
+    pair["image_id"][pair["image_id"] == k + 1] = 2
+    rho = np.full(len(keep), np.nan, np.float32)
+    rho[np.searchsorted(keep["id"], mine["point_id"])] = mine["rho"]
+    keep["group"], keep["rho_min"], keep["rho_a"], keep["rho_b"] = 1, rho, rho, np.nan
+    return MultiPoints(keep, pair)
 
 
 def cut(models, observations, which=None):

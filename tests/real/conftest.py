@@ -22,7 +22,9 @@ from tests.helpers.real_dsm import (
     VENTOUX_STEP,
     build_triplet_dsms,
     cut,
-    refined_dense_points,
+    dense_pair_of_triplet,
+    dense_points,
+    refined,
     srtm_comparison,
 )
 
@@ -73,14 +75,20 @@ def triplet_heights_found(pleiades_triplet):
 
 @pytest.fixture(scope="session")
 def dense_triplet_dsms(pleiades_triplet, triplet_heights_found, tmp_path_factory):
-    """real_dsm.build_triplet_dsms of dense matching (the LSM-refined dense points, real_dsm.refined_dense_points)
+    """real_dsm.build_triplet_dsms of dense matching (the LSM-refined dense points, real_dsm.refined)
     over the height range found (triplet_heights_found), as the product matches a block created without a DEM or
     a height; "log": its timings and counts."""
-    folder, runs, log = tmp_path_factory.mktemp("dense_triplet_dsm"), itertools.count(), Feedback()
+    folder, runs, log, triplet = tmp_path_factory.mktemp("dense_triplet_dsm"), itertools.count(), Feedback(), {}
 
     def match(images, models, names):
-        return refined_dense_points(
+        # the triplet comes first (build_triplet_dsms); its pairs with the reference are its own pairs'
+        if len(names) == 2 and names[0] == NAMES[0] and triplet:
+            return refined(dense_pair_of_triplet(triplet["points"], list(NAMES).index(names[1])))
+        points, _ = dense_points(
             images, models, names, folder / f"dense-{next(runs)}", triplet_heights_found.height_range
-        )[0]
+        )
+        if len(names) == 3:
+            triplet["points"] = points
+        return refined(points)
 
     return {**build_triplet_dsms(pleiades_triplet, match, CELL, RG_MAX_EDGE, folder, log), "log": log.messages}

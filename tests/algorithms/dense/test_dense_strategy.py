@@ -89,22 +89,26 @@ def test_dense_positions_against_the_truth(scene, figures):
     assert np.median(refined_err[open_ground]) < 0.75 * np.median(err[k][open_ground])
 
 
-def test_the_points_do_not_depend_on_the_workers(small_scene, tmp_path):
-    images = [small_scene["images"][n]["imagery"] for n in NAMES]
-    models = [sensors.load(small_scene["images"][n]["metadata"]) for n in NAMES]
-    hr = Scene(small_scene).height_range
-    runs = [
-        match_dense_tiles(
-            images,
-            models,
-            tmp_path / f"run{w}",
-            params=DenseParams(tile=256, step=4),
-            height_range=hr,
-            execution=Execution("threads", w),
-        )
-        for w in (1, 2)
-    ]
-    (one, stats), (two, _) = runs
+def dense_run(small_scene, folder, names=NAMES, workers=1):
+    """match_dense_tiles of the small scene's `names` (tiles of 256 px, every 4th pixel) on `workers` threads."""
+    return match_dense_tiles(
+        [small_scene["images"][n]["imagery"] for n in names],
+        [sensors.load(small_scene["images"][n]["metadata"]) for n in names],
+        folder,
+        params=DenseParams(tile=256, step=4),
+        height_range=Scene(small_scene).height_range,
+        execution=Execution("threads", workers),
+    )
+
+
+@pytest.fixture(scope="module")
+def triplet_run(small_scene, tmp_path_factory):
+    """dense_run of the triplet on one thread."""
+    return dense_run(small_scene, tmp_path_factory.mktemp("dense_triplet") / "run")
+
+
+def test_the_points_do_not_depend_on_the_workers(small_scene, triplet_run, tmp_path):
+    (one, stats), (two, _) = triplet_run, dense_run(small_scene, tmp_path / "run2", workers=2)
     assert len(one) == 9 and stats["points"] > 0.6 * (600 // 4) * (599 // 4) and stats["group_2"] > 0
     for a, b in zip(one, two):
         for table in ("points", "observations"):
@@ -123,6 +127,24 @@ def test_the_points_do_not_depend_on_the_workers(small_scene, tmp_path):
     np.minimum.at(smallest, slot, np.where(np.isfinite(matched["rho"]), matched["rho"], np.inf))
     assert np.array_equal(np.isnan(points["rho_min"]), unrefined) and unrefined.any() and not unrefined.all()
     assert np.array_equal(points["rho_min"][~unrefined], smallest[~unrefined].astype(np.float32))
+
+
+@pytest.mark.parametrize("k", [1, 2])
+def test_a_triplet_matches_each_pair_as_the_pair_alone(small_scene, triplet_run, tmp_path, k):
+    """The pair (HRG, HRS<k>)'s positions, refinement and quality are the triplet's for that pair, node by node
+    (tests/helpers/real_dsm.dense_pair_of_triplet relies on it)."""
+    pair, _ = dense_run(small_scene, tmp_path / "pair", (NAMES[0], NAMES[k]))
+    triplet = triplet_run[0]
+
+    def by_node(parts, image_id):
+        obs = np.concatenate([p.observations for p in parts])
+        ref, mine = obs[obs["image_id"] == 1], obs[obs["image_id"] == image_id]
+        node = dict(zip(ref["point_id"], zip(ref["col"], ref["row"])))
+        return {node[o["point_id"]]: tuple(o[["col", "row", "rho", "semi_major", "semi_minor"]]) for o in mine}
+
+    alone, within = by_node(pair, 2), by_node(triplet, k + 1)
+    assert len(alone) > 1000 and alone.keys() == within.keys()
+    assert all(np.array_equal(alone[n], within[n], equal_nan=True) for n in alone)
 
 
 def test_a_textureless_pair_gives_no_point_and_a_warning(small_scene, tmp_path):
