@@ -358,8 +358,8 @@ class Rows(NamedTuple):
 def _middle(rows, s2, wg, mmat):
     """The sandwich's middle M (upper triangle) of one iteration's design `rows` (Rows), the grey-level part
     in units of s2 (DN^2): sum over samples of w_i w_j cn_ij a_i a_j' / s2, plus the geometric rows' wg g g'.
-    Built once, for the last iteration, the only one the covariance reads (in the order the normal equations
-    are built, so it equals the M built alongside N)."""
+    Built once, for the last iteration, the only one the covariance reads; the sums run in the order of the
+    samples, as N's, so M is the same to the bit as one built alongside N at every iteration."""
     arow, wbuf, cn, geo, gcol = rows
     ns, n = wbuf.shape
     npar = mmat.shape[0]

@@ -4,10 +4,10 @@ With no DEM and no height, the range found must hold the terrain the images see 
 matched over the RPCs' whole validity range, the session's fixtures of tests/real/conftest.py, are the
 reference), be far narrower than that validity range, and give the DSM a user gets with the terrain's
 height typed in (that height +- 500 m; on the triplet, the DSM over the whole validity range): both DSMs are
-printed, and their difference must be the matching's noise (median and NMAD of a few cm). Likewise for dense matching
-(algorithms/dense) on the Ventoux pair: the DSMs of its LSM-refined points with the range found and with the
-height given. On the triplet, dense matching over the range found is test_dense_real's (the session's
-dense_triplet_dsms)."""
+printed, and their difference must be the matching's noise (median and NMAD of a few cm). Likewise for dense
+matching (algorithms/dense) on the Ventoux pair: the DSMs of its LSM-refined points with the range found and
+with the height given. On the triplet, dense matching over the range found is test_dense_real's (the
+session's dense_triplet_dsms)."""
 
 import numpy as np
 import pytest
@@ -111,7 +111,7 @@ def compare_dsms(a, b, figures, title, against="the height given"):
 
 
 @pytest.mark.slow
-def test_triplet_height_found_gives_the_dsm_of_the_height(
+def test_triplet_height_found_gives_the_dsm_of_the_whole_range(
     pleiades_triplet, region_growing_triplet_dsms, triplet_heights_found, figures
 ):
     """Region growing over the range found against the session's region growing over the RPCs' whole valid range
