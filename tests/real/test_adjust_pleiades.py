@@ -3,10 +3,10 @@ of the real test data (pleiades_triplet) adjusted with automatic tie points (RPC
 the tie point reprojection RMS below 0.3 px, and lower than before adjustment.
 
 Tie points: the triplet matched as in test_matching_pleiades (pleiades_scene: img_02 reference,
-img_01 forward, img_03 backward, automatic seeds, the RPCs' height range) with STEP = 10 px, which
-is enough for one point per 100 x 100 px cell of the reference (select_tie_points: best group,
-then rho); a priori sigma 0.5 px. "Before" is `adjust` with nothing free:
-every tie point intersected from all its rays with the supplied RPCs. The reprojection RMS is the
+img_01 forward, img_03 backward, automatic seeds, the RPCs' height range), the session's region growing of the
+triplet (conftest.py's region_growing_triplet_dsms, real_dsm.TRIPLET_STEP = 3 px), one point per 100 x 100 px
+cell of the reference (select_tie_points: best group, then rho); a priori sigma 0.5 px. "Before" is `adjust` with
+nothing free: every tie point intersected from all its rays with the supplied RPCs. The reprojection RMS is the
 RMS length of the residual vectors, sqrt(mean(v_col^2 + v_row^2)) (reprojection.reprojection_rms).
 
 Datum. Without ground control the tie points fix only the images' relative biases: a common
@@ -33,14 +33,12 @@ from pushbroom.algorithms.adjustment.bundle import CRITICAL_W, AdjustmentSetting
 from pushbroom.algorithms.adjustment.observations import tie_observations
 from pushbroom.algorithms.adjustment.reprojection import ALL, reprojection_rms
 from pushbroom.algorithms.errors import InputError
-from pushbroom.algorithms.matching.params import GrowParams
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
-from tests.helpers.feedback import Feedback
-from tests.helpers.pleiades_scene import LABELS, match_triplet, triplet_models
+from tests.helpers.pleiades_scene import LABELS, triplet_models
+from tests.helpers.real_dsm import TRIPLET_STEP
 
 pytestmark = [pytest.mark.slow, pytest.mark.real]
 
-PARAMS = GrowParams(step=10)
 REFERENCE = 1  # block id of img_02
 OTHERS = [f"{LABELS[i]} {k}" for i in (2, 3) for k in ("A0", "B0")]
 PRIORS = {"bias:shift": 10.0}  # px
@@ -68,18 +66,15 @@ def by_image(rows):
 
 
 @pytest.fixture(scope="module")
-def block(pleiades_triplet):
+def block(region_growing_triplet_dsms):
     """The triplet's tie point observations, their height for the adjustment, and the log."""
-    log = Feedback()
-    t0 = time.perf_counter()
-    _, models, points = match_triplet(pleiades_triplet, PARAMS, feedback=log)
+    points, models = region_growing_triplet_dsms["points"], region_growing_triplet_dsms["models"]
     tie = select_tie_points(points)
-    obs = tie_observations(tie)
-    log.messages.append(
-        f"matching STEP {PARAMS.step}: {len(points)} points {points.group_counts()}, "
-        f"{time.perf_counter() - t0:.1f} s; {len(tie)} tie points {tie.group_counts()}"
-    )
-    return obs, float(np.mean(models[0].height_range)), log
+    log = [
+        f"matching STEP {TRIPLET_STEP}: {len(points)} points {points.group_counts()}; "
+        f"{len(tie)} tie points {tie.group_counts()}"
+    ]
+    return tie_observations(tie), float(np.mean(models[0].height_range)), log
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +93,7 @@ def adjusted(pleiades_triplet, block, figures):
     free = np.flatnonzero(after.parameters.free)
     w = np.nanmax(np.abs(after.normalised), axis=1)
     seconds = time.perf_counter() - t0
-    for message in log.messages:
+    for message in log:
         figures.report("matching", message)
     figures.table("tie point reprojection before adjustment (px)", rms_rows(reprojection_rms(before)))
     figures.table(

@@ -1,6 +1,8 @@
 """Automatic parameter selection (algorithms/adjustment/selection.py, Kornus et al. 2006, section 3.4.3) on a
 simulated SPOT 5 triplet whose supplied orientation is the truth plus known errors, adjusted from 19 control
-points and region-growing tie points.
+points and tie points measured with known noise in the true images (adjustment_scene.synthetic_points: the
+selection is under test here; matched tie points feed it in test_end_to_end.py, whose chain selects the parameters
+of region growing's tie points).
 
 The errors (about 30 m on the ground) are look-angle offsets and a scale term as in Kornus et al. 2006, Table 2
 and an attitude (roll) drift common to the pass. They are chosen to be identifiable: a constant
@@ -11,14 +13,9 @@ test_bundle.py covers it), whereas a drift also shows inside each image."""
 import numpy as np
 import pytest
 
-from pushbroom.algorithms import sensors
-from pushbroom.algorithms.adjustment.observations import Observations, tie_observations
+from pushbroom.algorithms.adjustment.observations import Observations
 from pushbroom.algorithms.adjustment.parameters import OrientationParameters
 from pushbroom.algorithms.adjustment.selection import select_parameters
-from pushbroom.algorithms.dem_store import read_dem
-from pushbroom.algorithms.matching.params import GrowParams
-from pushbroom.algorithms.matching.region_growing_strategy import match_block
-from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from pushbroom.algorithms.simulation import SceneConfig
 from tests.helpers.adjustment_scene import (
     IDS,
@@ -42,23 +39,18 @@ INJECTED = {
     "HRS2 psi_y_0": 1.0e-5,
     f"{PASS} roll_1": 1.0e-5,
 }
+#: synthetic tie points (block's docstring): how many, and their image noise (px)
+TIE_POINTS, TIE_SIGMA = 1500, 0.2
 
 
 @pytest.fixture(scope="module")
 def block(simulated):
-    """A 20 km scene (supplied = truth), 30 point candidates; tie points: region growing at STEP 18
-    from automatic seeds, one per 100 x 100 HRG pixels."""
-    paths = simulated(SceneConfig(size_km=20.0, points=30, error_scale=0.0))
-    models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
-    lo, hi = read_dem(paths["dsm"]).height_range
-    matched = match_block(
-        [paths["images"][n]["imagery"] for n in NAMES],
-        models,
-        params=GrowParams(step=18),
-        height_range=(lo - 100.0, hi + 100.0),
-        workers=2,
-    )
-    tie = tie_observations(select_tie_points(matched, cell=100.0))
+    """A 20 km scene (supplied = truth) on a 20 m ground grid (its images are not read), 30 point candidates; TIE_POINTS tie points spread over the HRG image,
+    measured in the three images with TIE_SIGMA px of noise (about one per 100 x 100 HRG pixels and the
+    precision of region growing's LSM)."""
+    paths = simulated(SceneConfig(size_km=20.0, points=30, error_scale=0.0, grid_m=20.0))
+    tie = synthetic_points(paths, IDS, TIE_POINTS, TIE_SIGMA, 13)
+    tie.points["role"] = "tie"
     return paths, point_observations(paths["points"], IDS, 19).concatenate(tie)
 
 
