@@ -45,9 +45,9 @@ TIE_POINTS, TIE_SIGMA = 1500, 0.2
 
 @pytest.fixture(scope="module")
 def block(simulated):
-    """A 20 km scene (supplied = truth) on a 20 m ground grid (its images are not read), 30 point candidates; TIE_POINTS tie points spread over the HRG image,
-    measured in the three images with TIE_SIGMA px of noise (about one per 100 x 100 HRG pixels and the
-    precision of region growing's LSM)."""
+    """A 20 km scene (supplied = truth) on a 20 m ground grid (its images are not read), 30 point candidates;
+    TIE_POINTS tie points spread over the HRG image, measured in the three images with TIE_SIGMA px of noise
+    (about one per 100 x 100 HRG pixels, and the precision of region growing's LSM)."""
     paths = simulated(SceneConfig(size_km=20.0, points=30, error_scale=0.0, grid_m=20.0))
     tie = synthetic_points(paths, IDS, TIE_POINTS, TIE_SIGMA, 13)
     tie.points["role"] = "tie"
