@@ -90,8 +90,10 @@ lint: setup
 # one, the real-data tests together (tests/conftest.py); pytest-xdist hands out the largest groups first. A worker
 # that crashes ends the run, naming the test it crashed in: pytest-xdist 3.6 to 3.8 can wait for ever after
 # replacing a crashed worker under --dist loadgroup (pytest-xdist issues 1323, 1327, 1378).
+# Two pytest workers on the 2 cores: each with one OpenBLAS thread, and numba's OpenMP threads sleeping when idle
+# (their busy-waiting would take the other worker's core; the results are the same to the bit, golden tests included)
 test: setup
-	$(PY) -m pytest -q -n 2 --dist loadgroup --max-worker-restart=0 --durations=15 tests
+	OPENBLAS_NUM_THREADS=1 OMP_WAIT_POLICY=passive $(PY) -m pytest -q -n 2 --dist loadgroup --max-worker-restart=0 --durations=15 tests
 
 # Without the slow end-to-end tests, for quick iterations.
 test-fast: setup

@@ -3,8 +3,11 @@ simulated scenes (each configuration simulated once per run), the small SPOT 5 t
 engine and plugin tests use and its marked variant of the measurement tests, and `figures`, through
 which tests report what they measured."""
 
+import fcntl
+import hashlib
 import os
 import pathlib
+import pickle
 import sys
 
 import pytest
@@ -64,17 +67,28 @@ def ventoux_pair():
 @pytest.fixture(scope="session")
 def simulated(tmp_path_factory):
     """simulated(config) -> simulate_scene's paths of a SceneConfig: each distinct resolved
-    configuration is simulated once per run, into a folder of the session, and shared read-only
+    configuration is simulated once per run, into a folder of the run that the xdist workers share (the first
+    worker to ask simulates it, under a lock; the others wait and read its paths), and shared read-only
     (tests write their blocks and outputs into their own folders). Tests of simulate_scene itself
     call it directly."""
     from pushbroom.algorithms.simulation import simulate_scene
 
+    base = tmp_path_factory.getbasetemp()
+    shared = (base.parent if "PYTEST_XDIST_WORKER" in os.environ else base) / "scenes"
+    shared.mkdir(exist_ok=True)
     done = {}
 
     def get(config):
         key = repr(config.resolved())
         if key not in done:
-            done[key] = simulate_scene(config, tmp_path_factory.mktemp("scene") / "scene")
+            folder = shared / hashlib.sha1(key.encode()).hexdigest()[:16]
+            record = folder / "paths.pickle"
+            with open(f"{folder}.lock", "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)
+                if not record.exists():
+                    paths = simulate_scene(config, folder / "scene")
+                    record.write_bytes(pickle.dumps(paths))
+                done[key] = pickle.loads(record.read_bytes())
         return done[key]
 
     return get

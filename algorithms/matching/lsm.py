@@ -433,10 +433,11 @@ def _affine_array(affine, n):
         return aff
     aff = np.asarray(affine, dtype=np.float64)
     if aff.shape == (4,):
-        return np.ascontiguousarray(np.broadcast_to(aff, (n, 4)))
+        return np.tile(aff, (n, 1))
     if aff.shape != (n, 4):
         raise InputError(f"affine must be (a1, a2, a4, a5) or an array of shape ({n}, 4), got {aff.shape}")
-    return np.ascontiguousarray(aff)
+    # one array type for the kernel, whatever the caller's (a read-only array would compile it again)
+    return np.require(aff, np.float64, ["C_CONTIGUOUS", "WRITEABLE"])
 
 
 def match_points(img1, img2, x1, y1, x2, y2, affine=None, params=None):

@@ -15,6 +15,7 @@ def test_path_candidates_find_the_shift():
     img1 = 100 + 30 * ndimage.gaussian_filter(rng.normal(size=(90, 90)), 2.0) / 0.14
     img1[:, 70:] = 100.0  # blank strip
     img2 = ndimage.shift(img1, (0.0, 3.3), order=3, mode="nearest")
+    img1, img2 = img1.astype(np.float32), img2.astype(np.float32)  # as the matcher reads images
     x = np.array([30.5, 45.5, 80.5])
     y = np.array([40.5, 50.5, 40.5])
     k, off = 41, np.arange(-2.0, 3.0)
