@@ -44,7 +44,7 @@ def main():
     paths = simulate_scene(SceneConfig.small(), tempfile.mkdtemp() + "/scene")
     scene = Scene(paths, "HRG", "HRS1")
     params = DenseParams()
-    x1, y1, x2, y2, _, info = match_pair_tile(
+    x1, y1, x2, y2, info = match_pair_tile(
         scene.image1, scene.image2, scene.model1, scene.model2, BOX, scene.height_range, params
     )
     tx, ty, cls = scene.truth(x1, y1)

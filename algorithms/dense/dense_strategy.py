@@ -72,7 +72,7 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
     p = job.params
     for k in range(1, n):
         check_cancel()  # between the stages (execution: a cancel reaches a running tile)
-        x1, y1, x2, y2, _, info = match_pair_tile(
+        x1, y1, x2, y2, info = match_pair_tile(
             s.images[0], s.images[k], s.models[0], s.models[k], box, s.heights.bounds, p
         )
         nan = np.full(x2.size, np.nan, np.float32)

@@ -9,8 +9,7 @@ For the tile `box` of image 1 (x0, y0, x1, y1 px) and a pair (image 1, image 2):
 4. the lattice: image-1 pixel centres x = x0 + 0.5 + i step, y = y0 + 0.5 + j step inside the box; each
    node's epipolar (u, v) (EpipolarGrid.epipolar1), its disparity d bilinear between the four samples
    around it (only where the four are defined and span at most `max_spread` px: a node between two
-   surfaces takes no disparity), the V fit's slope of the nearest sample (sgm.DisparityMap), and its image-2
-   position Q(u + d, v) (EpipolarGrid.image2).
+   surfaces takes no disparity), and its image-2 position Q(u + d, v) (EpipolarGrid.image2).
 
 Masked pixels (matching.imagery: nodata, the GDAL mask, saturated; images given as paths or arrays mask their
 saturated pixels) are NaN in the images read: the low-pass and the epipolar resampling spread them over their
@@ -22,7 +21,6 @@ Image positions are GDAL's. A node without a disparity is NaN. The epipolar imag
 the tile's: memory follows the tile and its disparity range."""
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 
@@ -66,27 +64,6 @@ def sample_disparity(disp, u, v, max_spread):
     return np.where(ok, out, np.nan)
 
 
-def sample_nearest(values, u, v):
-    """values (2-D) at the samples nearest to array positions (u, v) (column, row), NaN outside."""
-    rows, cols = values.shape
-    j, i = np.rint(u).astype(np.int64), np.rint(v).astype(np.int64)
-    inside = (j >= 0) & (i >= 0) & (j < cols) & (i < rows)
-    return np.where(inside, values[np.where(inside, i, 0), np.where(inside, j, 0)], np.nan)
-
-
-class PairTile(NamedTuple):
-    """A tile's lattice nodes (x1, y1) of image 1, their image-2 positions (x2, y2; NaN: none), the V fit's slope
-    of their disparities (NaN: none; sgm.DisparityMap), and the tile's information: the grid, the row offset, the
-    disparity range and the seeds."""
-
-    x1: np.ndarray
-    y1: np.ndarray
-    x2: np.ndarray
-    y2: np.ndarray
-    slope: np.ndarray
-    info: dict
-
-
 def tile_seeds(image1, image2, model1, model2, box, height_range, grid):
     """The tile's sparse matches (seeds.automatic_seeds over the whole height range: Foerstner points, NCC
     along the predicted path +- 3 px across, LSM) in epipolar coordinates: (u1, v1, u2, v2) arrays."""
@@ -97,9 +74,10 @@ def tile_seeds(image1, image2, model1, model2, box, height_range, grid):
     return u1[good], v1[good], u2[good], v2[good]
 
 
-def match_pair_tile(image1, image2, model1, model2, box, height_range, params) -> PairTile:
-    """The tile's lattice nodes and their image-2 positions (PairTile, module docstring) with DenseParams
-    `params`."""
+def match_pair_tile(image1, image2, model1, model2, box, height_range, params):
+    """(x1, y1, x2, y2, info): the tile's lattice nodes and their image-2 positions (module docstring)
+    with DenseParams `params`, NaN where a node has none; info: the grid, the row offset, the disparity
+    range and the seeds."""
     x1, y1 = lattice(box, params.step)
     image1, image2 = as_image(image1, saturation=True), as_image(image2, saturation=True)
     a1, a2 = adapt_resolution(image1, image2, model1, model2, GrowParams(), height_range)
@@ -107,9 +85,8 @@ def match_pair_tile(image1, image2, model1, model2, box, height_range, params) -
     span = disparity_range(model1, model2, grid, height_range)
     su1, sv1, su2, sv2 = tile_seeds(image1, image2, model1, model2, box, height_range, grid)
     info = {"grid": grid, "seeds": len(su1), "row_offset": 0.0, "d_range": None}
-    none = np.full(x1.size, np.nan)
     if span is None:
-        return PairTile(x1, y1, none, none, none, info)
+        return x1, y1, np.full(x1.size, np.nan), np.full(x1.size, np.nan), info
     if len(su1) >= MIN_SEEDS:
         # the orientation's error across the rows, and the disparities of the tile's terrain
         info["row_offset"] = float(np.median(sv2 - sv1))
@@ -122,14 +99,12 @@ def match_pair_tile(image1, image2, model1, model2, box, height_range, params) -
     epi1 = epipolar_image(a1, grid.p, grid.step)
     epi2 = epipolar_image(a2, shifted_rows(grid, offset), grid.step)
     if not np.isfinite(epi1).any() or not np.isfinite(epi2).any():
-        return PairTile(x1, y1, none, none, none, info)
+        return x1, y1, np.full(x1.size, np.nan), np.full(x1.size, np.nan), info
     disp = disparity(epi1, epi2, d_range, params.sgm)
     u, v = grid.epipolar1(x1, y1)
-    d = sample_disparity(disp.values, u - grid.u0, v - grid.v0, params.max_spread)
+    d = sample_disparity(disp, u - grid.u0, v - grid.v0, params.max_spread)
     x2, y2 = grid.image2(u + d, v + offset)
-    ok = np.isfinite(d)
-    slope = sample_nearest(disp.slope, u - grid.u0, v - grid.v0)
-    return PairTile(x1, y1, np.where(ok, x2, np.nan), np.where(ok, y2, np.nan), np.where(ok, slope, np.nan), info)
+    return x1, y1, np.where(np.isfinite(d), x2, np.nan), np.where(np.isfinite(d), y2, np.nan), info
 
 
 def shifted_rows(grid, offset):

@@ -16,9 +16,7 @@ Model (Hirschmuller 2008; Zabih & Woodfill 1994 for the census):
 - disparity: the minimum of S over d, refined by the V fit of its two neighbours,
       delta = (S(d - 1) - S(d + 1)) / (2 max(S(d - 1) - S(d), S(d + 1) - S(d))),
   none at the range's ends (the true minimum may lie outside); none where S is the same for every d (a
-  flat, textureless neighbourhood: nothing to choose); the V's slope max(S(d - 1) - S(d), S(d + 1) - S(d))
-  is kept with each disparity: a cost noise sigma_S in S(d +- 1) moves delta by about sigma_S / (sqrt(2) slope),
-  so the slope predicts the sub-pixel precision up to a factor that studies/sgm_precision.py measures;
+  flat, textureless neighbourhood: nothing to choose);
 - left-right check: image 2's disparity from the same S along its diagonal (Hirschmuller 2008, 3.4),
   D2(u2) = argmin_d S(u2 - d, d); p keeps D1(p) where |D1(p) - D2(round(u + D1(p)))| <= `lr_tolerance`
   px (occlusions and mismatches fail it);
@@ -45,7 +43,6 @@ PAMI 30(2), 2008; R. Zabih, J. Woodfill, "Non-parametric local transforms for co
 correspondence", ECCV 1994."""
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -131,10 +128,10 @@ def cost_kernel(c1, v1, c2, v2, d_min, invalid, cv):
 
 
 @njit(cache=True, nogil=True)
-def winner_kernel(s, d_min, limit, disp, cost, slope):
+def winner_kernel(s, d_min, limit, disp, cost):
     """disp[i, j]: d_min + argmin_k s[i, j, k] with the V fit (no fit at the range's ends), NaN where
     every s is >= limit (no valid cost) or all are equal (no texture, nothing to choose); cost[i, j]
-    its minimum; slope[i, j] the V's slope (aggregated cost per px of disparity), NaN where no fit was made."""
+    its minimum."""
     rows, cols, nd = s.shape
     for i in range(rows):
         for j in range(cols):
@@ -146,7 +143,6 @@ def winner_kernel(s, d_min, limit, disp, cost, slope):
                 top = max(top, s[i, j, k])
             c0 = s[i, j, best]
             cost[i, j] = c0
-            slope[i, j] = np.nan
             if not c0 < limit or not c0 < top:
                 disp[i, j] = np.nan
                 continue
@@ -154,10 +150,9 @@ def winner_kernel(s, d_min, limit, disp, cost, slope):
             if 0 < best < nd - 1:
                 cm, cp = s[i, j, best - 1], s[i, j, best + 1]
                 if cm < limit and cp < limit:
-                    v = max(cm - c0, cp - c0)
-                    if v > 0:
-                        delta = (cm - cp) / (2.0 * v)
-                        slope[i, j] = v
+                    slope = max(cm - c0, cp - c0)
+                    if slope > 0:
+                        delta = (cm - cp) / (2.0 * slope)
             disp[i, j] = d_min + best + delta
 
 
@@ -242,18 +237,9 @@ def census(img, radius, min_contrast=0.0):
     return codes, valid
 
 
-class DisparityMap(NamedTuple):
-    """Image 1's disparity (float32, u2 - u1 in epipolar px, NaN where unmatched or inconsistent) and the V fit's
-    slope at each disparity (float32, aggregated cost per px of disparity on the minimum's steeper side; NaN where
-    the disparity is NaN or was not fitted): the steeper the V, the better the minimum is defined."""
-
-    values: np.ndarray
-    slope: np.ndarray
-
-
-def disparity(epi1, epi2, d_range, params=SgmParams()) -> DisparityMap:
-    """The dense disparity and its V fit's slope (DisparityMap, epi1's shape) of epipolar images epi1, epi2 (same
-    rows) over the integer range d_range = (d_min, d_max)."""
+def disparity(epi1, epi2, d_range, params=SgmParams()):
+    """The dense disparity (float32, epi1's shape, u2 - u1 in epipolar px, NaN where unmatched or
+    inconsistent) of epipolar images epi1, epi2 (same rows) over the integer range d_range = (d_min, d_max)."""
     import c_libsgm
 
     if epi1.shape[0] != epi2.shape[0]:
@@ -278,10 +264,8 @@ def disparity(epi1, epi2, d_range, params=SgmParams()) -> DisparityMap:
     limit = np.float32(len(DIRECTIONS) * (c_max + params.p2))
     disp = np.empty(epi1.shape, np.float32)
     cost = np.empty(epi1.shape, np.float32)
-    slope = np.empty(epi1.shape, np.float32)
-    winner_kernel(s, d_min, limit, disp, cost, slope)
+    winner_kernel(s, d_min, limit, disp, cost)
     disp2 = np.empty(epi2.shape, np.float32)
     right_kernel(s, d_min, limit, epi2.shape[1], disp2)
     lr_check_kernel(disp, disp2, np.float32(params.lr_tolerance))
-    values = scored_disparities(disp, v1, v2, d_min, d_max)
-    return DisparityMap(values, np.where(np.isfinite(values), slope, np.float32(np.nan)))
+    return scored_disparities(disp, v1, v2, d_min, d_max)

@@ -58,7 +58,7 @@ def run():
                 "unit": "epipolar px",
             }
         )
-        x1, y1, x2, y2, _, info = match_pair_tile(images[0], images[1], models[0], models[1], BOX, HEIGHTS, params)
+        x1, y1, x2, y2, info = match_pair_tile(images[0], images[1], models[0], models[1], BOX, HEIGHTS, params)
         d_range = info["d_range"]
         seconds = best_time(lambda: disparity(epi1, epi2, d_range, params.sgm))
         rows.append(

@@ -40,7 +40,7 @@ def scene(small_scene):
 
 
 def test_dense_positions_against_the_truth(scene, figures):
-    x1, y1, x2, y2, _, info = match_pair_tile(
+    x1, y1, x2, y2, info = match_pair_tile(
         scene.image1, scene.image2, scene.model1, scene.model2, (44, 44, 556, 556), scene.height_range, DenseParams()
     )
     tx, ty, cls = scene.truth(x1, y1)

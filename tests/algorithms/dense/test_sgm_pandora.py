@@ -41,7 +41,7 @@ def test_disparities_agree_with_pandora(pleiades_triplet, tmp_path, figures):
     lo, hi = disparity_range(m1, m2, grid, hr)
     d_range = [int(np.floor(lo)), int(np.ceil(hi))]
     params = SgmParams()
-    ours = disparity(epi1, epi2, d_range, params).values
+    ours = disparity(epi1, epi2, d_range, params)
     write(tmp_path / "left.tif", epi1)
     write(tmp_path / "right.tif", epi2)
     config = {
