@@ -270,9 +270,11 @@ def _read_csv(
     image_ids = [(image_names[name], table.images[name]) for name in image_names if name in table.images]
     for k, (line, cells) in enumerate(table.rows):
         name = table.cell(cells, "id")
-        if not name or len(name) > NAME_LENGTH:
+        # a control character (a NUL, a tab) is no part of a name, and numpy's text drops a NUL at the end
+        if not name or len(name) > NAME_LENGTH or not name.isprintable():
             raise InputError(
-                f"{table.path} line {line}: the point id must have 1 to {NAME_LENGTH} characters, got {name!r}"
+                f"{table.path} line {line}: the point id must have 1 to {NAME_LENGTH} printable characters, "
+                f"got {name!r}"
             )
         if name in seen:
             raise InputError(f"{table.path} line {line}: point id {name!r} is used again (first on line {seen[name]})")

@@ -42,10 +42,11 @@ def _record(array: np.ndarray) -> np.void:
 
 
 def check_name(name: str) -> str:
-    """The point name `name`, or InputError: 1 to 32 characters, no leading or trailing spaces."""
+    """The point name `name`, or InputError: 1 to 32 printable characters (numpy's text drops a NUL at the end), no
+    leading or trailing spaces."""
     name = str(name)
-    if not name.strip() or len(name) > NAME_LENGTH:
-        raise InputError(f"a point name must have 1 to {NAME_LENGTH} characters, got {name!r}")
+    if not name.strip() or len(name) > NAME_LENGTH or not name.isprintable():
+        raise InputError(f"a point name must have 1 to {NAME_LENGTH} printable characters, got {name!r}")
     if name != name.strip():
         raise InputError(f"a point name must not begin or end with spaces, got {name!r}")
     return name

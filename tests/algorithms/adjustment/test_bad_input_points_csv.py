@@ -92,6 +92,15 @@ def test_mutated_point_files_give_observations_or_the_engines_error(tmp_path, da
     assert np.isfinite(m["col"]).all() and np.isfinite(m["row"]).all() and (m["sigma"] > 0).all()
 
 
+@pytest.mark.parametrize("name", ["\x00", "P\x00", "P\t1"])
+def test_a_point_id_with_a_control_character_is_an_error(tmp_path, name):
+    """A NUL in an id was read as an empty name, or as another point's ("P\\x00" is "P" in numpy's text)."""
+    path = tmp_path / "points.csv"
+    path.write_text(VALID.replace("P1,", f"{name},"))
+    with pytest.raises(PushbroomError, match=rf"{path} line 2: the point id must have 1 to 32 printable characters"):
+        cp.read_csv(path, IMAGES)
+
+
 def test_unicode_text_of_spreadsheets_is_read_like_utf8(tmp_path):
     """UTF-16 with or without a byte order mark, UTF-8 with one, UTF-32: what spreadsheets save as "Unicode
     text" (before: the "'utf-8' codec can't decode byte 0xff" text)."""

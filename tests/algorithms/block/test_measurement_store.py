@@ -111,8 +111,9 @@ def test_snapshot_restores_an_edited_point(blk):
 @pytest.mark.parametrize(
     "call, message",
     [
-        (lambda s: s.put_point(**dict(POINT, name="")), "1 to 32 characters"),
-        (lambda s: s.put_point(**dict(POINT, name="x" * 33)), "1 to 32 characters"),
+        (lambda s: s.put_point(**dict(POINT, name="")), "1 to 32 printable characters"),
+        (lambda s: s.put_point(**dict(POINT, name="x" * 33)), "1 to 32 printable characters"),
+        (lambda s: s.put_point(**dict(POINT, name="N1\x00")), "1 to 32 printable characters"),
         (lambda s: s.put_point(**dict(POINT, name=" N1")), "spaces"),
         (lambda s: s.put_point(**dict(POINT, role="tie")), "role must be one of control, check"),
         (lambda s: s.put_point(**dict(POINT, lon=float("nan"))), "finite"),
@@ -122,7 +123,7 @@ def test_snapshot_restores_an_edited_point(blk):
         (lambda s: s.put_point(**dict(POINT, sigma_h=-1.0)), "must be positive"),
         (lambda s: s.rename_point("P001", "P002"), "P002 exists already"),
         (lambda s: s.rename_point("nobody", "P099"), "no point 'nobody'"),
-        (lambda s: s.rename_point("P001", ""), "1 to 32 characters"),
+        (lambda s: s.rename_point("P001", ""), "1 to 32 printable characters"),
         (lambda s: s.delete_point("nobody"), "no point 'nobody'"),
         (lambda s: s.put_measurement("nobody", 1, 10.0, 10.0), "no point 'nobody'"),
         (lambda s: s.put_measurement("P001", 9, 10.0, 10.0), "no image with id 9"),
