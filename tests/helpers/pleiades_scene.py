@@ -1,11 +1,9 @@
 """The Pleiades triplet of the real test data (pleiades_triplet) as the real-data tests match it: in
 combination order (reference, forward, backward) = (img_02, img_01, img_03), block image ids 1, 2,
-3 (test_matching_pleiades.test_reference_is_the_most_nadir gives the reasons), matched by
-match_block from automatic seeds in every tile over the RPCs' own height range."""
+3 (test_matching_pleiades.test_reference_is_the_most_nadir gives the reasons); the session's matching of it is
+tests/real/conftest.py's (match_block from automatic seeds in every tile over the RPCs' own height range)."""
 
 from pushbroom.algorithms import sensors
-from pushbroom.algorithms.matching.imagery import Image
-from pushbroom.algorithms.matching.region_growing_strategy import match_block
 
 ORDER = (2, 1, 3)  # img_02 reference (nadir), img_01 forward, img_03 backward
 NAMES = [f"img_0{k}" for k in ORDER]
@@ -21,13 +19,3 @@ def in_order(triplet):
 def triplet_models(triplet):
     """{block image id: RpcModel}, freshly loaded (the adjustment edits its models)."""
     return {k + 1: sensors.load(p) for k, p in enumerate(in_order(triplet))}
-
-
-def match_triplet(triplet, params, feedback=None, workers=2):
-    """(images, models, MultiPoints) of the triplet matched with GrowParams `params`, lists in
-    combination order."""
-    paths = in_order(triplet)
-    images = [Image(p) for p in paths]
-    models = [sensors.load(p) for p in paths]
-    points = match_block(images, models, names=NAMES, params=params, feedback=feedback, workers=workers)
-    return images, models, points
