@@ -84,7 +84,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="139"/>
+        <location filename="../plugin/algorithms/match_points.py" line="140"/>
         <source>CSV files (*.csv)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -689,77 +689,77 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="106"/>
+        <location filename="../plugin/algorithms/match_points.py" line="107"/>
         <source>Matching strategy</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="259"/>
+        <location filename="../plugin/algorithms/match_points.py" line="260"/>
         <source>Coarse-to-fine: grid point spacing at full resolution (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="266"/>
+        <location filename="../plugin/algorithms/match_points.py" line="267"/>
         <source>Coarse-to-fine: minimum correlation coefficient at full resolution</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="274"/>
+        <location filename="../plugin/algorithms/match_points.py" line="275"/>
         <source>Coarse-to-fine: tile size of the reference image (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="281"/>
+        <location filename="../plugin/algorithms/match_points.py" line="282"/>
         <source>Coarse-to-fine: matched edges as extra points and breaklines</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="292"/>
+        <location filename="../plugin/algorithms/match_points.py" line="293"/>
         <source>Dense: tile size of the reference image (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="300"/>
+        <location filename="../plugin/algorithms/match_points.py" line="301"/>
         <source>Dense: a point every ... px of the reference image</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="307"/>
+        <location filename="../plugin/algorithms/match_points.py" line="308"/>
         <source>Dense: refine the positions by LSM in the original images (TEMPLATE px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="312"/>
+        <location filename="../plugin/algorithms/match_points.py" line="320"/>
         <source>Dense: refine a triplet&apos;s three-ray points by MPGC (about 4x slower)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="317"/>
+        <location filename="../plugin/algorithms/match_points.py" line="325"/>
         <source>Dense: SGM penalty P1 (a disparity change of 1 px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="324"/>
+        <location filename="../plugin/algorithms/match_points.py" line="332"/>
         <source>Dense: SGM penalty P2 (a larger change)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="130"/>
+        <location filename="../plugin/algorithms/match_points.py" line="131"/>
         <source>mass points</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="139"/>
+        <location filename="../plugin/algorithms/match_points.py" line="140"/>
         <source>Summary per point group (CSV)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="420"/>
+        <location filename="../plugin/algorithms/match_points.py" line="429"/>
         <source>Mass points</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="157"/>
+        <location filename="../plugin/algorithms/match_points.py" line="158"/>
         <source>Mass point folder (index and parts)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1049,83 +1049,88 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="114"/>
+        <location filename="../plugin/algorithms/match_points.py" line="115"/>
         <source>Images: reference (nadir), forward[, backward]; empty: all</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="122"/>
+        <location filename="../plugin/algorithms/match_points.py" line="123"/>
         <source>Lowest ellipsoidal terrain height (m; empty: the block&apos;s)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="122"/>
+        <location filename="../plugin/algorithms/match_points.py" line="123"/>
         <source>Highest ellipsoidal terrain height (m; empty: the block&apos;s)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="165"/>
+        <location filename="../plugin/algorithms/match_points.py" line="166"/>
         <source>Region growing: seeds</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="171"/>
+        <location filename="../plugin/algorithms/match_points.py" line="172"/>
         <source>LSM template size (px, odd; region growing, dense)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="178"/>
+        <location filename="../plugin/algorithms/match_points.py" line="179"/>
         <source>Region growing: STEP, the distance of the neighbours (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="187"/>
+        <location filename="../plugin/algorithms/match_points.py" line="188"/>
         <source>Region growing: a wider template where the first fails (px; 0: off)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="194"/>
+        <location filename="../plugin/algorithms/match_points.py" line="195"/>
         <source>Region growing: minimum correlation coefficient</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="202"/>
+        <location filename="../plugin/algorithms/match_points.py" line="203"/>
         <source>Region growing: largest semi-major axis of the error ellipse (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="209"/>
+        <location filename="../plugin/algorithms/match_points.py" line="210"/>
         <source>Region growing: largest shift from the initial values (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="216"/>
+        <location filename="../plugin/algorithms/match_points.py" line="217"/>
         <source>Region growing: largest number of LSM iterations</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="223"/>
+        <location filename="../plugin/algorithms/match_points.py" line="224"/>
         <source>Region growing: tile size of the reference image (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="230"/>
+        <location filename="../plugin/algorithms/match_points.py" line="231"/>
         <source>Region growing: group 3 consistency test, k robust sigma</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="237"/>
+        <location filename="../plugin/algorithms/match_points.py" line="238"/>
         <source>Region growing: grow combination (b) where (a) found no points</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="242"/>
+        <location filename="../plugin/algorithms/match_points.py" line="243"/>
         <source>Region growing: refine the group 3 points by MPGC</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="247"/>
+        <location filename="../plugin/algorithms/match_points.py" line="248"/>
         <source>Region growing: MPGC with support weights (for DEMs)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="313"/>
+        <source>Dense: a wider LSM template where TEMPLATE fails (px, odd; 0: off)</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

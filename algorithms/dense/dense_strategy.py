@@ -86,6 +86,7 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
                 p.template,
                 p.max_shift,
                 p.robust,
+                p.wide_template,
             )
             lone = isolated(x1, y1, np.isfinite(q[0]), p.step)  # they keep their dense positions
             rx[lone], ry[lone] = x2[lone], y2[lone]

@@ -10,6 +10,14 @@ of the dense position: a larger move means the template straddles two surfaces (
 where the 5 x 5 census window's position is the better one. A refined point carries LSM's rho and
 error-ellipse semi-axes (its precision); the others keep NaN.
 
+A wider second window (DenseParams.wide_template): a node the template fails at without moving beyond the
+largest shift (too low a rho, too wide an ellipse, singular or not converged) is matched again from its dense
+position with the wide window, under the same criteria and the same largest shift. A node the template moved too
+far is not tried again: its template straddles a height step, which a wider one straddles more. A weak texture
+(crops, grass) gives a small template too little signal to converge or to pass rho and the error ellipse; the
+wide window has about (wide / template)^2 times the signal. The shift bound keeps it on the dense position's
+surface. Measured in studies/README.md#dense_wide.
+
 Masked pixels (matching.imagery: nodata, saturated): a node whose LSM window touches one, in image 1 at the
 node or in image 2 at its dense position, yields no point at all (its position becomes NaN), refined or not:
 a template with a masked sample cannot be matched, and the dense position beside a nodata edge or a saturated
@@ -30,6 +38,7 @@ Measured on the simulated triplet (docs/validation.md#dense-matching, with the p
 position's error on open ground where it is accepted, and makes it worse within a template of a height step;
 the robust weights and the isolation test: docs/validation.md#dense-robust-lsm."""
 
+import dataclasses
 from typing import NamedTuple
 
 import numpy as np
@@ -68,12 +77,14 @@ def refine_positions(
     template: int = 19,
     max_shift: float = 0.5,
     robust: bool = True,
+    wide_template: int = 0,
 ) -> tuple:
-    """(x2, y2, rho, semi_major, semi_minor): the refined image-2 positions of points (x1, y1) matched at
-    (x2, y2) (NaN: unmatched, left as they are; and NaN where LSM's window touches a masked pixel: no point),
-    with LSM's quality where refined (NaN elsewhere); LSM with `template`, `max_shift` and, where `robust`, the
-    robust weights. Images given as paths or arrays mask their saturated pixels too. The isolation test
-    (`isolated`) is the caller's, on its lattice."""
+    """(x2, y2, rho, semi_major, semi_minor): the refined image-2 positions of points (x1, y1) matched at (x2,
+    y2) (NaN: unmatched, left as they are; and NaN where LSM's window touches a masked pixel: no point), with
+    LSM's quality where refined (NaN elsewhere); LSM with `template`, `max_shift` and, where `robust`, the
+    robust weights, and a `wide_template` px window (0: none) for a node it fails at short of the shift bound.
+    Images given as paths or arrays mask their saturated pixels too. The isolation test (`isolated`) is the
+    caller's, on its lattice."""
     x1, y1, x2, y2 = points
     image1, image2, model1, model2 = pair
     x2, y2 = np.array(x2, float), np.array(y2, float)
@@ -88,6 +99,7 @@ def refine_positions(
     cx, cy = (np.clip((c + 0.5) * AFFINE_CELL, v[idx].min(), v[idx].max()) for c, v in zip(cells.T, (x1, y1)))
     affine = np.column_stack(local_affine(model1, model2, cx, cy, h_m)[2:])[cell.ravel()]
     params = GrowParams(template=int(template), max_shift=float(max_shift), robust=bool(robust)).check()
+    wide = dataclasses.replace(params, template=int(wide_template)).check() if wide_template else None
     image1, image2 = adapt_resolution(
         as_image(image1, saturation=True),
         as_image(image2, saturation=True),
@@ -104,6 +116,13 @@ def refine_positions(
     x2[idx[masked]], y2[idx[masked]] = np.nan, np.nan
     idx, affine = idx[~masked], affine[~masked]
     records, accepted = match_windows(image1, image2, x1[idx], y1[idx], x2[idx], y2[idx], affine, params)
+    if wide is not None:
+        # the wide window where the template failed short of the shift bound (NaN: singular, or outside)
+        again = np.flatnonzero(~accepted & ~(records["shift"] >= params.max_shift))
+        i = idx[again]
+        records_w, accepted_w = match_windows(image1, image2, x1[i], y1[i], x2[i], y2[i], affine[again], wide)
+        records[again[accepted_w]] = records_w[accepted_w]
+        accepted[again[accepted_w]] = True
     take = idx[accepted]
     r = records[accepted]
     x2[take], y2[take] = r["x2"], r["y2"]

@@ -91,6 +91,7 @@ class MatchPoints(PushbroomAlgorithm):
     DENSE_TILE = "DENSE_TILE"
     DENSE_STEP = "DENSE_STEP"
     DENSE_REFINE = "DENSE_REFINE"
+    DENSE_WIDE_TEMPLATE = "DENSE_WIDE_TEMPLATE"
     DENSE_MPGC = "DENSE_MPGC"
     DENSE_P1 = "DENSE_P1"
     DENSE_P2 = "DENSE_P2"
@@ -309,6 +310,13 @@ class MatchPoints(PushbroomAlgorithm):
                 translate("Pushbroom", "Dense: refine the positions by LSM in the original images (TEMPLATE px)"),
                 e.lsm,
             ),
+            Number(
+                self.DENSE_WIDE_TEMPLATE,
+                translate("Pushbroom", "Dense: a wider LSM template where TEMPLATE fails (px, odd; 0: off)"),
+                Number.Integer,
+                e.wide_template,
+                minValue=0,
+            ),
             QgsProcessingParameterBoolean(
                 self.DENSE_MPGC,
                 translate("Pushbroom", "Dense: refine a triplet's three-ray points by MPGC (about 4x slower)"),
@@ -400,6 +408,7 @@ class MatchPoints(PushbroomAlgorithm):
             tile=self.DENSE_TILE,
             step=self.DENSE_STEP,
             lsm=self.DENSE_REFINE,
+            wide_template=self.DENSE_WIDE_TEMPLATE,
             mpgc=self.DENSE_MPGC,
             template=self.TEMPLATE,
         )
