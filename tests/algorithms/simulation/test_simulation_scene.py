@@ -174,10 +174,10 @@ def test_products_open_with_gdal_dimap_driver(scene):
 
 
 def test_same_seed_same_bytes(tmp_path):
-    config = SceneConfig.small(size_km=1.5, points=4)
+    config = SceneConfig.small(size_km=1.0, points=4)
     first = simulate_scene(config, tmp_path / "a")["folder"]
     second = simulate_scene(config, tmp_path / "b")["folder"]
-    other = simulate_scene(SceneConfig.small(size_km=1.5, points=4, seed=2), tmp_path / "c")["folder"]
+    other = simulate_scene(SceneConfig.small(size_km=1.0, points=4, seed=2), tmp_path / "c")["folder"]
     files = sorted(os.path.relpath(os.path.join(d, f), first) for d, _, fs in os.walk(first) for f in fs)
     assert len(files) == 3 * 3 + 6  # 3 x (IMAGERY.TIF, METADATA.DIM, truth METADATA.DIM), truth.json, 5 rasters/CSV
     for rel in files:
