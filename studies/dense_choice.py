@@ -24,52 +24,26 @@ from osgeo import gdal
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
-from pushbroom.algorithms.dem_store import read_dem
-from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.simulation.terrain import CITY, FOREST
-from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, CellSettings, cells_on_grid
-from pushbroom.algorithms.surface.tin_grid import Grid
-from tests.helpers.dsm_comparison import CELL, CLASSES, NAMES, Truth
+from studies.sim_dense import evaluation_grid, rms, truth_cloud
+from tests.helpers.dsm_comparison import CLASSES, Truth
 
 THRESHOLDS = (1.5, 2.0, 3.0, 4.0)
 LAPLACE = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], float)
 
 
-def rms(v):
-    v = v[np.isfinite(v)]
-    return float(np.sqrt(np.mean(v * v))) if v.size else float("nan")
-
-
 def dense(paths, truth, lsm):
     """Per point of the dense matching (refinement `lsm`): id, ok, x, y, z, rays, rho_min, HRG col/row."""
-    images = [paths["images"][n]["imagery"] for n in NAMES]
-    models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
-    lo, hi = read_dem(paths["dsm"]).height_range
-    parts, _ = match_dense_tiles(
-        images,
-        models,
-        tempfile.mkdtemp() + "/dense",
-        params=DenseParams(tile=256, lsm=lsm),
-        height_range=(lo - 100.0, hi + 100.0),
-        execution=Execution("threads", 2),
-    )
-    pts = np.concatenate([p.points for p in parts])
-    obs = np.concatenate([p.observations for p in parts])
-    res = intersection.intersect(
-        truth.models,
-        intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"]),
-        h0=0.5 * (lo + hi),
-    )
+    cloud = truth_cloud(paths, truth, DenseParams(tile=256, lsm=lsm))
+    res, obs = cloud.result, cloud.points.observations
     x, y = reproject(res.lon, res.lat, wgs84(), truth.srs)
     ref = obs[obs["image_id"] == 1]
     ref = ref[np.searchsorted(ref["point_id"], res.point)]
-    rho = pts["rho_min"][np.searchsorted(pts["id"], res.point)] if lsm else np.zeros(res.point.size)
+    rho = cloud.rho() if lsm else np.zeros(res.point.size)
     tier = np.where(~np.isfinite(rho), UNREFINED, np.where(res.rays == 2, TWO_RAYS, THREE_RAYS))
     return {
         "id": res.point,
@@ -90,12 +64,7 @@ def main():
     lsm, sgm = dense(paths, truth, True), dense(paths, truth, False)
     assert np.array_equal(lsm["id"], sgm["id"])
     ok = lsm["ok"] & sgm["ok"]
-    x0, y0 = np.floor(truth.x.min() / CELL) * CELL - CELL, np.ceil(truth.y.max() / CELL) * CELL + CELL
-    grid = Grid(
-        float(x0), float(y0), CELL, int((truth.x.max() - x0) // CELL) + 3, int((y0 - truth.y.min()) // CELL) + 3
-    )
-    j = np.floor((truth.x - grid.x0) / CELL).astype(int)
-    i = np.floor((grid.y0 - truth.y) / CELL).astype(int)
+    grid, i, j = evaluation_grid(truth)
     _, nearest = cKDTree(np.column_stack([truth.x, truth.y])).query(np.column_stack([lsm["x"], lsm["y"]]))
     point_class = truth.cls[nearest]
 

@@ -1,111 +1,116 @@
 """A wider second LSM window in the dense refinement: does it measure the cells the default template leaves?
 
-On the 3 km simulated SPOT 5 triplet (HRG, HRS1, HRS2; the supplied models, the DSM's height range +- 100 m),
-dense matching (algorithms/dense, default DenseParams but 256 px tiles) with DenseParams.wide_template off
-and at WIDES px; every point intersected with the TRUE models (so the error is the matching's alone). Per
-setting: the points refined, the matching time, then the product's 10 m DSM of the cloud (surface/dem_tiles.py,
-method "cells", FALLBACK off, RADIUS 1, FILL 10: the dense pipeline model's) against the true DSM at the cell
-centres by class (the classes of tests/helpers/dsm_comparison.py), and the share of the non-water cells from
-their own points (mask 0), from the cells around (2) and filled (1). Then, where ../shared/data holds it, the
-Pleiades triplet (img_02 the reference, over the terrain's heights 40 to 535 m, 2 threads): the dense points
-refined (in every position) and the matching time per setting, twice each, alternating."""
+1. The 3 km simulated SPOT 5 triplet (studies/sim_dense.py: dense matching with default DenseParams but 256 px
+   tiles, the points intersected with the TRUE models), DenseParams.wide_template off and 31 px: the points refined,
+   the matching time, the dense pipeline model's 10 m DSM against the true DSM by class, and the share of the
+   non-water cells from their own points (mask 0), the cells around (2) and filled (1).
+2. On that DSM's cloud with the wide window, the cells' tier rule (cell_dem.py: a three-ray point of the cells
+   around before a two-ray one of the cell's own) against own points first (both refined tiers as one), RADIUS 1,
+   no fill.
+3. Where the positions come from, on the HRG -> HRS1 tile of tests/algorithms/dense/test_dense_strategy.py (every
+   pixel, against the true conjugates): per class, the share of the matched nodes the 19 px LSM refines and their
+   RMS error, the share the 31 px window adds and theirs, and the semi-global positions' RMS on the same nodes.
+4. Where ../shared/data holds it, the Pleiades triplet (img_02 the reference, over the terrain's heights 40 to 535 m,
+   2 threads): the points refined in every position and the matching time, off and on, twice each, alternating."""
 
 import tempfile
 import time
 
 import numpy as np
-from osgeo import gdal
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
-from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
+from pushbroom.algorithms.dense.pair_tile import match_pair_tile
 from pushbroom.algorithms.dense.params import DenseParams
+from pushbroom.algorithms.dense.refine import Conjugates, refine_positions
 from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
-from pushbroom.algorithms.surface import intersection
-from pushbroom.algorithms.surface.dem_tiles import dem_from_point_cloud
-from pushbroom.algorithms.surface.pointcloud import write_las
+from pushbroom.algorithms.simulation.terrain import CLASSES
+from pushbroom.algorithms.surface.cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, CellSettings, cells_on_grid
 from pushbroom.algorithms.surface.tin_dem import DemParams
+from studies.sim_dense import TruthCloud, evaluation_grid, model_dem, rms, truth_cloud
 from tests.benchmarks.benchutil import SHARED_DATA
-from tests.helpers.dsm_comparison import CELL, NAMES, Truth
+from tests.helpers.dsm_comparison import Truth
+from tests.helpers.matching_scene import Scene
 
-WIDES = (0, 31)
-FILL = 10.0
-
-
-def rms(v):
-    v = v[np.isfinite(v)]
-    return float(np.sqrt(np.mean(v * v))) if v.size else float("nan")
+WIDE = 31
+BOX = (44, 44, 556, 556)  # test_dense_strategy.py's tile
 
 
-def at_cells(path, truth):
-    """The raster `path` at the evaluation cells of `truth` (NaN: outside or nodata)."""
-    ds = gdal.Open(path)
-    gt, values = ds.GetGeoTransform(), ds.ReadAsArray().astype(float)
-    nodata = ds.GetRasterBand(1).GetNoDataValue()
-    if nodata is not None:
-        values[values == nodata] = np.nan
-    j, i = np.floor((truth.x - gt[0]) / gt[1]).astype(int), np.floor((truth.y - gt[3]) / gt[5]).astype(int)
-    inside = (i >= 0) & (j >= 0) & (i < values.shape[0]) & (j < values.shape[1])
-    out = np.full(truth.x.size, np.nan)
-    out[inside] = values[i[inside], j[inside]]
-    return out
+def table_row(dh, truth):
+    return ", ".join(f"{zone} {v[2]:.2f} m" for zone, v in truth.table(dh, np.isfinite(dh)).items())
 
 
-def one(paths, truth, wide):
-    images = [paths["images"][n]["imagery"] for n in NAMES]
-    models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
-    lo, hi = read_dem(paths["dsm"]).height_range
-    t = time.perf_counter()
-    parts, stats = match_dense_tiles(
-        images,
-        models,
-        tempfile.mkdtemp() + "/dense",
-        params=DenseParams(tile=256, wide_template=wide),
-        height_range=(lo - 100.0, hi + 100.0),
-        execution=Execution("threads", 2),
-    )
-    seconds = time.perf_counter() - t
-    pts = np.concatenate([p.points for p in parts])
-    obs = np.concatenate([p.observations for p in parts])
-    res = intersection.intersect(
-        truth.models,
-        intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"]),
-        h0=0.5 * (lo + hi),
-    )
+def simulated(paths, truth):
+    """Parts 1 and 2 (module docstring); the cloud with the wide window."""
+    for wide in (0, WIDE):
+        cloud = truth_cloud(paths, truth, DenseParams(tile=256, wide_template=wide))
+        dh, mask = model_dem(cloud, truth, tempfile.mkdtemp())
+        source = mask[~truth.water]
+        print(
+            f"wide template {wide or 'off'}: {np.isfinite(cloud.points.points['rho_min']).mean():.1%} of the points "
+            f"refined, matching {cloud.seconds:.0f} s; non-water cells: own points {np.mean(source == 0):.1%}, the "
+            f"cells around {np.mean(source == 2):.1%}, filled {np.mean(source == 1):.1%}"
+        )
+        print(f"   10 m DSM - true DSM, RMS: {table_row(dh, truth)}")
+    return cloud
+
+
+def tier_rule(cloud: TruthCloud, truth):
+    """Part 2 (module docstring)."""
+    res = cloud.result
     ok = res.ok
     x, y = reproject(res.lon[ok], res.lat[ok], wgs84(), truth.srs)
-    slot = np.searchsorted(pts["id"], res.point[ok])
-    folder = tempfile.mkdtemp()
-    fields = {"rho": pts["rho_min"][slot].astype(np.float32), "rays": res.rays[ok].astype(np.uint8)}
-    write_las(folder + "/dense.las", x, y, res.h[ok], fields, truth.srs)
-    out, mask = folder + "/dem.tif", folder + "/mask.tif"
-    dem_from_point_cloud(
-        folder + "/dense.las",
-        out,
-        DemParams(cell=CELL, method="cells", fallback=False, fill=FILL, radius=1),
-        mask_path=mask,
+    refined = np.isfinite(cloud.rho()[ok])
+    tier = np.where(refined, np.where(res.rays[ok] == 2, TWO_RAYS, THREE_RAYS), UNREFINED)
+    grid, i, j = evaluation_grid(truth)
+    settings = CellSettings(k=DemParams().k, fallback=False, radius=1)
+    for label, t in (
+        ("tiers (the product): three rays, then two, then the ring", tier),
+        ("own points first (the refined tiers as one)", np.where(refined, THREE_RAYS, UNREFINED)),
+    ):
+        cells = cells_on_grid(x, y, res.h[ok], None, grid, settings, tier=t)
+        ring = cells.ring[i, j][~truth.water]
+        print(f"{label}: own cells {np.mean(ring == 0):.1%}")
+        print(f"   10 m DSM - true DSM (RADIUS 1, no fill), RMS: {table_row(cells.heights[i, j] - truth.h, truth)}")
+
+
+def tile(paths):
+    """Part 3 (module docstring)."""
+    scene = Scene(paths, "HRG", "HRS1")
+    x1, y1, x2, y2, info = match_pair_tile(
+        scene.image1, scene.image2, scene.model1, scene.model2, BOX, scene.height_range, DenseParams()
     )
-    dh = at_cells(out, truth) - truth.h
-    source = at_cells(mask, truth)[~truth.water]
-    table = truth.table(dh, np.isfinite(dh))
-    refined = np.isfinite(pts["rho_min"]).mean()
-    print(
-        f"wide template {wide or 'off'}: {stats['points']} points, {refined:.1%} refined, matching {seconds:.0f} s; "
-        f"non-water cells: own points {np.mean(source == 0):.1%}, the cells around {np.mean(source == 2):.1%}, "
-        f"filled {np.mean(source == 1):.1%}"
-    )
-    print("   10 m DSM - true DSM, RMS: " + ", ".join(f"{zone} {v[2]:.2f} m" for zone, v in table.items()))
+    tx, ty, cls = scene.truth(x1, y1)
+    pair = ImagePair(scene.image1, scene.image2, scene.model1, scene.model2)
+    heights = info["grid"].heights[::2]
+    small = refine_positions(pair, Conjugates(x1, y1, x2, y2), heights)
+    wide = refine_positions(pair, Conjugates(x1, y1, x2, y2), heights, wide_template=WIDE)
+    matched = np.isfinite(x2)
+    first, both = np.isfinite(small[2]), np.isfinite(wide[2])
+    added = both & ~first
+    semi_global = np.hypot(x2 - tx, y2 - ty)
+    for c in np.unique(cls):
+        m = matched & (cls == c)
+        print(
+            f"tile, {CLASSES[c]}: 19 px refines {first[m].mean():.1%} of the matched (RMS "
+            f"{rms(np.hypot(small[0] - tx, small[1] - ty)[m & first]):.3f} px, semi-global there "
+            f"{rms(semi_global[m & first]):.3f}); the {WIDE} px window adds {added[m].mean():.1%} (RMS "
+            f"{rms(np.hypot(wide[0] - tx, wide[1] - ty)[m & added]):.3f} px, semi-global there "
+            f"{rms(semi_global[m & added]):.3f})"
+        )
 
 
 def pleiades():
+    """Part 4 (module docstring)."""
     images = [SHARED_DATA / "pleiades_triplet" / f"img_0{k}.tif" for k in (2, 1, 3)]
     if not all(p.exists() for p in images):
         print(f"{images[0].parent} is absent: no Pleiades run")
         return
     models = [sensors.load(str(p)) for p in images]
-    for wide in WIDES + WIDES:
+    for wide in (0, WIDE, 0, WIDE):
         t = time.perf_counter()
         parts, _ = match_dense_tiles(
             [str(p) for p in images],
@@ -120,15 +125,16 @@ def pleiades():
         rho = np.concatenate([p.points["rho_min"] for p in parts])
         print(
             f"Pleiades triplet, wide template {wide or 'off'}: {rho.size} points, "
-            f"{np.isfinite(rho).mean():.1%} refined, {seconds:.0f} s"
+            f"{np.isfinite(rho).mean():.1%} refined, {seconds:.0f} s",
+            flush=True,
         )
 
 
 def main():
     paths = simulate_scene(SceneConfig.small(), tempfile.mkdtemp() + "/scene")
     truth = Truth(paths)
-    for wide in WIDES:
-        one(paths, truth, wide)
+    tier_rule(simulated(paths, truth), truth)
+    tile(paths)
     pleiades()
 
 

@@ -3,6 +3,7 @@
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from ..matching.params import GrowParams
 from .sgm import SgmParams
 
 
@@ -13,8 +14,8 @@ class DenseParams:
     of the four disparities a lattice node is interpolated from; sgm: census and SGM settings; lsm: LSM
     refinement in the original images (refine.py) with a `template` px window, kept within `max_shift` px
     of the dense position, with LSM's robust weighting where `robust`, a node the template fails at tried again
-    with a `wide_template` px window (0: none); mpgc: a triplet's three-ray points
-    refined again by MPGC in both search images at once (dense_strategy.py)."""
+    with a `wide_template` px window (0: none); mpgc: a triplet's three-ray points refined again by MPGC in both
+    search images at once (dense_strategy.py)."""
 
     tile: int = 512
     step: int = 1
@@ -45,11 +46,7 @@ class DenseParams:
             )
         if self.template < 5 or self.template % 2 == 0:
             raise InputError(f"the refinement template must be an odd number of at least 5 px, got {self.template}")
-        if self.wide_template and (self.wide_template % 2 == 0 or self.wide_template <= self.template):
-            raise InputError(
-                f"the wide refinement template must be 0 (off) or an odd size larger than the template "
-                f"({self.template} px), got {self.wide_template}"
-            )
+        GrowParams(template=self.template, wide_template=self.wide_template).check()  # the wide template's rule
         if not self.max_shift > 0:
             raise InputError("the refinement's largest shift must be positive")
         if not 0 < self.sgm.p1 < self.sgm.p2:

@@ -10,9 +10,10 @@ of the dense position: a larger move means the template straddles two surfaces (
 where the 5 x 5 census window's position is the better one. A refined point carries LSM's rho and
 error-ellipse semi-axes (its precision); the others keep NaN.
 
-A wider second window (DenseParams.wide_template): a node the template fails at without moving beyond the
-largest shift (too low a rho, too wide an ellipse, singular or not converged) is matched again from its dense
-position with the wide window, under the same criteria and the same largest shift. A node the template moved too
+A wider second window (DenseParams.wide_template; lsm.match_accepted's, with GrowParams.wide_beyond_shift off): a
+node the template fails at without moving beyond the largest shift (too low a rho, too wide an ellipse, singular or
+not converged) is matched again from its dense position with the wide window, under the same criteria and the same
+largest shift. A node the template moved too
 far is not tried again: its template straddles a height step, which a wider one straddles more. A weak texture
 (crops, grass) gives a small template too little signal to converge or to pass rho and the error ellipse; the
 wide window has about (wide / template)^2 times the signal. The shift bound keeps it on the dense position's
@@ -38,7 +39,6 @@ Measured on the simulated triplet (docs/validation.md#dense-matching, with the p
 position's error on open ground where it is accepted, and makes it worse within a template of a height step;
 the robust weights and the isolation test: docs/validation.md#dense-robust-lsm."""
 
-import dataclasses
 from typing import NamedTuple
 
 import numpy as np
@@ -98,8 +98,13 @@ def refine_positions(
     cells, cell = np.unique(cells, axis=0, return_inverse=True)
     cx, cy = (np.clip((c + 0.5) * AFFINE_CELL, v[idx].min(), v[idx].max()) for c, v in zip(cells.T, (x1, y1)))
     affine = np.column_stack(local_affine(model1, model2, cx, cy, h_m)[2:])[cell.ravel()]
-    params = GrowParams(template=int(template), max_shift=float(max_shift), robust=bool(robust)).check()
-    wide = dataclasses.replace(params, template=int(wide_template)).check() if wide_template else None
+    params = GrowParams(
+        template=int(template),
+        max_shift=float(max_shift),
+        robust=bool(robust),
+        wide_template=int(wide_template),
+        wide_beyond_shift=False,
+    ).check()
     image1, image2 = adapt_resolution(
         as_image(image1, saturation=True),
         as_image(image2, saturation=True),
@@ -116,13 +121,6 @@ def refine_positions(
     x2[idx[masked]], y2[idx[masked]] = np.nan, np.nan
     idx, affine = idx[~masked], affine[~masked]
     records, accepted = match_windows(image1, image2, x1[idx], y1[idx], x2[idx], y2[idx], affine, params)
-    if wide is not None:
-        # the wide window where the template failed short of the shift bound (NaN: singular, or outside)
-        again = np.flatnonzero(~accepted & ~(records["shift"] >= params.max_shift))
-        i = idx[again]
-        records_w, accepted_w = match_windows(image1, image2, x1[i], y1[i], x2[i], y2[i], affine[again], wide)
-        records[again[accepted_w]] = records_w[accepted_w]
-        accepted[again[accepted_w]] = True
     take = idx[accepted]
     r = records[accepted]
     x2[take], y2[take] = r["x2"], r["y2"]

@@ -491,12 +491,16 @@ def accepted(records, status, params=None):
 
 def match_accepted(img1, img2, x1, y1, x2, y2, affine=None, params=None):
     """match_points and `accepted`, with the points that fail inside the images matched again with
-    the wider window `params.widest` (GrowParams.wide_template) from the same initial values.
+    the wider window `params.widest` (GrowParams.wide_template) from the same initial values; with
+    GrowParams.wide_beyond_shift off, not those the template moved beyond max_shift.
     Returns (records, accepted mask)."""
     params = params or LsmParams()
     rec, status = match_points(img1, img2, x1, y1, x2, y2, affine, params)
     ok = accepted(rec, status, params)
-    again = np.flatnonzero(~ok & (status != OUTSIDE))
+    retry = ~ok & (status != OUTSIDE)
+    if params.widest > params.template and not params.wide_beyond_shift:
+        retry &= ~(rec["shift"] >= params.max_shift)
+    again = np.flatnonzero(retry)
     if params.widest > params.template and again.size:
         wide = replace(params, template=params.widest, wide_template=0)  # only GrowParams has a wider one
         x2, y2 = (np.broadcast_to(np.asarray(v, float), rec.shape)[again] for v in (x2, y2))

@@ -62,6 +62,9 @@ class GrowParams(LsmParams):
     # odd px, 0 = off: a second, wider window for a node whose LSM at `template` fails inside the images
     # (Kanade and Okutomi's trade of noise against relief); docs/validation.md#region-growing-wide-template
     wide_template: int = 0
+    # the wide window also for a node the template moved beyond max_shift (off in the dense refinement, where such
+    # a template straddles a height step, which a wider one straddles more; studies/README.md#dense_wide)
+    wide_beyond_shift: bool = True
     # px of image 1, 0 = one round: with automatic seeds, a second round of them at the lattice nodes the
     # first round's growth did not try; docs/validation.md#region-growing-second-seed-round
     reseed_cell: int = 16

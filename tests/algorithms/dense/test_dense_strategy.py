@@ -37,7 +37,7 @@ def test_lattice_and_disparity_sampling_against_numpy():
 
 @pytest.mark.parametrize("wide", [18, 19, 17, 32])
 def test_a_wide_template_that_is_not_wider_and_odd_is_refused(wide):
-    with pytest.raises(InputError, match="wide refinement template"):
+    with pytest.raises(InputError, match="wide template"):
         DenseParams(wide_template=wide).check()
     assert DenseParams(wide_template=0).check().wide_template == 0
 

@@ -1,0 +1,96 @@
+"""What the dense studies share: the 3 km simulated triplet's dense points intersected with the TRUE models (the
+error is the matching's alone), and the dense pipeline model's 10 m DSM of them (surface/dem_tiles.py, method
+"cells", FALLBACK off, RADIUS 1, FILL 10) at the evaluation cells of tests/helpers/dsm_comparison.py."""
+
+import tempfile
+import time
+from typing import NamedTuple
+
+import numpy as np
+
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.crs import reproject, wgs84
+from pushbroom.algorithms.dem_store import read_dem
+from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
+from pushbroom.algorithms.dense.params import DenseParams
+from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.matching.points import MultiPoints
+from pushbroom.algorithms.surface import intersection
+from pushbroom.algorithms.surface.dem_tiles import dem_from_point_cloud
+from pushbroom.algorithms.surface.pointcloud import write_las
+from pushbroom.algorithms.surface.tin_dem import DemParams
+from pushbroom.algorithms.surface.tin_grid import Grid
+from scripts.bench_peers import sample
+from tests.helpers.dsm_comparison import CELL, NAMES, Truth
+
+
+class TruthCloud(NamedTuple):
+    """Dense points, their intersection with the true models, and the matching's seconds."""
+
+    points: MultiPoints
+    result: intersection.Intersection
+    seconds: float
+
+    def rho(self) -> np.ndarray:
+        """Per intersected point (result order), its rho_min (NaN: not refined in every position)."""
+        pts = self.points.points
+        return pts["rho_min"][np.searchsorted(pts["id"], self.result.point)]
+
+
+def truth_cloud(paths: dict, truth: Truth, params: DenseParams) -> TruthCloud:
+    """Dense matching (DenseParams `params`, 2 threads) of the simulated triplet `paths` with its supplied models over
+    the DSM's height range +- 100 m, every point intersected with `truth`'s models."""
+    images = [paths["images"][n]["imagery"] for n in NAMES]
+    models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
+    lo, hi = read_dem(paths["dsm"]).height_range
+    t = time.perf_counter()
+    parts, _ = match_dense_tiles(
+        images,
+        models,
+        tempfile.mkdtemp() + "/dense",
+        params=params,
+        height_range=(lo - 100.0, hi + 100.0),
+        execution=Execution("threads", 2),
+    )
+    seconds = time.perf_counter() - t
+    points = MultiPoints(np.concatenate([p.points for p in parts]), np.concatenate([p.observations for p in parts]))
+    obs = points.observations
+    result = intersection.intersect(
+        truth.models,
+        intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"]),
+        h0=0.5 * (lo + hi),
+    )
+    return TruthCloud(points, result, seconds)
+
+
+def model_dem(cloud: TruthCloud, truth: Truth, folder: str) -> tuple[np.ndarray, np.ndarray]:
+    """(DSM - true DSM, the mask: 0 own points, 2 the cells around, 1 filled) at `truth`'s evaluation cells, of the
+    dense pipeline model's 10 m DSM of `cloud`, written to `folder`."""
+    res = cloud.result
+    ok = res.ok
+    x, y = reproject(res.lon[ok], res.lat[ok], wgs84(), truth.srs)
+    fields = {"rho": cloud.rho()[ok].astype(np.float32), "rays": res.rays[ok].astype(np.uint8)}
+    write_las(f"{folder}/dense.las", x, y, res.h[ok], fields, truth.srs)
+    dem_from_point_cloud(
+        f"{folder}/dense.las",
+        f"{folder}/dem.tif",
+        DemParams(cell=CELL, method="cells", fallback=False, fill=10.0, radius=1),
+        mask_path=f"{folder}/mask.tif",
+    )
+    return sample(f"{folder}/dem.tif", truth) - truth.h, sample(f"{folder}/mask.tif", truth)
+
+
+def evaluation_grid(truth: Truth) -> tuple[Grid, np.ndarray, np.ndarray]:
+    """A CELL m grid (tin_grid.Grid) holding `truth`'s evaluation cells one cell inside its edges, and each
+    evaluation cell's (row, column) on it."""
+    x0, y0 = np.floor(truth.x.min() / CELL) * CELL - CELL, np.ceil(truth.y.max() / CELL) * CELL + CELL
+    grid = Grid(
+        float(x0), float(y0), CELL, int((truth.x.max() - x0) // CELL) + 3, int((y0 - truth.y.min()) // CELL) + 3
+    )
+    return grid, np.floor((grid.y0 - truth.y) / CELL).astype(int), np.floor((truth.x - grid.x0) / CELL).astype(int)
+
+
+def rms(v: np.ndarray) -> float:
+    """RMS of the finite values (NaN for none)."""
+    v = v[np.isfinite(v)]
+    return float(np.sqrt(np.mean(v * v))) if v.size else float("nan")
