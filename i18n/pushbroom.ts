@@ -84,7 +84,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="140"/>
+        <location filename="../plugin/algorithms/match_points.py" line="141"/>
         <source>CSV files (*.csv)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -689,77 +689,77 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="107"/>
+        <location filename="../plugin/algorithms/match_points.py" line="108"/>
         <source>Matching strategy</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="260"/>
+        <location filename="../plugin/algorithms/match_points.py" line="261"/>
         <source>Coarse-to-fine: grid point spacing at full resolution (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="267"/>
+        <location filename="../plugin/algorithms/match_points.py" line="268"/>
         <source>Coarse-to-fine: minimum correlation coefficient at full resolution</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="275"/>
+        <location filename="../plugin/algorithms/match_points.py" line="276"/>
         <source>Coarse-to-fine: tile size of the reference image (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="282"/>
+        <location filename="../plugin/algorithms/match_points.py" line="283"/>
         <source>Coarse-to-fine: matched edges as extra points and breaklines</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="293"/>
+        <location filename="../plugin/algorithms/match_points.py" line="294"/>
         <source>Dense: tile size of the reference image (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="301"/>
+        <location filename="../plugin/algorithms/match_points.py" line="302"/>
         <source>Dense: a point every ... px of the reference image</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="308"/>
+        <location filename="../plugin/algorithms/match_points.py" line="309"/>
         <source>Dense: refine the positions by LSM in the original images (TEMPLATE px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="320"/>
+        <location filename="../plugin/algorithms/match_points.py" line="332"/>
         <source>Dense: refine a triplet&apos;s three-ray points by MPGC (about 4x slower)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="325"/>
+        <location filename="../plugin/algorithms/match_points.py" line="337"/>
         <source>Dense: SGM penalty P1 (a disparity change of 1 px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="332"/>
+        <location filename="../plugin/algorithms/match_points.py" line="344"/>
         <source>Dense: SGM penalty P2 (a larger change)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="131"/>
+        <location filename="../plugin/algorithms/match_points.py" line="132"/>
         <source>mass points</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="140"/>
+        <location filename="../plugin/algorithms/match_points.py" line="141"/>
         <source>Summary per point group (CSV)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="429"/>
+        <location filename="../plugin/algorithms/match_points.py" line="442"/>
         <source>Mass points</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="158"/>
+        <location filename="../plugin/algorithms/match_points.py" line="159"/>
         <source>Mass point folder (index and parts)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1049,87 +1049,87 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="115"/>
+        <location filename="../plugin/algorithms/match_points.py" line="116"/>
         <source>Images: reference (nadir), forward[, backward]; empty: all</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="123"/>
+        <location filename="../plugin/algorithms/match_points.py" line="124"/>
         <source>Lowest ellipsoidal terrain height (m; empty: the block&apos;s)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="123"/>
+        <location filename="../plugin/algorithms/match_points.py" line="124"/>
         <source>Highest ellipsoidal terrain height (m; empty: the block&apos;s)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="166"/>
+        <location filename="../plugin/algorithms/match_points.py" line="167"/>
         <source>Region growing: seeds</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="172"/>
+        <location filename="../plugin/algorithms/match_points.py" line="173"/>
         <source>LSM template size (px, odd; region growing, dense)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="179"/>
+        <location filename="../plugin/algorithms/match_points.py" line="180"/>
         <source>Region growing: STEP, the distance of the neighbours (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="188"/>
+        <location filename="../plugin/algorithms/match_points.py" line="189"/>
         <source>Region growing: a wider template where the first fails (px; 0: off)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="195"/>
+        <location filename="../plugin/algorithms/match_points.py" line="196"/>
         <source>Region growing: minimum correlation coefficient</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="203"/>
+        <location filename="../plugin/algorithms/match_points.py" line="204"/>
         <source>Region growing: largest semi-major axis of the error ellipse (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="210"/>
+        <location filename="../plugin/algorithms/match_points.py" line="211"/>
         <source>Region growing: largest shift from the initial values (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="217"/>
+        <location filename="../plugin/algorithms/match_points.py" line="218"/>
         <source>Region growing: largest number of LSM iterations</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="224"/>
+        <location filename="../plugin/algorithms/match_points.py" line="225"/>
         <source>Region growing: tile size of the reference image (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="231"/>
+        <location filename="../plugin/algorithms/match_points.py" line="232"/>
         <source>Region growing: group 3 consistency test, k robust sigma</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="238"/>
+        <location filename="../plugin/algorithms/match_points.py" line="239"/>
         <source>Region growing: grow combination (b) where (a) found no points</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="243"/>
+        <location filename="../plugin/algorithms/match_points.py" line="244"/>
         <source>Region growing: refine the group 3 points by MPGC</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="248"/>
+        <location filename="../plugin/algorithms/match_points.py" line="249"/>
         <source>Region growing: MPGC with support weights (for DEMs)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="313"/>
+        <location filename="../plugin/algorithms/match_points.py" line="314"/>
         <source>Dense: a wider LSM template where TEMPLATE fails (px, odd; 0: off)</source>
         <translation type="unfinished"></translation>
     </message>

@@ -29,7 +29,7 @@ from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.simulation.terrain import CITY, FOREST
 from pushbroom.algorithms.surface.cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, CellSettings, cells_on_grid
-from studies.sim_dense import evaluation_grid, rms, truth_cloud
+from studies.sim_dense import BEFORE, evaluation_grid, rms, truth_cloud
 from tests.helpers.dsm_comparison import CLASSES, Truth
 
 THRESHOLDS = (1.5, 2.0, 3.0, 4.0)
@@ -38,7 +38,7 @@ LAPLACE = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], float)
 
 def dense(paths, truth, lsm):
     """Per point of the dense matching (refinement `lsm`): id, ok, x, y, z, rays, rho_min, HRG col/row."""
-    cloud = truth_cloud(paths, truth, DenseParams(tile=256, lsm=lsm))
+    cloud = truth_cloud(paths, truth, DenseParams(tile=256, lsm=lsm, **BEFORE))
     res, obs = cloud.result, cloud.points.observations
     x, y = reproject(res.lon, res.lat, wgs84(), truth.srs)
     ref = obs[obs["image_id"] == 1]

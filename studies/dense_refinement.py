@@ -10,6 +10,7 @@ how accurate they are."""
 
 import tempfile
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -63,8 +64,7 @@ def main():
             ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
             Conjugates(x1[on], y1[on], x2[on], y2[on]),
             info["grid"].heights[::2],
-            params.template,
-            params.max_shift,
+            replace(params, max_shift=0.5, wide_template=0).refinement(),
         )
         seconds = time.perf_counter() - t
         sx, sy = np.full(x1.size, np.nan), np.full(x1.size, np.nan)
@@ -89,8 +89,7 @@ def main():
         ImagePair(scene.image1, scene.image2, scene.model1, scene.model2),
         Conjugates(x1[left], y1[left], x2[left], y2[left]),
         info["grid"].heights[::2],
-        WIDE,
-        params.max_shift,
+        replace(params, template=WIDE, max_shift=0.5, wide_template=0).refinement(),
     )
     seconds = time.perf_counter() - t
     added = np.isfinite(wrho)

@@ -16,7 +16,7 @@ import numpy as np
 from pushbroom.algorithms.dense import refine
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
-from studies.sim_dense import model_dem, truth_cloud
+from studies.sim_dense import BEFORE, model_dem, truth_cloud
 from tests.helpers.dsm_comparison import Truth
 
 ZONES = ("bare", "crops", "open near forest/city/water", "forest", "city")
@@ -28,7 +28,7 @@ def dsm_errors(paths, truth, robust, isolation, folder):
     refine.LEAST_REFINED = least if isolation else 0
     try:
         # without the wide second window (dense_wide), which came after these figures
-        cloud = truth_cloud(paths, truth, DenseParams(robust=robust, wide_template=0))
+        cloud = truth_cloud(paths, truth, DenseParams(robust=robust, wide_template=0, **BEFORE))
     finally:
         refine.LEAST_REFINED = least
     dh, _ = model_dem(cloud, truth, folder)

@@ -30,7 +30,7 @@ from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.simulation.terrain import CLASSES
 from pushbroom.algorithms.surface.cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, CellSettings, cells_on_grid
 from pushbroom.algorithms.surface.tin_dem import DemParams
-from studies.sim_dense import TruthCloud, evaluation_grid, model_dem, rms, truth_cloud
+from studies.sim_dense import BEFORE, TruthCloud, evaluation_grid, model_dem, rms, truth_cloud
 from tests.benchmarks.benchutil import SHARED_DATA
 from tests.helpers.dsm_comparison import Truth
 from tests.helpers.matching_scene import Scene
@@ -46,7 +46,7 @@ def table_row(dh, truth):
 def simulated(paths, truth):
     """Parts 1 and 2 (module docstring); the cloud with the wide window."""
     for wide in (0, WIDE):
-        cloud = truth_cloud(paths, truth, DenseParams(tile=256, wide_template=wide))
+        cloud = truth_cloud(paths, truth, DenseParams(tile=256, wide_template=wide, **BEFORE))
         dh, mask = model_dem(cloud, truth, tempfile.mkdtemp())
         source = mask[~truth.water]
         print(
@@ -86,8 +86,12 @@ def tile(paths):
     tx, ty, cls = scene.truth(x1, y1)
     pair = ImagePair(scene.image1, scene.image2, scene.model1, scene.model2)
     heights = info["grid"].heights[::2]
-    small = refine_positions(pair, Conjugates(x1, y1, x2, y2), heights)
-    wide = refine_positions(pair, Conjugates(x1, y1, x2, y2), heights, wide_template=WIDE)
+    small = refine_positions(
+        pair, Conjugates(x1, y1, x2, y2), heights, DenseParams(wide_template=0, **BEFORE).refinement()
+    )
+    wide = refine_positions(
+        pair, Conjugates(x1, y1, x2, y2), heights, DenseParams(wide_template=WIDE, **BEFORE).refinement()
+    )
     matched = np.isfinite(x2)
     first, both = np.isfinite(small[2]), np.isfinite(wide[2])
     added = both & ~first
@@ -117,7 +121,7 @@ def pleiades():
             models,
             tempfile.mkdtemp() + "/dense",
             names=["two", "one", "three"],
-            params=DenseParams(wide_template=wide),
+            params=DenseParams(wide_template=wide, **BEFORE),
             height_range=(40.0, 535.0),
             execution=Execution("threads", 2),
         )

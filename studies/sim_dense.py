@@ -23,6 +23,9 @@ from pushbroom.algorithms.surface.tin_grid import Grid
 from scripts.bench_peers import sample
 from tests.helpers.dsm_comparison import CELL, NAMES, Truth
 
+#: the refinement before the variance test (studies/README.md#dense_variance_test): the studies measured with it
+BEFORE = {"max_shift": 0.5, "max_residual": 0.0}
+
 
 class TruthCloud(NamedTuple):
     """Dense points, their intersection with the true models, and the matching's seconds."""

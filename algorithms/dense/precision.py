@@ -1,7 +1,8 @@
 """The precision of the refined dense points: LSM's error ellipses and the surface around each point, calibrated
 against the truth.
 
-A dense point is refined when LSM refined every one of its matched positions (dense/refine.py; rho_min finite).
+A dense point is refined when LSM refined every one of its matched positions (dense/refine.py; rho_min finite, and
+not SEMI_GLOBAL: the variance test kept none of them at the semi-global matcher's).
 Its height sigma has two parts:
 
 1. Matching noise. Each refined position carries LSM's error ellipse relative to the template's position,
@@ -25,12 +26,12 @@ F_2, F_3 and C are fitted on the simulated 3 km SPOT 5 triplet against its truth
 the open classes, `studies/dense_precision.py`; figures and the check on a second scene in
 studies/README.md#dense_precision). They hold for LSM's default template (19 px).
 
-Every other point (unrefined dense points, region growing's, coarse-to-fine's, tie points) keeps the one a
-priori image sigma given, and no spread term."""
+Every other point (unrefined dense points, those with a position the variance test kept, region growing's,
+coarse-to-fine's, tie points) keeps the one a priori image sigma given, and no spread term."""
 
 import numpy as np
 
-from ..matching.points import DENSE
+from ..matching.points import DENSE, SEMI_GLOBAL
 from .epipolar import pixel_gsd
 
 #: F_k by number of rays (module docstring; studies/README.md#dense_precision)
@@ -67,7 +68,8 @@ def image_sigmas(points, observations, default, calibration=None):
 
 def refined_dense(points):
     """Per POINT_DTYPE row, whether it is a refined dense point (module docstring)."""
-    return ((points["flags"] & DENSE) != 0) & np.isfinite(points["rho_min"])
+    flags = points["flags"]
+    return ((flags & DENSE) != 0) & ((flags & SEMI_GLOBAL) == 0) & np.isfinite(points["rho_min"])
 
 
 def spread_radius(model, col, row, h):

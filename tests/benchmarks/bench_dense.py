@@ -13,9 +13,10 @@ from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dense.epipolar import epipolar_grid
 from pushbroom.algorithms.dense.pair_tile import match_pair_tile
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.refine import Conjugates, refine_positions
+from pushbroom.algorithms.dense.refine import Conjugates, VarianceTest, refine_positions
 from pushbroom.algorithms.dense.resample import epipolar_image
 from pushbroom.algorithms.dense.sgm import disparity
+from pushbroom.algorithms.matching.image_noise import image_noise
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.matching.params import GrowParams
@@ -39,6 +40,7 @@ def run():
     models = [sensors.load(p) for p in paths]
     images = [Image(p) for p in paths]
     params = DenseParams()
+    test = VarianceTest(image_noise(images[0]), params.max_residual)
     rows = []
     for _ in thread_counts((1,)):
         a1, a2 = adapt_resolution(images[0], images[1], models[0], models[1], GrowParams(), HEIGHTS)
@@ -75,24 +77,22 @@ def run():
             ImagePair(images[0], images[1], models[0], models[1]),
             Conjugates(x1, y1, x2, y2),
             info["grid"].heights[::2],
-            params.template,
-            params.max_shift,
-            params.robust,
+            params.refinement(),
+            test,
         )
         seconds = best_time(
             lambda: refine_positions(
                 ImagePair(images[0], images[1], models[0], models[1]),
                 Conjugates(x1, y1, x2, y2),
                 info["grid"].heights[::2],
-                params.template,
-                params.max_shift,
-                params.robust,
+                params.refinement(),
+                test,
             )
         )
         kind = "robust" if params.robust else "plain"
         rows.append(
             {
-                "stage": f"LSM refinement, {kind} ({100 * np.isfinite(refined[2]).mean():.0f} % accepted)",
+                "stage": f"LSM refinement, {kind} ({100 * np.isfinite(refined.rho).mean():.0f} % accepted)",
                 "items": x1.size,
                 "per second": x1.size / seconds,
                 "unit": "nodes",

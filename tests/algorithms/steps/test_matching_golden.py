@@ -1,17 +1,29 @@
-"""The stored points of the three matching strategies, byte for byte, against a record made before the
-matching room was rebuilt (issue 38): region growing, dense (with MPGC) and coarse-to-fine, on the small
-simulated triplet and its pair, each over several tiles. A refactoring of the matching must leave these bytes
-as they were; a change of the science must rewrite the record on purpose, saying why in its commit:
-`PUSHBROOM_RECORD_GOLDEN=1 pytest tests/algorithms/steps/test_matching_golden.py`.
+"""The stored points of the three matching strategies against a record made before the matching room was
+rebuilt (issue 38): region growing, dense (with MPGC) and coarse-to-fine, on the small simulated triplet and its
+pair, each over several tiles. A refactoring of the matching must leave them as they were; a change of the science
+must rewrite the record on purpose, saying why in its commit:
+`PUSHBROOM_RECORD_GOLDEN=1 pytest -p no:xdist tests/algorithms/steps/test_matching_golden.py`.
 
-The record holds the SHA-256 of each stored points and observations array and their counts (to say how far a
-failing case is off)."""
+Byte for byte on the machine the record was made on: numba compiles the kernels for the host CPU, and OpenBLAS and
+numpy pick their kernels by CPU, so another CPU (or another numba or numpy) changes the last bits of some values.
+The record holds, per case:
+- the counts of points and observations: within COUNT_TOLERANCE of them on every machine (the dense triplet's
+  differ by 2 of 32 523 points between an Intel and an AMD CPU: a node's fate at a threshold);
+- a summary of every numeric field of both arrays (the count of its finite values, their mean, standard deviation,
+  mean weighted by the point id, which a reordering changes, and mean fractional part, which a sub-pixel shift
+  changes): on every machine, the count within COUNT_TOLERANCE of itself, the moments within TOLERANCE of the field's
+  scale, the fractional part within TOLERANCE. A different CPU changes the last bits, and with them, now and then,
+  a point's fate at a threshold (a few in ten thousand moves the means by about 1e-5 of their scale); a change of
+  the science moves them by far more;
+- the SHA-256 of both arrays' bytes under the fingerprint of the machine that recorded them (machine_fingerprint):
+  exact where the fingerprint is the same. Elsewhere the figures say that only the summary was compared."""
 
 import hashlib
 import json
 import os
 import shutil
 
+import numpy as np
 import pytest
 
 from pushbroom.algorithms.block import Block
@@ -24,6 +36,8 @@ from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.steps.block_matching import MatchParams, match_block_points
 
 RECORD = os.path.join(os.path.dirname(__file__), "..", "..", "golden", "matching.json")
+#: tolerance of the summaries, and of the counts (relative; module docstring)
+TOLERANCE, COUNT_TOLERANCE = 1e-4, 5e-4
 NAMES = {"triplet": ("HRG", "HRS1", "HRS2"), "pair": ("HRG", "HRS1")}
 #: each strategy's settings: small tiles, so that every case runs several of them
 CASES = {
@@ -50,19 +64,78 @@ def blocks(simulated, tmp_path_factory):
     return made, (lo - 30.0, hi + 30.0)
 
 
+def machine_fingerprint():
+    """What decides the last bits of the kernels' results: the CPU numba compiles for (the host as LLVM names it and
+    its features, or NUMBA_CPU_NAME and NUMBA_CPU_FEATURES), numba's and numpy's versions (a short SHA-256)."""
+    import llvmlite.binding
+    import numba
+    import numpy
+    from numba.core import config
+
+    text = " ".join(
+        [
+            config.CPU_NAME or llvmlite.binding.get_host_cpu_name(),
+            config.CPU_FEATURES or ("" if config.CPU_NAME else llvmlite.binding.get_host_cpu_features().flatten()),
+            numba.__version__,
+            numpy.__version__,
+        ]
+    )
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def summary(a, ids):
+    """Per numeric field of the structured array `a` (rows of the point `ids`): [count of finite values, mean, standard
+    deviation, mean weighted by the id, mean fractional part]; None for the moments where none is finite."""
+    out = {}
+    for name in a.dtype.names:
+        v = a[name].astype(float)
+        ok = np.isfinite(v)
+        if not ok.any():
+            out[name] = [0, None, None, None, None]
+            continue
+        w = ids[ok].astype(float)
+        v = v[ok]
+        out[name] = [
+            int(ok.sum()),
+            float(v.mean()),
+            float(v.std()),
+            float((v * w).sum() / w.sum()),
+            float((v % 1.0).mean()),
+        ]
+    return out
+
+
 def digest(block):
-    """{'points' | 'observations': (SHA-256 of the stored array's bytes, its length)} of the block's mass points."""
+    """The block's mass points as the record holds them (module docstring), with this machine's bytes."""
     mass = Block(block).points()
-    return {
-        k: [hashlib.sha256(a.tobytes()).hexdigest(), len(a)]
-        for k, a in (("points", mass.points), ("observations", mass.observations))
+    arrays = {
+        "points": (mass.points, mass.points["id"]),
+        "observations": (mass.observations, mass.observations["point_id"]),
     }
+    return {
+        "counts": {k: len(a) for k, (a, _) in arrays.items()},
+        "summary": {k: summary(a, ids) for k, (a, ids) in arrays.items()},
+        "bytes": {machine_fingerprint(): {k: hashlib.sha256(a.tobytes()).hexdigest() for k, (a, _) in arrays.items()}},
+    }
+
+
+def assert_close_summaries(found, recorded, case):
+    for array, fields in recorded.items():
+        for name, want in fields.items():
+            got = found[array][name]
+            message = f"{case}: {array}.{name} summary {got}, recorded {want}"
+            assert abs(got[0] - want[0]) <= COUNT_TOLERANCE * want[0], message
+            if want[1] is None:
+                continue
+            scale = max(abs(want[1]), want[2])
+            assert all(abs(g - w) <= TOLERANCE * scale for g, w in zip(got[1:4], want[1:4])), message
+            assert abs(got[4] - want[4]) <= TOLERANCE, message
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", NAMES)
 @pytest.mark.parametrize("strategy", CASES)
-def test_stored_points_are_as_recorded(blocks, strategy, kind, tmp_path):
+def test_stored_points_are_as_recorded(blocks, strategy, kind, tmp_path, figures):
     templates, (lo, hi) = blocks
     path = str(tmp_path / "block.gpkg")
     shutil.copy(templates[kind], path)
@@ -75,4 +148,14 @@ def test_stored_points_are_as_recorded(blocks, strategy, kind, tmp_path):
         with open(RECORD, "w") as f:
             json.dump(record, f, indent=1, sort_keys=True)
             f.write("\n")
-    assert found == record[case], f"{case}: stored {found}, recorded {record[case]}"
+    want = record[case]
+    counts = f"{case}: counts {found['counts']}, recorded {want['counts']}"
+    assert all(abs(found["counts"][k] - n) <= COUNT_TOLERANCE * n for k, n in want["counts"].items()), counts
+    assert_close_summaries(found["summary"], want["summary"], case)
+    machine = machine_fingerprint()
+    if machine in want["bytes"]:
+        assert found["bytes"][machine] == want["bytes"][machine], f"{case}: the bytes differ on the recording machine"
+    else:
+        figures.report(
+            f"golden {case}: recorded on another machine, summaries compared (bytes not)", len(want["bytes"]), "records"
+        )
