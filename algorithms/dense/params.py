@@ -15,8 +15,8 @@ class DenseParams:
     refinement in the original images (refine.py) with a `template` px window, kept within `max_shift` px
     of the dense position, with LSM's robust weighting where `robust`, a node the template fails at tried again
     with a `wide_template` px window (0: none), and an accepted position kept only where the variance test's q is
-    at most `max_residual` (refine.py; 0: no test); mpgc: a triplet's three-ray points refined again by MPGC in both
-    search images at once (dense_strategy.py)."""
+    at most `max_residual` (refine.py; 0, the default: no test); mpgc: a triplet's three-ray points refined again
+    by MPGC in both search images at once (dense_strategy.py)."""
 
     tile: int = 512
     step: int = 1
@@ -28,7 +28,7 @@ class DenseParams:
     wide_template: int = 31
     max_shift: float = 1.0
     robust: bool = True
-    max_residual: float = 2.0
+    max_residual: float = 0.0
     mpgc: bool = False
 
     def refinement(self) -> GrowParams:

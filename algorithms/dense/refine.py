@@ -39,7 +39,10 @@ leaves more: where q > VarianceTest.bound the node keeps its dense position, whi
 measured on the surface at the node. It is still a measured position (its rho is LSM's, its error-ellipse
 semi-axes NaN: not LSM's position; `kept` says which). This is Foerstner's test of the variance factor, node by
 node. s_t is taken over the default template also where the wide window matched (a weak texture: q is small
-there). Measured in studies/README.md#dense_variance_test.
+there). Off by default (DenseParams.max_residual 0): it needs sigma_n to be the residual of one surface, which
+holds for white noise (the simulated scenes: open ground q ~ 1) but not for the real Pleiades images, whose
+restored, resampled pixels leave one surface a residual of several times Immerkaer's noise (q median about 5):
+there the test would keep nearly every position. Measured in studies/README.md#dense_variance_test.
 
 Isolated refinements (`isolated`, on a lattice): the templates of neighbouring nodes overlap almost entirely,
 so where the surface lets LSM succeed it succeeds at most of them. A node LSM accepted while fewer than

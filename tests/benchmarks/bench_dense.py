@@ -40,7 +40,7 @@ def run():
     models = [sensors.load(p) for p in paths]
     images = [Image(p) for p in paths]
     params = DenseParams()
-    test = VarianceTest(image_noise(images[0]), params.max_residual)
+    test = VarianceTest(image_noise(images[0]), params.max_residual) if params.max_residual > 0 else None
     rows = []
     for _ in thread_counts((1,)):
         a1, a2 = adapt_resolution(images[0], images[1], models[0], models[1], GrowParams(), HEIGHTS)
