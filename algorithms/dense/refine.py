@@ -9,8 +9,9 @@ passes region growing's acceptance criteria (rho, error ellipse, iterations) and
 of the dense position (DenseParams: 1 px): a larger move means a template that straddles two surfaces (a forest
 edge, a building) or a semi-global mismatch, where LSM found another surface than the census window's. Moves of
 0.5-1 px are mostly LSM correcting the semi-global position on open ground (its sub-pixel fit, the epipolar
-resampling): a bound of 0.5 px left a third of the simulated triplet's nodes unrefined; the variance test below
-finds the templates that straddle heights. A refined point carries LSM's rho and error-ellipse semi-axes (its
+resampling): on the simulated triplet, 1 px refines 83 % of the points where 0.5 px refined 55 %, and the DSM's
+open classes improve. The variance test below (off by default) is meant to find the templates that straddle
+heights. A refined point carries LSM's rho and error-ellipse semi-axes (its
 precision); the others keep NaN.
 
 A wider second window (DenseParams.wide_template; lsm.match_accepted's, with GrowParams.wide_beyond_shift off): a
