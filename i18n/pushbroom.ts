@@ -729,17 +729,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="332"/>
-        <source>Dense: refine a triplet&apos;s three-ray points by MPGC (about 4x slower)</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../plugin/algorithms/match_points.py" line="337"/>
+        <location filename="../plugin/algorithms/match_points.py" line="339"/>
         <source>Dense: SGM penalty P1 (a disparity change of 1 px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="344"/>
+        <location filename="../plugin/algorithms/match_points.py" line="346"/>
         <source>Dense: SGM penalty P2 (a larger change)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -754,7 +749,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="442"/>
+        <location filename="../plugin/algorithms/match_points.py" line="444"/>
         <source>Mass points</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1131,6 +1126,11 @@
     <message>
         <location filename="../plugin/algorithms/match_points.py" line="314"/>
         <source>Dense: a wider LSM template where TEMPLATE fails (px, odd; 0: off)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="332"/>
+        <source>Dense: refine a triplet&apos;s three-ray points by MPGC (matching about 2.5x slower)</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

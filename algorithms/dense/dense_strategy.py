@@ -16,9 +16,10 @@ growing's); a matched image's position carries LSM's rho and error-ellipse semi-
 (refine.py) replaced it, NaN where it stayed the semi-global matcher's; where the variance test kept the
 semi-global position, LSM's rho with NaN semi-axes, and the point is flagged SEMI_GLOBAL (measured, so rho_min is
 finite, but neither a tie point nor in MPGC's bias sample). A point's rho_a / rho_b are its pairs'
-LSM rho; rho_min the smaller, NaN where one of its matched positions is unrefined (a point is "refined" only
-if all of them are: the DEM's tiers and the tie point selection read it); flags DENSE. A tile without texture
-gives no points and a warning, not an error.
+LSM rho; rho_min the smaller, NaN where one of its matched positions is unrefined (a point is measured only if all
+of them are: the DEM's tiers and the tie point selection read it; a SEMI_GLOBAL point is measured for the DEM's
+tiers, but its positions are not LSM's: precision.refined_dense and the tie points leave it out); flags DENSE. A
+tile without texture gives no points and a warning, not an error.
 
 The images are opened once, masking their nodata (the band's value and GDAL mask) and saturated pixels
 (matching.imagery.Image, saturation=True): a node whose census window or LSM template reaches a masked pixel,
@@ -101,7 +102,7 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
             x2, y2 = rx, ry
         positions.append((x2, y2))
         quality.append(q)
-        info["refined"] = int(np.isfinite(q[0]).sum())
+        info["refined"] = int(np.isfinite(q[1]).sum())  # LSM's positions (not those the variance test kept)
         infos.append(info)
     matched = np.array([np.isfinite(x2) for x2, _ in positions])
     keep = matched.any(axis=0)

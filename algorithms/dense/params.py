@@ -60,7 +60,6 @@ class DenseParams:
             )
         if self.template < 5 or self.template % 2 == 0:
             raise InputError(f"the refinement template must be an odd number of at least 5 px, got {self.template}")
-        self.refinement().check()  # the wide template's rule
         if not self.max_shift > 0:
             raise InputError("the refinement's largest shift must be positive")
         if not self.max_residual >= 0:
@@ -68,6 +67,7 @@ class DenseParams:
                 "the variance test's bound must be 0 (off) or positive (about 1 is the image noise), "
                 f"got {self.max_residual}"
             )
+        self.refinement().check()  # the wide template's rule
         if not 0 < self.sgm.p1 < self.sgm.p2:
             raise InputError(f"the SGM penalties must satisfy 0 < P1 < P2, got {self.sgm.p1}, {self.sgm.p2}")
         return self

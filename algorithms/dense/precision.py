@@ -25,7 +25,7 @@ Its height sigma has two parts:
 F_2, F_3 and C are fitted on the simulated 3 km SPOT 5 triplet against its truth (least squares of dh^2 on
 the open classes, `studies/dense_precision.py`; figures and the check on a second scene in
 studies/README.md#dense_precision). They hold for LSM's default template (19 px) and the dense refinement's
-largest shift (1 px; fitted again when it grew from 0.5 px: F_2 1.6 and F_3 1.8 before).
+largest shift (DenseParams.max_shift; fitted again when it changes).
 
 Every other point (unrefined dense points, those with a position the variance test kept, region growing's,
 coarse-to-fine's, tie points) keeps the one a priori image sigma given, and no spread term."""

@@ -6,12 +6,11 @@ images, with LSM's robust weighting where `robust`: Tukey's biweight keeps the s
 building beside a field from pulling the field's match), starting at its dense position with the models'
 local affine at the middle height (per AFFINE_CELL). The LSM result replaces the dense position where it
 passes region growing's acceptance criteria (rho, error ellipse, iterations) and lies within `max_shift` px
-of the dense position (DenseParams: 1 px): a larger move means a template that straddles two surfaces (a forest
-edge, a building) or a semi-global mismatch, where LSM found another surface than the census window's. Moves of
-0.5-1 px are mostly LSM correcting the semi-global position on open ground (its sub-pixel fit, the epipolar
-resampling): on the simulated triplet, 1 px refines 83 % of the points where 0.5 px refined 55 %, and the DSM's
-open classes improve. The variance test below (off by default) is meant to find the templates that straddle
-heights. A refined point carries LSM's rho and error-ellipse semi-axes (its
+of the dense position: a larger move means a template that straddles two surfaces (a forest edge, a building) or
+a semi-global mismatch, where LSM found another surface than the census window's. Moves up to about 1 px are
+mostly LSM correcting the semi-global position on open ground (its sub-pixel fit, the epipolar resampling;
+studies/README.md#dense_variance_test measures the bound). The variance test below (off by default) is meant to
+find the templates that straddle heights. A refined point carries LSM's rho and error-ellipse semi-axes (its
 precision); the others keep NaN.
 
 A wider second window (DenseParams.wide_template; lsm.match_accepted's, with GrowParams.wide_beyond_shift off): a
@@ -40,10 +39,12 @@ leaves more: where q > VarianceTest.bound the node keeps its dense position, whi
 measured on the surface at the node. It is still a measured position (its rho is LSM's, its error-ellipse
 semi-axes NaN: not LSM's position; `kept` says which). This is Foerstner's test of the variance factor, node by
 node. s_t is taken over the default template also where the wide window matched (a weak texture: q is small
-there). Off by default (DenseParams.max_residual 0): it needs sigma_n to be the residual of one surface, which
-holds for white noise (the simulated scenes: open ground q ~ 1) but not for the real Pleiades images, whose
-restored, resampled pixels leave one surface a residual of several times Immerkaer's noise (q median about 5):
-there the test would keep nearly every position. Measured in studies/README.md#dense_variance_test.
+there), and on image 1 as given, not on the low-passed image LSM reads (the model of the study that chose it). A
+node whose s_t cannot be read (outside the window) has no q and keeps LSM's position. Off by default
+(DenseParams.max_residual 0): it needs sigma_n to be the residual of one surface, which holds for white noise
+(the simulated scenes) but not for restored and resampled real images, where one surface leaves a residual of
+several times Immerkaer's noise and the test would keep nearly every position. Measured in
+studies/README.md#dense_variance_test.
 
 Isolated refinements (`isolated`, on a lattice): the templates of neighbouring nodes overlap almost entirely,
 so where the surface lets LSM succeed it succeeds at most of them. A node LSM accepted while fewer than

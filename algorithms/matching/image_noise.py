@@ -13,7 +13,9 @@ Masked pixels (NaN) give no response.
 WINDOW px, all of a smaller image): one value per image, the same for every tile of it. It assumes that the
 noise does not depend on the grey level, which holds for the simulated images and roughly for the
 radiometrically corrected products (a photon noise term grows with the signal: a scene of very dark and very
-bright areas gets their mixture).
+bright areas gets their mixture). Flat fill that is not masked (a constant border without a nodata value) gives
+zero responses and lowers the estimate; restored and resampled pixels (real Pleiades products) carry correlated
+noise, of which the 3 x 3 kernel sees only the high-frequency part.
 
 Reference: J. Immerkaer, "Fast noise variance estimation", Computer Vision and Image Understanding 64(2),
 300-302, 1996."""

@@ -331,7 +331,9 @@ class MatchPoints(PushbroomAlgorithm):
             ),
             QgsProcessingParameterBoolean(
                 self.DENSE_MPGC,
-                translate("Pushbroom", "Dense: refine a triplet's three-ray points by MPGC (about 4x slower)"),
+                translate(
+                    "Pushbroom", "Dense: refine a triplet's three-ray points by MPGC (matching about 2.5x slower)"
+                ),
                 e.mpgc,
             ),
             Number(

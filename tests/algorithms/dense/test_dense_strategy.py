@@ -16,6 +16,8 @@ from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.matching.image_noise import image_noise
 from pushbroom.algorithms.matching.imagery import as_image
 from pushbroom.algorithms.matching.pair_geometry import ImagePair, local_affine
+from pushbroom.algorithms.matching.points import SEMI_GLOBAL, MultiPoints
+from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CLASSES, CROPS, FOREST
 from pushbroom.algorithms.surface import intersection
 from tests.helpers.feedback import Feedback
@@ -43,6 +45,45 @@ def test_a_wide_template_that_is_not_wider_and_odd_is_refused(wide):
     with pytest.raises(InputError, match="wide template"):
         DenseParams(wide_template=wide).check()
     assert DenseParams(wide_template=0).check().wide_template == 0
+
+
+@pytest.mark.parametrize("bound", [-1.0, float("nan")])
+def test_a_negative_variance_bound_is_refused(bound):
+    with pytest.raises(InputError, match="variance test"):
+        DenseParams(max_residual=bound).check()
+
+
+def test_the_variance_test_flags_the_points_it_keeps(small_scene, tmp_path):
+    """With the test on, the points with a kept position are flagged SEMI_GLOBAL, measured (rho) but without LSM's
+    ellipse there, out of the refined points, the tie points and MPGC's sample; without it, none is."""
+    names = NAMES[:2]
+    images = [small_scene["images"][n]["imagery"] for n in names]
+    models = [sensors.load(small_scene["images"][n]["metadata"]) for n in names]
+    runs = {}
+    for bound in (0.0, 2.0):
+        parts, _ = match_dense_tiles(
+            images,
+            models,
+            tmp_path / f"q{bound}",
+            params=DenseParams(tile=256, step=4, max_residual=bound),
+            height_range=Scene(small_scene).height_range,
+            execution=Execution("threads", 1),
+        )
+        runs[bound] = MultiPoints(
+            np.concatenate([p.points for p in parts]), np.concatenate([p.observations for p in parts])
+        )
+    assert not (runs[0.0].points["flags"] & SEMI_GLOBAL).any()
+    on = runs[2.0]
+    flagged = (on.points["flags"] & SEMI_GLOBAL) != 0
+    assert 0.05 < flagged.mean() < 0.5
+    assert np.array_equal(on.points["id"], runs[0.0].points["id"])
+    assert np.isfinite(on.points["rho_min"][flagged]).all() and not refined_dense(on.points)[flagged].any()
+    obs = on.observations[
+        (on.observations["image_id"] == 2) & np.isin(on.observations["point_id"], on.points["id"][flagged])
+    ]
+    assert np.isfinite(obs["rho"]).all() and np.isnan(obs["semi_major"]).all()
+    tie = select_tie_points(on, cell=50)
+    assert len(tie) and not (tie.points["flags"] & SEMI_GLOBAL).any()
 
 
 @pytest.fixture(scope="module")

@@ -4,19 +4,19 @@ pair, each over several tiles. A refactoring of the matching must leave them as 
 must rewrite the record on purpose, saying why in its commit:
 `PUSHBROOM_RECORD_GOLDEN=1 pytest -p no:xdist tests/algorithms/steps/test_matching_golden.py`.
 
-Byte for byte on the machine the record was made on: numba compiles the kernels for the host CPU, and OpenBLAS and
-numpy pick their kernels by CPU, so another CPU (or another numba or numpy) changes the last bits of some values.
-The record holds, per case:
-- the counts of points and observations: within COUNT_TOLERANCE of them on every machine (the dense triplet's
-  differ by 2 of 32 523 points between an Intel and an AMD CPU: a node's fate at a threshold);
-- a summary of every numeric field of both arrays (the count of its finite values, their mean, standard deviation,
-  mean weighted by the point id, which a reordering changes, and mean fractional part, which a sub-pixel shift
-  changes): on every machine, the count within COUNT_TOLERANCE of itself, the moments within TOLERANCE of the field's
-  scale, the fractional part within TOLERANCE. A different CPU changes the last bits, and with them, now and then,
-  a point's fate at a threshold (a few in ten thousand moves the means by about 1e-5 of their scale); a change of
-  the science moves them by far more;
-- the SHA-256 of both arrays' bytes under the fingerprint of the machine that recorded them (machine_fingerprint):
-  exact where the fingerprint is the same. Elsewhere the figures say that only the summary was compared."""
+Byte for byte on the machine the record was made on only: another CPU changes the last bits of some values (numba
+compiles for the host CPU; numpy, OpenBLAS and the semi-global matcher's C++ may pick CPU-specific kernels; which of
+them changed the bytes between the Intel and the AMD machine of 2026-11-29 is not known: neither NUMBA_CPU_NAME nor
+OPENBLAS_CORETYPE did), and with them, now and then, a point's fate at a threshold. The record holds, per case:
+- the counts of points and observations, within COUNT_TOLERANCE of them on every machine (the dense triplet's
+  differed by 2 of 32 523 points between the two machines);
+- a summary of every numeric field of both arrays but the ids: the count of its finite values, their mean,
+  standard deviation, mean weighted by the point id (values moved to other points change it) and mean fractional
+  part (a sub-pixel shift changes it), on every machine within the tolerances of assert_close_summaries, which allow
+  a few points' fates. A change of the science that shifts, drops or moves points moves them by far more;
+  zero-mean noise added to every position does not, which only the bytes catch;
+- the SHA-256 of both arrays' bytes under the fingerprint of the machine that recorded them (machine_fingerprint),
+  compared where the fingerprint is the same. Elsewhere the figures say that only the summaries were compared."""
 
 import hashlib
 import json
@@ -36,6 +36,8 @@ from pushbroom.algorithms.simulation import SceneConfig
 from pushbroom.algorithms.steps.block_matching import MatchParams, match_block_points
 
 RECORD = os.path.join(os.path.dirname(__file__), "..", "..", "golden", "matching.json")
+#: the id fields, numbered 1 ... n (their counts are compared, not their moments)
+IDS = ("id", "point_id")
 #: tolerance of the summaries, and of the counts (relative; module docstring)
 TOLERANCE, COUNT_TOLERANCE = 1e-4, 5e-4
 NAMES = {"triplet": ("HRG", "HRS1", "HRS2"), "pair": ("HRG", "HRS1")}
@@ -65,19 +67,24 @@ def blocks(simulated, tmp_path_factory):
 
 
 def machine_fingerprint():
-    """What decides the last bits of the kernels' results: the CPU numba compiles for (the host as LLVM names it and
-    its features, or NUMBA_CPU_NAME and NUMBA_CPU_FEATURES), numba's and numpy's versions (a short SHA-256)."""
+    """What decides the last bits of the results: the host CPU as LLVM names it and its features, the CPU numba
+    compiles for where NUMBA_CPU_NAME and NUMBA_CPU_FEATURES say, numba's, numpy's and scipy's versions (a short
+    SHA-256)."""
     import llvmlite.binding
     import numba
     import numpy
+    import scipy
     from numba.core import config
 
     text = " ".join(
         [
-            config.CPU_NAME or llvmlite.binding.get_host_cpu_name(),
-            config.CPU_FEATURES or ("" if config.CPU_NAME else llvmlite.binding.get_host_cpu_features().flatten()),
+            llvmlite.binding.get_host_cpu_name(),
+            llvmlite.binding.get_host_cpu_features().flatten(),
+            str(config.CPU_NAME),
+            str(config.CPU_FEATURES),
             numba.__version__,
             numpy.__version__,
+            scipy.__version__,
         ]
     )
     return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -85,9 +92,12 @@ def machine_fingerprint():
 
 def summary(a, ids):
     """Per numeric field of the structured array `a` (rows of the point `ids`): [count of finite values, mean, standard
-    deviation, mean weighted by the id, mean fractional part]; None for the moments where none is finite."""
+    deviation, mean weighted by the id, mean fractional part]; None for the moments where none is finite. The ids
+    themselves (1 ... n) have no moments: one point more or less shifts them all."""
     out = {}
     for name in a.dtype.names:
+        if name in IDS:
+            continue
         v = a[name].astype(float)
         ok = np.isfinite(v)
         if not ok.any():
@@ -120,16 +130,21 @@ def digest(block):
 
 
 def assert_close_summaries(found, recorded, case):
+    """Each field's summary within its tolerance (module docstring): the count within COUNT_TOLERANCE; the moments
+    within TOLERANCE of the field's scale plus what `flips` points' fates can move them (each at most about 3 standard
+    deviations over n); the fractional part within TOLERANCE plus flips / n."""
     for array, fields in recorded.items():
         for name, want in fields.items():
             got = found[array][name]
             message = f"{case}: {array}.{name} summary {got}, recorded {want}"
-            assert abs(got[0] - want[0]) <= COUNT_TOLERANCE * want[0], message
+            n = want[0]
+            assert abs(got[0] - n) <= COUNT_TOLERANCE * n, message
             if want[1] is None:
                 continue
-            scale = max(abs(want[1]), want[2])
-            assert all(abs(g - w) <= TOLERANCE * scale for g, w in zip(got[1:4], want[1:4])), message
-            assert abs(got[4] - want[4]) <= TOLERANCE, message
+            flips = max(COUNT_TOLERANCE * n, 2.0)
+            moment = TOLERANCE * max(abs(want[1]), want[2]) + 3.0 * want[2] * flips / n
+            assert all(abs(g - w) <= moment for g, w in zip(got[1:4], want[1:4])), message
+            assert abs(got[4] - want[4]) <= TOLERANCE + flips / n, message
 
 
 @pytest.mark.slow
