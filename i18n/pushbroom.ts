@@ -729,12 +729,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="339"/>
+        <location filename="../plugin/algorithms/match_points.py" line="335"/>
         <source>Dense: SGM penalty P1 (a disparity change of 1 px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="346"/>
+        <location filename="../plugin/algorithms/match_points.py" line="342"/>
         <source>Dense: SGM penalty P2 (a larger change)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -749,7 +749,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="444"/>
+        <location filename="../plugin/algorithms/match_points.py" line="440"/>
         <source>Mass points</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1129,8 +1129,13 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="332"/>
+        <location filename="../plugin/algorithms/match_points.py" line="328"/>
         <source>Dense: refine a triplet&apos;s three-ray points by MPGC (matching about 2.5x slower)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/match_points.py" line="321"/>
+        <source>Dense: variance test, the largest LSM residual over the image noise (0: off)</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

@@ -320,11 +320,7 @@ class MatchPoints(PushbroomAlgorithm):
             ),
             Number(
                 self.DENSE_MAX_RESIDUAL,
-                translate(
-                    "Pushbroom",
-                    "Dense: keep the semi-global position where LSM's template residual exceeds the image noise "
-                    "by this factor (0: off)",
-                ),
+                translate("Pushbroom", "Dense: variance test, the largest LSM residual over the image noise (0: off)"),
                 Number.Double,
                 e.max_residual,
                 minValue=0.0,
