@@ -84,7 +84,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="141"/>
+        <location filename="../plugin/algorithms/match_points.py" line="140"/>
         <source>CSV files (*.csv)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -689,72 +689,72 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="108"/>
+        <location filename="../plugin/algorithms/match_points.py" line="107"/>
         <source>Matching strategy</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="261"/>
+        <location filename="../plugin/algorithms/match_points.py" line="260"/>
         <source>Coarse-to-fine: grid point spacing at full resolution (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="268"/>
+        <location filename="../plugin/algorithms/match_points.py" line="267"/>
         <source>Coarse-to-fine: minimum correlation coefficient at full resolution</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="276"/>
+        <location filename="../plugin/algorithms/match_points.py" line="275"/>
         <source>Coarse-to-fine: tile size of the reference image (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="283"/>
+        <location filename="../plugin/algorithms/match_points.py" line="282"/>
         <source>Coarse-to-fine: matched edges as extra points and breaklines</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="294"/>
+        <location filename="../plugin/algorithms/match_points.py" line="293"/>
         <source>Dense: tile size of the reference image (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="302"/>
+        <location filename="../plugin/algorithms/match_points.py" line="301"/>
         <source>Dense: a point every ... px of the reference image</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="309"/>
+        <location filename="../plugin/algorithms/match_points.py" line="308"/>
         <source>Dense: refine the positions by LSM in the original images (TEMPLATE px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="335"/>
+        <location filename="../plugin/algorithms/match_points.py" line="327"/>
         <source>Dense: SGM penalty P1 (a disparity change of 1 px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="342"/>
+        <location filename="../plugin/algorithms/match_points.py" line="334"/>
         <source>Dense: SGM penalty P2 (a larger change)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="132"/>
+        <location filename="../plugin/algorithms/match_points.py" line="131"/>
         <source>mass points</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="141"/>
+        <location filename="../plugin/algorithms/match_points.py" line="140"/>
         <source>Summary per point group (CSV)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="440"/>
+        <location filename="../plugin/algorithms/match_points.py" line="431"/>
         <source>Mass points</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="159"/>
+        <location filename="../plugin/algorithms/match_points.py" line="158"/>
         <source>Mass point folder (index and parts)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1044,98 +1044,93 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="116"/>
+        <location filename="../plugin/algorithms/match_points.py" line="115"/>
         <source>Images: reference (nadir), forward[, backward]; empty: all</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="124"/>
+        <location filename="../plugin/algorithms/match_points.py" line="123"/>
         <source>Lowest ellipsoidal terrain height (m; empty: the block&apos;s)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="124"/>
+        <location filename="../plugin/algorithms/match_points.py" line="123"/>
         <source>Highest ellipsoidal terrain height (m; empty: the block&apos;s)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="167"/>
+        <location filename="../plugin/algorithms/match_points.py" line="166"/>
         <source>Region growing: seeds</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="173"/>
+        <location filename="../plugin/algorithms/match_points.py" line="172"/>
         <source>LSM template size (px, odd; region growing, dense)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="180"/>
+        <location filename="../plugin/algorithms/match_points.py" line="179"/>
         <source>Region growing: STEP, the distance of the neighbours (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="189"/>
+        <location filename="../plugin/algorithms/match_points.py" line="188"/>
         <source>Region growing: a wider template where the first fails (px; 0: off)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="196"/>
+        <location filename="../plugin/algorithms/match_points.py" line="195"/>
         <source>Region growing: minimum correlation coefficient</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="204"/>
+        <location filename="../plugin/algorithms/match_points.py" line="203"/>
         <source>Region growing: largest semi-major axis of the error ellipse (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="211"/>
+        <location filename="../plugin/algorithms/match_points.py" line="210"/>
         <source>Region growing: largest shift from the initial values (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="218"/>
+        <location filename="../plugin/algorithms/match_points.py" line="217"/>
         <source>Region growing: largest number of LSM iterations</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="225"/>
+        <location filename="../plugin/algorithms/match_points.py" line="224"/>
         <source>Region growing: tile size of the reference image (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="232"/>
+        <location filename="../plugin/algorithms/match_points.py" line="231"/>
         <source>Region growing: group 3 consistency test, k robust sigma</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="239"/>
+        <location filename="../plugin/algorithms/match_points.py" line="238"/>
         <source>Region growing: grow combination (b) where (a) found no points</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="244"/>
+        <location filename="../plugin/algorithms/match_points.py" line="243"/>
         <source>Region growing: refine the group 3 points by MPGC</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="249"/>
+        <location filename="../plugin/algorithms/match_points.py" line="248"/>
         <source>Region growing: MPGC with support weights (for DEMs)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="314"/>
+        <location filename="../plugin/algorithms/match_points.py" line="313"/>
         <source>Dense: a wider LSM template where TEMPLATE fails (px, odd; 0: off)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/match_points.py" line="328"/>
+        <location filename="../plugin/algorithms/match_points.py" line="320"/>
         <source>Dense: refine a triplet&apos;s three-ray points by MPGC (matching about 2.5x slower)</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../plugin/algorithms/match_points.py" line="321"/>
-        <source>Dense: variance test, the largest LSM residual over the image noise (0: off)</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

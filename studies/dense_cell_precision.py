@@ -15,55 +15,34 @@ import tempfile
 
 import numpy as np
 
-from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
-from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.dense import precision
-from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.sigmas import IMAGE_SIGMA
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
-from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, CellSettings, cells_on_grid
 from pushbroom.algorithms.surface.local_spread import local_metres, local_spread
-from studies.sim_dense import evaluation_grid, rms
-from tests.helpers.dsm_comparison import CLASSES, NAMES, Truth
+from studies.sim_dense import dense_points, evaluation_grid, intersect_truth, rms
+from tests.helpers.dsm_comparison import CLASSES, Truth
 
 
 def cloud(paths: dict, truth: Truth) -> dict:
     """The dense points intersected with the truth: UTM x, y, h, sigma_h (the product's) and cell_dem's tier."""
-    images = [paths["images"][n]["imagery"] for n in NAMES]
-    models = [sensors.load(paths["images"][n]["metadata"]) for n in NAMES]
-    lo, hi = read_dem(paths["dsm"]).height_range
-    parts, _ = match_dense_tiles(
-        images,
-        models,
-        tempfile.mkdtemp() + "/dense",
-        params=DenseParams(tile=256),
-        height_range=(lo - 100.0, hi + 100.0),
-        execution=Execution("threads", 2),
-    )
-    points = np.concatenate([p.points for p in parts])
-    obs = np.concatenate([p.observations for p in parts])
-    sigma = precision.image_sigmas(points, obs, IMAGE_SIGMA)
-    res = intersection.intersect(
-        truth.models,
-        intersection.Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma),
-        h0=0.5 * (lo + hi),
-    )
+    multi, _ = dense_points(paths, DenseParams(tile=256))
+    points, obs = multi.points, multi.observations
+    res = intersect_truth(multi, truth, precision.image_sigmas(points, obs, IMAGE_SIGMA))
     ok = res.ok
     slot = np.searchsorted(points["id"], res.point)
     refined = precision.refined_dense(points)[slot] & ok
-    measured = np.isfinite(points["rho_min"][slot])
     sigma_h = res.sigma[:, 2].copy()
     x, y = local_metres(res.lon, res.lat, (float(np.mean(res.lon[ok])), float(np.mean(res.lat[ok]))))
     cols, rows = truth.models[1].size
+    lo, hi = truth.dsm.height_range
     radius = precision.spread_radius(truth.models[1], cols / 2, rows / 2, 0.5 * (lo + hi))
     spread = local_spread(x[refined], y[refined], res.h[refined], x[refined], y[refined], radius)
     sigma_h[refined] = precision.with_spread(sigma_h[refined], spread)
     ex, ey = reproject(res.lon, res.lat, wgs84(), truth.srs)
-    tier = np.where(~measured, UNREFINED, np.where(res.rays == 2, TWO_RAYS, THREE_RAYS))
+    tier = np.where(~np.isfinite(points["rho_min"][slot]), UNREFINED, np.where(res.rays == 2, TWO_RAYS, THREE_RAYS))
     return {"x": ex[ok], "y": ey[ok], "z": res.h[ok], "sigma": sigma_h[ok], "tier": tier[ok]}
 
 

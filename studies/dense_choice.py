@@ -36,6 +36,22 @@ THRESHOLDS = (1.5, 2.0, 3.0, 4.0)
 LAPLACE = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], float)
 
 
+def noise_sigma(image: np.ndarray) -> float:
+    """The image's noise (DN): the robust form of Immerkaer's estimator (module docstring)."""
+    laplace = ndimage.convolve(image, LAPLACE)[1:-1, 1:-1]
+    return float(1.4826 * np.median(np.abs(laplace - np.median(laplace))) / 6.0)
+
+
+def residual_q(image: np.ndarray, col: np.ndarray, row: np.ndarray, rho: np.ndarray, sigma_n: float) -> np.ndarray:
+    """q = s_t sqrt(1 - rho^2) / sigma_n at the image positions (col, row) (module docstring; s_t over the 19 px
+    window of `image` around each position's pixel); NaN where rho is."""
+    mean = ndimage.uniform_filter(image, 19)
+    s_t = np.sqrt(np.maximum(ndimage.uniform_filter(image * image, 19) - mean * mean, 0.0))
+    r = np.clip(np.floor(row).astype(int), 0, image.shape[0] - 1)
+    c = np.clip(np.floor(col).astype(int), 0, image.shape[1] - 1)
+    return s_t[r, c] * np.sqrt(np.maximum(1.0 - np.asarray(rho, float) ** 2, 0.0)) / sigma_n
+
+
 def dense(paths, truth, lsm):
     """Per point of the dense matching (refinement `lsm`): id, ok, x, y, z, rays, rho_min, HRG col/row."""
     cloud = truth_cloud(paths, truth, DenseParams(tile=256, lsm=lsm, **BEFORE))
@@ -85,13 +101,8 @@ def main():
     row("semi-global everywhere", np.ones(ok.size, bool))
     row("semi-global on forest and city (true class)", np.isin(point_class, (FOREST, CITY)))
     image = gdal.Open(str(paths["images"]["HRG"]["imagery"])).ReadAsArray().astype(float)
-    laplace = ndimage.convolve(image, LAPLACE)[1:-1, 1:-1]
-    sigma_n = 1.4826 * np.median(np.abs(laplace - np.median(laplace))) / 6.0
-    mean = ndimage.uniform_filter(image, 19)
-    s_t = np.sqrt(np.maximum(ndimage.uniform_filter(image * image, 19) - mean * mean, 0.0))
-    r = np.clip(np.floor(lsm["row"]).astype(int), 0, image.shape[0] - 1)
-    c = np.clip(np.floor(lsm["col"]).astype(int), 0, image.shape[1] - 1)
-    q = s_t[r, c] * np.sqrt(np.maximum(1.0 - lsm["rho"] ** 2, 0.0)) / sigma_n
+    sigma_n = noise_sigma(image)
+    q = residual_q(image, lsm["col"], lsm["row"], lsm["rho"], sigma_n)
     print(
         f"HRG noise sigma_n {sigma_n:.2f} DN; q of the refined points by class, median (10th / 90th percentile): "
         + ", ".join(

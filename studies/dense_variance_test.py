@@ -1,36 +1,40 @@
-"""Issue 39: the dense refinement's largest shift, and the variance test that keeps a semi-global position where
-LSM's affine does not fit one surface (dense/refine.py). How do they change the DSM, class by class, and how many
-cells do they measure?
+"""Issue 39: the dense refinement's largest shift, and a variance test that would keep a semi-global position where
+LSM's affine does not fit one surface. How do they change the DSM, class by class, and how many cells do they
+measure? And does the test's noise model hold on real images?
 
-On the 3 km simulated SPOT 5 triplet (HRG, HRS1, HRS2; the supplied models, the DSM's height range +- 100 m),
-dense matching with the default DenseParams but 256 px tiles and, per row, the refinement's largest shift and the
-variance test's bound Q (DenseParams.max_shift, max_residual; 0: no test); every point intersected with the TRUE
-models (the error is the matching's alone), and the dense pipeline model's 10 m DSM of them (studies/sim_dense.py:
-cells, FALLBACK off, RADIUS 1, FILL 10) against the true DSM at the evaluation cells, by class
-(tests/helpers/dsm_comparison.py). Per row: the points whose every position is LSM's, those with a position the
-test kept (flag SEMI_GLOBAL), the non-water cells from their own points and filled, the matching's seconds (2
-threads), and the RMS by class.
+The test (studies/dense_choice.py): q = s_t sqrt(1 - rho^2) / sigma_n, LSM's template residual after its
+radiometric fit over the image noise (Immerkaer's robust estimator); one surface under an affine leaves about the
+noise, a template over several heights more. Where q > Q, a point takes its semi-global position, and still counts
+as measured.
+
+On the 3 km simulated SPOT 5 triplet (HRG, HRS1, HRS2; the supplied models, the DSM's height range +- 100 m), dense
+matching with the default DenseParams but 256 px tiles, at the largest shifts of ROWS, and once without the
+refinement (every position the semi-global one); every point intersected with the TRUE models (the error is the
+matching's alone), and the dense pipeline model's 10 m DSM of them (studies/sim_dense.py: cells, FALLBACK off,
+RADIUS 1, FILL 10) against the true DSM at the evaluation cells, by class (tests/helpers/dsm_comparison.py). Per
+row: the points whose positions are all LSM's, those the test gave their semi-global positions, the non-water cells
+from their own points and filled, the matching's seconds (2 threads), and the RMS by class.
 
 Then the real Pleiades images (the triplet's img_02 -> img_01 and the Ventoux pair, ../shared/data): the central
 512 px tile of the first image, dense positions refined by LSM (DenseParams.refinement), and q of the accepted
-nodes against the image noise matching.image_noise estimates: is one surface's residual the noise there too?"""
+nodes: is one surface's residual the noise there too?"""
 
+import dataclasses
 import tempfile
 from pathlib import Path
 
 import numpy as np
+from osgeo import gdal
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dense.pair_tile import match_pair_tile
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.precision import refined_dense
-from pushbroom.algorithms.dense.refine import Conjugates, refine_positions, residual_ratio
-from pushbroom.algorithms.matching.image_noise import image_noise
+from pushbroom.algorithms.dense.refine import Conjugates, refine_positions
 from pushbroom.algorithms.matching.imagery import as_image
 from pushbroom.algorithms.matching.pair_geometry import ImagePair
-from pushbroom.algorithms.matching.points import SEMI_GLOBAL
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
-from studies.sim_dense import model_dem, rms, truth_cloud
+from studies.dense_choice import noise_sigma, residual_q
+from studies.sim_dense import TruthCloud, model_dem, rms, truth_cloud
 from tests.helpers.dsm_comparison import CLASSES, Truth
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -38,41 +42,26 @@ REAL = {
     "Pleiades triplet, img_02 -> img_01": ("pleiades_triplet/img_02.tif", "pleiades_triplet/img_01.tif"),
     "Ventoux pair": ("pleiades_pair_ventoux/left_image.tif", "pleiades_pair_ventoux/right_image.tif"),
 }
-#: (largest shift px, Q) per row
-ROWS = ((0.5, 0.0), (1.0, 0.0), (1.0, 1.5), (1.0, 2.0), (1.0, 2.5), (1.0, 3.0))
+#: the refinement's largest shifts (px), and the test's bounds Q at the last of them
+SHIFTS, BOUNDS = (0.5, 1.0), (1.5, 2.0, 2.5, 3.0)
 
 
-def main() -> None:
-    real_residuals()
-    paths = simulate_scene(SceneConfig.small(), tempfile.mkdtemp() + "/scene")
-    truth = Truth(paths)
-    zones = {name: truth.cls == c for c, name in CLASSES.items()}
-    zones.update({"building edges": truth.edge, "open near forest, city or water": truth.near})
-    land = ~truth.water
-    print(
-        "| largest shift (px) | Q | LSM's points | kept semi-global | own cells | filled cells | matching (s) | "
-        + " | ".join(zones)
-        + " |\n|"
-        + "---|" * (7 + len(zones))
+def with_semi_global(cloud: TruthCloud, semi_global: TruthCloud, where: np.ndarray) -> TruthCloud:
+    """`cloud` with the intersected positions of `semi_global` (the same points) where `where`; their rho stays
+    LSM's (measured)."""
+    a, b = cloud.result, semi_global.result
+    assert np.array_equal(a.point, b.point)
+    return cloud._replace(
+        result=dataclasses.replace(a, **{k: np.where(where, getattr(b, k), getattr(a, k)) for k in ("lon", "lat", "h")})
     )
-    own = []
-    for shift, bound in ROWS:
-        cloud = truth_cloud(paths, truth, DenseParams(tile=256, max_shift=shift, max_residual=bound))
-        points = cloud.points.points
-        dh, mask = model_dem(cloud, truth, tempfile.mkdtemp())
-        print(
-            f"| {shift:g} | {bound:g} | {refined_dense(points).mean():.1%} | "
-            f"{((points['flags'] & SEMI_GLOBAL) != 0).mean():.1%} | {np.mean(mask[land] == 0):.1%} | "
-            f"{np.mean(mask[land] == 1):.1%} | {cloud.seconds:.0f} | "
-            + " | ".join(f"{rms(dh[m]):.2f}" for m in zones.values())
-            + " |",
-            flush=True,
-        )
-        own.append(
-            f"| {shift:g} | {bound:g} | " + " | ".join(f"{np.mean(mask[m] == 0):.0%}" for m in zones.values()) + " |"
-        )
-    print("\ncells from their own points, by class:\n| largest shift (px) | Q | " + " | ".join(zones) + " |")
-    print("|" + "---|" * (2 + len(zones)) + "\n" + "\n".join(own))
+
+
+def residuals(cloud: TruthCloud, image: np.ndarray, sigma_n: float) -> np.ndarray:
+    """q of each intersected point of `cloud` at its reference image position."""
+    obs = cloud.points.observations
+    ref = obs[obs["image_id"] == 1]
+    ref = ref[np.searchsorted(ref["point_id"], cloud.result.point)]
+    return residual_q(image, ref["col"], ref["row"], cloud.rho(), sigma_n)
 
 
 def real_residuals() -> None:
@@ -84,7 +73,8 @@ def real_residuals() -> None:
             continue
         models = [sensors.load(p) for p in paths]
         images = [as_image(p, saturation=True) for p in paths]
-        noise = image_noise(images[0])
+        array = gdal.Open(str(paths[0])).ReadAsArray().astype(float)
+        sigma_n = noise_sigma(array)
         cols, rows = models[0].size
         box = (cols // 2 - 256, rows // 2 - 256, cols // 2 + 256, rows // 2 + 256)
         heights = models[0].height_range
@@ -92,12 +82,51 @@ def real_residuals() -> None:
         pair = ImagePair(images[0], images[1], models[0], models[1])
         r = refine_positions(pair, Conjugates(x1, y1, x2, y2), info["grid"].heights[::2], DenseParams().refinement())
         ok = np.isfinite(r.rho)
-        q = residual_ratio(images[0], x1[ok], y1[ok], r.rho[ok], DenseParams().template, noise)
+        q = residual_q(array, x1[ok], y1[ok], r.rho[ok], sigma_n)
         p10, p50, p90 = np.nanpercentile(q, [10, 50, 90])
         print(
-            f"{label}: image noise {noise:.2f} DN; q of the {ok.sum()} accepted nodes, 10th / 50th / 90th percentile "
+            f"{label}: image noise {sigma_n:.2f} DN; q of the {ok.sum()} accepted nodes, 10th / 50th / 90th percentile "
             f"{p10:.2f} / {p50:.2f} / {p90:.2f}; above 2: {np.mean(q > 2):.1%}"
         )
+
+
+def main() -> None:
+    real_residuals()
+    paths = simulate_scene(SceneConfig.small(), tempfile.mkdtemp() + "/scene")
+    truth = Truth(paths)
+    zones = {name: truth.cls == c for c, name in CLASSES.items()}
+    zones.update({"building edges": truth.edge, "open near forest, city or water": truth.near})
+    land = ~truth.water
+    image = gdal.Open(str(paths["images"]["HRG"]["imagery"])).ReadAsArray().astype(float)
+    sigma_n = noise_sigma(image)
+    semi_global = truth_cloud(paths, truth, DenseParams(tile=256, lsm=False))
+    print(
+        "| largest shift (px) | Q | LSM's points | semi-global by the test | own cells | filled cells | matching (s) | "
+        + " | ".join(zones)
+        + " |\n|"
+        + "---|" * (7 + len(zones))
+    )
+    own = []
+    for shift in SHIFTS:
+        cloud = truth_cloud(paths, truth, DenseParams(tile=256, max_shift=shift))
+        q = residuals(cloud, image, sigma_n)
+        for bound in (0.0, *BOUNDS) if shift == SHIFTS[-1] else (0.0,):
+            kept = np.isfinite(q) & (q > bound) if bound else np.zeros(q.size, bool)
+            dh, mask = model_dem(with_semi_global(cloud, semi_global, kept), truth, tempfile.mkdtemp())
+            print(
+                f"| {shift:g} | {bound or 'off'} | {np.mean(np.isfinite(cloud.rho()) & ~kept):.1%} | "
+                f"{kept.mean():.1%} | "
+                f"{np.mean(mask[land] == 0):.1%} | {np.mean(mask[land] == 1):.1%} | {cloud.seconds:.0f} | "
+                + " | ".join(f"{rms(dh[m]):.2f}" for m in zones.values())
+                + " |",
+                flush=True,
+            )
+            if not bound:
+                own.append(
+                    f"| {shift:g} | " + " | ".join(f"{np.mean(mask[m] == 0):.0%}" for m in zones.values()) + " |"
+                )
+    print("\ncells from their own points, by class:\n| largest shift (px) | " + " | ".join(zones) + " |")
+    print("|" + "---|" * (1 + len(zones)) + "\n" + "\n".join(own))
 
 
 if __name__ == "__main__":

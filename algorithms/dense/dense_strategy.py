@@ -13,13 +13,10 @@ The tiles are the reference image's (tiling.tile_grid of DenseParams.tile px).
 
 Observations: the reference image's position is the lattice node (rho NaN, axes 0: the template, as region
 growing's); a matched image's position carries LSM's rho and error-ellipse semi-axes where the refinement
-(refine.py) replaced it, NaN where it stayed the semi-global matcher's; where the variance test kept the
-semi-global position, LSM's rho with NaN semi-axes, and the point is flagged SEMI_GLOBAL (measured, so rho_min is
-finite, but neither a tie point nor in MPGC's bias sample). A point's rho_a / rho_b are its pairs'
-LSM rho; rho_min the smaller, NaN where one of its matched positions is unrefined (a point is measured only if all
-of them are: the DEM's tiers and the tie point selection read it; a SEMI_GLOBAL point is measured for the DEM's
-tiers, but its positions are not LSM's: precision.refined_dense and the tie points leave it out); flags DENSE. A
-tile without texture gives no points and a warning, not an error.
+(refine.py) replaced it, NaN where it stayed the semi-global matcher's. A point's rho_a / rho_b are its pairs'
+LSM rho; rho_min the smaller, NaN where one of its matched positions is unrefined (a point is "refined" only
+if all of them are: the DEM's tiers and the tie point selection read it); flags DENSE. A tile without texture
+gives no points and a warning, not an error.
 
 The images are opened once, masking their nodata (the band's value and GDAL mask) and saturated pixels
 (matching.imagery.Image, saturation=True): a node whose census window or LSM template reaches a masked pixel,
@@ -38,12 +35,11 @@ import numpy as np
 from .. import progress
 from ..execution import Execution
 from ..height_range import GivenHeights
-from ..matching.image_noise import image_noise
 from ..matching.imagery import as_image
 from ..matching.match_stats import MatchStats
 from ..matching.pair_geometry import ImagePair
 from ..matching.params import GrowParams
-from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, REFINED, SEMI_GLOBAL, MultiPoints
+from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, REFINED, MultiPoints
 from ..matching.refinement import MIN_POINTS, refine_three_ray
 from ..matching.stereo_set import StereoSet
 from ..matching.strategy import MatchingStrategy, RoundResults, Rounds, TilePlan, register
@@ -53,20 +49,18 @@ from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .pair_tile import match_pair_tile
 from .params import DenseParams
-from .refine import Conjugates, VarianceTest, isolated, refine_positions
+from .refine import Conjugates, isolated, refine_positions
 
 #: a tile of the reference image: (x0, y0, x1, y1) px, tiling.tile_grid's
 Box = tuple[int, int, int, int]
 
 
 class DenseJob(NamedTuple):
-    """What every tile shares: the set (its images opened masking saturated pixels), the settings, the reference
-    image's noise sigma (DN; matching.image_noise; NaN: no variance test), and with DenseParams.mpgc the scene's
-    orientation bias (tiled_rounds.scene_bias) once fitted."""
+    """What every tile shares: the set (its images opened masking saturated pixels), the settings, and with
+    DenseParams.mpgc the scene's orientation bias (tiled_rounds.scene_bias) once fitted."""
 
     stereo: StereoSet
     params: DenseParams
-    noise: float = float("nan")
     bias: tuple[Any, float] | None = None
 
 
@@ -76,7 +70,6 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
     n = len(s)
     positions, quality, infos = [], [], []
     p = job.params
-    kept = []  # per pair: the positions the variance test kept at the semi-global matcher's
     for k in range(1, n):
         check_cancel()  # between the stages (execution: a cancel reaches a running tile)
         x1, y1, x2, y2, info = match_pair_tile(
@@ -91,18 +84,16 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
                 Conjugates(x1, y1, x2, y2),
                 info["grid"].heights[::2],
                 p.refinement(),
-                VarianceTest(job.noise, p.max_residual) if p.max_residual > 0 else None,
             )
-            lone = isolated(x1, y1, np.isfinite(r.rho), p.step)  # they keep their dense positions
             rx, ry, q = r.x2, r.y2, (r.rho, r.semi_major, r.semi_minor)
+            lone = isolated(x1, y1, np.isfinite(r.rho), p.step)  # they keep their dense positions
             rx[lone], ry[lone] = x2[lone], y2[lone]
             for v in q:
                 v[lone] = np.nan
-            kept.append(r.kept & ~lone)
             x2, y2 = rx, ry
         positions.append((x2, y2))
         quality.append(q)
-        info["refined"] = int(np.isfinite(q[1]).sum())  # LSM's positions (not those the variance test kept)
+        info["refined"] = int(np.isfinite(q[0]).sum())
         infos.append(info)
     matched = np.array([np.isfinite(x2) for x2, _ in positions])
     keep = matched.any(axis=0)
@@ -115,8 +106,6 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
     for k, bit in zip(range(n - 1), (COMB_A, COMB_B)):
         flags |= np.where(matched[k, keep], bit, 0).astype(np.uint8)
     points["flags"] = flags | DENSE
-    if kept:
-        points["flags"] |= np.where(np.any(kept, axis=0)[keep], SEMI_GLOBAL, 0).astype(np.uint8)
     for name in ("rho_c", "dx", "dy"):
         points[name] = np.nan
     points["rho_a"] = quality[0][0][keep]
@@ -161,8 +150,7 @@ class Dense(MatchingStrategy):
         )
         mpgc = settings.mpgc and s.triplet
         quotas = sample_quotas([(x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in tiles]) if mpgc else [0] * len(tiles)
-        noise = image_noise(s.images[0]) if settings.lsm and settings.max_residual > 0 else float("nan")
-        return TilePlan(DenseJob(s, settings, noise), tiles, quotas)
+        return TilePlan(DenseJob(s, settings), tiles, quotas)
 
     @staticmethod
     def match_tile(job: DenseJob, index: int, box: Box, out: str, quota: int) -> dict[str, Any]:
@@ -170,8 +158,7 @@ class Dense(MatchingStrategy):
         of its refined three-ray points (the orientation bias's sample)."""
         multi, infos = tile_points(job, box)
         save_work(out, multi)
-        p = multi.points
-        three = np.flatnonzero((p["group"] == 2) & np.isfinite(p["rho_min"]) & (p["flags"] & SEMI_GLOBAL == 0))
+        three = np.flatnonzero((multi.points["group"] == 2) & np.isfinite(multi.points["rho_min"]))
         return {
             "points": len(multi),
             "group_2": int((multi.points["group"] == 2).sum()),

@@ -14,9 +14,8 @@ class DenseParams:
     of the four disparities a lattice node is interpolated from; sgm: census and SGM settings; lsm: LSM
     refinement in the original images (refine.py) with a `template` px window, kept within `max_shift` px
     of the dense position, with LSM's robust weighting where `robust`, a node the template fails at tried again
-    with a `wide_template` px window (0: none), and an accepted position kept only where the variance test's q is
-    at most `max_residual` (refine.py; 0, the default: no test); mpgc: a triplet's three-ray points refined again
-    by MPGC in both search images at once (dense_strategy.py)."""
+    with a `wide_template` px window (0: none); mpgc: a triplet's three-ray points refined again by MPGC in both
+    search images at once (dense_strategy.py)."""
 
     tile: int = 512
     step: int = 1
@@ -28,7 +27,6 @@ class DenseParams:
     wide_template: int = 31
     max_shift: float = 1.0
     robust: bool = True
-    max_residual: float = 0.0
     mpgc: bool = False
 
     def refinement(self) -> GrowParams:
@@ -62,11 +60,6 @@ class DenseParams:
             raise InputError(f"the refinement template must be an odd number of at least 5 px, got {self.template}")
         if not self.max_shift > 0:
             raise InputError("the refinement's largest shift must be positive")
-        if not self.max_residual >= 0:
-            raise InputError(
-                "the variance test's bound must be 0 (off) or positive (about 1 is the image noise), "
-                f"got {self.max_residual}"
-            )
         self.refinement().check()  # the wide template's rule
         if not 0 < self.sgm.p1 < self.sgm.p2:
             raise InputError(f"the SGM penalties must satisfy 0 < P1 < P2, got {self.sgm.p1}, {self.sgm.p2}")

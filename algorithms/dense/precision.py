@@ -1,8 +1,7 @@
 """The precision of the refined dense points: LSM's error ellipses and the surface around each point, calibrated
 against the truth.
 
-A dense point is refined when LSM refined every one of its matched positions (dense/refine.py; rho_min finite, and
-not SEMI_GLOBAL: the variance test kept none of them at the semi-global matcher's).
+A dense point is refined when LSM refined every one of its matched positions (dense/refine.py; rho_min finite).
 Its height sigma has two parts:
 
 1. Matching noise. Each refined position carries LSM's error ellipse relative to the template's position,
@@ -27,12 +26,12 @@ the open classes, `studies/dense_precision.py`; figures and the check on a secon
 studies/README.md#dense_precision). They hold for LSM's default template (19 px) and the dense refinement's
 largest shift (DenseParams.max_shift; fitted again when it changes).
 
-Every other point (unrefined dense points, those with a position the variance test kept, region growing's,
-coarse-to-fine's, tie points) keeps the one a priori image sigma given, and no spread term."""
+Every other point (unrefined dense points, region growing's, coarse-to-fine's, tie points) keeps the one a
+priori image sigma given, and no spread term."""
 
 import numpy as np
 
-from ..matching.points import DENSE, SEMI_GLOBAL
+from ..matching.points import DENSE
 from .epipolar import pixel_gsd
 
 #: F_k by number of rays (module docstring; studies/README.md#dense_precision)
@@ -69,8 +68,7 @@ def image_sigmas(points, observations, default, calibration=None):
 
 def refined_dense(points):
     """Per POINT_DTYPE row, whether it is a refined dense point (module docstring)."""
-    flags = points["flags"]
-    return ((flags & DENSE) != 0) & ((flags & SEMI_GLOBAL) == 0) & np.isfinite(points["rho_min"])
+    return ((points["flags"] & DENSE) != 0) & np.isfinite(points["rho_min"])
 
 
 def spread_radius(model, col, row, h):

@@ -6,7 +6,7 @@ A `MultiPoints` holds two numpy structured arrays:
   combinations, 3 three-ray from all three combinations; paper K 3.3), `flags` (the combinations
   that matched it: COMB_A nadir-forward, COMB_B nadir-backward, COMB_C backward-forward; and
   REFINED where MPGC refined its search positions, refinement.py; the coarse-to-fine strategy's
-  NCC_ONLY and EDGE: coarse_to_fine.py; DENSE: dense matching, and SEMI_GLOBAL: dense/dense_strategy.py),
+  NCC_ONLY and EDGE: coarse_to_fine.py; DENSE: dense matching, dense/dense_strategy.py),
   rho_min (the smallest correlation coefficient of its combinations), rho_a/rho_b/rho_c (NaN
   where that combination did not match it) and dx/dy, the deviation of the doubly determined
   coordinates of group 3 points from their average (px of the forward image; NaN otherwise);
@@ -34,9 +34,6 @@ EDGE = 16
 REFINED = 32
 #: dense matching: a point of the semi-global matcher (dense/dense_strategy.py)
 DENSE = 64
-#: dense matching: a point one of whose positions the variance test kept at the semi-global matcher's, LSM's
-#: affine not fitting one surface there (dense/refine.py); measured, but not a tie point (tiepoints.py)
-SEMI_GLOBAL = 128
 
 POINT_DTYPE = np.dtype(
     [

@@ -33,7 +33,7 @@ from .. import progress
 from .mpgc import MpgcParams, accepted, match_points
 from .orientation_bias import affine_bias, intersect_corrected
 from .params import GrowParams, LsmParams
-from .points import REFINED, SEMI_GLOBAL
+from .points import REFINED
 from .resolution import adapted_images
 
 #: px: sigma of the geometric observations where the corrected orientation is consistent
@@ -52,12 +52,10 @@ def refine_three_ray(points, stereo, grow=None, feedback=None, bias=None, group=
     models in combination order, their block ids, the height range; `grow` the GrowParams of the matching).
     `bias`: (corrected models, systematic px) of orientation_bias.affine_bias fitted to the points of the whole
     scene (tiled_rounds.scene_bias: the points of one tile are refined with it), else fitted here to `points`.
-    A dense point flagged SEMI_GLOBAL is left as it is. Returns the number of points refined; `points` is changed in
-    place (module docstring)."""
+    Returns the number of points refined; `points` is changed in place (module docstring)."""
     images, models, image_ids = list(stereo.images), list(stereo.models), list(stereo.ids)
     grow = grow or GrowParams()
-    # not a dense point whose position the variance test kept: its template does not see one surface
-    g3 = np.flatnonzero((points.points["group"] == group) & (points.points["flags"] & SEMI_GLOBAL == 0))
+    g3 = np.flatnonzero(points.points["group"] == group)
     if g3.size < (MIN_POINTS if bias is None else 1):
         return 0
     cols, rows = (np.array(v) for v in zip(*(points.coordinates(i) for i in image_ids)))

@@ -92,7 +92,6 @@ class MatchPoints(PushbroomAlgorithm):
     DENSE_STEP = "DENSE_STEP"
     DENSE_REFINE = "DENSE_REFINE"
     DENSE_WIDE_TEMPLATE = "DENSE_WIDE_TEMPLATE"
-    DENSE_MAX_RESIDUAL = "DENSE_MAX_RESIDUAL"
     DENSE_MPGC = "DENSE_MPGC"
     DENSE_P1 = "DENSE_P1"
     DENSE_P2 = "DENSE_P2"
@@ -318,13 +317,6 @@ class MatchPoints(PushbroomAlgorithm):
                 e.wide_template,
                 minValue=0,
             ),
-            Number(
-                self.DENSE_MAX_RESIDUAL,
-                translate("Pushbroom", "Dense: variance test, the largest LSM residual over the image noise (0: off)"),
-                Number.Double,
-                e.max_residual,
-                minValue=0.0,
-            ),
             QgsProcessingParameterBoolean(
                 self.DENSE_MPGC,
                 translate(
@@ -419,7 +411,6 @@ class MatchPoints(PushbroomAlgorithm):
             step=self.DENSE_STEP,
             lsm=self.DENSE_REFINE,
             wide_template=self.DENSE_WIDE_TEMPLATE,
-            max_residual=self.DENSE_MAX_RESIDUAL,
             mpgc=self.DENSE_MPGC,
             template=self.TEMPLATE,
         )

@@ -13,10 +13,9 @@ from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dense.epipolar import epipolar_grid
 from pushbroom.algorithms.dense.pair_tile import match_pair_tile
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.refine import Conjugates, VarianceTest, refine_positions
+from pushbroom.algorithms.dense.refine import Conjugates, refine_positions
 from pushbroom.algorithms.dense.resample import epipolar_image
 from pushbroom.algorithms.dense.sgm import disparity
-from pushbroom.algorithms.matching.image_noise import image_noise
 from pushbroom.algorithms.matching.imagery import Image
 from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.matching.params import GrowParams
@@ -40,7 +39,6 @@ def run():
     models = [sensors.load(p) for p in paths]
     images = [Image(p) for p in paths]
     params = DenseParams()
-    test = VarianceTest(image_noise(images[0]), params.max_residual) if params.max_residual > 0 else None
     rows = []
     for _ in thread_counts((1,)):
         a1, a2 = adapt_resolution(images[0], images[1], models[0], models[1], GrowParams(), HEIGHTS)
@@ -78,7 +76,6 @@ def run():
             Conjugates(x1, y1, x2, y2),
             info["grid"].heights[::2],
             params.refinement(),
-            test,
         )
         seconds = best_time(
             lambda: refine_positions(
@@ -86,7 +83,6 @@ def run():
                 Conjugates(x1, y1, x2, y2),
                 info["grid"].heights[::2],
                 params.refinement(),
-                test,
             )
         )
         kind = "robust" if params.robust else "plain"

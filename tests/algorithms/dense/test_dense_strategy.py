@@ -10,15 +10,11 @@ from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.pair_tile import lattice, match_pair_tile, sample_disparity
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.dense.precision import refined_dense
-from pushbroom.algorithms.dense.refine import AFFINE_CELL, Conjugates, VarianceTest, isolated, refine_positions
+from pushbroom.algorithms.dense.refine import AFFINE_CELL, Conjugates, isolated, refine_positions
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
-from pushbroom.algorithms.matching.image_noise import image_noise
-from pushbroom.algorithms.matching.imagery import as_image
 from pushbroom.algorithms.matching.pair_geometry import ImagePair, local_affine
-from pushbroom.algorithms.matching.points import SEMI_GLOBAL, MultiPoints
-from pushbroom.algorithms.matching.tiepoints import select_tie_points
-from pushbroom.algorithms.simulation.terrain import BARE, CITY, CLASSES, CROPS, FOREST
+from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS
 from pushbroom.algorithms.surface import intersection
 from tests.helpers.feedback import Feedback
 from tests.helpers.matching_scene import Scene
@@ -45,45 +41,6 @@ def test_a_wide_template_that_is_not_wider_and_odd_is_refused(wide):
     with pytest.raises(InputError, match="wide template"):
         DenseParams(wide_template=wide).check()
     assert DenseParams(wide_template=0).check().wide_template == 0
-
-
-@pytest.mark.parametrize("bound", [-1.0, float("nan")])
-def test_a_negative_variance_bound_is_refused(bound):
-    with pytest.raises(InputError, match="variance test"):
-        DenseParams(max_residual=bound).check()
-
-
-def test_the_variance_test_flags_the_points_it_keeps(small_scene, tmp_path):
-    """With the test on, the points with a kept position are flagged SEMI_GLOBAL, measured (rho) but without LSM's
-    ellipse there, out of the refined points, the tie points and MPGC's sample; without it, none is."""
-    names = NAMES[:2]
-    images = [small_scene["images"][n]["imagery"] for n in names]
-    models = [sensors.load(small_scene["images"][n]["metadata"]) for n in names]
-    runs = {}
-    for bound in (0.0, 2.0):
-        parts, _ = match_dense_tiles(
-            images,
-            models,
-            tmp_path / f"q{bound}",
-            params=DenseParams(tile=256, step=4, max_residual=bound),
-            height_range=Scene(small_scene).height_range,
-            execution=Execution("threads", 1),
-        )
-        runs[bound] = MultiPoints(
-            np.concatenate([p.points for p in parts]), np.concatenate([p.observations for p in parts])
-        )
-    assert not (runs[0.0].points["flags"] & SEMI_GLOBAL).any()
-    on = runs[2.0]
-    flagged = (on.points["flags"] & SEMI_GLOBAL) != 0
-    assert 0.05 < flagged.mean() < 0.5
-    assert np.array_equal(on.points["id"], runs[0.0].points["id"])
-    assert np.isfinite(on.points["rho_min"][flagged]).all() and not refined_dense(on.points)[flagged].any()
-    obs = on.observations[
-        (on.observations["image_id"] == 2) & np.isin(on.observations["point_id"], on.points["id"][flagged])
-    ]
-    assert np.isfinite(obs["rho"]).all() and np.isnan(obs["semi_major"]).all()
-    tie = select_tie_points(on, cell=50)
-    assert len(tie) and not (tie.points["flags"] & SEMI_GLOBAL).any()
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +84,7 @@ def test_dense_positions_against_the_truth(scene, figures):
     done = np.isfinite(rho)
     moved = np.hypot(rx - x2[k], ry - y2[k])
     assert (moved[~done & np.isfinite(x2[k])] == 0).all() and (moved[done] < small.max_shift).all()
-    assert np.isfinite(major[done]).all() and (rho[done] > 0.6).all() and not r.kept.any()
+    assert np.isfinite(major[done]).all() and (rho[done] > 0.6).all()
     refined_err = np.hypot(rx - tx[k], ry - ty[k])
     open_ground = done & (bare[k] | (cls[k] == CROPS))
     figures.report(
@@ -153,31 +110,6 @@ def test_dense_positions_against_the_truth(scene, figures):
         f"median |error| {np.median(wide_err):.3f} px of HRS1, {np.median(before):.3f} px before",
     )
     assert wide.mean() > 0.2 and np.median(wide_err) < 0.8 * np.median(before)
-    # the variance test: the nodes it keeps at their dense positions lie mostly in the town and the forest, and
-    # there the dense positions are nearer the truth than LSM's
-    noise = image_noise(as_image(scene.image1))
-    t = refine_positions(
-        pair,
-        Conjugates(x1[k], y1[k], x2[k], y2[k]),
-        scene.height_range,
-        small.refinement(),
-        VarianceTest(noise, 2.0),
-    )
-    kept = t.kept
-    assert np.array_equal(np.isfinite(t.rho), done) and np.isnan(t.semi_major[kept]).all()
-    assert np.array_equal(t.x2[kept], x2[k][kept]) and np.array_equal(t.x2[~kept], rx[~kept], equal_nan=True)
-    surfaces = np.isin(cls[k], (FOREST, CITY))
-    lsm_err = refined_err[kept & surfaces]
-    dense_err = err[k][kept & surfaces]
-    figures.report(
-        "dense HRG-HRS1, the variance test: LSM positions kept at the dense ones, forest and town / bare",
-        [kept[done & surfaces].mean() * 100, kept[done & bare[k]].mean() * 100],
-        "%",
-        f"image noise {noise:.2f} DN; there the median |error| {np.median(dense_err):.3f} px of HRS1 kept, "
-        f"{np.median(lsm_err):.3f} px by LSM",
-    )
-    assert kept[done & surfaces].mean() > 3 * kept[done & bare[k]].mean()
-    assert np.median(dense_err) < np.median(lsm_err)
 
 
 def dense_run(small_scene, folder, names=NAMES, workers=1):

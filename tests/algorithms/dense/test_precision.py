@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from pushbroom.algorithms.dense.precision import CALIBRATION, SPREAD_FACTOR, image_sigmas, refined_dense, with_spread
-from pushbroom.algorithms.matching.points import DENSE, OBS_DTYPE, POINT_DTYPE, REFINED, SEMI_GLOBAL
+from pushbroom.algorithms.dense.precision import CALIBRATION, SPREAD_FACTOR, image_sigmas, with_spread
+from pushbroom.algorithms.matching.points import DENSE, OBS_DTYPE, POINT_DTYPE, REFINED
 
 
 def table(rows, dtype):
@@ -23,7 +23,6 @@ def test_sigmas_of_refined_dense_points_and_the_default_elsewhere():
             {"id": 2, "flags": DENSE, "rho_min": 0.8},  # refined, two rays
             {"id": 3, "flags": DENSE, "rho_min": nan},  # a semi-global position left
             {"id": 4, "flags": REFINED, "rho_min": 0.9},
-            {"id": 5, "flags": DENSE | SEMI_GLOBAL, "rho_min": 0.9},  # measured, a position the variance test kept
         ],
         POINT_DTYPE,
     )  # region growing
@@ -39,9 +38,6 @@ def test_sigmas_of_refined_dense_points_and_the_default_elsewhere():
             {"point_id": 3, "image_id": 3, "rho": nan, "semi_major": nan},
             {"point_id": 4, "image_id": 1, "rho": nan},
             {"point_id": 4, "image_id": 2, "rho": 0.9, "semi_major": 0.05},
-            {"point_id": 5, "image_id": 1, "rho": nan},
-            {"point_id": 5, "image_id": 2, "rho": 0.9, "semi_major": 0.05},
-            {"point_id": 5, "image_id": 3, "rho": 0.95, "semi_major": nan},
         ],
         OBS_DTYPE,
     )
@@ -58,12 +54,8 @@ def test_sigmas_of_refined_dense_points_and_the_default_elsewhere():
         0.5,
         0.5,
         0.5,
-        0.5,
-        0.5,
-        0.5,
     ]
     assert got == pytest.approx(want, rel=1e-6)
-    assert refined_dense(points).tolist() == [True, True, False, False, False]
     assert image_sigmas(points, obs, 0.5, {2: 1.0, 3: 1.0})[1] == pytest.approx(0.06 / r2, rel=1e-6)
 
 
