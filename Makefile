@@ -78,7 +78,9 @@ $(PROFILE)/.enabled: .venv/.setup-done metadata.txt | $(RUNTIME)
 # The packages mypy checks, every function annotated (pyproject.toml, [tool.mypy]); more as they are touched.
 MYPY_PACKAGES := algorithms.sensors algorithms.block algorithms.steps algorithms.execution algorithms.task_runtime \
                  algorithms.dask_backend algorithms.height_range algorithms.matching.strategy \
-                 algorithms.matching.tiled_rounds algorithms.matching.stereo_set algorithms.matching.match_stats
+                 algorithms.matching.tiled_rounds algorithms.matching.stereo_set algorithms.matching.match_stats \
+                 algorithms.dense.params algorithms.dense.refine algorithms.dense.epipolar algorithms.dense.precision \
+                 algorithms.dense.dense_strategy
 
 # ruff's linter and formatter, and mypy (configured in pyproject.toml); CI runs them before the tests.
 lint: setup

@@ -1,5 +1,6 @@
 """`make bench-peers`: Pushbroom against CNES CARS 1.3.0, one after the other in the same run (not in CI), on
-the real Pleiades triplet and on the simulated 3 km SPOT 5 triplet.
+the real Pleiades triplet and on two simulated 3 km SPOT 5 triplets: SceneConfig.small() and a check scene (seed 2, 4
+km west: small fields among forest; the default dense chain, region growing and CARS only).
 
 Pushbroom, each step one `qgis_process run` with 2 threads: createblock (no DEM, no height: the range is found
 by matching), matchpoints (STRATEGY 2, dense, every pixel of the first image; again with DENSE_MPGC, the MPGC
@@ -53,6 +54,8 @@ DATA = SHARED_DATA / "pleiades_triplet"
 IMAGES = [DATA / f"img_0{k}.tif" for k in (2, 1, 3)]  # the reference first, as both tools pair them
 CARS = REPO / "build" / "peers" / "cars" / "bin" / "cars"
 WORKERS = 2
+#: the second simulated scene (studies/dense_precision.py's check scene: small fields among forest)
+CHECK_SCENE = SceneConfig.small(seed=2, centre_lon=-84.235)
 
 
 def qgis_steps(steps, env, label):
@@ -242,24 +245,23 @@ def sample(path, truth):
     return out
 
 
-def simulated(tmp):
-    """Rows of the simulated 3 km SPOT 5 triplet (module docstring)."""
-    paths = simulate_scene(SceneConfig.small(), str(tmp / "scene"))
+def simulated(tmp, config=None, scene="", full=True):
+    """Rows of a simulated 3 km SPOT 5 triplet (module docstring; `config` default SceneConfig.small()), labelled
+    with `scene`; without `full`, only the default dense chain, region growing and CARS."""
+    paths = simulate_scene(config or SceneConfig.small(), str(tmp / "scene"))
     images = [paths["images"][n]["imagery"] for n in NAMES]
     orientation = [paths["truth_metadata"][n] for n in NAMES]
     rows, dems = [], {}
-    for label, strategy, surface, match in (
-        ("dense", 2, DENSE_MODEL, ()),
-        ("dense MPGC", 2, DENSE_MODEL, MPGC),
-        ("region growing", 0, TIN, ()),
-    ):
+    chains = (("dense", 2, DENSE_MODEL, ()), ("dense MPGC", 2, DENSE_MODEL, MPGC), ("region growing", 0, TIN, ()))
+    for label, strategy, surface, match in chains if full else chains[::2]:
         steps, dems[label], _, block = chain(
             tmp / label.replace(" ", "-"), images, strategy, CELL, surface, orientation, f"Pushbroom {label}", match
         )
         rows += steps + [{"tool": f"Pushbroom {label}", "step": "total", "seconds": sum(r["seconds"] for r in steps)}]
-    _, dems["dense, every point"], _ = surface_step(
-        tmp / "dense", tmp / "dense" / "points.las", CELL, EVERY_POINT, "Pushbroom dense (untimed)"
-    )
+    if full:
+        _, dems["dense, every point"], _ = surface_step(
+            tmp / "dense", tmp / "dense" / "points.las", CELL, EVERY_POINT, "Pushbroom dense (untimed)"
+        )
     rows += qgis_steps(
         [("fitrpc", ["pushbroom:fitrpc", "--", f"BLOCK={block}", "OVERWRITE=true"])],
         qgis_process_env(tmp / "rpc-profile"),
@@ -275,7 +277,7 @@ def simulated(tmp):
         for zone in tables["dense"]:
             rows.append(
                 {
-                    "tool": f"10 m DSM - true {reference}: RMS (coverage; RMS on the cells all cover)",
+                    "tool": f"{scene}10 m DSM - true {reference}: RMS (coverage; RMS on the cells all cover)",
                     "step": zone,
                     "value": ", ".join(
                         f"{label} {t[zone][2]:.2f} m ({100 * t[zone][1]:.0f} %; {t[zone][5]:.2f})"
@@ -286,7 +288,7 @@ def simulated(tmp):
     for label, d in dh.items():
         rows.append(
             {
-                "tool": label,
+                "tool": f"{scene}{label}",
                 "step": "coverage of the non-water cells",
                 "value": f"{100 * np.isfinite(d[~truth.water]).mean():.1f} %",
             }
@@ -301,7 +303,11 @@ def run():
         sys.exit(f"{CARS} is missing: run make bench-peers, which installs CARS 1.3.0 into build/peers/cars")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
-        rows = pleiades(tmp / "pleiades") + simulated(tmp / "simulated")
+        rows = (
+            pleiades(tmp / "pleiades")
+            + simulated(tmp / "simulated")
+            + simulated(tmp / "check", CHECK_SCENE, "check scene: ", full=False)
+        )
     return [{k: r.get(k, "") for k in ("tool", "step", "seconds", "peak MB", "value")} for r in rows]
 
 

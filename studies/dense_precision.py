@@ -31,6 +31,7 @@ from pushbroom.algorithms.surface.local_spread import local_metres, local_spread
 from studies.dense_fusion import NAMES
 
 OPEN = {2: "bare", 3: "crops"}
+CLASS_NAMES = {**OPEN, 4: "forest", 5: "city"}
 INTERIOR = 50.0  # m from forest, city or water
 SCENES = {
     "seed 1 (calibration)": SceneConfig.small(),
@@ -84,6 +85,7 @@ def scene_errors(config):
         "cls": values[i, j],
         "distance": distance[i, j],
         "radius": radius,
+        "kept": np.isin(res.point[ok], obs["point_id"][obs["semi_major"] == np.float32(precision.SEMI_GLOBAL_AXIS)]),
     }
 
 
@@ -106,6 +108,15 @@ def fit(e):
         e["spread"][m] ** 2,
     ]
     return np.sqrt(nnls(a, e["dh"][m] ** 2)[0])
+
+
+def fit_semi_global(e, f2, f3, c):
+    """The semi-global axis that calibrates the points with a position the bias test kept (all classes), given F_2, F_3
+    and C: SEMI_GLOBAL_AXIS times the least-squares scale of their ray term."""
+    m = e["kept"] & np.isfinite(e["spread"])
+    rays = np.where(e["rays"][m] == 2, f2, f3) * e["sh"][m]
+    scale = nnls(rays[:, None] ** 2, np.maximum(e["dh"][m] ** 2 - (c * e["spread"][m]) ** 2, 0.0))[0][0]
+    return precision.SEMI_GLOBAL_AXIS * float(np.sqrt(scale))
 
 
 def ratios(e, s, m):
@@ -140,6 +151,17 @@ def main():
                     f"{ratios(e, product, inner)} | {ratios(e, fitted, m)}; {ratios(e, fitted, inner)} | "
                     f"{ratios(e, raw, m)}; {ratios(e, raw, inner)} |"
                 )
+        print(
+            f"points with a semi-global position the bias test kept: {e['kept'].sum()}; the axis that calibrates them "
+            f"(F and C fitted here): {fit_semi_global(e, f2, f3, c):.2f} px (the product's "
+            f"{precision.SEMI_GLOBAL_AXIS});"
+            " the product's RMS(dh) / RMS(sigma_h) / NMAD(dh / sigma_h) by class: "
+            + ", ".join(
+                f"{name} {ratios(e, product, e['kept'] & (e['cls'] == k))} ({(e['kept'] & (e['cls'] == k)).sum()})"
+                for k, name in CLASS_NAMES.items()
+                if (e["kept"] & (e["cls"] == k)).sum() >= 20
+            )
+        )
 
 
 if __name__ == "__main__":

@@ -21,27 +21,16 @@ nodes: is one surface's residual the noise there too?"""
 
 import dataclasses
 import tempfile
-from pathlib import Path
 
 import numpy as np
 from osgeo import gdal
 
-from pushbroom.algorithms import sensors
-from pushbroom.algorithms.dense.pair_tile import match_pair_tile
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.refine import Conjugates, refine_positions
-from pushbroom.algorithms.matching.imagery import as_image
-from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from studies.dense_choice import noise_sigma, residual_q
-from studies.sim_dense import TruthCloud, model_dem, rms, truth_cloud
+from studies.sim_dense import TruthCloud, model_dem, real_tiles, rms, truth_cloud
 from tests.helpers.dsm_comparison import CLASSES, Truth
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
-REAL = {
-    "Pleiades triplet, img_02 -> img_01": ("pleiades_triplet/img_02.tif", "pleiades_triplet/img_01.tif"),
-    "Ventoux pair": ("pleiades_pair_ventoux/left_image.tif", "pleiades_pair_ventoux/right_image.tif"),
-}
 #: the refinement's largest shifts (px), and the test's bounds Q at the last of them
 SHIFTS, BOUNDS = (0.5, 1.0), (1.5, 2.0, 2.5, 3.0)
 
@@ -66,27 +55,15 @@ def residuals(cloud: TruthCloud, image: np.ndarray, sigma_n: float) -> np.ndarra
 
 def real_residuals() -> None:
     """The real part (module docstring)."""
-    for label, files in REAL.items():
-        paths = [SHARED / f for f in files]
-        if not all(p.exists() for p in paths):
-            print(f"{label}: not in {SHARED}")
-            continue
-        models = [sensors.load(p) for p in paths]
-        images = [as_image(p, saturation=True) for p in paths]
-        array = gdal.Open(str(paths[0])).ReadAsArray().astype(float)
+    for tile in real_tiles(DenseParams()):
+        array = gdal.Open(str(tile.first)).ReadAsArray().astype(float)
         sigma_n = noise_sigma(array)
-        cols, rows = models[0].size
-        box = (cols // 2 - 256, rows // 2 - 256, cols // 2 + 256, rows // 2 + 256)
-        heights = models[0].height_range
-        x1, y1, x2, y2, info = match_pair_tile(images[0], images[1], models[0], models[1], box, heights, DenseParams())
-        pair = ImagePair(images[0], images[1], models[0], models[1])
-        r = refine_positions(pair, Conjugates(x1, y1, x2, y2), info["grid"].heights[::2], DenseParams().refinement())
-        ok = np.isfinite(r.rho)
-        q = residual_q(array, x1[ok], y1[ok], r.rho[ok], sigma_n)
+        ok = np.isfinite(tile.refined.rho)
+        q = residual_q(array, tile.dense.x1[ok], tile.dense.y1[ok], tile.refined.rho[ok], sigma_n)
         p10, p50, p90 = np.nanpercentile(q, [10, 50, 90])
         print(
-            f"{label}: image noise {sigma_n:.2f} DN; q of the {ok.sum()} accepted nodes, 10th / 50th / 90th percentile "
-            f"{p10:.2f} / {p50:.2f} / {p90:.2f}; above 2: {np.mean(q > 2):.1%}"
+            f"{tile.label}: image noise {sigma_n:.2f} DN; q of the {ok.sum()} accepted nodes, 10th / 50th / 90th "
+            f"percentile {p10:.2f} / {p50:.2f} / {p90:.2f}; above 2: {np.mean(q > 2):.1%}"
         )
 
 

@@ -4,6 +4,8 @@ error is the matching's alone), and the dense pipeline model's 10 m DSM of them 
 
 import tempfile
 import time
+from collections.abc import Iterator
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -12,8 +14,13 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dem_store import read_dem
 from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
+from pushbroom.algorithms.dense.epipolar import EpipolarGrid
+from pushbroom.algorithms.dense.pair_tile import match_pair_tile
 from pushbroom.algorithms.dense.params import DenseParams
+from pushbroom.algorithms.dense.refine import Conjugates, Refined, refine_positions
 from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.matching.imagery import as_image
+from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.matching.points import MultiPoints
 from pushbroom.algorithms.sigmas import IMAGE_SIGMA
 from pushbroom.algorithms.surface import intersection
@@ -24,6 +31,12 @@ from pushbroom.algorithms.surface.tin_grid import Grid
 from scripts.bench_peers import sample
 from tests.helpers.dsm_comparison import CELL, NAMES, Truth
 
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
+#: real pairs (first image, second image) of ../shared/data
+REAL = {
+    "Pleiades triplet, img_02 -> img_01": ("pleiades_triplet/img_02.tif", "pleiades_triplet/img_01.tif"),
+    "Ventoux pair": ("pleiades_pair_ventoux/left_image.tif", "pleiades_pair_ventoux/right_image.tif"),
+}
 #: the refinement before its largest shift became 1 px (studies/README.md#dense_variance_test), as studies measured it
 BEFORE = {"max_shift": 0.5}
 
@@ -112,3 +125,34 @@ def rms(v: np.ndarray) -> float:
     """RMS of the finite values (NaN for none)."""
     v = v[np.isfinite(v)]
     return float(np.sqrt(np.mean(v * v))) if v.size else float("nan")
+
+
+class RealTile(NamedTuple):
+    """The central 512 px tile of a real pair's first image: its lattice's dense positions, their LSM refinement
+    (DenseParams.refinement, without the isolation and bias tests) and the tile's epipolar grid."""
+
+    label: str
+    first: Path
+    dense: Conjugates
+    refined: Refined
+    grid: EpipolarGrid
+
+
+def real_tiles(params: DenseParams) -> Iterator[RealTile]:
+    """The RealTile of each pair of REAL, dense matching with `params`; a pair absent from SHARED is said and
+    skipped."""
+    for label, files in REAL.items():
+        paths = [SHARED / f for f in files]
+        if not all(p.exists() for p in paths):
+            print(f"{label}: not in {SHARED}")
+            continue
+        models = [sensors.load(p) for p in paths]
+        images = [as_image(p, saturation=True) for p in paths]
+        cols, rows = models[0].size
+        box = (cols // 2 - 256, rows // 2 - 256, cols // 2 + 256, rows // 2 + 256)
+        heights = models[0].height_range
+        x1, y1, x2, y2, info = match_pair_tile(images[0], images[1], models[0], models[1], box, heights, params)
+        dense = Conjugates(x1, y1, x2, y2)
+        pair = ImagePair(images[0], images[1], models[0], models[1])
+        refined = refine_positions(pair, dense, info["grid"].heights[::2], params.refinement())
+        yield RealTile(label, paths[0], dense, refined, info["grid"])

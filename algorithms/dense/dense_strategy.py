@@ -13,7 +13,9 @@ The tiles are the reference image's (tiling.tile_grid of DenseParams.tile px).
 
 Observations: the reference image's position is the lattice node (rho NaN, axes 0: the template, as region
 growing's); a matched image's position carries LSM's rho and error-ellipse semi-axes where the refinement
-(refine.py) replaced it, NaN where it stayed the semi-global matcher's. A point's rho_a / rho_b are its pairs'
+(refine.py) replaced it, NaN where it stayed the semi-global matcher's; where the bias test (refine.biased) found
+LSM's moves systematic in either pair, the node's refined positions go back to the semi-global ones, with LSM's rho
+and the semi-global precision's axes (precision.SEMI_GLOBAL_AXIS). A point's rho_a / rho_b are its pairs'
 LSM rho; rho_min the smaller, NaN where one of its matched positions is unrefined (a point is "refined" only
 if all of them are: the DEM's tiers and the tie point selection read it); flags DENSE. A tile without texture
 gives no points and a warning, not an error.
@@ -49,7 +51,8 @@ from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .pair_tile import match_pair_tile
 from .params import DenseParams
-from .refine import Conjugates, isolated, refine_positions
+from .precision import SEMI_GLOBAL_AXIS
+from .refine import Conjugates, biased, isolated, refine_positions
 
 #: a tile of the reference image: (x0, y0, x1, y1) px, tiling.tile_grid's
 Box = tuple[int, int, int, int]
@@ -68,7 +71,7 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
     """The MultiPoints of one tile (ids 1 ... n in lattice order) and its per-pair information."""
     s = job.stereo
     n = len(s)
-    positions, quality, infos = [], [], []
+    positions, quality, infos, dense, kept = [], [], [], [], []
     p = job.params
     for k in range(1, n):
         check_cancel()  # between the stages (execution: a cancel reaches a running tile)
@@ -77,6 +80,7 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
         )
         nan = np.full(x2.size, np.nan, np.float32)
         q = (nan, nan, nan)
+        dense.append((x2, y2))
         if p.lsm:
             check_cancel()
             r = refine_positions(
@@ -90,11 +94,22 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
             rx[lone], ry[lone] = x2[lone], y2[lone]
             for v in q:
                 v[lone] = np.nan
+            moves = np.where(np.isfinite(q[0]), info["grid"].along(rx - x2, ry - y2), np.nan)
+            kept.append(biased(x1, y1, moves, q[1], p))
             x2, y2 = rx, ry
         positions.append((x2, y2))
         quality.append(q)
         info["refined"] = int(np.isfinite(q[0]).sum())
         infos.append(info)
+    if kept:
+        # the test's finding is the reference template's (both pairs' LSM share it): every refined position of a
+        # node one pair found biased keeps its semi-global position, measured
+        either = np.any(kept, axis=0)
+        for (x2, y2), (sx, sy), q, info in zip(positions, dense, quality, infos):
+            at = either & np.isfinite(q[0])
+            x2[at], y2[at] = sx[at], sy[at]
+            q[1][at] = q[2][at] = SEMI_GLOBAL_AXIS
+            info["semi_global"] = int(at.sum())
     matched = np.array([np.isfinite(x2) for x2, _ in positions])
     keep = matched.any(axis=0)
     count = int(keep.sum())
@@ -124,9 +139,8 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
         o["col"], o["row"] = x2[keep][m], y2[keep][m]
         o["rho"], o["semi_major"], o["semi_minor"] = (v[keep][m] for v in quality[k - 1])
         obs.append(o)
-    obs = np.concatenate(obs)
-    obs = obs[np.lexsort((obs["image_id"], obs["point_id"]))]
-    return MultiPoints(points, obs), infos
+    merged = np.concatenate(obs)
+    return MultiPoints(points, merged[np.lexsort((merged["image_id"], merged["point_id"]))]), infos
 
 
 @register
@@ -165,6 +179,7 @@ class Dense(MatchingStrategy):
             "seeds": [i["seeds"] for i in infos],
             "row_offset": [i["row_offset"] for i in infos],
             "refined": sum(i["refined"] for i in infos),
+            "semi_global": sum(i.get("semi_global", 0) for i in infos),
             "sample": positions(multi, job.stereo.ids, evenly(three, quota)),
         }
 
@@ -212,6 +227,7 @@ class Dense(MatchingStrategy):
                 "group_2": int(sum(t["group_2"] for t in first)),
                 "seeds": int(sum(sum(t["seeds"]) for t in first)),
                 "refined": int(sum(t["refined"] for t in first)),
+                "semi_global": int(sum(t["semi_global"] for t in first)),
             },
         )
         if job.bias is not None:
@@ -220,7 +236,12 @@ class Dense(MatchingStrategy):
         progress.ensure(feedback).pushInfo(
             f"dense matching: {stats.points} points"
             + (f", {d['group_2']} of them in three images" if s.triplet else "")
-            + (f"; {d['refined']} image positions refined by LSM" if p.lsm else "")
+            + (
+                f"; {d['refined']} image positions measured by LSM, {d['semi_global']} of them kept at their "
+                "semi-global position by the bias test"
+                if p.lsm
+                else ""
+            )
             + (f"; {stats.refined_mpgc} three-ray points refined by MPGC" if job.bias is not None else "")
         )
         return stats
@@ -228,12 +249,15 @@ class Dense(MatchingStrategy):
 
 def _mpgc(job: DenseJob, multi: MultiPoints) -> int:
     """MPGC refinement of the three-ray points of `multi` in place (refinement.refine_three_ray with the scene's
-    orientation bias, LSM's template and largest shift of DenseParams): a point MPGC accepts takes its search
+    orientation bias, LSM's template and largest shift of DenseParams; not the points whose positions the bias
+    test kept semi-global, where MPGC's templates straddle the same heights): a point MPGC accepts takes its search
     positions, correlations and error ellipses, the flag REFINED and rho_a, rho_b, rho_min from them (so it
     counts as refined even where the pairwise LSM had left a semi-global position). Returns the count."""
     p, s = job.params, job.stereo
     grow = GrowParams(template=p.template, max_shift=p.max_shift)
-    count = refine_three_ray(multi, s, grow, bias=job.bias, group=2)
+    obs = multi.observations
+    kept = np.isin(multi.points["id"], obs["point_id"][obs["semi_major"] == np.float32(SEMI_GLOBAL_AXIS)])
+    count = refine_three_ray(multi, s, grow, bias=job.bias, group=2, exclude=kept)
     done = np.flatnonzero(multi.points["flags"] & REFINED)
     if done.size:
         obs = multi.observations

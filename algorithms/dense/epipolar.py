@@ -40,24 +40,31 @@ the grid idea follows CNES shareloc's stereo-rectification grids (traced along l
 directions), here per tile and with the pairing error measured."""
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import InputError
 from ..geodesy import geodetic_to_ecef
 from ..matching.pair_geometry import predict
+from ..sensors.base import SensorModel
 
+#: an image direction (dx, dy) px
+Direction = tuple[float, float] | np.ndarray
 MIN_PARALLAX_PX = 0.05  # image-1 px over 2 dh below which the rays count as parallel
 MIN_HALF_RANGE_M = 100.0  # dh: at least this, so that a flat tile still has a direction
 
 
-def _unit(v):
+def _unit(v: np.ndarray) -> np.ndarray:
     n = np.hypot(v[..., 0], v[..., 1])
     with np.errstate(invalid="ignore", divide="ignore"):
         return v / n[..., None]
 
 
-def pixel_gsd(model, x, y, h, d1, d2):
+def pixel_gsd(
+    model: SensorModel, x: float, y: float, h: float, d1: Direction, d2: Direction
+) -> tuple[float, float, float]:
     """Ground metres per px along image directions d1, d2 at (x, y, h), and the pixel's mean GSD
     (the square root of its ground area)."""
     xs = np.array([x, x + d1[0], x + d2[0]])
@@ -88,11 +95,11 @@ class EpipolarGrid:
     interpolation_error: float = np.nan
 
     @property
-    def shape(self):
+    def shape(self) -> tuple[int, int]:
         """(rows, cols) of the epipolar images the grid spans."""
         return ((self.p.shape[0] - 1) * self.step + 1, (self.p.shape[1] - 1) * self.step + 1)
 
-    def _interp(self, nodes, u, v):
+    def _interp(self, nodes: np.ndarray, u: ArrayLike, v: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Bilinear (x, y) of `nodes` at epipolar (u, v) (arrays), and its derivatives by u and by v
         (extrapolated by the border cells outside the grid)."""
         fb = (np.asarray(u, float) - self.u0) / self.step
@@ -107,26 +114,38 @@ class EpipolarGrid:
         dv = (bottom - top) / self.step
         return top + ta * (bottom - top), du, dv
 
-    def image1(self, u, v):
+    def image1(self, u: ArrayLike, v: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Image-1 (x, y) of epipolar (u, v)."""
         xy = self._interp(self.p, u, v)[0]
         return xy[..., 0], xy[..., 1]
 
-    def image2(self, u, v):
+    def image2(self, u: ArrayLike, v: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Image-2 (x, y) of epipolar (u, v)."""
         xy = self._interp(self.q, u, v)[0]
         return xy[..., 0], xy[..., 1]
 
-    def epipolar1(self, x1, y1):
+    def along(self, dx: ArrayLike, dy: ArrayLike) -> np.ndarray:
+        """The components (px) of image-2 moves (dx, dy) (px) along the epipolar line: the direction of the image-2
+        nodes' least-squares affine in u, which the grid follows within its interpolation error over a tile."""
+        rows, cols = self.q.shape[:2]
+        v, u = np.meshgrid(np.arange(rows) * self.step, np.arange(cols) * self.step, indexing="ij")
+        design = np.column_stack([u.ravel(), v.ravel(), np.ones(u.size)])
+        direction = np.linalg.lstsq(design, self.q.reshape(-1, 2), rcond=None)[0][0]  # d(x, y) / du
+        direction = direction / np.hypot(*direction)
+        return direction[0] * np.asarray(dx, float) + direction[1] * np.asarray(dy, float)
+
+    def epipolar1(self, x1: ArrayLike, y1: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Epipolar (u, v) of image-1 points (x1, y1) (see epipolar2)."""
         return self._invert(self.p, x1, y1)
 
-    def epipolar2(self, x2, y2):
+    def epipolar2(self, x2: ArrayLike, y2: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Epipolar (u, v) of image-2 points (x2, y2): the bilinear grid inverted by Newton's method
         from the affine fit of all nodes; NaN where it does not converge to 1e-3 px."""
         return self._invert(self.q, x2, y2)
 
-    def _invert(self, nodes, x, y, iterations=20, tol=1e-6):
+    def _invert(
+        self, nodes: np.ndarray, x: ArrayLike, y: ArrayLike, iterations: int = 20, tol: float = 1e-6
+    ) -> tuple[np.ndarray, np.ndarray]:
         x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
         target = np.stack([x, y], axis=-1)
         good = np.isfinite(nodes).all(axis=-1)
@@ -151,7 +170,9 @@ class EpipolarGrid:
         return np.where(bad, np.nan, u), np.where(bad, np.nan, v)
 
 
-def _direction(model1, model2, p, h_m, dh):
+def _direction(
+    model1: SensorModel, model2: SensorModel, p: np.ndarray, h_m: float, dh: float
+) -> tuple[np.ndarray, np.ndarray]:
     """e1 at image-1 points p (n, 2): unit(b(Q, h_m - dh) - b(Q, h_m + dh)), and the parallax length."""
     x2, y2 = predict(model1, model2, p[:, 0], p[:, 1], np.full(len(p), h_m))
     lo = np.column_stack(predict(model2, model1, x2, y2, np.full(len(p), h_m - dh)))
@@ -160,11 +181,20 @@ def _direction(model1, model2, p, h_m, dh):
     return _unit(d), np.hypot(d[:, 0], d[:, 1])
 
 
-def _trace(model1, model2, starts, e_ref, n_steps, length, h_m, dh):
+def _trace(
+    model1: SensorModel,
+    model2: SensorModel,
+    starts: np.ndarray,
+    e_ref: np.ndarray,
+    n_steps: int,
+    length: float,
+    h_m: float,
+    dh: float,
+) -> np.ndarray:
     """Rows (len(starts), n_steps + 1, 2) traced from `starts` along e1 in steps of `length` image-1 px
     (negative: backwards) by the midpoint rule; e1 is oriented like e_ref."""
 
-    def field(p):
+    def field(p: np.ndarray) -> np.ndarray:
         e = _direction(model1, model2, p, h_m, dh)[0]
         return np.where((e @ e_ref)[:, None] < 0, -e, e)
 
@@ -178,7 +208,14 @@ def _trace(model1, model2, starts, e_ref, n_steps, length, h_m, dh):
     return out
 
 
-def epipolar_grid(model1, model2, box1, height_range, step=16, margin=8):
+def epipolar_grid(
+    model1: SensorModel,
+    model2: SensorModel,
+    box1: tuple[float, float, float, float],
+    height_range: tuple[float, float],
+    step: int = 16,
+    margin: int = 8,
+) -> EpipolarGrid:
     """The EpipolarGrid of the image-1 tile `box1` (x0, y0, x1, y1 px) over `height_range` (h_lo, h_hi).
 
     The grid spans the tile, widened along the rows by the disparity range (so that epipolar image 2
@@ -238,7 +275,7 @@ def epipolar_grid(model1, model2, box1, height_range, step=16, margin=8):
     return grid
 
 
-def grid_errors(model1, model2, grid):
+def grid_errors(model1: SensorModel, model2: SensorModel, grid: EpipolarGrid) -> tuple[float, float]:
     """(row_error, interpolation_error) of a grid at its cells' centres (see the module)."""
     rows, cols = grid.p.shape[:2]
     v, u = np.meshgrid(
@@ -257,7 +294,9 @@ def grid_errors(model1, model2, grid):
     return float(np.nanmax(np.concatenate(row))), float(interp)
 
 
-def disparity_range(model1, model2, grid, height_range, samples=9):
+def disparity_range(
+    model1: SensorModel, model2: SensorModel, grid: EpipolarGrid, height_range: Any, samples: int = 9
+) -> tuple[float, float] | None:
     """(d_min, d_max), epipolar px: the disparities u2 - u of the grid's nodes (a samples x samples
     subset) at the heights of `height_range`, with NaN dropped; None where none is finite."""
     rows, cols = grid.p.shape[:2]
@@ -265,10 +304,10 @@ def disparity_range(model1, model2, grid, height_range, samples=9):
     b = np.unique(np.linspace(0, cols - 1, samples).round().astype(int))
     aa, bb = (v.ravel() for v in np.meshgrid(a, b, indexing="ij"))
     p = grid.p[aa, bb]
-    d = []
+    parts = []
     for h in height_range:
         x2, y2 = predict(model1, model2, p[:, 0], p[:, 1], np.full(len(p), float(h)))
-        d.append(grid.epipolar2(x2, y2)[0] - (grid.u0 + bb * grid.step))
-    d = np.concatenate(d)
+        parts.append(grid.epipolar2(x2, y2)[0] - (grid.u0 + bb * grid.step))
+    d = np.concatenate(parts)
     d = d[np.isfinite(d)]
     return (float(d.min()), float(d.max())) if d.size else None

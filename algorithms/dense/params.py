@@ -1,5 +1,7 @@
 """Settings of dense matching (the "dense" strategy of pushbroom:matchpoints)."""
 
+from __future__ import annotations
+
 from dataclasses import dataclass, field
 
 from ..errors import InputError
@@ -14,8 +16,9 @@ class DenseParams:
     of the four disparities a lattice node is interpolated from; sgm: census and SGM settings; lsm: LSM
     refinement in the original images (refine.py) with a `template` px window, kept within `max_shift` px
     of the dense position, with LSM's robust weighting where `robust`, a node the template fails at tried again
-    with a `wide_template` px window (0: none); mpgc: a triplet's three-ray points refined again by MPGC in both
-    search images at once (dense_strategy.py)."""
+    with a `wide_template` px window (0: none), and a node whose refined neighbours' moves are systematic beyond
+    `bias_bound` times their spread keeping its semi-global position (refine.biased; 0: no such test); mpgc: a
+    triplet's three-ray points refined again by MPGC in both search images at once (dense_strategy.py)."""
 
     tile: int = 512
     step: int = 1
@@ -27,6 +30,7 @@ class DenseParams:
     wide_template: int = 31
     max_shift: float = 1.0
     robust: bool = True
+    bias_bound: float = 0.8
     mpgc: bool = False
 
     def refinement(self) -> GrowParams:
@@ -41,7 +45,7 @@ class DenseParams:
             wide_beyond_shift=False,
         )
 
-    def check(self):
+    def check(self) -> DenseParams:
         """Raise InputError for settings dense matching cannot use."""
         if not 64 <= int(self.tile) <= 4096:
             raise InputError(f"the dense matching tile must be 64 to 4096 px, got {self.tile}")
@@ -60,6 +64,8 @@ class DenseParams:
             raise InputError(f"the refinement template must be an odd number of at least 5 px, got {self.template}")
         if not self.max_shift > 0:
             raise InputError("the refinement's largest shift must be positive")
+        if not self.bias_bound >= 0:
+            raise InputError(f"the refinement's bias bound must be 0 (off) or positive, got {self.bias_bound}")
         self.refinement().check()  # the wide template's rule
         if not 0 < self.sgm.p1 < self.sgm.p2:
             raise InputError(f"the SGM penalties must satisfy 0 < P1 < P2, got {self.sgm.p1}, {self.sgm.p2}")

@@ -21,28 +21,39 @@ Its height sigma has two parts:
 
        sigma_h = sqrt(sigma_h,rays^2 + (C s)^2).
 
-F_2, F_3 and C are fitted on the simulated 3 km SPOT 5 triplet against its truth (least squares of dh^2 on
-the open classes, `studies/dense_precision.py`; figures and the check on a second scene in
-studies/README.md#dense_precision). They hold for LSM's default template (19 px) and the dense refinement's
-largest shift (DenseParams.max_shift; fitted again when it changes).
+A position the bias test kept at its semi-global place (dense/refine.py: LSM's template straddles heights there)
+carries a_i = SEMI_GLOBAL_AXIS instead of LSM's ellipse: the semi-global position's error in the same units.
+
+F_2, F_3 and C are fitted on the simulated 3 km SPOT 5 triplet against its truth (least squares of dh^2 on the open
+classes, `studies/dense_precision.py`; figures and the check on a second scene in
+studies/README.md#dense_precision), SEMI_GLOBAL_AXIS on the kept positions' points of every class (the same study).
+They hold for LSM's default template (19 px) and the dense refinement's largest shift (DenseParams.max_shift; fitted
+again when it changes).
 
 Every other point (unrefined dense points, region growing's, coarse-to-fine's, tie points) keeps the one a
 priori image sigma given, and no spread term."""
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..matching.points import DENSE
+from ..sensors.base import SensorModel
 from .epipolar import pixel_gsd
 
 #: F_k by number of rays (module docstring; studies/README.md#dense_precision)
 CALIBRATION = {2: 2.2, 3: 2.3}
+#: px: both semi-axes of a semi-global position the bias test kept (dense/refine.py), in LSM's ellipse units: its
+#: image sigma is F_k SEMI_GLOBAL_AXIS / sqrt(2) (module docstring)
+SEMI_GLOBAL_AXIS = 0.3
 #: C, the spread term's factor (module docstring)
 SPREAD_FACTOR = 0.5
 #: px of the reference image: the spread's half-width R, the default template's (19 px) half-width
 SPREAD_RADIUS_PX = 9.5
 
 
-def image_sigmas(points, observations, default, calibration=None):
+def image_sigmas(
+    points: np.ndarray, observations: np.ndarray, default: float, calibration: dict[int, float] | None = None
+) -> np.ndarray:
     """Per observation (OBS_DTYPE rows sorted by point id, of the POINT_DTYPE `points`), the a priori sigma
     (px) for the intersection: the module docstring's for the refined dense points, `default` elsewhere.
     `calibration`: F_k by number of rays, default CALIBRATION."""
@@ -66,17 +77,17 @@ def image_sigmas(points, observations, default, calibration=None):
     return sigma
 
 
-def refined_dense(points):
+def refined_dense(points: np.ndarray) -> np.ndarray:
     """Per POINT_DTYPE row, whether it is a refined dense point (module docstring)."""
     return ((points["flags"] & DENSE) != 0) & np.isfinite(points["rho_min"])
 
 
-def spread_radius(model, col, row, h):
+def spread_radius(model: SensorModel, col: float, row: float, h: float) -> float:
     """R (m): SPREAD_RADIUS_PX pixels of the reference image `model` at (col, row, h)."""
     return SPREAD_RADIUS_PX * pixel_gsd(model, float(col), float(row), float(h), (1.0, 0.0), (0.0, 1.0))[2]
 
 
-def with_spread(sigma_h, spread, factor=SPREAD_FACTOR):
+def with_spread(sigma_h: ArrayLike, spread: ArrayLike, factor: float = SPREAD_FACTOR) -> np.ndarray:
     """sigma_h with the template's surface term (module docstring); unchanged where the spread is NaN."""
     extra = np.where(np.isfinite(spread), factor * np.asarray(spread, float), 0.0)
     return np.sqrt(np.square(sigma_h) + extra * extra)

@@ -37,6 +37,26 @@ lone good match; it keeps its dense position. Where the DEM takes refined points
 otherwise sets the heights of the empty cells around it. The test runs per tile: a node at a tile's edge has
 fewer nodes around it (a corner 8), so there it is a little stricter.
 
+The bias test (`biased`, on a lattice, after the isolation test): where the template sees one surface that LSM's
+affine fits, LSM's move from the semi-global position is the semi-global matcher's error, which changes sign from
+node to node (its sub-pixel fit's pixel locking, the census window's noise), so LSM's moves average out over the
+nodes around. Where the template straddles heights it cannot fit (a building and the street beside it), LSM pulls
+every template that overlaps them towards their mixture, the same way: its moves agree over the neighbourhood, and
+the semi-global position, whose census window follows the height step, is the better one. With t the refined
+nodes' moves along the epipolar line (px of image 2, EpipolarGrid.along) within a square of BIAS_WINDOW templates
+around a node (at least BIAS_NODES of them), the node keeps its semi-global position where
+    |mean(t)| > max(b sd(t), k (w_t / w_c) a)
+b = DenseParams.bias_bound; a the node's LSM error-ellipse semi-major axis and w_t / w_c the template's width over
+the census window's: the census sees (w_t / w_c)^2 fewer samples than the template, so k (w_t / w_c) a predicts the
+semi-global position's own error (k = CENSUS_ERROR), which the move must exceed to be LSM's bias and not a
+correction of a weak census match (crops, low texture). The test reads positions and LSM's ellipse, not the images'
+radiometry or a noise model (a residual test did, and failed on real images: studies/README.md#dense_variance_test).
+The straddling template is the reference image's, which a triplet's two pairs share: where the test finds one pair's
+moves systematic, both pairs' refined positions of the node keep their semi-global ones (the caller's,
+dense/dense_strategy.py). Such a position is measured (its rho is LSM's at the node: the template correlates there)
+with the semi-global matcher's precision (dense/precision.py, SEMI_GLOBAL_AXIS). Measured in
+studies/README.md#dense_bias_test.
+
 Measured on the simulated triplet (docs/validation.md#dense-matching, with the plain LSM): LSM halves the dense
 position's error on open ground where it is accepted, and makes it worse within a template of a height step;
 the robust weights and the isolation test: docs/validation.md#dense-robust-lsm."""
@@ -44,6 +64,7 @@ the robust weights and the isolation test: docs/validation.md#dense-robust-lsm."
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import ndimage
 
 from ..height_range import HeightRange
@@ -52,12 +73,18 @@ from ..matching.pair_geometry import ImagePair, local_affine
 from ..matching.params import GrowParams
 from ..matching.region_growing import match_windows
 from ..matching.resolution import adapt_resolution
+from .params import DenseParams
 
 #: px of image 1: the cells of LSM's initial affine (the models' local affine: only LSM's starting shape, which
 #: LSM estimates; how little it changes across a cell: tests/algorithms/dense/test_dense_strategy.py)
 AFFINE_CELL = 32
 #: lattice nodes (Chebyshev) around a refined node, and the fewest of them refined too (module docstring)
 REACH, LEAST_REFINED = 2, 3
+#: the bias test (module docstring): its window (templates) and the fewest refined nodes in it
+BIAS_WINDOW, BIAS_NODES = 1.5, 9
+#: k: the semi-global position's error over the census window's share of LSM's ellipse (module docstring; the
+#: sub-pixel fit's pixel locking adds to the census's noise)
+CENSUS_ERROR = 1.5
 #: px beyond LSM's template that its samples read: bicubic resampling in image 2 (2), bilinear samples and their
 #: central-difference gradients in image 1 (1 + 1)
 TEMPLATE_SUPPORT = 2
@@ -131,7 +158,7 @@ def refine_positions(
     return Refined(x2, y2, rho, major, minor)
 
 
-def isolated(x1, y1, refined, step):
+def isolated(x1: np.ndarray, y1: np.ndarray, refined: ArrayLike, step: int) -> np.ndarray:
     """Mask of the `refined` nodes among lattice nodes (x1, y1) `step` px apart with fewer than LEAST_REFINED
     refined nodes within REACH nodes (module docstring; nodes beyond the given ones count as unrefined)."""
     refined = np.asarray(refined, bool)
@@ -144,3 +171,29 @@ def isolated(x1, y1, refined, step):
     size = 2 * REACH + 1
     around = np.rint(ndimage.uniform_filter(grid, size, mode="constant") * size * size) - grid
     return refined & (around[i, j] < LEAST_REFINED)
+
+
+def biased(x1: np.ndarray, y1: np.ndarray, moves: np.ndarray, axes: np.ndarray, params: DenseParams) -> np.ndarray:
+    """Mask of the lattice nodes (x1, y1) DenseParams.step px apart whose refined neighbours' `moves` (px of image 2
+    along the epipolar line, NaN where not refined) are systematic (module docstring: the bias test, with LSM's
+    error-ellipse semi-major `axes` at the nodes); only refined nodes are marked. The window is truncated at the
+    lattice's edges."""
+    refined = np.isfinite(moves)
+    if params.bias_bound <= 0 or refined.sum() < BIAS_NODES:
+        return np.zeros(refined.shape, bool)
+    step = params.step
+    j = np.rint((x1 - x1.min()) / step).astype(np.int64)
+    i = np.rint((y1 - y1.min()) / step).astype(np.int64)
+    shape = (int(i.max()) + 1, int(j.max()) + 1)
+    size = max(3, int(round(BIAS_WINDOW * params.template / step)) | 1)
+    sums = []
+    for value in (np.ones(int(refined.sum())), moves[refined], moves[refined] ** 2):
+        grid = np.zeros(shape)
+        grid[i[refined], j[refined]] = value
+        sums.append(ndimage.uniform_filter(grid, size, mode="constant")[i, j] * size * size)
+    n, s1, s2 = sums
+    census = CENSUS_ERROR * params.template / (2 * params.sgm.census_radius + 1) * np.asarray(axes, float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = s1 / n
+        sd = np.sqrt(np.maximum(s2 / n - mean * mean, 0.0))
+        return refined & (n >= BIAS_NODES - 0.5) & (np.abs(mean) > np.maximum(params.bias_bound * sd, census))

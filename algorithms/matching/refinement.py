@@ -46,16 +46,17 @@ MIN_POINTS = 50
 SUPPORT_CENTRE, SUPPORT_SIMILARITY = 5.0, 1.0
 
 
-def refine_three_ray(points, stereo, grow=None, feedback=None, bias=None, group=3):
+def refine_three_ray(points, stereo, grow=None, feedback=None, bias=None, group=3, exclude=None):
     """MPGC refinement of the `group` points (three rays: region growing's 3, dense matching's 2) of `points`
     (MultiPoints of three_combinations.combine or dense/dense_strategy.py; `stereo` the StereoSet: images and
     models in combination order, their block ids, the height range; `grow` the GrowParams of the matching).
     `bias`: (corrected models, systematic px) of orientation_bias.affine_bias fitted to the points of the whole
     scene (tiled_rounds.scene_bias: the points of one tile are refined with it), else fitted here to `points`.
-    Returns the number of points refined; `points` is changed in place (module docstring)."""
+    `exclude`: a mask of the points not to refine (None: none). Returns the number of points refined; `points` is
+    changed in place (module docstring)."""
     images, models, image_ids = list(stereo.images), list(stereo.models), list(stereo.ids)
     grow = grow or GrowParams()
-    g3 = np.flatnonzero(points.points["group"] == group)
+    g3 = np.flatnonzero((points.points["group"] == group) & (True if exclude is None else ~np.asarray(exclude)))
     if g3.size < (MIN_POINTS if bias is None else 1):
         return 0
     cols, rows = (np.array(v) for v in zip(*(points.coordinates(i) for i in image_ids)))

@@ -9,12 +9,19 @@ from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.pair_tile import lattice, match_pair_tile, sample_disparity
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.precision import refined_dense
-from pushbroom.algorithms.dense.refine import AFFINE_CELL, Conjugates, isolated, refine_positions
+from pushbroom.algorithms.dense.precision import SEMI_GLOBAL_AXIS, refined_dense
+from pushbroom.algorithms.dense.refine import (
+    AFFINE_CELL,
+    BIAS_WINDOW,
+    Conjugates,
+    biased,
+    isolated,
+    refine_positions,
+)
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.matching.pair_geometry import ImagePair, local_affine
-from pushbroom.algorithms.simulation.terrain import BARE, CLASSES, CROPS
+from pushbroom.algorithms.simulation.terrain import BARE, CITY, CLASSES, CROPS
 from pushbroom.algorithms.surface import intersection
 from tests.helpers.feedback import Feedback
 from tests.helpers.matching_scene import Scene
@@ -155,7 +162,8 @@ def test_the_points_do_not_depend_on_the_workers(small_scene, triplet_run, tmp_p
 @pytest.mark.parametrize("k", [1, 2])
 def test_a_triplet_matches_each_pair_as_the_pair_alone(small_scene, triplet_run, tmp_path, k):
     """The pair (HRG, HRS<k>)'s positions, refinement and quality are the triplet's for that pair, node by node
-    (tests/helpers/real_dsm.dense_pair_of_triplet relies on it)."""
+    (tests/helpers/real_dsm.dense_pair_of_triplet relies on it), but where the other pair's bias test kept a node's
+    positions semi-global: there the triplet's position is the semi-global one, with LSM's rho as the pair's."""
     pair, _ = dense_run(small_scene, tmp_path / "pair", (NAMES[0], NAMES[k]))
     triplet = triplet_run[0]
 
@@ -167,7 +175,10 @@ def test_a_triplet_matches_each_pair_as_the_pair_alone(small_scene, triplet_run,
 
     alone, within = by_node(pair, 2), by_node(triplet, k + 1)
     assert len(alone) > 1000 and alone.keys() == within.keys()
-    assert all(np.array_equal(alone[n], within[n], equal_nan=True) for n in alone)
+    axis = np.float32(SEMI_GLOBAL_AXIS)
+    other = {n for n in alone if within[n][3] == axis and alone[n][3] != axis}  # the other pair's finding
+    assert len(other) < 0.05 * len(alone) and all(alone[n][2] == within[n][2] for n in other)
+    assert all(np.array_equal(alone[n], within[n], equal_nan=True) for n in alone.keys() - other)
 
 
 def test_a_textureless_pair_gives_no_point_and_a_warning(small_scene, tmp_path):
@@ -189,12 +200,13 @@ def test_a_textureless_pair_gives_no_point_and_a_warning(small_scene, tmp_path):
 def test_mpgc_refines_more_three_ray_points_as_accurately(small_scene, tmp_path, figures):
     """DenseParams.mpgc on the small triplet (every 4th pixel): the three-ray points' heights, intersected with the
     true models, against the true DSM on open ground (bare fields and crops): MPGC refines more of them (it starts
-    from the semi-global positions too) and their RMS is lower than the pairwise LSM's."""
+    from the semi-global positions too) and their RMS is lower than the pairwise LSM's; it leaves the positions the
+    bias test kept semi-global as they are."""
     scene = Scene(small_scene)
     images = [small_scene["images"][n]["imagery"] for n in NAMES]
     models = [sensors.load(small_scene["images"][n]["metadata"]) for n in NAMES]
     truth = {k: scene.truth_model(n) for k, n in enumerate(NAMES, start=1)}
-    rows = {}
+    rows, positions = {}, {}
     for mpgc in (False, True):
         parts, stats = match_dense_tiles(
             images,
@@ -216,6 +228,8 @@ def test_mpgc_refines_more_three_ray_points_as_accurately(small_scene, tmp_path,
         m = open_ground & (res.rays[ok] == 3) & refined_dense(points)[slot]  # LSM's or MPGC's positions
         dh = h[m] - scene.dsm.height(lon[m], lat[m])
         rows[mpgc] = (int(m.sum()), float(np.sqrt(np.mean(dh**2))), stats.get("refined_mpgc", 0))
+        kept = obs["semi_major"] == np.float32(SEMI_GLOBAL_AXIS)
+        positions[mpgc] = {tuple(o) for o in obs[kept][["point_id", "image_id", "col", "row"]]}
         figures.report(
             f"dense three-ray points on open ground, {'MPGC' if mpgc else 'pairwise LSM'}: height RMS",
             rows[mpgc][1],
@@ -223,6 +237,7 @@ def test_mpgc_refines_more_three_ray_points_as_accurately(small_scene, tmp_path,
             f"{rows[mpgc][0]} refined points, every 4th pixel",
         )
     assert rows[False][2] == 0 and rows[True][2] > 0.5 * rows[False][0]
+    assert len(positions[False]) > 100 and positions[True] == positions[False]
     # the robust pairwise LSM with its 1 px shift bound closed the gap: MPGC refines 6 % more points (8679 against
     # 8213), as accurately (1.77 against 1.78 m)
     assert rows[True][0] > 1.03 * rows[False][0] and rows[True][1] < 1.02 * rows[False][1]
@@ -240,6 +255,66 @@ def test_isolated_refinements_on_the_lattice():
     lone = isolated(x, y, nodes.ravel(), step).reshape(nodes.shape)
     assert set(zip(*np.nonzero(lone))) == {(10, 14), (10, 3), (11, 4)}
     assert not isolated(x, y, np.zeros(x.size, bool), step).any()
+
+
+def test_the_bias_test_keeps_systematic_moves_only():
+    """refine.biased: a block of nodes whose LSM moves agree (0.4 px, noise 0.1 px) amid moves that change sign
+    (noise 0.3 px): the block's inner nodes are kept, the others not; the census floor and a zero bound keep none."""
+    rng = np.random.default_rng(3)
+    x, y = lattice((0, 0, 120, 100), 1)
+    moves = rng.normal(0.0, 0.3, (100, 120))
+    moves[30:70, 40:90] = 0.4 + rng.normal(0.0, 0.1, (40, 50))
+    moves[0:10, 0:10] = np.nan  # not refined
+    axes = np.full(x.size, 0.02)  # the floor 1.5 * 19 / 5 * 0.02 = 0.11 px
+    kept = biased(x, y, moves.ravel(), axes, DenseParams()).reshape(moves.shape)
+    half = int(round(BIAS_WINDOW * 19)) // 2  # 14: the window's half width
+    assert kept[30 + half : 70 - half, 40 + half : 90 - half].all()  # the windows wholly inside the block
+    outside = np.ones(moves.shape, bool)
+    outside[30 - half : 70 + half, 40 - half : 90 + half] = False
+    assert not kept[outside].any() and not kept[0:10, 0:10].any()
+    assert not biased(x, y, moves.ravel(), np.full(x.size, 0.1), DenseParams()).any()  # floor 0.57 px
+    assert not biased(x, y, moves.ravel(), axes, DenseParams(bias_bound=0.0)).any()
+    with pytest.raises(InputError, match="bias bound"):
+        DenseParams(bias_bound=-1.0).check()
+
+
+def test_the_bias_test_keeps_semi_global_positions_in_the_town(small_scene, tmp_path, figures):
+    """Dense matching of HRG -> HRS1 (every 2nd pixel): the positions the bias test kept are the semi-global
+    matcher's (the run without LSM), carry SEMI_GLOBAL_AXIS and the stats count them; they lie mostly in the town."""
+    scene = Scene(small_scene, "HRG", "HRS1")
+
+    def run(folder, **settings):
+        parts, stats = match_dense_tiles(
+            [small_scene["images"][n]["imagery"] for n in NAMES[:2]],
+            [scene.model1, scene.model2],
+            folder,
+            params=DenseParams(tile=256, step=2, **settings),
+            height_range=scene.height_range,
+            execution=Execution("threads", 2),
+        )
+        obs = np.concatenate([p.observations for p in parts])
+        first, second = obs[obs["image_id"] == 1], obs[obs["image_id"] == 2]
+        first = first[np.searchsorted(first["point_id"], second["point_id"])]  # one point id per tile: same tile
+        return first, second, stats
+
+    first, second, stats = run(tmp_path / "lsm")
+    kept = second["semi_major"] == np.float32(SEMI_GLOBAL_AXIS)
+    assert kept.sum() == stats["semi_global"] > 0 and (second["semi_minor"][kept] == np.float32(SEMI_GLOBAL_AXIS)).all()
+    assert np.isfinite(second["rho"][kept]).all()  # measured: LSM correlates there
+    sg_first, sg_second, _ = run(tmp_path / "sgm", lsm=False)
+    key = {(c, r): k for k, (c, r) in enumerate(zip(sg_first["col"], sg_first["row"]))}
+    at = np.array([key[(c, r)] for c, r in zip(first["col"][kept], first["row"][kept])])
+    assert np.array_equal(second["col"][kept], sg_second["col"][at])
+    assert np.array_equal(second["row"][kept], sg_second["row"][at])
+    cls = scene.truth(first["col"], first["row"])[2]
+    share = {c: kept[cls == c].mean() for c in (BARE, CROPS, CITY)}
+    figures.report(
+        "dense HRG-HRS1, positions the bias test kept semi-global in the town",
+        share[CITY] * 100,
+        "%",
+        f"bare {share[BARE]:.1%}, crops {share[CROPS]:.1%}",
+    )
+    assert share[CITY] > 0.3 and share[CITY] > 10 * max(share[BARE], share[CROPS])
 
 
 def test_the_initial_affine_once_per_cell(scene, figures):

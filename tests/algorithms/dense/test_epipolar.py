@@ -13,6 +13,7 @@ from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.matching.pair_geometry import predict
 
 ROW_TOLERANCE = 0.05  # epipolar px: issue 22's bound
+ANGLE = 0.01  # rad: the largest angle between a tile's epipolar lines and their mean direction
 
 
 def spot_pair(small_scene, first, second):
@@ -69,6 +70,14 @@ def test_conjugate_points_lie_on_one_row_over_the_height_range(case, figures):
     x2, y2 = grid.image2(u1, v1)
     e2 = np.hypot(*(np.array([x2, y2]) - np.array(predict(model1, model2, x1, y1, np.full(x1.size, grid.heights[1])))))
     assert e2.max() <= grid.interpolation_error + 1e-3 < 0.01
+    # along(): a move along the epipolar curve (one point's image 2 at two heights) keeps its length, one across has
+    # none (the tile's epipolar lines are parallel to within ANGLE rad)
+    xa, ya = predict(model1, model2, x1, y1, np.full(x1.size, grid.heights[1]))
+    xb, yb = predict(model1, model2, x1, y1, np.full(x1.size, grid.heights[1] + 0.05 * (hr[1] - hr[0])))
+    dx, dy = xb - xa, yb - ya
+    length = np.hypot(dx, dy)
+    assert (1.0 - np.abs(grid.along(dx, dy)) / length).max() < 0.5 * ANGLE**2
+    assert (np.abs(grid.along(-dy, dx)) / length).max() < ANGLE
 
 
 def ecef(lon, lat, h):
