@@ -277,7 +277,7 @@ def simulated(tmp, config=None, scene="", full=True):
         for zone in tables["dense"]:
             rows.append(
                 {
-                    "tool": f"{scene}10 m DSM - true {reference}: RMS (coverage; RMS on the cells all cover)",
+                    "tool": f"10 m DSM - true {reference}: RMS (coverage; RMS on the cells all cover)",
                     "step": zone,
                     "value": ", ".join(
                         f"{label} {t[zone][2]:.2f} m ({100 * t[zone][1]:.0f} %; {t[zone][5]:.2f})"
@@ -288,12 +288,12 @@ def simulated(tmp, config=None, scene="", full=True):
     for label, d in dh.items():
         rows.append(
             {
-                "tool": f"{scene}{label}",
+                "tool": label,
                 "step": "coverage of the non-water cells",
                 "value": f"{100 * np.isfinite(d[~truth.water]).mean():.1f} %",
             }
         )
-    return rows
+    return [dict(r, tool=scene + r["tool"]) for r in rows]
 
 
 def run():

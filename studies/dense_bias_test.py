@@ -5,11 +5,11 @@ places, on the simulated triplet and on real images, and what does it do to the 
 
 On two 3 km simulated SPOT 5 triplets (HRG, HRS1, HRS2; the supplied models, the DSM's height range +- 100 m): the
 calibration scene (SceneConfig.small(), seed 1, the one `make bench-peers` compares with CARS) and the check scene of
-studies/dense_precision.py (seed 2, 4 km west: small fields among forest). Dense matching with the default DenseParams
-but 256 px tiles, at the settings of SETTINGS (the bound b, 0: no test; the census factor k, refine.CENSUS_ERROR, set
-for the run); every point intersected with the TRUE models (the error is the matching's alone) and the product's
-image sigmas (dense/precision.py), and the dense pipeline model's 10 m DSM of them
-(studies/sim_dense.py: cells, FALLBACK off, RADIUS 1, FILL 10) against the true DSM at the evaluation cells, by class
+studies/dense_precision.py (seed 2, 4 km west: small fields among forest). Dense matching with the default
+DenseParams but 256 px tiles, at the settings of SETTINGS (the bound b, 0: no test; the census factor k,
+DenseParams.census_error); every point intersected with the TRUE models (the error is the matching's alone) and the
+product's image sigmas (dense/precision.py), and the dense pipeline model's 10 m DSM of them (studies/sim_dense.py:
+cells, FALLBACK off, RADIUS 1, FILL 10) against the true DSM at the evaluation cells, by class
 (tests/helpers/dsm_comparison.py). Per row: the points with a position the test kept semi-global, by class of the
 point's true cell; the non-water cells from their own points and filled; the matching's seconds (2 threads); the RMS
 by class.
@@ -24,10 +24,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from pushbroom.algorithms.crs import reproject, wgs84
-from pushbroom.algorithms.dense import precision, refine
+from pushbroom.algorithms.dense import precision
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.precision import SEMI_GLOBAL_AXIS
 from pushbroom.algorithms.dense.refine import biased, isolated
+from pushbroom.algorithms.matching.points import SEMI_GLOBAL
 from pushbroom.algorithms.sigmas import IMAGE_SIGMA
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from studies.sim_dense import TruthCloud, dense_points, intersect_truth, model_dem, real_tiles, rms
@@ -36,7 +36,7 @@ from tests.helpers.dsm_comparison import CLASSES, Truth
 #: the test's bounds at the product's census factor (0: off), for the real images
 BOUNDS = (0.0, 0.6, 0.8, 1.0)
 #: (bound b, census factor k) of the simulated rows
-SETTINGS = ((0.0, refine.CENSUS_ERROR), (0.8, 1.0), (0.6, 1.5), (0.8, 1.5), (1.0, 1.5), (0.8, 2.0))
+SETTINGS = ((0.0, DenseParams.census_error), (0.8, 1.0), (0.6, 1.5), (0.8, 1.5), (1.0, 1.5), (0.8, 2.0))
 SCENES = {
     "seed 1 (calibration)": SceneConfig.small(),
     "seed 2, 4 km west": SceneConfig.small(seed=2, centre_lon=-84.235),
@@ -44,10 +44,9 @@ SCENES = {
 
 
 def kept_semi_global(cloud: TruthCloud) -> np.ndarray:
-    """Per intersected point, whether one of its positions is a semi-global one the test kept (its axes)."""
-    obs = cloud.points.observations
-    mark = np.isclose(obs["semi_major"], SEMI_GLOBAL_AXIS) & np.isclose(obs["semi_minor"], SEMI_GLOBAL_AXIS)
-    return np.isin(cloud.result.point, obs["point_id"][mark])
+    """Per intersected point, whether the test kept its positions semi-global (points.SEMI_GLOBAL)."""
+    pts = cloud.points.points
+    return (pts["flags"][np.searchsorted(pts["id"], cloud.result.point)] & SEMI_GLOBAL) != 0
 
 
 def real_shares() -> None:
@@ -78,13 +77,8 @@ def simulated(label: str, config: SceneConfig) -> None:
         + " |\n|"
         + "---|" * (6 + len(zones))
     )
-    product = refine.CENSUS_ERROR
     for bound, factor in SETTINGS:
-        refine.CENSUS_ERROR = factor
-        try:
-            points, seconds = dense_points(paths, DenseParams(tile=256, bias_bound=bound))
-        finally:
-            refine.CENSUS_ERROR = product
+        points, seconds = dense_points(paths, DenseParams(tile=256, bias_bound=bound, census_error=factor))
         sigma = precision.image_sigmas(points.points, points.observations, IMAGE_SIGMA)
         cloud = TruthCloud(points, intersect_truth(points, truth, sigma), seconds)
         res = cloud.result

@@ -25,6 +25,7 @@ from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
+from pushbroom.algorithms.matching.points import SEMI_GLOBAL
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.local_spread import local_metres, local_spread
@@ -85,7 +86,7 @@ def scene_errors(config):
         "cls": values[i, j],
         "distance": distance[i, j],
         "radius": radius,
-        "kept": np.isin(res.point[ok], obs["point_id"][obs["semi_major"] == np.float32(precision.SEMI_GLOBAL_AXIS)]),
+        "kept": (points["flags"][np.searchsorted(points["id"], res.point[ok])] & SEMI_GLOBAL) != 0,
     }
 
 

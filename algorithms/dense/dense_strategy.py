@@ -15,7 +15,10 @@ Observations: the reference image's position is the lattice node (rho NaN, axes 
 growing's); a matched image's position carries LSM's rho and error-ellipse semi-axes where the refinement
 (refine.py) replaced it, NaN where it stayed the semi-global matcher's; where the bias test (refine.biased) found
 LSM's moves systematic in either pair, the node's refined positions go back to the semi-global ones, with LSM's rho
-and the semi-global precision's axes (precision.SEMI_GLOBAL_AXIS). A point's rho_a / rho_b are its pairs'
+(LSM's template correlates there, at its own position up to the largest shift away) and the semi-global precision's
+axes (precision.SEMI_GLOBAL_AXIS), and the point is flagged SEMI_GLOBAL: it counts as measured in the DEM's tiers,
+MPGC leaves it and its orientation sample skips it, and tie point selection ranks it after the LSM-measured
+points of its cell. A point's rho_a / rho_b are its pairs'
 LSM rho; rho_min the smaller, NaN where one of its matched positions is unrefined (a point is "refined" only
 if all of them are: the DEM's tiers and the tie point selection read it); flags DENSE. A tile without texture
 gives no points and a warning, not an error.
@@ -41,7 +44,7 @@ from ..matching.imagery import as_image
 from ..matching.match_stats import MatchStats
 from ..matching.pair_geometry import ImagePair
 from ..matching.params import GrowParams
-from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, REFINED, MultiPoints
+from ..matching.points import COMB_A, COMB_B, DENSE, OBS_DTYPE, POINT_DTYPE, REFINED, SEMI_GLOBAL, MultiPoints
 from ..matching.refinement import MIN_POINTS, refine_three_ray
 from ..matching.stereo_set import StereoSet
 from ..matching.strategy import MatchingStrategy, RoundResults, Rounds, TilePlan, register
@@ -101,15 +104,14 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
         quality.append(q)
         info["refined"] = int(np.isfinite(q[0]).sum())
         infos.append(info)
-    if kept:
-        # the test's finding is the reference template's (both pairs' LSM share it): every refined position of a
-        # node one pair found biased keeps its semi-global position, measured
-        either = np.any(kept, axis=0)
-        for (x2, y2), (sx, sy), q, info in zip(positions, dense, quality, infos):
-            at = either & np.isfinite(q[0])
-            x2[at], y2[at] = sx[at], sy[at]
-            q[1][at] = q[2][at] = SEMI_GLOBAL_AXIS
-            info["semi_global"] = int(at.sum())
+    # the test's finding is the reference template's (both pairs' LSM share it): every refined position of a node
+    # one pair found biased keeps its semi-global position, measured
+    either = np.any(kept, axis=0) if kept else np.zeros(positions[0][0].size, bool)
+    for (x2, y2), (sx, sy), q, info in zip(positions, dense, quality, infos):
+        at = either & np.isfinite(q[0])
+        x2[at], y2[at] = sx[at], sy[at]
+        q[1][at] = q[2][at] = SEMI_GLOBAL_AXIS
+        info["semi_global"] = int(at.sum())
     matched = np.array([np.isfinite(x2) for x2, _ in positions])
     keep = matched.any(axis=0)
     count = int(keep.sum())
@@ -120,7 +122,7 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
     flags = np.zeros(count, np.uint8)
     for k, bit in zip(range(n - 1), (COMB_A, COMB_B)):
         flags |= np.where(matched[k, keep], bit, 0).astype(np.uint8)
-    points["flags"] = flags | DENSE
+    points["flags"] = flags | DENSE | np.where(either[keep], SEMI_GLOBAL, 0).astype(np.uint8)
     for name in ("rho_c", "dx", "dy"):
         points[name] = np.nan
     points["rho_a"] = quality[0][0][keep]
@@ -172,14 +174,15 @@ class Dense(MatchingStrategy):
         of its refined three-ray points (the orientation bias's sample)."""
         multi, infos = tile_points(job, box)
         save_work(out, multi)
-        three = np.flatnonzero((multi.points["group"] == 2) & np.isfinite(multi.points["rho_min"]))
+        pts = multi.points
+        three = np.flatnonzero((pts["group"] == 2) & np.isfinite(pts["rho_min"]) & (pts["flags"] & SEMI_GLOBAL == 0))
         return {
             "points": len(multi),
             "group_2": int((multi.points["group"] == 2).sum()),
             "seeds": [i["seeds"] for i in infos],
             "row_offset": [i["row_offset"] for i in infos],
             "refined": sum(i["refined"] for i in infos),
-            "semi_global": sum(i.get("semi_global", 0) for i in infos),
+            "semi_global": sum(i["semi_global"] for i in infos),
             "sample": positions(multi, job.stereo.ids, evenly(three, quota)),
         }
 
@@ -255,8 +258,7 @@ def _mpgc(job: DenseJob, multi: MultiPoints) -> int:
     counts as refined even where the pairwise LSM had left a semi-global position). Returns the count."""
     p, s = job.params, job.stereo
     grow = GrowParams(template=p.template, max_shift=p.max_shift)
-    obs = multi.observations
-    kept = np.isin(multi.points["id"], obs["point_id"][obs["semi_major"] == np.float32(SEMI_GLOBAL_AXIS)])
+    kept = (multi.points["flags"] & SEMI_GLOBAL) != 0
     count = refine_three_ray(multi, s, grow, bias=job.bias, group=2, exclude=kept)
     done = np.flatnonzero(multi.points["flags"] & REFINED)
     if done.size:

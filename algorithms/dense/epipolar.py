@@ -126,11 +126,12 @@ class EpipolarGrid:
 
     def along(self, dx: ArrayLike, dy: ArrayLike) -> np.ndarray:
         """The components (px) of image-2 moves (dx, dy) (px) along the epipolar line: the direction of the image-2
-        nodes' least-squares affine in u, which the grid follows within its interpolation error over a tile."""
-        rows, cols = self.q.shape[:2]
-        v, u = np.meshgrid(np.arange(rows) * self.step, np.arange(cols) * self.step, indexing="ij")
-        design = np.column_stack([u.ravel(), v.ravel(), np.ones(u.size)])
-        direction = np.linalg.lstsq(design, self.q.reshape(-1, 2), rcond=None)[0][0]  # d(x, y) / du
+        nodes' least-squares affine in u (the defined nodes'), which the grid follows within its interpolation error
+        over a tile."""
+        good = np.isfinite(self.q).all(axis=-1)
+        v, u = (np.nonzero(good)[k] * self.step for k in (0, 1))
+        design = np.column_stack([u, v, np.ones(u.size)])
+        direction = np.linalg.lstsq(design, self.q[good], rcond=None)[0][0]  # d(x, y) / du
         direction = direction / np.hypot(*direction)
         return direction[0] * np.asarray(dx, float) + direction[1] * np.asarray(dy, float)
 

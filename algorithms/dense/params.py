@@ -16,8 +16,9 @@ class DenseParams:
     of the four disparities a lattice node is interpolated from; sgm: census and SGM settings; lsm: LSM
     refinement in the original images (refine.py) with a `template` px window, kept within `max_shift` px
     of the dense position, with LSM's robust weighting where `robust`, a node the template fails at tried again
-    with a `wide_template` px window (0: none), and a node whose refined neighbours' moves are systematic beyond
-    `bias_bound` times their spread keeping its semi-global position (refine.biased; 0: no such test); mpgc: a
+    with a `wide_template` px window (0: none), and a node whose refined neighbours' moves are systematic, beyond
+    `bias_bound` times their spread and beyond `census_error` times the census's share of LSM's ellipse, keeping
+    its semi-global positions in every pair (refine.biased; bias_bound 0: no such test); mpgc: a
     triplet's three-ray points refined again by MPGC in both search images at once (dense_strategy.py)."""
 
     tile: int = 512
@@ -31,6 +32,7 @@ class DenseParams:
     max_shift: float = 1.0
     robust: bool = True
     bias_bound: float = 0.8
+    census_error: float = 1.5
     mpgc: bool = False
 
     def refinement(self) -> GrowParams:
@@ -66,6 +68,8 @@ class DenseParams:
             raise InputError("the refinement's largest shift must be positive")
         if not self.bias_bound >= 0:
             raise InputError(f"the refinement's bias bound must be 0 (off) or positive, got {self.bias_bound}")
+        if not self.census_error >= 0:
+            raise InputError(f"the bias test's census error factor must be 0 or positive, got {self.census_error}")
         self.refinement().check()  # the wide template's rule
         if not 0 < self.sgm.p1 < self.sgm.p2:
             raise InputError(f"the SGM penalties must satisfy 0 < P1 < P2, got {self.sgm.p1}, {self.sgm.p2}")

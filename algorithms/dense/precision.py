@@ -1,7 +1,8 @@
 """The precision of the refined dense points: LSM's error ellipses and the surface around each point, calibrated
 against the truth.
 
-A dense point is refined when LSM refined every one of its matched positions (dense/refine.py; rho_min finite).
+A dense point is refined when LSM refined every one of its matched positions (dense/refine.py; rho_min finite),
+including the positions the bias test then sent back to their semi-global places (they stay measured).
 Its height sigma has two parts:
 
 1. Matching noise. Each refined position carries LSM's error ellipse relative to the template's position,

@@ -10,7 +10,8 @@ of the dense position: a larger move means a template that straddles two surface
 a semi-global mismatch, where LSM found another surface than the census window's. Moves up to about 1 px are
 mostly LSM correcting the semi-global position on open ground (its sub-pixel fit, the epipolar resampling;
 studies/README.md#dense_variance_test measures the bound). A refined point carries LSM's rho and error-ellipse
-semi-axes (its precision); the others keep NaN.
+semi-axes (its precision); the others keep NaN; those the bias test below sends back to their semi-global positions
+keep LSM's rho with the semi-global precision's axes.
 
 A wider second window (DenseParams.wide_template; lsm.match_accepted's, with GrowParams.wide_beyond_shift off): a
 node the template fails at without moving beyond the largest shift (too low a rho, too wide an ellipse, singular or
@@ -48,14 +49,14 @@ around a node (at least BIAS_NODES of them), the node keeps its semi-global posi
     |mean(t)| > max(b sd(t), k (w_t / w_c) a)
 b = DenseParams.bias_bound; a the node's LSM error-ellipse semi-major axis and w_t / w_c the template's width over
 the census window's: the census sees (w_t / w_c)^2 fewer samples than the template, so k (w_t / w_c) a predicts the
-semi-global position's own error (k = CENSUS_ERROR), which the move must exceed to be LSM's bias and not a
-correction of a weak census match (crops, low texture). The test reads positions and LSM's ellipse, not the images'
-radiometry or a noise model (a residual test did, and failed on real images: studies/README.md#dense_variance_test).
-The straddling template is the reference image's, which a triplet's two pairs share: where the test finds one pair's
-moves systematic, both pairs' refined positions of the node keep their semi-global ones (the caller's,
-dense/dense_strategy.py). Such a position is measured (its rho is LSM's at the node: the template correlates there)
-with the semi-global matcher's precision (dense/precision.py, SEMI_GLOBAL_AXIS). Measured in
-studies/README.md#dense_bias_test.
+semi-global position's own error (k = DenseParams.census_error: the sub-pixel fit's pixel locking adds to the
+census's noise), which the move must exceed to be LSM's bias and not a correction of a weak census match (crops, low
+texture). The test reads positions and LSM's ellipse, not the images' radiometry or a noise model (a residual test
+did, and failed on real images: studies/README.md#dense_variance_test). The straddling template is the reference
+image's, which a triplet's two pairs share: where the test finds one pair's moves systematic, both pairs' refined
+positions of the node keep their semi-global ones (the caller's, dense/dense_strategy.py). Such a position is
+measured (its rho is LSM's at the node: the template correlates there) with the semi-global matcher's precision
+(dense/precision.py, SEMI_GLOBAL_AXIS). Measured in studies/README.md#dense_bias_test.
 
 Measured on the simulated triplet (docs/validation.md#dense-matching, with the plain LSM): LSM halves the dense
 position's error on open ground where it is accepted, and makes it worse within a template of a height step;
@@ -82,9 +83,6 @@ AFFINE_CELL = 32
 REACH, LEAST_REFINED = 2, 3
 #: the bias test (module docstring): its window (templates) and the fewest refined nodes in it
 BIAS_WINDOW, BIAS_NODES = 1.5, 9
-#: k: the semi-global position's error over the census window's share of LSM's ellipse (module docstring; the
-#: sub-pixel fit's pixel locking adds to the census's noise)
-CENSUS_ERROR = 1.5
 #: px beyond LSM's template that its samples read: bicubic resampling in image 2 (2), bilinear samples and their
 #: central-difference gradients in image 1 (1 + 1)
 TEMPLATE_SUPPORT = 2
@@ -192,7 +190,7 @@ def biased(x1: np.ndarray, y1: np.ndarray, moves: np.ndarray, axes: np.ndarray, 
         grid[i[refined], j[refined]] = value
         sums.append(ndimage.uniform_filter(grid, size, mode="constant")[i, j] * size * size)
     n, s1, s2 = sums
-    census = CENSUS_ERROR * params.template / (2 * params.sgm.census_radius + 1) * np.asarray(axes, float)
+    census = params.census_error * params.template / (2 * params.sgm.census_radius + 1) * np.asarray(axes, float)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = s1 / n
         sd = np.sqrt(np.maximum(s2 / n - mean * mean, 0.0))

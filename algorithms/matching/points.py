@@ -34,6 +34,8 @@ EDGE = 16
 REFINED = 32
 #: dense matching: a point of the semi-global matcher (dense/dense_strategy.py)
 DENSE = 64
+#: dense matching: a point whose positions the bias test kept at the semi-global matcher's (dense/refine.py)
+SEMI_GLOBAL = 128
 
 POINT_DTYPE = np.dtype(
     [

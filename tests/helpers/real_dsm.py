@@ -80,7 +80,7 @@ def dense_pair_of_triplet(points, k):
     matches each pair of a triplet as it matches the pair alone (dense_strategy.tile_points; tested in
     tests/algorithms/dense/test_dense_strategy.py), so these are the pair's own points, numbered otherwise; but
     where the other pair's bias test (dense/refine.py) kept a node's positions semi-global, both pairs' are
-    (0.1 % of the Pleiades triplet's nodes: studies/README.md#dense_bias_test)."""
+    (a few of the real nodes: studies/README.md#dense_bias_test)."""
     obs = points.observations
     mine = obs[obs["image_id"] == k + 1]
     keep = points.points[np.isin(points.points["id"], mine["point_id"])].copy()

@@ -21,6 +21,7 @@ from pushbroom.algorithms.dense.refine import (
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.matching.pair_geometry import ImagePair, local_affine
+from pushbroom.algorithms.matching.points import SEMI_GLOBAL
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CLASSES, CROPS
 from pushbroom.algorithms.surface import intersection
 from tests.helpers.feedback import Feedback
@@ -177,7 +178,7 @@ def test_a_triplet_matches_each_pair_as_the_pair_alone(small_scene, triplet_run,
     assert len(alone) > 1000 and alone.keys() == within.keys()
     axis = np.float32(SEMI_GLOBAL_AXIS)
     other = {n for n in alone if within[n][3] == axis and alone[n][3] != axis}  # the other pair's finding
-    assert len(other) < 0.05 * len(alone) and all(alone[n][2] == within[n][2] for n in other)
+    assert 0 < len(other) < 0.05 * len(alone) and all(alone[n][2] == within[n][2] for n in other)
     assert all(np.array_equal(alone[n], within[n], equal_nan=True) for n in alone.keys() - other)
 
 
@@ -295,13 +296,16 @@ def test_the_bias_test_keeps_semi_global_positions_in_the_town(small_scene, tmp_
         obs = np.concatenate([p.observations for p in parts])
         first, second = obs[obs["image_id"] == 1], obs[obs["image_id"] == 2]
         first = first[np.searchsorted(first["point_id"], second["point_id"])]  # one point id per tile: same tile
-        return first, second, stats
+        points = np.concatenate([p.points for p in parts])
+        return first, second, stats, points["flags"][np.searchsorted(points["id"], second["point_id"])]
 
-    first, second, stats = run(tmp_path / "lsm")
+    first, second, stats, flags = run(tmp_path / "lsm")
     kept = second["semi_major"] == np.float32(SEMI_GLOBAL_AXIS)
     assert kept.sum() == stats["semi_global"] > 0 and (second["semi_minor"][kept] == np.float32(SEMI_GLOBAL_AXIS)).all()
+    assert np.array_equal(kept, (flags & SEMI_GLOBAL) != 0)  # the points flagged
     assert np.isfinite(second["rho"][kept]).all()  # measured: LSM correlates there
-    sg_first, sg_second, _ = run(tmp_path / "sgm", lsm=False)
+    sg_first, sg_second, _, sg_flags = run(tmp_path / "sgm", lsm=False)
+    assert not (sg_flags & SEMI_GLOBAL).any()
     key = {(c, r): k for k, (c, r) in enumerate(zip(sg_first["col"], sg_first["row"]))}
     at = np.array([key[(c, r)] for c, r in zip(first["col"][kept], first["row"][kept])])
     assert np.array_equal(second["col"][kept], sg_second["col"][at])

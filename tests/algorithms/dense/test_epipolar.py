@@ -2,6 +2,8 @@
 range (real Pleiades RPCs, simulated SPOT 5 HRG/HRS), the disparity's sign and range, the epipolar
 pixel's ground size against PROJ, and the pairs that have no epipolar geometry."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from osgeo import osr
@@ -78,6 +80,10 @@ def test_conjugate_points_lie_on_one_row_over_the_height_range(case, figures):
     length = np.hypot(dx, dy)
     assert (1.0 - np.abs(grid.along(dx, dy)) / length).max() < 0.5 * ANGLE**2
     assert (np.abs(grid.along(-dy, dx)) / length).max() < ANGLE
+    # nodes outside a model's domain are NaN: along() fits the others
+    holed = dataclasses.replace(grid, q=grid.q.copy())
+    holed.q[0, :] = np.nan
+    assert np.allclose(holed.along(dx, dy), grid.along(dx, dy), rtol=0.5 * ANGLE**2)
 
 
 def ecef(lon, lat, h):
