@@ -18,7 +18,6 @@ Then the real Pleiades images (the triplet's img_02 -> img_01 and the Ventoux pa
 512 px tile of the first image, the share of the refined nodes the test keeps at each bound."""
 
 import tempfile
-from dataclasses import replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -26,7 +25,7 @@ from scipy.spatial import cKDTree
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dense import precision
 from pushbroom.algorithms.dense.params import DenseParams
-from pushbroom.algorithms.dense.refine import biased, isolated
+from pushbroom.algorithms.dense.refine import lattice_tests
 from pushbroom.algorithms.matching.points import SEMI_GLOBAL
 from pushbroom.algorithms.sigmas import IMAGE_SIGMA
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
@@ -51,15 +50,15 @@ def kept_semi_global(cloud: TruthCloud) -> np.ndarray:
 
 def real_shares() -> None:
     """The real part (module docstring), at the product's census factor."""
-    params = DenseParams()
-    for tile in real_tiles(params):
-        x1, y1, x2, y2 = tile.dense
-        r = tile.refined
-        refined = np.isfinite(r.rho) & ~isolated(x1, y1, np.isfinite(r.rho), params.step)
-        moves = np.where(refined, tile.grid.along(r.x2 - x2, r.y2 - y2), np.nan)
-        kept = {b: biased(x1, y1, moves, r.semi_major, replace(params, bias_bound=b)) for b in BOUNDS[1:]}
-        shares = ", ".join(f"{b:g}: {k.sum() / refined.sum():.1%}" for b, k in kept.items())
-        print(f"{tile.label}: {refined.sum()} refined nodes; kept semi-global at the bounds {shares}")
+    for tile in real_tiles(DenseParams()):
+        shares = []
+        for bound in BOUNDS[1:]:
+            refined, kept = lattice_tests(tile.dense, tile.refined, tile.grid, DenseParams(bias_bound=bound))
+            shares.append(f"{bound:g}: {kept.sum() / np.isfinite(refined.rho).sum():.1%}")
+        print(
+            f"{tile.label}: {np.isfinite(refined.rho).sum()} refined nodes; kept semi-global at the bounds "
+            + ", ".join(shares)
+        )
 
 
 def simulated(label: str, config: SceneConfig) -> None:

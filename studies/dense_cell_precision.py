@@ -20,7 +20,12 @@ from pushbroom.algorithms.dense import precision
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.sigmas import IMAGE_SIGMA
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
-from pushbroom.algorithms.surface.cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, CellSettings, cells_on_grid
+from pushbroom.algorithms.surface.cell_dem import (
+    THREE_RAYS,
+    CellSettings,
+    cells_on_grid,
+    point_tiers,
+)
 from pushbroom.algorithms.surface.local_spread import local_metres, local_spread
 from studies.sim_dense import dense_points, evaluation_grid, intersect_truth, rms
 from tests.helpers.dsm_comparison import CLASSES, Truth
@@ -42,7 +47,7 @@ def cloud(paths: dict, truth: Truth) -> dict:
     spread = local_spread(x[refined], y[refined], res.h[refined], x[refined], y[refined], radius)
     sigma_h[refined] = precision.with_spread(sigma_h[refined], spread)
     ex, ey = reproject(res.lon, res.lat, wgs84(), truth.srs)
-    tier = np.where(~np.isfinite(points["rho_min"][slot]), UNREFINED, np.where(res.rays == 2, TWO_RAYS, THREE_RAYS))
+    tier = point_tiers(points["rho_min"][slot], res.rays)
     return {"x": ex[ok], "y": ey[ok], "z": res.h[ok], "sigma": sigma_h[ok], "tier": tier[ok]}
 
 

@@ -28,7 +28,11 @@ from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.simulation.terrain import CITY, FOREST
-from pushbroom.algorithms.surface.cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, CellSettings, cells_on_grid
+from pushbroom.algorithms.surface.cell_dem import (
+    CellSettings,
+    cells_on_grid,
+    point_tiers,
+)
 from studies.sim_dense import BEFORE, evaluation_grid, rms, truth_cloud
 from tests.helpers.dsm_comparison import CLASSES, Truth
 
@@ -60,7 +64,7 @@ def dense(paths, truth, lsm):
     ref = obs[obs["image_id"] == 1]
     ref = ref[np.searchsorted(ref["point_id"], res.point)]
     rho = cloud.rho() if lsm else np.zeros(res.point.size)
-    tier = np.where(~np.isfinite(rho), UNREFINED, np.where(res.rays == 2, TWO_RAYS, THREE_RAYS))
+    tier = point_tiers(rho, res.rays)
     return {
         "id": res.point,
         "ok": res.ok,

@@ -28,7 +28,13 @@ from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.matching.pair_geometry import ImagePair
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
 from pushbroom.algorithms.simulation.terrain import CLASSES
-from pushbroom.algorithms.surface.cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, CellSettings, cells_on_grid
+from pushbroom.algorithms.surface.cell_dem import (
+    THREE_RAYS,
+    UNREFINED,
+    CellSettings,
+    cells_on_grid,
+    point_tiers,
+)
 from pushbroom.algorithms.surface.tin_dem import DemParams
 from studies.sim_dense import BEFORE, TruthCloud, evaluation_grid, model_dem, rms, truth_cloud
 from tests.benchmarks.benchutil import SHARED_DATA
@@ -64,7 +70,7 @@ def tier_rule(cloud: TruthCloud, truth):
     ok = res.ok
     x, y = reproject(res.lon[ok], res.lat[ok], wgs84(), truth.srs)
     refined = np.isfinite(cloud.rho()[ok])
-    tier = np.where(refined, np.where(res.rays[ok] == 2, TWO_RAYS, THREE_RAYS), UNREFINED)
+    tier = point_tiers(cloud.rho()[ok], res.rays[ok])
     grid, i, j = evaluation_grid(truth)
     settings = CellSettings(k=DemParams().k, fallback=False, radius=1)
     for label, t in (

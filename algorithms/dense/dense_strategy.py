@@ -16,12 +16,11 @@ growing's); a matched image's position carries LSM's rho and error-ellipse semi-
 (refine.py) replaced it, NaN where it stayed the semi-global matcher's; where the bias test (refine.biased) found
 LSM's moves systematic in either pair, the node's refined positions go back to the semi-global ones, with LSM's rho
 (LSM's template correlates there, at its own position up to the largest shift away) and the semi-global precision's
-axes (precision.SEMI_GLOBAL_AXIS), and the point is flagged SEMI_GLOBAL: it counts as measured in the DEM's tiers,
-MPGC leaves it and its orientation sample skips it, and tie point selection ranks it after the LSM-measured
-points of its cell. A point's rho_a / rho_b are its pairs'
-LSM rho; rho_min the smaller, NaN where one of its matched positions is unrefined (a point is "refined" only
-if all of them are: the DEM's tiers and the tie point selection read it); flags DENSE. A tile without texture
-gives no points and a warning, not an error.
+axes (precision.SEMI_GLOBAL_AXIS), and the point is flagged SEMI_GLOBAL: it counts as measured in the DEM's tiers
+and in tie point selection (by that rho), MPGC leaves it and its orientation sample skips it. A point's rho_a /
+rho_b are its pairs' LSM rho; rho_min the smaller, NaN where one of its matched positions is unrefined (a point is
+"refined" only if all of them are: the DEM's tiers and the tie point selection read it); flags DENSE. A tile without
+texture gives no points and a warning, not an error.
 
 The images are opened once, masking their nodata (the band's value and GDAL mask) and saturated pixels
 (matching.imagery.Image, saturation=True): a node whose census window or LSM template reaches a masked pixel,
@@ -55,7 +54,7 @@ from ..tiling import tile_grid
 from .pair_tile import match_pair_tile
 from .params import DenseParams
 from .precision import SEMI_GLOBAL_AXIS
-from .refine import Conjugates, biased, isolated, refine_positions
+from .refine import Conjugates, lattice_tests, refine_positions
 
 #: a tile of the reference image: (x0, y0, x1, y1) px, tiling.tile_grid's
 Box = tuple[int, int, int, int]
@@ -86,20 +85,16 @@ def tile_points(job: DenseJob, box: Box) -> tuple[MultiPoints, list[dict[str, An
         dense.append((x2, y2))
         if p.lsm:
             check_cancel()
-            r = refine_positions(
-                ImagePair(s.images[0], s.images[k], s.models[0], s.models[k]),
-                Conjugates(x1, y1, x2, y2),
-                info["grid"].heights[::2],
-                p.refinement(),
+            conjugates = Conjugates(x1, y1, x2, y2)
+            pair = ImagePair(s.images[0], s.images[k], s.models[0], s.models[k])
+            r, found = lattice_tests(
+                conjugates,
+                refine_positions(pair, conjugates, info["grid"].heights[::2], p.refinement()),
+                info["grid"],
+                p,
             )
-            rx, ry, q = r.x2, r.y2, (r.rho, r.semi_major, r.semi_minor)
-            lone = isolated(x1, y1, np.isfinite(r.rho), p.step)  # they keep their dense positions
-            rx[lone], ry[lone] = x2[lone], y2[lone]
-            for v in q:
-                v[lone] = np.nan
-            moves = np.where(np.isfinite(q[0]), info["grid"].along(rx - x2, ry - y2), np.nan)
-            kept.append(biased(x1, y1, moves, q[1], p))
-            x2, y2 = rx, ry
+            kept.append(found)
+            x2, y2, q = r.x2, r.y2, (r.rho, r.semi_major, r.semi_minor)
         positions.append((x2, y2))
         quality.append(q)
         info["refined"] = int(np.isfinite(q[0]).sum())

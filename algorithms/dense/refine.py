@@ -38,14 +38,14 @@ lone good match; it keeps its dense position. Where the DEM takes refined points
 otherwise sets the heights of the empty cells around it. The test runs per tile: a node at a tile's edge has
 fewer nodes around it (a corner 8), so there it is a little stricter.
 
-The bias test (`biased`, on a lattice, after the isolation test): where the template sees one surface that LSM's
-affine fits, LSM's move from the semi-global position is the semi-global matcher's error, which changes sign from
-node to node (its sub-pixel fit's pixel locking, the census window's noise), so LSM's moves average out over the
-nodes around. Where the template straddles heights it cannot fit (a building and the street beside it), LSM pulls
-every template that overlaps them towards their mixture, the same way: its moves agree over the neighbourhood, and
-the semi-global position, whose census window follows the height step, is the better one. With t the refined
-nodes' moves along the epipolar line (px of image 2, EpipolarGrid.along) within a square of BIAS_WINDOW templates
-around a node (at least BIAS_NODES of them), the node keeps its semi-global position where
+The bias test (`biased`, on a lattice, after the isolation test; both in `lattice_tests`): where the template sees
+one surface that LSM's affine fits, LSM's move from the semi-global position is the semi-global matcher's error,
+which changes sign from node to node (its sub-pixel fit's pixel locking, the census window's noise), so LSM's moves
+average out over the nodes around. Where the template straddles heights it cannot fit (a building and the street
+beside it), LSM pulls every template that overlaps them towards their mixture, the same way: its moves agree over
+the neighbourhood, and the semi-global position, whose census window follows the height step, is the better one.
+With t the refined nodes' moves along the epipolar line (px of image 2, EpipolarGrid.along) within a square of
+BIAS_WINDOW templates around a node (at least BIAS_NODES of them), the node keeps its semi-global position where
     |mean(t)| > max(b sd(t), k (w_t / w_c) a)
 b = DenseParams.bias_bound; a the node's LSM error-ellipse semi-major axis and w_t / w_c the template's width over
 the census window's: the census sees (w_t / w_c)^2 fewer samples than the template, so k (w_t / w_c) a predicts the
@@ -74,6 +74,7 @@ from ..matching.pair_geometry import ImagePair, local_affine
 from ..matching.params import GrowParams
 from ..matching.region_growing import match_windows
 from ..matching.resolution import adapt_resolution
+from .epipolar import EpipolarGrid
 from .params import DenseParams
 
 #: px of image 1: the cells of LSM's initial affine (the models' local affine: only LSM's starting shape, which
@@ -156,19 +157,45 @@ def refine_positions(
     return Refined(x2, y2, rho, major, minor)
 
 
+def lattice_tests(
+    points: Conjugates, refined: Refined, grid: EpipolarGrid, params: DenseParams
+) -> tuple[Refined, np.ndarray]:
+    """The tests on the lattice of `points` (DenseParams.step px apart) after LSM (module docstring): `refined` with
+    its isolated refinements back at their dense positions (their quality NaN), and the bias test's mask of the
+    nodes whose positions go back to the semi-global ones (the caller applies it, to every pair of a triplet);
+    `grid` the tile's epipolar grid."""
+    x1, y1, x2, y2 = points
+    lone = isolated(x1, y1, np.isfinite(refined.rho), params.step)
+    rx, ry = np.where(lone, x2, refined.x2), np.where(lone, y2, refined.y2)
+    rho, major, minor = (np.where(lone, np.float32(np.nan), v) for v in refined[2:])
+    moves = np.where(np.isfinite(rho), grid.along(rx - x2, ry - y2), np.nan)
+    return Refined(rx, ry, rho, major, minor), biased(x1, y1, moves, major, params)
+
+
+def window_sums(
+    x1: np.ndarray, y1: np.ndarray, step: int, where: np.ndarray, values: list[np.ndarray], size: int
+) -> list[np.ndarray]:
+    """Per lattice node (x1, y1) (`step` px apart), the sum of each of `values` (given at the nodes `where`; the
+    other nodes count 0) over the size x size nodes around it, truncated at the lattice's edges."""
+    j = np.rint((x1 - x1.min()) / step).astype(np.int64)
+    i = np.rint((y1 - y1.min()) / step).astype(np.int64)
+    shape = (int(i.max()) + 1, int(j.max()) + 1)
+    sums = []
+    for value in values:
+        grid = np.zeros(shape)
+        grid[i[where], j[where]] = value
+        sums.append(ndimage.uniform_filter(grid, size, mode="constant")[i, j] * size * size)
+    return sums
+
+
 def isolated(x1: np.ndarray, y1: np.ndarray, refined: ArrayLike, step: int) -> np.ndarray:
     """Mask of the `refined` nodes among lattice nodes (x1, y1) `step` px apart with fewer than LEAST_REFINED
     refined nodes within REACH nodes (module docstring; nodes beyond the given ones count as unrefined)."""
     refined = np.asarray(refined, bool)
     if not refined.any():
         return refined.copy()
-    j = np.rint((x1 - x1.min()) / step).astype(np.int64)
-    i = np.rint((y1 - y1.min()) / step).astype(np.int64)
-    grid = np.zeros((i.max() + 1, j.max() + 1), np.float32)
-    grid[i[refined], j[refined]] = 1.0
-    size = 2 * REACH + 1
-    around = np.rint(ndimage.uniform_filter(grid, size, mode="constant") * size * size) - grid
-    return refined & (around[i, j] < LEAST_REFINED)
+    (count,) = window_sums(x1, y1, step, refined, [np.ones(int(refined.sum()))], 2 * REACH + 1)
+    return refined & (np.rint(count) - 1 < LEAST_REFINED)
 
 
 def biased(x1: np.ndarray, y1: np.ndarray, moves: np.ndarray, axes: np.ndarray, params: DenseParams) -> np.ndarray:
@@ -179,17 +206,9 @@ def biased(x1: np.ndarray, y1: np.ndarray, moves: np.ndarray, axes: np.ndarray, 
     refined = np.isfinite(moves)
     if params.bias_bound <= 0 or refined.sum() < BIAS_NODES:
         return np.zeros(refined.shape, bool)
-    step = params.step
-    j = np.rint((x1 - x1.min()) / step).astype(np.int64)
-    i = np.rint((y1 - y1.min()) / step).astype(np.int64)
-    shape = (int(i.max()) + 1, int(j.max()) + 1)
-    size = max(3, int(round(BIAS_WINDOW * params.template / step)) | 1)
-    sums = []
-    for value in (np.ones(int(refined.sum())), moves[refined], moves[refined] ** 2):
-        grid = np.zeros(shape)
-        grid[i[refined], j[refined]] = value
-        sums.append(ndimage.uniform_filter(grid, size, mode="constant")[i, j] * size * size)
-    n, s1, s2 = sums
+    size = max(3, int(round(BIAS_WINDOW * params.template / params.step)) | 1)
+    values = [np.ones(int(refined.sum())), moves[refined], moves[refined] ** 2]
+    n, s1, s2 = window_sums(x1, y1, params.step, refined, values, size)
     census = params.census_error * params.template / (2 * params.sgm.census_radius + 1) * np.asarray(axes, float)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = s1 / n

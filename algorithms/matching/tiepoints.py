@@ -1,15 +1,13 @@
 """Tie point selection (Kornus et al. 2006, section 3.3): one point per regular grid cell of the reference image
 (default 100 x 100 px), the one with the highest rho among the most reliable group present in
-that cell (group 3 before 2 before 1; rho = the point's smallest correlation coefficient). A dense point whose
-positions the bias test kept at the semi-global matcher's (points.SEMI_GLOBAL: less precise than LSM's, its rho
-LSM's at another position) ranks after the others of its group."""
+that cell (group 3 before 2 before 1; rho = the point's smallest correlation coefficient)."""
 
 import math
 
 import numpy as np
 
 from ..errors import InputError
-from .points import SEMI_GLOBAL, MultiPoints
+from .points import MultiPoints
 
 
 def select_tie_points(points, cell=100.0, reference_image_id=None, min_group=1):
@@ -29,17 +27,15 @@ def select_tie_points(points, cell=100.0, reference_image_id=None, min_group=1):
     pos = np.searchsorted(points.points["id"], ids)
     group = points.points["group"][pos].astype(np.int64)
     rho = points.points["rho_min"][pos].astype(np.float64)
-    measured = (points.points["flags"][pos] & SEMI_GLOBAL) == 0
     ok = (group >= min_group) & np.isfinite(col) & np.isfinite(row)
     ids, col, row, group, rho = ids[ok], col[ok], row[ok], group[ok], np.nan_to_num(rho[ok], nan=-2.0)
-    measured = measured[ok]
     if len(ids) == 0:
         return MultiPoints(stats=points.stats)
     cx = np.floor(col / cell).astype(np.int64)
     cy = np.floor(row / cell).astype(np.int64)
     key = (cy << 32) + cx
-    # sort by cell, then group descending, then LSM-measured first, then rho descending, then id (deterministic)
-    order = np.lexsort((ids, -rho, ~measured, -group, key))
+    # sort by cell, then group descending, then rho descending, then id (deterministic)
+    order = np.lexsort((ids, -rho, -group, key))
     first = np.ones(len(order), bool)
     first[1:] = key[order][1:] != key[order][:-1]
     selected = points.subset(ids[order][first])

@@ -51,6 +51,14 @@ NO_RING = 255
 THREE_RAYS, TWO_RAYS, UNREFINED = 0, 1, 2
 
 
+def point_tiers(rho: np.ndarray, rays: np.ndarray) -> np.ndarray:
+    """Each point's tier from the cloud's fields: UNREFINED where its rho is NaN (a dense point LSM left at the
+    semi-global position), else TWO_RAYS where it has two rays, else THREE_RAYS."""
+    tier = np.where(np.asarray(rays) == 2, TWO_RAYS, THREE_RAYS).astype(np.uint8)
+    tier[np.isnan(np.asarray(rho, float))] = UNREFINED
+    return tier
+
+
 def _group_medians(key, values):
     """(keys, medians, counts) of `values` grouped by `key` (both 1-D)."""
     order = np.lexsort((values, key))

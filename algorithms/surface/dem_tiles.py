@@ -56,7 +56,7 @@ from ..errors import CancelledError, InputError
 from ..execution import run_tasks, session
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
-from .cell_dem import THREE_RAYS, TWO_RAYS, UNREFINED, CellSettings, cells_on_grid
+from .cell_dem import CellSettings, cells_on_grid, point_tiers
 from .gap_fill import fill_gaps
 from .geotiff import Frame, assemble_tiles, write_float_raster
 from .point_input import PointSet, point_chunks, read_breaklines
@@ -149,12 +149,10 @@ def _centre(path, crs, feedback):
 def _tiers(fields, finite):
     """cell_dem's tier of the `finite` points of a chunk from its cloud fields rho and rays (module docstring);
     THREE_RAYS where the cloud has neither."""
-    tier = np.full(int(finite.sum()), THREE_RAYS, np.uint8)
-    if fields.get("rays") is not None:
-        tier[np.asarray(fields["rays"])[finite] == 2] = TWO_RAYS
-    if fields.get("rho") is not None:
-        tier[np.isnan(np.asarray(fields["rho"], float)[finite])] = UNREFINED
-    return tier
+    n = int(finite.sum())
+    rays = np.asarray(fields["rays"])[finite] if fields.get("rays") is not None else np.full(n, 3)
+    rho = np.asarray(fields["rho"], float)[finite] if fields.get("rho") is not None else np.zeros(n)
+    return point_tiers(rho, rays)
 
 
 def _to_work_chunks(path, crs, target, count, work, feedback):

@@ -10,7 +10,7 @@ from pushbroom.algorithms.block import Block, points as points_store
 from pushbroom.algorithms.block.points import load_arrays, save_arrays
 from pushbroom.algorithms.block.schema import create_schema
 from pushbroom.algorithms.errors import InputError, StorageError
-from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, SEMI_GLOBAL, MultiPoints
+from pushbroom.algorithms.matching.points import OBS_DTYPE, POINT_DTYPE, MultiPoints
 from pushbroom.algorithms.matching.tiepoints import select_tie_points
 from tests.helpers.feedback import Feedback
 from tests.helpers.points_synthetic import FlatModel, synthetic
@@ -137,11 +137,6 @@ def test_tie_points_one_per_cell_best_group_then_rho():
     with pytest.raises(InputError):
         select_tie_points(mp, cell=0)
     assert len(select_tie_points(MultiPoints())) == 0
-    # a dense point whose positions the bias test kept semi-global ranks after its group's others, not its groups'
-    mp.points["flags"][2] = SEMI_GLOBAL
-    assert select_tie_points(mp, cell=100).points["id"].tolist() == [2, 4, 6]
-    mp.points["flags"][1] = SEMI_GLOBAL
-    assert select_tie_points(mp, cell=100).points["id"].tolist() == [3, 4, 6]
 
 
 def test_tie_points_keep_observations_and_ids():
