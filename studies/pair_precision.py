@@ -1,0 +1,107 @@
+"""Issue 39: on the Pleiades triplet, is the dense DSM's precision raster true? The pair differences' spread over the
+cells' predicted sigma should be 0.8-1.25.
+
+The triplet (img_02, img_01, img_03; ../shared/data) matched densely (default DenseParams, 2 threads, over the heights
+the height search finds for it: 40-535 m), its pairs img_02-img_01 and img_02-img_03 taken from it
+(tests/helpers/real_dsm.dense_pair_of_triplet) and img_01-img_03 matched on its own. Each pair's refined points
+intersected with the supplied RPCs and the product's image sigmas (dense/precision.image_sigmas), their spread term
+added (precision.with_spread over surface/local_spread.py, as intersectpoints does), and the per-cell DSM of the DEM
+step (cell_dem.cells_on_grid: 0.5 m, k 3, FALLBACK off, RADIUS 1, the points' tiers) with its precision raster. For
+each two pairs, over the cells both measure from their own points: d = h_p - h_q less its median (the RPCs' bias
+differs between the pairs), and NMAD(d / sqrt(sigma_p^2 + sigma_q^2)) (1: the rasters are true, were the pairs'
+errors independent) beside NMAD(d) / median(sqrt(sigma_p^2 + sigma_q^2)); again without the spread term."""
+
+import tempfile
+
+import numpy as np
+
+from pushbroom.algorithms import sensors
+from pushbroom.algorithms.crs import reproject, wgs84
+from pushbroom.algorithms.dense import precision
+from pushbroom.algorithms.matching.points import MultiPoints
+from pushbroom.algorithms.sigmas import IMAGE_SIGMA
+from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid, point_tiers
+from pushbroom.algorithms.surface.intersection import Measurements, intersect
+from pushbroom.algorithms.surface.local_spread import local_metres, local_spread
+from pushbroom.algorithms.surface.pointcloud import output_srs
+from pushbroom.algorithms.surface.tin_grid import Grid
+from studies.sim_dense import SHARED
+from tests.helpers.real_dsm import dense_pair_of_triplet, dense_points
+
+FILES = [SHARED / "pleiades_triplet" / f"img_0{k}.tif" for k in (2, 1, 3)]  # the reference first
+HEIGHTS = (40.0, 535.0)
+CELL = 0.5
+
+
+def pair_cloud(points: MultiPoints, models: list) -> dict:
+    """A pair's refined points (block ids 1, 2) intersected with `models`: lon, lat, h, sigma_h, tier."""
+    keep = points.points[np.isfinite(points.points["rho_min"])]
+    obs = points.observations[np.isin(points.observations["point_id"], keep["id"])]
+    sigma = precision.image_sigmas(keep, obs, IMAGE_SIGMA)
+    res = intersect(
+        {1: models[0], 2: models[1]}, Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma)
+    )
+    ok = res.ok
+    lon, lat, h = res.lon[ok], res.lat[ok], res.h[ok]
+    x, y = local_metres(lon, lat, (float(np.mean(lon)), float(np.mean(lat))))
+    cols, rows = models[0].size
+    radius = precision.spread_radius(models[0], cols / 2, rows / 2, float(np.median(h)))
+    sigma_h = precision.with_spread(res.sigma[ok, 2], local_spread(x, y, h, x, y, radius))
+    slot = np.searchsorted(keep["id"], res.point[ok])
+    tier = point_tiers(keep["rho_min"][slot], res.rays[ok])
+    return {"lon": lon, "lat": lat, "h": h, "sigma": sigma_h, "rays": res.sigma[ok, 2], "tier": tier}
+
+
+def main() -> None:
+    if not all(f.exists() for f in FILES):
+        print(f"the Pleiades triplet is not in {SHARED}")
+        return
+    models = [sensors.load(f) for f in FILES]
+    triplet, _ = dense_points(FILES, models, ["img_02", "img_01", "img_03"], tempfile.mkdtemp(), HEIGHTS)
+    third, _ = dense_points(FILES[1:], models[1:], ["img_01", "img_03"], tempfile.mkdtemp(), HEIGHTS)
+    clouds = {
+        "img_02-img_01": pair_cloud(dense_pair_of_triplet(triplet, 1), models[:2]),
+        "img_02-img_03": pair_cloud(dense_pair_of_triplet(triplet, 2), [models[0], models[2]]),
+        "img_01-img_03": pair_cloud(third, models[1:]),
+    }
+    first = clouds["img_02-img_01"]
+    srs = output_srs(None, first["lon"], first["lat"])
+    xy = {k: reproject(c["lon"], c["lat"], wgs84(), srs) for k, c in clouds.items()}
+    x0 = min(float(v[0].min()) for v in xy.values())
+    y0 = max(float(v[1].max()) for v in xy.values())
+    cols = int((max(float(v[0].max()) for v in xy.values()) - x0) / CELL) + 1
+    rows = int((y0 - min(float(v[1].min()) for v in xy.values())) / CELL) + 1
+    grid = Grid(x0, y0, CELL, cols, rows)
+    settings = CellSettings(k=3.0, fallback=False, radius=1)
+    for term in ("sigma", "rays"):
+        dems = {
+            k: cells_on_grid(xy[k][0], xy[k][1], c["h"], c[term], grid, settings, tier=c["tier"])
+            for k, c in clouds.items()
+        }
+        print(f"\n{'the product' if term == 'sigma' else 'without the spread term'}:")
+        compare(dems)
+
+
+def compare(dems: dict) -> None:
+    """The table of the module docstring for the per-cell DSMs `dems` {pair: cell_dem.Cells}."""
+    names = list(dems)
+    print("| pairs | cells | NMAD(d) m | median predicted sigma of d, m | NMAD(d / sigma) | ratio of the two |")
+    print("|---|---|---|---|---|---|")
+    for a in range(3):
+        for b in range(a + 1, 3):
+            p, q = dems[names[a]], dems[names[b]]
+            both = (p.ring == 0) & (q.ring == 0) & np.isfinite(p.heights) & np.isfinite(q.heights)
+            both &= np.isfinite(p.precision) & np.isfinite(q.precision)
+            d = (p.heights - q.heights)[both].astype(float)
+            d -= np.median(d)
+            s = np.hypot(p.precision[both], q.precision[both]).astype(float)
+            nmad = 1.4826 * np.median(np.abs(d))
+            z = d / s
+            print(
+                f"| {names[a]} vs {names[b]} | {both.sum()} | {nmad:.3f} | {np.median(s):.3f} | "
+                f"{1.4826 * np.median(np.abs(z - np.median(z))):.2f} | {nmad / np.median(s):.2f} |"
+            )
+
+
+if __name__ == "__main__":
+    main()
