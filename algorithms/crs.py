@@ -43,7 +43,7 @@ def wgs84():
     return srs(4326)
 
 
-#: points handed to PROJ at a time: osr takes Python lists, about 200 bytes a point
+#: points handed to PROJ at a time: osr returns Python tuples, about 200 bytes a point
 TRANSFORM_CHUNK = 65536
 
 
@@ -69,7 +69,7 @@ def transform(source, target, xyz, what):
         )
     return np.concatenate(
         [
-            np.array(ct.TransformPoints(xyz[a : a + TRANSFORM_CHUNK].tolist()), float)
+            np.array(ct.TransformPoints(np.ascontiguousarray(xyz[a : a + TRANSFORM_CHUNK])), float)
             for a in range(0, len(xyz), TRANSFORM_CHUNK)
         ]
     ).reshape(len(xyz), -1)

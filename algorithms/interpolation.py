@@ -12,8 +12,12 @@ import math
 import numpy as np
 from numba import njit
 
+#: numba's fast-math flags for the interpolation and matching kernels: reassociation (the sums vectorise) and fused
+#: multiply-add, never the finite-math assumptions (the kernels test NaN and infinity)
+FAST = {"reassoc", "contract", "nsz", "arcp"}
 
-@njit(cache=True, nogil=True)
+
+@njit(cache=True, nogil=True, fastmath=FAST)
 def bilinear(img, x, y):
     """Bilinear grey value of img at GDAL position (x, y); NaN outside the pixel-centre hull."""
     nrows, ncols = img.shape
@@ -40,6 +44,21 @@ def bilinear(img, x, y):
     return top * (1.0 - fy) + bottom * fy
 
 
+@njit(cache=True, nogil=True, fastmath=FAST)
+def bilinear_inside(img, x, y):
+    """`bilinear` where the caller guarantees that (x, y) lies inside the pixel-centre hull of an image of at
+    least 2 x 2 pixels (no test, for the inner loops of correlation)."""
+    c = x - 0.5
+    r = y - 0.5
+    j0 = min(int(c), img.shape[1] - 2)
+    i0 = min(int(r), img.shape[0] - 2)
+    fx = c - j0
+    fy = r - i0
+    top = img[i0, j0] * (1.0 - fx) + img[i0, j0 + 1] * fx
+    bottom = img[i0 + 1, j0] * (1.0 - fx) + img[i0 + 1, j0 + 1] * fx
+    return top * (1.0 - fy) + bottom * fy
+
+
 @njit(cache=True, nogil=True)
 def keys_weights(t):
     """Keys cubic convolution (a = -0.5) weights for fraction t in [0, 1) at the nodes -1, 0, 1, 2."""
@@ -52,7 +71,7 @@ def keys_weights(t):
     return w0, w1, w2, w3
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FAST)
 def cubic(img, x, y):
     """(g, kappa): bicubic (Keys, a = -0.5) grey value at (x, y), which interpolates the pixel
     values, and kappa = the sum of the squared weights (the factor by which resampling scales the

@@ -60,6 +60,16 @@ def terrain_height_range(rings: Sequence[np.ndarray], height: float, dem: Stored
     return dem.cells_range((rows.min(), rows.max() + 1), (cols.min(), cols.max() + 1))
 
 
+def check_new_block(path: str | os.PathLike[str], overwrite: bool) -> None:
+    """Raise InputError where `path` cannot take a new block: not a .gpkg, or an existing file without
+    `overwrite` (checked before any work, and again when the block is written)."""
+    path = os.fspath(path)
+    if not path.lower().endswith(".gpkg"):
+        raise InputError(f"a block is a GeoPackage: give a path ending in .gpkg, not {path}")
+    if os.path.exists(path) and not overwrite:
+        raise InputError(f"block {path} exists already; set the overwrite parameter to replace it")
+
+
 def create_block(
     path: str | os.PathLike[str],
     images: Sequence[ImageEntry],
@@ -75,10 +85,7 @@ def create_block(
     ignored, with a `dem`); the terrain height range recorded is `height_range` where given (found by
     matching), else terrain_height_range's. Refuses to replace an existing block unless `overwrite` is true."""
     path = os.fspath(path)
-    if not path.lower().endswith(".gpkg"):
-        raise InputError(f"a block is a GeoPackage: give a path ending in .gpkg, not {path}")
-    if os.path.exists(path) and not overwrite:
-        raise InputError(f"block {path} exists already; set the overwrite parameter to replace it")
+    check_new_block(path, overwrite)
     if not images:
         raise InputError("a block needs at least one image")
     names = [name for name, *_ in images]

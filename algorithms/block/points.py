@@ -26,7 +26,8 @@ Versioned storage: a store never overwrites what the block references. The new p
 (and is written as a whole: atomic.atomic_dir); the new point layer is built under a staged name
 (`<layer>__staged_<host>_<pid>`); then ONE transaction replaces the layer by the staged one, points
 block_info at the new point folder with its counts and bumps the kind's generation (schema.GENERATIONS); only
-then is the old point folder removed. A kill at any moment leaves the old points, layer and counts, or the new
+then is the old point folder removed (only the block's own, named by its stem: a copied block file references
+the original's folder, which stays). A kill at any moment leaves the old points, layer and counts, or the new
 ones, never a mix; the staged layer and the point folder a killed store leaves behind are removed by the next
 store once their writer has gone (atomic.owner_gone).
 
@@ -419,7 +420,8 @@ def store_point_parts(
     except BaseException:
         _remove_point_folder(path)
         raise
-    if old and old != name:
+    if old and old != name and _point_folder_name(block_path, kind).match(old):
+        # only this block's own folder: a copied block file references the original's, which stays
         _remove_point_folder(os.path.join(_folder(block_path), old))
     _remove_orphan_point_folders(block_path, kind, keep=name)
     progress.step(feedback, 100)

@@ -37,7 +37,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..errors import InputError
-from ..interpolation import bilinear, cubic
+from ..interpolation import FAST, bilinear, cubic
 from .params import LsmParams
 from .records import PAIR_DTYPE
 
@@ -165,7 +165,7 @@ def solver(params: LsmParams, half: int | None = None) -> Solver:
     )
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FAST)
 def lsm_point(img1, img2, x1, y1, start, solve, out):
     """Match the template of image 1 at (x1, y1) in image 2 from the Start `start` with the Solver `solve`; see
     the module docstring. Fills out (float64, LSM_OUT, order LSM_FIELDS) and returns the status: 0 ok, 1 window

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 from .. import progress
 from ..atomic import work_dir
 from ..block import Block
+from ..block.images import check_new_block
 from ..dem_store import store_dem
 from ..errors import InputError
 from ..execution import Execution
@@ -62,6 +63,7 @@ def create_block(
     match, a mean height outside height_range.PLAUSIBLE_HEIGHTS, an existing block without overwrite, a
     footprint that cannot be projected) and the sensor readers' errors."""
     check_height(params.height, "the mean terrain height (HEIGHT)")
+    check_new_block(output, params.overwrite)
     opened = Block.open_images(images, [p for p in params.orientation if p])
     with work_dir(output, "the stored DEM") as work:
         dem = None

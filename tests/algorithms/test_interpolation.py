@@ -22,6 +22,14 @@ def test_bilinear_against_scipy():
     assert np.isnan(interpolation.bilinear(img, 0.2, 4.0))  # outside the pixel-centre hull
 
 
+def test_bilinear_inside_equals_bilinear_up_to_the_hull_edges():
+    rng = np.random.default_rng(2)
+    img = rng.normal(size=(9, 11)).astype(np.float32)
+    points = list(rng.uniform(0.5, [10.5, 8.5], (50, 2))) + [(0.5, 0.5), (10.5, 8.5), (10.5, 0.5), (0.5, 8.5)]
+    for x, y in points:
+        assert interpolation.bilinear_inside(img, x, y) == pytest.approx(interpolation.bilinear(img, x, y), abs=1e-6)
+
+
 def test_cubic_against_numpy():
     rng = np.random.default_rng(1)
     img = rng.normal(size=(10, 12))

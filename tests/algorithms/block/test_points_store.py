@@ -46,6 +46,21 @@ def test_save_and_load_beside_the_block(block, tmp_path):
     assert [f for f in tmp_path.iterdir() if ".part" in f.name] == []
 
 
+def test_a_copy_of_the_block_never_removes_the_points_of_the_original(block, tmp_path):
+    """A copied block file references the original's point folder: storing points into the copy leaves it."""
+    import shutil
+
+    mp = synthetic(3000)
+    original = Block(block).store_points(mp)
+    copy = tmp_path / "copy.gpkg"
+    shutil.copyfile(block, copy)
+    assert_same(Block(copy).points(), mp)  # the copy reads the original's points
+    mine = Block(copy).store_points(mp.subset(list(range(1, 2001))))
+    assert os.path.isdir(original) and os.path.basename(mine).startswith("copy.mass_points.")
+    assert_same(Block(block).points(), mp)
+    assert len(Block(copy).points()) == 2000
+
+
 def test_two_million_points_round_trip(tmp_path):
     mp = synthetic(2_000_000)
     path = save_arrays(tmp_path / "big.npz", mp)

@@ -99,3 +99,16 @@ def test_a_single_image_block_without_height_is_made_at_its_rpc_mean_height(plei
     create_block(str(tmp_path / "b.gpkg"), [str(pleiades_triplet[0])], CreateParams(), log)
     assert Block(str(tmp_path / "b.gpkg")).height_range() == (565.0 - 500.0, 565.0 + 500.0)
     assert any("no DEM and no height given" in m for m in log.messages)
+
+
+def test_an_existing_block_is_refused_before_the_search(small_scene, tmp_path, monkeypatch):
+    """No minutes of matching before the refusal: the output is checked first."""
+    (tmp_path / "b.gpkg").write_bytes(b"a block")
+
+    def searched(*args, **kwargs):
+        raise AssertionError("the height search ran")
+
+    monkeypatch.setattr("pushbroom.algorithms.steps.block_creation.search_heights", searched)
+    with pytest.raises(InputError, match="exists already"):
+        create_block(str(tmp_path / "b.gpkg"), [small_scene["images"][n]["imagery"] for n in NAMES], CreateParams())
+    assert (tmp_path / "b.gpkg").read_bytes() == b"a block"

@@ -51,3 +51,17 @@ def test_ncc_path_is_nan_on_blank_windows():
         textured(0, 50), blank, 25.5, 25.5, 4, np.array([25.5, 26.5]), np.array([25.5, 25.5]), 1.0, 0.0, 0.0, 1.0, rho
     )
     assert np.isnan(rho).all()
+
+
+def test_ncc_path_is_nan_where_a_masked_pixel_or_the_border_cuts_the_window():
+    img1, img2 = textured(0, 50), textured(1, 50)
+    rho = np.empty(3)
+    # half 4: the window of x = 4.5 reaches the first pixel centre exactly (inside), of 4.4 beyond it
+    px, py = np.array([25.5, 4.5, 4.4]), np.array([25.5, 45.5, 25.5])
+    ncc.ncc_path(img1, img2, 25.5, 25.5, 4, px, py, 1.0, 0.0, 0.0, 1.0, rho)
+    assert np.isfinite(rho[:2]).all() and np.isnan(rho[2])
+    masked = img2.copy()
+    masked[27, 23] = np.nan  # inside the first window only
+    again = np.empty(3)
+    ncc.ncc_path(img1, masked, 25.5, 25.5, 4, px, py, 1.0, 0.0, 0.0, 1.0, again)
+    assert np.isnan(again[0]) and again[1] == rho[1]
