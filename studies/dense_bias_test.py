@@ -78,7 +78,7 @@ def simulated(label: str, config: SceneConfig) -> None:
     )
     for bound, factor in SETTINGS:
         points, seconds = dense_points(paths, DenseParams(tile=256, bias_bound=bound, census_error=factor))
-        sigma = precision.image_sigmas(points.points, points.observations, IMAGE_SIGMA)
+        sigma = precision.image_sigmas(points.points, points.observations, IMAGE_SIGMA, precision.SPOT.factors)
         cloud = TruthCloud(points, intersect_truth(points, truth, sigma), seconds)
         res = cloud.result
         x, y = reproject(res.lon, res.lat, wgs84(), truth.srs)

@@ -5,8 +5,8 @@ dense matching with the default DenseParams but 256 px tiles; every point inters
 error is the matching's alone) with the product's a priori image sigmas (dense/precision.image_sigmas, IMAGE_SIGMA
 for the points that are not LSM's), the refined points' spread term added as the intersection step does
 (precision.with_spread over surface/local_spread.py); then the per-cell DSM of the DEM step (cell_dem.cells_on_grid:
-10 m, k 3, RADIUS 1, FALLBACK off, the points' tiers) with its precision raster (the standard error of the cell's
-median from its points' sigma_h). Against the true DSM at the evaluation cells (tests/helpers/dsm_comparison.py):
+10 m, k 3, RADIUS 1, FALLBACK off, the points' tiers) with its precision raster (the RMS of the cell's points'
+sigma_h). Against the true DSM at the evaluation cells (tests/helpers/dsm_comparison.py):
 RMS(dh) / RMS(precision) by class, for the cells whose points have three rays and those whose points have two,
 on the cells from their own points and on those from the ring around (1 is calibrated; issue 39 asks 0.8-1.25).
 A cell's points are three-ray where the DSM of the three-ray points alone gives the cell the same height."""
@@ -35,7 +35,7 @@ def cloud(paths: dict, truth: Truth) -> dict:
     """The dense points intersected with the truth: UTM x, y, h, sigma_h (the product's) and cell_dem's tier."""
     multi, _ = dense_points(paths, DenseParams(tile=256))
     points, obs = multi.points, multi.observations
-    res = intersect_truth(multi, truth, precision.image_sigmas(points, obs, IMAGE_SIGMA))
+    res = intersect_truth(multi, truth, precision.image_sigmas(points, obs, IMAGE_SIGMA, precision.SPOT.factors))
     ok = res.ok
     slot = np.searchsorted(points["id"], res.point)
     refined = precision.refined_dense(points)[slot] & ok
@@ -45,7 +45,7 @@ def cloud(paths: dict, truth: Truth) -> dict:
     lo, hi = truth.dsm.height_range
     radius = precision.spread_radius(truth.models[1], cols / 2, rows / 2, 0.5 * (lo + hi))
     spread = local_spread(x[refined], y[refined], res.h[refined], x[refined], y[refined], radius)
-    sigma_h[refined] = precision.with_spread(sigma_h[refined], spread)
+    sigma_h[refined] = precision.with_spread(sigma_h[refined], spread, precision.SPOT.spread)
     ex, ey = reproject(res.lon, res.lat, wgs84(), truth.srs)
     tier = point_tiers(points["rho_min"][slot], res.rays)
     return {"x": ex[ok], "y": ey[ok], "z": res.h[ok], "sigma": sigma_h[ok], "tier": tier[ok]}

@@ -132,11 +132,11 @@ def main():
     for label, config in SCENES.items():
         e = scene_errors(config)
         f2, f3, c = fit(e)
-        product = sigma_h(e, precision.CALIBRATION, precision.SPREAD_FACTOR)
+        product = sigma_h(e, precision.SPOT.factors, precision.SPOT.spread)
         raw = sigma_h(e, {2: 1.0, 3: 1.0}, 0.0)
         print(
             f"\n{label}: R {e['radius']:.1f} m; fitted here F_2 {f2:.2f}, F_3 {f3:.2f}, C {c:.2f}; the product's "
-            f"F {precision.CALIBRATION}, C {precision.SPREAD_FACTOR}"
+            f"F {precision.SPOT.factors}, C {precision.SPOT.spread}"
         )
         fitted = sigma_h(e, {2: f2, 3: f3}, c)
         print(

@@ -6,6 +6,9 @@ mask 0): a point falls inside it. On grids of several cell sizes in the points' 
 every image sees (the footprint, as make bench-peers), this counts the share of cells that hold:
 - refined: a refined point (rho_min finite: the points interpolatedem uses with FALLBACK off);
 - every point: any matched point;
+- the DEM step's own cells: mask 0 of the per-cell DSM (cell_dem.cells_on_grid: k 3, FALLBACK off, RADIUS 1, the
+  points' tiers), where the tier comes before the ring: a cell whose own points are two-ray takes a three-ray
+  point of the ring around, and is not counted as own;
 - every pixel: a pixel centre of img_02, the reference, each projected to the ground (RpcModel.image_to_ground) at
   its point's height where the node matched, else at the height of the nearest matched node in the image. This is
   what a lattice of one point per pixel, every node matched and refined, could give at best: the floor the
@@ -21,6 +24,7 @@ from scipy import ndimage
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
+from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid, point_tiers
 from pushbroom.algorithms.surface.intersection import Measurements, intersect
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_grid import Grid
@@ -56,6 +60,7 @@ def main() -> None:
     ok = res.ok
     slot = np.searchsorted(points.points["id"], res.point[ok])
     refined = np.isfinite(points.points["rho_min"][slot])
+    tier = point_tiers(points.points["rho_min"][slot], res.rays[ok])
     lon, lat, h = res.lon[ok], res.lat[ok], res.h[ok]
     srs = output_srs(None, lon, lat)
     x, y = reproject(lon, lat, wgs84(), srs)
@@ -73,16 +78,21 @@ def main() -> None:
     plon, plat = models[0].image_to_ground(jj.ravel(), ii.ravel(), height.ravel())
     px, py = reproject(np.asarray(plon, float), np.asarray(plat, float), wgs84(), srs)
     print(f"{len(x)} points ({refined.sum()} refined) of {rows * cols} pixels of img_02")
-    print("| cell (m) | footprint cells | pixels per cell | refined | every point | every pixel (the floor) |")
-    print("|---|---|---|---|---|---|")
+    print(
+        "| cell (m) | footprint cells | pixels per cell | refined | the DEM step's own cells | every point "
+        "| every pixel (the floor) |"
+    )
+    print("|---|---|---|---|---|---|---|")
     for cell in CELLS:
         x0, y1 = np.floor(px.min() / cell) * cell, np.ceil(py.max() / cell) * cell
         grid = Grid(x0, y1, cell, int(np.ceil((px.max() - x0) / cell)), int(np.ceil((y1 - py.min()) / cell)))
         inside = footprint_mask(grid, srs, models, float(np.median(h)))
-        shares = [held(grid, inside, a, b) for a, b in ((x[refined], y[refined]), (x, y), (px, py))]
+        shares = [held(grid, inside, a, b)[0] for a, b in ((x[refined], y[refined]), (x, y), (px, py))]
+        cells = cells_on_grid(x, y, h, None, grid, CellSettings(k=3.0, fallback=False, radius=1), tier=tier)
+        shares.insert(1, float((cells.ring == 0)[inside].mean()))
         print(
-            f"| {cell:g} | {int(inside.sum())} | {shares[2][1]:.2f} | "
-            + " | ".join(f"{100 * s:.1f} %" for s, _ in shares)
+            f"| {cell:g} | {int(inside.sum())} | {held(grid, inside, px, py)[1]:.2f} | "
+            + " | ".join(f"{100 * s:.1f} %" for s in shares)
             + " |"
         )
 

@@ -1,5 +1,5 @@
 """Issue 39: on the Pleiades triplet, is the dense DSM's precision raster true? The pair differences' spread over the
-cells' predicted sigma should be 0.8-1.25.
+cells' predicted sigma should be 0.8-1.25. And the RPC sensors' precision factors (precision.RPC), fitted on them.
 
 The triplet (img_02, img_01, img_03; ../shared/data) matched densely (default DenseParams, 2 threads, over the heights
 the height search finds for it: 40-535 m), its pairs img_02-img_01 and img_02-img_03 taken from it
@@ -9,7 +9,8 @@ added (precision.with_spread over surface/local_spread.py, as intersectpoints do
 step (cell_dem.cells_on_grid: 0.5 m, k 3, FALLBACK off, RADIUS 1, the points' tiers) with its precision raster. For
 each two pairs, over the cells both measure from their own points: d = h_p - h_q less its median (the RPCs' bias
 differs between the pairs), and NMAD(d / sqrt(sigma_p^2 + sigma_q^2)) (1: the rasters are true, were the pairs'
-errors independent) beside NMAD(d) / median(sqrt(sigma_p^2 + sigma_q^2)); again without the spread term."""
+errors independent) beside NMAD(d) / median(sqrt(sigma_p^2 + sigma_q^2)); again without the spread term; then F_2
+and C fitted (`fit`) and the table again with them."""
 
 import tempfile
 
@@ -37,7 +38,7 @@ def pair_cloud(points: MultiPoints, models: list) -> dict:
     """A pair's refined points (block ids 1, 2) intersected with `models`: lon, lat, h, sigma_h, tier."""
     keep = points.points[np.isfinite(points.points["rho_min"])]
     obs = points.observations[np.isin(points.observations["point_id"], keep["id"])]
-    sigma = precision.image_sigmas(keep, obs, IMAGE_SIGMA)
+    sigma = precision.image_sigmas(keep, obs, IMAGE_SIGMA, precision.RPC.factors)
     res = intersect(
         {1: models[0], 2: models[1]}, Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma)
     )
@@ -46,10 +47,20 @@ def pair_cloud(points: MultiPoints, models: list) -> dict:
     x, y = local_metres(lon, lat, (float(np.mean(lon)), float(np.mean(lat))))
     cols, rows = models[0].size
     radius = precision.spread_radius(models[0], cols / 2, rows / 2, float(np.median(h)))
-    sigma_h = precision.with_spread(res.sigma[ok, 2], local_spread(x, y, h, x, y, radius))
+    sigma_h = precision.with_spread(res.sigma[ok, 2], local_spread(x, y, h, x, y, radius), precision.RPC.spread)
     slot = np.searchsorted(keep["id"], res.point[ok])
     tier = point_tiers(keep["rho_min"][slot], res.rays[ok])
-    return {"lon": lon, "lat": lat, "h": h, "sigma": sigma_h, "rays": res.sigma[ok, 2], "tier": tier}
+    spread = np.nan_to_num(local_spread(x, y, h, x, y, radius))
+    return {
+        "lon": lon,
+        "lat": lat,
+        "h": h,
+        "sigma": sigma_h,
+        "rays": res.sigma[ok, 2],
+        "unit": res.sigma[ok, 2] / precision.RPC.factors[2],
+        "spread": spread,
+        "tier": tier,
+    }
 
 
 def main() -> None:
@@ -80,6 +91,46 @@ def main() -> None:
         }
         print(f"\n{'the product' if term == 'sigma' else 'without the spread term'}:")
         compare(dems)
+    # the cells' two terms at F = C = 1 (a cell's precision is the RMS of its points' sigmas: cell_dem.py)
+    parts = {
+        term: {
+            k: cells_on_grid(xy[k][0], xy[k][1], c["h"], c[term], grid, settings, tier=c["tier"])
+            for k, c in clouds.items()
+        }
+        for term in ("unit", "spread")
+    }
+    f, c = fit(dems, parts["unit"], parts["spread"])
+    print(f"\nfitted on the three comparisons: F_2 = {f:.2f}, C = {c:.2f}")
+    for k in dems:
+        dems[k] = dems[k]._replace(precision=np.hypot(f * parts["unit"][k].precision, c * parts["spread"][k].precision))
+    compare(dems)
+
+
+def fit(dems: dict, unit: dict, spread: dict) -> tuple[float, float]:
+    """(F, C) that make NMAD(d / sigma) closest to 1 (least squares of its logarithm) in each fifth of the cells
+    by the spread term's share, over the three comparisons: sigma^2 = F^2 (R_p^2 + R_q^2) + C^2 (S_p^2 + S_q^2) with
+    R, S a cell's two terms at F = C = 1."""
+    rows = []
+    names = list(dems)
+    for a in range(3):
+        for b in range(a + 1, 3):
+            p, q = dems[names[a]], dems[names[b]]
+            both = (p.ring == 0) & (q.ring == 0) & np.isfinite(p.heights) & np.isfinite(q.heights)
+            r2 = unit[names[a]].precision ** 2 + unit[names[b]].precision ** 2
+            s2 = spread[names[a]].precision ** 2 + spread[names[b]].precision ** 2
+            both &= np.isfinite(r2) & np.isfinite(s2)
+            d = (p.heights - q.heights)[both].astype(float)
+            rows.append((d - np.median(d), r2[both].astype(float), s2[both].astype(float)))
+    d, r2, s2 = (np.concatenate([r[i] for r in rows]) for i in range(3))
+    share = s2 / (r2 + s2)
+    bins = np.digitize(share, np.quantile(share, [0.2, 0.4, 0.6, 0.8]))
+    best = (np.inf, 1.0, 1.0)
+    for f in np.arange(0.5, 3.01, 0.05):
+        for c in np.arange(0.0, 1.01, 0.02):
+            z = d / np.sqrt(f * f * r2 + c * c * s2)
+            cost = sum(np.log(1.4826 * np.median(np.abs(z[bins == k]))) ** 2 for k in range(5))
+            best = min(best, (cost, f, c))
+    return best[1], best[2]
 
 
 def compare(dems: dict) -> None:

@@ -25,40 +25,67 @@ Its height sigma has two parts:
 A position the bias test kept at its semi-global place (dense/refine.py: LSM's template straddles heights there)
 carries a_i = SEMI_GLOBAL_AXIS instead of LSM's ellipse: the semi-global position's error in the same units.
 
-F_2, F_3 and C are fitted on the simulated 3 km SPOT 5 triplet against its truth (least squares of dh^2 on the open
-classes, `studies/dense_precision.py`; figures and the check on a second scene in
-studies/README.md#dense_precision), SEMI_GLOBAL_AXIS on the kept positions' points of every class (the same study).
-They hold for LSM's default template (19 px) and the dense refinement's largest shift (DenseParams.max_shift; fitted
+F_k and C are the sensor's (`Calibration`; `calibration_of` picks them for a block's models): they absorb how the
+images' noise, blur and resampling make LSM's ellipse optimistic or pessimistic, which a method cannot know.
+- SPOT (the rigorous SPOT models): F_2, F_3 and C fitted on the simulated 3 km SPOT 5 triplet against its truth
+  (least squares of dh^2 on the open classes, `studies/dense_precision.py`; figures and the check on a second scene
+  in studies/README.md#dense_precision). No real SPOT pixels have checked them.
+- RPC (Pleiades and the other sub-metre sensors delivered with RPCs): F_2 and C fitted on the real Pleiades
+  triplet's pair differences (`studies/pair_precision.py`); F_3 = F_2 times SPOT's F_3 / F_2, as pair differences
+  hold no three-ray cell. Pair differences see only the error that differs between the pairs: the template's
+  surface error that two pairs share through their reference image is invisible to them, so this C is a lower
+  bound.
+SEMI_GLOBAL_AXIS is fitted on the simulated kept positions' points of every class (studies/dense_precision). All
+hold for LSM's default template (19 px) and the dense refinement's largest shift (DenseParams.max_shift; fitted
 again when it changes).
 
 Every other point (unrefined dense points, region growing's, coarse-to-fine's, tie points) keeps the one a
 priori image sigma given, and no spread term."""
+
+from collections.abc import Iterable
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..matching.points import DENSE
 from ..sensors.base import SensorModel
+from ..sensors.rpc import RpcModel
 from .epipolar import pixel_gsd
 
-#: F_k by number of rays (module docstring; studies/README.md#dense_precision)
-CALIBRATION = {2: 2.2, 3: 2.3}
+
+class Calibration(NamedTuple):
+    """A sensor's precision factors (module docstring): F_k by number of rays, and C of the spread term."""
+
+    factors: dict[int, float]
+    spread: float
+
+
+#: the rigorous SPOT models' (module docstring; studies/README.md#dense_precision)
+SPOT = Calibration({2: 2.2, 3: 2.3}, 0.5)
+#: the RPC models' (module docstring; studies/README.md#pair_precision)
+RPC = Calibration({2: 1.35, 3: 1.35 * 2.3 / 2.2}, 0.08)
 #: px: both semi-axes of a semi-global position the bias test kept (dense/refine.py), in LSM's ellipse units: its
 #: image sigma is F_k SEMI_GLOBAL_AXIS / sqrt(2) (module docstring)
 SEMI_GLOBAL_AXIS = 0.3
-#: C, the spread term's factor (module docstring)
-SPREAD_FACTOR = 0.5
+
+
+def calibration_of(models: Iterable[SensorModel]) -> Calibration:
+    """The Calibration of a block's `models`: RPC where every one is an RPC model, else SPOT."""
+    models = list(models)
+    return RPC if models and all(isinstance(m, RpcModel) for m in models) else SPOT
+
+
 #: px of the reference image: the spread's half-width R, the default template's (19 px) half-width
 SPREAD_RADIUS_PX = 9.5
 
 
 def image_sigmas(
-    points: np.ndarray, observations: np.ndarray, default: float, calibration: dict[int, float] | None = None
+    points: np.ndarray, observations: np.ndarray, default: float, calibration: dict[int, float]
 ) -> np.ndarray:
     """Per observation (OBS_DTYPE rows sorted by point id, of the POINT_DTYPE `points`), the a priori sigma
     (px) for the intersection: the module docstring's for the refined dense points, `default` elsewhere.
-    `calibration`: F_k by number of rays, default CALIBRATION."""
-    calibration = CALIBRATION if calibration is None else calibration
+    `calibration`: F_k by number of rays (Calibration.factors)."""
     sigma = np.full(len(observations), float(default))
     if len(observations) == 0 or len(points) == 0:
         return sigma
@@ -88,7 +115,8 @@ def spread_radius(model: SensorModel, col: float, row: float, h: float) -> float
     return SPREAD_RADIUS_PX * pixel_gsd(model, float(col), float(row), float(h), (1.0, 0.0), (0.0, 1.0))[2]
 
 
-def with_spread(sigma_h: ArrayLike, spread: ArrayLike, factor: float = SPREAD_FACTOR) -> np.ndarray:
-    """sigma_h with the template's surface term (module docstring); unchanged where the spread is NaN."""
+def with_spread(sigma_h: ArrayLike, spread: ArrayLike, factor: float) -> np.ndarray:
+    """sigma_h with the template's surface term of factor C = `factor` (Calibration.spread; module docstring);
+    unchanged where the spread is NaN."""
     extra = np.where(np.isfinite(spread), factor * np.asarray(spread, float), 0.0)
     return np.sqrt(np.square(sigma_h) + extra * extra)

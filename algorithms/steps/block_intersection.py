@@ -99,6 +99,7 @@ def _intersect_part(job: _Job, part: str, out: str) -> dict[str, Any]:
     (precision.refined_dense, marked in `out`.refined.npy) and the image id of their template (the reference
     image)."""
     models, h0, sigma, max_iter, what = job
+    calibration = precision.calibration_of(models.values())
     multi = load_arrays(part)
     obs = multi.observations
     if len(obs) == 0:
@@ -119,7 +120,11 @@ def _intersect_part(job: _Job, part: str, out: str) -> dict[str, Any]:
     result = intersection.intersect(
         models,
         intersection.Measurements(
-            obs["image_id"], obs["point_id"], obs["col"], obs["row"], precision.image_sigmas(multi.points, obs, sigma)
+            obs["image_id"],
+            obs["point_id"],
+            obs["col"],
+            obs["row"],
+            precision.image_sigmas(multi.points, obs, sigma, calibration.factors),
         ),
         h0=h0,
         max_iter=max_iter,

@@ -64,6 +64,7 @@ class Neighbourhood:
     boxes: list  # per part (lon0, lon1, lat0, lat1) of its points, or None (no point)
     centre: tuple[float, float]  # (lon, lat) of the cloud: the local frame
     radius: float  # m: R of the spread (0: no refined dense point)
+    spread_factor: float  # C of the spread term (precision.Calibration.spread of the block's sensors)
     margin: tuple[float, float]  # (dlon, dlat) degrees around a part's box
     neighbours: int  # k of the outlier filter (0: off)
 
@@ -92,7 +93,9 @@ def _part(job: Neighbourhood, k: int) -> tuple[str, tuple[int, float, float]]:
     x, y = local_metres(lon, lat, job.centre)
     if own.any():
         spread = local_spread(cx[cref], cy[cref], ch[cref], x[own], y[own], job.radius)
-        fields["sigma_h"][own] = precision.with_spread(fields["sigma_h"][own], spread).astype(np.float32)
+        fields["sigma_h"][own] = precision.with_spread(fields["sigma_h"][own], spread, job.spread_factor).astype(
+            np.float32
+        )
     sums = (0, 0.0, 0.0)
     if job.neighbours:
         d = outlier_filter.mean_distances(np.c_[cx, cy, ch], np.c_[x, y, h], job.neighbours)
@@ -144,7 +147,13 @@ def second_round(
         reach = max(reach, outlier_filter.margin(written, area, neighbours))
     margin = 1.01 * reach  # and 1 % for the local frame's approximation of the ellipsoid
     job = Neighbourhood(
-        files, [d.get("box") for d in done], centre, radius, (margin / east, margin / north), int(neighbours)
+        files,
+        [d.get("box") for d in done],
+        centre,
+        radius,
+        precision.calibration_of(models.values()).spread,
+        (margin / east, margin / north),
+        int(neighbours),
     )
     todo = [k for k, d in enumerate(done) if d["written"] and (d["refined"] or neighbours)]
     results = run_tasks(_part, [(job, k) for k in todo], execution, feedback, "the points' neighbourhoods")

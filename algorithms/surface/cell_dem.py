@@ -6,8 +6,11 @@ MAD = median |z - m|:
   filter within the cell: a mismatch lands metres off the surface its neighbours agree on);
 - height: the median of the points kept;
 - count: the points kept;
-- precision (m): the standard error of a median, 1.2533 s / sqrt(n), with s the RMS of the kept points'
-  sigma_h where every one has it, else 1.4826 MAD of the kept points (n >= 3; NaN below).
+- precision (m): where every kept point has its sigma_h, their RMS. The points of one cell are not independent:
+  a cell is smaller than a matching template (a dense point per pixel, 19 px templates), so neighbouring points
+  measured nearly the same template and their errors are nearly one error; their median is no better than one of
+  them (studies/README.md#dense_cell_precision). Otherwise (no sigma_h), the standard error of a median of
+  independent points, 1.2533 s / sqrt(n), s = 1.4826 MAD of the kept points (n >= 3; NaN below).
 Points on the grid's far edges belong to its last column and row.
 
 Radius (cells, r >= 0; rasterization, not gap filling): a cell with no point of its own takes the points of
@@ -166,12 +169,13 @@ def cells_on_grid(
         slot = np.searchsorted(keys, key)
         dev = np.abs(z - median[slot])
     _, mad, n = _group_medians(key, dev)
-    spread = np.where(n >= 3, 1.4826 * mad, np.nan)
     if s is not None and np.isfinite(s).all():
-        spread = np.sqrt(np.bincount(slot, s * s, len(keys)) / n)
+        error = np.sqrt(np.bincount(slot, s * s, len(keys)) / n)
+    else:
+        error = MEDIAN_SE * np.where(n >= 3, 1.4826 * mad, np.nan) / np.sqrt(n)
     r, c = np.divmod(keys, grid.cols)
     heights[r, c] = median
     count[r, c] = n
-    precision[r, c] = MEDIAN_SE * spread / np.sqrt(n)
+    precision[r, c] = error
     source.flat[key] = ring  # a cell's points share their rank, so their ring
     return Cells(heights, count, precision, removed, source)

@@ -409,7 +409,7 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
         extra = [
             (path, names[kind], description)
             for kind, path, description in (
-                ("precision", precision_path, "standard error of the cell's median height (m)"),
+                ("precision", precision_path, "standard error of the cell's height (m)"),
                 ("count", count_path, "points in the cell"),
             )
         ]

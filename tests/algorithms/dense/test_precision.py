@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pushbroom.algorithms.dense.precision import CALIBRATION, SPREAD_FACTOR, image_sigmas, with_spread
+from pushbroom.algorithms.dense.precision import RPC, SPOT, calibration_of, image_sigmas, with_spread
 from pushbroom.algorithms.matching.points import DENSE, OBS_DTYPE, POINT_DTYPE, REFINED
 
 
@@ -41,8 +41,8 @@ def test_sigmas_of_refined_dense_points_and_the_default_elsewhere():
         ],
         OBS_DTYPE,
     )
-    got = image_sigmas(points, obs, 0.5)
-    f2, f3, r2 = CALIBRATION[2], CALIBRATION[3], np.sqrt(2.0)
+    got = image_sigmas(points, obs, 0.5, SPOT.factors)
+    f2, f3, r2 = SPOT.factors[2], SPOT.factors[3], np.sqrt(2.0)
     want = [
         f3 * 0.04 / r2,
         f3 * 0.06 / r2,
@@ -60,5 +60,17 @@ def test_sigmas_of_refined_dense_points_and_the_default_elsewhere():
 
 
 def test_the_surface_term_adds_in_quadrature():
-    got = with_spread(np.array([0.3, 0.3, 0.4]), np.array([0.8, np.nan, 0.0]))
-    assert got == pytest.approx([np.hypot(0.3, SPREAD_FACTOR * 0.8), 0.3, 0.4])
+    got = with_spread(np.array([0.3, 0.3, 0.4]), np.array([0.8, np.nan, 0.0]), 0.5)
+    assert got == pytest.approx([np.hypot(0.3, 0.5 * 0.8), 0.3, 0.4])
+
+
+def test_the_calibration_is_the_sensors(pleiades_triplet, spot5_dim):
+    """RPC factors where every model of the block is an RPC model (Pleiades), SPOT's where one is a rigorous SPOT
+    model; the RPC factors are smaller (the real Pleiades images' LSM ellipses are near true, the simulated SPOT
+    images' optimistic: studies/README.md#pair_precision)."""
+    from pushbroom.algorithms import sensors
+
+    rpc = [sensors.load(p) for p in pleiades_triplet[:2]]
+    spot = sensors.load(spot5_dim)
+    assert calibration_of(rpc) is RPC and calibration_of(rpc + [spot]) is SPOT and calibration_of([spot]) is SPOT
+    assert RPC.factors[2] < SPOT.factors[2] and RPC.factors[3] < SPOT.factors[3] and RPC.spread < SPOT.spread

@@ -58,11 +58,11 @@ def reference(x, y, z, sigma, grid, k, radius=0):
             zz = zz[keep]
             med = np.median(zz)
             n = len(zz)
-            if ss is not None:
-                spread = np.sqrt(np.mean(ss[keep] ** 2))
-            else:
-                spread = 1.4826 * np.median(np.abs(zz - med)) if n >= 3 else np.nan
-            out[0][r, c], out[1][r, c], out[2][r, c] = med, n, MEDIAN_SE * spread / np.sqrt(n)
+            if ss is not None:  # one measurement: the RMS of the points' sigmas
+                error = np.sqrt(np.mean(ss[keep] ** 2))
+            else:  # independent points: the standard error of their median
+                error = MEDIAN_SE * (1.4826 * np.median(np.abs(zz - med)) if n >= 3 else np.nan) / np.sqrt(n)
+            out[0][r, c], out[1][r, c], out[2][r, c] = med, n, error
     return out, removed
 
 
