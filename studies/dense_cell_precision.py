@@ -9,7 +9,8 @@ for the points that are not LSM's), the refined points' spread term added as the
 sigma_h). Against the true DSM at the evaluation cells (tests/helpers/dsm_comparison.py):
 RMS(dh) / RMS(precision) by class, for the cells whose points have three rays and those whose points have two,
 on the cells from their own points and on those from the ring around (1 is calibrated; issue 39 asks 0.8-1.25).
-A cell's points are three-ray where the DSM of the three-ray points alone gives the cell the same height."""
+A cell's points are three-ray where the DSM of the three-ray points alone gives the cell the same height. Last, the
+own cells' ratio by quartile of their predicted precision within each class."""
 
 import tempfile
 
@@ -75,6 +76,16 @@ def main() -> None:
                 sel = m & rays & (ring == r) & usable
                 row.append(f"{rms(dh[sel]) / rms(prec[sel]):.2f} ({sel.sum()})" if sel.sum() >= 20 else "-")
             print(f"| {label}, {where} | " + " | ".join(row) + " |")
+    # the own cells by quartile of their predicted precision, within each class
+    print("\n| own cells, quartile of the precision | " + " | ".join(zones) + " |\n|" + "---|" * (1 + len(zones)))
+    for quarter in range(4):
+        row = []
+        for m in zones.values():
+            sel = m & (ring == 0) & usable
+            edges = np.quantile(prec[sel], [0.25, 0.5, 0.75]) if sel.sum() >= 80 else None
+            part = sel & (np.digitize(prec, edges) == quarter) if edges is not None else sel & False
+            row.append(f"{rms(dh[part]) / rms(prec[part]):.2f}" if part.sum() >= 20 else "-")
+        print(f"| {'first second third fourth'.split()[quarter]} | " + " | ".join(row) + " |")
 
 
 if __name__ == "__main__":
