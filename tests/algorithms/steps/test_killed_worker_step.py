@@ -62,9 +62,13 @@ def test_a_worker_killed_during_matchpoints_fails_it_and_keeps_the_block(small_s
     script = tmp_path / "step.py"
     script.write_text(STEP)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
-    with subprocess.Popen(
-        [sys.executable, str(script), path, strategy], stdout=subprocess.PIPE, text=True, env=env
-    ) as step:
+    errors = tmp_path.parent / f"{tmp_path.name}-stderr.txt"  # a file, not a pipe: the workers write to it too
+    with (
+        open(errors, "w") as stderr,
+        subprocess.Popen(
+            [sys.executable, str(script), path, strategy], stdout=subprocess.PIPE, stderr=stderr, text=True, env=env
+        ) as step,
+    ):
         try:
             killed = kill_a_busy_worker(step)
             # a hang (the issue) fails here: the step stops within the pool's GRACE (10 s) of the kill
@@ -72,6 +76,8 @@ def test_a_worker_killed_during_matchpoints_fails_it_and_keeps_the_block(small_s
         finally:
             step.kill()  # a hung step is not left behind (a no-op once it ended)
     assert killed, "no worker was killed: the step ended first"
+    # the step's own end where it printed no ExecutionError (seen once in CI, not reproduced: the record for next time)
+    assert out.strip(), f"the step printed no error: exit code {step.returncode}, stderr {errors.read_text()[-3000:]!r}"
     assert f"worker process {killed} died (killed by SIGKILL" in json.loads(out)
     script.unlink()
     assert fingerprint(tmp_path) == before  # the block as it was: no points, no layer, no folder
