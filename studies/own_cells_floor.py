@@ -14,6 +14,11 @@ every image sees (the footprint, as make bench-peers), this counts the share of 
   what a lattice of one point per pixel, every node matched and refined, could give at best: the floor the
   sampling sets, whatever the matching does.
 
+The DEM step's rule is also compared with the other order, a cell's own points first (the best tier among them)
+and the ring's only where it has none: on the Pleiades triplet by the share of own cells, and on the simulated
+scenes (studies/dense_precision.SCENES, the points of studies/dense_cell_precision's cloud, intersected with the
+truth's models) by that share and the 10 m DSM minus the true DSM, RMS by class.
+
 Cells the size of the pixel hold a point of their own only where the projected lattice puts one in them; the lattice
 is sheared and stretched on the ground by the view angle and the slopes, so some cells get two and some none."""
 
@@ -22,17 +27,18 @@ import tempfile
 import numpy as np
 from scipy import ndimage
 
-from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
+from pushbroom.algorithms.simulation import simulate_scene
 from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid, point_tiers
 from pushbroom.algorithms.surface.intersection import Measurements, intersect
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_grid import Grid
-from studies.sim_dense import SHARED
-from tests.helpers.real_dsm import dense_points, footprint_mask
+from studies.dense_cell_precision import cloud
+from studies.dense_precision import SCENES
+from studies.sim_dense import evaluation_grid, rms, triplet_points
+from tests.helpers.dsm_comparison import CLASSES, Truth
+from tests.helpers.real_dsm import footprint_mask
 
-FILES = [SHARED / "pleiades_triplet" / f"img_0{k}.tif" for k in (2, 1, 3)]  # the reference first
-HEIGHTS = (40.0, 535.0)
 CELLS = (0.5, 0.6, 0.7, 0.8, 1.0)
 
 
@@ -48,11 +54,10 @@ def held(grid: Grid, inside: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[
 
 
 def main() -> None:
-    if not all(f.exists() for f in FILES):
-        print(f"the Pleiades triplet is not in {SHARED}")
+    matched = triplet_points()
+    if matched is None:
         return
-    models = [sensors.load(f) for f in FILES]
-    points, _ = dense_points(FILES, models, ["img_02", "img_01", "img_03"], tempfile.mkdtemp(), HEIGHTS)
+    models, points = matched
     obs = points.observations
     res = intersect(
         {k + 1: m for k, m in enumerate(models)}, Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"])
@@ -79,22 +84,55 @@ def main() -> None:
     px, py = reproject(np.asarray(plon, float), np.asarray(plat, float), wgs84(), srs)
     print(f"{len(x)} points ({refined.sum()} refined) of {rows * cols} pixels of img_02")
     print(
-        "| cell (m) | footprint cells | pixels per cell | refined | the DEM step's own cells | every point "
+        "| cell (m) | footprint cells | pixels per cell | refined | the DEM step's own cells | own points first | "
+        "every point "
         "| every pixel (the floor) |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for cell in CELLS:
         x0, y1 = np.floor(px.min() / cell) * cell, np.ceil(py.max() / cell) * cell
         grid = Grid(x0, y1, cell, int(np.ceil((px.max() - x0) / cell)), int(np.ceil((y1 - py.min()) / cell)))
         inside = footprint_mask(grid, srs, models, float(np.median(h)))
         shares = [held(grid, inside, a, b)[0] for a, b in ((x[refined], y[refined]), (x, y), (px, py))]
-        cells = cells_on_grid(x, y, h, None, grid, CellSettings(k=3.0, fallback=False, radius=1), tier=tier)
-        shares.insert(1, float((cells.ring == 0)[inside].mean()))
+        rules = [np.isfinite(heights) & (ring == 0) for heights, ring in both_rules(x, y, h, None, grid, tier)]
+        shares[1:1] = [float(own[inside].mean()) for own in rules]
         print(
             f"| {cell:g} | {int(inside.sum())} | {held(grid, inside, px, py)[1]:.2f} | "
             + " | ".join(f"{100 * s:.1f} %" for s in shares)
             + " |"
         )
+    simulated()
+
+
+def both_rules(
+    x: np.ndarray, y: np.ndarray, h: np.ndarray, sigma: np.ndarray | None, grid: Grid, tier: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(heights, ring) of the DEM step's cells (k 3, FALLBACK off, RADIUS 1) by its rule, the tier before the ring,
+    and by the other, a cell's own points first (the best tier among them), the ring's only where it has none."""
+    one = cells_on_grid(x, y, h, sigma, grid, CellSettings(k=3.0, fallback=False, radius=1), tier=tier)
+    own = cells_on_grid(x, y, h, sigma, grid, CellSettings(k=3.0, fallback=False, radius=0), tier=tier)
+    mine = np.isfinite(own.heights)
+    return [(one.heights, one.ring), (np.where(mine, own.heights, one.heights), np.where(mine, 0, one.ring))]
+
+
+def simulated() -> None:
+    """Both rules on the simulated scenes (studies/dense_cell_precision's cloud: the truth's models): the own cells'
+    share of the evaluation cells and the 10 m DSM minus the true DSM, RMS by class."""
+    for name, config in SCENES.items():
+        paths = simulate_scene(config, tempfile.mkdtemp() + "/scene")
+        truth = Truth(paths)
+        c = cloud(paths, truth)
+        grid, i, j = evaluation_grid(truth)
+        zones = {label: truth.cls == k for k, label in CLASSES.items()}
+        zones.update({"building edges": truth.edge, "open near": truth.near})
+        print(f"\n{name}\n| rule | own cells | " + " | ".join(zones) + " |\n|" + "---|" * (2 + len(zones)))
+        for rule, (heights, ring) in zip(
+            ("the tier first", "own points first"), both_rules(c["x"], c["y"], c["z"], c["sigma"], grid, c["tier"])
+        ):
+            dh = heights[i, j] - truth.h
+            own = 100 * (ring[i, j] == 0).mean()
+            row = " | ".join(f"{rms(dh[m & np.isfinite(dh)]):.2f}" for m in zones.values())
+            print(f"| {rule} | {own:.1f} % | {row} |")
 
 
 if __name__ == "__main__":

@@ -10,13 +10,13 @@ step (cell_dem.cells_on_grid: 0.5 m, k 3, FALLBACK off, RADIUS 1, the points' ti
 each two pairs, over the cells both measure from their own points: d = h_p - h_q less its median (the RPCs' bias
 differs between the pairs), and NMAD(d / sqrt(sigma_p^2 + sigma_q^2)) (1: the rasters are true, were the pairs'
 errors independent) beside NMAD(d) / median(sqrt(sigma_p^2 + sigma_q^2)); again without the spread term; then F_2
-and C fitted (`fit`) and the table again with them."""
+and C fitted (`fit`), beside precision.RPC, the product's."""
 
 import tempfile
+from collections.abc import Iterator
 
 import numpy as np
 
-from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dense import precision
 from pushbroom.algorithms.matching.points import MultiPoints
@@ -26,11 +26,9 @@ from pushbroom.algorithms.surface.intersection import Measurements, intersect
 from pushbroom.algorithms.surface.local_spread import local_metres, local_spread
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_grid import Grid
-from studies.sim_dense import SHARED
+from studies.sim_dense import TRIPLET, TRIPLET_HEIGHTS, triplet_points
 from tests.helpers.real_dsm import dense_pair_of_triplet, dense_points
 
-FILES = [SHARED / "pleiades_triplet" / f"img_0{k}.tif" for k in (2, 1, 3)]  # the reference first
-HEIGHTS = (40.0, 535.0)
 CELL = 0.5
 
 
@@ -64,12 +62,11 @@ def pair_cloud(points: MultiPoints, models: list) -> dict:
 
 
 def main() -> None:
-    if not all(f.exists() for f in FILES):
-        print(f"the Pleiades triplet is not in {SHARED}")
+    matched = triplet_points()
+    if matched is None:
         return
-    models = [sensors.load(f) for f in FILES]
-    triplet, _ = dense_points(FILES, models, ["img_02", "img_01", "img_03"], tempfile.mkdtemp(), HEIGHTS)
-    third, _ = dense_points(FILES[1:], models[1:], ["img_01", "img_03"], tempfile.mkdtemp(), HEIGHTS)
+    models, triplet = matched
+    third, _ = dense_points(TRIPLET[1:], models[1:], ["img_01", "img_03"], tempfile.mkdtemp(), TRIPLET_HEIGHTS)
     clouds = {
         "img_02-img_01": pair_cloud(dense_pair_of_triplet(triplet, 1), models[:2]),
         "img_02-img_03": pair_cloud(dense_pair_of_triplet(triplet, 2), [models[0], models[2]]),
@@ -100,10 +97,20 @@ def main() -> None:
         for term in ("unit", "spread")
     }
     f, c = fit(dems, parts["unit"], parts["spread"])
-    print(f"\nfitted on the three comparisons: F_2 = {f:.2f}, C = {c:.2f}")
-    for k in dems:
-        dems[k] = dems[k]._replace(precision=np.hypot(f * parts["unit"][k].precision, c * parts["spread"][k].precision))
-    compare(dems)
+    print(f"\nfitted on the three comparisons: F_2 = {f:.2f}, C = {c:.2f} (precision.RPC: {precision.RPC})")
+
+
+def common_differences(dems: dict) -> Iterator[tuple[str, str, np.ndarray, np.ndarray]]:
+    """Per two pairs of the per-cell DSMs `dems` {pair: cell_dem.Cells}: their names, the cells both measure from
+    their own points with a precision, and d there, their heights' difference less its median."""
+    names = list(dems)
+    for a in range(3):
+        for b in range(a + 1, 3):
+            p, q = dems[names[a]], dems[names[b]]
+            both = (p.ring == 0) & (q.ring == 0) & np.isfinite(p.heights) & np.isfinite(q.heights)
+            both &= np.isfinite(p.precision) & np.isfinite(q.precision)
+            d = (p.heights - q.heights)[both].astype(float)
+            yield names[a], names[b], both, d - np.median(d)
 
 
 def fit(dems: dict, unit: dict, spread: dict) -> tuple[float, float]:
@@ -111,16 +118,9 @@ def fit(dems: dict, unit: dict, spread: dict) -> tuple[float, float]:
     by the spread term's share, over the three comparisons: sigma^2 = F^2 (R_p^2 + R_q^2) + C^2 (S_p^2 + S_q^2) with
     R, S a cell's two terms at F = C = 1."""
     rows = []
-    names = list(dems)
-    for a in range(3):
-        for b in range(a + 1, 3):
-            p, q = dems[names[a]], dems[names[b]]
-            both = (p.ring == 0) & (q.ring == 0) & np.isfinite(p.heights) & np.isfinite(q.heights)
-            r2 = unit[names[a]].precision ** 2 + unit[names[b]].precision ** 2
-            s2 = spread[names[a]].precision ** 2 + spread[names[b]].precision ** 2
-            both &= np.isfinite(r2) & np.isfinite(s2)
-            d = (p.heights - q.heights)[both].astype(float)
-            rows.append((d - np.median(d), r2[both].astype(float), s2[both].astype(float)))
+    for a, b, both, d in common_differences(dems):
+        r2, s2 = ((t[a].precision ** 2 + t[b].precision ** 2)[both].astype(float) for t in (unit, spread))
+        rows.append((d, r2, s2))
     d, r2, s2 = (np.concatenate([r[i] for r in rows]) for i in range(3))
     share = s2 / (r2 + s2)
     bins = np.digitize(share, np.quantile(share, [0.2, 0.4, 0.6, 0.8]))
@@ -135,23 +135,16 @@ def fit(dems: dict, unit: dict, spread: dict) -> tuple[float, float]:
 
 def compare(dems: dict) -> None:
     """The table of the module docstring for the per-cell DSMs `dems` {pair: cell_dem.Cells}."""
-    names = list(dems)
     print("| pairs | cells | NMAD(d) m | median predicted sigma of d, m | NMAD(d / sigma) | ratio of the two |")
     print("|---|---|---|---|---|---|")
-    for a in range(3):
-        for b in range(a + 1, 3):
-            p, q = dems[names[a]], dems[names[b]]
-            both = (p.ring == 0) & (q.ring == 0) & np.isfinite(p.heights) & np.isfinite(q.heights)
-            both &= np.isfinite(p.precision) & np.isfinite(q.precision)
-            d = (p.heights - q.heights)[both].astype(float)
-            d -= np.median(d)
-            s = np.hypot(p.precision[both], q.precision[both]).astype(float)
-            nmad = 1.4826 * np.median(np.abs(d))
-            z = d / s
-            print(
-                f"| {names[a]} vs {names[b]} | {both.sum()} | {nmad:.3f} | {np.median(s):.3f} | "
-                f"{1.4826 * np.median(np.abs(z - np.median(z))):.2f} | {nmad / np.median(s):.2f} |"
-            )
+    for a, b, both, d in common_differences(dems):
+        s = np.hypot(dems[a].precision[both], dems[b].precision[both]).astype(float)
+        nmad = 1.4826 * np.median(np.abs(d))
+        z = d / s
+        print(
+            f"| {a} vs {b} | {both.sum()} | {nmad:.3f} | {np.median(s):.3f} | "
+            f"{1.4826 * np.median(np.abs(z - np.median(z))):.2f} | {nmad / np.median(s):.2f} |"
+        )
 
 
 if __name__ == "__main__":

@@ -30,6 +30,8 @@ from pushbroom.algorithms.surface.tin_dem import DemParams
 from pushbroom.algorithms.surface.tin_grid import Grid
 from scripts.bench_peers import sample
 from tests.helpers.dsm_comparison import CELL, NAMES, Truth
+from tests.helpers.pleiades_scene import NAMES as TRIPLET_NAMES
+from tests.helpers.real_dsm import dense_points as real_dense_points
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 #: real pairs (first image, second image) of ../shared/data
@@ -37,8 +39,22 @@ REAL = {
     "Pleiades triplet, img_02 -> img_01": ("pleiades_triplet/img_02.tif", "pleiades_triplet/img_01.tif"),
     "Ventoux pair": ("pleiades_pair_ventoux/left_image.tif", "pleiades_pair_ventoux/right_image.tif"),
 }
+#: the Pleiades triplet in combination order (the reference img_02 first) and the heights its search finds
+TRIPLET = [SHARED / "pleiades_triplet" / f"{name}.tif" for name in TRIPLET_NAMES]
+TRIPLET_HEIGHTS = (40.0, 535.0)
 #: the refinement before its largest shift became 1 px (studies/README.md#dense_variance_test), as studies measured it
 BEFORE = {"max_shift": 0.5}
+
+
+def triplet_points(params: DenseParams | None = None) -> tuple[list, MultiPoints] | None:
+    """(models, dense points) of the Pleiades triplet (DenseParams `params`, default the defaults; 2 threads, over
+    TRIPLET_HEIGHTS); None, and said, where the data are absent."""
+    if not all(f.exists() for f in TRIPLET):
+        print(f"the Pleiades triplet is not in {SHARED}")
+        return None
+    models = [sensors.load(f) for f in TRIPLET]
+    points, _ = real_dense_points(TRIPLET, models, TRIPLET_NAMES, tempfile.mkdtemp(), TRIPLET_HEIGHTS, params)
+    return models, points
 
 
 class TruthCloud(NamedTuple):

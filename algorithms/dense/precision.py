@@ -68,16 +68,14 @@ RPC = Calibration({2: 1.35, 3: 1.35 * 2.3 / 2.2}, 0.08)
 #: px: both semi-axes of a semi-global position the bias test kept (dense/refine.py), in LSM's ellipse units: its
 #: image sigma is F_k SEMI_GLOBAL_AXIS / sqrt(2) (module docstring)
 SEMI_GLOBAL_AXIS = 0.3
+#: px of the reference image: the spread's half-width R, the default template's (19 px) half-width
+SPREAD_RADIUS_PX = 9.5
 
 
 def calibration_of(models: Iterable[SensorModel]) -> Calibration:
     """The Calibration of a block's `models`: RPC where every one is an RPC model, else SPOT."""
     models = list(models)
     return RPC if models and all(isinstance(m, RpcModel) for m in models) else SPOT
-
-
-#: px of the reference image: the spread's half-width R, the default template's (19 px) half-width
-SPREAD_RADIUS_PX = 9.5
 
 
 def image_sigmas(

@@ -1,7 +1,8 @@
 """Dense matching per stage and per core (algorithms/dense): one 512 px tile of the Pleiades triplet
 (img_02 -> img_01, its RPCs, heights 40-535 m), numba on 1 thread: epipolar resampling (grid and both
 images, per epipolar pixel), census cost and semi-global aggregation (libsgm; per epipolar pixel, over the
-disparity range the tile's seeds narrow it to, as pair_tile.match_pair_tile does), LSM refinement of every
+disparity range the tile's seeds narrow it to, as pair_tile.match_pair_tile does), the seeds themselves (NCC along
+the height range's path, then LSM: per tile pixel), LSM refinement of every
 matched pixel (per node tried), triangulation (per point) and the per-cell rasterization at 0.5 m with the DEM
 step's default radius (per point).
 Best of three after a warm-up."""
@@ -11,7 +12,7 @@ import numpy as np
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dense.epipolar import epipolar_grid
-from pushbroom.algorithms.dense.pair_tile import match_pair_tile
+from pushbroom.algorithms.dense.pair_tile import match_pair_tile, tile_seeds
 from pushbroom.algorithms.dense.params import DenseParams
 from pushbroom.algorithms.dense.refine import Conjugates, refine_positions
 from pushbroom.algorithms.dense.resample import epipolar_image
@@ -59,6 +60,18 @@ def run():
             }
         )
         x1, y1, x2, y2, info = match_pair_tile(images[0], images[1], models[0], models[1], BOX, HEIGHTS, params)
+        # the tile's seeds: NCC along each Foerstner point's path over the whole height range, then LSM (the kernels
+        # of the terrain height search too)
+        tile_px = (BOX[2] - BOX[0]) * (BOX[3] - BOX[1])
+        seconds = best_time(lambda: tile_seeds(images[0], images[1], models[0], models[1], BOX, HEIGHTS, grid))
+        rows.append(
+            {
+                "stage": f"seeds (NCC along {HEIGHTS[0]:g}-{HEIGHTS[1]:g} m, LSM: {info['seeds']} found)",
+                "items": tile_px,
+                "per second": tile_px / seconds,
+                "unit": "tile px",
+            }
+        )
         d_range = info["d_range"]
         seconds = best_time(lambda: disparity(epi1, epi2, d_range, params.sgm))
         rows.append(
