@@ -6,7 +6,8 @@ including the positions the bias test then sent back to their semi-global places
 Its height sigma has two parts:
 
 1. Matching noise. Each refined position carries LSM's error ellipse relative to the template's position,
-   semi-major axis a_i (px of image i). The pair's relative error is shared between its two rays, and the
+   semi-major axis a_i (px of image i; a position the wide window placed reports it in the template's units,
+   lsm.match_accepted). The pair's relative error is shared between its two rays, and the
    reference image's position is the template that both pairs of a triplet share. The intersection
    (surface/intersection.py) propagates the image sigmas
 
@@ -27,9 +28,11 @@ carries a_i = SEMI_GLOBAL_AXIS instead of LSM's ellipse: the semi-global positio
 
 F_k and C are the sensor's (`Calibration`; `calibration_of` picks them for a block's models): they absorb how the
 images' noise, blur and resampling make LSM's ellipse optimistic or pessimistic, which a method cannot know.
-- SPOT (the rigorous SPOT models): F_2, F_3 and C fitted on the simulated 3 km SPOT 5 triplet against its truth
-  (least squares of dh^2 on the open classes, `studies/dense_precision.py`; figures and the check on a second scene
-  in studies/README.md#dense_precision). No real SPOT pixels have checked them.
+- SPOT (the rigorous SPOT models): the points' F_2, F_3 and C fitted on the simulated 3 km SPOT 5 triplet against
+  its truth (least squares of dh^2 on the open classes, `studies/dense_precision.py`: 1.80, 2.09, 0.46), times the
+  DSM cells' factor 1.2: a cell's height, the median of its points, stands for the surface at its centre, an error
+  its points' sigmas do not carry (studies/README.md#dense_cell_precision fits it on the cells of every class; the
+  points are then about a fifth pessimistic on open ground). No real SPOT pixels have checked them.
 - RPC (Pleiades and the other sub-metre sensors delivered with RPCs): F_2 and C fitted on the real Pleiades
   triplet's pair differences (`studies/pair_precision.py`); F_3 = F_2 times SPOT's F_3 / F_2, as pair differences
   hold no three-ray cell. Pair differences see only the error that differs between the pairs: the template's
@@ -62,9 +65,9 @@ class Calibration(NamedTuple):
 
 
 #: the rigorous SPOT models' (module docstring; studies/README.md#dense_precision)
-SPOT = Calibration({2: 2.2, 3: 2.3}, 0.5)
+SPOT = Calibration({2: 2.15, 3: 2.5}, 0.55)
 #: the RPC models' (module docstring; studies/README.md#pair_precision)
-RPC = Calibration({2: 1.35, 3: 1.35 * 2.3 / 2.2}, 0.08)
+RPC = Calibration({2: 1.35, 3: 1.35 * 2.5 / 2.15}, 0.08)
 #: px: both semi-axes of a semi-global position the bias test kept (dense/refine.py), in LSM's ellipse units: its
 #: image sigma is F_k SEMI_GLOBAL_AXIS / sqrt(2) (module docstring)
 SEMI_GLOBAL_AXIS = 0.3

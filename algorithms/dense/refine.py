@@ -47,16 +47,17 @@ the neighbourhood, and the semi-global position, whose census window follows the
 With t the refined nodes' moves along the epipolar line (px of image 2, EpipolarGrid.along) within a square of
 BIAS_WINDOW templates around a node (at least BIAS_NODES of them), the node keeps its semi-global position where
     |mean(t)| > max(b sd(t), k (w_t / w_c) a)
-b = DenseParams.bias_bound; a the node's LSM error-ellipse semi-major axis and w_t / w_c the template's width over
-the census window's: the census sees (w_t / w_c)^2 fewer samples than the template, so k (w_t / w_c) a predicts the
-semi-global position's own error (k = DenseParams.census_error: the sub-pixel fit's pixel locking adds to the
-census's noise), which the move must exceed to be LSM's bias and not a correction of a weak census match (crops, low
-texture). The test reads positions and LSM's ellipse, not the images' radiometry or a noise model (a residual test
-did, and failed on real images: studies/README.md#dense_variance_test). The straddling template is the reference
-image's, which a triplet's two pairs share: where the test finds one pair's moves systematic, both pairs' refined
-positions of the node keep their semi-global ones (the caller's, dense/dense_strategy.py). Such a position is
-measured (its rho is LSM's at the node: the template correlates there) with the semi-global matcher's precision
-(dense/precision.py, SEMI_GLOBAL_AXIS). Measured in studies/README.md#dense_bias_test.
+b = DenseParams.bias_bound; a the node's LSM error-ellipse semi-major axis (in the template's units,
+lsm.match_accepted) and w_t / w_c the template's width over the census window's: the census sees (w_t / w_c)^2
+fewer samples than the template, so k (w_t / w_c) a predicts the semi-global position's own error (k =
+DenseParams.census_error: the sub-pixel fit's pixel locking adds to the census's noise), which the move must exceed
+to be LSM's bias and not a correction of a weak census match (crops, low texture). The test reads positions and
+LSM's ellipse, not the images' radiometry or a noise model (a residual test did, and failed on real images:
+studies/README.md#dense_variance_test). The straddling template is the reference image's, which a triplet's two
+pairs share: where the test finds one pair's moves systematic, both pairs' refined positions of the node keep their
+semi-global ones (the caller's, dense/dense_strategy.py). Such a position is measured (its rho is LSM's at the
+node: the template correlates there) with the semi-global matcher's precision (dense/precision.py,
+SEMI_GLOBAL_AXIS). Measured in studies/README.md#dense_bias_test.
 
 Measured on the simulated triplet (docs/validation.md#dense-matching, with the plain LSM): LSM halves the dense
 position's error on open ground where it is accepted, and makes it worse within a template of a height step;

@@ -493,7 +493,17 @@ def match_accepted(img1, img2, x1, y1, x2, y2, affine=None, params=None):
     """match_points and `accepted`, with the points that fail inside the images matched again with
     the wider window `params.widest` (GrowParams.wide_template) from the same initial values; with
     GrowParams.wide_beyond_shift off, not those the template moved beyond max_shift.
-    Returns (records, accepted mask)."""
+    Returns (records, accepted mask).
+
+    A position the wide window placed reports its error ellipse in the template's units: the semi-axes
+    times widest / template. The white-noise ellipse shrinks as 1 / width, but the wide window serves the
+    weak textures the template cannot match, where the error does not shrink so (the start is far off,
+    the residuals are the texture's own, not white): the simulated triplet's low-texture DSM cells, which
+    the wide window serves, were 1.3-1.8x optimistic where the open fields' were calibrated
+    (studies/README.md#dense_cell_precision), and region growing's wide-window points erred 3x their
+    ellipses (docs/validation.md#region-growing-wide-template).
+    In the template's units one precision model (dense/precision.py) serves both windows' positions. The
+    acceptance tests the ellipse the window measured."""
     params = params or LsmParams()
     rec, status = match_points(img1, img2, x1, y1, x2, y2, affine, params)
     ok = accepted(rec, status, params)
@@ -508,6 +518,8 @@ def match_accepted(img1, img2, x1, y1, x2, y2, affine=None, params=None):
             img1, img2, rec["x1"][again], rec["y1"][again], x2, y2, _affine_array(affine, len(rec))[again], wide
         )
         good = accepted(rec_w, status_w, wide)
+        for axis in ("semi_major", "semi_minor"):
+            rec_w[axis] *= np.float32(params.widest / params.template)
         rec[again[good]] = rec_w[good]
         ok[again[good]] = True
     return rec, ok

@@ -120,8 +120,9 @@ def _passes(status, out, accept):
 @njit(cache=True, nogil=True)
 def _attempt(tile, node, start, solve, wide, accept, out, results, state):
     """LSM at lattice node `node` of the Tile `tile` from the Start `start` (image coordinates) with the Solver
-    `solve`, again with the Solver `wide` (a larger half-size) where the match failed inside the image; stores
-    the result (image coordinates) and the state (1 accepted, 2 rejected); returns whether accepted."""
+    `solve`, again with the Solver `wide` (a larger half-size) where the match failed inside the image (its error
+    ellipse then reported in the template's units, as lsm.match_accepted's); stores the result (image coordinates)
+    and the state (1 accepted, 2 rejected); returns whether accepted."""
     x1 = tile.gx0 + (node % tile.nx) * tile.step - tile.ox1
     y1 = tile.gy0 + (node // tile.nx) * tile.step - tile.oy1
     local = Start(start.x2 - tile.ox2, start.y2 - tile.oy2, start.a1, start.a2, start.a4, start.a5)
@@ -130,6 +131,7 @@ def _attempt(tile, node, start, solve, wide, accept, out, results, state):
     if not ok and status != OUTSIDE and wide.half > solve.half:
         status = lsm_point(tile.img1, tile.img2, x1, y1, local, wide, out)
         ok = _passes(status, out, accept)
+        out[3:5] *= (2 * wide.half + 1) / (2 * solve.half + 1)  # the template's units, as lsm.match_accepted's
     for f in range(out.shape[0]):
         results[node, f] = out[f]
     results[node, 0] += tile.ox2

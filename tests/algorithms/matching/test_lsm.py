@@ -259,3 +259,28 @@ def test_robust_precision_is_calibrated(figures):
     )
     figures.report("RMS error / predicted, robust", ratio)
     assert 0.8 < ratio < 1.25
+
+
+def test_the_wide_window_reports_its_ellipse_in_the_template_units():
+    """match_accepted: a weak texture the 9 px template cannot pass (its ellipse beyond max_ellipse) matched with
+    the 15 px window, whose ellipse is reported 15 / 9 times the one it measured (its acceptance on the measured
+    one); the template's own matches keep theirs."""
+    rng = np.random.default_rng(6)
+    tex = texture(rng)
+    jj, ii = np.meshgrid(np.arange(64) + 0.5, np.arange(64) + 0.5)
+    img1 = (100 + 4 * tex(jj, ii) + rng.normal(0, 2.0, jj.shape)).astype(np.float32)
+    img2 = (100 + 4 * tex(jj + 0.3, ii - 0.2) + rng.normal(0, 2.0, jj.shape)).astype(np.float32)
+    x1 = y1 = np.full(1, 32.0)
+    x2, y2 = x1 - 0.3 + 0.4, y1 + 0.2 - 0.3
+    grow = GrowParams(template=9, wide_template=15, max_ellipse=0.12)
+    narrow, status = lsm.match_points(img1, img2, x1, y1, x2, y2, params=grow)
+    assert not lsm.accepted(narrow, status, grow)[0]
+    wide = GrowParams(template=15, max_ellipse=0.12)
+    measured, status = lsm.match_points(img1, img2, x1, y1, x2, y2, params=wide)
+    assert lsm.accepted(measured, status, wide)[0]
+    rec, ok = lsm.match_accepted(img1, img2, x1, y1, x2, y2, params=grow)
+    assert ok[0] and rec["x2"][0] == measured["x2"][0]
+    for axis in ("semi_major", "semi_minor"):
+        assert rec[axis][0] == pytest.approx(measured[axis][0] * 15 / 9, rel=1e-6)
+    plain, ok = lsm.match_accepted(img1, img2, x1, y1, x2, y2, params=wide)
+    assert ok[0] and plain["semi_major"][0] == measured["semi_major"][0]
