@@ -30,6 +30,12 @@ interpolating the refined cells on bare fields, crops and forest. Three rays com
 and their redundancy give the better heights (docs/validation.md#dense-peers: the simulated triplet's bare
 fields).
 
+The precision rule: where the points carry their sigma_h, a cell that has refined points of its own but takes
+a better tier from the ring around takes its own points instead when their precision (the RMS of their sigma_h)
+is no worse than the ring's. A calibrated precision says which of the two measures the cell better; a ring's
+points are a cell away, so ties go to the cell's own. Measured in studies/README.md#own_cells_floor: on the
+simulated triplets the own cells rise from 73.0 to 73.4 % and from 88.6 to 90.2 %, and no class gets worse.
+
 The TIN (tin_dem.py) suits sparse points, which it interpolates between; a dense cloud has several points
 per cell, whose median resists mismatches and follows height steps within a cell's width.
 
@@ -62,7 +68,7 @@ def point_tiers(rho: np.ndarray, rays: np.ndarray) -> np.ndarray:
     return tier
 
 
-def _group_medians(key, values):
+def _group_medians(key: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(keys, medians, counts) of `values` grouped by `key` (both 1-D)."""
     order = np.lexsort((values, key))
     k, v = key[order], values[order]
@@ -75,7 +81,7 @@ class Cells(NamedTuple):
     """A per-cell DSM (module docstring) on a grid's (rows, cols)."""
 
     heights: np.ndarray  # float32, NaN: a gap
-    count: np.ndarray  # int32, the points the cell's height used
+    counts: np.ndarray  # int32, the points the cell's height used
     precision: np.ndarray  # float32, m
     removed: int  # points the per-cell outlier test dropped from their own cell
     ring: np.ndarray  # uint8: 0 the cell's own points, r those of the cells r away, NO_RING a gap
@@ -104,7 +110,6 @@ def cells_on_grid(
     """Cells on `grid` (tin_grid.Grid) from points x, y, z (and sigma_h, or None; and their `tier`, or None:
     all 0) in its CRS (module docstring) with CellSettings `settings`; `own(x, y)`: the points whose cell
     this grid owns (a tile's), default all."""
-    k, fallback = settings.k, settings.fallback
     x, y, z = (np.asarray(v, float) for v in (x, y, z))
     radius = int(settings.radius)
     col = np.floor((x - grid.x0) / grid.cell).astype(np.int64)
@@ -115,13 +120,45 @@ def cells_on_grid(
     row[(row == grid.rows) & (y >= grid.y0 - grid.rows * grid.cell) & owned] = grid.rows - 1
     use = np.isfinite(z)
     t = np.zeros(x.size, np.int64) if tier is None else np.asarray(tier).astype(np.int64)
-    if not fallback:
+    if not settings.fallback:
         use &= t < UNREFINED
+    s = None if sigma is None else np.asarray(sigma, float)
+    points = _Points(row, col, owned, use, z, s)
+    cells, _ = _fuse(points, t, radius, settings.k, grid)
+    if s is None or tier is None or radius == 0:
+        return cells
+    # the precision rule (module docstring): a cell's own refined points of any tier, against the ring's better tier
+    mine, dropped = _fuse(points, np.where(t < UNREFINED, THREE_RAYS, t), 0, settings.k, grid)
+    take = (cells.ring != 0) & (cells.ring != NO_RING) & (mine.ring == 0) & (mine.precision <= cells.precision)
+    heights, count, precision = (np.where(take, a, b) for a, b in zip(mine[:3], cells[:3]))
+    removed = cells.removed + int(dropped[take].sum())  # the ring's cells counted none of their own
+    return Cells(heights, count, precision, removed, np.where(take, np.uint8(0), cells.ring))
+
+
+class _Points(NamedTuple):
+    """The points as _fuse reads them: each one's cell (row, col), whether this grid owns it, whether it is used,
+    its height and sigma_h (or None)."""
+
+    row: np.ndarray
+    col: np.ndarray
+    owned: np.ndarray
+    use: np.ndarray
+    z: np.ndarray
+    sigma: np.ndarray | None
+
+
+def _fuse(points: _Points, t: np.ndarray, radius: int, k: float, grid: Grid) -> tuple[Cells, np.ndarray]:
+    """The cells of `points` with tiers `t` (the tier first, then the ring, up to `radius` cells; module docstring),
+    and per cell the points of its own the outlier test dropped."""
+    row, col, owned, use, z, sigma = points
     index = np.flatnonzero(use)
     # each point offered to the cells within `radius` of its own, ring by ring; rank: tier first, then the ring;
     # an offer to a cell that already has a better rank is dropped at once
     best = np.full(grid.rows * grid.cols, np.iinfo(np.int64).max)
-    keys, picks, ranks, rings = [], [], [], []
+    key_parts: list[np.ndarray] = []
+    pick_parts: list[np.ndarray] = []
+    rank_parts: list[np.ndarray] = []
+    ring_parts: list[np.ndarray] = []
     for distance in range(radius + 1):
         for dr, dc in (
             (a, b)
@@ -140,17 +177,19 @@ def cells_on_grid(
             for value in np.unique(rank):  # a tier or two: plain assignments, not the slow ufunc.at
                 at = key[rank == value]
                 best[at] = np.minimum(best[at], value)
-            keys.append(key)
-            picks.append(pick)
-            ranks.append(rank)
-            rings.append(np.full(key.size, distance, np.uint8))
-    key, pick, rank, ring = (np.concatenate(v) for v in (keys, picks, ranks, rings))
+            key_parts.append(key)
+            pick_parts.append(pick)
+            rank_parts.append(rank)
+            ring_parts.append(np.full(key.size, distance, np.uint8))
+    key, pick, rank = (np.concatenate(v) for v in (key_parts, pick_parts, rank_parts))
+    ring = np.concatenate(ring_parts)
     heights = np.full((grid.rows, grid.cols), np.nan, np.float32)
     count = np.zeros((grid.rows, grid.cols), np.int32)
     precision = np.full((grid.rows, grid.cols), np.nan, np.float32)
     source = np.full((grid.rows, grid.cols), NO_RING, np.uint8)
+    dropped = np.zeros((grid.rows, grid.cols), np.int64)
     if key.size == 0:
-        return Cells(heights, count, precision, 0, source)
+        return Cells(heights, count, precision, 0, source), dropped
     first = rank == best[key]
     key, pick, ring = key[first], pick[first], ring[first]
     z = z[pick]
@@ -162,7 +201,9 @@ def cells_on_grid(
     if k > 0:
         _, mad, _ = _group_medians(key, dev)
         keep = dev <= k * np.maximum(1.4826 * mad[slot], MIN_SPREAD)
-        removed = int((~keep & (ring == 0)).sum())
+        gone = ~keep & (ring == 0)
+        removed = int(gone.sum())
+        dropped.flat[:] = np.bincount(key[gone], minlength=dropped.size)
         key, z, dev, ring = key[keep], z[keep], dev[keep], ring[keep]
         s = None if s is None else s[keep]
         keys, median, _ = _group_medians(key, z)
@@ -178,4 +219,4 @@ def cells_on_grid(
     count[r, c] = n
     precision[r, c] = error
     source.flat[key] = ring  # a cell's points share their rank, so their ring
-    return Cells(heights, count, precision, removed, source)
+    return Cells(heights, count, precision, removed, source), dropped

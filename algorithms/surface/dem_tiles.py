@@ -331,12 +331,12 @@ def _cell_tile(job, box, points_file, out, precision_out, count_out, ring_out):
     )
     check_cancel()  # before the writes (execution: a cancel reaches a running tile)
     write_float_raster(out, cells.heights, sub.geotransform, srs, overviews=False)
-    for path, values in ((precision_out, cells.precision), (count_out, cells.count), (ring_out, cells.ring)):
+    for path, values in ((precision_out, cells.precision), (count_out, cells.counts), (ring_out, cells.ring)):
         if path is not None:
             write_float_raster(path, values, sub.geotransform, srs, overviews=False)
     own = cells.ring == 0
     return {
-        "points": int(cells.count[own].sum()),
+        "points": int(cells.counts[own].sum()),
         "removed": cells.removed,
         "defined": int(np.isfinite(cells.heights).sum()),
         "own": int(own.sum()),

@@ -90,7 +90,7 @@ def test_empty_cells_take_the_nearest_ring_of_points(radius):
     cells = cells_on_grid(x, y, z, None, grid, CellSettings(k=3.0, radius=radius))
     (h_ref, n_ref, p_ref), removed_ref = reference(x, y, z, None, grid, 3.0, radius)
     np.testing.assert_allclose(cells.heights, h_ref, rtol=0, atol=1e-4)
-    np.testing.assert_array_equal(cells.count, n_ref)
+    np.testing.assert_array_equal(cells.counts, n_ref)
     np.testing.assert_allclose(cells.precision, p_ref, rtol=1e-5)
     assert cells.removed == removed_ref
     own = cells_on_grid(x, y, z, None, grid, CellSettings(k=3.0))
@@ -219,3 +219,33 @@ def test_gaps_filled_and_flagged(tmp_path):
     assert ((mask != 255) == np.isfinite(dem)).all() and (mask == 2).sum() > 50  # the holes' rims: radius 1
     with pytest.raises(InputError, match="gap filling is for the per-cell DEM"):
         dem_from_point_cloud(cloud, tmp_path / "tin.tif", DemParams(cell=2.0, fill=5.0))
+
+
+@pytest.mark.parametrize("two_ray_sigma", [0.3, 0.5, 0.8])
+def test_a_cell_takes_its_own_points_where_they_are_no_less_precise_than_the_rings(two_ray_sigma):
+    """The precision rule (cell_dem's docstring): the corner without three-ray points, whose border cells take
+    three-ray points (sigma_h 0.5 m) a cell away, takes its own two-ray points instead where theirs is no worse."""
+    x, y, z, _ = dense_points(outliers=0)
+    rng = np.random.default_rng(5)
+    tier = np.digitize(rng.uniform(size=x.size), [0.4, 0.7]).astype(np.uint8)
+    tier[(x < 50.0) & (y < 50.0) & (tier == THREE_RAYS)] = TWO_RAYS
+    z = z + np.array([0.0, 2.0, 5.0])[tier]
+    sigma = np.where(tier == TWO_RAYS, two_ray_sigma, 0.5)
+    grid = Grid(0.0, 150.0, 10.0, 20, 15)
+    settings = CellSettings(k=0.0, radius=1)
+    tiers_first = cells_on_grid(x, y, z, None, grid, settings, tier=tier)
+    border = tiers_first.ring == 1  # the corner's cells beside three-ray ones
+    assert border.sum() == 9
+    cells = cells_on_grid(x, y, z, sigma, grid, settings, tier=tier)
+    m = tier == TWO_RAYS
+    own_two = cells_on_grid(x[m], y[m], z[m], sigma[m], grid, CellSettings(k=0.0))
+    if two_ray_sigma <= 0.5:  # no worse: the cell's own
+        assert (cells.ring[border] == 0).all()
+        np.testing.assert_array_equal(cells.heights[border], own_two.heights[border])
+        np.testing.assert_array_equal(cells.counts[border], own_two.counts[border])
+        np.testing.assert_allclose(cells.precision[border], two_ray_sigma, rtol=1e-6)
+    else:
+        assert (cells.ring[border] == 1).all()
+        np.testing.assert_array_equal(cells.heights[border], tiers_first.heights[border])
+    np.testing.assert_array_equal(cells.heights[~border], tiers_first.heights[~border])
+    assert cells.removed == tiers_first.removed == 0
