@@ -26,15 +26,18 @@ template centre rather than average in the forest, city or water beside a field.
 Figures: docs/validation.md#group3-accuracy, docs/validation.md#mpgc-support-weights."""
 
 from dataclasses import fields
+from typing import Any
 
 import numpy as np
 
 from .. import progress
+from ..progress import Feedback
 from .mpgc import MpgcParams, accepted, match_points
 from .orientation_bias import affine_bias, intersect_corrected
 from .params import GrowParams, LsmParams
-from .points import REFINED
+from .points import REFINED, MultiPoints
 from .resolution import adapted_images
+from .stereo_set import StereoSet
 
 #: px: sigma of the geometric observations where the corrected orientation is consistent
 #: (docs/validation.md#group3-accuracy)
@@ -46,7 +49,15 @@ MIN_POINTS = 50
 SUPPORT_CENTRE, SUPPORT_SIMILARITY = 5.0, 1.0
 
 
-def refine_three_ray(points, stereo, grow=None, feedback=None, bias=None, group=3, exclude=None):
+def refine_three_ray(
+    points: MultiPoints,
+    stereo: StereoSet,
+    grow: GrowParams | None = None,
+    feedback: Feedback | None = None,
+    bias: tuple[Any, float] | None = None,
+    group: int = 3,
+    exclude: np.ndarray | None = None,
+) -> int:
     """MPGC refinement of the `group` points (three rays: region growing's 3, dense matching's 2) of `points`
     (MultiPoints of three_combinations.combine or dense/dense_strategy.py; `stereo` the StereoSet: images and
     models in combination order, their block ids, the height range; `grow` the GrowParams of the matching).
