@@ -5,12 +5,13 @@ MAD = median |z - m|:
 - outliers: points with |z - m| > k max(1.4826 MAD, MIN_SPREAD) are dropped (k = 0: none; a statistical
   filter within the cell: a mismatch lands metres off the surface its neighbours agree on);
 - height: the median of the points kept;
-- count: the points kept;
-- precision (m): where every kept point has its sigma_h, their RMS. The points of one cell are not independent:
-  a cell is smaller than a matching template (a dense point per pixel, 19 px templates), so neighbouring points
-  measured nearly the same template and their errors are nearly one error; their median is no better than one of
-  them (studies/README.md#dense_cell_precision). Otherwise (no sigma_h), the standard error of a median of
-  independent points, 1.2533 s / sqrt(n), s = 1.4826 MAD of the kept points (n >= 3; NaN below).
+- counts: the points kept;
+- precision (m): where every point the grid uses has its sigma_h, the RMS of the kept points' sigma_h. The points
+  of one cell are not independent: a cell is smaller than a matching template (a dense point per pixel, 19 px
+  templates), so neighbouring points measured nearly the same template and their errors are nearly one error;
+  their median is no better than one of them (studies/README.md#dense_cell_precision). Otherwise (no sigma_h), the
+  standard error of a median of independent points, 1.2533 s / sqrt(n), s = 1.4826 MAD of the kept points
+  (n >= 3; NaN below).
 Points on the grid's far edges belong to its last column and row.
 
 Radius (cells, r >= 0; rasterization, not gap filling): a cell with no point of its own takes the points of
@@ -23,16 +24,18 @@ A cell with no point within r is NaN (a gap), never filled here.
 Tiers: where the points carry a `tier` (THREE_RAYS: refined and intersected from three or more rays, or any
 sparse point; TWO_RAYS: refined, two rays; UNREFINED: a dense point LSM left at the semi-global position), a
 cell uses only the points of the best tier it has (the tier first, then the ring: a three-ray point a cell away
-is preferred to a two-ray one of the cell's own, and a refined one to an unrefined one); with `fallback` off,
+is preferred to a two-ray one of the cell's own unless the precision rule below says otherwise, and a refined
+one to an unrefined one, always); with `fallback` off,
 no UNREFINED point is used (such a cell is a gap). studies/dense_fusion.py measures why the unrefined points
 come last: their heights are worse than the refined ones' everywhere but in the city, and worse than
 interpolating the refined cells on bare fields, crops and forest. Three rays come before two: their wider base
 and their redundancy give the better heights (docs/validation.md#dense-peers: the simulated triplet's bare
 fields).
 
-The precision rule: where the points carry their sigma_h, a cell that has refined points of its own but takes
-a better tier from the ring around takes its own points instead when their precision (the RMS of their sigma_h)
-is no worse than the ring's. A calibrated precision says which of the two measures the cell better; a ring's
+The precision rule: where the points carry their sigma_h (every point used), a cell that has refined points of
+its own but takes a better tier from the ring around takes its own refined points instead when their precision
+(the RMS of their sigma_h) is no worse than the ring's; never its unrefined ones, whose a priori sigma carries no
+spread term. A calibrated precision says which of the two measures the cell better; a ring's
 points are a cell away, so ties go to the cell's own. Measured in studies/README.md#own_cells_floor: on the
 simulated triplets the own cells rise from 73.0 to 73.4 % and from 88.6 to 90.2 %, and no class gets worse.
 
@@ -109,7 +112,8 @@ def cells_on_grid(
 ) -> Cells:
     """Cells on `grid` (tin_grid.Grid) from points x, y, z (and sigma_h, or None; and their `tier`, or None:
     all 0) in its CRS (module docstring) with CellSettings `settings`; `own(x, y)`: the points whose cell
-    this grid owns (a tile's), default all."""
+    this grid owns (a tile's), default all. With `sigma` and `tier` (and a radius), the sigmas also choose between
+    a cell's own points and the ring's (the precision rule), so they can change the heights."""
     x, y, z = (np.asarray(v, float) for v in (x, y, z))
     radius = int(settings.radius)
     col = np.floor((x - grid.x0) / grid.cell).astype(np.int64)
@@ -122,14 +126,18 @@ def cells_on_grid(
     t = np.zeros(x.size, np.int64) if tier is None else np.asarray(tier).astype(np.int64)
     if not settings.fallback:
         use &= t < UNREFINED
+    # one kind of precision for the whole grid: the sigmas' only where every point it uses has one
     s = None if sigma is None else np.asarray(sigma, float)
+    if s is not None and not np.isfinite(s[use]).all():
+        s = None
     points = _Points(row, col, owned, use, z, s)
     cells, _ = _fuse(points, t, radius, settings.k, grid)
     if s is None or tier is None or radius == 0:
         return cells
     # the precision rule (module docstring): a cell's own refined points of any tier, against the ring's better tier
-    mine, dropped = _fuse(points, np.where(t < UNREFINED, THREE_RAYS, t), 0, settings.k, grid)
-    take = (cells.ring != 0) & (cells.ring != NO_RING) & (mine.ring == 0) & (mine.precision <= cells.precision)
+    refined = points._replace(use=use & (t < UNREFINED))
+    mine, dropped = _fuse(refined, np.zeros_like(t), 0, settings.k, grid)
+    take = (cells.ring != 0) & (mine.ring == 0) & (mine.precision <= cells.precision)
     heights, count, precision = (np.where(take, a, b) for a, b in zip(mine[:3], cells[:3]))
     removed = cells.removed + int(dropped[take].sum())  # the ring's cells counted none of their own
     return Cells(heights, count, precision, removed, np.where(take, np.uint8(0), cells.ring))
@@ -210,7 +218,7 @@ def _fuse(points: _Points, t: np.ndarray, radius: int, k: float, grid: Grid) -> 
         slot = np.searchsorted(keys, key)
         dev = np.abs(z - median[slot])
     _, mad, n = _group_medians(key, dev)
-    if s is not None and np.isfinite(s).all():
+    if s is not None:
         error = np.sqrt(np.bincount(slot, s * s, len(keys)) / n)
     else:
         error = MEDIAN_SE * np.where(n >= 3, 1.4826 * mad, np.nan) / np.sqrt(n)

@@ -30,7 +30,8 @@ Method "cells" (dense points): each point goes to every tile within DemParams.ra
 (a margin of radius + 1/2 cells; ownership by cell), and each tile is one task of cell_dem.cells_on_grid
 (per-cell medians after the per-cell outlier test, k = DemParams.k; a cell uses its best tier of points: the
 refined three-ray points, then the refined two-ray ones, and the unrefined dense ones only with
-DemParams.fallback; an empty cell the points of the cells within the radius); steps 3 and 4 do not apply.
+DemParams.fallback; an empty cell the points of the cells within the radius; with the points' sigma_h, a cell's own
+refined points before the ring's better tier where they are no less precise); steps 3 and 4 do not apply.
 Besides the precision raster it can write the count of points per cell, and a mask raster of what each cell
 is: its own points' median, its neighbours', filled, or a gap (gap_fill.py). With DemParams.fill, the gaps
 within that many cells of measured ones are filled, and the mask is always written (by default beside the

@@ -249,3 +249,46 @@ def test_a_cell_takes_its_own_points_where_they_are_no_less_precise_than_the_rin
         np.testing.assert_array_equal(cells.heights[border], tiers_first.heights[border])
     np.testing.assert_array_equal(cells.heights[~border], tiers_first.heights[~border])
     assert cells.removed == tiers_first.removed == 0
+
+
+def test_the_precision_rule_never_takes_unrefined_points_nor_mixed_sigmas_and_counts_its_outliers():
+    """The rule takes a cell's own refined points only (with FALLBACK on, a cell whose own points are unrefined keeps
+    the ring's refined ones, however small their a priori sigma); one point without sigma_h turns the sigmas off for
+    the whole grid (the tier alone, the MAD's precision); the outliers the taken cells drop are counted."""
+    x, y, z, _ = dense_points(outliers=0)
+    rng = np.random.default_rng(5)
+    tier = np.digitize(rng.uniform(size=x.size), [0.4, 0.7]).astype(np.uint8)
+    corner = (x < 50.0) & (y < 50.0)
+    tier[corner] = np.where(tier[corner] == THREE_RAYS, TWO_RAYS, tier[corner])
+    z = z + np.array([0.0, 2.0, 5.0])[tier]
+    grid = Grid(0.0, 150.0, 10.0, 20, 15)
+    settings = CellSettings(k=0.0, radius=1)
+    border = cells_on_grid(x, y, z, None, grid, settings, tier=tier).ring == 1
+    # the corner's refined points unrefined: own unrefined points of a tiny sigma against the ring's refined ones
+    unrefined = np.where(corner & (tier == TWO_RAYS), UNREFINED, tier).astype(np.uint8)
+    sigma = np.where(unrefined == UNREFINED, 0.01, 0.5)
+    fallback = cells_on_grid(x, y, z, sigma, grid, settings, tier=unrefined)
+    plain = cells_on_grid(x, y, z, None, grid, settings, tier=unrefined)
+    assert (fallback.ring[border] == 1).all()
+    np.testing.assert_array_equal(fallback.heights, plain.heights)
+    # one point without sigma_h: no rule, and the precision of every cell the MAD's
+    sigma = np.where(tier == TWO_RAYS, 0.3, 0.5)
+    sigma[np.flatnonzero(tier == THREE_RAYS)[0]] = np.nan
+    mixed = cells_on_grid(x, y, z, sigma, grid, settings, tier=tier)
+    unknown = cells_on_grid(x, y, z, None, grid, settings, tier=tier)
+    np.testing.assert_array_equal(mixed.heights, unknown.heights)
+    np.testing.assert_array_equal(mixed.precision, unknown.precision)
+    # outliers among the taken cells' own points: counted once
+    z2 = z.copy()
+    hits = np.flatnonzero(corner & (tier == TWO_RAYS))[:40]
+    z2[hits] += 30.0
+    sigma = np.where(tier == TWO_RAYS, 0.3, 0.5)
+    strict = CellSettings(k=3.0, radius=1)
+    cells = cells_on_grid(x, y, z2, sigma, grid, strict, tier=tier)
+    assert (cells.ring[border] == 0).all()
+    tiers_first = cells_on_grid(x, y, z2, None, grid, strict, tier=tier)
+    col, row = np.floor(x / 10.0).astype(int), np.floor((150.0 - y) / 10.0).astype(int)
+    in_border = border[row.clip(0, 14), col.clip(0, 19)] & (tier == TWO_RAYS)
+    alone = cells_on_grid(x[in_border], y[in_border], z2[in_border], None, grid, CellSettings(k=3.0))
+    assert alone.removed > 0
+    assert cells.removed == tiers_first.removed + alone.removed
