@@ -27,9 +27,9 @@ from pushbroom.algorithms.surface.cell_dem import (
     cells_on_grid,
     point_tiers,
 )
-from pushbroom.algorithms.surface.local_spread import local_metres, local_spread
+from pushbroom.algorithms.surface.local_spread import local_metres
 from studies.dense_precision import SCENES
-from studies.sim_dense import dense_points, evaluation_grid, intersect_truth, rms
+from studies.sim_dense import dense_points, evaluation_grid, intersect_truth, rms, with_template_spread
 from tests.helpers.dsm_comparison import CLASSES, Truth
 
 
@@ -41,13 +41,8 @@ def cloud(paths: dict, truth: Truth) -> dict:
     ok = res.ok
     slot = np.searchsorted(points["id"], res.point)
     refined = precision.refined_dense(points)[slot] & ok
-    sigma_h = res.sigma[:, 2].copy()
     x, y = local_metres(res.lon, res.lat, (float(np.mean(res.lon[ok])), float(np.mean(res.lat[ok]))))
-    cols, rows = truth.models[1].size
-    lo, hi = truth.dsm.height_range
-    radius = precision.spread_radius(truth.models[1], cols / 2, rows / 2, 0.5 * (lo + hi))
-    spread = local_spread(x[refined], y[refined], res.h[refined], x[refined], y[refined], radius)
-    sigma_h[refined] = precision.with_spread(sigma_h[refined], spread, precision.SPOT.spread)
+    sigma_h, _ = with_template_spread(res.sigma[:, 2], x, y, res.h, refined, truth.models[1], precision.SPOT.spread)
     ex, ey = reproject(res.lon, res.lat, wgs84(), truth.srs)
     tier = point_tiers(points["rho_min"][slot], res.rays)
     return {"x": ex[ok], "y": ey[ok], "z": res.h[ok], "sigma": sigma_h[ok], "tier": tier[ok]}

@@ -35,12 +35,11 @@ from pushbroom.algorithms.sigmas import IMAGE_SIGMA
 from pushbroom.algorithms.simulation import simulate_scene
 from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid, point_tiers
 from pushbroom.algorithms.surface.intersection import Measurements, intersect
-from pushbroom.algorithms.surface.local_spread import local_spread
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_grid import Grid
 from studies.dense_cell_precision import cloud
 from studies.dense_precision import SCENES
-from studies.sim_dense import evaluation_grid, rms, triplet_points
+from studies.sim_dense import evaluation_grid, rms, triplet_points, with_template_spread
 from tests.helpers.dsm_comparison import CLASSES, Truth
 from tests.helpers.real_dsm import footprint_mask
 
@@ -77,15 +76,9 @@ def main() -> None:
     lon, lat, h = res.lon[ok], res.lat[ok], res.h[ok]
     srs = output_srs(None, lon, lat)
     x, y = reproject(lon, lat, wgs84(), srs)
-    cols, rows = models[0].size
-    radius = precision.spread_radius(models[0], cols / 2, rows / 2, float(np.median(h)))
-    sigma_h = res.sigma[ok, 2]
-    sigma_h[refined] = precision.with_spread(
-        sigma_h[refined],
-        local_spread(x[refined], y[refined], h[refined], x[refined], y[refined], radius),
-        calibration.spread,
-    )
+    sigma_h, _ = with_template_spread(res.sigma[ok, 2], x, y, h, refined, models[0], calibration.spread)
     # every pixel centre of the reference at its node's height, or the nearest matched node's
+    cols, rows = models[0].size
     ref = obs[obs["image_id"] == 1]
     at = {int(p): (c, r) for p, c, r in zip(ref["point_id"], ref["col"], ref["row"])}
     height = np.full((rows, cols), np.nan)

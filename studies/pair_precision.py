@@ -23,10 +23,10 @@ from pushbroom.algorithms.matching.points import MultiPoints
 from pushbroom.algorithms.sigmas import IMAGE_SIGMA
 from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid, point_tiers
 from pushbroom.algorithms.surface.intersection import Measurements, intersect
-from pushbroom.algorithms.surface.local_spread import local_metres, local_spread
+from pushbroom.algorithms.surface.local_spread import local_metres
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_grid import Grid
-from studies.sim_dense import TRIPLET, TRIPLET_HEIGHTS, triplet_points
+from studies.sim_dense import TRIPLET, TRIPLET_HEIGHTS, triplet_points, with_template_spread
 from tests.helpers.real_dsm import dense_pair_of_triplet, dense_points
 
 CELL = 0.5
@@ -43,12 +43,10 @@ def pair_cloud(points: MultiPoints, models: list) -> dict:
     ok = res.ok
     lon, lat, h = res.lon[ok], res.lat[ok], res.h[ok]
     x, y = local_metres(lon, lat, (float(np.mean(lon)), float(np.mean(lat))))
-    cols, rows = models[0].size
-    radius = precision.spread_radius(models[0], cols / 2, rows / 2, float(np.median(h)))
-    sigma_h = precision.with_spread(res.sigma[ok, 2], local_spread(x, y, h, x, y, radius), precision.RPC.spread)
+    every = np.ones(h.size, bool)  # the pair's refined points only
+    sigma_h, spread = with_template_spread(res.sigma[ok, 2], x, y, h, every, models[0], precision.RPC.spread)
     slot = np.searchsorted(keep["id"], res.point[ok])
     tier = point_tiers(keep["rho_min"][slot], res.rays[ok])
-    spread = np.nan_to_num(local_spread(x, y, h, x, y, radius))
     return {
         "lon": lon,
         "lat": lat,
@@ -56,7 +54,7 @@ def pair_cloud(points: MultiPoints, models: list) -> dict:
         "sigma": sigma_h,
         "rays": res.sigma[ok, 2],
         "unit": res.sigma[ok, 2] / precision.RPC.factors[2],
-        "spread": spread,
+        "spread": np.nan_to_num(spread),
         "tier": tier,
     }
 

@@ -13,6 +13,7 @@ import numpy as np
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dem_store import read_dem
+from pushbroom.algorithms.dense import precision
 from pushbroom.algorithms.dense.dense_strategy import match_dense_tiles
 from pushbroom.algorithms.dense.epipolar import EpipolarGrid
 from pushbroom.algorithms.dense.pair_tile import match_pair_tile
@@ -25,6 +26,7 @@ from pushbroom.algorithms.matching.points import MultiPoints
 from pushbroom.algorithms.sigmas import IMAGE_SIGMA
 from pushbroom.algorithms.surface import intersection
 from pushbroom.algorithms.surface.dem_tiles import dem_from_point_cloud
+from pushbroom.algorithms.surface.local_spread import local_spread
 from pushbroom.algorithms.surface.pointcloud import write_las
 from pushbroom.algorithms.surface.tin_dem import DemParams
 from pushbroom.algorithms.surface.tin_grid import Grid
@@ -135,6 +137,21 @@ def evaluation_grid(truth: Truth) -> tuple[Grid, np.ndarray, np.ndarray]:
         float(x0), float(y0), CELL, int((truth.x.max() - x0) // CELL) + 3, int((y0 - truth.y.min()) // CELL) + 3
     )
     return grid, np.floor((grid.y0 - truth.y) / CELL).astype(int), np.floor((truth.x - grid.x0) / CELL).astype(int)
+
+
+def with_template_spread(
+    sigma_h: np.ndarray, x: np.ndarray, y: np.ndarray, h: np.ndarray, refined: np.ndarray, reference, spread: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(sigma_h with the refined points' spread term added as intersectpoints adds it, the spread):
+    precision.with_spread of factor `spread` (Calibration.spread) over surface/local_spread.py, R at the centre of the
+    `reference` model at the refined points' median height; x, y in metres; the spread NaN where not refined."""
+    cols, rows = reference.size
+    radius = precision.spread_radius(reference, cols / 2, rows / 2, float(np.median(h[refined])))
+    s = np.full(len(h), np.nan)
+    s[refined] = local_spread(x[refined], y[refined], h[refined], x[refined], y[refined], radius)
+    out = np.array(sigma_h, float)
+    out[refined] = precision.with_spread(out[refined], s[refined], spread)
+    return out, s
 
 
 def rms(v: np.ndarray) -> float:

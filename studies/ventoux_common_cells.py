@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 
 from pushbroom.algorithms import sensors
 from pushbroom.algorithms.dense.params import DenseParams
+from pushbroom.algorithms.quality.statistics import summarize
 from studies.sim_dense import SHARED
 from tests.helpers.real_dsm import cut, refined_dense_points, srtm_comparison
 
@@ -24,17 +25,6 @@ SETTINGS = {
     "2026-11-27 (plain LSM, 0.5 px)": DenseParams(robust=False, wide_template=0, max_shift=0.5, bias_bound=0.0),
     "today's defaults": DenseParams(),
 }
-
-
-def nmad(v: np.ndarray) -> float:
-    return float(1.4826 * np.median(np.abs(v - np.median(v))))
-
-
-def detrended(x: np.ndarray, y: np.ndarray, dh: np.ndarray) -> np.ndarray:
-    """dh less its least-squares plane in (x, y)."""
-    a = np.column_stack([np.ones_like(x), x - x.mean(), y - y.mean()])
-    coef, *_ = np.linalg.lstsq(a, dh, rcond=None)
-    return dh - a @ coef
 
 
 def main() -> None:
@@ -54,7 +44,7 @@ def main() -> None:
             cut({1: models[0], 2: models[1]}, points.observations), srtm, (CELL,), CELL, folder / "dsm"
         )
         d = comparison["diff"]
-        cells[label] = (d.x, d.y, detrended(d.x, d.y, d.dh))
+        cells[label] = (d.x, d.y, comparison["flat"])
         print(
             f"{label}: {len(points)} refined points, {len(d.dh)} cells, NMAD without the plane "
             f"{comparison['detrended'].nmad:.2f} m"
@@ -71,8 +61,8 @@ def main() -> None:
     print("|---|---|---|")
     for (label, (_, _, flat)), common in zip(cells.items(), (in_a, in_b)):
         rest = flat[~common]
-        other = f"{rest.size}, {nmad(rest):.2f} m" if rest.size > 2 else f"{rest.size}"
-        print(f"| {label} | {nmad(flat[common]):.2f} m | {other} |")
+        other = f"{rest.size}, {summarize(rest).nmad:.2f} m" if rest.size > 2 else f"{rest.size}"
+        print(f"| {label} | {summarize(flat[common]).nmad:.2f} m | {other} |")
 
 
 if __name__ == "__main__":

@@ -489,6 +489,13 @@ def accepted(records, status, params=None):
         )
 
 
+@njit(cache=True, nogil=True)
+def template_units(wide_half: int, half: int) -> float:
+    """The factor that reports the wide window's error ellipse in the template's units (match_accepted): the
+    wide window's width over the template's, for half-sizes `wide_half` and `half`."""
+    return (2 * wide_half + 1) / (2 * half + 1)
+
+
 def match_accepted(img1, img2, x1, y1, x2, y2, affine=None, params=None):
     """match_points and `accepted`, with the points that fail inside the images matched again with
     the wider window `params.widest` (GrowParams.wide_template) from the same initial values; with
@@ -496,8 +503,8 @@ def match_accepted(img1, img2, x1, y1, x2, y2, affine=None, params=None):
     Returns (records, accepted mask).
 
     A position the wide window placed reports its error ellipse in the template's units: the semi-axes
-    times widest / template. The white-noise ellipse shrinks as 1 / width, but the wide window serves the
-    weak textures the template cannot match, where the error does not shrink so (the start is far off,
+    times widest / template (template_units). The white-noise ellipse shrinks as 1 / width, but the wide
+    window serves the weak textures the template cannot match, where the error does not shrink so (the start is far off,
     the residuals are the texture's own, not white): the simulated triplet's low-texture DSM cells, which
     the wide window serves, were 1.3-1.8x optimistic where the open fields' were calibrated
     (studies/README.md#dense_cell_precision), and region growing's wide-window points erred 3x their
@@ -519,7 +526,7 @@ def match_accepted(img1, img2, x1, y1, x2, y2, affine=None, params=None):
         )
         good = accepted(rec_w, status_w, wide)
         for axis in ("semi_major", "semi_minor"):
-            rec_w[axis] *= np.float32(params.widest / params.template)
+            rec_w[axis] *= np.float32(template_units(params.widest // 2, params.template // 2))
         rec[again[good]] = rec_w[good]
         ok[again[good]] = True
     return rec, ok

@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .lsm import OUTSIDE, Start, lsm_point
+from .lsm import OUTSIDE, Start, lsm_point, template_units
 
 
 class Tile(NamedTuple):
@@ -131,7 +131,7 @@ def _attempt(tile, node, start, solve, wide, accept, out, results, state):
     if not ok and status != OUTSIDE and wide.half > solve.half:
         status = lsm_point(tile.img1, tile.img2, x1, y1, local, wide, out)
         ok = _passes(status, out, accept)
-        out[3:5] *= (2 * wide.half + 1) / (2 * solve.half + 1)  # the template's units, as lsm.match_accepted's
+        out[3:5] *= template_units(wide.half, solve.half)  # the ellipse in the template's units
     for f in range(out.shape[0]):
         results[node, f] = out[f]
     results[node, 0] += tile.ox2

@@ -134,9 +134,15 @@ def cells_on_grid(
     cells, _ = _fuse(points, t, radius, settings.k, grid)
     if s is None or tier is None or radius == 0:
         return cells
-    # the precision rule (module docstring): a cell's own refined points of any tier, against the ring's better tier
-    refined = points._replace(use=use & (t < UNREFINED))
-    mine, dropped = _fuse(refined, np.zeros_like(t), 0, settings.k, grid)
+    # the precision rule (module docstring): in the cells that took the ring's points, their own refined points of
+    # any tier, against the ring's better tier
+    inside = (row >= 0) & (col >= 0) & (row < grid.rows) & (col < grid.cols)
+    candidate = np.zeros(x.size, bool)
+    candidate[inside] = cells.ring[row[inside], col[inside]] != 0
+    candidate &= use & (t < UNREFINED)
+    if not candidate.any():
+        return cells
+    mine, dropped = _fuse(points._replace(use=candidate), np.zeros_like(t), 0, settings.k, grid)
     take = (cells.ring != 0) & (mine.ring == 0) & (mine.precision <= cells.precision)
     heights, count, precision = (np.where(take, a, b) for a, b in zip(mine[:3], cells[:3]))
     removed = cells.removed + int(dropped[take].sum())  # the ring's cells counted none of their own

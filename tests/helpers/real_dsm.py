@@ -128,7 +128,8 @@ def srtm_comparison(result, srtm, cells, cell, folder):
     `srtm` (EGM96 heights made ellipsoidal: quality.height_differences). Returns a dict: "dems" and
     "stats" (of DSM - SRTM) per cell; for `cell`: "diff" (HeightDifferences), "geoid" (the same DSM
     against the SRTM taken as ellipsoidal, minus "diff": N(EGM96) per cell), "plane" (least-squares
-    plane of dh: offset, m/m east, m/m north) and "detrended" (Stats of dh without it)."""
+    plane of dh: offset, m/m east, m/m north), "flat" (dh without it, per cell of "diff") and "detrended" (its
+    Stats)."""
     srs = output_srs(None, result.lon[result.ok], result.lat[result.ok])
     out = {"dems": {}, "stats": {}}
     for c in cells:
@@ -142,7 +143,8 @@ def srtm_comparison(result, srtm, cells, cell, folder):
             out["geoid"] = dem_differences(path, Reference(srtm, "ellipsoidal")).dh - d.dh
     a = np.column_stack([np.ones_like(d.x), d.x - d.x.mean(), d.y - d.y.mean()])
     out["plane"], *_ = np.linalg.lstsq(a, d.dh, rcond=None)
-    out["detrended"] = summarize(d.dh - a @ out["plane"])
+    out["flat"] = d.dh - a @ out["plane"]
+    out["detrended"] = summarize(out["flat"])
     return out
 
 
