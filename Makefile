@@ -40,7 +40,7 @@ export PIP_DISABLE_PIP_VERSION_CHECK := 1
 TS_FILE := i18n/pushbroom.ts
 TRANSLATED := $(sort $(wildcard plugin/*.py plugin/algorithms/*.py))
 
-.PHONY: setup lint test test-fast demo bench bench-peers package clean
+.PHONY: setup lint test test-fast demo bench bench-peers bench-xdem package clean
 
 setup: $(RUNTIME) .venv/.setup-done $(PROFILE)/.enabled $(PANDORA_DIR)/.done $(TS_FILE)
 
@@ -80,7 +80,8 @@ MYPY_PACKAGES := algorithms.sensors algorithms.block algorithms.steps algorithms
                  algorithms.dask_backend algorithms.height_range algorithms.matching.strategy \
                  algorithms.matching.tiled_rounds algorithms.matching.stereo_set algorithms.matching.match_stats \
                  algorithms.dense.params algorithms.dense.refine algorithms.dense.epipolar algorithms.dense.precision \
-                 algorithms.dense.dense_strategy algorithms.surface.cell_dem
+                 algorithms.dense.dense_strategy algorithms.surface.cell_dem algorithms.quality.coregistration \
+                 algorithms.quality.coregister_dem
 
 # ruff's linter and formatter, and mypy (configured in pyproject.toml); CI runs them before the tests.
 lint: setup
@@ -120,6 +121,16 @@ $(CARS_VENV)/.done: Makefile
 
 bench-peers: setup $(CARS_VENV)/.done
 	@mkdir -p bench-output && $(PY) -m scripts.bench_peers | tee bench-output/peers.md
+
+# Co-registration against xdem's NuthKaab (not in CI): xdem 0.2.3 in its own venv (its pyogrio and rasterio wheels
+# bring GDALs of their own, never in .venv); writes bench-output/coregistration-peers.md and prints it.
+XDEM_VENV := build/peers/xdem
+$(XDEM_VENV)/.done: Makefile
+	@rm -rf $(XDEM_VENV) && /usr/bin/python3 -m venv $(XDEM_VENV) && $(XDEM_VENV)/bin/pip install -q xdem==0.2.3
+	@touch $@
+
+bench-xdem: setup $(XDEM_VENV)/.done
+	@mkdir -p bench-output && $(PY) -m scripts.coregistration_peers | tee bench-output/coregistration-peers.md
 
 # The plugin zip for "Install from ZIP" in QGIS (tests and development files left out).
 package:

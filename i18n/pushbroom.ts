@@ -4,27 +4,27 @@
 <context>
     <name>Pushbroom</name>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="27"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="35"/>
         <source>Assess accuracy (dh against a reference DEM)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="48"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="62"/>
         <source>Reference DTM/DSM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="51"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="67"/>
         <source>Reference heights</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="52"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="66"/>
         <source>Point cloud (object points)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="52"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="66"/>
         <source>Point clouds (*.las *.laz *.gpkg);;All files (*.*)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -39,27 +39,27 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="62"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="76"/>
         <source>Class raster</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="65"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="79"/>
         <source>Class polygons</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="73"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="87"/>
         <source>Class field of the polygons</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="81"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="95"/>
         <source>Slope of mountainous terrain (degrees, of the reference)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="91"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="112"/>
         <source>Point cloud heights</source>
         <translation type="unfinished"></translation>
     </message>
@@ -74,12 +74,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="102"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="129"/>
         <source>dh raster (DEM input)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="107"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="134"/>
         <source>Statistics table</source>
         <translation type="unfinished"></translation>
     </message>
@@ -999,7 +999,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="91"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="112"/>
         <source>reference DTM/DSM</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1131,6 +1131,101 @@
     <message>
         <location filename="../plugin/algorithms/match_points.py" line="320"/>
         <source>Dense: refine a triplet&apos;s three-ray points by MPGC (matching about 2.5x slower)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="105"/>
+        <source>Assess the DEM co-registered to the reference too (before and after)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="112"/>
+        <source>Co-register with a tilt (a plane) too</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="33"/>
+        <source>Co-register DEM to a reference (Nuth and Kääb)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="62"/>
+        <source>DEM to co-register</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="64"/>
+        <source>Reference DEM (DTM/DSM, lidar)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="68"/>
+        <source>Unstable terrain mask (non-zero cells left out: forest, water, changes)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="75"/>
+        <source>Largest slope of stable terrain (degrees, of the reference)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="85"/>
+        <source>Fit a tilt (a plane) too</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="88"/>
+        <source>Outliers: |dh - median| beyond this many NMAD</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="88"/>
+        <source>Convergence: horizontal step below (cells)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="88"/>
+        <source>Largest number of iterations</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="88"/>
+        <source>reference DEM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="115"/>
+        <source>Co-registered DEM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="118"/>
+        <source>Co-registration report</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="127"/>
+        <source>Shift east (m)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="127"/>
+        <source>Shift north (m)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="127"/>
+        <source>Vertical shift (m)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="127"/>
+        <source>NMAD of dh on stable terrain before (m)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="127"/>
+        <source>NMAD of dh on stable terrain after (m)</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

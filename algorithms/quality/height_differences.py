@@ -136,7 +136,42 @@ def _check_datum(datum, what):
         raise InputError(f"the heights of the {what} must be one of {', '.join(HEIGHT_TYPES)}, not {datum!r}")
 
 
-def _ellipsoidal(h, x, y, srs, datum):
+#: EPSG code of the EGM96 height vertical CRS, the orthometric heights the assessment converts
+EGM96_HEIGHT = "5773"
+
+
+def stated_heights(srs: Any) -> str | None:
+    """The height type (control_points.HEIGHT_TYPES) a raster's CRS `srs` states: 'orthometric' for a compound CRS with
+    EGM96 heights, 'ellipsoidal' for a 3-D geographic CRS (EPSG:4979), None where it states none (a 2-D CRS).
+    InputError for any other vertical CRS (EGM2008, NAVD88, ...), which the assessment does not convert."""
+    if srs is None:
+        return None
+    if srs.IsCompound() or srs.IsVertical():
+        code = srs.GetAuthorityCode("VERT_CS")
+        if code == EGM96_HEIGHT:
+            return "orthometric"
+        name = srs.GetAttrValue("VERT_CS") or "an unnamed vertical CRS"
+        raise InputError(
+            f"heights in {name} (EPSG:{code}) are neither ellipsoidal (WGS 84) nor EGM96 orthometric: convert the "
+            "raster first (for example gdalwarp -t_srs EPSG:4979 for ellipsoidal heights) and run again"
+        )
+    if srs.IsGeographic() and srs.GetAxesCount() == 3:
+        return "ellipsoidal"
+    return None
+
+
+def check_stated(ds: Any, datum: str, what: str, path: Any) -> None:
+    """InputError where the CRS of the raster `ds` (the `what` at `path`) states heights of another type than the
+    `datum` declared for it, so that heights of two datums are never mixed silently."""
+    stated = stated_heights(ds.GetSpatialRef())
+    if stated is not None and stated != datum:
+        raise InputError(
+            f"the {what} {path} states {stated} heights in its CRS, but its heights are declared {datum}: declare "
+            f"them {stated}, or correct the raster's CRS"
+        )
+
+
+def ellipsoidal(h: np.ndarray, x: np.ndarray, y: np.ndarray, srs: Any, datum: str) -> np.ndarray:
     """Heights h at points (x, y in srs) made ellipsoidal (EGM96 -> + N) where finite."""
     h = np.array(h, float)
     ok = np.isfinite(h)
@@ -164,6 +199,7 @@ def reference_at_points(
     path, datum, nodata = reference.path, reference.datum, reference.nodata
     _check_datum(datum, "reference")
     ds = open_raster(path, "reference DEM")
+    check_stated(ds, datum, "reference DEM", path)
     xr, yr = reproject(x, y, srs, raster_srs(ds))
     counted = reach or ReferenceReach(path, nodata)
     href, slope = np.full(len(xr), np.nan), np.full(len(xr), np.nan)
@@ -182,7 +218,7 @@ def reference_at_points(
         progress.warn(feedback, counted.warning())
     if required and not np.isfinite(href).any():
         raise counted.no_heights("the assessed points")
-    return _ellipsoidal(href, x, y, srs, datum), slope
+    return ellipsoidal(href, x, y, srs, datum), slope
 
 
 def point_differences(
@@ -206,7 +242,7 @@ def point_differences(
     progress.step(feedback, 10, f"{len(x)} points read from {path}")
     href, slope = reference_at_points(reference, x, y, srs, feedback, reach, required)
     progress.step(feedback, 60)
-    h = _ellipsoidal(z, x, y, srs, points_datum)
+    h = ellipsoidal(z, x, y, srs, points_datum)
     ok = np.isfinite(h) & np.isfinite(href)
     group = fields.get("group")
     return Differences(
@@ -239,6 +275,7 @@ def dem_differences(
     _check_datum(dem_datum, "DEM")
     _check_datum(reference_datum, "reference")
     source = open_raster(path, "DEM")
+    check_stated(source, dem_datum, "DEM", path)
     c0, r0, c1, r1 = window or (0, 0, source.RasterXSize, source.RasterYSize)
     g0, h0 = max(c0 - 1, 0), max(r0 - 1, 0)  # one cell around for the slope
     g1, h1 = min(c1 + 1, source.RasterXSize), min(r1 + 1, source.RasterYSize)
@@ -252,6 +289,7 @@ def dem_differences(
         feedback, 10, f"DEM {path}: {dem.shape[1]} x {dem.shape[0]} cells, {int(defined.sum())} with a height"
     )
     ds = open_raster(reference.path, "reference DEM")
+    check_stated(ds, reference_datum, "reference DEM", reference.path)
     no_overlap = InputError(
         f"the reference DEM {reference.path} does not overlap the DEM {path} (or holds only nodata "
         "there): choose a reference that covers it"
@@ -259,20 +297,8 @@ def dem_differences(
     counted = reach or ReferenceReach(reference.path, reference_nodata)
     ref, method = np.full(wide.shape, np.nan), None
     if defined.any():
-        finer = (
-            np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize))  # the whole DEM's
-            < np.prod(cell_metres(source.GetGeoTransform(), wide.srs, source.RasterYSize))
-        )
-        method = "average" if finer else "bilinear"
-        try:
-            ox, oy = outline(wide)
-            xr, yr = reproject(ox, oy, wide.srs, raster_srs(ds))
-            under = read_reference(ds, xr, yr, reference_nodata)
-        except InputError:  # the reference lies elsewhere
-            under = None
-        if under is not None:
-            counted.add(ds, under)
-            ref = warp_to(memory_dataset(under), wide, method)
+        method = resampling_onto(ds, source)
+        ref = reference_on_grid(ds, wide, reference_nodata, counted, method)
     if reach is None:
         progress.warn(feedback, counted.warning())
     if window is None and not np.isfinite(ref).any():
@@ -282,8 +308,8 @@ def dem_differences(
     ref = ref[inner]
     valid = defined & np.isfinite(ref)
     x, y = (v[valid] for v in dem.centres())
-    h = _ellipsoidal(dem.values[valid], x, y, dem.srs, dem_datum)
-    href = _ellipsoidal(ref[valid], x, y, dem.srs, reference_datum)
+    h = ellipsoidal(dem.values[valid], x, y, dem.srs, dem_datum)
+    href = ellipsoidal(ref[valid], x, y, dem.srs, reference_datum)
     dh = np.full(dem.shape, np.nan)
     dh[valid] = h - href
     return Differences(
@@ -301,6 +327,30 @@ def dem_differences(
             "outside the reference or on its nodata": int((defined & ~valid).sum()),
         },
     )
+
+
+def resampling_onto(reference: Any, dem: Any) -> str:
+    """gdalwarp's resampling of the reference raster `reference` onto the cells of the DEM raster `dem` (GDAL
+    datasets): the average of its cells inside a DEM cell where the reference is finer (over the whole rasters),
+    bilinear otherwise."""
+    finer = np.prod(cell_metres(reference.GetGeoTransform(), raster_srs(reference), reference.RasterYSize)) < np.prod(
+        cell_metres(dem.GetGeoTransform(), raster_srs(dem), dem.RasterYSize)
+    )
+    return "average" if finer else "bilinear"
+
+
+def reference_on_grid(ds: Any, grid: Grid, nodata: float | None, reach: ReferenceReach, method: str) -> np.ndarray:
+    """The reference raster `ds` (its declared void value `nodata`) resampled onto the cells of `grid` (warp_to
+    `method`) from the window of its cells under the grid, its implausible heights NaN as voids; all NaN where the
+    reference lies elsewhere. The cells read are noted in `reach`."""
+    try:
+        ox, oy = outline(grid)
+        xr, yr = reproject(ox, oy, grid.srs, raster_srs(ds))
+        under = read_reference(ds, xr, yr, nodata)
+    except InputError:  # the reference lies elsewhere
+        return np.full(grid.shape, np.nan)
+    reach.add(ds, under)
+    return warp_to(memory_dataset(under), grid, method)
 
 
 def _shifted(geotransform, cols, rows):

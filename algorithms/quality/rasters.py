@@ -69,7 +69,12 @@ def open_raster(path, what):
 
 
 def raster_srs(ds):
-    return parse_crs(ds.GetSpatialRef())
+    """The horizontal CRS of the raster `ds` (a compound CRS's vertical part stripped: the heights' datum is declared
+    and checked apart, height_differences.check_stated, and gdalwarp must never shift heights on its own)."""
+    out = parse_crs(ds.GetSpatialRef())
+    if out.IsCompound():
+        out.StripVertical()
+    return out
 
 
 def read_grid(ds, nodata=None, window=None):

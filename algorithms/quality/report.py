@@ -10,10 +10,13 @@ import base64
 import csv
 import html
 import io
+from dataclasses import dataclass
+from typing import Any
 
 from ..adjustment.report import Section, html_sections, render_text
 from ..atomic import write_text
 from . import figures
+from .coregister_dem import sections as shift_sections
 from .statistics import by_label, cumulative
 
 GROUP_NAMES = {
@@ -70,10 +73,55 @@ def tables(summary):
     return out
 
 
-def sections(summaries, parameters=()):
-    """Report Sections: the inputs and parameters [(name, value)], then every table of every input
-    (assessment.Summary)."""
+@dataclass(frozen=True)
+class Comparison:
+    """A DEM's co-registration (coregistration.CoregResult) and its assessment.Summary before and after it, against
+    the height_differences.Reference `reference`."""
+
+    result: Any
+    before: Any
+    after: Any
+    reference: Any
+
+
+#: the statistics the before-and-after table sets side by side
+COMPARED = (("mean", "Mean"), ("rms", "RMS"), ("nmad", "NMAD"), ("median", "median"))
+
+
+def comparison_sections(comparison):
+    """The co-registration's shift, then every table of the DEM's with its statistics before and after side by
+    side (N, then COMPARED, each before | after)."""
+    parts = shift_sections(comparison.result, comparison.before.source, comparison.reference)[:2]
+    header = ("", "N before", "N after", *(f"{name} {when}" for _, name in COMPARED for when in ("before", "after")))
+    after = {name: dict(rows) for name, rows, _ in tables(comparison.after)}
+    for name, rows, form in tables(comparison.before):
+        if form != "K":
+            continue
+        pairs = [(label, s, after.get(name, {}).get(label)) for label, s in rows]
+        parts.append(
+            Section(
+                f"dh [m] of the DEM cells - reference, before and after co-registration: {name}",
+                header,
+                [
+                    (
+                        label,
+                        str(b.n),
+                        str(a.n) if a else "-",
+                        *(f"{getattr(s, key):.2f}" if s else "-" for key, _ in COMPARED for s in (b, a)),
+                    )
+                    for label, b, a in pairs
+                ],
+            )
+        )
+    return parts
+
+
+def sections(summaries, parameters=(), comparison=None):
+    """Report Sections: the inputs and parameters [(name, value)], the before-and-after tables of a co-registered
+    DEM (a Comparison, or None), then every table of every input (assessment.Summary)."""
     parts = [Section("Inputs and parameters", ("parameter", "value"), [(str(k), str(v)) for k, v in parameters])]
+    if comparison is not None:
+        parts += comparison_sections(comparison)
     for a in summaries:
         for name, rows, form in tables(a):
             header, cell = (K_HEADER, _k_row) if form == "K" else (Z_HEADER, _z_row)
@@ -87,9 +135,9 @@ def sections(summaries, parameters=()):
     return parts
 
 
-def text(summaries, parameters=()):
+def text(summaries, parameters=(), comparison=None):
     """The report's tables as plain text (the log)."""
-    return render_text(sections(summaries, parameters))
+    return render_text(sections(summaries, parameters, comparison))
 
 
 def write_csv(path, summaries):
@@ -150,7 +198,7 @@ def figure_list(summaries):
     return out
 
 
-def write_report(path, title, summaries, parameters=()):
+def write_report(path, title, summaries, parameters=(), comparison=None):
     """One self-contained HTML page: the Sections' tables and the figures as embedded PNGs."""
     style = (
         "body{font-family:sans-serif}table{border-collapse:collapse}th,td{border:1px solid #bbb;"
@@ -166,7 +214,7 @@ def write_report(path, title, summaries, parameters=()):
         path,
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
         f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>\n"
-        f"{html_sections(sections(summaries, parameters))}\n<h2>Figures</h2>\n{images}\n"
+        f"{html_sections(sections(summaries, parameters, comparison))}\n<h2>Figures</h2>\n{images}\n"
         "</body></html>\n",
     )
     return str(path)

@@ -5,6 +5,7 @@ def algorithm_classes():
     """The algorithm classes the provider registers, in toolbox order."""
     from .assess_accuracy import AssessAccuracy
     from .bundle_adjust import BundleAdjust
+    from .coregister_dem import CoregisterDem
     from .create_block import CreateBlock
     from .fit_rpc import FitRpc
     from .import_points import ExportPoints, ImportPoints
@@ -26,6 +27,7 @@ def algorithm_classes():
         IntersectPoints,
         InterpolateDem,
         Orthorectify,
+        CoregisterDem,
         AssessAccuracy,
         FitRpc,
     ]

@@ -4,6 +4,8 @@ HTML report."""
 
 from qgis.core import (
     QgsProcessing,
+    QgsProcessingParameterBoolean,
+    QgsProcessingParameterDefinition,
     QgsProcessingParameterField,
     QgsProcessingParameterFile,
     QgsProcessingParameterFileDestination,
@@ -18,8 +20,21 @@ from ...algorithms.errors import InputError
 from ...algorithms.quality.assess_accuracy import AssessParams, assess_accuracy
 from ...algorithms.quality.classes import PolygonClasses
 from ..styles import style_on_completion
-from .base import PushbroomAlgorithm, heights_choice, heights_parameter, translate
+from .base import (
+    PushbroomAlgorithm,
+    execution_choice,
+    execution_parameters,
+    heights_choice,
+    heights_parameter,
+    translate,
+)
 from .dem_nodata import nodata_parameter
+
+
+def optional(parameter):
+    """`parameter` flagged optional: the models saved before it was added still validate."""
+    parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagOptional)
+    return parameter
 
 
 class AssessAccuracy(PushbroomAlgorithm):
@@ -39,6 +54,12 @@ class AssessAccuracy(PushbroomAlgorithm):
     SLOPE_THRESHOLD = "SLOPE_THRESHOLD"
     POINTS_HEIGHTS = "POINTS_HEIGHTS"
     REFERENCE_NODATA = "REFERENCE_NODATA"
+    COREGISTER = "COREGISTER"
+    COREGISTER_TILT = "COREGISTER_TILT"
+    EXECUTION = "EXECUTION"
+    DASK_ADDRESS = "DASK_ADDRESS"
+    DASK_WAIT = "DASK_WAIT"
+    WORKERS = "WORKERS"
     REPORT = "REPORT"
     DH = "DH"
     TABLE = "TABLE"
@@ -88,10 +109,25 @@ class AssessAccuracy(PushbroomAlgorithm):
                 maxValue=89.9,
             )
         )
+        self.addParameter(
+            QgsProcessingParameterBoolean(
+                self.COREGISTER,
+                translate("Pushbroom", "Assess the DEM co-registered to the reference too (before and after)"),
+                d.coregister,
+                optional=True,  # the models saved before it still validate
+            )
+        )
         self.addAdvancedParameters(
             [
                 heights_parameter(self.POINTS_HEIGHTS, translate("Pushbroom", "Point cloud heights")),
                 nodata_parameter(self.REFERENCE_NODATA, translate("Pushbroom", "reference DTM/DSM")),
+                QgsProcessingParameterBoolean(
+                    self.COREGISTER_TILT,
+                    translate("Pushbroom", "Co-register with a tilt (a plane) too"),
+                    d.coregister_tilt,
+                    optional=True,
+                ),
+                *(optional(p) for p in execution_parameters(self, d.execution.workers)),
             ]
         )
         self.addParameter(
@@ -156,8 +192,14 @@ class AssessAccuracy(PushbroomAlgorithm):
             table=self.parameterAsFileOutput(parameters, self.TABLE, context) or None,
             dh=self.parameterAsOutputLayer(parameters, self.DH, context) or None,
             **heights,
+            execution=execution_choice(self, parameters, context),
             **self.parameterValues(
-                parameters, context, slope_threshold=self.SLOPE_THRESHOLD, reference_nodata=self.REFERENCE_NODATA
+                parameters,
+                context,
+                slope_threshold=self.SLOPE_THRESHOLD,
+                reference_nodata=self.REFERENCE_NODATA,
+                coregister=self.COREGISTER,
+                coregister_tilt=self.COREGISTER_TILT,
             ),
         )
 

@@ -61,7 +61,8 @@ def test_report_table_and_dh_raster(pushbroom_provider, small_scene, inputs, log
     )
     text = open(result["REPORT"], encoding="utf-8").read()
     assert not re.search(r"(src|href)\s*=\s*['\"](?!data:)", text)
-    assert text.count("data:image/png;base64,") == 7 and "Zhang and Gruen 2004, Tables 2-3" in text
+    assert text.count("data:image/png;base64,") == 10 and "Zhang and Gruen 2004, Tables 2-3" in text
+    assert "before and after co-registration" in text and "Nuth and Kääb 2011" in text
     assert CLASSES[FOREST] in text
     assert "slope &lt; 12 deg" in text and inputs["dem"] in text  # html-escaped "<"
     rows = list(csv.DictReader(open(result["TABLE"])))

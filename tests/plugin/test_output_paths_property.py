@@ -38,6 +38,7 @@ INPUTS = {
     "intersectpoints": lambda w: {"BLOCK": w["block"]},
     "interpolatedem": lambda w: {"INPUT": w["las"]},
     "orthorectify": lambda w: {"BLOCK": w["block"], "IMAGE_NAME": "HRG", "DEM": w["dsm"]},
+    "coregisterdem": lambda w: {"DEM": w["dsm"], "REFERENCE": w["dtm"]},
     "assessaccuracy": lambda w: {"REFERENCE": w["dsm"], "POINTS": w["las"], "DEM": w["dtm"]},
     "fitrpc": lambda w: {"BLOCK": w["block"]},
 }
