@@ -4,62 +4,62 @@
 <context>
     <name>Pushbroom</name>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="35"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="43"/>
         <source>Assess accuracy (dh against a reference DEM)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="62"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="71"/>
         <source>Reference DTM/DSM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="67"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="69"/>
         <source>Reference heights</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="66"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="75"/>
         <source>Point cloud (object points)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="66"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="75"/>
         <source>Point clouds (*.las *.laz *.gpkg);;All files (*.*)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="86"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="87"/>
         <source>DEM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="87"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="88"/>
         <source>DEM heights</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="76"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="85"/>
         <source>Class raster</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="79"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="88"/>
         <source>Class polygons</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="87"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="96"/>
         <source>Class field of the polygons</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="95"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="104"/>
         <source>Slope of mountainous terrain (degrees, of the reference)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="112"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="122"/>
         <source>Point cloud heights</source>
         <translation type="unfinished"></translation>
     </message>
@@ -74,12 +74,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="129"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="141"/>
         <source>dh raster (DEM input)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="134"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="146"/>
         <source>Statistics table</source>
         <translation type="unfinished"></translation>
     </message>
@@ -114,42 +114,42 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="461"/>
+        <location filename="../plugin/algorithms/base.py" line="471"/>
         <source>Threads in this process</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="462"/>
+        <location filename="../plugin/algorithms/base.py" line="472"/>
         <source>Local worker processes</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="463"/>
+        <location filename="../plugin/algorithms/base.py" line="473"/>
         <source>Dask distributed: a local cluster, or the scheduler at the address below</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="472"/>
+        <location filename="../plugin/algorithms/base.py" line="482"/>
         <source>Execution of the tiles</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="478"/>
+        <location filename="../plugin/algorithms/base.py" line="488"/>
         <source>Dask scheduler address (tcp:// or tls://host:port; empty: a local cluster)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="484"/>
+        <location filename="../plugin/algorithms/base.py" line="494"/>
         <source>Wait for a Dask worker where the cluster has none, or has lost every one (s)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="492"/>
+        <location filename="../plugin/algorithms/base.py" line="502"/>
         <source>Workers (threads, processes or local Dask workers; at most {} per core are used)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="534"/>
+        <location filename="../plugin/algorithms/base.py" line="544"/>
         <source>Replace the block&apos;s {} even by far fewer (none, or below half)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -489,102 +489,102 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="70"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="71"/>
         <source>Point clouds (*.las *.laz *.gpkg *.shp *.geojson);;All files (*)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="77"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="78"/>
         <source>Breaklines (3-D lines)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="85"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="86"/>
         <source>Output CRS (empty: the UTM zone of the points)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="90"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="91"/>
         <source>Cell size (output CRS units)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="95"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="96"/>
         <source>Method</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="100"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="101"/>
         <source>Height datum</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="107"/>
         <source>Point cloud CRS (empty: the file&apos;s own)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="107"/>
         <source>Maximum triangle edge (empty: 3 cells or 2.5 point spacings)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="107"/>
         <source>Blunder threshold k (robust sigmas; 0: no filter)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="107"/>
         <source>Blunder filter iterations</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="107"/>
         <source>Tile size (cells)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="107"/>
         <source>Per-cell method: unrefined points where a cell has no refined one</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="107"/>
         <source>Per-cell method: borrow points within this many cells (0: none)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="105"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="107"/>
         <source>Per-cell method: fill gaps within this many cells (0: none)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="160"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="162"/>
         <source>Precision raster</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="165"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="167"/>
         <source>Points per cell (per-cell method)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="173"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="175"/>
         <source>Cell mask (per-cell method: 0 own points, 2 borrowed, 1 filled, 255 gap)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="181"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="183"/>
         <source>Points in the DEM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="182"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="184"/>
         <source>Gap cells filled</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/interpolate_dem.py" line="183"/>
+        <location filename="../plugin/algorithms/interpolate_dem.py" line="185"/>
         <source>Blunders (outliers) removed</source>
         <translation type="unfinished"></translation>
     </message>
@@ -774,62 +774,62 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="61"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="62"/>
         <source>Block (empty: the image&apos;s own orientation)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="69"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="70"/>
         <source>Image name in the block</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="74"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="75"/>
         <source>Image (without a block)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="79"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="80"/>
         <source>Orientation file (empty: found beside the image)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="95"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="96"/>
         <source>Output CRS (empty: UTM zone of the footprint)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="100"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="101"/>
         <source>Cell size in CRS units (empty: ground sampling distance)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="110"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="111"/>
         <source>Resampling</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="118"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="119"/>
         <source>Occluded cells as nodata</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="123"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="124"/>
         <source>Bound of the coarse-grid interpolation error (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="136"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="138"/>
         <source>Orthoimage</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="137"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="139"/>
         <source>Achieved interpolation error bound (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="140"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="142"/>
         <source>Cells with image values</source>
         <translation type="unfinished"></translation>
     </message>
@@ -999,7 +999,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="112"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="122"/>
         <source>reference DTM/DSM</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1134,98 +1134,103 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="105"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="114"/>
         <source>Assess the DEM co-registered to the reference too (before and after)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="112"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="122"/>
         <source>Co-register with a tilt (a plane) too</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="33"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="34"/>
         <source>Co-register DEM to a reference (Nuth and Kääb)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="62"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="64"/>
         <source>DEM to co-register</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="64"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="66"/>
         <source>Reference DEM (DTM/DSM, lidar)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="68"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="70"/>
         <source>Unstable terrain mask (non-zero cells left out: forest, water, changes)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="75"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="77"/>
         <source>Largest slope of stable terrain (degrees, of the reference)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="85"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="87"/>
         <source>Fit a tilt (a plane) too</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="88"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="90"/>
         <source>Outliers: |dh - median| beyond this many NMAD</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="88"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="90"/>
         <source>Convergence: horizontal step below (cells)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="88"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="90"/>
         <source>Largest number of iterations</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="88"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="90"/>
         <source>reference DEM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="115"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="118"/>
         <source>Co-registered DEM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="118"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="121"/>
         <source>Co-registration report</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="127"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="130"/>
         <source>Shift east (m)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="127"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="130"/>
         <source>Shift north (m)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="127"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="130"/>
         <source>Vertical shift (m)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="127"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="130"/>
         <source>NMAD of dh on stable terrain before (m)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="127"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="130"/>
         <source>NMAD of dh on stable terrain after (m)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/base.py" line="450"/>
+        <source>Raster outputs as Cloud-Optimised GeoTIFF (COG)</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

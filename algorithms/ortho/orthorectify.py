@@ -32,7 +32,7 @@ from ..dem_store import as_stored
 from ..errors import InputError
 from ..execution import Execution, run_tasks
 from ..progress import Feedback
-from ..surface.geotiff import Frame, assemble_tiles
+from ..surface.geotiff import Frame, assemble_tiles, raster_output
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from . import occlusion, resampling
@@ -48,7 +48,8 @@ class OrthoSettings:
     """How `orthorectify` makes the orthoimage: the output grid's CRS `crs` and `cell_size` (where no grid
     is given: default_grid), `resampling_method` 'bilinear' or 'bicubic', `occlusion_mask` (occluded cells
     as nodata), `max_error` (px: the bound of the coarse-grid interpolation, mapping.py) from the coarse
-    step `start_step`, output tiles of `tile` cells a side, internal `overviews`."""
+    step `start_step`, output tiles of `tile` cells a side, internal `overviews`, a Cloud-Optimised GeoTIFF
+    where `cog`."""
 
     crs: str | None = None
     cell_size: float | None = None
@@ -58,6 +59,7 @@ class OrthoSettings:
     start_step: int = START_STEP
     tile: int = TILE
     overviews: bool = True
+    cog: bool = False
 
 
 @dataclass
@@ -284,7 +286,7 @@ def orthorectify(
         steps: dict[int, int] = {}
         for _, _, step, _ in done:
             steps[step] = steps.get(step, 0) + 1
-        with atomic_path(output) as tmp:
+        with raster_output(output, settings.cog) as tmp:
             assemble_tiles(
                 tiles,
                 tmp,

@@ -19,11 +19,11 @@ from typing import Optional
 
 from .. import progress
 from ..adjustment.control_points import HEIGHT_TYPES
-from ..atomic import atomic_path, work_dir
+from ..atomic import work_dir
 from ..errors import InputError
 from ..execution import Execution
 from ..progress import Feedback
-from ..surface.geotiff import Frame, assemble_tiles
+from ..surface.geotiff import Frame, assemble_tiles, raster_output
 from .assessment import SLOPE_THRESHOLD, Labelling, Summary, assess_by_parts
 from .classes import ClassRaster, PolygonClasses
 from .coregister_dem import write_coregistered
@@ -53,6 +53,7 @@ class AssessParams:
     coregister: bool = True  # assess the DEM co-registered to the reference too
     coregister_tilt: bool = False  # and co-register with a tilt
     execution: Execution = field(default_factory=Execution)  # where the co-registration's windows run
+    cog: bool = False  # the dh raster as a Cloud-Optimised GeoTIFF
 
     def check(self):
         """Raise InputError for settings the assessment cannot use."""
@@ -176,7 +177,7 @@ def _write(params, assessed, class_source, feedback, coregistered=None):
         out.table = report.write_csv(params.table, assessed)
     if params.dh:
         dem = next(a for a in assessed if a.tiles is not None and a.what == "DEM cells")
-        with atomic_path(params.dh) as tmp:
+        with raster_output(params.dh, params.cog) as tmp:
             assemble_tiles(
                 dem.tiles,
                 tmp,

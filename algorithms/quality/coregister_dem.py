@@ -15,10 +15,10 @@ import numpy as np
 
 from .. import progress
 from ..adjustment.report import Section, html_sections, render_text
-from ..atomic import atomic_path, work_dir, write_text
+from ..atomic import work_dir, write_text
 from ..execution import run_tasks
 from ..progress import Feedback
-from ..surface.geotiff import Frame, assemble_tiles, write_float_raster
+from ..surface.geotiff import Frame, assemble_tiles, raster_output, write_float_raster
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .coregistration import WINDOW, CoregParams, CoregResult, Shift, coregister
@@ -38,6 +38,7 @@ class CoregisterDemParams:
     output: str  # the co-registered DEM
     report: str | None = None  # HTML report
     coreg: CoregParams = field(default_factory=CoregParams)
+    cog: bool = False  # the co-registered DEM as a Cloud-Optimised GeoTIFF
 
 
 @dataclass(frozen=True)
@@ -70,9 +71,15 @@ def write_window(
 
 
 def write_coregistered(
-    dem: str, shift: Shift, units: tuple[float, float], output: str, params: CoregParams, feedback: Feedback | None
+    dem: str,
+    shift: Shift,
+    units: tuple[float, float],
+    output: str,
+    params: CoregParams,
+    feedback: Feedback | None,
+    cog: bool = False,
 ) -> str:
-    """The co-registered DEM at `output` (module docstring)."""
+    """The co-registered DEM at `output` (module docstring), a Cloud-Optimised GeoTIFF where `cog`."""
     source = open_raster(dem, "DEM")
     size, srs, gt = (source.RasterXSize, source.RasterYSize), raster_srs(source), source.GetGeoTransform()
     source = None
@@ -80,7 +87,7 @@ def write_coregistered(
         windows = tile_grid(size, WINDOW)
         tasks = [(dem, w, shift, units, os.path.join(tiles, f"dem-{k:05d}.tif")) for k, w in enumerate(windows)]
         written = run_tasks(write_window, tasks, params.execution, progress.scaled(feedback, 0, 50), "DEM windows")
-        with atomic_path(output) as tmp:
+        with raster_output(output, cog) as tmp:
             assemble_tiles(
                 written,
                 tmp,
@@ -165,7 +172,7 @@ def coregister_dem(params: CoregisterDemParams, feedback: Feedback | None = None
     parts = sections(result, params.dem, reference)
     progress.ensure(feedback).pushInfo(render_text(parts))
     output = write_coregistered(
-        params.dem, result.shift, result.units, params.output, coreg, progress.scaled(feedback, 80, 98)
+        params.dem, result.shift, result.units, params.output, coreg, progress.scaled(feedback, 80, 98), params.cog
     )
     report = write_report(params.report, parts) if params.report else None
     progress.step(feedback, 100)

@@ -39,6 +39,7 @@ class OrthoParams:
     resampling: str = "bilinear"  # one of resampling.METHODS
     occlusion: bool = False  # occluded cells as nodata
     max_error: float = 0.01  # px: bound of the coarse-grid interpolation error
+    cog: bool = False  # the orthoimage as a Cloud-Optimised GeoTIFF
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the tiles run
 
     def check(self) -> OrthoParams:
@@ -114,6 +115,7 @@ def orthorectify_image(
                 resampling_method=params.resampling,
                 occlusion_mask=params.occlusion,
                 max_error=params.max_error,
+                cog=params.cog,
             ),
             execution=params.execution,
             feedback=feedback,

@@ -59,7 +59,7 @@ from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .cell_dem import CellSettings, cells_on_grid, point_tiers
 from .gap_fill import fill_gaps
-from .geotiff import Frame, assemble_tiles, write_float_raster
+from .geotiff import Frame, assemble_tiles, to_cog, write_float_raster
 from .point_input import PointSet, point_chunks, read_breaklines
 from .tin import TileShare, delaunay, filter_blunders, flat_points, residual_histogram, spread
 from .tin_dem import (
@@ -433,14 +433,16 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
                 overviews=not mask_path,
                 feedback=progress.scaled(feedback, 80, 90),
             )
+            mask_tmp = None
             if mask_path:
                 rings = os.path.join(work, "rings.tif")
                 assemble_tiles(
                     names["ring"], rings, Frame(grid.geotransform, (grid.cols, grid.rows), target), overviews=False
                 )
+                mask_tmp = stack.enter_context(atomic_path(mask_path))
                 result.filled = fill_gaps(
                     tmp,
-                    stack.enter_context(atomic_path(mask_path)),
+                    mask_tmp,
                     params.fill,
                     progress.scaled(feedback, 90, 94),
                     rings=rings,
@@ -454,6 +456,10 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
                         description=description,
                         feedback=progress.scaled(feedback, 94, 100),
                     )
+            if params.cog:  # before any is renamed: all or none
+                for written in (tmp, *temps, mask_tmp):
+                    if written:
+                        to_cog(written)
     if result.points == 0:
         raise InputError("no point of the point cloud lies in a cell of the grid: check the point cloud")
     return result
@@ -613,6 +619,10 @@ def dem_from_point_cloud(
                     description=done[0]["precision_kind"],
                     feedback=progress.scaled(feedback, 95, 100),
                 )
+            if params.cog:  # before either is renamed
+                for written in (tmp, tmp_precision):
+                    if written:
+                        to_cog(written)
     log.pushInfo(result.summary())
     return result
 

@@ -1,9 +1,13 @@
 """Writing rasters in a projected or geographic CRS: tiled, DEFLATE-compressed GeoTIFF with internal
-overviews and nodata, written atomically (a cancel or a crash leaves nothing under the final name)."""
+overviews and nodata, written atomically (a cancel or a crash leaves nothing under the final name); a step's
+outputs optionally as Cloud-Optimised GeoTIFF (raster_output: GDAL's COG driver copies the finished GeoTIFF with its
+overviews, so that tiles and overviews lie in the order a reader over HTTP asks for them)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+import contextlib
+import os
+from collections.abc import Iterable, Iterator, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -16,6 +20,8 @@ from ..progress import Feedback
 #: nodata of the Float32 height and precision rasters
 NODATA = -32767.0
 OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "PREDICTOR=3", "BIGTIFF=IF_SAFER"]
+#: GDAL's COG driver: the GeoTIFF's own overviews (AVERAGE, overview_levels) kept, predictor by data type
+COG_OPTIONS = ["COMPRESS=DEFLATE", "PREDICTOR=YES", "BIGTIFF=IF_SAFER", "OVERVIEWS=FORCE_USE_EXISTING"]
 
 
 def overview_levels(shape, smallest=256):
@@ -112,3 +118,42 @@ def assemble_tiles(
         vrt = None
     progress.step(feedback, 100)
     return path
+
+
+def to_cog(path: str, feedback: Feedback | None = None) -> str:
+    """Rewrite the finished GeoTIFF at `path` (a temporary name) as a Cloud-Optimised GeoTIFF (GDAL's COG driver,
+    COG_OPTIONS: its overviews, metadata, band descriptions and nodata kept), in place."""
+    from osgeo import gdal
+
+    gdal.UseExceptions()
+    cog = f"{path}.cog"
+    try:
+        with closing(
+            gdal.Translate(
+                cog,
+                path,
+                format="COG",
+                creationOptions=COG_OPTIONS,
+                callback=progress.gdal_callback(feedback),
+            )
+        ):
+            pass
+        os.replace(cog, path)
+    except RuntimeError:
+        with contextlib.suppress(OSError):
+            os.unlink(cog)
+        if feedback is not None and feedback.isCanceled():
+            raise CancelledError("cancelled by the user") from None
+        raise
+    progress.step(feedback, 100)
+    return path
+
+
+@contextlib.contextmanager
+def raster_output(path: str, cog: bool = False, feedback: Feedback | None = None) -> Iterator[str]:
+    """atomic_path for a step's raster output: yields the temporary name to write the GeoTIFF to; when the body
+    succeeds the raster is made a Cloud-Optimised GeoTIFF where `cog` (to_cog), then renamed to `path`."""
+    with atomic_path(path) as tmp:
+        yield tmp
+        if cog:
+            to_cog(tmp, feedback)

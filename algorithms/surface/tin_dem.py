@@ -302,6 +302,7 @@ class DemParams:
     fill: float = 0.0  # gaps filled from the cells within this many cells (gap_fill.py; 0: none)
     radius: int = 1  # "cells": an empty cell takes the points within this many cells (cell_dem.py)
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the tiles run
+    cog: bool = False  # the rasters as Cloud-Optimised GeoTIFFs
 
     def check(self):
         """Raise InputError for settings no interpolation can use."""

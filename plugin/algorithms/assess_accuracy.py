@@ -22,6 +22,7 @@ from ...algorithms.quality.classes import PolygonClasses
 from ..styles import style_on_completion
 from .base import (
     PushbroomAlgorithm,
+    cog_parameter,
     execution_choice,
     execution_parameters,
     heights_choice,
@@ -60,6 +61,7 @@ class AssessAccuracy(PushbroomAlgorithm):
     DASK_ADDRESS = "DASK_ADDRESS"
     DASK_WAIT = "DASK_WAIT"
     WORKERS = "WORKERS"
+    COG = "COG"
     REPORT = "REPORT"
     DH = "DH"
     TABLE = "TABLE"
@@ -128,6 +130,7 @@ class AssessAccuracy(PushbroomAlgorithm):
                     optional=True,
                 ),
                 *(optional(p) for p in execution_parameters(self, d.execution.workers)),
+                cog_parameter(self),
             ]
         )
         self.addParameter(
@@ -193,6 +196,7 @@ class AssessAccuracy(PushbroomAlgorithm):
             dh=self.parameterAsOutputLayer(parameters, self.DH, context) or None,
             **heights,
             execution=execution_choice(self, parameters, context),
+            cog=self.parameterAsBool(parameters, self.COG, context),
             **self.parameterValues(
                 parameters,
                 context,

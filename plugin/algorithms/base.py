@@ -444,6 +444,16 @@ HEIGHT_LABELS = {
 }
 
 
+def cog_parameter(algorithm):
+    """The optional advanced boolean COG (its class constant) of an algorithm with raster outputs: write them as
+    Cloud-Optimised GeoTIFFs (surface/geotiff.raster_output). Optional, so that the models saved before it validate."""
+    parameter = QgsProcessingParameterBoolean(
+        algorithm.COG, translate("Pushbroom", "Raster outputs as Cloud-Optimised GeoTIFF (COG)"), False, optional=True
+    )
+    parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+    return parameter
+
+
 def heights_parameter(key, description):
     """An enum parameter choosing one of control_points.HEIGHT_TYPES (default: ellipsoidal); read it with
     heights_choice."""

@@ -17,6 +17,7 @@ from ...algorithms.quality.coregistration import CoregParams
 from ..styles import style_on_completion
 from .base import (
     PushbroomAlgorithm,
+    cog_parameter,
     execution_choice,
     execution_parameters,
     heights_choice,
@@ -49,6 +50,7 @@ class CoregisterDem(PushbroomAlgorithm):
     DASK_ADDRESS = "DASK_ADDRESS"
     DASK_WAIT = "DASK_WAIT"
     WORKERS = "WORKERS"
+    COG = "COG"
     OUTPUT = "OUTPUT"
     REPORT = "REPORT"
     SHIFT_EAST = "SHIFT_EAST"
@@ -112,6 +114,7 @@ class CoregisterDem(PushbroomAlgorithm):
                 *execution_parameters(self, d.execution.workers),
             ]
         )
+        self.addParameter(cog_parameter(self))
         self.addParameter(
             QgsProcessingParameterRasterDestination(self.OUTPUT, translate("Pushbroom", "Co-registered DEM"))
         )
@@ -142,6 +145,7 @@ class CoregisterDem(PushbroomAlgorithm):
             reference=self.parameterAsRasterLayer(parameters, self.REFERENCE, context).source(),
             output=self.parameterAsOutputLayer(parameters, self.OUTPUT, context),
             report=report or None,
+            cog=self.parameterAsBool(parameters, self.COG, context),
             coreg=CoregParams(
                 dem_heights=heights_choice(self, parameters, self.DEM_HEIGHTS, context),
                 reference_heights=heights_choice(self, parameters, self.REFERENCE_HEIGHTS, context),

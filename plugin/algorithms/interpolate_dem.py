@@ -18,7 +18,7 @@ from ...algorithms import destinations
 from ...algorithms.surface.dem_tiles import dem_from_point_cloud, mask_output
 from ...algorithms.surface.tin_dem import MAX_RADIUS, DemParams
 from ..styles import style_on_completion
-from .base import PushbroomAlgorithm, execution_choice, execution_parameters, translate, translated
+from .base import PushbroomAlgorithm, cog_parameter, execution_choice, execution_parameters, translate, translated
 
 Number = QgsProcessingParameterNumber
 #: height datums: (engine key, label)
@@ -61,6 +61,7 @@ class InterpolateDem(PushbroomAlgorithm):
     PRECISION = "PRECISION"
     COUNT = "COUNT"
     MASK = "MASK"
+    COG = "COG"
     POINTS = "POINTS"
     REMOVED = "REMOVED"
     FILLED = "FILLED"
@@ -102,6 +103,7 @@ class InterpolateDem(PushbroomAlgorithm):
                 self.DATUM, translate("Pushbroom", "Height datum"), [translated(t) for _, t in DATUMS], defaultValue=0
             )
         )
+        self.addParameter(cog_parameter(self))
         self.addAdvancedParameters(
             [
                 QgsProcessingParameterCrs(
@@ -217,6 +219,7 @@ class InterpolateDem(PushbroomAlgorithm):
             crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
             input_crs=self.parameterAsCrsDefinition(parameters, self.INPUT_CRS, context),
             execution=execution_choice(self, parameters, context),
+            cog=self.parameterAsBool(parameters, self.COG, context),
             **values,
         )
 

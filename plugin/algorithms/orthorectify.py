@@ -16,7 +16,7 @@ from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 from ...algorithms.dem_store import VERTICAL
 from ...algorithms.ortho.resampling import METHODS
 from ...algorithms.steps.orthoimage import OrthoParams, orthorectify_image
-from .base import PushbroomAlgorithm, execution_choice, execution_parameters, translate, translated
+from .base import PushbroomAlgorithm, cog_parameter, execution_choice, execution_parameters, translate, translated
 from .dem_nodata import nodata_parameter
 
 Number = QgsProcessingParameterNumber
@@ -52,6 +52,7 @@ class Orthorectify(PushbroomAlgorithm):
     DASK_WAIT = "DASK_WAIT"
     WORKERS = "WORKERS"
     DEM_NODATA = "DEM_NODATA"
+    COG = "COG"
     OUTPUT = "OUTPUT"
     BOUND = "BOUND"
     CELLS = "CELLS"
@@ -133,6 +134,7 @@ class Orthorectify(PushbroomAlgorithm):
                 nodata_parameter(self.DEM_NODATA),
             ]
         )
+        self.addParameter(cog_parameter(self))
         self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, translate("Pushbroom", "Orthoimage")))
         self.addOutput(
             QgsProcessingOutputNumber(self.BOUND, translate("Pushbroom", "Achieved interpolation error bound (px)"))
@@ -155,6 +157,7 @@ class Orthorectify(PushbroomAlgorithm):
         return OrthoParams(
             crs=self.parameterAsCrsDefinition(parameters, self.CRS, context),
             execution=execution_choice(self, parameters, context),
+            cog=self.parameterAsBool(parameters, self.COG, context),
             **values,
         )
 
