@@ -15,6 +15,10 @@ statistical outlier removal leaves out the points whose mean distance to their k
 cloud's mu + n s (surface/outlier_filter.py). Both are a second round of tasks, each part with the points of
 the parts beside it (cloud_neighbourhood.py).
 
+Colour (`colour`, on by default): each point's red, green and blue from the first image of the block that observes
+it (surface/point_colour.py: grey for a one-band image, each band stretched to 16 bits once per image), in the LAS
+colour fields (point format 7) or the GeoPackage's red, green and blue fields.
+
 Points that cannot be intersected are left out and counted in the log, which also gives per point group the
 count and the median sigmas (intersection.Summary; sigma_h before the surface term). Storage: the points are
 read from the block (Block.point_parts) and the step is recorded in its block_info (Block.update_info)."""
@@ -23,7 +27,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -37,7 +41,7 @@ from ..execution import Execution, run_tasks
 from ..height_range import mean_height
 from ..sensors.base import SensorModel
 from ..sigmas import IMAGE_SIGMA
-from ..surface import intersection, outlier_filter, pointcloud
+from ..surface import intersection, outlier_filter, point_colour, pointcloud
 from ..task_runtime import check_cancel
 from .cloud_neighbourhood import FirstRound, OutlierRemoval, second_round
 
@@ -60,6 +64,7 @@ class IntersectParams:
     max_iterations: int = 10  # per point
     outlier_neighbours: int = 0  # k of the statistical outlier removal (surface/outlier_filter.py); 0: off
     outlier_factor: float = outlier_filter.FACTOR  # its n: d > mu + n s is an outlier
+    colour: bool = True  # the points' colours from the block's images (point_colour.py)
     execution: Execution = field(default_factory=lambda: Execution("threads", 1))  # where the parts run
 
     def check(self) -> IntersectParams:
@@ -87,18 +92,25 @@ class IntersectResult:
     layer: str | None = None  # OGR source of the point layer (GeoPackage output)
 
 
-#: what every task of the first round shares: (models, h0, sigma, max_iter, what), as _intersect_part takes it
-_Job = tuple[dict[int, SensorModel], float | None, float, int, str]
+class _Job(NamedTuple):
+    """What every task of the first round shares."""
+
+    models: dict[int, SensorModel]
+    h0: float | None  # m: the intersection's start height
+    sigma: float  # px: the a priori image sigma
+    max_iter: int
+    what: str  # the points, as messages name them
+    colour: dict[int, point_colour.BandStretch] | None  # {image id: its stretch}, in block order; None: no colours
 
 
 def _intersect_part(job: _Job, part: str, out: str) -> dict[str, Any]:
-    """Task: intersect the points of the part file `part` (block/points.py) with `job` = (models, h0,
-    sigma, max_iter, what) and write the converged ones (lon, lat, h and the cloud fields) to `out`.
+    """Task: intersect the points of the part file `part` (block/points.py) with the _Job `job` and write the
+    converged ones (lon, lat, h and the cloud fields, their colours where the job has them) to `out`.
     Returns a small summary: points, written, status counts, intersection.Summary, sums of lon, lat and h; and
     the bounding box (lon, lon, lat, lat) of its points; the count of its refined dense points
     (precision.refined_dense, marked in `out`.refined.npy) and the image id of their template (the reference
     image)."""
-    models, h0, sigma, max_iter, what = job
+    models, h0, sigma, max_iter, what, stretch = job
     calibration = precision.calibration_of(models.values())
     multi = load_arrays(part)
     obs = multi.observations
@@ -135,6 +147,9 @@ def _intersect_part(job: _Job, part: str, out: str) -> dict[str, Any]:
     group = multi.points["group"][pos]
     ok = result.ok
     fields = pointcloud.cloud_fields(result, group=group, rho=multi.points["rho_min"][pos])
+    if stretch is not None:
+        rgb = point_colour.colours(stretch, result.point[ok], obs["image_id"], obs["point_id"], obs["col"], obs["row"])
+        fields.update(zip(pointcloud.COLOUR_FIELDS, rgb.T))
     lon, lat, h = result.lon[ok], result.lat[ok], result.h[ok]
     check_cancel()  # before the write (execution: a cancel reaches a running part)
     pointcloud.save_part(out, lon, lat, h, fields)
@@ -173,7 +188,21 @@ def intersect_block_points(
         raise InputError("the block has no images")
     models = blk.models(images)
     heights = blk.height_range()
-    job: _Job = (models, None if heights is None else mean_height(heights), params.sigma, params.max_iterations, what)
+    stretch = None
+    if params.colour:
+        progress.step(feedback, 0, "the images' colour stretch")
+        try:
+            stretch = point_colour.stretches({r["id"]: r["image_path"] for r in blk.images() if r["image_path"]})
+        except InputError as exc:
+            progress.warn(feedback, f"the points are written without colours: {exc}")
+    job = _Job(
+        models,
+        None if heights is None else mean_height(heights),
+        params.sigma,
+        params.max_iterations,
+        what,
+        stretch,
+    )
     with work_dir(output, "the intersected parts") as work:
         files = [os.path.join(work, f"part-{k:05d}.npz") for k in range(len(parts))]
         done = run_tasks(

@@ -2,7 +2,8 @@
 
 x, y are in a projected CRS (default: the WGS 84 UTM zone of the points' centre, geodesy.utm_epsg),
 z is the WGS 84 ellipsoidal height in metres; per-point values (group, rho, sigma_h, rays, ...) go
-into LAS extra bytes dimensions or GeoPackage fields. LAS files are LAS 1.4, point format 6, with
+into LAS extra bytes dimensions or GeoPackage fields, and the colour fields red, green and blue (uint16, where
+given) into the LAS colour fields of point format 7. LAS files are LAS 1.4, point format 6 (7 with colours), with
 the CRS as an OGC WKT VLR (global encoding WKT bit set) and 1 mm coordinate resolution (1e-8 degree
 for a geographic CRS). A GeoPackage holds 3-D points (wkbPoint25D); it is chosen by the extension
 .gpkg for up to GPKG_MAX_POINTS points (larger clouds belong in LAS/LAZ: QGIS draws them as point
@@ -23,6 +24,8 @@ from ..errors import InputError
 from ..geodesy import utm_epsg
 
 GPKG_MAX_POINTS = 100_000
+#: the per-point fields that go into the LAS colour fields (point format 7) where all three are given
+COLOUR_FIELDS = ("red", "green", "blue")
 FORMATS = ("las", "laz", "gpkg")
 
 
@@ -176,7 +179,8 @@ def write_las_parts(path, parts, srs, compress=False):
         try:
             for x, y, z, fields in parts:
                 if writer is None:
-                    header = laspy.LasHeader(point_format=6, version="1.4")
+                    coloured = set(COLOUR_FIELDS) <= set(fields)
+                    header = laspy.LasHeader(point_format=7 if coloured else 6, version="1.4")
                     header.global_encoding.wkt = True
                     header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(srs.ExportToWkt()))
                     header.generating_software = "Pushbroom (z: ellipsoidal h)"
@@ -184,7 +188,11 @@ def write_las_parts(path, parts, srs, compress=False):
                     header.scales = np.array([step, step, 1e-3])
                     header.offsets = np.array([np.floor(v.min()) if v.size else 0.0 for v in (x, y, z)])
                     header.add_extra_dims(
-                        [laspy.ExtraBytesParams(name=name, type=values.dtype) for name, values in fields.items()]
+                        [
+                            laspy.ExtraBytesParams(name=name, type=values.dtype)
+                            for name, values in fields.items()
+                            if not (coloured and name in COLOUR_FIELDS)
+                        ]
                     )
                     writer = laspy.open(tmp, mode="w", header=header, do_compress=compress)
                 records = laspy.ScaleAwarePointRecord.zeros(len(x), header=writer.header)

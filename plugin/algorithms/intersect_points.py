@@ -5,6 +5,7 @@ from qgis.core import (
     QgsProcessing,
     QgsProcessingOutputNumber,
     QgsProcessingOutputVectorLayer,
+    QgsProcessingParameterBoolean,
     QgsProcessingParameterCrs,
     QgsProcessingParameterEnum,
     QgsProcessingParameterFile,
@@ -38,6 +39,7 @@ class IntersectPoints(PushbroomAlgorithm):
     MAX_ITERATIONS = "MAX_ITERATIONS"
     OUTLIER_NEIGHBOURS = "OUTLIER_NEIGHBOURS"
     OUTLIER_FACTOR = "OUTLIER_FACTOR"
+    COLOUR = "COLOUR"
     EXECUTION = "EXECUTION"
     DASK_ADDRESS = "DASK_ADDRESS"
     DASK_WAIT = "DASK_WAIT"
@@ -57,6 +59,14 @@ class IntersectPoints(PushbroomAlgorithm):
         self.addParameter(
             QgsProcessingParameterCrs(
                 self.CRS, translate("Pushbroom", "Output CRS (empty: the block's UTM zone)"), None, optional=True
+            )
+        )
+        self.addParameter(
+            QgsProcessingParameterBoolean(
+                self.COLOUR,
+                translate("Pushbroom", "Colour the points from the images (LAS colour fields)"),
+                d.colour,
+                optional=True,  # the models saved before it still validate
             )
         )
         self.addAdvancedParameters(
@@ -117,6 +127,7 @@ class IntersectPoints(PushbroomAlgorithm):
             max_iterations=self.MAX_ITERATIONS,
             outlier_neighbours=self.OUTLIER_NEIGHBOURS,
             outlier_factor=self.OUTLIER_FACTOR,
+            colour=self.COLOUR,
         )
         values["kind"] = KINDS[values["kind"]][0]
         return IntersectParams(

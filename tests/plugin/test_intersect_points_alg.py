@@ -4,7 +4,7 @@ give them back)."""
 
 import numpy as np
 import pytest
-from osgeo import ogr
+from osgeo import gdal, ogr
 from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
 
@@ -98,6 +98,32 @@ def test_las_in_the_blocks_utm_zone(pushbroom_provider, triplet, tmp_path, log):
     assert [(s[0], s[1]) for s in summary] == [("1", "100"), ("3", "200")]
     assert float(summary[1][5]) == pytest.approx(np.median(sigma_h[:200]), rel=1e-3)
     assert "intersectpoints" in [r["step"] for r in Block(path).run_log()]
+
+
+def test_points_coloured_from_the_first_image_that_observes_them(pushbroom_provider, triplet, tmp_path):
+    """The LAS colour fields (point format 7): every point's HRG pixel (all 300 are in HRG, the block's first
+    image), stretched between the band's mean -+ 2.5 sigma to 16 bits, grey: read here with GDAL at the pixel of
+    the point's HRG position."""
+    path, lon, lat, h = make_block(triplet, "colour.gpkg")
+    result = run({"BLOCK": path, "OUTPUT": str(tmp_path / "colour.laz")})
+    las = laspy_module().read(result["OUTPUT"])
+    assert las.header.point_format.id == 7
+    order = np.argsort(np.asarray(las["point_id"]))
+    red, green, blue = (np.asarray(las[k])[order] for k in ("red", "green", "blue"))
+    assert np.array_equal(red, green) and np.array_equal(red, blue)  # a one-band image: grey
+    blk = Block(path)
+    hrg = next(r for r in blk.images() if r["name"] == "HRG")
+    col, row = blk.model(hrg["id"]).ground_to_image(lon, lat, h)
+    ds = gdal.Open(hrg["image_path"])
+    band = ds.GetRasterBand(1)
+    minimum, maximum, mean, std = band.GetStatistics(True, True)
+    lo, hi = max(minimum, mean - 2.5 * std), min(maximum, mean + 2.5 * std)
+    pixels = band.ReadAsArray().astype(float)[np.floor(row).astype(int), np.floor(col).astype(int)]
+    expected = np.rint(np.clip((pixels - lo) / (hi - lo), 0, 1) * 65535)
+    np.testing.assert_array_equal(red, expected)
+    assert red.std() > 1000  # the scene's texture, not one value
+    plain = run({"BLOCK": path, "COLOUR": False, "OUTPUT": str(tmp_path / "plain.las")})
+    assert laspy_module().read(plain["OUTPUT"]).header.point_format.id == 6
 
 
 def test_geopackage_of_tie_points_in_a_given_crs(pushbroom_provider, triplet, tmp_path):
