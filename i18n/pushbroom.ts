@@ -484,7 +484,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="96"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="112"/>
         <source>Point cloud</source>
         <translation type="unfinished"></translation>
     </message>
@@ -589,67 +589,67 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="22"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="26"/>
         <source>Mass points (pushbroom:matchpoints)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="22"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="26"/>
         <source>Tie points (pushbroom:selecttiepoints)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="30"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="34"/>
         <source>Intersect points (point cloud)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="52"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="60"/>
         <source>Points</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="57"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="65"/>
         <source>Output CRS (empty: the block&apos;s UTM zone)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="62"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="78"/>
         <source>Sigma of the image coordinates (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="62"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="78"/>
         <source>Maximum iterations per point</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="62"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="78"/>
         <source>Statistical outlier removal: neighbours k (0: off)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="62"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="78"/>
         <source>Statistical outlier removal: factor n (mean distance &gt; mu + n sigma)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="96"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="112"/>
         <source>LAS files (*.las);;LAZ files (*.laz);;GeoPackage (*.gpkg)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="103"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="127"/>
         <source>Point layer (GeoPackage output)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="108"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="132"/>
         <source>Points written</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="137"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="165"/>
         <source>Object points</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1231,6 +1231,21 @@
     <message>
         <location filename="../plugin/algorithms/base.py" line="450"/>
         <source>Raster outputs as Cloud-Optimised GeoTIFF (COG)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="70"/>
+        <source>Colour the points from the images (LAS colour fields)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="119"/>
+        <source>EPT index of the point cloud (opens in QGIS without PDAL)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/intersect_points.py" line="163"/>
+        <source>Object points (EPT)</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

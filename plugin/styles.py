@@ -33,6 +33,19 @@ def load_styled(context, source, name, output_name, qml_name):
     context.addLayerToLoadOnCompletion(source, details)
 
 
+def load_point_cloud(context, ept_json, name, output_name):
+    """Ask Processing to load the EPT index `ept_json` (QGIS's "ept" provider) as point cloud layer `name` on
+    completion; Processing cannot tell an ept.json from its path, so the layer is made here and handed over."""
+    from qgis.core import QgsPointCloudLayer
+
+    layer = QgsPointCloudLayer(ept_json, name, "ept")
+    if layer.isValid():
+        context.temporaryLayerStore().addMapLayer(layer)
+        context.addLayerToLoadOnCompletion(
+            layer.id(), QgsProcessingContext.LayerDetails(name, context.project(), output_name)
+        )
+
+
 def style_on_completion(context, dest_id, qml_name):
     """Style a sink output (`dest_id`) with `qml_name` where Processing loads it on completion."""
     if context.willLoadLayerOnCompletion(dest_id):

@@ -19,6 +19,9 @@ Colour (`colour`, on by default): each point's red, green and blue from the firs
 it (surface/point_colour.py: grey for a one-band image, each band stretched to 16 bits once per image), in the LAS
 colour fields (point format 7) or the GeoPackage's red, green and blue fields.
 
+With an EPT folder (`ept`, LAS/LAZ output only), the cloud is also indexed as Entwine Point Tiles from the written
+file (surface/ept.py): what QGIS without its PDAL provider (Debian 12's) opens as a point cloud.
+
 Points that cannot be intersected are left out and counted in the log, which also gives per point group the
 count and the median sigmas (intersection.Summary; sigma_h before the surface term). Storage: the points are
 read from the block (Block.point_parts) and the step is recorded in its block_info (Block.update_info)."""
@@ -41,7 +44,7 @@ from ..execution import Execution, run_tasks
 from ..height_range import mean_height
 from ..sensors.base import SensorModel
 from ..sigmas import IMAGE_SIGMA
-from ..surface import intersection, outlier_filter, point_colour, pointcloud
+from ..surface import ept, intersection, outlier_filter, point_colour, pointcloud
 from ..task_runtime import check_cancel
 from .cloud_neighbourhood import FirstRound, OutlierRemoval, second_round
 
@@ -90,6 +93,7 @@ class IntersectResult:
     format: str  # "las", "laz" or "gpkg" (pointcloud.write_point_cloud)
     count: int  # points written
     layer: str | None = None  # OGR source of the point layer (GeoPackage output)
+    ept: str | None = None  # the EPT index's ept.json, where asked
 
 
 class _Job(NamedTuple):
@@ -172,12 +176,19 @@ def _intersect_part(job: _Job, part: str, out: str) -> dict[str, Any]:
 
 
 def intersect_block_points(
-    block_path: str, output: str, params: IntersectParams | None = None, feedback: Feedback | None = None
+    block_path: str,
+    output: str,
+    params: IntersectParams | None = None,
+    feedback: Feedback | None = None,
+    ept_folder: str | None = None,
 ) -> IntersectResult:
-    """Intersect the block's points (IntersectParams `params`) and write them to the point cloud `output`;
-    returns an IntersectResult. Raises InputError (no points or measurements, unknown images or points,
-    none intersected), ExecutionError (module execution's), CancelledError when cancelled."""
+    """Intersect the block's points (IntersectParams `params`) and write them to the point cloud `output`, and its
+    EPT index to `ept_folder` where given; returns an IntersectResult. Raises InputError (no points or measurements,
+    unknown images or points, none intersected, an EPT of a GeoPackage), ExecutionError (module execution's),
+    CancelledError when cancelled."""
     params = (params or IntersectParams()).check()
+    if ept_folder and pointcloud.output_format(output, 0) == "gpkg":
+        raise InputError("an EPT index is made from a LAS or LAZ point cloud: name the output .las or .laz")
     log = progress.ensure(feedback)
     kind, what = params.kind, params.kind.replace("_", " ")
     # storage: the point parts, the images and their models
@@ -252,11 +263,16 @@ def intersect_block_points(
             written,
             centre=centre,
             crs=params.crs or blk.info().get("default_crs"),
-            feedback=progress.scaled(feedback, 80, 100),
+            feedback=progress.scaled(feedback, 80, 100 if not ept_folder else 90),
         )
     message = f"{written} points written to {out} ({srs.GetName()}; z ellipsoidal height)"
     log.pushInfo(message)
+    index = None
+    if ept_folder:
+        made = ept.write_ept(out, ept_folder, progress.scaled(feedback, 90, 100))
+        index = os.path.join(made.folder, "ept.json")
+        log.pushInfo(f"EPT index of {made.points} points in {made.nodes} nodes (depth {made.depth}): {index}")
     # storage: the step in the block's info
     blk.update_info({}, step="intersectpoints", message=message)
     layer = f"{out}|layername={pointcloud.GPKG_LAYER}" if fmt == "gpkg" else None
-    return IntersectResult(out, fmt, written, layer)
+    return IntersectResult(out, fmt, written, layer, index)

@@ -18,6 +18,7 @@ pixel lies outside its image (a measurement at the border) is black."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from osgeo import gdal
@@ -40,7 +41,7 @@ class BandStretch:
     high: tuple[float, float, float]
 
 
-def _open(path: str):
+def _open(path: str) -> Any:
     gdal.UseExceptions()
     try:
         return gdal.Open(str(path))
@@ -57,7 +58,7 @@ def band_stretch(path: str) -> BandStretch:
             minimum, maximum, mean, std = ds.GetRasterBand(b).GetStatistics(True, True)
             low.append(max(minimum, mean - STRETCH_SIGMAS * std))
             high.append(min(maximum, mean + STRETCH_SIGMAS * std))
-    return BandStretch(str(path), bands, tuple(low), tuple(high))  # type: ignore[arg-type]
+    return BandStretch(str(path), bands, (low[0], low[1], low[2]), (high[0], high[1], high[2]))
 
 
 def stretches(paths: dict[int, str]) -> dict[int, BandStretch]:
@@ -66,7 +67,12 @@ def stretches(paths: dict[int, str]) -> dict[int, BandStretch]:
 
 
 def colours(
-    stretch: dict[int, BandStretch], points: np.ndarray, image_id: np.ndarray, point_id: np.ndarray, col, row
+    stretch: dict[int, BandStretch],
+    points: np.ndarray,
+    image_id: np.ndarray,
+    point_id: np.ndarray,
+    col: np.ndarray,
+    row: np.ndarray,
 ) -> np.ndarray:
     """(n, 3) uint16 red, green, blue of the points `points` (ids) from their observations (image_id, point_id,
     col, row arrays): each from the first image in `stretch`'s order that observes it (module docstring)."""

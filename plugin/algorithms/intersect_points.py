@@ -1,6 +1,8 @@
 """pushbroom:intersectpoints: the block's points intersected into a point cloud
 (algorithms/steps/block_intersection.py)."""
 
+import os
+
 from qgis.core import (
     QgsProcessing,
     QgsProcessingOutputNumber,
@@ -10,12 +12,13 @@ from qgis.core import (
     QgsProcessingParameterEnum,
     QgsProcessingParameterFile,
     QgsProcessingParameterFileDestination,
+    QgsProcessingParameterFolderDestination,
     QgsProcessingParameterNumber,
 )
 from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
 from ...algorithms.steps.block_intersection import MAX_NEIGHBOURS, IntersectParams, intersect_block_points
-from ..styles import load_styled
+from ..styles import load_point_cloud, load_styled
 from .base import PushbroomAlgorithm, execution_choice, execution_parameters, translate, translated
 
 Number = QgsProcessingParameterNumber
@@ -45,6 +48,9 @@ class IntersectPoints(PushbroomAlgorithm):
     DASK_WAIT = "DASK_WAIT"
     WORKERS = "WORKERS"
     OUTPUT = "OUTPUT"
+    EPT = "EPT"
+    #: the EPT folder is replaced as a whole where it holds an EPT index (its ept.json)
+    WHOLE_FOLDERS = {EPT: "ept.json"}
     LAYER = "LAYER"
     COUNT = "COUNT"
 
@@ -110,6 +116,14 @@ class IntersectPoints(PushbroomAlgorithm):
                 translate("Pushbroom", "LAS files (*.las);;LAZ files (*.laz);;GeoPackage (*.gpkg)"),
             )
         )
+        self.addParameter(
+            QgsProcessingParameterFolderDestination(
+                self.EPT,
+                translate("Pushbroom", "EPT index of the point cloud (opens in QGIS without PDAL)"),
+                optional=True,
+                createByDefault=False,
+            )
+        )
         self.addOutput(
             QgsProcessingOutputVectorLayer(
                 self.LAYER, translate("Pushbroom", "Point layer (GeoPackage output)"), QgsProcessing.TypeVectorPoint
@@ -143,9 +157,15 @@ class IntersectPoints(PushbroomAlgorithm):
             self.parameterAsFileOutput(parameters, self.OUTPUT, context),
             params,
             feedback,
+            self.parameterAsString(parameters, self.EPT, context) or None,
         )
+        if result.ept:
+            load_point_cloud(context, result.ept, translate("Pushbroom", "Object points (EPT)"), self.EPT)
         if result.layer:
             load_styled(
                 context, result.layer, translate("Pushbroom", "Object points"), self.LAYER, "points_by_group.qml"
             )
-        return self.given({self.OUTPUT: result.path, self.COUNT: result.count, self.LAYER: result.layer})
+        done = {self.OUTPUT: result.path, self.COUNT: result.count, self.LAYER: result.layer}
+        if result.ept:
+            done[self.EPT] = os.path.dirname(result.ept)
+        return self.given(done)

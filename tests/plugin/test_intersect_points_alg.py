@@ -2,11 +2,20 @@
 made from ground points on the true DSM (projected with the block's models: the intersection must
 give them back)."""
 
+import os
+
 import numpy as np
 import pytest
 from osgeo import gdal, ogr
 from qgis import processing
-from qgis.core import QgsProcessingContext, QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer
+from qgis.core import (
+    QgsPointCloudLayer,
+    QgsProcessingContext,
+    QgsProcessingException,
+    QgsProcessingFeedback,
+    QgsProject,
+    QgsVectorLayer,
+)
 
 from pushbroom.algorithms.block import Block
 from pushbroom.algorithms.dem_store import read_dem
@@ -124,6 +133,22 @@ def test_points_coloured_from_the_first_image_that_observes_them(pushbroom_provi
     assert red.std() > 1000  # the scene's texture, not one value
     plain = run({"BLOCK": path, "COLOUR": False, "OUTPUT": str(tmp_path / "plain.las")})
     assert laspy_module().read(plain["OUTPUT"]).header.point_format.id == 6
+
+
+def test_ept_index_loaded_as_a_coloured_point_cloud(pushbroom_provider, triplet, tmp_path):
+    """EPT: the LAZ's EPT index, loaded on completion as a point cloud layer (QGIS's ept provider) with its colours;
+    a GeoPackage output has none."""
+    path, _, _, _ = make_block(triplet, "ept.gpkg")
+    context = QgsProcessingContext()
+    context.setProject(QgsProject.instance())
+    folder = str(tmp_path / "cloud.ept")
+    result = run({"BLOCK": path, "OUTPUT": str(tmp_path / "cloud.laz"), "EPT": folder}, context)
+    assert result["EPT"] == folder and os.path.exists(os.path.join(folder, "ept.json"))
+    (layer_id,) = context.layersToLoadOnCompletion()
+    layer = context.temporaryLayerStore().mapLayer(layer_id)
+    assert isinstance(layer, QgsPointCloudLayer) and layer.pointCount() == 300 and layer.renderer().type() == "rgb"
+    with pytest.raises(QgsProcessingException, match="EPT index is made from a LAS or LAZ"):
+        run({"BLOCK": path, "OUTPUT": str(tmp_path / "cloud.gpkg"), "EPT": str(tmp_path / "g.ept")})
 
 
 def test_geopackage_of_tie_points_in_a_given_crs(pushbroom_provider, triplet, tmp_path):

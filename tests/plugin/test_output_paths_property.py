@@ -43,7 +43,7 @@ INPUTS = {
     "fitrpc": lambda w: {"BLOCK": w["block"]},
 }
 #: the folder outputs replaced as a whole, and the file that marks a folder their step made
-WHOLE = {("simulatescene", "OUTPUT"): os.path.join("truth", "truth.json")}
+WHOLE = {("simulatescene", "OUTPUT"): os.path.join("truth", "truth.json"), ("intersectpoints", "EPT"): "ept.json"}
 #: the algorithms whose drawn runs that the check accepts are run (fast, and they do not change their inputs)
 RUN_ACCEPTED = {"exportpoints"}
 
