@@ -41,9 +41,9 @@ def load_point_cloud(context, ept_json, name, output_name):
     layer = QgsPointCloudLayer(ept_json, name, "ept")
     if layer.isValid():
         context.temporaryLayerStore().addMapLayer(layer)
-        context.addLayerToLoadOnCompletion(
-            layer.id(), QgsProcessingContext.LayerDetails(name, context.project(), output_name)
-        )
+        details = QgsProcessingContext.LayerDetails(name, context.project(), output_name)
+        details.forceName = True  # not the file's base name, "ept"
+        context.addLayerToLoadOnCompletion(layer.id(), details)
 
 
 def style_on_completion(context, dest_id, qml_name):
