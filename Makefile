@@ -81,7 +81,8 @@ MYPY_PACKAGES := algorithms.sensors algorithms.block algorithms.steps algorithms
                  algorithms.matching.tiled_rounds algorithms.matching.stereo_set algorithms.matching.match_stats \
                  algorithms.dense.params algorithms.dense.refine algorithms.dense.epipolar algorithms.dense.precision \
                  algorithms.dense.dense_strategy algorithms.surface.cell_dem algorithms.quality.coregistration \
-                 algorithms.quality.coregister_dem algorithms.surface.ept algorithms.surface.point_colour
+                 algorithms.quality.coregister_dem algorithms.surface.ept algorithms.surface.point_colour \
+                 algorithms.surface.merge_dems
 
 # ruff's linter and formatter, and mypy (configured in pyproject.toml); CI runs them before the tests.
 lint: setup

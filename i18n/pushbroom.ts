@@ -14,7 +14,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="69"/>
+        <location filename="../plugin/algorithms/merge_dems.py" line="87"/>
         <source>Reference heights</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1246,6 +1246,86 @@
     <message>
         <location filename="../plugin/algorithms/intersect_points.py" line="163"/>
         <source>Object points (EPT)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="33"/>
+        <source>Merge DEMs (co-registered, weighted by precision)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="61"/>
+        <source>DEMs (the first one is the others&apos; frame)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="66"/>
+        <source>Precision rasters (one per DEM, in the DEMs&apos; order)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="74"/>
+        <source>Heights of the DEMs</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="75"/>
+        <source>Co-register the DEMs first</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="80"/>
+        <source>Reference to co-register to (empty: the first DEM)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="88"/>
+        <source>Co-register with a tilt too</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="91"/>
+        <source>Output CRS (empty: the first DEM&apos;s)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="96"/>
+        <source>Cell size in CRS units (empty: the first DEM&apos;s)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="106"/>
+        <source>Outliers: farther from the median than K (spread, precision)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="106"/>
+        <source>Cells over which a DEM&apos;s weight rises from its edge</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="127"/>
+        <source>Merged DEM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="128"/>
+        <source>Precision raster of the merged DEM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="136"/>
+        <source>Heights merged per cell</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="141"/>
+        <source>Cells with a height</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/merge_dems.py" line="142"/>
+        <source>Outlying heights left out</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

@@ -12,6 +12,7 @@ def algorithm_classes():
     from .interpolate_dem import InterpolateDem
     from .intersect_points import IntersectPoints
     from .match_points import MatchPoints
+    from .merge_dems import MergeDems
     from .orthorectify import Orthorectify
     from .select_tie_points import SelectTiePoints
     from .simulate_scene import SimulateScene
@@ -28,6 +29,7 @@ def algorithm_classes():
         InterpolateDem,
         Orthorectify,
         CoregisterDem,
+        MergeDems,
         AssessAccuracy,
         FitRpc,
     ]

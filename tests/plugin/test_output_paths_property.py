@@ -39,6 +39,7 @@ INPUTS = {
     "interpolatedem": lambda w: {"INPUT": w["las"]},
     "orthorectify": lambda w: {"BLOCK": w["block"], "IMAGE_NAME": "HRG", "DEM": w["dsm"]},
     "coregisterdem": lambda w: {"DEM": w["dsm"], "REFERENCE": w["dtm"]},
+    "mergedems": lambda w: {"DEMS": [w["dsm"], w["dtm"]]},
     "assessaccuracy": lambda w: {"REFERENCE": w["dsm"], "POINTS": w["las"], "DEM": w["dtm"]},
     "fitrpc": lambda w: {"BLOCK": w["block"]},
 }

@@ -1,0 +1,128 @@
+"""Issue 40: the Pleiades triplet's three pair DSMs merged (surface/merge_dems.py, pushbroom:mergedems). Is the merge
+at least as close to the triplet's own DSM as the best pair, and is its precision raster true?
+
+The pair DSMs and their precision rasters as studies/pair_precision.py makes them (the triplet matched densely, its
+pairs img_02-img_01 and img_02-img_03 taken from it, img_01-img_03 matched on its own; each pair's refined points
+intersected with the supplied RPCs and the product's sigmas; the per-cell DSM of the DEM step at 0.5 m with its
+precision raster), and the triplet's own DSM the same way from its points with all their rays. The pairs' RPC biases
+differ (docs/validation.md#dense-real): merge_dems co-registers img_02-img_03 and img_01-img_03 to img_02-img_01.
+
+Printed: NMAD of each DSM minus the triplet's, on the cells all of them have; and the precision raster's check by
+pair differences, leaving one pair out: the merge of the other two against it, NMAD(d / sqrt(sigma_merge^2 +
+sigma_pair^2)) over their common cells (d less its median: the left-out pair keeps its bias), which is 1 where the
+precision rasters are true and the two independent."""
+
+import tempfile
+
+import numpy as np
+from osgeo import gdal
+
+from pushbroom.algorithms.crs import reproject, wgs84
+from pushbroom.algorithms.dense import precision
+from pushbroom.algorithms.matching.points import MultiPoints
+from pushbroom.algorithms.sigmas import IMAGE_SIGMA
+from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid, point_tiers
+from pushbroom.algorithms.surface.geotiff import write_float_raster
+from pushbroom.algorithms.surface.intersection import Measurements, intersect
+from pushbroom.algorithms.surface.local_spread import local_metres
+from pushbroom.algorithms.surface.merge_dems import MergeOutputs, MergeParams, merge_dems
+from pushbroom.algorithms.surface.pointcloud import output_srs
+from pushbroom.algorithms.surface.tin_grid import Grid
+from studies.pair_precision import CELL, pair_cloud
+from studies.sim_dense import TRIPLET, TRIPLET_HEIGHTS, triplet_points, with_template_spread
+from tests.helpers.real_dsm import dense_pair_of_triplet, dense_points
+
+NMAD = 1.4826
+
+
+def triplet_cloud(points: MultiPoints, models: list) -> dict:
+    """The triplet's refined points with all their rays, as pair_precision.pair_cloud makes a pair's."""
+    keep = points.points[np.isfinite(points.points["rho_min"])]
+    obs = points.observations[np.isin(points.observations["point_id"], keep["id"])]
+    sigma = precision.image_sigmas(keep, obs, IMAGE_SIGMA, precision.RPC.factors)
+    res = intersect(
+        dict(enumerate(models, start=1)), Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma)
+    )
+    ok = res.ok
+    x, y = local_metres(res.lon[ok], res.lat[ok], (float(np.mean(res.lon[ok])), float(np.mean(res.lat[ok]))))
+    sigma_h, _ = with_template_spread(
+        res.sigma[ok, 2], x, y, res.h[ok], np.ones(int(ok.sum()), bool), models[0], precision.RPC.spread
+    )
+    tier = point_tiers(keep["rho_min"][np.searchsorted(keep["id"], res.point[ok])], res.rays[ok])
+    return {"lon": res.lon[ok], "lat": res.lat[ok], "h": res.h[ok], "sigma": sigma_h, "tier": tier}
+
+
+def nmad(values: np.ndarray) -> float:
+    return float(NMAD * np.median(np.abs(values - np.median(values))))
+
+
+def main() -> None:
+    matched = triplet_points()
+    if matched is None:
+        return
+    models, triplet = matched
+    third, _ = dense_points(TRIPLET[1:], models[1:], ["img_01", "img_03"], tempfile.mkdtemp(), TRIPLET_HEIGHTS)
+    clouds = {
+        "img_02-img_01": pair_cloud(dense_pair_of_triplet(triplet, 1), models[:2]),
+        "img_02-img_03": pair_cloud(dense_pair_of_triplet(triplet, 2), [models[0], models[2]]),
+        "img_01-img_03": pair_cloud(third, models[1:]),
+        "triplet": triplet_cloud(triplet, models),
+    }
+    srs = output_srs(None, clouds["triplet"]["lon"], clouds["triplet"]["lat"])
+    xy = {k: reproject(c["lon"], c["lat"], wgs84(), srs) for k, c in clouds.items()}
+    x0 = min(float(v[0].min()) for v in xy.values())
+    y0 = max(float(v[1].max()) for v in xy.values())
+    cols = int((max(float(v[0].max()) for v in xy.values()) - x0) / CELL) + 1
+    rows = int((y0 - min(float(v[1].min()) for v in xy.values())) / CELL) + 1
+    grid = Grid(x0, y0, CELL, cols, rows)
+    settings = CellSettings(k=3.0, fallback=False, radius=1)
+    folder = tempfile.mkdtemp(prefix="merge-pairs-")
+    files = {}
+    for name, c in clouds.items():
+        cells = cells_on_grid(xy[name][0], xy[name][1], c["h"], c["sigma"], grid, settings, tier=c["tier"])
+        files[name] = tuple(
+            write_float_raster(f"{folder}/{name}-{kind}.tif", values, grid.geotransform, srs)
+            for kind, values in (("h", cells.heights), ("se", cells.precision))
+        )
+    pairs = [k for k in clouds if k != "triplet"]
+
+    def merged(names: list[str], label: str) -> tuple[np.ndarray, np.ndarray]:
+        out = MergeOutputs(f"{folder}/{label}.tif", f"{folder}/{label}-se.tif")
+        merge_dems(MergeParams(tuple(files[n][0] for n in names), tuple(files[n][1] for n in names)), out)
+        return read(out.dem, grid), read(out.precision, grid)
+
+    heights = {name: read(files[name][0], grid) for name in clouds}
+    heights["merged"], _ = merged(pairs, "merged")
+    common = np.all([np.isfinite(h) for h in heights.values()], axis=0)
+    print(f"NMAD of DSM - the triplet's DSM on the {int(common.sum())} cells all have (m):")
+    print("| DSM | NMAD |\n|---|---|")
+    for name in [*pairs, "merged"]:
+        print(f"| {name} | {nmad((heights[name] - heights['triplet'])[common]):.3f} |")
+    print("\nThe precision raster by pair differences, one pair left out (the merge of the other two against it):")
+    print("| left out | cells | NMAD(d) m | median sigma of d, m | NMAD(d / sigma) |\n|---|---|---|---|---|")
+    for out in pairs:
+        h, se = merged([p for p in pairs if p != out], f"without-{out}")
+        h_out, se_out = heights[out], read(files[out][1], grid)
+        both = np.isfinite(h) & np.isfinite(h_out) & np.isfinite(se) & np.isfinite(se_out)
+        d = (h - h_out)[both]
+        d -= np.median(d)
+        sigma = np.hypot(se, se_out)[both]
+        print(f"| {out} | {int(both.sum())} | {nmad(d):.3f} | {np.median(sigma):.3f} | {nmad(d / sigma):.2f} |")
+
+
+def read(path: str, grid: Grid) -> np.ndarray:
+    """Band 1 of `path` on `grid`'s cells (the merge's grid is the first DSM's, the same lattice), NaN for nodata."""
+    ds = gdal.Open(path)
+    band = ds.GetRasterBand(1)
+    gt = ds.GetGeoTransform()
+    c0, r0 = int(round((grid.x0 - gt[0]) / grid.cell)), int(round((gt[3] - grid.y0) / grid.cell))
+    values = np.full(grid.shape, np.nan)
+    data = band.ReadAsArray().astype(float)
+    data[data == band.GetNoDataValue()] = np.nan
+    rows, cols = min(data.shape[0] - r0, grid.rows), min(data.shape[1] - c0, grid.cols)
+    values[:rows, :cols] = data[r0 : r0 + rows, c0 : c0 + cols]
+    return values
+
+
+if __name__ == "__main__":
+    main()
