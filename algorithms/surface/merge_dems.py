@@ -32,7 +32,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import warnings
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -185,10 +184,9 @@ def _merge(h: np.ndarray, s: np.ndarray, t: np.ndarray, k: float) -> tuple[np.nd
     none), sigmas s, tapers t (module docstring)."""
     valid = np.isfinite(h)
     n = valid.sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN cells: their median is NaN
-        median = np.nanmedian(h, axis=0)
-        spread = NMAD_SCALE * np.nanmedian(np.abs(h - median), axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        median = _median(h, n)
+        spread = NMAD_SCALE * _median(np.abs(h - median), n)
         outlier = valid & (n >= 3) & (np.abs(h - median) > k * np.sqrt(spread**2 + s**2))
         use = valid & ~outlier
         w = np.where(use, t / s**2, 0.0)
@@ -196,6 +194,15 @@ def _merge(h: np.ndarray, s: np.ndarray, t: np.ndarray, k: float) -> tuple[np.nd
         merged = np.where(total > 0, np.nansum(np.where(use, w * h, 0.0), axis=0) / total, np.nan)
         se = np.where(total > 0, np.sqrt((w**2 * np.where(use, s, 0.0) ** 2).sum(axis=0)) / total, np.nan)
     return merged, se, use.sum(axis=0).astype(float), int(outlier.sum())
+
+
+def _median(values: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """The median over axis 0 of `values` (NaN: none) whose finite ones number `n` per cell; NaN where none (the
+    sort puts NaN last: no warning from an all-NaN cell, as numpy's nanmedian gives)."""
+    ordered = np.sort(values, axis=0)
+    low = np.take_along_axis(ordered, np.maximum((n - 1) // 2, 0)[None], axis=0)[0]
+    high = np.take_along_axis(ordered, np.maximum(n // 2, 0).clip(max=len(values) - 1)[None], axis=0)[0]
+    return np.where(n > 0, 0.5 * (low + high), np.nan)
 
 
 def _coregistered(

@@ -17,6 +17,7 @@ On the largest scene (dem_agreement), the DEM of the intersected points is made 
 executions (cells defined, largest |dh|) and in one tile (median |dh|, 99th percentile of |dh| within 3
 cells of the tile borders and away from them).
 
+`dem_steps` (mode `dems`) runs coregisterdem and mergedems on the scene's true DSM and DTM (issue 40's memory).
 `raster_steps` runs, without matching, the steps that read whole rasters of the scene: createblock
 (footprints on the true DSM), importpoints, bundleadjust with the control points alone and the true DSM as
 reference DTM, and orthorectify (HRG) on the true DSM (5 m, a larger raster than the chain's 10 m DEM).
@@ -25,7 +26,7 @@ reference DTM, and orthorectify (HRG) on the true DSM (5 m, a larger raster than
 `dense` runs it at STEP 1 with a 5 m DEM on one scene (20 km: HRG 4000 x 4000 px). `make bench` runs
 every execution on the three scenes, then `workers` and `dense` with threads.
 
-    python -m tests.benchmarks.bench_chain_memory [SIZE_KM ...] [threads|processes|dask ...] [raster|workers|dense]
+    python -m tests.benchmarks.bench_chain_memory [SIZE_KM ...] [threads|processes|dask ...] [raster|dems|workers|dense]
 """
 
 import contextlib
@@ -246,49 +247,101 @@ def dem_agreement(points, dem, execution, env, out, tile=1024):
 
 def raster_steps(sizes=SIZES, execution="threads"):
     """Rows of the steps that read whole rasters (module docstring) per scene size."""
+
+    def steps(folder, out, size):
+        block, dsm = out / f"block-{size:g}.gpkg", folder / "dsm.tif"
+        with open(folder / "points.csv", newline="") as f:
+            check = ",".join(r["id"] for r in list(csv.DictReader(f))[CONTROL:])
+        images = [f"IMAGES={folder / n / 'IMAGERY.TIF'}" for n in ("HRG", "HRS1", "HRS2")]
+        return [
+            ("createblock", ["pushbroom:createblock", "--", *images, f"DEM={dsm}", f"OUTPUT={block}"]),
+            (
+                "importpoints",
+                [
+                    "pushbroom:importpoints",
+                    "--",
+                    f"BLOCK={block}",
+                    f"INPUT={folder / 'points.csv'}",
+                    f"CHECK_IDS={check}",
+                    "MEAS_SUFFIX=_meas",
+                ],
+            ),
+            (
+                "bundleadjust, control points",
+                ["pushbroom:bundleadjust", "--", f"BLOCK={block}", "USE_TIE_POINTS=false", f"REFERENCE_DEM={dsm}"],
+            ),
+            (
+                "orthorectify on the true DSM",
+                [
+                    "pushbroom:orthorectify",
+                    "--",
+                    f"BLOCK={block}",
+                    "IMAGE_NAME=HRG",
+                    f"DEM={dsm}",
+                    f"EXECUTION={BACKENDS.index(execution)}",
+                    f"WORKERS={WORKERS}",
+                    f"OUTPUT={out / f'ortho-{size:g}.tif'}",
+                ],
+            ),
+        ]
+
+    return _measured_steps(steps, sizes, execution)
+
+
+def dem_steps(sizes=SIZES, execution="threads"):
+    """Rows of the DEM steps of issue 40 on the scene's true DSM and DTM (5 m), per scene size: coregisterdem (the
+    DSM to the DTM, with a tilt) and mergedems (the two, co-registered, with the precision rasters of a constant
+    0.5 m, the precision and count rasters written)."""
+
+    def steps(folder, out, size):
+        dsm, dtm = folder / "dsm.tif", folder / "dtm.tif"
+        sigma = out / f"sigma-{size:g}.tif"
+        if not sigma.exists():
+            ds = gdal.Open(str(dsm))
+            gdal.Translate(str(sigma), ds, scaleParams=[[-1e6, 1e6, 0.5, 0.5]], outputType=gdal.GDT_Float32)
+        tiles = [f"EXECUTION={BACKENDS.index(execution)}", f"WORKERS={WORKERS}"]
+        return [
+            (
+                "coregisterdem",
+                [
+                    "pushbroom:coregisterdem",
+                    "--",
+                    f"DEM={dsm}",
+                    f"REFERENCE={dtm}",
+                    "TILT=true",
+                    *tiles,
+                    f"OUTPUT={out / f'coreg-{size:g}.tif'}",
+                ],
+            ),
+            (
+                "mergedems",
+                [
+                    "pushbroom:mergedems",
+                    "--",
+                    f"DEMS={dsm}",
+                    f"DEMS={dtm}",
+                    f"PRECISIONS={sigma}",
+                    f"PRECISIONS={sigma}",
+                    *tiles,
+                    f"OUTPUT={out / f'merged-{size:g}.tif'}",
+                    f"PRECISION={out / f'merged-se-{size:g}.tif'}",
+                    f"COUNT={out / f'merged-n-{size:g}.tif'}",
+                ],
+            ),
+        ]
+
+    return _measured_steps(steps, sizes, execution)
+
+
+def _measured_steps(steps, sizes, execution):
+    """Each of `steps(scene folder, work folder, size)` [(name, qgis_process arguments)] run per scene size, its time
+    and peak memory; then per step its peaks over the sizes and their growth from the first to the last."""
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         env, out = qgis_process_env(pathlib.Path(tmp) / "profile"), pathlib.Path(tmp)
-        run = [QGIS_PROCESS, "run"]
         for size in sizes:
-            folder = scene(size)
-            block, dsm = out / f"block-{size:g}.gpkg", folder / "dsm.tif"
-            with open(folder / "points.csv", newline="") as f:
-                check = ",".join(r["id"] for r in list(csv.DictReader(f))[CONTROL:])
-            images = [f"IMAGES={folder / n / 'IMAGERY.TIF'}" for n in ("HRG", "HRS1", "HRS2")]
-            steps = [
-                ("createblock", ["pushbroom:createblock", "--", *images, f"DEM={dsm}", f"OUTPUT={block}"]),
-                (
-                    "importpoints",
-                    [
-                        "pushbroom:importpoints",
-                        "--",
-                        f"BLOCK={block}",
-                        f"INPUT={folder / 'points.csv'}",
-                        f"CHECK_IDS={check}",
-                        "MEAS_SUFFIX=_meas",
-                    ],
-                ),
-                (
-                    "bundleadjust, control points",
-                    ["pushbroom:bundleadjust", "--", f"BLOCK={block}", "USE_TIE_POINTS=false", f"REFERENCE_DEM={dsm}"],
-                ),
-                (
-                    "orthorectify on the true DSM",
-                    [
-                        "pushbroom:orthorectify",
-                        "--",
-                        f"BLOCK={block}",
-                        "IMAGE_NAME=HRG",
-                        f"DEM={dsm}",
-                        f"EXECUTION={BACKENDS.index(execution)}",
-                        f"WORKERS={WORKERS}",
-                        f"OUTPUT={out / f'ortho-{size:g}.tif'}",
-                    ],
-                ),
-            ]
-            for name, args in steps:
-                seconds, peak, processes, _ = measured(run + args, env)
+            for name, args in steps(scene(size), out, size):
+                seconds, peak, processes, _ = measured([QGIS_PROCESS, "run"] + args, env)
                 print(f"  {size:g} km {name}: {seconds:.1f} s, {peak:.0f} MB", flush=True)
                 rows.append(
                     {
@@ -429,12 +482,12 @@ def _run(sizes, executions, env):
 if __name__ == "__main__":
     from tests.benchmarks.run_all import markdown_table
 
-    modes = {"raster", "workers", "dense"}
+    modes = {"raster", "dems", "workers", "dense"}
     sizes = tuple(float(a) for a in sys.argv[1:] if a not in BACKENDS and a not in modes)
     executions = tuple(a for a in sys.argv[1:] if a in BACKENDS) or BACKENDS
     mode = next((a for a in sys.argv[1:] if a in modes), None)
-    if mode == "raster":
-        print(markdown_table(raster_steps(sizes or SIZES, executions[0])))
+    if mode in ("raster", "dems"):
+        print(markdown_table((raster_steps if mode == "raster" else dem_steps)(sizes or SIZES, executions[0])))
     elif mode == "workers":
         print(markdown_table(workers_speed(*sizes[:1], *executions[:1])))
     elif mode == "dense":

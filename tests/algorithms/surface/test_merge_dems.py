@@ -157,3 +157,15 @@ def test_dems_that_do_not_overlap_are_refused(dems, tmp_path):
     with pytest.raises(InputError, match="two DEMs or more"):
         merge.merge_dems(merge.MergeParams((dems["a"],)), merge.MergeOutputs(str(tmp_path / "x.tif")))
     assert not (tmp_path / "x.tif").exists()
+
+
+def test_the_median_of_the_heights_is_numpys():
+    rng = np.random.default_rng(0)
+    values = rng.normal(size=(5, 40, 40))
+    values[rng.random(values.shape) < 0.4] = np.nan
+    n = np.isfinite(values).sum(axis=0)
+    got = merge._median(values, n)
+    with np.errstate(all="ignore"), pytest.warns(RuntimeWarning):  # numpy's own warns on the empty cells
+        expected = np.nanmedian(values, axis=0)
+    assert (n == 0).any() and np.isnan(got[n == 0]).all()
+    np.testing.assert_allclose(got[n > 0], expected[n > 0])
