@@ -3,7 +3,8 @@ SHELL := /bin/bash
 PY := .venv/bin/python
 APT_PACKAGES := qgis python3-qgis qgis-providers python3-gdal gdal-bin python3-scipy \
                 python3-matplotlib python3-numpy python3-venv python3-pip xvfb zip \
-                python3-dask python3-distributed python3-rasterio python3-xarray python3-skimage pyqt5-dev-tools
+                python3-dask python3-distributed python3-rasterio python3-xarray python3-skimage pyqt5-dev-tools \
+                python3-tqdm python3-yaml python3-psutil python3-argcomplete
 # the test and lint pins equal pyproject.toml's extras (tests/test_packaging.py checks it)
 PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest-qgis==2.1.0 \
             hypothesis==6.112.2 pytest-xdist==3.6.1 laspy==2.5.4 lazrs==0.8.2 libsgm==0.5.2 ruff==0.17.6 mypy==1.13.0
@@ -13,6 +14,10 @@ PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest
 # from Debian (rasterio, xarray, scikit-image: built on the system GDAL and numpy; rasterio's wheel would bring a
 # second GDAL).
 PANDORA_PINS := pandora==1.9.0 pandora-plugin-libsgm==1.5.8 json-checker==2.0.0 transitions==0.9.3
+# CNES Bulldozer, pushbroom:extractdtm's DSM-to-DTM (algorithms/surface/extract_dtm.py), into the venv without its
+# dependencies, which come from Debian (rasterio on the system GDAL, scikit-image, scipy, numpy 1.24, PyYAML, tqdm,
+# psutil, argcomplete). 1.2.0: 1.3's code takes numpy 2 (np.bool) and its wheel installs a top-level `tests` package.
+BULLDOZER_PIN := bulldozer-dtm==1.2.0
 PANDORA_DIR := build/pandora
 # metadata.txt holds the one version; pyproject.toml reads it through pushbroom.__version__
 VERSION := $(shell sed -n 's/^version=//p' metadata.txt)
@@ -72,7 +77,9 @@ $(PROFILE)/.enabled: .venv/.setup-done metadata.txt | $(RUNTIME)
 	@[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages .venv
 	@$(PY) -m pip install -q $(PIP_PINS) "numpy==$$(/usr/bin/python3 -c 'import numpy; print(numpy.__version__)')"
 	@$(PY) -m pip install -q --no-deps --no-build-isolation -e .
+	@$(PY) -m pip install -q --no-deps $(BULLDOZER_PIN)
 	@$(PY) -c "import numpy, numba, qgis.core, osgeo.gdal, distributed, c_libsgm, lazrs; assert numpy.__version__.startswith('1.'), numpy.__version__"
+	@$(PY) -c "import rasterio, bulldozer.pipeline.bulldozer_pipeline; assert rasterio.__file__.startswith('/usr/lib/python3/'), rasterio.__file__"
 	@touch $@
 
 # The packages mypy checks, every function annotated (pyproject.toml, [tool.mypy]); more as they are touched.
@@ -82,7 +89,7 @@ MYPY_PACKAGES := algorithms.sensors algorithms.block algorithms.steps algorithms
                  algorithms.dense.params algorithms.dense.refine algorithms.dense.epipolar algorithms.dense.precision \
                  algorithms.dense.dense_strategy algorithms.surface.cell_dem algorithms.quality.coregistration \
                  algorithms.quality.coregister_dem algorithms.surface.ept algorithms.surface.point_colour \
-                 algorithms.surface.merge_dems
+                 algorithms.surface.merge_dems algorithms.surface.extract_dtm
 
 # ruff's linter and formatter, and mypy (configured in pyproject.toml); CI runs them before the tests.
 lint: setup

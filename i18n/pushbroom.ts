@@ -1328,5 +1328,50 @@
         <source>Outlying heights left out</source>
         <translation type="unfinished"></translation>
     </message>
+    <message>
+        <location filename="../plugin/algorithms/extract_dtm.py" line="21"/>
+        <source>Extract DTM and height above ground (Bulldozer)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/extract_dtm.py" line="41"/>
+        <source>DSM (projected CRS, metres)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/extract_dtm.py" line="44"/>
+        <source>Largest object above the ground (m)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/extract_dtm.py" line="53"/>
+        <source>Steepest ground slope (%)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/extract_dtm.py" line="53"/>
+        <source>DSM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/extract_dtm.py" line="53"/>
+        <source>Tile side (cells)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/extract_dtm.py" line="74"/>
+        <source>DTM</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/extract_dtm.py" line="75"/>
+        <source>Height above ground (DSM - DTM)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/extract_dtm.py" line="80"/>
+        <source>Bulldozer&apos;s mask (1 nodata filled, 2 pit filled)</source>
+        <translation type="unfinished"></translation>
+    </message>
 </context>
 </TS>

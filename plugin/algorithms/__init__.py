@@ -7,6 +7,7 @@ def algorithm_classes():
     from .bundle_adjust import BundleAdjust
     from .coregister_dem import CoregisterDem
     from .create_block import CreateBlock
+    from .extract_dtm import ExtractDtm
     from .fit_rpc import FitRpc
     from .import_points import ExportPoints, ImportPoints
     from .interpolate_dem import InterpolateDem
@@ -30,6 +31,7 @@ def algorithm_classes():
         Orthorectify,
         CoregisterDem,
         MergeDems,
+        ExtractDtm,
         AssessAccuracy,
         FitRpc,
     ]

@@ -47,7 +47,8 @@ def test_interpolatedem_writes_every_raster_as_cog(pushbroom_provider, tmp_path)
         )
     for key in ("OUTPUT", "PRECISION", "COUNT", "MASK"):
         assert_cog_like(outputs[True][key], outputs[False][key])
-    assert gdal.Open(outputs[True]["OUTPUT"]).GetRasterBand(1).GetOverviewCount() > 0
+    dem = gdal.Open(outputs[True]["OUTPUT"])  # alive while its band is asked
+    assert dem.GetRasterBand(1).GetOverviewCount() > 0
 
 
 def test_coregisterdem_and_assessaccuracy_write_cog(pushbroom_provider, tmp_path):

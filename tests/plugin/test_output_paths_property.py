@@ -40,6 +40,7 @@ INPUTS = {
     "orthorectify": lambda w: {"BLOCK": w["block"], "IMAGE_NAME": "HRG", "DEM": w["dsm"]},
     "coregisterdem": lambda w: {"DEM": w["dsm"], "REFERENCE": w["dtm"]},
     "mergedems": lambda w: {"DEMS": [w["dsm"], w["dtm"]]},
+    "extractdtm": lambda w: {"DSM": w["dsm"]},
     "assessaccuracy": lambda w: {"REFERENCE": w["dsm"], "POINTS": w["las"], "DEM": w["dtm"]},
     "fitrpc": lambda w: {"BLOCK": w["block"]},
 }

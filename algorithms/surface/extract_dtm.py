@@ -1,0 +1,243 @@
+"""DSM to DTM and DHM (pushbroom:extractdtm) with CNES Bulldozer (Lallement et al. 2023: the drape-cloth filter,
+`bulldozer-dtm`, installed without its dependencies on Debian's rasterio, scikit-image and numpy).
+
+Bulldozer reads its whole DSM into memory. So the DSM is cut into tiles of TILE cells with a margin of MARGIN cells
+more on every side (clipped at the DSM's border), each tile cut out as a GeoTIFF in a work folder and given to
+Bulldozer as a DSM of its own, as a task on the chosen execution; each tile keeps its inner cells, and GDAL assembles
+them. Memory follows the tile. The margin lets the cloth see every object whose cells reach into the tile: at least
+twice the largest object (`max_object_size`) or 64 cells, whichever is more (docs/validation.md#extract-dtm measures
+the tiles' agreement with one run over the whole DSM).
+
+Bulldozer runs a process pool of its own (multiprocessing, fork): it must not run inside QGIS's process, whose
+threads a fork copies and whose executable is not a Python interpreter. Its tiles run on local worker processes
+where threads were chosen (one Bulldozer worker each: the tiles are the parallelism), and on Dask as they are.
+
+Outputs: the DTM (Bulldozer's, the DSM's nodata kept), the DHM = DSM - DTM, and a mask of Bulldozer's (Byte): 1 a
+cell the DSM had no height in (inner nodata Bulldozer filled), 2 a pit Bulldozer filled, 0 otherwise; each a tiled
+GeoTIFF with overviews, written together or not at all.
+
+Failure modes: InputError (Bulldozer not installed, a DSM without a CRS or in degrees, no valid height),
+ExecutionError, CancelledError.
+
+Reference: Lallement, D., Lassalle, P., Lebègue, L., Youssefi, D., Bergerot, N., Labat, E., Cambier, S., 2023.
+Bulldozer, a free open source scalable software for DTM extraction. ISPRS Archives XLVIII-1/W2-2023, 2029-2036."""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import math
+import os
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from osgeo import gdal
+
+from .. import progress
+from ..atomic import atomic_path, work_dir
+from ..errors import InputError
+from ..execution import Execution, run_tasks
+from ..progress import Feedback
+from ..quality.rasters import open_raster, raster_srs, read_grid
+from ..task_runtime import check_cancel
+from ..tiling import tile_grid
+from .geotiff import OPTIONS, Frame, assemble_tiles, to_cog, write_float_raster
+
+#: cells per side of a tile
+TILE = 4096
+#: the margin's least width (cells)
+MIN_MARGIN = 64
+#: the mask's codes
+INNER_NODATA, FILLED_PIT = 1, 2
+#: the mask's GeoTIFF (Byte: no floating-point predictor)
+MASK_OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER"]
+
+
+@dataclass(frozen=True)
+class DtmParams:
+    """pushbroom:extractdtm's settings."""
+
+    max_object_size: float = 16.0  # m: Bulldozer's largest object above the ground
+    max_ground_slope: float = 20.0  # %: Bulldozer's steepest ground
+    dsm_nodata: float | None = None  # a void value of the DSM its file does not flag
+    tile: int = TILE
+    execution: Execution = field(default_factory=Execution)
+    cog: bool = False
+
+    def check(self) -> DtmParams:
+        if not self.max_object_size > 0 or not self.max_ground_slope > 0 or self.tile < 2 * MIN_MARGIN:
+            raise InputError(
+                f"the largest object and the ground slope must be positive and the tile at least {2 * MIN_MARGIN} cells"
+            )
+        self.execution.check()
+        return self
+
+
+@dataclass(frozen=True)
+class DtmOutputs:
+    dtm: str
+    dhm: str | None = None
+    mask: str | None = None
+
+
+@dataclass(frozen=True)
+class _Job:
+    dsm: str
+    nodata: float | None
+    margin: int
+    size: tuple[int, int]
+    max_object_size: float
+    max_ground_slope: float
+    work: str
+
+
+def bulldozer_available() -> None:
+    """InputError, saying how to install it, where Bulldozer cannot be imported."""
+    if importlib.util.find_spec("bulldozer") is None:
+        raise InputError(
+            "CNES Bulldozer is not installed: pip install --no-deps bulldozer-dtm==1.2.0 into the Python that runs "
+            "QGIS's plugins (its dependencies rasterio, scikit-image, scipy, PyYAML, tqdm, psutil and argcomplete "
+            "from the system's packages: a pip rasterio brings a second GDAL)"
+        )
+
+
+def margin_cells(params: DtmParams, cell: float) -> int:
+    """The tiles' margin (module docstring), in cells of `cell` m."""
+    return max(MIN_MARGIN, int(math.ceil(2 * params.max_object_size / cell)))
+
+
+def dtm_tile(job: _Job, k: int, box: tuple[int, int, int, int]) -> dict[str, Any]:
+    """Task: Bulldozer on tile `k` (`box` and its margin) of the DSM; writes the inner cells' DTM, DHM and mask to the
+    work folder; returns their paths."""
+    from bulldozer.pipeline.bulldozer_pipeline import dsm_to_dtm
+
+    c0, r0, c1, r1 = box
+    m, (cols, rows) = job.margin, job.size
+    w0, h0, w1, h1 = max(c0 - m, 0), max(r0 - m, 0), min(c1 + m, cols), min(r1 + m, rows)
+    folder = os.path.join(job.work, f"tile-{k:05d}")
+    os.makedirs(folder, exist_ok=True)
+    source = open_raster(job.dsm, "DSM")
+    wide = read_grid(source, job.nodata, (w0, h0, w1, h1))
+    cut = os.path.join(folder, "dsm.tif")
+    heights = np.where(np.isfinite(wide.values), wide.values, -32768.0).astype(np.float32)
+    _write(cut, heights, wide.geotransform, source.GetProjection(), -32768.0)
+    check_cancel()
+    dsm_to_dtm(
+        dsm_path=cut,
+        output_dir=os.path.join(folder, "out"),
+        generate_dhm=False,
+        max_object_size=job.max_object_size,
+        max_ground_slope=job.max_ground_slope,
+        nb_max_workers=1,
+        developer_mode=False,
+    )
+    check_cancel()
+    inner = (slice(r0 - h0, r1 - h0), slice(c0 - w0, c1 - w0))
+    out = os.path.join(folder, "out")
+    dtm = _read(os.path.join(out, "dtm.tif"))[inner]
+    dsm = wide.values[inner]
+    dtm[~np.isfinite(dsm)] = np.nan  # the DSM's nodata stays nodata
+    mask = np.zeros(dtm.shape, np.uint8)
+    for name, code in (("inner_nodata.tif", INNER_NODATA), ("filled_pits.tif", FILLED_PIT)):
+        path = os.path.join(out, "masks", name)
+        if os.path.exists(path):
+            mask[np.nan_to_num(_read(path)[inner]) > 0] = code
+    x0, dx, _, y0, _, dy = wide.geotransform
+    gt = (x0 + (c0 - w0) * dx, dx, 0.0, y0 + (r0 - h0) * dy, 0.0, dy)
+    srs = raster_srs(source)
+    paths = {
+        "dtm": write_float_raster(os.path.join(job.work, f"dtm-{k:05d}.tif"), dtm, gt, srs, overviews=False),
+        "dhm": write_float_raster(os.path.join(job.work, f"dhm-{k:05d}.tif"), dsm - dtm, gt, srs, overviews=False),
+        "mask": os.path.join(job.work, f"mask-{k:05d}.tif"),
+    }
+    _write(paths["mask"], mask, gt, source.GetProjection(), None, gdal.GDT_Byte)
+    return paths
+
+
+def _write(
+    path: str, values: np.ndarray, gt: tuple, wkt: str, nodata: float | None, kind: int = gdal.GDT_Float32
+) -> None:
+    ds = gdal.GetDriverByName("GTiff").Create(path, values.shape[1], values.shape[0], 1, kind, ["TILED=YES"])
+    ds.SetGeoTransform(gt)
+    ds.SetProjection(wkt)
+    band = ds.GetRasterBand(1)
+    if nodata is not None:
+        band.SetNoDataValue(nodata)
+    band.WriteArray(values)
+    band, ds = None, None
+
+
+def _read(path: str) -> np.ndarray:
+    ds = gdal.Open(path)
+    band = ds.GetRasterBand(1)
+    values = band.ReadAsArray().astype(float)
+    nodata = band.GetNoDataValue()
+    if nodata is not None:
+        values[values == nodata] = np.nan
+    return values
+
+
+def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feedback | None = None) -> dict[str, str]:
+    """The DTM, DHM and mask of the DSM raster `dsm` (module docstring); returns {output: path} of those written."""
+    params = params.check()
+    bulldozer_available()
+    source = open_raster(dsm, "DSM")
+    srs = raster_srs(source)
+    if srs.IsGeographic():
+        raise InputError(
+            f"the DSM {dsm} is in longitude/latitude: Bulldozer works in metres; warp it to a projected CRS (its UTM "
+            "zone) first"
+        )
+    gt, size = source.GetGeoTransform(), (source.RasterXSize, source.RasterYSize)
+    cell = abs(gt[1]) * srs.GetLinearUnits()
+    execution = params.execution
+    if execution.backend == "threads":  # Bulldozer's own pool forks: never inside QGIS's process
+        execution = replace(execution, backend="processes")
+        progress.ensure(feedback).pushInfo(
+            "Bulldozer runs a process pool of its own: its tiles run on local worker processes"
+        )
+    with work_dir(outputs.dtm, "the DTM's tiles") as work:
+        job = _Job(
+            str(dsm),
+            params.dsm_nodata,
+            margin_cells(params, cell),
+            size,
+            params.max_object_size,
+            params.max_ground_slope,
+            work,
+        )
+        boxes = tile_grid(size, params.tile)
+        done = run_tasks(
+            dtm_tile,
+            [(job, k, box) for k, box in enumerate(boxes)],
+            execution,
+            progress.scaled(feedback, 0, 85),
+            "Bulldozer tiles",
+        )
+        frame = Frame(gt, size, srs)
+        wanted = [
+            (outputs.dtm, "dtm", "digital terrain model (m, Bulldozer)"),
+            (outputs.dhm, "dhm", "height above the ground (m): DSM - DTM"),
+            (outputs.mask, "mask", "Bulldozer's mask: 1 inner nodata filled, 2 pit filled"),
+        ]
+        written = {}
+        with contextlib.ExitStack() as stack:
+            for path, key, description in wanted:
+                if not path:
+                    continue
+                tmp = stack.enter_context(atomic_path(path))
+                assemble_tiles(
+                    [d[key] for d in done],
+                    tmp,
+                    frame,
+                    options=MASK_OPTIONS if key == "mask" else OPTIONS,
+                    description=description,
+                    overviews=key != "mask",  # no average of codes
+                    feedback=progress.scaled(feedback, 85, 100),
+                )
+                written[key] = tmp
+            if params.cog:
+                for tmp in written.values():
+                    to_cog(tmp)
+    return {key: path for path, key, _ in wanted if path}
