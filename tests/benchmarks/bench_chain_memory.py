@@ -290,8 +290,9 @@ def raster_steps(sizes=SIZES, execution="threads"):
 
 def dem_steps(sizes=SIZES, execution="threads"):
     """Rows of the DEM steps of issue 40 on the scene's true DSM and DTM (5 m), per scene size: coregisterdem (the
-    DSM to the DTM, with a tilt) and mergedems (the two, co-registered, with the precision rasters of a constant
-    0.5 m, the precision and count rasters written)."""
+    DSM to the DTM, with a tilt), mergedems (the two, co-registered, with the precision rasters of a constant 0.5 m,
+    the precision and count rasters written) and extractdtm (the DSM warped to UTM first: Bulldozer works in
+    metres; DTM, DHM and mask)."""
 
     def steps(folder, out, size):
         dsm, dtm = folder / "dsm.tif", folder / "dtm.tif"
@@ -300,6 +301,9 @@ def dem_steps(sizes=SIZES, execution="threads"):
             ds = gdal.Open(str(dsm))
             gdal.Translate(str(sigma), ds, scaleParams=[[-1e6, 1e6, 0.5, 0.5]], outputType=gdal.GDT_Float32)
         tiles = [f"EXECUTION={BACKENDS.index(execution)}", f"WORKERS={WORKERS}"]
+        utm = out / f"dsm-utm-{size:g}.tif"
+        if not utm.exists():
+            gdal.Warp(str(utm), str(dsm), dstSRS=_utm_of(dsm), xRes=5, yRes=5, resampleAlg="bilinear", errorThreshold=0)
         return [
             (
                 "coregisterdem",
@@ -328,9 +332,30 @@ def dem_steps(sizes=SIZES, execution="threads"):
                     f"COUNT={out / f'merged-n-{size:g}.tif'}",
                 ],
             ),
+            (
+                "extractdtm",
+                [
+                    "pushbroom:extractdtm",
+                    "--",
+                    f"DSM={utm}",
+                    *tiles,
+                    f"OUTPUT={out / f'dtm-{size:g}.tif'}",
+                    f"DHM={out / f'dhm-{size:g}.tif'}",
+                    f"MASK={out / f'mask-{size:g}.tif'}",
+                ],
+            ),
         ]
 
     return _measured_steps(steps, sizes, execution)
+
+
+def _utm_of(path):
+    """'EPSG:326xx' of the UTM zone of the raster's centre (longitude/latitude)."""
+    from pushbroom.algorithms.geodesy import utm_epsg
+
+    ds = gdal.Open(str(path))
+    gt = ds.GetGeoTransform()
+    return f"EPSG:{utm_epsg(gt[0] + 0.5 * ds.RasterXSize * gt[1], gt[3] + 0.5 * ds.RasterYSize * gt[5])}"
 
 
 def _measured_steps(steps, sizes, execution):
