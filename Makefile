@@ -14,7 +14,7 @@ PIP_PINS := numba==0.60.0 llvmlite==0.43.0 pytest==8.3.3 pytest-qt==4.4.0 pytest
 # from Debian (rasterio, xarray, scikit-image: built on the system GDAL and numpy; rasterio's wheel would bring a
 # second GDAL).
 PANDORA_PINS := pandora==1.9.0 pandora-plugin-libsgm==1.5.8 json-checker==2.0.0 transitions==0.9.3
-# CNES Bulldozer, pushbroom:extractdtm's DSM-to-DTM (algorithms/surface/extract_dtm.py), into the venv without its
+# CNES Bulldozer, pushbroom:extractdtm's DSM-to-DTM (algorithms/products/extract_dtm.py), into the venv without its
 # dependencies, which come from Debian (rasterio on the system GDAL, scikit-image, scipy, numpy 1.24, PyYAML, tqdm,
 # psutil, argcomplete). 1.2.0: 1.3's code takes numpy 2 (np.bool) and its wheel installs a top-level `tests` package.
 BULLDOZER_PIN := bulldozer-dtm==1.2.0
@@ -89,7 +89,7 @@ MYPY_PACKAGES := algorithms.sensors algorithms.block algorithms.steps algorithms
                  algorithms.dense.params algorithms.dense.refine algorithms.dense.epipolar algorithms.dense.precision \
                  algorithms.dense.dense_strategy algorithms.surface.cell_dem algorithms.quality.coregistration \
                  algorithms.quality.coregister_dem algorithms.surface.ept algorithms.surface.point_colour \
-                 algorithms.surface.merge_dems algorithms.surface.extract_dtm
+                 algorithms.products.merge_dems algorithms.products.extract_dtm
 
 # ruff's linter and formatter, and mypy (configured in pyproject.toml); CI runs them before the tests.
 lint: setup

@@ -9,7 +9,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="71"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="72"/>
         <source>Reference DTM/DSM</source>
         <translation type="unfinished"></translation>
     </message>
@@ -19,12 +19,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="75"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="76"/>
         <source>Point cloud (object points)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="75"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="76"/>
         <source>Point clouds (*.las *.laz *.gpkg);;All files (*.*)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -39,27 +39,27 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="85"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="86"/>
         <source>Class raster</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="88"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="89"/>
         <source>Class polygons</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="96"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="97"/>
         <source>Class field of the polygons</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="104"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="105"/>
         <source>Slope of mountainous terrain (degrees, of the reference)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="122"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="123"/>
         <source>Point cloud heights</source>
         <translation type="unfinished"></translation>
     </message>
@@ -74,12 +74,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="141"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="147"/>
         <source>dh raster (DEM input)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="146"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="152"/>
         <source>Statistics table</source>
         <translation type="unfinished"></translation>
     </message>
@@ -649,7 +649,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="165"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="167"/>
         <source>Object points</source>
         <translation type="unfinished"></translation>
     </message>
@@ -999,7 +999,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="122"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="123"/>
         <source>reference DTM/DSM</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1134,12 +1134,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="114"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="115"/>
         <source>Assess the DEM co-registered to the reference too (before and after)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="122"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="123"/>
         <source>Co-register with a tilt (a plane) too</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1149,82 +1149,82 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="64"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="65"/>
         <source>DEM to co-register</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="66"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="67"/>
         <source>Reference DEM (DTM/DSM, lidar)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="70"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="71"/>
         <source>Unstable terrain mask (non-zero cells left out: forest, water, changes)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="77"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="78"/>
         <source>Largest slope of stable terrain (degrees, of the reference)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="87"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="88"/>
         <source>Fit a tilt (a plane) too</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="90"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="98"/>
         <source>Outliers: |dh - median| beyond this many NMAD</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="90"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="98"/>
         <source>Convergence: horizontal step below (cells)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="90"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="98"/>
         <source>Largest number of iterations</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="90"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="98"/>
         <source>reference DEM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="118"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="126"/>
         <source>Co-registered DEM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="121"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="129"/>
         <source>Co-registration report</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="130"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="138"/>
         <source>Shift east (m)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="130"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="138"/>
         <source>Shift north (m)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="130"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="138"/>
         <source>Vertical shift (m)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="130"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="138"/>
         <source>NMAD of dh on stable terrain before (m)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/coregister_dem.py" line="130"/>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="138"/>
         <source>NMAD of dh on stable terrain after (m)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1244,7 +1244,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/intersect_points.py" line="163"/>
+        <location filename="../plugin/algorithms/intersect_points.py" line="162"/>
         <source>Object points (EPT)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1371,6 +1371,16 @@
     <message>
         <location filename="../plugin/algorithms/extract_dtm.py" line="80"/>
         <source>Bulldozer&apos;s mask (1 nodata filled, 2 pit filled)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="123"/>
+        <source>Unstable terrain left out of the co-registration (non-zero cells)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/coregister_dem.py" line="91"/>
+        <source>Fit the horizontal shift (off: the vertical offset and the tilt only)</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

@@ -35,7 +35,8 @@ def load_styled(context, source, name, output_name, qml_name):
 
 def load_point_cloud(context, ept_json, name, output_name):
     """Ask Processing to load the EPT index `ept_json` (QGIS's "ept" provider) as point cloud layer `name` on
-    completion; Processing cannot tell an ept.json from its path, so the layer is made here and handed over."""
+    completion; Processing cannot tell an ept.json from its path, so the layer is made here and handed over. Returns
+    whether QGIS could open it."""
     from qgis.core import QgsPointCloudLayer
 
     layer = QgsPointCloudLayer(ept_json, name, "ept")
@@ -44,6 +45,7 @@ def load_point_cloud(context, ept_json, name, output_name):
         details = QgsProcessingContext.LayerDetails(name, context.project(), output_name)
         details.forceName = True  # not the file's base name, "ept"
         context.addLayerToLoadOnCompletion(layer.id(), details)
+    return layer.isValid()
 
 
 def style_on_completion(context, dest_id, qml_name):

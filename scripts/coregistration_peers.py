@@ -89,7 +89,7 @@ def warped(source: str, path: pathlib.Path, cell: float, epsg: int, bounds=None)
     ds = gdal.Open(str(path))
     values = ds.GetRasterBand(1).ReadAsArray().astype(float)
     values[values == -9999] = np.nan
-    return values, ds.GetGeoTransform(), ds.GetSpatialRef()
+    return values, ds.GetGeoTransform(), ds.GetSpatialRef().Clone()  # not tied to `ds`, freed on return
 
 
 def simulated(folder: pathlib.Path) -> dict:

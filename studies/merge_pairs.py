@@ -1,4 +1,4 @@
-"""Issue 40: the Pleiades triplet's three pair DSMs merged (surface/merge_dems.py, pushbroom:mergedems). Is the merge
+"""Issue 40: the Pleiades triplet's three pair DSMs merged (products/merge_dems.py, pushbroom:mergedems). Is the merge
 at least as close to the triplet's own DSM as the best pair, and is its precision raster true?
 
 The pair DSMs and their precision rasters as studies/pair_precision.py makes them (the triplet matched densely, its
@@ -20,12 +20,12 @@ from osgeo import gdal
 from pushbroom.algorithms.crs import reproject, wgs84
 from pushbroom.algorithms.dense import precision
 from pushbroom.algorithms.matching.points import MultiPoints
+from pushbroom.algorithms.products.merge_dems import MergeOutputs, MergeParams, merge_dems
 from pushbroom.algorithms.sigmas import IMAGE_SIGMA
 from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid, point_tiers
 from pushbroom.algorithms.surface.geotiff import write_float_raster
 from pushbroom.algorithms.surface.intersection import Measurements, intersect
 from pushbroom.algorithms.surface.local_spread import local_metres
-from pushbroom.algorithms.surface.merge_dems import MergeOutputs, MergeParams, merge_dems
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_grid import Grid
 from studies.pair_precision import CELL, pair_cloud

@@ -286,14 +286,14 @@ def orthorectify(
         steps: dict[int, int] = {}
         for _, _, step, _ in done:
             steps[step] = steps.get(step, 0) + 1
-        with raster_output(output, settings.cog) as tmp:
+        with raster_output(output, settings.cog, progress.scaled(feedback, 95, 100) if settings.cog else None) as tmp:
             assemble_tiles(
                 tiles,
                 tmp,
                 Frame(grid.geotransform, (grid.cols, grid.rows), grid.srs),
                 CREATION_OPTIONS,
                 overviews=settings.overviews,
-                feedback=progress.scaled(feedback, 90, 100),
+                feedback=progress.scaled(feedback, 90, 95 if settings.cog else 100),
             )
     result = OrthoResult(
         str(output),

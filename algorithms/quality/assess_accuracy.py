@@ -52,6 +52,7 @@ class AssessParams:
     dh: Optional[str] = None  # dh raster path (DEM input)
     coregister: bool = True  # assess the DEM co-registered to the reference too
     coregister_tilt: bool = False  # and co-register with a tilt
+    coregister_mask: Optional[str] = None  # unstable terrain left out of the co-registration (non-zero cells)
     execution: Execution = field(default_factory=Execution)  # where the co-registration's windows run
     cog: bool = False  # the dh raster as a Cloud-Optimised GeoTIFF
 
@@ -119,6 +120,7 @@ def _coregistered(
         reference_heights=params.reference_heights,
         reference_nodata=params.reference_nodata,
         tilt=params.coregister_tilt,
+        mask=params.coregister_mask,
         execution=params.execution,
     )
     try:
@@ -177,7 +179,7 @@ def _write(params, assessed, class_source, feedback, coregistered=None):
         out.table = report.write_csv(params.table, assessed)
     if params.dh:
         dem = next(a for a in assessed if a.tiles is not None and a.what == "DEM cells")
-        with raster_output(params.dh, params.cog) as tmp:
+        with raster_output(params.dh, params.cog, feedback if params.cog else None) as tmp:
             assemble_tiles(
                 dem.tiles,
                 tmp,

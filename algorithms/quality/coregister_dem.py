@@ -87,7 +87,7 @@ def write_coregistered(
         windows = tile_grid(size, WINDOW)
         tasks = [(dem, w, shift, units, os.path.join(tiles, f"dem-{k:05d}.tif")) for k, w in enumerate(windows)]
         written = run_tasks(write_window, tasks, params.execution, progress.scaled(feedback, 0, 50), "DEM windows")
-        with raster_output(output, cog) as tmp:
+        with raster_output(output, cog, progress.scaled(feedback, 80, 100) if cog else None) as tmp:
             assemble_tiles(
                 written,
                 tmp,
@@ -100,7 +100,7 @@ def write_coregistered(
                     "PUSHBROOM_TILT_EAST": f"{shift.tilt_east:.6e}",
                     "PUSHBROOM_TILT_NORTH": f"{shift.tilt_north:.6e}",
                 },
-                feedback=progress.scaled(feedback, 50, 100),
+                feedback=progress.scaled(feedback, 50, 80 if cog else 100),
             )
     return output
 

@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from .. import progress
+from ..crs import reproject, srs as parse_crs
 from ..errors import InputError, PushbroomError
 from ..execution import Execution, run_tasks
 from ..geodesy import metres_per_degree
@@ -175,7 +176,6 @@ class _Sums:
     normals: np.ndarray
     rhs: np.ndarray
     squares: float  # sum of dh^2 over the fitted cells
-    gradient: float  # sum of |g|^2 over the fitted cells
     summary: DhSummary
 
     def add(self, other: _Sums) -> _Sums:
@@ -183,7 +183,6 @@ class _Sums:
             self.normals + other.normals,
             self.rhs + other.rhs,
             self.squares + other.squares,
-            self.gradient + other.gradient,
             self.summary.merge(other.summary),
         )
 
@@ -217,8 +216,6 @@ def _frame(path: str | os.PathLike[str], datum: str) -> _Frame:
 
 def _moved(frame: _Frame, shift: Shift, window: tuple[int, int, int, int], margin: int) -> Grid:
     """The empty Grid of the DEM's `window` cells and `margin` more around, its grid moved by `shift`."""
-    from ..crs import srs as parse_crs
-
     c0, r0, c1, r1 = window
     x0, dx, _, y0, _, dy = frame.geotransform
     gt = (
@@ -242,7 +239,7 @@ def window_sums(job: _Pass, window: tuple[int, int, int, int]) -> _Sums:
     """The _Sums of one window of the DEM (module docstring); a task of run_tasks."""
     frame, params, shift = job.frame, job.params, job.shift
     k = 2 * params.horizontal + 1 + 2 * params.tilt
-    empty = _Sums(np.zeros((k, k)), np.zeros(k), 0.0, 0.0, DhSummary())
+    empty = _Sums(np.zeros((k, k)), np.zeros(k), 0.0, DhSummary())
     source = open_raster(frame.path, "DEM")
     dem = read_grid(source, window=window).values
     if not np.isfinite(dem).any():
@@ -276,7 +273,7 @@ def window_sums(job: _Pass, window: tuple[int, int, int, int]) -> _Sums:
     if params.tilt:
         columns += [(x[stable] - shift.centre[0]) * frame.units[0], (y[stable] - shift.centre[1]) * frame.units[1]]
     a, b = np.column_stack(columns), dh[stable]
-    return _Sums(a.T @ a, a.T @ b, float(b @ b), float(np.sum(g_e[stable] ** 2 + g_n[stable] ** 2)), DhSummary.of(b))
+    return _Sums(a.T @ a, a.T @ b, float(b @ b), DhSummary.of(b))
 
 
 def _unstable(mask: str, grid: Grid) -> np.ndarray:
@@ -322,9 +319,16 @@ def _increments(total: _Sums, params: CoregParams, factor: float) -> tuple[np.nd
                 "the stable terrain is flat, or all its slopes face one way: it shows no horizontal shift. Co-register "
                 "the vertical offset (and the tilt) only, or give a larger area or fewer unstable cells"
             )
-    x = np.linalg.solve(normals, total.rhs)
+    try:
+        x = np.linalg.solve(normals, total.rhs)
+        inverse = np.linalg.inv(normals)
+    except np.linalg.LinAlgError:
+        raise InputError(
+            "the stable cells do not fix the co-registration's unknowns (the tilt needs cells spread over the DEM): "
+            "co-register without the tilt, or give more stable terrain"
+        ) from None
     sigma2 = max(total.squares - float(x @ total.rhs), 0.0) / max(total.summary.n - k, 1)
-    covariance = sigma2 * factor * np.linalg.inv(normals)
+    covariance = sigma2 * factor * inverse
     if not params.horizontal:
         x, covariance = np.concatenate([[0.0, 0.0], x]), _padded(covariance)
     return x, covariance
@@ -351,13 +355,21 @@ def _determined(covariance: np.ndarray, cell: float, shift: Shift) -> None:
 
 
 def _reference_cell(reference: Reference, frame: _Frame) -> tuple[float, str]:
-    """(the reference's mean cell side in m, its resampling onto the DEM's cells: resampling_onto). The rasters are
-    closed on return: a GDAL dataset left in a frame that an exception's traceback keeps may be freed after QGIS has
-    shut GDAL down."""
+    """(the reference's mean cell side in m where the DEM lies, its resampling onto the DEM's cells:
+    resampling_onto). A geographic reference's cells are measured at the DEM's centre latitude (a continental mosaic's
+    own centre may lie far from it). The rasters are closed on return: a GDAL dataset left in a frame that an
+    exception's traceback keeps may be freed after QGIS has shut GDAL down."""
     ds, source = open_raster(reference.path, "reference DEM"), open_raster(frame.path, "DEM")
-    return math.sqrt(np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize))), resampling_onto(
-        ds, source
-    )
+    srs, gt = raster_srs(ds), ds.GetGeoTransform()
+    if srs.IsGeographic():
+        x0, dx, _, y0, _, dy = frame.geotransform
+        centre = (x0 + 0.5 * frame.size[0] * dx, y0 + 0.5 * frame.size[1] * dy)
+        lat = float(reproject(np.array([centre[0]]), np.array([centre[1]]), parse_crs(frame.srs_wkt), srs)[1][0])
+        east, north = metres_per_degree(lat)
+        cell = math.sqrt(abs(gt[1]) * float(east) * abs(gt[5]) * float(north))
+    else:
+        cell = math.sqrt(np.prod(cell_metres(gt, srs, ds.RasterYSize)))
+    return cell, resampling_onto(ds, source)
 
 
 def coregister(
@@ -403,12 +415,13 @@ def coregister(
             tilt_north=shift.tilt_north - tilt[1],
         )
         history.append(shift)
-        if params.horizontal:
+        converged = math.hypot(d[0], d[1]) < params.tolerance * frame.cell and abs(d[2]) < TOLERANCE_UP
+        if params.horizontal and (k or converged):  # the first fit's residuals hold its linearisation's misfit
             _determined(covariance, cell, shift)
         progress.ensure(feedback).pushInfo(
             f"co-registration, iteration {k + 1}: {shift.describe(frame.cell)}; {total.summary.n} stable cells"
         )
-        if math.hypot(d[0], d[1]) < params.tolerance * frame.cell and abs(d[2]) < TOLERANCE_UP:
+        if converged:
             after = _pass(_Pass(frame, reference, params, shift), windows, None).summary.stats()
             progress.step(feedback, 100)
             se, sn, su = (math.sqrt(max(float(covariance[i, i]), 0.0)) for i in range(3))

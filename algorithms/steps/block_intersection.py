@@ -28,6 +28,7 @@ read from the block (Block.point_parts) and the step is recorded in its block_in
 
 from __future__ import annotations
 
+import contextlib
 import os
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -35,7 +36,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from .. import progress
-from ..atomic import save_array, work_dir
+from ..atomic import atomic_path, save_array, work_dir
 from ..block import Block
 from ..block.points import load_arrays
 from ..dense import precision
@@ -151,8 +152,15 @@ def _intersect_part(job: _Job, part: str, out: str) -> dict[str, Any]:
     group = multi.points["group"][pos]
     ok = result.ok
     fields = pointcloud.cloud_fields(result, group=group, rho=multi.points["rho_min"][pos])
+    colour_error = None
     if stretch is not None:
-        rgb = point_colour.colours(stretch, result.point[ok], obs["image_id"], obs["point_id"], obs["col"], obs["row"])
+        try:
+            rgb = point_colour.colours(
+                stretch, result.point[ok], obs["image_id"], obs["point_id"], obs["col"], obs["row"]
+            )
+        except (InputError, RuntimeError) as exc:  # an image unreadable here: this part uncoloured, and said
+            colour_error = str(exc)
+            rgb = np.zeros((int(ok.sum()), 3), np.uint16)
         fields.update(zip(pointcloud.COLOUR_FIELDS, rgb.T))
     lon, lat, h = result.lon[ok], result.lat[ok], result.h[ok]
     check_cancel()  # before the write (execution: a cancel reaches a running part)
@@ -165,6 +173,7 @@ def _intersect_part(job: _Job, part: str, out: str) -> dict[str, Any]:
         "summary": intersection.Summary().add(result, group),
         "lonlat": (float(lon.sum()), float(lat.sum()), float(h.sum())),
         "refined": int(refined.sum()),
+        "colour_error": colour_error,
     }
     if ok.any():
         done["box"] = (float(lon.min()), float(lon.max()), float(lat.min()), float(lat.max()))
@@ -204,7 +213,7 @@ def intersect_block_points(
         progress.step(feedback, 0, "the images' colour stretch")
         try:
             stretch = point_colour.stretches({r["id"]: r["image_path"] for r in blk.images() if r["image_path"]})
-        except InputError as exc:
+        except (InputError, RuntimeError) as exc:
             progress.warn(feedback, f"the points are written without colours: {exc}")
     job = _Job(
         models,
@@ -224,6 +233,9 @@ def intersect_block_points(
             "the intersection",
         )
         points = sum(d["points"] for d in done)
+        failed = [d["colour_error"] for d in done if d.get("colour_error")]
+        if failed:
+            progress.warn(feedback, f"{len(failed)} part(s) of the cloud are written without colours: {failed[0]}")
         if points == 0 or all(not d["status"] for d in done):
             raise InputError(f"the block's {what} have no image measurements")
         status: dict[str, int] = {}
@@ -257,20 +269,24 @@ def intersect_block_points(
             progress.scaled(feedback, 70, 80),
             log,
         )
-        out, srs, fmt = pointcloud.write_point_cloud_parts(
-            output,
-            [load for load, d in zip(loaders, done) if d["written"]],
-            written,
-            centre=centre,
-            crs=params.crs or blk.info().get("default_crs"),
-            feedback=progress.scaled(feedback, 80, 100 if not ept_folder else 90),
-        )
+        index = None
+        with atomic_path(output) if ept_folder else contextlib.nullcontext(output) as target:
+            # with an EPT, the cloud is renamed only once its index is written: both, or neither
+            _, srs, fmt = pointcloud.write_point_cloud_parts(
+                target,
+                [load for load, d in zip(loaders, done) if d["written"]],
+                written,
+                centre=centre,
+                crs=params.crs or blk.info().get("default_crs"),
+                feedback=progress.scaled(feedback, 80, 100 if not ept_folder else 90),
+            )
+            if ept_folder:
+                made = ept.write_ept(target, ept_folder, progress.scaled(feedback, 90, 100))
+                index = os.path.join(made.folder, "ept.json")
+    out = os.fspath(output)
     message = f"{written} points written to {out} ({srs.GetName()}; z ellipsoidal height)"
     log.pushInfo(message)
-    index = None
-    if ept_folder:
-        made = ept.write_ept(out, ept_folder, progress.scaled(feedback, 90, 100))
-        index = os.path.join(made.folder, "ept.json")
+    if index:
         log.pushInfo(f"EPT index of {made.points} points in {made.nodes} nodes (depth {made.depth}): {index}")
     # storage: the step in the block's info
     blk.update_info({}, step="intersectpoints", message=message)

@@ -57,6 +57,7 @@ class AssessAccuracy(PushbroomAlgorithm):
     REFERENCE_NODATA = "REFERENCE_NODATA"
     COREGISTER = "COREGISTER"
     COREGISTER_TILT = "COREGISTER_TILT"
+    COREGISTER_MASK = "COREGISTER_MASK"
     EXECUTION = "EXECUTION"
     DASK_ADDRESS = "DASK_ADDRESS"
     DASK_WAIT = "DASK_WAIT"
@@ -129,6 +130,11 @@ class AssessAccuracy(PushbroomAlgorithm):
                     d.coregister_tilt,
                     optional=True,
                 ),
+                QgsProcessingParameterRasterLayer(
+                    self.COREGISTER_MASK,
+                    translate("Pushbroom", "Unstable terrain left out of the co-registration (non-zero cells)"),
+                    optional=True,
+                ),
                 *(optional(p) for p in execution_parameters(self, d.execution.workers)),
                 cog_parameter(self),
             ]
@@ -188,6 +194,7 @@ class AssessAccuracy(PushbroomAlgorithm):
             reference=source(self.REFERENCE),
             dem=source(self.DEM),
             class_raster=source(self.CLASS_RASTER),
+            coregister_mask=source(self.COREGISTER_MASK),
             points=self.parameterAsFile(parameters, self.POINTS, context) or None,
             class_polygons=polygons,
             class_polygons_source=polygons_source,

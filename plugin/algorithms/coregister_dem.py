@@ -42,6 +42,7 @@ class CoregisterDem(PushbroomAlgorithm):
     MASK = "MASK"
     MAX_SLOPE = "MAX_SLOPE"
     TILT = "TILT"
+    HORIZONTAL = "HORIZONTAL"
     OUTLIER_NMAD = "OUTLIER_NMAD"
     TOLERANCE = "TOLERANCE"
     MAX_ITERATIONS = "MAX_ITERATIONS"
@@ -86,6 +87,13 @@ class CoregisterDem(PushbroomAlgorithm):
         )
         self.addParameter(
             QgsProcessingParameterBoolean(self.TILT, translate("Pushbroom", "Fit a tilt (a plane) too"), d.tilt)
+        )
+        self.addParameter(
+            QgsProcessingParameterBoolean(
+                self.HORIZONTAL,
+                translate("Pushbroom", "Fit the horizontal shift (off: the vertical offset and the tilt only)"),
+                d.horizontal,
+            )
         )
         self.addAdvancedParameters(
             [
@@ -157,6 +165,7 @@ class CoregisterDem(PushbroomAlgorithm):
                     reference_nodata=self.REFERENCE_NODATA,
                     max_slope=self.MAX_SLOPE,
                     tilt=self.TILT,
+                    horizontal=self.HORIZONTAL,
                     outlier_nmad=self.OUTLIER_NMAD,
                     tolerance=self.TOLERANCE,
                     max_iterations=self.MAX_ITERATIONS,

@@ -1,4 +1,4 @@
-"""pushbroom:extractdtm — the Processing face of surface.extract_dtm.extract_dtm: a DSM's DTM and height above the
+"""pushbroom:extractdtm — the Processing face of products.extract_dtm.extract_dtm: a DSM's DTM and height above the
 ground with CNES Bulldozer, tile by tile."""
 
 from qgis.core import (
@@ -8,7 +8,7 @@ from qgis.core import (
 )
 from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
-from ...algorithms.surface.extract_dtm import DtmOutputs, DtmParams, extract_dtm
+from ...algorithms.products.extract_dtm import DtmOutputs, DtmParams, extract_dtm
 from ..styles import style_on_completion
 from .base import PushbroomAlgorithm, cog_parameter, execution_choice, execution_parameters, translate
 from .dem_nodata import nodata_parameter
@@ -86,8 +86,9 @@ class ExtractDtm(PushbroomAlgorithm):
             )
         )
 
-    def execute(self, parameters, context, feedback):
-        params = DtmParams(
+    def dtm_params(self, parameters, context):
+        """DtmParams of the parameters."""
+        return DtmParams(
             execution=execution_choice(self, parameters, context),
             cog=self.parameterAsBool(parameters, self.COG, context),
             **self.parameterValues(
@@ -99,14 +100,15 @@ class ExtractDtm(PushbroomAlgorithm):
                 tile=self.TILE,
             ),
         )
+
+    def execute(self, parameters, context, feedback):
         outputs = DtmOutputs(
             self.parameterAsOutputLayer(parameters, self.OUTPUT, context),
             self.parameterAsOutputLayer(parameters, self.DHM, context) or None,
             self.parameterAsOutputLayer(parameters, self.MASK, context) or None,
         )
-        written = extract_dtm(
-            self.parameterAsRasterLayer(parameters, self.DSM, context).source(), outputs, params, feedback
-        )
+        dsm = self.parameterAsRasterLayer(parameters, self.DSM, context).source()
+        written = extract_dtm(dsm, outputs, self.dtm_params(parameters, context), feedback)
         style_on_completion(context, outputs.dtm, "dem.qml")
         if outputs.dhm:
             style_on_completion(context, outputs.dhm, "dh.qml")

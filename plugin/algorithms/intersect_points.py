@@ -159,8 +159,10 @@ class IntersectPoints(PushbroomAlgorithm):
             feedback,
             self.parameterAsString(parameters, self.EPT, context) or None,
         )
-        if result.ept:
-            load_point_cloud(context, result.ept, translate("Pushbroom", "Object points (EPT)"), self.EPT)
+        if result.ept and not load_point_cloud(
+            context, result.ept, translate("Pushbroom", "Object points (EPT)"), self.EPT
+        ):
+            feedback.pushWarning(f"QGIS could not open the EPT index {result.ept} (its ept provider): it is not loaded")
         if result.layer:
             load_styled(
                 context, result.layer, translate("Pushbroom", "Object points"), self.LAYER, "points_by_group.qml"

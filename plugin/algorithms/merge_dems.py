@@ -1,4 +1,4 @@
-"""pushbroom:mergedems — the Processing face of surface.merge_dems.merge_dems: several DEMs co-registered and merged
+"""pushbroom:mergedems — the Processing face of products.merge_dems.merge_dems: several DEMs co-registered and merged
 into one, weighted by their precision rasters, with the merged precision and count rasters."""
 
 from qgis.core import (
@@ -13,7 +13,7 @@ from qgis.core import (
 )
 from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
-from ...algorithms.surface.merge_dems import MergeOutputs, MergeParams, merge_dems
+from ...algorithms.products.merge_dems import MergeOutputs, MergeParams, merge_dems
 from ..styles import style_on_completion
 from .base import (
     PushbroomAlgorithm,

@@ -89,6 +89,8 @@ def input_files(world, parameters):
             files += [f for i in value for f in image(i)]
         elif key == "LOOK_TABLE":
             files += [value, os.path.join(os.path.dirname(value), "IMAGERY.TIF")]
+        elif isinstance(value, list):  # a multiple-layer parameter: rasters
+            files += [f for v in value for f in (v, v + ".aux.xml")]
         elif key != "IMAGE_NAME":
             files += [value, value + ".aux.xml"]
     return [f for f in files if os.path.exists(f) or f.startswith(world["block"])]

@@ -215,3 +215,19 @@ def test_the_step_writes_the_dem_moved_and_corrected(rasters, tmp_path):
     assert np.abs(rasters["heights"] + correction - terrain(x, y)).max() < 0.05  # the moved grid lies on the terrain
     report = open(done.report, encoding="utf-8").read()
     assert "Nuth and Kääb 2011" in report and f"{done.result.shift.east:+.3f}" in report
+
+
+def test_windows_give_the_one_windows_shift(rasters, monkeypatch):
+    """The DEM in 4 x 4 windows of 64 cells (their normal equations added up) against one window: the same shift."""
+    from pushbroom.algorithms.quality import coregistration
+
+    whole = coregister(rasters["dem"], Reference(rasters["reference"]), CoregParams(tilt=True))
+    monkeypatch.setattr(coregistration, "WINDOW", 64)
+    parts = coregister(rasters["dem"], Reference(rasters["reference"]), CoregParams(tilt=True))
+    for a, b in (
+        (whole.shift.east, parts.shift.east),
+        (whole.shift.north, parts.shift.north),
+        (whole.shift.up, parts.shift.up),
+    ):
+        assert abs(a - b) < 1e-6
+    assert whole.iterations == parts.iterations and whole.after.n == parts.after.n

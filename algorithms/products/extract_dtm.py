@@ -8,16 +8,19 @@ them. Memory follows the tile. The margin lets the cloth see every object whose 
 twice the largest object (`max_object_size`) or 64 cells, whichever is more (docs/validation.md#extract-dtm measures
 the tiles' agreement with one run over the whole DSM).
 
-Bulldozer runs a process pool of its own (multiprocessing, fork): it must not run inside QGIS's process, whose
-threads a fork copies and whose executable is not a Python interpreter. Its tiles run on local worker processes
-where threads were chosen (one Bulldozer worker each: the tiles are the parallelism), and on Dask as they are.
+Bulldozer keeps module-level state (its logger singleton, its parameters) and is not safe to run in several
+threads of one process, nor is it meant to run inside QGIS's: its tiles run on local worker processes where threads
+were chosen, one Bulldozer worker each (the tiles are the parallelism), and on Dask as they are. A tile without any
+height is not given to Bulldozer: it stays nodata.
 
-Outputs: the DTM (Bulldozer's, the DSM's nodata kept), the DHM = DSM - DTM, and a mask of Bulldozer's (Byte): 1 a
-cell the DSM had no height in (inner nodata Bulldozer filled), 2 a pit Bulldozer filled, 0 otherwise; each a tiled
-GeoTIFF with overviews, written together or not at all.
+Outputs: the DTM (Bulldozer's: its fill of the voids the DSM encloses kept, the voids open to a tile's border
+nodata), the DHM = DSM - DTM (nodata where the DSM has none), and a mask (Byte): 1 a cell the DSM had no height in
+and Bulldozer filled, 2 a pit Bulldozer filled, 0 otherwise; each a tiled GeoTIFF (the DTM and the DHM with
+overviews), written together or not at all. Whether a void touches a tile's border depends on the tile: a void
+wider than the margin at a tile's edge may stay nodata in one tiling and be filled in another.
 
-Failure modes: InputError (Bulldozer not installed, a DSM without a CRS or in degrees, no valid height),
-ExecutionError, CancelledError.
+Failure modes: InputError (Bulldozer not installed, a DSM without a CRS, in degrees or in another unit than the
+metre, no valid height anywhere), ExecutionError, CancelledError.
 
 Reference: Lallement, D., Lassalle, P., Lebègue, L., Youssefi, D., Bergerot, N., Labat, E., Cambier, S., 2023.
 Bulldozer, a free open source scalable software for DTM extraction. ISPRS Archives XLVIII-1/W2-2023, 2029-2036."""
@@ -40,9 +43,9 @@ from ..errors import InputError
 from ..execution import Execution, run_tasks
 from ..progress import Feedback
 from ..quality.rasters import open_raster, raster_srs, read_grid
+from ..surface.geotiff import OPTIONS, Frame, assemble_tiles, to_cog, write_float_raster
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
-from .geotiff import OPTIONS, Frame, assemble_tiles, to_cog, write_float_raster
 
 #: cells per side of a tile
 TILE = 4096
@@ -119,6 +122,12 @@ def dtm_tile(job: _Job, k: int, box: tuple[int, int, int, int]) -> dict[str, Any
     os.makedirs(folder, exist_ok=True)
     source = open_raster(job.dsm, "DSM")
     wide = read_grid(source, job.nodata, (w0, h0, w1, h1))
+    inner = (slice(r0 - h0, r1 - h0), slice(c0 - w0, c1 - w0))
+    x0, dx, _, y0, _, dy = wide.geotransform
+    gt = (x0 + (c0 - w0) * dx, dx, 0.0, y0 + (r0 - h0) * dy, 0.0, dy)
+    dsm = wide.values[inner]
+    if not np.isfinite(wide.values).any():  # nothing for Bulldozer: the tile stays nodata
+        return _tile_outputs(job.work, k, np.full(dsm.shape, np.nan), dsm, np.zeros(dsm.shape, np.uint8), gt, source)
     cut = os.path.join(folder, "dsm.tif")
     heights = np.where(np.isfinite(wide.values), wide.values, -32768.0).astype(np.float32)
     _write(cut, heights, wide.geotransform, source.GetProjection(), -32768.0)
@@ -133,23 +142,27 @@ def dtm_tile(job: _Job, k: int, box: tuple[int, int, int, int]) -> dict[str, Any
         developer_mode=False,
     )
     check_cancel()
-    inner = (slice(r0 - h0, r1 - h0), slice(c0 - w0, c1 - w0))
     out = os.path.join(folder, "out")
     dtm = _read(os.path.join(out, "dtm.tif"))[inner]
-    dsm = wide.values[inner]
-    dtm[~np.isfinite(dsm)] = np.nan  # the DSM's nodata stays nodata
+    pits = os.path.join(out, "masks", "filled_pits.tif")
+    if not os.path.exists(pits):
+        raise RuntimeError(f"Bulldozer wrote no {pits}: this Bulldozer is not the 1.2.0 the step is made for")
     mask = np.zeros(dtm.shape, np.uint8)
-    for name, code in (("inner_nodata.tif", INNER_NODATA), ("filled_pits.tif", FILLED_PIT)):
-        path = os.path.join(out, "masks", name)
-        if os.path.exists(path):
-            mask[np.nan_to_num(_read(path)[inner]) > 0] = code
-    x0, dx, _, y0, _, dy = wide.geotransform
-    gt = (x0 + (c0 - w0) * dx, dx, 0.0, y0 + (r0 - h0) * dy, 0.0, dy)
+    mask[np.nan_to_num(_read(pits)[inner]) > 0] = FILLED_PIT
+    mask[~np.isfinite(dsm) & np.isfinite(dtm)] = INNER_NODATA
+    return _tile_outputs(job.work, k, dtm, dsm, mask, gt, source)
+
+
+def _tile_outputs(
+    work: str, k: int, dtm: np.ndarray, dsm: np.ndarray, mask: np.ndarray, gt: tuple, source: Any
+) -> dict[str, Any]:
+    """Tile k's DTM, DHM and mask written to the work folder; their paths, and whether it had a height."""
     srs = raster_srs(source)
-    paths = {
-        "dtm": write_float_raster(os.path.join(job.work, f"dtm-{k:05d}.tif"), dtm, gt, srs, overviews=False),
-        "dhm": write_float_raster(os.path.join(job.work, f"dhm-{k:05d}.tif"), dsm - dtm, gt, srs, overviews=False),
-        "mask": os.path.join(job.work, f"mask-{k:05d}.tif"),
+    paths: dict[str, Any] = {
+        "dtm": write_float_raster(os.path.join(work, f"dtm-{k:05d}.tif"), dtm, gt, srs, overviews=False),
+        "dhm": write_float_raster(os.path.join(work, f"dhm-{k:05d}.tif"), dsm - dtm, gt, srs, overviews=False),
+        "mask": os.path.join(work, f"mask-{k:05d}.tif"),
+        "heights": bool(np.isfinite(dtm).any()),
     }
     _write(paths["mask"], mask, gt, source.GetProjection(), None, gdal.GDT_Byte)
     return paths
@@ -189,14 +202,16 @@ def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feed
             f"the DSM {dsm} is in longitude/latitude: Bulldozer works in metres; warp it to a projected CRS (its UTM "
             "zone) first"
         )
+    if abs(srs.GetLinearUnits() - 1.0) > 1e-9:
+        raise InputError(
+            f"the DSM {dsm} is in {srs.GetLinearUnitsName()}: Bulldozer takes metres; warp it to a CRS in metres first"
+        )
     gt, size = source.GetGeoTransform(), (source.RasterXSize, source.RasterYSize)
-    cell = abs(gt[1]) * srs.GetLinearUnits()
+    cell = abs(gt[1])
     execution = params.execution
     if execution.backend == "threads":  # Bulldozer's own pool forks: never inside QGIS's process
         execution = replace(execution, backend="processes")
-        progress.ensure(feedback).pushInfo(
-            "Bulldozer runs a process pool of its own: its tiles run on local worker processes"
-        )
+        progress.ensure(feedback).pushInfo("Bulldozer is not safe in threads: its tiles run on local worker processes")
     with work_dir(outputs.dtm, "the DTM's tiles") as work:
         job = _Job(
             str(dsm),
@@ -215,6 +230,10 @@ def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feed
             progress.scaled(feedback, 0, 85),
             "Bulldozer tiles",
         )
+        if not any(d["heights"] for d in done):
+            raise InputError(
+                f"the DSM {dsm} holds no valid height (all its cells are nodata): check it, or its DSM_NODATA"
+            )
         frame = Frame(gt, size, srs)
         wanted = [
             (outputs.dtm, "dtm", "digital terrain model (m, Bulldozer)"),

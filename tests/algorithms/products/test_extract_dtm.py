@@ -1,4 +1,4 @@
-"""surface.extract_dtm (CNES Bulldozer, tile by tile) on the simulated scene's true DSM (UTM, 5 m), against the
+"""products.extract_dtm (CNES Bulldozer, tile by tile) on the simulated scene's true DSM (UTM, 5 m), against the
 simulator's true DTM by class: the DTM lies on the ground on open land and takes off most of the forest and the
 town; the DHM is the DSM less the DTM; tiles agree with one run over the whole DSM; the DSM's nodata stays nodata;
 a DSM in degrees is refused."""
@@ -9,8 +9,8 @@ from osgeo import gdal
 
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
+from pushbroom.algorithms.products.extract_dtm import DtmOutputs, DtmParams, extract_dtm
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CLASSES, CROPS, FOREST
-from pushbroom.algorithms.surface.extract_dtm import DtmOutputs, DtmParams, extract_dtm
 
 
 def warped(source, path, resampling, bounds=None):
@@ -104,6 +104,30 @@ def test_tiles_agree_with_one_run(scene, extracted):
     ok = np.isfinite(tiled) & np.isfinite(whole)
     d = np.abs(tiled - whole)[ok]
     assert np.sqrt(np.mean(d**2)) < 0.05 and np.percentile(d, 99) < 0.01
+
+
+def test_a_hole_filled_and_flagged_and_a_void_dsm_refused(scene, tmp_path):
+    """A hole of 20 x 20 cells punched inside the DSM: Bulldozer fills it, the mask says so (1), the DHM has no value
+    there. A DSM of nodata only: refused, nothing written."""
+    ds = gdal.Open(scene["dsm"])
+    values = ds.GetRasterBand(1).ReadAsArray()
+    values[400:420, 400:420] = -32768
+    holed = str(tmp_path / "holed.tif")
+    out = gdal.GetDriverByName("GTiff").CreateCopy(holed, ds)
+    out.GetRasterBand(1).WriteArray(values)
+    out = None
+    outputs = DtmOutputs(str(tmp_path / "dtm.tif"), str(tmp_path / "dhm.tif"), str(tmp_path / "mask.tif"))
+    extract_dtm(holed, outputs, DtmParams(execution=Execution("processes", 1)))
+    dtm, dhm, mask = (read(p) for p in (outputs.dtm, outputs.dhm, outputs.mask))
+    hole = (slice(400, 420), slice(400, 420))
+    assert (mask[hole] == 1).all() and np.isfinite(dtm[hole]).all() and np.isnan(dhm[hole]).all()
+    void = str(tmp_path / "void.tif")
+    out = gdal.GetDriverByName("GTiff").CreateCopy(void, ds)
+    out.GetRasterBand(1).Fill(-32768)
+    out = None
+    with pytest.raises(InputError, match="holds no valid height"):
+        extract_dtm(void, DtmOutputs(str(tmp_path / "void_dtm.tif")), DtmParams(tile=256))
+    assert not (tmp_path / "void_dtm.tif").exists()
 
 
 def test_a_dsm_in_degrees_is_refused(small_scene, tmp_path):

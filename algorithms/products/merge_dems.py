@@ -50,9 +50,9 @@ from ..quality.coregistration import CoregParams, CoregResult, ShiftNotShownErro
 from ..quality.height_differences import Reference, check_stated
 from ..quality.rasters import Grid, cell_metres, open_raster, raster_srs, warp_to
 from ..stats import NMAD_SCALE
+from ..surface.geotiff import Frame, assemble_tiles, to_cog, write_float_raster
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
-from .geotiff import Frame, assemble_tiles, to_cog, write_float_raster
 
 #: cells per side of a tile
 TILE = 1024
@@ -263,13 +263,14 @@ def _output_frame(params: MergeParams, inputs: list[_Input], feedback: Feedback 
     """(geotransform, (cols, rows), CRS WKT) of the output grid (module docstring); says which DEMs are resampled."""
     first = open_raster(inputs[0].dem, "DEM")
     target = parse_crs(params.crs) if params.crs else raster_srs(first)
-    gt0 = first.GetGeoTransform()
+    # the lattice: the first DEM's own, or (another CRS) the first DEM's as GDAL warps it there, in the target's units
+    gt0 = first.GetGeoTransform() if not params.crs else _warped(first, target).GetGeoTransform()
     dx = params.cell if params.cell else gt0[1]
     dy = params.cell if params.cell else -gt0[5]
     xs, ys = [], []
     for item in inputs:
         ds = open_raster(item.dem, "DEM")
-        warped = gdal.Warp("", ds, format="VRT", dstSRS=target.ExportToWkt(), errorThreshold=0)
+        warped = _warped(ds, target)
         g, cols, rows = warped.GetGeoTransform(), warped.RasterXSize, warped.RasterYSize
         xs += [g[0], g[0] + cols * g[1]]
         ys += [g[3], g[3] + rows * g[5]]
@@ -289,6 +290,25 @@ def _output_frame(params: MergeParams, inputs: list[_Input], feedback: Feedback 
     return (x0, dx, 0.0, y0, 0.0, -dy), (cols, rows), target.ExportToWkt()
 
 
+def _warped(ds: Any, target: Any) -> Any:
+    """A VRT of the raster `ds` warped to the CRS `target` (GDAL's choice of grid, the exact transformation)."""
+    return gdal.Warp("", ds, format="VRT", dstSRS=target.ExportToWkt(), errorThreshold=0)
+
+
+def _check_pairs(params: MergeParams) -> None:
+    """InputError where a precision raster does not lie on its DEM's grid (they pair by their order)."""
+    for dem, precision in zip(params.dems, params.precisions):
+        a, b = open_raster(dem, "DEM"), open_raster(precision, "precision raster")
+        same = (a.RasterXSize, a.RasterYSize) == (b.RasterXSize, b.RasterYSize) and np.allclose(
+            a.GetGeoTransform(), b.GetGeoTransform(), rtol=0, atol=1e-9 * max(abs(a.GetGeoTransform()[1]), 1e-12)
+        )
+        if not same or not raster_srs(a).IsSame(raster_srs(b)):
+            raise InputError(
+                f"the precision raster {precision} does not lie on the grid of the DEM {dem}: the DEMs and their "
+                "precision rasters pair in the order they are given, each on its DEM's cells"
+            )
+
+
 def merge_dems(params: MergeParams, outputs: MergeOutputs, feedback: Feedback | None = None) -> MergeResult:
     """Merge the DEMs of `params` into `outputs` (module docstring); returns a MergeResult."""
     params = params.check()
@@ -296,6 +316,7 @@ def merge_dems(params: MergeParams, outputs: MergeOutputs, feedback: Feedback | 
         raise InputError("the merged precision raster needs the DEMs' precision rasters: give one per DEM")
     for path in params.dems:
         check_stated(open_raster(path, "DEM"), params.heights, "DEM", path)
+    _check_pairs(params)
     with work_dir(outputs.dem, "the merge's tiles") as work:
         inputs, shifts = _coregistered(params, work, progress.scaled(feedback, 0, 40))
         frame = _output_frame(params, inputs, feedback)

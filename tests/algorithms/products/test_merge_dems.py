@@ -1,4 +1,4 @@
-"""surface.merge_dems on DEMs of an analytic terrain (ground truth by construction): the inverse-variance mean and
+"""products.merge_dems on DEMs of an analytic terrain (ground truth by construction): the inverse-variance mean and
 its standard error, the count, the outliers left out, the co-registration of a shifted DEM, no seam at a DEM's edge,
 another cell size resampled and said, DEMs that do not overlap refused, the result independent of the execution."""
 
@@ -8,7 +8,7 @@ from osgeo import gdal, osr
 
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
-from pushbroom.algorithms.surface import merge_dems as merge
+from pushbroom.algorithms.products import merge_dems as merge
 from pushbroom.algorithms.surface.geotiff import write_float_raster
 
 CELL = 10.0
@@ -169,3 +169,20 @@ def test_the_median_of_the_heights_is_numpys():
         expected = np.nanmedian(values, axis=0)
     assert (n == 0).any() and np.isnan(got[n == 0]).all()
     np.testing.assert_allclose(got[n > 0], expected[n > 0])
+
+
+def test_another_crs_takes_its_own_units_and_pairs_are_checked(dems, tmp_path):
+    """An output CRS in degrees: the cells are the first DEM's as warped there (about 1e-4 degree), not its 10 (m)
+    read as degrees; given a CELL, that one. A precision raster off its DEM's grid is refused."""
+    out = merge.MergeOutputs(str(tmp_path / "ll.tif"))
+    merge.merge_dems(merge.MergeParams((dems["a"], dems["b"]), coregister=False, crs="EPSG:4326"), out)
+    gt = read(out.dem)[1]
+    assert 5e-5 < gt[1] < 3e-4 and read(out.dem)[0].shape[1] < 1000
+    out = merge.MergeOutputs(str(tmp_path / "ll2.tif"))
+    merge.merge_dems(merge.MergeParams((dems["a"], dems["b"]), coregister=False, crs="EPSG:4326", cell=5e-4), out)
+    assert read(out.dem)[1][1] == 5e-4
+    with pytest.raises(InputError, match="does not lie on the grid of the DEM"):
+        merge.merge_dems(
+            merge.MergeParams((dems["a"], dems["b"]), (dems["sb"], dems["sa"])),
+            merge.MergeOutputs(str(tmp_path / "x.tif")),
+        )
