@@ -27,6 +27,7 @@ reference DTM, and orthorectify (HRG) on the true DSM (5 m, a larger raster than
 every execution on the three scenes, then `workers` and `dense` with threads.
 
     python -m tests.benchmarks.bench_chain_memory [SIZE_KM ...] [threads|processes|dask ...] [raster|dems|workers|dense]
+        [coregisterdem|mergedems|extractdtm ...]
 """
 
 import contextlib
@@ -288,7 +289,7 @@ def raster_steps(sizes=SIZES, execution="threads"):
     return _measured_steps(steps, sizes, execution)
 
 
-def dem_steps(sizes=SIZES, execution="threads"):
+def dem_steps(sizes=SIZES, execution="threads", only=()):
     """Rows of the DEM steps of issue 40 on the scene's true DSM and DTM (5 m), per scene size: coregisterdem (the
     DSM to the DTM, with a tilt), mergedems (the two, co-registered, with the precision rasters of a constant 0.5 m,
     the precision and count rasters written) and extractdtm (the DSM warped to UTM first: Bulldozer works in
@@ -346,7 +347,10 @@ def dem_steps(sizes=SIZES, execution="threads"):
             ),
         ]
 
-    return _measured_steps(steps, sizes, execution)
+    def chosen(folder, out, size):
+        return [step for step in steps(folder, out, size) if not only or step[0] in only]
+
+    return _measured_steps(chosen, sizes, execution)
 
 
 def _utm_of(path):
@@ -508,11 +512,14 @@ if __name__ == "__main__":
     from tests.benchmarks.run_all import markdown_table
 
     modes = {"raster", "dems", "workers", "dense"}
-    sizes = tuple(float(a) for a in sys.argv[1:] if a not in BACKENDS and a not in modes)
+    dem_names = {"coregisterdem", "mergedems", "extractdtm"}  # dems: these steps only, where named
+    sizes = tuple(float(a) for a in sys.argv[1:] if a not in BACKENDS and a not in modes and a not in dem_names)
     executions = tuple(a for a in sys.argv[1:] if a in BACKENDS) or BACKENDS
     mode = next((a for a in sys.argv[1:] if a in modes), None)
-    if mode in ("raster", "dems"):
-        print(markdown_table((raster_steps if mode == "raster" else dem_steps)(sizes or SIZES, executions[0])))
+    if mode == "raster":
+        print(markdown_table(raster_steps(sizes or SIZES, executions[0])))
+    elif mode == "dems":
+        print(markdown_table(dem_steps(sizes or SIZES, executions[0], tuple(a for a in sys.argv if a in dem_names))))
     elif mode == "workers":
         print(markdown_table(workers_speed(*sizes[:1], *executions[:1])))
     elif mode == "dense":
