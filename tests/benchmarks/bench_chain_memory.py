@@ -339,6 +339,7 @@ def dem_steps(sizes=SIZES, execution="threads", only=()):
                     "pushbroom:extractdtm",
                     "--",
                     f"DSM={utm}",
+                    "TILE=2048",  # several tiles at 15 km too (3.7 k cells): each worker holds one at every size
                     *tiles,
                     f"OUTPUT={out / f'dtm-{size:g}.tif'}",
                     f"DHM={out / f'dhm-{size:g}.tif'}",
