@@ -23,7 +23,9 @@ Pleiades: each DSM's coverage of the cells whose centre lies in all three images
 Pushbroom's split by its mask: own points, the cells around, filled) and Pushbroom's DSM minus CARS's (GDAL
 warps CARS's onto Pushbroom's grid), likewise split. Simulated scene: each 10 m DSM against the true DSM and the
 true DTM by class at the evaluation cells of tests/helpers/dsm_comparison.py (RMS over the cells each DSM
-covers, its coverage, and the RMS over the cells all of them cover), and the coverage of the non-water cells.
+covers, its coverage, and the RMS over the cells all of them cover), and the coverage of the non-water cells; and
+issue 40's DTM: pushbroom:extractdtm (CNES Bulldozer) on Pushbroom's dense DSM and on CARS's, each against the true
+DTM by class, beside the DSM's own departure from it.
 
     .venv/bin/python -m scripts.bench_peers
 """
@@ -285,6 +287,8 @@ def simulated(tmp, config=None, scene="", full=True):
                     ),
                 }
             )
+    if full:
+        rows += dtm_rows(tmp, {"Pushbroom dense": dems["dense"], "CARS 1.3.0": dems["CARS"]}, truth)
     for label, d in dh.items():
         rows.append(
             {
@@ -294,6 +298,53 @@ def simulated(tmp, config=None, scene="", full=True):
             }
         )
     return [dict(r, tool=scene + r["tool"]) for r in rows]
+
+
+def dtm_rows(tmp, dsms, truth):
+    """Issue 40's DTM table: pushbroom:extractdtm (CNES Bulldozer, its defaults) on each 10 m DSM of `dsms` {label:
+    path} (CARS's warped onto Pushbroom's UTM grid first: Bulldozer takes metres), the DTM minus the true DTM by class
+    (RMS), beside the DSM's own departure from the true DTM."""
+    rows, dtms = [], {}
+    env = qgis_process_env(tmp / "dtm-profile")
+    grid = open_raster(dsms["Pushbroom dense"], "the dense DEM")
+    for label, path in dsms.items():
+        name = label.split()[0].lower()
+        metric = tmp / f"dsm-{name}-utm.tif"
+        gdal.Warp(str(metric), str(path), dstSRS=grid.GetProjection(), xRes=CELL, yRes=CELL, errorThreshold=0)
+        dtms[label] = tmp / f"dtm-{name}.tif"
+        rows += qgis_steps(
+            [
+                (
+                    f"extractdtm ({label})",
+                    [
+                        "pushbroom:extractdtm",
+                        "--",
+                        f"DSM={metric}",
+                        "EXECUTION=1",
+                        f"WORKERS={WORKERS}",
+                        f"OUTPUT={dtms[label]}",
+                    ],
+                )
+            ],
+            env,
+            "Pushbroom",
+        )
+    dsm_dh = {label: sample(str(path), truth) - truth.dtm_h for label, path in dsms.items()}
+    dtm_dh = {label: sample(str(path), truth) - truth.dtm_h for label, path in dtms.items()}
+    common = np.all([np.isfinite(d) for d in (*dsm_dh.values(), *dtm_dh.values())], axis=0)
+    dsm_tables = {label: truth.table(d, common) for label, d in dsm_dh.items()}
+    dtm_tables = {label: truth.table(d, common) for label, d in dtm_dh.items()}
+    for zone in dtm_tables["Pushbroom dense"]:
+        rows.append(
+            {
+                "tool": "Bulldozer's DTM - true DTM, RMS on the cells all cover (the DSM's own - true DTM)",
+                "step": zone,
+                "value": ", ".join(
+                    f"{label} {dtm_tables[label][zone][5]:.2f} m ({dsm_tables[label][zone][5]:.2f})" for label in dsms
+                ),
+            }
+        )
+    return rows
 
 
 def run():
