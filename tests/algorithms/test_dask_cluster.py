@@ -98,7 +98,7 @@ def test_every_worker_killed_mid_step_is_a_clear_error_within_the_wait(cluster, 
     running = min(n, 2)
     when(
         lambda: sum(_pid_of(folder, k) is not None for k in range(n)) >= running,
-        lambda: [Cluster.kill(w) for w in workers],
+        lambda: Cluster.kill(*workers),
     )
     start = time.monotonic()
     with pytest.raises(ExecutionError) as failed:

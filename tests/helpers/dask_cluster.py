@@ -103,14 +103,18 @@ class Cluster:
                 client.wait_for_workers(n, timeout=timeout)
 
     @staticmethod
-    def kill(process: subprocess.Popen):
-        """SIGKILL to a worker's whole process group (its nanny and worker), as the OOM killer or a lost host."""
-        for pid in [process.pid, *descendants(process.pid)]:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-        process.wait(30)
+    def kill(*processes: subprocess.Popen):
+        """SIGKILL to the workers' whole process groups (their nannies and workers), as the OOM killer or a lost
+        host: all of them before waiting for any (while the test waited for one to die, the scheduler had given its
+        task to the next, which finished it before its own kill)."""
+        for process in processes:
+            for pid in [process.pid, *descendants(process.pid)]:
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+        for process in processes:
+            process.wait(30)
 
     def close(self):
         for process in reversed(self.processes):
