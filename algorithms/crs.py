@@ -84,6 +84,32 @@ def reproject(x, y, source, target, what="the points"):
     return xy[:, 0], xy[:, 1]
 
 
+#: undulation lattice nodes per axis (at most): N varies over tens of kilometres
+UNDULATION_NODES = 257
+
+
+def undulation_rows(shape, geotransform, grid_srs=None):
+    """rows -> EGM96 undulation N of those rows' cell centres of a north-up grid of `shape` (rows, cols) and
+    `geotransform` in `grid_srs` (None: WGS 84 longitude/latitude): exact (egm96_undulation) on a lattice of at most
+    UNDULATION_NODES per axis, bilinear between, so that a grid costs PROJ a lattice, not a call per cell."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    rows, cols = shape
+    x0, dx, _, y0, _, dy = geotransform
+    r = np.unique(np.linspace(0, rows - 1, min(rows, UNDULATION_NODES)).round())
+    c = np.unique(np.linspace(0, cols - 1, min(cols, UNDULATION_NODES)).round())
+    x, y = np.meshgrid(x0 + (c + 0.5) * dx, y0 + (r + 0.5) * dy)
+    if grid_srs is not None:
+        x, y = reproject(x.ravel(), y.ravel(), grid_srs, wgs84(), "the grid's cells")
+    lattice = RegularGridInterpolator((r, c), egm96_undulation(x, y).reshape(len(r), len(c)))
+
+    def at(first, count):
+        rr, cc = np.mgrid[first : first + count, 0:cols]
+        return lattice(np.column_stack([rr.ravel(), cc.ravel()])).reshape(count, cols)
+
+    return at
+
+
 def egm96_undulation(lon, lat):
     """EGM96 geoid undulation N (m; h = H + N) at WGS 84 lon/lat (degrees, arrays of one shape):
     PROJ's EPSG:4326+5773 -> EPSG:4979 with its EGM96 grid. Raises InputError without the grid."""

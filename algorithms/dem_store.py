@@ -9,7 +9,7 @@ Reading (store_dem; read_dem reads a DEM into memory this way):
 2. a raster in another CRS is copied so (a GeoTIFF in the work folder) and warped by GDAL to
    EPSG:4326, bilinear, to another GeoTIFF there (GDAL warps in chunks within its memory limit);
 3. orthometric EGM96 heights (vertical 'egm96') get the undulation N (h = H + N, PROJ) computed on a
-   lattice of at most UNDULATION_NODES x UNDULATION_NODES cells over the grid and interpolated
+   lattice of at most crs.UNDULATION_NODES x UNDULATION_NODES cells over the grid and interpolated
    bilinearly (N varies over tens of kilometres).
 
 A StoredDem answers what the steps ask of a DEM without holding it: the Dem of a window (dem.dem_window:
@@ -26,10 +26,9 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator
 
 from .atomic import close_dataset, closing, storage_error
-from .crs import egm96_undulation, wgs84
+from .crs import undulation_rows, wgs84
 from .dem import Dem, ImplausibleTally, check_grid, dem_window, grid_bounds, nodata_as_nan
 from .disk_array import DiskArray
 from .errors import GeometryError, InputError
@@ -40,8 +39,6 @@ from .tiling import cell_blocks
 ROWS = 128
 #: side (cells) of the blocks StoredDem.height reads
 BLOCK = 1024
-#: undulation lattice nodes per axis (at most)
-UNDULATION_NODES = 257
 #: DEM vertical references store_dem converts from
 VERTICAL = ("ellipsoidal", "egm96")
 
@@ -175,24 +172,6 @@ def _warped(ds, nodata, work, tally):
     return target
 
 
-def _undulation(shape, geotransform):
-    """rows -> EGM96 undulation of those rows' cells: on a lattice of at most UNDULATION_NODES per axis,
-    interpolated bilinearly."""
-    rows, cols = shape
-    lon0, dlon, _, lat0, _, dlat = geotransform
-    r = np.unique(np.linspace(0, rows - 1, min(rows, UNDULATION_NODES)).round())
-    c = np.unique(np.linspace(0, cols - 1, min(cols, UNDULATION_NODES)).round())
-    lattice = RegularGridInterpolator(
-        (r, c), egm96_undulation(*np.meshgrid(lon0 + (c + 0.5) * dlon, lat0 + (r + 0.5) * dlat))
-    )
-
-    def at(first, count):
-        rr, cc = np.mgrid[first : first + count, 0:cols]
-        return lattice(np.column_stack([rr.ravel(), cc.ravel()])).reshape(count, cols)
-
-    return at
-
-
 def store_dem(path, work, nodata=None, vertical="ellipsoidal"):
     """The DEM raster `path` stored in the folder `work` (module docstring); returns its StoredDem."""
     if vertical not in VERTICAL:
@@ -209,7 +188,7 @@ def store_dem(path, work, nodata=None, vertical="ellipsoidal"):
         bands = _bands(grid)
     shape, geotransform = (grid.RasterYSize, grid.RasterXSize), grid.GetGeoTransform()
     geotransform = check_grid(shape, geotransform)
-    undulation = _undulation(shape, geotransform) if vertical == "egm96" else None
+    undulation = undulation_rows(shape, geotransform) if vertical == "egm96" else None
     out = DiskArray(os.path.join(work, "dem.npy"), shape, np.float64, "the stored DEM")
     low, high = np.inf, -np.inf
     for r0, heights in bands:

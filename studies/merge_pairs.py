@@ -17,39 +17,14 @@ import tempfile
 import numpy as np
 from osgeo import gdal
 
-from pushbroom.algorithms.crs import reproject, wgs84
-from pushbroom.algorithms.dense import precision
-from pushbroom.algorithms.matching.points import MultiPoints
 from pushbroom.algorithms.products.merge_dems import MergeOutputs, MergeParams, merge_dems
-from pushbroom.algorithms.sigmas import IMAGE_SIGMA
-from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid, point_tiers
+from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid
 from pushbroom.algorithms.surface.geotiff import write_float_raster
-from pushbroom.algorithms.surface.intersection import Measurements, intersect
-from pushbroom.algorithms.surface.local_spread import local_metres
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_grid import Grid
-from studies.pair_precision import CELL, pair_cloud
-from studies.sim_dense import TRIPLET, TRIPLET_HEIGHTS, triplet_points, with_template_spread
-from tests.helpers.real_dsm import dense_pair_of_triplet, dense_points
+from studies.pair_precision import common_grid, pair_cloud, triplet_pairs
 
 NMAD = 1.4826
-
-
-def triplet_cloud(points: MultiPoints, models: list) -> dict:
-    """The triplet's refined points with all their rays, as pair_precision.pair_cloud makes a pair's."""
-    keep = points.points[np.isfinite(points.points["rho_min"])]
-    obs = points.observations[np.isin(points.observations["point_id"], keep["id"])]
-    sigma = precision.image_sigmas(keep, obs, IMAGE_SIGMA, precision.RPC.factors)
-    res = intersect(
-        dict(enumerate(models, start=1)), Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma)
-    )
-    ok = res.ok
-    x, y = local_metres(res.lon[ok], res.lat[ok], (float(np.mean(res.lon[ok])), float(np.mean(res.lat[ok]))))
-    sigma_h, _ = with_template_spread(
-        res.sigma[ok, 2], x, y, res.h[ok], np.ones(int(ok.sum()), bool), models[0], precision.RPC.spread
-    )
-    tier = point_tiers(keep["rho_min"][np.searchsorted(keep["id"], res.point[ok])], res.rays[ok])
-    return {"lon": res.lon[ok], "lat": res.lat[ok], "h": res.h[ok], "sigma": sigma_h, "tier": tier}
 
 
 def nmad(values: np.ndarray) -> float:
@@ -57,24 +32,13 @@ def nmad(values: np.ndarray) -> float:
 
 
 def main() -> None:
-    matched = triplet_points()
-    if matched is None:
+    found = triplet_pairs()
+    if found is None:
         return
-    models, triplet = matched
-    third, _ = dense_points(TRIPLET[1:], models[1:], ["img_01", "img_03"], tempfile.mkdtemp(), TRIPLET_HEIGHTS)
-    clouds = {
-        "img_02-img_01": pair_cloud(dense_pair_of_triplet(triplet, 1), models[:2]),
-        "img_02-img_03": pair_cloud(dense_pair_of_triplet(triplet, 2), [models[0], models[2]]),
-        "img_01-img_03": pair_cloud(third, models[1:]),
-        "triplet": triplet_cloud(triplet, models),
-    }
+    models, triplet, clouds = found
+    clouds["triplet"] = pair_cloud(triplet, models)  # with all its rays
     srs = output_srs(None, clouds["triplet"]["lon"], clouds["triplet"]["lat"])
-    xy = {k: reproject(c["lon"], c["lat"], wgs84(), srs) for k, c in clouds.items()}
-    x0 = min(float(v[0].min()) for v in xy.values())
-    y0 = max(float(v[1].max()) for v in xy.values())
-    cols = int((max(float(v[0].max()) for v in xy.values()) - x0) / CELL) + 1
-    rows = int((y0 - min(float(v[1].min()) for v in xy.values())) / CELL) + 1
-    grid = Grid(x0, y0, CELL, cols, rows)
+    xy, grid = common_grid(clouds, srs)
     settings = CellSettings(k=3.0, fallback=False, radius=1)
     folder = tempfile.mkdtemp(prefix="merge-pairs-")
     files = {}

@@ -33,12 +33,14 @@ CELL = 0.5
 
 
 def pair_cloud(points: MultiPoints, models: list) -> dict:
-    """A pair's refined points (block ids 1, 2) intersected with `models`: lon, lat, h, sigma_h, tier."""
+    """Refined dense points (block ids 1, 2[, 3]: a pair's, or a triplet's with every ray) intersected with `models`
+    (in the ids' order): lon, lat, h, sigma_h, tier."""
     keep = points.points[np.isfinite(points.points["rho_min"])]
     obs = points.observations[np.isin(points.observations["point_id"], keep["id"])]
     sigma = precision.image_sigmas(keep, obs, IMAGE_SIGMA, precision.RPC.factors)
     res = intersect(
-        {1: models[0], 2: models[1]}, Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma)
+        dict(enumerate(models, start=1)),
+        Measurements(obs["image_id"], obs["point_id"], obs["col"], obs["row"], sigma),
     )
     ok = res.ok
     lon, lat, h = res.lon[ok], res.lat[ok], res.h[ok]
@@ -59,25 +61,42 @@ def pair_cloud(points: MultiPoints, models: list) -> dict:
     }
 
 
-def main() -> None:
+def triplet_pairs() -> tuple[list, MultiPoints, dict] | None:
+    """(models, the triplet's dense points, {pair: its cloud (pair_cloud)}) of the three pairs (module docstring);
+    None, and said, where the data are absent."""
     matched = triplet_points()
     if matched is None:
-        return
+        return None
     models, triplet = matched
     third, _ = dense_points(TRIPLET[1:], models[1:], ["img_01", "img_03"], tempfile.mkdtemp(), TRIPLET_HEIGHTS)
-    clouds = {
-        "img_02-img_01": pair_cloud(dense_pair_of_triplet(triplet, 1), models[:2]),
-        "img_02-img_03": pair_cloud(dense_pair_of_triplet(triplet, 2), [models[0], models[2]]),
-        "img_01-img_03": pair_cloud(third, models[1:]),
-    }
-    first = clouds["img_02-img_01"]
-    srs = output_srs(None, first["lon"], first["lat"])
+    return (
+        models,
+        triplet,
+        {
+            "img_02-img_01": pair_cloud(dense_pair_of_triplet(triplet, 1), models[:2]),
+            "img_02-img_03": pair_cloud(dense_pair_of_triplet(triplet, 2), [models[0], models[2]]),
+            "img_01-img_03": pair_cloud(third, models[1:]),
+        },
+    )
+
+
+def common_grid(clouds: dict, srs: object) -> tuple[dict, Grid]:
+    """({name: (x, y) of its points in `srs`}, the CELL m Grid over all the clouds {name: pair_cloud})."""
     xy = {k: reproject(c["lon"], c["lat"], wgs84(), srs) for k, c in clouds.items()}
     x0 = min(float(v[0].min()) for v in xy.values())
     y0 = max(float(v[1].max()) for v in xy.values())
     cols = int((max(float(v[0].max()) for v in xy.values()) - x0) / CELL) + 1
     rows = int((y0 - min(float(v[1].min()) for v in xy.values())) / CELL) + 1
-    grid = Grid(x0, y0, CELL, cols, rows)
+    return xy, Grid(x0, y0, CELL, cols, rows)
+
+
+def main() -> None:
+    found = triplet_pairs()
+    if found is None:
+        return
+    _, _, clouds = found
+    first = clouds["img_02-img_01"]
+    xy, grid = common_grid(clouds, output_srs(None, first["lon"], first["lat"]))
     settings = CellSettings(k=3.0, fallback=False, radius=1)
     for term in ("sigma", "rays"):
         dems = {

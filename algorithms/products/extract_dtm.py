@@ -27,7 +27,6 @@ Bulldozer, a free open source scalable software for DTM extraction. ISPRS Archiv
 
 from __future__ import annotations
 
-import contextlib
 import importlib.util
 import math
 import os
@@ -35,15 +34,22 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-from osgeo import gdal
 
 from .. import progress
-from ..atomic import atomic_path, work_dir
+from ..atomic import work_dir
 from ..errors import InputError
 from ..execution import Execution, run_tasks
 from ..progress import Feedback
 from ..quality.rasters import open_raster, raster_srs, read_grid
-from ..surface.geotiff import OPTIONS, Frame, assemble_tiles, to_cog, write_float_raster
+from ..surface.geotiff import (
+    CODE_OPTIONS,
+    OPTIONS,
+    Frame,
+    assemble_tiles,
+    raster_outputs,
+    write_code_raster,
+    write_float_raster,
+)
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 
@@ -53,8 +59,6 @@ TILE = 4096
 MIN_MARGIN = 64
 #: the mask's codes
 INNER_NODATA, FILLED_PIT = 1, 2
-#: the mask's GeoTIFF (Byte: no floating-point predictor)
-MASK_OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER"]
 
 
 @dataclass(frozen=True)
@@ -128,9 +132,7 @@ def dtm_tile(job: _Job, k: int, box: tuple[int, int, int, int]) -> dict[str, Any
     dsm = wide.values[inner]
     if not np.isfinite(wide.values).any():  # nothing for Bulldozer: the tile stays nodata
         return _tile_outputs(job.work, k, np.full(dsm.shape, np.nan), dsm, np.zeros(dsm.shape, np.uint8), gt, source)
-    cut = os.path.join(folder, "dsm.tif")
-    heights = np.where(np.isfinite(wide.values), wide.values, -32768.0).astype(np.float32)
-    _write(cut, heights, wide.geotransform, source.GetProjection(), -32768.0)
+    cut = write_float_raster(os.path.join(folder, "dsm.tif"), wide.values, wide.geotransform, wide.srs, overviews=False)
     check_cancel()
     dsm_to_dtm(
         dsm_path=cut,
@@ -161,34 +163,15 @@ def _tile_outputs(
     paths: dict[str, Any] = {
         "dtm": write_float_raster(os.path.join(work, f"dtm-{k:05d}.tif"), dtm, gt, srs, overviews=False),
         "dhm": write_float_raster(os.path.join(work, f"dhm-{k:05d}.tif"), dsm - dtm, gt, srs, overviews=False),
-        "mask": os.path.join(work, f"mask-{k:05d}.tif"),
+        "mask": write_code_raster(os.path.join(work, f"mask-{k:05d}.tif"), mask, gt, srs),
         "heights": bool(np.isfinite(dtm).any()),
     }
-    _write(paths["mask"], mask, gt, source.GetProjection(), None, gdal.GDT_Byte)
     return paths
 
 
-def _write(
-    path: str, values: np.ndarray, gt: tuple, wkt: str, nodata: float | None, kind: int = gdal.GDT_Float32
-) -> None:
-    ds = gdal.GetDriverByName("GTiff").Create(path, values.shape[1], values.shape[0], 1, kind, ["TILED=YES"])
-    ds.SetGeoTransform(gt)
-    ds.SetProjection(wkt)
-    band = ds.GetRasterBand(1)
-    if nodata is not None:
-        band.SetNoDataValue(nodata)
-    band.WriteArray(values)
-    band, ds = None, None
-
-
 def _read(path: str) -> np.ndarray:
-    ds = gdal.Open(path)
-    band = ds.GetRasterBand(1)
-    values = band.ReadAsArray().astype(float)
-    nodata = band.GetNoDataValue()
-    if nodata is not None:
-        values[values == nodata] = np.nan
-    return values
+    """Band 1 of one of Bulldozer's rasters, NaN for its nodata."""
+    return read_grid(open_raster(path, "Bulldozer's output")).values
 
 
 def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feedback | None = None) -> dict[str, str]:
@@ -240,23 +223,16 @@ def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feed
             (outputs.dhm, "dhm", "height above the ground (m): DSM - DTM"),
             (outputs.mask, "mask", "Bulldozer's mask: 1 inner nodata filled, 2 pit filled"),
         ]
-        written = {}
-        with contextlib.ExitStack() as stack:
-            for path, key, description in wanted:
-                if not path:
-                    continue
-                tmp = stack.enter_context(atomic_path(path))
-                assemble_tiles(
-                    [d[key] for d in done],
-                    tmp,
-                    frame,
-                    options=MASK_OPTIONS if key == "mask" else OPTIONS,
-                    description=description,
-                    overviews=key != "mask",  # no average of codes
-                    feedback=progress.scaled(feedback, 85, 100),
-                )
-                written[key] = tmp
-            if params.cog:
-                for tmp in written.values():
-                    to_cog(tmp)
+        with raster_outputs([path for path, _, _ in wanted], params.cog) as temps:
+            for tmp, (_, key, description) in zip(temps, wanted):
+                if tmp:
+                    assemble_tiles(
+                        [d[key] for d in done],
+                        tmp,
+                        frame,
+                        options=CODE_OPTIONS if key == "mask" else OPTIONS,
+                        description=description,
+                        overviews=key != "mask",  # no average of codes
+                        feedback=progress.scaled(feedback, 85, 100),
+                    )
     return {key: path for path, key, _ in wanted if path}

@@ -29,7 +29,6 @@ one it is co-registered to, a vertical datum a CRS contradicts), CoregistrationE
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 from dataclasses import dataclass, field, replace
@@ -40,7 +39,7 @@ from osgeo import gdal
 from scipy import ndimage
 
 from .. import progress
-from ..atomic import atomic_path, work_dir
+from ..atomic import work_dir
 from ..crs import srs as parse_crs
 from ..errors import InputError
 from ..execution import Execution, run_tasks
@@ -48,16 +47,14 @@ from ..progress import Feedback
 from ..quality.coregister_dem import moved_geotransform, write_coregistered
 from ..quality.coregistration import CoregParams, CoregResult, ShiftNotShownError, coregister
 from ..quality.height_differences import Reference, check_stated
-from ..quality.rasters import Grid, cell_metres, open_raster, raster_srs, warp_to
+from ..quality.rasters import SAME_CELL, Grid, cell_metres, mean_cell, open_raster, raster_srs, resampling_for, warp_to
 from ..stats import NMAD_SCALE
-from ..surface.geotiff import Frame, assemble_tiles, to_cog, write_float_raster
+from ..surface.geotiff import Frame, assemble_tiles, raster_outputs, write_float_raster
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 
 #: cells per side of a tile
 TILE = 1024
-#: the relative difference of cell sizes below which a DEM is not said to be resampled
-SAME_CELL = 0.01
 
 
 @dataclass(frozen=True)
@@ -128,11 +125,6 @@ class _Job:
     weighted: bool  # the inputs have precision rasters
 
 
-def _resampling(source: Any, cell: float) -> str:
-    own = math.sqrt(np.prod(cell_metres(source.GetGeoTransform(), raster_srs(source), source.RasterYSize)))
-    return "average" if own < cell * (1 - SAME_CELL) else "bilinear"
-
-
 def merge_tile(job: _Job, box: tuple[int, int, int, int], paths: tuple[str, str, str]) -> dict[str, Any]:
     """Task: the merged heights, standard errors and counts of the output cells `box` (module docstring), written as
     GeoTIFF tiles to `paths` (heights, precision, count); returns the tile's counts and outliers."""
@@ -149,14 +141,14 @@ def merge_tile(job: _Job, box: tuple[int, int, int, int], paths: tuple[str, str,
     for item in job.inputs:
         check_cancel()
         source = open_raster(item.dem, "DEM")
-        h = warp_to(source, wide, _resampling(source, cell))
+        h = warp_to(source, wide, resampling_for(source, cell))
         valid = np.isfinite(h)
         if not valid.any():
             continue
         sigma = np.ones_like(h)
         if item.precision:
             precision = open_raster(item.precision, "precision raster")
-            sigma = warp_to(precision, wide, _resampling(precision, cell))
+            sigma = warp_to(precision, wide, resampling_for(precision, cell))
             valid &= np.isfinite(sigma) & (sigma > 0)
         distance = ndimage.distance_transform_edt(np.pad(valid, 1))[1:-1, 1:-1]
         heights.append(np.where(valid, h, np.nan))
@@ -242,7 +234,7 @@ def _coregistered(
             ) from None
         progress.ensure(feedback).pushInfo(f"{dem}: co-registered, {result.shift.describe(result.cell)}")
         moved = os.path.join(work, f"dem-{i:03d}.tif")
-        write_coregistered(dem, result.shift, result.units, moved, coreg, progress.scaled(span, 80, 100))
+        write_coregistered(dem, result.shift, result.units, moved, coreg.execution, progress.scaled(span, 80, 100))
         precision = precisions[i]
         if precision:  # moved with its DEM: a VRT of it on the moved grid
             precision = _moved_vrt(precision, result, os.path.join(work, f"precision-{i:03d}.vrt"))
@@ -274,7 +266,7 @@ def _output_frame(params: MergeParams, inputs: list[_Input], feedback: Feedback 
         g, cols, rows = warped.GetGeoTransform(), warped.RasterXSize, warped.RasterYSize
         xs += [g[0], g[0] + cols * g[1]]
         ys += [g[3], g[3] + rows * g[5]]
-        own = math.sqrt(np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize)))
+        own = mean_cell(ds)
         out = math.sqrt(np.prod(cell_metres((0, dx, 0, g[3], 0, -dy), target, 1)))
         if abs(own - out) > SAME_CELL * out:
             progress.warn(
@@ -360,18 +352,11 @@ def _write(
 ) -> None:
     """The outputs asked for, from the tiles: all renamed at the end, or none."""
     wanted = [
-        (outputs.dem, 0, "merged height (m)"),
-        (outputs.precision, 1, "standard error of the merged height (m)"),
-        (outputs.count, 2, "heights merged in the cell"),
+        (0, "merged height (m)"),
+        (1, "standard error of the merged height (m)"),
+        (2, "heights merged in the cell"),
     ]
-    with contextlib.ExitStack() as stack:
-        temps = []
-        for path, k, description in wanted:
-            if not path:
-                continue
-            tmp = stack.enter_context(atomic_path(path))
-            assemble_tiles([n[k] for n in names], tmp, frame, description=description, feedback=feedback)
-            temps.append(tmp)
-        if cog:
-            for tmp in temps:
-                to_cog(tmp)
+    with raster_outputs([outputs.dem, outputs.precision, outputs.count], cog) as temps:
+        for tmp, (k, description) in zip(temps, wanted):
+            if tmp:
+                assemble_tiles([n[k] for n in names], tmp, frame, description=description, feedback=feedback)

@@ -104,10 +104,10 @@ def assess_accuracy(params: AssessParams, feedback: Feedback | None = None) -> A
             tiles=tiles,
         )
         if end == 70:
-            return _write(params, assessed, class_source, feedback)
+            return _write(params, reference, assessed, class_source, feedback)
         with work_dir(params.report, "the co-registered DEM") as folder:
             after = _coregistered(params, reference, labelling, folder, progress.scaled(feedback, 40, 70))
-            return _write(params, assessed, class_source, feedback, after)
+            return _write(params, reference, assessed, class_source, feedback, after)
 
 
 def _coregistered(
@@ -134,7 +134,7 @@ def _coregistered(
         progress.warn(feedback, f"no co-registration: {exc}. The report gives the DEM as it lies only")
         return None
     path = os.path.join(folder, "coregistered.tif")
-    write_coregistered(params.dem, result.shift, result.units, path, coreg, progress.scaled(feedback, 50, 60))
+    write_coregistered(params.dem, result.shift, result.units, path, coreg.execution, progress.scaled(feedback, 50, 60))
     (summary,) = assess_by_parts(
         reference,
         dem=path,
@@ -146,9 +146,11 @@ def _coregistered(
     return result, summary
 
 
-def _write(params, assessed, class_source, feedback, coregistered=None):
-    """The report, the table and the dh raster of the Summaries `assessed` (and of the co-registered DEM, where
-    `coregistered` gives its co-registration and Summary)."""
+def _write(params, reference, assessed, class_source, feedback, coregistered=None):
+    """The report, the table and the dh raster of the Summaries `assessed` (assess_by_parts': the DEM's last, where
+    there is one) against `reference`, and of the co-registered DEM, where `coregistered` gives its co-registration
+    and Summary."""
+    dem = assessed[-1] if params.dem else None
     used = [("reference", f"{params.reference} ({params.reference_heights} heights)")]
     if params.points:
         used.append(("point cloud", f"{params.points} ({params.points_heights} heights)"))
@@ -162,8 +164,7 @@ def _write(params, assessed, class_source, feedback, coregistered=None):
         used.append(
             ("co-registration", f"Nuth and Kääb 2011, {'shift and tilt' if params.coregister_tilt else 'shift'}")
         )
-        before = next(a for a in assessed if a.what == "DEM cells")
-        comparison = report.Comparison(result, before, after, Reference(params.reference, params.reference_heights))
+        comparison = report.Comparison(result, dem, after, reference)
         assessed = [*assessed, after]
     else:
         comparison = None
@@ -178,7 +179,6 @@ def _write(params, assessed, class_source, feedback, coregistered=None):
     if params.table:
         out.table = report.write_csv(params.table, assessed)
     if params.dh:
-        dem = next(a for a in assessed if a.tiles is not None and a.what == "DEM cells")
         with raster_output(params.dh, params.cog, feedback if params.cog else None) as tmp:
             assemble_tiles(
                 dem.tiles,

@@ -11,19 +11,17 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from .. import progress
-from ..adjustment.report import Section, html_sections, render_text
-from ..atomic import work_dir, write_text
-from ..execution import run_tasks
+from ..adjustment.report import Section, render_text, write_html
+from ..atomic import work_dir
+from ..execution import Execution, run_tasks
 from ..progress import Feedback
 from ..surface.geotiff import Frame, assemble_tiles, raster_output, write_float_raster
 from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .coregistration import WINDOW, CoregParams, CoregResult, Shift, coregister
 from .height_differences import Reference
-from .rasters import open_raster, raster_srs, read_grid
+from .rasters import Grid, open_raster, raster_srs, read_grid
 
 #: the statistics rows of the report: (label, Stats attribute)
 STAT_ROWS = (("N", "n"), ("median", "median"), ("NMAD", "nmad"), ("mean", "mean"), ("RMS", "rms"))
@@ -58,16 +56,12 @@ def write_window(
     dem: str, window: tuple[int, int, int, int], shift: Shift, units: tuple[float, float], path: str
 ) -> str:
     """One window of the co-registered DEM as a GeoTIFF tile at `path` (a task of run_tasks)."""
-    source = open_raster(dem, "DEM")
-    grid = read_grid(source, window=window)
-    gt = moved_geotransform(grid.geotransform, shift, units)
+    grid = read_grid(open_raster(dem, "DEM"), window=window)
+    moved = Grid(grid.values, moved_geotransform(grid.geotransform, shift, units), grid.srs)
     check_cancel()
-    x0, dx, _, y0, _, dy = gt
-    rows, cols = grid.shape
-    x, y = np.meshgrid(x0 + (np.arange(cols) + 0.5) * dx, y0 + (np.arange(rows) + 0.5) * dy)
-    de, dn = (x - shift.centre[0]) * units[0], (y - shift.centre[1]) * units[1]
-    heights = grid.values + shift.up + shift.tilt_east * de + shift.tilt_north * dn
-    return write_float_raster(path, heights, gt, grid.srs, overviews=False)
+    x, y = moved.centres()
+    heights = moved.values + shift.vertical(x, y, units)
+    return write_float_raster(path, heights, moved.geotransform, moved.srs, overviews=False)
 
 
 def write_coregistered(
@@ -75,7 +69,7 @@ def write_coregistered(
     shift: Shift,
     units: tuple[float, float],
     output: str,
-    params: CoregParams,
+    execution: Execution,
     feedback: Feedback | None,
     cog: bool = False,
 ) -> str:
@@ -86,7 +80,7 @@ def write_coregistered(
     with work_dir(output, "the co-registered DEM's tiles") as tiles:
         windows = tile_grid(size, WINDOW)
         tasks = [(dem, w, shift, units, os.path.join(tiles, f"dem-{k:05d}.tif")) for k, w in enumerate(windows)]
-        written = run_tasks(write_window, tasks, params.execution, progress.scaled(feedback, 0, 50), "DEM windows")
+        written = run_tasks(write_window, tasks, execution, progress.scaled(feedback, 0, 50), "DEM windows")
         with raster_output(output, cog, progress.scaled(feedback, 80, 100) if cog else None) as tmp:
             assemble_tiles(
                 written,
@@ -124,8 +118,8 @@ def sections(result: CoregResult, dem: str, reference: Reference) -> list[Sectio
         notes=[
             f"The DEM's grid moved by the horizontal shift, its heights corrected by the vertical shift and the tilt "
             f"(a plane about the DEM's centre, {s.centre[0]:.3f}, {s.centre[1]:.3f} in its CRS); cell {cell:.3f} m; "
-            f"the reference resampled onto the DEM's cells ({result.resampling}), heights ellipsoidal "
-            f"({reference.datum} reference converted where orthometric). The standard errors: the fit's covariance, "
+            f"the reference resampled onto the DEM's cells ({result.resampling}), its {reference.datum} heights in the "
+            "DEM's datum (EGM96 where the two differ). The standard errors: the fit's covariance, "
             "the residuals counted once per cell of the coarser DEM; zero where the horizontal shift was not fitted."
         ],
     )
@@ -152,17 +146,6 @@ def sections(result: CoregResult, dem: str, reference: Reference) -> list[Sectio
     return [shift, stable, history]
 
 
-def write_report(path: str, parts: list[Section]) -> str:
-    """The Sections as one HTML page, atomically."""
-    style = "body{font-family:sans-serif}table{border-collapse:collapse}th,td{border:1px solid #bbb;padding:2px 8px}"
-    write_text(
-        path,
-        "<!DOCTYPE html><html><head><meta charset='utf-8'><title>Co-registration</title>"
-        f"<style>{style}</style></head><body><h1>Co-registration</h1>\n{html_sections(parts)}\n</body></html>\n",
-    )
-    return path
-
-
 def coregister_dem(params: CoregisterDemParams, feedback: Feedback | None = None) -> CoregisterDemResult:
     """Co-register the DEM of `params` to its reference and write the co-registered DEM and the report. Raises
     InputError, coregistration.CoregistrationError (nothing written), CancelledError."""
@@ -172,8 +155,14 @@ def coregister_dem(params: CoregisterDemParams, feedback: Feedback | None = None
     parts = sections(result, params.dem, reference)
     progress.ensure(feedback).pushInfo(render_text(parts))
     output = write_coregistered(
-        params.dem, result.shift, result.units, params.output, coreg, progress.scaled(feedback, 80, 98), params.cog
+        params.dem,
+        result.shift,
+        result.units,
+        params.output,
+        coreg.execution,
+        progress.scaled(feedback, 80, 98),
+        params.cog,
     )
-    report = write_report(params.report, parts) if params.report else None
+    report = write_html(params.report, "Co-registration", parts=parts) if params.report else None
     progress.step(feedback, 100)
     return CoregisterDemResult(result, output, report)

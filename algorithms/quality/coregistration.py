@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from .. import progress
-from ..crs import reproject, srs as parse_crs
+from ..crs import reproject, srs as parse_crs, undulation_rows
 from ..errors import InputError, PushbroomError
 from ..execution import Execution, run_tasks
 from ..geodesy import metres_per_degree
@@ -65,7 +65,6 @@ from .height_differences import (
     Reference,
     ReferenceReach,
     check_stated,
-    ellipsoidal,
     reference_on_grid,
     resampling_onto,
 )
@@ -140,6 +139,11 @@ class Shift:
             text += f", tilt east {self.tilt_east:+.2e}, north {self.tilt_north:+.2e}"
         return text
 
+    def vertical(self, x: np.ndarray, y: np.ndarray, units: tuple[float, float]) -> np.ndarray:
+        """The vertical correction at the moved cells' centres (x, y in the DEM's CRS; `units` m per CRS unit)."""
+        de, dn = (x - self.centre[0]) * units[0], (y - self.centre[1]) * units[1]
+        return self.up + self.tilt_east * de + self.tilt_north * dn
+
 
 @dataclass(frozen=True)
 class _Frame:
@@ -165,6 +169,7 @@ class _Pass:
     reference: Reference
     params: CoregParams
     shift: Shift
+    resampling: str  # of the reference onto the DEM's cells (height_differences.resampling_onto)
     median: float | None = None
     bound: float | None = None
 
@@ -229,12 +234,6 @@ def _moved(frame: _Frame, shift: Shift, window: tuple[int, int, int, int], margi
     return Grid(np.empty((r1 - r0 + 2 * margin, c1 - c0 + 2 * margin)), gt, parse_crs(frame.srs_wkt))
 
 
-def _vertical(frame: _Frame, shift: Shift, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """The vertical correction of `shift` at the moved cells' centres (x, y in the DEM's CRS)."""
-    de, dn = (x - shift.centre[0]) * frame.units[0], (y - shift.centre[1]) * frame.units[1]
-    return shift.up + shift.tilt_east * de + shift.tilt_north * dn
-
-
 def window_sums(job: _Pass, window: tuple[int, int, int, int]) -> _Sums:
     """The _Sums of one window of the DEM (module docstring); a task of run_tasks."""
     frame, params, shift = job.frame, job.params, job.shift
@@ -248,18 +247,21 @@ def window_sums(job: _Pass, window: tuple[int, int, int, int]) -> _Sums:
     ds = open_raster(job.reference.path, "reference DEM")
     wide = _moved(frame, shift, window, 1)
     reach = ReferenceReach(job.reference.path, job.reference.nodata)
-    ref = reference_on_grid(ds, wide, job.reference.nodata, reach, resampling_onto(ds, source))
+    ref = reference_on_grid(ds, wide, job.reference.nodata, reach, job.resampling)
     if not np.isfinite(ref).any():
         return empty
     x, y = wide.centres()
-    ref = ellipsoidal(ref.ravel(), x.ravel(), y.ravel(), wide.srs, job.reference.datum).reshape(ref.shape)
+    # the heights in one datum: where the two differ, the EGM96 undulation N (on a lattice: crs.undulation_rows)
+    # moves the orthometric ones; where they agree, N would cancel in dh
+    if params.dem_heights != job.reference.datum:
+        n = undulation_rows(ref.shape, wide.geotransform, wide.srs)(0, ref.shape[0])
+        ref = ref + n if job.reference.datum == "orthometric" else ref - n
     # the reference's gradient in m/m (rows run south: the geotransform's negative row step)
     g_row, g_col = np.gradient(ref)
     g_e, g_n = g_col / (wide.geotransform[1] * frame.units[0]), g_row / (wide.geotransform[5] * frame.units[1])
     inner = (slice(1, -1), slice(1, -1))
     ref, g_e, g_n, x, y = ref[inner], g_e[inner], g_n[inner], x[inner], y[inner]
-    h = ellipsoidal(dem.ravel(), x.ravel(), y.ravel(), wide.srs, params.dem_heights).reshape(dem.shape)
-    dh = h + _vertical(frame, shift, x, y) - ref
+    dh = dem + shift.vertical(x, y, frame.units) - ref  # in the DEM's datum
     stable = np.isfinite(dh) & np.isfinite(g_e) & np.isfinite(g_n)
     stable &= np.degrees(np.arctan(np.hypot(g_e, g_n))) <= params.max_slope
     if params.mask:
@@ -391,7 +393,7 @@ def coregister(
     factor = max(reference_cell**2 / frame.cell**2, 1.0)
     for k in range(params.max_iterations):
         span = 100.0 / (params.max_iterations + 1)
-        job = _Pass(frame, reference, params, shift)
+        job = _Pass(frame, reference, params, shift, method)
         first = _pass(job, windows, progress.scaled(feedback, k * span, (k + 0.5) * span))
         stats = first.summary.stats()
         if before is None:
@@ -422,7 +424,7 @@ def coregister(
             f"co-registration, iteration {k + 1}: {shift.describe(frame.cell)}; {total.summary.n} stable cells"
         )
         if converged:
-            after = _pass(_Pass(frame, reference, params, shift), windows, None).summary.stats()
+            after = _pass(_Pass(frame, reference, params, shift, method), windows, None).summary.stats()
             progress.step(feedback, 100)
             se, sn, su = (math.sqrt(max(float(covariance[i, i]), 0.0)) for i in range(3))
             return CoregResult(shift, frame.cell, k + 1, before, after, method, history, frame.units, (se, sn, su))

@@ -7,7 +7,8 @@ reference's own CRS (the points are transformed to it; dem.Dem.height on the win
 around the points), NaN next to nodata. DEM cells: the reference is resampled onto the DEM's grid
 and CRS with gdalwarp: the average of the reference cells inside a DEM cell where the reference is
 finer, bilinear otherwise. Vertical datum per input: "ellipsoidal" or "orthometric" (EGM96:
-h = H + N, adjustment.control_points.orthometric_to_ellipsoidal). The slope (Kornus et al. 2006, section 3.7:
+h = H + N, adjustment.control_points.orthometric_to_ellipsoidal at points; on a DEM's grid N from a lattice of at most
+crs.UNDULATION_NODES a side, crs.undulation_rows). The slope (Kornus et al. 2006, section 3.7:
 flat/moderate vs mountainous) is the reference's (rasters.slope_degrees): at the points, or on the DEM grid.
 
 The reference is read by the window of its cells under the assessed data (for points, block by block of its
@@ -29,7 +30,7 @@ import numpy as np
 
 from .. import progress
 from ..adjustment.control_points import HEIGHT_TYPES, orthometric_to_ellipsoidal
-from ..crs import reproject, wgs84
+from ..crs import reproject, undulation_rows, wgs84
 from ..dem import Dem, ImplausibleTally
 from ..errors import InputError
 from ..height_range import outside_plausible
@@ -38,13 +39,14 @@ from ..surface.point_input import PointSet, read_points
 from .rasters import (
     Grid,
     by_blocks,
-    cell_metres,
+    mean_cell,
     memory_dataset,
     open_raster,
     outline,
     raster_srs,
     read_grid,
     read_window,
+    resampling_for,
     slope_degrees,
     warp_to,
 )
@@ -308,8 +310,10 @@ def dem_differences(
     ref = ref[inner]
     valid = defined & np.isfinite(ref)
     x, y = (v[valid] for v in dem.centres())
-    h = ellipsoidal(dem.values[valid], x, y, dem.srs, dem_datum)
-    href = ellipsoidal(ref[valid], x, y, dem.srs, reference_datum)
+    h, href = dem.values[valid], ref[valid]
+    if "orthometric" in (dem_datum, reference_datum) and valid.any():  # N on a lattice: crs.undulation_rows
+        n = undulation_rows(dem.shape, dem.geotransform, dem.srs)(0, dem.shape[0])[valid]
+        h, href = h + n * (dem_datum == "orthometric"), href + n * (reference_datum == "orthometric")
     dh = np.full(dem.shape, np.nan)
     dh[valid] = h - href
     return Differences(
@@ -331,12 +335,8 @@ def dem_differences(
 
 def resampling_onto(reference: Any, dem: Any) -> str:
     """gdalwarp's resampling of the reference raster `reference` onto the cells of the DEM raster `dem` (GDAL
-    datasets): the average of its cells inside a DEM cell where the reference is finer (over the whole rasters),
-    bilinear otherwise."""
-    finer = np.prod(cell_metres(reference.GetGeoTransform(), raster_srs(reference), reference.RasterYSize)) < np.prod(
-        cell_metres(dem.GetGeoTransform(), raster_srs(dem), dem.RasterYSize)
-    )
-    return "average" if finer else "bilinear"
+    datasets; rasters.resampling_for their mean cells)."""
+    return resampling_for(reference, mean_cell(dem))
 
 
 def reference_on_grid(ds: Any, grid: Grid, nodata: float | None, reach: ReferenceReach, method: str) -> np.ndarray:

@@ -50,6 +50,21 @@ def cell_metres(geotransform, srs, rows):
     return dx * factor, dy * factor
 
 
+#: the relative difference of cell sizes below which a raster is not finer than another
+SAME_CELL = 0.01
+
+
+def mean_cell(ds):
+    """The mean cell side (m) of the raster `ds` (the geometric mean of cell_metres at its centre)."""
+    return float(np.sqrt(np.prod(cell_metres(ds.GetGeoTransform(), raster_srs(ds), ds.RasterYSize))))
+
+
+def resampling_for(ds, cell):
+    """gdalwarp's resampling of the raster `ds` onto cells of `cell` m: the average of its cells inside a cell where
+    it is finer (by more than SAME_CELL), bilinear otherwise."""
+    return "average" if mean_cell(ds) < cell * (1 - SAME_CELL) else "bilinear"
+
+
 def open_raster(path, what):
     """gdal.Dataset of a north-up, georeferenced raster (InputError naming `what` otherwise)."""
     gdal.UseExceptions()

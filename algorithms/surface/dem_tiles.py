@@ -42,7 +42,6 @@ from them, no defined cell), a cell size that leaves the DEM fewer than 2 cells 
 (crs.check_grid_cells), ExecutionError from the execution, CancelledError; nothing is left under an output name
 (atomic.atomic_path) and the work folder is removed (atomic.work_dir)."""
 
-import contextlib
 import math
 import os
 from dataclasses import dataclass, field
@@ -51,7 +50,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .. import histogram, progress
-from ..atomic import append_bytes, atomic_path, save_array, work_dir
+from ..atomic import append_bytes, save_array, work_dir
 from ..crs import check_grid_cells, srs as parse_crs, transform
 from ..errors import CancelledError, InputError
 from ..execution import run_tasks, session
@@ -59,7 +58,7 @@ from ..task_runtime import check_cancel
 from ..tiling import tile_grid
 from .cell_dem import CellSettings, cells_on_grid, point_tiers
 from .gap_fill import fill_gaps
-from .geotiff import Frame, assemble_tiles, to_cog, write_float_raster
+from .geotiff import Frame, assemble_tiles, raster_outputs, write_float_raster
 from .point_input import PointSet, point_chunks, read_breaklines
 from .tin import TileShare, delaunay, filter_blunders, flat_points, residual_histogram, spread
 from .tin_dem import (
@@ -414,9 +413,8 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
                 ("count", count_path, "points in the cell"),
             )
         ]
-        with contextlib.ExitStack() as stack:  # every output is renamed at the end, or none
-            tmp = stack.enter_context(atomic_path(output))
-            temps = [stack.enter_context(atomic_path(path)) if path else None for path, _, _ in extra]
+        paths = [output, *(path for path, _, _ in extra), mask_path or None]
+        with raster_outputs(paths, params.cog) as (tmp, *temps, mask_tmp):  # every output renamed at the end, or none
             assemble_tiles(
                 names["dem"],
                 tmp,
@@ -433,13 +431,11 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
                 overviews=not mask_path,
                 feedback=progress.scaled(feedback, 80, 90),
             )
-            mask_tmp = None
-            if mask_path:
+            if mask_tmp:
                 rings = os.path.join(work, "rings.tif")
                 assemble_tiles(
                     names["ring"], rings, Frame(grid.geotransform, (grid.cols, grid.rows), target), overviews=False
                 )
-                mask_tmp = stack.enter_context(atomic_path(mask_path))
                 result.filled = fill_gaps(
                     tmp,
                     mask_tmp,
@@ -456,10 +452,6 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
                         description=description,
                         feedback=progress.scaled(feedback, 94, 100),
                     )
-            if params.cog:  # before any is renamed: all or none
-                for written in (tmp, *temps, mask_tmp):
-                    if written:
-                        to_cog(written)
     if result.points == 0:
         raise InputError("no point of the point cloud lies in a cell of the grid: check the point cloud")
     return result
@@ -599,10 +591,7 @@ def dem_from_point_cloud(
         )
         datum = "WGS 84 ellipsoidal height" if params.datum == "ellipsoidal" else "EGM96 height (h - N)"
         # both outputs are renamed at the end, or neither
-        with (
-            atomic_path(output) as tmp,
-            atomic_path(precision_path) if precision_path else contextlib.nullcontext() as tmp_precision,
-        ):
+        with raster_outputs([output, precision_path or None], params.cog) as (tmp, tmp_precision):
             assemble_tiles(
                 outs,
                 tmp,
@@ -619,10 +608,6 @@ def dem_from_point_cloud(
                     description=done[0]["precision_kind"],
                     feedback=progress.scaled(feedback, 95, 100),
                 )
-            if params.cog:  # before either is renamed
-                for written in (tmp, tmp_precision):
-                    if written:
-                        to_cog(written)
     log.pushInfo(result.summary())
     return result
 

@@ -40,6 +40,7 @@ import numpy as np
 from .. import progress
 from ..atomic import atomic_dir, work_dir
 from ..errors import InputError
+from .point_input import las_srs, open_las
 from .pointcloud import laspy_module
 
 if TYPE_CHECKING:
@@ -106,7 +107,7 @@ def write_ept(las_path: str, folder: str, feedback: Feedback | None = None) -> E
     """The EPT of the LAS/LAZ file `las_path` in the folder `folder` (module docstring); returns an EptResult.
     InputError for a cloud without points."""
     laspy = laspy_module()
-    with laspy.open(las_path) as reader:
+    with open_las(las_path) as reader:
         header = reader.header
         count = int(header.point_count)
         if not count:
@@ -117,7 +118,7 @@ def write_ept(las_path: str, folder: str, feedback: Feedback | None = None) -> E
         high = np.ceil((np.asarray(header.maxs) - offsets) / scales).astype(np.int64)
         side = int(max(high - low)) + 1
         cube = _Cube(tuple(int(v) for v in low), side)  # type: ignore[arg-type]
-        wkt = _wkt(header, laspy)
+        wkt = las_srs(reader, las_path).ExportToWkt()
         depth_b = _bucket_depth(count)
         with work_dir(folder, "the EPT's buckets") as work, atomic_dir(folder, "the EPT folder") as out:
             os.makedirs(os.path.join(out, "ept-data"))
@@ -144,13 +145,6 @@ def write_ept(las_path: str, folder: str, feedback: Feedback | None = None) -> E
             _write_metadata(out, header, cube, (scales, offsets), count, stats, wkt)
     progress.step(feedback, 100)
     return EptResult(str(folder), count, len(hierarchy), max(d for d, _, _, _ in writer.counts))
-
-
-def _wkt(header: Any, laspy: Any) -> str:
-    for vlr in header.vlrs:
-        if isinstance(vlr, laspy.vlrs.known.WktCoordinateSystemVlr):
-            return vlr.string.strip("\x00")
-    return ""
 
 
 class _Stats:

@@ -36,26 +36,43 @@ def overview_levels(shape, smallest=256):
 def write_float_raster(path, array, geotransform, srs, description="", metadata=None, feedback=None, overviews=True):
     """One Float32 band (NaN -> NODATA) with `geotransform` (GDAL's) and `srs` (osr.SpatialReference);
     without `overviews` for a tile that assemble_tiles joins to others."""
+    values = np.where(np.isfinite(array), array, NODATA).astype(np.float32)
+    return _write_band(path, values, geotransform, srs, description, metadata, feedback, overviews)
+
+
+def write_code_raster(path, codes, geotransform, srs, description=""):
+    """One Byte band of class codes (a mask), no nodata and no overviews (an average of codes means nothing)."""
+    return _write_band(path, np.asarray(codes, np.uint8), geotransform, srs, description, None, None, False)
+
+
+#: the GeoTIFF options of a band of codes (Byte: no floating-point predictor)
+CODE_OPTIONS = ["TILED=YES", "COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER"]
+
+
+def _write_band(path, values, geotransform, srs, description, metadata, feedback, overviews):
+    """`values` (float32: NODATA its nodata; uint8: codes) as one band of a GeoTIFF, atomically."""
     from osgeo import gdal
 
     gdal.UseExceptions()
-    array = np.where(np.isfinite(array), array, NODATA).astype(np.float32)
+    floating = values.dtype == np.float32
+    kind, options = (gdal.GDT_Float32, OPTIONS) if floating else (gdal.GDT_Byte, CODE_OPTIONS)
     with atomic_path(path) as tmp:
         with closing(
-            gdal.GetDriverByName("GTiff").Create(tmp, array.shape[1], array.shape[0], 1, gdal.GDT_Float32, OPTIONS)
+            gdal.GetDriverByName("GTiff").Create(tmp, values.shape[1], values.shape[0], 1, kind, options)
         ) as ds:
             ds.SetGeoTransform(tuple(geotransform))
             ds.SetProjection(srs.ExportToWkt())
             if metadata:
                 ds.SetMetadata({k: str(v) for k, v in metadata.items()})
             band = ds.GetRasterBand(1)
-            band.SetNoDataValue(NODATA)
+            if floating:
+                band.SetNoDataValue(NODATA)
             band.SetDescription(description)
-            band.WriteArray(array)
+            band.WriteArray(values)
             band = None
             progress.step(feedback, 50)
             if overviews:
-                ds.BuildOverviews("AVERAGE", overview_levels(array.shape))
+                ds.BuildOverviews("AVERAGE", overview_levels(values.shape))
         progress.step(feedback, 100)
     return path
 
@@ -150,10 +167,23 @@ def to_cog(path: str, feedback: Feedback | None = None) -> str:
 
 
 @contextlib.contextmanager
-def raster_output(path: str, cog: bool = False, feedback: Feedback | None = None) -> Iterator[str]:
-    """atomic_path for a step's raster output: yields the temporary name to write the GeoTIFF to; when the body
-    succeeds the raster is made a Cloud-Optimised GeoTIFF where `cog` (to_cog), then renamed to `path`."""
-    with atomic_path(path) as tmp:
-        yield tmp
+def raster_outputs(
+    paths: Sequence[str | None], cog: bool = False, feedback: Feedback | None = None
+) -> Iterator[list[str | None]]:
+    """atomic_path for a step's raster outputs (None: one not asked for): yields their temporary names to write the
+    GeoTIFFs to; when the body succeeds, each is made a Cloud-Optimised GeoTIFF where `cog` (to_cog), all before any
+    is renamed: the step's outputs are renamed together, or none is."""
+    with contextlib.ExitStack() as stack:
+        temps = [stack.enter_context(atomic_path(path)) if path else None for path in paths]
+        yield temps
         if cog:
-            to_cog(tmp, feedback)
+            written = [tmp for tmp in temps if tmp]
+            for k, tmp in enumerate(written):
+                to_cog(tmp, progress.scaled(feedback, 100.0 * k / len(written), 100.0 * (k + 1) / len(written)))
+
+
+@contextlib.contextmanager
+def raster_output(path: str, cog: bool = False, feedback: Feedback | None = None) -> Iterator[str]:
+    """raster_outputs of one raster: yields its temporary name."""
+    with raster_outputs([path], cog, feedback) as (tmp,):
+        yield tmp  # type: ignore[misc]

@@ -78,7 +78,9 @@ def _defined(srs, path, what, vector):
     return srs
 
 
-def _las_srs(las, path):
+def las_srs(las, path):
+    """The CRS of the LAS/LAZ file `path` (laspy reader or data `las`): its WKT VLR, else its EPSG GeoKey; InputError
+    saying what to do where it has none."""
     laspy = laspy_module()
     for vlr in list(las.header.vlrs) + list(las.header.evlrs or []):
         if isinstance(vlr, laspy.vlrs.known.WktCoordinateSystemVlr):
@@ -131,7 +133,7 @@ def _cut_short(path, header):
 LAS_HEADER_BYTES = 227
 
 
-def _open_las(path):
+def open_las(path):
     """laspy's reader of the LAS/LAZ file `path` (InputError where it cannot be read or is cut short)."""
     laspy = laspy_module()
     if not os.path.exists(path):
@@ -158,8 +160,8 @@ def _open_las(path):
 
 def _las_chunks(path, crs, chunk=None):
     """PointSets of at most `chunk` points (None: all) of a LAS/LAZ file; one, empty, for an empty file."""
-    with _open_las(path) as reader:
-        srs = parse_crs(crs) if crs else _las_srs(reader, path)
+    with open_las(path) as reader:
+        srs = parse_crs(crs) if crs else las_srs(reader, path)
         names = list(reader.header.point_format.extra_dimension_names)
         total = reader.header.point_count
         step = max(total, 1) if chunk is None else int(chunk)
@@ -189,7 +191,7 @@ def point_count(path):
     for the progress over point_chunks."""
     path, _, layer = os.fspath(path).partition("|layername=")
     if os.path.splitext(path)[1].lower() in (".las", ".laz"):
-        with _open_las(path) as reader:
+        with open_las(path) as reader:
             return int(reader.header.point_count)
     ds, lyr = _open_layer(path, layer or None, "point cloud")
     count = int(lyr.GetFeatureCount())

@@ -57,6 +57,15 @@ TILED = ("matchpoints", "intersectpoints", "interpolatedem", "orthorectify")  # 
 CLASSES = ("bare fields", "grass/crops", "forest", "city/buildings", "water")
 
 
+def _importpoints(folder, block):
+    """The importpoints step of the scene in `folder` into `block`: the first CONTROL points control, the rest check
+    (as make demo)."""
+    with open(folder / "points.csv", newline="") as f:
+        check = ",".join(r["id"] for r in list(csv.DictReader(f))[CONTROL:])
+    args = [f"BLOCK={block}", f"INPUT={folder / 'points.csv'}", f"CHECK_IDS={check}", "MEAS_SUFFIX=_meas"]
+    return ("importpoints", ["pushbroom:importpoints", "--", *args])
+
+
 @contextlib.contextmanager
 def profile_env():
     """The qgis_process environment of a temporary profile with the plugin (qgis_process_env)."""
@@ -96,8 +105,6 @@ def chain(folder, out, execution, env, step=5, cell=10, workers=WORKERS):
     run = [QGIS_PROCESS, "run"]
     workers = [f"EXECUTION={BACKENDS.index(execution)}", f"WORKERS={workers}"]
     block, dsm = out / "block.gpkg", folder / "dsm.tif"
-    with open(folder / "points.csv", newline="") as f:
-        check = ",".join(r["id"] for r in list(csv.DictReader(f))[CONTROL:])
     images = [f"IMAGES={folder / n / 'IMAGERY.TIF'}" for n in ("HRG", "HRS1", "HRS2")]
     steps = [
         ("createblock", ["pushbroom:createblock", "--", *images, f"DEM={dsm}", f"OUTPUT={block}"]),
@@ -106,17 +113,7 @@ def chain(folder, out, execution, env, step=5, cell=10, workers=WORKERS):
             ["pushbroom:matchpoints", "--", f"BLOCK={block}", f"STEP={step}", "MPGC_SUPPORT=true", *workers],
         ),
         ("selecttiepoints", ["pushbroom:selecttiepoints", "--", f"BLOCK={block}"]),
-        (
-            "importpoints",
-            [
-                "pushbroom:importpoints",
-                "--",
-                f"BLOCK={block}",
-                f"INPUT={folder / 'points.csv'}",
-                f"CHECK_IDS={check}",
-                "MEAS_SUFFIX=_meas",
-            ],
-        ),
+        _importpoints(folder, block),
         (
             "bundleadjust",
             [
@@ -251,22 +248,10 @@ def raster_steps(sizes=SIZES, execution="threads"):
 
     def steps(folder, out, size):
         block, dsm = out / f"block-{size:g}.gpkg", folder / "dsm.tif"
-        with open(folder / "points.csv", newline="") as f:
-            check = ",".join(r["id"] for r in list(csv.DictReader(f))[CONTROL:])
         images = [f"IMAGES={folder / n / 'IMAGERY.TIF'}" for n in ("HRG", "HRS1", "HRS2")]
         return [
             ("createblock", ["pushbroom:createblock", "--", *images, f"DEM={dsm}", f"OUTPUT={block}"]),
-            (
-                "importpoints",
-                [
-                    "pushbroom:importpoints",
-                    "--",
-                    f"BLOCK={block}",
-                    f"INPUT={folder / 'points.csv'}",
-                    f"CHECK_IDS={check}",
-                    "MEAS_SUFFIX=_meas",
-                ],
-            ),
+            _importpoints(folder, block),
             (
                 "bundleadjust, control points",
                 ["pushbroom:bundleadjust", "--", f"BLOCK={block}", "USE_TIE_POINTS=false", f"REFERENCE_DEM={dsm}"],
