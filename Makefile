@@ -89,7 +89,7 @@ MYPY_PACKAGES := algorithms.sensors algorithms.block algorithms.steps algorithms
                  algorithms.dense.params algorithms.dense.refine algorithms.dense.epipolar algorithms.dense.precision \
                  algorithms.dense.dense_strategy algorithms.surface.cell_dem algorithms.quality.coregistration \
                  algorithms.quality.coregister_dem algorithms.surface.ept algorithms.surface.point_colour \
-                 algorithms.products.merge_dems algorithms.products.extract_dtm
+                 algorithms.products.merge_dems algorithms.products.extract_dtm algorithms.ortho.orthorectify
 
 # ruff's linter and formatter, and mypy (configured in pyproject.toml); CI runs them before the tests.
 lint: setup

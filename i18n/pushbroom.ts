@@ -29,12 +29,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="87"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="89"/>
         <source>DEM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="88"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="90"/>
         <source>DEM heights</source>
         <translation type="unfinished"></translation>
     </message>
@@ -759,77 +759,77 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="30"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="31"/>
         <source>ellipsoidal (WGS 84)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="30"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="31"/>
         <source>EGM96</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="35"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="36"/>
         <source>Orthorectify image</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="62"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="64"/>
         <source>Block (empty: the image&apos;s own orientation)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="70"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="72"/>
         <source>Image name in the block</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="75"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="77"/>
         <source>Image (without a block)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="80"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="82"/>
         <source>Orientation file (empty: found beside the image)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="96"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="98"/>
         <source>Output CRS (empty: UTM zone of the footprint)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="101"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="103"/>
         <source>Cell size in CRS units (empty: ground sampling distance)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="111"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="113"/>
         <source>Resampling</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="119"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="121"/>
         <source>Occluded cells as nodata</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="124"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="126"/>
         <source>Bound of the coarse-grid interpolation error (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="138"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="140"/>
         <source>Orthoimage</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="139"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="149"/>
         <source>Achieved interpolation error bound (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="142"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="152"/>
         <source>Cells with image values</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1034,12 +1034,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="26"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="27"/>
         <source>Bilinear</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="27"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="28"/>
         <source>Bicubic</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1381,6 +1381,11 @@
     <message>
         <location filename="../plugin/algorithms/coregister_dem.py" line="91"/>
         <source>Fit the horizontal shift (off: the vertical offset and the tilt only)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../plugin/algorithms/orthorectify.py" line="141"/>
+        <source>Occlusion mask (0 seen, 1 occluded by the DEM&apos;s surface, 255 outside)</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

@@ -86,11 +86,13 @@ def orthorectify_image(
     image: str | None = None,
     orientation: str | None = None,
     feedback: Feedback | None = None,
+    occlusions: str | None = None,
 ) -> OrthoResult:
     """The orthorectification step: the image chosen as in image_and_model on the raster DEM `dem`
     (dem_store.store_dem with the params' heights and nodata, in a work folder beside the output; implausible
     heights are reported), written to the
-    GeoTIFF `output` with OrthoParams `params`. Returns the OrthoResult."""
+    GeoTIFF `output` with OrthoParams `params`, and its occlusion mask to `occlusions` where given (on a DSM:
+    the true orthoimage's hidden cells flagged). Returns the OrthoResult."""
     params = (params or OrthoParams()).check()
     path, model = image_and_model(block_path, image_name, image, orientation)
     with work_dir(output, "the stored DEM") as work:
@@ -113,10 +115,11 @@ def orthorectify_image(
                 crs=params.crs,
                 cell_size=params.cell_size,
                 resampling_method=params.resampling,
-                occlusion_mask=params.occlusion,
+                occluded_nodata=params.occlusion,
                 max_error=params.max_error,
                 cog=params.cog,
             ),
             execution=params.execution,
             feedback=feedback,
+            occlusions=occlusions,
         )

@@ -16,6 +16,7 @@ from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 from ...algorithms.dem_store import VERTICAL
 from ...algorithms.ortho.resampling import METHODS
 from ...algorithms.steps.orthoimage import OrthoParams, orthorectify_image
+from ..styles import style_on_completion
 from .base import PushbroomAlgorithm, cog_parameter, execution_choice, execution_parameters, translate, translated
 from .dem_nodata import nodata_parameter
 
@@ -54,6 +55,7 @@ class Orthorectify(PushbroomAlgorithm):
     DEM_NODATA = "DEM_NODATA"
     COG = "COG"
     OUTPUT = "OUTPUT"
+    OCCLUSIONS = "OCCLUSIONS"
     BOUND = "BOUND"
     CELLS = "CELLS"
 
@@ -136,6 +138,14 @@ class Orthorectify(PushbroomAlgorithm):
         )
         self.addParameter(cog_parameter(self))
         self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, translate("Pushbroom", "Orthoimage")))
+        self.addParameter(
+            QgsProcessingParameterRasterDestination(
+                self.OCCLUSIONS,
+                translate("Pushbroom", "Occlusion mask (0 seen, 1 occluded by the DEM's surface, 255 outside)"),
+                optional=True,
+                createByDefault=False,
+            )
+        )
         self.addOutput(
             QgsProcessingOutputNumber(self.BOUND, translate("Pushbroom", "Achieved interpolation error bound (px)"))
         )
@@ -165,6 +175,7 @@ class Orthorectify(PushbroomAlgorithm):
         params = self.ortho_params(parameters, context)
         image = self.parameterAsRasterLayer(parameters, self.IMAGE, context)
         output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
+        occlusions = self.parameterAsOutputLayer(parameters, self.OCCLUSIONS, context) or None
         result = orthorectify_image(
             output,
             self.parameterAsRasterLayer(parameters, self.DEM, context).source(),
@@ -174,5 +185,10 @@ class Orthorectify(PushbroomAlgorithm):
             image=image.source() if image is not None else None,
             orientation=self.parameterAsFile(parameters, self.ORIENTATION, context),
             feedback=feedback,
+            occlusions=occlusions,
         )
-        return {self.OUTPUT: output, self.BOUND: result.bound, self.CELLS: result.cells}
+        outputs = {self.OUTPUT: output, self.BOUND: result.bound, self.CELLS: result.cells}
+        if occlusions:
+            style_on_completion(context, occlusions, "occlusions.qml")
+            outputs[self.OCCLUSIONS] = occlusions
+        return outputs

@@ -92,3 +92,20 @@ def test_cancel_and_a_dem_without_overlap(pushbroom_provider, inputs, tmp_path):
     gdal.Translate(far, inputs["dem"], outputBounds=[500000, 4000000, 501000, 3999000])
     with pytest.raises(QgsProcessingException, match="does not overlap"):
         run({"IMAGE": inputs["image"], "DEM": far, "OUTPUT": str(tmp_path / "far_ortho.tif")})
+
+
+def test_a_true_orthoimage_with_its_occlusion_mask(pushbroom_provider, inputs, tmp_path):
+    """HRS1 (20 degrees forward) on the true DSM: the occlusion mask beside the orthoimage, the occluded cells
+    keeping the occluder's values where OCCLUSION is off."""
+    out, mask = str(tmp_path / "true_ortho.tif"), str(tmp_path / "occlusions.tif")
+    hrs1 = inputs["scene"]["images"]["HRS1"]["imagery"]
+    result = run({"IMAGE": hrs1, "DEM": inputs["scene"]["dsm"], "OUTPUT": out, "OCCLUSIONS": mask})
+    assert result["OCCLUSIONS"] == mask
+    ds = gdal.Open(mask)
+    band = ds.GetRasterBand(1)
+    assert band.DataType == gdal.GDT_Byte and band.GetNoDataValue() == 255
+    codes, values = band.ReadAsArray(), gdal.Open(out).ReadAsArray()
+    band = ds = None
+    assert (codes == 1).sum() > 1000 and set(np.unique(codes)) == {0, 1, 255}
+    np.testing.assert_array_equal(codes == 255, values == 0)
+    assert "OCCLUSIONS" not in run({"IMAGE": hrs1, "DEM": inputs["scene"]["dsm"], "OUTPUT": out})

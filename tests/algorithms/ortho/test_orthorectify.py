@@ -21,6 +21,7 @@ from pushbroom.algorithms.ortho.occlusion import occluded, ray_direction
 from pushbroom.algorithms.ortho.orthorectify import _footprint, _reach
 from pushbroom.algorithms.ortho.resampling import BICUBIC, BILINEAR, resample_kernel
 from pushbroom.algorithms.sensors.rpc_fit import fit_rpc
+from pushbroom.algorithms.simulation.terrain import CITY, FOREST
 from tests.helpers.feedback import Feedback
 from tests.helpers.ortho_oracle import geometric_error
 
@@ -203,6 +204,63 @@ def test_a_tiles_dem_window_holds_its_occluders(scene):
     assert np.mean(occluded(part, tile.lon, tile.lat, tile.h, direction) == whole) > 0.9999
 
 
+def _read(path):
+    return gdal.Open(str(path)).ReadAsArray().astype(np.float64)
+
+
+def test_true_orthoimage_flags_what_the_surface_hides(scene, tmp_path, figures):
+    """HRS1 (20 degrees forward) on the true DSM: a true orthoimage. Its occlusion mask flags exactly the cells
+    that OCCLUSION makes nodata, and those cells show the occluder: against the simulator's ground radiance (the
+    true orthoimage, after a linear radiometric fit on the seen cells) they depart far more than the seen ones.
+    On the DTM instead, the roofs and the canopy are displaced (LSM shifts against the true orthoimage)."""
+    model = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
+    image = scene["paths"]["images"]["HRS1"]["imagery"]
+    flagged = orthorectify(
+        image, model, scene["dsm"], tmp_path / "dsm.tif", grid=scene["grid"], occlusions=tmp_path / "mask.tif"
+    )
+    hidden = orthorectify(
+        image,
+        model,
+        scene["dsm"],
+        tmp_path / "hidden.tif",
+        grid=scene["grid"],
+        settings=OrthoSettings(occluded_nodata=True),
+    )
+    orthorectify(image, model, read_dem(scene["paths"]["dtm"]), tmp_path / "dtm.tif", grid=scene["grid"])
+    mask, ortho, masked = (_read(tmp_path / n) for n in ("mask.tif", "dsm.tif", "hidden.tif"))
+    ds = gdal.Open(str(tmp_path / "mask.tif"))
+    assert ds.GetRasterBand(1).GetNoDataValue() == 255
+    ds = None
+    assert flagged.occlusions == str(tmp_path / "mask.tif") and hidden.occlusions is None
+    np.testing.assert_array_equal(mask == 1, (ortho > 0) & (masked == 0))
+    np.testing.assert_array_equal(mask == 0, masked > 0)
+    np.testing.assert_array_equal(mask == 255, ortho == 0)
+    assert (
+        flagged.occluded == hidden.occluded == int((mask == 1).sum())
+        and flagged.cells == hidden.cells + hidden.occluded
+    )
+    truth = _read(scene["paths"]["orthoimage"])
+    seen, occluded = mask == 0, mask == 1
+    gain, offset = np.polyfit(truth[seen], ortho[seen], 1)
+    departure = np.abs(ortho - (gain * truth + offset))
+    figures.report("cells occluded", 100 * occluded.mean(), "%")
+    figures.report("median departure, seen cells", np.median(departure[seen]), "DN")
+    figures.report("median departure, occluded cells", np.median(departure[occluded]), "DN")
+    assert occluded.sum() > 500
+    assert np.median(departure[occluded]) > 2 * np.median(departure[seen])
+    raised = {}
+    for name, path in (("DSM", tmp_path / "dsm.tif"), ("DTM", tmp_path / "dtm.tif")):
+        for cls, label in ((CITY, "town"), (FOREST, "forest")):
+            shifts = geometric_error(scene["paths"], str(path), classes=(cls,))
+            raised[name, label] = float(np.sqrt(np.mean(np.sum(shifts**2, axis=1))))
+            figures.report(
+                f"{label} on the {name}: shift against the true orthoimage, RMS ({len(shifts)} patches)",
+                raised[name, label],
+                "px",
+            )
+    assert raised["DTM", "town"] > 2 * raised["DSM", "town"] and raised["DTM", "forest"] > 1.3 * raised["DSM", "forest"]
+
+
 @pytest.mark.slow
 def test_every_execution_gives_the_same_orthoimage(scene, tmp_path):
     model = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
@@ -215,7 +273,7 @@ def test_every_execution_gives_the_same_orthoimage(scene, tmp_path):
             scene["dsm"],
             tmp_path / f"{backend}.tif",
             grid=grid,
-            settings=OrthoSettings(occlusion_mask=True, tile=256),
+            settings=OrthoSettings(occluded_nodata=True, tile=256),
             execution=Execution(backend, workers),
         )
         images[backend] = gdal.Open(str(tmp_path / f"{backend}.tif")).ReadAsArray()
