@@ -40,7 +40,10 @@ chain with semi-global matching refined by LSM (matchpoints STRATEGY 2, a point 
 DEM of the refined points (interpolatedem METHOD 1, FALLBACK off, an empty cell the refined points of the cells
 around it (RADIUS 1, the default), the gaps within FILL 10 cells filled and flagged in the mask raster beside the
 DEM: studies/dense_fusion.py, docs/validation.md#dense-peers); its STEP and MAX_EDGE inputs do not apply and are
-left out.
+left out. Its DEM is a DSM: its orthoimage is a true orthoimage, with the occlusion mask as the output
+orthorectify:occlusions, and `extractdtm` (CNES Bulldozer) makes its DTM and height above ground (extractdtm:dtm,
+extractdtm:dhm). The co-registration to the reference is assessaccuracy's own (COREGISTER, on by default), and a
+merge of several DSMs (mergedems) has no place in a chain of one block.
 """
 
 import os
@@ -283,6 +286,17 @@ DENSE = {
     },
 }
 DENSE_UNUSED = {"STEP", "MAX_EDGE"}
+#: the dense variant's further outputs of its children: {child id: {model output name: (description, child output)}}
+DENSE_OUTPUTS = {"orthorectify": {"occlusions": ("Occlusion mask of the true orthoimage", "OCCLUSIONS")}}
+#: the dense variant's further children, after the others
+DENSE_STEPS = [
+    (
+        "extractdtm",
+        "pushbroom:extractdtm",
+        {"DSM": ("child", "interpolatedem", "OUTPUT"), **TILED},
+        {"dtm": ("DTM (Bulldozer)", "OUTPUT"), "dhm": ("Height above ground (DSM - DTM)", "DHM")},
+    ),
+]
 
 
 def variant(dense):
@@ -292,8 +306,9 @@ def variant(dense):
     steps = []
     for child_id, algorithm_id, sources, outputs in STEPS:
         sources = {**sources, **DENSE.get(child_id, {})}
+        outputs = {**outputs, **DENSE_OUTPUTS.get(child_id, {})}
         steps.append((child_id, algorithm_id, {k: v for k, v in sources.items() if v is not None}, outputs))
-    return [p for p in INPUTS if p.name() not in DENSE_UNUSED], steps
+    return [p for p in INPUTS if p.name() not in DENSE_UNUSED], steps + DENSE_STEPS
 
 
 def build(dense=False):
@@ -307,14 +322,16 @@ def build(dense=False):
         else "region-growing matching"
     )
     dem = "DEM (per-cell medians of the refined points)" if dense else "DEM (TIN, gaps at long triangles)"
+    ortho = "a true orthoimage of one image on the adjusted model and the produced DSM, with its occlusion mask"
+    ortho = ortho if dense else "orthoimage of one image on the adjusted model and the produced DEM"
+    dtm = ", the DTM and the height above ground of the DSM (CNES Bulldozer)" if dense else ""
     model.setHelpContent(
         {
             "ALG_DESC": (
                 "The whole Pushbroom chain: block from the images and their orientation, control/check point import, "
                 f"{matching}, tie point selection, bundle adjustment (automatic parameter selection), "
-                f"intersection of the mass points, {dem}, orthoimage of one image on the "
-                "adjusted model and the produced DEM, and accuracy assessment of the point cloud and the DEM against a "
-                "reference."
+                f"intersection of the mass points, {dem}, {ortho}, and accuracy assessment of the point cloud and the "
+                f"DEM against a reference (co-registered to it){dtm}."
             ),
             "ALG_CREATOR": "Pushbroom (scripts/build_pipeline_model.py)",
         }
@@ -367,7 +384,7 @@ def main():
             if not model.toFile(str(tmp)):
                 sys.exit(f"cannot write {path}")
         print(
-            f"{path}: {len(STEPS)} steps; inputs "
+            f"{path}: {len(model.childAlgorithms())} steps; inputs "
             + ", ".join(p.name() for p in variant(dense)[0])
             + "; outputs "
             + ", ".join(d.name() for d in model.destinationParameterDefinitions())

@@ -49,6 +49,14 @@ OUTPUTS = {
     "assessaccuracy:table": "accuracy.csv",
     "assessaccuracy:dh": "dh.tif",
 }
+#: the dense variant's further children and outputs: the DTM of its DSM, the true orthoimage's occlusion mask
+DENSE_STEPS = {**STEPS, "extractdtm": "extractdtm"}
+DENSE_OUTPUTS = {
+    **OUTPUTS,
+    "orthorectify:occlusions": "occlusions.tif",
+    "extractdtm:dtm": "dtm.tif",
+    "extractdtm:dhm": "dhm.tif",
+}
 
 
 def builder():
@@ -75,8 +83,8 @@ def test_model_file_is_what_the_script_builds(pushbroom_provider, tmp_path):
     assert builder().build().toFile(str(tmp_path / "built.model3"))
     assert model.toVariant() == load(tmp_path / "built.model3").toVariant(), "run scripts/build_pipeline_model.py"
     dense = load(DENSE_MODEL)
-    assert dense.name() == "Pushbroom pipeline (dense)" and set(dense.childAlgorithms()) == set(STEPS)
-    assert dense.validate()[0] and {d.name() for d in dense.destinationParameterDefinitions()} >= set(OUTPUTS)
+    assert dense.name() == "Pushbroom pipeline (dense)" and set(dense.childAlgorithms()) == set(DENSE_STEPS)
+    assert dense.validate()[0] and {d.name() for d in dense.destinationParameterDefinitions()} >= set(DENSE_OUTPUTS)
     assert builder().build(dense=True).toFile(str(tmp_path / "dense.model3"))
     assert dense.toVariant() == load(tmp_path / "dense.model3").toVariant(), "run scripts/build_pipeline_model.py"
     sources = {k: c.parameterSources() for k, c in dense.childAlgorithms().items()}
@@ -260,9 +268,10 @@ def test_dense_pipeline_without_a_height(pipeline, small_scene, qgis_process, tm
         f"REFERENCE={small_scene['dsm']}",
         f"CLASS_RASTER={small_scene['classes']}",
         "THREADS=2",
-        *(f"{k}={tmp_path / v}" for k, v in OUTPUTS.items()),
+        *(f"{k}={tmp_path / v}" for k, v in DENSE_OUTPUTS.items()),
     )
     log = json.dumps(result["log"])
+    assert all((tmp_path / v).exists() for v in DENSE_OUTPUTS.values())
     assert "finding the terrain height by matching" in log and "dense matching:" in log
     dense, region_growing = dem_per_class(tmp_path), dem_per_class(pipeline[1])
     figures.table(
@@ -307,3 +316,20 @@ def test_dense_pipeline_without_a_height(pipeline, small_scene, qgis_process, tm
     # where both measure, dense is about as good: its LSM refinement is region growing's, its DEM the per-cell
     # median of single-pixel points where region growing's TIN averages over its STEP (the bound of before)
     assert all(v[0] < 1.25 * v[1] for v in rms.values()), rms
+    # the DTM of the dense DSM: nearer the true DTM than the DSM is, where the DSM stands above the ground
+    true_dtm = warped(small_scene["dtm"], tmp_path / "dem.tif")
+    dtm, dhm = band(tmp_path / "dtm.tif"), band(tmp_path / "dhm.tif")
+    np.testing.assert_allclose(dhm[np.isfinite(dem)], (dem - dtm)[np.isfinite(dem)], atol=1e-3)
+    departure = {}
+    for code, name in CLASSES.items():
+        if name in ("bare fields", "forest", "city/buildings"):
+            cells = (classes == code) & np.isfinite(dem) & np.isfinite(dtm)
+            departure[name] = [float(np.sqrt(np.mean((g[cells] - true_dtm[cells]) ** 2))) for g in (dtm, dem)]
+    figures.table(
+        "dense model: RMS against the true DTM, of its DTM and of its DSM",
+        [{"class": k, "DTM RMS m": v[0], "DSM RMS m": v[1]} for k, v in departure.items()],
+    )
+    assert departure["city/buildings"][0] < 0.8 * departure["city/buildings"][1], departure
+    assert departure["forest"][0] < departure["forest"][1], departure
+    codes = gdal.Open(str(tmp_path / "occlusions.tif")).ReadAsArray()
+    assert set(np.unique(codes)) <= {0, 1, 255} and (codes == 0).sum() > 0
