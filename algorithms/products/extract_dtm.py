@@ -1,12 +1,14 @@
 """DSM to DTM and DHM (pushbroom:extractdtm) with CNES Bulldozer (Lallement et al. 2023: the drape-cloth filter,
 `bulldozer-dtm`, installed without its dependencies on Debian's rasterio, scikit-image and numpy).
 
-Bulldozer reads its whole DSM into memory. So the DSM is cut into tiles of TILE cells with a margin of MARGIN cells
-more on every side (clipped at the DSM's border), each tile cut out as a GeoTIFF in a work folder and given to
-Bulldozer as a DSM of its own, as a task on the chosen execution; each tile keeps its inner cells, and GDAL assembles
-them. Memory follows the tile. The margin lets the cloth see every object whose cells reach into the tile: at least
-twice the largest object (`max_object_size`) or 64 cells, whichever is more (docs/validation.md#extract-dtm measures
-the tiles' agreement with one run over the whole DSM).
+Bulldozer reads its whole DSM into memory. So Bulldozer runs on windows of TILE x TILE cells (the DSM's size along
+an axis where it is smaller), each cut out as a GeoTIFF in a work folder and given to Bulldozer as a DSM of its own,
+as a task on the chosen execution; each window keeps its inner tile, TILE less a margin on each side, and GDAL
+assembles the inner tiles. The margin lets the cloth see every object whose cells reach into the tile: at least
+twice the largest object (`max_object_size`) or MIN_MARGIN cells, whichever is more (docs/validation.md#extract-dtm
+measures the tiles' agreement with one run over the whole DSM). At the DSM's border the window is shifted inwards,
+not cut: every window has the same size, so a worker's memory is the same on any DSM larger than a window, and
+follows the tile, not the scene (docs/validation.md#dem-steps-memory).
 
 Bulldozer keeps module-level state (its logger singleton, its parameters) and is not safe to run in several
 threads of one process, nor is it meant to run inside QGIS's: its tiles run on local worker processes where threads
@@ -73,12 +75,23 @@ class DtmParams:
     cog: bool = False
 
     def check(self) -> DtmParams:
-        if not self.max_object_size > 0 or not self.max_ground_slope > 0 or self.tile < 2 * MIN_MARGIN:
+        if not self.max_object_size > 0 or not self.max_ground_slope > 0 or self.tile < 3 * MIN_MARGIN:
             raise InputError(
-                f"the largest object and the ground slope must be positive and the tile at least {2 * MIN_MARGIN} cells"
+                f"the largest object and the ground slope must be positive and the tile at least {3 * MIN_MARGIN} cells"
             )
         self.execution.check()
         return self
+
+    def inner_tile(self, margin: int) -> int:
+        """The inner tile (cells) of windows of `tile` cells with `margin` on each side; InputError where the margin
+        leaves less than a margin inside."""
+        if self.tile - 2 * margin < margin:
+            raise InputError(
+                f"a tile of {self.tile} cells is too small for objects of {self.max_object_size:g} m: its margin of "
+                f"{margin} cells on each side (twice the largest object) leaves less than a margin inside; give a tile "
+                f"of at least {3 * margin} cells"
+            )
+        return self.tile - 2 * margin
 
 
 @dataclass(frozen=True)
@@ -93,6 +106,7 @@ class _Job:
     dsm: str
     nodata: float | None
     margin: int
+    window: int
     size: tuple[int, int]
     max_object_size: float
     max_ground_slope: float
@@ -114,14 +128,21 @@ def margin_cells(params: DtmParams, cell: float) -> int:
     return max(MIN_MARGIN, int(math.ceil(2 * params.max_object_size / cell)))
 
 
+def window_of(start: int, stop: int, margin: int, window: int, size: int) -> tuple[int, int]:
+    """The window [w0, w1) of `window` cells (of `size` where smaller) along an axis of `size` cells around the inner
+    tile [start, stop) and `margin` cells on each side: centred on the margin, shifted inwards at the border."""
+    w0 = min(max(start - margin, 0), max(size - window, 0))
+    return w0, min(w0 + window, size)
+
+
 def dtm_tile(job: _Job, k: int, box: tuple[int, int, int, int]) -> dict[str, Any]:
-    """Task: Bulldozer on tile `k` (`box` and its margin) of the DSM; writes the inner cells' DTM, DHM and mask to the
-    work folder; returns their paths."""
+    """Task: Bulldozer on the window of tile `k` (`box`, window_of along each axis) of the DSM; writes the inner
+    cells' DTM, DHM and mask to the work folder; returns their paths."""
     from bulldozer.pipeline.bulldozer_pipeline import dsm_to_dtm
 
     c0, r0, c1, r1 = box
-    m, (cols, rows) = job.margin, job.size
-    w0, h0, w1, h1 = max(c0 - m, 0), max(r0 - m, 0), min(c1 + m, cols), min(r1 + m, rows)
+    (cols, rows), m, n = job.size, job.margin, job.window
+    (w0, w1), (h0, h1) = window_of(c0, c1, m, n, cols), window_of(r0, r1, m, n, rows)
     folder = os.path.join(job.work, f"tile-{k:05d}")
     os.makedirs(folder, exist_ok=True)
     source = open_raster(job.dsm, "DSM")
@@ -191,6 +212,8 @@ def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feed
         )
     gt, size = source.GetGeoTransform(), (source.RasterXSize, source.RasterYSize)
     cell = abs(gt[1])
+    margin = margin_cells(params, cell)
+    inner = params.inner_tile(margin)  # a tile too small for the objects: said before any work
     execution = params.execution
     if execution.backend == "threads":  # Bulldozer's own pool forks: never inside QGIS's process
         execution = replace(execution, backend="processes")
@@ -199,13 +222,14 @@ def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feed
         job = _Job(
             str(dsm),
             params.dsm_nodata,
-            margin_cells(params, cell),
+            margin,
+            params.tile,
             size,
             params.max_object_size,
             params.max_ground_slope,
             work,
         )
-        boxes = tile_grid(size, params.tile)
+        boxes = tile_grid(size, inner)
         done = run_tasks(
             dtm_tile,
             [(job, k, box) for k, box in enumerate(boxes)],

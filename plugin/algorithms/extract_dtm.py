@@ -8,7 +8,7 @@ from qgis.core import (
 )
 from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
-from ...algorithms.products.extract_dtm import DtmOutputs, DtmParams, extract_dtm
+from ...algorithms.products.extract_dtm import MIN_MARGIN, DtmOutputs, DtmParams, extract_dtm
 from ..styles import style_on_completion
 from .base import PushbroomAlgorithm, cog_parameter, execution_choice, execution_parameters, translate
 from .dem_nodata import nodata_parameter
@@ -65,7 +65,7 @@ class ExtractDtm(PushbroomAlgorithm):
                     translate("Pushbroom", "Tile side (cells)"),
                     Number.Integer,
                     d.tile,
-                    minValue=128,
+                    minValue=3 * MIN_MARGIN,
                 ),
                 *execution_parameters(self, d.execution.workers),
             ]
