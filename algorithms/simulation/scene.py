@@ -38,6 +38,7 @@ from ..progress import step, warn
 from ..sensors.dimap import read_dimap
 from ..sensors.dimap_writer import write_dimap
 from ..sensors.spot_orientation import Corrections
+from ..surface.geotiff import to_cog
 from . import outputs, radiometry
 from .acquisition import footprint_bounds, plan, ray_at_height
 from .grid import Grid
@@ -50,6 +51,9 @@ from .terrain import CLASSES, FOREST, Terrain, build_terrain, check_coverage, ex
 from .tiled_surface import TiledSurface
 from .tiles import TILE, cut, grid_array, grown, value_range, windows
 from .truth import ImageTruth
+
+#: the ground rasters of a scene (GeoTIFFs in EPSG:4326), by their key in the paths simulate_scene returns
+GROUND_RASTERS = ("dsm", "dtm", "classes", "orthoimage")
 
 #: the truth file, relative to the scene folder: it marks a folder simulate_scene made (and may replace)
 TRUTH = os.path.join("truth", "truth.json")
@@ -174,11 +178,13 @@ def _look_table(config):
     return o.psi_x, o.psi_y, o.line_period
 
 
-def simulate_scene(config, out_dir, feedback=None, tile=TILE):
+def simulate_scene(config, out_dir, feedback=None, tile=TILE, cog=False):
     """Simulate the scene of `config` into the folder `out_dir` (replaced as a whole) and return
     the paths written: {'folder', 'images': {name: {'imagery', 'metadata'}}, 'truth_metadata':
     {name: path}, 'truth', 'dsm', 'dtm', 'classes', 'orthoimage', 'points'}. `tile`: the ground
-    tile side in cells (the products do not depend on it)."""
+    tile side in cells (the products do not depend on it). Where `cog`, the ground rasters (dsm, dtm,
+    classes, orthoimage) are Cloud-Optimised GeoTIFFs (surface.geotiff.to_cog); the level-1A imagery
+    stays the plain TIFF of a DIMAP product."""
     config = config.resolved()
     step(feedback, 0, f"planning the {config.configuration} acquisition")
     source = extended_dem(jacksboro_dem())
@@ -224,6 +230,10 @@ def simulate_scene(config, out_dir, feedback=None, tile=TILE):
             ),
         )
         shutil.rmtree(work)
+        if cog:
+            for k, name in enumerate(GROUND_RASTERS):
+                step(feedback, 95 + k, f"{name} as a Cloud-Optimised GeoTIFF")
+                to_cog(paths[name])
     step(feedback, 100)
     return _rebase(paths, tmp, os.path.abspath(os.fspath(out_dir)))
 

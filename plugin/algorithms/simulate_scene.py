@@ -18,7 +18,7 @@ from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 from ...algorithms.simulation import scene
 from ...algorithms.simulation.instruments import CONFIGURATIONS
 from ...algorithms.simulation.scene import SIZE_KM, SceneConfig, simulate_scene
-from .base import PushbroomAlgorithm, translate, translated
+from .base import PushbroomAlgorithm, cog_parameter, translate, translated
 
 #: labels of the configurations (instruments.CONFIGURATIONS)
 CONFIGURATION_LABELS = {
@@ -52,6 +52,7 @@ class SimulateScene(PushbroomAlgorithm):
     GRID_M = "GRID_M"
     LOOK_TABLE = "LOOK_TABLE"
     ORTHOIMAGE = "ORTHOIMAGE"
+    COG = "COG"
     OUTPUT = "OUTPUT"
     IMAGES = "IMAGES"
     DSM = "DSM"
@@ -162,6 +163,7 @@ class SimulateScene(PushbroomAlgorithm):
                 ),
             ]
         )
+        self.addParameter(cog_parameter(self))
         self.addParameter(QgsProcessingParameterFolderDestination(self.OUTPUT, translate("Pushbroom", "Output folder")))
         self.addOutput(QgsProcessingOutputMultipleLayers(self.IMAGES, translate("Pushbroom", "Images (IMAGERY.TIF)")))
         for key, label in [
@@ -204,7 +206,12 @@ class SimulateScene(PushbroomAlgorithm):
 
     def execute(self, parameters, context, feedback):
         config = self.scene_config(parameters, context)
-        paths = simulate_scene(config, self.parameterAsString(parameters, self.OUTPUT, context), feedback=feedback)
+        paths = simulate_scene(
+            config,
+            self.parameterAsString(parameters, self.OUTPUT, context),
+            feedback=feedback,
+            cog=self.parameterAsBool(parameters, self.COG, context),
+        )
         images = [paths["images"][name]["imagery"] for name in paths["images"]]
         feedback.pushInfo(f"simulated {len(images)} images into {paths['folder']}: " + ", ".join(paths["images"]))
         return {

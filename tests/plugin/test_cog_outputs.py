@@ -87,6 +87,24 @@ def test_orthorectify_writes_cog(pushbroom_provider, small_scene, tmp_path):
                 "CELL_SIZE": 20.0,
                 "COG": cog,
                 "OUTPUT": str(tmp_path / f"o_{cog}.tif"),
+                "OCCLUSIONS": str(tmp_path / f"m_{cog}.tif"),
             },
         )
     assert_cog_like(str(tmp_path / "o_True.tif"), str(tmp_path / "o_False.tif"))
+    assert_cog_like(str(tmp_path / "m_True.tif"), str(tmp_path / "m_False.tif"))
+
+
+def test_simulatescene_writes_its_ground_rasters_as_cog(pushbroom_provider, tmp_path):
+    """A 1 km scene, twice from one seed: the ground rasters as COG hold what the plain ones hold; the level-1A
+    imagery is the same bytes either way."""
+    results = {}
+    for cog in (False, True):
+        results[cog] = run(
+            "simulatescene",
+            {"SIZE_KM": 1.0, "POINTS": 0, "COG": cog, "OUTPUT": str(tmp_path / f"scene_{cog}")},
+        )
+    for key in ("DSM", "DTM", "CLASSES", "ORTHOIMAGE"):
+        assert_cog_like(results[True][key], results[False][key])
+    for plain, cog in zip(results[False]["IMAGES"], results[True]["IMAGES"]):
+        with open(plain, "rb") as a, open(cog, "rb") as b:
+            assert a.read() == b.read()
