@@ -879,122 +879,122 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="65"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="66"/>
         <source>Configuration</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="73"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="74"/>
         <source>Scene size (km)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="83"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="84"/>
         <source>Random seed</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="84"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="85"/>
         <source>Radiometric resolution (bits)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="92"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="93"/>
         <source>Control/check point candidates</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="101"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="102"/>
         <source>Blunders among the point measurements</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="111"/>
         <source>Image noise sigma (DN at 8 bit)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="111"/>
         <source>Fractal terrain detail (x 4 m, 0 = off)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="111"/>
         <source>Forest and buildings in the DSM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="111"/>
         <source>Point measurement noise (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="111"/>
         <source>Paint bright markers at the point candidates</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="111"/>
         <source>Scale of the injected orientation errors (0: supplied = truth)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="111"/>
         <source>Ground grid cell (m)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="111"/>
         <source>Look angles and line period from this METADATA.DIM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="110"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="111"/>
         <source>Ground reflectance from this orthoimage</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="165"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="167"/>
         <source>Output folder</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="166"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="168"/>
         <source>Images (IMAGERY.TIF)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="168"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="170"/>
         <source>True DSM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="169"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="171"/>
         <source>True DTM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="170"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="172"/>
         <source>Land-cover classes</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="171"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="173"/>
         <source>True orthoimage</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="174"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="176"/>
         <source>Control/check point candidates (CSV)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="177"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="179"/>
         <source>Truth file (JSON)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/simulate_scene.py" line="178"/>
+        <location filename="../plugin/algorithms/simulate_scene.py" line="180"/>
         <source>Scene folder</source>
         <translation type="unfinished"></translation>
     </message>
