@@ -96,13 +96,19 @@ def test_dhm_is_the_dsm_less_the_dtm_and_nodata_stays(scene, extracted):
     assert set(np.unique(extracted["mask"][np.isfinite(extracted["mask"])])) <= {0, 1, 2}
 
 
-def test_tiles_agree_with_one_run(scene, extracted):
+def test_tiles_agree_with_one_run(scene, extracted, figures):
     folder = scene["folder"]
     out = DtmOutputs(str(folder / "dtm_tiled.tif"))
     extract_dtm(scene["dsm"], out, DtmParams(tile=256, execution=Execution("processes", 2)))  # windows of 256
     tiled, whole = read(out.dtm), extracted["dtm"]
     ok = np.isfinite(tiled) & np.isfinite(whole)
     d = np.abs(tiled - whole)[ok]
+    figures.report(
+        "windows of 256 against one run: RMS, 99th percentile, largest",
+        [np.sqrt(np.mean(d**2)), np.percentile(d, 99), d.max()],
+        "m",
+    )
+    figures.report("cells beyond 0.5 m", 100 * np.mean(d > 0.5), "%")
     assert np.sqrt(np.mean(d**2)) < 0.05 and np.percentile(d, 99) < 0.01
 
 
