@@ -42,8 +42,10 @@ around it (RADIUS 1, the default), the gaps within FILL 10 cells filled and flag
 DEM: studies/dense_fusion.py, docs/validation.md#dense-peers); its STEP and MAX_EDGE inputs do not apply and are
 left out. Its DEM is a DSM: its orthoimage is a true orthoimage, with the occlusion mask as the output
 orthorectify:occlusions, and `extractdtm` (CNES Bulldozer) makes its DTM and height above ground (extractdtm:dtm,
-extractdtm:dhm). The co-registration to the reference is assessaccuracy's own (COREGISTER, on by default), and a
-merge of several DSMs (mergedems) has no place in a chain of one block.
+extractdtm:dhm). extractdtm needs CNES Bulldozer (make setup installs it; docs/steps/extractdtm.md): it runs last
+(DEPENDS), so that a QGIS without Bulldozer has every other output written before the step says what to install.
+The co-registration to the reference is assessaccuracy's own (COREGISTER, on by default), and a merge of several
+DSMs (mergedems) has no place in a chain of one block.
 """
 
 import os
@@ -120,8 +122,9 @@ INPUTS = [
     QgsProcessingParameterString("IMAGE_NAME", "Image to orthorectify (name in the block)", "HRG"),
     Number(
         "THREADS",
-        "Workers of the tiled steps (height search, matching, intersection, DEM, orthoimage): threads, "
-        "processes or local Dask workers",
+        "Workers of the tiled steps (height search, matching, intersection, DEM, orthoimage; in the dense model the "
+        "DTM's Bulldozer processes too, each holding a window of about 4080 x 4096 cells): threads, processes or "
+        "local Dask workers",
         Number.Integer,
         1,
         minValue=1,
@@ -253,7 +256,7 @@ STEPS = [
 
 
 #: children that wait for others they take no input from: {child id: [child ids]} (docstring)
-DEPENDS = {"matchpoints": ["checkimage"]}
+DEPENDS = {"matchpoints": ["checkimage"], "extractdtm": ["orthorectify", "assessaccuracy"]}
 #: children described otherwise than by their algorithm's name (QGIS names them in its messages)
 DESCRIPTIONS = {"checkimage": "Check the image to orthorectify (IMAGE_NAME): a coarse orthoimage on REFERENCE"}
 
@@ -324,7 +327,7 @@ def build(dense=False):
     dem = "DEM (per-cell medians of the refined points)" if dense else "DEM (TIN, gaps at long triangles)"
     ortho = "a true orthoimage of one image on the adjusted model and the produced DSM, with its occlusion mask"
     ortho = ortho if dense else "orthoimage of one image on the adjusted model and the produced DEM"
-    dtm = ", the DTM and the height above ground of the DSM (CNES Bulldozer)" if dense else ""
+    dtm = ", and last the DTM and the height above ground of the DSM (CNES Bulldozer, to be installed)" if dense else ""
     model.setHelpContent(
         {
             "ALG_DESC": (

@@ -2,6 +2,6 @@
 ground -> image mapping with a stated error bound, resampling, occlusion, tiled GeoTIFF output."""
 
 from .grid import OutputGrid, default_grid
-from .orthorectify import OrthoResult, OrthoSettings, orthorectify
+from .orthorectify import OrthoOutputs, OrthoResult, OrthoSettings, orthorectify
 
-__all__ = ["OutputGrid", "default_grid", "OrthoResult", "OrthoSettings", "orthorectify"]
+__all__ = ["OutputGrid", "default_grid", "OrthoOutputs", "OrthoResult", "OrthoSettings", "orthorectify"]

@@ -63,6 +63,15 @@ class OrthoSettings:
     cog: bool = False
 
 
+@dataclass(frozen=True)
+class OrthoOutputs:
+    """Where `orthorectify` writes: the orthoimage `image`, and the occlusion mask `occlusions` (None, or an empty
+    path: none)."""
+
+    image: str | os.PathLike[str]
+    occlusions: str | os.PathLike[str] | None = None
+
+
 @dataclass
 class OrthoResult:
     """What orthorectify wrote: `path`, `grid`, `bound` (largest achieved coarse-grid error bound, px),
@@ -95,6 +104,11 @@ def _nodata(band: Any, dtype: np.dtype) -> float:
     return 0 if np.issubdtype(dtype, np.integer) else math.nan
 
 
+def _is_nodata(values: np.ndarray, nodata: float) -> np.ndarray:
+    """Where `values` are the nodata value `nodata` (NaN: where they are not finite)."""
+    return ~np.isfinite(values) if math.isnan(nodata) else values == nodata
+
+
 def _to_dtype(values: np.ndarray, dtype: np.dtype, nodata: float) -> np.ndarray:
     """Resampled values rounded and clipped to `dtype`, never equal to an integer nodata at its range's end."""
     if not np.issubdtype(dtype, np.integer):
@@ -122,7 +136,7 @@ class _TileWorker:
         tile = self.mapper.tile(row0, col0, rows, cols)
         col, row = tile.col.ravel(), tile.row.ravel()
         hidden = None
-        if job.occlusion_on or job.mask:
+        if job.occluded_nodata or job.mask:
             direction = self._direction(tile)
             hidden = np.zeros(col.size, np.bool_)
             if direction is not None:
@@ -134,9 +148,10 @@ class _TileWorker:
                 f"cannot open the image {job.image} ({exc}): every worker must see it under this path"
             ) from None
         values, inside = resampling.resample(ds, col, row, job.method)
-        occluded = inside & hidden if hidden is not None else np.zeros(col.size, np.bool_)
-        valid = inside & ~occluded if job.occlusion_on else inside
         out = _to_dtype(values, np.dtype(job.dtype), job.nodata)
+        inside &= ~_is_nodata(out, job.nodata).all(axis=0)  # the image's own nodata resampled: no value either
+        occluded = inside & hidden if hidden is not None else np.zeros(col.size, np.bool_)
+        valid = inside & ~occluded if job.occluded_nodata else inside
         out[:, ~valid] = job.nodata
         codes = None
         if job.mask:
@@ -185,7 +200,7 @@ def _footprint(
 class _OrthoJob:
     """What every tile task of one orthoimage shares (picklable: it travels to worker processes and Dask): the
     `image` path and its sensor `model`, the `stored` DEM (dem_store.StoredDem), the output grid (`grid_wkt`,
-    `geotransform`, `size` cols x rows), the resampling `method`, `occlusion_on` (occluded cells as nodata),
+    `geotransform`, `size` cols x rows), the resampling `method`, `occluded_nodata` (occluded cells as nodata),
     `mask` (the occlusion mask is written), the image's numpy `dtype` (its str), `nodata` and GDAL type
     `gdal_type`, the coarse-grid `max_error` from `start_step`, and the occluding rays' `reach` (degrees)."""
 
@@ -196,7 +211,7 @@ class _OrthoJob:
     geotransform: tuple[float, ...]
     size: tuple[int, int]
     method: str
-    occlusion_on: bool
+    occluded_nodata: bool
     mask: bool
     dtype: str
     nodata: float
@@ -256,23 +271,26 @@ def orthorectify(
     image: str | os.PathLike[str],
     model: Any,
     dem: Any,
-    output: str | os.PathLike[str],
+    output: str | os.PathLike[str] | OrthoOutputs,
     grid: OutputGrid | None = None,
     settings: OrthoSettings | None = None,
     execution: Execution | None = None,
     feedback: Feedback | None = None,
-    occlusions: str | os.PathLike[str] | None = None,
 ) -> OrthoResult:
     """Orthoimage of raster `image` (path) with sensor `model` on `dem` (ellipsoidal heights: a dem.Dem, or a
-    dem_store.StoredDem), written to GeoTIFF `output` with OrthoSettings `settings` (default: its defaults).
-    The grid is `grid` (OutputGrid) or default_grid(model, dem, settings.crs, settings.cell_size); the tiles
-    run on `execution` (execution.Execution; default one thread). Where `occlusions` is a path, the occlusion
-    mask is written there too (Byte: SEEN 0, OCCLUDED 1 by the DEM's surface, OUTSIDE 255 the image or the DEM,
-    its nodata), whether or not occluded cells are nodata in the image; both are renamed together. Returns an
-    OrthoResult; raises CancelledError (nothing written) when feedback cancels, ExecutionError (execution.py's)."""
+    dem_store.StoredDem), written to the GeoTIFF `output` (a path, or OrthoOutputs) with OrthoSettings `settings`
+    (default: its defaults). The grid is `grid` (OutputGrid) or default_grid(model, dem, settings.crs,
+    settings.cell_size); the tiles run on `execution` (execution.Execution; default one thread). Where the outputs
+    name the occlusions, the occlusion mask is written there too (Byte: SEEN 0, OCCLUDED 1 by the DEM's surface,
+    OUTSIDE 255 where the orthoimage has no value: outside the image or the DEM, or the image's nodata; its nodata),
+    whether or not occluded cells are nodata in the image; both are renamed together. Returns an OrthoResult; raises CancelledError (nothing written) when feedback cancels, ExecutionError (execution.py's)."""
     settings = settings or OrthoSettings()
     resampling_method = settings.resampling_method
+    outputs = output if isinstance(output, OrthoOutputs) else OrthoOutputs(output)
+    output, occlusions = outputs.image, outputs.occlusions or None
     start = time.perf_counter()
+    if occlusions is not None and os.path.abspath(occlusions) == os.path.abspath(output):
+        raise InputError(f"the occlusion mask and the orthoimage are both {output}: give the mask another name")
     if resampling_method not in resampling.METHODS:
         raise InputError(f"resampling is one of {', '.join(resampling.METHODS)}, not {resampling_method!r}")
     gdal.UseExceptions()
@@ -342,8 +360,8 @@ def orthorectify(
                 tmp,  # type: ignore[arg-type]
                 frame,
                 CREATION_OPTIONS,
-                overviews=settings.overviews,
-                feedback=progress.scaled(feedback, 90, 95 if settings.cog else 100),
+                overviews="AVERAGE" if settings.overviews else None,
+                feedback=progress.scaled(feedback, 90, 93 if mask_tmp else 95 if settings.cog else 100),
             )
             if mask_tmp:
                 assemble_tiles(
@@ -352,7 +370,8 @@ def orthorectify(
                     frame,
                     CODE_OPTIONS,
                     description="occlusion mask: 0 seen, 1 occluded by the surface, 255 outside the image or the DEM",
-                    overviews=False,  # no average of codes
+                    overviews="NEAREST" if settings.overviews else None,  # no average of codes
+                    feedback=progress.scaled(feedback, 93, 95 if settings.cog else 100),
                 )
     result = OrthoResult(
         str(output),

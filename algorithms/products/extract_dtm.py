@@ -20,9 +20,9 @@ height is not given to Bulldozer: it stays nodata.
 
 Outputs: the DTM (Bulldozer's: its fill of the voids the DSM encloses kept, the voids open to a tile's border
 nodata), the DHM = DSM - DTM (nodata where the DSM has none), and a mask (Byte): 1 a cell the DSM had no height in
-and Bulldozer filled, 2 a pit Bulldozer filled, 0 otherwise; each a tiled GeoTIFF (the DTM and the DHM with
-overviews), written together or not at all. Whether a void touches a tile's border depends on the tile: a void
-wider than the margin at a tile's edge may stay nodata in one tiling and be filled in another.
+and Bulldozer filled, 2 a pit Bulldozer filled, 0 otherwise; each a tiled GeoTIFF with overviews (the mask's by
+nearest neighbour), written together or not at all. Whether a void touches a window's border depends on the tiling:
+a void wider than the margin at a window's edge may stay nodata in one tiling and be filled in another.
 
 Failure modes: InputError (Bulldozer not installed, a DSM without a CRS, in degrees or in another unit than the
 metre, no valid height anywhere), ExecutionError, CancelledError.
@@ -86,19 +86,29 @@ class DtmParams:
 
     def window(self) -> tuple[int, int]:
         """(columns, rows) of Bulldozer's windows: `tile` rows, and `tile` columns rounded down to a multiple of 16
-        that is not one of 128. Bulldozer's drape cloth runs 2 to 3 times slower on rows of a multiple of 128 cells
-        (2048: 9.0 s against 3.7 s for 2032; cache aliasing of its strided views, docs/validation.md#extract-dtm)."""
-        columns = self.tile - self.tile % 16
-        return (columns - 16 if columns % 128 == 0 else columns), self.tile
+        that is not one of 128 (window_columns)."""
+        return window_columns(self.tile), self.tile
 
-    def check_margin(self, margin: int) -> None:
-        """InputError where a margin of `margin` cells on each side leaves less than a margin of a window inside."""
-        if min(self.window()) - 2 * margin < margin:
-            raise InputError(
-                f"a tile of {self.tile} cells is too small for objects of {self.max_object_size:g} m: its margin of "
-                f"{margin} cells on each side (twice the largest object) leaves less than a margin inside; give a tile "
-                f"of at least {3 * margin} cells"
-            )
+    def check_margin(self, margin: int, size: tuple[int, int]) -> None:
+        """InputError where, along an axis of the DSM (`size`: columns, rows) longer than a window, a margin of
+        `margin` cells on each side leaves less than a margin of the window inside, with the tile that would do."""
+        if all(n <= w or w - 2 * margin >= margin for n, w in zip(size, self.window())):
+            return
+        need = -(-3 * margin // 16) * 16  # the least tile whose windows' columns hold three margins
+        need += 16 if need % 128 == 0 else 0
+        raise InputError(
+            f"a tile of {self.tile} cells is too small for objects of {self.max_object_size:g} m: its margin of "
+            f"{margin} cells on each side (twice the largest object) leaves less than a margin inside its windows; "
+            f"give a tile of at least {need} cells"
+        )
+
+
+def window_columns(tile: int) -> int:
+    """The columns of Bulldozer's windows for tiles of `tile` cells: `tile` rounded down to a multiple of 16 that is
+    not one of 128. Bulldozer's drape cloth runs 2 to 3 times slower on rows of a multiple of 128 cells (2048: 8.9 s
+    against 3.6 s for 2032; cache aliasing of its strided views, by every sign: docs/validation.md#extract-dtm)."""
+    columns = tile - tile % 16
+    return columns - 16 if columns % 128 == 0 else columns
 
 
 @dataclass(frozen=True)
@@ -234,7 +244,7 @@ def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feed
     gt, size = source.GetGeoTransform(), (source.RasterXSize, source.RasterYSize)
     cell = abs(gt[1])
     margin = margin_cells(params, cell)
-    params.check_margin(margin)  # a tile too small for the objects: said before any work
+    params.check_margin(margin, size)  # a tile too small for the objects: said before any work
     execution = params.execution
     if execution.backend == "threads":  # Bulldozer's own pool forks: never inside QGIS's process
         execution = replace(execution, backend="processes")
@@ -281,7 +291,7 @@ def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feed
                         frame,
                         options=CODE_OPTIONS if key == "mask" else OPTIONS,
                         description=description,
-                        overviews=key != "mask",  # no average of codes
                         feedback=progress.scaled(feedback, 85, 100),
+                        overviews="NEAREST" if key == "mask" else "AVERAGE",  # no average of codes
                     )
     return {key: path for path, key, _ in wanted if path}

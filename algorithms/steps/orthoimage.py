@@ -16,7 +16,7 @@ from ..dem_store import VERTICAL, store_dem
 from ..errors import InputError
 from ..execution import Execution
 from ..ortho.grid import dem_coverage
-from ..ortho.orthorectify import OrthoSettings, orthorectify
+from ..ortho.orthorectify import OrthoOutputs, OrthoSettings, orthorectify
 from ..ortho.resampling import METHODS
 
 if TYPE_CHECKING:
@@ -78,7 +78,7 @@ def image_and_model(
 
 
 def orthorectify_image(
-    output: str,
+    output: str | OrthoOutputs,
     dem: str,
     params: OrthoParams | None = None,
     block_path: str | None = None,
@@ -86,16 +86,15 @@ def orthorectify_image(
     image: str | None = None,
     orientation: str | None = None,
     feedback: Feedback | None = None,
-    occlusions: str | None = None,
 ) -> OrthoResult:
     """The orthorectification step: the image chosen as in image_and_model on the raster DEM `dem`
     (dem_store.store_dem with the params' heights and nodata, in a work folder beside the output; implausible
     heights are reported), written to the
-    GeoTIFF `output` with OrthoParams `params`, and its occlusion mask to `occlusions` where given (on a DSM:
-    the true orthoimage's hidden cells flagged). Returns the OrthoResult."""
+    GeoTIFF `output` (a path, or OrthoOutputs: with the occlusion mask, on a DSM the true orthoimage's hidden cells
+    flagged) with OrthoParams `params`. Returns the OrthoResult."""
     params = (params or OrthoParams()).check()
     path, model = image_and_model(block_path, image_name, image, orientation)
-    with work_dir(output, "the stored DEM") as work:
+    with work_dir(output.image if isinstance(output, OrthoOutputs) else output, "the stored DEM") as work:
         heights = store_dem(dem, work, params.dem_nodata, params.dem_heights)
         progress.warn(feedback, heights.implausible)
         covered = dem_coverage(model, heights)
@@ -121,5 +120,4 @@ def orthorectify_image(
             ),
             execution=params.execution,
             feedback=feedback,
-            occlusions=occlusions,
         )

@@ -428,13 +428,13 @@ def _cells_dem(cloud, output, params, precision_path, count_path, mask_path, fee
                     "RADIUS_CELLS": int(params.radius),
                     "GAPS_FILLED_WITHIN_CELLS": params.fill,
                 },
-                overviews=not mask_path,
+                overviews=None if mask_path else "AVERAGE",
                 feedback=progress.scaled(feedback, 80, 90),
             )
             if mask_tmp:
                 rings = os.path.join(work, "rings.tif")
                 assemble_tiles(
-                    names["ring"], rings, Frame(grid.geotransform, (grid.cols, grid.rows), target), overviews=False
+                    names["ring"], rings, Frame(grid.geotransform, (grid.cols, grid.rows), target), overviews=None
                 )
                 result.filled = fill_gaps(
                     tmp,

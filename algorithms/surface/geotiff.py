@@ -92,12 +92,13 @@ def assemble_tiles(
     options: Sequence[str] = OPTIONS,
     description: str | None = None,
     metadata: dict[str, Any] | None = None,
-    overviews: bool = True,
+    overviews: str | None = "AVERAGE",
     feedback: Feedback | None = None,
 ) -> str:
     """Write the GeoTIFF `tiles` (one data type, bands and nodata; together they cover parts of the raster
     of `frame`) as one GeoTIFF at `path` (a temporary name: the caller renames it) with creation `options`
-    and AVERAGE overviews (overview_levels; none without `overviews`): a VRT translated and its overviews
+    and overviews (overview_levels) resampled by GDAL's `overviews` method (None: no overviews; NEAREST for codes,
+    which an average would mix): a VRT translated and its overviews
     built by GDAL in blocks, so memory follows GDAL's cache, not the raster. Cells no tile covers are the
     tiles' nodata. CancelledError when `feedback` cancels."""
     from osgeo import gdal
@@ -125,7 +126,7 @@ def assemble_tiles(
             levels = overview_levels((size[1], size[0])) if overviews else []
             if levels:
                 ds.BuildOverviews(
-                    "AVERAGE", levels, callback=progress.gdal_callback(progress.scaled(feedback, 60, 100))
+                    overviews, levels, callback=progress.gdal_callback(progress.scaled(feedback, 60, 100))
                 )
     except RuntimeError:
         if feedback is not None and feedback.isCanceled():

@@ -14,6 +14,7 @@ from qgis.core import (
 from qgis.PyQt.QtCore import QT_TRANSLATE_NOOP
 
 from ...algorithms.dem_store import VERTICAL
+from ...algorithms.ortho import OrthoOutputs
 from ...algorithms.ortho.resampling import METHODS
 from ...algorithms.steps.orthoimage import OrthoParams, orthorectify_image
 from ..styles import style_on_completion
@@ -177,7 +178,7 @@ class Orthorectify(PushbroomAlgorithm):
         output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
         occlusions = self.parameterAsOutputLayer(parameters, self.OCCLUSIONS, context) or None
         result = orthorectify_image(
-            output,
+            OrthoOutputs(output, occlusions),
             self.parameterAsRasterLayer(parameters, self.DEM, context).source(),
             params,
             block_path=self.parameterAsFile(parameters, self.BLOCK, context),
@@ -185,7 +186,6 @@ class Orthorectify(PushbroomAlgorithm):
             image=image.source() if image is not None else None,
             orientation=self.parameterAsFile(parameters, self.ORIENTATION, context),
             feedback=feedback,
-            occlusions=occlusions,
         )
         outputs = {self.OUTPUT: output, self.BOUND: result.bound, self.CELLS: result.cells}
         if occlusions:

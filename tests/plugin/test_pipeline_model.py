@@ -92,6 +92,9 @@ def test_model_file_is_what_the_script_builds(pushbroom_provider, tmp_path):
     assert sources["interpolatedem"]["METHOD"][0].staticValue() == 1
     assert sources["interpolatedem"]["FALLBACK"][0].staticValue() is False
     assert sources["interpolatedem"]["FILL"][0].staticValue() == 10.0
+    # the DTM needs Bulldozer: it runs last, after every other output is written
+    last = {d.childId for d in dense.childAlgorithms()["extractdtm"].dependencies()}
+    assert {"orthorectify", "assessaccuracy"} <= last
     assert {p.name() for p in dense.parameterDefinitions()}.isdisjoint({"STEP", "MAX_EDGE"})
 
 

@@ -15,7 +15,7 @@ from pushbroom.algorithms.dem_store import read_dem, store_dem
 from pushbroom.algorithms.errors import CancelledError, InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.geodesy import metres_per_degree
-from pushbroom.algorithms.ortho import OrthoSettings, OutputGrid, default_grid, orthorectify
+from pushbroom.algorithms.ortho import OrthoOutputs, OrthoSettings, OutputGrid, default_grid, orthorectify
 from pushbroom.algorithms.ortho.mapping import START_STEP, TileMapper
 from pushbroom.algorithms.ortho.occlusion import occluded, ray_direction
 from pushbroom.algorithms.ortho.orthorectify import _footprint, _reach
@@ -216,7 +216,7 @@ def test_true_orthoimage_flags_what_the_surface_hides(scene, tmp_path, figures):
     model = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
     image = scene["paths"]["images"]["HRS1"]["imagery"]
     flagged = orthorectify(
-        image, model, scene["dsm"], tmp_path / "dsm.tif", grid=scene["grid"], occlusions=tmp_path / "mask.tif"
+        image, model, scene["dsm"], OrthoOutputs(tmp_path / "dsm.tif", tmp_path / "mask.tif"), grid=scene["grid"]
     )
     hidden = orthorectify(
         image,
@@ -259,6 +259,40 @@ def test_true_orthoimage_flags_what_the_surface_hides(scene, tmp_path, figures):
                 "px",
             )
     assert raised["DTM", "town"] > 2 * raised["DSM", "town"] and raised["DTM", "forest"] > 1.3 * raised["DSM", "forest"]
+
+
+def test_the_mask_says_outside_exactly_where_the_orthoimage_has_no_value(scene, tmp_path):
+    """A two-band Float32 image (NaN its nodata) with a block of NaN pixels: the cells that take their values from
+    the block have none, and the mask says 255 there as at the image's edge; the same mask path as the orthoimage,
+    refused; an empty mask path, no mask."""
+    model = sensors.load(scene["paths"]["truth_metadata"]["HRS1"])
+    source = gdal.Open(scene["paths"]["images"]["HRS1"]["imagery"])
+    values = source.ReadAsArray().astype(np.float32)
+    rows, cols = values.shape
+    values[rows // 3 : rows // 2, cols // 3 : cols // 2] = np.nan
+    image = str(tmp_path / "float.tif")
+    ds = gdal.GetDriverByName("GTiff").Create(image, source.RasterXSize, source.RasterYSize, 2, gdal.GDT_Float32)
+    for b in (1, 2):
+        ds.GetRasterBand(b).WriteArray(values if b == 1 else 2 * values)
+        ds.GetRasterBand(b).SetNoDataValue(np.nan)
+    ds = source = None
+    out, mask = tmp_path / "ortho.tif", tmp_path / "mask.tif"
+    result = orthorectify(image, model, scene["dsm"], OrthoOutputs(out, mask), grid=scene["grid"])
+    ortho, codes = gdal.Open(str(out)).ReadAsArray(), _read(mask)
+    empty = np.isnan(ortho).all(axis=0)
+    assert np.isnan(ortho).any(axis=0).sum() == empty.sum() and (codes == 1).sum() > 500
+    orthorectify(
+        scene["paths"]["images"]["HRS1"]["imagery"], model, scene["dsm"], tmp_path / "plain.tif", grid=scene["grid"]
+    )
+    assert (empty & (_read(tmp_path / "plain.tif") > 0)).sum() > 5000  # the block's cells, inside the image
+    np.testing.assert_array_equal(codes == 255, empty)
+    assert result.cells == int((~empty).sum())
+    with pytest.raises(InputError, match="give the mask another name"):
+        orthorectify(image, model, scene["dsm"], OrthoOutputs(out, str(out)), grid=scene["grid"])
+    assert (
+        orthorectify(image, model, scene["dsm"], OrthoOutputs(tmp_path / "o2.tif", ""), grid=scene["grid"]).occlusions
+        is None
+    )
 
 
 @pytest.mark.slow

@@ -160,6 +160,21 @@ def test_every_window_has_the_tiles_size_and_holds_its_margin(size):
     assert len(tiles) == fewest
 
 
+def test_the_tile_a_refusal_asks_for_is_the_least_that_does():
+    """For every margin, the tile the message names is accepted and one cell less is refused; a DSM that fits in one
+    window needs no margin."""
+    large = (100_000, 100_000)
+    for margin in range(64, 400):
+        with pytest.raises(InputError) as refused:
+            DtmParams(tile=3 * margin - 1).check_margin(margin, large)
+        need = int(str(refused.value).rsplit("at least ", 1)[1].split()[0])
+        DtmParams(tile=need).check_margin(margin, large)
+        with pytest.raises(InputError):
+            DtmParams(tile=need - 1).check_margin(margin, large)
+        refused = None
+    DtmParams(tile=200).check_margin(300, (192, 200))  # windows of 192 x 200
+
+
 def test_a_tile_too_small_for_the_objects_is_refused(scene, tmp_path):
     with pytest.raises(InputError, match="give a tile of at least 960 cells"):  # 2 x 800 m / 5 m = 320 cells a margin
         extract_dtm(scene["dsm"], DtmOutputs(str(tmp_path / "dtm.tif")), DtmParams(max_object_size=800, tile=512))
