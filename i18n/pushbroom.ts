@@ -29,12 +29,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="89"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="90"/>
         <source>DEM</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="90"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="91"/>
         <source>DEM heights</source>
         <translation type="unfinished"></translation>
     </message>
@@ -759,77 +759,77 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="31"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="32"/>
         <source>ellipsoidal (WGS 84)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="31"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="32"/>
         <source>EGM96</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="36"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="37"/>
         <source>Orthorectify image</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="64"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="65"/>
         <source>Block (empty: the image&apos;s own orientation)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="72"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="73"/>
         <source>Image name in the block</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="77"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="78"/>
         <source>Image (without a block)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="82"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="83"/>
         <source>Orientation file (empty: found beside the image)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="98"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="99"/>
         <source>Output CRS (empty: UTM zone of the footprint)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="103"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="104"/>
         <source>Cell size in CRS units (empty: ground sampling distance)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="113"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="114"/>
         <source>Resampling</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="121"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="122"/>
         <source>Occluded cells as nodata</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="126"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="127"/>
         <source>Bound of the coarse-grid interpolation error (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="140"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="141"/>
         <source>Orthoimage</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="149"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="150"/>
         <source>Achieved interpolation error bound (px)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="152"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="153"/>
         <source>Cells with image values</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1034,12 +1034,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="27"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="28"/>
         <source>Bilinear</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="28"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="29"/>
         <source>Bicubic</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1384,7 +1384,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/orthorectify.py" line="141"/>
+        <location filename="../plugin/algorithms/orthorectify.py" line="142"/>
         <source>Occlusion mask (0 seen, 1 occluded by the DEM&apos;s surface, 255 outside)</source>
         <translation type="unfinished"></translation>
     </message>

@@ -283,7 +283,8 @@ def orthorectify(
     settings.cell_size); the tiles run on `execution` (execution.Execution; default one thread). Where the outputs
     name the occlusions, the occlusion mask is written there too (Byte: SEEN 0, OCCLUDED 1 by the DEM's surface,
     OUTSIDE 255 where the orthoimage has no value: outside the image or the DEM, or the image's nodata; its nodata),
-    whether or not occluded cells are nodata in the image; both are renamed together. Returns an OrthoResult; raises CancelledError (nothing written) when feedback cancels, ExecutionError (execution.py's)."""
+    whether or not occluded cells are nodata in the image; both are renamed together. Returns an OrthoResult;
+    raises CancelledError (nothing written) when feedback cancels, ExecutionError (execution.py's)."""
     settings = settings or OrthoSettings()
     resampling_method = settings.resampling_method
     outputs = output if isinstance(output, OrthoOutputs) else OrthoOutputs(output)
