@@ -370,7 +370,7 @@ def orthorectify(
                     mask_tmp,
                     frame,
                     CODE_OPTIONS,
-                    description="occlusion mask: 0 seen, 1 occluded by the surface, 255 outside the image or the DEM",
+                    description="occlusion mask: 0 seen, 1 occluded by the surface, 255 no value",
                     overviews="NEAREST" if settings.overviews else None,  # no average of codes
                     feedback=progress.scaled(feedback, 93, 95 if settings.cog else 100),
                 )
