@@ -13,7 +13,7 @@ step reads from its stored file (dem_store.StoredDem.window; a DEM in memory is 
 the output first). So memory follows the tile and the number of workers, and the result does not depend on the
 execution. Each task writes its tile as a GeoTIFF (and its mask tile); GDAL assembles them (a VRT translated into a
 tiled, DEFLATE-compressed GeoTIFF of the image's data type with nodata set and overviews, geotiff.assemble_tiles)
-under temporary names renamed together at the end (a cancel leaves no file)."""
+under temporary names renamed at the end, once both are written (a cancel leaves no file)."""
 
 from __future__ import annotations
 
@@ -283,8 +283,8 @@ def orthorectify(
     settings.cell_size); the tiles run on `execution` (execution.Execution; default one thread). Where the outputs
     name the occlusions, the occlusion mask is written there too (Byte: SEEN 0, OCCLUDED 1 by the DEM's surface,
     OUTSIDE 255 where the orthoimage has no value: outside the image or the DEM, or the image's nodata; its nodata),
-    whether or not occluded cells are nodata in the image; both are renamed together. Returns an OrthoResult;
-    raises CancelledError (nothing written) when feedback cancels, ExecutionError (execution.py's)."""
+    whether or not occluded cells are nodata in the image; both are renamed once both are written. Returns an
+    OrthoResult; raises CancelledError (nothing written) when feedback cancels, ExecutionError (execution.py's)."""
     settings = settings or OrthoSettings()
     resampling_method = settings.resampling_method
     outputs = output if isinstance(output, OrthoOutputs) else OrthoOutputs(output)

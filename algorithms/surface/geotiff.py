@@ -173,7 +173,10 @@ def raster_outputs(
 ) -> Iterator[list[str | None]]:
     """atomic_path for a step's raster outputs (None: one not asked for): yields their temporary names to write the
     GeoTIFFs to; when the body succeeds, each is made a Cloud-Optimised GeoTIFF where `cog` (to_cog), all before any
-    is renamed: the step's outputs are renamed together, or none is."""
+    is renamed: a failure or a cancel while any of them is written leaves every target as it was. The renames then
+    follow one another, the last of `paths` first (each checked again just before, atomic_path): not one atomic step
+    across files, so a rename refused by the file system at that moment can leave the outputs before it new and the
+    others old."""
     with contextlib.ExitStack() as stack:
         temps = [stack.enter_context(atomic_path(path)) if path else None for path in paths]
         yield temps
