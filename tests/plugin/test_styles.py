@@ -31,3 +31,23 @@ def test_labelled_styles_load_with_their_font_found(qgis_app, name):
     message, ok = layer.loadNamedStyle(str(STYLES[[s.name for s in STYLES].index(name)]))
     assert ok, message
     assert layer.labelsEnabled() and layer.labeling().settings().format().fontFound()
+
+
+def test_the_occlusion_mask_style_paints_the_occluded_cells(qgis_app, tmp_path):
+    """occlusions.qml on a mask of orthorectify's codes: a paletted renderer, occluded cells opaque, seen ones clear."""
+    import numpy as np
+    from osgeo import gdal
+    from qgis.core import QgsRasterLayer
+
+    path = str(tmp_path / "mask.tif")
+    ds = gdal.GetDriverByName("GTiff").Create(path, 4, 4, 1, gdal.GDT_Byte)
+    ds.GetRasterBand(1).WriteArray(np.array([[0, 1, 255, 0]] * 4, np.uint8))
+    ds.GetRasterBand(1).SetNoDataValue(255)
+    ds = None
+    layer = QgsRasterLayer(path, "mask")
+    message, ok = layer.loadNamedStyle(str(STYLES[[s.name for s in STYLES].index("occlusions.qml")]))
+    assert ok, message
+    renderer = layer.renderer()
+    assert renderer.type() == "paletted"
+    colours = {c.value: c.color.alpha() for c in renderer.classes()}
+    assert colours == {0.0: 0, 1.0: 255}
