@@ -56,6 +56,7 @@ from __future__ import annotations
 import collections
 import concurrent.futures as cf
 import contextlib
+import dataclasses
 import multiprocessing
 import multiprocessing.connection
 import os
@@ -391,12 +392,18 @@ def run_tasks(
     execution: Execution | None = None,
     feedback: Feedback | None = None,
     what: str = "the tiles",
+    thread_safe: bool = True,
 ) -> list[T]:
     """Run `function(*args)` for each `args` of the list `tasks` on `execution` (Execution; default
     threads) and return the results in the order of `tasks`. Progress runs 0-100 % over the tasks;
     a cancel stops the pending tasks, asks the running ones to stop (`check_cancel`) and raises CancelledError;
-    the first task to fail does the same to the others and its exception is raised (module docstring)."""
+    the first task to fail does the same to the others and its exception is raised (module docstring). A function
+    that is not `thread_safe` (a library with module-level state) runs on local worker processes where threads were
+    chosen, and the log says so."""
     execution = (execution or Execution()).check()
+    if not thread_safe and execution.backend == "threads":
+        execution = dataclasses.replace(execution, backend="processes")
+        progress.ensure(feedback).pushInfo(f"{what}: not safe in threads, run on local worker processes")
     tasks = list(tasks)
     results: list[Any] = [None] * len(tasks)
     if not tasks:

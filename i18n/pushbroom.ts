@@ -4,12 +4,12 @@
 <context>
     <name>Pushbroom</name>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="43"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="36"/>
         <source>Assess accuracy (dh against a reference DEM)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="72"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="65"/>
         <source>Reference DTM/DSM</source>
         <translation type="unfinished"></translation>
     </message>
@@ -19,12 +19,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="76"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="69"/>
         <source>Point cloud (object points)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="76"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="69"/>
         <source>Point clouds (*.las *.laz *.gpkg);;All files (*.*)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -39,27 +39,27 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="86"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="79"/>
         <source>Class raster</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="89"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="82"/>
         <source>Class polygons</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="97"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="90"/>
         <source>Class field of the polygons</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="105"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="98"/>
         <source>Slope of mountainous terrain (degrees, of the reference)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="123"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="116"/>
         <source>Point cloud heights</source>
         <translation type="unfinished"></translation>
     </message>
@@ -74,12 +74,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="147"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="140"/>
         <source>dh raster (DEM input)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="152"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="145"/>
         <source>Statistics table</source>
         <translation type="unfinished"></translation>
     </message>
@@ -129,27 +129,27 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="482"/>
+        <location filename="../plugin/algorithms/base.py" line="483"/>
         <source>Execution of the tiles</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="488"/>
+        <location filename="../plugin/algorithms/base.py" line="489"/>
         <source>Dask scheduler address (tcp:// or tls://host:port; empty: a local cluster)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="494"/>
+        <location filename="../plugin/algorithms/base.py" line="495"/>
         <source>Wait for a Dask worker where the cluster has none, or has lost every one (s)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="502"/>
+        <location filename="../plugin/algorithms/base.py" line="503"/>
         <source>Workers (threads, processes or local Dask workers; at most {} per core are used)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/base.py" line="544"/>
+        <location filename="../plugin/algorithms/base.py" line="548"/>
         <source>Replace the block&apos;s {} even by far fewer (none, or below half)</source>
         <translation type="unfinished"></translation>
     </message>
@@ -999,7 +999,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="123"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="116"/>
         <source>reference DTM/DSM</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1134,12 +1134,12 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="115"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="108"/>
         <source>Assess the DEM co-registered to the reference too (before and after)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="123"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="116"/>
         <source>Co-register with a tilt (a plane) too</source>
         <translation type="unfinished"></translation>
     </message>
@@ -1374,7 +1374,7 @@
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../plugin/algorithms/assess_accuracy.py" line="123"/>
+        <location filename="../plugin/algorithms/assess_accuracy.py" line="116"/>
         <source>Unstable terrain left out of the co-registration (non-zero cells)</source>
         <translation type="unfinished"></translation>
     </message>

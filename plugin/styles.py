@@ -1,6 +1,6 @@
 """Styling of the layers Processing loads on completion (QML files in resources/styles)."""
 
-from qgis.core import QgsProcessingContext, QgsProcessingLayerPostProcessorInterface
+from qgis.core import QgsPointCloudLayer, QgsProcessingContext, QgsProcessingLayerPostProcessorInterface
 
 from ..resource_files import resource_path
 
@@ -37,8 +37,6 @@ def load_point_cloud(context, ept_json, name, output_name):
     """Ask Processing to load the EPT index `ept_json` (QGIS's "ept" provider) as point cloud layer `name` on
     completion; Processing cannot tell an ept.json from its path, so the layer is made here and handed over. Returns
     whether QGIS could open it."""
-    from qgis.core import QgsPointCloudLayer
-
     layer = QgsPointCloudLayer(ept_json, name, "ept")
     if layer.isValid():
         context.temporaryLayerStore().addMapLayer(layer)

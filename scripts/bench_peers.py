@@ -287,8 +287,9 @@ def simulated(tmp, config=None, scene="", full=True):
                     ),
                 }
             )
-    if full:
-        rows += dtm_rows(tmp, {"Pushbroom dense": dems["dense"], "CARS 1.3.0": dems["CARS"]}, truth)
+    if full:  # dh: the DSMs minus the true DTM, the last of the loop above
+        dsms = {"Pushbroom dense": dems["dense"], "CARS 1.3.0": dems["CARS"]}
+        rows += dtm_rows(tmp, dsms, truth, {"Pushbroom dense": dh["dense"], "CARS 1.3.0": dh["CARS"]})
     for label, d in dh.items():
         rows.append(
             {
@@ -300,17 +301,21 @@ def simulated(tmp, config=None, scene="", full=True):
     return [dict(r, tool=scene + r["tool"]) for r in rows]
 
 
-def dtm_rows(tmp, dsms, truth):
+def dtm_rows(tmp, dsms, truth, dsm_dh):
     """Issue 40's DTM table: pushbroom:extractdtm (CNES Bulldozer, its defaults) on each 10 m DSM of `dsms` {label:
-    path} (CARS's warped onto Pushbroom's UTM grid first: Bulldozer takes metres), the DTM minus the true DTM by class
-    (RMS), beside the DSM's own departure from the true DTM."""
+    path} (CARS's warped onto the CRS of Pushbroom's, a UTM zone, first: Bulldozer takes metres), the DTM minus the
+    true DTM by class (RMS), beside the DSM's own departure from the true DTM, `dsm_dh` {label: at the evaluation
+    cells}."""
     rows, dtms = [], {}
     env = qgis_process_env(tmp / "dtm-profile")
-    grid = open_raster(dsms["Pushbroom dense"], "the dense DEM")
+    projection = open_raster(dsms["Pushbroom dense"], "the dense DEM").GetProjection()
     for label, path in dsms.items():
         name = label.split()[0].lower()
         metric = tmp / f"dsm-{name}-utm.tif"
-        gdal.Warp(str(metric), str(path), dstSRS=grid.GetProjection(), xRes=CELL, yRes=CELL, errorThreshold=0)
+        if label == "Pushbroom dense":
+            metric = path  # in its UTM zone at CELL already
+        else:
+            gdal.Warp(str(metric), str(path), dstSRS=projection, xRes=CELL, yRes=CELL, errorThreshold=0)
         dtms[label] = tmp / f"dtm-{name}.tif"
         rows += qgis_steps(
             [
@@ -329,7 +334,6 @@ def dtm_rows(tmp, dsms, truth):
             env,
             "Pushbroom",
         )
-    dsm_dh = {label: sample(str(path), truth) - truth.dtm_h for label, path in dsms.items()}
     dtm_dh = {label: sample(str(path), truth) - truth.dtm_h for label, path in dtms.items()}
     common = np.all([np.isfinite(d) for d in (*dsm_dh.values(), *dtm_dh.values())], axis=0)
     dsm_tables = {label: truth.table(d, common) for label, d in dsm_dh.items()}

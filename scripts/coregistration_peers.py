@@ -5,7 +5,7 @@ scripts/xdem_nuth_kaab.py; Pushbroom in this process.
 
 Three cases, each a DEM made from a surface at cells moved by a known shift (its grid's origin moved: no height is
 resampled), raised by a known offset, with noise:
-- an analytic terrain (tests/algorithms/quality/test_coregistration.py's), 10 m cells;
+- an analytic terrain (tests/helpers/dem_shift.py's, as the tests'), 10 m cells;
 - the simulated scene's true DSM (SceneConfig.small()), warped to UTM at 10 m with the exact transformation, the
   forest, town and water masked by the simulator's classes;
 - SRTM over Mont Ventoux (../shared/data/pleiades_pair_ventoux/N44E005.hgt), warped to UTM at 90 m, 36 km a side.
@@ -26,31 +26,20 @@ import tempfile
 import time
 
 import numpy as np
-from osgeo import gdal, osr
+from osgeo import gdal
 
+from pushbroom.algorithms import crs
 from pushbroom.algorithms.quality.coregistration import CoregParams, coregister
 from pushbroom.algorithms.quality.height_differences import Reference
 from pushbroom.algorithms.simulation import SceneConfig, simulate_scene
-from pushbroom.algorithms.simulation.terrain import CITY, FOREST, WATER
 from pushbroom.algorithms.surface.geotiff import write_float_raster
 from tests.benchmarks.benchutil import SHARED_DATA
 from tests.benchmarks.run_all import markdown_table
+from tests.helpers.dem_shift import CELL, ORIGIN, UTM, centres, terrain, unstable_mask, warped_dsm
 from tests.helpers.qgis_process_profile import REPO
 
 XDEM = REPO / "build" / "peers" / "xdem" / "bin" / "python"
 SHIFT, UP = (7.3, -4.1), 2.2
-
-
-def terrain(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    return (
-        300 + 40 * np.sin(x / 230.0) * np.cos(y / 310.0) + 25 * np.sin((x + y) / 150.0) + 10 * np.cos(x / 90 - y / 120)
-    )
-
-
-def utm() -> osr.SpatialReference:
-    srs = osr.SpatialReference()
-    srs.ImportFromEPSG(32631)
-    return srs
 
 
 def moved(values: np.ndarray, gt: tuple, srs, path: pathlib.Path, shift, up: float, noise: float) -> str:
@@ -62,11 +51,11 @@ def moved(values: np.ndarray, gt: tuple, srs, path: pathlib.Path, shift, up: flo
 
 
 def analytic(folder: pathlib.Path) -> dict:
-    n, cell, origin = 300, 10.0, (500_000.0, 4_800_000.0)
-    x, y = np.meshgrid(origin[0] + (np.arange(n) + 0.5) * cell, origin[1] - (np.arange(n) + 0.5) * cell)
-    gt = (origin[0], cell, 0, origin[1], 0, -cell)
-    reference = str(write_float_raster(str(folder / "analytic_ref.tif"), terrain(x, y), gt, utm()))
-    dem = moved(terrain(x, y)[20:270, 20:270], _window(gt, 20, 20), utm(), folder / "analytic.tif", SHIFT, UP, 0.5)
+    x, y = centres(ORIGIN, 300)
+    gt = (ORIGIN[0], CELL, 0, ORIGIN[1], 0, -CELL)
+    utm = crs.srs(UTM)
+    reference = str(write_float_raster(str(folder / "analytic_ref.tif"), terrain(x, y), gt, utm))
+    dem = moved(terrain(x, y)[20:270, 20:270], _window(gt, 20, 20), utm, folder / "analytic.tif", SHIFT, UP, 0.5)
     return {"case": "analytic terrain, 10 m, 0.5 m noise", "reference": reference, "dem": dem, "mask": None}
 
 
@@ -74,49 +63,23 @@ def _window(gt: tuple, col: int, row: int) -> tuple:
     return (gt[0] + col * gt[1], gt[1], 0.0, gt[3] + row * gt[5], 0.0, gt[5])
 
 
-def warped(source: str, path: pathlib.Path, cell: float, epsg: int, bounds=None) -> tuple[np.ndarray, tuple, object]:
-    gdal.Warp(
-        str(path),
-        source,
-        dstSRS=f"EPSG:{epsg}",
-        xRes=cell,
-        yRes=cell,
-        resampleAlg="cubic",
-        dstNodata=-9999,
-        errorThreshold=0,
-        outputBounds=bounds,
-    )
-    ds = gdal.Open(str(path))
-    values = ds.GetRasterBand(1).ReadAsArray().astype(float)
-    values[values == -9999] = np.nan
-    return values, ds.GetGeoTransform(), ds.GetSpatialRef().Clone()  # not tied to `ds`, freed on return
-
-
 def simulated(folder: pathlib.Path) -> dict:
     paths = simulate_scene(SceneConfig.small(), str(folder / "scene"))
-    values, gt, srs = warped(paths["dsm"], folder / "dsm_utm.tif", 10.0, 32616)
+    values, gt, srs = warped_dsm(paths["dsm"], folder / "dsm_utm.tif", 10.0, 32616)
     dem = moved(values, gt, srs, folder / "simulated.tif", SHIFT, UP, 0.3)
-    classes = gdal.Open(paths["classes"])
-    mask = folder / "unstable.tif"
-    out = gdal.GetDriverByName("GTiff").Create(str(mask), classes.RasterXSize, classes.RasterYSize, 1, gdal.GDT_Byte)
-    out.SetGeoTransform(classes.GetGeoTransform())
-    out.SetProjection(classes.GetProjection())
-    out.GetRasterBand(1).WriteArray(
-        np.isin(classes.GetRasterBand(1).ReadAsArray(), (FOREST, CITY, WATER)).astype(np.uint8)
-    )
-    out = None
+    mask = unstable_mask(paths["classes"], folder / "unstable.tif")
     return {
         "case": "simulated true DSM, 10 m, 0.3 m noise, forest/town/water masked",
         "reference": paths["dsm"],
         "dem": dem,
-        "mask": str(mask),
+        "mask": mask,
     }
 
 
 def srtm(folder: pathlib.Path) -> dict:
     hgt = SHARED_DATA / "pleiades_pair_ventoux" / "N44E005.hgt"
     bounds = (660_000.0, 4_870_000.0, 696_000.0, 4_906_000.0)
-    values, gt, srs = warped(str(hgt), folder / "srtm_utm.tif", 90.0, 32631, bounds)
+    values, gt, srs = warped_dsm(hgt, folder / "srtm_utm.tif", 90.0, 32631, bounds)
     reference = str(folder / "srtm_utm.tif")
     dem = moved(values, gt, srs, folder / "srtm_moved.tif", (37.3, -24.1), UP, 1.0)
     return {

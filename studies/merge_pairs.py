@@ -15,20 +15,19 @@ precision rasters are true and the two independent."""
 import tempfile
 
 import numpy as np
-from osgeo import gdal
 
 from pushbroom.algorithms.products.merge_dems import MergeOutputs, MergeParams, merge_dems
+from pushbroom.algorithms.quality.rasters import open_raster, read_grid
+from pushbroom.algorithms.stats import NMAD_SCALE
 from pushbroom.algorithms.surface.cell_dem import CellSettings, cells_on_grid
 from pushbroom.algorithms.surface.geotiff import write_float_raster
 from pushbroom.algorithms.surface.pointcloud import output_srs
 from pushbroom.algorithms.surface.tin_grid import Grid
 from studies.pair_precision import common_grid, pair_cloud, triplet_pairs
 
-NMAD = 1.4826
-
 
 def nmad(values: np.ndarray) -> float:
-    return float(NMAD * np.median(np.abs(values - np.median(values))))
+    return float(NMAD_SCALE * np.median(np.abs(values - np.median(values))))
 
 
 def main() -> None:
@@ -76,13 +75,10 @@ def main() -> None:
 
 def read(path: str, grid: Grid) -> np.ndarray:
     """Band 1 of `path` on `grid`'s cells (the merge's grid is the first DSM's, the same lattice), NaN for nodata."""
-    ds = gdal.Open(path)
-    band = ds.GetRasterBand(1)
-    gt = ds.GetGeoTransform()
+    raster = read_grid(open_raster(path, "DSM"))
+    gt, data = raster.geotransform, raster.values
     c0, r0 = int(round((grid.x0 - gt[0]) / grid.cell)), int(round((gt[3] - grid.y0) / grid.cell))
     values = np.full(grid.shape, np.nan)
-    data = band.ReadAsArray().astype(float)
-    data[data == band.GetNoDataValue()] = np.nan
     rows, cols = min(data.shape[0] - r0, grid.rows), min(data.shape[1] - c0, grid.cols)
     values[:rows, :cols] = data[r0 : r0 + rows, c0 : c0 + cols]
     return values

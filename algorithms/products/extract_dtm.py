@@ -15,8 +15,9 @@ larger than a window, and follows the tile, not the scene
 
 Bulldozer keeps module-level state (its logger singleton, its parameters) and is not safe to run in several
 threads of one process, nor is it meant to run inside QGIS's: its tiles run on local worker processes where threads
-were chosen, one Bulldozer worker each (the tiles are the parallelism), and on Dask as they are. A tile without any
-height is not given to Bulldozer: it stays nodata.
+were chosen (execution.run_tasks, thread_safe off), one Bulldozer worker each (the tiles are the parallelism), and on
+Dask as they are. A tile without any height is not given to Bulldozer: it stays nodata. A window's DSM and Bulldozer's
+rasters are removed once its inner tile is kept: the work folder's disk, too, follows the tile.
 
 Outputs: the DTM (Bulldozer's: its fill of the voids the DSM encloses kept, the voids open to a tile's border
 nodata), the DHM = DSM - DTM (nodata where the DSM has none), and a mask (Byte): 1 a cell the DSM had no height in
@@ -35,7 +36,8 @@ from __future__ import annotations
 import importlib.util
 import math
 import os
-from dataclasses import dataclass, field, replace
+import shutil
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -174,8 +176,6 @@ def dtm_tile(job: _Job, k: int, box: tuple[int, int, int, int]) -> dict[str, Any
     c0, r0, c1, r1 = box
     (cols, rows), m, (n_cols, n_rows) = job.size, job.margin, job.window
     (w0, w1), (h0, h1) = window_of(c0, c1, m, n_cols, cols), window_of(r0, r1, m, n_rows, rows)
-    folder = os.path.join(job.work, f"tile-{k:05d}")
-    os.makedirs(folder, exist_ok=True)
     source = open_raster(job.dsm, "DSM")
     wide = read_grid(source, job.nodata, (w0, h0, w1, h1))
     inner = (slice(r0 - h0, r1 - h0), slice(c0 - w0, c1 - w0))
@@ -184,6 +184,8 @@ def dtm_tile(job: _Job, k: int, box: tuple[int, int, int, int]) -> dict[str, Any
     dsm = wide.values[inner]
     if not np.isfinite(wide.values).any():  # nothing for Bulldozer: the tile stays nodata
         return _tile_outputs(job.work, k, np.full(dsm.shape, np.nan), dsm, np.zeros(dsm.shape, np.uint8), gt, source)
+    folder = os.path.join(job.work, f"tile-{k:05d}")
+    os.makedirs(folder, exist_ok=True)
     cut = write_float_raster(os.path.join(folder, "dsm.tif"), wide.values, wide.geotransform, wide.srs, overviews=False)
     check_cancel()
     dsm_to_dtm(
@@ -204,6 +206,7 @@ def dtm_tile(job: _Job, k: int, box: tuple[int, int, int, int]) -> dict[str, Any
     mask = np.zeros(dtm.shape, np.uint8)
     mask[np.nan_to_num(_read(pits)[inner]) > 0] = FILLED_PIT
     mask[~np.isfinite(dsm) & np.isfinite(dtm)] = INNER_NODATA
+    shutil.rmtree(folder)  # the window's DSM and Bulldozer's rasters (module docstring)
     return _tile_outputs(job.work, k, dtm, dsm, mask, gt, source)
 
 
@@ -245,10 +248,6 @@ def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feed
     cell = abs(gt[1])
     margin = margin_cells(params, cell)
     params.check_margin(margin, size)  # a tile too small for the objects: said before any work
-    execution = params.execution
-    if execution.backend == "threads":  # Bulldozer's own pool forks: never inside QGIS's process
-        execution = replace(execution, backend="processes")
-        progress.ensure(feedback).pushInfo("Bulldozer is not safe in threads: its tiles run on local worker processes")
     with work_dir(outputs.dtm, "the DTM's tiles") as work:
         job = _Job(
             str(dsm),
@@ -268,9 +267,10 @@ def extract_dtm(dsm: str, outputs: DtmOutputs, params: DtmParams, feedback: Feed
         done = run_tasks(
             dtm_tile,
             [(job, k, box) for k, box in enumerate(boxes)],
-            execution,
+            params.execution,
             progress.scaled(feedback, 0, 85),
             "Bulldozer tiles",
+            thread_safe=False,  # Bulldozer's module-level state; never inside QGIS's process
         )
         if not any(d["heights"] for d in done):
             raise InputError(

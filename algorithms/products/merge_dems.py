@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -44,8 +44,8 @@ from ..crs import srs as parse_crs
 from ..errors import InputError
 from ..execution import Execution, run_tasks
 from ..progress import Feedback
-from ..quality.coregister_dem import moved_geotransform, write_coregistered
-from ..quality.coregistration import CoregParams, CoregResult, ShiftNotShownError, coregister
+from ..quality.coregister_dem import write_coregistered
+from ..quality.coregistration import CoregParams, CoregResult, coregister_or_vertical
 from ..quality.height_differences import Reference, check_stated
 from ..quality.rasters import SAME_CELL, Grid, cell_metres, mean_cell, open_raster, raster_srs, resampling_for, warp_to
 from ..stats import NMAD_SCALE
@@ -125,9 +125,10 @@ class _Job:
     weighted: bool  # the inputs have precision rasters
 
 
-def merge_tile(job: _Job, box: tuple[int, int, int, int], paths: tuple[str, str, str]) -> dict[str, Any]:
+def merge_tile(job: _Job, box: tuple[int, int, int, int], paths: tuple[str | None, ...]) -> dict[str, Any]:
     """Task: the merged heights, standard errors and counts of the output cells `box` (module docstring), written as
-    GeoTIFF tiles to `paths` (heights, precision, count); returns the tile's counts and outliers."""
+    GeoTIFF tiles to `paths` (heights, precision, count; None: an output not asked for); returns the tile's counts
+    and outliers."""
     gt, _, wkt = job.frame
     c0, r0, c1, r1 = box
     m = job.blend
@@ -166,7 +167,8 @@ def merge_tile(job: _Job, box: tuple[int, int, int, int], paths: tuple[str, str,
     tile_gt = (wide.geotransform[0] + m * gt[1], gt[1], 0.0, wide.geotransform[3] + m * gt[5], 0.0, gt[5])
     check_cancel()
     for path, values in zip(paths, (merged, se, np.where(count > 0, count, np.nan))):
-        write_float_raster(path, values, tile_gt, wide.srs, overviews=False)
+        if path:
+            write_float_raster(path, values, tile_gt, wide.srs, overviews=False)
     used = count[count > 0].astype(int)
     return {"counts": np.bincount(used).tolist() if used.size else [], "outliers": outliers}
 
@@ -222,11 +224,7 @@ def _coregistered(
         span = progress.scaled(feedback, 100.0 * j / len(todo), 100.0 * (j + 1) / len(todo))
         dem = params.dems[i]
         try:
-            try:
-                result = coregister(dem, reference, coreg, progress.scaled(span, 0, 80))
-            except ShiftNotShownError as exc:
-                progress.warn(feedback, f"{dem}: {exc}. It is co-registered by its vertical offset only")
-                result = coregister(dem, reference, replace(coreg, horizontal=False), progress.scaled(span, 0, 80))
+            result = coregister_or_vertical(dem, reference, coreg, progress.scaled(span, 0, 80))
         except InputError as exc:
             raise InputError(
                 f"the DEM {dem} cannot be co-registered to {reference.path}: {exc}. Co-register to a reference that "
@@ -246,7 +244,7 @@ def _coregistered(
 def _moved_vrt(path: str, result: CoregResult, vrt: str) -> str:
     """A VRT of the raster at `path` with its grid moved by `result`'s horizontal shift (values as they are)."""
     ds = gdal.Translate(vrt, open_raster(path, "precision raster"), format="VRT")
-    ds.SetGeoTransform(moved_geotransform(ds.GetGeoTransform(), result.shift, result.units))
+    ds.SetGeoTransform(result.shift.moved(ds.GetGeoTransform(), result.units))
     ds = None
     return vrt
 
@@ -314,8 +312,11 @@ def merge_dems(params: MergeParams, outputs: MergeOutputs, feedback: Feedback | 
         frame = _output_frame(params, inputs, feedback)
         job = _Job(tuple(inputs), frame, params.outlier_k, params.blend, bool(params.precisions))
         boxes = tile_grid(frame[1], TILE)
+        wanted = zip(("h", "se", "n"), (outputs.dem, outputs.precision, outputs.count))
+        kinds = [kind if path else None for kind, path in wanted]
         names = [
-            tuple(os.path.join(work, f"{kind}-{k:05d}.tif") for kind in ("h", "se", "n")) for k in range(len(boxes))
+            tuple(os.path.join(work, f"{kind}-{k:05d}.tif") if kind else None for kind in kinds)
+            for k in range(len(boxes))
         ]
         done = run_tasks(
             merge_tile,
@@ -348,7 +349,7 @@ def merge_dems(params: MergeParams, outputs: MergeOutputs, feedback: Feedback | 
 
 
 def _write(
-    outputs: MergeOutputs, names: list[tuple[str, ...]], frame: Frame, cog: bool, feedback: Feedback | None
+    outputs: MergeOutputs, names: list[tuple[str | None, ...]], frame: Frame, cog: bool, feedback: Feedback | None
 ) -> None:
     """The outputs asked for, from the tiles: all renamed at the end, or none."""
     wanted = [
@@ -359,4 +360,5 @@ def _write(
     with raster_outputs([outputs.dem, outputs.precision, outputs.count], cog) as temps:
         for tmp, (k, description) in zip(temps, wanted):
             if tmp:
-                assemble_tiles([n[k] for n in names], tmp, frame, description=description, feedback=feedback)
+                tiles = [n[k] for n in names]
+                assemble_tiles(tiles, tmp, frame, description=description, feedback=feedback)  # type: ignore[arg-type]

@@ -14,7 +14,7 @@ convergence) is a warning, and the report stays that of the DEM as it lies."""
 
 import contextlib
 import os
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Optional
 
 from .. import progress
@@ -27,7 +27,7 @@ from ..surface.geotiff import Frame, assemble_tiles, raster_output
 from .assessment import SLOPE_THRESHOLD, Labelling, Summary, assess_by_parts
 from .classes import ClassRaster, PolygonClasses
 from .coregister_dem import write_coregistered
-from .coregistration import CoregistrationError, CoregParams, CoregResult, ShiftNotShownError, coregister
+from .coregistration import CoregistrationError, CoregParams, CoregResult, coregister_or_vertical
 from .height_differences import Reference
 
 
@@ -124,12 +124,7 @@ def _coregistered(
         execution=params.execution,
     )
     try:
-        try:
-            result = coregister(params.dem, reference, coreg, progress.scaled(feedback, 0, 50))
-        except ShiftNotShownError as exc:
-            progress.warn(feedback, f"{exc}. The co-registration is of the vertical offset only")
-            coreg = replace(coreg, horizontal=False)
-            result = coregister(params.dem, reference, coreg, progress.scaled(feedback, 0, 50))
+        result = coregister_or_vertical(params.dem, reference, coreg, progress.scaled(feedback, 0, 50))
     except (CoregistrationError, InputError) as exc:
         progress.warn(feedback, f"no co-registration: {exc}. The report gives the DEM as it lies only")
         return None

@@ -46,18 +46,12 @@ class CoregisterDemResult:
     report: str | None
 
 
-def moved_geotransform(geotransform: tuple[float, ...], shift: Shift, units: tuple[float, float]) -> tuple:
-    """The geotransform of a grid moved by `shift`'s (east, north) m, `units` m per CRS unit (east, north)."""
-    x0, dx, _, y0, _, dy = geotransform
-    return (x0 + shift.east / units[0], dx, 0.0, y0 + shift.north / units[1], 0.0, dy)
-
-
 def write_window(
     dem: str, window: tuple[int, int, int, int], shift: Shift, units: tuple[float, float], path: str
 ) -> str:
     """One window of the co-registered DEM as a GeoTIFF tile at `path` (a task of run_tasks)."""
     grid = read_grid(open_raster(dem, "DEM"), window=window)
-    moved = Grid(grid.values, moved_geotransform(grid.geotransform, shift, units), grid.srs)
+    moved = Grid(grid.values, shift.moved(grid.geotransform, units), grid.srs)
     check_cancel()
     x, y = moved.centres()
     heights = moved.values + shift.vertical(x, y, units)
@@ -85,7 +79,7 @@ def write_coregistered(
             assemble_tiles(
                 written,
                 tmp,
-                Frame(moved_geotransform(gt, shift, units), size, srs),
+                Frame(shift.moved(gt, units), size, srs),
                 description="co-registered DEM (m)",
                 metadata={
                     "PUSHBROOM_SHIFT_EAST_M": f"{shift.east:.4f}",

@@ -68,7 +68,7 @@ from .height_differences import (
     reference_on_grid,
     resampling_onto,
 )
-from .rasters import Grid, cell_metres, open_raster, raster_srs, read_grid, warp_to
+from .rasters import Grid, cell_metres, gradient, metres_per_unit, open_raster, raster_srs, read_grid, warp_to
 from .statistics import DhSummary
 
 #: cells per side of the windows a pass reads
@@ -138,6 +138,11 @@ class Shift:
         if self.tilt_east or self.tilt_north:
             text += f", tilt east {self.tilt_east:+.2e}, north {self.tilt_north:+.2e}"
         return text
+
+    def moved(self, geotransform: tuple[float, ...], units: tuple[float, float]) -> tuple[float, ...]:
+        """The geotransform of a grid moved by the (east, north) m of the shift, `units` m per CRS unit."""
+        x0, dx, _, y0, _, dy = geotransform
+        return (x0 + self.east / units[0], dx, 0.0, y0 + self.north / units[1], 0.0, dy)
 
     def vertical(self, x: np.ndarray, y: np.ndarray, units: tuple[float, float]) -> np.ndarray:
         """The vertical correction at the moved cells' centres (x, y in the DEM's CRS; `units` m per CRS unit)."""
@@ -211,11 +216,7 @@ def _frame(path: str | os.PathLike[str], datum: str) -> _Frame:
     ds = open_raster(path, "DEM")
     check_stated(ds, datum, "DEM", path)
     srs, gt = raster_srs(ds), ds.GetGeoTransform()
-    if srs.IsGeographic():
-        east, north = metres_per_degree(gt[3] + 0.5 * ds.RasterYSize * gt[5])
-        units = (float(east), float(north))
-    else:
-        units = (srs.GetLinearUnits(),) * 2
+    units = metres_per_unit(gt, srs, ds.RasterYSize)
     return _Frame(str(path), tuple(gt), (ds.RasterXSize, ds.RasterYSize), srs.ExportToWkt(), units)
 
 
@@ -223,14 +224,7 @@ def _moved(frame: _Frame, shift: Shift, window: tuple[int, int, int, int], margi
     """The empty Grid of the DEM's `window` cells and `margin` more around, its grid moved by `shift`."""
     c0, r0, c1, r1 = window
     x0, dx, _, y0, _, dy = frame.geotransform
-    gt = (
-        x0 + (c0 - margin) * dx + shift.east / frame.units[0],
-        dx,
-        0.0,
-        y0 + (r0 - margin) * dy + shift.north / frame.units[1],
-        0.0,
-        dy,
-    )
+    gt = shift.moved((x0 + (c0 - margin) * dx, dx, 0.0, y0 + (r0 - margin) * dy, 0.0, dy), frame.units)
     return Grid(np.empty((r1 - r0 + 2 * margin, c1 - c0 + 2 * margin)), gt, parse_crs(frame.srs_wkt))
 
 
@@ -256,9 +250,7 @@ def window_sums(job: _Pass, window: tuple[int, int, int, int]) -> _Sums:
     if params.dem_heights != job.reference.datum:
         n = undulation_rows(ref.shape, wide.geotransform, wide.srs)(0, ref.shape[0])
         ref = ref + n if job.reference.datum == "orthometric" else ref - n
-    # the reference's gradient in m/m (rows run south: the geotransform's negative row step)
-    g_row, g_col = np.gradient(ref)
-    g_e, g_n = g_col / (wide.geotransform[1] * frame.units[0]), g_row / (wide.geotransform[5] * frame.units[1])
+    g_e, g_n = gradient(Grid(ref, wide.geotransform, wide.srs))  # the reference's, in m/m
     inner = (slice(1, -1), slice(1, -1))
     ref, g_e, g_n, x, y = ref[inner], g_e[inner], g_n[inner], x[inner], y[inner]
     dh = dem + shift.vertical(x, y, frame.units) - ref  # in the DEM's datum
@@ -372,6 +364,18 @@ def _reference_cell(reference: Reference, frame: _Frame) -> tuple[float, str]:
     else:
         cell = math.sqrt(np.prod(cell_metres(gt, srs, ds.RasterYSize)))
     return cell, resampling_onto(ds, source)
+
+
+def coregister_or_vertical(
+    dem: str | os.PathLike[str], reference: Reference, params: CoregParams, feedback: Feedback | None = None
+) -> CoregResult:
+    """coregister; where the terrain does not show the horizontal shift (ShiftNotShownError), the vertical offset
+    (and the tilt) alone, with a warning saying so. Raises what coregister raises otherwise."""
+    try:
+        return coregister(dem, reference, params, feedback)
+    except ShiftNotShownError as exc:  # raised only where the horizontal shift is fitted
+        progress.warn(feedback, f"{dem}: {exc}. It is co-registered by its vertical offset only")
+        return coregister(dem, reference, replace(params, horizontal=False), feedback)
 
 
 def coregister(

@@ -40,14 +40,19 @@ class Grid:
         return cell_metres(self.geotransform, self.srs, self.shape[0])
 
 
-def cell_metres(geotransform, srs, rows):
-    """(east, north) cell size in metres of a grid of `rows` rows (at its centre for a geographic CRS)."""
-    dx, dy = geotransform[1], abs(geotransform[5])
+def metres_per_unit(geotransform, srs, rows):
+    """(east, north) metres per unit of the CRS `srs` of a grid of `rows` rows (at its centre for a geographic CRS)."""
     if srs.IsGeographic():
         east, north = metres_per_degree(geotransform[3] + 0.5 * rows * geotransform[5])
-        return dx * east, dy * north
+        return float(east), float(north)
     factor = srs.GetLinearUnits()
-    return dx * factor, dy * factor
+    return factor, factor
+
+
+def cell_metres(geotransform, srs, rows):
+    """(east, north) cell size in metres of a grid of `rows` rows (at its centre for a geographic CRS)."""
+    east, north = metres_per_unit(geotransform, srs, rows)
+    return geotransform[1] * east, abs(geotransform[5]) * north
 
 
 #: the relative difference of cell sizes below which a raster is not finer than another
@@ -184,14 +189,21 @@ def warp_to(ds, grid, resampling):
     return out.GetRasterBand(1).ReadAsArray()
 
 
-def slope_degrees(grid):
-    """Slope (degrees) of a height Grid by central differences (np.gradient) with metric cell sizes, on a
-    geographic grid those at each row's latitude (so that a window's slope is the whole grid's there)."""
+def gradient(grid):
+    """(dz/de, dz/dn) in m/m of a height Grid by central differences (np.gradient) with metric cell sizes, on a
+    geographic grid those at each row's latitude (so that a window's gradient is the whole grid's there); n is north
+    (the rows run south)."""
     x0, dx, _, y0, _, dy = grid.geotransform
     if grid.srs.IsGeographic():
         east, north = metres_per_degree(y0 + (np.arange(grid.shape[0]) + 0.5) * dy)
-        east, north = (dx * east)[:, None], abs(dy) * north[:, None]
+        east, north = (dx * east)[:, None], (dy * north)[:, None]
     else:
-        east, north = (abs(v) * grid.srs.GetLinearUnits() for v in (dx, dy))
+        east, north = (v * grid.srs.GetLinearUnits() for v in (dx, dy))
     gy, gx = np.gradient(grid.values)
-    return np.degrees(np.arctan(np.hypot(gx / east, gy / north)))
+    return gx / east, gy / north
+
+
+def slope_degrees(grid):
+    """Slope (degrees) of a height Grid (gradient)."""
+    g_e, g_n = gradient(grid)
+    return np.degrees(np.arctan(np.hypot(g_e, g_n)))

@@ -228,10 +228,12 @@ def _build(records: np.ndarray, cube: _Cube, depth_b: int) -> Iterator[tuple[tup
 
 
 def _by_node(nodes: np.ndarray, flat: np.ndarray, records: np.ndarray) -> Iterator[tuple[tuple[int, ...], np.ndarray]]:
+    """(node, its records) of records whose nodes are `nodes` ((n, 3) indices; `flat`, one int64 each)."""
     order = np.argsort(flat, kind="stable")
-    values, starts = np.unique(flat[order], return_index=True)
-    for start, part in zip(starts, np.split(records[order], starts[1:])):
-        yield tuple(int(v) for v in nodes[order][start]), part
+    _, starts = np.unique(flat[order], return_index=True)
+    first = nodes[order[starts]]  # each node's indices, once
+    for node, part in zip(first.tolist(), np.split(records[order], starts[1:])):
+        yield tuple(node), part
 
 
 class _NodeWriter:

@@ -5,7 +5,6 @@ HTML report."""
 from qgis.core import (
     QgsProcessing,
     QgsProcessingParameterBoolean,
-    QgsProcessingParameterDefinition,
     QgsProcessingParameterField,
     QgsProcessingParameterFile,
     QgsProcessingParameterFileDestination,
@@ -30,12 +29,6 @@ from .base import (
     translate,
 )
 from .dem_nodata import nodata_parameter
-
-
-def optional(parameter):
-    """`parameter` flagged optional: the models saved before it was added still validate."""
-    parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagOptional)
-    return parameter
 
 
 class AssessAccuracy(PushbroomAlgorithm):
@@ -135,10 +128,10 @@ class AssessAccuracy(PushbroomAlgorithm):
                     translate("Pushbroom", "Unstable terrain left out of the co-registration (non-zero cells)"),
                     optional=True,
                 ),
-                *(optional(p) for p in execution_parameters(self, d.execution.workers)),
-                cog_parameter(self),
+                *execution_parameters(self, d.execution.workers, optional=True),
             ]
         )
+        self.addParameter(cog_parameter(self))
         self.addParameter(
             QgsProcessingParameterFileDestination(
                 self.REPORT, translate("Pushbroom", "Report"), translate("Pushbroom", "HTML files (*.html)")

@@ -474,11 +474,12 @@ EXECUTION_LABELS = {
 }
 
 
-def execution_parameters(algorithm, workers):
+def execution_parameters(algorithm, workers, optional=False):
     """The advanced parameters EXECUTION, DASK_ADDRESS, DASK_WAIT and WORKERS (default `workers`) of an algorithm
     whose tiles run on execution.run_tasks (its class constants name the four); read them with execution_choice.
-    DASK_WAIT is optional, so that the models saved before it still validate."""
-    return [
+    DASK_WAIT is optional, so that the models saved before it still validate; all four where `optional` (an
+    algorithm that gained them later: its models saved before still validate)."""
+    parameters = [
         QgsProcessingParameterEnum(
             algorithm.EXECUTION,
             translate("Pushbroom", "Execution of the tiles"),
@@ -509,6 +510,9 @@ def execution_parameters(algorithm, workers):
             minValue=1,
         ),
     ]
+    for parameter in parameters if optional else ():
+        parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagOptional)
+    return parameters
 
 
 def execution_choice(algorithm, parameters, context):

@@ -177,11 +177,11 @@ class CoregisterDem(PushbroomAlgorithm):
         params = self.coregister_params(parameters, context)
         done = coregister_dem(params, feedback)
         style_on_completion(context, params.output, "dem.qml")
-        shift, out = done.result.shift, {self.OUTPUT: done.output}
-        if done.report:
-            out[self.REPORT] = done.report
-        out.update(
+        shift = done.result.shift
+        return self.given(
             {
+                self.OUTPUT: done.output,
+                self.REPORT: done.report,
                 self.SHIFT_EAST: shift.east,
                 self.SHIFT_NORTH: shift.north,
                 self.SHIFT_UP: shift.up,
@@ -189,4 +189,3 @@ class CoregisterDem(PushbroomAlgorithm):
                 self.NMAD_AFTER: done.result.after.nmad,
             }
         )
-        return out

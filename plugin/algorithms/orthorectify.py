@@ -187,8 +187,8 @@ class Orthorectify(PushbroomAlgorithm):
             orientation=self.parameterAsFile(parameters, self.ORIENTATION, context),
             feedback=feedback,
         )
-        outputs = {self.OUTPUT: output, self.BOUND: result.bound, self.CELLS: result.cells}
         if occlusions:
             style_on_completion(context, occlusions, "occlusions.qml")
-            outputs[self.OCCLUSIONS] = occlusions
-        return outputs
+        return self.given(
+            {self.OUTPUT: output, self.OCCLUSIONS: occlusions, self.BOUND: result.bound, self.CELLS: result.cells}
+        )

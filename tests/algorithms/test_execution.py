@@ -112,6 +112,14 @@ def test_an_execution_says_where_it_runs():
     assert Execution("threads", 1).describe() == "1 thread"
 
 
+def test_a_task_not_safe_in_threads_runs_on_worker_processes_where_threads_were_chosen():
+    log = Feedback()
+    pids = run_tasks(tasks.pid_after, [(0.0,)] * 2, Execution("threads", 2), log, "libraries", thread_safe=False)
+    assert os.getpid() not in pids
+    assert any("libraries: not safe in threads, run on local worker processes" in m for m in log.messages)
+    assert run_tasks(tasks.pid_after, [(0.0,)], Execution("threads", 1)) == [os.getpid()]
+
+
 @pytest.mark.parametrize("where", BACKENDS[:2], ids=lambda e: e.backend)
 def test_a_cancel_stops_the_pending_tasks(where, tmp_path):
     stop = Feedback(cancel_at=1.0)  # cancelled once the first task has finished

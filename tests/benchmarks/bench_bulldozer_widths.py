@@ -15,6 +15,7 @@ import time
 
 from osgeo import gdal
 
+from pushbroom.algorithms.products.extract_dtm import DtmParams
 from tests.benchmarks.bench_chain_memory import _utm_of
 from tests.benchmarks.bench_region_growing import scene
 
@@ -42,8 +43,8 @@ def run() -> list[dict]:
                 dsm_path=str(cut),
                 output_dir=str(folder / f"out-{width}"),
                 generate_dhm=False,
-                max_object_size=16.0,
-                max_ground_slope=20.0,
+                max_object_size=DtmParams().max_object_size,
+                max_ground_slope=DtmParams().max_ground_slope,
                 nb_max_workers=1,
                 developer_mode=False,
             )

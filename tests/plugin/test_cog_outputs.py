@@ -7,8 +7,10 @@ from osgeo import gdal
 from qgis import processing
 from qgis.core import QgsProcessingContext, QgsProcessingFeedback
 
+from pushbroom.algorithms import crs
 from pushbroom.algorithms.surface.geotiff import write_float_raster
-from tests.plugin.test_interpolate_dem_alg import roof_cloud
+from tests.helpers.dem_shift import ORIGIN, UTM, centres, terrain
+from tests.helpers.roof_cloud import roof_cloud
 
 
 def run(algorithm, parameters):
@@ -52,12 +54,8 @@ def test_interpolatedem_writes_every_raster_as_cog(pushbroom_provider, tmp_path)
 
 
 def test_coregisterdem_and_assessaccuracy_write_cog(pushbroom_provider, tmp_path):
-    from osgeo import osr
-
-    srs = osr.SpatialReference()
-    srs.ImportFromEPSG(32631)
-    x, y = np.meshgrid(500_000 + (np.arange(600) + 0.5) * 5, 4_800_000 - (np.arange(600) + 0.5) * 5)
-    hills = 300 + 40 * np.sin(x / 230.0) * np.cos(y / 310.0) + 25 * np.sin((x + y) / 150.0)
+    srs = crs.srs(UTM)
+    hills = terrain(*centres(ORIGIN, 600, 5.0))
     reference = write_float_raster(str(tmp_path / "ref.tif"), hills, (500_000, 5, 0, 4_800_000, 0, -5), srs)
     dem = write_float_raster(str(tmp_path / "dem.tif"), hills + 1.0, (500_003, 5, 0, 4_800_000, 0, -5), srs)
     for cog in (False, True):

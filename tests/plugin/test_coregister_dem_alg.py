@@ -18,8 +18,8 @@ from qgis.core import (
     QgsRasterLayer,
 )
 
-from pushbroom.algorithms.simulation.terrain import CITY, FOREST, WATER
 from pushbroom.algorithms.surface.geotiff import write_float_raster
+from tests.helpers.dem_shift import unstable_mask, warped_dsm
 
 ALG = "pushbroom:coregisterdem"
 CELL = 10.0
@@ -31,39 +31,16 @@ TILT = 1e-4  # m/m, rising east
 @pytest.fixture(scope="module")
 def shifted(small_scene, tmp_path_factory):
     folder = tmp_path_factory.mktemp("coregister")
-    utm = str(folder / "dsm_utm.tif")
-    # the exact transformation: gdalwarp's default (0.125 px) moves this DSM 0.2 m north, which co-registration finds
-    gdal.Warp(
-        utm,
-        small_scene["dsm"],
-        dstSRS="EPSG:32616",
-        xRes=CELL,
-        yRes=CELL,
-        resampleAlg="cubic",
-        dstNodata=-9999,
-        errorThreshold=0,
-    )
-    ds = gdal.Open(utm)
-    values = ds.GetRasterBand(1).ReadAsArray().astype(float)
-    values[values == -9999] = np.nan
-    x0, dx, _, y0, _, dy = ds.GetGeoTransform()
+    values, gt, srs = warped_dsm(small_scene["dsm"], folder / "dsm_utm.tif", CELL, 32616)
+    x0, dx, _, y0, _, dy = gt
     rows, cols = values.shape
     # the DSM's cell with the height of p placed at p - SHIFT: DEM(x) = DSM(x + SHIFT)
     origin = (x0 - SHIFT[0], y0 - SHIFT[1])
     x = origin[0] + (np.arange(cols) + 0.5) * dx
     centre = origin[0] + 0.5 * cols * dx
     heights = values + UP + TILT * (x[None, :] - centre) + np.random.default_rng(4).normal(0.0, 0.3, values.shape)
-    dem = write_float_raster(
-        str(folder / "dem.tif"), heights, (*origin[:1], dx, 0, origin[1], 0, dy), ds.GetSpatialRef()
-    )
-    classes = gdal.Open(small_scene["classes"])
-    code = classes.GetRasterBand(1).ReadAsArray()
-    mask = str(folder / "unstable.tif")
-    out = gdal.GetDriverByName("GTiff").Create(mask, classes.RasterXSize, classes.RasterYSize, 1, gdal.GDT_Byte)
-    out.SetGeoTransform(classes.GetGeoTransform())
-    out.SetProjection(classes.GetProjection())
-    out.GetRasterBand(1).WriteArray(np.isin(code, (FOREST, CITY, WATER)).astype(np.uint8))
-    out = None
+    dem = write_float_raster(str(folder / "dem.tif"), heights, (*origin[:1], dx, 0, origin[1], 0, dy), srs)
+    mask = unstable_mask(small_scene["classes"], folder / "unstable.tif")
     return {"folder": folder, "dem": str(dem), "mask": mask}
 
 

@@ -28,7 +28,7 @@ def test_dtm_dhm_and_mask_loaded(pushbroom_provider, small_scene, tmp_path, log)
         context=context,
         feedback=log,
     )
-    assert any("its tiles run on local worker processes" in m for m in log.messages)
+    assert any("not safe in threads, run on local worker processes" in m for m in log.messages)
     datasets = {key: gdal.Open(result[key]) for key in ("OUTPUT", "DHM", "MASK")}  # alive while read
     dhm = datasets["DHM"].GetRasterBand(1).ReadAsArray()
     classes_ds = gdal.Open(classes)

@@ -16,6 +16,7 @@ from qgis.core import (
 from scipy import ndimage
 
 from pushbroom.algorithms.surface.geotiff import write_float_raster
+from tests.helpers.dem_shift import warped_dsm
 
 CELL = 10.0
 
@@ -23,28 +24,14 @@ CELL = 10.0
 @pytest.fixture(scope="module")
 def pairs(small_scene, tmp_path_factory):
     folder = tmp_path_factory.mktemp("mergedems")
-    truth = str(folder / "truth.tif")
-    gdal.Warp(
-        truth,
-        small_scene["dsm"],
-        dstSRS="EPSG:32616",
-        xRes=CELL,
-        yRes=CELL,
-        resampleAlg="cubic",
-        errorThreshold=0,
-        dstNodata=-9999,
-    )
-    ds = gdal.Open(truth)
-    h = ds.GetRasterBand(1).ReadAsArray().astype(float)
-    h[h == -9999] = np.nan
-    gt, srs = ds.GetGeoTransform(), ds.GetSpatialRef()
+    h, gt, srs = warped_dsm(small_scene["dsm"], folder / "truth.tif", CELL, 32616)
     rows, cols = h.shape
     half = cols // 2
     rng = np.random.default_rng(3)
     west = h[:, : half + 60] + rng.normal(0, 0.3, (rows, half + 60))
     east = h[:, half - 60 :] + 1.5 + rng.normal(0, 0.5, (rows, cols - half + 60))
     east_gt = (gt[0] + (half - 60) * CELL - 4.0, CELL, 0, gt[3], 0, -CELL)  # its grid 4 m west of its heights
-    out = {"folder": folder, "truth": h, "gt": gt, "overlap": (half - 60, half + 60)}
+    out = {"folder": folder, "truth": h, "overlap": (half - 60, half + 60)}
     out["west"] = write_float_raster(str(folder / "west.tif"), west, gt, srs)
     out["east"] = write_float_raster(str(folder / "east.tif"), east, east_gt, srs)
     out["sw"] = write_float_raster(str(folder / "sw.tif"), np.full(west.shape, 0.3), gt, srs)

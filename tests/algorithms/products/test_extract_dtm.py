@@ -11,25 +11,13 @@ from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.products.extract_dtm import DtmOutputs, DtmParams, axis_tiles, extract_dtm, window_of
 from pushbroom.algorithms.simulation.terrain import BARE, CITY, CLASSES, CROPS, FOREST
+from tests.helpers.dem_cloud import read_raster
+from tests.helpers.dem_shift import warped_dsm
 
 
 def warped(source, path, resampling, bounds=None):
     """`source` warped to UTM 16N at 5 m (exact), over `bounds` where given; its values with NaN for nodata."""
-    gdal.Warp(
-        str(path),
-        source,
-        dstSRS="EPSG:32616",
-        xRes=5,
-        yRes=5,
-        resampleAlg=resampling,
-        errorThreshold=0,
-        dstNodata=-32768,
-        outputBounds=bounds,
-    )
-    ds = gdal.Open(str(path))
-    values = ds.GetRasterBand(1).ReadAsArray().astype(float)
-    values[values == -32768] = np.nan
-    return values
+    return warped_dsm(source, path, 5.0, 32616, bounds, resampling)[0]
 
 
 @pytest.fixture(scope="module")
@@ -50,12 +38,7 @@ def scene(small_scene, tmp_path_factory):
 
 
 def read(path):
-    ds = gdal.Open(path)
-    band = ds.GetRasterBand(1)
-    values = band.ReadAsArray().astype(float)
-    if band.GetNoDataValue() is not None:
-        values[values == band.GetNoDataValue()] = np.nan
-    return values
+    return read_raster(path)[0]
 
 
 @pytest.fixture(scope="module")
@@ -116,8 +99,8 @@ def test_a_hole_filled_and_flagged_and_a_void_dsm_refused(scene, tmp_path):
     """A hole of 20 x 20 cells punched inside the DSM: Bulldozer fills it, the mask says so (1), the DHM has no value
     there. A DSM of nodata only: refused, nothing written."""
     ds = gdal.Open(scene["dsm"])
-    values = ds.GetRasterBand(1).ReadAsArray()
-    values[400:420, 400:420] = -32768
+    values, nodata = ds.GetRasterBand(1).ReadAsArray(), ds.GetRasterBand(1).GetNoDataValue()
+    values[400:420, 400:420] = nodata
     holed = str(tmp_path / "holed.tif")
     out = gdal.GetDriverByName("GTiff").CreateCopy(holed, ds)
     out.GetRasterBand(1).WriteArray(values)
@@ -129,7 +112,7 @@ def test_a_hole_filled_and_flagged_and_a_void_dsm_refused(scene, tmp_path):
     assert (mask[hole] == 1).all() and np.isfinite(dtm[hole]).all() and np.isnan(dhm[hole]).all()
     void = str(tmp_path / "void.tif")
     out = gdal.GetDriverByName("GTiff").CreateCopy(void, ds)
-    out.GetRasterBand(1).Fill(-32768)
+    out.GetRasterBand(1).Fill(nodata)
     out = None
     with pytest.raises(InputError, match="holds no valid height"):
         extract_dtm(void, DtmOutputs(str(tmp_path / "void_dtm.tif")), DtmParams(tile=256))

@@ -4,41 +4,26 @@ another cell size resampled and said, DEMs that do not overlap refused, the resu
 
 import numpy as np
 import pytest
-from osgeo import gdal, osr
 
+from pushbroom.algorithms import crs
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.products import merge_dems as merge
 from pushbroom.algorithms.surface.geotiff import write_float_raster
-
-CELL = 10.0
-ORIGIN = (500_000.0, 4_800_000.0)
-
-
-def terrain(x, y):
-    return (
-        300 + 40 * np.sin(x / 230.0) * np.cos(y / 310.0) + 25 * np.sin((x + y) / 150.0) + 10 * np.cos(x / 90 - y / 120)
-    )
-
-
-def utm():
-    srs = osr.SpatialReference()
-    srs.ImportFromEPSG(32631)
-    return srs
+from tests.helpers.dem_cloud import read_raster
+from tests.helpers.dem_shift import CELL, ORIGIN, UTM, centres, terrain
+from tests.helpers.feedback import Feedback
 
 
 def raster(folder, name, values, col0, row0, cell=CELL, shift=(0.0, 0.0)):
     """A raster of `values` whose corner is cell (col0, row0) of the lattice at ORIGIN, its grid moved by `shift`."""
     gt = (ORIGIN[0] + col0 * CELL - shift[0], cell, 0, ORIGIN[1] - row0 * CELL - shift[1], 0, -cell)
-    return str(write_float_raster(str(folder / name), values, gt, utm()))
+    return str(write_float_raster(str(folder / name), values, gt, crs.srs(UTM)))
 
 
-def surface(col0, row0, cols, rows, cell=CELL, shift=(0.0, 0.0)):
-    """The terrain at the cells' centres (moved by -shift: DEM(x) = terrain(x + shift))."""
-    x = ORIGIN[0] + col0 * CELL + (np.arange(cols) + 0.5) * cell
-    y = ORIGIN[1] - row0 * CELL - (np.arange(rows) + 0.5) * cell
-    xx, yy = np.meshgrid(x, y)
-    return terrain(xx, yy)
+def surface(col0, row0, cols, rows, cell=CELL):
+    """The terrain at the centres of the cells from cell (col0, row0) of the lattice at ORIGIN on."""
+    return terrain(*centres((ORIGIN[0] + col0 * CELL, ORIGIN[1] - row0 * CELL), cols, cell, rows))
 
 
 @pytest.fixture(scope="module")
@@ -59,11 +44,8 @@ def dems(tmp_path_factory):
 
 
 def read(path):
-    ds = gdal.Open(path)
-    band = ds.GetRasterBand(1)
-    values = band.ReadAsArray().astype(float)
-    values[values == band.GetNoDataValue()] = np.nan
-    return values, ds.GetGeoTransform()
+    """(values with NaN nodata, geotransform) of band 1 of `path`."""
+    return read_raster(path)[:2]
 
 
 def run(dems, tmp_path, **settings):
@@ -95,24 +77,6 @@ def test_coregistered_inverse_variance_mean_without_a_seam(dems, tmp_path):
     assert across < 1.15 * inside, (across, inside)
 
 
-class Log:
-    """A feedback that keeps its messages."""
-
-    def __init__(self):
-        self.messages = []
-
-    def pushInfo(self, text):
-        self.messages.append(text)
-
-    pushWarning = reportError = pushInfo
-
-    def setProgress(self, value):
-        pass
-
-    def isCanceled(self):
-        return False
-
-
 def test_outliers_left_out_and_other_cells_said(dems, tmp_path):
     """A third DEM at 20 m cells (resampled, and said) with a 30 m blunder over a block where all three overlap: left
     out there, counted (B is not co-registered here: its 6 m shift costs up to 3 m)."""
@@ -123,7 +87,7 @@ def test_outliers_left_out_and_other_cells_said(dems, tmp_path):
     sc = raster(folder, "sc.tif", np.full((100, 100), 0.3), 0, 0, cell=20.0)
     outputs = merge.MergeOutputs(str(tmp_path / "m3.tif"), count=str(tmp_path / "n3.tif"))
     params = merge.MergeParams((dems["a"], dems["b"], third), (dems["sa"], dems["sb"], sc), coregister=False)
-    log = Log()
+    log = Feedback()
     result = merge.merge_dems(params, outputs, log)
     h, _ = read(outputs.dem)
     n, _ = read(outputs.count)

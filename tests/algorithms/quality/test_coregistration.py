@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from osgeo import gdal, osr
 
+from pushbroom.algorithms import crs
 from pushbroom.algorithms.errors import InputError
 from pushbroom.algorithms.execution import Execution
 from pushbroom.algorithms.quality.coregister_dem import CoregisterDemParams, coregister_dem
@@ -17,23 +18,11 @@ from pushbroom.algorithms.quality.coregistration import (
 )
 from pushbroom.algorithms.quality.height_differences import Reference
 from pushbroom.algorithms.surface.geotiff import NODATA, write_float_raster
+from tests.helpers.dem_shift import CELL, ORIGIN, UTM, centres, terrain
 
-CELL = 10.0
-ORIGIN = (500_000.0, 4_800_000.0)
 SHIFT = (7.3, -4.1)
 UP = 2.2
 TILT = (1e-4, -0.5e-4)
-
-
-def terrain(x, y):
-    """Hills of 200-500 m wavelength, slopes facing every way."""
-    return (
-        300 + 40 * np.sin(x / 230.0) * np.cos(y / 310.0) + 25 * np.sin((x + y) / 150.0) + 10 * np.cos(x / 90 - y / 120)
-    )
-
-
-def centres(origin, n, cell=CELL):
-    return np.meshgrid(origin[0] + (np.arange(n) + 0.5) * cell, origin[1] - (np.arange(n) + 0.5) * cell)
 
 
 def write(path, values, origin, srs, cell=CELL):
@@ -45,8 +34,7 @@ def rasters(tmp_path_factory):
     """The reference (300 x 300 cells) and a DEM (250 x 250, its grid 123 m east and 77 m south of the reference's)
     of the terrain at its cells moved by SHIFT, UP m higher and tilted by TILT about its centre, 0.5 m noise."""
     folder = tmp_path_factory.mktemp("coreg")
-    srs = osr.SpatialReference()
-    srs.ImportFromEPSG(32631)
+    srs = crs.srs(UTM)
     x, y = centres(ORIGIN, 300)
     reference = write(folder / "reference.tif", terrain(x, y), ORIGIN, srs)
     origin = (ORIGIN[0] + 123.0, ORIGIN[1] - 77.0)
@@ -132,7 +120,7 @@ def test_other_vertical_datums_are_refused(rasters):
 
 def test_masked_cells_are_left_out(rasters):
     """A block of 'forest' 20 m above the ground over a quarter of the DEM: the mask leaves it out exactly (the
-    shift as without it); without the mask, the outlier bound has to."""
+    shift as without it); without the mask, the outlier bound leaves it out of the fit (the statistics keep it)."""
     folder, srs, origin = rasters["folder"], rasters["srs"], rasters["origin"]
     heights = rasters["heights"].copy()
     heights[:125, :125] += 20.0
@@ -145,6 +133,9 @@ def test_masked_cells_are_left_out(rasters):
     assert_recovered(masked.shift)
     assert masked.after.n < 0.78 * 250 * 250
     assert abs(masked.after.median) < 0.01 and masked.after.nmad < 0.05
+    unmasked = coregister(dem, Reference(rasters["reference"]), CoregParams(tilt=True))
+    assert_recovered(unmasked.shift)  # the block's 20 m lie beyond 3 NMAD of the median: left out of the fit
+    assert unmasked.after.q95 > 19.0  # the statistics after the shift keep them
 
 
 def test_a_shift_that_does_not_converge_is_said_with_the_last_shift(rasters):
